@@ -1,0 +1,78 @@
+/* sepbrdf: result codes, the context and small shared helpers.
+ *
+ * Every library function returns an sb_result_t (SB_OK == 0).  Details of a
+ * failure ("theta count 0, need at least 2") go to the error callback of the
+ * context and are kept as its last message; the library never prints, exits
+ * or aborts on bad input. */
+#ifndef SEPBRDF_COMMON_H
+#define SEPBRDF_COMMON_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SB_VERSION_MAJOR 0
+#define SB_VERSION_MINOR 1
+#define SB_VERSION_PATCH 0
+#define SB_VERSION_STRING "0.1.0"
+
+#define SB_PI 3.14159265358979323846
+
+typedef enum sb_result {
+    SB_OK = 0,
+    SB_ERR_ARG,         /* invalid argument (NULL, bad enum, bad option value) */
+    SB_ERR_RANGE,       /* a number outside its allowed range */
+    SB_ERR_PARSE,       /* malformed text: model spec, number, table line */
+    SB_ERR_UNKNOWN,     /* unknown model, key, preset or format */
+    SB_ERR_NOMEM,       /* allocation failed */
+    SB_ERR_OVERFLOW,    /* a size product overflows or exceeds the memory limit */
+    SB_ERR_IO,          /* file could not be opened, read or written */
+    SB_ERR_FORMAT,      /* file content is not what its format requires */
+    SB_ERR_NUMERIC,     /* LAPACK failure, non-finite result */
+    SB_ERR_UNSUPPORTED, /* valid request this build or combination cannot do */
+    SB_RESULT_COUNT_
+} sb_result_t;
+
+/* Static name ("SB_ERR_RANGE") and one-line description of a code. */
+const char *sb_result_name(sb_result_t r);
+const char *sb_result_message(sb_result_t r);
+
+typedef void (*sb_error_fn)(void *user, sb_result_t code, const char *message);
+
+typedef struct sb_context sb_context_t;
+
+/* Create a context.  The default callback does nothing; the last message is
+ * always kept and readable with sb_context_last_error(). */
+sb_result_t sb_context_create(sb_context_t **out);
+void sb_context_destroy(sb_context_t *ctx); /* accepts NULL */
+void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user);
+/* Last detailed message, "" if none.  Owned by the context. */
+const char *sb_context_last_error(const sb_context_t *ctx);
+void sb_context_clear_error(sb_context_t *ctx);
+
+/* Report an error through the context (ctx may be NULL) and return `code`.
+ * Used by every module; public so that sources written outside the library
+ * can report in the same way. */
+sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* Overflow-checked size arithmetic: return 0 and set *out, or 1 on overflow. */
+int sb_size_mul(size_t a, size_t b, size_t *out);
+int sb_size_mul3(size_t a, size_t b, size_t c, size_t *out);
+int sb_size_add(size_t a, size_t b, size_t *out);
+
+/* Allocation limit used for up-front refusal of huge requests (bytes).
+ * Default: 3/4 of physical memory.  0 restores the default. */
+void sb_set_memory_limit(size_t bytes);
+size_t sb_memory_limit(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,46 @@
+/* sepbrdf: factor textures as OpenEXR files (OpenEXRCore, C API only).
+ *
+ * Layout: one scanline EXR per texture of each term, in one folder:
+ *     g_00.exr, h_00.exr, g_01.exr, h_01.exr, ...   (term index, 0-based)
+ * Channels R, G, B (or Y for a single-channel factorisation), FLOAT (32 bit)
+ * by default, HALF with per-term scales when asked.  Width x height as the
+ * parameterisation's texture size; texel (x, y) of the factor is pixel
+ * (x, y) of the image (data window starting at 0, 0).
+ *
+ * Header attributes (all files of one factorisation carry the same):
+ *   sepbrdf.version (string), sepbrdf.side ("g"|"h"), sepbrdf.term (int),
+ *   sepbrdf.terms (int J), sepbrdf.channels (int), sepbrdf.sigma
+ *   (floatvector, sigma_j per channel of this term), sepbrdf.scale (float:
+ *   stored = value / scale; 1 for FLOAT), and every factors metadata key as a
+ *   string attribute "sepbrdf.<key>" (param, source, form, method, rel_rms
+ *   per J as text, ...). */
+#ifndef SEPBRDF_EXR_H
+#define SEPBRDF_EXR_H
+
+#include "common.h"
+#include "factor.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sb_exr_opts {
+    int half;      /* store HALF with a per-term scale instead of FLOAT */
+} sb_exr_opts_t;
+
+/* Write all terms of f into directory `dir` (must exist).  Each file is
+ * written under a temporary name and renamed when complete. */
+sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir,
+                                 const sb_exr_opts_t *opts);
+
+/* Read the factors in `dir` written by sb_factors_write_exr (the number of
+ * terms from the files' headers).  Values are the stored ones, exactly. */
+sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out);
+
+/* File name of one texture: "g_00.exr" etc. written into buf. */
+void sb_exr_name(int side, size_t term, char *buf, size_t size);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

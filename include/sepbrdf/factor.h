@@ -1,0 +1,98 @@
+/* sepbrdf: factorisation plan, factors and reconstruction.
+ *
+ * For each channel c the plan computes the truncated SVD of the sampled
+ * matrix M_c ~ sum_j sigma_j u_j v_j^T and stores the texture pairs
+ *     g_j = sqrt(sigma_j) u_j   (row domain, e.g. incoming directions)
+ *     h_j = sqrt(sigma_j) v_j   (column domain, e.g. outgoing directions)
+ * with the sign of each pair chosen so that sum(g_j) >= 0 (the product is
+ * unchanged).  Errors are measured on the valid cells of M for every
+ * J' = 1..J by explicit residuals: rel_rms = ||M - M_J'||_F / ||M||_F. */
+#ifndef SEPBRDF_FACTOR_H
+#define SEPBRDF_FACTOR_H
+
+#include "common.h"
+#include "matrix.h"
+#include "param.h"
+#include "svd.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- factors ----------------------------------------------------------- */
+
+typedef struct sb_factors sb_factors_t;
+
+/* Empty factors: `terms` pairs of `channels` (1 or 3) textures, g of
+ * g_w x g_h texels, h of h_w x h_h texels, all zero. */
+sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h,
+                              size_t h_w, size_t h_h, sb_factors_t **out);
+void sb_factors_destroy(sb_factors_t *f);
+
+size_t sb_factors_terms(const sb_factors_t *f);
+size_t sb_factors_channels(const sb_factors_t *f);
+void sb_factors_size(const sb_factors_t *f, int side, size_t *width, size_t *height);
+/* Texture of term j, channel c: width*height doubles, row-major. */
+double *sb_factors_tex(sb_factors_t *f, int side, size_t term, size_t channel);
+const double *sb_factors_tex_const(const sb_factors_t *f, int side, size_t term, size_t channel);
+double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t channel);
+void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t channel, double sigma);
+
+/* String metadata (copied).  Keys used by the library: "param" (param spec),
+ * "source" (source description), "form" (f|cos|cos2), "method". */
+sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value);
+const char *sb_factors_get_meta(const sb_factors_t *f, const char *key); /* NULL if absent */
+size_t sb_factors_meta_count(const sb_factors_t *f);
+void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value);
+
+/* Errors per number of terms, filled by sb_plan_execute (all zero before).
+ * rel_rms[t * 4 + c]: after t+1 terms, channel c (0..2), index 3 = all
+ * channels together; same layout for max_abs.  norm[c]: ||M_c||_F. */
+typedef struct sb_factor_errors {
+    size_t terms;
+    double *rel_rms;
+    double *max_abs;
+    double norm[4];
+} sb_factor_errors_t;
+const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f);
+sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f);
+
+/* Value of the first `terms` terms at matrix cell (row, col), channel c:
+ * sum_j g_j[row] h_j[col]. */
+double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);
+
+/* Texture lookup with the GL conventions of param.h (bilinear, wrap). */
+double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term,
+                         size_t channel, const double st[2]);
+
+/* Reconstructed f_r(wi, wo) from the first `terms` terms through texture
+ * lookups exactly as the GLSL snippet does, divided back by the form
+ * weight.  Returns 0 (rgb = 0) outside the domain. */
+int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms,
+                    const double wi[3], const double wo[3], double rgb[3]);
+
+/* ---- plan ------------------------------------------------------------- */
+
+typedef struct sb_plan_opts {
+    size_t terms;        /* J, default 4; with max_error: the upper limit */
+    double max_error;    /* stop at the first J' with rel_rms <= max_error; 0 = off */
+    sb_svd_opts_t svd;   /* method and its parameters */
+} sb_plan_opts_t;
+
+typedef struct sb_plan sb_plan_t;
+
+sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
+                           sb_plan_t **out);
+void sb_plan_destroy(sb_plan_t *plan);
+size_t sb_plan_terms(const sb_plan_t *plan);
+
+/* Factor every channel of m.  *out receives new factors (texture sizes from
+ * `param`), with sigma, errors and the meta keys "param", "form", "method".
+ * A channel missing in m (data[c] == NULL) is not computed. */
+sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param,
+                            sb_factors_t **out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,36 @@
+/* sepbrdf: the GLSL snippet that evaluates the factors in a shader.
+ *
+ * The snippet (GLSL 3.30 core) declares
+ *     uniform sampler2DArray sb_g;   // layer j = g_j, RGB
+ *     uniform sampler2DArray sb_h;   // layer j = h_j, RGB
+ *     vec3 sb_brdf(vec3 L, vec3 V);  // f_r(L, V), L and V unit, tangent frame
+ * and computes sum_j g_j(L) h_j(V) with the same direction -> texture
+ * coordinate mapping and texel-centre convention as sb_factors_eval(), then
+ * divides back the factored form (cos theta_i, cos theta_o). */
+#ifndef SEPBRDF_GLSL_H
+#define SEPBRDF_GLSL_H
+
+#include "common.h"
+#include "factor.h"
+#include "param.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The generic part shipped with the tool (data/sepbrdf.glsl). */
+const char *sb_glsl_library(void);
+
+/* Full snippet for one factorisation: #defines (SB_TERMS, form, scales),
+ * the parameterisation's sb_coords() and the generic evaluation.  The
+ * returned string is malloc'ed; the caller frees it.  NULL on no memory. */
+char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales);
+
+/* Write the snippet to `path` (temporary name, then rename). */
+sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
+                          size_t terms, const double *scales);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

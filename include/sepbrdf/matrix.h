@@ -1,0 +1,57 @@
+/* sepbrdf: sampling a source into matrices, one per colour channel.
+ *
+ * M_c[row, col] = form(f_r,c(wi, wo)) at the centres given by the
+ * parameterisation, column-major with leading dimension ld = rows:
+ * element (r, c) is data[c][r + c * ld].
+ *   SB_FORM_F    f_r
+ *   SB_FORM_COS  f_r cos(theta_i)
+ *   SB_FORM_COS2 f_r cos(theta_i) cos(theta_o)
+ * Cells outside the BRDF domain or missing in a measured table are 0 in
+ * `mask` (NULL = every cell valid) and hold 0 in data. */
+#ifndef SEPBRDF_MATRIX_H
+#define SEPBRDF_MATRIX_H
+
+#include "common.h"
+#include "param.h"
+#include "source.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sb_form { SB_FORM_F = 0, SB_FORM_COS, SB_FORM_COS2, SB_FORM_COUNT_ } sb_form_t;
+
+sb_result_t sb_form_parse(const char *name, sb_form_t *out); /* "f", "cos", "cos2" */
+const char *sb_form_name(sb_form_t form);
+/* The factor that turns f_r into the stored form for this pair. */
+double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
+
+typedef struct sb_matrix_opts {
+    sb_form_t form;     /* default SB_FORM_F */
+    unsigned channels;  /* bit mask of channels to build (1 R, 2 G, 4 B); 0 = all */
+    int threads;        /* 0 = all cores */
+} sb_matrix_opts_t;
+
+typedef struct sb_matrix {
+    size_t rows, cols, ld;
+    unsigned channels;     /* bit mask of channels present */
+    double *data[3];       /* NULL for channels not built */
+    unsigned char *mask;   /* rows * cols column-major, 1 = valid; NULL = all */
+    size_t valid_count;    /* number of valid cells */
+    size_t measured_count; /* valid cells the source reported as known */
+    sb_form_t form;
+} sb_matrix_t;
+
+/* Sample `src` on `param`.  On success *out owns its buffers (sb_matrix_free).
+ * Errors: SB_ERR_ARG, SB_ERR_OVERFLOW (size or memory limit), SB_ERR_NOMEM. */
+sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                            const sb_matrix_opts_t *opts, sb_matrix_t *out);
+void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */
+
+/* Frobenius norm of channel c over valid cells. */
+double sb_matrix_norm(const sb_matrix_t *m, int channel);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

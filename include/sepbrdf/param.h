@@ -1,0 +1,91 @@
+/* sepbrdf: parameterisations, the single place that knows how a direction
+ * pair maps to a matrix cell and how a direction maps to a texture coordinate.
+ *
+ * A parameterisation splits a pair (wi, wo) into a "row" domain and a
+ * "column" domain.  Row r is texel r of the g textures, column c texel c of
+ * the h textures; textures are stored row-major (x fastest): texel (x, y) is
+ * index y * width + x.  Texture coordinates follow OpenGL: st in [0,1]^2,
+ * texel x has its centre at s = (x + 0.5) / width; bilinear filtering between
+ * centres; per-axis wrap CLAMP (clamp to edge) or REPEAT.
+ *
+ * io (the seeds' grid): a direction is (theta, phi), theta in [0, theta_max]
+ * (theta_max = pi/2 unless limited), phi in [0, 2 pi), R cells each, centres.
+ * Sequential index k = R * i_phi + i_theta (theta varies fastest), so the
+ * texture has x = theta index (s = theta / theta_max, CLAMP) and y = phi
+ * index (t = phi / 2pi, REPEAT).  Rows = wi, columns = wo, N = R^2 each. */
+#ifndef SEPBRDF_PARAM_H
+#define SEPBRDF_PARAM_H
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sb_param_kind {
+    SB_PARAM_IO = 0,  /* seeds' theta-phi grid for (wi, wo) */
+    SB_PARAM_IO_AREA, /* (wi, wo) on an equal-area (concentric) hemisphere map */
+    SB_PARAM_HD,      /* half / difference vectors, Gram-Schmidt frame */
+    SB_PARAM_ISO,     /* rows theta_h, columns (theta_d, phi_d), isotropic */
+    SB_PARAM_KIND_COUNT_
+} sb_param_kind_t;
+
+enum { SB_WRAP_CLAMP = 0, SB_WRAP_REPEAT = 1 };
+enum { SB_SIDE_G = 0, SB_SIDE_H = 1 }; /* row textures g, column textures h */
+
+typedef struct sb_param_opts {
+    size_t res;       /* R: cells per angular axis (default 32) */
+    size_t res_theta_h, res_theta_d, res_phi_d; /* iso only; 0 = from res */
+    double theta_max; /* largest sampled elevation in radians (io), 0 = pi/2 */
+} sb_param_opts_t;
+
+typedef struct sb_param sb_param_t;
+
+/* Parse a name ("io", "io-area", "hd", "iso"); SB_ERR_UNKNOWN otherwise. */
+sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
+const char *sb_param_kind_name(sb_param_kind_t kind);
+
+sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts,
+                            sb_param_t **out);
+void sb_param_destroy(sb_param_t *p);
+
+sb_param_kind_t sb_param_kind(const sb_param_t *p);
+const char *sb_param_name(const sb_param_t *p);
+/* Canonical spec string, e.g. "io:res=32" or "iso:th=90,td=90,pd=180". */
+const char *sb_param_spec(const sb_param_t *p);
+size_t sb_param_rows(const sb_param_t *p);
+size_t sb_param_cols(const sb_param_t *p);
+void sb_param_texture_size(const sb_param_t *p, int side, size_t *width, size_t *height);
+void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]);
+double sb_param_theta_max(const sb_param_t *p);
+
+/* Directions at the centre of matrix cell (row, col).  Returns 1 if the pair
+ * is a BRDF pair (both directions above the horizon), 0 if the cell lies
+ * outside the BRDF domain (then wi/wo are unspecified). */
+int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
+
+/* Solid-angle measure associated with a row / a column cell, so that
+ * sum_r sum_c m_r m_c f(r,c) approximates the integral over the domain. */
+double sb_param_row_measure(const sb_param_t *p, size_t row);
+double sb_param_col_measure(const sb_param_t *p, size_t col);
+
+/* Continuous texture coordinates of an arbitrary pair for the g and h
+ * textures (GL convention above).  Returns 0 when the pair is outside the
+ * domain (below the horizon, or beyond theta_max). */
+int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2],
+                    double st_h[2]);
+
+/* GLSL source defining `vec4 sb_coords(vec3 L, vec3 V)` (xy: g coordinate,
+ * zw: h coordinate) and `bool sb_domain(vec3 L, vec3 V, vec4 st)` that
+ * compute exactly sb_param_coords() and its return value.  It may use the
+ * constants SB_PI and SB_THETA_MAX defined by the snippet header. */
+const char *sb_param_glsl(const sb_param_t *p);
+
+/* Unit direction <-> spherical angles in the local frame, phi in [0, 2pi). */
+void sb_dir_from_angles(double theta, double phi, double w[3]);
+void sb_dir_to_angles(const double w[3], double *theta, double *phi);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

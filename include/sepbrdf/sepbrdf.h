@@ -1,0 +1,15 @@
+/* sepbrdf: separable BRDF approximations (umbrella header). */
+#ifndef SEPBRDF_SEPBRDF_H
+#define SEPBRDF_SEPBRDF_H
+
+#include "common.h"
+#include "exr.h"
+#include "factor.h"
+#include "glsl.h"
+#include "matrix.h"
+#include "models.h"
+#include "param.h"
+#include "source.h"
+#include "svd.h"
+
+#endif

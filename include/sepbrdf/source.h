@@ -1,0 +1,56 @@
+/* sepbrdf: the one interface of every BRDF source.
+ *
+ * Directions are unit vectors in the local shading frame: z is the surface
+ * normal, x the tangent, y the bitangent.  Both point away from the surface:
+ * wi towards the light (l), wo towards the viewer (v).  A source returns the
+ * RGB value of f_r(wi, wo) in 1/sr.  Directions below the horizon (z <= 0)
+ * give 0 for analytic sources. */
+#ifndef SEPBRDF_SOURCE_H
+#define SEPBRDF_SOURCE_H
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Properties a source declares; used to skip work (symmetric matrix build,
+ * isotropic parameterisations) and to pick defaults. */
+enum {
+    SB_SOURCE_RECIPROCAL = 1u << 0, /* f(wi, wo) == f(wo, wi) */
+    SB_SOURCE_ISOTROPIC = 1u << 1,  /* depends on phi_o - phi_i only */
+    SB_SOURCE_MEASURED = 1u << 2,   /* a table: some pairs may be missing */
+    SB_SOURCE_GRAY = 1u << 3        /* R == G == B everywhere */
+};
+
+typedef struct sb_source_ops {
+    /* Write f_r(wi, wo) to rgb[0..2].  Return 1 when the value is known
+     * (analytic, measured or interpolated), 0 when the pair is missing
+     * (rgb is then set to 0).  Must be thread-safe (called in parallel). */
+    int (*eval)(const void *self, const double wi[3], const double wo[3], double rgb[3]);
+    void (*destroy)(void *self); /* may be NULL */
+} sb_source_ops_t;
+
+typedef struct sb_source sb_source_t;
+
+/* Wrap an implementation.  The source takes ownership of `self` (destroyed
+ * through ops->destroy).  `description` is copied. */
+sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self,
+                             unsigned flags, const char *description, sb_source_t **out);
+void sb_source_destroy(sb_source_t *src); /* accepts NULL */
+
+/* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t). */
+int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]);
+unsigned sb_source_flags(const sb_source_t *src);
+const char *sb_source_description(const sb_source_t *src);
+void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation */
+
+/* Open a source from a user string: a model spec "MODEL[:key=value,...]"
+ * (see models.h) or, when the string names an existing file, a measured
+ * table (format by extension and content, see measured.h). */
+sb_result_t sb_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

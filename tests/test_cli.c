@@ -1,0 +1,117 @@
+/* CLI: the real binary, its exit codes, files and messages. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+
+static char out[65536];
+
+static int run(const char *fmt, const char *arg) {
+    char cmd[4096];
+    char tail[3000];
+    snprintf(tail, sizeof tail, fmt, arg);
+    snprintf(cmd, sizeof cmd, "%s %s", SB_CLI, tail);
+    return sb_run(cmd, out, sizeof out);
+}
+
+static double json_first_number(const char *path, const char *key) {
+    FILE *fp = fopen(path, "r");
+    if (!fp) return NAN;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    buf[n] = 0;
+    fclose(fp);
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    const char *p = strstr(buf, pat);
+    return p ? atof(p + strlen(pat)) : NAN;
+}
+
+static int dir_is_empty_or_missing(const char *dir) {
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "test ! -e %s || test -z \"$(ls -A %s)\"", dir, dir);
+    return sb_run(cmd, NULL, 0) == 0;
+}
+
+SB_TEST(default_job) {
+    const char *dir = sb_tmpdir("cli");
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char path[1024];
+    for (int j = 0; j < 4; j++) {
+        snprintf(path, sizeof path, "%s/sepbrdf-out/g_%02d.exr", dir, j);
+        CHECKF(sb_file_exists(path), "missing %s", path);
+        snprintf(path, sizeof path, "%s/sepbrdf-out/h_%02d.exr", dir, j);
+        CHECKF(sb_file_exists(path), "missing %s", path);
+    }
+    snprintf(path, sizeof path, "%s/sepbrdf-out/g_04.exr", dir);
+    CHECK(!sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/sepbrdf-out/sepbrdf.glsl", dir);
+    CHECK(sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/sepbrdf-out/report.json", dir);
+    CHECK(sb_file_exists(path));
+    CHECK(strstr(out, "rel_rms") != NULL);
+}
+
+SB_TEST(lambert_exact) {
+    const char *dir = sb_tmpdir("cli");
+    int rc = run("factor lambert:albedo=0.8 --res 16 --terms 1 -q -o %s", dir);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    double e = json_first_number(path, "rel_rms");
+    CHECKF(e >= 0 && e < 1e-12, "rel_rms %g", e);
+    CHECK(out[0] == 0); /* -q prints nothing */
+}
+
+SB_TEST(bad_res) {
+    const char *dir = sb_tmpdir("cli");
+    char sub[1100];
+    snprintf(sub, sizeof sub, "%s/o", dir);
+    CHECK(run("factor --res 0 -o %s", sub) == 1);
+    CHECK(strstr(out, "--res") != NULL);
+    CHECK(dir_is_empty_or_missing(sub));
+}
+
+SB_TEST(bad_terms) {
+    const char *dir = sb_tmpdir("cli");
+    char sub[1100];
+    snprintf(sub, sizeof sub, "%s/o", dir);
+    CHECK(run("factor --terms -3 --out %s", sub) == 1);
+    CHECK(strstr(out, "--terms") != NULL);
+    CHECK(dir_is_empty_or_missing(sub));
+    CHECK(run("factor --terms 300 --res 4 --out %s", sub) == 1);
+    CHECK(strstr(out, "--terms") != NULL);
+    CHECK(dir_is_empty_or_missing(sub));
+}
+
+SB_TEST(unknown_model) {
+    const char *dir = sb_tmpdir("cli");
+    char sub[1100];
+    snprintf(sub, sizeof sub, "%s/o", dir);
+    CHECK(run("factor nosuchmodel -o %s", sub) == 1);
+    CHECK(strstr(out, "nosuchmodel") != NULL);
+    CHECK(dir_is_empty_or_missing(sub));
+    CHECK(run("factor lambert:albedo=2 -o %s", sub) == 1);
+    CHECK(strstr(out, "albedo") != NULL);
+    CHECK(run("factor microfacet:roughness=abc -o %s", sub) == 1);
+    CHECK(strstr(out, "roughness") != NULL);
+    CHECK(dir_is_empty_or_missing(sub));
+}
+
+SB_TEST(bad_option) {
+    CHECK(run("factor --bogus%s", "") == 1);
+    CHECK(strstr(out, "--bogus") != NULL);
+    CHECK(run("nosuchcommand%s", "") == 1);
+    CHECK(run("--help%s", "") == 0);
+    CHECK(run("factor --help%s", "") == 0);
+    CHECK(strstr(out, "--res") != NULL);
+    CHECK(run("--version%s", "") == 0);
+}
+
+SB_TEST(list) {
+    CHECK(run("list%s", "") == 0);
+    CHECK(strstr(out, "lambert") && strstr(out, "microfacet") && strstr(out, "gold"));
+}

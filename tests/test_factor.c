@@ -1,0 +1,278 @@
+/* Factorisation: matrix layout, Eckart-Young errors, signs, reconstruction. */
+#include <lapacke.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+/* A deliberately non-reciprocal, anisotropic source with known values. */
+static int probe_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    (void)self;
+    rgb[0] = 1 + wi[0] + 2 * wo[1] + 3 * wi[2] * wo[2];
+    rgb[1] = rgb[0] * 0.5 + wo[0] * wo[0];
+    rgb[2] = exp(wi[0] * wo[1]);
+    return 1;
+}
+
+static sb_source_t *probe_source(void) {
+    sb_source_ops_t ops = {probe_eval, NULL};
+    sb_source_t *s = NULL;
+    CHECK(sb_source_create(NULL, &ops, NULL, 0, "probe", &s) == SB_OK);
+    return s;
+}
+
+static sb_source_t *model(const char *spec) {
+    sb_source_t *s = NULL;
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_result_t r = sb_model_create(ctx, spec, &s);
+    CHECKF(r == SB_OK, "model %s: %s", spec, sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+    return s;
+}
+
+static sb_param_t *io(size_t R) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = R;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
+    return p;
+}
+
+/* M[k][l] = f(w_i^k, w_o^l), k = R i_phi + i_theta, column-major. */
+SB_TEST(matrix_layout) {
+    size_t R = 5;
+    sb_source_t *s = probe_source();
+    sb_param_t *p = io(R);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    CHECK(m.rows == R * R && m.cols == R * R && m.ld == R * R && m.mask == NULL);
+    double dt = SB_PI / 2 / R, dp = 2 * SB_PI / R;
+    for (size_t k = 0; k < R * R; k += 3)
+        for (size_t l = 0; l < R * R; l += 2) {
+            double ti = ((k % R) + 0.5) * dt, pi_ = ((k / R) + 0.5) * dp;
+            double to = ((l % R) + 0.5) * dt, po = ((l / R) + 0.5) * dp;
+            double wi[3] = {sin(ti) * cos(pi_), sin(ti) * sin(pi_), cos(ti)};
+            double wo[3] = {sin(to) * cos(po), sin(to) * sin(po), cos(to)};
+            double rgb[3];
+            probe_eval(NULL, wi, wo, rgb);
+            for (int c = 0; c < 3; c++) CHECK_REL(m.data[c][k + l * m.ld], rgb[c], 1e-14);
+        }
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* Independent singular values with LAPACK dgesvd (not the dgesdd path). */
+static double *reference_sigma(const double *a, size_t n) {
+    double *c = malloc(n * n * sizeof *c), *s = malloc(n * sizeof *s), *sup = malloc(n * sizeof *sup);
+    memcpy(c, a, n * n * sizeof *c);
+    lapack_int info = LAPACKE_dgesvd(LAPACK_COL_MAJOR, 'N', 'N', (lapack_int)n, (lapack_int)n, c, (lapack_int)n, s,
+                                     NULL, 1, NULL, 1, sup);
+    CHECK(info == 0);
+    free(c);
+    free(sup);
+    return s;
+}
+
+SB_TEST(eckart_young) {
+    size_t R = 8, J = 12, N = R * R;
+    const char *specs[] = {"microfacet:base=gold,roughness=0.5", "microfacet:roughness=0.2"};
+    for (int which = 0; which < 2; which++) {
+        sb_source_t *s = which < 2 ? model(specs[which]) : probe_source();
+        sb_param_t *p = io(R);
+        sb_matrix_t m;
+        CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+        sb_plan_opts_t po = {0};
+        po.terms = J;
+        po.svd.method = SB_METHOD_FULL;
+        sb_plan_t *plan;
+        sb_factors_t *f;
+        CHECK(sb_plan_create(NULL, N, N, &po, &plan) == SB_OK);
+        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        const sb_factor_errors_t *e = sb_factors_errors(f);
+        double tot2 = 0, tail2[64] = {0};
+        for (int c = 0; c < 3; c++) {
+            double *sig = reference_sigma(m.data[c], N), n2 = 0;
+            for (size_t k = 0; k < N; k++) n2 += sig[k] * sig[k];
+            tot2 += n2;
+            for (size_t j = 0; j < J; j++) {
+                double t2 = 0;
+                for (size_t k = j + 1; k < N; k++) t2 += sig[k] * sig[k];
+                tail2[j] += t2;
+                CHECK_REL(e->rel_rms[j * 4 + c], sqrt(t2 / n2), 1e-9);
+                CHECK_REL(sb_factors_sigma(f, j, c), sig[j], 1e-11);
+            }
+            free(sig);
+        }
+        for (size_t j = 0; j < J; j++) {
+            CHECK_REL(e->rel_rms[j * 4 + 3], sqrt(tail2[j] / tot2), 1e-9);
+            if (j) CHECK(e->rel_rms[j * 4 + 3] <= e->rel_rms[(j - 1) * 4 + 3]);
+        }
+        sb_factors_destroy(f);
+        sb_plan_destroy(plan);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+        sb_source_destroy(s);
+    }
+}
+
+SB_TEST(lambert_rank1) {
+    sb_source_t *s = model("lambert:albedo=0.8/0.5/0.2");
+    sb_param_t *p = io(16);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = 2;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    CHECKF(e->rel_rms[3] < 1e-12, "rel_rms %g", e->rel_rms[3]);
+    /* g_0 h_0 reconstructs albedo / pi everywhere */
+    double alb[3] = {0.8, 0.5, 0.2};
+    for (int c = 0; c < 3; c++)
+        for (size_t r = 0; r < m.rows; r += 7)
+            for (size_t col = 0; col < m.cols; col += 5) CHECK_REL(sb_factors_cell(f, 1, c, r, col), alb[c] / SB_PI, 1e-12);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+SB_TEST(sign_convention) {
+    sb_source_t *s = model("microfacet:base=copper,roughness=0.3");
+    sb_param_t *p = io(8);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = 8;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    for (size_t j = 0; j < 8; j++)
+        for (size_t c = 0; c < 3; c++) {
+            const double *g = sb_factors_tex_const(f, SB_SIDE_G, j, c);
+            double sum = 0, l1 = 0, big = 0;
+            for (size_t i = 0; i < m.rows; i++) {
+                sum += g[i];
+                l1 += fabs(g[i]);
+                if (fabs(g[i]) > fabs(big)) big = g[i];
+            }
+            if (fabs(sum) > 1e-8 * l1)
+                CHECKF(sum > 0, "term %zu channel %zu: sum(g) = %g", j, c, sum);
+            else
+                CHECKF(big > 0, "term %zu channel %zu: sum(g) ~ 0 and largest entry %g", j, c, big);
+        }
+    /* full reconstruction with all terms of a rank-limited plan matches the
+     * residual bookkeeping: |M - M_J| max equals the reported max_abs */
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    double mx = 0;
+    for (size_t col = 0; col < m.cols; col++)
+        for (size_t r = 0; r < m.rows; r++) {
+            double d = fabs(m.data[1][r + col * m.ld] - sb_factors_cell(f, 8, 1, r, col));
+            if (d > mx) mx = d;
+        }
+    CHECK_REL(e->max_abs[7 * 4 + 1], mx, 1e-9);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* Reconstruction through texture lookups hits the cell values exactly at
+ * cell centres, and a half-texel shift would be visible. */
+SB_TEST(lookup_cell_centres) {
+    size_t R = 6;
+    sb_source_t *s = probe_source();
+    sb_param_t *p = io(R);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = R * R;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    double wi[3], wo[3], rgb[3], ref[3];
+    for (size_t k = 0; k < R * R; k += 5)
+        for (size_t l = 0; l < R * R; l += 3) {
+            sb_param_cell_dirs(p, k, l, wi, wo);
+            CHECK(sb_factors_eval(f, p, SB_FORM_F, R * R, wi, wo, rgb) == 1);
+            probe_eval(NULL, wi, wo, ref);
+            for (int c = 0; c < 3; c++) CHECK_REL(rgb[c], ref[c], 1e-9);
+        }
+    /* between two theta centres the lookup is the linear blend */
+    size_t k0 = 2 * R + 1, l = 7;
+    double wa[3], wb[3], wm[3];
+    sb_param_cell_dirs(p, k0, l, wa, wo);
+    sb_param_cell_dirs(p, k0 + 1, l, wb, wo);
+    double ta, pa, tb, pb;
+    sb_dir_to_angles(wa, &ta, &pa);
+    sb_dir_to_angles(wb, &tb, &pb);
+    sb_dir_from_angles(0.5 * (ta + tb), pa, wm);
+    double ra[3], rb[3], rm[3];
+    sb_factors_eval(f, p, SB_FORM_F, R * R, wa, wo, ra);
+    sb_factors_eval(f, p, SB_FORM_F, R * R, wb, wo, rb);
+    sb_factors_eval(f, p, SB_FORM_F, R * R, wm, wo, rm);
+    CHECK_REL(rm[0], 0.5 * (ra[0] + rb[0]), 1e-9);
+    CHECK(fabs(ra[0] - rb[0]) > 1e-3); /* the blend is not trivially equal */
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+SB_TEST(plan_errors) {
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_plan_t *plan = NULL;
+    sb_plan_opts_t po = {0};
+    po.terms = 17;
+    CHECK(sb_plan_create(ctx, 16, 16, &po, &plan) == SB_ERR_RANGE && plan == NULL);
+    CHECK(strstr(sb_context_last_error(ctx), "--terms") != NULL);
+    po.terms = 2;
+    po.max_error = 1.5;
+    CHECK(sb_plan_create(ctx, 16, 16, &po, &plan) == SB_ERR_RANGE);
+    CHECK(sb_plan_create(ctx, 0, 16, NULL, &plan) == SB_ERR_ARG);
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = 1;
+    CHECK(sb_param_create(ctx, SB_PARAM_IO, &o, &p) == SB_ERR_RANGE && p == NULL);
+    CHECK(sb_factors_create(ctx, 0, 3, 1, 1, 1, 1, NULL) == SB_ERR_ARG);
+    sb_factors_t *f = NULL;
+    CHECK(sb_factors_create(ctx, 1, 2, 1, 1, 1, 1, &f) == SB_ERR_RANGE);
+    CHECK(strcmp(sb_result_name(SB_ERR_RANGE), "SB_ERR_RANGE") == 0);
+    CHECK(strlen(sb_result_message(SB_ERR_NUMERIC)) > 0);
+    sb_context_destroy(ctx);
+}
+
+SB_TEST(max_error_stops) {
+    sb_source_t *s = model("microfacet:base=gold,roughness=0.5");
+    sb_param_t *p = io(8);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = 16;
+    po.max_error = 0.2;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    size_t J = sb_factors_terms(f);
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    CHECK(J >= 1 && J <= 16);
+    CHECKF(e->rel_rms[(J - 1) * 4 + 3] <= 0.2, "J=%zu err %g", J, e->rel_rms[(J - 1) * 4 + 3]);
+    if (J > 1) CHECK(e->rel_rms[(J - 2) * 4 + 3] > 0.2);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
