@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fit.h"
 #include "internal.h"
 
 /* |sum(u)| below this fraction of sum|u| counts as zero for the sign rule. */
@@ -198,7 +199,12 @@ struct sb_plan {
     size_t rows, cols, terms;
     sb_plan_opts_t opts;
     sb_svd_t *svd;
-    double *s, *u, *v, *res;
+    sb_fit_t *fit;       /* created on the first masked execute */
+    double *s, *u, *v;
+    double *x;           /* weighted copy of a channel (weighted plans only) */
+    double *wr, *wc;     /* row / column weights (weighted plans only) */
+    double *col;         /* one residual column */
+    sb_plan_stats_t stats;
 };
 
 sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
@@ -213,7 +219,7 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
     if (o.terms > mn)
         return sb_error(ctx, SB_ERR_RANGE, "--terms %zu exceeds the matrix rank limit %zu; lower --terms or raise --res",
                         o.terms, mn);
-    if (o.max_error < 0 || o.max_error >= 1)
+    if (!(o.max_error >= 0 && o.max_error < 1))
         return sb_error(ctx, SB_ERR_RANGE, "--max-error %g out of range, need [0, 1)", o.max_error);
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
@@ -235,10 +241,19 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
     p->s = sb_alloc(ctx, o.terms, sizeof(double), "plan");
     p->u = sb_alloc(ctx, rows * o.terms, sizeof(double), "plan");
     p->v = sb_alloc(ctx, cols * o.terms, sizeof(double), "plan");
-    p->res = sb_alloc(ctx, cells, sizeof(double), "plan residual");
-    if (!p->s || !p->u || !p->v || !p->res) {
+    p->col = sb_alloc(ctx, rows, sizeof(double), "plan");
+    if (!p->s || !p->u || !p->v || !p->col) {
         sb_plan_destroy(p);
         return SB_ERR_NOMEM;
+    }
+    if (o.weighted) {
+        p->x = sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix");
+        p->wr = sb_alloc(ctx, rows, sizeof(double), "plan");
+        p->wc = sb_alloc(ctx, cols, sizeof(double), "plan");
+        if (!p->x || !p->wr || !p->wc) {
+            sb_plan_destroy(p);
+            return SB_ERR_NOMEM;
+        }
     }
     *out = p;
     return SB_OK;
@@ -247,37 +262,47 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
 void sb_plan_destroy(sb_plan_t *p) {
     if (!p) return;
     sb_svd_destroy(p->svd);
+    sb_fit_destroy(p->fit);
     free(p->s);
     free(p->u);
     free(p->v);
-    free(p->res);
+    free(p->x);
+    free(p->wr);
+    free(p->wc);
+    free(p->col);
     free(p);
 }
 
 size_t sb_plan_terms(const sb_plan_t *p) { return p->terms; }
+void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) { *out = p->stats; }
 
-/* Residual R = M - sum_{j<=J'} s_j u_j v_j^T, updated one term at a time;
- * after each term its Frobenius norm and max |R| over valid cells. */
-static void residual_norms(sb_plan_t *p, const sb_matrix_t *m, const double *a, size_t j, double *fro,
-                           double *maxabs) {
-    size_t rows = p->rows, cols = p->cols;
-    const double *u = p->u + j * rows, *v = p->v + j * cols;
-    double sj = p->s[j], ssq = 0, mx = 0;
-    (void)a;
+/* Residual errors of every truncation J' = 1..J in one pass over the
+ * columns: r = x_c - sum_{j<=J'} s_j v_j[c] u_j, accumulated over valid rows
+ * (ssq per J' in the fitted, possibly weighted, norm; max |r| in native
+ * units, i.e. divided by the weights).  No matrix-sized buffer is needed. */
+static void residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a, double *ssq, double *mx) {
+    size_t rows = p->rows, cols = p->cols, J = p->terms;
+    const double *wr = p->opts.weighted ? p->wr : NULL, *wc = p->opts.weighted ? p->wc : NULL;
+    for (size_t j = 0; j < J; j++) ssq[j] = mx[j] = 0;
     for (size_t c = 0; c < cols; c++) {
-        double *rc = p->res + c * rows;
-        double sv = sj * v[c];
+        double *r = p->col;
         const unsigned char *mk = m->mask ? m->mask + c * m->ld : NULL;
-        for (size_t r = 0; r < rows; r++) {
-            rc[r] -= sv * u[r];
-            if (mk && !mk[r]) continue;
-            double d = rc[r];
-            ssq += d * d;
-            if (fabs(d) > mx) mx = fabs(d);
+        for (size_t i = 0; i < rows; i++) r[i] = wr ? wr[i] * a[i + c * m->ld] * wc[c] : a[i + c * m->ld];
+        for (size_t j = 0; j < J; j++) {
+            const double *u = p->u + j * rows;
+            double sv = p->s[j] * p->v[c + j * cols], s2 = 0, mj = mx[j];
+            for (size_t i = 0; i < rows; i++) {
+                r[i] -= sv * u[i];
+                if (mk && !mk[i]) continue;
+                double d = r[i];
+                s2 += d * d;
+                double dn = fabs(wr ? d / (wr[i] * wc[c]) : d);
+                if (dn > mj) mj = dn;
+            }
+            ssq[j] += s2;
+            mx[j] = mj;
         }
     }
-    *fro = sqrt(ssq);
-    *maxabs = mx;
 }
 
 sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
@@ -290,23 +315,53 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     size_t gw, gh, hw, hh, J = p->terms, rows = p->rows, cols = p->cols;
     sb_param_texture_size(param, SB_SIDE_G, &gw, &gh);
     sb_param_texture_size(param, SB_SIDE_H, &hw, &hh);
-    if (gw * gh != rows || hw * hh != cols) return sb_error(ctx, SB_ERR_ARG, "plan: parameterisation does not match the matrix");
+    if (gw * gh != rows || hw * hh != cols)
+        return sb_error(ctx, SB_ERR_ARG, "plan: parameterisation does not match the matrix");
+    int masked = m->mask && !p->opts.zero_fill;
+    memset(&p->stats, 0, sizeof p->stats);
+    p->stats.masked = masked;
+    p->stats.fit_converged = 1;
+    if (masked && !p->fit) {
+        sb_result_t r = sb_fit_create(ctx, rows, cols, J, &p->fit);
+        if (r != SB_OK) return r;
+    }
+    if (p->opts.weighted) {
+        for (size_t i = 0; i < rows; i++) p->wr[i] = sqrt(fmax(sb_param_row_measure(param, i), 0));
+        for (size_t i = 0; i < cols; i++) p->wc[i] = sqrt(fmax(sb_param_col_measure(param, i), 0));
+    }
 
     sb_factors_t *f;
     sb_result_t r = sb_factors_create(ctx, J, 3, gw, gh, hw, hh, &f);
     if (r != SB_OK) return r;
     sb_factor_errors_t *e = sb_factors_errors_mut(f);
-    double *res2 = calloc(J * 4, sizeof(double)); /* squared residual per term and channel */
-    if (!res2) {
+    double *ssq = calloc(J * 4, sizeof(double)), *mx = calloc(J, sizeof(double));
+    if (!ssq || !mx) {
+        free(ssq);
+        free(mx);
         sb_factors_destroy(f);
         return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     }
     double total2 = 0;
-    for (int ch = 0; ch < 3; ch++) {
+    for (int ch = 0; ch < 3 && r == SB_OK; ch++) {
         const double *a = m->data[ch];
         if (!a) continue;
-        for (size_t c = 0; c < cols; c++) memcpy(p->res + c * rows, a + c * m->ld, rows * sizeof(double));
-        r = sb_svd_execute(p->svd, a, m->ld, p->s, p->u, p->v, NULL, NULL);
+        const double *x = a;
+        size_t ldx = m->ld;
+        if (p->opts.weighted) { /* X = W_r A W_c */
+            for (size_t c = 0; c < cols; c++)
+                for (size_t i = 0; i < rows; i++) p->x[i + c * rows] = p->wr[i] * a[i + c * m->ld] * p->wc[c];
+            x = p->x;
+            ldx = rows;
+        }
+        if (masked) {
+            sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol, p->opts.svd.seed};
+            sb_fit_info_t fi;
+            r = sb_fit_execute(p->fit, x, ldx, m->mask, &fo, p->s, p->u, p->v, &fi);
+            if (fi.iterations > p->stats.fit_iterations) p->stats.fit_iterations = fi.iterations;
+            if (!fi.converged) p->stats.fit_converged = 0;
+        } else {
+            r = sb_svd_execute(p->svd, x, ldx, p->s, p->u, p->v, NULL, NULL);
+        }
         if (r != SB_OK) break;
         /* sign: sum(u_j) >= 0; when the sum vanishes to rounding (common for
          * isotropic BRDFs, whose higher terms are orthogonal to constants),
@@ -314,9 +369,10 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         for (size_t j = 0; j < J; j++) {
             double *u = p->u + j * rows, *v = p->v + j * cols, sum = 0, l1 = 0, big = 0;
             for (size_t i = 0; i < rows; i++) {
-                sum += u[i];
-                l1 += fabs(u[i]);
-                if (fabs(u[i]) > fabs(big)) big = u[i];
+                double gi = p->opts.weighted && p->wr[i] > 0 ? u[i] / p->wr[i] : u[i];
+                sum += gi;
+                l1 += fabs(gi);
+                if (fabs(gi) > fabs(big)) big = gi;
             }
             int flip = fabs(sum) > SB_SIGN_TIE * l1 ? sum < 0 : big < 0;
             if (flip) {
@@ -324,34 +380,49 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 for (size_t i = 0; i < cols; i++) v[i] = -v[i];
             }
         }
-        double nrm = sb_matrix_norm(m, ch);
+        /* norm of the fitted matrix on valid cells */
+        double n2 = 0;
+        for (size_t c = 0; c < cols; c++)
+            for (size_t i = 0; i < rows; i++)
+                if (!m->mask || m->mask[i + c * m->ld]) n2 += x[i + c * ldx] * x[i + c * ldx];
+        double nrm = sqrt(n2);
         e->norm[ch] = nrm;
-        total2 += nrm * nrm;
+        total2 += n2;
         for (size_t j = 0; j < J; j++) {
             double sj = p->s[j], rt = sqrt(sj > 0 ? sj : 0);
             sb_factors_set_sigma(f, j, (size_t)ch, sj);
             double *g = sb_factors_tex(f, SB_SIDE_G, j, (size_t)ch), *h = sb_factors_tex(f, SB_SIDE_H, j, (size_t)ch);
-            for (size_t i = 0; i < rows; i++) g[i] = rt * p->u[i + j * rows];
-            for (size_t i = 0; i < cols; i++) h[i] = rt * p->v[i + j * cols];
-            double fro, mx;
-            residual_norms(p, m, a, j, &fro, &mx);
-            res2[j * 4 + ch] = fro * fro;
-            e->rel_rms[j * 4 + ch] = nrm > 0 ? fro / nrm : 0;
-            e->max_abs[j * 4 + ch] = mx;
-            if (mx > e->max_abs[j * 4 + 3]) e->max_abs[j * 4 + 3] = mx;
+            for (size_t i = 0; i < rows; i++) {
+                double w = p->opts.weighted ? p->wr[i] : 1;
+                g[i] = w > 0 ? rt * p->u[i + j * rows] / w : 0;
+            }
+            for (size_t i = 0; i < cols; i++) {
+                double w = p->opts.weighted ? p->wc[i] : 1;
+                h[i] = w > 0 ? rt * p->v[i + j * cols] / w : 0;
+            }
+        }
+        residuals(p, m, a, ssq + (size_t)ch * J, mx);
+        for (size_t j = 0; j < J; j++) {
+            e->rel_rms[j * 4 + ch] = nrm > 0 ? sqrt(ssq[(size_t)ch * J + j]) / nrm : 0;
+            e->max_abs[j * 4 + ch] = mx[j];
+            if (mx[j] > e->max_abs[j * 4 + 3]) e->max_abs[j * 4 + 3] = mx[j];
         }
     }
     if (r != SB_OK) {
-        free(res2);
+        free(ssq);
+        free(mx);
         sb_factors_destroy(f);
         return r;
     }
     e->norm[3] = sqrt(total2);
     for (size_t j = 0; j < J; j++) {
-        double s2 = res2[j * 4] + res2[j * 4 + 1] + res2[j * 4 + 2];
+        double s2 = 0;
+        for (int ch = 0; ch < 3; ch++)
+            if (m->data[ch]) s2 += ssq[(size_t)ch * J + j];
         e->rel_rms[j * 4 + 3] = total2 > 0 ? sqrt(s2 / total2) : 0;
     }
-    free(res2);
+    free(ssq);
+    free(mx);
     for (size_t j = 0; j < J; j++)
         if (!isfinite(e->rel_rms[j * 4 + 3])) {
             sb_factors_destroy(f);
@@ -370,7 +441,8 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     }
     sb_factors_set_meta(f, "param", sb_param_spec(param));
     sb_factors_set_meta(f, "form", sb_form_name(m->form));
-    sb_factors_set_meta(f, "method", sb_method_name(sb_svd_method(p->svd)));
+    sb_factors_set_meta(f, "method", masked ? "masked" : sb_method_name(sb_svd_method(p->svd)));
+    sb_factors_set_meta(f, "weighted", p->opts.weighted ? "1" : "0");
     *out = f;
     return SB_OK;
 }

@@ -7,8 +7,8 @@
 static char out[65536];
 
 static int run(const char *fmt, const char *arg) {
-    char cmd[4096];
-    char tail[3000];
+    char cmd[8192];
+    char tail[4096];
     snprintf(tail, sizeof tail, fmt, arg);
     snprintf(cmd, sizeof cmd, "%s %s", SB_CLI, tail);
     return sb_run(cmd, out, sizeof out);
@@ -28,7 +28,7 @@ static double json_first_number(const char *path, const char *key) {
 }
 
 static int dir_is_empty_or_missing(const char *dir) {
-    char cmd[1024];
+    char cmd[8192];
     snprintf(cmd, sizeof cmd, "test ! -e %s || test -z \"$(ls -A %s)\"", dir, dir);
     return sb_run(cmd, NULL, 0) == 0;
 }
@@ -68,7 +68,7 @@ SB_TEST(lambert_exact) {
 
 SB_TEST(bad_res) {
     const char *dir = sb_tmpdir("cli");
-    char sub[1100];
+    char sub[2048];
     snprintf(sub, sizeof sub, "%s/o", dir);
     CHECK(run("factor --res 0 -o %s", sub) == 1);
     CHECK(strstr(out, "--res") != NULL);
@@ -77,7 +77,7 @@ SB_TEST(bad_res) {
 
 SB_TEST(bad_terms) {
     const char *dir = sb_tmpdir("cli");
-    char sub[1100];
+    char sub[2048];
     snprintf(sub, sizeof sub, "%s/o", dir);
     CHECK(run("factor --terms -3 --out %s", sub) == 1);
     CHECK(strstr(out, "--terms") != NULL);
@@ -89,7 +89,7 @@ SB_TEST(bad_terms) {
 
 SB_TEST(unknown_model) {
     const char *dir = sb_tmpdir("cli");
-    char sub[1100];
+    char sub[2048];
     snprintf(sub, sizeof sub, "%s/o", dir);
     CHECK(run("factor nosuchmodel -o %s", sub) == 1);
     CHECK(strstr(out, "nosuchmodel") != NULL);

@@ -73,13 +73,33 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
 
 /* ---- plan ------------------------------------------------------------- */
 
+typedef struct sb_plan sb_plan_t;
+
 typedef struct sb_plan_opts {
     size_t terms;        /* J, default 4; with max_error: the upper limit */
     double max_error;    /* stop at the first J' with rel_rms <= max_error; 0 = off */
     sb_svd_opts_t svd;   /* method and its parameters */
+    /* Solid-angle weighting: factor W_r M W_c with W = sqrt(cell measure)
+     * so the fit minimises the error integrated over the domain, then
+     * unscale the textures (g /= W_r, h /= W_c).  rel_rms is then measured
+     * in that weighted norm. */
+    int weighted;
+    /* Cells with mask 0 (outside the domain, unmeasured) are excluded from
+     * the fit by iterative imputation (see fit.c) unless zero_fill is set,
+     * in which case they are factored as zeros (the seeds' plain method). */
+    int zero_fill;
+    int fit_max_iters;   /* masked fit: outer iterations, default 300 */
+    double fit_tol;      /* masked fit: relative improvement to stop, default 1e-7 */
 } sb_plan_opts_t;
 
-typedef struct sb_plan sb_plan_t;
+/* What the last sb_plan_execute did for the masked fit (0 if unmasked). */
+typedef struct sb_plan_stats {
+    int masked;          /* 1 if a masked fit ran */
+    int fit_iterations;  /* largest over channels */
+    int fit_converged;   /* all channels converged */
+} sb_plan_stats_t;
+void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
+
 
 sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
                            sb_plan_t **out);
