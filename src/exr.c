@@ -77,9 +77,12 @@ static const char *exr_why(exr_result_t rv) { return exr_msg[0] ? exr_msg : exr_
 static sb_result_t exr_fail(sb_context_t *ctx, exr_result_t rv, sb_result_t fallback, const char *path,
                             const char *what) {
     sb_result_t code = fallback;
-    if (rv == EXR_ERR_OUT_OF_MEMORY) code = SB_ERR_NOMEM;
-    else if (rv == EXR_ERR_FILE_ACCESS) code = SB_ERR_IO;
-    else if (rv == EXR_ERR_WRITE_IO && fallback != SB_ERR_FORMAT) code = SB_ERR_IO;
+    if (rv == EXR_ERR_OUT_OF_MEMORY)
+        code = SB_ERR_NOMEM;
+    else if (rv == EXR_ERR_FILE_ACCESS)
+        code = SB_ERR_IO;
+    else if (rv == EXR_ERR_WRITE_IO && fallback != SB_ERR_FORMAT)
+        code = SB_ERR_IO;
     return sb_error(ctx, code, "%s: %s: %s", path, what, exr_why(rv));
 }
 
@@ -101,7 +104,7 @@ static uint16_t half_from_double(double x) {
     if (a < 0x1p-14) /* subnormal: units of 2^-24; 1024 carries into exponent 1 */
         return (uint16_t)(sign | (uint16_t)nearbyint(a * 0x1p24));
     int e;
-    frexp(a, &e); /* a in [2^(e-1), 2^e) */
+    frexp(a, &e);                           /* a in [2^(e-1), 2^e) */
     double m = nearbyint(ldexp(a, 11 - e)); /* 11 significant bits: [1024, 2048] */
     int E = e - 1;
     if (m == 2048) {
@@ -115,9 +118,12 @@ static uint16_t half_from_double(double x) {
 static double half_to_double(uint16_t h) {
     int E = (h >> 10) & 31, m = h & 1023;
     double a;
-    if (E == 0) a = ldexp(m, -24);
-    else if (E == 31) a = m ? NAN : INFINITY;
-    else a = ldexp(m + 1024, E - 25);
+    if (E == 0)
+        a = ldexp(m, -24);
+    else if (E == 31)
+        a = m ? NAN : INFINITY;
+    else
+        a = ldexp(m + 1024, E - 25);
     return (h & 0x8000u) ? -a : a;
 }
 
@@ -189,10 +195,12 @@ static sb_result_t pack_texture(sb_context_t *ctx, const sb_factors_t *f, int si
         const double *t = sb_factors_tex_const(f, side, term, c);
         if (half) {
             uint16_t *d = (uint16_t *)buf + c * n;
-            for (size_t i = 0; i < n; i++) d[i] = half_from_double(t[i] / scale);
+            for (size_t i = 0; i < n; i++)
+                d[i] = half_from_double(t[i] / scale);
         } else {
             float *d = (float *)buf + c * n;
-            for (size_t i = 0; i < n; i++) d[i] = (float)t[i];
+            for (size_t i = 0; i < n; i++)
+                d[i] = (float)t[i];
         }
     }
     *scale_out = (float)scale;
@@ -214,8 +222,8 @@ static sb_result_t write_attrs(sb_context_t *ctx, exr_context_t ex, const sb_fac
     for (size_t t = 0; t < J; t++)
         if (!to_float(err->rel_rms[t * 4 + 3], &rel[t])) {
             free(rel);
-            return sb_error(ctx, SB_ERR_RANGE, "%s: rel_rms %g after %zu terms is not representable as a float",
-                            path, err->rel_rms[t * 4 + 3], t + 1);
+            return sb_error(ctx, SB_ERR_RANGE, "%s: rel_rms %g after %zu terms is not representable as a float", path,
+                            err->rel_rms[t * 4 + 3], t + 1);
         }
     exr_result_t rv = exr_attr_set_string(ex, 0, PREFIX "version", SB_VERSION_STRING);
     if (!rv) rv = exr_attr_set_string(ex, 0, PREFIX "side", side == SB_SIDE_H ? "h" : "g");
@@ -239,8 +247,8 @@ static sb_result_t write_attrs(sb_context_t *ctx, exr_context_t ex, const sb_fac
 }
 
 /* Write one texture to `path` (the temporary name). */
-static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half,
-                             int longnames, const char *path, void *buf) {
+static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half, int longnames,
+                             const char *path, void *buf) {
     size_t C = sb_factors_channels(f), w, h;
     sb_factors_size(f, side, &w, &h);
     size_t bpe = half ? 2 : 4;
@@ -262,8 +270,7 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
     /* Describe the part */
     if (longnames) rv = exr_set_longname_support(ex, 1);
     if (!rv) rv = exr_add_part(ex, NULL, EXR_STORAGE_SCANLINE, &part);
-    if (!rv)
-        rv = exr_initialize_required_attr_simple(ex, part, (int32_t)w, (int32_t)h, EXR_COMPRESSION_ZIP);
+    if (!rv) rv = exr_initialize_required_attr_simple(ex, part, (int32_t)w, (int32_t)h, EXR_COMPRESSION_ZIP);
     for (size_t c = 0; c < C && !rv; c++)
         rv = exr_add_channel(ex, part, channel_name(C, c), ptype, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
     if (rv) {
@@ -314,8 +321,7 @@ out:
     return r;
 }
 
-sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir,
-                                 const sb_exr_opts_t *opts) {
+sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir, const sb_exr_opts_t *opts) {
     if (!f || !dir) return sb_error(ctx, SB_ERR_ARG, "exr write: no factors or no folder");
     int half = opts && opts->half;
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f), w[2], h[2], n[2];
@@ -333,12 +339,16 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
         const char *key, *value;
         sb_factors_meta_at(f, i, &key, &value);
         if (is_fixed_key(key))
-            return sb_error(ctx, SB_ERR_ARG, "exr write: metadata key \"%s\" collides with the attribute " PREFIX
-                            "%s the writer sets itself", key, key);
+            return sb_error(ctx, SB_ERR_ARG,
+                            "exr write: metadata key \"%s\" collides with the attribute " PREFIX
+                            "%s the writer sets itself",
+                            key, key);
         size_t len = PREFIX_LEN + strlen(key);
         if (len > 255)
-            return sb_error(ctx, SB_ERR_RANGE, "exr write: metadata key \"%.40s...\" is %zu characters, EXR "
-                            "attribute names allow %d", key, strlen(key), 255 - PREFIX_LEN);
+            return sb_error(ctx, SB_ERR_RANGE,
+                            "exr write: metadata key \"%.40s...\" is %zu characters, EXR "
+                            "attribute names allow %d",
+                            key, strlen(key), 255 - PREFIX_LEN);
         if (len > 31) longnames = 1;
     }
 
@@ -372,14 +382,15 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
     /* Phase 2: rename */
     for (; renamed < nfiles; renamed++)
         if (rename(tmp[renamed], fin[renamed]) != 0) {
-            r = sb_error(ctx, SB_ERR_IO, "%s: cannot rename from %s: %s", fin[renamed], tmp[renamed],
-                         strerror(errno));
+            r = sb_error(ctx, SB_ERR_IO, "%s: cannot rename from %s: %s", fin[renamed], tmp[renamed], strerror(errno));
             goto out;
         }
 out:
     if (r != SB_OK && tmp && fin) {
-        for (size_t k = 0; k < renamed; k++) remove(fin[k]);
-        for (size_t k = renamed; k < done; k++) remove(tmp[k]);
+        for (size_t k = 0; k < renamed; k++)
+            remove(fin[k]);
+        for (size_t k = renamed; k < done; k++)
+            remove(tmp[k]);
     }
     for (size_t k = 0; k < nfiles && tmp && fin; k++) {
         free(tmp[k]);
@@ -437,8 +448,7 @@ static sb_result_t read_header(sb_context_t *ctx, exr_context_t ex, const char *
     if (rv || parts != 1) return sb_error(ctx, SB_ERR_FORMAT, "%s: %d parts, expected one", path, parts);
     if (exr_get_storage(ex, 0, &st) || st != EXR_STORAGE_SCANLINE)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: not a scanline image", path);
-    if (exr_get_data_window(ex, 0, &dw))
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: no data window", path);
+    if (exr_get_data_window(ex, 0, &dw)) return sb_error(ctx, SB_ERR_FORMAT, "%s: no data window", path);
     if (dw.min.x != 0 || dw.min.y != 0 || dw.max.x < 0 || dw.max.y < 0)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: data window (%d, %d)-(%d, %d), expected one from (0, 0)", path,
                         dw.min.x, dw.min.y, dw.max.x, dw.max.y);
@@ -479,21 +489,20 @@ static sb_result_t read_header(sb_context_t *ctx, exr_context_t ex, const char *
 
     /* Channels: exactly the expected names, one pixel type, no subsampling */
     if (exr_get_channels(ex, 0, &cl) || !cl || cl->num_channels != hd->channels || !cl->entries)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: %d image channels, expected %d (%s)", path,
-                        cl ? cl->num_channels : 0, (int)hd->channels, hd->channels == 1 ? "Y" : "R, G, B");
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: %d image channels, expected %d (%s)", path, cl ? cl->num_channels : 0,
+                        (int)hd->channels, hd->channels == 1 ? "Y" : "R, G, B");
     for (int k = 0; k < cl->num_channels; k++) {
         const exr_attr_chlist_entry_t *e = &cl->entries[k];
         if (channel_plane((size_t)hd->channels, e->name.str) < 0)
             return sb_error(ctx, SB_ERR_FORMAT, "%s: unexpected channel \"%s\", expected %s", path,
                             e->name.str ? e->name.str : "", hd->channels == 1 ? "Y" : "R, G, B");
         if (e->pixel_type != EXR_PIXEL_FLOAT && e->pixel_type != EXR_PIXEL_HALF)
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: channel %s has pixel type %d, expected FLOAT or HALF",
-                            path, e->name.str, (int)e->pixel_type);
+            return sb_error(ctx, SB_ERR_FORMAT, "%s: channel %s has pixel type %d, expected FLOAT or HALF", path,
+                            e->name.str, (int)e->pixel_type);
         if (e->x_sampling != 1 || e->y_sampling != 1)
             return sb_error(ctx, SB_ERR_FORMAT, "%s: channel %s is subsampled", path, e->name.str);
         int half = e->pixel_type == EXR_PIXEL_HALF;
-        if (k > 0 && half != hd->half)
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: channels mix FLOAT and HALF", path);
+        if (k > 0 && half != hd->half) return sb_error(ctx, SB_ERR_FORMAT, "%s: channels mix FLOAT and HALF", path);
         hd->half = half;
     }
     return SB_OK;
@@ -513,8 +522,8 @@ static sb_result_t open_read(sb_context_t *ctx, const char *path, exr_context_t 
 
 /* Decode the pixels of an open, checked file into `buf` (planar, file
  * type), then scale them into the factors' texture. */
-static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *path, const hdr_t *hd,
-                               sb_factors_t *f, int side, size_t term, void *buf) {
+static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *path, const hdr_t *hd, sb_factors_t *f,
+                               int side, size_t term, void *buf) {
     size_t C = (size_t)hd->channels, w = hd->w, h = hd->h, n = w * h, bpe = hd->half ? 2 : 4;
     exr_pixel_type_t ptype = hd->half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
@@ -526,8 +535,7 @@ static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *
     if (!rv) rv = exr_get_scanlines_per_chunk(ex, 0, &lpc);
     if (rv) return exr_fail(ctx, rv, SB_ERR_FORMAT, path, "cannot read the chunk layout");
     if (nchunks < 1 || lpc < 1 || (size_t)nchunks != (h + (size_t)lpc - 1) / (size_t)lpc)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: %d chunks of %d lines for %zu lines", path, (int)nchunks,
-                        (int)lpc, h);
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: %d chunks of %d lines for %zu lines", path, (int)nchunks, (int)lpc, h);
     for (int32_t k = 0; k < nchunks; k++) {
         exr_chunk_info_t ci;
         size_t y = (size_t)k * (size_t)lpc;
@@ -535,9 +543,10 @@ static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *
         if (rv) break;
         /* the decoder writes ci.height lines of ci.width pixels: keep them inside buf */
         if (ci.start_y != (int32_t)y || ci.height < 1 || (size_t)ci.height > h - y || (size_t)ci.width != w) {
-            r = sb_error(ctx, SB_ERR_FORMAT, "%s: chunk %d covers lines %d..%d, width %d; expected from line %zu, "
-                         "width %zu", path, (int)k, (int)ci.start_y, (int)(ci.start_y + ci.height - 1),
-                         (int)ci.width, y, w);
+            r = sb_error(ctx, SB_ERR_FORMAT,
+                         "%s: chunk %d covers lines %d..%d, width %d; expected from line %zu, "
+                         "width %zu",
+                         path, (int)k, (int)ci.start_y, (int)(ci.start_y + ci.height - 1), (int)ci.width, y, w);
             goto out;
         }
         rv = dec_live ? exr_decoding_update(ex, 0, &ci, &dec) : exr_decoding_initialize(ex, 0, &ci, &dec);
@@ -551,8 +560,7 @@ static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *
             exr_coding_channel_info_t *ch = &dec.channels[c];
             int plane = channel_plane(C, ch->channel_name);
             if (plane < 0 || ch->height != ci.height || ch->width != ci.width || ch->data_type != (uint16_t)ptype) {
-                r = sb_error(ctx, SB_ERR_FORMAT, "%s: chunk %d: channel layout differs from the header", path,
-                             (int)k);
+                r = sb_error(ctx, SB_ERR_FORMAT, "%s: chunk %d: channel layout differs from the header", path, (int)k);
                 goto out;
             }
             ch->user_bytes_per_element = (int16_t)bpe;
@@ -573,12 +581,12 @@ static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *
     for (size_t c = 0; c < C; c++) {
         double *t = sb_factors_tex(f, side, term, c);
         for (size_t i = 0; i < n; i++) {
-            double v = hd->half ? half_to_double(((const uint16_t *)buf)[c * n + i])
-                                : (double)((const float *)buf)[c * n + i];
+            double v =
+                hd->half ? half_to_double(((const uint16_t *)buf)[c * n + i]) : (double)((const float *)buf)[c * n + i];
             t[i] = v * hd->scale;
             if (!isfinite(t[i])) {
-                r = sb_error(ctx, SB_ERR_FORMAT, "%s: non-finite value at texel (%zu, %zu) of channel %s", path,
-                             i % w, i / w, channel_name(C, c));
+                r = sb_error(ctx, SB_ERR_FORMAT, "%s: non-finite value at texel (%zu, %zu) of channel %s", path, i % w,
+                             i / w, channel_name(C, c));
                 goto out;
             }
         }
@@ -670,8 +678,10 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
     /* Refuse forged sizes before allocating: all textures as doubles */
     if (sb_size_mul(hg.w, hg.h, &ng) || sb_size_mul(hh.w, hh.h, &nh) || sb_size_add(ng, nh, &bytes) ||
         sb_size_mul3(bytes, J * C, sizeof(double), &bytes) || bytes > sb_memory_limit()) {
-        r = sb_error(ctx, SB_ERR_OVERFLOW, "%s: %zu terms of %zu x %zu and %zu x %zu texels exceed the memory limit "
-                     "of %zu bytes", first, J, hg.w, hg.h, hh.w, hh.h, sb_memory_limit());
+        r = sb_error(ctx, SB_ERR_OVERFLOW,
+                     "%s: %zu terms of %zu x %zu and %zu x %zu texels exceed the memory limit "
+                     "of %zu bytes",
+                     first, J, hg.w, hg.h, hh.w, hh.h, sb_memory_limit());
         goto out;
     }
     if ((r = sb_factors_create(ctx, J, C, hg.w, hg.h, hh.w, hh.h, &f)) != SB_OK) goto out;
@@ -684,7 +694,8 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
     }
     memcpy(rel, hg.rel, J * sizeof(float));
     sb_factor_errors_t *err = sb_factors_errors_mut(f);
-    for (size_t t = 0; t < J; t++) err->rel_rms[t * 4 + 3] = rel[t];
+    for (size_t t = 0; t < J; t++)
+        err->rel_rms[t * 4 + 3] = rel[t];
 
     /* Every file: header agrees with g_00 / h_00, then the pixels */
     float sigma[3] = {0, 0, 0};
@@ -702,8 +713,8 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
         const char *p = k ? path : first;
         const hdr_t *ref = side == SB_SIDE_H ? &hh : &hg;
         if (hd.terms != hg.terms || hd.channels != hg.channels || hd.w != ref->w || hd.h != ref->h) {
-            r = sb_error(ctx, SB_ERR_FORMAT, "%s: %d terms of %d channels, %zu x %zu; %s has %d of %d, %zu x %zu",
-                         p, (int)hd.terms, (int)hd.channels, hd.w, hd.h, side == SB_SIDE_H ? "h_00.exr" : first,
+            r = sb_error(ctx, SB_ERR_FORMAT, "%s: %d terms of %d channels, %zu x %zu; %s has %d of %d, %zu x %zu", p,
+                         (int)hd.terms, (int)hd.channels, hd.w, hd.h, side == SB_SIDE_H ? "h_00.exr" : first,
                          (int)hg.terms, (int)hg.channels, ref->w, ref->h);
             goto out;
         }
@@ -714,7 +725,8 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
         if (k > 0 && (r = read_meta(ctx, ex, p, f, 0, first)) != SB_OK) goto out;
         if (side == SB_SIDE_G) {
             memcpy(sigma, hd.sigma, sizeof sigma);
-            for (size_t c = 0; c < C; c++) sb_factors_set_sigma(f, term, c, hd.sigma[c]);
+            for (size_t c = 0; c < C; c++)
+                sb_factors_set_sigma(f, term, c, hd.sigma[c]);
         } else if (memcmp(sigma, hd.sigma, C * sizeof(float)) != 0) {
             r = sb_error(ctx, SB_ERR_FORMAT, "%s: " PREFIX "sigma differs from its g file's", p);
             goto out;

@@ -21,11 +21,13 @@ static sb_factors_t *make_factors(size_t J, size_t C, size_t gw, size_t gh, size
                 size_t w, h;
                 sb_factors_size(f, s, &w, &h);
                 double *t = sb_factors_tex(f, s, j, c);
-                for (size_t i = 0; i < w * h; i++) t[i] = (2 * sb_rand01(&seed) - 1) * pow(10, (double)j - 1);
+                for (size_t i = 0; i < w * h; i++)
+                    t[i] = (2 * sb_rand01(&seed) - 1) * pow(10, (double)j - 1);
             }
     sb_factor_errors_t *e = sb_factors_errors_mut(f);
     for (size_t j = 0; j < J; j++) {
-        for (size_t c = 0; c < C; c++) sb_factors_set_sigma(f, j, c, 10 * sb_rand01(&seed) / (double)(j + 1));
+        for (size_t c = 0; c < C; c++)
+            sb_factors_set_sigma(f, j, c, 10 * sb_rand01(&seed) / (double)(j + 1));
         e->rel_rms[j * 4 + 3] = 0.5 * sb_rand01(&seed) / (double)(j + 1);
     }
     CHECK(sb_factors_set_meta(f, "param", "io:res=8") == SB_OK);
@@ -57,7 +59,8 @@ static void check_exact(const sb_factors_t *a, const sb_factors_t *b) {
             for (size_t c = 0; c < C; c++) {
                 const double *ta = sb_factors_tex_const(a, s, j, c), *tb = sb_factors_tex_const(b, s, j, c);
                 size_t bad = 0;
-                for (size_t i = 0; i < w * h; i++) bad += !same_float_bits(ta[i], tb[i]);
+                for (size_t i = 0; i < w * h; i++)
+                    bad += !same_float_bits(ta[i], tb[i]);
                 CHECKF(bad == 0, "side %d term %zu channel %zu: %zu texels differ", s, j, c, bad);
             }
     }
@@ -130,9 +133,9 @@ static void expect_read_error(const char *dir, sb_result_t code, const char *men
     sb_factors_t *g = NULL;
     sb_result_t r = sb_factors_read_exr(ctx, dir, &g);
     CHECKF(r != SB_OK, "read succeeded");
-    if (getenv("SB_TEST_VERBOSE")) fprintf(stderr, "  [%s] %s\n", sb_result_name(r), sb_context_last_error(ctx));
-    if (code != SB_OK) CHECKF(r == code, "got %s, expected %s (%s)", sb_result_name(r), sb_result_name(code),
-                              sb_context_last_error(ctx));
+    if (code != SB_OK)
+        CHECKF(r == code, "got %s, expected %s (%s)", sb_result_name(r), sb_result_name(code),
+               sb_context_last_error(ctx));
     CHECK(g == NULL);
     if (mention)
         CHECKF(strstr(sb_context_last_error(ctx), mention), "message \"%s\" does not name %s",
@@ -236,13 +239,16 @@ SB_TEST(half_scaled) {
                 for (size_t i = 0; i < w * h; i++) {
                     CHECK(isfinite(b[i]));
                     /* half keeps 11 significant bits: relative 2^-11 */
-                    if (a[i] == 0) CHECK(b[i] == 0);
-                    else CHECK_REL(b[i], a[i], 4.9e-4);
+                    if (a[i] == 0)
+                        CHECK(b[i] == 0);
+                    else
+                        CHECK_REL(b[i], a[i], 4.9e-4);
                 }
             }
     check_exact(g, g); /* metadata etc. of g consistent */
     for (size_t j = 0; j < 4; j++)
-        for (size_t c = 0; c < 3; c++) CHECK(sb_factors_sigma(g, j, c) == (double)(float)sb_factors_sigma(f, j, c));
+        for (size_t c = 0; c < 3; c++)
+            CHECK(sb_factors_sigma(g, j, c) == (double)(float)sb_factors_sigma(f, j, c));
     sb_factors_destroy(g);
 
     /* the stored half values are exact: a second write/read changes nothing */
@@ -362,7 +368,8 @@ SB_TEST(forged_header) {
     for (int trial = 0; trial < 200; trial++) {
         memcpy(b, orig, n);
         size_t at = (size_t)(sb_rand01(&seed) * (double)n);
-        for (int k = 0; k < 4 && at + (size_t)k < n; k++) b[at + (size_t)k] = (unsigned char)(sb_rand01(&seed) * 256);
+        for (int k = 0; k < 4 && at + (size_t)k < n; k++)
+            b[at + (size_t)k] = (unsigned char)(sb_rand01(&seed) * 256);
         spit(path_in(dir, "g_00.exr"), b, n);
         sb_context_t *ctx;
         sb_context_create(&ctx);

@@ -13,6 +13,7 @@
 #include "common.h"
 #include "matrix.h"
 #include "param.h"
+#include "source.h"
 #include "svd.h"
 
 #ifdef __cplusplus
@@ -70,6 +71,30 @@ double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, s
  * weight.  Returns 0 (rgb = 0) outside the domain. */
 int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms,
                     const double wi[3], const double wo[3], double rgb[3]);
+
+/* ---- comparable metric -------------------------------------------------
+ * One error for every parameterisation and form, computed on the same
+ * work: the relative L2 error of f cos(theta_i) cos(theta_o) over the pairs
+ * where the source is known, integrated over solid angle on a reference io
+ * grid (cell centres, weights dw_i dw_o), with the reconstruction resampled
+ * through sb_factors_eval (texture lookups, form divided back):
+ *   e(J') = sqrt( sum w (f~ - f)^2 c_i^2 c_o^2 / sum w f^2 c_i^2 c_o^2 ). */
+typedef struct sb_metric_opts {
+    size_t res;   /* reference grid cells per angular axis, default 32 */
+    int threads;  /* 0 = all cores */
+} sb_metric_opts_t;
+
+typedef struct sb_metric {
+    size_t terms;          /* J' = 1..terms are filled */
+    double rel_l2[256];    /* comparable error after J' terms (index J'-1) */
+    double neg_frac[256];  /* fraction of known pairs with a negative reconstructed channel */
+    double neg_texels;     /* fraction of negative texels over all g_j, h_j */
+    size_t pairs, known;   /* reference pairs, pairs the source knows */
+} sb_metric_t;
+
+/* Compute the metric for the first min(J, 256) terms of f. */
+sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p,
+                              sb_form_t form, const sb_metric_opts_t *opts, sb_metric_t *out);
 
 /* ---- plan ------------------------------------------------------------- */
 
