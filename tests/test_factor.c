@@ -276,3 +276,142 @@ SB_TEST(max_error_stops) {
     sb_param_destroy(p);
     sb_source_destroy(s);
 }
+
+/* A rank-1 source g(wi) h(wo) that is "missing" on a pattern of pairs. */
+static int holey_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    (void)self;
+    double v = (1 + wi[0] * wi[0]) * (2 + wo[1] + wo[2]);
+    for (int c = 0; c < 3; c++) rgb[c] = v * (c + 1);
+    if (wi[2] + wo[2] < 0.9 || (wi[0] > 0.3 && wo[1] < -0.2)) return 0; /* not measured */
+    return 1;
+}
+
+SB_TEST(masked_fit_exact_rank1) {
+    sb_source_ops_t ops = {holey_eval, NULL};
+    sb_source_t *s = NULL;
+    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    sb_param_t *p = io(8);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    CHECK(m.mask != NULL);
+    CHECK(m.valid_count > m.rows * m.cols / 3 && m.valid_count < m.rows * m.cols);
+    for (int zero = 0; zero < 2; zero++) {
+        sb_plan_opts_t po = {0};
+        po.terms = 1;
+        po.zero_fill = zero;
+        po.fit_tol = 1e-12;
+        po.fit_max_iters = 2000;
+        sb_plan_t *plan;
+        sb_factors_t *f;
+        CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        sb_plan_stats_t st;
+        sb_plan_stats(plan, &st);
+        double e = sb_factors_errors(f)->rel_rms[3];
+        if (zero) {
+            CHECK(!st.masked);
+            CHECKF(e > 1e-3, "zero-filled rank-1 fit of a holey rank-1 matrix should not be exact: %g", e);
+        } else {
+            CHECK(st.masked && st.fit_iterations > 1);
+            CHECKF(e < 1e-6, "masked rank-1 fit error %g after %d iterations", e, st.fit_iterations);
+            /* and the imputed product reproduces the hidden cells too */
+            double wi[3], wo[3], ref[3];
+            sb_param_cell_dirs(p, 0, 5, wi, wo);
+            holey_eval(NULL, wi, wo, ref);
+            CHECK_REL(sb_factors_cell(f, 1, 2, 0, 5), ref[2], 1e-5);
+        }
+        sb_factors_destroy(f);
+        sb_plan_destroy(plan);
+    }
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* The comparable metric on io with form cos2, solid-angle weights and the
+ * reference grid equal to the factor grid is exactly the weighted native
+ * error (it samples the texel centres). */
+SB_TEST(metric_matches_weighted_native) {
+    sb_source_t *s = model("microfacet:base=copper,roughness=0.4");
+    sb_param_t *p = io(12);
+    sb_matrix_t m;
+    sb_matrix_opts_t mo = {0};
+    mo.form = SB_FORM_COS2;
+    CHECK(sb_matrix_build(NULL, s, p, &mo, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = 6;
+    po.weighted = 1;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_metric_opts_t mt = {0};
+    mt.res = 12;
+    sb_metric_t r;
+    CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_COS2, &mt, &r) == SB_OK);
+    CHECK(r.terms == 6 && r.known == r.pairs);
+    for (size_t j = 0; j < 6; j++) CHECK_REL(r.rel_l2[j], sb_factors_errors(f)->rel_rms[j * 4 + 3], 1e-9);
+    /* on a finer reference grid the metric measures interpolation too */
+    mt.res = 17;
+    CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_COS2, &mt, &r) == SB_OK);
+    CHECK(r.rel_l2[5] > 0 && isfinite(r.rel_l2[5]));
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+SB_TEST(metric_lambert_zero) {
+    sb_source_t *s = model("lambert:albedo=0.3/0.6/0.9");
+    sb_param_t *p = io(6);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = 1;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_metric_t r;
+    CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_F, NULL, &r) == SB_OK);
+    CHECKF(r.rel_l2[0] < 1e-12, "lambert metric %g", r.rel_l2[0]);
+    CHECK(r.neg_frac[0] == 0 && r.neg_texels == 0);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* Weighted plans minimise the weighted norm: their weighted error equals the
+ * Eckart-Young tail of W_r M W_c computed independently. */
+SB_TEST(weighted_eckart_young) {
+    sb_source_t *s = model("microfacet:roughness=0.3");
+    size_t R = 6, N = R * R, J = 5;
+    sb_param_t *p = io(R);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    sb_plan_opts_t po = {0};
+    po.terms = J;
+    po.weighted = 1;
+    sb_plan_t *plan;
+    sb_factors_t *f;
+    CHECK(sb_plan_create(NULL, N, N, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    double *x = malloc(N * N * sizeof *x);
+    for (size_t c = 0; c < N; c++)
+        for (size_t r = 0; r < N; r++)
+            x[r + c * N] = sqrt(sb_param_row_measure(p, r) * sb_param_col_measure(p, c)) * m.data[0][r + c * N];
+    double *sig = reference_sigma(x, N), n2 = 0, t2 = 0;
+    for (size_t k = 0; k < N; k++) n2 += sig[k] * sig[k];
+    for (size_t k = J; k < N; k++) t2 += sig[k] * sig[k];
+    CHECK_REL(sb_factors_errors(f)->rel_rms[(J - 1) * 4 + 0], sqrt(t2 / n2), 1e-9);
+    free(sig);
+    free(x);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}

@@ -12,8 +12,10 @@
  *   sepbrdf.terms (int J), sepbrdf.channels (int), sepbrdf.sigma
  *   (floatvector, sigma_j per channel of this term), sepbrdf.scale (float:
  *   stored = value / scale; 1 for FLOAT), and every factors metadata key as a
- *   string attribute "sepbrdf.<key>" (param, source, form, method, rel_rms
- *   per J as text, ...). */
+ *   string attribute "sepbrdf.<key>" (param, source, form, method, ...), and
+ *   sepbrdf.rel_rms (floatvector: overall relative RMS error per J).  The
+ *   fixed names above are reserved: a metadata key equal to one of them is
+ *   refused with SB_ERR_ARG. */
 #ifndef SEPBRDF_EXR_H
 #define SEPBRDF_EXR_H
 
