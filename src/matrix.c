@@ -74,6 +74,107 @@ static void *build_cols(void *arg) {
     return NULL;
 }
 
+/* Isotropic sources on the io grid: f depends on (theta_i, theta_o,
+ * phi_o - phi_i) only, and on the grid the azimuth difference of cells
+ * (i_phi, j_phi) is (j_phi - i_phi) mod R cell widths.  So only R^3 of the
+ * R^4 values are distinct: evaluate them once into a table (phi_i at the
+ * first cell centre), then scatter into the matrix.  R = 64: 262 144
+ * evaluations instead of 16.8 million. */
+typedef struct iso_job {
+    const sb_source_t *src;
+    const sb_param_t *param;
+    sb_matrix_t *m;
+    size_t R, a0, a1; /* table slices (theta_i) or matrix columns */
+    double *tab;      /* [((it * R + ot) * R + d) * 3 + c] */
+    unsigned char *known;
+    size_t valid;
+} iso_job_t;
+
+static void *iso_table(void *arg) {
+    iso_job_t *j = arg;
+    size_t R = j->R;
+    double tmax = sb_param_theta_max(j->param), dt = tmax / (double)R, dp = 2 * SB_PI / (double)R;
+    double wi[3], wo[3], rgb[3];
+    for (size_t it = j->a0; it < j->a1; it++) {
+        sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi);
+        for (size_t ot = 0; ot < R; ot++)
+            for (size_t d = 0; d < R; d++) {
+                size_t at = (it * R + ot) * R + d;
+                sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo);
+                rgb[0] = rgb[1] = rgb[2] = 0;
+                int known = sb_source_eval(j->src, wi, wo, rgb);
+                double w = sb_form_weight(j->m->form, wi, wo);
+                for (int c = 0; c < 3; c++) {
+                    double v = known ? rgb[c] * w : 0.0;
+                    if (!isfinite(v)) known = 0;
+                    j->tab[at * 3 + (size_t)c] = v;
+                }
+                j->known[at] = (unsigned char)known;
+                if (!known) j->tab[at * 3] = j->tab[at * 3 + 1] = j->tab[at * 3 + 2] = 0;
+            }
+    }
+    return NULL;
+}
+
+static void *iso_scatter(void *arg) {
+    iso_job_t *j = arg;
+    sb_matrix_t *m = j->m;
+    size_t R = j->R;
+    for (size_t l = j->a0; l < j->a1; l++) {
+        size_t ot = l % R, op = l / R;
+        for (size_t k = 0; k < m->rows; k++) {
+            size_t it = k % R, ip = k / R, d = (op + R - ip) % R;
+            size_t at = (it * R + ot) * R + d, cell = k + l * m->ld;
+            for (int c = 0; c < 3; c++)
+                if (m->data[c]) m->data[c][cell] = j->tab[at * 3 + (size_t)c];
+            m->mask[cell] = j->known[at];
+            j->valid += j->known[at];
+        }
+    }
+    return NULL;
+}
+
+/* Run fn over [0, n) split among nt threads (the caller's thread included). */
+static void run_parallel(void *(*fn)(void *), iso_job_t *jobs, int nt, size_t n) {
+    pthread_t th[64];
+    int started[64] = {0};
+    for (int t = 0; t < nt; t++) {
+        jobs[t].a0 = n * (size_t)t / (size_t)nt;
+        jobs[t].a1 = n * (size_t)(t + 1) / (size_t)nt;
+    }
+    for (int t = 1; t < nt; t++) started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
+    fn(&jobs[0]);
+    for (int t = 1; t < nt; t++) {
+        if (started[t]) pthread_join(th[t], NULL);
+        else fn(&jobs[t]);
+    }
+}
+
+static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, int threads,
+                                      sb_matrix_t *out) {
+    size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
+    if (sb_size_mul3(R, R, R, &n3)) return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower --res");
+    double *tab = sb_alloc(ctx, n3, 3 * sizeof(double), "isotropic table");
+    unsigned char *known = sb_alloc(ctx, n3, 1, "isotropic table");
+    if (!tab || !known) {
+        free(tab);
+        free(known);
+        return SB_ERR_NOMEM;
+    }
+    int nt = sb_thread_count(threads);
+    if (nt > 64) nt = 64;
+    if ((size_t)nt > R) nt = (int)R;
+    iso_job_t jobs[64];
+    for (int t = 0; t < nt; t++) jobs[t] = (iso_job_t){src, param, out, R, 0, 0, tab, known, 0};
+    run_parallel(iso_table, jobs, nt, R);
+    run_parallel(iso_scatter, jobs, nt, out->cols);
+    for (int t = 0; t < nt; t++) out->valid_count += jobs[t].valid;
+    out->measured_count = out->valid_count;
+    free(tab);
+    free(known);
+    return SB_OK;
+}
+
 sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                             const sb_matrix_opts_t *opts, sb_matrix_t *out) {
     if (!src || !param || !out) return sb_error(ctx, SB_ERR_ARG, "matrix: missing source or parameterisation");
@@ -111,6 +212,19 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     if (!out->mask) {
         sb_matrix_free(out);
         return SB_ERR_NOMEM;
+    }
+
+    if (sb_param_kind(param) == SB_PARAM_IO && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
+        sb_result_t r = build_isotropic_io(ctx, src, param, o.threads, out);
+        if (r != SB_OK) {
+            sb_matrix_free(out);
+            return r;
+        }
+        if (out->valid_count == cells) {
+            free(out->mask);
+            out->mask = NULL;
+        }
+        return SB_OK;
     }
 
     int nt = sb_thread_count(o.threads);
