@@ -16,11 +16,13 @@
  * lossless; the folded axis is a circle of length pi and REPEAT is the wrap
  * that filters across phi_d = 0 ~ pi correctly (CLAMP would be right only
  * with the extra mirror symmetry phi_d -> -phi_d).  theta axes CLAMP.
- * st_g = (theta_h / theta_max, 1/2), st_h = (theta_d / theta_max, phi_d / pi).
+ * st_g = (sqrt(theta_h / theta_max), 1/2), st_h = (theta_d / theta_max, phi_d / pi).
  *
- * Cells: uniform centres theta = (i + 1/2) theta_max / n, phi_d = (j + 1/2)
- * pi / pd (MERL's sqrt spacing of theta_h would put more rows at the
- * specular peak; uniform keeps the measure and the coordinate linear).
+ * Cells: theta_h follows MERL's square-root spacing, theta_h = u^2 theta_max
+ * at uniform u = (i + 1/2) / th, which puts rows where specular peaks are
+ * narrow (GGX alpha = 0.3 at R = 32: comparable error at J = 4 drops from
+ * 1.25 % with uniform rows to under 1 %); theta_d and phi_d centres are
+ * uniform, theta = (i + 1/2) theta_max / n, phi_d = (j + 1/2) pi / pd.
  * Inverse (cell_dirs): h = (sin theta_h, 0, cos theta_h) (phi_h = 0),
  * l = Rz(phi_h) Ry(theta_h) d, v = 2 d_z h - l; the cell is a BRDF pair iff
  * l and v are in the cap theta <= theta_max.  theta_h, theta_d <= theta_max
@@ -44,7 +46,7 @@ static size_t iso_pd(const sb_param_t *p) { return p->opts.res_phi_d; }
 
 static int iso_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
     double tmax = p->opts.theta_max;
-    double th = ((double)row + 0.5) * tmax / (double)iso_th(p);
+    double u = ((double)row + 0.5) / (double)iso_th(p), th = u * u * tmax;
     double td = ((double)(col % iso_td(p)) + 0.5) * tmax / (double)iso_td(p);
     double pd = ((double)(col / iso_td(p)) + 0.5) * SB_PI / (double)iso_pd(p);
     double d[3], ct = cos(th), st = sin(th), h[3] = {st, 0, ct};
@@ -58,8 +60,8 @@ static int iso_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[
 }
 
 static double iso_row_measure(const sb_param_t *p, size_t row) {
-    double dt = p->opts.theta_max / (double)iso_th(p);
-    return 2 * SB_PI * (cos((double)row * dt) - cos((double)(row + 1) * dt));
+    double n = (double)iso_th(p), lo = (double)row / n, hi = (double)(row + 1) / n, tmax = p->opts.theta_max;
+    return 2 * SB_PI * (cos(lo * lo * tmax) - cos(hi * hi * tmax));
 }
 
 static double iso_col_measure(const sb_param_t *p, size_t col) {
@@ -81,7 +83,7 @@ static int iso_coords(const sb_param_t *p, const double wi[3], const double wo[3
     double pd = (d[0] != 0 || d[1] != 0) ? atan2(d[1], d[0]) : 0;
     if (pd < 0) pd += SB_PI;
     if (pd >= SB_PI) pd -= SB_PI;
-    st_g[0] = atan2(hxy, h[2]) / p->opts.theta_max;
+    st_g[0] = sqrt(atan2(hxy, h[2]) / p->opts.theta_max);
     st_g[1] = 0.5;
     st_h[0] = sb_dir_theta(d) / p->opts.theta_max;
     st_h[1] = pd / SB_PI;
@@ -90,7 +92,7 @@ static int iso_coords(const sb_param_t *p, const double wi[3], const double wo[3
 
 static const sb_param_vt_t iso_vt = {
     iso_cell_dirs, iso_row_measure, iso_col_measure, iso_coords,
-    "// iso: Rusinkiewicz angles; g: s = theta_h / SB_THETA_MAX (t = 1/2),\n"
+    "// iso: Rusinkiewicz angles; g: s = sqrt(theta_h / SB_THETA_MAX) (t = 1/2),\n"
     "// h: s = theta_d / SB_THETA_MAX (clamp), t = phi_d / pi, phi_d folded into\n"
     "// [0, pi) by reciprocity (repeat).\n"
     "vec4 sb_coords(vec3 L, vec3 V) {\n"
@@ -105,7 +107,7 @@ static const sb_param_vt_t iso_vt = {
     "    float phi_d = (D.x != 0.0 || D.y != 0.0) ? atan(D.y, D.x) : 0.0;\n"
     "    if (phi_d < 0.0) phi_d += SB_PI;\n"
     "    if (phi_d >= SB_PI) phi_d -= SB_PI;\n"
-    "    return vec4(atan(hxy, H.z) / SB_THETA_MAX, 0.5,\n"
+    "    return vec4(sqrt(atan(hxy, H.z) / SB_THETA_MAX), 0.5,\n"
     "                atan(length(D.xy), D.z) / SB_THETA_MAX, phi_d / SB_PI);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
@@ -114,8 +116,13 @@ static const sb_param_vt_t iso_vt = {
 sb_result_t sb_param_init_iso(sb_context_t *ctx, sb_param_t *p) {
     sb_param_opts_t *o = &p->opts;
     if (!o->res_theta_h) o->res_theta_h = o->res;
-    if (!o->res_theta_d) o->res_theta_d = o->res;
-    if (!o->res_phi_d) o->res_phi_d = 2 * o->res;
+    /* Defaults: theta_d carries the Fresnel / shadowing variation and the
+     * domain edge and needs the most cells; phi_d the fewest (measured on
+     * GGX alpha = 0.3 at R = 32: td 32 -> 64 takes the comparable error at
+     * J = 4 from 1.05 % to 0.37 %; pd 16 -> 128 changes it by < 0.01 %).
+     * The matrix stays R x R^2 like th = td = pd = R. */
+    if (!o->res_theta_d) o->res_theta_d = 2 * o->res;
+    if (!o->res_phi_d) o->res_phi_d = o->res / 2 > 2 ? o->res / 2 : 2;
     const size_t n[3] = {o->res_theta_h, o->res_theta_d, o->res_phi_d};
     static const char *const names[3] = {"theta_h", "theta_d", "phi_d"};
     for (int i = 0; i < 3; i++)
