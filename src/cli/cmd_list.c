@@ -6,10 +6,12 @@
 int cmd_list(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            printf("usage: sepbrdf list\n\nPrint every model, each key with its meaning, range and default,\n"
-                   "and every material preset (usable as base=NAME, f0=NAME or ior=NAME).\n");
+            printf("usage: sepbrdf list [OPTIONS]\n\nPrint every model, each key with its meaning, range and default,\n"
+                   "and every material preset (usable as base=NAME, f0=NAME or ior=NAME).\n\noptions:\n"
+                   CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
             return EXIT_OK;
         }
+        if (cli_verbosity_opt(argv[i])) continue;
         cli_error("list", "unknown option '%s'", argv[i]);
         return EXIT_USAGE;
     }
