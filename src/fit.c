@@ -15,9 +15,11 @@
  * thousands of steps).  For k <= SB_ALS_MAX_K a few imputation steps only
  * warm-start alternating least squares on the valid cells,
  *     p_r = argmin sum_{c valid} (a_rc - p_r . q_c)^2,  then the same for q_c,
- * exact block coordinate descent that needs tens of sweeps.  The final
- * P Q^T is re-orthogonalised (QR of both, SVD of the k x k core) into
- * sigma, u, v ordered like an SVD. */
+ * exact block coordinate descent that needs tens of sweeps.  Terms are
+ * added one at a time (stage ka refits the first ka jointly), so each prefix
+ * of the output is a masked fit of its own rank; sigma_j = |p_j| |q_j| is
+ * the scale of term j, not a singular value, and the terms are not
+ * orthogonal. */
 #include "fit.h"
 
 #include <cblas.h>
@@ -195,8 +197,8 @@ static void spd_solve(double *G, double *b, size_t k) {
 
 /* One ALS sweep: rows (P given Q), then columns (Q given P); returns the
  * squared error on valid cells after the sweep. */
-static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask) {
-    size_t m = f->m, n = f->n, k = f->k;
+static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t k) {
+    size_t m = f->m, n = f->n;
     double *P = f->P, *Q = f->Q, *G = f->G, *B = f->rhs;
     /* rows: accumulate G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c column by column */
     memset(G, 0, m * k * k * sizeof *G);
@@ -245,46 +247,6 @@ static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned
         }
     }
     return e2;
-}
-
-/* P Q^T -> sigma, U, V: QR of P and Q, SVD of the k x k core Rp Rq^T. */
-static sb_result_t als_finish(sb_fit_t *f, double *s, double *U, double *V) {
-    size_t m = f->m, n = f->n, k = f->k;
-    double *rp = f->ub, *core = f->b, *w = f->vbt;
-    lapack_int info;
-    double *rq = malloc(k * k * sizeof *rq), *z = malloc(k * k * sizeof *z);
-    if (!rq || !z) {
-        free(rq);
-        free(z);
-        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
-    }
-    info = LAPACKE_dgeqrf_work(LAPACK_COL_MAJOR, (lapack_int)m, (lapack_int)k, f->P, (lapack_int)m, f->tau, f->work, f->lwork);
-    for (size_t j = 0; j < k; j++)
-        for (size_t i = 0; i < k; i++) rp[i + j * k] = i <= j ? f->P[i + j * m] : 0;
-    if (!info) info = LAPACKE_dorgqr_work(LAPACK_COL_MAJOR, (lapack_int)m, (lapack_int)k, (lapack_int)k, f->P, (lapack_int)m, f->tau, f->work, f->lwork);
-    if (!info) info = LAPACKE_dgeqrf_work(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)k, f->Q, (lapack_int)n, f->tau, f->work, f->lwork);
-    for (size_t j = 0; j < k; j++)
-        for (size_t i = 0; i < k; i++) rq[i + j * k] = i <= j ? f->Q[i + j * n] : 0;
-    if (!info) info = LAPACKE_dorgqr_work(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)k, (lapack_int)k, f->Q, (lapack_int)n, f->tau, f->work, f->lwork);
-    if (info) {
-        free(rq);
-        free(z);
-        return sb_error(f->ctx, SB_ERR_NUMERIC, "fit: QR failed (info %d)", (int)info);
-    }
-    /* core = Rp Rq^T */
-    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)k, (int)k, (int)k, 1.0, rp, (int)k, rq, (int)k, 0.0, core, (int)k);
-    info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', (lapack_int)k, (lapack_int)k, core, (lapack_int)k, s, w, (lapack_int)k,
-                               z, (lapack_int)k, f->work, f->lwork, f->iwork);
-    if (info) {
-        free(rq);
-        free(z);
-        return sb_error(f->ctx, SB_ERR_NUMERIC, "fit: SVD of the core failed (info %d)", (int)info);
-    }
-    if (U) cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)k, (int)k, 1.0, f->P, (int)m, w, (int)k, 0.0, U, (int)m);
-    if (V) cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)n, (int)k, (int)k, 1.0, f->Q, (int)n, z, (int)k, 0.0, V, (int)n);
-    free(rq);
-    free(z);
-    return SB_OK;
 }
 
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, const sb_fit_opts_t *opts,
@@ -364,21 +326,36 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
             for (size_t i = 0; i < m; i++) f->P[i + j * m] = qu[i + j * m] * rt;
             for (size_t i = 0; i < n; i++) f->Q[i + j * n] = f->vbt[j + i * l] * rt;
         }
-        prev = INFINITY;
-        int sweeps = 0, total = it > em_iters ? em_iters : it;
-        for (; total < o.max_iters; total++) {
-            sweeps++;
-            err = sqrt(als_sweep(f, A, lda, mask));
-            if (err <= 1e-15 * sqrt(norm2) || (isfinite(prev) && prev - err <= o.tol * prev)) break;
-            prev = err;
+        /* Nested stages: terms are added one at a time and the first ka
+         * are refitted jointly, so every prefix of the result is itself a
+         * masked fit of its rank (the terms are not re-orthogonalised over
+         * the whole matrix: that would mix in the unconstrained values the
+         * fit implies outside the domain). */
+        int total = it > em_iters ? em_iters : it, converged = 1;
+        for (size_t ka = 1; ka <= k && r == SB_OK; ka++) {
+            prev = INFINITY;
+            for (int stage = 1;; stage++) {
+                total++;
+                err = sqrt(als_sweep(f, A, lda, mask, ka));
+                if (err <= 1e-15 * sqrt(norm2) || (isfinite(prev) && prev - err <= o.tol * prev)) break;
+                if (stage >= o.max_iters) {
+                    converged = 0;
+                    break;
+                }
+                prev = err;
+            }
         }
-        it = total + 1;
-        if (total >= o.max_iters) it = o.max_iters + 1;
-        r = als_finish(f, s, U, V);
-        if (r == SB_OK && info) {
-            info->iterations = total < o.max_iters ? total + 1 : o.max_iters;
+        /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
+        for (size_t j = 0; j < k; j++) {
+            double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);
+            s[j] = np * nq;
+            for (size_t i = 0; i < m && U; i++) U[i + j * m] = np > 0 ? f->P[i + j * m] / np : 0;
+            for (size_t i = 0; i < n && V; i++) V[i + j * n] = nq > 0 ? f->Q[i + j * n] / nq : 0;
+        }
+        if (info) {
+            info->iterations = total;
             info->rel_err = norm2 > 0 ? err / sqrt(norm2) : 0;
-            info->converged = total < o.max_iters;
+            info->converged = converged;
         }
         free(qu);
         free(coef);
