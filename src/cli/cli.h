@@ -66,5 +66,7 @@ int cli_commit(FILE *fp, const char *tmp, const char *path, int ok);
 /* Subcommands */
 int cmd_factor(int argc, char **argv);
 int cmd_list(int argc, char **argv);
+int cmd_sample(int argc, char **argv);
+int cmd_info(int argc, char **argv);
 
 #endif

@@ -13,6 +13,8 @@ typedef struct command {
 static const command_t commands[] = {
     {"factor", cmd_factor, "factor a BRDF into texture pairs (EXR), report and GLSL"},
     {"list", cmd_list, "list models, their keys and the material presets"},
+    {"sample", cmd_sample, "measure a source with a simulated gonioreflectometer (CSV)"},
+    {"info", cmd_info, "describe a file: measured table format, samples, coverage"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
