@@ -33,6 +33,8 @@
 /* Up to this many terms the fit finishes with alternating least squares
  * (Grams of k x k per row and column); beyond, imputation alone. */
 #define SB_ALS_MAX_K 32
+/* A joint refit may make a shorter prefix at most this much worse. */
+#define SB_PREFIX_SLACK 2.0
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
 
@@ -195,20 +197,24 @@ static void spd_solve(double *G, double *b, size_t k) {
     }
 }
 
-/* One ALS sweep: rows (P given Q), then columns (Q given P); returns the
- * squared error on valid cells after the sweep. */
-static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t k) {
-    size_t m = f->m, n = f->n;
+/* One ALS sweep over the free columns j0..ka-1 of P and Q (columns below j0
+ * stay fixed and are subtracted from the data): rows (P given Q), then
+ * columns (Q given P).  Returns the squared error of all ka terms on the
+ * valid cells after the sweep. */
+static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka) {
+    size_t m = f->m, n = f->n, k = ka - j0;
     double *P = f->P, *Q = f->Q, *G = f->G, *B = f->rhs;
     /* rows: accumulate G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c column by column */
     memset(G, 0, m * k * k * sizeof *G);
     memset(B, 0, m * k * sizeof *B);
     for (size_t c = 0; c < n; c++) {
-        double qc[SB_ALS_MAX_K];
-        for (size_t j = 0; j < k; j++) qc[j] = Q[c + j * n];
+        double qc[SB_ALS_MAX_K], qf[SB_ALS_MAX_K];
+        for (size_t j = 0; j < k; j++) qc[j] = Q[c + (j0 + j) * n];
+        for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
         for (size_t r = 0; r < m; r++) {
             if (!mask[r + c * lda]) continue;
             double a = A[r + c * lda], *g = G + r * k * k, *b = B + r * k;
+            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
             for (size_t i = 0; i < k; i++) {
                 b[i] += a * qc[i];
                 for (size_t j = 0; j <= i; j++) g[i * k + j] += qc[i] * qc[j];
@@ -220,16 +226,18 @@ static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned
         for (size_t i = 0; i < k; i++)
             for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
         spd_solve(g, b, k);
-        for (size_t j = 0; j < k; j++) P[r + j * m] = b[j];
+        for (size_t j = 0; j < k; j++) P[r + (j0 + j) * m] = b[j];
     }
     /* columns: contiguous in A */
     double e2 = 0;
     for (size_t c = 0; c < n; c++) {
-        double g[SB_ALS_MAX_K * SB_ALS_MAX_K] = {0}, b[SB_ALS_MAX_K] = {0};
+        double g[SB_ALS_MAX_K * SB_ALS_MAX_K] = {0}, b[SB_ALS_MAX_K] = {0}, qf[SB_ALS_MAX_K];
+        for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
         for (size_t r = 0; r < m; r++) {
             if (!mask[r + c * lda]) continue;
             double a = A[r + c * lda], pr[SB_ALS_MAX_K];
-            for (size_t j = 0; j < k; j++) pr[j] = P[r + j * m];
+            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
+            for (size_t j = 0; j < k; j++) pr[j] = P[r + (j0 + j) * m];
             for (size_t i = 0; i < k; i++) {
                 b[i] += a * pr[i];
                 for (size_t j = 0; j <= i; j++) g[i * k + j] += pr[i] * pr[j];
@@ -238,15 +246,50 @@ static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned
         for (size_t i = 0; i < k; i++)
             for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
         spd_solve(g, b, k);
-        for (size_t j = 0; j < k; j++) Q[c + j * n] = b[j];
+        for (size_t j = 0; j < k; j++) Q[c + (j0 + j) * n] = b[j];
         for (size_t r = 0; r < m; r++) {
             if (!mask[r + c * lda]) continue;
             double d = A[r + c * lda];
-            for (size_t j = 0; j < k; j++) d -= P[r + j * m] * b[j];
+            for (size_t j = 0; j < j0; j++) d -= P[r + j * m] * qf[j];
+            for (size_t j = 0; j < k; j++) d -= P[r + (j0 + j) * m] * b[j];
             e2 += d * d;
         }
     }
     return e2;
+}
+
+/* Squared error on valid cells of each prefix of the first ka terms:
+ * e2[j] for the terms 0..j. */
+static void prefix_errors(const sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t ka,
+                          double *e2) {
+    size_t m = f->m, n = f->n;
+    for (size_t j = 0; j < ka; j++) e2[j] = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double d = A[r + c * lda];
+            for (size_t j = 0; j < ka; j++) {
+                d -= f->P[r + j * m] * f->Q[c + j * n];
+                e2[j] += d * d;
+            }
+        }
+}
+
+/* ALS sweeps on columns j0..ka-1 until the error stops improving. */
+static double als_until(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka,
+                        const sb_fit_opts_t *o, double norm, int *sweeps, int *converged) {
+    double prev = INFINITY, err = 0;
+    for (int stage = 1;; stage++) {
+        (*sweeps)++;
+        err = sqrt(als_sweep(f, A, lda, mask, j0, ka));
+        if (err <= 1e-15 * norm || (isfinite(prev) && prev - err <= o->tol * prev)) break;
+        if (stage >= o->max_iters) {
+            *converged = 0;
+            break;
+        }
+        prev = err;
+    }
+    return err;
 }
 
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, const sb_fit_opts_t *opts,
@@ -332,19 +375,49 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
          * the whole matrix: that would mix in the unconstrained values the
          * fit implies outside the domain). */
         int total = it > em_iters ? em_iters : it, converged = 1;
-        for (size_t ka = 1; ka <= k && r == SB_OK; ka++) {
-            prev = INFINITY;
-            for (int stage = 1;; stage++) {
-                total++;
-                err = sqrt(als_sweep(f, A, lda, mask, ka));
-                if (err <= 1e-15 * sqrt(norm2) || (isfinite(prev) && prev - err <= o.tol * prev)) break;
-                if (stage >= o.max_iters) {
-                    converged = 0;
-                    break;
-                }
-                prev = err;
-            }
+        double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
+        double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
+        if (!saveP || !saveQ) {
+            free(saveP);
+            free(saveQ);
+            free(qu);
+            free(coef);
+            return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
         }
+        for (size_t ka = 1; ka <= k; ka++) {
+            /* first the new term alone on the residual of the others: the
+             * error can only go down (its first half-sweep is a least-squares
+             * step from the warm start) */
+            err = als_until(f, A, lda, mask, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
+            if (ka > 1) {
+                /* then all ka jointly, kept only if no shorter prefix gets
+                 * more than SB_PREFIX_SLACK times worse (at the last stage:
+                 * no worse than no term at all): a joint refit may trade the
+                 * prefixes' accuracy for cancelling terms that are large
+                 * outside the domain, which also spoil interpolated lookups
+                 * near its edge */
+                memcpy(saveP, f->P, m * ka * sizeof *saveP);
+                memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
+                double ej = als_until(f, A, lda, mask, 0, ka, &o, sqrt(norm2), &total, &converged);
+                prefix_errors(f, A, lda, mask, ka, e2);
+                int keep = ej <= err;
+                /* the last stage is what was asked for: there any sane
+                 * prefix (no worse than no term) is accepted */
+                double slack = ka == k ? INFINITY : SB_PREFIX_SLACK;
+                for (size_t j = 0; keep && j + 1 < ka; j++)
+                    keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2));
+                if (keep) {
+                    err = ej;
+                    for (size_t j = 0; j + 1 < ka; j++) acc[j] = fmax(acc[j], sqrt(e2[j]));
+                } else {
+                    memcpy(f->P, saveP, m * ka * sizeof *saveP);
+                    memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
+                }
+            }
+            acc[ka - 1] = err;
+        }
+        free(saveP);
+        free(saveQ);
         /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
         for (size_t j = 0; j < k; j++) {
             double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);

@@ -73,7 +73,7 @@ SB_TEST(not_factor_files) {
     char path[4300], cmd[20000];
     snprintf(path, sizeof path, "%s/report.json", dir);
     CHECK(run("info %s", path) == 2);
-    CHECK(strstr(out, "not a factor file") && strstr(out, "report.json"));
+    CHECKF(strstr(out, "report.json") != NULL, "message does not name the file: %s", out);
     /* a text file named .exr, and a truncated EXR */
     snprintf(cmd, sizeof cmd, "cp %s/report.json %s/fake.exr && head -c 200 %s/g_00.exr > %s/cut.exr", dir, dir, dir,
              dir);

@@ -7,6 +7,7 @@
 #include "factor.h"
 #include "glsl.h"
 #include "matrix.h"
+#include "measured.h"
 #include "models.h"
 #include "param.h"
 #include "source.h"

@@ -13,8 +13,9 @@ typedef struct command {
 static const command_t commands[] = {
     {"factor", cmd_factor, "factor a BRDF into texture pairs (EXR), report and GLSL"},
     {"study", cmd_study, "error vs J for sources x parameterisations (CSV, JSON, PNG)"},
-    {"info", cmd_info, "print the metadata of a factor file (EXR)"},
     {"list", cmd_list, "list models, their keys and the material presets"},
+    {"sample", cmd_sample, "measure a source with a simulated gonioreflectometer (CSV)"},
+    {"info", cmd_info, "describe a file: factor EXR metadata, or a measured table"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
