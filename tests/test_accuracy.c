@@ -73,7 +73,7 @@ SB_TEST(zero_fill_hurts_hd) {
 }
 
 SB_TEST(blinn_phong_depends_on_h) {
-    const char *specs[] = {"blinn-phong-normalized:kd=0,ks=1,n=10", "blinn-phong-normalized:kd=0,ks=1,n=100"};
+    const char *specs[] = {"normalised-blinn-phong:kd=0,ks=1,n=10", "normalised-blinn-phong:kd=0,ks=1,n=100"};
     for (int i = 0; i < 2; i++) {
         run_t r;
         int rc = factor(specs[i], SB_PARAM_HD, 32, SB_FORM_F, 1, 0, 0, &r);
