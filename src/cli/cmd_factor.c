@@ -259,6 +259,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     json_int(j, "metric_resolution", (long long)o->metric_res);
     if (o->param_auto) {
         const cand_t *cd = rx->cands;
+        json_int(j, "auto_metric_resolution", (long long)(o->metric_res < 16 ? o->metric_res : 16));
         json_begin_array(j, "auto_tried");
         for (size_t i = 0; i < rx->ncand; i++) {
             json_begin_object(j, NULL);
@@ -372,6 +373,11 @@ int cmd_factor(int argc, char **argv) {
             }
         }
     }
+    /* Screening: with several candidates the comparable metric is first taken
+     * on a coarser reference grid (16 cells per axis, 16x fewer pairs), and
+     * computed again at --metric-res for the one kept. */
+    size_t full_metric_res = po.metric_res;
+    if (ncand > 1 && po.metric_res > 16) po.metric_res = 16;
     for (size_t i = 0; i < ncand; i++) {
         attempt_t a;
         char label[64];
@@ -409,8 +415,16 @@ int cmd_factor(int argc, char **argv) {
         rc = EXIT_NUMERIC;
         goto out;
     }
+    if (po.metric_res != full_metric_res) {
+        sb_metric_opts_t mo = {0};
+        mo.res = full_metric_res;
+        double tm = cli_now();
+        if ((r = sb_metric_compute(ctx, src, best.f, best.param, best.m.form, &mo, &best.metric)) != SB_OK) goto fail;
+        best.t_metric += cli_now() - tm;
+    }
     if (o.param_auto && g_verbosity >= 1) {
-        fprintf(stderr, "--param auto tried (comparable error at J = %zu):\n", o.terms);
+        fprintf(stderr, "--param auto tried (comparable error at J = %zu, reference grid %zu):\n", o.terms,
+                po.metric_res);
         for (size_t i = 0; i < ncand; i++)
             if (cands[i].ok)
                 fprintf(stderr, "  %-8s form %-4s %s %.4e\n", sb_param_kind_name(cands[i].kind),
