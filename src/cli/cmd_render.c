@@ -1,0 +1,465 @@
+/* sepbrdf render: the original BRDF and its reconstructions on a lit sphere,
+ * PNG strips and errors per J. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+
+#define DEFAULT_SOURCE "microfacet:base=gold,roughness=0.5"
+#define DEFAULT_OUT "sepbrdf-render"
+#define MAX_TERMS_LIST 64
+
+static void help(void) {
+    printf(
+        "usage: sepbrdf render [SOURCE | DIR] [OPTIONS]\n"
+        "\n"
+        "Render a lit sphere with the original BRDF and with its separable\n"
+        "reconstruction from J terms, for each J asked, and write into the output folder:\n"
+        "  original.png         the original\n"
+        "  render_JNN.png       original | reconstruction | difference x diff-scale\n"
+        "  render.json          errors per J, settings\n"
+        "Prints per J the RMS error of linear radiance and the RMSE and PSNR of the\n"
+        "display values (tone mapped, sRGB encoded, in [0, 1]) over the sphere's pixels.\n"
+        "\n"
+        "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
+        "        factor` does (default: " DEFAULT_SOURCE ").\n"
+        "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation,\n"
+        "        form and (unless --source) recorded source are used.\n"
+        "\n"
+        "options:\n"
+        "  -o, --out DIR          output folder, created if missing (default ./" DEFAULT_OUT ")\n"
+        "  -J, --terms LIST       numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
+        "                         for DIR every J of the folder)\n"
+        "  -r, --res R            as `sepbrdf factor` (SOURCE only; default 32)\n"
+        "      --param P          as `sepbrdf factor` (SOURCE only; default io)\n"
+        "      --form F           as `sepbrdf factor` (SOURCE only; default f)\n"
+        "      --method M         as `sepbrdf factor` (SOURCE only; default auto)\n"
+        "      --theta-max DEG    as `sepbrdf factor` (SOURCE only; default 90)\n"
+        "      --source SPEC      the original to compare with (DIR only)\n"
+        "  -s, --size N           image width and height in pixels, 8..4096 (default 256)\n"
+        "      --light-elev DEG   elevation of the light above the image plane, towards\n"
+        "                         the viewer, 0..90 (default 45)\n"
+        "      --light-azim DEG   azimuth in the image plane from right towards up (default 45)\n"
+        "      --light EL,AZ[,E]  one more light (repeatable, up to %d in all), E its irradiance\n"
+        "      --exposure X|auto  multiply radiance by X before tone mapping; auto (default):\n"
+        "                         1 / the original's brightest channel, so nothing clips\n"
+        "      --tonemap T        clamp (default) or reinhard (x / (1 + x))\n"
+        "      --diff-scale N     magnification of the difference panel (default 4)\n"
+        "  -q, --quiet            print nothing but errors\n"
+        "  -v, --verbose          more detail on stderr\n"
+        "  -h, --help             this text\n"
+        "\n"
+        "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
+        "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
+        "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n",
+        SB_RENDER_MAX_LIGHTS);
+}
+
+typedef struct render_opts {
+    const char *input, *out, *source;
+    size_t res, terms[MAX_TERMS_LIST], nterms;
+    sb_param_kind_t param;
+    sb_form_t form;
+    sb_method_t method;
+    double theta_max_deg;
+    const char *factor_opt_name; /* a SOURCE-only option given, or NULL */
+    sb_render_opts_t scene;
+    double elev, azim;
+    sb_tonemap_t tm;
+    double diff_scale;
+} render_opts_t;
+
+static int parse_terms(const char *v, render_opts_t *o) {
+    o->nterms = 0;
+    const char *s = v;
+    while (1) {
+        char item[32];
+        size_t n = strcspn(s, ",");
+        if (n == 0 || n >= sizeof item) {
+            cli_error("render", "--terms '%s' is not a list of integers like 1,2,4", v);
+            return -1;
+        }
+        memcpy(item, s, n);
+        item[n] = 0;
+        if (o->nterms == MAX_TERMS_LIST) {
+            cli_error("render", "--terms: more than %d entries", MAX_TERMS_LIST);
+            return -1;
+        }
+        if (cli_parse_size("render", "--terms", item, 1, (size_t)1 << 30, &o->terms[o->nterms])) return -1;
+        o->nterms++;
+        if (!s[n]) break;
+        s += n + 1;
+    }
+    return 0;
+}
+
+static int parse_light(const char *v, render_opts_t *o) {
+    double a[3] = {0, 0, 0};
+    int n = 0;
+    const char *s = v;
+    while (n < 3) {
+        char item[64], *end;
+        size_t len = strcspn(s, ",");
+        if (len == 0 || len >= sizeof item) break;
+        memcpy(item, s, len);
+        item[len] = 0;
+        a[n] = strtod(item, &end);
+        if (*end || !isfinite(a[n])) break;
+        n++;
+        if (!s[len]) {
+            s += len;
+            break;
+        }
+        s += len + 1;
+    }
+    if (n < 2 || *s) {
+        cli_error("render", "--light '%s' is not ELEV,AZIM or ELEV,AZIM,E (degrees, irradiance)", v);
+        return -1;
+    }
+    if (a[0] < 0 || a[0] > 90 || a[2] < 0) {
+        cli_error("render", "--light '%s': elevation must be in 0..90 and E >= 0", v);
+        return -1;
+    }
+    if (o->scene.light_count >= SB_RENDER_MAX_LIGHTS) {
+        cli_error("render", "--light: at most %d lights in all", SB_RENDER_MAX_LIGHTS);
+        return -1;
+    }
+    sb_light_from_angles(a[0], a[1], a[2], &o->scene.lights[o->scene.light_count++]);
+    return 0;
+}
+
+static int parse(int argc, char **argv, render_opts_t *o) {
+    static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
+                             *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
+                             *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
+                             *const n_tmax[] = {"--theta-max", NULL}, *const n_src[] = {"--source", NULL},
+                             *const n_size[] = {"-s", "--size", NULL}, *const n_el[] = {"--light-elev", NULL},
+                             *const n_az[] = {"--light-azim", NULL}, *const n_light[] = {"--light", NULL},
+                             *const n_exp[] = {"--exposure", NULL}, *const n_tm[] = {"--tonemap", NULL},
+                             *const n_diff[] = {"--diff-scale", NULL}, *const n_q[] = {"-q", "--quiet", NULL},
+                             *const n_v[] = {"-v", "--verbose", NULL}, *const n_help[] = {"-h", "--help", NULL};
+    cli_args_t a = {argc, 1, argv, "render"};
+    for (; a.i < argc; a.i++) {
+        const char *v = NULL, *arg = argv[a.i];
+        int m;
+        if ((m = cli_opt(&a, n_help, 0, &v))) {
+            help();
+            return 0;
+        }
+        if ((m = cli_opt(&a, n_out, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (!*v) {
+                cli_error("render", "--out: empty folder name");
+                return EXIT_USAGE;
+            }
+            o->out = v;
+        } else if ((m = cli_opt(&a, n_terms, 1, &v))) {
+            if (m < 0 || parse_terms(v, o)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_res, 1, &v))) {
+            if (m < 0 || cli_parse_size("render", "--res", v, 2, 512, &o->res)) return EXIT_USAGE;
+            o->factor_opt_name = "--res";
+        } else if ((m = cli_opt(&a, n_param, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (sb_param_kind_parse(v, &o->param) != SB_OK) {
+                cli_error("render", "--param '%s' unknown, need one of io, io-area, hd, iso", v);
+                return EXIT_USAGE;
+            }
+            o->factor_opt_name = "--param";
+        } else if ((m = cli_opt(&a, n_form, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (sb_form_parse(v, &o->form) != SB_OK) {
+                cli_error("render", "--form '%s' unknown, need one of f, cos, cos2", v);
+                return EXIT_USAGE;
+            }
+            o->factor_opt_name = "--form";
+        } else if ((m = cli_opt(&a, n_method, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (sb_method_parse(v, &o->method) != SB_OK) {
+                cli_error("render", "--method '%s' unknown, need one of auto, full, topk, randomized", v);
+                return EXIT_USAGE;
+            }
+            o->factor_opt_name = "--method";
+        } else if ((m = cli_opt(&a, n_tmax, 1, &v))) {
+            if (m < 0 || cli_parse_double("render", "--theta-max", v, 1, 90, &o->theta_max_deg)) return EXIT_USAGE;
+            o->factor_opt_name = "--theta-max";
+        } else if ((m = cli_opt(&a, n_src, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            o->source = v;
+        } else if ((m = cli_opt(&a, n_size, 1, &v))) {
+            if (m < 0 || cli_parse_size("render", "--size", v, 8, 4096, &o->scene.size)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_el, 1, &v))) {
+            if (m < 0 || cli_parse_double("render", "--light-elev", v, 0, 90, &o->elev)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_az, 1, &v))) {
+            if (m < 0 || cli_parse_double("render", "--light-azim", v, -360, 360, &o->azim)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_light, 1, &v))) {
+            if (m < 0 || parse_light(v, o)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_exp, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (strcmp(v, "auto") == 0) o->tm.exposure = 0;
+            else if (cli_parse_double("render", "--exposure", v, 1e-6, 1e6, &o->tm.exposure)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_tm, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (sb_tonemap_parse(v, &o->tm.op) != SB_OK) {
+                cli_error("render", "--tonemap '%s' unknown, need clamp or reinhard", v);
+                return EXIT_USAGE;
+            }
+        } else if ((m = cli_opt(&a, n_diff, 1, &v))) {
+            if (m < 0 || cli_parse_double("render", "--diff-scale", v, 1e-3, 1e6, &o->diff_scale)) return EXIT_USAGE;
+        } else if (cli_opt(&a, n_q, 0, &v)) {
+            g_verbosity = 0;
+        } else if (cli_opt(&a, n_v, 0, &v)) {
+            g_verbosity++;
+        } else if (strcmp(arg, "-vv") == 0) {
+            g_verbosity += 2;
+        } else if (arg[0] == '-' && arg[1]) {
+            cli_error("render", "unknown option '%s' (see `sepbrdf render --help`)", arg);
+            return EXIT_USAGE;
+        } else if (!o->input) {
+            o->input = arg;
+        } else {
+            cli_error("render", "more than one SOURCE or DIR given ('%s' and '%s')", o->input, arg);
+            return EXIT_USAGE;
+        }
+    }
+    return -1; /* go on */
+}
+
+static int is_dir(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+/* Factor `src` as `sepbrdf factor` does, with J = the largest of the list. */
+static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
+                                 sb_param_t **param, sb_factors_t **f, int *usage) {
+    sb_param_opts_t po = {0};
+    po.res = o->res;
+    po.theta_max = o->theta_max_deg * SB_PI / 180;
+    sb_result_t r = sb_param_create(ctx, o->param, &po, param);
+    if (r) return r;
+    size_t rows = sb_param_rows(*param), cols = sb_param_cols(*param), mn = rows < cols ? rows : cols;
+    if (J > mn) {
+        cli_error("render", "--terms %zu exceeds the %zu directions of --res %zu; lower --terms or raise --res", J,
+                  mn, o->res);
+        *usage = 1;
+        return SB_ERR_RANGE;
+    }
+    sb_plan_opts_t pl = {0};
+    pl.terms = J;
+    pl.svd.method = o->method;
+    pl.svd.seed = 1;
+    sb_plan_t *plan = NULL;
+    sb_matrix_t m = {0};
+    sb_matrix_opts_t mo = {0};
+    mo.form = o->form;
+    cli_info(2, "factoring %s on %s (%zu x %zu), %zu terms", sb_source_description(src), sb_param_spec(*param), rows,
+             cols, J);
+    cli_progress("sampling", 0);
+    if ((r = sb_plan_create(ctx, rows, cols, &pl, &plan)) == SB_OK &&
+        (r = sb_matrix_build(ctx, src, *param, &mo, &m)) == SB_OK) {
+        cli_progress("factoring", 0.5);
+        r = sb_plan_execute(plan, &m, *param, f);
+    }
+    cli_progress_done();
+    if (r == SB_OK) sb_factors_set_meta(*f, "source", sb_source_description(src));
+    sb_matrix_free(&m);
+    sb_plan_destroy(plan);
+    return r;
+}
+
+static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src, const sb_param_t *param,
+                       sb_form_t form, const sb_image_diff_t *d, char names[][32]) {
+    json_begin_object(j, NULL);
+    json_string(j, "sepbrdf_version", SB_VERSION_STRING);
+    json_string(j, "command", "render");
+    json_string(j, "source", sb_source_description(src));
+    json_string(j, "param_spec", sb_param_spec(param));
+    json_string(j, "form", sb_form_name(form));
+    json_int(j, "size", (long long)o->scene.size);
+    json_begin_array(j, "lights");
+    for (size_t i = 0; i < o->scene.light_count; i++) {
+        json_begin_object(j, NULL);
+        json_begin_array(j, "dir");
+        for (int k = 0; k < 3; k++) json_number(j, NULL, o->scene.lights[i].dir[k]);
+        json_end_array(j);
+        json_number(j, "irradiance", o->scene.lights[i].irradiance > 0 ? o->scene.lights[i].irradiance : SB_PI);
+        json_end_object(j);
+    }
+    json_end_array(j);
+    json_string(j, "tonemap", sb_tonemap_name(o->tm.op));
+    json_number(j, "exposure", o->tm.exposure);
+    json_number(j, "diff_scale", o->diff_scale);
+    json_string(j, "psnr_on", "display values in [0, 1] (exposure, tone map, sRGB OETF), sphere pixels; null = identical");
+    json_begin_array(j, "results");
+    for (size_t k = 0; k < o->nterms; k++) {
+        json_begin_object(j, NULL);
+        json_int(j, "terms", (long long)o->terms[k]);
+        json_int(j, "pixels", (long long)d[k].pixels);
+        json_number(j, "rmse_linear", d[k].rmse_linear);
+        json_number(j, "max_abs_linear", d[k].max_linear);
+        json_number(j, "rmse", d[k].rmse);
+        json_number(j, "psnr_db", d[k].psnr);
+        json_string(j, "file", names[k]);
+        json_end_object(j);
+    }
+    json_end_array(j);
+    json_end_object(j);
+}
+
+int cmd_render(int argc, char **argv) {
+    render_opts_t o;
+    memset(&o, 0, sizeof o);
+    o.out = DEFAULT_OUT;
+    o.res = 32;
+    o.param = SB_PARAM_IO;
+    o.form = SB_FORM_F;
+    o.theta_max_deg = 90;
+    o.elev = 45;
+    o.azim = 45;
+    o.tm.exposure = 0; /* auto */
+    o.diff_scale = 4;
+    /* slot 0 is the --light-elev/--light-azim light, filled after parsing */
+    o.scene.light_count = 1;
+    int rc = parse(argc, argv, &o);
+    if (rc >= 0) return rc;
+    sb_light_from_angles(o.elev, o.azim, 0, &o.scene.lights[0]);
+    if (o.scene.size == 0) o.scene.size = 256;
+    int from_dir = o.input && is_dir(o.input);
+    if (from_dir && o.factor_opt_name) {
+        cli_error("render", "%s applies when factoring a SOURCE, not to the factors folder %s", o.factor_opt_name,
+                  o.input);
+        return EXIT_USAGE;
+    }
+    if (!from_dir && o.source) {
+        cli_error("render", "--source applies to a factors folder; give the SOURCE itself instead");
+        return EXIT_USAGE;
+    }
+    if (!o.input) o.input = DEFAULT_SOURCE;
+
+    sb_context_t *ctx = NULL;
+    sb_source_t *src = NULL;
+    sb_param_t *param = NULL;
+    sb_factors_t *f = NULL;
+    sb_image_t orig = {0}, rec = {0};
+    sb_form_t form = o.form;
+    sb_result_t r;
+    int usage = 0;
+    if (sb_context_create(&ctx) != SB_OK) {
+        cli_error("render", "out of memory");
+        return EXIT_IO;
+    }
+    /* Inputs first: everything is checked before the output folder is touched */
+    if (from_dir) {
+        if ((r = sb_factors_read_exr(ctx, o.input, &f)) != SB_OK) goto fail;
+        if ((r = sb_factors_param(ctx, f, &param, &form)) != SB_OK) goto fail;
+        const char *spec = o.source ? o.source : sb_factors_get_meta(f, "source");
+        if (!spec) {
+            cli_error("render", "%s records no source; name the original with --source", o.input);
+            rc = EXIT_IO;
+            goto out;
+        }
+        if ((r = sb_source_open(ctx, spec, &src)) != SB_OK) {
+            if (!o.source) {
+                cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o.input,
+                          spec, sb_context_last_error(ctx));
+                rc = cli_exit_code(r);
+                goto out;
+            }
+            goto fail;
+        }
+        size_t J = sb_factors_terms(f);
+        if (o.nterms == 0)
+            for (size_t k = 1; k <= J && k <= MAX_TERMS_LIST; k++) o.terms[o.nterms++] = k;
+        for (size_t k = 0; k < o.nterms; k++)
+            if (o.terms[k] > J) {
+                cli_error("render", "--terms %zu: %s holds %zu terms", o.terms[k], o.input, J);
+                rc = EXIT_USAGE;
+                goto out;
+            }
+    } else {
+        if (o.nterms == 0) {
+            static const size_t def[3] = {1, 2, 4};
+            memcpy(o.terms, def, sizeof def);
+            o.nterms = 3;
+        }
+        size_t J = 0;
+        for (size_t k = 0; k < o.nterms; k++)
+            if (o.terms[k] > J) J = o.terms[k];
+        if ((r = sb_source_open(ctx, o.input, &src)) != SB_OK) goto fail;
+        if ((r = factor_source(ctx, &o, src, J, &param, &f, &usage)) != SB_OK) {
+            if (usage) {
+                rc = EXIT_USAGE;
+                goto out;
+            }
+            goto fail;
+        }
+    }
+
+    /* Render the original, then each reconstruction */
+    cli_progress("rendering", 0);
+    if ((r = sb_render_source(ctx, &o.scene, src, &orig)) != SB_OK) goto fail;
+    if (o.tm.exposure == 0) {
+        double peak = sb_image_max(&orig);
+        o.tm.exposure = peak > 0 ? 1 / peak : 1;
+    }
+    sb_image_diff_t d[MAX_TERMS_LIST];
+    char names[MAX_TERMS_LIST][32], path[4200];
+    if (cli_mkdirs(o.out) != 0) {
+        cli_error("render", "--out %s: cannot create the output folder", o.out);
+        rc = EXIT_IO;
+        goto out;
+    }
+    snprintf(path, sizeof path, "%s/original.png", o.out);
+    if ((r = sb_image_write_png(ctx, path, &orig, &o.tm)) != SB_OK) goto fail;
+    for (size_t k = 0; k < o.nterms; k++) {
+        cli_progress("rendering", (double)(k + 1) / (double)(o.nterms + 1));
+        sb_image_free(&rec);
+        if ((r = sb_render_factors(ctx, &o.scene, f, param, form, o.terms[k], &rec)) != SB_OK) goto fail;
+        if ((r = sb_image_compare(ctx, &orig, &rec, &o.tm, &d[k])) != SB_OK) goto fail;
+        snprintf(names[k], sizeof names[k], "render_J%02zu.png", o.terms[k]);
+        snprintf(path, sizeof path, "%s/%s", o.out, names[k]);
+        if ((r = sb_image_write_strip_png(ctx, path, &orig, &rec, &o.tm, o.diff_scale)) != SB_OK) goto fail;
+    }
+    cli_progress_done();
+    snprintf(path, sizeof path, "%s/render.json", o.out);
+    char tmp[4300];
+    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
+    if (!fp) {
+        cli_error("render", "%s: cannot write", path);
+        rc = EXIT_IO;
+        goto out;
+    }
+    json_t j = {fp, 0, {0}};
+    write_json(&j, &o, src, param, form, d, names);
+    if (cli_commit(fp, tmp, path, 1) != 0) {
+        cli_error("render", "%s: cannot write", path);
+        rc = EXIT_IO;
+        goto out;
+    }
+    if (g_verbosity >= 1) {
+        printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
+               sb_source_description(src), sb_param_spec(param), sb_form_name(form), o.scene.size, o.scene.size,
+               o.scene.light_count, o.scene.light_count == 1 ? "" : "s", sb_tonemap_name(o.tm.op), o.tm.exposure);
+        printf("%4s  %12s  %12s  %10s  %9s\n", "J", "rmse_linear", "max_linear", "rmse", "psnr_dB");
+        for (size_t k = 0; k < o.nterms; k++)
+            printf("%4zu  %12.4e  %12.4e  %10.4e  %9.2f\n", o.terms[k], d[k].rmse_linear, d[k].max_linear, d[k].rmse,
+                   d[k].psnr);
+        printf("wrote original.png, %zu strips (difference x%g) and render.json to %s/\n", o.nterms, o.diff_scale,
+               o.out);
+    }
+    rc = EXIT_OK;
+    goto out;
+fail:
+    cli_progress_done();
+    rc = cli_fail("render", ctx, r);
+out:
+    sb_image_free(&orig);
+    sb_image_free(&rec);
+    sb_factors_destroy(f);
+    sb_param_destroy(param);
+    sb_source_destroy(src);
+    sb_context_destroy(ctx);
+    return rc;
+}
