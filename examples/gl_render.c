@@ -4,9 +4,9 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include "gl_render.h"
 
-#include <GL/osmesa.h>
 #include <GL/gl.h>
 #include <GL/glext.h>
+#include <GL/osmesa.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -33,9 +33,17 @@ int gl_sphere_open(gl_sphere_t **out, char *err, size_t err_size) {
     *out = NULL;
     gl_sphere_t *g = calloc(1, sizeof *g);
     if (!g) return fail(err, err_size, "out of memory");
-    const int attribs[] = {OSMESA_FORMAT,         OSMESA_RGBA, OSMESA_DEPTH_BITS, 0, OSMESA_PROFILE,
-                           OSMESA_CORE_PROFILE,   OSMESA_CONTEXT_MAJOR_VERSION,   3, OSMESA_CONTEXT_MINOR_VERSION,
-                           3,                     0};
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           0,
+                           OSMESA_PROFILE,
+                           OSMESA_CORE_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           3,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           3,
+                           0};
     g->osm = OSMesaCreateContextAttribs(attribs, NULL);
     if (!g->osm) {
         free(g);
@@ -149,7 +157,8 @@ static int upload(const sb_factors_t *f, const sb_param_t *p, int side, GLuint t
     for (size_t j = 0; j < J; j++)
         for (size_t c = 0; c < 3; c++) {
             const double *t = sb_factors_tex_const(f, side, j, C == 1 ? 0 : c);
-            for (size_t i = 0; i < w * h; i++) data[(j * w * h + i) * 3 + c] = (float)t[i];
+            for (size_t i = 0; i < w * h; i++)
+                data[(j * w * h + i) * 3 + c] = (float)t[i];
         }
     int wrap[2];
     sb_param_wrap(p, side, wrap);
@@ -185,7 +194,8 @@ int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f,
         const double *d = o.lights[i].dir;
         double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         if (!(len > 0)) return fail(err, err_size, "light %zu has no direction", i + 1);
-        for (int k = 0; k < 3; k++) ldir[i][k] = (GLfloat)(d[k] / len);
+        for (int k = 0; k < 3; k++)
+            ldir[i][k] = (GLfloat)(d[k] / len);
         lirr[i] = (GLfloat)(o.lights[i].irradiance > 0 ? o.lights[i].irradiance : SB_PI);
     }
 
@@ -256,7 +266,8 @@ int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f,
         for (size_t x = 0; x < o.size; x++) {
             const float *q = pix + ((o.size - 1 - y) * o.size + x) * 4;
             size_t i = y * o.size + x;
-            for (int c = 0; c < 3; c++) out->rgb[3 * i + (size_t)c] = q[c];
+            for (int c = 0; c < 3; c++)
+                out->rgb[3 * i + (size_t)c] = q[c];
             out->mask[i] = q[3] > 0.5f;
         }
     rc = 0;

@@ -23,7 +23,8 @@ sb_result_t sb_image_alloc(sb_context_t *ctx, size_t width, size_t height, sb_im
     memset(out, 0, sizeof *out);
     if (!width || !height) return sb_error(ctx, SB_ERR_ARG, "image: empty size %zu x %zu", width, height);
     size_t n;
-    if (sb_size_mul(width, height, &n)) return sb_error(ctx, SB_ERR_OVERFLOW, "image: %zu x %zu overflows", width, height);
+    if (sb_size_mul(width, height, &n))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "image: %zu x %zu overflows", width, height);
     out->rgb = sb_calloc(ctx, n, 3 * sizeof(double), "image");
     if (!out->rgb) return SB_ERR_NOMEM;
     out->mask = sb_calloc(ctx, n, 1, "image mask");
@@ -55,9 +56,7 @@ sb_result_t sb_tonemap_parse(const char *name, sb_tonemap_op_t *out) {
         }
     return SB_ERR_UNKNOWN;
 }
-const char *sb_tonemap_name(sb_tonemap_op_t op) {
-    return (unsigned)op < SB_TONEMAP_COUNT_ ? tonemap_names[op] : "?";
-}
+const char *sb_tonemap_name(sb_tonemap_op_t op) { return (unsigned)op < SB_TONEMAP_COUNT_ ? tonemap_names[op] : "?"; }
 
 double sb_srgb_oetf(double u) {
     if (!(u > 0)) return 0;
@@ -141,8 +140,7 @@ static void png_on_warning(png_structp png, png_const_charp msg) {
 
 /* Encode into an open file; 0 on success, message in e->msg otherwise.
  * Separate function so that no local of the caller lives across setjmp. */
-static int png_encode(FILE *fp, size_t w, size_t h, const unsigned char *rgb, const char *const *text,
-                      png_err_t *e) {
+static int png_encode(FILE *fp, size_t w, size_t h, const unsigned char *rgb, const char *const *text, png_err_t *e) {
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, e, png_on_error, png_on_warning);
     if (!png) {
         snprintf(e->msg, sizeof e->msg, "out of memory");
@@ -172,7 +170,8 @@ static int png_encode(FILE *fp, size_t w, size_t h, const unsigned char *rgb, co
     }
     if (nt) png_set_text(png, info, txt, nt);
     png_write_info(png, info);
-    for (size_t y = 0; y < h; y++) png_write_row(png, rgb + y * w * 3);
+    for (size_t y = 0; y < h; y++)
+        png_write_row(png, rgb + y * w * 3);
     png_write_end(png, info);
     png_destroy_write_struct(&png, &info);
     return 0;
@@ -258,15 +257,15 @@ sb_result_t sb_image_write_strip_png(sb_context_t *ctx, const char *path, const 
 /* ColorBrewer RdBu control points at u = -1, -0.5, 0, 0.5, 1 (sRGB bytes),
  * linearly interpolated: a diverging map with white at 0. */
 void sb_colormap_diverging(double u, unsigned char rgb[3]) {
-    static const double cp[5][3] = {
-        {33, 102, 172}, {146, 197, 222}, {247, 247, 247}, {244, 165, 130}, {178, 24, 43}};
+    static const double cp[5][3] = {{33, 102, 172}, {146, 197, 222}, {247, 247, 247}, {244, 165, 130}, {178, 24, 43}};
     if (!(u > -1)) u = isnan(u) ? 0 : -1;
     if (u > 1) u = 1;
     double t = (u + 1) * 2; /* 0..4 */
     int k = (int)floor(t);
     if (k > 3) k = 3;
     double a = t - k;
-    for (int c = 0; c < 3; c++) rgb[c] = to_byte(((1 - a) * cp[k][c] + a * cp[k + 1][c]) / 255);
+    for (int c = 0; c < 3; c++)
+        rgb[c] = to_byte(((1 - a) * cp[k][c] + a * cp[k + 1][c]) / 255);
 }
 
 #define PREVIEW_TARGET 256 /* longest panel side aimed at, pixels */

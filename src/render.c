@@ -25,7 +25,8 @@ void sb_light_from_angles(double elev_deg, double azim_deg, double irradiance, s
 
 static void normalize3(double v[3]) {
     double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    for (int i = 0; i < 3; i++) v[i] /= l;
+    for (int i = 0; i < 3; i++)
+        v[i] /= l;
 }
 
 /* Pixel centre p in [-e, e]^2 (y up), n on the sphere, t = normalize(dP/dphi)
@@ -58,7 +59,8 @@ sb_result_t sb_render(sb_context_t *ctx, const sb_render_opts_t *opts, sb_render
     sb_render_opts_t o = {0};
     if (opts) o = *opts;
     if (o.size == 0) o.size = DEFAULT_SIZE;
-    if (o.size > MAX_SIZE) return sb_error(ctx, SB_ERR_RANGE, "render: size %zu out of range, need 1..%d", o.size, MAX_SIZE);
+    if (o.size > MAX_SIZE)
+        return sb_error(ctx, SB_ERR_RANGE, "render: size %zu out of range, need 1..%d", o.size, MAX_SIZE);
     if (o.light_count > SB_RENDER_MAX_LIGHTS)
         return sb_error(ctx, SB_ERR_ARG, "render: %zu lights, at most %d", o.light_count, SB_RENDER_MAX_LIGHTS);
     if (o.light_count == 0) {
@@ -69,9 +71,9 @@ sb_result_t sb_render(sb_context_t *ctx, const sb_render_opts_t *opts, sb_render
     for (size_t i = 0; i < o.light_count; i++) {
         sb_light_t *l = &o.lights[i];
         double len = sqrt(dot3(l->dir, l->dir));
-        if (!(len > 0) || !isfinite(len))
-            return sb_error(ctx, SB_ERR_ARG, "render: light %zu has no direction", i + 1);
-        for (int k = 0; k < 3; k++) l->dir[k] /= len;
+        if (!(len > 0) || !isfinite(len)) return sb_error(ctx, SB_ERR_ARG, "render: light %zu has no direction", i + 1);
+        for (int k = 0; k < 3; k++)
+            l->dir[k] /= len;
         if (!(l->irradiance >= 0) || !isfinite(l->irradiance))
             return sb_error(ctx, SB_ERR_ARG, "render: light %zu irradiance %g, need >= 0", i + 1, l->irradiance);
         if (l->irradiance == 0) l->irradiance = SB_PI;
@@ -93,9 +95,11 @@ sb_result_t sb_render(sb_context_t *ctx, const sb_render_opts_t *opts, sb_render
                 if (!(L[2] > 0)) continue;
                 double f[3] = {0, 0, 0};
                 fn(user, L, V, f);
-                for (int c = 0; c < 3; c++) acc[c] += f[c] * o.lights[k].irradiance * L[2];
+                for (int c = 0; c < 3; c++)
+                    acc[c] += f[c] * o.lights[k].irradiance * L[2];
             }
-            for (int c = 0; c < 3; c++) out->rgb[3 * i + (size_t)c] = acc[c];
+            for (int c = 0; c < 3; c++)
+                out->rgb[3 * i + (size_t)c] = acc[c];
         }
     return SB_OK;
 }
@@ -104,8 +108,7 @@ static int eval_source(const void *user, const double wi[3], const double wo[3],
     return sb_source_eval(user, wi, wo, rgb);
 }
 
-sb_result_t sb_render_source(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_source_t *src,
-                             sb_image_t *out) {
+sb_result_t sb_render_source(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_source_t *src, sb_image_t *out) {
     if (!src) return sb_error(ctx, SB_ERR_ARG, "render: no source");
     return sb_render(ctx, opts, eval_source, src, out);
 }
@@ -137,8 +140,7 @@ sb_result_t sb_render_factors(sb_context_t *ctx, const sb_render_opts_t *opts, c
 
 /* "KIND[:key=value,...]" with the keys sb_param_spec() writes: res, th, td,
  * pd (counts) and theta_max (degrees). */
-static sb_result_t parse_param_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind,
-                                    sb_param_opts_t *opts) {
+static sb_result_t parse_param_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
     char buf[256];
     if (strlen(spec) >= sizeof buf) return sb_error(ctx, SB_ERR_FORMAT, "param spec too long");
     snprintf(buf, sizeof buf, "%s", spec);
@@ -159,10 +161,14 @@ static sb_result_t parse_param_spec(sb_context_t *ctx, const char *spec, sb_para
         if (end == eq + 1 || *end || errno || !isfinite(v) || v <= 0)
             return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': key '%s' has no positive number", spec, args);
         size_t *count = NULL;
-        if (strcmp(args, "res") == 0) count = &opts->res;
-        else if (strcmp(args, "th") == 0) count = &opts->res_theta_h;
-        else if (strcmp(args, "td") == 0) count = &opts->res_theta_d;
-        else if (strcmp(args, "pd") == 0) count = &opts->res_phi_d;
+        if (strcmp(args, "res") == 0)
+            count = &opts->res;
+        else if (strcmp(args, "th") == 0)
+            count = &opts->res_theta_h;
+        else if (strcmp(args, "td") == 0)
+            count = &opts->res_theta_d;
+        else if (strcmp(args, "pd") == 0)
+            count = &opts->res_phi_d;
         else if (strcmp(args, "theta_max") == 0) {
             if (v > 90) return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': theta_max %g above 90", spec, v);
             opts->theta_max = v * SB_PI / 180;
@@ -184,8 +190,7 @@ sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_
     const char *spec = sb_factors_get_meta(f, "param"), *fs = sb_factors_get_meta(f, "form");
     if (!spec) return sb_error(ctx, SB_ERR_FORMAT, "factors: no \"param\" metadata");
     sb_form_t fm = SB_FORM_F;
-    if (fs && sb_form_parse(fs, &fm) != SB_OK)
-        return sb_error(ctx, SB_ERR_FORMAT, "factors: unknown form \"%s\"", fs);
+    if (fs && sb_form_parse(fs, &fm) != SB_OK) return sb_error(ctx, SB_ERR_FORMAT, "factors: unknown form \"%s\"", fs);
     sb_param_kind_t kind;
     sb_param_opts_t po;
     sb_result_t r = parse_param_spec(ctx, spec, &kind, &po);

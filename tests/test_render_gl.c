@@ -15,14 +15,14 @@
 #ifdef SB_HAVE_GL
 #include "gl_render.h"
 
-#define NEED_GL()                                                                                           \
-    gl_sphere_t *gl = NULL;                                                                                 \
-    char gl_err[2048];                                                                                      \
-    do {                                                                                                    \
-        if (gl_sphere_open(&gl, gl_err, sizeof gl_err) != 0) {                                              \
-            sb_test_fail(__FILE__, __LINE__, "OSMesa found at build time but no context: %s", gl_err);      \
-            return;                                                                                         \
-        }                                                                                                   \
+#define NEED_GL()                                                                                                      \
+    gl_sphere_t *gl = NULL;                                                                                            \
+    char gl_err[2048];                                                                                                 \
+    do {                                                                                                               \
+        if (gl_sphere_open(&gl, gl_err, sizeof gl_err) != 0) {                                                         \
+            sb_test_fail(__FILE__, __LINE__, "OSMesa found at build time but no context: %s", gl_err);                 \
+            return;                                                                                                    \
+        }                                                                                                              \
     } while (0)
 #else
 #define NEED_GL() SKIP("built without OSMesa (Debian: libosmesa6-dev), no GL agreement test")
@@ -102,8 +102,10 @@ static double lookup_shifted(const sb_factors_t *f, const sb_param_t *p, int sid
         long n[2] = {(long)w, (long)h}, *q[2] = {&xs[i], &ys[i]};
         for (int ax = 0; ax < 2; ax++) {
             long x = *q[ax];
-            if (wrap[ax] == SB_WRAP_REPEAT) x = ((x % n[ax]) + n[ax]) % n[ax];
-            else x = x < 0 ? 0 : x >= n[ax] ? n[ax] - 1 : x;
+            if (wrap[ax] == SB_WRAP_REPEAT)
+                x = ((x % n[ax]) + n[ax]) % n[ax];
+            else
+                x = x < 0 ? 0 : x >= n[ax] ? n[ax] - 1 : x;
             *q[ax] = x;
         }
     }

@@ -72,8 +72,7 @@ sb_result_t sb_render(sb_context_t *ctx, const sb_render_opts_t *opts, sb_render
                       sb_image_t *out);
 
 /* The original: sb_source_eval. */
-sb_result_t sb_render_source(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_source_t *src,
-                             sb_image_t *out);
+sb_result_t sb_render_source(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_source_t *src, sb_image_t *out);
 
 /* The reconstruction from the first `terms` terms: sb_factors_eval (the
  * GL conventions of param.h).  terms 0 = all.  Errors as sb_render plus

@@ -12,49 +12,48 @@
 #define MAX_TERMS_LIST 64
 
 static void help(void) {
-    printf(
-        "usage: sepbrdf render [SOURCE | DIR] [OPTIONS]\n"
-        "\n"
-        "Render a lit sphere with the original BRDF and with its separable\n"
-        "reconstruction from J terms, for each J asked, and write into the output folder:\n"
-        "  original.png         the original\n"
-        "  render_JNN.png       original | reconstruction | difference x diff-scale\n"
-        "  render.json          errors per J, settings\n"
-        "Prints per J the RMS error of linear radiance and the RMSE and PSNR of the\n"
-        "display values (tone mapped, sRGB encoded, in [0, 1]) over the sphere's pixels.\n"
-        "\n"
-        "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
-        "        factor` does (default: " DEFAULT_SOURCE ").\n"
-        "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation,\n"
-        "        form and (unless --source) recorded source are used.\n"
-        "\n"
-        "options:\n"
-        "  -o, --out DIR          output folder, created if missing (default ./" DEFAULT_OUT ")\n"
-        "  -J, --terms LIST       numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
-        "                         for DIR every J of the folder)\n"
-        "  -r, --res R            as `sepbrdf factor` (SOURCE only; default 32)\n"
-        "      --param P          as `sepbrdf factor` (SOURCE only; default io)\n"
-        "      --form F           as `sepbrdf factor` (SOURCE only; default f)\n"
-        "      --method M         as `sepbrdf factor` (SOURCE only; default auto)\n"
-        "      --theta-max DEG    as `sepbrdf factor` (SOURCE only; default 90)\n"
-        "      --source SPEC      the original to compare with (DIR only)\n"
-        "  -s, --size N           image width and height in pixels, 8..4096 (default 256)\n"
-        "      --light-elev DEG   elevation of the light above the image plane, towards\n"
-        "                         the viewer, 0..90 (default 45)\n"
-        "      --light-azim DEG   azimuth in the image plane from right towards up (default 45)\n"
-        "      --light EL,AZ[,E]  one more light (repeatable, up to %d in all), E its irradiance\n"
-        "      --exposure X|auto  multiply radiance by X before tone mapping; auto (default):\n"
-        "                         1 / the original's brightest channel, so nothing clips\n"
-        "      --tonemap T        clamp (default) or reinhard (x / (1 + x))\n"
-        "      --diff-scale N     magnification of the difference panel (default 4)\n"
-        "  -q, --quiet            print nothing but errors\n"
-        "  -v, --verbose          more detail on stderr\n"
-        "  -h, --help             this text\n"
-        "\n"
-        "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
-        "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
-        "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n",
-        SB_RENDER_MAX_LIGHTS);
+    printf("usage: sepbrdf render [SOURCE | DIR] [OPTIONS]\n"
+           "\n"
+           "Render a lit sphere with the original BRDF and with its separable\n"
+           "reconstruction from J terms, for each J asked, and write into the output folder:\n"
+           "  original.png         the original\n"
+           "  render_JNN.png       original | reconstruction | difference x diff-scale\n"
+           "  render.json          errors per J, settings\n"
+           "Prints per J the RMS error of linear radiance and the RMSE and PSNR of the\n"
+           "display values (tone mapped, sRGB encoded, in [0, 1]) over the sphere's pixels.\n"
+           "\n"
+           "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
+           "        factor` does (default: " DEFAULT_SOURCE ").\n"
+           "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation,\n"
+           "        form and (unless --source) recorded source are used.\n"
+           "\n"
+           "options:\n"
+           "  -o, --out DIR          output folder, created if missing (default ./" DEFAULT_OUT ")\n"
+           "  -J, --terms LIST       numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
+           "                         for DIR every J of the folder)\n"
+           "  -r, --res R            as `sepbrdf factor` (SOURCE only; default 32)\n"
+           "      --param P          as `sepbrdf factor` (SOURCE only; default io)\n"
+           "      --form F           as `sepbrdf factor` (SOURCE only; default f)\n"
+           "      --method M         as `sepbrdf factor` (SOURCE only; default auto)\n"
+           "      --theta-max DEG    as `sepbrdf factor` (SOURCE only; default 90)\n"
+           "      --source SPEC      the original to compare with (DIR only)\n"
+           "  -s, --size N           image width and height in pixels, 8..4096 (default 256)\n"
+           "      --light-elev DEG   elevation of the light above the image plane, towards\n"
+           "                         the viewer, 0..90 (default 45)\n"
+           "      --light-azim DEG   azimuth in the image plane from right towards up (default 45)\n"
+           "      --light EL,AZ[,E]  one more light (repeatable, up to %d in all), E its irradiance\n"
+           "      --exposure X|auto  multiply radiance by X before tone mapping; auto (default):\n"
+           "                         1 / the original's brightest channel, so nothing clips\n"
+           "      --tonemap T        clamp (default) or reinhard (x / (1 + x))\n"
+           "      --diff-scale N     magnification of the difference panel (default 4)\n"
+           "  -q, --quiet            print nothing but errors\n"
+           "  -v, --verbose          more detail on stderr\n"
+           "  -h, --help             this text\n"
+           "\n"
+           "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
+           "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
+           "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n",
+           SB_RENDER_MAX_LIGHTS);
 }
 
 typedef struct render_opts {
@@ -197,8 +196,10 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             if (m < 0 || parse_light(v, o)) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_exp, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
-            if (strcmp(v, "auto") == 0) o->tm.exposure = 0;
-            else if (cli_parse_double("render", "--exposure", v, 1e-6, 1e6, &o->tm.exposure)) return EXIT_USAGE;
+            if (strcmp(v, "auto") == 0)
+                o->tm.exposure = 0;
+            else if (cli_parse_double("render", "--exposure", v, 1e-6, 1e6, &o->tm.exposure))
+                return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_tm, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
             if (sb_tonemap_parse(v, &o->tm.op) != SB_OK) {
@@ -241,8 +242,8 @@ static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, cons
     if (r) return r;
     size_t rows = sb_param_rows(*param), cols = sb_param_cols(*param), mn = rows < cols ? rows : cols;
     if (J > mn) {
-        cli_error("render", "--terms %zu exceeds the %zu directions of --res %zu; lower --terms or raise --res", J,
-                  mn, o->res);
+        cli_error("render", "--terms %zu exceeds the %zu directions of --res %zu; lower --terms or raise --res", J, mn,
+                  o->res);
         *usage = 1;
         return SB_ERR_RANGE;
     }
@@ -282,7 +283,8 @@ static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src
     for (size_t i = 0; i < o->scene.light_count; i++) {
         json_begin_object(j, NULL);
         json_begin_array(j, "dir");
-        for (int k = 0; k < 3; k++) json_number(j, NULL, o->scene.lights[i].dir[k]);
+        for (int k = 0; k < 3; k++)
+            json_number(j, NULL, o->scene.lights[i].dir[k]);
         json_end_array(j);
         json_number(j, "irradiance", o->scene.lights[i].irradiance > 0 ? o->scene.lights[i].irradiance : SB_PI);
         json_end_object(j);
@@ -291,7 +293,8 @@ static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src
     json_string(j, "tonemap", sb_tonemap_name(o->tm.op));
     json_number(j, "exposure", o->tm.exposure);
     json_number(j, "diff_scale", o->diff_scale);
-    json_string(j, "psnr_on", "display values in [0, 1] (exposure, tone map, sRGB OETF), sphere pixels; null = identical");
+    json_string(j, "psnr_on",
+                "display values in [0, 1] (exposure, tone map, sRGB OETF), sphere pixels; null = identical");
     json_begin_array(j, "results");
     for (size_t k = 0; k < o->nterms; k++) {
         json_begin_object(j, NULL);
@@ -371,7 +374,8 @@ int cmd_render(int argc, char **argv) {
         }
         size_t J = sb_factors_terms(f);
         if (o.nterms == 0)
-            for (size_t k = 1; k <= J && k <= MAX_TERMS_LIST; k++) o.terms[o.nterms++] = k;
+            for (size_t k = 1; k <= J && k <= MAX_TERMS_LIST; k++)
+                o.terms[o.nterms++] = k;
         for (size_t k = 0; k < o.nterms; k++)
             if (o.terms[k] > J) {
                 cli_error("render", "--terms %zu: %s holds %zu terms", o.terms[k], o.input, J);
