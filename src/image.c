@@ -4,7 +4,6 @@
  * longjmp back to the writer, so nothing is printed and no error aborts. */
 #include "sepbrdf/image.h"
 
-#include <assert.h>
 #include <dirent.h>
 #include <math.h>
 #include <png.h>

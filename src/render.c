@@ -3,8 +3,6 @@
  * examples/gl_render.c repeat. */
 #include "sepbrdf/render.h"
 
-#include <assert.h>
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -138,52 +136,6 @@ sb_result_t sb_render_factors(sb_context_t *ctx, const sb_render_opts_t *opts, c
 
 /* ---- parameterisation from metadata ------------------------------------ */
 
-/* "KIND[:key=value,...]" with the keys sb_param_spec() writes: res, th, td,
- * pd (counts) and theta_max (degrees). */
-static sb_result_t parse_param_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
-    char buf[256];
-    if (strlen(spec) >= sizeof buf) return sb_error(ctx, SB_ERR_FORMAT, "param spec too long");
-    snprintf(buf, sizeof buf, "%s", spec);
-    char *args = strchr(buf, ':');
-    if (args) *args++ = 0;
-    if (sb_param_kind_parse(buf, kind) != SB_OK)
-        return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': unknown parameterisation '%s'", spec, buf);
-    memset(opts, 0, sizeof *opts);
-    while (args && *args) {
-        char *comma = strchr(args, ',');
-        if (comma) *comma = 0;
-        char *eq = strchr(args, '=');
-        if (!eq) return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': '%s' is not key=value", spec, args);
-        *eq = 0;
-        char *end;
-        errno = 0;
-        double v = strtod(eq + 1, &end);
-        if (end == eq + 1 || *end || errno || !isfinite(v) || v <= 0)
-            return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': key '%s' has no positive number", spec, args);
-        size_t *count = NULL;
-        if (strcmp(args, "res") == 0)
-            count = &opts->res;
-        else if (strcmp(args, "th") == 0)
-            count = &opts->res_theta_h;
-        else if (strcmp(args, "td") == 0)
-            count = &opts->res_theta_d;
-        else if (strcmp(args, "pd") == 0)
-            count = &opts->res_phi_d;
-        else if (strcmp(args, "theta_max") == 0) {
-            if (v > 90) return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': theta_max %g above 90", spec, v);
-            opts->theta_max = v * SB_PI / 180;
-        } else
-            return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': unknown key '%s'", spec, args);
-        if (count) {
-            if (v != floor(v) || v > 1e6)
-                return sb_error(ctx, SB_ERR_FORMAT, "param spec '%s': key '%s' is not a count", spec, args);
-            *count = (size_t)v;
-        }
-        args = comma ? comma + 1 : NULL;
-    }
-    return SB_OK;
-}
-
 sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_t **param, sb_form_t *form) {
     if (!f || !param || !form) return sb_error(ctx, SB_ERR_ARG, "factors param: NULL argument");
     *param = NULL;
@@ -193,10 +145,10 @@ sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_
     if (fs && sb_form_parse(fs, &fm) != SB_OK) return sb_error(ctx, SB_ERR_FORMAT, "factors: unknown form \"%s\"", fs);
     sb_param_kind_t kind;
     sb_param_opts_t po;
-    sb_result_t r = parse_param_spec(ctx, spec, &kind, &po);
-    if (r) return r;
-    sb_param_t *p;
-    if ((r = sb_param_create(ctx, kind, &po, &p)) != SB_OK) {
+    sb_param_t *p = NULL;
+    sb_result_t r = sb_param_parse_spec(ctx, spec, &kind, &po);
+    if (r == SB_OK) r = sb_param_create(ctx, kind, &po, &p);
+    if (r != SB_OK) {
         if (r == SB_ERR_UNSUPPORTED) return r;
         char why[512]; /* copied: sb_error overwrites the context's message */
         snprintf(why, sizeof why, "%s", sb_context_last_error(ctx));

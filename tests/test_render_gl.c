@@ -209,39 +209,49 @@ SB_TEST(half_texel_shift_detected) {
 #ifdef SB_HAVE_GL
     sb_render_opts_t o = {0};
     o.size = SIZE;
-    sb_param_t *p = NULL;
-    sb_factors_t *f = NULL;
-    CHECK(factor_via_exr(GOLD, SB_PARAM_IO, 16, 4, SB_FORM_F, &p, &f) == SB_OK);
-    sb_image_t gpu = {0}, ok = {0}, bad = {0};
-    int rc = gl_render(gl, f, p, SB_FORM_F, 4, &o, &gpu, gl_err, sizeof gl_err);
-    CHECKF(rc == 0, "GL: %s", gl_err);
-    shifted_t s = {f, p, 4, 0};
-    CHECK(sb_render(NULL, &o, eval_shifted, &s, &ok) == SB_OK);
-    s.shift_g = 0.5;
-    CHECK(sb_render(NULL, &o, eval_shifted, &s, &bad) == SB_OK);
-    if (rc == 0) {
-        double db_ok = psnr(&ok, &gpu), db_bad = psnr(&bad, &gpu);
-        printf("  GL vs CPU, texel centres (x+0.5)/w: %.2f dB; g side at x/w: %.2f dB\n", db_ok, db_bad);
-        CHECKF(db_ok >= PSNR_MIN, "unshifted PSNR %.2f dB", db_ok);
-        CHECKF(db_bad < PSNR_MIN, "half-texel shift not caught: PSNR %.2f dB", db_bad);
+    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+        sb_param_t *p = NULL;
+        sb_factors_t *f = NULL;
+        sb_result_t r = factor_via_exr(GOLD, (sb_param_kind_t)k, 16, 4, SB_FORM_F, &p, &f);
+        if (r == SB_ERR_UNSUPPORTED) {
+            sb_param_destroy(p);
+            continue;
+        }
+        CHECK(r == SB_OK);
+        if (r != SB_OK) continue;
+        sb_image_t gpu = {0}, ok = {0}, bad = {0};
+        int rc = gl_render(gl, f, p, SB_FORM_F, 4, &o, &gpu, gl_err, sizeof gl_err);
+        CHECKF(rc == 0, "GL: %s", gl_err);
+        shifted_t s = {f, p, 4, 0};
+        CHECK(sb_render(NULL, &o, eval_shifted, &s, &ok) == SB_OK);
+        s.shift_g = 0.5;
+        CHECK(sb_render(NULL, &o, eval_shifted, &s, &bad) == SB_OK);
+        if (rc == 0) {
+            double db_ok = psnr(&ok, &gpu), db_bad = psnr(&bad, &gpu);
+            printf("  %-20s GL vs CPU, texel centres (x+0.5)/w: %.2f dB; g side at x/w: %.2f dB\n", sb_param_spec(p),
+                   db_ok, db_bad);
+            CHECKF(db_ok >= PSNR_MIN, "%s: unshifted PSNR %.2f dB", sb_param_spec(p), db_ok);
+            CHECKF(db_bad < PSNR_MIN, "%s: half-texel shift not caught: PSNR %.2f dB", sb_param_spec(p), db_bad);
+        }
+        sb_image_free(&gpu);
+        sb_image_free(&ok);
+        sb_image_free(&bad);
+        sb_factors_destroy(f);
+        sb_param_destroy(p);
     }
-    sb_image_free(&gpu);
-    sb_image_free(&ok);
-    sb_image_free(&bad);
-    sb_factors_destroy(f);
-    sb_param_destroy(p);
     gl_sphere_close(gl);
 #endif
 }
 
-/* The real thing: `sepbrdf factor` output, its sepbrdf.glsl file as the
- * shader text, as examples/gl_sphere uses them. */
+/* The real thing: `sepbrdf factor` output (whatever --param auto chose),
+ * its sepbrdf.glsl file as the shader text, as examples/gl_sphere uses
+ * them. */
 SB_TEST(factor_folder) {
     NEED_GL();
 #ifdef SB_HAVE_GL
     char dir[4096], cmd[8192], out[8192];
     snprintf(dir, sizeof dir, "%s", sb_tmpdir("rendergl"));
-    snprintf(cmd, sizeof cmd, "%s factor -q -o %s", SB_CLI, dir);
+    snprintf(cmd, sizeof cmd, "%s factor -q -r 16 -o %s", SB_CLI, dir); /* --param auto */
     int rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0, "factor rc %d: %s", rc, out);
     sb_factors_t *f = NULL;

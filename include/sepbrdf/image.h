@@ -70,8 +70,8 @@ double sb_image_max(const sb_image_t *img);
 sb_result_t sb_image_compare(sb_context_t *ctx, const sb_image_t *a, const sb_image_t *b, const sb_tonemap_t *tm,
                              sb_image_diff_t *out);
 
-/* Write an 8-bit RGB PNG (rows top to bottom) under a temporary name, then
- * rename.  `text` is NULL or a NULL-terminated list of key, value, key,
+/* Write an 8-bit RGB PNG (rows top to bottom) under the temporary name
+ * PATH.tmp-PID, then rename.  `text` is NULL or a NULL-terminated list of key, value, key,
  * value ... stored as PNG tEXt chunks.  Errors: SB_ERR_ARG, SB_ERR_IO. */
 sb_result_t sb_png_write_rgb8(sb_context_t *ctx, const char *path, size_t width, size_t height,
                               const unsigned char *rgb, const char *const *text);

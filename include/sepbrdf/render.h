@@ -82,8 +82,8 @@ sb_result_t sb_render_factors(sb_context_t *ctx, const sb_render_opts_t *opts, c
 
 /* The parameterisation and form a factorisation was made with, from its
  * metadata "param" (a spec as sb_param_spec() writes it, e.g. "io:res=32",
- * "io:res=32,theta_max=60", "iso:th=90,td=90,pd=180") and "form" (absent
- * = f).  Checks that the texture sizes match.  *param is new (destroy it).
+ * "iso:th=90,td=90,pd=180", read by sb_param_parse_spec()) and "form"
+ * (absent = f).  Checks that the texture sizes match.  *param is new (destroy it).
  * Errors: SB_ERR_FORMAT (meta missing, malformed or not matching the
  * textures), SB_ERR_UNSUPPORTED (parameterisation not in this build). */
 sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_t **param, sb_form_t *form);

@@ -4,8 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli.h"
+#include "pipeline.h"
 
 #define DEFAULT_SOURCE "microfacet:base=gold,roughness=0.5"
 #define DEFAULT_OUT "sepbrdf-render"
@@ -28,38 +30,43 @@ static void help(void) {
            "        form and (unless --source) recorded source are used.\n"
            "\n"
            "options:\n"
-           "  -o, --out DIR          output folder, created if missing (default ./" DEFAULT_OUT ")\n"
-           "  -J, --terms LIST       numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
-           "                         for DIR every J of the folder)\n"
-           "  -r, --res R            as `sepbrdf factor` (SOURCE only; default 32)\n"
-           "      --param P          as `sepbrdf factor` (SOURCE only; default io)\n"
-           "      --form F           as `sepbrdf factor` (SOURCE only; default f)\n"
-           "      --method M         as `sepbrdf factor` (SOURCE only; default auto)\n"
-           "      --theta-max DEG    as `sepbrdf factor` (SOURCE only; default 90)\n"
-           "      --source SPEC      the original to compare with (DIR only)\n"
-           "  -s, --size N           image width and height in pixels, 8..4096 (default 256)\n"
-           "      --light-elev DEG   elevation of the light above the image plane, towards\n"
-           "                         the viewer, 0..90 (default 45)\n"
-           "      --light-azim DEG   azimuth in the image plane from right towards up (default 45)\n"
-           "      --light EL,AZ[,E]  one more light (repeatable, up to %d in all), E its irradiance\n"
-           "      --exposure X|auto  multiply radiance by X before tone mapping; auto (default):\n"
-           "                         1 / the original's brightest channel, so nothing clips\n"
-           "      --tonemap T        clamp (default) or reinhard (x / (1 + x))\n"
-           "      --diff-scale N     magnification of the difference panel (default 4)\n"
-           "  -q, --quiet            print nothing but errors\n"
-           "  -v, --verbose          more detail on stderr\n"
-           "  -h, --help             this text\n"
-           "\n"
+           "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
+           "  -J, --terms LIST     numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
+           "                       for DIR every J of the folder)\n"
+           "  -r, --res R          as `sepbrdf factor`, for a SOURCE only, same defaults\n"
+           "      --param P        (auto: every parameterisation that applies, forms f\n"
+           "      --form F         and cos2, weighted, keeping the lowest comparable\n"
+           "      --weighted       error at the largest J asked)\n"
+           "      --zero-fill\n"
+           "      --method M\n"
+           "      --theta-max DEG\n"
+           "      --source SPEC    the original to compare with (DIR only)\n"
+           "  -s, --size N         image width and height in pixels, 8..4096 (default 256)\n"
+           "      --light-elev DEG elevation of the light above the image plane, towards\n"
+           "                       the viewer, 0..90 (default 45)\n"
+           "      --light-azim DEG azimuth in the image plane from right towards up\n"
+           "                       (default 45)\n"
+           "      --light EL,AZ[,E]\n"
+           "                       one more light (repeatable, up to %d in all), E its\n"
+           "                       irradiance (default pi)\n"
+           "      --exposure X|auto\n"
+           "                       multiply radiance by X before tone mapping; auto\n"
+           "                       (default): 1 / the original's brightest channel\n"
+           "      --tonemap T      clamp (default) or reinhard (x / (1 + x))\n"
+           "      --diff-scale N   magnification of the difference panel (default 4)\n" CLI_VERBOSITY_HELP "\n"
            "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
            "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
-           "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n",
+           "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
+           "\n" CLI_EXIT_HELP,
            SB_RENDER_MAX_LIGHTS);
 }
 
 typedef struct render_opts {
     const char *input, *out, *source;
     size_t res, terms[MAX_TERMS_LIST], nterms;
+    int param_auto; /* --param auto (default), as `sepbrdf factor` */
     sb_param_kind_t param;
+    int form_set, weighted, zero_fill;
     sb_form_t form;
     sb_method_t method;
     double theta_max_deg;
@@ -137,8 +144,8 @@ static int parse(int argc, char **argv, render_opts_t *o) {
                              *const n_size[] = {"-s", "--size", NULL}, *const n_el[] = {"--light-elev", NULL},
                              *const n_az[] = {"--light-azim", NULL}, *const n_light[] = {"--light", NULL},
                              *const n_exp[] = {"--exposure", NULL}, *const n_tm[] = {"--tonemap", NULL},
-                             *const n_diff[] = {"--diff-scale", NULL}, *const n_q[] = {"-q", "--quiet", NULL},
-                             *const n_v[] = {"-v", "--verbose", NULL}, *const n_help[] = {"-h", "--help", NULL};
+                             *const n_diff[] = {"--diff-scale", NULL}, *const n_w[] = {"--weighted", NULL},
+                             *const n_zero[] = {"--zero-fill", NULL}, *const n_help[] = {"-h", "--help", NULL};
     cli_args_t a = {argc, 1, argv, "render"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL, *arg = argv[a.i];
@@ -161,8 +168,9 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             o->factor_opt_name = "--res";
         } else if ((m = cli_opt(&a, n_param, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
-            if (sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("render", "--param '%s' unknown, need one of io, io-area, hd, iso", v);
+            o->param_auto = strcmp(v, "auto") == 0;
+            if (!o->param_auto && sb_param_kind_parse(v, &o->param) != SB_OK) {
+                cli_error("render", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
                 return EXIT_USAGE;
             }
             o->factor_opt_name = "--param";
@@ -172,7 +180,14 @@ static int parse(int argc, char **argv, render_opts_t *o) {
                 cli_error("render", "--form '%s' unknown, need one of f, cos, cos2", v);
                 return EXIT_USAGE;
             }
+            o->form_set = 1;
             o->factor_opt_name = "--form";
+        } else if (cli_opt(&a, n_w, 0, &v)) {
+            o->weighted = 1;
+            o->factor_opt_name = "--weighted";
+        } else if (cli_opt(&a, n_zero, 0, &v)) {
+            o->zero_fill = 1;
+            o->factor_opt_name = "--zero-fill";
         } else if ((m = cli_opt(&a, n_method, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
             if (sb_method_parse(v, &o->method) != SB_OK) {
@@ -208,12 +223,7 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             }
         } else if ((m = cli_opt(&a, n_diff, 1, &v))) {
             if (m < 0 || cli_parse_double("render", "--diff-scale", v, 1e-3, 1e6, &o->diff_scale)) return EXIT_USAGE;
-        } else if (cli_opt(&a, n_q, 0, &v)) {
-            g_verbosity = 0;
-        } else if (cli_opt(&a, n_v, 0, &v)) {
-            g_verbosity++;
-        } else if (strcmp(arg, "-vv") == 0) {
-            g_verbosity += 2;
+        } else if (cli_verbosity_opt(arg)) {
         } else if (arg[0] == '-' && arg[1]) {
             cli_error("render", "unknown option '%s' (see `sepbrdf render --help`)", arg);
             return EXIT_USAGE;
@@ -232,41 +242,72 @@ static int is_dir(const char *path) {
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
-/* Factor `src` as `sepbrdf factor` does, with J = the largest of the list. */
+/* Factor src as `sepbrdf factor` does (pipeline.h attempts), with J = the
+ * largest of the list: the parameterisation asked for, or (--param auto)
+ * every one that applies, forms f and cos2 unless --form is given,
+ * solid-angle weighted, keeping the lowest comparable error at J (the rule
+ * of cmd_factor.c's candidate loop).  *best owns the kept attempt. */
 static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
-                                 sb_param_t **param, sb_factors_t **f, int *usage) {
-    sb_param_opts_t po = {0};
-    po.res = o->res;
-    po.theta_max = o->theta_max_deg * SB_PI / 180;
-    sb_result_t r = sb_param_create(ctx, o->param, &po, param);
-    if (r) return r;
-    size_t rows = sb_param_rows(*param), cols = sb_param_cols(*param), mn = rows < cols ? rows : cols;
-    if (J > mn) {
-        cli_error("render", "--terms %zu exceeds the %zu directions of --res %zu; lower --terms or raise --res", J, mn,
-                  o->res);
-        *usage = 1;
-        return SB_ERR_RANGE;
+                                 attempt_t *best) {
+    typedef struct {
+        sb_param_kind_t kind;
+        sb_form_t form;
+        int weighted;
+    } cand_t;
+    cand_t cands[2 * SB_PARAM_KIND_COUNT_];
+    size_t ncand = 0;
+    if (!o->param_auto) {
+        cands[ncand++] = (cand_t){o->param, o->form, o->weighted};
+    } else {
+        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+            if (k == SB_PARAM_ISO && !(sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) continue;
+            cands[ncand++] = (cand_t){(sb_param_kind_t)k, o->form_set ? o->form : SB_FORM_F, 1};
+            if (!o->form_set) cands[ncand++] = (cand_t){(sb_param_kind_t)k, SB_FORM_COS2, 1};
+        }
     }
-    sb_plan_opts_t pl = {0};
-    pl.terms = J;
-    pl.svd.method = o->method;
-    pl.svd.seed = 1;
-    sb_plan_t *plan = NULL;
-    sb_matrix_t m = {0};
-    sb_matrix_opts_t mo = {0};
-    mo.form = o->form;
-    cli_info(2, "factoring %s on %s (%zu x %zu), %zu terms", sb_source_description(src), sb_param_spec(*param), rows,
-             cols, J);
-    cli_progress("sampling", 0);
-    if ((r = sb_plan_create(ctx, rows, cols, &pl, &plan)) == SB_OK &&
-        (r = sb_matrix_build(ctx, src, *param, &mo, &m)) == SB_OK) {
-        cli_progress("factoring", 0.5);
-        r = sb_plan_execute(plan, &m, *param, f);
+    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0};
+    double best_err = INFINITY;
+    memset(best, 0, sizeof *best);
+    for (size_t i = 0; i < ncand; i++) {
+        attempt_t a;
+        cli_progress("factoring", (double)i / (double)ncand);
+        sb_result_t r = attempt_run(ctx, src, &po, cands[i].kind, cands[i].form, cands[i].weighted, &a);
+        if (r != SB_OK) {
+            attempt_free(&a);
+            if (!o->param_auto || (r != SB_ERR_NUMERIC && r != SB_ERR_UNSUPPORTED)) {
+                attempt_free(best);
+                return r;
+            }
+            continue;
+        }
+        size_t Jf = sb_factors_terms(a.f);
+        double err = attempt_comparable(&a, Jf < a.metric.terms ? Jf : a.metric.terms);
+        cli_info(2, "  %s form %s: comparable error %.4e at J = %zu", sb_param_spec(a.param),
+                 sb_form_name(cands[i].form), err, Jf);
+        if (!best->f || err < best_err) {
+            attempt_free(best);
+            *best = a;
+            best_err = err;
+        } else {
+            attempt_free(&a);
+        }
     }
     cli_progress_done();
-    if (r == SB_OK) sb_factors_set_meta(*f, "source", sb_source_description(src));
-    sb_matrix_free(&m);
-    sb_plan_destroy(plan);
+    if (!best->f)
+        return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s", sb_source_description(src));
+    return SB_OK;
+}
+
+/* original.png (b NULL) or a strip, its temporary PATH.tmp-PID (image.h)
+ * guarded against signals while written. */
+static sb_result_t write_png(sb_context_t *ctx, const char *path, const sb_image_t *a, const sb_image_t *b,
+                             const render_opts_t *o) {
+    char tmp[4300];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
+    cli_guard(tmp);
+    sb_result_t r =
+        b ? sb_image_write_strip_png(ctx, path, a, b, &o->tm, o->diff_scale) : sb_image_write_png(ctx, path, a, &o->tm);
+    cli_unguard(tmp);
     return r;
 }
 
@@ -316,6 +357,7 @@ int cmd_render(int argc, char **argv) {
     memset(&o, 0, sizeof o);
     o.out = DEFAULT_OUT;
     o.res = 32;
+    o.param_auto = 1;
     o.param = SB_PARAM_IO;
     o.form = SB_FORM_F;
     o.theta_max_deg = 90;
@@ -340,6 +382,7 @@ int cmd_render(int argc, char **argv) {
         return EXIT_USAGE;
     }
     if (!o.input) o.input = DEFAULT_SOURCE;
+    if ((rc = cli_check_outdir("render", "--out", o.out)) != EXIT_OK) return rc;
 
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
@@ -348,7 +391,6 @@ int cmd_render(int argc, char **argv) {
     sb_image_t orig = {0}, rec = {0};
     sb_form_t form = o.form;
     sb_result_t r;
-    int usage = 0;
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("render", "out of memory");
         return EXIT_IO;
@@ -363,7 +405,7 @@ int cmd_render(int argc, char **argv) {
             rc = EXIT_IO;
             goto out;
         }
-        if ((r = sb_source_open(ctx, spec, &src)) != SB_OK) {
+        if ((r = pipe_source_open(ctx, spec, &src)) != SB_OK) {
             if (!o.source) {
                 cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o.input,
                           spec, sb_context_last_error(ctx));
@@ -391,14 +433,15 @@ int cmd_render(int argc, char **argv) {
         size_t J = 0;
         for (size_t k = 0; k < o.nterms; k++)
             if (o.terms[k] > J) J = o.terms[k];
-        if ((r = sb_source_open(ctx, o.input, &src)) != SB_OK) goto fail;
-        if ((r = factor_source(ctx, &o, src, J, &param, &f, &usage)) != SB_OK) {
-            if (usage) {
-                rc = EXIT_USAGE;
-                goto out;
-            }
-            goto fail;
-        }
+        if ((r = pipe_source_open(ctx, o.input, &src)) != SB_OK) goto fail;
+        attempt_t best;
+        if ((r = factor_source(ctx, &o, src, J, &best)) != SB_OK) goto fail;
+        param = best.param; /* keep the parameterisation and factors */
+        f = best.f;
+        form = best.m.form;
+        best.param = NULL;
+        best.f = NULL;
+        attempt_free(&best);
     }
 
     /* Render the original, then each reconstruction */
@@ -416,7 +459,7 @@ int cmd_render(int argc, char **argv) {
         goto out;
     }
     snprintf(path, sizeof path, "%s/original.png", o.out);
-    if ((r = sb_image_write_png(ctx, path, &orig, &o.tm)) != SB_OK) goto fail;
+    if ((r = write_png(ctx, path, &orig, NULL, &o)) != SB_OK) goto fail;
     for (size_t k = 0; k < o.nterms; k++) {
         cli_progress("rendering", (double)(k + 1) / (double)(o.nterms + 1));
         sb_image_free(&rec);
@@ -424,7 +467,7 @@ int cmd_render(int argc, char **argv) {
         if ((r = sb_image_compare(ctx, &orig, &rec, &o.tm, &d[k])) != SB_OK) goto fail;
         snprintf(names[k], sizeof names[k], "render_J%02zu.png", o.terms[k]);
         snprintf(path, sizeof path, "%s/%s", o.out, names[k]);
-        if ((r = sb_image_write_strip_png(ctx, path, &orig, &rec, &o.tm, o.diff_scale)) != SB_OK) goto fail;
+        if ((r = write_png(ctx, path, &orig, &rec, &o)) != SB_OK) goto fail;
     }
     cli_progress_done();
     snprintf(path, sizeof path, "%s/render.json", o.out);
