@@ -646,3 +646,27 @@ SB_TEST(cli_render_usage) {
                  bad, "");
     CHECKF(rc == 0 && strstr(out, "3 lights") != NULL, "rc %d: %s", rc, out);
 }
+
+/* A measured table's source description is no spec; the folder's
+ * report.json keeps SOURCE as given, which render opens instead. */
+SB_TEST(cli_render_measured_folder) {
+    char table[1024], fdir[512], rdir[600];
+    snprintf(table, sizeof table, "%s/cornell_acryl_blue.brdf", SB_MEASURED_DIR);
+    if (!sb_file_exists(table)) SKIP("shared measured data not present");
+    snprintf(fdir, sizeof fdir, "%s", sb_tmpdir("render"));
+    snprintf(rdir, sizeof rdir, "%s/r", fdir);
+    int rc = run("factor %s --param hd -r 8 -J 2 -q -o %s", table, fdir);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = run("render %s -s 32 -o %s", fdir, rdir);
+    CHECKF(rc == 0 && exists_in(rdir, "render_J02.png"), "rc %d: %s", rc, out);
+    /* without report.json the description is all there is: --source needed */
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "rm %s/report.json", fdir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    CHECK(run("render %s -s 32 -o %s", fdir, rdir) != 0);
+    CHECK(strstr(out, "--source") != NULL);
+    char tail[2048];
+    snprintf(tail, sizeof tail, "-o %s --source %s", rdir, table);
+    rc = run("render %s -s 32 -q %s", fdir, tail);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+}

@@ -26,8 +26,9 @@ static void help(void) {
            "\n"
            "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
            "        factor` does (default: " DEFAULT_SOURCE ").\n"
-           "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation,\n"
-           "        form and (unless --source) recorded source are used.\n"
+           "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation\n"
+           "        and form; the original is --source, else SOURCE as factor was given\n"
+           "        it (report.json), else the source the EXR files record.\n"
            "\n"
            "options:\n"
            "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
@@ -237,6 +238,33 @@ static int parse(int argc, char **argv, render_opts_t *o) {
     return -1; /* go on */
 }
 
+/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into buf;
+ * 0 on success.  The string is JSON-escaped by our writer: \" \\ \n \t. */
+static int read_source_spec(const char *dir, char *buf, size_t size) {
+    char path[4200];
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return -1;
+    static char text[1 << 16];
+    size_t n = fread(text, 1, sizeof text - 1, fp);
+    fclose(fp);
+    text[n] = 0;
+    const char *p = strstr(text, "\"source_spec\": \"");
+    if (!p) return -1;
+    p += strlen("\"source_spec\": \"");
+    size_t k = 0;
+    for (; *p && *p != '"' && k + 1 < size; p++) {
+        if (*p == '\\' && p[1]) {
+            p++;
+            buf[k++] = *p == 'n' ? '\n' : *p == 't' ? '\t' : *p;
+        } else {
+            buf[k++] = *p;
+        }
+    }
+    buf[k] = 0;
+    return *p == '"' && k > 0 ? 0 : -1;
+}
+
 static int is_dir(const char *path) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
@@ -399,13 +427,20 @@ int cmd_render(int argc, char **argv) {
     if (from_dir) {
         if ((r = sb_factors_read_exr(ctx, o.input, &f)) != SB_OK) goto fail;
         if ((r = sb_factors_param(ctx, f, &param, &form)) != SB_OK) goto fail;
-        const char *spec = o.source ? o.source : sb_factors_get_meta(f, "source");
+        /* The original: --source, else SOURCE as `factor` was given it
+         * (report.json), else the factors' source description (which a
+         * model spec is, a measured table's is not) */
+        char given[4096];
+        const char *spec = o.source;
+        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 && pipe_source_open(ctx, given, &src) == SB_OK)
+            spec = given;
+        if (!spec) spec = sb_factors_get_meta(f, "source");
         if (!spec) {
             cli_error("render", "%s records no source; name the original with --source", o.input);
             rc = EXIT_IO;
             goto out;
         }
-        if ((r = pipe_source_open(ctx, spec, &src)) != SB_OK) {
+        if (!src && (r = pipe_source_open(ctx, spec, &src)) != SB_OK) {
             if (!o.source) {
                 cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o.input,
                           spec, sb_context_last_error(ctx));
