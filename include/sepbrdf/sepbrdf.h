@@ -6,10 +6,12 @@
 #include "exr.h"
 #include "factor.h"
 #include "glsl.h"
+#include "image.h"
 #include "matrix.h"
 #include "measured.h"
 #include "models.h"
 #include "param.h"
+#include "render.h"
 #include "source.h"
 #include "svd.h"
 

@@ -45,6 +45,8 @@ static void help(void) {
         "      --theta-max DEG  largest sampled elevation in degrees (default 90)\n"
         "      --seed S         seed of randomized methods (default 1)\n"
         "      --half           store half floats with per-term scales\n"
+        "      --previews       also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\n"
+        "                       colour map, blue -S, white 0, red +S (S = max |value|)\n"
         CLI_VERBOSITY_HELP
         "\n"
         "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
@@ -69,6 +71,8 @@ typedef struct factor_opts {
     int half, weighted, zero_fill;
 } factor_opts_t;
 
+static int factor_previews; /* --previews: a PNG per texture (image.h) */
+
 static int parse(int argc, char **argv, factor_opts_t *o) {
     static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
                              *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
@@ -77,6 +81,7 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
                              *const n_seed[] = {"--seed", NULL}, *const n_half[] = {"--half", NULL},
                              *const n_help[] = {"-h", "--help", NULL}, *const n_weighted[] = {"--weighted", NULL},
                              *const n_zero[] = {"--zero-fill", NULL}, *const n_mres[] = {"--metric-res", NULL};
+    static const char *const n_previews[] = {"--previews", NULL};
     cli_args_t a = {argc, 1, argv, "factor"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL;
@@ -136,6 +141,8 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             o->zero_fill = 1;
         } else if ((m = cli_opt(&a, n_mres, 1, &v))) {
             if (m < 0 || cli_parse_size("factor", "--metric-res", v, 2, 256, &o->metric_res)) return EXIT_USAGE;
+        } else if (cli_opt(&a, n_previews, 0, &v)) {
+            factor_previews = 1;
         } else if (cli_verbosity_opt(argv[a.i])) {
         } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
             cli_error("factor", "unknown option '%s' (see `sepbrdf factor --help`)", argv[a.i]);
@@ -443,6 +450,7 @@ int cmd_factor(int argc, char **argv) {
     guarded = 1;
     sb_exr_opts_t eo = {o.half};
     if ((r = sb_factors_write_exr(ctx, best.f, o.out, &eo)) != SB_OK) goto fail;
+    if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, o.out)) != SB_OK) goto fail;
     char path[4096];
     snprintf(path, sizeof path, "%s/sepbrdf.glsl", o.out);
     if ((r = sb_glsl_write(ctx, path, best.param, best.m.form, sb_factors_terms(best.f), NULL)) != SB_OK) goto fail;

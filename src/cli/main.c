@@ -16,6 +16,7 @@ static const command_t commands[] = {
     {"list", cmd_list, "list models, their keys and the material presets"},
     {"sample", cmd_sample, "measure a source with a simulated gonioreflectometer (CSV)"},
     {"info", cmd_info, "describe a file: factor EXR metadata, or a measured table"},
+    {"render", cmd_render, "render the original and reconstructions on a lit sphere (PNG, PSNR)"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
