@@ -1,9 +1,13 @@
-/* Truncated SVD: plan (shapes, method, workspaces) then execute.
- *
- * FULL: copy A, LAPACK dgesdd (jobz = 'S'), keep the k leading triplets. */
+/* Truncated SVD: plan (shapes, method, random test matrix, workspaces) then
+ * execute.  The maths of the three methods is in svd_impl.h, written once
+ * and included for double and for float; this file holds the plan, the
+ * dispatch, the generator and the adaptive rank choice.  See svd.h for the
+ * guarantees of each method and the AUTO rule. */
 #include "sepbrdf/svd.h"
 
+#include <cblas.h>
 #include <lapacke.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -21,57 +25,167 @@ sb_result_t sb_method_parse(const char *name, sb_method_t *out) {
 }
 const char *sb_method_name(sb_method_t m) { return (unsigned)m < SB_METHOD_COUNT_ ? method_names[m] : "?"; }
 
+#define SB_SVD_DEFAULT_P 10
+#define SB_SVD_DEFAULT_Q 2
+#define SB_SVD_DEFAULT_BLOCK 32
+
 struct sb_svd {
     sb_context_t *ctx;
-    size_t m, n, k, mn;
-    sb_svd_opts_t opts;
+    size_t m, n, k, d; /* d = min(m, n) */
+    size_t l, b;       /* randomized: sketch columns k + p (<= d), adaptive block */
+    int p, q, single, tr;
+    uint64_t seed;
     sb_method_t method;
-    double *a, *s, *u, *vt, *work;
-    lapack_int *iwork;
-    lapack_int lwork;
+    /* Workspace, typed double or float by `single` (see svd_impl.h for
+     * what each holds per method); NULL when the method does not use it. */
+    void *a, *sv, *u, *vt, *g, *w, *z, *y, *bt, *ws, *om, *c, *tau, *work;
+    lapack_int *iwork, *isuppz;
+    lapack_int lwork, liwork;
+    size_t bytes;
+    int failed;
+    sb_svd_info_t info;
 };
+
+/* count1 * count2 elements of `size` bytes, overflow-checked; counted in
+ * s->bytes.  NULL (reported) on failure. */
+static void *ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
+    size_t count;
+    if (sb_size_mul(count1, count2, &count)) {
+        sb_error(s->ctx, SB_ERR_OVERFLOW, "svd: workspace size %zu x %zu overflows", count1, count2);
+        s->failed = SB_ERR_OVERFLOW;
+        return NULL;
+    }
+    void *p = sb_alloc(s->ctx, count, size, "svd workspace");
+    if (!p) {
+        s->failed = count > sb_memory_limit() / size ? SB_ERR_OVERFLOW : SB_ERR_NOMEM;
+        return NULL;
+    }
+    s->bytes += count * size;
+    return p;
+}
+
+/* ---- Gaussian test matrix ---------------------------------------------- */
+/* xoshiro256** (Blackman & Vigna 2018) seeded by splitmix64; normal pairs by
+ * Box-Muller.  Written out here so the bits do not depend on the C library. */
+
+static uint64_t splitmix64(uint64_t *x) {
+    uint64_t z = (*x += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+static void rng_seed(uint64_t st[4], uint64_t seed) {
+    for (int i = 0; i < 4; i++) st[i] = splitmix64(&seed);
+}
+static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+static uint64_t rng_next(uint64_t st[4]) {
+    uint64_t r = rotl(st[1] * 5, 7) * 9, t = st[1] << 17;
+    st[2] ^= st[0];
+    st[3] ^= st[1];
+    st[1] ^= st[2];
+    st[0] ^= st[3];
+    st[2] ^= t;
+    st[3] = rotl(st[3], 45);
+    return r;
+}
+/* Two independent N(0, 1) numbers; u1 in (0, 1] so the log is finite. */
+static void rng_gauss2(uint64_t st[4], double g[2]) {
+    double u1 = ((double)(rng_next(st) >> 11) + 1) * 0x1.0p-53, u2 = (double)(rng_next(st) >> 11) * 0x1.0p-53;
+    double r = sqrt(-2 * log(u1)), t = 2 * SB_PI * u2;
+    g[0] = r * cos(t);
+    g[1] = r * sin(t);
+}
+
+/* ---- the two precisions ------------------------------------------------- */
+
+#define R double
+#define SFX d
+#define GEMM cblas_dgemm
+#define SYRK cblas_dsyrk
+#define GESDD LAPACKE_dgesdd_work
+#define SYEVR LAPACKE_dsyevr_work
+#define GEQRF LAPACKE_dgeqrf_work
+#define ORGQR LAPACKE_dorgqr_work
+#include "svd_impl.h"
+#undef R
+#undef SFX
+#undef GEMM
+#undef SYRK
+#undef GESDD
+#undef SYEVR
+#undef GEQRF
+#undef ORGQR
+
+#define R float
+#define SFX f
+#define GEMM cblas_sgemm
+#define SYRK cblas_ssyrk
+#define GESDD LAPACKE_sgesdd_work
+#define SYEVR LAPACKE_ssyevr_work
+#define GEQRF LAPACKE_sgeqrf_work
+#define ORGQR LAPACKE_sorgqr_work
+#include "svd_impl.h"
+#undef R
+#undef SFX
+#undef GEMM
+#undef SYRK
+#undef GESDD
+#undef SYEVR
+#undef GEQRF
+#undef ORGQR
+
+/* ---- plan --------------------------------------------------------------- */
+
+/* The AUTO rule (measurements in docs/performance.md). */
+static sb_method_t auto_method(size_t d, size_t k, size_t p) {
+    if (d <= SB_SVD_AUTO_FULL_MAX) return SB_METHOD_FULL;
+    if ((k + p) * SB_SVD_AUTO_SKETCH_DIV > d) return SB_METHOD_TOPK;
+    return SB_METHOD_RANDOMIZED;
+}
 
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts,
                           sb_svd_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "svd: no output pointer");
     *out = NULL;
     if (m == 0 || n == 0) return sb_error(ctx, SB_ERR_ARG, "svd: empty matrix %zu x %zu", m, n);
-    size_t mn = m < n ? m : n;
-    if (k == 0 || k > mn) return sb_error(ctx, SB_ERR_RANGE, "svd: %zu terms asked, need 1..%zu", k, mn);
+    size_t d = m < n ? m : n;
+    if (k == 0 || k > d) return sb_error(ctx, SB_ERR_RANGE, "svd: %zu terms asked, need 1..%zu", k, d);
     if (m > (size_t)INT32_MAX || n > (size_t)INT32_MAX)
-        return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension too large for LAPACK");
+        return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
+    sb_svd_opts_t o = {0};
+    if (opts) o = *opts;
+    if ((unsigned)o.method >= SB_METHOD_COUNT_) return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
     sb_svd_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "svd: out of memory");
     s->ctx = ctx;
     s->m = m;
     s->n = n;
     s->k = k;
-    s->mn = mn;
-    if (opts) s->opts = *opts;
-    s->method = SB_METHOD_FULL;
+    s->d = d;
+    s->p = o.oversample > 0 ? o.oversample : o.oversample < 0 ? 0 : SB_SVD_DEFAULT_P;
+    s->q = o.power_iters > 0 ? o.power_iters : o.power_iters < 0 ? 0 : SB_SVD_DEFAULT_Q;
+    s->seed = o.seed ? o.seed : 1;
+    s->single = o.single_precision != 0;
+    s->tr = m < n;
+    s->method = o.method == SB_METHOD_AUTO ? auto_method(d, k, (size_t)s->p) : o.method;
+    s->l = k + (size_t)s->p > d ? d : k + (size_t)s->p;
+    s->b = o.block ? o.block : SB_SVD_DEFAULT_BLOCK;
+    if (s->b > s->l) s->b = s->l;
 
-    s->a = sb_alloc(ctx, m * n, sizeof(double), "svd workspace");
-    s->s = sb_alloc(ctx, mn, sizeof(double), "svd workspace");
-    s->u = sb_alloc(ctx, m * mn, sizeof(double), "svd workspace");
-    s->vt = sb_alloc(ctx, mn * n, sizeof(double), "svd workspace");
-    s->iwork = sb_alloc(ctx, 8 * mn, sizeof(lapack_int), "svd workspace");
-    if (!s->a || !s->s || !s->u || !s->vt || !s->iwork) {
+    sb_result_t r = SB_OK;
+    if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;
+    if (r == SB_OK) switch (s->method) {
+        case SB_METHOD_FULL: r = s->single ? plan_full_f(s) : plan_full_d(s); break;
+        case SB_METHOD_TOPK: r = s->single ? plan_topk_f(s) : plan_topk_d(s); break;
+        default: r = s->single ? plan_rand_f(s) : plan_rand_d(s); break;
+        }
+    if (r == SB_OK && !(s->work = ws_alloc(s, (size_t)(s->lwork > 0 ? s->lwork : 1), 1,
+                                           s->single ? sizeof(float) : sizeof(double))))
+        r = SB_ERR_NOMEM;
+    if (r != SB_OK) {
+        if (s->failed) r = (sb_result_t)s->failed;
         sb_svd_destroy(s);
-        return SB_ERR_NOMEM;
-    }
-    double q;
-    lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', (lapack_int)m, (lapack_int)n, s->a,
-                                          (lapack_int)m, s->s, s->u, (lapack_int)m, s->vt, (lapack_int)mn,
-                                          &q, -1, s->iwork);
-    if (info != 0) {
-        sb_svd_destroy(s);
-        return sb_error(ctx, SB_ERR_NUMERIC, "svd: dgesdd workspace query failed (info %d)", (int)info);
-    }
-    s->lwork = (lapack_int)q + 1;
-    s->work = sb_alloc(ctx, (size_t)s->lwork, sizeof(double), "svd workspace");
-    if (!s->work) {
-        sb_svd_destroy(s);
-        return SB_ERR_NOMEM;
+        return r;
     }
     *out = s;
     return SB_OK;
@@ -79,31 +193,190 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 
 void sb_svd_destroy(sb_svd_t *s) {
     if (!s) return;
-    free(s->a);
-    free(s->s);
-    free(s->u);
-    free(s->vt);
-    free(s->work);
+    void *bufs[] = {s->a, s->sv, s->u, s->vt, s->g, s->w, s->z, s->y, s->bt, s->ws, s->om, s->c, s->tau, s->work};
+    for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) free(bufs[i]);
     free(s->iwork);
+    free(s->isuppz);
     free(s);
 }
 
 sb_method_t sb_svd_method(const sb_svd_t *s) { return s->method; }
+size_t sb_svd_rank(const sb_svd_t *s) { return s->k; }
+size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s->bytes; }
+sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) { return s->info; }
+
+/* ---- execute ------------------------------------------------------------ */
+
+/* sum of squares of A (m x n, ld lda) in double with independent partial
+ * sums; 1 if an entry is not finite (or the sum overflows). */
+static int sumsq(const double *A, size_t m, size_t n, size_t lda, double *out) {
+    double t = 0;
+    for (size_t j = 0; j < n; j++) {
+        const double *a = A + j * lda;
+        double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+        size_t i = 0;
+        for (; i + 4 <= m; i += 4) {
+            s0 += a[i] * a[i];
+            s1 += a[i + 1] * a[i + 1];
+            s2 += a[i + 2] * a[i + 2];
+            s3 += a[i + 3] * a[i + 3];
+        }
+        for (; i < m; i++) s0 += a[i] * a[i];
+        t += (s0 + s1) + (s2 + s3);
+    }
+    *out = t;
+    return !isfinite(t);
+}
+
+/* Copy A into the plan's buffer (double or float, ld m), with its sum of
+ * squares; 1 if an entry is not finite or does not fit the precision. */
+static int copy_in(sb_svd_t *s, const double *A, size_t lda, double *ss) {
+    size_t m = s->m, n = s->n;
+    double t = 0;
+    for (size_t j = 0; j < n; j++) {
+        const double *a = A + j * lda;
+        double s0 = 0, s1 = 0;
+        if (s->single) {
+            float *f = (float *)s->a + j * m;
+            for (size_t i = 0; i < m; i++) {
+                f[i] = (float)a[i];
+                s0 += a[i] * a[i];
+                s1 += (double)f[i]; /* inf if a[i] overflows float */
+            }
+        } else {
+            memcpy((double *)s->a + j * m, a, m * sizeof(double));
+            for (size_t i = 0; i < m; i++) s0 += a[i] * a[i];
+        }
+        t += s0;
+        if (!isfinite(s1)) return 1;
+    }
+    *ss = t;
+    return !isfinite(t);
+}
+
+static double sv_at(const sb_svd_t *s, size_t j) {
+    return s->single ? (double)((const float *)s->sv)[j] : ((const double *)s->sv)[j];
+}
+
+/* Error of the rank-r truncation from ||A||^2 - sum_{j<r} s_j^2 (>= 0). */
+static double resid_from(double norm2, const double *sv, size_t r) {
+    double c = 0;
+    for (size_t j = 0; j < r; j++) c += sv[j] * sv[j];
+    return norm2 > c ? sqrt(norm2 - c) : 0;
+}
+
+/* Smallest r in [max(lo, 1), k] with norm2 - sum_{j<r} s_j^2 <= tol2 norm2. */
+static size_t rank_for(const double *sv, size_t k, double norm2, double tol2, size_t lo) {
+    double c = 0;
+    if (lo < 1) lo = 1;
+    for (size_t j = 0; j < k; j++) {
+        c += sv[j] * sv[j];
+        if (j + 1 >= lo && norm2 - c <= tol2 * norm2) return j + 1;
+    }
+    return k;
+}
+
+static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptive, int want_norm, double tol,
+                           double norm_fro, size_t min_rank, double *sv, double *U, double *V, double *all_s,
+                           int *have_all) {
+    if (!A || !sv || lda < s->m)
+        return sb_error(s->ctx, SB_ERR_ARG, "svd: missing matrix or output, or lda %zu < %zu rows", lda, s->m);
+    size_t k = s->k, r = k, sketch = 0;
+    double norm2 = norm_fro > 0 ? norm_fro * norm_fro : -1, ss = 0, tol2 = tol * tol;
+    sb_svd_info_t info = {0, 0, 0, -1};
+    sb_result_t res = SB_OK;
+    if (have_all) *have_all = 0;
+
+    /* single precision (every method) and FULL take a copy of A */
+    const void *a = A;
+    size_t la = lda;
+    if (s->single || s->method == SB_METHOD_FULL) {
+        if (copy_in(s, A, lda, &ss))
+            return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries%s",
+                            s->single ? " or overflows single precision" : "");
+        if (norm2 < 0) norm2 = ss;
+        a = s->a;
+        la = s->m;
+    } else if (want_norm && norm2 < 0 && s->method == SB_METHOD_RANDOMIZED) {
+        if (sumsq(A, s->m, s->n, lda, &ss)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
+        norm2 = ss;
+    }
+
+    switch (s->method) {
+    case SB_METHOD_FULL: {
+        res = s->single ? run_full_f(s) : run_full_d(s);
+        if (res != SB_OK) break;
+        size_t d = s->d;
+        if (all_s) {
+            for (size_t j = 0; j < d; j++) all_s[j] = sv_at(s, j);
+            if (have_all) *have_all = 1;
+        }
+        /* t = sum_{i>=j} s_i^2, the error^2 of keeping j terms, summed from
+         * the end so that small errors are not differences */
+        double t = 0, lo = (double)(min_rank > 0 ? min_rank : 1);
+        for (size_t j = d; j-- > 0;) {
+            double x = sv_at(s, j);
+            t += x * x;
+            if (adaptive && (double)j >= lo && j <= k && t <= tol2 * norm2) r = j;
+        }
+        t = 0;
+        for (size_t j = d; j-- > r;) t += sv_at(s, j) * sv_at(s, j);
+        if (s->single) out_full_f(s, r, sv, U, V);
+        else out_full_d(s, r, sv, U, V);
+        info.norm_fro = sqrt(norm2);
+        info.resid_fro = sqrt(t);
+        sketch = d;
+        break;
+    }
+    case SB_METHOD_TOPK: {
+        double tr;
+        res = s->single ? run_topk_f(s, a, la, &tr) : run_topk_d(s, a, la, &tr);
+        if (res != SB_OK) break;
+        if (norm2 < 0) norm2 = tr;
+        if (s->single) out_topk_f(s, k, sv, U, V);
+        else out_topk_d(s, k, sv, U, V);
+        if (adaptive) r = rank_for(sv, k, norm2, tol2, min_rank);
+        info.norm_fro = sqrt(norm2);
+        info.resid_fro = resid_from(norm2, sv, r);
+        sketch = k;
+        break;
+    }
+    default: {
+        res = s->single ? run_rand_f(s, a, la, adaptive, tol2, norm2, min_rank, &sketch, &r)
+                        : run_rand_d(s, a, la, adaptive, tol2, norm2, min_rank, &sketch, &r);
+        if (res != SB_OK) break;
+        if (s->single) out_rand_f(s, r, sv, U, V);
+        else out_rand_d(s, r, sv, U, V);
+        if (norm2 >= 0) {
+            info.norm_fro = sqrt(norm2);
+            info.resid_fro = resid_from(norm2, sv, r);
+        }
+        break;
+    }
+    }
+    if (res != SB_OK) return res;
+    for (size_t j = 0; j < r; j++)
+        if (!isfinite(sv[j])) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: non-finite singular value (bad input?)");
+    info.rank = r;
+    info.sketch = sketch;
+    s->info = info;
+    return SB_OK;
+}
 
 sb_result_t sb_svd_execute(sb_svd_t *s, const double *A, size_t lda, double *sv, double *U, double *V,
                            double *all_s, int *have_all) {
-    size_t m = s->m, n = s->n, k = s->k, mn = s->mn;
-    for (size_t j = 0; j < n; j++) memcpy(s->a + j * m, A + j * lda, m * sizeof(double));
-    lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', (lapack_int)m, (lapack_int)n, s->a,
-                                          (lapack_int)m, s->s, s->u, (lapack_int)m, s->vt, (lapack_int)mn,
-                                          s->work, s->lwork, s->iwork);
-    if (info != 0) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: dgesdd failed (info %d)", (int)info);
-    memcpy(sv, s->s, k * sizeof(double));
-    if (U) memcpy(U, s->u, m * k * sizeof(double));
-    if (V)
-        for (size_t j = 0; j < k; j++)
-            for (size_t i = 0; i < n; i++) V[i + j * n] = s->vt[j + i * mn];
-    if (all_s) memcpy(all_s, s->s, mn * sizeof(double));
-    if (have_all) *have_all = all_s != NULL;
-    return SB_OK;
+    if (!s) return sb_error(NULL, SB_ERR_ARG, "svd: no plan");
+    return execute(s, A, lda, 0, 0, 0, 0, s->k, sv, U, V, all_s, have_all);
+}
+
+sb_result_t sb_svd_execute_adaptive(sb_svd_t *s, const double *A, size_t lda, double rel_tol, double norm_fro,
+                                    size_t min_rank, double *sv, double *U, double *V, sb_svd_info_t *info) {
+    if (!s) return sb_error(NULL, SB_ERR_ARG, "svd: no plan");
+    if (!(rel_tol >= 0 && rel_tol < 1) || min_rank > s->k || !(norm_fro >= 0) || !isfinite(norm_fro))
+        return sb_error(s->ctx, SB_ERR_RANGE, "svd: tolerance %g (need [0, 1)), norm %g or minimum rank %zu (need <= %zu)",
+                        rel_tol, norm_fro, min_rank, s->k);
+    /* rel_tol = 0 asks for no truncation: a plain execute (with the norm) */
+    sb_result_t r = execute(s, A, lda, rel_tol > 0, 1, rel_tol, norm_fro, min_rank, sv, U, V, NULL, NULL);
+    if (r == SB_OK && info) *info = s->info;
+    return r;
 }
