@@ -143,6 +143,13 @@ static sb_method_t auto_method(size_t d, size_t k, size_t p) {
     return SB_METHOD_RANDOMIZED;
 }
 
+static int resolve_p(int oversample) { return oversample > 0 ? oversample : oversample < 0 ? 0 : SB_SVD_DEFAULT_P; }
+
+sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts) {
+    if (opts && opts->method != SB_METHOD_AUTO) return opts->method;
+    return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
+}
+
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts,
                           sb_svd_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "svd: no output pointer");
@@ -162,7 +169,7 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     s->n = n;
     s->k = k;
     s->d = d;
-    s->p = o.oversample > 0 ? o.oversample : o.oversample < 0 ? 0 : SB_SVD_DEFAULT_P;
+    s->p = resolve_p(o.oversample);
     s->q = o.power_iters > 0 ? o.power_iters : o.power_iters < 0 ? 0 : SB_SVD_DEFAULT_Q;
     s->seed = o.seed ? o.seed : 1;
     s->single = o.single_precision != 0;

@@ -84,6 +84,10 @@ typedef struct sb_svd_info {
 
 typedef struct sb_svd sb_svd_t;
 
+/* The method a plan for (m, n, k, opts) would use: opts->method unless it
+ * is AUTO, then the AUTO rule.  Plans nothing, allocates nothing. */
+sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
+
 /* Plan a rank-k SVD of m x n matrices.  opts may be NULL (defaults).
  * Errors: SB_ERR_ARG (no output, empty matrix, bad method), SB_ERR_RANGE
  * (k = 0 or k > min(m, n)), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,

@@ -64,6 +64,7 @@ FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size);
 int cli_commit(FILE *fp, const char *tmp, const char *path, int ok);
 
 /* Subcommands */
+int cmd_bench(int argc, char **argv);
 int cmd_factor(int argc, char **argv);
 int cmd_list(int argc, char **argv);
 

@@ -13,6 +13,7 @@ typedef struct command {
 static const command_t commands[] = {
     {"factor", cmd_factor, "factor a BRDF into texture pairs (EXR), report and GLSL"},
     {"list", cmd_list, "list models, their keys and the material presets"},
+    {"bench", cmd_bench, "benchmark the factor step: time, error, memory per method"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
