@@ -32,8 +32,8 @@ const char *sb_method_name(sb_method_t m) { return (unsigned)m < SB_METHOD_COUNT
 struct sb_svd {
     sb_context_t *ctx;
     size_t m, n, k, d; /* d = min(m, n) */
-    size_t l, b;       /* randomized: sketch columns k + p (<= d), adaptive block */
-    int p, q, single, tr;
+    size_t l, b, L;    /* randomized: test vectors k + p (<= d), adaptive block, basis columns */
+    int p, q, single, tr, krylov;
     uint64_t seed;
     sb_method_t method;
     /* Workspace, typed double or float by `single` (see svd_impl.h for
@@ -178,6 +178,9 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     s->l = k + (size_t)s->p > d ? d : k + (size_t)s->p;
     s->b = o.block ? o.block : SB_SVD_DEFAULT_BLOCK;
     if (s->b > s->l) s->b = s->l;
+    /* block Krylov keeps q + 1 blocks of the basis: needs l (q + 1) <= d */
+    s->krylov = o.krylov >= 0 && s->q > 0 && s->l * (size_t)(s->q + 1) <= d;
+    s->L = s->krylov ? s->l * (size_t)(s->q + 1) : s->l;
 
     sb_result_t r = SB_OK;
     if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;

@@ -68,18 +68,20 @@ static sb_result_t FN(plan_topk)(sb_svd_t *s) {
     return SB_OK;
 }
 
-/* RANDOMIZED: Omega (om, n x l), Q (y, m x l), scratch Z (z, n x l), B^T
- * (bt, n x l), SVD of B^T = W S X^T with W (ws, n x l), S (sv, l), X^T (vt,
- * l x l), projection coefficients C (c, l x b), tau (l), and Q X (u, m x k). */
+/* RANDOMIZED, with l = k + p test vectors and L basis columns (l, or
+ * l (q + 1) for block Krylov): Omega (om, n x l), basis Q (y, m x L),
+ * scratch Z (z, n x L), B^T (bt, n x L), SVD of B^T = W S X^T with W (ws,
+ * n x L), S (sv, L), X^T (vt, L x L), projection coefficients C (c, L x l),
+ * tau (L), and Q X (u, m x k). */
 static sb_result_t FN(plan_rand)(sb_svd_t *s) {
-    size_t m = s->m, n = s->n, l = s->l, k = s->k, b = s->b;
+    size_t m = s->m, n = s->n, l = s->l, L = s->L, k = s->k;
     const size_t z = sizeof(R);
-    if (!(s->om = ws_alloc(s, n, l, z)) || !(s->y = ws_alloc(s, m, l, z)) || !(s->z = ws_alloc(s, n, l, z)) ||
-        !(s->bt = ws_alloc(s, n, l, z)) || !(s->ws = ws_alloc(s, n, l, z)) || !(s->sv = ws_alloc(s, l, 1, z)) ||
-        !(s->vt = ws_alloc(s, l, l, z)) || !(s->c = ws_alloc(s, l, b, z)) || !(s->tau = ws_alloc(s, l, 1, z)) ||
-        !(s->u = ws_alloc(s, m, k, z)) || !(s->iwork = ws_alloc(s, 8 * l, 1, sizeof(lapack_int))))
+    if (!(s->om = ws_alloc(s, n, l, z)) || !(s->y = ws_alloc(s, m, L, z)) || !(s->z = ws_alloc(s, n, L, z)) ||
+        !(s->bt = ws_alloc(s, n, L, z)) || !(s->ws = ws_alloc(s, n, L, z)) || !(s->sv = ws_alloc(s, L, 1, z)) ||
+        !(s->vt = ws_alloc(s, L, L, z)) || !(s->c = ws_alloc(s, L, l, z)) || !(s->tau = ws_alloc(s, L, 1, z)) ||
+        !(s->u = ws_alloc(s, m, k, z)) || !(s->iwork = ws_alloc(s, 8 * L, 1, sizeof(lapack_int))))
         return SB_ERR_NOMEM;
-    s->liwork = 8 * (lapack_int)l;
+    s->liwork = 8 * (lapack_int)L;
     /* Omega: i.i.d. N(0, 1), drawn once per plan from the seed */
     R *om = s->om;
     uint64_t st[4];
@@ -92,17 +94,17 @@ static sb_result_t FN(plan_rand)(sb_svd_t *s) {
     }
     R q = 0;
     int big = 0;
-    size_t rows[2] = {m, n};
+    size_t rows[2] = {m, n}, bq = l; /* QR is of one block (<= l columns) at a time */
     for (int t = 0; t < 2; t++) {
-        lapack_int info = GEQRF(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)l, s->y, (lapack_int)rows[t],
+        lapack_int info = GEQRF(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)bq, s->y, (lapack_int)rows[t],
                                 s->tau, &q, -1);
         big |= info != 0 || FN(lwork_of)(q, &s->lwork);
-        info = ORGQR(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)l, (lapack_int)l, s->y, (lapack_int)rows[t],
+        info = ORGQR(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)bq, (lapack_int)bq, s->y, (lapack_int)rows[t],
                      s->tau, &q, -1);
         big |= info != 0 || FN(lwork_of)(q, &s->lwork);
     }
-    lapack_int info = GESDD(LAPACK_COL_MAJOR, 'S', (lapack_int)n, (lapack_int)l, s->z, (lapack_int)n, s->sv, s->ws,
-                            (lapack_int)n, s->vt, (lapack_int)l, &q, -1, s->iwork);
+    lapack_int info = GESDD(LAPACK_COL_MAJOR, 'S', (lapack_int)n, (lapack_int)L, s->z, (lapack_int)n, s->sv, s->ws,
+                            (lapack_int)n, s->vt, (lapack_int)L, &q, -1, s->iwork);
     big |= info != 0 || FN(lwork_of)(q, &s->lwork);
     if (big) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: workspace query failed or too large");
     return SB_OK;
@@ -126,17 +128,25 @@ static sb_result_t FN(orth)(sb_svd_t *s, R *Y, size_t rows, size_t cols) {
     return info == 0 ? SB_OK : sb_error(s->ctx, SB_ERR_NUMERIC, "svd: QR failed (info %d)", (int)info);
 }
 
-/* Yb (rows x bb) <- (I - Q Q^T) Yb for the first l columns of Q, twice
- * ("twice is enough", Giraud et al. 2005), then orthonormalised. */
+/* Yb (rows x bb) <- an orthonormal basis of (I - Q Q^T) Yb, Q the first l
+ * columns of the basis: block Gram-Schmidt twice, each pass followed by a
+ * QR ("twice is enough", Giraud et al. 2005).  The QR between the passes
+ * matters when Yb lies almost inside span(Q) (a Krylov iterate of a fast
+ * spectrum, a rank-deficient A): the first remainder is rounding noise, and
+ * only once it is normalised does the second pass make it orthogonal to Q. */
 static sb_result_t FN(orth_against)(sb_svd_t *s, const R *Q, size_t l, R *Yb, size_t rows, size_t bb) {
     R *c = s->c;
-    for (int pass = 0; l > 0 && pass < 2; pass++) {
-        GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)l, (int)bb, (int)rows, 1, Q, (int)rows, Yb, (int)rows, 0,
-             c, (int)l);
-        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)bb, (int)l, -1, Q, (int)rows, c, (int)l, 1,
-             Yb, (int)rows);
+    sb_result_t r = SB_OK;
+    for (int pass = 0; pass < (l > 0 ? 2 : 1) && r == SB_OK; pass++) {
+        if (l > 0) {
+            GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)l, (int)bb, (int)rows, 1, Q, (int)rows, Yb, (int)rows,
+                 0, c, (int)l);
+            GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)bb, (int)l, -1, Q, (int)rows, c, (int)l, 1,
+                 Yb, (int)rows);
+        }
+        r = FN(orth)(s, Yb, rows, bb);
     }
-    return FN(orth)(s, Yb, rows, bb);
+    return r;
 }
 
 /* ---- methods ------------------------------------------------------------ */
@@ -212,55 +222,72 @@ static void FN(out_topk)(const sb_svd_t *s, size_t r, double *sv, double *U, dou
 }
 
 /* RANDOMIZED, blocked (Halko-Martinsson-Tropp 2011, Alg. 4.4 per block;
- * Martinsson-Voronin 2016 for the blocks).  For each block of bb columns:
- *   Y_b = A Omega_b, orthogonalised against the earlier Q, QR;
- *   q times: Z = A^T Y_b, QR; Y_b = A Z, orthogonalised against Q, QR;
- *   B_b^T = A^T Y_b (n x bb), captured energy += ||B_b||_F^2.
- * Since Y_b is orthogonal to the earlier Q, the power iterations act on the
- * deflated matrix (I - Q Q^T) A.  Then B^T = W S X^T (gesdd, n x l) and
- * A ~ Q B = (Q X) S W^T.  Non-adaptive: one block of l columns, which is
- * the plain HMT algorithm.  Adaptive: blocks of s->b until the error
- * norm2 - captured meets the target with r + p <= l columns (see svd.h).
- * Returns the number of columns used in *lused and the rank in *rank. */
+ * Martinsson-Voronin 2016 for the blocks; Musco-Musco 2015 for Krylov).
+ * For each block of bb test vectors Omega_b, with Q the basis so far:
+ *   Y = A Omega_b, orthogonalised against Q, QR;
+ *   q times: Z = A^T Y, QR; Y = A Z, orthogonalised against Q, QR;
+ *   B_b^T = A^T Q_b for the block's new columns Q_b.
+ * Plain subspace iteration keeps only the last Y of a block; block Krylov
+ * appends every Y to Q (each orthogonalised against all earlier columns),
+ * so the block adds (q + 1) bb columns built from the same 2q + 2 reads of
+ * A (each A^T Y is both the next iteration's start and a block of B^T),
+ * and the basis holds every polynomial in A A^T of degree <= q applied to
+ * A Omega instead of only the highest power.  Since the new Y is
+ * orthogonal to the earlier Q, the iterations act on the deflated matrix
+ * (I - Q Q^T) A.  Then B^T = W S X^T (gesdd, n x L) and
+ * A ~ Q B = (Q X) S W^T.  Non-adaptive: one block of l vectors (the plain
+ * HMT algorithm, or its block Krylov form).  Adaptive: blocks of s->b until
+ * the error norm2 - captured meets the target with r + p <= columns (see
+ * svd.h).  Returns the columns of Q in *lused and the rank in *rank. */
 static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptive, double tol2, double norm2,
                                 size_t min_rank, size_t *lused, size_t *rank) {
-    size_t m = s->m, n = s->n, k = s->k, lmax = s->l, b = adaptive ? s->b : lmax, l = 0;
+    size_t m = s->m, n = s->n, k = s->k, lmax = s->l, b = adaptive ? s->b : lmax, tv = 0, c = 0;
     R *Q = s->y, *Z = s->z, *Bt = s->bt;
     const R *Om = s->om;
     double captured = 0;
     sb_result_t r;
     *rank = k;
-    while (l < lmax) {
-        size_t bb = lmax - l < b ? lmax - l : b;
-        R *Yb = Q + l * m, *Bb = Bt + l * n;
-        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Om + l * n, (int)n,
-             0, Yb, (int)m);
-        if ((r = FN(orth_against)(s, Q, l, Yb, m, bb)) != SB_OK) return r;
-        for (int it = 0; it < s->q; it++) {
-            GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)n, (int)bb, (int)m, 1, A, (int)lda, Yb, (int)m, 0, Z,
+    while (tv < lmax) {
+        size_t bb = lmax - tv < b ? lmax - tv : b, c0 = c;
+        R *Y = Q + c * m;
+        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Om + tv * n, (int)n,
+             0, Y, (int)m);
+        if ((r = FN(orth_against)(s, Q, c, Y, m, bb)) != SB_OK) return r;
+        for (int it = 0;; it++) {
+            /* A^T Y: the start of the next iteration, and the rows Y^T A of
+             * B when Y stays in the basis (every iterate for Krylov, which
+             * so needs no extra read of A for B) */
+            R *AtY = s->krylov || it == s->q ? Bt + c * n : Z;
+            GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)n, (int)bb, (int)m, 1, A, (int)lda, Y, (int)m, 0, AtY,
                  (int)n);
+            if (it == s->q) break;
+            if (AtY != Z) memcpy(Z, AtY, n * bb * sizeof(R));
             if ((r = FN(orth)(s, Z, n, bb)) != SB_OK) return r;
-            GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Z, (int)n, 0,
-                 Yb, (int)m);
-            if ((r = FN(orth_against)(s, Q, l, Yb, m, bb)) != SB_OK) return r;
+            if (s->krylov) { /* keep this iterate: the next goes after it */
+                c += bb;
+                Y = Q + c * m;
+            }
+            GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Z, (int)n, 0, Y,
+                 (int)m);
+            if ((r = FN(orth_against)(s, Q, c, Y, m, bb)) != SB_OK) return r;
         }
-        GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)n, (int)bb, (int)m, 1, A, (int)lda, Yb, (int)m, 0, Bb,
-             (int)n);
-        l += bb;
+        c += bb;
+        tv += bb;
+        R *Bb = Bt + c0 * n;
         if (adaptive) {
-            for (size_t i = 0; i < n * bb; i++) captured += (double)Bb[i] * (double)Bb[i];
-            if (l < lmax && norm2 - captured > tol2 * norm2) continue; /* not there yet with all l columns */
+            for (size_t i = 0; i < n * (c - c0); i++) captured += (double)Bb[i] * (double)Bb[i];
+            if (tv < lmax && norm2 - captured > tol2 * norm2) continue; /* not there yet with all c columns */
         }
-        /* SVD of B^T (n x l) on a copy: B^T itself is kept for more blocks */
-        memcpy(Z, Bt, n * l * sizeof(R));
-        lapack_int info = GESDD(LAPACK_COL_MAJOR, 'S', (lapack_int)n, (lapack_int)l, Z, (lapack_int)n, s->sv, s->ws,
-                                (lapack_int)n, s->vt, (lapack_int)l, s->work, s->lwork, s->iwork);
+        /* SVD of B^T (n x c) on a copy: B^T itself is kept for more blocks */
+        memcpy(Z, Bt, n * c * sizeof(R));
+        lapack_int info = GESDD(LAPACK_COL_MAJOR, 'S', (lapack_int)n, (lapack_int)c, Z, (lapack_int)n, s->sv, s->ws,
+                                (lapack_int)n, s->vt, (lapack_int)c, s->work, s->lwork, s->iwork);
         if (info != 0) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: gesdd failed (info %d)", (int)info);
         if (!adaptive) break;
         const R *sv = s->sv;
         size_t want = k, lo = min_rank > 0 ? min_rank : 1;
         double cum = 0;
-        for (size_t j = 0; j < k && j < l; j++) {
+        for (size_t j = 0; j < k && j < c; j++) {
             cum += (double)sv[j] * (double)sv[j];
             if (j + 1 >= lo && norm2 - cum <= tol2 * norm2) {
                 want = j + 1;
@@ -268,12 +295,11 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptiv
             }
         }
         *rank = want;
-        if (want + (size_t)s->p <= l) break;
+        if (want + (size_t)s->p <= c) break;
     }
-    *lused = l;
-    /* U = Q X for the leading k columns of X (the rank is at most k) */
-    size_t kk = *rank;
-    GEMM(CblasColMajor, CblasNoTrans, CblasTrans, (int)m, (int)kk, (int)l, 1, Q, (int)m, s->vt, (int)l, 0, s->u,
+    *lused = c;
+    /* U = Q X for the leading columns of X (the rank is at most k) */
+    GEMM(CblasColMajor, CblasNoTrans, CblasTrans, (int)m, (int)*rank, (int)c, 1, Q, (int)m, s->vt, (int)c, 0, s->u,
          (int)m);
     return SB_OK;
 }

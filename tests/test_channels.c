@@ -112,7 +112,7 @@ SB_TEST(factor_once_serves_all) {
     sb_matrix_t m = synthetic(30, 30, a, 17);
     sb_channels_t ch;
     CHECK(sb_channels_proportional(NULL, &m, 0, &ch) == SB_OK && ch.proportional);
-    sb_svd_opts_t o = {SB_METHOD_FULL, 0, 0, 0, 0, 0};
+    sb_svd_opts_t o = {.method = SB_METHOD_FULL};
     sb_svd_t *svd;
     double s[3][4];
     CHECK(sb_svd_create(NULL, 30, 30, 4, &o, &svd) == SB_OK);

@@ -22,12 +22,18 @@
  *               instead of eps sigma_1^2 / sigma_j.
  *   RANDOMIZED  Halko-Martinsson-Tropp: Y = A Omega with a seeded Gaussian
  *               Omega (n x l, l = k + p), q power iterations with QR
- *               re-orthonormalisation, Q = qr(Y), SVD of B = Q^T A.  Error
- *               in expectation <= (1 + k / (p - 1))^(1/2) times the optimum
- *               for q = 0 (HMT 2011, Thm. 10.5); each power iteration
- *               raises the decay ratio sigma_{k+1}/sigma_k in the bound to
- *               the power 2q + 1.  Worst case: a flat spectrum (noise).
- *               Deterministic: the same seed gives the same bits.
+ *               re-orthonormalisation, Q = qr(Y), SVD of B = Q^T A: 2q + 2
+ *               reads of A.  Error in expectation <= (1 + k / (p - 1))^(1/2)
+ *               times the optimum for q = 0 (HMT 2011, Thm. 10.5); each
+ *               power iteration raises the decay ratio sigma_{k+1}/sigma_k
+ *               in the bound to the power 2q + 1.  By default the basis
+ *               keeps every iterate, [Y_0, Y_1, ..., Y_q] (block Krylov,
+ *               Musco & Musco 2015): the same 2q + 2 reads of A (each
+ *               A^T Y_i is also a block of B^T), and an error that depends far less on
+ *               the gap (on the io matrices of docs/performance.md 10-100x
+ *               closer to the optimum at q = 2).  Used when l (q + 1) <= d.
+ *               Worst case: a flat spectrum (noise).  Deterministic: the
+ *               same seed gives the same bits.
  *   AUTO        FULL when d <= SB_SVD_AUTO_FULL_MAX (cheap and gives every
  *               sigma); TOPK when the sketch k + p would exceed
  *               d / SB_SVD_AUTO_SKETCH_DIV (a randomized sketch that wide
@@ -71,13 +77,15 @@ typedef struct sb_svd_opts {
     int power_iters;      /* randomized: q, 0 = default 2, negative = none */
     uint64_t seed;        /* randomized: seed of the test matrix, 0 = default 1 */
     int single_precision; /* compute in float (inputs/outputs stay double) */
-    size_t block;         /* adaptive randomized: columns added per step, 0 = default 8 */
+    size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
+    int krylov;           /* randomized: 0 = block Krylov when it fits, negative = plain
+                             subspace iteration (see RANDOMIZED above) */
 } sb_svd_opts_t;
 
 /* What one execute did. */
 typedef struct sb_svd_info {
     size_t rank;      /* triplets written: k, or the adaptive choice */
-    size_t sketch;    /* randomized: columns of the range basis Q; TOPK: k; FULL: d */
+    size_t sketch;    /* randomized: columns of the basis Q; TOPK: k; FULL: d */
     double norm_fro;  /* ||A||_F when it was computed (adaptive mode, FULL), else 0 */
     double resid_fro; /* ||A - U_r S_r V_r^T||_F from the identity above, -1 if unknown */
 } sb_svd_info_t;
