@@ -139,7 +139,7 @@ static void rng_gauss2(uint64_t st[4], double g[2]) {
 /* The AUTO rule (measurements in docs/performance.md). */
 static sb_method_t auto_method(size_t d, size_t k, size_t p) {
     if (d <= SB_SVD_AUTO_FULL_MAX) return SB_METHOD_FULL;
-    if ((k + p) * SB_SVD_AUTO_SKETCH_DIV > d) return SB_METHOD_TOPK;
+    if (d <= SB_SVD_AUTO_TOPK_MAX || (k + p) * SB_SVD_AUTO_SKETCH_DIV > d) return SB_METHOD_TOPK;
     return SB_METHOD_RANDOMIZED;
 }
 
@@ -178,8 +178,8 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     s->l = k + (size_t)s->p > d ? d : k + (size_t)s->p;
     s->b = o.block ? o.block : SB_SVD_DEFAULT_BLOCK;
     if (s->b > s->l) s->b = s->l;
-    /* block Krylov keeps q + 1 blocks of the basis: needs l (q + 1) <= d */
-    s->krylov = o.krylov >= 0 && s->q > 0 && s->l * (size_t)(s->q + 1) <= d;
+    /* block Krylov keeps q + 1 blocks of the basis: l (q + 1) <= d / 2 */
+    s->krylov = o.krylov >= 0 && s->q > 0 && 2 * s->l * (size_t)(s->q + 1) <= d;
     s->L = s->krylov ? s->l * (size_t)(s->q + 1) : s->l;
 
     sb_result_t r = SB_OK;

@@ -177,6 +177,21 @@ SB_TEST(full_eckart_young) { every_spectrum(SB_METHOD_FULL, 0); }
 SB_TEST(topk_eckart_young) { every_spectrum(SB_METHOD_TOPK, 0); }
 SB_TEST(randomized_bound) { every_spectrum(SB_METHOD_RANDOMIZED, 0); }
 
+/* Block Krylov (the default when l (q + 1) <= d / 2) and plain subspace
+ * iteration both meet the bound; Krylov is the closer of the two on a slow
+ * spectrum, and reports its wider basis. */
+SB_TEST(randomized_krylov) {
+    for (int sp = 0; sp < SP_COUNT; sp++) {
+        sb_svd_opts_t o = {.method = SB_METHOD_RANDOMIZED};
+        run_t kr = check_method(&o, 400, 300, 400, 8, (spectrum_t)sp, 77);
+        CHECK(kr.info.sketch == 3 * 18);
+        o.krylov = -1;
+        run_t hmt = check_method(&o, 400, 300, 400, 8, (spectrum_t)sp, 77);
+        CHECK(hmt.info.sketch == 18);
+        if (sp == SP_SLOW) CHECKF(kr.err < hmt.err, "krylov %.10g, subspace iteration %.10g", kr.err, hmt.err);
+    }
+}
+
 /* Exact methods meet Eckart-Young to rounding, not only the bound: also
  * the singular values themselves. */
 SB_TEST(exact_sigma) {
@@ -368,7 +383,37 @@ SB_TEST(adaptive_rank) {
     CHECKF(info.sketch < k, "sketch %zu", info.sketch);
     /* an unreachable target keeps all k terms */
     CHECK(sb_svd_execute_adaptive(svd, A, m, 0, 0, 0, s, U, V, &info) == SB_OK);
-    CHECK(info.rank == k && info.sketch == 3 * (k + 10)); /* block Krylov: q + 1 = 3 blocks */
+    CHECK(info.rank == k && info.sketch == k + 10); /* l (q + 1) > d / 2: plain subspace iteration */
+    sb_svd_destroy(svd);
+    free(A);
+    free(s);
+    free(U);
+    free(V);
+}
+
+/* Adaptive rank through the block Krylov basis, growing block by block. */
+SB_TEST(adaptive_krylov) {
+    size_t m = 600, n = 500, k = 30;
+    unsigned long long st = 31;
+    double sig[500];
+    spectrum(SP_SLOW, n, k, sig, &st);
+    double *A = make_matrix(m, n, m, sig, &st), norm = tail(sig, n, 0);
+    double *s = malloc(k * sizeof *s), *U = malloc(m * k * sizeof *U), *V = malloc(n * k * sizeof *V);
+    sb_svd_opts_t o = {.method = SB_METHOD_RANDOMIZED, .block = 6};
+    sb_svd_t *svd;
+    sb_svd_info_t info;
+    CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
+    const double tols[] = {0.8, 0.6, 0.5};
+    for (size_t t = 0; t < 3; t++) {
+        size_t ropt = 1;
+        while (ropt < k && tail(sig, n, ropt) > tols[t] * norm) ropt++;
+        CHECK(sb_svd_execute_adaptive(svd, A, m, tols[t], norm, 0, s, U, V, &info) == SB_OK);
+        double err = resid(A, m, n, m, info.rank, s, U, V);
+        CHECKF(err <= tols[t] * norm * (1 + 1e-9), "tol %g: err %g", tols[t], err / norm);
+        CHECKF(info.rank >= ropt && info.rank <= ropt + 1, "tol %g: rank %zu, optimum %zu", tols[t], info.rank, ropt);
+        CHECKF(info.sketch % 18 == 0 && info.sketch < 3 * (k + 10), "tol %g: sketch %zu", tols[t], info.sketch);
+        CHECK(orth_defect(U, m, info.rank) < 1e-12 && orth_defect(V, n, info.rank) < 1e-12);
+    }
     sb_svd_destroy(svd);
     free(A);
     free(s);
@@ -377,16 +422,23 @@ SB_TEST(adaptive_rank) {
 }
 
 SB_TEST(auto_rule) {
-    sb_svd_t *svd;
-    CHECK(sb_svd_create(NULL, 100, 100, 4, NULL, &svd) == SB_OK);
-    CHECK(sb_svd_method(svd) == SB_METHOD_FULL);
-    sb_svd_destroy(svd);
-    CHECK(sb_svd_create(NULL, 1024, 1024, 8, NULL, &svd) == SB_OK);
-    CHECK(sb_svd_method(svd) == SB_METHOD_RANDOMIZED);
-    sb_svd_destroy(svd);
-    CHECK(sb_svd_create(NULL, 1024, 1024, 300, NULL, &svd) == SB_OK);
-    CHECK(sb_svd_method(svd) == SB_METHOD_TOPK);
-    sb_svd_destroy(svd);
+    static const struct {
+        size_t m, n, k;
+        sb_method_t want;
+    } cases[] = {{100, 100, 4, SB_METHOD_FULL},         {128, 5000, 4, SB_METHOD_FULL},
+                 {300, 300, 4, SB_METHOD_TOPK},         {1024, 1024, 8, SB_METHOD_RANDOMIZED},
+                 {1024, 1024, 200, SB_METHOD_TOPK},     {4096, 401, 8, SB_METHOD_RANDOMIZED},
+                 {1024, 1024, 118, SB_METHOD_RANDOMIZED}, {1024, 1024, 119, SB_METHOD_TOPK}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        sb_svd_t *svd;
+        CHECK(sb_svd_create(NULL, cases[i].m, cases[i].n, cases[i].k, NULL, &svd) == SB_OK);
+        CHECKF(sb_svd_method(svd) == cases[i].want, "%zu x %zu, k %zu: %s", cases[i].m, cases[i].n, cases[i].k,
+               sb_method_name(sb_svd_method(svd)));
+        CHECK(sb_svd_auto_method(cases[i].m, cases[i].n, cases[i].k, NULL) == cases[i].want);
+        sb_svd_destroy(svd);
+    }
+    sb_svd_opts_t o = {.method = SB_METHOD_TOPK};
+    CHECK(sb_svd_auto_method(4096, 4096, 8, &o) == SB_METHOD_TOPK);
 }
 
 SB_TEST(method_names) {

@@ -31,14 +31,18 @@
  *               Musco & Musco 2015): the same 2q + 2 reads of A (each
  *               A^T Y_i is also a block of B^T), and an error that depends far less on
  *               the gap (on the io matrices of docs/performance.md 10-100x
- *               closer to the optimum at q = 2).  Used when l (q + 1) <= d.
+ *               closer to the optimum at q = 2).  Used when l (q + 1) <= d/2
+ *               (beyond, the SVD of the n x l (q + 1) matrix B^T costs more
+ *               than it saves).
  *               Worst case: a flat spectrum (noise).  Deterministic: the
  *               same seed gives the same bits.
- *   AUTO        FULL when d <= SB_SVD_AUTO_FULL_MAX (cheap and gives every
- *               sigma); TOPK when the sketch k + p would exceed
- *               d / SB_SVD_AUTO_SKETCH_DIV (a randomized sketch that wide
- *               saves nothing); RANDOMIZED (q = 2, p = 10) otherwise.  The
- *               thresholds are measured, see docs/performance.md.
+ *   AUTO        FULL when d <= SB_SVD_AUTO_FULL_MAX (under 2 ms a matrix,
+ *               and every sigma); else TOPK when d <= SB_SVD_AUTO_TOPK_MAX
+ *               (exact for under ~5 ms a matrix) or when the sketch k + p
+ *               exceeds d / SB_SVD_AUTO_SKETCH_DIV (a sketch that wide is
+ *               no faster than TOPK); RANDOMIZED (block Krylov, q = 2,
+ *               p = 10) otherwise.  Measured on 2 cores, see
+ *               docs/performance.md.
  *
  * Every method returns orthonormal U and V with s_j = u_j^T A v_j and
  * U^T A V diagonal on the k terms, so the error of the rank-r truncation is
@@ -67,8 +71,9 @@ sb_result_t sb_method_parse(const char *name, sb_method_t *out); /* auto|full|to
 const char *sb_method_name(sb_method_t m);
 
 /* AUTO thresholds (see the comment at the top). */
-#define SB_SVD_AUTO_FULL_MAX 256
-#define SB_SVD_AUTO_SKETCH_DIV 4
+#define SB_SVD_AUTO_FULL_MAX 128
+#define SB_SVD_AUTO_TOPK_MAX 400
+#define SB_SVD_AUTO_SKETCH_DIV 8
 
 /* Options; a zeroed struct gives the defaults. */
 typedef struct sb_svd_opts {
