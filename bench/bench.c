@@ -28,7 +28,7 @@
 
 #define MAXL 16
 #define DEFAULT_MODEL "microfacet:base=gold,roughness=0.5"
-#define DEFAULT_METHODS "full,topk,randomized:q=1,randomized,randomized:f32,auto"
+#define DEFAULT_METHODS "full,topk,randomized:hmt,randomized:q=1,randomized,randomized:f32,auto"
 
 typedef struct method_spec {
     char label[48];
@@ -96,7 +96,8 @@ static void help(const char *prog) {
            "  --terms LIST      numbers of terms J (default 1,4,8,16)\n"
            "  --methods LIST    methods, each NAME[:opt:opt...] with NAME auto|full|topk|randomized\n"
            "                    and opt q=Q (power iterations), p=P (oversampling), f32 (single\n"
-           "                    precision), block=B (default " DEFAULT_METHODS ")\n"
+           "                    precision), hmt (plain subspace iteration, no Krylov basis),\n"
+           "                    block=B (default " DEFAULT_METHODS ")\n"
            "  --model SPEC      source (default " DEFAULT_MODEL ")\n"
            "  --form F          f (default), cos, cos2\n"
            "  --quick           sizes 256,1024, terms 4,8: a few seconds\n"
@@ -154,6 +155,8 @@ static int parse_method(const bench_opts_t *o, const char *spec, size_t len, met
         char extra;
         if (strcmp(tok, "f32") == 0)
             m->svd.single_precision = 1;
+        else if (strcmp(tok, "hmt") == 0)
+            m->svd.krylov = -1;
         else if (sscanf(tok, "q=%d%c", &v, &extra) == 1 && v >= 0 && v <= 20)
             m->svd.power_iters = v ? v : -1;
         else if (sscanf(tok, "p=%d%c", &v, &extra) == 1 && v >= 0 && v <= 1000)
@@ -161,7 +164,7 @@ static int parse_method(const bench_opts_t *o, const char *spec, size_t len, met
         else if (sscanf(tok, "block=%d%c", &v, &extra) == 1 && v >= 1 && v <= 100000)
             m->svd.block = (size_t)v;
         else
-            return bad(o, "--methods: unknown option in '%s' (q=Q, p=P, f32, block=B)", m->label);
+            return bad(o, "--methods: unknown option in '%s' (q=Q, p=P, f32, hmt, block=B)", m->label);
     }
     return 0;
 }
