@@ -6,6 +6,7 @@
 #include "sepbrdf/svd.h"
 
 #include <cblas.h>
+#include <float.h>
 #include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
@@ -217,71 +218,93 @@ sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) { return s->info; }
 
 /* ---- execute ------------------------------------------------------------ */
 
-/* sum of squares of A (m x n, ld lda) in double with independent partial
- * sums; 1 if an entry is not finite (or the sum overflows). */
-static int sumsq(const double *A, size_t m, size_t n, size_t lda, double *out) {
-    double t = 0;
-    for (size_t j = 0; j < n; j++) {
-        const double *a = A + j * lda;
-        double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-        size_t i = 0;
-        for (; i + 4 <= m; i += 4) {
-            s0 += a[i] * a[i];
-            s1 += a[i + 1] * a[i + 1];
-            s2 += a[i + 2] * a[i + 2];
-            s3 += a[i + 3] * a[i + 3];
-        }
-        for (; i < m; i++) s0 += a[i] * a[i];
-        t += (s0 + s1) + (s2 + s3);
+/* Sum of squares of one column, eight partial sums (which the compiler
+ * vectorises); when f is not NULL the column is also converted to float
+ * there and the squares are those of the float values, so an entry beyond
+ * the float range shows as inf. */
+static double col_sumsq(const double *a, size_t m, float *f) {
+    double s8[8] = {0};
+    size_t i = 0;
+    if (f)
+        for (; i + 8 <= m; i += 8)
+            for (int t = 0; t < 8; t++) {
+                f[i + t] = (float)a[i + t];
+                s8[t] += (double)f[i + t] * (double)f[i + t];
+            }
+    else
+        for (; i + 8 <= m; i += 8)
+            for (int t = 0; t < 8; t++) s8[t] += a[i + t] * a[i + t];
+    for (; i < m; i++) {
+        double x = a[i];
+        if (f) x = f[i] = (float)a[i];
+        s8[0] += x * x;
     }
-    *out = t;
-    return !isfinite(t);
+    return ((s8[0] + s8[1]) + (s8[2] + s8[3])) + ((s8[4] + s8[5]) + (s8[6] + s8[7]));
 }
 
-/* Copy A into the plan's buffer (double or float, ld m), with its sum of
- * squares; 1 if an entry is not finite or does not fit the precision. */
-static int copy_in(sb_svd_t *s, const double *A, size_t lda, double *ss) {
+/* *nrm = ||A||_F from the plain sum of squares t when it is finite.
+ * Otherwise look closer: an entry that is not finite (or beyond the float
+ * range in single precision) is an error (1); finite entries whose squares
+ * overflow get the scaled norm of LAPACK's dlange. */
+static int finish_norm(const sb_svd_t *s, const double *A, size_t lda, double t, double *nrm) {
+    *nrm = sqrt(t);
+    if (isfinite(t)) return 0;
+    for (size_t j = 0; j < s->n; j++)
+        for (size_t i = 0; i < s->m; i++) {
+            double x = A[i + j * lda];
+            if (!isfinite(x) || (s->single && fabs(x) > FLT_MAX)) return 1;
+        }
+    *nrm = LAPACKE_dlange_work(LAPACK_COL_MAJOR, 'F', (lapack_int)s->m, (lapack_int)s->n, A, (lapack_int)lda, NULL);
+    return 0;
+}
+
+/* ||A||_F read from A; 1 if an entry is not finite. */
+static int norm_of(const sb_svd_t *s, const double *A, size_t lda, double *nrm) {
+    double t = 0;
+    for (size_t j = 0; j < s->n; j++) t += col_sumsq(A + j * lda, s->m, NULL);
+    return finish_norm(s, A, lda, t, nrm);
+}
+
+/* Copy A into the plan's buffer (double or float, ld m) with ||A||_F;
+ * 1 if an entry is not finite or does not fit the precision. */
+static int copy_in(sb_svd_t *s, const double *A, size_t lda, double *nrm) {
     size_t m = s->m, n = s->n;
     double t = 0;
     for (size_t j = 0; j < n; j++) {
         const double *a = A + j * lda;
-        double s0 = 0, s1 = 0;
         if (s->single) {
-            float *f = (float *)s->a + j * m;
-            for (size_t i = 0; i < m; i++) {
-                f[i] = (float)a[i];
-                s0 += a[i] * a[i];
-                s1 += (double)f[i]; /* inf if a[i] overflows float */
-            }
+            t += col_sumsq(a, m, (float *)s->a + j * m);
         } else {
             memcpy((double *)s->a + j * m, a, m * sizeof(double));
-            for (size_t i = 0; i < m; i++) s0 += a[i] * a[i];
+            t += col_sumsq(a, m, NULL);
         }
-        t += s0;
-        if (!isfinite(s1)) return 1;
     }
-    *ss = t;
-    return !isfinite(t);
+    return finish_norm(s, A, lda, t, nrm);
 }
 
 static double sv_at(const sb_svd_t *s, size_t j) {
     return s->single ? (double)((const float *)s->sv)[j] : ((const double *)s->sv)[j];
 }
 
-/* Error of the rank-r truncation from ||A||^2 - sum_{j<r} s_j^2 (>= 0). */
-static double resid_from(double norm2, const double *sv, size_t r) {
-    double c = 0;
-    for (size_t j = 0; j < r; j++) c += sv[j] * sv[j];
-    return norm2 > c ? sqrt(norm2 - c) : 0;
+/* The errors below are kept relative to ||A|| (s_j / ||A|| squared) so that
+ * neither a huge nor a tiny matrix overflows; nrm = 0 is the zero matrix,
+ * whose every truncation is exact. */
+
+/* ||A - U_r S_r V_r^T||_F = ||A|| (1 - sum_{j<r} (s_j / ||A||)^2)^(1/2). */
+static double resid_from(double nrm, const double *sv, size_t r) {
+    if (!(nrm > 0)) return 0;
+    double c = 0, inv = 1 / nrm;
+    for (size_t j = 0; j < r; j++) c += (sv[j] * inv) * (sv[j] * inv);
+    return c < 1 ? nrm * sqrt(1 - c) : 0;
 }
 
-/* Smallest r in [max(lo, 1), k] with norm2 - sum_{j<r} s_j^2 <= tol2 norm2. */
-static size_t rank_for(const double *sv, size_t k, double norm2, double tol2, size_t lo) {
-    double c = 0;
+/* Smallest r in [max(lo, 1), k] with 1 - sum_{j<r} (s_j / ||A||)^2 <= tol^2. */
+static size_t rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo) {
+    double c = 0, inv = nrm > 0 ? 1 / nrm : 0;
     if (lo < 1) lo = 1;
     for (size_t j = 0; j < k; j++) {
-        c += sv[j] * sv[j];
-        if (j + 1 >= lo && norm2 - c <= tol2 * norm2) return j + 1;
+        c += (sv[j] * inv) * (sv[j] * inv);
+        if (j + 1 >= lo && (!(nrm > 0) || 1 - c <= tol2)) return j + 1;
     }
     return k;
 }
@@ -292,7 +315,7 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
     if (!A || !sv || lda < s->m)
         return sb_error(s->ctx, SB_ERR_ARG, "svd: missing matrix or output, or lda %zu < %zu rows", lda, s->m);
     size_t k = s->k, r = k, sketch = 0;
-    double norm2 = norm_fro > 0 ? norm_fro * norm_fro : -1, ss = 0, tol2 = tol * tol;
+    double nrm = norm_fro > 0 ? norm_fro : -1, got = 0, tol2 = tol * tol;
     sb_svd_info_t info = {0, 0, 0, -1};
     sb_result_t res = SB_OK;
     if (have_all) *have_all = 0;
@@ -301,15 +324,15 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
     const void *a = A;
     size_t la = lda;
     if (s->single || s->method == SB_METHOD_FULL) {
-        if (copy_in(s, A, lda, &ss))
+        if (copy_in(s, A, lda, &got))
             return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries%s",
                             s->single ? " or overflows single precision" : "");
-        if (norm2 < 0) norm2 = ss;
+        if (nrm < 0) nrm = got;
         a = s->a;
         la = s->m;
-    } else if (want_norm && norm2 < 0 && s->method == SB_METHOD_RANDOMIZED) {
-        if (sumsq(A, s->m, s->n, lda, &ss)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
-        norm2 = ss;
+    } else if (want_norm && nrm < 0 && s->method == SB_METHOD_RANDOMIZED) {
+        if (norm_of(s, A, lda, &got)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
+        nrm = got;
     }
 
     switch (s->method) {
@@ -321,20 +344,22 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
             for (size_t j = 0; j < d; j++) all_s[j] = sv_at(s, j);
             if (have_all) *have_all = 1;
         }
-        /* t = sum_{i>=j} s_i^2, the error^2 of keeping j terms, summed from
-         * the end so that small errors are not differences */
-        double t = 0, lo = (double)(min_rank > 0 ? min_rank : 1);
+        /* t = sum_{i>=j} (s_i / ||A||)^2, the relative error^2 of keeping
+         * j terms, summed from the end so that small errors are not
+         * differences */
+        double t = 0, inv = nrm > 0 ? 1 / nrm : 0;
+        size_t lo = min_rank > 0 ? min_rank : 1;
         for (size_t j = d; j-- > 0;) {
-            double x = sv_at(s, j);
+            double x = sv_at(s, j) * inv;
             t += x * x;
-            if (adaptive && (double)j >= lo && j <= k && t <= tol2 * norm2) r = j;
+            if (adaptive && j >= lo && j <= k && t <= tol2) r = j;
         }
         t = 0;
-        for (size_t j = d; j-- > r;) t += sv_at(s, j) * sv_at(s, j);
+        for (size_t j = d; j-- > r;) t += (sv_at(s, j) * inv) * (sv_at(s, j) * inv);
         if (s->single) out_full_f(s, r, sv, U, V);
         else out_full_d(s, r, sv, U, V);
-        info.norm_fro = sqrt(norm2);
-        info.resid_fro = sqrt(t);
+        info.norm_fro = nrm;
+        info.resid_fro = nrm > 0 ? nrm * sqrt(t) : 0;
         sketch = d;
         break;
     }
@@ -342,24 +367,24 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
         double tr;
         res = s->single ? run_topk_f(s, a, la, &tr) : run_topk_d(s, a, la, &tr);
         if (res != SB_OK) break;
-        if (norm2 < 0) norm2 = tr;
+        if (nrm < 0) nrm = sqrt(tr);
         if (s->single) out_topk_f(s, k, sv, U, V);
         else out_topk_d(s, k, sv, U, V);
-        if (adaptive) r = rank_for(sv, k, norm2, tol2, min_rank);
-        info.norm_fro = sqrt(norm2);
-        info.resid_fro = resid_from(norm2, sv, r);
+        if (adaptive) r = rank_for(sv, k, nrm, tol2, min_rank);
+        info.norm_fro = nrm;
+        info.resid_fro = resid_from(nrm, sv, r);
         sketch = k;
         break;
     }
     default: {
-        res = s->single ? run_rand_f(s, a, la, adaptive, tol2, norm2, min_rank, &sketch, &r)
-                        : run_rand_d(s, a, la, adaptive, tol2, norm2, min_rank, &sketch, &r);
+        res = s->single ? run_rand_f(s, a, la, adaptive, tol2, nrm, min_rank, &sketch, &r)
+                        : run_rand_d(s, a, la, adaptive, tol2, nrm, min_rank, &sketch, &r);
         if (res != SB_OK) break;
         if (s->single) out_rand_f(s, r, sv, U, V);
         else out_rand_d(s, r, sv, U, V);
-        if (norm2 >= 0) {
-            info.norm_fro = sqrt(norm2);
-            info.resid_fro = resid_from(norm2, sv, r);
+        if (nrm >= 0) {
+            info.norm_fro = nrm;
+            info.resid_fro = resid_from(nrm, sv, r);
         }
         break;
     }

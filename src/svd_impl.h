@@ -237,14 +237,14 @@ static void FN(out_topk)(const sb_svd_t *s, size_t r, double *sv, double *U, dou
  * (I - Q Q^T) A.  Then B^T = W S X^T (gesdd, n x L) and
  * A ~ Q B = (Q X) S W^T.  Non-adaptive: one block of l vectors (the plain
  * HMT algorithm, or its block Krylov form).  Adaptive: blocks of s->b until
- * the error norm2 - captured meets the target with r + p <= columns (see
+ * the relative error 1 - captured meets the target with r + p <= columns (see
  * svd.h).  Returns the columns of Q in *lused and the rank in *rank. */
-static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptive, double tol2, double norm2,
+static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptive, double tol2, double nrm,
                                 size_t min_rank, size_t *lused, size_t *rank) {
     size_t m = s->m, n = s->n, k = s->k, lmax = s->l, b = adaptive ? s->b : lmax, tv = 0, c = 0;
     R *Q = s->y, *Z = s->z, *Bt = s->bt;
     const R *Om = s->om;
-    double captured = 0;
+    double captured = 0, inv = nrm > 0 ? 1 / nrm : 0; /* captured energy relative to ||A||^2 */
     sb_result_t r;
     *rank = k;
     while (tv < lmax) {
@@ -275,8 +275,8 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptiv
         tv += bb;
         R *Bb = Bt + c0 * n;
         if (adaptive) {
-            for (size_t i = 0; i < n * (c - c0); i++) captured += (double)Bb[i] * (double)Bb[i];
-            if (tv < lmax && norm2 - captured > tol2 * norm2) continue; /* not there yet with all c columns */
+            for (size_t i = 0; i < n * (c - c0); i++) captured += ((double)Bb[i] * inv) * ((double)Bb[i] * inv);
+            if (tv < lmax && nrm > 0 && 1 - captured > tol2) continue; /* not there yet with all c columns */
         }
         /* SVD of B^T (n x c) on a copy: B^T itself is kept for more blocks */
         memcpy(Z, Bt, n * c * sizeof(R));
@@ -288,8 +288,8 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptiv
         size_t want = k, lo = min_rank > 0 ? min_rank : 1;
         double cum = 0;
         for (size_t j = 0; j < k && j < c; j++) {
-            cum += (double)sv[j] * (double)sv[j];
-            if (j + 1 >= lo && norm2 - cum <= tol2 * norm2) {
+            cum += ((double)sv[j] * inv) * ((double)sv[j] * inv);
+            if (j + 1 >= lo && (!(nrm > 0) || 1 - cum <= tol2)) {
                 want = j + 1;
                 break;
             }

@@ -494,6 +494,14 @@ SB_TEST(errors) {
             CHECK(sb_svd_execute(svd, A, 8, s, U, V, NULL, NULL) == SB_ERR_NUMERIC);
             A[9] = single ? 1e39 : 0; /* overflows float */
             CHECK(sb_svd_execute(svd, A, 8, s, U, V, NULL, NULL) == (single ? SB_ERR_NUMERIC : SB_OK));
+            /* finite but squares overflow: fine except through a Gram matrix */
+            A[9] = single ? 1e30 : 1e200;
+            sb_result_t want = me == SB_METHOD_TOPK ? SB_ERR_NUMERIC : SB_OK;
+            CHECK(sb_svd_execute(svd, A, 8, s, U, V, NULL, NULL) == want);
+            if (want == SB_OK) CHECK_REL(s[0], A[9], 1e-6);
+            sb_svd_info_t info;
+            CHECK(sb_svd_execute_adaptive(svd, A, 8, 0.5, 0, 0, s, U, V, &info) == want);
+            if (want == SB_OK && !single) CHECK_REL(info.norm_fro, 1e200, 1e-12);
             A[9] = 0;
             sb_svd_destroy(svd);
         }

@@ -19,7 +19,9 @@
  *               single) is only as good as the subspace the Gram matrix can
  *               resolve.  The Ritz step computes s_j from A, not from
  *               sigma_j^2, so s_j carries an absolute error ~eps sigma_1
- *               instead of eps sigma_1^2 / sigma_j.
+ *               instead of eps sigma_1^2 / sigma_j.  The Gram matrix also
+ *               squares the range: entries beyond ~1e154 (1e19 in single
+ *               precision) overflow it and give SB_ERR_NUMERIC.
  *   RANDOMIZED  Halko-Martinsson-Tropp: Y = A Omega with a seeded Gaussian
  *               Omega (n x l, l = k + p), q power iterations with QR
  *               re-orthonormalisation, Q = qr(Y), SVD of B = Q^T A: 2q + 2
