@@ -2,10 +2,11 @@
  * the `sepbrdf bench` subcommand.
  *
  * For every size N = R^2 of the io grid: sample the source once, take the
- * singular values of each channel with LAPACK dgesdd (values only, the
- * Eckart-Young baseline), then for every method and number of terms J run
- * the factor step in a forked child (so peak memory is per run): plan,
- * execute, write the EXR textures when the library has them.  Reports per
+ * Eckart-Young baseline from LAPACK dgesdd (the full method's own errors
+ * when it is listed, else the singular values of each channel), then for
+ * every method and number of terms J run the factor step in a forked child
+ * (so peak memory is per run): plan, execute, write the EXR textures when
+ * the library has them.  Reports per
  * stage wall times, the relative error ||M - M_J||_F / ||M||_F, its excess
  * over the optimum, and peak memory; a table on stdout, CSV and a PNG plot
  * (gnuplot, when installed) in the output folder. */
