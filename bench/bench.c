@@ -23,8 +23,8 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "sepbrdf/sepbrdf.h"
 #include "sb_plot_gp.h" /* sb_plot_gp_[]: bench/plot.gp, embedded by CMake */
+#include "sepbrdf/sepbrdf.h"
 
 #define MAXL 16
 #define DEFAULT_MODEL "microfacet:base=gold,roughness=0.5"
@@ -219,13 +219,15 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
             return 0;
         }
         if ((m = opt(argc, argv, &i, "--sizes", NULL, &v))) {
-            if (m < 0 || parse_list(o, "--sizes", v, 4, 1 << 20, o->sizes, &o->nsizes)) return m < 0 ? bad(o, "%s needs a value", a) : 1;
+            if (m < 0 || parse_list(o, "--sizes", v, 4, 1 << 20, o->sizes, &o->nsizes))
+                return m < 0 ? bad(o, "%s needs a value", a) : 1;
             for (size_t k = 0; k < o->nsizes; k++) {
                 size_t r = (size_t)llround(sqrt((double)o->sizes[k]));
                 if (r * r != o->sizes[k]) return bad(o, "--sizes: %s: every N must be a square R*R (io grid)", v);
             }
         } else if ((m = opt(argc, argv, &i, "--terms", NULL, &v))) {
-            if (m < 0 || parse_list(o, "--terms", v, 1, 1 << 20, o->terms, &o->nterms)) return m < 0 ? bad(o, "%s needs a value", a) : 1;
+            if (m < 0 || parse_list(o, "--terms", v, 1, 1 << 20, o->terms, &o->nterms))
+                return m < 0 ? bad(o, "%s needs a value", a) : 1;
         } else if ((m = opt(argc, argv, &i, "--methods", NULL, &v))) {
             if (m < 0 || parse_methods(o, v)) return m < 0 ? bad(o, "%s needs a value", a) : 1;
         } else if ((m = opt(argc, argv, &i, "--model", NULL, &v))) {
@@ -237,7 +239,8 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
             char *end;
             if (m < 0) return bad(o, "%s needs a value", a);
             o->min_time = strtod(v, &end);
-            if (end == v || *end || !(o->min_time >= 0 && o->min_time <= 60)) return bad(o, "--min-time '%s': need 0..60 s", v);
+            if (end == v || *end || !(o->min_time >= 0 && o->min_time <= 60))
+                return bad(o, "--min-time '%s': need 0..60 s", v);
         } else if ((m = opt(argc, argv, &i, "-o", "--out", &v))) {
             if (m < 0 || !*v) return bad(o, "%s needs a folder", a);
             o->out = v;
@@ -412,7 +415,8 @@ static int baseline(const sb_matrix_t *m, double **sig) {
         sig[c] = NULL;
         if (!m->data[c]) continue;
         sig[c] = malloc(d * sizeof(double));
-        for (size_t j = 0; j < n; j++) memcpy(a + j * N, m->data[c] + j * m->ld, N * sizeof *a);
+        for (size_t j = 0; j < n; j++)
+            memcpy(a + j * N, m->data[c] + j * m->ld, N * sizeof *a);
         if (!sig[c] || LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'N', (lapack_int)N, (lapack_int)n, a, (lapack_int)N, sig[c],
                                       NULL, 1, NULL, 1) != 0) {
             free(a);
@@ -532,19 +536,21 @@ static int run_all(bench_opts_t *o) {
             }
             double norm2 = 0;
             for (int c = 0; c < 3; c++)
-                for (size_t j = 0; sig[c] && j < N; j++) norm2 += sig[c][j] * sig[c][j];
+                for (size_t j = 0; sig[c] && j < N; j++)
+                    norm2 += sig[c][j] * sig[c][j];
             for (size_t ti = 0; ti < o->nterms; ti++) {
                 double opt2 = 0;
                 for (int c = 0; c < 3; c++)
-                    for (size_t j = o->terms[ti]; sig[c] && j < N; j++) opt2 += sig[c][j] * sig[c][j];
+                    for (size_t j = o->terms[ti]; sig[c] && j < N; j++)
+                        opt2 += sig[c][j] * sig[c][j];
                 opt_rel[ti] = norm2 > 0 ? sqrt(opt2 / norm2) : 0;
             }
         }
         if (o->verbosity)
             printf("# N = %zu (R = %zu): sample %.3f s, baseline %s %.2f s\n", N, R, sample_s,
-                   !o->baseline                ? "none"
+                   !o->baseline             ? "none"
                    : full_idx < o->nmethods ? "= the full method (dgesdd, 3 channels, with its factor step)"
-                                             : "dgesdd values only (3 channels)",
+                                            : "dgesdd values only (3 channels)",
                    now() - t0);
         for (size_t mi = 0; mi < o->nmethods; mi++) {
             const method_spec_t *spec = &o->methods[mi];
@@ -582,21 +588,25 @@ static int run_all(bench_opts_t *o) {
                     if (r.svd_s >= 0) snprintf(svd, sizeof svd, "%.4f", r.svd_s);
                     if (r.write_s >= 0) snprintf(wr, sizeof wr, "%.4f", r.write_s);
                     if (r.peak_mib >= 0) snprintf(peak, sizeof peak, "%.0f", r.peak_mib);
-                    if (r.peak_mib >= 0 && r.base_mib >= 0) snprintf(extra, sizeof extra, "%.0f", r.peak_mib - r.base_mib);
+                    if (r.peak_mib >= 0 && r.base_mib >= 0)
+                        snprintf(extra, sizeof extra, "%.0f", r.peak_mib - r.base_mib);
                     printf("%6zu %3zu %-22s %-10s %8.3f %8.4f %8.4f %8s %8s %10.4e %9.2e %7s %6s%s\n", N, J,
                            spec->label, used, sample_s, r.plan_s, r.factor_s, svd, wr, rel, excess, peak, extra,
                            reused ? "  (reused)" : "");
                 }
                 if (csv)
-                    fprintf(csv, "%zu,%zu,%zu,%s,%s,%s,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.10e,%.10e,%.4e,%.1f,%.1f,%d,%d\n",
-                            N, R, J, spec->label, used, spec->svd.single_precision ? "single" : "double", q, p,
-                            sample_s, r.plan_s, r.factor_s, r.svd_s, r.write_s, total, rel, opt, excess, r.peak_mib,
-                            r.peak_mib - r.base_mib, reused, r.reps);
+                    fprintf(
+                        csv,
+                        "%zu,%zu,%zu,%s,%s,%s,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.10e,%.10e,%.4e,%.1f,%.1f,%d,%d\n",
+                        N, R, J, spec->label, used, spec->svd.single_precision ? "single" : "double", q, p, sample_s,
+                        r.plan_s, r.factor_s, r.svd_s, r.write_s, total, rel, opt, excess, r.peak_mib,
+                        r.peak_mib - r.base_mib, reused, r.reps);
                 fflush(stdout);
             }
         }
     next:
-        for (int c = 0; c < 3; c++) free(sig[c]);
+        for (int c = 0; c < 3; c++)
+            free(sig[c]);
         sb_matrix_free(&m);
         sb_param_destroy(param);
         sb_source_destroy(src);

@@ -19,7 +19,8 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
     if (!m || !out) return sb_error(ctx, SB_ERR_ARG, "channels: missing matrix or output");
     memset(out, 0, sizeof *out);
     out->base = -1;
-    if (!(rel_tol >= 0 && rel_tol < 1)) return sb_error(ctx, SB_ERR_RANGE, "channels: tolerance %g, need [0, 1)", rel_tol);
+    if (!(rel_tol >= 0 && rel_tol < 1))
+        return sb_error(ctx, SB_ERR_RANGE, "channels: tolerance %g, need [0, 1)", rel_tol);
     if (rel_tol == 0) rel_tol = SB_CHANNELS_DEFAULT_TOL;
     const double *x[3];
     int present = 0;
@@ -51,7 +52,8 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
             }
         }
         for (int c = 0; c < 3; c++)
-            for (int e = c; e < 3; e++) g[c][e] += p[c][e];
+            for (int e = c; e < 3; e++)
+                g[c][e] += p[c][e];
     }
     int b = -1;
     for (int c = 0; c < 3; c++)
@@ -76,7 +78,8 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
 
     /* pass 2: explicit deviations, stopping early once one is over budget */
     double dev2[3] = {0, 0, 0}, budget[3];
-    for (int c = 0; c < 3; c++) budget[c] = rel_tol * rel_tol * g[c][c];
+    for (int c = 0; c < 3; c++)
+        budget[c] = rel_tol * rel_tol * g[c][c];
     const double *mb = x[b];
     for (size_t j = 0; j < cols && out->proportional; j++)
         for (int c = 0; c < 3; c++) {

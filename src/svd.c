@@ -76,7 +76,8 @@ static uint64_t splitmix64(uint64_t *x) {
     return z ^ (z >> 31);
 }
 static void rng_seed(uint64_t st[4], uint64_t seed) {
-    for (int i = 0; i < 4; i++) st[i] = splitmix64(&seed);
+    for (int i = 0; i < 4; i++)
+        st[i] = splitmix64(&seed);
 }
 static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
 static uint64_t rng_next(uint64_t st[4]) {
@@ -151,8 +152,7 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
     return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
 }
 
-sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts,
-                          sb_svd_t **out) {
+sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "svd: no output pointer");
     *out = NULL;
     if (m == 0 || n == 0) return sb_error(ctx, SB_ERR_ARG, "svd: empty matrix %zu x %zu", m, n);
@@ -162,7 +162,8 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
     sb_svd_opts_t o = {0};
     if (opts) o = *opts;
-    if ((unsigned)o.method >= SB_METHOD_COUNT_) return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
+    if ((unsigned)o.method >= SB_METHOD_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
     sb_svd_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "svd: out of memory");
     s->ctx = ctx;
@@ -186,12 +187,18 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     sb_result_t r = SB_OK;
     if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;
     if (r == SB_OK) switch (s->method) {
-        case SB_METHOD_FULL: r = s->single ? plan_full_f(s) : plan_full_d(s); break;
-        case SB_METHOD_TOPK: r = s->single ? plan_topk_f(s) : plan_topk_d(s); break;
-        default: r = s->single ? plan_rand_f(s) : plan_rand_d(s); break;
+        case SB_METHOD_FULL:
+            r = s->single ? plan_full_f(s) : plan_full_d(s);
+            break;
+        case SB_METHOD_TOPK:
+            r = s->single ? plan_topk_f(s) : plan_topk_d(s);
+            break;
+        default:
+            r = s->single ? plan_rand_f(s) : plan_rand_d(s);
+            break;
         }
-    if (r == SB_OK && !(s->work = ws_alloc(s, (size_t)(s->lwork > 0 ? s->lwork : 1), 1,
-                                           s->single ? sizeof(float) : sizeof(double))))
+    if (r == SB_OK &&
+        !(s->work = ws_alloc(s, (size_t)(s->lwork > 0 ? s->lwork : 1), 1, s->single ? sizeof(float) : sizeof(double))))
         r = SB_ERR_NOMEM;
     if (r != SB_OK) {
         if (s->failed) r = (sb_result_t)s->failed;
@@ -205,7 +212,8 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 void sb_svd_destroy(sb_svd_t *s) {
     if (!s) return;
     void *bufs[] = {s->a, s->sv, s->u, s->vt, s->g, s->w, s->z, s->y, s->bt, s->ws, s->om, s->c, s->tau, s->work};
-    for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) free(bufs[i]);
+    for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
+        free(bufs[i]);
     free(s->iwork);
     free(s->isuppz);
     free(s);
@@ -233,7 +241,8 @@ static double col_sumsq(const double *a, size_t m, float *f) {
             }
     else
         for (; i + 8 <= m; i += 8)
-            for (int t = 0; t < 8; t++) s8[t] += a[i + t] * a[i + t];
+            for (int t = 0; t < 8; t++)
+                s8[t] += a[i + t] * a[i + t];
     for (; i < m; i++) {
         double x = a[i];
         if (f) x = f[i] = (float)a[i];
@@ -261,7 +270,8 @@ static int finish_norm(const sb_svd_t *s, const double *A, size_t lda, double t,
 /* ||A||_F read from A; 1 if an entry is not finite. */
 static int norm_of(const sb_svd_t *s, const double *A, size_t lda, double *nrm) {
     double t = 0;
-    for (size_t j = 0; j < s->n; j++) t += col_sumsq(A + j * lda, s->m, NULL);
+    for (size_t j = 0; j < s->n; j++)
+        t += col_sumsq(A + j * lda, s->m, NULL);
     return finish_norm(s, A, lda, t, nrm);
 }
 
@@ -294,7 +304,8 @@ static double sv_at(const sb_svd_t *s, size_t j) {
 static double resid_from(double nrm, const double *sv, size_t r) {
     if (!(nrm > 0)) return 0;
     double c = 0, inv = 1 / nrm;
-    for (size_t j = 0; j < r; j++) c += (sv[j] * inv) * (sv[j] * inv);
+    for (size_t j = 0; j < r; j++)
+        c += (sv[j] * inv) * (sv[j] * inv);
     return c < 1 ? nrm * sqrt(1 - c) : 0;
 }
 
@@ -341,7 +352,8 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
         if (res != SB_OK) break;
         size_t d = s->d;
         if (all_s) {
-            for (size_t j = 0; j < d; j++) all_s[j] = sv_at(s, j);
+            for (size_t j = 0; j < d; j++)
+                all_s[j] = sv_at(s, j);
             if (have_all) *have_all = 1;
         }
         /* t = sum_{i>=j} (s_i / ||A||)^2, the relative error^2 of keeping
@@ -355,9 +367,12 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
             if (adaptive && j >= lo && j <= k && t <= tol2) r = j;
         }
         t = 0;
-        for (size_t j = d; j-- > r;) t += (sv_at(s, j) * inv) * (sv_at(s, j) * inv);
-        if (s->single) out_full_f(s, r, sv, U, V);
-        else out_full_d(s, r, sv, U, V);
+        for (size_t j = d; j-- > r;)
+            t += (sv_at(s, j) * inv) * (sv_at(s, j) * inv);
+        if (s->single)
+            out_full_f(s, r, sv, U, V);
+        else
+            out_full_d(s, r, sv, U, V);
         info.norm_fro = nrm;
         info.resid_fro = nrm > 0 ? nrm * sqrt(t) : 0;
         sketch = d;
@@ -368,8 +383,10 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
         res = s->single ? run_topk_f(s, a, la, &tr) : run_topk_d(s, a, la, &tr);
         if (res != SB_OK) break;
         if (nrm < 0) nrm = sqrt(tr);
-        if (s->single) out_topk_f(s, k, sv, U, V);
-        else out_topk_d(s, k, sv, U, V);
+        if (s->single)
+            out_topk_f(s, k, sv, U, V);
+        else
+            out_topk_d(s, k, sv, U, V);
         if (adaptive) r = rank_for(sv, k, nrm, tol2, min_rank);
         info.norm_fro = nrm;
         info.resid_fro = resid_from(nrm, sv, r);
@@ -380,8 +397,10 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
         res = s->single ? run_rand_f(s, a, la, adaptive, tol2, nrm, min_rank, &sketch, &r)
                         : run_rand_d(s, a, la, adaptive, tol2, nrm, min_rank, &sketch, &r);
         if (res != SB_OK) break;
-        if (s->single) out_rand_f(s, r, sv, U, V);
-        else out_rand_d(s, r, sv, U, V);
+        if (s->single)
+            out_rand_f(s, r, sv, U, V);
+        else
+            out_rand_d(s, r, sv, U, V);
         if (nrm >= 0) {
             info.norm_fro = nrm;
             info.resid_fro = resid_from(nrm, sv, r);
@@ -398,8 +417,8 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
     return SB_OK;
 }
 
-sb_result_t sb_svd_execute(sb_svd_t *s, const double *A, size_t lda, double *sv, double *U, double *V,
-                           double *all_s, int *have_all) {
+sb_result_t sb_svd_execute(sb_svd_t *s, const double *A, size_t lda, double *sv, double *U, double *V, double *all_s,
+                           int *have_all) {
     if (!s) return sb_error(NULL, SB_ERR_ARG, "svd: no plan");
     return execute(s, A, lda, 0, 0, 0, 0, s->k, sv, U, V, all_s, have_all);
 }
@@ -408,8 +427,9 @@ sb_result_t sb_svd_execute_adaptive(sb_svd_t *s, const double *A, size_t lda, do
                                     size_t min_rank, double *sv, double *U, double *V, sb_svd_info_t *info) {
     if (!s) return sb_error(NULL, SB_ERR_ARG, "svd: no plan");
     if (!(rel_tol >= 0 && rel_tol < 1) || min_rank > s->k || !(norm_fro >= 0) || !isfinite(norm_fro))
-        return sb_error(s->ctx, SB_ERR_RANGE, "svd: tolerance %g (need [0, 1)), norm %g or minimum rank %zu (need <= %zu)",
-                        rel_tol, norm_fro, min_rank, s->k);
+        return sb_error(s->ctx, SB_ERR_RANGE,
+                        "svd: tolerance %g (need [0, 1)), norm %g or minimum rank %zu (need <= %zu)", rel_tol, norm_fro,
+                        min_rank, s->k);
     /* rel_tol = 0 asks for no truncation: a plain execute (with the norm) */
     sb_result_t r = execute(s, A, lda, rel_tol > 0, 1, rel_tol, norm_fro, min_rank, sv, U, V, NULL, NULL);
     if (r == SB_OK && info) *info = s->info;

@@ -60,8 +60,8 @@ static sb_result_t FN(plan_topk)(sb_svd_t *s) {
     info = ORGQR(LAPACK_COL_MAJOR, (lapack_int)e, (lapack_int)k, (lapack_int)k, s->y, (lapack_int)e, s->tau, &q, -1);
     big |= info != 0 || FN(lwork_of)(q, &s->lwork);
     lapack_int iw[8];
-    info = GESDD(LAPACK_COL_MAJOR, 'S', (lapack_int)d, (lapack_int)k, s->bt, (lapack_int)d, s->sv, s->ws,
-                 (lapack_int)d, s->vt, (lapack_int)k, &q, -1, iw);
+    info = GESDD(LAPACK_COL_MAJOR, 'S', (lapack_int)d, (lapack_int)k, s->bt, (lapack_int)d, s->sv, s->ws, (lapack_int)d,
+                 s->vt, (lapack_int)k, &q, -1, iw);
     big |= info != 0 || FN(lwork_of)(q, &s->lwork);
     if (big) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: workspace query failed or too large");
     if (!(s->iwork = ws_alloc(s, (size_t)s->liwork, 1, sizeof(lapack_int)))) return SB_ERR_NOMEM;
@@ -96,8 +96,8 @@ static sb_result_t FN(plan_rand)(sb_svd_t *s) {
     int big = 0;
     size_t rows[2] = {m, n}, bq = l; /* QR is of one block (<= l columns) at a time */
     for (int t = 0; t < 2; t++) {
-        lapack_int info = GEQRF(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)bq, s->y, (lapack_int)rows[t],
-                                s->tau, &q, -1);
+        lapack_int info =
+            GEQRF(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)bq, s->y, (lapack_int)rows[t], s->tau, &q, -1);
         big |= info != 0 || FN(lwork_of)(q, &s->lwork);
         info = ORGQR(LAPACK_COL_MAJOR, (lapack_int)rows[t], (lapack_int)bq, (lapack_int)bq, s->y, (lapack_int)rows[t],
                      s->tau, &q, -1);
@@ -115,13 +115,14 @@ static sb_result_t FN(plan_rand)(sb_svd_t *s) {
 /* dst (rows x cols, ld ldd, double) = src (ld lds). */
 static void FN(put)(const R *src, size_t lds, size_t rows, size_t cols, double *dst, size_t ldd) {
     for (size_t j = 0; j < cols; j++)
-        for (size_t i = 0; i < rows; i++) dst[i + j * ldd] = (double)src[i + j * lds];
+        for (size_t i = 0; i < rows; i++)
+            dst[i + j * ldd] = (double)src[i + j * lds];
 }
 
 /* Y (rows x cols) <- its orthonormal factor Q of Y = Q R (Householder). */
 static sb_result_t FN(orth)(sb_svd_t *s, R *Y, size_t rows, size_t cols) {
-    lapack_int info = GEQRF(LAPACK_COL_MAJOR, (lapack_int)rows, (lapack_int)cols, Y, (lapack_int)rows, s->tau,
-                            s->work, s->lwork);
+    lapack_int info =
+        GEQRF(LAPACK_COL_MAJOR, (lapack_int)rows, (lapack_int)cols, Y, (lapack_int)rows, s->tau, s->work, s->lwork);
     if (info == 0)
         info = ORGQR(LAPACK_COL_MAJOR, (lapack_int)rows, (lapack_int)cols, (lapack_int)cols, Y, (lapack_int)rows,
                      s->tau, s->work, s->lwork);
@@ -139,8 +140,8 @@ static sb_result_t FN(orth_against)(sb_svd_t *s, const R *Q, size_t l, R *Yb, si
     sb_result_t r = SB_OK;
     for (int pass = 0; pass < (l > 0 ? 2 : 1) && r == SB_OK; pass++) {
         if (l > 0) {
-            GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)l, (int)bb, (int)rows, 1, Q, (int)rows, Yb, (int)rows,
-                 0, c, (int)l);
+            GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)l, (int)bb, (int)rows, 1, Q, (int)rows, Yb, (int)rows, 0,
+                 c, (int)l);
             GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)bb, (int)l, -1, Q, (int)rows, c, (int)l, 1,
                  Yb, (int)rows);
         }
@@ -163,11 +164,13 @@ static sb_result_t FN(run_full)(sb_svd_t *s) {
 static void FN(out_full)(const sb_svd_t *s, size_t r, double *sv, double *U, double *V) {
     const R *x = s->sv, *u = s->u, *vt = s->vt;
     size_t m = s->m, n = s->n, d = s->d;
-    for (size_t j = 0; j < r; j++) sv[j] = (double)x[j];
+    for (size_t j = 0; j < r; j++)
+        sv[j] = (double)x[j];
     if (U) FN(put)(u, m, m, r, U, m);
     if (V)
         for (size_t j = 0; j < r; j++)
-            for (size_t i = 0; i < n; i++) V[i + j * n] = (double)vt[j + i * d];
+            for (size_t i = 0; i < n; i++)
+                V[i + j * n] = (double)vt[j + i * d];
 }
 
 /* TOPK.  With the Gram matrix on the smaller side (tr = 0: G = A^T A, d = n;
@@ -185,19 +188,20 @@ static sb_result_t FN(run_topk)(sb_svd_t *s, const R *A, size_t lda, double *tra
     /* Gram matrix, upper triangle */
     SYRK(CblasColMajor, CblasUpper, opAt, (int)d, (int)e, 1, A, (int)lda, 0, G, (int)d);
     double t = 0;
-    for (size_t i = 0; i < d; i++) t += (double)G[i + i * d];
+    for (size_t i = 0; i < d; i++)
+        t += (double)G[i + i * d];
     *trace = t;
     if (!isfinite(t))
         return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries or overflows %s precision",
                         sizeof(R) == 4 ? "single" : "double");
     /* k largest eigenpairs (ascending order; the Ritz step sorts) */
     lapack_int found = 0;
-    lapack_int info = SYEVR(LAPACK_COL_MAJOR, 'V', 'I', 'U', (lapack_int)d, G, (lapack_int)d, 0, 0,
-                            (lapack_int)(d - k + 1), (lapack_int)d, 0, &found, s->w, Z, (lapack_int)d, s->isuppz,
-                            s->work, s->lwork, s->iwork, s->liwork);
+    lapack_int info =
+        SYEVR(LAPACK_COL_MAJOR, 'V', 'I', 'U', (lapack_int)d, G, (lapack_int)d, 0, 0, (lapack_int)(d - k + 1),
+              (lapack_int)d, 0, &found, s->w, Z, (lapack_int)d, s->isuppz, s->work, s->lwork, s->iwork, s->liwork);
     if (info != 0 || found != (lapack_int)k)
-        return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: syevr failed (info %d, %d of %zu found)", (int)info,
-                        (int)found, k);
+        return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: syevr failed (info %d, %d of %zu found)", (int)info, (int)found,
+                        k);
     /* one power step and Rayleigh-Ritz on A itself */
     GEMM(CblasColMajor, opA, CblasNoTrans, (int)e, (int)k, (int)d, 1, A, (int)lda, Z, (int)d, 0, Y, (int)e);
     sb_result_t r = FN(orth)(s, Y, e, k);
@@ -207,15 +211,15 @@ static sb_result_t FN(run_topk)(sb_svd_t *s, const R *A, size_t lda, double *tra
                  s->vt, (lapack_int)k, s->work, s->lwork, s->iwork);
     if (info != 0) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: gesdd failed (info %d)", (int)info);
     /* large-side vectors Q X = Q (X^T)^T */
-    GEMM(CblasColMajor, CblasNoTrans, CblasTrans, (int)e, (int)k, (int)k, 1, Y, (int)e, s->vt, (int)k, 0, s->u,
-         (int)e);
+    GEMM(CblasColMajor, CblasNoTrans, CblasTrans, (int)e, (int)k, (int)k, 1, Y, (int)e, s->vt, (int)k, 0, s->u, (int)e);
     return SB_OK;
 }
 
 static void FN(out_topk)(const sb_svd_t *s, size_t r, double *sv, double *U, double *V) {
     size_t d = s->d, e = s->m > s->n ? s->m : s->n;
     const R *x = s->sv;
-    for (size_t j = 0; j < r; j++) sv[j] = (double)x[j];
+    for (size_t j = 0; j < r; j++)
+        sv[j] = (double)x[j];
     const R *small = s->ws, *large = s->u;
     if (U) FN(put)(s->tr ? small : large, s->tr ? d : e, s->m, r, U, s->m);
     if (V) FN(put)(s->tr ? large : small, s->tr ? e : d, s->n, r, V, s->n);
@@ -250,8 +254,8 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptiv
     while (tv < lmax) {
         size_t bb = lmax - tv < b ? lmax - tv : b, c0 = c;
         R *Y = Q + c * m;
-        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Om + tv * n, (int)n,
-             0, Y, (int)m);
+        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Om + tv * n, (int)n, 0,
+             Y, (int)m);
         if ((r = FN(orth_against)(s, Q, c, Y, m, bb)) != SB_OK) return r;
         for (int it = 0;; it++) {
             /* A^T Y: the start of the next iteration, and the rows Y^T A of
@@ -275,7 +279,8 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptiv
         tv += bb;
         R *Bb = Bt + c0 * n;
         if (adaptive) {
-            for (size_t i = 0; i < n * (c - c0); i++) captured += ((double)Bb[i] * inv) * ((double)Bb[i] * inv);
+            for (size_t i = 0; i < n * (c - c0); i++)
+                captured += ((double)Bb[i] * inv) * ((double)Bb[i] * inv);
             if (tv < lmax && nrm > 0 && 1 - captured > tol2) continue; /* not there yet with all c columns */
         }
         /* SVD of B^T (n x c) on a copy: B^T itself is kept for more blocks */
@@ -306,7 +311,8 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptiv
 
 static void FN(out_rand)(const sb_svd_t *s, size_t r, double *sv, double *U, double *V) {
     const R *x = s->sv;
-    for (size_t j = 0; j < r; j++) sv[j] = (double)x[j];
+    for (size_t j = 0; j < r; j++)
+        sv[j] = (double)x[j];
     if (U) FN(put)(s->u, s->m, s->m, r, U, s->m);
     if (V) FN(put)(s->ws, s->n, s->n, r, V, s->n);
 }

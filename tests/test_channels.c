@@ -14,10 +14,12 @@ static sb_matrix_t synthetic(size_t rows, size_t cols, const double a[3], unsign
     m.cols = cols;
     m.ld = rows + 3;
     double *base = malloc(m.ld * cols * sizeof *base);
-    for (size_t i = 0; i < m.ld * cols; i++) base[i] = sb_rand01(&seed) - 0.3;
+    for (size_t i = 0; i < m.ld * cols; i++)
+        base[i] = sb_rand01(&seed) - 0.3;
     for (int c = 0; c < 3; c++) {
         m.data[c] = malloc(m.ld * cols * sizeof(double));
-        for (size_t i = 0; i < m.ld * cols; i++) m.data[c][i] = a[c] * base[i];
+        for (size_t i = 0; i < m.ld * cols; i++)
+            m.data[c][i] = a[c] * base[i];
         m.channels |= 1u << c;
     }
     free(base);
@@ -61,7 +63,8 @@ SB_TEST(gold_is_not) {
     /* but a loose enough tolerance accepts it, and reports the deviation */
     CHECK(sb_channels_proportional(NULL, &m, 0.5, &ch) == SB_OK);
     CHECK(ch.proportional == 1);
-    for (int c = 0; c < 3; c++) CHECK(ch.dev[c] < 0.5);
+    for (int c = 0; c < 3; c++)
+        CHECK(ch.dev[c] < 0.5);
     sb_matrix_free(&m);
 }
 
@@ -116,9 +119,11 @@ SB_TEST(factor_once_serves_all) {
     sb_svd_t *svd;
     double s[3][4];
     CHECK(sb_svd_create(NULL, 30, 30, 4, &o, &svd) == SB_OK);
-    for (int c = 0; c < 3; c++) CHECK(sb_svd_execute(svd, m.data[c], m.ld, s[c], NULL, NULL, NULL, NULL) == SB_OK);
     for (int c = 0; c < 3; c++)
-        for (int j = 0; j < 4; j++) CHECK_REL(s[c][j], ch.scale[c] * s[ch.base][j], 1e-13);
+        CHECK(sb_svd_execute(svd, m.data[c], m.ld, s[c], NULL, NULL, NULL, NULL) == SB_OK);
+    for (int c = 0; c < 3; c++)
+        for (int j = 0; j < 4; j++)
+            CHECK_REL(s[c][j], ch.scale[c] * s[ch.base][j], 1e-13);
     sb_svd_destroy(svd);
     sb_matrix_free(&m);
 }

@@ -26,7 +26,8 @@ static double gauss(unsigned long long *st) {
 /* rows x cols (rows >= cols) with orthonormal columns: Q of a Gaussian. */
 static double *orthonormal(size_t rows, size_t cols, unsigned long long *st) {
     double *q = malloc(rows * cols * sizeof *q), *tau = malloc(cols * sizeof *tau);
-    for (size_t i = 0; i < rows * cols; i++) q[i] = gauss(st);
+    for (size_t i = 0; i < rows * cols; i++)
+        q[i] = gauss(st);
     CHECK(LAPACKE_dgeqrf(LAPACK_COL_MAJOR, (int)rows, (int)cols, q, (int)rows, tau) == 0);
     CHECK(LAPACKE_dorgqr(LAPACK_COL_MAJOR, (int)rows, (int)cols, (int)cols, q, (int)rows, tau) == 0);
     free(tau);
@@ -40,11 +41,21 @@ static const char *const sp_name[SP_COUNT] = {"fast", "slow", "flat", "rank-k", 
 static void spectrum(spectrum_t kind, size_t d, size_t k, double *s, unsigned long long *st) {
     for (size_t j = 0; j < d; j++) {
         switch (kind) {
-        case SP_FAST: s[j] = exp(-0.5 * (double)j); break;
-        case SP_SLOW: s[j] = 1.0 / (1.0 + (double)j); break;
-        case SP_FLAT: s[j] = 1 + 0.01 * sb_rand01(st); break; /* noise: sorted below */
-        case SP_RANKK: s[j] = j < k ? (double)(k - j) : 0; break;
-        default: s[j] = j < 3 ? 10 - (double)j : j < 2 * k ? 1e-3 * (double)(2 * k - j) : 1e-6 / (double)(j + 1); break;
+        case SP_FAST:
+            s[j] = exp(-0.5 * (double)j);
+            break;
+        case SP_SLOW:
+            s[j] = 1.0 / (1.0 + (double)j);
+            break;
+        case SP_FLAT:
+            s[j] = 1 + 0.01 * sb_rand01(st);
+            break; /* noise: sorted below */
+        case SP_RANKK:
+            s[j] = j < k ? (double)(k - j) : 0;
+            break;
+        default:
+            s[j] = j < 3 ? 10 - (double)j : j < 2 * k ? 1e-3 * (double)(2 * k - j) : 1e-6 / (double)(j + 1);
+            break;
         }
     }
     for (size_t i = 1; i < d; i++) /* insertion sort, descending */
@@ -60,7 +71,8 @@ static double *make_matrix(size_t m, size_t n, size_t lda, const double *s, unsi
     size_t d = m < n ? m : n;
     double *U = orthonormal(m, d, st), *V = orthonormal(n, d, st), *A = calloc(lda * n, sizeof *A);
     for (size_t j = 0; j < d; j++)
-        for (size_t i = 0; i < m; i++) U[i + j * m] *= s[j];
+        for (size_t i = 0; i < m; i++)
+            U[i + j * m] *= s[j];
     cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)m, (int)n, (int)d, 1, U, (int)m, V, (int)n, 0, A,
                 (int)lda);
     free(U);
@@ -72,12 +84,15 @@ static double *make_matrix(size_t m, size_t n, size_t lda, const double *s, unsi
 static double resid(const double *A, size_t m, size_t n, size_t lda, size_t k, const double *s, const double *U,
                     const double *V) {
     double *R = malloc(m * n * sizeof *R), *Us = malloc(m * k * sizeof *Us), ss = 0;
-    for (size_t j = 0; j < n; j++) memcpy(R + j * m, A + j * lda, m * sizeof *R);
+    for (size_t j = 0; j < n; j++)
+        memcpy(R + j * m, A + j * lda, m * sizeof *R);
     for (size_t j = 0; j < k; j++)
-        for (size_t i = 0; i < m; i++) Us[i + j * m] = U[i + j * m] * s[j];
+        for (size_t i = 0; i < m; i++)
+            Us[i + j * m] = U[i + j * m] * s[j];
     cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)m, (int)n, (int)k, -1, Us, (int)m, V, (int)n, 1, R,
                 (int)m);
-    for (size_t i = 0; i < m * n; i++) ss += R[i] * R[i];
+    for (size_t i = 0; i < m * n; i++)
+        ss += R[i] * R[i];
     free(R);
     free(Us);
     return sqrt(ss);
@@ -89,7 +104,8 @@ static double orth_defect(const double *Q, size_t rows, size_t k) {
     for (size_t a = 0; a < k; a++)
         for (size_t b = 0; b < k; b++) {
             double dot = 0;
-            for (size_t i = 0; i < rows; i++) dot += Q[i + a * rows] * Q[i + b * rows];
+            for (size_t i = 0; i < rows; i++)
+                dot += Q[i + a * rows] * Q[i + b * rows];
             double e = fabs(dot - (a == b));
             if (e > mx) mx = e;
         }
@@ -98,7 +114,8 @@ static double orth_defect(const double *Q, size_t rows, size_t k) {
 
 static double tail(const double *s, size_t d, size_t k) {
     double t = 0;
-    for (size_t j = d; j-- > k;) t += s[j] * s[j];
+    for (size_t j = d; j-- > k;)
+        t += s[j] * s[j];
     return sqrt(t);
 }
 
@@ -140,10 +157,10 @@ static run_t check_method(const sb_svd_opts_t *o, size_t m, size_t n, size_t lda
             out.bound = out.opt + floor_;
             if (me == SB_METHOD_TOPK) out.bound += 64 * (double)d * eps * sig[0] * sig[0] / fmax(sig[k - 1], 1e-300);
         }
-        CHECKF(out.err <= out.bound, "%s m=%zu n=%zu k=%zu %s%s: err %.6g > bound %.6g (opt %.6g)",
-               sb_method_name(me), m, n, k, sp_name[sp], o->single_precision ? " single" : "", out.err, out.bound,
-               out.opt);
-        for (size_t j = 1; j < k; j++) CHECK(s[j] <= s[j - 1]);
+        CHECKF(out.err <= out.bound, "%s m=%zu n=%zu k=%zu %s%s: err %.6g > bound %.6g (opt %.6g)", sb_method_name(me),
+               m, n, k, sp_name[sp], o->single_precision ? " single" : "", out.err, out.bound, out.opt);
+        for (size_t j = 1; j < k; j++)
+            CHECK(s[j] <= s[j - 1]);
         double od = fmax(orth_defect(U, m, k), orth_defect(V, n, k));
         CHECKF(od < 1e3 * eps * (double)d, "%s %s: orthonormality defect %g", sb_method_name(me), sp_name[sp], od);
         if (out.info.resid_fro >= 0)
@@ -205,7 +222,8 @@ SB_TEST(exact_sigma) {
         sb_svd_t *svd;
         CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
         CHECK(sb_svd_execute(svd, A, m, s, NULL, NULL, NULL, NULL) == SB_OK);
-        for (size_t j = 0; j < k; j++) CHECK_REL(s[j], sig[j], 1e-13);
+        for (size_t j = 0; j < k; j++)
+            CHECK_REL(s[j], sig[j], 1e-13);
         sb_svd_destroy(svd);
         free(A);
     }
@@ -218,14 +236,16 @@ SB_TEST(topk_ill_conditioned) {
     size_t m = 100, n = 100, k = 10;
     unsigned long long st = 7;
     double sig[100], s[10];
-    for (size_t j = 0; j < n; j++) sig[j] = pow(10.0, -(double)j * 1.2); /* 1 .. 1e-10.8 inside k */
+    for (size_t j = 0; j < n; j++)
+        sig[j] = pow(10.0, -(double)j * 1.2); /* 1 .. 1e-10.8 inside k */
     double *A = make_matrix(m, n, m, sig, &st);
     double *U = malloc(m * k * sizeof *U), *V = malloc(n * k * sizeof *V);
     sb_svd_opts_t o = {.method = SB_METHOD_TOPK};
     sb_svd_t *svd;
     CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
     CHECK(sb_svd_execute(svd, A, m, s, U, V, NULL, NULL) == SB_OK);
-    for (size_t j = 0; j < 4; j++) CHECK_REL(s[j], sig[j], 1e-8);
+    for (size_t j = 0; j < 4; j++)
+        CHECK_REL(s[j], sig[j], 1e-8);
     double err = resid(A, m, n, m, k, s, U, V);
     CHECKF(err <= tail(sig, n, k) + 1e-7, "err %g opt %g", err, tail(sig, n, k));
     sb_svd_destroy(svd);
@@ -248,8 +268,9 @@ SB_TEST(single_precision) {
         CHECK(sb_svd_create(NULL, m, n, k, &o, &b) == SB_OK);
         CHECK(sb_svd_execute(a, A, m, sd, NULL, NULL, NULL, NULL) == SB_OK);
         CHECK(sb_svd_execute(b, A, m, sf, NULL, NULL, NULL, NULL) == SB_OK);
-        for (size_t j = 0; j < k; j++) CHECKF(fabs(sf[j] - sd[j]) <= 1e-5 * sd[0], "%s sigma_%zu %.9g vs %.9g",
-                                              sb_method_name((sb_method_t)me), j, sf[j], sd[j]);
+        for (size_t j = 0; j < k; j++)
+            CHECKF(fabs(sf[j] - sd[j]) <= 1e-5 * sd[0], "%s sigma_%zu %.9g vs %.9g", sb_method_name((sb_method_t)me), j,
+                   sf[j], sd[j]);
         sb_svd_destroy(a);
         sb_svd_destroy(b);
         free(A);
@@ -279,7 +300,8 @@ SB_TEST(deterministic) {
     size_t bytes = (k + m * k + n * k) * sizeof(double);
     CHECK(memcmp(out[0], out[1], bytes) == 0);
     CHECK(memcmp(out[0], out[2], bytes) != 0);
-    for (int t = 0; t < 3; t++) free(out[t]);
+    for (int t = 0; t < 3; t++)
+        free(out[t]);
     free(A);
 }
 
@@ -330,7 +352,8 @@ SB_TEST(all_singular_values) {
         CHECK(sb_svd_execute(svd, A, m, s, NULL, NULL, all, &have) == SB_OK);
         CHECK(have == (me == SB_METHOD_FULL));
         if (have)
-            for (size_t j = 0; j < n; j++) CHECK_ABS(all[j], sig[j], 1e-14);
+            for (size_t j = 0; j < n; j++)
+                CHECK_ABS(all[j], sig[j], 1e-14);
         sb_svd_destroy(svd);
     }
     free(A);
@@ -355,7 +378,8 @@ SB_TEST(adaptive_rank) {
                 CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
                 CHECK(sb_svd_execute_adaptive(svd, A, m, tols[t], given ? norm : 0, 0, s, U, V, &info) == SB_OK);
                 size_t ropt = 1;
-                while (ropt < k && tail(sig, n, ropt) > tols[t] * norm) ropt++;
+                while (ropt < k && tail(sig, n, ropt) > tols[t] * norm)
+                    ropt++;
                 double err = resid(A, m, n, m, info.rank, s, U, V);
                 CHECKF(err <= tols[t] * norm * (1 + 1e-9), "%s tol %g: err %g", sb_method_name((sb_method_t)me),
                        tols[t], err / norm);
@@ -406,7 +430,8 @@ SB_TEST(adaptive_krylov) {
     const double tols[] = {0.8, 0.6, 0.5};
     for (size_t t = 0; t < 3; t++) {
         size_t ropt = 1;
-        while (ropt < k && tail(sig, n, ropt) > tols[t] * norm) ropt++;
+        while (ropt < k && tail(sig, n, ropt) > tols[t] * norm)
+            ropt++;
         CHECK(sb_svd_execute_adaptive(svd, A, m, tols[t], norm, 0, s, U, V, &info) == SB_OK);
         double err = resid(A, m, n, m, info.rank, s, U, V);
         CHECKF(err <= tols[t] * norm * (1 + 1e-9), "tol %g: err %g", tols[t], err / norm);
@@ -425,9 +450,9 @@ SB_TEST(auto_rule) {
     static const struct {
         size_t m, n, k;
         sb_method_t want;
-    } cases[] = {{100, 100, 4, SB_METHOD_FULL},         {128, 5000, 4, SB_METHOD_FULL},
-                 {300, 300, 4, SB_METHOD_TOPK},         {1024, 1024, 8, SB_METHOD_RANDOMIZED},
-                 {1024, 1024, 200, SB_METHOD_TOPK},     {4096, 401, 8, SB_METHOD_RANDOMIZED},
+    } cases[] = {{100, 100, 4, SB_METHOD_FULL},           {128, 5000, 4, SB_METHOD_FULL},
+                 {300, 300, 4, SB_METHOD_TOPK},           {1024, 1024, 8, SB_METHOD_RANDOMIZED},
+                 {1024, 1024, 200, SB_METHOD_TOPK},       {4096, 401, 8, SB_METHOD_RANDOMIZED},
                  {1024, 1024, 118, SB_METHOD_RANDOMIZED}, {1024, 1024, 119, SB_METHOD_TOPK}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         sb_svd_t *svd;
@@ -475,7 +500,8 @@ SB_TEST(errors) {
     double A[64] = {0}, s[8], U[64], V[64];
     for (int me = SB_METHOD_FULL; me <= SB_METHOD_RANDOMIZED; me++)
         for (int single = 0; single < 2; single++) {
-            sb_svd_opts_t o = {.method = (sb_method_t)me, .oversample = 4, .power_iters = 1, .single_precision = single};
+            sb_svd_opts_t o = {
+                .method = (sb_method_t)me, .oversample = 4, .power_iters = 1, .single_precision = single};
             CHECK(sb_svd_create(ctx, 8, 8, 2, &o, &svd) == SB_OK);
             CHECK(sb_svd_execute(svd, A, 7, s, U, V, NULL, NULL) == SB_ERR_ARG); /* lda < m */
             CHECK(sb_svd_execute(svd, NULL, 8, s, U, V, NULL, NULL) == SB_ERR_ARG);
