@@ -31,13 +31,15 @@
  *               in the bound to the power 2q + 1.  By default the basis
  *               keeps every iterate, [Y_0, Y_1, ..., Y_q] (block Krylov,
  *               Musco & Musco 2015): the same 2q + 2 reads of A (each
- *               A^T Y_i is also a block of B^T), and an error that depends far less on
- *               the gap (on the io matrices of docs/performance.md 10-100x
- *               closer to the optimum at q = 2).  Used when l (q + 1) <= d/2
- *               (beyond, the SVD of the n x l (q + 1) matrix B^T costs more
- *               than it saves).
- *               Worst case: a flat spectrum (noise).  Deterministic: the
- *               same seed gives the same bits.
+ *               A^T Y_i is also a block of B^T) and an error that depends
+ *               far less on the gap (on the io matrices of
+ *               docs/performance.md 10-100x closer to the optimum at
+ *               q = 2).  Used when l (q + 1) <= d/2 (beyond, the SVD of the
+ *               n x l (q + 1) matrix B^T costs more than it saves).  Worst
+ *               case: a flat spectrum (noise).  Deterministic: the same
+ *               seed gives the same bits.
+ *   single precision: the same methods in float on a converted copy of A
+ *               (one more read); singular values within ~1e-5 sigma_1.
  *   AUTO        FULL when d <= SB_SVD_AUTO_FULL_MAX (under 2 ms a matrix,
  *               and every sigma); else TOPK when d <= SB_SVD_AUTO_TOPK_MAX
  *               (exact for under ~5 ms a matrix) or when the sketch k + p
@@ -93,7 +95,7 @@ typedef struct sb_svd_opts {
 typedef struct sb_svd_info {
     size_t rank;      /* triplets written: k, or the adaptive choice */
     size_t sketch;    /* randomized: columns of the basis Q; TOPK: k; FULL: d */
-    double norm_fro;  /* ||A||_F when it was computed (adaptive mode, FULL), else 0 */
+    double norm_fro;  /* ||A||_F when known (given, adaptive mode, FULL, TOPK, single), else 0 */
     double resid_fro; /* ||A - U_r S_r V_r^T||_F from the identity above, -1 if unknown */
 } sb_svd_info_t;
 
