@@ -2,6 +2,7 @@
 #ifndef SEPBRDF_SEPBRDF_H
 #define SEPBRDF_SEPBRDF_H
 
+#include "channels.h"
 #include "common.h"
 #include "exr.h"
 #include "factor.h"

@@ -97,6 +97,7 @@ int cli_guard_exr(const char *dir, size_t terms, int finals);
 void cli_unguard_exr(void);
 
 /* Subcommands */
+int cmd_bench(int argc, char **argv);
 int cmd_factor(int argc, char **argv);
 int cmd_list(int argc, char **argv);
 int cmd_study(int argc, char **argv);
