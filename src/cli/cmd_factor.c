@@ -180,20 +180,11 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
     return -1; /* go on */
 }
 
-/* A candidate of --param auto and its comparable error. */
-typedef struct cand {
-    sb_param_kind_t kind;
-    sb_form_t form;
-    int weighted;
-    double err;
-    int ok;
-} cand_t;
-
 typedef struct report_ctx {
     const factor_opts_t *o;
     const sb_source_t *src;
     const attempt_t *a;
-    const cand_t *cands;
+    const pipe_cand_t *cands;
     size_t ncand;
 } report_ctx_t;
 
@@ -288,7 +279,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     json_number(j, "negative_texels", a->metric.neg_texels);
     json_int(j, "metric_resolution", (long long)o->metric_res);
     if (o->param_auto) {
-        const cand_t *cd = rx->cands;
+        const pipe_cand_t *cd = rx->cands;
         json_int(j, "auto_metric_resolution", (long long)(o->metric_res < 16 ? o->metric_res : 16));
         json_begin_array(j, "auto_tried");
         for (size_t i = 0; i < rx->ncand; i++) {
@@ -372,7 +363,6 @@ int cmd_factor(int argc, char **argv) {
     attempt_t best = {0};
     sb_result_t r;
     int guarded = 0;
-    double best_err = 0;
     double t0 = cli_now();
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
@@ -383,79 +373,12 @@ int cmd_factor(int argc, char **argv) {
 
     /* Candidates: the one asked for, or (auto) every parameterisation that
      * applies, with f and f cos cos unless --form fixes it. */
-    cand_t cands[2 * SB_PARAM_KIND_COUNT_];
-    size_t ncand = 0;
-    if (!o.param_auto) {
-        cands[ncand++] = (cand_t){o.param, o.form, o.weighted, 0, 0};
-    } else {
-        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-            if (k == SB_PARAM_ISO && !(sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) continue;
-            sb_param_t *probe = NULL;
-            sb_param_opts_t po = {0};
-            po.res = o.res;
-            po.theta_max = o.theta_max_deg * SB_PI / 180;
-            if (sb_param_create(NULL, (sb_param_kind_t)k, &po, &probe) != SB_OK) continue; /* not available */
-            sb_param_destroy(probe);
-            if (o.form_set) {
-                cands[ncand++] = (cand_t){(sb_param_kind_t)k, o.form, 1, 0, 0};
-            } else {
-                cands[ncand++] = (cand_t){(sb_param_kind_t)k, SB_FORM_F, 1, 0, 0};
-                cands[ncand++] = (cand_t){(sb_param_kind_t)k, SB_FORM_COS2, 1, 0, 0};
-            }
-        }
-    }
-    /* Screening: with several candidates the comparable metric is first taken
-     * on a coarser reference grid (16 cells per axis, 16x fewer pairs), and
-     * computed again at --metric-res for the one kept. */
-    size_t full_metric_res = po.metric_res;
-    if (ncand > 1 && po.metric_res > 16) po.metric_res = 16;
-    for (size_t i = 0; i < ncand; i++) {
-        attempt_t a;
-        char label[64];
-        snprintf(label, sizeof label, "%s/%s %zu/%zu", sb_param_kind_name(cands[i].kind), sb_form_name(cands[i].form),
-                 i + 1, ncand);
-        po.progress_label = label; /* sampling: the first half of a candidate's bar */
-        po.progress_base = (double)i / (double)ncand;
-        po.progress_span = 0.5 / (double)ncand;
-        r = attempt_sample(ctx, src, &po, cands[i].kind, cands[i].form, &a);
-        cli_progress(label, (i + 0.5) / (double)ncand);
-        if (r == SB_OK) r = attempt_factor(ctx, src, &po, po.terms, cands[i].weighted, &a);
-        cli_progress(label, (i + 1.0) / (double)ncand);
-        if (r != SB_OK) {
-            attempt_free(&a);
-            if (!o.param_auto || (r != SB_ERR_NUMERIC && r != SB_ERR_UNSUPPORTED)) goto fail;
-            cli_info(1, "factor: --param auto: %s/%s failed: %s", sb_param_kind_name(cands[i].kind),
-                     sb_form_name(cands[i].form), sb_context_last_error(ctx));
-            continue;
-        }
-        size_t J = sb_factors_terms(a.f);
-        /* the metric holds 256 terms at most: compare there beyond */
-        cands[i].err = attempt_comparable(&a, J < a.metric.terms ? J : a.metric.terms);
-        cands[i].ok = 1;
-        if (!best.f || cands[i].err < best_err) {
-            best_err = cands[i].err;
-            attempt_free(&best);
-            best = a;
-        } else {
-            attempt_free(&a);
-        }
-    }
-    cli_progress_done();
-    if (!best.f) {
-        cli_error("factor", "no parameterisation could factor %s", o.source);
-        rc = EXIT_NUMERIC;
-        goto out;
-    }
-    if (po.metric_res != full_metric_res) {
-        sb_metric_opts_t mo = {0};
-        mo.res = full_metric_res;
-        double tm = cli_now();
-        if ((r = sb_metric_compute(ctx, src, best.f, best.param, best.m.form, &mo, &best.metric)) != SB_OK) goto fail;
-        best.t_metric += cli_now() - tm;
-    }
+    pipe_cand_t cands[PIPE_MAX_CANDS];
+    size_t ncand = pipe_candidates(src, &po, o.param_auto, o.param, o.form_set, o.form, o.weighted, cands);
+    if ((r = pipe_select(ctx, "factor", src, &po, cands, ncand, &best)) != SB_OK) goto fail;
     if (o.param_auto && g_verbosity >= 1) {
         fprintf(stderr, "--param auto tried (comparable error at J = %zu, reference grid %zu):\n", o.terms,
-                po.metric_res);
+                ncand > 1 && po.metric_res > 16 ? (size_t)16 : po.metric_res);
         for (size_t i = 0; i < ncand; i++)
             if (cands[i].ok)
                 fprintf(stderr, "  %-8s form %-4s %s %.4e\n", sb_param_kind_name(cands[i].kind),

@@ -270,60 +270,14 @@ static int is_dir(const char *path) {
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
-/* Factor src as `sepbrdf factor` does (pipeline.h attempts), with J = the
- * largest of the list: the parameterisation asked for, or (--param auto)
- * every one that applies, forms f and cos2 unless --form is given,
- * solid-angle weighted, keeping the lowest comparable error at J (the rule
- * of cmd_factor.c's candidate loop).  *best owns the kept attempt. */
+/* Factor src as `sepbrdf factor` does (pipeline.h: the same candidates and
+ * selection), with J = the largest of the list.  *best owns the kept attempt. */
 static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
                                  attempt_t *best) {
-    typedef struct {
-        sb_param_kind_t kind;
-        sb_form_t form;
-        int weighted;
-    } cand_t;
-    cand_t cands[2 * SB_PARAM_KIND_COUNT_];
-    size_t ncand = 0;
-    if (!o->param_auto) {
-        cands[ncand++] = (cand_t){o->param, o->form, o->weighted};
-    } else {
-        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-            if (k == SB_PARAM_ISO && !(sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) continue;
-            cands[ncand++] = (cand_t){(sb_param_kind_t)k, o->form_set ? o->form : SB_FORM_F, 1};
-            if (!o->form_set) cands[ncand++] = (cand_t){(sb_param_kind_t)k, SB_FORM_COS2, 1};
-        }
-    }
     pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0};
-    double best_err = INFINITY;
-    memset(best, 0, sizeof *best);
-    for (size_t i = 0; i < ncand; i++) {
-        attempt_t a;
-        cli_progress("factoring", (double)i / (double)ncand);
-        sb_result_t r = attempt_run(ctx, src, &po, cands[i].kind, cands[i].form, cands[i].weighted, &a);
-        if (r != SB_OK) {
-            attempt_free(&a);
-            if (!o->param_auto || (r != SB_ERR_NUMERIC && r != SB_ERR_UNSUPPORTED)) {
-                attempt_free(best);
-                return r;
-            }
-            continue;
-        }
-        size_t Jf = sb_factors_terms(a.f);
-        double err = attempt_comparable(&a, Jf < a.metric.terms ? Jf : a.metric.terms);
-        cli_info(2, "  %s form %s: comparable error %.4e at J = %zu", sb_param_spec(a.param),
-                 sb_form_name(cands[i].form), err, Jf);
-        if (!best->f || err < best_err) {
-            attempt_free(best);
-            *best = a;
-            best_err = err;
-        } else {
-            attempt_free(&a);
-        }
-    }
-    cli_progress_done();
-    if (!best->f)
-        return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s", sb_source_description(src));
-    return SB_OK;
+    pipe_cand_t cands[PIPE_MAX_CANDS];
+    size_t ncand = pipe_candidates(src, &po, o->param_auto, o->param, o->form_set, o->form, o->weighted, cands);
+    return pipe_select(ctx, "render", src, &po, cands, ncand, best);
 }
 
 /* original.png (b NULL) or a strip, its temporary PATH.tmp-PID (image.h)

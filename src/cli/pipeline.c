@@ -142,3 +142,85 @@ void pipe_guard_factor_outputs(const char *dir, size_t terms, int on) {
         }
     }
 }
+
+size_t pipe_candidates(const sb_source_t *src, const pipe_opts_t *o, int param_auto, sb_param_kind_t param,
+                       int form_set, sb_form_t form, int weighted, pipe_cand_t *cands) {
+    size_t n = 0;
+    if (!param_auto) {
+        cands[n++] = (pipe_cand_t){param, form, weighted, 0, 0};
+        return n;
+    }
+    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+        if (k == SB_PARAM_ISO && !(sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) continue;
+        sb_param_t *probe = NULL;
+        sb_param_opts_t po = {0};
+        po.res = o->res;
+        po.theta_max = (o->theta_max_deg > 0 ? o->theta_max_deg : 90) * SB_PI / 180;
+        if (sb_param_create(NULL, (sb_param_kind_t)k, &po, &probe) != SB_OK) continue; /* not available */
+        sb_param_destroy(probe);
+        cands[n++] = (pipe_cand_t){(sb_param_kind_t)k, form_set ? form : SB_FORM_F, 1, 0, 0};
+        if (!form_set) cands[n++] = (pipe_cand_t){(sb_param_kind_t)k, SB_FORM_COS2, 1, 0, 0};
+    }
+    return n;
+}
+
+sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *src, const pipe_opts_t *o,
+                        pipe_cand_t *cands, size_t ncand, attempt_t *best) {
+    pipe_opts_t po = *o;
+    double best_err = 0;
+    memset(best, 0, sizeof *best);
+    /* Screening: the comparable metric first on a coarser reference grid
+     * (16 cells per axis, 16x fewer pairs), again at full size for the kept one. */
+    if (ncand > 1 && po.metric_res > 16) po.metric_res = 16;
+    for (size_t i = 0; i < ncand; i++) {
+        attempt_t a;
+        char label[64];
+        snprintf(label, sizeof label, "%s/%s %zu/%zu", sb_param_kind_name(cands[i].kind), sb_form_name(cands[i].form),
+                 i + 1, ncand);
+        po.progress_label = label; /* sampling: the first half of a candidate's bar */
+        po.progress_base = (double)i / (double)ncand;
+        po.progress_span = 0.5 / (double)ncand;
+        sb_result_t r = attempt_sample(ctx, src, &po, cands[i].kind, cands[i].form, &a);
+        cli_progress(label, (i + 0.5) / (double)ncand);
+        if (r == SB_OK) r = attempt_factor(ctx, src, &po, po.terms, cands[i].weighted, &a);
+        cli_progress(label, (i + 1.0) / (double)ncand);
+        if (r != SB_OK) {
+            attempt_free(&a);
+            if (ncand == 1 || (r != SB_ERR_NUMERIC && r != SB_ERR_UNSUPPORTED)) {
+                cli_progress_done();
+                attempt_free(best);
+                return r;
+            }
+            cli_info(1, "%s: --param auto: %s/%s failed: %s", cmd, sb_param_kind_name(cands[i].kind),
+                     sb_form_name(cands[i].form), sb_context_last_error(ctx));
+            continue;
+        }
+        size_t J = sb_factors_terms(a.f);
+        /* the metric holds 256 terms at most: compare there beyond */
+        cands[i].err = attempt_comparable(&a, J < a.metric.terms ? J : a.metric.terms);
+        cands[i].ok = 1;
+        cli_info(2, "  %s form %s: comparable error %.4e at J = %zu", sb_param_spec(a.param),
+                 sb_form_name(cands[i].form), cands[i].err, J);
+        if (!best->f || cands[i].err < best_err) {
+            best_err = cands[i].err;
+            attempt_free(best);
+            *best = a;
+        } else {
+            attempt_free(&a);
+        }
+    }
+    cli_progress_done();
+    if (!best->f) return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s", sb_source_description(src));
+    if (po.metric_res != o->metric_res) {
+        sb_metric_opts_t mo = {0};
+        mo.res = o->metric_res;
+        double tm = cli_now();
+        sb_result_t r = sb_metric_compute(ctx, src, best->f, best->param, best->m.form, &mo, &best->metric);
+        if (r != SB_OK) {
+            attempt_free(best);
+            return r;
+        }
+        best->t_metric += cli_now() - tm;
+    }
+    return SB_OK;
+}

@@ -64,6 +64,31 @@ void attempt_free(attempt_t *a);
 double attempt_comparable(const attempt_t *a, size_t j);
 double attempt_negative(const attempt_t *a, size_t j);
 
+/* A candidate of --param auto (or the one parameterisation asked for) and
+ * its comparable error at J. */
+typedef struct pipe_cand {
+    sb_param_kind_t kind;
+    sb_form_t form;
+    int weighted;
+    double err;
+    int ok;
+} pipe_cand_t;
+#define PIPE_MAX_CANDS (2 * SB_PARAM_KIND_COUNT_)
+
+/* The candidates: with param_auto every parameterisation that applies to
+ * src (iso only for isotropic sources, none that sb_param_create refuses),
+ * with forms f and cos2 unless form_set, solid-angle weighted; otherwise
+ * just (param, form, weighted).  Returns the count (<= PIPE_MAX_CANDS). */
+size_t pipe_candidates(const sb_source_t *src, const pipe_opts_t *o, int param_auto, sb_param_kind_t param,
+                       int form_set, sb_form_t form, int weighted, pipe_cand_t *cands);
+/* Factor every candidate and keep the one with the lowest comparable error
+ * in *best.  With several candidates the metric is screened on a 16-cell
+ * reference grid and computed again at o->metric_res for the kept one; a
+ * candidate that fails numerically or is unsupported is skipped (others
+ * fail the call).  cmd names the messages. */
+sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *src, const pipe_opts_t *o,
+                        pipe_cand_t *cands, size_t ncand, attempt_t *best);
+
 /* Guard the output set of `factor` in `dir` against signals (see
  * cli_guard): the temporaries sb_factors_write_exr and sb_glsl_write use
  * and, with finals, the finished files g_KK.exr, h_KK.exr (K < terms),
