@@ -623,6 +623,12 @@ static sb_result_t read_header(sb_context_t *ctx, exr_context_t ex, const char *
         if (k > 0 && half != hd->half) return sb_error(ctx, SB_ERR_FORMAT, "%s: channels mix FLOAT and HALF", path);
         hd->half = half;
     }
+    /* The writer's scales: 1 for FLOAT, a power of two for HALF.  Anything
+     * else would make the values read differ from what a write stores. */
+    int e;
+    if (hd->half ? frexp(hd->scale, &e) != 0.5 : hd->scale != 1)
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: " PREFIX "scale %g, expected %s", path, hd->scale,
+                        hd->half ? "a power of two for HALF" : "1 for FLOAT");
     return SB_OK;
 }
 

@@ -108,7 +108,7 @@ static const sb_model_key_t microfacet_keys[] = {
     {"base", "base colour (RGB, or a metal preset name: F0 of the metal)", "[0, 1] (metal F0 up to 1.1)", "0.5"},
     {"metallic", "metalness: mixes f0 towards base; no diffuse for metals", "[0, 1]", "0 (1 when base is a metal preset)"},
     {"reflectance", "dielectric reflectance: f0 = 0.16 reflectance^2", "[0, 1]", "0.5"},
-    {"roughness", "perceptual roughness, GGX alpha = roughness^2", "(0, 1]", "0.5"},
+    {"roughness", "perceptual roughness, GGX alpha = roughness^2", "[1e-6, 1]", "0.5"},
 };
 static const sb_model_info_t models[] = {
     {"lambert", "ideal diffuse: f = albedo / pi", lambert_keys, 1},
@@ -217,7 +217,8 @@ sb_result_t sb_model_create(sb_context_t *ctx, const char *spec, sb_source_t **o
             if (r == SB_OK) r = check_range(ctx, name, key, m.reflectance, 0, 1, 0);
         } else if (kind == 1 && strcmp(key, "roughness") == 0) {
             r = parse_number(ctx, name, key, val, &m.roughness);
-            if (r == SB_OK) r = check_range(ctx, name, key, m.roughness, 0, 1, 1);
+            /* below 1e-6 (alpha 1e-12) the peak 1/(pi alpha^2) overflows to inf/NaN at the mirror pair */
+            if (r == SB_OK) r = check_range(ctx, name, key, m.roughness, 1e-6, 1, 0);
         } else {
             r = sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown key '%s' (see `sepbrdf list`)", name, key);
         }
