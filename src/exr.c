@@ -297,6 +297,26 @@ static sb_result_t write_attrs(sb_context_t *ctx, exr_context_t ex, const sb_fac
     return SB_OK;
 }
 
+/* OpenEXRCore before the fix of AcademySoftwareFoundation/openexr#2306
+ * (Debian 12 ships 3.1.5) stores a ZIP chunk whose deflated size equals
+ * its raw size as deflated bytes, while readers take "packed size ==
+ * unpacked size" to mean raw pixels: such a file reads back garbage.  Run
+ * the library's compressor, then store a chunk that gained nothing raw, as
+ * the fixed versions do. */
+typedef struct compress_hook {
+    exr_result_t (*fn)(exr_encode_pipeline_t *enc);
+} compress_hook_t;
+
+static exr_result_t compress_no_gain_raw(exr_encode_pipeline_t *enc) {
+    const compress_hook_t *hook = enc->encoding_user_data;
+    exr_result_t rv = hook->fn(enc);
+    if (rv || enc->compressed_buffer == enc->packed_buffer || enc->compressed_bytes < enc->packed_bytes) return rv;
+    if (enc->compressed_alloc_size < enc->packed_bytes) return EXR_ERR_OUT_OF_MEMORY; /* cannot fix: fail */
+    memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    enc->compressed_bytes = enc->packed_bytes;
+    return EXR_ERR_SUCCESS;
+}
+
 /* Write one texture to `path` (the temporary name). */
 static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half, int longnames,
                              const char *path, void *buf) {
@@ -312,6 +332,7 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
     exr_context_initializer_t init = exr_init(0);
     exr_context_t ex = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    compress_hook_t hook = {NULL};
     int enc_live = 0, part = 0;
     exr_result_t rv = exr_start_write(&ex, path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv) {
@@ -355,7 +376,14 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
             ch->user_line_stride = (int32_t)(w * bpe);
             ch->encode_from_ptr = (const uint8_t *)buf + ((size_t)plane * w * h + (size_t)y * w) * bpe;
         }
-        if (k == 0) rv = exr_encoding_choose_default_routines(ex, part, &enc);
+        if (k == 0) {
+            rv = exr_encoding_choose_default_routines(ex, part, &enc);
+            if (!rv && enc.compress_fn) {
+                hook.fn = enc.compress_fn;
+                enc.compress_fn = compress_no_gain_raw;
+                enc.encoding_user_data = &hook;
+            }
+        }
         if (!rv) rv = exr_encoding_run(ex, part, &enc);
     }
     if (rv) {

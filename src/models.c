@@ -85,7 +85,10 @@ static int microfacet_eval(const void *self, const double L[3], const double V[3
     double NoV = fmin(fmax(V[2], 0), 1), NoL = fmin(fmax(L[2], 0), 1), NoH = fmin(fmax(H[2], 0), 1);
     double VoH = fmin(fmax(V[0] * H[0] + V[1] * H[1] + V[2] * H[2], 0), 1);
     double a = m->roughness * m->roughness, a2 = a * a;
-    double b = NoH * NoH * (a2 - 1) + 1;
+    /* NoH^2 (a2 - 1) + 1, written so that a2 below the rounding of 1 is not
+     * lost: the old form gave b = 0, D = inf/NaN at the mirror pair for
+     * roughness < 1e-4 */
+    double b = (1 - NoH) * (1 + NoH) + NoH * NoH * a2;
     double D = a2 / (SB_PI * b * b);
     double r = 0.5 + 0.5 * m->roughness, k = r * r / 2;
     double G = (fmax(NoL, 0.001) / (NoL * (1 - k) + k)) * (fmax(NoV, 0.001) / (NoV * (1 - k) + k));
@@ -217,7 +220,7 @@ sb_result_t sb_model_create(sb_context_t *ctx, const char *spec, sb_source_t **o
             if (r == SB_OK) r = check_range(ctx, name, key, m.reflectance, 0, 1, 0);
         } else if (kind == 1 && strcmp(key, "roughness") == 0) {
             r = parse_number(ctx, name, key, val, &m.roughness);
-            /* below 1e-6 (alpha 1e-12) the peak 1/(pi alpha^2) overflows to inf/NaN at the mirror pair */
+            /* below ~1e-76 the peak 1/(pi alpha^2) overflows; 1e-6 (alpha 1e-12) is far below any grid */
             if (r == SB_OK) r = check_range(ctx, name, key, m.roughness, 1e-6, 1, 0);
         } else {
             r = sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown key '%s' (see `sepbrdf list`)", name, key);
