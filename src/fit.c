@@ -139,14 +139,26 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
     if (opts) o = *opts;
     if (o.max_iters <= 0) o.max_iters = 300;
     if (o.tol <= 0) o.tol = 1e-7;
-    /* X: data on valid cells, 0 elsewhere to start */
+    /* X: data on valid cells, 0 elsewhere to start, scaled by a power of
+     * two (exact) to max |X| in [0.5, 1): the sums of squares that decide
+     * convergence neither underflow (1e-300 data stopped after one
+     * iteration, "converged") nor overflow; s is unscaled at the end. */
+    double amax = 0, sc = 1;
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++)
+            if (mask[r + c * lda]) amax = fmax(amax, fabs(A[r + c * lda]));
+    if (amax > 0 && isfinite(amax)) {
+        int ex;
+        frexp(amax, &ex);
+        sc = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+    }
     double norm2 = 0;
     size_t ninvalid = 0;
     for (size_t c = 0; c < n; c++)
         for (size_t r = 0; r < m; r++) {
             size_t at = r + c * m;
             int ok = mask[r + c * lda];
-            double a = ok ? A[r + c * lda] : 0.0;
+            double a = ok ? A[r + c * lda] * sc : 0.0;
             f->x[at] = a;
             norm2 += a * a;
             ninvalid += !ok;
@@ -190,7 +202,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         prev = err;
     }
     if (r == SB_OK) {
-        memcpy(s, f->sb, k * sizeof *s);
+        for (size_t j = 0; j < k; j++) s[j] = f->sb[j] / sc;
         if (U) memcpy(U, qu, m * k * sizeof *U);
         if (V)
             for (size_t j = 0; j < k; j++)
