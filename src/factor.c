@@ -2,12 +2,15 @@
  * and the reconstruction through texture lookups. */
 #include "sepbrdf/factor.h"
 
+#include <pthread.h>
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fit.h"
+#include "sepbrdf/channels.h"
 #include "internal.h"
 
 /* |sum(u)| below this fraction of sum|u| counts as zero for the sign rule. */
@@ -204,8 +207,11 @@ struct sb_plan {
     double *s, *u, *v;
     double *x;           /* weighted copy of a channel (weighted plans only) */
     double *wr, *wc;     /* row / column weights (weighted plans only) */
-    double *col;         /* one residual column */
+    double *col;         /* one residual column (per thread: threads x rows) */
+    double *sbase;       /* sigma of the base channel (proportional channels) */
+    int vneg;            /* p->v currently negated */
     sb_plan_stats_t stats;
+    int nthreads;        /* residual threads */
 };
 
 sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
@@ -252,8 +258,11 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
     p->s = sb_alloc(ctx, o.terms, sizeof(double), "plan");
     p->u = sb_alloc(ctx, rows * o.terms, sizeof(double), "plan");
     p->v = sb_alloc(ctx, cols * o.terms, sizeof(double), "plan");
-    p->col = sb_alloc(ctx, rows, sizeof(double), "plan");
-    if (!p->s || !p->u || !p->v || !p->col) {
+    p->nthreads = sb_thread_count(0);
+    if (p->nthreads > 16) p->nthreads = 16;
+    p->col = sb_alloc(ctx, rows * (size_t)p->nthreads, sizeof(double), "plan");
+    p->sbase = sb_alloc(ctx, o.terms, sizeof(double), "plan");
+    if (!p->s || !p->u || !p->v || !p->col || !p->sbase) {
         sb_plan_destroy(p);
         return SB_ERR_NOMEM;
     }
@@ -281,6 +290,7 @@ void sb_plan_destroy(sb_plan_t *p) {
     free(p->wr);
     free(p->wc);
     free(p->col);
+    free(p->sbase);
     free(p);
 }
 
@@ -290,30 +300,80 @@ void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) { *out = p->stats; 
 /* Residual errors of every truncation J' = 1..J in one pass over the
  * columns: r = x_c - sum_{j<=J'} s_j v_j[c] u_j, accumulated over valid rows
  * (ssq per J' in the fitted, possibly weighted, norm; max |r| in native
- * units, i.e. divided by the weights).  No matrix-sized buffer is needed. */
-static void residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a, double sc, double *ssq, double *mx) {
+ * units, i.e. divided by the weights).  No matrix-sized buffer is needed;
+ * columns are split among threads, each with its own column buffer and
+ * sums, added in a fixed order so results do not depend on timing. */
+typedef struct res_job {
+    const sb_plan_t *p;
+    const sb_matrix_t *m;
+    const double *a;
+    size_t c0, c1;
+    double *r, *ssq, *mx;
+    double pw; /* power-of-two scale of the sums of squares (see sb_plan_execute) */
+} res_job_t;
+
+static void *residual_cols(void *arg) {
+    res_job_t *jb = arg;
+    const sb_plan_t *p = jb->p;
+    const sb_matrix_t *m = jb->m;
     size_t rows = p->rows, cols = p->cols, J = p->terms;
     const double *wr = p->opts.weighted ? p->wr : NULL, *wc = p->opts.weighted ? p->wc : NULL;
-    for (size_t j = 0; j < J; j++) ssq[j] = mx[j] = 0;
-    for (size_t c = 0; c < cols; c++) {
-        double *r = p->col;
+    for (size_t j = 0; j < J; j++) jb->ssq[j] = jb->mx[j] = 0;
+    for (size_t c = jb->c0; c < jb->c1; c++) {
+        double *r = jb->r;
+        const double *a = jb->a;
         const unsigned char *mk = m->mask ? m->mask + c * m->ld : NULL;
         for (size_t i = 0; i < rows; i++) r[i] = wr ? wr[i] * a[i + c * m->ld] * wc[c] : a[i + c * m->ld];
         for (size_t j = 0; j < J; j++) {
             const double *u = p->u + j * rows;
-            double sv = p->s[j] * p->v[c + j * cols], s2 = 0, mj = mx[j];
+            double sv = p->s[j] * p->v[c + j * cols], s2 = 0, mj = jb->mx[j];
             for (size_t i = 0; i < rows; i++) {
                 r[i] -= sv * u[i];
                 if (mk && !mk[i]) continue;
-                double d = r[i], ds = d * sc; /* squares of scaled values: no under/overflow */
+                double d = r[i], ds = d * jb->pw; /* squares of scaled values: no under/overflow */
                 s2 += ds * ds;
                 double dn = fabs(wr ? d / (wr[i] * wc[c]) : d);
                 if (dn > mj) mj = dn;
             }
-            ssq[j] += s2;
-            mx[j] = mj;
+            jb->ssq[j] += s2;
+            jb->mx[j] = mj;
         }
     }
+    return NULL;
+}
+
+static sb_result_t residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a, double pw, double *ssq,
+                             double *mx) {
+    size_t J = p->terms, cols = p->cols;
+    int nt = p->nthreads;
+    if ((size_t)nt > cols) nt = (int)cols;
+    /* small matrices: threads cost more than they save */
+    if (p->rows * cols * J < ((size_t)1 << 18)) nt = 1;
+    double *acc = calloc((size_t)nt * J * 2, sizeof *acc);
+    if (!acc) return sb_error(p->ctx, SB_ERR_NOMEM, "plan: out of memory");
+    res_job_t jobs[16];
+    pthread_t th[16];
+    int started[16] = {0};
+    for (int t = 0; t < nt; t++) {
+        jobs[t] = (res_job_t){p, m, a, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt,
+                              p->col + (size_t)t * p->rows, acc + (size_t)t * 2 * J, acc + (size_t)t * 2 * J + J,
+                              pw};
+        if (t > 0) started[t] = pthread_create(&th[t], NULL, residual_cols, &jobs[t]) == 0;
+    }
+    residual_cols(&jobs[0]);
+    for (int t = 1; t < nt; t++) {
+        if (started[t]) pthread_join(th[t], NULL);
+        else residual_cols(&jobs[t]);
+    }
+    for (size_t j = 0; j < J; j++) {
+        ssq[j] = mx[j] = 0;
+        for (int t = 0; t < nt; t++) {
+            ssq[j] += jobs[t].ssq[j];
+            if (jobs[t].mx[j] > mx[j]) mx[j] = jobs[t].mx[j];
+        }
+    }
+    free(acc);
+    return SB_OK;
 }
 
 sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
@@ -352,10 +412,11 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         sb_factors_destroy(f);
         return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     }
-    /* Sums of squares are taken on values divided by a power of two near
-     * max |M| (exact), so that 1e-300 or 1e200 BRDFs keep a finite, nonzero
-     * norm; the ratios rel_rms are unchanged by it. */
-    double total2 = 0, amax = 0, sc = 1;
+    /* Sums of squares are taken on values multiplied by a power of two near
+     * 1 / max |M| (exact), so that 1e-300 or 1e200 BRDFs keep a finite,
+     * nonzero norm (they gave rel_rms 0 and a non-finite error); the ratios
+     * rel_rms are unchanged by it. */
+    double total2 = 0, amax = 0, pw = 1;
     for (int ch = 0; ch < 3; ch++)
         for (size_t c = 0; m->data[ch] && c < cols; c++)
             for (size_t i = 0; i < rows; i++)
@@ -363,9 +424,22 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (amax > 0 && isfinite(amax)) {
         int ex;
         frexp(amax, &ex); /* clamped: 2^1074 would overflow for denormal data */
-        sc = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
     }
-    for (int ch = 0; ch < 3 && r == SB_OK; ch++) {
+    /* Proportional channels (M_c = a_c M_base: grey or tinted BRDFs) are
+     * factored once: the base channel first, then the others take its
+     * vectors with sigma scaled by |a_c| (and h negated for a_c < 0). */
+    sb_channels_t chs;
+    int prop = 0, order[3] = {0, 1, 2};
+    if (sb_channels_proportional(NULL, m, 0, &chs) == SB_OK && chs.proportional && chs.base >= 0) {
+        prop = 1;
+        order[0] = chs.base;
+        for (int c = 0, n = 1; c < 3; c++)
+            if (c != chs.base) order[n++] = c;
+    }
+    p->stats.proportional = prop;
+    for (int oi = 0; oi < 3 && r == SB_OK; oi++) {
+        int ch = order[oi];
         const double *a = m->data[ch];
         if (!a) continue;
         const double *x = a;
@@ -376,7 +450,18 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
             x = p->x;
             ldx = rows;
         }
-        if (masked) {
+        if (prop && oi > 0) {
+            /* p->s, p->u, p->v still hold the base channel's (sign-fixed) terms */
+            double sc = chs.scale[ch], as = fabs(sc);
+            for (size_t j = 0; j < J; j++) p->s[j] = p->sbase[j] * as;
+            if (sc < 0 && !p->vneg) {
+                for (size_t i = 0; i < cols * J; i++) p->v[i] = -p->v[i];
+                p->vneg = 1;
+            } else if (sc >= 0 && p->vneg) {
+                for (size_t i = 0; i < cols * J; i++) p->v[i] = -p->v[i];
+                p->vneg = 0;
+            }
+        } else if (masked) {
             sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol, p->opts.svd.seed};
             sb_fit_info_t fi;
             r = sb_fit_execute(p->fit, x, ldx, m->mask, &fo, p->s, p->u, p->v, &fi);
@@ -398,18 +483,22 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 if (fabs(gi) > fabs(big)) big = gi;
             }
             int flip = fabs(sum) > SB_SIGN_TIE * l1 ? sum < 0 : big < 0;
-            if (flip) {
+            if (flip && !(prop && oi > 0)) {
                 for (size_t i = 0; i < rows; i++) u[i] = -u[i];
                 for (size_t i = 0; i < cols; i++) v[i] = -v[i];
             }
+        }
+        if (prop && oi == 0) {
+            memcpy(p->sbase, p->s, J * sizeof *p->s);
+            p->vneg = 0;
         }
         /* norm of the fitted matrix on valid cells */
         double n2 = 0;
         for (size_t c = 0; c < cols; c++)
             for (size_t i = 0; i < rows; i++)
-                if (!m->mask || m->mask[i + c * m->ld]) n2 += (x[i + c * ldx] * sc) * (x[i + c * ldx] * sc);
+                if (!m->mask || m->mask[i + c * m->ld]) n2 += (x[i + c * ldx] * pw) * (x[i + c * ldx] * pw);
         double nrm = sqrt(n2); /* scaled */
-        e->norm[ch] = nrm / sc;
+        e->norm[ch] = nrm / pw;
         total2 += n2;
         for (size_t j = 0; j < J; j++) {
             double sj = p->s[j], rt = sqrt(sj > 0 ? sj : 0);
@@ -424,7 +513,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 h[i] = w > 0 ? rt * p->v[i + j * cols] / w : 0;
             }
         }
-        residuals(p, m, a, sc, ssq + (size_t)ch * J, mx);
+        if ((r = residuals(p, m, a, pw, ssq + (size_t)ch * J, mx)) != SB_OK) break;
         for (size_t j = 0; j < J; j++) {
             e->rel_rms[j * 4 + ch] = nrm > 0 ? sqrt(ssq[(size_t)ch * J + j]) / nrm : 0;
             e->max_abs[j * 4 + ch] = mx[j];
@@ -437,7 +526,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         sb_factors_destroy(f);
         return r;
     }
-    e->norm[3] = sqrt(total2) / sc;
+    e->norm[3] = sqrt(total2) / pw;
     for (size_t j = 0; j < J; j++) {
         double s2 = 0;
         for (int ch = 0; ch < 3; ch++)

@@ -8,21 +8,42 @@
  * iteration warm-started from the previous right subspace
  *     Y = X V, Q = qr(Y), B = Q^T X = Ub S Vb^T, L = Q Ub S Vb^T,
  * so an outer iteration costs two m x n x l products (l = k + p) instead of a
- * full SVD; as the imputed values settle the subspace converges with them. */
+ * full SVD; as the imputed values settle the subspace converges with them.
+ *
+ * Imputation converges slowly (linearly, at a rate set by the missing
+ * fraction: hd leaves ~38 % of the cells outside the domain and needs
+ * thousands of steps).  For k <= SB_ALS_MAX_K a few imputation steps only
+ * warm-start alternating least squares on the valid cells,
+ *     p_r = argmin sum_{c valid} (a_rc - p_r . q_c)^2,  then the same for q_c,
+ * exact block coordinate descent that needs tens of sweeps.  Terms are
+ * added one at a time (stage ka refits the first ka jointly), so each prefix
+ * of the output is a masked fit of its own rank; sigma_j = |p_j| |q_j| is
+ * the scale of term j, not a singular value, and the terms are not
+ * orthogonal. */
 #include "fit.h"
 
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "internal.h"
 
+/* Up to this many terms the fit finishes with alternating least squares
+ * (Grams of k x k per row and column); beyond, imputation alone. */
+#define SB_ALS_MAX_K 32
+/* A joint refit may make a shorter prefix at most this much worse. */
+#define SB_PREFIX_SLACK 2.0
+/* Imputation steps that warm-start ALS. */
+#define SB_ALS_WARM 4
+
 struct sb_fit {
     sb_context_t *ctx;
     size_t m, n, k, l;
     double *x, *v, *y, *tau, *b, *sb, *ub, *vbt, *work;
+    double *P, *Q, *G, *rhs; /* ALS: factors m x k, n x k; Grams max(m,n) x k x k */
     lapack_int *iwork;
     lapack_int lwork;
 };
@@ -84,6 +105,17 @@ sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fi
         return sb_error(ctx, SB_ERR_NUMERIC, "fit: LAPACK workspace query failed");
     }
     double q = fmax(q1, fmax(q2, q3));
+    if (k <= SB_ALS_MAX_K) {
+        size_t mx = m > n ? m : n;
+        f->P = sb_alloc(ctx, m * k, sizeof(double), "masked fit");
+        f->Q = sb_alloc(ctx, n * k, sizeof(double), "masked fit");
+        f->G = sb_alloc(ctx, mx * k * k, sizeof(double), "masked fit");
+        f->rhs = sb_alloc(ctx, mx * k, sizeof(double), "masked fit");
+        if (!f->P || !f->Q || !f->G || !f->rhs) {
+            sb_fit_destroy(f);
+            return SB_ERR_NOMEM;
+        }
+    }
     f->lwork = (lapack_int)q + 1;
     f->work = sb_alloc(ctx, (size_t)f->lwork, sizeof(double), "masked fit");
     if (!f->work) {
@@ -106,6 +138,10 @@ void sb_fit_destroy(sb_fit_t *f) {
     free(f->vbt);
     free(f->work);
     free(f->iwork);
+    free(f->P);
+    free(f->Q);
+    free(f->G);
+    free(f->rhs);
     free(f);
 }
 
@@ -132,37 +168,234 @@ static sb_result_t step(sb_fit_t *f) {
     return SB_OK;
 }
 
+/* Solve (G + ridge I) x = b for k x k SPD G in place (Cholesky); ridge
+ * keeps rows with fewer than k valid cells well posed. */
+static void spd_solve(double *G, double *b, size_t k) {
+    double tr = 0;
+    for (size_t i = 0; i < k; i++) tr += G[i * k + i];
+    double ridge = 1e-12 * (tr > 0 ? tr / (double)k : 1.0) + 1e-300;
+    for (size_t i = 0; i < k; i++) G[i * k + i] += ridge;
+    for (size_t j = 0; j < k; j++) {
+        double d = G[j * k + j];
+        for (size_t p = 0; p < j; p++) d -= G[j * k + p] * G[j * k + p];
+        d = d > 0 ? sqrt(d) : 1e-150;
+        G[j * k + j] = d;
+        for (size_t i = j + 1; i < k; i++) {
+            double v = G[i * k + j];
+            for (size_t p = 0; p < j; p++) v -= G[i * k + p] * G[j * k + p];
+            G[i * k + j] = v / d;
+        }
+    }
+    for (size_t i = 0; i < k; i++) { /* L y = b */
+        double v = b[i];
+        for (size_t p = 0; p < i; p++) v -= G[i * k + p] * b[p];
+        b[i] = v / G[i * k + i];
+    }
+    for (size_t i = k; i-- > 0;) { /* L^T x = y */
+        double v = b[i];
+        for (size_t p = i + 1; p < k; p++) v -= G[p * k + i] * b[p];
+        b[i] = v / G[i * k + i];
+    }
+}
+
+/* One ALS sweep over the free columns j0..ka-1 of P and Q (columns below j0
+ * stay fixed and are subtracted from the data): rows (P given Q), then
+ * columns (Q given P).  Returns the squared error of all ka terms on the
+ * valid cells after the sweep.  Each half is split among threads by rows /
+ * columns: every thread owns the Grams and outputs of its range. */
+typedef struct als_job {
+    sb_fit_t *f;
+    const double *A;
+    size_t lda, j0, ka, lo, hi;
+    const unsigned char *mask;
+    double e2;
+} als_job_t;
+
+static void *als_rows(void *arg) {
+    als_job_t *jb = arg;
+    sb_fit_t *f = jb->f;
+    size_t m = f->m, n = f->n, j0 = jb->j0, k = jb->ka - j0, lda = jb->lda;
+    const double *A = jb->A;
+    const unsigned char *mask = jb->mask;
+    double *P = f->P, *Q = f->Q, *G = f->G, *B = f->rhs;
+    /* accumulate G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c column by column */
+    memset(G + jb->lo * k * k, 0, (jb->hi - jb->lo) * k * k * sizeof *G);
+    memset(B + jb->lo * k, 0, (jb->hi - jb->lo) * k * sizeof *B);
+    for (size_t c = 0; c < n; c++) {
+        double qc[SB_ALS_MAX_K], qf[SB_ALS_MAX_K];
+        for (size_t j = 0; j < k; j++) qc[j] = Q[c + (j0 + j) * n];
+        for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
+        for (size_t r = jb->lo; r < jb->hi; r++) {
+            if (!mask[r + c * lda]) continue;
+            double a = A[r + c * lda], *g = G + r * k * k, *b = B + r * k;
+            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
+            for (size_t i = 0; i < k; i++) {
+                b[i] += a * qc[i];
+                for (size_t j = 0; j <= i; j++) g[i * k + j] += qc[i] * qc[j];
+            }
+        }
+    }
+    for (size_t r = jb->lo; r < jb->hi; r++) {
+        double *g = G + r * k * k, *b = B + r * k;
+        for (size_t i = 0; i < k; i++)
+            for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
+        spd_solve(g, b, k);
+        for (size_t j = 0; j < k; j++) P[r + (j0 + j) * m] = b[j];
+    }
+    return NULL;
+}
+
+static void *als_cols(void *arg) {
+    als_job_t *jb = arg;
+    sb_fit_t *f = jb->f;
+    size_t m = f->m, n = f->n, j0 = jb->j0, k = jb->ka - j0, lda = jb->lda;
+    const double *A = jb->A;
+    const unsigned char *mask = jb->mask;
+    double *P = f->P, *Q = f->Q;
+    double e2 = 0;
+    for (size_t c = jb->lo; c < jb->hi; c++) {
+        double g[SB_ALS_MAX_K * SB_ALS_MAX_K] = {0}, b[SB_ALS_MAX_K] = {0}, qf[SB_ALS_MAX_K];
+        for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double a = A[r + c * lda], pr[SB_ALS_MAX_K];
+            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
+            for (size_t j = 0; j < k; j++) pr[j] = P[r + (j0 + j) * m];
+            for (size_t i = 0; i < k; i++) {
+                b[i] += a * pr[i];
+                for (size_t j = 0; j <= i; j++) g[i * k + j] += pr[i] * pr[j];
+            }
+        }
+        for (size_t i = 0; i < k; i++)
+            for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
+        spd_solve(g, b, k);
+        for (size_t j = 0; j < k; j++) Q[c + (j0 + j) * n] = b[j];
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double d = A[r + c * lda];
+            for (size_t j = 0; j < j0; j++) d -= P[r + j * m] * qf[j];
+            for (size_t j = 0; j < k; j++) d -= P[r + (j0 + j) * m] * b[j];
+            e2 += d * d;
+        }
+    }
+    jb->e2 = e2;
+    return NULL;
+}
+
+/* Run fn on [0, n) split among up to 16 threads (the caller's included). */
+static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double *e2) {
+    int nt = sb_thread_count(0);
+    if (nt > 16) nt = 16;
+    if ((size_t)nt > n) nt = (int)n;
+    if (proto->f->m * proto->f->n < ((size_t)1 << 16)) nt = 1; /* small: not worth a thread */
+    als_job_t jobs[16];
+    pthread_t th[16];
+    int started[16] = {0};
+    for (int t = 0; t < nt; t++) {
+        jobs[t] = *proto;
+        jobs[t].lo = n * (size_t)t / (size_t)nt;
+        jobs[t].hi = n * (size_t)(t + 1) / (size_t)nt;
+        jobs[t].e2 = 0;
+        if (t > 0) started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
+    }
+    fn(&jobs[0]);
+    for (int t = 1; t < nt; t++) {
+        if (started[t]) pthread_join(th[t], NULL);
+        else fn(&jobs[t]);
+    }
+    if (e2) {
+        *e2 = 0;
+        for (int t = 0; t < nt; t++) *e2 += jobs[t].e2; /* fixed order: deterministic */
+    }
+}
+
+static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka) {
+    als_job_t proto = {f, A, lda, j0, ka, 0, 0, mask, 0};
+    double e2;
+    als_parallel(als_rows, &proto, f->m, NULL);
+    als_parallel(als_cols, &proto, f->n, &e2);
+    return e2;
+}
+
+/* Squared error on valid cells of each prefix of the first ka terms:
+ * e2[j] for the terms 0..j. */
+static void prefix_errors(const sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t ka,
+                          double *e2) {
+    size_t m = f->m, n = f->n;
+    for (size_t j = 0; j < ka; j++) e2[j] = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double d = A[r + c * lda];
+            for (size_t j = 0; j < ka; j++) {
+                d -= f->P[r + j * m] * f->Q[c + j * n];
+                e2[j] += d * d;
+            }
+        }
+}
+
+/* ALS sweeps on columns j0..ka-1 until the error stops improving. */
+static double als_until(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka,
+                        const sb_fit_opts_t *o, double norm, int *sweeps, int *converged) {
+    double prev = INFINITY, err = 0;
+    for (int stage = 1;; stage++) {
+        (*sweeps)++;
+        err = sqrt(als_sweep(f, A, lda, mask, j0, ka));
+        if (err <= 1e-15 * norm || (isfinite(prev) && prev - err <= o->tol * prev)) break;
+        if (stage >= o->max_iters) {
+            *converged = 0;
+            break;
+        }
+        prev = err;
+    }
+    return err;
+}
+
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, const sb_fit_opts_t *opts,
                            double *s, double *U, double *V, sb_fit_info_t *info) {
     size_t m = f->m, n = f->n, k = f->k, l = f->l;
     sb_fit_opts_t o = {0};
     if (opts) o = *opts;
     if (o.max_iters <= 0) o.max_iters = 300;
-    if (o.tol <= 0) o.tol = 1e-7;
-    /* X: data on valid cells, 0 elsewhere to start, scaled by a power of
-     * two (exact) to max |X| in [0.5, 1): the sums of squares that decide
-     * convergence neither underflow (1e-300 data stopped after one
-     * iteration, "converged") nor overflow; s is unscaled at the end. */
-    double amax = 0, sc = 1;
-    for (size_t c = 0; c < n; c++)
+    if (o.tol <= 0) o.tol = 1e-5;
+    /* X: data on valid cells; invalid cells start at the mean of the valid
+     * cells of their column (far fewer iterations than starting at 0, which
+     * drags the fit towards zero near the domain's edge).  X is A times a
+     * power of two pw (exact) that brings max |A| near 1, so that no sum of
+     * squares underflows or overflows (1e-300 data stopped after one
+     * iteration as "converged", 1e300 data failed as non-finite); the ALS
+     * stages read the valid cells of X (same layout as A when lda == m, as
+     * the plan passes) and sigma is divided by pw at the end. */
+    double amax = 0, pw = 1;
+    for (size_t c = 0; c < n && lda == m; c++)
         for (size_t r = 0; r < m; r++)
             if (mask[r + c * lda]) amax = fmax(amax, fabs(A[r + c * lda]));
     if (amax > 0 && isfinite(amax)) {
         int ex;
         frexp(amax, &ex);
-        sc = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
     }
+    const double *As = lda == m ? f->x : A; /* what the ALS stages read */
     double norm2 = 0;
     size_t ninvalid = 0;
-    for (size_t c = 0; c < n; c++)
+    for (size_t c = 0; c < n; c++) {
+        double sum = 0;
+        size_t cnt = 0;
+        for (size_t r = 0; r < m; r++)
+            if (mask[r + c * lda]) {
+                sum += A[r + c * lda] * pw;
+                cnt++;
+            }
+        double fill = cnt ? sum / (double)cnt : 0.0;
         for (size_t r = 0; r < m; r++) {
             size_t at = r + c * m;
             int ok = mask[r + c * lda];
-            double a = ok ? A[r + c * lda] * sc : 0.0;
+            double a = ok ? A[r + c * lda] * pw : fill;
             f->x[at] = a;
-            norm2 += a * a;
+            if (ok) norm2 += a * a;
             ninvalid += !ok;
         }
+    }
     uint64_t seed = o.seed ? o.seed : 1;
     for (size_t i = 0; i < n * l; i++) f->v[i] = gauss(&seed);
     double prev = INFINITY, err = 0;
@@ -175,7 +408,9 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
     }
     sb_result_t r = SB_OK;
-    for (it = 1; it <= o.max_iters; it++) {
+    int use_als = f->P != NULL && ninvalid > 0;
+    int em_iters = use_als ? (o.max_iters < SB_ALS_WARM ? o.max_iters : SB_ALS_WARM) : o.max_iters;
+    for (it = 1; it <= em_iters; it++) {
         if ((r = step(f)) != SB_OK) break;
         cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)k, (int)l, 1.0, f->y, (int)m, f->ub, (int)l, 0.0,
                     qu, (int)m);
@@ -201,8 +436,80 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         if (err <= 1e-15 * sqrt(norm2) || (it >= 5 && prev - err <= o.tol * prev)) break;
         prev = err;
     }
+    if (r == SB_OK && use_als) {
+        /* P = qu diag(sqrt s), Q = Vb^T' diag(sqrt s), then sweeps */
+        for (size_t j = 0; j < k; j++) {
+            double rt = sqrt(f->sb[j] > 0 ? f->sb[j] : 0);
+            for (size_t i = 0; i < m; i++) f->P[i + j * m] = qu[i + j * m] * rt;
+            for (size_t i = 0; i < n; i++) f->Q[i + j * n] = f->vbt[j + i * l] * rt;
+        }
+        /* Nested stages: terms are added one at a time and the first ka
+         * are refitted jointly, so every prefix of the result is itself a
+         * masked fit of its rank (the terms are not re-orthogonalised over
+         * the whole matrix: that would mix in the unconstrained values the
+         * fit implies outside the domain). */
+        int total = it > em_iters ? em_iters : it, converged = 1;
+        double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
+        double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
+        if (!saveP || !saveQ) {
+            free(saveP);
+            free(saveQ);
+            free(qu);
+            free(coef);
+            return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
+        }
+        for (size_t ka = 1; ka <= k; ka++) {
+            /* first the new term alone on the residual of the others: the
+             * error can only go down (its first half-sweep is a least-squares
+             * step from the warm start) */
+            err = als_until(f, As, lda, mask, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
+            if (ka > 1) {
+                /* then all ka jointly, kept only if no shorter prefix gets
+                 * more than SB_PREFIX_SLACK times worse (at the last stage:
+                 * no worse than no term at all): a joint refit may trade the
+                 * prefixes' accuracy for cancelling terms that are large
+                 * outside the domain, which also spoil interpolated lookups
+                 * near its edge */
+                memcpy(saveP, f->P, m * ka * sizeof *saveP);
+                memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
+                double ej = als_until(f, As, lda, mask, 0, ka, &o, sqrt(norm2), &total, &converged);
+                prefix_errors(f, As, lda, mask, ka, e2);
+                int keep = ej <= err;
+                /* the last stage is what was asked for: there any sane
+                 * prefix (no worse than no term) is accepted */
+                double slack = ka == k ? INFINITY : SB_PREFIX_SLACK;
+                for (size_t j = 0; keep && j + 1 < ka; j++)
+                    keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2));
+                if (keep) {
+                    err = ej;
+                    for (size_t j = 0; j + 1 < ka; j++) acc[j] = fmax(acc[j], sqrt(e2[j]));
+                } else {
+                    memcpy(f->P, saveP, m * ka * sizeof *saveP);
+                    memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
+                }
+            }
+            acc[ka - 1] = err;
+        }
+        free(saveP);
+        free(saveQ);
+        /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
+        for (size_t j = 0; j < k; j++) {
+            double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);
+            s[j] = np * nq / pw;
+            for (size_t i = 0; i < m && U; i++) U[i + j * m] = np > 0 ? f->P[i + j * m] / np : 0;
+            for (size_t i = 0; i < n && V; i++) V[i + j * n] = nq > 0 ? f->Q[i + j * n] / nq : 0;
+        }
+        if (info) {
+            info->iterations = total;
+            info->rel_err = norm2 > 0 ? err / sqrt(norm2) : 0;
+            info->converged = converged;
+        }
+        free(qu);
+        free(coef);
+        return r;
+    }
     if (r == SB_OK) {
-        for (size_t j = 0; j < k; j++) s[j] = f->sb[j] / sc;
+        for (size_t j = 0; j < k; j++) s[j] = f->sb[j] / pw;
         if (U) memcpy(U, qu, m * k * sizeof *U);
         if (V)
             for (size_t j = 0; j < k; j++)

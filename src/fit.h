@@ -8,7 +8,7 @@ typedef struct sb_fit sb_fit_t;
 
 typedef struct sb_fit_opts {
     int max_iters;  /* default 300 */
-    double tol;     /* stop when the valid-cell error improves by less than tol relative; default 1e-7 */
+    double tol;     /* stop when the valid-cell error improves by less than tol relative; default 1e-5 */
     uint64_t seed;  /* starting subspace; default 1 */
 } sb_fit_opts_t;
 

@@ -3,13 +3,17 @@
  * M_c[r, c] = w(wi, wo) f_c(wi, wo), column-major (ld = rows), where w is
  * the form weight (1, cos theta_i, or cos theta_i cos theta_o) and (wi, wo)
  * the centre of cell (r, c).  Columns are split among threads; each thread
- * writes only its own columns, so no locking is needed. */
+ * writes only its own columns, so no locking is needed.  Progress is one
+ * shared atomic count of finished columns, reported by the calling thread
+ * only, so the callback needs no thread safety. */
 #include "sepbrdf/matrix.h"
 
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "internal.h"
 
@@ -40,6 +44,8 @@ typedef struct job {
     sb_matrix_t *m;
     size_t c0, c1;
     size_t valid, measured;
+    atomic_size_t *done;        /* columns finished by all threads */
+    const sb_matrix_opts_t *o;  /* progress callback: job 0 only */
 } job_t;
 
 static void *build_cols(void *arg) {
@@ -70,6 +76,8 @@ static void *build_cols(void *arg) {
             j->valid += (size_t)(ok && known);
             j->measured += (size_t)(ok && known);
         }
+        size_t done = atomic_fetch_add_explicit(j->done, 1, memory_order_relaxed) + 1;
+        if (j->o) j->o->progress(j->o->progress_user, (double)done / (double)m->cols);
     }
     return NULL;
 }
@@ -236,24 +244,36 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     if (nt < 1) nt = 1;
     job_t *jobs = calloc((size_t)nt, sizeof *jobs);
     pthread_t *th = calloc((size_t)nt, sizeof *th);
-    if (!jobs || !th) {
+    unsigned char *joinable = calloc((size_t)nt, 1);
+    if (!jobs || !th || !joinable) {
         free(jobs);
         free(th);
+        free(joinable);
         sb_matrix_free(out);
         return sb_error(ctx, SB_ERR_NOMEM, "matrix: out of memory");
     }
-    int started = 0;
+    atomic_size_t done;
+    atomic_init(&done, 0);
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (job_t){src, param, out, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt, 0, 0};
+        jobs[t] = (job_t){src, param, out, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt,
+                          0, 0, &done, t == 0 && o.progress ? &o : NULL};
         if (t > 0 && pthread_create(&th[t], NULL, build_cols, &jobs[t]) == 0) {
-            started |= 0;
+            joinable[t] = 1;
             continue;
         }
         if (t > 0) build_cols(&jobs[t]); /* no thread: do it here */
     }
     build_cols(&jobs[0]);
-    for (int t = 1; t < nt; t++) pthread_join(th[t], NULL);
-    (void)started;
+    /* report while the other threads finish */
+    while (o.progress && atomic_load(&done) < cols) {
+        o.progress(o.progress_user, (double)atomic_load(&done) / (double)cols);
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    for (int t = 1; t < nt; t++)
+        if (joinable[t]) pthread_join(th[t], NULL);
+    free(joinable);
+    if (o.progress) o.progress(o.progress_user, 1.0);
     for (int t = 0; t < nt; t++) {
         out->valid_count += jobs[t].valid;
         out->measured_count += jobs[t].measured;

@@ -1,5 +1,7 @@
 /* Parameterisations: dispatch, shared grid helpers, spherical angles. */
+#include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -20,6 +22,58 @@ const char *sb_param_kind_name(sb_param_kind_t kind) {
     return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? kind_names[kind] : "?";
 }
 
+/* "KIND[:key=value,...]": split on ':' and ',', numbers by strtod. */
+sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
+    if (!spec || !kind || !opts) return sb_error(ctx, SB_ERR_ARG, "param: no spec or output");
+    char buf[256];
+    if (strlen(spec) >= sizeof buf) return sb_error(ctx, SB_ERR_PARSE, "param spec too long");
+    snprintf(buf, sizeof buf, "%s", spec);
+    char *args = strchr(buf, ':');
+    if (args) *args++ = 0;
+    sb_param_kind_t k;
+    if (sb_param_kind_parse(buf, &k) != SB_OK)
+        return sb_error(ctx, SB_ERR_UNKNOWN, "unknown parameterisation '%s' (io, io-area, hd, iso)", buf);
+    sb_param_opts_t o = {0};
+    while (args && *args) {
+        char *comma = strchr(args, ',');
+        if (comma) *comma = 0;
+        char *eq = strchr(args, '=');
+        if (!eq || eq == args) return sb_error(ctx, SB_ERR_PARSE, "%s: '%s' is not key=value", buf, args);
+        *eq = 0;
+        const char *key = args, *val = eq + 1;
+        char *end;
+        errno = 0;
+        double v = strtod(val, &end);
+        if (end == val || *end || errno == ERANGE || !isfinite(v))
+            return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a number", buf, key, val);
+        size_t *count = NULL;
+        if (strcmp(key, "res") == 0)
+            count = &o.res;
+        else if (k == SB_PARAM_ISO && strcmp(key, "th") == 0)
+            count = &o.res_theta_h;
+        else if (k == SB_PARAM_ISO && strcmp(key, "td") == 0)
+            count = &o.res_theta_d;
+        else if (k == SB_PARAM_ISO && strcmp(key, "pd") == 0)
+            count = &o.res_phi_d;
+        else if (strcmp(key, "theta_max") == 0) {
+            if (!(v > 0 && v <= 90)) return sb_error(ctx, SB_ERR_RANGE, "%s: theta_max %s not in (0, 90]", buf, val);
+            o.theta_max = v * SB_PI / 180;
+        } else
+            return sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown key '%s'", buf, key);
+        if (count) {
+            if (v != floor(v))
+                return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a whole number", buf, key, val);
+            if (!(v >= 1 && v <= 1e9))
+                return sb_error(ctx, SB_ERR_RANGE, "%s: key '%s' = %s out of range", buf, key, val);
+            *count = (size_t)v;
+        }
+        args = comma ? comma + 1 : NULL;
+    }
+    *kind = k;
+    *opts = o;
+    return SB_OK;
+}
+
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts,
                             sb_param_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "param: no output pointer");
@@ -28,7 +82,8 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "param: out of memory");
     if (opts) p->opts = *opts;
     if (p->opts.res == 0) p->opts.res = 32;
-    if (p->opts.theta_max == 0) p->opts.theta_max = SB_PI / 2;
+    /* 0 and pi/2 up to rounding (e.g. 90 degrees converted) mean the hemisphere */
+    if (p->opts.theta_max == 0 || fabs(p->opts.theta_max - SB_PI / 2) < 1e-12) p->opts.theta_max = SB_PI / 2;
     p->kind = kind;
     sb_result_t r;
     if (p->opts.res < 2 || p->opts.res > 4096) {
@@ -118,4 +173,33 @@ double sb_grid_measure(size_t R, double tmax, size_t k) {
     size_t it = k % R;
     double dt = tmax / (double)R;
     return 2 * SB_PI / (double)R * (cos(it * dt) - cos((it + 1) * dt));
+}
+
+/* Integral of 4 cos(theta) dw over the cell: 4 dphi int cos sin dtheta. */
+double sb_grid_measure_4cos(size_t R, double tmax, size_t k) {
+    size_t it = k % R;
+    double dt = tmax / (double)R, lo = sin(it * dt), hi = sin((it + 1) * dt);
+    return 2 * (2 * SB_PI / (double)R) * (hi * hi - lo * lo);
+}
+
+double sb_dir_theta(const double w[3]) { return atan2(hypot(w[0], w[1]), w[2]); }
+
+int sb_dir_in_cap(double tmax, const double w[3]) { return w[2] > 0 && sb_dir_theta(w) <= tmax; }
+
+void sb_dir_half(const double l[3], const double v[3], double h[3]) {
+    double s[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
+    double n = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+    if (n > 0) {
+        for (int i = 0; i < 3; i++) h[i] = s[i] / n;
+    } else {
+        h[0] = h[1] = 0;
+        h[2] = 1;
+    }
+}
+
+void sb_param_spec_set(sb_param_t *p, const char *body) {
+    if (p->opts.theta_max == SB_PI / 2)
+        snprintf(p->spec, sizeof p->spec, "%s", body);
+    else
+        snprintf(p->spec, sizeof p->spec, "%s,theta_max=%.6g", body, p->opts.theta_max * 180 / SB_PI);
 }

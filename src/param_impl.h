@@ -37,5 +37,17 @@ sb_result_t sb_param_init_iso(sb_context_t *ctx, sb_param_t *p);
 void sb_grid_dir(size_t R, double tmax, size_t index, double w[3]);
 void sb_grid_st(double tmax, const double w[3], double st[2]);
 double sb_grid_measure(size_t R, double tmax, size_t index);
+/* integral of 4 cos(theta) over grid cell `index`: 2 dphi (sin^2 hi - sin^2 lo),
+ * the half/difference Jacobian dw_i dw_o = 4 cos(theta_d) dw_h dw_d. */
+double sb_grid_measure_4cos(size_t R, double tmax, size_t index);
+
+/* Elevation theta = atan2(|w_xy|, w_z), accurate near the pole (acos is not). */
+double sb_dir_theta(const double w[3]);
+/* 1 if w is in the sampled cap: w_z > 0 and theta(w) <= tmax. */
+int sb_dir_in_cap(double tmax, const double w[3]);
+/* h = (l + v) / |l + v|; the normal (0, 0, 1) when l = -v (h undefined). */
+void sb_dir_half(const double l[3], const double v[3], double h[3]);
+/* p->spec = body, plus ",theta_max=DEG" when theta_max is not pi/2. */
+void sb_param_spec_set(sb_param_t *p, const char *body);
 
 #endif

@@ -23,24 +23,30 @@ static int compile(const char *snippet, const char *dir, char *log, size_t logsz
     return sb_run(cmd, log, logsz);
 }
 
+/* Every parameterisation's sb_coords()/sb_domain() with every form, also
+ * with a limited theta_max. */
 SB_TEST(snippet_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
     const char *dir = sb_tmpdir("glsl");
-    sb_param_opts_t o = {0};
-    o.res = 16;
-    sb_param_t *p;
-    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
-    for (int form = 0; form < SB_FORM_COUNT_; form++) {
-        double scales[3] = {1, 0.5, 2};
-        char *s = sb_glsl_snippet(p, (sb_form_t)form, 3, form == 1 ? scales : NULL);
-        CHECK(s != NULL);
-        CHECK(strstr(s, "#define SB_TERMS 3") != NULL);
-        char log[8192];
-        int rc = compile(s, dir, log, sizeof log);
-        CHECKF(rc == 0, "form %d: glslangValidator failed:\n%s", form, log);
-        free(s);
+    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
+        sb_param_opts_t o = {0};
+        o.res = 16;
+        o.theta_max = kind == SB_PARAM_HD ? 1.2 : 0;
+        sb_param_t *p;
+        CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+        for (int form = 0; form < SB_FORM_COUNT_; form++) {
+            double scales[3] = {1, 0.5, 2};
+            char *s = sb_glsl_snippet(p, (sb_form_t)form, 3, form == 1 ? scales : NULL);
+            CHECK(s != NULL);
+            CHECK(strstr(s, "#define SB_TERMS 3") != NULL);
+            CHECK(strstr(s, sb_param_spec(p)) != NULL);
+            char log[8192];
+            int rc = compile(s, dir, log, sizeof log);
+            CHECKF(rc == 0, "%s form %d: glslangValidator failed:\n%s", sb_param_spec(p), form, log);
+            free(s);
+        }
+        sb_param_destroy(p);
     }
-    sb_param_destroy(p);
 }
 
 /* The check is real: a snippet missing its coordinate function fails. */
@@ -66,4 +72,275 @@ SB_TEST(write_file) {
     snprintf(path, sizeof path, "%s/no/such/dir/x.glsl", dir);
     CHECK(sb_glsl_write(NULL, path, p, SB_FORM_F, 4, NULL) == SB_ERR_IO);
     sb_param_destroy(p);
+}
+
+/* ---- the snippet computes what the CPU computes ------------------------ */
+
+/* Runs the real snippet in an OpenGL 3.3 core context (EGL, Mesa's
+ * surfaceless platform: llvmpipe needs no display or GPU) on random pairs
+ * and random factor textures, and compares sb_coords()/sb_domain()/
+ * sb_brdf() with sb_param_coords()/sb_factors_eval().  libEGL is opened at
+ * run time, so nothing links against GL; without it the case skips. */
+#if defined(__has_include)
+#if __has_include(<EGL/egl.h>) && __has_include(<EGL/eglext.h>) && __has_include(<GL/glcorearb.h>)
+#define SB_HAVE_GL_HEADERS 1
+#endif
+#endif
+
+#ifdef SB_HAVE_GL_HEADERS
+#define EGL_NO_X11 1
+#include <EGL/egl.h>
+#include <EGL/eglext.h>
+#include <GL/glcorearb.h>
+#include <dlfcn.h>
+
+#define GL_FUNCS(X)                                                                                                    \
+    X(PFNGLCREATESHADERPROC, glCreateShader)                                                                           \
+    X(PFNGLSHADERSOURCEPROC, glShaderSource)                                                                           \
+    X(PFNGLCOMPILESHADERPROC, glCompileShader)                                                                         \
+    X(PFNGLGETSHADERIVPROC, glGetShaderiv)                                                                             \
+    X(PFNGLGETSHADERINFOLOGPROC, glGetShaderInfoLog)                                                                   \
+    X(PFNGLDELETESHADERPROC, glDeleteShader)                                                                           \
+    X(PFNGLCREATEPROGRAMPROC, glCreateProgram)                                                                         \
+    X(PFNGLATTACHSHADERPROC, glAttachShader)                                                                           \
+    X(PFNGLLINKPROGRAMPROC, glLinkProgram)                                                                             \
+    X(PFNGLGETPROGRAMIVPROC, glGetProgramiv)                                                                           \
+    X(PFNGLUSEPROGRAMPROC, glUseProgram)                                                                               \
+    X(PFNGLDELETEPROGRAMPROC, glDeleteProgram)                                                                         \
+    X(PFNGLGETUNIFORMLOCATIONPROC, glGetUniformLocation)                                                               \
+    X(PFNGLUNIFORM1IPROC, glUniform1i)                                                                                 \
+    X(PFNGLGENTEXTURESPROC, glGenTextures)                                                                             \
+    X(PFNGLDELETETEXTURESPROC, glDeleteTextures)                                                                       \
+    X(PFNGLBINDTEXTUREPROC, glBindTexture)                                                                             \
+    X(PFNGLACTIVETEXTUREPROC, glActiveTexture)                                                                         \
+    X(PFNGLTEXIMAGE2DPROC, glTexImage2D)                                                                               \
+    X(PFNGLTEXIMAGE3DPROC, glTexImage3D)                                                                               \
+    X(PFNGLTEXPARAMETERIPROC, glTexParameteri)                                                                         \
+    X(PFNGLGENFRAMEBUFFERSPROC, glGenFramebuffers)                                                                     \
+    X(PFNGLDELETEFRAMEBUFFERSPROC, glDeleteFramebuffers)                                                               \
+    X(PFNGLBINDFRAMEBUFFERPROC, glBindFramebuffer)                                                                     \
+    X(PFNGLFRAMEBUFFERTEXTURE2DPROC, glFramebufferTexture2D)                                                           \
+    X(PFNGLCHECKFRAMEBUFFERSTATUSPROC, glCheckFramebufferStatus)                                                       \
+    X(PFNGLDRAWBUFFERSPROC, glDrawBuffers)                                                                             \
+    X(PFNGLREADBUFFERPROC, glReadBuffer)                                                                               \
+    X(PFNGLREADPIXELSPROC, glReadPixels)                                                                               \
+    X(PFNGLGENVERTEXARRAYSPROC, glGenVertexArrays)                                                                     \
+    X(PFNGLDELETEVERTEXARRAYSPROC, glDeleteVertexArrays)                                                               \
+    X(PFNGLBINDVERTEXARRAYPROC, glBindVertexArray)                                                                     \
+    X(PFNGLVIEWPORTPROC, glViewport)                                                                                   \
+    X(PFNGLDRAWARRAYSPROC, glDrawArrays)
+#define GL_DECLARE(type, name) static type p_##name;
+GL_FUNCS(GL_DECLARE)
+
+/* Open an EGL display and a current GL 3.3 core context; NULL or a reason. */
+static const char *gl_open(void) {
+    void *lib = dlopen("libEGL.so.1", RTLD_NOW | RTLD_LOCAL);
+    if (!lib) return "libEGL.so.1 not found";
+    PFNEGLGETPROCADDRESSPROC gpa;
+    *(void **)&gpa = dlsym(lib, "eglGetProcAddress");
+    if (!gpa) return "eglGetProcAddress missing";
+#define EGL_LOAD(type, name)                                                                                           \
+    type name;                                                                                                         \
+    *(void **)&name = (void *)gpa(#name);                                                                              \
+    if (!name) return #name " missing";
+    EGL_LOAD(PFNEGLGETPLATFORMDISPLAYEXTPROC, eglGetPlatformDisplayEXT)
+    EGL_LOAD(PFNEGLINITIALIZEPROC, eglInitialize)
+    EGL_LOAD(PFNEGLBINDAPIPROC, eglBindAPI)
+    EGL_LOAD(PFNEGLCREATECONTEXTPROC, eglCreateContext)
+    EGL_LOAD(PFNEGLMAKECURRENTPROC, eglMakeCurrent)
+    EGLDisplay dpy = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
+    if (dpy == EGL_NO_DISPLAY || !eglInitialize(dpy, NULL, NULL)) return "no surfaceless EGL display";
+    if (!eglBindAPI(EGL_OPENGL_API)) return "EGL has no desktop OpenGL";
+    const EGLint attr[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
+                           EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+    EGLContext c = eglCreateContext(dpy, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attr);
+    if (c == EGL_NO_CONTEXT || !eglMakeCurrent(dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, c))
+        return "no GL 3.3 core context without a surface";
+#define GL_LOAD(type, name)                                                                                            \
+    *(void **)&p_##name = (void *)gpa(#name);                                                                          \
+    if (!p_##name) return #name " missing";
+    GL_FUNCS(GL_LOAD)
+    return NULL;
+}
+
+static GLuint gl_shader(GLenum type, const char *src) {
+    GLuint s = p_glCreateShader(type);
+    p_glShaderSource(s, 1, &src, NULL);
+    p_glCompileShader(s);
+    GLint ok;
+    p_glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[4096];
+        p_glGetShaderInfoLog(s, sizeof log, NULL, log);
+        CHECKF(0, "shader: %s", log);
+    }
+    return s;
+}
+
+static double glsl_rand_dir(unsigned long long *st, double w[3], int below) {
+    double z = below ? 2 * sb_rand01(st) - 1 : 1 - sb_rand01(st), ph = 2 * SB_PI * sb_rand01(st);
+    double r = sqrt(1 - z * z);
+    w[0] = r * cos(ph), w[1] = r * sin(ph), w[2] = z;
+    return z;
+}
+
+enum { GW = 64, GH = 64, GN = GW * GH, GJ = 2 };
+
+/* One parameterisation: render, read back, compare. */
+static void gl_compare(sb_param_t *p) {
+    size_t tw[2], th[2];
+    int wrap[2][2];
+    for (int s = 0; s < 2; s++) {
+        sb_param_texture_size(p, s, &tw[s], &th[s]);
+        sb_param_wrap(p, s, wrap[s]);
+    }
+    sb_factors_t *f;
+    CHECK(sb_factors_create(NULL, GJ, 3, tw[0], th[0], tw[1], th[1], &f) == SB_OK);
+    unsigned long long st = 1234;
+    float *tex = malloc((tw[0] * th[0] + tw[1] * th[1]) * GJ * 3 * sizeof *tex);
+    float *in = malloc(2 * GN * 4 * sizeof *in), *out = malloc(2 * GN * 4 * sizeof *out);
+    double(*dir)[2][3] = malloc(GN * sizeof *dir);
+    /* random pairs, some below the horizon; the CPU gets the float-rounded,
+     * renormalised directions the shader sees */
+    for (int i = 0; i < GN; i++)
+        for (int k = 0; k < 2; k++) {
+            double *w = dir[i][k], n = 0;
+            glsl_rand_dir(&st, w, i % 9 == k);
+            for (int a = 0; a < 3; a++) n += (double)(float)w[a] * (float)w[a];
+            for (int a = 0; a < 3; a++) {
+                in[(k * GN + i) * 4 + a] = (float)w[a];
+                w[a] = (float)w[a] / sqrt(n);
+            }
+            in[(k * GN + i) * 4 + 3] = 0;
+        }
+    /* shader: texelFetch the pair, write sb_coords and (sb_brdf, sb_domain) */
+    char *snip = sb_glsl_snippet(p, SB_FORM_F, GJ, NULL);
+    size_t len = strlen(snip) + 1024;
+    char *fs = malloc(len);
+    snprintf(fs, len,
+             "#version 330 core\n%s\nuniform sampler2D inL;\nuniform sampler2D inV;\n"
+             "layout(location = 0) out vec4 o0;\nlayout(location = 1) out vec4 o1;\n"
+             "void main() {\n    ivec2 q = ivec2(gl_FragCoord.xy);\n"
+             "    vec3 L = normalize(texelFetch(inL, q, 0).xyz), V = normalize(texelFetch(inV, q, 0).xyz);\n"
+             "    vec4 st = sb_coords(L, V);\n    o0 = st;\n"
+             "    o1 = vec4(sb_brdf(L, V), sb_domain(L, V, st) ? 1.0 : 0.0);\n}\n",
+             snip);
+    const char *vs = "#version 330 core\nvoid main() {\n"
+                     "    gl_Position = vec4(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID >> 1) * 4 - 1), 0, 1);\n}\n";
+    GLuint prog = p_glCreateProgram(), sv = gl_shader(GL_VERTEX_SHADER, vs), sf = gl_shader(GL_FRAGMENT_SHADER, fs);
+    p_glAttachShader(prog, sv);
+    p_glAttachShader(prog, sf);
+    p_glLinkProgram(prog);
+    GLint ok;
+    p_glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+    CHECK(ok);
+    p_glUseProgram(prog);
+    GLuint t[6], fbo, vao;
+    p_glGenTextures(6, t);
+    for (int k = 0; k < 2; k++) { /* inputs: nearest, fetched by texel */
+        p_glActiveTexture(GL_TEXTURE0 + k);
+        p_glBindTexture(GL_TEXTURE_2D, t[k]);
+        p_glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, GW, GH, 0, GL_RGBA, GL_FLOAT, in + k * GN * 4);
+        p_glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        p_glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        p_glUniform1i(p_glGetUniformLocation(prog, k ? "inV" : "inL"), k);
+    }
+    for (int s = 0; s < 2; s++) { /* factors: random, layer j = term j, sampler state as documented */
+        size_t n = tw[s] * th[s];
+        for (size_t j = 0; j < GJ; j++)
+            for (int c = 0; c < 3; c++) {
+                double *x = sb_factors_tex(f, s, j, c);
+                for (size_t i = 0; i < n; i++) tex[(j * n + i) * 3 + c] = (float)(x[i] = sb_rand01(&st));
+            }
+        p_glActiveTexture(GL_TEXTURE2 + s);
+        p_glBindTexture(GL_TEXTURE_2D_ARRAY, t[2 + s]);
+        p_glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_RGB32F, (GLsizei)tw[s], (GLsizei)th[s], GJ, 0, GL_RGB, GL_FLOAT, tex);
+        p_glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        p_glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        p_glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_S, wrap[s][0] ? GL_REPEAT : GL_CLAMP_TO_EDGE);
+        p_glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_WRAP_T, wrap[s][1] ? GL_REPEAT : GL_CLAMP_TO_EDGE);
+        p_glUniform1i(p_glGetUniformLocation(prog, s ? "sb_h" : "sb_g"), 2 + s);
+    }
+    p_glGenFramebuffers(1, &fbo);
+    p_glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    for (int k = 0; k < 2; k++) {
+        p_glBindTexture(GL_TEXTURE_2D, t[4 + k]);
+        p_glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, GW, GH, 0, GL_RGBA, GL_FLOAT, NULL);
+        p_glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + k, GL_TEXTURE_2D, t[4 + k], 0);
+    }
+    const GLenum bufs[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    p_glDrawBuffers(2, bufs);
+    CHECK(p_glCheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE);
+    p_glGenVertexArrays(1, &vao);
+    p_glBindVertexArray(vao);
+    p_glViewport(0, 0, GW, GH);
+    p_glDrawArrays(GL_TRIANGLES, 0, 3);
+    for (int k = 0; k < 2; k++) {
+        p_glReadBuffer(GL_COLOR_ATTACHMENT0 + k);
+        p_glReadPixels(0, 0, GW, GH, GL_RGBA, GL_FLOAT, out + k * GN * 4);
+    }
+    /* compare: coordinates in texels (modulo the width on REPEAT axes),
+     * values with float textures and filtering (8-bit filter weights on
+     * some GPUs: 1e-2), the domain up to pairs on the cap's rim */
+    double worst_st = 0, worst_f = 0, tmax = sb_param_theta_max(p);
+    int mismatch = 0, inside = 0;
+    for (int i = 0; i < GN; i++) {
+        const double *l = dir[i][0], *v = dir[i][1];
+        double sg[2], sh[2], rgb[3];
+        int cpu = sb_param_coords(p, l, v, sg, sh), gpu = out[(GN + i) * 4 + 3] > 0.5;
+        if (cpu != gpu) {
+            double e = fmin(fmin(fabs(acos(l[2]) - tmax), fabs(acos(v[2]) - tmax)), fmin(fabs(l[2]), fabs(v[2])));
+            if (e > 1e-5) mismatch++;
+            continue;
+        }
+        if (!cpu) continue;
+        inside++;
+        const double c[4] = {sg[0], sg[1], sh[0], sh[1]};
+        for (int a = 0; a < 4; a++) {
+            int s = a / 2;
+            double n = (double)(a % 2 ? th[s] : tw[s]), d = fabs(c[a] - out[i * 4 + a]);
+            if (wrap[s][a % 2] == SB_WRAP_REPEAT) d = fmin(d, 1 - d);
+            worst_st = fmax(worst_st, d * n);
+        }
+        sb_factors_eval(f, p, SB_FORM_F, GJ, l, v, rgb);
+        for (int k = 0; k < 3; k++) worst_f = fmax(worst_f, fabs(rgb[k] - out[(GN + i) * 4 + k]));
+    }
+    CHECKF(mismatch == 0, "%s: sb_domain differs from the CPU on %d pairs", sb_param_spec(p), mismatch);
+    CHECKF(inside > GN / 4, "%s: %d pairs inside", sb_param_spec(p), inside);
+    CHECKF(worst_st < 1e-3, "%s: sb_coords differs by %g texels", sb_param_spec(p), worst_st);
+    CHECKF(worst_f < 1e-2, "%s: sb_brdf differs by %g", sb_param_spec(p), worst_f);
+    p_glDeleteVertexArrays(1, &vao);
+    p_glDeleteFramebuffers(1, &fbo);
+    p_glDeleteTextures(6, t);
+    p_glDeleteProgram(prog);
+    p_glDeleteShader(sv);
+    p_glDeleteShader(sf);
+    free(fs);
+    free(snip);
+    free(dir);
+    free(out);
+    free(in);
+    free(tex);
+    sb_factors_destroy(f);
+}
+
+#endif
+
+SB_TEST(snippet_matches_cpu) {
+#ifndef SB_HAVE_GL_HEADERS
+    SKIP("EGL / GL headers not available at build time");
+#else
+    const char *why = gl_open();
+    if (why) SKIP(why);
+    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++)
+        for (int limited = 0; limited < 2; limited++) {
+            sb_param_opts_t o = {0};
+            o.res = 12;
+            o.theta_max = limited ? 1.3 : 0;
+            sb_param_t *p;
+            CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+            gl_compare(p);
+            sb_param_destroy(p);
+        }
+#endif
 }

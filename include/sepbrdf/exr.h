@@ -31,7 +31,10 @@ typedef struct sb_exr_opts {
 } sb_exr_opts_t;
 
 /* Write all terms of f into directory `dir` (must exist).  Each file is
- * written under a temporary name and renamed when complete. */
+ * written under a temporary name and renamed when complete: every file of
+ * the set is first written as "DIR/.NAME.tmp-PID" (NAME from sb_exr_name,
+ * PID the writing process), then all are renamed.  The names are part of
+ * the interface, so a program interrupted by a signal can remove them. */
 sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir,
                                  const sb_exr_opts_t *opts);
 

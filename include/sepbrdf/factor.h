@@ -128,7 +128,7 @@ typedef struct sb_plan_opts {
      * in which case they are factored as zeros (the seeds' plain method). */
     int zero_fill;
     int fit_max_iters;   /* masked fit: outer iterations, default 300 */
-    double fit_tol;      /* masked fit: relative improvement to stop, default 1e-7 */
+    double fit_tol;      /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
 } sb_plan_opts_t;
 
 /* What the last sb_plan_execute did for the masked fit (0 if unmasked). */
@@ -136,6 +136,7 @@ typedef struct sb_plan_stats {
     int masked;          /* 1 if a masked fit ran */
     int fit_iterations;  /* largest over channels */
     int fit_converged;   /* all channels converged */
+    int proportional;    /* channels were proportional: factored once */
 } sb_plan_stats_t;
 void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
 

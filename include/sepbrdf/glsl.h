@@ -26,7 +26,7 @@ const char *sb_glsl_library(void);
  * returned string is malloc'ed; the caller frees it.  NULL on no memory. */
 char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales);
 
-/* Write the snippet to `path` (temporary name, then rename). */
+/* Write the snippet to `path` (temporary name "PATH.tmp-PID", then rename). */
 sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
                           size_t terms, const double *scales);
 

@@ -26,10 +26,18 @@ const char *sb_form_name(sb_form_t form);
 /* The factor that turns f_r into the stored form for this pair. */
 double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
 
+/* Progress of a long build: `fraction` of the columns done, in [0, 1]. */
+typedef void (*sb_progress_fn)(void *user, double fraction);
+
 typedef struct sb_matrix_opts {
     sb_form_t form;     /* default SB_FORM_F */
     unsigned channels;  /* bit mask of channels to build (1 R, 2 G, 4 B); 0 = all */
     int threads;        /* 0 = all cores */
+    /* Optional (NULL = none): called on the calling thread only, after each
+     * column it builds and every ~50 ms while it waits for the other
+     * threads, and once with 1 when the build is complete. */
+    sb_progress_fn progress;
+    void *progress_user;
 } sb_matrix_opts_t;
 
 typedef struct sb_matrix {

@@ -12,7 +12,39 @@
  * (theta_max = pi/2 unless limited), phi in [0, 2 pi), R cells each, centres.
  * Sequential index k = R * i_phi + i_theta (theta varies fastest), so the
  * texture has x = theta index (s = theta / theta_max, CLAMP) and y = phi
- * index (t = phi / 2pi, REPEAT).  Rows = wi, columns = wo, N = R^2 each. */
+ * index (t = phi / 2pi, REPEAT).  Rows = wi, columns = wo, N = R^2 each.
+ *
+ * io-area: (wi, wo) again, each direction on the Shirley-Chiu concentric
+ * map of the cap theta <= theta_max, which is equal-area: square
+ * (a, b) in [-1,1]^2 -> disk (concentric) -> cap with 1 - cos(theta) =
+ * r^2 (1 - cos theta_max).  s = (a + 1)/2, t = (b + 1)/2, both CLAMP; cell
+ * k = R * y + x; every cell has solid angle 2pi (1 - cos theta_max) / R^2.
+ * The square's border is the cap's rim (the horizon by default).
+ *
+ * hd (Kautz & McCool): h = normalize(wi + wo), frame t' = normalize(T -
+ * (T.h) h) with T = (1,0,0) (the bitangent (0,1,0) when h = +-T), b' = h x
+ * t', d = wi in (t', b', h).  Rows index h, columns d, both on the io grid
+ * (theta-phi, R x R, CLAMP / REPEAT); h and d never leave the cap, so the
+ * grid spans [0, theta_max].  Cells whose wi or wo leave the cap are not
+ * BRDF pairs (cell_dirs returns 0).  Measures: row = solid angle of the h
+ * cell, column = integral of 4 cos(theta_d) over the d cell, because
+ * dw_i dw_o = 4 cos(theta_d) dw_h dw_d.
+ *
+ * iso (Rusinkiewicz angles, isotropic and reciprocal BRDFs): rows theta_h
+ * (texture th x 1), columns (theta_d, phi_d) (texture td x pd, column c =
+ * td * i_phi_d + i_theta_d), phi_d folded into [0, pi) modulo pi
+ * (reciprocity swaps wi, wo and shifts phi_d by pi).  Uniform cell centres
+ * on theta in [0, theta_max] and phi_d in [0, pi).  Wrap: theta axes CLAMP,
+ * phi_d REPEAT (after folding the phi_d axis is a circle of length pi).
+ * Defaults th = td = res, pd = 2 res (equal angular steps, as MERL's
+ * 90 x 90 x 180).  Measures: row = 2pi (cos lo - cos hi) (phi_h integrated
+ * out), column = 2 x integral of 4 cos(theta_d) over the (theta_d, phi_d)
+ * cell (the fold covers phi_d and phi_d + pi).  Conventions where angles
+ * are undefined: phi_h = 0 when h is the normal, phi_d = 0 when d is,
+ * h = normal when wi = -wo (as at io's pole, a pair within rounding of such
+ * a pole gets an arbitrary phi, in the shader too).  Each of th, td, pd
+ * must be 2..8192.  The measures make sum m_r m_c f approximate the (wi, wo)
+ * integral for isotropic, reciprocal f. */
 #ifndef SEPBRDF_PARAM_H
 #define SEPBRDF_PARAM_H
 
@@ -35,8 +67,9 @@ enum { SB_SIDE_G = 0, SB_SIDE_H = 1 }; /* row textures g, column textures h */
 
 typedef struct sb_param_opts {
     size_t res;       /* R: cells per angular axis (default 32) */
-    size_t res_theta_h, res_theta_d, res_phi_d; /* iso only; 0 = from res */
-    double theta_max; /* largest sampled elevation in radians (io), 0 = pi/2 */
+    /* iso only, 0 = default: theta_h and theta_d cells res, phi_d cells 2 res */
+    size_t res_theta_h, res_theta_d, res_phi_d;
+    double theta_max; /* largest sampled elevation in radians, 0 = pi/2 */
 } sb_param_opts_t;
 
 typedef struct sb_param sb_param_t;
@@ -45,13 +78,23 @@ typedef struct sb_param sb_param_t;
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
 const char *sb_param_kind_name(sb_param_kind_t kind);
 
+/* Parse a spec "KIND[:key=value,...]" into kind and options; keys res, th,
+ * td, pd (iso only) and theta_max (degrees), as sb_param_spec() writes them,
+ * so sb_param_spec() round-trips.  Options not named are 0 (default).
+ * Errors: SB_ERR_ARG (NULL), SB_ERR_UNKNOWN (kind or key), SB_ERR_PARSE
+ * (malformed pair, number or fractional count), SB_ERR_RANGE (a count 0,
+ * theta_max outside (0, 90]); finer limits are sb_param_create()'s. */
+sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind,
+                                sb_param_opts_t *opts);
+
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts,
                             sb_param_t **out);
 void sb_param_destroy(sb_param_t *p);
 
 sb_param_kind_t sb_param_kind(const sb_param_t *p);
 const char *sb_param_name(const sb_param_t *p);
-/* Canonical spec string, e.g. "io:res=32" or "iso:th=90,td=90,pd=180". */
+/* Canonical spec string, e.g. "io:res=32" or "iso:th=90,td=90,pd=180";
+ * theta_max (degrees) is appended when not 90. */
 const char *sb_param_spec(const sb_param_t *p);
 size_t sb_param_rows(const sb_param_t *p);
 size_t sb_param_cols(const sb_param_t *p);
@@ -60,8 +103,9 @@ void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]);
 double sb_param_theta_max(const sb_param_t *p);
 
 /* Directions at the centre of matrix cell (row, col).  Returns 1 if the pair
- * is a BRDF pair (both directions above the horizon), 0 if the cell lies
- * outside the BRDF domain (then wi/wo are unspecified). */
+ * is a BRDF pair (both directions above the horizon and within theta_max),
+ * 0 if the cell lies outside the BRDF domain (then wi/wo are unspecified;
+ * io and io-area have no such cells, hd and iso about 38 %). */
 int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
 
 /* Solid-angle measure associated with a row / a column cell, so that

@@ -2,13 +2,17 @@
 #ifndef SEPBRDF_SEPBRDF_H
 #define SEPBRDF_SEPBRDF_H
 
+#include "channels.h"
 #include "common.h"
 #include "exr.h"
 #include "factor.h"
 #include "glsl.h"
+#include "image.h"
 #include "matrix.h"
+#include "measured.h"
 #include "models.h"
 #include "param.h"
+#include "render.h"
 #include "source.h"
 #include "svd.h"
 

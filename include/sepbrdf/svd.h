@@ -2,8 +2,58 @@
  *
  * A (m x n, column-major, leading dimension lda) ~ U diag(s) V^T with the k
  * leading singular triplets, s descending.  Plan once, execute many: the plan
- * checks shapes, picks the method, queries LAPACK workspaces and allocates;
- * execute allocates nothing and never modifies A. */
+ * checks shapes, picks the method, draws the random test matrix, queries
+ * LAPACK workspaces and allocates; execute allocates nothing and never
+ * modifies A.
+ *
+ * Methods and what they guarantee (d = min(m, n), eps = 2^-52, or 2^-23 in
+ * single precision):
+ *   FULL        dgesdd on a copy of A: every singular value; the rank-k
+ *               truncation is optimal to rounding (Eckart-Young).
+ *   TOPK        Gram matrix G of the smaller side (dsyrk), its k largest
+ *               eigenpairs (dsyevr), then one Rayleigh-Ritz step on A itself
+ *               (two products with A, a QR and the SVD of a d x k matrix).
+ *               Exact to rounding for the leading triplets; the Gram matrix
+ *               squares the condition number, so a triplet with
+ *               sigma_j < ~sqrt(eps) sigma_1 (1e-8 in double, 3e-4 in
+ *               single) is only as good as the subspace the Gram matrix can
+ *               resolve.  The Ritz step computes s_j from A, not from
+ *               sigma_j^2, so s_j carries an absolute error ~eps sigma_1
+ *               instead of eps sigma_1^2 / sigma_j.  The Gram matrix also
+ *               squares the range: entries beyond ~1e154 (1e19 in single
+ *               precision) overflow it and give SB_ERR_NUMERIC.
+ *   RANDOMIZED  Halko-Martinsson-Tropp: Y = A Omega with a seeded Gaussian
+ *               Omega (n x l, l = k + p), q power iterations with QR
+ *               re-orthonormalisation, Q = qr(Y), SVD of B = Q^T A: 2q + 2
+ *               reads of A.  Error in expectation <= (1 + k / (p - 1))^(1/2)
+ *               times the optimum for q = 0 (HMT 2011, Thm. 10.5); each
+ *               power iteration raises the decay ratio sigma_{k+1}/sigma_k
+ *               in the bound to the power 2q + 1.  By default the basis
+ *               keeps every iterate, [Y_0, Y_1, ..., Y_q] (block Krylov,
+ *               Musco & Musco 2015): the same 2q + 2 reads of A (each
+ *               A^T Y_i is also a block of B^T) and an error that depends
+ *               far less on the gap (on the io matrices of
+ *               docs/performance.md 10-100x closer to the optimum at
+ *               q = 2).  Used when l (q + 1) <= d/2 (beyond, the SVD of the
+ *               n x l (q + 1) matrix B^T costs more than it saves).  Worst
+ *               case: a flat spectrum (noise).  Deterministic: the same
+ *               seed gives the same bits.
+ *   single precision: the same methods in float on a converted copy of A
+ *               (one more read); singular values within ~1e-5 sigma_1.
+ *   AUTO        FULL when d <= SB_SVD_AUTO_FULL_MAX (under 2 ms a matrix,
+ *               and every sigma); else TOPK when d <= SB_SVD_AUTO_TOPK_MAX
+ *               (exact for under ~5 ms a matrix) or when the sketch k + p
+ *               exceeds d / SB_SVD_AUTO_SKETCH_DIV (a sketch that wide is
+ *               no faster than TOPK); RANDOMIZED (block Krylov, q = 2,
+ *               p = 10) otherwise.  Measured on 2 cores, see
+ *               docs/performance.md.
+ *
+ * Every method returns orthonormal U and V with s_j = u_j^T A v_j and
+ * U^T A V diagonal on the k terms, so the error of the rank-r truncation is
+ *     ||A - U_r S_r V_r^T||_F^2 = ||A||_F^2 - sum_{j<=r} s_j^2
+ * exactly (in exact arithmetic); sb_svd_info_t reports it.  The identity
+ * loses relative accuracy ~eps ||A||^2 / err^2 when err << ||A||: below a
+ * relative error of ~1e-6 compute residuals explicitly if they matter. */
 #ifndef SEPBRDF_SVD_H
 #define SEPBRDF_SVD_H
 
@@ -14,9 +64,9 @@ extern "C" {
 #endif
 
 typedef enum sb_method {
-    SB_METHOD_AUTO = 0,   /* pick from m, n, k and the accuracy asked */
+    SB_METHOD_AUTO = 0,   /* pick from m, n, k (see above) */
     SB_METHOD_FULL,       /* LAPACK dgesdd, all singular values */
-    SB_METHOD_TOPK,       /* exact leading k: Gram matrix + dsyevr */
+    SB_METHOD_TOPK,       /* exact leading k: Gram matrix + dsyevr + Ritz step */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
     SB_METHOD_COUNT_
 } sb_method_t;
@@ -24,27 +74,79 @@ typedef enum sb_method {
 sb_result_t sb_method_parse(const char *name, sb_method_t *out); /* auto|full|topk|randomized */
 const char *sb_method_name(sb_method_t m);
 
+/* AUTO thresholds (see the comment at the top). */
+#define SB_SVD_AUTO_FULL_MAX 128
+#define SB_SVD_AUTO_TOPK_MAX 400
+#define SB_SVD_AUTO_SKETCH_DIV 8
+
+/* Options; a zeroed struct gives the defaults. */
 typedef struct sb_svd_opts {
     sb_method_t method;
-    int oversample;       /* randomized: p, default 10 */
-    int power_iters;      /* randomized: q, default 2 */
-    uint64_t seed;        /* randomized: seed of the test matrix, default 1 */
+    int oversample;       /* randomized: p, 0 = default 10, negative = none */
+    int power_iters;      /* randomized: q, 0 = default 2, negative = none */
+    uint64_t seed;        /* randomized: seed of the test matrix, 0 = default 1 */
     int single_precision; /* compute in float (inputs/outputs stay double) */
+    size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
+    int krylov;           /* randomized: 0 = block Krylov when it fits, negative = plain
+                             subspace iteration (see RANDOMIZED above) */
 } sb_svd_opts_t;
+
+/* What one execute did. */
+typedef struct sb_svd_info {
+    size_t rank;      /* triplets written: k, or the adaptive choice */
+    size_t sketch;    /* randomized: columns of the basis Q; TOPK: k; FULL: d */
+    double norm_fro;  /* ||A||_F when known (given, adaptive mode, FULL, TOPK, single), else 0 */
+    double resid_fro; /* ||A - U_r S_r V_r^T||_F from the identity above, -1 if unknown */
+} sb_svd_info_t;
 
 typedef struct sb_svd sb_svd_t;
 
+/* The method a plan for (m, n, k, opts) would use: opts->method unless it
+ * is AUTO, then the AUTO rule.  Plans nothing, allocates nothing. */
+sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
+
+/* Plan a rank-k SVD of m x n matrices.  opts may be NULL (defaults).
+ * Errors: SB_ERR_ARG (no output, empty matrix, bad method), SB_ERR_RANGE
+ * (k = 0 or k > min(m, n)), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
+ * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
+ * (workspace query failed). */
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts,
                           sb_svd_t **out);
-void sb_svd_destroy(sb_svd_t *svd);
+void sb_svd_destroy(sb_svd_t *svd);            /* accepts NULL */
 sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
+size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */
+/* Bytes of workspace the plan holds (for reports). */
+size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
 
 /* s[0..k-1], U (m x k, ld m), V (n x k, ld n).  U or V may be NULL when not
  * wanted.  If all_s is not NULL and the method computes every singular
  * value (FULL), all min(m, n) of them are written there and 1 returned via
- * *have_all; otherwise *have_all = 0. */
+ * *have_all; otherwise *have_all = 0.  A is read only; lda >= m.
+ * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_NUMERIC (LAPACK
+ * failure or a non-finite entry in A). */
 sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V,
                            double *all_s, int *have_all);
+
+/* Adaptive rank: the smallest r in [min_rank, k] with
+ *     ||A - U_r S_r V_r^T||_F <= rel_tol ||A||_F,
+ * or r = k when no such r exists; rel_tol = 0 keeps all k.  norm_fro is ||A||_F if the caller knows
+ * it, 0 to have it computed (one read of A).  FULL and TOPK compute the k
+ * triplets and pick r from the identity above.  RANDOMIZED grows the range
+ * basis Q `block` columns at a time (Martinsson-Voronin's blocked range
+ * finder, with the plan's q and with re-orthogonalisation against the
+ * earlier blocks) and stops once the target is met with r + p <= columns,
+ * or at k + p columns: for a target reached early it reads A far fewer
+ * times than the plan's k would.  Outputs as sb_svd_execute for r terms
+ * (columns r..k-1 of U, V and s[r..k-1] are left as they were); *info (may
+ * be NULL) receives rank r, the sketch size and both norms.
+ * Errors as sb_svd_execute, and SB_ERR_RANGE for rel_tol outside [0, 1) or
+ * min_rank > k. */
+sb_result_t sb_svd_execute_adaptive(sb_svd_t *svd, const double *A, size_t lda, double rel_tol,
+                                    double norm_fro, size_t min_rank, double *s, double *U, double *V,
+                                    sb_svd_info_t *info);
+
+/* Info of the last successful execute (zeros before the first). */
+sb_svd_info_t sb_svd_last_info(const sb_svd_t *svd);
 
 #ifdef __cplusplus
 }

@@ -8,6 +8,15 @@
 
 /* Exit codes (documented in the README and `sepbrdf --help`). */
 enum { EXIT_OK = 0, EXIT_USAGE = 1, EXIT_IO = 2, EXIT_NUMERIC = 3 };
+/* The exit-code paragraph every --help ends with. */
+#define CLI_EXIT_HELP                                                                 \
+    "exit status: 0 ok, 1 usage (bad option, value or spec), 2 input/output\n"        \
+    "(missing or malformed file, unwritable output), 3 numerical failure.\n"
+/* The display options every command takes (listed in its --help). */
+#define CLI_VERBOSITY_HELP                                                            \
+    "  -q, --quiet          print nothing but errors (display level 0)\n"              \
+    "  -v, --verbose        more detail on stderr (level 2; -vv: 3)\n"                 \
+    "  -h, --help           this text\n"
 
 /* Display level: 0 quiet (-q), 1 normal, 2 verbose (-v), 3 debug (-vv). */
 extern int g_verbosity;
@@ -30,12 +39,19 @@ typedef struct cli_args {
 /* If argv[i] is one of the names (NULL-terminated list), set *value (when
  * the option takes one) and advance; returns 1 if matched, 0 if not, -1 on
  * a missing value (message printed). */
+/* -q/--quiet, -v/--verbose, -vv: adjust g_verbosity; 1 if arg is one. */
+int cli_verbosity_opt(const char *arg);
 int cli_opt(cli_args_t *a, const char *const *names, int takes_value, const char **value);
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 
 /* mkdir -p; 0 on success. */
 int cli_mkdirs(const char *path);
+/* Check, before any work, that `path` is a writable folder or can be
+ * created (its nearest existing ancestor is a writable folder).  Prints
+ * "CMD: OPT PATH: why" and returns EXIT_IO (EXIT_USAGE for an empty or
+ * over-long name) when not; EXIT_OK otherwise. */
+int cli_check_outdir(const char *cmd, const char *opt, const char *path);
 double cli_now(void);
 
 /* Progress bar on stderr, only when stderr is a terminal and verbosity >= 1,
@@ -59,12 +75,41 @@ void json_int(json_t *j, const char *key, long long value);
 void json_bool(json_t *j, const char *key, int value);
 
 /* Open `path`.tmp-PID for writing; cli_commit renames it into place (or
- * removes it when ok == 0).  Return 0 on success. */
+ * removes it when ok == 0).  Return 0 on success.  The temporary is
+ * guarded (cli_guard) from open to commit. */
 FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size);
 int cli_commit(FILE *fp, const char *tmp, const char *path, int ok);
 
+/* Cleanup on interruption.  cli_signals_install() catches SIGINT, SIGTERM
+ * and SIGHUP (those not ignored); the handler unlinks every guarded file,
+ * restores the default action and re-raises the signal, so the run still
+ * ends "killed by SIGTERM".  It uses only unlink() on prebuilt or
+ * stack-formatted names (async-signal-safe).
+ * cli_guard: remove `path` if a signal ends the run (32 at a time; -1 when
+ * full or longer than 4095 bytes).  cli_unguard: forget it.
+ * cli_guard_exr: the texture set of sb_factors_write_exr in `dir`, terms
+ * 0..terms-1: its temporaries DIR/.g_KK.exr.tmp-PID (exr.h) and, with
+ * finals, the finished DIR/g_KK.exr too (same for h); one set at a time. */
+void cli_signals_install(void);
+int cli_guard(const char *path);
+void cli_unguard(const char *path);
+int cli_guard_exr(const char *dir, size_t terms, int finals);
+void cli_unguard_exr(void);
+
 /* Subcommands */
+int cmd_bench(int argc, char **argv);
 int cmd_factor(int argc, char **argv);
 int cmd_list(int argc, char **argv);
+int cmd_study(int argc, char **argv);
+int cmd_info(int argc, char **argv);
+int cmd_sample(int argc, char **argv);
+int cmd_render(int argc, char **argv);
+
+/* Print the metadata of a factor file (an EXR written by `factor`) to out:
+ * texture size, term and J, sigma_j per channel (of every term whose g file
+ * sits in the same folder), parameterisation, source, form, method and
+ * rel_rms per J.  Returns an exit code (EXIT_IO: unreadable, not an EXR,
+ * or an EXR without the sepbrdf attributes), message printed. */
+int info_exr(const char *path, FILE *out);
 
 #endif

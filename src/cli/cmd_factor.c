@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "pipeline.h"
 
 #define DEFAULT_SOURCE "microfacet:base=gold,roughness=0.5"
 #define DEFAULT_OUT "sepbrdf-out"
@@ -44,13 +45,17 @@ static void help(void) {
         "      --theta-max DEG  largest sampled elevation in degrees (default 90)\n"
         "      --seed S         seed of randomized methods (default 1)\n"
         "      --half           store half floats with per-term scales\n"
-        "  -q, --quiet          print nothing but errors\n"
-        "  -v, --verbose        more detail on stderr\n"
-        "  -h, --help           this text\n"
+        "      --previews       also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\n"
+        "                       colour map, blue -S, white 0, red +S (S = max |value|)\n"
+        CLI_VERBOSITY_HELP
         "\n"
         "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
         "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
-        "i.e. direction k = R * i_phi + i_theta of the seeds' sequentialisation.\n");
+        "i.e. direction k = R * i_phi + i_theta of the seeds' sequentialisation.\n"
+        "\n"
+        "Files are written under temporary names and renamed when complete; a run\n"
+        "interrupted (SIGINT, SIGTERM, SIGHUP) while writing removes the set.\n"
+        "\n" CLI_EXIT_HELP);
 }
 
 typedef struct factor_opts {
@@ -66,23 +71,7 @@ typedef struct factor_opts {
     int half, weighted, zero_fill;
 } factor_opts_t;
 
-/* One complete factorisation of the source on one parameterisation. */
-typedef struct attempt {
-    sb_param_t *param;
-    sb_matrix_t m;
-    sb_factors_t *f;
-    sb_plan_stats_t stats;
-    sb_metric_t metric;
-    int weighted, zero_fill;
-    double t_sample, t_factor, t_metric;
-} attempt_t;
-
-static void attempt_free(attempt_t *a) {
-    sb_factors_destroy(a->f);
-    sb_matrix_free(&a->m);
-    sb_param_destroy(a->param);
-    memset(a, 0, sizeof *a);
-}
+static int factor_previews; /* --previews: a PNG per texture (image.h) */
 
 static int parse(int argc, char **argv, factor_opts_t *o) {
     static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
@@ -90,9 +79,9 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
                              *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
                              *const n_maxerr[] = {"--max-error", NULL}, *const n_tmax[] = {"--theta-max", NULL},
                              *const n_seed[] = {"--seed", NULL}, *const n_half[] = {"--half", NULL},
-                             *const n_q[] = {"-q", "--quiet", NULL}, *const n_v[] = {"-v", "--verbose", NULL},
                              *const n_help[] = {"-h", "--help", NULL}, *const n_weighted[] = {"--weighted", NULL},
                              *const n_zero[] = {"--zero-fill", NULL}, *const n_mres[] = {"--metric-res", NULL};
+    static const char *const n_previews[] = {"--previews", NULL};
     cli_args_t a = {argc, 1, argv, "factor"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL;
@@ -152,12 +141,9 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             o->zero_fill = 1;
         } else if ((m = cli_opt(&a, n_mres, 1, &v))) {
             if (m < 0 || cli_parse_size("factor", "--metric-res", v, 2, 256, &o->metric_res)) return EXIT_USAGE;
-        } else if (cli_opt(&a, n_q, 0, &v)) {
-            g_verbosity = 0;
-        } else if (cli_opt(&a, n_v, 0, &v)) {
-            g_verbosity++;
-        } else if (strcmp(argv[a.i], "-vv") == 0) {
-            g_verbosity += 2;
+        } else if (cli_opt(&a, n_previews, 0, &v)) {
+            factor_previews = 1;
+        } else if (cli_verbosity_opt(argv[a.i])) {
         } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
             cli_error("factor", "unknown option '%s' (see `sepbrdf factor --help`)", argv[a.i]);
             return EXIT_USAGE;
@@ -265,8 +251,8 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
         json_number(j, "rel_rms", e->rel_rms[k * 4 + 3]);
         json_number(j, "rel_rms_stored", rx->rel_stored ? rx->rel_stored[k * 4 + 3] : NAN);
         json_number(j, "max_abs", e->max_abs[k * 4 + 3]);
-        json_number(j, "comparable", a->metric.rel_l2[k]);
-        json_number(j, "negative_fraction", a->metric.neg_frac[k]);
+        json_number(j, "comparable", attempt_comparable(a, k + 1));
+        json_number(j, "negative_fraction", attempt_negative(a, k + 1));
         json_begin_object(j, "rel_rms_channel");
         for (int c = 0; c < 3; c++)
             if (m->data[c]) json_number(j, cn[c], e->rel_rms[k * 4 + (size_t)c]);
@@ -282,6 +268,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     json_int(j, "metric_resolution", (long long)o->metric_res);
     if (o->param_auto) {
         const cand_t *cd = rx->cands;
+        json_int(j, "auto_metric_resolution", (long long)(o->metric_res < 16 ? o->metric_res : 16));
         json_begin_array(j, "auto_tried");
         for (size_t i = 0; i < rx->ncand; i++) {
             json_begin_object(j, NULL);
@@ -331,61 +318,12 @@ static void print_table(const attempt_t *a) {
         if (m->data[c]) printf("  %10s_%s", "rel_rms", cn[c]);
     printf("\n");
     for (size_t k = 0; k < J; k++) {
-        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, a->metric.rel_l2[k], e->rel_rms[k * 4 + 3],
-               e->max_abs[k * 4 + 3], 100 * a->metric.neg_frac[k]);
+        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, attempt_comparable(a, k + 1), e->rel_rms[k * 4 + 3],
+               e->max_abs[k * 4 + 3], 100 * attempt_negative(a, k + 1));
         for (int c = 0; c < 3; c++)
             if (m->data[c]) printf("  %12.4e", e->rel_rms[k * 4 + (size_t)c]);
         printf("\n");
     }
-}
-
-/* Sample, factor and measure one candidate; errors via ctx. */
-static sb_result_t attempt_run(sb_context_t *ctx, const sb_source_t *src, const factor_opts_t *o, sb_param_kind_t kind,
-                               sb_form_t form, int weighted, attempt_t *a) {
-    memset(a, 0, sizeof *a);
-    a->weighted = weighted;
-    a->zero_fill = o->zero_fill;
-    sb_param_opts_t po = {0};
-    po.res = o->res;
-    po.theta_max = o->theta_max_deg * SB_PI / 180;
-    sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
-    if (r != SB_OK) return r;
-    size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
-    if (o->terms > mn)
-        return sb_error(ctx, SB_ERR_RANGE, "--terms %zu exceeds the %zu rows/columns of %s; lower --terms or raise --res",
-                        o->terms, mn, sb_param_spec(a->param));
-    sb_plan_opts_t pl = {0};
-    pl.terms = o->terms;
-    pl.max_error = o->max_error;
-    pl.svd.method = o->method;
-    pl.svd.seed = o->seed;
-    pl.weighted = weighted;
-    pl.zero_fill = o->zero_fill;
-    sb_plan_t *plan = NULL;
-    if ((r = sb_plan_create(ctx, rows, cols, &pl, &plan)) != SB_OK) return r;
-    double t0 = cli_now();
-    cli_info(2, "sampling %s on %s (%zu x %zu), form %s%s", sb_source_description(src), sb_param_spec(a->param), rows,
-             cols, sb_form_name(form), weighted ? ", weighted" : "");
-    sb_matrix_opts_t mo = {0};
-    mo.form = form;
-    if ((r = sb_matrix_build(ctx, src, a->param, &mo, &a->m)) != SB_OK) {
-        sb_plan_destroy(plan);
-        return r;
-    }
-    double t1 = cli_now();
-    r = sb_plan_execute(plan, &a->m, a->param, &a->f);
-    sb_plan_stats(plan, &a->stats);
-    sb_plan_destroy(plan);
-    if (r != SB_OK) return r;
-    double t2 = cli_now();
-    sb_factors_set_meta(a->f, "source", sb_source_description(src));
-    sb_metric_opts_t mo2 = {0};
-    mo2.res = o->metric_res;
-    if ((r = sb_metric_compute(ctx, src, a->f, a->param, form, &mo2, &a->metric)) != SB_OK) return r;
-    a->t_sample = t1 - t0;
-    a->t_factor = t2 - t1;
-    a->t_metric = cli_now() - t2;
-    return SB_OK;
 }
 
 int cmd_factor(int argc, char **argv) {
@@ -403,19 +341,24 @@ int cmd_factor(int argc, char **argv) {
     int rc = parse(argc, argv, &o);
     if (rc >= 0) return rc;
     if (!o.source) o.source = DEFAULT_SOURCE;
+    if ((rc = cli_check_outdir("factor", "--out", o.out)) != EXIT_OK) return rc;
+    pipe_opts_t po = {o.res, o.terms, o.metric_res, o.theta_max_deg, o.max_error, o.method, o.seed, o.zero_fill,
+                      "sampling", 0, 1};
 
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
     attempt_t best = {0};
     double *rel_stored = NULL; /* errors of the stored precision, J * 4 */
     sb_result_t r;
+    int guarded = 0;
+    double best_err = 0;
     double t0 = cli_now();
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
         return EXIT_IO;
     }
     /* Everything is checked before the output folder is touched. */
-    if ((r = sb_source_open(ctx, o.source, &src)) != SB_OK) goto fail;
+    if ((r = pipe_source_open(ctx, o.source, &src)) != SB_OK) goto fail;
 
     /* Candidates: the one asked for, or (auto) every parameterisation that
      * applies, with f and f cos cos unless --form fixes it. */
@@ -440,10 +383,23 @@ int cmd_factor(int argc, char **argv) {
             }
         }
     }
+    /* Screening: with several candidates the comparable metric is first taken
+     * on a coarser reference grid (16 cells per axis, 16x fewer pairs), and
+     * computed again at --metric-res for the one kept. */
+    size_t full_metric_res = po.metric_res;
+    if (ncand > 1 && po.metric_res > 16) po.metric_res = 16;
     for (size_t i = 0; i < ncand; i++) {
         attempt_t a;
-        cli_progress("factoring", (double)i / (double)ncand);
-        r = attempt_run(ctx, src, &o, cands[i].kind, cands[i].form, cands[i].weighted, &a);
+        char label[64];
+        snprintf(label, sizeof label, "%s/%s %zu/%zu", sb_param_kind_name(cands[i].kind), sb_form_name(cands[i].form),
+                 i + 1, ncand);
+        po.progress_label = label; /* sampling: the first half of a candidate's bar */
+        po.progress_base = (double)i / (double)ncand;
+        po.progress_span = 0.5 / (double)ncand;
+        r = attempt_sample(ctx, src, &po, cands[i].kind, cands[i].form, &a);
+        cli_progress(label, (i + 0.5) / (double)ncand);
+        if (r == SB_OK) r = attempt_factor(ctx, src, &po, po.terms, cands[i].weighted, &a);
+        cli_progress(label, (i + 1.0) / (double)ncand);
         if (r != SB_OK) {
             attempt_free(&a);
             if (!o.param_auto || (r != SB_ERR_NUMERIC && r != SB_ERR_UNSUPPORTED)) goto fail;
@@ -452,9 +408,11 @@ int cmd_factor(int argc, char **argv) {
             continue;
         }
         size_t J = sb_factors_terms(a.f);
-        cands[i].err = a.metric.rel_l2[J - 1];
+        /* the metric holds 256 terms at most: compare there beyond */
+        cands[i].err = attempt_comparable(&a, J < a.metric.terms ? J : a.metric.terms);
         cands[i].ok = 1;
-        if (!best.f || cands[i].err < best.metric.rel_l2[sb_factors_terms(best.f) - 1]) {
+        if (!best.f || cands[i].err < best_err) {
+            best_err = cands[i].err;
             attempt_free(&best);
             best = a;
         } else {
@@ -467,8 +425,16 @@ int cmd_factor(int argc, char **argv) {
         rc = EXIT_NUMERIC;
         goto out;
     }
+    if (po.metric_res != full_metric_res) {
+        sb_metric_opts_t mo = {0};
+        mo.res = full_metric_res;
+        double tm = cli_now();
+        if ((r = sb_metric_compute(ctx, src, best.f, best.param, best.m.form, &mo, &best.metric)) != SB_OK) goto fail;
+        best.t_metric += cli_now() - tm;
+    }
     if (o.param_auto && g_verbosity >= 1) {
-        fprintf(stderr, "--param auto tried (comparable error at J = %zu):\n", o.terms);
+        fprintf(stderr, "--param auto tried (comparable error at J = %zu, reference grid %zu):\n", o.terms,
+                po.metric_res);
         for (size_t i = 0; i < ncand; i++)
             if (cands[i].ok)
                 fprintf(stderr, "  %-8s form %-4s %s %.4e\n", sb_param_kind_name(cands[i].kind),
@@ -482,6 +448,9 @@ int cmd_factor(int argc, char **argv) {
         rc = EXIT_IO;
         goto out;
     }
+    /* From here to the last rename, an interrupt removes the whole set. */
+    pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 1);
+    guarded = 1;
     sb_exr_opts_t eo = {o.half};
     if ((r = sb_factors_write_exr(ctx, best.f, o.out, &eo)) != SB_OK) goto fail;
     /* The error of what was stored (float or half), not only of the double fit */
@@ -498,6 +467,7 @@ int cmd_factor(int argc, char **argv) {
         sb_factors_destroy(q);
         free(mx);
     }
+    if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, o.out)) != SB_OK) goto fail;
     char path[4096];
     snprintf(path, sizeof path, "%s/sepbrdf.glsl", o.out);
     if ((r = sb_glsl_write(ctx, path, best.param, best.m.form, sb_factors_terms(best.f), NULL)) != SB_OK) goto fail;
@@ -519,6 +489,8 @@ int cmd_factor(int argc, char **argv) {
         rc = EXIT_IO;
         goto out;
     }
+    pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
+    guarded = 0;
     if (g_verbosity >= 1) {
         printf("sepbrdf factor: %s\n  %s, %zu x %zu matrix, form %s%s, %zu terms, method %s\n",
                sb_source_description(src), sb_param_spec(best.param), best.m.rows, best.m.cols,
@@ -535,6 +507,7 @@ fail:
     rc = cli_fail("factor", ctx, r);
 out:
     free(rel_stored);
+    if (guarded) pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
     attempt_free(&best);
     sb_source_destroy(src);
     sb_context_destroy(ctx);

@@ -12,13 +12,18 @@ typedef struct command {
 
 static const command_t commands[] = {
     {"factor", cmd_factor, "factor a BRDF into texture pairs (EXR), report and GLSL"},
+    {"study", cmd_study, "error vs J for sources x parameterisations (CSV, JSON, PNG)"},
     {"list", cmd_list, "list models, their keys and the material presets"},
+    {"sample", cmd_sample, "measure a source with a simulated gonioreflectometer (CSV)"},
+    {"info", cmd_info, "describe a file: factor EXR metadata, or a measured table"},
+    {"render", cmd_render, "render the original and reconstructions on a lit sphere (PNG, PSNR)"},
+    {"bench", cmd_bench, "benchmark the factor step: time, error, memory per method"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
 static void usage(FILE *fp) {
     fprintf(fp,
-            "usage: sepbrdf [--version] [--help] COMMAND [OPTIONS]\n"
+            "usage: sepbrdf [--version] [--help] [-q|-v] COMMAND [OPTIONS]\n"
             "\n"
             "Turn a BRDF, analytic or measured, into J pairs of 2D textures g_j, h_j with\n"
             "f_r(wi, wo) ~ sum_j g_j(wi) h_j(wo), via a truncated SVD.\n"
@@ -30,11 +35,25 @@ static void usage(FILE *fp) {
             "Run `sepbrdf COMMAND --help` for the options of a command.\n"
             "With no command at all, `sepbrdf factor` runs on the embedded default.\n"
             "\n"
-            "exit status: 0 ok, 1 usage (bad option, value or spec), 2 input/output\n"
-            "(missing or malformed file, unwritable output), 3 numerical failure.\n");
+            "options (before or after COMMAND):\n"
+            "  -q, --quiet      display level 0: nothing but errors\n"
+            "  -v, --verbose    display level 2: more detail on stderr (-vv: 3)\n"
+            "  -V, --version    print the version and exit\n"
+            "  -h, --help       this text\n"
+            "Results go to stdout or files; messages and progress to stderr (progress\n"
+            "only when stderr is a terminal). Outputs are written under temporary\n"
+            "names and renamed when complete; SIGINT/SIGTERM/SIGHUP remove them.\n"
+            "\n" CLI_EXIT_HELP);
 }
 
 int main(int argc, char **argv) {
+    cli_signals_install();
+    /* display options before the command */
+    while (argc >= 2 && cli_verbosity_opt(argv[1])) {
+        argv[1] = argv[0];
+        argv++;
+        argc--;
+    }
     if (argc < 2) return cmd_factor(argc, argv);
     const char *c = argv[1];
     if (strcmp(c, "--help") == 0 || strcmp(c, "-h") == 0 || strcmp(c, "help") == 0) {

@@ -1,0 +1,21 @@
+/* sepbrdf benchmark engine, shared by the `sepbrdf_bench` executable and
+ * the `sepbrdf bench` subcommand.
+ *
+ * For every size N = R^2 of the io grid: sample the source once, take the
+ * Eckart-Young baseline from LAPACK dgesdd (the full method's own errors
+ * when it is listed, else the singular values of each channel), then for
+ * every method and number of terms J run the factor step in a forked child
+ * (so peak memory is per run): plan, execute, write the EXR textures when
+ * the library has them.  Reports per
+ * stage wall times, the relative error ||M - M_J||_F / ||M||_F, its excess
+ * over the optimum, and peak memory; a table on stdout, CSV and a PNG plot
+ * (gnuplot, when installed) in the output folder. */
+#ifndef SEPBRDF_BENCH_H
+#define SEPBRDF_BENCH_H
+
+/* argv[0] is ignored; options as `--help` prints.  `prog` names the
+ * command in messages.  Returns a process exit status (0, 1 usage, 2 I/O,
+ * 3 numerical failure). */
+int sb_bench_main(int argc, char **argv, const char *prog);
+
+#endif

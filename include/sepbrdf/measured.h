@@ -1,0 +1,248 @@
+/* sepbrdf: measured BRDF tables behind the source interface.
+ *
+ * Formats (detected from the content, then the file name extension):
+ *   MERL      .binary: three little-endian int32 dims 90, 90, 180, then
+ *             3 x 1,458,000 little-endian float64, channel-planar R, G, B,
+ *             scaled by R 1/1500, G 1.15/1500, B 1.66/1500.  Cell
+ *             index = i_phi_d + 180 (i_theta_d + 90 i_theta_h) with
+ *               i_theta_h = floor(90 sqrt(theta_h / (pi/2)))  (clamped 0..89)
+ *               i_theta_d = floor(90 theta_d / (pi/2))         (clamped 0..89)
+ *               i_phi_d   = floor(180 phi_d / pi)              (clamped 0..179)
+ *             after folding phi_d into [0, pi) (phi_d >= pi -> phi_d - pi,
+ *             reciprocity).  Negative (and NaN) cells are missing.
+ *   Cornell   pbrt/Cornell spectral .brdf text: "# num wls", the count,
+ *             "# wls", the wavelengths (nm), then rows theta_i phi_i
+ *             theta_s phi_s v_1 .. v_n (radians, f_r in 1/sr per wavelength),
+ *             converted to linear sRGB (see "Spectra" below).
+ *   ALTA      text with "#DIM 3 1" (or "#DIM 3 3"), "#PARAM_IN
+ *             ISOTROPIC_TL_TV_PROJ_DPHI" and "#PARAM_OUT
+ *             INV_STERADIAN_COSINE_FACTOR" (value = f_r cos theta_v) or
+ *             "INV_STERADIAN" (value = f_r); rows theta_l,
+ *             theta_v cos(dphi), theta_v sin(dphi), value(s).
+ *   CSV       the sepbrdf gonio table (docs/measured.md): comment lines
+ *             "# key: value" (units, symmetry, reciprocal), a header naming
+ *             the columns theta_i, phi_i, theta_o, phi_o (suffix _deg or
+ *             _rad optional) and r, g, b or value, then one row per sample.
+ *
+ * Directions follow source.h: local frame, z = normal, wi towards the light
+ * (l), wo towards the viewer (v).  A measured source returns 0 (missing) for
+ * pairs with a direction at or below the horizon and for pairs the table
+ * does not cover; sb_matrix_build() masks those cells.  The factorisation
+ * currently excludes masked cells from the error report but factors them as
+ * zeros (masked fitting is planned); see docs/measured.md.
+ *
+ * Scattered tables (Cornell, ALTA, CSV) are interpolated: see
+ * sb_measured_opts_t.  All sources are read-only after opening, so eval is
+ * thread-safe. */
+#ifndef SEPBRDF_MEASURED_H
+#define SEPBRDF_MEASURED_H
+
+#include <stdio.h>
+
+#include "common.h"
+#include "param.h"
+#include "source.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sb_table_format {
+    SB_TABLE_AUTO = 0, /* detect from the content, then the extension */
+    SB_TABLE_MERL,
+    SB_TABLE_CORNELL,
+    SB_TABLE_ALTA,
+    SB_TABLE_CSV,
+    SB_TABLE_FORMAT_COUNT_
+} sb_table_format_t;
+
+/* "auto", "merl", "cornell", "alta", "csv"; parse returns SB_ERR_UNKNOWN. */
+const char *sb_table_format_name(sb_table_format_t f);
+sb_result_t sb_table_format_parse(const char *name, sb_table_format_t *out);
+
+typedef enum sb_interp {
+    SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: quadratic */
+    SB_INTERP_NEAREST,     /* MERL: the cell containing the pair (as the MERL
+                            * reference code); scattered: the nearest sample */
+    SB_INTERP_LINEAR,      /* MERL: trilinear in index space between cell
+                            * centres, phi_d periodic, missing cells skipped
+                            * (weights renormalised); scattered: local linear
+                            * least-squares fit of the k nearest */
+    SB_INTERP_IDW,         /* scattered: inverse squared distance weights of
+                            * the k nearest */
+    SB_INTERP_QUADRATIC,   /* scattered: local quadratic least-squares fit of
+                            * the k nearest (weights 1/d^2, small ridge),
+                            * clamped to the neighbours' range; falls back to
+                            * linear, then idw, with too few neighbours */
+    SB_INTERP_COUNT_
+} sb_interp_t;
+
+/* "default", "nearest", "linear", "idw", "quadratic"; parse returns
+ * SB_ERR_UNKNOWN. */
+const char *sb_interp_name(sb_interp_t m);
+sb_result_t sb_interp_parse(const char *name, sb_interp_t *out);
+
+/* How spectra are turned into RGB (Cornell .brdf). */
+typedef enum sb_white {
+    SB_WHITE_E = 0, /* XYZ = sum s(l) cmf(l) / sum ybar(l): a flat spectrum of 1
+                     * gives Y = 1 and the equal-energy white E, which in
+                     * linear sRGB is (1.2048, 0.9483, 0.9088) (slightly pink) */
+    SB_WHITE_D65,   /* as E, then Bradford adaptation from E to D65: a flat
+                     * spectrum of 1 gives linear sRGB (1, 1, 1) */
+    SB_WHITE_COUNT_
+} sb_white_t;
+
+/* Options of sb_measured_open (zero = default everywhere).
+ *
+ * Scattered tables are interpolated in an embedding of the pair (l, v) in
+ * which the symmetries that hold are folded: isotropic tables use
+ * (max(theta_i, theta_o), min(theta_i, theta_o), |phi_o - phi_i|) (radians;
+ * the sort only when reciprocal), anisotropic ones the polar maps
+ * (theta cos phi, theta sin phi) of both directions.  Distances below are
+ * Euclidean in that embedding, i.e. roughly angles in radians. */
+typedef struct sb_measured_opts {
+    sb_table_format_t format; /* SB_TABLE_AUTO: detect */
+    sb_interp_t interp;       /* SB_INTERP_DEFAULT: nearest (MERL), quadratic (scattered) */
+    size_t neighbours;        /* scattered: k nearest samples, 1..64; default 24
+                               * (isotropic) or 34 (anisotropic) for the fits,
+                               * 4 or 5 for idw */
+    double radius;            /* scattered: a pair whose nearest sample is farther
+                               * than this is missing (the fit uses samples
+                               * within twice this).  0 = auto: 2.5 x the
+                               * median distance from a sample to its nearest
+                               * other sample.  < 0: no limit */
+    sb_white_t white;         /* spectral tables: SB_WHITE_E (default) */
+} sb_measured_opts_t;
+
+/* What a table held.  Value statistics are over the used samples, of the
+ * RGB f_r in 1/sr (MERL: after the channel scales). */
+typedef struct sb_measured_info {
+    sb_table_format_t format;
+    size_t rows;                     /* data rows read (MERL: cells, 1,458,000) */
+    size_t samples;                  /* samples used (MERL: measured cells) */
+    size_t missing;                  /* MERL: missing cells (negative or NaN);
+                                      * tables: rows skipped (nan_rows + horizon_rows) */
+    size_t negative;                 /* values < 0 in the file: MERL missing cells;
+                                      * tables: used rows with a negative value (kept:
+                                      * measurement noise averages out) */
+    size_t out_of_gamut;             /* spectral tables: used rows whose RGB has a
+                                      * negative channel (saturated colours outside the
+                                      * sRGB gamut; kept, not clamped) */
+    size_t nan_rows;                 /* rows (cells) with a NaN value, skipped */
+    size_t horizon_rows;             /* rows with a direction at or below the horizon
+                                      * (theta >= pi/2 - 1e-9), skipped */
+    size_t channels;                 /* in the file: 1 mono, 3 RGB, n spectral */
+    size_t wavelengths;              /* spectral tables: n; otherwise 0 */
+    double wl_min, wl_max;           /* nm, spectral tables */
+    double theta_i_max, theta_o_max; /* largest elevations used (radians) */
+    double value_min[3], value_max[3], value_mean[3];
+    unsigned flags;     /* SB_SOURCE_* of the source */
+    sb_interp_t interp; /* resolved interpolation */
+    size_t neighbours;  /* scattered: k */
+    double spacing;     /* scattered: median nearest-other-sample distance */
+    double radius;      /* scattered: radius in use (inf when unlimited) */
+    size_t dims;        /* scattered: dimension of the embedding (3 or 4) */
+    sb_white_t white;
+} sb_measured_info_t;
+
+/* Open a measured table.  `opts` may be NULL (defaults); `info` may be NULL.
+ * The source carries SB_SOURCE_MEASURED, and ISOTROPIC / RECIPROCAL / GRAY
+ * where they hold (MERL and Cornell: isotropic and reciprocal; ALTA
+ * ISOTROPIC_*: isotropic, reciprocal, gray when mono; CSV: see
+ * docs/measured.md).  sb_source_open() calls this with default options for
+ * a spec that names a file.
+ * Errors (message names the file, and the line for text):
+ *   SB_ERR_IO      cannot open or read
+ *   SB_ERR_FORMAT  content is not what the format requires: unrecognised,
+ *                  wrong size or dims, malformed number, missing columns,
+ *                  counts out of range, non-finite angles
+ *   SB_ERR_UNSUPPORTED  a recognised but unsupported variant (another ALTA
+ *                  parameterisation, Mitsuba tensor_file)
+ *   SB_ERR_ARG / SB_ERR_RANGE  bad options
+ *   SB_ERR_NOMEM / SB_ERR_OVERFLOW */
+sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
+                             sb_measured_info_t *info);
+
+/* Fraction of the cells of `param` for which `src` returns a value (1 for
+ * analytic sources): *known of *cells cells with both directions above the
+ * horizon.  Evaluates every cell once (in parallel).  Either output may be
+ * NULL. */
+sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
+                                 size_t *cells);
+
+/* ---- MERL ------------------------------------------------------------- */
+
+#define SB_MERL_TH 90
+#define SB_MERL_TD 90
+#define SB_MERL_PD 180
+#define SB_MERL_CELLS ((size_t)SB_MERL_TH * SB_MERL_TD * SB_MERL_PD)
+#define SB_MERL_FILE_SIZE ((size_t)12 + 3 * 8 * SB_MERL_CELLS) /* 34,992,012 bytes */
+
+/* Channel scales: f_r,c = stored value x scale[c]. */
+extern const double sb_merl_scale[3];
+
+/* Rusinkiewicz half/difference angles of a pair: h = normalize(wi + wo),
+ * theta_h, phi_h its angles; d = wi rotated by -phi_h about z, then by
+ * -theta_h about y; theta_d, phi_d its angles, phi_d in [0, 2 pi).
+ * Conventions for the degenerate cases: phi_h = 0 when sin theta_h <= 1e-12
+ * (h along the normal), phi_d = 0 when sin theta_d <= 1e-12 (wi = wo).
+ * Returns 0 when h is undefined (wi = -wo, |wi + wo| <= 1e-12). */
+int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d);
+/* The inverse with phi_h = 0; returns 1 when both directions are strictly
+ * above the horizon. */
+int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3], double wo[3]);
+
+/* MERL cell of a pair (the reference code's nearest cell); returns 0 when
+ * the pair has a direction at or below the horizon, or wi = -wo. */
+int sb_merl_index(const double wi[3], const double wo[3], size_t *index);
+/* Directions at the centre of a cell (index space + 1/2 on each axis, phi_h
+ * = 0); returns 1 when both are above the horizon. */
+int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
+
+/* Write `src` as a MERL file: each cell holds f_r at the cell's centre
+ * divided by the channel scale, or -1 (missing) where the centre pair is
+ * not above the horizon, or the source is missing or not finite there.
+ * Evaluated in parallel; written to a temporary name, then renamed.
+ * Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
+sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
+
+/* ---- simulated gonioreflectometer ------------------------------------- */
+
+/* Detector grid: theta_k = (k + 1/2) 90 deg / N_theta (cell centres of
+ * [0, 90] deg, so the horizon is never measured) and phi_k = k 360 deg /
+ * N_phi (the plane of incidence is included), for the light (i) and the
+ * detector (o).  The "spacing" is 90/N_theta and 360/N_phi degrees. */
+typedef struct sb_gonio_opts {
+    size_t n_theta_i, n_phi_i, n_theta_o, n_phi_o; /* 0 = 18, 1, 18, 72 (5 deg) */
+    double noise;                                  /* sigma of multiplicative Gaussian noise: v (1 + sigma z),
+                                                    * z ~ N(0, 1) per value; 0 = none (may give v < 0) */
+    uint64_t seed;                                 /* of the noise; 0 = 1 */
+} sb_gonio_opts_t;
+
+/* Measure `src` on the detector grid and write a sepbrdf CSV table to fp
+ * (rows where the source is missing are left out; *rows, if not NULL,
+ * receives the number written).  Errors: SB_ERR_ARG, SB_ERR_RANGE (grid
+ * sizes 1..4096, noise 0..10), SB_ERR_OVERFLOW (more than 2^31 rows),
+ * SB_ERR_IO. */
+sb_result_t sb_gonio_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, const sb_gonio_opts_t *opts,
+                               size_t *rows);
+
+/* ---- spectra ------------------------------------------------------------ */
+
+/* CIE 1931 2 deg colour matching functions (x, y, z bar) at `nm`, linear
+ * between the embedded 1 nm table (380..780 nm), 0 outside. */
+void sb_cie_cmf(double nm, double xyz[3]);
+
+/* Linear weights w[c * n + k] such that linear sRGB_c = sum_k w[c n + k]
+ * s_k for a spectrum sampled at n increasing wavelengths (nm): s is taken
+ * piecewise linear between the samples and constant beyond the ends,
+ * integrated against the CMFs at 1 nm, normalised by sum ybar (white E),
+ * optionally adapted to D65, and mapped by the IEC 61966-2-1 XYZ -> linear
+ * sRGB matrix.  Errors: SB_ERR_RANGE (n == 0, wavelengths not finite or not
+ * increasing). */
+sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

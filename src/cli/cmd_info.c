@@ -1,0 +1,260 @@
+/* sepbrdf info: what a file holds.
+ *
+ * One handler per kind of file, tried in order; the first whose match()
+ * accepts the path prints it.  Measured tables are the only kind so far;
+ * the EXR factor files (a folder of g_JJ.exr / h_JJ.exr, or one .exr) are
+ * meant to get their own entry in `kinds` ahead of the tables. */
+#include <errno.h>
+#include <math.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+
+typedef struct info_opts {
+    const char *path;
+    size_t res;
+    int json;
+    sb_measured_opts_t mo;
+} info_opts_t;
+
+typedef struct info_kind {
+    const char *what;
+    int (*match)(const char *path);
+    int (*run)(const info_opts_t *o);
+} info_kind_t;
+
+static void help(void) {
+    printf("usage: sepbrdf info FILE [--res R] [--json] [--interp M] [--neighbours K] [--radius DEG]\n"
+           "                         [--white e|d65]\n"
+           "\n"
+           "Print what FILE holds.  For a factor file (g_KK.exr or h_KK.exr written by\n"
+           "`sepbrdf factor`): its texture size, term and J, sigma_j per channel (from the\n"
+           "g files of its folder), parameterisation, source, form, method and the\n"
+           "relative RMS error per J.  For a measured table (MERL .binary, Cornell .brdf,\n"
+           "ALTA, sepbrdf CSV): the format, rows read and used, rows skipped (NaN, at or\n"
+           "below the horizon), wavelengths, value ranges of the RGB f_r (1/sr), the\n"
+           "interpolation, and the coverage: the fraction of the cells of the io grid\n"
+           "(R x R directions each for wi and wo) for which the table gives a value.\n"
+           "Cells with none are missing: masked in `sepbrdf factor`.\n"
+           "\n"
+           "options:\n"
+           "  -r, --res R          io grid of the coverage, 2..512 (default 32)\n"
+           "      --json           print JSON instead of the table\n"
+           "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n"
+           "                       tables: local linear fit), idw, quadratic (default for\n"
+           "                       scattered tables: local quadratic fit)\n"
+           "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n"
+           "      --radius DEG     scattered: farther than this from every sample is\n"
+           "                       missing, in degrees of the embedding distance\n"
+           "                       (default: 2.5 x the median sample spacing)\n"
+           "      --white W        spectra: e (default; flat spectrum = illuminant E)\n"
+           "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"
+           CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
+}
+
+static int is_regular_file(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+static void flags_text(unsigned f, char *buf, size_t size) {
+    snprintf(buf, size, "%s%s%s%s", f & SB_SOURCE_MEASURED ? "measured " : "",
+             f & SB_SOURCE_ISOTROPIC ? "isotropic " : "anisotropic ", f & SB_SOURCE_RECIPROCAL ? "reciprocal " : "",
+             f & SB_SOURCE_GRAY ? "gray " : "");
+    size_t n = strlen(buf);
+    if (n && buf[n - 1] == ' ') buf[n - 1] = 0;
+}
+
+static int info_measured(const info_opts_t *o) {
+    sb_context_t *ctx = NULL;
+    sb_source_t *src = NULL;
+    sb_param_t *param = NULL;
+    sb_measured_info_t in;
+    sb_result_t r;
+    int rc = EXIT_OK;
+    if (sb_context_create(&ctx) != SB_OK) {
+        cli_error("info", "out of memory");
+        return EXIT_IO;
+    }
+    if ((r = sb_measured_open(ctx, o->path, &o->mo, &src, &in)) != SB_OK) goto fail;
+    sb_param_opts_t po = {0};
+    po.res = o->res;
+    if ((r = sb_param_create(ctx, SB_PARAM_IO, &po, &param)) != SB_OK) goto fail;
+    size_t known = 0, cells = 0;
+    if ((r = sb_measured_coverage(ctx, src, param, &known, &cells)) != SB_OK) goto fail;
+    double cov = cells ? (double)known / (double)cells : 0;
+    const char *fmt = sb_table_format_name(in.format);
+    static const char *const cn[3] = {"R", "G", "B"};
+    char flags[128];
+    flags_text(in.flags, flags, sizeof flags);
+    int scattered = in.format != SB_TABLE_MERL;
+    if (o->json) {
+        json_t j = {stdout, 0, {0}};
+        json_begin_object(&j, NULL);
+        json_string(&j, "file", o->path);
+        json_string(&j, "kind", "measured table");
+        json_string(&j, "format", fmt);
+        json_int(&j, "rows", (long long)in.rows);
+        json_int(&j, "samples", (long long)in.samples);
+        json_int(&j, "missing", (long long)in.missing);
+        json_int(&j, "negative", (long long)in.negative);
+        json_int(&j, "out_of_gamut", (long long)in.out_of_gamut);
+        json_int(&j, "nan_rows", (long long)in.nan_rows);
+        json_int(&j, "horizon_rows", (long long)in.horizon_rows);
+        json_int(&j, "channels", (long long)in.channels);
+        json_int(&j, "wavelengths", (long long)in.wavelengths);
+        if (in.wavelengths) {
+            json_number(&j, "wavelength_min_nm", in.wl_min);
+            json_number(&j, "wavelength_max_nm", in.wl_max);
+            json_string(&j, "white", in.white == SB_WHITE_D65 ? "d65" : "e");
+        }
+        json_number(&j, "theta_i_max_deg", in.theta_i_max * 180 / SB_PI);
+        json_number(&j, "theta_o_max_deg", in.theta_o_max * 180 / SB_PI);
+        json_begin_object(&j, "value");
+        for (int c = 0; c < 3; c++) {
+            json_begin_object(&j, cn[c]);
+            json_number(&j, "min", in.value_min[c]);
+            json_number(&j, "max", in.value_max[c]);
+            json_number(&j, "mean", in.value_mean[c]);
+            json_end_object(&j);
+        }
+        json_end_object(&j);
+        json_string(&j, "flags", flags);
+        json_string(&j, "interp", sb_interp_name(in.interp));
+        if (scattered) {
+            json_int(&j, "neighbours", (long long)in.neighbours);
+            json_number(&j, "spacing_deg", in.spacing * 180 / SB_PI);
+            json_number(&j, "radius_deg", in.radius * 180 / SB_PI);
+            json_int(&j, "embedding_dims", (long long)in.dims);
+        }
+        json_begin_object(&j, "coverage");
+        json_string(&j, "param", sb_param_spec(param));
+        json_int(&j, "cells", (long long)cells);
+        json_int(&j, "known", (long long)known);
+        json_int(&j, "missing", (long long)(cells - known));
+        json_number(&j, "fraction", cov);
+        json_end_object(&j);
+        json_end_object(&j);
+    } else {
+        printf("file          %s\n", o->path);
+        printf("format        %s\n", fmt);
+        if (in.format == SB_TABLE_MERL) {
+            printf("cells         %zu (measured %zu, missing %zu: negative %zu, NaN %zu)\n", in.rows, in.samples,
+                   in.missing, in.negative, in.nan_rows);
+        } else {
+            printf("rows          %zu (used %zu; skipped %zu: NaN %zu, at/below horizon %zu)\n", in.rows, in.samples,
+                   in.missing, in.nan_rows, in.horizon_rows);
+            printf("negative      %zu rows (kept)\n", in.negative);
+        }
+        if (in.wavelengths)
+            printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s; %zu rows out of gamut (RGB < 0, kept)\n",
+                   in.wavelengths, in.wl_min, in.wl_max, in.white == SB_WHITE_D65 ? "D65 (Bradford)" : "E",
+                   in.out_of_gamut);
+        else
+            printf("channels      %zu%s\n", in.channels, in.channels == 1 ? " (gray)" : " (RGB)");
+        if (scattered)
+            printf("theta max     i %.2f deg, o %.2f deg\n", in.theta_i_max * 180 / SB_PI,
+                   in.theta_o_max * 180 / SB_PI);
+        printf("f_r (1/sr)    %12s %12s %12s\n", "min", "max", "mean");
+        for (int c = 0; c < 3; c++)
+            printf("  %-11s %12.5g %12.5g %12.5g\n", cn[c], in.value_min[c], in.value_max[c], in.value_mean[c]);
+        printf("flags         %s\n", flags);
+        if (scattered)
+            printf("interp        %s, k = %zu, radius %.3g deg (median spacing %.3g deg), %zu-D embedding\n",
+                   sb_interp_name(in.interp), in.neighbours, in.radius * 180 / SB_PI, in.spacing * 180 / SB_PI,
+                   in.dims);
+        else
+            printf("interp        %s\n", sb_interp_name(in.interp));
+        printf("coverage      %s: %zu of %zu cells (%.2f %%), %zu missing\n", sb_param_spec(param), known, cells,
+               100 * cov, cells - known);
+    }
+    goto out;
+fail:
+    rc = cli_fail("info", ctx, r);
+out:
+    sb_param_destroy(param);
+    sb_source_destroy(src);
+    sb_context_destroy(ctx);
+    return rc;
+}
+
+static int is_factor_exr(const char *path) {
+    size_t n = strlen(path);
+    return n >= 4 && (strcmp(path + n - 4, ".exr") == 0 || strcmp(path + n - 4, ".EXR") == 0);
+}
+static int info_factors(const info_opts_t *o) { return info_exr(o->path, stdout); }
+
+static const info_kind_t kinds[] = {
+    {"factor textures", is_factor_exr, info_factors},
+    {"measured table", is_regular_file, info_measured},
+};
+
+int cmd_info(int argc, char **argv) {
+    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_json[] = {"--json", NULL},
+                             *const n_interp[] = {"--interp", NULL}, *const n_k[] = {"--neighbours", NULL},
+                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL},
+                             *const n_help[] = {"-h", "--help", NULL};
+    info_opts_t o;
+    memset(&o, 0, sizeof o);
+    o.res = 32;
+    cli_args_t a = {argc, 1, argv, "info"};
+    for (; a.i < argc; a.i++) {
+        const char *v = NULL;
+        int m;
+        if (cli_opt(&a, n_help, 0, &v)) {
+            help();
+            return EXIT_OK;
+        }
+        if ((m = cli_opt(&a, n_res, 1, &v))) {
+            if (m < 0 || cli_parse_size("info", "--res", v, 2, 512, &o.res)) return EXIT_USAGE;
+        } else if (cli_opt(&a, n_json, 0, &v)) {
+            o.json = 1;
+        } else if ((m = cli_opt(&a, n_interp, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (sb_interp_parse(v, &o.mo.interp) != SB_OK) {
+                cli_error("info", "--interp '%s' unknown, need one of nearest, linear, idw, quadratic", v);
+                return EXIT_USAGE;
+            }
+        } else if ((m = cli_opt(&a, n_k, 1, &v))) {
+            if (m < 0 || cli_parse_size("info", "--neighbours", v, 1, 64, &o.mo.neighbours)) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_rad, 1, &v))) {
+            double deg;
+            if (m < 0 || cli_parse_double("info", "--radius", v, 1e-6, 360, &deg)) return EXIT_USAGE;
+            o.mo.radius = deg * SB_PI / 180;
+        } else if ((m = cli_opt(&a, n_white, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (strcmp(v, "e") == 0)
+                o.mo.white = SB_WHITE_E;
+            else if (strcmp(v, "d65") == 0)
+                o.mo.white = SB_WHITE_D65;
+            else {
+                cli_error("info", "--white '%s' unknown, need e or d65", v);
+                return EXIT_USAGE;
+            }
+        } else if (cli_verbosity_opt(argv[a.i])) {
+            continue;
+        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
+            cli_error("info", "unknown option '%s' (see `sepbrdf info --help`)", argv[a.i]);
+            return EXIT_USAGE;
+        } else if (!o.path) {
+            o.path = argv[a.i];
+        } else {
+            cli_error("info", "more than one FILE given ('%s' and '%s')", o.path, argv[a.i]);
+            return EXIT_USAGE;
+        }
+    }
+    if (!o.path) {
+        cli_error("info", "no FILE given (see `sepbrdf info --help`)");
+        return EXIT_USAGE;
+    }
+    struct stat st;
+    if (stat(o.path, &st) != 0) {
+        cli_error("info", "%s: %s", o.path, strerror(errno));
+        return EXIT_IO;
+    }
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
+        if (kinds[k].match(o.path)) return kinds[k].run(&o);
+    cli_error("info", "%s: not a file this command knows (measured tables: MERL, Cornell, ALTA, CSV)", o.path);
+    return EXIT_IO;
+}

@@ -1,0 +1,174 @@
+/* sepbrdf info on a factor file: the header of one EXR written by
+ * sb_factors_write_exr (attributes listed in exr.h), read with OpenEXRCore
+ * directly so that one file is enough; sigma_j of the other terms come from
+ * the headers of the sibling g files when they are there. */
+#include <openexr.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+#define PREFIX "sepbrdf."
+
+/* OpenEXRCore prints to stderr unless given a handler; keep the first
+ * message for our own. */
+static char exr_msg[256];
+static void on_exr_error(exr_const_context_t c, exr_result_t code, const char *msg) {
+    (void)c;
+    if (!exr_msg[0]) snprintf(exr_msg, sizeof exr_msg, "%s", msg ? msg : exr_get_error_code_as_string(code));
+}
+
+static exr_result_t open_header(const char *path, exr_context_t *ex) {
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = on_exr_error;
+    exr_msg[0] = 0;
+    return exr_start_read(ex, path, &init);
+}
+
+static const exr_attribute_t *attr(exr_context_t ex, const char *name, exr_attribute_type_t type) {
+    const exr_attribute_t *a = NULL;
+    if (exr_get_attribute_by_name(ex, 0, name, &a) != EXR_ERR_SUCCESS || !a || a->type != type) return NULL;
+    return a;
+}
+
+static const char *attr_str(exr_context_t ex, const char *key) {
+    const exr_attribute_t *a = attr(ex, key, EXR_ATTR_STRING);
+    return a && a->string && a->string->str ? a->string->str : NULL;
+}
+
+static int attr_int(exr_context_t ex, const char *key, int32_t *out) {
+    const exr_attribute_t *a = attr(ex, key, EXR_ATTR_INT);
+    if (a) *out = a->i;
+    return a != NULL;
+}
+
+static const exr_attr_float_vector_t *attr_floats(exr_context_t ex, const char *key) {
+    const exr_attribute_t *a = attr(ex, key, EXR_ATTR_FLOAT_VECTOR);
+    return a ? a->floatvector : NULL;
+}
+
+static const char *compression_name(exr_compression_t c) {
+    static const char *const names[] = {"none", "RLE", "ZIPS", "ZIP", "PIZ", "PXR24", "B44", "B44A", "DWAA", "DWAB"};
+    return (unsigned)c < sizeof names / sizeof names[0] ? names[c] : "?";
+}
+
+static const char *pixel_name(exr_pixel_type_t t) {
+    switch (t) {
+    case EXR_PIXEL_HALF:
+        return "half";
+    case EXR_PIXEL_FLOAT:
+        return "float32";
+    case EXR_PIXEL_UINT:
+        return "uint32";
+    default:
+        return "?";
+    }
+}
+
+/* Folder part of path ("." when none) into buf. */
+static void dir_of(const char *path, char *buf, size_t size) {
+    const char *slash = strrchr(path, '/');
+    if (!slash)
+        snprintf(buf, size, ".");
+    else if (slash == path)
+        snprintf(buf, size, "/");
+    else
+        snprintf(buf, size, "%.*s", (int)(slash - path), path);
+}
+
+/* sigma of every term from the g files next to `path`; this file's own
+ * term from its header. */
+static void print_sigmas(FILE *out, const char *path, exr_context_t self, int32_t term, int32_t terms, int32_t channels,
+                         const char *const *cn) {
+    char dir[4096], name[64], sib[4200];
+    dir_of(path, dir, sizeof dir);
+    fprintf(out, "  sigma_j    %4s", "j");
+    for (int32_t c = 0; c < channels; c++)
+        fprintf(out, "  %12s", cn[c]);
+    fputc('\n', out);
+    for (int32_t k = 0; k < terms; k++) {
+        exr_context_t ex = NULL;
+        const exr_attr_float_vector_t *s = NULL;
+        if (k == term) {
+            s = attr_floats(self, PREFIX "sigma");
+        } else {
+            sb_exr_name(SB_SIDE_G, (size_t)k, name, sizeof name);
+            snprintf(sib, sizeof sib, "%s/%s", dir, name);
+            if (open_header(sib, &ex) == EXR_ERR_SUCCESS) {
+                int32_t t = -1;
+                if (attr_int(ex, PREFIX "term", &t) && t == k) s = attr_floats(ex, PREFIX "sigma");
+            }
+        }
+        fprintf(out, "             %4d", (int)k);
+        for (int32_t c = 0; c < channels; c++) {
+            if (s && c < s->length)
+                fprintf(out, "  %12.6g", (double)s->arr[c]);
+            else
+                fprintf(out, "  %12s", "?");
+        }
+        fputc('\n', out);
+        if (ex) exr_finish(&ex);
+    }
+}
+
+int info_exr(const char *path, FILE *out) {
+    exr_context_t ex = NULL;
+    exr_result_t rv = open_header(path, &ex);
+    if (rv != EXR_ERR_SUCCESS) {
+        cli_error("info", "%s: cannot read as an EXR file: %s", path,
+                  exr_msg[0] ? exr_msg : exr_get_error_code_as_string(rv));
+        if (ex) exr_finish(&ex);
+        return EXIT_IO;
+    }
+    const char *version = attr_str(ex, PREFIX "version"), *side = attr_str(ex, PREFIX "side");
+    int32_t term = 0, terms = 0, channels = 0;
+    if (!version || !side || !attr_int(ex, PREFIX "term", &term) || !attr_int(ex, PREFIX "terms", &terms) ||
+        !attr_int(ex, PREFIX "channels", &channels) || terms < 1 || term < 0 || term >= terms || channels < 1 ||
+        channels > 3) {
+        cli_error("info", "%s: not a factor file (an EXR without the sepbrdf.* attributes `factor` writes)", path);
+        exr_finish(&ex);
+        return EXIT_IO;
+    }
+    exr_attr_box2i_t dw;
+    memset(&dw, 0, sizeof dw);
+    if (exr_get_data_window(ex, 0, &dw) != EXR_ERR_SUCCESS) dw.max.x = dw.max.y = -1;
+    const exr_attr_chlist_t *chl = NULL;
+    exr_get_channels(ex, 0, &chl);
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    exr_get_compression(ex, 0, &comp);
+    static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
+    const char *const *cn = channels == 1 ? y : rgb;
+    const char *param = attr_str(ex, PREFIX "param");
+
+    fprintf(out, "%s: sepbrdf factor texture (written by sepbrdf %s)\n", path, version);
+    fprintf(out, "  texture    %s_%02d (%s domain), term %d of J = %d\n", side, (int)term,
+            strcmp(side, "h") == 0 ? "h, column" : "g, row", (int)term, (int)terms);
+    fprintf(out, "  size       %d x %d texels", (int)(dw.max.x - dw.min.x + 1), (int)(dw.max.y - dw.min.y + 1));
+    if (param && strstr(param, "res=")) fprintf(out, ", R = %d", atoi(strstr(param, "res=") + 4));
+    fputc('\n', out);
+    fprintf(out, "  channels   %d:", (int)channels);
+    for (int i = 0; chl && i < chl->num_channels; i++)
+        fprintf(out, " %s (%s)", chl->entries[i].name.str, pixel_name(chl->entries[i].pixel_type));
+    const exr_attribute_t *sc = attr(ex, PREFIX "scale", EXR_ATTR_FLOAT);
+    if (sc) fprintf(out, ", value = stored x %g", (double)sc->f);
+    fprintf(out, ", %s compression\n", compression_name(comp));
+    /* every string attribute the writer copied from the factors' metadata */
+    int32_t count = 0;
+    exr_get_attribute_count(ex, 0, &count);
+    for (int32_t i = 0; i < count; i++) {
+        const exr_attribute_t *a = NULL;
+        if (exr_get_attribute_by_index(ex, 0, EXR_ATTR_LIST_SORTED_ORDER, i, &a) != EXR_ERR_SUCCESS || !a) continue;
+        if (a->type != EXR_ATTR_STRING || strncmp(a->name, PREFIX, strlen(PREFIX)) != 0) continue;
+        const char *key = a->name + strlen(PREFIX);
+        if (strcmp(key, "version") == 0 || strcmp(key, "side") == 0) continue;
+        fprintf(out, "  %-10s %s\n", key, a->string && a->string->str ? a->string->str : "");
+    }
+    print_sigmas(out, path, ex, term, terms, channels, cn);
+    const exr_attr_float_vector_t *rel = attr_floats(ex, PREFIX "rel_rms");
+    fprintf(out, "  rel_rms    %4s  %12s   (||M - M_J'||_F / ||M||_F, all channels)\n", "J'", "error");
+    for (int32_t k = 0; rel && k < rel->length; k++)
+        fprintf(out, "             %4d  %12.6g\n", (int)k + 1, (double)rel->arr[k]);
+    if (!rel) fprintf(out, "             (none in this file)\n");
+    exr_finish(&ex);
+    return EXIT_OK;
+}

@@ -1,0 +1,143 @@
+/* The per-candidate pipeline of `factor` and `study`: sample, factor,
+ * measure.  Only the public API. */
+#include "pipeline.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* A model spec is NAME[:key=value,...] with NAME a plain identifier, so a
+ * NAME with '/' or '.' can only be meant as a file.  Values may hold both
+ * ("base=1/0.8/0.3", "roughness=0.5"), hence only the part before ':'. */
+static int looks_like_path(const char *spec) {
+    size_t n = strcspn(spec, ":");
+    return memchr(spec, '/', n) != NULL || memchr(spec, '.', n) != NULL;
+}
+
+sb_result_t pipe_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out) {
+    struct stat st;
+    if (spec && looks_like_path(spec)) {
+        if (stat(spec, &st) != 0) return sb_error(ctx, SB_ERR_IO, "%s: %s", spec, strerror(errno));
+        if (!S_ISREG(st.st_mode)) return sb_error(ctx, SB_ERR_IO, "%s: not a regular file", spec);
+    }
+    return sb_source_open(ctx, spec, out);
+}
+
+static void sample_progress(void *user, double fraction) {
+    const pipe_opts_t *o = user;
+    cli_progress(o->progress_label, o->progress_base + o->progress_span * fraction);
+}
+
+sb_result_t attempt_sample(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *o, sb_param_kind_t kind,
+                           sb_form_t form, attempt_t *a) {
+    memset(a, 0, sizeof *a);
+    a->zero_fill = o->zero_fill;
+    sb_param_opts_t po = {0};
+    po.res = o->res;
+    po.theta_max = o->theta_max_deg * SB_PI / 180;
+    sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
+    if (r != SB_OK) return r;
+    size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
+    if (o->terms > mn)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "--terms %zu exceeds the %zu rows/columns of %s; lower --terms or raise --res", o->terms, mn,
+                        sb_param_spec(a->param));
+    cli_info(2, "sampling %s on %s (%zu x %zu), form %s", sb_source_description(src), sb_param_spec(a->param), rows,
+             cols, sb_form_name(form));
+    double t0 = cli_now();
+    sb_matrix_opts_t mo = {0};
+    mo.form = form;
+    if (o->progress_label) {
+        mo.progress = sample_progress;
+        mo.progress_user = (void *)o;
+    }
+    if ((r = sb_matrix_build(ctx, src, a->param, &mo, &a->m)) != SB_OK) return r;
+    a->t_sample = cli_now() - t0;
+    return SB_OK;
+}
+
+int attempt_masked(const attempt_t *a) { return a->m.mask != NULL && !a->zero_fill; }
+
+sb_result_t attempt_factor(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *o, size_t terms, int weighted,
+                           attempt_t *a) {
+    sb_factors_destroy(a->f);
+    a->f = NULL;
+    memset(&a->metric, 0, sizeof a->metric);
+    memset(&a->stats, 0, sizeof a->stats);
+    a->weighted = weighted;
+    sb_plan_opts_t pl = {0};
+    pl.terms = terms;
+    pl.max_error = o->max_error;
+    pl.svd.method = o->method;
+    pl.svd.seed = o->seed;
+    pl.weighted = weighted;
+    pl.zero_fill = o->zero_fill;
+    sb_plan_t *plan = NULL;
+    sb_result_t r = sb_plan_create(ctx, a->m.rows, a->m.cols, &pl, &plan);
+    if (r != SB_OK) return r;
+    cli_info(2, "factoring %s, %zu terms%s%s", sb_param_spec(a->param), terms, weighted ? ", weighted" : "",
+             attempt_masked(a) ? ", masked fit" : "");
+    double t1 = cli_now();
+    r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    sb_plan_stats(plan, &a->stats);
+    sb_plan_destroy(plan);
+    if (r != SB_OK) return r;
+    double t2 = cli_now();
+    if (sb_factors_set_meta(a->f, "source", sb_source_description(src)) != SB_OK)
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    sb_metric_opts_t mo = {0};
+    mo.res = o->metric_res;
+    if ((r = sb_metric_compute(ctx, src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
+    a->t_factor = t2 - t1;
+    a->t_metric = cli_now() - t2;
+    return SB_OK;
+}
+
+sb_result_t attempt_run(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *o, sb_param_kind_t kind,
+                        sb_form_t form, int weighted, attempt_t *a) {
+    sb_result_t r = attempt_sample(ctx, src, o, kind, form, a);
+    if (r == SB_OK) r = attempt_factor(ctx, src, o, o->terms, weighted, a);
+    return r;
+}
+
+double attempt_comparable(const attempt_t *a, size_t j) {
+    return j >= 1 && j <= a->metric.terms ? a->metric.rel_l2[j - 1] : NAN;
+}
+
+double attempt_negative(const attempt_t *a, size_t j) {
+    return j >= 1 && j <= a->metric.terms ? a->metric.neg_frac[j - 1] : NAN;
+}
+
+void attempt_free(attempt_t *a) {
+    sb_factors_destroy(a->f);
+    sb_matrix_free(&a->m);
+    sb_param_destroy(a->param);
+    memset(a, 0, sizeof *a);
+}
+
+void pipe_guard_factor_outputs(const char *dir, size_t terms, int on) {
+    static const char *const names[] = {"sepbrdf.glsl", "report.json"};
+    char path[4200];
+    if (!on)
+        cli_unguard_exr();
+    else
+        cli_guard_exr(dir, terms, 1);
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        snprintf(path, sizeof path, "%s/%s", dir, names[i]);
+        if (on)
+            cli_guard(path);
+        else
+            cli_unguard(path);
+        /* sb_glsl_write's temporary (glsl.h): PATH.tmp-PID */
+        if (i == 0) {
+            snprintf(path, sizeof path, "%s/%s.tmp-%ld", dir, names[i], (long)getpid());
+            if (on)
+                cli_guard(path);
+            else
+                cli_unguard(path);
+        }
+    }
+}

@@ -1,0 +1,73 @@
+/* sepbrdf CLI: the per-candidate pipeline shared by `factor` and `study`.
+ *
+ * One attempt = one source on one parameterisation and form:
+ *     sample (param + matrix) -> plan + execute (factors) -> comparable metric.
+ * The two halves are separate so that `study` samples once and factors the
+ * same matrix several times (one plan per J when the fit is masked). */
+#ifndef SEPBRDF_CLI_PIPELINE_H
+#define SEPBRDF_CLI_PIPELINE_H
+
+#include "cli.h"
+
+/* Settings of an attempt; zero means the library default except where
+ * noted. */
+typedef struct pipe_opts {
+    size_t res;           /* R, cells per angular axis */
+    size_t terms;         /* J of the plan (attempt_sample checks it fits) */
+    size_t metric_res;    /* reference grid of the comparable metric */
+    double theta_max_deg; /* 0 = 90 */
+    double max_error;     /* plan stops at the first J' with rel_rms <= this; 0 = off */
+    sb_method_t method;
+    unsigned long long seed;
+    int zero_fill; /* factor invalid cells as zeros (no masked fit) */
+    /* Progress of the sampling stage: cli_progress(label, base + span * f)
+     * with f the fraction of the matrix built; label NULL = no progress. */
+    const char *progress_label;
+    double progress_base, progress_span;
+} pipe_opts_t;
+
+/* One complete factorisation of a source on one parameterisation. */
+typedef struct attempt {
+    sb_param_t *param;
+    sb_matrix_t m;
+    sb_factors_t *f;
+    sb_plan_stats_t stats;
+    sb_metric_t metric;
+    int weighted, zero_fill;
+    double t_sample, t_factor, t_metric;
+} attempt_t;
+
+/* Open SOURCE like sb_source_open, but a spec that names a path (its model
+ * part contains '/' or '.') and does not exist, or is not a regular file,
+ * fails with SB_ERR_IO "PATH: no such file" instead of "unknown model". */
+sb_result_t pipe_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out);
+
+/* Create the parameterisation and sample the source into a->m (a is reset
+ * first).  Fails with SB_ERR_RANGE when o->terms exceeds the matrix's
+ * smaller dimension. */
+sb_result_t attempt_sample(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *o, sb_param_kind_t kind,
+                           sb_form_t form, attempt_t *a);
+/* Factor the sampled a->m with `terms` terms (replacing a->f), record the
+ * plan statistics and compute the comparable metric for J' = 1..terms. */
+sb_result_t attempt_factor(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *o, size_t terms, int weighted,
+                           attempt_t *a);
+/* attempt_sample + attempt_factor with o->terms. */
+sb_result_t attempt_run(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *o, sb_param_kind_t kind,
+                        sb_form_t form, int weighted, attempt_t *a);
+/* Whether factoring a->m is a masked fit (invalid cells and no zero fill):
+ * then the leading J' terms of a rank-J fit are not the rank-J' fit. */
+int attempt_masked(const attempt_t *a);
+void attempt_free(attempt_t *a);
+/* Comparable error and negative fraction after j >= 1 terms; NAN beyond
+ * the terms the metric holds (sb_metric_t keeps 256). */
+double attempt_comparable(const attempt_t *a, size_t j);
+double attempt_negative(const attempt_t *a, size_t j);
+
+/* Guard the output set of `factor` in `dir` against signals (see
+ * cli_guard): the temporaries sb_factors_write_exr and sb_glsl_write use
+ * and, with finals, the finished files g_KK.exr, h_KK.exr (K < terms),
+ * sepbrdf.glsl and report.json, so that a run interrupted while writing
+ * leaves neither temporaries nor a set mixing two runs.  on = 0 releases. */
+void pipe_guard_factor_outputs(const char *dir, size_t terms, int on);
+
+#endif

@@ -1,0 +1,90 @@
+/* CLI: `sepbrdf info FILE.exr` on factor files written by the real binary
+ * (SB_CLI), and on files that are not factor files. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+
+static char out[65536];
+
+static int run(const char *fmt, const char *a) {
+    char cmd[8192], tail[6000];
+    snprintf(tail, sizeof tail, fmt, a);
+    snprintf(cmd, sizeof cmd, "%s %s", SB_CLI, tail);
+    return sb_run(cmd, out, sizeof out);
+}
+
+static const char *factor_dir(void) {
+    static char dir[4200];
+    snprintf(dir, sizeof dir, "%s", sb_tmpdir("info"));
+    int rc = run("factor microfacet:base=copper,roughness=0.6 --param io --res 8 -J 3 -q -o %s", dir);
+    CHECKF(rc == 0, "factor: rc %d: %s", rc, out);
+    return dir;
+}
+
+SB_TEST(factor_file) {
+    const char *dir = factor_dir();
+    char path[4300];
+    snprintf(path, sizeof path, "%s/h_01.exr", dir);
+    int rc = run("info %s", path);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *want[] = {"h_01", "term 1 of J = 3", "8 x 8 texels", "R = 8",   "io:res=8", "microfacet:base=",
+                          "form", "method",          "sigma_j",      "rel_rms", "float32"};
+    for (size_t i = 0; i < sizeof want / sizeof want[0]; i++)
+        CHECKF(strstr(out, want[i]), "lacks %s: %s", want[i], out);
+    CHECKF(!strstr(out, " ?"), "a sigma is missing: %s", out);
+    /* sigma_0 of R as in report.json */
+    char rep[4300];
+    snprintf(rep, sizeof rep, "%s/report.json", dir);
+    FILE *fp = fopen(rep, "r");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    static char buf[1 << 16];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    buf[n] = 0;
+    fclose(fp);
+    const char *s = strstr(buf, "\"sigma\": {\n    \"R\": [\n      ");
+    CHECK(s != NULL);
+    if (!s) return;
+    double sigma0 = atof(s + strlen("\"sigma\": {\n    \"R\": [\n      "));
+    const char *row = strstr(out, "sigma_j");
+    row = row ? strstr(row, "\n") : NULL; /* the j = 0 line */
+    CHECK(row != NULL);
+    if (!row) return;
+    double j0, r0;
+    CHECK(sscanf(row, " %lf %lf", &j0, &r0) == 2);
+    CHECK(j0 == 0);
+    CHECK_REL(r0, sigma0, 1e-5); /* printed with 6 digits from a float */
+}
+
+SB_TEST(missing_sibling) {
+    const char *dir = factor_dir();
+    char path[4300];
+    snprintf(path, sizeof path, "%s/g_01.exr", dir);
+    CHECK(remove(path) == 0);
+    snprintf(path, sizeof path, "%s/g_00.exr", dir);
+    int rc = run("info %s", path);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECKF(strstr(out, " ?"), "the missing term's sigma is not marked: %s", out);
+}
+
+SB_TEST(not_factor_files) {
+    const char *dir = factor_dir();
+    char path[4300], cmd[20000];
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    CHECK(run("info %s", path) == 2);
+    CHECKF(strstr(out, "report.json") != NULL, "message does not name the file: %s", out);
+    /* a text file named .exr, and a truncated EXR */
+    snprintf(cmd, sizeof cmd, "cp %s/report.json %s/fake.exr && head -c 200 %s/g_00.exr > %s/cut.exr", dir, dir, dir,
+             dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    snprintf(path, sizeof path, "%s/fake.exr", dir);
+    CHECK(run("info %s", path) == 2);
+    CHECK(strstr(out, "fake.exr"));
+    snprintf(path, sizeof path, "%s/cut.exr", dir);
+    CHECK(run("info %s", path) == 2);
+    CHECK(strstr(out, "cut.exr"));
+    snprintf(path, sizeof path, "%s/missing.exr", dir);
+    CHECK(run("info %s", path) == 2);
+    CHECK(strstr(out, "missing.exr"));
+}

@@ -1,0 +1,178 @@
+/* CLI: `sepbrdf study` with the real binary (SB_CLI): files, nesting of J,
+ * failures that keep the other results, gnuplot missing. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+
+static char out[65536];
+
+static int run(const char *fmt, const char *a, const char *b) {
+    char cmd[8192], tail[6000];
+    snprintf(tail, sizeof tail, fmt, a, b);
+    snprintf(cmd, sizeof cmd, "%s %s", SB_CLI, tail);
+    return sb_run(cmd, out, sizeof out);
+}
+
+static char *slurp(const char *dir, const char *name) {
+    char path[8400];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    buf[n] = 0;
+    fclose(fp);
+    return buf;
+}
+
+static int count_lines(const char *s) {
+    int n = 0;
+    for (; s && *s; s++)
+        n += *s == '\n';
+    return n;
+}
+
+/* Value of CSV column `col` (0-based) in the row whose source starts with
+ * `source` and whose terms column (6) is J; NAN if absent.  Sources in
+ * these tests hold no commas. */
+static double csv_value(const char *csv, const char *source, int J, int col) {
+    for (const char *line = csv; line && *line; line = strchr(line, '\n') ? strchr(line, '\n') + 1 : NULL) {
+        if (strncmp(line, source, strlen(source)) != 0) continue;
+        const char *f[16];
+        int n = 0;
+        f[n++] = line;
+        for (const char *p = line; *p && *p != '\n' && n < 16; p++)
+            if (*p == ',') f[n++] = p + 1;
+        if (n >= 14 && atoi(f[6]) == J) return atof(f[col]);
+    }
+    return NAN;
+}
+
+static double json_number_after(const char *text, const char *anchor, const char *key) {
+    const char *p = strstr(text, anchor);
+    if (!p) return NAN;
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    p = strstr(p, pat);
+    return p ? atof(p + strlen(pat)) : NAN;
+}
+
+SB_TEST(three_sources) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study lambert:albedo=0.5 microfacet:roughness=0.5 microfacet:base=gold,roughness=0.3 --param io "
+                 "--terms 1..4 --res 8 --metric-res 8 -o %s%s",
+                 dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *csv = slurp(dir, "study.csv");
+    CHECK(csv != NULL);
+    if (!csv) return;
+    const char *head = "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,";
+    CHECK(strncmp(csv, head, strlen(head)) == 0);
+    CHECKF(count_lines(csv) == 1 + 3 * 4, "%d lines", count_lines(csv));
+    CHECK(strstr(csv, "\"microfacet:base=gold,roughness=0.3\",io,io:res=8,f,0,nested,4,") != NULL);
+    /* errors do not grow with J (nested truncations of one SVD) */
+    for (int J = 2; J <= 4; J++)
+        CHECK(csv_value(csv, "microfacet:roughness=0.5", J, 8) <= csv_value(csv, "microfacet:roughness=0.5", J - 1, 8));
+    CHECK(csv_value(csv, "lambert:albedo=0.5", 1, 8) < 1e-12);
+    const char *json = slurp(dir, "study.json");
+    CHECK(json && strstr(json, "\"command\": \"study\"") && strstr(json, "\"fit\": \"nested\"") &&
+          strstr(json, "\"failed\": 0"));
+    CHECK(strstr(out, "comparable") && strstr(out, "microfacet:roughness=0.5")); /* the table */
+    CHECK(slurp(dir, "study.gp") && slurp(dir, "study.dat"));
+    if (sb_run("command -v gnuplot", NULL, 0) != 0) SKIP("gnuplot not installed: study.png not checked");
+    json = slurp(dir, "study.json");
+    CHECK(json && strstr(json, "\"plot\": \"study.png\""));
+    const char *png = slurp(dir, "study.png"); /* (the same static buffer) */
+    CHECKF(png && memcmp(png, "\x89PNG", 4) == 0, "no PNG: %s", out);
+}
+
+/* Rows read from the one largest-J factorisation equal separate runs. */
+SB_TEST(nested_equals_separate) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study microfacet:roughness=0.4 --param io --terms 5 --res 8 --method full -o %s/s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char sdir[4200];
+    snprintf(sdir, sizeof sdir, "%s/s", dir);
+    const char *csv = slurp(sdir, "study.csv");
+    CHECK(csv != NULL);
+    if (!csv) return;
+    static char csvcopy[1 << 20];
+    snprintf(csvcopy, sizeof csvcopy, "%s", csv);
+    for (int J = 1; J <= 5; J += 2) {
+        char args[256];
+        snprintf(args, sizeof args, "--param io --res 8 --method full -J %d", J);
+        rc = run("factor microfacet:roughness=0.4 %s -q -o %s/f", args, dir);
+        CHECKF(rc == 0, "rc %d: %s", rc, out);
+        char fdir[4200];
+        snprintf(fdir, sizeof fdir, "%s/f", dir);
+        const char *rep = slurp(fdir, "report.json");
+        CHECK(rep != NULL);
+        if (!rep) return;
+        char anchor[64];
+        snprintf(anchor, sizeof anchor, "\"terms\": %d,\n      \"rel_rms\"", J);
+        CHECK_REL(csv_value(csvcopy, "microfacet:roughness=0.4", J, 8), json_number_after(rep, anchor, "rel_rms"),
+                  1e-7);
+        CHECK_REL(csv_value(csvcopy, "microfacet:roughness=0.4", J, 7), json_number_after(rep, anchor, "comparable"),
+                  1e-7);
+        CHECK_REL(csv_value(csvcopy, "microfacet:roughness=0.4", J, 9), json_number_after(rep, anchor, "max_abs"),
+                  1e-7);
+    }
+}
+
+SB_TEST(terms_list) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study lambert --param io --terms 1..2,4 --res 4 -q -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *csv = slurp(dir, "study.csv");
+    CHECK(csv && count_lines(csv) == 4);
+    CHECK(!isnan(csv_value(csv, "lambert", 4, 8)) && isnan(csv_value(csv, "lambert", 3, 8)));
+}
+
+/* A bad file, a bad spec and a run that cannot be done do not lose the
+ * good source's rows; exit 2, each failure named. */
+SB_TEST(failures_keep_others) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study /nonexistent/table.binary lambert:albedo=0.3 nosuchmodel --param io --terms 1..3 --res 4 "
+                 "-o %s%s",
+                 dir, "");
+    CHECKF(rc == 2, "rc %d: %s", rc, out);
+    CHECK(strstr(out, "/nonexistent/table.binary") && strstr(out, "nosuchmodel") && strstr(out, "2 of 3 runs failed"));
+    const char *csv = slurp(dir, "study.csv");
+    CHECKF(csv && count_lines(csv) == 1 + 3, "csv: %s", csv ? csv : "(none)");
+    const char *json = slurp(dir, "study.json");
+    CHECK(json && strstr(json, "\"failed\": 2") && strstr(json, "\"ok\": false") && strstr(json, "\"ok\": true"));
+    /* a run that fails after sampling starts: J above the matrix size */
+    rc = run("study lambert --param io --terms 1..5 --res 2 -o %s/b%s", dir, "");
+    CHECKF(rc == 2, "rc %d: %s", rc, out);
+    CHECK(strstr(out, "--terms 5 exceeds"));
+    char b[4200];
+    snprintf(b, sizeof b, "%s/b", dir);
+    CHECK(slurp(b, "study.csv") && slurp(b, "study.json"));
+}
+
+SB_TEST(param_all) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study lambert --terms 2 --res 4 -q -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out); /* parameterisations not in this build are left out, not failures */
+    const char *csv = slurp(dir, "study.csv");
+    CHECK(csv && strstr(csv, ",io,io:res=4,"));
+}
+
+SB_TEST(gnuplot_missing) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study lambert --param io --terms 2 --res 4 -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d", rc);
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "SEPBRDF_GNUPLOT=/nonexistent/gnuplot %s study lambert --param io --terms 2 --res 4 -o %s/n", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECKF(strstr(out, "not found") && strstr(out, "study.png skipped"), "%s", out);
+    char n[4200];
+    snprintf(n, sizeof n, "%s/n", dir);
+    CHECK(slurp(n, "study.csv") && slurp(n, "study.gp"));
+    const char *json = slurp(n, "study.json");
+    CHECK(json && strstr(json, "\"plot\": null"));
+    CHECK(!slurp(n, "study.png"));
+}

@@ -1,0 +1,1012 @@
+/* Measured tables: MERL reader/writer and index mapping, scattered tables
+ * (Cornell, ALTA, CSV), interpolation, coverage, spectra, hostile files. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+#define NCELLS (90 * 90 * 180)
+static const double scale[3] = {1.0 / 1500, 1.15 / 1500, 1.66 / 1500};
+
+static char path_buf[4][4096];
+
+/* A path in a fresh temporary directory (4 rotating buffers). */
+static const char *tmp_path(const char *tag, const char *name) {
+    static int k;
+    char *b = path_buf[k++ % 4];
+    int n = snprintf(b, 4096, "%s/%s", sb_tmpdir(tag), name);
+    CHECK(n > 0 && n < 4096);
+    return b;
+}
+
+static void write_text(const char *path, const char *text) {
+    FILE *fp = fopen(path, "wb");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    fputs(text, fp);
+    fclose(fp);
+}
+
+static int has_measured_dir(void) {
+    struct stat st;
+    return stat(SB_MEASURED_DIR, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+static sb_source_t *model(const char *spec) {
+    sb_source_t *s = NULL;
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_result_t r = sb_model_create(ctx, spec, &s);
+    CHECKF(r == SB_OK, "model %s: %s", spec, sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+    return s;
+}
+
+/* Open a table; on failure report the message. */
+static sb_source_t *open_table(const char *path, const sb_measured_opts_t *o, sb_measured_info_t *info) {
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_source_t *s = NULL;
+    sb_result_t r = sb_measured_open(ctx, path, o, &s, info);
+    CHECKF(r == SB_OK, "open %s: %s", path, sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+    return s;
+}
+
+/* Expect opening to fail with `code`, the message naming `want` (and the file). */
+static void expect_fail(const char *path, const sb_measured_opts_t *o, sb_result_t code, const char *want) {
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_source_t *s = NULL;
+    sb_result_t r = sb_measured_open(ctx, path, o, &s, NULL);
+    const char *msg = sb_context_last_error(ctx);
+    CHECKF(r == code, "%s: got %s, want %s (%s)", path, sb_result_name(r), sb_result_name(code), msg);
+    CHECK(s == NULL);
+    CHECKF(strstr(msg, path) != NULL, "message does not name the file: %s", msg);
+    if (want) CHECKF(strstr(msg, want) != NULL, "message lacks '%s': %s", want, msg);
+    sb_source_destroy(s);
+    sb_context_destroy(ctx);
+}
+
+/* ---- an independent MERL index ------------------------------------------- */
+
+static void mat_vec(const double m[3][3], const double v[3], double out[3]) {
+    for (int i = 0; i < 3; i++)
+        out[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+}
+
+/* Rusinkiewicz angles by explicit rotation matrices, then the MERL bins of
+ * the reference code (BRDFRead.cpp). */
+static size_t ref_index(const double l[3], const double v[3]) {
+    double h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
+    double n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    for (int k = 0; k < 3; k++)
+        h[k] /= n;
+    double th = acos(h[2]), ph = atan2(h[1], h[0]);
+    const double rz[3][3] = {{cos(ph), sin(ph), 0}, {-sin(ph), cos(ph), 0}, {0, 0, 1}};
+    const double ry[3][3] = {{cos(th), 0, -sin(th)}, {0, 1, 0}, {sin(th), 0, cos(th)}};
+    double t[3], d[3];
+    mat_vec(rz, l, t);
+    mat_vec(ry, t, d);
+    double td = acos(d[2] > 1 ? 1 : d[2]), pd = atan2(d[1], d[0]);
+    if (pd < 0) pd += SB_PI; /* the reference folds (-pi, 0) onto (0, pi) */
+    if (pd >= SB_PI) pd -= SB_PI;
+    int ih = th <= 0 ? 0 : (int)(sqrt(th / (SB_PI / 2)) * 90);
+    int id = (int)(td / (SB_PI / 2) * 90), ip = (int)(pd / SB_PI * 180);
+    ih = ih < 0 ? 0 : ih > 89 ? 89 : ih;
+    id = id < 0 ? 0 : id > 89 ? 89 : id;
+    ip = ip < 0 ? 0 : ip > 179 ? 179 : ip;
+    return (size_t)ip + 180 * ((size_t)id + 90 * (size_t)ih);
+}
+
+static void put_le32(unsigned char *b, uint32_t u) {
+    for (int k = 0; k < 4; k++)
+        b[k] = (unsigned char)(u >> (8 * k));
+}
+static void put_le64(unsigned char *b, double d) {
+    uint64_t u;
+    memcpy(&u, &d, sizeof u);
+    for (int k = 0; k < 8; k++)
+        b[k] = (unsigned char)(u >> (8 * k));
+}
+static double get_le64(const unsigned char *b) {
+    uint64_t u = 0;
+    for (int k = 7; k >= 0; k--)
+        u = u << 8 | b[k];
+    double d;
+    memcpy(&d, &u, sizeof d);
+    return d;
+}
+
+/* A MERL file written here, byte by byte: dims, then `values` doubles of
+ * value(i) (i over the 3 planes), then `extra` zero bytes. */
+static void write_merl_raw(const char *path, const int32_t dims[3], size_t values, double (*value)(size_t),
+                           size_t extra) {
+    FILE *fp = fopen(path, "wb");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    unsigned char b[12];
+    for (int k = 0; k < 3; k++)
+        put_le32(b + 4 * k, (uint32_t)dims[k]);
+    fwrite(b, 1, 12, fp);
+    for (size_t i = 0; i < values; i++) {
+        put_le64(b, value(i));
+        fwrite(b, 1, 8, fp);
+    }
+    for (size_t i = 0; i < extra; i++)
+        fputc(0, fp);
+    fclose(fp);
+}
+
+/* Cell k holds k + 1 in every plane; cells 7 and 1000 (mod NCELLS) are missing. */
+static double index_value(size_t i) {
+    size_t k = i % NCELLS;
+    return (k == 7 || k == 1000) ? -1.0 : (double)(k + 1);
+}
+
+static const int32_t merl_dims[3] = {90, 90, 180};
+
+static void random_dir(unsigned long long *s, double w[3]) {
+    double ct = sb_rand01(s) * 0.999 + 0.0005, ph = 2 * SB_PI * sb_rand01(s), st = sqrt(1 - ct * ct);
+    w[0] = st * cos(ph);
+    w[1] = st * sin(ph);
+    w[2] = ct;
+}
+
+/* The reader maps pairs to cells as the reference code does: an encoded
+ * file returns k + 1 at cell k, times the channel scales. */
+SB_TEST(merl_index_mapping) {
+    const char *path = tmp_path("merl", "index.binary");
+    write_merl_raw(path, merl_dims, 3 * (size_t)NCELLS, index_value, 0);
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(path, NULL, &info);
+    if (!s) return;
+    CHECK(info.format == SB_TABLE_MERL && info.rows == NCELLS);
+    CHECK(info.missing == 2 && info.negative == 2 && info.samples == NCELLS - 2);
+    CHECK(sb_source_flags(s) == (SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL));
+    unsigned long long seed = 12345;
+    int bad = 0;
+    for (int n = 0; n < 20000; n++) {
+        double l[3], v[3], rgb[3];
+        random_dir(&seed, l);
+        random_dir(&seed, v);
+        size_t want = ref_index(l, v), got = 0;
+        CHECK(sb_merl_index(l, v, &got) == 1);
+        int known = sb_source_eval(s, l, v, rgb);
+        if (want == 7 || want == 1000) {
+            CHECK(known == 0 && rgb[0] == 0);
+            continue;
+        }
+        CHECK(known == 1);
+        double k = rgb[0] / scale[0] - 1;
+        if (got != want || fabs(k - (double)want) > 1e-6) bad++;
+        for (int c = 0; c < 3; c++)
+            CHECK_REL(rgb[c], (double)(want + 1) * scale[c], 1e-12);
+    }
+    CHECKF(bad == 0, "%d of 20000 random pairs mapped to another cell", bad);
+    sb_source_destroy(s);
+}
+
+/* A file written from an analytic model reads back the model at the cell
+ * centres (as stored: value / scale, little-endian, channel-planar). */
+SB_TEST(merl_write_read_model) {
+    const char *path = tmp_path("merl", "gold.binary");
+    sb_source_t *m = model("microfacet:base=gold,roughness=0.5");
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_result_t r = sb_merl_write(ctx, path, m);
+    CHECKF(r == SB_OK, "%s", sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+    struct stat st;
+    CHECK(stat(path, &st) == 0 && (size_t)st.st_size == SB_MERL_FILE_SIZE);
+    /* the bytes, read here */
+    FILE *fp = fopen(path, "rb");
+    unsigned char *raw = malloc(SB_MERL_FILE_SIZE);
+    CHECK(fp && raw && fread(raw, 1, SB_MERL_FILE_SIZE, fp) == SB_MERL_FILE_SIZE);
+    if (fp) fclose(fp);
+    sb_source_t *s = NULL;
+    sb_context_create(&ctx);
+    CHECK(sb_source_open(ctx, path, &s) == SB_OK); /* through the hook */
+    sb_context_destroy(ctx);
+    if (!s || !raw) {
+        free(raw);
+        sb_source_destroy(m);
+        sb_source_destroy(s);
+        return;
+    }
+    CHECK(raw[0] == 90 && raw[4] == 90 && raw[8] == 180 && raw[9] == 0);
+    size_t checked = 0, missing = 0;
+    for (size_t k = 0; k < NCELLS; k += 97) {
+        size_t ip = k % 180, id = k / 180 % 90, ih = k / 180 / 90;
+        /* the centre, computed here: theta_h on the square-root scale */
+        double uh = (ih + 0.5) / 90, th = uh * uh * SB_PI / 2, td = (id + 0.5) / 90 * SB_PI / 2,
+               pd = (ip + 0.5) / 180 * SB_PI;
+        double d[3] = {sin(td) * cos(pd), sin(td) * sin(pd), cos(td)};
+        double l[3] = {d[0] * cos(th) + d[2] * sin(th), d[1], -d[0] * sin(th) + d[2] * cos(th)};
+        double h[3] = {sin(th), 0, cos(th)}, lh = l[0] * h[0] + l[2] * h[2];
+        double v[3] = {2 * lh * h[0] - l[0], 2 * lh * h[1] - l[1], 2 * lh * h[2] - l[2]};
+        double want[3], got[3];
+        if (l[2] <= 0 || v[2] <= 0) {
+            for (int c = 0; c < 3; c++)
+                CHECK(get_le64(raw + 12 + 8 * ((size_t)c * NCELLS + k)) == -1.0);
+            missing++;
+            continue;
+        }
+        CHECK(ref_index(l, v) == k);
+        sb_source_eval(m, l, v, want);
+        CHECK(sb_source_eval(s, l, v, got) == 1);
+        for (int c = 0; c < 3; c++) {
+            CHECK_REL(got[c], want[c], 1e-12);
+            CHECK_REL(get_le64(raw + 12 + 8 * ((size_t)c * NCELLS + k)) * scale[c], want[c], 1e-12);
+        }
+        checked++;
+    }
+    CHECK(checked > 5000 && missing > 1000);
+    free(raw);
+    sb_source_destroy(s);
+    sb_source_destroy(m);
+}
+
+/* Conventions at the degenerate configurations. */
+SB_TEST(merl_degenerate) {
+    const char *path = tmp_path("merl", "deg.binary");
+    write_merl_raw(path, merl_dims, 3 * (size_t)NCELLS, index_value, 0);
+    sb_source_t *s = open_table(path, NULL, NULL);
+    if (!s) return;
+    double rgb[3];
+    /* theta_h = 0 (v the mirror of l): phi_h = 0, so phi_d = phi_l, folded */
+    for (double phi = 0.1; phi < 2 * SB_PI; phi += 0.7) {
+        double th = 0.6, l[3], v[3];
+        sb_dir_from_angles(th, phi, l);
+        v[0] = -l[0];
+        v[1] = -l[1];
+        v[2] = l[2];
+        double a, b, c;
+        CHECK(sb_half_diff_angles(l, v, &a, &b, &c) == 1);
+        CHECK_ABS(a, 0, 1e-12);
+        CHECK_REL(b, th, 1e-12);
+        CHECK_ABS(c, phi, 1e-9);
+        double pf = phi >= SB_PI ? phi - SB_PI : phi;
+        size_t want = (size_t)(pf / SB_PI * 180) + 180 * (size_t)(th / (SB_PI / 2) * 90);
+        CHECK(sb_source_eval(s, l, v, rgb) == 1);
+        CHECK_REL(rgb[0] / scale[0] - 1, (double)want, 1e-9);
+    }
+    /* theta_d = 0 (l = v): phi_d = 0 */
+    for (double th = 0.05; th < 1.5; th += 0.3) {
+        double l[3], a, b, c;
+        sb_dir_from_angles(th, 2.0, l);
+        CHECK(sb_half_diff_angles(l, l, &a, &b, &c) == 1);
+        CHECK(c == 0);
+        CHECK_ABS(b, 0, 1e-7);
+        size_t want = 180 * 90 * (size_t)(sqrt(th / (SB_PI / 2)) * 90);
+        CHECK(sb_source_eval(s, l, l, rgb) == 1);
+        CHECK_REL(rgb[0] / scale[0] - 1, (double)want, 1e-9);
+    }
+    /* l = -v: no half vector; any pair below the horizon is missing */
+    double l[3] = {0.3, 0.4, sqrt(0.75)}, v[3] = {-0.3, -0.4, -sqrt(0.75)}, a, b, c;
+    CHECK(sb_half_diff_angles(l, v, &a, &b, &c) == 0);
+    CHECK(sb_source_eval(s, l, v, rgb) == 0 && rgb[0] == 0 && rgb[1] == 0 && rgb[2] == 0);
+    double g1[3] = {1, 0, 0}, g2[3] = {-1, 0, 0};
+    CHECK(sb_source_eval(s, g1, g2, rgb) == 0);
+    size_t k;
+    CHECK(sb_merl_index(l, v, &k) == 0);
+    sb_source_destroy(s);
+}
+
+static double smooth_value(size_t i) {
+    size_t k = i % NCELLS, id = k / 180 % 90, ih = k / 180 / 90;
+    if (k == 180 * (40 + 90 * 40) + 20) return -1; /* one missing cell */
+    return 1 + (double)ih + 2 * (double)id;
+}
+
+/* Trilinear mode: exact on a field linear in the index coordinates, equal
+ * to the cell at its centre, missing at the centre of a missing cell. */
+SB_TEST(merl_linear) {
+    const char *path = tmp_path("merl", "lin.binary");
+    write_merl_raw(path, merl_dims, 3 * (size_t)NCELLS, smooth_value, 0);
+    sb_measured_opts_t o = {0};
+    o.interp = SB_INTERP_LINEAR;
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(path, &o, &info);
+    if (!s) return;
+    CHECK(info.interp == SB_INTERP_LINEAR);
+    unsigned long long seed = 99;
+    int n = 0;
+    for (int it = 0; it < 5000; it++) {
+        double l[3], v[3], rgb[3], th, td, pd;
+        random_dir(&seed, l);
+        random_dir(&seed, v);
+        sb_half_diff_angles(l, v, &th, &td, &pd);
+        double uh = 90 * sqrt(th / (SB_PI / 2)) - 0.5, ud = 90 * td / (SB_PI / 2) - 0.5;
+        if (uh < 0 || uh > 89 || ud < 0 || ud > 89) continue;
+        if (fabs(uh - 40) < 1.5 && fabs(ud - 40) < 1.5) continue; /* near the missing cell */
+        CHECK(sb_source_eval(s, l, v, rgb) == 1);
+        CHECK_REL(rgb[0] / scale[0], 1 + uh + 2 * ud, 1e-9);
+        n++;
+    }
+    CHECK(n > 1000);
+    double l[3], v[3], rgb[3];
+    CHECK(sb_merl_cell_dirs(180 * (41 + 90 * 40) + 20, l, v) == 1);
+    CHECK(sb_source_eval(s, l, v, rgb) == 1);
+    CHECK_REL(rgb[2] / scale[2], 1 + 40 + 2 * 41, 1e-9);
+    /* at the missing cell: the neighbours' values (renormalised) or missing;
+     * nearest mode: missing */
+    CHECK(sb_merl_cell_dirs(180 * (40 + 90 * 40) + 20, l, v) == 1);
+    if (sb_source_eval(s, l, v, rgb)) CHECK(rgb[0] / scale[0] >= 1 + 39 + 78 && rgb[0] / scale[0] <= 1 + 41 + 82);
+    sb_source_destroy(s);
+    s = open_table(path, NULL, NULL);
+    if (!s) return;
+    CHECK(sb_source_eval(s, l, v, rgb) == 0 && rgb[0] == 0);
+    sb_source_destroy(s);
+}
+
+static double zero_value(size_t i) {
+    (void)i;
+    return 0.5;
+}
+
+SB_TEST(merl_hostile) {
+    const char *dir = sb_tmpdir("merl");
+    char p[4200];
+    /* truncated: header right, body short */
+    snprintf(p, sizeof p, "%s/trunc.binary", dir);
+    write_merl_raw(p, merl_dims, 1000, zero_value, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "expected 34992012");
+    /* oversized */
+    snprintf(p, sizeof p, "%s/over.binary", dir);
+    write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, zero_value, 5);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "file size 34992017 bytes");
+    /* wrong dims, 2^31 - 1 dims, negative dims: the header is checked first */
+    const int32_t wrong[3] = {90, 90, 90}, huge[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, neg[3] = {-90, 90, 180};
+    snprintf(p, sizeof p, "%s/dims.binary", dir);
+    write_merl_raw(p, wrong, 3 * 90 * 90 * 90, zero_value, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "dims 90 x 90 x 90, expected 90 x 90 x 180");
+    snprintf(p, sizeof p, "%s/huge.binary", dir);
+    write_merl_raw(p, huge, 10, zero_value, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "dims 2147483647 x 2147483647 x 2147483647");
+    snprintf(p, sizeof p, "%s/neg.binary", dir);
+    write_merl_raw(p, neg, 10, zero_value, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "dims -90 x 90 x 180");
+    /* short header, empty */
+    snprintf(p, sizeof p, "%s/short.binary", dir);
+    write_text(p, "\x5a\x00");
+    expect_fail(p, NULL, SB_ERR_FORMAT, "truncated header");
+    snprintf(p, sizeof p, "%s/empty.binary", dir);
+    write_text(p, "");
+    expect_fail(p, NULL, SB_ERR_FORMAT, "truncated header");
+    /* MERL takes nearest or linear only */
+    snprintf(p, sizeof p, "%s/ok.binary", dir);
+    write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, zero_value, 0);
+    sb_measured_opts_t o = {0};
+    o.interp = SB_INTERP_IDW;
+    expect_fail(p, &o, SB_ERR_ARG, "nearest");
+    /* the writer: unwritable folder, nothing left behind */
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_source_t *m = model("lambert:albedo=0.5");
+    snprintf(p, sizeof p, "%s/no/such/dir/x.binary", dir);
+    CHECK(sb_merl_write(ctx, p, m) == SB_ERR_IO);
+    CHECK(strstr(sb_context_last_error(ctx), p) != NULL);
+    sb_source_destroy(m);
+    sb_context_destroy(ctx);
+}
+
+/* ---- spectra ------------------------------------------------------------ */
+
+SB_TEST(spectral_white) {
+    /* the CMF table, read here from the project's copy */
+    FILE *fp = fopen(SB_SOURCE_DIR "/data/cie1931_2deg_1nm.csv", "r");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    char line[256];
+    double sum[3] = {0, 0, 0}, at550[3] = {0, 0, 0};
+    int rows = 0;
+    while (fgets(line, sizeof line, fp)) {
+        double nm, x, y, z;
+        if (sscanf(line, "%lf,%lf,%lf,%lf", &nm, &x, &y, &z) != 4) continue;
+        sum[0] += x;
+        sum[1] += y;
+        sum[2] += z;
+        if (nm == 550) {
+            at550[0] = x;
+            at550[1] = y;
+            at550[2] = z;
+        }
+        rows++;
+    }
+    fclose(fp);
+    CHECK(rows == 401);
+    for (int c = 0; c < 3; c++)
+        CHECK_REL(sum[c], 106.86, 2e-3); /* the README's check */
+    double cmf[3];
+    sb_cie_cmf(550, cmf);
+    for (int c = 0; c < 3; c++)
+        CHECK_REL(cmf[c], at550[c], 1e-15);
+    sb_cie_cmf(379, cmf);
+    CHECK(cmf[0] == 0 && cmf[1] == 0);
+
+    /* a flat spectrum of 1: E white, Y = 1 */
+    static const double m[3][3] = {
+        {3.2404542, -1.5371385, -0.4985314}, {-0.9692660, 1.8760108, 0.0415560}, {0.0556434, -0.2040259, 1.0572252}};
+    double xyz[3] = {sum[0] / sum[1], 1, sum[2] / sum[1]}, e[3];
+    for (int c = 0; c < 3; c++)
+        e[c] = m[c][0] * xyz[0] + m[c][1] * xyz[1] + m[c][2] * xyz[2];
+    double nm[31], w[93];
+    for (int k = 0; k < 31; k++)
+        nm[k] = 400 + 10 * k;
+    CHECK(sb_spectral_weights(NULL, nm, 31, SB_WHITE_E, w) == SB_OK);
+    for (int c = 0; c < 3; c++) {
+        double s = 0;
+        for (int k = 0; k < 31; k++)
+            s += w[c * 31 + k];
+        CHECK_REL(s, e[c], 1e-12);
+    }
+    CHECK_REL(e[0], 1.2048, 1e-3);
+    CHECK_REL(e[1], 0.9483, 1e-3);
+    CHECK_REL(e[2], 0.9088, 1e-3);
+    /* D65: a flat spectrum is RGB (1, 1, 1) */
+    CHECK(sb_spectral_weights(NULL, nm, 31, SB_WHITE_D65, w) == SB_OK);
+    for (int c = 0; c < 3; c++) {
+        double s = 0;
+        for (int k = 0; k < 31; k++)
+            s += w[c * 31 + k];
+        CHECK_ABS(s, 1, 1e-3);
+    }
+    /* a 1 nm spike at 550 nm gives the CMF there over sum(ybar) */
+    double spike_nm[3] = {549, 550, 551}, ws[9];
+    CHECK(sb_spectral_weights(NULL, spike_nm, 3, SB_WHITE_E, ws) == SB_OK);
+    double srgb_y = 0;
+    for (int c = 0; c < 3; c++)
+        srgb_y += (c == 0 ? 0.2126729 : c == 1 ? 0.7151522 : 0.0721750) * ws[c * 3 + 1];
+    CHECK_REL(srgb_y, at550[1] / sum[1], 2e-4); /* Y of linear sRGB recovers Y */
+    /* bad wavelengths */
+    double bad[2] = {500, 500};
+    CHECK(sb_spectral_weights(NULL, bad, 2, SB_WHITE_E, ws) == SB_ERR_RANGE);
+    CHECK(sb_spectral_weights(NULL, bad, 0, SB_WHITE_E, ws) == SB_ERR_RANGE);
+}
+
+/* ---- shared real data ---------------------------------------------------- */
+
+SB_TEST(cornell_shared) {
+    if (!has_measured_dir()) SKIP("no ../shared/data/measured folder");
+    const char *path = SB_MEASURED_DIR "/cornell_acryl_blue.brdf";
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(path, NULL, &info);
+    if (!s) return;
+    CHECK(info.format == SB_TABLE_CORNELL);
+    CHECK(info.rows == 1439 && info.samples == 1439 && info.missing == 0);
+    CHECK(info.wavelengths == 31 && info.channels == 31);
+    CHECK(info.wl_min == 400 && info.wl_max == 700);
+    CHECK(info.negative == 0);
+    CHECKF(info.value_mean[2] > info.value_mean[0] && info.value_mean[2] > info.value_mean[1],
+           "not blue: mean RGB %g %g %g", info.value_mean[0], info.value_mean[1], info.value_mean[2]);
+    CHECK(sb_source_flags(s) & SB_SOURCE_ISOTROPIC);
+    /* at a measured position the table returns the sample's RGB: reciprocal too */
+    double l[3], v[3], a[3], b[3];
+    sb_dir_from_angles(0.872665, 0, l);
+    sb_dir_from_angles(0.573513, 0, v);
+    CHECK(sb_source_eval(s, l, v, a) == 1 && sb_source_eval(s, v, l, b) == 1);
+    for (int c = 0; c < 3; c++)
+        CHECK_REL(a[c], b[c], 1e-12);
+    CHECK(a[2] > a[0]);
+    /* coverage on io R = 16 */
+    sb_param_t *p = NULL;
+    sb_param_opts_t po = {0};
+    po.res = 16;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK);
+    size_t known = 0, cells = 0;
+    CHECK(sb_measured_coverage(NULL, s, p, &known, &cells) == SB_OK);
+    CHECK(cells == 65536 && known > cells / 2 && known < cells);
+    /* the matrix masks exactly the missing cells */
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+    CHECK(m.valid_count == known && m.mask != NULL);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+SB_TEST(alta_shared) {
+    if (!has_measured_dir()) SKIP("no ../shared/data/measured folder");
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(SB_MEASURED_DIR "/alta_retro-3M-jaune.dat", NULL, &info);
+    if (!s) return;
+    CHECK(info.format == SB_TABLE_ALTA);
+    CHECK(info.rows == 7397);
+    CHECK(info.horizon_rows == 86 && info.samples == 7397 - 86);
+    CHECK(info.channels == 1);
+    CHECK(sb_source_flags(s) & SB_SOURCE_GRAY);
+    CHECK(info.value_min[0] > 0 && info.value_max[0] > info.value_min[0]);
+    CHECK(info.value_min[0] == info.value_min[2]);
+    /* the first row: theta_l 15 deg, theta_v = 90 deg - 2.98 deg, dphi = pi */
+    double l[3], v[3], rgb[3];
+    sb_dir_from_angles(0.26179938779914940783, 0, l);
+    sb_dir_from_angles(1.51843644923506659872, SB_PI, v);
+    CHECK(sb_source_eval(s, l, v, rgb) == 1);
+    CHECK_REL(rgb[0], 0.00362877 / cos(1.51843644923506659872), 1e-9);
+    sb_source_destroy(s);
+    /* the other shared files: recognised, not supported */
+    expect_fail(SB_MEASURED_DIR "/alta_merl_pink-felt-1d.alta", NULL, SB_ERR_UNSUPPORTED, "#DIM 1 3");
+    expect_fail(SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf", NULL, SB_ERR_UNSUPPORTED, "tensor_file");
+}
+
+/* ---- simulated gonioreflectometer --------------------------------------- */
+
+static double rel_frobenius(const sb_matrix_t *a, const sb_matrix_t *b) {
+    double num = 0, den = 0;
+    for (int c = 0; c < 3; c++)
+        for (size_t i = 0; i < a->rows * a->cols; i++) {
+            if ((a->mask && !a->mask[i]) || (b->mask && !b->mask[i])) continue;
+            double d = a->data[c][i] - b->data[c][i];
+            num += d * d;
+            den += b->data[c][i] * b->data[c][i];
+        }
+    return sqrt(num / den);
+}
+
+static double rel_frobenius_rank(const sb_factors_t *a, const sb_factors_t *b, size_t n, size_t J) {
+    double num = 0, den = 0;
+    for (size_t c = 0; c < 3; c++)
+        for (size_t col = 0; col < n; col++)
+            for (size_t row = 0; row < n; row++) {
+                double x = sb_factors_cell(a, J, c, row, col), y = sb_factors_cell(b, J, c, row, col);
+                num += (x - y) * (x - y);
+                den += y * y;
+            }
+    return sqrt(num / den);
+}
+
+static const char *write_gonio(const char *spec, const sb_gonio_opts_t *go, size_t *rows) {
+    const char *path = tmp_path("gonio", "table.csv");
+    sb_source_t *m = model(spec);
+    FILE *fp = fopen(path, "w");
+    CHECK(fp != NULL);
+    sb_result_t r = sb_gonio_write_csv(NULL, fp, m, go, rows);
+    CHECK(r == SB_OK);
+    fclose(fp);
+    sb_source_destroy(m);
+    return path;
+}
+
+/* 5 deg spacing (18 elevations at 2.5, 7.5, .. 87.5 deg for light and
+ * detector, 72 detector azimuths, one light azimuth: isotropy), factored at
+ * R = 16, J = 4, against the model factored directly.  Matrices are
+ * compared for f and f cos cos; the rank-4 reconstructions for f cos cos
+ * only: for f on io the 4th and 5th singular values nearly coincide, so
+ * the rank-4 subspace is not determined by the data (two matrices 0.8 %
+ * apart give reconstructions 6-15 % apart with the same 81.5 % error). */
+SB_TEST(gonio_roundtrip) {
+    sb_gonio_opts_t go = {18, 1, 18, 72, 0, 0};
+    size_t rows = 0;
+    const char *path = write_gonio("microfacet:base=gold,roughness=0.5", &go, &rows);
+    CHECK(rows == 18 * 18 * 72);
+    sb_measured_info_t info;
+    sb_source_t *t = open_table(path, NULL, &info);
+    sb_source_t *m = model("microfacet:base=gold,roughness=0.5");
+    if (!t) return;
+    CHECK(info.format == SB_TABLE_CSV && info.rows == rows && info.samples == rows);
+    CHECK(sb_source_flags(t) & SB_SOURCE_ISOTROPIC);
+    CHECK_REL(info.spacing, 5 * SB_PI / 180, 1e-6);
+    sb_param_t *p = NULL;
+    sb_param_opts_t po = {0};
+    po.res = 16;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK);
+    sb_plan_t *plan = NULL;
+    sb_plan_opts_t pl = {0};
+    pl.terms = 4;
+    CHECK(sb_plan_create(NULL, 256, 256, &pl, &plan) == SB_OK);
+    for (int form = 0; form < 2; form++) {
+        sb_matrix_opts_t mo = {0};
+        mo.form = form ? SB_FORM_COS2 : SB_FORM_F;
+        sb_matrix_t a, b;
+        CHECK(sb_matrix_build(NULL, t, p, &mo, &a) == SB_OK);
+        CHECK(sb_matrix_build(NULL, m, p, &mo, &b) == SB_OK);
+        CHECK(a.valid_count == 65536); /* full coverage */
+        double em = rel_frobenius(&a, &b);
+        sb_factors_t *fa = NULL, *fb = NULL;
+        CHECK(sb_plan_execute(plan, &a, p, &fa) == SB_OK);
+        CHECK(sb_plan_execute(plan, &b, p, &fb) == SB_OK);
+        double ea = sb_factors_errors(fa)->rel_rms[3 * 4 + 3], eb = sb_factors_errors(fb)->rel_rms[3 * 4 + 3];
+        double er = rel_frobenius_rank(fa, fb, 256, 4);
+        printf("form %s: matrices %.3f %%, rank-4 reconstructions %.3f %%, rel_rms %.4f vs %.4f\n", form ? "cos2" : "f",
+               100 * em, 100 * er, ea, eb);
+        CHECKF(em < 0.02, "matrices differ by %.3f %%", 100 * em);
+        CHECKF(fabs(ea - eb) < 0.02, "rel_rms %.4f vs %.4f", ea, eb);
+        if (form) CHECKF(er < 0.02, "rank-4 reconstructions differ by %.3f %%", 100 * er);
+        sb_factors_destroy(fa);
+        sb_factors_destroy(fb);
+        sb_matrix_free(&a);
+        sb_matrix_free(&b);
+    }
+    sb_plan_destroy(plan);
+    sb_param_destroy(p);
+    sb_source_destroy(m);
+    sb_source_destroy(t);
+}
+
+/* Symmetries and interpolation modes on a simulated table. */
+SB_TEST(gonio_symmetry_modes) {
+    sb_gonio_opts_t go = {9, 1, 9, 36, 0, 0};
+    size_t rows;
+    const char *path = write_gonio("microfacet:base=0.7/0.5/0.3,roughness=0.6", &go, &rows);
+    sb_source_t *m = model("microfacet:base=0.7/0.5/0.3,roughness=0.6");
+    static const sb_interp_t modes[4] = {SB_INTERP_NEAREST, SB_INTERP_IDW, SB_INTERP_LINEAR, SB_INTERP_QUADRATIC};
+    for (int k = 0; k < 4; k++) {
+        sb_measured_opts_t o = {0};
+        o.interp = modes[k];
+        sb_measured_info_t info;
+        sb_source_t *t = open_table(path, &o, &info);
+        if (!t) continue;
+        CHECK(info.interp == modes[k] && info.dims == 3);
+        unsigned long long seed = 5;
+        double worst = 0;
+        for (int n = 0; n < 300; n++) {
+            double l[3], v[3], a[3], b[3], want[3];
+            random_dir(&seed, l);
+            random_dir(&seed, v);
+            if (l[2] < 0.2 || v[2] < 0.2) continue;
+            /* reciprocity and isotropy (a rotation about the normal) */
+            double rot = 2 * SB_PI * sb_rand01(&seed), c = cos(rot), s = sin(rot);
+            double l2[3] = {c * l[0] - s * l[1], s * l[0] + c * l[1], l[2]};
+            double v2[3] = {c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]};
+            CHECK(sb_source_eval(t, l, v, a) == 1);
+            CHECK(sb_source_eval(t, v2, l2, b) == 1);
+            for (int ch = 0; ch < 3; ch++)
+                CHECK_REL(a[ch], b[ch], 1e-9);
+            sb_source_eval(m, l, v, want);
+            double e = fabs(a[1] - want[1]) / want[1];
+            if (e > worst) worst = e;
+        }
+        /* 10 deg spacing: every mode within reach, the fits much closer */
+        double lim = modes[k] == SB_INTERP_NEAREST ? 0.5 : modes[k] == SB_INTERP_IDW ? 0.25 : 0.1;
+        CHECKF(worst < lim, "%s: worst relative error %.3f", sb_interp_name(modes[k]), worst);
+        /* at a measured position every mode returns the sample */
+        double l[3], v[3], a[3], want[3];
+        sb_dir_from_angles(25 * SB_PI / 180, 0, l);
+        sb_dir_from_angles(35 * SB_PI / 180, 40 * SB_PI / 180, v);
+        CHECK(sb_source_eval(t, l, v, a) == 1);
+        sb_source_eval(m, l, v, want);
+        for (int ch = 0; ch < 3; ch++)
+            CHECK_REL(a[ch], want[ch], 1e-12);
+        sb_source_destroy(t);
+    }
+    sb_source_destroy(m);
+}
+
+/* An anisotropic table (several light azimuths, declared anisotropic). */
+SB_TEST(gonio_anisotropic) {
+    const char *path = tmp_path("gonio", "aniso.csv");
+    sb_source_t *m = model("microfacet:base=0.5,roughness=0.7");
+    FILE *fp = fopen(path, "w");
+    sb_gonio_opts_t go = {9, 12, 9, 24, 0, 0};
+    CHECK(sb_gonio_write_csv(NULL, fp, m, &go, NULL) == SB_OK);
+    fclose(fp);
+    /* rewrite the symmetry line */
+    FILE *in = fopen(path, "r");
+    const char *path2 = tmp_path("gonio", "aniso2.csv");
+    FILE *out = fopen(path2, "w");
+    char line[512];
+    while (in && out && fgets(line, sizeof line, in))
+        fputs(strcmp(line, "# symmetry: isotropic\n") == 0 ? "# symmetry: anisotropic\n" : line, out);
+    if (in) fclose(in);
+    if (out) fclose(out);
+    sb_measured_info_t info;
+    sb_source_t *t = open_table(path2, NULL, &info);
+    if (!t) return;
+    CHECK(info.dims == 4 && !(sb_source_flags(t) & SB_SOURCE_ISOTROPIC));
+    CHECK(sb_source_flags(t) & SB_SOURCE_RECIPROCAL);
+    unsigned long long seed = 3;
+    double worst = 0, s2 = 0;
+    int n = 0;
+    for (int it = 0; it < 400; it++) {
+        double l[3], v[3], a[3], b[3], want[3];
+        random_dir(&seed, l);
+        random_dir(&seed, v);
+        if (l[2] < 0.3 || v[2] < 0.3) continue;
+        CHECK(sb_source_eval(t, l, v, a) == 1);
+        CHECK(sb_source_eval(t, v, l, b) == 1);
+        for (int ch = 0; ch < 3; ch++)
+            CHECK_REL(a[ch], b[ch], 1e-9);
+        sb_source_eval(m, l, v, want);
+        double e = fabs(a[0] - want[0]) / want[0];
+        if (e > worst) worst = e;
+        s2 += e * e;
+        n++;
+    }
+    /* 10 deg elevations, light azimuths 30 deg apart, detector 15 deg */
+    double rms = sqrt(s2 / n);
+    CHECKF(rms < 0.05 && worst < 0.25, "relative error rms %.3f, worst %.3f", rms, worst);
+    sb_source_destroy(t);
+    sb_source_destroy(m);
+}
+
+SB_TEST(gonio_noise_and_ranges) {
+    sb_source_t *m = model("lambert:albedo=0.5");
+    const char *dir = sb_tmpdir("noise");
+    char p[3][4200];
+    sb_gonio_opts_t go = {6, 1, 6, 24, 0.1, 7};
+    for (int k = 0; k < 3; k++) {
+        snprintf(p[k], sizeof p[k], "%s/t%d.csv", dir, k);
+        go.seed = k == 2 ? 8 : 7;
+        FILE *fp = fopen(p[k], "w");
+        size_t rows = 0;
+        CHECK(sb_gonio_write_csv(NULL, fp, m, &go, &rows) == SB_OK);
+        CHECK(rows == 6 * 6 * 24);
+        fclose(fp);
+    }
+    char cmd[9000];
+    snprintf(cmd, sizeof cmd, "cmp -s %s %s", p[0], p[1]);
+    CHECK(sb_run(cmd, NULL, 0) == 0); /* same seed, same table */
+    snprintf(cmd, sizeof cmd, "cmp -s %s %s", p[0], p[2]);
+    CHECK(sb_run(cmd, NULL, 0) != 0);
+    /* the noise is multiplicative with sigma 0.1 */
+    sb_measured_info_t info;
+    sb_measured_opts_t o = {0};
+    o.interp = SB_INTERP_NEAREST;
+    sb_source_t *t = open_table(p[0], &o, &info);
+    if (t) {
+        FILE *fp = fopen(p[0], "r");
+        char line[512];
+        double s1 = 0, s2 = 0;
+        int n = 0;
+        while (fgets(line, sizeof line, fp)) {
+            double a[4], v[3];
+            if (sscanf(line, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &a[0], &a[1], &a[2], &a[3], &v[0], &v[1], &v[2]) != 7)
+                continue;
+            for (int c = 0; c < 3; c++) {
+                double z = (v[c] / (0.5 / SB_PI) - 1) / 0.1;
+                s1 += z;
+                s2 += z * z;
+                n++;
+            }
+        }
+        fclose(fp);
+        double mean = s1 / n, sd = sqrt(s2 / n - mean * mean);
+        CHECKF(fabs(mean) < 0.1 && fabs(sd - 1) < 0.1, "noise mean %g sd %g over %d values", mean, sd, n);
+        sb_source_destroy(t);
+    }
+    /* ranges */
+    FILE *fp = fopen("/dev/null", "w");
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_gonio_opts_t bad = {6, 0, 6, 24, 0, 0};
+    CHECK(sb_gonio_write_csv(ctx, fp, m, &bad, NULL) == SB_ERR_RANGE);
+    CHECK(strstr(sb_context_last_error(ctx), "N_phi_i") != NULL);
+    sb_gonio_opts_t noisy = {6, 1, 6, 24, -1, 0};
+    CHECK(sb_gonio_write_csv(ctx, fp, m, &noisy, NULL) == SB_ERR_RANGE);
+    sb_gonio_opts_t huge = {4096, 4096, 4096, 4096, 0, 0};
+    CHECK(sb_gonio_write_csv(ctx, fp, m, &huge, NULL) == SB_ERR_OVERFLOW);
+    CHECK(sb_gonio_write_csv(ctx, NULL, m, &go, NULL) == SB_ERR_ARG);
+    fclose(fp);
+    sb_context_destroy(ctx);
+    sb_source_destroy(m);
+}
+
+/* ---- CSV details, coverage ---------------------------------------------- */
+
+SB_TEST(csv_columns_units) {
+    const char *dir = sb_tmpdir("csv");
+    char p[4200];
+    /* radians by suffix, columns reordered, a mono value, a NaN row */
+    snprintf(p, sizeof p, "%s/rad.csv", dir);
+    write_text(p, "# a free comment: anything\n"
+                  "value, phi_o_rad, theta_o_rad, phi_i_rad, theta_i_rad, extra\n"
+                  "0.25, 3.14159265358979, 0.5, 0, 0.5, x\n"
+                  "0.5, 0, 0.2, 0, 0.3, y\n"
+                  "nan, 0, 0.4, 0, 0.4, z\n"
+                  "0.125, 1, 1.5707963267949, 0, 0.3, w\n");
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(p, NULL, &info);
+    if (s) {
+        CHECK(info.rows == 4 && info.samples == 2 && info.nan_rows == 1 && info.horizon_rows == 1);
+        CHECK(info.channels == 1 && (sb_source_flags(s) & SB_SOURCE_GRAY));
+        double l[3], v[3], rgb[3];
+        sb_dir_from_angles(0.5, 0, l);
+        sb_dir_from_angles(0.5, SB_PI, v);
+        CHECK(sb_source_eval(s, l, v, rgb) == 1 && rgb[0] == 0.25 && rgb[2] == 0.25);
+        sb_source_destroy(s);
+    }
+    /* degrees by metadata, RGB, anisotropic by content (phi_i varies) */
+    snprintf(p, sizeof p, "%s/deg.csv", dir);
+    write_text(p, "# units: degrees\n"
+                  "theta_i,phi_i,theta_o,phi_o,r,g,b\n"
+                  "30,0,30,180,1,2,3\n"
+                  "30,90,30,270,4,5,6\n");
+    s = open_table(p, NULL, &info);
+    if (s) {
+        CHECK(info.dims == 4 && !(sb_source_flags(s) & SB_SOURCE_ISOTROPIC));
+        double l[3], v[3], rgb[3];
+        sb_dir_from_angles(SB_PI / 6, SB_PI / 2, l);
+        sb_dir_from_angles(SB_PI / 6, 1.5 * SB_PI, v);
+        CHECK(sb_source_eval(s, l, v, rgb) == 1);
+        CHECK_REL(rgb[0], 4, 1e-12);
+        CHECK_REL(rgb[2], 6, 1e-12);
+        sb_source_destroy(s);
+    }
+    /* forcing the format: a CSV read as Cornell fails on its first line */
+    sb_measured_opts_t o = {0};
+    o.format = SB_TABLE_CORNELL;
+    expect_fail(p, &o, SB_ERR_FORMAT, ":2: wavelength count");
+}
+
+/* Cells farther than the radius from every sample are missing, not
+ * invented; a negative radius lifts the limit. */
+SB_TEST(coverage_radius) {
+    const char *p = tmp_path("cov", "few.csv");
+    write_text(p, "theta_i,phi_i,theta_o,phi_o,value\n"
+                  "40,0,40,180,1\n"
+                  "45,0,40,180,1\n"
+                  "40,0,45,170,1\n"
+                  "45,0,45,175,1\n");
+    sb_param_t *prm = NULL;
+    sb_param_opts_t po = {0};
+    po.res = 8;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &prm) == SB_OK);
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(p, NULL, &info);
+    size_t known = 0, cells = 0;
+    if (s) {
+        CHECK(isfinite(info.radius) && info.radius > 0);
+        CHECK(sb_measured_coverage(NULL, s, prm, &known, &cells) == SB_OK);
+        CHECK(cells == 4096 && known > 0 && known < cells / 10);
+        double l[3], v[3], rgb[3];
+        sb_dir_from_angles(0.1, 0, l);
+        sb_dir_from_angles(1.4, 1, v);
+        CHECK(sb_source_eval(s, l, v, rgb) == 0 && rgb[0] == 0);
+        sb_source_destroy(s);
+    }
+    sb_measured_opts_t o = {0};
+    o.radius = -1;
+    s = open_table(p, &o, &info);
+    if (s) {
+        CHECK(isinf(info.radius));
+        CHECK(sb_measured_coverage(NULL, s, prm, &known, &cells) == SB_OK);
+        CHECK(known == cells);
+        sb_source_destroy(s);
+    }
+    /* an analytic source covers everything */
+    sb_source_t *m = model("lambert");
+    CHECK(sb_measured_coverage(NULL, m, prm, &known, &cells) == SB_OK && known == cells);
+    sb_source_destroy(m);
+    sb_param_destroy(prm);
+}
+
+/* ---- hostile text ------------------------------------------------------- */
+
+typedef struct hostile {
+    const char *name, *text;
+    sb_result_t code;
+    const char *want;
+} hostile_t;
+
+SB_TEST(hostile_text) {
+    static const hostile_t cases[] = {
+        {"nohead.csv", "1,2,3,4,5\n", SB_ERR_FORMAT, ":1: header lacks column 'theta_i'"},
+        {"missingcol.csv", "theta_i,phi_i,theta_o,r,g,b\n1,2,3,4,5,6\n", SB_ERR_FORMAT,
+         ":1: header lacks column 'phi_o'"},
+        {"short.csv", "theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,1,1,1\n10,0,10\n", SB_ERR_FORMAT,
+         ":3: 3 fields, the header has 7"},
+        {"nanangle.csv", "theta_i,phi_i,theta_o,phi_o,value\n10,0,nan,180,1\n", SB_ERR_FORMAT,
+         ":2: theta_o 'nan' is not finite"},
+        {"text.csv", "theta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,abc\n", SB_ERR_FORMAT,
+         ":2: value 'abc' is not a number"},
+        {"inf.csv", "theta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,1e999\n", SB_ERR_FORMAT, ":2: value"},
+        {"allnan.csv", "theta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,nan\n", SB_ERR_FORMAT, "no usable samples"},
+        {"both.csv", "theta_i,phi_i,theta_o,phi_o,r,g,b,value\n", SB_ERR_FORMAT, "either r, g, b or value"},
+        {"units.csv", "# units: furlongs\ntheta_i,phi_i,theta_o,phi_o,value\n", SB_ERR_FORMAT, ":1: units"},
+        {"empty.csv", "", SB_ERR_FORMAT, "no header"},
+        {"neg.brdf", "# num wls\n-5\n", SB_ERR_FORMAT, ":2: wavelength count '-5'"},
+        {"huge.brdf", "# num wls\n99999999999999999999\n", SB_ERR_FORMAT, ":2: wavelength count"},
+        {"frac.brdf", "# num wls\n2.5\n", SB_ERR_FORMAT, ":2:"},
+        {"wls.brdf", "# num wls\n3\n# wls\n400 500 450\n", SB_ERR_FORMAT, ":4: wavelengths not increasing"},
+        {"ir.brdf", "# num wls\n2\n# wls\n900 1000\n", SB_ERR_FORMAT, "visible range"},
+        {"more.brdf", "# num wls\n2\n# wls\n400\n500 600\n", SB_ERR_FORMAT, ":5: more wavelengths"},
+        {"row.brdf", "# num wls\n2\n# wls\n400 500\n0.1 0 0.2 0 0.5\n", SB_ERR_FORMAT, ":5: 5 numbers, expected 6"},
+        {"early.brdf", "# num wls\n3\n# wls\n400 500\n", SB_ERR_FORMAT, "ends before the last wavelength"},
+        {"garbage.brdf", "# num wls\n2\n# wls\n400 700\n0.1 0 0.2 0 x 1\n", SB_ERR_FORMAT,
+         ":5: spectral value 'x' is not a number"},
+        {"data.alta", "#DIM 3 1\n0.1 0.2 0.3 0.4\n", SB_ERR_FORMAT, ":2: data before the ALTA header"},
+        {"param.alta", "#DIM 3 1\n#PARAM_IN RUSIN_TH_TD_PD\n", SB_ERR_UNSUPPORTED, ":2: ALTA #PARAM_IN RUSIN_TH_TD_PD"},
+        {"vs.alta", "#DIM 3 1\n#VS 2\n", SB_ERR_UNSUPPORTED, ":2: ALTA confidence"},
+        {"cols.alta", "#DIM 3 1\n#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI\n#PARAM_OUT INV_STERADIAN\n0.1 0.2 0.3\n",
+         SB_ERR_FORMAT, ":4: 3 numbers, expected 4"},
+        {"what.txt", "hello world\n", SB_ERR_FORMAT, "unrecognised"},
+    };
+    const char *dir = sb_tmpdir("hostile");
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char p[4200];
+        snprintf(p, sizeof p, "%s/%s", dir, cases[k].name);
+        write_text(p, cases[k].text);
+        expect_fail(p, NULL, cases[k].code, cases[k].want);
+    }
+    /* NUL bytes, an endless line, a missing file */
+    char p[4200];
+    snprintf(p, sizeof p, "%s/nul.csv", dir);
+    FILE *fp = fopen(p, "wb");
+    fputs("theta_i,phi_i,theta_o,phi_o,value\n10,0,", fp);
+    fputc(0, fp);
+    fputs("10,180,1\n", fp);
+    fclose(fp);
+    expect_fail(p, NULL, SB_ERR_FORMAT, ":2: binary data");
+    snprintf(p, sizeof p, "%s/long.csv", dir);
+    fp = fopen(p, "wb");
+    fputs("theta_i,phi_i,theta_o,phi_o,value\n", fp);
+    for (int i = 0; i < (1 << 21); i++)
+        fputc('1', fp);
+    fclose(fp);
+    expect_fail(p, NULL, SB_ERR_FORMAT, ":2: line longer than");
+    snprintf(p, sizeof p, "%s/none.csv", dir);
+    expect_fail(p, NULL, SB_ERR_IO, "cannot open");
+    /* random bytes with a table's extension never crash */
+    unsigned long long seed = 77;
+    for (int k = 0; k < 40; k++) {
+        static const char *const ext[4] = {"csv", "brdf", "alta", "binary"};
+        snprintf(p, sizeof p, "%s/rand%d.%s", dir, k, ext[k % 4]);
+        fp = fopen(p, "wb");
+        size_t n = (size_t)(sb_rand01(&seed) * 3000);
+        for (size_t i = 0; i < n; i++) {
+            int c = (int)(sb_rand01(&seed) * 256);
+            fputc(k % 2 ? c : "0123456789.,- \n#e"[c % 17], fp);
+        }
+        fclose(fp);
+        sb_context_t *ctx;
+        sb_context_create(&ctx);
+        sb_source_t *s = NULL;
+        sb_result_t r = sb_measured_open(ctx, p, NULL, &s, NULL);
+        CHECKF(r != SB_OK || s != NULL, "%s", p);
+        if (r != SB_OK) CHECKF(strstr(sb_context_last_error(ctx), p) != NULL, "%s", sb_context_last_error(ctx));
+        sb_source_destroy(s);
+        sb_context_destroy(ctx);
+    }
+}
+
+SB_TEST(options_and_names) {
+    const char *p = tmp_path("opts", "t.csv");
+    write_text(p, "theta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,1\n");
+    sb_measured_opts_t o = {0};
+    o.neighbours = 65;
+    expect_fail(p, &o, SB_ERR_RANGE, "neighbours");
+    o.neighbours = 0;
+    o.radius = NAN;
+    expect_fail(p, &o, SB_ERR_RANGE, "radius");
+    o.radius = 0;
+    o.interp = (sb_interp_t)99;
+    expect_fail(p, &o, SB_ERR_ARG, "interpolation");
+    o.interp = SB_INTERP_DEFAULT;
+    o.format = (sb_table_format_t)99;
+    expect_fail(p, &o, SB_ERR_ARG, "format");
+    for (int k = 0; k < SB_INTERP_COUNT_; k++) {
+        sb_interp_t m;
+        CHECK(sb_interp_parse(sb_interp_name((sb_interp_t)k), &m) == SB_OK && m == (sb_interp_t)k);
+    }
+    for (int k = 0; k < SB_TABLE_FORMAT_COUNT_; k++) {
+        sb_table_format_t f;
+        CHECK(sb_table_format_parse(sb_table_format_name((sb_table_format_t)k), &f) == SB_OK &&
+              f == (sb_table_format_t)k);
+    }
+    sb_interp_t m;
+    CHECK(sb_interp_parse("cubic", &m) == SB_ERR_UNKNOWN);
+    /* one sample: no spacing, so no radius limit */
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(p, NULL, &info);
+    if (s) {
+        CHECK(info.spacing == 0 && isinf(info.radius));
+        sb_source_destroy(s);
+    }
+}
+
+/* The example shipped in data/ reads, and the hook opens it. */
+SB_TEST(csv_example) {
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(SB_SOURCE_DIR "/data/example_gonio.csv", NULL, &info);
+    if (!s) return;
+    CHECK(info.format == SB_TABLE_CSV && info.rows == 72 && info.samples == 72 && info.channels == 3);
+    sb_source_destroy(s);
+    s = NULL;
+    CHECK(sb_source_open(NULL, SB_SOURCE_DIR "/data/example_gonio.csv", &s) == SB_OK);
+    CHECK(s && strstr(sb_source_description(s), "csv:") == sb_source_description(s));
+    sb_source_destroy(s);
+}

@@ -1,0 +1,253 @@
+/* CLI of the measured tables: `sepbrdf sample`, `sepbrdf info`, and
+ * `sepbrdf factor` on measured files (the real binary, SB_CLI). */
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "harness.h"
+
+static char out[1 << 16];
+
+/* Run "SB_CLI args" (args built with printf), capturing stdout + stderr. */
+__attribute__((format(printf, 1, 2))) static int cli(const char *fmt, ...) {
+    char args[8192], cmd[8400];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(args, sizeof args, fmt, ap);
+    va_end(ap);
+    CHECK(n > 0 && (size_t)n < sizeof args);
+    n = snprintf(cmd, sizeof cmd, "%s %s", SB_CLI, args);
+    CHECK(n > 0 && (size_t)n < sizeof cmd);
+    return sb_run(cmd, out, sizeof out);
+}
+
+static int has_measured_dir(void) {
+    struct stat st;
+    return stat(SB_MEASURED_DIR, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+static int dir_is_empty_or_missing(const char *dir) {
+    char cmd[9000];
+    int n = snprintf(cmd, sizeof cmd, "test ! -e '%s' || test -z \"$(ls -A '%s')\"", dir, dir);
+    CHECK(n > 0 && (size_t)n < sizeof cmd);
+    return sb_run(cmd, NULL, 0) == 0;
+}
+
+static size_t count_lines(const char *path, int data_only) {
+    FILE *fp = fopen(path, "r");
+    if (!fp) return 0;
+    char line[4096];
+    size_t n = 0;
+    int header = 0;
+    while (fgets(line, sizeof line, fp)) {
+        if (data_only && line[0] == '#') continue;
+        if (data_only && !header) {
+            header = 1;
+            continue;
+        }
+        n++;
+    }
+    fclose(fp);
+    return n;
+}
+
+/* The J-th "rel_rms" of report.json (the error after J terms), NaN if absent. */
+static double report_rel_rms(const char *path, int J) {
+    FILE *fp = fopen(path, "r");
+    if (!fp) return NAN;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    buf[n] = 0;
+    fclose(fp);
+    const char *p = buf;
+    for (int k = 0; k < J; k++) {
+        p = strstr(p, "\"rel_rms\": ");
+        if (!p) return NAN;
+        if (k + 1 < J) p++;
+    }
+    return atof(p + 11);
+}
+
+/* Every "rel_rms": value in report.json is a finite number. */
+static int report_finite(const char *path, int *count) {
+    FILE *fp = fopen(path, "r");
+    if (!fp) return 0;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    buf[n] = 0;
+    fclose(fp);
+    *count = 0;
+    for (const char *p = buf; (p = strstr(p, "\"rel_rms\": ")); p++) {
+        double v = atof(p + 11);
+        if (strncmp(p + 11, "null", 4) == 0 || !isfinite(v) || v < 0 || v > 1) return 0;
+        (*count)++;
+    }
+    return *count > 0;
+}
+
+SB_TEST(sample_writes_table) {
+    const char *dir = sb_tmpdir("mcli");
+    char p[4200], q[4200];
+    snprintf(p, sizeof p, "%s/t.csv", dir);
+    int rc = cli("sample microfacet:base=gold,roughness=0.5 --gonio 6,1,6,12 -o %s", p);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(count_lines(p, 1) == 6 * 6 * 12);
+    CHECK(strstr(out, "432 rows") != NULL);
+    FILE *fp = fopen(p, "r");
+    char line[512] = "";
+    while (fp && fgets(line, sizeof line, fp) && line[0] == '#') {
+    }
+    if (fp) fclose(fp);
+    CHECK(strcmp(line, "theta_i,phi_i,theta_o,phi_o,r,g,b\n") == 0);
+    /* deterministic noise; standard output */
+    snprintf(q, sizeof q, "%s/u.csv", dir);
+    CHECK(cli("sample lambert --gonio 3,2,3,4 --noise 0.05 --seed 3 -q -o %s", p) == 0);
+    CHECK(out[0] == 0);
+    CHECK(cli("sample lambert --gonio=3,2,3,4 --noise=0.05 --seed=3 > %s", q) == 0);
+    char cmd[9000];
+    snprintf(cmd, sizeof cmd, "cmp -s %s %s", p, q);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    /* the table reads back */
+    rc = cli("info %s", p);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(strstr(out, "format        csv") != NULL);
+    CHECK(strstr(out, "rows          72 ") != NULL);
+    CHECK(strstr(out, "coverage") != NULL);
+    rc = cli("info %s --json --res 8", p);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(strstr(out, "\"format\": \"csv\"") != NULL && strstr(out, "\"fraction\": ") != NULL);
+}
+
+SB_TEST(sample_bad_options) {
+    const char *dir = sb_tmpdir("mcli");
+    char sub[4200], p[4300];
+    snprintf(sub, sizeof sub, "%s/o", dir);
+    snprintf(p, sizeof p, "%s/t.csv", sub);
+    CHECK(cli("sample lambert --gonio 6,1,6 -o %s", p) == 1);
+    CHECK(strstr(out, "--gonio") != NULL);
+    CHECK(cli("sample lambert --gonio 6,0,6,12 -o %s", p) == 1);
+    CHECK(strstr(out, "N_phi_i") != NULL);
+    CHECK(cli("sample lambert --noise -1 -o %s", p) == 1);
+    CHECK(strstr(out, "--noise") != NULL);
+    CHECK(cli("sample lambert --frobnicate -o %s", p) == 1);
+    CHECK(strstr(out, "--frobnicate") != NULL);
+    CHECK(cli("sample -o %s", p) == 1);
+    CHECK(strstr(out, "no SOURCE") != NULL);
+    CHECK(cli("sample nosuchmodel -o %s", p) == 1);
+    CHECK(dir_is_empty_or_missing(sub));
+    /* an unwritable output: I/O error, nothing left */
+    CHECK(cli("sample lambert -o %s/no/such/dir/t.csv", dir) == 2);
+    CHECK(cli("sample --help") == 0 && strstr(out, "--gonio") != NULL);
+}
+
+SB_TEST(info_errors) {
+    const char *dir = sb_tmpdir("mcli");
+    char p[4200];
+    CHECK(cli("info %s/missing.csv", dir) == 2);
+    CHECK(strstr(out, "missing.csv") != NULL);
+    snprintf(p, sizeof p, "%s/bad.csv", dir);
+    FILE *fp = fopen(p, "w");
+    fputs("theta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,1\n10,0,oops,180,1\n", fp);
+    fclose(fp);
+    CHECK(cli("info %s", p) == 2);
+    CHECKF(strstr(out, "bad.csv:3: theta_o 'oops' is not a number") != NULL, "%s", out);
+    CHECK(cli("info") == 1);
+    CHECK(cli("info %s --res 1", p) == 1);
+    CHECK(cli("info %s --interp cubic", p) == 1);
+    CHECK(cli("info --help") == 0 && strstr(out, "coverage") != NULL);
+}
+
+/* Truncated, oversized, wrong-dims MERL files: factor and info refuse them
+ * before writing anything. */
+SB_TEST(merl_bad_files) {
+    const char *dir = sb_tmpdir("mcli");
+    static const struct {
+        const char *name;
+        int32_t dims[3];
+        size_t bytes;
+        const char *want;
+    } cases[] = {
+        {"trunc.binary", {90, 90, 180}, 1000, "expected 34992012"},
+        {"over.binary", {90, 90, 180}, 34992012 - 12 + 8, "file size 34992020"},
+        {"dims.binary", {90, 90, 90}, 100, "expected 90 x 90 x 180"},
+        {"huge.binary", {INT32_MAX, 2, 2}, 100, "dims 2147483647 x 2 x 2"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char p[4200], o[4200];
+        snprintf(p, sizeof p, "%s/%s", dir, cases[k].name);
+        snprintf(o, sizeof o, "%s/out%zu", dir, k);
+        FILE *fp = fopen(p, "wb");
+        for (int d = 0; d < 3; d++)
+            for (int b = 0; b < 4; b++)
+                fputc((int)(((uint32_t)cases[k].dims[d] >> (8 * b)) & 0xff), fp);
+        for (size_t i = 0; i < cases[k].bytes; i++)
+            fputc(0, fp);
+        fclose(fp);
+        int rc = cli("factor %s --res 8 --terms 1 -o %s", p, o);
+        CHECKF(rc == 1 || rc == 2, "%s: rc %d", cases[k].name, rc);
+        CHECKF(strstr(out, cases[k].want) != NULL, "%s: %s", cases[k].name, out);
+        CHECK(dir_is_empty_or_missing(o));
+        CHECK(cli("info %s", p) == 2);
+    }
+}
+
+/* The shared Cornell acrylic factorises end to end with finite outputs. */
+SB_TEST(cornell_factor) {
+    if (!has_measured_dir()) SKIP("no ../shared/data/measured folder");
+    const char *dir = sb_tmpdir("mcli");
+    char o[4200], p[4300];
+    snprintf(o, sizeof o, "%s/out", dir);
+    int rc = cli("factor %s/cornell_acryl_blue.brdf --res 16 --terms 4 -o %s", SB_MEASURED_DIR, o);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    int n = 0;
+    snprintf(p, sizeof p, "%s/report.json", o);
+    CHECKF(report_finite(p, &n), "rel_rms not finite in %s", p);
+    CHECK(n >= 4);
+    for (int j = 0; j < 4; j++) {
+        snprintf(p, sizeof p, "%s/h_%02d.exr", o, j);
+        CHECK(sb_file_exists(p));
+    }
+    rc = cli("info %s/cornell_acryl_blue.brdf --res 16", SB_MEASURED_DIR);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(strstr(out, "rows          1439 ") != NULL && strstr(out, "wavelengths   31 (400..700 nm)") != NULL);
+}
+
+SB_TEST(alta_info_factor) {
+    if (!has_measured_dir()) SKIP("no ../shared/data/measured folder");
+    int rc = cli("info %s/alta_retro-3M-jaune.dat --res 16", SB_MEASURED_DIR);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(strstr(out, "rows          7397 ") != NULL);
+    const char *dir = sb_tmpdir("mcli");
+    char o[4200], p[4300];
+    snprintf(o, sizeof o, "%s/out", dir);
+    rc = cli("factor %s/alta_retro-3M-jaune.dat --res 16 --terms 2 -q -o %s", SB_MEASURED_DIR, o);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    int n = 0;
+    snprintf(p, sizeof p, "%s/report.json", o);
+    CHECK(report_finite(p, &n));
+    CHECK(cli("info %s/rgl_paper_white_rgb.bsdf", SB_MEASURED_DIR) == 1);
+    CHECK(strstr(out, "tensor_file") != NULL);
+}
+
+/* sample -> factor: the simulated table factorises like the model. */
+SB_TEST(sample_then_factor) {
+    const char *dir = sb_tmpdir("mcli");
+    char t[4200], a[4200], b[4200], p[4300];
+    snprintf(t, sizeof t, "%s/t.csv", dir);
+    snprintf(a, sizeof a, "%s/a", dir);
+    snprintf(b, sizeof b, "%s/b", dir);
+    CHECK(cli("sample microfacet:base=gold,roughness=0.5 --gonio 18,1,18,72 -q -o %s", t) == 0);
+    CHECK(cli("factor %s --res 16 --terms 4 --form cos2 -q -o %s", t, a) == 0);
+    CHECK(cli("factor microfacet:base=gold,roughness=0.5 --res 16 --terms 4 --form cos2 -q -o %s", b) == 0);
+    int n;
+    snprintf(p, sizeof p, "%s/report.json", a);
+    CHECK(report_finite(p, &n));
+    double ea = report_rel_rms(p, 4);
+    snprintf(p, sizeof p, "%s/report.json", b);
+    double eb = report_rel_rms(p, 4);
+    CHECKF(fabs(ea - eb) < 0.02, "rel_rms at J = 4: table %g, model %g", ea, eb);
+    CHECK(cli("info %s --res 16", t) == 0);
+    CHECKF(strstr(out, "65536 of 65536 cells (100.00 %)") != NULL, "%s", out);
+}
