@@ -462,7 +462,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 p->vneg = 0;
             }
         } else if (masked) {
-            sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol, p->opts.svd.seed};
+            sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol, p->opts.svd.seed, p->opts.max_error};
             sb_fit_info_t fi;
             r = sb_fit_execute(p->fit, x, ldx, m->mask, &fo, p->s, p->u, p->v, &fi);
             if (fi.iterations > p->stats.fit_iterations) p->stats.fit_iterations = fi.iterations;

@@ -489,6 +489,11 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
                 }
             }
             acc[ka - 1] = err;
+            if (o.target > 0 && err <= o.target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
+                memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
+                memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
+                break;
+            }
         }
         free(saveP);
         free(saveQ);

@@ -10,6 +10,7 @@ typedef struct sb_fit_opts {
     int max_iters;  /* default 300 */
     double tol;     /* stop when the valid-cell error improves by less than tol relative; default 1e-5 */
     uint64_t seed;  /* starting subspace; default 1 */
+    double target;  /* stop adding terms once the relative error is <= target (0 = all k) */
 } sb_fit_opts_t;
 
 typedef struct sb_fit_info {

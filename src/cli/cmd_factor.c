@@ -41,7 +41,11 @@ static void help(void) {
         "                       instead of excluding them (masked fit, the default)\n"
         "      --metric-res R   reference io grid of the comparable error (default 32)\n"
         "      --method M       auto (default), full (dgesdd), topk, randomized\n"
-        "      --max-error E    stop at the first J with relative RMS error <= E (0 < E < 1)\n"
+        "      --max-error E    keep the fewest terms whose relative RMS error is <= E\n"
+        "                       (0 < E < 1); J (default 32 here, at most R) is then the\n"
+        "                       upper limit\n"
+        "      --channels C     channels to factor, any of R, G, B (e.g. G or R,B;\n"
+        "                       default all); the others are written as zero\n"
         "      --theta-max DEG  largest sampled elevation in degrees (default 90)\n"
         "      --seed S         seed of randomized methods (default 1)\n"
         "      --half           store half floats with per-term scales\n"
@@ -69,6 +73,8 @@ typedef struct factor_opts {
     double max_error, theta_max_deg;
     unsigned long long seed;
     int half, weighted, zero_fill;
+    int terms_set;
+    unsigned channels;
 } factor_opts_t;
 
 static int factor_previews; /* --previews: a PNG per texture (image.h) */
@@ -77,7 +83,7 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
     static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
                              *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
                              *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
-                             *const n_maxerr[] = {"--max-error", NULL}, *const n_tmax[] = {"--theta-max", NULL},
+                             *const n_maxerr[] = {"--max-error", NULL}, *const n_tmax[] = {"--theta-max", NULL}, *const n_chan[] = {"--channels", NULL},
                              *const n_seed[] = {"--seed", NULL}, *const n_half[] = {"--half", NULL},
                              *const n_help[] = {"-h", "--help", NULL}, *const n_weighted[] = {"--weighted", NULL},
                              *const n_zero[] = {"--zero-fill", NULL}, *const n_mres[] = {"--metric-res", NULL};
@@ -101,6 +107,7 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             if (m < 0 || cli_parse_size("factor", "--res", v, 2, 512, &o->res)) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_terms, 1, &v))) {
             if (m < 0 || cli_parse_size("factor", "--terms", v, 1, (size_t)1 << 30, &o->terms)) return EXIT_USAGE;
+            o->terms_set = 1;
         } else if ((m = cli_opt(&a, n_param, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
             if (strcmp(v, "auto") == 0) {
@@ -127,6 +134,22 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
         } else if ((m = cli_opt(&a, n_maxerr, 1, &v))) {
             if (m < 0 || cli_parse_double("factor", "--max-error", v, 1e-15, 0.999999, &o->max_error))
                 return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_chan, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            o->channels = 0;
+            for (const char *q = v; *q; q++) {
+                if (*q == ',') continue;
+                const char *at = strchr("RGBrgb", *q);
+                if (!at || !*q) {
+                    cli_error("factor", "--channels '%s': '%c' is not R, G or B", v, *q);
+                    return EXIT_USAGE;
+                }
+                o->channels |= 1u << ((at - "RGBrgb") % 3);
+            }
+            if (!o->channels) {
+                cli_error("factor", "--channels '%s': no channel given (need R, G and/or B)", v);
+                return EXIT_USAGE;
+            }
         } else if ((m = cli_opt(&a, n_tmax, 1, &v))) {
             if (m < 0 || cli_parse_double("factor", "--theta-max", v, 1, 90, &o->theta_max_deg)) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_seed, 1, &v))) {
@@ -341,9 +364,10 @@ int cmd_factor(int argc, char **argv) {
     int rc = parse(argc, argv, &o);
     if (rc >= 0) return rc;
     if (!o.source) o.source = DEFAULT_SOURCE;
+    if (o.max_error > 0 && !o.terms_set) o.terms = o.res < 32 ? o.res : 32; /* upper limit for --max-error */
     if ((rc = cli_check_outdir("factor", "--out", o.out)) != EXIT_OK) return rc;
     pipe_opts_t po = {o.res, o.terms, o.metric_res, o.theta_max_deg, o.max_error, o.method, o.seed, o.zero_fill,
-                      "sampling", 0, 1};
+                      "sampling", 0, 1, o.channels};
 
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;

@@ -293,7 +293,7 @@ static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, cons
             if (!o->form_set) cands[ncand++] = (cand_t){(sb_param_kind_t)k, SB_FORM_COS2, 1};
         }
     }
-    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0};
+    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0};
     double best_err = INFINITY;
     memset(best, 0, sizeof *best);
     for (size_t i = 0; i < ncand; i++) {

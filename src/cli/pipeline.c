@@ -50,6 +50,7 @@ sb_result_t attempt_sample(sb_context_t *ctx, const sb_source_t *src, const pipe
     double t0 = cli_now();
     sb_matrix_opts_t mo = {0};
     mo.form = form;
+    mo.channels = o->channels;
     if (o->progress_label) {
         mo.progress = sample_progress;
         mo.progress_user = (void *)o;

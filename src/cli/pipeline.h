@@ -24,6 +24,7 @@ typedef struct pipe_opts {
      * with f the fraction of the matrix built; label NULL = no progress. */
     const char *progress_label;
     double progress_base, progress_span;
+    unsigned channels; /* bit mask of channels to build (1 R, 2 G, 4 B); 0 = all */
 } pipe_opts_t;
 
 /* One complete factorisation of a source on one parameterisation. */
