@@ -31,7 +31,22 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
     if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
     size_t rows = m->rows, cols = m->cols, ld = m->ld;
 
-    /* pass 1: g[c][e] = <M_c, M_e> for present channels */
+    /* Products are taken on values times a power of two pw near
+     * 1 / max |M| (exact): 1e-300 data otherwise gives g = 0, "all
+     * channels zero, proportional with scale 0", and the plan zeroed every
+     * channel but the base; 1e200 data overflows. */
+    double amax = 0, pw = 1;
+    for (int c = 0; c < 3; c++)
+        for (size_t j = 0; x[c] && j < cols; j++)
+            for (size_t i = 0; i < rows; i++)
+                amax = fmax(amax, fabs(x[c][i + j * ld]));
+    if (amax > 0 && isfinite(amax)) {
+        int ex;
+        frexp(amax, &ex);
+        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+    }
+
+    /* pass 1: g[c][e] = <M_c, M_e> for present channels (scaled by pw^2) */
     double g[3][3] = {{0}};
     for (size_t j = 0; j < cols; j++) {
         double p[3][3] = {{0}};
@@ -44,10 +59,10 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
                 double s0 = 0, s1 = 0;
                 size_t i = 0;
                 for (; i + 2 <= rows; i += 2) {
-                    s0 += a[i] * b[i];
-                    s1 += a[i + 1] * b[i + 1];
+                    s0 += (a[i] * pw) * (b[i] * pw);
+                    s1 += (a[i + 1] * pw) * (b[i + 1] * pw);
                 }
-                if (i < rows) s0 += a[i] * b[i];
+                if (i < rows) s0 += (a[i] * pw) * (b[i] * pw);
                 p[c][e] = s0 + s1;
             }
         }
@@ -63,7 +78,7 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
                                 c, e);
     for (int c = 0; c < 3; c++) {
         if (!x[c]) continue;
-        out->norm[c] = sqrt(g[c][c]);
+        out->norm[c] = sqrt(g[c][c]) / pw;
         if (b < 0 || g[c][c] > g[b][b]) b = c;
     }
     out->base = b;
@@ -88,11 +103,11 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
             double ac = out->scale[c], s0 = 0, s1 = 0;
             size_t i = 0;
             for (; i + 2 <= rows; i += 2) {
-                double d0 = a[i] - ac * e[i], d1 = a[i + 1] - ac * e[i + 1];
+                double d0 = (a[i] - ac * e[i]) * pw, d1 = (a[i + 1] - ac * e[i + 1]) * pw;
                 s0 += d0 * d0;
                 s1 += d1 * d1;
             }
-            if (i < rows) s0 += (a[i] - ac * e[i]) * (a[i] - ac * e[i]);
+            if (i < rows) s0 += ((a[i] - ac * e[i]) * pw) * ((a[i] - ac * e[i]) * pw);
             dev2[c] += s0 + s1;
             if (dev2[c] > budget[c]) out->proportional = 0;
         }

@@ -159,10 +159,47 @@ static int channel_plane(size_t channels, const char *name) {
     return -1;
 }
 
-/* Convert one texture into `buf` (planar, float or half bits) and find its
- * scale.  Refuses values that FLOAT or HALF cannot hold. */
-static sb_result_t pack_texture(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half,
-                                const char *path, void *buf, float *scale_out) {
+/* ---- stored precision ------------------------------------------------
+ * The one place that decides what a texel becomes in a file: the writer
+ * encodes through it, the reader decodes through it, and
+ * sb_factors_quantize() does both, so the "stored" factors it returns are
+ * bit for bit what a write followed by a read gives. */
+
+typedef struct codec {
+    int half;     /* HALF bits, else FLOAT */
+    double scale; /* stored = value / scale (a power of two; 1 for FLOAT) */
+} codec_t;
+
+static void texel_encode(const codec_t *k, double v, void *plane, size_t i) {
+    if (k->half)
+        ((uint16_t *)plane)[i] = half_from_double(v / k->scale);
+    else
+        ((float *)plane)[i] = (float)v;
+}
+
+static double texel_decode(const codec_t *k, const void *plane, size_t i) {
+    double v = k->half ? half_to_double(((const uint16_t *)plane)[i]) : (double)((const float *)plane)[i];
+    return v * k->scale;
+}
+
+/* The value a texel has after a write and a read. */
+static double texel_stored(const codec_t *k, double v) {
+    union {
+        uint16_t h;
+        float f;
+    } bits;
+    texel_encode(k, v, &bits, 0);
+    return texel_decode(k, &bits, 0);
+}
+
+/* Codec of one texture: checks that every value can be stored and picks
+ * the HALF scale.  Refuses non-finite values, values beyond FLOAT, a
+ * maximum HALF with a float scale cannot hold, and a texture whose largest
+ * value would be stored as zero (a whole term flushed away: FLOAT below
+ * 2^-149).  Single texels far below their texture's maximum may still
+ * flush to zero; sb_factors_quantize counts them. */
+static sb_result_t texture_codec(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half,
+                                 const char *path, codec_t *out) {
     size_t C = sb_factors_channels(f), w, h;
     sb_factors_size(f, side, &w, &h);
     size_t n = w * h;
@@ -180,7 +217,8 @@ static sb_result_t pack_texture(sb_context_t *ctx, const sb_factors_t *f, int si
             if (fabs(t[i]) > amax) amax = fabs(t[i]);
         }
     }
-    double scale = 1;
+    out->half = half;
+    out->scale = 1;
     if (half && amax > 0) {
         int e;
         frexp(amax, &e); /* amax < 2^e */
@@ -189,21 +227,34 @@ static sb_result_t pack_texture(sb_context_t *ctx, const sb_factors_t *f, int si
                             "%s: max |value| %g is outside the range HALF with a float scale can hold; write "
                             "FLOAT instead",
                             path, amax);
-        scale = ldexp(1, e - HALF_TOP_EXP);
+        out->scale = ldexp(1, e - HALF_TOP_EXP);
     }
+    if (amax > 0 && texel_stored(out, amax) == 0)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%s: max |value| %g would be stored as 0 in FLOAT (term %zu lost); write HALF, "
+                        "which scales each texture",
+                        path, amax, term);
+    return SB_OK;
+}
+
+/* Convert one texture into `buf` (planar, float or half bits) and find its
+ * scale. */
+static sb_result_t pack_texture(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half,
+                                const char *path, void *buf, float *scale_out) {
+    size_t C = sb_factors_channels(f), w, h;
+    sb_factors_size(f, side, &w, &h);
+    size_t n = w * h;
+    codec_t k;
+    sb_result_t r = texture_codec(ctx, f, side, term, half, path, &k);
+    if (r != SB_OK) return r;
+    size_t bpe = half ? 2 : 4;
     for (size_t c = 0; c < C; c++) {
         const double *t = sb_factors_tex_const(f, side, term, c);
-        if (half) {
-            uint16_t *d = (uint16_t *)buf + c * n;
-            for (size_t i = 0; i < n; i++)
-                d[i] = half_from_double(t[i] / scale);
-        } else {
-            float *d = (float *)buf + c * n;
-            for (size_t i = 0; i < n; i++)
-                d[i] = (float)t[i];
-        }
+        void *plane = (unsigned char *)buf + c * n * bpe;
+        for (size_t i = 0; i < n; i++)
+            texel_encode(&k, t[i], plane, i);
     }
-    *scale_out = (float)scale;
+    *scale_out = (float)k.scale;
     return SB_OK;
 }
 
@@ -246,6 +297,26 @@ static sb_result_t write_attrs(sb_context_t *ctx, exr_context_t ex, const sb_fac
     return SB_OK;
 }
 
+/* OpenEXRCore before the fix of AcademySoftwareFoundation/openexr#2306
+ * (Debian 12 ships 3.1.5) stores a ZIP chunk whose deflated size equals
+ * its raw size as deflated bytes, while readers take "packed size ==
+ * unpacked size" to mean raw pixels: such a file reads back garbage.  Run
+ * the library's compressor, then store a chunk that gained nothing raw, as
+ * the fixed versions do. */
+typedef struct compress_hook {
+    exr_result_t (*fn)(exr_encode_pipeline_t *enc);
+} compress_hook_t;
+
+static exr_result_t compress_no_gain_raw(exr_encode_pipeline_t *enc) {
+    const compress_hook_t *hook = enc->encoding_user_data;
+    exr_result_t rv = hook->fn(enc);
+    if (rv || enc->compressed_buffer == enc->packed_buffer || enc->compressed_bytes < enc->packed_bytes) return rv;
+    if (enc->compressed_alloc_size < enc->packed_bytes) return EXR_ERR_OUT_OF_MEMORY; /* cannot fix: fail */
+    memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    enc->compressed_bytes = enc->packed_bytes;
+    return EXR_ERR_SUCCESS;
+}
+
 /* Write one texture to `path` (the temporary name). */
 static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half, int longnames,
                              const char *path, void *buf) {
@@ -261,6 +332,7 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
     exr_context_initializer_t init = exr_init(0);
     exr_context_t ex = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    compress_hook_t hook = {NULL};
     int enc_live = 0, part = 0;
     exr_result_t rv = exr_start_write(&ex, path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv) {
@@ -304,7 +376,14 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
             ch->user_line_stride = (int32_t)(w * bpe);
             ch->encode_from_ptr = (const uint8_t *)buf + ((size_t)plane * w * h + (size_t)y * w) * bpe;
         }
-        if (k == 0) rv = exr_encoding_choose_default_routines(ex, part, &enc);
+        if (k == 0) {
+            rv = exr_encoding_choose_default_routines(ex, part, &enc);
+            if (!rv && enc.compress_fn) {
+                hook.fn = enc.compress_fn;
+                enc.compress_fn = compress_no_gain_raw;
+                enc.encoding_user_data = &hook;
+            }
+        }
         if (!rv) rv = exr_encoding_run(ex, part, &enc);
     }
     if (rv) {
@@ -400,6 +479,73 @@ out:
     free(fin);
     free(buf);
     return r;
+}
+
+/* ---- stored precision of whole factors ---------------------------------- */
+
+sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
+                                sb_factors_t **stored, sb_quantize_info_t *info) {
+    if (!stored) return sb_error(ctx, SB_ERR_ARG, "quantize: no output pointer");
+    *stored = NULL;
+    if (!f) return sb_error(ctx, SB_ERR_ARG, "quantize: no factors");
+    if (info) memset(info, 0, sizeof *info);
+    int half = opts && opts->half;
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), w[2], h[2];
+    for (int s = 0; s < 2; s++)
+        sb_factors_size(f, s, &w[s], &h[s]);
+    sb_factors_t *q = NULL;
+    sb_result_t r = sb_factors_create(ctx, J, C, w[0], h[0], w[1], h[1], &q);
+    if (r != SB_OK) return r;
+    for (size_t k = 0; k < 2 * J && r == SB_OK; k++) {
+        int side = (int)(k % 2);
+        size_t term = k / 2, n = w[side] * h[side];
+        char name[64];
+        sb_exr_name(side, term, name, sizeof name);
+        codec_t cd;
+        if ((r = texture_codec(ctx, f, side, term, half, name, &cd)) != SB_OK) break;
+        for (size_t c = 0; c < C; c++) {
+            const double *t = sb_factors_tex_const(f, side, term, c);
+            double *d = sb_factors_tex(q, side, term, c);
+            size_t flushed = 0;
+            for (size_t i = 0; i < n; i++) {
+                d[i] = texel_stored(&cd, t[i]);
+                flushed += t[i] != 0 && d[i] == 0;
+            }
+            if (info) {
+                info->texels += n;
+                info->flushed += flushed;
+            }
+        }
+    }
+    /* sigma as the header stores it (write_attrs refuses the same values) */
+    for (size_t j = 0; j < J && r == SB_OK; j++)
+        for (size_t c = 0; c < C; c++) {
+            float s;
+            if (!to_float(sb_factors_sigma(f, j, c), &s)) {
+                r = sb_error(ctx, SB_ERR_RANGE, "quantize: sigma %g of term %zu is not representable as a float",
+                             sb_factors_sigma(f, j, c), j);
+                break;
+            }
+            sb_factors_set_sigma(q, j, c, s);
+        }
+    for (size_t i = 0; i < sb_factors_meta_count(f) && r == SB_OK; i++) {
+        const char *key, *value;
+        sb_factors_meta_at(f, i, &key, &value);
+        if (sb_factors_set_meta(q, key, value) != SB_OK) r = sb_error(ctx, SB_ERR_NOMEM, "quantize: out of memory");
+    }
+    if (r != SB_OK) {
+        sb_factors_destroy(q);
+        return r;
+    }
+    /* the errors stay those of the fit f (see exr.h) */
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    sb_factor_errors_t *eq = sb_factors_errors_mut(q);
+    memcpy(eq->rel_rms, e->rel_rms, J * 4 * sizeof(double));
+    memcpy(eq->max_abs, e->max_abs, J * 4 * sizeof(double));
+    memcpy(eq->norm, e->norm, sizeof eq->norm);
+    eq->terms = J;
+    *stored = q;
+    return SB_OK;
 }
 
 /* ---- read -------------------------------------------------------------- */
@@ -505,6 +651,12 @@ static sb_result_t read_header(sb_context_t *ctx, exr_context_t ex, const char *
         if (k > 0 && half != hd->half) return sb_error(ctx, SB_ERR_FORMAT, "%s: channels mix FLOAT and HALF", path);
         hd->half = half;
     }
+    /* The writer's scales: 1 for FLOAT, a power of two for HALF.  Anything
+     * else would make the values read differ from what a write stores. */
+    int e;
+    if (hd->half ? frexp(hd->scale, &e) != 0.5 : hd->scale != 1)
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: " PREFIX "scale %g, expected %s", path, hd->scale,
+                        hd->half ? "a power of two for HALF" : "1 for FLOAT");
     return SB_OK;
 }
 
@@ -580,10 +732,10 @@ static sb_result_t read_pixels(sb_context_t *ctx, exr_context_t ex, const char *
     /* Scale into the factors: (double)float * scale, exact for scale 1 */
     for (size_t c = 0; c < C; c++) {
         double *t = sb_factors_tex(f, side, term, c);
+        const codec_t k = {hd->half, hd->scale};
+        const void *plane = (const unsigned char *)buf + c * n * bpe;
         for (size_t i = 0; i < n; i++) {
-            double v =
-                hd->half ? half_to_double(((const uint16_t *)buf)[c * n + i]) : (double)((const float *)buf)[c * n + i];
-            t[i] = v * hd->scale;
+            t[i] = texel_decode(&k, plane, i);
             if (!isfinite(t[i])) {
                 r = sb_error(ctx, SB_ERR_FORMAT, "%s: non-finite value at texel (%zu, %zu) of channel %s", path, i % w,
                              i / w, channel_name(C, c));

@@ -40,6 +40,7 @@ sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, 
     if (channels != 1 && channels != 3)
         return sb_error(ctx, SB_ERR_RANGE, "factors: %zu channels, need 1 or 3", channels);
     if (!g_w || !g_h || !h_w || !h_h) return sb_error(ctx, SB_ERR_RANGE, "factors: empty texture size");
+    if (terms > SIZE_MAX / 4) return sb_error(ctx, SB_ERR_OVERFLOW, "factors: %zu terms overflow", terms);
     sb_factors_t *f = calloc(1, sizeof *f);
     if (!f) return sb_error(ctx, SB_ERR_NOMEM, "factors: out of memory");
     f->terms = terms;
@@ -234,15 +235,25 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
     p->cols = cols;
     p->terms = o.terms;
     p->opts = o;
+    /* Refuse up front what cannot fit: at least one channel of the matrix
+     * and its mask (held by the caller), plus the weighted copy. */
+    size_t cells, need;
+    if (sb_size_mul(rows, cols, &cells) || sb_size_mul(cells, 9 + (o.weighted ? 8 : 0), &need)) {
+        free(p);
+        return sb_error(ctx, SB_ERR_OVERFLOW, "plan: a %zu x %zu matrix overflows the address space; lower --res", rows,
+                        cols);
+    }
+    if (need > sb_memory_limit()) {
+        free(p);
+        return sb_error(ctx, SB_ERR_OVERFLOW,
+                        "plan: a %zu x %zu matrix needs at least %zu bytes, more than the memory limit of %zu bytes; "
+                        "lower --res",
+                        rows, cols, need, sb_memory_limit());
+    }
     sb_result_t r = sb_svd_create(ctx, rows, cols, o.terms, &o.svd, &p->svd);
     if (r != SB_OK) {
         free(p);
         return r;
-    }
-    size_t cells;
-    if (sb_size_mul(rows, cols, &cells)) {
-        sb_plan_destroy(p);
-        return sb_error(ctx, SB_ERR_OVERFLOW, "plan: matrix size overflows");
     }
     p->s = sb_alloc(ctx, o.terms, sizeof(double), "plan");
     p->u = sb_alloc(ctx, rows * o.terms, sizeof(double), "plan");
@@ -298,6 +309,7 @@ typedef struct res_job {
     const double *a;
     size_t c0, c1;
     double *r, *ssq, *mx;
+    double pw; /* power-of-two scale of the sums of squares (see sb_plan_execute) */
 } res_job_t;
 
 static void *residual_cols(void *arg) {
@@ -318,8 +330,8 @@ static void *residual_cols(void *arg) {
             for (size_t i = 0; i < rows; i++) {
                 r[i] -= sv * u[i];
                 if (mk && !mk[i]) continue;
-                double d = r[i];
-                s2 += d * d;
+                double d = r[i], ds = d * jb->pw; /* squares of scaled values: no under/overflow */
+                s2 += ds * ds;
                 double dn = fabs(wr ? d / (wr[i] * wc[c]) : d);
                 if (dn > mj) mj = dn;
             }
@@ -330,7 +342,8 @@ static void *residual_cols(void *arg) {
     return NULL;
 }
 
-static sb_result_t residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a, double *ssq, double *mx) {
+static sb_result_t residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a, double pw, double *ssq,
+                             double *mx) {
     size_t J = p->terms, cols = p->cols;
     int nt = p->nthreads;
     if ((size_t)nt > cols) nt = (int)cols;
@@ -343,7 +356,8 @@ static sb_result_t residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a
     int started[16] = {0};
     for (int t = 0; t < nt; t++) {
         jobs[t] = (res_job_t){p, m, a, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt,
-                              p->col + (size_t)t * p->rows, acc + (size_t)t * 2 * J, acc + (size_t)t * 2 * J + J};
+                              p->col + (size_t)t * p->rows, acc + (size_t)t * 2 * J, acc + (size_t)t * 2 * J + J,
+                              pw};
         if (t > 0) started[t] = pthread_create(&th[t], NULL, residual_cols, &jobs[t]) == 0;
     }
     residual_cols(&jobs[0]);
@@ -398,7 +412,20 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         sb_factors_destroy(f);
         return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     }
-    double total2 = 0;
+    /* Sums of squares are taken on values multiplied by a power of two near
+     * 1 / max |M| (exact), so that 1e-300 or 1e200 BRDFs keep a finite,
+     * nonzero norm (they gave rel_rms 0 and a non-finite error); the ratios
+     * rel_rms are unchanged by it. */
+    double total2 = 0, amax = 0, pw = 1;
+    for (int ch = 0; ch < 3; ch++)
+        for (size_t c = 0; m->data[ch] && c < cols; c++)
+            for (size_t i = 0; i < rows; i++)
+                if (!m->mask || m->mask[i + c * m->ld]) amax = fmax(amax, fabs(m->data[ch][i + c * m->ld]));
+    if (amax > 0 && isfinite(amax)) {
+        int ex;
+        frexp(amax, &ex); /* clamped: 2^1074 would overflow for denormal data */
+        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+    }
     /* Proportional channels (M_c = a_c M_base: grey or tinted BRDFs) are
      * factored once: the base channel first, then the others take its
      * vectors with sigma scaled by |a_c| (and h negated for a_c < 0). */
@@ -469,9 +496,9 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         double n2 = 0;
         for (size_t c = 0; c < cols; c++)
             for (size_t i = 0; i < rows; i++)
-                if (!m->mask || m->mask[i + c * m->ld]) n2 += x[i + c * ldx] * x[i + c * ldx];
-        double nrm = sqrt(n2);
-        e->norm[ch] = nrm;
+                if (!m->mask || m->mask[i + c * m->ld]) n2 += (x[i + c * ldx] * pw) * (x[i + c * ldx] * pw);
+        double nrm = sqrt(n2); /* scaled */
+        e->norm[ch] = nrm / pw;
         total2 += n2;
         for (size_t j = 0; j < J; j++) {
             double sj = p->s[j], rt = sqrt(sj > 0 ? sj : 0);
@@ -486,7 +513,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 h[i] = w > 0 ? rt * p->v[i + j * cols] / w : 0;
             }
         }
-        if ((r = residuals(p, m, a, ssq + (size_t)ch * J, mx)) != SB_OK) break;
+        if ((r = residuals(p, m, a, pw, ssq + (size_t)ch * J, mx)) != SB_OK) break;
         for (size_t j = 0; j < J; j++) {
             e->rel_rms[j * 4 + ch] = nrm > 0 ? sqrt(ssq[(size_t)ch * J + j]) / nrm : 0;
             e->max_abs[j * 4 + ch] = mx[j];
@@ -499,7 +526,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         sb_factors_destroy(f);
         return r;
     }
-    e->norm[3] = sqrt(total2);
+    e->norm[3] = sqrt(total2) / pw;
     for (size_t j = 0; j < J; j++) {
         double s2 = 0;
         for (int ch = 0; ch < 3; ch++)

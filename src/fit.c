@@ -360,7 +360,22 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
     if (o.tol <= 0) o.tol = 1e-5;
     /* X: data on valid cells; invalid cells start at the mean of the valid
      * cells of their column (far fewer iterations than starting at 0, which
-     * drags the fit towards zero near the domain's edge). */
+     * drags the fit towards zero near the domain's edge).  X is A times a
+     * power of two pw (exact) that brings max |A| near 1, so that no sum of
+     * squares underflows or overflows (1e-300 data stopped after one
+     * iteration as "converged", 1e300 data failed as non-finite); the ALS
+     * stages read the valid cells of X (same layout as A when lda == m, as
+     * the plan passes) and sigma is divided by pw at the end. */
+    double amax = 0, pw = 1;
+    for (size_t c = 0; c < n && lda == m; c++)
+        for (size_t r = 0; r < m; r++)
+            if (mask[r + c * lda]) amax = fmax(amax, fabs(A[r + c * lda]));
+    if (amax > 0 && isfinite(amax)) {
+        int ex;
+        frexp(amax, &ex);
+        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+    }
+    const double *As = lda == m ? f->x : A; /* what the ALS stages read */
     double norm2 = 0;
     size_t ninvalid = 0;
     for (size_t c = 0; c < n; c++) {
@@ -368,14 +383,14 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         size_t cnt = 0;
         for (size_t r = 0; r < m; r++)
             if (mask[r + c * lda]) {
-                sum += A[r + c * lda];
+                sum += A[r + c * lda] * pw;
                 cnt++;
             }
         double fill = cnt ? sum / (double)cnt : 0.0;
         for (size_t r = 0; r < m; r++) {
             size_t at = r + c * m;
             int ok = mask[r + c * lda];
-            double a = ok ? A[r + c * lda] : fill;
+            double a = ok ? A[r + c * lda] * pw : fill;
             f->x[at] = a;
             if (ok) norm2 += a * a;
             ninvalid += !ok;
@@ -447,7 +462,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
             /* first the new term alone on the residual of the others: the
              * error can only go down (its first half-sweep is a least-squares
              * step from the warm start) */
-            err = als_until(f, A, lda, mask, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
+            err = als_until(f, As, lda, mask, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
             if (ka > 1) {
                 /* then all ka jointly, kept only if no shorter prefix gets
                  * more than SB_PREFIX_SLACK times worse (at the last stage:
@@ -457,8 +472,8 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
                  * near its edge */
                 memcpy(saveP, f->P, m * ka * sizeof *saveP);
                 memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-                double ej = als_until(f, A, lda, mask, 0, ka, &o, sqrt(norm2), &total, &converged);
-                prefix_errors(f, A, lda, mask, ka, e2);
+                double ej = als_until(f, As, lda, mask, 0, ka, &o, sqrt(norm2), &total, &converged);
+                prefix_errors(f, As, lda, mask, ka, e2);
                 int keep = ej <= err;
                 /* the last stage is what was asked for: there any sane
                  * prefix (no worse than no term) is accepted */
@@ -485,7 +500,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
         for (size_t j = 0; j < k; j++) {
             double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);
-            s[j] = np * nq;
+            s[j] = np * nq / pw;
             for (size_t i = 0; i < m && U; i++) U[i + j * m] = np > 0 ? f->P[i + j * m] / np : 0;
             for (size_t i = 0; i < n && V; i++) V[i + j * n] = nq > 0 ? f->Q[i + j * n] / nq : 0;
         }
@@ -499,7 +514,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         return r;
     }
     if (r == SB_OK) {
-        memcpy(s, f->sb, k * sizeof *s);
+        for (size_t j = 0; j < k; j++) s[j] = f->sb[j] / pw;
         if (U) memcpy(U, qu, m * k * sizeof *U);
         if (V)
             for (size_t j = 0; j < k; j++)

@@ -194,14 +194,18 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     if (!chans) return sb_error(ctx, SB_ERR_ARG, "matrix: empty channel mask");
 
     size_t rows = sb_param_rows(param), cols = sb_param_cols(param), cells;
-    if (sb_size_mul(rows, cols, &cells))
-        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: %zu x %zu cells overflow; lower --res", rows, cols);
-    /* Refuse up front when the channels would not fit in memory. */
+    /* Refuse up front when the channels and the mask would not fit. */
     size_t nch = (size_t)((chans & 1) + ((chans >> 1) & 1) + ((chans >> 2) & 1)), bytes;
-    if (sb_size_mul3(cells, nch + 1, sizeof(double), &bytes) || bytes > sb_memory_limit())
+    if (sb_size_mul(rows, cols, &cells) || sb_size_mul3(cells, nch, sizeof(double), &bytes) ||
+        sb_size_add(bytes, cells, &bytes))
         return sb_error(ctx, SB_ERR_OVERFLOW,
-                        "matrix: %zu x %zu cells x %zu channels need more than %zu bytes of memory; lower --res",
-                        rows, cols, nch, sb_memory_limit());
+                        "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower --res",
+                        rows, cols, nch, (size_t)SIZE_MAX);
+    if (bytes > sb_memory_limit())
+        return sb_error(ctx, SB_ERR_OVERFLOW,
+                        "matrix: %zu x %zu cells x %zu channels need %zu bytes, more than the memory limit of %zu "
+                        "bytes; lower --res",
+                        rows, cols, nch, bytes, sb_memory_limit());
 
     out->rows = rows;
     out->cols = cols;

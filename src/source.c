@@ -51,6 +51,7 @@ void *sb_source_impl(const sb_source_t *src) { return src->self; }
  * else is a model spec. */
 sb_result_t sb_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out) {
     if (!spec || !out) return sb_error(ctx, SB_ERR_ARG, "source: no spec given");
+    *out = NULL; /* also when a reader fails without touching it */
     struct stat st;
     if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open_hook(ctx, spec, out);
     return sb_model_create(ctx, spec, out);

@@ -134,16 +134,41 @@ static sb_result_t FN(orth)(sb_svd_t *s, R *Y, size_t rows, size_t cols) {
  * QR ("twice is enough", Giraud et al. 2005).  The QR between the passes
  * matters when Yb lies almost inside span(Q) (a Krylov iterate of a fast
  * spectrum, a rank-deficient A): the first remainder is rounding noise, and
- * only once it is normalised does the second pass make it orthogonal to Q. */
+ * only once it is normalised does the second pass make it orthogonal to Q.
+ * "Twice is enough" needs the remainder to be more than rounding, though: a
+ * column lying inside span(Q) to working precision (A of rank below the
+ * basis size: a constant BRDF gave Q^T Q with entries 1, sigma_1 times
+ * sqrt(q + 1) and rel_rms 2) leaves pure noise, whose normalised direction
+ * is not orthogonal to Q at all.  Such a column carries nothing new, so it
+ * is replaced by a fixed pseudo-random vector before the QR, and the passes
+ * go on until no column had to be replaced (three at most). */
 static sb_result_t FN(orth_against)(sb_svd_t *s, const R *Q, size_t l, R *Yb, size_t rows, size_t bb) {
     R *c = s->c;
     sb_result_t r = SB_OK;
-    for (int pass = 0; pass < (l > 0 ? 2 : 1) && r == SB_OK; pass++) {
+    int passes = l > 0 ? 2 : 1;
+    for (int pass = 0; pass < passes && r == SB_OK; pass++) {
         if (l > 0) {
             GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)l, (int)bb, (int)rows, 1, Q, (int)rows, Yb, (int)rows, 0,
                  c, (int)l);
             GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)bb, (int)l, -1, Q, (int)rows, c, (int)l, 1,
                  Yb, (int)rows);
+            /* |projection|^2 + |remainder|^2 = |column|^2: a remainder at
+             * rounding level means the column was inside span(Q) */
+            int replaced = 0;
+            for (size_t j = 0; j < bb; j++) {
+                double pj = 0, rj = 0;
+                for (size_t i = 0; i < l; i++)
+                    pj += (double)c[i + j * l] * (double)c[i + j * l];
+                for (size_t i = 0; i < rows; i++)
+                    rj += (double)Yb[i + j * rows] * (double)Yb[i + j * rows];
+                double floor2 = sizeof(R) == sizeof(float) ? 1e-10 : 1e-20; /* (1e3 eps)^2 or so */
+                if (rj > floor2 * (pj + rj) && rj > 0) continue;
+                uint64_t st = 0x5eedULL + (uint64_t)(l + j) * 0x9E3779B97F4A7C15ULL + (uint64_t)pass;
+                for (size_t i = 0; i < rows; i++)
+                    Yb[i + j * rows] = (R)((double)(splitmix64(&st) >> 11) * 0x1.0p-53 - 0.5);
+                replaced = 1;
+            }
+            if (replaced && passes < 3) passes++; /* the new columns need their own two passes */
         }
         r = FN(orth)(s, Yb, rows, bb);
     }

@@ -42,6 +42,25 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
  * terms from the files' headers).  Values are the stored ones, exactly. */
 sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out);
 
+/* What sb_factors_quantize found. */
+typedef struct sb_quantize_info {
+    size_t texels;  /* texels of the kept terms, both sides, every channel */
+    size_t flushed; /* nonzero texels stored as zero (far below their texture's maximum) */
+} sb_quantize_info_t;
+
+/* The factors exactly as sb_factors_write_exr followed by
+ * sb_factors_read_exr would return them, without touching a file: every
+ * texel rounded through the same code as the writer (FLOAT: (float)v; HALF:
+ * the texture's power-of-two scale, then round to nearest even), sigma
+ * rounded to float.  Metadata is copied; the errors are f's (those of the
+ * double fit): measure the stored precision with
+ * sb_factors_errors_against().  *stored is new; info may be NULL.
+ * Errors: the writer's (SB_ERR_NUMERIC for a non-finite texel, SB_ERR_RANGE
+ * for values the format cannot hold, including a texture whose largest
+ * value would be stored as 0), SB_ERR_NOMEM. */
+sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
+                                sb_factors_t **stored, sb_quantize_info_t *info);
+
 /* File name of one texture: "g_00.exr" etc. written into buf. */
 void sb_exr_name(int side, size_t term, char *buf, size_t size);
 

@@ -58,6 +58,20 @@ typedef struct sb_factor_errors {
 const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f);
 sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f);
 
+/* Errors of the first J' = 1..J terms of f (J = sb_factors_terms) against
+ * the matrix m, measured as sb_plan_execute measures them: on the valid
+ * cells of m, rel_rms = ||W (M - sum_{j<=J'} g_j h_j^T) W||_F / ||W M W||_F
+ * with W the square roots of the cell measures of `weights` for weighted
+ * fits (NULL: unweighted), max_abs in native units.  For factors that are
+ * not the fit itself, e.g. the stored precision (sb_factors_quantize in
+ * exr.h): "the error of what was written".  rel_rms and max_abs receive
+ * J * 4 values in the layout of sb_factor_errors_t (index 3: all channels;
+ * channels absent from m: 0).  A 1-channel f is compared with every
+ * channel of m.  Errors: SB_ERR_ARG (sizes differ), SB_ERR_NOMEM,
+ * SB_ERR_NUMERIC (a non-finite error). */
+sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                                      const sb_param_t *weights, double *rel_rms, double *max_abs);
+
 /* Value of the first `terms` terms at matrix cell (row, col), channel c:
  * sum_j g_j[row] h_j[col]. */
 double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);

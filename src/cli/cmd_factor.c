@@ -186,6 +186,7 @@ typedef struct report_ctx {
     const attempt_t *a;
     const pipe_cand_t *cands;
     size_t ncand;
+    const double *rel_stored; /* rel_rms of the stored (FLOAT/HALF) factors, J * 4; NULL if unknown */
 } report_ctx_t;
 
 static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
@@ -262,6 +263,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
         json_begin_object(j, NULL);
         json_int(j, "terms", (long long)(k + 1));
         json_number(j, "rel_rms", e->rel_rms[k * 4 + 3]);
+        json_number(j, "rel_rms_stored", rx->rel_stored ? rx->rel_stored[k * 4 + 3] : NAN);
         json_number(j, "max_abs", e->max_abs[k * 4 + 3]);
         json_number(j, "comparable", attempt_comparable(a, k + 1));
         json_number(j, "negative_fraction", attempt_negative(a, k + 1));
@@ -361,6 +363,7 @@ int cmd_factor(int argc, char **argv) {
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
     attempt_t best = {0};
+    double *rel_stored = NULL; /* errors of the stored precision, J * 4 */
     sb_result_t r;
     int guarded = 0;
     double t0 = cli_now();
@@ -397,6 +400,20 @@ int cmd_factor(int argc, char **argv) {
     guarded = 1;
     sb_exr_opts_t eo = {o.half};
     if ((r = sb_factors_write_exr(ctx, best.f, o.out, &eo)) != SB_OK) goto fail;
+    /* The error of what was stored (float or half), not only of the double fit */
+    {
+        sb_factors_t *q = NULL;
+        size_t J = sb_factors_terms(best.f);
+        double *mx = malloc(J * 4 * sizeof *mx);
+        rel_stored = malloc(J * 4 * sizeof *rel_stored);
+        if (!mx || !rel_stored || sb_factors_quantize(ctx, best.f, &eo, &q, NULL) != SB_OK ||
+            sb_factors_errors_against(ctx, q, &best.m, best.weighted ? best.param : NULL, rel_stored, mx) != SB_OK) {
+            free(rel_stored);
+            rel_stored = NULL; /* reported as null */
+        }
+        sb_factors_destroy(q);
+        free(mx);
+    }
     if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, o.out)) != SB_OK) goto fail;
     char path[4096];
     snprintf(path, sizeof path, "%s/sepbrdf.glsl", o.out);
@@ -412,7 +429,7 @@ int cmd_factor(int argc, char **argv) {
         goto out;
     }
     json_t j = {fp, 0, {0}};
-    report_ctx_t rx = {&o, src, &best, cands, ncand};
+    report_ctx_t rx = {&o, src, &best, cands, ncand, rel_stored};
     write_report(&j, &rx, t);
     if (cli_commit(fp, tmp, path, 1) != 0) {
         cli_error("factor", "%s: cannot write", path);
@@ -436,6 +453,7 @@ fail:
     cli_progress_done();
     rc = cli_fail("factor", ctx, r);
 out:
+    free(rel_stored);
     if (guarded) pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
     attempt_free(&best);
     sb_source_destroy(src);
