@@ -83,6 +83,7 @@ static double *make_matrix(size_t m, size_t n, size_t lda, const double *s, unsi
 /* ||A - U diag(s) V^T||_F, explicitly. */
 static double resid(const double *A, size_t m, size_t n, size_t lda, size_t k, const double *s, const double *U,
                     const double *V) {
+    /* calloc: GCC 12 -O2 -fsanitize=address takes Us for maybe-uninitialized when k == 0 */
     double *R = malloc(m * n * sizeof *R), *Us = calloc(m * k + 1, sizeof *Us), ss = 0;
     for (size_t j = 0; j < n; j++)
         memcpy(R + j * m, A + j * lda, m * sizeof *R);
