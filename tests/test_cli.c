@@ -115,3 +115,21 @@ SB_TEST(list) {
     CHECK(run("list%s", "") == 0);
     CHECK(strstr(out, "lambert") && strstr(out, "microfacet") && strstr(out, "gold"));
 }
+
+/* A rerun with fewer terms into the same folder leaves no stale terms. */
+SB_TEST(rerun_removes_stale_terms) {
+    const char *dir = sb_tmpdir("cli");
+    CHECK(run("factor lambert --param io --res 8 -J 5 -q -o %s", dir) == 0);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/g_04.exr", dir);
+    CHECK(sb_file_exists(path));
+    CHECK(run("factor lambert --param io --res 8 -J 2 -q -o %s", dir) == 0);
+    for (int j = 2; j < 5; j++) {
+        snprintf(path, sizeof path, "%s/g_%02d.exr", dir, j);
+        CHECKF(!sb_file_exists(path), "stale %s", path);
+        snprintf(path, sizeof path, "%s/h_%02d.exr", dir, j);
+        CHECKF(!sb_file_exists(path), "stale %s", path);
+    }
+    snprintf(path, sizeof path, "%s/h_01.exr", dir);
+    CHECK(sb_file_exists(path));
+}

@@ -400,6 +400,18 @@ int cmd_factor(int argc, char **argv) {
     guarded = 1;
     sb_exr_opts_t eo = {o.half};
     if ((r = sb_factors_write_exr(ctx, best.f, o.out, &eo)) != SB_OK) goto fail;
+    /* Terms beyond J left by an earlier run into the same folder would be
+     * taken for part of this set: remove them. */
+    for (size_t k = sb_factors_terms(best.f);; k++) {
+        int gone = 1;
+        for (int side = 0; side < 2; side++) {
+            char name[64], path[4200];
+            sb_exr_name(side, k, name, sizeof name);
+            snprintf(path, sizeof path, "%s/%s", o.out, name);
+            if (remove(path) == 0) gone = 0;
+        }
+        if (gone) break;
+    }
     /* The error of what was stored (float or half), not only of the double fit */
     {
         sb_factors_t *q = NULL;
