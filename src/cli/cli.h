@@ -42,6 +42,10 @@ typedef struct cli_args {
 /* -q/--quiet, -v/--verbose, -vv: adjust g_verbosity; 1 if arg is one. */
 int cli_verbosity_opt(const char *arg);
 int cli_opt(cli_args_t *a, const char *const *names, int takes_value, const char **value);
+/* The one -o/--out option of every command that writes: if argv[i] is it,
+ * store the value in *out and return 1; 0 if it is another option; -1 on a
+ * missing or empty value (message printed; `what` is "folder" or "file"). */
+int cli_out_opt(cli_args_t *a, const char *what, const char **out);
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 

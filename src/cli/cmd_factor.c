@@ -80,7 +80,7 @@ typedef struct factor_opts {
 static int factor_previews; /* --previews: a PNG per texture (image.h) */
 
 static int parse(int argc, char **argv, factor_opts_t *o) {
-    static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
+    static const char *const n_res[] = {"-r", "--res", NULL},
                              *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
                              *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
                              *const n_maxerr[] = {"--max-error", NULL}, *const n_tmax[] = {"--theta-max", NULL}, *const n_chan[] = {"--channels", NULL},
@@ -96,13 +96,8 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             help();
             return 0;
         }
-        if ((m = cli_opt(&a, n_out, 1, &v))) {
+        if ((m = cli_out_opt(&a, "folder", &o->out))) {
             if (m < 0) return EXIT_USAGE;
-            if (!*v) {
-                cli_error("factor", "--out: empty folder name");
-                return EXIT_USAGE;
-            }
-            o->out = v;
         } else if ((m = cli_opt(&a, n_res, 1, &v))) {
             if (m < 0 || cli_parse_size("factor", "--res", v, 2, 512, &o->res)) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_terms, 1, &v))) {

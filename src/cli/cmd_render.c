@@ -138,7 +138,7 @@ static int parse_light(const char *v, render_opts_t *o) {
 }
 
 static int parse(int argc, char **argv, render_opts_t *o) {
-    static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
+    static const char *const n_res[] = {"-r", "--res", NULL},
                              *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
                              *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
                              *const n_tmax[] = {"--theta-max", NULL}, *const n_src[] = {"--source", NULL},
@@ -155,13 +155,8 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             help();
             return 0;
         }
-        if ((m = cli_opt(&a, n_out, 1, &v))) {
+        if ((m = cli_out_opt(&a, "folder", &o->out))) {
             if (m < 0) return EXIT_USAGE;
-            if (!*v) {
-                cli_error("render", "--out: empty folder name");
-                return EXIT_USAGE;
-            }
-            o->out = v;
         } else if ((m = cli_opt(&a, n_terms, 1, &v))) {
             if (m < 0 || parse_terms(v, o)) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_res, 1, &v))) {

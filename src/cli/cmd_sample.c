@@ -48,7 +48,7 @@ static int parse_gonio(const char *v, size_t n[4]) {
 }
 
 int cmd_sample(int argc, char **argv) {
-    static const char *const n_out[] = {"-o", "--out", NULL}, *const n_gonio[] = {"-g", "--gonio", NULL},
+    static const char *const n_gonio[] = {"-g", "--gonio", NULL},
                              *const n_noise[] = {"--noise", NULL}, *const n_seed[] = {"--seed", NULL},
                              *const n_q[] = {"-q", "--quiet", NULL}, *const n_help[] = {"-h", "--help", NULL};
     const char *source = NULL, *out = NULL;
@@ -61,13 +61,8 @@ int cmd_sample(int argc, char **argv) {
             help();
             return EXIT_OK;
         }
-        if ((m = cli_opt(&a, n_out, 1, &v))) {
+        if ((m = cli_out_opt(&a, "file", &out))) {
             if (m < 0) return EXIT_USAGE;
-            if (!*v) {
-                cli_error("sample", "--out: empty file name");
-                return EXIT_USAGE;
-            }
-            out = v;
         } else if ((m = cli_opt(&a, n_gonio, 1, &v))) {
             size_t n[4];
             if (m < 0 || parse_gonio(v, n)) return EXIT_USAGE;

@@ -217,7 +217,7 @@ bad:
 }
 
 static int parse(int argc, char **argv, study_opts_t *o) {
-    static const char *const n_out[] = {"-o", "--out", NULL}, *const n_res[] = {"-r", "--res", NULL},
+    static const char *const n_res[] = {"-r", "--res", NULL},
                              *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
                              *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
                              *const n_help[] = {"-h", "--help", NULL}, *const n_weighted[] = {"--weighted", NULL},
@@ -230,13 +230,8 @@ static int parse(int argc, char **argv, study_opts_t *o) {
             help();
             return EXIT_OK;
         }
-        if ((m = cli_opt(&a, n_out, 1, &v))) {
+        if ((m = cli_out_opt(&a, "folder", &o->out))) {
             if (m < 0) return EXIT_USAGE;
-            if (!*v) {
-                cli_error("study", "--out: empty folder name");
-                return EXIT_USAGE;
-            }
-            o->out = v;
         } else if ((m = cli_opt(&a, n_res, 1, &v))) {
             if (m < 0 || cli_parse_size("study", "--res", v, 2, 512, &o->res)) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_terms, 1, &v))) {

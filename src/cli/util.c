@@ -92,6 +92,19 @@ int cli_opt(cli_args_t *a, const char *const *names, int takes_value, const char
     return 0;
 }
 
+int cli_out_opt(cli_args_t *a, const char *what, const char **out) {
+    static const char *const names[] = {"-o", "--out", NULL};
+    const char *v = NULL;
+    int m = cli_opt(a, names, 1, &v);
+    if (m <= 0) return m;
+    if (!*v) {
+        cli_error(a->cmd, "--out: empty %s name", what);
+        return -1;
+    }
+    *out = v;
+    return 1;
+}
+
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out) {
     char *end;
     errno = 0;
