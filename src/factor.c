@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "circulant.h"
 #include "fit.h"
 #include "sepbrdf/channels.h"
 #include "internal.h"
@@ -204,6 +205,8 @@ struct sb_plan {
     sb_plan_opts_t opts;
     sb_svd_t *svd;
     sb_fit_t *fit;       /* created on the first masked execute */
+    sb_circ_t *circ;     /* created on the first block-circulant execute */
+    double *tails;       /* block-circulant: exact squared errors of the base channel, J */
     double *s, *u, *v;
     double *x;           /* weighted copy of a channel (weighted plans only) */
     double *wr, *wc;     /* row / column weights (weighted plans only) */
@@ -283,6 +286,8 @@ void sb_plan_destroy(sb_plan_t *p) {
     if (!p) return;
     sb_svd_destroy(p->svd);
     sb_fit_destroy(p->fit);
+    sb_circ_destroy(p->circ);
+    free(p->tails);
     free(p->s);
     free(p->u);
     free(p->v);
@@ -416,11 +421,37 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
      * 1 / max |M| (exact), so that 1e-300 or 1e200 BRDFs keep a finite,
      * nonzero norm (they gave rel_rms 0 and a non-finite error); the ratios
      * rel_rms are unchanged by it. */
+    /* Even block-circulant matrices (isotropic sources on the io grid, see
+     * circulant.h) get the exact SVD from their R^3 distinct values when the
+     * method is AUTO: the dense matrix is then never read beyond its first
+     * block row. */
+    size_t R = m->phi_period;
+    const double *cw = p->opts.weighted ? p->wr : NULL;
+    int circ = !m->mask && R > 0 && R * R == rows && rows == cols && p->opts.svd.method == SB_METHOD_AUTO;
+    for (size_t i = 0; circ && cw && i < rows; i++)
+        if (p->wr[i] != p->wr[i % R] || p->wc[i] != p->wr[i % R]) circ = 0;
+    if (circ && !p->circ) {
+        if (sb_circ_create(ctx, R, &p->circ) != SB_OK || !(p->tails = sb_alloc(ctx, J, sizeof(double), "plan"))) {
+            sb_factors_destroy(f);
+            free(ssq);
+            free(mx);
+            return SB_ERR_NOMEM;
+        }
+    }
+    for (int ch = 0; circ && ch < 3; ch++)
+        if (m->data[ch] && !sb_circ_is_even(p->circ, m->data[ch], m->ld, cw, 1e-9)) circ = 0;
+    sb_matrix_t scan = *m; /* what the scans below read: the first block row holds every value */
+    if (circ) scan.rows = R;
     double total2 = 0, amax = 0, pw = 1;
     for (int ch = 0; ch < 3; ch++)
-        for (size_t c = 0; m->data[ch] && c < cols; c++)
-            for (size_t i = 0; i < rows; i++)
-                if (!m->mask || m->mask[i + c * m->ld]) amax = fmax(amax, fabs(m->data[ch][i + c * m->ld]));
+        for (size_t c = 0; m->data[ch] && c < cols; c++) {
+            const double *col = m->data[ch] + c * m->ld;
+            const unsigned char *mk = m->mask ? m->mask + c * m->ld : NULL;
+            for (size_t i = 0; i < scan.rows; i++) {
+                double x = fabs(col[i]);
+                if ((!mk || mk[i]) && x > amax) amax = x;
+            }
+        }
     if (amax > 0 && isfinite(amax)) {
         int ex;
         frexp(amax, &ex); /* clamped: 2^1074 would overflow for denormal data */
@@ -431,7 +462,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
      * vectors with sigma scaled by |a_c| (and h negated for a_c < 0). */
     sb_channels_t chs;
     int prop = 0, order[3] = {0, 1, 2};
-    if (sb_channels_proportional(NULL, m, 0, &chs) == SB_OK && chs.proportional && chs.base >= 0) {
+    if (sb_channels_proportional(NULL, &scan, 0, &chs) == SB_OK && chs.proportional && chs.base >= 0) {
         prop = 1;
         order[0] = chs.base;
         for (int c = 0, n = 1; c < 3; c++)
@@ -444,7 +475,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         if (!a) continue;
         const double *x = a;
         size_t ldx = m->ld;
-        if (p->opts.weighted) { /* X = W_r A W_c */
+        if (p->opts.weighted && !circ) { /* X = W_r A W_c */
             for (size_t c = 0; c < cols; c++)
                 for (size_t i = 0; i < rows; i++) p->x[i + c * rows] = p->wr[i] * a[i + c * m->ld] * p->wc[c];
             x = p->x;
@@ -461,6 +492,8 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 for (size_t i = 0; i < cols * J; i++) p->v[i] = -p->v[i];
                 p->vneg = 0;
             }
+        } else if (circ) {
+            r = sb_circ_svd(p->circ, a, m->ld, cw, J, pw, p->s, p->u, p->v, p->tails);
         } else if (masked) {
             sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol, p->opts.svd.seed, p->opts.max_error};
             sb_fit_info_t fi;
@@ -494,9 +527,12 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         }
         /* norm of the fitted matrix on valid cells */
         double n2 = 0;
-        for (size_t c = 0; c < cols; c++)
-            for (size_t i = 0; i < rows; i++)
-                if (!m->mask || m->mask[i + c * m->ld]) n2 += (x[i + c * ldx] * pw) * (x[i + c * ldx] * pw);
+        if (circ)
+            n2 = sb_circ_norm2(R, a, m->ld, cw, pw);
+        else
+            for (size_t c = 0; c < cols; c++)
+                for (size_t i = 0; i < rows; i++)
+                    if (!m->mask || m->mask[i + c * m->ld]) n2 += (x[i + c * ldx] * pw) * (x[i + c * ldx] * pw);
         double nrm = sqrt(n2); /* scaled */
         e->norm[ch] = nrm / pw;
         total2 += n2;
@@ -513,7 +549,14 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
                 h[i] = w > 0 ? rt * p->v[i + j * cols] / w : 0;
             }
         }
-        if ((r = residuals(p, m, a, pw, ssq + (size_t)ch * J, mx)) != SB_OK) break;
+        if (circ) { /* exact tails; the max from the R^3 distinct values */
+            double t = prop && oi > 0 ? chs.scale[ch] : 1;
+            for (size_t j = 0; j < J; j++) ssq[(size_t)ch * J + j] = p->tails[j] * t * t;
+            r = sb_circ_max_abs(p->circ, a, m->ld, cw, t, J, mx);
+        } else {
+            r = residuals(p, m, a, pw, ssq + (size_t)ch * J, mx);
+        }
+        if (r != SB_OK) break;
         for (size_t j = 0; j < J; j++) {
             e->rel_rms[j * 4 + ch] = nrm > 0 ? sqrt(ssq[(size_t)ch * J + j]) / nrm : 0;
             e->max_abs[j * 4 + ch] = mx[j];
@@ -553,7 +596,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     }
     sb_factors_set_meta(f, "param", sb_param_spec(param));
     sb_factors_set_meta(f, "form", sb_form_name(m->form));
-    sb_factors_set_meta(f, "method", masked ? "masked" : sb_method_name(sb_svd_method(p->svd)));
+    sb_factors_set_meta(f, "method", masked ? "masked" : circ ? "circulant" : sb_method_name(sb_svd_method(p->svd)));
     sb_factors_set_meta(f, "weighted", p->opts.weighted ? "1" : "0");
     *out = f;
     return SB_OK;

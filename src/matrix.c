@@ -235,6 +235,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
         if (out->valid_count == cells) {
             free(out->mask);
             out->mask = NULL;
+            out->phi_period = (size_t)llround(sqrt((double)rows));
         }
         return SB_OK;
     }

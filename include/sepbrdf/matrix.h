@@ -48,6 +48,13 @@ typedef struct sb_matrix {
     size_t valid_count;    /* number of valid cells */
     size_t measured_count; /* valid cells the source reported as known */
     sb_form_t form;
+    /* R > 0: the matrix is even block-circulant over the azimuth of an io
+     * grid of R x R cells (an isotropic source, every cell valid): cell
+     * (R i_phi + i_theta, R o_phi + o_theta) depends on the thetas and on
+     * (o_phi - i_phi) mod R only, evenly.  Set by sb_matrix_build; the
+     * plan then factors from the R^3 distinct values (see factor.h).  Set
+     * it to 0 after editing the data by hand. */
+    size_t phi_period;
 } sb_matrix_t;
 
 /* Sample `src` on `param`.  On success *out owns its buffers (sb_matrix_free).
