@@ -72,6 +72,17 @@ sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f);
 sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
                                       const sb_param_t *weights, double *rel_rms, double *max_abs);
 
+/* rel_rms as sb_factors_errors_against gives it, for factors `near` that
+ * differ little from `fit` (the same terms rounded to the stored precision,
+ * sb_factors_quantize in exr.h), using the errors sb_plan_execute stored in
+ * fit: ||X - G~H~^T||^2 = ||R||^2 + 2 <R, D> + ||D||^2 with R the fit's
+ * residual and D = GH^T - G~H~^T, evaluated in factor space plus one
+ * product of the matrix with 2J columns per channel (no residual pass,
+ * no max_abs).  Unmasked matrices only.  Errors: SB_ERR_ARG (sizes differ,
+ * masked matrix), SB_ERR_NOMEM, SB_ERR_NUMERIC. */
+sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
+                                   const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms);
+
 /* Value of the first `terms` terms at matrix cell (row, col), channel c:
  * sum_j g_j[row] h_j[col]. */
 double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);

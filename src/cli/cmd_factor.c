@@ -414,7 +414,9 @@ int cmd_factor(int argc, char **argv) {
         double *mx = malloc(J * 4 * sizeof *mx);
         rel_stored = malloc(J * 4 * sizeof *rel_stored);
         if (!mx || !rel_stored || sb_factors_quantize(ctx, best.f, &eo, &q, NULL) != SB_OK ||
-            sb_factors_errors_against(ctx, q, &best.m, best.weighted ? best.param : NULL, rel_stored, mx) != SB_OK) {
+            (best.m.mask ? sb_factors_errors_against(ctx, q, &best.m, best.weighted ? best.param : NULL, rel_stored, mx)
+                         : sb_factors_errors_near(ctx, best.f, q, &best.m, best.weighted ? best.param : NULL,
+                                                  rel_stored)) != SB_OK) {
             free(rel_stored);
             rel_stored = NULL; /* reported as null */
         }
