@@ -19,6 +19,17 @@
 #include "internal.h"
 #include "sepbrdf/factor.h"
 
+/* rel_rms of all channels together (index 3) from the per-J' sums. */
+static sb_result_t all_channels(sb_context_t *ctx, size_t J, double total2, const double *tail2, double *rel_rms) {
+    sb_result_t res = SB_OK;
+    for (size_t j = 0; j < J; j++) {
+        rel_rms[j * 4 + 3] = total2 > 0 ? sqrt(tail2[j] / total2) : 0;
+        if (!isfinite(rel_rms[j * 4 + 3]) && res == SB_OK)
+            res = sb_error(ctx, SB_ERR_NUMERIC, "errors: non-finite error after %zu terms", j + 1);
+    }
+    return res;
+}
+
 sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
                                       const sb_param_t *weights, double *rel_rms, double *max_abs) {
     if (!f || !m || !rel_rms || !max_abs) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
@@ -107,12 +118,7 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
             if (max_abs[j * 4 + (size_t)ch] > max_abs[j * 4 + 3]) max_abs[j * 4 + 3] = max_abs[j * 4 + (size_t)ch];
         }
     }
-    sb_result_t res = SB_OK;
-    for (size_t j = 0; j < J; j++) {
-        rel_rms[j * 4 + 3] = total2 > 0 ? sqrt(tail2[j] / total2) : 0;
-        if (!isfinite(rel_rms[j * 4 + 3]) && res == SB_OK)
-            res = sb_error(ctx, SB_ERR_NUMERIC, "errors: non-finite error after %zu terms", j + 1);
-    }
+    sb_result_t res = all_channels(ctx, J, total2, tail2, rel_rms);
     free(tail2);
     free(r);
     return res;
@@ -231,12 +237,7 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
             tail2[b] += s2;
         }
     }
-    sb_result_t res = SB_OK;
-    for (size_t j = 0; j < J; j++) {
-        rel_rms[j * 4 + 3] = total2 > 0 ? sqrt(tail2[j] / total2) : 0;
-        if (!isfinite(rel_rms[j * 4 + 3]) && res == SB_OK)
-            res = sb_error(ctx, SB_ERR_NUMERIC, "errors: non-finite error after %zu terms", j + 1);
-    }
+    sb_result_t res = all_channels(ctx, J, total2, tail2, rel_rms);
     free(tail2);
     free(ws);
     return res;
