@@ -1,10 +1,11 @@
 /* Exact SVD of even block-circulant matrices (see circulant.h for the
  * maths).  Storage: the weighted kernel K_m is kept as R blocks of R x R,
- * column-major over (theta_i, theta_o): K[m R^2 + it + ot R]; the residual
- * kernel of sb_circ_max_abs as R^3 values with the azimuth difference
- * fastest: res[(it R + ot) R + d]. */
+ * column-major over (theta_i, theta_o): K[m R^2 + it + ot R], i.e. an
+ * R^2 x R matrix whose columns are the blocks; the residual kernel of
+ * sb_circ_max_abs in the same layout, res[(d R + ot) R + it]. */
 #include "circulant.h"
 
+#include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
@@ -25,15 +26,18 @@ struct sb_circ {
     sb_context_t *ctx;
     size_t R, nb;       /* period, blocks R/2 + 1 */
     double *K;          /* R blocks R x R (weighted, symmetrised) */
-    double *C;          /* nb blocks, overwritten by dgesdd */
+    double *C;          /* nb blocks C_k (R^2 x nb) */
+    double *Cv;         /* a copy of C, overwritten by dgesdd */
+    double *T;          /* R x nb: cos(2 pi k m / R) */
+    unsigned char *need;/* nb: block k holds a selected triplet */
     double *sv, *A, *VT;/* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
     double *ct;         /* cos(2 pi q / R), q = 0..R-1 */
     double *work;
     lapack_int lwork, *iwork;
     cand_t *cand;       /* R^2 candidates, sorted */
-    double *res, *dbl;  /* R^3 residual kernel; 2R scratch */
+    double *res;        /* R^3 residual kernel */
     double *at, *bt;    /* R each: unweighted block vectors */
-    double *e;          /* R: phi vector */
+    double *e;          /* 3R: phi vector and scratch */
 };
 
 size_t sb_circ_period(const sb_circ_t *c) { return c->R; }
@@ -42,6 +46,9 @@ void sb_circ_destroy(sb_circ_t *c) {
     if (!c) return;
     free(c->K);
     free(c->C);
+    free(c->Cv);
+    free(c->T);
+    free(c->need);
     free(c->sv);
     free(c->A);
     free(c->VT);
@@ -50,7 +57,6 @@ void sb_circ_destroy(sb_circ_t *c) {
     free(c->iwork);
     free(c->cand);
     free(c->res);
-    free(c->dbl);
     free(c->at);
     free(c->bt);
     free(c->e);
@@ -70,26 +76,30 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->K = sb_alloc(ctx, R3, sizeof(double), "circulant kernel");
     c->C = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->sv = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant blocks");
+    c->Cv = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    c->T = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant");
+    c->need = sb_alloc(ctx, c->nb, 1, "circulant");
     c->A = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->VT = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
     c->iwork = sb_alloc(ctx, 8 * R, sizeof(lapack_int), "circulant");
     c->cand = sb_alloc(ctx, R2, sizeof(cand_t), "circulant");
     c->res = sb_alloc(ctx, R3, sizeof(double), "circulant residual");
-    c->dbl = sb_alloc(ctx, 2 * R, sizeof(double), "circulant");
     c->at = sb_alloc(ctx, R, sizeof(double), "circulant");
     c->bt = sb_alloc(ctx, R, sizeof(double), "circulant");
-    c->e = sb_alloc(ctx, R, sizeof(double), "circulant");
-    if (!c->K || !c->C || !c->sv || !c->A || !c->VT || !c->ct || !c->iwork || !c->cand || !c->res || !c->dbl ||
+    c->e = sb_alloc(ctx, 3 * R, sizeof(double), "circulant");
+    if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->sv || !c->A || !c->VT || !c->ct || !c->iwork || !c->cand || !c->res ||
         !c->at || !c->bt || !c->e) {
         sb_circ_destroy(c);
         return SB_ERR_NOMEM;
     }
     for (size_t q = 0; q < R; q++) c->ct[q] = cos(2 * SB_PI * (double)q / (double)R);
+    for (size_t k = 0; k < c->nb; k++)
+        for (size_t m = 0; m < R; m++) c->T[m + k * R] = c->ct[(k * m) % R];
     /* Step: LAPACK workspace query, once */
     double wq = 0;
     lapack_int n = (lapack_int)R;
-    lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->C, n, c->sv, c->A, n, c->VT, n, &wq, -1,
+    lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->Cv, n, c->sv, c->A, n, c->VT, n, &wq, -1,
                                           c->iwork);
     c->lwork = info == 0 ? (lapack_int)wq + 1 : 1;
     c->work = sb_alloc(ctx, (size_t)c->lwork, sizeof(double), "circulant LAPACK workspace");
@@ -115,8 +125,9 @@ int sb_circ_is_even(const sb_circ_t *c, const double *a, size_t ld, const double
                 double wt = w ? w[it] * w[ot] : 1;
                 double x = wt * kernel_at(a, ld, R, m, it, ot), y = wt * kernel_at(a, ld, R, (R - m) % R, it, ot);
                 if (!isfinite(x)) return 0;
-                big = fmax(big, fabs(x));
-                diff = fmax(diff, fabs(x - y));
+                double ax = fabs(x), dx = fabs(x - y);
+                if (ax > big) big = ax;
+                if (dx > diff) diff = dx;
             }
     return diff <= rel_tol * big;
 }
@@ -156,8 +167,40 @@ static double phi_vec(const sb_circ_t *c, unsigned k, unsigned member, size_t i)
     return amp * sin(2 * SB_PI * (double)q / (double)R);
 }
 
+/* The blocks are small (R x R): OpenBLAS's threads cost more than they
+ * save there (measured at R = 64: 6.5 ms a channel with one thread, 15-30
+ * with two), so the block SVDs run with one BLAS thread and the setting is
+ * restored afterwards. */
+static int blas_threads_begin(void) {
+#ifdef OPENBLAS_CONFIG_H
+    int n = openblas_get_num_threads();
+    if (n > 1) openblas_set_num_threads(1);
+    return n;
+#else
+    return 1;
+#endif
+}
+static void blas_threads_end(int n) {
+#ifdef OPENBLAS_CONFIG_H
+    if (n > 1) openblas_set_num_threads(n);
+#else
+    (void)n;
+#endif
+}
+
+static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
+                            double *s, double *u, double *v, double *tails);
+
 sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
                         double *s, double *u, double *v, double *tails) {
+    int nt = blas_threads_begin();
+    sb_result_t r = circ_svd(c, a, ld, w, J, scale, s, u, v, tails);
+    blas_threads_end(nt);
+    return r;
+}
+
+static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
+                            double *s, double *u, double *v, double *tails) {
     size_t R = c->R, R2 = R * R, N = R2;
     /* Step: symmetrised, weighted kernel (K_m + K_{R-m}) / 2 */
     for (size_t m = 0; m < R; m++)
@@ -167,21 +210,16 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
                 c->K[m * R2 + it + ot * R] =
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
-    /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R) */
-    for (size_t k = 0; k < c->nb; k++) {
-        double *ck = c->C + k * R2;
-        memset(ck, 0, R2 * sizeof *ck);
-        for (size_t m = 0; m < R; m++) {
-            double t = c->ct[(k * m) % R];
-            const double *km = c->K + m * R2;
-            for (size_t i = 0; i < R2; i++) ck[i] += t * km[i];
-        }
-    }
-    /* Step: SVD of every block */
+    /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R): one
+     * product (R^2 x R) (R x nb) */
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)c->nb, (int)R, 1.0, c->K, (int)R2, c->T,
+                (int)R, 0.0, c->C, (int)R2);
+    /* Step: singular values of every block (no vectors: the cheap part) */
     lapack_int n = (lapack_int)R;
+    memcpy(c->Cv, c->C, c->nb * R2 * sizeof *c->C);
     for (size_t k = 0; k < c->nb; k++) {
-        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->C + k * R2, n, c->sv + k * R,
-                                              c->A + k * R2, n, c->VT + k * R2, n, c->work, c->lwork, c->iwork);
+        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', n, n, c->Cv + k * R2, n, c->sv + k * R, NULL, n,
+                                              NULL, n, c->work, c->lwork, c->iwork);
         if (info != 0) return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", k,
                                        (int)info);
     }
@@ -200,6 +238,19 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
         if (r - 1 < J) tails[r - 1] = t;
     }
     if (J >= nc) tails[nc - 1] = 0;
+    /* Step: vectors of the blocks that hold a selected triplet; their
+     * values replace the first pass's (equal to rounding, same order) */
+    memset(c->need, 0, c->nb);
+    for (size_t j = 0; j < J; j++) c->need[c->cand[j].k] = 1;
+    for (size_t k = 0; k < c->nb; k++) {
+        if (!c->need[k]) continue;
+        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
+        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->Cv + k * R2, n, c->sv + k * R,
+                                              c->A + k * R2, n, c->VT + k * R2, n, c->work, c->lwork, c->iwork);
+        if (info != 0) return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", k,
+                                       (int)info);
+    }
+    for (size_t j = 0; j < J; j++) c->cand[j].s = c->sv[c->cand[j].k * R + c->cand[j].idx];
     /* Step: the J leading triplets, u = e_k (x) a, v = e_k (x) b */
     for (size_t j = 0; j < J; j++) {
         const cand_t *q = &c->cand[j];
@@ -244,9 +295,8 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
     size_t R = c->R, R2 = R * R;
     double *res = c->res;
     /* Step: native residual kernel before any term */
-    for (size_t it = 0; it < R; it++)
-        for (size_t ot = 0; ot < R; ot++)
-            for (size_t d = 0; d < R; d++) res[(it * R + ot) * R + d] = kernel_at(a, ld, R, d, it, ot);
+    for (size_t d = 0; d < R; d++)
+        for (size_t ot = 0; ot < R; ot++) memcpy(res + (d * R + ot) * R, a + (d * R + ot) * ld, R * sizeof *res);
     for (size_t j = 0; j < J; j++) {
         const cand_t *q = &c->cand[j];
         const double *A = c->A + (size_t)q->k * R2 + (size_t)q->idx * R, *VT = c->VT + (size_t)q->k * R2;
@@ -258,20 +308,36 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
         }
         int pair_next = !single(c, q->k) && j + 1 < J && c->cand[j + 1].k == q->k && c->cand[j + 1].idx == q->idx;
         if (!single(c, q->k)) {
-            /* Step: the cos vector alone breaks the structure: all R^4 cells */
-            for (size_t i = 0; i < R; i++) c->e[i] = phi_vec(c, q->k, 0, i);
-            double m = 0;
-            for (size_t it = 0; it < R; it++)
+            /* Step: the cos vector alone breaks the structure.  With
+             * a = 2 pi k / R, its cell (i, o) is cf (2/R) cos(a i) cos(a o)
+             * = (cf/R) (cos(a (o - i)) + cos(a (o + i))): for each azimuth
+             * difference d the cells differ only in cos(a s), s = o + i =
+             * d + 2i mod R, and |A - B cos| is largest at the extremes of
+             * cos over the reachable s (the parity of d when R is even). */
+            double cmx[2] = {-2, -2}, cmn[2] = {2, 2};
+            for (size_t s2 = 0; s2 < R; s2++) {
+                double cv = c->ct[((size_t)q->k * s2) % R];
+                int par = R % 2 == 0 ? (int)(s2 % 2) : 0;
+                if (cv > cmx[par]) cmx[par] = cv;
+                if (cv < cmn[par]) cmn[par] = cv;
+            }
+            if (R % 2) {
+                cmx[1] = cmx[0];
+                cmn[1] = cmn[0];
+            }
+            double *ck = c->e, *hi = c->e + R, *lo = c->e + 2 * R, m = 0;
+            for (size_t d = 0; d < R; d++) {
+                ck[d] = c->ct[((size_t)q->k * d) % R];
+                hi[d] = ck[d] + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
+                lo[d] = ck[d] + cmn[d % 2];
+            }
+            for (size_t d = 0; d < R; d++)
                 for (size_t ot = 0; ot < R; ot++) {
-                    const double *row = res + (it * R + ot) * R;
-                    memcpy(c->dbl, row, R * sizeof *row);
-                    memcpy(c->dbl + R, row, R * sizeof *row);
-                    double cf = sg * c->at[it] * c->bt[ot];
-                    for (size_t ip = 0; ip < R; ip++) {
-                        /* dbl[R - ip + op] = row[(op - ip) mod R] */
-                        double x = absmax_axpy(c->dbl + R - ip, cf * c->e[ip], c->e, R);
-                        if (x > m) m = x;
-                    }
+                    const double *row = res + (d * R + ot) * R; /* over theta_i */
+                    double B = sg * c->bt[ot] / (double)R;
+                    double x = absmax_axpy(row, B * hi[d], c->at, R), y = absmax_axpy(row, B * lo[d], c->at, R);
+                    x = x > y ? x : y;
+                    if (x > m) m = x;
                 }
             mx[j] = m;
             if (!pair_next) break; /* J ends inside the pair */
@@ -285,10 +351,10 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
             else ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
             c->e[d] = ph;
         }
-        for (size_t it = 0; it < R; it++)
+        for (size_t d = 0; d < R; d++)
             for (size_t ot = 0; ot < R; ot++) {
-                double cf = sg * c->at[it] * c->bt[ot], *row = res + (it * R + ot) * R;
-                for (size_t d = 0; d < R; d++) row[d] -= cf * c->e[d];
+                double cf = sg * c->bt[ot] * c->e[d], *row = res + (d * R + ot) * R;
+                for (size_t it = 0; it < R; it++) row[it] -= cf * c->at[it];
             }
         mx[j] = absmax(res, R * R2);
     }

@@ -47,8 +47,8 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
 /* max |A - sum_{j<=J'} t s_j u_j v_j^T / (w w)| over all cells, for
  * J' = 1..J, with the triplets of the last sb_circ_svd (t = sigma_scale:
  * the factor of a proportional channel, 1 for the channel itself).  Works
- * on the R^3 distinct values; only a truncation that splits a cos/sin pair
- * costs a pass over all R^4 cells.  mx receives J values. */
+ * on the R^3 distinct values, also where a truncation splits a cos/sin
+ * pair (closed form over the azimuths).  mx receives J values. */
 sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
                             double *mx);
 

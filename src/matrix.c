@@ -96,6 +96,7 @@ typedef struct iso_job {
     double *tab;      /* [((it * R + ot) * R + d) * 3 + c] */
     unsigned char *known;
     size_t valid;
+    double *slice; /* scatter: 3 R^2 doubles and R^2 flags */
 } iso_job_t;
 
 static void *iso_table(void *arg) {
@@ -124,19 +125,33 @@ static void *iso_table(void *arg) {
     return NULL;
 }
 
+/* Column (o_phi, o_theta) holds, for every i_phi, the R values
+ * tab[(i_theta R + o_theta) R + d] over i_theta with d = (o_phi - i_phi)
+ * mod R.  Gather the slice of o_theta once (R x R per channel, d-major),
+ * then each block of R rows is one contiguous copy.  The mask is written
+ * only when some value is unknown. */
 static void *iso_scatter(void *arg) {
     iso_job_t *j = arg;
     sb_matrix_t *m = j->m;
-    size_t R = j->R;
+    size_t R = j->R, last_ot = (size_t)-1;
+    double *slice = j->slice;
+    unsigned char *kslice = (unsigned char *)(slice + 3 * R * R);
     for (size_t l = j->a0; l < j->a1; l++) {
         size_t ot = l % R, op = l / R;
-        for (size_t k = 0; k < m->rows; k++) {
-            size_t it = k % R, ip = k / R, d = (op + R - ip) % R;
-            size_t at = (it * R + ot) * R + d, cell = k + l * m->ld;
+        if (ot != last_ot) {
+            for (size_t d = 0; d < R; d++)
+                for (size_t it = 0; it < R; it++) {
+                    size_t at = (it * R + ot) * R + d;
+                    for (int c = 0; c < 3; c++) slice[(size_t)c * R * R + d * R + it] = j->tab[at * 3 + (size_t)c];
+                    kslice[d * R + it] = j->known[at];
+                }
+            last_ot = ot;
+        }
+        for (size_t ip = 0; ip < R; ip++) {
+            size_t d = (op + R - ip) % R, cell = ip * R + l * m->ld;
             for (int c = 0; c < 3; c++)
-                if (m->data[c]) m->data[c][cell] = j->tab[at * 3 + (size_t)c];
-            m->mask[cell] = j->known[at];
-            j->valid += j->known[at];
+                if (m->data[c]) memcpy(m->data[c] + cell, slice + (size_t)c * R * R + d * R, R * sizeof(double));
+            if (m->mask) memcpy(m->mask + cell, kslice + d * R, R);
         }
     }
     return NULL;
@@ -173,11 +188,25 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
     if (nt > 64) nt = 64;
     if ((size_t)nt > R) nt = (int)R;
     iso_job_t jobs[64];
-    for (int t = 0; t < nt; t++) jobs[t] = (iso_job_t){src, param, out, R, 0, 0, tab, known, 0};
+    double *slices = sb_alloc(ctx, (size_t)nt * (3 * R * R + (R * R + 7) / 8), sizeof(double), "isotropic table");
+    if (!slices) {
+        free(tab);
+        free(known);
+        return SB_ERR_NOMEM;
+    }
+    for (int t = 0; t < nt; t++)
+        jobs[t] = (iso_job_t){src, param, out, R, 0, 0, tab, known, 0, slices + (size_t)t * (3 * R * R + (R * R + 7) / 8)};
     run_parallel(iso_table, jobs, nt, R);
+    size_t nknown = 0;
+    for (size_t i = 0; i < n3; i++) nknown += known[i];
+    out->valid_count = nknown * R; /* each table value fills R cells */
+    if (nknown == n3) { /* every cell valid: no mask */
+        free(out->mask);
+        out->mask = NULL;
+    }
     run_parallel(iso_scatter, jobs, nt, out->cols);
-    for (int t = 0; t < nt; t++) out->valid_count += jobs[t].valid;
     out->measured_count = out->valid_count;
+    free(slices);
     free(tab);
     free(known);
     return SB_OK;
@@ -232,11 +261,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
             sb_matrix_free(out);
             return r;
         }
-        if (out->valid_count == cells) {
-            free(out->mask);
-            out->mask = NULL;
-            out->phi_period = (size_t)llround(sqrt((double)rows));
-        }
+        if (!out->mask) out->phi_period = (size_t)llround(sqrt((double)rows));
         return SB_OK;
     }
 
