@@ -353,7 +353,7 @@ int cmd_factor(int argc, char **argv) {
     if (o.max_error > 0 && !o.terms_set) o.terms = o.res < 32 ? o.res : 32; /* upper limit for --max-error */
     if ((rc = cli_check_outdir("factor", "--out", o.out)) != EXIT_OK) return rc;
     pipe_opts_t po = {o.res, o.terms, o.metric_res, o.theta_max_deg, o.max_error, o.method, o.seed, o.zero_fill,
-                      "sampling", 0, 1, o.channels};
+                      "sampling", 0, 1, o.channels, 0, 0};
 
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;

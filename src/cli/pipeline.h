@@ -25,6 +25,8 @@ typedef struct pipe_opts {
     const char *progress_label;
     double progress_base, progress_span;
     unsigned channels; /* bit mask of channels to build (1 R, 2 G, 4 B); 0 = all */
+    double fit_tol;    /* masked fit: stop tolerance, 0 = the library default */
+    int fit_max_iters; /* masked fit: sweeps, 0 = the library default */
 } pipe_opts_t;
 
 /* One complete factorisation of a source on one parameterisation. */
