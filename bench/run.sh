@@ -3,7 +3,7 @@
 #   bench/run.sh [sepbrdf_bench options]     e.g. --quick, --sizes 1024
 # Builds sepbrdf_bench in $BUILD (default ./build), writes bench/results.csv
 # and bench/results.png (gnuplot), then times the whole `sepbrdf factor`
-# command at R = 32 and 64, J = 8 (best of 3) when the CLI is built.
+# command (best of 3, with its stage times) when the CLI is built.
 # OPENBLAS_NUM_THREADS / OPENBLAS_CORETYPE in the environment pass through.
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
@@ -16,21 +16,31 @@ echo "# $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //')"
 echo "# OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-unset} OPENBLAS_CORETYPE=${OPENBLAS_CORETYPE:-unset}"
 "$build/sepbrdf_bench" -o "$here" "$@"
 
-# The whole command: sample, plan, factor, write EXR + report + GLSL.
+# The whole command: sample, plan, factor, metric, write EXR + report + GLSL.
+# `--param io` is the seeds' R x R layout (the N = R^2 matrix of the table
+# above); the default (`--param auto`) tries every parameterisation.
 if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then
     out=$(mktemp -d)
-    for R in 32 64; do
-        best=
+    trap 'rm -rf "$out"' EXIT
+    whole() { # label, then the factor options
+        label=$1
+        shift
+        best= stages=
         for i in 1 2 3; do
             t0=$(date +%s.%N)
-            "$build/sepbrdf" factor -r "$R" -J 8 -q -o "$out/r$R"
+            "$build/sepbrdf" factor "$@" -q -o "$out/run"
             t1=$(date +%s.%N)
-            best=$(awk -v a="$t0" -v b="$t1" -v best="$best" \
-                'BEGIN { t = b - a; if (best == "" || t < best) best = t; printf "%.3f", best }')
+            t=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
+            if [ -z "$best" ] || awk -v t="$t" -v b="$best" 'BEGIN { exit !(t < b) }'; then
+                best=$t
+                # stage times of the fastest run, from report.json
+                stages=$(tr -d ' \n' <"$out/run/report.json" | sed 's/.*"timings":{\([^}]*\)}.*/\1/')
+            fi
         done
-        echo "# sepbrdf factor -r $R -J 8 (default method): best of 3 $best s"
-    done
-    rm -rf "$out"
+        echo "# sepbrdf factor $label: best of 3 $best s ($stages)"
+    }
+    for R in 32 64; do whole "--param io -r $R -J 8" --param io -r "$R" -J 8; done
+    whole "(default: --param auto, R = 32, J = 4)"
 else
     echo "# sepbrdf CLI not built (src/exr.c missing?): whole-command timing skipped"
 fi

@@ -97,6 +97,8 @@ typedef struct iso_job {
     unsigned char *known;
     size_t valid;
     double *slice; /* scatter: 3 R^2 doubles and R^2 flags */
+    size_t step;   /* table: every step-th theta_i from a0 */
+    int recip;     /* table: reciprocal source, only theta_o >= theta_i */
 } iso_job_t;
 
 static void *iso_table(void *arg) {
@@ -104,9 +106,9 @@ static void *iso_table(void *arg) {
     size_t R = j->R;
     double tmax = sb_param_theta_max(j->param), dt = tmax / (double)R, dp = 2 * SB_PI / (double)R;
     double wi[3], wo[3], rgb[3];
-    for (size_t it = j->a0; it < j->a1; it++) {
+    for (size_t it = j->a0; it < j->a1; it += j->step) {
         sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi);
-        for (size_t ot = 0; ot < R; ot++)
+        for (size_t ot = j->recip ? it : 0; ot < R; ot++)
             for (size_t d = 0; d < R; d++) {
                 size_t at = (it * R + ot) * R + d;
                 sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo);
@@ -157,13 +159,16 @@ static void *iso_scatter(void *arg) {
     return NULL;
 }
 
-/* Run fn over [0, n) split among nt threads (the caller's thread included). */
-static void run_parallel(void *(*fn)(void *), iso_job_t *jobs, int nt, size_t n) {
+/* Run fn over [0, n) split among nt threads (the caller's thread
+ * included): in contiguous ranges, or interleaved (t, t + nt, ...) when
+ * the work per index falls with the index. */
+static void run_parallel(void *(*fn)(void *), iso_job_t *jobs, int nt, size_t n, int interleave) {
     pthread_t th[64];
     int started[64] = {0};
     for (int t = 0; t < nt; t++) {
-        jobs[t].a0 = n * (size_t)t / (size_t)nt;
-        jobs[t].a1 = n * (size_t)(t + 1) / (size_t)nt;
+        jobs[t].a0 = interleave ? (size_t)t : n * (size_t)t / (size_t)nt;
+        jobs[t].a1 = interleave ? n : n * (size_t)(t + 1) / (size_t)nt;
+        jobs[t].step = interleave ? (size_t)nt : 1;
     }
     for (int t = 1; t < nt; t++) started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
     fn(&jobs[0]);
@@ -195,8 +200,23 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
         return SB_ERR_NOMEM;
     }
     for (int t = 0; t < nt; t++)
-        jobs[t] = (iso_job_t){src, param, out, R, 0, 0, tab, known, 0, slices + (size_t)t * (3 * R * R + (R * R + 7) / 8)};
-    run_parallel(iso_table, jobs, nt, R);
+        jobs[t] = (iso_job_t){src, param, out, R, 0, 0, tab, known, 0, slices + (size_t)t * (3 * R * R + (R * R + 7) / 8), 1, 0};
+    int recip = (sb_source_flags(src) & SB_SOURCE_RECIPROCAL) != 0;
+    for (int t = 0; t < nt; t++) jobs[t].recip = recip;
+    run_parallel(iso_table, jobs, nt, R, recip);
+    /* Reciprocity: swapping wi and wo and rotating by -phi_o gives
+     * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d); the form cos is
+     * f cos(theta_i), not symmetric: move the cosine across */
+    double dt = sb_param_theta_max(param) / (double)R;
+    for (size_t it = 0; recip && it < R; it++)
+        for (size_t ot = 0; ot < it; ot++) {
+            double w = out->form == SB_FORM_COS ? cos((it + 0.5) * dt) / cos((ot + 0.5) * dt) : 1;
+            for (size_t d = 0; d < R; d++) {
+                size_t at = (it * R + ot) * R + d, from = (ot * R + it) * R + (R - d) % R;
+                for (int c = 0; c < 3; c++) tab[at * 3 + (size_t)c] = tab[from * 3 + (size_t)c] * w;
+                known[at] = known[from];
+            }
+        }
     size_t nknown = 0;
     for (size_t i = 0; i < n3; i++) nknown += known[i];
     out->valid_count = nknown * R; /* each table value fills R cells */
@@ -204,7 +224,7 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
         free(out->mask);
         out->mask = NULL;
     }
-    run_parallel(iso_scatter, jobs, nt, out->cols);
+    run_parallel(iso_scatter, jobs, nt, out->cols, 0);
     out->measured_count = out->valid_count;
     free(slices);
     free(tab);
