@@ -103,7 +103,11 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
  * where the source is known, integrated over solid angle on a reference io
  * grid (cell centres, weights dw_i dw_o), with the reconstruction resampled
  * through sb_factors_eval (texture lookups, form divided back):
- *   e(J') = sqrt( sum w (f~ - f)^2 c_i^2 c_o^2 / sum w f^2 c_i^2 c_o^2 ). */
+ *   e(J') = sqrt( sum w (f~ - f)^2 c_i^2 c_o^2 / sum w f^2 c_i^2 c_o^2 ).
+ * Computed with exact reductions (an isotropic source tabulated on its R^3
+ * distinct values, io / io-area sides tabulated per direction, iso pairs of
+ * an isotropic source by rotation class; see metric.c): equal to the
+ * pair-by-pair sums up to rounding, and the same bits on any thread count. */
 typedef struct sb_metric_opts {
     size_t res;   /* reference grid cells per angular axis, default 32 */
     int threads;  /* 0 = all cores */
