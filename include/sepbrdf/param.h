@@ -33,11 +33,13 @@
  * iso (Rusinkiewicz angles, isotropic and reciprocal BRDFs): rows theta_h
  * (texture th x 1), columns (theta_d, phi_d) (texture td x pd, column c =
  * td * i_phi_d + i_theta_d), phi_d folded into [0, pi) modulo pi
- * (reciprocity swaps wi, wo and shifts phi_d by pi).  Uniform cell centres
- * on theta in [0, theta_max] and phi_d in [0, pi).  Wrap: theta axes CLAMP,
- * phi_d REPEAT (after folding the phi_d axis is a circle of length pi).
- * Defaults th = td = res, pd = 2 res (equal angular steps, as MERL's
- * 90 x 90 x 180).  Measures: row = 2pi (cos lo - cos hi) (phi_h integrated
+ * (reciprocity swaps wi, wo and shifts phi_d by pi).  Cell centres
+ * uniform in sqrt(theta_h / theta_max) (MERL's spacing: fine near the
+ * specular peak), and uniform in theta_d over [0, theta_max] and phi_d
+ * over [0, pi).  Wrap: theta axes CLAMP, phi_d REPEAT (after folding the
+ * phi_d axis is a circle of length pi).  Defaults th = res, td = 2 res,
+ * pd = max(res / 2, 2): measured on GGX, the theta_d resolution dominates
+ * the error, phi_d matters least.  Measures: row = 2pi (cos lo - cos hi) (phi_h integrated
  * out), column = 2 x integral of 4 cos(theta_d) over the (theta_d, phi_d)
  * cell (the fold covers phi_d and phi_d + pi).  Conventions where angles
  * are undefined: phi_h = 0 when h is the normal, phi_d = 0 when d is,
