@@ -15,39 +15,10 @@
 
 #include "internal.h"
 
-sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol, sb_channels_t *out) {
-    if (!m || !out) return sb_error(ctx, SB_ERR_ARG, "channels: missing matrix or output");
-    memset(out, 0, sizeof *out);
-    out->base = -1;
-    if (!(rel_tol >= 0 && rel_tol < 1))
-        return sb_error(ctx, SB_ERR_RANGE, "channels: tolerance %g, need [0, 1)", rel_tol);
-    if (rel_tol == 0) rel_tol = SB_CHANNELS_DEFAULT_TOL;
-    const double *x[3];
-    int present = 0;
-    for (int c = 0; c < 3; c++) {
-        x[c] = m->data[c];
-        present += x[c] != NULL;
-    }
-    if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
-    size_t rows = m->rows, cols = m->cols, ld = m->ld;
-
-    /* Products are taken on values times a power of two pw near
-     * 1 / max |M| (exact): 1e-300 data otherwise gives g = 0, "all
-     * channels zero, proportional with scale 0", and the plan zeroed every
-     * channel but the base; 1e200 data overflows. */
-    double amax = 0, pw = 1;
-    for (int c = 0; c < 3; c++)
-        for (size_t j = 0; x[c] && j < cols; j++)
-            for (size_t i = 0; i < rows; i++)
-                amax = fmax(amax, fabs(x[c][i + j * ld]));
-    if (amax > 0 && isfinite(amax)) {
-        int ex;
-        frexp(amax, &ex);
-        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
-    }
-
-    /* pass 1: g[c][e] = <M_c, M_e> for present channels (scaled by pw^2) */
-    double g[3][3] = {{0}};
+/* g[c][e] = <M_c, M_e> (c <= e, present channels) on values times pw,
+ * column by column with two partial sums. */
+static void gram3(const double *const x[3], size_t rows, size_t cols, size_t ld, double pw, double g[3][3]) {
+    memset(g, 0, 9 * sizeof g[0][0]);
     for (size_t j = 0; j < cols; j++) {
         double p[3][3] = {{0}};
         for (int c = 0; c < 3; c++) {
@@ -67,8 +38,51 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
             }
         }
         for (int c = 0; c < 3; c++)
-            for (int e = c; e < 3; e++)
-                g[c][e] += p[c][e];
+            for (int e = c; e < 3; e++) g[c][e] += p[c][e];
+    }
+}
+
+sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol, sb_channels_t *out) {
+    if (!m || !out) return sb_error(ctx, SB_ERR_ARG, "channels: missing matrix or output");
+    memset(out, 0, sizeof *out);
+    out->base = -1;
+    if (!(rel_tol >= 0 && rel_tol < 1))
+        return sb_error(ctx, SB_ERR_RANGE, "channels: tolerance %g, need [0, 1)", rel_tol);
+    if (rel_tol == 0) rel_tol = SB_CHANNELS_DEFAULT_TOL;
+    const double *x[3];
+    int present = 0;
+    for (int c = 0; c < 3; c++) {
+        x[c] = m->data[c];
+        present += x[c] != NULL;
+    }
+    if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
+    size_t rows = m->rows, cols = m->cols, ld = m->ld;
+
+    /* Products are taken on values times a power of two pw (exact): first
+     * pw = 1, which serves every BRDF of ordinary magnitude in one pass;
+     * when the sums leave the safe range (1e-300 data gives g = 0, "all
+     * channels zero, proportional with scale 0"; 1e200 data overflows) an
+     * extra pass finds max |M| and the Grams are taken again with pw near
+     * 1 / max |M|. */
+    double pw = 1, g[3][3];
+    gram3(x, rows, cols, ld, pw, g);
+    int safe = 1;
+    for (int c = 0; c < 3; c++)
+        if (x[c] && !(g[c][c] > 1e-280 && g[c][c] < 1e280)) safe = 0; /* 0: underflow, or a zero channel */
+    if (!safe) {
+        double amax = 0;
+        for (int c = 0; c < 3; c++)
+            for (size_t j = 0; x[c] && j < cols; j++)
+                for (size_t i = 0; i < rows; i++) {
+                    double v = fabs(x[c][i + j * ld]);
+                    if (v > amax) amax = v;
+                }
+        if (amax > 0 && isfinite(amax)) {
+            int ex;
+            frexp(amax, &ex);
+            pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
+        }
+        gram3(x, rows, cols, ld, pw, g);
     }
     int b = -1;
     for (int c = 0; c < 3; c++)

@@ -492,27 +492,34 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         if (m->data[ch] && !sb_circ_is_even(p->circ, m->data[ch], m->ld, cw, 1e-9)) circ = 0;
     sb_matrix_t scan = *m; /* what the scans below read: the first block row holds every value */
     if (circ) scan.rows = R;
+    /* Proportional channels (M_c = a_c M_base: grey or tinted BRDFs) are
+     * factored once: the base channel first, then the others take its
+     * vectors with sigma scaled by |a_c| (and h negated for a_c < 0).  The
+     * check also gives the channel norms. */
+    sb_channels_t chs;
+    int have_chs = sb_channels_proportional(NULL, &scan, 0, &chs) == SB_OK;
     double total2 = 0, amax = 0, pw = 1;
-    for (int ch = 0; ch < 3; ch++)
-        for (size_t c = 0; m->data[ch] && c < cols; c++) {
-            const double *col = m->data[ch] + c * m->ld;
-            const unsigned char *mk = m->mask ? m->mask + c * m->ld : NULL;
-            for (size_t i = 0; i < scan.rows; i++) {
-                double x = fabs(col[i]);
-                if ((!mk || mk[i]) && x > amax) amax = x;
+    if (have_chs) { /* ||M_c|| bounds max |M|: no other pass */
+        for (int ch = 0; ch < 3; ch++)
+            if (m->data[ch] && chs.norm[ch] > amax) amax = chs.norm[ch];
+    } else {
+        for (int ch = 0; ch < 3; ch++)
+            for (size_t c = 0; m->data[ch] && c < cols; c++) {
+                const double *col = m->data[ch] + c * m->ld;
+                const unsigned char *mk = m->mask ? m->mask + c * m->ld : NULL;
+                for (size_t i = 0; i < scan.rows; i++) {
+                    double x = fabs(col[i]);
+                    if ((!mk || mk[i]) && x > amax) amax = x;
+                }
             }
-        }
+    }
     if (amax > 0 && isfinite(amax)) {
         int ex;
         frexp(amax, &ex); /* clamped: 2^1074 would overflow for denormal data */
         pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
     }
-    /* Proportional channels (M_c = a_c M_base: grey or tinted BRDFs) are
-     * factored once: the base channel first, then the others take its
-     * vectors with sigma scaled by |a_c| (and h negated for a_c < 0). */
-    sb_channels_t chs;
     int prop = 0, order[3] = {0, 1, 2};
-    if (sb_channels_proportional(NULL, &scan, 0, &chs) == SB_OK && chs.proportional && chs.base >= 0) {
+    if (have_chs && chs.proportional && chs.base >= 0) {
         prop = 1;
         order[0] = chs.base;
         for (int c = 0, n = 1; c < 3; c++)
@@ -579,6 +586,8 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         double n2 = 0;
         if (circ)
             n2 = sb_circ_norm2(R, a, m->ld, cw, pw);
+        else if (have_chs && !m->mask && !p->opts.weighted)
+            n2 = (chs.norm[ch] * pw) * (chs.norm[ch] * pw);
         else
             for (size_t c = 0; c < cols; c++)
                 for (size_t i = 0; i < rows; i++)
