@@ -251,3 +251,38 @@ SB_TEST(sample_then_factor) {
     CHECK(cli("info %s --res 16", t) == 0);
     CHECKF(strstr(out, "65536 of 65536 cells (100.00 %)") != NULL, "%s", out);
 }
+
+/* The table options mean the same in factor, study, render and info: the
+ * interpolation asked for is the one used (named in the report's source),
+ * and a bad value stops the command before anything is written. */
+SB_TEST(table_options_everywhere) {
+    const char *dir = sb_tmpdir("mcli");
+    char t[4200], a[4200], b[4200], p[4300], s[4200];
+    snprintf(t, sizeof t, "%s/t.csv", dir);
+    snprintf(a, sizeof a, "%s/a", dir);
+    snprintf(b, sizeof b, "%s/b", dir);
+    snprintf(s, sizeof s, "%s/s", dir);
+    CHECK(cli("sample microfacet:base=gold,roughness=0.5 --gonio 18,1,18,72 -q -o %s", t) == 0);
+    CHECK(cli("factor %s --param io --res 8 --terms 2 -q -o %s", t, a) == 0);
+    CHECK(cli("factor %s --param io --res 8 --terms 2 --interp idw --neighbours 6 -q -o %s", t, b) == 0);
+    snprintf(p, sizeof p, "%s/report.json", a);
+    double ea = report_rel_rms(p, 2);
+    snprintf(p, sizeof p, "%s/report.json", b);
+    double eb = report_rel_rms(p, 2);
+    CHECKF(isfinite(ea) && isfinite(eb) && ea != eb, "quadratic %g, idw %g", ea, eb);
+    CHECK(cli("info %s --interp idw --neighbours 6 --json", t) == 0);
+    CHECKF(strstr(out, "\"idw\"") != NULL, "%s", out);
+    CHECK(cli("study %s --res 8 --terms 1,2 --param io --interp idw -q -o %s", t, s) == 0);
+    /* bad values: exit 1, the option named, nothing written */
+    const char *bad[] = {"--interp cubic", "--neighbours 0", "--radius -1", "--white d50"};
+    const char *name[] = {"--interp", "--neighbours", "--radius", "--white"};
+    for (size_t k = 0; k < 4; k++) {
+        char o2[4300];
+        snprintf(o2, sizeof o2, "%s/bad%zu", dir, k);
+        CHECKF(cli("factor %s --res 8 %s -q -o %s", t, bad[k], o2) == 1, "%s: %s", bad[k], out);
+        CHECKF(strstr(out, name[k]) != NULL, "%s: %s", bad[k], out);
+        CHECK(dir_is_empty_or_missing(o2));
+        CHECKF(cli("render %s --res 8 %s -q -o %s", t, bad[k], o2) == 1, "render %s: %s", bad[k], out);
+        CHECK(dir_is_empty_or_missing(o2));
+    }
+}

@@ -46,6 +46,23 @@ int cli_opt(cli_args_t *a, const char *const *names, int takes_value, const char
  * store the value in *out and return 1; 0 if it is another option; -1 on a
  * missing or empty value (message printed; `what` is "folder" or "file"). */
 int cli_out_opt(cli_args_t *a, const char *what, const char **out);
+/* The options of a measured table, the same in every command that reads
+ * one: --interp M, --neighbours K, --radius DEG, --white e|d65.  Returns 1
+ * if argv[i] was one (stored in *mo), 0 if it is another option, -1 on a
+ * bad value (message printed). */
+int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
+/* Help lines of those options, for the commands' --help. */
+#define CLI_MEASURED_HELP \
+    "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n" \
+    "                       tables: local linear fit), idw, quadratic (default for\n" \
+    "                       scattered tables: local quadratic fit)\n" \
+    "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n" \
+    "      --radius DEG     scattered: farther than this from every sample is\n" \
+    "                       missing, in degrees of the embedding distance\n" \
+    "                       (default: 2.5 x the median sample spacing)\n" \
+    "      --white W        spectra: e (default; flat spectrum = illuminant E)\n" \
+    "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"
+
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 

@@ -51,7 +51,7 @@ static void help(void) {
         "      --half           store half floats with per-term scales\n"
         "      --previews       also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\n"
         "                       colour map, blue -S, white 0, red +S (S = max |value|)\n"
-        CLI_VERBOSITY_HELP
+        CLI_MEASURED_HELP CLI_VERBOSITY_HELP
         "\n"
         "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
         "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
@@ -75,6 +75,7 @@ typedef struct factor_opts {
     int half, weighted, zero_fill;
     int terms_set;
     unsigned channels;
+    sb_measured_opts_t mo; /* a measured table as SOURCE */
 } factor_opts_t;
 
 static int factor_previews; /* --previews: a PNG per texture (image.h) */
@@ -161,6 +162,8 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             if (m < 0 || cli_parse_size("factor", "--metric-res", v, 2, 256, &o->metric_res)) return EXIT_USAGE;
         } else if (cli_opt(&a, n_previews, 0, &v)) {
             factor_previews = 1;
+        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+            if (m < 0) return EXIT_USAGE;
         } else if (cli_verbosity_opt(argv[a.i])) {
         } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
             cli_error("factor", "unknown option '%s' (see `sepbrdf factor --help`)", argv[a.i]);
@@ -367,7 +370,7 @@ int cmd_factor(int argc, char **argv) {
         return EXIT_IO;
     }
     /* Everything is checked before the output folder is touched. */
-    if ((r = pipe_source_open(ctx, o.source, &src)) != SB_OK) goto fail;
+    if ((r = pipe_source_open(ctx, o.source, &o.mo, &src)) != SB_OK) goto fail;
 
     /* Candidates: the one asked for, or (auto) every parameterisation that
      * applies, with f and f cos cos unless --form fixes it. */

@@ -40,17 +40,8 @@ static void help(void) {
            "\n"
            "options:\n"
            "  -r, --res R          io grid of the coverage, 2..512 (default 32)\n"
-           "      --json           print JSON instead of the table\n"
-           "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n"
-           "                       tables: local linear fit), idw, quadratic (default for\n"
-           "                       scattered tables: local quadratic fit)\n"
-           "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n"
-           "      --radius DEG     scattered: farther than this from every sample is\n"
-           "                       missing, in degrees of the embedding distance\n"
-           "                       (default: 2.5 x the median sample spacing)\n"
-           "      --white W        spectra: e (default; flat spectrum = illuminant E)\n"
-           "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"
-           CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
+           "      --json           print JSON instead of the table\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP
+           "\n" CLI_EXIT_HELP);
 }
 
 static int is_regular_file(const char *path) {
@@ -192,8 +183,6 @@ static const info_kind_t kinds[] = {
 
 int cmd_info(int argc, char **argv) {
     static const char *const n_res[] = {"-r", "--res", NULL}, *const n_json[] = {"--json", NULL},
-                             *const n_interp[] = {"--interp", NULL}, *const n_k[] = {"--neighbours", NULL},
-                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL},
                              *const n_help[] = {"-h", "--help", NULL};
     info_opts_t o;
     memset(&o, 0, sizeof o);
@@ -210,28 +199,8 @@ int cmd_info(int argc, char **argv) {
             if (m < 0 || cli_parse_size("info", "--res", v, 2, 512, &o.res)) return EXIT_USAGE;
         } else if (cli_opt(&a, n_json, 0, &v)) {
             o.json = 1;
-        } else if ((m = cli_opt(&a, n_interp, 1, &v))) {
+        } else if ((m = cli_measured_opt(&a, &o.mo))) {
             if (m < 0) return EXIT_USAGE;
-            if (sb_interp_parse(v, &o.mo.interp) != SB_OK) {
-                cli_error("info", "--interp '%s' unknown, need one of nearest, linear, idw, quadratic", v);
-                return EXIT_USAGE;
-            }
-        } else if ((m = cli_opt(&a, n_k, 1, &v))) {
-            if (m < 0 || cli_parse_size("info", "--neighbours", v, 1, 64, &o.mo.neighbours)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_rad, 1, &v))) {
-            double deg;
-            if (m < 0 || cli_parse_double("info", "--radius", v, 1e-6, 360, &deg)) return EXIT_USAGE;
-            o.mo.radius = deg * SB_PI / 180;
-        } else if ((m = cli_opt(&a, n_white, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (strcmp(v, "e") == 0)
-                o.mo.white = SB_WHITE_E;
-            else if (strcmp(v, "d65") == 0)
-                o.mo.white = SB_WHITE_D65;
-            else {
-                cli_error("info", "--white '%s' unknown, need e or d65", v);
-                return EXIT_USAGE;
-            }
         } else if (cli_verbosity_opt(argv[a.i])) {
             continue;
         } else if (argv[a.i][0] == '-' && argv[a.i][1]) {

@@ -54,7 +54,8 @@ static void help(void) {
            "                       multiply radiance by X before tone mapping; auto\n"
            "                       (default): 1 / the original's brightest channel\n"
            "      --tonemap T      clamp (default) or reinhard (x / (1 + x))\n"
-           "      --diff-scale N   magnification of the difference panel (default 4)\n" CLI_VERBOSITY_HELP "\n"
+           "      --diff-scale N   magnification of the difference panel (default 4)\n" CLI_MEASURED_HELP
+           CLI_VERBOSITY_HELP "\n"
            "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
            "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
            "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
@@ -76,6 +77,7 @@ typedef struct render_opts {
     double elev, azim;
     sb_tonemap_t tm;
     double diff_scale;
+    sb_measured_opts_t mo; /* a measured table as SOURCE or --source */
 } render_opts_t;
 
 static int parse_terms(const char *v, render_opts_t *o) {
@@ -219,6 +221,8 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             }
         } else if ((m = cli_opt(&a, n_diff, 1, &v))) {
             if (m < 0 || cli_parse_double("render", "--diff-scale", v, 1e-3, 1e6, &o->diff_scale)) return EXIT_USAGE;
+        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+            if (m < 0) return EXIT_USAGE;
         } else if (cli_verbosity_opt(arg)) {
         } else if (arg[0] == '-' && arg[1]) {
             cli_error("render", "unknown option '%s' (see `sepbrdf render --help`)", arg);
@@ -381,7 +385,7 @@ int cmd_render(int argc, char **argv) {
          * model spec is, a measured table's is not) */
         char given[4096];
         const char *spec = o.source;
-        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 && pipe_source_open(ctx, given, &src) == SB_OK)
+        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 && pipe_source_open(ctx, given, &o.mo, &src) == SB_OK)
             spec = given;
         if (!spec) spec = sb_factors_get_meta(f, "source");
         if (!spec) {
@@ -389,7 +393,7 @@ int cmd_render(int argc, char **argv) {
             rc = EXIT_IO;
             goto out;
         }
-        if (!src && (r = pipe_source_open(ctx, spec, &src)) != SB_OK) {
+        if (!src && (r = pipe_source_open(ctx, spec, &o.mo, &src)) != SB_OK) {
             if (!o.source) {
                 cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o.input,
                           spec, sb_context_last_error(ctx));
@@ -417,7 +421,7 @@ int cmd_render(int argc, char **argv) {
         size_t J = 0;
         for (size_t k = 0; k < o.nterms; k++)
             if (o.terms[k] > J) J = o.terms[k];
-        if ((r = pipe_source_open(ctx, o.input, &src)) != SB_OK) goto fail;
+        if ((r = pipe_source_open(ctx, o.input, &o.mo, &src)) != SB_OK) goto fail;
         attempt_t best;
         if ((r = factor_source(ctx, &o, src, J, &best)) != SB_OK) goto fail;
         param = best.param; /* keep the parameterisation and factors */

@@ -54,7 +54,8 @@ static void help(void) {
            "      --weighted       solid-angle weighted fit\n"
            "      --zero-fill      factor invalid cells as zeros instead of a masked fit\n"
            "      --method M       auto (default), full, topk, randomized\n"
-           "      --metric-res R   reference grid of the comparable error (default 32)\n" CLI_VERBOSITY_HELP "\n"
+           "      --metric-res R   reference grid of the comparable error (default 32)\n" CLI_MEASURED_HELP
+           CLI_VERBOSITY_HELP "\n"
            "Each source x parameterisation is sampled once and, unless the fit is masked,\n"
            "factored once with the largest J: the leading J' terms of a truncated SVD are\n"
            "the rank-J' SVD, so every J' <= J is read from it (fit \"nested\"). A masked\n"
@@ -78,6 +79,7 @@ typedef struct study_opts {
     sb_form_t form;
     int weighted, zero_fill;
     sb_method_t method;
+    sb_measured_opts_t mo; /* measured tables among the sources */
 } study_opts_t;
 
 /* Errors after J terms of one run. */
@@ -256,6 +258,8 @@ static int parse(int argc, char **argv, study_opts_t *o) {
             o->weighted = 1;
         } else if (cli_opt(&a, n_zero, 0, &v)) {
             o->zero_fill = 1;
+        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+            if (m < 0) return EXIT_USAGE;
         } else if (cli_verbosity_opt(argv[a.i])) {
         } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
             cli_error("study", "unknown option '%s' (see `sepbrdf study --help`)", argv[a.i]);
@@ -661,7 +665,7 @@ int cmd_study(int argc, char **argv) {
     for (size_t s = 0; s < o.nsources; s++) {
         first_run[s] = rs.n;
         sb_context_clear_error(ctx);
-        sb_result_t r = pipe_source_open(ctx, o.sources[s], &srcs[s]);
+        sb_result_t r = pipe_source_open(ctx, o.sources[s], &o.mo, &srcs[s]);
         if (r != SB_OK) {
             run_t *ru = runs_add(&rs, o.sources[s], -1);
             if (!ru) goto nomem;

@@ -17,12 +17,13 @@ static int looks_like_path(const char *spec) {
     return memchr(spec, '/', n) != NULL || memchr(spec, '.', n) != NULL;
 }
 
-sb_result_t pipe_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out) {
+sb_result_t pipe_source_open(sb_context_t *ctx, const char *spec, const sb_measured_opts_t *mo, sb_source_t **out) {
     struct stat st;
     if (spec && looks_like_path(spec)) {
         if (stat(spec, &st) != 0) return sb_error(ctx, SB_ERR_IO, "%s: %s", spec, strerror(errno));
         if (!S_ISREG(st.st_mode)) return sb_error(ctx, SB_ERR_IO, "%s: not a regular file", spec);
     }
+    if (spec && out && stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open(ctx, spec, mo, out, NULL);
     return sb_source_open(ctx, spec, out);
 }
 

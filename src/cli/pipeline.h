@@ -43,7 +43,8 @@ typedef struct attempt {
 /* Open SOURCE like sb_source_open, but a spec that names a path (its model
  * part contains '/' or '.') and does not exist, or is not a regular file,
  * fails with SB_ERR_IO "PATH: no such file" instead of "unknown model". */
-sb_result_t pipe_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out);
+/* A model spec, or a measured table file read with mo (NULL: defaults). */
+sb_result_t pipe_source_open(sb_context_t *ctx, const char *spec, const sb_measured_opts_t *mo, sb_source_t **out);
 
 /* Create the parameterisation and sample the source into a->m (a is reset
  * first).  Fails with SB_ERR_RANGE when o->terms exceeds the matrix's

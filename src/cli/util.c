@@ -105,6 +105,39 @@ int cli_out_opt(cli_args_t *a, const char *what, const char **out) {
     return 1;
 }
 
+int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
+    static const char *const n_interp[] = {"--interp", NULL}, *const n_k[] = {"--neighbours", NULL},
+                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL};
+    const char *v = NULL;
+    int m;
+    if ((m = cli_opt(a, n_interp, 1, &v))) {
+        if (m < 0) return -1;
+        if (sb_interp_parse(v, &mo->interp) != SB_OK) {
+            cli_error(a->cmd, "--interp '%s' unknown, need one of nearest, linear, idw, quadratic", v);
+            return -1;
+        }
+    } else if ((m = cli_opt(a, n_k, 1, &v))) {
+        if (m < 0 || cli_parse_size(a->cmd, "--neighbours", v, 1, 64, &mo->neighbours)) return -1;
+    } else if ((m = cli_opt(a, n_rad, 1, &v))) {
+        double deg;
+        if (m < 0 || cli_parse_double(a->cmd, "--radius", v, 1e-6, 360, &deg)) return -1;
+        mo->radius = deg * SB_PI / 180;
+    } else if ((m = cli_opt(a, n_white, 1, &v))) {
+        if (m < 0) return -1;
+        if (strcmp(v, "e") == 0)
+            mo->white = SB_WHITE_E;
+        else if (strcmp(v, "d65") == 0)
+            mo->white = SB_WHITE_D65;
+        else {
+            cli_error(a->cmd, "--white '%s' unknown, need e or d65", v);
+            return -1;
+        }
+    } else {
+        return 0;
+    }
+    return 1;
+}
+
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out) {
     char *end;
     errno = 0;
