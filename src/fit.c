@@ -19,9 +19,18 @@
  * added one at a time (stage ka refits the first ka jointly), so each prefix
  * of the output is a masked fit of its own rank; sigma_j = |p_j| |q_j| is
  * the scale of term j, not a singular value, and the terms are not
- * orthogonal. */
+ * orthogonal.
+ *
+ * A sweep reads the valid cells gathered once per execute in column and in
+ * row order (no mask tests; the free factor columns and their outer
+ * products are kept row-major, k contiguous values per row or column), so
+ * a cell costs k multiply-adds and k(k+1)/2 additions per half-sweep; the
+ * fixed terms of a stage are subtracted once, not in every sweep.  The sums
+ * run in the order of plain loops over the mask, so the result is the same
+ * to the bit as accumulating cell by cell. */
 #include "fit.h"
 
+#include <assert.h>
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
@@ -43,7 +52,11 @@ struct sb_fit {
     sb_context_t *ctx;
     size_t m, n, k, l;
     double *x, *v, *y, *tau, *b, *sb, *ub, *vbt, *work;
-    double *P, *Q, *G, *rhs; /* ALS: factors m x k, n x k; Grams max(m,n) x k x k */
+    double *P, *Q; /* ALS: factors m x k, n x k */
+    /* ALS sweep copies of the free columns, row-major: pt[r*kf + j] =
+     * P[r + (j0+j)*m], qt likewise, and their outer products (lower
+     * triangles, kt = kf(kf+1)/2 values per row / column) */
+    double *pt, *qt, *pp, *qq;
     lapack_int *iwork;
     lapack_int lwork;
 };
@@ -106,12 +119,13 @@ sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fi
     }
     double q = fmax(q1, fmax(q2, q3));
     if (k <= SB_ALS_MAX_K) {
-        size_t mx = m > n ? m : n;
         f->P = sb_alloc(ctx, m * k, sizeof(double), "masked fit");
         f->Q = sb_alloc(ctx, n * k, sizeof(double), "masked fit");
-        f->G = sb_alloc(ctx, mx * k * k, sizeof(double), "masked fit");
-        f->rhs = sb_alloc(ctx, mx * k, sizeof(double), "masked fit");
-        if (!f->P || !f->Q || !f->G || !f->rhs) {
+        f->pt = sb_alloc(ctx, m * k, sizeof(double), "masked fit");
+        f->qt = sb_alloc(ctx, n * k, sizeof(double), "masked fit");
+        f->pp = sb_alloc(ctx, m * (k * (k + 1) / 2), sizeof(double), "masked fit");
+        f->qq = sb_alloc(ctx, n * (k * (k + 1) / 2), sizeof(double), "masked fit");
+        if (!f->P || !f->Q || !f->pt || !f->qt || !f->pp || !f->qq) {
             sb_fit_destroy(f);
             return SB_ERR_NOMEM;
         }
@@ -140,8 +154,10 @@ void sb_fit_destroy(sb_fit_t *f) {
     free(f->iwork);
     free(f->P);
     free(f->Q);
-    free(f->G);
-    free(f->rhs);
+    free(f->pt);
+    free(f->qt);
+    free(f->pp);
+    free(f->qq);
     free(f);
 }
 
@@ -170,7 +186,7 @@ static sb_result_t step(sb_fit_t *f) {
 
 /* Solve (G + ridge I) x = b for k x k SPD G in place (Cholesky); ridge
  * keeps rows with fewer than k valid cells well posed. */
-static void spd_solve(double *G, double *b, size_t k) {
+static inline void spd_solve(double *G, double *b, size_t k) {
     double tr = 0;
     for (size_t i = 0; i < k; i++) tr += G[i * k + i];
     double ridge = 1e-12 * (tr > 0 ? tr / (double)k : 1.0) + 1e-300;
@@ -198,87 +214,213 @@ static void spd_solve(double *G, double *b, size_t k) {
     }
 }
 
+/* The valid cells in both orders, built once per execute so that the sweeps
+ * read contiguous memory and test no mask: column c's cells are t in
+ * [cp[c], cp[c+1]) with row cr[t] (increasing) and value cv[t]; row r's are
+ * t in [rp[r], rp[r+1]) with column rc[t] (increasing) and value rv[t].
+ * cres / rres hold the values less the fixed terms (columns < j0) of the
+ * current stage, a_rc - sum_{j<j0} P_rj Q_cj, computed once per stage (the
+ * fixed terms do not move during its sweeps); they alias cv / rv when
+ * j0 = 0.  Every sum runs in the order of the plain loops over the mask
+ * (rows: c increasing; columns: r increasing), so the results are the same
+ * to the bit. */
+typedef struct als_cells {
+    size_t *cp, *rp;
+    uint32_t *cr, *rc;
+    double *cv, *rv, *cbuf, *rbuf;
+    const double *cres, *rres;
+} als_cells_t;
+
+static void cells_free(als_cells_t *cl) {
+    free(cl->cp);
+    free(cl->rp);
+    free(cl->cr);
+    free(cl->rc);
+    free(cl->cv);
+    free(cl->rv);
+    free(cl->cbuf);
+    free(cl->rbuf);
+}
+
+/* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
+ * SB_ERR_NOMEM. */
+static int cells_build(als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda, const unsigned char *mask,
+                       size_t nvalid) {
+    memset(cl, 0, sizeof *cl);
+    cl->cp = malloc((n + 1) * sizeof *cl->cp);
+    cl->rp = calloc(m + 1, sizeof *cl->rp);
+    cl->cr = malloc(nvalid * sizeof *cl->cr);
+    cl->rc = malloc(nvalid * sizeof *cl->rc);
+    cl->cv = malloc(nvalid * sizeof *cl->cv);
+    cl->rv = malloc(nvalid * sizeof *cl->rv);
+    cl->cbuf = malloc(nvalid * sizeof *cl->cbuf);
+    cl->rbuf = malloc(nvalid * sizeof *cl->rbuf);
+    if (!cl->cp || !cl->rp || !cl->cr || !cl->rc || !cl->cv || !cl->rv || !cl->cbuf || !cl->rbuf) {
+        cells_free(cl);
+        return SB_ERR_NOMEM;
+    }
+    /* column order; count each row's cells on the way */
+    size_t t = 0;
+    for (size_t c = 0; c < n; c++) {
+        cl->cp[c] = t;
+        for (size_t r = 0; r < m; r++)
+            if (mask[r + c * lda]) {
+                cl->cr[t] = (uint32_t)r;
+                cl->cv[t++] = X[r + c * lda];
+                cl->rp[r + 1]++;
+            }
+    }
+    cl->cp[n] = t;
+    assert(t == nvalid);
+    /* row order: prefix sums, then a scatter in column order keeps each
+     * row's columns increasing */
+    for (size_t r = 0; r < m; r++) cl->rp[r + 1] += cl->rp[r];
+    size_t *next = malloc(m * sizeof *next);
+    if (!next) {
+        cells_free(cl);
+        return SB_ERR_NOMEM;
+    }
+    memcpy(next, cl->rp, m * sizeof *next);
+    for (size_t c = 0; c < n; c++)
+        for (size_t u = cl->cp[c]; u < cl->cp[c + 1]; u++) {
+            size_t at = next[cl->cr[u]]++;
+            cl->rc[at] = (uint32_t)c;
+            cl->rv[at] = cl->cv[u];
+        }
+    free(next);
+    cl->cres = cl->cv;
+    cl->rres = cl->rv;
+    return 0;
+}
+
+/* The data less the fixed terms 0..j0-1, in both orders (aliases of the
+ * data for j0 = 0). */
+static void cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0) {
+    size_t m = f->m, n = f->n;
+    const double *P = f->P, *Q = f->Q;
+    if (j0 == 0) {
+        cl->cres = cl->cv;
+        cl->rres = cl->rv;
+        return;
+    }
+    for (size_t c = 0; c < n; c++)
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
+            double a = cl->cv[t];
+            for (size_t j = 0; j < j0; j++) a -= P[cl->cr[t] + j * m] * Q[c + j * n];
+            cl->cbuf[t] = a;
+        }
+    for (size_t r = 0; r < m; r++)
+        for (size_t t = cl->rp[r]; t < cl->rp[r + 1]; t++) {
+            double a = cl->rv[t];
+            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * Q[cl->rc[t] + j * n];
+            cl->rbuf[t] = a;
+        }
+    cl->cres = cl->cbuf;
+    cl->rres = cl->rbuf;
+}
+
+/* x (k values) and its outer product's lower triangle, row by row
+ * (x_0 x_0, x_1 x_0, x_1 x_1, x_2 x_0, ...), to row-major copies. */
+static inline void put_row(double *xt, double *xx, const double *x, size_t k) {
+    for (size_t i = 0; i < k; i++) {
+        xt[i] = x[i];
+        for (size_t j = 0; j <= i; j++) *xx++ = x[i] * x[j];
+    }
+}
+
+/* One least-squares update from the cells t0..t1-1 of a row (column):
+ * with x_i, xx_i the fixed side's row-major factor and packed outer
+ * product at the cell's other index idx[t], solve
+ *     (sum_t xx_{idx[t]}) y = sum_t a_t x_{idx[t]}
+ * for y (kf values) by spd_solve, the sums in the order of t. */
+static inline void ls_update(const uint32_t *idx, const double *a, size_t t0, size_t t1, const double *xt,
+                             const double *xx, size_t kf, double *y) {
+    size_t kt = kf * (kf + 1) / 2;
+    /* local accumulators: y may not alias what the loop reads */
+    double g[SB_ALS_MAX_K * (SB_ALS_MAX_K + 1) / 2], b[SB_ALS_MAX_K], G[SB_ALS_MAX_K * SB_ALS_MAX_K];
+    memset(g, 0, kt * sizeof *g);
+    memset(b, 0, kf * sizeof *b);
+    for (size_t t = t0; t < t1; t++) {
+        const double *x = xt + idx[t] * kf, *x2 = xx + idx[t] * kt;
+        double v = a[t];
+        for (size_t i = 0; i < kf; i++) b[i] += v * x[i];
+        for (size_t i = 0; i < kt; i++) g[i] += x2[i];
+    }
+    for (size_t i = 0, at = 0; i < kf; i++)
+        for (size_t j = 0; j <= i; j++, at++) G[i * kf + j] = G[j * kf + i] = g[at];
+    spd_solve(G, b, kf);
+    memcpy(y, b, kf * sizeof *y);
+}
+
 /* One ALS sweep over the free columns j0..ka-1 of P and Q (columns below j0
  * stay fixed and are subtracted from the data): rows (P given Q), then
  * columns (Q given P).  Returns the squared error of all ka terms on the
  * valid cells after the sweep.  Each half is split among threads by rows /
- * columns: every thread owns the Grams and outputs of its range. */
+ * columns: every thread owns the outputs of its range.  The Grams are sums
+ * of the precomputed outer products q_c q_c^T (p_r p_r^T): a cell costs
+ * k(k+1)/2 additions and k multiply-adds. */
 typedef struct als_job {
     sb_fit_t *f;
-    const double *A;
-    size_t lda, j0, ka, lo, hi;
-    const unsigned char *mask;
+    const als_cells_t *cl;
+    size_t j0, ka, lo, hi;
     double e2;
 } als_job_t;
 
-static void *als_rows(void *arg) {
-    als_job_t *jb = arg;
+/* The row half for kf = ka - j0 free terms (inlined with kf constant):
+ * p_r from G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c over the valid c. */
+static inline void rows_k(const als_job_t *jb, size_t kf) {
     sb_fit_t *f = jb->f;
-    size_t m = f->m, n = f->n, j0 = jb->j0, k = jb->ka - j0, lda = jb->lda;
-    const double *A = jb->A;
-    const unsigned char *mask = jb->mask;
-    double *P = f->P, *Q = f->Q, *G = f->G, *B = f->rhs;
-    /* accumulate G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c column by column */
-    memset(G + jb->lo * k * k, 0, (jb->hi - jb->lo) * k * k * sizeof *G);
-    memset(B + jb->lo * k, 0, (jb->hi - jb->lo) * k * sizeof *B);
-    for (size_t c = 0; c < n; c++) {
-        double qc[SB_ALS_MAX_K], qf[SB_ALS_MAX_K];
-        for (size_t j = 0; j < k; j++) qc[j] = Q[c + (j0 + j) * n];
-        for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
-        for (size_t r = jb->lo; r < jb->hi; r++) {
-            if (!mask[r + c * lda]) continue;
-            double a = A[r + c * lda], *g = G + r * k * k, *b = B + r * k;
-            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
-            for (size_t i = 0; i < k; i++) {
-                b[i] += a * qc[i];
-                for (size_t j = 0; j <= i; j++) g[i * k + j] += qc[i] * qc[j];
-            }
+    const als_cells_t *cl = jb->cl;
+    size_t m = f->m, j0 = jb->j0, kt = kf * (kf + 1) / 2;
+    for (size_t r = jb->lo; r < jb->hi; r++) {
+        double p[SB_ALS_MAX_K];
+        ls_update(cl->rc, cl->rres, cl->rp[r], cl->rp[r + 1], f->qt, f->qq, kf, p);
+        for (size_t j = 0; j < kf; j++) f->P[r + (j0 + j) * m] = p[j];
+        put_row(f->pt + r * kf, f->pp + r * kt, p, kf);
+    }
+}
+
+/* The column half, then the error of column c with its new q_c. */
+static inline void cols_k(als_job_t *jb, size_t kf) {
+    sb_fit_t *f = jb->f;
+    const als_cells_t *cl = jb->cl;
+    size_t n = f->n, j0 = jb->j0;
+    double e2 = 0;
+    for (size_t c = jb->lo; c < jb->hi; c++) {
+        double q[SB_ALS_MAX_K];
+        size_t t0 = cl->cp[c], t1 = cl->cp[c + 1];
+        ls_update(cl->cr, cl->cres, t0, t1, f->pt, f->pp, kf, q);
+        for (size_t j = 0; j < kf; j++) f->Q[c + (j0 + j) * n] = q[j];
+        for (size_t t = t0; t < t1; t++) {
+            const double *p = f->pt + cl->cr[t] * kf;
+            double d = cl->cres[t];
+            for (size_t j = 0; j < kf; j++) d -= p[j] * q[j];
+            e2 += d * d;
         }
     }
-    for (size_t r = jb->lo; r < jb->hi; r++) {
-        double *g = G + r * k * k, *b = B + r * k;
-        for (size_t i = 0; i < k; i++)
-            for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
-        spd_solve(g, b, k);
-        for (size_t j = 0; j < k; j++) P[r + (j0 + j) * m] = b[j];
+    jb->e2 = e2;
+}
+
+/* Dispatch on the number of free terms: the common small counts get loops
+ * of constant length. */
+#define SB_ALS_DISPATCH(fn, jb)                                                                                        \
+    switch ((jb)->ka - (jb)->j0) {                                                                                     \
+    case 1: fn(jb, 1); break;                                                                                          \
+    case 2: fn(jb, 2); break;                                                                                          \
+    case 3: fn(jb, 3); break;                                                                                          \
+    case 4: fn(jb, 4); break;                                                                                          \
+    default: fn(jb, (jb)->ka - (jb)->j0); break;                                                                       \
     }
+
+static void *als_rows(void *arg) {
+    als_job_t *jb = arg;
+    SB_ALS_DISPATCH(rows_k, jb);
     return NULL;
 }
 
 static void *als_cols(void *arg) {
     als_job_t *jb = arg;
-    sb_fit_t *f = jb->f;
-    size_t m = f->m, n = f->n, j0 = jb->j0, k = jb->ka - j0, lda = jb->lda;
-    const double *A = jb->A;
-    const unsigned char *mask = jb->mask;
-    double *P = f->P, *Q = f->Q;
-    double e2 = 0;
-    for (size_t c = jb->lo; c < jb->hi; c++) {
-        double g[SB_ALS_MAX_K * SB_ALS_MAX_K] = {0}, b[SB_ALS_MAX_K] = {0}, qf[SB_ALS_MAX_K];
-        for (size_t j = 0; j < j0; j++) qf[j] = Q[c + j * n];
-        for (size_t r = 0; r < m; r++) {
-            if (!mask[r + c * lda]) continue;
-            double a = A[r + c * lda], pr[SB_ALS_MAX_K];
-            for (size_t j = 0; j < j0; j++) a -= P[r + j * m] * qf[j];
-            for (size_t j = 0; j < k; j++) pr[j] = P[r + (j0 + j) * m];
-            for (size_t i = 0; i < k; i++) {
-                b[i] += a * pr[i];
-                for (size_t j = 0; j <= i; j++) g[i * k + j] += pr[i] * pr[j];
-            }
-        }
-        for (size_t i = 0; i < k; i++)
-            for (size_t j = i + 1; j < k; j++) g[i * k + j] = g[j * k + i];
-        spd_solve(g, b, k);
-        for (size_t j = 0; j < k; j++) Q[c + (j0 + j) * n] = b[j];
-        for (size_t r = 0; r < m; r++) {
-            if (!mask[r + c * lda]) continue;
-            double d = A[r + c * lda];
-            for (size_t j = 0; j < j0; j++) d -= P[r + j * m] * qf[j];
-            for (size_t j = 0; j < k; j++) d -= P[r + (j0 + j) * m] * b[j];
-            e2 += d * d;
-        }
-    }
-    jb->e2 = e2;
+    SB_ALS_DISPATCH(cols_k, jb);
     return NULL;
 }
 
@@ -309,9 +451,15 @@ static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double
     }
 }
 
-static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka) {
-    als_job_t proto = {f, A, lda, j0, ka, 0, 0, mask, 0};
+static double als_sweep(sb_fit_t *f, const als_cells_t *cl, size_t j0, size_t ka) {
+    als_job_t proto = {f, cl, j0, ka, 0, 0, 0};
+    size_t kf = ka - j0, kt = kf * (kf + 1) / 2;
     double e2;
+    for (size_t c = 0; c < f->n; c++) {
+        double q[SB_ALS_MAX_K];
+        for (size_t j = 0; j < kf; j++) q[j] = f->Q[c + (j0 + j) * f->n];
+        put_row(f->qt + c * kf, f->qq + c * kt, q, kf);
+    }
     als_parallel(als_rows, &proto, f->m, NULL);
     als_parallel(als_cols, &proto, f->n, &e2);
     return e2;
@@ -319,14 +467,13 @@ static double als_sweep(sb_fit_t *f, const double *A, size_t lda, const unsigned
 
 /* Squared error on valid cells of each prefix of the first ka terms:
  * e2[j] for the terms 0..j. */
-static void prefix_errors(const sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t ka,
-                          double *e2) {
+static void prefix_errors(const sb_fit_t *f, const als_cells_t *cl, size_t ka, double *e2) {
     size_t m = f->m, n = f->n;
     for (size_t j = 0; j < ka; j++) e2[j] = 0;
     for (size_t c = 0; c < n; c++)
-        for (size_t r = 0; r < m; r++) {
-            if (!mask[r + c * lda]) continue;
-            double d = A[r + c * lda];
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
+            size_t r = cl->cr[t];
+            double d = cl->cv[t];
             for (size_t j = 0; j < ka; j++) {
                 d -= f->P[r + j * m] * f->Q[c + j * n];
                 e2[j] += d * d;
@@ -335,12 +482,13 @@ static void prefix_errors(const sb_fit_t *f, const double *A, size_t lda, const 
 }
 
 /* ALS sweeps on columns j0..ka-1 until the error stops improving. */
-static double als_until(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, size_t j0, size_t ka,
-                        const sb_fit_opts_t *o, double norm, int *sweeps, int *converged) {
+static double als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, const sb_fit_opts_t *o, double norm,
+                        int *sweeps, int *converged) {
     double prev = INFINITY, err = 0;
+    cells_residual(cl, f, j0);
     for (int stage = 1;; stage++) {
         (*sweeps)++;
-        err = sqrt(als_sweep(f, A, lda, mask, j0, ka));
+        err = sqrt(als_sweep(f, cl, j0, ka));
         if (err <= 1e-15 * norm || (isfinite(prev) && prev - err <= o->tol * prev)) break;
         if (stage >= o->max_iters) {
             *converged = 0;
@@ -451,7 +599,8 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         int total = it > em_iters ? em_iters : it, converged = 1;
         double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
         double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
-        if (!saveP || !saveQ) {
+        als_cells_t cl;
+        if (!saveP || !saveQ || cells_build(&cl, As, m, n, lda, mask, m * n - ninvalid) != 0) {
             free(saveP);
             free(saveQ);
             free(qu);
@@ -462,7 +611,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
             /* first the new term alone on the residual of the others: the
              * error can only go down (its first half-sweep is a least-squares
              * step from the warm start) */
-            err = als_until(f, As, lda, mask, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
+            err = als_until(f, &cl, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
             if (ka > 1) {
                 /* then all ka jointly, kept only if no shorter prefix gets
                  * more than SB_PREFIX_SLACK times worse (at the last stage:
@@ -472,8 +621,8 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
                  * near its edge */
                 memcpy(saveP, f->P, m * ka * sizeof *saveP);
                 memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-                double ej = als_until(f, As, lda, mask, 0, ka, &o, sqrt(norm2), &total, &converged);
-                prefix_errors(f, As, lda, mask, ka, e2);
+                double ej = als_until(f, &cl, 0, ka, &o, sqrt(norm2), &total, &converged);
+                prefix_errors(f, &cl, ka, e2);
                 int keep = ej <= err;
                 /* the last stage is what was asked for: there any sane
                  * prefix (no worse than no term) is accepted */
@@ -497,6 +646,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         }
         free(saveP);
         free(saveQ);
+        cells_free(&cl);
         /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
         for (size_t j = 0; j < k; j++) {
             double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);
