@@ -244,17 +244,19 @@ static void cells_free(als_cells_t *cl) {
 
 /* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
  * SB_ERR_NOMEM. */
-static int cells_build(als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda, const unsigned char *mask,
-                       size_t nvalid) {
+static int cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
+                       const unsigned char *mask, size_t nvalid) {
+    /* ~40 bytes per valid cell: through sb_alloc, so the memory limit holds */
+    static const char what[] = "masked fit: gathered cells";
     memset(cl, 0, sizeof *cl);
-    cl->cp = malloc((n + 1) * sizeof *cl->cp);
-    cl->rp = calloc(m + 1, sizeof *cl->rp);
-    cl->cr = malloc(nvalid * sizeof *cl->cr);
-    cl->rc = malloc(nvalid * sizeof *cl->rc);
-    cl->cv = malloc(nvalid * sizeof *cl->cv);
-    cl->rv = malloc(nvalid * sizeof *cl->rv);
-    cl->cbuf = malloc(nvalid * sizeof *cl->cbuf);
-    cl->rbuf = malloc(nvalid * sizeof *cl->rbuf);
+    cl->cp = sb_alloc(ctx, n + 1, sizeof *cl->cp, what);
+    cl->rp = sb_calloc(ctx, m + 1, sizeof *cl->rp, what);
+    cl->cr = sb_alloc(ctx, nvalid, sizeof *cl->cr, what);
+    cl->rc = sb_alloc(ctx, nvalid, sizeof *cl->rc, what);
+    cl->cv = sb_alloc(ctx, nvalid, sizeof *cl->cv, what);
+    cl->rv = sb_alloc(ctx, nvalid, sizeof *cl->rv, what);
+    cl->cbuf = sb_alloc(ctx, nvalid, sizeof *cl->cbuf, what);
+    cl->rbuf = sb_alloc(ctx, nvalid, sizeof *cl->rbuf, what);
     if (!cl->cp || !cl->rp || !cl->cr || !cl->rc || !cl->cv || !cl->rv || !cl->cbuf || !cl->rbuf) {
         cells_free(cl);
         return SB_ERR_NOMEM;
@@ -600,7 +602,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
         double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
         als_cells_t cl;
-        if (!saveP || !saveQ || cells_build(&cl, As, m, n, lda, mask, m * n - ninvalid) != 0) {
+        if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, m * n - ninvalid) != 0) {
             free(saveP);
             free(saveQ);
             free(qu);
