@@ -273,7 +273,6 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
 
 /* ---- one run: plan, execute, write, peak memory ------------------------- */
 
-#ifdef SB_HAVE_EXR
 static double write_exr(sb_context_t *ctx, const sb_factors_t *f, run_result_t *r) {
     char dir[] = "/tmp/sepbrdf-bench-XXXXXX";
     if (!mkdtemp(dir)) return -1;
@@ -292,7 +291,6 @@ static double write_exr(sb_context_t *ctx, const sb_factors_t *f, run_result_t *
     rmdir(dir);
     return res == SB_OK ? t : -1;
 }
-#endif
 
 static void run_one(const bench_opts_t *o, const sb_matrix_t *m, const sb_param_t *param, size_t J,
                     const method_spec_t *spec, int time_svd, run_result_t *r) {
@@ -336,9 +334,7 @@ static void run_one(const bench_opts_t *o, const sb_matrix_t *m, const sb_param_
     const sb_factor_errors_t *e = sb_factors_errors(f);
     for (size_t i = 0; i < o->nterms; i++)
         if (o->terms[i] <= J) r->rel[i] = e->rel_rms[(o->terms[i] - 1) * 4 + 3];
-#ifdef SB_HAVE_EXR
     if (o->write) r->write_s = write_exr(ctx, f, r);
-#endif
     r->peak_mib = have_peak ? status_mib("VmHWM") : -1;
     sb_factors_destroy(f);
     f = NULL;
@@ -491,9 +487,6 @@ static int run_all(bench_opts_t *o) {
     if (o->verbosity) {
         printf("# %s; %d BLAS threads; load average %s\n", openblas_get_config(), openblas_get_num_threads(), load);
         printf("# model %s, form %s, io grid; times in seconds, memory in MiB\n", o->model, sb_form_name(o->form));
-#ifndef SB_HAVE_EXR
-        printf("# this build has no EXR writer: write_s is not measured\n");
-#endif
         printf("%6s %3s %-22s %-10s %8s %8s %8s %8s %8s %10s %9s %7s %6s\n", "N", "J", "method", "used", "sample",
                "plan", "factor", "svd", "write", "rel_err", "excess", "peak", "extra");
     }

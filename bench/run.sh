@@ -42,5 +42,5 @@ if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then
     for R in 32 64; do whole "--param io -r $R -J 8" --param io -r "$R" -J 8; done
     whole "(default: --param auto, R = 32, J = 4)"
 else
-    echo "# sepbrdf CLI not built (src/exr.c missing?): whole-command timing skipped"
+    echo "# sepbrdf CLI not built: whole-command timing skipped"
 fi

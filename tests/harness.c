@@ -49,7 +49,8 @@ int sb_run(const char *cmd, char *out, size_t out_size) {
     size_t n = 0;
     if (out && out_size) {
         size_t r;
-        while (n + 1 < out_size && (r = fread(out + n, 1, out_size - 1 - n, p)) > 0) n += r;
+        while (n + 1 < out_size && (r = fread(out + n, 1, out_size - 1 - n, p)) > 0)
+            n += r;
         out[n] = 0;
     }
     char sink[4096];

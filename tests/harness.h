@@ -10,46 +10,43 @@
 
 typedef void (*sb_test_fn)(void);
 void sb_test_register(const char *name, sb_test_fn fn);
-void sb_test_fail(const char *file, int line, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+void sb_test_fail(const char *file, int line, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 void sb_test_skip(const char *why);
 int sb_test_failed_now(void);
 
-#define SB_TEST(name)                                                                         \
-    static void sb_test_##name(void);                                                         \
-    __attribute__((constructor)) static void sb_test_reg_##name(void) {                       \
-        sb_test_register(#name, sb_test_##name);                                              \
-    }                                                                                         \
+#define SB_TEST(name)                                                                                                  \
+    static void sb_test_##name(void);                                                                                  \
+    __attribute__((constructor)) static void sb_test_reg_##name(void) { sb_test_register(#name, sb_test_##name); }     \
     static void sb_test_##name(void)
 
-#define CHECK(cond)                                                                           \
-    do {                                                                                      \
-        if (!(cond)) sb_test_fail(__FILE__, __LINE__, "%s", #cond);                           \
+#define CHECK(cond)                                                                                                    \
+    do {                                                                                                               \
+        if (!(cond)) sb_test_fail(__FILE__, __LINE__, "%s", #cond);                                                    \
     } while (0)
-#define CHECKF(cond, ...)                                                                     \
-    do {                                                                                      \
-        if (!(cond)) sb_test_fail(__FILE__, __LINE__, __VA_ARGS__);                           \
+#define CHECKF(cond, ...)                                                                                              \
+    do {                                                                                                               \
+        if (!(cond)) sb_test_fail(__FILE__, __LINE__, __VA_ARGS__);                                                    \
     } while (0)
 /* |a - b| <= tol * max(1, |b|) style checks */
-#define CHECK_REL(a, b, tol)                                                                  \
-    do {                                                                                      \
-        double a_ = (a), b_ = (b);                                                            \
-        double d_ = fabs(a_ - b_), s_ = fabs(b_) > 1e-300 ? fabs(b_) : 1.0;                  \
-        if (!(d_ <= (tol) * s_))                                                              \
-            sb_test_fail(__FILE__, __LINE__, "%s = %.17g vs %s = %.17g (rel %.3g > %.3g)", #a, \
-                         a_, #b, b_, d_ / s_, (double)(tol));                                 \
+#define CHECK_REL(a, b, tol)                                                                                           \
+    do {                                                                                                               \
+        double a_ = (a), b_ = (b);                                                                                     \
+        double d_ = fabs(a_ - b_), s_ = fabs(b_) > 1e-300 ? fabs(b_) : 1.0;                                            \
+        if (!(d_ <= (tol)*s_))                                                                                         \
+            sb_test_fail(__FILE__, __LINE__, "%s = %.17g vs %s = %.17g (rel %.3g > %.3g)", #a, a_, #b, b_, d_ / s_,    \
+                         (double)(tol));                                                                               \
     } while (0)
-#define CHECK_ABS(a, b, tol)                                                                  \
-    do {                                                                                      \
-        double a_ = (a), b_ = (b);                                                            \
-        if (!(fabs(a_ - b_) <= (tol)))                                                        \
-            sb_test_fail(__FILE__, __LINE__, "%s = %.17g vs %s = %.17g (abs %.3g > %.3g)", #a, \
-                         a_, #b, b_, fabs(a_ - b_), (double)(tol));                           \
+#define CHECK_ABS(a, b, tol)                                                                                           \
+    do {                                                                                                               \
+        double a_ = (a), b_ = (b);                                                                                     \
+        if (!(fabs(a_ - b_) <= (tol)))                                                                                 \
+            sb_test_fail(__FILE__, __LINE__, "%s = %.17g vs %s = %.17g (abs %.3g > %.3g)", #a, a_, #b, b_,             \
+                         fabs(a_ - b_), (double)(tol));                                                                \
     } while (0)
-#define SKIP(why)                                                                             \
-    do {                                                                                      \
-        sb_test_skip(why);                                                                    \
-        return;                                                                               \
+#define SKIP(why)                                                                                                      \
+    do {                                                                                                               \
+        sb_test_skip(why);                                                                                             \
+        return;                                                                                                        \
     } while (0)
 
 /* Helpers for CLI tests: run a shell command, capture stdout+stderr. */

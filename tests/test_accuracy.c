@@ -14,8 +14,8 @@ typedef struct run {
     sb_metric_t metric;
 } run_t;
 
-static int factor(const char *spec, sb_param_kind_t kind, size_t R, sb_form_t form, size_t J, int weighted, int zero_fill,
-                  run_t *out) {
+static int factor(const char *spec, sb_param_kind_t kind, size_t R, sb_form_t form, size_t J, int weighted,
+                  int zero_fill, run_t *out) {
     memset(out, 0, sizeof *out);
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -106,8 +106,8 @@ static double *sigmas(const double *a, size_t m, size_t n) {
     size_t mn = m < n ? m : n;
     double *c = malloc(m * n * sizeof *c), *s = malloc(mn * sizeof *s), *sup = malloc(mn * sizeof *sup);
     memcpy(c, a, m * n * sizeof *c);
-    CHECK(LAPACKE_dgesvd(LAPACK_COL_MAJOR, 'N', 'N', (lapack_int)m, (lapack_int)n, c, (lapack_int)m, s, NULL, 1, NULL, 1,
-                         sup) == 0);
+    CHECK(LAPACKE_dgesvd(LAPACK_COL_MAJOR, 'N', 'N', (lapack_int)m, (lapack_int)n, c, (lapack_int)m, s, NULL, 1, NULL,
+                         1, sup) == 0);
     free(c);
     free(sup);
     return s;
@@ -121,10 +121,12 @@ SB_TEST(eckart_young_every_param) {
         const sb_factor_errors_t *e = sb_factors_errors(r.f);
         size_t m = r.m.rows, n = r.m.cols, mn = m < n ? m : n;
         double *s = sigmas(r.m.data[1], m, n), n2 = 0;
-        for (size_t i = 0; i < mn; i++) n2 += s[i] * s[i];
+        for (size_t i = 0; i < mn; i++)
+            n2 += s[i] * s[i];
         for (size_t j = 0; j < J; j++) {
             double t2 = 0;
-            for (size_t i = j + 1; i < mn; i++) t2 += s[i] * s[i];
+            for (size_t i = j + 1; i < mn; i++)
+                t2 += s[i] * s[i];
             /* The zero-filled matrix is what the SVD saw: without a mask the
              * error is the Eckart-Young value; with one (hd, iso) the error
              * is measured on the valid cells only, a part of the residual. */

@@ -38,7 +38,8 @@ static sb_factors_t *factor(const sb_matrix_t *m, const sb_param_t *p, size_t J,
 static double max_abs_entry(const sb_matrix_t *m) {
     double big = 0;
     for (int c = 0; c < 3; c++)
-        for (size_t i = 0; m->data[c] && i < m->rows * m->cols; i++) big = fmax(big, fabs(m->data[c][i]));
+        for (size_t i = 0; m->data[c] && i < m->rows * m->cols; i++)
+            big = fmax(big, fabs(m->data[c][i]));
     return big;
 }
 
@@ -56,7 +57,7 @@ SB_TEST(matches_dense_full) {
     } cases[] = {
         {"microfacet:base=gold,roughness=0.5", 8, 12, 0, SB_FORM_F, 90},
         {"microfacet:base=gold,roughness=0.3", 5, 9, 1, SB_FORM_COS2, 90},
-        {"cook-torrance:roughness=0.4,kd=0", 7, 10, 1, SB_FORM_F, 70},  /* grey: proportional channels */
+        {"cook-torrance:roughness=0.4,kd=0", 7, 10, 1, SB_FORM_F, 70}, /* grey: proportional channels */
         {"lambert:albedo=0.8", 6, 5, 0, SB_FORM_F, 90},                /* rank 1 */
         {"blinn-phong:n=20", 6, 36, 0, SB_FORM_COS, 90},               /* J = N */
     };
@@ -159,8 +160,10 @@ SB_TEST(deterministic) {
     sb_factors_t *a = factor(&m, p, 7, SB_METHOD_AUTO, 1), *b = factor(&m, p, 7, SB_METHOD_AUTO, 1);
     for (size_t j = 0; j < 7; j++)
         for (size_t c = 0; c < 3; c++) {
-            CHECK(memcmp(sb_factors_tex_const(a, 0, j, c), sb_factors_tex_const(b, 0, j, c), 100 * sizeof(double)) == 0);
-            CHECK(memcmp(sb_factors_tex_const(a, 1, j, c), sb_factors_tex_const(b, 1, j, c), 100 * sizeof(double)) == 0);
+            CHECK(memcmp(sb_factors_tex_const(a, 0, j, c), sb_factors_tex_const(b, 0, j, c), 100 * sizeof(double)) ==
+                  0);
+            CHECK(memcmp(sb_factors_tex_const(a, 1, j, c), sb_factors_tex_const(b, 1, j, c), 100 * sizeof(double)) ==
+                  0);
         }
     sb_factors_destroy(a);
     sb_factors_destroy(b);

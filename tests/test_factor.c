@@ -57,7 +57,8 @@ SB_TEST(matrix_layout) {
             double wo[3] = {sin(to) * cos(po), sin(to) * sin(po), cos(to)};
             double rgb[3];
             probe_eval(NULL, wi, wo, rgb);
-            for (int c = 0; c < 3; c++) CHECK_REL(m.data[c][k + l * m.ld], rgb[c], 1e-14);
+            for (int c = 0; c < 3; c++)
+                CHECK_REL(m.data[c][k + l * m.ld], rgb[c], 1e-14);
         }
     sb_matrix_free(&m);
     sb_param_destroy(p);
@@ -95,11 +96,13 @@ SB_TEST(eckart_young) {
         double tot2 = 0, tail2[64] = {0};
         for (int c = 0; c < 3; c++) {
             double *sig = reference_sigma(m.data[c], N), n2 = 0;
-            for (size_t k = 0; k < N; k++) n2 += sig[k] * sig[k];
+            for (size_t k = 0; k < N; k++)
+                n2 += sig[k] * sig[k];
             tot2 += n2;
             for (size_t j = 0; j < J; j++) {
                 double t2 = 0;
-                for (size_t k = j + 1; k < N; k++) t2 += sig[k] * sig[k];
+                for (size_t k = j + 1; k < N; k++)
+                    t2 += sig[k] * sig[k];
                 tail2[j] += t2;
                 CHECK_REL(e->rel_rms[j * 4 + c], sqrt(t2 / n2), 1e-9);
                 CHECK_REL(sb_factors_sigma(f, j, c), sig[j], 1e-11);
@@ -135,7 +138,8 @@ SB_TEST(lambert_rank1) {
     double alb[3] = {0.8, 0.5, 0.2};
     for (int c = 0; c < 3; c++)
         for (size_t r = 0; r < m.rows; r += 7)
-            for (size_t col = 0; col < m.cols; col += 5) CHECK_REL(sb_factors_cell(f, 1, c, r, col), alb[c] / SB_PI, 1e-12);
+            for (size_t col = 0; col < m.cols; col += 5)
+                CHECK_REL(sb_factors_cell(f, 1, c, r, col), alb[c] / SB_PI, 1e-12);
     sb_factors_destroy(f);
     sb_plan_destroy(plan);
     sb_matrix_free(&m);
@@ -205,7 +209,8 @@ SB_TEST(lookup_cell_centres) {
             sb_param_cell_dirs(p, k, l, wi, wo);
             CHECK(sb_factors_eval(f, p, SB_FORM_F, R * R, wi, wo, rgb) == 1);
             probe_eval(NULL, wi, wo, ref);
-            for (int c = 0; c < 3; c++) CHECK_REL(rgb[c], ref[c], 1e-9);
+            for (int c = 0; c < 3; c++)
+                CHECK_REL(rgb[c], ref[c], 1e-9);
         }
     /* between two theta centres the lookup is the linear blend */
     size_t k0 = 2 * R + 1, l = 7;
@@ -289,7 +294,8 @@ SB_TEST(max_error_stops) {
 static int holey_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
     (void)self;
     double v = (1 + wi[0] * wi[0]) * (2 + wo[1] + wo[2]);
-    for (int c = 0; c < 3; c++) rgb[c] = v * (c + 1);
+    for (int c = 0; c < 3; c++)
+        rgb[c] = v * (c + 1);
     if (wi[2] + wo[2] < 0.9 || (wi[0] > 0.3 && wo[1] < -0.2)) return 0; /* not measured */
     return 1;
 }
@@ -358,7 +364,8 @@ SB_TEST(metric_matches_weighted_native) {
     sb_metric_t r;
     CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_COS2, &mt, &r) == SB_OK);
     CHECK(r.terms == 6 && r.known == r.pairs);
-    for (size_t j = 0; j < 6; j++) CHECK_REL(r.rel_l2[j], sb_factors_errors(f)->rel_rms[j * 4 + 3], 1e-9);
+    for (size_t j = 0; j < 6; j++)
+        CHECK_REL(r.rel_l2[j], sb_factors_errors(f)->rel_rms[j * 4 + 3], 1e-9);
     /* on a finer reference grid the metric measures interpolation too */
     mt.res = 17;
     CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_COS2, &mt, &r) == SB_OK);
@@ -412,8 +419,10 @@ SB_TEST(weighted_eckart_young) {
         for (size_t r = 0; r < N; r++)
             x[r + c * N] = sqrt(sb_param_row_measure(p, r) * sb_param_col_measure(p, c)) * m.data[0][r + c * N];
     double *sig = reference_sigma(x, N), n2 = 0, t2 = 0;
-    for (size_t k = 0; k < N; k++) n2 += sig[k] * sig[k];
-    for (size_t k = J; k < N; k++) t2 += sig[k] * sig[k];
+    for (size_t k = 0; k < N; k++)
+        n2 += sig[k] * sig[k];
+    for (size_t k = J; k < N; k++)
+        t2 += sig[k] * sig[k];
     CHECK_REL(sb_factors_errors(f)->rel_rms[(J - 1) * 4 + 0], sqrt(t2 / n2), 1e-9);
     free(sig);
     free(x);
@@ -477,8 +486,7 @@ SB_TEST(errors_near_matches_explicit) {
         {"microfacet:base=gold,roughness=0.5", SB_PARAM_IO, 8, 8, 0, SB_METHOD_AUTO},
         {"microfacet:base=gold,roughness=0.3", SB_PARAM_IO_AREA, 8, 6, 1, SB_METHOD_TOPK},
         {"lambert:albedo=0.3/0.5/0.7", SB_PARAM_IO, 6, 3, 1, SB_METHOD_FULL},
-        {"blinn-phong:n=50,kd=1e-20/1e-20/1e-20,ks=3e-21/2e-21/1e-21", SB_PARAM_IO, 7, 5, 0,
-         SB_METHOD_RANDOMIZED},
+        {"blinn-phong:n=50,kd=1e-20/1e-20/1e-20,ks=3e-21/2e-21/1e-21", SB_PARAM_IO, 7, 5, 0, SB_METHOD_RANDOMIZED},
     };
     for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
         sb_source_t *s = model(cases[t].spec);

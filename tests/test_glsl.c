@@ -151,8 +151,9 @@ static const char *gl_open(void) {
     EGLDisplay dpy = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
     if (dpy == EGL_NO_DISPLAY || !eglInitialize(dpy, NULL, NULL)) return "no surfaceless EGL display";
     if (!eglBindAPI(EGL_OPENGL_API)) return "EGL has no desktop OpenGL";
-    const EGLint attr[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
-                           EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+    const EGLint attr[] = {
+        EGL_CONTEXT_MAJOR_VERSION,           3,       EGL_CONTEXT_MINOR_VERSION, 3, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+        EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
     EGLContext c = eglCreateContext(dpy, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attr);
     if (c == EGL_NO_CONTEXT || !eglMakeCurrent(dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, c))
         return "no GL 3.3 core context without a surface";
@@ -206,7 +207,8 @@ static void gl_compare(sb_param_t *p) {
         for (int k = 0; k < 2; k++) {
             double *w = dir[i][k], n = 0;
             glsl_rand_dir(&st, w, i % 9 == k);
-            for (int a = 0; a < 3; a++) n += (double)(float)w[a] * (float)w[a];
+            for (int a = 0; a < 3; a++)
+                n += (double)(float)w[a] * (float)w[a];
             for (int a = 0; a < 3; a++) {
                 in[(k * GN + i) * 4 + a] = (float)w[a];
                 w[a] = (float)w[a] / sqrt(n);
@@ -225,8 +227,9 @@ static void gl_compare(sb_param_t *p) {
              "    vec4 st = sb_coords(L, V);\n    o0 = st;\n"
              "    o1 = vec4(sb_brdf(L, V), sb_domain(L, V, st) ? 1.0 : 0.0);\n}\n",
              snip);
-    const char *vs = "#version 330 core\nvoid main() {\n"
-                     "    gl_Position = vec4(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID >> 1) * 4 - 1), 0, 1);\n}\n";
+    const char *vs =
+        "#version 330 core\nvoid main() {\n"
+        "    gl_Position = vec4(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID >> 1) * 4 - 1), 0, 1);\n}\n";
     GLuint prog = p_glCreateProgram(), sv = gl_shader(GL_VERTEX_SHADER, vs), sf = gl_shader(GL_FRAGMENT_SHADER, fs);
     p_glAttachShader(prog, sv);
     p_glAttachShader(prog, sf);
@@ -250,7 +253,8 @@ static void gl_compare(sb_param_t *p) {
         for (size_t j = 0; j < GJ; j++)
             for (int c = 0; c < 3; c++) {
                 double *x = sb_factors_tex(f, s, j, c);
-                for (size_t i = 0; i < n; i++) tex[(j * n + i) * 3 + c] = (float)(x[i] = sb_rand01(&st));
+                for (size_t i = 0; i < n; i++)
+                    tex[(j * n + i) * 3 + c] = (float)(x[i] = sb_rand01(&st));
             }
         p_glActiveTexture(GL_TEXTURE2 + s);
         p_glBindTexture(GL_TEXTURE_2D_ARRAY, t[2 + s]);
@@ -303,7 +307,8 @@ static void gl_compare(sb_param_t *p) {
             worst_st = fmax(worst_st, d * n);
         }
         sb_factors_eval(f, p, SB_FORM_F, GJ, l, v, rgb);
-        for (int k = 0; k < 3; k++) worst_f = fmax(worst_f, fabs(rgb[k] - out[(GN + i) * 4 + k]));
+        for (int k = 0; k < 3; k++)
+            worst_f = fmax(worst_f, fabs(rgb[k] - out[(GN + i) * 4 + k]));
     }
     CHECKF(mismatch == 0, "%s: sb_domain differs from the CPU on %d pairs", sb_param_spec(p), mismatch);
     CHECKF(inside > GN / 4, "%s: %d pairs inside", sb_param_spec(p), inside);

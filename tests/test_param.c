@@ -37,7 +37,8 @@ SB_TEST(io_measure_sums_to_hemisphere) {
     sb_param_t *p;
     CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
     double s = 0;
-    for (size_t k = 0; k < 81; k++) s += sb_param_row_measure(p, k);
+    for (size_t k = 0; k < 81; k++)
+        s += sb_param_row_measure(p, k);
     CHECK_REL(s, 2 * SB_PI, 1e-12);
     sb_param_destroy(p);
 }
@@ -89,7 +90,8 @@ static double dist3(const double a[3], const double b[3]) {
 }
 static void normalize3(double a[3]) {
     double n = sqrt(dot3(a, a));
-    for (int i = 0; i < 3; i++) a[i] /= n;
+    for (int i = 0; i < 3; i++)
+        a[i] /= n;
 }
 static void cross3(const double a[3], const double b[3], double c[3]) {
     c[0] = a[1] * b[2] - a[2] * b[1];
@@ -163,8 +165,8 @@ SB_TEST(iso_resolutions_per_axis) {
 }
 
 SB_TEST(parse_spec) {
-    const char *specs[] = {"io:res=7", "io-area:res=12", "hd:res=5", "iso:th=9,td=5,pd=3",
-                           "hd:res=6,theta_max=80", "iso:th=4,td=6,pd=8,theta_max=75"};
+    const char *specs[] = {"io:res=7",           "io-area:res=12",        "hd:res=5",
+                           "iso:th=9,td=5,pd=3", "hd:res=6,theta_max=80", "iso:th=4,td=6,pd=8,theta_max=75"};
     for (size_t i = 0; i < sizeof specs / sizeof specs[0]; i++) {
         sb_param_kind_t k;
         sb_param_opts_t o;
@@ -287,8 +289,10 @@ SB_TEST(measures) {
         int hd_like = all_kinds[i] == SB_PARAM_HD || all_kinds[i] == SB_PARAM_ISO;
         size_t rows = sb_param_rows(p), cols = sb_param_cols(p);
         double sr = 0, sc = 0, s1 = 0, scos = 0;
-        for (size_t r = 0; r < rows; r++) sr += sb_param_row_measure(p, r);
-        for (size_t c = 0; c < cols; c++) sc += sb_param_col_measure(p, c);
+        for (size_t r = 0; r < rows; r++)
+            sr += sb_param_row_measure(p, r);
+        for (size_t c = 0; c < cols; c++)
+            sc += sb_param_col_measure(p, c);
         CHECK_REL(sr, 2 * SB_PI, 1e-12);
         CHECK_REL(sc, hd_like ? 4 * SB_PI : 2 * SB_PI, 1e-12); /* int 4 cos over the hemisphere */
         for (size_t r = 0; r < rows; r++)
@@ -311,7 +315,8 @@ SB_TEST(measures) {
     o.theta_max = SB_PI / 3;
     sb_param_t *p;
     CHECK(sb_param_create(NULL, SB_PARAM_IO_AREA, &o, &p) == SB_OK);
-    for (size_t k = 0; k < 25; k++) CHECK_REL(sb_param_row_measure(p, k), 2 * SB_PI * 0.5 / 25, 1e-14);
+    for (size_t k = 0; k < 25; k++)
+        CHECK_REL(sb_param_row_measure(p, k), 2 * SB_PI * 0.5 / 25, 1e-14);
     sb_param_destroy(p);
 }
 
@@ -324,12 +329,15 @@ static void ref_hd_cell(size_t R, double tmax, size_t row, size_t col, double l[
     double h[3] = {sin(th) * cos(ph), sin(th) * sin(ph), cos(th)};
     double d[3] = {sin(td) * cos(pd), sin(td) * sin(pd), cos(td)};
     double T[3] = {1, 0, 0}, t[3], b[3], th_ = dot3(T, h);
-    for (int k = 0; k < 3; k++) t[k] = T[k] - th_ * h[k];
+    for (int k = 0; k < 3; k++)
+        t[k] = T[k] - th_ * h[k];
     normalize3(t);
     cross3(h, t, b);
-    for (int k = 0; k < 3; k++) l[k] = d[0] * t[k] + d[1] * b[k] + d[2] * h[k];
+    for (int k = 0; k < 3; k++)
+        l[k] = d[0] * t[k] + d[1] * b[k] + d[2] * h[k];
     double hl = dot3(h, l);
-    for (int k = 0; k < 3; k++) v[k] = 2 * hl * h[k] - l[k];
+    for (int k = 0; k < 3; k++)
+        v[k] = 2 * hl * h[k] - l[k];
 }
 /* Rusinkiewicz inverse: rotate d by theta_h about the binormal y, phi_h = 0;
  * v is l reflected about h. */
@@ -339,9 +347,11 @@ static void ref_iso_cell(size_t th_n, size_t td_n, size_t pd_n, double tmax, siz
     double pd = (col / td_n + 0.5) * SB_PI / pd_n;
     double d[3] = {sin(td) * cos(pd), sin(td) * sin(pd), cos(td)};
     double Ry[3][3] = {{cos(th), 0, sin(th)}, {0, 1, 0}, {-sin(th), 0, cos(th)}};
-    for (int k = 0; k < 3; k++) l[k] = Ry[k][0] * d[0] + Ry[k][1] * d[1] + Ry[k][2] * d[2];
+    for (int k = 0; k < 3; k++)
+        l[k] = Ry[k][0] * d[0] + Ry[k][1] * d[1] + Ry[k][2] * d[2];
     double h[3] = {sin(th), 0, cos(th)}, hl = dot3(h, l);
-    for (int k = 0; k < 3; k++) v[k] = 2 * hl * h[k] - l[k];
+    for (int k = 0; k < 3; k++)
+        v[k] = 2 * hl * h[k] - l[k];
 }
 
 SB_TEST(invalid_cells_are_below_the_horizon) {
@@ -413,7 +423,8 @@ static void ref_coords(sb_param_kind_t kind, const double l[3], const double v[3
         }
     } else if (kind == SB_PARAM_HD) {
         double T[3] = {1, 0, 0}, t[3], b[3], th = dot3(T, h);
-        for (int k = 0; k < 3; k++) t[k] = T[k] - th * h[k];
+        for (int k = 0; k < 3; k++)
+            t[k] = T[k] - th * h[k];
         normalize3(t);
         cross3(h, t, b);
         double d[3] = {dot3(l, t), dot3(l, b), dot3(l, h)};
@@ -488,17 +499,15 @@ SB_TEST(io_area_inverts_concentric_map) {
 SB_TEST(degenerate_pairs) {
     double s45 = sqrt(0.5);
     const double pairs[][2][3] = {
-        {{0, 0, 1}, {0, 0, 1}},        /* l = v = n: theta_h = theta_d = 0 */
-        {{0.6, 0, 0.8}, {0.6, 0, 0.8}}, /* l = v: theta_d = 0 */
-        {{0.6, 0, 0.8}, {-0.6, 0, 0.8}}, /* h = n: theta_h = 0 */
-        {{s45, s45, 0}, {s45, s45, 0}}, /* grazing */
-        {{1, 0, 0}, {1, 0, 0}},         /* h = T: hd frame fallback */
-        {{-1, 0, 0}, {-1, 0, 0}},       /* h = -T */
-        {{1, 0, 0}, {-1, 0, 0}},        /* l = -v on the horizon: h undefined */
+        {{0, 0, 1}, {0, 0, 1}},           /* l = v = n: theta_h = theta_d = 0 */
+        {{0.6, 0, 0.8}, {0.6, 0, 0.8}},   /* l = v: theta_d = 0 */
+        {{0.6, 0, 0.8}, {-0.6, 0, 0.8}},  /* h = n: theta_h = 0 */
+        {{s45, s45, 0}, {s45, s45, 0}},   /* grazing */
+        {{1, 0, 0}, {1, 0, 0}},           /* h = T: hd frame fallback */
+        {{-1, 0, 0}, {-1, 0, 0}},         /* h = -T */
+        {{1, 0, 0}, {-1, 0, 0}},          /* l = -v on the horizon: h undefined */
         {{0.6, 0, 0.8}, {-0.6, 0, -0.8}}, /* l = -v */
-        {{0, 0, 1}, {0, 0, -1}},
-        {{0, 1e-300, 1}, {0, 0, 1}},
-        {{1e-170, 0, 1}, {-1e-170, 0, 1}},
+        {{0, 0, 1}, {0, 0, -1}},          {{0, 1e-300, 1}, {0, 0, 1}}, {{1e-170, 0, 1}, {-1e-170, 0, 1}},
     };
     const int inside[] = {1, 1, 1, 0, 0, 0, 0, 0, 0, 1, 1};
     for (size_t i = 0; i < NKINDS; i++) {

@@ -27,7 +27,7 @@ extern "C" {
 #endif
 
 typedef struct sb_exr_opts {
-    int half;      /* store HALF with a per-term scale instead of FLOAT */
+    int half; /* store HALF with a per-term scale instead of FLOAT */
 } sb_exr_opts_t;
 
 /* Write all terms of f into directory `dir` (must exist).  Each file is
@@ -35,8 +35,7 @@ typedef struct sb_exr_opts {
  * the set is first written as "DIR/.NAME.tmp-PID" (NAME from sb_exr_name,
  * PID the writing process), then all are renamed.  The names are part of
  * the interface, so a program interrupted by a signal can remove them. */
-sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir,
-                                 const sb_exr_opts_t *opts);
+sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir, const sb_exr_opts_t *opts);
 
 /* Read the factors in `dir` written by sb_factors_write_exr (the number of
  * terms from the files' headers).  Values are the stored ones, exactly. */

@@ -26,8 +26,8 @@ typedef struct sb_factors sb_factors_t;
 
 /* Empty factors: `terms` pairs of `channels` (1 or 3) textures, g of
  * g_w x g_h texels, h of h_w x h_h texels, all zero. */
-sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h,
-                              size_t h_w, size_t h_h, sb_factors_t **out);
+sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h, size_t h_w,
+                              size_t h_h, sb_factors_t **out);
 void sb_factors_destroy(sb_factors_t *f);
 
 size_t sb_factors_terms(const sb_factors_t *f);
@@ -88,14 +88,14 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
 double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);
 
 /* Texture lookup with the GL conventions of param.h (bilinear, wrap). */
-double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term,
-                         size_t channel, const double st[2]);
+double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t channel,
+                         const double st[2]);
 
 /* Reconstructed f_r(wi, wo) from the first `terms` terms through texture
  * lookups exactly as the GLSL snippet does, divided back by the form
  * weight.  Returns 0 (rgb = 0) outside the domain. */
-int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms,
-                    const double wi[3], const double wo[3], double rgb[3]);
+int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
+                    const double wo[3], double rgb[3]);
 
 /* ---- comparable metric -------------------------------------------------
  * One error for every parameterisation and form, computed on the same
@@ -109,16 +109,16 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
  * an isotropic source by rotation class; see metric.c): equal to the
  * pair-by-pair sums up to rounding, and the same bits on any thread count. */
 typedef struct sb_metric_opts {
-    size_t res;   /* reference grid cells per angular axis, default 32 */
-    int threads;  /* 0 = all cores */
+    size_t res;  /* reference grid cells per angular axis, default 32 */
+    int threads; /* 0 = all cores */
 } sb_metric_opts_t;
 
 typedef struct sb_metric {
-    size_t terms;          /* J' = 1..terms are filled */
-    double rel_l2[256];    /* comparable error after J' terms (index J'-1) */
-    double neg_frac[256];  /* fraction of known pairs with a negative reconstructed channel */
-    double neg_texels;     /* fraction of negative texels over all g_j, h_j */
-    size_t pairs, known;   /* reference pairs, pairs the source knows */
+    size_t terms;         /* J' = 1..terms are filled */
+    double rel_l2[256];   /* comparable error after J' terms (index J'-1) */
+    double neg_frac[256]; /* fraction of known pairs with a negative reconstructed channel */
+    double neg_texels;    /* fraction of negative texels over all g_j, h_j */
+    size_t pairs, known;  /* reference pairs, pairs the source knows */
 } sb_metric_t;
 
 /* Compute the metric for the first min(J, 256) terms of f. */
@@ -130,9 +130,9 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
 typedef struct sb_plan sb_plan_t;
 
 typedef struct sb_plan_opts {
-    size_t terms;        /* J, default 4; with max_error: the upper limit */
-    double max_error;    /* stop at the first J' with rel_rms <= max_error; 0 = off */
-    sb_svd_opts_t svd;   /* method and its parameters */
+    size_t terms;      /* J, default 4; with max_error: the upper limit */
+    double max_error;  /* stop at the first J' with rel_rms <= max_error; 0 = off */
+    sb_svd_opts_t svd; /* method and its parameters */
     /* Solid-angle weighting: factor W_r M W_c with W = sqrt(cell measure)
      * so the fit minimises the error integrated over the domain, then
      * unscale the textures (g /= W_r, h /= W_c).  rel_rms is then measured
@@ -142,30 +142,28 @@ typedef struct sb_plan_opts {
      * the fit by iterative imputation (see fit.c) unless zero_fill is set,
      * in which case they are factored as zeros (the seeds' plain method). */
     int zero_fill;
-    int fit_max_iters;   /* masked fit: outer iterations, default 300 */
-    double fit_tol;      /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
+    int fit_max_iters; /* masked fit: outer iterations, default 300 */
+    double
+        fit_tol; /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
 } sb_plan_opts_t;
 
 /* What the last sb_plan_execute did for the masked fit (0 if unmasked). */
 typedef struct sb_plan_stats {
-    int masked;          /* 1 if a masked fit ran */
-    int fit_iterations;  /* largest over channels */
-    int fit_converged;   /* all channels converged */
-    int proportional;    /* channels were proportional: factored once */
+    int masked;         /* 1 if a masked fit ran */
+    int fit_iterations; /* largest over channels */
+    int fit_converged;  /* all channels converged */
+    int proportional;   /* channels were proportional: factored once */
 } sb_plan_stats_t;
 void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
 
-
-sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
-                           sb_plan_t **out);
+sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts, sb_plan_t **out);
 void sb_plan_destroy(sb_plan_t *plan);
 size_t sb_plan_terms(const sb_plan_t *plan);
 
 /* Factor every channel of m.  *out receives new factors (texture sizes from
  * `param`), with sigma, errors and the meta keys "param", "form", "method".
  * A channel missing in m (data[c] == NULL) is not computed. */
-sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param,
-                            sb_factors_t **out);
+sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out);
 
 #ifdef __cplusplus
 }

@@ -27,8 +27,8 @@ const char *sb_glsl_library(void);
 char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales);
 
 /* Write the snippet to `path` (temporary name "PATH.tmp-PID", then rename). */
-sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
-                          size_t terms, const double *scales);
+sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form, size_t terms,
+                          const double *scales);
 
 #ifdef __cplusplus
 }

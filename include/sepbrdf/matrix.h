@@ -30,9 +30,9 @@ double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
 typedef void (*sb_progress_fn)(void *user, double fraction);
 
 typedef struct sb_matrix_opts {
-    sb_form_t form;     /* default SB_FORM_F */
-    unsigned channels;  /* bit mask of channels to build (1 R, 2 G, 4 B); 0 = all */
-    int threads;        /* 0 = all cores */
+    sb_form_t form;    /* default SB_FORM_F */
+    unsigned channels; /* bit mask of channels to build (1 R, 2 G, 4 B); 0 = all */
+    int threads;       /* 0 = all cores */
     /* Optional (NULL = none): called on the calling thread only, after each
      * column it builds and every ~50 ms while it waits for the other
      * threads, and once with 1 when the build is complete. */

@@ -53,10 +53,10 @@ size_t sb_model_count(void);
 const sb_model_info_t *sb_model_at(size_t i);
 
 typedef struct sb_preset {
-    const char *name;    /* "gold", "glass", ... */
-    const char *kind;    /* "metal" or "dielectric" */
-    double f0[3];        /* linear F0 */
-    double ior;          /* refractive index (dielectrics), 0 for metals */
+    const char *name; /* "gold", "glass", ... */
+    const char *kind; /* "metal" or "dielectric" */
+    double f0[3];     /* linear F0 */
+    double ior;       /* refractive index (dielectrics), 0 for metals */
 } sb_preset_t;
 
 size_t sb_preset_count(void);

@@ -68,7 +68,7 @@ enum { SB_WRAP_CLAMP = 0, SB_WRAP_REPEAT = 1 };
 enum { SB_SIDE_G = 0, SB_SIDE_H = 1 }; /* row textures g, column textures h */
 
 typedef struct sb_param_opts {
-    size_t res;       /* R: cells per angular axis (default 32) */
+    size_t res; /* R: cells per angular axis (default 32) */
     /* iso only, 0 = default: theta_h and theta_d cells res, phi_d cells 2 res */
     size_t res_theta_h, res_theta_d, res_phi_d;
     double theta_max; /* largest sampled elevation in radians, 0 = pi/2 */
@@ -86,11 +86,9 @@ const char *sb_param_kind_name(sb_param_kind_t kind);
  * Errors: SB_ERR_ARG (NULL), SB_ERR_UNKNOWN (kind or key), SB_ERR_PARSE
  * (malformed pair, number or fractional count), SB_ERR_RANGE (a count 0,
  * theta_max outside (0, 90]); finer limits are sb_param_create()'s. */
-sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind,
-                                sb_param_opts_t *opts);
+sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts);
 
-sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts,
-                            sb_param_t **out);
+sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out);
 void sb_param_destroy(sb_param_t *p);
 
 sb_param_kind_t sb_param_kind(const sb_param_t *p);
@@ -118,8 +116,7 @@ double sb_param_col_measure(const sb_param_t *p, size_t col);
 /* Continuous texture coordinates of an arbitrary pair for the g and h
  * textures (GL convention above).  Returns 0 when the pair is outside the
  * domain (below the horizon, or beyond theta_max). */
-int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2],
-                    double st_h[2]);
+int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
 
 /* GLSL source defining `vec4 sb_coords(vec3 L, vec3 V)` (xy: g coordinate,
  * zw: h coordinate) and `bool sb_domain(vec3 L, vec3 V, vec4 st)` that

@@ -35,8 +35,8 @@ typedef struct sb_source sb_source_t;
 
 /* Wrap an implementation.  The source takes ownership of `self` (destroyed
  * through ops->destroy).  `description` is copied. */
-sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self,
-                             unsigned flags, const char *description, sb_source_t **out);
+sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
+                             const char *description, sb_source_t **out);
 void sb_source_destroy(sb_source_t *src); /* accepts NULL */
 
 /* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t). */

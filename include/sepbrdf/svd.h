@@ -110,9 +110,8 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
  * (k = 0 or k > min(m, n)), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
  * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
  * (workspace query failed). */
-sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts,
-                          sb_svd_t **out);
-void sb_svd_destroy(sb_svd_t *svd);            /* accepts NULL */
+sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
+void sb_svd_destroy(sb_svd_t *svd);             /* accepts NULL */
 sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
 size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */
 /* Bytes of workspace the plan holds (for reports). */
@@ -124,8 +123,8 @@ size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
  * *have_all; otherwise *have_all = 0.  A is read only; lda >= m.
  * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_NUMERIC (LAPACK
  * failure or a non-finite entry in A). */
-sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V,
-                           double *all_s, int *have_all);
+sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V, double *all_s,
+                           int *have_all);
 
 /* Adaptive rank: the smallest r in [min_rank, k] with
  *     ||A - U_r S_r V_r^T||_F <= rel_tol ||A||_F,
@@ -141,9 +140,8 @@ sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s
  * be NULL) receives rank r, the sketch size and both norms.
  * Errors as sb_svd_execute, and SB_ERR_RANGE for rel_tol outside [0, 1) or
  * min_rank > k. */
-sb_result_t sb_svd_execute_adaptive(sb_svd_t *svd, const double *A, size_t lda, double rel_tol,
-                                    double norm_fro, size_t min_rank, double *s, double *U, double *V,
-                                    sb_svd_info_t *info);
+sb_result_t sb_svd_execute_adaptive(sb_svd_t *svd, const double *A, size_t lda, double rel_tol, double norm_fro,
+                                    size_t min_rank, double *s, double *U, double *V, sb_svd_info_t *info);
 
 /* Info of the last successful execute (zeros before the first). */
 sb_svd_info_t sb_svd_last_info(const sb_svd_t *svd);

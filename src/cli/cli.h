@@ -9,13 +9,13 @@
 /* Exit codes (documented in the README and `sepbrdf --help`). */
 enum { EXIT_OK = 0, EXIT_USAGE = 1, EXIT_IO = 2, EXIT_NUMERIC = 3 };
 /* The exit-code paragraph every --help ends with. */
-#define CLI_EXIT_HELP                                                                 \
-    "exit status: 0 ok, 1 usage (bad option, value or spec), 2 input/output\n"        \
+#define CLI_EXIT_HELP                                                                                                  \
+    "exit status: 0 ok, 1 usage (bad option, value or spec), 2 input/output\n"                                         \
     "(missing or malformed file, unwritable output), 3 numerical failure.\n"
 /* The display options every command takes (listed in its --help). */
-#define CLI_VERBOSITY_HELP                                                            \
-    "  -q, --quiet          print nothing but errors (display level 0)\n"              \
-    "  -v, --verbose        more detail on stderr (level 2; -vv: 3)\n"                 \
+#define CLI_VERBOSITY_HELP                                                                                             \
+    "  -q, --quiet          print nothing but errors (display level 0)\n"                                              \
+    "  -v, --verbose        more detail on stderr (level 2; -vv: 3)\n"                                                 \
     "  -h, --help           this text\n"
 
 /* Display level: 0 quiet (-q), 1 normal, 2 verbose (-v), 3 debug (-vv). */
@@ -52,15 +52,15 @@ int cli_out_opt(cli_args_t *a, const char *what, const char **out);
  * bad value (message printed). */
 int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
 /* Help lines of those options, for the commands' --help. */
-#define CLI_MEASURED_HELP \
-    "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n" \
-    "                       tables: local linear fit), idw, quadratic (default for\n" \
-    "                       scattered tables: local quadratic fit)\n" \
-    "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n" \
-    "      --radius DEG     scattered: farther than this from every sample is\n" \
-    "                       missing, in degrees of the embedding distance\n" \
-    "                       (default: 2.5 x the median sample spacing)\n" \
-    "      --white W        spectra: e (default; flat spectrum = illuminant E)\n" \
+#define CLI_MEASURED_HELP                                                                                              \
+    "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n"                                    \
+    "                       tables: local linear fit), idw, quadratic (default for\n"                                  \
+    "                       scattered tables: local quadratic fit)\n"                                                  \
+    "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n"                                 \
+    "      --radius DEG     scattered: farther than this from every sample is\n"                                       \
+    "                       missing, in degrees of the embedding distance\n"                                           \
+    "                       (default: 2.5 x the median sample spacing)\n"                                              \
+    "      --white W        spectra: e (default; flat spectrum = illuminant E)\n"                                      \
     "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"
 
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);

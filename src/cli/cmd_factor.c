@@ -10,64 +10,62 @@
 #define DEFAULT_OUT "sepbrdf-out"
 
 static void help(void) {
-    printf(
-        "usage: sepbrdf factor [SOURCE] [OPTIONS]\n"
-        "\n"
-        "Sample SOURCE on a hemisphere grid, factor it by a truncated SVD into J\n"
-        "texture pairs g_j(wi), h_j(wo), and write into the output folder:\n"
-        "  g_JJ.exr, h_JJ.exr   one EXR per texture and term (R, G, B float32)\n"
-        "  report.json          errors per J, sigma_j, timings, settings\n"
-        "  sepbrdf.glsl         GLSL snippet: vec3 sb_brdf(vec3 L, vec3 V)\n"
-        "\n"
-        "SOURCE  MODEL[:key=value,...] (see `sepbrdf list`) or a measured file.\n"
-        "        default: " DEFAULT_SOURCE "\n"
-        "\n"
-        "options:\n"
-        "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
-        "  -r, --res R          cells per angular axis, 2..512; N = R*R directions (default 32)\n"
-        "  -J, --terms J        number of terms kept, 1..N (default 4)\n"
-        "      --param P        parameterisation: auto (default), io (the seeds' theta-phi\n"
-        "                       grid of (wi, wo)), io-area (equal-area maps), hd (half/\n"
-        "                       difference vectors), iso (theta_h x (theta_d, phi_d)).\n"
-        "                       auto factors every one that applies, with forms f and\n"
-        "                       cos2, solid-angle weighted, and keeps the lowest\n"
-        "                       comparable error at J; `--param io` alone reproduces\n"
-        "                       the seeds' method exactly (form f, unweighted)\n"
-        "      --form F         what is factored: f (default), cos (f cos theta_i),\n"
-        "                       cos2 (f cos theta_i cos theta_o); the GLSL divides back\n"
-        "      --weighted       weight cells by solid angle so the fit minimises the\n"
-        "                       integrated error (on for every --param auto candidate)\n"
-        "      --zero-fill      factor cells outside the domain / unmeasured as zeros\n"
-        "                       instead of excluding them (masked fit, the default)\n"
-        "      --metric-res R   reference io grid of the comparable error (default 32)\n"
-        "      --method M       auto (default), full (dgesdd), topk, randomized\n"
-        "      --max-error E    keep the fewest terms whose relative RMS error is <= E\n"
-        "                       (0 < E < 1); J (default 32 here, at most R) is then the\n"
-        "                       upper limit\n"
-        "      --channels C     channels to factor, any of R, G, B (e.g. G or R,B;\n"
-        "                       default all); the others are written as zero\n"
-        "      --theta-max DEG  largest sampled elevation in degrees (default 90)\n"
-        "      --seed S         seed of randomized methods (default 1)\n"
-        "      --half           store half floats with per-term scales\n"
-        "      --previews       also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\n"
-        "                       colour map, blue -S, white 0, red +S (S = max |value|)\n"
-        CLI_MEASURED_HELP CLI_VERBOSITY_HELP
-        "\n"
-        "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
-        "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
-        "i.e. direction k = R * i_phi + i_theta of the seeds' sequentialisation.\n"
-        "\n"
-        "Files are written under temporary names and renamed when complete; a run\n"
-        "interrupted (SIGINT, SIGTERM, SIGHUP) while writing removes the set.\n"
-        "\n" CLI_EXIT_HELP);
+    printf("usage: sepbrdf factor [SOURCE] [OPTIONS]\n"
+           "\n"
+           "Sample SOURCE on a hemisphere grid, factor it by a truncated SVD into J\n"
+           "texture pairs g_j(wi), h_j(wo), and write into the output folder:\n"
+           "  g_JJ.exr, h_JJ.exr   one EXR per texture and term (R, G, B float32)\n"
+           "  report.json          errors per J, sigma_j, timings, settings\n"
+           "  sepbrdf.glsl         GLSL snippet: vec3 sb_brdf(vec3 L, vec3 V)\n"
+           "\n"
+           "SOURCE  MODEL[:key=value,...] (see `sepbrdf list`) or a measured file.\n"
+           "        default: " DEFAULT_SOURCE "\n"
+           "\n"
+           "options:\n"
+           "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
+           "  -r, --res R          cells per angular axis, 2..512; N = R*R directions (default 32)\n"
+           "  -J, --terms J        number of terms kept, 1..N (default 4)\n"
+           "      --param P        parameterisation: auto (default), io (the seeds' theta-phi\n"
+           "                       grid of (wi, wo)), io-area (equal-area maps), hd (half/\n"
+           "                       difference vectors), iso (theta_h x (theta_d, phi_d)).\n"
+           "                       auto factors every one that applies, with forms f and\n"
+           "                       cos2, solid-angle weighted, and keeps the lowest\n"
+           "                       comparable error at J; `--param io` alone reproduces\n"
+           "                       the seeds' method exactly (form f, unweighted)\n"
+           "      --form F         what is factored: f (default), cos (f cos theta_i),\n"
+           "                       cos2 (f cos theta_i cos theta_o); the GLSL divides back\n"
+           "      --weighted       weight cells by solid angle so the fit minimises the\n"
+           "                       integrated error (on for every --param auto candidate)\n"
+           "      --zero-fill      factor cells outside the domain / unmeasured as zeros\n"
+           "                       instead of excluding them (masked fit, the default)\n"
+           "      --metric-res R   reference io grid of the comparable error (default 32)\n"
+           "      --method M       auto (default), full (dgesdd), topk, randomized\n"
+           "      --max-error E    keep the fewest terms whose relative RMS error is <= E\n"
+           "                       (0 < E < 1); J (default 32 here, at most R) is then the\n"
+           "                       upper limit\n"
+           "      --channels C     channels to factor, any of R, G, B (e.g. G or R,B;\n"
+           "                       default all); the others are written as zero\n"
+           "      --theta-max DEG  largest sampled elevation in degrees (default 90)\n"
+           "      --seed S         seed of randomized methods (default 1)\n"
+           "      --half           store half floats with per-term scales\n"
+           "      --previews       also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\n"
+           "                       colour map, blue -S, white 0, red +S (S = max |value|)\n" CLI_MEASURED_HELP
+               CLI_VERBOSITY_HELP "\n"
+           "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
+           "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
+           "i.e. direction k = R * i_phi + i_theta of the seeds' sequentialisation.\n"
+           "\n"
+           "Files are written under temporary names and renamed when complete; a run\n"
+           "interrupted (SIGINT, SIGTERM, SIGHUP) while writing removes the set.\n"
+           "\n" CLI_EXIT_HELP);
 }
 
 typedef struct factor_opts {
     const char *source, *out;
     size_t res, terms, metric_res;
-    int param_auto;          /* --param auto (default) */
+    int param_auto; /* --param auto (default) */
     sb_param_kind_t param;
-    int form_set;            /* --form given */
+    int form_set; /* --form given */
     sb_form_t form;
     sb_method_t method;
     double max_error, theta_max_deg;
@@ -81,10 +79,10 @@ typedef struct factor_opts {
 static int factor_previews; /* --previews: a PNG per texture (image.h) */
 
 static int parse(int argc, char **argv, factor_opts_t *o) {
-    static const char *const n_res[] = {"-r", "--res", NULL},
-                             *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
-                             *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
-                             *const n_maxerr[] = {"--max-error", NULL}, *const n_tmax[] = {"--theta-max", NULL}, *const n_chan[] = {"--channels", NULL},
+    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_terms[] = {"-J", "--terms", NULL},
+                             *const n_param[] = {"--param", NULL}, *const n_form[] = {"--form", NULL},
+                             *const n_method[] = {"--method", NULL}, *const n_maxerr[] = {"--max-error", NULL},
+                             *const n_tmax[] = {"--theta-max", NULL}, *const n_chan[] = {"--channels", NULL},
                              *const n_seed[] = {"--seed", NULL}, *const n_half[] = {"--half", NULL},
                              *const n_help[] = {"-h", "--help", NULL}, *const n_weighted[] = {"--weighted", NULL},
                              *const n_zero[] = {"--zero-fill", NULL}, *const n_mres[] = {"--metric-res", NULL};
@@ -235,8 +233,9 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     json_int(j, "cells", (long long)cells);
     json_int(j, "valid", (long long)m->valid_count);
     json_number(j, "coverage", cells ? (double)m->valid_count / (double)cells : 0);
-    json_string(j, "invalid_cells", a->zero_fill ? "zero-filled in the fit, excluded from the error"
-                                                 : "excluded from the fit (masked imputation) and from the error");
+    json_string(j, "invalid_cells",
+                a->zero_fill ? "zero-filled in the fit, excluded from the error"
+                             : "excluded from the fit (masked imputation) and from the error");
     json_end_object(j);
     json_begin_object(j, "fit");
     json_bool(j, "masked", a->stats.masked);
@@ -252,7 +251,8 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     for (int c = 0; c < 3; c++) {
         if (!m->data[c]) continue;
         json_begin_array(j, cn[c]);
-        for (size_t k = 0; k < J; k++) json_number(j, NULL, sb_factors_sigma(f, k, (size_t)c));
+        for (size_t k = 0; k < J; k++)
+            json_number(j, NULL, sb_factors_sigma(f, k, (size_t)c));
         json_end_array(j);
     }
     json_end_object(j);
@@ -355,8 +355,20 @@ int cmd_factor(int argc, char **argv) {
     if (!o.source) o.source = DEFAULT_SOURCE;
     if (o.max_error > 0 && !o.terms_set) o.terms = o.res < 32 ? o.res : 32; /* upper limit for --max-error */
     if ((rc = cli_check_outdir("factor", "--out", o.out)) != EXIT_OK) return rc;
-    pipe_opts_t po = {o.res, o.terms, o.metric_res, o.theta_max_deg, o.max_error, o.method, o.seed, o.zero_fill,
-                      "sampling", 0, 1, o.channels, 0, 0};
+    pipe_opts_t po = {o.res,
+                      o.terms,
+                      o.metric_res,
+                      o.theta_max_deg,
+                      o.max_error,
+                      o.method,
+                      o.seed,
+                      o.zero_fill,
+                      "sampling",
+                      0,
+                      1,
+                      o.channels,
+                      0,
+                      0};
 
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;

@@ -55,11 +55,12 @@ int cmd_list(int argc, char **argv) {
     const char *what = NULL;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            printf("usage: sepbrdf list [MODEL | presets]\n\n"
-                   "Print every model, each key with its meaning, range and default,\n"
-                   "and every material preset (usable as base=NAME, f0=NAME or ior=NAME).\n"
-                   "With MODEL, print that model only; with `presets`, the presets only.\n\noptions:\n"
-                   CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
+            printf(
+                "usage: sepbrdf list [MODEL | presets]\n\n"
+                "Print every model, each key with its meaning, range and default,\n"
+                "and every material preset (usable as base=NAME, f0=NAME or ior=NAME).\n"
+                "With MODEL, print that model only; with `presets`, the presets only.\n\noptions:\n" CLI_VERBOSITY_HELP
+                "\n" CLI_EXIT_HELP);
             return EXIT_OK;
         }
         if (cli_verbosity_opt(argv[i])) continue;

@@ -55,7 +55,7 @@ static void help(void) {
            "                       (default): 1 / the original's brightest channel\n"
            "      --tonemap T      clamp (default) or reinhard (x / (1 + x))\n"
            "      --diff-scale N   magnification of the difference panel (default 4)\n" CLI_MEASURED_HELP
-           CLI_VERBOSITY_HELP "\n"
+               CLI_VERBOSITY_HELP "\n"
            "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
            "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
            "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
@@ -140,15 +140,15 @@ static int parse_light(const char *v, render_opts_t *o) {
 }
 
 static int parse(int argc, char **argv, render_opts_t *o) {
-    static const char *const n_res[] = {"-r", "--res", NULL},
-                             *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
-                             *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
-                             *const n_tmax[] = {"--theta-max", NULL}, *const n_src[] = {"--source", NULL},
-                             *const n_size[] = {"-s", "--size", NULL}, *const n_el[] = {"--light-elev", NULL},
-                             *const n_az[] = {"--light-azim", NULL}, *const n_light[] = {"--light", NULL},
-                             *const n_exp[] = {"--exposure", NULL}, *const n_tm[] = {"--tonemap", NULL},
-                             *const n_diff[] = {"--diff-scale", NULL}, *const n_w[] = {"--weighted", NULL},
-                             *const n_zero[] = {"--zero-fill", NULL}, *const n_help[] = {"-h", "--help", NULL};
+    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_terms[] = {"-J", "--terms", NULL},
+                             *const n_param[] = {"--param", NULL}, *const n_form[] = {"--form", NULL},
+                             *const n_method[] = {"--method", NULL}, *const n_tmax[] = {"--theta-max", NULL},
+                             *const n_src[] = {"--source", NULL}, *const n_size[] = {"-s", "--size", NULL},
+                             *const n_el[] = {"--light-elev", NULL}, *const n_az[] = {"--light-azim", NULL},
+                             *const n_light[] = {"--light", NULL}, *const n_exp[] = {"--exposure", NULL},
+                             *const n_tm[] = {"--tonemap", NULL}, *const n_diff[] = {"--diff-scale", NULL},
+                             *const n_w[] = {"--weighted", NULL}, *const n_zero[] = {"--zero-fill", NULL},
+                             *const n_help[] = {"-h", "--help", NULL};
     cli_args_t a = {argc, 1, argv, "render"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL, *arg = argv[a.i];
@@ -385,7 +385,8 @@ int cmd_render(int argc, char **argv) {
          * model spec is, a measured table's is not) */
         char given[4096];
         const char *spec = o.source;
-        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 && pipe_source_open(ctx, given, &o.mo, &src) == SB_OK)
+        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 &&
+            pipe_source_open(ctx, given, &o.mo, &src) == SB_OK)
             spec = given;
         if (!spec) spec = sb_factors_get_meta(f, "source");
         if (!spec) {

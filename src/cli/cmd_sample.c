@@ -22,9 +22,7 @@ static void help(void) {
            "                       per value, 0..10 (default 0)\n"
            "      --seed S         seed of the noise (default 1): same seed, same table\n"
            "  -o, --out FILE       output CSV (default: standard output); written to a\n"
-           "                       temporary name and renamed when complete\n"
-           CLI_VERBOSITY_HELP
-           "\n"
+           "                       temporary name and renamed when complete\n" CLI_VERBOSITY_HELP "\n"
            "Rows where SOURCE has no value (a table's missing pairs) are left out.\n\n" CLI_EXIT_HELP);
 }
 
@@ -48,9 +46,9 @@ static int parse_gonio(const char *v, size_t n[4]) {
 }
 
 int cmd_sample(int argc, char **argv) {
-    static const char *const n_gonio[] = {"-g", "--gonio", NULL},
-                             *const n_noise[] = {"--noise", NULL}, *const n_seed[] = {"--seed", NULL},
-                             *const n_q[] = {"-q", "--quiet", NULL}, *const n_help[] = {"-h", "--help", NULL};
+    static const char *const n_gonio[] = {"-g", "--gonio", NULL}, *const n_noise[] = {"--noise", NULL},
+                             *const n_seed[] = {"--seed", NULL}, *const n_q[] = {"-q", "--quiet", NULL},
+                             *const n_help[] = {"-h", "--help", NULL};
     const char *source = NULL, *out = NULL;
     sb_gonio_opts_t go = {18, 1, 18, 72, 0, 1};
     cli_args_t a = {argc, 1, argv, "sample"};

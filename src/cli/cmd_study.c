@@ -55,7 +55,7 @@ static void help(void) {
            "      --zero-fill      factor invalid cells as zeros instead of a masked fit\n"
            "      --method M       auto (default), full, topk, randomized\n"
            "      --metric-res R   reference grid of the comparable error (default 32)\n" CLI_MEASURED_HELP
-           CLI_VERBOSITY_HELP "\n"
+               CLI_VERBOSITY_HELP "\n"
            "Each source x parameterisation is sampled once and, unless the fit is masked,\n"
            "factored once with the largest J: the leading J' terms of a truncated SVD are\n"
            "the rank-J' SVD, so every J' <= J is read from it (fit \"nested\"). A masked\n"
@@ -219,11 +219,11 @@ bad:
 }
 
 static int parse(int argc, char **argv, study_opts_t *o) {
-    static const char *const n_res[] = {"-r", "--res", NULL},
-                             *const n_terms[] = {"-J", "--terms", NULL}, *const n_param[] = {"--param", NULL},
-                             *const n_form[] = {"--form", NULL}, *const n_method[] = {"--method", NULL},
-                             *const n_help[] = {"-h", "--help", NULL}, *const n_weighted[] = {"--weighted", NULL},
-                             *const n_zero[] = {"--zero-fill", NULL}, *const n_mres[] = {"--metric-res", NULL};
+    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_terms[] = {"-J", "--terms", NULL},
+                             *const n_param[] = {"--param", NULL}, *const n_form[] = {"--form", NULL},
+                             *const n_method[] = {"--method", NULL}, *const n_help[] = {"-h", "--help", NULL},
+                             *const n_weighted[] = {"--weighted", NULL}, *const n_zero[] = {"--zero-fill", NULL},
+                             *const n_mres[] = {"--metric-res", NULL};
     cli_args_t a = {argc, 1, argv, "study"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL;
@@ -304,7 +304,8 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, sb_param_kind_name((sb_param_kind_t)r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
-    pipe_opts_t po = {o->res, o->jmax, o->metric_res, 90, 0, o->method, 1, o->zero_fill, label, base, 0.3 * span, 0, 0, 0};
+    pipe_opts_t po = {o->res,       o->jmax, o->metric_res, 90,         0, o->method, 1,
+                      o->zero_fill, label,   base,          0.3 * span, 0, 0,         0};
     attempt_t a;
     sb_context_clear_error(ctx);
     sb_result_t res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);

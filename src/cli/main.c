@@ -22,28 +22,27 @@ static const command_t commands[] = {
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
 static void usage(FILE *fp) {
-    fprintf(fp,
-            "usage: sepbrdf [--version] [--help] [-q|-v] COMMAND [OPTIONS]\n"
-            "\n"
-            "Turn a BRDF, analytic or measured, into J pairs of 2D textures g_j, h_j with\n"
-            "f_r(wi, wo) ~ sum_j g_j(wi) h_j(wo), via a truncated SVD.\n"
-            "\n"
-            "commands:\n");
-    for (size_t i = 0; i < NCOMMANDS; i++) fprintf(fp, "  %-8s %s\n", commands[i].name, commands[i].summary);
-    fprintf(fp,
-            "\n"
-            "Run `sepbrdf COMMAND --help` for the options of a command.\n"
-            "With no command at all, `sepbrdf factor` runs on the embedded default.\n"
-            "\n"
-            "options (before or after COMMAND):\n"
-            "  -q, --quiet      display level 0: nothing but errors\n"
-            "  -v, --verbose    display level 2: more detail on stderr (-vv: 3)\n"
-            "  -V, --version    print the version and exit\n"
-            "  -h, --help       this text\n"
-            "Results go to stdout or files; messages and progress to stderr (progress\n"
-            "only when stderr is a terminal). Outputs are written under temporary\n"
-            "names and renamed when complete; SIGINT/SIGTERM/SIGHUP remove them.\n"
-            "\n" CLI_EXIT_HELP);
+    fprintf(fp, "usage: sepbrdf [--version] [--help] [-q|-v] COMMAND [OPTIONS]\n"
+                "\n"
+                "Turn a BRDF, analytic or measured, into J pairs of 2D textures g_j, h_j with\n"
+                "f_r(wi, wo) ~ sum_j g_j(wi) h_j(wo), via a truncated SVD.\n"
+                "\n"
+                "commands:\n");
+    for (size_t i = 0; i < NCOMMANDS; i++)
+        fprintf(fp, "  %-8s %s\n", commands[i].name, commands[i].summary);
+    fprintf(fp, "\n"
+                "Run `sepbrdf COMMAND --help` for the options of a command.\n"
+                "With no command at all, `sepbrdf factor` runs on the embedded default.\n"
+                "\n"
+                "options (before or after COMMAND):\n"
+                "  -q, --quiet      display level 0: nothing but errors\n"
+                "  -v, --verbose    display level 2: more detail on stderr (-vv: 3)\n"
+                "  -V, --version    print the version and exit\n"
+                "  -h, --help       this text\n"
+                "Results go to stdout or files; messages and progress to stderr (progress\n"
+                "only when stderr is a terminal). Outputs are written under temporary\n"
+                "names and renamed when complete; SIGINT/SIGTERM/SIGHUP remove them.\n"
+                "\n" CLI_EXIT_HELP);
 }
 
 int main(int argc, char **argv) {

@@ -222,7 +222,8 @@ sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *s
         }
     }
     cli_progress_done();
-    if (!best->f) return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s", sb_source_description(src));
+    if (!best->f)
+        return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s", sb_source_description(src));
     if (screened && attempt_masked(best)) {
         double t_sample = best->t_sample;
         sb_result_t r = attempt_factor(ctx, src, o, o->terms, best->weighted, best);

@@ -38,12 +38,16 @@ void cli_info(int level, const char *fmt, ...) {
 
 int cli_exit_code(sb_result_t r) {
     switch (r) {
-    case SB_OK: return EXIT_OK;
+    case SB_OK:
+        return EXIT_OK;
     case SB_ERR_IO:
     case SB_ERR_FORMAT:
-    case SB_ERR_NOMEM: return EXIT_IO;
-    case SB_ERR_NUMERIC: return EXIT_NUMERIC;
-    default: return EXIT_USAGE;
+    case SB_ERR_NOMEM:
+        return EXIT_IO;
+    case SB_ERR_NUMERIC:
+        return EXIT_NUMERIC;
+    default:
+        return EXIT_USAGE;
     }
 }
 
@@ -141,7 +145,8 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out) {
     char *end;
     errno = 0;
-    while (*s == ' ') s++;
+    while (*s == ' ')
+        s++;
     if (*s == '-' || *s == '+' || !*s) {
         long long v = strtoll(s, &end, 10);
         if (*s && *end == 0 && end != s)
@@ -219,13 +224,17 @@ int cli_check_outdir(const char *cmd, const char *opt, const char *path) {
         return EXIT_USAGE;
     }
     memcpy(buf, path, n + 1);
-    while (n > 1 && buf[n - 1] == '/') buf[--n] = 0;
+    while (n > 1 && buf[n - 1] == '/')
+        buf[--n] = 0;
     int exists = stat(buf, &st) == 0;
     while (!exists) { /* walk up to the first component that exists */
         char *slash = strrchr(buf, '/');
-        if (!slash) strcpy(buf, ".");
-        else if (slash == buf) buf[1] = 0;
-        else *slash = 0;
+        if (!slash)
+            strcpy(buf, ".");
+        else if (slash == buf)
+            buf[1] = 0;
+        else
+            *slash = 0;
         if (stat(buf, &st) == 0) break;
         if (strcmp(buf, ".") == 0 || strcmp(buf, "/") == 0) {
             cli_error(cmd, "%s %s: cannot create the output folder", opt, path);
@@ -233,14 +242,18 @@ int cli_check_outdir(const char *cmd, const char *opt, const char *path) {
         }
     }
     if (!S_ISDIR(st.st_mode)) {
-        if (exists) cli_error(cmd, "%s %s: exists and is not a folder", opt, path);
-        else cli_error(cmd, "%s %s: cannot create the output folder, %s is not a folder", opt, path, buf);
+        if (exists)
+            cli_error(cmd, "%s %s: exists and is not a folder", opt, path);
+        else
+            cli_error(cmd, "%s %s: cannot create the output folder, %s is not a folder", opt, path, buf);
         return EXIT_IO;
     }
     int e = probe_dir(buf);
     if (e) {
-        if (exists) cli_error(cmd, "%s %s: cannot write into the folder: %s", opt, path, strerror(e));
-        else cli_error(cmd, "%s %s: cannot create the output folder in %s: %s", opt, path, buf, strerror(e));
+        if (exists)
+            cli_error(cmd, "%s %s: cannot write into the folder: %s", opt, path, strerror(e));
+        else
+            cli_error(cmd, "%s %s: cannot create the output folder in %s: %s", opt, path, buf, strerror(e));
         return EXIT_IO;
     }
     return EXIT_OK;
@@ -265,7 +278,8 @@ void cli_progress(const char *label, double fraction) {
     int w = 30, fill = (int)(fraction * w + 0.5);
     if (fill > w) fill = w;
     fprintf(stderr, "\r%-24.24s [", label);
-    for (int i = 0; i < w; i++) fputc(i < fill ? '#' : '.', stderr);
+    for (int i = 0; i < w; i++)
+        fputc(i < fill ? '#' : '.', stderr);
     fprintf(stderr, "] %3d%%", (int)(fraction * 100 + 0.5));
     fflush(stderr);
     prog_shown = 1;
@@ -283,11 +297,16 @@ static void json_escape(FILE *fp, const char *s) {
     fputc('"', fp);
     for (; *s; s++) {
         unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') fprintf(fp, "\\%c", c);
-        else if (c == '\n') fputs("\\n", fp);
-        else if (c == '\t') fputs("\\t", fp);
-        else if (c < 0x20) fprintf(fp, "\\u%04x", c);
-        else fputc(c, fp);
+        if (c == '"' || c == '\\')
+            fprintf(fp, "\\%c", c);
+        else if (c == '\n')
+            fputs("\\n", fp);
+        else if (c == '\t')
+            fputs("\\t", fp);
+        else if (c < 0x20)
+            fprintf(fp, "\\u%04x", c);
+        else
+            fputc(c, fp);
     }
     fputc('"', fp);
 }
@@ -296,7 +315,8 @@ static void json_key(json_t *j, const char *key) {
     if (j->depth > 0) {
         if (!j->first[j->depth]) fputc(',', j->fp);
         fputc('\n', j->fp);
-        for (int i = 0; i < j->depth; i++) fputs("  ", j->fp);
+        for (int i = 0; i < j->depth; i++)
+            fputs("  ", j->fp);
     }
     j->first[j->depth] = 0;
     if (key) {
@@ -314,7 +334,8 @@ void json_begin_object(json_t *j, const char *key) {
 void json_end_object(json_t *j) {
     j->depth--;
     fputc('\n', j->fp);
-    for (int i = 0; i < j->depth; i++) fputs("  ", j->fp);
+    for (int i = 0; i < j->depth; i++)
+        fputs("  ", j->fp);
     fputc('}', j->fp);
     if (j->depth == 0) fputc('\n', j->fp);
 }
@@ -327,18 +348,23 @@ void json_begin_array(json_t *j, const char *key) {
 void json_end_array(json_t *j) {
     j->depth--;
     fputc('\n', j->fp);
-    for (int i = 0; i < j->depth; i++) fputs("  ", j->fp);
+    for (int i = 0; i < j->depth; i++)
+        fputs("  ", j->fp);
     fputc(']', j->fp);
 }
 void json_string(json_t *j, const char *key, const char *value) {
     json_key(j, key);
-    if (value) json_escape(j->fp, value);
-    else fputs("null", j->fp);
+    if (value)
+        json_escape(j->fp, value);
+    else
+        fputs("null", j->fp);
 }
 void json_number(json_t *j, const char *key, double v) {
     json_key(j, key);
-    if (isfinite(v)) fprintf(j->fp, "%.17g", v);
-    else fputs("null", j->fp);
+    if (isfinite(v))
+        fprintf(j->fp, "%.17g", v);
+    else
+        fputs("null", j->fp);
 }
 void json_int(json_t *j, const char *key, long long v) {
     json_key(j, key);
@@ -423,7 +449,8 @@ void cli_unguard_exr(void) { atomic_store(&guard_exr_terms, 0); }
 
 /* Append s to buf (capacity cap, length *n), always terminated. */
 static void sig_cat(char *buf, size_t *n, size_t cap, const char *s) {
-    while (*s && *n + 1 < cap) buf[(*n)++] = *s++;
+    while (*s && *n + 1 < cap)
+        buf[(*n)++] = *s++;
     buf[*n] = 0;
 }
 
@@ -435,8 +462,10 @@ static void sig_num(char *buf, size_t *n, size_t cap, unsigned long long v, int 
         d[k++] = (char)('0' + v % 10);
         v /= 10;
     } while (v && k < 20);
-    while (k < width && k < 20) d[k++] = '0';
-    while (k > 0 && *n + 1 < cap) buf[(*n)++] = d[--k];
+    while (k < width && k < 20)
+        d[k++] = '0';
+    while (k > 0 && *n + 1 < cap)
+        buf[(*n)++] = d[--k];
     buf[*n] = 0;
 }
 

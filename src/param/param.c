@@ -1,0 +1,213 @@
+/* Parameterisations: dispatch, shared grid helpers, spherical angles. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "param/param_impl.h"
+#include "util/internal.h"
+
+static const char *const kind_names[SB_PARAM_KIND_COUNT_] = {"io", "io-area", "hd", "iso"};
+
+sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
+    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+        if (name && strcmp(name, kind_names[k]) == 0) {
+            *out = (sb_param_kind_t)k;
+            return SB_OK;
+        }
+    return SB_ERR_UNKNOWN;
+}
+const char *sb_param_kind_name(sb_param_kind_t kind) {
+    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? kind_names[kind] : "?";
+}
+
+/* "KIND[:key=value,...]": split on ':' and ',', numbers by strtod. */
+sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
+    if (!spec || !kind || !opts) return sb_error(ctx, SB_ERR_ARG, "param: no spec or output");
+    char buf[256];
+    if (strlen(spec) >= sizeof buf) return sb_error(ctx, SB_ERR_PARSE, "param spec too long");
+    snprintf(buf, sizeof buf, "%s", spec);
+    char *args = strchr(buf, ':');
+    if (args) *args++ = 0;
+    sb_param_kind_t k;
+    if (sb_param_kind_parse(buf, &k) != SB_OK)
+        return sb_error(ctx, SB_ERR_UNKNOWN, "unknown parameterisation '%s' (io, io-area, hd, iso)", buf);
+    sb_param_opts_t o = {0};
+    while (args && *args) {
+        char *comma = strchr(args, ',');
+        if (comma) *comma = 0;
+        char *eq = strchr(args, '=');
+        if (!eq || eq == args) return sb_error(ctx, SB_ERR_PARSE, "%s: '%s' is not key=value", buf, args);
+        *eq = 0;
+        const char *key = args, *val = eq + 1;
+        char *end;
+        errno = 0;
+        double v = strtod(val, &end);
+        if (end == val || *end || errno == ERANGE || !isfinite(v))
+            return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a number", buf, key, val);
+        size_t *count = NULL;
+        if (strcmp(key, "res") == 0)
+            count = &o.res;
+        else if (k == SB_PARAM_ISO && strcmp(key, "th") == 0)
+            count = &o.res_theta_h;
+        else if (k == SB_PARAM_ISO && strcmp(key, "td") == 0)
+            count = &o.res_theta_d;
+        else if (k == SB_PARAM_ISO && strcmp(key, "pd") == 0)
+            count = &o.res_phi_d;
+        else if (strcmp(key, "theta_max") == 0) {
+            if (!(v > 0 && v <= 90)) return sb_error(ctx, SB_ERR_RANGE, "%s: theta_max %s not in (0, 90]", buf, val);
+            o.theta_max = v * SB_PI / 180;
+        } else
+            return sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown key '%s'", buf, key);
+        if (count) {
+            if (v != floor(v))
+                return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a whole number", buf, key, val);
+            if (!(v >= 1 && v <= 1e9))
+                return sb_error(ctx, SB_ERR_RANGE, "%s: key '%s' = %s out of range", buf, key, val);
+            *count = (size_t)v;
+        }
+        args = comma ? comma + 1 : NULL;
+    }
+    *kind = k;
+    *opts = o;
+    return SB_OK;
+}
+
+sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out) {
+    if (!out) return sb_error(ctx, SB_ERR_ARG, "param: no output pointer");
+    *out = NULL;
+    sb_param_t *p = calloc(1, sizeof *p);
+    if (!p) return sb_error(ctx, SB_ERR_NOMEM, "param: out of memory");
+    if (opts) p->opts = *opts;
+    if (p->opts.res == 0) p->opts.res = 32;
+    /* 0 and pi/2 up to rounding (e.g. 90 degrees converted) mean the hemisphere */
+    if (p->opts.theta_max == 0 || fabs(p->opts.theta_max - SB_PI / 2) < 1e-12) p->opts.theta_max = SB_PI / 2;
+    p->kind = kind;
+    sb_result_t r;
+    if (p->opts.res < 2 || p->opts.res > 4096) {
+        r = sb_error(ctx, SB_ERR_RANGE, "resolution %zu out of range, need 2..4096", p->opts.res);
+    } else if (!(p->opts.theta_max > 0 && p->opts.theta_max <= SB_PI / 2 + 1e-12)) {
+        r = sb_error(ctx, SB_ERR_RANGE, "theta_max %g out of range, need (0, pi/2]", p->opts.theta_max);
+    } else {
+        switch (kind) {
+        case SB_PARAM_IO:
+            r = sb_param_init_io(ctx, p);
+            break;
+        case SB_PARAM_IO_AREA:
+            r = sb_param_init_io_area(ctx, p);
+            break;
+        case SB_PARAM_HD:
+            r = sb_param_init_hd(ctx, p);
+            break;
+        case SB_PARAM_ISO:
+            r = sb_param_init_iso(ctx, p);
+            break;
+        default:
+            r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
+        }
+    }
+    if (r != SB_OK) {
+        sb_param_destroy(p);
+        return r;
+    }
+    *out = p;
+    return SB_OK;
+}
+
+void sb_param_destroy(sb_param_t *p) {
+    if (!p) return;
+    free(p->glsl);
+    free(p);
+}
+
+sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p->kind; }
+const char *sb_param_name(const sb_param_t *p) { return kind_names[p->kind]; }
+const char *sb_param_spec(const sb_param_t *p) { return p->spec; }
+size_t sb_param_rows(const sb_param_t *p) { return p->rows; }
+size_t sb_param_cols(const sb_param_t *p) { return p->cols; }
+double sb_param_theta_max(const sb_param_t *p) { return p->opts.theta_max; }
+void sb_param_texture_size(const sb_param_t *p, int side, size_t *w, size_t *h) {
+    if (w) *w = p->tex_w[side != 0];
+    if (h) *h = p->tex_h[side != 0];
+}
+void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]) {
+    wrap[0] = p->wrap[side != 0][0];
+    wrap[1] = p->wrap[side != 0][1];
+}
+int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
+    return p->vt->cell_dirs(p, row, col, wi, wo);
+}
+double sb_param_row_measure(const sb_param_t *p, size_t row) { return p->vt->row_measure(p, row); }
+double sb_param_col_measure(const sb_param_t *p, size_t col) { return p->vt->col_measure(p, col); }
+int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]) {
+    return p->vt->coords(p, wi, wo, st_g, st_h);
+}
+const char *sb_param_glsl(const sb_param_t *p) { return p->glsl ? p->glsl : p->vt->glsl; }
+
+void sb_dir_from_angles(double theta, double phi, double w[3]) {
+    double s = sin(theta);
+    w[0] = s * cos(phi);
+    w[1] = s * sin(phi);
+    w[2] = cos(theta);
+}
+
+void sb_dir_to_angles(const double w[3], double *theta, double *phi) {
+    double z = w[2] > 1 ? 1 : (w[2] < -1 ? -1 : w[2]);
+    *theta = acos(z);
+    double ph = atan2(w[1], w[0]);
+    if (ph < 0) ph += 2 * SB_PI;
+    if (ph >= 2 * SB_PI) ph -= 2 * SB_PI;
+    *phi = ph;
+}
+
+/* Grid cell k = R * i_phi + i_theta; centre theta = (i_theta + 1/2) tmax / R,
+ * phi = (i_phi + 1/2) 2pi / R. */
+void sb_grid_dir(size_t R, double tmax, size_t k, double w[3]) {
+    size_t it = k % R, ip = k / R;
+    sb_dir_from_angles((it + 0.5) * tmax / (double)R, (ip + 0.5) * 2 * SB_PI / (double)R, w);
+}
+
+void sb_grid_st(double tmax, const double w[3], double st[2]) {
+    double th, ph;
+    sb_dir_to_angles(w, &th, &ph);
+    st[0] = th / tmax;
+    st[1] = ph / (2 * SB_PI);
+}
+
+/* Solid angle of a cell: dphi (cos th_lo - cos th_hi). */
+double sb_grid_measure(size_t R, double tmax, size_t k) {
+    size_t it = k % R;
+    double dt = tmax / (double)R;
+    return 2 * SB_PI / (double)R * (cos(it * dt) - cos((it + 1) * dt));
+}
+
+/* Integral of 4 cos(theta) dw over the cell: 4 dphi int cos sin dtheta. */
+double sb_grid_measure_4cos(size_t R, double tmax, size_t k) {
+    size_t it = k % R;
+    double dt = tmax / (double)R, lo = sin(it * dt), hi = sin((it + 1) * dt);
+    return 2 * (2 * SB_PI / (double)R) * (hi * hi - lo * lo);
+}
+
+double sb_dir_theta(const double w[3]) { return atan2(hypot(w[0], w[1]), w[2]); }
+
+int sb_dir_in_cap(double tmax, const double w[3]) { return w[2] > 0 && sb_dir_theta(w) <= tmax; }
+
+void sb_dir_half(const double l[3], const double v[3], double h[3]) {
+    double s[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
+    double n = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+    if (n > 0) {
+        for (int i = 0; i < 3; i++)
+            h[i] = s[i] / n;
+    } else {
+        h[0] = h[1] = 0;
+        h[2] = 1;
+    }
+}
+
+void sb_param_spec_set(sb_param_t *p, const char *body) {
+    if (p->opts.theta_max == SB_PI / 2)
+        snprintf(p->spec, sizeof p->spec, "%s", body);
+    else
+        snprintf(p->spec, sizeof p->spec, "%s,theta_max=%.6g", body, p->opts.theta_max * 180 / SB_PI);
+}

@@ -1,0 +1,127 @@
+/* hd: half / difference vectors in the Gram-Schmidt frame of Kautz &
+ * McCool (1999).  Rows index h, columns d, both on the io theta-phi grid
+ * (k = R * i_phi + i_theta, theta in [0, theta_max], phi in [0, 2pi)).
+ *
+ *     h  = (l + v) / |l + v|                (the normal when l = -v)
+ *     t' = (T - (T.h) h) / |T - (T.h) h|,  T = (1, 0, 0)
+ *        = (n, -h_x h_y / n, -h_x h_z / n),  n = sqrt(h_y^2 + h_z^2)
+ *     b' = h x t'
+ *     d  = (l.t', l.b', l.h)
+ * |T - (T.h) h|^2 = 1 - h_x^2 = h_y^2 + h_z^2, written so to stay exact when
+ * h is near T.  The frame is undefined only when h = +-T exactly (n = 0),
+ * i.e. h on the horizon, which no BRDF pair reaches (h_z > 0 when l_z, v_z
+ * > 0); there t' falls back to the bitangent B = (0, 1, 0) (= B - (B.h) h
+ * since B.h = 0), so coords stay finite.
+ *
+ * Inverse: l = d_x t' + d_y b' + d_z h, v = 2 (h.l) h - l = 2 d_z h - l.
+ * h and d stay in the cap theta <= theta_max when l and v do (h is the
+ * midpoint of the arc from l to v and theta_d half its length), so both
+ * grids span [0, theta_max]; cells whose l or v leave the cap (below the
+ * horizon by default: most of the square) are not BRDF pairs.
+ *
+ * Measure: (l, v) -> (h, l) has Jacobian dw_v = 4 (l.h) dw_h (reflection
+ * of l about h), and for fixed h, l -> d is a rotation, so
+ *     dw_l dw_v = 4 cos(theta_d) dw_h dw_d,
+ * which factors: row = solid angle of the h cell, column = integral of
+ * 4 cos(theta_d) over the d cell.  Over all cells the sum is 2pi * 4pi =
+ * 8pi^2 (every pair with h above the horizon); over valid cells it
+ * approaches (2pi)^2. */
+#include <math.h>
+#include <stdio.h>
+
+#include "param/param_impl.h"
+
+/* Gram-Schmidt frame (t', b') around unit h. */
+static void hd_frame(const double h[3], double t[3], double b[3]) {
+    double n = hypot(h[1], h[2]);
+    if (n > 0) {
+        t[0] = n;
+        t[1] = -h[0] * h[1] / n;
+        t[2] = -h[0] * h[2] / n;
+    } else { /* h = +-T: bitangent fallback */
+        t[0] = 0;
+        t[1] = 1;
+        t[2] = 0;
+    }
+    b[0] = h[1] * t[2] - h[2] * t[1];
+    b[1] = h[2] * t[0] - h[0] * t[2];
+    b[2] = h[0] * t[1] - h[1] * t[0];
+}
+
+/* theta-phi texture coordinate with accurate theta and phi = 0 at the pole. */
+static void hd_st(double tmax, const double w[3], double st[2]) {
+    double ph = (w[0] != 0 || w[1] != 0) ? atan2(w[1], w[0]) : 0;
+    if (ph < 0) ph += 2 * SB_PI;
+    if (ph >= 2 * SB_PI) ph -= 2 * SB_PI;
+    st[0] = sb_dir_theta(w) / tmax;
+    st[1] = ph / (2 * SB_PI);
+}
+
+static int hd_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
+    double h[3], d[3], t[3], b[3];
+    sb_grid_dir(p->opts.res, p->opts.theta_max, row, h);
+    sb_grid_dir(p->opts.res, p->opts.theta_max, col, d);
+    hd_frame(h, t, b);
+    for (int i = 0; i < 3; i++) {
+        wi[i] = d[0] * t[i] + d[1] * b[i] + d[2] * h[i];
+        wo[i] = 2 * d[2] * h[i] - wi[i];
+    }
+    return sb_dir_in_cap(p->opts.theta_max, wi) && sb_dir_in_cap(p->opts.theta_max, wo);
+}
+
+static double hd_row_measure(const sb_param_t *p, size_t row) {
+    return sb_grid_measure(p->opts.res, p->opts.theta_max, row);
+}
+static double hd_col_measure(const sb_param_t *p, size_t col) {
+    return sb_grid_measure_4cos(p->opts.res, p->opts.theta_max, col);
+}
+
+static int hd_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]) {
+    double h[3], t[3], b[3];
+    sb_dir_half(wi, wo, h);
+    hd_frame(h, t, b);
+    double d[3] = {wi[0] * t[0] + wi[1] * t[1] + wi[2] * t[2], wi[0] * b[0] + wi[1] * b[1] + wi[2] * b[2],
+                   wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2]};
+    hd_st(p->opts.theta_max, h, st_g);
+    hd_st(p->opts.theta_max, d, st_h);
+    return sb_dir_in_cap(p->opts.theta_max, wi) && sb_dir_in_cap(p->opts.theta_max, wo);
+}
+
+static const sb_param_vt_t hd_vt = {
+    hd_cell_dirs, hd_row_measure, hd_col_measure, hd_coords,
+    "// hd: h = normalize(L + V), Gram-Schmidt frame t' from T = (1,0,0) (bitangent\n"
+    "// when h = +-T), d = L in (t', b', h); theta-phi st of h (g) and d (h):\n"
+    "// s = theta / SB_THETA_MAX (clamp), t = phi / 2pi (repeat).\n"
+    "vec2 sb_hd_st(vec3 w) {\n"
+    "    float theta = atan(length(w.xy), w.z);\n"
+    "    float phi = (w.x != 0.0 || w.y != 0.0) ? atan(w.y, w.x) : 0.0;\n"
+    "    if (phi < 0.0) phi += 2.0 * SB_PI;\n"
+    "    return vec2(theta / SB_THETA_MAX, phi / (2.0 * SB_PI));\n"
+    "}\n"
+    "vec4 sb_coords(vec3 L, vec3 V) {\n"
+    "    vec3 s = L + V;\n"
+    "    float len = length(s);\n"
+    "    vec3 H = len > 0.0 ? s / len : vec3(0.0, 0.0, 1.0);\n"
+    "    float n = length(H.yz);\n"
+    "    vec3 T = n > 0.0 ? vec3(n, -H.x * H.y / n, -H.x * H.z / n) : vec3(0.0, 1.0, 0.0);\n"
+    "    vec3 D = vec3(dot(L, T), dot(L, cross(H, T)), dot(L, H));\n"
+    "    return vec4(sb_hd_st(H), sb_hd_st(D));\n"
+    "}\n"
+    "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
+    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
+
+sb_result_t sb_param_init_hd(sb_context_t *ctx, sb_param_t *p) {
+    (void)ctx;
+    size_t R = p->opts.res;
+    p->vt = &hd_vt;
+    p->rows = p->cols = R * R;
+    for (int s = 0; s < 2; s++) {
+        p->tex_w[s] = p->tex_h[s] = R;
+        p->wrap[s][0] = SB_WRAP_CLAMP;
+        p->wrap[s][1] = SB_WRAP_REPEAT;
+    }
+    char body[64];
+    snprintf(body, sizeof body, "hd:res=%zu", R);
+    sb_param_spec_set(p, body);
+    return SB_OK;
+}

@@ -1,0 +1,52 @@
+/* Private: the vtable behind sb_param_t, one implementation per file
+ * (param_io.c, param_hd.c, param_iso.c ...). */
+#ifndef SEPBRDF_PARAM_IMPL_H
+#define SEPBRDF_PARAM_IMPL_H
+
+#include "sepbrdf/param.h"
+
+typedef struct sb_param_vt {
+    int (*cell_dirs)(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
+    double (*row_measure)(const sb_param_t *p, size_t row);
+    double (*col_measure)(const sb_param_t *p, size_t col);
+    int (*coords)(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
+    const char *glsl; /* defines vec4 sb_coords(vec3 L, vec3 V) */
+} sb_param_vt_t;
+
+struct sb_param {
+    sb_param_kind_t kind;
+    const sb_param_vt_t *vt;
+    sb_param_opts_t opts; /* resolved: res, theta_max set */
+    size_t rows, cols;
+    size_t tex_w[2], tex_h[2];
+    int wrap[2][2];
+    char spec[96];
+    char *glsl; /* resolved GLSL (constants substituted) */
+};
+
+/* Each implementation fills p (rows, cols, textures, wrap, spec, vt) from
+ * p->opts; returns SB_OK or an error reported through ctx. */
+sb_result_t sb_param_init_io(sb_context_t *ctx, sb_param_t *p);
+sb_result_t sb_param_init_io_area(sb_context_t *ctx, sb_param_t *p);
+sb_result_t sb_param_init_hd(sb_context_t *ctx, sb_param_t *p);
+sb_result_t sb_param_init_iso(sb_context_t *ctx, sb_param_t *p);
+
+/* Shared by implementations: theta-phi grid of R x R cells on [0, tmax] x
+ * [0, 2pi): index -> centre direction, direction -> st (x = theta, y = phi). */
+void sb_grid_dir(size_t R, double tmax, size_t index, double w[3]);
+void sb_grid_st(double tmax, const double w[3], double st[2]);
+double sb_grid_measure(size_t R, double tmax, size_t index);
+/* integral of 4 cos(theta) over grid cell `index`: 2 dphi (sin^2 hi - sin^2 lo),
+ * the half/difference Jacobian dw_i dw_o = 4 cos(theta_d) dw_h dw_d. */
+double sb_grid_measure_4cos(size_t R, double tmax, size_t index);
+
+/* Elevation theta = atan2(|w_xy|, w_z), accurate near the pole (acos is not). */
+double sb_dir_theta(const double w[3]);
+/* 1 if w is in the sampled cap: w_z > 0 and theta(w) <= tmax. */
+int sb_dir_in_cap(double tmax, const double w[3]);
+/* h = (l + v) / |l + v|; the normal (0, 0, 1) when l = -v (h undefined). */
+void sb_dir_half(const double l[3], const double v[3], double h[3]);
+/* p->spec = body, plus ",theta_max=DEG" when theta_max is not pi/2. */
+void sb_param_spec_set(sb_param_t *p, const char *body);
+
+#endif

@@ -1,0 +1,371 @@
+/* Exact SVD of even block-circulant matrices (see circulant.h for the
+ * maths).  Storage: the weighted kernel K_m is kept as R blocks of R x R,
+ * column-major over (theta_i, theta_o): K[m R^2 + it + ot R], i.e. an
+ * R^2 x R matrix whose columns are the blocks; the residual kernel of
+ * sb_circ_max_abs in the same layout, res[(d R + ot) R + it]. */
+#include "solve/circulant.h"
+
+#include <cblas.h>
+#include <lapacke.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+#include "util/internal.h"
+
+typedef struct cand {
+    double s;
+    unsigned k, idx, member; /* frequency, index within block k, 0 = cos (or single), 1 = sin */
+} cand_t;
+
+struct sb_circ {
+    sb_context_t *ctx;
+    size_t R, nb;        /* period, blocks R/2 + 1 */
+    double *K;           /* R blocks R x R (weighted, symmetrised) */
+    double *C;           /* nb blocks C_k (R^2 x nb) */
+    double *Cv;          /* a copy of C, overwritten by dgesdd */
+    double *T;           /* R x nb: cos(2 pi k m / R) */
+    unsigned char *need; /* nb: block k holds a selected triplet */
+    double *sv, *A, *VT; /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
+    double *ct;          /* cos(2 pi q / R), q = 0..R-1 */
+    double *work;
+    lapack_int lwork, *iwork;
+    cand_t *cand;    /* R^2 candidates, sorted */
+    double *res;     /* R^3 residual kernel */
+    double *at, *bt; /* R each: unweighted block vectors */
+    double *e;       /* 3R: phi vector and scratch */
+};
+
+size_t sb_circ_period(const sb_circ_t *c) { return c->R; }
+
+void sb_circ_destroy(sb_circ_t *c) {
+    if (!c) return;
+    free(c->K);
+    free(c->C);
+    free(c->Cv);
+    free(c->T);
+    free(c->need);
+    free(c->sv);
+    free(c->A);
+    free(c->VT);
+    free(c->ct);
+    free(c->work);
+    free(c->iwork);
+    free(c->cand);
+    free(c->res);
+    free(c->at);
+    free(c->bt);
+    free(c->e);
+    free(c);
+}
+
+sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
+    *out = NULL;
+    size_t R2, R3;
+    if (R == 0 || R > 46340 || sb_size_mul(R, R, &R2) || sb_size_mul(R2, R, &R3))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "circulant: period %zu too large", R);
+    sb_circ_t *c = calloc(1, sizeof *c);
+    if (!c) return sb_error(ctx, SB_ERR_NOMEM, "circulant: out of memory");
+    c->ctx = ctx;
+    c->R = R;
+    c->nb = R / 2 + 1;
+    c->K = sb_alloc(ctx, R3, sizeof(double), "circulant kernel");
+    c->C = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    c->sv = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant blocks");
+    c->Cv = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    c->T = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant");
+    c->need = sb_alloc(ctx, c->nb, 1, "circulant");
+    c->A = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    c->VT = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
+    c->iwork = sb_alloc(ctx, 8 * R, sizeof(lapack_int), "circulant");
+    c->cand = sb_alloc(ctx, R2, sizeof(cand_t), "circulant");
+    c->res = sb_alloc(ctx, R3, sizeof(double), "circulant residual");
+    c->at = sb_alloc(ctx, R, sizeof(double), "circulant");
+    c->bt = sb_alloc(ctx, R, sizeof(double), "circulant");
+    c->e = sb_alloc(ctx, 3 * R, sizeof(double), "circulant");
+    if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->sv || !c->A || !c->VT || !c->ct || !c->iwork || !c->cand ||
+        !c->res || !c->at || !c->bt || !c->e) {
+        sb_circ_destroy(c);
+        return SB_ERR_NOMEM;
+    }
+    for (size_t q = 0; q < R; q++)
+        c->ct[q] = cos(2 * SB_PI * (double)q / (double)R);
+    for (size_t k = 0; k < c->nb; k++)
+        for (size_t m = 0; m < R; m++)
+            c->T[m + k * R] = c->ct[(k * m) % R];
+    /* Step: LAPACK workspace query, once */
+    double wq = 0;
+    lapack_int n = (lapack_int)R;
+    lapack_int info =
+        LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->Cv, n, c->sv, c->A, n, c->VT, n, &wq, -1, c->iwork);
+    c->lwork = info == 0 ? (lapack_int)wq + 1 : 1;
+    c->work = sb_alloc(ctx, (size_t)c->lwork, sizeof(double), "circulant LAPACK workspace");
+    if (info != 0 || !c->work) {
+        sb_circ_destroy(c);
+        return c->work ? sb_error(ctx, SB_ERR_NUMERIC, "circulant: dgesdd workspace query failed") : SB_ERR_NOMEM;
+    }
+    *out = c;
+    return SB_OK;
+}
+
+/* Entry (theta_i = it, phi_i = 0; theta_o = ot, phi_o = m) of A. */
+static double kernel_at(const double *a, size_t ld, size_t R, size_t m, size_t it, size_t ot) {
+    return a[it + (m * R + ot) * ld];
+}
+
+int sb_circ_is_even(const sb_circ_t *c, const double *a, size_t ld, const double *w, double rel_tol) {
+    size_t R = c->R;
+    double big = 0, diff = 0;
+    for (size_t m = 0; m < R; m++)
+        for (size_t ot = 0; ot < R; ot++)
+            for (size_t it = 0; it < R; it++) {
+                double wt = w ? w[it] * w[ot] : 1;
+                double x = wt * kernel_at(a, ld, R, m, it, ot), y = wt * kernel_at(a, ld, R, (R - m) % R, it, ot);
+                if (!isfinite(x)) return 0;
+                double ax = fabs(x), dx = fabs(x - y);
+                if (ax > big) big = ax;
+                if (dx > diff) diff = dx;
+            }
+    return diff <= rel_tol * big;
+}
+
+double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, double scale) {
+    double n2 = 0;
+    for (size_t m = 0; m < R; m++)
+        for (size_t ot = 0; ot < R; ot++)
+            for (size_t it = 0; it < R; it++) {
+                double x = (w ? w[it] * w[ot] : 1) * kernel_at(a, ld, R, m, it, ot) * scale;
+                n2 += x * x;
+            }
+    return n2 * (double)R; /* each kernel value fills R cells (one per phi_i) */
+}
+
+/* Order: sigma descending, then frequency, index and member ascending, so
+ * the two vectors of a pair stay adjacent with the cos vector first. */
+static int cand_cmp(const void *pa, const void *pb) {
+    const cand_t *a = pa, *b = pb;
+    if (a->s != b->s) return a->s > b->s ? -1 : 1;
+    if (a->k != b->k) return a->k < b->k ? -1 : 1;
+    if (a->idx != b->idx) return a->idx < b->idx ? -1 : 1;
+    return a->member < b->member ? -1 : (a->member > b->member);
+}
+
+static int single(const sb_circ_t *c, unsigned k) { return k == 0 || (c->R % 2 == 0 && k == c->R / 2); }
+
+/* The unit phi vector of (k, member) at azimuth index i. */
+static double phi_vec(const sb_circ_t *c, unsigned k, unsigned member, size_t i) {
+    size_t R = c->R;
+    if (k == 0) return 1 / sqrt((double)R);
+    if (single(c, k)) return (i % 2 ? -1.0 : 1.0) / sqrt((double)R);
+    size_t q = ((size_t)k * i) % R;
+    double ang = c->ct[q], amp = sqrt(2.0 / (double)R);
+    if (member == 0) return amp * ang;
+    /* sin(x) = cos(x - pi/2): index shift by R/4 is exact only for R % 4 == 0 */
+    return amp * sin(2 * SB_PI * (double)q / (double)R);
+}
+
+/* The blocks are small (R x R): OpenBLAS's threads cost more than they
+ * save there (measured at R = 64: 6.5 ms a channel with one thread, 15-30
+ * with two), so the block SVDs run with one BLAS thread and the setting is
+ * restored afterwards. */
+static int blas_threads_begin(void) {
+#ifdef OPENBLAS_CONFIG_H
+    int n = openblas_get_num_threads();
+    if (n > 1) openblas_set_num_threads(1);
+    return n;
+#else
+    return 1;
+#endif
+}
+static void blas_threads_end(int n) {
+#ifdef OPENBLAS_CONFIG_H
+    if (n > 1) openblas_set_num_threads(n);
+#else
+    (void)n;
+#endif
+}
+
+static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
+                            double *s, double *u, double *v, double *tails);
+
+sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale, double *s,
+                        double *u, double *v, double *tails) {
+    int nt = blas_threads_begin();
+    sb_result_t r = circ_svd(c, a, ld, w, J, scale, s, u, v, tails);
+    blas_threads_end(nt);
+    return r;
+}
+
+static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
+                            double *s, double *u, double *v, double *tails) {
+    size_t R = c->R, R2 = R * R, N = R2;
+    /* Step: symmetrised, weighted kernel (K_m + K_{R-m}) / 2 */
+    for (size_t m = 0; m < R; m++)
+        for (size_t ot = 0; ot < R; ot++)
+            for (size_t it = 0; it < R; it++) {
+                double wt = w ? w[it] * w[ot] : 1;
+                c->K[m * R2 + it + ot * R] =
+                    0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
+            }
+    /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R): one
+     * product (R^2 x R) (R x nb) */
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)c->nb, (int)R, 1.0, c->K, (int)R2, c->T,
+                (int)R, 0.0, c->C, (int)R2);
+    /* Step: singular values of every block (no vectors: the cheap part) */
+    lapack_int n = (lapack_int)R;
+    memcpy(c->Cv, c->C, c->nb * R2 * sizeof *c->C);
+    for (size_t k = 0; k < c->nb; k++) {
+        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', n, n, c->Cv + k * R2, n, c->sv + k * R, NULL, n,
+                                              NULL, n, c->work, c->lwork, c->iwork);
+        if (info != 0)
+            return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", k, (int)info);
+    }
+    /* Step: every singular value of the matrix, largest first */
+    size_t nc = 0;
+    for (unsigned k = 0; k < c->nb; k++)
+        for (unsigned i = 0; i < R; i++)
+            for (unsigned mb = 0; mb < (single(c, k) ? 1u : 2u); mb++)
+                c->cand[nc++] = (cand_t){c->sv[k * R + i], k, i, mb};
+    qsort(c->cand, nc, sizeof *c->cand, cand_cmp);
+    /* Step: tails, summed from the smallest value up */
+    double t = 0;
+    for (size_t r = nc; r-- > 1;) {
+        double x = c->cand[r].s * scale;
+        t += x * x;
+        if (r - 1 < J) tails[r - 1] = t;
+    }
+    if (J >= nc) tails[nc - 1] = 0;
+    /* Step: vectors of the blocks that hold a selected triplet; their
+     * values replace the first pass's (equal to rounding, same order) */
+    memset(c->need, 0, c->nb);
+    for (size_t j = 0; j < J; j++)
+        c->need[c->cand[j].k] = 1;
+    for (size_t k = 0; k < c->nb; k++) {
+        if (!c->need[k]) continue;
+        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
+        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->Cv + k * R2, n, c->sv + k * R,
+                                              c->A + k * R2, n, c->VT + k * R2, n, c->work, c->lwork, c->iwork);
+        if (info != 0)
+            return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", k, (int)info);
+    }
+    for (size_t j = 0; j < J; j++)
+        c->cand[j].s = c->sv[c->cand[j].k * R + c->cand[j].idx];
+    /* Step: the J leading triplets, u = e_k (x) a, v = e_k (x) b */
+    for (size_t j = 0; j < J; j++) {
+        const cand_t *q = &c->cand[j];
+        const double *A = c->A + (size_t)q->k * R2 + (size_t)q->idx * R, *VT = c->VT + (size_t)q->k * R2;
+        s[j] = q->s;
+        for (size_t ip = 0; ip < R; ip++) {
+            double e = phi_vec(c, q->k, q->member, ip);
+            for (size_t it = 0; it < R; it++) {
+                u[j * N + ip * R + it] = e * A[it];
+                v[j * N + ip * R + it] = e * VT[q->idx + it * R];
+            }
+        }
+    }
+    return SB_OK;
+}
+
+/* max_i |x[i] - t y[i]| */
+static double absmax_axpy(const double *x, double t, const double *y, size_t n) {
+    size_t i = 0;
+    double mx = 0;
+#if defined(__SSE2__)
+    __m128d vm = _mm_setzero_pd(), vt = _mm_set1_pd(t), sign = _mm_set1_pd(-0.0);
+    for (; i + 2 <= n; i += 2) {
+        __m128d d = _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(vt, _mm_loadu_pd(y + i)));
+        vm = _mm_max_pd(vm, _mm_andnot_pd(sign, d));
+    }
+    double tmp[2];
+    _mm_storeu_pd(tmp, vm);
+    mx = tmp[0] > tmp[1] ? tmp[0] : tmp[1];
+#endif
+    for (; i < n; i++) {
+        double d = fabs(x[i] - t * y[i]);
+        if (d > mx) mx = d;
+    }
+    return mx;
+}
+
+static double absmax(const double *x, size_t n) { return absmax_axpy(x, 0.0, x, n); }
+
+sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
+                            double *mx) {
+    size_t R = c->R, R2 = R * R;
+    double *res = c->res;
+    /* Step: native residual kernel before any term */
+    for (size_t d = 0; d < R; d++)
+        for (size_t ot = 0; ot < R; ot++)
+            memcpy(res + (d * R + ot) * R, a + (d * R + ot) * ld, R * sizeof *res);
+    for (size_t j = 0; j < J; j++) {
+        const cand_t *q = &c->cand[j];
+        const double *A = c->A + (size_t)q->k * R2 + (size_t)q->idx * R, *VT = c->VT + (size_t)q->k * R2;
+        double sg = q->s * sigma_scale;
+        for (size_t i = 0; i < R; i++) {
+            double wi = w ? w[i] : 1;
+            c->at[i] = wi > 0 ? A[i] / wi : 0;
+            c->bt[i] = wi > 0 ? VT[q->idx + i * R] / wi : 0;
+        }
+        int pair_next = !single(c, q->k) && j + 1 < J && c->cand[j + 1].k == q->k && c->cand[j + 1].idx == q->idx;
+        if (!single(c, q->k)) {
+            /* Step: the cos vector alone breaks the structure.  With
+             * a = 2 pi k / R, its cell (i, o) is cf (2/R) cos(a i) cos(a o)
+             * = (cf/R) (cos(a (o - i)) + cos(a (o + i))): for each azimuth
+             * difference d the cells differ only in cos(a s), s = o + i =
+             * d + 2i mod R, and |A - B cos| is largest at the extremes of
+             * cos over the reachable s (the parity of d when R is even). */
+            double cmx[2] = {-2, -2}, cmn[2] = {2, 2};
+            for (size_t s2 = 0; s2 < R; s2++) {
+                double cv = c->ct[((size_t)q->k * s2) % R];
+                int par = R % 2 == 0 ? (int)(s2 % 2) : 0;
+                if (cv > cmx[par]) cmx[par] = cv;
+                if (cv < cmn[par]) cmn[par] = cv;
+            }
+            if (R % 2) {
+                cmx[1] = cmx[0];
+                cmn[1] = cmn[0];
+            }
+            double *ck = c->e, *hi = c->e + R, *lo = c->e + 2 * R, m = 0;
+            for (size_t d = 0; d < R; d++) {
+                ck[d] = c->ct[((size_t)q->k * d) % R];
+                hi[d] = ck[d] + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
+                lo[d] = ck[d] + cmn[d % 2];
+            }
+            for (size_t d = 0; d < R; d++)
+                for (size_t ot = 0; ot < R; ot++) {
+                    const double *row = res + (d * R + ot) * R; /* over theta_i */
+                    double B = sg * c->bt[ot] / (double)R;
+                    double x = absmax_axpy(row, B * hi[d], c->at, R), y = absmax_axpy(row, B * lo[d], c->at, R);
+                    x = x > y ? x : y;
+                    if (x > m) m = x;
+                }
+            mx[j] = m;
+            if (!pair_next) break; /* J ends inside the pair */
+            j++;
+        }
+        /* Step: subtract the whole (circulant) term or pair, max over R^3 */
+        for (size_t d = 0; d < R; d++) {
+            double ph;
+            if (q->k == 0)
+                ph = 1 / (double)R;
+            else if (single(c, q->k))
+                ph = (d % 2 ? -1.0 : 1.0) / (double)R;
+            else
+                ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
+            c->e[d] = ph;
+        }
+        for (size_t d = 0; d < R; d++)
+            for (size_t ot = 0; ot < R; ot++) {
+                double cf = sg * c->bt[ot] * c->e[d], *row = res + (d * R + ot) * R;
+                for (size_t it = 0; it < R; it++)
+                    row[it] -= cf * c->at[it];
+            }
+        mx[j] = absmax(res, R * R2);
+    }
+    return SB_OK;
+}

@@ -1,0 +1,28 @@
+/* Private: masked low-rank fitting by iterative imputation (src/fit.c). */
+#ifndef SEPBRDF_FIT_H
+#define SEPBRDF_FIT_H
+
+#include "sepbrdf/common.h"
+
+typedef struct sb_fit sb_fit_t;
+
+typedef struct sb_fit_opts {
+    int max_iters; /* default 300 */
+    double tol;    /* stop when the valid-cell error improves by less than tol relative; default 1e-5 */
+    uint64_t seed; /* starting subspace; default 1 */
+    double target; /* stop adding terms once the relative error is <= target (0 = all k) */
+} sb_fit_opts_t;
+
+typedef struct sb_fit_info {
+    int iterations, converged;
+    double rel_err; /* on valid cells */
+} sb_fit_info_t;
+
+sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fit_t **out);
+void sb_fit_destroy(sb_fit_t *f);
+/* Rank-k fit of A (m x n, lda) on cells with mask != 0 (mask has leading
+ * dimension lda too).  s (k), U (m x k), V (n x k) as in sb_svd_execute. */
+sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
+                           const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info);
+
+#endif

@@ -1,0 +1,56 @@
+/* Private: shared by the measured-data modules (measured.c, merl.c,
+ * gonio.c, spectral.c). */
+#ifndef SEPBRDF_MEASURED_IMPL_H
+#define SEPBRDF_MEASURED_IMPL_H
+
+#include <stdio.h>
+
+#include "sepbrdf/measured.h"
+
+/* A direction with z below this (theta >= pi/2 - 1e-9) is at or below the
+ * horizon: f_r is not defined there, and text tables round angles. */
+#define SB_HORIZON_Z 1e-9
+
+/* Open a measured table file: the entry point source.c calls for a path. */
+sb_result_t sb_measured_open_hook(sb_context_t *ctx, const char *path, sb_source_t **out);
+
+/* Longest accepted text line (bytes): a Cornell row of 4096 wavelengths at
+ * 24 characters a number fits; anything longer is hostile. */
+#define SB_LINE_MAX ((size_t)1 << 20)
+
+/* Line reader over a text file: strips "\r\n", counts lines, refuses NUL
+ * bytes and lines longer than SB_LINE_MAX. */
+typedef struct sb_lines {
+    FILE *fp;
+    const char *path;
+    size_t line; /* 1-based number of the line last returned */
+    char *buf;
+    size_t cap;
+} sb_lines_t;
+
+/* 1: *out is the next line; 0: end of file; < 0: error reported via ctx
+ * (*err receives the code). */
+int sb_lines_next(sb_context_t *ctx, sb_lines_t *lr, char **out, sb_result_t *err);
+
+/* Split s in place into fields: sep = 0 splits on blanks (runs of spaces
+ * and tabs), sep = ',' on commas (fields trimmed).  Stores at most `max`
+ * pointers; returns the number of fields. */
+size_t sb_split_fields(char *s, char sep, char **fields, size_t max);
+/* A complete number (strtod syntax, "nan" and "inf" included); 0 on success. */
+int sb_parse_number(const char *s, double *out);
+char *sb_trim(char *s);
+
+/* Half vector angle theta_h and difference vector d of a pair (see
+ * sb_half_diff_angles); 0 when wi = -wo. */
+int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, double d[3]);
+
+/* Format readers, called by sb_measured_open with resolved options. */
+sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                          sb_measured_info_t *info);
+sb_result_t sb_scattered_open_(sb_context_t *ctx, const char *path, sb_table_format_t fmt, const sb_measured_opts_t *o,
+                               sb_source_t **out, sb_measured_info_t *info);
+
+/* Path of the temporary file written before the rename: PATH.tmp-PID. */
+int sb_tmp_name(const char *path, char *buf, size_t size);
+
+#endif

@@ -1,0 +1,403 @@
+/* MERL .binary tables: reader (nearest cell or trilinear), writer, and the
+ * Rusinkiewicz half/difference angles.
+ *
+ * File: int32 dims (90, 90, 180) little-endian, then 3 planes (R, G, B) of
+ * 90 * 90 * 180 float64 little-endian; cell (ih, id, ip) of a plane is at
+ * ip + 180 (id + 90 ih).  f_r,c = stored * scale_c.  Bins:
+ *     theta_h: u_h = 90 sqrt(theta_h / (pi/2))   (denser near the highlight)
+ *     theta_d: u_d = 90 theta_d / (pi/2)
+ *     phi_d:   u_p = 180 phi_d / pi, phi_d folded into [0, pi)
+ * the cell index is floor(u) clamped; cell centres sit at floor(u) + 1/2.
+ * In memory: 3 planes of doubles, already scaled, NaN for missing cells. */
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "source/measured_impl.h"
+#include "util/internal.h"
+
+const double sb_merl_scale[3] = {1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0};
+
+/* Below this, sin(theta_h) or sin(theta_d) is treated as 0 and the azimuth
+ * that becomes undefined there is set to 0 (the convention documented in
+ * measured.h); it is far below the first theta_h bin (1.9e-4 rad). */
+#define DEGENERATE_SIN 1e-12
+
+/* ---- half / difference angles ------------------------------------------ */
+
+/* h = normalize(wi + wo), theta_h, and d = wi (normalised) rotated by
+ * -phi_h about z, then by -theta_h about y.  0 when wi = -wo. */
+int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, double d[3]) {
+    double h[3] = {wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]};
+    double hl = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    double il = sqrt(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2]);
+    if (!(hl > DEGENERATE_SIN * il)) return 0; /* wi = -wo: no half vector */
+    for (int k = 0; k < 3; k++)
+        h[k] /= hl;
+    double th = acos(fmin(fmax(h[2], -1), 1));
+    double hxy = hypot(h[0], h[1]);
+    double cp = 1, sp = 0; /* phi_h = 0 when h is along the normal */
+    if (hxy > DEGENERATE_SIN) {
+        cp = h[0] / hxy;
+        sp = h[1] / hxy;
+    }
+    double l[3];
+    for (int k = 0; k < 3; k++)
+        l[k] = wi[k] / il;
+    double t0 = cp * l[0] + sp * l[1], t1 = -sp * l[0] + cp * l[1], t2 = l[2];
+    double ct = cos(th), st = sin(th);
+    d[0] = t0 * ct - t2 * st;
+    d[1] = t1;
+    d[2] = t0 * st + t2 * ct;
+    *theta_h = th;
+    return 1;
+}
+
+int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d) {
+    double d[3], th;
+    if (!sb_half_diff_vec_(wi, wo, &th, d)) return 0;
+    double pd = 0; /* phi_d = 0 when wi = wo */
+    if (hypot(d[0], d[1]) > DEGENERATE_SIN) {
+        pd = atan2(d[1], d[0]);
+        if (pd < 0) pd += 2 * SB_PI;
+        if (pd >= 2 * SB_PI) pd -= 2 * SB_PI;
+    }
+    *theta_h = th;
+    *theta_d = acos(fmin(fmax(d[2], -1), 1));
+    *phi_d = pd;
+    return 1;
+}
+
+int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
+    double d[3];
+    sb_dir_from_angles(theta_d, phi_d, d);
+    double ct = cos(theta_h), st = sin(theta_h);
+    /* rotate by +theta_h about y (phi_h = 0) */
+    wi[0] = d[0] * ct + d[2] * st;
+    wi[1] = d[1];
+    wi[2] = -d[0] * st + d[2] * ct;
+    double h[3] = {st, 0, ct}, lh = wi[0] * h[0] + wi[2] * h[2];
+    for (int k = 0; k < 3; k++)
+        wo[k] = 2 * lh * h[k] - wi[k];
+    return wi[2] > 0 && wo[2] > 0;
+}
+
+/* Continuous index-space coordinates of a pair (cell k spans [k, k+1)). */
+static int merl_coords(const double wi[3], const double wo[3], double u[3]) {
+    if (wi[2] <= 0 || wo[2] <= 0) return 0;
+    double th, td, pd;
+    if (!sb_half_diff_angles(wi, wo, &th, &td, &pd)) return 0;
+    if (pd >= SB_PI) pd -= SB_PI; /* reciprocity */
+    u[0] = th > 0 ? SB_MERL_TH * sqrt(th / (SB_PI / 2)) : 0;
+    u[1] = SB_MERL_TD * td / (SB_PI / 2);
+    u[2] = SB_MERL_PD * pd / SB_PI;
+    return 1;
+}
+
+static size_t clamp_index(double u, size_t n) {
+    if (!(u > 0)) return 0;
+    return u >= (double)(n - 1) ? n - 1 : (size_t)u;
+}
+
+static size_t cell_at(size_t ih, size_t id, size_t ip) { return ip + SB_MERL_PD * (id + SB_MERL_TD * ih); }
+
+int sb_merl_index(const double wi[3], const double wo[3], size_t *index) {
+    double u[3];
+    if (!merl_coords(wi, wo, u)) return 0;
+    *index = cell_at(clamp_index(u[0], SB_MERL_TH), clamp_index(u[1], SB_MERL_TD), clamp_index(u[2], SB_MERL_PD));
+    return 1;
+}
+
+int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]) {
+    size_t ip = index % SB_MERL_PD, id = index / SB_MERL_PD % SB_MERL_TD, ih = index / SB_MERL_PD / SB_MERL_TD;
+    double uh = ((double)ih + 0.5) / SB_MERL_TH;
+    return sb_half_diff_dirs(uh * uh * (SB_PI / 2), ((double)id + 0.5) / SB_MERL_TD * (SB_PI / 2),
+                             ((double)ip + 0.5) / SB_MERL_PD * SB_PI, wi, wo);
+}
+
+/* ---- the source -------------------------------------------------------- */
+
+typedef struct merl {
+    double *v; /* 3 planes of SB_MERL_CELLS, scaled f_r, NaN = missing */
+    sb_interp_t interp;
+} merl_t;
+
+static void merl_destroy(void *self) {
+    merl_t *m = self;
+    if (!m) return;
+    free(m->v);
+    free(m);
+}
+
+static int merl_eval_nearest(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    const merl_t *m = self;
+    size_t k;
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    if (!sb_merl_index(wi, wo, &k)) return 0;
+    double v[3];
+    for (int c = 0; c < 3; c++) {
+        v[c] = m->v[(size_t)c * SB_MERL_CELLS + k];
+        if (isnan(v[c])) return 0;
+    }
+    memcpy(rgb, v, sizeof v);
+    return 1;
+}
+
+/* Trilinear between cell centres: u - 1/2 on each axis; theta axes clamp at
+ * the first and last centres, phi_d wraps (period pi).  Missing corners are
+ * skipped and the remaining weights renormalised; no corner: missing. */
+static int merl_eval_linear(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    const merl_t *m = self;
+    double u[3];
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    if (!merl_coords(wi, wo, u)) return 0;
+    static const size_t n[3] = {SB_MERL_TH, SB_MERL_TD, SB_MERL_PD};
+    size_t i0[3], i1[3];
+    double t[3];
+    for (int a = 0; a < 3; a++) {
+        double x = u[a] - 0.5;
+        if (a < 2) {
+            if (!(x > 0)) x = 0;
+            if (x > (double)(n[a] - 1)) x = (double)(n[a] - 1);
+            i0[a] = (size_t)x;
+            if (i0[a] >= n[a] - 1) i0[a] = n[a] - 1;
+            t[a] = x - (double)i0[a];
+            i1[a] = i0[a] + 1 < n[a] ? i0[a] + 1 : i0[a];
+        } else {
+            double f = floor(x);
+            t[a] = x - f;
+            long long k = (long long)f % (long long)n[a];
+            if (k < 0) k += (long long)n[a];
+            i0[a] = (size_t)k;
+            i1[a] = (i0[a] + 1) % n[a];
+        }
+    }
+    double acc[3] = {0, 0, 0}, wsum = 0;
+    for (int corner = 0; corner < 8; corner++) {
+        size_t ih = corner & 1 ? i1[0] : i0[0], id = corner & 2 ? i1[1] : i0[1], ip = corner & 4 ? i1[2] : i0[2];
+        double w = (corner & 1 ? t[0] : 1 - t[0]) * (corner & 2 ? t[1] : 1 - t[1]) * (corner & 4 ? t[2] : 1 - t[2]);
+        if (w <= 0) continue;
+        size_t k = cell_at(ih, id, ip);
+        double v0 = m->v[k], v1 = m->v[SB_MERL_CELLS + k], v2 = m->v[2 * SB_MERL_CELLS + k];
+        if (isnan(v0) || isnan(v1) || isnan(v2)) continue;
+        acc[0] += w * v0;
+        acc[1] += w * v1;
+        acc[2] += w * v2;
+        wsum += w;
+    }
+    if (!(wsum > 0)) return 0;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = acc[c] / wsum;
+    return 1;
+}
+
+static double le_f64(const unsigned char *b) {
+    uint64_t u = 0;
+    for (int k = 7; k >= 0; k--)
+        u = u << 8 | b[k];
+    double d;
+    memcpy(&d, &u, sizeof d);
+    return d;
+}
+
+static void put_le_f64(unsigned char *b, double d) {
+    uint64_t u;
+    memcpy(&u, &d, sizeof u);
+    for (int k = 0; k < 8; k++)
+        b[k] = (unsigned char)(u >> (8 * k));
+}
+
+sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                          sb_measured_info_t *info) {
+    sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_NEAREST : o->interp;
+    if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
+        return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
+                        sb_interp_name(interp));
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    sb_result_t r = SB_OK;
+    merl_t *m = NULL;
+    unsigned char *buf = NULL;
+    struct stat st;
+    if (fstat(fileno(fp), &st) != 0) {
+        r = sb_error(ctx, SB_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
+        goto done;
+    }
+    /* Check the header, then the size, before reading anything else. */
+    unsigned char head[12];
+    size_t got = fread(head, 1, sizeof head, fp);
+    if (got < sizeof head) {
+        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: truncated header, %zu of 12 bytes", path, got);
+        goto done;
+    }
+    int32_t dims[3];
+    for (int k = 0; k < 3; k++) {
+        uint32_t u = (uint32_t)head[4 * k] | (uint32_t)head[4 * k + 1] << 8 | (uint32_t)head[4 * k + 2] << 16 |
+                     (uint32_t)head[4 * k + 3] << 24;
+        dims[k] = (int32_t)u;
+    }
+    if (dims[0] != SB_MERL_TH || dims[1] != SB_MERL_TD || dims[2] != SB_MERL_PD) {
+        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: dims %ld x %ld x %ld, expected %d x %d x %d", path, (long)dims[0],
+                     (long)dims[1], (long)dims[2], SB_MERL_TH, SB_MERL_TD, SB_MERL_PD);
+        goto done;
+    }
+    if ((uintmax_t)st.st_size != SB_MERL_FILE_SIZE) {
+        r = sb_error(ctx, SB_ERR_FORMAT,
+                     "%s: MERL: file size %jd bytes, expected %zu (12-byte header + 3 x %zu float64) for dims "
+                     "90 x 90 x 180",
+                     path, (intmax_t)st.st_size, SB_MERL_FILE_SIZE, SB_MERL_CELLS);
+        goto done;
+    }
+    m = calloc(1, sizeof *m);
+    if (!m) {
+        r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+        goto done;
+    }
+    m->interp = interp;
+    m->v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), path);
+    const size_t chunk = 1 << 16;
+    buf = malloc(chunk * 8);
+    if (!m->v || !buf) {
+        r = m->v ? sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path) : SB_ERR_NOMEM;
+        goto done;
+    }
+    /* Read and decode; count missing cells per cell (any channel). */
+    for (size_t at = 0; at < 3 * SB_MERL_CELLS;) {
+        size_t n = 3 * SB_MERL_CELLS - at < chunk ? 3 * SB_MERL_CELLS - at : chunk;
+        if (fread(buf, 8, n, fp) != n) {
+            r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: truncated at value %zu of %zu", path, at, 3 * SB_MERL_CELLS);
+            goto done;
+        }
+        for (size_t k = 0; k < n; k++)
+            m->v[at + k] = le_f64(buf + 8 * k);
+        at += n;
+    }
+    info->rows = SB_MERL_CELLS;
+    info->channels = 3;
+    double sum[3] = {0, 0, 0};
+    for (int c = 0; c < 3; c++) {
+        info->value_min[c] = INFINITY;
+        info->value_max[c] = -INFINITY;
+    }
+    for (size_t k = 0; k < SB_MERL_CELLS; k++) {
+        int neg = 0, nan = 0;
+        for (int c = 0; c < 3; c++) {
+            double v = m->v[(size_t)c * SB_MERL_CELLS + k];
+            if (!isfinite(v))
+                nan = 1;
+            else if (v < 0)
+                neg = 1;
+        }
+        if (neg || nan) {
+            info->missing++;
+            info->negative += (size_t)neg;
+            info->nan_rows += (size_t)nan;
+            for (int c = 0; c < 3; c++)
+                m->v[(size_t)c * SB_MERL_CELLS + k] = NAN;
+            continue;
+        }
+        info->samples++;
+        for (int c = 0; c < 3; c++) {
+            double v = m->v[(size_t)c * SB_MERL_CELLS + k] * sb_merl_scale[c];
+            m->v[(size_t)c * SB_MERL_CELLS + k] = v;
+            sum[c] += v;
+            if (v < info->value_min[c]) info->value_min[c] = v;
+            if (v > info->value_max[c]) info->value_max[c] = v;
+        }
+    }
+    for (int c = 0; c < 3; c++) {
+        info->value_mean[c] = info->samples ? sum[c] / (double)info->samples : 0;
+        if (!info->samples) info->value_min[c] = info->value_max[c] = 0;
+    }
+    info->theta_i_max = info->theta_o_max = SB_PI / 2;
+    info->interp = interp;
+    info->flags = SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL;
+    char desc[1200];
+    snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
+    sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
+    r = sb_source_create(ctx, &ops, m, info->flags, desc, out);
+    if (r == SB_OK) m = NULL;
+done:
+    free(buf);
+    merl_destroy(m);
+    fclose(fp);
+    return r;
+}
+
+/* ---- writer ------------------------------------------------------------ */
+
+typedef struct merl_job {
+    const sb_source_t *src;
+    double *v; /* 3 planes of stored values */
+    size_t h0, h1;
+} merl_job_t;
+
+static void *merl_fill(void *arg) {
+    merl_job_t *j = arg;
+    double wi[3], wo[3], rgb[3];
+    for (size_t k = j->h0 * SB_MERL_TD * SB_MERL_PD; k < j->h1 * SB_MERL_TD * SB_MERL_PD; k++) {
+        int ok = sb_merl_cell_dirs(k, wi, wo) && sb_source_eval(j->src, wi, wo, rgb);
+        for (int c = 0; c < 3 && ok; c++)
+            ok = isfinite(rgb[c]);
+        for (int c = 0; c < 3; c++)
+            j->v[(size_t)c * SB_MERL_CELLS + k] = ok ? rgb[c] / sb_merl_scale[c] : -1.0;
+    }
+    return NULL;
+}
+
+sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src) {
+    if (!path || !src) return sb_error(ctx, SB_ERR_ARG, "merl write: missing path or source");
+    char tmp[4200];
+    if (sb_tmp_name(path, tmp, sizeof tmp) != 0) return sb_error(ctx, SB_ERR_ARG, "%s: path too long", path);
+    double *v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), "merl write");
+    if (!v) return SB_ERR_NOMEM;
+    /* Evaluate: theta_h slices split among threads. */
+    int nt = sb_thread_count(0);
+    if (nt > SB_MERL_TH) nt = SB_MERL_TH;
+    merl_job_t jobs[SB_MERL_TH];
+    pthread_t th[SB_MERL_TH];
+    int started[SB_MERL_TH] = {0};
+    for (int t = 0; t < nt; t++) {
+        jobs[t] = (merl_job_t){src, v, (size_t)SB_MERL_TH * (size_t)t / (size_t)nt,
+                               (size_t)SB_MERL_TH * (size_t)(t + 1) / (size_t)nt};
+        if (t > 0) started[t] = pthread_create(&th[t], NULL, merl_fill, &jobs[t]) == 0;
+    }
+    merl_fill(&jobs[0]);
+    for (int t = 1; t < nt; t++) {
+        if (started[t])
+            pthread_join(th[t], NULL);
+        else
+            merl_fill(&jobs[t]);
+    }
+    /* Encode and write under the temporary name, then rename. */
+    FILE *fp = fopen(tmp, "wb");
+    if (!fp) {
+        free(v);
+        return sb_error(ctx, SB_ERR_IO, "%s: cannot create: %s", tmp, strerror(errno));
+    }
+    unsigned char head[12], buf[8 * 4096];
+    const int32_t dims[3] = {SB_MERL_TH, SB_MERL_TD, SB_MERL_PD};
+    for (int k = 0; k < 3; k++)
+        for (int b = 0; b < 4; b++)
+            head[4 * k + b] = (unsigned char)((uint32_t)dims[k] >> (8 * b));
+    int ok = fwrite(head, 1, sizeof head, fp) == sizeof head;
+    for (size_t at = 0; ok && at < 3 * SB_MERL_CELLS;) {
+        size_t n = 3 * SB_MERL_CELLS - at < 4096 ? 3 * SB_MERL_CELLS - at : 4096;
+        for (size_t k = 0; k < n; k++)
+            put_le_f64(buf + 8 * k, v[at + k]);
+        ok = fwrite(buf, 8, n, fp) == n;
+        at += n;
+    }
+    free(v);
+    if (fflush(fp) != 0 || ferror(fp)) ok = 0;
+    if (fclose(fp) != 0) ok = 0;
+    if (!ok || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        return sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, strerror(e));
+    }
+    return SB_OK;
+}

@@ -1,0 +1,59 @@
+/* The BRDF source interface: a vtable, flags and a description. */
+#include "sepbrdf/source.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "sepbrdf/models.h"
+#include "source/measured_impl.h"
+#include "util/internal.h"
+
+struct sb_source {
+    sb_source_ops_t ops;
+    void *self;
+    unsigned flags;
+    char *desc;
+};
+
+sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
+                             const char *description, sb_source_t **out) {
+    if (!ops || !ops->eval || !out) return sb_error(ctx, SB_ERR_ARG, "source: missing eval function");
+    sb_source_t *s = calloc(1, sizeof *s);
+    char *d = sb_strdup(description ? description : "");
+    if (!s || !d) {
+        free(s);
+        free(d);
+        return sb_error(ctx, SB_ERR_NOMEM, "source: out of memory");
+    }
+    s->ops = *ops;
+    s->self = self;
+    s->flags = flags;
+    s->desc = d;
+    *out = s;
+    return SB_OK;
+}
+
+void sb_source_destroy(sb_source_t *src) {
+    if (!src) return;
+    if (src->ops.destroy) src->ops.destroy(src->self);
+    free(src->desc);
+    free(src);
+}
+
+int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]) {
+    return src->ops.eval(src->self, wi, wo, rgb);
+}
+unsigned sb_source_flags(const sb_source_t *src) { return src->flags; }
+const char *sb_source_description(const sb_source_t *src) { return src->desc; }
+void *sb_source_impl(const sb_source_t *src) { return src->self; }
+
+/* A spec naming an existing regular file is a measured table; anything
+ * else is a model spec. */
+sb_result_t sb_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out) {
+    if (!spec || !out) return sb_error(ctx, SB_ERR_ARG, "source: no spec given");
+    *out = NULL; /* also when a reader fails without touching it */
+    struct stat st;
+    if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open_hook(ctx, spec, out);
+    return sb_model_create(ctx, spec, out);
+}

@@ -1,0 +1,81 @@
+/* Result codes, the context and overflow-checked sizes. */
+#include "sepbrdf/common.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+struct sb_context {
+    sb_error_fn fn;
+    void *user;
+    char last[1024];
+};
+
+static const char *const names[SB_RESULT_COUNT_] = {
+    "SB_OK",           "SB_ERR_ARG", "SB_ERR_RANGE",  "SB_ERR_PARSE",   "SB_ERR_UNKNOWN",     "SB_ERR_NOMEM",
+    "SB_ERR_OVERFLOW", "SB_ERR_IO",  "SB_ERR_FORMAT", "SB_ERR_NUMERIC", "SB_ERR_UNSUPPORTED",
+};
+static const char *const messages[SB_RESULT_COUNT_] = {
+    "success",       "invalid argument", "value out of range", "malformed input",      "unknown name",
+    "out of memory", "size too large",   "input/output error", "invalid file content", "numerical failure",
+    "not supported",
+};
+
+const char *sb_result_name(sb_result_t r) { return (unsigned)r < SB_RESULT_COUNT_ ? names[r] : "SB_ERR_?"; }
+const char *sb_result_message(sb_result_t r) {
+    return (unsigned)r < SB_RESULT_COUNT_ ? messages[r] : "unknown result code";
+}
+
+sb_result_t sb_context_create(sb_context_t **out) {
+    if (!out) return SB_ERR_ARG;
+    *out = calloc(1, sizeof **out);
+    return *out ? SB_OK : SB_ERR_NOMEM;
+}
+void sb_context_destroy(sb_context_t *ctx) { free(ctx); }
+void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user) {
+    if (!ctx) return;
+    ctx->fn = fn;
+    ctx->user = user;
+}
+const char *sb_context_last_error(const sb_context_t *ctx) { return ctx ? ctx->last : ""; }
+void sb_context_clear_error(sb_context_t *ctx) {
+    if (ctx) ctx->last[0] = 0;
+}
+
+sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...) {
+    if (!ctx) return code;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(ctx->last, sizeof ctx->last, fmt, ap);
+    va_end(ap);
+    if (ctx->fn) ctx->fn(ctx->user, code, ctx->last);
+    return code;
+}
+
+int sb_size_mul(size_t a, size_t b, size_t *out) {
+    if (a && b > SIZE_MAX / a) return 1;
+    *out = a * b;
+    return 0;
+}
+int sb_size_mul3(size_t a, size_t b, size_t c, size_t *out) {
+    size_t t;
+    return sb_size_mul(a, b, &t) || sb_size_mul(t, c, out);
+}
+int sb_size_add(size_t a, size_t b, size_t *out) {
+    if (b > SIZE_MAX - a) return 1;
+    *out = a + b;
+    return 0;
+}
+
+static size_t mem_limit;
+
+void sb_set_memory_limit(size_t bytes) { mem_limit = bytes; }
+size_t sb_memory_limit(void) {
+    if (mem_limit) return mem_limit;
+    long pages = sysconf(_SC_PHYS_PAGES), psize = sysconf(_SC_PAGE_SIZE);
+    if (pages <= 0 || psize <= 0) return (size_t)8 << 30;
+    double total = (double)pages * (double)psize;
+    return (size_t)(total * 0.75);
+}

@@ -1,0 +1,44 @@
+/* Allocation with limits, strings, thread counts. */
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "util/internal.h"
+
+char *sb_strdup(const char *s) {
+    size_t n = strlen(s) + 1;
+    char *d = malloc(n);
+    if (d) memcpy(d, s, n);
+    return d;
+}
+
+static void *alloc_impl(sb_context_t *ctx, size_t count, size_t size, const char *what, int zero) {
+    size_t bytes;
+    if (sb_size_mul(count, size, &bytes)) {
+        sb_error(ctx, SB_ERR_OVERFLOW, "%s: size %zu x %zu overflows", what, count, size);
+        return NULL;
+    }
+    if (bytes > sb_memory_limit()) {
+        sb_error(ctx, SB_ERR_OVERFLOW, "%s: needs %zu bytes, more than the memory limit of %zu bytes", what, bytes,
+                 sb_memory_limit());
+        return NULL;
+    }
+    void *p = zero ? calloc(count ? count : 1, size ? size : 1) : malloc(bytes ? bytes : 1);
+    if (!p) sb_error(ctx, SB_ERR_NOMEM, "%s: cannot allocate %zu bytes", what, bytes);
+    return p;
+}
+
+void *sb_alloc(sb_context_t *ctx, size_t count, size_t size, const char *what) {
+    return alloc_impl(ctx, count, size, what, 0);
+}
+void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what) {
+    return alloc_impl(ctx, count, size, what, 1);
+}
+
+int sb_thread_count(int requested) {
+    if (requested > 0) return requested;
+    const char *e = getenv("SEPBRDF_THREADS");
+    if (e && atoi(e) > 0) return atoi(e);
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (int)(n > 64 ? 64 : n) : 1;
+}
