@@ -471,7 +471,8 @@ SB_TEST(spectral_white) {
 /* ---- shared real data ---------------------------------------------------- */
 
 SB_TEST(cornell_shared) {
-    if (!has_measured_dir()) SKIP("no ../shared/data/measured folder");
+    CHECKF(has_measured_dir(), "%s: the shipped measured tables are missing", SB_MEASURED_DIR);
+    if (sb_test_failed_now()) return;
     const char *path = SB_MEASURED_DIR "/cornell_acryl_blue.brdf";
     sb_measured_info_t info;
     sb_source_t *s = open_table(path, NULL, &info);
@@ -510,7 +511,8 @@ SB_TEST(cornell_shared) {
 }
 
 SB_TEST(alta_shared) {
-    if (!has_measured_dir()) SKIP("no ../shared/data/measured folder");
+    CHECKF(has_measured_dir(), "%s: the shipped measured tables are missing", SB_MEASURED_DIR);
+    if (sb_test_failed_now()) return;
     sb_measured_info_t info;
     sb_source_t *s = open_table(SB_MEASURED_DIR "/alta_retro-3M-jaune.dat", NULL, &info);
     if (!s) return;
