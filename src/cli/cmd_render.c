@@ -9,7 +9,6 @@
 #include "cli.h"
 #include "pipeline.h"
 
-#define DEFAULT_SOURCE "microfacet:base=gold,roughness=0.5"
 #define DEFAULT_OUT "sepbrdf-render"
 #define MAX_TERMS_LIST 64
 
@@ -25,7 +24,7 @@ static void help(void) {
            "display values (tone mapped, sRGB encoded, in [0, 1]) over the sphere's pixels.\n"
            "\n"
            "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
-           "        factor` does (default: " DEFAULT_SOURCE ").\n"
+           "        factor` does (default: " SB_JOB_DEFAULT_SOURCE ").\n"
            "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation\n"
            "        and form; the original is --source, else SOURCE as factor was given\n"
            "        it (report.json), else the source the EXR files record.\n"
@@ -34,13 +33,6 @@ static void help(void) {
            "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
            "  -J, --terms LIST     numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
            "                       for DIR every J of the folder)\n"
-           "  -r, --res R          as `sepbrdf factor`, for a SOURCE only, same defaults\n"
-           "      --param P        (auto: every parameterisation that applies, forms f\n"
-           "      --form F         and cos2, weighted, keeping the lowest comparable\n"
-           "      --weighted       error at the largest J asked)\n"
-           "      --zero-fill\n"
-           "      --method M\n"
-           "      --theta-max DEG\n"
            "      --source SPEC    the original to compare with (DIR only)\n"
            "  -s, --size N         image width and height in pixels, 8..4096 (default 256)\n"
            "      --light-elev DEG elevation of the light above the image plane, towards\n"
@@ -54,30 +46,28 @@ static void help(void) {
            "                       multiply radiance by X before tone mapping; auto\n"
            "                       (default): 1 / the original's brightest channel\n"
            "      --tonemap T      clamp (default) or reinhard (x / (1 + x))\n"
-           "      --diff-scale N   magnification of the difference panel (default 4)\n" CLI_MEASURED_HELP
-               CLI_VERBOSITY_HELP "\n"
+           "      --diff-scale N   magnification of the difference panel (default 4)\n"
+           "options of `sepbrdf factor`, for a SOURCE only (the same defaults; J is the\n"
+           "largest of --terms):\n",
+           SB_RENDER_MAX_LIGHTS);
+    cli_table_help(cli_factor_options, CLI_RENDER);
+    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
+           "\n"
            "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
            "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
            "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
-           "\n" CLI_EXIT_HELP,
-           SB_RENDER_MAX_LIGHTS);
+           "\n" CLI_EXIT_HELP);
 }
 
 typedef struct render_opts {
     const char *input, *out, *source;
-    size_t res, terms[MAX_TERMS_LIST], nterms;
-    int param_auto; /* --param auto (default), as `sepbrdf factor` */
-    sb_param_kind_t param;
-    int form_set, weighted, zero_fill;
-    sb_form_t form;
-    sb_method_t method;
-    double theta_max_deg;
+    size_t terms[MAX_TERMS_LIST], nterms;
+    sb_job_opts_t job;           /* the factor group's options, for a SOURCE */
     const char *factor_opt_name; /* a SOURCE-only option given, or NULL */
     sb_render_opts_t scene;
     double elev, azim;
     sb_tonemap_t tm;
     double diff_scale;
-    sb_measured_opts_t mo; /* a measured table as SOURCE or --source */
 } render_opts_t;
 
 static int parse_terms(const char *v, render_opts_t *o) {
@@ -140,18 +130,15 @@ static int parse_light(const char *v, render_opts_t *o) {
 }
 
 static int parse(int argc, char **argv, render_opts_t *o) {
-    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_terms[] = {"-J", "--terms", NULL},
-                             *const n_param[] = {"--param", NULL}, *const n_form[] = {"--form", NULL},
-                             *const n_method[] = {"--method", NULL}, *const n_tmax[] = {"--theta-max", NULL},
-                             *const n_src[] = {"--source", NULL}, *const n_size[] = {"-s", "--size", NULL},
-                             *const n_el[] = {"--light-elev", NULL}, *const n_az[] = {"--light-azim", NULL},
-                             *const n_light[] = {"--light", NULL}, *const n_exp[] = {"--exposure", NULL},
-                             *const n_tm[] = {"--tonemap", NULL}, *const n_diff[] = {"--diff-scale", NULL},
-                             *const n_w[] = {"--weighted", NULL}, *const n_zero[] = {"--zero-fill", NULL},
-                             *const n_help[] = {"-h", "--help", NULL};
+    static const char *const n_terms[] = {"-J", "--terms", NULL}, *const n_src[] = {"--source", NULL},
+                             *const n_size[] = {"-s", "--size", NULL}, *const n_el[] = {"--light-elev", NULL},
+                             *const n_az[] = {"--light-azim", NULL}, *const n_light[] = {"--light", NULL},
+                             *const n_exp[] = {"--exposure", NULL}, *const n_tm[] = {"--tonemap", NULL},
+                             *const n_diff[] = {"--diff-scale", NULL}, *const n_help[] = {"-h", "--help", NULL};
     cli_args_t a = {argc, 1, argv, "render"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL, *arg = argv[a.i];
+        const cli_option_t *fo = NULL;
         int m;
         if ((m = cli_opt(&a, n_help, 0, &v))) {
             help();
@@ -161,41 +148,9 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             if (m < 0) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_terms, 1, &v))) {
             if (m < 0 || parse_terms(v, o)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_res, 1, &v))) {
-            if (m < 0 || cli_parse_size("render", "--res", v, 2, 512, &o->res)) return EXIT_USAGE;
-            o->factor_opt_name = "--res";
-        } else if ((m = cli_opt(&a, n_param, 1, &v))) {
+        } else if ((m = cli_table_opt(&a, cli_factor_options, CLI_RENDER, &o->job, &fo))) {
             if (m < 0) return EXIT_USAGE;
-            o->param_auto = strcmp(v, "auto") == 0;
-            if (!o->param_auto && sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("render", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
-                return EXIT_USAGE;
-            }
-            o->factor_opt_name = "--param";
-        } else if ((m = cli_opt(&a, n_form, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (sb_form_parse(v, &o->form) != SB_OK) {
-                cli_error("render", "--form '%s' unknown, need one of f, cos, cos2", v);
-                return EXIT_USAGE;
-            }
-            o->form_set = 1;
-            o->factor_opt_name = "--form";
-        } else if (cli_opt(&a, n_w, 0, &v)) {
-            o->weighted = 1;
-            o->factor_opt_name = "--weighted";
-        } else if (cli_opt(&a, n_zero, 0, &v)) {
-            o->zero_fill = 1;
-            o->factor_opt_name = "--zero-fill";
-        } else if ((m = cli_opt(&a, n_method, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (sb_method_parse(v, &o->method) != SB_OK) {
-                cli_error("render", "--method '%s' unknown, need one of auto, full, topk, randomized", v);
-                return EXIT_USAGE;
-            }
-            o->factor_opt_name = "--method";
-        } else if ((m = cli_opt(&a, n_tmax, 1, &v))) {
-            if (m < 0 || cli_parse_double("render", "--theta-max", v, 1, 90, &o->theta_max_deg)) return EXIT_USAGE;
-            o->factor_opt_name = "--theta-max";
+            o->factor_opt_name = fo->name;
         } else if ((m = cli_opt(&a, n_src, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
             o->source = v;
@@ -221,7 +176,7 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             }
         } else if ((m = cli_opt(&a, n_diff, 1, &v))) {
             if (m < 0 || cli_parse_double("render", "--diff-scale", v, 1e-3, 1e6, &o->diff_scale)) return EXIT_USAGE;
-        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+        } else if ((m = cli_measured_opt(&a, &o->job.measured))) {
             if (m < 0) return EXIT_USAGE;
         } else if (cli_verbosity_opt(arg)) {
         } else if (arg[0] == '-' && arg[1]) {
@@ -237,46 +192,9 @@ static int parse(int argc, char **argv, render_opts_t *o) {
     return -1; /* go on */
 }
 
-/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into buf;
- * 0 on success.  The string is JSON-escaped by our writer: \" \\ \n \t. */
-static int read_source_spec(const char *dir, char *buf, size_t size) {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/report.json", dir);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return -1;
-    static char text[1 << 16];
-    size_t n = fread(text, 1, sizeof text - 1, fp);
-    fclose(fp);
-    text[n] = 0;
-    const char *p = strstr(text, "\"source_spec\": \"");
-    if (!p) return -1;
-    p += strlen("\"source_spec\": \"");
-    size_t k = 0;
-    for (; *p && *p != '"' && k + 1 < size; p++) {
-        if (*p == '\\' && p[1]) {
-            p++;
-            buf[k++] = *p == 'n' ? '\n' : *p == 't' ? '\t' : *p;
-        } else {
-            buf[k++] = *p;
-        }
-    }
-    buf[k] = 0;
-    return *p == '"' && k > 0 ? 0 : -1;
-}
-
 static int is_dir(const char *path) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
-}
-
-/* Factor src as `sepbrdf factor` does (pipeline.h: the same candidates and
- * selection), with J = the largest of the list.  *best owns the kept attempt. */
-static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
-                                 attempt_t *best) {
-    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0};
-    pipe_cand_t cands[PIPE_MAX_CANDS];
-    size_t ncand = pipe_candidates(src, &po, o->param_auto, o->param, o->form_set, o->form, o->weighted, cands);
-    return pipe_select(ctx, "render", src, &po, cands, ncand, best);
 }
 
 /* original.png (b NULL) or a strip, its temporary PATH.tmp-PID (image.h)
@@ -337,11 +255,6 @@ int cmd_render(int argc, char **argv) {
     render_opts_t o;
     memset(&o, 0, sizeof o);
     o.out = DEFAULT_OUT;
-    o.res = 32;
-    o.param_auto = 1;
-    o.param = SB_PARAM_IO;
-    o.form = SB_FORM_F;
-    o.theta_max_deg = 90;
     o.elev = 45;
     o.azim = 45;
     o.tm.exposure = 0; /* auto */
@@ -362,7 +275,7 @@ int cmd_render(int argc, char **argv) {
         cli_error("render", "--source applies to a factors folder; give the SOURCE itself instead");
         return EXIT_USAGE;
     }
-    if (!o.input) o.input = DEFAULT_SOURCE;
+    if (!o.input) o.input = SB_JOB_DEFAULT_SOURCE;
     if ((rc = cli_check_outdir("render", "--out", o.out)) != EXIT_OK) return rc;
 
     sb_context_t *ctx = NULL;
@@ -370,7 +283,10 @@ int cmd_render(int argc, char **argv) {
     sb_param_t *param = NULL;
     sb_factors_t *f = NULL;
     sb_image_t orig = {0}, rec = {0};
-    sb_form_t form = o.form;
+    sb_job_t *job = NULL;
+    const sb_param_t *pc = NULL; /* what is rendered: the folder's or the job's */
+    const sb_factors_t *fc = NULL;
+    sb_form_t form = SB_FORM_F;
     sb_result_t r;
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("render", "out of memory");
@@ -381,20 +297,17 @@ int cmd_render(int argc, char **argv) {
         if ((r = sb_factors_read_exr(ctx, o.input, &f)) != SB_OK) goto fail;
         if ((r = sb_factors_param(ctx, f, &param, &form)) != SB_OK) goto fail;
         /* The original: --source, else SOURCE as `factor` was given it
-         * (report.json), else the factors' source description (which a
-         * model spec is, a measured table's is not) */
-        char given[4096];
+         * (the factors' "source_spec"), else their source description
+         * (which a model spec is, a measured table's is not) */
         const char *spec = o.source;
-        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 &&
-            pipe_source_open(ctx, given, &o.mo, &src) == SB_OK)
-            spec = given;
+        if (!spec) spec = sb_factors_get_meta(f, "source_spec");
         if (!spec) spec = sb_factors_get_meta(f, "source");
         if (!spec) {
             cli_error("render", "%s records no source; name the original with --source", o.input);
             rc = EXIT_IO;
             goto out;
         }
-        if (!src && (r = pipe_source_open(ctx, spec, &o.mo, &src)) != SB_OK) {
+        if ((r = sb_job_source_open(ctx, spec, &o.job.measured, &src)) != SB_OK) {
             if (!o.source) {
                 cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o.input,
                           spec, sb_context_last_error(ctx));
@@ -422,15 +335,24 @@ int cmd_render(int argc, char **argv) {
         size_t J = 0;
         for (size_t k = 0; k < o.nterms; k++)
             if (o.terms[k] > J) J = o.terms[k];
-        if ((r = pipe_source_open(ctx, o.input, &o.mo, &src)) != SB_OK) goto fail;
-        attempt_t best;
-        if ((r = factor_source(ctx, &o, src, J, &best)) != SB_OK) goto fail;
-        param = best.param; /* keep the parameterisation and factors */
-        f = best.f;
-        form = best.m.form;
-        best.param = NULL;
-        best.f = NULL;
-        attempt_free(&best);
+        /* factored as `sepbrdf factor` does, with J the largest asked */
+        if ((r = sb_job_source_open(ctx, o.input, &o.job.measured, &src)) != SB_OK) goto fail;
+        o.job.source = o.input;
+        o.job.terms = J;
+        if ((r = sb_job_run_source(ctx, src, &o.job, &job)) != SB_OK) {
+            cli_progress_done();
+            rc = cli_job_fail("render", ctx, r, J);
+            goto out;
+        }
+        for (size_t i = 0; i < sb_job_warning_count(job); i++)
+            cli_error("render", "warning: %s", sb_job_warning(job, i));
+        pc = sb_job_param(job);
+        fc = sb_job_factors(job);
+        form = sb_job_form(job);
+    }
+    if (!fc) {
+        pc = param;
+        fc = f;
     }
 
     /* Render the original, then each reconstruction */
@@ -452,7 +374,7 @@ int cmd_render(int argc, char **argv) {
     for (size_t k = 0; k < o.nterms; k++) {
         cli_progress("rendering", (double)(k + 1) / (double)(o.nterms + 1));
         sb_image_free(&rec);
-        if ((r = sb_render_factors(ctx, &o.scene, f, param, form, o.terms[k], &rec)) != SB_OK) goto fail;
+        if ((r = sb_render_factors(ctx, &o.scene, fc, pc, form, o.terms[k], &rec)) != SB_OK) goto fail;
         if ((r = sb_image_compare(ctx, &orig, &rec, &o.tm, &d[k])) != SB_OK) goto fail;
         snprintf(names[k], sizeof names[k], "render_J%02zu.png", o.terms[k]);
         snprintf(path, sizeof path, "%s/%s", o.out, names[k]);
@@ -468,7 +390,7 @@ int cmd_render(int argc, char **argv) {
         goto out;
     }
     json_t j = {fp, 0, {0}};
-    write_json(&j, &o, src, param, form, d, names);
+    write_json(&j, &o, src, pc, form, d, names);
     if (cli_commit(fp, tmp, path, 1) != 0) {
         cli_error("render", "%s: cannot write", path);
         rc = EXIT_IO;
@@ -476,7 +398,7 @@ int cmd_render(int argc, char **argv) {
     }
     if (g_verbosity >= 1) {
         printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
-               sb_source_description(src), sb_param_spec(param), sb_form_name(form), o.scene.size, o.scene.size,
+               sb_source_description(src), sb_param_spec(pc), sb_form_name(form), o.scene.size, o.scene.size,
                o.scene.light_count, o.scene.light_count == 1 ? "" : "s", sb_tonemap_name(o.tm.op), o.tm.exposure);
         printf("%4s  %12s  %12s  %10s  %9s\n", "J", "rmse_linear", "max_linear", "rmse", "psnr_dB");
         for (size_t k = 0; k < o.nterms; k++)
@@ -493,6 +415,7 @@ fail:
 out:
     sb_image_free(&orig);
     sb_image_free(&rec);
+    sb_job_destroy(job);
     sb_factors_destroy(f);
     sb_param_destroy(param);
     sb_source_destroy(src);

@@ -26,6 +26,20 @@
 #define DEFAULT_OUT "sepbrdf-study"
 #define MAX_J 256 /* sb_metric_t holds 256 terms */
 
+static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+static int set_params(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+/* The options of `study` alone (stored into its study_opts_t). */
+static const cli_option_t study_only[] = {
+    {"-J", "--terms", "LIST",
+     "the J to study: N (= 1..N), A..B, or a comma list of\nnumbers and ranges (1..4,8,16); 1..256 (default 1..8)",
+     set_terms, 0, 0, 0, CLI_STUDY},
+    {NULL, "--param", "LIST",
+     "parameterisations, comma separated (io,io-area,hd,iso),\nor all (default): every one this build supports, iso\n"
+     "only for isotropic sources",
+     set_params, 0, 0, 0, CLI_STUDY},
+    {0},
+};
+
 static void help(void) {
     printf("usage: sepbrdf study SOURCE... [OPTIONS]\n"
            "\n"
@@ -43,19 +57,11 @@ static void help(void) {
            "SOURCE  MODEL[:key=value,...] (see `sepbrdf list`) or a measured file.\n"
            "\n"
            "options:\n"
-           "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
-           "  -J, --terms LIST     the J to study: N (= 1..N), A..B, or a comma list of\n"
-           "                       numbers and ranges (1..4,8,16); 1..256 (default 1..8)\n"
-           "      --param LIST     parameterisations, comma separated (io,io-area,hd,iso),\n"
-           "                       or all (default): every one this build supports, iso\n"
-           "                       only for isotropic sources\n"
-           "  -r, --res R          cells per angular axis, 2..512 (default 32)\n"
-           "      --form F         f (default), cos, cos2: what is factored\n"
-           "      --weighted       solid-angle weighted fit\n"
-           "      --zero-fill      factor invalid cells as zeros instead of a masked fit\n"
-           "      --method M       auto (default), full, topk, randomized\n"
-           "      --metric-res R   reference grid of the comparable error (default 32)\n" CLI_MEASURED_HELP
-               CLI_VERBOSITY_HELP "\n"
+           "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n");
+    cli_table_help(study_only, CLI_STUDY);
+    cli_table_help(cli_factor_options, CLI_STUDY);
+    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
+           "\n"
            "Each source x parameterisation is sampled once and, unless the fit is masked,\n"
            "factored once with the largest J: the leading J' terms of a truncated SVD are\n"
            "the rank-J' SVD, so every J' <= J is read from it (fit \"nested\"). A masked\n"
@@ -75,11 +81,11 @@ typedef struct study_opts {
     unsigned char want_j[MAX_J + 1]; /* want_j[J] = 1 if J is studied */
     size_t jmax, nj;
     int param_all;
-    unsigned params; /* bit per sb_param_kind_t when not all */
-    sb_form_t form;
+    unsigned params;   /* bit per sb_param_kind_t when not all */
+    sb_job_opts_t job; /* the factor group's options, as parsed */
+    sb_form_t form;    /* resolved from job for the outputs */
     int weighted, zero_fill;
     sb_method_t method;
-    sb_measured_opts_t mo; /* measured tables among the sources */
 } study_opts_t;
 
 /* Errors after J terms of one run. */
@@ -218,12 +224,18 @@ bad:
     return -1;
 }
 
+static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    return parse_terms(v, dst);
+}
+
+static int set_params(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    return parse_params(v, dst);
+}
+
 static int parse(int argc, char **argv, study_opts_t *o) {
-    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_terms[] = {"-J", "--terms", NULL},
-                             *const n_param[] = {"--param", NULL}, *const n_form[] = {"--form", NULL},
-                             *const n_method[] = {"--method", NULL}, *const n_help[] = {"-h", "--help", NULL},
-                             *const n_weighted[] = {"--weighted", NULL}, *const n_zero[] = {"--zero-fill", NULL},
-                             *const n_mres[] = {"--metric-res", NULL};
+    static const char *const n_help[] = {"-h", "--help", NULL};
     cli_args_t a = {argc, 1, argv, "study"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL;
@@ -232,33 +244,9 @@ static int parse(int argc, char **argv, study_opts_t *o) {
             help();
             return EXIT_OK;
         }
-        if ((m = cli_out_opt(&a, "folder", &o->out))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_res, 1, &v))) {
-            if (m < 0 || cli_parse_size("study", "--res", v, 2, 512, &o->res)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_terms, 1, &v))) {
-            if (m < 0 || parse_terms(v, o)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_param, 1, &v))) {
-            if (m < 0 || parse_params(v, o)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_form, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (sb_form_parse(v, &o->form) != SB_OK) {
-                cli_error("study", "--form '%s' unknown, need one of f, cos, cos2", v);
-                return EXIT_USAGE;
-            }
-        } else if ((m = cli_opt(&a, n_method, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (sb_method_parse(v, &o->method) != SB_OK) {
-                cli_error("study", "--method '%s' unknown, need one of auto, full, topk, randomized", v);
-                return EXIT_USAGE;
-            }
-        } else if ((m = cli_opt(&a, n_mres, 1, &v))) {
-            if (m < 0 || cli_parse_size("study", "--metric-res", v, 2, 256, &o->metric_res)) return EXIT_USAGE;
-        } else if (cli_opt(&a, n_weighted, 0, &v)) {
-            o->weighted = 1;
-        } else if (cli_opt(&a, n_zero, 0, &v)) {
-            o->zero_fill = 1;
-        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+        if ((m = cli_out_opt(&a, "folder", &o->out)) || (m = cli_table_opt(&a, study_only, CLI_STUDY, o, NULL)) ||
+            (m = cli_table_opt(&a, cli_factor_options, CLI_STUDY, &o->job, NULL)) ||
+            (m = cli_measured_opt(&a, &o->job.measured))) {
             if (m < 0) return EXIT_USAGE;
         } else if (cli_verbosity_opt(argv[a.i])) {
         } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
@@ -277,70 +265,81 @@ static int parse(int argc, char **argv, study_opts_t *o) {
 
 /* ---- running ----------------------------------------------------------- */
 
-/* Fill run r from the metric and errors of a factorisation with J terms:
- * the rows for every studied J' <= J (nested), or only J itself (refit). */
-static int take_rows(run_t *r, const study_opts_t *o, const attempt_t *a, size_t J, int only_j) {
-    const sb_factor_errors_t *e = sb_factors_errors(a->f);
-    size_t have = sb_factors_terms(a->f);
+/* Fill run r from the metric and errors of the job's factorisation with J
+ * terms: the rows for every studied J' <= J (nested), or only J (refit). */
+static void take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size_t J, int only_j) {
+    const sb_factors_t *f = sb_job_factors(job);
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    size_t have = sb_factors_terms(f);
+    sb_job_timings_t t;
+    sb_job_timings(job, &t);
     for (size_t j = only_j ? J : 1; j <= J; j++) {
         if (!o->want_j[j] || j > have) continue;
         row_t *w = &r->r[r->nr++];
         w->terms = j;
-        w->comparable = a->metric.rel_l2[j - 1];
+        w->comparable = sb_job_comparable(job, j);
         w->rel_rms = e->rel_rms[(j - 1) * 4 + 3];
         w->max_abs = e->max_abs[(j - 1) * 4 + 3];
-        w->neg_frac = a->metric.neg_frac[j - 1];
-        w->t_factor = a->t_factor;
-        w->t_metric = a->t_metric;
+        w->neg_frac = sb_job_negative(job, j);
+        w->t_factor = t.factor_s;
+        w->t_metric = t.metric_s;
     }
-    if (a->stats.fit_iterations > r->iterations) r->iterations = a->stats.fit_iterations;
-    if (a->stats.masked && !a->stats.fit_converged) r->converged = 0;
-    return 0;
+    sb_plan_stats_t st;
+    sb_job_stats(job, &st);
+    if (st.fit_iterations > r->iterations) r->iterations = st.fit_iterations;
+    if (st.masked && !st.fit_converged) r->converged = 0;
 }
 
-/* Sample once, factor once (nested) or once per J (masked). */
+/* Sample once (the job on one parameterisation), factor once (nested) or
+ * once per J (masked). */
 static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, size_t task,
                     size_t ntasks) {
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, sb_param_kind_name((sb_param_kind_t)r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
-    pipe_opts_t po = {o->res,       o->jmax, o->metric_res, 90,         0, o->method, 1,
-                      o->zero_fill, label,   base,          0.3 * span, 0, 0,         0};
-    attempt_t a;
+    sb_job_opts_t jo = o->job;
+    jo.param = sb_param_kind_name((sb_param_kind_t)r->kind);
+    jo.terms = o->jmax;
+    jo.sample_only = 1;
+    sb_job_t *job = NULL;
     sb_context_clear_error(ctx);
-    sb_result_t res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);
-    if (a.param) r->param_spec = dup_str(sb_param_spec(a.param));
+    cli_progress(label, base);
+    sb_result_t res = sb_job_run_source(ctx, src, &jo, &job);
+    if (job) r->param_spec = dup_str(sb_param_spec(sb_job_param(job)));
+    for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
+        cli_error("study", "warning: %s on %s: %s", r->spec, jo.param, sb_job_warning(job, i));
     r->r = calloc(o->nj, sizeof *r->r);
     if (res == SB_OK && !r->r) res = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (res != SB_OK) {
-        run_fail(r, sb_context_last_error(ctx));
-        attempt_free(&a);
+        char msg[1024];
+        cli_job_message(msg, sizeof msg, ctx, res, jo.terms);
+        run_fail(r, msg);
+        sb_job_destroy(job);
         return;
     }
-    r->rows = a.m.rows;
-    r->cols = a.m.cols;
-    r->t_sample = a.t_sample;
-    r->masked = attempt_masked(&a);
+    r->rows = sb_job_matrix(job)->rows;
+    r->cols = sb_job_matrix(job)->cols;
+    sb_job_timings_t t;
+    sb_job_timings(job, &t);
+    r->t_sample = t.sample_s;
+    r->masked = sb_job_masked(job);
     r->converged = 1;
-    if (!r->masked) {
-        cli_progress(label, base + 0.3 * span);
-        res = attempt_factor(ctx, src, &po, o->jmax, o->weighted, &a);
-        if (res == SB_OK) take_rows(r, o, &a, o->jmax, 0);
-    } else {
-        size_t done = 0;
-        for (size_t j = 1; j <= o->jmax && res == SB_OK; j++) {
-            if (!o->want_j[j]) continue;
-            cli_progress(label, base + span * (0.3 + 0.7 * (double)done++ / (double)o->nj));
-            res = attempt_factor(ctx, src, &po, j, o->weighted, &a);
-            if (res == SB_OK) take_rows(r, o, &a, j, 1);
-        }
+    size_t done = 0, failed_j = 0;
+    for (size_t j = r->masked ? 1 : o->jmax; j <= o->jmax && res == SB_OK; j++) {
+        if (r->masked && !o->want_j[j]) continue;
+        cli_progress(label, base + span * (0.3 + 0.7 * (double)done++ / (double)o->nj));
+        if ((res = sb_job_refactor(ctx, job, j)) == SB_OK) take_rows(r, o, job, j, r->masked);
+        failed_j = j;
     }
     cli_progress(label, base + span);
-    if (res != SB_OK)
-        run_fail(r, sb_context_last_error(ctx));
-    else
+    if (res != SB_OK) {
+        char msg[1024];
+        cli_job_message(msg, sizeof msg, ctx, res, failed_j);
+        run_fail(r, msg);
+    } else {
         r->ok = 1;
-    attempt_free(&a);
+    }
+    sb_job_destroy(job);
 }
 
 /* ---- outputs ----------------------------------------------------------- */
@@ -634,17 +633,21 @@ int cmd_study(int argc, char **argv) {
         return EXIT_IO;
     }
     o.out = DEFAULT_OUT;
-    o.res = 32;
-    o.metric_res = 32;
     o.param_all = 1;
-    o.form = SB_FORM_F;
-    o.method = SB_METHOD_AUTO;
     parse_terms("1..8", &o);
     int rc = parse(argc, argv, &o);
     if (rc >= 0) {
         free(o.sources);
         return rc;
     }
+    /* the settings as the job resolves them, for the outputs */
+    o.res = o.job.res ? o.job.res : 32;
+    o.metric_res = o.job.metric_res ? o.job.metric_res : 32;
+    o.form = SB_FORM_F;
+    if (o.job.form) sb_form_parse(o.job.form, &o.form);
+    o.weighted = o.job.weighted;
+    o.zero_fill = o.job.zero_fill;
+    o.method = o.job.method;
     if ((rc = cli_check_outdir("study", "--out", o.out)) != EXIT_OK) {
         free(o.sources);
         return rc;
@@ -666,7 +669,7 @@ int cmd_study(int argc, char **argv) {
     for (size_t s = 0; s < o.nsources; s++) {
         first_run[s] = rs.n;
         sb_context_clear_error(ctx);
-        sb_result_t r = pipe_source_open(ctx, o.sources[s], &o.mo, &srcs[s]);
+        sb_result_t r = sb_job_source_open(ctx, o.sources[s], &o.job.measured, &srcs[s]);
         if (r != SB_OK) {
             run_t *ru = runs_add(&rs, o.sources[s], -1);
             if (!ru) goto nomem;
@@ -684,7 +687,8 @@ int cmd_study(int argc, char **argv) {
             sb_context_clear_error(ctx);
             sb_result_t pr = iso_ok ? sb_param_create(ctx, (sb_param_kind_t)k, &pp, &probe) : SB_ERR_UNSUPPORTED;
             sb_param_destroy(probe);
-            if (o.param_all && pr != SB_OK) continue; /* all = those that apply */
+            /* all = those that apply (job.h: iso only for reciprocal sources too) */
+            if (o.param_all && (pr != SB_OK || !sb_job_param_applies((sb_param_kind_t)k, srcs[s], NULL))) continue;
             run_t *ru = runs_add(&rs, o.sources[s], k);
             if (!ru) goto nomem;
             ru->source = dup_str(sb_source_description(srcs[s]));
