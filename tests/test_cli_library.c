@@ -88,4 +88,3 @@ SB_TEST(same_as_factor_measured) {
     CHECKF(sb_file_exists(table), "%s: the shipped measured table is missing", table);
     if (!sb_test_failed_now()) same_set(table, "8", "2");
 }
-

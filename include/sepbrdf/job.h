@@ -83,11 +83,11 @@ typedef struct sb_job_candidate {
     sb_param_kind_t kind;
     sb_form_t form;
     int weighted;
-    int ok;       /* it factored; 0: failed (message in `why`) */
-    int dropped;  /* left out after the coarse screening: it cannot win */
-    int kept;     /* the one factored at the requested settings */
-    size_t res;   /* cells per axis of the grid `error` was measured on */
-    double error; /* ranking error at J (comparable error, 16-cell reference grid); NAN if not ok */
+    int ok;        /* it factored; 0: failed (message in `why`) */
+    int dropped;   /* left out after the coarse screening: it cannot win */
+    int kept;      /* the one factored at the requested settings */
+    size_t res;    /* cells per axis of the grid `error` was measured on */
+    double error;  /* ranking error at J (comparable error, 16-cell reference grid); NAN if not ok */
     double time_s; /* its screening, and for the kept one its full fit too */
     char why[160];
 } sb_job_candidate_t;

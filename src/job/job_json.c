@@ -85,4 +85,3 @@ void sb_json_bool(sb_json_t *j, const char *key, int v) {
     put_key(j, key);
     fputs(v ? "true" : "false", j->fp);
 }
-

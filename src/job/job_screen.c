@@ -25,8 +25,9 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     if (r != SB_OK) return r;
     size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
     if (lv->terms > mn)
-        return sb_error(ctx, SB_ERR_RANGE, "%zu terms exceed the %zu rows/columns of %s; ask for fewer terms or more cells",
-                        lv->terms, mn, sb_param_spec(a->param));
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%zu terms exceed the %zu rows/columns of %s; ask for fewer terms or more cells", lv->terms, mn,
+                        sb_param_spec(a->param));
     double t0 = job_now();
     sb_matrix_opts_t mo = {0};
     mo.form = form;
@@ -184,16 +185,18 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
     for (size_t i = 0; i < job->ncand; i++)
         fit += job->cands[i].why[0] == 0;
     if (fit == 0)
-        return sb_error(ctx, SB_ERR_RANGE, "%zu terms exceed the rows/columns of every parameterisation at %zu cells "
-                        "per axis; ask for fewer terms or more cells", job->o.terms, job->o.res);
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%zu terms exceed the rows/columns of every parameterisation at %zu cells "
+                        "per axis; ask for fewer terms or more cells",
+                        job->o.terms, job->o.res);
     return SB_OK;
 }
 
 /* The same layout as `from` (sampled as f, dense) with form `form`: each
  * valid cell times the form weight of its direction pair, as
  * sb_matrix_build applies it, so the source is not evaluated again. */
-static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv,
-                              const job_attempt_t *from, sb_form_t form, job_attempt_t *a) {
+static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, const job_attempt_t *from,
+                              sb_form_t form, job_attempt_t *a) {
     memset(a, 0, sizeof *a);
     double t0 = job_now();
     sb_param_opts_t po = {0};
@@ -278,8 +281,8 @@ static job_level_t screen_level(const sb_job_t *job, size_t res) {
 }
 
 static job_level_t full_level(const sb_job_t *job) {
-    job_level_t lv = {job->o.res, job->o.terms, job->o.metric_res, job->o.fit_tol, job->o.fit_max_iters,
-                      "sampling",   0,           1};
+    job_level_t lv = {job->o.res, job->o.terms, job->o.metric_res, job->o.fit_tol, job->o.fit_max_iters, "sampling", 0,
+                      1};
     return lv;
 }
 
