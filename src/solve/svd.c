@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "util/internal.h"
+#include "util/rng.h"
 
 static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized"};
 
@@ -63,39 +64,6 @@ static void *ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
     }
     s->bytes += count * size;
     return p;
-}
-
-/* ---- Gaussian test matrix ---------------------------------------------- */
-/* xoshiro256** (Blackman & Vigna 2018) seeded by splitmix64; normal pairs by
- * Box-Muller.  Written out here so the bits do not depend on the C library. */
-
-static uint64_t splitmix64(uint64_t *x) {
-    uint64_t z = (*x += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-static void rng_seed(uint64_t st[4], uint64_t seed) {
-    for (int i = 0; i < 4; i++)
-        st[i] = splitmix64(&seed);
-}
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-static uint64_t rng_next(uint64_t st[4]) {
-    uint64_t r = rotl(st[1] * 5, 7) * 9, t = st[1] << 17;
-    st[2] ^= st[0];
-    st[3] ^= st[1];
-    st[1] ^= st[2];
-    st[0] ^= st[3];
-    st[2] ^= t;
-    st[3] = rotl(st[3], 45);
-    return r;
-}
-/* Two independent N(0, 1) numbers; u1 in (0, 1] so the log is finite. */
-static void rng_gauss2(uint64_t st[4], double g[2]) {
-    double u1 = ((double)(rng_next(st) >> 11) + 1) * 0x1.0p-53, u2 = (double)(rng_next(st) >> 11) * 0x1.0p-53;
-    double r = sqrt(-2 * log(u1)), t = 2 * SB_PI * u2;
-    g[0] = r * cos(t);
-    g[1] = r * sin(t);
 }
 
 /* ---- the two precisions ------------------------------------------------- */

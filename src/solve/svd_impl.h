@@ -84,11 +84,11 @@ static sb_result_t FN(plan_rand)(sb_svd_t *s) {
     s->liwork = 8 * (lapack_int)L;
     /* Omega: i.i.d. N(0, 1), drawn once per plan from the seed */
     R *om = s->om;
-    uint64_t st[4];
-    rng_seed(st, s->seed);
+    sb_rng_t st;
+    sb_rng_seed(&st, s->seed);
     for (size_t i = 0; i < n * l; i += 2) {
         double g[2];
-        rng_gauss2(st, g);
+        sb_rng_gauss2(&st, g);
         om[i] = (R)g[0];
         if (i + 1 < n * l) om[i + 1] = (R)g[1];
     }
@@ -165,7 +165,7 @@ static sb_result_t FN(orth_against)(sb_svd_t *s, const R *Q, size_t l, R *Yb, si
                 if (rj > floor2 * (pj + rj) && rj > 0) continue;
                 uint64_t st = 0x5eedULL + (uint64_t)(l + j) * 0x9E3779B97F4A7C15ULL + (uint64_t)pass;
                 for (size_t i = 0; i < rows; i++)
-                    Yb[i + j * rows] = (R)((double)(splitmix64(&st) >> 11) * 0x1.0p-53 - 0.5);
+                    Yb[i + j * rows] = (R)((double)(sb_splitmix64(&st) >> 11) * 0x1.0p-53 - 0.5);
                 replaced = 1;
             }
             if (replaced && passes < 3) passes++; /* the new columns need their own two passes */
