@@ -1,6 +1,8 @@
 /* CLI helpers: messages, option parsing, progress, JSON, atomic files,
  * cleanup on interruption. */
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -313,7 +315,27 @@ void json_bool(json_t *j, const char *key, int v) {
     fputs(v ? "true" : "false", j->fp);
 }
 
+/* Remove PATH.tmp-PID files beside `path` whose process is gone (a run
+ * killed while writing it); others' live temporaries stay. */
+static void remove_stale_tmp(const char *path) {
+    const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
+    char dir[4096], name[512];
+    if (slash && (size_t)(slash - path) >= sizeof dir) return;
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - path) + (slash == path) : 1, slash ? path : ".");
+    int n = snprintf(name, sizeof name, "%s.tmp-", base);
+    DIR *d = n > 0 && (size_t)n < sizeof name ? opendir(dir) : NULL;
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        const char *pid = e->d_name + n;
+        if (strncmp(e->d_name, name, (size_t)n) != 0 || !*pid || strspn(pid, "0123456789") != strlen(pid)) continue;
+        long p = strtol(pid, NULL, 10);
+        if (p > 0 && p != (long)getpid() && kill((pid_t)p, 0) != 0 && errno == ESRCH) unlinkat(dirfd(d), e->d_name, 0);
+    }
+    if (d) closedir(d);
+}
+
 FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size) {
+    remove_stale_tmp(path);
     snprintf(tmp, tmp_size, "%s.tmp-%ld", path, (long)getpid());
     cli_guard(tmp); /* before it exists: a signal in between finds nothing */
     FILE *fp = fopen(tmp, "wb");

@@ -51,15 +51,17 @@ typedef struct names {
 
 struct sb_outset {
     sb_context_t *ctx;
-    char *target;  /* DIR as given (messages) */
-    char *dir;     /* DIR as used: PARENT/NAME, symbolic links resolved */
-    char *parent;  /* PARENT */
-    char *base;    /* NAME */
-    char *staging; /* PARENT/.NAME.sepbrdf-new-PID */
+    char *target;      /* DIR as given (messages) */
+    char *dir;         /* DIR as used: PARENT/NAME, symbolic links resolved */
+    char *parent;      /* PARENT */
+    char *base;        /* NAME */
+    char *staging;     /* PARENT/.NAME.sepbrdf-new-PID */
     char manifest[64]; /* sepbrdf-set[-CMD].txt */
     char *command;
     int lock_fd;
-    int done; /* committed or discarded */
+    int created; /* DIR did not exist: removed again if still empty and nothing was published */
+    int done;    /* committed or discarded */
+    int published;
     names_t files;
 };
 
@@ -261,8 +263,7 @@ static sb_result_t split_dir(sb_context_t *ctx, const char *target, char **paren
     char *slash = strrchr(p, '/');
     const char *last = slash ? slash + 1 : p;
     struct stat st;
-    if (strcmp(last, ".") == 0 || strcmp(last, "..") == 0 || !*last ||
-        (lstat(p, &st) == 0 && S_ISLNK(st.st_mode))) {
+    if (strcmp(last, ".") == 0 || strcmp(last, "..") == 0 || !*last || (lstat(p, &st) == 0 && S_ISLNK(st.st_mode))) {
         if (!(real = realpath(p, NULL))) {
             int e = errno;
             free(p);
@@ -320,7 +321,8 @@ static int probe_dir(const char *dir) {
 /* An existing DIR: a folder of its own (outset.h), no subfolders. */
 static sb_result_t check_existing(sb_context_t *ctx, const char *target, const char *dir, const char *parent) {
     struct stat sd, sp;
-    if (stat(dir, &sd) != 0 || !S_ISDIR(sd.st_mode)) return sb_error(ctx, SB_ERR_IO, "%s: exists and is not a folder", target);
+    if (stat(dir, &sd) != 0 || !S_ISDIR(sd.st_mode))
+        return sb_error(ctx, SB_ERR_IO, "%s: exists and is not a folder", target);
     if (stat(parent, &sp) == 0 && sp.st_dev != sd.st_dev)
         return sb_error(ctx, SB_ERR_IO, "%s: is a mount point; name a folder inside it", target);
     char *real = realpath(dir, NULL), *cwd = getcwd(NULL, 0);
@@ -493,9 +495,11 @@ sb_result_t sb_outset_begin(sb_context_t *ctx, const char *dir, const sb_outset_
     manifest_name(cmd, cmd ? strlen(cmd) : 0, s->manifest);
     s->command = cmd ? sb_strdup(cmd) : NULL;
     sb_result_t r = !s->target || (cmd && !s->command) ? sb_error(ctx, SB_ERR_NOMEM, "out of memory")
-                                                                         : split_dir(ctx, dir, &s->parent, &s->base);
+                                                       : split_dir(ctx, dir, &s->parent, &s->base);
     if (r == SB_OK && !(s->dir = join(s->parent, s->base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (r == SB_OK) r = check_paths(ctx, dir, s->parent, s->base);
+    struct stat st;
+    s->created = r == SB_OK && stat(s->dir, &st) != 0;
     if (r == SB_OK) r = lock_dir(s, opts && opts->no_wait);
     if (r == SB_OK) {
         cleanup_stale(s->parent, s->base, s->dir);
@@ -574,8 +578,8 @@ static sb_result_t write_manifest(sb_outset_t *s) {
         e = errno;
         if (mfd >= 0) close(mfd);
     } else {
-        fprintf(fp, "# sepbrdf output set 1%s%s: the files this run wrote, one per line\n",
-                s->command ? ", " : "", s->command ? s->command : "");
+        fprintf(fp, "# sepbrdf output set 1%s%s: the files this run wrote, one per line\n", s->command ? ", " : "",
+                s->command ? s->command : "");
         for (size_t i = 0; i < s->files.n; i++)
             fprintf(fp, "%s\n", s->files.v[i]);
         if (fflush(fp) != 0 || ferror(fp) || fsync(fileno(fp)) != 0) e = errno ? errno : EIO;
@@ -597,8 +601,8 @@ static sb_result_t keep_foreign(sb_outset_t *s) {
     struct dirent *e;
     while (r == SB_OK && (e = readdir(d)) != NULL) {
         const char *nm = e->d_name;
-        if (strcmp(nm, ".") == 0 || strcmp(nm, "..") == 0 || strcmp(nm, s->manifest) == 0 ||
-            names_has(&old, nm) || names_has(&s->files, nm))
+        if (strcmp(nm, ".") == 0 || strcmp(nm, "..") == 0 || strcmp(nm, s->manifest) == 0 || names_has(&old, nm) ||
+            names_has(&s->files, nm))
             continue;
         struct stat st;
         if (fstatat(dirfd(d), nm, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISDIR(st.st_mode))
@@ -632,6 +636,7 @@ sb_result_t sb_outset_commit(sb_outset_t *s) {
         sb_outset_discard_signal_safe(s->staging);
         return r;
     }
+    s->published = 1;
     recover_folder(s->staging, s->dir, s->manifest, 1); /* the previous set, now under the staging name */
     return SB_OK;
 }
@@ -639,6 +644,7 @@ sb_result_t sb_outset_commit(sb_outset_t *s) {
 void sb_outset_destroy(sb_outset_t *s) {
     if (!s) return;
     if (!s->done && s->staging) sb_outset_discard_signal_safe(s->staging);
+    if (s->created && !s->published) rmdir(s->dir); /* only if still empty */
     if (s->staging) sb_context_alias(s->ctx, NULL, NULL);
     if (s->lock_fd >= 0) close(s->lock_fd);
     names_free(&s->files);
@@ -653,7 +659,7 @@ void sb_outset_destroy(sb_outset_t *s) {
 
 sb_result_t sb_outset_cleanup(sb_context_t *ctx, const char *dir) {
     if (!dir || !*dir) return sb_error(ctx, SB_ERR_ARG, "output folder: empty name");
-    sb_outset_t s = {ctx, (char *)dir, NULL, NULL, NULL, NULL, "", NULL, -1, 1, {0}};
+    sb_outset_t s = {ctx, (char *)dir, NULL, NULL, NULL, NULL, "", NULL, -1, 0, 1, 0, {0}};
     sb_result_t r = split_dir(ctx, dir, &s.parent, &s.base);
     struct stat st;
     if (r == SB_OK && !(s.dir = join(s.parent, s.base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
