@@ -561,8 +561,8 @@ static sb_result_t table_create(sb_context_t *ctx, const char *path, samples_t *
     info->flags = SB_SOURCE_MEASURED | (iso ? SB_SOURCE_ISOTROPIC : 0u) | (recip ? SB_SOURCE_RECIPROCAL : 0u) |
                   (info->channels == 1 ? SB_SOURCE_GRAY : 0u);
     char desc[1400];
-    snprintf(desc, sizeof desc, "%s:%s (%s, k=%zu, radius=%.3g deg)", sb_table_format_name(info->format), path,
-             sb_interp_name(interp), info->neighbours, radius * 180 / SB_PI);
+    snprintf(desc, sizeof desc, "%s:%s (%s, k=%zu, radius=%.3g deg)", info->format, path, sb_interp_name(interp),
+             info->neighbours, radius * 180 / SB_PI);
     sb_source_ops_t ops = {table_eval, table_destroy};
     r = sb_source_create(ctx, &ops, t, info->flags, desc, out);
     if (r == SB_OK) return SB_OK;
@@ -988,8 +988,22 @@ done:
     return r;
 }
 
-sb_result_t sb_scattered_open_(sb_context_t *ctx, const char *path, sb_table_format_t fmt, const sb_measured_opts_t *o,
-                               sb_source_t **out, sb_measured_info_t *info) {
+typedef enum scattered_kind { KIND_CORNELL, KIND_ALTA, KIND_CSV } scattered_kind_t;
+
+/* The format-specific lines `info` prints for a scattered table. */
+static void scattered_fields(sb_measured_info_t *info) {
+    sb_info_field(info, "rows", (double)info->rows, "%zu (used %zu; skipped %zu: NaN %zu, at/below horizon %zu)",
+                  info->rows, info->samples, info->missing, info->nan_rows, info->horizon_rows);
+    sb_info_field(info, "negative", (double)info->negative, "%zu rows (kept)", info->negative);
+    sb_info_field(info, "theta max", NAN, "i %.2f deg, o %.2f deg", info->theta_i_max * 180 / SB_PI,
+                  info->theta_o_max * 180 / SB_PI);
+    sb_info_field(info, "interp", NAN, "%s, k = %zu, radius %.3g deg (median spacing %.3g deg), %zu-D embedding",
+                  sb_interp_name(info->interp), info->neighbours, info->radius * 180 / SB_PI,
+                  info->spacing * 180 / SB_PI, info->dims);
+}
+
+static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered_kind_t kind,
+                                  const sb_measured_opts_t *o, sb_source_t **out, sb_measured_info_t *info) {
     FILE *fp = fopen(path, "rb");
     if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     reader_t rd = {ctx, path, {fp, path, 0, NULL, 0}, {NULL, 0, 0}, info};
@@ -1000,19 +1014,12 @@ sb_result_t sb_scattered_open_(sb_context_t *ctx, const char *path, sb_table_for
     info->white = o->white;
     int iso = 1, recip = 1;
     sb_result_t r;
-    switch (fmt) {
-    case SB_TABLE_CORNELL:
+    if (kind == KIND_CORNELL)
         r = read_cornell(&rd, o);
-        break;
-    case SB_TABLE_ALTA:
+    else if (kind == KIND_ALTA)
         r = read_alta(&rd);
-        break;
-    case SB_TABLE_CSV:
+    else
         r = read_csv(&rd, &iso, &recip);
-        break;
-    default:
-        r = sb_error(ctx, SB_ERR_ARG, "%s: not a scattered table format", path);
-    }
     free(rd.lr.buf);
     fclose(fp);
     info->samples = rd.ss.n;
@@ -1023,8 +1030,53 @@ sb_result_t sb_scattered_open_(sb_context_t *ctx, const char *path, sb_table_for
     }
     if (r == SB_OK) r = table_create(ctx, path, &rd.ss, iso, recip, o, info, out);
     free(rd.ss.s);
+    if (r == SB_OK) scattered_fields(info);
     return r;
 }
+
+static sb_result_t open_cornell(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                                sb_measured_info_t *info) {
+    return scattered_open(ctx, path, KIND_CORNELL, o, out, info);
+}
+static sb_result_t open_alta(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                             sb_measured_info_t *info) {
+    return scattered_open(ctx, path, KIND_ALTA, o, out, info);
+}
+static sb_result_t open_csv(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                            sb_measured_info_t *info) {
+    return scattered_open(ctx, path, KIND_CSV, o, out, info);
+}
+
+/* A line of head[] (not NUL-terminated) starting with `prefix`. */
+static int head_has_line(const char *head, size_t n, const char *prefix) {
+    size_t m = strlen(prefix);
+    for (size_t i = 0; i + m <= n; i++)
+        if ((i == 0 || head[i - 1] == '\n') && memcmp(head + i, prefix, m) == 0) return 1;
+    return 0;
+}
+
+/* Cornell: "# num wls" first (after blanks and a UTF-8 byte order mark). */
+static int sniff_cornell(const unsigned char *head, size_t n) {
+    const char *h = (const char *)head;
+    size_t i = n >= 3 && memcmp(h, "\xef\xbb\xbf", 3) == 0 ? 3 : 0;
+    while (i < n && (h[i] == ' ' || h[i] == '\t' || h[i] == '\r' || h[i] == '\n'))
+        i++;
+    return n - i >= 9 && memcmp(h + i, "# num wls", 9) == 0 ? 2 : 0;
+}
+static int sniff_alta(const unsigned char *head, size_t n) {
+    const char *h = (const char *)head;
+    return head_has_line(h, n, "#PARAM_IN") || head_has_line(h, n, "#DIM") ? 2 : 0;
+}
+/* CSV: a header naming theta_i somewhere (plausible only). */
+static int sniff_csv(const unsigned char *head, size_t n) {
+    for (size_t k = 0; k + 7 <= n; k++)
+        if (memcmp(head + k, "theta_i", 7) == 0) return 1;
+    return 0;
+}
+
+const sb_reader_t sb_reader_cornell = {"cornell", "Cornell .brdf", ".brdf", sniff_cornell, open_cornell};
+const sb_reader_t sb_reader_alta = {"alta", "ALTA", ".alta", sniff_alta, open_alta};
+const sb_reader_t sb_reader_csv = {"csv", "sepbrdf CSV", ".csv", sniff_csv, open_csv};
 
 /* ---- simulated gonioreflectometer ------------------------------------- */
 

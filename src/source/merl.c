@@ -210,8 +210,8 @@ static void put_le_f64(unsigned char *b, double d) {
         b[k] = (unsigned char)(u >> (8 * k));
 }
 
-sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
-                          sb_measured_info_t *info) {
+static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                             sb_measured_info_t *info) {
     sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_NEAREST : o->interp;
     if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
         return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
@@ -315,6 +315,9 @@ sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured
     info->theta_i_max = info->theta_o_max = SB_PI / 2;
     info->interp = interp;
     info->flags = SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL;
+    sb_info_field(info, "cells", (double)info->rows, "%zu (measured %zu, missing %zu: negative %zu, NaN %zu)",
+                  info->rows, info->samples, info->missing, info->negative, info->nan_rows);
+    sb_info_field(info, "interp", NAN, "%s", sb_interp_name(interp));
     char desc[1200];
     snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
@@ -326,6 +329,14 @@ done:
     fclose(fp);
     return r;
 }
+
+/* A MERL header: the dims 90, 90, 180 as little-endian int32. */
+static int merl_sniff(const unsigned char *h, size_t n) {
+    static const unsigned char dims[12] = {SB_MERL_TH, 0, 0, 0, SB_MERL_TD, 0, 0, 0, SB_MERL_PD, 0, 0, 0};
+    return n >= 12 && memcmp(h, dims, 12) == 0 ? 2 : 0;
+}
+
+const sb_reader_t sb_reader_merl = {"merl", "MERL .binary", ".binary", merl_sniff, merl_open};
 
 /* ---- writer ------------------------------------------------------------ */
 
