@@ -394,6 +394,70 @@ SB_TEST(merl_hostile) {
     sb_context_destroy(ctx);
 }
 
+/* A MERL file with every cell missing is an error, not a perfect fit; a
+ * cell beyond float storage is found when the file is read. */
+static double all_missing(size_t i) {
+    (void)i;
+    return -1;
+}
+static double one_huge(size_t i) { return i == 5 ? 1e300 : 1; }
+
+SB_TEST(merl_no_sample_overflow) {
+    const char *dir = sb_tmpdir("merl");
+    char p[4200];
+    snprintf(p, sizeof p, "%s/missing.binary", dir);
+    write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, all_missing, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "no measured cell (all 1458000 missing: 1458000 negative");
+    snprintf(p, sizeof p, "%s/huge.binary", dir);
+    write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, one_huge, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "cell 5 (theta_h 0, theta_d 0, phi_d 5) channel 0");
+}
+
+/* Angles in the domain but below the horizon (90..180 deg) are skipped
+ * and counted, not refused. */
+SB_TEST(angles_below_horizon_counted) {
+    const char *p = tmp_path("dom", "below.csv");
+    write_text(p, "# units: degrees\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,1\n"
+                  "120,0,10,180,1\n10,-300,20,350,1\n");
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(p, NULL, &info);
+    if (!s) return;
+    CHECK(info.rows == 3 && info.samples == 2 && info.horizon_rows == 1);
+    sb_source_destroy(s);
+}
+
+/* Line endings CR LF and CR alone, and a UTF-8 byte order mark, read as
+ * the plain file does (same samples, same values). */
+SB_TEST(csv_cr_bom) {
+    static const char *const rows[] = {"# units: degrees", "theta_i,phi_i,theta_o,phi_o,r,g,b", "10,0,10,180,1,2,3",
+                                       "30,0,20,90,4,5,6", "50,0,40,0,7,8,9"};
+    static const char *const ends[] = {"\n", "\r\n", "\r", "\n"};
+    double ref[3] = {0, 0, 0};
+    for (int v = 0; v < 4; v++) {
+        char text[512] = "", name[32];
+        if (v == 3) strcat(text, "\xef\xbb\xbf");
+        for (int k = 0; k < 5; k++) {
+            strcat(text, rows[k]);
+            strcat(text, ends[v]);
+        }
+        snprintf(name, sizeof name, "t%d.csv", v);
+        const char *p = tmp_path("crbom", name);
+        write_text(p, text);
+        sb_measured_info_t info;
+        sb_source_t *s = open_table(p, NULL, &info);
+        CHECKF(s != NULL, "variant %d", v);
+        if (!s) continue;
+        CHECKF(info.rows == 3 && info.samples == 3 && info.channels == 3, "variant %d: %zu rows", v, info.rows);
+        double wi[3] = {sin(30 * SB_PI / 180), 0, cos(30 * SB_PI / 180)},
+               wo[3] = {0, sin(20 * SB_PI / 180), cos(20 * SB_PI / 180)}, rgb[3];
+        CHECK(sb_source_eval(s, wi, wo, rgb) == 1);
+        if (v == 0) memcpy(ref, rgb, sizeof ref);
+        for (int c = 0; c < 3; c++)
+            CHECK(rgb[c] == ref[c]);
+        sb_source_destroy(s);
+    }
+}
+
 /* ---- spectra ------------------------------------------------------------ */
 
 SB_TEST(spectral_white) {
@@ -920,6 +984,25 @@ SB_TEST(hostile_text) {
         {"cols.alta", "#DIM 3 1\n#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI\n#PARAM_OUT INV_STERADIAN\n0.1 0.2 0.3\n",
          SB_ERR_FORMAT, ":4: 3 numbers, expected 4"},
         {"what.txt", "hello world\n", SB_ERR_FORMAT, "unrecognised"},
+        /* angles outside their domain, values beyond float storage */
+        {"theta1000.csv", "# units: degrees\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,1\n1000,0,10,180,1\n",
+         SB_ERR_FORMAT, ":4: theta_i '1000' (1000 deg) is outside 0..180 deg"},
+        {"theta720.csv", "# units: degrees\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,720,180,1\n", SB_ERR_FORMAT,
+         ":3: theta_o '720'"},
+        {"thetaneg.csv", "# units: degrees\ntheta_i,phi_i,theta_o,phi_o,value\n-5,0,10,180,1\n", SB_ERR_FORMAT,
+         ":3: theta_i '-5'"},
+        {"phi.csv", "# units: degrees\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,10,1e30,1\n", SB_ERR_FORMAT,
+         ":3: phi_o '1e30'"},
+        {"big.csv", "theta_i,phi_i,theta_o,phi_o,value\n10,0,10,180,1e308\n10,0,20,180,1e308\n", SB_ERR_FORMAT,
+         ":2: f_r = 1e+308 (1/sr) overflows float storage"},
+        {"theta100.brdf", "# num wls\n2\n# wls\n400 700\n0.1 0 0.2 0 1 1\n100 0 0.2 0 1 1\n", SB_ERR_FORMAT,
+         ":6: theta_i '100'"},
+        {"thetav.alta",
+         "#DIM 3 1\n#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI\n#PARAM_OUT INV_STERADIAN\n0.1 0.2 0.3 0.4\n0.1 1e30 0 1\n",
+         SB_ERR_FORMAT, ":5: theta_v cos(dphi) '1e30'"},
+        {"thetav2.alta",
+         "#DIM 3 1\n#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI\n#PARAM_OUT INV_STERADIAN\n0.1 0.2 0.3 0.4\n0.1 3 2 1\n",
+         SB_ERR_FORMAT, ":5: theta_v = |(3, 2)|"},
     };
     const char *dir = sb_tmpdir("hostile");
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {

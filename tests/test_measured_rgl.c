@@ -82,7 +82,7 @@ typedef struct mat {
     float phi[16], theta[16];
     float *vndf, *col, *ndf, *sigma; /* [nphi][ntheta][vh][vw], [..][chans][ch][cw], [nh][nw] */
     int jacobian;
-    double *norm; /* integral of each vndf slice (set by mat_norms) */
+    double *norm;     /* integral of each vndf slice (set by mat_norms) */
     double cw3[3][8]; /* colour weights: RGB = sum cw3[c][k] col_k (identity for rgb) */
 } mat_t;
 
@@ -181,8 +181,8 @@ static double dens_at(const dens_t *d, double x, double y) {
     double v = 0;
     for (int q = 0; q < 4; q++)
         if (d->wt[q] != 0)
-            v += d->wt[q] / d->m->norm[d->idx[q]] * tex(d->m->vndf + (size_t)d->idx[q] * (size_t)(d->m->vw * d->m->vh), d->m->vw,
-                                              d->m->vh, x, y);
+            v += d->wt[q] / d->m->norm[d->idx[q]] *
+                 tex(d->m->vndf + (size_t)d->idx[q] * (size_t)(d->m->vw * d->m->vh), d->m->vw, d->m->vh, x, y);
     return v;
 }
 static double one_x(const void *c, double x) {
@@ -267,8 +267,8 @@ static void ref_eval(const mat_t *m, const double l_in[3], const double v_in[3],
     double Y = integrate(row_total, &d, m->vh, 0, um[1]);
     d.y = um[1];
     double X = integrate(dens_x, &d, m->vw, 0, um[0]) / integrate(dens_x, &d, m->vw, 0, 1);
-    double jac = m->jacobian ? tex(m->ndf, m->nw, m->nh, um[0], um[1]) / (4 * tex(m->sigma, m->nw, m->nh, uv[0], uv[1]))
-                             : 1;
+    double jac =
+        m->jacobian ? tex(m->ndf, m->nw, m->nh, um[0], um[1]) / (4 * tex(m->sigma, m->nw, m->nh, uv[0], uv[1])) : 1;
     for (int c = 0; c < 3; c++) {
         double val = 0;
         for (int k = 0; k < m->chans; k++) {
@@ -276,9 +276,9 @@ static void ref_eval(const mat_t *m, const double l_in[3], const double v_in[3],
             double ch = 0;
             for (int q = 0; q < 4; q++)
                 if (d.wt[q] != 0)
-                    ch += d.wt[q] * tex(m->col + ((size_t)d.idx[q] * (size_t)m->chans + (size_t)k) *
-                                                     (size_t)(m->cw * m->ch),
-                                        m->cw, m->ch, X, Y);
+                    ch += d.wt[q] *
+                          tex(m->col + ((size_t)d.idx[q] * (size_t)m->chans + (size_t)k) * (size_t)(m->cw * m->ch),
+                              m->cw, m->ch, X, Y);
             val += m->cw3[c][k] * ch;
         }
         val *= jac;
@@ -633,8 +633,8 @@ SB_TEST(hostile) {
         c[k] = 1;
     unsigned char jac = 1;
     wfield_t f[7] = {
-        {"theta_i", 10, 1, {2}, th},       {"phi_i", 10, 1, {1}, ph},          {"ndf", 10, 2, {2, 2}, t22},
-        {"sigma", 10, 2, {2, 2}, t22},     {"vndf", 10, 4, {1, 2, 2, 2}, v},   {"rgb", 10, 5, {1, 2, 3, 2, 2}, c},
+        {"theta_i", 10, 1, {2}, th},   {"phi_i", 10, 1, {1}, ph},        {"ndf", 10, 2, {2, 2}, t22},
+        {"sigma", 10, 2, {2, 2}, t22}, {"vndf", 10, 4, {1, 2, 2, 2}, v}, {"rgb", 10, 5, {1, 2, 3, 2, 2}, c},
         {"jacobian", 1, 1, {1}, &jac},
     };
     write_tensor(good, f, 7);

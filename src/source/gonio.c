@@ -33,6 +33,7 @@
  * neighbours' values, or inverse-distance weighting, or the nearest sample.
  * Read-only after building, so eval is thread-safe. */
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -597,6 +598,11 @@ static sb_result_t reader_add(reader_t *rd, const double wi[3], const double wo[
         rd->info->horizon_rows++;
         return SB_OK;
     }
+    for (int c = 0; c < 3; c++)
+        if (fabs(f[c]) > FLT_MAX)
+            return sb_error(rd->ctx, SB_ERR_FORMAT,
+                            "%s:%zu: f_r = %g (1/sr) overflows float storage (largest %g): not a reflectance", rd->path,
+                            rd->lr.line, f[c], (double)FLT_MAX);
     rd->info->negative += (size_t)(negative != 0);
     rd->info->out_of_gamut += (size_t)(rd->info->wavelengths && (f[0] < 0 || f[1] < 0 || f[2] < 0));
     return samples_push(rd->ctx, rd->path, &rd->ss, wi, wo, f, rd->info);
@@ -609,11 +615,25 @@ static sb_result_t not_finite(reader_t *rd, const char *what, const char *field)
     return sb_error(rd->ctx, SB_ERR_FORMAT, "%s:%zu: %s '%.40s' is not finite", rd->path, rd->lr.line, what, field);
 }
 
-/* Parse an angle field (finite), times `unit`. */
-static sb_result_t angle_field(reader_t *rd, const char *what, const char *s, double unit, double *out) {
+/* Domains of the angles in a row (radians, a rounding slack of 1e-9):
+ * an elevation lies in [0, pi] (above pi/2 it is below the horizon: the
+ * row is skipped and counted), an azimuth in [-2 pi, 2 pi], an ALTA
+ * projection theta_v cos/sin(dphi) in [-pi, pi].  Anything else is not an
+ * angle of a direction: refused with the file and line. */
+typedef enum angle_kind { ANGLE_THETA, ANGLE_PHI, ANGLE_PROJ } angle_kind_t;
+
+/* Parse an angle field (finite, in its domain), times `unit`. */
+static sb_result_t angle_field(reader_t *rd, const char *what, const char *s, double unit, angle_kind_t kind,
+                               double *out) {
     if (sb_parse_number(s, out) != 0) return bad_number(rd, what, s);
     if (!isfinite(*out)) return not_finite(rd, what, s);
     *out *= unit;
+    double lo = kind == ANGLE_THETA ? 0 : kind == ANGLE_PHI ? -2 * SB_PI : -SB_PI;
+    double hi = kind == ANGLE_PHI ? 2 * SB_PI : SB_PI;
+    if (!(*out >= lo - 1e-9 && *out <= hi + 1e-9))
+        return sb_error(rd->ctx, SB_ERR_FORMAT, "%s:%zu: %s '%.40s' (%g deg) is outside %g..%g deg", rd->path,
+                        rd->lr.line, what, s, *out * 180 / SB_PI, lo * 180 / SB_PI, hi * 180 / SB_PI);
+    if (kind == ANGLE_THETA && *out < 0) *out = 0;
     return SB_OK;
 }
 
@@ -711,7 +731,8 @@ static sb_result_t read_cornell(reader_t *rd, const sb_measured_opts_t *o) {
             static const char *const an[4] = {"theta_i", "phi_i", "theta_s", "phi_s"};
             double a[4];
             for (int k = 0; k < 4; k++)
-                if ((r = angle_field(rd, an[k], fields[k], 1, &a[k])) != SB_OK) goto done;
+                if ((r = angle_field(rd, an[k], fields[k], 1, k % 2 ? ANGLE_PHI : ANGLE_THETA, &a[k])) != SB_OK)
+                    goto done;
             int nan = 0;
             for (size_t k = 0; k < n; k++)
                 if ((r = value_field(rd, "spectral value", fields[4 + k], &vals[k], &nan)) != SB_OK) goto done;
@@ -802,7 +823,10 @@ static sb_result_t read_alta(reader_t *rd) {
         double a[3], v[3];
         static const char *const an[3] = {"theta_l", "theta_v cos(dphi)", "theta_v sin(dphi)"};
         for (int k = 0; k < 3; k++)
-            if ((r = angle_field(rd, an[k], f[k], 1, &a[k])) != SB_OK) return r;
+            if ((r = angle_field(rd, an[k], f[k], 1, k ? ANGLE_PROJ : ANGLE_THETA, &a[k])) != SB_OK) return r;
+        if (hypot(a[1], a[2]) > SB_PI + 1e-9)
+            return sb_error(ctx, SB_ERR_FORMAT, "%s:%zu: theta_v = |(%s, %s)| = %g deg is outside 0..180 deg", rd->path,
+                            rd->lr.line, f[1], f[2], hypot(a[1], a[2]) * 180 / SB_PI);
         int nan = 0;
         for (long k = 0; k < dout; k++)
             if ((r = value_field(rd, "value", f[3 + k], &v[k], &nan)) != SB_OK) return r;
@@ -958,7 +982,8 @@ static sb_result_t read_csv(reader_t *rd, int *iso_out, int *recip_out) {
         double a[4], v[3];
         int nan = 0;
         for (int k = 0; k <= COL_PO; k++)
-            if ((r = angle_field(rd, names[k], f[col[k]], unit[k], &a[k])) != SB_OK) goto done;
+            if ((r = angle_field(rd, names[k], f[col[k]], unit[k], k % 2 ? ANGLE_PHI : ANGLE_THETA, &a[k])) != SB_OK)
+                goto done;
         if (rd->info->channels == 3) {
             for (int k = 0; k < 3; k++)
                 if ((r = value_field(rd, names[COL_R + k], f[col[COL_R + k]], &v[k], &nan)) != SB_OK) goto done;

@@ -55,6 +55,11 @@ int sb_lines_next(sb_context_t *ctx, sb_lines_t *lr, char **out, sb_result_t *er
     for (;;) {
         c = getc_unlocked(lr->fp);
         if (c == EOF || c == '\n') break;
+        if (c == '\r') { /* CR LF (Windows) or CR alone (classic Mac OS) */
+            int d = getc_unlocked(lr->fp);
+            if (d != '\n' && d != EOF) ungetc(d, lr->fp);
+            break;
+        }
         if (c == 0) {
             *err =
                 sb_error(ctx, SB_ERR_FORMAT, "%s:%zu: binary data (NUL byte) in a text table", lr->path, lr->line + 1);
@@ -90,9 +95,9 @@ int sb_lines_next(sb_context_t *ctx, sb_lines_t *lr, char **out, sb_result_t *er
         }
         lr->cap = 256;
     }
-    while (len && lr->buf[len - 1] == '\r')
-        len--;
     lr->buf[len] = 0;
+    if (lr->line == 0 && len >= 3 && memcmp(lr->buf, "\xef\xbb\xbf", 3) == 0) /* UTF-8 byte order mark */
+        memmove(lr->buf, lr->buf + 3, len - 2);
     lr->line++;
     *out = lr->buf;
     return 1;

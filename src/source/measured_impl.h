@@ -18,8 +18,9 @@ sb_result_t sb_measured_open_hook(sb_context_t *ctx, const char *path, sb_source
  * 24 characters a number fits; anything longer is hostile. */
 #define SB_LINE_MAX ((size_t)1 << 20)
 
-/* Line reader over a text file: strips "\r\n", counts lines, refuses NUL
- * bytes and lines longer than SB_LINE_MAX. */
+/* Line reader over a text file: lines end with LF, CR LF or CR alone; a
+ * UTF-8 byte order mark before the first line is dropped; counts lines,
+ * refuses NUL bytes and lines longer than SB_LINE_MAX. */
 typedef struct sb_lines {
     FILE *fp;
     const char *path;

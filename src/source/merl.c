@@ -10,6 +10,7 @@
  * the cell index is floor(u) clamped; cell centres sit at floor(u) + 1/2.
  * In memory: 3 planes of doubles, already scaled, NaN for missing cells. */
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -302,16 +303,27 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
         info->samples++;
         for (int c = 0; c < 3; c++) {
             double v = m->v[(size_t)c * SB_MERL_CELLS + k] * sb_merl_scale[c];
+            if (v > FLT_MAX) {
+                r = sb_error(ctx, SB_ERR_FORMAT,
+                             "%s: MERL: cell %zu (theta_h %zu, theta_d %zu, phi_d %zu) channel %d: f_r = %g (1/sr) "
+                             "overflows float storage (largest %g): not a reflectance",
+                             path, k, k / (SB_MERL_TD * SB_MERL_PD), k / SB_MERL_PD % SB_MERL_TD, k % SB_MERL_PD, c, v,
+                             (double)FLT_MAX);
+                goto done;
+            }
             m->v[(size_t)c * SB_MERL_CELLS + k] = v;
             sum[c] += v;
             if (v < info->value_min[c]) info->value_min[c] = v;
             if (v > info->value_max[c]) info->value_max[c] = v;
         }
     }
-    for (int c = 0; c < 3; c++) {
-        info->value_mean[c] = info->samples ? sum[c] / (double)info->samples : 0;
-        if (!info->samples) info->value_min[c] = info->value_max[c] = 0;
+    if (!info->samples) {
+        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: no measured cell (all %zu missing: %zu negative, %zu NaN)", path,
+                     info->rows, info->negative, info->nan_rows);
+        goto done;
     }
+    for (int c = 0; c < 3; c++)
+        info->value_mean[c] = sum[c] / (double)info->samples;
     info->theta_i_max = info->theta_o_max = SB_PI / 2;
     info->interp = interp;
     info->flags = SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL;

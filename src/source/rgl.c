@@ -51,9 +51,9 @@ typedef struct tf_field {
 /* One warp table: n_slices slices of h x w values. */
 typedef struct table2d {
     size_t w, h, slices, chans; /* chans: values per node per slice (rgb: C) */
-    double *v;   /* values (normalised for a warp) */
-    double *ccdf; /* warp: conditional CDF per row, [slice][h][w] */
-    double *mcdf; /* warp: marginal CDF, [slice][h] */
+    double *v;                  /* values (normalised for a warp) */
+    double *ccdf;               /* warp: conditional CDF per row, [slice][h][w] */
+    double *mcdf;               /* warp: marginal CDF, [slice][h] */
 } table2d_t;
 
 typedef struct rgl {
@@ -146,7 +146,8 @@ static sb_result_t parse_fields(sb_context_t *ctx, const char *path, tf_file_t *
         }
         size_t bytes;
         if (sb_size_mul(cnt, dtype_size[f->dtype], &bytes) || off > n || bytes > n - off)
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field %.*s: data (%zu values at offset %ju) past the end "
+            return sb_error(ctx, SB_ERR_FORMAT,
+                            "%s: RGL: field %.*s: data (%zu values at offset %ju) past the end "
                             "of the file (%zu bytes)",
                             path, (int)f->name_len, (const char *)f->name, cnt, (uintmax_t)off, n);
         f->count = cnt;
@@ -171,8 +172,8 @@ static sb_result_t need_f32(sb_context_t *ctx, const char *path, const tf_file_t
     const tf_field_t *f = find(tf, name);
     if (!f) return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: missing field '%s'", path, name);
     if (f->dtype != 10 || f->ndim != ndim)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' is %zu-D of dtype %u, need %zu-D float32", path,
-                        name, f->ndim, f->dtype, ndim);
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' is %zu-D of dtype %u, need %zu-D float32", path, name,
+                        f->ndim, f->dtype, ndim);
     for (size_t d = 0; d < ndim; d++)
         if (f->shape[d] < lo[d])
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' dimension %zu is %ju, need at least %zu", path,
@@ -214,8 +215,8 @@ static sb_result_t table_warp(sb_context_t *ctx, const char *path, const char *n
         double *v = t->v + s * n, *cc = t->ccdf + s * n, *mc = t->mcdf + s * t->h;
         for (size_t k = 0; k < n; k++)
             if (v[k] < 0)
-                return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' slice %zu has a negative density", path,
-                                name, s);
+                return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' slice %zu has a negative density", path, name,
+                                s);
         for (size_t y = 0; y < t->h; y++) {
             double sum = 0;
             cc[y * t->w] = 0;
@@ -438,8 +439,8 @@ static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_fil
     sb_result_t r;
     if (!f) {
         if ((r = need_f32(ctx, path, tf, "rgb", 5, lo5, &f)) != SB_OK) return r;
-        if (f->shape[2] != 3) return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: rgb has %ju channels, need 3", path,
-                                              (uintmax_t)f->shape[2]);
+        if (f->shape[2] != 3)
+            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: rgb has %ju channels, need 3", path, (uintmax_t)f->shape[2]);
         info->channels = 3;
     } else {
         lo5[2] = 1;
@@ -510,8 +511,8 @@ static sb_result_t load_tables(sb_context_t *ctx, const char *path, const tf_fil
         return r;
     for (size_t k = 0; g->jacobian && k < g->sigma.w * g->sigma.h; k++)
         if (!(g->sigma.v[k] > 0))
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: sigma[%zu] = %g, the projected area must be positive",
-                            path, k, g->sigma.v[k]);
+            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: sigma[%zu] = %g, the projected area must be positive", path,
+                            k, g->sigma.v[k]);
     return table_warp(ctx, path, "vndf", &g->vndf);
 }
 
@@ -557,7 +558,9 @@ static void rgl_fields(const tf_file_t *tf, const rgl_t *g, sb_measured_info_t *
     sb_info_field(info, "layout", NAN, "%s, %zu theta_i slices (%.1f..%.1f deg) x %zu phi_i%s%s",
                   g->isotropic ? "isotropic" : "anisotropic", g->n_theta, g->theta[0] * 180 / SB_PI,
                   g->theta[g->n_theta - 1] * 180 / SB_PI, g->n_phi, g->reduction >= 2 ? ", symmetry reduction " : "",
-                  g->reduction == 4 ? "4" : g->reduction == 2 ? "2" : "");
+                  g->reduction == 4   ? "4"
+                  : g->reduction == 2 ? "2"
+                                      : "");
     sb_info_field(info, "tables", NAN, "vndf %zu x %zu, %s %zu x %zu, ndf/sigma %zu x %zu, jacobian %s", g->vndf.h,
                   g->vndf.w, info->wavelengths ? "spectra" : "rgb", g->rgb.h, g->rgb.w, g->ndf.h, g->ndf.w,
                   g->jacobian ? "yes" : "no");
@@ -601,6 +604,8 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
     return r;
 }
 
-static int rgl_sniff(const unsigned char *head, size_t n) { return n >= 12 && memcmp(head, "tensor_file", 12) == 0 ? 2 : 0; }
+static int rgl_sniff(const unsigned char *head, size_t n) {
+    return n >= 12 && memcmp(head, "tensor_file", 12) == 0 ? 2 : 0;
+}
 
 const sb_reader_t sb_reader_rgl = {"rgl", "RGL tensor_file (.bsdf)", ".bsdf", rgl_sniff, rgl_open};
