@@ -45,6 +45,25 @@ char *sb_trim(char *s);
  * sb_half_diff_angles); 0 when wi = -wo. */
 int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, double d[3]);
 
+/* Scattered samples as the text readers collect them: wi[3], wo[3], f[3]
+ * (RGB f_r) per sample, both directions above the horizon. */
+#define SB_SAMPLE_DOUBLES 9
+#define SB_MAX_ROWS ((size_t)1 << 31)
+typedef struct sb_samples {
+    double *s;
+    size_t n, cap;
+} sb_samples_t;
+
+/* Append a sample (value statistics of info updated); SB_ERR_OVERFLOW past
+ * SB_MAX_ROWS or the memory limit. */
+sb_result_t sb_samples_push_(sb_context_t *ctx, const char *path, sb_samples_t *ss, const double wi[3],
+                             const double wo[3], const double f[3], sb_measured_info_t *info);
+/* The interpolated source of scattered samples (scattered.c): embedding,
+ * k-d tree, interpolation per o->interp; fills the interpolation fields of
+ * info. */
+sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *ss, int iso, int recip,
+                             const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out);
+
 /* A measured format: one descriptor in the reader's file plus one row in
  * the registry (measured.c).  sniff() looks at the first bytes of the file
  * (at most 4096): 2 = certainly this format (a magic, a keyword), 1 =
