@@ -30,6 +30,7 @@
 #include "factor.h"
 #include "matrix.h"
 #include "measured.h"
+#include "outset.h"
 #include "param.h"
 #include "source.h"
 
@@ -131,12 +132,19 @@ sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const s
  * the factors, statistics and comparable errors (studies over J). */
 sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms);
 
-/* Write the output set into the folder `dir` (created if missing):
- * g_KK.exr, h_KK.exr (K < J), sepbrdf.glsl, report.json and, with
- * opts->previews, the PNG previews; terms K >= J of an earlier run in dir
- * are removed.  Each file is written under a temporary name (exr.h,
- * glsl.h; report.json as report.json.tmp-PID) and renamed when complete.
- * Errors: SB_ERR_IO, SB_ERR_NOMEM. */
+/* Write the output set of the job into the open output set `set`
+ * (outset.h), without publishing it: g_KK.exr, h_KK.exr (K < J),
+ * sepbrdf.glsl, report.json and, with opts->previews, the PNG previews,
+ * each named with sb_outset_add.  For callers that manage the set
+ * themselves (a signal handler that knows its staging folder).  Errors:
+ * SB_ERR_IO, SB_ERR_NOMEM. */
+sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set);
+
+/* Write the output set into the folder `dir` (created if missing) and
+ * publish it as one unit (outset.h, command "factor"): dir then holds this
+ * set, files of an earlier factor set that this one does not write (terms
+ * K >= J) are gone, files sepbrdf did not write stay.  Errors: those of
+ * sb_outset_begin and sb_outset_commit, SB_ERR_IO, SB_ERR_NOMEM. */
 sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir);
 
 /* Write report.json's content (see README) to fp. */

@@ -42,8 +42,9 @@ static void help(void) {
            "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
            "i.e. direction k = R * i_phi + i_theta of the lecture's sequentialisation.\n"
            "\n"
-           "Files are written under temporary names and renamed when complete; a run\n"
-           "interrupted (SIGINT, SIGTERM, SIGHUP) while writing removes the set.\n"
+           "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
+           "and swapped in whole when complete: the folder holds the previous set until\n"
+           "then, whatever ends the run; files sepbrdf did not write stay.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -157,13 +158,20 @@ int cmd_factor(int argc, char **argv) {
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (sb_job_auto(job) && g_verbosity >= 1) print_candidates(job);
         print_detail(job);
-        /* From here to the last rename, an interrupt removes the whole set. */
-        pipe_guard_factor_outputs(out, sb_factors_terms(sb_job_factors(job)), 1);
-        r = sb_job_write(ctx, job, out);
-        pipe_guard_factor_outputs(out, sb_factors_terms(sb_job_factors(job)), 0);
+        /* The whole set goes into a staging folder published in one step
+         * (outset.h): the folder keeps its previous set until then. */
+        sb_outset_t *set = cli_outset_begin(ctx, "factor", out, &rc);
+        if (!set) goto out;
+        r = sb_job_write_set(ctx, job, set);
+        if (r != SB_OK) {
+            cli_outset_end(ctx, "factor", set, 0);
+        } else if ((rc = cli_outset_end(ctx, "factor", set, 1)) != EXIT_OK) {
+            goto out;
+        }
     }
     if (r == SB_OK && g_verbosity >= 1) print_result(job, out);
     rc = r == SB_OK ? EXIT_OK : cli_job_fail("factor", ctx, r, o.terms);
+out:
     sb_job_destroy(job);
     sb_context_destroy(ctx);
     return rc;

@@ -95,8 +95,9 @@ const cli_option_t cli_factor_options[] = {
      512, F_ | R_ | S_},
     {NULL, "--param", "P",
      "parameterisation: auto (default), io (the lecture's theta-phi\ngrid of (wi, wo)), io-area (equal-area maps), "
-     "hd (half/\ndifference vectors), iso (theta_h x (theta_d, phi_d)).\nauto screens every one that applies, with "
-     "forms f and\ncos2, solid-angle weighted, on a coarse grid and factors\nthe lowest comparable error at J",
+     "hd (half/\ndifference vectors), iso (theta_h x (theta_d, phi_d); for\nisotropic, reciprocal sources). auto "
+     "screens every one\nthat applies, with forms f and cos2, solid-angle weighted,\non coarse grids, and factors the "
+     "lowest comparable\nerror at J",
      set_param, AT(param), 0, 0, F_ | R_},
     {NULL, "--form", "F",
      "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",

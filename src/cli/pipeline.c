@@ -1,8 +1,6 @@
 /* Glue between the factor group's commands and the factor job. */
 #include "pipeline.h"
 
-#include <unistd.h>
-
 void cli_job_progress(void *user, const char *label, double fraction) {
     (void)user;
     cli_progress(label, fraction);
@@ -24,26 +22,4 @@ int cli_job_fail(const char *cmd, const sb_context_t *ctx, sb_result_t r, size_t
     cli_job_message(msg, sizeof msg, ctx, r, terms);
     cli_error(cmd, "%s", msg);
     return cli_exit_code(r);
-}
-
-void pipe_guard_factor_outputs(const char *dir, size_t terms, int on) {
-    static const char *const names[] = {"sepbrdf.glsl", "report.json"};
-    char path[4200];
-    if (!on)
-        cli_unguard_exr();
-    else
-        cli_guard_exr(dir, terms, 1);
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
-        for (int tmp = 0; tmp < 2; tmp++) {
-            /* the final file, and its temporary PATH.tmp-PID (glsl.h, job.h) */
-            if (tmp)
-                snprintf(path, sizeof path, "%s/%s.tmp-%ld", dir, names[i], (long)getpid());
-            else
-                snprintf(path, sizeof path, "%s/%s", dir, names[i]);
-            if (on)
-                cli_guard(path);
-            else
-                cli_unguard(path);
-        }
-    }
 }

@@ -14,11 +14,4 @@ void cli_job_message(char *buf, size_t size, const sb_context_t *ctx, sb_result_
 /* Print it ("sepbrdf CMD: ...") and return the exit code. */
 int cli_job_fail(const char *cmd, const sb_context_t *ctx, sb_result_t r, size_t terms);
 
-/* Guard the output set of sb_job_write in `dir` against signals (see
- * cli_guard): its temporaries and, with on, the finished files g_KK.exr,
- * h_KK.exr (K < terms), sepbrdf.glsl and report.json, so that a run
- * interrupted while writing leaves neither temporaries nor a set mixing
- * two runs.  on = 0 releases. */
-void pipe_guard_factor_outputs(const char *dir, size_t terms, int on);
-
 #endif
