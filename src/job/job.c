@@ -92,7 +92,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
     job->t_start = t0;
-    job->src = src;
+    job->src = job->eval_src = src;
     job->own_src = own;
     sb_param_kind_t kind;
     sb_form_t form;

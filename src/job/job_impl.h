@@ -33,6 +33,7 @@ struct sb_job {
     char *source_spec; /* o.source points here */
     sb_source_t *own_src;
     const sb_source_t *src;
+    const sb_source_t *eval_src; /* what is evaluated: src, or its memo while screening */
     int is_auto;
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
@@ -53,6 +54,10 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
 sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
 void job_attempt_free(job_attempt_t *a);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
+
+/* A source answering as src does, remembering up to 3/4 cap pairs (cap a
+ * power of two); src must outlive it. */
+sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t cap, sb_source_t **out);
 
 /* The candidates of the job (job->cands, job->ncand) and the kept one,
  * sampled and factored at the requested settings, in job->best. */

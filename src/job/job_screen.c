@@ -37,7 +37,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         mo.progress = sample_progress;
         mo.progress_user = (void *)pu;
     }
-    if ((r = sb_matrix_build(ctx, job->src, a->param, &mo, &a->m)) != SB_OK) return r;
+    if ((r = sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m)) != SB_OK) return r;
     a->t_sample = job_now() - t0;
     return SB_OK;
 }
@@ -75,7 +75,7 @@ sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     sb_metric_opts_t mo = {0};
     mo.res = lv->metric_res;
-    if ((r = sb_metric_compute(ctx, job->src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
+    if ((r = sb_metric_compute(ctx, job->eval_src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
     a->t_factor = t2 - t1;
     a->t_metric = job_now() - t2;
     return SB_OK;
@@ -191,6 +191,8 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
                         job->o.terms, job->o.res);
     return SB_OK;
 }
+
+#define SB_JOB_MEMO_CAP ((size_t)1 << 16)
 
 /* The same layout as `from` (sampled as f, dense) with form `form`: each
  * valid cell times the form weight of its direction pair, as
@@ -359,7 +361,15 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
         return r;
     }
     double t0 = job_now();
+    /* a measured table: the screening grids and the reference grid of the
+     * candidates' errors repeat pairs, each an interpolation */
+    sb_source_t *memo = NULL;
+    if ((sb_source_flags(job->src) & SB_SOURCE_MEASURED) &&
+        job_memo_create(ctx, job->src, SB_JOB_MEMO_CAP, &memo) == SB_OK)
+        job->eval_src = memo;
     screen(ctx, job);
+    job->eval_src = job->src;
+    sb_source_destroy(memo);
     job->t.screen_s = job_now() - t0;
     size_t order[JOB_MAX_CANDS], n = rank(job, order);
     sb_result_t r = SB_ERR_NUMERIC;
