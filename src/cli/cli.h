@@ -86,6 +86,9 @@ int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void 
  * into base + offset and return 1 (*matched = the row, when matched is not
  * NULL); 0 if not one; -1 on a missing or bad value (message printed). */
 int cli_table_opt(cli_args_t *a, const cli_option_t *table, unsigned command, void *base, const cli_option_t **matched);
+/* "first, io, io-area, ..." (the library's parameterisation names) into
+ * buf, for messages; first may be "". */
+void cli_param_names(char *buf, size_t size, const char *first);
 /* The --help lines of the rows `command` takes. */
 void cli_table_help(const cli_option_t *table, unsigned command);
 

@@ -79,16 +79,18 @@ static int parse(int argc, char **argv, sb_job_opts_t *o, const char **out) {
 
 static void print_candidates(const sb_job_t *job) {
     const sb_job_candidate_t *c;
-    fprintf(stderr, "--param auto screened (comparable error at J on the coarse grid, time):\n");
+    fprintf(stderr, "--param auto screened (comparable error at J on an R-cell grid; time):\n");
     for (size_t i = 0; (c = sb_job_candidate(job, i)) != NULL; i++) {
         if (c->ok)
-            fprintf(stderr, "  %-8s form %-4s %s %.4e  (%.3f s)\n", sb_param_kind_name(c->kind), sb_form_name(c->form),
-                    c->weighted ? "weighted" : "        ", c->error, c->time_s);
+            fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s%s\n", sb_param_kind_name(c->kind),
+                    sb_form_name(c->form), c->weighted ? "weighted" : "        ", c->error, c->res, c->time_s,
+                    c->kept      ? "  kept"
+                    : c->dropped ? "  dropped"
+                                 : "");
         else
             fprintf(stderr, "  %-8s form %-4s failed: %s\n", sb_param_kind_name(c->kind), sb_form_name(c->form),
                     c->why);
     }
-    fprintf(stderr, "  kept %s, form %s\n", sb_param_spec(sb_job_param(job)), sb_form_name(sb_job_form(job)));
 }
 
 /* -v: what the stages of the kept candidate did, on stderr. */

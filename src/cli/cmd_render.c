@@ -11,53 +11,8 @@
 
 #define DEFAULT_OUT "sepbrdf-render"
 #define MAX_TERMS_LIST 64
-
-static void help(void) {
-    printf("usage: sepbrdf render [SOURCE | DIR] [OPTIONS]\n"
-           "\n"
-           "Render a lit sphere with the original BRDF and with its separable\n"
-           "reconstruction from J terms, for each J asked, and write into the output folder:\n"
-           "  original.png         the original\n"
-           "  render_JNN.png       original | reconstruction | difference x diff-scale\n"
-           "  render.json          errors per J, settings\n"
-           "Prints per J the RMS error of linear radiance and the RMSE and PSNR of the\n"
-           "display values (tone mapped, sRGB encoded, in [0, 1]) over the sphere's pixels.\n"
-           "\n"
-           "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
-           "        factor` does (default: " SB_JOB_DEFAULT_SOURCE ").\n"
-           "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation\n"
-           "        and form; the original is --source, else SOURCE as factor was given\n"
-           "        it (report.json), else the source the EXR files record.\n"
-           "\n"
-           "options:\n"
-           "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n"
-           "  -J, --terms LIST     numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\n"
-           "                       for DIR every J of the folder)\n"
-           "      --source SPEC    the original to compare with (DIR only)\n"
-           "  -s, --size N         image width and height in pixels, 8..4096 (default 256)\n"
-           "      --light-elev DEG elevation of the light above the image plane, towards\n"
-           "                       the viewer, 0..90 (default 45)\n"
-           "      --light-azim DEG azimuth in the image plane from right towards up\n"
-           "                       (default 45)\n"
-           "      --light EL,AZ[,E]\n"
-           "                       one more light (repeatable, up to %d in all), E its\n"
-           "                       irradiance (default pi)\n"
-           "      --exposure X|auto\n"
-           "                       multiply radiance by X before tone mapping; auto\n"
-           "                       (default): 1 / the original's brightest channel\n"
-           "      --tonemap T      clamp (default) or reinhard (x / (1 + x))\n"
-           "      --diff-scale N   magnification of the difference panel (default 4)\n"
-           "options of `sepbrdf factor`, for a SOURCE only (the same defaults; J is the\n"
-           "largest of --terms):\n",
-           SB_RENDER_MAX_LIGHTS);
-    cli_table_help(cli_factor_options, CLI_RENDER);
-    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
-           "\n"
-           "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
-           "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
-           "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
-           "\n" CLI_EXIT_HELP);
-}
+#define STR_(x) #x
+#define STR(x) STR_(x)
 
 typedef struct render_opts {
     const char *input, *out, *source;
@@ -70,7 +25,9 @@ typedef struct render_opts {
     double diff_scale;
 } render_opts_t;
 
-static int parse_terms(const char *v, render_opts_t *o) {
+static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    render_opts_t *o = dst;
     o->nterms = 0;
     const char *s = v;
     while (1) {
@@ -94,7 +51,9 @@ static int parse_terms(const char *v, render_opts_t *o) {
     return 0;
 }
 
-static int parse_light(const char *v, render_opts_t *o) {
+static int set_light(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    render_opts_t *o = dst;
     double a[3] = {0, 0, 0};
     int n = 0;
     const char *s = v;
@@ -129,55 +88,102 @@ static int parse_light(const char *v, render_opts_t *o) {
     return 0;
 }
 
+static int set_exposure(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    double *x = dst;
+    if (strcmp(v, "auto") == 0) {
+        *x = 0;
+        return 0;
+    }
+    return cli_parse_double(cmd, op->name, v, 1e-6, 1e6, x);
+}
+
+static int set_tonemap(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    if (sb_tonemap_parse(v, dst) == SB_OK) return 0;
+    cli_error(cmd, "%s '%s' unknown, need %s or %s", op->name, v, sb_tonemap_name(SB_TONEMAP_CLAMP),
+              sb_tonemap_name(SB_TONEMAP_REINHARD));
+    return -1;
+}
+
+static int set_string(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    *(const char **)dst = v;
+    return 0;
+}
+
+/* The options of `render` alone (stored into its render_opts_t). */
+#define AT(m) offsetof(render_opts_t, m)
+static const cli_option_t render_only[] = {
+    {"-J", "--terms", "LIST", "numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\nfor DIR every J of the folder)",
+     set_terms, 0, 0, 0, CLI_RENDER},
+    {NULL, "--source", "SPEC", "the original to compare with (DIR only)", set_string, AT(source), 0, 0, CLI_RENDER},
+    {"-s", "--size", "N", "image width and height in pixels, 8..4096 (default 256)", cli_set_size, AT(scene.size), 8,
+     4096, CLI_RENDER},
+    {NULL, "--light-elev", "DEG",
+     "elevation of the light above the image plane, towards\nthe viewer, 0..90 (default 45)", cli_set_double, AT(elev),
+     0, 90, CLI_RENDER},
+    {NULL, "--light-azim", "DEG", "azimuth in the image plane from right towards up\n(default 45)", cli_set_double,
+     AT(azim), -360, 360, CLI_RENDER},
+    {NULL, "--light", "EL,AZ[,E]",
+     "one more light (repeatable, up to " STR(SB_RENDER_MAX_LIGHTS) " in all), E its\nirradiance (default pi)",
+     set_light, 0, 0, 0, CLI_RENDER},
+    {NULL, "--exposure", "X|auto",
+     "multiply radiance by X before tone mapping; auto\n(default): 1 / the original's brightest channel", set_exposure,
+     AT(tm.exposure), 0, 0, CLI_RENDER},
+    {NULL, "--tonemap", "T", "clamp (default) or reinhard (x / (1 + x))", set_tonemap, AT(tm.op), 0, 0, CLI_RENDER},
+    {NULL, "--diff-scale", "N", "magnification of the difference panel (default 4)", cli_set_double, AT(diff_scale),
+     1e-3, 1e6, CLI_RENDER},
+    {0},
+};
+#undef AT
+
+static void help(void) {
+    printf("usage: sepbrdf render [SOURCE | DIR] [OPTIONS]\n"
+           "\n"
+           "Render a lit sphere with the original BRDF and with its separable\n"
+           "reconstruction from J terms, for each J asked, and write into the output folder:\n"
+           "  original.png         the original\n"
+           "  render_JNN.png       original | reconstruction | difference x diff-scale\n"
+           "  render.json          errors per J, settings\n"
+           "Prints per J the RMS error of linear radiance and the RMSE and PSNR of the\n"
+           "display values (tone mapped, sRGB encoded, in [0, 1]) over the sphere's pixels.\n"
+           "\n"
+           "SOURCE  MODEL[:key=value,...] or a measured file: factored first, as `sepbrdf\n"
+           "        factor` does (default: " SB_JOB_DEFAULT_SOURCE ").\n"
+           "DIR     a folder written by `sepbrdf factor`: its factors, parameterisation\n"
+           "        and form; the original is --source, else SOURCE as factor was given\n"
+           "        it, else the source description (both in the EXR headers).\n"
+           "\n"
+           "options:\n"
+           "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n");
+    cli_table_help(render_only, CLI_RENDER);
+    printf("options of `sepbrdf factor`, for a SOURCE only (the same defaults; J is the\n"
+           "largest of --terms):\n");
+    cli_table_help(cli_factor_options, CLI_RENDER);
+    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
+           "\n"
+           "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
+           "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
+           "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
+           "\n" CLI_EXIT_HELP);
+}
+
 static int parse(int argc, char **argv, render_opts_t *o) {
-    static const char *const n_terms[] = {"-J", "--terms", NULL}, *const n_src[] = {"--source", NULL},
-                             *const n_size[] = {"-s", "--size", NULL}, *const n_el[] = {"--light-elev", NULL},
-                             *const n_az[] = {"--light-azim", NULL}, *const n_light[] = {"--light", NULL},
-                             *const n_exp[] = {"--exposure", NULL}, *const n_tm[] = {"--tonemap", NULL},
-                             *const n_diff[] = {"--diff-scale", NULL}, *const n_help[] = {"-h", "--help", NULL};
+    static const char *const n_help[] = {"-h", "--help", NULL};
     cli_args_t a = {argc, 1, argv, "render"};
     for (; a.i < argc; a.i++) {
         const char *v = NULL, *arg = argv[a.i];
         const cli_option_t *fo = NULL;
         int m;
-        if ((m = cli_opt(&a, n_help, 0, &v))) {
+        if (cli_opt(&a, n_help, 0, &v)) {
             help();
             return 0;
         }
-        if ((m = cli_out_opt(&a, "folder", &o->out))) {
+        if ((m = cli_out_opt(&a, "folder", &o->out)) || (m = cli_table_opt(&a, render_only, CLI_RENDER, o, NULL)) ||
+            (m = cli_measured_opt(&a, &o->job.measured))) {
             if (m < 0) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_terms, 1, &v))) {
-            if (m < 0 || parse_terms(v, o)) return EXIT_USAGE;
         } else if ((m = cli_table_opt(&a, cli_factor_options, CLI_RENDER, &o->job, &fo))) {
             if (m < 0) return EXIT_USAGE;
             o->factor_opt_name = fo->name;
-        } else if ((m = cli_opt(&a, n_src, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            o->source = v;
-        } else if ((m = cli_opt(&a, n_size, 1, &v))) {
-            if (m < 0 || cli_parse_size("render", "--size", v, 8, 4096, &o->scene.size)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_el, 1, &v))) {
-            if (m < 0 || cli_parse_double("render", "--light-elev", v, 0, 90, &o->elev)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_az, 1, &v))) {
-            if (m < 0 || cli_parse_double("render", "--light-azim", v, -360, 360, &o->azim)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_light, 1, &v))) {
-            if (m < 0 || parse_light(v, o)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_exp, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (strcmp(v, "auto") == 0)
-                o->tm.exposure = 0;
-            else if (cli_parse_double("render", "--exposure", v, 1e-6, 1e6, &o->tm.exposure))
-                return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_tm, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (sb_tonemap_parse(v, &o->tm.op) != SB_OK) {
-                cli_error("render", "--tonemap '%s' unknown, need clamp or reinhard", v);
-                return EXIT_USAGE;
-            }
-        } else if ((m = cli_opt(&a, n_diff, 1, &v))) {
-            if (m < 0 || cli_parse_double("render", "--diff-scale", v, 1e-3, 1e6, &o->diff_scale)) return EXIT_USAGE;
-        } else if ((m = cli_measured_opt(&a, &o->job.measured))) {
-            if (m < 0) return EXIT_USAGE;
         } else if (cli_verbosity_opt(arg)) {
         } else if (arg[0] == '-' && arg[1]) {
             cli_error("render", "unknown option '%s' (see `sepbrdf render --help`)", arg);

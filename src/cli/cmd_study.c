@@ -213,14 +213,18 @@ static int parse_params(const char *s, study_opts_t *o) {
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         sb_param_kind_t k;
         if (sb_param_kind_parse(t, &k) != SB_OK) {
-            cli_error("study", "--param '%s' unknown, need a comma list of io, io-area, hd, iso, or all", t);
+            char names[128];
+            cli_param_names(names, sizeof names, "");
+            cli_error("study", "--param '%s' unknown, need a comma list of %s, or all", t, names);
             return -1;
         }
         o->params |= 1u << k;
     }
     if (o->params) return 0;
 bad:
-    cli_error("study", "--param '%s': need a comma list of io, io-area, hd, iso, or all", s);
+    char names[128];
+    cli_param_names(names, sizeof names, "");
+    cli_error("study", "--param '%s': need a comma list of %s, or all", s, names);
     return -1;
 }
 

@@ -21,8 +21,7 @@ int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void 
     return cli_parse_double(cmd, op->name, v, op->lo, op->hi, dst);
 }
 
-/* The names a value may take, from the library's tables, for messages. */
-static void param_names(char *buf, size_t size, const char *first) {
+void cli_param_names(char *buf, size_t size, const char *first) {
     snprintf(buf, size, "%s", first);
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
         snprintf(buf + strlen(buf), size - strlen(buf), "%s%s", *buf ? ", " : "",
@@ -33,7 +32,7 @@ static int set_param(const char *cmd, const cli_option_t *op, const char *v, voi
     sb_param_kind_t k;
     if (strcmp(v, "auto") != 0 && sb_param_kind_parse(v, &k) != SB_OK) {
         char names[128];
-        param_names(names, sizeof names, "auto");
+        cli_param_names(names, sizeof names, "auto");
         cli_error(cmd, "%s '%s' unknown, need one of %s", op->name, v, names);
         return -1;
     }
@@ -54,7 +53,11 @@ static int set_form(const char *cmd, const cli_option_t *op, const char *v, void
 
 static int set_method(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     if (sb_method_parse(v, dst) != SB_OK) {
-        cli_error(cmd, "%s '%s' unknown, need one of auto, full, topk, randomized", op->name, v);
+        char names[128] = "";
+        for (int m = 0; m < SB_METHOD_COUNT_; m++)
+            snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", m ? ", " : "",
+                     sb_method_name((sb_method_t)m));
+        cli_error(cmd, "%s '%s' unknown, need one of %s", op->name, v, names);
         return -1;
     }
     return 0;
