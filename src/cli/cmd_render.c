@@ -254,6 +254,150 @@ static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src
     json_end_object(j);
 }
 
+/* What is rendered: a factors folder's or the job's factors, and the
+ * original. */
+typedef struct render_input {
+    sb_source_t *src;
+    sb_param_t *param; /* a folder's (owned) */
+    sb_factors_t *f;
+    sb_job_t *job; /* a SOURCE factored */
+    const sb_param_t *pc;
+    const sb_factors_t *fc;
+    sb_form_t form;
+} render_input_t;
+
+static void input_free(render_input_t *in) {
+    sb_job_destroy(in->job);
+    sb_factors_destroy(in->f);
+    sb_param_destroy(in->param);
+    sb_source_destroy(in->src);
+}
+
+/* A folder written by `factor`: its factors, and the original from
+ * --source, else the spec or description the factors record. */
+static int open_dir(sb_context_t *ctx, render_opts_t *o, render_input_t *in) {
+    sb_result_t r;
+    if ((r = sb_factors_read_exr(ctx, o->input, &in->f)) != SB_OK ||
+        (r = sb_factors_param(ctx, in->f, &in->param, &in->form)) != SB_OK)
+        return cli_fail("render", ctx, r);
+    in->pc = in->param;
+    in->fc = in->f;
+    const char *spec = o->source;
+    if (!spec) spec = sb_factors_get_meta(in->f, "source_spec");
+    if (!spec) spec = sb_factors_get_meta(in->f, "source");
+    if (!spec) {
+        cli_error("render", "%s records no source; name the original with --source", o->input);
+        return EXIT_IO;
+    }
+    if ((r = sb_job_source_open(ctx, spec, &o->job.measured, &in->src)) != SB_OK) {
+        if (o->source) return cli_fail("render", ctx, r);
+        cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o->input, spec,
+                  sb_context_last_error(ctx));
+        return cli_exit_code(r);
+    }
+    size_t J = sb_factors_terms(in->f);
+    if (o->nterms == 0)
+        for (size_t k = 1; k <= J && k <= MAX_TERMS_LIST; k++)
+            o->terms[o->nterms++] = k;
+    for (size_t k = 0; k < o->nterms; k++)
+        if (o->terms[k] > J) {
+            cli_error("render", "--terms %zu: %s holds %zu terms", o->terms[k], o->input, J);
+            return EXIT_USAGE;
+        }
+    return EXIT_OK;
+}
+
+/* A SOURCE: factored as `sepbrdf factor` does, with J the largest asked. */
+static int factor_input(sb_context_t *ctx, render_opts_t *o, render_input_t *in) {
+    if (o->nterms == 0) {
+        static const size_t def[3] = {1, 2, 4};
+        memcpy(o->terms, def, sizeof def);
+        o->nterms = 3;
+    }
+    size_t J = 0;
+    for (size_t k = 0; k < o->nterms; k++)
+        if (o->terms[k] > J) J = o->terms[k];
+    sb_result_t r = sb_job_source_open(ctx, o->input, &o->job.measured, &in->src);
+    if (r != SB_OK) return cli_fail("render", ctx, r);
+    o->job.source = o->input;
+    o->job.terms = J;
+    r = sb_job_run_source(ctx, in->src, &o->job, &in->job);
+    cli_progress_done();
+    if (r != SB_OK) return cli_job_fail("render", ctx, r, J);
+    for (size_t i = 0; i < sb_job_warning_count(in->job); i++)
+        cli_error("render", "warning: %s", sb_job_warning(in->job, i));
+    in->pc = sb_job_param(in->job);
+    in->fc = sb_job_factors(in->job);
+    in->form = sb_job_form(in->job);
+    return EXIT_OK;
+}
+
+/* Render the original and each reconstruction into the set: PNGs and
+ * render.json; d and names receive one entry per J. */
+static sb_result_t render_set(sb_context_t *ctx, render_opts_t *o, const render_input_t *in, sb_outset_t *set,
+                              sb_image_diff_t *d, char names[][32]) {
+    sb_image_t orig = {0}, rec = {0};
+    sb_result_t r = sb_render_source(ctx, &o->scene, in->src, &orig);
+    if (r == SB_OK && o->tm.exposure == 0) {
+        double peak = sb_image_max(&orig);
+        o->tm.exposure = peak > 0 ? 1 / peak : 1;
+    }
+    if (r == SB_OK) r = write_png(ctx, set, "original.png", &orig, NULL, o);
+    for (size_t k = 0; k < o->nterms && r == SB_OK; k++) {
+        cli_progress("rendering", (double)(k + 1) / (double)(o->nterms + 1));
+        sb_image_free(&rec);
+        if ((r = sb_render_factors(ctx, &o->scene, in->fc, in->pc, in->form, o->terms[k], &rec)) != SB_OK ||
+            (r = sb_image_compare(ctx, &orig, &rec, &o->tm, &d[k])) != SB_OK)
+            break;
+        snprintf(names[k], sizeof names[k], "render_J%02zu.png", o->terms[k]);
+        r = write_png(ctx, set, names[k], &orig, &rec, o);
+    }
+    cli_progress_done();
+    sb_image_free(&orig);
+    sb_image_free(&rec);
+    if (r != SB_OK) return r;
+    char path[4200], tmp[4300];
+    FILE *fp = cli_set_file(set, "render.json", path, sizeof path) ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
+    int e = fp ? 0 : errno;
+    if (fp) {
+        json_t j = {fp, 0, {0}};
+        write_json(&j, o, in->src, in->pc, in->form, d, names);
+        e = cli_commit(fp, tmp, path, 1);
+    }
+    if (e) return sb_error(ctx, SB_ERR_IO, "%s/render.json: cannot write: %s", o->out, sb_io_why(e));
+    return SB_OK;
+}
+
+static void print_result(const render_opts_t *o, const render_input_t *in, const sb_image_diff_t *d) {
+    printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
+           sb_source_description(in->src), sb_param_spec(in->pc), sb_form_name(in->form), o->scene.size, o->scene.size,
+           o->scene.light_count, o->scene.light_count == 1 ? "" : "s", sb_tonemap_name(o->tm.op), o->tm.exposure);
+    printf("%4s  %12s  %12s  %10s  %9s\n", "J", "rmse_linear", "max_linear", "rmse", "psnr_dB");
+    for (size_t k = 0; k < o->nterms; k++)
+        printf("%4zu  %12.4e  %12.4e  %10.4e  %9.2f\n", o->terms[k], d[k].rmse_linear, d[k].max_linear, d[k].rmse,
+               d[k].psnr);
+    printf("wrote original.png, %zu strips (difference x%g) and render.json to %s/\n", o->nterms, o->diff_scale,
+           o->out);
+}
+
+/* Options checked against each other; the defaults filled in. */
+static int settle(render_opts_t *o, int *from_dir) {
+    sb_light_from_angles(o->elev, o->azim, 0, &o->scene.lights[0]);
+    if (o->scene.size == 0) o->scene.size = 256;
+    *from_dir = o->input && is_dir(o->input);
+    if (*from_dir && o->factor_opt_name) {
+        cli_error("render", "%s applies when factoring a SOURCE, not to the factors folder %s", o->factor_opt_name,
+                  o->input);
+        return EXIT_USAGE;
+    }
+    if (!*from_dir && o->source) {
+        cli_error("render", "--source applies to a factors folder; give the SOURCE itself instead");
+        return EXIT_USAGE;
+    }
+    if (!o->input) o->input = SB_JOB_DEFAULT_SOURCE;
+    return cli_check_outdir("render", "--out", o->out);
+}
+
 int cmd_render(int argc, char **argv) {
     render_opts_t o;
     memset(&o, 0, sizeof o);
@@ -262,166 +406,34 @@ int cmd_render(int argc, char **argv) {
     o.azim = 45;
     o.tm.exposure = 0; /* auto */
     o.diff_scale = 4;
-    /* slot 0 is the --light-elev/--light-azim light, filled after parsing */
-    o.scene.light_count = 1;
-    int rc = parse(argc, argv, &o);
+    o.scene.light_count = 1; /* slot 0 is the --light-elev/--light-azim light, filled after parsing */
+    int from_dir, rc = parse(argc, argv, &o);
     if (rc >= 0) return rc;
-    sb_light_from_angles(o.elev, o.azim, 0, &o.scene.lights[0]);
-    if (o.scene.size == 0) o.scene.size = 256;
-    int from_dir = o.input && is_dir(o.input);
-    if (from_dir && o.factor_opt_name) {
-        cli_error("render", "%s applies when factoring a SOURCE, not to the factors folder %s", o.factor_opt_name,
-                  o.input);
-        return EXIT_USAGE;
-    }
-    if (!from_dir && o.source) {
-        cli_error("render", "--source applies to a factors folder; give the SOURCE itself instead");
-        return EXIT_USAGE;
-    }
-    if (!o.input) o.input = SB_JOB_DEFAULT_SOURCE;
-    if ((rc = cli_check_outdir("render", "--out", o.out)) != EXIT_OK) return rc;
-
+    if ((rc = settle(&o, &from_dir)) != EXIT_OK) return rc;
     sb_context_t *ctx = NULL;
-    sb_outset_t *set = NULL;
-    sb_source_t *src = NULL;
-    sb_param_t *param = NULL;
-    sb_factors_t *f = NULL;
-    sb_image_t orig = {0}, rec = {0};
-    sb_job_t *job = NULL;
-    const sb_param_t *pc = NULL; /* what is rendered: the folder's or the job's */
-    const sb_factors_t *fc = NULL;
-    sb_form_t form = SB_FORM_F;
-    sb_result_t r;
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("render", "out of memory");
         return EXIT_IO;
     }
     /* Inputs first: everything is checked before the output folder is touched */
-    if (from_dir) {
-        if ((r = sb_factors_read_exr(ctx, o.input, &f)) != SB_OK) goto fail;
-        if ((r = sb_factors_param(ctx, f, &param, &form)) != SB_OK) goto fail;
-        /* The original: --source, else SOURCE as `factor` was given it
-         * (the factors' "source_spec"), else their source description
-         * (which a model spec is, a measured table's is not) */
-        const char *spec = o.source;
-        if (!spec) spec = sb_factors_get_meta(f, "source_spec");
-        if (!spec) spec = sb_factors_get_meta(f, "source");
-        if (!spec) {
-            cli_error("render", "%s records no source; name the original with --source", o.input);
-            rc = EXIT_IO;
-            goto out;
+    render_input_t in = {0};
+    rc = from_dir ? open_dir(ctx, &o, &in) : factor_input(ctx, &o, &in);
+    sb_outset_t *set = NULL;
+    if (rc == EXIT_OK) {
+        sb_image_diff_t d[MAX_TERMS_LIST];
+        char names[MAX_TERMS_LIST][32];
+        cli_progress("rendering", 0);
+        /* The images go into a staging folder published in one step (outset.h) */
+        if ((set = cli_outset_begin(ctx, "render", o.out, &rc)) != NULL) {
+            sb_result_t r = render_set(ctx, &o, &in, set, d, names);
+            rc = r != SB_OK ? cli_fail("render", ctx, r) : cli_outset_end(ctx, "render", set, 1);
+            if (r == SB_OK) set = NULL;
+            if (rc == EXIT_OK && g_verbosity >= 1) print_result(&o, &in, d);
         }
-        if ((r = sb_job_source_open(ctx, spec, &o.job.measured, &src)) != SB_OK) {
-            if (!o.source) {
-                cli_error("render", "%s: cannot open its recorded source '%s' (%s); name it with --source", o.input,
-                          spec, sb_context_last_error(ctx));
-                rc = cli_exit_code(r);
-                goto out;
-            }
-            goto fail;
-        }
-        size_t J = sb_factors_terms(f);
-        if (o.nterms == 0)
-            for (size_t k = 1; k <= J && k <= MAX_TERMS_LIST; k++)
-                o.terms[o.nterms++] = k;
-        for (size_t k = 0; k < o.nterms; k++)
-            if (o.terms[k] > J) {
-                cli_error("render", "--terms %zu: %s holds %zu terms", o.terms[k], o.input, J);
-                rc = EXIT_USAGE;
-                goto out;
-            }
-    } else {
-        if (o.nterms == 0) {
-            static const size_t def[3] = {1, 2, 4};
-            memcpy(o.terms, def, sizeof def);
-            o.nterms = 3;
-        }
-        size_t J = 0;
-        for (size_t k = 0; k < o.nterms; k++)
-            if (o.terms[k] > J) J = o.terms[k];
-        /* factored as `sepbrdf factor` does, with J the largest asked */
-        if ((r = sb_job_source_open(ctx, o.input, &o.job.measured, &src)) != SB_OK) goto fail;
-        o.job.source = o.input;
-        o.job.terms = J;
-        if ((r = sb_job_run_source(ctx, src, &o.job, &job)) != SB_OK) {
-            cli_progress_done();
-            rc = cli_job_fail("render", ctx, r, J);
-            goto out;
-        }
-        for (size_t i = 0; i < sb_job_warning_count(job); i++)
-            cli_error("render", "warning: %s", sb_job_warning(job, i));
-        pc = sb_job_param(job);
-        fc = sb_job_factors(job);
-        form = sb_job_form(job);
-    }
-    if (!fc) {
-        pc = param;
-        fc = f;
-    }
-
-    /* Render the original, then each reconstruction */
-    cli_progress("rendering", 0);
-    if ((r = sb_render_source(ctx, &o.scene, src, &orig)) != SB_OK) goto fail;
-    if (o.tm.exposure == 0) {
-        double peak = sb_image_max(&orig);
-        o.tm.exposure = peak > 0 ? 1 / peak : 1;
-    }
-    sb_image_diff_t d[MAX_TERMS_LIST];
-    char names[MAX_TERMS_LIST][32], path[4200];
-    /* The images go into a staging folder published in one step (outset.h) */
-    if (!(set = cli_outset_begin(ctx, "render", o.out, &rc))) goto out;
-    if ((r = write_png(ctx, set, "original.png", &orig, NULL, &o)) != SB_OK) goto fail;
-    for (size_t k = 0; k < o.nterms; k++) {
-        cli_progress("rendering", (double)(k + 1) / (double)(o.nterms + 1));
-        sb_image_free(&rec);
-        if ((r = sb_render_factors(ctx, &o.scene, fc, pc, form, o.terms[k], &rec)) != SB_OK) goto fail;
-        if ((r = sb_image_compare(ctx, &orig, &rec, &o.tm, &d[k])) != SB_OK) goto fail;
-        snprintf(names[k], sizeof names[k], "render_J%02zu.png", o.terms[k]);
-        if ((r = write_png(ctx, set, names[k], &orig, &rec, &o)) != SB_OK) goto fail;
     }
     cli_progress_done();
-    char tmp[4300];
-    FILE *fp = cli_set_file(set, "render.json", path, sizeof path) ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
-    int e = fp ? 0 : errno;
-    if (fp) {
-        json_t j = {fp, 0, {0}};
-        write_json(&j, &o, src, pc, form, d, names);
-        e = cli_commit(fp, tmp, path, 1);
-    }
-    if (e) {
-        cli_error("render", "%s/render.json: cannot write: %s", o.out, sb_io_why(e));
-        rc = EXIT_IO;
-        goto out;
-    }
-    if ((rc = cli_outset_end(ctx, "render", set, 1)) != EXIT_OK) {
-        set = NULL;
-        goto out;
-    }
-    set = NULL;
-    if (g_verbosity >= 1) {
-        printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
-               sb_source_description(src), sb_param_spec(pc), sb_form_name(form), o.scene.size, o.scene.size,
-               o.scene.light_count, o.scene.light_count == 1 ? "" : "s", sb_tonemap_name(o.tm.op), o.tm.exposure);
-        printf("%4s  %12s  %12s  %10s  %9s\n", "J", "rmse_linear", "max_linear", "rmse", "psnr_dB");
-        for (size_t k = 0; k < o.nterms; k++)
-            printf("%4zu  %12.4e  %12.4e  %10.4e  %9.2f\n", o.terms[k], d[k].rmse_linear, d[k].max_linear, d[k].rmse,
-                   d[k].psnr);
-        printf("wrote original.png, %zu strips (difference x%g) and render.json to %s/\n", o.nterms, o.diff_scale,
-               o.out);
-    }
-    rc = EXIT_OK;
-    goto out;
-fail:
-    cli_progress_done();
-    rc = cli_fail("render", ctx, r);
-out:
     cli_outset_end(ctx, "render", set, 0); /* a set not published: discarded */
-    sb_image_free(&orig);
-    sb_image_free(&rec);
-    sb_job_destroy(job);
-    sb_factors_destroy(f);
-    sb_param_destroy(param);
-    sb_source_destroy(src);
+    input_free(&in);
     sb_context_destroy(ctx);
     return rc;
 }
