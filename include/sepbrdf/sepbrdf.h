@@ -13,6 +13,7 @@
 #include "models.h"
 #include "param.h"
 #include "render.h"
+#include "solver.h"
 #include "source.h"
 #include "svd.h"
 

@@ -53,7 +53,8 @@ int cli_exit_code(sb_result_t r) {
 
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     const char *detail = sb_context_last_error(ctx);
-    cli_error(cmd, "%s", detail && *detail ? detail : sb_result_message(r));
+    cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r),
+              r == SB_ERR_OVERFLOW ? " (lower --res)" : ""); /* sizes beyond memory come from the resolution */
     return cli_exit_code(r);
 }
 
