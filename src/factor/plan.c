@@ -22,14 +22,14 @@ struct sb_plan {
     sb_context_t *ctx;
     size_t rows, cols, terms;
     sb_plan_opts_t opts;
-    sb_solve_problem_t pb;        /* of the plan; execute adapts mask and period to the matrix */
-    void *state[SB_SOLVERS_MAX];  /* planned solvers, by registry index */
-    double *s, *u, *v;            /* one channel's terms (weighted space) */
-    double *sbase;                /* sigma of the base channel (proportional channels) */
-    double *x;                    /* weighted copy of a channel (weighted plans only) */
-    double *wr, *wc;              /* row / column weights (weighted plans only) */
-    double *ssq, *mx, *scratch;   /* errors: 3 J sums, 3 J maxima, residual scratch */
-    int nthreads;                 /* residual threads */
+    sb_solve_problem_t pb;       /* of the plan; execute adapts mask and period to the matrix */
+    void *state[SB_SOLVERS_MAX]; /* planned solvers, by registry index */
+    double *s, *u, *v;           /* one channel's terms (weighted space) */
+    double *sbase;               /* sigma of the base channel (proportional channels) */
+    double *x;                   /* weighted copy of a channel (weighted plans only) */
+    double *wr, *wc;             /* row / column weights (weighted plans only) */
+    double *ssq, *mx, *scratch;  /* errors: 3 J sums, 3 J maxima, residual scratch */
+    int nthreads;                /* residual threads */
     sb_plan_stats_t stats;
 };
 
@@ -47,8 +47,8 @@ typedef struct run {
 static sb_result_t plan_solver(sb_plan_t *p, const sb_solve_problem_t *pb, size_t *index) {
     size_t i = sb_solver_index(pb);
     if (i >= sb_solver_count())
-        return sb_error(p->ctx, SB_ERR_UNSUPPORTED, "plan: no solver takes a %zu x %zu matrix with %zu terms",
-                        pb->rows, pb->cols, pb->terms);
+        return sb_error(p->ctx, SB_ERR_UNSUPPORTED, "plan: no solver takes a %zu x %zu matrix with %zu terms", pb->rows,
+                        pb->cols, pb->terms);
     *index = i;
     if (p->state[i]) return SB_OK;
     return sb_solver_at(i)->plan(p->ctx, pb, &p->state[i]);
@@ -331,8 +331,8 @@ static sb_result_t finish_errors(sb_plan_t *p, const run_t *rn, sb_factors_t *f)
 static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param) {
     if (!m || !param) return sb_error(p->ctx, SB_ERR_ARG, "plan: missing matrix, parameterisation or output");
     if (m->rows != p->rows || m->cols != p->cols)
-        return sb_error(p->ctx, SB_ERR_ARG, "plan: matrix is %zu x %zu, plan was made for %zu x %zu", m->rows,
-                        m->cols, p->rows, p->cols);
+        return sb_error(p->ctx, SB_ERR_ARG, "plan: matrix is %zu x %zu, plan was made for %zu x %zu", m->rows, m->cols,
+                        p->rows, p->cols);
     size_t gw, gh, hw, hh;
     sb_param_texture_size(param, SB_SIDE_G, &gw, &gh);
     sb_param_texture_size(param, SB_SIDE_H, &hw, &hh);

@@ -12,12 +12,12 @@
 /* What the plan knows before the data: shape, terms, options. */
 typedef struct sb_solve_problem {
     size_t rows, cols, terms;
-    sb_svd_opts_t svd;   /* dense methods */
-    int fit_max_iters;   /* masked fit */
-    double fit_tol;      /* masked fit */
-    double max_error;    /* stop target (0 = all terms) */
-    size_t period;       /* block-circulant period R (rows == cols == R^2), 0 = none */
-    int masked;          /* cells to exclude */
+    sb_svd_opts_t svd; /* dense methods */
+    int fit_max_iters; /* masked fit */
+    double fit_tol;    /* masked fit */
+    double max_error;  /* stop target (0 = all terms) */
+    size_t period;     /* block-circulant period R (rows == cols == R^2), 0 = none */
+    int masked;        /* cells to exclude */
 } sb_solve_problem_t;
 
 /* One channel. */
@@ -52,8 +52,7 @@ typedef struct sb_solver {
      * pw^2) and mx[J'-1] the max |error| in native units of the last
      * execute's terms scaled by t (a proportional channel: t A), and *n2 =
      * ||W_r A W_c||^2 pw^2 of this channel's data. */
-    sb_result_t (*exact)(void *state, const sb_solve_in_t *in, double t, size_t J, double *ssq, double *mx,
-                         double *n2);
+    sb_result_t (*exact)(void *state, const sb_solve_in_t *in, double t, size_t J, double *ssq, double *mx, double *n2);
     /* SB_CAP_STRUCTURED: rows of A that hold every distinct value (the
      * rest repeat them), so scans of A can stop there. */
     size_t (*distinct_rows)(const void *state);

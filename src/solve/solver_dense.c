@@ -21,13 +21,35 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     return sb_svd_execute(state, in->x, in->ldx, out->s, out->u, out->v, NULL, NULL);
 }
 
-const sb_solver_t sb_solver_full = {
-    "full", "LAPACK dgesdd: every singular value, optimal truncation", SB_CAP_ORTHONORMAL | SB_CAP_ALL_SIGMA,
-    takes_full, plan, destroy, NULL, execute, NULL, NULL};
+const sb_solver_t sb_solver_full = {"full",
+                                    "LAPACK dgesdd: every singular value, optimal truncation",
+                                    SB_CAP_ORTHONORMAL | SB_CAP_ALL_SIGMA,
+                                    takes_full,
+                                    plan,
+                                    destroy,
+                                    NULL,
+                                    execute,
+                                    NULL,
+                                    NULL};
 
-const sb_solver_t sb_solver_topk = {"topk", "the exact leading terms: Gram matrix, dsyevr and a Rayleigh-Ritz step",
-                                    SB_CAP_ORTHONORMAL, takes_topk, plan, destroy, NULL, execute, NULL, NULL};
+const sb_solver_t sb_solver_topk = {"topk",
+                                    "the exact leading terms: Gram matrix, dsyevr and a Rayleigh-Ritz step",
+                                    SB_CAP_ORTHONORMAL,
+                                    takes_topk,
+                                    plan,
+                                    destroy,
+                                    NULL,
+                                    execute,
+                                    NULL,
+                                    NULL};
 
-const sb_solver_t sb_solver_randomized = {
-    "randomized", "Halko-Martinsson-Tropp range finder with block Krylov iterations (seeded)", SB_CAP_ORTHONORMAL,
-    takes_rand, plan, destroy, NULL, execute, NULL, NULL};
+const sb_solver_t sb_solver_randomized = {"randomized",
+                                          "Halko-Martinsson-Tropp range finder with block Krylov iterations (seeded)",
+                                          SB_CAP_ORTHONORMAL,
+                                          takes_rand,
+                                          plan,
+                                          destroy,
+                                          NULL,
+                                          execute,
+                                          NULL,
+                                          NULL};
