@@ -144,7 +144,7 @@ typedef struct sb_plan_opts {
     int weighted;
     /* Cells with mask 0 (outside the domain, unmeasured) are excluded from
      * the fit by iterative imputation (see fit.c) unless zero_fill is set,
-     * in which case they are factored as zeros (the seeds' plain method). */
+     * in which case they are factored as zeros (the lecture's plain method). */
     int zero_fill;
     int fit_max_iters; /* masked fit: outer iterations, default 300 */
     double

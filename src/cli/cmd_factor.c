@@ -107,7 +107,7 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             if (strcmp(v, "auto") == 0) {
                 o->param_auto = 1;
             } else if (sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("factor", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
+                cli_error("factor", "--param '%s' unknown, need one of auto, %s", v, cli_param_names());
                 return EXIT_USAGE;
             } else {
                 o->param_auto = 0;

@@ -158,7 +158,7 @@ size_t pipe_candidates(const sb_source_t *src, const pipe_opts_t *o, int param_a
         return n;
     }
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-        if (k == SB_PARAM_ISO && !(sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) continue;
+        if (!sb_param_kind_applies((sb_param_kind_t)k, sb_source_flags(src))) continue;
         sb_param_t *probe = NULL;
         sb_param_opts_t po = {0};
         po.res = o->res;

@@ -58,6 +58,12 @@ int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     return cli_exit_code(r);
 }
 
+const char *cli_param_names(void) {
+    static char names[256];
+    if (!names[0]) sb_param_kind_list(names, sizeof names, ", ");
+    return names;
+}
+
 int cli_verbosity_opt(const char *arg) {
     if (strcmp(arg, "-q") == 0 || strcmp(arg, "--quiet") == 0) {
         g_verbosity = 0;

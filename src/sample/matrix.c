@@ -324,23 +324,3 @@ void sb_matrix_free(sb_matrix_t *m) {
     free(m->mask);
     memset(m, 0, sizeof *m);
 }
-
-double sb_matrix_norm(const sb_matrix_t *m, int ch) {
-    if (ch < 0 || ch > 2 || !m->data[ch]) return 0;
-    const double *a = m->data[ch];
-    double scale = 0, ssq = 1;
-    for (size_t c = 0; c < m->cols; c++)
-        for (size_t r = 0; r < m->rows; r++) {
-            size_t at = r + c * m->ld;
-            if (m->mask && !m->mask[at]) continue;
-            double v = fabs(a[at]);
-            if (v == 0) continue;
-            if (scale < v) {
-                ssq = 1 + ssq * (scale / v) * (scale / v);
-                scale = v;
-            } else {
-                ssq += (v / scale) * (v / scale);
-            }
-        }
-    return scale * sqrt(ssq);
-}
