@@ -287,8 +287,8 @@ static int take_rows(run_t *r, const study_opts_t *o, const attempt_t *a, size_t
         row_t *w = &r->r[r->nr++];
         w->terms = j;
         w->comparable = a->metric.rel_l2[j - 1];
-        w->rel_rms = e->rel_rms[(j - 1) * 4 + 3];
-        w->max_abs = e->max_abs[(j - 1) * 4 + 3];
+        w->rel_rms = e->rel_rms[sb_err_at(j - 1, SB_CH_ALL)];
+        w->max_abs = e->max_abs[sb_err_at(j - 1, SB_CH_ALL)];
         w->neg_frac = a->metric.neg_frac[j - 1];
         w->t_factor = a->t_factor;
         w->t_metric = a->t_metric;

@@ -132,19 +132,19 @@ sb_result_t sb_errors_relative(sb_context_t *ctx, size_t J, const int present[3]
     for (int c = 0; c < 3; c++)
         if (present[c]) total2 += n2[c];
     for (size_t t = 0; t < J; t++) {
-        double s2 = 0, *e = rel_rms + t * 4;
+        double s2 = 0, *all = &rel_rms[sb_err_at(t, SB_CH_ALL)];
         for (size_t c = 0; c < 3; c++) {
             if (!present[c]) continue;
             double sc = ssq[c * J + t];
-            e[c] = n2[c] > 0 ? sqrt(sc / n2[c]) : 0;
+            rel_rms[sb_err_at(t, c)] = n2[c] > 0 ? sqrt(sc / n2[c]) : 0;
             s2 += sc;
             if (max_abs) {
-                max_abs[t * 4 + c] = mx[c * J + t];
-                if (mx[c * J + t] > max_abs[t * 4 + 3]) max_abs[t * 4 + 3] = mx[c * J + t];
+                max_abs[sb_err_at(t, c)] = mx[c * J + t];
+                if (mx[c * J + t] > max_abs[sb_err_at(t, SB_CH_ALL)]) max_abs[sb_err_at(t, SB_CH_ALL)] = mx[c * J + t];
             }
         }
-        e[3] = total2 > 0 ? sqrt(s2 / total2) : 0;
-        if (!isfinite(e[3])) return sb_error(ctx, SB_ERR_NUMERIC, "errors: non-finite error after %zu terms", t + 1);
+        *all = total2 > 0 ? sqrt(s2 / total2) : 0;
+        if (!isfinite(*all)) return sb_error(ctx, SB_ERR_NUMERIC, "errors: non-finite error after %zu terms", t + 1);
     }
     return SB_OK;
 }
@@ -322,7 +322,7 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
                     dd += dGdG[ba] * HH[ba] + 2 * dGGq[ba] * HdH2[ba] + GqGq[ba] * dHdH[ba];
                 }
             }
-            double r = fe->rel_rms[b * 4 + (size_t)ch] * nx, s2 = r * r + 2 * (xd - gd) + dd;
+            double r = fe->rel_rms[sb_err_at(b, ch)] * nx, s2 = r * r + 2 * (xd - gd) + dd;
             if (s2 < 0) s2 = 0;
             ssq[(size_t)ch * J + b] = s2;
         }

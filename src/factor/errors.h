@@ -32,8 +32,8 @@ size_t sb_resid_scratch(size_t rows, size_t terms, int threads);
 /* ssq and mx receive `terms` values, *n2 one (see above). */
 void sb_resid_channel(const sb_resid_t *in, int threads, double *scratch, double *ssq, double *mx, double *n2);
 
-/* Relative errors from the per-channel sums: rel_rms[t * 4 + c] =
- * sqrt(ssq[c * J + t] / n2[c]) for the present channels, index 3 the
+/* Relative errors from the per-channel sums: rel_rms[sb_err_at(t, c)] =
+ * sqrt(ssq[c * J + t] / n2[c]) for the present channels, SB_CH_ALL the
  * channels together, sqrt(sum_c ssq / sum_c n2); max_abs (may be NULL)
  * from mx[c * J + t] likewise, index 3 the largest.  Channels not present
  * stay 0.  SB_ERR_NUMERIC when an error is not finite. */
