@@ -60,7 +60,7 @@
 /* ---- samples ----------------------------------------------------------- */
 
 sb_result_t sb_samples_push_(sb_context_t *ctx, const char *path, sb_samples_t *ss, const double wi[3],
-                                const double wo[3], const double f[3], sb_measured_info_t *info) {
+                             const double wo[3], const double f[3], sb_measured_info_t *info) {
     if (ss->n == ss->cap) {
         size_t cap = ss->cap ? 2 * ss->cap : 1024, bytes;
         if (cap > SB_MAX_ROWS) cap = SB_MAX_ROWS;
@@ -444,7 +444,7 @@ static int key_cmp(const void *a, const void *b) {
 
 /* Build the source from the samples. */
 sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *ss, int iso, int recip,
-                                const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out) {
+                             const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out) {
     sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_QUADRATIC : o->interp;
     if (ss->n == 0)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: no usable samples (%zu rows: %zu NaN, %zu at or below the horizon)",
@@ -565,4 +565,3 @@ fail:
     table_destroy(t);
     return r;
 }
-
