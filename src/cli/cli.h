@@ -29,6 +29,8 @@ void cli_info(int level, const char *fmt, ...) __attribute__((format(printf, 2, 
 int cli_exit_code(sb_result_t r);
 /* Report a failed library call with the context's detail; returns the exit code. */
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r);
+/* "io, io-area, hd, iso": the parameterisations of the library's registry. */
+const char *cli_param_names(void);
 
 /* Option parsing helpers: "--opt=value" or "--opt value". */
 typedef struct cli_args {
@@ -86,9 +88,6 @@ int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void 
  * into base + offset and return 1 (*matched = the row, when matched is not
  * NULL); 0 if not one; -1 on a missing or bad value (message printed). */
 int cli_table_opt(cli_args_t *a, const cli_option_t *table, unsigned command, void *base, const cli_option_t **matched);
-/* "first, io, io-area, ..." (the library's parameterisation names) into
- * buf, for messages; first may be "". */
-void cli_param_names(char *buf, size_t size, const char *first);
 /* The --help lines of the rows `command` takes. */
 void cli_table_help(const cli_option_t *table, unsigned command);
 

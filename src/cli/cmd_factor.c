@@ -118,10 +118,11 @@ static void print_table(const sb_job_t *job) {
         if (m->data[c]) printf("  %10s_%s", "rel_rms", cn[c]);
     printf("\n");
     for (size_t k = 0; k < sb_factors_terms(f); k++) {
-        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, sb_job_comparable(job, k + 1), e->rel_rms[k * 4 + 3],
-               e->max_abs[k * 4 + 3], 100 * sb_job_negative(job, k + 1));
+        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, sb_job_comparable(job, k + 1),
+               e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
+               100 * sb_job_negative(job, k + 1));
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) printf("  %12.4e", e->rel_rms[k * 4 + (size_t)c]);
+            if (m->data[c]) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
         printf("\n");
     }
 }

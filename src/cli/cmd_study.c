@@ -171,18 +171,14 @@ static int parse_params(const char *s, study_opts_t *o) {
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         sb_param_kind_t k;
         if (sb_param_kind_parse(t, &k) != SB_OK) {
-            char names[128];
-            cli_param_names(names, sizeof names, "");
-            cli_error("study", "--param '%s' unknown, need a comma list of %s, or all", t, names);
+            cli_error("study", "--param '%s' unknown, need a comma list of %s, or all", t, cli_param_names());
             return -1;
         }
         o->params |= 1u << k;
     }
     if (o->params) return 0;
 bad:
-    char names[128];
-    cli_param_names(names, sizeof names, "");
-    cli_error("study", "--param '%s': need a comma list of %s, or all", s, names);
+    cli_error("study", "--param '%s': need a comma list of %s, or all", s, cli_param_names());
     return -1;
 }
 
@@ -240,8 +236,8 @@ static void take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size
         row_t *w = &r->r[r->nr++];
         w->terms = j;
         w->comparable = sb_job_comparable(job, j);
-        w->rel_rms = e->rel_rms[(j - 1) * 4 + 3];
-        w->max_abs = e->max_abs[(j - 1) * 4 + 3];
+        w->rel_rms = e->rel_rms[sb_err_at(j - 1, SB_CH_ALL)];
+        w->max_abs = e->max_abs[sb_err_at(j - 1, SB_CH_ALL)];
         w->neg_frac = sb_job_negative(job, j);
         w->t_factor = t.factor_s;
         w->t_metric = t.metric_s;
@@ -333,7 +329,7 @@ static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_sourc
     unsigned flags = sb_source_flags(src);
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
         if (!o->param_all && !(o->params & (1u << k))) continue;
-        int iso_ok = k != SB_PARAM_ISO || (flags & SB_SOURCE_ISOTROPIC);
+        int iso_ok = sb_param_kind_applies((sb_param_kind_t)k, flags);
         sb_param_t *probe = NULL;
         sb_param_opts_t pp = {0};
         pp.res = o->res;

@@ -21,19 +21,10 @@ int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void 
     return cli_parse_double(cmd, op->name, v, op->lo, op->hi, dst);
 }
 
-void cli_param_names(char *buf, size_t size, const char *first) {
-    snprintf(buf, size, "%s", first);
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
-        snprintf(buf + strlen(buf), size - strlen(buf), "%s%s", *buf ? ", " : "",
-                 sb_param_kind_name((sb_param_kind_t)k));
-}
-
 static int set_param(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     sb_param_kind_t k;
     if (strcmp(v, "auto") != 0 && sb_param_kind_parse(v, &k) != SB_OK) {
-        char names[128];
-        cli_param_names(names, sizeof names, "auto");
-        cli_error(cmd, "%s '%s' unknown, need one of %s", op->name, v, names);
+        cli_error(cmd, "%s '%s' unknown, need one of auto, %s", op->name, v, cli_param_names());
         return -1;
     }
     *(const char **)dst = v;

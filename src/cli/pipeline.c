@@ -9,7 +9,9 @@ void cli_job_progress(void *user, const char *label, double fraction) {
 void cli_job_message(char *buf, size_t size, const sb_context_t *ctx, sb_result_t r, size_t terms) {
     const char *detail = sb_context_last_error(ctx);
     if (!detail || !*detail) detail = sb_result_message(r);
-    if (r != SB_ERR_RANGE)
+    if (r == SB_ERR_OVERFLOW)
+        snprintf(buf, size, "%s (lower --res)", detail); /* sizes beyond memory come from the resolution */
+    else if (r != SB_ERR_RANGE)
         snprintf(buf, size, "%s", detail);
     else if (terms)
         snprintf(buf, size, "--terms %zu exceeds what the matrix allows: %s", terms, detail);

@@ -188,5 +188,5 @@ double sb_job_negative(const sb_job_t *job, size_t j) {
 
 double sb_job_rel_stored(const sb_job_t *job, size_t j, size_t c) {
     size_t J = sb_factors_terms(job->best.f);
-    return job->rel_stored && j >= 1 && j <= J && c < 4 ? job->rel_stored[(j - 1) * 4 + c] : NAN;
+    return job->rel_stored && j >= 1 && j <= J && c <= SB_CH_ALL ? job->rel_stored[sb_err_at(j - 1, c)] : NAN;
 }

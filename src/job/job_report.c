@@ -95,13 +95,13 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
     for (size_t k = 0; k < sb_factors_terms(a->f); k++) {
         sb_json_begin_object(j, NULL);
         sb_json_int(j, "terms", (long long)(k + 1));
-        sb_json_number(j, "rel_rms", e->rel_rms[k * 4 + 3]);
-        sb_json_number(j, "rel_rms_stored", sb_job_rel_stored(job, k + 1, 3));
-        sb_json_number(j, "max_abs", e->max_abs[k * 4 + 3]);
+        sb_json_number(j, "rel_rms", e->rel_rms[sb_err_at(k, SB_CH_ALL)]);
+        sb_json_number(j, "rel_rms_stored", sb_job_rel_stored(job, k + 1, SB_CH_ALL));
+        sb_json_number(j, "max_abs", e->max_abs[sb_err_at(k, SB_CH_ALL)]);
         sb_json_number(j, "comparable", sb_job_comparable(job, k + 1));
         sb_json_number(j, "negative_fraction", sb_job_negative(job, k + 1));
-        report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + k * 4);
-        report_channels(j, "max_abs_channel", &a->m, e->max_abs + k * 4);
+        report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + sb_err_at(k, 0));
+        report_channels(j, "max_abs_channel", &a->m, e->max_abs + sb_err_at(k, 0));
         sb_json_end_object(j);
     }
     sb_json_end_array(j);

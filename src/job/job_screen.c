@@ -62,7 +62,7 @@ sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     pl.fit_tol = lv->fit_tol;
     pl.fit_max_iters = lv->fit_max_iters;
     sb_plan_t *plan = NULL;
-    sb_result_t r = sb_plan_create(ctx, a->m.rows, a->m.cols, &pl, &plan);
+    sb_result_t r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
     if (r != SB_OK) return r;
     double t1 = job_now();
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
@@ -95,17 +95,12 @@ static double rank_error(const job_attempt_t *a) {
     return a->metric.rel_l2[(J < a->metric.terms ? J : a->metric.terms) - 1];
 }
 
-/* Which layouts apply to which source: iso needs an isotropic source, and
- * its phi_d fold assumes reciprocity. */
-static int layout_needs_isotropy(sb_param_kind_t k) { return k == SB_PARAM_ISO; }
-static int layout_needs_reciprocity(sb_param_kind_t k) { return k == SB_PARAM_ISO; }
-
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
     unsigned flags = sb_source_flags(src);
     const char *w = NULL;
-    if (layout_needs_isotropy(kind) && !(flags & SB_SOURCE_ISOTROPIC))
+    if (!sb_param_kind_applies(kind, flags))
         w = "needs an isotropic source";
-    else if (layout_needs_reciprocity(kind) && !(flags & SB_SOURCE_RECIPROCAL))
+    else if ((sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !(flags & SB_SOURCE_RECIPROCAL))
         w = "assumes a reciprocal BRDF, f(wi, wo) = f(wo, wi), and this source is not";
     if (why) *why = w;
     return w == NULL;
@@ -141,7 +136,7 @@ static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_ki
     if (bytes <= sb_memory_limit()) return SB_OK;
     return sb_error(ctx, SB_ERR_OVERFLOW,
                     "%s at %zu cells per axis: %zu x %zu cells x %zu channels need more than %zu bytes, the memory "
-                    "limit; lower --res",
+                    "limit",
                     sb_param_kind_name(k), job->o.res, rows, cols, nch, sb_memory_limit());
 }
 

@@ -13,13 +13,13 @@
 #include "util/internal.h"
 
 /* rel_rms of the stored (FLOAT or HALF) textures against the matrix, for
- * every J' (J * 4); NULL when it cannot be computed (reported as null). */
+ * every J' (sb_err_at layout); NULL when it cannot be computed (reported as null). */
 static double *stored_errors(sb_context_t *ctx, const sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     size_t J = sb_factors_terms(a->f);
     sb_exr_opts_t eo = {job->o.half};
     sb_factors_t *q = NULL;
-    double *rel = malloc(J * 4 * sizeof *rel), *mx = malloc(J * 4 * sizeof *mx);
+    double *rel = malloc(sb_err_at(J, 0) * sizeof *rel), *mx = malloc(sb_err_at(J, 0) * sizeof *mx);
     const sb_param_t *w = a->weighted ? a->param : NULL;
     int ok = rel && mx && sb_factors_quantize(ctx, a->f, &eo, &q, NULL) == SB_OK;
     if (ok)
