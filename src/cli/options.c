@@ -88,10 +88,9 @@ const cli_option_t cli_factor_options[] = {
     {"-r", "--res", "R", "cells per angular axis, 2..512; N = R*R directions (default 32)", cli_set_size, AT(res), 2,
      512, F_ | R_ | S_},
     {NULL, "--param", "P",
-     "parameterisation: auto (default), io (the lecture's theta-phi\ngrid of (wi, wo)), io-area (equal-area maps), "
-     "hd (half/\ndifference vectors), iso (theta_h x (theta_d, phi_d); for\nisotropic, reciprocal sources). auto "
-     "screens every one\nthat applies, with forms f and cos2, solid-angle weighted,\non coarse grids, and factors the "
-     "lowest comparable\nerror at J",
+     "parameterisation: auto (default) or one of those below.\nauto screens every one that applies (iso: isotropic,\n"
+     "reciprocal sources), with forms f and cos2, solid-angle\nweighted, on coarse grids, and factors the lowest\n"
+     "comparable error at J",
      set_param, AT(param), 0, 0, F_ | R_},
     {NULL, "--form", "F",
      "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",
@@ -157,5 +156,9 @@ void cli_table_help(const cli_option_t *table, unsigned command) {
             n = strcspn(h, "\n");
             printf("%23s%.*s\n", "", (int)n, h);
         }
+        if (op->set == set_param) /* the names, from the library's registry */
+            for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+                printf("%25s%-8s %s\n", "", sb_param_kind_name((sb_param_kind_t)k),
+                       sb_param_kind_description((sb_param_kind_t)k));
     }
 }
