@@ -1,7 +1,7 @@
 /* sepbrdf: the factor job, what `sepbrdf factor` does, as one library call.
  *
  *   open the source -> choose the candidates (parameterisation, form,
- *   weighting) -> screen them cheaply (--param auto) -> sample and factor the
+ *   weighting) -> screen them cheaply (param "auto") -> sample and factor the
  *   kept one -> comparable error -> write the output set (EXR textures,
  *   sepbrdf.glsl, report.json, optional previews).
  *
@@ -14,7 +14,10 @@
  * factored at the requested settings, exactly as a run that asks for it
  * alone.  A candidate that fails (too few cells for J, a numerical
  * failure) is recorded as failed and skipped; the job fails only when
- * none is left.
+ * none is left, or at once (SB_ERR_OVERFLOW) when a candidate's matrix at
+ * R exceeds the memory limit (R is then too large whichever would win).
+ * While screening, a measured table is evaluated through a memo: the
+ * candidates' reference grids repeat pairs, each an interpolation.
  *
  * Candidates: every parameterisation that can be created at R, with forms f
  * and cos2 (or the one form asked for), solid-angle weighted; iso only for
@@ -40,7 +43,7 @@ extern "C" {
 
 /* The source of a job that names none: gold, microfacet. */
 #define SB_JOB_DEFAULT_SOURCE "microfacet:base=gold,roughness=0.5"
-/* Cells per axis of the two screening grids of --param auto, and the
+/* Cells per axis of the two screening grids of auto, and the
  * factor by which a candidate's error on the first may exceed the best
  * one's and still go on to the second. */
 #define SB_JOB_SCREEN_COARSE 8
