@@ -116,5 +116,4 @@ const sb_param_desc_t sb_param_desc_hd = {
     .keys = "res",
     .caps = SB_CAP_PARTIAL_DOMAIN,
     .wrap_y = SB_WRAP_REPEAT,
-    .vt = &hd_vt,
-};
+    .vt = &hd_vt};

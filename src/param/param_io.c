@@ -34,11 +34,9 @@ static const sb_param_vt_t io_vt = {io_cell_dirs, io_measure, io_measure, io_coo
                                     "    return L.z > 0.0 && V.z > 0.0 && st.x <= 1.0 && st.z <= 1.0;\n"
                                     "}\n"};
 
-const sb_param_desc_t sb_param_desc_io = {
-    .name = "io",
-    .description = "the lecture's theta-phi grid for (wi, wo)",
-    .keys = "res",
-    .caps = SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID,
-    .wrap_y = SB_WRAP_REPEAT,
-    .vt = &io_vt,
-};
+const sb_param_desc_t sb_param_desc_io = {.name = "io",
+                                          .description = "the lecture's theta-phi grid for (wi, wo)",
+                                          .keys = "res",
+                                          .caps = SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID,
+                                          .wrap_y = SB_WRAP_REPEAT,
+                                          .vt = &io_vt};

@@ -112,11 +112,9 @@ static const sb_param_vt_t area_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
-const sb_param_desc_t sb_param_desc_io_area = {
-    .name = "io-area",
-    .description = "(wi, wo) on an equal-area (concentric) hemisphere map",
-    .keys = "res",
-    .caps = SB_CAP_SEPARABLE,
-    .wrap_y = SB_WRAP_CLAMP,
-    .vt = &area_vt,
-};
+const sb_param_desc_t sb_param_desc_io_area = {.name = "io-area",
+                                               .description = "(wi, wo) on an equal-area (concentric) hemisphere map",
+                                               .keys = "res",
+                                               .caps = SB_CAP_SEPARABLE,
+                                               .wrap_y = SB_WRAP_CLAMP,
+                                               .vt = &area_vt};

@@ -151,5 +151,4 @@ const sb_param_desc_t sb_param_desc_iso = {
     .keys = "res,th,td,pd",
     .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN,
     .init = init_iso,
-    .vt = &iso_vt,
-};
+    .vt = &iso_vt};
