@@ -27,6 +27,7 @@ sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
         }
     return SB_ERR_UNKNOWN;
 }
+size_t sb_param_kind_count(void) { return SB_PARAM_KIND_COUNT_; }
 const char *sb_param_kind_name(sb_param_kind_t kind) {
     return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->name : "?";
 }
