@@ -390,7 +390,7 @@ static sb_result_t check_paths(sb_context_t *ctx, const char *target, const char
         r = check_creatable(ctx, target, parent);
     else if ((r = check_existing(ctx, target, dir, parent)) != SB_OK)
         ;
-    else if ((e = probe_dir(parent)) != 0 || (e = probe_dir(dir)) != 0)
+    else if ((e = probe_dir(parent)) != 0 || (e = access(dir, W_OK | X_OK) == 0 ? 0 : errno) != 0)
         r = sb_error(ctx, SB_ERR_IO, "%s: cannot write into the folder: %s", target, sb_io_why(e));
     if (r == SB_OK) r = check_name_length(ctx, target, stat(parent, &st) == 0 ? parent : ".", base);
     free(dir);
@@ -582,7 +582,7 @@ static sb_result_t write_manifest(sb_outset_t *s) {
                 s->command ? s->command : "");
         for (size_t i = 0; i < s->files.n; i++)
             fprintf(fp, "%s\n", s->files.v[i]);
-        if (fflush(fp) != 0 || ferror(fp) || fsync(fileno(fp)) != 0) e = errno ? errno : EIO;
+        if (fflush(fp) != 0 || ferror(fp)) e = errno ? errno : EIO;
         if (fclose(fp) != 0 && !e) e = errno;
     }
     if (e) return sb_error(s->ctx, SB_ERR_IO, "%s/%s: cannot write: %s", s->target, s->manifest, sb_io_why(e));
