@@ -131,8 +131,7 @@ static int factor_set(const char *dir, int *terms, char *source, size_t ns, char
         const char *fs = NULL;
         if (sb_factors_read_exr(ctx, dir, &f) != SB_OK || (int)sb_factors_terms(f) != *terms ||
             !(fs = sb_factors_get_meta(f, "source")) || strcmp(fs, source) != 0) {
-            snprintf(why, nw, "EXR set: %s, source %s vs report %s", sb_context_last_error(ctx), fs ? fs : "-",
-                     source);
+            snprintf(why, nw, "EXR set: %s, source %s vs report %s", sb_context_last_error(ctx), fs ? fs : "-", source);
             ok = 0;
         }
         sb_factors_destroy(f);
@@ -553,7 +552,8 @@ SB_TEST(memory_limits) {
     reference(parent, "factor microfacet --res 16 -J 4", nsrc, sizeof nsrc, &J);
     for (size_t i = 0; i < sizeof mib / sizeof mib[0]; i++) {
         CHECK(cli(msg, sizeof msg, PREV_CMD, out) == 0);
-        snprintf(cmd, sizeof cmd, "ulimit -v %d; OPENBLAS_NUM_THREADS=1 timeout 30 %s factor microfacet --res 16 -J 4 -q -o %s",
+        snprintf(cmd, sizeof cmd,
+                 "ulimit -v %d; OPENBLAS_NUM_THREADS=1 timeout 30 %s factor microfacet --res 16 -J 4 -q -o %s",
                  mib[i] * 1024, SB_CLI, out);
         int rc = sb_run(cmd, msg, sizeof msg);
         CHECKF(rc == 0 || (rc == 2 && strstr(msg, "memory")), "ulimit -v %d MiB: exit %d: %s", mib[i], rc, msg);
@@ -562,4 +562,62 @@ SB_TEST(memory_limits) {
         CHECK(clean(parent, out));
     }
 #endif
+}
+
+/* The library API: every error path, and a set published by a program. */
+SB_TEST(api) {
+    char parent[512], out[600], path[1024];
+    snprintf(parent, sizeof parent, "%s", sb_tmpdir("rel-api"));
+    snprintf(out, sizeof out, "%s/out", parent);
+    sb_context_t *ctx = NULL;
+    sb_outset_t *s = NULL;
+    sb_context_create(&ctx);
+    CHECK(sb_outset_check(ctx, NULL) == SB_ERR_ARG && sb_outset_check(ctx, "") == SB_ERR_ARG);
+    CHECK(sb_outset_begin(ctx, out, NULL, NULL) == SB_ERR_ARG);
+    CHECK(sb_outset_cleanup(ctx, NULL) == SB_ERR_ARG);
+    sb_outset_opts_t bad = {"Bad!", 0, NULL, NULL};
+    CHECK(sb_outset_begin(ctx, out, &bad, &s) == SB_ERR_ARG && s == NULL);
+    CHECK(sb_outset_add(NULL, "a") == SB_ERR_ARG && sb_outset_commit(NULL) == SB_ERR_ARG);
+    CHECK(sb_outset_dir(NULL) == NULL && sb_outset_target(NULL) == NULL);
+    sb_outset_destroy(NULL);
+    sb_outset_discard_signal_safe(NULL);
+    CHECK(strstr(sb_io_why(ENOSPC), "disk full") != NULL);
+    put(parent, "file", "x");
+    snprintf(path, sizeof path, "%s/file", parent);
+    CHECK(sb_outset_check(ctx, path) == SB_ERR_IO && strstr(sb_context_last_error(ctx), "not a folder"));
+    /* a program's set: a file written into the staging folder */
+    CHECK(sb_outset_begin(ctx, out, NULL, &s) == SB_OK);
+    CHECK(strcmp(sb_outset_target(s), out) == 0);
+    static const char *const bad_names[] = {".hidden", "a/b", "sepbrdf-set-x.txt", "a\nb", ""};
+    for (size_t i = 0; i < sizeof bad_names / sizeof bad_names[0]; i++)
+        CHECKF(sb_outset_add(s, bad_names[i]) == SB_ERR_ARG, "name '%s' accepted", bad_names[i]);
+    put(sb_outset_dir(s), "x.txt", "set 1\n");
+    CHECK(sb_outset_add(s, "x.txt") == SB_OK && sb_outset_add(s, "x.txt") == SB_OK);
+    /* messages name the target, never the staging folder */
+    snprintf(path, sizeof path, "%s/no/such.png", sb_outset_dir(s));
+    unsigned char px[3] = {0, 0, 0};
+    CHECK(sb_png_write_rgb8(ctx, path, 1, 1, px, NULL) == SB_ERR_IO);
+    CHECKF(strstr(sb_context_last_error(ctx), out) && !strstr(sb_context_last_error(ctx), ".sepbrdf-new"), "%s",
+           sb_context_last_error(ctx));
+    snprintf(path, sizeof path, "%s", sb_outset_dir(s));
+    CHECK(sb_outset_commit(s) == SB_OK && sb_outset_commit(s) == SB_ERR_ARG);
+    sb_outset_destroy(s);
+    char *x = slurp(out, "x.txt"), *man = slurp(out, SB_OUTSET_MANIFEST);
+    CHECK(x && strcmp(x, "set 1\n") == 0 && man && strstr(man, "\nx.txt\n") && !sb_file_exists(path));
+    free(x);
+    free(man);
+    /* a set missing a named file is refused; the folder keeps its set */
+    CHECK(sb_outset_begin(ctx, out, NULL, &s) == SB_OK);
+    put(sb_outset_dir(s), "y.txt", "set 2\n");
+    CHECK(sb_outset_add(s, "missing.txt") == SB_OK);
+    CHECK(sb_outset_commit(s) == SB_ERR_IO && strstr(sb_context_last_error(ctx), "missing.txt"));
+    CHECK(sb_outset_add(s, "late.txt") == SB_ERR_ARG);
+    sb_outset_destroy(s);
+    CHECK(sb_file_exists(strcat(strcpy(path, out), "/x.txt")) && !sb_file_exists(strcat(strcpy(path, out), "/y.txt")));
+    /* a set discarded without commit leaves nothing */
+    CHECK(sb_outset_begin(ctx, out, NULL, &s) == SB_OK);
+    put(sb_outset_dir(s), "z.txt", "set 3\n");
+    sb_outset_destroy(s);
+    CHECK(!sb_file_exists(strcat(strcpy(path, out), "/z.txt")) && clean(parent, out));
+    sb_context_destroy(ctx);
 }
