@@ -298,16 +298,14 @@ sb_result_t sb_outset_begin(sb_context_t *ctx, const char *dir, const sb_outset_
     if (!out) return sb_error(ctx, SB_ERR_ARG, "sb_outset_begin: out is NULL");
     *out = NULL;
     if (!dir || !*dir) return sb_error(ctx, SB_ERR_ARG, "output folder: empty name");
+    const char *cmd = opts ? opts->command : NULL;
+    if (cmd && (!*cmd || strlen(cmd) > 16 || strspn(cmd, "abcdefghijklmnopqrstuvwxyz0123456789") != strlen(cmd)))
+        return sb_error(ctx, SB_ERR_ARG, "output set: command '%s' is not 1..16 of a-z, 0-9", cmd);
     sb_outset_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     s->ctx = ctx;
     s->lock_fd = -1;
     s->target = sb_strdup(dir);
-    const char *cmd = opts ? opts->command : NULL;
-    if (cmd && (!*cmd || strlen(cmd) > 16 || strspn(cmd, "abcdefghijklmnopqrstuvwxyz0123456789") != strlen(cmd))) {
-        free(s);
-        return sb_error(ctx, SB_ERR_ARG, "output set: command '%s' is not 1..16 of a-z, 0-9", cmd);
-    }
     manifest_name(cmd, cmd ? strlen(cmd) : 0, s->manifest);
     s->command = cmd ? sb_strdup(cmd) : NULL;
     sb_result_t r = !s->target || (cmd && !s->command) ? sb_error(ctx, SB_ERR_NOMEM, "out of memory")

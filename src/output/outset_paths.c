@@ -190,4 +190,3 @@ sb_result_t sb_outset_check(sb_context_t *ctx, const char *dir) {
     free(base);
     return r;
 }
-
