@@ -95,8 +95,8 @@ static double reference(const sb_factors_t *f, sb_form_t form, double alpha, siz
             wo[1] = s * sin(2 * PI * u5);
             wo[2] = z;
         } else {
-            double th = atan(alpha * sqrt(u4 / (1 - u4))), hv[3] = {sin(th) * cos(2 * PI * u5),
-                                                                   sin(th) * sin(2 * PI * u5), cos(th)};
+            double th = atan(alpha * sqrt(u4 / (1 - u4))),
+                   hv[3] = {sin(th) * cos(2 * PI * u5), sin(th) * sin(2 * PI * u5), cos(th)};
             double d = wi[0] * hv[0] + wi[1] * hv[1] + wi[2] * hv[2];
             for (int k = 0; k < 3; k++)
                 wo[k] = 2 * d * hv[k] - wi[k];

@@ -83,9 +83,9 @@ void sb_pairs_destroy(sb_pairs_t *pairs);
 size_t sb_pairs_count(const sb_pairs_t *pairs);
 
 typedef struct sb_estimate {
-    size_t terms;           /* J' = 1..terms are filled (at most SB_EST_MAXJ) */
-    size_t pairs, known;    /* pairs used, pairs where the source is known */
-    int converged;          /* the headline's standard error met rel_se for every J' */
+    size_t terms;                                /* J' = 1..terms are filled (at most SB_EST_MAXJ) */
+    size_t pairs, known;                         /* pairs used, pairs where the source is known */
+    int converged;                               /* the headline's standard error met rel_se for every J' */
     double rel[SB_EST_MAXJ][SB_EST_Q_COUNT_][4]; /* [J'-1][quantity][R, G, B, all] relative L2 error */
     double se[SB_EST_MAXJ][SB_EST_Q_COUNT_][4];  /* its standard error */
     double p99[SB_EST_MAXJ][4];                  /* 99th-percentile relative error per pair */

@@ -10,7 +10,9 @@
  * Work: one unit per replicate; its sums (numerators per J', quantity and
  * channel, denominators, negative measure) go to the replicate's own slot
  * and are added in replicate order.  Histograms of the per-pair relative
- * errors (integer energy weights: b / E * 2^50) and maxima are per thread
+ * errors (integer energy weights: b / E0 * 2^40 with E0 the energy of the
+ * first replicates, fixed when the pairs are created, so later replicates
+ * add to the same histograms) and maxima are per thread
  * and merged by integer addition and max, so every result is the same to
  * the bit on any thread count. */
 #include "sepbrdf/estimate.h"
@@ -23,10 +25,10 @@
 
 #include "util/internal.h"
 
-#define PD 10     /* doubles per pair */
-#define NB 960    /* histogram bins: 40 per decade over [1e-12, 1e12] */
-#define MAXT 64   /* threads */
-#define NCOMP 6   /* wo mixture components: uniform, cosine, four GGX lobes */
+#define PD 10   /* doubles per pair */
+#define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
+#define MAXT 64 /* threads */
+#define NCOMP 6 /* wo mixture components: uniform, cosine, four GGX lobes */
 #define QC (SB_EST_Q_COUNT_ * 4)
 
 static const double comp_w[NCOMP] = {0.2, 0.2, 0.15, 0.15, 0.15, 0.15};
@@ -38,6 +40,7 @@ struct sb_pairs {
     uint64_t seed;
     double *d;            /* n x PD */
     unsigned char *known; /* n */
+    double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */
 };
 
 /* ---- drawing the pairs ------------------------------------------------ */
@@ -226,6 +229,14 @@ sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_
         sb_pairs_destroy(P);
         return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory for %zu pairs", o.start * o.replicate);
     }
+    for (size_t i = 0; i < P->n; i++) {
+        const double *d = P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
+        if (!P->known[i]) continue;
+        for (int c = 0; c < 3; c++) {
+            P->e0[c] += f[c] * f[c] * q;
+            P->e0[3] += f[c] * f[c] * q;
+        }
+    }
     *out = P;
     return SB_OK;
 }
@@ -250,7 +261,6 @@ typedef struct eval {
     int wrap[2][2];
     const double *scale; /* J per-term factors */
     sb_form_t form;
-    const uint64_t *ew; /* per pair, 4 integer energy weights (percentiles) */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
     double *num, *den, *neg, *meas;
     /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */
@@ -315,12 +325,14 @@ static size_t bin_of(double r) {
 }
 
 /* Add one known pair's errors for every prefix to the replicate sums. */
-static void add_pair(const eval_t *e, const double *d, const uint64_t *ew, const double *rec, double *num,
-                     double *neg, int t) {
+static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
     const double *f = d + 7, w = d[6];
     double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
     double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
     f2[3] = f2[0] + f2[1] + f2[2];
+    uint64_t ew[4];
+    for (int c = 0; c < 4; c++)
+        ew[c] = e->P->e0[c] > 0 ? (uint64_t)(f2[c] * ci2 * w / e->P->e0[c] * 0x1.0p40) : 0;
     size_t J = e->J;
     uint64_t *hist = e->hist + (size_t)t * J * 4 * NB;
     double *maxr = e->maxr + (size_t)t * J * 4, *maxv = e->maxv + (size_t)t * J;
@@ -369,31 +381,8 @@ static void eval_unit(void *user, size_t k, int t) {
         }
         e->meas[k] += d[6];
         reconstruct(e, d, d + 3, rec);
-        add_pair(e, d, e->ew + i * 4, rec, num, neg, t);
+        add_pair(e, d, rec, num, neg, t);
     }
-}
-
-/* Integer energy weights of the headline (f_c^2 cos^2 theta_i / p over the
- * channel's total, times 2^50) for the percentile histograms. */
-static uint64_t *energy_weights(sb_context_t *ctx, const sb_pairs_t *P) {
-    uint64_t *ew = sb_alloc(ctx, P->n, 4 * sizeof *ew, "estimator weights");
-    if (!ew) return NULL;
-    double tot[4] = {0, 0, 0, 0};
-    for (int pass = 0; pass < 2; pass++)
-        for (size_t i = 0; i < P->n; i++) {
-            const double *d = P->d + i * PD, *f = d + 7;
-            double b[4], s = d[2] * d[2] * d[6];
-            for (int c = 0; c < 3; c++)
-                b[c] = P->known[i] ? f[c] * f[c] * s : 0;
-            b[3] = b[0] + b[1] + b[2];
-            for (int c = 0; c < 4; c++) {
-                if (pass == 0)
-                    tot[c] += b[c];
-                else
-                    ew[i * 4 + c] = tot[c] > 0 ? (uint64_t)(b[c] / tot[c] * 0x1.0p50) : 0;
-            }
-        }
-    return ew;
 }
 
 /* The sums of the replicates and threads into out; returns whether the
@@ -464,24 +453,23 @@ static void eval_free(eval_t *e) {
     free(e->hist);
     free(e->maxr);
     free(e->maxv);
-    free((void *)e->ew);
 }
 
-/* Evaluate every replicate of P into out; returns SB_OK or SB_ERR_NOMEM. */
-static sb_result_t evaluate(sb_context_t *ctx, eval_t *e, int nt, double rel_se, sb_estimate_t *out, int *met) {
-    const sb_pairs_t *P = e->P;
-    size_t K = P->nrep, J = e->J, T = (size_t)nt;
-    e->ew = energy_weights(ctx, P);
-    e->num = sb_alloc(ctx, K * J, QC * sizeof *e->num, "estimator sums");
-    e->den = sb_alloc(ctx, K, QC * sizeof *e->den, "estimator sums");
-    e->neg = sb_alloc(ctx, K, J * sizeof *e->neg, "estimator sums");
-    e->meas = sb_alloc(ctx, K, sizeof *e->meas, "estimator sums");
+/* Sums for kmax replicates and nt threads; SB_OK or SB_ERR_NOMEM. */
+static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt) {
+    size_t J = e->J, T = (size_t)nt;
+    e->num = sb_alloc(ctx, kmax * J, QC * sizeof *e->num, "estimator sums");
+    e->den = sb_alloc(ctx, kmax, QC * sizeof *e->den, "estimator sums");
+    e->neg = sb_alloc(ctx, kmax, J * sizeof *e->neg, "estimator sums");
+    e->meas = sb_alloc(ctx, kmax, sizeof *e->meas, "estimator sums");
     e->hist = sb_calloc(ctx, T * J * 4, NB * sizeof *e->hist, "estimator histograms");
     e->maxr = sb_calloc(ctx, T * J, 4 * sizeof *e->maxr, "estimator sums");
     e->maxv = sb_calloc(ctx, T, J * sizeof *e->maxv, "estimator sums");
-    if (!e->ew || !e->num || !e->den || !e->neg || !e->meas || !e->hist || !e->maxr || !e->maxv) return SB_ERR_NOMEM;
-    run_units(0, K, nt, eval_unit, e);
-    *met = combine(e, K, nt, rel_se, out);
+    return e->num && e->den && e->neg && e->meas && e->hist && e->maxr && e->maxv ? SB_OK : SB_ERR_NOMEM;
+}
+
+/* Pair counts and the overshoot's denominator, max |f| over the pairs. */
+static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
     double fmax_ = 0;
     size_t known = 0;
     for (size_t i = 0; i < P->n; i++) {
@@ -490,11 +478,10 @@ static sb_result_t evaluate(sb_context_t *ctx, eval_t *e, int nt, double rel_se,
         for (int c = 0; c < 3; c++)
             fmax_ = fmax(fmax_, fabs(P->d[i * PD + 7 + c]));
     }
-    for (size_t j = 0; j < J; j++)
+    for (size_t j = 0; j < out->terms; j++)
         out->overshoot[j] = fmax_ > 0 ? out->overshoot[j] / fmax_ : 0;
     out->known = known;
     out->pairs = P->n;
-    return SB_OK;
 }
 
 sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
@@ -526,19 +513,19 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
             for (size_t c = 0; c < C; c++)
                 e.tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
     }
-    sb_result_t r = SB_OK;
-    for (;;) {
-        int met = 0;
-        eval_t w = e;
-        r = evaluate(ctx, &w, nt, o.rel_se, out, &met);
-        w.tex[0] = w.tex[1] = NULL;
-        eval_free(&w);
+    size_t kmax = o.max_pairs / pairs->rep;
+    sb_result_t r = eval_alloc(ctx, &e, kmax > pairs->nrep ? kmax : pairs->nrep, nt);
+    /* evaluate the replicates not yet evaluated, then add replicates
+     * (doubling) until the headline's standard error meets the target */
+    for (size_t done = 0; r == SB_OK;) {
+        run_units(done, pairs->nrep - done, nt, eval_unit, &e);
+        done = pairs->nrep;
         out->terms = J;
-        out->converged = met;
-        if (r != SB_OK || met || pairs->n + pairs->rep > o.max_pairs) break;
-        size_t want = pairs->nrep * 2, cap = o.max_pairs / pairs->rep;
-        if ((r = pairs_grow(ctx, pairs, want < cap ? want : cap, nt)) != SB_OK) break;
+        out->converged = combine(&e, done, nt, o.rel_se, out);
+        if (out->converged || done >= kmax) break;
+        r = pairs_grow(ctx, pairs, done * 2 < kmax ? done * 2 : kmax, nt);
     }
+    if (r == SB_OK) finish(pairs, out);
     free(ones);
     eval_free(&e);
     return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");
