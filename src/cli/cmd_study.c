@@ -304,8 +304,8 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, sb_param_kind_name((sb_param_kind_t)r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
-    pipe_opts_t po = {o->res,       o->jmax, o->metric_res, 90,         0, o->method, 1,
-                      o->zero_fill, label,   base,          0.3 * span, 0, 0,         0};
+    pipe_opts_t po = {o->res, o->jmax, o->metric_res, 90, 0, o->method, 1, o->zero_fill, label, base, 0.3 * span, 0,
+                      0,      0,       NULL,          0,  0};
     attempt_t a;
     sb_context_clear_error(ctx);
     sb_result_t res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);

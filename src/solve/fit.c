@@ -537,10 +537,13 @@ static double als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, cons
 }
 
 /* The staged ALS from the warm start in f->P, f->Q on the cells of X with
- * mask != 0 (nvalid of them); *err the last stage's error.  SB_OK or
+ * mask != 0 (nvalid of them); *err the last stage's error; *converged 0
+ * when the run that gave the last stage's kept result stopped at
+ * max_iters (earlier stages only warm-start the later ones).  SB_OK or
  * SB_ERR_NOMEM. */
 static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
-                              const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
+                              const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged,
+                              double *err) {
     size_t m = f->m, n = f->n, k = f->k;
     /* Nested stages: terms are added one at a time and the first ka
      * are refitted jointly, so every prefix of the result is itself a
@@ -559,7 +562,8 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
         /* first the new term alone on the residual of the others: the
          * error can only go down (its first half-sweep is a least-squares
          * step from the warm start) */
-        *err = als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, converged);
+        int c1 = 1, cj = 1, keep = 0;
+        *err = als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
         if (ka > 1) {
             /* then all ka jointly: a joint refit may trade the prefixes'
              * accuracy for cancelling terms that are large outside the
@@ -567,14 +571,16 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
              * edge */
             memcpy(saveP, f->P, m * ka * sizeof *saveP);
             memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-            double ej = als_until(f, &cl, 0, ka, o, sqrt(norm2), total, converged);
+            double ej = als_until(f, &cl, 0, ka, o, sqrt(norm2), total, &cj);
             prefix_errors(f, &cl, ka, e2);
-            /* kept only if every prefix stays a fit: the errors of
-             * the prefixes non-increasing, none more than
-             * SB_PREFIX_SLACK times its accepted value */
-            int keep = ej <= *err;
+            /* kept only if no shorter prefix gets more than
+             * SB_PREFIX_SLACK times worse (at the last stage: no worse than
+             * no term at all); strict: and the prefixes' errors stay
+             * non-increasing */
+            keep = ej <= *err;
+            double slack = ka == k && !strict ? INFINITY : SB_PREFIX_SLACK;
             for (size_t j = 0; keep && j + 1 < ka; j++)
-                keep = sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK && e2[j + 1] <= e2[j] && (j > 0 || e2[0] <= norm2);
+                keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2)) && (!strict || e2[j + 1] <= e2[j]);
             if (keep) {
                 *err = ej;
                 for (size_t j = 0; j + 1 < ka; j++)
@@ -585,6 +591,7 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
             }
         }
         acc[ka - 1] = *err;
+        *converged = keep ? cj : c1;
         if (o->target > 0 && *err <= o->target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
             memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
             memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
@@ -595,6 +602,25 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
     free(saveQ);
     cells_free(&cl);
     return SB_OK;
+}
+
+/* Whether the errors of the prefixes on the valid cells (mask) of X are
+ * non-increasing. */
+static int prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask) {
+    size_t m = f->m, n = f->n, k = f->k;
+    double e2[SB_ALS_MAX_K] = {0};
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double d = X[r + c * lda];
+            for (size_t j = 0; j < k; j++) {
+                d -= f->P[r + j * m] * f->Q[c + j * n];
+                e2[j] += d * d;
+            }
+        }
+    for (size_t j = 1; j < k; j++)
+        if (e2[j] > e2[j - 1]) return 0;
+    return 1;
 }
 
 /* Texels within one step of texel i (x +- 1, y +- 1; CLAMP axes stop at
@@ -620,10 +646,12 @@ static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t
  * data around them: an invalid cell (r, c) with valid cells among rows N(r)
  * x columns N(c) (lo..hi their values in x) whose fitted value
  * sum_j P_rj Q_cj lies outside [lo - d, hi + d], d = hi - lo +
- * max(|lo|, |hi|) / 2, joins the data (ext = 1) with the value clamped
- * into [lo, hi].  Per column the column neighbours are reduced first, then
- * the row neighbours: 18 reads per cell.  Returns the cells added, or
- * (size_t)-1 without memory. */
+ * max(|lo|, |hi|) / 2, joins the data (ext = 2) with the value clamped
+ * into [lo, hi]; cells already joined keep their targets.  (Joining every
+ * such cell, or pulling it to its neighbours' mean, fits the data worse
+ * and breaks exact recovery of low-rank data with holes.)  Per column the
+ * column neighbours are reduced first, then the row neighbours: 18 reads
+ * per cell.  Returns the cells added, or (size_t)-1 without memory. */
 static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
     size_t m = f->m, n = f->n, k = f->k, added = 0;
     double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
@@ -664,6 +692,51 @@ static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *
     free(lo1);
     free(hi1);
     return added;
+}
+
+/* The ALS part of a fit from the warm start in f->P, f->Q: the stages
+ * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
+ * (constrain_taps, twice at most, warm), and when the prefixes' errors on
+ * the valid cells then rise anywhere, all of it again from the same start
+ * with strict stages (a joint refit kept only if the prefixes' errors stay
+ * non-increasing), so that every prefix is a fit no worse than the shorter
+ * ones.  SB_OK or SB_ERR_NOMEM. */
+static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
+                           const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
+    size_t m = f->m, n = f->n, k = f->k;
+    int taps = lda == m && o->tex[0][0] * o->tex[0][1] == m && o->tex[1][0] * o->tex[1][1] == n;
+    unsigned char *ext = taps ? malloc(m * n) : NULL;
+    double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
+    sb_result_t r = (taps && !ext) || !P0 || !Q0 ? SB_ERR_NOMEM : SB_OK;
+    if (r == SB_OK) {
+        memcpy(P0, f->P, m * k * sizeof *P0);
+        memcpy(Q0, f->Q, n * k * sizeof *Q0);
+    }
+    for (int strict = 0; strict < 2 && r == SB_OK; strict++) {
+        size_t nvalid = nvalid0;
+        memcpy(f->P, P0, m * k * sizeof *P0);
+        memcpy(f->Q, Q0, n * k * sizeof *Q0);
+        if (ext)
+            for (size_t c = 0; c < n; c++)
+                for (size_t i = 0; i < m; i++)
+                    ext[i + c * m] = mask[i + c * lda] ? 1 : 0;
+        r = als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err);
+        /* taps reaching unconstrained cells that overshoot: constrain
+         * them and run the stages again from the fit found (twice at
+         * most; warm, each stage stops after a few sweeps) */
+        for (int round = 0; r == SB_OK && taps && round < 2; round++) {
+            size_t added = constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
+            if (added == (size_t)-1) r = SB_ERR_NOMEM;
+            if (added == 0 || r != SB_OK) break;
+            nvalid += added;
+            r = als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err);
+        }
+        if (r != SB_OK || prefixes_monotone(f, As, lda, mask)) break;
+    }
+    free(ext);
+    free(P0);
+    free(Q0);
+    return r;
 }
 
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
@@ -764,34 +837,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
                 f->Q[i + j * n] = f->vbt[j + i * l] * rt;
         }
         int total = it > em_iters ? em_iters : it, converged = 1;
-        size_t nvalid = m * n - ninvalid;
-        double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
-        unsigned char *ext = NULL;
-        int taps = lda == m && o.tex[0][0] * o.tex[0][1] == m && o.tex[1][0] * o.tex[1][1] == n;
-        if (taps && (ext = malloc(m * n)) != NULL)
-            for (size_t c = 0; c < n; c++)
-                for (size_t r2 = 0; r2 < m; r2++)
-                    ext[r2 + c * m] = mask[r2 + c * lda] ? 1 : 0;
-        r = !P0 || !Q0 || (taps && !ext) ? SB_ERR_NOMEM : SB_OK;
-        if (r == SB_OK) {
-            memcpy(P0, f->P, m * k * sizeof *P0);
-            memcpy(Q0, f->Q, n * k * sizeof *Q0);
-            r = als_stages(f, As, lda, mask, nvalid, &o, norm2, &total, &converged, &err);
-        }
-        /* taps reaching unconstrained cells that overshoot: constrain
-         * them and fit again from the same start (twice at most) */
-        for (int round = 0; r == SB_OK && taps && round < 2; round++) {
-            size_t added = constrain_taps(&o, f, f->x, ext);
-            if (added == (size_t)-1) r = SB_ERR_NOMEM;
-            if (added == 0 || r != SB_OK) break;
-            nvalid += added;
-            memcpy(f->P, P0, m * k * sizeof *P0);
-            memcpy(f->Q, Q0, n * k * sizeof *Q0);
-            r = als_stages(f, As, lda, ext, nvalid, &o, norm2, &total, &converged, &err);
-        }
-        free(P0);
-        free(Q0);
-        free(ext);
+        r = als_fit(f, As, lda, mask, m * n - ninvalid, &o, norm2, &total, &converged, &err);
         if (r != SB_OK) {
             free(qu);
             free(coef);
