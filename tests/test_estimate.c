@@ -260,3 +260,32 @@ SB_TEST(deterministic_and_se_target) {
     sb_param_destroy(p);
     sb_source_destroy(src);
 }
+
+/* Honest nesting, the issue's case: GGX roughness 0.3, F0 0.04, iso,
+ * J = 8, a masked fit.  The native errors written for J' = 1..8 are
+ * non-increasing (they were 0.230, 0.223, 0.0126, 0.0294, ...), and so is
+ * the headline within two standard errors. */
+SB_TEST(masked_prefixes_non_increasing) {
+    sb_param_t *p = NULL;
+    sb_source_t *src = NULL;
+    sb_factors_t *f = factor_exr("cook-torrance:roughness=0.3,f0=0.04", SB_PARAM_ISO, 32, 8, SB_FORM_F, 0, &p, &src);
+    sb_pairs_t *pairs = NULL;
+    static sb_estimate_t e;
+    CHECK(f && sb_pairs_create(NULL, src, NULL, &pairs) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, NULL, &e) == SB_OK);
+    const sb_factor_errors_t *fe = sb_factors_errors(f);
+    for (size_t j = 1; j < 8; j++) {
+        printf("  J=%zu native %.4f headline %.4f +- %.4f overshoot %.3f\n", j + 1, fe->rel_rms[j * 4 + 3],
+               e.rel[j][SB_EST_FCOS][3], e.se[j][SB_EST_FCOS][3], e.overshoot[j]);
+        CHECKF(fe->rel_rms[j * 4 + 3] <= fe->rel_rms[(j - 1) * 4 + 3], "native J=%zu %.4g > %.4g", j + 1,
+               fe->rel_rms[j * 4 + 3], fe->rel_rms[(j - 1) * 4 + 3]);
+        double rise = e.rel[j][SB_EST_FCOS][3] - e.rel[j - 1][SB_EST_FCOS][3];
+        CHECKF(rise <= 2 * hypot(e.se[j][SB_EST_FCOS][3], e.se[j - 1][SB_EST_FCOS][3]), "headline rises at J=%zu",
+               j + 1);
+        CHECKF(e.overshoot[j] <= 1.5, "overshoot %.3g at J=%zu", e.overshoot[j], j + 1);
+    }
+    sb_pairs_destroy(pairs);
+    sb_factors_destroy(f);
+    sb_param_destroy(p);
+    sb_source_destroy(src);
+}
