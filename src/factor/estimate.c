@@ -18,12 +18,13 @@
 #include "sepbrdf/estimate.h"
 
 #include <math.h>
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "util/internal.h"
+#include "util/parallel.h"
+#include "util/rng.h"
 
 #define PD 10   /* doubles per pair */
 #define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
@@ -44,13 +45,6 @@ struct sb_pairs {
 };
 
 /* ---- drawing the pairs ------------------------------------------------ */
-
-static uint64_t splitmix(uint64_t *s) {
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
 
 /* GGX normal distribution D(h) for cos(theta_h) = c. */
 static double ggx_d(double alpha, double c) {
@@ -112,7 +106,7 @@ static void draw_replicate(sb_pairs_t *P, size_t k) {
     for (int d = 0; d < 6; d++) {
         a /= phi6;
         alpha[d] = a;
-        shift[d] = (double)(splitmix(&s) >> 11) * 0x1.0p-53;
+        shift[d] = sb_unit(sb_splitmix64(&s));
     }
     for (size_t i = 0; i < P->rep; i++) {
         size_t at = k * P->rep + i;
@@ -156,16 +150,10 @@ static void *worker(void *arg) {
 static void run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user) {
     runner_t r = {.first = first, .count = count, .fn = fn, .user = user};
     atomic_store(&r.next, 0);
-    pthread_t th[MAXT];
     worker_arg_t args[MAXT];
-    int started[MAXT] = {0};
     for (int t = 0; t < nt; t++)
         args[t] = (worker_arg_t){&r, t};
-    for (int t = 1; t < nt; t++)
-        started[t] = pthread_create(&th[t], NULL, worker, &args[t]) == 0;
-    worker(&args[0]);
-    for (int t = 1; t < nt; t++)
-        if (started[t]) pthread_join(th[t], NULL);
+    sb_parallel_run(worker, args, sizeof args[0], nt, NULL, NULL);
 }
 
 static void draw_unit(void *user, size_t k, int t) {
