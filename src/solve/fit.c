@@ -47,6 +47,8 @@
 #define SB_ALS_MAX_K 32
 /* A joint refit may make a shorter prefix at most this much worse. */
 #define SB_PREFIX_SLACK 2.0
+/* A taps' constraint may raise the error on the valid cells this much. */
+#define SB_TAPS_COST 1.5
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
 
@@ -515,13 +517,15 @@ static double als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, cons
 }
 
 /* The staged ALS from the warm start in f->P, f->Q on the cells of X with
- * mask != 0 (nvalid of them); *err the last stage's error; *converged 0
+ * mask != 0 (nvalid of them); *err the last stage's error; *stretched 1
+ * when the last stage kept a joint refit that made a shorter prefix more
+ * than SB_PREFIX_SLACK times worse (not strict only); *converged 0
  * when the run that gave the last stage's kept result stopped at
  * max_iters (earlier stages only warm-start the later ones).  SB_OK or
  * SB_ERR_NOMEM. */
 static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
-                              const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged,
-                              double *err) {
+                              const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
+                              int *stretched) {
     size_t m = f->m, n = f->n, k = f->k;
     /* Nested stages: terms are added one at a time and the first ka
      * are refitted jointly, so every prefix of the result is itself a
@@ -557,8 +561,12 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
              * non-increasing */
             keep = ej <= *err;
             double slack = ka == k && !strict ? INFINITY : SB_PREFIX_SLACK;
-            for (size_t j = 0; keep && j + 1 < ka; j++)
+            int within = 1;
+            for (size_t j = 0; keep && j + 1 < ka; j++) {
                 keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2)) && (!strict || e2[j + 1] <= e2[j]);
+                within &= sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK;
+            }
+            if (keep && !within) *stretched = 1;
             if (keep) {
                 *err = ej;
                 for (size_t j = 0; j + 1 < ka; j++)
@@ -582,11 +590,12 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
     return SB_OK;
 }
 
-/* Whether the errors of the prefixes on the valid cells (mask) of X are
- * non-increasing. */
-static int prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask) {
+/* Squared errors of the prefixes on the valid cells (mask) of X: e2[j]
+ * after the terms 0..j. */
+static void valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2) {
     size_t m = f->m, n = f->n, k = f->k;
-    double e2[SB_ALS_MAX_K] = {0};
+    for (size_t j = 0; j < k; j++)
+        e2[j] = 0;
     for (size_t c = 0; c < n; c++)
         for (size_t r = 0; r < m; r++) {
             if (!mask[r + c * lda]) continue;
@@ -596,18 +605,24 @@ static int prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, con
                 e2[j] += d * d;
             }
         }
-    for (size_t j = 1; j < k; j++)
+}
+
+static int prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask) {
+    double e2[SB_ALS_MAX_K];
+    valid_prefix_e2(f, X, lda, mask, e2);
+    for (size_t j = 1; j < f->k; j++)
         if (e2[j] > e2[j - 1]) return 0;
     return 1;
 }
 
-/* Texels within one step of texel i (x +- 1, y +- 1; CLAMP axes stop at
- * the edge, REPEAT axes wrap), i included, each once. */
-static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t out[9]) {
+/* Texels within two steps of texel i (x +- 2, y +- 2: the cell holding an
+ * in-domain pair may be one away from a valid centre, its taps one more;
+ * CLAMP axes stop at the edge, REPEAT axes wrap), i included, each once. */
+static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t out[25]) {
     size_t w = wh[0], h = wh[1], k = 0;
     long x = (long)(i % w), y = (long)(i / w);
-    for (long dy = -1; dy <= 1; dy++)
-        for (long dx = -1; dx <= 1; dx++) {
+    for (long dy = -2; dy <= 2; dy++)
+        for (long dx = -2; dx <= 2; dx++) {
             long xs = x + dx, ys = y + dy;
             if (wrap[0] == SB_WRAP_REPEAT) xs = (xs + (long)w) % (long)w;
             if (wrap[1] == SB_WRAP_REPEAT) ys = (ys + (long)h) % (long)h;
@@ -628,7 +643,7 @@ static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t
  * into [lo, hi]; cells already joined keep their targets.  (Joining every
  * such cell, or pulling it to its neighbours' mean, fits the data worse
  * and breaks exact recovery of low-rank data with holes.)  Per column the
- * column neighbours are reduced first, then the row neighbours: 18 reads
+ * column neighbours are reduced first, then the row neighbours: 50 reads
  * per cell.  Returns the cells added, or (size_t)-1 without memory. */
 static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
     size_t m = f->m, n = f->n, k = f->k, added = 0;
@@ -639,7 +654,7 @@ static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *
         return (size_t)-1;
     }
     for (size_t c = 0; c < n; c++) {
-        size_t nc[9], nr[9], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+        size_t nc[25], nr[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
         for (size_t r = 0; r < m; r++) {
             lo1[r] = INFINITY;
             hi1[r] = -INFINITY;
@@ -675,7 +690,8 @@ static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *
 /* The ALS part of a fit from the warm start in f->P, f->Q: the stages
  * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
  * (constrain_taps, twice at most, warm), and when the prefixes' errors on
- * the valid cells then rise anywhere, all of it again from the same start
+ * the valid cells then rise anywhere, or the last stage made a prefix more
+ * than SB_PREFIX_SLACK times worse, all of it again from the same start
  * with strict stages (a joint refit kept only if the prefixes' errors stay
  * non-increasing), so that every prefix is a fit no worse than the shorter
  * ones.  SB_OK or SB_ERR_NOMEM. */
@@ -685,35 +701,58 @@ static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsi
     int taps = lda == m && o->tex[0][0] * o->tex[0][1] == m && o->tex[1][0] * o->tex[1][1] == n;
     unsigned char *ext = taps ? malloc(m * n) : NULL;
     double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
-    sb_result_t r = (taps && !ext) || !P0 || !Q0 ? SB_ERR_NOMEM : SB_OK;
+    double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
+    sb_result_t r = (taps && !ext) || !P0 || !Q0 || !P1 || !Q1 ? SB_ERR_NOMEM : SB_OK;
     if (r == SB_OK) {
         memcpy(P0, f->P, m * k * sizeof *P0);
         memcpy(Q0, f->Q, n * k * sizeof *Q0);
     }
     for (int strict = 0; strict < 2 && r == SB_OK; strict++) {
         size_t nvalid = nvalid0;
+        int stretched = 0;
         memcpy(f->P, P0, m * k * sizeof *P0);
         memcpy(f->Q, Q0, n * k * sizeof *Q0);
         if (ext)
             for (size_t c = 0; c < n; c++)
                 for (size_t i = 0; i < m; i++)
                     ext[i + c * m] = mask[i + c * lda] ? 1 : 0;
-        r = als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err);
+        r = als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err, &stretched);
         /* taps reaching unconstrained cells that overshoot: constrain
          * them and run the stages again from the fit found (twice at
          * most; warm, each stage stops after a few sweeps) */
+        double e2[SB_ALS_MAX_K], before = 0;
+        if (taps) {
+            valid_prefix_e2(f, As, lda, mask, e2);
+            before = e2[k - 1];
+            memcpy(P1, f->P, m * k * sizeof *P1);
+            memcpy(Q1, f->Q, n * k * sizeof *Q1);
+        }
+        size_t constrained = 0;
         for (int round = 0; r == SB_OK && taps && round < 2; round++) {
             size_t added = constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
             if (added == (size_t)-1) r = SB_ERR_NOMEM;
             if (added == 0 || r != SB_OK) break;
             nvalid += added;
-            r = als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err);
+            constrained += added;
+            r = als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
         }
-        if (r != SB_OK || prefixes_monotone(f, As, lda, mask)) break;
+        /* data that the rank-k structure extends exactly (or nearly) are
+         * their own best extrapolation: a constraint that costs the valid
+         * cells more than SB_TAPS_COST in error is dropped */
+        if (r == SB_OK && constrained) {
+            valid_prefix_e2(f, As, lda, mask, e2);
+            if (sqrt(e2[k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2)) {
+                memcpy(f->P, P1, m * k * sizeof *P1);
+                memcpy(f->Q, Q1, n * k * sizeof *Q1);
+            }
+        }
+        if (r != SB_OK || (!stretched && prefixes_monotone(f, As, lda, mask))) break;
     }
     free(ext);
     free(P0);
     free(Q0);
+    free(P1);
+    free(Q1);
     return r;
 }
 
