@@ -12,11 +12,12 @@ typedef struct sb_fit_opts {
     uint64_t seed; /* starting subspace; default 1 */
     double target; /* stop adding terms once the relative error is <= target (0 = all k) */
     /* Texture layout of the rows (tex[0]: g, width x height = m) and the
-     * columns (tex[1]: h, = n) with their wrap (SB_WRAP_*): when given,
-     * every invalid cell next to a valid one (within one texel on both
-     * sides, the cells a bilinear tap of an in-domain pair reaches) is
-     * fitted to the mean of its valid neighbours, so lookups near the
-     * domain's edge stay bounded by the data around them.  0: no layout. */
+     * columns (tex[1]: h, = n) with their wrap (SB_WRAP_*): when given, an
+     * invalid cell within two texels of valid ones on both sides (what a
+     * bilinear tap of an in-domain pair reaches) whose fitted value
+     * overshoots the data around it is constrained into their range and
+     * the fit repeated (fit.c: constrain_taps), so lookups near the
+     * domain's edge stay bounded.  0: no layout. */
     size_t tex[2][2];
     int wrap[2][2];
 } sb_fit_opts_t;
