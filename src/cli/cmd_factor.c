@@ -189,14 +189,15 @@ typedef struct report_ctx {
 } report_ctx_t;
 
 /* Whether the headline does not rise with J' by more than two standard
- * errors (out of sample, more terms can fit the cells better and the
- * pairs between them worse). */
+ * errors plus 2 % (out of sample, more terms can fit the cells better and
+ * the pairs between them worse; a rise within 2 % is not worth a
+ * warning). */
 static int headline_non_increasing(const attempt_t *a) {
     const sb_estimate_t *e = a->est;
     for (size_t k = 1; k < e->terms; k++) {
-        double d = e->rel[k][SB_EST_FCOS][3] - e->rel[k - 1][SB_EST_FCOS][3];
+        double prev = e->rel[k - 1][SB_EST_FCOS][3], d = e->rel[k][SB_EST_FCOS][3] - prev;
         double se = hypot(e->se[k][SB_EST_FCOS][3], e->se[k - 1][SB_EST_FCOS][3]);
-        if (d > 2 * se) return 0;
+        if (d > 2 * se + 0.02 * prev) return 0;
     }
     return 1;
 }

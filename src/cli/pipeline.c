@@ -222,6 +222,46 @@ static sb_result_t select_one(sb_context_t *ctx, const sb_source_t *src, pipe_op
     return r;
 }
 
+/* The estimate with growth and the grid metric of a screened attempt. */
+static sb_result_t measure_full(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *full, attempt_t *a) {
+    sb_result_t r = attempt_estimate(ctx, src, full, a);
+    if (r == SB_OK && full->metric_res > 0) {
+        sb_metric_opts_t mo = {0};
+        mo.res = full->metric_res;
+        double tm = cli_now();
+        r = sb_metric_compute(ctx, src, a->f, a->param, a->m.form, &mo, &a->metric);
+        a->t_metric = cli_now() - tm;
+    }
+    return r;
+}
+
+/* Refit the screened masked fit in full; a masked fit is a local optimum,
+ * so the full refit is kept only if its headline at J is no worse than the
+ * screened one's (the screened fit is then measured in full instead). */
+static sb_result_t refit_best(sb_context_t *ctx, const sb_source_t *src, const pipe_opts_t *full, attempt_t *best) {
+    size_t J = sb_factors_terms(best->f);
+    double h0 = attempt_headline(best, J < best->est->terms ? J : best->est->terms);
+    attempt_t keep = *best;
+    best->f = NULL;
+    best->est = NULL;
+    sb_result_t r = attempt_factor(ctx, src, full, full->terms, best->weighted, best);
+    best->t_sample = keep.t_sample;
+    if (r == SB_OK && !(attempt_headline(best, J < best->est->terms ? J : best->est->terms) > h0)) {
+        sb_factors_destroy(keep.f);
+        free(keep.est);
+        return SB_OK;
+    }
+    cli_info(2, "  the full refit measured worse than the screened fit (%.4e): keeping the screened one", h0);
+    sb_factors_destroy(best->f);
+    free(best->est);
+    best->f = keep.f;
+    best->est = keep.est;
+    best->stats = keep.stats;
+    best->t_factor = keep.t_factor;
+    if (r != SB_OK && r != SB_ERR_NUMERIC) return r;
+    return measure_full(ctx, src, full, best);
+}
+
 sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *src, const pipe_opts_t *o,
                         pipe_cand_t *cands, size_t ncand, attempt_t *best) {
     pipe_opts_t po = *o, full = *o;
@@ -239,6 +279,7 @@ sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *s
      * candidates' errors differ by factors, not digits); the kept one is
      * refitted and measured in full. */
     int screened = ncand > 1;
+    double t_screen = 0;
     if (screened) {
         po.metric_res = 0;
         po.est_max_pairs = 1;
@@ -258,6 +299,7 @@ sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *s
             continue;
         }
         size_t J = sb_factors_terms(a.f);
+        t_screen += screened ? a.t_estimate : 0;
         /* the estimate holds SB_EST_MAXJ terms at most: compare there beyond */
         cands[i].err = attempt_headline(&a, J < a.est->terms ? J : a.est->terms);
         cands[i].ok = 1;
@@ -275,20 +317,12 @@ sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *s
     if (r == SB_OK && !best->f)
         r = sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s", sb_source_description(src));
     if (r == SB_OK && screened && attempt_masked(best)) {
-        double t_sample = best->t_sample;
-        r = attempt_factor(ctx, src, &full, o->terms, best->weighted, best);
-        best->t_sample = t_sample;
+        r = refit_best(ctx, src, &full, best);
     } else if (r == SB_OK && screened) {
-        r = attempt_estimate(ctx, src, &full, best);
-        if (r == SB_OK && o->metric_res > 0) {
-            sb_metric_opts_t mo = {0};
-            mo.res = o->metric_res;
-            double tm = cli_now();
-            r = sb_metric_compute(ctx, src, best->f, best->param, best->m.form, &mo, &best->metric);
-            best->t_metric = cli_now() - tm;
-        }
+        r = measure_full(ctx, src, &full, best);
     }
     if (r != SB_OK) attempt_free(best);
+    best->t_estimate += t_screen; /* what the estimator cost in all */
     sb_pairs_destroy(own);
     return r;
 }
