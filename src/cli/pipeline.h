@@ -98,8 +98,8 @@ typedef struct pipe_cand {
 
 /* The candidates: with param_auto every parameterisation that applies to
  * src (iso only for isotropic sources, none that sb_param_create refuses),
- * with forms f and cos unless form_set (cos not on iso, whose phi_d fold
- * assumes a reciprocal matrix: f cos(theta_i) is not), solid-angle
+ * with forms f and cos unless form_set (cos not on a layout that folds by
+ * reciprocity, SB_CAP_FOLDS_RECIPROCITY: f cos(theta_i) is not reciprocal), solid-angle
  * weighted; otherwise just (param, form, weighted).  cos2 is no candidate:
  * its division by cos(theta_o) turns small errors near the horizon into
  * unbounded ones in what a shader outputs, f cos(theta_i).  Returns the
