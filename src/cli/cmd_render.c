@@ -273,7 +273,7 @@ static int is_dir(const char *path) {
  * selection), with J = the largest of the list.  *best owns the kept attempt. */
 static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
                                  attempt_t *best) {
-    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0};
+    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0, NULL, 0, 0};
     pipe_cand_t cands[PIPE_MAX_CANDS];
     size_t ncand = pipe_candidates(src, &po, o->param_auto, o->param, o->form_set, o->form, o->weighted, cands);
     return pipe_select(ctx, "render", src, &po, cands, ncand, best);
