@@ -15,5 +15,6 @@
 #include "render.h"
 #include "source.h"
 #include "svd.h"
+#include "viewer.h"
 
 #endif
