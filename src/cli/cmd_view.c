@@ -123,8 +123,9 @@ static int open_original(sb_context_t *ctx, const view_opts_t *o, const sb_facto
     if (cli_read_source_spec(o->dir, given, sizeof given) == 0 && pipe_source_open(ctx, given, &o->mo, src) == SB_OK)
         return -1;
     if (meta && pipe_source_open(ctx, meta, &o->mo, src) == SB_OK) return -1;
-    cli_info(1, "sepbrdf view: %s: its source cannot be opened, the page shows the reconstruction only (name the "
-                "original with --source)",
+    cli_info(1,
+             "sepbrdf view: %s: its source cannot be opened, the page shows the reconstruction only (name the "
+             "original with --source)",
              o->dir);
     return -1;
 }

@@ -189,7 +189,9 @@ static void put_data(FILE *fp, const sb_factors_t *f, const sb_param_t *param, s
     fputs("const SB_DATA = {\"version\":", fp);
     put_string(fp, SB_VERSION_STRING);
     fputs(",\"source\":", fp);
-    put_string(fp, o->source ? sb_source_description(o->source) : sb_factors_get_meta(f, "source") ? sb_factors_get_meta(f, "source") : "");
+    put_string(fp, o->source                          ? sb_source_description(o->source)
+                   : sb_factors_get_meta(f, "source") ? sb_factors_get_meta(f, "source")
+                                                      : "");
     fputs(",\"param\":", fp);
     put_string(fp, sb_param_spec(param));
     fprintf(fp, ",\"form\":%d,\"terms\":%zu,\"channels\":%zu,\"exposure\":%.9g,\"file_bytes\":%zu,", (int)form,
@@ -234,8 +236,8 @@ static void page_data_free(page_data_t *d) {
     sb_param_destroy(d->refp);
 }
 
-static sb_result_t page_data_make(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *param,
-                                  sb_form_t form, const sb_viewer_opts_t *o, page_data_t *d) {
+static sb_result_t page_data_make(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *param, sb_form_t form,
+                                  const sb_viewer_opts_t *o, page_data_t *d) {
     sb_result_t r = SB_OK;
     if (!(d->g = side_texels(ctx, f, SB_SIDE_G, &d->ng)) || !(d->h = side_texels(ctx, f, SB_SIDE_H, &d->nh)) ||
         !(d->polar = slices(ctx, o->source, f, param, form, &d->npolar)))
@@ -255,8 +257,8 @@ static sb_result_t check_args(sb_context_t *ctx, const char *path, const sb_fact
         sb_factors_size(f, side, &fw, &fh);
         sb_param_texture_size(param, side, &pw, &ph);
         if (fw != pw || fh != ph)
-            return sb_error(ctx, SB_ERR_ARG, "viewer: %s textures are %zu x %zu, %s needs %zu x %zu",
-                            side ? "h" : "g", fw, fh, sb_param_spec(param), pw, ph);
+            return sb_error(ctx, SB_ERR_ARG, "viewer: %s textures are %zu x %zu, %s needs %zu x %zu", side ? "h" : "g",
+                            fw, fh, sb_param_spec(param), pw, ph);
     }
     return SB_OK;
 }
