@@ -103,36 +103,51 @@ static int b64val(int c) {
     return c == '+' ? 62 : c == '/' ? 63 : -1;
 }
 
+/* base64 of little-endian float32 from p up to the first character that
+ * is not base64: malloc'ed, *count floats; NULL on none. */
+static float *b64_floats(const char *p, size_t *count) {
+    size_t len = 0;
+    while (b64val(p[len]) >= 0)
+        len++;
+    size_t nbytes = len * 6 / 8, k = 0;
+    unsigned char *bytes = malloc(nbytes + 4);
+    float *out = malloc(nbytes + 4);
+    uint32_t acc = 0;
+    int bits = 0;
+    for (size_t i = 0; bytes && i < len; i++) {
+        acc = acc << 6 | (uint32_t)b64val(p[i]);
+        if ((bits += 6) >= 8) bytes[k++] = (unsigned char)(acc >> (bits -= 8));
+    }
+    *count = k / 4;
+    for (size_t i = 0; bytes && out && i < *count; i++) {
+        uint32_t u = 0;
+        for (int b = 0; b < 4; b++)
+            u |= (uint32_t)bytes[i * 4 + b] << (8 * b);
+        memcpy(&out[i], &u, 4);
+    }
+    free(bytes);
+    if (!out || *count == 0) {
+        free(out);
+        return NULL;
+    }
+    return out;
+}
+
 /* Line "KEY=BASE64" of the test output: float32 RGBA, rows from the top,
  * into an image (alpha > 0.5: covered).  0 on success. */
 static int decode_image(const char *text, const char *key, size_t size, sb_image_t *img) {
     char pat[32];
+    size_t n = 0;
     snprintf(pat, sizeof pat, "\n%s=", key);
     const char *p = strstr(text, pat);
-    if (!p || sb_image_alloc(NULL, size, size, img) != SB_OK) return -1;
-    p += strlen(pat);
-    size_t nbytes = size * size * 16, k = 0;
-    unsigned char *bytes = malloc(nbytes);
-    uint32_t acc = 0;
-    int bits = 0, v;
-    for (; bytes && (v = b64val(*p)) >= 0 && k < nbytes; p++) {
-        acc = acc << 6 | (uint32_t)v;
-        if ((bits += 6) >= 8) bytes[k++] = (unsigned char)(acc >> (bits -= 8));
-    }
-    for (size_t i = 0; bytes && k == nbytes && i < size * size; i++) {
-        float px[4];
-        for (int c = 0; c < 4; c++) {
-            uint32_t u = 0;
-            for (int b = 0; b < 4; b++)
-                u |= (uint32_t)bytes[i * 16 + c * 4 + b] << (8 * b);
-            memcpy(&px[c], &u, 4);
-        }
+    float *px = p ? b64_floats(p + strlen(pat), &n) : NULL;
+    int ok = px && n == size * size * 4 && sb_image_alloc(NULL, size, size, img) == SB_OK;
+    for (size_t i = 0; ok && i < size * size; i++) {
         for (int c = 0; c < 3; c++)
-            img->rgb[i * 3 + c] = px[c];
-        img->mask[i] = px[3] > 0.5f;
+            img->rgb[i * 3 + c] = px[i * 4 + c];
+        img->mask[i] = px[i * 4 + 3] > 0.5f;
     }
-    int ok = bytes && k == nbytes;
-    free(bytes);
+    free(px);
     return ok ? 0 : -1;
 }
 
@@ -411,4 +426,146 @@ SB_TEST(shader_error_detected) {
     CHECK(page_render(dir, 45, 45, 1, &v) != 0);
     CHECKF(strstr(v.status, "status=error") && strstr(v.status, "fragment shader"), "status: %s", v.status);
     view_free(&v);
+}
+
+/* ---- the library call, without a browser ------------------------------ */
+
+/* The floats of "KEY":"BASE64" in the page (malloc'ed), *n of them. */
+static float *page_floats(const char *page, const char *key, size_t *n) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":\"", key);
+    const char *p = strstr(page, pat);
+    return p ? b64_floats(p + strlen(pat), n) : NULL;
+}
+
+static long page_int(const char *page, const char *key) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(page, pat);
+    return p ? strtol(p + strlen(pat), NULL, 10) : -1;
+}
+
+static char *slurp(const char *path) {
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    fseek(fp, 0, SEEK_END);
+    long n = ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (s) s[fread(s, 1, (size_t)n, fp)] = 0;
+    fclose(fp);
+    return s;
+}
+
+static double lum(const double rgb[3]) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+
+/* What the page embeds, decoded, against the library: the texels (as
+ * float), the in-plane slices (sb_factors_eval, sb_source_eval at the
+ * directions of viewer.h) and the reference table (sb_source_eval at the
+ * cell centres of the smaller parameterisation it names), its size capped. */
+SB_TEST(page_data) {
+    const char *made = make_folder("--param io -r 6 -J 2 phong:n=20");
+    if (!made) return;
+    char dir[4096], path[4200];
+    snprintf(dir, sizeof dir, "%s", made);
+    snprintf(path, sizeof path, "%s/lib.html", dir);
+    sb_factors_t *f = NULL;
+    sb_param_t *p = NULL, *ref = NULL;
+    sb_source_t *src = NULL;
+    sb_form_t form;
+    char *page = NULL;
+    CHECK(sb_factors_read_exr(NULL, dir, &f) == SB_OK && sb_factors_param(NULL, f, &p, &form) == SB_OK);
+    CHECK(sb_source_open(NULL, "phong:n=20", &src) == SB_OK);
+    sb_viewer_opts_t o = {src, NULL, NULL, 0, 300};
+    if (!f || !p || !src || sb_viewer_write(NULL, path, f, p, form, &o) != SB_OK || !(page = slurp(path))) {
+        CHECKF(0, "sb_viewer_write failed");
+        goto out;
+    }
+    size_t n, W, H;
+    /* texels: layer j, texel (x, y), channel c at ((j H + y) W + x) 3 + c */
+    float *g = page_floats(page, "g_texels", &n);
+    sb_factors_size(f, SB_SIDE_G, &W, &H);
+    CHECK(g && n == 2 * W * H * 3);
+    for (size_t j = 0; g && j < 2; j++)
+        for (size_t i = 0; i < W * H; i++)
+            for (size_t c = 0; c < 3; c++)
+                CHECK(g[(j * W * H + i) * 3 + c] == (float)sb_factors_tex_const(f, SB_SIDE_G, j, c)[i]);
+    free(g);
+    /* slices [k][ti][to]: k = 0 original, k = J' the reconstruction */
+    float *sl = page_floats(page, "data", &n);
+    CHECK(sl && n == 3 * 36 * 179);
+    for (size_t a = 0; sl && a < 36; a += 7)
+        for (size_t b = 0; b < 179; b += 11) {
+            double ti = a * 2.5 * SB_PI / 180, to = ((double)b - 89) * SB_PI / 180, rgb[3];
+            double wi[3] = {sin(ti), 0, cos(ti)}, wo[3] = {-sin(to), 0, cos(to)};
+            sb_source_eval(src, wi, wo, rgb);
+            CHECK_REL(sl[a * 179 + b], lum(rgb), 1e-6);
+            for (size_t k = 1; k <= 2; k++) {
+                sb_factors_eval(f, p, form, k, wi, wo, rgb);
+                CHECK_REL(sl[k * 36 * 179 + a * 179 + b], lum(rgb), 1e-6);
+            }
+        }
+    free(sl);
+    /* the reference table: io:res=6 has 1296 cells, over the cap of 300 */
+    const char *spec = strstr(page, "\"ref\":{\"param\":\"");
+    char rspec[128] = "";
+    if (spec) sscanf(spec + strlen("\"ref\":{\"param\":\""), "%127[^\"]", rspec);
+    long rows = page_int(page, "rows"), cols = page_int(page, "cols");
+    sb_param_kind_t kind;
+    sb_param_opts_t po;
+    CHECKF(sb_param_parse_spec(NULL, rspec, &kind, &po) == SB_OK && sb_param_create(NULL, kind, &po, &ref) == SB_OK,
+           "reference '%s'", rspec);
+    CHECKF(rows > 0 && cols > 0 && rows * cols <= 300 && kind == SB_PARAM_IO, "%s: %ld x %ld", rspec, rows, cols);
+    float *t = page_floats(page, "texels", &n);
+    CHECK(t && ref && n >= (size_t)(rows * cols) * 4 && (size_t)rows == sb_param_rows(ref));
+    for (long r = 0; t && ref && r < rows; r += 3)
+        for (long c = 0; c < cols; c += 5) {
+            double wi[3], wo[3], rgb[3];
+            sb_param_cell_dirs(ref, (size_t)r, (size_t)c, wi, wo);
+            sb_source_eval(src, wi, wo, rgb);
+            for (int k = 0; k < 3; k++)
+                CHECK_REL(t[(r * cols + c) * 4 + k], rgb[k], 1e-6);
+            CHECK(t[(r * cols + c) * 4 + 3] == 1.0f);
+        }
+    free(t);
+out:
+    free(page);
+    sb_param_destroy(ref);
+    sb_param_destroy(p);
+    sb_factors_destroy(f);
+    sb_source_destroy(src);
+}
+
+/* Every error of sb_viewer_write; a failed write leaves nothing behind. */
+SB_TEST(library_errors) {
+    const char *made = make_folder("--param io -r 4 -J 1 lambert");
+    if (!made) return;
+    char dir[4096], path[4200];
+    snprintf(dir, sizeof dir, "%s", made);
+    sb_factors_t *f = NULL;
+    sb_param_t *p = NULL, *other = NULL;
+    sb_form_t form;
+    sb_param_opts_t po = {6, 0, 0, 0, 0};
+    CHECK(sb_factors_read_exr(NULL, dir, &f) == SB_OK && sb_factors_param(NULL, f, &p, &form) == SB_OK);
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &other) == SB_OK);
+    snprintf(path, sizeof path, "%s/page.html", dir);
+    CHECK(sb_viewer_write(NULL, NULL, f, p, form, NULL) == SB_ERR_ARG);
+    CHECK(sb_viewer_write(NULL, path, NULL, p, form, NULL) == SB_ERR_ARG);
+    CHECK(sb_viewer_write(NULL, path, f, NULL, form, NULL) == SB_ERR_ARG);
+    CHECK(sb_viewer_write(NULL, path, f, other, form, NULL) == SB_ERR_ARG); /* 4 x 4 textures, io:res=6 */
+    CHECK(!sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/no/such/folder/page.html", dir);
+    CHECK(sb_viewer_write(NULL, path, f, p, form, NULL) == SB_ERR_IO);
+    /* without a source or snippet: the page still comes, with the library's snippet */
+    snprintf(path, sizeof path, "%s/page.html", dir);
+    CHECK(sb_viewer_write(NULL, path, f, p, form, NULL) == SB_OK);
+    char *page = slurp(path);
+    CHECK(page && strstr(page, "\"ref\":null") && strstr(page, "vec3 sb_brdf(vec3 L, vec3 V)"));
+    free(page);
+    char cmd[20000];
+    snprintf(cmd, sizeof cmd, "ls -a '%s' | grep -c tmp", dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) != 0 || atoi(g_out) == 0);
+    sb_param_destroy(other);
+    sb_param_destroy(p);
+    sb_factors_destroy(f);
 }
