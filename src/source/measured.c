@@ -4,13 +4,13 @@
 
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "source/measured_impl.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 static const char *const format_names[SB_TABLE_FORMAT_COUNT_] = {"auto", "merl", "cornell", "alta", "csv"};
 static const char *const interp_names[SB_INTERP_COUNT_] = {"default", "nearest", "linear", "idw", "quadratic"};
@@ -261,38 +261,18 @@ sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, cons
     if (!src || !param) return sb_error(ctx, SB_ERR_ARG, "coverage: missing source or parameterisation");
     size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total;
     if (sb_size_mul(rows, cols, &total)) return sb_error(ctx, SB_ERR_OVERFLOW, "coverage: cell count overflows");
-    int nt = sb_thread_count(0);
-    if ((size_t)nt > cols) nt = (int)cols;
-    if (nt < 1) nt = 1;
-    cov_job_t *jobs = calloc((size_t)nt, sizeof *jobs);
-    pthread_t *th = calloc((size_t)nt, sizeof *th);
-    char *started = calloc((size_t)nt, 1);
-    if (!jobs || !th || !started) {
-        free(jobs);
-        free(th);
-        free(started);
-        return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
-    }
+    int nt = sb_threads_for(0, cols, cols, 0);
+    cov_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] =
-            (cov_job_t){src, param, rows, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt, 0, 0};
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, cov_cols, &jobs[t]) == 0;
+        jobs[t] = (cov_job_t){src, param, rows, 0, 0, 0, 0};
+        sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
-    cov_cols(&jobs[0]);
+    sb_parallel_run(cov_cols, jobs, sizeof *jobs, nt, NULL, NULL);
     size_t k = 0, n = 0;
     for (int t = 0; t < nt; t++) {
-        if (t > 0) {
-            if (started[t])
-                pthread_join(th[t], NULL);
-            else
-                cov_cols(&jobs[t]); /* no thread: do it here */
-        }
         k += jobs[t].known;
         n += jobs[t].cells;
     }
-    free(jobs);
-    free(th);
-    free(started);
     if (known) *known = k;
     if (cells) *cells = n;
     return SB_OK;
