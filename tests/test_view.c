@@ -341,6 +341,24 @@ SB_TEST(forms_and_half) {
     check_folder("--param iso -r 8 -J 3 --half --form cos2", 3);
 }
 
+/* A snippet whose per-term scales are not 1 (half output carries them):
+ * the page gives it g_j / sb_scale[j], so the sum stays f. */
+SB_TEST(snippet_scales) {
+    NEED_BROWSER();
+    const char *dir = make_folder("--param io -r 6 -J 2 --half");
+    if (!dir) return;
+    char cmd[20000];
+    snprintf(cmd, sizeof cmd,
+             "sed -i 's/float\\[SB_TERMS\\](1, 1)/float[SB_TERMS](0.5, 4)/' '%s/sepbrdf.glsl' && "
+             "grep -c '(0.5, 4)' '%s/sepbrdf.glsl' && %s view '%s' -q",
+             dir, dir, SB_CLI, dir);
+    CHECKF(sb_run(cmd, g_out, sizeof g_out) == 0, "the scales of %s/sepbrdf.glsl: %s", dir, g_out);
+    page_view_t v;
+    double db = page_psnr(dir, 30, 60, 2, &v);
+    printf("  scales x0.5, x4 in the snippet: page vs CPU %.1f dB\n", db);
+    view_free(&v);
+}
+
 /* Moving the light and the J slider change the page's image as they
  * change the CPU's: each view agrees with the CPU, and differs from the
  * other views by much more than it differs from the CPU. */

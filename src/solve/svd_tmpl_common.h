@@ -38,4 +38,3 @@ static sb_result_t FN(orth)(sb_svd_t *s, R *Y, size_t rows, size_t cols) {
                      s->tau, s->work, s->lwork);
     return info == 0 ? SB_OK : sb_error(s->ctx, SB_ERR_NUMERIC, "svd: QR failed (info %d)", (int)info);
 }
-
