@@ -574,11 +574,14 @@ SB_TEST(library_errors) {
     CHECK(!sb_file_exists(path));
     snprintf(path, sizeof path, "%s/no/such/folder/page.html", dir);
     CHECK(sb_viewer_write(NULL, path, f, p, form, NULL) == SB_ERR_IO);
-    /* without a source or snippet: the page still comes, with the library's snippet */
+    /* without a source or snippet: the page still comes, with the library's
+     * snippet; text that would close the script is escaped */
     snprintf(path, sizeof path, "%s/page.html", dir);
-    CHECK(sb_viewer_write(NULL, path, f, p, form, NULL) == SB_OK);
+    sb_viewer_opts_t o = {NULL, NULL, "{\"x\": \"</script><b>\"}", 0, 0};
+    CHECK(sb_viewer_write(NULL, path, f, p, form, &o) == SB_OK);
     char *page = slurp(path);
     CHECK(page && strstr(page, "\"ref\":null") && strstr(page, "vec3 sb_brdf(vec3 L, vec3 V)"));
+    CHECK(page && !strstr(page, "</script><b>") && strstr(page, "\\u003c/script>\\u003cb>"));
     free(page);
     char cmd[20000];
     snprintf(cmd, sizeof cmd, "ls -a '%s' | grep -c tmp", dir);
