@@ -4,6 +4,7 @@
 
 #include "channels.h"
 #include "common.h"
+#include "estimate.h"
 #include "exr.h"
 #include "factor.h"
 #include "glsl.h"
