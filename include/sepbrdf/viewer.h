@@ -12,7 +12,7 @@
  *     sb_factors_read_exr returns them (the per-term scales of half output
  *     already applied; the page divides g_j by the snippet's sb_scale[j]);
  *   - the snippet text, compiled as GLSL ES 3.00 behind a
- *     "#version 300 es" line and precision statements;
+ *     "#version 300 es" line (the snippet sets its precisions for GL_ES);
  *   - with a source: a reference table, the source sampled (form f) on the
  *     factorisation's parameterisation, or on the same kind at a lower
  *     resolution so that it has at most `ref_cells` cells, as RGBA float32

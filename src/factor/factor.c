@@ -569,7 +569,10 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         } else if (circ) {
             r = sb_circ_svd(p->circ, a, m->ld, cw, J, pw, p->s, p->u, p->v, p->tails);
         } else if (masked) {
-            sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol, p->opts.svd.seed, p->opts.max_error};
+            sb_fit_opts_t fo = {p->opts.fit_max_iters, p->opts.fit_tol,      p->opts.svd.seed,
+                                p->opts.max_error,     {{gw, gh}, {hw, hh}}, {{0, 0}, {0, 0}}};
+            sb_param_wrap(param, SB_SIDE_G, fo.wrap[0]);
+            sb_param_wrap(param, SB_SIDE_H, fo.wrap[1]);
             sb_fit_info_t fi;
             r = sb_fit_execute(p->fit, x, ldx, m->mask, &fo, p->s, p->u, p->v, &fi);
             if (fi.iterations > p->stats.fit_iterations) p->stats.fit_iterations = fi.iterations;

@@ -37,6 +37,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sepbrdf/param.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rng.h"
@@ -513,6 +514,136 @@ static double als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, cons
     return err;
 }
 
+/* The staged ALS from the warm start in f->P, f->Q on the cells of X with
+ * mask != 0 (nvalid of them); *err the last stage's error.  SB_OK or
+ * SB_ERR_NOMEM. */
+static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                              const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
+    size_t m = f->m, n = f->n, k = f->k;
+    /* Nested stages: terms are added one at a time and the first ka
+     * are refitted jointly, so every prefix of the result is itself a
+     * masked fit of its rank (the terms are not re-orthogonalised over
+     * the whole matrix: that would mix in the unconstrained values the
+     * fit implies outside the domain). */
+    double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
+    double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
+    als_cells_t cl;
+    if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, nvalid) != 0) {
+        free(saveP);
+        free(saveQ);
+        return SB_ERR_NOMEM;
+    }
+    for (size_t ka = 1; ka <= k; ka++) {
+        /* first the new term alone on the residual of the others: the
+         * error can only go down (its first half-sweep is a least-squares
+         * step from the warm start) */
+        *err = als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, converged);
+        if (ka > 1) {
+            /* then all ka jointly: a joint refit may trade the prefixes'
+             * accuracy for cancelling terms that are large outside the
+             * domain, which also spoil interpolated lookups near its
+             * edge */
+            memcpy(saveP, f->P, m * ka * sizeof *saveP);
+            memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
+            double ej = als_until(f, &cl, 0, ka, o, sqrt(norm2), total, converged);
+            prefix_errors(f, &cl, ka, e2);
+            /* kept only if every prefix stays a fit: the errors of
+             * the prefixes non-increasing, none more than
+             * SB_PREFIX_SLACK times its accepted value */
+            int keep = ej <= *err;
+            for (size_t j = 0; keep && j + 1 < ka; j++)
+                keep = sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK && e2[j + 1] <= e2[j] && (j > 0 || e2[0] <= norm2);
+            if (keep) {
+                *err = ej;
+                for (size_t j = 0; j + 1 < ka; j++)
+                    acc[j] = fmax(acc[j], sqrt(e2[j]));
+            } else {
+                memcpy(f->P, saveP, m * ka * sizeof *saveP);
+                memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
+            }
+        }
+        acc[ka - 1] = *err;
+        if (o->target > 0 && *err <= o->target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
+            memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
+            memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
+            break;
+        }
+    }
+    free(saveP);
+    free(saveQ);
+    cells_free(&cl);
+    return SB_OK;
+}
+
+/* Texels within one step of texel i (x +- 1, y +- 1; CLAMP axes stop at
+ * the edge, REPEAT axes wrap), i included, each once. */
+static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t out[9]) {
+    size_t w = wh[0], h = wh[1], k = 0;
+    long x = (long)(i % w), y = (long)(i / w);
+    for (long dy = -1; dy <= 1; dy++)
+        for (long dx = -1; dx <= 1; dx++) {
+            long xs = x + dx, ys = y + dy;
+            if (wrap[0] == SB_WRAP_REPEAT) xs = (xs + (long)w) % (long)w;
+            if (wrap[1] == SB_WRAP_REPEAT) ys = (ys + (long)h) % (long)h;
+            if (xs < 0 || ys < 0 || xs >= (long)w || ys >= (long)h) continue;
+            size_t at = (size_t)ys * w + (size_t)xs, dup = 0;
+            for (size_t q = 0; q < k; q++)
+                dup |= out[q] == at;
+            if (!dup) out[k++] = at;
+        }
+    return k;
+}
+
+/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
+ * data around them: an invalid cell (r, c) with valid cells among rows N(r)
+ * x columns N(c) (lo..hi their values in x) whose fitted value
+ * sum_j P_rj Q_cj lies outside [lo - d, hi + d], d = hi - lo +
+ * max(|lo|, |hi|) / 2, joins the data (ext = 1) with the value clamped
+ * into [lo, hi].  Per column the column neighbours are reduced first, then
+ * the row neighbours: 18 reads per cell.  Returns the cells added, or
+ * (size_t)-1 without memory. */
+static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
+    size_t m = f->m, n = f->n, k = f->k, added = 0;
+    double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
+    if (!lo1 || !hi1) {
+        free(lo1);
+        free(hi1);
+        return (size_t)-1;
+    }
+    for (size_t c = 0; c < n; c++) {
+        size_t nc[9], nr[9], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+        for (size_t r = 0; r < m; r++) {
+            lo1[r] = INFINITY;
+            hi1[r] = -INFINITY;
+            for (size_t q = 0; q < kc; q++)
+                if (ext[r + nc[q] * m] == 1) {
+                    lo1[r] = fmin(lo1[r], x[r + nc[q] * m]);
+                    hi1[r] = fmax(hi1[r], x[r + nc[q] * m]);
+                }
+        }
+        for (size_t r = 0; r < m; r++) {
+            if (ext[r + c * m]) continue;
+            size_t kr = neighbours(o->tex[0], o->wrap[0], r, nr);
+            double lo = INFINITY, hi = -INFINITY, v = 0;
+            for (size_t q = 0; q < kr; q++) {
+                lo = fmin(lo, lo1[nr[q]]);
+                hi = fmax(hi, hi1[nr[q]]);
+            }
+            if (!(lo <= hi)) continue;
+            for (size_t j = 0; j < k; j++)
+                v += f->P[r + j * m] * f->Q[c + j * n];
+            double d = hi - lo + 0.5 * fmax(fabs(lo), fabs(hi));
+            if (v >= lo - d && v <= hi + d) continue;
+            x[r + c * m] = fmin(fmax(v, lo), hi);
+            ext[r + c * m] = 2; /* data from now on, not a neighbour's source */
+            added++;
+        }
+    }
+    free(lo1);
+    free(hi1);
+    return added;
+}
+
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
                            const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info) {
     size_t m = f->m, n = f->n, k = f->k, l = f->l;
@@ -606,63 +737,40 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
             for (size_t i = 0; i < n; i++)
                 f->Q[i + j * n] = f->vbt[j + i * l] * rt;
         }
-        /* Nested stages: terms are added one at a time and the first ka
-         * are refitted jointly, so every prefix of the result is itself a
-         * masked fit of its rank (the terms are not re-orthogonalised over
-         * the whole matrix: that would mix in the unconstrained values the
-         * fit implies outside the domain). */
         int total = it > em_iters ? em_iters : it, converged = 1;
-        double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
-        double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
-        als_cells_t cl;
-        if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, m * n - ninvalid) != 0) {
-            free(saveP);
-            free(saveQ);
+        size_t nvalid = m * n - ninvalid;
+        double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
+        unsigned char *ext = NULL;
+        int taps = lda == m && o.tex[0][0] * o.tex[0][1] == m && o.tex[1][0] * o.tex[1][1] == n;
+        if (taps && (ext = malloc(m * n)) != NULL)
+            for (size_t c = 0; c < n; c++)
+                for (size_t r2 = 0; r2 < m; r2++)
+                    ext[r2 + c * m] = mask[r2 + c * lda] ? 1 : 0;
+        r = !P0 || !Q0 || (taps && !ext) ? SB_ERR_NOMEM : SB_OK;
+        if (r == SB_OK) {
+            memcpy(P0, f->P, m * k * sizeof *P0);
+            memcpy(Q0, f->Q, n * k * sizeof *Q0);
+            r = als_stages(f, As, lda, mask, nvalid, &o, norm2, &total, &converged, &err);
+        }
+        /* taps reaching unconstrained cells that overshoot: constrain
+         * them and fit again from the same start (twice at most) */
+        for (int round = 0; r == SB_OK && taps && round < 2; round++) {
+            size_t added = constrain_taps(&o, f, f->x, ext);
+            if (added == (size_t)-1) r = SB_ERR_NOMEM;
+            if (added == 0 || r != SB_OK) break;
+            nvalid += added;
+            memcpy(f->P, P0, m * k * sizeof *P0);
+            memcpy(f->Q, Q0, n * k * sizeof *Q0);
+            r = als_stages(f, As, lda, ext, nvalid, &o, norm2, &total, &converged, &err);
+        }
+        free(P0);
+        free(Q0);
+        free(ext);
+        if (r != SB_OK) {
             free(qu);
             free(coef);
-            return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
+            return sb_error(f->ctx, r, "fit: out of memory");
         }
-        for (size_t ka = 1; ka <= k; ka++) {
-            /* first the new term alone on the residual of the others: the
-             * error can only go down (its first half-sweep is a least-squares
-             * step from the warm start) */
-            err = als_until(f, &cl, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
-            if (ka > 1) {
-                /* then all ka jointly, kept only if no shorter prefix gets
-                 * more than SB_PREFIX_SLACK times worse (at the last stage:
-                 * no worse than no term at all): a joint refit may trade the
-                 * prefixes' accuracy for cancelling terms that are large
-                 * outside the domain, which also spoil interpolated lookups
-                 * near its edge */
-                memcpy(saveP, f->P, m * ka * sizeof *saveP);
-                memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-                double ej = als_until(f, &cl, 0, ka, &o, sqrt(norm2), &total, &converged);
-                prefix_errors(f, &cl, ka, e2);
-                int keep = ej <= err;
-                /* the last stage is what was asked for: there any sane
-                 * prefix (no worse than no term) is accepted */
-                double slack = ka == k ? INFINITY : SB_PREFIX_SLACK;
-                for (size_t j = 0; keep && j + 1 < ka; j++)
-                    keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2));
-                if (keep) {
-                    err = ej;
-                    for (size_t j = 0; j + 1 < ka; j++)
-                        acc[j] = fmax(acc[j], sqrt(e2[j]));
-                } else {
-                    memcpy(f->P, saveP, m * ka * sizeof *saveP);
-                    memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
-                }
-            }
-            acc[ka - 1] = err;
-            if (o.target > 0 && err <= o.target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
-                memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
-                memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
-                break;
-            }
-        }
-        free(saveP);
-        free(saveQ);
-        cells_free(&cl);
         /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
         for (size_t j = 0; j < k; j++) {
             double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);

@@ -12,6 +12,11 @@ char *sb_strdup(const char *s);
 void *sb_alloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
 void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
 
+/* While from is set, sb_error writes `to` for every occurrence of `from` in
+ * its messages (an output set names its target, not its staging folder).
+ * Both strings stay owned by the caller; from NULL ends it. */
+void sb_context_alias(sb_context_t *ctx, const char *from, const char *to);
+
 /* Most threads any parallel loop uses (parallel.h). */
 #define SB_THREADS_MAX 64
 
