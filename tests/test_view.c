@@ -284,6 +284,13 @@ SB_TEST(cli_errors) {
     char page[4200];
     snprintf(page, sizeof page, "%s/index.html", dir);
     CHECK(!sb_file_exists(page));
+    /* -o FOLDER: the page as an output set of its own there */
+    snprintf(cmd, sizeof cmd, "%s view '%s' -o '%s/elsewhere' -q", SB_CLI, dir, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 0);
+    snprintf(page, sizeof page, "%s/elsewhere/index.html", dir);
+    CHECK(sb_file_exists(page));
+    snprintf(cmd, sizeof cmd, "%s view '%s' -o ''", SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 1);
 }
 
 /* The page holds the folder's snippet and nothing from the network; as a

@@ -2,7 +2,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include "cli.h"
 #include "pipeline.h"
@@ -27,7 +26,9 @@ static void help(void) {
            "        reconstruction only.\n"
            "\n"
            "options:\n"
-           "  -o, --out FILE       the page (default DIR/index.html)\n"
+           "  -o, --out FOLDER     where index.html goes, created if missing (default DIR);\n"
+           "                       published as one output set beside the factors (as\n"
+           "                       `sepbrdf render` adds its set)\n"
            "      --source SPEC    the original to compare with\n"
            "      --no-original    leave the original out (a smaller page)\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP
            "\n" CLI_EXIT_HELP);
@@ -50,7 +51,7 @@ static int parse(int argc, char **argv, view_opts_t *o) {
         if (cli_opt(&a, n_help, 0, &v)) {
             help();
             return EXIT_OK;
-        } else if ((m = cli_out_opt(&a, "file", &o->out))) {
+        } else if ((m = cli_out_opt(&a, "folder", &o->out))) {
             if (m < 0) return EXIT_USAGE;
         } else if ((m = cli_opt(&a, n_src, 1, &v))) {
             if (m < 0) return EXIT_USAGE;
@@ -130,7 +131,7 @@ static int open_original(sb_context_t *ctx, const view_opts_t *o, const sb_facto
     return -1;
 }
 
-static int write_page(sb_context_t *ctx, const view_opts_t *o, const char *out) {
+static int write_page(sb_context_t *ctx, const view_opts_t *o) {
     sb_factors_t *f = NULL;
     sb_param_t *param = NULL;
     sb_source_t *src = NULL;
@@ -150,14 +151,20 @@ static int write_page(sb_context_t *ctx, const view_opts_t *o, const char *out) 
     report = read_text(o->dir, "report.json");
     if ((rc = open_original(ctx, o, f, &src)) >= 0) goto out;
     sb_viewer_opts_t vo = {src, glsl, report, texture_bytes(o->dir, sb_factors_terms(f)), 0};
-    char tmp[4300];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", out, (long)getpid());
-    cli_guard(tmp);
-    r = sb_viewer_write(ctx, out, f, param, form, &vo);
-    cli_unguard(tmp);
-    rc = r == SB_OK ? EXIT_OK : cli_fail("view", ctx, r);
+    /* The page is an output set of its own in the folder (outset.h) */
+    char path[4200];
+    sb_outset_t *set = cli_outset_begin(ctx, "view", o->out, &rc);
+    if (!set) goto out;
+    if (cli_set_file(set, "index.html", path, sizeof path) != 0) {
+        cli_error("view", "%s/index.html: name too long", o->out);
+        rc = EXIT_IO;
+    } else if ((r = sb_viewer_write(ctx, path, f, param, form, &vo)) != SB_OK) {
+        rc = cli_fail("view", ctx, r);
+    }
+    int end = cli_outset_end(ctx, "view", set, rc < 0); /* publishes, or discards after a failure */
+    if (rc < 0) rc = end;
     if (rc == EXIT_OK && g_verbosity >= 1)
-        printf("sepbrdf view: wrote %s (%s, %zu terms%s%s); open it in a browser with WebGL2\n", out,
+        printf("sepbrdf view: wrote %s/index.html (%s, %zu terms%s%s); open it in a browser with WebGL2\n", o->out,
                sb_param_spec(param), sb_factors_terms(f), src ? ", original " : ", no original",
                src ? sb_source_description(src) : "");
 out:
@@ -180,15 +187,14 @@ int cmd_view(int argc, char **argv) {
         cli_error("view", "%s: not a folder (give a folder written by `sepbrdf factor`)", o.dir);
         return EXIT_IO;
     }
-    char out[4200];
-    snprintf(out, sizeof out, "%s/index.html", o.dir);
-    if (o.out) snprintf(out, sizeof out, "%s", o.out);
+    if (!o.out) o.out = o.dir;
+    if ((rc = cli_check_outdir("view", "--out", o.out)) != EXIT_OK) return rc;
     sb_context_t *ctx = NULL;
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("view", "out of memory");
         return EXIT_IO;
     }
-    rc = write_page(ctx, &o, out);
+    rc = write_page(ctx, &o);
     sb_context_destroy(ctx);
     return rc;
 }
