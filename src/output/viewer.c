@@ -186,12 +186,11 @@ typedef struct page_data {
 static void put_data(FILE *fp, const sb_factors_t *f, const sb_param_t *param, sb_form_t form, const char *glsl,
                      const sb_viewer_opts_t *o, const page_data_t *d, double exposure) {
     const sb_factor_errors_t *e = sb_factors_errors(f);
+    const char *desc = o->source ? sb_source_description(o->source) : sb_factors_get_meta(f, "source");
     fputs("const SB_DATA = {\"version\":", fp);
     put_string(fp, SB_VERSION_STRING);
     fputs(",\"source\":", fp);
-    put_string(fp, o->source                          ? sb_source_description(o->source)
-                   : sb_factors_get_meta(f, "source") ? sb_factors_get_meta(f, "source")
-                                                      : "");
+    put_string(fp, desc ? desc : "");
     fputs(",\"param\":", fp);
     put_string(fp, sb_param_spec(param));
     fprintf(fp, ",\"form\":%d,\"terms\":%zu,\"channels\":%zu,\"exposure\":%.9g,\"file_bytes\":%zu,", (int)form,
@@ -199,8 +198,11 @@ static void put_data(FILE *fp, const sb_factors_t *f, const sb_param_t *param, s
     put_side(fp, "g", param, SB_SIDE_G);
     put_side(fp, "h", param, SB_SIDE_H);
     fputs("\"rel_rms\":[", fp);
-    for (size_t t = 0; e && t < e->terms; t++)
-        fprintf(fp, "%s%.9g", t ? "," : "", e->rel_rms[t * 4 + 3]);
+    for (size_t t = 0; e && t < e->terms; t++) {
+        double v = e->rel_rms[t * 4 + 3];
+        fputs(t ? "," : "", fp);
+        isfinite(v) ? fprintf(fp, "%.9g", v) : fputs("null", fp);
+    }
     fputs("],\"glsl\":", fp);
     put_string(fp, glsl);
     fputs(",\"report\":", fp);
