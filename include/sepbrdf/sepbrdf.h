@@ -15,6 +15,7 @@
 #include "outset.h"
 #include "param.h"
 #include "render.h"
+#include "solver.h"
 #include "source.h"
 #include "svd.h"
 #include "viewer.h"

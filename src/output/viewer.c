@@ -199,7 +199,7 @@ static void put_data(FILE *fp, const sb_factors_t *f, const sb_param_t *param, s
     put_side(fp, "h", param, SB_SIDE_H);
     fputs("\"rel_rms\":[", fp);
     for (size_t t = 0; e && t < e->terms; t++) {
-        double v = e->rel_rms[t * 4 + 3];
+        double v = e->rel_rms[sb_err_at(t, SB_CH_ALL)];
         fputs(t ? "," : "", fp);
         isfinite(v) ? fprintf(fp, "%.9g", v) : fputs("null", fp);
     }
