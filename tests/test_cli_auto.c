@@ -2,7 +2,7 @@
  * candidate does not fail the run, layouts that assume reciprocity are
  * kept from non-reciprocal sources, the kept candidate is exactly the run
  * that asks for it alone, and screening picks within reach of the best
- * full fit. */
+ * full fit (by the headline error). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,14 +37,14 @@ static int count(const char *text, const char *pat) {
     return n;
 }
 
-/* The comparable error after J terms ("terms": J ... "comparable": x). */
-static double comparable_at(size_t J) {
+/* The headline error after J terms ("terms": J ... "headline": x). */
+static double headline_at(size_t J) {
     char pat[64];
     snprintf(pat, sizeof pat, "\"terms\": %zu,", J);
     const char *p = strstr(report, "\"errors\"");
     p = p ? strstr(p, pat) : NULL;
-    p = p ? strstr(p, "\"comparable\": ") : NULL;
-    return p ? atof(p + strlen("\"comparable\": ")) : NAN;
+    p = p ? strstr(p, "\"headline\": ") : NULL;
+    return p ? atof(p + strlen("\"headline\": ")) : NAN;
 }
 
 static const char *string_of(const char *key, char *buf, size_t size) {
@@ -58,7 +58,8 @@ static const char *string_of(const char *key, char *buf, size_t size) {
     return buf;
 }
 
-/* Issue 15: at R = 2, J = 4 exceeds iso's 2 rows; the others still run. */
+/* Issue 15: at R = 2, J = 4 exceeds iso's 2 rows (iso's one candidate,
+ * form f, fails); the others still run. */
 SB_TEST(failing_candidate_skipped) {
     char args[4200];
     const char *dir = sb_tmpdir("auto");
@@ -66,7 +67,7 @@ SB_TEST(failing_candidate_skipped) {
     int rc = run(args);
     CHECKF(rc == 0, "rc %d: %s", rc, out);
     CHECK(load_report(dir) == 0);
-    CHECK(count(report, "\"ok\": false") == 2 && strstr(report, "terms exceed"));
+    CHECK(count(report, "\"ok\": false") == 1 && strstr(report, "terms exceed"));
     CHECK(count(report, "\"kept\": true") == 1);
 }
 
@@ -103,24 +104,25 @@ SB_TEST(reciprocity) {
  * and its error is within 25 % of the best of every candidate fitted in
  * full at the requested settings. */
 SB_TEST(kept_is_best_full_fit) {
-    static const char *const params[] = {"io", "io-area", "hd", "iso"}, *const forms[] = {"f", "cos2"};
+    static const char *const params[] = {"io", "io-area", "hd", "iso"}, *const forms[] = {"f", "cos"};
     const char *spec = "microfacet:roughness=0.4";
     char args[8192], p[32], f[32];
     const char *dir = sb_tmpdir("auto");
     snprintf(args, sizeof args, "factor %s -r 20 -J 3 -q -o %s", spec, dir);
     CHECKF(run(args) == 0, "%s", out);
     CHECK(load_report(dir) == 0);
-    double kept = comparable_at(3);
+    double kept = headline_at(3);
     string_of("param", p, sizeof p);
     string_of("form", f, sizeof f);
     double best = INFINITY;
     for (int i = 0; i < 4; i++)
         for (int k = 0; k < 2; k++) {
+            if (i == 3 && k == 1) continue; /* cos is no candidate on iso (its fold assumes reciprocity) */
             snprintf(args, sizeof args, "factor %s -r 20 -J 3 --param %s --form %s --weighted -q -o %s", spec,
                      params[i], forms[k], dir);
             CHECKF(run(args) == 0, "%s", out);
             CHECK(load_report(dir) == 0);
-            double e = comparable_at(3);
+            double e = headline_at(3);
             if (e < best) best = e;
             if (strcmp(p, params[i]) == 0 && strcmp(f, forms[k]) == 0)
                 CHECKF(e == kept, "%s/%s alone %.17g, kept by auto %.17g", p, f, e, kept);

@@ -9,8 +9,9 @@
  * on a coarse grid (SB_JOB_SCREEN_COARSE cells per axis, masked fits
  * stopped early), those that cannot win are dropped, the others screened
  * again on SB_JOB_SCREEN_RES cells (both at most R), and ranked by their
- * comparable error at J on a 16-cell reference grid.  Forms f and cos2 of
- * one layout share one sampling.  Only the best is then sampled and
+ * headline error at J (estimate.h: f cos theta_i as a shader returns it,
+ * on the estimator's first pairs, shared by every candidate).  Forms f and
+ * cos of one layout share one sampling.  Only the best is then sampled and
  * factored at the requested settings, exactly as a run that asks for it
  * alone.  A candidate that fails (too few cells for J, a numerical
  * failure) is recorded as failed and skipped; the job fails only when
@@ -20,7 +21,10 @@
  * candidates' reference grids repeat pairs, each an interpolation.
  *
  * Candidates: every parameterisation that can be created at R, with forms f
- * and cos2 (or the one form asked for), solid-angle weighted; iso only for
+ * and cos (or the one form asked for; cos not on a layout that folds by
+ * reciprocity: f cos theta_i is not reciprocal; cos2 is no candidate, its
+ * division by cos theta_o is unbounded near the horizon), solid-angle
+ * weighted; iso only for
  * isotropic sources, and layouts that assume reciprocity (iso's phi_d fold)
  * only for reciprocal ones.  Asking for such a layout explicitly on a
  * non-reciprocal source runs it and adds a warning (sb_job_warning). */
@@ -30,6 +34,7 @@
 #include <stdio.h>
 
 #include "common.h"
+#include "estimate.h"
 #include "factor.h"
 #include "matrix.h"
 #include "measured.h"
@@ -49,8 +54,6 @@ extern "C" {
 #define SB_JOB_SCREEN_COARSE 8
 #define SB_JOB_SCREEN_RES 16
 #define SB_JOB_SCREEN_DROP 2.0
-/* Reference grid of the comparable error while screening. */
-#define SB_JOB_SCREEN_METRIC_RES 16
 
 /* Progress of a job: a label ("sampling", "screening") and the fraction
  * of that stage done, 0..1; called on the calling thread only. */
@@ -67,7 +70,7 @@ typedef struct sb_job_opts {
     size_t res;                  /* R, cells per angular axis: 32 */
     size_t terms;                /* J: 4; with max_error the upper limit, min(R, 32) */
     size_t metric_res;           /* reference grid of the comparable error: 32 */
-    double max_error;            /* keep the fewest terms with rel_rms <= this; 0 = off */
+    double max_error;            /* keep the fewest terms whose headline is <= this; 0 = off */
     double theta_max_deg;        /* largest sampled elevation, degrees: 90 */
     sb_method_t method;          /* SVD method: SB_METHOD_AUTO */
     unsigned long long seed;     /* randomized methods: 1 */
@@ -91,19 +94,20 @@ typedef struct sb_job_candidate {
     int dropped;   /* left out after the coarse screening: it cannot win */
     int kept;      /* the one factored at the requested settings */
     size_t res;    /* cells per axis of the grid `error` was measured on */
-    double error;  /* ranking error at J (comparable error, 16-cell reference grid); NAN if not ok */
+    double error;  /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
     double time_s; /* its screening, and for the kept one its full fit too */
     char why[160];
 } sb_job_candidate_t;
 
 /* Wall-clock seconds of the stages. */
 typedef struct sb_job_timings {
-    double screen_s; /* all candidates' screening (0 with one candidate) */
-    double sample_s; /* building the kept matrix */
-    double factor_s; /* its factorisation */
-    double metric_s; /* its comparable error */
-    double write_s;  /* sb_job_write: textures, snippet, report, previews */
-    double total_s;  /* the whole job, from sb_job_run to the end of the last write */
+    double screen_s;   /* all candidates' screening (0 with one candidate) */
+    double sample_s;   /* building the kept matrix */
+    double factor_s;   /* its factorisation */
+    double metric_s;   /* its grid quadrature (comparable_grid) */
+    double estimate_s; /* the error estimator, in all */
+    double write_s;    /* sb_job_write: textures, snippet, report, previews */
+    double total_s;    /* the whole job, from sb_job_run to the end of the last write */
 } sb_job_timings_t;
 
 typedef struct sb_job sb_job_t;
@@ -165,9 +169,15 @@ sb_form_t sb_job_form(const sb_job_t *job);
 int sb_job_weighted(const sb_job_t *job);
 int sb_job_masked(const sb_job_t *job); /* a masked fit: prefixes of J are not the J' fits */
 void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out);
-const sb_metric_t *sb_job_metric(const sb_job_t *job);
-/* Comparable error and negative fraction after J' terms; NAN beyond the
- * terms the metric holds. */
+const sb_metric_t *sb_job_metric(const sb_job_t *job); /* the grid quadrature (comparable_grid) */
+const sb_estimate_t *sb_job_estimate(const sb_job_t *job);
+/* The estimator's headline (f cos theta_i), comparable (f cos cos) and
+ * negative fraction after J' terms; NAN beyond the terms it holds. */
+double sb_job_headline(const sb_job_t *job, size_t terms);
+/* Whether the headline does not rise with J' by more than two standard
+ * errors plus 2 % (out of sample, more terms can fit the cells better and
+ * the pairs between them worse). */
+int sb_job_headline_non_increasing(const sb_job_t *job);
 double sb_job_comparable(const sb_job_t *job, size_t terms);
 double sb_job_negative(const sb_job_t *job, size_t terms);
 /* rel_rms of the stored textures (after sb_job_write) after J' terms,

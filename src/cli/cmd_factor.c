@@ -79,7 +79,7 @@ static int parse(int argc, char **argv, sb_job_opts_t *o, const char **out) {
 
 static void print_candidates(const sb_job_t *job) {
     const sb_job_candidate_t *c;
-    fprintf(stderr, "--param auto screened (comparable error at J on an R-cell grid; time):\n");
+    fprintf(stderr, "--param auto screened (headline error, f cos theta_i, at J on an R-cell grid; time):\n");
     for (size_t i = 0; (c = sb_job_candidate(job, i)) != NULL; i++) {
         if (c->ok)
             fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s%s\n", sb_param_kind_name(c->kind),
@@ -108,18 +108,39 @@ static void print_detail(const sb_job_t *job) {
              sb_factors_get_meta(sb_job_factors(job), "method"), t.factor_s, t.metric_s);
 }
 
+/* What the user must know about the kept fit, on stderr. */
+static void print_warnings(const sb_job_t *job) {
+    sb_plan_stats_t st;
+    sb_job_stats(job, &st);
+    if (st.masked && !st.fit_converged)
+        cli_error("factor",
+                  "warning: the masked fit did not converge in %d sweeps (report.json: fit.converged false); "
+                  "its errors are those of the factors written",
+                  st.fit_iterations);
+    if (!sb_job_headline_non_increasing(job))
+        cli_error("factor",
+                  "warning: the headline error rises with J' (report.json: errors[].headline): the later terms fit "
+                  "the sampled cells but not the pairs between them; fewer terms or a finer --res do better");
+    const sb_estimate_t *e = sb_job_estimate(job);
+    if (!e->converged)
+        cli_info(1, "factor: the error estimate kept a standard error above 5 %% at %zu pairs", e->pairs);
+}
+
 static void print_table(const sb_job_t *job) {
     const sb_factors_t *f = sb_job_factors(job);
     const sb_matrix_t *m = sb_job_matrix(job);
     const sb_factor_errors_t *e = sb_factors_errors(f);
     static const char *const cn[3] = {"R", "G", "B"};
-    printf("%4s  %12s  %12s  %12s  %9s", "J", "comparable", "rel_rms", "max_abs", "negative");
+    const sb_estimate_t *est = sb_job_estimate(job);
+    printf("%4s  %12s  %9s  %12s  %12s  %12s  %9s", "J", "headline", "+-", "comparable", "rel_rms", "max_abs",
+           "negative");
     for (int c = 0; c < 3; c++)
         if (m->data[c]) printf("  %10s_%s", "rel_rms", cn[c]);
     printf("\n");
     for (size_t k = 0; k < sb_factors_terms(f); k++) {
-        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, sb_job_comparable(job, k + 1),
-               e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
+        double se = k < est->terms ? est->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN;
+        printf("%4zu  %12.4e  %9.2e  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, sb_job_headline(job, k + 1), se,
+               sb_job_comparable(job, k + 1), e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
                100 * sb_job_negative(job, k + 1));
         for (int c = 0; c < 3; c++)
             if (m->data[c]) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
@@ -161,6 +182,7 @@ int cmd_factor(int argc, char **argv) {
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (sb_job_auto(job) && g_verbosity >= 1) print_candidates(job);
         print_detail(job);
+        print_warnings(job);
         /* The whole set goes into a staging folder published in one step
          * (outset.h): the folder keeps its previous set until then. */
         sb_outset_t *set = cli_outset_begin(ctx, "factor", out, &rc);

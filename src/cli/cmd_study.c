@@ -11,7 +11,7 @@
  * same sampled matrix.  The "fit" column says which ("nested" or "refit").
  *
  * Outputs in the folder: study.csv, study.json, study.dat + study.gp (the
- * gnuplot data and script) and study.png (comparable error vs J, log y). */
+ * gnuplot data and script) and study.png (headline error vs J, log y). */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -43,13 +43,13 @@ static const cli_option_t study_only[] = {
 static void help(void) {
     printf("usage: sepbrdf study SOURCE... [OPTIONS]\n"
            "\n"
-           "For every SOURCE x parameterisation x J, factor and measure: comparable error\n"
-           "(resampled, solid-angle integrated; the one to compare across\n"
-           "parameterisations), native relative RMS and max error of the matrix, the\n"
+           "For every SOURCE x parameterisation x J, factor and measure: headline error\n"
+           "(f cos theta_i as the shader returns it, out of sample; the one to compare\n"
+           "across parameterisations), comparable (f cos cos), native relative RMS and max error of the matrix, the\n"
            "fraction of pairs reconstructed negative, and times. Writes into the folder:\n"
            "  study.csv            one row per source x parameterisation x J\n"
            "  study.json           the same with settings, failures and fit details\n"
-           "  study.png            comparable error vs J, log scale, one line per\n"
+           "  study.png            headline error vs J, log scale, one line per\n"
            "                       source/parameterisation (needs gnuplot; study.gp and\n"
            "                       study.dat are the script and data it ran)\n"
            "and prints a table on stdout.\n"
@@ -235,6 +235,7 @@ static void take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size
         if (!o->want_j[j] || j > have) continue;
         row_t *w = &r->r[r->nr++];
         w->terms = j;
+        w->headline = sb_job_headline(job, j);
         w->comparable = sb_job_comparable(job, j);
         w->rel_rms = e->rel_rms[sb_err_at(j - 1, SB_CH_ALL)];
         w->max_abs = e->max_abs[sb_err_at(j - 1, SB_CH_ALL)];
@@ -303,8 +304,8 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
 /* ---- outputs ----------------------------------------------------------- */
 
 static void print_table(const runs_t *rs) {
-    printf("%-30s %-7s %4s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "comparable", "rel_rms",
-           "max_abs", "negative", "time_s", "fit");
+    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "headline", "comparable",
+           "rel_rms", "max_abs", "negative", "time_s", "fit");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         const char *pn = r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : "-";
@@ -314,9 +315,9 @@ static void print_table(const runs_t *rs) {
         }
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
-                   w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac, r->t_sample + w->t_factor + w->t_metric,
-                   r->masked ? "refit" : "nested");
+            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
+                   w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
+                   r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
         }
     }
 }

@@ -89,8 +89,8 @@ const cli_option_t cli_factor_options[] = {
      512, F_ | R_ | S_},
     {NULL, "--param", "P",
      "parameterisation: auto (default) or one of those below.\nauto screens every one that applies (iso: isotropic,\n"
-     "reciprocal sources), with forms f and cos2, solid-angle\nweighted, on coarse grids, and factors the lowest\n"
-     "comparable error at J",
+     "reciprocal sources), with forms f and cos (not on iso),\nsolid-angle weighted, on coarse grids, and factors the\n"
+     "lowest headline error at J",
      set_param, AT(param), 0, 0, F_ | R_},
     {NULL, "--form", "F",
      "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",
@@ -106,8 +106,8 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--method", "M", "auto (default), full (dgesdd), topk, randomized", set_method, AT(method), 0, 0,
      F_ | R_ | S_},
     {NULL, "--max-error", "E",
-     "keep the fewest terms whose relative RMS error is <= E\n(0 < E < 1); J (default 32 here, at most R) is then "
-     "the\nupper limit",
+     "keep the fewest terms whose headline error (f cos theta_i,\nas a shader outputs it) is <= E (0 < E < 1); J "
+     "(default\n32 here, at most R) is then the upper limit",
      cli_set_double, AT(max_error), 1e-15, 0.999999, F_},
     {NULL, "--channels", "C",
      "channels to factor, any of R, G, B (e.g. G or R,B;\ndefault all); the others are written as zero", set_channels,

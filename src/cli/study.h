@@ -24,7 +24,7 @@ typedef struct study_opts {
 /* Errors after J terms of one run. */
 typedef struct row {
     size_t terms;
-    double comparable, rel_rms, max_abs, neg_frac;
+    double headline, comparable, rel_rms, max_abs, neg_frac;
     double t_factor, t_metric; /* of the factorisation the row was read from */
 } row_t;
 

@@ -27,7 +27,7 @@ static void csv_field(FILE *fp, const char *s) {
 
 static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp, "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,"
-                "sample_s,factor_s,metric_s\n");
+                "sample_s,factor_s,metric_s,headline\n");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         if (!r->ok) continue;
@@ -36,9 +36,9 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             csv_field(fp, r->spec);
             fprintf(fp, ",%s,", sb_param_kind_name((sb_param_kind_t)r->kind));
             csv_field(fp, r->param_spec);
-            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f\n", sb_form_name(o->form), o->weighted,
+            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g\n", sb_form_name(o->form), o->weighted,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
-                    r->t_sample, w->t_factor, w->t_metric);
+                    r->t_sample, w->t_factor, w->t_metric, w->headline);
         }
     }
 }
@@ -93,6 +93,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
             const row_t *w = &r->r[k];
             json_begin_object(&j, NULL);
             json_int(&j, "terms", (long long)w->terms);
+            json_number(&j, "headline", w->headline);
             json_number(&j, "comparable", w->comparable);
             json_number(&j, "rel_rms", w->rel_rms);
             json_number(&j, "max_abs", w->max_abs);
@@ -124,9 +125,9 @@ static void write_dat(FILE *fp, const runs_t *rs) {
         const run_t *r = &rs->v[i];
         if (!r->ok || !r->nr) continue;
         if (block++) fputs("\n\n", fp); /* gnuplot: two blank lines end an index block */
-        fprintf(fp, "# %s (%s)\n# J comparable rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
+        fprintf(fp, "# %s (%s)\n# J headline rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
         for (size_t k = 0; k < r->nr; k++)
-            fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].comparable, PLOT_FLOOR),
+            fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].headline, PLOT_FLOOR),
                     fmax(r->r[k].rel_rms, PLOT_FLOOR));
     }
 }
@@ -143,7 +144,7 @@ static void gp_quote(FILE *fp, const char *s) {
 
 static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp,
-            "# sepbrdf study: comparable error vs J. Re-run with `gnuplot study.gp` in this\n"
+            "# sepbrdf study: headline error vs J. Re-run with `gnuplot study.gp` in this\n"
             "# folder; `gnuplot -e \"outfile='x.png'\" study.gp` writes elsewhere.\n"
             "# Errors below %g (exact fits) are drawn at %g.\n"
             "if (!exists(\"outfile\")) outfile = 'study.png'\n"
@@ -155,7 +156,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             "set output outfile\n"
             "set title 'sepbrdf study: R = %zu, form %s%s'\n"
             "set xlabel 'J (terms)'\n"
-            "set ylabel 'comparable error (relative L2 of f cos cos)'\n"
+            "set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'\n"
             "set logscale y\n"
             "set format y '%%.0e'\n"
             "set grid\n"

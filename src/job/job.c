@@ -103,6 +103,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         job->t.sample_s = job->best.t_sample;
         job->t.factor_s = job->best.t_factor;
         job->t.metric_s = job->best.t_metric;
+        job->t.estimate_s = job->t_estimate;
         job->t.total_s = job_now() - job->t_start;
     }
     if (r == SB_OK && opts->out) r = sb_job_write(ctx, job, opts->out);
@@ -137,18 +138,24 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
     if (terms > mn)
         return sb_error(ctx, SB_ERR_RANGE, "%zu terms exceed the %zu rows/columns of %s", terms, mn,
                         sb_param_spec(job->best.param));
-    job_level_t lv = {job->o.res, terms, job->o.metric_res, job->o.fit_tol, job->o.fit_max_iters, NULL, 0, 0};
+    job_level_t lv = {.res = job->o.res,
+                      .terms = terms,
+                      .metric_res = job->o.metric_res,
+                      .fit_tol = job->o.fit_tol,
+                      .fit_max_iters = job->o.fit_max_iters};
     free(job->rel_stored);
     job->rel_stored = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
     job->t.factor_s = job->best.t_factor;
     job->t.metric_s = job->best.t_metric;
+    job->t.estimate_s = job->best.t_estimate;
     return r;
 }
 
 void sb_job_destroy(sb_job_t *job) {
     if (!job) return;
     job_attempt_free(&job->best);
+    sb_pairs_destroy(job->pairs);
     free(job->rel_stored);
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);
@@ -176,14 +183,20 @@ void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out) { *out = job->t;
 size_t sb_job_warning_count(const sb_job_t *job) { return job->nwarn; }
 const char *sb_job_warning(const sb_job_t *job, size_t i) { return i < job->nwarn ? job->warn[i] : NULL; }
 
+const sb_estimate_t *sb_job_estimate(const sb_job_t *job) { return job->best.est; }
+
+double sb_job_headline(const sb_job_t *job, size_t j) {
+    return job->best.est ? sb_estimate_headline(job->best.est, j) : NAN;
+}
+
 double sb_job_comparable(const sb_job_t *job, size_t j) {
-    const sb_metric_t *m = &job->best.metric;
-    return j >= 1 && j <= m->terms ? m->rel_l2[j - 1] : NAN;
+    const sb_estimate_t *e = job->best.est;
+    return e && j >= 1 && j <= e->terms ? e->rel[j - 1][SB_EST_FCOS2][SB_CH_ALL] : NAN;
 }
 
 double sb_job_negative(const sb_job_t *job, size_t j) {
-    const sb_metric_t *m = &job->best.metric;
-    return j >= 1 && j <= m->terms ? m->neg_frac[j - 1] : NAN;
+    const sb_estimate_t *e = job->best.est;
+    return e && j >= 1 && j <= e->terms ? e->neg_frac[j - 1] : NAN;
 }
 
 double sb_job_rel_stored(const sb_job_t *job, size_t j, size_t c) {

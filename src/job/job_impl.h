@@ -11,14 +11,16 @@ typedef struct job_attempt {
     sb_matrix_t m;
     sb_factors_t *f;
     sb_plan_stats_t stats;
-    sb_metric_t metric;
+    sb_metric_t metric; /* grid quadrature (comparable_grid), the kept fit only */
+    sb_estimate_t *est; /* the estimator's errors of the stored factors */
     int weighted;
-    double t_sample, t_factor, t_metric;
+    double t_sample, t_factor, t_metric, t_estimate;
 } job_attempt_t;
 
 /* What one attempt is asked: resolution, J and the fit's limits. */
 typedef struct job_level {
-    size_t res, terms, metric_res;
+    size_t res, terms, metric_res; /* metric_res 0: no grid quadrature */
+    size_t est_max_pairs;          /* the estimator's growth: 0 default, 1 none (screening) */
     double fit_tol;
     int fit_max_iters;
     const char *label; /* progress label of the sampling; NULL = none */
@@ -34,6 +36,8 @@ struct sb_job {
     sb_source_t *own_src;
     const sb_source_t *src;
     const sb_source_t *eval_src; /* what is evaluated: src, or its memo while screening */
+    sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
+    double t_estimate;           /* the estimator, in all */
     int is_auto;
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
@@ -51,8 +55,10 @@ void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf,
 
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);
-sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
 void job_attempt_free(job_attempt_t *a);
+/* Keep the first j terms of a->f (errors and estimate with them). */
+sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
 /* A source answering as src does, remembering up to 3/4 cap pairs (cap a

@@ -88,6 +88,54 @@ static void report_channels(sb_json_t *j, const char *key, const sb_matrix_t *m,
     sb_json_end_object(j);
 }
 
+/* The estimator's keys of errors[k] (J' = k + 1). */
+static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
+    const job_attempt_t *a = &job->best;
+    const sb_estimate_t *e = a->est;
+    int have = k < e->terms;
+    sb_json_number(j, "headline", have ? e->rel[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
+    sb_json_number(j, "headline_se", have ? e->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
+    sb_json_begin_object(j, "headline_channel");
+    for (int c = 0; c < 3; c++)
+        if (a->m.data[c]) sb_json_number(j, chan_name[c], have ? e->rel[k][SB_EST_FCOS][c] : NAN);
+    sb_json_end_object(j);
+    sb_json_number(j, "comparable", have ? e->rel[k][SB_EST_FCOS2][SB_CH_ALL] : NAN);
+    sb_json_number(j, "comparable_se", have ? e->se[k][SB_EST_FCOS2][SB_CH_ALL] : NAN);
+    sb_json_number(j, "comparable_grid", k < a->metric.terms ? a->metric.rel_l2[k] : NAN);
+    sb_json_number(j, "rel_f", have ? e->rel[k][SB_EST_F][SB_CH_ALL] : NAN);
+    sb_json_number(j, "rel_f_se", have ? e->se[k][SB_EST_F][SB_CH_ALL] : NAN);
+    sb_json_number(j, "p99_rel", have ? e->p99[k][SB_CH_ALL] : NAN);
+    sb_json_number(j, "max_rel", have ? e->max_rel[k][SB_CH_ALL] : NAN);
+    sb_json_number(j, "overshoot", have ? e->overshoot[k] : NAN);
+    sb_json_number(j, "negative_fraction", have ? e->neg_frac[k] : NAN);
+}
+
+int sb_job_headline_non_increasing(const sb_job_t *job) {
+    const sb_estimate_t *e = job->best.est;
+    for (size_t k = 1; e && k < e->terms; k++) {
+        double prev = e->rel[k - 1][SB_EST_FCOS][SB_CH_ALL], d = e->rel[k][SB_EST_FCOS][SB_CH_ALL] - prev;
+        double se = hypot(e->se[k][SB_EST_FCOS][SB_CH_ALL], e->se[k - 1][SB_EST_FCOS][SB_CH_ALL]);
+        if (d > 2 * se + 0.02 * prev) return 0;
+    }
+    return 1;
+}
+
+static void report_estimator(sb_json_t *j, const sb_job_t *job) {
+    const sb_estimate_t *est = job->best.est;
+    sb_json_begin_object(j, "estimate");
+    sb_json_int(j, "pairs", (long long)est->pairs);
+    sb_json_int(j, "known", (long long)est->known);
+    sb_json_bool(j, "converged", est->converged);
+    sb_json_bool(j, "headline_non_increasing", sb_job_headline_non_increasing(job));
+    sb_json_end_object(j);
+    sb_json_string(j, "form_choice",
+                   job->o.form ? "as asked; the headline measures what its division does"
+                               : (job->is_auto ? "auto: lowest headline among f and cos (cos2 is no candidate: "
+                                                 "dividing by cos theta_o is unbounded near the horizon in f cos "
+                                                 "theta_i)"
+                                               : "f, the default"));
+}
+
 static void report_errors(sb_json_t *j, const sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     const sb_factor_errors_t *e = sb_factors_errors(a->f);
@@ -98,8 +146,7 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
         sb_json_number(j, "rel_rms", e->rel_rms[sb_err_at(k, SB_CH_ALL)]);
         sb_json_number(j, "rel_rms_stored", sb_job_rel_stored(job, k + 1, SB_CH_ALL));
         sb_json_number(j, "max_abs", e->max_abs[sb_err_at(k, SB_CH_ALL)]);
-        sb_json_number(j, "comparable", sb_job_comparable(job, k + 1));
-        sb_json_number(j, "negative_fraction", sb_job_negative(job, k + 1));
+        report_estimate(j, job, k);
         report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + sb_err_at(k, 0));
         report_channels(j, "max_abs_channel", &a->m, e->max_abs + sb_err_at(k, 0));
         sb_json_end_object(j);
@@ -107,11 +154,10 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
     sb_json_end_array(j);
     sb_json_number(j, "negative_texels", a->metric.neg_texels);
     sb_json_int(j, "metric_resolution", (long long)job->o.metric_res);
+    report_estimator(j, job);
 }
 
 static void report_auto(sb_json_t *j, const sb_job_t *job) {
-    size_t mres = job->o.metric_res < SB_JOB_SCREEN_METRIC_RES ? job->o.metric_res : SB_JOB_SCREEN_METRIC_RES;
-    sb_json_int(j, "auto_metric_resolution", (long long)mres);
     sb_json_begin_array(j, "auto_tried");
     for (size_t i = 0; i < job->ncand; i++) {
         const sb_job_candidate_t *c = &job->cands[i];
@@ -122,7 +168,7 @@ static void report_auto(sb_json_t *j, const sb_job_t *job) {
         sb_json_bool(j, "ok", c->ok);
         sb_json_bool(j, "kept", c->kept);
         sb_json_int(j, "resolution", (long long)c->res);
-        sb_json_number(j, "comparable", c->ok ? c->error : NAN);
+        sb_json_number(j, "headline", c->ok ? c->error : NAN);
         sb_json_number(j, "time_s", c->time_s);
         sb_json_string(j, "failure", c->why[0] ? c->why : NULL);
         sb_json_end_object(j);
@@ -162,6 +208,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     sb_json_number(j, "sample_s", job->t.sample_s);
     sb_json_number(j, "factor_s", job->t.factor_s);
     sb_json_number(j, "metric_s", job->t.metric_s);
+    sb_json_number(j, "estimate_s", job->t.estimate_s);
     sb_json_number(j, "write_s", job->t.write_s);
     sb_json_number(j, "total_s", job->t.total_s);
     sb_json_end_object(j);

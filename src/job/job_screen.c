@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "job_impl.h"
+#include "sepbrdf/exr.h"
 #include "util/internal.h"
 
 static void sample_progress(void *user, double fraction) {
@@ -44,9 +45,29 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
 
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) { return a->m.mask != NULL && !job->o.zero_fill; }
 
-/* Factor the sampled a->m with lv->terms terms (replacing a->f), then the
- * comparable error on a lv->metric_res grid. */
-sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
+/* The estimator's errors of a->f as stored (HALF or FLOAT) into a->est,
+ * on the job's pairs, growing them up to lv->est_max_pairs. */
+static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    double t0 = job_now();
+    sb_estimate_opts_t eo = {0};
+    eo.max_pairs = lv->est_max_pairs;
+    sb_exr_opts_t xo = {job->o.half};
+    sb_factors_t *q = NULL;
+    sb_result_t r = SB_OK;
+    if (!job->pairs) r = sb_pairs_create(ctx, job->src, NULL, &job->pairs);
+    if (r == SB_OK && !a->est && !(a->est = malloc(sizeof *a->est))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    /* what a shader reads: the texels as stored */
+    if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
+    if (r == SB_OK) r = sb_estimate_compute(ctx, job->pairs, q, NULL, a->param, a->m.form, &eo, a->est);
+    sb_factors_destroy(q);
+    a->t_estimate = job_now() - t0;
+    job->t_estimate += a->t_estimate;
+    return r;
+}
+
+/* Factor the sampled a->m with lv->terms terms (replacing a->f), then its
+ * estimated errors and, with lv->metric_res, the grid quadrature. */
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
     sb_factors_destroy(a->f);
     a->f = NULL;
     memset(&a->metric, 0, sizeof a->metric);
@@ -54,7 +75,6 @@ sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     a->weighted = weighted;
     sb_plan_opts_t pl = {0};
     pl.terms = lv->terms;
-    pl.max_error = job->o.max_error;
     pl.svd.method = job->o.method;
     pl.svd.seed = job->o.seed;
     pl.weighted = weighted;
@@ -73,26 +93,31 @@ sb_result_t job_factor(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     if (sb_factors_set_meta(a->f, "source", sb_source_description(job->src)) != SB_OK ||
         sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK)
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    a->t_factor = t2 - t1;
+    a->t_metric = 0;
+    if ((r = job_estimate(ctx, job, lv, a)) != SB_OK || lv->metric_res == 0) return r;
     sb_metric_opts_t mo = {0};
     mo.res = lv->metric_res;
+    double t3 = job_now();
     if ((r = sb_metric_compute(ctx, job->eval_src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
-    a->t_factor = t2 - t1;
-    a->t_metric = job_now() - t2;
+    a->t_metric = job_now() - t3;
     return SB_OK;
 }
 
 void job_attempt_free(job_attempt_t *a) {
+    free(a->est);
     sb_factors_destroy(a->f);
     sb_matrix_free(&a->m);
     sb_param_destroy(a->param);
     memset(a, 0, sizeof *a);
 }
 
-/* The error candidates are ranked by: the comparable error at the J the
- * attempt kept (the metric holds 256 terms at most: there beyond). */
+/* The error candidates are ranked by: the headline (f cos theta_i as a
+ * shader returns it, estimate.h) at the J the attempt kept (the estimate
+ * holds SB_EST_MAXJ terms at most: there beyond). */
 static double rank_error(const job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f);
-    return a->metric.rel_l2[(J < a->metric.terms ? J : a->metric.terms) - 1];
+    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
 }
 
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
@@ -170,7 +195,11 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         if (!sb_job_param_applies(k, job->src, NULL)) continue;
         if (layout_min_side(job, k, job->o.res) == 0) continue; /* not available at R */
         if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
-        if (r == SB_OK && !job->o.form) r = cand_add(ctx, job, k, SB_FORM_COS2, 1);
+        /* cos: not on a layout that folds by reciprocity (f cos theta_i is
+         * not reciprocal); cos2 is none: dividing by cos theta_o is
+         * unbounded near the horizon in what a shader outputs */
+        if (r == SB_OK && !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY))
+            r = cand_add(ctx, job, k, SB_FORM_COS, 1);
         if (r != SB_OK) return r;
     }
     if (job->ncand == 0)
@@ -226,7 +255,7 @@ static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_
 
 /* Sample candidate c on level lv (or derive it from `from`, its layout
  * sampled as f) and factor it; the outcome is recorded in c. */
-static sb_result_t screen_one(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_job_candidate_t *c,
+static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, sb_job_candidate_t *c,
                               const job_attempt_t *from, job_attempt_t *a) {
     double t0 = job_now();
     sb_result_t r = from ? job_reform(ctx, job, lv, from, c->form, a) : job_sample(ctx, job, lv, c->kind, c->form, a);
@@ -242,7 +271,7 @@ static sb_result_t screen_one(sb_context_t *ctx, const sb_job_t *job, const job_
 /* Screen the live candidates of one layout: the first sampled (as f,
  * when it is one of them), the others derived from its matrix when it is
  * dense (a structured one is cheap to sample again). */
-static void screen_layout(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
+static void screen_layout(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                           sb_job_candidate_t *cands, size_t n) {
     job_attempt_t base = {0}, a;
     for (size_t i = 0; i < n; i++) {
@@ -271,15 +300,21 @@ static job_level_t screen_level(const sb_job_t *job, size_t res) {
         size_t mn = job->cands[i].why[0] ? 0 : layout_min_side(job, job->cands[i].kind, lv.res);
         if (mn && mn < lv.terms) lv.terms = mn;
     }
-    lv.metric_res = job->o.metric_res < SB_JOB_SCREEN_METRIC_RES ? job->o.metric_res : SB_JOB_SCREEN_METRIC_RES;
+    lv.metric_res = 0;    /* no grid quadrature */
+    lv.est_max_pairs = 1; /* the estimator's first pairs, no growth */
     lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
     lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
     return lv;
 }
 
 static job_level_t full_level(const sb_job_t *job) {
-    job_level_t lv = {job->o.res, job->o.terms, job->o.metric_res, job->o.fit_tol, job->o.fit_max_iters, "sampling", 0,
-                      1};
+    job_level_t lv = {.res = job->o.res,
+                      .terms = job->o.terms,
+                      .metric_res = job->o.metric_res,
+                      .fit_tol = job->o.fit_tol,
+                      .fit_max_iters = job->o.fit_max_iters,
+                      .label = "sampling",
+                      .span = 1};
     return lv;
 }
 
@@ -301,12 +336,56 @@ static size_t rank(const sb_job_t *job, size_t *order) {
     return n;
 }
 
-/* Sample and factor candidate c at the requested settings into job->best. */
+sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
+    size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f), w[2], h[2];
+    if (j >= J) return SB_OK;
+    for (int s = 0; s < 2; s++)
+        sb_factors_size(a->f, s, &w[s], &h[s]);
+    sb_factors_t *t = NULL;
+    sb_result_t r = sb_factors_create(ctx, j, C, w[0], h[0], w[1], h[1], &t);
+    if (r != SB_OK) return r;
+    for (size_t k = 0; k < j; k++)
+        for (size_t c = 0; c < C; c++) {
+            for (int s = 0; s < 2; s++)
+                memcpy(sb_factors_tex(t, s, k, c), sb_factors_tex_const(a->f, s, k, c), w[s] * h[s] * sizeof(double));
+            sb_factors_set_sigma(t, k, c, sb_factors_sigma(a->f, k, c));
+        }
+    for (size_t i = 0; i < sb_factors_meta_count(a->f) && r == SB_OK; i++) {
+        const char *key, *value;
+        sb_factors_meta_at(a->f, i, &key, &value);
+        r = sb_factors_set_meta(t, key, value);
+    }
+    const sb_factor_errors_t *e = sb_factors_errors(a->f);
+    sb_factor_errors_t *et = sb_factors_errors_mut(t);
+    if (r == SB_OK && et->rel_rms && et->max_abs) {
+        memcpy(et->rel_rms, e->rel_rms, sb_err_at(j, 0) * sizeof *e->rel_rms);
+        memcpy(et->max_abs, e->max_abs, sb_err_at(j, 0) * sizeof *e->max_abs);
+        memcpy(et->norm, e->norm, sizeof et->norm);
+    }
+    if (r != SB_OK) {
+        sb_factors_destroy(t);
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    }
+    sb_factors_destroy(a->f);
+    a->f = t;
+    if (a->est && a->est->terms > j) a->est->terms = j;
+    if (a->metric.terms > j) a->metric.terms = j;
+    return SB_OK;
+}
+
+/* Sample and factor candidate c at the requested settings into job->best;
+ * with max_error, keep the fewest terms whose headline meets it. */
 static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
     job_level_t lv = full_level(job);
     sb_result_t r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
     job_progress(job, lv.label, 1);
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
+    if (r == SB_OK && job->o.max_error > 0) {
+        size_t keep = sb_factors_terms(job->best.f);
+        for (size_t k = keep; k >= 1; k--)
+            if (sb_estimate_headline(job->best.est, k) <= job->o.max_error) keep = k;
+        r = job_truncate(ctx, &job->best, keep);
+    }
     if (r != SB_OK) job_attempt_free(&job->best);
     return r;
 }

@@ -75,7 +75,12 @@ sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
     if (job->o.previews && (r = sb_factors_write_previews(ctx, a->f, dir)) != SB_OK) return r;
     char path[4200];
     snprintf(path, sizeof path, "%s/sepbrdf.glsl", dir);
-    if ((r = sb_glsl_write(ctx, path, a->param, a->m.form, J, NULL)) != SB_OK) return r;
+    /* the snippet's sb_scale: what the shader multiplies the stored texels by (HALF) */
+    double *scales = malloc(J * sizeof *scales);
+    r = scales ? sb_exr_term_scales(ctx, a->f, &eo, scales) : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK) r = sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
+    free(scales);
+    if (r != SB_OK) return r;
     if (sb_outset_add(set, "sepbrdf.glsl") != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     double t1 = job_now();
     job->t.write_s = t1 - t0;
