@@ -1,7 +1,7 @@
 /* --param auto of `sepbrdf factor` (the library's factor job): a failing
  * candidate does not fail the run, layouts that assume reciprocity are
- * kept from non-reciprocal sources, the kept candidate is exactly the run
- * that asks for it alone, and screening picks within reach of the best
+ * kept from non-reciprocal sources, the kept candidate is never worse than
+ * the run that asks for it alone, and screening picks within reach of the best
  * full fit (by the headline error). */
 #include <math.h>
 #include <stdlib.h>
@@ -100,9 +100,10 @@ SB_TEST(reciprocity) {
     CHECK(load_report(dir) == 0 && strstr(report, "\"param\": \"iso\""));
 }
 
-/* The kept candidate is fitted exactly as a run that asks for it alone,
- * and its error is within 25 % of the best of every candidate fitted in
- * full at the requested settings. */
+/* The kept candidate is fitted as a run that asks for it alone (a masked
+ * one also with the screening's early stop, keeping the better: never
+ * worse than alone), and its error is within 25 % of the best of every
+ * candidate fitted in full at the requested settings. */
 SB_TEST(kept_is_best_full_fit) {
     static const char *const params[] = {"io", "io-area", "hd", "iso"}, *const forms[] = {"f", "cos"};
     const char *spec = "microfacet:roughness=0.4";
@@ -125,7 +126,7 @@ SB_TEST(kept_is_best_full_fit) {
             double e = headline_at(3);
             if (e < best) best = e;
             if (strcmp(p, params[i]) == 0 && strcmp(f, forms[k]) == 0)
-                CHECKF(e == kept, "%s/%s alone %.17g, kept by auto %.17g", p, f, e, kept);
+                CHECKF(kept <= e, "%s/%s alone %.17g, kept by auto %.17g", p, f, e, kept);
         }
     CHECKF(kept <= 1.25 * best, "auto kept %s/%s with %.4g; the best full fit has %.4g", p, f, kept, best);
 }

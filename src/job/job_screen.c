@@ -373,6 +373,34 @@ sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
     return SB_OK;
 }
 
+/* A masked fit is a local optimum: auto also fits the kept matrix with the
+ * screening's early stop and keeps that fit when its headline at J is
+ * lower than the full fit's (the same rule as the screening's refit). */
+static sb_result_t keep_better_fit(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+    job_attempt_t *a = &job->best;
+    job_level_t lv = full_level(job);
+    lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
+    lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
+    job_attempt_t tmp = *a; /* a's matrix and param, fitted again into tmp.f / tmp.est */
+    tmp.f = NULL;
+    tmp.est = NULL;
+    sb_result_t r = job_factor(ctx, job, &lv, c->weighted, &tmp);
+    size_t J = sb_factors_terms(a->f);
+    if (r == SB_OK && rank_error(&tmp) < sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms)) {
+        sb_factors_destroy(a->f);
+        free(a->est);
+        a->f = tmp.f;
+        a->est = tmp.est;
+        a->stats = tmp.stats;
+        a->metric = tmp.metric;
+        a->t_factor += tmp.t_factor;
+        return SB_OK;
+    }
+    sb_factors_destroy(tmp.f);
+    free(tmp.est);
+    return r == SB_ERR_NUMERIC ? SB_OK : r;
+}
+
 /* Sample and factor candidate c at the requested settings into job->best;
  * with max_error, keep the fewest terms whose headline meets it. */
 static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
@@ -380,6 +408,7 @@ static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candi
     sb_result_t r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
     job_progress(job, lv.label, 1);
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
+    if (r == SB_OK && job->is_auto && job_attempt_masked(job, &job->best)) r = keep_better_fit(ctx, job, c);
     if (r == SB_OK && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(job->best.f);
         for (size_t k = keep; k >= 1; k--)
