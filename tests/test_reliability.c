@@ -310,6 +310,17 @@ SB_TEST(stale_staging_recovered) {
     expect_set(out, "after recovery", 2, "lambert:albedo=0.8", 0, NULL);
     rmdir(live);
     CHECK(clean(parent, out));
+    /* sample's single file: a temporary of a dead run beside it goes, a
+     * live run's stays */
+    char tmp[64], keep[64], path[1024];
+    snprintf(tmp, sizeof tmp, "t.csv.tmp-%ld", dead_pid());
+    snprintf(keep, sizeof keep, "t.csv.tmp-%ld", (long)getpid());
+    put(parent, tmp, "cut");
+    put(parent, keep, "being written");
+    CHECK(cli(msg, sizeof msg, "sample lambert --gonio 2,2,2,2 -q -o %s/t.csv", parent) == 0);
+    CHECK(count_named(parent, tmp) == 0 && count_named(parent, keep) == 1);
+    snprintf(path, sizeof path, "%s/%s", parent, keep);
+    unlink(path);
 }
 
 /* The source description of `spec` as report.json records it, from a
