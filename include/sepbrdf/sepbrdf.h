@@ -18,5 +18,6 @@
 #include "solver.h"
 #include "source.h"
 #include "svd.h"
+#include "viewer.h"
 
 #endif

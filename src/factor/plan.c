@@ -5,7 +5,9 @@
  * every buffer execute needs.  Execute reads like the data flow:
  *     weight -> solve -> sign rule -> textures -> errors -> truncate -> metadata
  * with the errors of every truncation from one routine (factor/errors.h),
- * or exactly from solvers that know them (SB_CAP_EXACT_TAILS). */
+ * or exactly from solvers that know them (SB_CAP_EXACT_TAILS).  Execute
+ * allocates only the factors it returns (the masked solver also gathers
+ * the valid cells of the matrix at hand, fit.c). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -1,4 +1,5 @@
-/* Private: masked low-rank fitting by iterative imputation (src/fit.c). */
+/* Private: masked low-rank fitting by iterative imputation (fit.c); the plan uses it through the masked solver
+ * (solver_masked.c). */
 #ifndef SEPBRDF_FIT_H
 #define SEPBRDF_FIT_H
 
