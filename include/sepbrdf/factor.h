@@ -145,6 +145,11 @@ typedef struct sb_plan_opts {
     int fit_max_iters; /* masked fit: outer iterations, default 300 */
     double
         fit_tol; /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
+    /* > 0: the matrices will be structured with this period (matrix.h,
+     * sb_matrix_t.structured): the plan holds no matrix-sized workspace;
+     * a method other than the block-circulant one expands the matrix at
+     * execute.  0: dense matrices. */
+    size_t phi_period;
 } sb_plan_opts_t;
 
 /* What the last sb_plan_execute did for the masked fit (0 if unmasked). */

@@ -52,6 +52,7 @@ sb_result_t attempt_sample(sb_context_t *ctx, const sb_source_t *src, const pipe
     sb_matrix_opts_t mo = {0};
     mo.form = form;
     mo.channels = o->channels;
+    mo.structured = 1; /* the distinct values only, where the factor plan reads no more */
     if (o->progress_label) {
         mo.progress = sample_progress;
         mo.progress_user = (void *)o;
@@ -79,6 +80,7 @@ sb_result_t attempt_factor(sb_context_t *ctx, const sb_source_t *src, const pipe
     pl.zero_fill = o->zero_fill;
     pl.fit_tol = o->fit_tol;
     pl.fit_max_iters = o->fit_max_iters;
+    pl.phi_period = a->m.structured ? a->m.phi_period : 0;
     sb_plan_t *plan = NULL;
     sb_result_t r = sb_plan_create(ctx, a->m.rows, a->m.cols, &pl, &plan);
     if (r != SB_OK) return r;

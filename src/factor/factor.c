@@ -244,8 +244,9 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
     p->opts = o;
     /* Refuse up front what cannot fit: at least one channel of the matrix
      * and its mask (held by the caller), plus the weighted copy. */
-    size_t cells, need;
-    if (sb_size_mul(rows, cols, &cells) || sb_size_mul(cells, 9 + (o.weighted ? 8 : 0), &need)) {
+    size_t cells, need; /* structured: R values a column */
+    if (sb_size_mul(o.phi_period ? o.phi_period : rows, cols, &cells) ||
+        sb_size_mul(cells, 9 + (o.weighted ? 8 : 0), &need)) {
         free(p);
         return sb_error(ctx, SB_ERR_OVERFLOW, "plan: a %zu x %zu matrix overflows the address space; lower --res", rows,
                         cols);
@@ -274,12 +275,12 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
         return SB_ERR_NOMEM;
     }
     if (o.weighted) {
-        p->x = sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix");
+        p->x = o.phi_period ? NULL : sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix");
         p->wr = sb_alloc(ctx, rows, sizeof(double), "plan");
         p->wc = sb_alloc(ctx, cols, sizeof(double), "plan");
         p->iwr = sb_alloc(ctx, rows, sizeof(double), "plan");
         p->iwc = sb_alloc(ctx, cols, sizeof(double), "plan");
-        if (!p->x || !p->wr || !p->wc || !p->iwr || !p->iwc) {
+        if ((!p->x && !o.phi_period) || !p->wr || !p->wc || !p->iwr || !p->iwc) {
             sb_plan_destroy(p);
             return SB_ERR_NOMEM;
         }
@@ -438,6 +439,15 @@ static sb_result_t residuals(sb_plan_t *p, const sb_matrix_t *m, const double *a
     return SB_OK;
 }
 
+/* A structured matrix for a method that reads every cell: a dense copy. */
+static sb_result_t execute_expanded(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
+    sb_matrix_t d;
+    sb_result_t r = sb_matrix_expand(p->ctx, m, &d);
+    if (r == SB_OK) r = sb_plan_execute(p, &d, param, out);
+    sb_matrix_free(&d);
+    return r;
+}
+
 sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
     sb_context_t *ctx = p->ctx;
     if (!m || !param || !out) return sb_error(ctx, SB_ERR_ARG, "plan: missing matrix, parameterisation or output");
@@ -503,8 +513,24 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     }
     for (int ch = 0; circ && ch < 3; ch++)
         if (m->data[ch] && !sb_circ_is_even(p->circ, m->data[ch], m->ld, cw, 1e-9)) circ = 0;
+    if (m->structured && !circ) { /* a dense method: on the expanded matrix */
+        sb_factors_destroy(f);
+        free(ssq);
+        free(mx);
+        return execute_expanded(p, m, param, out);
+    }
+    if (p->opts.weighted && !circ && !p->x && /* a plan made for structured matrices */
+        !(p->x = sb_alloc_large(ctx, rows * cols, sizeof(double), "plan weighted matrix"))) {
+        sb_factors_destroy(f);
+        free(ssq);
+        free(mx);
+        return SB_ERR_NOMEM;
+    }
     sb_matrix_t scan = *m; /* what the scans below read: the first block row holds every value */
-    if (circ) scan.rows = R;
+    if (circ) {
+        scan.rows = R;
+        scan.structured = 0;
+    }
     /* Proportional channels (M_c = a_c M_base: grey or tinted BRDFs) are
      * factored once: the base channel first, then the others take its
      * vectors with sigma scaled by |a_c| (and h negated for a_c < 0).  The

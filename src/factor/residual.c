@@ -50,8 +50,8 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
     for (int ch = 0; ch < 3; ch++) {
         const double *a = m->data[ch];
         if (!a) continue;
-        for (size_t c = 0; c < cols; c++)
-            for (size_t i = 0; i < rows; i++)
+        for (size_t c = 0; c < cols; c++) /* structured: the stored rows hold every value */
+            for (size_t i = 0; i < (m->structured ? m->ld : rows); i++)
                 if (!m->mask || m->mask[i + c * m->ld]) amax = fmax(amax, fabs(a[i + c * m->ld]));
     }
     double sc = 1;
@@ -91,8 +91,9 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
         for (size_t c = 0; c < cols; c++) {
             const unsigned char *mk = m->mask ? m->mask + c * m->ld : NULL;
             double w_c = wc ? wc[c] * sc : sc;
+            const double *col = sb_matrix_col(m, ch, c, r);
+            if (col != r) memcpy(r, col, rows * sizeof *r);
             for (size_t i = 0; i < rows; i++) {
-                r[i] = a[i + c * m->ld];
                 if (mk && !mk[i]) continue;
                 double x = (wr ? wr[i] : 1) * r[i] * w_c;
                 n2 += x * x;
@@ -207,8 +208,12 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
         /* Step: Y = X [H, dH] = W_r M (W_c [H, dH]) (one read of M) */
         for (size_t i = 0; i < cols * 2 * J; i++)
             Z[i] = HdH[i] * wc[i % cols] * sx;
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)(2 * J), (int)cols, 1.0, a, (int)m->ld,
-                    Z, (int)cols, 0.0, Y, (int)rows);
+        sb_result_t rm = sb_matrix_mul(ctx, m, ch, 2 * J, Z, cols, Y, rows);
+        if (rm != SB_OK) {
+            free(tail2);
+            free(ws);
+            return rm;
+        }
         for (size_t i = 0; i < rows * 2 * J; i++)
             Y[i] *= wr[i % rows];
         /* Step: Gram blocks */

@@ -57,7 +57,9 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
         present += x[c] != NULL;
     }
     if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
-    size_t rows = m->rows, cols = m->cols, ld = m->ld;
+    /* structured: the stored rows hold every value, each R times */
+    size_t rows = m->structured ? m->ld : m->rows, cols = m->cols, ld = m->ld;
+    double copies = m->structured ? sqrt((double)m->phi_period) : 1;
 
     /* Products are taken on values times a power of two pw (exact): first
      * pw = 1, which serves every BRDF of ordinary magnitude in one pass;
@@ -93,7 +95,7 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
                                 c, e);
     for (int c = 0; c < 3; c++) {
         if (!x[c]) continue;
-        out->norm[c] = sqrt(g[c][c]) / pw;
+        out->norm[c] = sqrt(g[c][c]) / pw * copies;
         if (b < 0 || g[c][c] > g[b][b]) b = c;
     }
     out->base = b;
