@@ -41,8 +41,8 @@ SB_TEST(structured_cells) {
         sb_matrix_t d, m, e;
         build(s, p, t == 1 ? SB_FORM_COS : SB_FORM_COS2, 0, &d);
         build(s, p, t == 1 ? SB_FORM_COS : SB_FORM_COS2, 1, &m);
-        CHECKF(m.structured == 1 && m.phi_period == R && m.ld == R && !m.mask, "%s: structured %d period %zu",
-               specs[t], m.structured, m.phi_period);
+        CHECKF(m.structured == 1 && m.phi_period == R && m.ld == R && !m.mask, "%s: structured %d period %zu", specs[t],
+               m.structured, m.phi_period);
         CHECK(d.structured == 0 && d.phi_period == R && d.ld == d.rows);
         CHECK(m.valid_count == d.valid_count && m.rows == d.rows && m.cols == d.cols);
         CHECK(sb_matrix_expand(NULL, &m, &e) == SB_OK);
@@ -151,8 +151,8 @@ SB_TEST(plan_on_structured) {
             CHECK(strcmp(sb_factors_get_meta(fm, "method"), sb_factors_get_meta(fd, "method")) == 0);
             const sb_factor_errors_t *em = sb_factors_errors(fm), *ed = sb_factors_errors(fd);
             for (size_t i = 0; i < J * 4; i++) {
-                CHECKF(fabs(em->rel_rms[i] - ed->rel_rms[i]) <= 1e-12, "w %d method %d: rel_rms %zu %.17g vs %.17g",
-                       w, k, i, em->rel_rms[i], ed->rel_rms[i]);
+                CHECKF(fabs(em->rel_rms[i] - ed->rel_rms[i]) <= 1e-12, "w %d method %d: rel_rms %zu %.17g vs %.17g", w,
+                       k, i, em->rel_rms[i], ed->rel_rms[i]);
                 CHECKF(fabs(em->max_abs[i] - ed->max_abs[i]) <= 1e-12 * (1 + ed->max_abs[i]), "max_abs %zu", i);
             }
             sb_exr_opts_t eo = {1};

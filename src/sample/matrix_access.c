@@ -43,10 +43,10 @@ const double *sb_matrix_col(const sb_matrix_t *m, int ch, size_t col, double *bu
  * instead of 2 R^4 k for the blocks directly. */
 typedef struct fourier {
     size_t R, nb, k;
-    double *cs, *sn;        /* R x nb: cos, sin (theta_f q) at [q + f R] */
-    double *C, *S;          /* nb blocks R x R: [it + ot R + f R^2] */
+    double *cs, *sn;         /* R x nb: cos, sin (theta_f q) at [q + f R] */
+    double *C, *S;           /* nb blocks R x R: [it + ot R + f R^2] */
     double *ac, *as, *e, *o; /* per column j of Z: R x nb (a_f, b_f; then the cos and sin coefficients of Y) */
-    double *in, *out;       /* R x 2k: [a_f b_f], and R x 4k: [C_f, S_f] times it */
+    double *in, *out;        /* R x 2k: [a_f b_f], and R x 4k: [C_f, S_f] times it */
 } fourier_t;
 
 static void fourier_transform(const fourier_t *w, const double *t) {
