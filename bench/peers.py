@@ -13,8 +13,9 @@ explicitly:
     svds       scipy.sparse.linalg.svds (ARPACK, exact)   vs sepbrdf topk
     sklearn-q1 sklearn randomized_svd, n_iter=1           vs sepbrdf randomized:q=1
     sklearn-q2 sklearn randomized_svd, n_iter=2           vs sepbrdf randomized (q = 2)
-The ratio is peer time / sepbrdf time (the SVD of the three channels,
-svd_s; factor_s where the CSV has no svd_s): above 1, sepbrdf is faster.
+numpy runs up to N = --full-max (default 2304).  The ratio is peer time /
+sepbrdf time (the SVD of the three channels, svd_s; factor_s where the CSV
+has no svd_s): above 1, sepbrdf is faster.
 --whole S compares the whole `sepbrdf factor --param io -r 64 -J 8`
 command (S seconds, from bench/run.sh) with sklearn-q2 alone at N = 4096,
 J = 8.  Writes OUT (default DIR/peers.csv).  Exit status 77 when numpy,
@@ -76,7 +77,7 @@ def main():
     ap.add_argument("--results", required=True)
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--whole", type=float, default=None)
-    ap.add_argument("--full-max", type=int, default=4096, help="largest N for numpy's full SVD")
+    ap.add_argument("--full-max", type=int, default=2304, help="largest N for numpy's full SVD (minutes at 4096)")
     ap.add_argument("-o", "--out", default=None)
     a = ap.parse_args()
     rows = list(csv.DictReader(open(a.results)))
