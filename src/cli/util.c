@@ -55,8 +55,15 @@ int cli_exit_code(sb_result_t r) {
 
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     const char *detail = sb_context_last_error(ctx);
-    cli_error(cmd, "%s", detail && *detail ? detail : sb_result_message(r));
+    cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r),
+              r == SB_ERR_OVERFLOW ? " (lower --res)" : ""); /* sizes beyond memory come from the resolution */
     return cli_exit_code(r);
+}
+
+const char *cli_param_names(void) {
+    static char names[256];
+    if (!names[0]) sb_param_kind_list(names, sizeof names, ", ");
+    return names;
 }
 
 int cli_verbosity_opt(const char *arg) {

@@ -185,13 +185,14 @@ static int stored_bytes(const sb_matrix_t *m, size_t rows, size_t mask_cells, si
 static sb_result_t check_size(sb_context_t *ctx, const sb_matrix_t *m, size_t rows, size_t mask_cells) {
     size_t bytes = 0, nch = (size_t)((m->channels & 1) + ((m->channels >> 1) & 1) + ((m->channels >> 2) & 1));
     if (stored_bytes(m, rows, mask_cells, &bytes))
-        return sb_error(ctx, SB_ERR_OVERFLOW,
-                        "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower --res",
-                        m->rows, m->cols, nch, (size_t)SIZE_MAX);
+        return sb_error(
+            ctx, SB_ERR_OVERFLOW,
+            "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower the resolution", m->rows,
+            m->cols, nch, (size_t)SIZE_MAX);
     if (bytes > sb_memory_limit())
         return sb_error(ctx, SB_ERR_OVERFLOW,
                         "matrix: %zu x %zu cells x %zu channels need %zu bytes, more than the memory limit of %zu "
-                        "bytes; lower --res",
+                        "bytes; lower the resolution",
                         m->rows, m->cols, nch, bytes, sb_memory_limit());
     return SB_OK;
 }
@@ -231,7 +232,8 @@ static void mirror_reciprocal(const iso_job_t *j, double dt, sb_form_t form) {
 static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                                       const sb_matrix_opts_t *o, sb_matrix_t *out) {
     size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
-    if (sb_size_mul3(R, R, R, &n3)) return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower --res");
+    if (sb_size_mul3(R, R, R, &n3))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower the resolution");
     sb_result_t r = check_size(ctx, out, o->structured ? R : out->rows, o->structured ? n3 : out->rows * out->cols);
     if (r != SB_OK) return r;
     int nt = sb_thread_count(o->threads);
@@ -335,25 +337,4 @@ void sb_matrix_free(sb_matrix_t *m) {
         free(m->data[ch]);
     free(m->mask);
     memset(m, 0, sizeof *m);
-}
-
-double sb_matrix_norm(const sb_matrix_t *m, int ch) {
-    if (ch < 0 || ch > 2 || !m->data[ch]) return 0;
-    const double *a = m->data[ch];
-    size_t rows = m->structured ? m->ld : m->rows; /* structured: each stored value fills R cells */
-    double scale = 0, ssq = 1;
-    for (size_t c = 0; c < m->cols; c++)
-        for (size_t r = 0; r < rows; r++) {
-            size_t at = r + c * m->ld;
-            if (m->mask && !m->mask[at]) continue;
-            double v = fabs(a[at]);
-            if (v == 0) continue;
-            if (scale < v) {
-                ssq = 1 + ssq * (scale / v) * (scale / v);
-                scale = v;
-            } else {
-                ssq += (v / scale) * (v / scale);
-            }
-        }
-    return scale * sqrt(ssq) * (m->structured ? sqrt((double)m->phi_period) : 1);
 }

@@ -131,7 +131,7 @@ sb_result_t sb_matrix_expand(sb_context_t *ctx, const sb_matrix_t *m, sb_matrix_
     size_t rows = m->rows, cols = m->cols, cells;
     memset(out, 0, sizeof *out);
     if (sb_size_mul(rows, cols, &cells))
-        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: %zu x %zu cells overflow; lower --res", rows, cols);
+        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: %zu x %zu cells overflow; lower the resolution", rows, cols);
     *out = *m;
     out->ld = rows;
     out->structured = 0;
