@@ -326,6 +326,55 @@ static double absmax_axpy(const double *x, double t, const double *y, size_t n) 
 
 static double absmax(const double *x, size_t n) { return absmax_axpy(x, 0.0, x, n); }
 
+/* The residual kernel's rows d in [d0, d1) of one thread (R^3 work a
+ * term, split by the azimuth difference d): pass 0, the largest |error|
+ * of a lone cos vector (hi, lo in c->e + R, + 2R, see sb_circ_max_abs);
+ * pass 1, subtract the whole term (phi factor c->e[d]) and the largest
+ * |residual| left. */
+typedef struct rows_job {
+    sb_circ_t *c;
+    int pass;
+    double sg, mx;
+    size_t d0, d1;
+} rows_job_t;
+
+static void *rows_max(void *arg) {
+    rows_job_t *j = arg;
+    const sb_circ_t *c = j->c;
+    size_t R = c->R;
+    const double *hi = c->e + R, *lo = c->e + 2 * R;
+    double m = 0;
+    for (size_t d = j->d0; d < j->d1; d++)
+        for (size_t ot = 0; ot < R; ot++) {
+            double *row = c->res + (d * R + ot) * R; /* over theta_i */
+            if (j->pass == 0) {
+                double B = j->sg * c->bt[ot] / (double)R;
+                double x = absmax_axpy(row, B * hi[d], c->at, R), y = absmax_axpy(row, B * lo[d], c->at, R);
+                m = fmax(m, fmax(x, y));
+                continue;
+            }
+            double cf = j->sg * c->bt[ot] * c->e[d];
+            for (size_t it = 0; it < R; it++)
+                row[it] -= cf * c->at[it];
+            m = fmax(m, absmax(row, R));
+        }
+    j->mx = m;
+    return NULL;
+}
+
+static double rows_run(sb_circ_t *c, int pass, double sg) {
+    rows_job_t jobs[SB_THREADS_MAX];
+    for (int t = 0; t < c->nth; t++) {
+        jobs[t] = (rows_job_t){c, pass, sg, 0, 0, 0};
+        sb_part(c->R, t, c->nth, &jobs[t].d0, &jobs[t].d1);
+    }
+    sb_parallel_run(rows_max, jobs, sizeof *jobs, c->nth, NULL, NULL);
+    double m = 0;
+    for (int t = 0; t < c->nth; t++)
+        m = fmax(m, jobs[t].mx);
+    return m;
+}
+
 sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
                             double *mx) {
     size_t R = c->R, R2 = R * R;
@@ -362,21 +411,13 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
                 cmx[1] = cmx[0];
                 cmn[1] = cmn[0];
             }
-            double *ck = c->e, *hi = c->e + R, *lo = c->e + 2 * R, m = 0;
+            double *ck = c->e, *hi = c->e + R, *lo = c->e + 2 * R;
             for (size_t d = 0; d < R; d++) {
                 ck[d] = c->ct[((size_t)q->k * d) % R];
                 hi[d] = ck[d] + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
                 lo[d] = ck[d] + cmn[d % 2];
             }
-            for (size_t d = 0; d < R; d++)
-                for (size_t ot = 0; ot < R; ot++) {
-                    const double *row = res + (d * R + ot) * R; /* over theta_i */
-                    double B = sg * c->bt[ot] / (double)R;
-                    double x = absmax_axpy(row, B * hi[d], c->at, R), y = absmax_axpy(row, B * lo[d], c->at, R);
-                    x = x > y ? x : y;
-                    if (x > m) m = x;
-                }
-            mx[j] = m;
+            mx[j] = rows_run(c, 0, sg);
             if (!pair_next) break; /* J ends inside the pair */
             j++;
         }
@@ -391,13 +432,7 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
                 ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
             c->e[d] = ph;
         }
-        for (size_t d = 0; d < R; d++)
-            for (size_t ot = 0; ot < R; ot++) {
-                double cf = sg * c->bt[ot] * c->e[d], *row = res + (d * R + ot) * R;
-                for (size_t it = 0; it < R; it++)
-                    row[it] -= cf * c->at[it];
-            }
-        mx[j] = absmax(res, R * R2);
+        mx[j] = rows_run(c, 1, sg);
     }
     return SB_OK;
 }
