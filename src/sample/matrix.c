@@ -321,7 +321,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     out->form = o.form;
     out->channels = chans;
     sb_result_t r;
-    if (sb_param_kind(param) == SB_PARAM_IO && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
+    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
         r = build_isotropic_io(ctx, src, param, &o, out);
         if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
     } else {
