@@ -53,7 +53,9 @@ int cli_exit_code(sb_result_t r) {
 
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     const char *detail = sb_context_last_error(ctx);
-    cli_error(cmd, "%s", detail && *detail ? detail : sb_result_message(r));
+    const char *hint =
+        r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW ? " (lower --res or --terms, or allow more memory)" : "";
+    cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r), hint);
     return cli_exit_code(r);
 }
 

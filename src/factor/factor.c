@@ -235,6 +235,8 @@ sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb
                         "--terms %zu exceeds the matrix rank limit %zu; lower --terms or raise --res", o.terms, mn);
     if (!(o.max_error >= 0 && o.max_error < 1))
         return sb_error(ctx, SB_ERR_RANGE, "--max-error %g out of range, need [0, 1)", o.max_error);
+    sb_result_t rb = sb_blas_reserve(ctx);
+    if (rb != SB_OK) return rb;
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     p->ctx = ctx;

@@ -146,6 +146,8 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
                                    const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms) {
     if (!fit || !near || !m || !rel_rms) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
     if (m->mask) return sb_error(ctx, SB_ERR_ARG, "errors: a masked matrix needs the explicit residual");
+    sb_result_t rb = sb_blas_reserve(ctx);
+    if (rb != SB_OK) return rb;
     size_t J = sb_factors_terms(fit), C = sb_factors_channels(fit), rows = m->rows, cols = m->cols, gw, gh, hw, hh;
     sb_factors_size(fit, SB_SIDE_G, &gw, &gh);
     sb_factors_size(fit, SB_SIDE_H, &hw, &hh);

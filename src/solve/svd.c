@@ -164,6 +164,8 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     if (opts) o = *opts;
     if ((unsigned)o.method >= SB_METHOD_COUNT_)
         return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
+    sb_result_t rb = sb_blas_reserve(ctx);
+    if (rb != SB_OK) return rb;
     sb_svd_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "svd: out of memory");
     s->ctx = ctx;
