@@ -56,7 +56,8 @@ typedef enum sb_table_format {
     SB_TABLE_FORMAT_COUNT_
 } sb_table_format_t;
 
-/* "auto", "merl", "cornell", "alta", "csv"; parse returns SB_ERR_UNKNOWN. */
+/* "auto", "merl", "cornell", "alta", "csv"; parse returns SB_ERR_UNKNOWN
+ * (NULL name included), SB_ERR_ARG for a NULL out. */
 const char *sb_table_format_name(sb_table_format_t f);
 sb_result_t sb_table_format_parse(const char *name, sb_table_format_t *out);
 
@@ -78,7 +79,7 @@ typedef enum sb_interp {
 } sb_interp_t;
 
 /* "default", "nearest", "linear", "idw", "quadratic"; parse returns
- * SB_ERR_UNKNOWN. */
+ * SB_ERR_UNKNOWN (NULL name included), SB_ERR_ARG for a NULL out. */
 const char *sb_interp_name(sb_interp_t m);
 sb_result_t sb_interp_parse(const char *name, sb_interp_t *out);
 
@@ -186,7 +187,8 @@ extern const double sb_merl_scale[3];
  * -theta_h about y; theta_d, phi_d its angles, phi_d in [0, 2 pi).
  * Conventions for the degenerate cases: phi_h = 0 when sin theta_h <= 1e-12
  * (h along the normal), phi_d = 0 when sin theta_d <= 1e-12 (wi = wo).
- * Returns 0 when h is undefined (wi = -wo, |wi + wo| <= 1e-12). */
+ * Returns 0 when h is undefined (wi = -wo, |wi + wo| <= 1e-12) or an
+ * argument is NULL. */
 int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d);
 /* The inverse with phi_h = 0; returns 1 when both directions are strictly
  * above the horizon. */
@@ -196,7 +198,8 @@ int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3]
  * the pair has a direction at or below the horizon, or wi = -wo. */
 int sb_merl_index(const double wi[3], const double wo[3], size_t *index);
 /* Directions at the centre of a cell (index space + 1/2 on each axis, phi_h
- * = 0); returns 1 when both are above the horizon. */
+ * = 0); returns 1 when both are above the horizon, 0 for an index >=
+ * SB_MERL_CELLS or a NULL output. */
 int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
 
 /* Write `src` as a MERL file: each cell holds f_r at the cell's centre
@@ -238,8 +241,9 @@ void sb_cie_cmf(double nm, double xyz[3]);
  * piecewise linear between the samples and constant beyond the ends,
  * integrated against the CMFs at 1 nm, normalised by sum ybar (white E),
  * optionally adapted to D65, and mapped by the IEC 61966-2-1 XYZ -> linear
- * sRGB matrix.  Errors: SB_ERR_RANGE (n == 0, wavelengths not finite or not
- * increasing). */
+ * sRGB matrix.  Errors: SB_ERR_ARG (NULL nm or w, unknown white),
+ * SB_ERR_RANGE (n == 0, wavelengths not finite or not increasing),
+ * SB_ERR_OVERFLOW (3 n doubles overflow: n cannot be an array's length). */
 sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w);
 
 #ifdef __cplusplus

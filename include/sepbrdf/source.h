@@ -39,7 +39,8 @@ sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void
                              const char *description, sb_source_t **out);
 void sb_source_destroy(sb_source_t *src); /* accepts NULL */
 
-/* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t). */
+/* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t) or
+ * an argument is NULL (rgb, when given, is then 0). */
 int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]);
 unsigned sb_source_flags(const sb_source_t *src);
 const char *sb_source_description(const sb_source_t *src);

@@ -71,7 +71,9 @@ typedef enum sb_method {
     SB_METHOD_COUNT_
 } sb_method_t;
 
-sb_result_t sb_method_parse(const char *name, sb_method_t *out); /* auto|full|topk|randomized */
+/* auto|full|topk|randomized; SB_ERR_UNKNOWN otherwise (NULL name
+ * included), SB_ERR_ARG for a NULL out. */
+sb_result_t sb_method_parse(const char *name, sb_method_t *out);
 const char *sb_method_name(sb_method_t m);
 
 /* AUTO thresholds (see the comment at the top). */
@@ -102,7 +104,8 @@ typedef struct sb_svd_info {
 typedef struct sb_svd sb_svd_t;
 
 /* The method a plan for (m, n, k, opts) would use: opts->method unless it
- * is AUTO, then the AUTO rule.  Plans nothing, allocates nothing. */
+ * is AUTO, then the AUTO rule (SB_METHOD_COUNT_ for an unknown method).
+ * Plans nothing, allocates nothing. */
 sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
 
 /* Plan a rank-k SVD of m x n matrices.  opts may be NULL (defaults).
@@ -111,6 +114,7 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
  * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
  * (workspace query failed). */
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
+/* Getters on a NULL plan: SB_METHOD_COUNT_, 0, 0 and a zeroed info. */
 void sb_svd_destroy(sb_svd_t *svd);             /* accepts NULL */
 sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
 size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */
@@ -121,7 +125,8 @@ size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
  * wanted.  If all_s is not NULL and the method computes every singular
  * value (FULL), all min(m, n) of them are written there and 1 returned via
  * *have_all; otherwise *have_all = 0.  A is read only; lda >= m.
- * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_NUMERIC (LAPACK
+ * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_OVERFLOW (lda
+ * beyond LAPACK's int, or lda x n overflows), SB_ERR_NUMERIC (LAPACK
  * failure or a non-finite entry in A). */
 sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V, double *all_s,
                            int *have_all);

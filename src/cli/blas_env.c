@@ -57,4 +57,4 @@ static void blas_threads_for_limit(int argc, char **argv, char **envp) {
 }
 
 __attribute__((used, section(".preinit_array"))) static void (*const sb_preinit_blas)(int, char **,
-                                                                                    char **) = blas_threads_for_limit;
+                                                                                      char **) = blas_threads_for_limit;

@@ -157,7 +157,8 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
         } else if (cli_opt(&a, n_zero, 0, &v)) {
             o->zero_fill = 1;
         } else if ((m = cli_opt(&a, n_mres, 1, &v))) {
-            if (m < 0 || cli_parse_size("factor", "--metric-res", v, 2, 256, &o->metric_res)) return EXIT_USAGE;
+            if (m < 0 || cli_parse_size("factor", "--metric-res", v, 2, SB_METRIC_MAX_RES, &o->metric_res))
+                return EXIT_USAGE;
         } else if (cli_opt(&a, n_previews, 0, &v)) {
             factor_previews = 1;
         } else if ((m = cli_measured_opt(&a, &o->mo))) {

@@ -253,7 +253,8 @@ static int parse(int argc, char **argv, study_opts_t *o) {
                 return EXIT_USAGE;
             }
         } else if ((m = cli_opt(&a, n_mres, 1, &v))) {
-            if (m < 0 || cli_parse_size("study", "--metric-res", v, 2, 256, &o->metric_res)) return EXIT_USAGE;
+            if (m < 0 || cli_parse_size("study", "--metric-res", v, 2, SB_METRIC_MAX_RES, &o->metric_res))
+                return EXIT_USAGE;
         } else if (cli_opt(&a, n_weighted, 0, &v)) {
             o->weighted = 1;
         } else if (cli_opt(&a, n_zero, 0, &v)) {

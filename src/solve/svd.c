@@ -17,6 +17,7 @@
 static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized"};
 
 sb_result_t sb_method_parse(const char *name, sb_method_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_METHOD_COUNT_; k++)
         if (name && strcmp(name, method_names[k]) == 0) {
             *out = (sb_method_t)k;
@@ -148,6 +149,7 @@ static sb_method_t auto_method(size_t d, size_t k, size_t p) {
 static int resolve_p(int oversample) { return oversample > 0 ? oversample : oversample < 0 ? 0 : SB_SVD_DEFAULT_P; }
 
 sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts) {
+    if (opts && (unsigned)opts->method >= SB_METHOD_COUNT_) return SB_METHOD_COUNT_;
     if (opts && opts->method != SB_METHOD_AUTO) return opts->method;
     return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
 }
@@ -221,10 +223,13 @@ void sb_svd_destroy(sb_svd_t *s) {
     free(s);
 }
 
-sb_method_t sb_svd_method(const sb_svd_t *s) { return s->method; }
-size_t sb_svd_rank(const sb_svd_t *s) { return s->k; }
-size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s->bytes; }
-sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) { return s->info; }
+sb_method_t sb_svd_method(const sb_svd_t *s) { return s ? s->method : SB_METHOD_COUNT_; }
+size_t sb_svd_rank(const sb_svd_t *s) { return s ? s->k : 0; }
+size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s ? s->bytes : 0; }
+sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) {
+    sb_svd_info_t none = {0, 0, 0, 0};
+    return s ? s->info : none;
+}
 
 /* ---- execute ------------------------------------------------------------ */
 
@@ -327,6 +332,9 @@ static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptiv
                            int *have_all) {
     if (!A || !sv || lda < s->m)
         return sb_error(s->ctx, SB_ERR_ARG, "svd: missing matrix or output, or lda %zu < %zu rows", lda, s->m);
+    size_t span;
+    if (lda > (size_t)INT32_MAX || sb_size_mul(lda, s->n - 1, &span) || sb_size_add(span, s->m, &span))
+        return sb_error(s->ctx, SB_ERR_OVERFLOW, "svd: leading dimension %zu too large", lda);
     size_t k = s->k, r = k, sketch = 0;
     double nrm = norm_fro > 0 ? norm_fro : -1, got = 0, tol2 = tol * tol;
     sb_svd_info_t info = {0, 0, 0, -1};

@@ -19,6 +19,7 @@ const char *sb_table_format_name(sb_table_format_t f) {
     return (unsigned)f < SB_TABLE_FORMAT_COUNT_ ? format_names[f] : "?";
 }
 sb_result_t sb_table_format_parse(const char *name, sb_table_format_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_TABLE_FORMAT_COUNT_; k++)
         if (name && strcmp(name, format_names[k]) == 0) {
             *out = (sb_table_format_t)k;
@@ -28,6 +29,7 @@ sb_result_t sb_table_format_parse(const char *name, sb_table_format_t *out) {
 }
 const char *sb_interp_name(sb_interp_t m) { return (unsigned)m < SB_INTERP_COUNT_ ? interp_names[m] : "?"; }
 sb_result_t sb_interp_parse(const char *name, sb_interp_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_INTERP_COUNT_; k++)
         if (name && strcmp(name, interp_names[k]) == 0) {
             *out = (sb_interp_t)k;

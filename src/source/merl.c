@@ -57,6 +57,7 @@ int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, d
 }
 
 int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d) {
+    if (!wi || !wo || !theta_h || !theta_d || !phi_d) return 0;
     double d[3], th;
     if (!sb_half_diff_vec_(wi, wo, &th, d)) return 0;
     double pd = 0; /* phi_d = 0 when wi = wo */
@@ -72,6 +73,7 @@ int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h,
 }
 
 int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
+    if (!wi || !wo) return 0;
     double d[3];
     sb_dir_from_angles(theta_d, phi_d, d);
     double ct = cos(theta_h), st = sin(theta_h);
@@ -106,12 +108,13 @@ static size_t cell_at(size_t ih, size_t id, size_t ip) { return ip + SB_MERL_PD 
 
 int sb_merl_index(const double wi[3], const double wo[3], size_t *index) {
     double u[3];
-    if (!merl_coords(wi, wo, u)) return 0;
+    if (!wi || !wo || !index || !merl_coords(wi, wo, u)) return 0;
     *index = cell_at(clamp_index(u[0], SB_MERL_TH), clamp_index(u[1], SB_MERL_TD), clamp_index(u[2], SB_MERL_PD));
     return 1;
 }
 
 int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]) {
+    if (index >= SB_MERL_CELLS || !wi || !wo) return 0;
     size_t ip = index % SB_MERL_PD, id = index / SB_MERL_PD % SB_MERL_TD, ih = index / SB_MERL_PD / SB_MERL_TD;
     double uh = ((double)ih + 0.5) / SB_MERL_TH;
     return sb_half_diff_dirs(uh * uh * (SB_PI / 2), ((double)id + 0.5) / SB_MERL_TD * (SB_PI / 2),

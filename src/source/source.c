@@ -42,11 +42,15 @@ void sb_source_destroy(sb_source_t *src) {
 }
 
 int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]) {
+    if (!src || !wi || !wo || !rgb) {
+        if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
+        return 0;
+    }
     return src->ops.eval(src->self, wi, wo, rgb);
 }
-unsigned sb_source_flags(const sb_source_t *src) { return src->flags; }
-const char *sb_source_description(const sb_source_t *src) { return src->desc; }
-void *sb_source_impl(const sb_source_t *src) { return src->self; }
+unsigned sb_source_flags(const sb_source_t *src) { return src ? src->flags : 0; }
+const char *sb_source_description(const sb_source_t *src) { return src ? src->desc : ""; }
+void *sb_source_impl(const sb_source_t *src) { return src ? src->self : NULL; }
 
 /* A spec naming an existing regular file is a measured table; anything
  * else is a model spec. */

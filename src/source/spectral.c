@@ -37,6 +37,7 @@ static const double bradford[3][3] = {
 static const double d65_white[3] = {0.95047, 1.0, 1.08883};
 
 void sb_cie_cmf(double nm, double xyz[3]) {
+    if (!xyz) return;
     xyz[0] = xyz[1] = xyz[2] = 0;
     double lo = sb_cie_table_[0][0], hi = sb_cie_table_[CIE_ROWS - 1][0];
     if (!(nm >= lo && nm <= hi)) return;
@@ -87,6 +88,8 @@ static void bradford_adapt(const double src[3], const double dst[3], double out[
 sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w) {
     if (!nm || !w) return sb_error(ctx, SB_ERR_ARG, "spectral: missing wavelengths or output");
     if (n == 0) return sb_error(ctx, SB_ERR_RANGE, "spectral: no wavelengths");
+    size_t bytes; /* w holds 3 n doubles: a count whose arrays cannot exist is not read */
+    if (sb_size_mul3(n, 3, sizeof *w, &bytes)) return sb_error(ctx, SB_ERR_OVERFLOW, "spectral: %zu wavelengths", n);
     if ((unsigned)white >= SB_WHITE_COUNT_) return sb_error(ctx, SB_ERR_ARG, "spectral: unknown white %d", (int)white);
     for (size_t k = 0; k < n; k++) {
         if (!isfinite(nm[k])) return sb_error(ctx, SB_ERR_RANGE, "spectral: wavelength %zu is not finite", k + 1);
