@@ -263,6 +263,16 @@ SB_TEST(measured_channels) {
     CHECK_CODE(sb_channels_proportional(ctx(), &x.m, 0, NULL), SB_ERR_ARG);
     CHECK_CODE(sb_channels_proportional(ctx(), &x.m, 2, &ch), SB_ERR_RANGE);
     CHECK_CODE(sb_channels_proportional(ctx(), &empty, 0, &ch), SB_ERR_ARG);
+    sb_matrix_t narrow = x.m; /* a leading dimension below the rows */
+    narrow.ld = narrow.rows - 1;
+    double rel[8], mx[8];
+    CHECK_CODE(sb_channels_proportional(ctx(), &narrow, 0, &ch), SB_ERR_ARG);
+    CHECK_CODE(sb_factors_errors_against(ctx(), x.f, &narrow, NULL, rel, mx), SB_ERR_ARG);
+    CHECK_CODE(sb_factors_errors_near(ctx(), x.f, x.f, &narrow, NULL, rel), SB_ERR_ARG);
+    sb_factors_t *g = NULL;
+    CHECK_CODE(sb_plan_execute(x.plan, &narrow, x.p, &g), SB_ERR_ARG);
+    CHECK(g == NULL);
+    CHECK(sb_matrix_norm(&narrow, 0) == 0);
     fixture_free(&x);
 }
 
@@ -312,3 +322,45 @@ SB_TEST(every_code) {
 const char *__asan_default_options(void);
 const char *__asan_default_options(void) { return "allocator_may_return_null=1"; }
 #endif
+
+/* Values the textures cannot store are refused before any file exists,
+ * with their real cause and the target file: a BRDF below or above the
+ * storage range (SB_ERR_NUMERIC), a later term below it (J above the
+ * numerical rank: SB_ERR_RANGE). */
+static void expect_refusal(sb_factors_t *f, int half, sb_result_t code, const char *cause, const char *file) {
+    const char *dir = sb_tmpdir("api-store");
+    sb_exr_opts_t o = {half};
+    CHECK_CODE(sb_factors_write_exr(ctx(), f, dir, &o), code);
+    const char *msg = sb_context_last_error(ctx());
+    CHECKF(strstr(msg, cause) && strstr(msg, file) && !strstr(msg, ".tmp-"), "message: %s", msg);
+    char rm[4300];
+    snprintf(rm, sizeof rm, "rmdir %s", dir); /* fails unless the folder stayed empty */
+    CHECKF(system(rm) == 0, "%s holds files after a refused write", dir);
+}
+
+SB_TEST(storage_messages) {
+    sb_factors_t *f = NULL;
+    CHECK(sb_factors_create(ctx(), 2, 1, 2, 2, 2, 2, &f) == SB_OK);
+    for (int t = 0; t < 2; t++)
+        for (int s = 0; s < 2; s++)
+            for (int i = 0; i < 4; i++)
+                sb_factors_tex(f, s, (size_t)t, 0)[i] = t ? 1e-50 : 1e-300;
+    sb_factors_set_sigma(f, 0, 0, 1e-300);
+    expect_refusal(f, 0, SB_ERR_NUMERIC, "below the range", "g_00.exr");
+    expect_refusal(f, 1, SB_ERR_NUMERIC, "below the range", "g_00.exr");
+    for (int s = 0; s < 2; s++)
+        for (int i = 0; i < 4; i++)
+            sb_factors_tex(f, s, 0, 0)[i] = 1e-40; /* FLOAT subnormal: HALF's scale cannot reach it */
+    expect_refusal(f, 1, SB_ERR_NUMERIC, "FLOAT stores down to", "g_00.exr");
+    for (int s = 0; s < 2; s++)
+        for (int i = 0; i < 4; i++)
+            sb_factors_tex(f, s, 0, 0)[i] = 1;
+    sb_factors_set_sigma(f, 0, 0, 1);
+    sb_factors_set_sigma(f, 1, 0, 1e-100);
+    expect_refusal(f, 0, SB_ERR_RANGE, "numerical rank is exhausted; ask for at most 1 term", "g_01.exr");
+    sb_factors_tex(f, SB_SIDE_H, 0, 0)[3] = 1e39;
+    expect_refusal(f, 0, SB_ERR_NUMERIC, "above the FLOAT range", "h_00.exr");
+    sb_factors_tex(f, SB_SIDE_H, 0, 0)[3] = 1e300;
+    expect_refusal(f, 1, SB_ERR_NUMERIC, "beyond the range", "h_00.exr");
+    sb_factors_destroy(f);
+}

@@ -33,6 +33,7 @@ static sb_result_t all_channels(sb_context_t *ctx, size_t J, double total2, cons
 sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
                                       const sb_param_t *weights, double *rel_rms, double *max_abs) {
     if (!f || !m || !rel_rms || !max_abs) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
+    if (m->ld < m->rows) return sb_error(ctx, SB_ERR_ARG, "errors: leading dimension %zu < %zu rows", m->ld, m->rows);
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f), rows = m->rows, cols = m->cols, gw, gh, hw, hh;
     sb_factors_size(f, SB_SIDE_G, &gw, &gh);
     sb_factors_size(f, SB_SIDE_H, &hw, &hh);
@@ -145,6 +146,7 @@ static void gram(size_t n, size_t J, const double *a, const double *b, double *o
 sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
                                    const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms) {
     if (!fit || !near || !m || !rel_rms) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
+    if (m->ld < m->rows) return sb_error(ctx, SB_ERR_ARG, "errors: leading dimension %zu < %zu rows", m->ld, m->rows);
     if (m->mask) return sb_error(ctx, SB_ERR_ARG, "errors: a masked matrix needs the explicit residual");
     sb_result_t rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;

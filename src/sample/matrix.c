@@ -355,7 +355,7 @@ void sb_matrix_free(sb_matrix_t *m) {
 }
 
 double sb_matrix_norm(const sb_matrix_t *m, int ch) {
-    if (!m || ch < 0 || ch > 2 || !m->data[ch]) return 0;
+    if (!m || ch < 0 || ch > 2 || !m->data[ch] || m->ld < m->rows) return 0;
     const double *a = m->data[ch];
     double scale = 0, ssq = 1;
     for (size_t c = 0; c < m->cols; c++)
