@@ -170,6 +170,10 @@ SB_TEST(matrix) {
     mo.form = SB_FORM_F;
     mo.channels = 8;
     CHECK_CODE(sb_matrix_build(ctx(), src, p, &mo, &m), SB_ERR_ARG);
+    mo.channels = 0;
+    mo.threads = INT32_MAX; /* capped by the library */
+    CHECK_CODE(sb_matrix_build(ctx(), src, p, &mo, &m), SB_OK);
+    sb_matrix_free(&m);
     sb_matrix_free(NULL);
     sb_matrix_free(&m);
     CHECK(sb_matrix_norm(NULL, 0) == 0 && sb_matrix_norm(&m, -1) == 0 && sb_matrix_norm(&m, 3) == 0);
@@ -192,6 +196,12 @@ SB_TEST(svd) {
     CHECK_CODE(sb_svd_create(ctx(), 4, 4, SIZE_MAX, NULL, &s), SB_ERR_RANGE);
     CHECK_CODE(sb_svd_create(ctx(), SIZE_MAX, SIZE_MAX, 1, NULL, &s), SB_ERR_OVERFLOW);
     CHECK_CODE(sb_svd_create(ctx(), 4, 4, 2, &so, &s), SB_ERR_ARG);
+    sb_svd_opts_t wild = {.method = SB_METHOD_RANDOMIZED, .oversample = INT32_MAX, .power_iters = INT32_MAX};
+    CHECK_CODE(sb_svd_create(ctx(), 4, 4, 2, &wild, &s), SB_ERR_RANGE);
+    wild.power_iters = SB_SVD_MAX_POWER_ITERS;
+    wild.block = SIZE_MAX;
+    CHECK_CODE(sb_svd_create(ctx(), 4, 4, 2, &wild, &s), SB_OK); /* the sketch is capped at min(m, n) */
+    sb_svd_destroy(s);
     sb_svd_destroy(NULL);
     CHECK(sb_svd_method(NULL) == SB_METHOD_COUNT_ && sb_svd_rank(NULL) == 0 && sb_svd_workspace_bytes(NULL) == 0);
     sb_svd_info_t info = sb_svd_last_info(NULL);

@@ -81,11 +81,15 @@ const char *sb_method_name(sb_method_t m);
 #define SB_SVD_AUTO_TOPK_MAX 400
 #define SB_SVD_AUTO_SKETCH_DIV 8
 
+/* Most power iterations (each one more read of A; 2 already reach the
+ * optimum to plotting accuracy on the matrices of docs/performance.md). */
+#define SB_SVD_MAX_POWER_ITERS 64
+
 /* Options; a zeroed struct gives the defaults. */
 typedef struct sb_svd_opts {
     sb_method_t method;
     int oversample;       /* randomized: p, 0 = default 10, negative = none */
-    int power_iters;      /* randomized: q, 0 = default 2, negative = none */
+    int power_iters;      /* randomized: q, 0 = default 2, negative = none, at most SB_SVD_MAX_POWER_ITERS */
     uint64_t seed;        /* randomized: seed of the test matrix, 0 = default 1 */
     int single_precision; /* compute in float (inputs/outputs stay double) */
     size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
@@ -110,7 +114,7 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
 
 /* Plan a rank-k SVD of m x n matrices.  opts may be NULL (defaults).
  * Errors: SB_ERR_ARG (no output, empty matrix, bad method), SB_ERR_RANGE
- * (k = 0 or k > min(m, n)), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
+ * (k = 0 or k > min(m, n), power_iters above SB_SVD_MAX_POWER_ITERS), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
  * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
  * (workspace query failed). */
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);

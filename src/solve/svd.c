@@ -166,6 +166,9 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     if (opts) o = *opts;
     if ((unsigned)o.method >= SB_METHOD_COUNT_)
         return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
+    if (o.power_iters > SB_SVD_MAX_POWER_ITERS)
+        return sb_error(ctx, SB_ERR_RANGE, "svd: %d power iterations, at most %d", o.power_iters,
+                        SB_SVD_MAX_POWER_ITERS);
     sb_result_t rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;
     sb_svd_t *s = calloc(1, sizeof *s);
