@@ -590,7 +590,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
     if (!qu || !coef) {
         free(qu);
         free(coef);
-        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
+        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + 1) * k * sizeof(double));
     }
     sb_result_t r = SB_OK;
     int use_als = f->P != NULL && ninvalid > 0;
@@ -642,11 +642,13 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
         als_cells_t cl;
         if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, m * n - ninvalid) != 0) {
+            int saved = saveP && saveQ; /* else cells_build failed and named its bytes */
             free(saveP);
             free(saveQ);
             free(qu);
             free(coef);
-            return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
+            if (saved) return SB_ERR_NOMEM;
+            return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + n) * k * sizeof(double));
         }
         for (size_t ka = 1; ka <= k; ka++) {
             /* first the new term alone on the residual of the others: the
