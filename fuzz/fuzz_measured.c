@@ -1,8 +1,7 @@
 /* Fuzz the measured-table readers through sb_source_open on a file whose
  * extension the first input byte picks: .binary (MERL), .brdf (Cornell),
  * .dat / .alta (ALTA), .csv, .bsdf (RGL); the rest of the input is the
- * file.  Until the readers are built in, sb_source_open answers
- * SB_ERR_UNSUPPORTED and this only checks that.  A source that opens is
+ * file.  A source that opens is
  * evaluated at a few pairs (grazing and below the horizon included) and
  * sampled on a tiny io grid, with the matrix builder's invariants:
  * finite cells, mask 0 and value 0 where the source has no finite value. */

@@ -59,3 +59,24 @@ fi
 { ext 4; printf 'theta_i,phi_i,theta_o,phi_o,r,g,b\n0.1,0,0.2,3.14,nan,inf,-1\n1e999,0,0,0,1,1,1\n'; } > $c/measured/csv-hostile
 { ext 3; printf '#DIM 3 1\n#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI\n#PARAM_OUT INV_STERADIAN_COSINE_FACTOR\n0.2 0.1 0.05 0.4\nnan 0 0 1\n'; } > $c/measured/alta-tiny
 echo "seeds: $(ls $c/spec | wc -l) spec, $(ls $c/exr | wc -l) exr, $(ls $c/measured | wc -l) measured"
+# RGL: a complete tiny tensor_file (2 theta_i slices, 2 x 2 tables)
+if command -v python3 > /dev/null; then
+    python3 - "$c/measured/rgl-tiny" <<'PY'
+import struct, sys
+def field(name, dt, shape, data):
+    return (name, dt, shape, data)
+f = [field("theta_i", 10, [2], [0.0, 1.5]), field("phi_i", 10, [1], [0.0]),
+     field("ndf", 10, [2, 2], [1, 2, 3, 4]), field("sigma", 10, [2, 2], [1, 1, 1, 1]),
+     field("vndf", 10, [1, 2, 2, 2], [1, 2, 1, 2, 3, 1, 1, 1]),
+     field("rgb", 10, [1, 2, 3, 2, 2], [0.1 * k for k in range(24)]),
+     field("jacobian", 1, [1], [1]), field("description", 1, [4], list(b"tiny"))]
+head = 18 + sum(2 + len(n) + 3 + 8 + 8 * len(s) for n, _, s, _ in f)
+out, data, off = bytearray(b"\x05tensor_file\0\x01\x00" + struct.pack("<I", len(f))), bytearray(), head
+for n, dt, s, d in f:
+    blob = struct.pack("<%d%s" % (len(d), "f" if dt == 10 else "B"), *d)
+    out += struct.pack("<H", len(n)) + n.encode() + struct.pack("<HBQ", len(s), dt, off + len(data))
+    out += b"".join(struct.pack("<Q", x) for x in s)
+    data += blob
+open(sys.argv[1], "wb").write(out + data)
+PY
+fi

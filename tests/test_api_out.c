@@ -208,21 +208,20 @@ SB_TEST(image_render) {
 }
 
 SB_TEST(measured_channels) {
-    sb_table_format_t tf;
     sb_interp_t in;
-    CHECK(strcmp(sb_table_format_name((sb_table_format_t)BAD_ENUM), "?") == 0);
+    size_t nf = sb_measured_format_count();
+    CHECK(nf > 0 && sb_measured_format_name(nf) == NULL && sb_measured_format_title(SIZE_MAX) == NULL);
+    CHECK(sb_measured_format_exts(nf) == NULL);
     CHECK(strcmp(sb_interp_name((sb_interp_t)-1), "?") == 0);
-    CHECK_CODE(sb_table_format_parse(NULL, &tf), SB_ERR_UNKNOWN);
-    CHECK_CODE(sb_table_format_parse("csv", NULL), SB_ERR_ARG);
     CHECK_CODE(sb_interp_parse(NULL, &in), SB_ERR_UNKNOWN);
     CHECK_CODE(sb_interp_parse("idw", NULL), SB_ERR_ARG);
     sb_source_t *s = NULL;
-    sb_measured_opts_t mo = {.format = (sb_table_format_t)BAD_ENUM};
+    sb_measured_opts_t mo = {.format = "no-such-format"};
     CHECK_CODE(sb_measured_open(ctx(), NULL, NULL, &s, NULL), SB_ERR_ARG);
     CHECK_CODE(sb_measured_open(ctx(), "x.csv", NULL, NULL, NULL), SB_ERR_ARG);
     CHECK_CODE(sb_measured_open(ctx(), "/nonexistent/x.csv", NULL, &s, NULL), SB_ERR_IO);
-    CHECK_CODE(sb_measured_open(ctx(), SB_CLI, &mo, &s, NULL), SB_ERR_ARG);
-    mo.format = SB_TABLE_CSV;
+    CHECK_CODE(sb_measured_open(ctx(), SB_CLI, &mo, &s, NULL), SB_ERR_UNKNOWN);
+    mo.format = "csv";
     mo.neighbours = SIZE_MAX;
     CHECK_CODE(sb_measured_open(ctx(), SB_CLI, &mo, &s, NULL), SB_ERR_RANGE);
     fixture_t x;
@@ -276,6 +275,38 @@ SB_TEST(measured_channels) {
     fixture_free(&x);
 }
 
+SB_TEST(outset) {
+    sb_outset_t *s = NULL;
+    char longname[8192];
+    memset(longname, 'a', sizeof longname - 1);
+    longname[sizeof longname - 1] = 0;
+    CHECK_CODE(sb_outset_check(ctx(), NULL), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_check(ctx(), ""), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_check(ctx(), longname), SB_ERR_IO);
+    CHECK_CODE(sb_outset_begin(ctx(), NULL, NULL, &s), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_begin(ctx(), "x", NULL, NULL), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_cleanup(ctx(), NULL), SB_ERR_ARG);
+    CHECK(sb_outset_dir(NULL) == NULL && sb_outset_target(NULL) == NULL);
+    CHECK(sb_outset_add(NULL, "a") == SB_ERR_ARG && sb_outset_commit(NULL) == SB_ERR_ARG);
+    sb_outset_destroy(NULL);
+    sb_outset_discard_signal_safe(NULL);
+    CHECK(sb_io_why(-1) != NULL && sb_io_why(INT32_MAX) != NULL);
+    char dir[4200];
+    snprintf(dir, sizeof dir, "%s/set", sb_tmpdir("api-outset"));
+    CHECK(sb_outset_begin(ctx(), dir, NULL, &s) == SB_OK);
+    CHECK_CODE(sb_outset_add(s, NULL), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_add(s, "../up"), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_add(s, ".hidden"), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_add(s, longname), SB_ERR_ARG);
+    CHECK_CODE(sb_outset_add(s, "missing.txt"), SB_OK);
+    CHECK_CODE(sb_outset_commit(s), SB_ERR_IO); /* the named file was never written */
+    CHECK_CODE(sb_outset_commit(s), SB_ERR_ARG);
+    sb_outset_destroy(s);
+    char rm[4300];
+    snprintf(rm, sizeof rm, "rm -rf %s", dir);
+    CHECK(system(rm) == 0);
+}
+
 /* Every result code is returned by some public function. */
 SB_TEST(every_code) {
     sb_param_kind_t k;
@@ -294,10 +325,10 @@ SB_TEST(every_code) {
     CHECK_CODE(sb_svd_execute(svd, A, 2, sv, NULL, NULL, NULL, NULL), SB_ERR_NUMERIC);
     sb_svd_destroy(svd);
     char path[4200];
-    snprintf(path, sizeof path, "%s/t.csv", sb_tmpdir("api-codes"));
-    /* a Mitsuba tensor file is recognised, not supported */
-    FILE *fp = fopen(path, "wb");
-    CHECK(fp && fwrite("tensor_file\0\1\0", 1, 14, fp) == 14 && fclose(fp) == 0);
+    snprintf(path, sizeof path, "%s/t.alta", sb_tmpdir("api-codes"));
+    /* an ALTA table of another parameterisation is recognised, not supported */
+    FILE *fp = fopen(path, "w");
+    CHECK(fp && fputs("#DIM 4 1\n#PARAM_IN CARTESIAN\n", fp) >= 0 && fclose(fp) == 0);
     CHECK_CODE(sb_measured_open(ctx(), path, NULL, &s, NULL), SB_ERR_UNSUPPORTED);
     remove(path);
     /* NOMEM: a real allocation failure, in a child under an address-space

@@ -19,6 +19,10 @@
  *             INV_STERADIAN_COSINE_FACTOR" (value = f_r cos theta_v) or
  *             "INV_STERADIAN" (value = f_r); rows theta_l,
  *             theta_v cos(dphi), theta_v sin(dphi), value(s).
+ *   RGL       the RGL material database's Mitsuba tensor_file (.bsdf):
+ *             VNDF-warped tables per incident slice, evaluated as Mitsuba
+ *             3's `measured` plugin does (see src/source/rgl.c); isotropic
+ *             or anisotropic (symmetry reductions 1, 2, 4), RGB or spectral.
  *   CSV       the sepbrdf gonio table (docs/measured.md): comment lines
  *             "# key: value" (units, symmetry, reciprocal), a header naming
  *             the columns theta_i, phi_i, theta_o, phi_o (suffix _deg or
@@ -47,19 +51,15 @@
 extern "C" {
 #endif
 
-typedef enum sb_table_format {
-    SB_TABLE_AUTO = 0, /* detect from the content, then the extension */
-    SB_TABLE_MERL,
-    SB_TABLE_CORNELL,
-    SB_TABLE_ALTA,
-    SB_TABLE_CSV,
-    SB_TABLE_FORMAT_COUNT_
-} sb_table_format_t;
-
-/* "auto", "merl", "cornell", "alta", "csv"; parse returns SB_ERR_UNKNOWN
- * (NULL name included), SB_ERR_ARG for a NULL out. */
-const char *sb_table_format_name(sb_table_format_t f);
-sb_result_t sb_table_format_parse(const char *name, sb_table_format_t *out);
+/* The measured formats: a registry of readers, one row each (name, a
+ * one-line title, file name extensions).  Index k = 0 .. count - 1;
+ * out-of-range indices give NULL.  Formats are detected from the content
+ * first (the magic or keywords of each reader, in registry order), then
+ * from the extension. */
+size_t sb_measured_format_count(void);
+const char *sb_measured_format_name(size_t k);  /* "merl", "rgl", ... */
+const char *sb_measured_format_title(size_t k); /* "MERL .binary", ... */
+const char *sb_measured_format_exts(size_t k);  /* ".binary", space separated */
 
 typedef enum sb_interp {
     SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: quadratic */
@@ -102,23 +102,32 @@ typedef enum sb_white {
  * (theta cos phi, theta sin phi) of both directions.  Distances below are
  * Euclidean in that embedding, i.e. roughly angles in radians. */
 typedef struct sb_measured_opts {
-    sb_table_format_t format; /* SB_TABLE_AUTO: detect */
-    sb_interp_t interp;       /* SB_INTERP_DEFAULT: nearest (MERL), quadratic (scattered) */
-    size_t neighbours;        /* scattered: k nearest samples, 1..64; default 24
-                               * (isotropic) or 34 (anisotropic) for the fits,
-                               * 4 or 5 for idw */
-    double radius;            /* scattered: a pair whose nearest sample is farther
-                               * than this is missing (the fit uses samples
-                               * within twice this).  0 = auto: 2.5 x the
-                               * median distance from a sample to its nearest
-                               * other sample.  < 0: no limit */
-    sb_white_t white;         /* spectral tables: SB_WHITE_E (default) */
+    const char *format; /* a registry name; NULL or "auto": detect */
+    sb_interp_t interp; /* SB_INTERP_DEFAULT: nearest (MERL), quadratic (scattered) */
+    size_t neighbours;  /* scattered: k nearest samples, 1..64; default 24
+                         * (isotropic) or 34 (anisotropic) for the fits,
+                         * 4 or 5 for idw */
+    double radius;      /* scattered: a pair whose nearest sample is farther
+                         * than this is missing (the fit uses samples
+                         * within twice this).  0 = auto: 2.5 x the
+                         * median distance from a sample to its nearest
+                         * other sample.  < 0: no limit */
+    sb_white_t white;   /* spectral tables: SB_WHITE_E (default) */
 } sb_measured_opts_t;
 
 /* What a table held.  Value statistics are over the used samples, of the
  * RGB f_r in 1/sr (MERL: after the channel scales). */
+/* One format-specific line of what a table held: `info` prints
+ * "key  text", JSON gets the number when there is one, else the text. */
+#define SB_MEASURED_FIELDS_MAX 12
+typedef struct sb_measured_field {
+    char key[24];   /* "description", "layout", "cells", ... */
+    char text[232]; /* the value as a person reads it */
+    double number;  /* the value when it is a single number; NAN otherwise */
+} sb_measured_field_t;
+
 typedef struct sb_measured_info {
-    sb_table_format_t format;
+    const char *format;              /* registry name of the reader (static string) */
     size_t rows;                     /* data rows read (MERL: cells, 1,458,000) */
     size_t samples;                  /* samples used (MERL: measured cells) */
     size_t missing;                  /* MERL: missing cells (negative or NaN);
@@ -144,6 +153,8 @@ typedef struct sb_measured_info {
     double radius;      /* scattered: radius in use (inf when unlimited) */
     size_t dims;        /* scattered: dimension of the embedding (3 or 4) */
     sb_white_t white;
+    size_t nfields; /* format-specific details, in reading order */
+    sb_measured_field_t fields[SB_MEASURED_FIELDS_MAX];
 } sb_measured_info_t;
 
 /* Open a measured table.  `opts` may be NULL (defaults); `info` may be NULL.
@@ -158,8 +169,10 @@ typedef struct sb_measured_info {
  *                  wrong size or dims, malformed number, missing columns,
  *                  counts out of range, non-finite angles
  *   SB_ERR_UNSUPPORTED  a recognised but unsupported variant (another ALTA
- *                  parameterisation, Mitsuba tensor_file)
- *   SB_ERR_ARG / SB_ERR_RANGE  bad options
+ *                  parameterisation, a tensor_file version or symmetry
+ *                  reduction other than 1.0 and 1, 2, 4)
+ *   SB_ERR_ARG / SB_ERR_RANGE  bad options (SB_ERR_UNKNOWN: a format name
+ *                  not in the registry)
  *   SB_ERR_NOMEM / SB_ERR_OVERFLOW */
 sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
                              sb_measured_info_t *info);

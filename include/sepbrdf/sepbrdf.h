@@ -11,6 +11,7 @@
 #include "matrix.h"
 #include "measured.h"
 #include "models.h"
+#include "outset.h"
 #include "param.h"
 #include "render.h"
 #include "source.h"

@@ -1,4 +1,5 @@
 /* sepbrdf factor: sample -> matrix -> truncated SVD -> EXR + report + GLSL. */
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -55,8 +56,9 @@ static void help(void) {
            "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
            "i.e. direction k = R * i_phi + i_theta of the seeds' sequentialisation.\n"
            "\n"
-           "Files are written under temporary names and renamed when complete; a run\n"
-           "interrupted (SIGINT, SIGTERM, SIGHUP) while writing removes the set.\n"
+           "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
+           "and swapped in whole when complete: the folder holds the previous set until\n"
+           "then, whatever ends the run; files sepbrdf did not write stay.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -376,7 +378,7 @@ int cmd_factor(int argc, char **argv) {
     attempt_t best = {0};
     double *rel_stored = NULL; /* errors of the stored precision, J * 4 */
     sb_result_t r;
-    int guarded = 0;
+    sb_outset_t *set = NULL;
     double t0 = cli_now();
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
@@ -401,27 +403,16 @@ int cmd_factor(int argc, char **argv) {
     }
 
     double t2 = cli_now();
-    if (cli_mkdirs(o.out) != 0) {
-        cli_error("factor", "--out %s: cannot create the output folder", o.out);
-        rc = EXIT_IO;
-        goto out;
-    }
-    /* From here to the last rename, an interrupt removes the whole set. */
-    pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 1);
-    guarded = 1;
+    /* The whole set goes into a staging folder published in one step
+     * (outset.h): DIR keeps its previous set until then. */
+    if (!(set = cli_outset_begin(ctx, "factor", o.out, &rc))) goto out;
+    const char *sd = sb_outset_dir(set);
     sb_exr_opts_t eo = {o.half};
-    if ((r = sb_factors_write_exr(ctx, best.f, o.out, &eo)) != SB_OK) goto fail;
-    /* Terms beyond J left by an earlier run into the same folder would be
-     * taken for part of this set: remove them. */
-    for (size_t k = sb_factors_terms(best.f);; k++) {
-        int gone = 1;
-        for (int side = 0; side < 2; side++) {
-            char name[64], path[4200];
-            sb_exr_name(side, k, name, sizeof name);
-            snprintf(path, sizeof path, "%s/%s", o.out, name);
-            if (remove(path) == 0) gone = 0;
-        }
-        if (gone) break;
+    if ((r = sb_factors_write_exr(ctx, best.f, sd, &eo)) != SB_OK) goto fail;
+    for (size_t k = 0; k < 2 * sb_factors_terms(best.f); k++) {
+        char name[64];
+        sb_exr_name((int)(k % 2), k / 2, name, sizeof name);
+        sb_outset_add(set, name);
     }
     /* The error of what was stored (float or half), not only of the double fit */
     {
@@ -439,30 +430,30 @@ int cmd_factor(int argc, char **argv) {
         sb_factors_destroy(q);
         free(mx);
     }
-    if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, o.out)) != SB_OK) goto fail;
-    char path[4096];
-    snprintf(path, sizeof path, "%s/sepbrdf.glsl", o.out);
+    if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, sd)) != SB_OK) goto fail;
+    char path[4200];
+    cli_set_file(set, "sepbrdf.glsl", path, sizeof path);
     if ((r = sb_glsl_write(ctx, path, best.param, best.m.form, sb_factors_terms(best.f), NULL)) != SB_OK) goto fail;
     double t3 = cli_now();
     double t[4] = {best.t_sample, best.t_factor, t3 - t2, t3 - t0};
-    snprintf(path, sizeof path, "%s/report.json", o.out);
-    char tmp[4200];
+    cli_set_file(set, "report.json", path, sizeof path);
+    char tmp[4300];
     FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        cli_error("factor", "%s: cannot write", path);
+    int e = fp ? 0 : errno;
+    if (fp) {
+        json_t j = {fp, 0, {0}};
+        report_ctx_t rx = {&o, src, &best, cands, ncand, rel_stored};
+        write_report(&j, &rx, t);
+        e = cli_commit(fp, tmp, path, 1);
+    }
+    if (e) {
+        cli_error("factor", "%s/report.json: cannot write: %s", o.out, sb_io_why(e));
         rc = EXIT_IO;
         goto out;
     }
-    json_t j = {fp, 0, {0}};
-    report_ctx_t rx = {&o, src, &best, cands, ncand, rel_stored};
-    write_report(&j, &rx, t);
-    if (cli_commit(fp, tmp, path, 1) != 0) {
-        cli_error("factor", "%s: cannot write", path);
-        rc = EXIT_IO;
-        goto out;
-    }
-    pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
-    guarded = 0;
+    rc = cli_outset_end(ctx, "factor", set, 1);
+    set = NULL;
+    if (rc != EXIT_OK) goto out;
     if (g_verbosity >= 1) {
         printf("sepbrdf factor: %s\n  %s, %zu x %zu matrix, form %s%s, %zu terms, method %s\n",
                sb_source_description(src), sb_param_spec(best.param), best.m.rows, best.m.cols,
@@ -479,7 +470,7 @@ fail:
     rc = cli_fail("factor", ctx, r);
 out:
     free(rel_stored);
-    if (guarded) pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
+    cli_outset_end(ctx, "factor", set, 0); /* a set not published: discarded */
     attempt_free(&best);
     sb_source_destroy(src);
     sb_context_destroy(ctx);

@@ -24,6 +24,18 @@ typedef struct info_kind {
     int (*run)(const info_opts_t *o);
 } info_kind_t;
 
+/* The measured formats of the registry, "MERL .binary, RGL ...". */
+static const char *formats_text(void) {
+    static char buf[512];
+    size_t at = 0;
+    for (size_t k = 0; k < sb_measured_format_count() && at < sizeof buf; k++) {
+        int m = snprintf(buf + at, sizeof buf - at, "%s%s", k ? ", " : "", sb_measured_format_title(k));
+        if (m < 0) break;
+        at += (size_t)m;
+    }
+    return buf;
+}
+
 static void help(void) {
     printf("usage: sepbrdf info FILE [--res R] [--json] [--interp M] [--neighbours K] [--radius DEG]\n"
            "                         [--white e|d65]\n"
@@ -31,9 +43,9 @@ static void help(void) {
            "Print what FILE holds.  For a factor file (g_KK.exr or h_KK.exr written by\n"
            "`sepbrdf factor`): its texture size, term and J, sigma_j per channel (from the\n"
            "g files of its folder), parameterisation, source, form, method and the\n"
-           "relative RMS error per J.  For a measured table (MERL .binary, Cornell .brdf,\n"
-           "ALTA, sepbrdf CSV): the format, rows read and used, rows skipped (NaN, at or\n"
-           "below the horizon), wavelengths, value ranges of the RGB f_r (1/sr), the\n"
+           "relative RMS error per J.  For a measured table (%s): the format and what\n"
+           "it held (rows or cells read and used, rows skipped, an RGL file's description\n"
+           "and layout), wavelengths, value ranges of the RGB f_r (1/sr), the\n"
            "interpolation, and the coverage: the fraction of the cells of the io grid\n"
            "(R x R directions each for wi and wo) for which the table gives a value.\n"
            "Cells with none are missing: masked in `sepbrdf factor`.\n"
@@ -41,7 +53,8 @@ static void help(void) {
            "options:\n"
            "  -r, --res R          io grid of the coverage, 2..512 (default 32)\n"
            "      --json           print JSON instead of the table\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP
-           "\n" CLI_EXIT_HELP);
+           "\n" CLI_EXIT_HELP,
+           formats_text());
 }
 
 static int is_regular_file(const char *path) {
@@ -75,11 +88,11 @@ static int info_measured(const info_opts_t *o) {
     size_t known = 0, cells = 0;
     if ((r = sb_measured_coverage(ctx, src, param, &known, &cells)) != SB_OK) goto fail;
     double cov = cells ? (double)known / (double)cells : 0;
-    const char *fmt = sb_table_format_name(in.format);
+    const char *fmt = in.format;
     static const char *const cn[3] = {"R", "G", "B"};
     char flags[128];
     flags_text(in.flags, flags, sizeof flags);
-    int scattered = in.format != SB_TABLE_MERL;
+    int scattered = in.dims > 0;
     if (o->json) {
         json_t j = {stdout, 0, {0}};
         json_begin_object(&j, NULL);
@@ -119,6 +132,13 @@ static int info_measured(const info_opts_t *o) {
             json_number(&j, "radius_deg", in.radius * 180 / SB_PI);
             json_int(&j, "embedding_dims", (long long)in.dims);
         }
+        json_begin_object(&j, "details");
+        for (size_t k = 0; k < in.nfields; k++)
+            if (isfinite(in.fields[k].number))
+                json_number(&j, in.fields[k].key, in.fields[k].number);
+            else
+                json_string(&j, in.fields[k].key, in.fields[k].text);
+        json_end_object(&j);
         json_begin_object(&j, "coverage");
         json_string(&j, "param", sb_param_spec(param));
         json_int(&j, "cells", (long long)cells);
@@ -130,33 +150,18 @@ static int info_measured(const info_opts_t *o) {
     } else {
         printf("file          %s\n", o->path);
         printf("format        %s\n", fmt);
-        if (in.format == SB_TABLE_MERL) {
-            printf("cells         %zu (measured %zu, missing %zu: negative %zu, NaN %zu)\n", in.rows, in.samples,
-                   in.missing, in.negative, in.nan_rows);
-        } else {
-            printf("rows          %zu (used %zu; skipped %zu: NaN %zu, at/below horizon %zu)\n", in.rows, in.samples,
-                   in.missing, in.nan_rows, in.horizon_rows);
-            printf("negative      %zu rows (kept)\n", in.negative);
-        }
+        for (size_t k = 0; k < in.nfields; k++)
+            printf("%-13s %s\n", in.fields[k].key, in.fields[k].text);
         if (in.wavelengths)
-            printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s; %zu rows out of gamut (RGB < 0, kept)\n",
+            printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s; %zu %s out of gamut (RGB < 0, kept)\n",
                    in.wavelengths, in.wl_min, in.wl_max, in.white == SB_WHITE_D65 ? "D65 (Bradford)" : "E",
-                   in.out_of_gamut);
+                   in.out_of_gamut, scattered ? "rows" : "nodes");
         else
             printf("channels      %zu%s\n", in.channels, in.channels == 1 ? " (gray)" : " (RGB)");
-        if (scattered)
-            printf("theta max     i %.2f deg, o %.2f deg\n", in.theta_i_max * 180 / SB_PI,
-                   in.theta_o_max * 180 / SB_PI);
         printf("f_r (1/sr)    %12s %12s %12s\n", "min", "max", "mean");
         for (int c = 0; c < 3; c++)
             printf("  %-11s %12.5g %12.5g %12.5g\n", cn[c], in.value_min[c], in.value_max[c], in.value_mean[c]);
         printf("flags         %s\n", flags);
-        if (scattered)
-            printf("interp        %s, k = %zu, radius %.3g deg (median spacing %.3g deg), %zu-D embedding\n",
-                   sb_interp_name(in.interp), in.neighbours, in.radius * 180 / SB_PI, in.spacing * 180 / SB_PI,
-                   in.dims);
-        else
-            printf("interp        %s\n", sb_interp_name(in.interp));
         printf("coverage      %s: %zu of %zu cells (%.2f %%), %zu missing\n", sb_param_spec(param), known, cells,
                100 * cov, cells - known);
     }
@@ -224,6 +229,6 @@ int cmd_info(int argc, char **argv) {
     }
     for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
         if (kinds[k].match(o.path)) return kinds[k].run(&o);
-    cli_error("info", "%s: not a file this command knows (measured tables: MERL, Cornell, ALTA, CSV)", o.path);
+    cli_error("info", "%s: not a file this command knows (measured tables: %s)", o.path, formats_text());
     return EXIT_IO;
 }

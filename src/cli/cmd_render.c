@@ -1,10 +1,10 @@
 /* sepbrdf render: the original BRDF and its reconstructions on a lit sphere,
  * PNG strips and errors per J. */
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include "cli.h"
 #include "pipeline.h"
@@ -279,17 +279,14 @@ static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, cons
     return pipe_select(ctx, "render", src, &po, cands, ncand, best);
 }
 
-/* original.png (b NULL) or a strip, its temporary PATH.tmp-PID (image.h)
- * guarded against signals while written. */
-static sb_result_t write_png(sb_context_t *ctx, const char *path, const sb_image_t *a, const sb_image_t *b,
-                             const render_opts_t *o) {
-    char tmp[4300];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    cli_guard(tmp);
-    sb_result_t r =
-        b ? sb_image_write_strip_png(ctx, path, a, b, &o->tm, o->diff_scale) : sb_image_write_png(ctx, path, a, &o->tm);
-    cli_unguard(tmp);
-    return r;
+/* original.png (b NULL) or a strip, into the output set. */
+static sb_result_t write_png(sb_context_t *ctx, sb_outset_t *set, const char *name, const sb_image_t *a,
+                             const sb_image_t *b, const render_opts_t *o) {
+    char path[4200];
+    if (cli_set_file(set, name, path, sizeof path) != 0)
+        return sb_error(ctx, SB_ERR_IO, "%s/%s: name too long", sb_outset_target(set), name);
+    return b ? sb_image_write_strip_png(ctx, path, a, b, &o->tm, o->diff_scale)
+             : sb_image_write_png(ctx, path, a, &o->tm);
 }
 
 static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src, const sb_param_t *param,
@@ -366,6 +363,7 @@ int cmd_render(int argc, char **argv) {
     if ((rc = cli_check_outdir("render", "--out", o.out)) != EXIT_OK) return rc;
 
     sb_context_t *ctx = NULL;
+    sb_outset_t *set = NULL;
     sb_source_t *src = NULL;
     sb_param_t *param = NULL;
     sb_factors_t *f = NULL;
@@ -442,38 +440,36 @@ int cmd_render(int argc, char **argv) {
     }
     sb_image_diff_t d[MAX_TERMS_LIST];
     char names[MAX_TERMS_LIST][32], path[4200];
-    if (cli_mkdirs(o.out) != 0) {
-        cli_error("render", "--out %s: cannot create the output folder", o.out);
-        rc = EXIT_IO;
-        goto out;
-    }
-    snprintf(path, sizeof path, "%s/original.png", o.out);
-    if ((r = write_png(ctx, path, &orig, NULL, &o)) != SB_OK) goto fail;
+    /* The images go into a staging folder published in one step (outset.h) */
+    if (!(set = cli_outset_begin(ctx, "render", o.out, &rc))) goto out;
+    if ((r = write_png(ctx, set, "original.png", &orig, NULL, &o)) != SB_OK) goto fail;
     for (size_t k = 0; k < o.nterms; k++) {
         cli_progress("rendering", (double)(k + 1) / (double)(o.nterms + 1));
         sb_image_free(&rec);
         if ((r = sb_render_factors(ctx, &o.scene, f, param, form, o.terms[k], &rec)) != SB_OK) goto fail;
         if ((r = sb_image_compare(ctx, &orig, &rec, &o.tm, &d[k])) != SB_OK) goto fail;
         snprintf(names[k], sizeof names[k], "render_J%02zu.png", o.terms[k]);
-        snprintf(path, sizeof path, "%s/%s", o.out, names[k]);
-        if ((r = write_png(ctx, path, &orig, &rec, &o)) != SB_OK) goto fail;
+        if ((r = write_png(ctx, set, names[k], &orig, &rec, &o)) != SB_OK) goto fail;
     }
     cli_progress_done();
-    snprintf(path, sizeof path, "%s/render.json", o.out);
     char tmp[4300];
-    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        cli_error("render", "%s: cannot write", path);
+    FILE *fp = cli_set_file(set, "render.json", path, sizeof path) ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
+    int e = fp ? 0 : errno;
+    if (fp) {
+        json_t j = {fp, 0, {0}};
+        write_json(&j, &o, src, param, form, d, names);
+        e = cli_commit(fp, tmp, path, 1);
+    }
+    if (e) {
+        cli_error("render", "%s/render.json: cannot write: %s", o.out, sb_io_why(e));
         rc = EXIT_IO;
         goto out;
     }
-    json_t j = {fp, 0, {0}};
-    write_json(&j, &o, src, param, form, d, names);
-    if (cli_commit(fp, tmp, path, 1) != 0) {
-        cli_error("render", "%s: cannot write", path);
-        rc = EXIT_IO;
+    if ((rc = cli_outset_end(ctx, "render", set, 1)) != EXIT_OK) {
+        set = NULL;
         goto out;
     }
+    set = NULL;
     if (g_verbosity >= 1) {
         printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
                sb_source_description(src), sb_param_spec(param), sb_form_name(form), o.scene.size, o.scene.size,
@@ -491,6 +487,7 @@ fail:
     cli_progress_done();
     rc = cli_fail("render", ctx, r);
 out:
+    cli_outset_end(ctx, "render", set, 0); /* a set not published: discarded */
     sb_image_free(&orig);
     sb_image_free(&rec);
     sb_factors_destroy(f);

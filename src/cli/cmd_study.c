@@ -538,25 +538,23 @@ static void w_gp(FILE *fp, const void *p) {
     write_gp(fp, a->o, a->rs);
 }
 
-static int write_file(const char *dir, const char *name, writer_fn fn, const void *arg) {
+/* One file of the set; messages name it in the target folder. */
+static int write_file(sb_outset_t *set, const char *name, writer_fn fn, const void *arg) {
     char path[4200], tmp[4300];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        cli_error("study", "%s: cannot write: %s", path, strerror(errno));
-        return -1;
+    int e = cli_set_file(set, name, path, sizeof path) ? ENAMETOOLONG : 0;
+    FILE *fp = e ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
+    if (!e && !fp) e = errno;
+    if (fp) {
+        fn(fp, arg);
+        e = cli_commit(fp, tmp, path, 1);
     }
-    fn(fp, arg);
-    if (cli_commit(fp, tmp, path, 1) != 0) {
-        cli_error("study", "%s: cannot write", path);
-        return -1;
-    }
-    return 0;
+    if (e) cli_error("study", "%s/%s: cannot write: %s", sb_outset_target(set), name, sb_io_why(e));
+    return e ? -1 : 0;
 }
 
 /* Run gnuplot on study.gp in `dir`, output to a temporary, renamed to
  * study.png on success.  1 plotted, 0 skipped (warning printed). */
-static int run_gnuplot(const char *dir) {
+static int run_gnuplot(const char *dir, const char *target) {
     const char *exe = getenv("SEPBRDF_GNUPLOT");
     if (!exe || !*exe) exe = "gnuplot";
     char tmpname[64], tmp[4300], path[4200], expr[128];
@@ -585,27 +583,15 @@ static int run_gnuplot(const char *dir) {
                   "are written",
                   exe);
     } else if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
-        cli_error("study", "warning: %s failed on %s/study.gp; study.png skipped", exe, dir);
+        cli_error("study", "warning: %s failed on %s/study.gp; study.png skipped", exe, target);
     } else if (rename(tmp, path) != 0) {
-        cli_error("study", "warning: %s: cannot rename: %s", path, strerror(errno));
+        cli_error("study", "warning: %s/study.png: cannot rename: %s", target, strerror(errno));
     } else {
         ok = 1;
     }
     if (!ok) unlink(tmp);
     cli_unguard(tmp);
     return ok;
-}
-
-static void guard_outputs(const char *dir, int on) {
-    static const char *const names[] = {"study.csv", "study.dat", "study.gp", "study.png", "study.json"};
-    char path[4200];
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
-        snprintf(path, sizeof path, "%s/%s", dir, names[i]);
-        if (on)
-            cli_guard(path);
-        else
-            cli_unguard(path);
-    }
 }
 
 static void print_table(const runs_t *rs) {
@@ -652,6 +638,7 @@ int cmd_study(int argc, char **argv) {
     }
 
     sb_context_t *ctx = NULL;
+    sb_outset_t *set = NULL;
     runs_t rs = {0};
     sb_source_t **srcs = calloc(o.nsources, sizeof *srcs);
     size_t *first_run = calloc(o.nsources + 1, sizeof *first_run);
@@ -726,32 +713,25 @@ int cmd_study(int argc, char **argv) {
         else
             failed++;
     }
-    if (cli_mkdirs(o.out) != 0) {
-        cli_error("study", "--out %s: cannot create the output folder: %s", o.out, strerror(errno));
-        rc = EXIT_IO;
-        goto out;
-    }
-    /* An interrupt while writing removes the whole set (cli_guard), so
-     * the folder never mixes files of two studies. */
-    guard_outputs(o.out, 1);
+    /* The files go into a staging folder published in one step (outset.h),
+     * so the folder never mixes files of two studies. */
+    if (!(set = cli_outset_begin(ctx, "study", o.out, &rc))) goto out;
     out_args_t oa = {&o, &rs, failed, NULL};
     int plotted = 0;
-    if (write_file(o.out, "study.csv", w_csv, &oa) || write_file(o.out, "study.dat", w_dat, &oa) ||
-        write_file(o.out, "study.gp", w_gp, &oa)) {
+    if (write_file(set, "study.csv", w_csv, &oa) || write_file(set, "study.dat", w_dat, &oa) ||
+        write_file(set, "study.gp", w_gp, &oa)) {
         rc = EXIT_IO;
         goto out;
     }
-    if (good) plotted = run_gnuplot(o.out);
-    if (!plotted) { /* a plot left by an earlier study would not match */
-        char png[4200];
-        snprintf(png, sizeof png, "%s/study.png", o.out);
-        unlink(png);
-    }
+    if (good) plotted = run_gnuplot(sb_outset_dir(set), o.out);
     oa.plot = plotted ? "study.png" : NULL;
-    if (write_file(o.out, "study.json", w_json, &oa)) {
+    if (write_file(set, "study.json", w_json, &oa)) {
         rc = EXIT_IO;
         goto out;
     }
+    rc = cli_outset_end(ctx, "study", set, 1);
+    set = NULL;
+    if (rc != EXIT_OK) goto out;
     if (g_verbosity >= 1) {
         print_table(&rs);
         printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
@@ -766,7 +746,7 @@ nomem:
     cli_error("study", "out of memory");
     rc = EXIT_IO;
 out:
-    guard_outputs(o.out, 0);
+    cli_outset_end(ctx, "study", set, 0); /* a set not published: discarded */
     for (size_t s = 0; srcs && s < o.nsources; s++)
         sb_source_destroy(srcs[s]);
     free(srcs);

@@ -7,7 +7,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 /* A model spec is NAME[:key=value,...] with NAME a plain identifier, so a
  * NAME with '/' or '.' can only be meant as a file.  Values may hold both
@@ -120,30 +119,6 @@ void attempt_free(attempt_t *a) {
     sb_matrix_free(&a->m);
     sb_param_destroy(a->param);
     memset(a, 0, sizeof *a);
-}
-
-void pipe_guard_factor_outputs(const char *dir, size_t terms, int on) {
-    static const char *const names[] = {"sepbrdf.glsl", "report.json"};
-    char path[4200];
-    if (!on)
-        cli_unguard_exr();
-    else
-        cli_guard_exr(dir, terms, 1);
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
-        snprintf(path, sizeof path, "%s/%s", dir, names[i]);
-        if (on)
-            cli_guard(path);
-        else
-            cli_unguard(path);
-        /* sb_glsl_write's temporary (glsl.h): PATH.tmp-PID */
-        if (i == 0) {
-            snprintf(path, sizeof path, "%s/%s.tmp-%ld", dir, names[i], (long)getpid());
-            if (on)
-                cli_guard(path);
-            else
-                cli_unguard(path);
-        }
-    }
 }
 
 size_t pipe_candidates(const sb_source_t *src, const pipe_opts_t *o, int param_auto, sb_param_kind_t param,

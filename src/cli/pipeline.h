@@ -92,11 +92,4 @@ size_t pipe_candidates(const sb_source_t *src, const pipe_opts_t *o, int param_a
 sb_result_t pipe_select(sb_context_t *ctx, const char *cmd, const sb_source_t *src, const pipe_opts_t *o,
                         pipe_cand_t *cands, size_t ncand, attempt_t *best);
 
-/* Guard the output set of `factor` in `dir` against signals (see
- * cli_guard): the temporaries sb_factors_write_exr and sb_glsl_write use
- * and, with finals, the finished files g_KK.exr, h_KK.exr (K < terms),
- * sepbrdf.glsl and report.json, so that a run interrupted while writing
- * leaves neither temporaries nor a set mixing two runs.  on = 0 releases. */
-void pipe_guard_factor_outputs(const char *dir, size_t terms, int on);
-
 #endif

@@ -2,12 +2,14 @@
  * parameterisation's coordinate functions and the generic evaluation. */
 #include "sepbrdf/glsl.h"
 
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "sb_glsl_text.h"
+#include "sepbrdf/outset.h"
 #include "util/internal.h"
 
 const char *sb_glsl_library(void) { return sb_glsl_text_; }
@@ -55,23 +57,19 @@ sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t 
         return sb_error(ctx, SB_ERR_RANGE, "glsl: %zu terms, need 1..%d", terms, SB_GLSL_MAX_TERMS);
     char *text = sb_glsl_snippet(p, form, terms, scales);
     if (!text) return sb_error(ctx, SB_ERR_NOMEM, "glsl: out of memory");
-    char tmp[4096];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid()) >= (int)sizeof tmp) {
-        free(text);
-        return sb_error(ctx, SB_ERR_ARG, "glsl: path of %zu bytes too long", strlen(path));
+    char tmp[4200];
+    int n = snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
+    FILE *fp = n > 0 && (size_t)n < sizeof tmp ? fopen(tmp, "wb") : NULL;
+    int e = fp ? 0 : (n > 0 && (size_t)n < sizeof tmp ? errno : ENAMETOOLONG);
+    if (fp) {
+        size_t len = strlen(text);
+        errno = 0;
+        if (fwrite(text, 1, len, fp) != len || fflush(fp) != 0) e = errno ? errno : EIO;
+        if (fclose(fp) != 0 && !e) e = errno ? errno : EIO;
+        if (!e && rename(tmp, path) != 0) e = errno;
+        if (e) remove(tmp);
     }
-    FILE *fp = fopen(tmp, "wb");
-    if (!fp) {
-        free(text);
-        return sb_error(ctx, SB_ERR_IO, "%s: cannot write", path);
-    }
-    size_t len = strlen(text);
-    int ok = fwrite(text, 1, len, fp) == len;
-    ok = (fclose(fp) == 0) && ok;
     free(text);
-    if (!ok || rename(tmp, path) != 0) {
-        remove(tmp);
-        return sb_error(ctx, SB_ERR_IO, "%s: cannot write", path);
-    }
+    if (e) return sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, sb_io_why(e));
     return SB_OK;
 }

@@ -79,11 +79,7 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
                     double v = fabs(x[c][i + j * ld]);
                     if (v > amax) amax = v;
                 }
-        if (amax > 0 && isfinite(amax)) {
-            int ex;
-            frexp(amax, &ex);
-            pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
-        }
+        pw = sb_pow2_scale(amax);
         gram3(x, rows, cols, ld, pw, g);
     }
     int b = -1;

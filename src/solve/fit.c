@@ -34,11 +34,12 @@
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "util/internal.h"
+#include "util/parallel.h"
+#include "util/rng.h"
 
 /* Up to this many terms the fit finishes with alternating least squares
  * (Grams of k x k per row and column); beyond, imputation alone. */
@@ -62,20 +63,9 @@ struct sb_fit {
 };
 
 static double gauss(uint64_t *s) {
-    /* splitmix64 + Box-Muller: deterministic for a seed */
-    uint64_t z1, z2;
-    *s += 0x9e3779b97f4a7c15ULL;
-    z1 = *s;
-    z1 = (z1 ^ (z1 >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z1 = (z1 ^ (z1 >> 27)) * 0x94d049bb133111ebULL;
-    z1 ^= z1 >> 31;
-    *s += 0x9e3779b97f4a7c15ULL;
-    z2 = *s;
-    z2 = (z2 ^ (z2 >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z2 = (z2 ^ (z2 >> 27)) * 0x94d049bb133111ebULL;
-    z2 ^= z2 >> 31;
-    double u1 = ((z1 >> 11) + 0.5) * (1.0 / 9007199254740992.0), u2 = (z2 >> 11) * (1.0 / 9007199254740992.0);
-    return sqrt(-2 * log(u1)) * cos(2 * SB_PI * u2);
+    double g[2];
+    sb_splitmix_gauss2(s, g); /* deterministic for a seed */
+    return g[0];
 }
 
 sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fit_t **out) {
@@ -455,29 +445,17 @@ static void *als_cols(void *arg) {
     return NULL;
 }
 
-/* Run fn on [0, n) split among up to 16 threads (the caller's included). */
+/* Run fn on [0, n) split among threads (the caller's included). */
 static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double *e2) {
-    int nt = sb_thread_count(0);
-    if (nt > 16) nt = 16;
-    if ((size_t)nt > n) nt = (int)n;
-    if (proto->f->m * proto->f->n < ((size_t)1 << 16)) nt = 1; /* small: not worth a thread */
-    als_job_t jobs[16];
-    pthread_t th[16];
-    int started[16] = {0};
+    /* small: not worth a thread */
+    int nt = sb_threads_for(0, n, proto->f->m * proto->f->n, (size_t)1 << 16);
+    als_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
         jobs[t] = *proto;
-        jobs[t].lo = n * (size_t)t / (size_t)nt;
-        jobs[t].hi = n * (size_t)(t + 1) / (size_t)nt;
+        sb_part(n, t, nt, &jobs[t].lo, &jobs[t].hi);
         jobs[t].e2 = 0;
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
     }
-    fn(&jobs[0]);
-    for (int t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            fn(&jobs[t]);
-    }
+    sb_parallel_run(fn, jobs, sizeof *jobs, nt, NULL, NULL);
     if (e2) {
         *e2 = 0;
         for (int t = 0; t < nt; t++)
@@ -550,15 +528,11 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
      * iteration as "converged", 1e300 data failed as non-finite); the ALS
      * stages read the valid cells of X (same layout as A when lda == m, as
      * the plan passes) and sigma is divided by pw at the end. */
-    double amax = 0, pw = 1;
+    double amax = 0, pw;
     for (size_t c = 0; c < n && lda == m; c++)
         for (size_t r = 0; r < m; r++)
             if (mask[r + c * lda]) amax = fmax(amax, fabs(A[r + c * lda]));
-    if (amax > 0 && isfinite(amax)) {
-        int ex;
-        frexp(amax, &ex);
-        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
-    }
+    pw = sb_pow2_scale(amax);
     const double *As = lda == m ? f->x : A; /* what the ALS stages read */
     double norm2 = 0;
     size_t ninvalid = 0;

@@ -4,29 +4,39 @@
 
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "source/measured_impl.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
-static const char *const format_names[SB_TABLE_FORMAT_COUNT_] = {"auto", "merl", "cornell", "alta", "csv"};
 static const char *const interp_names[SB_INTERP_COUNT_] = {"default", "nearest", "linear", "idw", "quadratic"};
 
-const char *sb_table_format_name(sb_table_format_t f) {
-    return (unsigned)f < SB_TABLE_FORMAT_COUNT_ ? format_names[f] : "?";
+/* The registry: detection tries the rows in this order. */
+static const sb_reader_t *const readers[] = {&sb_reader_merl, &sb_reader_rgl, &sb_reader_cornell, &sb_reader_alta,
+                                             &sb_reader_csv};
+#define N_READERS (sizeof readers / sizeof readers[0])
+
+size_t sb_measured_format_count(void) { return N_READERS; }
+const char *sb_measured_format_name(size_t k) { return k < N_READERS ? readers[k]->name : NULL; }
+const char *sb_measured_format_title(size_t k) { return k < N_READERS ? readers[k]->title : NULL; }
+const char *sb_measured_format_exts(size_t k) { return k < N_READERS ? readers[k]->exts : NULL; }
+
+void sb_info_field(sb_measured_info_t *info, const char *key, double number, const char *fmt, ...) {
+    if (info->nfields >= SB_MEASURED_FIELDS_MAX) return;
+    sb_measured_field_t *f = &info->fields[info->nfields++];
+    snprintf(f->key, sizeof f->key, "%s", key);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(f->text, sizeof f->text, fmt, ap);
+    va_end(ap);
+    f->number = number;
 }
-sb_result_t sb_table_format_parse(const char *name, sb_table_format_t *out) {
-    if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_TABLE_FORMAT_COUNT_; k++)
-        if (name && strcmp(name, format_names[k]) == 0) {
-            *out = (sb_table_format_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
-}
+
 const char *sb_interp_name(sb_interp_t m) { return (unsigned)m < SB_INTERP_COUNT_ ? interp_names[m] : "?"; }
 sb_result_t sb_interp_parse(const char *name, sb_interp_t *out) {
     if (!out) return SB_ERR_ARG;
@@ -46,6 +56,11 @@ int sb_lines_next(sb_context_t *ctx, sb_lines_t *lr, char **out, sb_result_t *er
     for (;;) {
         c = getc_unlocked(lr->fp);
         if (c == EOF || c == '\n') break;
+        if (c == '\r') { /* CR LF (Windows) or CR alone (classic Mac OS) */
+            int d = getc_unlocked(lr->fp);
+            if (d != '\n' && d != EOF) ungetc(d, lr->fp);
+            break;
+        }
         if (c == 0) {
             *err =
                 sb_error(ctx, SB_ERR_FORMAT, "%s:%zu: binary data (NUL byte) in a text table", lr->path, lr->line + 1);
@@ -81,9 +96,9 @@ int sb_lines_next(sb_context_t *ctx, sb_lines_t *lr, char **out, sb_result_t *er
         }
         lr->cap = 256;
     }
-    while (len && lr->buf[len - 1] == '\r')
-        len--;
     lr->buf[len] = 0;
+    if (lr->line == 0 && len >= 3 && memcmp(lr->buf, "\xef\xbb\xbf", 3) == 0) /* UTF-8 byte order mark */
+        memmove(lr->buf, lr->buf + 3, len - 2);
     lr->line++;
     *out = lr->buf;
     return 1;
@@ -154,37 +169,53 @@ static int has_ext(const char *path, const char *ext) {
     return 1;
 }
 
-static int32_t le_i32(const unsigned char *b) {
-    uint32_t u = (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
-    return (int32_t)u;
-}
-
-/* A line of head[] (not NUL-terminated) starting with `prefix`. */
-static int head_has_line(const char *head, size_t n, const char *prefix) {
-    size_t m = strlen(prefix);
-    for (size_t i = 0; i + m <= n; i++)
-        if ((i == 0 || head[i - 1] == '\n') && memcmp(head + i, prefix, m) == 0) return 1;
+/* One of the space-separated extensions of `exts` ends the path. */
+static int has_any_ext(const char *path, const char *exts) {
+    char buf[128];
+    snprintf(buf, sizeof buf, "%s", exts);
+    for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " "))
+        if (has_ext(path, tok)) return 1;
     return 0;
 }
 
-/* Content first (a MERL header, the Cornell or ALTA keywords, a CSV header
- * naming theta_i), then the extension; 0 when nothing matches. */
-static sb_table_format_t detect(const unsigned char *head, size_t n, const char *path) {
-    if (n >= 12 && le_i32(head) == SB_MERL_TH && le_i32(head + 4) == SB_MERL_TD && le_i32(head + 8) == SB_MERL_PD)
-        return SB_TABLE_MERL;
-    const char *h = (const char *)head;
-    size_t i = 0;
-    while (i < n && (h[i] == ' ' || h[i] == '\t' || h[i] == '\r' || h[i] == '\n'))
-        i++;
-    if (n - i >= 9 && memcmp(h + i, "# num wls", 9) == 0) return SB_TABLE_CORNELL;
-    if (head_has_line(h, n, "#PARAM_IN") || head_has_line(h, n, "#DIM")) return SB_TABLE_ALTA;
-    if (has_ext(path, ".binary")) return SB_TABLE_MERL;
-    if (has_ext(path, ".brdf")) return SB_TABLE_CORNELL;
-    if (has_ext(path, ".alta")) return SB_TABLE_ALTA;
-    if (has_ext(path, ".csv")) return SB_TABLE_CSV;
-    for (size_t k = 0; k + 7 <= n; k++)
-        if (memcmp(h + k, "theta_i", 7) == 0) return SB_TABLE_CSV;
-    return SB_TABLE_AUTO;
+/* Content first (a magic or keyword: sniff 2), then the extension, then a
+ * plausible content (sniff 1); NULL when nothing matches. */
+static const sb_reader_t *detect(const unsigned char *head, size_t n, const char *path) {
+    for (size_t k = 0; k < N_READERS; k++)
+        if (readers[k]->sniff(head, n) == 2) return readers[k];
+    for (size_t k = 0; k < N_READERS; k++)
+        if (has_any_ext(path, readers[k]->exts)) return readers[k];
+    for (size_t k = 0; k < N_READERS; k++)
+        if (readers[k]->sniff(head, n) == 1) return readers[k];
+    return NULL;
+}
+
+static void formats_text(char *buf, size_t size) {
+    size_t at = 0;
+    buf[0] = 0;
+    for (size_t k = 0; k < N_READERS && at < size; k++) {
+        int m = snprintf(buf + at, size - at, "%s%s", k ? ", " : "", readers[k]->title);
+        if (m < 0) break;
+        at += (size_t)m;
+    }
+}
+
+static sb_result_t check_opts(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o,
+                              const sb_reader_t **reader) {
+    *reader = NULL;
+    if (o->format && strcmp(o->format, "auto") != 0) {
+        for (size_t k = 0; k < N_READERS; k++)
+            if (strcmp(o->format, readers[k]->name) == 0) *reader = readers[k];
+        if (!*reader) return sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown table format '%s'", path, o->format);
+    }
+    if ((unsigned)o->interp >= SB_INTERP_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "%s: unknown interpolation %d", path, (int)o->interp);
+    if ((unsigned)o->white >= SB_WHITE_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "%s: unknown white %d", path, (int)o->white);
+    if (o->neighbours > 64)
+        return sb_error(ctx, SB_ERR_RANGE, "%s: %zu neighbours out of range, need 1..64", path, o->neighbours);
+    if (isnan(o->radius)) return sb_error(ctx, SB_ERR_RANGE, "%s: radius is NaN", path);
+    return SB_OK;
 }
 
 sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
@@ -193,18 +224,10 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
     *out = NULL;
     sb_measured_opts_t o = {0};
     if (opts) o = *opts;
-    if ((unsigned)o.format >= SB_TABLE_FORMAT_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "%s: unknown table format %d", path, (int)o.format);
-    if ((unsigned)o.interp >= SB_INTERP_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "%s: unknown interpolation %d", path, (int)o.interp);
-    if ((unsigned)o.white >= SB_WHITE_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "%s: unknown white %d", path, (int)o.white);
-    if (o.neighbours > 64)
-        return sb_error(ctx, SB_ERR_RANGE, "%s: %zu neighbours out of range, need 1..64", path, o.neighbours);
-    if (isnan(o.radius)) return sb_error(ctx, SB_ERR_RANGE, "%s: radius is NaN", path);
-
-    sb_table_format_t fmt = o.format;
-    if (fmt == SB_TABLE_AUTO) {
+    const sb_reader_t *rd;
+    sb_result_t r = check_opts(ctx, path, &o, &rd);
+    if (r != SB_OK) return r;
+    if (!rd) {
         FILE *fp = fopen(path, "rb");
         if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
         unsigned char head[4096];
@@ -212,24 +235,19 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
         int bad = ferror(fp);
         fclose(fp);
         if (bad) return sb_error(ctx, SB_ERR_IO, "%s: read error", path);
-        if (n >= 11 && memcmp(head, "tensor_file", 11) == 0)
-            return sb_error(ctx, SB_ERR_UNSUPPORTED,
-                            "%s: Mitsuba/RGL tensor_file (.bsdf) tables are not supported; "
-                            "use MERL .binary, Cornell .brdf, ALTA or sepbrdf CSV",
-                            path);
-        fmt = detect(head, n, path);
-        if (fmt == SB_TABLE_AUTO)
-            return sb_error(ctx, SB_ERR_FORMAT,
-                            "%s: unrecognised measured table (%s); expected MERL .binary, Cornell .brdf "
-                            "(\"# num wls\"), ALTA (\"#PARAM_IN\") or sepbrdf CSV (header with theta_i)",
-                            path, n ? "unknown content" : "empty file");
+        if (!(rd = detect(head, n, path))) {
+            char names[512];
+            formats_text(names, sizeof names);
+            return sb_error(ctx, SB_ERR_FORMAT, "%s: unrecognised measured table (%s); expected one of: %s", path,
+                            n ? "unknown content" : "empty file", names);
+        }
     }
-    sb_measured_info_t inf;
-    memset(&inf, 0, sizeof inf);
-    inf.format = fmt;
-    sb_result_t r = fmt == SB_TABLE_MERL ? sb_merl_open_(ctx, path, &o, out, &inf)
-                                         : sb_scattered_open_(ctx, path, fmt, &o, out, &inf);
-    if (r == SB_OK && info) *info = inf;
+    sb_measured_info_t *inf = calloc(1, sizeof *inf);
+    if (!inf) return sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    inf->format = rd->name;
+    r = rd->open(ctx, path, &o, out, inf);
+    if (r == SB_OK && info) *info = *inf;
+    free(inf);
     return r;
 }
 
@@ -263,38 +281,18 @@ sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, cons
     if (!src || !param) return sb_error(ctx, SB_ERR_ARG, "coverage: missing source or parameterisation");
     size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total;
     if (sb_size_mul(rows, cols, &total)) return sb_error(ctx, SB_ERR_OVERFLOW, "coverage: cell count overflows");
-    int nt = sb_thread_count(0);
-    if ((size_t)nt > cols) nt = (int)cols;
-    if (nt < 1) nt = 1;
-    cov_job_t *jobs = calloc((size_t)nt, sizeof *jobs);
-    pthread_t *th = calloc((size_t)nt, sizeof *th);
-    char *started = calloc((size_t)nt, 1);
-    if (!jobs || !th || !started) {
-        free(jobs);
-        free(th);
-        free(started);
-        return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
-    }
+    int nt = sb_threads_for(0, cols, cols, 0);
+    cov_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] =
-            (cov_job_t){src, param, rows, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt, 0, 0};
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, cov_cols, &jobs[t]) == 0;
+        jobs[t] = (cov_job_t){src, param, rows, 0, 0, 0, 0};
+        sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
-    cov_cols(&jobs[0]);
+    sb_parallel_run(cov_cols, jobs, sizeof *jobs, nt, NULL, NULL);
     size_t k = 0, n = 0;
     for (int t = 0; t < nt; t++) {
-        if (t > 0) {
-            if (started[t])
-                pthread_join(th[t], NULL);
-            else
-                cov_cols(&jobs[t]); /* no thread: do it here */
-        }
         k += jobs[t].known;
         n += jobs[t].cells;
     }
-    free(jobs);
-    free(th);
-    free(started);
     if (known) *known = k;
     if (cells) *cells = n;
     return SB_OK;

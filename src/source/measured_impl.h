@@ -18,8 +18,9 @@ sb_result_t sb_measured_open_hook(sb_context_t *ctx, const char *path, sb_source
  * 24 characters a number fits; anything longer is hostile. */
 #define SB_LINE_MAX ((size_t)1 << 20)
 
-/* Line reader over a text file: strips "\r\n", counts lines, refuses NUL
- * bytes and lines longer than SB_LINE_MAX. */
+/* Line reader over a text file: lines end with LF, CR LF or CR alone; a
+ * UTF-8 byte order mark before the first line is dropped; counts lines,
+ * refuses NUL bytes and lines longer than SB_LINE_MAX. */
 typedef struct sb_lines {
     FILE *fp;
     const char *path;
@@ -44,11 +45,46 @@ char *sb_trim(char *s);
  * sb_half_diff_angles); 0 when wi = -wo. */
 int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, double d[3]);
 
-/* Format readers, called by sb_measured_open with resolved options. */
-sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
-                          sb_measured_info_t *info);
-sb_result_t sb_scattered_open_(sb_context_t *ctx, const char *path, sb_table_format_t fmt, const sb_measured_opts_t *o,
-                               sb_source_t **out, sb_measured_info_t *info);
+/* Scattered samples as the text readers collect them: wi[3], wo[3], f[3]
+ * (RGB f_r) per sample, both directions above the horizon. */
+#define SB_SAMPLE_DOUBLES 9
+#define SB_MAX_ROWS ((size_t)1 << 31)
+typedef struct sb_samples {
+    double *s;
+    size_t n, cap;
+} sb_samples_t;
+
+/* Append a sample (value statistics of info updated); SB_ERR_OVERFLOW past
+ * SB_MAX_ROWS or the memory limit. */
+sb_result_t sb_samples_push_(sb_context_t *ctx, const char *path, sb_samples_t *ss, const double wi[3],
+                             const double wo[3], const double f[3], sb_measured_info_t *info);
+/* The interpolated source of scattered samples (scattered.c): embedding,
+ * k-d tree, interpolation per o->interp; fills the interpolation fields of
+ * info. */
+sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *ss, int iso, int recip,
+                             const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out);
+
+/* A measured format: one descriptor in the reader's file plus one row in
+ * the registry (measured.c).  sniff() looks at the first bytes of the file
+ * (at most 4096): 2 = certainly this format (a magic, a keyword), 1 =
+ * plausible (used only when no extension matches), 0 = no.  open() gets
+ * resolved options and an info whose `format` is already set. */
+typedef struct sb_reader {
+    const char *name, *title, *exts;
+    int (*sniff)(const unsigned char *head, size_t n);
+    sb_result_t (*open)(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                        sb_measured_info_t *info);
+} sb_reader_t;
+
+extern const sb_reader_t sb_reader_merl, sb_reader_rgl, sb_reader_cornell, sb_reader_alta, sb_reader_csv;
+
+/* Append a format-specific field (number: NAN when the value is text);
+ * silently ignored beyond SB_MEASURED_FIELDS_MAX. */
+void sb_info_field(sb_measured_info_t *info, const char *key, double number, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
 
 /* Path of the temporary file written before the rename: PATH.tmp-PID. */
 int sb_tmp_name(const char *path, char *buf, size_t size);

@@ -10,14 +10,15 @@
  * the cell index is floor(u) clamped; cell centres sit at floor(u) + 1/2.
  * In memory: 3 planes of doubles, already scaled, NaN for missing cells. */
 #include <errno.h>
+#include <float.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
 #include "source/measured_impl.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 const double sb_merl_scale[3] = {1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0};
 
@@ -213,8 +214,8 @@ static void put_le_f64(unsigned char *b, double d) {
         b[k] = (unsigned char)(u >> (8 * k));
 }
 
-sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
-                          sb_measured_info_t *info) {
+static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                             sb_measured_info_t *info) {
     sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_NEAREST : o->interp;
     if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
         return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
@@ -305,19 +306,33 @@ sb_result_t sb_merl_open_(sb_context_t *ctx, const char *path, const sb_measured
         info->samples++;
         for (int c = 0; c < 3; c++) {
             double v = m->v[(size_t)c * SB_MERL_CELLS + k] * sb_merl_scale[c];
+            if (v > FLT_MAX) {
+                r = sb_error(ctx, SB_ERR_FORMAT,
+                             "%s: MERL: cell %zu (theta_h %zu, theta_d %zu, phi_d %zu) channel %d: f_r = %g (1/sr) "
+                             "overflows float storage (largest %g): not a reflectance",
+                             path, k, k / (SB_MERL_TD * SB_MERL_PD), k / SB_MERL_PD % SB_MERL_TD, k % SB_MERL_PD, c, v,
+                             (double)FLT_MAX);
+                goto done;
+            }
             m->v[(size_t)c * SB_MERL_CELLS + k] = v;
             sum[c] += v;
             if (v < info->value_min[c]) info->value_min[c] = v;
             if (v > info->value_max[c]) info->value_max[c] = v;
         }
     }
-    for (int c = 0; c < 3; c++) {
-        info->value_mean[c] = info->samples ? sum[c] / (double)info->samples : 0;
-        if (!info->samples) info->value_min[c] = info->value_max[c] = 0;
+    if (!info->samples) {
+        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: no measured cell (all %zu missing: %zu negative, %zu NaN)", path,
+                     info->rows, info->negative, info->nan_rows);
+        goto done;
     }
+    for (int c = 0; c < 3; c++)
+        info->value_mean[c] = sum[c] / (double)info->samples;
     info->theta_i_max = info->theta_o_max = SB_PI / 2;
     info->interp = interp;
     info->flags = SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL;
+    sb_info_field(info, "cells", (double)info->rows, "%zu (measured %zu, missing %zu: negative %zu, NaN %zu)",
+                  info->rows, info->samples, info->missing, info->negative, info->nan_rows);
+    sb_info_field(info, "interp", NAN, "%s", sb_interp_name(interp));
     char desc[1200];
     snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
@@ -329,6 +344,14 @@ done:
     fclose(fp);
     return r;
 }
+
+/* A MERL header: the dims 90, 90, 180 as little-endian int32. */
+static int merl_sniff(const unsigned char *h, size_t n) {
+    static const unsigned char dims[12] = {SB_MERL_TH, 0, 0, 0, SB_MERL_TD, 0, 0, 0, SB_MERL_PD, 0, 0, 0};
+    return n >= 12 && memcmp(h, dims, 12) == 0 ? 2 : 0;
+}
+
+const sb_reader_t sb_reader_merl = {"merl", "MERL .binary", ".binary", merl_sniff, merl_open};
 
 /* ---- writer ------------------------------------------------------------ */
 
@@ -358,23 +381,13 @@ sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t
     double *v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), "merl write");
     if (!v) return SB_ERR_NOMEM;
     /* Evaluate: theta_h slices split among threads. */
-    int nt = sb_thread_count(0);
-    if (nt > SB_MERL_TH) nt = SB_MERL_TH;
-    merl_job_t jobs[SB_MERL_TH];
-    pthread_t th[SB_MERL_TH];
-    int started[SB_MERL_TH] = {0};
+    int nt = sb_threads_for(0, SB_MERL_TH, SB_MERL_TH, 0);
+    merl_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (merl_job_t){src, v, (size_t)SB_MERL_TH * (size_t)t / (size_t)nt,
-                               (size_t)SB_MERL_TH * (size_t)(t + 1) / (size_t)nt};
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, merl_fill, &jobs[t]) == 0;
+        jobs[t] = (merl_job_t){src, v, 0, 0};
+        sb_part(SB_MERL_TH, t, nt, &jobs[t].h0, &jobs[t].h1);
     }
-    merl_fill(&jobs[0]);
-    for (int t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            merl_fill(&jobs[t]);
-    }
+    sb_parallel_run(merl_fill, jobs, sizeof *jobs, nt, NULL, NULL);
     /* Encode and write under the temporary name, then rename. */
     FILE *fp = fopen(tmp, "wb");
     if (!fp) {

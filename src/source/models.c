@@ -15,6 +15,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -507,8 +508,13 @@ static sb_result_t parse_number(sb_context_t *ctx, const char *model, const char
     char *end;
     errno = 0;
     double v = strtod(s, &end);
-    if (end == s || *end || errno == ERANGE || !isfinite(v))
+    if (end == s || *end || isnan(v))
         return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a number", model, key, s);
+    /* ERANGE: overflow gives an infinity (refused); underflow a denormal or
+     * zero, which is the number asked for as closely as a double holds it */
+    if (!isfinite(v))
+        return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not finite (largest number %g)", model, key, s,
+                        DBL_MAX);
     *out = v;
     return SB_OK;
 }
