@@ -1,7 +1,8 @@
 /* CLI: values the textures cannot store end the run before any output is
  * written, with the real cause, the target file and the exit status of the
  * README's table: 3 for a BRDF outside the storage range, 1 for a number
- * of terms above the BRDF's numerical rank (lower -J). */
+ * of terms above the BRDF's numerical rank (lower -J).  A reference grid
+ * that would take minutes (--metric-res 256) is refused at once. */
 #include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
@@ -47,4 +48,15 @@ SB_TEST(rank_exhausted) {
     int rc = run_factor("lambert:albedo=1e-60 -J 3 --half", dir);
     CHECKF(rc == 1 && strstr(out, "numerical rank is exhausted") && strstr(out, "g_01.exr"), "exit %d: %s", rc, out);
     CHECK(no_files(sub));
+}
+
+SB_TEST(metric_res_bounded) {
+    char cmd[8192];
+    const char *dir = sb_tmpdir("cli-storage");
+    snprintf(cmd, sizeof cmd, "%s factor -r 8 --metric-res 256 -o %s/out", SB_CLI, dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 1 && strstr(out, "--metric-res") && strstr(out, "2..128"), "exit %d: %s", rc, out);
+    snprintf(cmd, sizeof cmd, "%s study lambert -r 8 --metric-res 129 -o %s/out", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 1 && strstr(out, "--metric-res"), "exit %d: %s", rc, out);
 }

@@ -47,7 +47,7 @@ sb_result_t sb_blas_reserve(sb_context_t *ctx) {
         free(m);
         return sb_error(ctx, SB_ERR_NOMEM,
                         "cannot allocate %zu bytes: the linear algebra library (OpenBLAS) needs that much working "
-                        "memory per thread, more than the address-space limit (ulimit -v) leaves",
+                        "memory per thread, more than the memory limit (ulimit -v or -d) leaves",
                         SB_BLAS_BUFFER_BYTES);
     }
     free(probe);
