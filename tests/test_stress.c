@@ -920,7 +920,8 @@ SB_TEST(all_models) {
 }
 
 /* Up-front refusal: sizes beyond the memory limit are SB_ERR_OVERFLOW with
- * the bytes needed and the option to lower, before anything is allocated. */
+ * the bytes needed and what to lower (the resolution; the library names no
+ * CLI option), before anything is allocated. */
 SB_TEST(memory_limit) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -931,17 +932,17 @@ SB_TEST(memory_limit) {
     CHECK(sb_matrix_build(ctx, s, p, NULL, &m) == SB_ERR_OVERFLOW);
     const char *msg = sb_context_last_error(ctx);
     /* 1024 x 1024 cells x 3 channels of 8 bytes + a 1-byte mask */
-    CHECKF(strstr(msg, "--res") && strstr(msg, "26214400"), "message: %s", msg);
+    CHECKF(strstr(msg, "resolution") && strstr(msg, "26214400"), "message: %s", msg);
     CHECK(m.data[0] == NULL && m.mask == NULL);
     sb_plan_t *plan = NULL;
     CHECK(sb_plan_create(ctx, 1024, 1024, NULL, &plan) == SB_ERR_OVERFLOW && plan == NULL);
     msg = sb_context_last_error(ctx);
-    CHECKF(strstr(msg, "--res") && strstr(msg, "bytes"), "message: %s", msg);
+    CHECKF(strstr(msg, "resolution") && strstr(msg, "bytes"), "message: %s", msg);
     sb_set_memory_limit(0);
     /* --res 512 of the CLI: 262144^2 cells, beyond any memory here */
     CHECK(sb_plan_create(ctx, (size_t)1 << 18, (size_t)1 << 18, NULL, &plan) == SB_ERR_OVERFLOW && plan == NULL);
     msg = sb_context_last_error(ctx);
-    CHECKF(strstr(msg, "--res") && strstr(msg, "618475290624"), "message: %s", msg);
+    CHECKF(strstr(msg, "resolution") && strstr(msg, "618475290624"), "message: %s", msg);
     /* products that overflow size_t */
     CHECK(sb_plan_create(ctx, SIZE_MAX / 2, 4, NULL, &plan) == SB_ERR_OVERFLOW);
     sb_factors_t *f = NULL;

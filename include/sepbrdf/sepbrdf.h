@@ -14,6 +14,7 @@
 #include "outset.h"
 #include "param.h"
 #include "render.h"
+#include "solver.h"
 #include "source.h"
 #include "svd.h"
 

@@ -29,6 +29,8 @@ void cli_info(int level, const char *fmt, ...) __attribute__((format(printf, 2, 
 int cli_exit_code(sb_result_t r);
 /* Report a failed library call with the context's detail; returns the exit code. */
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r);
+/* "io, io-area, hd, iso": the parameterisations of the library's registry. */
+const char *cli_param_names(void);
 
 /* Option parsing helpers: "--opt=value" or "--opt value". */
 typedef struct cli_args {

@@ -109,7 +109,7 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             if (strcmp(v, "auto") == 0) {
                 o->param_auto = 1;
             } else if (sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("factor", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
+                cli_error("factor", "--param '%s' unknown, need one of auto, %s", v, cli_param_names());
                 return EXIT_USAGE;
             } else {
                 o->param_auto = 0;
@@ -263,18 +263,18 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     for (size_t k = 0; k < J; k++) {
         json_begin_object(j, NULL);
         json_int(j, "terms", (long long)(k + 1));
-        json_number(j, "rel_rms", e->rel_rms[k * 4 + 3]);
-        json_number(j, "rel_rms_stored", rx->rel_stored ? rx->rel_stored[k * 4 + 3] : NAN);
-        json_number(j, "max_abs", e->max_abs[k * 4 + 3]);
+        json_number(j, "rel_rms", e->rel_rms[sb_err_at(k, SB_CH_ALL)]);
+        json_number(j, "rel_rms_stored", rx->rel_stored ? rx->rel_stored[sb_err_at(k, SB_CH_ALL)] : NAN);
+        json_number(j, "max_abs", e->max_abs[sb_err_at(k, SB_CH_ALL)]);
         json_number(j, "comparable", attempt_comparable(a, k + 1));
         json_number(j, "negative_fraction", attempt_negative(a, k + 1));
         json_begin_object(j, "rel_rms_channel");
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) json_number(j, cn[c], e->rel_rms[k * 4 + (size_t)c]);
+            if (m->data[c]) json_number(j, cn[c], e->rel_rms[sb_err_at(k, c)]);
         json_end_object(j);
         json_begin_object(j, "max_abs_channel");
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) json_number(j, cn[c], e->max_abs[k * 4 + (size_t)c]);
+            if (m->data[c]) json_number(j, cn[c], e->max_abs[sb_err_at(k, c)]);
         json_end_object(j);
         json_end_object(j);
     }
@@ -333,10 +333,11 @@ static void print_table(const attempt_t *a) {
         if (m->data[c]) printf("  %10s_%s", "rel_rms", cn[c]);
     printf("\n");
     for (size_t k = 0; k < J; k++) {
-        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, attempt_comparable(a, k + 1), e->rel_rms[k * 4 + 3],
-               e->max_abs[k * 4 + 3], 100 * attempt_negative(a, k + 1));
+        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, attempt_comparable(a, k + 1),
+               e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
+               100 * attempt_negative(a, k + 1));
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) printf("  %12.4e", e->rel_rms[k * 4 + (size_t)c]);
+            if (m->data[c]) printf("  %12.4e", e->rel_rms[sb_err_at(k, c)]);
         printf("\n");
     }
 }

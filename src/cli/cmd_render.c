@@ -168,7 +168,7 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             if (m < 0) return EXIT_USAGE;
             o->param_auto = strcmp(v, "auto") == 0;
             if (!o->param_auto && sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("render", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
+                cli_error("render", "--param '%s' unknown, need one of auto, %s", v, cli_param_names());
                 return EXIT_USAGE;
             }
             o->factor_opt_name = "--param";

@@ -207,14 +207,14 @@ static int parse_params(const char *s, study_opts_t *o) {
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         sb_param_kind_t k;
         if (sb_param_kind_parse(t, &k) != SB_OK) {
-            cli_error("study", "--param '%s' unknown, need a comma list of io, io-area, hd, iso, or all", t);
+            cli_error("study", "--param '%s' unknown, need a comma list of %s, or all", t, cli_param_names());
             return -1;
         }
         o->params |= 1u << k;
     }
     if (o->params) return 0;
 bad:
-    cli_error("study", "--param '%s': need a comma list of io, io-area, hd, iso, or all", s);
+    cli_error("study", "--param '%s': need a comma list of %s, or all", s, cli_param_names());
     return -1;
 }
 
@@ -288,8 +288,8 @@ static int take_rows(run_t *r, const study_opts_t *o, const attempt_t *a, size_t
         row_t *w = &r->r[r->nr++];
         w->terms = j;
         w->comparable = a->metric.rel_l2[j - 1];
-        w->rel_rms = e->rel_rms[(j - 1) * 4 + 3];
-        w->max_abs = e->max_abs[(j - 1) * 4 + 3];
+        w->rel_rms = e->rel_rms[sb_err_at(j - 1, SB_CH_ALL)];
+        w->max_abs = e->max_abs[sb_err_at(j - 1, SB_CH_ALL)];
         w->neg_frac = a->metric.neg_frac[j - 1];
         w->t_factor = a->t_factor;
         w->t_metric = a->t_metric;
@@ -665,7 +665,7 @@ int cmd_study(int argc, char **argv) {
         unsigned flags = sb_source_flags(srcs[s]);
         for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
             if (!o.param_all && !(o.params & (1u << k))) continue;
-            int iso_ok = k != SB_PARAM_ISO || (flags & SB_SOURCE_ISOTROPIC);
+            int iso_ok = sb_param_kind_applies((sb_param_kind_t)k, flags);
             sb_param_t *probe = NULL;
             sb_param_opts_t pp = {0};
             pp.res = o.res;

@@ -78,8 +78,12 @@ sb_result_t attempt_factor(sb_context_t *ctx, const sb_source_t *src, const pipe
     pl.zero_fill = o->zero_fill;
     pl.fit_tol = o->fit_tol;
     pl.fit_max_iters = o->fit_max_iters;
+    size_t rank = a->m.rows < a->m.cols ? a->m.rows : a->m.cols;
+    if (terms > rank)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "--terms %zu exceeds the matrix rank limit %zu; lower --terms or raise --res", terms, rank);
     sb_plan_t *plan = NULL;
-    sb_result_t r = sb_plan_create(ctx, a->m.rows, a->m.cols, &pl, &plan);
+    sb_result_t r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
     if (r != SB_OK) return r;
     cli_info(2, "factoring %s, %zu terms%s%s", sb_param_spec(a->param), terms, weighted ? ", weighted" : "",
              attempt_masked(a) ? ", masked fit" : "");
@@ -129,7 +133,7 @@ size_t pipe_candidates(const sb_source_t *src, const pipe_opts_t *o, int param_a
         return n;
     }
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-        if (k == SB_PARAM_ISO && !(sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) continue;
+        if (!sb_param_kind_applies((sb_param_kind_t)k, sb_source_flags(src))) continue;
         sb_param_t *probe = NULL;
         sb_param_opts_t po = {0};
         po.res = o->res;

@@ -55,10 +55,19 @@ int cli_exit_code(sb_result_t r) {
 
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     const char *detail = sb_context_last_error(ctx);
-    const char *hint =
-        r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW ? " (lower --res or --terms, or allow more memory)" : "";
+    /* sizes beyond memory come from the resolution; an allocation that failed
+     * from the resolution, the terms or the machine */
+    const char *hint = r == SB_ERR_OVERFLOW ? " (lower --res)"
+                       : r == SB_ERR_NOMEM  ? " (lower --res or --terms, or allow more memory)"
+                                            : "";
     cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r), hint);
     return cli_exit_code(r);
+}
+
+const char *cli_param_names(void) {
+    static char names[256];
+    if (!names[0]) sb_param_kind_list(names, sizeof names, ", ");
+    return names;
 }
 
 int cli_verbosity_opt(const char *arg) {

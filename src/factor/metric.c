@@ -291,7 +291,7 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f), R = o.res, N = R * R;
     if (J > MAXJ) J = MAXJ;
     int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
-    sb_param_kind_t kind = sb_param_kind(p);
+    unsigned caps = sb_param_caps(p);
 
     work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C};
     w.tex[0] = malloc((J * C + 1) * sizeof *w.tex[0]);
@@ -316,7 +316,7 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
             w.tknown = NULL;
         }
     }
-    if (kind == SB_PARAM_IO || kind == SB_PARAM_IO_AREA) {
+    if (caps & SB_CAP_SEPARABLE) {
         for (int s = 0; s < 2; s++)
             w.side[s] = sb_alloc(NULL, N, J * C * sizeof *w.side[s], "");
         if (!w.side[0] || !w.side[1]) {
@@ -347,7 +347,7 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
     if (w.tab) run_units(&w, unit_table, nt);
     if (w.side[0]) {
         run_units(&w, unit_separable, nt);
-    } else if (kind == SB_PARAM_ISO && iso_src) {
+    } else if ((caps & SB_CAP_ROTATION_INVARIANT) && iso_src) {
         for (size_t t = 0; t < R; t++) {
             w.ring_ok[t] = 1;
             for (size_t ip = 1; ip < R; ip++)

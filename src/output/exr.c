@@ -338,10 +338,10 @@ static sb_result_t write_attrs(sb_context_t *ctx, exr_context_t ex, const sb_fac
     float *rel = sb_alloc(ctx, J, sizeof(float), "exr rel_rms");
     if (!rel) return SB_ERR_NOMEM;
     for (size_t t = 0; t < J; t++)
-        if (!to_float(err->rel_rms[t * 4 + 3], &rel[t])) {
+        if (!to_float(err->rel_rms[sb_err_at(t, SB_CH_ALL)], &rel[t])) {
             free(rel);
             return sb_error(ctx, SB_ERR_RANGE, "%s: rel_rms %g after %zu terms is not representable as a float", path,
-                            err->rel_rms[t * 4 + 3], t + 1);
+                            err->rel_rms[sb_err_at(t, SB_CH_ALL)], t + 1);
         }
     exr_result_t rv = exr_attr_set_string(ex, 0, PREFIX "version", SB_VERSION_STRING);
     if (!rv) rv = exr_attr_set_string(ex, 0, PREFIX "side", side == SB_SIDE_H ? "h" : "g");
@@ -926,7 +926,7 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
     memcpy(rel, hg.rel, J * sizeof(float));
     sb_factor_errors_t *err = sb_factors_errors_mut(f);
     for (size_t t = 0; t < J; t++)
-        err->rel_rms[t * 4 + 3] = rel[t];
+        err->rel_rms[sb_err_at(t, SB_CH_ALL)] = rel[t];
 
     /* Every file: header agrees with g_00 / h_00, then the pixels */
     float sigma[3] = {0, 0, 0};

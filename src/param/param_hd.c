@@ -110,7 +110,7 @@ static const sb_param_vt_t hd_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
-sb_result_t sb_param_init_hd(sb_context_t *ctx, sb_param_t *p) {
+static sb_result_t init_hd(sb_context_t *ctx, sb_param_t *p) {
     (void)ctx;
     size_t R = p->opts.res;
     p->vt = &hd_vt;
@@ -125,3 +125,7 @@ sb_result_t sb_param_init_hd(sb_context_t *ctx, sb_param_t *p) {
     sb_param_spec_set(p, body);
     return SB_OK;
 }
+
+const sb_param_desc_t sb_param_desc_hd = {"hd",
+                                          "half and difference vectors in the Gram-Schmidt frame of Kautz and McCool",
+                                          "res", SB_CAP_PARTIAL_DOMAIN, init_hd};

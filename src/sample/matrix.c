@@ -188,7 +188,8 @@ static void run_parallel(void *(*fn)(void *), iso_job_t *jobs, int nt, size_t n,
 static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, int threads,
                                       sb_matrix_t *out) {
     size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
-    if (sb_size_mul3(R, R, R, &n3)) return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower --res");
+    if (sb_size_mul3(R, R, R, &n3))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower the resolution");
     double *tab = sb_alloc(ctx, n3, 3 * sizeof(double), "isotropic table");
     unsigned char *known = sb_alloc(ctx, n3, 1, "isotropic table");
     if (!tab || !known) {
@@ -257,13 +258,14 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     size_t nch = (size_t)((chans & 1) + ((chans >> 1) & 1) + ((chans >> 2) & 1)), bytes;
     if (sb_size_mul(rows, cols, &cells) || sb_size_mul3(cells, nch, sizeof(double), &bytes) ||
         sb_size_add(bytes, cells, &bytes))
-        return sb_error(ctx, SB_ERR_OVERFLOW,
-                        "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower --res", rows,
-                        cols, nch, (size_t)SIZE_MAX);
+        return sb_error(
+            ctx, SB_ERR_OVERFLOW,
+            "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower the resolution", rows,
+            cols, nch, (size_t)SIZE_MAX);
     if (bytes > sb_memory_limit())
         return sb_error(ctx, SB_ERR_OVERFLOW,
                         "matrix: %zu x %zu cells x %zu channels need %zu bytes, more than the memory limit of %zu "
-                        "bytes; lower --res",
+                        "bytes; lower the resolution",
                         rows, cols, nch, bytes, sb_memory_limit());
 
     out->rows = rows;
@@ -323,24 +325,4 @@ void sb_matrix_free(sb_matrix_t *m) {
         free(m->data[ch]);
     free(m->mask);
     memset(m, 0, sizeof *m);
-}
-
-double sb_matrix_norm(const sb_matrix_t *m, int ch) {
-    if (!m || ch < 0 || ch > 2 || !m->data[ch] || m->ld < m->rows) return 0;
-    const double *a = m->data[ch];
-    double scale = 0, ssq = 1;
-    for (size_t c = 0; c < m->cols; c++)
-        for (size_t r = 0; r < m->rows; r++) {
-            size_t at = r + c * m->ld;
-            if (m->mask && !m->mask[at]) continue;
-            double v = fabs(a[at]);
-            if (v == 0) continue;
-            if (scale < v) {
-                ssq = 1 + ssq * (scale / v) * (scale / v);
-                scale = v;
-            } else {
-                ssq += (v / scale) * (v / scale);
-            }
-        }
-    return scale * sqrt(ssq);
 }
