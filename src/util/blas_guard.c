@@ -23,8 +23,9 @@
 #define SB_BLAS_BUFFER_BYTES (((size_t)128 << 20) + ((size_t)64 << 10))
 
 /* dgemm size that takes OpenBLAS's general path (not the small-matrix
- * kernels that skip the buffer): 64^3 multiply-adds, well under 1 ms. */
-#define SB_BLAS_WARM_N 64
+ * kernels OpenBLAS uses up to 100^3 multiply-adds, which skip the buffer):
+ * 128^3 multiply-adds, about 1 ms. */
+#define SB_BLAS_WARM_N 128
 
 static _Thread_local int reserved;
 
