@@ -21,7 +21,7 @@
 /* generous: a run here takes a few seconds on 2 loaded cores */
 #define BOUND_S 60
 
-static const unsigned limits_mb[] = {60, 90, 120, 160, 200, 250, 300, 400, 500, 1000};
+static const unsigned limits_mb[] = {60, 90, 120, 160, 180, 200, 220, 240, 250, 280, 300, 400, 500, 1000};
 #define NLIMITS (sizeof limits_mb / sizeof limits_mb[0])
 
 /* Run `SB_CLI args` under a limit of mb MB; returns the exit code (124:
