@@ -591,7 +591,7 @@ SB_TEST(theta_max_cap) {
 SB_TEST(registry_caps) {
     char list[256];
     size_t n = sb_param_kind_list(list, sizeof list, ", ");
-    CHECK(n == strlen(list) && n > 0);
+    CHECK(n == strlen(list) && n > 0 && sb_param_kind_count() == SB_PARAM_KIND_COUNT_);
     char tiny[4];
     CHECK(sb_param_kind_list(tiny, sizeof tiny, ", ") == n && strlen(tiny) == 3);
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {

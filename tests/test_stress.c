@@ -12,7 +12,7 @@
  *     (the backward error of an SVD grows with the size and with s_1/||M||);
  *     inexact ones (randomized) stay above that optimum and below the true
  *     sigma_j;
- *   - the sign rule of factor.c: sum(g_j) > 0, or, when that sum vanishes
+ *   - the sign rule of the plan (plan.c): sum(g_j) > 0, or, when that sum vanishes
  *     to 1e-8 of sum |g_j|, the entry of largest magnitude is positive;
  *   - sb_factors_errors_against() reproduces the plan's own errors;
  *   - the stored precision (FLOAT and HALF, sb_factors_quantize) is finite
@@ -186,7 +186,7 @@ static int same_bits(const sb_factors_t *a, const sb_factors_t *b) {
     return 1;
 }
 
-/* The sign rule of factor.c, with margins around its 1e-8 tie threshold. */
+/* The sign rule of the plan (plan.c), with margins around its 1e-8 tie threshold. */
 static void check_signs(const sb_factors_t *f, const sb_matrix_t *m, const char *label) {
     size_t J = sb_factors_terms(f), n = m->rows;
     for (size_t j = 0; j < J; j++)

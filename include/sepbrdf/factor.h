@@ -180,7 +180,8 @@ void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
  * excluded cells) or the block-circulant SVD (phi_period set) is planned on
  * the first execute that needs it and kept.  sb_plan_create_for plans for
  * the shape, mask and structure of m, so that execute allocates nothing
- * but the factors it returns, for m and every matrix like it.
+ * but the factors it returns (and, for the masked fit, the lists of valid
+ * cells of the matrix at hand), for m and every matrix like it.
  * Errors: SB_ERR_ARG (no output, empty matrix), SB_ERR_RANGE (terms above
  * min(rows, cols), max_error outside [0, 1)), SB_ERR_OVERFLOW (beyond the
  * memory limit), SB_ERR_NOMEM, and those of the solver's plan. */

@@ -90,6 +90,7 @@ enum {
 /* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
  * "io-area", "hd", "iso"), one-line description and capabilities ("?" and 0
  * for a kind out of range). */
+size_t sb_param_kind_count(void); /* SB_PARAM_KIND_COUNT_ */
 const char *sb_param_kind_name(sb_param_kind_t kind);
 const char *sb_param_kind_description(sb_param_kind_t kind);
 unsigned sb_param_kind_caps(sb_param_kind_t kind);

@@ -4,6 +4,7 @@
 
 #include "channels.h"
 #include "common.h"
+#include "estimate.h"
 #include "exr.h"
 #include "factor.h"
 #include "glsl.h"
@@ -17,5 +18,6 @@
 #include "solver.h"
 #include "source.h"
 #include "svd.h"
+#include "viewer.h"
 
 #endif

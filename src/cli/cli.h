@@ -136,6 +136,11 @@ int cmd_study(int argc, char **argv);
 int cmd_info(int argc, char **argv);
 int cmd_sample(int argc, char **argv);
 int cmd_render(int argc, char **argv);
+int cmd_view(int argc, char **argv);
+
+/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into
+ * buf; 0 on success, -1 when absent or unreadable. */
+int cli_read_source_spec(const char *dir, char *buf, size_t size);
 
 /* Print the metadata of a factor file (an EXR written by `factor`) to out:
  * texture size, term and J, sigma_j per channel (of every term whose g file

@@ -237,33 +237,6 @@ static int parse(int argc, char **argv, render_opts_t *o) {
     return -1; /* go on */
 }
 
-/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into buf;
- * 0 on success.  The string is JSON-escaped by our writer: \" \\ \n \t. */
-static int read_source_spec(const char *dir, char *buf, size_t size) {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/report.json", dir);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return -1;
-    static char text[1 << 16];
-    size_t n = fread(text, 1, sizeof text - 1, fp);
-    fclose(fp);
-    text[n] = 0;
-    const char *p = strstr(text, "\"source_spec\": \"");
-    if (!p) return -1;
-    p += strlen("\"source_spec\": \"");
-    size_t k = 0;
-    for (; *p && *p != '"' && k + 1 < size; p++) {
-        if (*p == '\\' && p[1]) {
-            p++;
-            buf[k++] = *p == 'n' ? '\n' : *p == 't' ? '\t' : *p;
-        } else {
-            buf[k++] = *p;
-        }
-    }
-    buf[k] = 0;
-    return *p == '"' && k > 0 ? 0 : -1;
-}
-
 static int is_dir(const char *path) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
@@ -273,7 +246,7 @@ static int is_dir(const char *path) {
  * selection), with J = the largest of the list.  *best owns the kept attempt. */
 static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
                                  attempt_t *best) {
-    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0};
+    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0, NULL, 0, 0};
     pipe_cand_t cands[PIPE_MAX_CANDS];
     size_t ncand = pipe_candidates(src, &po, o->param_auto, o->param, o->form_set, o->form, o->weighted, cands);
     return pipe_select(ctx, "render", src, &po, cands, ncand, best);
@@ -383,7 +356,7 @@ int cmd_render(int argc, char **argv) {
          * model spec is, a measured table's is not) */
         char given[4096];
         const char *spec = o.source;
-        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 &&
+        if (!spec && cli_read_source_spec(o.input, given, sizeof given) == 0 &&
             pipe_source_open(ctx, given, &o.mo, &src) == SB_OK)
             spec = given;
         if (!spec) spec = sb_factors_get_meta(f, "source");

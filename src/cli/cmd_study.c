@@ -11,7 +11,7 @@
  * same sampled matrix.  The "fit" column says which ("nested" or "refit").
  *
  * Outputs in the folder: study.csv, study.json, study.dat + study.gp (the
- * gnuplot data and script) and study.png (comparable error vs J, log y). */
+ * gnuplot data and script) and study.png (headline error vs J, log y). */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -29,13 +29,13 @@
 static void help(void) {
     printf("usage: sepbrdf study SOURCE... [OPTIONS]\n"
            "\n"
-           "For every SOURCE x parameterisation x J, factor and measure: comparable error\n"
-           "(resampled, solid-angle integrated; the one to compare across\n"
-           "parameterisations), native relative RMS and max error of the matrix, the\n"
+           "For every SOURCE x parameterisation x J, factor and measure: headline error\n"
+           "(f cos theta_i as the shader returns it, out of sample; the one to compare\n"
+           "across parameterisations), comparable (f cos cos), native relative RMS and max error of the matrix, the\n"
            "fraction of pairs reconstructed negative, and times. Writes into the folder:\n"
            "  study.csv            one row per source x parameterisation x J\n"
            "  study.json           the same with settings, failures and fit details\n"
-           "  study.png            comparable error vs J, log scale, one line per\n"
+           "  study.png            headline error vs J, log scale, one line per\n"
            "                       source/parameterisation (needs gnuplot; study.gp and\n"
            "                       study.dat are the script and data it ran)\n"
            "and prints a table on stdout.\n"
@@ -85,7 +85,7 @@ typedef struct study_opts {
 /* Errors after J terms of one run. */
 typedef struct row {
     size_t terms;
-    double comparable, rel_rms, max_abs, neg_frac;
+    double headline, comparable, rel_rms, max_abs, neg_frac;
     double t_factor, t_metric; /* of the factorisation the row was read from */
 } row_t;
 
@@ -287,10 +287,11 @@ static int take_rows(run_t *r, const study_opts_t *o, const attempt_t *a, size_t
         if (!o->want_j[j] || j > have) continue;
         row_t *w = &r->r[r->nr++];
         w->terms = j;
-        w->comparable = a->metric.rel_l2[j - 1];
+        w->headline = attempt_headline(a, j);
+        w->comparable = attempt_comparable(a, j);
         w->rel_rms = e->rel_rms[sb_err_at(j - 1, SB_CH_ALL)];
         w->max_abs = e->max_abs[sb_err_at(j - 1, SB_CH_ALL)];
-        w->neg_frac = a->metric.neg_frac[j - 1];
+        w->neg_frac = attempt_negative(a, j);
         w->t_factor = a->t_factor;
         w->t_metric = a->t_metric;
     }
@@ -305,17 +306,22 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, sb_param_kind_name((sb_param_kind_t)r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
-    pipe_opts_t po = {o->res,       o->jmax, o->metric_res, 90,         0, o->method, 1,
-                      o->zero_fill, label,   base,          0.3 * span, 0, 0,         0};
+    pipe_opts_t po = {o->res, o->jmax, o->metric_res, 90, 0, o->method, 1, o->zero_fill, label, base, 0.3 * span, 0,
+                      0,      0,       NULL,          0,  0};
     attempt_t a;
     sb_context_clear_error(ctx);
-    sb_result_t res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);
+    sb_result_t res = sb_pairs_create(ctx, src, NULL, &po.pairs); /* shared by every J */
+    if (res == SB_OK)
+        res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);
+    else
+        memset(&a, 0, sizeof a);
     if (a.param) r->param_spec = dup_str(sb_param_spec(a.param));
     r->r = calloc(o->nj, sizeof *r->r);
     if (res == SB_OK && !r->r) res = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (res != SB_OK) {
         run_fail(r, sb_context_last_error(ctx));
         attempt_free(&a);
+        sb_pairs_destroy(po.pairs);
         return;
     }
     r->rows = a.m.rows;
@@ -342,6 +348,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     else
         r->ok = 1;
     attempt_free(&a);
+    sb_pairs_destroy(po.pairs);
 }
 
 /* ---- outputs ----------------------------------------------------------- */
@@ -362,7 +369,7 @@ static void csv_field(FILE *fp, const char *s) {
 
 static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp, "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,"
-                "sample_s,factor_s,metric_s\n");
+                "sample_s,factor_s,metric_s,headline\n");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         if (!r->ok) continue;
@@ -371,9 +378,9 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             csv_field(fp, r->spec);
             fprintf(fp, ",%s,", sb_param_kind_name((sb_param_kind_t)r->kind));
             csv_field(fp, r->param_spec);
-            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f\n", sb_form_name(o->form), o->weighted,
+            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g\n", sb_form_name(o->form), o->weighted,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
-                    r->t_sample, w->t_factor, w->t_metric);
+                    r->t_sample, w->t_factor, w->t_metric, w->headline);
         }
     }
 }
@@ -428,6 +435,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
             const row_t *w = &r->r[k];
             json_begin_object(&j, NULL);
             json_int(&j, "terms", (long long)w->terms);
+            json_number(&j, "headline", w->headline);
             json_number(&j, "comparable", w->comparable);
             json_number(&j, "rel_rms", w->rel_rms);
             json_number(&j, "max_abs", w->max_abs);
@@ -459,9 +467,9 @@ static void write_dat(FILE *fp, const runs_t *rs) {
         const run_t *r = &rs->v[i];
         if (!r->ok || !r->nr) continue;
         if (block++) fputs("\n\n", fp); /* gnuplot: two blank lines end an index block */
-        fprintf(fp, "# %s (%s)\n# J comparable rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
+        fprintf(fp, "# %s (%s)\n# J headline rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
         for (size_t k = 0; k < r->nr; k++)
-            fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].comparable, PLOT_FLOOR),
+            fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].headline, PLOT_FLOOR),
                     fmax(r->r[k].rel_rms, PLOT_FLOOR));
     }
 }
@@ -478,7 +486,7 @@ static void gp_quote(FILE *fp, const char *s) {
 
 static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp,
-            "# sepbrdf study: comparable error vs J. Re-run with `gnuplot study.gp` in this\n"
+            "# sepbrdf study: headline error vs J. Re-run with `gnuplot study.gp` in this\n"
             "# folder; `gnuplot -e \"outfile='x.png'\" study.gp` writes elsewhere.\n"
             "# Errors below %g (exact fits) are drawn at %g.\n"
             "if (!exists(\"outfile\")) outfile = 'study.png'\n"
@@ -490,7 +498,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             "set output outfile\n"
             "set title 'sepbrdf study: R = %zu, form %s%s'\n"
             "set xlabel 'J (terms)'\n"
-            "set ylabel 'comparable error (relative L2 of f cos cos)'\n"
+            "set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'\n"
             "set logscale y\n"
             "set format y '%%.0e'\n"
             "set grid\n"
@@ -595,8 +603,8 @@ static int run_gnuplot(const char *dir, const char *target) {
 }
 
 static void print_table(const runs_t *rs) {
-    printf("%-30s %-7s %4s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "comparable", "rel_rms",
-           "max_abs", "negative", "time_s", "fit");
+    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "headline", "comparable",
+           "rel_rms", "max_abs", "negative", "time_s", "fit");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         const char *pn = r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : "-";
@@ -606,9 +614,9 @@ static void print_table(const runs_t *rs) {
         }
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
-                   w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac, r->t_sample + w->t_factor + w->t_metric,
-                   r->masked ? "refit" : "nested");
+            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
+                   w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
+                   r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
         }
     }
 }

@@ -18,6 +18,7 @@ static const command_t commands[] = {
     {"sample", cmd_sample, "measure a source with a simulated gonioreflectometer (CSV)"},
     {"info", cmd_info, "describe a file: factor EXR metadata, or a measured table"},
     {"render", cmd_render, "render the original and reconstructions on a lit sphere (PNG, PSNR)"},
+    {"view", cmd_view, "write an interactive viewer page (index.html, WebGL2) for a factor folder"},
     {"bench", cmd_bench, "benchmark the factor step: time, error, memory per method"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])

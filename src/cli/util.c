@@ -475,3 +475,30 @@ int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size) {
     int n = snprintf(path, size, "%s/%s", sb_outset_dir(s), name);
     return n < 0 || (size_t)n >= size ? -1 : 0;
 }
+
+/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into buf;
+ * 0 on success.  The string is JSON-escaped by our writer: \" \\ \n \t. */
+int cli_read_source_spec(const char *dir, char *buf, size_t size) {
+    char path[4200];
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return -1;
+    static char text[1 << 16];
+    size_t n = fread(text, 1, sizeof text - 1, fp);
+    fclose(fp);
+    text[n] = 0;
+    const char *p = strstr(text, "\"source_spec\": \"");
+    if (!p) return -1;
+    p += strlen("\"source_spec\": \"");
+    size_t k = 0;
+    for (; *p && *p != '"' && k + 1 < size; p++) {
+        if (*p == '\\' && p[1]) {
+            p++;
+            buf[k++] = *p == 'n' ? '\n' : *p == 't' ? '\t' : *p;
+        } else {
+            buf[k++] = *p;
+        }
+    }
+    buf[k] = 0;
+    return *p == '"' && k > 0 ? 0 : -1;
+}

@@ -236,6 +236,103 @@ static void gram(size_t n, size_t J, const double *a, const double *b, double *o
                 (int)J);
 }
 
+/* Workspace of sb_factors_errors_near: G, G~, dG (rows x J); H, dH
+ * together, then Z (cols x 2J); Y = M Z (rows x 2J); the Gram blocks
+ * (J x J each); the weights. */
+typedef struct near_ws {
+    size_t rows, cols, J;
+    double *G, *Gq, *dG, *HdH, *Z, *Y, *wr, *wc;
+    double *GdG, *HH, *GGq, *HdH2, *dGdG, *dGGq, *GqGq, *dHdH;
+} near_ws_t;
+
+static double *near_alloc(sb_context_t *ctx, near_ws_t *w, size_t rows, size_t cols, size_t J) {
+    size_t nr, nc, total;
+    if (sb_size_mul(rows, 3 * J, &nr) || sb_size_mul(cols, 4 * J, &nc) || sb_size_add(nr, nc, &total) ||
+        sb_size_add(total, rows * 2 * J + 8 * J * J + rows + cols + 3 * J, &total)) {
+        sb_error(ctx, SB_ERR_OVERFLOW, "errors: workspace size overflows");
+        return NULL;
+    }
+    double *ws = sb_alloc(ctx, total, sizeof(double), "errors workspace");
+    if (!ws) return NULL;
+    *w = (near_ws_t){.rows = rows, .cols = cols, .J = J, .G = ws};
+    double **rows_x_j[] = {&w->Gq, &w->dG, &w->HdH},
+           **blocks[] = {&w->HH, &w->GGq, &w->HdH2, &w->dGdG, &w->dGGq, &w->GqGq, &w->dHdH, &w->wr};
+    double *at = ws;
+    for (size_t i = 0; i < 3; i++) /* G, G~, dG: rows x J each */
+        *rows_x_j[i] = at += rows * J;
+    w->Z = at += cols * 2 * J; /* after H, dH */
+    w->Y = at += cols * 2 * J;
+    w->GdG = at += rows * 2 * J;
+    for (size_t i = 0; i < 8; i++) /* the Gram blocks, J x J each; then the weights */
+        *blocks[i] = at += J * J;
+    w->wc = w->wr + rows;
+    return ws; /* 3 J doubles after wc: the sums of squares */
+}
+
+/* Step: weighted, scaled factors and their differences (channel fc). */
+static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors_t *near, size_t fc, double sg,
+                         double sh) {
+    size_t rows = w->rows, cols = w->cols, J = w->J;
+    for (size_t j = 0; j < J; j++) {
+        const double *g = sb_factors_tex_const(fit, SB_SIDE_G, j, fc),
+                     *q = sb_factors_tex_const(near, SB_SIDE_G, j, fc);
+        const double *h = sb_factors_tex_const(fit, SB_SIDE_H, j, fc),
+                     *p = sb_factors_tex_const(near, SB_SIDE_H, j, fc);
+        for (size_t i = 0; i < rows; i++) {
+            w->G[i + j * rows] = w->wr[i] * g[i] * sg;
+            w->Gq[i + j * rows] = w->wr[i] * q[i] * sg;
+            w->dG[i + j * rows] = w->wr[i] * (g[i] - q[i]) * sg;
+        }
+        for (size_t i = 0; i < cols; i++) {
+            w->HdH[i + j * cols] = w->wc[i] * h[i] * sh;
+            w->HdH[i + (J + j) * cols] = w->wc[i] * (h[i] - p[i]) * sh;
+        }
+    }
+}
+
+/* Step: Y = X [H, dH] = W_r M (W_c [H, dH]) (one read of M), Gram blocks. */
+static void near_products(near_ws_t *w, const double *a, size_t ld, double sx) {
+    size_t rows = w->rows, cols = w->cols, J = w->J;
+    for (size_t i = 0; i < cols * 2 * J; i++)
+        w->Z[i] = w->HdH[i] * w->wc[i % cols] * sx;
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)(2 * J), (int)cols, 1.0, a, (int)ld, w->Z,
+                (int)cols, 0.0, w->Y, (int)rows);
+    for (size_t i = 0; i < rows * 2 * J; i++)
+        w->Y[i] *= w->wr[i % rows];
+    const double *dH = w->HdH + cols * J;
+    gram(rows, J, w->G, w->dG, w->GdG);
+    gram(rows, J, w->G, w->Gq, w->GGq);
+    gram(rows, J, w->dG, w->dG, w->dGdG);
+    gram(rows, J, w->dG, w->Gq, w->dGGq);
+    gram(rows, J, w->Gq, w->Gq, w->GqGq);
+    gram(cols, J, w->HdH, w->HdH, w->HH);
+    gram(cols, J, w->HdH, dH, w->HdH2);
+    gram(cols, J, dH, dH, w->dHdH);
+}
+
+/* Step: prefix sums over J': ssq[b] = ||X - G~_b H~_b^T||^2 from the fit's
+ * rel (rel_rms of the channel, stride 4) and norm nx (both scaled). */
+static void near_prefix(const near_ws_t *w, const double *rel, double nx, double *ssq) {
+    size_t rows = w->rows, J = w->J;
+    double xd = 0, gd = 0, dd = 0;
+    for (size_t b = 0; b < J; b++) {
+        /* Y[:, b] = X h_b scaled by sx sh; the dG, G~ carry sg: sx sg sh = sx^2 */
+        for (size_t i = 0; i < rows; i++)
+            xd += w->dG[i + b * rows] * w->Y[i + b * rows] + w->Gq[i + b * rows] * w->Y[i + (J + b) * rows];
+        /* pairs (a, b) with max(a, b) == b */
+        for (size_t a2 = 0; a2 <= b; a2++) {
+            size_t idx[2] = {a2 + b * J, b + a2 * J};
+            for (int t = 0; t < (a2 != b ? 2 : 1); t++) {
+                size_t ab = idx[t];
+                gd += w->GdG[ab] * w->HH[ab] + w->GGq[ab] * w->HdH2[ab];
+                dd += w->dGdG[ab] * w->HH[ab] + 2 * w->dGGq[ab] * w->HdH2[ab] + w->GqGq[ab] * w->dHdH[ab];
+            }
+        }
+        double r = rel[sb_err_at(b, 0)] * nx, s2 = r * r + 2 * (xd - gd) + dd;
+        ssq[b] = s2 < 0 ? 0 : s2;
+    }
+}
+
 sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
                                    const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms) {
     if (!fit || !near || !m || !rel_rms) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
@@ -254,81 +351,22 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
     if (fe->norm[3] > 0 && isfinite(fe->norm[3])) frexp(fe->norm[3], &ex);
     ex = ex > 1000 ? 1000 : (ex < -1000 ? -1000 : ex);
     double sx = ldexp(1, -ex), sg = ldexp(1, -(ex / 2)), sh = ldexp(1, -(ex - ex / 2));
-
-    /* Step: workspace: G, G~, dG (rows x J); H, dH together, then Z (cols x 2J); Y = M Z; Gram blocks */
-    size_t nr, nc, total;
-    if (sb_size_mul(rows, 3 * J, &nr) || sb_size_mul(cols, 4 * J, &nc) || sb_size_add(nr, nc, &total) ||
-        sb_size_add(total, rows * 2 * J + 8 * J * J + rows + cols + 3 * J, &total))
-        return sb_error(ctx, SB_ERR_OVERFLOW, "errors: workspace size overflows");
-    double *ws = sb_alloc(ctx, total, sizeof(double), "errors workspace");
-    if (!ws) return SB_ERR_NOMEM;
-    double *G = ws, *Gq = G + rows * J, *dG = Gq + rows * J, *HdH = dG + rows * J, *Z = HdH + cols * 2 * J,
-           *Y = Z + cols * 2 * J, *gr = Y + rows * 2 * J, *wr = gr + 8 * J * J, *wc = wr + rows, *ssq = wc + cols;
-    double *GdG = gr, *HH = GdG + J * J, *GGq = HH + J * J, *HdH2 = GGq + J * J, *dGdG = HdH2 + J * J,
-           *dGGq = dGdG + J * J, *GqGq = dGGq + J * J, *dHdH = GqGq + J * J;
+    near_ws_t w;
+    double *ws = near_alloc(ctx, &w, rows, cols, J);
+    if (!ws) return sb_error(ctx, SB_ERR_NOMEM, "errors: out of memory");
+    double *ssq = w.wc + cols, n2[3] = {0, 0, 0};
     for (size_t i = 0; i < rows + cols; i++)
-        wr[i] = 1;
-    if (weights) sb_errors_weights(weights, wr, wc);
-    double n2[3] = {0, 0, 0};
+        w.wr[i] = 1;
+    if (weights) sb_errors_weights(weights, w.wr, w.wc);
     int present[3];
     for (int ch = 0; ch < 3; ch++) {
-        const double *a = m->data[ch];
-        present[ch] = a != NULL;
-        if (!a) continue;
-        size_t fc = C == 1 ? 0 : (size_t)ch;
-        /* Step: weighted, scaled factors and their differences */
-        for (size_t j = 0; j < J; j++) {
-            const double *g = sb_factors_tex_const(fit, SB_SIDE_G, j, fc),
-                         *q = sb_factors_tex_const(near, SB_SIDE_G, j, fc);
-            const double *h = sb_factors_tex_const(fit, SB_SIDE_H, j, fc),
-                         *p = sb_factors_tex_const(near, SB_SIDE_H, j, fc);
-            for (size_t i = 0; i < rows; i++) {
-                G[i + j * rows] = wr[i] * g[i] * sg;
-                Gq[i + j * rows] = wr[i] * q[i] * sg;
-                dG[i + j * rows] = wr[i] * (g[i] - q[i]) * sg;
-            }
-            for (size_t i = 0; i < cols; i++) {
-                HdH[i + j * cols] = wc[i] * h[i] * sh;
-                HdH[i + (J + j) * cols] = wc[i] * (h[i] - p[i]) * sh;
-            }
-        }
-        /* Step: Y = X [H, dH] = W_r M (W_c [H, dH]) (one read of M) */
-        for (size_t i = 0; i < cols * 2 * J; i++)
-            Z[i] = HdH[i] * wc[i % cols] * sx;
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)(2 * J), (int)cols, 1.0, a, (int)m->ld,
-                    Z, (int)cols, 0.0, Y, (int)rows);
-        for (size_t i = 0; i < rows * 2 * J; i++)
-            Y[i] *= wr[i % rows];
-        /* Step: Gram blocks */
-        gram(rows, J, G, dG, GdG);
-        gram(rows, J, G, Gq, GGq);
-        gram(rows, J, dG, dG, dGdG);
-        gram(rows, J, dG, Gq, dGGq);
-        gram(rows, J, Gq, Gq, GqGq);
-        gram(cols, J, HdH, HdH, HH);
-        gram(cols, J, HdH, HdH + cols * J, HdH2);
-        gram(cols, J, HdH + cols * J, HdH + cols * J, dHdH);
-        /* Step: prefix sums over J' */
-        double nx = fe->norm[ch] * sx, xd = 0, gd = 0, dd = 0;
+        present[ch] = m->data[ch] != NULL;
+        if (!present[ch]) continue;
+        near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh);
+        near_products(&w, m->data[ch], m->ld, sx);
+        double nx = fe->norm[ch] * sx;
         n2[ch] = nx * nx;
-        for (size_t b = 0; b < J; b++) {
-            /* Y[:, b] = X h_b scaled by sx sh; the dG, G~ carry sg: sx sg sh = sx^2 */
-            for (size_t i = 0; i < rows; i++)
-                xd += dG[i + b * rows] * Y[i + b * rows] + Gq[i + b * rows] * Y[i + (J + b) * rows];
-            /* pairs (a, b) with max(a, b) == b */
-            for (size_t a2 = 0; a2 <= b; a2++) {
-                size_t ab = a2 + b * J, ba = b + a2 * J;
-                gd += GdG[ab] * HH[ab] + GGq[ab] * HdH2[ab];
-                dd += dGdG[ab] * HH[ab] + 2 * dGGq[ab] * HdH2[ab] + GqGq[ab] * dHdH[ab];
-                if (a2 != b) {
-                    gd += GdG[ba] * HH[ba] + GGq[ba] * HdH2[ba];
-                    dd += dGdG[ba] * HH[ba] + 2 * dGGq[ba] * HdH2[ba] + GqGq[ba] * dHdH[ba];
-                }
-            }
-            double r = fe->rel_rms[sb_err_at(b, ch)] * nx, s2 = r * r + 2 * (xd - gd) + dd;
-            if (s2 < 0) s2 = 0;
-            ssq[(size_t)ch * J + b] = s2;
-        }
+        near_prefix(&w, fe->rel_rms + ch, nx, ssq + (size_t)ch * J);
     }
     sb_result_t res = sb_errors_relative(ctx, J, present, ssq, NULL, n2, rel_rms, NULL);
     free(ws);

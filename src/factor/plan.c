@@ -5,7 +5,9 @@
  * every buffer execute needs.  Execute reads like the data flow:
  *     weight -> solve -> sign rule -> textures -> errors -> truncate -> metadata
  * with the errors of every truncation from one routine (factor/errors.h),
- * or exactly from solvers that know them (SB_CAP_EXACT_TAILS). */
+ * or exactly from solvers that know them (SB_CAP_EXACT_TAILS).  Execute
+ * allocates only the factors it returns (the masked solver also gathers
+ * the valid cells of the matrix at hand, fit.c). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,6 +38,7 @@ struct sb_plan {
 /* What execute does to one matrix: the solver, channel order and scale. */
 typedef struct run {
     const sb_matrix_t *m;
+    const sb_param_t *param;
     size_t si; /* registry index of the solver */
     const sb_solver_t *sv;
     int prop, order[3];
@@ -168,7 +171,7 @@ void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) {
 static sb_solve_in_t channel_in(const sb_plan_t *p, const run_t *rn, int ch) {
     const sb_matrix_t *m = rn->m;
     const double *a = m->data[ch], *wr = p->opts.weighted ? p->wr : NULL, *wc = p->opts.weighted ? p->wc : NULL;
-    return (sb_solve_in_t){a, m->ld, a, m->ld, m->mask, wr, wc, rn->pw};
+    return (sb_solve_in_t){a, m->ld, a, m->ld, m->mask, wr, wc, rn->pw, rn->param};
 }
 
 /* Step: the solver for this matrix (planned now if the plan was made
@@ -353,7 +356,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (!p || !out) return sb_error(p ? p->ctx : NULL, SB_ERR_ARG, "plan: missing plan or output");
     *out = NULL;
     sb_result_t r = check_execute(p, m, param);
-    run_t rn = {.m = m};
+    run_t rn = {.m = m, .param = param};
     if (r == SB_OK && p->opts.weighted) sb_errors_weights(param, p->wr, p->wc);
     if (r == SB_OK) r = choose_solver(p, &rn);
     if (r != SB_OK) return r;

@@ -562,6 +562,22 @@ out:
 
 /* ---- stored precision of whole factors ---------------------------------- */
 
+sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts, double *scales) {
+    if (!f || !scales) return sb_error(ctx, SB_ERR_ARG, "term scales: missing argument");
+    for (size_t j = 0; j < sb_factors_terms(f); j++) {
+        scales[j] = 1;
+        for (int side = 0; side < 2; side++) {
+            char name[64];
+            codec_t cd;
+            sb_exr_name(side, j, name, sizeof name);
+            sb_result_t r = texture_codec(ctx, f, side, j, opts && opts->half, name, &cd);
+            if (r != SB_OK) return r;
+            scales[j] *= cd.scale;
+        }
+    }
+    return SB_OK;
+}
+
 sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
                                 sb_factors_t **stored, sb_quantize_info_t *info) {
     if (!stored) return sb_error(ctx, SB_ERR_ARG, "quantize: no output pointer");

@@ -23,7 +23,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <limits.h>
 #include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -34,15 +33,12 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include "outset_impl.h"
 #include "util/internal.h"
 
 #ifndef RENAME_EXCHANGE
 #define RENAME_EXCHANGE (1 << 1)
 #endif
-
-#define STAGE_TAG ".sepbrdf-new-"
-/* Longest name a set may add plus the staging suffix: what must fit. */
-#define NAME_ROOM 64
 
 typedef struct names {
     char **v;
@@ -64,21 +60,6 @@ struct sb_outset {
     int published;
     names_t files;
 };
-
-const char *sb_io_why(int err) {
-    switch (err) {
-    case ENOSPC:
-        return "disk full (no space left on device)";
-    case EDQUOT:
-        return "disk quota exceeded";
-    case EFBIG:
-        return "file too large (the file size limit, ulimit -f, was reached)";
-    case ENAMETOOLONG:
-        return "name too long for the file system";
-    default:
-        return strerror(err);
-    }
-}
 
 /* ---- names ---------------------------------------------------------------- */
 
@@ -206,13 +187,6 @@ static void recover_folder(const char *folder, const char *dir, const char *mani
     names_free(&owned);
 }
 
-static char *join(const char *a, const char *b) {
-    size_t len = strlen(a) + strlen(b) + 2;
-    char *p = malloc(len);
-    if (p) snprintf(p, len, "%s/%s", a, b);
-    return p;
-}
-
 /* The manifest of command cmd (its first n bytes; none: n = 0). */
 static void manifest_name(const char *cmd, size_t n, char out[64]) {
     if (n)
@@ -241,170 +215,12 @@ static void cleanup_stale(const char *parent, const char *base, const char *dir)
         long pid = strtol(digits, NULL, 10);
         if (pid == (long)getpid() || pid_alive(pid)) continue;
         manifest_name(nm + 1 + nb + nt, nc, manifest);
-        char *path = join(parent, nm);
+        char *path = outset_join(parent, nm);
         if (!path) break;
         recover_folder(path, dir, manifest, 0);
         free(path);
     }
     closedir(d);
-}
-
-/* ---- paths and checks ---------------------------------------------------- */
-
-/* DIR -> PARENT and NAME: trailing '/' dropped; ".", "..", "/" and
- * symbolic links resolved through realpath (they must exist then). */
-static sb_result_t split_dir(sb_context_t *ctx, const char *target, char **parent, char **base) {
-    size_t n = strlen(target);
-    if (n >= PATH_MAX - NAME_ROOM) return sb_error(ctx, SB_ERR_IO, "%.80s...: %s", target, sb_io_why(ENAMETOOLONG));
-    char *p = sb_strdup(target), *real = NULL;
-    if (!p) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    while (n > 1 && p[n - 1] == '/')
-        p[--n] = 0;
-    char *slash = strrchr(p, '/');
-    const char *last = slash ? slash + 1 : p;
-    struct stat st;
-    if (strcmp(last, ".") == 0 || strcmp(last, "..") == 0 || !*last || (lstat(p, &st) == 0 && S_ISLNK(st.st_mode))) {
-        if (!(real = realpath(p, NULL))) {
-            int e = errno;
-            free(p);
-            return sb_error(ctx, SB_ERR_IO, "%s: %s", target, sb_io_why(e));
-        }
-        free(p);
-        p = real;
-        if (strcmp(p, "/") == 0) {
-            free(p);
-            return sb_error(ctx, SB_ERR_IO, "%s: the root folder cannot be an output folder", target);
-        }
-        slash = strrchr(p, '/');
-    }
-    if (!slash) {
-        *parent = sb_strdup(".");
-        *base = sb_strdup(p);
-    } else {
-        *slash = 0;
-        *parent = sb_strdup(slash == p ? "/" : p);
-        *base = sb_strdup(slash + 1);
-    }
-    free(p);
-    if (!*parent || !*base) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    return SB_OK;
-}
-
-/* The staging name must fit the file system's limit on one name. */
-static sb_result_t check_name_length(sb_context_t *ctx, const char *target, const char *parent, const char *base) {
-    long max = pathconf(parent, _PC_NAME_MAX);
-    if (max <= 0) max = 255;
-    size_t need = strlen(base) + 1 + strlen(STAGE_TAG) + 17 + 12;
-    if (need > (size_t)max)
-        return sb_error(ctx, SB_ERR_IO, "%s: folder name too long (%zu characters; at most %ld here)", target,
-                        strlen(base), max - (long)(need - strlen(base)));
-    return SB_OK;
-}
-
-/* Whether we can create entries in folder `dir`: try it (access() says yes
- * to root everywhere) with a probe folder removed at once.  0 or errno. */
-static int probe_dir(const char *dir) {
-    char *probe = join(dir, ".sepbrdf-probe-");
-    size_t len = probe ? strlen(probe) + 24 : 0;
-    char *full = probe ? malloc(len) : NULL;
-    int e = ENOMEM;
-    if (full) {
-        snprintf(full, len, "%s%ld", probe, (long)getpid());
-        e = mkdir(full, 0700) == 0 ? 0 : errno;
-        if (!e) rmdir(full);
-    }
-    free(probe);
-    free(full);
-    return e;
-}
-
-/* An existing DIR: a folder of its own (outset.h), no subfolders. */
-static sb_result_t check_existing(sb_context_t *ctx, const char *target, const char *dir, const char *parent) {
-    struct stat sd, sp;
-    if (stat(dir, &sd) != 0 || !S_ISDIR(sd.st_mode))
-        return sb_error(ctx, SB_ERR_IO, "%s: exists and is not a folder", target);
-    if (stat(parent, &sp) == 0 && sp.st_dev != sd.st_dev)
-        return sb_error(ctx, SB_ERR_IO, "%s: is a mount point; name a folder inside it", target);
-    char *real = realpath(dir, NULL), *cwd = getcwd(NULL, 0);
-    size_t n = real ? strlen(real) : 0;
-    int holds_cwd = real && cwd && strncmp(cwd, real, n) == 0 && (cwd[n] == 0 || cwd[n] == '/');
-    free(real);
-    free(cwd);
-    if (holds_cwd)
-        return sb_error(ctx, SB_ERR_IO,
-                        "%s: is the current folder or holds it; the output set replaces the whole folder, "
-                        "so name a folder of its own (e.g. %s/out)",
-                        target, target);
-    DIR *d = opendir(dir);
-    if (!d) return sb_error(ctx, SB_ERR_IO, "%s: %s", target, sb_io_why(errno));
-    sb_result_t r = SB_OK;
-    struct dirent *e;
-    while (r == SB_OK && (e = readdir(d)) != NULL) { /* a set holds no folders: any is a user's */
-        struct stat st;
-        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
-        if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISDIR(st.st_mode))
-            r = sb_error(ctx, SB_ERR_IO,
-                         "%s: holds the folder %s, which sepbrdf did not write; an output set replaces the "
-                         "whole folder, so name a folder of its own",
-                         target, e->d_name);
-    }
-    closedir(d);
-    return r;
-}
-
-/* A missing DIR: its nearest existing ancestor must be a writable folder. */
-static sb_result_t check_creatable(sb_context_t *ctx, const char *target, const char *parent) {
-    char *anc = sb_strdup(parent);
-    if (!anc) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    struct stat st;
-    while (stat(anc, &st) != 0) {
-        char *slash = strrchr(anc, '/');
-        if (strcmp(anc, ".") == 0 || strcmp(anc, "/") == 0) {
-            free(anc);
-            return sb_error(ctx, SB_ERR_IO, "%s: cannot create the output folder: %s", target, sb_io_why(errno));
-        }
-        if (!slash)
-            strcpy(anc, ".");
-        else if (slash == anc)
-            anc[1] = 0;
-        else
-            *slash = 0;
-    }
-    sb_result_t r = SB_OK;
-    int e = 0;
-    if (!S_ISDIR(st.st_mode))
-        r = sb_error(ctx, SB_ERR_IO, "%s: cannot create the output folder, %s is not a folder", target, anc);
-    else if ((e = probe_dir(anc)) != 0)
-        r = sb_error(ctx, SB_ERR_IO, "%s: cannot create the output folder in %s: %s", target, anc, sb_io_why(e));
-    free(anc);
-    return r;
-}
-
-static sb_result_t check_paths(sb_context_t *ctx, const char *target, const char *parent, const char *base) {
-    char *dir = join(parent, base);
-    if (!dir) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    struct stat st;
-    sb_result_t r;
-    int e;
-    if (stat(dir, &st) != 0)
-        r = check_creatable(ctx, target, parent);
-    else if ((r = check_existing(ctx, target, dir, parent)) != SB_OK)
-        ;
-    else if ((e = probe_dir(parent)) != 0 || (e = probe_dir(dir)) != 0)
-        r = sb_error(ctx, SB_ERR_IO, "%s: cannot write into the folder: %s", target, sb_io_why(e));
-    if (r == SB_OK) r = check_name_length(ctx, target, stat(parent, &st) == 0 ? parent : ".", base);
-    free(dir);
-    return r;
-}
-
-sb_result_t sb_outset_check(sb_context_t *ctx, const char *dir) {
-    if (!dir || !*dir) return sb_error(ctx, SB_ERR_ARG, "output folder: empty name");
-    char *parent = NULL, *base = NULL;
-    sb_result_t r = split_dir(ctx, dir, &parent, &base);
-    if (r == SB_OK) r = check_paths(ctx, dir, parent, base);
-    free(parent);
-    free(base);
-    return r;
 }
 
 /* ---- the set ------------------------------------------------------------- */
@@ -482,28 +298,26 @@ sb_result_t sb_outset_begin(sb_context_t *ctx, const char *dir, const sb_outset_
     if (!out) return sb_error(ctx, SB_ERR_ARG, "sb_outset_begin: out is NULL");
     *out = NULL;
     if (!dir || !*dir) return sb_error(ctx, SB_ERR_ARG, "output folder: empty name");
+    const char *cmd = opts ? opts->command : NULL;
+    if (cmd && (!*cmd || strlen(cmd) > 16 || strspn(cmd, "abcdefghijklmnopqrstuvwxyz0123456789") != strlen(cmd)))
+        return sb_error(ctx, SB_ERR_ARG, "output set: command '%s' is not 1..16 of a-z, 0-9", cmd);
     sb_outset_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     s->ctx = ctx;
     s->lock_fd = -1;
     s->target = sb_strdup(dir);
-    const char *cmd = opts ? opts->command : NULL;
-    if (cmd && (!*cmd || strlen(cmd) > 16 || strspn(cmd, "abcdefghijklmnopqrstuvwxyz0123456789") != strlen(cmd))) {
-        free(s);
-        return sb_error(ctx, SB_ERR_ARG, "output set: command '%s' is not 1..16 of a-z, 0-9", cmd);
-    }
     manifest_name(cmd, cmd ? strlen(cmd) : 0, s->manifest);
     s->command = cmd ? sb_strdup(cmd) : NULL;
     sb_result_t r = !s->target || (cmd && !s->command) ? sb_error(ctx, SB_ERR_NOMEM, "out of memory")
-                                                       : split_dir(ctx, dir, &s->parent, &s->base);
-    if (r == SB_OK && !(s->dir = join(s->parent, s->base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    if (r == SB_OK) r = check_paths(ctx, dir, s->parent, s->base);
+                                                       : outset_split(ctx, dir, &s->parent, &s->base);
+    if (r == SB_OK && !(s->dir = outset_join(s->parent, s->base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK) r = outset_check_paths(ctx, dir, s->parent, s->base);
     struct stat st;
     s->created = r == SB_OK && stat(s->dir, &st) != 0;
     if (r == SB_OK) r = lock_dir(s, opts && opts->no_wait);
     if (r == SB_OK) {
         cleanup_stale(s->parent, s->base, s->dir);
-        r = check_existing(ctx, dir, s->dir, s->parent); /* under the lock now */
+        r = outset_check_existing(ctx, dir, s->dir, s->parent); /* under the lock now */
     }
     if (r == SB_OK) r = make_staging(s, opts);
     if (r != SB_OK) {
@@ -582,7 +396,7 @@ static sb_result_t write_manifest(sb_outset_t *s) {
                 s->command ? s->command : "");
         for (size_t i = 0; i < s->files.n; i++)
             fprintf(fp, "%s\n", s->files.v[i]);
-        if (fflush(fp) != 0 || ferror(fp) || fsync(fileno(fp)) != 0) e = errno ? errno : EIO;
+        if (fflush(fp) != 0 || ferror(fp)) e = errno ? errno : EIO;
         if (fclose(fp) != 0 && !e) e = errno;
     }
     if (e) return sb_error(s->ctx, SB_ERR_IO, "%s/%s: cannot write: %s", s->target, s->manifest, sb_io_why(e));
@@ -660,9 +474,9 @@ void sb_outset_destroy(sb_outset_t *s) {
 sb_result_t sb_outset_cleanup(sb_context_t *ctx, const char *dir) {
     if (!dir || !*dir) return sb_error(ctx, SB_ERR_ARG, "output folder: empty name");
     sb_outset_t s = {ctx, (char *)dir, NULL, NULL, NULL, NULL, "", NULL, -1, 0, 1, 0, {0}};
-    sb_result_t r = split_dir(ctx, dir, &s.parent, &s.base);
+    sb_result_t r = outset_split(ctx, dir, &s.parent, &s.base);
     struct stat st;
-    if (r == SB_OK && !(s.dir = join(s.parent, s.base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK && !(s.dir = outset_join(s.parent, s.base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (r == SB_OK && stat(s.dir, &st) == 0) r = lock_dir(&s, 0);
     if (r == SB_OK) cleanup_stale(s.parent, s.base, s.dir);
     if (s.lock_fd >= 0) close(s.lock_fd);

@@ -28,6 +28,7 @@ sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
         }
     return SB_ERR_UNKNOWN;
 }
+size_t sb_param_kind_count(void) { return SB_PARAM_KIND_COUNT_; }
 const char *sb_param_kind_name(sb_param_kind_t kind) {
     return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->name : "?";
 }
@@ -144,7 +145,13 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     } else if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) {
         r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
     } else {
-        r = registry[kind]->init(ctx, p);
+        const sb_param_desc_t *d = registry[kind];
+        if (d->init) {
+            r = d->init(ctx, p);
+        } else {
+            sb_param_square_grids(p, d->vt, d->name, d->wrap_y);
+            r = SB_OK;
+        }
     }
     if (r != SB_OK) {
         sb_param_destroy(p);
@@ -260,4 +267,18 @@ void sb_param_spec_set(sb_param_t *p, const char *body) {
         snprintf(p->spec, sizeof p->spec, "%s", body);
     else
         snprintf(p->spec, sizeof p->spec, "%s,theta_max=%.6g", body, p->opts.theta_max * 180 / SB_PI);
+}
+
+void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y) {
+    size_t R = p->opts.res;
+    p->vt = vt;
+    p->rows = p->cols = R * R;
+    for (int s = 0; s < 2; s++) {
+        p->tex_w[s] = p->tex_h[s] = R;
+        p->wrap[s][0] = SB_WRAP_CLAMP;
+        p->wrap[s][1] = wrap_y;
+    }
+    char body[64];
+    snprintf(body, sizeof body, "%s:res=%zu", name, R);
+    sb_param_spec_set(p, body);
 }

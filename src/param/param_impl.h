@@ -20,9 +20,11 @@ typedef struct sb_param_desc {
     const char *description; /* one line, for help texts */
     const char *keys;        /* spec keys besides theta_max, comma separated */
     unsigned caps;           /* SB_CAP_SEPARABLE ... (param.h) */
+    int wrap_y;              /* init NULL: y wrap of the square grids (sb_param_square_grids) */
     /* fill p (rows, cols, textures, wrap, spec, vt) from p->opts; SB_OK or
-     * an error reported through ctx */
+     * an error reported through ctx.  NULL: both sides on R x R grids */
     sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
+    const sb_param_vt_t *vt;
 } sb_param_desc_t;
 
 extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso;
@@ -54,5 +56,8 @@ int sb_dir_in_cap(double tmax, const double w[3]);
 void sb_dir_half(const double l[3], const double v[3], double h[3]);
 /* p->spec = body, plus ",theta_max=DEG" when theta_max is not pi/2. */
 void sb_param_spec_set(sb_param_t *p, const char *body);
+/* Both sides on R x R textures (R = p->opts.res), rows = cols = R^2,
+ * wrap CLAMP along x and wrap_y along y, vtable vt, spec "NAME:res=R". */
+void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y);
 
 #endif

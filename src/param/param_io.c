@@ -34,22 +34,9 @@ static const sb_param_vt_t io_vt = {io_cell_dirs, io_measure, io_measure, io_coo
                                     "    return L.z > 0.0 && V.z > 0.0 && st.x <= 1.0 && st.z <= 1.0;\n"
                                     "}\n"};
 
-static sb_result_t init_io(sb_context_t *ctx, sb_param_t *p) {
-    (void)ctx;
-    size_t R = p->opts.res;
-    p->vt = &io_vt;
-    p->rows = p->cols = R * R;
-    for (int s = 0; s < 2; s++) {
-        p->tex_w[s] = R;
-        p->tex_h[s] = R;
-        p->wrap[s][0] = SB_WRAP_CLAMP;
-        p->wrap[s][1] = SB_WRAP_REPEAT;
-    }
-    char body[64];
-    snprintf(body, sizeof body, "io:res=%zu", R);
-    sb_param_spec_set(p, body);
-    return SB_OK;
-}
-
-const sb_param_desc_t sb_param_desc_io = {"io", "the lecture's theta-phi grid for (wi, wo)", "res",
-                                          SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID, init_io};
+const sb_param_desc_t sb_param_desc_io = {.name = "io",
+                                          .description = "the lecture's theta-phi grid for (wi, wo)",
+                                          .keys = "res",
+                                          .caps = SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID,
+                                          .wrap_y = SB_WRAP_REPEAT,
+                                          .vt = &io_vt};

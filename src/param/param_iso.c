@@ -146,5 +146,9 @@ static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
 }
 
 const sb_param_desc_t sb_param_desc_iso = {
-    "iso", "Rusinkiewicz angles for isotropic sources: rows theta_h, columns (theta_d, phi_d)", "res,th,td,pd",
-    SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN, init_iso};
+    .name = "iso",
+    .description = "Rusinkiewicz angles for isotropic sources: rows theta_h, columns (theta_d, phi_d)",
+    .keys = "res,th,td,pd",
+    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN,
+    .init = init_iso,
+    .vt = &iso_vt};

@@ -287,7 +287,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
         return SB_ERR_NOMEM;
     }
 
-    if (sb_param_kind(param) == SB_PARAM_IO && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
+    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
         sb_result_t r = build_isotropic_io(ctx, src, param, o.threads, out);
         if (r != SB_OK) {
             sb_matrix_free(out);

@@ -6,6 +6,7 @@
 #ifndef SEPBRDF_SOLVER_INTERNAL_H
 #define SEPBRDF_SOLVER_INTERNAL_H
 
+#include "sepbrdf/param.h"
 #include "sepbrdf/solver.h"
 #include "sepbrdf/svd.h"
 
@@ -29,6 +30,7 @@ typedef struct sb_solve_in {
     const unsigned char *mask; /* leading dimension lda; NULL = every cell valid */
     const double *wr, *wc;     /* weights, NULL = unweighted */
     double pw;                 /* power-of-two scale of sums of squares (sb_pow2_scale) */
+    const sb_param_t *param;   /* texture layout and wrap of rows and columns (masked: taps), NULL = unknown */
 } sb_solve_in_t;
 
 typedef struct sb_solve_out {

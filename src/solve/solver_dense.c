@@ -21,35 +21,14 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     return sb_svd_execute(state, in->x, in->ldx, out->s, out->u, out->v, NULL, NULL);
 }
 
-const sb_solver_t sb_solver_full = {"full",
-                                    "LAPACK dgesdd: every singular value, optimal truncation",
-                                    SB_CAP_ORTHONORMAL | SB_CAP_ALL_SIGMA,
-                                    takes_full,
-                                    plan,
-                                    destroy,
-                                    NULL,
-                                    execute,
-                                    NULL,
-                                    NULL};
+/* A dense solver: orthonormal terms, no mask, no structure. */
+#define SB_DENSE_SOLVER(id, name, description, caps, takes)                                                            \
+    const sb_solver_t id = {name, description, SB_CAP_ORTHONORMAL | (caps), takes, plan, destroy, NULL, execute,       \
+                            NULL, NULL}
 
-const sb_solver_t sb_solver_topk = {"topk",
-                                    "the exact leading terms: Gram matrix, dsyevr and a Rayleigh-Ritz step",
-                                    SB_CAP_ORTHONORMAL,
-                                    takes_topk,
-                                    plan,
-                                    destroy,
-                                    NULL,
-                                    execute,
-                                    NULL,
-                                    NULL};
-
-const sb_solver_t sb_solver_randomized = {"randomized",
-                                          "Halko-Martinsson-Tropp range finder with block Krylov iterations (seeded)",
-                                          SB_CAP_ORTHONORMAL,
-                                          takes_rand,
-                                          plan,
-                                          destroy,
-                                          NULL,
-                                          execute,
-                                          NULL,
-                                          NULL};
+SB_DENSE_SOLVER(sb_solver_full, "full", "LAPACK dgesdd: every singular value, optimal truncation", SB_CAP_ALL_SIGMA,
+                takes_full);
+SB_DENSE_SOLVER(sb_solver_topk, "topk", "the exact leading terms: Gram matrix, dsyevr and a Rayleigh-Ritz step", 0,
+                takes_topk);
+SB_DENSE_SOLVER(sb_solver_randomized, "randomized",
+                "Halko-Martinsson-Tropp range finder with block Krylov iterations (seeded)", 0, takes_rand);
