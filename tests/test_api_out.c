@@ -313,6 +313,37 @@ SB_TEST(outset) {
     CHECK(system(rm) == 0);
 }
 
+SB_TEST(estimate_viewer) {
+    fixture_t x;
+    fixture(&x);
+    sb_pairs_t *pairs = NULL;
+    CHECK_CODE(sb_pairs_create(ctx(), NULL, NULL, &pairs), SB_ERR_ARG);
+    CHECK_CODE(sb_pairs_create(ctx(), x.src, NULL, NULL), SB_ERR_ARG);
+    sb_pairs_destroy(NULL);
+    CHECK(sb_pairs_count(NULL) == 0);
+    sb_estimate_t est;
+    CHECK_CODE(sb_estimate_compute(ctx(), NULL, x.f, NULL, x.p, SB_FORM_F, NULL, &est), SB_ERR_ARG);
+    sb_estimate_opts_t eo = {.start = 64, .max_pairs = 64};
+    CHECK(sb_pairs_create(ctx(), x.src, &eo, &pairs) == SB_OK);
+    CHECK_CODE(sb_estimate_compute(ctx(), pairs, x.f, NULL, x.p, (sb_form_t)BAD_ENUM, &eo, &est), SB_ERR_ARG);
+    CHECK_CODE(sb_estimate_compute(ctx(), pairs, NULL, NULL, x.p, SB_FORM_F, &eo, &est), SB_ERR_ARG);
+    sb_pairs_destroy(pairs);
+    CHECK(isnan(sb_estimate_headline(NULL, 1)) && isnan(sb_estimate_headline(&est, 0)));
+    CHECK(isnan(sb_estimate_headline(&est, SIZE_MAX)));
+    double scales[2];
+    CHECK_CODE(sb_exr_term_scales(ctx(), NULL, NULL, scales), SB_ERR_ARG);
+    CHECK_CODE(sb_exr_term_scales(ctx(), x.f, NULL, NULL), SB_ERR_ARG);
+    CHECK(sb_param_kind_count() == SB_PARAM_KIND_COUNT_ && sb_err_at(1, 2) == 6);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/v.html", sb_tmpdir("api-viewer"));
+    CHECK_CODE(sb_viewer_write(ctx(), NULL, x.f, x.p, SB_FORM_F, NULL), SB_ERR_ARG);
+    CHECK_CODE(sb_viewer_write(ctx(), path, NULL, x.p, SB_FORM_F, NULL), SB_ERR_ARG);
+    CHECK_CODE(sb_viewer_write(ctx(), path, x.f, NULL, SB_FORM_F, NULL), SB_ERR_ARG);
+    CHECK_CODE(sb_viewer_write(ctx(), path, x.f, x.p, (sb_form_t)BAD_ENUM, NULL), SB_ERR_ARG);
+    CHECK(!sb_file_exists(path));
+    fixture_free(&x);
+}
+
 /* Every result code is returned by some public function. */
 SB_TEST(every_code) {
     sb_param_kind_t k;
