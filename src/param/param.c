@@ -48,13 +48,14 @@ int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
 
 size_t sb_param_kind_list(char *buf, size_t size, const char *sep) {
     size_t n = 0;
-    if (!buf) size = 0; /* only the length */
-    if (!sep) sep = "";
+    if (!buf) size = 0;
     if (size) buf[0] = 0;
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-        int w = snprintf(buf ? buf + (n < size ? n : size) : NULL, n < size ? size - n : 0, "%s%s", k ? sep : "",
-                         registry[k]->name);
-        n += w > 0 ? (size_t)w : 0;
+        const char *parts[2] = {k && sep ? sep : "", registry[k]->name};
+        for (int i = 0; i < 2; i++) {
+            if (n + 1 < size) snprintf(buf + n, size - n, "%s", parts[i]);
+            n += strlen(parts[i]);
+        }
     }
     return n;
 }
