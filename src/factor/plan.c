@@ -96,10 +96,10 @@ static sb_result_t alloc_buffers(sb_plan_t *p, size_t cells) {
     if (!p->s || !p->u || !p->v || !p->sbase || !p->ssq || !p->scratch) return SB_ERR_NOMEM;
     p->mx = p->ssq + 3 * J;
     if (!p->opts.weighted) return SB_OK;
-    p->x = sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix");
+    p->x = cells ? sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix") : NULL; /* 0: structured */
     p->wr = sb_alloc(ctx, rows, sizeof(double), "plan");
     p->wc = sb_alloc(ctx, cols, sizeof(double), "plan");
-    return p->x && p->wr && p->wc ? SB_OK : SB_ERR_NOMEM;
+    return (p->x || !cells) && p->wr && p->wc ? SB_OK : SB_ERR_NOMEM;
 }
 
 static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
@@ -121,7 +121,8 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
         return sb_error(ctx, SB_ERR_ARG, "plan: unknown method %d", (int)o.svd.method);
     sb_result_t rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;
-    sb_result_t r = check_size(ctx, rows, cols, o.weighted, &cells);
+    int structured = m && m->structured; /* the R distinct rows are what is stored */
+    sb_result_t r = check_size(ctx, structured ? m->ld : rows, cols, o.weighted, &cells);
     if (r != SB_OK) return r;
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
@@ -133,7 +134,7 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
         pb.period = m->mask ? 0 : m->phi_period;
     }
     r = plan_solvers(p, &pb);
-    if (r == SB_OK) r = alloc_buffers(p, cells);
+    if (r == SB_OK) r = alloc_buffers(p, structured ? 0 : cells);
     if (r != SB_OK) {
         sb_plan_destroy(p);
         return r;
@@ -340,7 +341,8 @@ static sb_result_t finish_errors(sb_plan_t *p, const run_t *rn, sb_factors_t *f)
 
 static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param) {
     if (!m || !param) return sb_error(p->ctx, SB_ERR_ARG, "plan: missing matrix, parameterisation or output");
-    if (m->ld < m->rows) return sb_error(p->ctx, SB_ERR_ARG, "plan: leading dimension %zu < %zu rows", m->ld, m->rows);
+    if (!m->structured && m->ld < m->rows)
+        return sb_error(p->ctx, SB_ERR_ARG, "plan: leading dimension %zu < %zu rows", m->ld, m->rows);
     if (m->rows != p->rows || m->cols != p->cols)
         return sb_error(p->ctx, SB_ERR_ARG, "plan: matrix is %zu x %zu, plan was made for %zu x %zu", m->rows, m->cols,
                         p->rows, p->cols);
@@ -352,6 +354,19 @@ static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const
     return SB_OK;
 }
 
+/* A structured matrix for a solver that reads every cell: on a dense copy
+ * (and the weighted workspace, which a plan made for it does not hold). */
+static sb_result_t execute_expanded(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
+    sb_matrix_t d;
+    sb_result_t r = sb_matrix_expand(p->ctx, m, &d);
+    if (r == SB_OK && p->opts.weighted && !p->x &&
+        !(p->x = sb_alloc_large(p->ctx, p->rows * p->cols, sizeof(double), "plan weighted matrix")))
+        r = SB_ERR_NOMEM;
+    if (r == SB_OK) r = sb_plan_execute(p, &d, param, out);
+    sb_matrix_free(&d);
+    return r;
+}
+
 sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
     if (!p || !out) return sb_error(p ? p->ctx : NULL, SB_ERR_ARG, "plan: missing plan or output");
     *out = NULL;
@@ -360,6 +375,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (r == SB_OK && p->opts.weighted) sb_errors_weights(param, p->wr, p->wc);
     if (r == SB_OK) r = choose_solver(p, &rn);
     if (r != SB_OK) return r;
+    if (m->structured && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);
     p->stats = (sb_plan_stats_t){m->mask && !p->opts.zero_fill, 0, 1, 0};
     scan_channels(p, &rn);
     p->stats.proportional = rn.prop;
