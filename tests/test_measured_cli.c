@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 
 #include "harness.h"
+#include "sepbrdf/sepbrdf.h"
 
 static char out[1 << 16];
 
@@ -301,4 +302,71 @@ SB_TEST(table_options_everywhere) {
         CHECKF(cli("render %s --res 8 %s -q -o %s", t, bad[k], o2) == 1, "render %s: %s", bad[k], out);
         CHECK(dir_is_empty_or_missing(o2));
     }
+}
+
+/* report.json's errors at the measured samples agree with an independent
+ * evaluation: the CSV rows read here, the stored textures read back, the
+ * reconstruction through sb_factors_eval, the relative L2 of f cos cos
+ * written out. */
+SB_TEST(sample_errors_reported) {
+    const char *dir = sb_tmpdir("mcli");
+    char t[4200], o[4200], p[4300];
+    snprintf(t, sizeof t, "%s/t.csv", dir);
+    snprintf(o, sizeof o, "%s/o", dir);
+    CHECK(cli("sample microfacet:base=gold,roughness=0.5 --gonio 9,1,9,24 -q -o %s", t) == 0);
+    int rc = cli("factor %s --param iso --form cos2 --res 8 -J 3 -q -o %s", t, o);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(p, sizeof p, "%s/report.json", o);
+    FILE *fp = fopen(p, "r");
+    static char rep[1 << 20];
+    size_t n = fp ? fread(rep, 1, sizeof rep - 1, fp) : 0;
+    rep[n] = 0;
+    if (fp) fclose(fp);
+    const char *a = strstr(rep, "\"sample_rel_l2\": [");
+    CHECKF(a != NULL, "no sample_rel_l2 in %s", p);
+    CHECK(strstr(rep, "\"format\": \"csv\"") && strstr(rep, "\"interp_cv\": {"));
+    if (!a) return;
+    double reported[3];
+    a += strlen("\"sample_rel_l2\": [");
+    for (int k = 0; k < 3; k++)
+        reported[k] = strtod(a, (char **)&a), a += strspn(a, ", \n");
+    sb_factors_t *f = NULL;
+    sb_param_t *param = NULL;
+    sb_param_kind_t kind;
+    sb_param_opts_t po;
+    sb_form_t form;
+    CHECK(sb_factors_read_exr(NULL, o, &f) == SB_OK);
+    if (!f) return;
+    CHECK(sb_param_parse_spec(NULL, sb_factors_get_meta(f, "param"), &kind, &po) == SB_OK);
+    CHECK(sb_param_create(NULL, kind, &po, &param) == SB_OK);
+    CHECK(sb_form_parse(sb_factors_get_meta(f, "form"), &form) == SB_OK && form == SB_FORM_COS2);
+    double num[3] = {0, 0, 0}, den = 0;
+    size_t rows = 0;
+    char line[1024];
+    fp = fopen(t, "r");
+    while (fp && fgets(line, sizeof line, fp)) {
+        double ti, pi_, to, po_, v[3], wi[3], wo[3];
+        if (sscanf(line, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &ti, &pi_, &to, &po_, &v[0], &v[1], &v[2]) != 7) continue;
+        ti *= SB_PI / 180, pi_ *= SB_PI / 180, to *= SB_PI / 180, po_ *= SB_PI / 180;
+        wi[0] = sin(ti) * cos(pi_), wi[1] = sin(ti) * sin(pi_), wi[2] = cos(ti);
+        wo[0] = sin(to) * cos(po_), wo[1] = sin(to) * sin(po_), wo[2] = cos(to);
+        double w2 = wi[2] * wi[2] * wo[2] * wo[2];
+        for (int j = 0; j < 3; j++) {
+            double r[3];
+            sb_factors_eval(f, param, form, (size_t)j + 1, wi, wo, r);
+            for (int c = 0; c < 3; c++)
+                num[j] += (r[c] - v[c]) * (r[c] - v[c]) * w2;
+        }
+        for (int c = 0; c < 3; c++)
+            den += v[c] * v[c] * w2;
+        rows++;
+    }
+    if (fp) fclose(fp);
+    CHECK(rows == 9 * 9 * 24);
+    for (int j = 0; j < 3; j++)
+        CHECKF(fabs(reported[j] - sqrt(num[j] / den)) <= 1e-4 * sqrt(num[j] / den),
+               "J = %d: reported %g, independent %g", j + 1, reported[j], sqrt(num[j] / den));
+    CHECK(reported[2] < reported[0]); /* more terms fit the measurements better here */
+    sb_param_destroy(param);
+    sb_factors_destroy(f);
 }

@@ -44,6 +44,7 @@
 #include <stdio.h>
 
 #include "common.h"
+#include "matrix.h"
 #include "param.h"
 #include "source.h"
 
@@ -62,7 +63,8 @@ const char *sb_measured_format_title(size_t k); /* "MERL .binary", ... */
 const char *sb_measured_format_exts(size_t k);  /* ".binary", space separated */
 
 typedef enum sb_interp {
-    SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: quadratic */
+    SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: the method of lowest
+                            * cross-validated error (sb_measured_info_t) */
     SB_INTERP_NEAREST,     /* MERL: the cell containing the pair (as the MERL
                             * reference code); scattered: the nearest sample */
     SB_INTERP_LINEAR,      /* MERL: trilinear in index space between cell
@@ -153,6 +155,15 @@ typedef struct sb_measured_info {
     double radius;      /* scattered: radius in use (inf when unlimited) */
     size_t dims;        /* scattered: dimension of the embedding (3 or 4) */
     sb_white_t white;
+    /* Scattered tables: leave-one-position-out cross-validation of each
+     * interpolation (index: sb_interp_t; NAN where not computed): held-out
+     * samples (at most 2000, evenly spread) predicted from the others and
+     * compared with their measured values, relative L2 of f cos cos as the
+     * comparable error.  With SB_INTERP_DEFAULT the method of lowest error
+     * is used.  cv_missing: held-out samples with no neighbour left within
+     * the radius, for the method in use (not in the error). */
+    double interp_cv[SB_INTERP_COUNT_];
+    size_t cv_held_out, cv_missing;
     size_t nfields; /* format-specific details, in reading order */
     sb_measured_field_t fields[SB_MEASURED_FIELDS_MAX];
 } sb_measured_info_t;
@@ -176,6 +187,38 @@ typedef struct sb_measured_info {
  *   SB_ERR_NOMEM / SB_ERR_OVERFLOW */
 sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
                              sb_measured_info_t *info);
+
+/* What the table behind `src` held (a copy kept by sb_measured_open), or
+ * NULL for a source not opened by it (analytic models). */
+const sb_measured_info_t *sb_measured_source_info(const sb_source_t *src);
+
+/* ---- errors against the measurements ------------------------------------- */
+
+/* Errors of a reconstruction at the measured samples themselves (every
+ * sample of sb_source_sample, no interpolation in between), in the norm of
+ * the comparable error: after J' terms
+ *   e(J') = sqrt( sum_k sum_c (f~_c - f_c)^2 c_i^2 c_o^2 / sum_k sum_c f_c^2 c_i^2 c_o^2 )
+ * with f~ the reconstruction through texture lookups as the GLSL snippet
+ * does (sb_factors_eval: form divided back), c_i, c_o the cosines of the
+ * sample's directions.  A sample outside the parameterisation's domain
+ * counts with f~ = 0 (what a shader returns there). */
+#define SB_SAMPLE_ERRORS_MAX 256
+typedef struct sb_sample_errors {
+    size_t terms;                        /* J' = 1..terms filled (at most 256) */
+    size_t samples;                      /* measured samples compared */
+    size_t outside;                      /* of them, outside the parameterisation's domain */
+    double rel_l2[SB_SAMPLE_ERRORS_MAX]; /* e(J'), index J' - 1 */
+    double source_rel_l2;                /* the source itself (its interpolation) at the samples,
+                                          * same norm: 0 for a table read exactly */
+} sb_sample_errors_t;
+
+struct sb_factors;
+/* Errors of the first min(J, 256) terms of `f` (parameterisation p, form)
+ * at the samples of `src`.  Errors: SB_ERR_ARG (NULL, or a source without
+ * samples: analytic models and RGL tables), SB_ERR_NUMERIC (no sample with
+ * a non-zero value). */
+sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
+                                      const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out);
 
 /* Fraction of the cells of `param` for which `src` returns a value (1 for
  * analytic sources): *known of *cells cells with both directions above the

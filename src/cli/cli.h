@@ -54,8 +54,9 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
 /* Help lines of those options, for the commands' --help. */
 #define CLI_MEASURED_HELP                                                                                              \
     "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n"                                    \
-    "                       tables: local linear fit), idw, quadratic (default for\n"                                  \
-    "                       scattered tables: local quadratic fit)\n"                                                  \
+    "                       tables: local linear fit), idw, quadratic (local\n"                                        \
+    "                       quadratic fit); scattered tables default to the one\n"                                     \
+    "                       of lowest cross-validated error (see `info`)\n"                                            \
     "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n"                                 \
     "      --radius DEG     scattered: farther than this from every sample is\n"                                       \
     "                       missing, in degrees of the embedding distance\n"                                           \
@@ -94,6 +95,11 @@ void json_string(json_t *j, const char *key, const char *value);
 void json_number(json_t *j, const char *key, double value);
 void json_int(json_t *j, const char *key, long long value);
 void json_bool(json_t *j, const char *key, int value);
+
+/* report_measured.c: the "measured" object of report.json (nothing for
+ * analytic sources) and the matching summary lines. */
+void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form);
+void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form);
 
 /* Open `path`.tmp-PID for writing; cli_commit renames it into place (or
  * removes it when ok == 0).  Return 0 on success.  The temporary is

@@ -276,6 +276,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
         json_end_object(j);
     }
     json_end_array(j);
+    cli_report_measured(j, rx->src, f, param, m->form);
     json_number(j, "negative_texels", a->metric.neg_texels);
     json_int(j, "metric_resolution", (long long)o->metric_res);
     if (o->param_auto) {
@@ -468,6 +469,7 @@ int cmd_factor(int argc, char **argv) {
                sb_form_name(best.m.form), best.weighted ? ", solid-angle weighted" : "", sb_factors_terms(best.f),
                sb_factors_get_meta(best.f, "method"));
         print_table(&best);
+        cli_print_measured(src, best.f, best.param, best.m.form);
         printf("wrote %zu texture pairs, report.json and sepbrdf.glsl to %s/ (%.3f s)\n", sb_factors_terms(best.f),
                o.out, t[3]);
     }

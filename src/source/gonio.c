@@ -461,6 +461,12 @@ static void scattered_fields(sb_measured_info_t *info) {
     sb_info_field(info, "interp", NAN, "%s, k = %zu, radius %.3g deg (median spacing %.3g deg), %zu-D embedding",
                   sb_interp_name(info->interp), info->neighbours, info->radius * 180 / SB_PI,
                   info->spacing * 180 / SB_PI, info->dims);
+    const double *cv = info->interp_cv;
+    sb_info_field(info, "interp cv", cv[info->interp],
+                  "%.3g %% (%s); nearest %.3g %%, linear %.3g %%, idw %.3g %%, quadratic %.3g %% (%zu held out)",
+                  100 * cv[info->interp], sb_interp_name(info->interp), 100 * cv[SB_INTERP_NEAREST],
+                  100 * cv[SB_INTERP_LINEAR], 100 * cv[SB_INTERP_IDW], 100 * cv[SB_INTERP_QUADRATIC],
+                  info->cv_held_out);
 }
 
 static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered_kind_t kind,

@@ -244,7 +244,14 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
     sb_measured_info_t *inf = calloc(1, sizeof *inf);
     if (!inf) return sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
     inf->format = rd->name;
+    for (int k = 0; k < SB_INTERP_COUNT_; k++)
+        inf->interp_cv[k] = NAN;
     r = rd->open(ctx, path, &o, out, inf);
+    if (r == SB_OK && sb_source_set_measured_(*out, inf) != 0) {
+        sb_source_destroy(*out);
+        *out = NULL;
+        r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    }
     if (r == SB_OK && info) *info = *inf;
     free(inf);
     return r;

@@ -1,0 +1,46 @@
+/* The "measured" part of report.json and of factor's summary: what the
+ * table held and the errors against its measurements (not against the
+ * interpolated grid). */
+#include <math.h>
+#include <stdio.h>
+
+#include "cli.h"
+
+void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p,
+                         sb_form_t form) {
+    const sb_measured_info_t *in = sb_measured_source_info(src);
+    if (!in) return;
+    sb_sample_errors_t se;
+    int have = sb_measured_sample_errors(NULL, src, f, p, form, &se) == SB_OK;
+    json_begin_object(j, "measured");
+    json_string(j, "format", in->format);
+    json_int(j, "rows", (long long)in->rows);
+    json_int(j, "samples", (long long)(have ? se.samples : 0));
+    json_int(j, "outside", (long long)(have ? se.outside : 0));
+    json_number(j, "source_rel_l2", have ? se.source_rel_l2 : NAN);
+    json_begin_array(j, "sample_rel_l2");
+    for (size_t k = 0; have && k < se.terms; k++)
+        json_number(j, NULL, se.rel_l2[k]);
+    json_end_array(j);
+    json_string(j, "interp", sb_interp_name(in->interp));
+    json_begin_object(j, "interp_cv");
+    for (int m = SB_INTERP_NEAREST; m < SB_INTERP_COUNT_; m++)
+        json_number(j, sb_interp_name((sb_interp_t)m), in->interp_cv[m]);
+    json_end_object(j);
+    json_int(j, "cv_held_out", (long long)in->cv_held_out);
+    json_int(j, "out_of_gamut", (long long)in->out_of_gamut);
+    json_end_object(j);
+}
+
+void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form) {
+    const sb_measured_info_t *in = sb_measured_source_info(src);
+    sb_sample_errors_t se;
+    if (!in || sb_measured_sample_errors(NULL, src, f, p, form, &se) != SB_OK) return;
+    printf("  at the %zu measured samples (f cos cos, relative L2):", se.samples);
+    for (size_t k = 0; k < se.terms; k++)
+        printf(" J=%zu %.3g%%", k + 1, 100 * se.rel_l2[k]);
+    printf("\n");
+    if (isfinite(in->interp_cv[in->interp]))
+        printf("  interpolation %s: cross-validated error %.3g%% at %zu held-out samples\n", sb_interp_name(in->interp),
+               100 * in->interp_cv[in->interp], in->cv_held_out);
+}
