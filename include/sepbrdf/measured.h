@@ -263,6 +263,16 @@ int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
  * Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
 
+/* ---- conversion ----------------------------------------------------------- */
+
+/* Write the measured samples of `src` (sb_source_sample: as read, no
+ * interpolation) as a sepbrdf CSV table to fp: degrees, the source's
+ * symmetry and reciprocity as metadata, RGB f_r with 17 digits, so that
+ * reading it back gives the same samples.  *rows (may be NULL) receives
+ * the number written.  Errors: SB_ERR_ARG (no samples: a model or an RGL
+ * table; measure those with sb_gonio_write_csv), SB_ERR_IO. */
+sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows);
+
 /* ---- simulated gonioreflectometer ------------------------------------- */
 
 /* Detector grid: theta_k = (k + 1/2) 90 deg / N_theta (cell centres of

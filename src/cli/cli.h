@@ -130,6 +130,7 @@ int cmd_list(int argc, char **argv);
 int cmd_study(int argc, char **argv);
 int cmd_info(int argc, char **argv);
 int cmd_sample(int argc, char **argv);
+int cmd_convert(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 
 /* Print the metadata of a factor file (an EXR written by `factor`) to out:
