@@ -291,9 +291,9 @@ SB_TEST(table_options_everywhere) {
     CHECKF(strstr(out, "\"idw\"") != NULL, "%s", out);
     CHECK(cli("study %s --res 8 --terms 1,2 --param io --interp idw -q -o %s", t, s) == 0);
     /* bad values: exit 1, the option named, nothing written */
-    const char *bad[] = {"--interp cubic", "--neighbours 0", "--radius -1", "--white d50"};
-    const char *name[] = {"--interp", "--neighbours", "--radius", "--white"};
-    for (size_t k = 0; k < 4; k++) {
+    const char *bad[] = {"--interp cubic", "--neighbours 0", "--radius -1", "--white d50", "--gamut purple"};
+    const char *name[] = {"--interp", "--neighbours", "--radius", "--white", "--gamut"};
+    for (size_t k = 0; k < 5; k++) {
         char o2[4300];
         snprintf(o2, sizeof o2, "%s/bad%zu", dir, k);
         CHECKF(cli("factor %s --res 8 %s -q -o %s", t, bad[k], o2) == 1, "%s: %s", bad[k], out);

@@ -95,6 +95,23 @@ typedef enum sb_white {
     SB_WHITE_COUNT_
 } sb_white_t;
 
+/* What to do with spectral values outside the sRGB gamut (a negative
+ * channel after the CIE conversion: saturated colours sRGB cannot show). */
+typedef enum sb_gamut {
+    SB_GAMUT_KEEP = 0,   /* keep the negative channels (the exact linear map; default) */
+    SB_GAMUT_CLIP,       /* set negative channels to 0 */
+    SB_GAMUT_DESATURATE, /* keep the luminance Y = 0.2126 R + 0.7152 G + 0.0722 B and
+                          * move towards gray (Y, Y, Y) until no channel is negative
+                          * (0 when Y <= 0): hue kept, chroma reduced */
+    SB_GAMUT_COUNT_
+} sb_gamut_t;
+
+/* "keep", "clip", "desaturate"; parse returns SB_ERR_UNKNOWN. */
+const char *sb_gamut_name(sb_gamut_t g);
+sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out);
+/* Map one RGB value by `g`; returns 1 when it was out of gamut. */
+int sb_gamut_map(sb_gamut_t g, double rgb[3]);
+
 /* Options of sb_measured_open (zero = default everywhere).
  *
  * Scattered tables are interpolated in an embedding of the pair (l, v) in
@@ -105,7 +122,8 @@ typedef enum sb_white {
  * Euclidean in that embedding, i.e. roughly angles in radians. */
 typedef struct sb_measured_opts {
     const char *format; /* a registry name; NULL or "auto": detect */
-    sb_interp_t interp; /* SB_INTERP_DEFAULT: nearest (MERL), quadratic (scattered) */
+    sb_interp_t interp; /* SB_INTERP_DEFAULT: nearest (MERL); scattered: chosen by
+                         * cross-validation (see sb_measured_info_t) */
     size_t neighbours;  /* scattered: k nearest samples, 1..64; default 24
                          * (isotropic) or 34 (anisotropic) for the fits,
                          * 4 or 5 for idw */
@@ -115,6 +133,7 @@ typedef struct sb_measured_opts {
                          * median distance from a sample to its nearest
                          * other sample.  < 0: no limit */
     sb_white_t white;   /* spectral tables: SB_WHITE_E (default) */
+    sb_gamut_t gamut;   /* spectral tables: SB_GAMUT_KEEP (default) */
 } sb_measured_opts_t;
 
 /* What a table held.  Value statistics are over the used samples, of the
@@ -137,9 +156,9 @@ typedef struct sb_measured_info {
     size_t negative;                 /* values < 0 in the file: MERL missing cells;
                                       * tables: used rows with a negative value (kept:
                                       * measurement noise averages out) */
-    size_t out_of_gamut;             /* spectral tables: used rows whose RGB has a
-                                      * negative channel (saturated colours outside the
-                                      * sRGB gamut; kept, not clamped) */
+    size_t out_of_gamut;             /* spectral tables: used rows (RGL: nodes) whose RGB
+                                      * had a negative channel (saturated colours outside
+                                      * the sRGB gamut), mapped by `gamut` */
     size_t nan_rows;                 /* rows (cells) with a NaN value, skipped */
     size_t horizon_rows;             /* rows with a direction at or below the horizon
                                       * (theta >= pi/2 - 1e-9), skipped */
@@ -155,6 +174,7 @@ typedef struct sb_measured_info {
     double radius;      /* scattered: radius in use (inf when unlimited) */
     size_t dims;        /* scattered: dimension of the embedding (3 or 4) */
     sb_white_t white;
+    sb_gamut_t gamut;
     /* Scattered tables: leave-one-position-out cross-validation of each
      * interpolation (index: sb_interp_t; NAN where not computed): held-out
      * samples (at most 2000, evenly spread) predicted from the others and

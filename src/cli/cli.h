@@ -62,7 +62,10 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
     "                       missing, in degrees of the embedding distance\n"                                           \
     "                       (default: 2.5 x the median sample spacing)\n"                                              \
     "      --white W        spectra: e (default; flat spectrum = illuminant E)\n"                                      \
-    "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"
+    "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"                                     \
+    "      --gamut G        spectra outside the sRGB gamut (a negative channel):\n"                                    \
+    "                       keep (default), clip (negatives to 0) or desaturate\n"                                     \
+    "                       (luminance kept, chroma reduced into the gamut)\n"
 
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);

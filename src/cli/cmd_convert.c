@@ -79,7 +79,8 @@ static int parse(int argc, char **argv, convert_opts_t *o) {
         cli_error("convert", "%s (see `sepbrdf convert --help`)", !o->source ? "no SOURCE given" : "no -o FILE given");
         return EXIT_USAGE;
     }
-    if (o->format == OUT_AUTO) o->format = ends_with(o->out, ".binary") ? OUT_MERL : ends_with(o->out, ".csv") ? OUT_CSV : OUT_AUTO;
+    if (o->format == OUT_AUTO)
+        o->format = ends_with(o->out, ".binary") ? OUT_MERL : ends_with(o->out, ".csv") ? OUT_CSV : OUT_AUTO;
     if (o->format == OUT_AUTO) {
         cli_error("convert", "-o %s: no .binary or .csv extension; name the format with --format merl|csv", o->out);
         return EXIT_USAGE;

@@ -112,6 +112,7 @@ static int info_measured(const info_opts_t *o) {
             json_number(&j, "wavelength_min_nm", in.wl_min);
             json_number(&j, "wavelength_max_nm", in.wl_max);
             json_string(&j, "white", in.white == SB_WHITE_D65 ? "d65" : "e");
+            json_string(&j, "gamut", sb_gamut_name(in.gamut));
         }
         json_number(&j, "theta_i_max_deg", in.theta_i_max * 180 / SB_PI);
         json_number(&j, "theta_o_max_deg", in.theta_o_max * 180 / SB_PI);
@@ -152,11 +153,14 @@ static int info_measured(const info_opts_t *o) {
         printf("format        %s\n", fmt);
         for (size_t k = 0; k < in.nfields; k++)
             printf("%-13s %s\n", in.fields[k].key, in.fields[k].text);
-        if (in.wavelengths)
-            printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s; %zu %s out of gamut (RGB < 0, kept)\n",
-                   in.wavelengths, in.wl_min, in.wl_max, in.white == SB_WHITE_D65 ? "D65 (Bradford)" : "E",
-                   in.out_of_gamut, scattered ? "rows" : "nodes");
-        else
+        if (in.wavelengths) {
+            printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s\n", in.wavelengths, in.wl_min, in.wl_max,
+                   in.white == SB_WHITE_D65 ? "D65 (Bradford)" : "E");
+            printf("gamut         %zu %s out of the sRGB gamut (a negative channel after the CIE conversion: "
+                   "colours more saturated than sRGB shows), %s%s\n",
+                   in.out_of_gamut, scattered ? "rows" : "nodes", sb_gamut_name(in.gamut),
+                   in.out_of_gamut && in.gamut == SB_GAMUT_KEEP ? " (--gamut clip or desaturate maps them)" : "");
+        } else
             printf("channels      %zu%s\n", in.channels, in.channels == 1 ? " (gray)" : " (RGB)");
         printf("f_r (1/sr)    %12s %12s %12s\n", "min", "max", "mean");
         for (int c = 0; c < 3; c++)

@@ -29,6 +29,7 @@ void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *
     json_end_object(j);
     json_int(j, "cv_held_out", (long long)in->cv_held_out);
     json_int(j, "out_of_gamut", (long long)in->out_of_gamut);
+    json_string(j, "gamut", sb_gamut_name(in->gamut));
     json_end_object(j);
 }
 
@@ -40,6 +41,9 @@ void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_
     for (size_t k = 0; k < se.terms; k++)
         printf(" J=%zu %.3g%%", k + 1, 100 * se.rel_l2[k]);
     printf("\n");
+    if (in->out_of_gamut)
+        printf("  %zu spectral %s out of the sRGB gamut, %s\n", in->out_of_gamut, in->dims ? "rows" : "nodes",
+               sb_gamut_name(in->gamut));
     if (isfinite(in->interp_cv[in->interp]))
         printf("  interpolation %s: cross-validated error %.3g%% at %zu held-out samples\n", sb_interp_name(in->interp),
                100 * in->interp_cv[in->interp], in->cv_held_out);

@@ -40,8 +40,9 @@ static sb_result_t reader_add(reader_t *rd, const double wi[3], const double wo[
                             "%s:%zu: f_r = %g (1/sr) overflows float storage (largest %g): not a reflectance", rd->path,
                             rd->lr.line, f[c], (double)FLT_MAX);
     rd->info->negative += (size_t)(negative != 0);
-    rd->info->out_of_gamut += (size_t)(rd->info->wavelengths && (f[0] < 0 || f[1] < 0 || f[2] < 0));
-    return sb_samples_push_(rd->ctx, rd->path, &rd->ss, wi, wo, f, rd->info);
+    double g[3] = {f[0], f[1], f[2]};
+    if (rd->info->wavelengths) rd->info->out_of_gamut += (size_t)sb_gamut_map(rd->info->gamut, g);
+    return sb_samples_push_(rd->ctx, rd->path, &rd->ss, wi, wo, g, rd->info);
 }
 
 static sb_result_t bad_number(reader_t *rd, const char *what, const char *field) {
@@ -479,6 +480,7 @@ static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered
         info->value_max[c] = -INFINITY;
     }
     info->white = o->white;
+    info->gamut = o->gamut;
     int iso = 1, recip = 1;
     sb_result_t r;
     if (kind == KIND_CORNELL)

@@ -211,6 +211,8 @@ static sb_result_t check_opts(sb_context_t *ctx, const char *path, const sb_meas
         return sb_error(ctx, SB_ERR_ARG, "%s: unknown interpolation %d", path, (int)o->interp);
     if ((unsigned)o->white >= SB_WHITE_COUNT_)
         return sb_error(ctx, SB_ERR_ARG, "%s: unknown white %d", path, (int)o->white);
+    if ((unsigned)o->gamut >= SB_GAMUT_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "%s: unknown gamut mapping %d", path, (int)o->gamut);
     if (o->neighbours > 64)
         return sb_error(ctx, SB_ERR_RANGE, "%s: %zu neighbours out of range, need 1..64", path, o->neighbours);
     if (isnan(o->radius)) return sb_error(ctx, SB_ERR_RANGE, "%s: radius is NaN", path);
