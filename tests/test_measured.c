@@ -1213,3 +1213,71 @@ SB_TEST(gamut_cornell) {
     }
     sb_source_destroy(keep);
 }
+
+/* ---- unmeasured regions -------------------------------------------------------- */
+
+/* Light or view along the normal: every azimuth is known (no black
+ * pinholes), within the range of the measured values; exactly at the pole
+ * the value does not depend on the azimuth. */
+SB_TEST(pole_no_pinholes) {
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(SB_MEASURED_DIR "/cornell_acryl_blue.brdf", NULL, &info);
+    if (!s) return;
+    size_t missing = 0, out = 0;
+    double first[3] = {0, 0, 0};
+    for (int a = 1; a <= 7; a++)
+        for (int b = 0; b < 36; b++) {
+            double t = a * 10 * SB_PI / 180, p = b * 10 * SB_PI / 180, rgb[3];
+            double l[3] = {sin(t) * cos(p), sin(t) * sin(p), cos(t)}, n[3] = {0, 0, 1};
+            for (int swap = 0; swap < 2; swap++) {
+                if (!sb_source_eval(s, swap ? n : l, swap ? l : n, rgb)) {
+                    missing++;
+                    continue;
+                }
+                for (int c = 0; c < 3; c++)
+                    out += rgb[c] < info.value_min[c] - 1e-12 || rgb[c] > info.value_max[c] + 1e-12;
+            }
+        }
+    CHECKF(missing == 0 && out == 0, "%zu missing, %zu out of range", missing, out);
+    /* at an elevation not measured with the view along the normal: the
+     * azimuthal mean, the same for every azimuth */
+    for (int b = 0; b < 36; b++) {
+        double t = 35 * SB_PI / 180, p = b * 10 * SB_PI / 180, rgb[3];
+        double l[3] = {sin(t) * cos(p), sin(t) * sin(p), cos(t)}, n[3] = {0, 0, 1};
+        CHECK(sb_source_eval(s, l, n, rgb) == 1);
+        if (b == 0) memcpy(first, rgb, sizeof first);
+        for (int c = 0; c < 3; c++)
+            CHECK_REL(rgb[c], first[c], 1e-9);
+    }
+    sb_source_destroy(s);
+}
+
+/* The coverage map sums to the coverage; a table measured everywhere is
+ * known in every band, the 3M tape (four light elevations) is not. */
+SB_TEST(coverage_map) {
+    sb_param_opts_t po = {0};
+    po.res = 12;
+    sb_param_t *p = NULL;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK);
+    sb_gonio_opts_t go = {0};
+    const char *files[2] = {write_gonio("lambert", &go, NULL), SB_MEASURED_DIR "/alta_retro-3M-jaune.dat"};
+    for (int f = 0; f < 2 && p; f++) {
+        sb_source_t *s = open_table(files[f], NULL, NULL);
+        if (!s) continue;
+        size_t known[9], cells[9], k = 0, n = 0, tk = 0, tn = 0, full = 0;
+        CHECK(sb_measured_coverage_map(NULL, s, p, 3, known, cells) == SB_OK);
+        CHECK(sb_measured_coverage(NULL, s, p, &tk, &tn) == SB_OK);
+        for (int b = 0; b < 9; b++) {
+            k += known[b];
+            n += cells[b];
+            full += known[b] == cells[b];
+            CHECK(cells[b] == 48 * 48); /* (4 elevations x 12 azimuths) per direction */
+        }
+        CHECK(k == tk && n == tn && n == 144 * 144);
+        CHECK(f == 0 ? full == 9 : full < 9);
+        sb_source_destroy(s);
+    }
+    size_t a, b;
+    CHECK(sb_measured_coverage_map(NULL, NULL, p, 3, &a, &b) == SB_ERR_ARG);
+    sb_param_destroy(p);
+}

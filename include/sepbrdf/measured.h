@@ -247,6 +247,14 @@ sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src,
 sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
                                  size_t *cells);
 
+/* The coverage per pair of elevation bands: known[a * bands + b] of
+ * cells[a * bands + b] cells of `param` with theta_i in band a and theta_o
+ * in band b (bands of 90/bands degrees), so that users see which regions
+ * hold data.  bands 1..90; both arrays hold bands^2 counts.  Errors:
+ * SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_OVERFLOW. */
+sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t bands,
+                                     size_t *known, size_t *cells);
+
 /* ---- MERL ------------------------------------------------------------- */
 
 #define SB_MERL_TH 90

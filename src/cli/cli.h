@@ -102,7 +102,7 @@ void json_bool(json_t *j, const char *key, int value);
 /* report_measured.c: the "measured" object of report.json (nothing for
  * analytic sources) and the matching summary lines. */
 void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form);
-void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form);
+void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t res);
 
 /* Open `path`.tmp-PID for writing; cli_commit renames it into place (or
  * removes it when ok == 0).  Return 0 on success.  The temporary is

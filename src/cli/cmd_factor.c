@@ -469,7 +469,7 @@ int cmd_factor(int argc, char **argv) {
                sb_form_name(best.m.form), best.weighted ? ", solid-angle weighted" : "", sb_factors_terms(best.f),
                sb_factors_get_meta(best.f, "method"));
         print_table(&best);
-        cli_print_measured(src, best.f, best.param, best.m.form);
+        cli_print_measured(src, best.f, best.param, best.m.form, o.res);
         printf("wrote %zu texture pairs, report.json and sepbrdf.glsl to %s/ (%.3f s)\n", sb_factors_terms(best.f),
                o.out, t[3]);
     }

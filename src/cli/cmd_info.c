@@ -70,6 +70,32 @@ static void flags_text(unsigned f, char *buf, size_t size) {
     if (n && buf[n - 1] == ' ') buf[n - 1] = 0;
 }
 
+/* The coverage map: 10-degree bands of theta_i (rows) and theta_o. */
+#define MAP_BANDS 9
+
+static double map_fraction(const size_t *known, const size_t *cells, size_t at) {
+    return cells[at] ? (double)known[at] / (double)cells[at] : NAN;
+}
+
+static void print_map(const size_t *known, const size_t *cells) {
+    printf("coverage map  %% of cells known, theta_i (rows) x theta_o (columns), 10-degree bands:\n"
+           "  theta_i  ");
+    for (int b = 0; b < MAP_BANDS; b++)
+        printf("  %2d-%-2d", 10 * b, 10 * b + 10);
+    printf("\n");
+    for (size_t a = 0; a < MAP_BANDS; a++) {
+        printf("  %2zu-%-2zu    ", 10 * a, 10 * a + 10);
+        for (size_t b = 0; b < MAP_BANDS; b++) {
+            double f = map_fraction(known, cells, a * MAP_BANDS + b);
+            if (isnan(f))
+                printf("  %5s", "-");
+            else
+                printf("  %5.1f", 100 * f);
+        }
+        printf("\n");
+    }
+}
+
 static int info_measured(const info_opts_t *o) {
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
@@ -85,8 +111,12 @@ static int info_measured(const info_opts_t *o) {
     sb_param_opts_t po = {0};
     po.res = o->res;
     if ((r = sb_param_create(ctx, SB_PARAM_IO, &po, &param)) != SB_OK) goto fail;
-    size_t known = 0, cells = 0;
-    if ((r = sb_measured_coverage(ctx, src, param, &known, &cells)) != SB_OK) goto fail;
+    size_t known = 0, cells = 0, mk[MAP_BANDS * MAP_BANDS], mc[MAP_BANDS * MAP_BANDS];
+    if ((r = sb_measured_coverage_map(ctx, src, param, MAP_BANDS, mk, mc)) != SB_OK) goto fail;
+    for (size_t b = 0; b < MAP_BANDS * MAP_BANDS; b++) {
+        known += mk[b];
+        cells += mc[b];
+    }
     double cov = cells ? (double)known / (double)cells : 0;
     const char *fmt = in.format;
     static const char *const cn[3] = {"R", "G", "B"};
@@ -146,6 +176,14 @@ static int info_measured(const info_opts_t *o) {
         json_int(&j, "known", (long long)known);
         json_int(&j, "missing", (long long)(cells - known));
         json_number(&j, "fraction", cov);
+        json_begin_array(&j, "map");
+        for (size_t a = 0; a < MAP_BANDS; a++) {
+            json_begin_array(&j, NULL);
+            for (size_t b = 0; b < MAP_BANDS; b++)
+                json_number(&j, NULL, map_fraction(mk, mc, a * MAP_BANDS + b));
+            json_end_array(&j);
+        }
+        json_end_array(&j);
         json_end_object(&j);
         json_end_object(&j);
     } else {
@@ -168,6 +206,7 @@ static int info_measured(const info_opts_t *o) {
         printf("flags         %s\n", flags);
         printf("coverage      %s: %zu of %zu cells (%.2f %%), %zu missing\n", sb_param_spec(param), known, cells,
                100 * cov, cells - known);
+        print_map(mk, mc);
     }
     goto out;
 fail:

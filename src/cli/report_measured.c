@@ -33,10 +33,34 @@ void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *
     json_end_object(j);
 }
 
-void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form) {
+/* Warnings when the run asks for more than the data support: terms that
+ * no longer lower the error at the measured samples (they fit the
+ * interpolation between samples, not the data), and grid cells finer than
+ * the samples' spacing (the grid then holds interpolated values only). */
+static void warn_support(const sb_measured_info_t *in, const sb_sample_errors_t *se, size_t res) {
+    size_t best = 0;
+    for (size_t k = 1; k < se->terms; k++)
+        if (se->rel_l2[k] < se->rel_l2[best] * (1 - 1e-3)) best = k;
+    if (best + 1 < se->terms)
+        cli_error(
+            "factor",
+            "warning: terms beyond J = %zu do not lower the error at the %zu measured samples (%.3g%% at J = %zu, "
+            "%.3g%% at J = %zu): they fit the interpolation, not the data",
+            best + 1, se->samples, 100 * se->rel_l2[best], best + 1, 100 * se->rel_l2[se->terms - 1], se->terms);
+    double cell = 90.0 / (double)res, spacing = in->spacing * 180 / SB_PI;
+    if (in->dims && spacing > 0 && cell < 0.5 * spacing)
+        cli_error("factor",
+                  "warning: --res %zu: cells of %.3g deg are finer than half the samples' median spacing (%.3g deg); "
+                  "the extra resolution holds interpolated values only",
+                  res, cell, spacing);
+}
+
+void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
+                        size_t res) {
     const sb_measured_info_t *in = sb_measured_source_info(src);
     sb_sample_errors_t se;
     if (!in || sb_measured_sample_errors(NULL, src, f, p, form, &se) != SB_OK) return;
+    warn_support(in, &se, res);
     printf("  at the %zu measured samples (f cos cos, relative L2):", se.samples);
     for (size_t k = 0; k < se.terms; k++)
         printf(" J=%zu %.3g%%", k + 1, 100 * se.rel_l2[k]);

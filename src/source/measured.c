@@ -268,26 +268,38 @@ sb_result_t sb_measured_open_hook(sb_context_t *ctx, const char *path, sb_source
 typedef struct cov_job {
     const sb_source_t *src;
     const sb_param_t *param;
-    size_t rows, c0, c1, known, cells;
+    size_t rows, c0, c1, known, cells, bands;
+    size_t *map; /* bands x bands: known, then bands x bands: cells (NULL: none) */
 } cov_job_t;
+
+static size_t band(double z, size_t bands) {
+    size_t b = (size_t)(acos(fmin(z, 1)) / (SB_PI / 2) * (double)bands);
+    return b < bands ? b : bands - 1;
+}
 
 static void *cov_cols(void *arg) {
     cov_job_t *j = arg;
     double wi[3], wo[3], rgb[3];
+    size_t nb = j->bands * j->bands;
     for (size_t c = j->c0; c < j->c1; c++)
         for (size_t r = 0; r < j->rows; r++) {
             if (!sb_param_cell_dirs(j->param, r, c, wi, wo) || wi[2] <= 0 || wo[2] <= 0) continue;
+            size_t at = j->map ? band(wi[2], j->bands) * j->bands + band(wo[2], j->bands) : 0;
             j->cells++;
-            if (sb_source_eval(j->src, wi, wo, rgb) && isfinite(rgb[0]) && isfinite(rgb[1]) && isfinite(rgb[2]))
+            if (j->map) j->map[nb + at]++;
+            if (sb_source_eval(j->src, wi, wo, rgb) && isfinite(rgb[0]) && isfinite(rgb[1]) && isfinite(rgb[2])) {
                 j->known++;
+                if (j->map) j->map[at]++;
+            }
         }
     return NULL;
 }
 
-sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
-                                 size_t *cells) {
-    if (!src || !param) return sb_error(ctx, SB_ERR_ARG, "coverage: missing source or parameterisation");
-    size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total;
+sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t bands,
+                                     size_t *known, size_t *cells) {
+    if (!src || !param || (bands && (!known || !cells)) || bands > 90)
+        return sb_error(ctx, SB_ERR_ARG, "coverage: missing source, parameterisation or map (bands 0..90)");
+    size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total, nb = bands * bands;
     if (sb_size_mul(rows, cols, &total)) return sb_error(ctx, SB_ERR_OVERFLOW, "coverage: cell count overflows");
     int nt = sb_thread_count(0);
     if ((size_t)nt > cols) nt = (int)cols;
@@ -295,33 +307,54 @@ sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, cons
     cov_job_t *jobs = calloc((size_t)nt, sizeof *jobs);
     pthread_t *th = calloc((size_t)nt, sizeof *th);
     char *started = calloc((size_t)nt, 1);
-    if (!jobs || !th || !started) {
+    size_t *maps = nb ? calloc((size_t)nt * 2 * nb, sizeof *maps) : NULL;
+    if (!jobs || !th || !started || (nb && !maps)) {
         free(jobs);
         free(th);
         free(started);
+        free(maps);
         return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
     }
     for (int t = 0; t < nt; t++) {
         jobs[t] =
-            (cov_job_t){src, param, rows, cols * (size_t)t / (size_t)nt, cols * (size_t)(t + 1) / (size_t)nt, 0, 0};
+            (cov_job_t){src, param, rows,  cols * (size_t)t / (size_t)nt,        cols * (size_t)(t + 1) / (size_t)nt,
+                        0,   0,     bands, nb ? maps + (size_t)t * 2 * nb : NULL};
         if (t > 0) started[t] = pthread_create(&th[t], NULL, cov_cols, &jobs[t]) == 0;
     }
     cov_cols(&jobs[0]);
+    for (int t = 1; t < nt; t++) {
+        if (started[t])
+            pthread_join(th[t], NULL);
+        else
+            cov_cols(&jobs[t]); /* no thread: do it here */
+    }
     size_t k = 0, n = 0;
+    for (size_t b = 0; b < nb; b++)
+        known[b] = cells[b] = 0;
     for (int t = 0; t < nt; t++) {
-        if (t > 0) {
-            if (started[t])
-                pthread_join(th[t], NULL);
-            else
-                cov_cols(&jobs[t]); /* no thread: do it here */
-        }
         k += jobs[t].known;
         n += jobs[t].cells;
+        for (size_t b = 0; b < nb; b++) {
+            known[b] += jobs[t].map[b];
+            cells[b] += jobs[t].map[nb + b];
+        }
     }
     free(jobs);
     free(th);
     free(started);
-    if (known) *known = k;
-    if (cells) *cells = n;
+    free(maps);
+    if (!nb) { /* totals only: the arrays, if any, receive them */
+        if (known) *known = k;
+        if (cells) *cells = n;
+    }
     return SB_OK;
+}
+
+sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
+                                 size_t *cells) {
+    size_t k = 0, n = 0;
+    sb_result_t r = sb_measured_coverage_map(ctx, src, param, 0, &k, &n);
+    if (r == SB_OK && known) *known = k;
+    if (r == SB_OK && cells) *cells = n;
+    return r;
 }

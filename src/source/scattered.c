@@ -61,6 +61,9 @@
  * enough for a 1 % estimate, bounded time on large tables. */
 #define CV_MAX 2000
 
+/* Azimuth differences averaged over at the pole (pole_mean): 5 deg steps. */
+#define POLE_STEPS 37
+
 /* ---- samples ----------------------------------------------------------- */
 
 sb_result_t sb_samples_push_(sb_context_t *ctx, const char *path, sb_samples_t *ss, const double wi[3],
@@ -374,7 +377,8 @@ static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadr
 }
 
 /* The value at embedded position x by method `interp` with k neighbours,
- * leaving out the points at the nskip positions of `skip`. */
+ * leaving out the points at the nskip positions of `skip`: 0 missing, 1
+ * known, 2 known at a measured position (the measurement). */
 static int table_at(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
                     double rgb[3]) {
     rgb[0] = rgb[1] = rgb[2] = 0;
@@ -399,7 +403,7 @@ static int table_at(const table_t *t, sb_interp_t interp, size_t k, const double
         }
         for (int c = 0; c < 3; c++)
             rgb[c] /= cnt;
-        return 1;
+        return q.d2[0] <= SAME_POSITION * SAME_POSITION ? 2 : 1;
     }
     /* Inverse squared distance weights: the value, or the fallback. */
     double wsum = 0;
@@ -418,13 +422,45 @@ static int table_at(const table_t *t, sb_interp_t interp, size_t k, const double
     return 1;
 }
 
+/* Near the normal the azimuth difference is undefined: f is continuous at
+ * theta = 0 whatever dphi, yet the isotropic embedding keeps dphi as a
+ * coordinate, so near the pole the value depended on dphi and a pair could
+ * be missing only because no sample shares its dphi (black pinholes where
+ * light or view is along the normal).  Within the pole zone theta_min <
+ * radius / pi (where every dphi lies within the radius on the sphere) the
+ * value blends, linearly in theta_min, from the azimuthal mean at the pole
+ * (the mean over POLE_STEPS values of dphi in [0, pi] of the values known
+ * at the pair's two elevations) to the value itself at the zone's edge:
+ * dphi-independent at the pole, continuous at the edge, never missing
+ * where any azimuth is known.  A measured position keeps its measurement. */
+static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
+    double acc[3] = {0, 0, 0}, v[3], y[MAX_DIM] = {x[0], x[1], 0, 0};
+    int n = 0;
+    for (int k = 0; k < POLE_STEPS; k++) {
+        y[2] = SB_PI * k / (POLE_STEPS - 1);
+        if (!table_at(t, t->interp, t->k, y, NULL, 0, v)) continue;
+        for (int c = 0; c < 3; c++)
+            acc[c] += v[c];
+        n++;
+    }
+    for (int c = 0; c < 3; c++)
+        rgb[c] = n ? acc[c] / n : 0;
+    return n > 0;
+}
+
 static int table_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
     const table_t *t = self;
     rgb[0] = rgb[1] = rgb[2] = 0;
     if (!(wi[2] > 0 && wo[2] > 0)) return 0;
     double x[MAX_DIM] = {0};
     embed(t->iso, t->recip, wi, wo, x);
-    return table_at(t, t->interp, t->k, x, NULL, 0, rgb);
+    int known = table_at(t, t->interp, t->k, x, NULL, 0, rgb);
+    double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
+    if (known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole)) return known != 0;
+    double w = known ? tmin / zone : 0;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = w * rgb[c] + (1 - w) * pole[c];
+    return 1;
 }
 
 static size_t table_sample_count(const void *self) { return ((const table_t *)self)->ns; }
