@@ -6,7 +6,7 @@ set -eu
 
 PKGS="cmake make gcc pkg-config liblapacke-dev libopenblas-dev libopenexr-dev \
 openexr glslang-tools libpng-dev gnuplot-nox libosmesa6-dev libegl-dev \
-libgles-dev libgl-dev libgl1-mesa-dri clang libclang-rt-14-dev clang-format"
+libgles-dev libgl-dev libgl1-mesa-dri clang libclang-rt-14-dev clang-format chromium"
 
 missing=""
 for p in $PKGS; do

@@ -1,8 +1,11 @@
-/* CLI: an interrupted run leaves no half files.  Starts the real binary
- * (SB_CLI) on a job, sends a signal, and checks the output folder: if the
- * run died of the signal, no texture, report, snippet or temporary may be
- * left; if it had already finished, the set must be complete (and still no
- * temporary).  Either way the test holds, however fast the machine. */
+/* CLI: an interrupted run leaves the folder's previous set untouched.
+ * Starts the real binary (SB_CLI) on a job into a folder that already holds
+ * a complete set, sends a signal, and checks the folder: if the run died of
+ * the signal, it holds exactly the previous set (same report, same files)
+ * and nothing of the run is left beside it (the staging folder); if it had
+ * already finished, the new set is complete.  Either way the test holds,
+ * however fast the machine.  (Random signals, SIGKILL, full disks and
+ * concurrent runs: test_reliability.c.) */
 #include <dirent.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -38,102 +41,111 @@ static pid_t start(const char *const *args) {
     return pid;
 }
 
-typedef struct scan {
-    int exr, tmp, report, glsl, other;
-    char first_tmp[256];
-} scan_t;
-
-static scan_t scan_dir(const char *dir) {
-    scan_t s;
-    memset(&s, 0, sizeof s);
+/* Entries of dir: how many, how many EXR, and whether a name contains
+ * `part` (NULL: none asked). */
+static int count_dir(const char *dir, int *exr, const char *part, int *has) {
+    int n = 0;
+    if (exr) *exr = 0;
+    if (has) *has = 0;
     DIR *d = opendir(dir);
-    if (!d) return s; /* never created: nothing left */
+    if (!d) return 0;
     struct dirent *e;
     while ((e = readdir(d))) {
-        const char *n = e->d_name;
-        if (strcmp(n, ".") == 0 || strcmp(n, "..") == 0) continue;
-        if (strstr(n, ".tmp-")) {
-            if (!s.tmp++) snprintf(s.first_tmp, sizeof s.first_tmp, "%s", n);
-        } else if (strstr(n, ".exr")) {
-            s.exr++;
-        } else if (strcmp(n, "report.json") == 0) {
-            s.report++;
-        } else if (strcmp(n, "sepbrdf.glsl") == 0) {
-            s.glsl++;
-        } else {
-            s.other++;
-        }
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        n++;
+        if (exr && strstr(e->d_name, ".exr")) ++*exr;
+        if (part && has && strstr(e->d_name, part)) *has = 1;
     }
     closedir(d);
-    return s;
+    return n;
 }
 
-/* Wait for the run and check the folder as described above; `terms` is
- * the J of the run.  Returns 1 if it died of `sig`, 0 if it finished. */
-static int check_outcome(pid_t pid, int sig, const char *dir, int terms) {
-    int st = 0;
+static char *slurp(const char *path) {
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    char *buf = calloc(1, 1 << 20);
+    if (buf && fread(buf, 1, (1 << 20) - 1, fp) == 0) buf[0] = 0;
+    fclose(fp);
+    return buf;
+}
+
+/* A previous set in DIR/out: `factor lambert -J 1` (4 files and a manifest). */
+static void previous_set(const char *dir, char *out, size_t n, char **report) {
+    char cmd[8400], msg[2048], path[4300];
+    snprintf(out, n, "%s/out", dir);
+    snprintf(cmd, sizeof cmd, "%s factor lambert --res 4 -J 1 --param io -q -o %s", SB_CLI, out);
+    CHECK(sb_run(cmd, msg, sizeof msg) == 0);
+    snprintf(path, sizeof path, "%s/report.json", out);
+    *report = slurp(path);
+    CHECK(*report != NULL);
+}
+
+/* Wait for the run; the folder holds the previous set (died of sig) or
+ * the new one of `terms` terms (finished), and no staging folder of the
+ * run is left in `dir`.  Returns 1 if it died of sig. */
+static int check_outcome(pid_t pid, int sig, const char *dir, const char *out, const char *old_report, int terms) {
+    int st = 0, exr = 0, staging = 0;
     CHECK(waitpid(pid, &st, 0) == pid);
-    scan_t s = scan_dir(dir);
-    CHECKF(s.tmp == 0, "temporary left in %s: %s", dir, s.first_tmp);
-    CHECKF(s.other == 0, "%d unexpected files in %s", s.other, dir);
-    if (WIFSIGNALED(st)) {
-        CHECKF(WTERMSIG(st) == sig, "died of signal %d, sent %d", WTERMSIG(st), sig);
-        CHECKF(s.exr == 0 && s.report == 0 && s.glsl == 0,
-               "interrupted run left %d EXR, %d report.json, %d sepbrdf.glsl in %s", s.exr, s.report, s.glsl, dir);
-        return 1;
+    count_dir(dir, NULL, ".sepbrdf-new-", &staging);
+    CHECKF(!staging, "the staging folder of the run is left in %s", dir);
+    char path[4300];
+    snprintf(path, sizeof path, "%s/report.json", out);
+    char *report = slurp(path);
+    int n = count_dir(out, &exr, NULL, NULL);
+    int died = WIFSIGNALED(st);
+    if (died) CHECKF(WTERMSIG(st) == sig, "died of signal %d, sent %d", WTERMSIG(st), sig);
+    if (died && report && strcmp(report, old_report) == 0) {
+        CHECKF(n == 5 && exr == 2, "the previous set (5 files) became %d files, %d EXR", n, exr);
+    } else { /* finished, or died after the swap: the new set, complete */
+        CHECKF(died || (WIFEXITED(st) && WEXITSTATUS(st) == 0), "status %d", st);
+        CHECKF(exr == 2 * terms && n == exr + 3, "finished run: %d files, %d EXR (want %d + 3)", n, exr, 2 * terms);
     }
-    /* finished before the signal: a complete set */
-    CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0, "status %d", st);
-    CHECKF(s.exr == 2 * terms && s.report == 1 && s.glsl == 1,
-           "finished run wrote %d EXR (want %d), %d report, %d glsl", s.exr, 2 * terms, s.report, s.glsl);
-    return 0;
+    free(report);
+    return died;
 }
 
 /* Killed during the long stages (sampling, factorisation). */
 SB_TEST(sigterm_while_computing) {
-    const char *dir = sb_tmpdir("signal");
-    char out[4200];
-    snprintf(out, sizeof out, "%s/out", dir);
+    const char *tmp = sb_tmpdir("signal");
+    char dir[4096], out[4200], *old = NULL;
+    snprintf(dir, sizeof dir, "%s", tmp);
+    previous_set(dir, out, sizeof out, &old);
     const char *args[] = {"factor", "--res", "64", "--param", "io", "--method", "full", "-o", out, NULL};
     pid_t pid = start(args);
     CHECK(pid > 0);
     sleep_s(0.5);
     kill(pid, SIGTERM);
-    int died = check_outcome(pid, SIGTERM, out, 4);
-    if (!died) fprintf(stderr, "note: the run finished before SIGTERM\n");
+    if (old && !check_outcome(pid, SIGTERM, dir, out, old, 4)) fprintf(stderr, "note: the run finished first\n");
+    free(old);
 }
 
-/* Killed while writing many files: poll until the first file of the set
- * appears (a temporary, or already a finished texture), then interrupt. */
+/* Killed while writing many files: poll until the staging folder of the
+ * set appears beside the folder, then interrupt. */
 static void kill_while_writing(int sig) {
-    const char *dir = sb_tmpdir("signal");
-    char out[4200];
-    snprintf(out, sizeof out, "%s/out", dir);
+    const char *tmp = sb_tmpdir("signal");
+    char dir[4096], out[4200], *old = NULL;
+    snprintf(dir, sizeof dir, "%s", tmp);
+    previous_set(dir, out, sizeof out, &old);
     const char *args[] = {"factor",   "lambert", "--res",        "24", "-J", "400", "--param", "io",
                           "--method", "full",    "--metric-res", "4",  "-o", out,   NULL};
     pid_t pid = start(args);
     CHECK(pid > 0);
     for (int i = 0; i < 200000; i++) { /* at most ~20 s */
-        scan_t s = scan_dir(out);
-        if (s.tmp || s.exr) break;
-        int st;
-        if (waitpid(pid, &st, WNOHANG) == pid) { /* finished already: put it back for check_outcome */
-            scan_t f = scan_dir(out);
-            CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0, "status %d", st);
-            CHECKF(f.tmp == 0 && f.exr == 800 && f.report == 1, "finished run: %d tmp, %d EXR", f.tmp, f.exr);
-            return;
-        }
+        int staging = 0, st;
+        count_dir(dir, NULL, ".sepbrdf-new-", &staging);
+        if (staging || waitpid(pid, &st, WNOHANG) != 0) break;
         sleep_s(0.0001);
     }
     kill(pid, sig);
-    check_outcome(pid, sig, out, 400);
+    if (old) check_outcome(pid, sig, dir, out, old, 400);
+    free(old);
 }
 
 SB_TEST(sigterm_while_writing) { kill_while_writing(SIGTERM); }
 SB_TEST(sigint_while_writing) { kill_while_writing(SIGINT); }
 SB_TEST(sighup_while_writing) { kill_while_writing(SIGHUP); }
 
-/* A study interrupted leaves none of its files. */
+/* A study interrupted leaves nothing: no files, no staging folder. */
 SB_TEST(sigterm_study) {
     const char *dir = sb_tmpdir("signal");
     char out[4200];
@@ -144,12 +156,13 @@ SB_TEST(sigterm_study) {
     CHECK(pid > 0);
     sleep_s(0.3);
     kill(pid, SIGTERM);
-    int st = 0;
+    int st = 0, staging = 0;
     CHECK(waitpid(pid, &st, 0) == pid);
-    scan_t s = scan_dir(out);
-    CHECKF(s.tmp == 0, "temporary left: %s", s.first_tmp);
+    count_dir(dir, NULL, ".sepbrdf-new-", &staging);
+    CHECKF(!staging, "the staging folder of the study is left in %s", dir);
+    int n = count_dir(out, NULL, NULL, NULL);
     if (WIFSIGNALED(st))
-        CHECKF(s.other == 0, "interrupted study left %d files", s.other);
+        CHECKF(n == 0, "interrupted study left %d files", n);
     else
-        CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0 && s.other >= 4, "status %d, %d files", st, s.other);
+        CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0 && n >= 5, "status %d, %d files", st, n);
 }

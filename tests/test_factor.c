@@ -241,7 +241,7 @@ SB_TEST(plan_errors) {
     sb_plan_opts_t po = {0};
     po.terms = 17;
     CHECK(sb_plan_create(ctx, 16, 16, &po, &plan) == SB_ERR_RANGE && plan == NULL);
-    CHECK(strstr(sb_context_last_error(ctx), "--terms") != NULL);
+    CHECK(strstr(sb_context_last_error(ctx), "17 terms") != NULL); /* names the value, not a CLI option */
     po.terms = 2;
     po.max_error = 1.5;
     CHECK(sb_plan_create(ctx, 16, 16, &po, &plan) == SB_ERR_RANGE);
@@ -531,4 +531,48 @@ SB_TEST(errors_near_matches_explicit) {
         sb_param_destroy(p);
         sb_source_destroy(s);
     }
+}
+
+/* The solver registry: unique names; the factors' method is a registered
+ * solver whose capabilities match what it did (a masked matrix takes the
+ * solver with SB_CAP_MASKS); a plan made for the matrix gives the same
+ * factors as one made from its shape. */
+SB_TEST(solver_registry) {
+    size_t n = sb_solver_count();
+    CHECK(n >= 5 && sb_solver_name(n) == NULL && sb_solver_caps(n) == 0);
+    for (size_t i = 0; i < n; i++) {
+        CHECK(sb_solver_name(i) && strlen(sb_solver_description(i)) > 0);
+        for (size_t k = 0; k < i; k++)
+            CHECK(strcmp(sb_solver_name(i), sb_solver_name(k)) != 0);
+    }
+    sb_source_t *s = model("microfacet:base=gold,roughness=0.5");
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = 6;
+    CHECK(sb_param_create(NULL, SB_PARAM_HD, &o, &p) == SB_OK);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
+    sb_plan_opts_t po = {0};
+    po.terms = 3;
+    sb_plan_t *a = NULL, *b = NULL;
+    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &a) == SB_OK);
+    CHECK(sb_plan_create_for(NULL, &m, &po, &b) == SB_OK);
+    sb_factors_t *fa = NULL, *fb = NULL;
+    CHECK(sb_plan_execute(a, &m, p, &fa) == SB_OK && sb_plan_execute(b, &m, p, &fb) == SB_OK);
+    const char *method = sb_factors_get_meta(fb, "method");
+    size_t i = 0;
+    while (i < n && strcmp(sb_solver_name(i), method) != 0)
+        i++;
+    CHECKF(i < n && (sb_solver_caps(i) & SB_CAP_MASKS), "method %s", method);
+    CHECK(strcmp(sb_factors_get_meta(fa, "method"), method) == 0);
+    const sb_factor_errors_t *ea = sb_factors_errors(fa), *eb = sb_factors_errors(fb);
+    for (size_t j = 0; j < 3; j++)
+        CHECK(ea->rel_rms[sb_err_at(j, SB_CH_ALL)] == eb->rel_rms[sb_err_at(j, SB_CH_ALL)]);
+    sb_factors_destroy(fa);
+    sb_factors_destroy(fb);
+    sb_plan_destroy(a);
+    sb_plan_destroy(b);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
 }

@@ -8,30 +8,41 @@
 
 static int have_validator(void) { return sb_run("command -v glslangValidator", NULL, 0) == 0; }
 
-static int compile(const char *snippet, const char *dir, char *log, size_t logsz) {
+/* The profiles the snippet supports: desktop GLSL 3.30 core and 4.50 core,
+ * and GLSL ES 3.00 (WebGL2, GLES 3), which converts no int to float and
+ * needs precision qualifiers (the snippet declares them under GL_ES). */
+static const char *const profiles[] = {"#version 330 core", "#version 450 core", "#version 300 es"};
+#define NPROFILES (sizeof profiles / sizeof profiles[0])
+
+static int compile_as(const char *version, const char *snippet, const char *dir, char *log, size_t logsz) {
     char path[512], cmd[1024];
     snprintf(path, sizeof path, "%s/test.frag", dir);
     FILE *fp = fopen(path, "w");
     if (!fp) return -1;
     fprintf(fp,
-            "#version 330 core\n%s\n"
+            "%s\n%s\n"
             "in vec3 vL;\nin vec3 vV;\nout vec4 color;\n"
             "void main() { color = vec4(sb_brdf(normalize(vL), normalize(vV)), 1.0); }\n",
-            snippet);
+            version, snippet);
     fclose(fp);
     snprintf(cmd, sizeof cmd, "glslangValidator %s", path);
     return sb_run(cmd, log, logsz);
 }
 
+static int compile(const char *snippet, const char *dir, char *log, size_t logsz) {
+    return compile_as(profiles[0], snippet, dir, log, logsz);
+}
+
 /* Every parameterisation's sb_coords()/sb_domain() with every form, also
- * with a limited theta_max. */
+ * with a limited theta_max, in every profile; scales with integral values
+ * (1, 2) and fractional ones, as --half writes them. */
 SB_TEST(snippet_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
     const char *dir = sb_tmpdir("glsl");
     for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
         sb_param_opts_t o = {0};
         o.res = 16;
-        o.theta_max = kind == SB_PARAM_HD ? 1.2 : 0;
+        o.theta_max = kind == SB_PARAM_HD ? 1.0 : 0;
         sb_param_t *p;
         CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
         for (int form = 0; form < SB_FORM_COUNT_; form++) {
@@ -40,13 +51,28 @@ SB_TEST(snippet_compiles) {
             CHECK(s != NULL);
             CHECK(strstr(s, "#define SB_TERMS 3") != NULL);
             CHECK(strstr(s, sb_param_spec(p)) != NULL);
-            char log[8192];
-            int rc = compile(s, dir, log, sizeof log);
-            CHECKF(rc == 0, "%s form %d: glslangValidator failed:\n%s", sb_param_spec(p), form, log);
+            for (size_t v = 0; v < NPROFILES; v++) {
+                char log[8192];
+                int rc = compile_as(profiles[v], s, dir, log, sizeof log);
+                CHECKF(rc == 0, "%s form %d, %s: glslangValidator failed:\n%s", sb_param_spec(p), form, profiles[v],
+                       log);
+            }
             free(s);
         }
         sb_param_destroy(p);
     }
+}
+
+/* The ES check is real: the integer literals the snippet once wrote in
+ * float[N](1, 1) fail GLSL ES 3.00 (and pass 3.30 core, which converts). */
+SB_TEST(es_rejects_int_literals) {
+    if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
+    const char *dir = sb_tmpdir("glsl");
+    const char *bad = "precision highp float;\nconst float k[2] = float[2](1, 1);\n"
+                      "vec3 sb_brdf(vec3 L, vec3 V) { return L * k[0] + V * k[1]; }\n";
+    char log[8192];
+    CHECK(compile_as(profiles[0], bad, dir, log, sizeof log) == 0);
+    CHECK(compile_as(profiles[2], bad, dir, log, sizeof log) != 0);
 }
 
 /* The check is real: a snippet missing its coordinate function fails. */

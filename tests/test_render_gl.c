@@ -289,3 +289,81 @@ SB_TEST(factor_folder) {
     gl_sphere_close(gl);
 #endif
 }
+
+/* --half end to end: the texels as a program loads them from the EXR
+ * files (stored = value / sepbrdf.scale, the scale read with exrheader),
+ * the sepbrdf.glsl that `factor --half` wrote (its sb_scale carries the
+ * scales), rendered on the GPU, against the CPU render of the FLOAT output
+ * of the same run; and the same textures through a snippet with the
+ * scales all 1 are far off. */
+SB_TEST(half_through_snippet) {
+    NEED_GL();
+#ifdef SB_HAVE_GL
+    if (sb_run("command -v exrheader", NULL, 0) != 0) {
+        gl_sphere_close(gl);
+        SKIP("exrheader not installed (Debian: openexr)");
+    }
+    char dir[2][4096], cmd[8400], out[8192];
+    for (int half = 0; half < 2; half++) {
+        snprintf(dir[half], sizeof dir[half], "%s", sb_tmpdir("rendergl"));
+        snprintf(cmd, sizeof cmd, "%s factor -q --param io -r 16 -J 4 %s -o %s", SB_CLI, half ? "--half" : "",
+                 dir[half]);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 0, "factor rc %d: %s", rc, out);
+    }
+    sb_factors_t *ff = NULL, *fh = NULL;
+    sb_param_t *p = NULL;
+    sb_form_t form;
+    CHECK(sb_factors_read_exr(NULL, dir[0], &ff) == SB_OK && sb_factors_read_exr(NULL, dir[1], &fh) == SB_OK);
+    CHECK(ff && fh && sb_factors_param(NULL, ff, &p, &form) == SB_OK);
+    if (!p || !fh) return;
+    size_t J = sb_factors_terms(fh), C = sb_factors_channels(fh);
+    for (size_t j = 0; j < J; j++)
+        for (int side = 0; side < 2; side++) {
+            char name[64];
+            sb_exr_name(side, j, name, sizeof name);
+            snprintf(cmd, sizeof cmd, "exrheader %s/%s", dir[1], name);
+            CHECK(sb_run(cmd, out, sizeof out) == 0);
+            const char *at = strstr(out, "sepbrdf.scale (type float):");
+            double scale = at ? atof(at + strlen("sepbrdf.scale (type float):")) : 0;
+            CHECKF(scale > 0 && scale < 1, "%s: sepbrdf.scale %g", name, scale);
+            size_t w, h;
+            sb_factors_size(fh, side, &w, &h);
+            for (size_t c = 0; c < C && scale > 0; c++) {
+                double *t = sb_factors_tex(fh, side, j, c);
+                for (size_t i = 0; i < w * h; i++)
+                    t[i] /= scale; /* the stored value, as a texture upload sees it */
+            }
+        }
+    snprintf(cmd, sizeof cmd, "%s/sepbrdf.glsl", dir[1]);
+    FILE *fp = fopen(cmd, "rb");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    static char text[1 << 16];
+    size_t n = fread(text, 1, sizeof text - 1, fp);
+    text[n] = 0;
+    fclose(fp);
+    sb_render_opts_t o = {0};
+    o.size = SIZE;
+    sb_image_t cpu = {0}, gpu = {0}, ones = {0};
+    CHECK(sb_render_factors(NULL, &o, ff, p, form, 0, &cpu) == SB_OK);
+    int rc = gl_sphere_render(gl, text, fh, p, &o, &gpu, gl_err, sizeof gl_err);
+    CHECKF(rc == 0, "GL: %s", gl_err);
+    char *unscaled = sb_glsl_snippet(p, form, J, NULL);
+    CHECK(unscaled && gl_sphere_render(gl, unscaled, fh, p, &o, &ones, gl_err, sizeof gl_err) == 0);
+    free(unscaled);
+    if (rc == 0) {
+        double db = psnr(&cpu, &gpu), bad = psnr(&cpu, &ones);
+        printf("  --half through sepbrdf.glsl vs FLOAT on the CPU: %.2f dB; scales left at 1: %.2f dB\n", db, bad);
+        CHECKF(db >= PSNR_MIN, "PSNR %.2f dB", db);
+        CHECKF(bad < 20, "PSNR without scales %.2f dB", bad);
+    }
+    sb_image_free(&cpu);
+    sb_image_free(&gpu);
+    sb_image_free(&ones);
+    sb_param_destroy(p);
+    sb_factors_destroy(ff);
+    sb_factors_destroy(fh);
+    gl_sphere_close(gl);
+#endif
+}

@@ -12,7 +12,7 @@
  *     (the backward error of an SVD grows with the size and with s_1/||M||);
  *     inexact ones (randomized) stay above that optimum and below the true
  *     sigma_j;
- *   - the sign rule of factor.c: sum(g_j) > 0, or, when that sum vanishes
+ *   - the sign rule of the plan (plan.c): sum(g_j) > 0, or, when that sum vanishes
  *     to 1e-8 of sum |g_j|, the entry of largest magnitude is positive;
  *   - sb_factors_errors_against() reproduces the plan's own errors;
  *   - the stored precision (FLOAT and HALF, sb_factors_quantize) is finite
@@ -186,7 +186,7 @@ static int same_bits(const sb_factors_t *a, const sb_factors_t *b) {
     return 1;
 }
 
-/* The sign rule of factor.c, with margins around its 1e-8 tie threshold. */
+/* The sign rule of the plan (plan.c), with margins around its 1e-8 tie threshold. */
 static void check_signs(const sb_factors_t *f, const sb_matrix_t *m, const char *label) {
     size_t J = sb_factors_terms(f), n = m->rows;
     for (size_t j = 0; j < J; j++)
@@ -919,7 +919,8 @@ SB_TEST(all_models) {
 }
 
 /* Up-front refusal: sizes beyond the memory limit are SB_ERR_OVERFLOW with
- * the bytes needed and the option to lower, before anything is allocated. */
+ * the bytes needed and what to lower (the resolution; the library names no
+ * CLI option), before anything is allocated. */
 SB_TEST(memory_limit) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -930,17 +931,17 @@ SB_TEST(memory_limit) {
     CHECK(sb_matrix_build(ctx, s, p, NULL, &m) == SB_ERR_OVERFLOW);
     const char *msg = sb_context_last_error(ctx);
     /* 1024 x 1024 cells x 3 channels of 8 bytes + a 1-byte mask */
-    CHECKF(strstr(msg, "--res") && strstr(msg, "26214400"), "message: %s", msg);
+    CHECKF(strstr(msg, "resolution") && strstr(msg, "26214400"), "message: %s", msg);
     CHECK(m.data[0] == NULL && m.mask == NULL);
     sb_plan_t *plan = NULL;
     CHECK(sb_plan_create(ctx, 1024, 1024, NULL, &plan) == SB_ERR_OVERFLOW && plan == NULL);
     msg = sb_context_last_error(ctx);
-    CHECKF(strstr(msg, "--res") && strstr(msg, "bytes"), "message: %s", msg);
+    CHECKF(strstr(msg, "resolution") && strstr(msg, "bytes"), "message: %s", msg);
     sb_set_memory_limit(0);
     /* --res 512 of the CLI: 262144^2 cells, beyond any memory here */
     CHECK(sb_plan_create(ctx, (size_t)1 << 18, (size_t)1 << 18, NULL, &plan) == SB_ERR_OVERFLOW && plan == NULL);
     msg = sb_context_last_error(ctx);
-    CHECKF(strstr(msg, "--res") && strstr(msg, "618475290624"), "message: %s", msg);
+    CHECKF(strstr(msg, "resolution") && strstr(msg, "618475290624"), "message: %s", msg);
     /* products that overflow size_t */
     CHECK(sb_plan_create(ctx, SIZE_MAX / 2, 4, NULL, &plan) == SB_ERR_OVERFLOW);
     sb_factors_t *f = NULL;

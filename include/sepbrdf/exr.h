@@ -60,6 +60,15 @@ typedef struct sb_quantize_info {
 sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
                                 sb_factors_t **stored, sb_quantize_info_t *info);
 
+/* The per-term factor a shader applies to the stored texels: scales[j] =
+ * scale(g_j) * scale(h_j) with each texture's sepbrdf.scale as
+ * sb_factors_write_exr(opts) chooses it (all 1 for FLOAT), so that
+ * sum_j stored_g_j stored_h_j scales[j] is the reconstruction.  The GLSL
+ * snippet takes them as sb_scale (sb_glsl_snippet's `scales`).  scales
+ * receives sb_factors_terms(f) values.  Errors: the writer's (SB_ERR_NUMERIC,
+ * SB_ERR_RANGE), SB_ERR_ARG. */
+sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts, double *scales);
+
 /* File name of one texture: "g_00.exr" etc. written into buf. */
 void sb_exr_name(int side, size_t term, char *buf, size_t size);
 

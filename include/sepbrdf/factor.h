@@ -13,6 +13,7 @@
 #include "common.h"
 #include "matrix.h"
 #include "param.h"
+#include "solver.h"
 #include "source.h"
 #include "svd.h"
 
@@ -47,8 +48,11 @@ size_t sb_factors_meta_count(const sb_factors_t *f);
 void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value);
 
 /* Errors per number of terms, filled by sb_plan_execute (all zero before).
- * rel_rms[t * 4 + c]: after t+1 terms, channel c (0..2), index 3 = all
- * channels together; same layout for max_abs.  norm[c]: ||M_c||_F. */
+ * rel_rms[sb_err_at(t, c)]: after t+1 terms, channel c (0..2), c =
+ * SB_CH_ALL (3) all channels together; same layout for max_abs.
+ * norm[c]: ||M_c||_F. */
+#define SB_CH_ALL 3
+static inline size_t sb_err_at(size_t term, size_t channel) { return term * 4 + channel; }
 typedef struct sb_factor_errors {
     size_t terms;
     double *rel_rms;
@@ -140,7 +144,7 @@ typedef struct sb_plan_opts {
     int weighted;
     /* Cells with mask 0 (outside the domain, unmeasured) are excluded from
      * the fit by iterative imputation (see fit.c) unless zero_fill is set,
-     * in which case they are factored as zeros (the seeds' plain method). */
+     * in which case they are factored as zeros (the lecture's plain method). */
     int zero_fill;
     int fit_max_iters; /* masked fit: outer iterations, default 300 */
     double
@@ -156,13 +160,27 @@ typedef struct sb_plan_stats {
 } sb_plan_stats_t;
 void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
 
+/* Plan for rows x cols matrices: pick the solver from the registry
+ * (solver.h) and allocate every buffer sb_plan_execute needs.  A plan made
+ * from the shape alone plans a dense method; the masked fit (a matrix with
+ * excluded cells) or the block-circulant SVD (phi_period set) is planned on
+ * the first execute that needs it and kept.  sb_plan_create_for plans for
+ * the shape, mask and structure of m, so that execute allocates nothing
+ * but the factors it returns (and, for the masked fit, the lists of valid
+ * cells of the matrix at hand), for m and every matrix like it.
+ * Errors: SB_ERR_ARG (no output, empty matrix), SB_ERR_RANGE (terms above
+ * min(rows, cols), max_error outside [0, 1)), SB_ERR_OVERFLOW (beyond the
+ * memory limit), SB_ERR_NOMEM, and those of the solver's plan. */
 sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts, sb_plan_t **out);
+sb_result_t sb_plan_create_for(sb_context_t *ctx, const sb_matrix_t *m, const sb_plan_opts_t *opts, sb_plan_t **out);
 void sb_plan_destroy(sb_plan_t *plan);
-size_t sb_plan_terms(const sb_plan_t *plan);
 
 /* Factor every channel of m.  *out receives new factors (texture sizes from
- * `param`), with sigma, errors and the meta keys "param", "form", "method".
- * A channel missing in m (data[c] == NULL) is not computed. */
+ * `param`), with sigma, errors and the meta keys "param", "form", "method"
+ * (the solver's name, solver.h), "weighted".  A channel missing in m
+ * (data[c] == NULL) is not computed.  Errors: SB_ERR_ARG (sizes differ from
+ * the plan's or the parameterisation's), SB_ERR_NOMEM, SB_ERR_NUMERIC (a
+ * solver failed, a non-finite error). */
 sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out);
 
 #ifdef __cplusplus

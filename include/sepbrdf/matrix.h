@@ -63,9 +63,6 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
                             const sb_matrix_opts_t *opts, sb_matrix_t *out);
 void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */
 
-/* Frobenius norm of channel c over valid cells. */
-double sb_matrix_norm(const sb_matrix_t *m, int channel);
-
 #ifdef __cplusplus
 }
 #endif

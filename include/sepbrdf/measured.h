@@ -32,8 +32,9 @@
  * (l), wo towards the viewer (v).  A measured source returns 0 (missing) for
  * pairs with a direction at or below the horizon and for pairs the table
  * does not cover; sb_matrix_build() masks those cells.  The factorisation
- * currently excludes masked cells from the error report but factors them as
- * zeros (masked fitting is planned); see docs/measured.md.
+ * excludes masked cells from the fit (the masked solver, solver.h) and from
+ * the error report, unless asked to factor them as zeros (zero_fill in
+ * factor.h); see docs/measured.md.
  *
  * Scattered tables (Cornell, ALTA, CSV) are interpolated: see
  * sb_measured_opts_t.  All sources are read-only after opening, so eval is

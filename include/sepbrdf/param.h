@@ -8,7 +8,7 @@
  * texel x has its centre at s = (x + 0.5) / width; bilinear filtering between
  * centres; per-axis wrap CLAMP (clamp to edge) or REPEAT.
  *
- * io (the seeds' grid): a direction is (theta, phi), theta in [0, theta_max]
+ * io (the lecture's theta-phi grid): a direction is (theta, phi), theta in [0, theta_max]
  * (theta_max = pi/2 unless limited), phi in [0, 2 pi), R cells each, centres.
  * Sequential index k = R * i_phi + i_theta (theta varies fastest), so the
  * texture has x = theta index (s = theta / theta_max, CLAMP) and y = phi
@@ -57,7 +57,7 @@ extern "C" {
 #endif
 
 typedef enum sb_param_kind {
-    SB_PARAM_IO = 0,  /* seeds' theta-phi grid for (wi, wo) */
+    SB_PARAM_IO = 0,  /* the lecture's theta-phi grid for (wi, wo) */
     SB_PARAM_IO_AREA, /* (wi, wo) on an equal-area (concentric) hemisphere map */
     SB_PARAM_HD,      /* half / difference vectors, Gram-Schmidt frame */
     SB_PARAM_ISO,     /* rows theta_h, columns (theta_d, phi_d), isotropic */
@@ -69,16 +69,39 @@ enum { SB_SIDE_G = 0, SB_SIDE_H = 1 }; /* row textures g, column textures h */
 
 typedef struct sb_param_opts {
     size_t res; /* R: cells per angular axis (default 32) */
-    /* iso only, 0 = default: theta_h and theta_d cells res, phi_d cells 2 res */
+    /* iso only, 0 = default: theta_h cells res, theta_d cells 2 res, phi_d cells max(res / 2, 2) */
     size_t res_theta_h, res_theta_d, res_phi_d;
     double theta_max; /* largest sampled elevation in radians, 0 = pi/2 */
 } sb_param_opts_t;
 
 typedef struct sb_param sb_param_t;
 
-/* Parse a name ("io", "io-area", "hd", "iso"); SB_ERR_UNKNOWN otherwise. */
-sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
+/* Capabilities of a parameterisation; consumers test these, not kinds. */
+enum {
+    SB_CAP_SEPARABLE = 1u << 0,          /* st_g depends on wi alone, st_h on wo alone */
+    SB_CAP_ROTATION_INVARIANT = 1u << 1, /* coordinates unchanged by a common rotation of wi, wo about z */
+    SB_CAP_NEEDS_ISOTROPY = 1u << 2,     /* meaningful for isotropic sources only */
+    SB_CAP_FOLDS_RECIPROCITY = 1u << 3,  /* identifies (wi, wo) with (wo, wi): exact for reciprocal sources */
+    SB_CAP_PARTIAL_DOMAIN = 1u << 4,     /* some cells are no BRDF pair (masked unless zero-filled) */
+    SB_CAP_AZIMUTH_GRID = 1u << 5        /* rows and columns on the theta-phi grid: isotropic sources give
+                                            block-circulant matrices */
+};
+
+/* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
+ * "io-area", "hd", "iso"), one-line description and capabilities ("?" and 0
+ * for a kind out of range). */
+size_t sb_param_kind_count(void); /* SB_PARAM_KIND_COUNT_ */
 const char *sb_param_kind_name(sb_param_kind_t kind);
+const char *sb_param_kind_description(sb_param_kind_t kind);
+unsigned sb_param_kind_caps(sb_param_kind_t kind);
+/* Whether the kind suits a source with these flags (sb_source_flags):
+ * SB_CAP_NEEDS_ISOTROPY asks for SB_SOURCE_ISOTROPIC. */
+int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags);
+/* The names joined by sep into buf (snprintf rules: truncated to size,
+ * always terminated when size > 0); returns the full length. */
+size_t sb_param_kind_list(char *buf, size_t size, const char *sep);
+/* Parse a name of the registry; SB_ERR_UNKNOWN otherwise. */
+sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
 
 /* Parse a spec "KIND[:key=value,...]" into kind and options; keys res, th,
  * td, pd (iso only) and theta_max (degrees), as sb_param_spec() writes them,
@@ -93,6 +116,7 @@ void sb_param_destroy(sb_param_t *p);
 
 sb_param_kind_t sb_param_kind(const sb_param_t *p);
 const char *sb_param_name(const sb_param_t *p);
+unsigned sb_param_caps(const sb_param_t *p); /* sb_param_kind_caps of its kind */
 /* Canonical spec string, e.g. "io:res=32" or "iso:th=90,td=90,pd=180";
  * theta_max (degrees) is appended when not 90. */
 const char *sb_param_spec(const sb_param_t *p);

@@ -4,6 +4,7 @@
 
 #include "channels.h"
 #include "common.h"
+#include "estimate.h"
 #include "exr.h"
 #include "factor.h"
 #include "glsl.h"
@@ -11,9 +12,12 @@
 #include "matrix.h"
 #include "measured.h"
 #include "models.h"
+#include "outset.h"
 #include "param.h"
 #include "render.h"
+#include "solver.h"
 #include "source.h"
 #include "svd.h"
+#include "viewer.h"
 
 #endif

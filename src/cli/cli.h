@@ -29,6 +29,8 @@ void cli_info(int level, const char *fmt, ...) __attribute__((format(printf, 2, 
 int cli_exit_code(sb_result_t r);
 /* Report a failed library call with the context's detail; returns the exit code. */
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r);
+/* "io, io-area, hd, iso": the parameterisations of the library's registry. */
+const char *cli_param_names(void);
 
 /* Option parsing helpers: "--opt=value" or "--opt value". */
 typedef struct cli_args {
@@ -70,12 +72,11 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 
-/* mkdir -p; 0 on success. */
-int cli_mkdirs(const char *path);
-/* Check, before any work, that `path` is a writable folder or can be
- * created (its nearest existing ancestor is a writable folder).  Prints
- * "CMD: OPT PATH: why" and returns EXIT_IO (EXIT_USAGE for an empty or
- * over-long name) when not; EXIT_OK otherwise. */
+/* Check, before any work, that an output set can be published in folder
+ * `path` (sb_outset_check: a folder of its own, writable or creatable,
+ * name not too long).  Prints "CMD: OPT PATH: why" and returns its exit
+ * code (EXIT_USAGE for an empty name, EXIT_IO otherwise); EXIT_OK when
+ * it can. */
 int cli_check_outdir(const char *cmd, const char *opt, const char *path);
 double cli_now(void);
 
@@ -105,26 +106,36 @@ void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *
 void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t res);
 
 /* Open `path`.tmp-PID for writing; cli_commit renames it into place (or
- * removes it when ok == 0).  Return 0 on success.  The temporary is
- * guarded (cli_guard) from open to commit. */
+ * removes it when ok == 0).  cli_commit returns 0 on success, else the
+ * errno of the failure (ECANCELED when ok == 0; see sb_io_why).  The
+ * temporary is guarded (cli_guard) from open to commit. */
 FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size);
 int cli_commit(FILE *fp, const char *tmp, const char *path, int ok);
 
 /* Cleanup on interruption.  cli_signals_install() catches SIGINT, SIGTERM
- * and SIGHUP (those not ignored); the handler unlinks every guarded file,
- * restores the default action and re-raises the signal, so the run still
- * ends "killed by SIGTERM".  It uses only unlink() on prebuilt or
- * stack-formatted names (async-signal-safe).
+ * and SIGHUP (those not ignored) and ignores SIGXFSZ (so a write past the
+ * file size limit fails with EFBIG and is reported).  The handler removes
+ * the staging folder of the open output set (sb_outset_discard_signal_safe)
+ * and every guarded file, restores the default action and re-raises the
+ * signal, so the run still ends "killed by SIGTERM"; the folder keeps its
+ * previous set.  It uses only unlink(), rmdir(), open() and getdents64 on
+ * prebuilt names (async-signal-safe).
  * cli_guard: remove `path` if a signal ends the run (32 at a time; -1 when
- * full or longer than 4095 bytes).  cli_unguard: forget it.
- * cli_guard_exr: the texture set of sb_factors_write_exr in `dir`, terms
- * 0..terms-1: its temporaries DIR/.g_KK.exr.tmp-PID (exr.h) and, with
- * finals, the finished DIR/g_KK.exr too (same for h); one set at a time. */
+ * full or longer than 4095 bytes).  cli_unguard: forget it. */
 void cli_signals_install(void);
 int cli_guard(const char *path);
 void cli_unguard(const char *path);
-int cli_guard_exr(const char *dir, size_t terms, int finals);
-void cli_unguard_exr(void);
+
+/* The output set of a command (outset.h) in `dir`: cli_outset_begin locks
+ * it and opens the staging folder, guarded against signals; on failure
+ * prints "CMD: --out ..." and returns NULL with *rc the exit code.
+ * cli_set_file puts "STAGING/name" into path (size bytes) and adds name to
+ * the set; -1 on a bad or too long name.  cli_outset_end publishes the set
+ * (ok != 0) or discards it, releases it and returns the exit code (message
+ * printed on failure).  s may be NULL. */
+sb_outset_t *cli_outset_begin(sb_context_t *ctx, const char *cmd, const char *dir, int *rc);
+int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size);
+int cli_outset_end(sb_context_t *ctx, const char *cmd, sb_outset_t *s, int ok);
 
 /* Subcommands */
 int cmd_bench(int argc, char **argv);
@@ -135,6 +146,11 @@ int cmd_info(int argc, char **argv);
 int cmd_sample(int argc, char **argv);
 int cmd_convert(int argc, char **argv);
 int cmd_render(int argc, char **argv);
+int cmd_view(int argc, char **argv);
+
+/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into
+ * buf; 0 on success, -1 when absent or unreadable. */
+int cli_read_source_spec(const char *dir, char *buf, size_t size);
 
 /* Print the metadata of a factor file (an EXR written by `factor`) to out:
  * texture size, term and J, sigma_j per channel (of every term whose g file

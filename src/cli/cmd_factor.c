@@ -1,4 +1,5 @@
 /* sepbrdf factor: sample -> matrix -> truncated SVD -> EXR + report + GLSL. */
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,7 +41,8 @@ static void help(void) {
            "                       instead of excluding them (masked fit, the default)\n"
            "      --metric-res R   reference io grid of the comparable error (default 32)\n"
            "      --method M       auto (default), full (dgesdd), topk, randomized\n"
-           "      --max-error E    keep the fewest terms whose relative RMS error is <= E\n"
+           "      --max-error E    keep the fewest terms whose headline error (f cos theta_i, as a\n"
+           "                       shader outputs it) is <= E\n"
            "                       (0 < E < 1); J (default 32 here, at most R) is then the\n"
            "                       upper limit\n"
            "      --channels C     channels to factor, any of R, G, B (e.g. G or R,B;\n"
@@ -55,8 +57,9 @@ static void help(void) {
            "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
            "i.e. direction k = R * i_phi + i_theta of the seeds' sequentialisation.\n"
            "\n"
-           "Files are written under temporary names and renamed when complete; a run\n"
-           "interrupted (SIGINT, SIGTERM, SIGHUP) while writing removes the set.\n"
+           "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
+           "and swapped in whole when complete: the folder holds the previous set until\n"
+           "then, whatever ends the run; files sepbrdf did not write stay.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -107,7 +110,7 @@ static int parse(int argc, char **argv, factor_opts_t *o) {
             if (strcmp(v, "auto") == 0) {
                 o->param_auto = 1;
             } else if (sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("factor", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
+                cli_error("factor", "--param '%s' unknown, need one of auto, %s", v, cli_param_names());
                 return EXIT_USAGE;
             } else {
                 o->param_auto = 0;
@@ -185,6 +188,42 @@ typedef struct report_ctx {
     const double *rel_stored; /* rel_rms of the stored (FLOAT/HALF) factors, J * 4; NULL if unknown */
 } report_ctx_t;
 
+/* Whether the headline does not rise with J' by more than two standard
+ * errors plus 2 % (out of sample, more terms can fit the cells better and
+ * the pairs between them worse; a rise within 2 % is not worth a
+ * warning). */
+static int headline_non_increasing(const attempt_t *a) {
+    const sb_estimate_t *e = a->est;
+    for (size_t k = 1; k < e->terms; k++) {
+        double prev = e->rel[k - 1][SB_EST_FCOS][3], d = e->rel[k][SB_EST_FCOS][3] - prev;
+        double se = hypot(e->se[k][SB_EST_FCOS][3], e->se[k - 1][SB_EST_FCOS][3]);
+        if (d > 2 * se + 0.02 * prev) return 0;
+    }
+    return 1;
+}
+
+/* The estimator's keys of errors[k] (J' = k + 1). */
+static void write_estimate(json_t *j, const attempt_t *a, size_t k, const sb_matrix_t *m) {
+    static const char *const cn[3] = {"R", "G", "B"};
+    const sb_estimate_t *e = a->est;
+    int have = k < e->terms;
+    json_number(j, "headline", have ? e->rel[k][SB_EST_FCOS][3] : NAN);
+    json_number(j, "headline_se", have ? e->se[k][SB_EST_FCOS][3] : NAN);
+    json_begin_object(j, "headline_channel");
+    for (int c = 0; c < 3; c++)
+        if (m->data[c]) json_number(j, cn[c], have ? e->rel[k][SB_EST_FCOS][c] : NAN);
+    json_end_object(j);
+    json_number(j, "comparable", have ? e->rel[k][SB_EST_FCOS2][3] : NAN);
+    json_number(j, "comparable_se", have ? e->se[k][SB_EST_FCOS2][3] : NAN);
+    json_number(j, "comparable_grid", k < a->metric.terms ? a->metric.rel_l2[k] : NAN);
+    json_number(j, "rel_f", have ? e->rel[k][SB_EST_F][3] : NAN);
+    json_number(j, "rel_f_se", have ? e->se[k][SB_EST_F][3] : NAN);
+    json_number(j, "p99_rel", have ? e->p99[k][3] : NAN);
+    json_number(j, "max_rel", have ? e->max_rel[k][3] : NAN);
+    json_number(j, "overshoot", have ? e->overshoot[k] : NAN);
+    json_number(j, "negative_fraction", have ? e->neg_frac[k] : NAN);
+}
+
 static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     static const char *const cn[3] = {"R", "G", "B"};
     const factor_opts_t *o = rx->o;
@@ -260,18 +299,17 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     for (size_t k = 0; k < J; k++) {
         json_begin_object(j, NULL);
         json_int(j, "terms", (long long)(k + 1));
-        json_number(j, "rel_rms", e->rel_rms[k * 4 + 3]);
-        json_number(j, "rel_rms_stored", rx->rel_stored ? rx->rel_stored[k * 4 + 3] : NAN);
-        json_number(j, "max_abs", e->max_abs[k * 4 + 3]);
-        json_number(j, "comparable", attempt_comparable(a, k + 1));
-        json_number(j, "negative_fraction", attempt_negative(a, k + 1));
+        json_number(j, "rel_rms", e->rel_rms[sb_err_at(k, SB_CH_ALL)]);
+        json_number(j, "rel_rms_stored", rx->rel_stored ? rx->rel_stored[sb_err_at(k, SB_CH_ALL)] : NAN);
+        json_number(j, "max_abs", e->max_abs[sb_err_at(k, SB_CH_ALL)]);
+        write_estimate(j, a, k, m);
         json_begin_object(j, "rel_rms_channel");
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) json_number(j, cn[c], e->rel_rms[k * 4 + (size_t)c]);
+            if (m->data[c]) json_number(j, cn[c], e->rel_rms[sb_err_at(k, c)]);
         json_end_object(j);
         json_begin_object(j, "max_abs_channel");
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) json_number(j, cn[c], e->max_abs[k * 4 + (size_t)c]);
+            if (m->data[c]) json_number(j, cn[c], e->max_abs[sb_err_at(k, c)]);
         json_end_object(j);
         json_end_object(j);
     }
@@ -279,9 +317,20 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     cli_report_measured(j, rx->src, f, param, m->form);
     json_number(j, "negative_texels", a->metric.neg_texels);
     json_int(j, "metric_resolution", (long long)o->metric_res);
+    const sb_estimate_t *est = a->est;
+    json_begin_object(j, "estimate");
+    json_int(j, "pairs", (long long)est->pairs);
+    json_int(j, "known", (long long)est->known);
+    json_bool(j, "converged", est->converged);
+    json_bool(j, "headline_non_increasing", headline_non_increasing(a));
+    json_end_object(j);
+    json_string(j, "form_choice",
+                o->form_set ? "as asked (--form); the headline measures what its division does"
+                            : (o->param_auto ? "auto: lowest headline among f and cos (cos2 is no candidate: dividing "
+                                               "by cos theta_o is unbounded near the horizon in f cos theta_i)"
+                                             : "f, the default"));
     if (o->param_auto) {
         const pipe_cand_t *cd = rx->cands;
-        json_int(j, "auto_metric_resolution", (long long)(o->metric_res < 16 ? o->metric_res : 16));
         json_begin_array(j, "auto_tried");
         for (size_t i = 0; i < rx->ncand; i++) {
             json_begin_object(j, NULL);
@@ -289,7 +338,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
             json_string(j, "form", sb_form_name(cd[i].form));
             json_bool(j, "weighted", cd[i].weighted);
             json_bool(j, "ok", cd[i].ok);
-            json_number(j, "comparable", cd[i].ok ? cd[i].err : NAN);
+            json_number(j, "headline", cd[i].ok ? cd[i].err : NAN);
             json_end_object(j);
         }
         json_end_array(j);
@@ -298,6 +347,7 @@ static void write_report(json_t *j, const report_ctx_t *rx, const double t[4]) {
     json_number(j, "sample_s", t[0]);
     json_number(j, "factor_s", t[1]);
     json_number(j, "metric_s", a->t_metric);
+    json_number(j, "estimate_s", a->t_estimate);
     json_number(j, "write_s", t[2]);
     json_number(j, "total_s", t[3]);
     json_end_object(j);
@@ -325,16 +375,19 @@ static void print_table(const attempt_t *a) {
     const sb_matrix_t *m = &a->m;
     const sb_factor_errors_t *e = sb_factors_errors(f);
     size_t J = sb_factors_terms(f);
-    printf("%4s  %12s  %12s  %12s  %9s", "J", "comparable", "rel_rms", "max_abs", "negative");
+    printf("%4s  %12s  %9s  %12s  %12s  %12s  %9s", "J", "headline", "+-", "comparable", "rel_rms", "max_abs",
+           "negative");
     static const char *const cn[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; c++)
         if (m->data[c]) printf("  %10s_%s", "rel_rms", cn[c]);
     printf("\n");
     for (size_t k = 0; k < J; k++) {
-        printf("%4zu  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, attempt_comparable(a, k + 1), e->rel_rms[k * 4 + 3],
-               e->max_abs[k * 4 + 3], 100 * attempt_negative(a, k + 1));
+        double se = k < a->est->terms ? a->est->se[k][SB_EST_FCOS][3] : NAN;
+        printf("%4zu  %12.4e  %9.2e  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, attempt_headline(a, k + 1), se,
+               attempt_comparable(a, k + 1), e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
+               100 * attempt_negative(a, k + 1));
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) printf("  %12.4e", e->rel_rms[k * 4 + (size_t)c]);
+            if (m->data[c]) printf("  %12.4e", e->rel_rms[sb_err_at(k, c)]);
         printf("\n");
     }
 }
@@ -356,27 +409,16 @@ int cmd_factor(int argc, char **argv) {
     if (!o.source) o.source = DEFAULT_SOURCE;
     if (o.max_error > 0 && !o.terms_set) o.terms = o.res < 32 ? o.res : 32; /* upper limit for --max-error */
     if ((rc = cli_check_outdir("factor", "--out", o.out)) != EXIT_OK) return rc;
-    pipe_opts_t po = {o.res,
-                      o.terms,
-                      o.metric_res,
-                      o.theta_max_deg,
-                      o.max_error,
-                      o.method,
-                      o.seed,
-                      o.zero_fill,
-                      "sampling",
-                      0,
-                      1,
-                      o.channels,
-                      0,
-                      0};
+    pipe_opts_t po = {
+        o.res,    o.terms, o.metric_res, o.theta_max_deg, 0, /* --max-error acts on the estimator's headline, below */
+        o.method, o.seed,  o.zero_fill,  "sampling",      0, 1, o.channels, 0, 0, NULL, o.half, 0};
 
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
     attempt_t best = {0};
     double *rel_stored = NULL; /* errors of the stored precision, J * 4 */
     sb_result_t r;
-    int guarded = 0;
+    sb_outset_t *set = NULL;
     double t0 = cli_now();
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
@@ -390,9 +432,25 @@ int cmd_factor(int argc, char **argv) {
     pipe_cand_t cands[PIPE_MAX_CANDS];
     size_t ncand = pipe_candidates(src, &po, o.param_auto, o.param, o.form_set, o.form, o.weighted, cands);
     if ((r = pipe_select(ctx, "factor", src, &po, cands, ncand, &best)) != SB_OK) goto fail;
+    if (o.max_error > 0) { /* the fewest terms whose headline meets --max-error */
+        size_t keep = sb_factors_terms(best.f);
+        for (size_t k = keep; k >= 1; k--)
+            if (attempt_headline(&best, k) <= o.max_error) keep = k;
+        if ((r = attempt_truncate(ctx, &best, keep)) != SB_OK) goto fail;
+    }
+    if (best.stats.masked && !best.stats.fit_converged)
+        cli_error("factor",
+                  "warning: the masked fit did not converge in %d sweeps (report.json: fit.converged false); "
+                  "its errors are those of the factors written",
+                  best.stats.fit_iterations);
+    if (!headline_non_increasing(&best))
+        cli_error("factor",
+                  "warning: the headline error rises with J' (report.json: errors[].headline): the later terms fit "
+                  "the sampled cells but not the pairs between them; fewer terms or a finer --res do better");
+    if (!best.est->converged)
+        cli_info(1, "factor: the error estimate kept a standard error above 5 %% at %zu pairs", best.est->pairs);
     if (o.param_auto && g_verbosity >= 1) {
-        fprintf(stderr, "--param auto tried (comparable error at J = %zu, reference grid %zu):\n", o.terms,
-                ncand > 1 && po.metric_res > 16 ? (size_t)16 : po.metric_res);
+        fprintf(stderr, "--param auto tried (headline error, f cos theta_i, at J = %zu):\n", o.terms);
         for (size_t i = 0; i < ncand; i++)
             if (cands[i].ok)
                 fprintf(stderr, "  %-8s form %-4s %s %.4e\n", sb_param_kind_name(cands[i].kind),
@@ -401,27 +459,16 @@ int cmd_factor(int argc, char **argv) {
     }
 
     double t2 = cli_now();
-    if (cli_mkdirs(o.out) != 0) {
-        cli_error("factor", "--out %s: cannot create the output folder", o.out);
-        rc = EXIT_IO;
-        goto out;
-    }
-    /* From here to the last rename, an interrupt removes the whole set. */
-    pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 1);
-    guarded = 1;
+    /* The whole set goes into a staging folder published in one step
+     * (outset.h): DIR keeps its previous set until then. */
+    if (!(set = cli_outset_begin(ctx, "factor", o.out, &rc))) goto out;
+    const char *sd = sb_outset_dir(set);
     sb_exr_opts_t eo = {o.half};
-    if ((r = sb_factors_write_exr(ctx, best.f, o.out, &eo)) != SB_OK) goto fail;
-    /* Terms beyond J left by an earlier run into the same folder would be
-     * taken for part of this set: remove them. */
-    for (size_t k = sb_factors_terms(best.f);; k++) {
-        int gone = 1;
-        for (int side = 0; side < 2; side++) {
-            char name[64], path[4200];
-            sb_exr_name(side, k, name, sizeof name);
-            snprintf(path, sizeof path, "%s/%s", o.out, name);
-            if (remove(path) == 0) gone = 0;
-        }
-        if (gone) break;
+    if ((r = sb_factors_write_exr(ctx, best.f, sd, &eo)) != SB_OK) goto fail;
+    for (size_t k = 0; k < 2 * sb_factors_terms(best.f); k++) {
+        char name[64];
+        sb_exr_name((int)(k % 2), k / 2, name, sizeof name);
+        sb_outset_add(set, name);
     }
     /* The error of what was stored (float or half), not only of the double fit */
     {
@@ -439,30 +486,35 @@ int cmd_factor(int argc, char **argv) {
         sb_factors_destroy(q);
         free(mx);
     }
-    if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, o.out)) != SB_OK) goto fail;
-    char path[4096];
-    snprintf(path, sizeof path, "%s/sepbrdf.glsl", o.out);
-    if ((r = sb_glsl_write(ctx, path, best.param, best.m.form, sb_factors_terms(best.f), NULL)) != SB_OK) goto fail;
+    if (factor_previews && (r = sb_factors_write_previews(ctx, best.f, sd)) != SB_OK) goto fail;
+    char path[4200];
+    cli_set_file(set, "sepbrdf.glsl", path, sizeof path);
+    /* the snippet's sb_scale: what the shader multiplies the stored texels by (HALF) */
+    double *scales = malloc(sb_factors_terms(best.f) * sizeof *scales);
+    r = scales ? sb_exr_term_scales(ctx, best.f, &eo, scales) : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK) r = sb_glsl_write(ctx, path, best.param, best.m.form, sb_factors_terms(best.f), scales);
+    free(scales);
+    if (r != SB_OK) goto fail;
     double t3 = cli_now();
     double t[4] = {best.t_sample, best.t_factor, t3 - t2, t3 - t0};
-    snprintf(path, sizeof path, "%s/report.json", o.out);
-    char tmp[4200];
+    cli_set_file(set, "report.json", path, sizeof path);
+    char tmp[4300];
     FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        cli_error("factor", "%s: cannot write", path);
+    int e = fp ? 0 : errno;
+    if (fp) {
+        json_t j = {fp, 0, {0}};
+        report_ctx_t rx = {&o, src, &best, cands, ncand, rel_stored};
+        write_report(&j, &rx, t);
+        e = cli_commit(fp, tmp, path, 1);
+    }
+    if (e) {
+        cli_error("factor", "%s/report.json: cannot write: %s", o.out, sb_io_why(e));
         rc = EXIT_IO;
         goto out;
     }
-    json_t j = {fp, 0, {0}};
-    report_ctx_t rx = {&o, src, &best, cands, ncand, rel_stored};
-    write_report(&j, &rx, t);
-    if (cli_commit(fp, tmp, path, 1) != 0) {
-        cli_error("factor", "%s: cannot write", path);
-        rc = EXIT_IO;
-        goto out;
-    }
-    pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
-    guarded = 0;
+    rc = cli_outset_end(ctx, "factor", set, 1);
+    set = NULL;
+    if (rc != EXIT_OK) goto out;
     if (g_verbosity >= 1) {
         printf("sepbrdf factor: %s\n  %s, %zu x %zu matrix, form %s%s, %zu terms, method %s\n",
                sb_source_description(src), sb_param_spec(best.param), best.m.rows, best.m.cols,
@@ -480,7 +532,7 @@ fail:
     rc = cli_fail("factor", ctx, r);
 out:
     free(rel_stored);
-    if (guarded) pipe_guard_factor_outputs(o.out, sb_factors_terms(best.f), 0);
+    cli_outset_end(ctx, "factor", set, 0); /* a set not published: discarded */
     attempt_free(&best);
     sb_source_destroy(src);
     sb_context_destroy(ctx);

@@ -1,10 +1,10 @@
 /* sepbrdf render: the original BRDF and its reconstructions on a lit sphere,
  * PNG strips and errors per J. */
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include "cli.h"
 #include "pipeline.h"
@@ -168,7 +168,7 @@ static int parse(int argc, char **argv, render_opts_t *o) {
             if (m < 0) return EXIT_USAGE;
             o->param_auto = strcmp(v, "auto") == 0;
             if (!o->param_auto && sb_param_kind_parse(v, &o->param) != SB_OK) {
-                cli_error("render", "--param '%s' unknown, need one of auto, io, io-area, hd, iso", v);
+                cli_error("render", "--param '%s' unknown, need one of auto, %s", v, cli_param_names());
                 return EXIT_USAGE;
             }
             o->factor_opt_name = "--param";
@@ -237,33 +237,6 @@ static int parse(int argc, char **argv, render_opts_t *o) {
     return -1; /* go on */
 }
 
-/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into buf;
- * 0 on success.  The string is JSON-escaped by our writer: \" \\ \n \t. */
-static int read_source_spec(const char *dir, char *buf, size_t size) {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/report.json", dir);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return -1;
-    static char text[1 << 16];
-    size_t n = fread(text, 1, sizeof text - 1, fp);
-    fclose(fp);
-    text[n] = 0;
-    const char *p = strstr(text, "\"source_spec\": \"");
-    if (!p) return -1;
-    p += strlen("\"source_spec\": \"");
-    size_t k = 0;
-    for (; *p && *p != '"' && k + 1 < size; p++) {
-        if (*p == '\\' && p[1]) {
-            p++;
-            buf[k++] = *p == 'n' ? '\n' : *p == 't' ? '\t' : *p;
-        } else {
-            buf[k++] = *p;
-        }
-    }
-    buf[k] = 0;
-    return *p == '"' && k > 0 ? 0 : -1;
-}
-
 static int is_dir(const char *path) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
@@ -273,23 +246,20 @@ static int is_dir(const char *path) {
  * selection), with J = the largest of the list.  *best owns the kept attempt. */
 static sb_result_t factor_source(sb_context_t *ctx, const render_opts_t *o, const sb_source_t *src, size_t J,
                                  attempt_t *best) {
-    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0};
+    pipe_opts_t po = {o->res, J, 32, o->theta_max_deg, 0, o->method, 1, o->zero_fill, NULL, 0, 0, 0, 0, 0, NULL, 0, 0};
     pipe_cand_t cands[PIPE_MAX_CANDS];
     size_t ncand = pipe_candidates(src, &po, o->param_auto, o->param, o->form_set, o->form, o->weighted, cands);
     return pipe_select(ctx, "render", src, &po, cands, ncand, best);
 }
 
-/* original.png (b NULL) or a strip, its temporary PATH.tmp-PID (image.h)
- * guarded against signals while written. */
-static sb_result_t write_png(sb_context_t *ctx, const char *path, const sb_image_t *a, const sb_image_t *b,
-                             const render_opts_t *o) {
-    char tmp[4300];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    cli_guard(tmp);
-    sb_result_t r =
-        b ? sb_image_write_strip_png(ctx, path, a, b, &o->tm, o->diff_scale) : sb_image_write_png(ctx, path, a, &o->tm);
-    cli_unguard(tmp);
-    return r;
+/* original.png (b NULL) or a strip, into the output set. */
+static sb_result_t write_png(sb_context_t *ctx, sb_outset_t *set, const char *name, const sb_image_t *a,
+                             const sb_image_t *b, const render_opts_t *o) {
+    char path[4200];
+    if (cli_set_file(set, name, path, sizeof path) != 0)
+        return sb_error(ctx, SB_ERR_IO, "%s/%s: name too long", sb_outset_target(set), name);
+    return b ? sb_image_write_strip_png(ctx, path, a, b, &o->tm, o->diff_scale)
+             : sb_image_write_png(ctx, path, a, &o->tm);
 }
 
 static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src, const sb_param_t *param,
@@ -366,6 +336,7 @@ int cmd_render(int argc, char **argv) {
     if ((rc = cli_check_outdir("render", "--out", o.out)) != EXIT_OK) return rc;
 
     sb_context_t *ctx = NULL;
+    sb_outset_t *set = NULL;
     sb_source_t *src = NULL;
     sb_param_t *param = NULL;
     sb_factors_t *f = NULL;
@@ -385,7 +356,7 @@ int cmd_render(int argc, char **argv) {
          * model spec is, a measured table's is not) */
         char given[4096];
         const char *spec = o.source;
-        if (!spec && read_source_spec(o.input, given, sizeof given) == 0 &&
+        if (!spec && cli_read_source_spec(o.input, given, sizeof given) == 0 &&
             pipe_source_open(ctx, given, &o.mo, &src) == SB_OK)
             spec = given;
         if (!spec) spec = sb_factors_get_meta(f, "source");
@@ -442,38 +413,36 @@ int cmd_render(int argc, char **argv) {
     }
     sb_image_diff_t d[MAX_TERMS_LIST];
     char names[MAX_TERMS_LIST][32], path[4200];
-    if (cli_mkdirs(o.out) != 0) {
-        cli_error("render", "--out %s: cannot create the output folder", o.out);
-        rc = EXIT_IO;
-        goto out;
-    }
-    snprintf(path, sizeof path, "%s/original.png", o.out);
-    if ((r = write_png(ctx, path, &orig, NULL, &o)) != SB_OK) goto fail;
+    /* The images go into a staging folder published in one step (outset.h) */
+    if (!(set = cli_outset_begin(ctx, "render", o.out, &rc))) goto out;
+    if ((r = write_png(ctx, set, "original.png", &orig, NULL, &o)) != SB_OK) goto fail;
     for (size_t k = 0; k < o.nterms; k++) {
         cli_progress("rendering", (double)(k + 1) / (double)(o.nterms + 1));
         sb_image_free(&rec);
         if ((r = sb_render_factors(ctx, &o.scene, f, param, form, o.terms[k], &rec)) != SB_OK) goto fail;
         if ((r = sb_image_compare(ctx, &orig, &rec, &o.tm, &d[k])) != SB_OK) goto fail;
         snprintf(names[k], sizeof names[k], "render_J%02zu.png", o.terms[k]);
-        snprintf(path, sizeof path, "%s/%s", o.out, names[k]);
-        if ((r = write_png(ctx, path, &orig, &rec, &o)) != SB_OK) goto fail;
+        if ((r = write_png(ctx, set, names[k], &orig, &rec, &o)) != SB_OK) goto fail;
     }
     cli_progress_done();
-    snprintf(path, sizeof path, "%s/render.json", o.out);
     char tmp[4300];
-    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        cli_error("render", "%s: cannot write", path);
+    FILE *fp = cli_set_file(set, "render.json", path, sizeof path) ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
+    int e = fp ? 0 : errno;
+    if (fp) {
+        json_t j = {fp, 0, {0}};
+        write_json(&j, &o, src, param, form, d, names);
+        e = cli_commit(fp, tmp, path, 1);
+    }
+    if (e) {
+        cli_error("render", "%s/render.json: cannot write: %s", o.out, sb_io_why(e));
         rc = EXIT_IO;
         goto out;
     }
-    json_t j = {fp, 0, {0}};
-    write_json(&j, &o, src, param, form, d, names);
-    if (cli_commit(fp, tmp, path, 1) != 0) {
-        cli_error("render", "%s: cannot write", path);
-        rc = EXIT_IO;
+    if ((rc = cli_outset_end(ctx, "render", set, 1)) != EXIT_OK) {
+        set = NULL;
         goto out;
     }
+    set = NULL;
     if (g_verbosity >= 1) {
         printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
                sb_source_description(src), sb_param_spec(param), sb_form_name(form), o.scene.size, o.scene.size,
@@ -491,6 +460,7 @@ fail:
     cli_progress_done();
     rc = cli_fail("render", ctx, r);
 out:
+    cli_outset_end(ctx, "render", set, 0); /* a set not published: discarded */
     sb_image_free(&orig);
     sb_image_free(&rec);
     sb_factors_destroy(f);

@@ -115,25 +115,31 @@ int cmd_sample(int argc, char **argv) {
     size_t rows = 0;
     if (!out || strcmp(out, "-") == 0) {
         r = sb_gonio_write_csv(ctx, stdout, src, &go, &rows);
-        if (r == SB_OK && fflush(stdout) != 0) r = sb_error(ctx, SB_ERR_IO, "standard output: %s", strerror(errno));
+        if (r == SB_OK && fflush(stdout) != 0)
+            r = sb_error(ctx, SB_ERR_IO, "standard output: cannot write: %s", sb_io_why(errno));
         rc = r == SB_OK ? EXIT_OK : cli_fail("sample", ctx, r);
         goto done;
     }
     char tmp[4200];
+    /* Written as OUT.tmp-PID beside it and renamed when complete: OUT is
+     * the previous file or the new one, never a part (SIGXFSZ is ignored,
+     * so a file size limit is a write error, cleaned up here). */
     FILE *fp = cli_open_tmp(out, tmp, sizeof tmp);
     if (!fp) {
-        cli_error("sample", "--out %s: cannot write: %s", out, strerror(errno));
+        cli_error("sample", "--out %s: cannot write: %s", out, sb_io_why(errno));
         rc = EXIT_IO;
         goto done;
     }
     r = sb_gonio_write_csv(ctx, fp, src, &go, &rows);
+    int e = r == SB_ERR_IO && ferror(fp) ? (errno ? errno : EIO) : 0; /* the failed write's */
     if (r != SB_OK) {
         cli_commit(fp, tmp, out, 0);
-        rc = cli_fail("sample", ctx, r);
+        if (e) cli_error("sample", "--out %s: cannot write: %s", out, sb_io_why(e));
+        rc = e ? EXIT_IO : cli_fail("sample", ctx, r);
         goto done;
     }
-    if (cli_commit(fp, tmp, out, 1) != 0) {
-        cli_error("sample", "--out %s: cannot write", out);
+    if ((e = cli_commit(fp, tmp, out, 1)) != 0) {
+        cli_error("sample", "--out %s: cannot write: %s", out, sb_io_why(e));
         rc = EXIT_IO;
         goto done;
     }

@@ -11,7 +11,7 @@
  * same sampled matrix.  The "fit" column says which ("nested" or "refit").
  *
  * Outputs in the folder: study.csv, study.json, study.dat + study.gp (the
- * gnuplot data and script) and study.png (comparable error vs J, log y). */
+ * gnuplot data and script) and study.png (headline error vs J, log y). */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -29,13 +29,13 @@
 static void help(void) {
     printf("usage: sepbrdf study SOURCE... [OPTIONS]\n"
            "\n"
-           "For every SOURCE x parameterisation x J, factor and measure: comparable error\n"
-           "(resampled, solid-angle integrated; the one to compare across\n"
-           "parameterisations), native relative RMS and max error of the matrix, the\n"
+           "For every SOURCE x parameterisation x J, factor and measure: headline error\n"
+           "(f cos theta_i as the shader returns it, out of sample; the one to compare\n"
+           "across parameterisations), comparable (f cos cos), native relative RMS and max error of the matrix, the\n"
            "fraction of pairs reconstructed negative, and times. Writes into the folder:\n"
            "  study.csv            one row per source x parameterisation x J\n"
            "  study.json           the same with settings, failures and fit details\n"
-           "  study.png            comparable error vs J, log scale, one line per\n"
+           "  study.png            headline error vs J, log scale, one line per\n"
            "                       source/parameterisation (needs gnuplot; study.gp and\n"
            "                       study.dat are the script and data it ran)\n"
            "and prints a table on stdout.\n"
@@ -85,7 +85,7 @@ typedef struct study_opts {
 /* Errors after J terms of one run. */
 typedef struct row {
     size_t terms;
-    double comparable, rel_rms, max_abs, neg_frac;
+    double headline, comparable, rel_rms, max_abs, neg_frac;
     double t_factor, t_metric; /* of the factorisation the row was read from */
 } row_t;
 
@@ -207,14 +207,14 @@ static int parse_params(const char *s, study_opts_t *o) {
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         sb_param_kind_t k;
         if (sb_param_kind_parse(t, &k) != SB_OK) {
-            cli_error("study", "--param '%s' unknown, need a comma list of io, io-area, hd, iso, or all", t);
+            cli_error("study", "--param '%s' unknown, need a comma list of %s, or all", t, cli_param_names());
             return -1;
         }
         o->params |= 1u << k;
     }
     if (o->params) return 0;
 bad:
-    cli_error("study", "--param '%s': need a comma list of io, io-area, hd, iso, or all", s);
+    cli_error("study", "--param '%s': need a comma list of %s, or all", s, cli_param_names());
     return -1;
 }
 
@@ -286,10 +286,11 @@ static int take_rows(run_t *r, const study_opts_t *o, const attempt_t *a, size_t
         if (!o->want_j[j] || j > have) continue;
         row_t *w = &r->r[r->nr++];
         w->terms = j;
-        w->comparable = a->metric.rel_l2[j - 1];
-        w->rel_rms = e->rel_rms[(j - 1) * 4 + 3];
-        w->max_abs = e->max_abs[(j - 1) * 4 + 3];
-        w->neg_frac = a->metric.neg_frac[j - 1];
+        w->headline = attempt_headline(a, j);
+        w->comparable = attempt_comparable(a, j);
+        w->rel_rms = e->rel_rms[sb_err_at(j - 1, SB_CH_ALL)];
+        w->max_abs = e->max_abs[sb_err_at(j - 1, SB_CH_ALL)];
+        w->neg_frac = attempt_negative(a, j);
         w->t_factor = a->t_factor;
         w->t_metric = a->t_metric;
     }
@@ -304,17 +305,22 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, sb_param_kind_name((sb_param_kind_t)r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
-    pipe_opts_t po = {o->res,       o->jmax, o->metric_res, 90,         0, o->method, 1,
-                      o->zero_fill, label,   base,          0.3 * span, 0, 0,         0};
+    pipe_opts_t po = {o->res, o->jmax, o->metric_res, 90, 0, o->method, 1, o->zero_fill, label, base, 0.3 * span, 0,
+                      0,      0,       NULL,          0,  0};
     attempt_t a;
     sb_context_clear_error(ctx);
-    sb_result_t res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);
+    sb_result_t res = sb_pairs_create(ctx, src, NULL, &po.pairs); /* shared by every J */
+    if (res == SB_OK)
+        res = attempt_sample(ctx, src, &po, (sb_param_kind_t)r->kind, o->form, &a);
+    else
+        memset(&a, 0, sizeof a);
     if (a.param) r->param_spec = dup_str(sb_param_spec(a.param));
     r->r = calloc(o->nj, sizeof *r->r);
     if (res == SB_OK && !r->r) res = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (res != SB_OK) {
         run_fail(r, sb_context_last_error(ctx));
         attempt_free(&a);
+        sb_pairs_destroy(po.pairs);
         return;
     }
     r->rows = a.m.rows;
@@ -341,6 +347,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     else
         r->ok = 1;
     attempt_free(&a);
+    sb_pairs_destroy(po.pairs);
 }
 
 /* ---- outputs ----------------------------------------------------------- */
@@ -361,7 +368,7 @@ static void csv_field(FILE *fp, const char *s) {
 
 static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp, "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,"
-                "sample_s,factor_s,metric_s\n");
+                "sample_s,factor_s,metric_s,headline\n");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         if (!r->ok) continue;
@@ -370,9 +377,9 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             csv_field(fp, r->spec);
             fprintf(fp, ",%s,", sb_param_kind_name((sb_param_kind_t)r->kind));
             csv_field(fp, r->param_spec);
-            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f\n", sb_form_name(o->form), o->weighted,
+            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g\n", sb_form_name(o->form), o->weighted,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
-                    r->t_sample, w->t_factor, w->t_metric);
+                    r->t_sample, w->t_factor, w->t_metric, w->headline);
         }
     }
 }
@@ -427,6 +434,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
             const row_t *w = &r->r[k];
             json_begin_object(&j, NULL);
             json_int(&j, "terms", (long long)w->terms);
+            json_number(&j, "headline", w->headline);
             json_number(&j, "comparable", w->comparable);
             json_number(&j, "rel_rms", w->rel_rms);
             json_number(&j, "max_abs", w->max_abs);
@@ -458,9 +466,9 @@ static void write_dat(FILE *fp, const runs_t *rs) {
         const run_t *r = &rs->v[i];
         if (!r->ok || !r->nr) continue;
         if (block++) fputs("\n\n", fp); /* gnuplot: two blank lines end an index block */
-        fprintf(fp, "# %s (%s)\n# J comparable rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
+        fprintf(fp, "# %s (%s)\n# J headline rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
         for (size_t k = 0; k < r->nr; k++)
-            fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].comparable, PLOT_FLOOR),
+            fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].headline, PLOT_FLOOR),
                     fmax(r->r[k].rel_rms, PLOT_FLOOR));
     }
 }
@@ -477,7 +485,7 @@ static void gp_quote(FILE *fp, const char *s) {
 
 static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp,
-            "# sepbrdf study: comparable error vs J. Re-run with `gnuplot study.gp` in this\n"
+            "# sepbrdf study: headline error vs J. Re-run with `gnuplot study.gp` in this\n"
             "# folder; `gnuplot -e \"outfile='x.png'\" study.gp` writes elsewhere.\n"
             "# Errors below %g (exact fits) are drawn at %g.\n"
             "if (!exists(\"outfile\")) outfile = 'study.png'\n"
@@ -489,7 +497,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             "set output outfile\n"
             "set title 'sepbrdf study: R = %zu, form %s%s'\n"
             "set xlabel 'J (terms)'\n"
-            "set ylabel 'comparable error (relative L2 of f cos cos)'\n"
+            "set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'\n"
             "set logscale y\n"
             "set format y '%%.0e'\n"
             "set grid\n"
@@ -537,25 +545,23 @@ static void w_gp(FILE *fp, const void *p) {
     write_gp(fp, a->o, a->rs);
 }
 
-static int write_file(const char *dir, const char *name, writer_fn fn, const void *arg) {
+/* One file of the set; messages name it in the target folder. */
+static int write_file(sb_outset_t *set, const char *name, writer_fn fn, const void *arg) {
     char path[4200], tmp[4300];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        cli_error("study", "%s: cannot write: %s", path, strerror(errno));
-        return -1;
+    int e = cli_set_file(set, name, path, sizeof path) ? ENAMETOOLONG : 0;
+    FILE *fp = e ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
+    if (!e && !fp) e = errno;
+    if (fp) {
+        fn(fp, arg);
+        e = cli_commit(fp, tmp, path, 1);
     }
-    fn(fp, arg);
-    if (cli_commit(fp, tmp, path, 1) != 0) {
-        cli_error("study", "%s: cannot write", path);
-        return -1;
-    }
-    return 0;
+    if (e) cli_error("study", "%s/%s: cannot write: %s", sb_outset_target(set), name, sb_io_why(e));
+    return e ? -1 : 0;
 }
 
 /* Run gnuplot on study.gp in `dir`, output to a temporary, renamed to
  * study.png on success.  1 plotted, 0 skipped (warning printed). */
-static int run_gnuplot(const char *dir) {
+static int run_gnuplot(const char *dir, const char *target) {
     const char *exe = getenv("SEPBRDF_GNUPLOT");
     if (!exe || !*exe) exe = "gnuplot";
     char tmpname[64], tmp[4300], path[4200], expr[128];
@@ -584,9 +590,9 @@ static int run_gnuplot(const char *dir) {
                   "are written",
                   exe);
     } else if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
-        cli_error("study", "warning: %s failed on %s/study.gp; study.png skipped", exe, dir);
+        cli_error("study", "warning: %s failed on %s/study.gp; study.png skipped", exe, target);
     } else if (rename(tmp, path) != 0) {
-        cli_error("study", "warning: %s: cannot rename: %s", path, strerror(errno));
+        cli_error("study", "warning: %s/study.png: cannot rename: %s", target, strerror(errno));
     } else {
         ok = 1;
     }
@@ -595,21 +601,9 @@ static int run_gnuplot(const char *dir) {
     return ok;
 }
 
-static void guard_outputs(const char *dir, int on) {
-    static const char *const names[] = {"study.csv", "study.dat", "study.gp", "study.png", "study.json"};
-    char path[4200];
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
-        snprintf(path, sizeof path, "%s/%s", dir, names[i]);
-        if (on)
-            cli_guard(path);
-        else
-            cli_unguard(path);
-    }
-}
-
 static void print_table(const runs_t *rs) {
-    printf("%-30s %-7s %4s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "comparable", "rel_rms",
-           "max_abs", "negative", "time_s", "fit");
+    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "headline", "comparable",
+           "rel_rms", "max_abs", "negative", "time_s", "fit");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         const char *pn = r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : "-";
@@ -619,9 +613,9 @@ static void print_table(const runs_t *rs) {
         }
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
-                   w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac, r->t_sample + w->t_factor + w->t_metric,
-                   r->masked ? "refit" : "nested");
+            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
+                   w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
+                   r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
         }
     }
 }
@@ -651,6 +645,7 @@ int cmd_study(int argc, char **argv) {
     }
 
     sb_context_t *ctx = NULL;
+    sb_outset_t *set = NULL;
     runs_t rs = {0};
     sb_source_t **srcs = calloc(o.nsources, sizeof *srcs);
     size_t *first_run = calloc(o.nsources + 1, sizeof *first_run);
@@ -677,7 +672,7 @@ int cmd_study(int argc, char **argv) {
         unsigned flags = sb_source_flags(srcs[s]);
         for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
             if (!o.param_all && !(o.params & (1u << k))) continue;
-            int iso_ok = k != SB_PARAM_ISO || (flags & SB_SOURCE_ISOTROPIC);
+            int iso_ok = sb_param_kind_applies((sb_param_kind_t)k, flags);
             sb_param_t *probe = NULL;
             sb_param_opts_t pp = {0};
             pp.res = o.res;
@@ -725,32 +720,25 @@ int cmd_study(int argc, char **argv) {
         else
             failed++;
     }
-    if (cli_mkdirs(o.out) != 0) {
-        cli_error("study", "--out %s: cannot create the output folder: %s", o.out, strerror(errno));
-        rc = EXIT_IO;
-        goto out;
-    }
-    /* An interrupt while writing removes the whole set (cli_guard), so
-     * the folder never mixes files of two studies. */
-    guard_outputs(o.out, 1);
+    /* The files go into a staging folder published in one step (outset.h),
+     * so the folder never mixes files of two studies. */
+    if (!(set = cli_outset_begin(ctx, "study", o.out, &rc))) goto out;
     out_args_t oa = {&o, &rs, failed, NULL};
     int plotted = 0;
-    if (write_file(o.out, "study.csv", w_csv, &oa) || write_file(o.out, "study.dat", w_dat, &oa) ||
-        write_file(o.out, "study.gp", w_gp, &oa)) {
+    if (write_file(set, "study.csv", w_csv, &oa) || write_file(set, "study.dat", w_dat, &oa) ||
+        write_file(set, "study.gp", w_gp, &oa)) {
         rc = EXIT_IO;
         goto out;
     }
-    if (good) plotted = run_gnuplot(o.out);
-    if (!plotted) { /* a plot left by an earlier study would not match */
-        char png[4200];
-        snprintf(png, sizeof png, "%s/study.png", o.out);
-        unlink(png);
-    }
+    if (good) plotted = run_gnuplot(sb_outset_dir(set), o.out);
     oa.plot = plotted ? "study.png" : NULL;
-    if (write_file(o.out, "study.json", w_json, &oa)) {
+    if (write_file(set, "study.json", w_json, &oa)) {
         rc = EXIT_IO;
         goto out;
     }
+    rc = cli_outset_end(ctx, "study", set, 1);
+    set = NULL;
+    if (rc != EXIT_OK) goto out;
     if (g_verbosity >= 1) {
         print_table(&rs);
         printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
@@ -765,7 +753,7 @@ nomem:
     cli_error("study", "out of memory");
     rc = EXIT_IO;
 out:
-    guard_outputs(o.out, 0);
+    cli_outset_end(ctx, "study", set, 0); /* a set not published: discarded */
     for (size_t s = 0; srcs && s < o.nsources; s++)
         sb_source_destroy(srcs[s]);
     free(srcs);

@@ -1,4 +1,5 @@
 /* sepbrdf: command-line front end.  Only calls the public API. */
+#include <errno.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -18,6 +19,7 @@ static const command_t commands[] = {
     {"info", cmd_info, "describe a file: factor EXR metadata, or a measured table"},
     {"convert", cmd_convert, "write any source as a MERL .binary or a CSV table"},
     {"render", cmd_render, "render the original and reconstructions on a lit sphere (PNG, PSNR)"},
+    {"view", cmd_view, "write an interactive viewer page (index.html, WebGL2) for a factor folder"},
     {"bench", cmd_bench, "benchmark the factor step: time, error, memory per method"},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
@@ -41,13 +43,25 @@ static void usage(FILE *fp) {
                 "  -V, --version    print the version and exit\n"
                 "  -h, --help       this text\n"
                 "Results go to stdout or files; messages and progress to stderr (progress\n"
-                "only when stderr is a terminal). Outputs are written under temporary\n"
-                "names and renamed when complete; SIGINT/SIGTERM/SIGHUP remove them.\n"
+                "only when stderr is a terminal). An output folder is written beside itself\n"
+                "and swapped in whole when complete: a run that fails or is killed leaves\n"
+                "the folder's previous set; files sepbrdf did not write are kept.\n"
                 "\n" CLI_EXIT_HELP);
 }
 
-int main(int argc, char **argv) {
-    cli_signals_install();
+/* Results on stdout that could not all be written (a full disk, a closed
+ * file) fail the run like any other output file: exit 2. */
+static int finish(int rc) {
+    errno = 0;
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        int e = errno ? errno : EIO;
+        cli_error(NULL, "standard output: cannot write: %s", sb_io_why(e));
+        return rc == EXIT_OK || rc == EXIT_USAGE ? EXIT_IO : rc;
+    }
+    return rc;
+}
+
+static int run(int argc, char **argv) {
     /* display options before the command */
     while (argc >= 2 && cli_verbosity_opt(argv[1])) {
         argv[1] = argv[0];
@@ -72,4 +86,9 @@ int main(int argc, char **argv) {
     }
     cli_error(NULL, "unknown command '%s' (see `sepbrdf --help`)", c);
     return EXIT_USAGE;
+}
+
+int main(int argc, char **argv) {
+    cli_signals_install();
+    return finish(run(argc, argv));
 }

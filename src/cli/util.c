@@ -1,6 +1,8 @@
 /* CLI helpers: messages, option parsing, progress, JSON, atomic files,
  * cleanup on interruption. */
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -53,8 +55,15 @@ int cli_exit_code(sb_result_t r) {
 
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     const char *detail = sb_context_last_error(ctx);
-    cli_error(cmd, "%s", detail && *detail ? detail : sb_result_message(r));
+    cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r),
+              r == SB_ERR_OVERFLOW ? " (lower --res)" : ""); /* sizes beyond memory come from the resolution */
     return cli_exit_code(r);
+}
+
+const char *cli_param_names(void) {
+    static char names[256];
+    if (!names[0]) sb_param_kind_list(names, sizeof names, ", ");
+    return names;
 }
 
 int cli_verbosity_opt(const char *arg) {
@@ -192,78 +201,16 @@ int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo,
     return 0;
 }
 
-int cli_mkdirs(const char *path) {
-    char buf[4096];
-    size_t n = strlen(path);
-    if (n == 0 || n >= sizeof buf) return -1;
-    memcpy(buf, path, n + 1);
-    for (size_t i = 1; i <= n; i++) {
-        if (buf[i] == '/' || buf[i] == 0) {
-            char c = buf[i];
-            buf[i] = 0;
-            if (mkdir(buf, 0777) != 0 && errno != EEXIST) return -1;
-            buf[i] = c;
-        }
-    }
-    struct stat st;
-    return (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) ? 0 : -1;
-}
-
-/* Whether we can create entries in folder `dir`: try it (access() says
- * yes to root everywhere, even in /proc) with a probe folder removed at
- * once.  0 or an errno. */
-static int probe_dir(const char *dir) {
-    char probe[4200];
-    snprintf(probe, sizeof probe, "%s/.sepbrdf-probe-%ld", dir, (long)getpid());
-    if (mkdir(probe, 0700) != 0) return errno;
-    rmdir(probe);
-    return 0;
-}
-
-/* The nearest existing ancestor of a missing folder decides whether it can
- * be created: it must be a folder we can create entries in. */
 int cli_check_outdir(const char *cmd, const char *opt, const char *path) {
-    char buf[4096];
-    struct stat st;
-    size_t n = strlen(path);
-    if (n == 0 || n >= sizeof buf) {
-        cli_error(cmd, "%s '%s': bad folder name", opt, path);
-        return EXIT_USAGE;
-    }
-    memcpy(buf, path, n + 1);
-    while (n > 1 && buf[n - 1] == '/')
-        buf[--n] = 0;
-    int exists = stat(buf, &st) == 0;
-    while (!exists) { /* walk up to the first component that exists */
-        char *slash = strrchr(buf, '/');
-        if (!slash)
-            strcpy(buf, ".");
-        else if (slash == buf)
-            buf[1] = 0;
-        else
-            *slash = 0;
-        if (stat(buf, &st) == 0) break;
-        if (strcmp(buf, ".") == 0 || strcmp(buf, "/") == 0) {
-            cli_error(cmd, "%s %s: cannot create the output folder", opt, path);
-            return EXIT_IO;
-        }
-    }
-    if (!S_ISDIR(st.st_mode)) {
-        if (exists)
-            cli_error(cmd, "%s %s: exists and is not a folder", opt, path);
-        else
-            cli_error(cmd, "%s %s: cannot create the output folder, %s is not a folder", opt, path, buf);
+    sb_context_t *ctx = NULL;
+    if (sb_context_create(&ctx) != SB_OK) {
+        cli_error(cmd, "out of memory");
         return EXIT_IO;
     }
-    int e = probe_dir(buf);
-    if (e) {
-        if (exists)
-            cli_error(cmd, "%s %s: cannot write into the folder: %s", opt, path, strerror(e));
-        else
-            cli_error(cmd, "%s %s: cannot create the output folder in %s: %s", opt, path, buf, strerror(e));
-        return EXIT_IO;
-    }
-    return EXIT_OK;
+    sb_result_t r = sb_outset_check(ctx, path);
+    if (r != SB_OK) cli_error(cmd, "%s %s", opt, sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+    return cli_exit_code(r);
 }
 
 double cli_now(void) {
@@ -382,7 +329,27 @@ void json_bool(json_t *j, const char *key, int v) {
     fputs(v ? "true" : "false", j->fp);
 }
 
+/* Remove PATH.tmp-PID files beside `path` whose process is gone (a run
+ * killed while writing it); others' live temporaries stay. */
+static void remove_stale_tmp(const char *path) {
+    const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
+    char dir[4096], name[512];
+    if (slash && (size_t)(slash - path) >= sizeof dir) return;
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - path) + (slash == path) : 1, slash ? path : ".");
+    int n = snprintf(name, sizeof name, "%s.tmp-", base);
+    DIR *d = n > 0 && (size_t)n < sizeof name ? opendir(dir) : NULL;
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        const char *pid = e->d_name + n;
+        if (strncmp(e->d_name, name, (size_t)n) != 0 || !*pid || strspn(pid, "0123456789") != strlen(pid)) continue;
+        long p = strtol(pid, NULL, 10);
+        if (p > 0 && p != (long)getpid() && kill((pid_t)p, 0) != 0 && errno == ESRCH) unlinkat(dirfd(d), e->d_name, 0);
+    }
+    if (d) closedir(d);
+}
+
 FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size) {
+    remove_stale_tmp(path);
     snprintf(tmp, tmp_size, "%s.tmp-%ld", path, (long)getpid());
     cli_guard(tmp); /* before it exists: a signal in between finds nothing */
     FILE *fp = fopen(tmp, "wb");
@@ -391,17 +358,16 @@ FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size) {
 }
 
 int cli_commit(FILE *fp, const char *tmp, const char *path, int ok) {
+    int e = ok ? 0 : ECANCELED;
     if (fp) {
-        if (fflush(fp) != 0 || ferror(fp)) ok = 0;
-        if (fclose(fp) != 0) ok = 0;
+        errno = 0;
+        if ((fflush(fp) != 0 || ferror(fp)) && !e) e = errno ? errno : EIO;
+        if (fclose(fp) != 0 && !e) e = errno ? errno : EIO;
     }
-    int rc = 0;
-    if (!(ok && rename(tmp, path) == 0)) {
-        remove(tmp);
-        rc = -1;
-    }
+    if (!e && rename(tmp, path) != 0) e = errno;
+    if (e) remove(tmp);
     cli_unguard(tmp);
-    return rc;
+    return e;
 }
 
 /* ---- cleanup on SIGINT, SIGTERM, SIGHUP ---------------------------------
@@ -418,9 +384,8 @@ int cli_commit(FILE *fp, const char *tmp, const char *path, int ok) {
 static char guard_path[GUARD_SLOTS][GUARD_PATH];
 static atomic_int guard_used[GUARD_SLOTS];
 
-static char guard_exr_dir[GUARD_PATH];
-static atomic_size_t guard_exr_terms; /* 0 = no EXR set guarded */
-static atomic_int guard_exr_finals;
+static char guard_set[GUARD_PATH]; /* staging folder of the open output set */
+static atomic_int guard_set_on;
 
 int cli_guard(const char *path) {
     size_t n = strlen(path);
@@ -442,69 +407,9 @@ void cli_unguard(const char *path) {
         }
 }
 
-int cli_guard_exr(const char *dir, size_t terms, int finals) {
-    size_t n = strlen(dir);
-    if (n + 64 >= GUARD_PATH || terms == 0) return -1;
-    atomic_store(&guard_exr_terms, 0);
-    memcpy(guard_exr_dir, dir, n + 1);
-    atomic_store(&guard_exr_finals, finals);
-    atomic_store(&guard_exr_terms, terms);
-    return 0;
-}
-
-void cli_unguard_exr(void) { atomic_store(&guard_exr_terms, 0); }
-
-/* Append s to buf (capacity cap, length *n), always terminated. */
-static void sig_cat(char *buf, size_t *n, size_t cap, const char *s) {
-    while (*s && *n + 1 < cap)
-        buf[(*n)++] = *s++;
-    buf[*n] = 0;
-}
-
-/* Append v in decimal with at least `width` digits. */
-static void sig_num(char *buf, size_t *n, size_t cap, unsigned long long v, int width) {
-    char d[24];
-    int k = 0;
-    do {
-        d[k++] = (char)('0' + v % 10);
-        v /= 10;
-    } while (v && k < 20);
-    while (k < width && k < 20)
-        d[k++] = '0';
-    while (k > 0 && *n + 1 < cap)
-        buf[(*n)++] = d[--k];
-    buf[*n] = 0;
-}
-
-/* The names sb_factors_write_exr uses (exr.h): DIR/.g_KK.exr.tmp-PID and
- * DIR/g_KK.exr, the same for h; K is the 0-based term, two digits at least. */
-static void sig_unlink_exr(void) {
-    size_t terms = atomic_load(&guard_exr_terms);
-    int finals = atomic_load(&guard_exr_finals);
-    unsigned long long pid = (unsigned long long)getpid();
-    char buf[GUARD_PATH + 64];
-    for (size_t k = 0; k < terms; k++)
-        for (int side = 0; side < 2; side++)
-            for (int tmp = 0; tmp < 2; tmp++) {
-                if (!tmp && !finals) continue;
-                size_t n = 0;
-                buf[0] = 0;
-                sig_cat(buf, &n, sizeof buf, guard_exr_dir);
-                sig_cat(buf, &n, sizeof buf, tmp ? "/." : "/");
-                sig_cat(buf, &n, sizeof buf, side ? "h_" : "g_");
-                sig_num(buf, &n, sizeof buf, k, 2);
-                sig_cat(buf, &n, sizeof buf, ".exr");
-                if (tmp) {
-                    sig_cat(buf, &n, sizeof buf, ".tmp-");
-                    sig_num(buf, &n, sizeof buf, pid, 1);
-                }
-                unlink(buf);
-            }
-}
-
 static void on_signal(int sig) {
     int saved = errno;
-    sig_unlink_exr();
+    if (atomic_load(&guard_set_on)) sb_outset_discard_signal_safe(guard_set);
     for (int i = 0; i < GUARD_SLOTS; i++)
         if (atomic_load(&guard_used[i])) unlink(guard_path[i]);
     if (prog_shown) {
@@ -519,6 +424,9 @@ static void on_signal(int sig) {
 
 void cli_signals_install(void) {
     static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+    /* Past the file size limit write() then fails with EFBIG, and the
+     * failing writer cleans up and reports, instead of a silent death. */
+    signal(SIGXFSZ, SIG_IGN);
     for (size_t i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
         struct sigaction old, sa;
         if (sigaction(sigs[i], NULL, &old) != 0 || old.sa_handler == SIG_IGN) continue; /* nohup: keep ignoring */
@@ -527,4 +435,73 @@ void cli_signals_install(void) {
         sigfillset(&sa.sa_mask); /* one cleanup at a time */
         sigaction(sigs[i], &sa, NULL);
     }
+}
+
+/* ---- output sets --------------------------------------------------------- */
+
+/* The staging folder the signal handler removes. */
+static void guard_staging(void *user, const char *staging) {
+    (void)user;
+    size_t n = strlen(staging);
+    atomic_store(&guard_set_on, 0);
+    if (n >= GUARD_PATH) return;
+    memcpy(guard_set, staging, n + 1);
+    atomic_store(&guard_set_on, 1);
+}
+
+sb_outset_t *cli_outset_begin(sb_context_t *ctx, const char *cmd, const char *dir, int *rc) {
+    sb_outset_opts_t so = {cmd, 0, guard_staging, NULL};
+    sb_outset_t *s = NULL;
+    sb_result_t r = sb_outset_begin(ctx, dir, &so, &s);
+    if (r != SB_OK) {
+        atomic_store(&guard_set_on, 0);
+        cli_error(cmd, "--out %s", sb_context_last_error(ctx));
+        *rc = cli_exit_code(r);
+        return NULL;
+    }
+    return s;
+}
+
+int cli_outset_end(sb_context_t *ctx, const char *cmd, sb_outset_t *s, int ok) {
+    int rc = EXIT_OK;
+    if (s && ok) {
+        sb_result_t r = sb_outset_commit(s);
+        if (r != SB_OK) rc = cli_fail(cmd, ctx, r);
+    }
+    sb_outset_destroy(s); /* discards a set not published */
+    atomic_store(&guard_set_on, 0);
+    return rc;
+}
+
+int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size) {
+    if (sb_outset_add(s, name) != SB_OK) return -1;
+    int n = snprintf(path, size, "%s/%s", sb_outset_dir(s), name);
+    return n < 0 || (size_t)n >= size ? -1 : 0;
+}
+
+/* "source_spec" of DIR/report.json (SOURCE as given to `factor`) into buf;
+ * 0 on success.  The string is JSON-escaped by our writer: \" \\ \n \t. */
+int cli_read_source_spec(const char *dir, char *buf, size_t size) {
+    char path[4200];
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return -1;
+    static char text[1 << 16];
+    size_t n = fread(text, 1, sizeof text - 1, fp);
+    fclose(fp);
+    text[n] = 0;
+    const char *p = strstr(text, "\"source_spec\": \"");
+    if (!p) return -1;
+    p += strlen("\"source_spec\": \"");
+    size_t k = 0;
+    for (; *p && *p != '"' && k + 1 < size; p++) {
+        if (*p == '\\' && p[1]) {
+            p++;
+            buf[k++] = *p == 'n' ? '\n' : *p == 't' ? '\t' : *p;
+        } else {
+            buf[k++] = *p;
+        }
+    }
+    buf[k] = 0;
+    return *p == '"' && k > 0 ? 0 : -1;
 }

@@ -34,16 +34,15 @@
  * order into its own slot and the slots are added in unit order, so the
  * result does not depend on the thread count. */
 #include <math.h>
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "sepbrdf/factor.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 #define MAXJ 256
-#define MAXT 64
 
 static size_t wrap_i(long i, size_t n, int mode) {
     if (mode == SB_WRAP_REPEAT) {
@@ -250,15 +249,9 @@ static void *worker(void *arg) {
 
 /* Run fn on units 0..R-1, on nt threads (the caller's included). */
 static void run_units(work_t *w, void (*fn)(work_t *, size_t), int nt) {
-    pthread_t th[MAXT];
-    int started[MAXT] = {0};
     w->fn = fn;
     atomic_store(&w->next, 0);
-    for (int t = 1; t < nt; t++)
-        started[t] = pthread_create(&th[t], NULL, worker, w) == 0;
-    worker(w);
-    for (int t = 1; t < nt; t++)
-        if (started[t]) pthread_join(th[t], NULL);
+    sb_parallel_run(worker, w, 0, nt, NULL, NULL);
 }
 
 static void work_free(work_t *w) {
@@ -286,7 +279,7 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f), R = o.res, N = R * R;
     if (J > MAXJ) J = MAXJ;
     int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
-    sb_param_kind_t kind = sb_param_kind(p);
+    unsigned caps = sb_param_caps(p);
 
     work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C};
     w.tex[0] = malloc((J * C + 1) * sizeof *w.tex[0]);
@@ -311,7 +304,7 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
             w.tknown = NULL;
         }
     }
-    if (kind == SB_PARAM_IO || kind == SB_PARAM_IO_AREA) {
+    if (caps & SB_CAP_SEPARABLE) {
         for (int s = 0; s < 2; s++)
             w.side[s] = sb_alloc(NULL, N, J * C * sizeof *w.side[s], "");
         if (!w.side[0] || !w.side[1]) {
@@ -337,14 +330,12 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
         w.guard[1][t] = form == SB_FORM_COS2 ? g : 1;
     }
 
-    int nt = sb_thread_count(o.threads);
-    if (nt > MAXT) nt = MAXT;
-    if ((size_t)nt > R) nt = (int)R;
+    int nt = sb_threads_for(o.threads, R, R, 0);
     run_units(&w, unit_dirs, nt);
     if (w.tab) run_units(&w, unit_table, nt);
     if (w.side[0]) {
         run_units(&w, unit_separable, nt);
-    } else if (kind == SB_PARAM_ISO && iso_src) {
+    } else if ((caps & SB_CAP_ROTATION_INVARIANT) && iso_src) {
         for (size_t t = 0; t < R; t++) {
             w.ring_ok[t] = 1;
             for (size_t ip = 1; ip < R; ip++)

@@ -19,6 +19,7 @@
 
 #include <assert.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <float.h>
 #include <math.h>
 #include <openexr.h>
@@ -27,6 +28,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "sepbrdf/outset.h"
 #include "util/internal.h"
 
 #define PREFIX "sepbrdf."
@@ -64,14 +66,40 @@ void sb_exr_name(int side, size_t term, char *buf, size_t size) {
  * threads do not mix their messages (the default file streams take the
  * context's user data, so it cannot carry a buffer). */
 static _Thread_local char exr_msg[256];
+static _Thread_local int exr_errno; /* errno of the failed write, 0 if none */
 
 static void exr_msg_handler(exr_const_context_t c, exr_result_t code, const char *msg) {
     (void)c;
     if (exr_msg[0]) return;
     snprintf(exr_msg, sizeof exr_msg, "%s", msg ? msg : exr_get_error_code_as_string(code));
 }
-static void exr_msg_reset(void) { exr_msg[0] = 0; }
-static const char *exr_why(exr_result_t rv) { return exr_msg[0] ? exr_msg : exr_get_error_code_as_string(rv); }
+static void exr_msg_reset(void) {
+    exr_msg[0] = 0;
+    exr_errno = 0;
+}
+static const char *exr_why(exr_result_t rv) {
+    if (exr_errno) return sb_io_why(exr_errno); /* "disk full", not "cannot write N bytes" */
+    return exr_msg[0] ? exr_msg : exr_get_error_code_as_string(rv);
+}
+
+/* The writer's stream: pwrite on our own descriptor (user data), so that
+ * a failure keeps its errno for the message. */
+static int64_t exr_stream_write(exr_const_context_t c, void *user, const void *buf, uint64_t sz, uint64_t off,
+                                exr_stream_error_func_ptr_t error_cb) {
+    const int *fd = user;
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t n = pwrite(*fd, (const uint8_t *)buf + done, (size_t)(sz - done), (off_t)(off + done));
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) {
+            exr_errno = n < 0 ? errno : ENOSPC;
+            error_cb(c, EXR_ERR_WRITE_IO, "%s", sb_io_why(exr_errno));
+            return -1;
+        }
+        done += (uint64_t)n;
+    }
+    return (int64_t)sz;
+}
 
 /* Map an OpenEXR failure on `path` to our codes; `fallback` for the rest. */
 static sb_result_t exr_fail(sb_context_t *ctx, exr_result_t rv, sb_result_t fallback, const char *path,
@@ -271,10 +299,10 @@ static sb_result_t write_attrs(sb_context_t *ctx, exr_context_t ex, const sb_fac
     float *rel = sb_alloc(ctx, J, sizeof(float), "exr rel_rms");
     if (!rel) return SB_ERR_NOMEM;
     for (size_t t = 0; t < J; t++)
-        if (!to_float(err->rel_rms[t * 4 + 3], &rel[t])) {
+        if (!to_float(err->rel_rms[sb_err_at(t, SB_CH_ALL)], &rel[t])) {
             free(rel);
             return sb_error(ctx, SB_ERR_RANGE, "%s: rel_rms %g after %zu terms is not representable as a float", path,
-                            err->rel_rms[t * 4 + 3], t + 1);
+                            err->rel_rms[sb_err_at(t, SB_CH_ALL)], t + 1);
         }
     exr_result_t rv = exr_attr_set_string(ex, 0, PREFIX "version", SB_VERSION_STRING);
     if (!rv) rv = exr_attr_set_string(ex, 0, PREFIX "side", side == SB_SIDE_H ? "h" : "g");
@@ -317,9 +345,10 @@ static exr_result_t compress_no_gain_raw(exr_encode_pipeline_t *enc) {
     return EXR_ERR_SUCCESS;
 }
 
-/* Write one texture to `path` (the temporary name). */
+/* Write one texture to `tmp` (the temporary name); messages name `path`,
+ * its final name. */
 static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half, int longnames,
-                             const char *path, void *buf) {
+                             const char *tmp, const char *path, void *buf) {
     size_t C = sb_factors_channels(f), w, h;
     sb_factors_size(f, side, &w, &h);
     size_t bpe = half ? 2 : 4;
@@ -328,8 +357,12 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
     sb_result_t r = pack_texture(ctx, f, side, term, half, path, buf, &scale);
     if (r != SB_OK) return r;
 
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) return sb_error(ctx, SB_ERR_IO, "%s: cannot create: %s", path, sb_io_why(errno));
     exr_msg_reset();
     exr_context_initializer_t init = exr_init(0);
+    init.user_data = &fd;
+    init.write_fn = exr_stream_write;
     exr_context_t ex = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
     compress_hook_t hook = {NULL};
@@ -397,6 +430,7 @@ out:
         rv = exr_finish(&ex);
         if (rv && r == SB_OK) r = exr_fail(ctx, rv, SB_ERR_IO, path, "cannot complete");
     }
+    if (close(fd) != 0 && r == SB_OK) r = sb_error(ctx, SB_ERR_IO, "%s: cannot complete: %s", path, sb_io_why(errno));
     return r;
 }
 
@@ -452,7 +486,7 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
     }
     /* Phase 1: every file complete under its temporary name */
     for (; done < nfiles; done++) {
-        r = write_one(ctx, f, (int)(done % 2), done / 2, half, longnames, tmp[done], buf);
+        r = write_one(ctx, f, (int)(done % 2), done / 2, half, longnames, tmp[done], fin[done], buf);
         if (r != SB_OK) {
             done++; /* its temporary may exist */
             goto out;
@@ -461,7 +495,7 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
     /* Phase 2: rename */
     for (; renamed < nfiles; renamed++)
         if (rename(tmp[renamed], fin[renamed]) != 0) {
-            r = sb_error(ctx, SB_ERR_IO, "%s: cannot rename from %s: %s", fin[renamed], tmp[renamed], strerror(errno));
+            r = sb_error(ctx, SB_ERR_IO, "%s: cannot complete (rename): %s", fin[renamed], sb_io_why(errno));
             goto out;
         }
 out:
@@ -482,6 +516,22 @@ out:
 }
 
 /* ---- stored precision of whole factors ---------------------------------- */
+
+sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts, double *scales) {
+    if (!f || !scales) return sb_error(ctx, SB_ERR_ARG, "term scales: missing argument");
+    for (size_t j = 0; j < sb_factors_terms(f); j++) {
+        scales[j] = 1;
+        for (int side = 0; side < 2; side++) {
+            char name[64];
+            codec_t cd;
+            sb_exr_name(side, j, name, sizeof name);
+            sb_result_t r = texture_codec(ctx, f, side, j, opts && opts->half, name, &cd);
+            if (r != SB_OK) return r;
+            scales[j] *= cd.scale;
+        }
+    }
+    return SB_OK;
+}
 
 sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
                                 sb_factors_t **stored, sb_quantize_info_t *info) {
@@ -847,7 +897,7 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
     memcpy(rel, hg.rel, J * sizeof(float));
     sb_factor_errors_t *err = sb_factors_errors_mut(f);
     for (size_t t = 0; t < J; t++)
-        err->rel_rms[t * 4 + 3] = rel[t];
+        err->rel_rms[sb_err_at(t, SB_CH_ALL)] = rel[t];
 
     /* Every file: header agrees with g_00 / h_00, then the pixels */
     float sigma[3] = {0, 0, 0};

@@ -5,6 +5,7 @@
 #include "sepbrdf/image.h"
 
 #include <dirent.h>
+#include <errno.h>
 #include <math.h>
 #include <png.h>
 #include <setjmp.h>
@@ -13,6 +14,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "sepbrdf/outset.h"
 #include "util/internal.h"
 
 /* ---- buffers ------------------------------------------------------------ */
@@ -125,10 +127,12 @@ sb_result_t sb_image_compare(sb_context_t *ctx, const sb_image_t *a, const sb_im
 typedef struct png_err {
     jmp_buf jmp;
     char msg[200];
+    int err; /* errno when libpng gave up: a failed fwrite's ("Write Error") */
 } png_err_t;
 
 static void png_on_error(png_structp png, png_const_charp msg) {
     png_err_t *e = png_get_error_ptr(png);
+    e->err = errno;
     snprintf(e->msg, sizeof e->msg, "%s", msg);
     longjmp(e->jmp, 1);
 }
@@ -185,16 +189,19 @@ sb_result_t sb_png_write_rgb8(sb_context_t *ctx, const char *path, size_t width,
     if ((size_t)snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid()) >= sizeof tmp)
         return sb_error(ctx, SB_ERR_ARG, "png: path too long");
     FILE *fp = fopen(tmp, "wb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot write", path);
+    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, sb_io_why(errno));
     png_err_t e;
     e.msg[0] = 0;
+    e.err = 0;
+    errno = 0;
     int ok = png_encode(fp, width, height, rgb, text, &e) == 0;
-    ok = (fclose(fp) == 0) && ok;
-    if (!ok || rename(tmp, path) != 0) {
-        remove(tmp);
-        return sb_error(ctx, SB_ERR_IO, "%s: cannot write%s%s", path, e.msg[0] ? ": " : "", e.msg);
-    }
-    return SB_OK;
+    if (ok && fflush(fp) != 0) e.err = errno ? errno : EIO;
+    if (fclose(fp) != 0 && !e.err) e.err = errno ? errno : EIO;
+    if (!e.err && ok && rename(tmp, path) != 0) e.err = errno;
+    if (ok && !e.err) return SB_OK;
+    remove(tmp);
+    if (e.err) return sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, sb_io_why(e.err));
+    return sb_error(ctx, SB_ERR_IO, "%s: cannot write%s%s", path, e.msg[0] ? ": " : "", e.msg);
 }
 
 static sb_result_t check_image(sb_context_t *ctx, const sb_image_t *img) {

@@ -1,4 +1,5 @@
-/* Parameterisations: dispatch, shared grid helpers, spherical angles. */
+/* Parameterisations: the registry, spec parsing, dispatch, shared grid
+ * helpers, spherical angles. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -6,20 +7,73 @@
 #include <string.h>
 
 #include "param/param_impl.h"
+#include "sepbrdf/source.h"
 #include "util/internal.h"
 
-static const char *const kind_names[SB_PARAM_KIND_COUNT_] = {"io", "io-area", "hd", "iso"};
+/* The registry, one row per parameterisation, in the order of
+ * sb_param_kind_t: adding one is its file, its kind and a row here. */
+static const sb_param_desc_t *const registry[SB_PARAM_KIND_COUNT_] = {
+    &sb_param_desc_io,
+    &sb_param_desc_io_area,
+    &sb_param_desc_hd,
+    &sb_param_desc_iso,
+};
 
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
-        if (name && strcmp(name, kind_names[k]) == 0) {
+        if (name && strcmp(name, registry[k]->name) == 0) {
             *out = (sb_param_kind_t)k;
             return SB_OK;
         }
     return SB_ERR_UNKNOWN;
 }
+size_t sb_param_kind_count(void) { return SB_PARAM_KIND_COUNT_; }
 const char *sb_param_kind_name(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? kind_names[kind] : "?";
+    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->name : "?";
+}
+const char *sb_param_kind_description(sb_param_kind_t kind) {
+    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->description : "?";
+}
+unsigned sb_param_kind_caps(sb_param_kind_t kind) {
+    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->caps : 0;
+}
+unsigned sb_param_caps(const sb_param_t *p) { return registry[p->kind]->caps; }
+
+int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
+    unsigned caps = sb_param_kind_caps(kind);
+    if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) return 0;
+    return !(caps & SB_CAP_NEEDS_ISOTROPY) || (source_flags & SB_SOURCE_ISOTROPIC);
+}
+
+size_t sb_param_kind_list(char *buf, size_t size, const char *sep) {
+    size_t n = 0;
+    if (size) buf[0] = 0;
+    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+        int w = snprintf(buf + (n < size ? n : size), n < size ? size - n : 0, "%s%s", k ? sep : "", registry[k]->name);
+        n += w > 0 ? (size_t)w : 0;
+    }
+    return n;
+}
+
+/* 1 if `key` is one of the comma-separated `keys`. */
+static int key_listed(const char *keys, const char *key) {
+    size_t n = strlen(key);
+    for (const char *k = keys; k && *k;) {
+        const char *end = strchr(k, ',');
+        size_t len = end ? (size_t)(end - k) : strlen(k);
+        if (len == n && strncmp(k, key, n) == 0) return 1;
+        k = end ? end + 1 : NULL;
+    }
+    return 0;
+}
+
+/* The option a count key sets (res, th, td, pd), NULL for another key. */
+static size_t *count_key(sb_param_opts_t *o, const char *key) {
+    if (strcmp(key, "res") == 0) return &o->res;
+    if (strcmp(key, "th") == 0) return &o->res_theta_h;
+    if (strcmp(key, "td") == 0) return &o->res_theta_d;
+    if (strcmp(key, "pd") == 0) return &o->res_phi_d;
+    return NULL;
 }
 
 /* "KIND[:key=value,...]": split on ':' and ',', numbers by strtod. */
@@ -31,8 +85,11 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
     char *args = strchr(buf, ':');
     if (args) *args++ = 0;
     sb_param_kind_t k;
-    if (sb_param_kind_parse(buf, &k) != SB_OK)
-        return sb_error(ctx, SB_ERR_UNKNOWN, "unknown parameterisation '%s' (io, io-area, hd, iso)", buf);
+    if (sb_param_kind_parse(buf, &k) != SB_OK) {
+        char names[128];
+        sb_param_kind_list(names, sizeof names, ", ");
+        return sb_error(ctx, SB_ERR_UNKNOWN, "unknown parameterisation '%s' (%s)", buf, names);
+    }
     sb_param_opts_t o = {0};
     while (args && *args) {
         char *comma = strchr(args, ',');
@@ -46,19 +103,11 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
         double v = strtod(val, &end);
         if (end == val || *end || errno == ERANGE || !isfinite(v))
             return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a number", buf, key, val);
-        size_t *count = NULL;
-        if (strcmp(key, "res") == 0)
-            count = &o.res;
-        else if (k == SB_PARAM_ISO && strcmp(key, "th") == 0)
-            count = &o.res_theta_h;
-        else if (k == SB_PARAM_ISO && strcmp(key, "td") == 0)
-            count = &o.res_theta_d;
-        else if (k == SB_PARAM_ISO && strcmp(key, "pd") == 0)
-            count = &o.res_phi_d;
-        else if (strcmp(key, "theta_max") == 0) {
+        size_t *count = key_listed(registry[k]->keys, key) ? count_key(&o, key) : NULL;
+        if (!count && strcmp(key, "theta_max") == 0) {
             if (!(v > 0 && v <= 90)) return sb_error(ctx, SB_ERR_RANGE, "%s: theta_max %s not in (0, 90]", buf, val);
             o.theta_max = v * SB_PI / 180;
-        } else
+        } else if (!count)
             return sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown key '%s'", buf, key);
         if (count) {
             if (v != floor(v))
@@ -89,22 +138,15 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
         r = sb_error(ctx, SB_ERR_RANGE, "resolution %zu out of range, need 2..4096", p->opts.res);
     } else if (!(p->opts.theta_max > 0 && p->opts.theta_max <= SB_PI / 2 + 1e-12)) {
         r = sb_error(ctx, SB_ERR_RANGE, "theta_max %g out of range, need (0, pi/2]", p->opts.theta_max);
+    } else if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) {
+        r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
     } else {
-        switch (kind) {
-        case SB_PARAM_IO:
-            r = sb_param_init_io(ctx, p);
-            break;
-        case SB_PARAM_IO_AREA:
-            r = sb_param_init_io_area(ctx, p);
-            break;
-        case SB_PARAM_HD:
-            r = sb_param_init_hd(ctx, p);
-            break;
-        case SB_PARAM_ISO:
-            r = sb_param_init_iso(ctx, p);
-            break;
-        default:
-            r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
+        const sb_param_desc_t *d = registry[kind];
+        if (d->init) {
+            r = d->init(ctx, p);
+        } else {
+            sb_param_square_grids(p, d->vt, d->name, d->wrap_y);
+            r = SB_OK;
         }
     }
     if (r != SB_OK) {
@@ -117,12 +159,11 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
 
 void sb_param_destroy(sb_param_t *p) {
     if (!p) return;
-    free(p->glsl);
     free(p);
 }
 
 sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p->kind; }
-const char *sb_param_name(const sb_param_t *p) { return kind_names[p->kind]; }
+const char *sb_param_name(const sb_param_t *p) { return registry[p->kind]->name; }
 const char *sb_param_spec(const sb_param_t *p) { return p->spec; }
 size_t sb_param_rows(const sb_param_t *p) { return p->rows; }
 size_t sb_param_cols(const sb_param_t *p) { return p->cols; }
@@ -143,7 +184,7 @@ double sb_param_col_measure(const sb_param_t *p, size_t col) { return p->vt->col
 int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]) {
     return p->vt->coords(p, wi, wo, st_g, st_h);
 }
-const char *sb_param_glsl(const sb_param_t *p) { return p->glsl ? p->glsl : p->vt->glsl; }
+const char *sb_param_glsl(const sb_param_t *p) { return p->vt->glsl; }
 
 void sb_dir_from_angles(double theta, double phi, double w[3]) {
     double s = sin(theta);
@@ -210,4 +251,18 @@ void sb_param_spec_set(sb_param_t *p, const char *body) {
         snprintf(p->spec, sizeof p->spec, "%s", body);
     else
         snprintf(p->spec, sizeof p->spec, "%s,theta_max=%.6g", body, p->opts.theta_max * 180 / SB_PI);
+}
+
+void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y) {
+    size_t R = p->opts.res;
+    p->vt = vt;
+    p->rows = p->cols = R * R;
+    for (int s = 0; s < 2; s++) {
+        p->tex_w[s] = p->tex_h[s] = R;
+        p->wrap[s][0] = SB_WRAP_CLAMP;
+        p->wrap[s][1] = wrap_y;
+    }
+    char body[64];
+    snprintf(body, sizeof body, "%s:res=%zu", name, R);
+    sb_param_spec_set(p, body);
 }

@@ -1,5 +1,7 @@
-/* Private: the vtable behind sb_param_t, one implementation per file
- * (param_io.c, param_hd.c, param_iso.c ...). */
+/* Private: the registry of parameterisations.  Each lives in one file
+ * (param_io.c, param_hd.c, ...) holding its functions (sb_param_vt_t) and
+ * one descriptor (sb_param_desc_t), listed in the registry table of
+ * param.c. */
 #ifndef SEPBRDF_PARAM_IMPL_H
 #define SEPBRDF_PARAM_IMPL_H
 
@@ -13,6 +15,20 @@ typedef struct sb_param_vt {
     const char *glsl; /* defines vec4 sb_coords(vec3 L, vec3 V) */
 } sb_param_vt_t;
 
+typedef struct sb_param_desc {
+    const char *name;        /* the spec's kind, e.g. "io" */
+    const char *description; /* one line, for help texts */
+    const char *keys;        /* spec keys besides theta_max, comma separated */
+    unsigned caps;           /* SB_CAP_SEPARABLE ... (param.h) */
+    int wrap_y;              /* init NULL: y wrap of the square grids (sb_param_square_grids) */
+    /* fill p (rows, cols, textures, wrap, spec, vt) from p->opts; SB_OK or
+     * an error reported through ctx.  NULL: both sides on R x R grids */
+    sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
+    const sb_param_vt_t *vt;
+} sb_param_desc_t;
+
+extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso;
+
 struct sb_param {
     sb_param_kind_t kind;
     const sb_param_vt_t *vt;
@@ -21,15 +37,7 @@ struct sb_param {
     size_t tex_w[2], tex_h[2];
     int wrap[2][2];
     char spec[96];
-    char *glsl; /* resolved GLSL (constants substituted) */
 };
-
-/* Each implementation fills p (rows, cols, textures, wrap, spec, vt) from
- * p->opts; returns SB_OK or an error reported through ctx. */
-sb_result_t sb_param_init_io(sb_context_t *ctx, sb_param_t *p);
-sb_result_t sb_param_init_io_area(sb_context_t *ctx, sb_param_t *p);
-sb_result_t sb_param_init_hd(sb_context_t *ctx, sb_param_t *p);
-sb_result_t sb_param_init_iso(sb_context_t *ctx, sb_param_t *p);
 
 /* Shared by implementations: theta-phi grid of R x R cells on [0, tmax] x
  * [0, 2pi): index -> centre direction, direction -> st (x = theta, y = phi). */
@@ -48,5 +56,8 @@ int sb_dir_in_cap(double tmax, const double w[3]);
 void sb_dir_half(const double l[3], const double v[3], double h[3]);
 /* p->spec = body, plus ",theta_max=DEG" when theta_max is not pi/2. */
 void sb_param_spec_set(sb_param_t *p, const char *body);
+/* Both sides on R x R textures (R = p->opts.res), rows = cols = R^2,
+ * wrap CLAMP along x and wrap_y along y, vtable vt, spec "NAME:res=R". */
+void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y);
 
 #endif

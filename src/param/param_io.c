@@ -1,4 +1,4 @@
-/* io: the seeds' theta-phi grid for the pair (wi, wo).  Rows index wi,
+/* io: the lecture's theta-phi grid for the pair (wi, wo).  Rows index wi,
  * columns wo, both k = R * i_phi + i_theta. */
 #include <math.h>
 #include <stdio.h>
@@ -34,20 +34,9 @@ static const sb_param_vt_t io_vt = {io_cell_dirs, io_measure, io_measure, io_coo
                                     "    return L.z > 0.0 && V.z > 0.0 && st.x <= 1.0 && st.z <= 1.0;\n"
                                     "}\n"};
 
-sb_result_t sb_param_init_io(sb_context_t *ctx, sb_param_t *p) {
-    (void)ctx;
-    size_t R = p->opts.res;
-    p->vt = &io_vt;
-    p->rows = p->cols = R * R;
-    for (int s = 0; s < 2; s++) {
-        p->tex_w[s] = R;
-        p->tex_h[s] = R;
-        p->wrap[s][0] = SB_WRAP_CLAMP;
-        p->wrap[s][1] = SB_WRAP_REPEAT;
-    }
-    if (fabs(p->opts.theta_max - SB_PI / 2) < 1e-12)
-        snprintf(p->spec, sizeof p->spec, "io:res=%zu", R);
-    else
-        snprintf(p->spec, sizeof p->spec, "io:res=%zu,theta_max=%.6g", R, p->opts.theta_max * 180 / SB_PI);
-    return SB_OK;
-}
+const sb_param_desc_t sb_param_desc_io = {.name = "io",
+                                          .description = "the lecture's theta-phi grid for (wi, wo)",
+                                          .keys = "res",
+                                          .caps = SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID,
+                                          .wrap_y = SB_WRAP_REPEAT,
+                                          .vt = &io_vt};

@@ -112,17 +112,9 @@ static const sb_param_vt_t area_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
-sb_result_t sb_param_init_io_area(sb_context_t *ctx, sb_param_t *p) {
-    (void)ctx;
-    size_t R = p->opts.res;
-    p->vt = &area_vt;
-    p->rows = p->cols = R * R;
-    for (int s = 0; s < 2; s++) {
-        p->tex_w[s] = p->tex_h[s] = R;
-        p->wrap[s][0] = p->wrap[s][1] = SB_WRAP_CLAMP;
-    }
-    char body[64];
-    snprintf(body, sizeof body, "io-area:res=%zu", R);
-    sb_param_spec_set(p, body);
-    return SB_OK;
-}
+const sb_param_desc_t sb_param_desc_io_area = {.name = "io-area",
+                                               .description = "(wi, wo) on an equal-area (concentric) hemisphere map",
+                                               .keys = "res",
+                                               .caps = SB_CAP_SEPARABLE,
+                                               .wrap_y = SB_WRAP_CLAMP,
+                                               .vt = &area_vt};

@@ -113,7 +113,7 @@ static const sb_param_vt_t iso_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
-sb_result_t sb_param_init_iso(sb_context_t *ctx, sb_param_t *p) {
+static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
     sb_param_opts_t *o = &p->opts;
     if (!o->res_theta_h) o->res_theta_h = o->res;
     /* Defaults: theta_d carries the Fresnel / shadowing variation and the
@@ -144,3 +144,11 @@ sb_result_t sb_param_init_iso(sb_context_t *ctx, sb_param_t *p) {
     sb_param_spec_set(p, body);
     return SB_OK;
 }
+
+const sb_param_desc_t sb_param_desc_iso = {
+    .name = "iso",
+    .description = "Rusinkiewicz angles for isotropic sources: rows theta_h, columns (theta_d, phi_d)",
+    .keys = "res,th,td,pd",
+    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN,
+    .init = init_iso,
+    .vt = &iso_vt};

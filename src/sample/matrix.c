@@ -9,13 +9,13 @@
 #include "sepbrdf/matrix.h"
 
 #include <math.h>
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "util/internal.h"
+#include "util/parallel.h"
 
 static const char *const form_names[SB_FORM_COUNT_] = {"f", "cos", "cos2"};
 
@@ -83,6 +83,14 @@ static void *build_cols(void *arg) {
         if (j->o) j->o->progress(j->o->progress_user, (double)done / (double)m->cols);
     }
     return NULL;
+}
+
+/* Progress of a build (jobs: the job array): done columns of all jobs. */
+static void report_progress(void *arg) {
+    const job_t *j = arg;
+    j->o->progress(j->o->progress_user, (double)atomic_load(j->done) / (double)j->m->cols);
+    struct timespec ts = {0, 50 * 1000 * 1000};
+    nanosleep(&ts, NULL);
 }
 
 /* Isotropic sources on the io grid: f depends on (theta_i, theta_o,
@@ -167,28 +175,19 @@ static void *iso_scatter(void *arg) {
  * included): in contiguous ranges, or interleaved (t, t + nt, ...) when
  * the work per index falls with the index. */
 static void run_parallel(void *(*fn)(void *), iso_job_t *jobs, int nt, size_t n, int interleave) {
-    pthread_t th[64];
-    int started[64] = {0};
     for (int t = 0; t < nt; t++) {
         jobs[t].a0 = interleave ? (size_t)t : n * (size_t)t / (size_t)nt;
         jobs[t].a1 = interleave ? n : n * (size_t)(t + 1) / (size_t)nt;
         jobs[t].step = interleave ? (size_t)nt : 1;
     }
-    for (int t = 1; t < nt; t++)
-        started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
-    fn(&jobs[0]);
-    for (int t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            fn(&jobs[t]);
-    }
+    sb_parallel_run(fn, jobs, sizeof *jobs, nt, NULL, NULL);
 }
 
 static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, int threads,
                                       sb_matrix_t *out) {
     size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
-    if (sb_size_mul3(R, R, R, &n3)) return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower --res");
+    if (sb_size_mul3(R, R, R, &n3))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower the resolution");
     double *tab = sb_alloc(ctx, n3, 3 * sizeof(double), "isotropic table");
     unsigned char *known = sb_alloc(ctx, n3, 1, "isotropic table");
     if (!tab || !known) {
@@ -197,9 +196,8 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
         return SB_ERR_NOMEM;
     }
     int nt = sb_thread_count(threads);
-    if (nt > 64) nt = 64;
     if ((size_t)nt > R) nt = (int)R;
-    iso_job_t jobs[64];
+    iso_job_t jobs[SB_THREADS_MAX];
     double *slices = sb_alloc(ctx, (size_t)nt * (3 * R * R + (R * R + 7) / 8), sizeof(double), "isotropic table");
     if (!slices) {
         free(tab);
@@ -258,13 +256,14 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     size_t nch = (size_t)((chans & 1) + ((chans >> 1) & 1) + ((chans >> 2) & 1)), bytes;
     if (sb_size_mul(rows, cols, &cells) || sb_size_mul3(cells, nch, sizeof(double), &bytes) ||
         sb_size_add(bytes, cells, &bytes))
-        return sb_error(ctx, SB_ERR_OVERFLOW,
-                        "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower --res", rows,
-                        cols, nch, (size_t)SIZE_MAX);
+        return sb_error(
+            ctx, SB_ERR_OVERFLOW,
+            "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower the resolution", rows,
+            cols, nch, (size_t)SIZE_MAX);
     if (bytes > sb_memory_limit())
         return sb_error(ctx, SB_ERR_OVERFLOW,
                         "matrix: %zu x %zu cells x %zu channels need %zu bytes, more than the memory limit of %zu "
-                        "bytes; lower --res",
+                        "bytes; lower the resolution",
                         rows, cols, nch, bytes, sb_memory_limit());
 
     out->rows = rows;
@@ -286,7 +285,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
         return SB_ERR_NOMEM;
     }
 
-    if (sb_param_kind(param) == SB_PARAM_IO && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
+    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
         sb_result_t r = build_isotropic_io(ctx, src, param, o.threads, out);
         if (r != SB_OK) {
             sb_matrix_free(out);
@@ -296,47 +295,21 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
         return SB_OK;
     }
 
-    int nt = sb_thread_count(o.threads);
-    if ((size_t)nt > cols) nt = (int)cols;
-    if (nt < 1) nt = 1;
-    job_t *jobs = calloc((size_t)nt, sizeof *jobs);
-    pthread_t *th = calloc((size_t)nt, sizeof *th);
-    unsigned char *joinable = calloc((size_t)nt, 1);
-    if (!jobs || !th || !joinable) {
-        free(jobs);
-        free(th);
-        free(joinable);
-        sb_matrix_free(out);
-        return sb_error(ctx, SB_ERR_NOMEM, "matrix: out of memory");
-    }
+    int nt = sb_threads_for(o.threads, cols, cols, 0);
+    job_t jobs[SB_THREADS_MAX];
     atomic_size_t done;
     atomic_init(&done, 0);
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (job_t){src, param, out,   cols * (size_t)t / (size_t)nt,   cols * (size_t)(t + 1) / (size_t)nt,
-                          0,   0,     &done, t == 0 && o.progress ? &o : NULL};
-        if (t > 0 && pthread_create(&th[t], NULL, build_cols, &jobs[t]) == 0) {
-            joinable[t] = 1;
-            continue;
-        }
-        if (t > 0) build_cols(&jobs[t]); /* no thread: do it here */
+        jobs[t] = (job_t){src, param, out, 0, 0, 0, 0, &done, t == 0 && o.progress ? &o : NULL};
+        sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
-    build_cols(&jobs[0]);
     /* report while the other threads finish */
-    while (o.progress && atomic_load(&done) < cols) {
-        o.progress(o.progress_user, (double)atomic_load(&done) / (double)cols);
-        struct timespec ts = {0, 50 * 1000 * 1000};
-        nanosleep(&ts, NULL);
-    }
-    for (int t = 1; t < nt; t++)
-        if (joinable[t]) pthread_join(th[t], NULL);
-    free(joinable);
+    sb_parallel_run(build_cols, jobs, sizeof *jobs, nt, o.progress ? report_progress : NULL, jobs);
     if (o.progress) o.progress(o.progress_user, 1.0);
     for (int t = 0; t < nt; t++) {
         out->valid_count += jobs[t].valid;
         out->measured_count += jobs[t].measured;
     }
-    free(jobs);
-    free(th);
     if (out->valid_count == cells) { /* every cell valid: no mask needed */
         free(out->mask);
         out->mask = NULL;
@@ -350,24 +323,4 @@ void sb_matrix_free(sb_matrix_t *m) {
         free(m->data[ch]);
     free(m->mask);
     memset(m, 0, sizeof *m);
-}
-
-double sb_matrix_norm(const sb_matrix_t *m, int ch) {
-    if (ch < 0 || ch > 2 || !m->data[ch]) return 0;
-    const double *a = m->data[ch];
-    double scale = 0, ssq = 1;
-    for (size_t c = 0; c < m->cols; c++)
-        for (size_t r = 0; r < m->rows; r++) {
-            size_t at = r + c * m->ld;
-            if (m->mask && !m->mask[at]) continue;
-            double v = fabs(a[at]);
-            if (v == 0) continue;
-            if (scale < v) {
-                ssq = 1 + ssq * (scale / v) * (scale / v);
-                scale = v;
-            } else {
-                ssq += (v / scale) * (v / scale);
-            }
-        }
-    return scale * sqrt(ssq);
 }

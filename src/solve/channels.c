@@ -43,70 +43,35 @@ static void gram3(const double *const x[3], size_t rows, size_t cols, size_t ld,
     }
 }
 
-sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol, sb_channels_t *out) {
-    if (!m || !out) return sb_error(ctx, SB_ERR_ARG, "channels: missing matrix or output");
-    memset(out, 0, sizeof *out);
-    out->base = -1;
-    if (!(rel_tol >= 0 && rel_tol < 1))
-        return sb_error(ctx, SB_ERR_RANGE, "channels: tolerance %g, need [0, 1)", rel_tol);
-    if (rel_tol == 0) rel_tol = SB_CHANNELS_DEFAULT_TOL;
-    const double *x[3];
-    int present = 0;
-    for (int c = 0; c < 3; c++) {
-        x[c] = m->data[c];
-        present += x[c] != NULL;
-    }
-    if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
-    size_t rows = m->rows, cols = m->cols, ld = m->ld;
-
-    /* Products are taken on values times a power of two pw (exact): first
-     * pw = 1, which serves every BRDF of ordinary magnitude in one pass;
-     * when the sums leave the safe range (1e-300 data gives g = 0, "all
-     * channels zero, proportional with scale 0"; 1e200 data overflows) an
-     * extra pass finds max |M| and the Grams are taken again with pw near
-     * 1 / max |M|. */
-    double pw = 1, g[3][3];
+/* Products are taken on values times a power of two pw (exact): first
+ * pw = 1, which serves every BRDF of ordinary magnitude in one pass; when
+ * the sums leave the safe range (1e-300 data gives g = 0, "all channels
+ * zero, proportional with scale 0"; 1e200 data overflows) an extra pass
+ * finds max |M| and the Grams are taken again with pw near 1 / max |M|. */
+static double scaled_grams(const double *const x[3], size_t rows, size_t cols, size_t ld, double g[3][3]) {
+    double pw = 1;
     gram3(x, rows, cols, ld, pw, g);
     int safe = 1;
     for (int c = 0; c < 3; c++)
         if (x[c] && !(g[c][c] > 1e-280 && g[c][c] < 1e280)) safe = 0; /* 0: underflow, or a zero channel */
-    if (!safe) {
-        double amax = 0;
-        for (int c = 0; c < 3; c++)
-            for (size_t j = 0; x[c] && j < cols; j++)
-                for (size_t i = 0; i < rows; i++) {
-                    double v = fabs(x[c][i + j * ld]);
-                    if (v > amax) amax = v;
-                }
-        if (amax > 0 && isfinite(amax)) {
-            int ex;
-            frexp(amax, &ex);
-            pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
-        }
-        gram3(x, rows, cols, ld, pw, g);
-    }
-    int b = -1;
+    if (safe) return pw;
+    double amax = 0;
     for (int c = 0; c < 3; c++)
-        for (int e = c; e < 3; e++)
-            if (x[c] && x[e] && !isfinite(g[c][e]))
-                return sb_error(ctx, SB_ERR_NUMERIC, "channels: non-finite entries (or overflow) in channel %d or %d",
-                                c, e);
-    for (int c = 0; c < 3; c++) {
-        if (!x[c]) continue;
-        out->norm[c] = sqrt(g[c][c]) / pw;
-        if (b < 0 || g[c][c] > g[b][b]) b = c;
-    }
-    out->base = b;
-    double nb = g[b][b];
-    for (int c = 0; c < 3; c++) {
-        if (!x[c]) continue;
-        double dot = c < b ? g[c][b] : g[b][c];
-        out->scale[c] = c == b ? 1 : nb > 0 ? dot / nb : 0;
-    }
-    out->proportional = 1;
-    if (present == 1 || nb == 0) return SB_OK;
+        for (size_t j = 0; x[c] && j < cols; j++)
+            for (size_t i = 0; i < rows; i++) {
+                double v = fabs(x[c][i + j * ld]);
+                if (v > amax) amax = v;
+            }
+    pw = sb_pow2_scale(amax);
+    gram3(x, rows, cols, ld, pw, g);
+    return pw;
+}
 
-    /* pass 2: explicit deviations, stopping early once one is over budget */
+/* Pass 2: explicit deviations ||M_c - a_c M_b||, stopping early once one
+ * is over budget (out->proportional = 0). */
+static void deviations(const double *const x[3], size_t rows, size_t cols, size_t ld, double pw, double rel_tol,
+                       const double g[3][3], sb_channels_t *out) {
+    int b = out->base;
     double dev2[3] = {0, 0, 0}, budget[3];
     for (int c = 0; c < 3; c++)
         budget[c] = rel_tol * rel_tol * g[c][c];
@@ -128,5 +93,42 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
         }
     for (int c = 0; c < 3; c++)
         out->dev[c] = x[c] && c != b && g[c][c] > 0 ? sqrt(dev2[c] / g[c][c]) : 0;
+}
+
+sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol, sb_channels_t *out) {
+    if (!m || !out) return sb_error(ctx, SB_ERR_ARG, "channels: missing matrix or output");
+    memset(out, 0, sizeof *out);
+    out->base = -1;
+    if (!(rel_tol >= 0 && rel_tol < 1))
+        return sb_error(ctx, SB_ERR_RANGE, "channels: tolerance %g, need [0, 1)", rel_tol);
+    if (rel_tol == 0) rel_tol = SB_CHANNELS_DEFAULT_TOL;
+    const double *x[3];
+    int present = 0;
+    for (int c = 0; c < 3; c++) {
+        x[c] = m->data[c];
+        present += x[c] != NULL;
+    }
+    if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
+    double g[3][3], pw = scaled_grams(x, m->rows, m->cols, m->ld, g);
+    int b = -1;
+    for (int c = 0; c < 3; c++)
+        for (int e = c; e < 3; e++)
+            if (x[c] && x[e] && !isfinite(g[c][e]))
+                return sb_error(ctx, SB_ERR_NUMERIC, "channels: non-finite entries (or overflow) in channel %d or %d",
+                                c, e);
+    for (int c = 0; c < 3; c++) {
+        if (!x[c]) continue;
+        out->norm[c] = sqrt(g[c][c]) / pw;
+        if (b < 0 || g[c][c] > g[b][b]) b = c;
+    }
+    out->base = b;
+    double nb = g[b][b];
+    for (int c = 0; c < 3; c++) {
+        if (!x[c]) continue;
+        double dot = c < b ? g[c][b] : g[b][c];
+        out->scale[c] = c == b ? 1 : nb > 0 ? dot / nb : 0;
+    }
+    out->proportional = 1;
+    if (present > 1 && nb > 0) deviations(x, m->rows, m->cols, m->ld, pw, rel_tol, (const double(*)[3])g, out);
     return SB_OK;
 }

@@ -40,8 +40,6 @@ struct sb_circ {
     double *e;       /* 3R: phi vector and scratch */
 };
 
-size_t sb_circ_period(const sb_circ_t *c) { return c->R; }
-
 void sb_circ_destroy(sb_circ_t *c) {
     if (!c) return;
     free(c->K);

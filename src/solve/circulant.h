@@ -28,7 +28,6 @@ typedef struct sb_circ sb_circ_t;
 /* Workspace for R x R blocks (matrices of R^2 x R^2). */
 sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out);
 void sb_circ_destroy(sb_circ_t *c);
-size_t sb_circ_period(const sb_circ_t *c);
 
 /* Whether channel `a` (ld >= R^2, the full matrix) weighted by w (R theta
  * weights, NULL = 1) is even in the azimuth difference to within rel_tol

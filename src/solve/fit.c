@@ -34,17 +34,21 @@
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "sepbrdf/param.h"
 #include "util/internal.h"
+#include "util/parallel.h"
+#include "util/rng.h"
 
 /* Up to this many terms the fit finishes with alternating least squares
  * (Grams of k x k per row and column); beyond, imputation alone. */
 #define SB_ALS_MAX_K 32
 /* A joint refit may make a shorter prefix at most this much worse. */
 #define SB_PREFIX_SLACK 2.0
+/* A taps' constraint may raise the error on the valid cells this much. */
+#define SB_TAPS_COST 1.5
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
 
@@ -62,20 +66,9 @@ struct sb_fit {
 };
 
 static double gauss(uint64_t *s) {
-    /* splitmix64 + Box-Muller: deterministic for a seed */
-    uint64_t z1, z2;
-    *s += 0x9e3779b97f4a7c15ULL;
-    z1 = *s;
-    z1 = (z1 ^ (z1 >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z1 = (z1 ^ (z1 >> 27)) * 0x94d049bb133111ebULL;
-    z1 ^= z1 >> 31;
-    *s += 0x9e3779b97f4a7c15ULL;
-    z2 = *s;
-    z2 = (z2 ^ (z2 >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z2 = (z2 ^ (z2 >> 27)) * 0x94d049bb133111ebULL;
-    z2 ^= z2 >> 31;
-    double u1 = ((z1 >> 11) + 0.5) * (1.0 / 9007199254740992.0), u2 = (z2 >> 11) * (1.0 / 9007199254740992.0);
-    return sqrt(-2 * log(u1)) * cos(2 * SB_PI * u2);
+    double g[2];
+    sb_splitmix_gauss2(s, g); /* deterministic for a seed */
+    return g[0];
 }
 
 sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fit_t **out) {
@@ -455,29 +448,17 @@ static void *als_cols(void *arg) {
     return NULL;
 }
 
-/* Run fn on [0, n) split among up to 16 threads (the caller's included). */
+/* Run fn on [0, n) split among threads (the caller's included). */
 static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double *e2) {
-    int nt = sb_thread_count(0);
-    if (nt > 16) nt = 16;
-    if ((size_t)nt > n) nt = (int)n;
-    if (proto->f->m * proto->f->n < ((size_t)1 << 16)) nt = 1; /* small: not worth a thread */
-    als_job_t jobs[16];
-    pthread_t th[16];
-    int started[16] = {0};
+    /* small: not worth a thread */
+    int nt = sb_threads_for(0, n, proto->f->m * proto->f->n, (size_t)1 << 16);
+    als_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
         jobs[t] = *proto;
-        jobs[t].lo = n * (size_t)t / (size_t)nt;
-        jobs[t].hi = n * (size_t)(t + 1) / (size_t)nt;
+        sb_part(n, t, nt, &jobs[t].lo, &jobs[t].hi);
         jobs[t].e2 = 0;
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, fn, &jobs[t]) == 0;
     }
-    fn(&jobs[0]);
-    for (int t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            fn(&jobs[t]);
-    }
+    sb_parallel_run(fn, jobs, sizeof *jobs, nt, NULL, NULL);
     if (e2) {
         *e2 = 0;
         for (int t = 0; t < nt; t++)
@@ -535,6 +516,246 @@ static double als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, cons
     return err;
 }
 
+/* The staged ALS from the warm start in f->P, f->Q on the cells of X with
+ * mask != 0 (nvalid of them); *err the last stage's error; *stretched 1
+ * when the last stage kept a joint refit that made a shorter prefix more
+ * than SB_PREFIX_SLACK times worse (not strict only); *converged 0
+ * when the run that gave the last stage's kept result stopped at
+ * max_iters (earlier stages only warm-start the later ones).  SB_OK or
+ * SB_ERR_NOMEM. */
+static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                              const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
+                              int *stretched) {
+    size_t m = f->m, n = f->n, k = f->k;
+    /* Nested stages: terms are added one at a time and the first ka
+     * are refitted jointly, so every prefix of the result is itself a
+     * masked fit of its rank (the terms are not re-orthogonalised over
+     * the whole matrix: that would mix in the unconstrained values the
+     * fit implies outside the domain). */
+    double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
+    double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
+    als_cells_t cl;
+    if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, nvalid) != 0) {
+        free(saveP);
+        free(saveQ);
+        return SB_ERR_NOMEM;
+    }
+    for (size_t ka = 1; ka <= k; ka++) {
+        /* first the new term alone on the residual of the others: the
+         * error can only go down (its first half-sweep is a least-squares
+         * step from the warm start) */
+        int c1 = 1, cj = 1, keep = 0;
+        *err = als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
+        if (ka > 1) {
+            /* then all ka jointly: a joint refit may trade the prefixes'
+             * accuracy for cancelling terms that are large outside the
+             * domain, which also spoil interpolated lookups near its
+             * edge */
+            memcpy(saveP, f->P, m * ka * sizeof *saveP);
+            memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
+            double ej = als_until(f, &cl, 0, ka, o, sqrt(norm2), total, &cj);
+            prefix_errors(f, &cl, ka, e2);
+            /* kept only if no shorter prefix gets more than
+             * SB_PREFIX_SLACK times worse (at the last stage: no worse than
+             * no term at all); strict: and the prefixes' errors stay
+             * non-increasing */
+            keep = ej <= *err;
+            double slack = ka == k && !strict ? INFINITY : SB_PREFIX_SLACK;
+            int within = 1;
+            for (size_t j = 0; keep && j + 1 < ka; j++) {
+                keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2)) && (!strict || e2[j + 1] <= e2[j]);
+                within &= sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK;
+            }
+            if (keep && !within) *stretched = 1;
+            if (keep) {
+                *err = ej;
+                for (size_t j = 0; j + 1 < ka; j++)
+                    acc[j] = fmax(acc[j], sqrt(e2[j]));
+            } else {
+                memcpy(f->P, saveP, m * ka * sizeof *saveP);
+                memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
+            }
+        }
+        acc[ka - 1] = *err;
+        *converged = keep ? cj : c1;
+        if (o->target > 0 && *err <= o->target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
+            memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
+            memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
+            break;
+        }
+    }
+    free(saveP);
+    free(saveQ);
+    cells_free(&cl);
+    return SB_OK;
+}
+
+/* Squared errors of the prefixes on the valid cells (mask) of X: e2[j]
+ * after the terms 0..j. */
+static void valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2) {
+    size_t m = f->m, n = f->n, k = f->k;
+    for (size_t j = 0; j < k; j++)
+        e2[j] = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double d = X[r + c * lda];
+            for (size_t j = 0; j < k; j++) {
+                d -= f->P[r + j * m] * f->Q[c + j * n];
+                e2[j] += d * d;
+            }
+        }
+}
+
+static int prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask) {
+    double e2[SB_ALS_MAX_K];
+    valid_prefix_e2(f, X, lda, mask, e2);
+    for (size_t j = 1; j < f->k; j++)
+        if (e2[j] > e2[j - 1]) return 0;
+    return 1;
+}
+
+/* Texels within two steps of texel i (x +- 2, y +- 2: the cell holding an
+ * in-domain pair may be one away from a valid centre, its taps one more;
+ * CLAMP axes stop at the edge, REPEAT axes wrap), i included, each once. */
+static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t out[25]) {
+    size_t w = wh[0], h = wh[1], k = 0;
+    long x = (long)(i % w), y = (long)(i / w);
+    for (long dy = -2; dy <= 2; dy++)
+        for (long dx = -2; dx <= 2; dx++) {
+            long xs = x + dx, ys = y + dy;
+            if (wrap[0] == SB_WRAP_REPEAT) xs = (xs + (long)w) % (long)w;
+            if (wrap[1] == SB_WRAP_REPEAT) ys = (ys + (long)h) % (long)h;
+            if (xs < 0 || ys < 0 || xs >= (long)w || ys >= (long)h) continue;
+            size_t at = (size_t)ys * w + (size_t)xs, dup = 0;
+            for (size_t q = 0; q < k; q++)
+                dup |= out[q] == at;
+            if (!dup) out[k++] = at;
+        }
+    return k;
+}
+
+/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
+ * data around them: an invalid cell (r, c) with valid cells among rows N(r)
+ * x columns N(c) (lo..hi their values in x) whose fitted value
+ * sum_j P_rj Q_cj lies outside [lo - d, hi + d], d = hi - lo +
+ * max(|lo|, |hi|) / 2, joins the data (ext = 2) with the value clamped
+ * into [lo, hi]; cells already joined keep their targets.  (Joining every
+ * such cell, or pulling it to its neighbours' mean, fits the data worse
+ * and breaks exact recovery of low-rank data with holes.)  Per column the
+ * column neighbours are reduced first, then the row neighbours: 50 reads
+ * per cell.  Returns the cells added, or (size_t)-1 without memory. */
+static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
+    size_t m = f->m, n = f->n, k = f->k, added = 0;
+    double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
+    if (!lo1 || !hi1) {
+        free(lo1);
+        free(hi1);
+        return (size_t)-1;
+    }
+    for (size_t c = 0; c < n; c++) {
+        size_t nc[25], nr[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+        for (size_t r = 0; r < m; r++) {
+            lo1[r] = INFINITY;
+            hi1[r] = -INFINITY;
+            for (size_t q = 0; q < kc; q++)
+                if (ext[r + nc[q] * m] == 1) {
+                    lo1[r] = fmin(lo1[r], x[r + nc[q] * m]);
+                    hi1[r] = fmax(hi1[r], x[r + nc[q] * m]);
+                }
+        }
+        for (size_t r = 0; r < m; r++) {
+            if (ext[r + c * m]) continue;
+            size_t kr = neighbours(o->tex[0], o->wrap[0], r, nr);
+            double lo = INFINITY, hi = -INFINITY, v = 0;
+            for (size_t q = 0; q < kr; q++) {
+                lo = fmin(lo, lo1[nr[q]]);
+                hi = fmax(hi, hi1[nr[q]]);
+            }
+            if (!(lo <= hi)) continue;
+            for (size_t j = 0; j < k; j++)
+                v += f->P[r + j * m] * f->Q[c + j * n];
+            double d = hi - lo + 0.5 * fmax(fabs(lo), fabs(hi));
+            if (v >= lo - d && v <= hi + d) continue;
+            x[r + c * m] = fmin(fmax(v, lo), hi);
+            ext[r + c * m] = 2; /* data from now on, not a neighbour's source */
+            added++;
+        }
+    }
+    free(lo1);
+    free(hi1);
+    return added;
+}
+
+/* The ALS part of a fit from the warm start in f->P, f->Q: the stages
+ * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
+ * (constrain_taps, twice at most, warm), and when the prefixes' errors on
+ * the valid cells then rise anywhere, or the last stage made a prefix more
+ * than SB_PREFIX_SLACK times worse, all of it again from the same start
+ * with strict stages (a joint refit kept only if the prefixes' errors stay
+ * non-increasing), so that every prefix is a fit no worse than the shorter
+ * ones.  SB_OK or SB_ERR_NOMEM. */
+static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
+                           const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
+    size_t m = f->m, n = f->n, k = f->k;
+    int taps = lda == m && o->tex[0][0] * o->tex[0][1] == m && o->tex[1][0] * o->tex[1][1] == n;
+    unsigned char *ext = taps ? malloc(m * n) : NULL;
+    double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
+    double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
+    sb_result_t r = (taps && !ext) || !P0 || !Q0 || !P1 || !Q1 ? SB_ERR_NOMEM : SB_OK;
+    if (r == SB_OK) {
+        memcpy(P0, f->P, m * k * sizeof *P0);
+        memcpy(Q0, f->Q, n * k * sizeof *Q0);
+    }
+    for (int strict = 0; strict < 2 && r == SB_OK; strict++) {
+        size_t nvalid = nvalid0;
+        int stretched = 0;
+        memcpy(f->P, P0, m * k * sizeof *P0);
+        memcpy(f->Q, Q0, n * k * sizeof *Q0);
+        if (ext)
+            for (size_t c = 0; c < n; c++)
+                for (size_t i = 0; i < m; i++)
+                    ext[i + c * m] = mask[i + c * lda] ? 1 : 0;
+        r = als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err, &stretched);
+        /* taps reaching unconstrained cells that overshoot: constrain
+         * them and run the stages again from the fit found (twice at
+         * most; warm, each stage stops after a few sweeps) */
+        double e2[SB_ALS_MAX_K], before = 0;
+        if (taps) {
+            valid_prefix_e2(f, As, lda, mask, e2);
+            before = e2[k - 1];
+            memcpy(P1, f->P, m * k * sizeof *P1);
+            memcpy(Q1, f->Q, n * k * sizeof *Q1);
+        }
+        size_t constrained = 0;
+        for (int round = 0; r == SB_OK && taps && round < 2; round++) {
+            size_t added = constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
+            if (added == (size_t)-1) r = SB_ERR_NOMEM;
+            if (added == 0 || r != SB_OK) break;
+            nvalid += added;
+            constrained += added;
+            r = als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
+        }
+        /* data that the rank-k structure extends exactly (or nearly) are
+         * their own best extrapolation: a constraint that costs the valid
+         * cells more than SB_TAPS_COST in error is dropped */
+        if (r == SB_OK && constrained) {
+            valid_prefix_e2(f, As, lda, mask, e2);
+            if (sqrt(e2[k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2)) {
+                memcpy(f->P, P1, m * k * sizeof *P1);
+                memcpy(f->Q, Q1, n * k * sizeof *Q1);
+            }
+        }
+        if (r != SB_OK || (!stretched && prefixes_monotone(f, As, lda, mask))) break;
+    }
+    free(ext);
+    free(P0);
+    free(Q0);
+    free(P1);
+    free(Q1);
+    return r;
+}
+
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
                            const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info) {
     size_t m = f->m, n = f->n, k = f->k, l = f->l;
@@ -550,15 +771,11 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
      * iteration as "converged", 1e300 data failed as non-finite); the ALS
      * stages read the valid cells of X (same layout as A when lda == m, as
      * the plan passes) and sigma is divided by pw at the end. */
-    double amax = 0, pw = 1;
+    double amax = 0, pw;
     for (size_t c = 0; c < n && lda == m; c++)
         for (size_t r = 0; r < m; r++)
             if (mask[r + c * lda]) amax = fmax(amax, fabs(A[r + c * lda]));
-    if (amax > 0 && isfinite(amax)) {
-        int ex;
-        frexp(amax, &ex);
-        pw = ldexp(1, ex > 1020 ? -1020 : (ex < -1020 ? 1020 : -ex));
-    }
+    pw = sb_pow2_scale(amax);
     const double *As = lda == m ? f->x : A; /* what the ALS stages read */
     double norm2 = 0;
     size_t ninvalid = 0;
@@ -632,63 +849,13 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
             for (size_t i = 0; i < n; i++)
                 f->Q[i + j * n] = f->vbt[j + i * l] * rt;
         }
-        /* Nested stages: terms are added one at a time and the first ka
-         * are refitted jointly, so every prefix of the result is itself a
-         * masked fit of its rank (the terms are not re-orthogonalised over
-         * the whole matrix: that would mix in the unconstrained values the
-         * fit implies outside the domain). */
         int total = it > em_iters ? em_iters : it, converged = 1;
-        double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
-        double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
-        als_cells_t cl;
-        if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, m * n - ninvalid) != 0) {
-            free(saveP);
-            free(saveQ);
+        r = als_fit(f, As, lda, mask, m * n - ninvalid, &o, norm2, &total, &converged, &err);
+        if (r != SB_OK) {
             free(qu);
             free(coef);
-            return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
+            return sb_error(f->ctx, r, "fit: out of memory");
         }
-        for (size_t ka = 1; ka <= k; ka++) {
-            /* first the new term alone on the residual of the others: the
-             * error can only go down (its first half-sweep is a least-squares
-             * step from the warm start) */
-            err = als_until(f, &cl, ka - 1, ka, &o, sqrt(norm2), &total, &converged);
-            if (ka > 1) {
-                /* then all ka jointly, kept only if no shorter prefix gets
-                 * more than SB_PREFIX_SLACK times worse (at the last stage:
-                 * no worse than no term at all): a joint refit may trade the
-                 * prefixes' accuracy for cancelling terms that are large
-                 * outside the domain, which also spoil interpolated lookups
-                 * near its edge */
-                memcpy(saveP, f->P, m * ka * sizeof *saveP);
-                memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-                double ej = als_until(f, &cl, 0, ka, &o, sqrt(norm2), &total, &converged);
-                prefix_errors(f, &cl, ka, e2);
-                int keep = ej <= err;
-                /* the last stage is what was asked for: there any sane
-                 * prefix (no worse than no term) is accepted */
-                double slack = ka == k ? INFINITY : SB_PREFIX_SLACK;
-                for (size_t j = 0; keep && j + 1 < ka; j++)
-                    keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2));
-                if (keep) {
-                    err = ej;
-                    for (size_t j = 0; j + 1 < ka; j++)
-                        acc[j] = fmax(acc[j], sqrt(e2[j]));
-                } else {
-                    memcpy(f->P, saveP, m * ka * sizeof *saveP);
-                    memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
-                }
-            }
-            acc[ka - 1] = err;
-            if (o.target > 0 && err <= o.target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
-                memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
-                memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
-                break;
-            }
-        }
-        free(saveP);
-        free(saveQ);
-        cells_free(&cl);
         /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
         for (size_t j = 0; j < k; j++) {
             double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);

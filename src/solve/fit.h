@@ -1,4 +1,5 @@
-/* Private: masked low-rank fitting by iterative imputation (src/fit.c). */
+/* Private: masked low-rank fitting by iterative imputation (fit.c); the plan uses it through the masked solver
+ * (solver_masked.c). */
 #ifndef SEPBRDF_FIT_H
 #define SEPBRDF_FIT_H
 
@@ -11,6 +12,15 @@ typedef struct sb_fit_opts {
     double tol;    /* stop when the valid-cell error improves by less than tol relative; default 1e-5 */
     uint64_t seed; /* starting subspace; default 1 */
     double target; /* stop adding terms once the relative error is <= target (0 = all k) */
+    /* Texture layout of the rows (tex[0]: g, width x height = m) and the
+     * columns (tex[1]: h, = n) with their wrap (SB_WRAP_*): when given, an
+     * invalid cell within two texels of valid ones on both sides (what a
+     * bilinear tap of an in-domain pair reaches) whose fitted value
+     * overshoots the data around it is constrained into their range and
+     * the fit repeated (fit.c: constrain_taps), so lookups near the
+     * domain's edge stay bounded.  0: no layout. */
+    size_t tex[2][2];
+    int wrap[2][2];
 } sb_fit_opts_t;
 
 typedef struct sb_fit_info {

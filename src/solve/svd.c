@@ -1,8 +1,9 @@
-/* Truncated SVD: plan (shapes, method, random test matrix, workspaces) then
- * execute.  The maths of the three methods is in svd_impl.h, written once
- * and included for double and for float; this file holds the plan, the
- * dispatch, the generator and the adaptive rank choice.  See svd.h for the
- * guarantees of each method and the AUTO rule. */
+/* Truncated SVD: plan (shapes, method, workspaces) then execute.  This
+ * file holds the plan, the dispatch, the norms and the adaptive rank
+ * choice; the methods are in svd_dense.c (FULL, TOPK) and svd_rand.c
+ * (RANDOMIZED), their maths in the precision templates svd_tmpl_*.h,
+ * written once for double and float.  See svd.h for the guarantees of
+ * each method and the AUTO rule. */
 #include "sepbrdf/svd.h"
 
 #include <cblas.h>
@@ -12,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "solve/svd_internal.h"
 #include "util/internal.h"
 
 static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized"};
@@ -30,26 +32,7 @@ const char *sb_method_name(sb_method_t m) { return (unsigned)m < SB_METHOD_COUNT
 #define SB_SVD_DEFAULT_Q 2
 #define SB_SVD_DEFAULT_BLOCK 32
 
-struct sb_svd {
-    sb_context_t *ctx;
-    size_t m, n, k, d; /* d = min(m, n) */
-    size_t l, b, L;    /* randomized: test vectors k + p (<= d), adaptive block, basis columns */
-    int p, q, single, tr, krylov;
-    uint64_t seed;
-    sb_method_t method;
-    /* Workspace, typed double or float by `single` (see svd_impl.h for
-     * what each holds per method); NULL when the method does not use it. */
-    void *a, *sv, *u, *vt, *g, *w, *z, *y, *bt, *ws, *om, *c, *tau, *work;
-    lapack_int *iwork, *isuppz;
-    lapack_int lwork, liwork;
-    size_t bytes;
-    int failed;
-    sb_svd_info_t info;
-};
-
-/* count1 * count2 elements of `size` bytes, overflow-checked; counted in
- * s->bytes.  NULL (reported) on failure. */
-static void *ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
+void *sb_svd_ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
     size_t count;
     if (sb_size_mul(count1, count2, &count)) {
         sb_error(s->ctx, SB_ERR_OVERFLOW, "svd: workspace size %zu x %zu overflows", count1, count2);
@@ -64,77 +47,6 @@ static void *ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
     s->bytes += count * size;
     return p;
 }
-
-/* ---- Gaussian test matrix ---------------------------------------------- */
-/* xoshiro256** (Blackman & Vigna 2018) seeded by splitmix64; normal pairs by
- * Box-Muller.  Written out here so the bits do not depend on the C library. */
-
-static uint64_t splitmix64(uint64_t *x) {
-    uint64_t z = (*x += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-static void rng_seed(uint64_t st[4], uint64_t seed) {
-    for (int i = 0; i < 4; i++)
-        st[i] = splitmix64(&seed);
-}
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-static uint64_t rng_next(uint64_t st[4]) {
-    uint64_t r = rotl(st[1] * 5, 7) * 9, t = st[1] << 17;
-    st[2] ^= st[0];
-    st[3] ^= st[1];
-    st[1] ^= st[2];
-    st[0] ^= st[3];
-    st[2] ^= t;
-    st[3] = rotl(st[3], 45);
-    return r;
-}
-/* Two independent N(0, 1) numbers; u1 in (0, 1] so the log is finite. */
-static void rng_gauss2(uint64_t st[4], double g[2]) {
-    double u1 = ((double)(rng_next(st) >> 11) + 1) * 0x1.0p-53, u2 = (double)(rng_next(st) >> 11) * 0x1.0p-53;
-    double r = sqrt(-2 * log(u1)), t = 2 * SB_PI * u2;
-    g[0] = r * cos(t);
-    g[1] = r * sin(t);
-}
-
-/* ---- the two precisions ------------------------------------------------- */
-
-#define R double
-#define SFX d
-#define GEMM cblas_dgemm
-#define SYRK cblas_dsyrk
-#define GESDD LAPACKE_dgesdd_work
-#define SYEVR LAPACKE_dsyevr_work
-#define GEQRF LAPACKE_dgeqrf_work
-#define ORGQR LAPACKE_dorgqr_work
-#include "solve/svd_impl.h"
-#undef R
-#undef SFX
-#undef GEMM
-#undef SYRK
-#undef GESDD
-#undef SYEVR
-#undef GEQRF
-#undef ORGQR
-
-#define R float
-#define SFX f
-#define GEMM cblas_sgemm
-#define SYRK cblas_ssyrk
-#define GESDD LAPACKE_sgesdd_work
-#define SYEVR LAPACKE_ssyevr_work
-#define GEQRF LAPACKE_sgeqrf_work
-#define ORGQR LAPACKE_sorgqr_work
-#include "solve/svd_impl.h"
-#undef R
-#undef SFX
-#undef GEMM
-#undef SYRK
-#undef GESDD
-#undef SYEVR
-#undef GEQRF
-#undef ORGQR
 
 /* ---- plan --------------------------------------------------------------- */
 
@@ -186,17 +98,7 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 
     sb_result_t r = SB_OK;
     if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;
-    if (r == SB_OK) switch (s->method) {
-        case SB_METHOD_FULL:
-            r = s->single ? plan_full_f(s) : plan_full_d(s);
-            break;
-        case SB_METHOD_TOPK:
-            r = s->single ? plan_topk_f(s) : plan_topk_d(s);
-            break;
-        default:
-            r = s->single ? plan_rand_f(s) : plan_rand_d(s);
-            break;
-        }
+    if (r == SB_OK) r = s->method == SB_METHOD_RANDOMIZED ? sb_svd_plan_rand(s) : sb_svd_plan_dense(s);
     if (r == SB_OK &&
         !(s->work = ws_alloc(s, (size_t)(s->lwork > 0 ? s->lwork : 1), 1, s->single ? sizeof(float) : sizeof(double))))
         r = SB_ERR_NOMEM;
@@ -292,7 +194,7 @@ static int copy_in(sb_svd_t *s, const double *A, size_t lda, double *nrm) {
     return finish_norm(s, A, lda, t, nrm);
 }
 
-static double sv_at(const sb_svd_t *s, size_t j) {
+double sb_svd_sv_at(const sb_svd_t *s, size_t j) {
     return s->single ? (double)((const float *)s->sv)[j] : ((const double *)s->sv)[j];
 }
 
@@ -300,8 +202,7 @@ static double sv_at(const sb_svd_t *s, size_t j) {
  * neither a huge nor a tiny matrix overflows; nrm = 0 is the zero matrix,
  * whose every truncation is exact. */
 
-/* ||A - U_r S_r V_r^T||_F = ||A|| (1 - sum_{j<r} (s_j / ||A||)^2)^(1/2). */
-static double resid_from(double nrm, const double *sv, size_t r) {
+double sb_svd_resid_from(double nrm, const double *sv, size_t r) {
     if (!(nrm > 0)) return 0;
     double c = 0, inv = 1 / nrm;
     for (size_t j = 0; j < r; j++)
@@ -309,8 +210,7 @@ static double resid_from(double nrm, const double *sv, size_t r) {
     return c < 1 ? nrm * sqrt(1 - c) : 0;
 }
 
-/* Smallest r in [max(lo, 1), k] with 1 - sum_{j<r} (s_j / ||A||)^2 <= tol^2. */
-static size_t rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo) {
+size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo) {
     double c = 0, inv = nrm > 0 ? 1 / nrm : 0;
     if (lo < 1) lo = 1;
     for (size_t j = 0; j < k; j++) {
@@ -320,107 +220,44 @@ static size_t rank_for(const double *sv, size_t k, double nrm, double tol2, size
     return k;
 }
 
-static sb_result_t execute(sb_svd_t *s, const double *A, size_t lda, int adaptive, int want_norm, double tol,
-                           double norm_fro, size_t min_rank, double *sv, double *U, double *V, double *all_s,
-                           int *have_all) {
-    if (!A || !sv || lda < s->m)
-        return sb_error(s->ctx, SB_ERR_ARG, "svd: missing matrix or output, or lda %zu < %zu rows", lda, s->m);
-    size_t k = s->k, r = k, sketch = 0;
-    double nrm = norm_fro > 0 ? norm_fro : -1, got = 0, tol2 = tol * tol;
-    sb_svd_info_t info = {0, 0, 0, -1};
-    sb_result_t res = SB_OK;
-    if (have_all) *have_all = 0;
-
-    /* single precision (every method) and FULL take a copy of A */
-    const void *a = A;
-    size_t la = lda;
+/* Copy or read A as the method needs (single precision and FULL take a
+ * copy, which also gives ||A||_F), run the method, check the values. */
+static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
+    if (!run->a || !run->sv || run->la < s->m)
+        return sb_error(s->ctx, SB_ERR_ARG, "svd: missing matrix or output, or lda %zu < %zu rows", run->la, s->m);
+    const double *A = run->a;
+    double got = 0;
+    if (run->have_all) *run->have_all = 0;
     if (s->single || s->method == SB_METHOD_FULL) {
-        if (copy_in(s, A, lda, &got))
+        if (copy_in(s, A, run->la, &got))
             return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries%s",
                             s->single ? " or overflows single precision" : "");
-        if (nrm < 0) nrm = got;
-        a = s->a;
-        la = s->m;
-    } else if (want_norm && nrm < 0 && s->method == SB_METHOD_RANDOMIZED) {
-        if (norm_of(s, A, lda, &got)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
-        nrm = got;
+        if (run->nrm < 0) run->nrm = got;
+        run->a = s->a;
+        run->la = s->m;
+    } else if (want_norm && run->nrm < 0 && s->method == SB_METHOD_RANDOMIZED) {
+        if (norm_of(s, A, run->la, &got)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
+        run->nrm = got;
     }
-
-    switch (s->method) {
-    case SB_METHOD_FULL: {
-        res = s->single ? run_full_f(s) : run_full_d(s);
-        if (res != SB_OK) break;
-        size_t d = s->d;
-        if (all_s) {
-            for (size_t j = 0; j < d; j++)
-                all_s[j] = sv_at(s, j);
-            if (have_all) *have_all = 1;
-        }
-        /* t = sum_{i>=j} (s_i / ||A||)^2, the relative error^2 of keeping
-         * j terms, summed from the end so that small errors are not
-         * differences */
-        double t = 0, inv = nrm > 0 ? 1 / nrm : 0;
-        size_t lo = min_rank > 0 ? min_rank : 1;
-        for (size_t j = d; j-- > 0;) {
-            double x = sv_at(s, j) * inv;
-            t += x * x;
-            if (adaptive && j >= lo && j <= k && t <= tol2) r = j;
-        }
-        t = 0;
-        for (size_t j = d; j-- > r;)
-            t += (sv_at(s, j) * inv) * (sv_at(s, j) * inv);
-        if (s->single)
-            out_full_f(s, r, sv, U, V);
-        else
-            out_full_d(s, r, sv, U, V);
-        info.norm_fro = nrm;
-        info.resid_fro = nrm > 0 ? nrm * sqrt(t) : 0;
-        sketch = d;
-        break;
-    }
-    case SB_METHOD_TOPK: {
-        double tr;
-        res = s->single ? run_topk_f(s, a, la, &tr) : run_topk_d(s, a, la, &tr);
-        if (res != SB_OK) break;
-        if (nrm < 0) nrm = sqrt(tr);
-        if (s->single)
-            out_topk_f(s, k, sv, U, V);
-        else
-            out_topk_d(s, k, sv, U, V);
-        if (adaptive) r = rank_for(sv, k, nrm, tol2, min_rank);
-        info.norm_fro = nrm;
-        info.resid_fro = resid_from(nrm, sv, r);
-        sketch = k;
-        break;
-    }
-    default: {
-        res = s->single ? run_rand_f(s, a, la, adaptive, tol2, nrm, min_rank, &sketch, &r)
-                        : run_rand_d(s, a, la, adaptive, tol2, nrm, min_rank, &sketch, &r);
-        if (res != SB_OK) break;
-        if (s->single)
-            out_rand_f(s, r, sv, U, V);
-        else
-            out_rand_d(s, r, sv, U, V);
-        if (nrm >= 0) {
-            info.norm_fro = nrm;
-            info.resid_fro = resid_from(nrm, sv, r);
-        }
-        break;
-    }
-    }
+    run->info = (sb_svd_info_t){0, 0, 0, -1};
+    sb_result_t res = s->method == SB_METHOD_FULL   ? sb_svd_run_full(s, run)
+                      : s->method == SB_METHOD_TOPK ? sb_svd_run_topk(s, run)
+                                                    : sb_svd_run_rand(s, run);
     if (res != SB_OK) return res;
-    for (size_t j = 0; j < r; j++)
-        if (!isfinite(sv[j])) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: non-finite singular value (bad input?)");
-    info.rank = r;
-    info.sketch = sketch;
-    s->info = info;
+    for (size_t j = 0; j < run->r; j++)
+        if (!isfinite(run->sv[j]))
+            return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: non-finite singular value (bad input?)");
+    run->info.rank = run->r;
+    run->info.sketch = run->sketch;
+    s->info = run->info;
     return SB_OK;
 }
 
 sb_result_t sb_svd_execute(sb_svd_t *s, const double *A, size_t lda, double *sv, double *U, double *V, double *all_s,
                            int *have_all) {
     if (!s) return sb_error(NULL, SB_ERR_ARG, "svd: no plan");
-    return execute(s, A, lda, 0, 0, 0, 0, s->k, sv, U, V, all_s, have_all);
+    sb_svd_run_t run = {A, lda, 0, 0, -1, s->k, sv, U, V, all_s, have_all, 0, 0, {0}};
+    return execute(s, &run, 0);
 }
 
 sb_result_t sb_svd_execute_adaptive(sb_svd_t *s, const double *A, size_t lda, double rel_tol, double norm_fro,
@@ -431,7 +268,10 @@ sb_result_t sb_svd_execute_adaptive(sb_svd_t *s, const double *A, size_t lda, do
                         "svd: tolerance %g (need [0, 1)), norm %g or minimum rank %zu (need <= %zu)", rel_tol, norm_fro,
                         min_rank, s->k);
     /* rel_tol = 0 asks for no truncation: a plain execute (with the norm) */
-    sb_result_t r = execute(s, A, lda, rel_tol > 0, 1, rel_tol, norm_fro, min_rank, sv, U, V, NULL, NULL);
+    sb_svd_run_t run = {
+        A, lda, rel_tol > 0, rel_tol * rel_tol, norm_fro > 0 ? norm_fro : -1, min_rank, sv, U, V, NULL, NULL,
+        0, 0,   {0}};
+    sb_result_t r = execute(s, &run, 1);
     if (r == SB_OK && info) *info = s->info;
     return r;
 }

@@ -9,6 +9,7 @@
 
 #include "source/measured_impl.h"
 #include "util/internal.h"
+#include "util/rng.h"
 
 #define MAX_WAVELENGTHS 4096
 
@@ -549,14 +550,6 @@ const sb_reader_t sb_reader_csv = {"csv", "sepbrdf CSV", ".csv", sniff_csv, open
 
 /* ---- simulated gonioreflectometer ------------------------------------- */
 
-/* splitmix64: small, deterministic, good enough for test noise. */
-static uint64_t splitmix(uint64_t *s) {
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-}
-
 /* Standard normal by Box-Muller, one value per call (the pair's second
  * value is kept for the next call). */
 typedef struct gauss {
@@ -570,12 +563,11 @@ static double gauss_next(gauss_t *g) {
         g->have = 0;
         return g->next;
     }
-    double u1 = ((double)(splitmix(&g->s) >> 11) + 1) * (1.0 / 9007199254740992.0); /* (0, 1] */
-    double u2 = (double)(splitmix(&g->s) >> 11) * (1.0 / 9007199254740992.0);
-    double rad = sqrt(-2 * log(u1));
-    g->next = rad * sin(2 * SB_PI * u2);
+    double two[2];
+    sb_splitmix_gauss2(&g->s, two); /* splitmix64: small, deterministic, good enough for test noise */
+    g->next = two[1];
     g->have = 1;
-    return rad * cos(2 * SB_PI * u2);
+    return two[0];
 }
 
 /* The metadata and column lines every table written here ends its header with. */

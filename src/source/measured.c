@@ -4,7 +4,6 @@
 
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +12,7 @@
 
 #include "source/measured_impl.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 static const char *const interp_names[SB_INTERP_COUNT_] = {"default", "nearest", "linear", "idw", "quadratic"};
 
@@ -301,33 +301,15 @@ sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, 
         return sb_error(ctx, SB_ERR_ARG, "coverage: missing source, parameterisation or map (bands 0..90)");
     size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total, nb = bands * bands;
     if (sb_size_mul(rows, cols, &total)) return sb_error(ctx, SB_ERR_OVERFLOW, "coverage: cell count overflows");
-    int nt = sb_thread_count(0);
-    if ((size_t)nt > cols) nt = (int)cols;
-    if (nt < 1) nt = 1;
-    cov_job_t *jobs = calloc((size_t)nt, sizeof *jobs);
-    pthread_t *th = calloc((size_t)nt, sizeof *th);
-    char *started = calloc((size_t)nt, 1);
+    int nt = sb_threads_for(0, cols, cols, 0);
+    cov_job_t jobs[SB_THREADS_MAX];
     size_t *maps = nb ? calloc((size_t)nt * 2 * nb, sizeof *maps) : NULL;
-    if (!jobs || !th || !started || (nb && !maps)) {
-        free(jobs);
-        free(th);
-        free(started);
-        free(maps);
-        return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
-    }
+    if (nb && !maps) return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
     for (int t = 0; t < nt; t++) {
-        jobs[t] =
-            (cov_job_t){src, param, rows,  cols * (size_t)t / (size_t)nt,        cols * (size_t)(t + 1) / (size_t)nt,
-                        0,   0,     bands, nb ? maps + (size_t)t * 2 * nb : NULL};
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, cov_cols, &jobs[t]) == 0;
+        jobs[t] = (cov_job_t){src, param, rows, 0, 0, 0, 0, bands, nb ? maps + (size_t)t * 2 * nb : NULL};
+        sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
-    cov_cols(&jobs[0]);
-    for (int t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            cov_cols(&jobs[t]); /* no thread: do it here */
-    }
+    sb_parallel_run(cov_cols, jobs, sizeof *jobs, nt, NULL, NULL);
     size_t k = 0, n = 0;
     for (size_t b = 0; b < nb; b++)
         known[b] = cells[b] = 0;
@@ -339,9 +321,6 @@ sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, 
             cells[b] += jobs[t].map[nb + b];
         }
     }
-    free(jobs);
-    free(th);
-    free(started);
     free(maps);
     if (!nb) { /* totals only: the arrays, if any, receive them */
         if (known) *known = k;

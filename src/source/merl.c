@@ -12,13 +12,13 @@
 #include <errno.h>
 #include <float.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
 #include "source/measured_impl.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 const double sb_merl_scale[3] = {1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0};
 
@@ -394,23 +394,13 @@ sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t
     double *v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), "merl write");
     if (!v) return SB_ERR_NOMEM;
     /* Evaluate: theta_h slices split among threads. */
-    int nt = sb_thread_count(0);
-    if (nt > SB_MERL_TH) nt = SB_MERL_TH;
-    merl_job_t jobs[SB_MERL_TH];
-    pthread_t th[SB_MERL_TH];
-    int started[SB_MERL_TH] = {0};
+    int nt = sb_threads_for(0, SB_MERL_TH, SB_MERL_TH, 0);
+    merl_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (merl_job_t){src, v, (size_t)SB_MERL_TH * (size_t)t / (size_t)nt,
-                               (size_t)SB_MERL_TH * (size_t)(t + 1) / (size_t)nt};
-        if (t > 0) started[t] = pthread_create(&th[t], NULL, merl_fill, &jobs[t]) == 0;
+        jobs[t] = (merl_job_t){src, v, 0, 0};
+        sb_part(SB_MERL_TH, t, nt, &jobs[t].h0, &jobs[t].h1);
     }
-    merl_fill(&jobs[0]);
-    for (int t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            merl_fill(&jobs[t]);
-    }
+    sb_parallel_run(merl_fill, jobs, sizeof *jobs, nt, NULL, NULL);
     /* Encode and write under the temporary name, then rename. */
     FILE *fp = fopen(tmp, "wb");
     if (!fp) {

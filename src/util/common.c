@@ -11,6 +11,7 @@ struct sb_context {
     sb_error_fn fn;
     void *user;
     char last[1024];
+    const char *alias_from, *alias_to; /* sb_context_alias */
 };
 
 static const char *const names[SB_RESULT_COUNT_] = {
@@ -44,12 +45,36 @@ void sb_context_clear_error(sb_context_t *ctx) {
     if (ctx) ctx->last[0] = 0;
 }
 
+void sb_context_alias(sb_context_t *ctx, const char *from, const char *to) {
+    if (!ctx) return;
+    ctx->alias_from = from && *from && to ? from : NULL;
+    ctx->alias_to = to;
+}
+
+/* Every occurrence of alias_from in the message becomes alias_to. */
+static void replace_alias(sb_context_t *ctx) {
+    char out[sizeof ctx->last];
+    size_t n = 0, lf = strlen(ctx->alias_from), lt = strlen(ctx->alias_to);
+    const char *p = ctx->last, *hit;
+    while ((hit = strstr(p, ctx->alias_from)) != NULL) {
+        size_t pre = (size_t)(hit - p);
+        if (n + pre + lt >= sizeof out) break;
+        memcpy(out + n, p, pre);
+        memcpy(out + n + pre, ctx->alias_to, lt);
+        n += pre + lt;
+        p = hit + lf;
+    }
+    snprintf(out + n, sizeof out - n, "%s", p);
+    memcpy(ctx->last, out, sizeof out);
+}
+
 sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...) {
     if (!ctx) return code;
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(ctx->last, sizeof ctx->last, fmt, ap);
     va_end(ap);
+    if (ctx->alias_from) replace_alias(ctx);
     if (ctx->fn) ctx->fn(ctx->user, code, ctx->last);
     return code;
 }

@@ -12,7 +12,22 @@ char *sb_strdup(const char *s);
 void *sb_alloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
 void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
 
-/* Number of worker threads to use (env SEPBRDF_THREADS or online cores). */
+/* While from is set, sb_error writes `to` for every occurrence of `from` in
+ * its messages (an output set names its target, not its staging folder).
+ * Both strings stay owned by the caller; from NULL ends it. */
+void sb_context_alias(sb_context_t *ctx, const char *from, const char *to);
+
+/* Most threads any parallel loop uses (parallel.h). */
+#define SB_THREADS_MAX 64
+
+/* Number of worker threads to use: `requested` if > 0, else env
+ * SEPBRDF_THREADS or the online cores; at most SB_THREADS_MAX. */
 int sb_thread_count(int requested);
+
+/* The power of two 2^-e nearest below 1 / amax (amax in [2^(e-1), 2^e)),
+ * e clamped to [-1020, 1020] (2^1074 would overflow for denormal data); 1
+ * when amax is 0 or not finite.  Sums of squares of values multiplied by
+ * it neither underflow nor overflow, and the scaling itself is exact. */
+double sb_pow2_scale(double amax);
 
 #endif

@@ -1,4 +1,5 @@
-/* Allocation with limits, strings, thread counts. */
+/* Allocation with limits, strings, thread counts, scaling. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -36,9 +37,16 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what) 
 }
 
 int sb_thread_count(int requested) {
-    if (requested > 0) return requested;
+    long n = requested;
     const char *e = getenv("SEPBRDF_THREADS");
-    if (e && atoi(e) > 0) return atoi(e);
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n > 0 ? (int)(n > 64 ? 64 : n) : 1;
+    if (n <= 0 && e && atoi(e) > 0) n = atoi(e);
+    if (n <= 0) n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (int)(n > SB_THREADS_MAX ? SB_THREADS_MAX : n) : 1;
+}
+
+double sb_pow2_scale(double amax) {
+    if (!(amax > 0) || !isfinite(amax)) return 1;
+    int e;
+    frexp(amax, &e);
+    return ldexp(1, e > 1020 ? -1020 : (e < -1020 ? 1020 : -e));
 }

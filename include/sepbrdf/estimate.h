@@ -1,0 +1,115 @@
+/* sepbrdf: the error estimator, what a shader returns against the source.
+ *
+ * The reconstruction is evaluated as sepbrdf.glsl evaluates it: the
+ * parameterisation's coordinates (sb_param_coords), GL bilinear filtering
+ * with the texel-centre convention and wrap of param.h, the sum over the
+ * first J' terms, the per-term scale and the division by the form weight
+ * with the snippet's grazing guard max(cos, 0.001), and 0 outside the
+ * domain.  Pass the factors as stored (sb_factors_quantize: FLOAT, or HALF
+ * with its scales), so the estimate is that of the files written.
+ *
+ * The error is measured at direction pairs that are not the fit's cells
+ * (out of sample), drawn once per source and reused for every candidate
+ * and every J' (sb_pairs_t).  The pairs are randomised quasi-Monte Carlo:
+ * K replicates of one 6D Kronecker point set (generalised golden ratio),
+ * each shifted by an independent random vector (Cranley-Patterson), mapped
+ * to (wi, wo) through a mixture density
+ *     p(wi, wo) = p_i(wi) p_o(wo | wi),
+ *     p_i = 1/2 uniform + 1/2 cosine on the hemisphere,
+ *     p_o = 0.2 uniform + 0.2 cosine + 0.15 each of four GGX lobes of the
+ *           half vector around the normal (alpha 0.005, 0.02, 0.08, 0.3;
+ *           wo = reflect(wi, h), density D(h) cos(theta_h) / (4 wo.h)),
+ * weighted by the exact mixture density, so sharp specular peaks, broad
+ * lobes and grazing angles are all sampled.  For a quantity q(wi, wo)
+ * (q = cos^2 theta_i: the headline, the error of f cos theta_i that a
+ * shader outputs per light; cos^2 theta_i cos^2 theta_o: `comparable`;
+ * 1: the error of f itself), the relative L2 error
+ *     e^2 = int int (f~ - f)^2 q dwi dwo / int int f^2 q dwi dwo
+ * over the pairs where the source is known is estimated by the ratio of
+ * the two replicate means; its standard error comes from the spread of the
+ * replicates (delta method: se(e^2) = sd_k(N_k - e^2 D_k) / (sqrt(K) mean D),
+ * se(e) = se(e^2) / (2 e)).  sb_estimate_compute adds replicates until the
+ * headline's standard error is at most `rel_se` of the estimate for every
+ * J' (or max_pairs is reached: then `converged` is 0).
+ *
+ * Per pair, the relative error of a channel is |f~ - f| / |f| (all
+ * channels: the RGB Euclidean norms); p99 is its 99th percentile under the
+ * headline's energy measure f^2 cos^2 theta_i dwi dwo (99 % of the shaded
+ * energy has a smaller relative error), read from a histogram of 40 bins
+ * per decade (the bin's upper edge: within 6 % above);
+ * max is the largest over the sampled pairs with f != 0.  The negative
+ * fraction is the fraction of the domain's solid angle pair measure where
+ * a reconstructed channel is < 0; overshoot is the largest |f~| over the
+ * sampled pairs divided by the largest |f|: above 1, the shader returns
+ * values beyond anything in the BRDF (unconstrained texels of a masked fit
+ * reached by the bilinear taps).  Everything is the same to the bit on any
+ * thread count. */
+#ifndef SEPBRDF_ESTIMATE_H
+#define SEPBRDF_ESTIMATE_H
+
+#include <stdint.h>
+
+#include "common.h"
+#include "factor.h"
+#include "param.h"
+#include "source.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SB_EST_MAXJ 256
+
+/* Quantities, index q of sb_estimate_t. */
+enum { SB_EST_FCOS = 0 /* headline: f cos(theta_i) */, SB_EST_FCOS2 /* f cos cos */, SB_EST_F, SB_EST_Q_COUNT_ };
+
+typedef struct sb_estimate_opts {
+    size_t replicate; /* pairs per replicate, default 4096 */
+    size_t start;     /* replicates drawn at first, default 16 (at least 4) */
+    size_t max_pairs; /* sb_estimate_compute adds replicates up to this many pairs, default 2^19; start * replicate
+                         or less: never grows */
+    double rel_se;    /* target standard error of the headline relative to it, default 0.05 */
+    uint64_t seed;    /* default 1 */
+    int threads;      /* 0 = all cores */
+} sb_estimate_opts_t;
+
+/* Pairs with the source's values: created once per source, reused. */
+typedef struct sb_pairs sb_pairs_t;
+/* Draw opts->start replicates of pairs for src (src must outlive them).
+ * Errors: SB_ERR_ARG, SB_ERR_RANGE (replicate 0, start < 4), SB_ERR_NOMEM. */
+sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
+                            sb_pairs_t **out);
+void sb_pairs_destroy(sb_pairs_t *pairs);
+size_t sb_pairs_count(const sb_pairs_t *pairs);
+
+typedef struct sb_estimate {
+    size_t terms;                                /* J' = 1..terms are filled (at most SB_EST_MAXJ) */
+    size_t pairs, known;                         /* pairs used, pairs where the source is known */
+    int converged;                               /* the headline's standard error met rel_se for every J' */
+    double rel[SB_EST_MAXJ][SB_EST_Q_COUNT_][4]; /* [J'-1][quantity][R, G, B, all] relative L2 error */
+    double se[SB_EST_MAXJ][SB_EST_Q_COUNT_][4];  /* its standard error */
+    double p99[SB_EST_MAXJ][4];                  /* 99th-percentile relative error per pair */
+    double max_rel[SB_EST_MAXJ][4];              /* largest relative error of a pair */
+    double neg_frac[SB_EST_MAXJ];                /* fraction of the pair domain with a negative channel */
+    double overshoot[SB_EST_MAXJ];               /* max |f~| / max |f| over the sampled pairs */
+} sb_estimate_t;
+
+/* Estimate the errors of the first J' = 1..min(J, SB_EST_MAXJ) terms of f
+ * (as stored; `scales` the per-term factors a shader applies, as
+ * sb_exr_term_scales gives them for the stored texels, NULL = 1) on p with
+ * the form `form`, against the source of `pairs`, adding replicates to
+ * pairs as the target standard error asks (opts: those given to
+ * sb_pairs_create, NULL = defaults).  A 1-channel f is compared with every
+ * channel.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
+sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
+                                const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
+                                sb_estimate_t *out);
+
+/* The headline (relative L2 error of f cos(theta_i), all channels) after
+ * j >= 1 terms; NAN beyond est->terms. */
+double sb_estimate_headline(const sb_estimate_t *est, size_t j);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

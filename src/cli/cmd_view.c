@@ -1,0 +1,200 @@
+/* sepbrdf view: an interactive viewer page (index.html) for a factor folder. */
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "pipeline.h"
+#include "sepbrdf/viewer.h"
+
+#define DEFAULT_DIR "sepbrdf-out"
+
+static void help(void) {
+    printf("usage: sepbrdf view [DIR] [OPTIONS]\n"
+           "\n"
+           "Write DIR/index.html, one self-contained page (WebGL2, no network, opens from\n"
+           "file://) that runs DIR/sepbrdf.glsl on a lit sphere and on a plane seen at a\n"
+           "grazing angle: the light follows the mouse, sliders set the exposure and the\n"
+           "number of terms J; the original, the reconstruction and an error heat map side\n"
+           "by side; polar plots of the in-plane slice f(theta_o) for a chosen theta_i,\n"
+           "original against every J; the numbers of report.json.\n"
+           "\n"
+           "DIR     a folder written by `sepbrdf factor` (default ./" DEFAULT_DIR ").\n"
+           "        The original is --source, else SOURCE as factor was given it\n"
+           "        (report.json), else the source the EXR files record; it is sampled\n"
+           "        into a table embedded in the page.  Without one the page shows the\n"
+           "        reconstruction only.\n"
+           "\n"
+           "options:\n"
+           "  -o, --out FOLDER     where index.html goes, created if missing (default DIR);\n"
+           "                       published as one output set beside the factors (as\n"
+           "                       `sepbrdf render` adds its set)\n"
+           "      --source SPEC    the original to compare with\n"
+           "      --no-original    leave the original out (a smaller page)\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP
+           "\n" CLI_EXIT_HELP);
+}
+
+typedef struct view_opts {
+    const char *dir, *out, *source;
+    int no_original;
+    sb_measured_opts_t mo;
+} view_opts_t;
+
+/* Returns an exit code, or -1 to go on. */
+static int parse(int argc, char **argv, view_opts_t *o) {
+    static const char *const n_help[] = {"-h", "--help", NULL}, *const n_src[] = {"--source", NULL},
+                             *const n_none[] = {"--no-original", NULL};
+    cli_args_t a = {argc, 1, argv, "view"};
+    for (; a.i < argc; a.i++) {
+        const char *arg = argv[a.i], *v = NULL;
+        int m;
+        if (cli_opt(&a, n_help, 0, &v)) {
+            help();
+            return EXIT_OK;
+        } else if ((m = cli_out_opt(&a, "folder", &o->out))) {
+            if (m < 0) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_src, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            o->source = v;
+        } else if (cli_opt(&a, n_none, 0, &v)) {
+            o->no_original = 1;
+        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+            if (m < 0) return EXIT_USAGE;
+        } else if (cli_verbosity_opt(arg)) {
+        } else if (arg[0] == '-' && arg[1]) {
+            cli_error("view", "unknown option '%s' (see `sepbrdf view --help`)", arg);
+            return EXIT_USAGE;
+        } else if (!o->dir) {
+            o->dir = arg;
+        } else {
+            cli_error("view", "more than one DIR given ('%s' and '%s')", o->dir, arg);
+            return EXIT_USAGE;
+        }
+    }
+    if (o->source && o->no_original) {
+        cli_error("view", "--source and --no-original contradict each other");
+        return EXIT_USAGE;
+    }
+    return -1;
+}
+
+/* The whole of a small text file, malloc'ed; NULL when unreadable. */
+static char *read_text(const char *dir, const char *name) {
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    char *s = NULL;
+    long n = fseek(fp, 0, SEEK_END) == 0 ? ftell(fp) : -1;
+    if (n >= 0 && n < (1L << 26) && fseek(fp, 0, SEEK_SET) == 0 && (s = malloc((size_t)n + 1))) {
+        if (fread(s, 1, (size_t)n, fp) == (size_t)n)
+            s[n] = 0;
+        else
+            free(s), s = NULL;
+    }
+    fclose(fp);
+    return s;
+}
+
+/* Bytes of the folder's g_JJ.exr and h_JJ.exr. */
+static size_t texture_bytes(const char *dir, size_t terms) {
+    size_t sum = 0;
+    for (size_t j = 0; j < terms; j++)
+        for (int side = 0; side < 2; side++) {
+            char name[64], path[4200];
+            struct stat st;
+            sb_exr_name(side, j, name, sizeof name);
+            snprintf(path, sizeof path, "%s/%s", dir, name);
+            if (stat(path, &st) == 0) sum += (size_t)st.st_size;
+        }
+    return sum;
+}
+
+/* The original: --source (must open), else the report's source_spec, else
+ * the factors' source description (either may fail: then none, said at
+ * level 1).  Returns an exit code, or -1 to go on; *src may stay NULL. */
+static int open_original(sb_context_t *ctx, const view_opts_t *o, const sb_factors_t *f, sb_source_t **src) {
+    if (o->no_original) return -1;
+    if (o->source) {
+        sb_result_t r = pipe_source_open(ctx, o->source, &o->mo, src);
+        return r == SB_OK ? -1 : cli_fail("view", ctx, r);
+    }
+    char given[4096];
+    const char *meta = sb_factors_get_meta(f, "source");
+    if (cli_read_source_spec(o->dir, given, sizeof given) == 0 && pipe_source_open(ctx, given, &o->mo, src) == SB_OK)
+        return -1;
+    if (meta && pipe_source_open(ctx, meta, &o->mo, src) == SB_OK) return -1;
+    cli_info(1,
+             "sepbrdf view: %s: its source cannot be opened, the page shows the reconstruction only (name the "
+             "original with --source)",
+             o->dir);
+    return -1;
+}
+
+static int write_page(sb_context_t *ctx, const view_opts_t *o) {
+    sb_factors_t *f = NULL;
+    sb_param_t *param = NULL;
+    sb_source_t *src = NULL;
+    sb_form_t form;
+    char *glsl = NULL, *report = NULL;
+    int rc = -1;
+    sb_result_t r;
+    if ((r = sb_factors_read_exr(ctx, o->dir, &f)) != SB_OK || (r = sb_factors_param(ctx, f, &param, &form)) != SB_OK) {
+        rc = cli_fail("view", ctx, r);
+        goto out;
+    }
+    if (!(glsl = read_text(o->dir, "sepbrdf.glsl"))) {
+        cli_error("view", "%s/sepbrdf.glsl: cannot read (a folder written by `sepbrdf factor` has it)", o->dir);
+        rc = EXIT_IO;
+        goto out;
+    }
+    report = read_text(o->dir, "report.json");
+    if ((rc = open_original(ctx, o, f, &src)) >= 0) goto out;
+    sb_viewer_opts_t vo = {src, glsl, report, texture_bytes(o->dir, sb_factors_terms(f)), 0};
+    /* The page is an output set of its own in the folder (outset.h) */
+    char path[4200];
+    sb_outset_t *set = cli_outset_begin(ctx, "view", o->out, &rc);
+    if (!set) goto out;
+    if (cli_set_file(set, "index.html", path, sizeof path) != 0) {
+        cli_error("view", "%s/index.html: name too long", o->out);
+        rc = EXIT_IO;
+    } else if ((r = sb_viewer_write(ctx, path, f, param, form, &vo)) != SB_OK) {
+        rc = cli_fail("view", ctx, r);
+    }
+    int end = cli_outset_end(ctx, "view", set, rc < 0); /* publishes, or discards after a failure */
+    if (rc < 0) rc = end;
+    if (rc == EXIT_OK && g_verbosity >= 1)
+        printf("sepbrdf view: wrote %s/index.html (%s, %zu terms%s%s); open it in a browser with WebGL2\n", o->out,
+               sb_param_spec(param), sb_factors_terms(f), src ? ", original " : ", no original",
+               src ? sb_source_description(src) : "");
+out:
+    free(glsl);
+    free(report);
+    sb_source_destroy(src);
+    sb_param_destroy(param);
+    sb_factors_destroy(f);
+    return rc;
+}
+
+int cmd_view(int argc, char **argv) {
+    view_opts_t o;
+    memset(&o, 0, sizeof o);
+    int rc = parse(argc, argv, &o);
+    if (rc >= 0) return rc;
+    if (!o.dir) o.dir = DEFAULT_DIR;
+    struct stat st;
+    if (stat(o.dir, &st) != 0 || !S_ISDIR(st.st_mode)) {
+        cli_error("view", "%s: not a folder (give a folder written by `sepbrdf factor`)", o.dir);
+        return EXIT_IO;
+    }
+    if (!o.out) o.out = o.dir;
+    if ((rc = cli_check_outdir("view", "--out", o.out)) != EXIT_OK) return rc;
+    sb_context_t *ctx = NULL;
+    if (sb_context_create(&ctx) != SB_OK) {
+        cli_error("view", "out of memory");
+        return EXIT_IO;
+    }
+    rc = write_page(ctx, &o);
+    sb_context_destroy(ctx);
+    return rc;
+}

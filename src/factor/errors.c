@@ -1,0 +1,371 @@
+/* The errors of a factorisation (errors.h), for the plan's own fit and
+ * for factors that changed after it (rounded to the stored precision,
+ * read back from files, edited).  One measure everywhere: on the valid
+ * cells of M, for every J' = 1..J,
+ *     rel_rms = ||W_r (M - sum_{j<=J'} g_j h_j^T) W_c||_F / ||W_r M W_c||_F
+ * with W = diag(sqrt(cell measure)) for weighted fits and W = I otherwise,
+ * and max_abs = max |M - sum g_j h_j^T| in native units. */
+#include "factor/errors.h"
+
+#include <cblas.h>
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+#include "util/internal.h"
+#include "util/parallel.h"
+
+/* One term of the residual of a column: r -= hv g; returns
+ * sum (r wr wcp)^2 (wr NULL: 1) and raises *mx to max |r|.  Two lanes with
+ * SSE2, which GCC does not produce itself for the maximum (its NaN rules
+ * differ from maxpd; the matrix is finite). */
+static double resid_step(double *r, const double *g, double hv, size_t n, const double *wr, double wcp, double *mx) {
+    size_t i = 0;
+    double s2 = 0, m = *mx;
+#if defined(__SSE2__)
+    __m128d vh = _mm_set1_pd(hv), vw = _mm_set1_pd(wcp), sign = _mm_set1_pd(-0.0);
+    __m128d acc = _mm_setzero_pd(), vm = _mm_set1_pd(m);
+    for (; i + 2 <= n; i += 2) {
+        __m128d x = _mm_sub_pd(_mm_loadu_pd(r + i), _mm_mul_pd(vh, _mm_loadu_pd(g + i)));
+        _mm_storeu_pd(r + i, x);
+        __m128d d = _mm_mul_pd(x, vw);
+        if (wr) d = _mm_mul_pd(d, _mm_loadu_pd(wr + i));
+        acc = _mm_add_pd(acc, _mm_mul_pd(d, d));
+        vm = _mm_max_pd(vm, _mm_andnot_pd(sign, x));
+    }
+    double t[2];
+    _mm_storeu_pd(t, acc);
+    s2 = t[0] + t[1];
+    _mm_storeu_pd(t, vm);
+    m = t[0] > t[1] ? t[0] : t[1];
+#endif
+    for (; i < n; i++) {
+        r[i] -= hv * g[i];
+        double d = r[i] * wcp * (wr ? wr[i] : 1), a = fabs(r[i]);
+        s2 += d * d;
+        if (a > m) m = a;
+    }
+    *mx = m;
+    return s2;
+}
+
+/* The same step on the valid cells of a masked column. */
+static double resid_step_masked(double *r, const double *g, double hv, size_t n, const double *wr, double wcp,
+                                const unsigned char *mk, double *mx) {
+    double s2 = 0, m = *mx;
+    for (size_t i = 0; i < n; i++) {
+        r[i] -= hv * g[i];
+        if (!mk[i]) continue;
+        double d = r[i] * wcp * (wr ? wr[i] : 1), a = fabs(r[i]);
+        s2 += d * d;
+        if (a > m) m = a;
+    }
+    *mx = m;
+    return s2;
+}
+
+typedef struct resid_job {
+    const sb_resid_t *in;
+    size_t c0, c1;
+    double *r, *ssq, *mx, n2; /* scratch column; sums of this job */
+} resid_job_t;
+
+static void *resid_cols(void *arg) {
+    resid_job_t *jb = arg;
+    const sb_resid_t *in = jb->in;
+    size_t rows = in->rows, J = in->terms;
+    double *r = jb->r;
+    for (size_t j = 0; j < J; j++)
+        jb->ssq[j] = jb->mx[j] = 0;
+    jb->n2 = 0;
+    for (size_t c = jb->c0; c < jb->c1; c++) {
+        const double *a = in->a + c * in->ld;
+        const unsigned char *mk = in->mask ? in->mask + c * in->ld : NULL;
+        double wcp = (in->wc ? in->wc[c] : 1) * in->pw;
+        for (size_t i = 0; i < rows; i++) {
+            r[i] = a[i];
+            double x = r[i] * wcp * (in->wr ? in->wr[i] : 1);
+            if (!mk || mk[i]) jb->n2 += x * x;
+        }
+        for (size_t j = 0; j < J; j++) {
+            const double *g = in->g + j * in->gstep;
+            double hv = in->h[j * in->hstep + c];
+            jb->ssq[j] += mk ? resid_step_masked(r, g, hv, rows, in->wr, wcp, mk, &jb->mx[j])
+                             : resid_step(r, g, hv, rows, in->wr, wcp, &jb->mx[j]);
+        }
+    }
+    return NULL;
+}
+
+size_t sb_resid_scratch(size_t rows, size_t terms, int threads) { return (rows + 2 * terms) * (size_t)threads; }
+
+void sb_resid_channel(const sb_resid_t *in, int threads, double *scratch, double *ssq, double *mx, double *n2) {
+    size_t J = in->terms;
+    /* small matrices: threads cost more than they save */
+    int nt = sb_threads_for(threads, in->cols, in->rows * in->cols * J, (size_t)1 << 18);
+    resid_job_t jobs[SB_THREADS_MAX];
+    for (int t = 0; t < nt; t++) {
+        double *w = scratch + (size_t)t * (in->rows + 2 * J);
+        jobs[t] = (resid_job_t){in, 0, 0, w, w + in->rows, w + in->rows + J, 0};
+        sb_part(in->cols, t, nt, &jobs[t].c0, &jobs[t].c1);
+    }
+    sb_parallel_run(resid_cols, jobs, sizeof *jobs, nt, NULL, NULL);
+    *n2 = 0;
+    for (size_t j = 0; j < J; j++)
+        ssq[j] = mx[j] = 0;
+    for (int t = 0; t < nt; t++) { /* fixed order: deterministic */
+        *n2 += jobs[t].n2;
+        for (size_t j = 0; j < J; j++) {
+            ssq[j] += jobs[t].ssq[j];
+            if (jobs[t].mx[j] > mx[j]) mx[j] = jobs[t].mx[j];
+        }
+    }
+}
+
+sb_result_t sb_errors_relative(sb_context_t *ctx, size_t J, const int present[3], const double *ssq, const double *mx,
+                               const double n2[3], double *rel_rms, double *max_abs) {
+    double total2 = 0;
+    for (int c = 0; c < 3; c++)
+        if (present[c]) total2 += n2[c];
+    for (size_t t = 0; t < J; t++) {
+        double s2 = 0, *all = &rel_rms[sb_err_at(t, SB_CH_ALL)];
+        for (size_t c = 0; c < 3; c++) {
+            if (!present[c]) continue;
+            double sc = ssq[c * J + t];
+            rel_rms[sb_err_at(t, c)] = n2[c] > 0 ? sqrt(sc / n2[c]) : 0;
+            s2 += sc;
+            if (max_abs) {
+                max_abs[sb_err_at(t, c)] = mx[c * J + t];
+                if (mx[c * J + t] > max_abs[sb_err_at(t, SB_CH_ALL)]) max_abs[sb_err_at(t, SB_CH_ALL)] = mx[c * J + t];
+            }
+        }
+        *all = total2 > 0 ? sqrt(s2 / total2) : 0;
+        if (!isfinite(*all)) return sb_error(ctx, SB_ERR_NUMERIC, "errors: non-finite error after %zu terms", t + 1);
+    }
+    return SB_OK;
+}
+
+/* Weights of a parameterisation: w = sqrt(max(cell measure, 0)). */
+void sb_errors_weights(const sb_param_t *p, double *wr, double *wc) {
+    for (size_t i = 0; i < sb_param_rows(p); i++)
+        wr[i] = sqrt(fmax(sb_param_row_measure(p, i), 0));
+    for (size_t i = 0; i < sb_param_cols(p); i++)
+        wc[i] = sqrt(fmax(sb_param_col_measure(p, i), 0));
+}
+
+static sb_result_t check_fit(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                             const sb_param_t *weights) {
+    size_t rows = m->rows, cols = m->cols, gw, gh, hw, hh;
+    sb_factors_size(f, SB_SIDE_G, &gw, &gh);
+    sb_factors_size(f, SB_SIDE_H, &hw, &hh);
+    if (gw * gh != rows || hw * hh != cols)
+        return sb_error(ctx, SB_ERR_ARG,
+                        "errors: factors of %zu x %zu and %zu x %zu texels do not fit a %zu x %zu matrix", gw, gh, hw,
+                        hh, rows, cols);
+    if (weights && (sb_param_rows(weights) != rows || sb_param_cols(weights) != cols))
+        return sb_error(ctx, SB_ERR_ARG, "errors: the weighting parameterisation does not match the matrix");
+    return SB_OK;
+}
+
+sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                                      const sb_param_t *weights, double *rel_rms, double *max_abs) {
+    if (!f || !m || !rel_rms || !max_abs) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
+    sb_result_t res = check_fit(ctx, f, m, weights);
+    if (res != SB_OK) return res;
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), rows = m->rows, cols = m->cols, n;
+    memset(rel_rms, 0, J * 4 * sizeof *rel_rms);
+    memset(max_abs, 0, J * 4 * sizeof *max_abs);
+    int nt = sb_thread_count(0), present[3];
+    if (sb_size_add(rows + cols + 6 * J, sb_resid_scratch(rows, J, nt), &n))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "errors: scratch size overflows");
+    double *ws = sb_alloc(ctx, n, sizeof(double), "errors scratch");
+    if (!ws) return SB_ERR_NOMEM;
+    double *wr = ws, *wc = wr + rows, *ssq = wc + cols, *mx = ssq + 3 * J, *scratch = mx + 3 * J, n2[3] = {0, 0, 0};
+    if (weights) sb_errors_weights(weights, wr, wc);
+    /* Step: power-of-two scale of the largest valid |M| over all channels */
+    double amax = 0;
+    for (int ch = 0; ch < 3; ch++)
+        for (size_t c = 0; m->data[ch] && c < cols; c++)
+            for (size_t i = 0; i < rows; i++)
+                if (!m->mask || m->mask[i + c * m->ld]) amax = fmax(amax, fabs(m->data[ch][i + c * m->ld]));
+    /* Step: residual columns, every truncation in one pass */
+    for (int ch = 0; ch < 3; ch++) {
+        present[ch] = m->data[ch] != NULL;
+        if (!present[ch]) continue;
+        size_t fc = C == 1 ? 0 : (size_t)ch, step = C * rows;
+        sb_resid_t in = {rows,
+                         cols,
+                         J,
+                         m->data[ch],
+                         m->ld,
+                         m->mask,
+                         weights ? wr : NULL,
+                         weights ? wc : NULL,
+                         sb_pow2_scale(amax),
+                         sb_factors_tex_const(f, SB_SIDE_G, 0, fc),
+                         sb_factors_tex_const(f, SB_SIDE_H, 0, fc),
+                         step,
+                         C * cols};
+        sb_resid_channel(&in, nt, scratch, ssq + (size_t)ch * J, mx + (size_t)ch * J, &n2[ch]);
+    }
+    res = sb_errors_relative(ctx, J, present, ssq, mx, n2, rel_rms, max_abs);
+    free(ws);
+    return res;
+}
+
+/* Errors of factors `near` close to the fit `fit` (its rounding to the
+ * stored precision), without a residual pass.  Per channel, in the fitted
+ * (weighted) norm, with R = X - G H^T the residual of the fit, whose norm
+ * the fit knows, and D = G H^T - G~ H~^T = dG H^T + G~ dH^T:
+ *   ||X - G~ H~^T||^2 = ||R||^2 + 2 (<X, D> - <G H^T, D>) + ||D||^2
+ *   <X, D>      = sum_b dg_b . (X h_b) + g~_b . (X dh_b)
+ *   <G H^T, D>  = sum_ab (g_a . dg_b)(h_a . h_b) + (g_a . g~_b)(h_a . dh_b)
+ *   ||D||^2     = sum_ab (dg_a . dg_b)(h_a . h_b) + 2 (dg_a . g~_b)(h_a . dh_b)
+ *                        + (g~_a . g~_b)(dh_a . dh_b)
+ * (<A B^T, C D^T> = sum_ab (a_a . c_b)(b_a . d_b)); every term is built
+ * from the small differences dG, dH themselves, so nothing cancels beyond
+ * eps ||X|| ||D||.  One product X [H, dH] per channel is the only read of
+ * the matrix.  Values are scaled by powers of two near 1 / ||X|| (exact). */
+static void gram(size_t n, size_t J, const double *a, const double *b, double *out) {
+    cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, (int)J, (int)J, (int)n, 1.0, a, (int)n, b, (int)n, 0.0, out,
+                (int)J);
+}
+
+/* Workspace of sb_factors_errors_near: G, G~, dG (rows x J); H, dH
+ * together, then Z (cols x 2J); Y = M Z (rows x 2J); the Gram blocks
+ * (J x J each); the weights. */
+typedef struct near_ws {
+    size_t rows, cols, J;
+    double *G, *Gq, *dG, *HdH, *Z, *Y, *wr, *wc;
+    double *GdG, *HH, *GGq, *HdH2, *dGdG, *dGGq, *GqGq, *dHdH;
+} near_ws_t;
+
+static double *near_alloc(sb_context_t *ctx, near_ws_t *w, size_t rows, size_t cols, size_t J) {
+    size_t nr, nc, total;
+    if (sb_size_mul(rows, 3 * J, &nr) || sb_size_mul(cols, 4 * J, &nc) || sb_size_add(nr, nc, &total) ||
+        sb_size_add(total, rows * 2 * J + 8 * J * J + rows + cols + 3 * J, &total)) {
+        sb_error(ctx, SB_ERR_OVERFLOW, "errors: workspace size overflows");
+        return NULL;
+    }
+    double *ws = sb_alloc(ctx, total, sizeof(double), "errors workspace");
+    if (!ws) return NULL;
+    *w = (near_ws_t){.rows = rows, .cols = cols, .J = J, .G = ws};
+    double **rows_x_j[] = {&w->Gq, &w->dG, &w->HdH},
+           **blocks[] = {&w->HH, &w->GGq, &w->HdH2, &w->dGdG, &w->dGGq, &w->GqGq, &w->dHdH, &w->wr};
+    double *at = ws;
+    for (size_t i = 0; i < 3; i++) /* G, G~, dG: rows x J each */
+        *rows_x_j[i] = at += rows * J;
+    w->Z = at += cols * 2 * J; /* after H, dH */
+    w->Y = at += cols * 2 * J;
+    w->GdG = at += rows * 2 * J;
+    for (size_t i = 0; i < 8; i++) /* the Gram blocks, J x J each; then the weights */
+        *blocks[i] = at += J * J;
+    w->wc = w->wr + rows;
+    return ws; /* 3 J doubles after wc: the sums of squares */
+}
+
+/* Step: weighted, scaled factors and their differences (channel fc). */
+static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors_t *near, size_t fc, double sg,
+                         double sh) {
+    size_t rows = w->rows, cols = w->cols, J = w->J;
+    for (size_t j = 0; j < J; j++) {
+        const double *g = sb_factors_tex_const(fit, SB_SIDE_G, j, fc),
+                     *q = sb_factors_tex_const(near, SB_SIDE_G, j, fc);
+        const double *h = sb_factors_tex_const(fit, SB_SIDE_H, j, fc),
+                     *p = sb_factors_tex_const(near, SB_SIDE_H, j, fc);
+        for (size_t i = 0; i < rows; i++) {
+            w->G[i + j * rows] = w->wr[i] * g[i] * sg;
+            w->Gq[i + j * rows] = w->wr[i] * q[i] * sg;
+            w->dG[i + j * rows] = w->wr[i] * (g[i] - q[i]) * sg;
+        }
+        for (size_t i = 0; i < cols; i++) {
+            w->HdH[i + j * cols] = w->wc[i] * h[i] * sh;
+            w->HdH[i + (J + j) * cols] = w->wc[i] * (h[i] - p[i]) * sh;
+        }
+    }
+}
+
+/* Step: Y = X [H, dH] = W_r M (W_c [H, dH]) (one read of M), Gram blocks. */
+static void near_products(near_ws_t *w, const double *a, size_t ld, double sx) {
+    size_t rows = w->rows, cols = w->cols, J = w->J;
+    for (size_t i = 0; i < cols * 2 * J; i++)
+        w->Z[i] = w->HdH[i] * w->wc[i % cols] * sx;
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)(2 * J), (int)cols, 1.0, a, (int)ld, w->Z,
+                (int)cols, 0.0, w->Y, (int)rows);
+    for (size_t i = 0; i < rows * 2 * J; i++)
+        w->Y[i] *= w->wr[i % rows];
+    const double *dH = w->HdH + cols * J;
+    gram(rows, J, w->G, w->dG, w->GdG);
+    gram(rows, J, w->G, w->Gq, w->GGq);
+    gram(rows, J, w->dG, w->dG, w->dGdG);
+    gram(rows, J, w->dG, w->Gq, w->dGGq);
+    gram(rows, J, w->Gq, w->Gq, w->GqGq);
+    gram(cols, J, w->HdH, w->HdH, w->HH);
+    gram(cols, J, w->HdH, dH, w->HdH2);
+    gram(cols, J, dH, dH, w->dHdH);
+}
+
+/* Step: prefix sums over J': ssq[b] = ||X - G~_b H~_b^T||^2 from the fit's
+ * rel (rel_rms of the channel, stride 4) and norm nx (both scaled). */
+static void near_prefix(const near_ws_t *w, const double *rel, double nx, double *ssq) {
+    size_t rows = w->rows, J = w->J;
+    double xd = 0, gd = 0, dd = 0;
+    for (size_t b = 0; b < J; b++) {
+        /* Y[:, b] = X h_b scaled by sx sh; the dG, G~ carry sg: sx sg sh = sx^2 */
+        for (size_t i = 0; i < rows; i++)
+            xd += w->dG[i + b * rows] * w->Y[i + b * rows] + w->Gq[i + b * rows] * w->Y[i + (J + b) * rows];
+        /* pairs (a, b) with max(a, b) == b */
+        for (size_t a2 = 0; a2 <= b; a2++) {
+            size_t idx[2] = {a2 + b * J, b + a2 * J};
+            for (int t = 0; t < (a2 != b ? 2 : 1); t++) {
+                size_t ab = idx[t];
+                gd += w->GdG[ab] * w->HH[ab] + w->GGq[ab] * w->HdH2[ab];
+                dd += w->dGdG[ab] * w->HH[ab] + 2 * w->dGGq[ab] * w->HdH2[ab] + w->GqGq[ab] * w->dHdH[ab];
+            }
+        }
+        double r = rel[sb_err_at(b, 0)] * nx, s2 = r * r + 2 * (xd - gd) + dd;
+        ssq[b] = s2 < 0 ? 0 : s2;
+    }
+}
+
+sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
+                                   const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms) {
+    if (!fit || !near || !m || !rel_rms) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
+    if (m->mask) return sb_error(ctx, SB_ERR_ARG, "errors: a masked matrix needs the explicit residual");
+    size_t J = sb_factors_terms(fit), C = sb_factors_channels(fit), rows = m->rows, cols = m->cols;
+    if (check_fit(ctx, fit, m, weights) != SB_OK || check_fit(ctx, near, m, weights) != SB_OK ||
+        sb_factors_terms(near) != J || sb_factors_channels(near) != C || J > INT_MAX / 2 || rows > INT_MAX ||
+        cols > INT_MAX)
+        return sb_error(ctx, SB_ERR_ARG, "errors: factors do not fit each other or the %zu x %zu matrix", rows, cols);
+    const sb_factor_errors_t *fe = sb_factors_errors(fit);
+    memset(rel_rms, 0, J * 4 * sizeof *rel_rms);
+    /* Step: scales 2^-e ~ 1 / ||X||, split between the two sides */
+    int ex = 0;
+    if (fe->norm[3] > 0 && isfinite(fe->norm[3])) frexp(fe->norm[3], &ex);
+    ex = ex > 1000 ? 1000 : (ex < -1000 ? -1000 : ex);
+    double sx = ldexp(1, -ex), sg = ldexp(1, -(ex / 2)), sh = ldexp(1, -(ex - ex / 2));
+    near_ws_t w;
+    double *ws = near_alloc(ctx, &w, rows, cols, J);
+    if (!ws) return sb_error(ctx, SB_ERR_NOMEM, "errors: out of memory");
+    double *ssq = w.wc + cols, n2[3] = {0, 0, 0};
+    for (size_t i = 0; i < rows + cols; i++)
+        w.wr[i] = 1;
+    if (weights) sb_errors_weights(weights, w.wr, w.wc);
+    int present[3];
+    for (int ch = 0; ch < 3; ch++) {
+        present[ch] = m->data[ch] != NULL;
+        if (!present[ch]) continue;
+        near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh);
+        near_products(&w, m->data[ch], m->ld, sx);
+        double nx = fe->norm[ch] * sx;
+        n2[ch] = nx * nx;
+        near_prefix(&w, fe->rel_rms + ch, nx, ssq + (size_t)ch * J);
+    }
+    sb_result_t res = sb_errors_relative(ctx, J, present, ssq, NULL, n2, rel_rms, NULL);
+    free(ws);
+    return res;
+}

@@ -1,0 +1,50 @@
+/* Private: the one routine for the errors of a factorisation (errors.c).
+ *
+ * For a channel A with valid cells V (mask), weights W_r, W_c (square
+ * roots of the cell measures; identity when unweighted) and textures
+ * g_j, h_j in native units, for every truncation J' = 1..J:
+ *     ssq[J'-1] = sum_V (w_r (A - sum_{j<=J'} g_j h_j^T) w_c pw)^2,
+ *     mx[J'-1]  = max_V |A - sum_{j<=J'} g_j h_j^T|      (native units),
+ *     n2        = sum_V (w_r A w_c pw)^2,
+ * in one pass over the columns, split among threads (per-thread sums
+ * added in a fixed order: the same bits on any thread count).  pw is a
+ * power of two near 1 / max |A| (sb_pow2_scale), so the squares neither
+ * underflow nor overflow; rel_rms = sqrt(ssq / n2) does not depend on it. */
+#ifndef SEPBRDF_ERRORS_H
+#define SEPBRDF_ERRORS_H
+
+#include "sepbrdf/factor.h"
+
+typedef struct sb_resid {
+    size_t rows, cols, terms;
+    const double *a; /* the channel, column-major with leading dimension ld */
+    size_t ld;
+    const unsigned char *mask; /* ld too; NULL = every cell valid */
+    const double *wr, *wc;     /* rows / cols weights, NULL = unweighted */
+    double pw;
+    const double *g, *h; /* texture of term 0; term j at g + j * gstep (rows values), h likewise */
+    size_t gstep, hstep;
+} sb_resid_t;
+
+/* Doubles of scratch sb_resid_channel needs for `threads` threads. */
+size_t sb_resid_scratch(size_t rows, size_t terms, int threads);
+
+/* ssq and mx receive `terms` values, *n2 one (see above). */
+void sb_resid_channel(const sb_resid_t *in, int threads, double *scratch, double *ssq, double *mx, double *n2);
+
+/* Relative errors from the per-channel sums: rel_rms[sb_err_at(t, c)] =
+ * sqrt(ssq[c * J + t] / n2[c]) for the present channels, SB_CH_ALL the
+ * channels together, sqrt(sum_c ssq / sum_c n2); max_abs (may be NULL)
+ * from mx[c * J + t] likewise, index 3 the largest.  Channels not present
+ * stay 0.  SB_ERR_NUMERIC when an error is not finite. */
+sb_result_t sb_errors_relative(sb_context_t *ctx, size_t J, const int present[3], const double *ssq, const double *mx,
+                               const double n2[3], double *rel_rms, double *max_abs);
+
+/* Keep the first `keep` terms of f (1 <= keep <= terms; else nothing). */
+void sb_factors_truncate(sb_factors_t *f, size_t keep);
+
+/* wr[i] = sqrt(max(row measure i, 0)), wc likewise: the weights of a
+ * weighted fit on parameterisation p. */
+void sb_errors_weights(const sb_param_t *p, double *wr, double *wc);
+
+#endif

@@ -1,0 +1,524 @@
+/* The error estimator (estimate.h): randomised quasi-Monte Carlo pairs
+ * drawn from a mixture density, the reconstruction evaluated as the shader
+ * evaluates it, all prefixes J' = 1..J accumulated in one pass per pair.
+ *
+ * Storage: a pair is PD doubles {wi[3], wo[3], 1/p, f[3]} and a known flag
+ * (0: outside the domain, unknown to the source or not finite; such a pair
+ * adds 0 to every integral, which the ratio of sums handles exactly like a
+ * zero sample).  Replicate k holds pairs k * rep .. (k + 1) * rep - 1.
+ *
+ * Work: one unit per replicate; its sums (numerators per J', quantity and
+ * channel, denominators, negative measure) go to the replicate's own slot
+ * and are added in replicate order.  Histograms of the per-pair relative
+ * errors (integer energy weights: b / E0 * 2^40 with E0 the energy of the
+ * first replicates, fixed when the pairs are created, so later replicates
+ * add to the same histograms) and maxima are per thread
+ * and merged by integer addition and max, so every result is the same to
+ * the bit on any thread count. */
+#include "sepbrdf/estimate.h"
+
+#include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "util/internal.h"
+#include "util/parallel.h"
+#include "util/rng.h"
+
+#define PD 10   /* doubles per pair */
+#define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
+#define MAXT 64 /* threads */
+#define NCOMP 6 /* wo mixture components: uniform, cosine, four GGX lobes */
+#define QC (SB_EST_Q_COUNT_ * 4)
+
+static const double comp_w[NCOMP] = {0.2, 0.2, 0.15, 0.15, 0.15, 0.15};
+static const double lobe_alpha[NCOMP] = {0, 0, 0.005, 0.02, 0.08, 0.3};
+
+struct sb_pairs {
+    const sb_source_t *src;
+    size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
+    uint64_t seed;
+    double *d;            /* n x PD */
+    unsigned char *known; /* n */
+    double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */
+};
+
+/* ---- drawing the pairs ------------------------------------------------ */
+
+/* GGX normal distribution D(h) for cos(theta_h) = c. */
+static double ggx_d(double alpha, double c) {
+    double a2 = alpha * alpha, t = (a2 - 1) * c * c + 1;
+    return a2 / (SB_PI * t * t);
+}
+
+/* Mixture density of wo given wi (both unit, wo.z > 0). */
+static double pdf_o(const double wi[3], const double wo[3]) {
+    double p = comp_w[0] / (2 * SB_PI) + comp_w[1] * wo[2] / SB_PI, h[3];
+    for (int i = 0; i < 3; i++)
+        h[i] = wi[i] + wo[i];
+    double nh = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    if (nh <= 0) return p;
+    double hz = h[2] / nh, oh = (wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]) / nh;
+    if (hz <= 0 || oh <= 0) return p;
+    for (int k = 2; k < NCOMP; k++)
+        p += comp_w[k] * ggx_d(lobe_alpha[k], hz) * hz / (4 * oh);
+    return p;
+}
+
+/* Direction with cos(theta) = z, azimuth 2 pi u. */
+static void dir_z(double z, double u, double w[3]) {
+    double s = sqrt(fmax(0, 1 - z * z)), ph = 2 * SB_PI * u;
+    w[0] = s * cos(ph);
+    w[1] = s * sin(ph);
+    w[2] = z;
+}
+
+/* Map a point x of [0,1)^6 to a pair; returns its density (0: wo below the
+ * horizon, no BRDF pair). */
+static double draw_pair(const double x[6], double wi[3], double wo[3]) {
+    dir_z(x[0] < 0.5 ? x[1] : sqrt(1 - x[1]), x[2], wi);
+    double pi_ = 0.5 / (2 * SB_PI) + 0.5 * wi[2] / SB_PI;
+    int k = 0;
+    for (double acc = comp_w[0]; k < NCOMP - 1 && x[3] >= acc; acc += comp_w[++k])
+        ;
+    if (k == 0) {
+        dir_z(x[4], x[5], wo);
+    } else if (k == 1) {
+        dir_z(sqrt(1 - x[4]), x[5], wo);
+    } else {
+        double a = lobe_alpha[k], t2 = a * a * x[4] / (1 - x[4]), h[3];
+        dir_z(1 / sqrt(1 + t2), x[5], h);
+        double ih = wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2];
+        for (int i = 0; i < 3; i++)
+            wo[i] = 2 * ih * h[i] - wi[i];
+    }
+    if (!(wo[2] > 0) || !(wi[2] > 0)) return 0;
+    return pi_ * pdf_o(wi, wo);
+}
+
+/* Pairs of replicate k: the Kronecker set i alpha (alpha_d = 1/phi^(d+1),
+ * phi the root of x^7 = x + 1) shifted by the replicate's random vector. */
+static void draw_replicate(sb_pairs_t *P, size_t k) {
+    static const double phi6 = 1.1127756842787055;
+    double alpha[6], shift[6], a = 1;
+    uint64_t s = P->seed * 0x2545f4914f6cdd1dULL + k;
+    for (int d = 0; d < 6; d++) {
+        a /= phi6;
+        alpha[d] = a;
+        shift[d] = sb_unit(sb_splitmix64(&s));
+    }
+    for (size_t i = 0; i < P->rep; i++) {
+        size_t at = k * P->rep + i;
+        double x[6], *d = P->d + at * PD;
+        for (int e = 0; e < 6; e++) {
+            double v = shift[e] + (double)(i + 1) * alpha[e];
+            x[e] = v - floor(v);
+        }
+        double pd = draw_pair(x, d, d + 3);
+        int known = pd > 0 && sb_source_eval(P->src, d, d + 3, d + 7) && isfinite(d[7] + d[8] + d[9]);
+        d[6] = known ? 1 / pd : 0;
+        P->known[at] = (unsigned char)known;
+    }
+}
+
+/* ---- units of work on threads ----------------------------------------- */
+
+typedef struct runner {
+    atomic_size_t next;
+    size_t first, count;
+    void (*fn)(void *, size_t, int);
+    void *user;
+} runner_t;
+
+typedef struct worker_arg {
+    runner_t *r;
+    int t;
+} worker_arg_t;
+
+static void *worker(void *arg) {
+    worker_arg_t *a = arg;
+    for (;;) {
+        size_t i = atomic_fetch_add(&a->r->next, 1);
+        if (i >= a->r->count) break;
+        a->r->fn(a->r->user, a->r->first + i, a->t);
+    }
+    return NULL;
+}
+
+/* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
+static void run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user) {
+    runner_t r = {.first = first, .count = count, .fn = fn, .user = user};
+    atomic_store(&r.next, 0);
+    worker_arg_t args[MAXT];
+    for (int t = 0; t < nt; t++)
+        args[t] = (worker_arg_t){&r, t};
+    sb_parallel_run(worker, args, sizeof args[0], nt, NULL, NULL);
+}
+
+static void draw_unit(void *user, size_t k, int t) {
+    (void)t;
+    draw_replicate(user, k);
+}
+
+static sb_estimate_opts_t opts_or_default(const sb_estimate_opts_t *opts) {
+    sb_estimate_opts_t o = {0};
+    if (opts) o = *opts;
+    if (!o.replicate) o.replicate = 4096;
+    if (!o.start) o.start = 16;
+    if (!o.max_pairs) o.max_pairs = (size_t)1 << 19;
+    if (!(o.rel_se > 0)) o.rel_se = 0.05;
+    if (!o.seed) o.seed = 1;
+    return o;
+}
+
+/* Grow P to nrep replicates (new ones drawn on nt threads). */
+static sb_result_t pairs_grow(sb_context_t *ctx, sb_pairs_t *P, size_t nrep, int nt) {
+    if (nrep <= P->nrep) return SB_OK;
+    size_t n = nrep * P->rep;
+    double *d = sb_alloc(ctx, n, PD * sizeof *d, "estimator pairs");
+    unsigned char *kn = sb_alloc(ctx, n, 1, "estimator pairs");
+    if (!d || !kn) {
+        free(d);
+        free(kn);
+        return SB_ERR_NOMEM;
+    }
+    if (P->n) {
+        memcpy(d, P->d, P->n * PD * sizeof *d);
+        memcpy(kn, P->known, P->n);
+    }
+    free(P->d);
+    free(P->known);
+    P->d = d;
+    P->known = kn;
+    size_t old = P->nrep;
+    P->nrep = nrep;
+    P->n = n;
+    run_units(old, nrep - old, nt, draw_unit, P);
+    return SB_OK;
+}
+
+sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
+                            sb_pairs_t **out) {
+    if (!out) return sb_error(ctx, SB_ERR_ARG, "estimate: no output pointer");
+    *out = NULL;
+    if (!src) return sb_error(ctx, SB_ERR_ARG, "estimate: no source");
+    if (opts && ((opts->start && opts->start < 4) || opts->replicate > ((size_t)1 << 24)))
+        return sb_error(ctx, SB_ERR_RANGE, "estimate: %zu replicates of %zu pairs, need at least 4 of at most 2^24",
+                        opts->start, opts->replicate);
+    sb_estimate_opts_t o = opts_or_default(opts);
+    sb_pairs_t *P = calloc(1, sizeof *P);
+    if (!P) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
+    P->src = src;
+    P->rep = o.replicate;
+    P->seed = o.seed;
+    int nt = sb_thread_count(o.threads);
+    if (pairs_grow(ctx, P, o.start, nt > MAXT ? MAXT : nt) != SB_OK) {
+        sb_pairs_destroy(P);
+        return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory for %zu pairs", o.start * o.replicate);
+    }
+    for (size_t i = 0; i < P->n; i++) {
+        const double *d = P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
+        if (!P->known[i]) continue;
+        for (int c = 0; c < 3; c++) {
+            P->e0[c] += f[c] * f[c] * q;
+            P->e0[3] += f[c] * f[c] * q;
+        }
+    }
+    *out = P;
+    return SB_OK;
+}
+
+void sb_pairs_destroy(sb_pairs_t *P) {
+    if (!P) return;
+    free(P->d);
+    free(P->known);
+    free(P);
+}
+
+size_t sb_pairs_count(const sb_pairs_t *P) { return P ? P->n : 0; }
+
+/* ---- evaluating a reconstruction -------------------------------------- */
+
+typedef struct eval {
+    const sb_pairs_t *P;
+    const sb_param_t *p;
+    size_t J, C;
+    const double **tex[2]; /* [side][j * C + c] */
+    size_t tw[2], th[2];
+    int wrap[2][2];
+    const double *scale; /* J per-term factors */
+    sb_form_t form;
+    /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
+    double *num, *den, *neg, *meas;
+    /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */
+    uint64_t *hist;
+    double *maxr, *maxv;
+} eval_t;
+
+static size_t wrap_i(long i, size_t n, int mode) {
+    if (mode == SB_WRAP_REPEAT) {
+        long m = i % (long)n;
+        return (size_t)(m < 0 ? m + (long)n : m);
+    }
+    return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
+}
+
+/* GL bilinear footprint of st on a side: texel indices and weights. */
+static void taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]) {
+    size_t tw = e->tw[side], th = e->th[side];
+    double u = st[0] * (double)tw - 0.5, v = st[1] * (double)th - 0.5;
+    double fu = floor(u), fv = floor(v), a = u - fu, b = v - fv;
+    size_t x0 = wrap_i((long)fu, tw, e->wrap[side][0]), x1 = wrap_i((long)fu + 1, tw, e->wrap[side][0]);
+    size_t y0 = wrap_i((long)fv, th, e->wrap[side][1]), y1 = wrap_i((long)fv + 1, th, e->wrap[side][1]);
+    at[0] = y0 * tw + x0;
+    at[1] = y0 * tw + x1;
+    at[2] = y1 * tw + x0;
+    at[3] = y1 * tw + x1;
+    fw[0] = (1 - a) * (1 - b);
+    fw[1] = a * (1 - b);
+    fw[2] = (1 - a) * b;
+    fw[3] = a * b;
+}
+
+static double tap(const double *t, const size_t at[4], const double fw[4]) {
+    return fw[0] * t[at[0]] + fw[1] * t[at[1]] + fw[2] * t[at[2]] + fw[3] * t[at[3]];
+}
+
+/* Reconstructed RGB of every prefix at one pair: rec[j * 3 + c]; 0 outside. */
+static void reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec) {
+    double sg[2], sh[2], fg[4], fh[4];
+    size_t ag[4], ah[4], J = e->J, C = e->C;
+    if (!sb_param_coords(e->p, wi, wo, sg, sh)) {
+        memset(rec, 0, J * 3 * sizeof *rec);
+        return;
+    }
+    taps(e, SB_SIDE_G, sg, ag, fg);
+    taps(e, SB_SIDE_H, sh, ah, fh);
+    double div = 1, acc[3] = {0, 0, 0};
+    if (e->form == SB_FORM_COS || e->form == SB_FORM_COS2) div = fmax(wi[2], 0.001);
+    if (e->form == SB_FORM_COS2) div *= fmax(wo[2], 0.001);
+    for (size_t j = 0; j < J; j++) {
+        for (size_t c = 0; c < C; c++)
+            acc[c] += tap(e->tex[0][j * C + c], ag, fg) * tap(e->tex[1][j * C + c], ah, fh) * e->scale[j];
+        for (int c = 0; c < 3; c++)
+            rec[j * 3 + c] = acc[C == 1 ? 0 : c] / div;
+    }
+}
+
+static size_t bin_of(double r) {
+    if (!(r > 1e-12)) return 0;
+    double b = (log10(r) + 12) * 40;
+    return b >= NB - 1 ? NB - 1 : (size_t)b;
+}
+
+/* Add one known pair's errors for every prefix to the replicate sums. */
+static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
+    const double *f = d + 7, w = d[6];
+    double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
+    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
+    f2[3] = f2[0] + f2[1] + f2[2];
+    uint64_t ew[4];
+    for (int c = 0; c < 4; c++)
+        ew[c] = e->P->e0[c] > 0 ? (uint64_t)(f2[c] * ci2 * w / e->P->e0[c] * 0x1.0p40) : 0;
+    size_t J = e->J;
+    uint64_t *hist = e->hist + (size_t)t * J * 4 * NB;
+    double *maxr = e->maxr + (size_t)t * J * 4, *maxv = e->maxv + (size_t)t * J;
+    for (size_t j = 0; j < J; j++) {
+        const double *r = rec + j * 3;
+        double d2[4] = {0, 0, 0, 0}, vmax = 0;
+        int below = 0;
+        for (int c = 0; c < 3; c++) {
+            double dc = r[c] - f[c];
+            d2[c] = dc * dc;
+            d2[3] += d2[c];
+            below |= r[c] < 0;
+            vmax = fmax(vmax, fabs(r[c]));
+        }
+        for (int q = 0; q < SB_EST_Q_COUNT_; q++)
+            for (int c = 0; c < 4; c++)
+                num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
+        neg[j] += below ? w : 0;
+        maxv[j] = fmax(maxv[j], vmax);
+        for (int c = 0; c < 4; c++) {
+            if (!(f2[c] > 0)) continue;
+            double rel = sqrt(d2[c] / f2[c]);
+            hist[(j * 4 + c) * NB + bin_of(rel)] += ew[c];
+            maxr[j * 4 + c] = fmax(maxr[j * 4 + c], rel);
+        }
+    }
+}
+
+static void eval_unit(void *user, size_t k, int t) {
+    eval_t *e = user;
+    const sb_pairs_t *P = e->P;
+    size_t J = e->J;
+    double *num = e->num + k * J * QC, *den = e->den + k * QC, *neg = e->neg + k * J, rec[SB_EST_MAXJ * 3];
+    memset(num, 0, J * QC * sizeof *num);
+    memset(den, 0, QC * sizeof *den);
+    memset(neg, 0, J * sizeof *neg);
+    e->meas[k] = 0;
+    for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
+        if (!P->known[i]) continue;
+        const double *d = P->d + i * PD, *f = d + 7;
+        double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
+        for (int q = 0; q < SB_EST_Q_COUNT_; q++) {
+            for (int c = 0; c < 3; c++)
+                den[q * 4 + c] += f[c] * f[c] * qw[q] * d[6];
+            den[q * 4 + 3] += (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * qw[q] * d[6];
+        }
+        e->meas[k] += d[6];
+        reconstruct(e, d, d + 3, rec);
+        add_pair(e, d, rec, num, neg, t);
+    }
+}
+
+/* The sums of the replicates and threads into out; returns whether the
+ * headline met the target standard error at every J'. */
+static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate_t *out) {
+    size_t J = e->J;
+    int met = 1;
+    double dsum[QC] = {0}, msum = 0;
+    for (size_t k = 0; k < K; k++) {
+        for (int i = 0; i < QC; i++)
+            dsum[i] += e->den[k * QC + i];
+        msum += e->meas[k];
+    }
+    for (size_t j = 0; j < J; j++) {
+        double nsum[QC] = {0}, ng = 0;
+        for (size_t k = 0; k < K; k++) {
+            for (int i = 0; i < QC; i++)
+                nsum[i] += e->num[(k * J + j) * QC + i];
+            ng += e->neg[k * J + j];
+        }
+        out->neg_frac[j] = msum > 0 ? ng / msum : 0;
+        for (int i = 0; i < QC; i++) {
+            double r2 = dsum[i] > 0 ? nsum[i] / dsum[i] : (nsum[i] > 0 ? INFINITY : 0), v = 0;
+            for (size_t k = 0; k < K && isfinite(r2); k++) {
+                double x = e->num[(k * J + j) * QC + i] - r2 * e->den[k * QC + i];
+                v += x * x;
+            }
+            /* se of r2 = sd / (sqrt(K) mean D) with sd^2 = v / (K - 1) */
+            double se2 = dsum[i] > 0 ? sqrt(v / (double)(K - 1)) * sqrt((double)K) / dsum[i] : 0;
+            double r = sqrt(r2);
+            out->rel[j][i / 4][i % 4] = r;
+            out->se[j][i / 4][i % 4] = r > 0 ? se2 / (2 * r) : sqrt(se2);
+        }
+        double h = out->rel[j][SB_EST_FCOS][3];
+        met &= out->se[j][SB_EST_FCOS][3] <= rel_se * h;
+        double vmax = 0;
+        for (int t = 0; t < nt; t++)
+            vmax = fmax(vmax, e->maxv[(size_t)t * J + j]);
+        out->overshoot[j] = vmax;
+        for (int c = 0; c < 4; c++) {
+            uint64_t hb[NB] = {0}, total = 0, acc = 0;
+            double mx = 0;
+            for (int t = 0; t < nt; t++) {
+                const uint64_t *src = e->hist + ((size_t)t * J * 4 + j * 4 + (size_t)c) * NB;
+                for (size_t b = 0; b < NB; b++)
+                    hb[b] += src[b];
+                mx = fmax(mx, e->maxr[((size_t)t * J + j) * 4 + (size_t)c]);
+            }
+            for (size_t b = 0; b < NB; b++)
+                total += hb[b];
+            size_t b = 0;
+            while (b + 1 < NB && (acc += hb[b]) < total - total / 100)
+                b++;
+            out->p99[j][c] = total ? fmin(pow(10, (double)(b + 1) / 40 - 12), mx) : 0;
+            out->max_rel[j][c] = mx;
+        }
+    }
+    return met;
+}
+
+static void eval_free(eval_t *e) {
+    free(e->tex[0]);
+    free(e->tex[1]);
+    free(e->num);
+    free(e->den);
+    free(e->neg);
+    free(e->meas);
+    free(e->hist);
+    free(e->maxr);
+    free(e->maxv);
+}
+
+/* Sums for kmax replicates and nt threads; SB_OK or SB_ERR_NOMEM. */
+static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt) {
+    size_t J = e->J, T = (size_t)nt;
+    e->num = sb_alloc(ctx, kmax * J, QC * sizeof *e->num, "estimator sums");
+    e->den = sb_alloc(ctx, kmax, QC * sizeof *e->den, "estimator sums");
+    e->neg = sb_alloc(ctx, kmax, J * sizeof *e->neg, "estimator sums");
+    e->meas = sb_alloc(ctx, kmax, sizeof *e->meas, "estimator sums");
+    e->hist = sb_calloc(ctx, T * J * 4, NB * sizeof *e->hist, "estimator histograms");
+    e->maxr = sb_calloc(ctx, T * J, 4 * sizeof *e->maxr, "estimator sums");
+    e->maxv = sb_calloc(ctx, T, J * sizeof *e->maxv, "estimator sums");
+    return e->num && e->den && e->neg && e->meas && e->hist && e->maxr && e->maxv ? SB_OK : SB_ERR_NOMEM;
+}
+
+/* Pair counts and the overshoot's denominator, max |f| over the pairs. */
+static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
+    double fmax_ = 0;
+    size_t known = 0;
+    for (size_t i = 0; i < P->n; i++) {
+        if (!P->known[i]) continue;
+        known++;
+        for (int c = 0; c < 3; c++)
+            fmax_ = fmax(fmax_, fabs(P->d[i * PD + 7 + c]));
+    }
+    for (size_t j = 0; j < out->terms; j++)
+        out->overshoot[j] = fmax_ > 0 ? out->overshoot[j] / fmax_ : 0;
+    out->known = known;
+    out->pairs = P->n;
+}
+
+sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
+                                const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
+                                sb_estimate_t *out) {
+    if (!pairs || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "estimate: missing argument");
+    memset(out, 0, sizeof *out);
+    sb_estimate_opts_t o = opts_or_default(opts);
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
+    if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
+    int nt = sb_thread_count(o.threads);
+    if (nt > MAXT) nt = MAXT;
+    eval_t e = {.P = pairs, .p = p, .J = J, .C = C, .form = form};
+    double *ones = malloc(J * sizeof *ones);
+    e.tex[0] = malloc(J * C * sizeof *e.tex[0]);
+    e.tex[1] = malloc(J * C * sizeof *e.tex[1]);
+    if (!ones || !e.tex[0] || !e.tex[1]) {
+        free(ones);
+        eval_free(&e);
+        return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
+    }
+    for (size_t j = 0; j < J; j++)
+        ones[j] = scales ? scales[j] : 1;
+    e.scale = ones;
+    for (int s = 0; s < 2; s++) {
+        sb_factors_size(f, s, &e.tw[s], &e.th[s]);
+        sb_param_wrap(p, s, e.wrap[s]);
+        for (size_t j = 0; j < J; j++)
+            for (size_t c = 0; c < C; c++)
+                e.tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
+    }
+    size_t kmax = o.max_pairs / pairs->rep;
+    sb_result_t r = eval_alloc(ctx, &e, kmax > pairs->nrep ? kmax : pairs->nrep, nt);
+    /* evaluate the replicates not yet evaluated, then add replicates
+     * (doubling) until the headline's standard error meets the target */
+    for (size_t done = 0; r == SB_OK;) {
+        run_units(done, pairs->nrep - done, nt, eval_unit, &e);
+        done = pairs->nrep;
+        out->terms = J;
+        out->converged = combine(&e, done, nt, o.rel_se, out);
+        if (out->converged || done >= kmax) break;
+        r = pairs_grow(ctx, pairs, done * 2 < kmax ? done * 2 : kmax, nt);
+    }
+    if (r == SB_OK) finish(pairs, out);
+    free(ones);
+    eval_free(&e);
+    return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");
+}
+
+double sb_estimate_headline(const sb_estimate_t *est, size_t j) {
+    return est && j >= 1 && j <= est->terms ? est->rel[j - 1][SB_EST_FCOS][3] : NAN;
+}

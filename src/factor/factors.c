@@ -1,0 +1,198 @@
+/* Factors (texture pairs with sigma and metadata) and the reconstruction
+ * through texture lookups. */
+#include "sepbrdf/factor.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "factor/errors.h"
+#include "util/internal.h"
+
+/* ---- factors ----------------------------------------------------------- */
+
+typedef struct meta {
+    char *key, *value;
+} meta_t;
+
+struct sb_factors {
+    size_t terms, channels;
+    size_t w[2], h[2];
+    double *tex[2]; /* [side]: terms * channels * w*h, term-major */
+    double *sigma;  /* terms * channels */
+    meta_t *meta;
+    size_t nmeta;
+    sb_factor_errors_t err;
+};
+
+sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h, size_t h_w,
+                              size_t h_h, sb_factors_t **out) {
+    if (!out) return sb_error(ctx, SB_ERR_ARG, "factors: no output pointer");
+    *out = NULL;
+    if (terms == 0) return sb_error(ctx, SB_ERR_RANGE, "factors: need at least one term");
+    if (channels != 1 && channels != 3)
+        return sb_error(ctx, SB_ERR_RANGE, "factors: %zu channels, need 1 or 3", channels);
+    if (!g_w || !g_h || !h_w || !h_h) return sb_error(ctx, SB_ERR_RANGE, "factors: empty texture size");
+    if (terms > SIZE_MAX / 4) return sb_error(ctx, SB_ERR_OVERFLOW, "factors: %zu terms overflow", terms);
+    sb_factors_t *f = calloc(1, sizeof *f);
+    if (!f) return sb_error(ctx, SB_ERR_NOMEM, "factors: out of memory");
+    f->terms = terms;
+    f->channels = channels;
+    f->w[0] = g_w;
+    f->h[0] = g_h;
+    f->w[1] = h_w;
+    f->h[1] = h_h;
+    for (int s = 0; s < 2; s++) {
+        size_t n;
+        if (sb_size_mul3(f->w[s], f->h[s], terms * channels, &n)) {
+            sb_factors_destroy(f);
+            return sb_error(ctx, SB_ERR_OVERFLOW, "factors: texture size overflows");
+        }
+        f->tex[s] = sb_calloc(ctx, n, sizeof(double), "factor textures");
+        if (!f->tex[s]) {
+            sb_factors_destroy(f);
+            return SB_ERR_NOMEM;
+        }
+    }
+    f->sigma = sb_calloc(ctx, terms * channels, sizeof(double), "factors");
+    f->err.terms = terms;
+    f->err.rel_rms = sb_calloc(ctx, terms * 4, sizeof(double), "factor errors");
+    f->err.max_abs = sb_calloc(ctx, terms * 4, sizeof(double), "factor errors");
+    if (!f->sigma || !f->err.rel_rms || !f->err.max_abs) {
+        sb_factors_destroy(f);
+        return SB_ERR_NOMEM;
+    }
+    *out = f;
+    return SB_OK;
+}
+
+void sb_factors_destroy(sb_factors_t *f) {
+    if (!f) return;
+    free(f->tex[0]);
+    free(f->tex[1]);
+    free(f->sigma);
+    for (size_t i = 0; i < f->nmeta; i++) {
+        free(f->meta[i].key);
+        free(f->meta[i].value);
+    }
+    free(f->meta);
+    free(f->err.rel_rms);
+    free(f->err.max_abs);
+    free(f);
+}
+
+size_t sb_factors_terms(const sb_factors_t *f) { return f->terms; }
+size_t sb_factors_channels(const sb_factors_t *f) { return f->channels; }
+void sb_factors_size(const sb_factors_t *f, int side, size_t *w, size_t *h) {
+    if (w) *w = f->w[side != 0];
+    if (h) *h = f->h[side != 0];
+}
+double *sb_factors_tex(sb_factors_t *f, int side, size_t term, size_t ch) {
+    side = side != 0;
+    return f->tex[side] + (term * f->channels + ch) * f->w[side] * f->h[side];
+}
+const double *sb_factors_tex_const(const sb_factors_t *f, int side, size_t term, size_t ch) {
+    side = side != 0;
+    return f->tex[side] + (term * f->channels + ch) * f->w[side] * f->h[side];
+}
+double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t ch) { return f->sigma[term * f->channels + ch]; }
+void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t ch, double s) { f->sigma[term * f->channels + ch] = s; }
+
+sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value) {
+    if (!f || !key || !value) return SB_ERR_ARG;
+    for (size_t i = 0; i < f->nmeta; i++)
+        if (strcmp(f->meta[i].key, key) == 0) {
+            char *v = sb_strdup(value);
+            if (!v) return SB_ERR_NOMEM;
+            free(f->meta[i].value);
+            f->meta[i].value = v;
+            return SB_OK;
+        }
+    meta_t *m = realloc(f->meta, (f->nmeta + 1) * sizeof *m);
+    if (!m) return SB_ERR_NOMEM;
+    f->meta = m;
+    m[f->nmeta].key = sb_strdup(key);
+    m[f->nmeta].value = sb_strdup(value);
+    if (!m[f->nmeta].key || !m[f->nmeta].value) {
+        free(m[f->nmeta].key);
+        free(m[f->nmeta].value);
+        return SB_ERR_NOMEM;
+    }
+    f->nmeta++;
+    return SB_OK;
+}
+const char *sb_factors_get_meta(const sb_factors_t *f, const char *key) {
+    for (size_t i = 0; i < f->nmeta; i++)
+        if (strcmp(f->meta[i].key, key) == 0) return f->meta[i].value;
+    return NULL;
+}
+size_t sb_factors_meta_count(const sb_factors_t *f) { return f->nmeta; }
+void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value) {
+    *key = f->meta[i].key;
+    *value = f->meta[i].value;
+}
+const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f) { return &f->err; }
+sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f) { return &f->err; }
+
+double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t ch, size_t row, size_t col) {
+    double s = 0;
+    if (terms > f->terms) terms = f->terms;
+    for (size_t j = 0; j < terms; j++)
+        s += sb_factors_tex_const(f, 0, j, ch)[row] * sb_factors_tex_const(f, 1, j, ch)[col];
+    return s;
+}
+
+/* GL texel addressing: u = s * w - 1/2, i0 = floor(u), a = u - i0; wrap is
+ * applied to i0 and i0 + 1 (CLAMP_TO_EDGE clamps, REPEAT takes mod w). */
+static size_t wrap_index(long i, size_t n, int mode) {
+    if (mode == SB_WRAP_REPEAT) {
+        long m = i % (long)n;
+        return (size_t)(m < 0 ? m + (long)n : m);
+    }
+    if (i < 0) return 0;
+    if ((size_t)i >= n) return n - 1;
+    return (size_t)i;
+}
+
+double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t ch,
+                         const double st[2]) {
+    side = side != 0;
+    size_t w = f->w[side], h = f->h[side];
+    int wrap[2];
+    sb_param_wrap(p, side, wrap);
+    const double *t = sb_factors_tex_const(f, side, term, ch);
+    double u = st[0] * (double)w - 0.5, v = st[1] * (double)h - 0.5;
+    double fu = floor(u), fv = floor(v);
+    double a = u - fu, b = v - fv;
+    size_t x0 = wrap_index((long)fu, w, wrap[0]), x1 = wrap_index((long)fu + 1, w, wrap[0]);
+    size_t y0 = wrap_index((long)fv, h, wrap[1]), y1 = wrap_index((long)fv + 1, h, wrap[1]);
+    return (1 - b) * ((1 - a) * t[y0 * w + x0] + a * t[y0 * w + x1]) +
+           b * ((1 - a) * t[y1 * w + x0] + a * t[y1 * w + x1]);
+}
+
+int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
+                    const double wo[3], double rgb[3]) {
+    double sg[2], sh[2];
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    if (!sb_param_coords(p, wi, wo, sg, sh)) return 0;
+    if (terms > f->terms) terms = f->terms;
+    double acc[3] = {0, 0, 0};
+    for (size_t j = 0; j < terms; j++)
+        for (size_t c = 0; c < f->channels; c++)
+            acc[c] += sb_factors_lookup(f, p, 0, j, c, sg) * sb_factors_lookup(f, p, 1, j, c, sh);
+    if (f->channels == 1) acc[1] = acc[2] = acc[0];
+    /* divide back the factored form, with the lecture's grazing guard */
+    double w = 1;
+    if (form == SB_FORM_COS) w = fmax(wi[2], 0.001);
+    if (form == SB_FORM_COS2) w = fmax(wi[2], 0.001) * fmax(wo[2], 0.001);
+    for (int c = 0; c < 3; c++)
+        rgb[c] = acc[c] / w;
+    return 1;
+}
+
+void sb_factors_truncate(sb_factors_t *f, size_t keep) {
+    if (keep == 0 || keep > f->terms) return;
+    f->terms = keep; /* textures beyond `keep` stay allocated but unused */
+    f->err.terms = keep;
+}

@@ -1,0 +1,61 @@
+/* Private: the truncated-SVD plan shared by svd.c (plan, dispatch, norms),
+ * svd_dense.c (FULL, TOPK) and svd_rand.c (RANDOMIZED). */
+#ifndef SEPBRDF_SVD_INTERNAL_H
+#define SEPBRDF_SVD_INTERNAL_H
+
+#include <lapacke.h>
+
+#include "sepbrdf/svd.h"
+
+struct sb_svd {
+    sb_context_t *ctx;
+    size_t m, n, k, d; /* d = min(m, n) */
+    size_t l, b, L;    /* randomized: test vectors k + p (<= d), adaptive block, basis columns */
+    int p, q, single, tr, krylov;
+    uint64_t seed;
+    sb_method_t method;
+    /* Workspace, typed double or float by `single` (see the templates for
+     * what each holds per method); NULL when the method does not use it. */
+    void *a, *sv, *u, *vt, *g, *w, *z, *y, *bt, *ws, *om, *c, *tau, *work;
+    lapack_int *iwork, *isuppz;
+    lapack_int lwork, liwork;
+    size_t bytes;
+    int failed;
+    sb_svd_info_t info;
+};
+
+/* One execute: what it reads and where it writes (see execute in svd.c). */
+typedef struct sb_svd_run {
+    const void *a; /* A, or the plan's copy (FULL, single precision) */
+    size_t la;
+    int adaptive;
+    double tol2;     /* adaptive: squared relative tolerance */
+    double nrm;      /* ||A||_F, or < 0 when not known */
+    size_t min_rank; /* adaptive: at least this rank */
+    double *sv, *U, *V, *all_s;
+    int *have_all;
+    size_t r, sketch; /* out: rank written, basis size */
+    sb_svd_info_t info;
+} sb_svd_run_t;
+
+/* count1 * count2 elements of `size` bytes, overflow-checked; counted in
+ * s->bytes.  NULL (reported) on failure. */
+void *sb_svd_ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size);
+#define ws_alloc sb_svd_ws_alloc
+
+/* Singular value j of the plan's buffer (double or float). */
+double sb_svd_sv_at(const sb_svd_t *s, size_t j);
+/* ||A - U_r S_r V_r^T||_F = ||A|| (1 - sum_{j<r} (s_j / ||A||)^2)^(1/2). */
+double sb_svd_resid_from(double nrm, const double *sv, size_t r);
+/* Smallest r in [max(lo, 1), k] with 1 - sum_{j<r} (s_j / ||A||)^2 <= tol^2. */
+size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo);
+
+/* Workspaces of FULL and TOPK (svd_dense.c), RANDOMIZED (svd_rand.c). */
+sb_result_t sb_svd_plan_dense(sb_svd_t *s);
+sb_result_t sb_svd_plan_rand(sb_svd_t *s);
+/* The methods: fill run->sv, U, V, r, sketch and info. */
+sb_result_t sb_svd_run_full(sb_svd_t *s, sb_svd_run_t *run);
+sb_result_t sb_svd_run_topk(sb_svd_t *s, sb_svd_run_t *run);
+sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run);
+
+#endif

@@ -1,0 +1,30 @@
+/* Private: the one parallel-for of the library.
+ *
+ * Work is cut into n jobs (n <= SB_THREADS_MAX, usually sb_thread_count()
+ * capped by the amount of work); job 0 runs on the caller's thread, the
+ * others on threads started for the call and joined before it returns (a
+ * thread that cannot start runs its job on the caller instead, so the
+ * result never depends on how many threads started).  Jobs write only to
+ * their own slots; callers add per-job partial results in job order, so
+ * sums are the same bits on every run. */
+#ifndef SEPBRDF_PARALLEL_H
+#define SEPBRDF_PARALLEL_H
+
+#include <stddef.h>
+
+/* Run fn(jobs + t * job_size) for t = 0..n-1 in parallel (job_size 0: every
+ * call gets `jobs` itself, for work shared through an atomic counter).
+ * If idle is not NULL it is called on the caller's thread, after its own
+ * job, until the other jobs are done (progress reports; it should sleep a
+ * little).  n < 1 counts as 1. */
+void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, void (*idle)(void *), void *idle_arg);
+
+/* Part t of n contiguous parts of [0, count): [*begin, *end). */
+void sb_part(size_t count, int t, int n, size_t *begin, size_t *end);
+
+/* Threads for `units` independent units of work: sb_thread_count(requested)
+ * capped to the units (at least 1), and 1 when the work (in flops or
+ * cells) is below `min_work`, where a thread costs more than it saves. */
+int sb_threads_for(int requested, size_t units, size_t work, size_t min_work);
+
+#endif

@@ -1,0 +1,599 @@
+/* sepbrdf view: the viewer page, run in a real browser (headless Chromium,
+ * WebGL2 on SwiftShader), against the CPU renderer (render.h).
+ *
+ * The page's test mode (viewer.h) renders sb_render()'s sphere into a
+ * float framebuffer and writes the linear radiance into the DOM, which
+ * --dump-dom prints.  Without Chromium the browser cases are skipped
+ * (exit 77), except in CI (CI set), where scripts/setup-deps.sh installs it
+ * and a missing browser fails. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+#define PSNR_MIN 40.0 /* the issue's bar for page against CPU */
+#define SIZE 64
+
+static char g_out[1 << 16];
+
+/* ---- the browser ------------------------------------------------------- */
+
+static const char *browser(void) {
+    static char path[4096];
+    const char *env = getenv("SB_CHROMIUM");
+    if (env && *env) return env;
+    const char *dirs = getenv("PATH");
+    if (!dirs) return NULL;
+    static const char *const names[] = {"chromium", "chromium-browser"};
+    for (int k = 0; k < 2; k++)
+        for (const char *d = dirs; *d;) {
+            size_t n = strcspn(d, ":");
+            snprintf(path, sizeof path, "%.*s/%s", (int)n, d, names[k]);
+            if (access(path, X_OK) == 0) return path;
+            d += n + (d[n] == ':');
+        }
+    return NULL;
+}
+
+#define NEED_BROWSER()                                                                                                 \
+    do {                                                                                                               \
+        if (!browser()) {                                                                                              \
+            CHECKF(!getenv("CI"), "no chromium in CI: scripts/setup-deps.sh installs it");                             \
+            SKIP("no chromium (Debian: apt-get install chromium, or scripts/setup-deps.sh): browser cases skipped");   \
+        }                                                                                                              \
+    } while (0)
+
+/* Open file://PAGE?QUERY headless, no network, a fresh profile; the DOM
+ * into *dom (malloc'ed), the browser's log into log.  0 on success. */
+static int open_page(const char *page, const char *query, char **dom, char *log, size_t log_size) {
+    char tmp[4096], cmd[16384], path[4200];
+    snprintf(tmp, sizeof tmp, "%s", sb_tmpdir("chromium"));
+    snprintf(cmd, sizeof cmd,
+             "timeout 120 '%s' --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+             "--disable-background-networking --disable-component-update --disable-sync --enable-unsafe-swiftshader "
+             "--user-data-dir='%s/profile' --enable-logging=stderr --v=0 --dump-dom 'file://%s%s%s' > '%s/dom' "
+             "2> '%s/log'",
+             browser(), tmp, page, query ? "?" : "", query ? query : "", tmp, tmp);
+    int rc = system(cmd);
+    *dom = NULL;
+    snprintf(path, sizeof path, "%s/log", tmp);
+    FILE *fp = fopen(path, "rb");
+    size_t n = fp ? fread(log, 1, log_size - 1, fp) : 0;
+    log[n] = 0;
+    if (fp) fclose(fp);
+    snprintf(path, sizeof path, "%s/dom", tmp);
+    if ((fp = fopen(path, "rb"))) {
+        fseek(fp, 0, SEEK_END);
+        long len = ftell(fp);
+        fseek(fp, 0, SEEK_SET);
+        if (len > 0 && (*dom = malloc((size_t)len + 1))) {
+            n = fread(*dom, 1, (size_t)len, fp);
+            (*dom)[n] = 0;
+        }
+        fclose(fp);
+    }
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
+    if (system(cmd) != 0) fprintf(stderr, "cannot remove %s\n", tmp);
+    return rc == 0 && *dom ? 0 : -1;
+}
+
+/* Console messages other than the GL driver's performance notes (the
+ * test mode's readPixels stalls the pipeline, and says so). */
+static const char *console_error(const char *log) {
+    for (const char *p = strstr(log, "CONSOLE"); p; p = strstr(p + 1, "CONSOLE")) {
+        const char *eol = strchr(p, '\n');
+        size_t n = eol ? (size_t)(eol - p) : strlen(p);
+        char line[1024];
+        snprintf(line, sizeof line, "%.*s", (int)n, p);
+        if (!strstr(line, "GL Driver Message (OpenGL, Performance")) return p;
+    }
+    return strstr(log, "Uncaught");
+}
+
+/* ---- the page's test output -------------------------------------------- */
+
+static int b64val(int c) {
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    return c == '+' ? 62 : c == '/' ? 63 : -1;
+}
+
+/* base64 of little-endian float32 from p up to the first character that
+ * is not base64: malloc'ed, *count floats; NULL on none. */
+static float *b64_floats(const char *p, size_t *count) {
+    size_t len = 0;
+    while (b64val(p[len]) >= 0)
+        len++;
+    size_t nbytes = len * 6 / 8, k = 0;
+    unsigned char *bytes = malloc(nbytes + 4);
+    float *out = malloc(nbytes + 4);
+    uint32_t acc = 0;
+    int bits = 0;
+    for (size_t i = 0; bytes && i < len; i++) {
+        acc = acc << 6 | (uint32_t)b64val(p[i]);
+        if ((bits += 6) >= 8) bytes[k++] = (unsigned char)(acc >> (bits -= 8));
+    }
+    *count = k / 4;
+    for (size_t i = 0; bytes && out && i < *count; i++) {
+        uint32_t u = 0;
+        for (int b = 0; b < 4; b++)
+            u |= (uint32_t)bytes[i * 4 + b] << (8 * b);
+        memcpy(&out[i], &u, 4);
+    }
+    free(bytes);
+    if (!out || *count == 0) {
+        free(out);
+        return NULL;
+    }
+    return out;
+}
+
+/* Line "KEY=BASE64" of the test output: float32 RGBA, rows from the top,
+ * into an image (alpha > 0.5: covered).  0 on success. */
+static int decode_image(const char *text, const char *key, size_t size, sb_image_t *img) {
+    char pat[32];
+    size_t n = 0;
+    snprintf(pat, sizeof pat, "\n%s=", key);
+    const char *p = strstr(text, pat);
+    float *px = p ? b64_floats(p + strlen(pat), &n) : NULL;
+    int ok = px && n == size * size * 4 && sb_image_alloc(NULL, size, size, img) == SB_OK;
+    for (size_t i = 0; ok && i < size * size; i++) {
+        for (int c = 0; c < 3; c++)
+            img->rgb[i * 3 + c] = px[i * 4 + c];
+        img->mask[i] = px[i * 4 + 3] > 0.5f;
+    }
+    free(px);
+    return ok ? 0 : -1;
+}
+
+typedef struct page_view {
+    char status[512];
+    sb_image_t rec, orig; /* orig: zero-size without a reference table */
+} page_view_t;
+
+static void view_free(page_view_t *v) {
+    sb_image_free(&v->rec);
+    sb_image_free(&v->orig);
+}
+
+/* Render DIR/index.html in test mode; returns 0 when the page said ok and
+ * the browser logged no console error (status says why not). */
+static int page_render(const char *dir, double el, double az, size_t J, page_view_t *v) {
+    char page[4200], query[256], log[1 << 15];
+    char *dom = NULL;
+    memset(v, 0, sizeof *v);
+    snprintf(page, sizeof page, "%s/index.html", dir);
+    snprintf(query, sizeof query, "test=1&size=%d&el=%g&az=%g&J=%zu", SIZE, el, az, J);
+    int rc = open_page(page, query, &dom, log, sizeof log);
+    const char *t = dom ? strstr(dom, "id=\"sb-test\"") : NULL;
+    t = t ? strchr(t, '>') : NULL;
+    if (rc != 0 || !t) {
+        snprintf(v->status, sizeof v->status, "browser failed (exit %d): %.300s", rc, log);
+    } else {
+        snprintf(v->status, sizeof v->status, "%.*s", (int)strcspn(t + 1, "\n<"), t + 1);
+        const char *err = console_error(log);
+        if (strcmp(v->status, "status=ok") == 0 && err)
+            snprintf(v->status, sizeof v->status, "console: %.300s", err);
+        else if (strcmp(v->status, "status=ok") == 0 && decode_image(t, "rec", SIZE, &v->rec) != 0)
+            snprintf(v->status, sizeof v->status, "no readable rec= image");
+        else if (strstr(t, "\norig=") && decode_image(t, "orig", SIZE, &v->orig) != 0)
+            snprintf(v->status, sizeof v->status, "no readable orig= image");
+    }
+    free(dom);
+    return strcmp(v->status, "status=ok") == 0 ? 0 : -1;
+}
+
+/* ---- the CPU side ------------------------------------------------------ */
+
+/* Display PSNR of b against a, exposure from a's brightest channel (as
+ * `sepbrdf render` and the GL test do). */
+static double psnr(const sb_image_t *a, const sb_image_t *b) {
+    double peak = sb_image_max(a);
+    sb_tonemap_t tm = {peak > 0 ? 1 / peak : 1, SB_TONEMAP_CLAMP};
+    sb_image_diff_t d;
+    if (sb_image_compare(NULL, a, b, &tm, &d) != SB_OK) return -1;
+    return d.psnr;
+}
+
+/* sb_render_factors of the folder's factors (read back from the EXR
+ * files), the same view as the page's test mode. */
+static int cpu_render(const char *dir, double el, double az, size_t J, sb_image_t *img) {
+    sb_factors_t *f = NULL;
+    sb_param_t *p = NULL;
+    sb_form_t form;
+    sb_render_opts_t o;
+    memset(&o, 0, sizeof o);
+    o.size = SIZE;
+    o.light_count = 1;
+    sb_light_from_angles(el, az, 0, &o.lights[0]);
+    sb_result_t r = sb_factors_read_exr(NULL, dir, &f);
+    if (r == SB_OK) r = sb_factors_param(NULL, f, &p, &form);
+    if (r == SB_OK) r = sb_render_factors(NULL, &o, f, p, form, J, img);
+    sb_param_destroy(p);
+    sb_factors_destroy(f);
+    return r == SB_OK ? 0 : -1;
+}
+
+/* `sepbrdf factor ARGS -o DIR -q`, then `sepbrdf view DIR`; DIR returned
+ * (static), NULL on failure (reported). */
+static const char *make_folder(const char *args) {
+    static char dir[4096];
+    char cmd[20000];
+    snprintf(dir, sizeof dir, "%s", sb_tmpdir("view"));
+    snprintf(cmd, sizeof cmd, "%s factor %s -o '%s' -q && %s view '%s' -q", SB_CLI, args, dir, SB_CLI, dir);
+    int rc = sb_run(cmd, g_out, sizeof g_out);
+    CHECKF(rc == 0, "factor %s + view: exit %d: %s", args, rc, g_out);
+    return rc == 0 ? dir : NULL;
+}
+
+/* The page's sphere against the CPU's for J terms and one light. */
+static double page_psnr(const char *dir, double el, double az, size_t J, page_view_t *v) {
+    sb_image_t cpu = {0};
+    double db = -1;
+    if (page_render(dir, el, az, J, v) != 0) {
+        CHECKF(0, "%s J=%zu el=%g az=%g: %s", dir, J, el, az, v->status);
+    } else if (cpu_render(dir, el, az, J, &cpu) != 0) {
+        CHECKF(0, "%s: CPU render failed", dir);
+    } else {
+        db = psnr(&cpu, &v->rec);
+        CHECKF(db >= PSNR_MIN, "%s J=%zu el=%g az=%g: page vs CPU %.2f dB < %.0f", dir, J, el, az, db, PSNR_MIN);
+    }
+    sb_image_free(&cpu);
+    return db;
+}
+
+static void check_folder(const char *args, size_t J) {
+    const char *dir = make_folder(args);
+    if (!dir) return;
+    page_view_t v;
+    double db = page_psnr(dir, 45, 45, J, &v);
+    printf("  %-40s J=%zu: page vs CPU %.1f dB\n", args, J, db);
+    view_free(&v);
+}
+
+/* ---- cases ------------------------------------------------------------- */
+
+SB_TEST(cli_errors) {
+    char cmd[20000];
+    const char *dir = sb_tmpdir("viewcli");
+    snprintf(cmd, sizeof cmd, "%s view --help", SB_CLI);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 0 && strstr(g_out, "usage: sepbrdf view"));
+    snprintf(cmd, sizeof cmd, "%s view --bogus", SB_CLI);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 1 && strstr(g_out, "--bogus"));
+    snprintf(cmd, sizeof cmd, "%s view '%s' --source lambert --no-original", SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 1);
+    snprintf(cmd, sizeof cmd, "%s view '%s/missing'", SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 2 && strstr(g_out, "not a folder"));
+    /* an empty folder: no factors */
+    snprintf(cmd, sizeof cmd, "%s view '%s'", SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 2);
+    /* factors without their snippet: the page must run the folder's own */
+    snprintf(cmd, sizeof cmd,
+             "%s factor lambert -r 4 -J 1 --param io -o '%s' -q && rm '%s/sepbrdf.glsl' && %s view '%s'", SB_CLI, dir,
+             dir, SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 2 && strstr(g_out, "sepbrdf.glsl"));
+    /* a --source that cannot be opened */
+    snprintf(cmd, sizeof cmd, "%s factor lambert -r 4 -J 1 --param io -o '%s' -q && %s view '%s' --source nosuchmodel",
+             SB_CLI, dir, SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 1);
+    char page[4200];
+    snprintf(page, sizeof page, "%s/index.html", dir);
+    CHECK(!sb_file_exists(page));
+    /* -o FOLDER: the page as an output set of its own there; no original */
+    snprintf(cmd, sizeof cmd,
+             "%s view '%s' -o '%s/elsewhere' --no-original -q && grep -c '\"ref\":null' '%s/elsewhere/index.html'",
+             SB_CLI, dir, dir, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 0 && atoi(g_out) == 1);
+    snprintf(cmd, sizeof cmd, "%s view '%s' -o ''", SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 1);
+}
+
+/* The page holds the folder's snippet and nothing from the network; as a
+ * person opens it (no test mode) it runs without an error on the page or
+ * on the console. */
+SB_TEST(page_offline_no_errors) {
+    const char *dir = make_folder("-r 8 -J 2");
+    if (!dir) return;
+    char path[4200], glsl[4200];
+    snprintf(path, sizeof path, "%s/index.html", dir);
+    snprintf(glsl, sizeof glsl, "%s/sepbrdf.glsl", dir);
+    FILE *fp = fopen(path, "rb");
+    static char page[1 << 22];
+    size_t n = fp ? fread(page, 1, sizeof page - 1, fp) : 0;
+    page[n] = 0;
+    if (fp) fclose(fp);
+    CHECK(n > 0);
+    CHECK(!strstr(page, "http://") && !strstr(page, "https://") && !strstr(page, "<script src"));
+    CHECK(strstr(page, "// Generated by sepbrdf") && strstr(page, "vec3 sb_brdf(vec3 L, vec3 V)"));
+    NEED_BROWSER();
+    char *dom = NULL, log[1 << 15];
+    CHECK(open_page(path, NULL, &dom, log, sizeof log) == 0);
+    CHECKF(dom && strstr(dom, "<div id=\"status\"></div>"), "the page reports an error");
+    CHECKF(!console_error(log), "console: %.400s", console_error(log));
+    CHECK(dom && strstr(dom, "<td>2</td>")); /* the error table has J = 2 */
+    free(dom);
+}
+
+/* The default (the lecture's gold, --param auto) at every J. */
+SB_TEST(default_every_j) {
+    NEED_BROWSER();
+    const char *dir = make_folder("-r 16 -J 4");
+    if (!dir) return;
+    for (size_t J = 1; J <= 4; J++) {
+        page_view_t v;
+        double db = page_psnr(dir, 45, 45, J, &v);
+        printf("  default J=%zu: page vs CPU %.1f dB\n", J, db);
+        view_free(&v);
+    }
+}
+
+SB_TEST(every_param) {
+    NEED_BROWSER();
+    check_folder("--param io -r 8 -J 2", 2);
+    check_folder("--param io-area -r 8 -J 2", 2);
+    check_folder("--param hd -r 8 -J 2", 2);
+    check_folder("--param iso -r 8 -J 2", 2);
+}
+
+SB_TEST(forms_and_half) {
+    NEED_BROWSER();
+    check_folder("--param io -r 8 -J 3 --form cos", 3);
+    check_folder("--param iso -r 8 -J 3 --form cos2", 3);
+    check_folder("--param io -r 8 -J 3 --half", 3);
+    check_folder("--param iso -r 8 -J 3 --half --form cos2", 3);
+}
+
+/* A snippet whose per-term scales are not 1 (half output carries them):
+ * the page gives it g_j / sb_scale[j], so the sum stays f. */
+SB_TEST(snippet_scales) {
+    NEED_BROWSER();
+    const char *dir = make_folder("--param io -r 6 -J 2 --half");
+    if (!dir) return;
+    char cmd[20000];
+    snprintf(cmd, sizeof cmd,
+             "sed -i 's/float\\[SB_TERMS\\](1.0, 1.0)/float[SB_TERMS](0.5, 4.0)/' '%s/sepbrdf.glsl' && "
+             "grep -c '(0.5, 4.0)' '%s/sepbrdf.glsl' && %s view '%s' -q",
+             dir, dir, SB_CLI, dir);
+    CHECKF(sb_run(cmd, g_out, sizeof g_out) == 0, "the scales of %s/sepbrdf.glsl: %s", dir, g_out);
+    page_view_t v;
+    double db = page_psnr(dir, 30, 60, 2, &v);
+    printf("  scales x0.5, x4 in the snippet: page vs CPU %.1f dB\n", db);
+    view_free(&v);
+}
+
+/* Moving the light and the J slider change the page's image as they
+ * change the CPU's: each view agrees with the CPU, and differs from the
+ * other views by much more than it differs from the CPU. */
+SB_TEST(light_and_terms) {
+    NEED_BROWSER();
+    const char *dir = make_folder("--param io -r 12 -J 4");
+    if (!dir) return;
+    static const double views[3][3] = {{45, 45, 1}, {70, 200, 1}, {45, 45, 4}};
+    page_view_t v[3];
+    double db[3];
+    for (int k = 0; k < 3; k++)
+        db[k] = page_psnr(dir, views[k][0], views[k][1], (size_t)views[k][2], &v[k]);
+    sb_image_t cpu[3] = {{0}};
+    int ok = v[0].rec.rgb && v[1].rec.rgb && v[2].rec.rgb;
+    for (int k = 0; ok && k < 3; k++)
+        ok = cpu_render(dir, views[k][0], views[k][1], (size_t)views[k][2], &cpu[k]) == 0;
+    if (ok) {
+        double light = psnr(&v[0].rec, &v[1].rec), terms = psnr(&v[0].rec, &v[2].rec);
+        double light_cpu = psnr(&cpu[0], &cpu[1]), terms_cpu = psnr(&cpu[0], &cpu[2]);
+        printf("  page vs CPU %.1f %.1f %.1f dB; other light %.1f dB apart (CPU %.1f), J 1 -> 4 %.1f dB (CPU %.1f)\n",
+               db[0], db[1], db[2], light, light_cpu, terms, terms_cpu);
+        CHECKF(light < 25 && light < db[0] - 15, "moving the light changed little: %.1f dB", light);
+        CHECKF(terms < db[0] - 10 && terms < db[2] - 10, "J 1 -> 4 changed little: %.1f dB", terms);
+        CHECK_ABS(light, light_cpu, 0.5); /* the page changes as the CPU predicts */
+        CHECK_ABS(terms, terms_cpu, 0.5);
+    }
+    for (int k = 0; k < 3; k++) {
+        view_free(&v[k]);
+        sb_image_free(&cpu[k]);
+    }
+}
+
+/* The original panel (reference table) agrees with the CPU's original,
+ * within what interpolating a table allows. */
+SB_TEST(original_panel) {
+    NEED_BROWSER();
+    const char *dir = make_folder("-r 16 -J 2");
+    if (!dir) return;
+    page_view_t v;
+    sb_source_t *src = NULL;
+    sb_image_t cpu = {0};
+    sb_render_opts_t o;
+    memset(&o, 0, sizeof o);
+    o.size = SIZE;
+    o.light_count = 1;
+    sb_light_from_angles(45, 45, 0, &o.lights[0]);
+    if (page_render(dir, 45, 45, 2, &v) == 0 && v.orig.rgb &&
+        sb_source_open(NULL, "microfacet:base=gold,roughness=0.5", &src) == SB_OK &&
+        sb_render_source(NULL, &o, src, &cpu) == SB_OK) {
+        double db = psnr(&cpu, &v.orig);
+        printf("  original panel vs CPU original: %.1f dB\n", db);
+        CHECKF(db >= 35, "original panel vs CPU: %.1f dB", db);
+    } else {
+        CHECKF(0, "no original panel: %s", v.status);
+    }
+    sb_image_free(&cpu);
+    sb_source_destroy(src);
+    view_free(&v);
+}
+
+SB_TEST(measured_cornell) {
+    NEED_BROWSER();
+    check_folder("'" SB_MEASURED_DIR "/cornell_acryl_blue.brdf' -r 8 -J 2", 2);
+}
+
+SB_TEST(measured_rgl) {
+    char cmd[20000];
+    snprintf(cmd, sizeof cmd, "%s info '" SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf'", SB_CLI);
+    if (sb_run(cmd, g_out, sizeof g_out) != 0) SKIP("this build reads no RGL .bsdf");
+    NEED_BROWSER();
+    check_folder("'" SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf' -r 8 -J 2", 2);
+}
+
+/* A snippet that does not compile fails the page, and so the test. */
+SB_TEST(shader_error_detected) {
+    NEED_BROWSER();
+    const char *dir = make_folder("--param io -r 4 -J 1");
+    if (!dir) return;
+    char cmd[20000];
+    snprintf(cmd, sizeof cmd, "echo 'vec3 broken(' >> '%s/sepbrdf.glsl' && %s view '%s' -q", dir, SB_CLI, dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) == 0);
+    page_view_t v;
+    CHECK(page_render(dir, 45, 45, 1, &v) != 0);
+    CHECKF(strstr(v.status, "status=error") && strstr(v.status, "fragment shader"), "status: %s", v.status);
+    view_free(&v);
+}
+
+/* ---- the library call, without a browser ------------------------------ */
+
+/* The floats of "KEY":"BASE64" in the page (malloc'ed), *n of them. */
+static float *page_floats(const char *page, const char *key, size_t *n) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":\"", key);
+    const char *p = strstr(page, pat);
+    return p ? b64_floats(p + strlen(pat), n) : NULL;
+}
+
+static long page_int(const char *page, const char *key) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(page, pat);
+    return p ? strtol(p + strlen(pat), NULL, 10) : -1;
+}
+
+static char *slurp(const char *path) {
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    fseek(fp, 0, SEEK_END);
+    long n = ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (s) s[fread(s, 1, (size_t)n, fp)] = 0;
+    fclose(fp);
+    return s;
+}
+
+static double lum(const double rgb[3]) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+
+/* What the page embeds, decoded, against the library: the texels (as
+ * float), the in-plane slices (sb_factors_eval, sb_source_eval at the
+ * directions of viewer.h) and the reference table (sb_source_eval at the
+ * cell centres of the smaller parameterisation it names), its size capped. */
+SB_TEST(page_data) {
+    const char *made = make_folder("--param io -r 6 -J 2 phong:n=20");
+    if (!made) return;
+    char dir[4096], path[4200];
+    snprintf(dir, sizeof dir, "%s", made);
+    snprintf(path, sizeof path, "%s/lib.html", dir);
+    sb_factors_t *f = NULL;
+    sb_param_t *p = NULL, *ref = NULL;
+    sb_source_t *src = NULL;
+    sb_form_t form;
+    char *page = NULL;
+    CHECK(sb_factors_read_exr(NULL, dir, &f) == SB_OK && sb_factors_param(NULL, f, &p, &form) == SB_OK);
+    CHECK(sb_source_open(NULL, "phong:n=20", &src) == SB_OK);
+    sb_viewer_opts_t o = {src, NULL, NULL, 0, 300};
+    if (!f || !p || !src || sb_viewer_write(NULL, path, f, p, form, &o) != SB_OK || !(page = slurp(path))) {
+        CHECKF(0, "sb_viewer_write failed");
+        goto out;
+    }
+    size_t n, W, H;
+    /* texels: layer j, texel (x, y), channel c at ((j H + y) W + x) 3 + c */
+    float *g = page_floats(page, "g_texels", &n);
+    sb_factors_size(f, SB_SIDE_G, &W, &H);
+    CHECK(g && n == 2 * W * H * 3);
+    for (size_t j = 0; g && j < 2; j++)
+        for (size_t i = 0; i < W * H; i++)
+            for (size_t c = 0; c < 3; c++)
+                CHECK(g[(j * W * H + i) * 3 + c] == (float)sb_factors_tex_const(f, SB_SIDE_G, j, c)[i]);
+    free(g);
+    /* slices [k][ti][to]: k = 0 original, k = J' the reconstruction */
+    float *sl = page_floats(page, "data", &n);
+    CHECK(sl && n == 3 * 36 * 179);
+    for (size_t a = 0; sl && a < 36; a += 7)
+        for (size_t b = 0; b < 179; b += 11) {
+            double ti = a * 2.5 * SB_PI / 180, to = ((double)b - 89) * SB_PI / 180, rgb[3];
+            double wi[3] = {sin(ti), 0, cos(ti)}, wo[3] = {-sin(to), 0, cos(to)};
+            sb_source_eval(src, wi, wo, rgb);
+            CHECK_REL(sl[a * 179 + b], lum(rgb), 1e-6);
+            for (size_t k = 1; k <= 2; k++) {
+                sb_factors_eval(f, p, form, k, wi, wo, rgb);
+                CHECK_REL(sl[k * 36 * 179 + a * 179 + b], lum(rgb), 1e-6);
+            }
+        }
+    free(sl);
+    /* the reference table: io:res=6 has 1296 cells, over the cap of 300 */
+    const char *spec = strstr(page, "\"ref\":{\"param\":\"");
+    char rspec[128] = "";
+    if (spec) sscanf(spec + strlen("\"ref\":{\"param\":\""), "%127[^\"]", rspec);
+    long rows = page_int(page, "rows"), cols = page_int(page, "cols");
+    sb_param_kind_t kind;
+    sb_param_opts_t po;
+    CHECKF(sb_param_parse_spec(NULL, rspec, &kind, &po) == SB_OK && sb_param_create(NULL, kind, &po, &ref) == SB_OK,
+           "reference '%s'", rspec);
+    CHECKF(rows > 0 && cols > 0 && rows * cols <= 300 && kind == SB_PARAM_IO, "%s: %ld x %ld", rspec, rows, cols);
+    float *t = page_floats(page, "texels", &n);
+    CHECK(t && ref && n >= (size_t)(rows * cols) * 4 && (size_t)rows == sb_param_rows(ref));
+    for (long r = 0; t && ref && r < rows; r += 3)
+        for (long c = 0; c < cols; c += 5) {
+            double wi[3], wo[3], rgb[3];
+            sb_param_cell_dirs(ref, (size_t)r, (size_t)c, wi, wo);
+            sb_source_eval(src, wi, wo, rgb);
+            for (int k = 0; k < 3; k++)
+                CHECK_REL(t[(r * cols + c) * 4 + k], rgb[k], 1e-6);
+            CHECK(t[(r * cols + c) * 4 + 3] == 1.0f);
+        }
+    free(t);
+out:
+    free(page);
+    sb_param_destroy(ref);
+    sb_param_destroy(p);
+    sb_factors_destroy(f);
+    sb_source_destroy(src);
+}
+
+/* Every error of sb_viewer_write; a failed write leaves nothing behind. */
+SB_TEST(library_errors) {
+    const char *made = make_folder("--param io -r 4 -J 1 lambert");
+    if (!made) return;
+    char dir[4096], path[4200];
+    snprintf(dir, sizeof dir, "%s", made);
+    sb_factors_t *f = NULL;
+    sb_param_t *p = NULL, *other = NULL;
+    sb_form_t form;
+    sb_param_opts_t po = {6, 0, 0, 0, 0};
+    CHECK(sb_factors_read_exr(NULL, dir, &f) == SB_OK && sb_factors_param(NULL, f, &p, &form) == SB_OK);
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &other) == SB_OK);
+    snprintf(path, sizeof path, "%s/page.html", dir);
+    CHECK(sb_viewer_write(NULL, NULL, f, p, form, NULL) == SB_ERR_ARG);
+    CHECK(sb_viewer_write(NULL, path, NULL, p, form, NULL) == SB_ERR_ARG);
+    CHECK(sb_viewer_write(NULL, path, f, NULL, form, NULL) == SB_ERR_ARG);
+    CHECK(sb_viewer_write(NULL, path, f, other, form, NULL) == SB_ERR_ARG); /* 4 x 4 textures, io:res=6 */
+    CHECK(!sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/no/such/folder/page.html", dir);
+    CHECK(sb_viewer_write(NULL, path, f, p, form, NULL) == SB_ERR_IO);
+    /* without a source or snippet: the page still comes, with the library's
+     * snippet; text that would close the script is escaped */
+    snprintf(path, sizeof path, "%s/page.html", dir);
+    sb_viewer_opts_t o = {NULL, NULL, "{\"x\": \"</script><b>\"}", 0, 0};
+    CHECK(sb_viewer_write(NULL, path, f, p, form, &o) == SB_OK);
+    char *page = slurp(path);
+    CHECK(page && strstr(page, "\"ref\":null") && strstr(page, "vec3 sb_brdf(vec3 L, vec3 V)"));
+    CHECK(page && !strstr(page, "</script><b>") && strstr(page, "\\u003c/script>\\u003cb>"));
+    free(page);
+    char cmd[20000];
+    snprintf(cmd, sizeof cmd, "ls -a '%s' | grep -c tmp", dir);
+    CHECK(sb_run(cmd, g_out, sizeof g_out) != 0 || atoi(g_out) == 0);
+    sb_param_destroy(other);
+    sb_param_destroy(p);
+    sb_factors_destroy(f);
+}
