@@ -1,11 +1,14 @@
-/* Factor an analytic BRDF through the public API of an installed sepbrdf:
- * source -> io parameterisation -> matrix -> plan/execute -> errors.
+/* What `sepbrdf factor` does, through the public API of an installed
+ * sepbrdf: the factor job (job.h) chooses the parameterisation and form
+ * (--param auto), factors, measures and writes the output set.
  *
- *   use_library [MODEL_SPEC] [R] [J]
+ *   use_library [SOURCE] [R] [J] [OUT]
  *
- * prints sigma_j and the relative RMS error ||M - M_J'||_F / ||M||_F for
- * every J' <= J, then compares one reconstructed value f~(wi, wo) (through
- * texture lookups, as a shader does) with the source.  Exit 0 on success. */
+ * is `sepbrdf factor SOURCE -r R -J J -o OUT` (defaults: the gold
+ * microfacet, 16, 4, use_library-out): the same textures, report.json and
+ * sepbrdf.glsl.  It prints the candidates screened, the error per J' <= J,
+ * and compares one reconstructed value f~(wi, wo) (through texture
+ * lookups, as a shader does) with the source.  Exit 0 on success. */
 #include <sepbrdf/sepbrdf.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,50 +18,45 @@ static void on_error(void *user, sb_result_t code, const char *message) {
     fprintf(stderr, "use_library: %s: %s\n", sb_result_name(code), message);
 }
 
-int main(int argc, char **argv) {
-    const char *spec = argc > 1 ? argv[1] : "microfacet:base=gold,roughness=0.5";
-    size_t res = argc > 2 ? (size_t)strtoul(argv[2], NULL, 10) : 16;
-    size_t terms = argc > 3 ? (size_t)strtoul(argv[3], NULL, 10) : 4;
-    sb_context_t *ctx = NULL;
-    sb_source_t *src = NULL;
-    sb_param_t *param = NULL;
-    sb_matrix_t m = {0};
-    sb_plan_t *plan = NULL;
-    sb_factors_t *f = NULL;
-    int rc = 1;
+static void print_job(const sb_job_t *job) {
+    const sb_job_candidate_t *c;
+    for (size_t i = 0; (c = sb_job_candidate(job, i)) != NULL; i++)
+        printf("  candidate %-8s %-4s %s %.4e%s\n", sb_param_kind_name(c->kind), sb_form_name(c->form),
+               c->ok ? "comparable" : "failed", c->ok ? c->error : 0.0, c->kept ? "  kept" : "");
+    const sb_factors_t *f = sb_job_factors(job);
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    printf("%s on %s, form %s\n", sb_source_description(sb_job_source(job)), sb_param_spec(sb_job_param(job)),
+           sb_form_name(sb_job_form(job)));
+    printf("%4s  %12s  %12s  %12s\n", "J", "sigma_R", "rel_rms", "comparable");
+    for (size_t j = 0; j < sb_factors_terms(f); j++)
+        printf("%4zu  %12.6g  %12.6e  %12.6e\n", j + 1, sb_factors_sigma(f, j, 0), e->rel_rms[j * 4 + 3],
+               sb_job_comparable(job, j + 1));
+}
 
+int main(int argc, char **argv) {
+    sb_job_opts_t o = {0}; /* zero: every default of `sepbrdf factor` */
+    o.source = argc > 1 ? argv[1] : NULL;
+    o.res = argc > 2 ? (size_t)strtoul(argv[2], NULL, 10) : 16;
+    o.terms = argc > 3 ? (size_t)strtoul(argv[3], NULL, 10) : 4;
+    o.out = argc > 4 ? argv[4] : "use_library-out";
+    sb_context_t *ctx = NULL;
+    sb_job_t *job = NULL;
     if (sb_context_create(&ctx) != SB_OK) return 1;
     sb_context_set_error_callback(ctx, on_error, NULL);
-    sb_param_opts_t po = {0};
-    po.res = res;
-    sb_plan_opts_t pl = {0};
-    pl.terms = terms;
-    if (sb_model_create(ctx, spec, &src) != SB_OK) goto out;
-    if (sb_param_create(ctx, SB_PARAM_IO, &po, &param) != SB_OK) goto out;
-    if (sb_matrix_build(ctx, src, param, NULL, &m) != SB_OK) goto out;
-    if (sb_plan_create(ctx, m.rows, m.cols, &pl, &plan) != SB_OK) goto out;
-    if (sb_plan_execute(plan, &m, param, &f) != SB_OK) goto out;
-
-    printf("sepbrdf %s: %s on %s, %zu x %zu matrix\n", SB_VERSION_STRING, sb_source_description(src),
-           sb_param_spec(param), m.rows, m.cols);
-    const sb_factor_errors_t *e = sb_factors_errors(f);
-    printf("%4s  %12s  %12s\n", "J", "sigma_R", "rel_rms");
-    for (size_t j = 0; j < sb_factors_terms(f); j++)
-        printf("%4zu  %12.6g  %12.6e\n", j + 1, sb_factors_sigma(f, j, 0), e->rel_rms[j * 4 + 3]);
-
-    double wi[3], wo[3], ref[3], rec[3];
-    sb_dir_from_angles(0.5, 0.3, wi);
-    sb_dir_from_angles(0.4, 0.3 + SB_PI, wo);
-    sb_source_eval(src, wi, wo, ref);
-    sb_factors_eval(f, param, SB_FORM_F, sb_factors_terms(f), wi, wo, rec);
-    printf("f_r(wi, wo) red: source %.6g, %zu terms %.6g\n", ref[0], sb_factors_terms(f), rec[0]);
-    rc = 0;
-out:
-    sb_factors_destroy(f);
-    sb_plan_destroy(plan);
-    sb_matrix_free(&m);
-    sb_param_destroy(param);
-    sb_source_destroy(src);
+    int rc = 1;
+    if (sb_job_run(ctx, &o, &job) == SB_OK) {
+        printf("sepbrdf %s: wrote %s/\n", SB_VERSION_STRING, o.out);
+        print_job(job);
+        double wi[3], wo[3], ref[3], rec[3];
+        const sb_factors_t *f = sb_job_factors(job);
+        sb_dir_from_angles(0.5, 0.3, wi);
+        sb_dir_from_angles(0.4, 0.3 + SB_PI, wo);
+        sb_source_eval(sb_job_source(job), wi, wo, ref);
+        sb_factors_eval(f, sb_job_param(job), sb_job_form(job), sb_factors_terms(f), wi, wo, rec);
+        printf("f_r(wi, wo) red: source %.6g, %zu terms %.6g\n", ref[0], sb_factors_terms(f), rec[0]);
+        rc = 0;
+    }
+    sb_job_destroy(job);
     sb_context_destroy(ctx);
     return rc;
 }

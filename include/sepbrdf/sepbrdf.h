@@ -9,6 +9,7 @@
 #include "factor.h"
 #include "glsl.h"
 #include "image.h"
+#include "job.h"
 #include "matrix.h"
 #include "measured.h"
 #include "models.h"

@@ -69,6 +69,32 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
     "                       keep (default), clip (negatives to 0) or desaturate\n"                                     \
     "                       (luminance kept, chroma reduced into the gamut)\n"
 
+/* Option tables: each row names an option, its value (arg NULL: a flag),
+ * its help text (lines separated by '\n'), where it is stored (offset
+ * from the base the caller passes) and which commands take it. */
+enum { CLI_FACTOR = 1, CLI_RENDER = 2, CLI_STUDY = 4 };
+typedef struct cli_option cli_option_t;
+typedef int (*cli_set_fn)(const char *cmd, const cli_option_t *op, const char *value, void *dst);
+struct cli_option {
+    const char *short_name, *name, *arg, *help;
+    cli_set_fn set; /* 0 on success; -1 after a message naming op->name */
+    size_t offset;
+    double lo, hi; /* range of numeric values */
+    unsigned commands;
+};
+/* The factor group's options (factor, render, study), stored into an
+ * sb_job_opts_t; terminated by a row with name NULL. */
+extern const cli_option_t cli_factor_options[];
+int cli_set_flag(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+int cli_set_size(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+/* If argv[i] is an option of `table` that `command` takes, parse its value
+ * into base + offset and return 1 (*matched = the row, when matched is not
+ * NULL); 0 if not one; -1 on a missing or bad value (message printed). */
+int cli_table_opt(cli_args_t *a, const cli_option_t *table, unsigned command, void *base, const cli_option_t **matched);
+/* The --help lines of the rows `command` takes. */
+void cli_table_help(const cli_option_t *table, unsigned command);
+
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 
@@ -85,25 +111,16 @@ double cli_now(void);
 void cli_progress(const char *label, double fraction);
 void cli_progress_done(void);
 
-/* Minimal JSON writer. */
-typedef struct json {
-    FILE *fp;
-    int depth;
-    int first[32];
-} json_t;
-void json_begin_object(json_t *j, const char *key);
-void json_end_object(json_t *j);
-void json_begin_array(json_t *j, const char *key);
-void json_end_array(json_t *j);
-void json_string(json_t *j, const char *key, const char *value);
-void json_number(json_t *j, const char *key, double value);
-void json_int(json_t *j, const char *key, long long value);
-void json_bool(json_t *j, const char *key, int value);
-
-/* report_measured.c: the "measured" object of report.json (nothing for
- * analytic sources) and the matching summary lines. */
-void cli_report_measured(json_t *j, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form);
-void cli_print_measured(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t res);
+/* The library's JSON writer (job.h) under the CLI's short names. */
+typedef sb_json_t json_t;
+#define json_begin_object sb_json_begin_object
+#define json_end_object sb_json_end_object
+#define json_begin_array sb_json_begin_array
+#define json_end_array sb_json_end_array
+#define json_string sb_json_string
+#define json_number sb_json_number
+#define json_int sb_json_int
+#define json_bool sb_json_bool
 
 /* Open `path`.tmp-PID for writing; cli_commit renames it into place (or
  * removes it when ok == 0).  cli_commit returns 0 on success, else the
@@ -138,6 +155,7 @@ int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size);
 int cli_outset_end(sb_context_t *ctx, const char *cmd, sb_outset_t *s, int ok);
 
 /* Subcommands */
+int cmd_batch(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
 int cmd_factor(int argc, char **argv);
 int cmd_list(int argc, char **argv);

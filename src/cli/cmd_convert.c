@@ -4,7 +4,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "pipeline.h"
 
 typedef enum out_format { OUT_AUTO, OUT_MERL, OUT_CSV } out_format_t;
 
@@ -108,7 +107,7 @@ int cmd_convert(int argc, char **argv) {
         cli_error("convert", "out of memory");
         return EXIT_IO;
     }
-    if ((r = pipe_source_open(ctx, o.source, &o.mo, &src)) != SB_OK) goto fail;
+    if ((r = sb_job_source_open(ctx, o.source, &o.mo, &src)) != SB_OK) goto fail;
     if (o.format == OUT_MERL) {
         if ((r = sb_merl_write(ctx, o.out, src)) != SB_OK) goto fail;
     } else {

@@ -116,14 +116,14 @@ static size_t texture_bytes(const char *dir, size_t terms) {
 static int open_original(sb_context_t *ctx, const view_opts_t *o, const sb_factors_t *f, sb_source_t **src) {
     if (o->no_original) return -1;
     if (o->source) {
-        sb_result_t r = pipe_source_open(ctx, o->source, &o->mo, src);
+        sb_result_t r = sb_job_source_open(ctx, o->source, &o->mo, src);
         return r == SB_OK ? -1 : cli_fail("view", ctx, r);
     }
     char given[4096];
     const char *meta = sb_factors_get_meta(f, "source");
-    if (cli_read_source_spec(o->dir, given, sizeof given) == 0 && pipe_source_open(ctx, given, &o->mo, src) == SB_OK)
+    if (cli_read_source_spec(o->dir, given, sizeof given) == 0 && sb_job_source_open(ctx, given, &o->mo, src) == SB_OK)
         return -1;
-    if (meta && pipe_source_open(ctx, meta, &o->mo, src) == SB_OK) return -1;
+    if (meta && sb_job_source_open(ctx, meta, &o->mo, src) == SB_OK) return -1;
     cli_info(1,
              "sepbrdf view: %s: its source cannot be opened, the page shows the reconstruction only (name the "
              "original with --source)",

@@ -37,7 +37,7 @@ const char *sb_param_kind_description(sb_param_kind_t kind) {
 unsigned sb_param_kind_caps(sb_param_kind_t kind) {
     return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->caps : 0;
 }
-unsigned sb_param_caps(const sb_param_t *p) { return registry[p->kind]->caps; }
+unsigned sb_param_caps(const sb_param_t *p) { return p ? registry[p->kind]->caps : 0; }
 
 int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
     unsigned caps = sb_param_kind_caps(kind);
@@ -47,10 +47,14 @@ int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
 
 size_t sb_param_kind_list(char *buf, size_t size, const char *sep) {
     size_t n = 0;
+    if (!buf) size = 0;
     if (size) buf[0] = 0;
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-        int w = snprintf(buf + (n < size ? n : size), n < size ? size - n : 0, "%s%s", k ? sep : "", registry[k]->name);
-        n += w > 0 ? (size_t)w : 0;
+        const char *parts[2] = {k && sep ? sep : "", registry[k]->name};
+        for (int i = 0; i < 2; i++) {
+            if (n + 1 < size) snprintf(buf + n, size - n, "%s", parts[i]);
+            n += strlen(parts[i]);
+        }
     }
     return n;
 }

@@ -1,0 +1,213 @@
+/* sepbrdf: the factor job, what `sepbrdf factor` does, as one library call.
+ *
+ *   open the source -> choose the candidates (parameterisation, form,
+ *   weighting) -> screen them cheaply (param "auto") -> sample and factor the
+ *   kept one -> comparable error -> write the output set (EXR textures,
+ *   sepbrdf.glsl, report.json, optional previews).
+ *
+ * Screening (several candidates): every candidate is sampled and factored
+ * on a coarse grid (SB_JOB_SCREEN_COARSE cells per axis, masked fits
+ * stopped early), those that cannot win are dropped, the others screened
+ * again on SB_JOB_SCREEN_RES cells (both at most R), and ranked by their
+ * headline error at J (estimate.h: f cos theta_i as a shader returns it,
+ * on the estimator's first pairs, shared by every candidate).  Forms f and
+ * cos of one layout share one sampling.  Only the best is then sampled and
+ * factored at the requested settings, exactly as a run that asks for it
+ * alone.  A candidate that fails (too few cells for J, a numerical
+ * failure) is recorded as failed and skipped; the job fails only when
+ * none is left, or at once (SB_ERR_OVERFLOW) when a candidate's matrix at
+ * R exceeds the memory limit (R is then too large whichever would win).
+ * While screening, a measured table is evaluated through a memo: the
+ * candidates' reference grids repeat pairs, each an interpolation.
+ *
+ * Candidates: every parameterisation that can be created at R, with forms f
+ * and cos (or the one form asked for; cos not on a layout that folds by
+ * reciprocity: f cos theta_i is not reciprocal; cos2 is no candidate, its
+ * division by cos theta_o is unbounded near the horizon), solid-angle
+ * weighted; iso only for
+ * isotropic sources, and layouts that assume reciprocity (iso's phi_d fold)
+ * only for reciprocal ones.  Asking for such a layout explicitly on a
+ * non-reciprocal source runs it and adds a warning (sb_job_warning). */
+#ifndef SEPBRDF_JOB_H
+#define SEPBRDF_JOB_H
+
+#include <stdio.h>
+
+#include "common.h"
+#include "estimate.h"
+#include "factor.h"
+#include "matrix.h"
+#include "measured.h"
+#include "outset.h"
+#include "param.h"
+#include "source.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The source of a job that names none: gold, microfacet. */
+#define SB_JOB_DEFAULT_SOURCE "microfacet:base=gold,roughness=0.5"
+/* Cells per axis of the two screening grids of auto, and the
+ * factor by which a candidate's error on the first may exceed the best
+ * one's and still go on to the second. */
+#define SB_JOB_SCREEN_COARSE 8
+#define SB_JOB_SCREEN_RES 16
+#define SB_JOB_SCREEN_DROP 2.0
+
+/* Progress of a job: a label ("sampling", "screening") and the fraction
+ * of that stage done, 0..1; called on the calling thread only. */
+typedef void (*sb_job_progress_fn)(void *user, const char *label, double fraction);
+
+/* Settings of a job.  Zero (or NULL) means the default given. */
+typedef struct sb_job_opts {
+    const char *source;          /* model spec or measured file; NULL: SB_JOB_DEFAULT_SOURCE */
+    sb_measured_opts_t measured; /* how a measured table is read and interpolated */
+    const char *param;           /* NULL or "auto": choose among the candidates; else a kind name ("iso") */
+    const char *form;            /* NULL: f (auto: f and cos2); "f", "cos", "cos2" */
+    int weighted;                /* solid-angle weighting of an explicit param (auto: always) */
+    int zero_fill;               /* factor invalid cells as zeros instead of a masked fit */
+    size_t res;                  /* R, cells per angular axis: 32 */
+    size_t terms;                /* J: 4; with max_error the upper limit, min(R, 32) */
+    size_t metric_res;           /* reference grid of the comparable error: 32 */
+    double max_error;            /* keep the fewest terms whose headline is <= this; 0 = off */
+    double theta_max_deg;        /* largest sampled elevation, degrees: 90 */
+    sb_method_t method;          /* SVD method: SB_METHOD_AUTO */
+    unsigned long long seed;     /* randomized methods: 1 */
+    unsigned channels;           /* channels to factor (1 R, 2 G, 4 B): all */
+    int fit_max_iters;           /* masked fit sweeps: the plan's default */
+    double fit_tol;              /* masked fit tolerance: the plan's default */
+    int half;                    /* sb_job_write: HALF textures with per-term scales */
+    int previews;                /* sb_job_write: PNG previews of the textures too */
+    int sample_only;             /* explicit param only: sample the matrix, factor later with sb_job_refactor */
+    const char *out;             /* sb_job_run also writes the set here (sb_job_write); NULL: no */
+    sb_job_progress_fn progress; /* NULL: none */
+    void *progress_user;
+} sb_job_opts_t;
+
+/* One candidate of the job and what its screening gave. */
+typedef struct sb_job_candidate {
+    sb_param_kind_t kind;
+    sb_form_t form;
+    int weighted;
+    int ok;        /* it factored; 0: failed (message in `why`) */
+    int dropped;   /* left out after the coarse screening: it cannot win */
+    int kept;      /* the one factored at the requested settings */
+    size_t res;    /* cells per axis of the grid `error` was measured on */
+    double error;  /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
+    double time_s; /* its screening, and for the kept one its full fit too */
+    char why[160];
+} sb_job_candidate_t;
+
+/* Wall-clock seconds of the stages. */
+typedef struct sb_job_timings {
+    double screen_s;   /* all candidates' screening (0 with one candidate) */
+    double sample_s;   /* building the kept matrix */
+    double factor_s;   /* its factorisation */
+    double metric_s;   /* its grid quadrature (comparable_grid) */
+    double estimate_s; /* the error estimator, in all */
+    double write_s;    /* sb_job_write: textures, snippet, report, previews */
+    double total_s;    /* the whole job, from sb_job_run to the end of the last write */
+} sb_job_timings_t;
+
+typedef struct sb_job sb_job_t;
+
+/* Open a source like sb_source_open, or a measured table file with mo
+ * (NULL: defaults).  A spec whose name part holds '/' or '.' can only be a
+ * file: if it does not exist or is not a regular file the call fails with
+ * SB_ERR_IO ("PATH: No such file or directory"), not "unknown model". */
+sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_measured_opts_t *mo, sb_source_t **out);
+
+/* Whether parameterisation `kind` applies to src (iso: isotropic and
+ * reciprocal sources only); 0 with a static reason in *why (why may be
+ * NULL). */
+int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why);
+
+/* Run the job: open the source, choose, factor and measure; with opts->out
+ * also write the output set (sb_job_write).  *out receives the job (free
+ * with sb_job_destroy).  Errors: SB_ERR_UNKNOWN (param or form name),
+ * SB_ERR_RANGE (J larger than the matrix allows), the source's errors
+ * (SB_ERR_IO, SB_ERR_FORMAT, SB_ERR_PARSE ...), SB_ERR_NUMERIC (no
+ * candidate could be factored), SB_ERR_NOMEM. */
+sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out);
+
+/* The same, on a source the caller owns (opts->source is then only
+ * recorded as the spec); src must outlive the job. */
+sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out);
+
+/* Factor the kept matrix again with `terms` terms (no sampling), replacing
+ * the factors, statistics and comparable errors (studies over J). */
+sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms);
+
+/* Write the output set of the job into the open output set `set`
+ * (outset.h), without publishing it: g_KK.exr, h_KK.exr (K < J),
+ * sepbrdf.glsl, report.json and, with opts->previews, the PNG previews,
+ * each named with sb_outset_add.  For callers that manage the set
+ * themselves (a signal handler that knows its staging folder).  Errors:
+ * SB_ERR_IO, SB_ERR_NOMEM. */
+sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set);
+
+/* Write the output set into the folder `dir` (created if missing) and
+ * publish it as one unit (outset.h, command "factor"): dir then holds this
+ * set, files of an earlier factor set that this one does not write (terms
+ * K >= J) are gone, files sepbrdf did not write stay.  Errors: those of
+ * sb_outset_begin and sb_outset_commit, SB_ERR_IO, SB_ERR_NOMEM. */
+sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir);
+
+/* Write report.json's content (see README) to fp. */
+void sb_job_report(const sb_job_t *job, FILE *fp);
+
+void sb_job_destroy(sb_job_t *job); /* accepts NULL */
+
+/* ---- results (owned by the job) ---- */
+const sb_source_t *sb_job_source(const sb_job_t *job);
+const char *sb_job_source_spec(const sb_job_t *job);
+const sb_factors_t *sb_job_factors(const sb_job_t *job);
+const sb_param_t *sb_job_param(const sb_job_t *job);
+const sb_matrix_t *sb_job_matrix(const sb_job_t *job);
+sb_form_t sb_job_form(const sb_job_t *job);
+int sb_job_weighted(const sb_job_t *job);
+int sb_job_masked(const sb_job_t *job); /* a masked fit: prefixes of J are not the J' fits */
+void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out);
+const sb_metric_t *sb_job_metric(const sb_job_t *job); /* the grid quadrature (comparable_grid) */
+const sb_estimate_t *sb_job_estimate(const sb_job_t *job);
+/* The estimator's headline (f cos theta_i), comparable (f cos cos) and
+ * negative fraction after J' terms; NAN beyond the terms it holds. */
+double sb_job_headline(const sb_job_t *job, size_t terms);
+/* Whether the headline does not rise with J' by more than two standard
+ * errors plus 2 % (out of sample, more terms can fit the cells better and
+ * the pairs between them worse). */
+int sb_job_headline_non_increasing(const sb_job_t *job);
+double sb_job_comparable(const sb_job_t *job, size_t terms);
+double sb_job_negative(const sb_job_t *job, size_t terms);
+/* rel_rms of the stored textures (after sb_job_write) after J' terms,
+ * index 3 = all channels; NAN if unknown. */
+double sb_job_rel_stored(const sb_job_t *job, size_t terms, size_t channel);
+int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
+size_t sb_job_candidate_count(const sb_job_t *job);
+const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
+void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
+size_t sb_job_warning_count(const sb_job_t *job);
+const char *sb_job_warning(const sb_job_t *job, size_t i);
+
+/* ---- a minimal JSON writer (report.json; the CLI's reports use it too) ----
+ * Objects and arrays nest up to 31 deep; key NULL inside arrays and for
+ * the outermost value; non-finite numbers are written as null. */
+typedef struct sb_json {
+    FILE *fp;
+    int depth;
+    int first[32];
+} sb_json_t;
+void sb_json_begin_object(sb_json_t *j, const char *key);
+void sb_json_end_object(sb_json_t *j);
+void sb_json_begin_array(sb_json_t *j, const char *key);
+void sb_json_end_array(sb_json_t *j);
+void sb_json_string(sb_json_t *j, const char *key, const char *value); /* value NULL: null */
+void sb_json_number(sb_json_t *j, const char *key, double value);
+void sb_json_int(sb_json_t *j, const char *key, long long value);
+void sb_json_bool(sb_json_t *j, const char *key, int value);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

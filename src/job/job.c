@@ -1,0 +1,205 @@
+/* The factor job (job.h): options, the driver, the results. */
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "job_impl.h"
+#include "util/internal.h"
+
+double job_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void job_progress(const sb_job_t *job, const char *label, double fraction) {
+    if (job->o.progress && label) job->o.progress(job->o.progress_user, label, fraction);
+}
+
+void job_warn(sb_job_t *job, const char *fmt, ...) {
+    if (job->nwarn == JOB_MAX_WARN) return;
+    char buf[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    if ((job->warn[job->nwarn] = sb_strdup(buf)) != NULL) job->nwarn++;
+}
+
+/* A model spec is NAME[:key=value,...] with NAME a plain identifier, so a
+ * NAME with '/' or '.' can only be meant as a file.  Values may hold both
+ * ("base=1/0.8/0.3", "roughness=0.5"), hence only the part before ':'. */
+static int looks_like_path(const char *spec) {
+    size_t n = strcspn(spec, ":");
+    return memchr(spec, '/', n) != NULL || memchr(spec, '.', n) != NULL;
+}
+
+sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_measured_opts_t *mo, sb_source_t **out) {
+    struct stat st;
+    if (!spec || !out) return sb_error(ctx, SB_ERR_ARG, "sb_job_source_open: NULL argument");
+    if (looks_like_path(spec)) {
+        if (stat(spec, &st) != 0) return sb_error(ctx, SB_ERR_IO, "%s: %s", spec, strerror(errno));
+        if (!S_ISREG(st.st_mode)) return sb_error(ctx, SB_ERR_IO, "%s: not a regular file", spec);
+    }
+    if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open(ctx, spec, mo, out, NULL);
+    return sb_source_open(ctx, spec, out);
+}
+
+/* Fill in the defaults of o (job.h) and check the names. */
+static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t *in, sb_param_kind_t *kind,
+                           sb_form_t *form) {
+    sb_job_opts_t *o = &job->o;
+    *o = *in;
+    job->source_spec = sb_strdup(in->source ? in->source : SB_JOB_DEFAULT_SOURCE);
+    if (!job->source_spec) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    o->source = job->source_spec;
+    o->out = NULL; /* not kept: the folder is sb_job_write's argument */
+    if (!o->res) o->res = 32;
+    if (!o->terms) o->terms = o->max_error > 0 ? (o->res < 32 ? o->res : 32) : 4;
+    if (!o->metric_res) o->metric_res = 32;
+    if (!(o->theta_max_deg > 0)) o->theta_max_deg = 90;
+    if (!o->seed) o->seed = 1;
+    *kind = SB_PARAM_IO;
+    *form = SB_FORM_F;
+    job->is_auto = !o->param || strcmp(o->param, "auto") == 0;
+    if (!job->is_auto && sb_param_kind_parse(o->param, kind) != SB_OK) {
+        char names[128] = "auto";
+        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+            snprintf(names + strlen(names), sizeof names - strlen(names), ", %s",
+                     sb_param_kind_name((sb_param_kind_t)k));
+        return sb_error(ctx, SB_ERR_UNKNOWN, "parameterisation '%s' unknown, need one of %s", o->param, names);
+    }
+    if (o->form && sb_form_parse(o->form, form) != SB_OK)
+        return sb_error(ctx, SB_ERR_UNKNOWN, "form '%s' unknown, need one of f, cos, cos2", o->form);
+    if (job->is_auto) o->param = NULL;
+    if (o->sample_only && job->is_auto)
+        return sb_error(ctx, SB_ERR_ARG, "sample_only needs one parameterisation, not auto");
+    return SB_OK;
+}
+
+/* The driver: choose and fit (job_select), then write when asked.  With
+ * own != NULL the job takes the source over (also on failure). */
+static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *own, const sb_job_opts_t *opts,
+                       double t0, sb_job_t **out) {
+    sb_job_t *job = calloc(1, sizeof *job);
+    if (!job) {
+        sb_source_destroy(own);
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    }
+    job->t_start = t0;
+    job->src = job->eval_src = src;
+    job->own_src = own;
+    sb_param_kind_t kind;
+    sb_form_t form;
+    sb_result_t r = resolve(ctx, job, opts, &kind, &form);
+    if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
+    if (r == SB_OK) r = job_select(ctx, job);
+    if (r == SB_OK) {
+        job->t.sample_s = job->best.t_sample;
+        job->t.factor_s = job->best.t_factor;
+        job->t.metric_s = job->best.t_metric;
+        job->t.estimate_s = job->t_estimate;
+        job->t.total_s = job_now() - job->t_start;
+    }
+    if (r == SB_OK && opts->out) r = sb_job_write(ctx, job, opts->out);
+    if (r != SB_OK) {
+        sb_job_destroy(job);
+        return r;
+    }
+    *out = job;
+    return SB_OK;
+}
+
+sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out) {
+    if (!src || !opts || !out) return sb_error(ctx, SB_ERR_ARG, "sb_job_run_source: NULL argument");
+    *out = NULL;
+    return run(ctx, src, NULL, opts, job_now(), out);
+}
+
+sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out) {
+    if (!opts || !out) return sb_error(ctx, SB_ERR_ARG, "sb_job_run: NULL argument");
+    *out = NULL;
+    double t0 = job_now();
+    sb_source_t *src = NULL;
+    const char *spec = opts->source ? opts->source : SB_JOB_DEFAULT_SOURCE;
+    sb_result_t r = sb_job_source_open(ctx, spec, &opts->measured, &src);
+    if (r != SB_OK) return r;
+    return run(ctx, src, src, opts, t0, out);
+}
+
+sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
+    if (!job || !job->best.param || !terms) return sb_error(ctx, SB_ERR_ARG, "sb_job_refactor: no job or no terms");
+    size_t mn = job->best.m.rows < job->best.m.cols ? job->best.m.rows : job->best.m.cols;
+    if (terms > mn)
+        return sb_error(ctx, SB_ERR_RANGE, "%zu terms exceed the %zu rows/columns of %s", terms, mn,
+                        sb_param_spec(job->best.param));
+    job_level_t lv = {.res = job->o.res,
+                      .terms = terms,
+                      .metric_res = job->o.metric_res,
+                      .fit_tol = job->o.fit_tol,
+                      .fit_max_iters = job->o.fit_max_iters};
+    free(job->rel_stored);
+    job->rel_stored = NULL;
+    sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
+    job->t.factor_s = job->best.t_factor;
+    job->t.metric_s = job->best.t_metric;
+    job->t.estimate_s = job->best.t_estimate;
+    return r;
+}
+
+void sb_job_destroy(sb_job_t *job) {
+    if (!job) return;
+    job_attempt_free(&job->best);
+    sb_pairs_destroy(job->pairs);
+    free(job->rel_stored);
+    for (size_t i = 0; i < job->nwarn; i++)
+        free(job->warn[i]);
+    free(job->source_spec);
+    sb_source_destroy(job->own_src);
+    free(job);
+}
+
+const sb_source_t *sb_job_source(const sb_job_t *job) { return job->src; }
+const char *sb_job_source_spec(const sb_job_t *job) { return job->o.source; }
+const sb_factors_t *sb_job_factors(const sb_job_t *job) { return job->best.f; }
+const sb_param_t *sb_job_param(const sb_job_t *job) { return job->best.param; }
+const sb_matrix_t *sb_job_matrix(const sb_job_t *job) { return &job->best.m; }
+sb_form_t sb_job_form(const sb_job_t *job) { return job->best.m.form; }
+int sb_job_weighted(const sb_job_t *job) { return job->best.weighted; }
+int sb_job_masked(const sb_job_t *job) { return job_attempt_masked(job, &job->best); }
+void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out) { *out = job->best.stats; }
+const sb_metric_t *sb_job_metric(const sb_job_t *job) { return &job->best.metric; }
+int sb_job_auto(const sb_job_t *job) { return job->is_auto; }
+size_t sb_job_candidate_count(const sb_job_t *job) { return job->ncand; }
+const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i) {
+    return i < job->ncand ? &job->cands[i] : NULL;
+}
+void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out) { *out = job->t; }
+size_t sb_job_warning_count(const sb_job_t *job) { return job->nwarn; }
+const char *sb_job_warning(const sb_job_t *job, size_t i) { return i < job->nwarn ? job->warn[i] : NULL; }
+
+const sb_estimate_t *sb_job_estimate(const sb_job_t *job) { return job->best.est; }
+
+double sb_job_headline(const sb_job_t *job, size_t j) {
+    return job->best.est ? sb_estimate_headline(job->best.est, j) : NAN;
+}
+
+double sb_job_comparable(const sb_job_t *job, size_t j) {
+    const sb_estimate_t *e = job->best.est;
+    return e && j >= 1 && j <= e->terms ? e->rel[j - 1][SB_EST_FCOS2][SB_CH_ALL] : NAN;
+}
+
+double sb_job_negative(const sb_job_t *job, size_t j) {
+    const sb_estimate_t *e = job->best.est;
+    return e && j >= 1 && j <= e->terms ? e->neg_frac[j - 1] : NAN;
+}
+
+double sb_job_rel_stored(const sb_job_t *job, size_t j, size_t c) {
+    size_t J = sb_factors_terms(job->best.f);
+    return job->rel_stored && j >= 1 && j <= J && c <= SB_CH_ALL ? job->rel_stored[sb_err_at(j - 1, c)] : NAN;
+}

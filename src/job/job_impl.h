@@ -1,0 +1,73 @@
+/* Private: the factor job's state (job.c, job_screen.c, job_write.c). */
+#ifndef SEPBRDF_JOB_IMPL_H
+#define SEPBRDF_JOB_IMPL_H
+
+#include "sepbrdf/job.h"
+
+/* One factorisation of the source on one parameterisation and form:
+ * sample (param + matrix) -> plan + execute (factors) -> comparable error. */
+typedef struct job_attempt {
+    sb_param_t *param;
+    sb_matrix_t m;
+    sb_factors_t *f;
+    sb_plan_stats_t stats;
+    sb_metric_t metric; /* grid quadrature (comparable_grid), the kept fit only */
+    sb_estimate_t *est; /* the estimator's errors of the stored factors */
+    int weighted;
+    double t_sample, t_factor, t_metric, t_estimate;
+} job_attempt_t;
+
+/* What one attempt is asked: resolution, J and the fit's limits. */
+typedef struct job_level {
+    size_t res, terms, metric_res; /* metric_res 0: no grid quadrature */
+    size_t est_max_pairs;          /* the estimator's growth: 0 default, 1 none (screening) */
+    double fit_tol;
+    int fit_max_iters;
+    const char *label; /* progress label of the sampling; NULL = none */
+    double base, span; /* progress = base + span * fraction */
+} job_level_t;
+
+#define JOB_MAX_CANDS (3 * SB_PARAM_KIND_COUNT_)
+#define JOB_MAX_WARN 4
+
+struct sb_job {
+    sb_job_opts_t o;   /* resolved: every default filled in */
+    char *source_spec; /* o.source points here */
+    sb_source_t *own_src;
+    const sb_source_t *src;
+    const sb_source_t *eval_src; /* what is evaluated: src, or its memo while screening */
+    sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
+    double t_estimate;           /* the estimator, in all */
+    int is_auto;
+    sb_job_candidate_t cands[JOB_MAX_CANDS];
+    size_t ncand;
+    job_attempt_t best;
+    double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
+    char *warn[JOB_MAX_WARN];
+    size_t nwarn;
+    sb_job_timings_t t;
+    double t_start;
+};
+
+double job_now(void);
+void job_progress(const sb_job_t *job, const char *label, double fraction);
+void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
+                       sb_form_t form, job_attempt_t *a);
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
+void job_attempt_free(job_attempt_t *a);
+/* Keep the first j terms of a->f (errors and estimate with them). */
+sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
+int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
+
+/* A source answering as src does, remembering up to 3/4 cap pairs (cap a
+ * power of two); src must outlive it. */
+sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t cap, sb_source_t **out);
+
+/* The candidates of the job (job->cands, job->ncand) and the kept one,
+ * sampled and factored at the requested settings, in job->best. */
+sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form);
+sb_result_t job_select(sb_context_t *ctx, sb_job_t *job);
+
+#endif

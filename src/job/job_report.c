@@ -1,0 +1,248 @@
+/* report.json of the factor job: every key is listed in README's
+ * "report.json" table (a test compares the two). */
+#include <math.h>
+#include <stdio.h>
+
+#include "job_impl.h"
+#include "sepbrdf/exr.h"
+#include "sepbrdf/measured.h"
+
+static const char *const chan_name[3] = {"R", "G", "B"};
+
+static void report_size(sb_json_t *j, const sb_param_t *param) {
+    size_t w, h;
+    sb_json_begin_object(j, "texture_size");
+    for (int side = 0; side < 2; side++) {
+        sb_param_texture_size(param, side, &w, &h);
+        sb_json_begin_array(j, side == SB_SIDE_G ? "g" : "h");
+        sb_json_int(j, NULL, (long long)w);
+        sb_json_int(j, NULL, (long long)h);
+        sb_json_end_array(j);
+    }
+    sb_json_end_object(j);
+}
+
+static void report_settings(sb_json_t *j, const sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    const sb_matrix_t *m = &a->m;
+    sb_json_string(j, "sepbrdf_version", SB_VERSION_STRING);
+    sb_json_string(j, "command", "factor");
+    sb_json_string(j, "source", sb_source_description(job->src));
+    sb_json_string(j, "source_spec", job->o.source);
+    sb_json_string(j, "param", sb_param_name(a->param));
+    sb_json_string(j, "param_spec", sb_param_spec(a->param));
+    sb_json_int(j, "resolution", (long long)job->o.res);
+    sb_json_int(j, "rows", (long long)m->rows);
+    sb_json_int(j, "cols", (long long)m->cols);
+    report_size(j, a->param);
+    sb_json_string(j, "form", sb_form_name(m->form));
+    sb_json_bool(j, "weighted", a->weighted);
+    sb_json_string(j, "method", sb_factors_get_meta(a->f, "method"));
+    sb_json_int(j, "terms", (long long)sb_factors_terms(a->f));
+    sb_json_int(j, "terms_requested", (long long)job->o.terms);
+    sb_json_number(j, "max_error", job->o.max_error);
+    sb_json_string(j, "storage", job->o.half ? "half" : "float");
+    sb_json_begin_array(j, "channels");
+    for (int c = 0; c < 3; c++)
+        if (m->data[c]) sb_json_string(j, NULL, chan_name[c]);
+    sb_json_end_array(j);
+}
+
+static void report_fit(sb_json_t *j, const sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    const sb_matrix_t *m = &a->m;
+    size_t cells = m->rows * m->cols;
+    sb_json_begin_object(j, "mask");
+    sb_json_int(j, "cells", (long long)cells);
+    sb_json_int(j, "valid", (long long)m->valid_count);
+    sb_json_number(j, "coverage", cells ? (double)m->valid_count / (double)cells : 0);
+    sb_json_string(j, "invalid_cells",
+                   job->o.zero_fill ? "zero-filled in the fit, excluded from the error"
+                                    : "excluded from the fit (masked imputation) and from the error");
+    sb_json_end_object(j);
+    sb_json_begin_object(j, "fit");
+    sb_json_bool(j, "masked", a->stats.masked);
+    sb_json_int(j, "iterations", a->stats.fit_iterations);
+    sb_json_bool(j, "converged", a->stats.fit_converged);
+    sb_json_end_object(j);
+    const sb_factor_errors_t *e = sb_factors_errors(a->f);
+    sb_json_begin_object(j, "norm");
+    for (int c = 0; c < 3; c++)
+        if (m->data[c]) sb_json_number(j, chan_name[c], e->norm[c]);
+    sb_json_number(j, "all", e->norm[3]);
+    sb_json_end_object(j);
+    sb_json_begin_object(j, "sigma");
+    for (int c = 0; c < 3; c++) {
+        if (!m->data[c]) continue;
+        sb_json_begin_array(j, chan_name[c]);
+        for (size_t k = 0; k < sb_factors_terms(a->f); k++)
+            sb_json_number(j, NULL, sb_factors_sigma(a->f, k, (size_t)c));
+        sb_json_end_array(j);
+    }
+    sb_json_end_object(j);
+}
+
+static void report_channels(sb_json_t *j, const char *key, const sb_matrix_t *m, const double *v) {
+    sb_json_begin_object(j, key);
+    for (int c = 0; c < 3; c++)
+        if (m->data[c]) sb_json_number(j, chan_name[c], v[c]);
+    sb_json_end_object(j);
+}
+
+/* The estimator's keys of errors[k] (J' = k + 1). */
+static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
+    const job_attempt_t *a = &job->best;
+    const sb_estimate_t *e = a->est;
+    int have = k < e->terms;
+    sb_json_number(j, "headline", have ? e->rel[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
+    sb_json_number(j, "headline_se", have ? e->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
+    sb_json_begin_object(j, "headline_channel");
+    for (int c = 0; c < 3; c++)
+        if (a->m.data[c]) sb_json_number(j, chan_name[c], have ? e->rel[k][SB_EST_FCOS][c] : NAN);
+    sb_json_end_object(j);
+    sb_json_number(j, "comparable", have ? e->rel[k][SB_EST_FCOS2][SB_CH_ALL] : NAN);
+    sb_json_number(j, "comparable_se", have ? e->se[k][SB_EST_FCOS2][SB_CH_ALL] : NAN);
+    sb_json_number(j, "comparable_grid", k < a->metric.terms ? a->metric.rel_l2[k] : NAN);
+    sb_json_number(j, "rel_f", have ? e->rel[k][SB_EST_F][SB_CH_ALL] : NAN);
+    sb_json_number(j, "rel_f_se", have ? e->se[k][SB_EST_F][SB_CH_ALL] : NAN);
+    sb_json_number(j, "p99_rel", have ? e->p99[k][SB_CH_ALL] : NAN);
+    sb_json_number(j, "max_rel", have ? e->max_rel[k][SB_CH_ALL] : NAN);
+    sb_json_number(j, "overshoot", have ? e->overshoot[k] : NAN);
+    sb_json_number(j, "negative_fraction", have ? e->neg_frac[k] : NAN);
+}
+
+int sb_job_headline_non_increasing(const sb_job_t *job) {
+    const sb_estimate_t *e = job->best.est;
+    for (size_t k = 1; e && k < e->terms; k++) {
+        double prev = e->rel[k - 1][SB_EST_FCOS][SB_CH_ALL], d = e->rel[k][SB_EST_FCOS][SB_CH_ALL] - prev;
+        double se = hypot(e->se[k][SB_EST_FCOS][SB_CH_ALL], e->se[k - 1][SB_EST_FCOS][SB_CH_ALL]);
+        if (d > 2 * se + 0.02 * prev) return 0;
+    }
+    return 1;
+}
+
+static void report_estimator(sb_json_t *j, const sb_job_t *job) {
+    const sb_estimate_t *est = job->best.est;
+    sb_json_begin_object(j, "estimate");
+    sb_json_int(j, "pairs", (long long)est->pairs);
+    sb_json_int(j, "known", (long long)est->known);
+    sb_json_bool(j, "converged", est->converged);
+    sb_json_bool(j, "headline_non_increasing", sb_job_headline_non_increasing(job));
+    sb_json_end_object(j);
+    sb_json_string(j, "form_choice",
+                   job->o.form ? "as asked; the headline measures what its division does"
+                               : (job->is_auto ? "auto: lowest headline among f and cos (cos2 is no candidate: "
+                                                 "dividing by cos theta_o is unbounded near the horizon in f cos "
+                                                 "theta_i)"
+                                               : "f, the default"));
+}
+
+/* A measured table: what it held and the errors against its measurements
+ * (docs/measured.md); nothing for analytic sources. */
+static void report_measured(sb_json_t *j, const sb_job_t *job) {
+    const sb_measured_info_t *in = sb_measured_source_info(job->src);
+    if (!in) return;
+    const job_attempt_t *a = &job->best;
+    sb_sample_errors_t se;
+    int have = sb_measured_sample_errors(NULL, job->src, a->f, a->param, a->m.form, &se) == SB_OK;
+    sb_json_begin_object(j, "measured");
+    sb_json_string(j, "format", in->format);
+    sb_json_int(j, "rows", (long long)in->rows);
+    sb_json_int(j, "samples", (long long)(have ? se.samples : 0));
+    sb_json_int(j, "outside", (long long)(have ? se.outside : 0));
+    sb_json_number(j, "source_rel_l2", have ? se.source_rel_l2 : NAN);
+    sb_json_begin_array(j, "sample_rel_l2");
+    for (size_t k = 0; have && k < se.terms; k++)
+        sb_json_number(j, NULL, se.rel_l2[k]);
+    sb_json_end_array(j);
+    sb_json_string(j, "interp", sb_interp_name(in->interp));
+    sb_json_begin_object(j, "interp_cv");
+    for (int m = SB_INTERP_NEAREST; m < SB_INTERP_COUNT_; m++)
+        sb_json_number(j, sb_interp_name((sb_interp_t)m), in->interp_cv[m]);
+    sb_json_end_object(j);
+    sb_json_int(j, "cv_held_out", (long long)in->cv_held_out);
+    sb_json_int(j, "out_of_gamut", (long long)in->out_of_gamut);
+    sb_json_string(j, "gamut", sb_gamut_name(in->gamut));
+    sb_json_end_object(j);
+}
+
+static void report_errors(sb_json_t *j, const sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    const sb_factor_errors_t *e = sb_factors_errors(a->f);
+    sb_json_begin_array(j, "errors");
+    for (size_t k = 0; k < sb_factors_terms(a->f); k++) {
+        sb_json_begin_object(j, NULL);
+        sb_json_int(j, "terms", (long long)(k + 1));
+        sb_json_number(j, "rel_rms", e->rel_rms[sb_err_at(k, SB_CH_ALL)]);
+        sb_json_number(j, "rel_rms_stored", sb_job_rel_stored(job, k + 1, SB_CH_ALL));
+        sb_json_number(j, "max_abs", e->max_abs[sb_err_at(k, SB_CH_ALL)]);
+        report_estimate(j, job, k);
+        report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + sb_err_at(k, 0));
+        report_channels(j, "max_abs_channel", &a->m, e->max_abs + sb_err_at(k, 0));
+        sb_json_end_object(j);
+    }
+    sb_json_end_array(j);
+    report_measured(j, job);
+    sb_json_number(j, "negative_texels", a->metric.neg_texels);
+    sb_json_int(j, "metric_resolution", (long long)job->o.metric_res);
+    report_estimator(j, job);
+}
+
+static void report_auto(sb_json_t *j, const sb_job_t *job) {
+    sb_json_begin_array(j, "auto_tried");
+    for (size_t i = 0; i < job->ncand; i++) {
+        const sb_job_candidate_t *c = &job->cands[i];
+        sb_json_begin_object(j, NULL);
+        sb_json_string(j, "param", sb_param_kind_name(c->kind));
+        sb_json_string(j, "form", sb_form_name(c->form));
+        sb_json_bool(j, "weighted", c->weighted);
+        sb_json_bool(j, "ok", c->ok);
+        sb_json_bool(j, "kept", c->kept);
+        sb_json_int(j, "resolution", (long long)c->res);
+        sb_json_number(j, "headline", c->ok ? c->error : NAN);
+        sb_json_number(j, "time_s", c->time_s);
+        sb_json_string(j, "failure", c->why[0] ? c->why : NULL);
+        sb_json_end_object(j);
+    }
+    sb_json_end_array(j);
+}
+
+static void report_files(sb_json_t *j, const sb_job_t *job) {
+    size_t J = sb_factors_terms(job->best.f);
+    char name[64];
+    sb_json_begin_object(j, "files");
+    for (int side = 0; side < 2; side++) {
+        sb_json_begin_array(j, side == SB_SIDE_G ? "g" : "h");
+        for (size_t k = 0; k < J; k++) {
+            sb_exr_name(side, k, name, sizeof name);
+            sb_json_string(j, NULL, name);
+        }
+        sb_json_end_array(j);
+    }
+    sb_json_string(j, "glsl", "sepbrdf.glsl");
+    sb_json_end_object(j);
+}
+
+void sb_job_report(const sb_job_t *job, FILE *fp) {
+    sb_json_t jw = {fp, 0, {0}}, *j = &jw;
+    sb_json_begin_object(j, NULL);
+    report_settings(j, job);
+    report_fit(j, job);
+    report_errors(j, job);
+    if (job->is_auto) report_auto(j, job);
+    sb_json_begin_array(j, "warnings");
+    for (size_t i = 0; i < job->nwarn; i++)
+        sb_json_string(j, NULL, job->warn[i]);
+    sb_json_end_array(j);
+    sb_json_begin_object(j, "timings");
+    sb_json_number(j, "screen_s", job->t.screen_s);
+    sb_json_number(j, "sample_s", job->t.sample_s);
+    sb_json_number(j, "factor_s", job->t.factor_s);
+    sb_json_number(j, "metric_s", job->t.metric_s);
+    sb_json_number(j, "estimate_s", job->t.estimate_s);
+    sb_json_number(j, "write_s", job->t.write_s);
+    sb_json_number(j, "total_s", job->t.total_s);
+    sb_json_end_object(j);
+    report_files(j, job);
+    sb_json_end_object(j);
+}

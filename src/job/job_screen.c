@@ -1,0 +1,496 @@
+/* The factor job's candidates: sample, factor and measure one candidate
+ * (an attempt), the candidate rules, and the cheap screening of
+ * --param auto (see job.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "job_impl.h"
+#include "sepbrdf/exr.h"
+#include "util/internal.h"
+
+static void sample_progress(void *user, double fraction) {
+    const void *const *pp = user; /* {job, level} */
+    const sb_job_t *job = pp[0];
+    const job_level_t *lv = pp[1];
+    job_progress(job, lv->label, lv->base + lv->span * fraction);
+}
+
+sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
+                       sb_form_t form, job_attempt_t *a) {
+    memset(a, 0, sizeof *a);
+    sb_param_opts_t po = {0};
+    po.res = lv->res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
+    if (r != SB_OK) return r;
+    size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
+    if (lv->terms > mn)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%zu terms exceed the %zu rows/columns of %s; ask for fewer terms or more cells", lv->terms, mn,
+                        sb_param_spec(a->param));
+    double t0 = job_now();
+    sb_matrix_opts_t mo = {0};
+    mo.form = form;
+    mo.channels = job->o.channels;
+    mo.structured = 1; /* the distinct values only, where the factor plan reads no more */
+    const void *pu[2] = {job, lv};
+    if (lv->label && job->o.progress) {
+        mo.progress = sample_progress;
+        mo.progress_user = (void *)pu;
+    }
+    if ((r = sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m)) != SB_OK) return r;
+    a->t_sample = job_now() - t0;
+    return SB_OK;
+}
+
+int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) { return a->m.mask != NULL && !job->o.zero_fill; }
+
+/* The estimator's errors of a->f as stored (HALF or FLOAT) into a->est,
+ * on the job's pairs, growing them up to lv->est_max_pairs. */
+static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    double t0 = job_now();
+    sb_estimate_opts_t eo = {0};
+    eo.max_pairs = lv->est_max_pairs;
+    sb_exr_opts_t xo = {job->o.half};
+    sb_factors_t *q = NULL;
+    sb_result_t r = SB_OK;
+    if (!job->pairs) r = sb_pairs_create(ctx, job->src, NULL, &job->pairs);
+    if (r == SB_OK && !a->est && !(a->est = malloc(sizeof *a->est))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    /* what a shader reads: the texels as stored */
+    if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
+    if (r == SB_OK) r = sb_estimate_compute(ctx, job->pairs, q, NULL, a->param, a->m.form, &eo, a->est);
+    sb_factors_destroy(q);
+    a->t_estimate = job_now() - t0;
+    job->t_estimate += a->t_estimate;
+    return r;
+}
+
+/* Factor the sampled a->m with lv->terms terms (replacing a->f), then its
+ * estimated errors and, with lv->metric_res, the grid quadrature. */
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
+    sb_factors_destroy(a->f);
+    a->f = NULL;
+    memset(&a->metric, 0, sizeof a->metric);
+    memset(&a->stats, 0, sizeof a->stats);
+    a->weighted = weighted;
+    sb_plan_opts_t pl = {0};
+    pl.terms = lv->terms;
+    pl.svd.method = job->o.method;
+    pl.svd.seed = job->o.seed;
+    pl.weighted = weighted;
+    pl.zero_fill = job->o.zero_fill;
+    pl.fit_tol = lv->fit_tol;
+    pl.fit_max_iters = lv->fit_max_iters;
+    sb_plan_t *plan = NULL;
+    sb_result_t r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
+    if (r != SB_OK) return r;
+    double t1 = job_now();
+    r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    sb_plan_stats(plan, &a->stats);
+    sb_plan_destroy(plan);
+    if (r != SB_OK) return r;
+    double t2 = job_now();
+    if (sb_factors_set_meta(a->f, "source", sb_source_description(job->src)) != SB_OK ||
+        sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK)
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    a->t_factor = t2 - t1;
+    a->t_metric = 0;
+    if ((r = job_estimate(ctx, job, lv, a)) != SB_OK || lv->metric_res == 0) return r;
+    sb_metric_opts_t mo = {0};
+    mo.res = lv->metric_res;
+    double t3 = job_now();
+    if ((r = sb_metric_compute(ctx, job->eval_src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
+    a->t_metric = job_now() - t3;
+    return SB_OK;
+}
+
+void job_attempt_free(job_attempt_t *a) {
+    free(a->est);
+    sb_factors_destroy(a->f);
+    sb_matrix_free(&a->m);
+    sb_param_destroy(a->param);
+    memset(a, 0, sizeof *a);
+}
+
+/* The error candidates are ranked by: the headline (f cos theta_i as a
+ * shader returns it, estimate.h) at the J the attempt kept (the estimate
+ * holds SB_EST_MAXJ terms at most: there beyond). */
+static double rank_error(const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
+}
+
+int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
+    unsigned flags = sb_source_flags(src);
+    const char *w = NULL;
+    if (!sb_param_kind_applies(kind, flags))
+        w = "needs an isotropic source";
+    else if ((sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !(flags & SB_SOURCE_RECIPROCAL))
+        w = "assumes a reciprocal BRDF, f(wi, wo) = f(wo, wi), and this source is not";
+    if (why) *why = w;
+    return w == NULL;
+}
+
+/* Smaller side of the matrix of `kind` at res cells per axis; 0 when the
+ * parameterisation cannot be created there. */
+static size_t layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t po = {0};
+    po.res = res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    if (sb_param_create(NULL, kind, &po, &p) != SB_OK) return 0;
+    size_t r = sb_param_rows(p), c = sb_param_cols(p);
+    sb_param_destroy(p);
+    return r < c ? r : c;
+}
+
+/* Refuse up front a candidate whose matrix at R cannot fit in memory: R
+ * is then too large for this source whichever layout would win. */
+static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_kind_t k) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t po = {0};
+    po.res = job->o.res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    if (sb_param_create(NULL, k, &po, &p) != SB_OK) return SB_OK; /* sb_job_run names the problem */
+    unsigned ch = job->o.channels ? job->o.channels & 7u : 7u;
+    size_t nch = (ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1), rows = sb_param_rows(p), cols = sb_param_cols(p);
+    size_t cells, bytes = SIZE_MAX;
+    sb_param_destroy(p);
+    if (!sb_size_mul(rows, cols, &cells) && !sb_size_mul3(cells, nch, sizeof(double), &bytes))
+        sb_size_add(bytes, cells, &bytes);
+    if (bytes <= sb_memory_limit()) return SB_OK;
+    return sb_error(ctx, SB_ERR_OVERFLOW,
+                    "%s at %zu cells per axis: %zu x %zu cells x %zu channels need more than %zu bytes, the memory "
+                    "limit",
+                    sb_param_kind_name(k), job->o.res, rows, cols, nch, sb_memory_limit());
+}
+
+static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k, sb_form_t form, int weighted) {
+    sb_job_candidate_t *c = &job->cands[job->ncand++];
+    memset(c, 0, sizeof *c);
+    c->kind = k;
+    c->form = form;
+    c->weighted = weighted;
+    c->error = NAN;
+    size_t mn = layout_min_side(job, k, job->o.res);
+    if (mn < job->o.terms)
+        snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
+                 job->o.terms, mn, sb_param_kind_name(k), job->o.res);
+    return cand_fits(ctx, job, k);
+}
+
+sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
+    job->ncand = 0;
+    if (!job->is_auto) {
+        const char *why = NULL;
+        if (!sb_job_param_applies(kind, job->src, &why))
+            job_warn(job, "%s %s; the fit averages what the layout folds together", sb_param_kind_name(kind), why);
+        sb_result_t r = cand_add(ctx, job, kind, form, job->o.weighted);
+        job->cands[0].why[0] = 0; /* the plan names the problem itself */
+        return r;
+    }
+    for (int i = 0; i < SB_PARAM_KIND_COUNT_; i++) {
+        sb_param_kind_t k = (sb_param_kind_t)i;
+        sb_result_t r = SB_OK;
+        if (!sb_job_param_applies(k, job->src, NULL)) continue;
+        if (layout_min_side(job, k, job->o.res) == 0) continue; /* not available at R */
+        if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
+        /* cos: not on a layout that folds by reciprocity (f cos theta_i is
+         * not reciprocal); cos2 is none: dividing by cos theta_o is
+         * unbounded near the horizon in what a shader outputs */
+        if (r == SB_OK && !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY))
+            r = cand_add(ctx, job, k, SB_FORM_COS, 1);
+        if (r != SB_OK) return r;
+    }
+    if (job->ncand == 0)
+        return sb_error(ctx, SB_ERR_UNSUPPORTED, "no parameterisation applies to %s at %zu cells per axis",
+                        sb_source_description(job->src), job->o.res);
+    size_t fit = 0;
+    for (size_t i = 0; i < job->ncand; i++)
+        fit += job->cands[i].why[0] == 0;
+    if (fit == 0)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%zu terms exceed the rows/columns of every parameterisation at %zu cells "
+                        "per axis; ask for fewer terms or more cells",
+                        job->o.terms, job->o.res);
+    return SB_OK;
+}
+
+#define SB_JOB_MEMO_CAP ((size_t)1 << 16)
+
+/* The same layout as `from` (sampled as f, dense) with form `form`: each
+ * valid cell times the form weight of its direction pair, as
+ * sb_matrix_build applies it, so the source is not evaluated again. */
+static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, const job_attempt_t *from,
+                              sb_form_t form, job_attempt_t *a) {
+    memset(a, 0, sizeof *a);
+    double t0 = job_now();
+    sb_param_opts_t po = {0};
+    po.res = lv->res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    sb_result_t r = sb_param_create(ctx, sb_param_kind(from->param), &po, &a->param);
+    if (r != SB_OK) return r;
+    const sb_matrix_t *f = &from->m;
+    sb_matrix_t *m = &a->m;
+    *m = *f;
+    m->form = form;
+    m->mask = NULL;
+    memset(m->data, 0, sizeof m->data);
+    size_t cells = f->ld * f->cols;
+    if (f->mask && !(m->mask = sb_alloc(ctx, cells, 1, "matrix mask"))) return SB_ERR_NOMEM;
+    if (f->mask) memcpy(m->mask, f->mask, cells);
+    for (int c = 0; c < 3; c++)
+        if (f->data[c] && !(m->data[c] = sb_alloc(ctx, cells, sizeof(double), "matrix"))) return SB_ERR_NOMEM;
+    double wi[3], wo[3];
+    for (size_t col = 0; col < f->cols; col++)
+        for (size_t row = 0; row < f->rows; row++) {
+            size_t at = row + col * f->ld;
+            double w = sb_param_cell_dirs(a->param, row, col, wi, wo) ? sb_form_weight(form, wi, wo) : 0;
+            for (int c = 0; c < 3; c++)
+                if (f->data[c]) m->data[c][at] = f->data[c][at] * w;
+        }
+    a->t_sample = job_now() - t0;
+    return SB_OK;
+}
+
+/* Sample candidate c on level lv (or derive it from `from`, its layout
+ * sampled as f) and factor it; the outcome is recorded in c. */
+static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, sb_job_candidate_t *c,
+                              const job_attempt_t *from, job_attempt_t *a) {
+    double t0 = job_now();
+    sb_result_t r = from ? job_reform(ctx, job, lv, from, c->form, a) : job_sample(ctx, job, lv, c->kind, c->form, a);
+    if (r == SB_OK) r = job_factor(ctx, job, lv, c->weighted, a);
+    c->ok = r == SB_OK;
+    c->error = c->ok ? rank_error(a) : NAN;
+    c->res = lv->res;
+    if (!c->ok) snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
+    c->time_s += job_now() - t0;
+    return r;
+}
+
+/* Screen the live candidates of one layout: the first sampled (as f,
+ * when it is one of them), the others derived from its matrix when it is
+ * dense (a structured one is cheap to sample again). */
+static void screen_layout(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
+                          sb_job_candidate_t *cands, size_t n) {
+    job_attempt_t base = {0}, a;
+    for (size_t i = 0; i < n; i++) {
+        sb_job_candidate_t *c = &cands[i];
+        if (c->kind != kind || c->why[0] || c->dropped) continue;
+        int derive = base.param && base.m.form == SB_FORM_F && base.m.phi_period == 0;
+        sb_result_t r = screen_one(ctx, job, lv, c, derive ? &base : NULL, &a);
+        if (r == SB_OK && !base.param) {
+            base = a;
+            continue;
+        }
+        job_attempt_free(&a);
+    }
+    job_attempt_free(&base);
+}
+
+/* A screening level: res cells per axis, the same J for every candidate
+ * (at most the smallest matrix side there), masked fits stopped early (a
+ * sweep gaining less than 1e-3, at most 40: the candidates' errors differ
+ * by factors, not digits). */
+static job_level_t screen_level(const sb_job_t *job, size_t res) {
+    job_level_t lv = {0};
+    lv.res = res;
+    lv.terms = job->o.terms;
+    for (size_t i = 0; i < job->ncand; i++) {
+        size_t mn = job->cands[i].why[0] ? 0 : layout_min_side(job, job->cands[i].kind, lv.res);
+        if (mn && mn < lv.terms) lv.terms = mn;
+    }
+    lv.metric_res = 0;    /* no grid quadrature */
+    lv.est_max_pairs = 1; /* the estimator's first pairs, no growth */
+    lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
+    lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
+    return lv;
+}
+
+static job_level_t full_level(const sb_job_t *job) {
+    job_level_t lv = {.res = job->o.res,
+                      .terms = job->o.terms,
+                      .metric_res = job->o.metric_res,
+                      .fit_tol = job->o.fit_tol,
+                      .fit_max_iters = job->o.fit_max_iters,
+                      .label = "sampling",
+                      .span = 1};
+    return lv;
+}
+
+/* Candidates that screened, finest screening first, then by ascending
+ * error; returns how many. */
+static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
+    return a->res != b->res ? a->res > b->res : a->error < b->error;
+}
+
+static size_t rank(const sb_job_t *job, size_t *order) {
+    size_t n = 0;
+    for (size_t i = 0; i < job->ncand; i++) {
+        if (!job->cands[i].ok) continue;
+        size_t k = n++;
+        for (; k > 0 && ranks_before(&job->cands[i], &job->cands[order[k - 1]]); k--)
+            order[k] = order[k - 1];
+        order[k] = i;
+    }
+    return n;
+}
+
+sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
+    size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f), w[2], h[2];
+    if (j >= J) return SB_OK;
+    for (int s = 0; s < 2; s++)
+        sb_factors_size(a->f, s, &w[s], &h[s]);
+    sb_factors_t *t = NULL;
+    sb_result_t r = sb_factors_create(ctx, j, C, w[0], h[0], w[1], h[1], &t);
+    if (r != SB_OK) return r;
+    for (size_t k = 0; k < j; k++)
+        for (size_t c = 0; c < C; c++) {
+            for (int s = 0; s < 2; s++)
+                memcpy(sb_factors_tex(t, s, k, c), sb_factors_tex_const(a->f, s, k, c), w[s] * h[s] * sizeof(double));
+            sb_factors_set_sigma(t, k, c, sb_factors_sigma(a->f, k, c));
+        }
+    for (size_t i = 0; i < sb_factors_meta_count(a->f) && r == SB_OK; i++) {
+        const char *key, *value;
+        sb_factors_meta_at(a->f, i, &key, &value);
+        r = sb_factors_set_meta(t, key, value);
+    }
+    const sb_factor_errors_t *e = sb_factors_errors(a->f);
+    sb_factor_errors_t *et = sb_factors_errors_mut(t);
+    if (r == SB_OK && et->rel_rms && et->max_abs) {
+        memcpy(et->rel_rms, e->rel_rms, sb_err_at(j, 0) * sizeof *e->rel_rms);
+        memcpy(et->max_abs, e->max_abs, sb_err_at(j, 0) * sizeof *e->max_abs);
+        memcpy(et->norm, e->norm, sizeof et->norm);
+    }
+    if (r != SB_OK) {
+        sb_factors_destroy(t);
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    }
+    sb_factors_destroy(a->f);
+    a->f = t;
+    if (a->est && a->est->terms > j) a->est->terms = j;
+    if (a->metric.terms > j) a->metric.terms = j;
+    return SB_OK;
+}
+
+/* A masked fit is a local optimum: auto also fits the kept matrix with the
+ * screening's early stop and keeps that fit when its headline at J is
+ * lower than the full fit's (the same rule as the screening's refit). */
+static sb_result_t keep_better_fit(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+    job_attempt_t *a = &job->best;
+    job_level_t lv = full_level(job);
+    lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
+    lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
+    job_attempt_t tmp = *a; /* a's matrix and param, fitted again into tmp.f / tmp.est */
+    tmp.f = NULL;
+    tmp.est = NULL;
+    sb_result_t r = job_factor(ctx, job, &lv, c->weighted, &tmp);
+    size_t J = sb_factors_terms(a->f);
+    if (r == SB_OK && rank_error(&tmp) < sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms)) {
+        sb_factors_destroy(a->f);
+        free(a->est);
+        a->f = tmp.f;
+        a->est = tmp.est;
+        a->stats = tmp.stats;
+        a->metric = tmp.metric;
+        a->t_factor += tmp.t_factor;
+        return SB_OK;
+    }
+    sb_factors_destroy(tmp.f);
+    free(tmp.est);
+    return r == SB_ERR_NUMERIC ? SB_OK : r;
+}
+
+/* Sample and factor candidate c at the requested settings into job->best;
+ * with max_error, keep the fewest terms whose headline meets it. */
+static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+    job_level_t lv = full_level(job);
+    sb_result_t r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
+    job_progress(job, lv.label, 1);
+    if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
+    if (r == SB_OK && job->is_auto && job_attempt_masked(job, &job->best)) r = keep_better_fit(ctx, job, c);
+    if (r == SB_OK && job->o.max_error > 0) {
+        size_t keep = sb_factors_terms(job->best.f);
+        for (size_t k = keep; k >= 1; k--)
+            if (sb_estimate_headline(job->best.est, k) <= job->o.max_error) keep = k;
+        r = job_truncate(ctx, &job->best, keep);
+    }
+    if (r != SB_OK) job_attempt_free(&job->best);
+    return r;
+}
+
+/* Screen at SB_JOB_SCREEN_COARSE cells per axis, drop the candidates more
+ * than SB_JOB_SCREEN_DROP times worse than the best (they cannot win: the
+ * errors of one layout at two resolutions differ far less than that), and
+ * screen the others again at SB_JOB_SCREEN_RES (each at most R). */
+static void screen(sb_context_t *ctx, sb_job_t *job) {
+    static const size_t levels[2] = {SB_JOB_SCREEN_COARSE, SB_JOB_SCREEN_RES};
+    size_t prev = 0;
+    for (int s = 0; s < 2; s++) {
+        size_t res = levels[s] < job->o.res ? levels[s] : job->o.res;
+        if (res == prev) break;
+        prev = res;
+        job_level_t lv = screen_level(job, res);
+        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+            job_progress(job, "screening", (s + (double)k / SB_PARAM_KIND_COUNT_) / 2);
+            screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
+        }
+        double best = INFINITY;
+        for (size_t i = 0; i < job->ncand; i++)
+            if (job->cands[i].ok && job->cands[i].error < best) best = job->cands[i].error;
+        for (size_t i = 0; i < job->ncand; i++)
+            if (job->cands[i].ok && job->cands[i].error > SB_JOB_SCREEN_DROP * best) job->cands[i].dropped = 1;
+    }
+    job_progress(job, "screening", 1);
+}
+
+/* One candidate: fit it at the requested settings.  Several: screen them,
+ * then fit the best that succeeds at the requested settings (the next on
+ * a failure). */
+sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
+    if (job->ncand == 1 && !job->is_auto) {
+        sb_job_candidate_t *c = &job->cands[0];
+        sb_result_t r;
+        if (job->o.sample_only) {
+            job_level_t lv = full_level(job);
+            r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
+            job->best.weighted = c->weighted;
+            return r;
+        }
+        r = fit_kept(ctx, job, c);
+        c->ok = r == SB_OK;
+        c->error = c->ok ? rank_error(&job->best) : NAN;
+        c->res = job->o.res;
+        return r;
+    }
+    double t0 = job_now();
+    /* a measured table: the screening grids and the reference grid of the
+     * candidates' errors repeat pairs, each an interpolation */
+    sb_source_t *memo = NULL;
+    if ((sb_source_flags(job->src) & SB_SOURCE_MEASURED) &&
+        job_memo_create(ctx, job->src, SB_JOB_MEMO_CAP, &memo) == SB_OK)
+        job->eval_src = memo;
+    screen(ctx, job);
+    job->eval_src = job->src;
+    sb_source_destroy(memo);
+    job->t.screen_s = job_now() - t0;
+    size_t order[JOB_MAX_CANDS], n = rank(job, order);
+    sb_result_t r = SB_ERR_NUMERIC;
+    for (size_t k = 0; k < n && r != SB_OK; k++) {
+        sb_job_candidate_t *c = &job->cands[order[k]];
+        double t1 = job_now();
+        if ((r = fit_kept(ctx, job, c)) != SB_OK) {
+            c->ok = 0;
+            snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
+        }
+        c->kept = r == SB_OK;
+        c->time_s += job_now() - t1;
+    }
+    if (r == SB_OK) return SB_OK;
+    const char *why = "";
+    for (size_t i = 0; i < job->ncand && !*why; i++)
+        why = job->cands[i].why;
+    return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s%s%s", sb_source_description(job->src),
+                    *why ? "; the first failure: " : "", why);
+}

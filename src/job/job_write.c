@@ -1,0 +1,101 @@
+/* The factor job's output set: textures, the error of what was stored,
+ * previews, sepbrdf.glsl and report.json (keys: README "report.json"). */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "job_impl.h"
+#include "sepbrdf/exr.h"
+#include "sepbrdf/glsl.h"
+#include "sepbrdf/image.h"
+#include "util/internal.h"
+
+/* rel_rms of the stored (FLOAT or HALF) textures against the matrix, for
+ * every J' (sb_err_at layout); NULL when it cannot be computed (reported as null). */
+static double *stored_errors(sb_context_t *ctx, const sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    size_t J = sb_factors_terms(a->f);
+    sb_exr_opts_t eo = {job->o.half};
+    sb_factors_t *q = NULL;
+    double *rel = malloc(sb_err_at(J, 0) * sizeof *rel), *mx = malloc(sb_err_at(J, 0) * sizeof *mx);
+    const sb_param_t *w = a->weighted ? a->param : NULL;
+    int ok = rel && mx && sb_factors_quantize(ctx, a->f, &eo, &q, NULL) == SB_OK;
+    if (ok)
+        ok = (a->m.mask ? sb_factors_errors_against(ctx, q, &a->m, w, rel, mx)
+                        : sb_factors_errors_near(ctx, a->f, q, &a->m, w, rel)) == SB_OK;
+    sb_factors_destroy(q);
+    free(mx);
+    if (!ok) {
+        free(rel);
+        return NULL;
+    }
+    return rel;
+}
+
+static sb_result_t write_report_file(sb_context_t *ctx, const sb_job_t *job, sb_outset_t *set) {
+    char path[4200];
+    snprintf(path, sizeof path, "%s/report.json", sb_outset_dir(set));
+    FILE *fp = fopen(path, "wb");
+    int ok = fp != NULL;
+    if (fp) {
+        sb_job_report(job, fp);
+        ok = fflush(fp) == 0 && !ferror(fp);
+        ok = fclose(fp) == 0 && ok;
+    }
+    if (!ok || sb_outset_add(set, "report.json") != SB_OK)
+        return sb_error(ctx, SB_ERR_IO, "%s/report.json: cannot write: %s", sb_outset_target(set), sb_io_why(errno));
+    return SB_OK;
+}
+
+/* Name every texture of the set (sb_factors_write_exr wrote them). */
+static sb_result_t add_textures(sb_outset_t *set, size_t J) {
+    sb_result_t r = SB_OK;
+    for (size_t k = 0; k < 2 * J && r == SB_OK; k++) {
+        char name[64];
+        sb_exr_name((int)(k % 2), k / 2, name, sizeof name);
+        r = sb_outset_add(set, name);
+    }
+    return r;
+}
+
+sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set) {
+    if (!job || !set || !job->best.f) return sb_error(ctx, SB_ERR_ARG, "sb_job_write_set: no job or no set");
+    double t0 = job_now();
+    const job_attempt_t *a = &job->best;
+    size_t J = sb_factors_terms(a->f);
+    const char *dir = sb_outset_dir(set);
+    sb_exr_opts_t eo = {job->o.half};
+    sb_result_t r = sb_factors_write_exr(ctx, a->f, dir, &eo);
+    if (r == SB_OK && (r = add_textures(set, J)) != SB_OK) r = sb_error(ctx, r, "out of memory");
+    if (r != SB_OK) return r;
+    free(job->rel_stored);
+    job->rel_stored = stored_errors(ctx, job);
+    if (job->o.previews && (r = sb_factors_write_previews(ctx, a->f, dir)) != SB_OK) return r;
+    char path[4200];
+    snprintf(path, sizeof path, "%s/sepbrdf.glsl", dir);
+    /* the snippet's sb_scale: what the shader multiplies the stored texels by (HALF) */
+    double *scales = malloc(J * sizeof *scales);
+    r = scales ? sb_exr_term_scales(ctx, a->f, &eo, scales) : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK) r = sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
+    free(scales);
+    if (r != SB_OK) return r;
+    if (sb_outset_add(set, "sepbrdf.glsl") != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    double t1 = job_now();
+    job->t.write_s = t1 - t0;
+    job->t.total_s = t1 - job->t_start;
+    return write_report_file(ctx, job, set);
+}
+
+sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir) {
+    if (!job || !dir) return sb_error(ctx, SB_ERR_ARG, "sb_job_write: no job or no folder");
+    sb_outset_opts_t so = {0};
+    so.command = "factor";
+    sb_outset_t *set = NULL;
+    sb_result_t r = sb_outset_begin(ctx, dir, &so, &set);
+    if (r == SB_OK) r = sb_job_write_set(ctx, job, set);
+    if (r == SB_OK) r = sb_outset_commit(set);
+    sb_outset_destroy(set);
+    return r;
+}
