@@ -46,6 +46,14 @@ unsigned sb_source_flags(const sb_source_t *src);
 const char *sb_source_description(const sb_source_t *src);
 void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation */
 
+/* The measured samples behind a table, as measured, before any
+ * interpolation: the number of sample slots (0 for analytic sources and
+ * tables without samples), and slot k's directions and RGB f_r; returns 0
+ * for a slot that holds no measurement (a missing MERL cell) or k out of
+ * range, 1 otherwise. */
+size_t sb_source_sample_count(const sb_source_t *src);
+int sb_source_sample(const sb_source_t *src, size_t k, double wi[3], double wo[3], double f[3]);
+
 /* Open a source from a user string: a model spec "MODEL[:key=value,...]"
  * (see models.h) or, when the string names an existing file, a measured
  * table (format by extension and content, see measured.h). */

@@ -124,7 +124,8 @@ int cli_out_opt(cli_args_t *a, const char *what, const char **out) {
 
 int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
     static const char *const n_interp[] = {"--interp", NULL}, *const n_k[] = {"--neighbours", NULL},
-                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL};
+                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL},
+                             *const n_gamut[] = {"--gamut", NULL};
     const char *v = NULL;
     int m;
     if ((m = cli_opt(a, n_interp, 1, &v))) {
@@ -147,6 +148,12 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
             mo->white = SB_WHITE_D65;
         else {
             cli_error(a->cmd, "--white '%s' unknown, need e or d65", v);
+            return -1;
+        }
+    } else if ((m = cli_opt(a, n_gamut, 1, &v))) {
+        if (m < 0) return -1;
+        if (sb_gamut_parse(v, &mo->gamut) != SB_OK) {
+            cli_error(a->cmd, "--gamut '%s' unknown, need keep, clip or desaturate", v);
             return -1;
         }
     } else {

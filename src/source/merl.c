@@ -214,6 +214,19 @@ static void put_le_f64(unsigned char *b, double d) {
         b[k] = (unsigned char)(u >> (8 * k));
 }
 
+/* The samples: every measured cell at its centre (index space + 1/2). */
+static size_t merl_sample_count(const void *self) {
+    (void)self;
+    return SB_MERL_CELLS;
+}
+static int merl_sample(const void *self, size_t k, double wi[3], double wo[3], double f[3]) {
+    const merl_t *m = self;
+    if (isnan(m->v[k]) || !sb_merl_cell_dirs(k, wi, wo)) return 0;
+    for (int c = 0; c < 3; c++)
+        f[c] = m->v[(size_t)c * SB_MERL_CELLS + k];
+    return 1;
+}
+
 static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
                              sb_measured_info_t *info) {
     sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_NEAREST : o->interp;
@@ -337,7 +350,10 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
     snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
     r = sb_source_create(ctx, &ops, m, info->flags, desc, out);
-    if (r == SB_OK) m = NULL;
+    if (r == SB_OK) {
+        sb_source_set_samples_(*out, merl_sample_count, merl_sample);
+        m = NULL;
+    }
 done:
     free(buf);
     merl_destroy(m);

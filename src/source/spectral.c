@@ -146,3 +146,34 @@ sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, s
     }
     return SB_OK;
 }
+
+/* ---- gamut ------------------------------------------------------------------ */
+
+static const char *const gamut_names[SB_GAMUT_COUNT_] = {"keep", "clip", "desaturate"};
+
+const char *sb_gamut_name(sb_gamut_t g) { return (unsigned)g < SB_GAMUT_COUNT_ ? gamut_names[g] : "?"; }
+sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out) {
+    for (int k = 0; k < SB_GAMUT_COUNT_; k++)
+        if (name && out && strcmp(name, gamut_names[k]) == 0) {
+            *out = (sb_gamut_t)k;
+            return SB_OK;
+        }
+    return SB_ERR_UNKNOWN;
+}
+
+/* Desaturation: rgb' = Y + t (rgb - Y) with the largest t in [0, 1] that
+ * leaves every channel >= 0, i.e. t = Y / (Y - min); Y is unchanged. */
+int sb_gamut_map(sb_gamut_t g, double rgb[3]) {
+    double mn = fmin(rgb[0], fmin(rgb[1], rgb[2]));
+    if (!(mn < 0)) return 0;
+    if (g == SB_GAMUT_CLIP)
+        for (int c = 0; c < 3; c++)
+            rgb[c] = fmax(rgb[c], 0);
+    if (g == SB_GAMUT_DESATURATE) {
+        double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+        double t = y > 0 ? y / (y - mn) : 0;
+        for (int c = 0; c < 3; c++)
+            rgb[c] = y > 0 ? fmax(y + t * (rgb[c] - y), 0) : 0;
+    }
+    return 1;
+}
