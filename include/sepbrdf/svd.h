@@ -68,10 +68,11 @@ typedef enum sb_method {
     SB_METHOD_FULL,       /* LAPACK dgesdd, all singular values */
     SB_METHOD_TOPK,       /* exact leading k: Gram matrix + dsyevr + Ritz step */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
+    SB_METHOD_NMF,        /* non-negative factors (the plan's nmf solver; not an SVD: sb_svd_create refuses it) */
     SB_METHOD_COUNT_
 } sb_method_t;
 
-sb_result_t sb_method_parse(const char *name, sb_method_t *out); /* auto|full|topk|randomized */
+sb_result_t sb_method_parse(const char *name, sb_method_t *out); /* auto|full|topk|randomized|nmf */
 const char *sb_method_name(sb_method_t m);
 
 /* AUTO thresholds (see the comment at the top). */

@@ -16,7 +16,7 @@
 #include "solve/svd_internal.h"
 #include "util/internal.h"
 
-static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized"};
+static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized", "nmf"};
 
 sb_result_t sb_method_parse(const char *name, sb_method_t *out) {
     for (int k = 0; k < SB_METHOD_COUNT_; k++)
@@ -74,8 +74,8 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
     sb_svd_opts_t o = {0};
     if (opts) o = *opts;
-    if ((unsigned)o.method >= SB_METHOD_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
+    if ((unsigned)o.method >= SB_METHOD_COUNT_ || o.method == SB_METHOD_NMF)
+        return sb_error(ctx, SB_ERR_ARG, "svd: method %d is not an SVD method", (int)o.method);
     sb_svd_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "svd: out of memory");
     s->ctx = ctx;
