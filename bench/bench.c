@@ -38,7 +38,7 @@ typedef struct method_spec {
 typedef struct bench_opts {
     size_t sizes[MAXL], nsizes, terms[MAXL], nterms, nmethods;
     method_spec_t methods[MAXL];
-    const char *model, *out, *prog;
+    const char *model, *out, *prog, *matrices;
     sb_form_t form;
     int fork_runs, verbosity, write, baseline;
     double min_time;
@@ -112,6 +112,8 @@ static void help(const char *prog) {
            "  --no-baseline     skip the dgesdd baseline (no excess column; the baseline\n"
            "                    is most of the time of a run at N = 4096)\n"
            "  -o, --out DIR     write DIR/results.csv and DIR/results.png (gnuplot)\n"
+           "  --matrices DIR    also write each sampled matrix, DIR/ioN_C.f64 (C = r, g, b:\n"
+           "                    raw float64, column-major, N x N) for bench/peers.py\n"
            "  -q, --quiet       no table on stdout\n"
            "  -v, --verbose     accepted for symmetry with the other commands\n"
            "  -h, --help        this text\n"
@@ -254,6 +256,9 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
         } else if (strcmp(a, "--quick") == 0) {
             o->sizes[0] = 256, o->sizes[1] = 1024, o->nsizes = 2;
             o->terms[0] = 4, o->terms[1] = 8, o->nterms = 2;
+        } else if ((m = opt(argc, argv, &i, "--matrices", NULL, &v))) {
+            if (m < 0 || !*v) return bad(o, "%s needs a folder", a);
+            o->matrices = v;
         } else if (strcmp(a, "--no-fork") == 0) {
             o->fork_runs = 0;
         } else if (strcmp(a, "--no-write") == 0) {
@@ -413,6 +418,24 @@ static void run_forked(const bench_opts_t *o, const sb_matrix_t *m, const sb_par
 
 /* ---- driver ------------------------------------------------------------- */
 
+/* DIR/ioN_C.f64: channel C (r, g, b) of the N x N matrix, raw float64
+ * column-major, native byte order: the peers (bench/peers.py) factor the
+ * very same numbers.  0 on success. */
+static int write_matrices(const bench_opts_t *o, const sb_matrix_t *m) {
+    if (mkdir(o->matrices, 0777) != 0 && errno != EEXIST) return -1;
+    for (int c = 0; c < 3; c++) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/io%zu_%c.f64", o->matrices, m->rows, "rgb"[c]);
+        FILE *fp = m->data[c] ? fopen(path, "wb") : NULL;
+        int ok = fp != NULL;
+        for (size_t j = 0; ok && j < m->cols; j++)
+            ok = fwrite(m->data[c] + j * m->ld, sizeof(double), m->rows, fp) == m->rows;
+        if (fp && fclose(fp) != 0) ok = 0;
+        if (!ok) return -1;
+    }
+    return 0;
+}
+
 /* Singular values of every channel (dgesdd, values only): the baseline. */
 static int baseline(const sb_matrix_t *m, double **sig) {
     size_t N = m->rows, n = m->cols, d = N < n ? N : n;
@@ -514,6 +537,11 @@ static int run_all(bench_opts_t *o) {
             goto next;
         }
         double sample_s = now() - t0;
+        if (o->matrices && write_matrices(o, &m) != 0) {
+            fprintf(stderr, "%s: --matrices %s: cannot write\n", o->prog, o->matrices);
+            rc = 2;
+            goto next;
+        }
         /* The optimum: when FULL (double) is among the methods, its own
          * errors are the Eckart-Young ones (dgesdd; the factor tests hold
          * them to 1e-9 of an independent dgesvd), so it runs first and
@@ -567,7 +595,7 @@ static int run_all(bench_opts_t *o) {
             if (mi == full_idx && o->baseline)
                 shared = full_res;
             else if (once)
-                run_forked(o, &m, param, jm, spec, N <= 1024, &shared);
+                run_forked(o, &m, param, jm, spec, N <= 1024 || spec->svd.method != SB_METHOD_FULL, &shared);
             for (size_t ti = 0; ti < o->nterms; ti++) {
                 size_t J = o->terms[ti];
                 if (J > N) continue;

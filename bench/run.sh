@@ -3,7 +3,11 @@
 #   bench/run.sh [sepbrdf_bench options]     e.g. --quick, --sizes 1024
 # Builds sepbrdf_bench in $BUILD (default ./build), writes bench/results.csv
 # and bench/results.png (gnuplot), then times the whole `sepbrdf factor`
-# command (best of 3, with its stage times) when the CLI is built.
+# command (best of 3, with its stage times) when the CLI is built, and
+# last runs the peers (numpy, scipy svds, sklearn randomized_svd) on the
+# very matrices of the run (bench/peers.py -> bench/peers.csv, with the
+# ratios), when Python has numpy, scipy and scikit-learn
+# (scripts/setup-deps.sh --bench; $PYTHON picks the interpreter).
 # OPENBLAS_NUM_THREADS / OPENBLAS_CORETYPE in the environment pass through.
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
@@ -11,36 +15,56 @@ root=$(dirname "$here")
 build=${BUILD:-$root/build}
 [ -d "$build" ] || cmake -S "$root" -B "$build" >/dev/null
 cmake --build "$build" --target sepbrdf_bench -j2 >/dev/null
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
 
 echo "# $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //')"
 echo "# OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-unset} OPENBLAS_CORETYPE=${OPENBLAS_CORETYPE:-unset}"
-"$build/sepbrdf_bench" -o "$here" "$@"
+"$build/sepbrdf_bench" -o "$here" --matrices "$work/matrices" "$@"
 
 # The whole command: sample, plan, factor, metric, write EXR + report + GLSL.
 # `--param io` is the seeds' R x R layout (the N = R^2 matrix of the table
 # above); the default (`--param auto`) tries every parameterisation.
+io64=
 if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then
-    out=$(mktemp -d)
-    trap 'rm -rf "$out"' EXIT
-    whole() { # label, then the factor options
+    whole() { # label, then the factor options; sets $best
         label=$1
         shift
         best= stages=
         for i in 1 2 3; do
             t0=$(date +%s.%N)
-            "$build/sepbrdf" factor "$@" -q -o "$out/run"
+            "$build/sepbrdf" factor "$@" -q -o "$work/run"
             t1=$(date +%s.%N)
             t=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
             if [ -z "$best" ] || awk -v t="$t" -v b="$best" 'BEGIN { exit !(t < b) }'; then
                 best=$t
                 # stage times of the fastest run, from report.json
-                stages=$(tr -d ' \n' <"$out/run/report.json" | sed 's/.*"timings":{\([^}]*\)}.*/\1/')
+                stages=$(tr -d ' \n' <"$work/run/report.json" | sed 's/.*"timings":{\([^}]*\)}.*/\1/')
             fi
         done
         echo "# sepbrdf factor $label: best of 3 $best s ($stages)"
     }
-    for R in 32 64; do whole "--param io -r $R -J 8" --param io -r "$R" -J 8; done
+    for R in 32 64; do
+        whole "--param io -r $R -J 8" --param io -r "$R" -J 8
+        [ "$R" = 64 ] && io64=$best
+    done
     whole "(default: --param auto, R = 32, J = 4)"
 else
     echo "# sepbrdf CLI not built: whole-command timing skipped"
+fi
+
+# The peers on the same matrices.
+py=
+for p in ${PYTHON:-} python3 /usr/bin/python3; do
+    if command -v "$p" >/dev/null 2>&1 && "$p" -c 'import numpy, scipy, sklearn' 2>/dev/null; then
+        py=$p
+        break
+    fi
+done
+if [ -z "$py" ]; then
+    echo "# peers skipped: no Python with numpy, scipy and scikit-learn (scripts/setup-deps.sh --bench)"
+else
+    echo "# peers ($("$py" -c 'import numpy, scipy, sklearn; print("numpy", numpy.__version__, "scipy", scipy.__version__, "sklearn", sklearn.__version__)')), best of 3:"
+    "$py" "$here/peers.py" --matrices "$work/matrices" --results "$here/results.csv" -o "$here/peers.csv" \
+        ${io64:+--whole "$io64"}
 fi

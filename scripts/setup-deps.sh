@@ -2,11 +2,14 @@
 # Install the Debian 12 packages sepbrdf needs, only those that are missing.
 # Idempotent and quiet when everything is present. Run as root (or via sudo).
 #   scripts/setup-deps.sh          build + test dependencies
+#   scripts/setup-deps.sh --bench  only the optional peers of bench/run.sh
+#                                  (numpy, scipy, scikit-learn; not for the tests)
 set -eu
 
 PKGS="cmake make gcc pkg-config liblapacke-dev libopenblas-dev libopenexr-dev \
 openexr glslang-tools libpng-dev gnuplot-nox libosmesa6-dev libegl-dev \
 libgles-dev libgl-dev libgl1-mesa-dri clang libclang-rt-14-dev clang-format chromium"
+if [ "${1:-}" = --bench ]; then PKGS="python3 python3-numpy python3-scipy python3-sklearn"; fi
 
 missing=""
 for p in $PKGS; do

@@ -2,7 +2,8 @@
  *
  * M_c[row, col] = form(f_r,c(wi, wo)) at the centres given by the
  * parameterisation, column-major with leading dimension ld = rows:
- * element (r, c) is data[c][r + c * ld].
+ * element (r, c) is data[c][r + c * ld] (a structured matrix stores less:
+ * see sb_matrix_t.structured).
  *   SB_FORM_F    f_r
  *   SB_FORM_COS  f_r cos(theta_i)
  *   SB_FORM_COS2 f_r cos(theta_i) cos(theta_o)
@@ -38,6 +39,11 @@ typedef struct sb_matrix_opts {
      * threads, and once with 1 when the build is complete. */
     sb_progress_fn progress;
     void *progress_user;
+    /* 1: where the matrix has a structure the library factors directly
+     * (an isotropic source on the io grid, every cell valid), store only
+     * its distinct values (see sb_matrix_t.structured): R^3 values a
+     * channel instead of R^4.  0 (default): every cell. */
+    int structured;
 } sb_matrix_opts_t;
 
 typedef struct sb_matrix {
@@ -55,6 +61,13 @@ typedef struct sb_matrix {
      * plan then factors from the R^3 distinct values (see factor.h).  Set
      * it to 0 after editing the data by hand. */
     size_t phi_period;
+    /* 1: only the distinct values are stored (opts.structured): data[c]
+     * holds the first block row (phi_i = 0) of every column, R x cols with
+     * ld = R = phi_period, and cell (R i_phi + i_theta, R o_phi + o_theta)
+     * is data[c][i_theta + (R ((o_phi - i_phi) mod R) + o_theta) R].  Read
+     * such a matrix through sb_matrix_at, sb_matrix_col or sb_matrix_mul,
+     * or expand it with sb_matrix_expand. */
+    int structured;
 } sb_matrix_t;
 
 /* Sample `src` on `param`.  On success *out owns its buffers (sb_matrix_free).
@@ -62,6 +75,27 @@ typedef struct sb_matrix {
 sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                             const sb_matrix_opts_t *opts, sb_matrix_t *out);
 void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */
+
+/* Cell (row, col) of channel c, dense or structured (0 for a channel not
+ * built). */
+double sb_matrix_at(const sb_matrix_t *m, int channel, size_t row, size_t col);
+
+/* Column `col` of channel c (rows values): a pointer into data for a dense
+ * matrix, else gathered into buf (rows doubles), which is returned. */
+const double *sb_matrix_col(const sb_matrix_t *m, int channel, size_t col, double *buf);
+
+/* Y = M_c Z for Z of k columns (cols x k, ld ldz >= cols) into Y (rows x k,
+ * ld ldy >= rows): one dgemm for a dense matrix; for a structured one R
+ * products with the stored R x cols block, which holds every value.
+ * Errors: SB_ERR_ARG (no such channel, bad leading dimensions),
+ * SB_ERR_OVERFLOW (beyond BLAS's int sizes), SB_ERR_NOMEM. */
+sb_result_t sb_matrix_mul(sb_context_t *ctx, const sb_matrix_t *m, int channel, size_t k, const double *z, size_t ldz,
+                          double *y, size_t ldy);
+
+/* A dense copy of m (every cell stored, ld = rows; mask and counts kept),
+ * in memory backed by huge pages where the system offers them.  Errors:
+ * SB_ERR_ARG, SB_ERR_OVERFLOW (memory limit), SB_ERR_NOMEM. */
+sb_result_t sb_matrix_expand(sb_context_t *ctx, const sb_matrix_t *m, sb_matrix_t *out);
 
 #ifdef __cplusplus
 }

@@ -10,18 +10,27 @@
  * single precision):
  *   FULL        dgesdd on a copy of A: every singular value; the rank-k
  *               truncation is optimal to rounding (Eckart-Young).
- *   TOPK        Gram matrix G of the smaller side (dsyrk), its k largest
- *               eigenpairs (dsyevr), then one Rayleigh-Ritz step on A itself
- *               (two products with A, a QR and the SVD of a d x k matrix).
- *               Exact to rounding for the leading triplets; the Gram matrix
- *               squares the condition number, so a triplet with
+ *   TOPK        Restarted block Krylov (the leading k exactly, to a
+ *               certified residual): cycles of the block Krylov range
+ *               finder below (l = k + p vectors, depth q = 8 unless
+ *               power_iters sets it) from the previous cycle's l leading
+ *               right Ritz vectors, until every triplet has
+ *               |A v_j - s_j u_j| <= tol s_1 (and A^T u_j = s_j v_j
+ *               exactly): tol = 2^-40 in double, 2^-12 in single.  Then
+ *               each s_j is within tol s_1 of a singular value (in
+ *               practice within ~tol^2 s_1^2 / gap) and the vectors within
+ *               an angle tol s_1 / gap of the singular subspaces.  BLAS-3
+ *               products only: 2q + 3 reads of A a cycle, one on the io
+ *               matrices of docs/performance.md.  Where the basis
+ *               l (q + 1) would exceed d / 2 (q lowered to 1 first), or
+ *               after 40 cycles without convergence (a flat spectrum), the
+ *               Gram route: G of the smaller side (dsyrk), its k largest
+ *               eigenpairs (dsyevr), one Rayleigh-Ritz step on A itself.
+ *               That route squares the condition number, so a triplet with
  *               sigma_j < ~sqrt(eps) sigma_1 (1e-8 in double, 3e-4 in
  *               single) is only as good as the subspace the Gram matrix can
- *               resolve.  The Ritz step computes s_j from A, not from
- *               sigma_j^2, so s_j carries an absolute error ~eps sigma_1
- *               instead of eps sigma_1^2 / sigma_j.  The Gram matrix also
- *               squares the range: entries beyond ~1e154 (1e19 in single
- *               precision) overflow it and give SB_ERR_NUMERIC.
+ *               resolve, and entries beyond ~1e154 (1e19 in single
+ *               precision) overflow G and give SB_ERR_NUMERIC.
  *   RANDOMIZED  Halko-Martinsson-Tropp: Y = A Omega with a seeded Gaussian
  *               Omega (n x l, l = k + p), q power iterations with QR
  *               re-orthonormalisation, Q = qr(Y), SVD of B = Q^T A: 2q + 2
@@ -66,7 +75,7 @@ extern "C" {
 typedef enum sb_method {
     SB_METHOD_AUTO = 0,   /* pick from m, n, k (see above) */
     SB_METHOD_FULL,       /* LAPACK dgesdd, all singular values */
-    SB_METHOD_TOPK,       /* exact leading k: Gram matrix + dsyevr + Ritz step */
+    SB_METHOD_TOPK,       /* exact leading k: restarted block Krylov (or the Gram route) */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
     SB_METHOD_NMF,        /* non-negative factors (the plan's nmf solver; not an SVD: sb_svd_create refuses it) */
     SB_METHOD_COUNT_
@@ -84,7 +93,7 @@ const char *sb_method_name(sb_method_t m);
 typedef struct sb_svd_opts {
     sb_method_t method;
     int oversample;       /* randomized: p, 0 = default 10, negative = none */
-    int power_iters;      /* randomized: q, 0 = default 2, negative = none */
+    int power_iters;      /* randomized: q, 0 = default 2, negative = none; TOPK: depth, default 8 */
     uint64_t seed;        /* randomized: seed of the test matrix, 0 = default 1 */
     int single_precision; /* compute in float (inputs/outputs stay double) */
     size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
@@ -98,6 +107,7 @@ typedef struct sb_svd_info {
     size_t sketch;    /* randomized: columns of the basis Q; TOPK: k; FULL: d */
     double norm_fro;  /* ||A||_F when known (given, adaptive mode, FULL, TOPK, single), else 0 */
     double resid_fro; /* ||A - U_r S_r V_r^T||_F from the identity above, -1 if unknown */
+    size_t cycles;    /* TOPK: Krylov cycles run (0: the Gram route alone) */
 } sb_svd_info_t;
 
 typedef struct sb_svd sb_svd_t;

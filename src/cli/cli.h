@@ -151,6 +151,7 @@ int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size);
 int cli_outset_end(sb_context_t *ctx, const char *cmd, sb_outset_t *s, int ok);
 
 /* Subcommands */
+int cmd_batch(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
 int cmd_factor(int argc, char **argv);
 int cmd_list(int argc, char **argv);

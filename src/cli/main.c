@@ -13,6 +13,7 @@ typedef struct command {
 
 static const command_t commands[] = {
     {"factor", cmd_factor, "factor a BRDF into texture pairs (EXR), report and GLSL"},
+    {"batch", cmd_batch, "factor many materials: one folder each, parallel, resumable, summary"},
     {"study", cmd_study, "error vs J for sources x parameterisations (CSV, JSON, PNG)"},
     {"list", cmd_list, "list models, their keys and the material presets"},
     {"sample", cmd_sample, "measure a source with a simulated gonioreflectometer (CSV)"},

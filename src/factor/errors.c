@@ -176,6 +176,13 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
     if (!f || !m || !rel_rms || !max_abs) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
     sb_result_t res = check_fit(ctx, f, m, weights);
     if (res != SB_OK) return res;
+    if (m->structured) { /* the residual pass reads every cell: on a dense copy */
+        sb_matrix_t d;
+        if ((res = sb_matrix_expand(ctx, m, &d)) != SB_OK) return res;
+        res = sb_factors_errors_against(ctx, f, &d, weights, rel_rms, max_abs);
+        sb_matrix_free(&d);
+        return res;
+    }
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f), rows = m->rows, cols = m->cols, n;
     memset(rel_rms, 0, J * 4 * sizeof *rel_rms);
     memset(max_abs, 0, J * 4 * sizeof *max_abs);
@@ -290,12 +297,12 @@ static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors
 }
 
 /* Step: Y = X [H, dH] = W_r M (W_c [H, dH]) (one read of M), Gram blocks. */
-static void near_products(near_ws_t *w, const double *a, size_t ld, double sx) {
+static sb_result_t near_products(sb_context_t *ctx, near_ws_t *w, const sb_matrix_t *m, int ch, double sx) {
     size_t rows = w->rows, cols = w->cols, J = w->J;
     for (size_t i = 0; i < cols * 2 * J; i++)
         w->Z[i] = w->HdH[i] * w->wc[i % cols] * sx;
-    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)(2 * J), (int)cols, 1.0, a, (int)ld, w->Z,
-                (int)cols, 0.0, w->Y, (int)rows);
+    sb_result_t r = sb_matrix_mul(ctx, m, ch, 2 * J, w->Z, cols, w->Y, rows); /* dense or structured */
+    if (r != SB_OK) return r;
     for (size_t i = 0; i < rows * 2 * J; i++)
         w->Y[i] *= w->wr[i % rows];
     const double *dH = w->HdH + cols * J;
@@ -307,6 +314,7 @@ static void near_products(near_ws_t *w, const double *a, size_t ld, double sx) {
     gram(cols, J, w->HdH, w->HdH, w->HH);
     gram(cols, J, w->HdH, dH, w->HdH2);
     gram(cols, J, dH, dH, w->dHdH);
+    return SB_OK;
 }
 
 /* Step: prefix sums over J': ssq[b] = ||X - G~_b H~_b^T||^2 from the fit's
@@ -360,7 +368,11 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
         present[ch] = m->data[ch] != NULL;
         if (!present[ch]) continue;
         near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh);
-        near_products(&w, m->data[ch], m->ld, sx);
+        sb_result_t r = near_products(ctx, &w, m, ch, sx);
+        if (r != SB_OK) {
+            free(ws);
+            return r;
+        }
         double nx = fe->norm[ch] * sx;
         n2[ch] = nx * nx;
         near_prefix(&w, fe->rel_rms + ch, nx, ssq + (size_t)ch * J);

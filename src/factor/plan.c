@@ -96,10 +96,10 @@ static sb_result_t alloc_buffers(sb_plan_t *p, size_t cells) {
     if (!p->s || !p->u || !p->v || !p->sbase || !p->ssq || !p->scratch) return SB_ERR_NOMEM;
     p->mx = p->ssq + 3 * J;
     if (!p->opts.weighted) return SB_OK;
-    p->x = sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix");
+    p->x = cells ? sb_alloc(ctx, cells, sizeof(double), "plan weighted matrix") : NULL; /* 0: structured */
     p->wr = sb_alloc(ctx, rows, sizeof(double), "plan");
     p->wc = sb_alloc(ctx, cols, sizeof(double), "plan");
-    return p->x && p->wr && p->wc ? SB_OK : SB_ERR_NOMEM;
+    return (p->x || !cells) && p->wr && p->wc ? SB_OK : SB_ERR_NOMEM;
 }
 
 static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
@@ -117,7 +117,8 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
                         o.terms, mn);
     if (!(o.max_error >= 0 && o.max_error < 1))
         return sb_error(ctx, SB_ERR_RANGE, "plan: maximum error %g out of range, need [0, 1)", o.max_error);
-    sb_result_t r = check_size(ctx, rows, cols, o.weighted, &cells);
+    int structured = m && m->structured; /* the R distinct rows are what is stored */
+    sb_result_t r = check_size(ctx, structured ? m->ld : rows, cols, o.weighted, &cells);
     if (r != SB_OK) return r;
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
@@ -130,7 +131,7 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
         pb.period = m->mask ? 0 : m->phi_period;
     }
     r = plan_solvers(p, &pb);
-    if (r == SB_OK) r = alloc_buffers(p, cells);
+    if (r == SB_OK) r = alloc_buffers(p, structured ? 0 : cells);
     if (r != SB_OK) {
         sb_plan_destroy(p);
         return r;
@@ -345,6 +346,19 @@ static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const
     return SB_OK;
 }
 
+/* A structured matrix for a solver that reads every cell: on a dense copy
+ * (and the weighted workspace, which a plan made for it does not hold). */
+static sb_result_t execute_expanded(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
+    sb_matrix_t d;
+    sb_result_t r = sb_matrix_expand(p->ctx, m, &d);
+    if (r == SB_OK && p->opts.weighted && !p->x &&
+        !(p->x = sb_alloc_large(p->ctx, p->rows * p->cols, sizeof(double), "plan weighted matrix")))
+        r = SB_ERR_NOMEM;
+    if (r == SB_OK) r = sb_plan_execute(p, &d, param, out);
+    sb_matrix_free(&d);
+    return r;
+}
+
 sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
     if (!p || !out) return sb_error(p ? p->ctx : NULL, SB_ERR_ARG, "plan: missing plan or output");
     *out = NULL;
@@ -353,6 +367,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (r == SB_OK && p->opts.weighted) sb_errors_weights(param, p->wr, p->wc);
     if (r == SB_OK) r = choose_solver(p, &rn);
     if (r != SB_OK) return r;
+    if (m->structured && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);
     p->stats = (sb_plan_stats_t){m->mask && !p->opts.zero_fill, 0, 1, 0};
     scan_channels(p, &rn);
     p->stats.proportional = rn.prop;

@@ -98,19 +98,21 @@ static void report_progress(void *arg) {
  * (i_phi, j_phi) is (j_phi - i_phi) mod R cell widths.  So only R^3 of the
  * R^4 values are distinct: evaluate them once into a table (phi_i at the
  * first cell centre), then scatter into the matrix.  R = 64: 262 144
- * evaluations instead of 16.8 million. */
+ * evaluations instead of 16.8 million.  The table is laid out as the first
+ * block row of the matrix, tab[c][it + (d R + ot) R] (the structured
+ * storage of matrix.h), so a structured matrix keeps it as its data. */
 typedef struct iso_job {
     const sb_source_t *src;
     const sb_param_t *param;
     sb_matrix_t *m;
     size_t R, a0, a1; /* table slices (theta_i) or matrix columns */
-    double *tab;      /* [((it * R + ot) * R + d) * 3 + c] */
+    double *tab[3];   /* per channel, NULL when not built */
     unsigned char *known;
-    size_t valid;
-    double *slice; /* scatter: 3 R^2 doubles and R^2 flags */
-    size_t step;   /* table: every step-th theta_i from a0 */
-    int recip;     /* table: reciprocal source, only theta_o >= theta_i */
+    size_t step; /* table: every step-th theta_i from a0 */
+    int recip;   /* table: reciprocal source, only theta_o >= theta_i */
 } iso_job_t;
+
+static size_t iso_at(size_t R, size_t it, size_t ot, size_t d) { return it + (d * R + ot) * R; }
 
 static void *iso_table(void *arg) {
     iso_job_t *j = arg;
@@ -119,53 +121,39 @@ static void *iso_table(void *arg) {
     double wi[3], wo[3], rgb[3];
     for (size_t it = j->a0; it < j->a1; it += j->step) {
         sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi);
-        for (size_t ot = j->recip ? it : 0; ot < R; ot++)
-            for (size_t d = 0; d < R; d++) {
-                size_t at = (it * R + ot) * R + d;
+        for (size_t d = 0; d < R; d++)
+            for (size_t ot = j->recip ? it : 0; ot < R; ot++) {
+                size_t at = iso_at(R, it, ot, d);
                 sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo);
                 rgb[0] = rgb[1] = rgb[2] = 0;
                 int known = sb_source_eval(j->src, wi, wo, rgb);
                 double w = sb_form_weight(j->m->form, wi, wo);
                 for (int c = 0; c < 3; c++) {
-                    double v = known ? rgb[c] * w : 0.0;
-                    if (!isfinite(v)) known = 0;
-                    j->tab[at * 3 + (size_t)c] = v;
+                    rgb[c] = known ? rgb[c] * w : 0.0;
+                    if (!isfinite(rgb[c])) known = 0;
                 }
+                for (int c = 0; c < 3; c++)
+                    if (j->tab[c]) j->tab[c][at] = known ? rgb[c] : 0.0;
                 j->known[at] = (unsigned char)known;
-                if (!known) j->tab[at * 3] = j->tab[at * 3 + 1] = j->tab[at * 3 + 2] = 0;
             }
     }
     return NULL;
 }
 
-/* Column (o_phi, o_theta) holds, for every i_phi, the R values
- * tab[(i_theta R + o_theta) R + d] over i_theta with d = (o_phi - i_phi)
- * mod R.  Gather the slice of o_theta once (R x R per channel, d-major),
- * then each block of R rows is one contiguous copy.  The mask is written
- * only when some value is unknown. */
+/* Column (o_phi, o_theta) holds, for every i_phi, the R values over
+ * i_theta at d = (o_phi - i_phi) mod R: one contiguous piece of the table
+ * each.  The mask is written only when some value is unknown. */
 static void *iso_scatter(void *arg) {
     iso_job_t *j = arg;
     sb_matrix_t *m = j->m;
-    size_t R = j->R, last_ot = (size_t)-1;
-    double *slice = j->slice;
-    unsigned char *kslice = (unsigned char *)(slice + 3 * R * R);
+    size_t R = j->R;
     for (size_t l = j->a0; l < j->a1; l++) {
         size_t ot = l % R, op = l / R;
-        if (ot != last_ot) {
-            for (size_t d = 0; d < R; d++)
-                for (size_t it = 0; it < R; it++) {
-                    size_t at = (it * R + ot) * R + d;
-                    for (int c = 0; c < 3; c++)
-                        slice[(size_t)c * R * R + d * R + it] = j->tab[at * 3 + (size_t)c];
-                    kslice[d * R + it] = j->known[at];
-                }
-            last_ot = ot;
-        }
         for (size_t ip = 0; ip < R; ip++) {
-            size_t d = (op + R - ip) % R, cell = ip * R + l * m->ld;
+            size_t from = iso_at(R, 0, ot, (op + R - ip) % R), cell = ip * R + l * m->ld;
             for (int c = 0; c < 3; c++)
-                if (m->data[c]) memcpy(m->data[c] + cell, slice + (size_t)c * R * R + d * R, R * sizeof(double));
-            if (m->mask) memcpy(m->mask + cell, kslice + d * R, R);
+                if (m->data[c]) memcpy(m->data[c] + cell, j->tab[c] + from, R * sizeof(double));
+            if (m->mask) memcpy(m->mask + cell, j->known + from, R);
         }
     }
     return NULL;
@@ -183,118 +171,119 @@ static void run_parallel(void *(*fn)(void *), iso_job_t *jobs, int nt, size_t n,
     sb_parallel_run(fn, jobs, sizeof *jobs, nt, NULL, NULL);
 }
 
-static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, int threads,
-                                      sb_matrix_t *out) {
-    size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
-    if (sb_size_mul3(R, R, R, &n3))
-        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower the resolution");
-    double *tab = sb_alloc(ctx, n3, 3 * sizeof(double), "isotropic table");
-    unsigned char *known = sb_alloc(ctx, n3, 1, "isotropic table");
-    if (!tab || !known) {
-        free(tab);
-        free(known);
-        return SB_ERR_NOMEM;
-    }
-    int nt = sb_thread_count(threads);
-    if ((size_t)nt > R) nt = (int)R;
-    iso_job_t jobs[SB_THREADS_MAX];
-    double *slices = sb_alloc(ctx, (size_t)nt * (3 * R * R + (R * R + 7) / 8), sizeof(double), "isotropic table");
-    if (!slices) {
-        free(tab);
-        free(known);
-        return SB_ERR_NOMEM;
-    }
-    for (int t = 0; t < nt; t++)
-        jobs[t] = (iso_job_t){
-            src, param, out, R, 0, 0, tab, known, 0, slices + (size_t)t * (3 * R * R + (R * R + 7) / 8), 1, 0};
-    int recip = (sb_source_flags(src) & SB_SOURCE_RECIPROCAL) != 0;
-    for (int t = 0; t < nt; t++)
-        jobs[t].recip = recip;
-    run_parallel(iso_table, jobs, nt, R, recip);
-    /* Reciprocity: swapping wi and wo and rotating by -phi_o gives
-     * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d); the form cos is
-     * f cos(theta_i), not symmetric: move the cosine across */
-    double dt = sb_param_theta_max(param) / (double)R;
-    for (size_t it = 0; recip && it < R; it++)
-        for (size_t ot = 0; ot < it; ot++) {
-            double w = out->form == SB_FORM_COS ? cos((it + 0.5) * dt) / cos((ot + 0.5) * dt) : 1;
-            for (size_t d = 0; d < R; d++) {
-                size_t at = (it * R + ot) * R + d, from = (ot * R + it) * R + (R - d) % R;
-                for (int c = 0; c < 3; c++)
-                    tab[at * 3 + (size_t)c] = tab[from * 3 + (size_t)c] * w;
-                known[at] = known[from];
-            }
-        }
-    size_t nknown = 0;
-    for (size_t i = 0; i < n3; i++)
-        nknown += known[i];
-    out->valid_count = nknown * R; /* each table value fills R cells */
-    if (nknown == n3) {            /* every cell valid: no mask */
-        free(out->mask);
-        out->mask = NULL;
-    }
-    run_parallel(iso_scatter, jobs, nt, out->cols, 0);
-    out->measured_count = out->valid_count;
-    free(slices);
-    free(tab);
-    free(known);
-    return SB_OK;
+/* Bytes of `rows` stored values per column, every channel, plus a mask of
+ * mask_cells bytes; 1 on overflow. */
+static int stored_bytes(const sb_matrix_t *m, size_t rows, size_t mask_cells, size_t *bytes) {
+    unsigned ch = m->channels;
+    size_t nch = (size_t)((ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1)), cells;
+    return sb_size_mul(rows, m->cols, &cells) || sb_size_mul3(cells, nch, sizeof(double), bytes) ||
+           sb_size_add(*bytes, mask_cells, bytes);
 }
 
-sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
-                            const sb_matrix_opts_t *opts, sb_matrix_t *out) {
-    if (!src || !param || !out) return sb_error(ctx, SB_ERR_ARG, "matrix: missing source or parameterisation");
-    memset(out, 0, sizeof *out);
-    sb_matrix_opts_t o = {0};
-    if (opts) o = *opts;
-    if ((unsigned)o.form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "matrix: unknown form %d", (int)o.form);
-    unsigned chans = o.channels ? (o.channels & 7u) : 7u;
-    if (!chans) return sb_error(ctx, SB_ERR_ARG, "matrix: empty channel mask");
-
-    size_t rows = sb_param_rows(param), cols = sb_param_cols(param), cells;
-    /* Refuse up front when the channels and the mask would not fit. */
-    size_t nch = (size_t)((chans & 1) + ((chans >> 1) & 1) + ((chans >> 2) & 1)), bytes;
-    if (sb_size_mul(rows, cols, &cells) || sb_size_mul3(cells, nch, sizeof(double), &bytes) ||
-        sb_size_add(bytes, cells, &bytes))
+/* Refuse up front what would not fit: `rows` stored rows a column and a
+ * mask of mask_cells. */
+static sb_result_t check_size(sb_context_t *ctx, const sb_matrix_t *m, size_t rows, size_t mask_cells) {
+    size_t bytes = 0, nch = (size_t)((m->channels & 1) + ((m->channels >> 1) & 1) + ((m->channels >> 2) & 1));
+    if (stored_bytes(m, rows, mask_cells, &bytes))
         return sb_error(
             ctx, SB_ERR_OVERFLOW,
-            "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower the resolution", rows,
-            cols, nch, (size_t)SIZE_MAX);
+            "matrix: %zu x %zu cells x %zu channels need more than %zu bytes (overflow); lower the resolution", m->rows,
+            m->cols, nch, (size_t)SIZE_MAX);
     if (bytes > sb_memory_limit())
         return sb_error(ctx, SB_ERR_OVERFLOW,
                         "matrix: %zu x %zu cells x %zu channels need %zu bytes, more than the memory limit of %zu "
                         "bytes; lower the resolution",
-                        rows, cols, nch, bytes, sb_memory_limit());
+                        m->rows, m->cols, nch, bytes, sb_memory_limit());
+    return SB_OK;
+}
 
-    out->rows = rows;
-    out->cols = cols;
-    out->ld = rows;
-    out->form = o.form;
-    out->channels = chans;
-    for (int ch = 0; ch < 3; ch++) {
-        if (!(chans & (1u << ch))) continue;
-        out->data[ch] = sb_alloc(ctx, cells, sizeof(double), "matrix");
-        if (!out->data[ch]) {
-            sb_matrix_free(out);
+/* Every cell and the mask, in huge pages where offered (first touch of
+ * 4 KiB pages dominated the build of large matrices).  On failure the
+ * caller frees what was allocated. */
+static sb_result_t alloc_dense(sb_context_t *ctx, sb_matrix_t *m) {
+    sb_result_t r = check_size(ctx, m, m->rows, m->rows * m->cols);
+    if (r != SB_OK) return r;
+    m->ld = m->rows;
+    for (int ch = 0; ch < 3; ch++)
+        if ((m->channels & (1u << ch)) &&
+            !(m->data[ch] = sb_alloc_large(ctx, m->rows * m->cols, sizeof(double), "matrix")))
             return SB_ERR_NOMEM;
-        }
-    }
-    out->mask = sb_alloc(ctx, cells, 1, "matrix mask");
-    if (!out->mask) {
-        sb_matrix_free(out);
-        return SB_ERR_NOMEM;
-    }
+    m->mask = sb_alloc_large(ctx, m->rows * m->cols, 1, "matrix mask");
+    return m->mask ? SB_OK : SB_ERR_NOMEM;
+}
 
-    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
-        sb_result_t r = build_isotropic_io(ctx, src, param, o.threads, out);
-        if (r != SB_OK) {
-            sb_matrix_free(out);
-            return r;
+/* Reciprocity: swapping wi and wo and rotating by -phi_o gives
+ * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d); the form cos is
+ * f cos(theta_i), not symmetric: move the cosine across. */
+static void mirror_reciprocal(const iso_job_t *j, double dt, sb_form_t form) {
+    size_t R = j->R;
+    for (size_t it = 0; it < R; it++)
+        for (size_t ot = 0; ot < it; ot++) {
+            double w = form == SB_FORM_COS ? cos((it + 0.5) * dt) / cos((ot + 0.5) * dt) : 1;
+            for (size_t d = 0; d < R; d++) {
+                size_t at = iso_at(R, it, ot, d), from = iso_at(R, ot, it, (R - d) % R);
+                for (int c = 0; c < 3; c++)
+                    if (j->tab[c]) j->tab[c][at] = j->tab[c][from] * w;
+                j->known[at] = j->known[from];
+            }
         }
-        if (!out->mask) out->phi_period = (size_t)llround(sqrt((double)rows));
-        return SB_OK;
-    }
+}
 
+static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                      const sb_matrix_opts_t *o, sb_matrix_t *out) {
+    size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
+    if (sb_size_mul3(R, R, R, &n3))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower the resolution");
+    sb_result_t r = check_size(ctx, out, o->structured ? R : out->rows, o->structured ? n3 : out->rows * out->cols);
+    if (r != SB_OK) return r;
+    int nt = sb_thread_count(o->threads);
+    if ((size_t)nt > R) nt = (int)R;
+    iso_job_t job = {src, param, out, R, 0, 0, {NULL, NULL, NULL}, NULL, 1, 0}, jobs[SB_THREADS_MAX];
+    job.recip = (sb_source_flags(src) & SB_SOURCE_RECIPROCAL) != 0;
+    job.known = sb_alloc(ctx, n3, 1, "isotropic table");
+    r = job.known ? SB_OK : SB_ERR_NOMEM;
+    for (int c = 0; c < 3 && r == SB_OK; c++)
+        if ((out->channels & (1u << c)) && !(job.tab[c] = sb_alloc_large(ctx, n3, sizeof(double), "isotropic table")))
+            r = SB_ERR_NOMEM;
+    if (r != SB_OK) goto done;
+    for (int t = 0; t < nt; t++)
+        jobs[t] = job;
+    run_parallel(iso_table, jobs, nt, R, job.recip);
+    if (job.recip) mirror_reciprocal(&job, sb_param_theta_max(param) / (double)R, out->form);
+    size_t nknown = 0;
+    for (size_t i = 0; i < n3; i++)
+        nknown += job.known[i];
+    out->valid_count = out->measured_count = nknown * R; /* each table value fills R cells */
+    out->phi_period = nknown == n3 ? R : 0;
+    if (o->structured && nknown == n3) { /* the table is the data */
+        out->ld = R;
+        out->structured = 1;
+        for (int c = 0; c < 3; c++) {
+            out->data[c] = job.tab[c];
+            job.tab[c] = NULL;
+        }
+        goto done;
+    }
+    if ((r = alloc_dense(ctx, out)) != SB_OK) goto done;
+    if (nknown == n3) { /* every cell valid: no mask */
+        free(out->mask);
+        out->mask = NULL;
+    }
+    run_parallel(iso_scatter, jobs, nt, out->cols, 0);
+done:
+    for (int c = 0; c < 3; c++)
+        free(job.tab[c]);
+    free(job.known);
+    return r;
+}
+
+/* Every cell evaluated, columns split among threads (see build_cols). */
+static sb_result_t build_general(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                 const sb_matrix_opts_t *opts, sb_matrix_t *out) {
+    sb_matrix_opts_t o = *opts;
+    size_t cols = out->cols, cells = out->rows * out->cols;
+    sb_result_t r = alloc_dense(ctx, out);
+    if (r != SB_OK) return r;
     int nt = sb_threads_for(o.threads, cols, cols, 0);
     job_t jobs[SB_THREADS_MAX];
     atomic_size_t done;
@@ -315,6 +304,31 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
         out->mask = NULL;
     }
     return SB_OK;
+}
+
+sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                            const sb_matrix_opts_t *opts, sb_matrix_t *out) {
+    if (!src || !param || !out) return sb_error(ctx, SB_ERR_ARG, "matrix: missing source or parameterisation");
+    memset(out, 0, sizeof *out);
+    sb_matrix_opts_t o = {0};
+    if (opts) o = *opts;
+    if ((unsigned)o.form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "matrix: unknown form %d", (int)o.form);
+    unsigned chans = o.channels ? (o.channels & 7u) : 7u;
+    if (!chans) return sb_error(ctx, SB_ERR_ARG, "matrix: empty channel mask");
+    out->rows = sb_param_rows(param);
+    out->cols = sb_param_cols(param);
+    out->ld = out->rows;
+    out->form = o.form;
+    out->channels = chans;
+    sb_result_t r;
+    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
+        r = build_isotropic_io(ctx, src, param, &o, out);
+        if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
+    } else {
+        r = build_general(ctx, src, param, &o, out);
+    }
+    if (r != SB_OK) sb_matrix_free(out);
+    return r;
 }
 
 void sb_matrix_free(sb_matrix_t *m) {

@@ -109,7 +109,10 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
         present += x[c] != NULL;
     }
     if (!present) return sb_error(ctx, SB_ERR_ARG, "channels: the matrix has no channel");
-    double g[3][3], pw = scaled_grams(x, m->rows, m->cols, m->ld, g);
+    /* structured: the stored rows hold every value, each R times */
+    size_t rows = m->structured ? m->ld : m->rows;
+    double g[3][3], pw = scaled_grams(x, rows, m->cols, m->ld, g),
+                    copies = m->structured ? sqrt((double)m->phi_period) : 1;
     int b = -1;
     for (int c = 0; c < 3; c++)
         for (int e = c; e < 3; e++)
@@ -118,7 +121,7 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
                                 c, e);
     for (int c = 0; c < 3; c++) {
         if (!x[c]) continue;
-        out->norm[c] = sqrt(g[c][c]) / pw;
+        out->norm[c] = sqrt(g[c][c]) / pw * copies;
         if (b < 0 || g[c][c] > g[b][b]) b = c;
     }
     out->base = b;
@@ -129,6 +132,6 @@ sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, do
         out->scale[c] = c == b ? 1 : nb > 0 ? dot / nb : 0;
     }
     out->proportional = 1;
-    if (present > 1 && nb > 0) deviations(x, m->rows, m->cols, m->ld, pw, rel_tol, (const double(*)[3])g, out);
+    if (present > 1 && nb > 0) deviations(x, rows, m->cols, m->ld, pw, rel_tol, (const double(*)[3])g, out);
     return SB_OK;
 }

@@ -16,6 +16,7 @@
 #endif
 
 #include "util/internal.h"
+#include "util/parallel.h"
 
 typedef struct cand {
     double s;
@@ -24,20 +25,21 @@ typedef struct cand {
 
 struct sb_circ {
     sb_context_t *ctx;
-    size_t R, nb;        /* period, blocks R/2 + 1 */
-    double *K;           /* R blocks R x R (weighted, symmetrised) */
-    double *C;           /* nb blocks C_k (R^2 x nb) */
-    double *Cv;          /* a copy of C, overwritten by dgesdd */
-    double *T;           /* R x nb: cos(2 pi k m / R) */
-    unsigned char *need; /* nb: block k holds a selected triplet */
-    double *sv, *A, *VT; /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
-    double *ct;          /* cos(2 pi q / R), q = 0..R-1 */
-    double *work;
-    lapack_int lwork, *iwork;
-    cand_t *cand;    /* R^2 candidates, sorted */
-    double *res;     /* R^3 residual kernel */
-    double *at, *bt; /* R each: unweighted block vectors */
-    double *e;       /* 3R: phi vector and scratch */
+    size_t R, nb;             /* period, blocks R/2 + 1 */
+    double *K;                /* R blocks R x R (weighted, symmetrised) */
+    double *C;                /* nb blocks C_k (R^2 x nb) */
+    double *Cv;               /* a copy of C, overwritten by dgesdd */
+    double *T;                /* R x nb: cos(2 pi k m / R) */
+    unsigned char *need;      /* nb: block k holds a selected triplet */
+    double *sv, *A, *VT;      /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
+    double *ct;               /* cos(2 pi q / R), q = 0..R-1 */
+    double *work;             /* per thread: lwork doubles */
+    lapack_int lwork, *iwork; /* per thread: 8 R */
+    int nth;                  /* threads of the block SVDs and the transform */
+    cand_t *cand;             /* R^2 candidates, sorted */
+    double *res;              /* R^3 residual kernel */
+    double *at, *bt;          /* R each: unweighted block vectors */
+    double *e;                /* 3R: phi vector and scratch */
 };
 
 void sb_circ_destroy(sb_circ_t *c) {
@@ -80,7 +82,9 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->A = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->VT = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
-    c->iwork = sb_alloc(ctx, 8 * R, sizeof(lapack_int), "circulant");
+    /* the blocks are independent: one thread per core above ~2^22 flops */
+    c->nth = sb_threads_for(0, c->nb, c->nb * R2 * R, (size_t)1 << 22);
+    c->iwork = sb_alloc(ctx, 8 * R * (size_t)c->nth, sizeof(lapack_int), "circulant");
     c->cand = sb_alloc(ctx, R2, sizeof(cand_t), "circulant");
     c->res = sb_alloc(ctx, R3, sizeof(double), "circulant residual");
     c->at = sb_alloc(ctx, R, sizeof(double), "circulant");
@@ -102,7 +106,7 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     lapack_int info =
         LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->Cv, n, c->sv, c->A, n, c->VT, n, &wq, -1, c->iwork);
     c->lwork = info == 0 ? (lapack_int)wq + 1 : 1;
-    c->work = sb_alloc(ctx, (size_t)c->lwork, sizeof(double), "circulant LAPACK workspace");
+    c->work = sb_alloc(ctx, (size_t)c->lwork * (size_t)c->nth, sizeof(double), "circulant LAPACK workspace");
     if (info != 0 || !c->work) {
         sb_circ_destroy(c);
         return c->work ? sb_error(ctx, SB_ERR_NUMERIC, "circulant: dgesdd workspace query failed") : SB_ERR_NOMEM;
@@ -188,6 +192,51 @@ static void blas_threads_end(int n) {
 #endif
 }
 
+/* Blocks [k0, k1) of one thread: the cosine transform of their columns
+ * (pass 0) and dgesdd of each, values only (pass 0) or with vectors for
+ * the blocks holding a selected triplet (pass 1), on the thread's own
+ * LAPACK workspace. */
+typedef struct blk_job {
+    sb_circ_t *c;
+    int t, pass;
+    size_t k0, k1, bad;
+    lapack_int info;
+} blk_job_t;
+
+static void *blk_svd(void *arg) {
+    blk_job_t *j = arg;
+    sb_circ_t *c = j->c;
+    size_t R = c->R, R2 = R * R;
+    lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * 8 * R;
+    double *work = c->work + (size_t)j->t * (size_t)c->lwork;
+    if (j->pass == 0 && j->k1 > j->k0)
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->K,
+                    (int)R2, c->T + j->k0 * R, (int)R, 0.0, c->C + j->k0 * R2, (int)R2);
+    for (size_t k = j->k0; k < j->k1 && j->info == 0; k++) {
+        if (j->pass == 1 && !c->need[k]) continue;
+        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
+        j->info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, j->pass ? 'S' : 'N', n, n, c->Cv + k * R2, n, c->sv + k * R,
+                                      j->pass ? c->A + k * R2 : NULL, n, j->pass ? c->VT + k * R2 : NULL, n, work,
+                                      c->lwork, iw);
+        j->bad = k;
+    }
+    return NULL;
+}
+
+static sb_result_t blocks_run(sb_circ_t *c, int pass) {
+    blk_job_t jobs[SB_THREADS_MAX];
+    for (int t = 0; t < c->nth; t++) {
+        jobs[t] = (blk_job_t){c, t, pass, 0, 0, 0, 0};
+        sb_part(c->nb, t, c->nth, &jobs[t].k0, &jobs[t].k1);
+    }
+    sb_parallel_run(blk_svd, jobs, sizeof *jobs, c->nth, NULL, NULL);
+    for (int t = 0; t < c->nth; t++)
+        if (jobs[t].info != 0)
+            return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", jobs[t].bad,
+                            (int)jobs[t].info);
+    return SB_OK;
+}
+
 static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
                             double *s, double *u, double *v, double *tails);
 
@@ -210,19 +259,11 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
                 c->K[m * R2 + it + ot * R] =
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
-    /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R): one
-     * product (R^2 x R) (R x nb) */
-    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)c->nb, (int)R, 1.0, c->K, (int)R2, c->T,
-                (int)R, 0.0, c->C, (int)R2);
-    /* Step: singular values of every block (no vectors: the cheap part) */
-    lapack_int n = (lapack_int)R;
-    memcpy(c->Cv, c->C, c->nb * R2 * sizeof *c->C);
-    for (size_t k = 0; k < c->nb; k++) {
-        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', n, n, c->Cv + k * R2, n, c->sv + k * R, NULL, n,
-                                              NULL, n, c->work, c->lwork, c->iwork);
-        if (info != 0)
-            return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", k, (int)info);
-    }
+    /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
+     * the singular values of every block (no vectors: the cheap part),
+     * blocks split among threads */
+    sb_result_t res = blocks_run(c, 0);
+    if (res != SB_OK) return res;
     /* Step: every singular value of the matrix, largest first */
     size_t nc = 0;
     for (unsigned k = 0; k < c->nb; k++)
@@ -243,14 +284,7 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
     memset(c->need, 0, c->nb);
     for (size_t j = 0; j < J; j++)
         c->need[c->cand[j].k] = 1;
-    for (size_t k = 0; k < c->nb; k++) {
-        if (!c->need[k]) continue;
-        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
-        lapack_int info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'S', n, n, c->Cv + k * R2, n, c->sv + k * R,
-                                              c->A + k * R2, n, c->VT + k * R2, n, c->work, c->lwork, c->iwork);
-        if (info != 0)
-            return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: dgesdd failed on block %zu (info %d)", k, (int)info);
-    }
+    if ((res = blocks_run(c, 1)) != SB_OK) return res;
     for (size_t j = 0; j < J; j++)
         c->cand[j].s = c->sv[c->cand[j].k * R + c->cand[j].idx];
     /* Step: the J leading triplets, u = e_k (x) a, v = e_k (x) b */
@@ -292,6 +326,55 @@ static double absmax_axpy(const double *x, double t, const double *y, size_t n) 
 
 static double absmax(const double *x, size_t n) { return absmax_axpy(x, 0.0, x, n); }
 
+/* The residual kernel's rows d in [d0, d1) of one thread (R^3 work a
+ * term, split by the azimuth difference d): pass 0, the largest |error|
+ * of a lone cos vector (hi, lo in c->e + R, + 2R, see sb_circ_max_abs);
+ * pass 1, subtract the whole term (phi factor c->e[d]) and the largest
+ * |residual| left. */
+typedef struct rows_job {
+    sb_circ_t *c;
+    int pass;
+    double sg, mx;
+    size_t d0, d1;
+} rows_job_t;
+
+static void *rows_max(void *arg) {
+    rows_job_t *j = arg;
+    const sb_circ_t *c = j->c;
+    size_t R = c->R;
+    const double *hi = c->e + R, *lo = c->e + 2 * R;
+    double m = 0;
+    for (size_t d = j->d0; d < j->d1; d++)
+        for (size_t ot = 0; ot < R; ot++) {
+            double *row = c->res + (d * R + ot) * R; /* over theta_i */
+            if (j->pass == 0) {
+                double B = j->sg * c->bt[ot] / (double)R;
+                double x = absmax_axpy(row, B * hi[d], c->at, R), y = absmax_axpy(row, B * lo[d], c->at, R);
+                m = fmax(m, fmax(x, y));
+                continue;
+            }
+            double cf = j->sg * c->bt[ot] * c->e[d];
+            for (size_t it = 0; it < R; it++)
+                row[it] -= cf * c->at[it];
+            m = fmax(m, absmax(row, R));
+        }
+    j->mx = m;
+    return NULL;
+}
+
+static double rows_run(sb_circ_t *c, int pass, double sg) {
+    rows_job_t jobs[SB_THREADS_MAX];
+    for (int t = 0; t < c->nth; t++) {
+        jobs[t] = (rows_job_t){c, pass, sg, 0, 0, 0};
+        sb_part(c->R, t, c->nth, &jobs[t].d0, &jobs[t].d1);
+    }
+    sb_parallel_run(rows_max, jobs, sizeof *jobs, c->nth, NULL, NULL);
+    double m = 0;
+    for (int t = 0; t < c->nth; t++)
+        m = fmax(m, jobs[t].mx);
+    return m;
+}
+
 sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
                             double *mx) {
     size_t R = c->R, R2 = R * R;
@@ -328,21 +411,13 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
                 cmx[1] = cmx[0];
                 cmn[1] = cmn[0];
             }
-            double *ck = c->e, *hi = c->e + R, *lo = c->e + 2 * R, m = 0;
+            double *ck = c->e, *hi = c->e + R, *lo = c->e + 2 * R;
             for (size_t d = 0; d < R; d++) {
                 ck[d] = c->ct[((size_t)q->k * d) % R];
                 hi[d] = ck[d] + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
                 lo[d] = ck[d] + cmn[d % 2];
             }
-            for (size_t d = 0; d < R; d++)
-                for (size_t ot = 0; ot < R; ot++) {
-                    const double *row = res + (d * R + ot) * R; /* over theta_i */
-                    double B = sg * c->bt[ot] / (double)R;
-                    double x = absmax_axpy(row, B * hi[d], c->at, R), y = absmax_axpy(row, B * lo[d], c->at, R);
-                    x = x > y ? x : y;
-                    if (x > m) m = x;
-                }
-            mx[j] = m;
+            mx[j] = rows_run(c, 0, sg);
             if (!pair_next) break; /* J ends inside the pair */
             j++;
         }
@@ -357,13 +432,7 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
                 ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
             c->e[d] = ph;
         }
-        for (size_t d = 0; d < R; d++)
-            for (size_t ot = 0; ot < R; ot++) {
-                double cf = sg * c->bt[ot] * c->e[d], *row = res + (d * R + ot) * R;
-                for (size_t it = 0; it < R; it++)
-                    row[it] -= cf * c->at[it];
-            }
-        mx[j] = absmax(res, R * R2);
+        mx[j] = rows_run(c, 1, sg);
     }
     return SB_OK;
 }

@@ -64,7 +64,19 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
     return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
 }
 
+static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, int gram,
+                          sb_svd_t **out);
+
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out) {
+    return create(ctx, m, n, k, opts, 0, out);
+}
+
+sb_result_t sb_svd_create_gram(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out) {
+    return create(NULL, m, n, k, opts, 1, out);
+}
+
+static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, int gram,
+                          sb_svd_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "svd: no output pointer");
     *out = NULL;
     if (m == 0 || n == 0) return sb_error(ctx, SB_ERR_ARG, "svd: empty matrix %zu x %zu", m, n);
@@ -94,11 +106,21 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     if (s->b > s->l) s->b = s->l;
     /* block Krylov keeps q + 1 blocks of the basis: l (q + 1) <= d / 2 */
     s->krylov = o.krylov >= 0 && s->q > 0 && 2 * s->l * (size_t)(s->q + 1) <= d;
+    if (s->method == SB_METHOD_TOPK) { /* Krylov cycles when the basis fits, else the Gram route */
+        s->q = o.power_iters > 0 ? o.power_iters : SB_SVD_TOPK_Q;
+        while (s->q > 1 && 2 * s->l * (size_t)(s->q + 1) > d)
+            s->q--;
+        s->krylov = 2 * s->l * (size_t)(s->q + 1) <= d && !gram;
+        s->gram = !s->krylov;
+    }
     s->L = s->krylov ? s->l * (size_t)(s->q + 1) : s->l;
 
     sb_result_t r = SB_OK;
     if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;
-    if (r == SB_OK) r = s->method == SB_METHOD_RANDOMIZED ? sb_svd_plan_rand(s) : sb_svd_plan_dense(s);
+    if (r == SB_OK)
+        r = s->method == SB_METHOD_RANDOMIZED         ? sb_svd_plan_rand(s)
+            : s->method == SB_METHOD_TOPK && !s->gram ? sb_svd_plan_topk_krylov(s, &o)
+                                                      : sb_svd_plan_dense(s);
     if (r == SB_OK &&
         !(s->work = ws_alloc(s, (size_t)(s->lwork > 0 ? s->lwork : 1), 1, s->single ? sizeof(float) : sizeof(double))))
         r = SB_ERR_NOMEM;
@@ -113,7 +135,9 @@ sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 
 void sb_svd_destroy(sb_svd_t *s) {
     if (!s) return;
-    void *bufs[] = {s->a, s->sv, s->u, s->vt, s->g, s->w, s->z, s->y, s->bt, s->ws, s->om, s->c, s->tau, s->work};
+    void *bufs[] = {s->a,  s->sv, s->u,  s->vt, s->g,   s->w,    s->z, s->y,
+                    s->bt, s->ws, s->om, s->c,  s->tau, s->work, s->st};
+    sb_svd_destroy(s->gram_plan);
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
         free(bufs[i]);
     free(s->iwork);
@@ -235,14 +259,16 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
         if (run->nrm < 0) run->nrm = got;
         run->a = s->a;
         run->la = s->m;
-    } else if (want_norm && run->nrm < 0 && s->method == SB_METHOD_RANDOMIZED) {
+    } else if (run->nrm < 0 &&
+               ((want_norm && s->method == SB_METHOD_RANDOMIZED) || (s->method == SB_METHOD_TOPK && !s->gram))) {
         if (norm_of(s, A, run->la, &got)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
         run->nrm = got;
     }
-    run->info = (sb_svd_info_t){0, 0, 0, -1};
-    sb_result_t res = s->method == SB_METHOD_FULL   ? sb_svd_run_full(s, run)
-                      : s->method == SB_METHOD_TOPK ? sb_svd_run_topk(s, run)
-                                                    : sb_svd_run_rand(s, run);
+    run->info = (sb_svd_info_t){0, 0, 0, -1, 0};
+    sb_result_t res = s->method == SB_METHOD_FULL ? sb_svd_run_full(s, run)
+                      : s->method == SB_METHOD_TOPK
+                          ? (s->gram ? sb_svd_run_topk(s, run) : sb_svd_run_topk_krylov(s, run))
+                          : sb_svd_run_rand(s, run);
     if (res != SB_OK) return res;
     for (size_t j = 0; j < run->r; j++)
         if (!isfinite(run->sv[j]))

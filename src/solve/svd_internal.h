@@ -7,6 +7,15 @@
 
 #include "sepbrdf/svd.h"
 
+/* TOPK by restarted block Krylov: depth q of a cycle and the cycles tried
+ * before the Gram route takes over (see run_topk_krylov).  Deeper cycles
+ * need fewer restarts: on the io matrix of N = 1024 q = 2, 3, 4, 6 took
+ * 6, 4, 2, 1 cycles (42, 36, 22, 15 reads of A), on N = 4096 q = 4, 6, 8
+ * took 3, 2, 1 (33, 30, 19 reads).  q is lowered where the basis
+ * l (q + 1) would exceed d / 2. */
+#define SB_SVD_TOPK_Q 8
+#define SB_SVD_TOPK_CYCLES 40
+
 struct sb_svd {
     sb_context_t *ctx;
     size_t m, n, k, d; /* d = min(m, n) */
@@ -17,6 +26,11 @@ struct sb_svd {
     /* Workspace, typed double or float by `single` (see the templates for
      * what each holds per method); NULL when the method does not use it. */
     void *a, *sv, *u, *vt, *g, *w, *z, *y, *bt, *ws, *om, *c, *tau, *work;
+    void *st;            /* TOPK Krylov: start block of the next cycle (n x l) */
+    int gram;            /* TOPK by the Gram route (when the Krylov basis does not fit) */
+    int cycles;          /* TOPK Krylov: cycles of the last execute */
+    double resid;        /* TOPK Krylov: its largest residual / s_1 */
+    sb_svd_t *gram_plan; /* TOPK Krylov: the Gram route, if the cycle limit is reached */
     lapack_int *iwork, *isuppz;
     lapack_int lwork, liwork;
     size_t bytes;
@@ -50,12 +64,18 @@ double sb_svd_resid_from(double nrm, const double *sv, size_t r);
 /* Smallest r in [max(lo, 1), k] with 1 - sum_{j<r} (s_j / ||A||)^2 <= tol^2. */
 size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo);
 
-/* Workspaces of FULL and TOPK (svd_dense.c), RANDOMIZED (svd_rand.c). */
+/* A TOPK plan by the Gram route (svd.c): the fallback of the Krylov one. */
+sb_result_t sb_svd_create_gram(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
+
+/* Workspaces of FULL and TOPK by the Gram route (svd_dense.c), RANDOMIZED
+ * and TOPK by Krylov cycles (svd_rand.c). */
 sb_result_t sb_svd_plan_dense(sb_svd_t *s);
 sb_result_t sb_svd_plan_rand(sb_svd_t *s);
+sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s, const sb_svd_opts_t *opts);
 /* The methods: fill run->sv, U, V, r, sketch and info. */
 sb_result_t sb_svd_run_full(sb_svd_t *s, sb_svd_run_t *run);
 sb_result_t sb_svd_run_topk(sb_svd_t *s, sb_svd_run_t *run);
 sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run);
+sb_result_t sb_svd_run_topk_krylov(sb_svd_t *s, sb_svd_run_t *run);
 
 #endif

@@ -20,8 +20,9 @@ sb_result_t sb_svd_plan_rand(sb_svd_t *s) { return s->single ? plan_rand_f(s) : 
 sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run) {
     size_t r = s->k, sketch = 0;
     sb_result_t res =
-        s->single ? run_rand_f(s, run->a, run->la, run->adaptive, run->tol2, run->nrm, run->min_rank, &sketch, &r)
-                  : run_rand_d(s, run->a, run->la, run->adaptive, run->tol2, run->nrm, run->min_rank, &sketch, &r);
+        s->single
+            ? run_rand_f(s, run->a, run->la, s->om, run->adaptive, run->tol2, run->nrm, run->min_rank, &sketch, &r)
+            : run_rand_d(s, run->a, run->la, s->om, run->adaptive, run->tol2, run->nrm, run->min_rank, &sketch, &r);
     if (res != SB_OK) return res;
     if (s->single)
         out_rand_f(s, r, run->sv, run->U, run->V);
@@ -33,5 +34,47 @@ sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run) {
     }
     run->r = r;
     run->sketch = sketch;
+    return SB_OK;
+}
+
+/* TOPK's plan: the Krylov route's buffers (the randomized plan's, plus
+ * A W_k in g and the start block st), and the Gram route as a plan of its
+ * own for matrices whose cycles do not converge; where that does not fit
+ * the memory limit, such a matrix gives SB_ERR_NUMERIC instead. */
+sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s, const sb_svd_opts_t *opts) {
+    sb_result_t r = s->single ? plan_rand_f(s) : plan_rand_d(s);
+    size_t z = s->single ? sizeof(float) : sizeof(double);
+    if (r == SB_OK && (!(s->g = ws_alloc(s, s->m, s->k, z)) || !(s->st = ws_alloc(s, s->n, s->l, z)))) r = SB_ERR_NOMEM;
+    if (r == SB_OK) sb_svd_create_gram(s->m, s->n, s->k, opts, &s->gram_plan);
+    return r;
+}
+
+/* TOPK by Krylov cycles (svd_tmpl_rand.h), the Gram route when they reach
+ * the cycle limit.  ||A||_F is read once when not known (execute). */
+sb_result_t sb_svd_run_topk_krylov(sb_svd_t *s, sb_svd_run_t *run) {
+    int done = 0;
+    size_t k = s->k;
+    sb_result_t r = s->single ? run_topk_krylov_f(s, run->a, run->la, SB_SVD_TOPK_CYCLES, &done)
+                              : run_topk_krylov_d(s, run->a, run->la, SB_SVD_TOPK_CYCLES, &done);
+    if (r != SB_OK) return r;
+    if (done && s->single)
+        out_rand_f(s, k, run->sv, run->U, run->V);
+    else if (done)
+        out_rand_d(s, k, run->sv, run->U, run->V);
+    else if (!s->gram_plan)
+        return sb_error(s->ctx, SB_ERR_NUMERIC,
+                        "svd: topk did not converge in %d cycles (residual %.3g of sigma_1); use the full method",
+                        s->cycles, s->resid);
+    if (!done) {
+        s->gram_plan->ctx = s->ctx;
+        sb_svd_run_t g = *run;
+        g.adaptive = 0;
+        if ((r = sb_svd_run_topk(s->gram_plan, &g)) != SB_OK) return r;
+    }
+    run->r = run->adaptive ? sb_svd_rank_for(run->sv, k, run->nrm, run->tol2, run->min_rank) : k;
+    run->info.norm_fro = run->nrm;
+    run->info.resid_fro = sb_svd_resid_from(run->nrm, run->sv, run->r);
+    run->info.cycles = (size_t)s->cycles;
+    run->sketch = k;
     return SB_OK;
 }

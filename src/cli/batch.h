@@ -1,0 +1,36 @@
+/* sepbrdf batch: the materials of a batch and how they are run. */
+#ifndef SEPBRDF_CLI_BATCH_H
+#define SEPBRDF_CLI_BATCH_H
+
+#include "cli.h"
+
+/* Result fields of one material, in the order of summary.csv after name
+ * and source (batch.txt in its folder holds them, tab-separated). */
+#define BATCH_FIELDS "param,form,J,headline,comparable,rel_rms,max_abs,negative,bytes,time_s"
+
+typedef struct batch_item {
+    char name[128];   /* its folder under --out */
+    char source[1024];
+    char param[32], form[16]; /* storage of the row's --param and --form */
+    sb_job_opts_t o;
+    char key[1600];   /* its settings: the set is reused when they match */
+    char fields[512]; /* BATCH_FIELDS, tab-separated */
+    char msg[512];    /* why it failed */
+    int ok, skipped;
+    double headline;
+} batch_item_t;
+
+/* Settings key of item (from it->o) into it->key. */
+void batch_key(batch_item_t *it);
+/* 1 when DIR/NAME holds a published set of the same settings (its fields
+ * copied into it->fields). */
+int batch_done(const char *dir, batch_item_t *it);
+/* Run the items not done with up to `jobs` processes at a time; fills
+ * ok, fields and msg of each. */
+void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs);
+/* Write DIR/summary.csv and DIR/summary.json; exit code. */
+int batch_summary(const char *dir, const batch_item_t *items, size_t n);
+/* The ranked table on stdout. */
+void batch_table(const batch_item_t *items, size_t n);
+
+#endif

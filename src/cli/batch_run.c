@@ -1,0 +1,338 @@
+/* sepbrdf batch: running the materials, one process each (fork), and the
+ * summary.  Each material's folder is an output set of the factor job
+ * (outset.h), published whole with batch.txt (its settings and results),
+ * so a set found complete with the same settings is reused as it is. */
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "batch.h"
+#include "pipeline.h"
+
+#define BATCH_FILE "batch.txt"
+
+/* it->headline from the fourth of its fields. */
+static void set_headline(batch_item_t *it) {
+    const char *p = it->fields;
+    for (int k = 0; k < 3 && p; k++)
+        p = strchr(p, '\t') ? strchr(p, '\t') + 1 : NULL;
+    it->headline = p ? strtod(p, NULL) : NAN;
+}
+
+void batch_key(batch_item_t *it) {
+    const sb_job_opts_t *o = &it->o;
+    const sb_measured_opts_t *m = &o->measured;
+    snprintf(it->key, sizeof it->key,
+             "source=%s param=%s form=%s weighted=%d zero_fill=%d res=%zu terms=%zu metric_res=%zu max_error=%.17g "
+             "theta_max=%.17g method=%d seed=%llu channels=%u half=%d previews=%d format=%s interp=%d "
+             "neighbours=%zu radius=%.17g white=%d",
+             it->source, o->param ? o->param : "auto", o->form ? o->form : "-", o->weighted, o->zero_fill, o->res,
+             o->terms, o->metric_res, o->max_error, o->theta_max_deg, (int)o->method, o->seed, o->channels, o->half,
+             o->previews, m->format ? m->format : "auto", (int)m->interp, m->neighbours, m->radius, (int)m->white);
+}
+
+int batch_done(const char *dir, batch_item_t *it) {
+    char path[4096], line[2048];
+    snprintf(path, sizeof path, "%s/%s/sepbrdf-set-factor.txt", dir, it->name);
+    if (access(path, F_OK) != 0) return 0;
+    snprintf(path, sizeof path, "%s/%s/" BATCH_FILE, dir, it->name);
+    FILE *fp = fopen(path, "r");
+    if (!fp) return 0;
+    int same = fgets(line, sizeof line, fp) && strcspn(line, "\n") == strlen(it->key) &&
+               strncmp(line, it->key, strlen(it->key)) == 0 && fgets(it->fields, sizeof it->fields, fp) &&
+               strchr(it->fields, '\n');
+    fclose(fp);
+    if (same) {
+        *strchr(it->fields, '\n') = 0;
+        set_headline(it);
+        it->ok = 1;
+    }
+    return same;
+}
+
+/* Sum of the sizes of the EXR textures in folder `dir`. */
+static long long texture_bytes(const char *dir) {
+    long long sum = 0;
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    struct stat st;
+    while (d && (e = readdir(d)) != NULL) {
+        size_t n = strlen(e->d_name);
+        if ((e->d_name[0] == 'g' || e->d_name[0] == 'h') && n > 4 && strcmp(e->d_name + n - 4, ".exr") == 0 &&
+            fstatat(dirfd(d), e->d_name, &st, 0) == 0)
+            sum += st.st_size;
+    }
+    if (d) closedir(d);
+    return sum;
+}
+
+/* The results of job into it->fields (BATCH_FIELDS). */
+static void job_fields(batch_item_t *it, const sb_job_t *job, long long bytes) {
+    const sb_factors_t *f = sb_job_factors(job);
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    size_t J = sb_factors_terms(f);
+    sb_job_timings_t t;
+    sb_job_timings(job, &t);
+    snprintf(it->fields, sizeof it->fields, "%s\t%s\t%zu\t%.9g\t%.9g\t%.9g\t%.9g\t%.9g\t%lld\t%.3f",
+             sb_param_spec(sb_job_param(job)), sb_form_name(sb_job_form(job)), J, sb_job_headline(job, J),
+             sb_job_comparable(job, J), e->rel_rms[sb_err_at(J - 1, SB_CH_ALL)],
+             e->max_abs[sb_err_at(J - 1, SB_CH_ALL)], sb_job_negative(job, J), bytes, t.total_s);
+}
+
+/* Write the set of job plus batch.txt into DIR/NAME; 0 or -1 (it->msg). */
+static int publish(sb_context_t *ctx, const char *dir, batch_item_t *it, sb_job_t *job) {
+    char path[4096], tmp[4200];
+    int rc = EXIT_OK;
+    snprintf(path, sizeof path, "%s/%s", dir, it->name);
+    sb_outset_t *set = cli_outset_begin(ctx, "factor", path, &rc);
+    if (!set) {
+        snprintf(it->msg, sizeof it->msg, "%.400s: cannot begin the output set", path);
+        return -1;
+    }
+    sb_result_t r = sb_job_write_set(ctx, job, set);
+    FILE *fp = NULL;
+    if (r == SB_OK && cli_set_file(set, BATCH_FILE, tmp, sizeof tmp) == 0 && (fp = fopen(tmp, "w")) != NULL) {
+        job_fields(it, job, texture_bytes(sb_outset_dir(set)));
+        fprintf(fp, "%s\n%s\n", it->key, it->fields);
+        if (fclose(fp) == 0 && cli_outset_end(ctx, "factor", set, 1) == EXIT_OK) return 0;
+        set = NULL;
+    }
+    if (r != SB_OK) cli_job_message(it->msg, sizeof it->msg, ctx, r, it->o.terms);
+    else snprintf(it->msg, sizeof it->msg, "%.400s: cannot write the output set", path);
+    cli_outset_end(ctx, "factor", set, 0);
+    return -1;
+}
+
+/* In the child: factor item `it` and write "ok\tFIELDS" or "error\tMSG"
+ * to fd; the exit code. */
+static int work(const char *dir, batch_item_t *it, int fd) {
+    sb_context_t *ctx = NULL;
+    sb_job_t *job = NULL;
+    int rc = EXIT_IO;
+    if (sb_context_create(&ctx) != SB_OK) {
+        snprintf(it->msg, sizeof it->msg, "out of memory");
+    } else {
+        sb_job_opts_t o = it->o;
+        o.source = it->source;
+        sb_result_t r = sb_job_run(ctx, &o, &job);
+        if (r != SB_OK) {
+            cli_job_message(it->msg, sizeof it->msg, ctx, r, o.terms);
+            rc = cli_exit_code(r);
+        } else if (publish(ctx, dir, it, job) == 0) {
+            rc = EXIT_OK;
+        }
+    }
+    char line[1024];
+    int n = snprintf(line, sizeof line, "%s\t%s", rc == EXIT_OK ? "ok" : "error", rc == EXIT_OK ? it->fields : it->msg);
+    if (n > 0 && write(fd, line, (size_t)n < sizeof line ? (size_t)n : sizeof line - 1) < 0) rc = EXIT_IO;
+    sb_job_destroy(job);
+    sb_context_destroy(ctx);
+    return rc;
+}
+
+/* Read the child's line from fd into it. */
+static void collect(batch_item_t *it, int fd, int status) {
+    char line[1024];
+    ssize_t n, got = 0;
+    while (got < (ssize_t)sizeof line - 1 && (n = read(fd, line + got, sizeof line - 1 - (size_t)got)) > 0)
+        got += n;
+    line[got > 0 ? got : 0] = 0;
+    close(fd);
+    if (strncmp(line, "ok\t", 3) == 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+        snprintf(it->fields, sizeof it->fields, "%.511s", line + 3);
+        set_headline(it);
+        it->ok = 1;
+    } else if (strncmp(line, "error\t", 6) == 0) {
+        snprintf(it->msg, sizeof it->msg, "%.511s", line + 6);
+    } else if (WIFSIGNALED(status)) {
+        snprintf(it->msg, sizeof it->msg, "its process was killed by signal %d", WTERMSIG(status));
+    } else {
+        snprintf(it->msg, sizeof it->msg, "its process ended without a result");
+    }
+}
+
+/* Start the child of item it; its pid (-1: failed, it->msg set). */
+static pid_t spawn(const char *dir, batch_item_t *it, int *fd) {
+    int p[2];
+    if (pipe(p) != 0) {
+        snprintf(it->msg, sizeof it->msg, "cannot start a process: %s", strerror(errno));
+        return -1;
+    }
+    fflush(stdout);
+    fflush(stderr);
+    pid_t pid = fork();
+    if (pid == 0) {
+        close(p[0]);
+        g_verbosity = g_verbosity > 0 ? 0 : g_verbosity; /* the parent reports */
+        _exit(work(dir, it, p[1]));
+    }
+    close(p[1]);
+    if (pid < 0) {
+        close(p[0]);
+        snprintf(it->msg, sizeof it->msg, "cannot start a process: %s", strerror(errno));
+        return -1;
+    }
+    *fd = p[0];
+    return pid;
+}
+
+void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs) {
+    pid_t pid[64];
+    int fd[64];
+    size_t idx[64], running = 0, next = 0, done = 0, todo = 0, failed = 0;
+    if (jobs > 64) jobs = 64;
+    for (size_t i = 0; i < n; i++)
+        todo += !items[i].skipped;
+    while (done < todo) {
+        while (running < jobs && next < n) {
+            batch_item_t *it = &items[next++];
+            if (it->skipped) continue;
+            if ((pid[running] = spawn(dir, it, &fd[running])) < 0) {
+                done++, failed++;
+                continue;
+            }
+            idx[running++] = (size_t)(it - items);
+        }
+        if (!running) break;
+        int status;
+        pid_t w = waitpid(-1, &status, 0);
+        if (w < 0) {
+            if (errno == EINTR) continue;
+            break;
+        }
+        for (size_t k = 0; k < running; k++) {
+            if (pid[k] != w) continue;
+            collect(&items[idx[k]], fd[k], status);
+            failed += !items[idx[k]].ok;
+            pid[k] = pid[running - 1], fd[k] = fd[running - 1], idx[k] = idx[running - 1];
+            running--, done++;
+            break;
+        }
+        char label[64];
+        snprintf(label, sizeof label, "batch %zu/%zu%s", done, todo, failed ? " (failed)" : "");
+        cli_progress(label, (double)done / (double)todo);
+    }
+    cli_progress_done();
+}
+
+/* The tab-separated fields of it (BATCH_FIELDS) into f[10]; it->fields is
+ * copied into buf. */
+static void split(const batch_item_t *it, char *buf, size_t size, const char *f[10]) {
+    snprintf(buf, size, "%s", it->ok ? it->fields : "");
+    char *p = buf;
+    for (int k = 0; k < 10; k++) {
+        f[k] = p;
+        p += strcspn(p, "\t");
+        if (*p) *p++ = 0;
+    }
+}
+
+/* A CSV field: quoted when it holds a comma, quote or newline. */
+static void csv_field(FILE *fp, const char *s, const char *sep) {
+    if (strpbrk(s, ",\"\n")) {
+        fputc('"', fp);
+        for (; *s; s++)
+            fprintf(fp, *s == '"' ? "\"\"" : "%c", *s);
+        fputc('"', fp);
+    } else {
+        fputs(s, fp);
+    }
+    fputs(sep, fp);
+}
+
+static int write_csv(const char *path, const batch_item_t *items, size_t n) {
+    char tmp[4200], buf[512];
+    const char *f[10];
+    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
+    if (!fp) return errno ? errno : EIO;
+    fprintf(fp, "name,source," BATCH_FIELDS ",status,message\n");
+    for (size_t i = 0; i < n; i++) {
+        split(&items[i], buf, sizeof buf, f);
+        csv_field(fp, items[i].name, ",");
+        csv_field(fp, items[i].source, ",");
+        for (int k = 0; k < 10; k++)
+            csv_field(fp, f[k], ",");
+        csv_field(fp, items[i].ok ? "ok" : "error", ",");
+        csv_field(fp, items[i].ok ? "" : items[i].msg, "\n");
+    }
+    return cli_commit(fp, tmp, path, 1);
+}
+
+static int write_json(const char *path, const batch_item_t *items, size_t n) {
+    static const char *const names[10] = {"param",   "form",     "terms", "headline", "comparable",
+                                          "rel_rms", "max_abs",  "negative", "bytes", "time_s"};
+    char tmp[4200], buf[512];
+    const char *f[10];
+    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
+    if (!fp) return errno ? errno : EIO;
+    json_t j = {fp, 0, {0}};
+    json_begin_object(&j, NULL);
+    json_begin_array(&j, "materials");
+    for (size_t i = 0; i < n; i++) {
+        split(&items[i], buf, sizeof buf, f);
+        json_begin_object(&j, NULL);
+        json_string(&j, "name", items[i].name);
+        json_string(&j, "source", items[i].source);
+        json_bool(&j, "ok", items[i].ok);
+        if (items[i].ok) {
+            json_string(&j, names[0], f[0]);
+            json_string(&j, names[1], f[1]);
+            for (int k = 2; k < 10; k++)
+                json_number(&j, names[k], strtod(f[k], NULL));
+        } else {
+            json_string(&j, "message", items[i].msg);
+        }
+        json_end_object(&j);
+    }
+    json_end_array(&j);
+    json_end_object(&j);
+    fputc('\n', fp);
+    return cli_commit(fp, tmp, path, 1);
+}
+
+int batch_summary(const char *dir, const batch_item_t *items, size_t n) {
+    static const char *const files[2] = {"summary.csv", "summary.json"};
+    for (int k = 0; k < 2; k++) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/%s", dir, files[k]);
+        int e = k == 0 ? write_csv(path, items, n) : write_json(path, items, n);
+        if (e) {
+            cli_error("batch", "%s: cannot write: %s", path, sb_io_why(e));
+            return EXIT_IO;
+        }
+    }
+    return EXIT_OK;
+}
+
+static int by_headline(const void *a, const void *b) {
+    const batch_item_t *x = *(const batch_item_t *const *)a, *y = *(const batch_item_t *const *)b;
+    if (x->ok != y->ok) return y->ok - x->ok;
+    double hx = isnan(x->headline) ? INFINITY : x->headline, hy = isnan(y->headline) ? INFINITY : y->headline;
+    return (hx > hy) - (hx < hy);
+}
+
+void batch_table(const batch_item_t *items, size_t n) {
+    const batch_item_t **order = malloc(n * sizeof *order);
+    if (!order) return;
+    for (size_t i = 0; i < n; i++)
+        order[i] = &items[i];
+    qsort(order, n, sizeof *order, by_headline);
+    printf("%4s  %-32s %-20s %4s  %12s  %12s  %10s  %8s\n", "rank", "material", "param", "J", "headline", "rel_rms",
+           "bytes", "time_s");
+    for (size_t i = 0; i < n; i++) {
+        char buf[512];
+        const char *f[10];
+        split(order[i], buf, sizeof buf, f);
+        if (order[i]->ok)
+            printf("%4zu  %-32s %-20s %4s  %12.4e  %12.4e  %10s  %8s%s\n", i + 1, order[i]->name, f[0], f[2],
+                   strtod(f[3], NULL), strtod(f[5], NULL), f[8], f[9], order[i]->skipped ? "  (reused)" : "");
+        else
+            printf("%4s  %-32s failed: %s\n", "-", order[i]->name, order[i]->msg);
+    }
+    free(order);
+}

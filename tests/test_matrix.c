@@ -1,0 +1,227 @@
+/* The matrix builder's storage: a structured matrix (the distinct values
+ * of an isotropic source on the io grid) against the dense build of the
+ * same source, cell by cell, through every accessor, and the factor plan
+ * and error routines on both. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+static sb_source_t *model(const char *spec) {
+    sb_source_t *s = NULL;
+    CHECKF(sb_model_create(NULL, spec, &s) == SB_OK, "model %s", spec);
+    return s;
+}
+
+static sb_param_t *param(sb_param_kind_t kind, size_t R) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = R;
+    CHECK(sb_param_create(NULL, kind, &o, &p) == SB_OK);
+    return p;
+}
+
+static void build(const sb_source_t *s, const sb_param_t *p, sb_form_t form, int structured, sb_matrix_t *m) {
+    sb_matrix_opts_t mo = {0};
+    mo.form = form;
+    mo.structured = structured;
+    CHECK(sb_matrix_build(NULL, s, p, &mo, m) == SB_OK);
+}
+
+/* Every cell, column and the dense copy equal the dense build bit for bit
+ * (the same table values, only stored once). */
+SB_TEST(structured_cells) {
+    const char *specs[] = {"microfacet:base=gold,roughness=0.4", "lambert:albedo=0.5", "blinn-phong:n=30"};
+    for (size_t t = 0; t < 3; t++) {
+        sb_source_t *s = model(specs[t]);
+        size_t R = 6 + t;
+        sb_param_t *p = param(SB_PARAM_IO, R);
+        sb_matrix_t d, m, e;
+        build(s, p, t == 1 ? SB_FORM_COS : SB_FORM_COS2, 0, &d);
+        build(s, p, t == 1 ? SB_FORM_COS : SB_FORM_COS2, 1, &m);
+        CHECKF(m.structured == 1 && m.phi_period == R && m.ld == R && !m.mask, "%s: structured %d period %zu", specs[t],
+               m.structured, m.phi_period);
+        CHECK(d.structured == 0 && d.phi_period == R && d.ld == d.rows);
+        CHECK(m.valid_count == d.valid_count && m.rows == d.rows && m.cols == d.cols);
+        CHECK(sb_matrix_expand(NULL, &m, &e) == SB_OK);
+        double *buf = malloc(m.rows * sizeof *buf);
+        size_t bad = 0;
+        for (int c = 0; c < 3; c++) {
+            for (size_t col = 0; col < m.cols; col++) {
+                const double *x = sb_matrix_col(&m, c, col, buf);
+                for (size_t r = 0; r < m.rows; r++) {
+                    double want = d.data[c][r + col * d.ld];
+                    bad += sb_matrix_at(&m, c, r, col) != want || x[r] != want || e.data[c][r + col * e.ld] != want;
+                    bad += sb_matrix_at(&d, c, r, col) != want;
+                }
+            }
+        }
+        CHECKF(bad == 0, "%s: %zu cells differ", specs[t], bad);
+        free(buf);
+        sb_matrix_free(&e);
+        sb_matrix_free(&m);
+        sb_matrix_free(&d);
+        sb_param_destroy(p);
+        sb_source_destroy(s);
+    }
+}
+
+/* Only the distinct values are stored where the structure applies: a
+ * masked or anisotropic matrix is built dense even when asked. */
+SB_TEST(structured_only_where_it_applies) {
+    sb_source_t *s = model("microfacet:base=gold,roughness=0.4");
+    sb_param_t *hd = param(SB_PARAM_HD, 6);
+    sb_matrix_t m;
+    build(s, hd, SB_FORM_F, 1, &m);
+    CHECK(m.structured == 0 && m.ld == m.rows && m.phi_period == 0);
+    sb_matrix_free(&m);
+    sb_param_destroy(hd);
+    sb_source_destroy(s);
+}
+
+/* Y = M Z against the product written out cell by cell. */
+SB_TEST(product) {
+    sb_source_t *s = model("microfacet:base=copper,roughness=0.3");
+    for (size_t R = 3; R <= 9; R += 3) {
+        sb_param_t *p = param(SB_PARAM_IO, R);
+        sb_matrix_t m, d;
+        build(s, p, SB_FORM_F, 1, &m);
+        build(s, p, SB_FORM_F, 0, &d);
+        size_t N = m.cols, k = 5, ldz = N + 3, ldy = N + 1;
+        double *z = calloc(ldz * k, sizeof *z), *y = calloc(ldy * k, sizeof *y), *yd = calloc(ldy * k, sizeof *yd);
+        for (size_t i = 0; i < ldz * k; i++)
+            z[i] = sin(0.37 * (double)i + 1.0);
+        for (int c = 0; c < 3; c++) {
+            CHECK(sb_matrix_mul(NULL, &m, c, k, z, ldz, y, ldy) == SB_OK);
+            CHECK(sb_matrix_mul(NULL, &d, c, k, z, ldz, yd, ldy) == SB_OK);
+            double worst = 0, scale = 0;
+            for (size_t j = 0; j < k; j++)
+                for (size_t r = 0; r < N; r++) {
+                    double want = 0;
+                    for (size_t col = 0; col < N; col++)
+                        want += d.data[c][r + col * d.ld] * z[col + j * ldz];
+                    worst = fmax(worst, fmax(fabs(y[r + j * ldy] - want), fabs(yd[r + j * ldy] - want)));
+                    scale = fmax(scale, fabs(want));
+                }
+            CHECKF(worst <= 1e-13 * scale, "R %zu ch %d: product off by %g of %g", R, c, worst, scale);
+        }
+        CHECK(sb_matrix_mul(NULL, &m, 0, k, z, N - 1, y, ldy) == SB_ERR_ARG);
+        free(z);
+        free(y);
+        free(yd);
+        sb_matrix_free(&m);
+        sb_matrix_free(&d);
+        sb_param_destroy(p);
+    }
+    sb_source_destroy(s);
+}
+
+static sb_factors_t *factor(const sb_matrix_t *m, const sb_param_t *p, size_t J, sb_method_t method, int weighted) {
+    sb_plan_opts_t po = {0};
+    po.terms = J;
+    po.svd.method = method;
+    po.weighted = weighted;
+    sb_plan_t *plan;
+    sb_factors_t *f = NULL;
+    CHECK(sb_plan_create_for(NULL, m, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, m, p, &f) == SB_OK);
+    sb_plan_destroy(plan);
+    return f;
+}
+
+/* The plan gives the same factors and errors on both storages: the
+ * circulant method reads the stored values, the dense methods an expanded
+ * copy; the stored-precision errors (sb_factors_errors_near) agree too. */
+SB_TEST(plan_on_structured) {
+    sb_source_t *s = model("microfacet:base=gold,roughness=0.5");
+    sb_param_t *p = param(SB_PARAM_IO, 8);
+    sb_matrix_t m, d;
+    build(s, p, SB_FORM_F, 1, &m);
+    build(s, p, SB_FORM_F, 0, &d);
+    sb_method_t methods[] = {SB_METHOD_AUTO, SB_METHOD_FULL};
+    for (int w = 0; w < 2; w++)
+        for (int k = 0; k < 2; k++) {
+            size_t J = 6;
+            sb_factors_t *fm = factor(&m, p, J, methods[k], w), *fd = factor(&d, p, J, methods[k], w);
+            CHECK(strcmp(sb_factors_get_meta(fm, "method"), sb_factors_get_meta(fd, "method")) == 0);
+            const sb_factor_errors_t *em = sb_factors_errors(fm), *ed = sb_factors_errors(fd);
+            for (size_t i = 0; i < J * 4; i++) {
+                CHECKF(fabs(em->rel_rms[i] - ed->rel_rms[i]) <= 1e-12, "w %d method %d: rel_rms %zu %.17g vs %.17g", w,
+                       k, i, em->rel_rms[i], ed->rel_rms[i]);
+                CHECKF(fabs(em->max_abs[i] - ed->max_abs[i]) <= 1e-12 * (1 + ed->max_abs[i]), "max_abs %zu", i);
+            }
+            sb_exr_opts_t eo = {1};
+            sb_factors_t *q = NULL;
+            CHECK(sb_factors_quantize(NULL, fm, &eo, &q, NULL) == SB_OK);
+            double *rm = malloc(J * 4 * sizeof *rm), *rd = malloc(J * 4 * sizeof *rd), *mx = malloc(J * 4 * sizeof *mx);
+            CHECK(sb_factors_errors_near(NULL, fm, q, &m, w ? p : NULL, rm) == SB_OK);
+            CHECK(sb_factors_errors_against(NULL, q, &d, w ? p : NULL, rd, mx) == SB_OK);
+            for (size_t i = 0; i < J * 4; i++)
+                CHECKF(fabs(rm[i] - rd[i]) <= 1e-9 * rd[i] + 1e-13, "stored %zu: %.17g vs explicit %.17g", i, rm[i],
+                       rd[i]);
+            CHECK(sb_factors_errors_against(NULL, q, &m, w ? p : NULL, rm, mx) == SB_OK);
+            for (size_t i = 0; i < J * 4; i++)
+                CHECKF(fabs(rm[i] - rd[i]) <= 1e-12 * rd[i] + 1e-15, "explicit %zu: %.17g vs %.17g", i, rm[i], rd[i]);
+            free(rm);
+            free(rd);
+            free(mx);
+            sb_factors_destroy(q);
+            sb_factors_destroy(fm);
+            sb_factors_destroy(fd);
+        }
+    sb_matrix_free(&m);
+    sb_matrix_free(&d);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* Proportional channels: the same answer from the stored values. */
+SB_TEST(channels_on_structured) {
+    sb_source_t *s = model("lambert:albedo=0.2/0.4/0.8");
+    sb_param_t *p = param(SB_PARAM_IO, 7);
+    sb_matrix_t m, d;
+    build(s, p, SB_FORM_COS2, 1, &m);
+    build(s, p, SB_FORM_COS2, 0, &d);
+    sb_channels_t a, b;
+    CHECK(sb_channels_proportional(NULL, &m, 0, &a) == SB_OK);
+    CHECK(sb_channels_proportional(NULL, &d, 0, &b) == SB_OK);
+    CHECK(a.proportional && b.proportional && a.base == b.base);
+    for (int c = 0; c < 3; c++) {
+        CHECKF(fabs(a.norm[c] - b.norm[c]) <= 1e-13 * b.norm[c], "norm %d: %.17g vs %.17g", c, a.norm[c], b.norm[c]);
+        CHECK(fabs(a.scale[c] - b.scale[c]) <= 1e-13);
+    }
+    sb_matrix_free(&m);
+    sb_matrix_free(&d);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* The memory check counts what is stored: a limit below the dense size
+ * but above the distinct values lets the structured build through. */
+SB_TEST(memory_follows_storage) {
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_source_t *s = model("lambert");
+    sb_param_t *p = param(SB_PARAM_IO, 32);
+    sb_set_memory_limit((size_t)4 << 20); /* dense: 24 MiB + 1 MiB mask; distinct values: 768 KiB */
+    sb_matrix_t m;
+    sb_matrix_opts_t mo = {0};
+    CHECK(sb_matrix_build(ctx, s, p, &mo, &m) == SB_ERR_OVERFLOW);
+    mo.structured = 1;
+    CHECK(sb_matrix_build(ctx, s, p, &mo, &m) == SB_OK && m.structured);
+    sb_plan_t *plan = NULL;
+    CHECK(sb_plan_create_for(ctx, &m, NULL, &plan) == SB_OK);
+    sb_factors_t *f = NULL;
+    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    CHECK(strcmp(sb_factors_get_meta(f, "method"), "circulant") == 0);
+    CHECK(sb_factors_errors(f)->rel_rms[3] < 1e-12); /* Lambert: rank 1 */
+    sb_set_memory_limit(0);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+    sb_context_destroy(ctx);
+}
