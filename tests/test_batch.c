@@ -177,7 +177,7 @@ SB_TEST(interrupted_run_resumes) {
     CHECK(!sb_file_exists(path)); /* it was cut before the end */
     int rc = batch(dir, "cut", "-j 1");
     CHECKF(rc == 0, "rc %d: %s", rc, out);
-    CHECK(strstr(out, "(reused)") != NULL);       /* the first material was not done again */
+    CHECK(strstr(out, "(reused)") != NULL); /* the first material was not done again */
     CHECK(strstr(out, "5 materials, 0 reused") == NULL);
     same_textures(dir, "full", "cut");
     char *a = summary_sans_time(dir, "full"), *b = summary_sans_time(dir, "cut");

@@ -471,14 +471,16 @@ SB_TEST(write_failure_leaves_nothing) {
     CHECKF(r == SB_ERR_NUMERIC, "%s", sb_result_name(r));
     CHECK(strstr(sb_context_last_error(ctx), "h_02.exr") != NULL);
     CHECK(count_entries(dir) == 0);
-    sb_factors_tex(f, SB_SIDE_H, 2, 1)[5] = 1e39; /* beyond float */
-    CHECK(sb_factors_write_exr(ctx, f, dir, &o) == SB_ERR_RANGE);
+    sb_factors_tex(f, SB_SIDE_H, 2, 1)[5] = 1e39; /* beyond float: the BRDF is outside the storage range */
+    CHECK(sb_factors_write_exr(ctx, f, dir, &o) == SB_ERR_NUMERIC);
+    CHECK(strstr(sb_context_last_error(ctx), "h_02.exr") && !strstr(sb_context_last_error(ctx), ".tmp-"));
     CHECK(count_entries(dir) == 0);
     o.half = 1; /* HALF takes it with a scale */
     CHECK(sb_factors_write_exr(ctx, f, dir, &o) == SB_OK);
     CHECK(count_entries(dir) == 6);
-    o.half = 0;
+    /* (still HALF: the content is checked before the folder is touched) */
     CHECK(sb_factors_write_exr(ctx, f, "/nonexistent/sepbrdf/folder", &o) == SB_ERR_IO);
+    o.half = 0;
     CHECK(sb_factors_write_exr(ctx, NULL, dir, &o) == SB_ERR_ARG);
     sb_factors_tex(f, SB_SIDE_H, 2, 1)[5] = 0;
     CHECK(sb_factors_set_meta(f, "sigma", "x") == SB_OK); /* collides with a fixed attribute */

@@ -1098,3 +1098,186 @@ SB_TEST(csv_example) {
     CHECK(s && strstr(sb_source_description(s), "csv:") == sb_source_description(s));
     sb_source_destroy(s);
 }
+
+/* ---- samples and cross-validation ---------------------------------------- */
+
+/* The samples of a table are its rows as read; a model has none.  The
+ * default interpolation is the one of lowest cross-validated error, and on
+ * a smooth BRDF measured on a 5 deg grid a fit beats the nearest sample;
+ * a forced method is kept, its error reported. */
+SB_TEST(samples_and_cv) {
+    sb_gonio_opts_t go = {0};
+    size_t rows = 0;
+    const char *p = write_gonio("microfacet:base=gold,roughness=0.5", &go, &rows);
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(p, NULL, &info);
+    if (!s) return;
+    CHECK(sb_source_sample_count(s) == rows && rows == 18 * 18 * 72);
+    double wi[3], wo[3], f[3], g[3];
+    CHECK(sb_source_sample(s, 5, wi, wo, f) == 1 && sb_source_sample(s, rows, wi, wo, f) == 0);
+    sb_source_eval(s, wi, wo, g); /* at a measured position: the measurement */
+    for (int c = 0; c < 3; c++)
+        CHECK_REL(g[c], f[c], 1e-12);
+    CHECK(sb_measured_source_info(s) && strcmp(sb_measured_source_info(s)->format, "csv") == 0);
+    double best = INFINITY;
+    for (int m = SB_INTERP_NEAREST; m < SB_INTERP_COUNT_; m++) {
+        CHECKF(isfinite(info.interp_cv[m]) && info.interp_cv[m] > 0, "cv[%d] = %g", m, info.interp_cv[m]);
+        best = fmin(best, info.interp_cv[m]);
+    }
+    CHECK(info.interp_cv[info.interp] == best && info.interp != SB_INTERP_NEAREST);
+    CHECK(info.interp_cv[SB_INTERP_NEAREST] > 2 * best && info.cv_held_out == 2000);
+    sb_source_destroy(s);
+    sb_measured_opts_t o = {0};
+    o.interp = SB_INTERP_IDW;
+    if ((s = open_table(p, &o, &info))) {
+        CHECK(info.interp == SB_INTERP_IDW && isfinite(info.interp_cv[SB_INTERP_IDW]));
+        sb_source_destroy(s);
+    }
+    /* a model has no samples: no error against them */
+    sb_source_t *m = model("lambert");
+    CHECK(sb_source_sample_count(m) == 0 && sb_measured_source_info(m) == NULL);
+    sb_sample_errors_t se;
+    CHECK(sb_measured_sample_errors(NULL, m, NULL, NULL, SB_FORM_F, &se) == SB_ERR_ARG);
+    sb_source_destroy(m);
+}
+
+/* MERL samples: every measured cell at its centre, missing cells not. */
+SB_TEST(merl_samples) {
+    const char *p = tmp_path("merl", "idx.binary");
+    write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, index_value, 0);
+    sb_source_t *s = open_table(p, NULL, NULL);
+    if (!s) return;
+    CHECK(sb_source_sample_count(s) == NCELLS);
+    double wi[3], wo[3], f[3];
+    CHECK(sb_source_sample(s, 7, wi, wo, f) == 0); /* missing */
+    size_t k = 90 * 180 * 40 + 180 * 20 + 33;      /* theta_h 40, theta_d 20, phi_d 33 */
+    CHECK(sb_source_sample(s, k, wi, wo, f) == 1);
+    CHECK_REL(f[1], (double)(k + 1) * scale[1], 1e-12);
+    size_t idx;
+    CHECK(sb_merl_index(wi, wo, &idx) && idx == k);
+    sb_source_destroy(s);
+}
+
+/* ---- gamut -------------------------------------------------------------------- */
+
+/* keep leaves the value, clip zeroes the negatives, desaturate keeps the
+ * luminance and the hue (the direction from gray) and ends on the gamut
+ * boundary; inside the gamut nothing changes. */
+SB_TEST(gamut_map) {
+    double in[3] = {-0.1, 0.5, 0.2}, v[3];
+    memcpy(v, in, sizeof v);
+    CHECK(sb_gamut_map(SB_GAMUT_KEEP, v) == 1 && memcmp(v, in, sizeof v) == 0);
+    CHECK(sb_gamut_map(SB_GAMUT_CLIP, v) == 1 && v[0] == 0 && v[1] == 0.5 && v[2] == 0.2);
+    memcpy(v, in, sizeof v);
+    CHECK(sb_gamut_map(SB_GAMUT_DESATURATE, v) == 1);
+    double y0 = 0.2126 * in[0] + 0.7152 * in[1] + 0.0722 * in[2], y1 = 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+    CHECK_REL(y1, y0, 1e-12);
+    CHECK(fabs(v[0]) < 1e-15 && v[1] >= 0 && v[2] >= 0);
+    CHECK_REL((v[1] - y0) / (in[1] - y0), (v[2] - y0) / (in[2] - y0), 1e-12); /* same hue */
+    double neg_y[3] = {-0.5, 0.01, 0.01};
+    CHECK(sb_gamut_map(SB_GAMUT_DESATURATE, neg_y) == 1 && neg_y[0] == 0 && neg_y[1] == 0 && neg_y[2] == 0);
+    double ok[3] = {0.1, 0.2, 0.3};
+    CHECK(sb_gamut_map(SB_GAMUT_DESATURATE, ok) == 0 && ok[0] == 0.1 && ok[2] == 0.3);
+    sb_gamut_t g;
+    CHECK(sb_gamut_parse("desaturate", &g) == SB_OK && g == SB_GAMUT_DESATURATE);
+    CHECK(sb_gamut_parse("purple", &g) == SB_ERR_UNKNOWN && strcmp(sb_gamut_name(SB_GAMUT_CLIP), "clip") == 0);
+}
+
+/* The shared acrylic: 1364 of 1439 rows out of gamut whatever is done with
+ * them; clip and desaturate leave no negative sample, desaturate keeps
+ * each sample's luminance. */
+SB_TEST(gamut_cornell) {
+    const char *p = SB_MEASURED_DIR "/cornell_acryl_blue.brdf";
+    sb_measured_opts_t o = {0};
+    sb_measured_info_t info;
+    sb_source_t *keep = open_table(p, &o, &info);
+    CHECK(info.out_of_gamut == 1364 && info.gamut == SB_GAMUT_KEEP && info.value_min[1] < 0);
+    for (int mode = SB_GAMUT_CLIP; mode <= SB_GAMUT_DESATURATE; mode++) {
+        o.gamut = (sb_gamut_t)mode;
+        sb_source_t *s = open_table(p, &o, &info);
+        if (!s || !keep) continue;
+        CHECK(info.out_of_gamut == 1364 && info.gamut == (sb_gamut_t)mode);
+        size_t neg = 0, lum = 0;
+        for (size_t k = 0; k < sb_source_sample_count(s); k++) {
+            double wi[3], wo[3], a[3], b[3];
+            sb_source_sample(s, k, wi, wo, a);
+            sb_source_sample(keep, k, wi, wo, b);
+            neg += a[0] < 0 || a[1] < 0 || a[2] < 0;
+            double ya = 0.2126 * a[0] + 0.7152 * a[1] + 0.0722 * a[2],
+                   yb = 0.2126 * b[0] + 0.7152 * b[1] + 0.0722 * b[2];
+            lum += yb > 0 && fabs(ya - yb) > 1e-12 * fabs(yb);
+        }
+        CHECK(neg == 0);
+        if (mode == SB_GAMUT_DESATURATE) CHECKF(lum == 0, "%zu samples changed luminance", lum);
+        sb_source_destroy(s);
+    }
+    sb_source_destroy(keep);
+}
+
+/* ---- unmeasured regions -------------------------------------------------------- */
+
+/* Light or view along the normal: every azimuth is known (no black
+ * pinholes), within the range of the measured values; exactly at the pole
+ * the value does not depend on the azimuth. */
+SB_TEST(pole_no_pinholes) {
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(SB_MEASURED_DIR "/cornell_acryl_blue.brdf", NULL, &info);
+    if (!s) return;
+    size_t missing = 0, out = 0;
+    double first[3] = {0, 0, 0};
+    for (int a = 1; a <= 7; a++)
+        for (int b = 0; b < 36; b++) {
+            double t = a * 10 * SB_PI / 180, p = b * 10 * SB_PI / 180, rgb[3];
+            double l[3] = {sin(t) * cos(p), sin(t) * sin(p), cos(t)}, n[3] = {0, 0, 1};
+            for (int swap = 0; swap < 2; swap++) {
+                if (!sb_source_eval(s, swap ? n : l, swap ? l : n, rgb)) {
+                    missing++;
+                    continue;
+                }
+                for (int c = 0; c < 3; c++)
+                    out += rgb[c] < info.value_min[c] - 1e-12 || rgb[c] > info.value_max[c] + 1e-12;
+            }
+        }
+    CHECKF(missing == 0 && out == 0, "%zu missing, %zu out of range", missing, out);
+    /* at an elevation not measured with the view along the normal: the
+     * azimuthal mean, the same for every azimuth */
+    for (int b = 0; b < 36; b++) {
+        double t = 35 * SB_PI / 180, p = b * 10 * SB_PI / 180, rgb[3];
+        double l[3] = {sin(t) * cos(p), sin(t) * sin(p), cos(t)}, n[3] = {0, 0, 1};
+        CHECK(sb_source_eval(s, l, n, rgb) == 1);
+        if (b == 0) memcpy(first, rgb, sizeof first);
+        for (int c = 0; c < 3; c++)
+            CHECK_REL(rgb[c], first[c], 1e-9);
+    }
+    sb_source_destroy(s);
+}
+
+/* The coverage map sums to the coverage; a table measured everywhere is
+ * known in every band, the 3M tape (four light elevations) is not. */
+SB_TEST(coverage_map) {
+    sb_param_opts_t po = {0};
+    po.res = 12;
+    sb_param_t *p = NULL;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK);
+    sb_gonio_opts_t go = {0};
+    const char *files[2] = {write_gonio("lambert", &go, NULL), SB_MEASURED_DIR "/alta_retro-3M-jaune.dat"};
+    for (int f = 0; f < 2 && p; f++) {
+        sb_source_t *s = open_table(files[f], NULL, NULL);
+        if (!s) continue;
+        size_t known[9], cells[9], k = 0, n = 0, tk = 0, tn = 0, full = 0;
+        CHECK(sb_measured_coverage_map(NULL, s, p, 3, known, cells) == SB_OK);
+        CHECK(sb_measured_coverage(NULL, s, p, &tk, &tn) == SB_OK);
+        for (int b = 0; b < 9; b++) {
+            k += known[b];
+            n += cells[b];
+            full += known[b] == cells[b];
+            CHECK(cells[b] == 48 * 48); /* (4 elevations x 12 azimuths) per direction */
+        }
+        CHECK(k == tk && n == tn && n == 144 * 144);
+        CHECK(f == 0 ? full == 9 : full < 9);
+        sb_source_destroy(s);
+    }
+    size_t a, b;
+    CHECK(sb_measured_coverage_map(NULL, NULL, p, 3, &a, &b) == SB_ERR_ARG);
+    sb_param_destroy(p);
+}

@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 
 #include "harness.h"
+#include "sepbrdf/sepbrdf.h"
 
 static char out[1 << 16];
 
@@ -292,9 +293,9 @@ SB_TEST(table_options_everywhere) {
     CHECKF(strstr(out, "\"idw\"") != NULL, "%s", out);
     CHECK(cli("study %s --res 8 --terms 1,2 --param io --interp idw -q -o %s", t, s) == 0);
     /* bad values: exit 1, the option named, nothing written */
-    const char *bad[] = {"--interp cubic", "--neighbours 0", "--radius -1", "--white d50"};
-    const char *name[] = {"--interp", "--neighbours", "--radius", "--white"};
-    for (size_t k = 0; k < 4; k++) {
+    const char *bad[] = {"--interp cubic", "--neighbours 0", "--radius -1", "--white d50", "--gamut purple"};
+    const char *name[] = {"--interp", "--neighbours", "--radius", "--white", "--gamut"};
+    for (size_t k = 0; k < 5; k++) {
         char o2[4300];
         snprintf(o2, sizeof o2, "%s/bad%zu", dir, k);
         CHECKF(cli("factor %s --res 8 %s -q -o %s", t, bad[k], o2) == 1, "%s: %s", bad[k], out);
@@ -303,4 +304,182 @@ SB_TEST(table_options_everywhere) {
         CHECKF(cli("render %s --res 8 %s -q -o %s", t, bad[k], o2) == 1, "render %s: %s", bad[k], out);
         CHECK(dir_is_empty_or_missing(o2));
     }
+}
+
+/* report.json's errors at the measured samples agree with an independent
+ * evaluation: the CSV rows read here, the stored textures read back, the
+ * reconstruction through sb_factors_eval, the relative L2 of f cos cos
+ * written out. */
+SB_TEST(sample_errors_reported) {
+    const char *dir = sb_tmpdir("mcli");
+    char t[4200], o[4200], p[4300];
+    snprintf(t, sizeof t, "%s/t.csv", dir);
+    snprintf(o, sizeof o, "%s/o", dir);
+    CHECK(cli("sample microfacet:base=gold,roughness=0.5 --gonio 9,1,9,24 -q -o %s", t) == 0);
+    int rc = cli("factor %s --param iso --form cos2 --res 8 -J 3 -q -o %s", t, o);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(p, sizeof p, "%s/report.json", o);
+    FILE *fp = fopen(p, "r");
+    static char rep[1 << 20];
+    size_t n = fp ? fread(rep, 1, sizeof rep - 1, fp) : 0;
+    rep[n] = 0;
+    if (fp) fclose(fp);
+    const char *a = strstr(rep, "\"sample_rel_l2\": [");
+    CHECKF(a != NULL, "no sample_rel_l2 in %s", p);
+    CHECK(strstr(rep, "\"format\": \"csv\"") && strstr(rep, "\"interp_cv\": {"));
+    if (!a) return;
+    double reported[3];
+    a += strlen("\"sample_rel_l2\": [");
+    for (int k = 0; k < 3; k++)
+        reported[k] = strtod(a, (char **)&a), a += strspn(a, ", \n");
+    sb_factors_t *f = NULL;
+    sb_param_t *param = NULL;
+    sb_param_kind_t kind;
+    sb_param_opts_t po;
+    sb_form_t form;
+    CHECK(sb_factors_read_exr(NULL, o, &f) == SB_OK);
+    if (!f) return;
+    CHECK(sb_param_parse_spec(NULL, sb_factors_get_meta(f, "param"), &kind, &po) == SB_OK);
+    CHECK(sb_param_create(NULL, kind, &po, &param) == SB_OK);
+    CHECK(sb_form_parse(sb_factors_get_meta(f, "form"), &form) == SB_OK && form == SB_FORM_COS2);
+    double num[3] = {0, 0, 0}, den = 0;
+    size_t rows = 0;
+    char line[1024];
+    fp = fopen(t, "r");
+    while (fp && fgets(line, sizeof line, fp)) {
+        double ti, pi_, to, po_, v[3], wi[3], wo[3];
+        if (sscanf(line, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &ti, &pi_, &to, &po_, &v[0], &v[1], &v[2]) != 7) continue;
+        ti *= SB_PI / 180, pi_ *= SB_PI / 180, to *= SB_PI / 180, po_ *= SB_PI / 180;
+        wi[0] = sin(ti) * cos(pi_), wi[1] = sin(ti) * sin(pi_), wi[2] = cos(ti);
+        wo[0] = sin(to) * cos(po_), wo[1] = sin(to) * sin(po_), wo[2] = cos(to);
+        double w2 = wi[2] * wi[2] * wo[2] * wo[2];
+        for (int j = 0; j < 3; j++) {
+            double r[3];
+            sb_factors_eval(f, param, form, (size_t)j + 1, wi, wo, r);
+            for (int c = 0; c < 3; c++)
+                num[j] += (r[c] - v[c]) * (r[c] - v[c]) * w2;
+        }
+        for (int c = 0; c < 3; c++)
+            den += v[c] * v[c] * w2;
+        rows++;
+    }
+    if (fp) fclose(fp);
+    CHECK(rows == 9 * 9 * 24);
+    for (int j = 0; j < 3; j++)
+        CHECKF(fabs(reported[j] - sqrt(num[j] / den)) <= 1e-4 * sqrt(num[j] / den),
+               "J = %d: reported %g, independent %g", j + 1, reported[j], sqrt(num[j] / den));
+    CHECK(reported[2] < reported[0]); /* more terms fit the measurements better here */
+    sb_param_destroy(param);
+    sb_factors_destroy(f);
+}
+
+/* ---- sepbrdf convert ------------------------------------------------------- */
+
+static sb_source_t *open_file(const char *path) {
+    sb_source_t *s = NULL;
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    CHECKF(sb_measured_open(ctx, path, NULL, &s, NULL) == SB_OK, "%s: %s", path, sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+    return s;
+}
+
+/* Samples k of a and b agree: directions to 1e-12, values to 1e-14. */
+static int same_samples(const sb_source_t *a, const sb_source_t *b, size_t ka, size_t kb) {
+    double ai[3], ao[3], af[3], bi[3], bo[3], bf[3];
+    int ha = sb_source_sample(a, ka, ai, ao, af), hb = sb_source_sample(b, kb, bi, bo, bf);
+    if (ha != hb) return 0;
+    for (int c = 0; ha && c < 3; c++)
+        if (fabs(ai[c] - bi[c]) > 1e-12 || fabs(ao[c] - bo[c]) > 1e-12 ||
+            fabs(af[c] - bf[c]) > 1e-14 * fmax(1, fabs(af[c])))
+            return 0;
+    return 1;
+}
+
+/* Cornell -> CSV: the same samples, in order; CSV -> CSV: the same again;
+ * CSV -> MERL -> CSV: the MERL's measured cells, one row each. */
+SB_TEST(convert_csv_roundtrip) {
+    CHECKF(has_measured_dir(), "%s: the shipped measured tables are missing", SB_MEASURED_DIR);
+    const char *dir = sb_tmpdir("conv");
+    char a[4200], b[4200], m[4200];
+    snprintf(a, sizeof a, "%s/a.csv", dir);
+    snprintf(b, sizeof b, "%s/b.dat", dir);
+    snprintf(m, sizeof m, "%s/m.binary", dir);
+    int rc = cli("convert %s/cornell_acryl_blue.brdf -o %s -q", SB_MEASURED_DIR, a);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(cli("convert %s --out %s --format csv -q", a, b) == 0);
+    sb_source_t *orig = open_file(SB_MEASURED_DIR "/cornell_acryl_blue.brdf"), *sa = open_file(a), *sb = open_file(b);
+    if (orig && sa && sb) {
+        size_t n = sb_source_sample_count(orig), bad = 0;
+        CHECK(n == 1439 && sb_source_sample_count(sa) == n && sb_source_sample_count(sb) == n);
+        for (size_t k = 0; k < n; k++)
+            bad += !same_samples(orig, sa, k, k) + !same_samples(sa, sb, k, k);
+        CHECKF(bad == 0, "%zu samples differ", bad);
+        CHECK((sb_source_flags(sa) & (SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL)) ==
+              (SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL));
+    }
+    sb_source_destroy(orig);
+    sb_source_destroy(sa);
+    sb_source_destroy(sb);
+    /* to MERL and back to CSV: every measured cell a row at its centre */
+    CHECK(cli("convert %s -o %s -q", a, m) == 0);
+    CHECK(cli("convert %s -o %s -q", m, a) == 0);
+    sb_source_t *sm = open_file(m), *sc = open_file(a);
+    if (sm && sc) {
+        size_t measured = 0, bad = 0, n = sb_source_sample_count(sm);
+        for (size_t k = 0, row = 0; k < n; k++) {
+            double wi[3], wo[3], f[3];
+            if (!sb_source_sample(sm, k, wi, wo, f)) continue;
+            measured++;
+            bad += !same_samples(sm, sc, k, row++);
+        }
+        CHECK(measured > 100000 && sb_source_sample_count(sc) == measured);
+        CHECKF(bad == 0, "%zu rows differ from their cells", bad);
+    }
+    sb_source_destroy(sm);
+    sb_source_destroy(sc);
+}
+
+/* MERL -> MERL keeps every cell (values to rounding of the channel
+ * scales, missing cells missing); a model writes the default grid. */
+SB_TEST(convert_merl_roundtrip) {
+    const char *dir = sb_tmpdir("conv");
+    char a[4200], b[4200], c[4200];
+    snprintf(a, sizeof a, "%s/a.binary", dir);
+    snprintf(b, sizeof b, "%s/b.merl", dir);
+    snprintf(c, sizeof c, "%s/c.csv", dir);
+    CHECK(cli("convert microfacet:base=gold,roughness=0.3 -o %s -q", a) == 0);
+    CHECK(cli("convert %s -o %s --format merl -q", a, b) == 0);
+    sb_source_t *sa = open_file(a), *sb = open_file(b);
+    if (sa && sb) {
+        size_t bad = 0;
+        for (size_t k = 0; k < sb_source_sample_count(sa); k++)
+            bad += !same_samples(sa, sb, k, k);
+        CHECKF(bad == 0, "%zu cells differ", bad);
+    }
+    sb_source_destroy(sa);
+    sb_source_destroy(sb);
+    CHECK(cli("convert lambert -o %s -q", c) == 0);
+    sb_source_t *sc = open_file(c);
+    CHECK(sc && sb_source_sample_count(sc) == 18 * 18 * 72);
+    sb_source_destroy(sc);
+}
+
+/* Usage errors exit 1, input errors 2; nothing is left behind. */
+SB_TEST(convert_errors) {
+    const char *dir = sb_tmpdir("conv");
+    char p[4200];
+    CHECK(cli("convert lambert") == 1 && strstr(out, "-o FILE"));
+    CHECK(cli("convert -o %s/x.csv", dir) == 1 && strstr(out, "no SOURCE"));
+    CHECK(cli("convert lambert -o %s/x.txt", dir) == 1 && strstr(out, "--format"));
+    CHECK(cli("convert lambert -o %s/x.csv --format exr", dir) == 1 && strstr(out, "'exr'"));
+    CHECK(cli("convert lambert -o %s/no/such/x.csv", dir) == 2);
+    snprintf(p, sizeof p, "%s/bad.csv", dir);
+    FILE *fp = fopen(p, "w");
+    fputs("theta_i,phi_i,theta_o,phi_o,value\n10,0,oops,180,1\n", fp);
+    fclose(fp);
+    CHECK(cli("convert %s -o %s/y.binary", p, dir) == 2 && strstr(out, "bad.csv:2"));
+    snprintf(p, sizeof p, "%s/y.binary", dir);
+    CHECK(!sb_file_exists(p));
+    CHECK(cli("convert --help") == 0 && strstr(out, "--format"));
 }

@@ -446,7 +446,7 @@ static int load_real(const char *path, mat_t *m) {
         char name[64] = {0};
         memcpy(name, b + p + 2, len < 63 ? len : 63);
         p += 2 + len;
-        int nd = b[p] | b[p + 1] << 8;
+        int nd = b[p] | b[p + 1] << 8, dtype = b[p + 2];
         uint64_t off = 0, shape[5] = {0}, cnt = 1;
         for (int q = 7; q >= 0; q--)
             off = off << 8 | b[p + 3 + q];
@@ -456,6 +456,8 @@ static int load_real(const char *path, mat_t *m) {
                 shape[d] = shape[d] << 8 | b[p + q];
             cnt *= shape[d];
         }
+        if (!strcmp(name, "jacobian")) m->jacobian = b[off];
+        if (dtype != 10) continue; /* text and flags */
         float *f = malloc(cnt * 4);
         memcpy(f, b + off, cnt * 4); /* little-endian host */
         if (!strcmp(name, "theta_i"))
@@ -470,8 +472,6 @@ static int load_real(const char *path, mat_t *m) {
             m->ndf = f, f = NULL, m->nh = (int)shape[0], m->nw = (int)shape[1];
         else if (!strcmp(name, "sigma"))
             m->sigma = f, f = NULL;
-        else if (!strcmp(name, "jacobian"))
-            m->jacobian = b[off];
         free(f);
     }
     free(b);
@@ -627,10 +627,12 @@ SB_TEST(hostile) {
     mat_free(&a);
 
     /* fields missing, mistyped, or of other shapes */
-    float th[2] = {0, 1}, ph[1] = {0}, t22[8] = {1, 1, 1, 1, 1, 1, 1, 1}, v[2 * 4] = {1, 1, 1, 1, 1, 1, 1, 1};
+    float th[2] = {0, 1}, ph[1] = {0}, t22[8] = {1, 1, 1, 1, 1, 1, 1, 1}, v[4 * 4];
     float c[2 * 3 * 4];
     for (int k = 0; k < 24; k++)
         c[k] = 1;
+    for (int k = 0; k < 16; k++) /* room for the 3-slice vndf below */
+        v[k] = 1;
     unsigned char jac = 1;
     wfield_t f[7] = {
         {"theta_i", 10, 1, {2}, th},   {"phi_i", 10, 1, {1}, ph},        {"ndf", 10, 2, {2, 2}, t22},

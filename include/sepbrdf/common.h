@@ -3,7 +3,18 @@
  * Every library function returns an sb_result_t (SB_OK == 0).  Details of a
  * failure ("theta count 0, need at least 2") go to the error callback of the
  * context and are kept as its last message; the library never prints, exits
- * or aborts on bad input. */
+ * or aborts on bad input.
+ *
+ * Misuse is answered, never crashed on: a NULL handle or output, a size of
+ * 0 or SIZE_MAX, an index out of range or an unknown enum value gives
+ * SB_ERR_ARG / SB_ERR_RANGE / SB_ERR_OVERFLOW from functions that return a
+ * result code.  Getters that cannot return a code give a safe value
+ * instead, the same everywhere unless their header says otherwise: 0 for
+ * counts, sizes and flags, NaN for values (sigma, measures, texels), ""
+ * for names and descriptions, NULL for other pointers, 0 ("not a pair",
+ * "missing") for int predicates, and "?" for the name of an unknown enum
+ * value; functions returning void then change nothing but zero the
+ * outputs they were given. */
 #ifndef SEPBRDF_COMMON_H
 #define SEPBRDF_COMMON_H
 
@@ -62,7 +73,8 @@ sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...)
 #endif
     ;
 
-/* Overflow-checked size arithmetic: return 0 and set *out, or 1 on overflow. */
+/* Overflow-checked size arithmetic: return 0 and set *out, or 1 on
+ * overflow or a NULL out (then *out is left as it was). */
 int sb_size_mul(size_t a, size_t b, size_t *out);
 int sb_size_mul3(size_t a, size_t b, size_t c, size_t *out);
 int sb_size_add(size_t a, size_t b, size_t *out);

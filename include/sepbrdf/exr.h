@@ -34,7 +34,13 @@ typedef struct sb_exr_opts {
  * written under a temporary name and renamed when complete: every file of
  * the set is first written as "DIR/.NAME.tmp-PID" (NAME from sb_exr_name,
  * PID the writing process), then all are renamed.  The names are part of
- * the interface, so a program interrupted by a signal can remove them. */
+ * the interface, so a program interrupted by a signal can remove them.
+ * Every texture is checked before the first file is created; messages
+ * name DIR/NAME.  Errors: SB_ERR_ARG, SB_ERR_NUMERIC (a non-finite texel,
+ * or values beyond what FLOAT, or HALF with a float scale, can store: the
+ * BRDF is outside the range of textures), SB_ERR_RANGE (a later term too
+ * small to store: J is above the BRDF's numerical rank; sizes beyond EXR's
+ * limits), SB_ERR_IO, SB_ERR_NOMEM. */
 sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir, const sb_exr_opts_t *opts);
 
 /* Read the factors in `dir` written by sb_factors_write_exr (the number of
@@ -54,9 +60,10 @@ typedef struct sb_quantize_info {
  * rounded to float.  Metadata is copied; the errors are f's (those of the
  * double fit): measure the stored precision with
  * sb_factors_errors_against().  *stored is new; info may be NULL.
- * Errors: the writer's (SB_ERR_NUMERIC for a non-finite texel, SB_ERR_RANGE
- * for values the format cannot hold, including a texture whose largest
- * value would be stored as 0), SB_ERR_NOMEM. */
+ * Errors: the writer's (SB_ERR_NUMERIC for a non-finite texel or values
+ * beyond the format's range, including a first term whose largest value
+ * would be stored as 0; SB_ERR_RANGE for a later term stored as 0, J above
+ * the numerical rank), SB_ERR_NOMEM. */
 sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
                                 sb_factors_t **stored, sb_quantize_info_t *info);
 

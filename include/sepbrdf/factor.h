@@ -31,6 +31,9 @@ sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, 
                               size_t h_h, sb_factors_t **out);
 void sb_factors_destroy(sb_factors_t *f);
 
+/* Accessors.  side is SB_SIDE_G or SB_SIDE_H; for a NULL f, another side,
+ * a term >= sb_factors_terms() or a channel >= sb_factors_channels() they
+ * give 0 sizes, NULL textures, NaN sigma, and set_sigma writes nothing. */
 size_t sb_factors_terms(const sb_factors_t *f);
 size_t sb_factors_channels(const sb_factors_t *f);
 void sb_factors_size(const sb_factors_t *f, int side, size_t *width, size_t *height);
@@ -45,6 +48,7 @@ void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t channel, double s
 sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value);
 const char *sb_factors_get_meta(const sb_factors_t *f, const char *key); /* NULL if absent */
 size_t sb_factors_meta_count(const sb_factors_t *f);
+/* i-th pair; NULL key and value for i >= sb_factors_meta_count(). */
 void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value);
 
 /* Errors per number of terms, filled by sb_plan_execute (all zero before).
@@ -87,17 +91,21 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
 sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
                                    const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms);
 
-/* Value of the first `terms` terms at matrix cell (row, col), channel c:
- * sum_j g_j[row] h_j[col]. */
+/* Value of the first `terms` terms (at most all) at matrix cell (row,
+ * col), channel c: sum_j g_j[row] h_j[col].  NaN for a NULL f, or a
+ * channel, row or column out of range. */
 double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);
 
-/* Texture lookup with the GL conventions of param.h (bilinear, wrap). */
+/* Texture lookup with the GL conventions of param.h (bilinear, wrap).
+ * NaN for NULL arguments, side, term or channel out of range, or a
+ * non-finite st. */
 double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t channel,
                          const double st[2]);
 
 /* Reconstructed f_r(wi, wo) from the first `terms` terms through texture
  * lookups exactly as the GLSL snippet does, divided back by the form
- * weight.  Returns 0 (rgb = 0) outside the domain. */
+ * weight.  Returns 0 (rgb = 0) outside the domain, and for NULL arguments
+ * or an unknown form. */
 int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
                     const double wo[3], double rgb[3]);
 
@@ -112,8 +120,12 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
  * distinct values, io / io-area sides tabulated per direction, iso pairs of
  * an isotropic source by rotation class; see metric.c): equal to the
  * pair-by-pair sums up to rounding, and the same bits on any thread count. */
+/* Largest reference grid: R^4 pairs (R^3 for an isotropic source), 3 s
+ * at 128 on the 2-core test machine, minutes at 256. */
+#define SB_METRIC_MAX_RES 128
+
 typedef struct sb_metric_opts {
-    size_t res;  /* reference grid cells per angular axis, default 32 */
+    size_t res;  /* reference grid cells per angular axis, default 32, at most SB_METRIC_MAX_RES */
     int threads; /* 0 = all cores */
 } sb_metric_opts_t;
 
@@ -125,7 +137,9 @@ typedef struct sb_metric {
     size_t pairs, known;  /* reference pairs, pairs the source knows */
 } sb_metric_t;
 
-/* Compute the metric for the first min(J, 256) terms of f. */
+/* Compute the metric for the first min(J, 256) terms of f.  Errors:
+ * SB_ERR_ARG (NULL argument, unknown form, textures not of p's size),
+ * SB_ERR_RANGE (res beyond 2..SB_METRIC_MAX_RES), SB_ERR_NOMEM. */
 sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p,
                               sb_form_t form, const sb_metric_opts_t *opts, sb_metric_t *out);
 
@@ -178,8 +192,8 @@ void sb_plan_destroy(sb_plan_t *plan);
 /* Factor every channel of m.  *out receives new factors (texture sizes from
  * `param`), with sigma, errors and the meta keys "param", "form", "method"
  * (the solver's name, solver.h), "weighted".  A channel missing in m
- * (data[c] == NULL) is not computed.  Errors: SB_ERR_ARG (sizes differ from
- * the plan's or the parameterisation's), SB_ERR_NOMEM, SB_ERR_NUMERIC (a
+ * (data[c] == NULL) is not computed.  Errors: SB_ERR_ARG (NULL argument, sizes
+ * differ from the plan's or the parameterisation's, ld < rows), SB_ERR_NOMEM, SB_ERR_NUMERIC (a
  * solver failed, a non-finite error). */
 sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out);
 

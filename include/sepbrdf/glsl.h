@@ -21,12 +21,21 @@ extern "C" {
 /* The generic part shipped with the tool (data/sepbrdf.glsl). */
 const char *sb_glsl_library(void);
 
-/* Full snippet for one factorisation: #defines (SB_TERMS, form, scales),
- * the parameterisation's sb_coords() and the generic evaluation.  The
- * returned string is malloc'ed; the caller frees it.  NULL on no memory. */
+/* Most terms a snippet declares: bounds its size (32 bytes a term).  A
+ * shader binds at most GL_MAX_ARRAY_TEXTURE_LAYERS of them (at least 256;
+ * 2048 since GL 4.5). */
+#define SB_GLSL_MAX_TERMS (1 << 20)
+
+/* Full snippet for one factorisation: #defines (SB_TERMS, form, scales
+ * (NULL: all 1, else `terms` values)), the parameterisation's sb_coords()
+ * and the generic evaluation.  The returned string is malloc'ed; the
+ * caller frees it.  NULL on no memory, a NULL p, an unknown form or terms
+ * outside 1..SB_GLSL_MAX_TERMS. */
 char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales);
 
-/* Write the snippet to `path` (temporary name "PATH.tmp-PID", then rename). */
+/* Write the snippet to `path` (temporary name "PATH.tmp-PID", then rename).
+ * Errors: SB_ERR_ARG (NULL path or p, unknown form), SB_ERR_RANGE (terms
+ * outside 1..SB_GLSL_MAX_TERMS), SB_ERR_NOMEM, SB_ERR_IO. */
 sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form, size_t terms,
                           const double *scales);
 

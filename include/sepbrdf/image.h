@@ -39,7 +39,9 @@ void sb_image_free(sb_image_t *img); /* accepts NULL and zeroed structs; zeroes 
 
 typedef enum sb_tonemap_op { SB_TONEMAP_CLAMP = 0, SB_TONEMAP_REINHARD, SB_TONEMAP_COUNT_ } sb_tonemap_op_t;
 
-sb_result_t sb_tonemap_parse(const char *name, sb_tonemap_op_t *out); /* "clamp", "reinhard" */
+/* "clamp", "reinhard"; SB_ERR_UNKNOWN otherwise (NULL name included),
+ * SB_ERR_ARG for a NULL out. */
+sb_result_t sb_tonemap_parse(const char *name, sb_tonemap_op_t *out);
 const char *sb_tonemap_name(sb_tonemap_op_t op);
 
 typedef struct sb_tonemap {

@@ -96,6 +96,7 @@ typedef struct sb_job_candidate {
     size_t res;    /* cells per axis of the grid `error` was measured on */
     double error;  /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
     double time_s; /* its screening, and for the kept one its full fit too */
+    sb_result_t result; /* SB_OK, or the code of its failure (message in `why`) */
     char why[160];
 } sb_job_candidate_t;
 

@@ -22,9 +22,12 @@ extern "C" {
 
 typedef enum sb_form { SB_FORM_F = 0, SB_FORM_COS, SB_FORM_COS2, SB_FORM_COUNT_ } sb_form_t;
 
-sb_result_t sb_form_parse(const char *name, sb_form_t *out); /* "f", "cos", "cos2" */
+/* "f", "cos", "cos2"; SB_ERR_UNKNOWN otherwise (NULL name included),
+ * SB_ERR_ARG for a NULL out. */
+sb_result_t sb_form_parse(const char *name, sb_form_t *out);
 const char *sb_form_name(sb_form_t form);
-/* The factor that turns f_r into the stored form for this pair. */
+/* The factor that turns f_r into the stored form for this pair; NaN for
+ * an unknown form or a NULL direction. */
 double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
 
 /* Progress of a long build: `fraction` of the columns done, in [0, 1]. */
@@ -71,7 +74,8 @@ typedef struct sb_matrix {
 } sb_matrix_t;
 
 /* Sample `src` on `param`.  On success *out owns its buffers (sb_matrix_free).
- * Errors: SB_ERR_ARG, SB_ERR_OVERFLOW (size or memory limit), SB_ERR_NOMEM. */
+ * Errors: SB_ERR_ARG (NULL argument, unknown form, channel bits beyond
+ * 1|2|4), SB_ERR_OVERFLOW (size or memory limit), SB_ERR_NOMEM. */
 sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                             const sb_matrix_opts_t *opts, sb_matrix_t *out);
 void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */

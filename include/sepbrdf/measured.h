@@ -45,6 +45,7 @@
 #include <stdio.h>
 
 #include "common.h"
+#include "matrix.h"
 #include "param.h"
 #include "source.h"
 
@@ -63,7 +64,8 @@ const char *sb_measured_format_title(size_t k); /* "MERL .binary", ... */
 const char *sb_measured_format_exts(size_t k);  /* ".binary", space separated */
 
 typedef enum sb_interp {
-    SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: quadratic */
+    SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: the method of lowest
+                            * cross-validated error (sb_measured_info_t) */
     SB_INTERP_NEAREST,     /* MERL: the cell containing the pair (as the MERL
                             * reference code); scattered: the nearest sample */
     SB_INTERP_LINEAR,      /* MERL: trilinear in index space between cell
@@ -80,7 +82,7 @@ typedef enum sb_interp {
 } sb_interp_t;
 
 /* "default", "nearest", "linear", "idw", "quadratic"; parse returns
- * SB_ERR_UNKNOWN. */
+ * SB_ERR_UNKNOWN (NULL name included), SB_ERR_ARG for a NULL out. */
 const char *sb_interp_name(sb_interp_t m);
 sb_result_t sb_interp_parse(const char *name, sb_interp_t *out);
 
@@ -94,6 +96,23 @@ typedef enum sb_white {
     SB_WHITE_COUNT_
 } sb_white_t;
 
+/* What to do with spectral values outside the sRGB gamut (a negative
+ * channel after the CIE conversion: saturated colours sRGB cannot show). */
+typedef enum sb_gamut {
+    SB_GAMUT_KEEP = 0,   /* keep the negative channels (the exact linear map; default) */
+    SB_GAMUT_CLIP,       /* set negative channels to 0 */
+    SB_GAMUT_DESATURATE, /* keep the luminance Y = 0.2126 R + 0.7152 G + 0.0722 B and
+                          * move towards gray (Y, Y, Y) until no channel is negative
+                          * (0 when Y <= 0): hue kept, chroma reduced */
+    SB_GAMUT_COUNT_
+} sb_gamut_t;
+
+/* "keep", "clip", "desaturate"; parse returns SB_ERR_UNKNOWN. */
+const char *sb_gamut_name(sb_gamut_t g);
+sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out);
+/* Map one RGB value by `g`; returns 1 when it was out of gamut. */
+int sb_gamut_map(sb_gamut_t g, double rgb[3]);
+
 /* Options of sb_measured_open (zero = default everywhere).
  *
  * Scattered tables are interpolated in an embedding of the pair (l, v) in
@@ -104,7 +123,8 @@ typedef enum sb_white {
  * Euclidean in that embedding, i.e. roughly angles in radians. */
 typedef struct sb_measured_opts {
     const char *format; /* a registry name; NULL or "auto": detect */
-    sb_interp_t interp; /* SB_INTERP_DEFAULT: nearest (MERL), quadratic (scattered) */
+    sb_interp_t interp; /* SB_INTERP_DEFAULT: nearest (MERL); scattered: chosen by
+                         * cross-validation (see sb_measured_info_t) */
     size_t neighbours;  /* scattered: k nearest samples, 1..64; default 24
                          * (isotropic) or 34 (anisotropic) for the fits,
                          * 4 or 5 for idw */
@@ -114,6 +134,7 @@ typedef struct sb_measured_opts {
                          * median distance from a sample to its nearest
                          * other sample.  < 0: no limit */
     sb_white_t white;   /* spectral tables: SB_WHITE_E (default) */
+    sb_gamut_t gamut;   /* spectral tables: SB_GAMUT_KEEP (default) */
 } sb_measured_opts_t;
 
 /* What a table held.  Value statistics are over the used samples, of the
@@ -136,9 +157,9 @@ typedef struct sb_measured_info {
     size_t negative;                 /* values < 0 in the file: MERL missing cells;
                                       * tables: used rows with a negative value (kept:
                                       * measurement noise averages out) */
-    size_t out_of_gamut;             /* spectral tables: used rows whose RGB has a
-                                      * negative channel (saturated colours outside the
-                                      * sRGB gamut; kept, not clamped) */
+    size_t out_of_gamut;             /* spectral tables: used rows (RGL: nodes) whose RGB
+                                      * had a negative channel (saturated colours outside
+                                      * the sRGB gamut), mapped by `gamut` */
     size_t nan_rows;                 /* rows (cells) with a NaN value, skipped */
     size_t horizon_rows;             /* rows with a direction at or below the horizon
                                       * (theta >= pi/2 - 1e-9), skipped */
@@ -154,6 +175,16 @@ typedef struct sb_measured_info {
     double radius;      /* scattered: radius in use (inf when unlimited) */
     size_t dims;        /* scattered: dimension of the embedding (3 or 4) */
     sb_white_t white;
+    sb_gamut_t gamut;
+    /* Scattered tables: leave-one-position-out cross-validation of each
+     * interpolation (index: sb_interp_t; NAN where not computed): held-out
+     * samples (at most 2000, evenly spread) predicted from the others and
+     * compared with their measured values, relative L2 of f cos cos as the
+     * comparable error.  With SB_INTERP_DEFAULT the method of lowest error
+     * is used.  cv_missing: held-out samples with no neighbour left within
+     * the radius, for the method in use (not in the error). */
+    double interp_cv[SB_INTERP_COUNT_];
+    size_t cv_held_out, cv_missing;
     size_t nfields; /* format-specific details, in reading order */
     sb_measured_field_t fields[SB_MEASURED_FIELDS_MAX];
 } sb_measured_info_t;
@@ -178,12 +209,52 @@ typedef struct sb_measured_info {
 sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
                              sb_measured_info_t *info);
 
+/* What the table behind `src` held (a copy kept by sb_measured_open), or
+ * NULL for a source not opened by it (analytic models). */
+const sb_measured_info_t *sb_measured_source_info(const sb_source_t *src);
+
+/* ---- errors against the measurements ------------------------------------- */
+
+/* Errors of a reconstruction at the measured samples themselves (every
+ * sample of sb_source_sample, no interpolation in between), in the norm of
+ * the comparable error: after J' terms
+ *   e(J') = sqrt( sum_k sum_c (f~_c - f_c)^2 c_i^2 c_o^2 / sum_k sum_c f_c^2 c_i^2 c_o^2 )
+ * with f~ the reconstruction through texture lookups as the GLSL snippet
+ * does (sb_factors_eval: form divided back), c_i, c_o the cosines of the
+ * sample's directions.  A sample outside the parameterisation's domain
+ * counts with f~ = 0 (what a shader returns there). */
+#define SB_SAMPLE_ERRORS_MAX 256
+typedef struct sb_sample_errors {
+    size_t terms;                        /* J' = 1..terms filled (at most 256) */
+    size_t samples;                      /* measured samples compared */
+    size_t outside;                      /* of them, outside the parameterisation's domain */
+    double rel_l2[SB_SAMPLE_ERRORS_MAX]; /* e(J'), index J' - 1 */
+    double source_rel_l2;                /* the source itself (its interpolation) at the samples,
+                                          * same norm: 0 for a table read exactly */
+} sb_sample_errors_t;
+
+struct sb_factors;
+/* Errors of the first min(J, 256) terms of `f` (parameterisation p, form)
+ * at the samples of `src`.  Errors: SB_ERR_ARG (NULL, or a source without
+ * samples: analytic models and RGL tables), SB_ERR_NUMERIC (no sample with
+ * a non-zero value). */
+sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
+                                      const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out);
+
 /* Fraction of the cells of `param` for which `src` returns a value (1 for
  * analytic sources): *known of *cells cells with both directions above the
  * horizon.  Evaluates every cell once (in parallel).  Either output may be
  * NULL. */
 sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
                                  size_t *cells);
+
+/* The coverage per pair of elevation bands: known[a * bands + b] of
+ * cells[a * bands + b] cells of `param` with theta_i in band a and theta_o
+ * in band b (bands of 90/bands degrees), so that users see which regions
+ * hold data.  bands 1..90; both arrays hold bands^2 counts.  Errors:
+ * SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_OVERFLOW. */
+sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t bands,
+                                     size_t *known, size_t *cells);
 
 /* ---- MERL ------------------------------------------------------------- */
 
@@ -201,7 +272,8 @@ extern const double sb_merl_scale[3];
  * -theta_h about y; theta_d, phi_d its angles, phi_d in [0, 2 pi).
  * Conventions for the degenerate cases: phi_h = 0 when sin theta_h <= 1e-12
  * (h along the normal), phi_d = 0 when sin theta_d <= 1e-12 (wi = wo).
- * Returns 0 when h is undefined (wi = -wo, |wi + wo| <= 1e-12). */
+ * Returns 0 when h is undefined (wi = -wo, |wi + wo| <= 1e-12) or an
+ * argument is NULL. */
 int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d);
 /* The inverse with phi_h = 0; returns 1 when both directions are strictly
  * above the horizon. */
@@ -211,7 +283,8 @@ int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3]
  * the pair has a direction at or below the horizon, or wi = -wo. */
 int sb_merl_index(const double wi[3], const double wo[3], size_t *index);
 /* Directions at the centre of a cell (index space + 1/2 on each axis, phi_h
- * = 0); returns 1 when both are above the horizon. */
+ * = 0); returns 1 when both are above the horizon, 0 for an index >=
+ * SB_MERL_CELLS or a NULL output. */
 int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
 
 /* Write `src` as a MERL file: each cell holds f_r at the cell's centre
@@ -220,6 +293,16 @@ int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
  * Evaluated in parallel; written to a temporary name, then renamed.
  * Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
+
+/* ---- conversion ----------------------------------------------------------- */
+
+/* Write the measured samples of `src` (sb_source_sample: as read, no
+ * interpolation) as a sepbrdf CSV table to fp: degrees, the source's
+ * symmetry and reciprocity as metadata, RGB f_r with 17 digits, so that
+ * reading it back gives the same samples.  *rows (may be NULL) receives
+ * the number written.  Errors: SB_ERR_ARG (no samples: a model or an RGL
+ * table; measure those with sb_gonio_write_csv), SB_ERR_IO. */
+sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows);
 
 /* ---- simulated gonioreflectometer ------------------------------------- */
 
@@ -253,8 +336,9 @@ void sb_cie_cmf(double nm, double xyz[3]);
  * piecewise linear between the samples and constant beyond the ends,
  * integrated against the CMFs at 1 nm, normalised by sum ybar (white E),
  * optionally adapted to D65, and mapped by the IEC 61966-2-1 XYZ -> linear
- * sRGB matrix.  Errors: SB_ERR_RANGE (n == 0, wavelengths not finite or not
- * increasing). */
+ * sRGB matrix.  Errors: SB_ERR_ARG (NULL nm or w, unknown white),
+ * SB_ERR_RANGE (n == 0, wavelengths not finite or not increasing),
+ * SB_ERR_OVERFLOW (3 n doubles overflow: n cannot be an array's length). */
 sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w);
 
 #ifdef __cplusplus

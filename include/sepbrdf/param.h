@@ -100,7 +100,8 @@ int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags);
 /* The names joined by sep into buf (snprintf rules: truncated to size,
  * always terminated when size > 0); returns the full length. */
 size_t sb_param_kind_list(char *buf, size_t size, const char *sep);
-/* Parse a name of the registry; SB_ERR_UNKNOWN otherwise. */
+/* Parse a name of the registry; SB_ERR_UNKNOWN otherwise (NULL name
+ * included), SB_ERR_ARG for a NULL out. */
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
 
 /* Parse a spec "KIND[:key=value,...]" into kind and options; keys res, th,
@@ -114,6 +115,9 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out);
 void sb_param_destroy(sb_param_t *p);
 
+/* Getters: for a NULL p, kind SB_PARAM_KIND_COUNT_, "" names, 0 counts,
+ * NaN theta_max; side is SB_SIDE_G or SB_SIDE_H (another side: 0 sizes,
+ * wrap CLAMP). */
 sb_param_kind_t sb_param_kind(const sb_param_t *p);
 const char *sb_param_name(const sb_param_t *p);
 unsigned sb_param_caps(const sb_param_t *p); /* sb_param_kind_caps of its kind */
@@ -129,17 +133,19 @@ double sb_param_theta_max(const sb_param_t *p);
 /* Directions at the centre of matrix cell (row, col).  Returns 1 if the pair
  * is a BRDF pair (both directions above the horizon and within theta_max),
  * 0 if the cell lies outside the BRDF domain (then wi/wo are unspecified;
- * io and io-area have no such cells, hd and iso about 38 %). */
+ * io and io-area have no such cells, hd and iso about 38 %), and for a
+ * NULL argument or a row or column out of range. */
 int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
 
 /* Solid-angle measure associated with a row / a column cell, so that
- * sum_r sum_c m_r m_c f(r,c) approximates the integral over the domain. */
+ * sum_r sum_c m_r m_c f(r,c) approximates the integral over the domain.
+ * NaN for a NULL p or an index out of range. */
 double sb_param_row_measure(const sb_param_t *p, size_t row);
 double sb_param_col_measure(const sb_param_t *p, size_t col);
 
 /* Continuous texture coordinates of an arbitrary pair for the g and h
  * textures (GL convention above).  Returns 0 when the pair is outside the
- * domain (below the horizon, or beyond theta_max). */
+ * domain (below the horizon, or beyond theta_max), or an argument is NULL. */
 int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
 
 /* GLSL source defining `vec4 sb_coords(vec3 L, vec3 V)` (xy: g coordinate,

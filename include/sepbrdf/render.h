@@ -56,8 +56,9 @@ typedef struct sb_render_opts {
 } sb_render_opts_t;
 
 /* Shading frame of pixel (x, y) (header): n, t, b world unit vectors.
- * Returns 1 when the sphere covers the pixel, 0 otherwise (frame unset).
- * opts may be NULL (defaults). */
+ * Returns 1 when the sphere covers the pixel, 0 otherwise (frame unset),
+ * also for a pixel outside the image or a NULL output.  opts may be NULL
+ * (defaults). */
 int sb_render_frame(const sb_render_opts_t *opts, size_t x, size_t y, double n[3], double t[3], double b[3]);
 
 /* A BRDF to render: write f_r(wi, wo) (local frame) to rgb; return value

@@ -39,11 +39,20 @@ sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void
                              const char *description, sb_source_t **out);
 void sb_source_destroy(sb_source_t *src); /* accepts NULL */
 
-/* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t). */
+/* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t) or
+ * an argument is NULL (rgb, when given, is then 0). */
 int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]);
 unsigned sb_source_flags(const sb_source_t *src);
 const char *sb_source_description(const sb_source_t *src);
 void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation */
+
+/* The measured samples behind a table, as measured, before any
+ * interpolation: the number of sample slots (0 for analytic sources and
+ * tables without samples), and slot k's directions and RGB f_r; returns 0
+ * for a slot that holds no measurement (a missing MERL cell) or k out of
+ * range, 1 otherwise. */
+size_t sb_source_sample_count(const sb_source_t *src);
+int sb_source_sample(const sb_source_t *src, size_t k, double wi[3], double wo[3], double f[3]);
 
 /* Open a source from a user string: a model spec "MODEL[:key=value,...]"
  * (see models.h) or, when the string names an existing file, a measured

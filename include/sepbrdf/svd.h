@@ -77,10 +77,13 @@ typedef enum sb_method {
     SB_METHOD_FULL,       /* LAPACK dgesdd, all singular values */
     SB_METHOD_TOPK,       /* exact leading k: restarted block Krylov (or the Gram route) */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
+    SB_METHOD_NMF,        /* non-negative factors (the plan's nmf solver; not an SVD: sb_svd_create refuses it) */
     SB_METHOD_COUNT_
 } sb_method_t;
 
-sb_result_t sb_method_parse(const char *name, sb_method_t *out); /* auto|full|topk|randomized */
+/* auto|full|topk|randomized|nmf; SB_ERR_UNKNOWN otherwise (NULL name
+ * included), SB_ERR_ARG for a NULL out. */
+sb_result_t sb_method_parse(const char *name, sb_method_t *out);
 const char *sb_method_name(sb_method_t m);
 
 /* AUTO thresholds (see the comment at the top). */
@@ -88,11 +91,16 @@ const char *sb_method_name(sb_method_t m);
 #define SB_SVD_AUTO_TOPK_MAX 400
 #define SB_SVD_AUTO_SKETCH_DIV 8
 
+/* Most power iterations (each one more read of A; 2 already reach the
+ * optimum to plotting accuracy on the matrices of docs/performance.md). */
+#define SB_SVD_MAX_POWER_ITERS 64
+
 /* Options; a zeroed struct gives the defaults. */
 typedef struct sb_svd_opts {
     sb_method_t method;
     int oversample;       /* randomized: p, 0 = default 10, negative = none */
-    int power_iters;      /* randomized: q, 0 = default 2, negative = none; TOPK: depth, default 8 */
+    int power_iters;      /* randomized: q, 0 = default 2, negative = none, at most SB_SVD_MAX_POWER_ITERS;
+                             TOPK: depth, default 8 */
     uint64_t seed;        /* randomized: seed of the test matrix, 0 = default 1 */
     int single_precision; /* compute in float (inputs/outputs stay double) */
     size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
@@ -112,15 +120,17 @@ typedef struct sb_svd_info {
 typedef struct sb_svd sb_svd_t;
 
 /* The method a plan for (m, n, k, opts) would use: opts->method unless it
- * is AUTO, then the AUTO rule.  Plans nothing, allocates nothing. */
+ * is AUTO, then the AUTO rule (SB_METHOD_COUNT_ for an unknown method).
+ * Plans nothing, allocates nothing. */
 sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
 
 /* Plan a rank-k SVD of m x n matrices.  opts may be NULL (defaults).
  * Errors: SB_ERR_ARG (no output, empty matrix, bad method), SB_ERR_RANGE
- * (k = 0 or k > min(m, n)), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
+ * (k = 0 or k > min(m, n), power_iters above SB_SVD_MAX_POWER_ITERS), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
  * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
  * (workspace query failed). */
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
+/* Getters on a NULL plan: SB_METHOD_COUNT_, 0, 0 and a zeroed info. */
 void sb_svd_destroy(sb_svd_t *svd);             /* accepts NULL */
 sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
 size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */
@@ -131,7 +141,8 @@ size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
  * wanted.  If all_s is not NULL and the method computes every singular
  * value (FULL), all min(m, n) of them are written there and 1 returned via
  * *have_all; otherwise *have_all = 0.  A is read only; lda >= m.
- * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_NUMERIC (LAPACK
+ * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_OVERFLOW (lda
+ * beyond LAPACK's int, or lda x n overflows), SB_ERR_NUMERIC (LAPACK
  * failure or a non-finite entry in A). */
 sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V, double *all_s,
                            int *have_all);

@@ -9,7 +9,7 @@
 #define BATCH_FIELDS "param,form,J,headline,comparable,rel_rms,max_abs,negative,bytes,time_s"
 
 typedef struct batch_item {
-    char name[128];   /* its folder under --out */
+    char name[128]; /* its folder under --out */
     char source[1024];
     char param[32], form[16]; /* storage of the row's --param and --form */
     sb_job_opts_t o;

@@ -102,8 +102,10 @@ static int publish(sb_context_t *ctx, const char *dir, batch_item_t *it, sb_job_
         if (fclose(fp) == 0 && cli_outset_end(ctx, "factor", set, 1) == EXIT_OK) return 0;
         set = NULL;
     }
-    if (r != SB_OK) cli_job_message(it->msg, sizeof it->msg, ctx, r, it->o.terms);
-    else snprintf(it->msg, sizeof it->msg, "%.400s: cannot write the output set", path);
+    if (r != SB_OK)
+        cli_job_message(it->msg, sizeof it->msg, ctx, r, it->o.terms);
+    else
+        snprintf(it->msg, sizeof it->msg, "%.400s: cannot write the output set", path);
     cli_outset_end(ctx, "factor", set, 0);
     return -1;
 }
@@ -264,8 +266,8 @@ static int write_csv(const char *path, const batch_item_t *items, size_t n) {
 }
 
 static int write_json(const char *path, const batch_item_t *items, size_t n) {
-    static const char *const names[10] = {"param",   "form",     "terms", "headline", "comparable",
-                                          "rel_rms", "max_abs",  "negative", "bytes", "time_s"};
+    static const char *const names[10] = {"param",   "form",    "terms",    "headline", "comparable",
+                                          "rel_rms", "max_abs", "negative", "bytes",    "time_s"};
     char tmp[4200], buf[512];
     const char *f[10];
     FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);

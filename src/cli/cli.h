@@ -56,14 +56,18 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
 /* Help lines of those options, for the commands' --help. */
 #define CLI_MEASURED_HELP                                                                                              \
     "      --interp M       nearest (default for MERL), linear (MERL: trilinear;\n"                                    \
-    "                       tables: local linear fit), idw, quadratic (default for\n"                                  \
-    "                       scattered tables: local quadratic fit)\n"                                                  \
+    "                       tables: local linear fit), idw, quadratic (local\n"                                        \
+    "                       quadratic fit); scattered tables default to the one\n"                                     \
+    "                       of lowest cross-validated error (see `info`)\n"                                            \
     "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n"                                 \
     "      --radius DEG     scattered: farther than this from every sample is\n"                                       \
     "                       missing, in degrees of the embedding distance\n"                                           \
     "                       (default: 2.5 x the median sample spacing)\n"                                              \
     "      --white W        spectra: e (default; flat spectrum = illuminant E)\n"                                      \
-    "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"
+    "                       or d65 (Bradford to D65: flat spectrum = RGB 1,1,1)\n"                                     \
+    "      --gamut G        spectra outside the sRGB gamut (a negative channel):\n"                                    \
+    "                       keep (default), clip (negatives to 0) or desaturate\n"                                     \
+    "                       (luminance kept, chroma reduced into the gamut)\n"
 
 /* Option tables: each row names an option, its value (arg NULL: a flag),
  * its help text (lines separated by '\n'), where it is stored (offset
@@ -158,6 +162,7 @@ int cmd_list(int argc, char **argv);
 int cmd_study(int argc, char **argv);
 int cmd_info(int argc, char **argv);
 int cmd_sample(int argc, char **argv);
+int cmd_convert(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 int cmd_view(int argc, char **argv);
 

@@ -263,7 +263,8 @@ static int parse(int argc, char **argv, batch_t *b, const char **out, size_t *jo
         }
         if ((m = cli_opt(&a, n_jobs, 1, &v)) != 0) {
             if (m < 0 || cli_parse_size("batch", "--jobs", v, 1, 64, jobs)) return EXIT_USAGE;
-        } else if ((m = cli_out_opt(&a, "folder", out)) || (m = cli_table_opt(&a, batch_only, CLI_FACTOR, &b->base, NULL)) ||
+        } else if ((m = cli_out_opt(&a, "folder", out)) ||
+                   (m = cli_table_opt(&a, batch_only, CLI_FACTOR, &b->base, NULL)) ||
                    (m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, &b->base, NULL)) ||
                    (m = cli_measured_opt(&a, &b->base.measured))) {
             if (m < 0) return EXIT_USAGE;

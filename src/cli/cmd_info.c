@@ -70,6 +70,136 @@ static void flags_text(unsigned f, char *buf, size_t size) {
     if (n && buf[n - 1] == ' ') buf[n - 1] = 0;
 }
 
+/* The coverage map: 10-degree bands of theta_i (rows) and theta_o. */
+#define MAP_BANDS 9
+
+static double map_fraction(const size_t *known, const size_t *cells, size_t at) {
+    return cells[at] ? (double)known[at] / (double)cells[at] : NAN;
+}
+
+static void print_map(const size_t *known, const size_t *cells) {
+    printf("coverage map  %% of cells known, theta_i (rows) x theta_o (columns), 10-degree bands:\n"
+           "  theta_i  ");
+    for (int b = 0; b < MAP_BANDS; b++)
+        printf("  %2d-%-2d", 10 * b, 10 * b + 10);
+    printf("\n");
+    for (size_t a = 0; a < MAP_BANDS; a++) {
+        printf("  %2zu-%-2zu    ", 10 * a, 10 * a + 10);
+        for (size_t b = 0; b < MAP_BANDS; b++) {
+            double f = map_fraction(known, cells, a * MAP_BANDS + b);
+            if (isnan(f))
+                printf("  %5s", "-");
+            else
+                printf("  %5.1f", 100 * f);
+        }
+        printf("\n");
+    }
+}
+
+/* What `info` shows of a table. */
+typedef struct table_view {
+    const char *path, *param;
+    const sb_measured_info_t *in;
+    size_t known, cells;
+    double cov;
+    const size_t *mk, *mc; /* coverage map */
+    char flags[128];
+} table_view_t;
+
+static const char *const channel_names[3] = {"R", "G", "B"};
+
+static void print_table_json(const table_view_t *v) {
+    static const char *const *cn = channel_names;
+    int scattered = v->in->dims > 0;
+    json_t j = {stdout, 0, {0}};
+    json_begin_object(&j, NULL);
+    json_string(&j, "file", v->path);
+    json_string(&j, "kind", "measured table");
+    json_string(&j, "format", v->in->format);
+    json_int(&j, "rows", (long long)v->in->rows);
+    json_int(&j, "samples", (long long)v->in->samples);
+    json_int(&j, "missing", (long long)v->in->missing);
+    json_int(&j, "negative", (long long)v->in->negative);
+    json_int(&j, "out_of_gamut", (long long)v->in->out_of_gamut);
+    json_int(&j, "nan_rows", (long long)v->in->nan_rows);
+    json_int(&j, "horizon_rows", (long long)v->in->horizon_rows);
+    json_int(&j, "channels", (long long)v->in->channels);
+    json_int(&j, "wavelengths", (long long)v->in->wavelengths);
+    if (v->in->wavelengths) {
+        json_number(&j, "wavelength_min_nm", v->in->wl_min);
+        json_number(&j, "wavelength_max_nm", v->in->wl_max);
+        json_string(&j, "white", v->in->white == SB_WHITE_D65 ? "d65" : "e");
+        json_string(&j, "gamut", sb_gamut_name(v->in->gamut));
+    }
+    json_number(&j, "theta_i_max_deg", v->in->theta_i_max * 180 / SB_PI);
+    json_number(&j, "theta_o_max_deg", v->in->theta_o_max * 180 / SB_PI);
+    json_begin_object(&j, "value");
+    for (int c = 0; c < 3; c++) {
+        json_begin_object(&j, cn[c]);
+        json_number(&j, "min", v->in->value_min[c]);
+        json_number(&j, "max", v->in->value_max[c]);
+        json_number(&j, "mean", v->in->value_mean[c]);
+        json_end_object(&j);
+    }
+    json_end_object(&j);
+    json_string(&j, "flags", v->flags);
+    json_string(&j, "interp", sb_interp_name(v->in->interp));
+    if (scattered) {
+        json_int(&j, "neighbours", (long long)v->in->neighbours);
+        json_number(&j, "spacing_deg", v->in->spacing * 180 / SB_PI);
+        json_number(&j, "radius_deg", v->in->radius * 180 / SB_PI);
+        json_int(&j, "embedding_dims", (long long)v->in->dims);
+    }
+    json_begin_object(&j, "details");
+    for (size_t k = 0; k < v->in->nfields; k++)
+        if (isfinite(v->in->fields[k].number))
+            json_number(&j, v->in->fields[k].key, v->in->fields[k].number);
+        else
+            json_string(&j, v->in->fields[k].key, v->in->fields[k].text);
+    json_end_object(&j);
+    json_begin_object(&j, "coverage");
+    json_string(&j, "param", v->param);
+    json_int(&j, "cells", (long long)v->cells);
+    json_int(&j, "known", (long long)v->known);
+    json_int(&j, "missing", (long long)(v->cells - v->known));
+    json_number(&j, "fraction", v->cov);
+    json_begin_array(&j, "map");
+    for (size_t a = 0; a < MAP_BANDS; a++) {
+        json_begin_array(&j, NULL);
+        for (size_t b = 0; b < MAP_BANDS; b++)
+            json_number(&j, NULL, map_fraction(v->mk, v->mc, a * MAP_BANDS + b));
+        json_end_array(&j);
+    }
+    json_end_array(&j);
+    json_end_object(&j);
+    json_end_object(&j);
+}
+
+static void print_table_text(const table_view_t *v) {
+    static const char *const *cn = channel_names;
+    int scattered = v->in->dims > 0;
+    printf("file          %s\n", v->path);
+    printf("format        %s\n", v->in->format);
+    for (size_t k = 0; k < v->in->nfields; k++)
+        printf("%-13s %s\n", v->in->fields[k].key, v->in->fields[k].text);
+    if (v->in->wavelengths) {
+        printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s\n", v->in->wavelengths, v->in->wl_min,
+               v->in->wl_max, v->in->white == SB_WHITE_D65 ? "D65 (Bradford)" : "E");
+        printf("gamut         %zu %s out of the sRGB gamut (a negative channel after the CIE conversion: "
+               "colours more saturated than sRGB shows), %s%s\n",
+               v->in->out_of_gamut, scattered ? "rows" : "nodes", sb_gamut_name(v->in->gamut),
+               v->in->out_of_gamut && v->in->gamut == SB_GAMUT_KEEP ? " (--gamut clip or desaturate maps them)" : "");
+    } else
+        printf("channels      %zu%s\n", v->in->channels, v->in->channels == 1 ? " (gray)" : " (RGB)");
+    printf("f_r (1/sr)    %12s %12s %12s\n", "min", "max", "mean");
+    for (int c = 0; c < 3; c++)
+        printf("  %-11s %12.5g %12.5g %12.5g\n", cn[c], v->in->value_min[c], v->in->value_max[c], v->in->value_mean[c]);
+    printf("flags         %s\n", v->flags);
+    printf("coverage      %s: %zu of %zu cells (%.2f %%), %zu missing\n", v->param, v->known, v->cells, 100 * v->cov,
+           v->cells - v->known);
+    print_map(v->mk, v->mc);
+}
+
 static int info_measured(const info_opts_t *o) {
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
@@ -85,86 +215,19 @@ static int info_measured(const info_opts_t *o) {
     sb_param_opts_t po = {0};
     po.res = o->res;
     if ((r = sb_param_create(ctx, SB_PARAM_IO, &po, &param)) != SB_OK) goto fail;
-    size_t known = 0, cells = 0;
-    if ((r = sb_measured_coverage(ctx, src, param, &known, &cells)) != SB_OK) goto fail;
-    double cov = cells ? (double)known / (double)cells : 0;
-    const char *fmt = in.format;
-    static const char *const cn[3] = {"R", "G", "B"};
-    char flags[128];
-    flags_text(in.flags, flags, sizeof flags);
-    int scattered = in.dims > 0;
-    if (o->json) {
-        json_t j = {stdout, 0, {0}};
-        json_begin_object(&j, NULL);
-        json_string(&j, "file", o->path);
-        json_string(&j, "kind", "measured table");
-        json_string(&j, "format", fmt);
-        json_int(&j, "rows", (long long)in.rows);
-        json_int(&j, "samples", (long long)in.samples);
-        json_int(&j, "missing", (long long)in.missing);
-        json_int(&j, "negative", (long long)in.negative);
-        json_int(&j, "out_of_gamut", (long long)in.out_of_gamut);
-        json_int(&j, "nan_rows", (long long)in.nan_rows);
-        json_int(&j, "horizon_rows", (long long)in.horizon_rows);
-        json_int(&j, "channels", (long long)in.channels);
-        json_int(&j, "wavelengths", (long long)in.wavelengths);
-        if (in.wavelengths) {
-            json_number(&j, "wavelength_min_nm", in.wl_min);
-            json_number(&j, "wavelength_max_nm", in.wl_max);
-            json_string(&j, "white", in.white == SB_WHITE_D65 ? "d65" : "e");
-        }
-        json_number(&j, "theta_i_max_deg", in.theta_i_max * 180 / SB_PI);
-        json_number(&j, "theta_o_max_deg", in.theta_o_max * 180 / SB_PI);
-        json_begin_object(&j, "value");
-        for (int c = 0; c < 3; c++) {
-            json_begin_object(&j, cn[c]);
-            json_number(&j, "min", in.value_min[c]);
-            json_number(&j, "max", in.value_max[c]);
-            json_number(&j, "mean", in.value_mean[c]);
-            json_end_object(&j);
-        }
-        json_end_object(&j);
-        json_string(&j, "flags", flags);
-        json_string(&j, "interp", sb_interp_name(in.interp));
-        if (scattered) {
-            json_int(&j, "neighbours", (long long)in.neighbours);
-            json_number(&j, "spacing_deg", in.spacing * 180 / SB_PI);
-            json_number(&j, "radius_deg", in.radius * 180 / SB_PI);
-            json_int(&j, "embedding_dims", (long long)in.dims);
-        }
-        json_begin_object(&j, "details");
-        for (size_t k = 0; k < in.nfields; k++)
-            if (isfinite(in.fields[k].number))
-                json_number(&j, in.fields[k].key, in.fields[k].number);
-            else
-                json_string(&j, in.fields[k].key, in.fields[k].text);
-        json_end_object(&j);
-        json_begin_object(&j, "coverage");
-        json_string(&j, "param", sb_param_spec(param));
-        json_int(&j, "cells", (long long)cells);
-        json_int(&j, "known", (long long)known);
-        json_int(&j, "missing", (long long)(cells - known));
-        json_number(&j, "fraction", cov);
-        json_end_object(&j);
-        json_end_object(&j);
-    } else {
-        printf("file          %s\n", o->path);
-        printf("format        %s\n", fmt);
-        for (size_t k = 0; k < in.nfields; k++)
-            printf("%-13s %s\n", in.fields[k].key, in.fields[k].text);
-        if (in.wavelengths)
-            printf("wavelengths   %zu (%g..%g nm) -> linear sRGB, white %s; %zu %s out of gamut (RGB < 0, kept)\n",
-                   in.wavelengths, in.wl_min, in.wl_max, in.white == SB_WHITE_D65 ? "D65 (Bradford)" : "E",
-                   in.out_of_gamut, scattered ? "rows" : "nodes");
-        else
-            printf("channels      %zu%s\n", in.channels, in.channels == 1 ? " (gray)" : " (RGB)");
-        printf("f_r (1/sr)    %12s %12s %12s\n", "min", "max", "mean");
-        for (int c = 0; c < 3; c++)
-            printf("  %-11s %12.5g %12.5g %12.5g\n", cn[c], in.value_min[c], in.value_max[c], in.value_mean[c]);
-        printf("flags         %s\n", flags);
-        printf("coverage      %s: %zu of %zu cells (%.2f %%), %zu missing\n", sb_param_spec(param), known, cells,
-               100 * cov, cells - known);
+    size_t mk[MAP_BANDS * MAP_BANDS], mc[MAP_BANDS * MAP_BANDS];
+    if ((r = sb_measured_coverage_map(ctx, src, param, MAP_BANDS, mk, mc)) != SB_OK) goto fail;
+    table_view_t v = {o->path, sb_param_spec(param), &in, 0, 0, 0, mk, mc, ""};
+    for (size_t b = 0; b < MAP_BANDS * MAP_BANDS; b++) {
+        v.known += mk[b];
+        v.cells += mc[b];
     }
+    v.cov = v.cells ? (double)v.known / (double)v.cells : 0;
+    flags_text(in.flags, v.flags, sizeof v.flags);
+    if (o->json)
+        print_table_json(&v);
+    else
+        print_table_text(&v);
     goto out;
 fail:
     rc = cli_fail("info", ctx, r);

@@ -55,8 +55,12 @@ int cli_exit_code(sb_result_t r) {
 
 int cli_fail(const char *cmd, sb_context_t *ctx, sb_result_t r) {
     const char *detail = sb_context_last_error(ctx);
-    cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r),
-              r == SB_ERR_OVERFLOW ? " (lower --res)" : ""); /* sizes beyond memory come from the resolution */
+    /* sizes beyond memory come from the resolution; an allocation that failed
+     * from the resolution, the terms or the machine */
+    const char *hint = r == SB_ERR_OVERFLOW ? " (lower --res)"
+                       : r == SB_ERR_NOMEM  ? " (lower --res or --terms, or allow more memory)"
+                                            : "";
+    cli_error(cmd, "%s%s", detail && *detail ? detail : sb_result_message(r), hint);
     return cli_exit_code(r);
 }
 
@@ -120,7 +124,8 @@ int cli_out_opt(cli_args_t *a, const char *what, const char **out) {
 
 int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
     static const char *const n_interp[] = {"--interp", NULL}, *const n_k[] = {"--neighbours", NULL},
-                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL};
+                             *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL},
+                             *const n_gamut[] = {"--gamut", NULL};
     const char *v = NULL;
     int m;
     if ((m = cli_opt(a, n_interp, 1, &v))) {
@@ -143,6 +148,12 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
             mo->white = SB_WHITE_D65;
         else {
             cli_error(a->cmd, "--white '%s' unknown, need e or d65", v);
+            return -1;
+        }
+    } else if ((m = cli_opt(a, n_gamut, 1, &v))) {
+        if (m < 0) return -1;
+        if (sb_gamut_parse(v, &mo->gamut) != SB_OK) {
+            cli_error(a->cmd, "--gamut '%s' unknown, need keep, clip or desaturate", v);
             return -1;
         }
     } else {

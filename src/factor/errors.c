@@ -160,6 +160,8 @@ void sb_errors_weights(const sb_param_t *p, double *wr, double *wc) {
 static sb_result_t check_fit(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
                              const sb_param_t *weights) {
     size_t rows = m->rows, cols = m->cols, gw, gh, hw, hh;
+    if (!m->structured && m->ld < rows)
+        return sb_error(ctx, SB_ERR_ARG, "errors: leading dimension %zu < %zu rows", m->ld, rows);
     sb_factors_size(f, SB_SIDE_G, &gw, &gh);
     sb_factors_size(f, SB_SIDE_H, &hw, &hh);
     if (gw * gh != rows || hw * hh != cols)
@@ -349,6 +351,8 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
         sb_factors_terms(near) != J || sb_factors_channels(near) != C || J > INT_MAX / 2 || rows > INT_MAX ||
         cols > INT_MAX)
         return sb_error(ctx, SB_ERR_ARG, "errors: factors do not fit each other or the %zu x %zu matrix", rows, cols);
+    sb_result_t rb = sb_blas_reserve(ctx);
+    if (rb != SB_OK) return rb;
     const sb_factor_errors_t *fe = sb_factors_errors(fit);
     memset(rel_rms, 0, J * 4 * sizeof *rel_rms);
     /* Step: scales 2^-e ~ 1 / ||X||, split between the two sides */

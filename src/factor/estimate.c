@@ -477,6 +477,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
                                 sb_estimate_t *out) {
     if (!pairs || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "estimate: missing argument");
     memset(out, 0, sizeof *out);
+    if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "estimate: unknown form %d", (int)form);
     sb_estimate_opts_t o = opts_or_default(opts);
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
     if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;

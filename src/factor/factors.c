@@ -82,22 +82,31 @@ void sb_factors_destroy(sb_factors_t *f) {
     free(f);
 }
 
-size_t sb_factors_terms(const sb_factors_t *f) { return f->terms; }
-size_t sb_factors_channels(const sb_factors_t *f) { return f->channels; }
+/* Accessors: safe values for NULL and out-of-range arguments (common.h). */
+static int in_range(const sb_factors_t *f, int side, size_t term, size_t ch) {
+    return f && (side == SB_SIDE_G || side == SB_SIDE_H) && term < f->terms && ch < f->channels;
+}
+size_t sb_factors_terms(const sb_factors_t *f) { return f ? f->terms : 0; }
+size_t sb_factors_channels(const sb_factors_t *f) { return f ? f->channels : 0; }
 void sb_factors_size(const sb_factors_t *f, int side, size_t *w, size_t *h) {
-    if (w) *w = f->w[side != 0];
-    if (h) *h = f->h[side != 0];
+    int ok = in_range(f, side, 0, 0);
+    if (w) *w = ok ? f->w[side] : 0;
+    if (h) *h = ok ? f->h[side] : 0;
 }
 double *sb_factors_tex(sb_factors_t *f, int side, size_t term, size_t ch) {
-    side = side != 0;
+    if (!in_range(f, side, term, ch)) return NULL;
     return f->tex[side] + (term * f->channels + ch) * f->w[side] * f->h[side];
 }
 const double *sb_factors_tex_const(const sb_factors_t *f, int side, size_t term, size_t ch) {
-    side = side != 0;
+    if (!in_range(f, side, term, ch)) return NULL;
     return f->tex[side] + (term * f->channels + ch) * f->w[side] * f->h[side];
 }
-double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t ch) { return f->sigma[term * f->channels + ch]; }
-void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t ch, double s) { f->sigma[term * f->channels + ch] = s; }
+double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t ch) {
+    return in_range(f, SB_SIDE_G, term, ch) ? f->sigma[term * f->channels + ch] : NAN;
+}
+void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t ch, double s) {
+    if (in_range(f, SB_SIDE_G, term, ch)) f->sigma[term * f->channels + ch] = s;
+}
 
 sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value) {
     if (!f || !key || !value) return SB_ERR_ARG;
@@ -123,19 +132,22 @@ sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *va
     return SB_OK;
 }
 const char *sb_factors_get_meta(const sb_factors_t *f, const char *key) {
+    if (!f || !key) return NULL;
     for (size_t i = 0; i < f->nmeta; i++)
         if (strcmp(f->meta[i].key, key) == 0) return f->meta[i].value;
     return NULL;
 }
-size_t sb_factors_meta_count(const sb_factors_t *f) { return f->nmeta; }
+size_t sb_factors_meta_count(const sb_factors_t *f) { return f ? f->nmeta : 0; }
 void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value) {
-    *key = f->meta[i].key;
-    *value = f->meta[i].value;
+    int ok = f && i < f->nmeta;
+    if (key) *key = ok ? f->meta[i].key : NULL;
+    if (value) *value = ok ? f->meta[i].value : NULL;
 }
-const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f) { return &f->err; }
-sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f) { return &f->err; }
+const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f) { return f ? &f->err : NULL; }
+sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f) { return f ? &f->err : NULL; }
 
 double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t ch, size_t row, size_t col) {
+    if (!in_range(f, SB_SIDE_G, 0, ch) || row >= f->w[0] * f->h[0] || col >= f->w[1] * f->h[1]) return NAN;
     double s = 0;
     if (terms > f->terms) terms = f->terms;
     for (size_t j = 0; j < terms; j++)
@@ -157,12 +169,17 @@ static size_t wrap_index(long i, size_t n, int mode) {
 
 double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t ch,
                          const double st[2]) {
-    side = side != 0;
+    if (!in_range(f, side, term, ch) || !p || !st) return NAN;
     size_t w = f->w[side], h = f->h[side];
     int wrap[2];
     sb_param_wrap(p, side, wrap);
     const double *t = sb_factors_tex_const(f, side, term, ch);
     double u = st[0] * (double)w - 0.5, v = st[1] * (double)h - 0.5;
+    if (!isfinite(u) || !isfinite(v)) return NAN;
+    /* far outside: whole periods off (REPEAT) or any edge value (CLAMP), so
+     * that the texel index fits a long */
+    if (fabs(u) > 1e9) u = wrap[0] == SB_WRAP_REPEAT ? fmod(u, (double)w) : copysign(1e9, u);
+    if (fabs(v) > 1e9) v = wrap[1] == SB_WRAP_REPEAT ? fmod(v, (double)h) : copysign(1e9, v);
     double fu = floor(u), fv = floor(v);
     double a = u - fu, b = v - fv;
     size_t x0 = wrap_index((long)fu, w, wrap[0]), x1 = wrap_index((long)fu + 1, w, wrap[0]);
@@ -174,8 +191,9 @@ double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, s
 int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
                     const double wo[3], double rgb[3]) {
     double sg[2], sh[2];
+    if (!rgb) return 0;
     rgb[0] = rgb[1] = rgb[2] = 0;
-    if (!sb_param_coords(p, wi, wo, sg, sh)) return 0;
+    if (!f || (unsigned)form >= SB_FORM_COUNT_ || !sb_param_coords(p, wi, wo, sg, sh)) return 0;
     if (terms > f->terms) terms = f->terms;
     double acc[3] = {0, 0, 0};
     for (size_t j = 0; j < terms; j++)
@@ -192,7 +210,7 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
 }
 
 void sb_factors_truncate(sb_factors_t *f, size_t keep) {
-    if (keep == 0 || keep > f->terms) return;
+    if (!f || keep == 0 || keep > f->terms) return;
     f->terms = keep; /* textures beyond `keep` stay allocated but unused */
     f->err.terms = keep;
 }

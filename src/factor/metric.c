@@ -271,11 +271,23 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
                               sb_form_t form, const sb_metric_opts_t *opts, sb_metric_t *out) {
     if (!src || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "metric: missing argument");
     memset(out, 0, sizeof *out);
+    if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "metric: unknown form %d", (int)form);
+    for (int side = SB_SIDE_G; side <= SB_SIDE_H; side++) {
+        size_t fw, fh, pw, ph;
+        sb_factors_size(f, side, &fw, &fh);
+        sb_param_texture_size(p, side, &pw, &ph);
+        if (fw != pw || fh != ph)
+            return sb_error(ctx, SB_ERR_ARG, "metric: textures of %zu x %zu, the parameterisation has %zu x %zu", fw,
+                            fh, pw, ph);
+    }
     sb_metric_opts_t o = {0};
     if (opts) o = *opts;
     if (o.res == 0) o.res = 32;
-    if (o.res < 2 || o.res > 256)
-        return sb_error(ctx, SB_ERR_RANGE, "metric: reference resolution %zu, need 2..256", o.res);
+    if (o.res < 2 || o.res > SB_METRIC_MAX_RES)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "metric: reference resolution %zu, need 2..%d (the work grows as its fourth power: %d takes "
+                        "seconds)",
+                        o.res, SB_METRIC_MAX_RES, SB_METRIC_MAX_RES);
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f), R = o.res, N = R * R;
     if (J > MAXJ) J = MAXJ;
     int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;

@@ -117,13 +117,18 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
                         o.terms, mn);
     if (!(o.max_error >= 0 && o.max_error < 1))
         return sb_error(ctx, SB_ERR_RANGE, "plan: maximum error %g out of range, need [0, 1)", o.max_error);
+    if ((unsigned)o.svd.method >= SB_METHOD_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "plan: unknown method %d", (int)o.svd.method);
+    sb_result_t rb = sb_blas_reserve(ctx);
+    if (rb != SB_OK) return rb;
     int structured = m && m->structured; /* the R distinct rows are what is stored */
     sb_result_t r = check_size(ctx, structured ? m->ld : rows, cols, o.weighted, &cells);
     if (r != SB_OK) return r;
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     *p = (sb_plan_t){.ctx = ctx, .rows = rows, .cols = cols, .terms = o.terms, .opts = o};
-    p->pb = (sb_solve_problem_t){rows, cols, o.terms, o.svd, o.fit_max_iters, o.fit_tol, o.max_error, 0, 0};
+    p->pb =
+        (sb_solve_problem_t){rows, cols, o.terms, o.svd, o.fit_max_iters, o.fit_tol, o.max_error, 0, 0, o.zero_fill};
     sb_solve_problem_t pb = p->pb;
     if (m) {
         pb.masked = m->mask && !o.zero_fill;
@@ -158,7 +163,10 @@ void sb_plan_destroy(sb_plan_t *p) {
     free(p);
 }
 
-void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) { *out = p->stats; }
+void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) {
+    sb_plan_stats_t none = {0, 0, 0, 0};
+    if (out) *out = p ? p->stats : none;
+}
 
 /* ---- execute ------------------------------------------------------------ */
 
@@ -334,6 +342,8 @@ static sb_result_t finish_errors(sb_plan_t *p, const run_t *rn, sb_factors_t *f)
 
 static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param) {
     if (!m || !param) return sb_error(p->ctx, SB_ERR_ARG, "plan: missing matrix, parameterisation or output");
+    if (!m->structured && m->ld < m->rows)
+        return sb_error(p->ctx, SB_ERR_ARG, "plan: leading dimension %zu < %zu rows", m->ld, m->rows);
     if (m->rows != p->rows || m->cols != p->cols)
         return sb_error(p->ctx, SB_ERR_ARG, "plan: matrix is %zu x %zu, plan was made for %zu x %zu", m->rows, m->cols,
                         p->rows, p->cols);

@@ -5,6 +5,7 @@
 
 #include "job_impl.h"
 #include "sepbrdf/exr.h"
+#include "sepbrdf/measured.h"
 
 static const char *const chan_name[3] = {"R", "G", "B"};
 
@@ -136,6 +137,35 @@ static void report_estimator(sb_json_t *j, const sb_job_t *job) {
                                                : "f, the default"));
 }
 
+/* A measured table: what it held and the errors against its measurements
+ * (docs/measured.md); nothing for analytic sources. */
+static void report_measured(sb_json_t *j, const sb_job_t *job) {
+    const sb_measured_info_t *in = sb_measured_source_info(job->src);
+    if (!in) return;
+    const job_attempt_t *a = &job->best;
+    sb_sample_errors_t se;
+    int have = sb_measured_sample_errors(NULL, job->src, a->f, a->param, a->m.form, &se) == SB_OK;
+    sb_json_begin_object(j, "measured");
+    sb_json_string(j, "format", in->format);
+    sb_json_int(j, "rows", (long long)in->rows);
+    sb_json_int(j, "samples", (long long)(have ? se.samples : 0));
+    sb_json_int(j, "outside", (long long)(have ? se.outside : 0));
+    sb_json_number(j, "source_rel_l2", have ? se.source_rel_l2 : NAN);
+    sb_json_begin_array(j, "sample_rel_l2");
+    for (size_t k = 0; have && k < se.terms; k++)
+        sb_json_number(j, NULL, se.rel_l2[k]);
+    sb_json_end_array(j);
+    sb_json_string(j, "interp", sb_interp_name(in->interp));
+    sb_json_begin_object(j, "interp_cv");
+    for (int m = SB_INTERP_NEAREST; m < SB_INTERP_COUNT_; m++)
+        sb_json_number(j, sb_interp_name((sb_interp_t)m), in->interp_cv[m]);
+    sb_json_end_object(j);
+    sb_json_int(j, "cv_held_out", (long long)in->cv_held_out);
+    sb_json_int(j, "out_of_gamut", (long long)in->out_of_gamut);
+    sb_json_string(j, "gamut", sb_gamut_name(in->gamut));
+    sb_json_end_object(j);
+}
+
 static void report_errors(sb_json_t *j, const sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     const sb_factor_errors_t *e = sb_factors_errors(a->f);
@@ -152,6 +182,7 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
         sb_json_end_object(j);
     }
     sb_json_end_array(j);
+    report_measured(j, job);
     sb_json_number(j, "negative_texels", a->metric.neg_texels);
     sb_json_int(j, "metric_resolution", (long long)job->o.metric_res);
     report_estimator(j, job);

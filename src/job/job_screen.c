@@ -264,6 +264,7 @@ static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_
     c->ok = r == SB_OK;
     c->error = c->ok ? rank_error(a) : NAN;
     c->res = lv->res;
+    c->result = r;
     if (!c->ok) snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
     c->time_s += job_now() - t0;
     return r;
@@ -490,15 +491,22 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
         double t1 = job_now();
         if ((r = fit_kept(ctx, job, c)) != SB_OK) {
             c->ok = 0;
+            c->result = r;
             snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
         }
         c->kept = r == SB_OK;
         c->time_s += job_now() - t1;
     }
     if (r == SB_OK) return SB_OK;
+    /* Out of memory or beyond the size limits anywhere is what the user can
+     * act on (exit 2, lower the resolution); anything else is numerical. */
     const char *why = "";
-    for (size_t i = 0; i < job->ncand && !*why; i++)
-        why = job->cands[i].why;
-    return sb_error(ctx, SB_ERR_NUMERIC, "no parameterisation could factor %s%s%s", sb_source_description(job->src),
+    sb_result_t code = SB_ERR_NUMERIC;
+    for (size_t i = 0; i < job->ncand; i++) {
+        if (!*why) why = job->cands[i].why;
+        if (job->cands[i].result == SB_ERR_NOMEM || job->cands[i].result == SB_ERR_OVERFLOW)
+            code = job->cands[i].result;
+    }
+    return sb_error(ctx, code, "no parameterisation could factor %s%s%s", sb_source_description(job->src),
                     *why ? "; the first failure: " : "", why);
 }

@@ -247,12 +247,61 @@ static double texel_stored(const codec_t *k, double v) {
     return texel_decode(k, &bits, 0);
 }
 
+/* The largest |value| HALF with a power-of-two float scale holds: stored
+ * values below 2^HALF_TOP_EXP, scales normal floats (2^-126 .. 2^127). */
+#define HALF_SCALED_MAX ldexp(1, FLT_MAX_EXP - 1 + HALF_TOP_EXP)
+#define HALF_SCALED_MIN ldexp(1, FLT_MIN_EXP - 1 + HALF_TOP_EXP - 1)
+
+/* A texture whose largest value, amax, the storage cannot hold, named by
+ * its real cause: a later term too small to store has nothing left to
+ * carry (the BRDF's numerical rank is exhausted: ask for fewer terms,
+ * SB_ERR_RANGE); values beyond both FLOAT and scaled HALF are a BRDF
+ * outside the range textures can store (SB_ERR_NUMERIC); a range only one
+ * of them holds names the other. */
+static sb_result_t not_storable(sb_context_t *ctx, const sb_factors_t *f, size_t term, int half, const char *path,
+                                double amax) {
+    const char *fmt = half ? "HALF (with a float scale)" : "FLOAT";
+    if (amax > FLT_MAX || amax >= HALF_SCALED_MAX) {
+        if (!half && amax < HALF_SCALED_MAX)
+            return sb_error(ctx, SB_ERR_NUMERIC,
+                            "%s: values up to %g are above the FLOAT range (%g); HALF with a "
+                            "per-texture scale holds them",
+                            path, amax, (double)FLT_MAX);
+        return sb_error(ctx, SB_ERR_NUMERIC,
+                        "%s: values up to %g are above what %s can store (at most %g): the "
+                        "BRDF's values are beyond the range of the textures",
+                        path, amax, fmt, half ? HALF_SCALED_MAX : (double)FLT_MAX);
+    }
+    if (term > 0) {
+        double s0 = 0, sj = 0;
+        for (size_t c = 0; c < sb_factors_channels(f); c++) {
+            s0 = fmax(s0, sb_factors_sigma(f, 0, c));
+            sj = fmax(sj, sb_factors_sigma(f, term, c));
+        }
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%s: term %zu has values of at most %g (sigma %g against %g for the first "
+                        "term), below what %s can store: the BRDF's numerical rank is exhausted; ask for at most %zu "
+                        "term%s",
+                        path, term, amax, sj, s0, fmt, term, term == 1 ? "" : "s");
+    }
+    if (half && amax >= FLT_TRUE_MIN)
+        return sb_error(ctx, SB_ERR_NUMERIC,
+                        "%s: values of at most %g are below what HALF with a float scale can "
+                        "store (%g); FLOAT stores down to %g",
+                        path, amax, HALF_SCALED_MIN, (double)FLT_TRUE_MIN);
+    return sb_error(ctx, SB_ERR_NUMERIC,
+                    "%s: values of at most %g are below what %s can store (%g): the BRDF's "
+                    "values are below the range of the textures",
+                    path, amax, fmt, half ? HALF_SCALED_MIN : (double)FLT_TRUE_MIN);
+}
+
 /* Codec of one texture: checks that every value can be stored and picks
  * the HALF scale.  Refuses non-finite values, values beyond FLOAT, a
  * maximum HALF with a float scale cannot hold, and a texture whose largest
  * value would be stored as zero (a whole term flushed away: FLOAT below
- * 2^-149).  Single texels far below their texture's maximum may still
- * flush to zero; sb_factors_quantize counts them. */
+ * 2^-149), through not_storable().  Single texels far below their
+ * texture's maximum may still flush to zero; sb_factors_quantize counts
+ * them. */
 static sb_result_t texture_codec(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half,
                                  const char *path, codec_t *out) {
     size_t C = sb_factors_channels(f), w, h;
@@ -265,30 +314,20 @@ static sb_result_t texture_codec(sb_context_t *ctx, const sb_factors_t *f, int s
             if (!isfinite(t[i]))
                 return sb_error(ctx, SB_ERR_NUMERIC, "%s: value %g at texel (%zu, %zu) of channel %s is not finite",
                                 path, t[i], i % w, i / w, channel_name(C, c));
-            if (!half && fabs(t[i]) > FLT_MAX)
-                return sb_error(ctx, SB_ERR_RANGE,
-                                "%s: value %g at texel (%zu, %zu) of channel %s is outside the 32-bit float range",
-                                path, t[i], i % w, i / w, channel_name(C, c));
             if (fabs(t[i]) > amax) amax = fabs(t[i]);
         }
     }
     out->half = half;
     out->scale = 1;
+    if (!half && amax > FLT_MAX) return not_storable(ctx, f, term, half, path, amax);
     if (half && amax > 0) {
         int e;
         frexp(amax, &e); /* amax < 2^e */
         if (e - HALF_TOP_EXP > FLT_MAX_EXP - 1 || e - HALF_TOP_EXP < FLT_MIN_EXP - 1)
-            return sb_error(ctx, SB_ERR_RANGE,
-                            "%s: max |value| %g is outside the range HALF with a float scale can hold; write "
-                            "FLOAT instead",
-                            path, amax);
+            return not_storable(ctx, f, term, half, path, amax);
         out->scale = ldexp(1, e - HALF_TOP_EXP);
     }
-    if (amax > 0 && texel_stored(out, amax) == 0)
-        return sb_error(ctx, SB_ERR_RANGE,
-                        "%s: max |value| %g would be stored as 0 in FLOAT (term %zu lost); write HALF, "
-                        "which scales each texture",
-                        path, amax, term);
+    if (amax > 0 && texel_stored(out, amax) == 0) return not_storable(ctx, f, term, half, path, amax);
     return SB_OK;
 }
 
@@ -510,6 +549,12 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
             r = SB_ERR_NOMEM;
             goto out;
         }
+    }
+    /* Phase 0: every texture storable, before any file exists; messages
+     * name the file the texture was for */
+    for (size_t k = 0; k < nfiles; k++) {
+        codec_t cd;
+        if ((r = texture_codec(ctx, f, (int)(k % 2), k / 2, half, fin[k], &cd)) != SB_OK) goto out;
     }
     /* Phase 1: every file complete under its temporary name */
     for (; done < nfiles; done++) {

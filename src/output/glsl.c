@@ -14,6 +14,14 @@
 
 const char *sb_glsl_library(void) { return sb_glsl_text_; }
 
+/* Bytes of the snippet (header, one scale per term, coords, library), 0 for
+ * arguments it cannot be made of: no parameterisation, unknown form, terms
+ * outside 1..SB_GLSL_MAX_TERMS. */
+static size_t snippet_size(const sb_param_t *p, sb_form_t form, size_t terms) {
+    if (!p || (unsigned)form >= SB_FORM_COUNT_ || terms == 0 || terms > SB_GLSL_MAX_TERMS) return 0;
+    return strlen(sb_param_glsl(p)) + strlen(sb_glsl_library()) + 2048 + terms * 32;
+}
+
 /* A GLSL float literal of v: "%.9g" plus ".0" when that printed an
  * integer (GLSL ES converts no int to float, not even in constructors). */
 static size_t float_literal(char *s, size_t cap, double v) {
@@ -23,8 +31,9 @@ static size_t float_literal(char *s, size_t cap, double v) {
 }
 
 char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales) {
+    size_t cap = snippet_size(p, form, terms);
+    if (!cap) return NULL;
     const char *coords = sb_param_glsl(p), *lib = sb_glsl_library();
-    size_t cap = strlen(coords) + strlen(lib) + 2048 + terms * 32;
     char *s = malloc(cap);
     if (!s) return NULL;
     int wg[2], wh[2];
@@ -57,6 +66,10 @@ char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const d
 
 sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form, size_t terms,
                           const double *scales) {
+    if (!path || !p) return sb_error(ctx, SB_ERR_ARG, "glsl: no path or parameterisation");
+    if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "glsl: unknown form %d", (int)form);
+    if (terms == 0 || terms > SB_GLSL_MAX_TERMS)
+        return sb_error(ctx, SB_ERR_RANGE, "glsl: %zu terms, need 1..%d", terms, SB_GLSL_MAX_TERMS);
     char *text = sb_glsl_snippet(p, form, terms, scales);
     if (!text) return sb_error(ctx, SB_ERR_NOMEM, "glsl: out of memory");
     char tmp[4200];

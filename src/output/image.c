@@ -50,6 +50,7 @@ void sb_image_free(sb_image_t *img) {
 static const char *const tonemap_names[SB_TONEMAP_COUNT_] = {"clamp", "reinhard"};
 
 sb_result_t sb_tonemap_parse(const char *name, sb_tonemap_op_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int i = 0; i < SB_TONEMAP_COUNT_; i++)
         if (name && out && strcmp(name, tonemap_names[i]) == 0) {
             *out = (sb_tonemap_op_t)i;
@@ -205,7 +206,10 @@ sb_result_t sb_png_write_rgb8(sb_context_t *ctx, const char *path, size_t width,
 }
 
 static sb_result_t check_image(sb_context_t *ctx, const sb_image_t *img) {
+    size_t n;
     if (!img || !img->rgb || !img->width || !img->height) return sb_error(ctx, SB_ERR_ARG, "png: empty image");
+    if (sb_size_mul3(img->width, img->height, 3, &n))
+        return sb_error(ctx, SB_ERR_ARG, "png: image size %zu x %zu overflows", img->width, img->height);
     return SB_OK;
 }
 
@@ -264,6 +268,7 @@ sb_result_t sb_image_write_strip_png(sb_context_t *ctx, const char *path, const 
  * linearly interpolated: a diverging map with white at 0. */
 void sb_colormap_diverging(double u, unsigned char rgb[3]) {
     static const double cp[5][3] = {{33, 102, 172}, {146, 197, 222}, {247, 247, 247}, {244, 165, 130}, {178, 24, 43}};
+    if (!rgb) return;
     if (!(u > -1)) u = isnan(u) ? 0 : -1;
     if (u > 1) u = 1;
     double t = (u + 1) * 2; /* 0..4 */

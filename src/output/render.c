@@ -14,6 +14,7 @@
 #define MAX_SIZE 16384
 
 void sb_light_from_angles(double elev_deg, double azim_deg, double irradiance, sb_light_t *out) {
+    if (!out) return;
     double el = elev_deg * SB_PI / 180, az = azim_deg * SB_PI / 180;
     out->dir[0] = cos(el) * cos(az);
     out->dir[1] = cos(el) * sin(az);
@@ -31,6 +32,7 @@ static void normalize3(double v[3]) {
  * for the pole on +y, b = n x t. */
 int sb_render_frame(const sb_render_opts_t *opts, size_t x, size_t y, double n[3], double t[3], double b[3]) {
     size_t S = opts && opts->size ? opts->size : DEFAULT_SIZE;
+    if (!n || !t || !b || x >= S || y >= S) return 0;
     double e = SB_RENDER_EXTENT;
     double px = (2 * (x + 0.5) / (double)S - 1) * e, py = (1 - 2 * (y + 0.5) / (double)S) * e;
     double r2 = px * px + py * py;

@@ -269,6 +269,7 @@ sb_result_t sb_viewer_write(sb_context_t *ctx, const char *path, const sb_factor
                             sb_form_t form, const sb_viewer_opts_t *opts) {
     sb_result_t r = check_args(ctx, path, f, param);
     if (r != SB_OK) return r;
+    if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "viewer: unknown form %d", (int)form);
     sb_viewer_opts_t o = {0};
     if (opts) o = *opts;
     char *own = o.glsl ? NULL : sb_glsl_snippet(param, form, sb_factors_terms(f), NULL);

@@ -20,6 +20,7 @@ static const sb_param_desc_t *const registry[SB_PARAM_KIND_COUNT_] = {
 };
 
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
         if (name && strcmp(name, registry[k]->name) == 0) {
             *out = (sb_param_kind_t)k;
@@ -166,31 +167,42 @@ void sb_param_destroy(sb_param_t *p) {
     free(p);
 }
 
-sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p->kind; }
-const char *sb_param_name(const sb_param_t *p) { return registry[p->kind]->name; }
-const char *sb_param_spec(const sb_param_t *p) { return p->spec; }
-size_t sb_param_rows(const sb_param_t *p) { return p->rows; }
-size_t sb_param_cols(const sb_param_t *p) { return p->cols; }
-double sb_param_theta_max(const sb_param_t *p) { return p->opts.theta_max; }
+/* Getters: safe values on NULL and out-of-range arguments (common.h). */
+sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p ? p->kind : SB_PARAM_KIND_COUNT_; }
+const char *sb_param_name(const sb_param_t *p) { return p ? registry[p->kind]->name : ""; }
+const char *sb_param_spec(const sb_param_t *p) { return p ? p->spec : ""; }
+size_t sb_param_rows(const sb_param_t *p) { return p ? p->rows : 0; }
+size_t sb_param_cols(const sb_param_t *p) { return p ? p->cols : 0; }
+double sb_param_theta_max(const sb_param_t *p) { return p ? p->opts.theta_max : NAN; }
 void sb_param_texture_size(const sb_param_t *p, int side, size_t *w, size_t *h) {
-    if (w) *w = p->tex_w[side != 0];
-    if (h) *h = p->tex_h[side != 0];
+    int ok = p && (side == SB_SIDE_G || side == SB_SIDE_H);
+    if (w) *w = ok ? p->tex_w[side] : 0;
+    if (h) *h = ok ? p->tex_h[side] : 0;
 }
 void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]) {
-    wrap[0] = p->wrap[side != 0][0];
-    wrap[1] = p->wrap[side != 0][1];
+    if (!wrap) return;
+    int ok = p && (side == SB_SIDE_G || side == SB_SIDE_H);
+    wrap[0] = ok ? p->wrap[side][0] : 0;
+    wrap[1] = ok ? p->wrap[side][1] : 0;
 }
 int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
+    if (!p || !wi || !wo || row >= p->rows || col >= p->cols) return 0;
     return p->vt->cell_dirs(p, row, col, wi, wo);
 }
-double sb_param_row_measure(const sb_param_t *p, size_t row) { return p->vt->row_measure(p, row); }
-double sb_param_col_measure(const sb_param_t *p, size_t col) { return p->vt->col_measure(p, col); }
+double sb_param_row_measure(const sb_param_t *p, size_t row) {
+    return p && row < p->rows ? p->vt->row_measure(p, row) : NAN;
+}
+double sb_param_col_measure(const sb_param_t *p, size_t col) {
+    return p && col < p->cols ? p->vt->col_measure(p, col) : NAN;
+}
 int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]) {
+    if (!p || !wi || !wo || !st_g || !st_h) return 0;
     return p->vt->coords(p, wi, wo, st_g, st_h);
 }
-const char *sb_param_glsl(const sb_param_t *p) { return p->vt->glsl; }
+const char *sb_param_glsl(const sb_param_t *p) { return p ? p->vt->glsl : ""; }
 
 void sb_dir_from_angles(double theta, double phi, double w[3]) {
+    if (!w) return;
     double s = sin(theta);
     w[0] = s * cos(phi);
     w[1] = s * sin(phi);
@@ -198,6 +210,7 @@ void sb_dir_from_angles(double theta, double phi, double w[3]) {
 }
 
 void sb_dir_to_angles(const double w[3], double *theta, double *phi) {
+    if (!w || !theta || !phi) return;
     double z = w[2] > 1 ? 1 : (w[2] < -1 ? -1 : w[2]);
     *theta = acos(z);
     double ph = atan2(w[1], w[0]);

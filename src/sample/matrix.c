@@ -20,6 +20,7 @@
 static const char *const form_names[SB_FORM_COUNT_] = {"f", "cos", "cos2"};
 
 sb_result_t sb_form_parse(const char *name, sb_form_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_FORM_COUNT_; k++)
         if (name && strcmp(name, form_names[k]) == 0) {
             *out = (sb_form_t)k;
@@ -30,6 +31,7 @@ sb_result_t sb_form_parse(const char *name, sb_form_t *out) {
 const char *sb_form_name(sb_form_t f) { return (unsigned)f < SB_FORM_COUNT_ ? form_names[f] : "?"; }
 
 double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]) {
+    if (!wi || !wo || (unsigned)form >= SB_FORM_COUNT_) return NAN;
     double ci = wi[2] > 0 ? wi[2] : 0, co = wo[2] > 0 ? wo[2] : 0;
     switch (form) {
     case SB_FORM_COS:
@@ -313,8 +315,8 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     sb_matrix_opts_t o = {0};
     if (opts) o = *opts;
     if ((unsigned)o.form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "matrix: unknown form %d", (int)o.form);
-    unsigned chans = o.channels ? (o.channels & 7u) : 7u;
-    if (!chans) return sb_error(ctx, SB_ERR_ARG, "matrix: empty channel mask");
+    if (o.channels & ~7u) return sb_error(ctx, SB_ERR_ARG, "matrix: channel mask %#x, need bits 1, 2, 4", o.channels);
+    unsigned chans = o.channels ? o.channels : 7u;
     out->rows = sb_param_rows(param);
     out->cols = sb_param_cols(param);
     out->ld = out->rows;

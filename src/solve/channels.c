@@ -97,6 +97,8 @@ static void deviations(const double *const x[3], size_t rows, size_t cols, size_
 
 sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol, sb_channels_t *out) {
     if (!m || !out) return sb_error(ctx, SB_ERR_ARG, "channels: missing matrix or output");
+    if (!m->structured && m->ld < m->rows)
+        return sb_error(ctx, SB_ERR_ARG, "channels: leading dimension %zu < %zu rows", m->ld, m->rows);
     memset(out, 0, sizeof *out);
     out->base = -1;
     if (!(rel_tol >= 0 && rel_tol < 1))

@@ -283,7 +283,7 @@ static int cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size
     size_t *next = malloc(m * sizeof *next);
     if (!next) {
         cells_free(cl);
-        return SB_ERR_NOMEM;
+        return sb_error(ctx, SB_ERR_NOMEM, "masked fit: cannot allocate %zu bytes", m * sizeof *next);
     }
     memcpy(next, cl->rp, m * sizeof *next);
     for (size_t c = 0; c < n; c++)
@@ -536,9 +536,11 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
     double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
     als_cells_t cl;
     if (!saveP || !saveQ || cells_build(f->ctx, &cl, As, m, n, lda, mask, nvalid) != 0) {
+        int saved = saveP && saveQ; /* else cells_build failed and named its bytes */
         free(saveP);
         free(saveQ);
-        return SB_ERR_NOMEM;
+        if (saved) return SB_ERR_NOMEM;
+        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + n) * k * sizeof(double));
     }
     for (size_t ka = 1; ka <= k; ka++) {
         /* first the new term alone on the residual of the others: the
@@ -702,7 +704,9 @@ static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsi
     unsigned char *ext = taps ? malloc(m * n) : NULL;
     double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
     double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
-    sb_result_t r = (taps && !ext) || !P0 || !Q0 || !P1 || !Q1 ? SB_ERR_NOMEM : SB_OK;
+    sb_result_t r = SB_OK;
+    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1)
+        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 2 * (m + n) * k * sizeof(double));
     if (r == SB_OK) {
         memcpy(P0, f->P, m * k * sizeof *P0);
         memcpy(Q0, f->Q, n * k * sizeof *Q0);
@@ -807,7 +811,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
     if (!qu || !coef) {
         free(qu);
         free(coef);
-        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
+        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + 1) * k * sizeof(double));
     }
     sb_result_t r = SB_OK;
     int use_als = f->P != NULL && ninvalid > 0;
@@ -854,7 +858,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         if (r != SB_OK) {
             free(qu);
             free(coef);
-            return sb_error(f->ctx, r, "fit: out of memory");
+            return r; /* als_fit and the gathered cells named the bytes */
         }
         /* sigma_j = |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j| */
         for (size_t j = 0; j < k; j++) {

@@ -19,6 +19,7 @@ typedef struct sb_solve_problem {
     double max_error;  /* stop target (0 = all terms) */
     size_t period;     /* block-circulant period R (rows == cols == R^2), 0 = none */
     int masked;        /* cells to exclude */
+    int zero_fill;     /* excluded cells count as zeros (the plan's zero_fill) */
 } sb_solve_problem_t;
 
 /* One channel. */
@@ -68,6 +69,7 @@ typedef struct sb_solver {
 size_t sb_solver_index(const sb_solve_problem_t *pb);
 const sb_solver_t *sb_solver_at(size_t i);
 
-extern const sb_solver_t sb_solver_full, sb_solver_topk, sb_solver_randomized, sb_solver_circulant, sb_solver_masked;
+extern const sb_solver_t sb_solver_full, sb_solver_topk, sb_solver_randomized, sb_solver_circulant, sb_solver_masked,
+    sb_solver_nmf;
 
 #endif

@@ -16,9 +16,10 @@
 #include "solve/svd_internal.h"
 #include "util/internal.h"
 
-static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized"};
+static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized", "nmf"};
 
 sb_result_t sb_method_parse(const char *name, sb_method_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_METHOD_COUNT_; k++)
         if (name && strcmp(name, method_names[k]) == 0) {
             *out = (sb_method_t)k;
@@ -60,6 +61,7 @@ static sb_method_t auto_method(size_t d, size_t k, size_t p) {
 static int resolve_p(int oversample) { return oversample > 0 ? oversample : oversample < 0 ? 0 : SB_SVD_DEFAULT_P; }
 
 sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts) {
+    if (opts && (unsigned)opts->method >= SB_METHOD_COUNT_) return SB_METHOD_COUNT_;
     if (opts && opts->method != SB_METHOD_AUTO) return opts->method;
     return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
 }
@@ -86,8 +88,13 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
     sb_svd_opts_t o = {0};
     if (opts) o = *opts;
-    if ((unsigned)o.method >= SB_METHOD_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "svd: unknown method %d", (int)o.method);
+    if ((unsigned)o.method >= SB_METHOD_COUNT_ || o.method == SB_METHOD_NMF)
+        return sb_error(ctx, SB_ERR_ARG, "svd: method %d is not an SVD method", (int)o.method);
+    if (o.power_iters > SB_SVD_MAX_POWER_ITERS)
+        return sb_error(ctx, SB_ERR_RANGE, "svd: %d power iterations, at most %d", o.power_iters,
+                        SB_SVD_MAX_POWER_ITERS);
+    sb_result_t rb = sb_blas_reserve(ctx);
+    if (rb != SB_OK) return rb;
     sb_svd_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "svd: out of memory");
     s->ctx = ctx;
@@ -145,10 +152,13 @@ void sb_svd_destroy(sb_svd_t *s) {
     free(s);
 }
 
-sb_method_t sb_svd_method(const sb_svd_t *s) { return s->method; }
-size_t sb_svd_rank(const sb_svd_t *s) { return s->k; }
-size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s->bytes; }
-sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) { return s->info; }
+sb_method_t sb_svd_method(const sb_svd_t *s) { return s ? s->method : SB_METHOD_COUNT_; }
+size_t sb_svd_rank(const sb_svd_t *s) { return s ? s->k : 0; }
+size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s ? s->bytes : 0; }
+sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) {
+    sb_svd_info_t none = {0, 0, 0, 0, 0};
+    return s ? s->info : none;
+}
 
 /* ---- execute ------------------------------------------------------------ */
 
@@ -249,6 +259,9 @@ size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size
 static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
     if (!run->a || !run->sv || run->la < s->m)
         return sb_error(s->ctx, SB_ERR_ARG, "svd: missing matrix or output, or lda %zu < %zu rows", run->la, s->m);
+    size_t span;
+    if (run->la > (size_t)INT32_MAX || sb_size_mul(run->la, s->n - 1, &span) || sb_size_add(span, s->m, &span))
+        return sb_error(s->ctx, SB_ERR_OVERFLOW, "svd: leading dimension %zu too large", run->la);
     const double *A = run->a;
     double got = 0;
     if (run->have_all) *run->have_all = 0;

@@ -41,8 +41,9 @@ static sb_result_t reader_add(reader_t *rd, const double wi[3], const double wo[
                             "%s:%zu: f_r = %g (1/sr) overflows float storage (largest %g): not a reflectance", rd->path,
                             rd->lr.line, f[c], (double)FLT_MAX);
     rd->info->negative += (size_t)(negative != 0);
-    rd->info->out_of_gamut += (size_t)(rd->info->wavelengths && (f[0] < 0 || f[1] < 0 || f[2] < 0));
-    return sb_samples_push_(rd->ctx, rd->path, &rd->ss, wi, wo, f, rd->info);
+    double g[3] = {f[0], f[1], f[2]};
+    if (rd->info->wavelengths) rd->info->out_of_gamut += (size_t)sb_gamut_map(rd->info->gamut, g);
+    return sb_samples_push_(rd->ctx, rd->path, &rd->ss, wi, wo, g, rd->info);
 }
 
 static sb_result_t bad_number(reader_t *rd, const char *what, const char *field) {
@@ -462,6 +463,12 @@ static void scattered_fields(sb_measured_info_t *info) {
     sb_info_field(info, "interp", NAN, "%s, k = %zu, radius %.3g deg (median spacing %.3g deg), %zu-D embedding",
                   sb_interp_name(info->interp), info->neighbours, info->radius * 180 / SB_PI,
                   info->spacing * 180 / SB_PI, info->dims);
+    const double *cv = info->interp_cv;
+    sb_info_field(info, "interp cv", cv[info->interp],
+                  "%.3g %% (%s); nearest %.3g %%, linear %.3g %%, idw %.3g %%, quadratic %.3g %% (%zu held out)",
+                  100 * cv[info->interp], sb_interp_name(info->interp), 100 * cv[SB_INTERP_NEAREST],
+                  100 * cv[SB_INTERP_LINEAR], 100 * cv[SB_INTERP_IDW], 100 * cv[SB_INTERP_QUADRATIC],
+                  info->cv_held_out);
 }
 
 static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered_kind_t kind,
@@ -474,6 +481,7 @@ static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered
         info->value_max[c] = -INFINITY;
     }
     info->white = o->white;
+    info->gamut = o->gamut;
     int iso = 1, recip = 1;
     sb_result_t r;
     if (kind == KIND_CORNELL)
@@ -562,6 +570,37 @@ static double gauss_next(gauss_t *g) {
     return two[0];
 }
 
+/* The metadata and column lines every table written here ends its header with. */
+static void csv_header(FILE *fp, const sb_source_t *src) {
+    unsigned flags = sb_source_flags(src);
+    fprintf(fp,
+            "# units: degrees\n"
+            "# symmetry: %s\n"
+            "# reciprocal: %s\n"
+            "theta_i,phi_i,theta_o,phi_o,r,g,b\n",
+            flags & SB_SOURCE_ISOTROPIC ? "isotropic" : "anisotropic", flags & SB_SOURCE_RECIPROCAL ? "yes" : "no");
+}
+
+sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows) {
+    if (!fp || !src) return sb_error(ctx, SB_ERR_ARG, "csv: missing output or source");
+    size_t n = sb_source_sample_count(src), written = 0;
+    if (n == 0) return sb_error(ctx, SB_ERR_ARG, "csv: %s has no measured samples", sb_source_description(src));
+    fprintf(fp, "# sepbrdf table of measured samples (docs/measured.md)\n# source: %s\n", sb_source_description(src));
+    csv_header(fp, src);
+    for (size_t k = 0; k < n; k++) {
+        double wi[3], wo[3], f[3];
+        if (!sb_source_sample(src, k, wi, wo, f)) continue;
+        double a[4] = {atan2(hypot(wi[0], wi[1]), wi[2]), atan2(wi[1], wi[0]), atan2(hypot(wo[0], wo[1]), wo[2]),
+                       atan2(wo[1], wo[0])};
+        fprintf(fp, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", a[0] * 180 / SB_PI, a[1] * 180 / SB_PI,
+                a[2] * 180 / SB_PI, a[3] * 180 / SB_PI, f[0], f[1], f[2]);
+        written++;
+    }
+    if (rows) *rows = written;
+    if (ferror(fp)) return sb_error(ctx, SB_ERR_IO, "csv: write error: %s", strerror(errno));
+    return SB_OK;
+}
+
 sb_result_t sb_gonio_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, const sb_gonio_opts_t *opts,
                                size_t *rows) {
     if (!fp || !src) return sb_error(ctx, SB_ERR_ARG, "gonio: missing output or source");
@@ -585,18 +624,13 @@ sb_result_t sb_gonio_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *s
     if (!(o.noise >= 0 && o.noise <= 10))
         return sb_error(ctx, SB_ERR_RANGE, "gonio: noise %g out of range, need 0..10", o.noise);
     gauss_t g = {o.seed ? o.seed : 1, 0, 0};
-    unsigned flags = sb_source_flags(src);
     fprintf(fp,
             "# sepbrdf gonio table (docs/measured.md)\n"
             "# source: %s\n"
             "# gonio: %zu,%zu,%zu,%zu (theta_k = (k + 1/2) 90/N deg, phi_k = k 360/N deg)\n"
-            "# noise: %.17g (multiplicative gaussian, seed %llu)\n"
-            "# units: degrees\n"
-            "# symmetry: %s\n"
-            "# reciprocal: %s\n"
-            "theta_i,phi_i,theta_o,phi_o,r,g,b\n",
-            sb_source_description(src), nn[0], nn[1], nn[2], nn[3], o.noise, (unsigned long long)(o.seed ? o.seed : 1),
-            flags & SB_SOURCE_ISOTROPIC ? "isotropic" : "anisotropic", flags & SB_SOURCE_RECIPROCAL ? "yes" : "no");
+            "# noise: %.17g (multiplicative gaussian, seed %llu)\n",
+            sb_source_description(src), nn[0], nn[1], nn[2], nn[3], o.noise, (unsigned long long)(o.seed ? o.seed : 1));
+    csv_header(fp, src);
     size_t written = 0;
     for (size_t a = 0; a < nn[0]; a++)
         for (size_t b = 0; b < nn[1]; b++)

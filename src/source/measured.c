@@ -39,6 +39,7 @@ void sb_info_field(sb_measured_info_t *info, const char *key, double number, con
 
 const char *sb_interp_name(sb_interp_t m) { return (unsigned)m < SB_INTERP_COUNT_ ? interp_names[m] : "?"; }
 sb_result_t sb_interp_parse(const char *name, sb_interp_t *out) {
+    if (!out) return SB_ERR_ARG;
     for (int k = 0; k < SB_INTERP_COUNT_; k++)
         if (name && strcmp(name, interp_names[k]) == 0) {
             *out = (sb_interp_t)k;
@@ -211,6 +212,8 @@ static sb_result_t check_opts(sb_context_t *ctx, const char *path, const sb_meas
         return sb_error(ctx, SB_ERR_ARG, "%s: unknown interpolation %d", path, (int)o->interp);
     if ((unsigned)o->white >= SB_WHITE_COUNT_)
         return sb_error(ctx, SB_ERR_ARG, "%s: unknown white %d", path, (int)o->white);
+    if ((unsigned)o->gamut >= SB_GAMUT_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "%s: unknown gamut mapping %d", path, (int)o->gamut);
     if (o->neighbours > 64)
         return sb_error(ctx, SB_ERR_RANGE, "%s: %zu neighbours out of range, need 1..64", path, o->neighbours);
     if (isnan(o->radius)) return sb_error(ctx, SB_ERR_RANGE, "%s: radius is NaN", path);
@@ -244,7 +247,14 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
     sb_measured_info_t *inf = calloc(1, sizeof *inf);
     if (!inf) return sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
     inf->format = rd->name;
+    for (int k = 0; k < SB_INTERP_COUNT_; k++)
+        inf->interp_cv[k] = NAN;
     r = rd->open(ctx, path, &o, out, inf);
+    if (r == SB_OK && sb_source_set_measured_(*out, inf) != 0) {
+        sb_source_destroy(*out);
+        *out = NULL;
+        r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    }
     if (r == SB_OK && info) *info = *inf;
     free(inf);
     return r;
@@ -259,40 +269,72 @@ sb_result_t sb_measured_open_hook(sb_context_t *ctx, const char *path, sb_source
 typedef struct cov_job {
     const sb_source_t *src;
     const sb_param_t *param;
-    size_t rows, c0, c1, known, cells;
+    size_t rows, c0, c1, known, cells, bands;
+    size_t *map; /* bands x bands: known, then bands x bands: cells (NULL: none) */
 } cov_job_t;
+
+static size_t band(double z, size_t bands) {
+    size_t b = (size_t)(acos(fmin(z, 1)) / (SB_PI / 2) * (double)bands);
+    return b < bands ? b : bands - 1;
+}
 
 static void *cov_cols(void *arg) {
     cov_job_t *j = arg;
     double wi[3], wo[3], rgb[3];
+    size_t nb = j->bands * j->bands;
     for (size_t c = j->c0; c < j->c1; c++)
         for (size_t r = 0; r < j->rows; r++) {
             if (!sb_param_cell_dirs(j->param, r, c, wi, wo) || wi[2] <= 0 || wo[2] <= 0) continue;
+            size_t at = j->map ? band(wi[2], j->bands) * j->bands + band(wo[2], j->bands) : 0;
             j->cells++;
-            if (sb_source_eval(j->src, wi, wo, rgb) && isfinite(rgb[0]) && isfinite(rgb[1]) && isfinite(rgb[2]))
+            if (j->map) j->map[nb + at]++;
+            if (sb_source_eval(j->src, wi, wo, rgb) && isfinite(rgb[0]) && isfinite(rgb[1]) && isfinite(rgb[2])) {
                 j->known++;
+                if (j->map) j->map[at]++;
+            }
         }
     return NULL;
 }
 
-sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
-                                 size_t *cells) {
-    if (!src || !param) return sb_error(ctx, SB_ERR_ARG, "coverage: missing source or parameterisation");
-    size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total;
+sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t bands,
+                                     size_t *known, size_t *cells) {
+    if (!src || !param || (bands && (!known || !cells)) || bands > 90)
+        return sb_error(ctx, SB_ERR_ARG, "coverage: missing source, parameterisation or map (bands 0..90)");
+    size_t rows = sb_param_rows(param), cols = sb_param_cols(param), total, nb = bands * bands;
     if (sb_size_mul(rows, cols, &total)) return sb_error(ctx, SB_ERR_OVERFLOW, "coverage: cell count overflows");
     int nt = sb_threads_for(0, cols, cols, 0);
     cov_job_t jobs[SB_THREADS_MAX];
+    size_t *maps = nb ? calloc((size_t)nt * 2 * nb, sizeof *maps) : NULL;
+    if (nb && !maps) return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (cov_job_t){src, param, rows, 0, 0, 0, 0};
+        jobs[t] = (cov_job_t){src, param, rows, 0, 0, 0, 0, bands, nb ? maps + (size_t)t * 2 * nb : NULL};
         sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
     sb_parallel_run(cov_cols, jobs, sizeof *jobs, nt, NULL, NULL);
     size_t k = 0, n = 0;
+    for (size_t b = 0; b < nb; b++)
+        known[b] = cells[b] = 0;
     for (int t = 0; t < nt; t++) {
         k += jobs[t].known;
         n += jobs[t].cells;
+        for (size_t b = 0; b < nb; b++) {
+            known[b] += jobs[t].map[b];
+            cells[b] += jobs[t].map[nb + b];
+        }
     }
-    if (known) *known = k;
-    if (cells) *cells = n;
+    free(maps);
+    if (!nb) { /* totals only: the arrays, if any, receive them */
+        if (known) *known = k;
+        if (cells) *cells = n;
+    }
     return SB_OK;
+}
+
+sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
+                                 size_t *cells) {
+    size_t k = 0, n = 0;
+    sb_result_t r = sb_measured_coverage_map(ctx, src, param, 0, &k, &n);
+    if (r == SB_OK && known) *known = k;
+    if (r == SB_OK && cells) *cells = n;
+    return r;
 }

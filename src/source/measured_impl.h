@@ -45,6 +45,14 @@ char *sb_trim(char *s);
  * sb_half_diff_angles); 0 when wi = -wo. */
 int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, double d[3]);
 
+/* Keep a copy of what a table held with its source (sb_measured_source_info);
+ * -1 when out of memory. */
+int sb_source_set_measured_(sb_source_t *src, const sb_measured_info_t *info);
+
+/* Give a table source its samples (sb_source_sample_count, sb_source_sample). */
+void sb_source_set_samples_(sb_source_t *src, size_t (*count)(const void *self),
+                            int (*sample)(const void *self, size_t k, double wi[3], double wo[3], double f[3]));
+
 /* Scattered samples as the text readers collect them: wi[3], wo[3], f[3]
  * (RGB f_r) per sample, both directions above the horizon. */
 #define SB_SAMPLE_DOUBLES 9

@@ -58,6 +58,7 @@ int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, d
 }
 
 int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d) {
+    if (!wi || !wo || !theta_h || !theta_d || !phi_d) return 0;
     double d[3], th;
     if (!sb_half_diff_vec_(wi, wo, &th, d)) return 0;
     double pd = 0; /* phi_d = 0 when wi = wo */
@@ -73,6 +74,7 @@ int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h,
 }
 
 int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
+    if (!wi || !wo) return 0;
     double d[3];
     sb_dir_from_angles(theta_d, phi_d, d);
     double ct = cos(theta_h), st = sin(theta_h);
@@ -107,12 +109,13 @@ static size_t cell_at(size_t ih, size_t id, size_t ip) { return ip + SB_MERL_PD 
 
 int sb_merl_index(const double wi[3], const double wo[3], size_t *index) {
     double u[3];
-    if (!merl_coords(wi, wo, u)) return 0;
+    if (!wi || !wo || !index || !merl_coords(wi, wo, u)) return 0;
     *index = cell_at(clamp_index(u[0], SB_MERL_TH), clamp_index(u[1], SB_MERL_TD), clamp_index(u[2], SB_MERL_PD));
     return 1;
 }
 
 int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]) {
+    if (index >= SB_MERL_CELLS || !wi || !wo) return 0;
     size_t ip = index % SB_MERL_PD, id = index / SB_MERL_PD % SB_MERL_TD, ih = index / SB_MERL_PD / SB_MERL_TD;
     double uh = ((double)ih + 0.5) / SB_MERL_TH;
     return sb_half_diff_dirs(uh * uh * (SB_PI / 2), ((double)id + 0.5) / SB_MERL_TD * (SB_PI / 2),
@@ -209,6 +212,19 @@ static void put_le_f64(unsigned char *b, double d) {
     memcpy(&u, &d, sizeof u);
     for (int k = 0; k < 8; k++)
         b[k] = (unsigned char)(u >> (8 * k));
+}
+
+/* The samples: every measured cell at its centre (index space + 1/2). */
+static size_t merl_sample_count(const void *self) {
+    (void)self;
+    return SB_MERL_CELLS;
+}
+static int merl_sample(const void *self, size_t k, double wi[3], double wo[3], double f[3]) {
+    const merl_t *m = self;
+    if (isnan(m->v[k]) || !sb_merl_cell_dirs(k, wi, wo)) return 0;
+    for (int c = 0; c < 3; c++)
+        f[c] = m->v[(size_t)c * SB_MERL_CELLS + k];
+    return 1;
 }
 
 static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
@@ -334,7 +350,10 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
     snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
     r = sb_source_create(ctx, &ops, m, info->flags, desc, out);
-    if (r == SB_OK) m = NULL;
+    if (r == SB_OK) {
+        sb_source_set_samples_(*out, merl_sample_count, merl_sample);
+        m = NULL;
+    }
 done:
     free(buf);
     merl_destroy(m);

@@ -474,15 +474,13 @@ static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_fil
     }
     for (size_t s = 0; r == SB_OK && s < slices; s++)
         for (size_t p = 0; p < nodes; p++) {
-            int out = 0;
-            for (size_t c = 0; c < 3; c++) {
-                double v = 0;
+            double v[3] = {0, 0, 0};
+            for (size_t c = 0; c < 3; c++)
                 for (size_t k = 0; k < n; k++)
-                    v += w[c * n + k] * raw.v[(s * n + k) * nodes + p];
-                g->rgb.v[(s * 3 + c) * nodes + p] = v;
-                out |= v < 0;
-            }
-            info->out_of_gamut += (size_t)out;
+                    v[c] += w[c * n + k] * raw.v[(s * n + k) * nodes + p];
+            info->out_of_gamut += (size_t)sb_gamut_map(o->gamut, v);
+            for (size_t c = 0; c < 3; c++)
+                g->rgb.v[(s * 3 + c) * nodes + p] = v[c];
         }
     free(raw.v);
     free(nm);
@@ -589,6 +587,7 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
     if (r == SB_OK) {
         info->rows = info->samples = g->rgb.slices * g->rgb.w * g->rgb.h;
         info->white = o->white;
+        info->gamut = o->gamut;
         info->theta_i_max = info->theta_o_max = SB_PI / 2;
         info->flags = SB_SOURCE_MEASURED | (g->isotropic ? SB_SOURCE_ISOTROPIC : 0u);
         rgl_stats(g, info);

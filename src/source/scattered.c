@@ -57,6 +57,13 @@
  * and rounding leaves copies 1e-16 apart. */
 #define SAME_POSITION 1e-6
 
+/* Cross-validation holds out at most this many samples (evenly spread):
+ * enough for a 1 % estimate, bounded time on large tables. */
+#define CV_MAX 2000
+
+/* Azimuth differences averaged over at the pole (pole_mean): 5 deg steps. */
+#define POLE_STEPS 37
+
 /* ---- samples ----------------------------------------------------------- */
 
 sb_result_t sb_samples_push_(sb_context_t *ctx, const char *path, sb_samples_t *ss, const double wi[3],
@@ -102,6 +109,8 @@ typedef struct table {
     double r2; /* squared radius: nearest farther = missing */
     double s2; /* squared support: neighbours used */
     sb_interp_t interp;
+    double *smp; /* the samples as read, SB_SAMPLE_DOUBLES each */
+    size_t ns;
 } table_t;
 
 static void table_destroy(void *self) {
@@ -110,6 +119,7 @@ static void table_destroy(void *self) {
     free(t->pts);
     free(t->val);
     free(t->split);
+    free(t->smp);
     free(t);
 }
 
@@ -194,7 +204,20 @@ typedef struct knn {
     double r2;
     double d2[KNN_MAX];
     size_t at[KNN_MAX];
+    const double *skip; /* cross-validation: nskip positions (MAX_DIM each) held out */
+    int nskip;
 } knn_t;
+
+/* A point at a held-out position is not a neighbour. */
+static int knn_skips(const knn_t *q, const double *p) {
+    for (int s = 0; s < q->nskip; s++) {
+        double d = 0;
+        for (int a = 0; a < MAX_DIM; a++)
+            d += (p[a] - q->skip[s * MAX_DIM + a]) * (p[a] - q->skip[s * MAX_DIM + a]);
+        if (d <= SAME_POSITION * SAME_POSITION) return 1;
+    }
+    return 0;
+}
 
 static double knn_bound(const knn_t *q) { return q->n < q->k ? q->r2 : q->d2[0]; }
 
@@ -261,7 +284,8 @@ static void kd_query(const table_t *t, const double *x, size_t lo, size_t hi, kn
         int ax = t->split[mid];
         const double *pm = t->pts + mid * MAX_DIM;
         double d2 = dist2(x, pm);
-        if (d2 < knn_bound(q) || (q->n < q->k && d2 <= q->r2)) knn_push(q, d2, mid);
+        if ((d2 < knn_bound(q) || (q->n < q->k && d2 <= q->r2)) && !(q->nskip && knn_skips(q, pm)))
+            knn_push(q, d2, mid);
         double diff = x[ax] - pm[ax];
         size_t nlo = diff < 0 ? lo : mid + 1, nhi = diff < 0 ? mid : hi;
         size_t flo = diff < 0 ? mid + 1 : lo, fhi = diff < 0 ? hi : mid;
@@ -272,7 +296,8 @@ static void kd_query(const table_t *t, const double *x, size_t lo, size_t hi, kn
     }
     for (size_t i = lo; i < hi; i++) {
         double d2 = dist2(x, t->pts + i * MAX_DIM);
-        if (d2 < knn_bound(q) || (q->n < q->k && d2 <= q->r2)) knn_push(q, d2, i);
+        if ((d2 < knn_bound(q) || (q->n < q->k && d2 <= q->r2)) && !(q->nskip && knn_skips(q, t->pts + i * MAX_DIM)))
+            knn_push(q, d2, i);
     }
 }
 
@@ -351,21 +376,23 @@ static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadr
     return 1;
 }
 
-static int table_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
-    const table_t *t = self;
+/* The value at embedded position x by method `interp` with k neighbours,
+ * leaving out the points at the nskip positions of `skip`: 0 missing, 1
+ * known, 2 known at a measured position (the measurement). */
+static int table_at(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
+                    double rgb[3]) {
     rgb[0] = rgb[1] = rgb[2] = 0;
-    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
-    double x[MAX_DIM] = {0};
-    embed(t->iso, t->recip, wi, wo, x);
     knn_t q;
-    q.k = t->interp == SB_INTERP_NEAREST ? 1 : t->k;
+    q.k = interp == SB_INTERP_NEAREST ? 1 : k;
     q.n = 0;
-    q.r2 = t->interp == SB_INTERP_NEAREST ? t->r2 : t->s2;
+    q.r2 = interp == SB_INTERP_NEAREST ? t->r2 : t->s2;
+    q.skip = skip;
+    q.nskip = nskip;
     kd_query(t, x, 0, t->n, &q);
     knn_sort(&q);
     if (q.n == 0 || q.d2[0] > t->r2) return 0;
     /* At a measured position (or for nearest): the sample, repeats averaged. */
-    if (q.d2[0] <= SAME_POSITION * SAME_POSITION || t->interp == SB_INTERP_NEAREST) {
+    if (q.d2[0] <= SAME_POSITION * SAME_POSITION || interp == SB_INTERP_NEAREST) {
         double lim = q.d2[0] <= SAME_POSITION * SAME_POSITION ? SAME_POSITION * SAME_POSITION : q.d2[0];
         double cnt = 0;
         for (size_t m = 0; m < q.n && q.d2[m] <= lim; m++) {
@@ -376,7 +403,7 @@ static int table_eval(const void *self, const double wi[3], const double wo[3], 
         }
         for (int c = 0; c < 3; c++)
             rgb[c] /= cnt;
-        return 1;
+        return q.d2[0] <= SAME_POSITION * SAME_POSITION ? 2 : 1;
     }
     /* Inverse squared distance weights: the value, or the fallback. */
     double wsum = 0;
@@ -390,9 +417,117 @@ static int table_eval(const void *self, const double wi[3], const double wo[3], 
         rgb[c] /= wsum;
     /* Local polynomial when there are enough neighbours: twice the terms. */
     size_t lin = 2 * ((size_t)t->dim + 1), quad = 2 * (1 + (size_t)t->dim + (size_t)(t->dim * (t->dim + 1) / 2));
-    if (t->interp == SB_INTERP_QUADRATIC && q.n >= quad && poly_fit(t, x, &q, 1, rgb)) return 1;
-    if ((t->interp == SB_INTERP_QUADRATIC || t->interp == SB_INTERP_LINEAR) && q.n >= lin) poly_fit(t, x, &q, 0, rgb);
+    if (interp == SB_INTERP_QUADRATIC && q.n >= quad && poly_fit(t, x, &q, 1, rgb)) return 1;
+    if ((interp == SB_INTERP_QUADRATIC || interp == SB_INTERP_LINEAR) && q.n >= lin) poly_fit(t, x, &q, 0, rgb);
     return 1;
+}
+
+/* Near the normal the azimuth difference is undefined: f is continuous at
+ * theta = 0 whatever dphi, yet the isotropic embedding keeps dphi as a
+ * coordinate, so near the pole the value depended on dphi and a pair could
+ * be missing only because no sample shares its dphi (black pinholes where
+ * light or view is along the normal).  Within the pole zone theta_min <
+ * radius / pi (where every dphi lies within the radius on the sphere) the
+ * value blends, linearly in theta_min, from the azimuthal mean at the pole
+ * (the mean over POLE_STEPS values of dphi in [0, pi] of the values known
+ * at the pair's two elevations) to the value itself at the zone's edge:
+ * dphi-independent at the pole, continuous at the edge, never missing
+ * where any azimuth is known.  A measured position keeps its measurement. */
+static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
+    double acc[3] = {0, 0, 0}, v[3], y[MAX_DIM] = {x[0], x[1], 0, 0};
+    int n = 0;
+    for (int k = 0; k < POLE_STEPS; k++) {
+        y[2] = SB_PI * k / (POLE_STEPS - 1);
+        if (!table_at(t, t->interp, t->k, y, NULL, 0, v)) continue;
+        for (int c = 0; c < 3; c++)
+            acc[c] += v[c];
+        n++;
+    }
+    for (int c = 0; c < 3; c++)
+        rgb[c] = n ? acc[c] / n : 0;
+    return n > 0;
+}
+
+static int table_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    const table_t *t = self;
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
+    double x[MAX_DIM] = {0};
+    embed(t->iso, t->recip, wi, wo, x);
+    int known = table_at(t, t->interp, t->k, x, NULL, 0, rgb);
+    double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
+    if (known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole)) return known != 0;
+    double w = known ? tmin / zone : 0;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = w * rgb[c] + (1 - w) * pole[c];
+    return 1;
+}
+
+static size_t table_sample_count(const void *self) { return ((const table_t *)self)->ns; }
+static int table_sample(const void *self, size_t k, double wi[3], double wo[3], double f[3]) {
+    const double *s = ((const table_t *)self)->smp + k * SB_SAMPLE_DOUBLES;
+    memcpy(wi, s, 3 * sizeof *wi);
+    memcpy(wo, s + 3, 3 * sizeof *wo);
+    memcpy(f, s + 6, 3 * sizeof *f);
+    return 1;
+}
+
+/* ---- cross-validation ---------------------------------------------------- */
+
+/* Leave-one-position-out error of method m (k neighbours): each held-out
+ * sample (at most CV_MAX, evenly spread over the table) is predicted from
+ * the others, every point at its position (repeats, and the swapped copy
+ * of a reciprocal anisotropic table) left out, and compared with its
+ * measured value in the norm of the comparable error:
+ *   e = sqrt( sum (f~ - f)^2 c_i^2 c_o^2 / sum f^2 c_i^2 c_o^2 ).
+ * Samples with no neighbour left within the radius are not predicted
+ * (*missing); NAN when none was. */
+static double cv_error(const table_t *t, sb_interp_t m, size_t k, size_t *held, size_t *missing) {
+    size_t n = t->ns < CV_MAX ? t->ns : CV_MAX;
+    double num = 0, den = 0;
+    *held = n;
+    *missing = 0;
+    for (size_t h = 0; h < n; h++) {
+        const double *s = t->smp + (h * t->ns / n) * SB_SAMPLE_DOUBLES;
+        double x[2 * MAX_DIM] = {0}, rgb[3];
+        embed(t->iso, t->recip, s, s + 3, x);
+        int nskip = 1;
+        if (!t->iso && t->recip) embed(t->iso, t->recip, s + 3, s, x + MAX_DIM), nskip = 2;
+        if (!table_at(t, m, k, x, x, nskip, rgb)) {
+            (*missing)++;
+            continue;
+        }
+        double w = s[2] * s[5];
+        for (int c = 0; c < 3; c++) {
+            num += (rgb[c] - s[6 + c]) * (rgb[c] - s[6 + c]) * w * w;
+            den += s[6 + c] * s[6 + c] * w * w;
+        }
+    }
+    return *missing < n && den > 0 ? sqrt(num / den) : NAN;
+}
+
+/* Cross-validate every method; with interp DEFAULT keep the one of lowest
+ * error (on ties the earlier of quadratic, linear, idw, nearest). */
+static void cv_choose(table_t *t, const sb_measured_opts_t *o, size_t kfit, sb_measured_info_t *info) {
+    static const sb_interp_t order[4] = {SB_INTERP_QUADRATIC, SB_INTERP_LINEAR, SB_INTERP_IDW, SB_INTERP_NEAREST};
+    sb_interp_t best = SB_INTERP_QUADRATIC;
+    double best_e = INFINITY;
+    size_t miss[SB_INTERP_COUNT_] = {0};
+    for (int k = 0; k < SB_INTERP_COUNT_; k++)
+        info->interp_cv[k] = NAN;
+    for (int i = 0; i < 4; i++) {
+        sb_interp_t m = order[i];
+        size_t kk = o->neighbours ? o->neighbours : m == SB_INTERP_IDW ? (size_t)t->dim + 1 : kfit;
+        double e = cv_error(t, m, kk, &info->cv_held_out, &miss[m]);
+        info->interp_cv[m] = e;
+        if (isfinite(e) && e < best_e) {
+            best_e = e;
+            best = m;
+        }
+    }
+    t->interp = o->interp == SB_INTERP_DEFAULT ? best : o->interp;
+    t->k = o->neighbours ? o->neighbours : t->interp == SB_INTERP_IDW ? (size_t)t->dim + 1 : kfit;
+    info->cv_missing = miss[t->interp];
 }
 
 /* Median over points of the distance to the nearest other point that is
@@ -408,7 +543,7 @@ static double median_spacing(sb_context_t *ctx, const table_t *t) {
     }
     size_t m = 0;
     for (size_t i = 0; i < t->n; i++) {
-        knn_t q = {8, 0, INFINITY, {0}, {0}};
+        knn_t q = {8, 0, INFINITY, {0}, {0}, NULL, 0};
         kd_query(t, t->pts + i * MAX_DIM, 0, t->n, &q);
         knn_sort(&q);
         for (size_t j = 0; j < q.n; j++)
@@ -445,7 +580,7 @@ static int key_cmp(const void *a, const void *b) {
 /* Build the source from the samples. */
 sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *ss, int iso, int recip,
                              const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out) {
-    sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_QUADRATIC : o->interp;
+    sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_QUADRATIC : o->interp; /* until cv_choose */
     if (ss->n == 0)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: no usable samples (%zu rows: %zu NaN, %zu at or below the horizon)",
                         path, info->rows, info->nan_rows, info->horizon_rows);
@@ -544,19 +679,27 @@ sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *
     if (radius < 0) radius = INFINITY;
     t->r2 = radius * radius;
     t->s2 = SUPPORT_FACTOR * SUPPORT_FACTOR * t->r2;
+    t->smp = ss->s; /* the source keeps the samples as read */
+    t->ns = ss->n;
+    ss->s = NULL;
+    ss->n = ss->cap = 0;
+    cv_choose(t, o, kfit, info);
     info->spacing = spacing;
     info->radius = radius;
     info->neighbours = t->interp == SB_INTERP_NEAREST ? 1 : t->k;
-    info->interp = interp;
+    info->interp = t->interp;
     info->dims = (size_t)t->dim;
     info->flags = SB_SOURCE_MEASURED | (iso ? SB_SOURCE_ISOTROPIC : 0u) | (recip ? SB_SOURCE_RECIPROCAL : 0u) |
                   (info->channels == 1 ? SB_SOURCE_GRAY : 0u);
     char desc[1400];
-    snprintf(desc, sizeof desc, "%s:%s (%s, k=%zu, radius=%.3g deg)", info->format, path, sb_interp_name(interp),
+    snprintf(desc, sizeof desc, "%s:%s (%s, k=%zu, radius=%.3g deg)", info->format, path, sb_interp_name(t->interp),
              info->neighbours, radius * 180 / SB_PI);
     sb_source_ops_t ops = {table_eval, table_destroy};
     r = sb_source_create(ctx, &ops, t, info->flags, desc, out);
-    if (r == SB_OK) return SB_OK;
+    if (r == SB_OK) {
+        sb_source_set_samples_(*out, table_sample_count, table_sample);
+        return SB_OK;
+    }
 fail:
     free(keys);
     free(pts);

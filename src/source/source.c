@@ -14,6 +14,9 @@ struct sb_source {
     void *self;
     unsigned flags;
     char *desc;
+    sb_measured_info_t *minfo; /* a measured table's info (sb_measured_open), else NULL */
+    size_t (*sample_count)(const void *self);
+    int (*sample)(const void *self, size_t k, double wi[3], double wo[3], double f[3]);
 };
 
 sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
@@ -37,16 +40,45 @@ sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void
 void sb_source_destroy(sb_source_t *src) {
     if (!src) return;
     if (src->ops.destroy) src->ops.destroy(src->self);
+    free(src->minfo);
     free(src->desc);
     free(src);
 }
 
 int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]) {
+    if (!src || !wi || !wo || !rgb) {
+        if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
+        return 0;
+    }
     return src->ops.eval(src->self, wi, wo, rgb);
 }
-unsigned sb_source_flags(const sb_source_t *src) { return src->flags; }
-const char *sb_source_description(const sb_source_t *src) { return src->desc; }
-void *sb_source_impl(const sb_source_t *src) { return src->self; }
+unsigned sb_source_flags(const sb_source_t *src) { return src ? src->flags : 0; }
+const char *sb_source_description(const sb_source_t *src) { return src ? src->desc : ""; }
+void *sb_source_impl(const sb_source_t *src) { return src ? src->self : NULL; }
+
+size_t sb_source_sample_count(const sb_source_t *src) {
+    return src && src->sample_count ? src->sample_count(src->self) : 0;
+}
+int sb_source_sample(const sb_source_t *src, size_t k, double wi[3], double wo[3], double f[3]) {
+    if (k >= sb_source_sample_count(src)) return 0;
+    return src->sample(src->self, k, wi, wo, f);
+}
+
+void sb_source_set_samples_(sb_source_t *src, size_t (*count)(const void *self),
+                            int (*sample)(const void *self, size_t k, double wi[3], double wo[3], double f[3])) {
+    src->sample_count = count;
+    src->sample = sample;
+}
+
+int sb_source_set_measured_(sb_source_t *src, const sb_measured_info_t *info) {
+    sb_measured_info_t *c = malloc(sizeof *c);
+    if (!c) return -1;
+    *c = *info;
+    free(src->minfo);
+    src->minfo = c;
+    return 0;
+}
+const sb_measured_info_t *sb_measured_source_info(const sb_source_t *src) { return src ? src->minfo : NULL; }
 
 /* A spec naming an existing regular file is a measured table; anything
  * else is a model spec. */

@@ -37,6 +37,7 @@ static const double bradford[3][3] = {
 static const double d65_white[3] = {0.95047, 1.0, 1.08883};
 
 void sb_cie_cmf(double nm, double xyz[3]) {
+    if (!xyz) return;
     xyz[0] = xyz[1] = xyz[2] = 0;
     double lo = sb_cie_table_[0][0], hi = sb_cie_table_[CIE_ROWS - 1][0];
     if (!(nm >= lo && nm <= hi)) return;
@@ -87,6 +88,8 @@ static void bradford_adapt(const double src[3], const double dst[3], double out[
 sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w) {
     if (!nm || !w) return sb_error(ctx, SB_ERR_ARG, "spectral: missing wavelengths or output");
     if (n == 0) return sb_error(ctx, SB_ERR_RANGE, "spectral: no wavelengths");
+    size_t bytes; /* w holds 3 n doubles: a count whose arrays cannot exist is not read */
+    if (sb_size_mul3(n, 3, sizeof *w, &bytes)) return sb_error(ctx, SB_ERR_OVERFLOW, "spectral: %zu wavelengths", n);
     if ((unsigned)white >= SB_WHITE_COUNT_) return sb_error(ctx, SB_ERR_ARG, "spectral: unknown white %d", (int)white);
     for (size_t k = 0; k < n; k++) {
         if (!isfinite(nm[k])) return sb_error(ctx, SB_ERR_RANGE, "spectral: wavelength %zu is not finite", k + 1);
@@ -142,4 +145,35 @@ sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, s
             w[(size_t)c * n + j] = m[c][0] * x + m[c][1] * y + m[c][2] * z;
     }
     return SB_OK;
+}
+
+/* ---- gamut ------------------------------------------------------------------ */
+
+static const char *const gamut_names[SB_GAMUT_COUNT_] = {"keep", "clip", "desaturate"};
+
+const char *sb_gamut_name(sb_gamut_t g) { return (unsigned)g < SB_GAMUT_COUNT_ ? gamut_names[g] : "?"; }
+sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out) {
+    for (int k = 0; k < SB_GAMUT_COUNT_; k++)
+        if (name && out && strcmp(name, gamut_names[k]) == 0) {
+            *out = (sb_gamut_t)k;
+            return SB_OK;
+        }
+    return SB_ERR_UNKNOWN;
+}
+
+/* Desaturation: rgb' = Y + t (rgb - Y) with the largest t in [0, 1] that
+ * leaves every channel >= 0, i.e. t = Y / (Y - min); Y is unchanged. */
+int sb_gamut_map(sb_gamut_t g, double rgb[3]) {
+    double mn = fmin(rgb[0], fmin(rgb[1], rgb[2]));
+    if (!(mn < 0)) return 0;
+    if (g == SB_GAMUT_CLIP)
+        for (int c = 0; c < 3; c++)
+            rgb[c] = fmax(rgb[c], 0);
+    if (g == SB_GAMUT_DESATURATE) {
+        double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+        double t = y > 0 ? y / (y - mn) : 0;
+        for (int c = 0; c < 3; c++)
+            rgb[c] = y > 0 ? fmax(y + t * (rgb[c] - y), 0) : 0;
+    }
+    return 1;
 }

@@ -70,26 +70,29 @@ static void replace_alias(sb_context_t *ctx) {
 
 sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...) {
     if (!ctx) return code;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(ctx->last, sizeof ctx->last, fmt, ap);
-    va_end(ap);
+    ctx->last[0] = 0;
+    if (fmt) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(ctx->last, sizeof ctx->last, fmt, ap);
+        va_end(ap);
+    }
     if (ctx->alias_from) replace_alias(ctx);
     if (ctx->fn) ctx->fn(ctx->user, code, ctx->last);
     return code;
 }
 
 int sb_size_mul(size_t a, size_t b, size_t *out) {
-    if (a && b > SIZE_MAX / a) return 1;
+    if (!out || (a && b > SIZE_MAX / a)) return 1;
     *out = a * b;
     return 0;
 }
 int sb_size_mul3(size_t a, size_t b, size_t c, size_t *out) {
     size_t t;
-    return sb_size_mul(a, b, &t) || sb_size_mul(t, c, out);
+    return !out || sb_size_mul(a, b, &t) || sb_size_mul(t, c, out);
 }
 int sb_size_add(size_t a, size_t b, size_t *out) {
-    if (b > SIZE_MAX - a) return 1;
+    if (!out || b > SIZE_MAX - a) return 1;
     *out = a + b;
     return 0;
 }

@@ -33,4 +33,10 @@ int sb_thread_count(int requested);
  * it neither underflow nor overflow, and the scaling itself is exact. */
 double sb_pow2_scale(double amax);
 
+/* Before the first BLAS call of the calling thread (plan creation): under
+ * a memory limit (ulimit -v / -d), check that OpenBLAS's working buffer
+ * fits and make it allocate it now, so that it cannot hang later retrying
+ * the allocation (blas_guard.c).  SB_ERR_NOMEM names the bytes. */
+sb_result_t sb_blas_reserve(sb_context_t *ctx);
+
 #endif

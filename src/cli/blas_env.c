@@ -1,0 +1,60 @@
+/* OpenBLAS's thread count under a memory limit, chosen before OpenBLAS
+ * starts.
+ *
+ * OpenBLAS starts one worker thread per core in its library constructor,
+ * and each worker at once allocates a 128 MiB working buffer, retrying
+ * forever (100 % CPU) when that fails; at exit the main thread joins the
+ * workers.  Under `ulimit -v` of a few hundred MB this hung runs that had
+ * finished (or had already reported "cannot allocate"), and at 60 MB the
+ * constructor failed before main (`sepbrdf --version` exited 130).  A
+ * function in .preinit_array runs before the constructors of the shared
+ * libraries (but before the C library has set up `environ`, so setenv
+ * there is lost): when the limit does not hold every worker's buffer plus
+ * room for the data, it executes the program again with
+ * OPENBLAS_NUM_THREADS=1 added to its environment, and OpenBLAS then runs
+ * on the calling thread only (the library checks that thread's
+ * buffer before its first BLAS call, sb_blas_reserve). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+/* per OpenBLAS thread: buffer 128 MiB + its page, and the thread's stack */
+#define BLAS_THREAD_BYTES ((unsigned long long)136 << 20)
+/* room for the program, its libraries and a small factorisation */
+#define BLAS_BASE_BYTES ((unsigned long long)512 << 20)
+
+static unsigned long long limit_bytes(void) {
+    unsigned long long lim = ~0ull;
+    struct rlimit r;
+    if (getrlimit(RLIMIT_AS, &r) == 0 && r.rlim_cur != RLIM_INFINITY) lim = r.rlim_cur;
+    if (getrlimit(RLIMIT_DATA, &r) == 0 && r.rlim_cur != RLIM_INFINITY && r.rlim_cur < lim) lim = r.rlim_cur;
+    return lim;
+}
+
+static int tight(char **envp) {
+    unsigned long long lim = limit_bytes();
+    if (lim == ~0ull) return 0;
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    for (char **e = envp; *e; e++)
+        if (strncmp(*e, "OPENBLAS_NUM_THREADS=", 21) == 0) n = atol(*e + 21) > 0 ? atol(*e + 21) : n;
+    if (n <= 1) return 0;
+    return lim < BLAS_BASE_BYTES || (lim - BLAS_BASE_BYTES) / BLAS_THREAD_BYTES < (unsigned long long)n;
+}
+
+static void blas_threads_for_limit(int argc, char **argv, char **envp) {
+    static char *env[1024];
+    static char one[] = "OPENBLAS_NUM_THREADS=1";
+    (void)argc;
+    if (!envp || !tight(envp)) return;
+    size_t k = 0;
+    for (char **e = envp; *e && k + 2 < sizeof env / sizeof env[0]; e++)
+        if (strncmp(*e, "OPENBLAS_NUM_THREADS=", 21) != 0) env[k++] = *e;
+    env[k++] = one;
+    env[k] = NULL;
+    execve("/proc/self/exe", argv, env); /* returns only on failure: run as is */
+}
+
+__attribute__((used, section(".preinit_array"))) static void (*const sb_preinit_blas)(int, char **,
+                                                                                      char **) = blas_threads_for_limit;

@@ -1,0 +1,143 @@
+/* sepbrdf convert: write any source as a MERL .binary or a sepbrdf CSV. */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+typedef enum out_format { OUT_AUTO, OUT_MERL, OUT_CSV } out_format_t;
+
+static void help(void) {
+    printf("usage: sepbrdf convert SOURCE -o FILE [--format merl|csv] [table options]\n"
+           "\n"
+           "Write SOURCE (a model spec, see `sepbrdf list`, or a measured file) as\n"
+           "  merl  a MERL .binary (90 x 90 x 180 cells): f_r at each cell's centre,\n"
+           "        -1 (missing) where SOURCE has no value;\n"
+           "  csv   a sepbrdf CSV table (docs/measured.md): a measured table's samples as\n"
+           "        read (MERL: its measured cells at their centres), no interpolation;\n"
+           "        a source without samples (a model, an RGL file) measured on the\n"
+           "        simulated gonioreflectometer's default grid (18,1,18,72; anisotropic\n"
+           "        sources 18,24,18,72; other grids: `sepbrdf sample`).\n"
+           "The format follows FILE's extension (.binary, .csv) unless --format is given.\n"
+           "\n"
+           "options:\n"
+           "  -o, --out FILE       output file (required); written to a temporary name and\n"
+           "                       renamed when complete\n"
+           "      --format F       merl or csv\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
+}
+
+static int ends_with(const char *s, const char *ext) {
+    size_t n = strlen(s), e = strlen(ext);
+    return n > e && strcmp(s + n - e, ext) == 0;
+}
+
+typedef struct convert_opts {
+    const char *source, *out;
+    out_format_t format;
+    sb_measured_opts_t mo;
+} convert_opts_t;
+
+/* Returns -1 to go on, else the exit code. */
+static int parse(int argc, char **argv, convert_opts_t *o) {
+    static const char *const n_format[] = {"--format", NULL}, *const n_help[] = {"-h", "--help", NULL};
+    cli_args_t a = {argc, 1, argv, "convert"};
+    for (; a.i < argc; a.i++) {
+        const char *v = NULL;
+        int m;
+        if (cli_opt(&a, n_help, 0, &v)) {
+            help();
+            return EXIT_OK;
+        }
+        if ((m = cli_out_opt(&a, "file", &o->out))) {
+            if (m < 0) return EXIT_USAGE;
+        } else if ((m = cli_opt(&a, n_format, 1, &v))) {
+            if (m < 0) return EXIT_USAGE;
+            if (strcmp(v, "merl") == 0)
+                o->format = OUT_MERL;
+            else if (strcmp(v, "csv") == 0)
+                o->format = OUT_CSV;
+            else {
+                cli_error("convert", "--format '%s' unknown, need merl or csv", v);
+                return EXIT_USAGE;
+            }
+        } else if ((m = cli_measured_opt(&a, &o->mo))) {
+            if (m < 0) return EXIT_USAGE;
+        } else if (cli_verbosity_opt(argv[a.i])) {
+            continue;
+        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
+            cli_error("convert", "unknown option '%s' (see `sepbrdf convert --help`)", argv[a.i]);
+            return EXIT_USAGE;
+        } else if (!o->source) {
+            o->source = argv[a.i];
+        } else {
+            cli_error("convert", "more than one SOURCE given ('%s' and '%s')", o->source, argv[a.i]);
+            return EXIT_USAGE;
+        }
+    }
+    if (!o->source || !o->out) {
+        cli_error("convert", "%s (see `sepbrdf convert --help`)", !o->source ? "no SOURCE given" : "no -o FILE given");
+        return EXIT_USAGE;
+    }
+    if (o->format == OUT_AUTO)
+        o->format = ends_with(o->out, ".binary") ? OUT_MERL : ends_with(o->out, ".csv") ? OUT_CSV : OUT_AUTO;
+    if (o->format == OUT_AUTO) {
+        cli_error("convert", "-o %s: no .binary or .csv extension; name the format with --format merl|csv", o->out);
+        return EXIT_USAGE;
+    }
+    return -1;
+}
+
+/* The CSV: the samples when the source has them, else the default grid. */
+static sb_result_t write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows) {
+    if (sb_source_sample_count(src)) return sb_measured_write_csv(ctx, fp, src, rows);
+    int iso = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
+    sb_gonio_opts_t go = {18, iso ? 1 : 24, 18, 72, 0, 1};
+    return sb_gonio_write_csv(ctx, fp, src, &go, rows);
+}
+
+int cmd_convert(int argc, char **argv) {
+    convert_opts_t o = {0};
+    int rc = parse(argc, argv, &o);
+    if (rc >= 0) return rc;
+    sb_context_t *ctx = NULL;
+    sb_source_t *src = NULL;
+    sb_result_t r;
+    size_t rows = 0;
+    if (sb_context_create(&ctx) != SB_OK) {
+        cli_error("convert", "out of memory");
+        return EXIT_IO;
+    }
+    if ((r = sb_job_source_open(ctx, o.source, &o.mo, &src)) != SB_OK) goto fail;
+    if (o.format == OUT_MERL) {
+        if ((r = sb_merl_write(ctx, o.out, src)) != SB_OK) goto fail;
+    } else {
+        char tmp[4200];
+        FILE *fp = cli_open_tmp(o.out, tmp, sizeof tmp);
+        if (!fp) {
+            cli_error("convert", "--out %s: cannot write: %s", o.out, strerror(errno));
+            rc = EXIT_IO;
+            goto done;
+        }
+        if ((r = write_csv(ctx, fp, src, &rows)) != SB_OK) {
+            cli_commit(fp, tmp, o.out, 0);
+            goto fail;
+        }
+        if (cli_commit(fp, tmp, o.out, 1) != 0) {
+            cli_error("convert", "--out %s: cannot write", o.out);
+            rc = EXIT_IO;
+            goto done;
+        }
+    }
+    if (o.format == OUT_MERL)
+        cli_info(1, "sepbrdf convert: %s to %s (MERL)", sb_source_description(src), o.out);
+    else
+        cli_info(1, "sepbrdf convert: %zu rows of %s to %s (CSV)", rows, sb_source_description(src), o.out);
+    rc = EXIT_OK;
+    goto done;
+fail:
+    rc = cli_fail("convert", ctx, r);
+done:
+    sb_source_destroy(src);
+    sb_context_destroy(ctx);
+    return rc;
+}

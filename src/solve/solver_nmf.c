@@ -1,0 +1,216 @@
+/* The non-negative solver: X ~ sum_j u_j v_j^T with u_j, v_j >= 0, fitted
+ * by hierarchical alternating least squares (HALS, Cichocki-Phan 2009) on
+ * the valid cells of X = W_r A W_c (all cells, invalid ones as zeros,
+ * with zero_fill).  Positive weights keep the signs, so
+ * the textures g_j = u_j / w_r, h_j = v_j / w_c are non-negative and so is
+ * every reconstruction.  Taken for method nmf, with or without a mask.
+ *
+ * Warm start: NNDSVD (Boutsidis-Gallopoulos 2008) of the leading SVD terms
+ * of M o X (M the mask, invalid cells zero): term j takes the larger of
+ * the positive and negative parts of (u_j, v_j).  One HALS sweep updates
+ * each term in turn, u_j then v_j, against the masked residual
+ * E = M o (X - U V^T):
+ *     u_j(i) <- max(0, u_j(i) + sum_c E(i,c) v_j(c) / sum_c M(i,c) v_j(c)^2)
+ * (and E updated with the change), which never raises ||E||; the fit stops
+ * when a sweep gains less than tol relative, or after max_iters sweeps.
+ * The terms come out as s_j = |u_j| |v_j| with unit u_j, v_j, in order of
+ * decreasing s_j.  Unlike the SVD's, the first J' < J terms are not the
+ * best J'-term fit: the plan's errors for J' are those of this prefix. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "solve/solver.h"
+#include "util/internal.h"
+
+#define SB_NMF_MAX_ITERS 300
+#define SB_NMF_TOL 1e-5
+
+typedef struct nmf_state {
+    size_t m, n, J;
+    int max_iters, zero_fill;
+    double tol;
+    sb_svd_t *svd;
+    double *e;      /* m x n: masked residual (first the masked data for the SVD) */
+    double *sd, *t; /* J singular values; 2 m sums */
+} nmf_state_t;
+
+static int takes(const sb_solve_problem_t *pb) { return pb->svd.method == SB_METHOD_NMF; }
+
+static void destroy(void *state) {
+    nmf_state_t *s = state;
+    if (!s) return;
+    sb_svd_destroy(s->svd);
+    free(s->e);
+    free(s->sd);
+    free(s->t);
+    free(s);
+}
+
+static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **state) {
+    nmf_state_t *s = sb_calloc(ctx, 1, sizeof *s, "nmf plan");
+    if (!s) return SB_ERR_NOMEM;
+    *s = (nmf_state_t){pb->rows,      pb->cols,
+                       pb->terms,     pb->fit_max_iters > 0 ? pb->fit_max_iters : SB_NMF_MAX_ITERS,
+                       pb->zero_fill, pb->fit_tol > 0 ? pb->fit_tol : SB_NMF_TOL,
+                       NULL,          NULL,
+                       NULL,          NULL};
+    sb_svd_opts_t so = pb->svd;
+    so.method = SB_METHOD_AUTO;
+    sb_result_t r = sb_svd_create(ctx, s->m, s->n, s->J, &so, &s->svd);
+    size_t cells = s->m * s->n; /* checked by the plan */
+    if (r == SB_OK) {
+        s->e = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
+        s->sd = sb_alloc(ctx, s->J, sizeof(double), "nmf plan");
+        s->t = sb_alloc(ctx, 2 * s->m, sizeof(double), "nmf plan");
+        if (!s->e || !s->sd || !s->t) r = SB_ERR_NOMEM;
+    }
+    if (r != SB_OK) {
+        destroy(s);
+        return r;
+    }
+    *state = s;
+    return SB_OK;
+}
+
+/* Whether cell (i, c) takes part in the fit: every cell when zero-filled. */
+static int valid(const nmf_state_t *s, const sb_solve_in_t *in, size_t i, size_t c) {
+    return s->zero_fill || !in->mask || in->mask[i + c * in->lda];
+}
+
+/* Step: NNDSVD of term j of the SVD (unit u, v of length m, n) into
+ * non-negative u, v with u v^T the dominant signed part of s u v^T. */
+static void nndsvd_term(double s, double *u, size_t m, double *v, size_t n) {
+    double pu = 0, nu = 0, pv = 0, nv = 0;
+    for (size_t i = 0; i < m; i++)
+        u[i] > 0 ? (pu += u[i] * u[i]) : (nu += u[i] * u[i]);
+    for (size_t i = 0; i < n; i++)
+        v[i] > 0 ? (pv += v[i] * v[i]) : (nv += v[i] * v[i]);
+    double mp = sqrt(pu * pv), mn = sqrt(nu * nv), sg = mp >= mn ? 1 : -1, w = mp >= mn ? mp : mn;
+    double fu = w > 0 ? sqrt(s * w) / sqrt(sg > 0 ? pu : nu) : 0, fv = w > 0 ? sqrt(s * w) / sqrt(sg > 0 ? pv : nv) : 0;
+    for (size_t i = 0; i < m; i++)
+        u[i] = sg * u[i] > 0 ? fu * sg * u[i] : 0;
+    for (size_t i = 0; i < n; i++)
+        v[i] = sg * v[i] > 0 ? fv * sg * v[i] : 0;
+}
+
+/* Step: E = M o (X - U V^T); returns ||E||^2. */
+static double residual(nmf_state_t *s, const sb_solve_in_t *in, const double *U, const double *V) {
+    double f = 0;
+    for (size_t c = 0; c < s->n; c++)
+        for (size_t i = 0; i < s->m; i++) {
+            double r = 0;
+            if (valid(s, in, i, c)) {
+                r = in->x[i + c * in->ldx];
+                for (size_t j = 0; j < s->J; j++)
+                    r -= U[i + j * s->m] * V[c + j * s->n];
+            }
+            s->e[i + c * s->m] = r;
+            f += r * r;
+        }
+    return f;
+}
+
+/* Step: HALS update of u (rows) against v, with E kept current. */
+static void update_rows(nmf_state_t *s, const sb_solve_in_t *in, double *u, const double *v) {
+    size_t m = s->m;
+    double *b = s->t, *d = s->t + m, *e = s->e;
+    memset(s->t, 0, 2 * m * sizeof *s->t);
+    for (size_t c = 0; c < s->n; c++)
+        for (size_t i = 0; i < m; i++) {
+            b[i] += e[i + c * m] * v[c];
+            d[i] += valid(s, in, i, c) ? v[c] * v[c] : 0;
+        }
+    for (size_t i = 0; i < m; i++) { /* b becomes the change of u */
+        double nu = d[i] > 0 ? fmax(0, u[i] + b[i] / d[i]) : 0;
+        b[i] = nu - u[i];
+        u[i] = nu;
+    }
+    for (size_t c = 0; c < s->n; c++)
+        for (size_t i = 0; i < m; i++)
+            if (valid(s, in, i, c)) e[i + c * m] -= b[i] * v[c];
+}
+
+/* Step: HALS update of v (columns) against u, with E kept current. */
+static void update_cols(nmf_state_t *s, const sb_solve_in_t *in, const double *u, double *v) {
+    size_t m = s->m;
+    for (size_t c = 0; c < s->n; c++) {
+        double *e = s->e + c * m, b = 0, d = 0;
+        for (size_t i = 0; i < m; i++) {
+            b += e[i] * u[i];
+            d += valid(s, in, i, c) ? u[i] * u[i] : 0;
+        }
+        double nv = d > 0 ? fmax(0, v[c] + b / d) : 0, dv = nv - v[c];
+        v[c] = nv;
+        for (size_t i = 0; dv != 0 && i < m; i++)
+            if (valid(s, in, i, c)) e[i] -= u[i] * dv;
+    }
+}
+
+/* Step: s_j = |u_j| |v_j|, unit u_j, v_j, terms by decreasing s_j. */
+static void normalise(const nmf_state_t *s, double *sig, double *U, double *V) {
+    size_t m = s->m, n = s->n;
+    for (size_t j = 0; j < s->J; j++) {
+        double nu = 0, nv = 0, *u = U + j * m, *v = V + j * n;
+        for (size_t i = 0; i < m; i++)
+            nu += u[i] * u[i];
+        for (size_t i = 0; i < n; i++)
+            nv += v[i] * v[i];
+        nu = sqrt(nu);
+        nv = sqrt(nv);
+        sig[j] = nu * nv;
+        for (size_t i = 0; nu > 0 && i < m; i++)
+            u[i] /= nu;
+        for (size_t i = 0; nv > 0 && i < n; i++)
+            v[i] /= nv;
+    }
+    for (size_t j = 1; j < s->J; j++) /* insertion sort, swapping columns */
+        for (size_t k = j; k > 0 && sig[k] > sig[k - 1]; k--) {
+            double t = sig[k];
+            sig[k] = sig[k - 1];
+            sig[k - 1] = t;
+            for (size_t i = 0; i < m; i++)
+                t = U[i + k * m], U[i + k * m] = U[i + (k - 1) * m], U[i + (k - 1) * m] = t;
+            for (size_t i = 0; i < n; i++)
+                t = V[i + k * n], V[i + k * n] = V[i + (k - 1) * n], V[i + (k - 1) * n] = t;
+        }
+}
+
+static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t *out) {
+    nmf_state_t *s = state;
+    size_t m = s->m, n = s->n;
+    for (size_t c = 0; c < n; c++) /* the masked data for the warm start */
+        for (size_t i = 0; i < m; i++)
+            s->e[i + c * m] = valid(s, in, i, c) ? in->x[i + c * in->ldx] : 0;
+    sb_result_t r = sb_svd_execute(s->svd, s->e, m, s->sd, out->u, out->v, NULL, NULL);
+    if (r != SB_OK) return r;
+    for (size_t j = 0; j < s->J; j++)
+        nndsvd_term(s->sd[j], out->u + j * m, m, out->v + j * n, n);
+    double f = residual(s, in, out->u, out->v);
+    out->converged = 0;
+    for (out->iterations = 0; out->iterations < s->max_iters && !out->converged; out->iterations++) {
+        for (size_t j = 0; j < s->J; j++) {
+            update_rows(s, in, out->u + j * m, out->v + j * n);
+            update_cols(s, in, out->u + j * m, out->v + j * n);
+        }
+        double g = 0;
+        for (size_t k = 0; k < m * n; k++)
+            g += s->e[k] * s->e[k];
+        out->converged = !(f > 0) || f - g <= s->tol * f;
+        f = g;
+    }
+    normalise(s, out->s, out->u, out->v);
+    return SB_OK;
+}
+
+const sb_solver_t sb_solver_nmf = {
+    "nmf",
+    "non-negative factors (HALS from an NNDSVD warm start) on the valid cells: every texel and reconstruction >= 0",
+    SB_CAP_NONNEG | SB_CAP_MASKS,
+    takes,
+    plan,
+    destroy,
+    NULL,
+    execute,
+    NULL,
+    NULL};

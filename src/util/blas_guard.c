@@ -1,0 +1,60 @@
+/* The working buffer of OpenBLAS, reserved while memory is still free.
+ *
+ * OpenBLAS (0.3.21 as Debian ships it) gives every thread that calls a
+ * BLAS routine a working buffer of 128 MiB + 4 KiB (malloc'ed at its first
+ * call, kept for the life of the process) and, when that allocation fails,
+ * retries it forever at 100 % CPU: under `ulimit -v` (RLIMIT_AS) or
+ * `ulimit -d` (RLIMIT_DATA) a run that reached its first BLAS call with
+ * less than that left hung instead of failing.  sb_blas_reserve() makes the
+ * buffer exist before any large allocation of the caller: it first checks
+ * with an allocation of its own that the buffer fits (and reports
+ * SB_ERR_NOMEM naming the bytes when it does not), then calls one small
+ * dgemm so that OpenBLAS allocates the buffer into the space just released.
+ * Without a limit the kernel overcommits and nothing is checked. */
+#include <stdlib.h>
+#include <sys/resource.h>
+
+#include <cblas.h>
+
+#include "util/internal.h"
+
+/* OpenBLAS's BUFFER_SIZE plus its alignment page, measured (the malloc of
+ * blas_memory_alloc) and rounded up to 64 KiB. */
+#define SB_BLAS_BUFFER_BYTES (((size_t)128 << 20) + ((size_t)64 << 10))
+
+/* dgemm size that takes OpenBLAS's general path (not the small-matrix
+ * kernels OpenBLAS uses up to 100^3 multiply-adds, which skip the buffer):
+ * 128^3 multiply-adds, about 1 ms. */
+#define SB_BLAS_WARM_N 128
+
+static _Thread_local int reserved;
+
+static int limited(void) {
+    struct rlimit as, data;
+    int a = getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY;
+    int d = getrlimit(RLIMIT_DATA, &data) == 0 && data.rlim_cur != RLIM_INFINITY;
+    return a || d;
+}
+
+sb_result_t sb_blas_reserve(sb_context_t *ctx) {
+    if (reserved) return SB_OK;
+    if (!limited()) {
+        reserved = 1;
+        return SB_OK;
+    }
+    double *m = calloc(3 * (size_t)SB_BLAS_WARM_N * SB_BLAS_WARM_N, sizeof *m);
+    void *probe = m ? malloc(SB_BLAS_BUFFER_BYTES) : NULL;
+    if (!probe) {
+        free(m);
+        return sb_error(ctx, SB_ERR_NOMEM,
+                        "cannot allocate %zu bytes: the linear algebra library (OpenBLAS) needs that much working "
+                        "memory per thread, more than the memory limit (ulimit -v or -d) leaves",
+                        SB_BLAS_BUFFER_BYTES);
+    }
+    free(probe);
+    const int n = SB_BLAS_WARM_N;
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, n, n, 1.0, m, n, m + n * n, n, 0.0, m + 2 * n * n, n);
+    free(m);
+    reserved = 1;
+    return SB_OK;
+}
