@@ -381,6 +381,7 @@ sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
 static sb_result_t keep_better_fit(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
     job_attempt_t *a = &job->best;
     job_level_t lv = full_level(job);
+    lv.est_max_pairs = 1; /* compared on the pairs so far; the kept fit's estimate grows after */
     lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
     lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
     job_attempt_t tmp = *a; /* a's matrix and param, fitted again into tmp.f / tmp.est */
@@ -409,8 +410,15 @@ static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candi
     job_level_t lv = full_level(job);
     sb_result_t r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
     job_progress(job, lv.label, 1);
+    /* auto, masked: two fits are compared on the estimator's pairs so far
+     * (no growth), then only the kept one's estimate grows, when needed, to
+     * the target standard error */
+    int two = job->is_auto && job_attempt_masked(job, &job->best);
+    lv.est_max_pairs = two ? 1 : 0;
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
-    if (r == SB_OK && job->is_auto && job_attempt_masked(job, &job->best)) r = keep_better_fit(ctx, job, c);
+    if (r == SB_OK && two) r = keep_better_fit(ctx, job, c);
+    lv.est_max_pairs = 0;
+    if (r == SB_OK && two && !job->best.est->converged) r = job_estimate(ctx, job, &lv, &job->best);
     if (r == SB_OK && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(job->best.f);
         for (size_t k = keep; k >= 1; k--)
