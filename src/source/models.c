@@ -1,5 +1,5 @@
 /* Analytic BRDF models behind the source interface: the formulas of the
- * seeds (the lecture's GLSL, the lecture slides, Meister's PBR paper), their
+ * lecture material (the lecture's GLSL, the lecture slides, Meister's PBR paper), their
  * keys, and the presets (metals with linear F0, dielectrics with eta).
  *
  * Conventions shared by every model: l = wi (towards the light), v = wo
