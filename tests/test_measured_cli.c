@@ -483,3 +483,73 @@ SB_TEST(convert_errors) {
     CHECK(!sb_file_exists(p));
     CHECK(cli("convert --help") == 0 && strstr(out, "--format"));
 }
+
+/* Copy `from` to `to`, byte `at` set to `value` (at < 0: none); the first
+ * `keep` bytes only when keep > 0. */
+static void copy_patched(const char *from, const char *to, long at, int value, long keep) {
+    FILE *in = fopen(from, "rb"), *o = fopen(to, "wb");
+    CHECK(in && o);
+    if (!in || !o) {
+        if (in) fclose(in);
+        if (o) fclose(o);
+        return;
+    }
+    int c;
+    for (long k = 0; (c = getc(in)) != EOF && (keep <= 0 || k < keep); k++)
+        putc(k == at ? value : c, o);
+    fclose(in);
+    fclose(o);
+}
+
+/* A malformed or unsupported file is input, exit 2, from every command that
+ * reads one (a bad option is usage, exit 1); the message names the file and
+ * what is wrong, and no output file is left. */
+SB_TEST(bad_files_exit_2) {
+    CHECKF(has_measured_dir(), "%s: the shipped measured tables are missing", SB_MEASURED_DIR);
+    const char *dir = sb_tmpdir("mbad");
+    static const struct {
+        const char *name, *from; /* from: a shipped file to patch, or NULL: text */
+        long at;
+        int value;
+        long keep;
+        const char *text, *want;
+    } files[] = {
+        {"version2.bsdf", "rgl_paper_white_rgb.bsdf", 12, 2, 0, NULL, "tensor_file version 2.0"},
+        {"short.bsdf", "rgl_chm_orange_rgb.bsdf", -1, 0, 300, NULL, "past the end"},
+        {"felt1d.alta", "alta_merl_pink-felt-1d.alta", -1, 0, 0, NULL, "#DIM 1 3 not supported"},
+        {"rusin.alta", NULL, 0, 0, 0, "#DIM 3 1\n#PARAM_IN RUSIN_TH_TD_PD\n1 2 3 4\n", "#PARAM_IN RUSIN_TH_TD_PD"},
+        {"waves.brdf", NULL, 0, 0, 0, "# num wls\n2\n# wls\n500 450\n", "wavelengths not increasing"},
+        {"noise.xyz", NULL, 0, 0, 0, "\x01\x02\x03 hello", "unrecognised measured table"},
+    };
+    static const char *const cmds[] = {
+        "info %s --res 4",
+        "factor %s --res 8 -J 1 -o %s/out",
+        "render %s --res 8 -J 1 --size 16 -o %s/out",
+        "study %s --res 8 --terms 1..1 -o %s/out",
+        "convert %s -o %s/out.csv",
+        "batch %s --res 8 -J 1 -o %s/out",
+    };
+    for (size_t f = 0; f < sizeof files / sizeof files[0]; f++) {
+        char p[4200], from[4200], o[4200];
+        snprintf(p, sizeof p, "%s/%s", dir, files[f].name);
+        if (files[f].from) {
+            snprintf(from, sizeof from, "%s/%s", SB_MEASURED_DIR, files[f].from);
+            copy_patched(from, p, files[f].at, files[f].value, files[f].keep);
+        } else {
+            FILE *fp = fopen(p, "wb");
+            CHECK(fp != NULL);
+            if (!fp) continue;
+            fputs(files[f].text, fp);
+            fclose(fp);
+        }
+        for (size_t c = 0; c < sizeof cmds / sizeof cmds[0]; c++) {
+            snprintf(o, sizeof o, "%s/run%zu_%zu", dir, f, c);
+            CHECK(mkdir(o, 0755) == 0);
+            int rc = cli(cmds[c], p, o);
+            CHECKF(rc == 2, "%s on %s: rc %d: %s", cmds[c], files[f].name, rc, out);
+            CHECKF(strstr(out, files[f].name) && strstr(out, files[f].want), "%s on %s: %s", cmds[c], files[f].name,
+                   out);
+            if (c == 1 || c == 2 || c == 4) CHECKF(dir_is_empty_or_missing(o), "%s left output", cmds[c]);
+        }
+    }
+}

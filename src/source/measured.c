@@ -250,6 +250,9 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
     for (int k = 0; k < SB_INTERP_COUNT_; k++)
         inf->interp_cv[k] = NAN;
     r = rd->open(ctx, path, &o, out, inf);
+    /* sb_alloc refuses sizes beyond the memory limit with SB_ERR_OVERFLOW
+     * (lower --res); a table's size comes from the file, not an option */
+    if (r == SB_ERR_OVERFLOW) r = SB_ERR_NOMEM;
     if (r == SB_OK && sb_source_set_measured_(*out, inf) != 0) {
         sb_source_destroy(*out);
         *out = NULL;
