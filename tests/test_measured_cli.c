@@ -54,15 +54,21 @@ static size_t count_lines(const char *path, int data_only) {
     return n;
 }
 
-/* The J-th "rel_rms" of report.json (the error after J terms), NaN if absent. */
-static double report_rel_rms(const char *path, int J) {
-    FILE *fp = fopen(path, "r");
-    if (!fp) return NAN;
+/* The text of a file (up to 1 MiB, a static buffer), NULL if unreadable. */
+static char *slurp(const char *path) {
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
     static char buf[1 << 20];
     size_t n = fread(buf, 1, sizeof buf - 1, fp);
     buf[n] = 0;
     fclose(fp);
-    const char *p = buf;
+    return buf;
+}
+
+/* The J-th "rel_rms" of report.json (the error after J terms), NaN if absent. */
+static double report_rel_rms(const char *path, int J) {
+    const char *p = slurp(path);
+    if (!p) return NAN;
     for (int k = 0; k < J; k++) {
         p = strstr(p, "\"rel_rms\": ");
         if (!p) return NAN;
@@ -73,12 +79,8 @@ static double report_rel_rms(const char *path, int J) {
 
 /* Every "rel_rms": value in report.json is a finite number. */
 static int report_finite(const char *path, int *count) {
-    FILE *fp = fopen(path, "r");
-    if (!fp) return 0;
-    static char buf[1 << 20];
-    size_t n = fread(buf, 1, sizeof buf - 1, fp);
-    buf[n] = 0;
-    fclose(fp);
+    const char *buf = slurp(path);
+    if (!buf) return 0;
     *count = 0;
     for (const char *p = buf; (p = strstr(p, "\"rel_rms\": ")); p++) {
         double v = atof(p + 11);
@@ -552,4 +554,90 @@ SB_TEST(bad_files_exit_2) {
             if (c == 1 || c == 2 || c == 4) CHECKF(dir_is_empty_or_missing(o), "%s left output", cmds[c]);
         }
     }
+}
+
+/* The numbers of the JSON array `key` in the text buf (up to max); the count. */
+static size_t json_numbers(const char *buf, const char *key, double *v, size_t max) {
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": [", key);
+    const char *p = strstr(buf, pat);
+    if (!p) return 0;
+    p += strlen(pat);
+    size_t n = 0;
+    for (char *end;; p = end + 1) {
+        double x = strtod(p, &end);
+        if (end == p) break;
+        if (n < max) v[n++] = x;
+        while (*end == ' ' || *end == '\n')
+            end++;
+        if (*end != ',') break;
+    }
+    return n;
+}
+
+/* When J or the resolution ask for more than a measured table supports,
+ * factor and study warn (stderr, report.json / study.json "warnings").
+ * The rules, written out here: the last J' whose term takes more than
+ * 0.1 % off the error at the measured samples (report.json
+ * measured.sample_rel_l2) is what the data support; cells of 90/R deg
+ * finer than half the samples' median spacing (sb_measured_open) hold
+ * only interpolation. */
+SB_TEST(support_warnings) {
+    CHECKF(has_measured_dir(), "%s: the shipped measured tables are missing", SB_MEASURED_DIR);
+    const char *dir = sb_tmpdir("msup");
+    static const struct {
+        const char *file, *args;
+        int terms_warn; /* the data support fewer terms than asked */
+    } runs[] = {
+        {"alta_retro-3M-jaune.dat", "--param iso --res 16 -J 8", 1},
+        {"cornell_acryl_blue.brdf", "--param iso --form cos2 --weighted --res 64 -J 4", 0},
+        {"cornell_acryl_blue.brdf", "--param iso --form cos2 --weighted --res 16 -J 2", 0},
+    };
+    for (size_t k = 0; k < sizeof runs / sizeof runs[0]; k++) {
+        char src[4200], o[4200];
+        snprintf(src, sizeof src, "%s/%s", SB_MEASURED_DIR, runs[k].file);
+        snprintf(o, sizeof o, "%s/f%zu", dir, k);
+        int rc = cli("factor %s %s -o %s", src, runs[k].args, o);
+        CHECKF(rc == 0, "rc %d: %s", rc, out);
+        char msg[sizeof out];
+        memcpy(msg, out, sizeof out);
+        /* the expected warnings from the data */
+        sb_context_t *ctx;
+        sb_context_create(&ctx);
+        sb_source_t *s = NULL;
+        sb_measured_info_t in;
+        CHECK(sb_measured_open(ctx, src, NULL, &s, &in) == SB_OK);
+        sb_source_destroy(s);
+        sb_context_destroy(ctx);
+        size_t res = (size_t)atoi(strstr(runs[k].args, "--res ") + 6);
+        int res_warn = 90.0 / (double)res < 0.5 * in.spacing * 180 / 3.14159265358979323846;
+        snprintf(o + strlen(o), sizeof o - strlen(o), "/report.json");
+        const char *rep = slurp(o);
+        CHECK(rep != NULL);
+        if (!rep) continue;
+        double e[64];
+        size_t n = json_numbers(rep, "sample_rel_l2", e, 64), best = 0;
+        CHECK(n == (size_t)atoi(strstr(runs[k].args, "-J ") + 3));
+        for (size_t j = 1; j < n; j++)
+            if (e[j] < e[best] * 0.999) best = j;
+        char want[128];
+        snprintf(want, sizeof want, "terms beyond J = %zu do not lower the error at the", best + 1);
+        const char *w = strstr(rep, "\"warnings\"");
+        CHECK(w != NULL);
+        if (!w) continue;
+        CHECKF(!strstr(w, want) == !(best + 1 < n), "%s: J' = %zu of %zu: %s", runs[k].file, best + 1, n, w);
+        CHECKF(!strstr(msg, want) == !(best + 1 < n), "%s: %s", runs[k].file, msg);
+        CHECKF((best + 1 < n) == runs[k].terms_warn, "%s: the data support J' = %zu of %zu", runs[k].file, best + 1, n);
+        snprintf(want, sizeof want, "resolution %zu: cells of", res);
+        CHECKF(!strstr(w, want) == !res_warn && !strstr(msg, want) == !res_warn, "%s: %s", runs[k].file, w);
+        CHECK(res_warn == (res == 64)); /* Cornell's median spacing is 3.8 deg */
+    }
+    /* study: the warnings of each run after its last J, in study.json */
+    int rc = cli("study %s/alta_retro-3M-jaune.dat --param iso --res 16 --terms 1..8 -o %s/s", SB_MEASURED_DIR, dir);
+    CHECKF(rc == 0 && strstr(out, "on iso: terms beyond J = "), "rc %d: %s", rc, out);
+    char p[4300];
+    snprintf(p, sizeof p, "%s/s/study.json", dir);
+    const char *st = slurp(p);
+    const char *ws = st ? strstr(st, "\"warnings\": [") : NULL;
+    CHECK(ws && strstr(ws, "terms beyond J = ") && strstr(ws, "terms beyond J = ") < strstr(ws, "]"));
 }

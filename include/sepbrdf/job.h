@@ -188,6 +188,11 @@ int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
 size_t sb_job_candidate_count(const sb_job_t *job);
 const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
 void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
+/* Warnings of the run (report.json "warnings"): a layout that folds a
+ * non-reciprocal source; for a measured table, a grid finer than half the
+ * samples' median spacing and terms beyond the last one that lowers the
+ * error at the measured samples (sb_measured_sample_errors), checked again
+ * by sb_job_refactor. */
 size_t sb_job_warning_count(const sb_job_t *job);
 const char *sb_job_warning(const sb_job_t *job, size_t i);
 

@@ -101,6 +101,8 @@ static void runs_free(runs_t *rs) {
         free(rs->v[i].source);
         free(rs->v[i].param_spec);
         free(rs->v[i].error);
+        for (size_t k = 0; k < rs->v[i].nwarn; k++)
+            free(rs->v[i].warn[k]);
         free(rs->v[i].r);
     }
     free(rs->v);
@@ -110,6 +112,15 @@ static void run_fail(run_t *r, const char *msg) {
     r->ok = 0;
     free(r->error);
     r->error = dup_str(msg && *msg ? msg : "failed");
+}
+
+/* Print the job's warnings and keep them for study.json: after the last
+ * refactor, which checks again what the run asks of a measured table. */
+static void run_warnings(run_t *r, const sb_job_t *job, const char *param) {
+    for (size_t i = 0; job && i < sb_job_warning_count(job); i++) {
+        cli_error("study", "warning: %s on %s: %s", r->spec, param, sb_job_warning(job, i));
+        if (r->nwarn < sizeof r->warn / sizeof r->warn[0]) r->warn[r->nwarn++] = dup_str(sb_job_warning(job, i));
+    }
 }
 
 /* ---- options ----------------------------------------------------------- */
@@ -265,14 +276,13 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     cli_progress(label, base);
     sb_result_t res = sb_job_run_source(ctx, src, &jo, &job);
     if (job) r->param_spec = dup_str(sb_param_spec(sb_job_param(job)));
-    for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
-        cli_error("study", "warning: %s on %s: %s", r->spec, jo.param, sb_job_warning(job, i));
     r->r = calloc(o->nj, sizeof *r->r);
     if (res == SB_OK && !r->r) res = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (res != SB_OK) {
         char msg[1024];
         cli_job_message(msg, sizeof msg, ctx, res, jo.terms);
         run_fail(r, msg);
+        run_warnings(r, job, jo.param);
         sb_job_destroy(job);
         return;
     }
@@ -298,6 +308,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     } else {
         r->ok = 1;
     }
+    run_warnings(r, job, jo.param);
     sb_job_destroy(job);
 }
 

@@ -38,6 +38,8 @@ typedef struct run {
     size_t rows, cols;
     int ok, masked, converged, iterations;
     char *error;
+    char *warn[8]; /* the job's warnings (sb_job_warning), as printed */
+    size_t nwarn;
     double t_sample;
     row_t *r;
     size_t nr;

@@ -74,6 +74,10 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
         json_string(&j, "param", r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : NULL);
         json_string(&j, "param_spec", r->param_spec);
         json_bool(&j, "ok", r->ok);
+        json_begin_array(&j, "warnings");
+        for (size_t k = 0; k < r->nwarn; k++)
+            json_string(&j, NULL, r->warn[k]);
+        json_end_array(&j);
         if (!r->ok) {
             json_string(&j, "error", r->error);
             json_end_object(&j);

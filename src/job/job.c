@@ -100,6 +100,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job_select(ctx, job);
     if (r == SB_OK) {
+        job_warn_support(job);
         job->t.sample_s = job->best.t_sample;
         job->t.factor_s = job->best.t_factor;
         job->t.metric_s = job->best.t_metric;
@@ -146,6 +147,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
     free(job->rel_stored);
     job->rel_stored = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
+    if (r == SB_OK) job_warn_support(job);
     job->t.factor_s = job->best.t_factor;
     job->t.metric_s = job->best.t_metric;
     job->t.estimate_s = job->best.t_estimate;

@@ -28,7 +28,7 @@ typedef struct job_level {
 } job_level_t;
 
 #define JOB_MAX_CANDS (3 * SB_PARAM_KIND_COUNT_)
-#define JOB_MAX_WARN 4
+#define JOB_MAX_WARN 8
 
 struct sb_job {
     sb_job_opts_t o;   /* resolved: every default filled in */
@@ -45,6 +45,7 @@ struct sb_job {
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
+    size_t nsupport; /* the last of warn[] are job_warn_support's */
     sb_job_timings_t t;
     double t_start;
 };
@@ -52,6 +53,11 @@ struct sb_job {
 double job_now(void);
 void job_progress(const sb_job_t *job, const char *label, double fraction);
 void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* (Re)check what the run asks of a measured table against what its data
+ * support (job_support.c): a grid finer than the samples, terms that no
+ * longer lower the error at the measured samples; replaces the warnings of
+ * the previous check.  Nothing for analytic sources. */
+void job_warn_support(sb_job_t *job);
 
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);

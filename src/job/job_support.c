@@ -1,0 +1,57 @@
+/* Warnings when a run asks a measured table for more than its data
+ * support (docs/measured.md, "Unmeasured regions: the policy"). */
+#include <math.h>
+#include <stdlib.h>
+
+#include "job_impl.h"
+#include "sepbrdf/measured.h"
+#include "util/internal.h"
+
+/* A term "lowers" the error at the samples when it takes off more than this
+ * fraction of it: a smaller gain is within what the last bits of the fit
+ * move, not information the samples hold. */
+#define SUPPORT_GAIN 1e-3
+
+/* The largest J' whose term still lowers the error at the measured samples
+ * (1-based); e(J') beyond it fits the interpolation between the samples,
+ * not the data. */
+static size_t supported_terms(const sb_sample_errors_t *se) {
+    size_t best = 0;
+    for (size_t k = 1; k < se->terms; k++)
+        if (se->rel_l2[k] < se->rel_l2[best] * (1 - SUPPORT_GAIN)) best = k;
+    return best + 1;
+}
+
+/* Drop the previous check's warnings: a refactor asks again. */
+static void drop_support(sb_job_t *job) {
+    for (; job->nsupport && job->nwarn; job->nsupport--)
+        free(job->warn[--job->nwarn]);
+    job->nsupport = 0;
+}
+
+void job_warn_support(sb_job_t *job) {
+    drop_support(job);
+    const sb_measured_info_t *in = sb_measured_source_info(job->src);
+    if (!in) return;
+    size_t before = job->nwarn;
+    /* a grid finer than the samples: sampling at spacing s resolves
+     * features of 2 s (Nyquist), so cells below s / 2 hold only what the
+     * interpolation makes up between samples */
+    double cell = 90.0 / (double)job->o.res, spacing = in->spacing * 180 / SB_PI;
+    if (in->dims && spacing > 0 && cell < 0.5 * spacing)
+        job_warn(job,
+                 "resolution %zu: cells of %.3g deg are finer than half the samples' median spacing (%.3g deg); the "
+                 "extra resolution holds interpolated values only",
+                 job->o.res, cell, spacing);
+    const job_attempt_t *a = &job->best;
+    sb_sample_errors_t se;
+    if (a->f && sb_measured_sample_errors(NULL, job->src, a->f, a->param, a->m.form, &se) == SB_OK) {
+        size_t keep = supported_terms(&se);
+        if (keep < se.terms)
+            job_warn(job,
+                     "terms beyond J = %zu do not lower the error at the %zu measured samples (%.3g%% at J = %zu, "
+                     "%.3g%% at J = %zu): they fit the interpolation, not the data",
+                     keep, se.samples, 100 * se.rel_l2[keep - 1], keep, 100 * se.rel_l2[se.terms - 1], se.terms);
+    }
+    job->nsupport = job->nwarn - before;
+}
