@@ -233,13 +233,14 @@ typedef struct sb_sample_errors {
     size_t outside;                      /* of them, outside the parameterisation's domain */
     double rel_l2[SB_SAMPLE_ERRORS_MAX]; /* e(J'), index J' - 1 */
     double source_rel_l2;                /* the source itself (its interpolation) at the samples,
-                                          * same norm: 0 for a table read exactly */
+                                          * same norm: 0 for a table read exactly
+                                          * (RGL: the pole nodes' spread, below 1 %) */
 } sb_sample_errors_t;
 
 struct sb_factors;
 /* Errors of the first min(J, 256) terms of `f` (parameterisation p, form)
  * at the samples of `src`.  Errors: SB_ERR_ARG (NULL, or a source without
- * samples: analytic models and RGL tables), SB_ERR_NUMERIC (no sample with
+ * samples: analytic models), SB_ERR_NUMERIC (no sample with
  * a non-zero value). */
 sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
                                       const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out);
@@ -303,8 +304,8 @@ sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t
  * interpolation) as a sepbrdf CSV table to fp: degrees, the source's
  * symmetry and reciprocity as metadata, RGB f_r with 17 digits, so that
  * reading it back gives the same samples.  *rows (may be NULL) receives
- * the number written.  Errors: SB_ERR_ARG (no samples: a model or an RGL
- * table; measure those with sb_gonio_write_csv), SB_ERR_IO. */
+ * the number written.  Errors: SB_ERR_ARG (no samples: a model; measure
+ * those with sb_gonio_write_csv), SB_ERR_IO. */
 sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows);
 
 /* ---- simulated gonioreflectometer ------------------------------------- */

@@ -50,7 +50,9 @@ void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation *
  * interpolation: the number of sample slots (0 for analytic sources and
  * tables without samples), and slot k's directions and RGB f_r; returns 0
  * for a slot that holds no measurement (a missing MERL cell) or k out of
- * range, 1 otherwise. */
+ * range, 1 otherwise.  Tables with samples: MERL (cells), scattered
+ * tables (rows), RGL (colour nodes at their directions; a node whose light
+ * falls below the horizon holds none). */
 size_t sb_source_sample_count(const sb_source_t *src);
 int sb_source_sample(const sb_source_t *src, size_t k, double wi[3], double wo[3], double f[3]);
 

@@ -33,6 +33,7 @@
 
 #include "sepbrdf/measured.h"
 #include "source/measured_impl.h"
+#include "source/rgl_impl.h"
 #include "util/internal.h"
 
 #define RGL_MAX_FIELDS 4096
@@ -47,21 +48,6 @@ typedef struct tf_field {
     const unsigned char *data; /* inside the file buffer, bounds checked */
     size_t count;              /* product of shape */
 } tf_field_t;
-
-/* One warp table: n_slices slices of h x w values. */
-typedef struct table2d {
-    size_t w, h, slices, chans; /* chans: values per node per slice (rgb: C) */
-    double *v;                  /* values (normalised for a warp) */
-    double *ccdf;               /* warp: conditional CDF per row, [slice][h][w] */
-    double *mcdf;               /* warp: marginal CDF, [slice][h] */
-} table2d_t;
-
-typedef struct rgl {
-    size_t n_phi, n_theta;
-    double *phi, *theta; /* slice positions (radians) */
-    table2d_t ndf, sigma, vndf, rgb;
-    int isotropic, jacobian, reduction;
-} rgl_t;
 
 static const size_t dtype_size[12] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 2, 4, 8};
 
@@ -244,12 +230,6 @@ static sb_result_t table_warp(sb_context_t *ctx, const char *path, const char *n
     return SB_OK;
 }
 
-/* Slice interpolation: up to four slices with weights. */
-typedef struct slices {
-    size_t idx[4];
-    double wt[4];
-} slices_t;
-
 /* Largest i in [0, n-2] with x[i] < p (0 if none); weight of i + 1 clamped. */
 static void interval(const double *x, size_t n, double p, size_t *i, double *w1) {
     *i = 0;
@@ -299,7 +279,7 @@ static void patch(const table2d_t *t, const double pos[2], size_t *ix, size_t *i
 
 /* Bilinear value at pos of channel c, slices mixed by s (NULL: the one
  * slice of a plain table). */
-static double bilinear(const table2d_t *t, const double pos[2], const slices_t *s, size_t c) {
+double sb_rgl_bilinear_(const table2d_t *t, const double pos[2], const slices_t *s, size_t c) {
     static const slices_t one = {{0, 0, 0, 0}, {1, 0, 0, 0}};
     size_t ix, iy;
     double f[2];
@@ -316,7 +296,7 @@ static double bilinear(const table2d_t *t, const double pos[2], const slices_t *
  * interpolated at u_y, evaluated at u_x, over that row's total.  The
  * bilinear patch integrates exactly: x' within the patch adds
  * f_x (c0 + f_x (c1 - c0) / 2) with c0, c1 the patch's column values at f_y. */
-static void warp_invert(const table2d_t *t, const double u[2], const slices_t *s, double out[2]) {
+void sb_rgl_warp_invert_(const table2d_t *t, const double u[2], const slices_t *s, double out[2]) {
     size_t ix, iy;
     double f[2];
     patch(t, u, &ix, &iy, f);
@@ -334,13 +314,15 @@ static void warp_invert(const table2d_t *t, const double u[2], const slices_t *s
 
 /* ---- evaluation ------------------------------------------------------------ */
 
-static double elevation(const double d[3]) {
+double sb_rgl_elevation_(const double d[3]) {
     double dist = sqrt(d[0] * d[0] + d[1] * d[1] + (d[2] - 1) * (d[2] - 1));
     double h = 0.5 * dist;
     return 2 * asin(h > 1 ? 1 : h);
 }
-static double theta2u(double theta) { return sqrt(theta * (2 / SB_PI)); }
-static double phi2u(double phi) { return (phi + SB_PI) / (2 * SB_PI); }
+double sb_rgl_jacobian_(const rgl_t *g, const double u_m[2], const double u_v[2]) {
+    return g->jacobian ? sb_rgl_bilinear_(&g->ndf, u_m, NULL, 0) / (4 * sb_rgl_bilinear_(&g->sigma, u_v, NULL, 0)) : 1;
+}
+
 /* a with the sign flipped unless b is negative (Mitsuba's mulsign_neg). */
 static double mulsign_neg(double a, double b) { return signbit(b) ? a : -a; }
 
@@ -361,19 +343,18 @@ static int rgl_eval(const void *self, const double wi[3], const double wo[3], do
     m[0] /= len;
     m[1] /= len;
     m[2] /= len;
-    double theta_v = elevation(v), phi_v = atan2(v[1], v[0]);
-    double theta_m = elevation(m), phi_m = atan2(m[1], m[0]);
-    double u_v[2] = {theta2u(theta_v), phi2u(phi_v)};
-    double u_m[2] = {theta2u(theta_m), phi2u(g->isotropic ? phi_m - phi_v : phi_m)};
+    double theta_v = sb_rgl_elevation_(v), phi_v = atan2(v[1], v[0]);
+    double theta_m = sb_rgl_elevation_(m), phi_m = atan2(m[1], m[0]);
+    double u_v[2] = {sb_rgl_theta2u(theta_v), sb_rgl_phi2u(phi_v)};
+    double u_m[2] = {sb_rgl_theta2u(theta_m), sb_rgl_phi2u(g->isotropic ? phi_m - phi_v : phi_m)};
     u_m[1] -= floor(u_m[1]);
     slices_t s;
     slice_weights(g, phi_v, theta_v, &s);
     double sample[2];
-    warp_invert(&g->vndf, u_m, &s, sample);
-    double scale = 1;
-    if (g->jacobian) scale = bilinear(&g->ndf, u_m, NULL, 0) / (4 * bilinear(&g->sigma, u_v, NULL, 0));
+    sb_rgl_warp_invert_(&g->vndf, u_m, &s, sample);
+    double scale = sb_rgl_jacobian_(g, u_m, u_v);
     for (size_t c = 0; c < 3; c++) {
-        double val = bilinear(&g->rgb, sample, &s, c) * scale;
+        double val = sb_rgl_bilinear_(&g->rgb, sample, &s, c) * scale;
         rgb[c] = val > 0 ? val / l[2] : 0;
     }
     return 1;
@@ -596,6 +577,7 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
         snprintf(desc, sizeof desc, "rgl:%s", path);
         sb_source_ops_t ops = {rgl_eval, rgl_destroy};
         r = sb_source_create(ctx, &ops, g, info->flags, desc, out);
+        if (r == SB_OK) sb_source_set_samples_(*out, sb_rgl_sample_count_, sb_rgl_sample_);
     }
     if (r != SB_OK) rgl_destroy(g);
     free(tf.fields);
