@@ -11,7 +11,6 @@
 
 /* ---- a tensor_file writer ------------------------------------------------- */
 
-
 static void put(FILE *fp, uint64_t v, int n) {
     for (int k = 0; k < n; k++)
         fputc((int)(v >> (8 * k)) & 0xff, fp);
@@ -65,7 +64,6 @@ void write_tensor(const char *path, const wfield_t *f, int nf) {
 }
 
 /* ---- the material, as the reference sees it --------------------------------- */
-
 
 double rnd(unsigned long long *s) { return sb_rand01(s); }
 
@@ -269,7 +267,6 @@ void ref_eval(const mat_t *m, const double l_in[3], const double v_in[3], double
     }
 }
 
-
 /* The test's own reader of the fields the reference needs. */
 int load_real(const char *path, mat_t *m) {
     FILE *fp = fopen(path, "rb");
@@ -322,4 +319,3 @@ int load_real(const char *path, mat_t *m) {
     free(b);
     return ok && m->vndf && m->col && m->ndf && m->sigma;
 }
-

@@ -15,8 +15,9 @@
  * evaluation returns at (l, v).  A node whose light falls at or below the
  * horizon (x = S_x - 1 among them: m on the horizon) is no sample.  Where
  * nodes meet at one pair (x = 0: theta_m = 0 for every row; an anisotropic
- * table's slices of theta_i = 0, one per phi_i) each keeps its own value
- * and the evaluation reads one of them. */
+ * table's slices of theta_i = 0, one per phi_i) each keeps its own value;
+ * the evaluation reads one of them, or, off the pole by rounding only,
+ * each its own when the view is along the normal. */
 #include <math.h>
 
 #include "source/measured_impl.h"
@@ -25,14 +26,14 @@
 /* Bisection steps: 2^-64 of the unit interval, below double resolution. */
 #define WARP_STEPS 64
 
-/* The smallest u in [0, 1] with warp_invert(u)[axis] >= s, the other
- * coordinate of u at `other` (axis 1 ignores it: the marginal CDF). */
+/* The u in (0, 1] with warp_invert(u)[axis] = s by bisection, the other
+ * coordinate of u at `other` (axis 1 ignores it: the marginal CDF).  For
+ * s = 0 it stays 2^-64 off the edge: at x = 0 (theta_m = 0) every row of
+ * a slice meets at one pair, and just off it each row keeps its azimuth,
+ * so the evaluation reads that row's node back in the limit. */
 static double warp_solve(const table2d_t *t, const slices_t *one, int axis, double other, double s) {
     double lo = 0, hi = 1, out[2], at[2];
-    at[axis] = 0;
     at[1 - axis] = other;
-    sb_rgl_warp_invert_(t, at, one, out);
-    if (out[axis] >= s) return 0; /* s = 0: the edge itself, not 2^-64 beside it */
     for (int k = 0; k < WARP_STEPS; k++) {
         at[axis] = 0.5 * (lo + hi);
         sb_rgl_warp_invert_(t, at, one, out);
