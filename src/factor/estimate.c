@@ -312,7 +312,7 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
                 num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
         neg[j] += below ? w : 0;
         maxv[j] = fmax(maxv[j], vmax);
-        for (int c = 0; c < 4; c++) {
+        for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
             double rel = sqrt(d2[c] / f2[c]);
             hist[(j * 4 + c) * NB + bin_of(rel)] += ew[c];
@@ -482,7 +482,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     sb_estimate_opts_t o = opts_or_default(opts);
     int nt = sb_thread_count(o.threads);
     if (nt > MAXT) nt = MAXT;
-    eval_t e = {.P = pairs, .p = p, .form = form};
+    eval_t e = {.P = pairs, .p = p, .form = form, .headline_only = o.headline_only};
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
     size_t J = e.J;

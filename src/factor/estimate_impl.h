@@ -29,6 +29,7 @@ typedef struct eval {
     int wrap[2][2];
     const double *scale; /* J per-term factors */
     sb_form_t form;
+    int headline_only; /* no per-pair histograms or maxima (p99, max_rel 0) */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
     double *num, *den, *neg, *meas;
     /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */

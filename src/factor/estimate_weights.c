@@ -53,7 +53,8 @@ sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs,
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "term weights: unknown form %d", (int)form);
     eval_t e = {.P = pairs, .p = p, .form = form};
     double *ones = NULL;
-    if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "term weights: out of memory");
+    if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK)
+        return sb_error(ctx, SB_ERR_NOMEM, "term weights: out of memory");
     size_t J = e.J, C = e.C, L = J * (J + 1) / 2, len = tw_len(J, C), block = 8;
     int nt = sb_thread_count(0);
     if (nt > MAXT) nt = MAXT;
@@ -103,4 +104,3 @@ sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs,
     est_eval_free(&e);
     return SB_OK;
 }
-

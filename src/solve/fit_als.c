@@ -46,7 +46,6 @@ static inline void spd_solve(double *G, double *b, size_t k) {
     }
 }
 
-
 void fit_cells_free(als_cells_t *cl) {
     free(cl->cp);
     free(cl->rp);
@@ -61,7 +60,7 @@ void fit_cells_free(als_cells_t *cl) {
 /* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
  * SB_ERR_NOMEM. */
 int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
-                       const unsigned char *mask, size_t nvalid) {
+                    const unsigned char *mask, size_t nvalid) {
     /* ~40 bytes per valid cell: through sb_alloc, so the memory limit holds */
     static const char what[] = "masked fit: gathered cells";
     memset(cl, 0, sizeof *cl);
@@ -314,7 +313,7 @@ static void prefix_errors(const sb_fit_t *f, const als_cells_t *cl, size_t ka, d
 
 /* ALS sweeps on columns j0..ka-1 until the error stops improving. */
 double fit_als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, const sb_fit_opts_t *o, double norm,
-                        int *sweeps, int *converged) {
+                     int *sweeps, int *converged) {
     double prev = INFINITY, err = 0;
     fit_cells_residual(cl, f, j0);
     for (int stage = 1;; stage++) {
@@ -345,8 +344,8 @@ static int joint_stage(size_t ka, size_t k) { return ka > 1 && (ka <= SB_JOINT_A
  * max_iters (earlier stages only warm-start the later ones).  SB_OK or
  * SB_ERR_NOMEM. */
 sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
-                              const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
-                              int *stretched) {
+                           const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
+                           int *stretched) {
     size_t m = f->m, n = f->n, k = f->k;
     /* Nested stages: terms are added one at a time and the first ka
      * are refitted jointly, so every prefix of the result is itself a

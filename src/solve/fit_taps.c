@@ -114,7 +114,7 @@ static sb_result_t taps_probe(sb_fit_t *f, const double *As, size_t lda, const u
  * non-increasing), so that every prefix is a fit no worse than the shorter
  * ones.  SB_OK or SB_ERR_NOMEM. */
 sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
-                           const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
+                    const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
     size_t m = f->m, n = f->n, k = f->k;
     int taps = lda == m && o->tex[0][0] * o->tex[0][1] == m && o->tex[1][0] * o->tex[1][1] == n;
     unsigned char *ext = taps ? malloc(m * n) : NULL;
