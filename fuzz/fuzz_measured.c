@@ -1,7 +1,8 @@
 /* Fuzz the measured-table readers through sb_source_open on a file whose
  * extension the first input byte picks: .binary (MERL), .brdf (Cornell),
  * .dat / .alta (ALTA), .csv, .bsdf (RGL); the rest of the input is the
- * file.  A refusal is an input code (I/O, format, memory).  A source that
+ * file.  A refusal is an input code (I/O, format, unsupported
+ * variant, memory).  A source that
  * opens is evaluated at a few pairs (grazing and below the horizon
  * included) and sampled on a tiny io grid, with the matrix builder's invariants:
  * finite cells, mask 0 and value 0 where the source has no finite value. */
@@ -54,7 +55,7 @@ SB_FUZZ_ENTRY(measured) {
     sb_source_t *src = (sb_source_t *)1;
     sb_result_t r = sb_source_open(ctx, path, &src);
     /* a file's content is input: never an option code (exit 1 in the CLI) */
-    SB_FUZZ_CHECK(r == SB_OK || r == SB_ERR_IO || r == SB_ERR_FORMAT || r == SB_ERR_NOMEM);
+    SB_FUZZ_CHECK(r == SB_OK || r == SB_ERR_IO || r == SB_ERR_FORMAT || r == SB_ERR_UNSUPPORTED || r == SB_ERR_NOMEM);
     if (r == SB_OK) {
         SB_FUZZ_CHECK(src != NULL && src != (sb_source_t *)1);
         check_source(ctx, src);

@@ -197,18 +197,18 @@ typedef struct sb_measured_info {
  * a spec that names a file.
  * Errors (message names the file, and the line for text):
  *   SB_ERR_IO      cannot open or read
- *   SB_ERR_FORMAT  content is not what the format requires or not a
- *                  variant this reader reads: unrecognised, wrong size or
- *                  dims, malformed number, missing columns, counts out of
- *                  range, non-finite angles, another ALTA parameterisation,
- *                  a tensor_file version or symmetry reduction other than
- *                  1.0 and 1, 2, 4 (the message names which)
+ *   SB_ERR_FORMAT  content is not what the format requires: unrecognised,
+ *                  wrong size or dims, malformed number, missing columns,
+ *                  counts out of range, non-finite angles
+ *   SB_ERR_UNSUPPORTED  a recognised but unsupported variant (another ALTA
+ *                  parameterisation, a tensor_file version or symmetry
+ *                  reduction other than 1.0 and 1, 2, 4)
  *   SB_ERR_ARG / SB_ERR_RANGE  bad options (SB_ERR_UNKNOWN: a format name
  *                  not in the registry)
  *   SB_ERR_NOMEM   the table does not fit in memory or the memory limit
  *                  (opening takes no size option to lower)
- * A file's content never gives SB_ERR_ARG, SB_ERR_RANGE or
- * SB_ERR_UNSUPPORTED, so a caller can tell bad input from bad options. */
+ * A file's content never gives SB_ERR_ARG or SB_ERR_RANGE, so a caller
+ * can tell bad input from bad options (the CLI: exit 2, not 1). */
 sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
                              sb_measured_info_t *info);
 

@@ -44,6 +44,7 @@ int cli_exit_code(sb_result_t r) {
         return EXIT_OK;
     case SB_ERR_IO:
     case SB_ERR_FORMAT:
+    case SB_ERR_UNSUPPORTED: /* a file variant or layout this build does not read */
     case SB_ERR_NOMEM:
         return EXIT_IO;
     case SB_ERR_NUMERIC:

@@ -223,13 +223,13 @@ static sb_result_t read_alta(reader_t *rd) {
                 if (nf != 3 || *e1 || *e2)
                     return sb_error(ctx, SB_ERR_FORMAT, "%s:%zu: #DIM needs two integers", rd->path, rd->lr.line);
                 if (din != 3 || (dout != 1 && dout != 3))
-                    return sb_error(ctx, SB_ERR_FORMAT,
+                    return sb_error(ctx, SB_ERR_UNSUPPORTED,
                                     "%s:%zu: ALTA #DIM %ld %ld not supported; need 3 inputs "
                                     "(ISOTROPIC_TL_TV_PROJ_DPHI) and 1 or 3 outputs",
                                     rd->path, rd->lr.line, din, dout);
             } else if (strcmp(f[0], "#PARAM_IN") == 0) {
                 if (nf < 2 || strcmp(f[1], "ISOTROPIC_TL_TV_PROJ_DPHI") != 0)
-                    return sb_error(ctx, SB_ERR_FORMAT,
+                    return sb_error(ctx, SB_ERR_UNSUPPORTED,
                                     "%s:%zu: ALTA #PARAM_IN %s not supported; need ISOTROPIC_TL_TV_PROJ_DPHI", rd->path,
                                     rd->lr.line, nf >= 2 ? f[1] : "(none)");
                 have_in = 1;
@@ -239,13 +239,13 @@ static sb_result_t read_alta(reader_t *rd) {
                 else if (nf >= 2 && (strcmp(f[1], "INV_STERADIAN") == 0 || strcmp(f[1], "RGB_COLOR") == 0))
                     cosine = 0;
                 else
-                    return sb_error(ctx, SB_ERR_FORMAT,
+                    return sb_error(ctx, SB_ERR_UNSUPPORTED,
                                     "%s:%zu: ALTA #PARAM_OUT %s not supported; need INV_STERADIAN_COSINE_FACTOR, "
                                     "INV_STERADIAN or RGB_COLOR",
                                     rd->path, rd->lr.line, nf >= 2 ? f[1] : "(none)");
             } else if (strcmp(f[0], "#VS") == 0) {
                 if (nf != 2 || strcmp(f[1], "0") != 0)
-                    return sb_error(ctx, SB_ERR_FORMAT, "%s:%zu: ALTA confidence columns (#VS %s) not supported",
+                    return sb_error(ctx, SB_ERR_UNSUPPORTED, "%s:%zu: ALTA confidence columns (#VS %s) not supported",
                                     rd->path, rd->lr.line, nf >= 2 ? f[1] : "");
             }
             continue; /* other comments: #SAMPLE, #ORIGIN, #URL, ... */

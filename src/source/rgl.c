@@ -101,8 +101,8 @@ static sb_result_t parse_fields(sb_context_t *ctx, const char *path, tf_file_t *
     if (n < 18 || memcmp(b, "tensor_file", 12) != 0)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: not a tensor_file (bad magic or shorter than 18 bytes)", path);
     if (b[12] != 1 || b[13] != 0)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: tensor_file version %u.%u, only 1.0 is supported", path, b[12],
-                        b[13]);
+        return sb_error(ctx, SB_ERR_UNSUPPORTED, "%s: RGL: tensor_file version %u.%u, only 1.0 is supported", path,
+                        b[12], b[13]);
     uint64_t count = le_u(b + 14, 4);
     if (count == 0 || count > RGL_MAX_FIELDS)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: %ju fields, need 1..%d", path, (uintmax_t)count, RGL_MAX_FIELDS);
@@ -402,7 +402,7 @@ static sb_result_t load_angles(sb_context_t *ctx, const char *path, const tf_fie
     if (!g->isotropic) {
         double red = rint(2 * SB_PI / (g->phi[g->n_phi - 1] - g->phi[0]));
         if (red != 1 && red != 2 && red != 4)
-            return sb_error(ctx, SB_ERR_FORMAT,
+            return sb_error(ctx, SB_ERR_UNSUPPORTED,
                             "%s: RGL: phi_i covers %g deg: symmetry reduction %g, only 1, 2 and 4 are supported", path,
                             (g->phi[g->n_phi - 1] - g->phi[0]) * 180 / SB_PI, red);
         g->reduction = (int)red;
