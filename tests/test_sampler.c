@@ -12,8 +12,8 @@
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
-#define NT 16      /* chi2 bins in theta over [0, pi/2] */
-#define NP 32      /* and in phi */
+#define NT 16 /* chi2 bins in theta over [0, pi/2] */
+#define NP 32 /* and in phi */
 #ifndef SUB
 #define SUB 24 /* quadrature points per bin and axis (midpoints in cos theta, phi) */
 #endif
@@ -47,8 +47,8 @@ static int fixture(const char *spec, sb_param_kind_t kind, size_t R, size_t J, s
     pl.svd.method = method;
     sb_matrix_t m = {0};
     sb_plan_t *plan = NULL;
-    sb_result_t r = strchr(spec, '/') ? sb_measured_open(NULL, spec, NULL, &x->src, NULL)
-                                      : sb_model_create(NULL, spec, &x->src);
+    sb_result_t r =
+        strchr(spec, '/') ? sb_measured_open(NULL, spec, NULL, &x->src, NULL) : sb_model_create(NULL, spec, &x->src);
     if (!r) r = sb_param_create(NULL, kind, &po, &x->p);
     if (!r) r = sb_matrix_build(NULL, x->src, x->p, &mo, &m);
     if (!r) r = sb_plan_create_for(NULL, &m, &pl, &plan);
@@ -137,7 +137,7 @@ static int cmp_desc(const void *a, const void *b) {
 /* chi2 p-value of observed counts against n * mass, bins expecting fewer
  * than MIN_EXP pooled (the pool dropped if it still expects too few). */
 static double chi2_p(const double *mass, const double *obs, double n, double *stat, int *dof) {
-    double (*pairs)[2] = malloc(NT * NP * sizeof *pairs);
+    double(*pairs)[2] = malloc(NT * NP * sizeof *pairs);
     for (size_t b = 0; b < NT * NP; b++) {
         pairs[b][0] = mass[b] * n;
         pairs[b][1] = obs[b];
@@ -183,7 +183,8 @@ static void chi2_case(const char *label, const fixture_t *x, const double *theta
             ok++;
             obs[bin_of(wi)] += 1;
             double q = sb_pdf(x->s, wo, wi);
-            bad_pdf += !(fabs(q - pdf) <= 1e-12 * q) || !(fabs(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2] - 1) < 1e-12);
+            bad_pdf +=
+                !(fabs(q - pdf) <= 1e-12 * q) || !(fabs(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2] - 1) < 1e-12);
         }
         expected_mass(x->s, wo, mass);
         double stat, total = 0;
@@ -205,7 +206,8 @@ static const double THETAS[3] = {15, 50, 75};
 static void chi2_run(const char *spec, sb_param_kind_t kind, size_t R, size_t n) {
     fixture_t x;
     char label[160];
-    snprintf(label, sizeof label, "%s %s", sb_param_kind_name(kind), strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec);
+    snprintf(label, sizeof label, "%s %s", sb_param_kind_name(kind),
+             strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec);
     if (fixture_sampler(spec, kind, R, 4, &x)) chi2_case(label, &x, THETAS, 3, n);
     fixture_free(&x);
 }
@@ -363,7 +365,7 @@ SB_TEST(errors) {
     CHECK(sb_sampler_create(NULL, f, p, SB_FORM_COS, NULL) == SB_ERR_ARG);
     CHECK(sb_sampler_create(NULL, NULL, p, SB_FORM_COS, &s) == SB_ERR_ARG && s == NULL);
     CHECK(sb_sampler_create(NULL, f, p, SB_FORM_COUNT_, &s) == SB_ERR_ARG);
-    CHECK(sb_sampler_create(NULL, f, q, SB_FORM_COS, &s) == SB_ERR_ARG); /* 8x8 textures, 9x9 grid */
+    CHECK(sb_sampler_create(NULL, f, q, SB_FORM_COS, &s) == SB_ERR_ARG);     /* 8x8 textures, 9x9 grid */
     CHECK(sb_sampler_create(NULL, f, p, SB_FORM_COS, &s) == SB_ERR_NUMERIC); /* all zero */
     sb_factors_tex(f, SB_SIDE_H, 1, 2)[5] = NAN;
     CHECK(sb_sampler_create(NULL, f, p, SB_FORM_COS, &s) == SB_ERR_ARG);
@@ -420,7 +422,7 @@ SB_TEST(file_layout) {
     CHECK(u32_at(b + 8) == W1 && u32_at(b + 12) == H1 && u32_at(b + 16) == K + 1 && u32_at(b + 20) == C);
     CHECK(n == 24 + 4 * (K + 1) * W1 * H1);
     const unsigned char *d = b + 24;
-#define AT(k, x, y) f32_at(d + 4 * (((k) * H1 + (y)) * W1 + (x)))
+#define AT(k, x, y) f32_at(d + 4 * (((k)*H1 + (y)) * W1 + (x)))
     for (size_t k = 0; k < K; k++) {
         CHECK(AT(k, W, H - 1) == 1.0f);
         for (size_t y = 0; y < H; y++)
@@ -436,4 +438,81 @@ SB_TEST(file_layout) {
 #undef AT
     free(b);
     fixture_free(&x);
+}
+
+/* ---- GLSL ------------------------------------------------------------------ */
+
+static int have_validator(void) { return sb_run("command -v glslangValidator", NULL, 0) == 0; }
+
+/* The snippet with the sampler block compiles for every parameterisation,
+ * 1 and 3 channels, in GLSL 3.30 core, 4.50 core and ES 3.00, in a shader
+ * that calls sb_sample and sb_pdf. */
+SB_TEST(glsl_compiles) {
+    if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
+    static const char *const profiles[] = {"#version 330 core", "#version 450 core", "#version 300 es"};
+    const char *dir = sb_tmpdir("sampler-glsl");
+    char path[4200], cmd[4400], log[8192];
+    snprintf(path, sizeof path, "%s/test.frag", dir);
+    snprintf(cmd, sizeof cmd, "glslangValidator %s", path);
+    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
+        sb_param_t *p = NULL;
+        sb_param_opts_t o = {0};
+        o.res = 8;
+        CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+        for (size_t ch = 1; ch <= 3; ch += 2) {
+            char *head = sb_glsl_snippet(p, SB_FORM_COS, 2, NULL), *tail = sb_glsl_sampler(p, ch);
+            CHECK(head && tail && strstr(tail, "bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf)"));
+            for (size_t v = 0; v < 3 && head && tail; v++) {
+                FILE *fp = fopen(path, "w");
+                fprintf(fp,
+                        "%s\n%s\n%s\nin vec2 vU;\nin vec3 vV;\nout vec4 color;\n"
+                        "void main() {\n    vec3 L;\n    float pdf;\n"
+                        "    bool ok = sb_sample(normalize(vV), vU, L, pdf);\n"
+                        "    color = vec4(L, ok ? pdf - sb_pdf(L, normalize(vV)) : -1.0);\n}\n",
+                        profiles[v], head, tail);
+                fclose(fp);
+                int rc = sb_run(cmd, log, sizeof log);
+                CHECKF(rc == 0, "%s, %zu channels, %s:\n%s", sb_param_spec(p), ch, profiles[v], log);
+            }
+            free(head);
+            free(tail);
+        }
+        CHECK(sb_glsl_sampler(p, 2) == NULL);
+        sb_param_destroy(p);
+    }
+    CHECK(sb_glsl_sampler(NULL, 3) == NULL);
+}
+
+/* ---- the output set ---------------------------------------------------------- */
+
+static int file_has(const char *path, const char *needle) {
+    FILE *fp = fopen(path, "rb");
+    static char buf[1 << 20];
+    size_t n = fp ? fread(buf, 1, sizeof buf - 1, fp) : 0;
+    if (fp) fclose(fp);
+    buf[n] = 0;
+    return strstr(buf, needle) != NULL;
+}
+
+/* `sepbrdf factor --method nmf` writes sampler.bin, names it in report.json
+ * and appends the sampler block to sepbrdf.glsl; the SVD's signed factors
+ * get neither (and no message about it). */
+SB_TEST(factor_writes_sampler) {
+    const char *dir = sb_tmpdir("sampler-cli");
+    char cmd[8192], out[8192], path[4200];
+    for (int nmf = 0; nmf < 2; nmf++) {
+        snprintf(cmd, sizeof cmd,
+                 "%s factor 'cook-torrance:d=ggx,roughness=0.3' --param hd --res 12 -J 3 --form cos %s -o %s/%d",
+                 SB_CLI, nmf ? "--method nmf" : "", dir, nmf);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 0, "%s:\n%s", cmd, out);
+        CHECKF(!strstr(out, "sampler:"), "%s", out);
+        snprintf(path, sizeof path, "%s/%d/sampler.bin", dir, nmf);
+        CHECK(sb_file_exists(path) == nmf);
+        snprintf(path, sizeof path, "%s/%d/report.json", dir, nmf);
+        CHECK(file_has(path, "\"sampler\": \"sampler.bin\"") == nmf);
+        snprintf(path, sizeof path, "%s/%d/sepbrdf.glsl", dir, nmf);
+        CHECK(file_has(path, "bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf)") == nmf);
+        CHECK(file_has(path, "#define SB_HALF_ROWS 1") == nmf);
+    }
 }

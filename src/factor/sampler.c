@@ -226,8 +226,7 @@ static double factored_pdf(const sb_sampler_t *s, const double wo[3], const doub
 double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {
     double sg[2], sh[2], sw[2];
     if (!s || !wo || !wi || !sb_param_coords(s->p, wi, wo, sg, sh) || !weight_coords(s, wo, sw)) return 0;
-    return SB_SAMPLER_COSINE_SHARE * wi[2] / SB_PI +
-           (1 - SB_SAMPLER_COSINE_SHARE) * factored_pdf(s, wo, wi, sg, sw);
+    return SB_SAMPLER_COSINE_SHARE * wi[2] / SB_PI + (1 - SB_SAMPLER_COSINE_SHARE) * factored_pdf(s, wo, wi, sg, sw);
 }
 
 /* The factored component's direction (before the domain check): the

@@ -43,6 +43,7 @@ struct sb_job {
     size_t ncand;
     job_attempt_t best;
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
+    int wrote_sampler;  /* sb_job_write wrote sampler.bin (non-negative factors) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     sb_job_timings_t t;
