@@ -18,7 +18,9 @@
 // (W + 1) x (H + 1) texels and J * SB_SAMPLE_CH + 1 layers (read with
 // texelFetch only, any filter).  Layer k = j * SB_SAMPLE_CH + c: texel
 // (x, y < H) the conditional CDF of texel row y, (W, y) the marginal CDF,
-// (0, H) the integral of g_k; the last layer the solid angle of each cell.
+// (0, H) the integral of g_k; layer K = J * SB_SAMPLE_CH the solid angle of
+// each cell; with SB_HALF_ROWS, layer K + 1 + k the weight of k for V in
+// each cell.
 
 uniform sampler2DArray sb_cdf;
 
@@ -46,25 +48,49 @@ float sb_cdf_prob(int k, ivec2 o, ivec2 step, int i) {
     return sb_cdf_at(k, o + i * step) - (i > 0 ? sb_cdf_at(k, o + (i - 1) * step) : 0.0);
 }
 
-// Weight of distribution k for the h coordinate st_h: lum_c h_jc I_jc.
-float sb_weight(int k, vec2 st_h) {
-    int j = k / SB_SAMPLE_CH, c = k - j * SB_SAMPLE_CH;
-    vec3 lum = SB_SAMPLE_CH == 1 ? vec3(1.0) : vec3(0.2126, 0.7152, 0.0722);
-    float h = texture(sb_h, vec3(st_h, float(j)))[c];
-    return lum[c] * h * sb_scale[j] * sb_cdf_at(k, ivec2(0, textureSize(sb_cdf, 0).y - 1));
+// Number of distributions K = J * SB_SAMPLE_CH (layers 0 .. K - 1; layer K
+// holds the cells' solid angles, layers K + 1 .. 2K the weight tables of
+// the half-vector layouts).
+int sb_dists() {
+#if SB_HALF_ROWS
+    return (textureSize(sb_cdf, 0).z - 1) / 2;
+#else
+    return textureSize(sb_cdf, 0).z - 1;
+#endif
 }
 
-// The h coordinate of the pair (mirror(V), V), where the weights are read.
-bool sb_weight_st(vec3 V, out vec2 st_h) {
+#if SB_HALF_ROWS
+// The weights' key: the row cell of V (that of the pair (V, V), whose half
+// vector is V); the weight of k is the table's texel there.
+bool sb_weight_key(vec3 V, out vec2 key) {
+    vec4 st = sb_coords(V, V);
+    ivec2 n = textureSize(sb_cdf, 0).xy - 1;
+    key = vec2(clamp(ivec2(floor(st.xy * vec2(n))), ivec2(0), n - 1));
+    return sb_domain(V, V, st);
+}
+
+float sb_weight(int k, vec2 key) { return sb_cdf_at(sb_dists() + 1 + k, ivec2(key)); }
+#else
+// The weights' key: the h coordinate of the pair (mirror(V), V).
+bool sb_weight_key(vec3 V, out vec2 key) {
     vec3 M = vec3(-V.xy, V.z);
     vec4 st = sb_coords(M, V);
-    st_h = st.zw;
+    key = st.zw;
     return sb_domain(M, V, st);
 }
 
+// Weight of distribution k: lum_c h_jc(key) I_jc.
+float sb_weight(int k, vec2 key) {
+    int j = k / SB_SAMPLE_CH, c = k - j * SB_SAMPLE_CH;
+    vec3 lum = SB_SAMPLE_CH == 1 ? vec3(1.0) : vec3(0.2126, 0.7152, 0.0722);
+    float h = texture(sb_h, vec3(key, float(j)))[c];
+    return lum[c] * h * sb_scale[j] * sb_cdf_at(k, ivec2(0, textureSize(sb_cdf, 0).y - 1));
+}
+#endif
+
 float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
     ivec3 n = textureSize(sb_cdf, 0);
-    int W = n.x - 1, H = n.y - 1, K = n.z - 1;
+    int W = n.x - 1, H = n.y - 1, K = sb_dists();
     ivec2 cell = clamp(ivec2(floor(st_g * vec2(W, H))), ivec2(0), ivec2(W - 1, H - 1));
     float num = 0.0, total = 0.0;
     for (int k = 0; k < K; k++) {
@@ -86,7 +112,7 @@ float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
 float sb_pdf(vec3 L, vec3 V) {
     vec4 st = sb_coords(L, V);
     vec2 sw;
-    if (!sb_domain(L, V, st) || !sb_weight_st(V, sw)) return 0.0;
+    if (!sb_domain(L, V, st) || !sb_weight_key(V, sw)) return 0.0;
     return SB_COSINE_SHARE * L.z / SB_PI + (1.0 - SB_COSINE_SHARE) * sb_factored_pdf(L, V, st.xy, sw);
 }
 
@@ -95,7 +121,7 @@ float sb_pdf(vec3 L, vec3 V) {
 bool sb_factored_dir(vec3 V, vec2 sw, float u0, float u1, out vec3 D) {
     D = vec3(0.0);
     ivec3 n = textureSize(sb_cdf, 0);
-    int W = n.x - 1, H = n.y - 1, K = n.z - 1;
+    int W = n.x - 1, H = n.y - 1, K = sb_dists();
     float total = 0.0;
     for (int k = 0; k < K; k++)
         total += sb_weight(k, sw);
@@ -131,7 +157,7 @@ bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf) {
     L = vec3(0.0);
     pdf = 0.0;
     vec2 sw;
-    if (!sb_weight_st(V, sw)) return false;
+    if (!sb_weight_key(V, sw)) return false;
     vec3 D;
     if (u.x < SB_COSINE_SHARE) { // cosine-weighted share
         float r = sqrt(u.x / SB_COSINE_SHARE), phi = 2.0 * SB_PI * u.y;

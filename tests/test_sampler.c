@@ -419,8 +419,8 @@ SB_TEST(file_layout) {
     if (fp) fclose(fp);
     size_t W = 8, H = 8, C = 3, K = 3 * C, W1 = W + 1, H1 = H + 1;
     CHECK(memcmp(b, "sbsampl1", 8) == 0);
-    CHECK(u32_at(b + 8) == W1 && u32_at(b + 12) == H1 && u32_at(b + 16) == K + 1 && u32_at(b + 20) == C);
-    CHECK(n == 24 + 4 * (K + 1) * W1 * H1);
+    CHECK(u32_at(b + 8) == W1 && u32_at(b + 12) == H1 && u32_at(b + 16) == 2 * K + 1 && u32_at(b + 20) == C);
+    CHECK(n == 24 + 4 * (2 * K + 1) * W1 * H1);
     const unsigned char *d = b + 24;
 #define AT(k, x, y) f32_at(d + 4 * (((k)*H1 + (y)) * W1 + (x)))
     for (size_t k = 0; k < K; k++) {
@@ -435,6 +435,26 @@ SB_TEST(file_layout) {
     }
     for (size_t r = 0; r < W * H; r++)
         CHECK_REL(AT(K, r % W, r / W), sb_param_row_measure(x.p, r), 1e-6);
+    /* hd's weight table, cell c of wo: the integral of term k over the h
+     * cells whose centre reflects wo's centre into the hemisphere */
+    const double mid[2] = {0.5, 0.5}, lum[3] = {0.2126, 0.7152, 0.0722};
+    for (size_t c = 3; c < W * H; c += 17) {
+        double wo[3], ref[9] = {0};
+        sb_param_row_sample(x.p, c, mid, wo);
+        for (size_t r = 0; r < W * H; r++) {
+            double h[3], wi[3], sg[2], sh[2];
+            sb_param_row_sample(x.p, r, mid, h);
+            double d = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];
+            for (int i = 0; i < 3; i++)
+                wi[i] = 2 * d * h[i] - wo[i];
+            if (d > 0 && wi[2] > 0 && sb_param_coords(x.p, wi, wo, sg, sh))
+                for (size_t k = 0; k < K; k++)
+                    ref[k] += lum[k % C] * sb_factors_tex_const(x.f, SB_SIDE_G, k / C, k % C)[r] *
+                              sb_param_row_measure(x.p, r) * sb_factors_lookup(x.f, x.p, SB_SIDE_H, k / C, k % C, sh);
+        }
+        for (size_t k = 0; k < K; k++)
+            CHECK_ABS(AT(K + 1 + k, c % W, c / W), ref[k], 1e-6 * (fabs(ref[k]) + 1e-30));
+    }
 #undef AT
     free(b);
     fixture_free(&x);
