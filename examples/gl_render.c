@@ -191,6 +191,18 @@ static int float_target(GLsizei S, GLuint *target, GLuint *fbo, char *err, size_
     return 0;
 }
 
+/* Unbind and delete what a draw made (0 names are skipped). */
+static void release(GLuint prog, GLuint vao, GLuint fbo, GLuint target, const GLuint *tex, GLsizei ntex) {
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glUseProgram(0);
+    if (vao) glDeleteVertexArrays(1, &vao);
+    if (fbo) glDeleteFramebuffers(1, &fbo);
+    if (target) glDeleteTextures(1, &target);
+    glDeleteTextures(ntex, tex);
+    glDeleteProgram(prog);
+}
+
 int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
                      const sb_render_opts_t *opts, sb_image_t *out, char *err, size_t err_size) {
     memset(out, 0, sizeof *out);
@@ -277,14 +289,7 @@ int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f,
     rc = 0;
 out:
     free(pix);
-    glBindVertexArray(0);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glUseProgram(0);
-    if (vao) glDeleteVertexArrays(1, &vao);
-    if (fbo) glDeleteFramebuffers(1, &fbo);
-    if (target) glDeleteTextures(1, &target);
-    glDeleteTextures(2, tex);
-    glDeleteProgram(prog);
+    release(prog, vao, fbo, target, tex, 2);
     return rc;
 }
 
@@ -338,13 +343,6 @@ int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, c
     GLenum e = glGetError();
     rc = e == GL_NO_ERROR ? 0 : fail(err, err_size, "GL error 0x%x", e);
 out:
-    glBindVertexArray(0);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glUseProgram(0);
-    if (vao) glDeleteVertexArrays(1, &vao);
-    if (fbo) glDeleteFramebuffers(1, &fbo);
-    if (target) glDeleteTextures(1, &target);
-    glDeleteTextures(3, tex);
-    glDeleteProgram(prog);
+    release(prog, vao, fbo, target, tex, 3);
     return rc;
 }

@@ -536,3 +536,36 @@ SB_TEST(factor_writes_sampler) {
         CHECK(file_has(path, "#define SB_HALF_ROWS 1") == nmf);
     }
 }
+
+/* `study --nmf`: the non-negative fit's errors beside the SVD's for every J;
+ * on io every cell is valid, so Eckart-Young makes the SVD's rel_rms the
+ * lower bound of the non-negative fit's with the same J. */
+SB_TEST(study_nmf_columns) {
+    const char *dir = sb_tmpdir("sampler-study");
+    char cmd[8192], out[16384], path[4200];
+    snprintf(cmd, sizeof cmd, "%s study 'blinn-phong:n=50' --param io -r 8 -J 1..3 --nmf -o %s/s", SB_CLI, dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "%s:\n%s", cmd, out);
+    CHECK(strstr(out, "nmf_headline") != NULL);
+    snprintf(path, sizeof path, "%s/s/study.csv", dir);
+    FILE *fp = fopen(path, "r");
+    char line[2048];
+    int rows = 0;
+    CHECK(fp && fgets(line, sizeof line, fp) && strstr(line, ",headline,nmf_headline,nmf_rel_rms"));
+    while (fp && fgets(line, sizeof line, fp)) {
+        /* ...,terms,comparable,rel_rms,max_abs,neg,sample_s,factor_s,metric_s,headline,nmf_headline,nmf_rel_rms */
+        double v[11];
+        char *p = line;
+        for (int k = 0; k < 6; k++)
+            p = strchr(p, ',') + 1;
+        for (int k = 0; k < 11; k++) {
+            v[k] = strtod(p, &p);
+            p++;
+        }
+        CHECKF(isfinite(v[9]) && isfinite(v[10]), "%s", line);
+        CHECKF(v[10] >= v[2] * (1 - 1e-9), "J %g: nmf %g below the SVD's %g", v[0], v[10], v[2]);
+        rows++;
+    }
+    if (fp) fclose(fp);
+    CHECK(rows == 3);
+}
