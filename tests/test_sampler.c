@@ -383,6 +383,12 @@ SB_TEST(errors) {
     double below[3] = {0, 0.6, -0.8};
     CHECK(sb_pdf(s, below, wo) == 0 && sb_pdf(s, wo, below) == 0);
     CHECK(sb_sampler_write(NULL, s, NULL, NULL) == SB_ERR_ARG);
+    double scale = 0;
+    sb_exr_opts_t half = {1};
+    CHECK(sb_exr_texture_scale(NULL, f, SB_SIDE_G, 1, &half, &scale) == SB_OK && scale > 0 && scale <= 1);
+    CHECK(sb_exr_texture_scale(NULL, f, SB_SIDE_G, 1, NULL, &scale) == SB_OK && scale == 1);
+    CHECK(sb_exr_texture_scale(NULL, f, 2, 0, NULL, &scale) == SB_ERR_ARG);
+    CHECK(sb_exr_texture_scale(NULL, f, SB_SIDE_H, 2, NULL, &scale) == SB_ERR_ARG);
     CHECK(sb_sampler_write(NULL, s, "/nonexistent-dir/sampler.bin", NULL) == SB_ERR_IO);
     sb_sampler_destroy(s);
     sb_sampler_destroy(NULL);
