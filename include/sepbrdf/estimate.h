@@ -105,6 +105,18 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
                                 const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
                                 sb_estimate_t *out);
 
+/* Per-term weights in [0, 1] that make the headline on `pairs` non-increasing
+ * in J': w[j * C + c] (C = sb_factors_channels(f), J = sb_factors_terms(f)
+ * values per channel), for j = 0, 1, ... in turn with the terms before
+ * scaled by their weights, is 1 when term j lowers the headline's error
+ * sum of channel c over the pairs, else the w that minimises that sum
+ * (a least-squares step: the error of every prefix is then at most that
+ * of the shorter one; 0 leaves a term unused).  f, scales, p and form as in
+ * sb_estimate_compute; the pairs are not grown.  Terms beyond SB_EST_MAXJ
+ * get 1.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
+sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
+                                     const double *scales, const sb_param_t *p, sb_form_t form, double *w);
+
 /* The headline (relative L2 error of f cos(theta_i), all channels) after
  * j >= 1 terms; NAN beyond est->terms. */
 double sb_estimate_headline(const sb_estimate_t *est, size_t j);

@@ -472,6 +472,36 @@ static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
     out->pairs = P->n;
 }
 
+/* e's textures, sizes, wraps and per-term scales (*ones, J values: scales
+ * or 1) for the first min(J, SB_EST_MAXJ) terms of f; SB_OK or
+ * SB_ERR_NOMEM (then e's arrays and *ones are freed). */
+static sb_result_t eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p,
+                              double **ones) {
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
+    if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
+    e->J = J;
+    e->C = C;
+    *ones = malloc(J * sizeof **ones);
+    e->tex[0] = malloc(J * C * sizeof *e->tex[0]);
+    e->tex[1] = malloc(J * C * sizeof *e->tex[1]);
+    if (!*ones || !e->tex[0] || !e->tex[1]) {
+        free(*ones);
+        eval_free(e);
+        return SB_ERR_NOMEM;
+    }
+    for (size_t j = 0; j < J; j++)
+        (*ones)[j] = scales ? scales[j] : 1;
+    e->scale = *ones;
+    for (int s = 0; s < 2; s++) {
+        sb_factors_size(f, s, &e->tw[s], &e->th[s]);
+        sb_param_wrap(p, s, e->wrap[s]);
+        for (size_t j = 0; j < J; j++)
+            for (size_t c = 0; c < C; c++)
+                e->tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
+    }
+    return SB_OK;
+}
+
 sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
                                 const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
                                 sb_estimate_t *out) {
@@ -479,29 +509,12 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     memset(out, 0, sizeof *out);
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "estimate: unknown form %d", (int)form);
     sb_estimate_opts_t o = opts_or_default(opts);
-    size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
-    if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
     int nt = sb_thread_count(o.threads);
     if (nt > MAXT) nt = MAXT;
-    eval_t e = {.P = pairs, .p = p, .J = J, .C = C, .form = form};
-    double *ones = malloc(J * sizeof *ones);
-    e.tex[0] = malloc(J * C * sizeof *e.tex[0]);
-    e.tex[1] = malloc(J * C * sizeof *e.tex[1]);
-    if (!ones || !e.tex[0] || !e.tex[1]) {
-        free(ones);
-        eval_free(&e);
-        return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
-    }
-    for (size_t j = 0; j < J; j++)
-        ones[j] = scales ? scales[j] : 1;
-    e.scale = ones;
-    for (int s = 0; s < 2; s++) {
-        sb_factors_size(f, s, &e.tw[s], &e.th[s]);
-        sb_param_wrap(p, s, e.wrap[s]);
-        for (size_t j = 0; j < J; j++)
-            for (size_t c = 0; c < C; c++)
-                e.tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
-    }
+    eval_t e = {.P = pairs, .p = p, .form = form};
+    double *ones = NULL;
+    if (eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
+    size_t J = e.J;
     size_t kmax = o.max_pairs / pairs->rep;
     sb_result_t r = eval_alloc(ctx, &e, kmax > pairs->nrep ? kmax : pairs->nrep, nt);
     /* evaluate the replicates not yet evaluated, then add replicates
@@ -518,6 +531,104 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     free(ones);
     eval_free(&e);
     return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");
+}
+
+/* ---- term weights ------------------------------------------------------ */
+
+/* Sums of one replicate for the term weights: per factor channel c (C of
+ * them), the lower triangle of G_c[i][j] = sum q t_ic t_jc and b_c[j] = sum
+ * q f t_jc, with t_jc the term's contribution to the shader's output (the
+ * difference of consecutive prefixes) and q the headline's measure. */
+typedef struct tw_sums {
+    const eval_t *e;
+    size_t first;
+    double *sums; /* per replicate of the block: C (J(J+1)/2 + J) */
+} tw_sums_t;
+
+static size_t tw_len(size_t J, size_t C) { return C * (J * (J + 1) / 2 + J); }
+
+static void tw_unit(void *user, size_t k, int t) {
+    (void)t;
+    const tw_sums_t *w = user;
+    const eval_t *e = w->e;
+    const sb_pairs_t *P = e->P;
+    size_t J = e->J, C = e->C, L = J * (J + 1) / 2;
+    double *s = w->sums + (k - w->first) * tw_len(J, C), rec[SB_EST_MAXJ * 3], tj[SB_EST_MAXJ];
+    memset(s, 0, tw_len(J, C) * sizeof *s);
+    for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
+        if (!P->known[i]) continue;
+        const double *d = P->d + i * PD, *f = d + 7;
+        double q = d[6] * d[2] * d[2];
+        reconstruct(e, d, d + 3, rec);
+        for (int c = 0; c < 3; c++) {
+            size_t fc = C == 1 ? 0 : (size_t)c;
+            double *G = s + fc * (L + J), *b = G + L;
+            for (size_t j = 0; j < J; j++)
+                tj[j] = rec[j * 3 + c] - (j ? rec[(j - 1) * 3 + c] : 0);
+            for (size_t j = 0, at = 0; j < J; j++) {
+                b[j] += q * f[c] * tj[j];
+                for (size_t i2 = 0; i2 <= j; i2++, at++)
+                    G[at] += q * tj[i2] * tj[j];
+            }
+        }
+    }
+}
+
+sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
+                                     const double *scales, const sb_param_t *p, sb_form_t form, double *w) {
+    if (!pairs || !f || !p || !w) return sb_error(ctx, SB_ERR_ARG, "term weights: missing argument");
+    if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "term weights: unknown form %d", (int)form);
+    eval_t e = {.P = pairs, .p = p, .form = form};
+    double *ones = NULL;
+    if (eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "term weights: out of memory");
+    size_t J = e.J, C = e.C, L = J * (J + 1) / 2, len = tw_len(J, C), block = 8;
+    int nt = sb_thread_count(0);
+    if (nt > MAXT) nt = MAXT;
+    double *tot = sb_calloc(ctx, len, sizeof *tot, "term weights");
+    tw_sums_t ts = {&e, 0, sb_alloc(ctx, block * len, sizeof(double), "term weights")};
+    if (!tot || !ts.sums) {
+        free(tot);
+        free(ts.sums);
+        free(ones);
+        eval_free(&e);
+        return SB_ERR_NOMEM;
+    }
+    /* blocks of replicates, added in replicate order: the same to the bit
+     * on any thread count */
+    for (size_t k0 = 0; k0 < pairs->nrep; k0 += block) {
+        size_t nk = pairs->nrep - k0 < block ? pairs->nrep - k0 : block;
+        ts.first = k0;
+        run_units(k0, nk, nt, tw_unit, &ts);
+        for (size_t k = 0; k < nk; k++)
+            for (size_t i = 0; i < len; i++)
+                tot[i] += ts.sums[k * len + i];
+    }
+    /* in term order, given w_0..j-1: w_j = 1 when the term lowers the
+     * channel's error sum, else the w in [0, 1] that minimises it (0: the
+     * term is not used, the prefix keeps the shorter one's error) */
+    size_t Jall = sb_factors_terms(f);
+    for (size_t c = 0; c < C; c++) {
+        const double *G = tot + c * (L + J), *b = G + L;
+        for (size_t j = 0; j < Jall; j++) {
+            double *wj = &w[j * C + c];
+            if (j >= J) {
+                *wj = 1;
+                continue;
+            }
+            const double *Gj = G + j * (j + 1) / 2; /* row j: G[j][0..j] */
+            double num = b[j];
+            for (size_t i = 0; i < j; i++)
+                num -= w[i * C + c] * Gj[i];
+            /* the error sum changes by G_jj w^2 - 2 num w: kept at w = 1
+             * unless that raises it, then the least-squares w */
+            *wj = Gj[j] - 2 * num > 0 ? fmin(fmax(num / Gj[j], 0), 1) : 1;
+        }
+    }
+    free(tot);
+    free(ts.sums);
+    free(ones);
+    eval_free(&e);
+    return SB_OK;
 }
 
 double sb_estimate_headline(const sb_estimate_t *est, size_t j) {

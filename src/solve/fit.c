@@ -49,6 +49,10 @@
 #define SB_PREFIX_SLACK 2.0
 /* A taps' constraint may raise the error on the valid cells this much. */
 #define SB_TAPS_COST 1.5
+/* Stages up to this many terms all refit jointly (joint_stage). */
+#define SB_JOINT_ALL 8
+/* Joint sweeps that probe the cost of the taps' constraints. */
+#define SB_TAPS_PROBE 10
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
 
@@ -516,6 +520,13 @@ static double als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, cons
     return err;
 }
 
+/* Whether stage ka refits its terms jointly: every stage up to
+ * SB_JOINT_ALL terms, beyond only at powers of two and the last (a joint
+ * sweep costs ka^2 per cell, and terms past the first few change the
+ * error little; the stages between add their term on the residual, which
+ * keeps every prefix's error non-increasing). */
+static int joint_stage(size_t ka, size_t k) { return ka > 1 && (ka <= SB_JOINT_ALL || ka == k || !(ka & (ka - 1))); }
+
 /* The staged ALS from the warm start in f->P, f->Q on the cells of X with
  * mask != 0 (nvalid of them); *err the last stage's error; *stretched 1
  * when the last stage kept a joint refit that made a shorter prefix more
@@ -548,7 +559,7 @@ static sb_result_t als_stages(sb_fit_t *f, const double *As, size_t lda, const u
          * step from the warm start) */
         int c1 = 1, cj = 1, keep = 0;
         *err = als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
-        if (ka > 1) {
+        if (joint_stage(ka, k)) {
             /* then all ka jointly: a joint refit may trade the prefixes'
              * accuracy for cancelling terms that are large outside the
              * domain, which also spoil interpolated lookups near its
@@ -689,6 +700,29 @@ static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *
     return added;
 }
 
+/* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
+ * times the squared error `before` the taps' constraints. */
+static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, double before,
+                     double norm2) {
+    double e2[SB_ALS_MAX_K];
+    valid_prefix_e2(f, As, lda, mask, e2);
+    return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
+}
+
+/* SB_TAPS_PROBE joint sweeps of all k terms on the cells with ext != 0. */
+static sb_result_t taps_probe(sb_fit_t *f, const double *As, size_t lda, const unsigned char *ext, size_t nvalid,
+                              const sb_fit_opts_t *o, int *total) {
+    als_cells_t cl;
+    if (cells_build(f->ctx, &cl, As, f->m, f->n, lda, ext, nvalid) != 0) return SB_ERR_NOMEM;
+    sb_fit_opts_t po = *o;
+    int converged = 1;
+    po.max_iters = SB_TAPS_PROBE;
+    cells_residual(&cl, f, 0);
+    als_until(f, &cl, 0, f->k, &po, 0, total, &converged);
+    cells_free(&cl);
+    return SB_OK;
+}
+
 /* The ALS part of a fit from the warm start in f->P, f->Q: the stages
  * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
  * (constrain_taps, twice at most, warm), and when the prefixes' errors on
@@ -704,9 +738,10 @@ static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsi
     unsigned char *ext = taps ? malloc(m * n) : NULL;
     double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
     double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
+    double *P2 = malloc(m * k * sizeof *P2), *Q2 = malloc(n * k * sizeof *Q2);
     sb_result_t r = SB_OK;
-    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1)
-        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 2 * (m + n) * k * sizeof(double));
+    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !P2 || !Q2)
+        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 3 * (m + n) * k * sizeof(double));
     if (r == SB_OK) {
         memcpy(P0, f->P, m * k * sizeof *P0);
         memcpy(Q0, f->Q, n * k * sizeof *Q0);
@@ -738,14 +773,24 @@ static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsi
             if (added == 0 || r != SB_OK) break;
             nvalid += added;
             constrained += added;
-            r = als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
+            /* a few joint sweeps first, from a copy: constraints that
+             * already cost the valid cells more than SB_TAPS_COST there are
+             * dropped without the staged refit (which would not do better) */
+            memcpy(P2, f->P, m * k * sizeof *P2);
+            memcpy(Q2, f->Q, n * k * sizeof *Q2);
+            r = taps_probe(f, As, lda, ext, nvalid, o, total);
+            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+            memcpy(f->P, P2, m * k * sizeof *P2); /* the stages start where the probe did */
+            memcpy(f->Q, Q2, n * k * sizeof *Q2);
+            if (r == SB_OK)
+                r = als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
+            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
         }
         /* data that the rank-k structure extends exactly (or nearly) are
          * their own best extrapolation: a constraint that costs the valid
          * cells more than SB_TAPS_COST in error is dropped */
         if (r == SB_OK && constrained) {
-            valid_prefix_e2(f, As, lda, mask, e2);
-            if (sqrt(e2[k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2)) {
+            if (taps_cost(f, As, lda, mask, before, norm2)) {
                 memcpy(f->P, P1, m * k * sizeof *P1);
                 memcpy(f->Q, Q1, n * k * sizeof *Q1);
             }
@@ -757,6 +802,8 @@ static sb_result_t als_fit(sb_fit_t *f, const double *As, size_t lda, const unsi
     free(Q0);
     free(P1);
     free(Q1);
+    free(P2);
+    free(Q2);
     return r;
 }
 
