@@ -30,25 +30,27 @@
  *      and wi = 2 (wo.h) h - wo (hd, iso: SB_CAP_HALF_ROWS).
  * So the factored density with respect to solid angle is
  *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / m_r   [/ (4 wo.h)]
- * with r the row cell of wi (of h).  A share SB_SAMPLER_COSINE_SHARE of
- * the samples is cosine-weighted (defensive sampling), so that the
- * density is positive wherever the reconstruction is, also between texel
- * centres where the bilinear lookup reaches a texel that is 0 in the
- * tables, and where the half-vector layouts' weights taken at the mirror
- * direction miss a term:
- *     pdf(wi | wo) = s cos(theta_i) / pi + (1 - s) p_F(wi | wo).  With the form f cos(theta_i) or
- * f cos(theta_i) cos(theta_o) this is proportional to f cos(theta_i) at
- * the cell centres; with the form f, to f.  In the half-vector layouts a
- * reflected wi below the horizon (or beyond theta_max) is a failed sample:
+ * with r the row cell of wi (of h).  With the form f cos(theta_i) or
+ * f cos(theta_i) cos(theta_o) it is proportional to f cos(theta_i) at the
+ * cell centres (io, io-area); with the form f, to f.  A share s =
+ * SB_SAMPLER_COSINE_SHARE of the samples is cosine-weighted (defensive
+ * sampling), so that the density is positive wherever the reconstruction
+ * is, also between texel centres where the bilinear lookup reaches a
+ * texel that is 0 in the tables, and where a half-vector layout's weight
+ * table (constant over wo's cell) is 0 for a term:
+ *     pdf(wi | wo) = s cos(theta_i) / pi + (1 - s) p_F(wi | wo).
+ * In the half-vector layouts an h that reflects wo below the horizon (or
+ * beyond theta_max) is a failed sample (25-47 % of them in the tests):
  * the pdf then integrates over the hemisphere to 1 minus the probability
  * of failure (as for microfacet sampling in pbrt and Mitsuba); in io and
- * io-area it integrates to 1.
+ * io-area it integrates to 1 (with theta_max at the horizon).
  *
  * Two random numbers drive a sample: u[0] < s picks the cosine lobe
- * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k, then (rescaled) y, then
- * (rescaled) the position along y inside the cell; u[1] picks x, then
- * (rescaled) the position along x.  The GLSL sampler (sb_glsl_sampler)
- * repeats these steps on the tables sb_sampler_write stores. */
+ * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,
+ * then (rescaled) y, then (rescaled) the position along y inside the
+ * cell; u[1] picks x, then (rescaled) the position along x.  The GLSL
+ * sampler (sb_glsl_sampler) repeats these steps on the tables that
+ * sb_sampler_write stores. */
 #ifndef SEPBRDF_SAMPLER_H
 #define SEPBRDF_SAMPLER_H
 
