@@ -64,13 +64,14 @@ extern "C" {
 enum { SB_EST_FCOS = 0 /* headline: f cos(theta_i) */, SB_EST_FCOS2 /* f cos cos */, SB_EST_F, SB_EST_Q_COUNT_ };
 
 typedef struct sb_estimate_opts {
-    size_t replicate; /* pairs per replicate, default 4096 */
-    size_t start;     /* replicates drawn at first, default 16 (at least 4) */
-    size_t max_pairs; /* sb_estimate_compute adds replicates up to this many pairs, default 2^19; start * replicate
-                         or less: never grows */
-    double rel_se;    /* target standard error of the headline relative to it, default 0.05 */
-    uint64_t seed;    /* default 1 */
-    int threads;      /* 0 = all cores */
+    size_t replicate;  /* pairs per replicate, default 4096 */
+    size_t start;      /* replicates drawn at first, default 16 (at least 4) */
+    size_t max_pairs;  /* sb_estimate_compute adds replicates up to this many pairs, default 2^19; start * replicate
+                          or less: never grows */
+    double rel_se;     /* target standard error of the headline relative to it, default 0.05 */
+    uint64_t seed;     /* default 1 */
+    int threads;       /* 0 = all cores */
+    int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */

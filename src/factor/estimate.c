@@ -22,27 +22,15 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/estimate_impl.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rng.h"
 
-#define PD 10   /* doubles per pair */
-#define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
-#define MAXT 64 /* threads */
 #define NCOMP 6 /* wo mixture components: uniform, cosine, four GGX lobes */
-#define QC (SB_EST_Q_COUNT_ * 4)
 
 static const double comp_w[NCOMP] = {0.2, 0.2, 0.15, 0.15, 0.15, 0.15};
 static const double lobe_alpha[NCOMP] = {0, 0, 0.005, 0.02, 0.08, 0.3};
-
-struct sb_pairs {
-    const sb_source_t *src;
-    size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
-    uint64_t seed;
-    double *d;            /* n x PD */
-    unsigned char *known; /* n */
-    double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */
-};
 
 /* ---- drawing the pairs ------------------------------------------------ */
 
@@ -147,7 +135,7 @@ static void *worker(void *arg) {
 }
 
 /* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
-static void run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user) {
+void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user) {
     runner_t r = {.first = first, .count = count, .fn = fn, .user = user};
     atomic_store(&r.next, 0);
     worker_arg_t args[MAXT];
@@ -194,7 +182,7 @@ static sb_result_t pairs_grow(sb_context_t *ctx, sb_pairs_t *P, size_t nrep, int
     size_t old = P->nrep;
     P->nrep = nrep;
     P->n = n;
-    run_units(old, nrep - old, nt, draw_unit, P);
+    est_run_units(old, nrep - old, nt, draw_unit, P);
     return SB_OK;
 }
 
@@ -240,22 +228,6 @@ size_t sb_pairs_count(const sb_pairs_t *P) { return P ? P->n : 0; }
 
 /* ---- evaluating a reconstruction -------------------------------------- */
 
-typedef struct eval {
-    const sb_pairs_t *P;
-    const sb_param_t *p;
-    size_t J, C;
-    const double **tex[2]; /* [side][j * C + c] */
-    size_t tw[2], th[2];
-    int wrap[2][2];
-    const double *scale; /* J per-term factors */
-    sb_form_t form;
-    /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
-    double *num, *den, *neg, *meas;
-    /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */
-    uint64_t *hist;
-    double *maxr, *maxv;
-} eval_t;
-
 static size_t wrap_i(long i, size_t n, int mode) {
     if (mode == SB_WRAP_REPEAT) {
         long m = i % (long)n;
@@ -286,7 +258,7 @@ static double tap(const double *t, const size_t at[4], const double fw[4]) {
 }
 
 /* Reconstructed RGB of every prefix at one pair: rec[j * 3 + c]; 0 outside. */
-static void reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec) {
+void est_reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec) {
     double sg[2], sh[2], fg[4], fh[4];
     size_t ag[4], ah[4], J = e->J, C = e->C;
     if (!sb_param_coords(e->p, wi, wo, sg, sh)) {
@@ -340,7 +312,7 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
                 num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
         neg[j] += below ? w : 0;
         maxv[j] = fmax(maxv[j], vmax);
-        for (int c = 0; c < 4; c++) {
+        for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
             double rel = sqrt(d2[c] / f2[c]);
             hist[(j * 4 + c) * NB + bin_of(rel)] += ew[c];
@@ -368,7 +340,7 @@ static void eval_unit(void *user, size_t k, int t) {
             den[q * 4 + 3] += (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * qw[q] * d[6];
         }
         e->meas[k] += d[6];
-        reconstruct(e, d, d + 3, rec);
+        est_reconstruct(e, d, d + 3, rec);
         add_pair(e, d, rec, num, neg, t);
     }
 }
@@ -431,7 +403,7 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
     return met;
 }
 
-static void eval_free(eval_t *e) {
+void est_eval_free(eval_t *e) {
     free(e->tex[0]);
     free(e->tex[1]);
     free(e->num);
@@ -475,8 +447,7 @@ static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
 /* e's textures, sizes, wraps and per-term scales (*ones, J values: scales
  * or 1) for the first min(J, SB_EST_MAXJ) terms of f; SB_OK or
  * SB_ERR_NOMEM (then e's arrays and *ones are freed). */
-static sb_result_t eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p,
-                              double **ones) {
+sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p, double **ones) {
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
     if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
     e->J = J;
@@ -486,7 +457,7 @@ static sb_result_t eval_setup(eval_t *e, const sb_factors_t *f, const double *sc
     e->tex[1] = malloc(J * C * sizeof *e->tex[1]);
     if (!*ones || !e->tex[0] || !e->tex[1]) {
         free(*ones);
-        eval_free(e);
+        est_eval_free(e);
         return SB_ERR_NOMEM;
     }
     for (size_t j = 0; j < J; j++)
@@ -511,16 +482,16 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     sb_estimate_opts_t o = opts_or_default(opts);
     int nt = sb_thread_count(o.threads);
     if (nt > MAXT) nt = MAXT;
-    eval_t e = {.P = pairs, .p = p, .form = form};
+    eval_t e = {.P = pairs, .p = p, .form = form, .headline_only = o.headline_only};
     double *ones = NULL;
-    if (eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
+    if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
     size_t J = e.J;
     size_t kmax = o.max_pairs / pairs->rep;
     sb_result_t r = eval_alloc(ctx, &e, kmax > pairs->nrep ? kmax : pairs->nrep, nt);
     /* evaluate the replicates not yet evaluated, then add replicates
      * (doubling) until the headline's standard error meets the target */
     for (size_t done = 0; r == SB_OK;) {
-        run_units(done, pairs->nrep - done, nt, eval_unit, &e);
+        est_run_units(done, pairs->nrep - done, nt, eval_unit, &e);
         done = pairs->nrep;
         out->terms = J;
         out->converged = combine(&e, done, nt, o.rel_se, out);
@@ -529,106 +500,8 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     }
     if (r == SB_OK) finish(pairs, out);
     free(ones);
-    eval_free(&e);
+    est_eval_free(&e);
     return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");
-}
-
-/* ---- term weights ------------------------------------------------------ */
-
-/* Sums of one replicate for the term weights: per factor channel c (C of
- * them), the lower triangle of G_c[i][j] = sum q t_ic t_jc and b_c[j] = sum
- * q f t_jc, with t_jc the term's contribution to the shader's output (the
- * difference of consecutive prefixes) and q the headline's measure. */
-typedef struct tw_sums {
-    const eval_t *e;
-    size_t first;
-    double *sums; /* per replicate of the block: C (J(J+1)/2 + J) */
-} tw_sums_t;
-
-static size_t tw_len(size_t J, size_t C) { return C * (J * (J + 1) / 2 + J); }
-
-static void tw_unit(void *user, size_t k, int t) {
-    (void)t;
-    const tw_sums_t *w = user;
-    const eval_t *e = w->e;
-    const sb_pairs_t *P = e->P;
-    size_t J = e->J, C = e->C, L = J * (J + 1) / 2;
-    double *s = w->sums + (k - w->first) * tw_len(J, C), rec[SB_EST_MAXJ * 3], tj[SB_EST_MAXJ];
-    memset(s, 0, tw_len(J, C) * sizeof *s);
-    for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
-        if (!P->known[i]) continue;
-        const double *d = P->d + i * PD, *f = d + 7;
-        double q = d[6] * d[2] * d[2];
-        reconstruct(e, d, d + 3, rec);
-        for (int c = 0; c < 3; c++) {
-            size_t fc = C == 1 ? 0 : (size_t)c;
-            double *G = s + fc * (L + J), *b = G + L;
-            for (size_t j = 0; j < J; j++)
-                tj[j] = rec[j * 3 + c] - (j ? rec[(j - 1) * 3 + c] : 0);
-            for (size_t j = 0, at = 0; j < J; j++) {
-                b[j] += q * f[c] * tj[j];
-                for (size_t i2 = 0; i2 <= j; i2++, at++)
-                    G[at] += q * tj[i2] * tj[j];
-            }
-        }
-    }
-}
-
-sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
-                                     const double *scales, const sb_param_t *p, sb_form_t form, double *w) {
-    if (!pairs || !f || !p || !w) return sb_error(ctx, SB_ERR_ARG, "term weights: missing argument");
-    if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "term weights: unknown form %d", (int)form);
-    eval_t e = {.P = pairs, .p = p, .form = form};
-    double *ones = NULL;
-    if (eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "term weights: out of memory");
-    size_t J = e.J, C = e.C, L = J * (J + 1) / 2, len = tw_len(J, C), block = 8;
-    int nt = sb_thread_count(0);
-    if (nt > MAXT) nt = MAXT;
-    double *tot = sb_calloc(ctx, len, sizeof *tot, "term weights");
-    tw_sums_t ts = {&e, 0, sb_alloc(ctx, block * len, sizeof(double), "term weights")};
-    if (!tot || !ts.sums) {
-        free(tot);
-        free(ts.sums);
-        free(ones);
-        eval_free(&e);
-        return SB_ERR_NOMEM;
-    }
-    /* blocks of replicates, added in replicate order: the same to the bit
-     * on any thread count */
-    for (size_t k0 = 0; k0 < pairs->nrep; k0 += block) {
-        size_t nk = pairs->nrep - k0 < block ? pairs->nrep - k0 : block;
-        ts.first = k0;
-        run_units(k0, nk, nt, tw_unit, &ts);
-        for (size_t k = 0; k < nk; k++)
-            for (size_t i = 0; i < len; i++)
-                tot[i] += ts.sums[k * len + i];
-    }
-    /* in term order, given w_0..j-1: w_j = 1 when the term lowers the
-     * channel's error sum, else the w in [0, 1] that minimises it (0: the
-     * term is not used, the prefix keeps the shorter one's error) */
-    size_t Jall = sb_factors_terms(f);
-    for (size_t c = 0; c < C; c++) {
-        const double *G = tot + c * (L + J), *b = G + L;
-        for (size_t j = 0; j < Jall; j++) {
-            double *wj = &w[j * C + c];
-            if (j >= J) {
-                *wj = 1;
-                continue;
-            }
-            const double *Gj = G + j * (j + 1) / 2; /* row j: G[j][0..j] */
-            double num = b[j];
-            for (size_t i = 0; i < j; i++)
-                num -= w[i * C + c] * Gj[i];
-            /* the error sum changes by G_jj w^2 - 2 num w: kept at w = 1
-             * unless that raises it, then the least-squares w */
-            *wj = Gj[j] - 2 * num > 0 ? fmin(fmax(num / Gj[j], 0), 1) : 1;
-        }
-    }
-    free(tot);
-    free(ts.sums);
-    free(ones);
-    eval_free(&e);
-    return SB_OK;
 }
 
 double sb_estimate_headline(const sb_estimate_t *est, size_t j) {
