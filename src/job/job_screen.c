@@ -52,7 +52,10 @@ static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_leve
     double t0 = job_now();
     sb_estimate_opts_t eo = {0};
     eo.max_pairs = lv->est_max_pairs;
-    eo.headline_only = lv->est_max_pairs == 1 && lv->metric_res == 0; /* screening: ranked on the headline */
+    if (lv->est_max_pairs == 1 && lv->metric_res == 0) { /* screening: ranked on the headline, 16384 pairs */
+        eo.headline_only = 1;
+        eo.replicates = 4;
+    }
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
     sb_result_t r = SB_OK;
