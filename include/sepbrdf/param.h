@@ -83,8 +83,10 @@ enum {
     SB_CAP_NEEDS_ISOTROPY = 1u << 2,     /* meaningful for isotropic sources only */
     SB_CAP_FOLDS_RECIPROCITY = 1u << 3,  /* identifies (wi, wo) with (wo, wi): exact for reciprocal sources */
     SB_CAP_PARTIAL_DOMAIN = 1u << 4,     /* some cells are no BRDF pair (masked unless zero-filled) */
-    SB_CAP_AZIMUTH_GRID = 1u << 5        /* rows and columns on the theta-phi grid: isotropic sources give
+    SB_CAP_AZIMUTH_GRID = 1u << 5,       /* rows and columns on the theta-phi grid: isotropic sources give
                                             block-circulant matrices */
+    SB_CAP_HALF_ROWS = 1u << 6           /* rows index the half vector h = normalize(wi + wo): a sampler
+                                            (sampler.h) picks h and reflects wo about it */
 };
 
 /* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
@@ -153,6 +155,20 @@ int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3],
  * compute exactly sb_param_coords() and its return value.  It may use the
  * constants SB_PI and SB_THETA_MAX defined by the snippet header. */
 const char *sb_param_glsl(const sb_param_t *p);
+
+/* Importance sampling (sampler.h): the direction a row cell stands for,
+ * drawn uniformly in solid angle over the cell.  For u in [0,1)^2 (u[0]
+ * along the g texture's x axis, u[1] along y) w is wi itself (io,
+ * io-area) or the half vector h (SB_CAP_HALF_ROWS: hd, iso; wi is then
+ * wo reflected about h).  The cell of w is texel (floor(s W), floor(t H))
+ * of st_g as sb_param_coords gives it, and row = y W + x.  Returns 1; 0
+ * (w unchanged) for a NULL argument or a row out of range. */
+int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+
+/* GLSL source defining `vec3 sb_row_dir(ivec2 cell, vec2 u)`, the same map
+ * as sb_param_row_sample for texel `cell` of the g textures (sizes from
+ * textureSize(sb_g, 0)); "" for a NULL p. */
+const char *sb_param_sample_glsl(const sb_param_t *p);
 
 /* Unit direction <-> spherical angles in the local frame, phi in [0, 2pi). */
 void sb_dir_from_angles(double theta, double phi, double w[3]);

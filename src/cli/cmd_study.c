@@ -15,6 +15,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
@@ -37,6 +38,10 @@ static const cli_option_t study_only[] = {
      "parameterisations, comma separated (io,io-area,hd,iso),\nor all (default): every one this build supports, iso\n"
      "only for isotropic sources",
      set_params, 0, 0, 0, CLI_STUDY},
+    {NULL, "--nmf", NULL,
+     "also fit non-negative factors (--method nmf) with every J\nstudied and show their errors beside (nmf_headline,\n"
+     "nmf_rel_rms): what positivity costs at each J",
+     cli_set_flag, offsetof(study_opts_t, nmf), 0, 0, CLI_STUDY},
     {0},
 };
 
@@ -260,6 +265,26 @@ static void take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size
     if (st.masked && !st.fit_converged) r->converged = 0;
 }
 
+/* --nmf: the non-negative fit with each studied J (its terms are not
+ * nested: one fit per J), its headline and rel_rms beside the row of that
+ * J; NaN where it fails (reported, the run stays good). */
+static void nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const sb_job_opts_t *base) {
+    sb_job_opts_t jo = *base;
+    jo.method = SB_METHOD_NMF;
+    sb_job_t *job = NULL;
+    sb_result_t res = sb_job_run_source(ctx, src, &jo, &job);
+    for (size_t k = 0; k < r->nr; k++) {
+        row_t *w = &r->r[k];
+        w->nmf_headline = w->nmf_rel_rms = NAN;
+        if (res == SB_OK && (res = sb_job_refactor(ctx, job, w->terms)) == SB_OK) {
+            w->nmf_headline = sb_job_headline(job, w->terms);
+            w->nmf_rel_rms = sb_factors_errors(sb_job_factors(job))->rel_rms[sb_err_at(w->terms - 1, SB_CH_ALL)];
+        }
+    }
+    if (res != SB_OK) cli_error("study", "%s on %s: nmf: %s", r->spec, jo.param, sb_context_last_error(ctx));
+    sb_job_destroy(job);
+}
+
 /* Sample once (the job on one parameterisation), factor once (nested) or
  * once per J (masked). */
 static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, size_t task,
@@ -300,6 +325,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
         if ((res = sb_job_refactor(ctx, job, j)) == SB_OK) take_rows(r, o, job, j, r->masked);
         failed_j = j;
     }
+    if (res == SB_OK && o->nmf) nmf_rows(ctx, src, r, &jo);
     cli_progress(label, base + span);
     if (res != SB_OK) {
         char msg[1024];
@@ -314,9 +340,10 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
 
 /* ---- outputs ----------------------------------------------------------- */
 
-static void print_table(const runs_t *rs) {
-    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "headline", "comparable",
+static void print_table(const study_opts_t *o, const runs_t *rs) {
+    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s", "source", "param", "J", "headline", "comparable",
            "rel_rms", "max_abs", "negative", "time_s", "fit");
+    printf(o->nmf ? "   %12s  %11s\n" : "\n", "nmf_headline", "nmf_rel_rms");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         const char *pn = r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : "-";
@@ -326,9 +353,11 @@ static void print_table(const runs_t *rs) {
         }
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
+            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, pn, w->terms,
                    w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
                    r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
+            if (o->nmf) printf("  %12.4e  %11.4e", w->nmf_headline, w->nmf_rel_rms);
+            printf("\n");
         }
     }
 }
@@ -474,7 +503,7 @@ int cmd_study(int argc, char **argv) {
     set = NULL;
     if (rc != EXIT_OK) goto out;
     if (g_verbosity >= 1) {
-        print_table(&rs);
+        print_table(&o, &rs);
         printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
                o.out, good, failed, cli_now() - t0);
     }

@@ -44,6 +44,7 @@ struct sb_job {
     job_attempt_t best;
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
     double *term_w;     /* J * C term weights of the kept fit (job_weights.c); NULL: all 1 */
+    int wrote_sampler;  /* sb_job_write wrote sampler.bin (non-negative factors) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */

@@ -224,6 +224,7 @@ static void report_files(sb_json_t *j, const sb_job_t *job) {
         sb_json_end_array(j);
     }
     sb_json_string(j, "glsl", "sepbrdf.glsl");
+    sb_json_string(j, "sampler", job->wrote_sampler ? "sampler.bin" : NULL);
     sb_json_end_object(j);
 }
 

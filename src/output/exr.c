@@ -589,18 +589,26 @@ out:
 
 /* ---- stored precision of whole factors ---------------------------------- */
 
+sb_result_t sb_exr_texture_scale(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term,
+                                 const sb_exr_opts_t *opts, double *scale) {
+    if (!f || !scale || (side != SB_SIDE_G && side != SB_SIDE_H) || term >= sb_factors_terms(f))
+        return sb_error(ctx, SB_ERR_ARG, "texture scale: missing argument or texture out of range");
+    char name[64];
+    codec_t cd;
+    sb_exr_name(side, term, name, sizeof name);
+    sb_result_t r = texture_codec(ctx, f, side, term, opts && opts->half, name, &cd);
+    if (r == SB_OK) *scale = cd.scale;
+    return r;
+}
+
 sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts, double *scales) {
     if (!f || !scales) return sb_error(ctx, SB_ERR_ARG, "term scales: missing argument");
     for (size_t j = 0; j < sb_factors_terms(f); j++) {
-        scales[j] = 1;
-        for (int side = 0; side < 2; side++) {
-            char name[64];
-            codec_t cd;
-            sb_exr_name(side, j, name, sizeof name);
-            sb_result_t r = texture_codec(ctx, f, side, j, opts && opts->half, name, &cd);
-            if (r != SB_OK) return r;
-            scales[j] *= cd.scale;
-        }
+        double sg = 1, sh = 1;
+        sb_result_t r = sb_exr_texture_scale(ctx, f, SB_SIDE_G, j, opts, &sg);
+        if (r == SB_OK) r = sb_exr_texture_scale(ctx, f, SB_SIDE_H, j, opts, &sh);
+        if (r != SB_OK) return r;
+        scales[j] = sg * sh;
     }
     return SB_OK;
 }

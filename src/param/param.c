@@ -200,6 +200,12 @@ int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3],
     return p->vt->coords(p, wi, wo, st_g, st_h);
 }
 const char *sb_param_glsl(const sb_param_t *p) { return p ? p->vt->glsl : ""; }
+int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
+    if (!p || !u || !w || row >= p->rows) return 0;
+    registry[p->kind]->row_sample(p, row, u, w);
+    return 1;
+}
+const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
 
 void sb_dir_from_angles(double theta, double phi, double w[3]) {
     if (!w) return;
@@ -239,6 +245,31 @@ double sb_grid_measure(size_t R, double tmax, size_t k) {
     double dt = tmax / (double)R;
     return 2 * SB_PI / (double)R * (cos(it * dt) - cos((it + 1) * dt));
 }
+
+/* 1 - cos(theta) = 2 sin^2(theta / 2) stays accurate near the pole, where
+ * cos(theta) rounds to 1; sin(theta) = sqrt(z (2 - z)) for z = 1 - cos. */
+void sb_grid_row_sample(const sb_param_t *p, size_t k, const double u[2], double w[3]) {
+    size_t R = p->opts.res;
+    double tmax = p->opts.theta_max;
+    size_t it = k % R, ip = k / R;
+    double dt = tmax / (double)R, slo = sin(0.5 * (double)it * dt), shi = sin(0.5 * (double)(it + 1) * dt);
+    double zlo = 2 * slo * slo, zhi = 2 * shi * shi, z = zlo + u[0] * (zhi - zlo);
+    double s = sqrt(fmax(z * (2 - z), 0)), phi = ((double)ip + u[1]) * 2 * SB_PI / (double)R;
+    w[0] = s * cos(phi);
+    w[1] = s * sin(phi);
+    w[2] = 1 - z;
+}
+
+const char sb_grid_sample_glsl[] =
+    "// theta-phi cell (x = theta, y = phi): 1 - cos(theta) and phi linear in u\n"
+    "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+    "    vec2 n = vec2(textureSize(sb_g, 0).xy);\n"
+    "    float dt = SB_THETA_MAX / n.x;\n"
+    "    float slo = sin(0.5 * float(cell.x) * dt), shi = sin(0.5 * float(cell.x + 1) * dt);\n"
+    "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
+    "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
+    "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n";
 
 /* Integral of 4 cos(theta) dw over the cell: 4 dphi int cos sin dtheta. */
 double sb_grid_measure_4cos(size_t R, double tmax, size_t k) {

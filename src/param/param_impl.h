@@ -25,6 +25,10 @@ typedef struct sb_param_desc {
      * an error reported through ctx.  NULL: both sides on R x R grids */
     sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
     const sb_param_vt_t *vt;
+    /* sampling (sb_param_row_sample): a direction uniform in solid angle
+     * over row cell `row`, and its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` */
+    void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+    const char *sample_glsl;
 } sb_param_desc_t;
 
 extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso;
@@ -44,6 +48,12 @@ struct sb_param {
 void sb_grid_dir(size_t R, double tmax, size_t index, double w[3]);
 void sb_grid_st(double tmax, const double w[3], double st[2]);
 double sb_grid_measure(size_t R, double tmax, size_t index);
+/* Row sampling on the R x R theta-phi grid of p->opts (io, hd): uniform in
+ * solid angle over cell `row`, 1 - cos(theta) linear in u[0] between the
+ * cell's bounds, phi linear in u[1]. */
+void sb_grid_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+/* GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` of sb_grid_row_sample. */
+extern const char sb_grid_sample_glsl[];
 /* integral of 4 cos(theta) over grid cell `index`: 2 dphi (sin^2 hi - sin^2 lo),
  * the half/difference Jacobian dw_i dw_o = 4 cos(theta_d) dw_h dw_d. */
 double sb_grid_measure_4cos(size_t R, double tmax, size_t index);

@@ -39,4 +39,6 @@ const sb_param_desc_t sb_param_desc_io = {.name = "io",
                                           .keys = "res",
                                           .caps = SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID,
                                           .wrap_y = SB_WRAP_REPEAT,
-                                          .vt = &io_vt};
+                                          .vt = &io_vt,
+                                          .row_sample = sb_grid_row_sample,
+                                          .sample_glsl = sb_grid_sample_glsl};

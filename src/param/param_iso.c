@@ -64,6 +64,17 @@ static double iso_row_measure(const sb_param_t *p, size_t row) {
     return 2 * SB_PI * (cos(lo * lo * tmax) - cos(hi * hi * tmax));
 }
 
+/* Uniform in solid angle over the theta_h band of `row` (square-root
+ * spacing: bounds theta_max (i / th)^2), phi_h uniform in [0, 2pi). */
+static void iso_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
+    double n = (double)iso_th(p), lo = (double)row / n, hi = (double)(row + 1) / n, tmax = p->opts.theta_max;
+    double slo = sin(0.5 * lo * lo * tmax), shi = sin(0.5 * hi * hi * tmax);
+    double z = 2 * (slo * slo + u[0] * (shi * shi - slo * slo)), s = sqrt(fmax(z * (2 - z), 0)), phi = 2 * SB_PI * u[1];
+    w[0] = s * cos(phi);
+    w[1] = s * sin(phi);
+    w[2] = 1 - z;
+}
+
 static double iso_col_measure(const sb_param_t *p, size_t col) {
     size_t it = col % iso_td(p);
     double dt = p->opts.theta_max / (double)iso_td(p), lo = sin((double)it * dt), hi = sin((double)(it + 1) * dt);
@@ -113,6 +124,16 @@ static const sb_param_vt_t iso_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
+static const char iso_sample_glsl[] =
+    "// iso: theta_h band x (bounds SB_THETA_MAX (x / th)^2), phi_h = 2pi u.y\n"
+    "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+    "    float n = float(textureSize(sb_g, 0).x), lo = float(cell.x) / n, hi = float(cell.x + 1) / n;\n"
+    "    float slo = sin(0.5 * lo * lo * SB_THETA_MAX), shi = sin(0.5 * hi * hi * SB_THETA_MAX);\n"
+    "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
+    "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = 2.0 * SB_PI * u.y;\n"
+    "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n";
+
 static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
     sb_param_opts_t *o = &p->opts;
     if (!o->res_theta_h) o->res_theta_h = o->res;
@@ -149,6 +170,9 @@ const sb_param_desc_t sb_param_desc_iso = {
     .name = "iso",
     .description = "Rusinkiewicz angles for isotropic sources: rows theta_h, columns (theta_d, phi_d)",
     .keys = "res,th,td,pd",
-    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN,
+    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN |
+            SB_CAP_HALF_ROWS,
     .init = init_iso,
-    .vt = &iso_vt};
+    .vt = &iso_vt,
+    .row_sample = iso_row_sample,
+    .sample_glsl = iso_sample_glsl};
