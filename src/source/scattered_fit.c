@@ -94,7 +94,7 @@ static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadr
  * leaving out the points at the nskip positions of `skip`: 0 missing, 1
  * known, 2 known at a measured position (the measurement). */
 int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
-                    double rgb[3]) {
+                 double rgb[3]) {
     rgb[0] = rgb[1] = rgb[2] = 0;
     knn_t q;
     q.k = interp == SB_INTERP_NEAREST ? 1 : k;
