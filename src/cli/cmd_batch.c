@@ -252,16 +252,16 @@ static size_t default_jobs(const batch_t *b) {
 }
 
 static int parse(int argc, char **argv, batch_t *b, const char **out, const char **inputs, size_t *ninputs) {
-    cli_parser_t p = {"batch",
-                      help,
-                      "folder",
-                      out,
-                      {{batch_only, CLI_OWN, b, NULL}, {cli_factor_options, CLI_FACTOR, &b->base, NULL}},
-                      &b->base.measured,
-                      "INPUT",
-                      inputs,
-                      (size_t)argc,
-                      ninputs};
+    cli_parser_t p = {.cmd = "batch",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = out,
+                      .tables = {{batch_only, CLI_OWN, b, NULL}, {cli_factor_options, CLI_FACTOR, &b->base, NULL}},
+                      .measured = &b->base.measured,
+                      .what = "INPUT",
+                      .args = inputs,
+                      .max_args = (size_t)argc,
+                      .nargs = ninputs};
     int rc = cli_parse(argc, argv, &p);
     if (rc < 0 && !*ninputs) {
         cli_error("batch", "no INPUT given (see `sepbrdf batch --help`)");

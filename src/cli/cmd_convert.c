@@ -58,8 +58,15 @@ static void help(void) {
 
 /* Returns -1 to go on, else the exit code. */
 static int parse(int argc, char **argv, convert_opts_t *o) {
-    cli_parser_t p = {"convert", help,     "file",     &o->out, {{convert_only, CLI_OWN, o, NULL}},
-                      &o->mo,    "SOURCE", &o->source, 1,       NULL};
+    cli_parser_t p = {.cmd = "convert",
+                      .help = help,
+                      .out_what = "file",
+                      .out = &o->out,
+                      .tables = {{convert_only, CLI_OWN, o, NULL}},
+                      .measured = &o->mo,
+                      .what = "SOURCE",
+                      .args = &o->source,
+                      .max_args = 1};
     int rc = cli_parse(argc, argv, &p);
     if (rc >= 0) return rc;
     if (!o->source || !o->out) {

@@ -41,8 +41,15 @@ static void help(void) {
 
 /* Parse argv into o; returns an exit code, or -1 to go on. */
 static int parse(int argc, char **argv, sb_job_opts_t *o, const char **out) {
-    cli_parser_t p = {"factor",     help,     "folder",   out, {{cli_factor_options, CLI_FACTOR, o, NULL}},
-                      &o->measured, "SOURCE", &o->source, 1,   NULL};
+    cli_parser_t p = {.cmd = "factor",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = out,
+                      .tables = {{cli_factor_options, CLI_FACTOR, o, NULL}},
+                      .measured = &o->measured,
+                      .what = "SOURCE",
+                      .args = &o->source,
+                      .max_args = 1};
     return cli_parse(argc, argv, &p);
 }
 

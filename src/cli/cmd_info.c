@@ -260,7 +260,13 @@ int cmd_info(int argc, char **argv) {
     info_opts_t o;
     memset(&o, 0, sizeof o);
     o.res = 32;
-    cli_parser_t p = {"info", help, NULL, NULL, {{info_only, CLI_OWN, &o, NULL}}, &o.mo, "FILE", &o.path, 1, NULL};
+    cli_parser_t p = {.cmd = "info",
+                      .help = help,
+                      .tables = {{info_only, CLI_OWN, &o, NULL}},
+                      .measured = &o.mo,
+                      .what = "FILE",
+                      .args = &o.path,
+                      .max_args = 1};
     int rc = cli_parse(argc, argv, &p);
     if (rc >= 0) return rc;
     if (!o.path) {

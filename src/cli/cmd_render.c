@@ -163,16 +163,15 @@ static void help(void) {
 
 static int parse(int argc, char **argv, render_opts_t *o) {
     cli_parser_t p = {
-        "render",
-        help,
-        "folder",
-        &o->out,
-        {{render_only, CLI_RENDER, o, NULL}, {cli_factor_options, CLI_RENDER, &o->job, &o->factor_opt_name}},
-        &o->job.measured,
-        "SOURCE or DIR",
-        &o->input,
-        1,
-        NULL};
+        .cmd = "render",
+        .help = help,
+        .out_what = "folder",
+        .out = &o->out,
+        .tables = {{render_only, CLI_RENDER, o, NULL}, {cli_factor_options, CLI_RENDER, &o->job, &o->factor_opt_name}},
+        .measured = &o->job.measured,
+        .what = "SOURCE or DIR",
+        .args = &o->input,
+        .max_args = 1};
     return cli_parse(argc, argv, &p); /* -1: go on */
 }
 

@@ -79,8 +79,14 @@ static void help(void) {
 int cmd_sample(int argc, char **argv) {
     const char *source = NULL, *out = NULL;
     sb_gonio_opts_t go = {18, 1, 18, 72, 0, 1};
-    cli_parser_t p = {"sample", help,     "file",  &out, {{sample_only, CLI_OWN, &go, NULL}},
-                      NULL,     "SOURCE", &source, 1,    NULL};
+    cli_parser_t p = {.cmd = "sample",
+                      .help = help,
+                      .out_what = "file",
+                      .out = &out,
+                      .tables = {{sample_only, CLI_OWN, &go, NULL}},
+                      .what = "SOURCE",
+                      .args = &source,
+                      .max_args = 1};
     int rc = cli_parse(argc, argv, &p);
     if (rc >= 0) return rc;
     if (!source) {

@@ -193,16 +193,16 @@ static int set_params(const char *cmd, const cli_option_t *op, const char *v, vo
 }
 
 static int parse(int argc, char **argv, study_opts_t *o) {
-    cli_parser_t p = {"study",
-                      help,
-                      "folder",
-                      &o->out,
-                      {{study_only, CLI_STUDY, o, NULL}, {cli_factor_options, CLI_STUDY, &o->job, NULL}},
-                      &o->job.measured,
-                      "SOURCE",
-                      o->sources,
-                      (size_t)argc,
-                      &o->nsources};
+    cli_parser_t p = {.cmd = "study",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = &o->out,
+                      .tables = {{study_only, CLI_STUDY, o, NULL}, {cli_factor_options, CLI_STUDY, &o->job, NULL}},
+                      .measured = &o->job.measured,
+                      .what = "SOURCE",
+                      .args = o->sources,
+                      .max_args = (size_t)argc,
+                      .nargs = &o->nsources};
     int rc = cli_parse(argc, argv, &p);
     if (rc < 0 && o->nsources == 0) {
         cli_error("study", "no SOURCE given (see `sepbrdf study --help`)");

@@ -50,8 +50,15 @@ static void help(void) {
 
 /* Returns an exit code, or -1 to go on. */
 static int parse(int argc, char **argv, view_opts_t *o) {
-    cli_parser_t p = {"view", help,  "folder", &o->out, {{view_only, CLI_OWN, o, NULL}},
-                      &o->mo, "DIR", &o->dir,  1,       NULL};
+    cli_parser_t p = {.cmd = "view",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = &o->out,
+                      .tables = {{view_only, CLI_OWN, o, NULL}},
+                      .measured = &o->mo,
+                      .what = "DIR",
+                      .args = &o->dir,
+                      .max_args = 1};
     int rc = cli_parse(argc, argv, &p);
     if (rc < 0 && o->source && o->no_original) {
         cli_error("view", "--source and --no-original contradict each other");
