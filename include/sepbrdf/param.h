@@ -216,26 +216,27 @@ sb_result_t sb_warp_check(sb_context_t *ctx, const sb_warp_t *w);
 
 /* The table a source asks for along one axis, by equalising the error of
  * linear interpolation between the texels along it.  A scan evaluates
- * q = f cos(theta_i) (the headline's quantity) over the pair domain
- * theta_i, theta_o <= theta_max on lines along the axis (a fine grid of
+ * f, weighted by cos^2(theta_i) as the headline weights it, over the
+ * pair domain theta_i, theta_o <= theta_max on lines along the axis (a fine grid of
  * 512 points, MERL-spaced for theta_h, uniform for theta_d) at a coarse
  * grid of the other angles (the other elevation, phi_d, and phi_h for an
  * anisotropic source), each weighted by its share of the pair measure
  * dw_i dw_o = 4 cos theta_d sin theta_d sin theta_h dtheta_h dphi_h
  * dtheta_d dphi_d.  Starting from the floor's warp (MERL for theta_h,
- * uniform for theta_d), each of 6 rounds places `cells` texel centres by
- * the current warp, measures E_k, the squared error of interpolating q
+ * uniform for theta_d), each of 12 rounds places `cells` texel centres by
+ * the current warp, measures E_k, the squared error of interpolating f
  * linearly between neighbouring centres (clamped beyond the first and
- * last), summed over segment k of the axis, and gives segment k the share
- * E_k^(1/5) of the texels (E_k ~ Delta_k^5 for smooth q, so the errors
- * come out equal), mixed with `floor` of the floor's density so no part
- * of the axis is left without texels.  out receives a table (SB_WARP_TABLE,
+ * last) times cos^2 theta_i, summed over segment k of the axis, gives
+ * segment k the share E_k^(1/5) of the texels (E_k ~ Delta_k^5 for smooth
+ * f, so the errors come out equal), mixed with `floor` of the floor's
+ * density so no part of the axis is left without texels, and moves the
+ * knots half way there (damped: undamped rounds oscillate).  out receives a table (SB_WARP_TABLE,
  * knots rounded as sb_param_create rounds them).  Errors: SB_ERR_ARG,
  * SB_ERR_RANGE (axis, knots, cells, theta_max or floor out of range),
  * SB_ERR_NUMERIC (the source is unknown wherever it was scanned),
  * SB_ERR_NOMEM. */
 typedef struct sb_warp_measure_opts {
-    size_t knots;     /* K, 2..SB_WARP_MAX_KNOTS (0 = 32) */
+    size_t knots;     /* K, 2..SB_WARP_MAX_KNOTS (0 = SB_WARP_MAX_KNOTS: two segments a texel at 32 texels) */
     size_t cells;     /* texels along the axis the warp is made for, 2..8192 (0 = 32) */
     double floor;     /* share of the floor density, [0, 1) (0 = 0.15) */
     double theta_max; /* radians, 0 = pi/2 */

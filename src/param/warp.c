@@ -49,28 +49,32 @@ static size_t table_segment(const sb_warp_t *w, double x) {
 double sb_warp_map(const sb_warp_t *w, double x) {
     if (!w) return NAN;
     switch (w->kind) {
-    case SB_WARP_MERL: return sqrt(x);
+    case SB_WARP_MERL:
+        return sqrt(x);
     case SB_WARP_TABLE: {
         size_t k = table_segment(w, x);
         double t = (x - w->x[k]) / (w->x[k + 1] - w->x[k]);
         t = t < 0 ? 0 : (t > 1 ? 1 : t);
         return ((double)k + t) / (double)w->knots;
     }
-    default: return x;
+    default:
+        return x;
     }
 }
 
 double sb_warp_inverse(const sb_warp_t *w, double s) {
     if (!w) return NAN;
     switch (w->kind) {
-    case SB_WARP_MERL: return s * s;
+    case SB_WARP_MERL:
+        return s * s;
     case SB_WARP_TABLE: {
         double u = (s < 0 ? 0 : (s > 1 ? 1 : s)) * (double)w->knots;
         size_t k = (size_t)u;
         if (k >= w->knots) k = w->knots - 1;
         return w->x[k] + (u - (double)k) * (w->x[k + 1] - w->x[k]);
     }
-    default: return s;
+    default:
+        return s;
     }
 }
 
@@ -90,12 +94,11 @@ sb_result_t sb_warp_check(sb_context_t *ctx, const sb_warp_t *w) {
     if (w->knots < 2 || w->knots > SB_WARP_MAX_KNOTS)
         return sb_error(ctx, SB_ERR_RANGE, "warp table: %zu segments, need 2..%d", w->knots, SB_WARP_MAX_KNOTS);
     if (w->x[0] != 0 || w->x[w->knots] != 1)
-        return sb_error(ctx, SB_ERR_RANGE, "warp table: knots run from %g to %g, need 0 to 1", w->x[0],
-                        w->x[w->knots]);
+        return sb_error(ctx, SB_ERR_RANGE, "warp table: knots run from %g to %g, need 0 to 1", w->x[0], w->x[w->knots]);
     for (size_t k = 0; k < w->knots; k++)
         if (!(w->x[k + 1] > w->x[k]))
-            return sb_error(ctx, SB_ERR_RANGE, "warp table: knot %zu (%g) not above knot %zu (%g)", k + 1,
-                            w->x[k + 1], k, w->x[k]);
+            return sb_error(ctx, SB_ERR_RANGE, "warp table: knot %zu (%g) not above knot %zu (%g)", k + 1, w->x[k + 1],
+                            k, w->x[k]);
     return SB_OK;
 }
 

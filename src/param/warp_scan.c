@@ -11,13 +11,10 @@
  * A line is the axis' fine grid x_0 < ... < x_{M-1} (the floor's spacing:
  * MERL's for theta_h, uniform for theta_d) at one setting of the other
  * angles (LINES_T elevations of the other axis, LINES_P phi_d, and
- * LINES_H phi_h for an anisotropic source).  On a line, q_c = f_c cos
- * theta_i; where three neighbours are BRDF pairs with known, finite f,
- *     q'' = 2 ((q_{i+1} - q_i) / (x_{i+1} - x_i) - (q_i - q_{i-1}) / (x_i - x_{i-1}))
- *           / (x_{i+1} - x_{i-1}),
- * and A(x_i) += measure(line, x_i) sum_c q''_c^2.  Lines are split over
- * threads, each with its own A, added in thread order (same bits on every
- * thread count). */
+ * LINES_H phi_h for an anisotropic source).  A line holds f (what the
+ * textures store for the form f) and cos^2 theta_i at its points; lines
+ * are evaluated on threads, each writing its own.  The rounds
+ * (equalise_round) then run on the caller's thread. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,7 +27,7 @@
 #define LINES_T 32 /* elevations of the other axis */
 #define LINES_P 16 /* phi_d over [0, 2pi) */
 #define LINES_H 4  /* phi_h over [0, 2pi), anisotropic sources */
-#define ROUNDS 6   /* equalisation rounds */
+#define ROUNDS 12  /* equalisation rounds */
 #define MIN_GAP 1e-4
 
 typedef struct scan {
@@ -42,7 +39,8 @@ typedef struct scan {
     double x[FINE];        /* fine grid, normalised */
     double e[FINE + 1];    /* fine cells' edges: 0, midpoints, 1 */
     double m[FINE];        /* the axis' share of the measure on each fine cell */
-    double *q;             /* lines x FINE x 3: f cos theta_i */
+    double *q;             /* lines x FINE x 3: f */
+    double *c2;            /* lines x FINE: cos^2 theta_i, the headline's weight */
     unsigned char *ok;     /* lines x FINE: a BRDF pair with known, finite f */
     double *w;             /* lines: the other angles' share of the measure */
 } scan_t;
@@ -77,7 +75,7 @@ static size_t scan_line(scan_t *s, size_t line) {
     double pd = (ip + 0.5) * 2 * SB_PI / LINES_P, ph = (ih + 0.5) * 2 * SB_PI / (double)s->nh;
     /* the other elevation's share: int 4 cos sin dtheta_d, or int sin dtheta_h */
     s->w[line] = s->axis == SB_AXIS_THETA_H ? 2 * (sin(hi) * sin(hi) - sin(lo) * sin(lo)) : cos(lo) - cos(hi);
-    double *q = s->q + line * FINE * 3;
+    double *q = s->q + line * FINE * 3, *c2 = s->c2 + line * FINE;
     unsigned char *ok = s->ok + line * FINE;
     for (size_t i = 0; i < FINE; i++) {
         double th = s->x[i] * s->tmax, l[3], v[3], f[3];
@@ -85,8 +83,9 @@ static size_t scan_line(scan_t *s, size_t line) {
                                             : rusink_pair(s->tmax, to, ph, th, pd, l, v);
         ok[i] = (unsigned char)(in && sb_source_eval(s->src, l, v, f) && isfinite(f[0] + f[1] + f[2]));
         known += ok[i];
+        c2[i] = l[2] * l[2];
         for (int c = 0; c < 3; c++)
-            q[i * 3 + c] = ok[i] ? f[c] * l[2] : 0;
+            q[i * 3 + c] = ok[i] ? f[c] : 0;
     }
     return known;
 }
@@ -146,7 +145,7 @@ static void segment_errors(const scan_t *s, const double *xc, size_t n, double *
     if (tp && nv && nok) {
         taps_of(s, xc, n, tp);
         for (size_t l = 0; l < s->lines; l++) {
-            const double *q = s->q + l * FINE * 3;
+            const double *q = s->q + l * FINE * 3, *c2 = s->c2 + l * FINE;
             const unsigned char *ok = s->ok + l * FINE;
             for (size_t k = 0; k < n; k++)
                 node_value(s, q, ok, xc[k], nv[k], &nok[k]);
@@ -158,7 +157,7 @@ static void segment_errors(const scan_t *s, const double *xc, size_t n, double *
                     double d = q[i * 3 + c] - ((1 - t) * nv[a][c] + t * nv[b][c]);
                     d2 += d * d;
                 }
-                err[tp->seg[i]] += s->w[l] * s->m[i] * d2;
+                err[tp->seg[i]] += s->w[l] * s->m[i] * c2[i] * d2;
             }
         }
     }
@@ -214,9 +213,13 @@ static void equalise_round(const scan_t *s, size_t n, size_t knots, double floor
         mass[i] = total > 0 ? (1 - floor_) * adaptive + floor_ * base : base;
     }
     free(tp);
-    w->kind = SB_WARP_TABLE;
-    w->knots = knots;
-    knots_from(s, mass, w);
+    /* damped: the new knots half way from the old map's (at the same s) */
+    sb_warp_t next = {SB_WARP_TABLE, knots, {0}};
+    knots_from(s, mass, &next);
+    for (size_t k = 1; k < knots; k++)
+        next.x[k] = 0.5 * (next.x[k] + sb_warp_inverse(w, (double)k / (double)knots));
+    sb_warp_round(&next);
+    *w = next;
 out:
     free(xc);
     free(err);
@@ -228,7 +231,7 @@ sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis,
     if (!src || !out) return sb_error(ctx, SB_ERR_ARG, "warp measure: no source or output");
     sb_warp_measure_opts_t o = {0};
     if (opts) o = *opts;
-    if (!o.knots) o.knots = 32;
+    if (!o.knots) o.knots = SB_WARP_MAX_KNOTS;
     if (!o.cells) o.cells = 32;
     if (!(o.theta_max > 0)) o.theta_max = SB_PI / 2;
     if (o.floor == 0) o.floor = 0.15;
@@ -250,9 +253,11 @@ sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis,
     scan_job_t *jobs = sb_calloc(ctx, (size_t)nt, sizeof *jobs, "warp scan");
     s->q = sb_alloc(ctx, s->lines * FINE, 3 * sizeof *s->q, "warp scan");
     s->ok = sb_alloc(ctx, s->lines, FINE, "warp scan");
+    s->c2 = sb_alloc(ctx, s->lines * FINE, sizeof *s->c2, "warp scan");
     s->w = sb_alloc(ctx, s->lines, sizeof *s->w, "warp scan");
     size_t known = 0;
-    if (jobs && s->q && s->ok && s->w) {
+    int have = jobs && s->q && s->c2 && s->ok && s->w;
+    if (have) {
         for (size_t i = 0; i < FINE; i++)
             s->x[i] = sb_warp_inverse(&base, (i + 0.5) / FINE);
         s->e[0] = 0;
@@ -272,11 +277,13 @@ sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis,
         for (int r = 0; r < ROUNDS && known; r++)
             equalise_round(s, o.cells, o.knots, o.floor, out);
     }
-    sb_result_t r = !jobs || !s->q || !s->ok || !s->w ? sb_error(ctx, SB_ERR_NOMEM, "warp measure: out of memory")
-                    : !known ? sb_error(ctx, SB_ERR_NUMERIC, "warp measure: the source is unknown wherever it was scanned")
-                             : sb_warp_check(ctx, out);
+    sb_result_t r = !have ? sb_error(ctx, SB_ERR_NOMEM, "warp measure: out of memory")
+                    : !known
+                        ? sb_error(ctx, SB_ERR_NUMERIC, "warp measure: the source is unknown wherever it was scanned")
+                        : sb_warp_check(ctx, out);
     free(jobs);
     free(s->q);
+    free(s->c2);
     free(s->ok);
     free(s->w);
     free(s);
