@@ -108,7 +108,8 @@ SB_TEST(spec_round_trip) {
             }
             l[2] = fabs(l[2]) + 0.01;
             v[2] = fabs(v[2]) + 0.01;
-            double nl = sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]), nv = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            double nl = sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]),
+                   nv = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
             for (int e = 0; e < 3; e++) {
                 l[e] /= nl;
                 v[e] /= nv;
@@ -239,7 +240,8 @@ static double floor_error(const sb_source_t *src, const sb_warp_t *wh, const sb_
         double tr;
         lerp_taps(sb_warp_map(wh, th / tmax), TH, 0, &ra, &rb, &tr);
         for (size_t j = 0; j < FD; j++) {
-            double td = (j + 0.5) * tmax / FD, w = 4 * cos(td) * sin(td) * sin(th) * dth * (tmax / FD) * (2 * SB_PI / FP);
+            double td = (j + 0.5) * tmax / FD,
+                   w = 4 * cos(td) * sin(td) * sin(th) * dth * (tmax / FD) * (2 * SB_PI / FP);
             size_t ca, cb;
             double tc;
             lerp_taps(sb_warp_map(wd, td / tmax), TD, 0, &ca, &cb, &tc);
