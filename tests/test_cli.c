@@ -143,7 +143,8 @@ SB_TEST(rerun_removes_stale_terms) {
 
 /* --warp adaptive: the tables travel in the EXR headers' param spec (a
  * render from the folder reads them back), report.json and the snippet
- * hold them; an unknown warp is a usage error naming the option. */
+ * hold them; an unknown warp is a usage error naming the option; io
+ * takes none and the run warns. */
 SB_TEST(warp_adaptive_round_trip) {
     const char *made = sb_tmpdir("cliwarp");
     char dir[1024], sub[1100], path[1200];
@@ -164,4 +165,8 @@ SB_TEST(warp_adaptive_round_trip) {
     CHECK(sb_file_exists(path));
     CHECK(run("factor --warp bogus%s", "") == 1);
     CHECK(strstr(out, "--warp 'bogus' unknown") != NULL);
+    /* a layout without warps says so */
+    snprintf(args, sizeof args, "factor lambert --param io --res 8 -J 1 --warp merl -o %s", sub);
+    CHECK(run("%s", args) == 0);
+    CHECK(strstr(out, "io has no axis that takes a warp") != NULL);
 }

@@ -75,7 +75,12 @@ static sb_result_t keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_le
  * J is lower (both on the estimator's pairs). */
 sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     job_attempt_t *b = &job->best, a = {0};
-    if (!job->o.warp || !(sb_param_caps(b->param) & SB_CAP_WARPS)) return SB_OK;
+    if (!job->o.warp) return SB_OK;
+    if (!(sb_param_caps(b->param) & SB_CAP_WARPS)) {
+        job_warn(job, "%s has no axis that takes a warp; the warp asked for (%s) is not applied",
+                 sb_param_name(b->param), job->o.warp);
+        return SB_OK;
+    }
     double t0 = job_now();
     sb_param_opts_t po = {0};
     po.res = job->o.res;
