@@ -48,6 +48,18 @@ static int set_form(const char *cmd, const cli_option_t *op, const char *v, void
     return 0;
 }
 
+static int set_warp(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    sb_warp_kind_t k;
+    int ok = strcmp(v, "adaptive") == 0 || strcmp(v, "auto") == 0 ||
+             (sb_warp_kind_parse(v, &k) == SB_OK && (k == SB_WARP_UNIFORM || k == SB_WARP_MERL));
+    if (!ok) {
+        cli_error(cmd, "%s '%s' unknown, need one of uniform, merl, adaptive, auto", op->name, v);
+        return -1;
+    }
+    *(const char **)dst = v;
+    return 0;
+}
+
 static int set_method(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     if (sb_method_parse(v, dst) != SB_OK) {
         char names[128] = "";
@@ -104,6 +116,13 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--form", "F",
      "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",
      set_form, AT(form), 0, 0, F_ | R_ | S_},
+    {NULL, "--warp", "W",
+     "texel spacing along the elevations theta_h, theta_d (iso,\n"
+     "hd): uniform; merl (theta_h as MERL: square root); adaptive\n"
+     "(measured from the source: equal interpolation error of\n"
+     "f cos theta_i between texels); auto (adaptive where its\n"
+     "headline error is lower); default: iso merl, hd uniform",
+     set_warp, AT(warp), 0, 0, F_ | R_ | S_},
     {NULL, "--weighted", NULL,
      "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate)",
      cli_set_flag, AT(weighted), 0, 0, F_ | R_ | S_},

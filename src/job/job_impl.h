@@ -79,4 +79,11 @@ sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t ca
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form);
 sb_result_t job_select(sb_context_t *ctx, sb_job_t *job);
 
+/* opts.warp: NULL (the layout's own), "uniform", "merl" (kind set),
+ * "adaptive" or "auto" (*adaptive = 1); SB_ERR_UNKNOWN otherwise
+ * (job_warp.c). */
+sb_result_t job_warp_parse(sb_context_t *ctx, const char *name, int *adaptive, sb_warp_kind_t *kind);
+/* With opts.warp, the kept fit again on the warped layout (job_warp.c). */
+sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job);
+
 #endif
