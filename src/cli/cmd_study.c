@@ -209,32 +209,22 @@ static int set_params(const char *cmd, const cli_option_t *op, const char *v, vo
 }
 
 static int parse(int argc, char **argv, study_opts_t *o) {
-    static const char *const n_help[] = {"-h", "--help", NULL};
-    cli_args_t a = {argc, 1, argv, "study"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_out_opt(&a, "folder", &o->out)) || (m = cli_table_opt(&a, study_only, CLI_STUDY, o, NULL)) ||
-            (m = cli_table_opt(&a, cli_factor_options, CLI_STUDY, &o->job, NULL)) ||
-            (m = cli_measured_opt(&a, &o->job.measured))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("study", "unknown option '%s' (see `sepbrdf study --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else {
-            o->sources[o->nsources++] = argv[a.i];
-        }
-    }
-    if (o->nsources == 0) {
+    cli_parser_t p = {.cmd = "study",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = &o->out,
+                      .tables = {{study_only, CLI_STUDY, o, NULL}, {cli_factor_options, CLI_STUDY, &o->job, NULL}},
+                      .measured = &o->job.measured,
+                      .what = "SOURCE",
+                      .args = o->sources,
+                      .max_args = (size_t)argc,
+                      .nargs = &o->nsources};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc < 0 && o->nsources == 0) {
         cli_error("study", "no SOURCE given (see `sepbrdf study --help`)");
         return EXIT_USAGE;
     }
-    return -1; /* go on */
+    return rc; /* -1: go on */
 }
 
 /* ---- running ----------------------------------------------------------- */
@@ -445,6 +435,35 @@ static void settle(study_opts_t *o) {
     o->method = o->job.method;
 }
 
+/* Write the output set of the runs (a staging folder published in one
+ * step, outset.h, so the folder never mixes files of two studies), print
+ * the table; the exit code. */
+static int publish(sb_context_t *ctx, const study_opts_t *o, const runs_t *rs, double t0) {
+    size_t failed = 0, good = 0;
+    for (size_t i = 0; i < rs->n; i++) {
+        if (rs->v[i].ok)
+            good++;
+        else
+            failed++;
+    }
+    int rc, plotted = 0;
+    sb_outset_t *set = cli_outset_begin(ctx, "study", o->out, &rc);
+    if (!set) return rc;
+    if (study_write_set(set, o, rs, failed, good, &plotted) != 0) {
+        cli_outset_end(ctx, "study", set, 0); /* a set not published: discarded */
+        return EXIT_IO;
+    }
+    if ((rc = cli_outset_end(ctx, "study", set, 1)) != EXIT_OK) return rc;
+    if (g_verbosity >= 1) {
+        print_table(o, rs);
+        printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
+               o->out, good, failed, cli_now() - t0);
+    }
+    if (failed)
+        cli_error("study", "%zu of %zu runs failed; the results of the other %zu are written", failed, rs->n, good);
+    return failed ? EXIT_IO : EXIT_OK;
+}
+
 int cmd_study(int argc, char **argv) {
     study_opts_t o = {0};
     o.sources = calloc((size_t)argc + 1, sizeof *o.sources);
@@ -467,7 +486,6 @@ int cmd_study(int argc, char **argv) {
     }
 
     sb_context_t *ctx = NULL;
-    sb_outset_t *set = NULL;
     runs_t rs = {0};
     sb_source_t **srcs = calloc(o.nsources, sizeof *srcs);
     size_t *first_run = calloc(o.nsources + 1, sizeof *first_run);
@@ -483,40 +501,13 @@ int cmd_study(int argc, char **argv) {
     if (list_runs(ctx, &o, srcs, first_run, &rs) != 0) goto nomem;
     run_all(ctx, &o, srcs, first_run, &rs);
     cli_progress_done();
-
-    size_t failed = 0, good = 0;
-    for (size_t i = 0; i < rs.n; i++) {
-        if (rs.v[i].ok)
-            good++;
-        else
-            failed++;
-    }
-    /* The files go into a staging folder published in one step (outset.h),
-     * so the folder never mixes files of two studies. */
-    if (!(set = cli_outset_begin(ctx, "study", o.out, &rc))) goto out;
-    int plotted = 0;
-    if (study_write_set(set, &o, &rs, failed, good, &plotted) != 0) {
-        rc = EXIT_IO;
-        goto out;
-    }
-    rc = cli_outset_end(ctx, "study", set, 1);
-    set = NULL;
-    if (rc != EXIT_OK) goto out;
-    if (g_verbosity >= 1) {
-        print_table(&o, &rs);
-        printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
-               o.out, good, failed, cli_now() - t0);
-    }
-    if (failed)
-        cli_error("study", "%zu of %zu runs failed; the results of the other %zu are written", failed, rs.n, good);
-    rc = failed ? EXIT_IO : EXIT_OK;
+    rc = publish(ctx, &o, &rs, t0);
     goto out;
 nomem:
     cli_progress_done();
     cli_error("study", "out of memory");
     rc = EXIT_IO;
 out:
-    cli_outset_end(ctx, "study", set, 0); /* a set not published: discarded */
     for (size_t s = 0; srcs && s < o.nsources; s++)
         sb_source_destroy(srcs[s]);
     free(srcs);

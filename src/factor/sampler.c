@@ -182,6 +182,10 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     if (gw != pw[0] || gh != ph[0] || hw != pw[1] || hh != ph[1] || gw * gh == 0)
         return sb_error(ctx, SB_ERR_ARG, "sampler: textures %zux%zu and %zux%zu are not those of %s", gw, gh, hw, hh,
                         sb_param_spec(p));
+    if (!sb_param_warps_default(p))
+        return sb_error(ctx, SB_ERR_UNSUPPORTED,
+                        "sampler: %s has a warp of its own (--warp); the sampler covers the layouts' own spacing only",
+                        sb_param_spec(p));
     sb_result_t r = check_nonneg(ctx, f);
     if (r != SB_OK) return r;
     sb_sampler_t *s = sb_calloc(ctx, 1, sizeof *s, "sampler");
