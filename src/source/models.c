@@ -96,11 +96,14 @@ typedef struct model {
     int norm, d, g, f, denom;
     double roughness, f0[3], ior;
     double base[3], metallic, reflectance;
+    double
+        anisotropy; /* microfacet: 0 isotropic; alpha_x = alpha / a, alpha_y = alpha a, a = sqrt(1 - 0.9 anisotropy) */
     /* derived */
-    double cmin;  /* guard, or SB_COS_FLOOR when guard = 0 */
-    double cspec; /* constant factor of the specular lobe */
-    double alpha; /* GGX alpha = roughness^2; Beckmann/Gaussian m = roughness */
-    double k;     /* Schlick-GGX k */
+    double cmin;   /* guard, or SB_COS_FLOOR when guard = 0 */
+    double cspec;  /* constant factor of the specular lobe */
+    double alpha;  /* GGX alpha = roughness^2; Beckmann/Gaussian m = roughness */
+    double ax, ay; /* microfacet: GGX widths along the tangent x and the bitangent y */
+    double k;      /* Schlick-GGX k */
 } model_t;
 
 /* ---- shared pieces ------------------------------------------------------ */
@@ -325,7 +328,15 @@ static int ct_eval(const void *self, const double l[3], const double v[3], doubl
     return 1;
 }
 
-/* The lecture's microfacetBRDF, unchanged:
+/* Anisotropic GGX (Burley 2012) with widths ax along the surface tangent
+ * x and ay along y:  D = 1 / (pi ax ay (h_x^2/ax^2 + h_y^2/ay^2 + h_z^2)^2),
+ * which is ndf()'s GGX for ax = ay = alpha. */
+static double ndf_aniso(const model_t *m, const double h[3]) {
+    double x = h[0] / m->ax, y = h[1] / m->ay, b = x * x + y * y + h[2] * h[2];
+    return 1 / (SB_PI * m->ax * m->ay * b * b);
+}
+
+/* The lecture's microfacetBRDF, unchanged (with anisotropy 0):
  *   f0 = mix(0.16 reflectance^2, base, metallic)
  *   F = f0 + (1 - f0)(1 - v.h)^5,  D = GGX(alpha = roughness^2),
  *   G = G1(n.l) G1(n.v), G1(c) = max(c, 0.001)/(c (1 - k) + k), k = ((1 + roughness)/2)^2 / 2
@@ -337,7 +348,7 @@ static int microfacet_eval(const void *self, const double l[3], const double v[3
     double h[3];
     half_vector(l, v, h);
     double nv = clamp01(v[2]), nl = clamp01(l[2]), vh = clamp01(dot3(v, h));
-    double D = ndf(m, h);
+    double D = m->anisotropy > 0 ? ndf_aniso(m, h) : ndf(m, h);
     double k = m->k;
     double G = (fmax(nl, m->cmin) / (nl * (1 - k) + k)) * (fmax(nv, m->cmin) / (nv * (1 - k) + k));
     double f5 = pow(1 - vh, 5);
@@ -450,6 +461,10 @@ typedef struct keyspec {
       "0.5")                                                                                                           \
     X("roughness", K_NUM, 0.001, 1, 0, roughness, NULL,                                                                \
       "perceptual roughness: GGX alpha = roughness^2, Schlick-GGX k = ((1 + roughness)/2)^2/2", "[0.001, 1]", "0.5")   \
+    X("anisotropy", K_NUM, 0, 1, 0, anisotropy, NULL,                                                                  \
+      "anisotropic GGX (Burley): alpha_x = alpha/a along the tangent x, alpha_y = alpha a, a = sqrt(1 - 0.9 "          \
+      "anisotropy); 0 is isotropic",                                                                                   \
+      "[0, 1]", "0")                                                                                                   \
     GUARD_KEY(X, "n.l and n.v in G's numerators and the denominator")
 
 #define KEY_TABLES(tag, LIST)                                                                                          \
@@ -628,6 +643,7 @@ static void defaults(model_t *m, int kind) {
 
 /* Whether a key is printed in the canonical description of m. */
 static int key_relevant(const model_t *m, const char *name) {
+    if (strcmp(name, "anisotropy") == 0) return m->anisotropy > 0; /* isotropic specs stay as they were */
     if (m->kind != M_CT) return 1;
     if (strcmp(name, "f0") == 0) return m->f == F_SCHLICK || m->f == F_CONDUCTOR;
     if (strcmp(name, "ior") == 0) return m->f == F_DIELECTRIC;
@@ -700,6 +716,9 @@ static sb_result_t finish(sb_context_t *ctx, model_t *m, int f0_set, int ior_set
         if (metal_base && !metallic_set) m->metallic = 1;
         m->d = D_GGX;
         m->alpha = m->roughness * m->roughness;
+        double aspect = sqrt(1 - 0.9 * m->anisotropy);
+        m->ax = m->alpha / aspect;
+        m->ay = m->alpha * aspect;
         double r = 0.5 + 0.5 * m->roughness;
         m->k = r * r / 2;
         break;
@@ -712,7 +731,7 @@ static sb_result_t finish(sb_context_t *ctx, model_t *m, int f0_set, int ior_set
 
 /* Flags that hold for this instance. */
 static unsigned model_flags(const model_t *m) {
-    unsigned flags = SB_SOURCE_ISOTROPIC;
+    unsigned flags = m->anisotropy > 0 ? 0u : SB_SOURCE_ISOTROPIC;
     /* Only classic Phong divides by n.l alone; with ks = 0 it is constant. */
     if (m->kind != M_PHONG || is_zero(m->ks)) flags |= SB_SOURCE_RECIPROCAL;
     int gray;
