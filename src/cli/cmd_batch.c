@@ -53,7 +53,11 @@ static void help(void) {
            "  -o, --out DIR        output folder (default ./" DEFAULT_OUT ")\n"
            "  -j, --jobs N         materials at a time, each its own process (default:\n"
            "                       the cores, fewer when the matrices would not fit in\n"
-           "                       the available memory)\n");
+           "                       the available memory)\n"
+           "\n"
+           "On a cluster: `mpirun -np N sepbrdf-mpi batch ...` (or srun; sepbrdf-mpi is\n"
+           "built where MPI is found) hands the materials to N - 1 ranks, one at a\n"
+           "time, into the same OUT; rank 0 writes the summary.\n");
     cli_table_help(batch_only, CLI_FACTOR);
     cli_table_help(cli_factor_options, CLI_FACTOR);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
@@ -287,12 +291,20 @@ int cmd_batch(int argc, char **argv) {
     batch_t b = {calloc(MAX_ITEMS, sizeof(batch_item_t)), 0, {0}};
     const char *out = DEFAULT_OUT, **inputs = calloc((size_t)argc + 1, sizeof *inputs);
     size_t jobs = 0;
-    int ninputs = 0, rc;
+    int ninputs = 0, rc, rank = 0, size = 0; /* MPI: this rank, the ranks (0: MPI not started) */
     if (!b.items || !inputs) {
         cli_error("batch", "out of memory");
         rc = EXIT_IO;
         goto done;
     }
+#ifdef SEPBRDF_MPI
+    if (batch_mpi_begin(&rank, &size) != 0) {
+        cli_error("batch", "MPI_Init failed");
+        rc = EXIT_IO;
+        goto done;
+    }
+    if (rank != 0) g_verbosity = g_verbosity > 0 ? 0 : g_verbosity; /* rank 0 reports */
+#endif
     if ((rc = parse(argc, argv, &b, &out, &jobs, inputs, &ninputs)) >= 0) goto done;
     rc = EXIT_OK;
     for (int i = 0; i < ninputs && rc == EXIT_OK; i++)
@@ -304,11 +316,19 @@ int cmd_batch(int argc, char **argv) {
         goto done;
     }
     size_t reused = 0;
-    for (size_t i = 0; i < b.n; i++)
+    for (size_t i = 0; i < b.n && rank == 0; i++) /* only rank 0 hands out work */
         reused += b.items[i].skipped = batch_done(out, &b.items[i]);
     if (!jobs) jobs = default_jobs(&b);
-    cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, jobs);
+    if (size > 1)
+        cli_info(1, "batch: %zu materials, %zu reused, over %d ranks", b.n, reused, size - 1);
+    else
+        cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, jobs);
+#ifdef SEPBRDF_MPI
+    batch_mpi_run(out, b.items, b.n, jobs, rank, size);
+    if (rank != 0) goto done; /* rank 0 writes the summary */
+#else
     batch_run(out, b.items, b.n, jobs);
+#endif
     size_t failed = 0;
     for (size_t i = 0; i < b.n; i++)
         if (!b.items[i].ok) {
@@ -319,6 +339,9 @@ int cmd_batch(int argc, char **argv) {
     if (g_verbosity >= 1) batch_table(b.items, b.n);
     if (rc == EXIT_OK && failed) rc = EXIT_IO;
 done:
+#ifdef SEPBRDF_MPI
+    if (size > 0) batch_mpi_end();
+#endif
     free(b.items);
     free(inputs);
     return rc;
