@@ -163,3 +163,22 @@ SB_TEST(streams_beyond_limit) {
     sb_param_destroy(p), sb_param_destroy(hd);
     sb_source_destroy(s);
 }
+
+/* The CLI's --memory-limit: a size with a binary suffix; a bad one is a
+ * usage error naming the option; method stream is named in the report. */
+SB_TEST(cli_memory_limit_and_method) {
+    static char out[8192];
+    const char *dir = sb_tmpdir("stream_cli");
+    char cmd[4096];
+    static const char *const bad[] = {"2x", "0", "-5G", "1K"};
+    for (int i = 0; i < 4; i++) {
+        snprintf(cmd, sizeof cmd, "%s factor --memory-limit %s -o %s/bad 2>&1", SB_CLI, bad[i], dir);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 1 && strstr(out, "--memory-limit"), "%s: rc %d: %s", bad[i], rc, out);
+    }
+    snprintf(cmd, sizeof cmd,
+             "%s factor '" ANISO "' --param io -r 8 -J 3 --method stream --memory-limit 1G -q -o %s/ok", SB_CLI, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    snprintf(cmd, sizeof cmd, "grep -c '\"method\": \"stream\"' %s/ok/report.json", dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 0 && atoi(out) == 1);
+}
