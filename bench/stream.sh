@@ -6,8 +6,9 @@
 #    R = 16, 32, 64: rel_rms of every J' and their largest relative gap;
 # 2. `factor --param io -r R_BIG` (the matrix would not fit the memory
 #    limit, so it is streamed): peak resident memory (/usr/bin/time -v)
-#    and wall time.  R = 256 is 4.3e9 cells a pass; passes are q + 2 = 4
-#    (3 for the terms, 1 for the errors): tens of minutes on 2 cores.
+#    and wall time.  R = 256 is 4.3e9 cells a pass, 6 passes (5 for the
+#    terms, 1 for the errors): 3 hours at the 430 ns a cell (wall, both
+#    cores) measured on the 2-core VM under a load of 19.
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(dirname "$here")
