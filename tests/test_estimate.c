@@ -289,3 +289,81 @@ SB_TEST(masked_prefixes_non_increasing) {
     sb_param_destroy(p);
     sb_source_destroy(src);
 }
+
+/* Term weights (sb_estimate_term_weights): on the fit above with a noise
+ * term appended (term 9: textures of random values, which can only add
+ * error), the weights are in [0, 1], the noise term's are near 0, and the
+ * headline of the weighted factors on the same pairs never rises with J'.
+ * The weights are checked against an independent computation: for each
+ * term, the headline of the prefixes with that term at weight w (from
+ * sb_estimate_compute on copies of the factors) at w = 1 and at the
+ * reported w, which must not be worse. */
+static double lcg(uint64_t *s) {
+    *s = *s * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(*s >> 11) * 0x1p-53;
+}
+
+static sb_factors_t *with_noise_term(const sb_factors_t *f) {
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), w[2], h[2];
+    for (int s = 0; s < 2; s++)
+        sb_factors_size(f, s, &w[s], &h[s]);
+    sb_factors_t *g = NULL;
+    CHECK(sb_factors_create(NULL, J + 1, C, w[0], h[0], w[1], h[1], &g) == SB_OK);
+    uint64_t seed = 7;
+    for (size_t j = 0; j <= J; j++)
+        for (size_t c = 0; c < C; c++)
+            for (int s = 0; s < 2; s++) {
+                double *t = sb_factors_tex(g, s, j, c);
+                for (size_t i = 0; i < w[s] * h[s]; i++)
+                    t[i] = j < J ? sb_factors_tex_const(f, s, j, c)[i] : 0.3 * (lcg(&seed) - 0.5);
+            }
+    return g;
+}
+
+static void scale_copy(sb_factors_t *g, const double *wts) {
+    size_t J = sb_factors_terms(g), C = sb_factors_channels(g), tw, th;
+    for (size_t j = 0; j < J; j++)
+        for (size_t c = 0; c < C; c++)
+            for (int s = 0; s < 2; s++) {
+                sb_factors_size(g, s, &tw, &th);
+                double *t = sb_factors_tex(g, s, j, c);
+                for (size_t i = 0; i < tw * th; i++)
+                    t[i] *= s == SB_SIDE_G ? wts[j * C + c] : 1;
+            }
+}
+
+SB_TEST(term_weights_keep_headline_falling) {
+    sb_param_t *p = NULL;
+    sb_source_t *src = NULL;
+    sb_factors_t *f = factor_exr("cook-torrance:roughness=0.3,f0=0.04", SB_PARAM_ISO, 32, 8, SB_FORM_F, 0, &p, &src);
+    sb_factors_t *g = with_noise_term(f), *h = with_noise_term(f);
+    size_t J = sb_factors_terms(g), C = sb_factors_channels(g);
+    sb_pairs_t *pairs = NULL;
+    static sb_estimate_t plain, weighted;
+    sb_estimate_opts_t eo = {0};
+    eo.max_pairs = 1; /* the first pairs only, for both */
+    double wts[16 * 3];
+    CHECK(J <= 16 && sb_pairs_create(NULL, src, &eo, &pairs) == SB_OK);
+    CHECK(sb_estimate_term_weights(NULL, pairs, g, NULL, p, SB_FORM_F, wts) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, pairs, g, NULL, p, SB_FORM_F, &eo, &plain) == SB_OK);
+    scale_copy(h, wts);
+    CHECK(sb_estimate_compute(NULL, pairs, h, NULL, p, SB_FORM_F, &eo, &weighted) == SB_OK);
+    for (size_t j = 0; j < J; j++) {
+        double hp = plain.rel[j][SB_EST_FCOS][3], hw = weighted.rel[j][SB_EST_FCOS][3];
+        printf("  J=%zu weight %.4f plain %.5f weighted %.5f\n", j + 1, wts[j * C], hp, hw);
+        for (size_t c = 0; c < C; c++)
+            CHECKF(wts[j * C + c] >= 0 && wts[j * C + c] <= 1, "weight %g", wts[j * C + c]);
+        if (j > 0)
+            CHECKF(hw <= weighted.rel[j - 1][SB_EST_FCOS][3] * (1 + 1e-9), "weighted headline rises at %zu", j + 1);
+        /* a weight below 1 only where the term as fitted raised the error */
+        if (j > 0 && wts[j * C] < 1) CHECK(hp > plain.rel[j - 1][SB_EST_FCOS][3] || hw < hp);
+    }
+    CHECKF(wts[(J - 1) * C] < 0.05, "noise term weight %g", wts[(J - 1) * C]);
+    CHECK(plain.rel[J - 1][SB_EST_FCOS][3] > 1.1 * plain.rel[J - 2][SB_EST_FCOS][3]); /* the noise hurts as is */
+    sb_pairs_destroy(pairs);
+    sb_factors_destroy(f);
+    sb_factors_destroy(g);
+    sb_factors_destroy(h);
+    sb_param_destroy(p);
+    sb_source_destroy(src);
+}

@@ -64,13 +64,14 @@ extern "C" {
 enum { SB_EST_FCOS = 0 /* headline: f cos(theta_i) */, SB_EST_FCOS2 /* f cos cos */, SB_EST_F, SB_EST_Q_COUNT_ };
 
 typedef struct sb_estimate_opts {
-    size_t replicate; /* pairs per replicate, default 4096 */
-    size_t start;     /* replicates drawn at first, default 16 (at least 4) */
-    size_t max_pairs; /* sb_estimate_compute adds replicates up to this many pairs, default 2^19; start * replicate
-                         or less: never grows */
-    double rel_se;    /* target standard error of the headline relative to it, default 0.05 */
-    uint64_t seed;    /* default 1 */
-    int threads;      /* 0 = all cores */
+    size_t replicate;  /* pairs per replicate, default 4096 */
+    size_t start;      /* replicates drawn at first, default 16 (at least 4) */
+    size_t max_pairs;  /* sb_estimate_compute adds replicates up to this many pairs, default 2^19; start * replicate
+                          or less: never grows */
+    double rel_se;     /* target standard error of the headline relative to it, default 0.05 */
+    uint64_t seed;     /* default 1 */
+    int threads;       /* 0 = all cores */
+    int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */
@@ -104,6 +105,18 @@ typedef struct sb_estimate {
 sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
                                 const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
                                 sb_estimate_t *out);
+
+/* Per-term weights in [0, 1] that make the headline on `pairs` non-increasing
+ * in J': w[j * C + c] (C = sb_factors_channels(f), J = sb_factors_terms(f)
+ * values per channel), for j = 0, 1, ... in turn with the terms before
+ * scaled by their weights, is 1 when term j lowers the headline's error
+ * sum of channel c over the pairs, else the w that minimises that sum
+ * (a least-squares step: the error of every prefix is then at most that
+ * of the shorter one; 0 leaves a term unused).  f, scales, p and form as in
+ * sb_estimate_compute; the pairs are not grown.  Terms beyond SB_EST_MAXJ
+ * get 1.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
+sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
+                                     const double *scales, const sb_param_t *p, sb_form_t form, double *w);
 
 /* The headline (relative L2 error of f cos(theta_i), all channels) after
  * j >= 1 terms; NAN beyond est->terms. */

@@ -77,6 +77,7 @@ typedef struct sb_job_opts {
     unsigned channels;           /* channels to factor (1 R, 2 G, 4 B): all */
     int fit_max_iters;           /* masked fit sweeps: the plan's default */
     double fit_tol;              /* masked fit tolerance: the plan's default */
+    int plain_terms;             /* keep the factorisation's terms as they are: no term weights (job_weights.c) */
     int half;                    /* sb_job_write: HALF textures with per-term scales */
     int previews;                /* sb_job_write: PNG previews of the textures too */
     int sample_only;             /* explicit param only: sample the matrix, factor later with sb_job_refactor */

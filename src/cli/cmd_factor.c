@@ -35,8 +35,8 @@ static void help(void) {
     cli_table_help(cli_factor_options, CLI_FACTOR);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
            "\n"
-           "`--param io` alone reproduces the lecture's method exactly (form f,\n"
-           "unweighted).\n"
+           "`--param io --plain-terms` reproduces the lecture's method exactly\n"
+           "(form f, unweighted, the truncated SVD's terms as they are).\n"
            "\n"
            "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
            "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"

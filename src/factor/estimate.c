@@ -22,27 +22,15 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/estimate_impl.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rng.h"
 
-#define PD 10   /* doubles per pair */
-#define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
-#define MAXT 64 /* threads */
 #define NCOMP 6 /* wo mixture components: uniform, cosine, four GGX lobes */
-#define QC (SB_EST_Q_COUNT_ * 4)
 
 static const double comp_w[NCOMP] = {0.2, 0.2, 0.15, 0.15, 0.15, 0.15};
 static const double lobe_alpha[NCOMP] = {0, 0, 0.005, 0.02, 0.08, 0.3};
-
-struct sb_pairs {
-    const sb_source_t *src;
-    size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
-    uint64_t seed;
-    double *d;            /* n x PD */
-    unsigned char *known; /* n */
-    double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */
-};
 
 /* ---- drawing the pairs ------------------------------------------------ */
 
@@ -147,7 +135,7 @@ static void *worker(void *arg) {
 }
 
 /* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
-static void run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user) {
+void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user) {
     runner_t r = {.first = first, .count = count, .fn = fn, .user = user};
     atomic_store(&r.next, 0);
     worker_arg_t args[MAXT];
@@ -194,7 +182,7 @@ static sb_result_t pairs_grow(sb_context_t *ctx, sb_pairs_t *P, size_t nrep, int
     size_t old = P->nrep;
     P->nrep = nrep;
     P->n = n;
-    run_units(old, nrep - old, nt, draw_unit, P);
+    est_run_units(old, nrep - old, nt, draw_unit, P);
     return SB_OK;
 }
 
@@ -240,22 +228,6 @@ size_t sb_pairs_count(const sb_pairs_t *P) { return P ? P->n : 0; }
 
 /* ---- evaluating a reconstruction -------------------------------------- */
 
-typedef struct eval {
-    const sb_pairs_t *P;
-    const sb_param_t *p;
-    size_t J, C;
-    const double **tex[2]; /* [side][j * C + c] */
-    size_t tw[2], th[2];
-    int wrap[2][2];
-    const double *scale; /* J per-term factors */
-    sb_form_t form;
-    /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
-    double *num, *den, *neg, *meas;
-    /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */
-    uint64_t *hist;
-    double *maxr, *maxv;
-} eval_t;
-
 static size_t wrap_i(long i, size_t n, int mode) {
     if (mode == SB_WRAP_REPEAT) {
         long m = i % (long)n;
@@ -286,7 +258,7 @@ static double tap(const double *t, const size_t at[4], const double fw[4]) {
 }
 
 /* Reconstructed RGB of every prefix at one pair: rec[j * 3 + c]; 0 outside. */
-static void reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec) {
+void est_reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec) {
     double sg[2], sh[2], fg[4], fh[4];
     size_t ag[4], ah[4], J = e->J, C = e->C;
     if (!sb_param_coords(e->p, wi, wo, sg, sh)) {
@@ -340,7 +312,7 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
                 num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
         neg[j] += below ? w : 0;
         maxv[j] = fmax(maxv[j], vmax);
-        for (int c = 0; c < 4; c++) {
+        for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
             double rel = sqrt(d2[c] / f2[c]);
             hist[(j * 4 + c) * NB + bin_of(rel)] += ew[c];
@@ -368,7 +340,7 @@ static void eval_unit(void *user, size_t k, int t) {
             den[q * 4 + 3] += (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * qw[q] * d[6];
         }
         e->meas[k] += d[6];
-        reconstruct(e, d, d + 3, rec);
+        est_reconstruct(e, d, d + 3, rec);
         add_pair(e, d, rec, num, neg, t);
     }
 }
@@ -431,7 +403,7 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
     return met;
 }
 
-static void eval_free(eval_t *e) {
+void est_eval_free(eval_t *e) {
     free(e->tex[0]);
     free(e->tex[1]);
     free(e->num);
@@ -472,6 +444,35 @@ static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
     out->pairs = P->n;
 }
 
+/* e's textures, sizes, wraps and per-term scales (*ones, J values: scales
+ * or 1) for the first min(J, SB_EST_MAXJ) terms of f; SB_OK or
+ * SB_ERR_NOMEM (then e's arrays and *ones are freed). */
+sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p, double **ones) {
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
+    if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
+    e->J = J;
+    e->C = C;
+    *ones = malloc(J * sizeof **ones);
+    e->tex[0] = malloc(J * C * sizeof *e->tex[0]);
+    e->tex[1] = malloc(J * C * sizeof *e->tex[1]);
+    if (!*ones || !e->tex[0] || !e->tex[1]) {
+        free(*ones);
+        est_eval_free(e);
+        return SB_ERR_NOMEM;
+    }
+    for (size_t j = 0; j < J; j++)
+        (*ones)[j] = scales ? scales[j] : 1;
+    e->scale = *ones;
+    for (int s = 0; s < 2; s++) {
+        sb_factors_size(f, s, &e->tw[s], &e->th[s]);
+        sb_param_wrap(p, s, e->wrap[s]);
+        for (size_t j = 0; j < J; j++)
+            for (size_t c = 0; c < C; c++)
+                e->tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
+    }
+    return SB_OK;
+}
+
 sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
                                 const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
                                 sb_estimate_t *out) {
@@ -479,35 +480,18 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     memset(out, 0, sizeof *out);
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "estimate: unknown form %d", (int)form);
     sb_estimate_opts_t o = opts_or_default(opts);
-    size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
-    if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
     int nt = sb_thread_count(o.threads);
     if (nt > MAXT) nt = MAXT;
-    eval_t e = {.P = pairs, .p = p, .J = J, .C = C, .form = form};
-    double *ones = malloc(J * sizeof *ones);
-    e.tex[0] = malloc(J * C * sizeof *e.tex[0]);
-    e.tex[1] = malloc(J * C * sizeof *e.tex[1]);
-    if (!ones || !e.tex[0] || !e.tex[1]) {
-        free(ones);
-        eval_free(&e);
-        return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
-    }
-    for (size_t j = 0; j < J; j++)
-        ones[j] = scales ? scales[j] : 1;
-    e.scale = ones;
-    for (int s = 0; s < 2; s++) {
-        sb_factors_size(f, s, &e.tw[s], &e.th[s]);
-        sb_param_wrap(p, s, e.wrap[s]);
-        for (size_t j = 0; j < J; j++)
-            for (size_t c = 0; c < C; c++)
-                e.tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
-    }
+    eval_t e = {.P = pairs, .p = p, .form = form, .headline_only = o.headline_only};
+    double *ones = NULL;
+    if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
+    size_t J = e.J;
     size_t kmax = o.max_pairs / pairs->rep;
     sb_result_t r = eval_alloc(ctx, &e, kmax > pairs->nrep ? kmax : pairs->nrep, nt);
     /* evaluate the replicates not yet evaluated, then add replicates
      * (doubling) until the headline's standard error meets the target */
     for (size_t done = 0; r == SB_OK;) {
-        run_units(done, pairs->nrep - done, nt, eval_unit, &e);
+        est_run_units(done, pairs->nrep - done, nt, eval_unit, &e);
         done = pairs->nrep;
         out->terms = J;
         out->converged = combine(&e, done, nt, o.rel_se, out);
@@ -516,7 +500,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     }
     if (r == SB_OK) finish(pairs, out);
     free(ones);
-    eval_free(&e);
+    est_eval_free(&e);
     return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");
 }
 

@@ -43,6 +43,7 @@ struct sb_job {
     size_t ncand;
     job_attempt_t best;
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
+    double *term_w;     /* J * C term weights of the kept fit (job_weights.c); NULL: all 1 */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     sb_job_timings_t t;
@@ -56,6 +57,13 @@ void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf,
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
+/* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
+sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* Weight the terms of the kept fit a so that its headline is non-increasing
+ * in J' (estimate.h sb_estimate_term_weights; job->term_w), then measure
+ * its errors again; nothing when the weights are all 1, for a structured
+ * matrix or with o.plain_terms. */
+sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 void job_attempt_free(job_attempt_t *a);
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);

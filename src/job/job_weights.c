@@ -1,0 +1,57 @@
+/* Term weights of the kept fit (estimate.h sb_estimate_term_weights): a
+ * term that makes what a shader returns worse at J' is scaled down, to 0
+ * if need be, so that the headline never rises with J'.  A fit's terms
+ * minimise the error on the sampled cells; between them, at the
+ * resolution floor or near the edge of a masked domain, one more term can
+ * add more interpolation error than it removes. */
+#include <math.h>
+#include <stdlib.h>
+
+#include "job_impl.h"
+#include "sepbrdf/exr.h"
+#include "util/internal.h"
+
+/* Scale term j, channel c of f by w (g and h by sqrt(w), sigma by w). */
+static void scale_term(sb_factors_t *f, size_t j, size_t c, double w) {
+    double rt = sqrt(w);
+    for (int s = 0; s < 2; s++) {
+        size_t tw, th;
+        sb_factors_size(f, s, &tw, &th);
+        double *t = sb_factors_tex(f, s, j, c);
+        for (size_t i = 0; i < tw * th; i++)
+            t[i] *= rt;
+    }
+    sb_factors_set_sigma(f, j, c, sb_factors_sigma(f, j, c) * w);
+}
+
+sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f);
+    if (job->o.plain_terms || a->m.structured || !a->est || !job->pairs) return SB_OK;
+    sb_exr_opts_t xo = {job->o.half};
+    sb_factors_t *q = NULL;
+    double *w = malloc(J * C * sizeof *w);
+    if (!w) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    sb_result_t r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
+    if (r == SB_OK) r = sb_estimate_term_weights(ctx, job->pairs, q, NULL, a->param, a->m.form, w);
+    sb_factors_destroy(q);
+    int any = 0;
+    for (size_t i = 0; r == SB_OK && i < J * C; i++)
+        any |= w[i] != 1;
+    if (r != SB_OK || !any) {
+        free(w);
+        return r;
+    }
+    for (size_t j = 0; j < J; j++)
+        for (size_t c = 0; c < C; c++)
+            scale_term(a->f, j, c, w[j * C + c]);
+    free(job->term_w);
+    job->term_w = w;
+    /* the errors of the weighted terms: on the matrix, then the estimate
+     * on the same pairs (no growth) and the grid quadrature */
+    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
+    r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
+    job_level_t same = *lv;
+    same.est_max_pairs = 1;
+    if (r == SB_OK) r = job_measure(ctx, job, &same, a);
+    return r;
+}

@@ -1,0 +1,438 @@
+/* Masked fit, part 2 (fit.c has the whole picture): alternating least
+ * squares on the valid cells, gathered once per execute in both orders,
+ * and the nested stages that add one term at a time. */
+#include <assert.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "solve/fit_impl.h"
+#include "util/internal.h"
+#include "util/parallel.h"
+
+/* Solve (G + ridge I) x = b for k x k SPD G in place (Cholesky); ridge
+ * keeps rows with fewer than k valid cells well posed. */
+static inline void spd_solve(double *G, double *b, size_t k) {
+    double tr = 0;
+    for (size_t i = 0; i < k; i++)
+        tr += G[i * k + i];
+    double ridge = 1e-12 * (tr > 0 ? tr / (double)k : 1.0) + 1e-300;
+    for (size_t i = 0; i < k; i++)
+        G[i * k + i] += ridge;
+    for (size_t j = 0; j < k; j++) {
+        double d = G[j * k + j];
+        for (size_t p = 0; p < j; p++)
+            d -= G[j * k + p] * G[j * k + p];
+        d = d > 0 ? sqrt(d) : 1e-150;
+        G[j * k + j] = d;
+        for (size_t i = j + 1; i < k; i++) {
+            double v = G[i * k + j];
+            for (size_t p = 0; p < j; p++)
+                v -= G[i * k + p] * G[j * k + p];
+            G[i * k + j] = v / d;
+        }
+    }
+    for (size_t i = 0; i < k; i++) { /* L y = b */
+        double v = b[i];
+        for (size_t p = 0; p < i; p++)
+            v -= G[i * k + p] * b[p];
+        b[i] = v / G[i * k + i];
+    }
+    for (size_t i = k; i-- > 0;) { /* L^T x = y */
+        double v = b[i];
+        for (size_t p = i + 1; p < k; p++)
+            v -= G[p * k + i] * b[p];
+        b[i] = v / G[i * k + i];
+    }
+}
+
+void fit_cells_free(als_cells_t *cl) {
+    free(cl->cp);
+    free(cl->rp);
+    free(cl->cr);
+    free(cl->rc);
+    free(cl->cv);
+    free(cl->rv);
+    free(cl->cbuf);
+    free(cl->rbuf);
+}
+
+/* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
+ * SB_ERR_NOMEM. */
+int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
+                    const unsigned char *mask, size_t nvalid) {
+    /* ~40 bytes per valid cell: through sb_alloc, so the memory limit holds */
+    static const char what[] = "masked fit: gathered cells";
+    memset(cl, 0, sizeof *cl);
+    cl->cp = sb_alloc(ctx, n + 1, sizeof *cl->cp, what);
+    cl->rp = sb_calloc(ctx, m + 1, sizeof *cl->rp, what);
+    cl->cr = sb_alloc(ctx, nvalid, sizeof *cl->cr, what);
+    cl->rc = sb_alloc(ctx, nvalid, sizeof *cl->rc, what);
+    cl->cv = sb_alloc(ctx, nvalid, sizeof *cl->cv, what);
+    cl->rv = sb_alloc(ctx, nvalid, sizeof *cl->rv, what);
+    cl->cbuf = sb_alloc(ctx, nvalid, sizeof *cl->cbuf, what);
+    cl->rbuf = sb_alloc(ctx, nvalid, sizeof *cl->rbuf, what);
+    if (!cl->cp || !cl->rp || !cl->cr || !cl->rc || !cl->cv || !cl->rv || !cl->cbuf || !cl->rbuf) {
+        fit_cells_free(cl);
+        return SB_ERR_NOMEM;
+    }
+    /* column order; count each row's cells on the way */
+    size_t t = 0;
+    for (size_t c = 0; c < n; c++) {
+        cl->cp[c] = t;
+        for (size_t r = 0; r < m; r++)
+            if (mask[r + c * lda]) {
+                cl->cr[t] = (uint32_t)r;
+                cl->cv[t++] = X[r + c * lda];
+                cl->rp[r + 1]++;
+            }
+    }
+    cl->cp[n] = t;
+    assert(t == nvalid);
+    /* row order: prefix sums, then a scatter in column order keeps each
+     * row's columns increasing */
+    for (size_t r = 0; r < m; r++)
+        cl->rp[r + 1] += cl->rp[r];
+    size_t *next = malloc(m * sizeof *next);
+    if (!next) {
+        fit_cells_free(cl);
+        return sb_error(ctx, SB_ERR_NOMEM, "masked fit: cannot allocate %zu bytes", m * sizeof *next);
+    }
+    memcpy(next, cl->rp, m * sizeof *next);
+    for (size_t c = 0; c < n; c++)
+        for (size_t u = cl->cp[c]; u < cl->cp[c + 1]; u++) {
+            size_t at = next[cl->cr[u]]++;
+            cl->rc[at] = (uint32_t)c;
+            cl->rv[at] = cl->cv[u];
+        }
+    free(next);
+    cl->cres = cl->cv;
+    cl->rres = cl->rv;
+    return 0;
+}
+
+/* The data less the fixed terms 0..j0-1, in both orders (aliases of the
+ * data for j0 = 0). */
+void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0) {
+    size_t m = f->m, n = f->n;
+    const double *P = f->P, *Q = f->Q;
+    if (j0 == 0) {
+        cl->cres = cl->cv;
+        cl->rres = cl->rv;
+        return;
+    }
+    for (size_t c = 0; c < n; c++)
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
+            double a = cl->cv[t];
+            for (size_t j = 0; j < j0; j++)
+                a -= P[cl->cr[t] + j * m] * Q[c + j * n];
+            cl->cbuf[t] = a;
+        }
+    for (size_t r = 0; r < m; r++)
+        for (size_t t = cl->rp[r]; t < cl->rp[r + 1]; t++) {
+            double a = cl->rv[t];
+            for (size_t j = 0; j < j0; j++)
+                a -= P[r + j * m] * Q[cl->rc[t] + j * n];
+            cl->rbuf[t] = a;
+        }
+    cl->cres = cl->cbuf;
+    cl->rres = cl->rbuf;
+}
+
+/* x (k values) and its outer product's lower triangle, row by row
+ * (x_0 x_0, x_1 x_0, x_1 x_1, x_2 x_0, ...), to row-major copies. */
+static inline void put_row(double *xt, double *xx, const double *x, size_t k) {
+    for (size_t i = 0; i < k; i++) {
+        xt[i] = x[i];
+        for (size_t j = 0; j <= i; j++)
+            *xx++ = x[i] * x[j];
+    }
+}
+
+/* One least-squares update from the cells t0..t1-1 of a row (column):
+ * with x_i, xx_i the fixed side's row-major factor and packed outer
+ * product at the cell's other index idx[t], solve
+ *     (sum_t xx_{idx[t]}) y = sum_t a_t x_{idx[t]}
+ * for y (kf values) by spd_solve, the sums in the order of t. */
+static inline void ls_update(const uint32_t *idx, const double *a, size_t t0, size_t t1, const double *xt,
+                             const double *xx, size_t kf, double *y) {
+    size_t kt = kf * (kf + 1) / 2;
+    /* local accumulators: y may not alias what the loop reads */
+    double g[SB_ALS_MAX_K * (SB_ALS_MAX_K + 1) / 2], b[SB_ALS_MAX_K], G[SB_ALS_MAX_K * SB_ALS_MAX_K];
+    memset(g, 0, kt * sizeof *g);
+    memset(b, 0, kf * sizeof *b);
+    for (size_t t = t0; t < t1; t++) {
+        const double *x = xt + idx[t] * kf, *x2 = xx + idx[t] * kt;
+        double v = a[t];
+        for (size_t i = 0; i < kf; i++)
+            b[i] += v * x[i];
+        for (size_t i = 0; i < kt; i++)
+            g[i] += x2[i];
+    }
+    for (size_t i = 0, at = 0; i < kf; i++)
+        for (size_t j = 0; j <= i; j++, at++)
+            G[i * kf + j] = G[j * kf + i] = g[at];
+    spd_solve(G, b, kf);
+    memcpy(y, b, kf * sizeof *y);
+}
+
+/* One ALS sweep over the free columns j0..ka-1 of P and Q (columns below j0
+ * stay fixed and are subtracted from the data): rows (P given Q), then
+ * columns (Q given P).  Returns the squared error of all ka terms on the
+ * valid cells after the sweep.  Each half is split among threads by rows /
+ * columns: every thread owns the outputs of its range.  The Grams are sums
+ * of the precomputed outer products q_c q_c^T (p_r p_r^T): a cell costs
+ * k(k+1)/2 additions and k multiply-adds. */
+typedef struct als_job {
+    sb_fit_t *f;
+    const als_cells_t *cl;
+    size_t j0, ka, lo, hi;
+    double e2;
+} als_job_t;
+
+/* The row half for kf = ka - j0 free terms (inlined with kf constant):
+ * p_r from G_r = sum_c q_c q_c^T, b_r = sum_c a_rc q_c over the valid c. */
+static inline void rows_k(const als_job_t *jb, size_t kf) {
+    sb_fit_t *f = jb->f;
+    const als_cells_t *cl = jb->cl;
+    size_t m = f->m, j0 = jb->j0, kt = kf * (kf + 1) / 2;
+    for (size_t r = jb->lo; r < jb->hi; r++) {
+        double p[SB_ALS_MAX_K];
+        ls_update(cl->rc, cl->rres, cl->rp[r], cl->rp[r + 1], f->qt, f->qq, kf, p);
+        for (size_t j = 0; j < kf; j++)
+            f->P[r + (j0 + j) * m] = p[j];
+        put_row(f->pt + r * kf, f->pp + r * kt, p, kf);
+    }
+}
+
+/* The column half, then the error of column c with its new q_c. */
+static inline void cols_k(als_job_t *jb, size_t kf) {
+    sb_fit_t *f = jb->f;
+    const als_cells_t *cl = jb->cl;
+    size_t n = f->n, j0 = jb->j0;
+    double e2 = 0;
+    for (size_t c = jb->lo; c < jb->hi; c++) {
+        double q[SB_ALS_MAX_K];
+        size_t t0 = cl->cp[c], t1 = cl->cp[c + 1];
+        ls_update(cl->cr, cl->cres, t0, t1, f->pt, f->pp, kf, q);
+        for (size_t j = 0; j < kf; j++)
+            f->Q[c + (j0 + j) * n] = q[j];
+        for (size_t t = t0; t < t1; t++) {
+            const double *p = f->pt + cl->cr[t] * kf;
+            double d = cl->cres[t];
+            for (size_t j = 0; j < kf; j++)
+                d -= p[j] * q[j];
+            e2 += d * d;
+        }
+    }
+    jb->e2 = e2;
+}
+
+/* Dispatch on the number of free terms: the common small counts get loops
+ * of constant length. */
+#define SB_ALS_DISPATCH(fn, jb)                                                                                        \
+    switch ((jb)->ka - (jb)->j0) {                                                                                     \
+    case 1:                                                                                                            \
+        fn(jb, 1);                                                                                                     \
+        break;                                                                                                         \
+    case 2:                                                                                                            \
+        fn(jb, 2);                                                                                                     \
+        break;                                                                                                         \
+    case 3:                                                                                                            \
+        fn(jb, 3);                                                                                                     \
+        break;                                                                                                         \
+    case 4:                                                                                                            \
+        fn(jb, 4);                                                                                                     \
+        break;                                                                                                         \
+    default:                                                                                                           \
+        fn(jb, (jb)->ka - (jb)->j0);                                                                                   \
+        break;                                                                                                         \
+    }
+
+static void *als_rows(void *arg) {
+    als_job_t *jb = arg;
+    SB_ALS_DISPATCH(rows_k, jb);
+    return NULL;
+}
+
+static void *als_cols(void *arg) {
+    als_job_t *jb = arg;
+    SB_ALS_DISPATCH(cols_k, jb);
+    return NULL;
+}
+
+/* Run fn on [0, n) split among threads (the caller's included). */
+static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double *e2) {
+    /* small: not worth a thread */
+    int nt = sb_threads_for(0, n, proto->f->m * proto->f->n, (size_t)1 << 16);
+    als_job_t jobs[SB_THREADS_MAX];
+    for (int t = 0; t < nt; t++) {
+        jobs[t] = *proto;
+        sb_part(n, t, nt, &jobs[t].lo, &jobs[t].hi);
+        jobs[t].e2 = 0;
+    }
+    sb_parallel_run(fn, jobs, sizeof *jobs, nt, NULL, NULL);
+    if (e2) {
+        *e2 = 0;
+        for (int t = 0; t < nt; t++)
+            *e2 += jobs[t].e2; /* fixed order: deterministic */
+    }
+}
+
+static double als_sweep(sb_fit_t *f, const als_cells_t *cl, size_t j0, size_t ka) {
+    als_job_t proto = {f, cl, j0, ka, 0, 0, 0};
+    size_t kf = ka - j0, kt = kf * (kf + 1) / 2;
+    double e2;
+    for (size_t c = 0; c < f->n; c++) {
+        double q[SB_ALS_MAX_K];
+        for (size_t j = 0; j < kf; j++)
+            q[j] = f->Q[c + (j0 + j) * f->n];
+        put_row(f->qt + c * kf, f->qq + c * kt, q, kf);
+    }
+    als_parallel(als_rows, &proto, f->m, NULL);
+    als_parallel(als_cols, &proto, f->n, &e2);
+    return e2;
+}
+
+/* Squared error on valid cells of each prefix of the first ka terms:
+ * e2[j] for the terms 0..j. */
+static void prefix_errors(const sb_fit_t *f, const als_cells_t *cl, size_t ka, double *e2) {
+    size_t m = f->m, n = f->n;
+    for (size_t j = 0; j < ka; j++)
+        e2[j] = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
+            size_t r = cl->cr[t];
+            double d = cl->cv[t];
+            for (size_t j = 0; j < ka; j++) {
+                d -= f->P[r + j * m] * f->Q[c + j * n];
+                e2[j] += d * d;
+            }
+        }
+}
+
+/* ALS sweeps on columns j0..ka-1 until the error stops improving. */
+double fit_als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, const sb_fit_opts_t *o, double norm,
+                     int *sweeps, int *converged) {
+    double prev = INFINITY, err = 0;
+    fit_cells_residual(cl, f, j0);
+    for (int stage = 1;; stage++) {
+        (*sweeps)++;
+        err = sqrt(als_sweep(f, cl, j0, ka));
+        if (err <= 1e-15 * norm || (isfinite(prev) && prev - err <= o->tol * prev)) break;
+        if (stage >= o->max_iters) {
+            *converged = 0;
+            break;
+        }
+        prev = err;
+    }
+    return err;
+}
+
+/* Whether stage ka refits its terms jointly: every stage up to
+ * SB_JOINT_ALL terms, beyond only at powers of two and the last (a joint
+ * sweep costs ka^2 per cell, and terms past the first few change the
+ * error little; the stages between add their term on the residual, which
+ * keeps every prefix's error non-increasing). */
+static int joint_stage(size_t ka, size_t k) { return ka > 1 && (ka <= SB_JOINT_ALL || ka == k || !(ka & (ka - 1))); }
+
+/* The staged ALS from the warm start in f->P, f->Q on the cells of X with
+ * mask != 0 (nvalid of them); *err the last stage's error; *stretched 1
+ * when the last stage kept a joint refit that made a shorter prefix more
+ * than SB_PREFIX_SLACK times worse (not strict only); *converged 0
+ * when the run that gave the last stage's kept result stopped at
+ * max_iters (earlier stages only warm-start the later ones).  SB_OK or
+ * SB_ERR_NOMEM. */
+sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                           const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
+                           int *stretched) {
+    size_t m = f->m, n = f->n, k = f->k;
+    /* Nested stages: terms are added one at a time and the first ka
+     * are refitted jointly, so every prefix of the result is itself a
+     * masked fit of its rank (the terms are not re-orthogonalised over
+     * the whole matrix: that would mix in the unconstrained values the
+     * fit implies outside the domain). */
+    double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
+    double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
+    als_cells_t cl;
+    if (!saveP || !saveQ || fit_cells_build(f->ctx, &cl, As, m, n, lda, mask, nvalid) != 0) {
+        int saved = saveP && saveQ; /* else fit_cells_build failed and named its bytes */
+        free(saveP);
+        free(saveQ);
+        if (saved) return SB_ERR_NOMEM;
+        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + n) * k * sizeof(double));
+    }
+    for (size_t ka = 1; ka <= k; ka++) {
+        /* first the new term alone on the residual of the others: the
+         * error can only go down (its first half-sweep is a least-squares
+         * step from the warm start) */
+        int c1 = 1, cj = 1, keep = 0;
+        *err = fit_als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
+        if (joint_stage(ka, k)) {
+            /* then all ka jointly: a joint refit may trade the prefixes'
+             * accuracy for cancelling terms that are large outside the
+             * domain, which also spoil interpolated lookups near its
+             * edge */
+            memcpy(saveP, f->P, m * ka * sizeof *saveP);
+            memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
+            double ej = fit_als_until(f, &cl, 0, ka, o, sqrt(norm2), total, &cj);
+            prefix_errors(f, &cl, ka, e2);
+            /* kept only if no shorter prefix gets more than
+             * SB_PREFIX_SLACK times worse (at the last stage: no worse than
+             * no term at all); strict: and the prefixes' errors stay
+             * non-increasing */
+            keep = ej <= *err;
+            double slack = ka == k && !strict ? INFINITY : SB_PREFIX_SLACK;
+            int within = 1;
+            for (size_t j = 0; keep && j + 1 < ka; j++) {
+                keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2)) && (!strict || e2[j + 1] <= e2[j]);
+                within &= sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK;
+            }
+            if (keep && !within) *stretched = 1;
+            if (keep) {
+                *err = ej;
+                for (size_t j = 0; j + 1 < ka; j++)
+                    acc[j] = fmax(acc[j], sqrt(e2[j]));
+            } else {
+                memcpy(f->P, saveP, m * ka * sizeof *saveP);
+                memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
+            }
+        }
+        acc[ka - 1] = *err;
+        *converged = keep ? cj : c1;
+        if (o->target > 0 && *err <= o->target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
+            memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
+            memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
+            break;
+        }
+    }
+    free(saveP);
+    free(saveQ);
+    fit_cells_free(&cl);
+    return SB_OK;
+}
+
+/* Squared errors of the prefixes on the valid cells (mask) of X: e2[j]
+ * after the terms 0..j. */
+void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2) {
+    size_t m = f->m, n = f->n, k = f->k;
+    for (size_t j = 0; j < k; j++)
+        e2[j] = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++) {
+            if (!mask[r + c * lda]) continue;
+            double d = X[r + c * lda];
+            for (size_t j = 0; j < k; j++) {
+                d -= f->P[r + j * m] * f->Q[c + j * n];
+                e2[j] += d * d;
+            }
+        }
+}
+
+int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask) {
+    double e2[SB_ALS_MAX_K];
+    fit_valid_prefix_e2(f, X, lda, mask, e2);
+    for (size_t j = 1; j < f->k; j++)
+        if (e2[j] > e2[j - 1]) return 0;
+    return 1;
+}

@@ -1,0 +1,79 @@
+/* Private: the state and the parts of the masked fit shared by fit.c
+ * (imputation, the driver), fit_als.c (alternating least squares on the
+ * valid cells) and fit_taps.c (bounding what bilinear taps reach outside
+ * the data). */
+#ifndef SEPBRDF_FIT_IMPL_H
+#define SEPBRDF_FIT_IMPL_H
+
+#include <lapacke.h>
+#include <stdint.h>
+
+#include "solve/fit.h"
+
+/* Up to this many terms the fit finishes with alternating least squares
+ * (Grams of k x k per row and column); beyond, imputation alone. */
+#define SB_ALS_MAX_K 32
+/* A joint refit may make a shorter prefix at most this much worse. */
+#define SB_PREFIX_SLACK 2.0
+/* A taps' constraint may raise the error on the valid cells this much. */
+#define SB_TAPS_COST 1.5
+/* Stages up to this many terms all refit jointly (joint_stage). */
+#define SB_JOINT_ALL 8
+/* Joint sweeps that probe the cost of the taps' constraints. */
+#define SB_TAPS_PROBE 10
+/* Imputation steps that warm-start ALS. */
+#define SB_ALS_WARM 4
+struct sb_fit {
+    sb_context_t *ctx;
+    size_t m, n, k, l;
+    double *x, *v, *y, *tau, *b, *sb, *ub, *vbt, *work;
+    double *P, *Q; /* ALS: factors m x k, n x k */
+    /* ALS sweep copies of the free columns, row-major: pt[r*kf + j] =
+     * P[r + (j0+j)*m], qt likewise, and their outer products (lower
+     * triangles, kt = kf(kf+1)/2 values per row / column) */
+    double *pt, *qt, *pp, *qq;
+    lapack_int *iwork;
+    lapack_int lwork;
+};
+
+/* The valid cells in both orders, built once per execute so that the sweeps
+ * read contiguous memory and test no mask: column c's cells are t in
+ * [cp[c], cp[c+1]) with row cr[t] (increasing) and value cv[t]; row r's are
+ * t in [rp[r], rp[r+1]) with column rc[t] (increasing) and value rv[t].
+ * cres / rres hold the values less the fixed terms (columns < j0) of the
+ * current stage, a_rc - sum_{j<j0} P_rj Q_cj, computed once per stage (the
+ * fixed terms do not move during its sweeps); they alias cv / rv when
+ * j0 = 0.  Every sum runs in the order of the plain loops over the mask
+ * (rows: c increasing; columns: r increasing), so the results are the same
+ * to the bit. */
+typedef struct als_cells {
+    size_t *cp, *rp;
+    uint32_t *cr, *rc;
+    double *cv, *rv, *cbuf, *rbuf;
+    const double *cres, *rres;
+} als_cells_t;
+
+/* Gather the valid cells of X (m x n, ld lda) with mask != 0 (nvalid of
+ * them) in both orders; 0 or SB_ERR_NOMEM. */
+int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
+                    const unsigned char *mask, size_t nvalid);
+void fit_cells_free(als_cells_t *cl);
+/* The data less the fixed terms 0..j0-1 of f, in both orders. */
+void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0);
+/* ALS sweeps on the columns j0..ka-1 of f->P, f->Q until the error on the
+ * cells stops improving (o->tol) or o->max_iters; returns the error. */
+double fit_als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, const sb_fit_opts_t *o, double norm,
+                     int *sweeps, int *converged);
+/* The staged ALS (fit_als.c). */
+sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                           const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
+                           int *stretched);
+/* Squared errors of the prefixes of f on the cells of X with mask != 0. */
+void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2);
+/* Whether those errors are non-increasing. */
+int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask);
+/* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */
+sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
+                    const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err);
+
+#endif

@@ -1,0 +1,190 @@
+/* Masked fit, part 3 (fit.c has the whole picture): what bilinear taps
+ * of in-domain pairs reach outside the data is kept bounded by the data
+ * around it, and the ALS part of a fit puts the stages and these
+ * constraints together. */
+#include <assert.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sepbrdf/param.h"
+#include "solve/fit_impl.h"
+
+/* Texels within two steps of texel i (x +- 2, y +- 2: the cell holding an
+ * in-domain pair may be one away from a valid centre, its taps one more;
+ * CLAMP axes stop at the edge, REPEAT axes wrap), i included, each once. */
+static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t out[25]) {
+    size_t w = wh[0], h = wh[1], k = 0;
+    long x = (long)(i % w), y = (long)(i / w);
+    for (long dy = -2; dy <= 2; dy++)
+        for (long dx = -2; dx <= 2; dx++) {
+            long xs = x + dx, ys = y + dy;
+            if (wrap[0] == SB_WRAP_REPEAT) xs = (xs + (long)w) % (long)w;
+            if (wrap[1] == SB_WRAP_REPEAT) ys = (ys + (long)h) % (long)h;
+            if (xs < 0 || ys < 0 || xs >= (long)w || ys >= (long)h) continue;
+            size_t at = (size_t)ys * w + (size_t)xs, dup = 0;
+            for (size_t q = 0; q < k; q++)
+                dup |= out[q] == at;
+            if (!dup) out[k++] = at;
+        }
+    return k;
+}
+
+/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
+ * data around them: an invalid cell (r, c) with valid cells among rows N(r)
+ * x columns N(c) (lo..hi their values in x) whose fitted value
+ * sum_j P_rj Q_cj lies outside [lo - d, hi + d], d = hi - lo +
+ * max(|lo|, |hi|) / 2, joins the data (ext = 2) with the value clamped
+ * into [lo, hi]; cells already joined keep their targets.  (Joining every
+ * such cell, or pulling it to its neighbours' mean, fits the data worse
+ * and breaks exact recovery of low-rank data with holes.)  Per column the
+ * column neighbours are reduced first, then the row neighbours: 50 reads
+ * per cell.  Returns the cells added, or (size_t)-1 without memory. */
+static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
+    size_t m = f->m, n = f->n, k = f->k, added = 0;
+    double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
+    if (!lo1 || !hi1) {
+        free(lo1);
+        free(hi1);
+        return (size_t)-1;
+    }
+    for (size_t c = 0; c < n; c++) {
+        size_t nc[25], nr[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+        for (size_t r = 0; r < m; r++) {
+            lo1[r] = INFINITY;
+            hi1[r] = -INFINITY;
+            for (size_t q = 0; q < kc; q++)
+                if (ext[r + nc[q] * m] == 1) {
+                    lo1[r] = fmin(lo1[r], x[r + nc[q] * m]);
+                    hi1[r] = fmax(hi1[r], x[r + nc[q] * m]);
+                }
+        }
+        for (size_t r = 0; r < m; r++) {
+            if (ext[r + c * m]) continue;
+            size_t kr = neighbours(o->tex[0], o->wrap[0], r, nr);
+            double lo = INFINITY, hi = -INFINITY, v = 0;
+            for (size_t q = 0; q < kr; q++) {
+                lo = fmin(lo, lo1[nr[q]]);
+                hi = fmax(hi, hi1[nr[q]]);
+            }
+            if (!(lo <= hi)) continue;
+            for (size_t j = 0; j < k; j++)
+                v += f->P[r + j * m] * f->Q[c + j * n];
+            double d = hi - lo + 0.5 * fmax(fabs(lo), fabs(hi));
+            if (v >= lo - d && v <= hi + d) continue;
+            x[r + c * m] = fmin(fmax(v, lo), hi);
+            ext[r + c * m] = 2; /* data from now on, not a neighbour's source */
+            added++;
+        }
+    }
+    free(lo1);
+    free(hi1);
+    return added;
+}
+
+/* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
+ * times the squared error `before` the taps' constraints. */
+static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, double before,
+                     double norm2) {
+    double e2[SB_ALS_MAX_K];
+    fit_valid_prefix_e2(f, As, lda, mask, e2);
+    return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
+}
+
+/* SB_TAPS_PROBE joint sweeps of all k terms on the cells with ext != 0. */
+static sb_result_t taps_probe(sb_fit_t *f, const double *As, size_t lda, const unsigned char *ext, size_t nvalid,
+                              const sb_fit_opts_t *o, int *total) {
+    als_cells_t cl;
+    if (fit_cells_build(f->ctx, &cl, As, f->m, f->n, lda, ext, nvalid) != 0) return SB_ERR_NOMEM;
+    sb_fit_opts_t po = *o;
+    int converged = 1;
+    po.max_iters = SB_TAPS_PROBE;
+    fit_cells_residual(&cl, f, 0);
+    fit_als_until(f, &cl, 0, f->k, &po, 0, total, &converged);
+    fit_cells_free(&cl);
+    return SB_OK;
+}
+
+/* The ALS part of a fit from the warm start in f->P, f->Q: the stages
+ * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
+ * (constrain_taps, twice at most, warm), and when the prefixes' errors on
+ * the valid cells then rise anywhere, or the last stage made a prefix more
+ * than SB_PREFIX_SLACK times worse, all of it again from the same start
+ * with strict stages (a joint refit kept only if the prefixes' errors stay
+ * non-increasing), so that every prefix is a fit no worse than the shorter
+ * ones.  SB_OK or SB_ERR_NOMEM. */
+sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
+                    const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err) {
+    size_t m = f->m, n = f->n, k = f->k;
+    int taps = lda == m && o->tex[0][0] * o->tex[0][1] == m && o->tex[1][0] * o->tex[1][1] == n;
+    unsigned char *ext = taps ? malloc(m * n) : NULL;
+    double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
+    double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
+    double *P2 = malloc(m * k * sizeof *P2), *Q2 = malloc(n * k * sizeof *Q2);
+    sb_result_t r = SB_OK;
+    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !P2 || !Q2)
+        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 3 * (m + n) * k * sizeof(double));
+    if (r == SB_OK) {
+        memcpy(P0, f->P, m * k * sizeof *P0);
+        memcpy(Q0, f->Q, n * k * sizeof *Q0);
+    }
+    for (int strict = 0; strict < 2 && r == SB_OK; strict++) {
+        size_t nvalid = nvalid0;
+        int stretched = 0;
+        memcpy(f->P, P0, m * k * sizeof *P0);
+        memcpy(f->Q, Q0, n * k * sizeof *Q0);
+        if (ext)
+            for (size_t c = 0; c < n; c++)
+                for (size_t i = 0; i < m; i++)
+                    ext[i + c * m] = mask[i + c * lda] ? 1 : 0;
+        r = fit_als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err, &stretched);
+        /* taps reaching unconstrained cells that overshoot: constrain
+         * them and run the stages again from the fit found (twice at
+         * most; warm, each stage stops after a few sweeps) */
+        double e2[SB_ALS_MAX_K], before = 0;
+        if (taps) {
+            fit_valid_prefix_e2(f, As, lda, mask, e2);
+            before = e2[k - 1];
+            memcpy(P1, f->P, m * k * sizeof *P1);
+            memcpy(Q1, f->Q, n * k * sizeof *Q1);
+        }
+        size_t constrained = 0;
+        for (int round = 0; r == SB_OK && taps && round < 2; round++) {
+            size_t added = constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
+            if (added == (size_t)-1) r = SB_ERR_NOMEM;
+            if (added == 0 || r != SB_OK) break;
+            nvalid += added;
+            constrained += added;
+            /* a few joint sweeps first, from a copy: constraints that
+             * already cost the valid cells more than SB_TAPS_COST there are
+             * dropped without the staged refit (which would not do better) */
+            memcpy(P2, f->P, m * k * sizeof *P2);
+            memcpy(Q2, f->Q, n * k * sizeof *Q2);
+            r = taps_probe(f, As, lda, ext, nvalid, o, total);
+            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+            memcpy(f->P, P2, m * k * sizeof *P2); /* the stages start where the probe did */
+            memcpy(f->Q, Q2, n * k * sizeof *Q2);
+            if (r == SB_OK)
+                r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
+            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+        }
+        /* data that the rank-k structure extends exactly (or nearly) are
+         * their own best extrapolation: a constraint that costs the valid
+         * cells more than SB_TAPS_COST in error is dropped */
+        if (r == SB_OK && constrained) {
+            if (taps_cost(f, As, lda, mask, before, norm2)) {
+                memcpy(f->P, P1, m * k * sizeof *P1);
+                memcpy(f->Q, Q1, n * k * sizeof *Q1);
+            }
+        }
+        if (r != SB_OK || (!stretched && fit_prefixes_monotone(f, As, lda, mask))) break;
+    }
+    free(ext);
+    free(P0);
+    free(Q0);
+    free(P1);
+    free(Q1);
+    free(P2);
+    free(Q2);
+    return r;
+}
