@@ -329,45 +329,16 @@ static sb_result_t channel_errors(sb_plan_t *p, run_t *rn, const sb_factors_t *f
 }
 
 /* Step (SB_CAP_STREAMED): the errors of every channel's stored textures in
- * one more pass over the matrix, a block of columns at a time (the
- * residual of errors.h on each block, sums added in block order). */
+ * one more pass over the matrix, a block of columns at a time
+ * (sb_resid_blocks). */
 static sb_result_t stream_errors(sb_plan_t *p, run_t *rn, const sb_factors_t *f) {
-    size_t rows = p->rows, cols = p->cols, J = p->terms, b = sb_solve_stream_cols(rows, cols);
-    double *mem = sb_alloc(p->ctx, 3 * rows * b + 2 * J, sizeof(double), "streamed errors"), *blk[3];
-    if (!mem) return SB_ERR_NOMEM;
-    double *ssq = mem + 3 * rows * b, *mx = ssq + J, *wr = p->opts.weighted ? p->wr : NULL;
-    for (int ch = 0; ch < 3; ch++)
-        blk[ch] = sb_matrix_has(rn->m, ch) ? mem + (size_t)ch * rows * b : NULL;
-    sb_result_t r = SB_OK;
-    for (size_t c0 = 0; c0 < cols && r == SB_OK; c0 += b) {
-        size_t n = c0 + b < cols ? b : cols - c0;
-        r = sb_matrix_cols(p->ctx, rn->m, c0, c0 + n, blk, rows, 0);
-        for (size_t ch = 0; ch < 3 && r == SB_OK; ch++) {
-            if (!blk[ch]) continue;
-            sb_resid_t rs = {rows,
-                             n,
-                             J,
-                             blk[ch],
-                             rows,
-                             NULL,
-                             wr,
-                             wr ? p->wc + c0 : NULL,
-                             rn->pw,
-                             sb_factors_tex_const(f, SB_SIDE_G, 0, ch),
-                             sb_factors_tex_const(f, SB_SIDE_H, 0, ch) + c0,
-                             3 * rows,
-                             3 * cols};
-            double n2 = 0;
-            sb_resid_channel(&rs, p->nthreads, p->scratch, ssq, mx, &n2);
-            rn->n2[ch] += n2;
-            for (size_t j = 0; j < J; j++) {
-                p->ssq[ch * J + j] += ssq[j];
-                p->mx[ch * J + j] = fmax(p->mx[ch * J + j], mx[j]);
-            }
-        }
+    const double *g[3], *h[3], *wr = p->opts.weighted ? p->wr : NULL;
+    for (size_t ch = 0; ch < 3; ch++) {
+        g[ch] = sb_factors_tex_const(f, SB_SIDE_G, 0, ch);
+        h[ch] = sb_factors_tex_const(f, SB_SIDE_H, 0, ch);
     }
-    free(mem);
-    return r;
+    return sb_resid_blocks(p->ctx, rn->m, p->terms, g, h, 3 * p->rows, 3 * p->cols, wr, wr ? p->wc : NULL, rn->pw,
+                           p->ssq, p->mx, rn->n2);
 }
 
 /* Step: relative errors, norms, and the truncation at the error asked for. */
