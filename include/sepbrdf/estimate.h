@@ -72,6 +72,7 @@ typedef struct sb_estimate_opts {
     uint64_t seed;     /* default 1 */
     int threads;       /* 0 = all cores */
     int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
+    size_t replicates; /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */

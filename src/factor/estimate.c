@@ -429,10 +429,10 @@ static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt)
 }
 
 /* Pair counts and the overshoot's denominator, max |f| over the pairs. */
-static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
+static void finish(const sb_pairs_t *P, size_t n, sb_estimate_t *out) {
     double fmax_ = 0;
     size_t known = 0;
-    for (size_t i = 0; i < P->n; i++) {
+    for (size_t i = 0; i < n; i++) {
         if (!P->known[i]) continue;
         known++;
         for (int c = 0; c < 3; c++)
@@ -441,7 +441,7 @@ static void finish(const sb_pairs_t *P, sb_estimate_t *out) {
     for (size_t j = 0; j < out->terms; j++)
         out->overshoot[j] = fmax_ > 0 ? out->overshoot[j] / fmax_ : 0;
     out->known = known;
-    out->pairs = P->n;
+    out->pairs = n;
 }
 
 /* e's textures, sizes, wraps and per-term scales (*ones, J values: scales
@@ -486,19 +486,25 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
     size_t J = e.J;
-    size_t kmax = o.max_pairs / pairs->rep;
-    sb_result_t r = eval_alloc(ctx, &e, kmax > pairs->nrep ? kmax : pairs->nrep, nt);
+    size_t kmax = o.max_pairs / pairs->rep, use = pairs->nrep;
+    if (o.replicates) { /* the first ones only, no growth */
+        use = o.replicates < 4 ? 4 : o.replicates;
+        use = use < pairs->nrep ? use : pairs->nrep;
+        kmax = 0;
+    }
+    sb_result_t r = eval_alloc(ctx, &e, kmax > use ? kmax : use, nt);
     /* evaluate the replicates not yet evaluated, then add replicates
      * (doubling) until the headline's standard error meets the target */
     for (size_t done = 0; r == SB_OK;) {
-        est_run_units(done, pairs->nrep - done, nt, eval_unit, &e);
-        done = pairs->nrep;
+        est_run_units(done, use - done, nt, eval_unit, &e);
+        done = use;
         out->terms = J;
         out->converged = combine(&e, done, nt, o.rel_se, out);
         if (out->converged || done >= kmax) break;
         r = pairs_grow(ctx, pairs, done * 2 < kmax ? done * 2 : kmax, nt);
+        use = pairs->nrep;
     }
-    if (r == SB_OK) finish(pairs, out);
+    if (r == SB_OK) finish(pairs, use * pairs->rep, out);
     free(ones);
     est_eval_free(&e);
     return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");

@@ -52,7 +52,10 @@ static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_leve
     double t0 = job_now();
     sb_estimate_opts_t eo = {0};
     eo.max_pairs = lv->est_max_pairs;
-    eo.headline_only = lv->est_max_pairs == 1 && lv->metric_res == 0; /* screening: ranked on the headline */
+    if (lv->est_max_pairs == 1 && lv->metric_res == 0) { /* screening: ranked on the headline, 16384 pairs */
+        eo.headline_only = 1;
+        eo.replicates = 4;
+    }
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
     sb_result_t r = SB_OK;
@@ -153,7 +156,9 @@ static size_t layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t 
 }
 
 /* Refuse up front a candidate whose matrix at R cannot fit in memory: R
- * is then too large for this source whichever layout would win. */
+ * is then too large for this source whichever layout would win.  An
+ * isotropic source on an azimuth grid (io, io-area) stores its R^3
+ * distinct values only (matrix.h, structured storage). */
 static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_kind_t k) {
     sb_param_t *p = NULL;
     sb_param_opts_t po = {0};
@@ -162,10 +167,11 @@ static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_ki
     if (sb_param_create(NULL, k, &po, &p) != SB_OK) return SB_OK; /* sb_job_run names the problem */
     unsigned ch = job->o.channels ? job->o.channels & 7u : 7u;
     size_t nch = (ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1), rows = sb_param_rows(p), cols = sb_param_cols(p);
-    size_t cells, bytes = SIZE_MAX;
+    size_t cells, bytes = SIZE_MAX, R = job->o.res;
+    int structured = (sb_param_caps(p) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(job->src) & SB_SOURCE_ISOTROPIC);
     sb_param_destroy(p);
-    if (!sb_size_mul(rows, cols, &cells) && !sb_size_mul3(cells, nch, sizeof(double), &bytes))
-        sb_size_add(bytes, cells, &bytes);
+    if (structured ? !sb_size_mul3(R, R, R, &cells) : !sb_size_mul(rows, cols, &cells))
+        if (!sb_size_mul3(cells, nch, sizeof(double), &bytes)) sb_size_add(bytes, cells, &bytes);
     if (bytes <= sb_memory_limit()) return SB_OK;
     return sb_error(ctx, SB_ERR_OVERFLOW,
                     "%s at %zu cells per axis: %zu x %zu cells x %zu channels need more than %zu bytes, the memory "
