@@ -118,8 +118,8 @@ static GLuint compile(GLenum type, const char *const *parts, int count, char *er
     return s;
 }
 
-static GLuint program(const char *snippet, char *err, size_t err_size) {
-    const char *vs[1] = {vertex_src}, *fs[4] = {"#version 330 core\n", snippet, "\n", fragment_main};
+static GLuint program(const char *snippet, const char *main_src, char *err, size_t err_size) {
+    const char *vs[1] = {vertex_src}, *fs[4] = {"#version 330 core\n", snippet, "\n", main_src};
     GLuint v = compile(GL_VERTEX_SHADER, vs, 1, err, err_size);
     if (!v) return 0;
     GLuint f = compile(GL_FRAGMENT_SHADER, fs, 4, err, err_size);
@@ -176,6 +176,33 @@ static int upload(const sb_factors_t *f, const sb_param_t *p, int side, GLuint t
     return e == GL_NO_ERROR ? 0 : fail(err, err_size, "texture upload: GL error 0x%x", e);
 }
 
+/* An RGBA32F S x S texture as the bound framebuffer's colour. */
+static int float_target(GLsizei S, GLuint *target, GLuint *fbo, char *err, size_t err_size) {
+    glGenTextures(1, target);
+    glBindTexture(GL_TEXTURE_2D, *target);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, S, S, 0, GL_RGBA, GL_FLOAT, NULL);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glGenFramebuffers(1, fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, *fbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, *target, 0);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        return fail(err, err_size, "RGBA32F framebuffer incomplete");
+    return 0;
+}
+
+/* Unbind and delete what a draw made (0 names are skipped). */
+static void release(GLuint prog, GLuint vao, GLuint fbo, GLuint target, const GLuint *tex, GLsizei ntex) {
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glUseProgram(0);
+    if (vao) glDeleteVertexArrays(1, &vao);
+    if (fbo) glDeleteFramebuffers(1, &fbo);
+    if (target) glDeleteTextures(1, &target);
+    glDeleteTextures(ntex, tex);
+    glDeleteProgram(prog);
+}
+
 int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
                      const sb_render_opts_t *opts, sb_image_t *out, char *err, size_t err_size) {
     memset(out, 0, sizeof *out);
@@ -199,7 +226,7 @@ int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f,
         lirr[i] = (GLfloat)(o.lights[i].irradiance > 0 ? o.lights[i].irradiance : SB_PI);
     }
 
-    GLuint prog = program(snippet, err, err_size);
+    GLuint prog = program(snippet, fragment_main, err, err_size);
     if (!prog) return -1;
 
     int rc = -1;
@@ -210,18 +237,7 @@ int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f,
 
     /* Float render target: linear radiance, not limited to 8 bits or [0, 1] */
     GLsizei S = (GLsizei)o.size;
-    glGenTextures(1, &target);
-    glBindTexture(GL_TEXTURE_2D, target);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, S, S, 0, GL_RGBA, GL_FLOAT, NULL);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glGenFramebuffers(1, &fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target, 0);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-        fail(err, err_size, "RGBA32F framebuffer incomplete");
-        goto out;
-    }
+    if (float_target(S, &target, &fbo, err, err_size)) goto out;
 
     /* Draw */
     glViewport(0, 0, S, S);
@@ -273,13 +289,60 @@ int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f,
     rc = 0;
 out:
     free(pix);
-    glBindVertexArray(0);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glUseProgram(0);
-    if (vao) glDeleteVertexArrays(1, &vao);
-    if (fbo) glDeleteFramebuffers(1, &fbo);
-    if (target) glDeleteTextures(1, &target);
-    glDeleteTextures(2, tex);
-    glDeleteProgram(prog);
+    release(prog, vao, fbo, target, tex, 2);
+    return rc;
+}
+
+/* ---- the sampler (sepbrdf/sampler.h) ------------------------------------ */
+
+/* Pixel (x, y) draws with u = ((x + 1/2) / n, (y + 1/2) / n). */
+static const char *const sample_main = "uniform vec3 u_V;\n"
+                                       "uniform float u_n;\n"
+                                       "out vec4 frag;\n"
+                                       "void main() {\n"
+                                       "    vec3 L;\n"
+                                       "    float pdf;\n"
+                                       "    bool ok = sb_sample(u_V, gl_FragCoord.xy / u_n, L, pdf);\n"
+                                       "    frag = ok ? vec4(L, pdf) : vec4(0.0, 0.0, 0.0, -1.0);\n"
+                                       "}\n";
+
+int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
+                   const gl_sampler_table_t *t, const double V[3], size_t n, float *out, char *err, size_t err_size) {
+    if (!OSMesaMakeCurrent(g->osm, g->dummy, GL_UNSIGNED_BYTE, 4, 4)) return fail(err, err_size, "OSMesa: not current");
+    GLuint prog = program(snippet, sample_main, err, err_size);
+    if (!prog) return -1;
+    int rc = -1;
+    GLuint tex[3] = {0, 0, 0}, target = 0, fbo = 0, vao = 0;
+    glGenTextures(3, tex);
+    if (upload(f, p, SB_SIDE_G, tex[0], err, err_size) || upload(f, p, SB_SIDE_H, tex[1], err, err_size)) goto out;
+    glBindTexture(GL_TEXTURE_2D_ARRAY, tex[2]);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_R32F, (GLsizei)t->width, (GLsizei)t->height, (GLsizei)t->layers, 0, GL_RED,
+                 GL_FLOAT, t->data);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAX_LEVEL, 0);
+    if (float_target((GLsizei)n, &target, &fbo, err, err_size)) goto out;
+    glViewport(0, 0, (GLsizei)n, (GLsizei)n);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    glUseProgram(prog);
+    static const char *const names[3] = {"sb_g", "sb_h", "sb_cdf"};
+    for (int i = 0; i < 3; i++) {
+        glActiveTexture(GL_TEXTURE0 + (GLenum)i);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, tex[i]);
+        glUniform1i(glGetUniformLocation(prog, names[i]), i);
+    }
+    glUniform3f(glGetUniformLocation(prog, "u_V"), (GLfloat)V[0], (GLfloat)V[1], (GLfloat)V[2]);
+    glUniform1f(glGetUniformLocation(prog, "u_n"), (GLfloat)n);
+    glGenVertexArrays(1, &vao);
+    glBindVertexArray(vao);
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glReadPixels(0, 0, (GLsizei)n, (GLsizei)n, GL_RGBA, GL_FLOAT, out);
+    GLenum e = glGetError();
+    rc = e == GL_NO_ERROR ? 0 : fail(err, err_size, "GL error 0x%x", e);
+out:
+    release(prog, vao, fbo, target, tex, 3);
     return rc;
 }

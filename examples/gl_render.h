@@ -34,4 +34,20 @@ const char *gl_sphere_renderer(const gl_sphere_t *g);
 int gl_sphere_render(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
                      const sb_render_opts_t *opts, sb_image_t *out, char *err, size_t err_size);
 
+/* The sampler tables of sampler.bin (sepbrdf/sampler.h): width x height
+ * texels, `layers` layers, float32 as stored (layer-major, x fastest). */
+typedef struct gl_sampler_table {
+    size_t width, height, layers;
+    const float *data;
+} gl_sampler_table_t;
+
+/* Run sb_sample(V, u) of `snippet` (the snippet with the sampler block,
+ * sb_glsl_sampler) for the n x n numbers u = ((x + 1/2) / n, (y + 1/2) / n),
+ * the factors f as in gl_sphere_render and the tables t as the R32F array
+ * sb_cdf.  out receives n * n * 4 floats, pixel (x, y) at (y n + x) * 4:
+ * L and pdf, or (0, 0, 0, -1) where sb_sample returned false.  0 on
+ * success, -1 with a message in err. */
+int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
+                   const gl_sampler_table_t *t, const double V[3], size_t n, float *out, char *err, size_t err_size);
+
 #endif

@@ -27,6 +27,13 @@ static double json_first_number(const char *path, const char *key) {
     return p ? atof(p + strlen(pat)) : NAN;
 }
 
+/* 0 when the file at path holds a line matching the basic regex re. */
+static int file_matches(const char *path, const char *re) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "grep -q '%s' %s", re, path);
+    return sb_run(cmd, NULL, 0);
+}
+
 static int dir_is_empty_or_missing(const char *dir) {
     char cmd[8192];
     snprintf(cmd, sizeof cmd, "test ! -e %s || test -z \"$(ls -A %s)\"", dir, dir);
@@ -132,4 +139,34 @@ SB_TEST(rerun_removes_stale_terms) {
     }
     snprintf(path, sizeof path, "%s/h_01.exr", dir);
     CHECK(sb_file_exists(path));
+}
+
+/* --warp adaptive: the tables travel in the EXR headers' param spec (a
+ * render from the folder reads them back), report.json and the snippet
+ * hold them; an unknown warp is a usage error naming the option; io
+ * takes none and the run warns. */
+SB_TEST(warp_adaptive_round_trip) {
+    const char *made = sb_tmpdir("cliwarp");
+    char dir[1024], sub[1100], path[1200];
+    snprintf(dir, sizeof dir, "%s", made);
+    int rc = run("factor cook-torrance:roughness=0.1 --param iso --res 16 -J 2 --warp adaptive -q -o %s", dir);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    CHECK(file_matches(path, "\"kind\": \"table\"") == 0);
+    CHECK(file_matches(path, "\"param_spec\": \"iso:th=16,td=32,pd=8,warp_h=") == 0);
+    snprintf(path, sizeof path, "%s/sepbrdf.glsl", dir);
+    CHECK(file_matches(path, "const float sb_warp_h_x\\[65\\]") == 0);
+    snprintf(sub, sizeof sub, "%s/render", dir);
+    char args[2400];
+    snprintf(args, sizeof args, "render %s -J 2 -q -o %s", dir, sub);
+    rc = run("%s", args);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/render.json", sub);
+    CHECK(sb_file_exists(path));
+    CHECK(run("factor --warp bogus%s", "") == 1);
+    CHECK(strstr(out, "--warp 'bogus' unknown") != NULL);
+    /* a layout without warps says so */
+    snprintf(args, sizeof args, "factor lambert --param io --res 8 -J 1 --warp merl -o %s", sub);
+    CHECK(run("%s", args) == 0);
+    CHECK(strstr(out, "io has no axis that takes a warp") != NULL);
 }

@@ -29,22 +29,47 @@ static int compile_as(const char *version, const char *snippet, const char *dir,
     return sb_run(cmd, log, logsz);
 }
 
+/* Layouts with warps (param.h): iso with both axes measured on GGX
+ * roughness 0.1 (tables of 64 segments), hd with MERL's theta_h and a
+ * measured theta_d; theta_max as given. */
+static sb_param_t *warped_param(int which, size_t res, double theta_max) {
+    sb_source_t *src = NULL;
+    sb_param_opts_t o = {0};
+    o.res = res;
+    o.theta_max = theta_max;
+    sb_warp_measure_opts_t wo = {0};
+    wo.theta_max = theta_max;
+    sb_param_t *p = NULL;
+    if (sb_source_open(NULL, "cook-torrance:roughness=0.1", &src) != SB_OK) return NULL;
+    if (which == 0 && sb_warp_measure(NULL, src, SB_AXIS_THETA_H, &wo, &o.warp[SB_AXIS_THETA_H]) != SB_OK) o.res = 0;
+    if (which == 1) o.warp[SB_AXIS_THETA_H].kind = SB_WARP_MERL;
+    if (sb_warp_measure(NULL, src, SB_AXIS_THETA_D, &wo, &o.warp[SB_AXIS_THETA_D]) != SB_OK) o.res = 0;
+    sb_source_destroy(src);
+    if (!o.res || sb_param_create(NULL, which ? SB_PARAM_HD : SB_PARAM_ISO, &o, &p) != SB_OK) return NULL;
+    return p;
+}
+
 static int compile(const char *snippet, const char *dir, char *log, size_t logsz) {
     return compile_as(profiles[0], snippet, dir, log, logsz);
 }
 
 /* Every parameterisation's sb_coords()/sb_domain() with every form, also
- * with a limited theta_max, in every profile; scales with integral values
- * (1, 2) and fractional ones, as --half writes them. */
+ * with a limited theta_max, and with warp tables (iso, hd), in every
+ * profile; scales with integral values (1, 2) and fractional ones, as
+ * --half writes them. */
 SB_TEST(snippet_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
     const char *dir = sb_tmpdir("glsl");
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
+    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_ + 2; kind++) {
         sb_param_opts_t o = {0};
         o.res = 16;
         o.theta_max = kind == SB_PARAM_HD ? 1.0 : 0;
-        sb_param_t *p;
-        CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+        sb_param_t *p = NULL;
+        if (kind >= SB_PARAM_KIND_COUNT_)
+            CHECK((p = warped_param(kind - SB_PARAM_KIND_COUNT_, 16, kind == SB_PARAM_KIND_COUNT_ ? 0 : 1.0)) != NULL);
+        else
+            CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+        if (!p) continue;
         for (int form = 0; form < SB_FORM_COUNT_; form++) {
             double scales[3] = {1, 0.5, 2};
             char *s = sb_glsl_snippet(p, (sb_form_t)form, 3, form == 1 ? scales : NULL);
@@ -363,13 +388,17 @@ SB_TEST(snippet_matches_cpu) {
 #else
     const char *why = gl_open();
     if (why) SKIP(why);
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++)
+    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_ + 2; kind++)
         for (int limited = 0; limited < 2; limited++) {
             sb_param_opts_t o = {0};
             o.res = 12;
             o.theta_max = limited ? 1.3 : 0;
-            sb_param_t *p;
-            CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+            sb_param_t *p = NULL;
+            if (kind >= SB_PARAM_KIND_COUNT_) /* warp tables */
+                CHECK((p = warped_param(kind - SB_PARAM_KIND_COUNT_, 12, o.theta_max)) != NULL);
+            else
+                CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+            if (!p) continue;
             gl_compare(p);
             sb_param_destroy(p);
         }

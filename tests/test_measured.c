@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 
 #include "harness.h"
+#include "measured_util.h"
 #include "sepbrdf/sepbrdf.h"
 
 #define NCELLS (90 * 90 * 180)
@@ -20,14 +21,6 @@ static const char *tmp_path(const char *tag, const char *name) {
     int n = snprintf(b, 4096, "%s/%s", sb_tmpdir(tag), name);
     CHECK(n > 0 && n < 4096);
     return b;
-}
-
-static void write_text(const char *path, const char *text) {
-    FILE *fp = fopen(path, "wb");
-    CHECK(fp != NULL);
-    if (!fp) return;
-    fputs(text, fp);
-    fclose(fp);
 }
 
 static int has_measured_dir(void) {
@@ -54,21 +47,6 @@ static sb_source_t *open_table(const char *path, const sb_measured_opts_t *o, sb
     CHECKF(r == SB_OK, "open %s: %s", path, sb_context_last_error(ctx));
     sb_context_destroy(ctx);
     return s;
-}
-
-/* Expect opening to fail with `code`, the message naming `want` (and the file). */
-static void expect_fail(const char *path, const sb_measured_opts_t *o, sb_result_t code, const char *want) {
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_source_t *s = NULL;
-    sb_result_t r = sb_measured_open(ctx, path, o, &s, NULL);
-    const char *msg = sb_context_last_error(ctx);
-    CHECKF(r == code, "%s: got %s, want %s (%s)", path, sb_result_name(r), sb_result_name(code), msg);
-    CHECK(s == NULL);
-    CHECKF(strstr(msg, path) != NULL, "message does not name the file: %s", msg);
-    if (want) CHECKF(strstr(msg, want) != NULL, "message lacks '%s': %s", want, msg);
-    sb_source_destroy(s);
-    sb_context_destroy(ctx);
 }
 
 /* ---- an independent MERL index ------------------------------------------- */

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "harness.h"
+#include "measured_util.h"
 #include "sepbrdf/sepbrdf.h"
 
 #define PI 3.14159265358979323846
@@ -528,40 +529,6 @@ SB_TEST(real_albedo) {
 
 /* ---- hostile files ---------------------------------------------------------------- */
 
-static void expect_fail(const char *path, sb_result_t code, const char *want) {
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_source_t *s = NULL;
-    sb_result_t r = sb_measured_open(ctx, path, NULL, &s, NULL);
-    const char *msg = sb_context_last_error(ctx);
-    CHECKF(r == code, "%s: got %s, want %s (%s)", path, sb_result_name(r), sb_result_name(code), msg);
-    CHECK(s == NULL);
-    CHECKF(strstr(msg, path) != NULL, "message does not name the file: %s", msg);
-    if (want) CHECKF(strstr(msg, want) != NULL, "message lacks '%s': %s", want, msg);
-    sb_source_destroy(s);
-    sb_context_destroy(ctx);
-}
-
-static long file_bytes(const char *path, unsigned char **out) {
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return -1;
-    fseek(fp, 0, SEEK_END);
-    long n = ftell(fp);
-    fseek(fp, 0, SEEK_SET);
-    *out = malloc((size_t)n);
-    if (fread(*out, 1, (size_t)n, fp) != (size_t)n) n = -1;
-    fclose(fp);
-    return n;
-}
-
-static void write_bytes(const char *path, const unsigned char *b, size_t n) {
-    FILE *fp = fopen(path, "wb");
-    CHECK(fp != NULL);
-    if (!fp) return;
-    fwrite(b, 1, n, fp);
-    fclose(fp);
-}
-
 /* Truncations at every header byte and in the data, a bad magic, another
  * version, missing and mistyped fields, shapes that disagree, NaN values,
  * a symmetry reduction of 3, a zero projected area: each refused with the
@@ -580,13 +547,13 @@ SB_TEST(hostile) {
     if (n <= 400) return;
     for (long cut = 0; cut < 400; cut += 7) {
         write_bytes(bad, b, (size_t)cut);
-        expect_fail(bad, SB_ERR_FORMAT, NULL);
+        expect_fail(bad, NULL, SB_ERR_FORMAT, NULL);
     }
     write_bytes(bad, b, (size_t)n - 100);
-    expect_fail(bad, SB_ERR_FORMAT, "past the end");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "past the end");
     b[13] = 1;
     write_bytes(bad, b, (size_t)n);
-    expect_fail(bad, SB_ERR_UNSUPPORTED, "version");
+    expect_fail(bad, NULL, SB_ERR_UNSUPPORTED, "version");
     b[13] = 0;
     b[3] = 'X';
     write_bytes(bad, b, (size_t)n);
@@ -602,20 +569,20 @@ SB_TEST(hostile) {
     /* NaN in the colour table; negative density; zero sigma */
     m.col[5] = NAN;
     mat_write(bad, &m, NULL);
-    expect_fail(bad, SB_ERR_FORMAT, "'rgb' value 5 is not finite");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "'rgb' value 5 is not finite");
     m.col[5] = 0.5f;
     m.vndf[3] = -1;
     mat_write(bad, &m, NULL);
-    expect_fail(bad, SB_ERR_FORMAT, "negative density");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "negative density");
     m.vndf[3] = 1;
     m.sigma[0] = 0;
     mat_write(bad, &m, NULL);
-    expect_fail(bad, SB_ERR_FORMAT, "sigma[0]");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "sigma[0]");
     m.sigma[0] = 1;
     float t1 = m.theta[1];
     m.theta[1] = m.theta[2];
     mat_write(bad, &m, NULL);
-    expect_fail(bad, SB_ERR_FORMAT, "theta_i[2]");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "theta_i[2]");
     m.theta[1] = t1;
     mat_free(&m);
 
@@ -623,7 +590,7 @@ SB_TEST(hostile) {
     mat_t a = {0};
     mat_random(&a, 32, 4, (float)-PI, (float)(-PI / 3));
     mat_write(bad, &a, NULL);
-    expect_fail(bad, SB_ERR_UNSUPPORTED, "symmetry reduction 3");
+    expect_fail(bad, NULL, SB_ERR_UNSUPPORTED, "symmetry reduction 3");
     mat_free(&a);
 
     /* fields missing, mistyped, or of other shapes */
@@ -642,18 +609,18 @@ SB_TEST(hostile) {
     write_tensor(good, f, 7);
     if ((s = open_rgl(good, NULL))) sb_source_destroy(s);
     write_tensor(bad, f, 6);
-    expect_fail(bad, SB_ERR_FORMAT, "jacobian");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "jacobian");
     f[4].name = "vndx";
     write_tensor(bad, f, 7);
-    expect_fail(bad, SB_ERR_FORMAT, "missing field 'vndf'");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "missing field 'vndf'");
     f[4].name = "vndf";
     f[4].shape[1] = 3;
     write_tensor(bad, f, 7);
-    expect_fail(bad, SB_ERR_FORMAT, "slices");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "slices");
     f[4].shape[1] = 2;
     f[5].dtype = 1;
     write_tensor(bad, f, 7);
-    expect_fail(bad, SB_ERR_FORMAT, "float32");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "float32");
 }
 
 /* ---- the command line ----------------------------------------------------------- */

@@ -190,7 +190,7 @@ SB_TEST(parse_spec) {
     CHECK(sb_param_parse_spec(NULL, "io:res=0", &k, &o) == SB_ERR_RANGE);
     CHECK(sb_param_parse_spec(NULL, "io:theta_max=91", &k, &o) == SB_ERR_RANGE);
     CHECK(sb_param_parse_spec(NULL, NULL, &k, &o) == SB_ERR_ARG);
-    char longspec[400];
+    char longspec[4000]; /* beyond the longest spec, two warp tables included */
     memset(longspec, 'x', sizeof longspec - 1);
     longspec[sizeof longspec - 1] = 0;
     CHECK(sb_param_parse_spec(NULL, longspec, &k, &o) == SB_ERR_PARSE);

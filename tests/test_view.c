@@ -571,7 +571,7 @@ SB_TEST(library_errors) {
     sb_factors_t *f = NULL;
     sb_param_t *p = NULL, *other = NULL;
     sb_form_t form;
-    sb_param_opts_t po = {6, 0, 0, 0, 0};
+    sb_param_opts_t po = {.res = 6};
     CHECK(sb_factors_read_exr(NULL, dir, &f) == SB_OK && sb_factors_param(NULL, f, &p, &form) == SB_OK);
     CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &other) == SB_OK);
     snprintf(path, sizeof path, "%s/page.html", dir);

@@ -76,6 +76,13 @@ sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const 
  * SB_ERR_RANGE), SB_ERR_ARG. */
 sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts, double *scales);
 
+/* The storage scale of texture (side, term) alone (its sepbrdf.scale: 1
+ * for FLOAT), as sb_factors_write_exr(opts) chooses it; the sampler's
+ * table stores g's integrals in these units (sampler.h).  Errors: those of
+ * sb_exr_term_scales. */
+sb_result_t sb_exr_texture_scale(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term,
+                                 const sb_exr_opts_t *opts, double *scale);
+
 /* File name of one texture: "g_00.exr" etc. written into buf. */
 void sb_exr_name(int side, size_t term, char *buf, size_t size);
 

@@ -39,6 +39,22 @@ char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const d
 sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form, size_t terms,
                           const double *scales);
 
+/* The sampler block for non-negative factors (data/sepbrdf_sample.glsl,
+ * sampler.h): #defines SB_SAMPLE_CH (channels, 1 or 3), SB_HALF_ROWS,
+ * SB_COSINE_SHARE, the parameterisation's sb_row_dir() and
+ *     uniform sampler2DArray sb_cdf;   // sampler.bin, R32F
+ *     bool  sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf);
+ *     float sb_pdf(vec3 L, vec3 V);
+ * to be placed after the snippet of the same factorisation.  malloc'ed;
+ * NULL on no memory, a NULL p or channels not 1 or 3. */
+char *sb_glsl_sampler(const sb_param_t *p, size_t channels);
+
+/* sb_glsl_write with the sampler block appended (the file `sepbrdf factor`
+ * writes for non-negative factors).  Errors: sb_glsl_write's (SB_ERR_ARG
+ * for any argument it cannot make a snippet of). */
+sb_result_t sb_glsl_write_sampled(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
+                                  size_t terms, const double *scales, size_t channels);
+
 #ifdef __cplusplus
 }
 #endif

@@ -65,6 +65,14 @@ typedef struct sb_job_opts {
     sb_measured_opts_t measured; /* how a measured table is read and interpolated */
     const char *param;           /* NULL or "auto": choose among the candidates; else a kind name ("iso") */
     const char *form;            /* NULL: f (auto: f and cos2); "f", "cos", "cos2" */
+    /* warps of the elevation axes (param.h) of a layout that takes them
+     * (iso, hd): NULL the layout's own; "uniform"; "merl" (theta_h MERL's
+     * square root, theta_d uniform); "adaptive" (both measured from the
+     * source, sb_warp_measure); "auto" (adaptive where its headline at J
+     * is lower than with the layout's own, else the own).  The candidates
+     * are screened with the layouts' own warps; the kept one is then
+     * sampled and fitted again, warped. */
+    const char *warp;
     int weighted;                /* solid-angle weighting of an explicit param (auto: always) */
     int zero_fill;               /* factor invalid cells as zeros instead of a masked fit */
     size_t res;                  /* R, cells per angular axis: 32 */

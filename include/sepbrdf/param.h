@@ -51,6 +51,7 @@
 #define SEPBRDF_PARAM_H
 
 #include "common.h"
+#include "source.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -67,11 +68,47 @@ typedef enum sb_param_kind {
 enum { SB_WRAP_CLAMP = 0, SB_WRAP_REPEAT = 1 };
 enum { SB_SIDE_G = 0, SB_SIDE_H = 1 }; /* row textures g, column textures h */
 
+/* Warps: the monotone map s = W(x) of a texture's elevation axis, x =
+ * theta / theta_max in [0, 1] to the texture coordinate s in [0, 1] (texel
+ * i of n has its centre at s = (i + 1/2) / n, so its direction is at x =
+ * W^-1((i + 1/2) / n) and its cell spans W^-1(i / n) .. W^-1((i + 1) / n)).
+ * Bilinear filtering is linear in s, so texels go where W is steep.  Axes:
+ * SB_AXIS_THETA_H, the half vector's elevation (iso's rows, hd's h
+ * textures), and SB_AXIS_THETA_D, the difference vector's (iso's theta_d,
+ * hd's d textures); layouts with SB_CAP_WARPS have both.
+ *     uniform  W(x) = x
+ *     merl     W(x) = sqrt(x) (MERL's theta_h spacing; iso's default for
+ *              theta_h, uniform the default elsewhere)
+ *     table    piecewise linear through K + 1 knots (x_k, k / K), x_0 = 0 <
+ *              x_1 < ... < x_K = 1: W(x) = (k + (x - x_k) / (x_{k+1} - x_k))
+ *              / K on [x_k, x_{k+1}) (clamped to [0, 1]); the knot found by
+ *              the same binary search in C and GLSL.
+ * A table is what sb_warp_measure() chooses from a source ("adaptive"). */
+typedef enum sb_warp_kind {
+    SB_WARP_DEFAULT = 0, /* the layout's own */
+    SB_WARP_UNIFORM,
+    SB_WARP_MERL,
+    SB_WARP_TABLE,
+    SB_WARP_KIND_COUNT_
+} sb_warp_kind_t;
+
+enum { SB_AXIS_THETA_H = 0, SB_AXIS_THETA_D = 1, SB_AXIS_COUNT_ };
+
+#define SB_WARP_MAX_KNOTS 64 /* K of a table: 2..64 segments */
+
+typedef struct sb_warp {
+    sb_warp_kind_t kind;
+    size_t knots;                    /* table: K */
+    double x[SB_WARP_MAX_KNOTS + 1]; /* table: x_0 = 0 < x_1 < ... < x_K = 1 */
+} sb_warp_t;
+
 typedef struct sb_param_opts {
     size_t res; /* R: cells per angular axis (default 32) */
     /* iso only, 0 = default: theta_h cells res, theta_d cells 2 res, phi_d cells max(res / 2, 2) */
     size_t res_theta_h, res_theta_d, res_phi_d;
     double theta_max; /* largest sampled elevation in radians, 0 = pi/2 */
+    /* per axis (SB_AXIS_*), SB_CAP_WARPS layouts only; kind 0 = the layout's own */
+    sb_warp_t warp[SB_AXIS_COUNT_];
 } sb_param_opts_t;
 
 typedef struct sb_param sb_param_t;
@@ -83,8 +120,11 @@ enum {
     SB_CAP_NEEDS_ISOTROPY = 1u << 2,     /* meaningful for isotropic sources only */
     SB_CAP_FOLDS_RECIPROCITY = 1u << 3,  /* identifies (wi, wo) with (wo, wi): exact for reciprocal sources */
     SB_CAP_PARTIAL_DOMAIN = 1u << 4,     /* some cells are no BRDF pair (masked unless zero-filled) */
-    SB_CAP_AZIMUTH_GRID = 1u << 5        /* rows and columns on the theta-phi grid: isotropic sources give
+    SB_CAP_AZIMUTH_GRID = 1u << 5,       /* rows and columns on the theta-phi grid: isotropic sources give
                                             block-circulant matrices */
+    SB_CAP_HALF_ROWS = 1u << 6,          /* rows index the half vector h = normalize(wi + wo): a sampler
+                                            (sampler.h) picks h and reflects wo about it */
+    SB_CAP_WARPS = 1u << 7               /* elevation axes theta_h and theta_d take warps (sb_warp_t) */
 };
 
 /* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
@@ -105,11 +145,14 @@ size_t sb_param_kind_list(char *buf, size_t size, const char *sep);
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
 
 /* Parse a spec "KIND[:key=value,...]" into kind and options; keys res, th,
- * td, pd (iso only) and theta_max (degrees), as sb_param_spec() writes them,
- * so sb_param_spec() round-trips.  Options not named are 0 (default).
+ * td, pd (iso only), theta_max (degrees) and, on SB_CAP_WARPS layouts,
+ * warp_h and warp_d (theta_h's and theta_d's warp: uniform, merl, or a
+ * table's interior knots x_1/x_2/.../x_{K-1}), as sb_param_spec() writes
+ * them, so sb_param_spec() round-trips.  Options not named are 0 (default).
  * Errors: SB_ERR_ARG (NULL), SB_ERR_UNKNOWN (kind or key), SB_ERR_PARSE
  * (malformed pair, number or fractional count), SB_ERR_RANGE (a count 0,
- * theta_max outside (0, 90]); finer limits are sb_param_create()'s. */
+ * theta_max outside (0, 90], knots not increasing inside (0, 1)); finer
+ * limits are sb_param_create()'s. */
 sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts);
 
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out);
@@ -122,7 +165,9 @@ sb_param_kind_t sb_param_kind(const sb_param_t *p);
 const char *sb_param_name(const sb_param_t *p);
 unsigned sb_param_caps(const sb_param_t *p); /* sb_param_kind_caps of its kind */
 /* Canonical spec string, e.g. "io:res=32" or "iso:th=90,td=90,pd=180";
- * theta_max (degrees) is appended when not 90. */
+ * theta_max (degrees) is appended when not 90, warps (warp_h, warp_d)
+ * when not the layout's own (a table's knots with 6 significant digits:
+ * sb_param_create rounds them so, and they are the warp exactly). */
 const char *sb_param_spec(const sb_param_t *p);
 size_t sb_param_rows(const sb_param_t *p);
 size_t sb_param_cols(const sb_param_t *p);
@@ -153,6 +198,70 @@ int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3],
  * compute exactly sb_param_coords() and its return value.  It may use the
  * constants SB_PI and SB_THETA_MAX defined by the snippet header. */
 const char *sb_param_glsl(const sb_param_t *p);
+
+/* Importance sampling (sampler.h): the direction a row cell stands for,
+ * drawn uniformly in solid angle over the cell.  For u in [0,1)^2 (u[0]
+ * along the g texture's x axis, u[1] along y) w is wi itself (io,
+ * io-area) or the half vector h (SB_CAP_HALF_ROWS: hd, iso; wi is then
+ * wo reflected about h).  The cell of w is texel (floor(s W), floor(t H))
+ * of st_g as sb_param_coords gives it, and row = y W + x.  Returns 1; 0
+ * (w unchanged) for a NULL argument or a row out of range. */
+int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+
+/* GLSL source defining `vec3 sb_row_dir(ivec2 cell, vec2 u)`, the same map
+ * as sb_param_row_sample for texel `cell` of the g textures (sizes from
+ * textureSize(sb_g, 0)); "" for a NULL p. */
+const char *sb_param_sample_glsl(const sb_param_t *p);
+/* The warp of axis SB_AXIS_THETA_H or SB_AXIS_THETA_D, resolved (never
+ * SB_WARP_DEFAULT); NULL for a layout without SB_CAP_WARPS, a NULL p or
+ * another axis. */
+const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis);
+/* 1 when every warp of p is the layout's own (or p takes none, or is
+ * NULL); 0 when one was chosen (uniform or merl instead, or a table). */
+int sb_param_warps_default(const sb_param_t *p);
+
+/* Warp names ("default", "uniform", "merl", "table"; "?" out of range) and
+ * parsing ("adaptive" is no kind: sb_warp_measure makes a table). */
+const char *sb_warp_kind_name(sb_warp_kind_t kind);
+sb_result_t sb_warp_kind_parse(const char *name, sb_warp_kind_t *out);
+/* W(x) and W^-1(s) of a resolved warp (not SB_WARP_DEFAULT); table: x and s
+ * clamped to [0, 1]; uniform and merl: unclamped (merl: x >= 0). */
+double sb_warp_map(const sb_warp_t *w, double x);
+double sb_warp_inverse(const sb_warp_t *w, double s);
+/* Check a warp: a known kind; a table with 2..SB_WARP_MAX_KNOTS segments,
+ * x_0 = 0, x_K = 1, strictly increasing.  SB_ERR_RANGE otherwise. */
+sb_result_t sb_warp_check(sb_context_t *ctx, const sb_warp_t *w);
+
+/* The table a source asks for along one axis, by equalising the error of
+ * linear interpolation between the texels along it.  A scan evaluates
+ * f, weighted by cos^2(theta_i) as the headline weights it, over the
+ * pair domain theta_i, theta_o <= theta_max on lines along the axis (a fine grid of
+ * 512 points, MERL-spaced for theta_h, uniform for theta_d) at a coarse
+ * grid of the other angles (the other elevation, phi_d, and phi_h for an
+ * anisotropic source), each weighted by its share of the pair measure
+ * dw_i dw_o = 4 cos theta_d sin theta_d sin theta_h dtheta_h dphi_h
+ * dtheta_d dphi_d.  Starting from the floor's warp (MERL for theta_h,
+ * uniform for theta_d), each of 12 rounds places `cells` texel centres by
+ * the current warp, measures E_k, the squared error of interpolating f
+ * linearly between neighbouring centres (clamped beyond the first and
+ * last) times cos^2 theta_i, summed over segment k of the axis, gives
+ * segment k the share E_k^(1/5) of the texels (E_k ~ Delta_k^5 for smooth
+ * f, so the errors come out equal), mixed with `floor` of the floor's
+ * density so no part of the axis is left without texels, and moves the
+ * knots half way there (damped: undamped rounds oscillate).  out receives a table (SB_WARP_TABLE,
+ * knots rounded as sb_param_create rounds them).  Errors: SB_ERR_ARG,
+ * SB_ERR_RANGE (axis, knots, cells, theta_max or floor out of range),
+ * SB_ERR_NUMERIC (the source is unknown wherever it was scanned),
+ * SB_ERR_NOMEM. */
+typedef struct sb_warp_measure_opts {
+    size_t knots;     /* K, 2..SB_WARP_MAX_KNOTS (0 = SB_WARP_MAX_KNOTS: two segments a texel at 32 texels) */
+    size_t cells;     /* texels along the axis the warp is made for, 2..8192 (0 = 32) */
+    double floor;     /* share of the floor density, [0, 1) (0 = 0.15) */
+    double theta_max; /* radians, 0 = pi/2 */
+    int threads;      /* 0 = all cores */
+} sb_warp_measure_opts_t;
+sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis, const sb_warp_measure_opts_t *opts,
+                            sb_warp_t *out);
 
 /* Unit direction <-> spherical angles in the local frame, phi in [0, 2pi). */
 void sb_dir_from_angles(double theta, double phi, double w[3]);

@@ -16,6 +16,7 @@
 #include "outset.h"
 #include "param.h"
 #include "render.h"
+#include "sampler.h"
 #include "solver.h"
 #include "source.h"
 #include "svd.h"

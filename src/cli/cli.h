@@ -72,7 +72,7 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
 /* Option tables: each row names an option, its value (arg NULL: a flag),
  * its help text (lines separated by '\n'), where it is stored (offset
  * from the base the caller passes) and which commands take it. */
-enum { CLI_FACTOR = 1, CLI_RENDER = 2, CLI_STUDY = 4 };
+enum { CLI_FACTOR = 1, CLI_RENDER = 2, CLI_STUDY = 4, CLI_OWN = 8 /* a command's own table */ };
 typedef struct cli_option cli_option_t;
 typedef int (*cli_set_fn)(const char *cmd, const cli_option_t *op, const char *value, void *dst);
 struct cli_option {
@@ -92,8 +92,40 @@ int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void 
  * into base + offset and return 1 (*matched = the row, when matched is not
  * NULL); 0 if not one; -1 on a missing or bad value (message printed). */
 int cli_table_opt(cli_args_t *a, const cli_option_t *table, unsigned command, void *base, const cli_option_t **matched);
-/* The --help lines of the rows `command` takes. */
+/* The --help lines of the rows `command` takes (a row whose help is NULL
+ * is documented in the command's own text). */
 void cli_table_help(const cli_option_t *table, unsigned command);
+/* A string option: the value itself (const char *). */
+int cli_set_string(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+
+/* One command's parse loop, shared by the commands: -h/--help (prints
+ * help()), -o/--out (when out_what is set: "folder" or "file"), the rows
+ * of the tables (tried in order, each stored from its base), the options
+ * of a measured table (when measured is set), -q/-v/-vv, and positional
+ * arguments (`what`, e.g. "SOURCE") into args, at most max_args (one more
+ * is "more than one WHAT given"), counted into *nargs when not NULL.  An
+ * unknown option is named with a pointer to the command's --help. */
+typedef struct cli_table_use {
+    const cli_option_t *table;
+    unsigned command;
+    void *base;
+    const char **matched; /* when not NULL: the name of the last row matched */
+} cli_table_use_t;
+typedef struct cli_parser {
+    const char *cmd;
+    void (*help)(void);
+    const char *out_what;
+    const char **out;
+    cli_table_use_t tables[3]; /* up to the first with table NULL */
+    sb_measured_opts_t *measured;
+    const char *what;
+    const char **args;
+    size_t max_args;
+    size_t *nargs;
+} cli_parser_t;
+/* Returns -1 to go on, else the exit code: EXIT_OK after --help,
+ * EXIT_USAGE after a message. */
+int cli_parse(int argc, char **argv, const cli_parser_t *p);
 
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);

@@ -15,17 +15,21 @@
 #define DEFAULT_OUT "sepbrdf-batch"
 #define MAX_ITEMS 4096
 
-static const cli_option_t batch_only[] = {
-    {"-J", "--terms", "J", "number of terms kept, 1..N (default 4)", cli_set_size, offsetof(sb_job_opts_t, terms), 1,
-     (double)(1u << 30), CLI_FACTOR},
-    {0},
-};
-
 typedef struct batch {
     batch_item_t *items;
     size_t n;
     sb_job_opts_t base;
+    size_t jobs; /* -j; 0: default_jobs */
 } batch_t;
+
+/* The options of `batch` alone (stored into its batch_t). */
+static const cli_option_t batch_only[] = {
+    {"-j", "--jobs", "N",
+     "materials at a time, each its own process (default:\nthe cores, fewer when the matrices would not fit in\nthe "
+     "available memory)",
+     cli_set_size, offsetof(batch_t, jobs), 1, 64, CLI_OWN},
+    {0},
+};
 
 static void help(void) {
     printf("usage: sepbrdf batch INPUT... [OPTIONS]\n"
@@ -49,16 +53,13 @@ static void help(void) {
            "that fails is reported in the summary and the others finish; the exit\n"
            "status is then 2.\n"
            "\n"
-           "options:\n"
-           "  -o, --out DIR        output folder (default ./" DEFAULT_OUT ")\n"
-           "  -j, --jobs N         materials at a time, each its own process (default:\n"
-           "                       the cores, fewer when the matrices would not fit in\n"
-           "                       the available memory)\n"
-           "\n"
            "On a cluster: `mpirun -np N sepbrdf-mpi batch ...` (or srun; sepbrdf-mpi is\n"
            "built where MPI is found) hands the materials to N - 1 ranks, one at a\n"
-           "time, into the same OUT; rank 0 writes the summary.\n");
-    cli_table_help(batch_only, CLI_FACTOR);
+           "time, into the same OUT; rank 0 writes the summary.\n"
+           "\n"
+           "options:\n"
+           "  -o, --out DIR        output folder (default ./" DEFAULT_OUT ")\n");
+    cli_table_help(batch_only, CLI_OWN);
     cli_table_help(cli_factor_options, CLI_FACTOR);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
 }
@@ -146,8 +147,7 @@ static int manifest_row(batch_t *b, const char *file, int line, char cols[][32],
         char *argv[3] = {"batch", flag, cells[c]};
         cli_args_t a = {3, 1, argv, "batch"};
         const cli_option_t *op = NULL;
-        int m = cli_table_opt(&a, batch_only, CLI_FACTOR, &o, &op);
-        if (!m) m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, &o, &op);
+        int m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, &o, &op);
         if (m == 1 && op && !op->arg && strcmp(cells[c], "0") == 0) *(int *)((char *)&o + op->offset) = 0;
         if (m != 1) {
             cli_error("batch", "%s:%d: column '%s': %s", file, line, cols[c], m ? "bad value" : "not an option");
@@ -255,43 +255,30 @@ static size_t default_jobs(const batch_t *b) {
     return jobs < b->n ? jobs : (b->n ? b->n : 1);
 }
 
-static int parse(int argc, char **argv, batch_t *b, const char **out, size_t *jobs, const char **inputs, int *ninputs) {
-    static const char *const n_help[] = {"-h", "--help", NULL}, *const n_jobs[] = {"-j", "--jobs", NULL};
-    cli_args_t a = {argc, 1, argv, "batch"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_opt(&a, n_jobs, 1, &v)) != 0) {
-            if (m < 0 || cli_parse_size("batch", "--jobs", v, 1, 64, jobs)) return EXIT_USAGE;
-        } else if ((m = cli_out_opt(&a, "folder", out)) ||
-                   (m = cli_table_opt(&a, batch_only, CLI_FACTOR, &b->base, NULL)) ||
-                   (m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, &b->base, NULL)) ||
-                   (m = cli_measured_opt(&a, &b->base.measured))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("batch", "unknown option '%s' (see `sepbrdf batch --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else {
-            inputs[(*ninputs)++] = argv[a.i];
-        }
-    }
-    if (!*ninputs) {
+static int parse(int argc, char **argv, batch_t *b, const char **out, const char **inputs, size_t *ninputs) {
+    cli_parser_t p = {.cmd = "batch",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = out,
+                      .tables = {{batch_only, CLI_OWN, b, NULL}, {cli_factor_options, CLI_FACTOR, &b->base, NULL}},
+                      .measured = &b->base.measured,
+                      .what = "INPUT",
+                      .args = inputs,
+                      .max_args = (size_t)argc,
+                      .nargs = ninputs};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc < 0 && !*ninputs) {
         cli_error("batch", "no INPUT given (see `sepbrdf batch --help`)");
         return EXIT_USAGE;
     }
-    return -1;
+    return rc;
 }
 
 int cmd_batch(int argc, char **argv) {
-    batch_t b = {calloc(MAX_ITEMS, sizeof(batch_item_t)), 0, {0}};
+    batch_t b = {calloc(MAX_ITEMS, sizeof(batch_item_t)), 0, {0}, 0};
     const char *out = DEFAULT_OUT, **inputs = calloc((size_t)argc + 1, sizeof *inputs);
-    size_t jobs = 0;
-    int ninputs = 0, rc, rank = 0, size = 0; /* MPI: this rank, the ranks (0: MPI not started) */
+    size_t ninputs = 0;
+    int rc, rank = 0, size = 0; /* MPI: this rank, the ranks (0: MPI not started) */
     if (!b.items || !inputs) {
         cli_error("batch", "out of memory");
         rc = EXIT_IO;
@@ -305,9 +292,9 @@ int cmd_batch(int argc, char **argv) {
     }
     if (rank != 0) g_verbosity = g_verbosity > 0 ? 0 : g_verbosity; /* rank 0 reports */
 #endif
-    if ((rc = parse(argc, argv, &b, &out, &jobs, inputs, &ninputs)) >= 0) goto done;
+    if ((rc = parse(argc, argv, &b, &out, inputs, &ninputs)) >= 0) goto done;
     rc = EXIT_OK;
-    for (int i = 0; i < ninputs && rc == EXIT_OK; i++)
+    for (size_t i = 0; i < ninputs && rc == EXIT_OK; i++)
         rc = input(&b, inputs[i]);
     if (rc != EXIT_OK) goto done;
     if (mkdir(out, 0777) != 0 && errno != EEXIST) {
@@ -318,16 +305,16 @@ int cmd_batch(int argc, char **argv) {
     size_t reused = 0;
     for (size_t i = 0; i < b.n && rank == 0; i++) /* only rank 0 hands out work */
         reused += b.items[i].skipped = batch_done(out, &b.items[i]);
-    if (!jobs) jobs = default_jobs(&b);
+    if (!b.jobs) b.jobs = default_jobs(&b);
     if (size > 1)
         cli_info(1, "batch: %zu materials, %zu reused, over %d ranks", b.n, reused, size - 1);
     else
-        cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, jobs);
+        cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, b.jobs);
 #ifdef SEPBRDF_MPI
-    batch_mpi_run(out, b.items, b.n, jobs, rank, size);
+    batch_mpi_run(out, b.items, b.n, b.jobs, rank, size);
     if (rank != 0) goto done; /* rank 0 writes the summary */
 #else
-    batch_run(out, b.items, b.n, jobs);
+    batch_run(out, b.items, b.n, b.jobs);
 #endif
     size_t failed = 0;
     for (size_t i = 0; i < b.n; i++)

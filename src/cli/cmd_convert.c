@@ -1,11 +1,40 @@
 /* sepbrdf convert: write any source as a MERL .binary or a sepbrdf CSV. */
 #include <errno.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
 
 typedef enum out_format { OUT_AUTO, OUT_MERL, OUT_CSV } out_format_t;
+
+static int ends_with(const char *s, const char *ext) {
+    size_t n = strlen(s), e = strlen(ext);
+    return n > e && strcmp(s + n - e, ext) == 0;
+}
+
+typedef struct convert_opts {
+    const char *source, *out;
+    out_format_t format;
+    sb_measured_opts_t mo;
+} convert_opts_t;
+
+static int set_format(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    if (strcmp(v, "merl") == 0)
+        *(out_format_t *)dst = OUT_MERL;
+    else if (strcmp(v, "csv") == 0)
+        *(out_format_t *)dst = OUT_CSV;
+    else {
+        cli_error(cmd, "%s '%s' unknown, need merl or csv", op->name, v);
+        return -1;
+    }
+    return 0;
+}
+
+static const cli_option_t convert_only[] = {
+    {NULL, "--format", "F", "merl or csv", set_format, offsetof(convert_opts_t, format), 0, 0, CLI_OWN},
+    {0},
+};
 
 static void help(void) {
     printf("usage: sepbrdf convert SOURCE -o FILE [--format merl|csv] [table options]\n"
@@ -22,58 +51,24 @@ static void help(void) {
            "\n"
            "options:\n"
            "  -o, --out FILE       output file (required); written to a temporary name and\n"
-           "                       renamed when complete\n"
-           "      --format F       merl or csv\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
+           "                       renamed when complete\n");
+    cli_table_help(convert_only, CLI_OWN);
+    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
 }
-
-static int ends_with(const char *s, const char *ext) {
-    size_t n = strlen(s), e = strlen(ext);
-    return n > e && strcmp(s + n - e, ext) == 0;
-}
-
-typedef struct convert_opts {
-    const char *source, *out;
-    out_format_t format;
-    sb_measured_opts_t mo;
-} convert_opts_t;
 
 /* Returns -1 to go on, else the exit code. */
 static int parse(int argc, char **argv, convert_opts_t *o) {
-    static const char *const n_format[] = {"--format", NULL}, *const n_help[] = {"-h", "--help", NULL};
-    cli_args_t a = {argc, 1, argv, "convert"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_out_opt(&a, "file", &o->out))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_format, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            if (strcmp(v, "merl") == 0)
-                o->format = OUT_MERL;
-            else if (strcmp(v, "csv") == 0)
-                o->format = OUT_CSV;
-            else {
-                cli_error("convert", "--format '%s' unknown, need merl or csv", v);
-                return EXIT_USAGE;
-            }
-        } else if ((m = cli_measured_opt(&a, &o->mo))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-            continue;
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("convert", "unknown option '%s' (see `sepbrdf convert --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else if (!o->source) {
-            o->source = argv[a.i];
-        } else {
-            cli_error("convert", "more than one SOURCE given ('%s' and '%s')", o->source, argv[a.i]);
-            return EXIT_USAGE;
-        }
-    }
+    cli_parser_t p = {.cmd = "convert",
+                      .help = help,
+                      .out_what = "file",
+                      .out = &o->out,
+                      .tables = {{convert_only, CLI_OWN, o, NULL}},
+                      .measured = &o->mo,
+                      .what = "SOURCE",
+                      .args = &o->source,
+                      .max_args = 1};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc >= 0) return rc;
     if (!o->source || !o->out) {
         cli_error("convert", "%s (see `sepbrdf convert --help`)", !o->source ? "no SOURCE given" : "no -o FILE given");
         return EXIT_USAGE;

@@ -9,14 +9,6 @@
 
 #define DEFAULT_OUT "sepbrdf-out"
 
-/* -J, --terms: the one option of `factor` alone that is not in the shared
- * table (render and study take lists there). */
-static const cli_option_t factor_only[] = {
-    {"-J", "--terms", "J", "number of terms kept, 1..N (default 4)", cli_set_size, offsetof(sb_job_opts_t, terms), 1,
-     (double)(1u << 30), CLI_FACTOR},
-    {0},
-};
-
 static void help(void) {
     printf("usage: sepbrdf factor [SOURCE] [OPTIONS]\n"
            "\n"
@@ -25,13 +17,15 @@ static void help(void) {
            "  g_JJ.exr, h_JJ.exr   one EXR per texture and term (R, G, B float32)\n"
            "  report.json          errors per J, sigma_j, timings, settings\n"
            "  sepbrdf.glsl         GLSL snippet: vec3 sb_brdf(vec3 L, vec3 V)\n"
+           "  sampler.bin          with --method nmf only (non-negative factors):\n"
+           "                       importance sampling tables; the snippet then also\n"
+           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V) (README)\n"
            "\n"
            "SOURCE  MODEL[:key=value,...] (see `sepbrdf list`) or a measured file.\n"
            "        default: " SB_JOB_DEFAULT_SOURCE "\n"
            "\n"
            "options:\n"
            "  -o, --out DIR        output folder, created if missing (default ./" DEFAULT_OUT ")\n");
-    cli_table_help(factor_only, CLI_FACTOR);
     cli_table_help(cli_factor_options, CLI_FACTOR);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
            "\n"
@@ -50,31 +44,16 @@ static void help(void) {
 
 /* Parse argv into o; returns an exit code, or -1 to go on. */
 static int parse(int argc, char **argv, sb_job_opts_t *o, const char **out) {
-    static const char *const n_help[] = {"-h", "--help", NULL};
-    cli_args_t a = {argc, 1, argv, "factor"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_out_opt(&a, "folder", out)) || (m = cli_table_opt(&a, factor_only, CLI_FACTOR, o, NULL)) ||
-            (m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, o, NULL)) ||
-            (m = cli_measured_opt(&a, &o->measured))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("factor", "unknown option '%s' (see `sepbrdf factor --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else if (!o->source) {
-            o->source = argv[a.i];
-        } else {
-            cli_error("factor", "more than one SOURCE given ('%s' and '%s')", o->source, argv[a.i]);
-            return EXIT_USAGE;
-        }
-    }
-    return -1;
+    cli_parser_t p = {.cmd = "factor",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = out,
+                      .tables = {{cli_factor_options, CLI_FACTOR, o, NULL}},
+                      .measured = &o->measured,
+                      .what = "SOURCE",
+                      .args = &o->source,
+                      .max_args = 1};
+    return cli_parse(argc, argv, &p);
 }
 
 static void print_candidates(const sb_job_t *job) {

@@ -6,6 +6,7 @@
  * meant to get their own entry in `kinds` ahead of the tables. */
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 #include <sys/stat.h>
 
@@ -36,6 +37,13 @@ static const char *formats_text(void) {
     return buf;
 }
 
+static const cli_option_t info_only[] = {
+    {"-r", "--res", "R", "io grid of the coverage, 2..512 (default 32)", cli_set_size, offsetof(info_opts_t, res), 2,
+     512, CLI_OWN},
+    {NULL, "--json", NULL, "print JSON instead of the table", cli_set_flag, offsetof(info_opts_t, json), 0, 0, CLI_OWN},
+    {0},
+};
+
 static void help(void) {
     printf("usage: sepbrdf info FILE [--res R] [--json] [--interp M] [--neighbours K] [--radius DEG]\n"
            "                         [--white e|d65]\n"
@@ -50,11 +58,10 @@ static void help(void) {
            "(R x R directions each for wi and wo) for which the table gives a value.\n"
            "Cells with none are missing: masked in `sepbrdf factor`.\n"
            "\n"
-           "options:\n"
-           "  -r, --res R          io grid of the coverage, 2..512 (default 32)\n"
-           "      --json           print JSON instead of the table\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP
-           "\n" CLI_EXIT_HELP,
+           "options:\n",
            formats_text());
+    cli_table_help(info_only, CLI_OWN);
+    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
 }
 
 static int is_regular_file(const char *path) {
@@ -250,37 +257,18 @@ static const info_kind_t kinds[] = {
 };
 
 int cmd_info(int argc, char **argv) {
-    static const char *const n_res[] = {"-r", "--res", NULL}, *const n_json[] = {"--json", NULL},
-                             *const n_help[] = {"-h", "--help", NULL};
     info_opts_t o;
     memset(&o, 0, sizeof o);
     o.res = 32;
-    cli_args_t a = {argc, 1, argv, "info"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_opt(&a, n_res, 1, &v))) {
-            if (m < 0 || cli_parse_size("info", "--res", v, 2, 512, &o.res)) return EXIT_USAGE;
-        } else if (cli_opt(&a, n_json, 0, &v)) {
-            o.json = 1;
-        } else if ((m = cli_measured_opt(&a, &o.mo))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-            continue;
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("info", "unknown option '%s' (see `sepbrdf info --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else if (!o.path) {
-            o.path = argv[a.i];
-        } else {
-            cli_error("info", "more than one FILE given ('%s' and '%s')", o.path, argv[a.i]);
-            return EXIT_USAGE;
-        }
-    }
+    cli_parser_t p = {.cmd = "info",
+                      .help = help,
+                      .tables = {{info_only, CLI_OWN, &o, NULL}},
+                      .measured = &o.mo,
+                      .what = "FILE",
+                      .args = &o.path,
+                      .max_args = 1};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc >= 0) return rc;
     if (!o.path) {
         cli_error("info", "no FILE given (see `sepbrdf info --help`)");
         return EXIT_USAGE;

@@ -104,18 +104,12 @@ static int set_tonemap(const char *cmd, const cli_option_t *op, const char *v, v
     return -1;
 }
 
-static int set_string(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
-    (void)cmd, (void)op;
-    *(const char **)dst = v;
-    return 0;
-}
-
 /* The options of `render` alone (stored into its render_opts_t). */
 #define AT(m) offsetof(render_opts_t, m)
 static const cli_option_t render_only[] = {
     {"-J", "--terms", "LIST", "numbers of terms to render, e.g. 1,2,4 (default 1,2,4;\nfor DIR every J of the folder)",
      set_terms, 0, 0, 0, CLI_RENDER},
-    {NULL, "--source", "SPEC", "the original to compare with (DIR only)", set_string, AT(source), 0, 0, CLI_RENDER},
+    {NULL, "--source", "SPEC", "the original to compare with (DIR only)", cli_set_string, AT(source), 0, 0, CLI_RENDER},
     {"-s", "--size", "N", "image width and height in pixels, 8..4096 (default 256)", cli_set_size, AT(scene.size), 8,
      4096, CLI_RENDER},
     {NULL, "--light-elev", "DEG",
@@ -168,34 +162,17 @@ static void help(void) {
 }
 
 static int parse(int argc, char **argv, render_opts_t *o) {
-    static const char *const n_help[] = {"-h", "--help", NULL};
-    cli_args_t a = {argc, 1, argv, "render"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL, *arg = argv[a.i];
-        const cli_option_t *fo = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return 0;
-        }
-        if ((m = cli_out_opt(&a, "folder", &o->out)) || (m = cli_table_opt(&a, render_only, CLI_RENDER, o, NULL)) ||
-            (m = cli_measured_opt(&a, &o->job.measured))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if ((m = cli_table_opt(&a, cli_factor_options, CLI_RENDER, &o->job, &fo))) {
-            if (m < 0) return EXIT_USAGE;
-            o->factor_opt_name = fo->name;
-        } else if (cli_verbosity_opt(arg)) {
-        } else if (arg[0] == '-' && arg[1]) {
-            cli_error("render", "unknown option '%s' (see `sepbrdf render --help`)", arg);
-            return EXIT_USAGE;
-        } else if (!o->input) {
-            o->input = arg;
-        } else {
-            cli_error("render", "more than one SOURCE or DIR given ('%s' and '%s')", o->input, arg);
-            return EXIT_USAGE;
-        }
-    }
-    return -1; /* go on */
+    cli_parser_t p = {
+        .cmd = "render",
+        .help = help,
+        .out_what = "folder",
+        .out = &o->out,
+        .tables = {{render_only, CLI_RENDER, o, NULL}, {cli_factor_options, CLI_RENDER, &o->job, &o->factor_opt_name}},
+        .measured = &o->job.measured,
+        .what = "SOURCE or DIR",
+        .args = &o->input,
+        .max_args = 1};
+    return cli_parse(argc, argv, &p); /* -1: go on */
 }
 
 static int is_dir(const char *path) {

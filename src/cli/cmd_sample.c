@@ -1,30 +1,11 @@
 /* sepbrdf sample: a simulated gonioreflectometer writing a CSV table. */
 #include <errno.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-
-static void help(void) {
-    printf("usage: sepbrdf sample SOURCE [--gonio Nti,Npi,Nto,Npo] [--noise SIGMA] [--seed S] [-o FILE]\n"
-           "\n"
-           "Measure SOURCE (a model spec, see `sepbrdf list`, or a measured file) at\n"
-           "the positions of a simulated gonioreflectometer and write a sepbrdf CSV\n"
-           "table (docs/measured.md), readable by `sepbrdf factor` and `sepbrdf info`.\n"
-           "\n"
-           "options:\n"
-           "  -g, --gonio Nti,Npi,Nto,Npo  light and detector positions (default 18,1,18,72):\n"
-           "                       theta_k = (k + 1/2) 90/N deg (cell centres, the horizon is\n"
-           "                       never measured), phi_k = k 360/N deg; the spacing is\n"
-           "                       90/N_theta and 360/N_phi degrees.  One light azimuth\n"
-           "                       (Npi = 1) suffices for an isotropic source.\n"
-           "      --noise SIGMA    multiplicative Gaussian noise v (1 + SIGMA z), z ~ N(0,1)\n"
-           "                       per value, 0..10 (default 0)\n"
-           "      --seed S         seed of the noise (default 1): same seed, same table\n"
-           "  -o, --out FILE       output CSV (default: standard output); written to a\n"
-           "                       temporary name and renamed when complete\n" CLI_VERBOSITY_HELP "\n"
-           "Rows where SOURCE has no value (a table's missing pairs) are left out.\n\n" CLI_EXIT_HELP);
-}
 
 static int parse_gonio(const char *v, size_t n[4]) {
     const char *p = v;
@@ -45,49 +26,69 @@ static int parse_gonio(const char *v, size_t n[4]) {
     return 0;
 }
 
+static int set_gonio(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    sb_gonio_opts_t *go = dst;
+    size_t n[4];
+    if (parse_gonio(v, n)) return -1;
+    go->n_theta_i = n[0];
+    go->n_phi_i = n[1];
+    go->n_theta_o = n[2];
+    go->n_phi_o = n[3];
+    return 0;
+}
+
+static int set_seed(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    size_t s;
+    if (cli_parse_size(cmd, op->name, v, 0, SIZE_MAX, &s)) return -1;
+    *(uint64_t *)dst = s;
+    return 0;
+}
+
+/* The options of `sample` (stored into an sb_gonio_opts_t); --gonio is
+ * documented in help(), its value names do not fit the column. */
+static const cli_option_t sample_only[] = {
+    {"-g", "--gonio", "Nti,Npi,Nto,Npo", NULL, set_gonio, 0, 0, 0, CLI_OWN},
+    {NULL, "--noise", "SIGMA",
+     "multiplicative Gaussian noise v (1 + SIGMA z), z ~ N(0,1)\nper value, 0..10 (default 0)", cli_set_double,
+     offsetof(sb_gonio_opts_t, noise), 0, 10, CLI_OWN},
+    {NULL, "--seed", "S", "seed of the noise (default 1): same seed, same table", set_seed,
+     offsetof(sb_gonio_opts_t, seed), 0, 0, CLI_OWN},
+    {0},
+};
+
+static void help(void) {
+    printf("usage: sepbrdf sample SOURCE [--gonio Nti,Npi,Nto,Npo] [--noise SIGMA] [--seed S] [-o FILE]\n"
+           "\n"
+           "Measure SOURCE (a model spec, see `sepbrdf list`, or a measured file) at\n"
+           "the positions of a simulated gonioreflectometer and write a sepbrdf CSV\n"
+           "table (docs/measured.md), readable by `sepbrdf factor` and `sepbrdf info`.\n"
+           "\n"
+           "options:\n"
+           "  -g, --gonio Nti,Npi,Nto,Npo  light and detector positions (default 18,1,18,72):\n"
+           "                       theta_k = (k + 1/2) 90/N deg (cell centres, the horizon is\n"
+           "                       never measured), phi_k = k 360/N deg; the spacing is\n"
+           "                       90/N_theta and 360/N_phi degrees.  One light azimuth\n"
+           "                       (Npi = 1) suffices for an isotropic source.\n");
+    cli_table_help(sample_only, CLI_OWN);
+    printf("  -o, --out FILE       output CSV (default: standard output); written to a\n"
+           "                       temporary name and renamed when complete\n" CLI_VERBOSITY_HELP "\n"
+           "Rows where SOURCE has no value (a table's missing pairs) are left out.\n\n" CLI_EXIT_HELP);
+}
+
 int cmd_sample(int argc, char **argv) {
-    static const char *const n_gonio[] = {"-g", "--gonio", NULL}, *const n_noise[] = {"--noise", NULL},
-                             *const n_seed[] = {"--seed", NULL}, *const n_q[] = {"-q", "--quiet", NULL},
-                             *const n_help[] = {"-h", "--help", NULL};
     const char *source = NULL, *out = NULL;
     sb_gonio_opts_t go = {18, 1, 18, 72, 0, 1};
-    cli_args_t a = {argc, 1, argv, "sample"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_out_opt(&a, "file", &out))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_gonio, 1, &v))) {
-            size_t n[4];
-            if (m < 0 || parse_gonio(v, n)) return EXIT_USAGE;
-            go.n_theta_i = n[0];
-            go.n_phi_i = n[1];
-            go.n_theta_o = n[2];
-            go.n_phi_o = n[3];
-        } else if ((m = cli_opt(&a, n_noise, 1, &v))) {
-            if (m < 0 || cli_parse_double("sample", "--noise", v, 0, 10, &go.noise)) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_seed, 1, &v))) {
-            size_t s;
-            if (m < 0 || cli_parse_size("sample", "--seed", v, 0, SIZE_MAX, &s)) return EXIT_USAGE;
-            go.seed = s;
-        } else if (cli_opt(&a, n_q, 0, &v)) {
-            g_verbosity = 0;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-            continue;
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("sample", "unknown option '%s' (see `sepbrdf sample --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else if (!source) {
-            source = argv[a.i];
-        } else {
-            cli_error("sample", "more than one SOURCE given ('%s' and '%s')", source, argv[a.i]);
-            return EXIT_USAGE;
-        }
-    }
+    cli_parser_t p = {.cmd = "sample",
+                      .help = help,
+                      .out_what = "file",
+                      .out = &out,
+                      .tables = {{sample_only, CLI_OWN, &go, NULL}},
+                      .what = "SOURCE",
+                      .args = &source,
+                      .max_args = 1};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc >= 0) return rc;
     if (!source) {
         cli_error("sample", "no SOURCE given (see `sepbrdf sample --help`)");
         return EXIT_USAGE;
@@ -102,7 +103,6 @@ int cmd_sample(int argc, char **argv) {
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
     sb_result_t r;
-    int rc;
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("sample", "out of memory");
         return EXIT_IO;

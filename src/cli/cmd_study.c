@@ -15,6 +15,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
@@ -37,6 +38,10 @@ static const cli_option_t study_only[] = {
      "parameterisations, comma separated (io,io-area,hd,iso),\nor all (default): every one this build supports, iso\n"
      "only for isotropic sources",
      set_params, 0, 0, 0, CLI_STUDY},
+    {NULL, "--nmf", NULL,
+     "also fit non-negative factors (--method nmf) with every J\nstudied and show their errors beside (nmf_headline,\n"
+     "nmf_rel_rms): what positivity costs at each J",
+     cli_set_flag, offsetof(study_opts_t, nmf), 0, 0, CLI_STUDY},
     {0},
 };
 
@@ -193,32 +198,22 @@ static int set_params(const char *cmd, const cli_option_t *op, const char *v, vo
 }
 
 static int parse(int argc, char **argv, study_opts_t *o) {
-    static const char *const n_help[] = {"-h", "--help", NULL};
-    cli_args_t a = {argc, 1, argv, "study"};
-    for (; a.i < argc; a.i++) {
-        const char *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        }
-        if ((m = cli_out_opt(&a, "folder", &o->out)) || (m = cli_table_opt(&a, study_only, CLI_STUDY, o, NULL)) ||
-            (m = cli_table_opt(&a, cli_factor_options, CLI_STUDY, &o->job, NULL)) ||
-            (m = cli_measured_opt(&a, &o->job.measured))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(argv[a.i])) {
-        } else if (argv[a.i][0] == '-' && argv[a.i][1]) {
-            cli_error("study", "unknown option '%s' (see `sepbrdf study --help`)", argv[a.i]);
-            return EXIT_USAGE;
-        } else {
-            o->sources[o->nsources++] = argv[a.i];
-        }
-    }
-    if (o->nsources == 0) {
+    cli_parser_t p = {.cmd = "study",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = &o->out,
+                      .tables = {{study_only, CLI_STUDY, o, NULL}, {cli_factor_options, CLI_STUDY, &o->job, NULL}},
+                      .measured = &o->job.measured,
+                      .what = "SOURCE",
+                      .args = o->sources,
+                      .max_args = (size_t)argc,
+                      .nargs = &o->nsources};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc < 0 && o->nsources == 0) {
         cli_error("study", "no SOURCE given (see `sepbrdf study --help`)");
         return EXIT_USAGE;
     }
-    return -1; /* go on */
+    return rc; /* -1: go on */
 }
 
 /* ---- running ----------------------------------------------------------- */
@@ -247,6 +242,26 @@ static void take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size
     sb_job_stats(job, &st);
     if (st.fit_iterations > r->iterations) r->iterations = st.fit_iterations;
     if (st.masked && !st.fit_converged) r->converged = 0;
+}
+
+/* --nmf: the non-negative fit with each studied J (its terms are not
+ * nested: one fit per J), its headline and rel_rms beside the row of that
+ * J; NaN where it fails (reported, the run stays good). */
+static void nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const sb_job_opts_t *base) {
+    sb_job_opts_t jo = *base;
+    jo.method = SB_METHOD_NMF;
+    sb_job_t *job = NULL;
+    sb_result_t res = sb_job_run_source(ctx, src, &jo, &job);
+    for (size_t k = 0; k < r->nr; k++) {
+        row_t *w = &r->r[k];
+        w->nmf_headline = w->nmf_rel_rms = NAN;
+        if (res == SB_OK && (res = sb_job_refactor(ctx, job, w->terms)) == SB_OK) {
+            w->nmf_headline = sb_job_headline(job, w->terms);
+            w->nmf_rel_rms = sb_factors_errors(sb_job_factors(job))->rel_rms[sb_err_at(w->terms - 1, SB_CH_ALL)];
+        }
+    }
+    if (res != SB_OK) cli_error("study", "%s on %s: nmf: %s", r->spec, jo.param, sb_context_last_error(ctx));
+    sb_job_destroy(job);
 }
 
 /* Sample once (the job on one parameterisation), factor once (nested) or
@@ -290,6 +305,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
         if ((res = sb_job_refactor(ctx, job, j)) == SB_OK) take_rows(r, o, job, j, r->masked);
         failed_j = j;
     }
+    if (res == SB_OK && o->nmf) nmf_rows(ctx, src, r, &jo);
     cli_progress(label, base + span);
     if (res != SB_OK) {
         char msg[1024];
@@ -303,9 +319,10 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
 
 /* ---- outputs ----------------------------------------------------------- */
 
-static void print_table(const runs_t *rs) {
-    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s\n", "source", "param", "J", "headline", "comparable",
+static void print_table(const study_opts_t *o, const runs_t *rs) {
+    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s", "source", "param", "J", "headline", "comparable",
            "rel_rms", "max_abs", "negative", "time_s", "fit");
+    printf(o->nmf ? "   %12s  %11s\n" : "\n", "nmf_headline", "nmf_rel_rms");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         const char *pn = r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : "-";
@@ -315,9 +332,11 @@ static void print_table(const runs_t *rs) {
         }
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %s\n", r->spec, pn, w->terms,
+            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, pn, w->terms,
                    w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
                    r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
+            if (o->nmf) printf("  %12.4e  %11.4e", w->nmf_headline, w->nmf_rel_rms);
+            printf("\n");
         }
     }
 }
@@ -405,6 +424,35 @@ static void settle(study_opts_t *o) {
     o->method = o->job.method;
 }
 
+/* Write the output set of the runs (a staging folder published in one
+ * step, outset.h, so the folder never mixes files of two studies), print
+ * the table; the exit code. */
+static int publish(sb_context_t *ctx, const study_opts_t *o, const runs_t *rs, double t0) {
+    size_t failed = 0, good = 0;
+    for (size_t i = 0; i < rs->n; i++) {
+        if (rs->v[i].ok)
+            good++;
+        else
+            failed++;
+    }
+    int rc, plotted = 0;
+    sb_outset_t *set = cli_outset_begin(ctx, "study", o->out, &rc);
+    if (!set) return rc;
+    if (study_write_set(set, o, rs, failed, good, &plotted) != 0) {
+        cli_outset_end(ctx, "study", set, 0); /* a set not published: discarded */
+        return EXIT_IO;
+    }
+    if ((rc = cli_outset_end(ctx, "study", set, 1)) != EXIT_OK) return rc;
+    if (g_verbosity >= 1) {
+        print_table(o, rs);
+        printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
+               o->out, good, failed, cli_now() - t0);
+    }
+    if (failed)
+        cli_error("study", "%zu of %zu runs failed; the results of the other %zu are written", failed, rs->n, good);
+    return failed ? EXIT_IO : EXIT_OK;
+}
+
 int cmd_study(int argc, char **argv) {
     study_opts_t o = {0};
     o.sources = calloc((size_t)argc + 1, sizeof *o.sources);
@@ -427,7 +475,6 @@ int cmd_study(int argc, char **argv) {
     }
 
     sb_context_t *ctx = NULL;
-    sb_outset_t *set = NULL;
     runs_t rs = {0};
     sb_source_t **srcs = calloc(o.nsources, sizeof *srcs);
     size_t *first_run = calloc(o.nsources + 1, sizeof *first_run);
@@ -443,40 +490,13 @@ int cmd_study(int argc, char **argv) {
     if (list_runs(ctx, &o, srcs, first_run, &rs) != 0) goto nomem;
     run_all(ctx, &o, srcs, first_run, &rs);
     cli_progress_done();
-
-    size_t failed = 0, good = 0;
-    for (size_t i = 0; i < rs.n; i++) {
-        if (rs.v[i].ok)
-            good++;
-        else
-            failed++;
-    }
-    /* The files go into a staging folder published in one step (outset.h),
-     * so the folder never mixes files of two studies. */
-    if (!(set = cli_outset_begin(ctx, "study", o.out, &rc))) goto out;
-    int plotted = 0;
-    if (study_write_set(set, &o, &rs, failed, good, &plotted) != 0) {
-        rc = EXIT_IO;
-        goto out;
-    }
-    rc = cli_outset_end(ctx, "study", set, 1);
-    set = NULL;
-    if (rc != EXIT_OK) goto out;
-    if (g_verbosity >= 1) {
-        print_table(&rs);
-        printf("wrote study.csv, study.json%s to %s/ (%zu runs ok, %zu failed, %.3f s)\n", plotted ? ", study.png" : "",
-               o.out, good, failed, cli_now() - t0);
-    }
-    if (failed)
-        cli_error("study", "%zu of %zu runs failed; the results of the other %zu are written", failed, rs.n, good);
-    rc = failed ? EXIT_IO : EXIT_OK;
+    rc = publish(ctx, &o, &rs, t0);
     goto out;
 nomem:
     cli_progress_done();
     cli_error("study", "out of memory");
     rc = EXIT_IO;
 out:
-    cli_outset_end(ctx, "study", set, 0); /* a set not published: discarded */
     for (size_t s = 0; srcs && s < o.nsources; s++)
         sb_source_destroy(srcs[s]);
     free(srcs);

@@ -1,4 +1,5 @@
 /* sepbrdf view: an interactive viewer page (index.html) for a factor folder. */
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -8,6 +9,20 @@
 #include "sepbrdf/viewer.h"
 
 #define DEFAULT_DIR "sepbrdf-out"
+
+typedef struct view_opts {
+    const char *dir, *out, *source;
+    int no_original;
+    sb_measured_opts_t mo;
+} view_opts_t;
+
+static const cli_option_t view_only[] = {
+    {NULL, "--source", "SPEC", "the original to compare with", cli_set_string, offsetof(view_opts_t, source), 0, 0,
+     CLI_OWN},
+    {NULL, "--no-original", NULL, "leave the original out (a smaller page)", cli_set_flag,
+     offsetof(view_opts_t, no_original), 0, 0, CLI_OWN},
+    {0},
+};
 
 static void help(void) {
     printf("usage: sepbrdf view [DIR] [OPTIONS]\n"
@@ -28,54 +43,28 @@ static void help(void) {
            "options:\n"
            "  -o, --out FOLDER     where index.html goes, created if missing (default DIR);\n"
            "                       published as one output set beside the factors (as\n"
-           "                       `sepbrdf render` adds its set)\n"
-           "      --source SPEC    the original to compare with\n"
-           "      --no-original    leave the original out (a smaller page)\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP
-           "\n" CLI_EXIT_HELP);
+           "                       `sepbrdf render` adds its set)\n");
+    cli_table_help(view_only, CLI_OWN);
+    printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
 }
-
-typedef struct view_opts {
-    const char *dir, *out, *source;
-    int no_original;
-    sb_measured_opts_t mo;
-} view_opts_t;
 
 /* Returns an exit code, or -1 to go on. */
 static int parse(int argc, char **argv, view_opts_t *o) {
-    static const char *const n_help[] = {"-h", "--help", NULL}, *const n_src[] = {"--source", NULL},
-                             *const n_none[] = {"--no-original", NULL};
-    cli_args_t a = {argc, 1, argv, "view"};
-    for (; a.i < argc; a.i++) {
-        const char *arg = argv[a.i], *v = NULL;
-        int m;
-        if (cli_opt(&a, n_help, 0, &v)) {
-            help();
-            return EXIT_OK;
-        } else if ((m = cli_out_opt(&a, "folder", &o->out))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if ((m = cli_opt(&a, n_src, 1, &v))) {
-            if (m < 0) return EXIT_USAGE;
-            o->source = v;
-        } else if (cli_opt(&a, n_none, 0, &v)) {
-            o->no_original = 1;
-        } else if ((m = cli_measured_opt(&a, &o->mo))) {
-            if (m < 0) return EXIT_USAGE;
-        } else if (cli_verbosity_opt(arg)) {
-        } else if (arg[0] == '-' && arg[1]) {
-            cli_error("view", "unknown option '%s' (see `sepbrdf view --help`)", arg);
-            return EXIT_USAGE;
-        } else if (!o->dir) {
-            o->dir = arg;
-        } else {
-            cli_error("view", "more than one DIR given ('%s' and '%s')", o->dir, arg);
-            return EXIT_USAGE;
-        }
-    }
-    if (o->source && o->no_original) {
+    cli_parser_t p = {.cmd = "view",
+                      .help = help,
+                      .out_what = "folder",
+                      .out = &o->out,
+                      .tables = {{view_only, CLI_OWN, o, NULL}},
+                      .measured = &o->mo,
+                      .what = "DIR",
+                      .args = &o->dir,
+                      .max_args = 1};
+    int rc = cli_parse(argc, argv, &p);
+    if (rc < 0 && o->source && o->no_original) {
         cli_error("view", "--source and --no-original contradict each other");
         return EXIT_USAGE;
     }
-    return -1;
+    return rc;
 }
 
 /* The whole of a small text file, malloc'ed; NULL when unreadable. */

@@ -21,6 +21,12 @@ int cli_set_double(const char *cmd, const cli_option_t *op, const char *v, void 
     return cli_parse_double(cmd, op->name, v, op->lo, op->hi, dst);
 }
 
+int cli_set_string(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    *(const char **)dst = v;
+    return 0;
+}
+
 static int set_param(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     sb_param_kind_t k;
     if (strcmp(v, "auto") != 0 && sb_param_kind_parse(v, &k) != SB_OK) {
@@ -36,6 +42,18 @@ static int set_form(const char *cmd, const cli_option_t *op, const char *v, void
     if (sb_form_parse(v, &f) != SB_OK) {
         cli_error(cmd, "%s '%s' unknown, need one of %s, %s, %s", op->name, v, sb_form_name(SB_FORM_F),
                   sb_form_name(SB_FORM_COS), sb_form_name(SB_FORM_COS2));
+        return -1;
+    }
+    *(const char **)dst = v;
+    return 0;
+}
+
+static int set_warp(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    sb_warp_kind_t k;
+    int ok = strcmp(v, "adaptive") == 0 || strcmp(v, "auto") == 0 ||
+             (sb_warp_kind_parse(v, &k) == SB_OK && (k == SB_WARP_UNIFORM || k == SB_WARP_MERL));
+    if (!ok) {
+        cli_error(cmd, "%s '%s' unknown, need one of uniform, merl, adaptive, auto", op->name, v);
         return -1;
     }
     *(const char **)dst = v;
@@ -101,6 +119,9 @@ static int set_seed(const char *cmd, const cli_option_t *op, const char *v, void
 #define S_ CLI_STUDY
 #define AT(m) offsetof(sb_job_opts_t, m)
 const cli_option_t cli_factor_options[] = {
+    /* render and study take lists of J: their own -J rows */
+    {"-J", "--terms", "J", "number of terms kept, 1..N (default 4)", cli_set_size, AT(terms), 1, (double)(1u << 30),
+     F_},
     {"-r", "--res", "R", "cells per angular axis, 2..512; N = R*R directions (default 32)", cli_set_size, AT(res), 2,
      512, F_ | R_ | S_},
     {NULL, "--param", "P",
@@ -111,6 +132,13 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--form", "F",
      "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",
      set_form, AT(form), 0, 0, F_ | R_ | S_},
+    {NULL, "--warp", "W",
+     "texel spacing along the elevations theta_h, theta_d (iso,\n"
+     "hd): uniform; merl (theta_h as MERL: square root); adaptive\n"
+     "(measured from the source: equal interpolation error of\n"
+     "f cos theta_i between texels); auto (adaptive where its\n"
+     "headline error is lower); default: iso merl, hd uniform",
+     set_warp, AT(warp), 0, 0, F_ | R_ | S_},
     {NULL, "--weighted", NULL,
      "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate)",
      cli_set_flag, AT(weighted), 0, 0, F_ | R_ | S_},
@@ -165,7 +193,7 @@ int cli_table_opt(cli_args_t *a, const cli_option_t *table, unsigned command, vo
 
 void cli_table_help(const cli_option_t *table, unsigned command) {
     for (const cli_option_t *op = table; op->name; op++) {
-        if (!(op->commands & command)) continue;
+        if (!(op->commands & command) || !op->help) continue;
         char head[64];
         snprintf(head, sizeof head, "  %s%s%s %s", op->short_name ? op->short_name : "    ", op->short_name ? ", " : "",
                  op->name, op->arg ? op->arg : "");
@@ -185,4 +213,53 @@ void cli_table_help(const cli_option_t *table, unsigned command) {
                 printf("%25s%-8s %s\n", "", sb_param_kind_name((sb_param_kind_t)k),
                        sb_param_kind_description((sb_param_kind_t)k));
     }
+}
+
+/* The positional argument argv[a->i]; -1 after a message when one too many. */
+static int positional(const cli_parser_t *p, const char *arg, size_t *n) {
+    if (*n == p->max_args) {
+        cli_error(p->cmd, "more than one %s given ('%s' and '%s')", p->what, p->args[0], arg);
+        return -1;
+    }
+    p->args[(*n)++] = arg;
+    if (p->nargs) *p->nargs = *n;
+    return 0;
+}
+
+/* 1 if argv[a->i] is an option of the command (stored), 0 if not, -1 on a
+ * bad value (message printed). */
+static int known_option(cli_args_t *a, const cli_parser_t *p) {
+    int m = 0;
+    if (p->out_what && (m = cli_out_opt(a, p->out_what, p->out))) return m;
+    for (const cli_table_use_t *t = p->tables; t < p->tables + 3 && t->table; t++) {
+        const cli_option_t *op = NULL;
+        if (!(m = cli_table_opt(a, t->table, t->command, t->base, &op))) continue;
+        if (m > 0 && t->matched) *t->matched = op->name;
+        return m;
+    }
+    if (p->measured && (m = cli_measured_opt(a, p->measured))) return m;
+    return cli_verbosity_opt(a->argv[a->i]);
+}
+
+int cli_parse(int argc, char **argv, const cli_parser_t *p) {
+    static const char *const n_help[] = {"-h", "--help", NULL};
+    cli_args_t a = {argc, 1, argv, p->cmd};
+    size_t n = p->nargs ? *p->nargs : 0;
+    for (; a.i < argc; a.i++) {
+        const char *v = NULL, *arg = argv[a.i];
+        int m;
+        if (cli_opt(&a, n_help, 0, &v)) {
+            p->help();
+            return EXIT_OK;
+        }
+        if ((m = known_option(&a, p)) != 0) {
+            if (m < 0) return EXIT_USAGE;
+        } else if (arg[0] == '-' && arg[1]) {
+            cli_error(p->cmd, "unknown option '%s' (see `sepbrdf %s --help`)", arg, p->cmd);
+            return EXIT_USAGE;
+        } else if (positional(p, arg, &n) != 0) {
+            return EXIT_USAGE;
+        }
+    }
+    return -1;
 }

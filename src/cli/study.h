@@ -19,13 +19,15 @@ typedef struct study_opts {
     sb_form_t form;    /* resolved from job for the outputs */
     int weighted, zero_fill;
     sb_method_t method;
+    int nmf; /* --nmf: also the non-negative fit for every J (row_t.nmf_*) */
 } study_opts_t;
 
 /* Errors after J terms of one run. */
 typedef struct row {
     size_t terms;
     double headline, comparable, rel_rms, max_abs, neg_frac;
-    double t_factor, t_metric; /* of the factorisation the row was read from */
+    double t_factor, t_metric;        /* of the factorisation the row was read from */
+    double nmf_headline, nmf_rel_rms; /* --nmf: the J-term non-negative fit (NaN when it failed) */
 } row_t;
 
 /* One source x parameterisation (or a source that could not be opened,

@@ -26,8 +26,10 @@ static void csv_field(FILE *fp, const char *s) {
 }
 
 static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
-    fprintf(fp, "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,"
-                "sample_s,factor_s,metric_s,headline\n");
+    fprintf(fp,
+            "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,"
+            "sample_s,factor_s,metric_s,headline%s\n",
+            o->nmf ? ",nmf_headline,nmf_rel_rms" : "");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         if (!r->ok) continue;
@@ -36,9 +38,11 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             csv_field(fp, r->spec);
             fprintf(fp, ",%s,", sb_param_kind_name((sb_param_kind_t)r->kind));
             csv_field(fp, r->param_spec);
-            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g\n", sb_form_name(o->form), o->weighted,
+            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g", sb_form_name(o->form), o->weighted,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
                     r->t_sample, w->t_factor, w->t_metric, w->headline);
+            if (o->nmf) fprintf(fp, ",%.9g,%.9g", w->nmf_headline, w->nmf_rel_rms);
+            fputc('\n', fp);
         }
     }
 }
@@ -100,6 +104,10 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
             json_number(&j, "negative_fraction", w->neg_frac);
             json_number(&j, "factor_s", w->t_factor);
             json_number(&j, "metric_s", w->t_metric);
+            if (o->nmf) {
+                json_number(&j, "nmf_headline", w->nmf_headline);
+                json_number(&j, "nmf_rel_rms", w->nmf_rel_rms);
+            }
             json_end_object(&j);
         }
         json_end_array(&j);

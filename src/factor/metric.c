@@ -267,10 +267,10 @@ static void work_free(work_t *w) {
     free(w->neg);
 }
 
-sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p,
-                              sb_form_t form, const sb_metric_opts_t *opts, sb_metric_t *out) {
-    if (!src || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "metric: missing argument");
-    memset(out, 0, sizeof *out);
+/* The arguments of sb_metric_compute: textures of the parameterisation's
+ * sizes, a known form, a reference resolution in range (into *o). */
+static sb_result_t check_args(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
+                              const sb_metric_opts_t *opts, sb_metric_opts_t *o) {
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "metric: unknown form %d", (int)form);
     for (int side = SB_SIDE_G; side <= SB_SIDE_H; side++) {
         size_t fw, fh, pw, ph;
@@ -280,89 +280,98 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
             return sb_error(ctx, SB_ERR_ARG, "metric: textures of %zu x %zu, the parameterisation has %zu x %zu", fw,
                             fh, pw, ph);
     }
-    sb_metric_opts_t o = {0};
-    if (opts) o = *opts;
-    if (o.res == 0) o.res = 32;
-    if (o.res < 2 || o.res > SB_METRIC_MAX_RES)
+    memset(o, 0, sizeof *o);
+    if (opts) *o = *opts;
+    if (o->res == 0) o->res = 32;
+    if (o->res < 2 || o->res > SB_METRIC_MAX_RES)
         return sb_error(ctx, SB_ERR_RANGE,
                         "metric: reference resolution %zu, need 2..%d (the work grows as its fourth power: %d takes "
                         "seconds)",
-                        o.res, SB_METRIC_MAX_RES, SB_METRIC_MAX_RES);
-    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), R = o.res, N = R * R;
-    if (J > MAXJ) J = MAXJ;
-    int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
-    unsigned caps = sb_param_caps(p);
+                        o->res, SB_METRIC_MAX_RES, SB_METRIC_MAX_RES);
+    return SB_OK;
+}
 
-    work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C};
-    w.tex[0] = malloc((J * C + 1) * sizeof *w.tex[0]);
-    w.tex[1] = malloc((J * C + 1) * sizeof *w.tex[1]);
-    w.dir = sb_alloc(ctx, N, 3 * sizeof *w.dir, "metric directions");
-    w.inside = sb_alloc(ctx, N, 1, "metric directions");
-    w.num = sb_calloc(ctx, R, (J + 1) * sizeof *w.num, "metric sums");
-    w.neg = sb_calloc(ctx, R, (J + 1) * sizeof *w.neg, "metric sums");
-    if (!w.tex[0] || !w.tex[1] || !w.dir || !w.inside || !w.num || !w.neg) {
-        work_free(&w);
-        return sb_error(ctx, SB_ERR_NOMEM, "metric: out of memory");
-    }
-    /* The speed-ups' tables are optional: without them (too large), the
-     * per-pair path computes the same sums. */
+/* The buffers of w: the required ones (-1 when out of memory), and the
+ * speed-ups' tables, optional: without them (too large), the per-pair path
+ * computes the same sums. */
+static int work_alloc(sb_context_t *ctx, work_t *w, int iso_src, unsigned caps) {
+    size_t J = w->J, C = w->C, R = w->R, N = w->N;
+    w->tex[0] = malloc((J * C + 1) * sizeof *w->tex[0]);
+    w->tex[1] = malloc((J * C + 1) * sizeof *w->tex[1]);
+    w->dir = sb_alloc(ctx, N, 3 * sizeof *w->dir, "metric directions");
+    w->inside = sb_alloc(ctx, N, 1, "metric directions");
+    w->num = sb_calloc(ctx, R, (J + 1) * sizeof *w->num, "metric sums");
+    w->neg = sb_calloc(ctx, R, (J + 1) * sizeof *w->neg, "metric sums");
+    if (!w->tex[0] || !w->tex[1] || !w->dir || !w->inside || !w->num || !w->neg) return -1;
     if (iso_src) {
-        w.tab = sb_alloc(NULL, N * R, 3 * sizeof *w.tab, "");
-        w.tknown = sb_alloc(NULL, N * R, 1, "");
-        if (!w.tab || !w.tknown) {
-            free(w.tab);
-            free(w.tknown);
-            w.tab = NULL;
-            w.tknown = NULL;
+        w->tab = sb_alloc(NULL, N * R, 3 * sizeof *w->tab, "");
+        w->tknown = sb_alloc(NULL, N * R, 1, "");
+        if (!w->tab || !w->tknown) {
+            free(w->tab);
+            free(w->tknown);
+            w->tab = NULL;
+            w->tknown = NULL;
         }
     }
     if (caps & SB_CAP_SEPARABLE) {
         for (int s = 0; s < 2; s++)
-            w.side[s] = sb_alloc(NULL, N, J * C * sizeof *w.side[s], "");
-        if (!w.side[0] || !w.side[1]) {
-            free(w.side[0]);
-            free(w.side[1]);
-            w.side[0] = w.side[1] = NULL;
+            w->side[s] = sb_alloc(NULL, N, J * C * sizeof *w->side[s], "");
+        if (!w->side[0] || !w->side[1]) {
+            free(w->side[0]);
+            free(w->side[1]);
+            w->side[0] = w->side[1] = NULL;
         }
     }
+    return 0;
+}
 
-    /* Per side: textures, sizes, wrap; per theta: weight m c^2 and guards. */
+/* Per side: textures, sizes, wrap; per theta: weight m c^2 and guards. */
+static void work_setup(work_t *w, const sb_factors_t *f, const sb_param_t *p, sb_form_t form) {
+    size_t R = w->R;
     for (int s = 0; s < 2; s++) {
-        sb_factors_size(f, s, &w.tw[s], &w.th[s]);
-        sb_param_wrap(p, s, w.wrap[s]);
-        for (size_t j = 0; j < J; j++)
-            for (size_t c = 0; c < C; c++)
-                w.tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
+        sb_factors_size(f, s, &w->tw[s], &w->th[s]);
+        sb_param_wrap(p, s, w->wrap[s]);
+        for (size_t j = 0; j < w->J; j++)
+            for (size_t c = 0; c < w->C; c++)
+                w->tex[s][j * w->C + c] = sb_factors_tex_const(f, s, j, c);
     }
     double dt = SB_PI / 2 / (double)R, dp = 2 * SB_PI / (double)R;
     for (size_t t = 0; t < R; t++) {
         double c = cos((t + 0.5) * dt), g = fmax(c, 0.001);
-        w.wt[t] = dp * (cos(t * dt) - cos((t + 1) * dt)) * c * c;
-        w.guard[0][t] = form == SB_FORM_COS || form == SB_FORM_COS2 ? g : 1;
-        w.guard[1][t] = form == SB_FORM_COS2 ? g : 1;
+        w->wt[t] = dp * (cos(t * dt) - cos((t + 1) * dt)) * c * c;
+        w->guard[0][t] = form == SB_FORM_COS || form == SB_FORM_COS2 ? g : 1;
+        w->guard[1][t] = form == SB_FORM_COS2 ? g : 1;
     }
+}
 
-    int nt = sb_threads_for(o.threads, R, R, 0);
-    run_units(&w, unit_dirs, nt);
-    if (w.tab) run_units(&w, unit_table, nt);
-    if (w.side[0]) {
-        run_units(&w, unit_separable, nt);
+/* The phases: directions, the source table, then the sums by the fastest
+ * path the parameterisation and the source allow. */
+static void work_run(work_t *w, unsigned caps, int iso_src, int nt) {
+    size_t R = w->R;
+    run_units(w, unit_dirs, nt);
+    if (w->tab) run_units(w, unit_table, nt);
+    if (w->side[0]) {
+        run_units(w, unit_separable, nt);
     } else if ((caps & SB_CAP_ROTATION_INVARIANT) && iso_src) {
         for (size_t t = 0; t < R; t++) {
-            w.ring_ok[t] = 1;
+            w->ring_ok[t] = 1;
             for (size_t ip = 1; ip < R; ip++)
-                w.ring_ok[t] &= w.inside[ip * R + t] == w.inside[t];
+                w->ring_ok[t] &= w->inside[ip * R + t] == w->inside[t];
         }
-        run_units(&w, unit_iso, nt);
+        run_units(w, unit_iso, nt);
     } else {
-        run_units(&w, unit_pairs, nt);
+        run_units(w, unit_pairs, nt);
     }
+}
 
+/* The units' sums into out: relative L2 error and negative fraction per J. */
+static void work_sums(const work_t *w, sb_metric_t *out) {
+    size_t J = w->J;
     double num[MAXJ] = {0}, den = 0;
     size_t neg[MAXJ] = {0}, known = 0;
-    for (size_t i = 0; i < R; i++) {
-        const double *un = w.num + i * (J + 1);
-        const size_t *ug = w.neg + i * (J + 1);
+    for (size_t i = 0; i < w->R; i++) {
+        const double *un = w->num + i * (J + 1);
+        const size_t *ug = w->neg + i * (J + 1);
         for (size_t j = 0; j < J; j++) {
             num[j] += un[j];
             neg[j] += ug[j];
@@ -370,16 +379,18 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
         den += un[J];
         known += ug[J];
     }
-    work_free(&w);
     out->terms = J;
-    out->pairs = N * N;
+    out->pairs = w->N * w->N;
     out->known = known;
     for (size_t j = 0; j < J; j++) {
         out->rel_l2[j] = den > 0 ? sqrt(num[j] / den) : (num[j] > 0 ? INFINITY : 0);
         out->neg_frac[j] = known ? (double)neg[j] / (double)known : 0;
     }
-    /* negative texels over every texture of the kept terms */
-    size_t nneg = 0, ntex = 0;
+}
+
+/* The fraction of negative texels over every texture of the first J terms. */
+static double negative_texels(const sb_factors_t *f, size_t J) {
+    size_t nneg = 0, ntex = 0, C = sb_factors_channels(f);
     for (int side = 0; side < 2; side++) {
         size_t tw, th;
         sb_factors_size(f, side, &tw, &th);
@@ -391,6 +402,30 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
                 ntex += tw * th;
             }
     }
-    out->neg_texels = ntex ? (double)nneg / (double)ntex : 0;
+    return ntex ? (double)nneg / (double)ntex : 0;
+}
+
+sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p,
+                              sb_form_t form, const sb_metric_opts_t *opts, sb_metric_t *out) {
+    if (!src || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "metric: missing argument");
+    memset(out, 0, sizeof *out);
+    sb_metric_opts_t o;
+    sb_result_t r = check_args(ctx, f, p, form, opts, &o);
+    if (r != SB_OK) return r;
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), R = o.res, N = R * R;
+    if (J > MAXJ) J = MAXJ;
+    int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
+    unsigned caps = sb_param_caps(p);
+
+    work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C};
+    if (work_alloc(ctx, &w, iso_src, caps) != 0) {
+        work_free(&w);
+        return sb_error(ctx, SB_ERR_NOMEM, "metric: out of memory");
+    }
+    work_setup(&w, f, p, form);
+    work_run(&w, caps, iso_src, sb_threads_for(o.threads, R, R, 0));
+    work_sums(&w, out);
+    work_free(&w);
+    out->neg_texels = negative_texels(f, J);
     return SB_OK;
 }

@@ -74,6 +74,9 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
                      sb_param_kind_name((sb_param_kind_t)k));
         return sb_error(ctx, SB_ERR_UNKNOWN, "parameterisation '%s' unknown, need one of %s", o->param, names);
     }
+    int adaptive;
+    sb_warp_kind_t warp;
+    if (job_warp_parse(ctx, o->warp, &adaptive, &warp) != SB_OK) return SB_ERR_UNKNOWN;
     if (o->form && sb_form_parse(o->form, form) != SB_OK)
         return sb_error(ctx, SB_ERR_UNKNOWN, "form '%s' unknown, need one of f, cos, cos2", o->form);
     if (job->is_auto) o->param = NULL;
@@ -99,6 +102,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     sb_result_t r = resolve(ctx, job, opts, &kind, &form);
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job_select(ctx, job);
+    if (r == SB_OK) r = job_warp_refit(ctx, job);
     if (r == SB_OK) {
         job->t.sample_s = job->best.t_sample;
         job->t.factor_s = job->best.t_factor;

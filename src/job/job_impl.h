@@ -44,6 +44,7 @@ struct sb_job {
     job_attempt_t best;
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
     double *term_w;     /* J * C term weights of the kept fit (job_weights.c); NULL: all 1 */
+    int wrote_sampler;  /* sb_job_write wrote sampler.bin (non-negative factors) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     sb_job_timings_t t;
@@ -77,5 +78,12 @@ sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t ca
  * sampled and factored at the requested settings, in job->best. */
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form);
 sb_result_t job_select(sb_context_t *ctx, sb_job_t *job);
+
+/* opts.warp: NULL (the layout's own), "uniform", "merl" (kind set),
+ * "adaptive" or "auto" (*adaptive = 1); SB_ERR_UNKNOWN otherwise
+ * (job_warp.c). */
+sb_result_t job_warp_parse(sb_context_t *ctx, const char *name, int *adaptive, sb_warp_kind_t *kind);
+/* With opts.warp, the kept fit again on the warped layout (job_warp.c). */
+sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job);
 
 #endif

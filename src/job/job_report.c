@@ -22,6 +22,28 @@ static void report_size(sb_json_t *j, const sb_param_t *param) {
     sb_json_end_object(j);
 }
 
+/* "warp": the option asked for, and per axis of a layout that takes warps
+ * its kind and, for a table, the knots x_k (W(x_k) = k / K). */
+static void report_warps(sb_json_t *j, const sb_job_t *job) {
+    static const char *const axes[SB_AXIS_COUNT_] = {"theta_h", "theta_d"};
+    sb_json_begin_object(j, "warp");
+    sb_json_string(j, "requested", job->o.warp);
+    for (int a = 0; a < SB_AXIS_COUNT_; a++) {
+        const sb_warp_t *w = sb_param_warp(job->best.param, a);
+        if (!w) continue;
+        sb_json_begin_object(j, axes[a]);
+        sb_json_string(j, "kind", sb_warp_kind_name(w->kind));
+        if (w->kind == SB_WARP_TABLE) {
+            sb_json_begin_array(j, "knots");
+            for (size_t k = 0; k <= w->knots; k++)
+                sb_json_number(j, NULL, w->x[k]);
+            sb_json_end_array(j);
+        }
+        sb_json_end_object(j);
+    }
+    sb_json_end_object(j);
+}
+
 static void report_settings(sb_json_t *j, const sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     const sb_matrix_t *m = &a->m;
@@ -31,6 +53,7 @@ static void report_settings(sb_json_t *j, const sb_job_t *job) {
     sb_json_string(j, "source_spec", job->o.source);
     sb_json_string(j, "param", sb_param_name(a->param));
     sb_json_string(j, "param_spec", sb_param_spec(a->param));
+    report_warps(j, job);
     sb_json_int(j, "resolution", (long long)job->o.res);
     sb_json_int(j, "rows", (long long)m->rows);
     sb_json_int(j, "cols", (long long)m->cols);
@@ -224,6 +247,7 @@ static void report_files(sb_json_t *j, const sb_job_t *job) {
         sb_json_end_array(j);
     }
     sb_json_string(j, "glsl", "sepbrdf.glsl");
+    sb_json_string(j, "sampler", job->wrote_sampler ? "sampler.bin" : NULL);
     sb_json_end_object(j);
 }
 

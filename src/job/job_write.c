@@ -10,6 +10,8 @@
 #include "sepbrdf/exr.h"
 #include "sepbrdf/glsl.h"
 #include "sepbrdf/image.h"
+#include "sepbrdf/sampler.h"
+#include "sepbrdf/solver.h"
 #include "util/internal.h"
 
 /* rel_rms of the stored (FLOAT or HALF) textures against the matrix, for
@@ -63,6 +65,55 @@ static sb_result_t add_textures(sb_outset_t *set, size_t J) {
     return r;
 }
 
+/* sampler.bin, its integrals in the units of the stored g textures. */
+static sb_result_t write_sampler(sb_context_t *ctx, const sb_job_t *job, sb_outset_t *set, const sb_sampler_t *s) {
+    const job_attempt_t *a = &job->best;
+    size_t J = sb_factors_terms(a->f);
+    sb_exr_opts_t eo = {job->o.half};
+    double *gs = malloc(J * sizeof *gs);
+    sb_result_t r = gs ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    for (size_t j = 0; j < J && r == SB_OK; j++)
+        r = sb_exr_texture_scale(ctx, a->f, SB_SIDE_G, j, &eo, &gs[j]);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/sampler.bin", sb_outset_dir(set));
+    if (r == SB_OK) r = sb_sampler_write(ctx, s, path, gs);
+    if (r == SB_OK && sb_outset_add(set, "sampler.bin") != SB_OK) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    free(gs);
+    return r;
+}
+
+/* Whether the factors come from a solver whose factors are non-negative
+ * by construction (SB_CAP_NONNEG: --method nmf). */
+static int nonneg_solver(const sb_factors_t *f) {
+    const char *m = sb_factors_get_meta(f, "method");
+    for (size_t i = 0; m && i < sb_solver_count(); i++)
+        if (strcmp(sb_solver_name(i), m) == 0) return (sb_solver_caps(i) & SB_CAP_NONNEG) != 0;
+    return 0;
+}
+
+/* sepbrdf.glsl; for non-negative factors (SB_CAP_NONNEG) also sampler.bin
+ * and the sampler block appended to the snippet (sampler.h, glsl.h). */
+static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set, const double *scales) {
+    const job_attempt_t *a = &job->best;
+    size_t J = sb_factors_terms(a->f);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/sepbrdf.glsl", sb_outset_dir(set));
+    sb_sampler_t *s = NULL;
+    sb_result_t r = nonneg_solver(a->f) ? sb_sampler_create(NULL, a->f, a->param, a->m.form, &s) : SB_OK;
+    if (r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW) return sb_error(ctx, r, "sampler: out of memory");
+    if (r != SB_OK) job_warn(job, "no sampler: %s", sb_result_message(r)); /* e.g. every term weighted to 0 */
+    if (s) {
+        r = write_sampler(ctx, job, set, s);
+        if (r == SB_OK) r = sb_glsl_write_sampled(ctx, path, a->param, a->m.form, J, scales, sb_factors_channels(a->f));
+        sb_sampler_destroy(s);
+        job->wrote_sampler = r == SB_OK;
+    } else {
+        r = sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
+    }
+    if (r == SB_OK && sb_outset_add(set, "sepbrdf.glsl") != SB_OK) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    return r;
+}
+
 sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set) {
     if (!job || !set || !job->best.f) return sb_error(ctx, SB_ERR_ARG, "sb_job_write_set: no job or no set");
     double t0 = job_now();
@@ -76,15 +127,12 @@ sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
     free(job->rel_stored);
     job->rel_stored = stored_errors(ctx, job);
     if (job->o.previews && (r = sb_factors_write_previews(ctx, a->f, dir)) != SB_OK) return r;
-    char path[4200];
-    snprintf(path, sizeof path, "%s/sepbrdf.glsl", dir);
     /* the snippet's sb_scale: what the shader multiplies the stored texels by (HALF) */
     double *scales = malloc(J * sizeof *scales);
     r = scales ? sb_exr_term_scales(ctx, a->f, &eo, scales) : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    if (r == SB_OK) r = sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
+    if (r == SB_OK) r = write_shader(ctx, job, set, scales);
     free(scales);
     if (r != SB_OK) return r;
-    if (sb_outset_add(set, "sepbrdf.glsl") != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     double t1 = job_now();
     job->t.write_s = t1 - t0;
     job->t.total_s = t1 - job->t_start;

@@ -84,7 +84,7 @@ static size_t *count_key(sb_param_opts_t *o, const char *key) {
 /* "KIND[:key=value,...]": split on ':' and ',', numbers by strtod. */
 sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
     if (!spec || !kind || !opts) return sb_error(ctx, SB_ERR_ARG, "param: no spec or output");
-    char buf[256];
+    char buf[SB_PARAM_SPEC_MAX];
     if (strlen(spec) >= sizeof buf) return sb_error(ctx, SB_ERR_PARSE, "param spec too long");
     snprintf(buf, sizeof buf, "%s", spec);
     char *args = strchr(buf, ':');
@@ -103,6 +103,13 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
         if (!eq || eq == args) return sb_error(ctx, SB_ERR_PARSE, "%s: '%s' is not key=value", buf, args);
         *eq = 0;
         const char *key = args, *val = eq + 1;
+        int axis = strcmp(key, "warp_h") == 0 ? SB_AXIS_THETA_H : (strcmp(key, "warp_d") == 0 ? SB_AXIS_THETA_D : -1);
+        if (axis >= 0 && (registry[k]->caps & SB_CAP_WARPS)) {
+            sb_result_t r = sb_warp_parse_value(ctx, val, &o.warp[axis]);
+            if (r != SB_OK) return r;
+            args = comma ? comma + 1 : NULL;
+            continue;
+        }
         char *end;
         errno = 0;
         double v = strtod(val, &end);
@@ -128,6 +135,40 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
     return SB_OK;
 }
 
+/* The layout's own warp where opts name none; tables rounded to the
+ * spec's digits and checked; none at all on a layout without warps. */
+static sb_result_t resolve_warps(sb_context_t *ctx, sb_param_t *p, const sb_param_desc_t *d) {
+    for (int a = 0; a < SB_AXIS_COUNT_; a++) {
+        sb_warp_t *w = &p->opts.warp[a];
+        if (!(d->caps & SB_CAP_WARPS)) {
+            if (w->kind != SB_WARP_DEFAULT)
+                return sb_error(ctx, SB_ERR_UNSUPPORTED, "%s has no axis that takes a warp", d->name);
+            continue;
+        }
+        if (w->kind == SB_WARP_DEFAULT) w->kind = d->warp[a];
+        sb_warp_round(w);
+        sb_result_t r = sb_warp_check(ctx, w);
+        if (r != SB_OK) return r;
+    }
+    return SB_OK;
+}
+
+/* p->glsl: the warp functions sb_warp_h, sb_warp_d (SB_CAP_WARPS), then
+ * the layout's coordinate functions. */
+static sb_result_t build_glsl(sb_context_t *ctx, sb_param_t *p) {
+    static const char *const names[SB_AXIS_COUNT_] = {"sb_warp_h", "sb_warp_d"};
+    int warps = (registry[p->kind]->caps & SB_CAP_WARPS) != 0;
+    size_t need = strlen(p->vt->glsl) + 1, n = 0;
+    for (int a = 0; a < SB_AXIS_COUNT_ && warps; a++)
+        need += sb_warp_glsl(&p->opts.warp[a], names[a], NULL, 0, &n);
+    if (!(p->glsl = malloc(need))) return sb_error(ctx, SB_ERR_NOMEM, "param: out of memory");
+    n = 0;
+    for (int a = 0; a < SB_AXIS_COUNT_ && warps; a++)
+        sb_warp_glsl(&p->opts.warp[a], names[a], p->glsl, need, &n);
+    snprintf(p->glsl + n, need - n, "%s", p->vt->glsl);
+    return SB_OK;
+}
+
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "param: no output pointer");
     *out = NULL;
@@ -145,7 +186,7 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
         r = sb_error(ctx, SB_ERR_RANGE, "theta_max %g out of range, need (0, pi/2]", p->opts.theta_max);
     } else if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) {
         r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
-    } else {
+    } else if ((r = resolve_warps(ctx, p, registry[kind])) == SB_OK) {
         const sb_param_desc_t *d = registry[kind];
         if (d->init) {
             r = d->init(ctx, p);
@@ -153,6 +194,7 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
             sb_param_square_grids(p, d->vt, d->name, d->wrap_y);
             r = SB_OK;
         }
+        if (r == SB_OK) r = build_glsl(ctx, p);
     }
     if (r != SB_OK) {
         sb_param_destroy(p);
@@ -164,6 +206,7 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
 
 void sb_param_destroy(sb_param_t *p) {
     if (!p) return;
+    free(p->glsl);
     free(p);
 }
 
@@ -199,7 +242,23 @@ int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3],
     if (!p || !wi || !wo || !st_g || !st_h) return 0;
     return p->vt->coords(p, wi, wo, st_g, st_h);
 }
-const char *sb_param_glsl(const sb_param_t *p) { return p ? p->vt->glsl : ""; }
+const char *sb_param_glsl(const sb_param_t *p) { return p ? p->glsl : ""; }
+int sb_param_warps_default(const sb_param_t *p) {
+    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS)) return 1;
+    for (int a = 0; a < SB_AXIS_COUNT_; a++)
+        if (p->opts.warp[a].kind != registry[p->kind]->warp[a]) return 0;
+    return 1;
+}
+const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis) {
+    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return NULL;
+    return &p->opts.warp[axis];
+}
+int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
+    if (!p || !u || !w || row >= p->rows) return 0;
+    registry[p->kind]->row_sample(p, row, u, w);
+    return 1;
+}
+const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
 
 void sb_dir_from_angles(double theta, double phi, double w[3]) {
     if (!w) return;
@@ -219,11 +278,11 @@ void sb_dir_to_angles(const double w[3], double *theta, double *phi) {
     *phi = ph;
 }
 
-/* Grid cell k = R * i_phi + i_theta; centre theta = (i_theta + 1/2) tmax / R,
+/* Grid cell k = R * i_phi + i_theta; centre theta = W^-1((i_theta + 1/2) / R) tmax,
  * phi = (i_phi + 1/2) 2pi / R. */
-void sb_grid_dir(size_t R, double tmax, size_t k, double w[3]) {
+void sb_grid_dir(size_t R, double tmax, const sb_warp_t *w, size_t k, double dir[3]) {
     size_t it = k % R, ip = k / R;
-    sb_dir_from_angles((it + 0.5) * tmax / (double)R, (ip + 0.5) * 2 * SB_PI / (double)R, w);
+    sb_dir_from_angles(sb_warp_theta(w, (double)it + 0.5, R, tmax), (ip + 0.5) * 2 * SB_PI / (double)R, dir);
 }
 
 void sb_grid_st(double tmax, const double w[3], double st[2]) {
@@ -234,16 +293,39 @@ void sb_grid_st(double tmax, const double w[3], double st[2]) {
 }
 
 /* Solid angle of a cell: dphi (cos th_lo - cos th_hi). */
-double sb_grid_measure(size_t R, double tmax, size_t k) {
-    size_t it = k % R;
-    double dt = tmax / (double)R;
-    return 2 * SB_PI / (double)R * (cos(it * dt) - cos((it + 1) * dt));
+double sb_grid_measure(size_t R, double tmax, const sb_warp_t *w, size_t k) {
+    double it = (double)(k % R);
+    return 2 * SB_PI / (double)R * (cos(sb_warp_theta(w, it, R, tmax)) - cos(sb_warp_theta(w, it + 1, R, tmax)));
 }
 
+/* 1 - cos(theta) = 2 sin^2(theta / 2) stays accurate near the pole, where
+ * cos(theta) rounds to 1; sin(theta) = sqrt(z (2 - z)) for z = 1 - cos. */
+void sb_grid_row_sample(const sb_param_t *p, size_t k, const double u[2], double w[3]) {
+    size_t R = p->opts.res;
+    double tmax = p->opts.theta_max;
+    size_t it = k % R, ip = k / R;
+    double dt = tmax / (double)R, slo = sin(0.5 * (double)it * dt), shi = sin(0.5 * (double)(it + 1) * dt);
+    double zlo = 2 * slo * slo, zhi = 2 * shi * shi, z = zlo + u[0] * (zhi - zlo);
+    double s = sqrt(fmax(z * (2 - z), 0)), phi = ((double)ip + u[1]) * 2 * SB_PI / (double)R;
+    w[0] = s * cos(phi);
+    w[1] = s * sin(phi);
+    w[2] = 1 - z;
+}
+
+const char sb_grid_sample_glsl[] =
+    "// theta-phi cell (x = theta, y = phi): 1 - cos(theta) and phi linear in u\n"
+    "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+    "    vec2 n = vec2(textureSize(sb_g, 0).xy);\n"
+    "    float dt = SB_THETA_MAX / n.x;\n"
+    "    float slo = sin(0.5 * float(cell.x) * dt), shi = sin(0.5 * float(cell.x + 1) * dt);\n"
+    "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
+    "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
+    "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n";
+
 /* Integral of 4 cos(theta) dw over the cell: 4 dphi int cos sin dtheta. */
-double sb_grid_measure_4cos(size_t R, double tmax, size_t k) {
-    size_t it = k % R;
-    double dt = tmax / (double)R, lo = sin(it * dt), hi = sin((it + 1) * dt);
+double sb_grid_measure_4cos(size_t R, double tmax, const sb_warp_t *w, size_t k) {
+    double it = (double)(k % R), lo = sin(sb_warp_theta(w, it, R, tmax)), hi = sin(sb_warp_theta(w, it + 1, R, tmax));
     return 2 * (2 * SB_PI / (double)R) * (hi * hi - lo * lo);
 }
 
@@ -264,10 +346,14 @@ void sb_dir_half(const double l[3], const double v[3], double h[3]) {
 }
 
 void sb_param_spec_set(sb_param_t *p, const char *body) {
-    if (p->opts.theta_max == SB_PI / 2)
-        snprintf(p->spec, sizeof p->spec, "%s", body);
-    else
-        snprintf(p->spec, sizeof p->spec, "%s,theta_max=%.6g", body, p->opts.theta_max * 180 / SB_PI);
+    static const char *const keys[SB_AXIS_COUNT_] = {"warp_h", "warp_d"};
+    const sb_param_desc_t *d = registry[p->kind];
+    size_t n = (size_t)snprintf(p->spec, sizeof p->spec, "%s", body);
+    if (p->opts.theta_max != SB_PI / 2)
+        n += (size_t)snprintf(p->spec + n, sizeof p->spec - n, ",theta_max=%.6g", p->opts.theta_max * 180 / SB_PI);
+    for (int a = 0; a < SB_AXIS_COUNT_ && (d->caps & SB_CAP_WARPS); a++)
+        if (p->opts.warp[a].kind != d->warp[a])
+            sb_warp_spec_append(&p->opts.warp[a], keys[a], p->spec, sizeof p->spec, &n);
 }
 
 void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y) {

@@ -13,6 +13,9 @@
  * > 0); there t' falls back to the bitangent B = (0, 1, 0) (= B - (B.h) h
  * since B.h = 0), so coords stay finite.
  *
+ * The theta axes of h and d take warps (param.h: SB_AXIS_THETA_H,
+ * SB_AXIS_THETA_D; uniform by default): st.x = W(theta / theta_max).
+ *
  * Inverse: l = d_x t' + d_y b' + d_z h, v = 2 (h.l) h - l = 2 d_z h - l.
  * h and d stay in the cap theta <= theta_max when l and v do (h is the
  * midpoint of the arc from l to v and theta_d half its length), so both
@@ -48,19 +51,20 @@ static void hd_frame(const double h[3], double t[3], double b[3]) {
     b[2] = h[0] * t[1] - h[1] * t[0];
 }
 
-/* theta-phi texture coordinate with accurate theta and phi = 0 at the pole. */
-static void hd_st(double tmax, const double w[3], double st[2]) {
+/* theta-phi texture coordinate with accurate theta (warped by wp) and
+ * phi = 0 at the pole. */
+static void hd_st(double tmax, const sb_warp_t *wp, const double w[3], double st[2]) {
     double ph = (w[0] != 0 || w[1] != 0) ? atan2(w[1], w[0]) : 0;
     if (ph < 0) ph += 2 * SB_PI;
     if (ph >= 2 * SB_PI) ph -= 2 * SB_PI;
-    st[0] = sb_dir_theta(w) / tmax;
+    st[0] = sb_warp_map(wp, sb_dir_theta(w) / tmax);
     st[1] = ph / (2 * SB_PI);
 }
 
 static int hd_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
     double h[3], d[3], t[3], b[3];
-    sb_grid_dir(p->opts.res, p->opts.theta_max, row, h);
-    sb_grid_dir(p->opts.res, p->opts.theta_max, col, d);
+    sb_grid_dir(p->opts.res, p->opts.theta_max, &p->opts.warp[SB_AXIS_THETA_H], row, h);
+    sb_grid_dir(p->opts.res, p->opts.theta_max, &p->opts.warp[SB_AXIS_THETA_D], col, d);
     hd_frame(h, t, b);
     for (int i = 0; i < 3; i++) {
         wi[i] = d[0] * t[i] + d[1] * b[i] + d[2] * h[i];
@@ -70,10 +74,10 @@ static int hd_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3
 }
 
 static double hd_row_measure(const sb_param_t *p, size_t row) {
-    return sb_grid_measure(p->opts.res, p->opts.theta_max, row);
+    return sb_grid_measure(p->opts.res, p->opts.theta_max, &p->opts.warp[SB_AXIS_THETA_H], row);
 }
 static double hd_col_measure(const sb_param_t *p, size_t col) {
-    return sb_grid_measure_4cos(p->opts.res, p->opts.theta_max, col);
+    return sb_grid_measure_4cos(p->opts.res, p->opts.theta_max, &p->opts.warp[SB_AXIS_THETA_D], col);
 }
 
 static int hd_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]) {
@@ -82,8 +86,8 @@ static int hd_coords(const sb_param_t *p, const double wi[3], const double wo[3]
     hd_frame(h, t, b);
     double d[3] = {wi[0] * t[0] + wi[1] * t[1] + wi[2] * t[2], wi[0] * b[0] + wi[1] * b[1] + wi[2] * b[2],
                    wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2]};
-    hd_st(p->opts.theta_max, h, st_g);
-    hd_st(p->opts.theta_max, d, st_h);
+    hd_st(p->opts.theta_max, &p->opts.warp[SB_AXIS_THETA_H], h, st_g);
+    hd_st(p->opts.theta_max, &p->opts.warp[SB_AXIS_THETA_D], d, st_h);
     return sb_dir_in_cap(p->opts.theta_max, wi) && sb_dir_in_cap(p->opts.theta_max, wo);
 }
 
@@ -91,7 +95,7 @@ static const sb_param_vt_t hd_vt = {
     hd_cell_dirs, hd_row_measure, hd_col_measure, hd_coords,
     "// hd: h = normalize(L + V), Gram-Schmidt frame t' from T = (1,0,0) (bitangent\n"
     "// when h = +-T), d = L in (t', b', h); theta-phi st of h (g) and d (h):\n"
-    "// s = theta / SB_THETA_MAX (clamp), t = phi / 2pi (repeat).\n"
+    "// s = sb_warp_h/d(theta / SB_THETA_MAX) (clamp), t = phi / 2pi (repeat).\n"
     "vec2 sb_hd_st(vec3 w) {\n"
     "    float theta = atan(length(w.xy), w.z);\n"
     "    float phi = (w.x != 0.0 || w.y != 0.0) ? atan(w.y, w.x) : 0.0;\n"
@@ -105,7 +109,8 @@ static const sb_param_vt_t hd_vt = {
     "    float n = length(H.yz);\n"
     "    vec3 T = n > 0.0 ? vec3(n, -H.x * H.y / n, -H.x * H.z / n) : vec3(0.0, 1.0, 0.0);\n"
     "    vec3 D = vec3(dot(L, T), dot(L, cross(H, T)), dot(L, H));\n"
-    "    return vec4(sb_hd_st(H), sb_hd_st(D));\n"
+    "    vec2 h = sb_hd_st(H), d = sb_hd_st(D);\n"
+    "    return vec4(sb_warp_h(h.x), h.y, sb_warp_d(d.x), d.y);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
@@ -114,6 +119,9 @@ const sb_param_desc_t sb_param_desc_hd = {
     .name = "hd",
     .description = "half and difference vectors in the Gram-Schmidt frame of Kautz and McCool",
     .keys = "res",
-    .caps = SB_CAP_PARTIAL_DOMAIN,
+    .caps = SB_CAP_PARTIAL_DOMAIN | SB_CAP_HALF_ROWS | SB_CAP_WARPS,
+    .warp = {SB_WARP_UNIFORM, SB_WARP_UNIFORM},
     .wrap_y = SB_WRAP_REPEAT,
-    .vt = &hd_vt};
+    .vt = &hd_vt,
+    .row_sample = sb_grid_row_sample,
+    .sample_glsl = sb_grid_sample_glsl};

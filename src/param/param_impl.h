@@ -7,6 +7,9 @@
 
 #include "sepbrdf/param.h"
 
+/* Longest spec: a kind's keys plus two tables of 63 interior knots. */
+#define SB_PARAM_SPEC_MAX 2048
+
 typedef struct sb_param_vt {
     int (*cell_dirs)(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
     double (*row_measure)(const sb_param_t *p, size_t row);
@@ -16,15 +19,20 @@ typedef struct sb_param_vt {
 } sb_param_vt_t;
 
 typedef struct sb_param_desc {
-    const char *name;        /* the spec's kind, e.g. "io" */
-    const char *description; /* one line, for help texts */
-    const char *keys;        /* spec keys besides theta_max, comma separated */
-    unsigned caps;           /* SB_CAP_SEPARABLE ... (param.h) */
-    int wrap_y;              /* init NULL: y wrap of the square grids (sb_param_square_grids) */
+    const char *name;                    /* the spec's kind, e.g. "io" */
+    const char *description;             /* one line, for help texts */
+    const char *keys;                    /* spec keys besides theta_max, comma separated */
+    unsigned caps;                       /* SB_CAP_SEPARABLE ... (param.h) */
+    sb_warp_kind_t warp[SB_AXIS_COUNT_]; /* SB_CAP_WARPS: the layout's own warp per axis */
+    int wrap_y;                          /* init NULL: y wrap of the square grids (sb_param_square_grids) */
     /* fill p (rows, cols, textures, wrap, spec, vt) from p->opts; SB_OK or
      * an error reported through ctx.  NULL: both sides on R x R grids */
     sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
     const sb_param_vt_t *vt;
+    /* sampling (sb_param_row_sample): a direction uniform in solid angle
+     * over row cell `row`, and its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` */
+    void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+    const char *sample_glsl;
 } sb_param_desc_t;
 
 extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso;
@@ -32,21 +40,43 @@ extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_d
 struct sb_param {
     sb_param_kind_t kind;
     const sb_param_vt_t *vt;
-    sb_param_opts_t opts; /* resolved: res, theta_max set */
+    sb_param_opts_t opts; /* resolved: res, theta_max, warps (SB_CAP_WARPS) set */
     size_t rows, cols;
     size_t tex_w[2], tex_h[2];
     int wrap[2][2];
-    char spec[96];
+    char *glsl; /* the vt's GLSL, after the warp functions of SB_CAP_WARPS layouts */
+    char spec[SB_PARAM_SPEC_MAX];
 };
+
+/* Warps (warp.c).  Elevation of texel edge or centre i (i = index, or
+ * index + 1/2) of n along an axis with warp w: W^-1(i / n) theta_max
+ * (uniform: i theta_max / n, as the grids have always computed it). */
+double sb_warp_theta(const sb_warp_t *w, double i, size_t n, double tmax);
+/* Round a table's knots to what "%.6g" prints (the spec's digits). */
+void sb_warp_round(sb_warp_t *w);
+/* ",warp_h=VALUE" (name is "warp_h" or "warp_d") appended to buf at *n. */
+void sb_warp_spec_append(const sb_warp_t *w, const char *name, char *buf, size_t size, size_t *n);
+/* Parse a spec value: "uniform", "merl" or interior knots "x1/x2/...". */
+sb_result_t sb_warp_parse_value(sb_context_t *ctx, const char *value, sb_warp_t *out);
+/* GLSL `float NAME(float x)` computing sb_warp_map(w, x), appended to buf
+ * at *n (bounded by size); returns the bytes it needs. */
+size_t sb_warp_glsl(const sb_warp_t *w, const char *name, char *buf, size_t size, size_t *n);
 
 /* Shared by implementations: theta-phi grid of R x R cells on [0, tmax] x
  * [0, 2pi): index -> centre direction, direction -> st (x = theta, y = phi). */
-void sb_grid_dir(size_t R, double tmax, size_t index, double w[3]);
 void sb_grid_st(double tmax, const double w[3], double st[2]);
-double sb_grid_measure(size_t R, double tmax, size_t index);
+/* The theta axis warped by w (NULL: uniform) for the three below. */
+void sb_grid_dir(size_t R, double tmax, const sb_warp_t *w, size_t index, double dir[3]);
+double sb_grid_measure(size_t R, double tmax, const sb_warp_t *w, size_t index);
+/* Row sampling on the R x R theta-phi grid of p->opts (io, hd): uniform in
+ * solid angle over cell `row`, 1 - cos(theta) linear in u[0] between the
+ * cell's bounds, phi linear in u[1]. */
+void sb_grid_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+/* GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` of sb_grid_row_sample. */
+extern const char sb_grid_sample_glsl[];
 /* integral of 4 cos(theta) over grid cell `index`: 2 dphi (sin^2 hi - sin^2 lo),
  * the half/difference Jacobian dw_i dw_o = 4 cos(theta_d) dw_h dw_d. */
-double sb_grid_measure_4cos(size_t R, double tmax, size_t index);
+double sb_grid_measure_4cos(size_t R, double tmax, const sb_warp_t *w, size_t index);
 
 /* Elevation theta = atan2(|w_xy|, w_z), accurate near the pole (acos is not). */
 double sb_dir_theta(const double w[3]);

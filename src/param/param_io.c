@@ -6,11 +6,13 @@
 #include "param/param_impl.h"
 
 static int io_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
-    sb_grid_dir(p->opts.res, p->opts.theta_max, row, wi);
-    sb_grid_dir(p->opts.res, p->opts.theta_max, col, wo);
+    sb_grid_dir(p->opts.res, p->opts.theta_max, NULL, row, wi);
+    sb_grid_dir(p->opts.res, p->opts.theta_max, NULL, col, wo);
     return 1;
 }
-static double io_measure(const sb_param_t *p, size_t k) { return sb_grid_measure(p->opts.res, p->opts.theta_max, k); }
+static double io_measure(const sb_param_t *p, size_t k) {
+    return sb_grid_measure(p->opts.res, p->opts.theta_max, NULL, k);
+}
 static int io_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]) {
     if (wi[2] <= 0 || wo[2] <= 0) return 0;
     sb_grid_st(p->opts.theta_max, wi, st_g);
@@ -39,4 +41,6 @@ const sb_param_desc_t sb_param_desc_io = {.name = "io",
                                           .keys = "res",
                                           .caps = SB_CAP_SEPARABLE | SB_CAP_AZIMUTH_GRID,
                                           .wrap_y = SB_WRAP_REPEAT,
-                                          .vt = &io_vt};
+                                          .vt = &io_vt,
+                                          .row_sample = sb_grid_row_sample,
+                                          .sample_glsl = sb_grid_sample_glsl};

@@ -32,10 +32,8 @@
 
 static double cap_c(const sb_param_t *p) { return 1 - cos(p->opts.theta_max); }
 
-/* Square cell k -> direction at its centre. */
-static void area_dir(const sb_param_t *p, size_t k, double w[3]) {
-    size_t R = p->opts.res;
-    double a = 2 * ((double)(k % R) + 0.5) / (double)R - 1, b = 2 * ((double)(k / R) + 0.5) / (double)R - 1;
+/* Square point (a, b) in [-1,1]^2 -> direction in the cap. */
+static void square_dir(const sb_param_t *p, double a, double b, double w[3]) {
     /* concentric square -> disk */
     double r, psi;
     if (a == 0 && b == 0) {
@@ -53,6 +51,18 @@ static void area_dir(const sb_param_t *p, size_t k, double w[3]) {
     w[0] = dx * q;
     w[1] = dy * q;
     w[2] = 1 - rho2 * c;
+}
+
+/* Square cell k at (x + u[0], y + u[1]) in texel units -> direction: the
+ * cell's centre for u = (1/2, 1/2); uniform u is uniform in solid angle
+ * (the map is equal-area). */
+static void area_row_sample(const sb_param_t *p, size_t k, const double u[2], double w[3]) {
+    double R = (double)p->opts.res;
+    square_dir(p, 2 * ((double)(k % p->opts.res) + u[0]) / R - 1, 2 * ((double)(k / p->opts.res) + u[1]) / R - 1, w);
+}
+
+static void area_dir(const sb_param_t *p, size_t k, double w[3]) {
+    area_row_sample(p, k, (const double[2]){0.5, 0.5}, w);
 }
 
 /* Direction in the cap -> st (the inverse of area_dir, continuously). */
@@ -112,9 +122,27 @@ static const sb_param_vt_t area_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
+static const char area_sample_glsl[] =
+    "// io-area: square cell (x, y) at (x + u.x, y + u.y) texels -> cap (equal-area)\n"
+    "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+    "    vec2 ab = 2.0 * (vec2(cell) + u) / vec2(textureSize(sb_g, 0).xy) - 1.0;\n"
+    "    float r = 0.0, psi = 0.0;\n"
+    "    if (abs(ab.x) > abs(ab.y)) {\n"
+    "        r = ab.x;\n"
+    "        psi = 0.25 * SB_PI * (ab.y / ab.x);\n"
+    "    } else if (ab.y != 0.0) {\n"
+    "        r = ab.y;\n"
+    "        psi = 0.5 * SB_PI - 0.25 * SB_PI * (ab.x / ab.y);\n"
+    "    }\n"
+    "    float c = 1.0 - cos(SB_THETA_MAX), z = r * r * c, q = sqrt(max(c * (2.0 - z), 0.0));\n"
+    "    return vec3(r * cos(psi) * q, r * sin(psi) * q, 1.0 - z);\n"
+    "}\n";
+
 const sb_param_desc_t sb_param_desc_io_area = {.name = "io-area",
                                                .description = "(wi, wo) on an equal-area (concentric) hemisphere map",
                                                .keys = "res",
                                                .caps = SB_CAP_SEPARABLE,
                                                .wrap_y = SB_WRAP_CLAMP,
-                                               .vt = &area_vt};
+                                               .vt = &area_vt,
+                                               .row_sample = area_row_sample,
+                                               .sample_glsl = area_sample_glsl};

@@ -16,13 +16,15 @@
  * lossless; the folded axis is a circle of length pi and REPEAT is the wrap
  * that filters across phi_d = 0 ~ pi correctly (CLAMP would be right only
  * with the extra mirror symmetry phi_d -> -phi_d).  theta axes CLAMP.
- * st_g = (sqrt(theta_h / theta_max), 1/2), st_h = (theta_d / theta_max, phi_d / pi).
+ * st_g = (W_h(theta_h / theta_max), 1/2), st_h = (W_d(theta_d / theta_max), phi_d / pi)
+ * with the axes' warps (param.h).
  *
- * Cells: theta_h follows MERL's square-root spacing, theta_h = u^2 theta_max
- * at uniform u = (i + 1/2) / th, which puts rows where specular peaks are
- * narrow (GGX alpha = 0.3 at R = 32: comparable error at J = 4 drops from
- * 1.25 % with uniform rows to under 1 %); theta_d and phi_d centres are
- * uniform, theta = (i + 1/2) theta_max / n, phi_d = (j + 1/2) pi / pd.
+ * Cells: by default theta_h follows MERL's square-root spacing, W_h(x) =
+ * sqrt(x), theta_h = u^2 theta_max at uniform u = (i + 1/2) / th, which puts
+ * rows where specular peaks are narrow (GGX alpha = 0.3 at R = 32:
+ * comparable error at J = 4 drops from 1.25 % with uniform rows to under
+ * 1 %), and theta_d is uniform; in general theta = W^-1((i + 1/2) / n)
+ * theta_max.  phi_d centres are uniform, phi_d = (j + 1/2) pi / pd.
  * Inverse (cell_dirs): h = (sin theta_h, 0, cos theta_h) (phi_h = 0),
  * l = Rz(phi_h) Ry(theta_h) d, v = 2 d_z h - l; the cell is a BRDF pair iff
  * l and v are in the cap theta <= theta_max.  theta_h, theta_d <= theta_max
@@ -46,8 +48,8 @@ static size_t iso_pd(const sb_param_t *p) { return p->opts.res_phi_d; }
 
 static int iso_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
     double tmax = p->opts.theta_max;
-    double u = ((double)row + 0.5) / (double)iso_th(p), th = u * u * tmax;
-    double td = ((double)(col % iso_td(p)) + 0.5) * tmax / (double)iso_td(p);
+    double th = sb_warp_theta(&p->opts.warp[SB_AXIS_THETA_H], (double)row + 0.5, iso_th(p), tmax);
+    double td = sb_warp_theta(&p->opts.warp[SB_AXIS_THETA_D], (double)(col % iso_td(p)) + 0.5, iso_td(p), tmax);
     double pd = ((double)(col / iso_td(p)) + 0.5) * SB_PI / (double)iso_pd(p);
     double d[3], ct = cos(th), st = sin(th), h[3] = {st, 0, ct};
     sb_dir_from_angles(td, pd, d);
@@ -60,13 +62,28 @@ static int iso_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[
 }
 
 static double iso_row_measure(const sb_param_t *p, size_t row) {
+    const sb_warp_t *w = &p->opts.warp[SB_AXIS_THETA_H];
+    double tmax = p->opts.theta_max;
+    return 2 * SB_PI *
+           (cos(sb_warp_theta(w, (double)row, iso_th(p), tmax)) -
+            cos(sb_warp_theta(w, (double)row + 1, iso_th(p), tmax)));
+}
+
+/* Uniform in solid angle over the theta_h band of `row` (square-root
+ * spacing: bounds theta_max (i / th)^2), phi_h uniform in [0, 2pi). */
+static void iso_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
     double n = (double)iso_th(p), lo = (double)row / n, hi = (double)(row + 1) / n, tmax = p->opts.theta_max;
-    return 2 * SB_PI * (cos(lo * lo * tmax) - cos(hi * hi * tmax));
+    double slo = sin(0.5 * lo * lo * tmax), shi = sin(0.5 * hi * hi * tmax);
+    double z = 2 * (slo * slo + u[0] * (shi * shi - slo * slo)), s = sqrt(fmax(z * (2 - z), 0)), phi = 2 * SB_PI * u[1];
+    w[0] = s * cos(phi);
+    w[1] = s * sin(phi);
+    w[2] = 1 - z;
 }
 
 static double iso_col_measure(const sb_param_t *p, size_t col) {
-    size_t it = col % iso_td(p);
-    double dt = p->opts.theta_max / (double)iso_td(p), lo = sin((double)it * dt), hi = sin((double)(it + 1) * dt);
+    const sb_warp_t *w = &p->opts.warp[SB_AXIS_THETA_D];
+    double it = (double)(col % iso_td(p)), tmax = p->opts.theta_max;
+    double lo = sin(sb_warp_theta(w, it, iso_td(p), tmax)), hi = sin(sb_warp_theta(w, it + 1, iso_td(p), tmax));
     return 4 * (SB_PI / (double)iso_pd(p)) * (hi * hi - lo * lo);
 }
 
@@ -83,18 +100,18 @@ static int iso_coords(const sb_param_t *p, const double wi[3], const double wo[3
     double pd = (d[0] != 0 || d[1] != 0) ? atan2(d[1], d[0]) : 0;
     if (pd < 0) pd += SB_PI;
     if (pd >= SB_PI) pd -= SB_PI;
-    st_g[0] = sqrt(atan2(hxy, h[2]) / p->opts.theta_max);
+    st_g[0] = sb_warp_map(&p->opts.warp[SB_AXIS_THETA_H], atan2(hxy, h[2]) / p->opts.theta_max);
     st_g[1] = 0.5;
-    st_h[0] = sb_dir_theta(d) / p->opts.theta_max;
+    st_h[0] = sb_warp_map(&p->opts.warp[SB_AXIS_THETA_D], sb_dir_theta(d) / p->opts.theta_max);
     st_h[1] = pd / SB_PI;
     return sb_dir_in_cap(p->opts.theta_max, wi) && sb_dir_in_cap(p->opts.theta_max, wo);
 }
 
 static const sb_param_vt_t iso_vt = {
     iso_cell_dirs, iso_row_measure, iso_col_measure, iso_coords,
-    "// iso: Rusinkiewicz angles; g: s = sqrt(theta_h / SB_THETA_MAX) (t = 1/2),\n"
-    "// h: s = theta_d / SB_THETA_MAX (clamp), t = phi_d / pi, phi_d folded into\n"
-    "// [0, pi) by reciprocity (repeat).\n"
+    "// iso: Rusinkiewicz angles; g: s = sb_warp_h(theta_h / SB_THETA_MAX) (t = 1/2),\n"
+    "// h: s = sb_warp_d(theta_d / SB_THETA_MAX) (clamp), t = phi_d / pi, phi_d folded\n"
+    "// into [0, pi) by reciprocity (repeat).\n"
     "vec4 sb_coords(vec3 L, vec3 V) {\n"
     "    vec3 s = L + V;\n"
     "    float len = length(s);\n"
@@ -107,11 +124,21 @@ static const sb_param_vt_t iso_vt = {
     "    float phi_d = (D.x != 0.0 || D.y != 0.0) ? atan(D.y, D.x) : 0.0;\n"
     "    if (phi_d < 0.0) phi_d += SB_PI;\n"
     "    if (phi_d >= SB_PI) phi_d -= SB_PI;\n"
-    "    return vec4(sqrt(atan(hxy, H.z) / SB_THETA_MAX), 0.5,\n"
-    "                atan(length(D.xy), D.z) / SB_THETA_MAX, phi_d / SB_PI);\n"
+    "    return vec4(sb_warp_h(atan(hxy, H.z) / SB_THETA_MAX), 0.5,\n"
+    "                sb_warp_d(atan(length(D.xy), D.z) / SB_THETA_MAX), phi_d / SB_PI);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
+
+static const char iso_sample_glsl[] =
+    "// iso: theta_h band x (bounds SB_THETA_MAX (x / th)^2), phi_h = 2pi u.y\n"
+    "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+    "    float n = float(textureSize(sb_g, 0).x), lo = float(cell.x) / n, hi = float(cell.x + 1) / n;\n"
+    "    float slo = sin(0.5 * lo * lo * SB_THETA_MAX), shi = sin(0.5 * hi * hi * SB_THETA_MAX);\n"
+    "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
+    "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = 2.0 * SB_PI * u.y;\n"
+    "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n";
 
 static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
     sb_param_opts_t *o = &p->opts;
@@ -149,6 +176,10 @@ const sb_param_desc_t sb_param_desc_iso = {
     .name = "iso",
     .description = "Rusinkiewicz angles for isotropic sources: rows theta_h, columns (theta_d, phi_d)",
     .keys = "res,th,td,pd",
-    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN,
+    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_FOLDS_RECIPROCITY | SB_CAP_PARTIAL_DOMAIN |
+            SB_CAP_HALF_ROWS | SB_CAP_WARPS,
+    .warp = {SB_WARP_MERL, SB_WARP_UNIFORM},
     .init = init_iso,
-    .vt = &iso_vt};
+    .vt = &iso_vt,
+    .row_sample = iso_row_sample,
+    .sample_glsl = iso_sample_glsl};

@@ -1,5 +1,5 @@
 /* Private: shared by the measured-data modules (measured.c, merl.c,
- * gonio.c, spectral.c). */
+ * rgl.c, gonio.c, gonio_sim.c, scattered*.c, spectral.c). */
 #ifndef SEPBRDF_MEASURED_IMPL_H
 #define SEPBRDF_MEASURED_IMPL_H
 

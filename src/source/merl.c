@@ -227,73 +227,56 @@ static int merl_sample(const void *self, size_t k, double wi[3], double wo[3], d
     return 1;
 }
 
-static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
-                             sb_measured_info_t *info) {
-    sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_NEAREST : o->interp;
-    if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
-        return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
-                        sb_interp_name(interp));
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    sb_result_t r = SB_OK;
-    merl_t *m = NULL;
-    unsigned char *buf = NULL;
+/* The header (dims 90 x 90 x 180) and the file size, checked before
+ * anything else is read. */
+static sb_result_t merl_check_head(sb_context_t *ctx, const char *path, FILE *fp) {
     struct stat st;
-    if (fstat(fileno(fp), &st) != 0) {
-        r = sb_error(ctx, SB_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
-        goto done;
-    }
-    /* Check the header, then the size, before reading anything else. */
+    if (fstat(fileno(fp), &st) != 0) return sb_error(ctx, SB_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
     unsigned char head[12];
     size_t got = fread(head, 1, sizeof head, fp);
-    if (got < sizeof head) {
-        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: truncated header, %zu of 12 bytes", path, got);
-        goto done;
-    }
+    if (got < sizeof head)
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: truncated header, %zu of 12 bytes", path, got);
     int32_t dims[3];
     for (int k = 0; k < 3; k++) {
         uint32_t u = (uint32_t)head[4 * k] | (uint32_t)head[4 * k + 1] << 8 | (uint32_t)head[4 * k + 2] << 16 |
                      (uint32_t)head[4 * k + 3] << 24;
         dims[k] = (int32_t)u;
     }
-    if (dims[0] != SB_MERL_TH || dims[1] != SB_MERL_TD || dims[2] != SB_MERL_PD) {
-        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: dims %ld x %ld x %ld, expected %d x %d x %d", path, (long)dims[0],
-                     (long)dims[1], (long)dims[2], SB_MERL_TH, SB_MERL_TD, SB_MERL_PD);
-        goto done;
-    }
-    if ((uintmax_t)st.st_size != SB_MERL_FILE_SIZE) {
-        r = sb_error(ctx, SB_ERR_FORMAT,
-                     "%s: MERL: file size %jd bytes, expected %zu (12-byte header + 3 x %zu float64) for dims "
-                     "90 x 90 x 180",
-                     path, (intmax_t)st.st_size, SB_MERL_FILE_SIZE, SB_MERL_CELLS);
-        goto done;
-    }
-    m = calloc(1, sizeof *m);
-    if (!m) {
-        r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
-        goto done;
-    }
-    m->interp = interp;
-    m->v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), path);
+    if (dims[0] != SB_MERL_TH || dims[1] != SB_MERL_TD || dims[2] != SB_MERL_PD)
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: dims %ld x %ld x %ld, expected %d x %d x %d", path,
+                        (long)dims[0], (long)dims[1], (long)dims[2], SB_MERL_TH, SB_MERL_TD, SB_MERL_PD);
+    if ((uintmax_t)st.st_size != SB_MERL_FILE_SIZE)
+        return sb_error(ctx, SB_ERR_FORMAT,
+                        "%s: MERL: file size %jd bytes, expected %zu (12-byte header + 3 x %zu float64) for dims "
+                        "90 x 90 x 180",
+                        path, (intmax_t)st.st_size, SB_MERL_FILE_SIZE, SB_MERL_CELLS);
+    return SB_OK;
+}
+
+/* The 3 x SB_MERL_CELLS little-endian doubles after the header into v. */
+static sb_result_t merl_read_values(sb_context_t *ctx, const char *path, FILE *fp, double *v) {
     const size_t chunk = 1 << 16;
-    buf = malloc(chunk * 8);
-    if (!m->v || !buf) {
-        r = m->v ? sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path) : SB_ERR_NOMEM;
-        goto done;
-    }
-    /* Read and decode; count missing cells per cell (any channel). */
+    unsigned char *buf = malloc(chunk * 8);
+    if (!buf) return sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    sb_result_t r = SB_OK;
     for (size_t at = 0; at < 3 * SB_MERL_CELLS;) {
         size_t n = 3 * SB_MERL_CELLS - at < chunk ? 3 * SB_MERL_CELLS - at : chunk;
         if (fread(buf, 8, n, fp) != n) {
             r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: truncated at value %zu of %zu", path, at, 3 * SB_MERL_CELLS);
-            goto done;
+            break;
         }
         for (size_t k = 0; k < n; k++)
-            m->v[at + k] = le_f64(buf + 8 * k);
+            v[at + k] = le_f64(buf + 8 * k);
         at += n;
     }
-    info->rows = SB_MERL_CELLS;
-    info->channels = 3;
+    free(buf);
+    return r;
+}
+
+/* Classify the cells: a negative or non-finite channel makes a cell missing
+ * (NAN in every channel); the others are scaled to f_r (sb_merl_scale) and
+ * counted into info's statistics. */
+static sb_result_t merl_scan(sb_context_t *ctx, const char *path, double *v, sb_measured_info_t *info) {
     double sum[3] = {0, 0, 0};
     for (int c = 0; c < 3; c++) {
         info->value_min[c] = INFINITY;
@@ -302,10 +285,10 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
     for (size_t k = 0; k < SB_MERL_CELLS; k++) {
         int neg = 0, nan = 0;
         for (int c = 0; c < 3; c++) {
-            double v = m->v[(size_t)c * SB_MERL_CELLS + k];
-            if (!isfinite(v))
+            double x = v[(size_t)c * SB_MERL_CELLS + k];
+            if (!isfinite(x))
                 nan = 1;
-            else if (v < 0)
+            else if (x < 0)
                 neg = 1;
         }
         if (neg || nan) {
@@ -313,33 +296,36 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
             info->negative += (size_t)neg;
             info->nan_rows += (size_t)nan;
             for (int c = 0; c < 3; c++)
-                m->v[(size_t)c * SB_MERL_CELLS + k] = NAN;
+                v[(size_t)c * SB_MERL_CELLS + k] = NAN;
             continue;
         }
         info->samples++;
         for (int c = 0; c < 3; c++) {
-            double v = m->v[(size_t)c * SB_MERL_CELLS + k] * sb_merl_scale[c];
-            if (v > FLT_MAX) {
-                r = sb_error(ctx, SB_ERR_FORMAT,
-                             "%s: MERL: cell %zu (theta_h %zu, theta_d %zu, phi_d %zu) channel %d: f_r = %g (1/sr) "
-                             "overflows float storage (largest %g): not a reflectance",
-                             path, k, k / (SB_MERL_TD * SB_MERL_PD), k / SB_MERL_PD % SB_MERL_TD, k % SB_MERL_PD, c, v,
-                             (double)FLT_MAX);
-                goto done;
-            }
-            m->v[(size_t)c * SB_MERL_CELLS + k] = v;
-            sum[c] += v;
-            if (v < info->value_min[c]) info->value_min[c] = v;
-            if (v > info->value_max[c]) info->value_max[c] = v;
+            double x = v[(size_t)c * SB_MERL_CELLS + k] * sb_merl_scale[c];
+            if (x > FLT_MAX)
+                return sb_error(ctx, SB_ERR_FORMAT,
+                                "%s: MERL: cell %zu (theta_h %zu, theta_d %zu, phi_d %zu) channel %d: f_r = %g (1/sr) "
+                                "overflows float storage (largest %g): not a reflectance",
+                                path, k, k / (SB_MERL_TD * SB_MERL_PD), k / SB_MERL_PD % SB_MERL_TD, k % SB_MERL_PD, c,
+                                x, (double)FLT_MAX);
+            v[(size_t)c * SB_MERL_CELLS + k] = x;
+            sum[c] += x;
+            if (x < info->value_min[c]) info->value_min[c] = x;
+            if (x > info->value_max[c]) info->value_max[c] = x;
         }
     }
-    if (!info->samples) {
-        r = sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: no measured cell (all %zu missing: %zu negative, %zu NaN)", path,
-                     info->rows, info->negative, info->nan_rows);
-        goto done;
-    }
+    if (!info->samples)
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: no measured cell (all %zu missing: %zu negative, %zu NaN)", path,
+                        info->rows, info->negative, info->nan_rows);
     for (int c = 0; c < 3; c++)
         info->value_mean[c] = sum[c] / (double)info->samples;
+    return SB_OK;
+}
+
+/* The source over m (owned by it from here on) and the rest of info. */
+static sb_result_t merl_source(sb_context_t *ctx, const char *path, merl_t *m, sb_measured_info_t *info,
+                               sb_source_t **out) {
+    sb_interp_t interp = m->interp;
     info->theta_i_max = info->theta_o_max = SB_PI / 2;
     info->interp = interp;
     info->flags = SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL;
@@ -349,16 +335,42 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
     char desc[1200];
     snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
-    r = sb_source_create(ctx, &ops, m, info->flags, desc, out);
-    if (r == SB_OK) {
-        sb_source_set_samples_(*out, merl_sample_count, merl_sample);
-        m = NULL;
+    sb_result_t r = sb_source_create(ctx, &ops, m, info->flags, desc, out);
+    if (r != SB_OK) {
+        merl_destroy(m);
+        return r;
     }
-done:
-    free(buf);
-    merl_destroy(m);
+    sb_source_set_samples_(*out, merl_sample_count, merl_sample);
+    return SB_OK;
+}
+
+static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                             sb_measured_info_t *info) {
+    sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_NEAREST : o->interp;
+    if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
+        return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
+                        sb_interp_name(interp));
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    merl_t *m = NULL;
+    sb_result_t r = merl_check_head(ctx, path, fp);
+    if (r == SB_OK && !(m = calloc(1, sizeof *m))) r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    if (r == SB_OK) {
+        m->interp = interp;
+        m->v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), path);
+        r = m->v ? merl_read_values(ctx, path, fp, m->v) : SB_ERR_NOMEM;
+    }
     fclose(fp);
-    return r;
+    if (r == SB_OK) {
+        info->rows = SB_MERL_CELLS;
+        info->channels = 3;
+        r = merl_scan(ctx, path, m->v, info);
+    }
+    if (r != SB_OK) {
+        merl_destroy(m);
+        return r;
+    }
+    return merl_source(ctx, path, m, info, out);
 }
 
 /* A MERL header: the dims 90, 90, 180 as little-endian int32. */

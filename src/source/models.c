@@ -10,7 +10,10 @@
  *     h.l = h.v = |l + v|/2 >= (l_z + v_z)/2 > 0,   n.h > 0.
  * The mirror direction of l is r = 2 (n.l) n - l, so
  *     r.v = 2 l_z v_z - l.v,
- * symmetric in l and v. */
+ * symmetric in l and v.
+ *
+ * This file: presets, keys, the model table and spec parsing; the
+ * formulas are in models_eval.c. */
 #include "sepbrdf/models.h"
 
 #include <ctype.h>
@@ -22,6 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "source/models_impl.h"
 #include "util/internal.h"
 
 /* ---- presets ----------------------------------------------------------- */
@@ -65,303 +69,13 @@ const sb_preset_t *sb_preset_find(const char *name) {
     return NULL;
 }
 
-/* ---- model parameters -------------------------------------------------- */
-
-enum { M_LAMBERT, M_PHONG, M_PHONG_GLSL, M_MPHONG, M_BLINN, M_NBLINN, M_CT, M_MICROFACET };
-enum { D_GGX, D_BECKMANN, D_BECKMANN_NORM, D_GAUSSIAN };
-enum { G_SMITH_SCHLICK, G_SMITH_DISNEY, G_SMITH_ALPHA, G_VCAVITY, G_NONE };
-enum { F_SCHLICK, F_CONDUCTOR, F_DIELECTRIC, F_NONE };
-enum { DENOM_4, DENOM_COS, DENOM_PI };
-enum { NORM_RTR, NORM_EXACT };
+/* ---- model parameters (kinds and model_t: models_impl.h) ---------------- */
 
 static const char *const d_names[] = {"ggx", "beckmann", "beckmann-norm", "gaussian", NULL};
 static const char *const g_names[] = {"smith-schlick", "smith-disney", "smith-alpha", "vcavity", "none", NULL};
 static const char *const f_names[] = {"schlick", "conductor", "dielectric", "none", NULL};
 static const char *const denom_names[] = {"4", "cos", "pi", NULL};
 static const char *const norm_names[] = {"rtr", "exact", NULL};
-
-/* Floor of a cosine in a denominator when guard = 0.  It keeps f finite for
- * every double input: the largest factor any model puts on such cosines is
- * D/(4 c^2) with D <= 1/(pi alpha^2) <= 3.2e11 (roughness >= 0.001), so
- * f < 1e212 at c = 1e-100.  1e-100 rad is far below any sampled angle, so
- * the clamp never changes a value anyone samples. */
-#define SB_COS_FLOOR 1e-100
-
-typedef struct model {
-    int kind;
-    double albedo[3], kd[3], ks[3];
-    double n;        /* Phong / Blinn-Phong exponent */
-    double rv_floor; /* modified Phong: floor of r.v (the lecture GLSL uses 0.001) */
-    double guard;    /* floor of cosines in denominators (the lecture's 0.001) */
-    int norm, d, g, f, denom;
-    double roughness, f0[3], ior;
-    double base[3], metallic, reflectance;
-    double
-        anisotropy; /* microfacet: 0 isotropic; alpha_x = alpha / a, alpha_y = alpha a, a = sqrt(1 - 0.9 anisotropy) */
-    /* derived */
-    double cmin;   /* guard, or SB_COS_FLOOR when guard = 0 */
-    double cspec;  /* constant factor of the specular lobe */
-    double alpha;  /* GGX alpha = roughness^2; Beckmann/Gaussian m = roughness */
-    double ax, ay; /* microfacet: GGX widths along the tangent x and the bitangent y */
-    double k;      /* Schlick-GGX k */
-} model_t;
-
-/* ---- shared pieces ------------------------------------------------------ */
-
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-static double clamp01(double x) { return fmin(fmax(x, 0.0), 1.0); }
-
-static int below_horizon(const double l[3], const double v[3], double rgb[3]) {
-    if (l[2] > 0 && v[2] > 0) return 0;
-    rgb[0] = rgb[1] = rgb[2] = 0;
-    return 1;
-}
-
-/* h = (l + v)/|l + v|; |l + v| >= l_z + v_z > 0 above the horizon.  The
- * length is taken after scaling by the largest component, so that it does
- * not underflow to 0 for grazing l = -v (l_z = v_z = 1e-300). */
-static void half_vector(const double l[3], const double v[3], double h[3]) {
-    double s[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
-    double big = fmax(fabs(s[0]), fmax(fabs(s[1]), s[2]));
-    for (int i = 0; i < 3; i++)
-        s[i] /= big;
-    double len = sqrt(dot3(s, s));
-    for (int i = 0; i < 3; i++)
-        h[i] = s[i] / len;
-}
-
-/* sin^2 of the angle between n and the unit vector h, as h_x^2 + h_y^2:
- * exact where 1 - (n.h)^2 cancels (sharp lobes, n.h -> 1). */
-static double sin2_n(const double h[3]) { return h[0] * h[0] + h[1] * h[1]; }
-
-/* r.v with r = reflect(-l, n) = 2 (n.l) n - l. */
-static double mirror_dot(const double l[3], const double v[3]) { return 2 * l[2] * v[2] - dot3(l, v); }
-
-/* ---- Lambert ------------------------------------------------------------ */
-
-/* f = c/pi */
-static int lambert_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->albedo[c] / SB_PI;
-    return 1;
-}
-
-/* ---- Phong family ------------------------------------------------------- */
-
-/* Classic Phong as a BRDF (slides): f = kd + ks max(r.v, 0)^n / cos theta_i,
- * cos theta_i = n.l raised to the guard.  Not reciprocal (only n.l divides),
- * not energy conserving. */
-static int phong_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double s = pow(fmax(mirror_dot(l, v), 0.0), m->n) / fmax(l[2], m->cmin);
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->kd[c] + m->ks[c] * s;
-    return 1;
-}
-
-/* The lecture's phongBRDF: f = kd + ks max(r.v, 0)^n (no 1/cos theta_i, so
- * reciprocal, but neither 1/pi nor a lobe normalisation). */
-static int phong_glsl_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double s = pow(fmax(mirror_dot(l, v), 0.0), m->n);
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->kd[c] + m->ks[c] * s;
-    return 1;
-}
-
-/* Modified (normalised) Phong, slides and lecture modifiedPhongBRDF:
- * f = kd/pi + ks (n + 2)/(2 pi) max(r.v, floor)^n.  The lobe integrates to
- * ks at normal incidence, so the albedo is <= kd + ks.  floor = 0 is the
- * slides' formula; the lecture's GLSL clamps r.v to 0.001 (pow(0, n) is
- * undefined in GLSL, not in C), reproduced by floor=0.001. */
-static int mphong_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double s = m->cspec * pow(fmax(mirror_dot(l, v), m->rv_floor), m->n);
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->kd[c] / SB_PI + m->ks[c] * s;
-    return 1;
-}
-
-/* The lecture's blinnPhongBRDF: f = kd + ks max(n.h, 0)^n. */
-static int blinn_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double h[3];
-    half_vector(l, v, h);
-    double s = pow(fmax(h[2], 0.0), m->n);
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->kd[c] + m->ks[c] * s;
-    return 1;
-}
-
-/* Normalised Blinn-Phong: f = kd/pi + ks C_n (n.h)^n with
- *   rtr:   C_n = (n + 8)/(8 pi)                      (the usual approximation)
- *   exact: C_n = (n + 2)(n + 4) / (8 pi (2^(-n/2) + n))
- * "exact" makes the lobe's albedo at normal incidence exactly ks:
- *   int (n.h)^n cos theta_o dw_o = 8 pi (n + 2^(-n/2)) / ((n + 2)(n + 4))
- * (h bisects n and v, substitute u = cos(theta_o/2)).  "rtr" overshoots it
- * by (n + 8)(n + 2^(-n/2)) / ((n + 2)(n + 4)), up to 1.075 near n = 10. */
-static double blinn_norm(double n, int exact) {
-    if (!exact) return (n + 8) / (8 * SB_PI);
-    return (n + 2) * (n + 4) / (8 * SB_PI * (pow(2.0, -n / 2) + n));
-}
-
-static int nblinn_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double h[3];
-    half_vector(l, v, h);
-    double s = m->cspec * pow(fmax(h[2], 0.0), m->n);
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->kd[c] / SB_PI + m->ks[c] * s;
-    return 1;
-}
-
-/* ---- microfacet terms --------------------------------------------------- */
-
-/* Normal distributions of the half vector; c = n.h > 0, s2 = 1 - c^2.
- *   ggx (paper eq. 6, lecture D_GGX), alpha = roughness^2:
- *       D = alpha^2 / (pi ((n.h)^2 (alpha^2 - 1) + 1)^2)
- *         = alpha^2 / (pi (s2 + c^2 alpha^2)^2)              (no cancellation)
- *   beckmann (slides), m = roughness:
- *       D = exp(-tan^2 g / m^2) / (4 m^2 cos^4 g)
- *     integrates to pi/4 over projected area (int D cos g dw = pi/4); with
- *     denom=pi it is the normalised Cook-Torrance (1982) specular term.
- *   beckmann-norm: D = exp(-tan^2 g / m^2) / (pi m^2 cos^4 g), int D cos g dw = 1.
- *   gaussian (slides), m = roughness:
- *       D = exp(-g^2 / (2 m^2)) / (m sqrt(2 pi)),  g = angle(n, h) in radians
- *     not normalised: int D cos g dw ~ sqrt(2 pi) m for small m (0.25 at
- *     m = 0.1, 1.25 at m = 0.5), so its albedo scales with m. */
-static double ndf(const model_t *m, const double h[3]) {
-    double c = h[2], s2 = sin2_n(h), a = m->alpha, a2 = a * a;
-    switch (m->d) {
-    case D_GGX: {
-        double b = s2 + c * c * a2;
-        return a2 / (SB_PI * b * b);
-    }
-    case D_BECKMANN:
-    case D_BECKMANN_NORM: {
-        /* m <= 1: where exp() is above underflow, tan^2 < 745, so c^2 > 1/746
-         * and c^4 cannot underflow; where it is below, D = 0 exactly. */
-        double c2 = c * c;
-        if (c2 <= 0) return 0;
-        double e = exp(-(s2 / c2) / a2);
-        if (e == 0) return 0;
-        double k = m->d == D_BECKMANN ? 4.0 : SB_PI;
-        return e / (k * a2 * c2 * c2);
-    }
-    default: { /* D_GAUSSIAN */
-        double g = atan2(sqrt(s2), c);
-        return exp(-g * g / (2 * a2)) / (a * sqrt(2 * SB_PI));
-    }
-    }
-}
-
-/* Shadowing-masking; nl = n.l, nv = n.v, nh = n.h, vh = v.h = l.h.
- *   smith-schlick (paper eqs. 7-9): G = G1(n.l) G1(n.v), G1(c) = c/(c (1-k) + k),
- *       k = (roughness + 1)^2 / 8
- *   smith-disney (lecture G1_GGX_Schlick): the same k (Disney remapping
- *       r = (1 + roughness)/2, k = r^2/2), numerator max(c, guard)
- *   smith-alpha: k = alpha/2 with alpha the width of D (GGX roughness^2,
- *       Beckmann/Gaussian m = roughness); for GGX this is the lecture's
- *       commented-out original r = roughness, k = r^2/2; numerator c
- *   vcavity (slides, Cook-Torrance):
- *       G = min{1, 2 (n.h)(n.v)/(v.h), 2 (n.h)(n.l)/(l.h)}
- *   none: G = 1 */
-static double shadowing(const model_t *m, double nl, double nv, double nh, double vh) {
-    double k = m->k;
-    switch (m->g) {
-    case G_SMITH_SCHLICK:
-    case G_SMITH_ALPHA:
-        return nl / (nl * (1 - k) + k) * (nv / (nv * (1 - k) + k));
-    case G_SMITH_DISNEY:
-        return fmax(nl, m->cmin) / (nl * (1 - k) + k) * (fmax(nv, m->cmin) / (nv * (1 - k) + k));
-    case G_VCAVITY:
-        return fmin(1.0, fmin(2 * nh * nv / vh, 2 * nh * nl / vh));
-    default:
-        return 1;
-    }
-}
-
-/* Fresnel reflectance at c = l.h = v.h > 0, channel ch.
- *   schlick / conductor (paper eq. 10): F = F0 + (1 - F0)(1 - c)^5
- *   dielectric (slides): F = 1/2 ((g - c)/(g + c))^2 (1 + ((c (g + c) - 1)/(c (g - c) + 1))^2),
- *       g = sqrt(eta^2 + c^2 - 1); eta >= 1 gives g >= c, so g + c > 0 and
- *       c (g - c) + 1 >= 1.
- *   none: F = 1 */
-static double fresnel(const model_t *m, double c, int ch) {
-    switch (m->f) {
-    case F_SCHLICK:
-    case F_CONDUCTOR:
-        return m->f0[ch] + (1 - m->f0[ch]) * pow(1 - c, 5);
-    case F_DIELECTRIC: {
-        double g = sqrt(m->ior * m->ior + c * c - 1);
-        if (g + c <= 0) return 1; /* c -> 0 with eta = 1: the grazing limit */
-        double a = (g - c) / (g + c), b = (c * (g + c) - 1) / (c * (g - c) + 1);
-        return 0.5 * a * a * (1 + b * b);
-    }
-    default:
-        return 1;
-    }
-}
-
-/* Cook-Torrance with selectable terms:
- *   f = kd albedo/pi + ks D G F / den
- *   den = 4 (n.l)(n.v)  (denom=4, paper eq. 5/11)
- *       =   (n.l)(n.v)  (denom=cos, slides)
- *       = pi (n.l)(n.v) (denom=pi, Cook & Torrance 1982)
- * with n.l and n.v in den raised to the guard (lecture: max(n.v, 0.001)). */
-static int ct_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double h[3];
-    half_vector(l, v, h);
-    double nl = clamp01(l[2]), nv = clamp01(v[2]), nh = clamp01(h[2]), vh = clamp01(dot3(v, h));
-    double dg = ndf(m, h) * shadowing(m, nl, nv, nh, vh) / (m->cspec * fmax(nl, m->cmin) * fmax(nv, m->cmin));
-    for (int c = 0; c < 3; c++)
-        rgb[c] = m->kd[c] * m->albedo[c] / SB_PI + m->ks[c] * dg * fresnel(m, vh, c);
-    return 1;
-}
-
-/* Anisotropic GGX (Burley 2012) with widths ax along the surface tangent
- * x and ay along y:  D = 1 / (pi ax ay (h_x^2/ax^2 + h_y^2/ay^2 + h_z^2)^2),
- * which is ndf()'s GGX for ax = ay = alpha. */
-static double ndf_aniso(const model_t *m, const double h[3]) {
-    double x = h[0] / m->ax, y = h[1] / m->ay, b = x * x + y * y + h[2] * h[2];
-    return 1 / (SB_PI * m->ax * m->ay * b * b);
-}
-
-/* The lecture's microfacetBRDF, unchanged (with anisotropy 0):
- *   f0 = mix(0.16 reflectance^2, base, metallic)
- *   F = f0 + (1 - f0)(1 - v.h)^5,  D = GGX(alpha = roughness^2),
- *   G = G1(n.l) G1(n.v), G1(c) = max(c, 0.001)/(c (1 - k) + k), k = ((1 + roughness)/2)^2 / 2
- *   f = (1 - F)(1 - metallic) base/pi + F D G / (4 max(n.v, 0.001) max(n.l, 0.001))
- * (0.001 is the guard key).  D uses the cancellation-free form above. */
-static int microfacet_eval(const void *self, const double l[3], const double v[3], double rgb[3]) {
-    const model_t *m = self;
-    if (below_horizon(l, v, rgb)) return 1;
-    double h[3];
-    half_vector(l, v, h);
-    double nv = clamp01(v[2]), nl = clamp01(l[2]), vh = clamp01(dot3(v, h));
-    double D = m->anisotropy > 0 ? ndf_aniso(m, h) : ndf(m, h);
-    double k = m->k;
-    double G = (fmax(nl, m->cmin) / (nl * (1 - k) + k)) * (fmax(nv, m->cmin) / (nv * (1 - k) + k));
-    double f5 = pow(1 - vh, 5);
-    for (int c = 0; c < 3; c++) {
-        double f0 = 0.16 * m->reflectance * m->reflectance;
-        f0 = f0 * (1 - m->metallic) + m->base[c] * m->metallic;
-        double F = f0 + (1 - f0) * f5;
-        double spec = F * D * G / (4 * fmax(nv, m->cmin) * fmax(nl, m->cmin));
-        double diff = m->base[c] * (1 - F) * (1 - m->metallic) / SB_PI;
-        rgb[c] = diff + spec;
-    }
-    return 1;
-}
 
 /* ---- keys --------------------------------------------------------------- */
 
@@ -512,7 +226,8 @@ static const sb_model_info_t models[] = {
 static const keyspec_t *const model_specs[] = {lambert_spec, phong_spec,  phong_glsl_spec, mphong_spec,
                                                blinn_spec,   nblinn_spec, ct_spec,         microfacet_spec};
 static int (*const model_evals[])(const void *, const double *, const double *, double *) = {
-    lambert_eval, phong_eval, phong_glsl_eval, mphong_eval, blinn_eval, nblinn_eval, ct_eval, microfacet_eval};
+    sb_model_lambert_, sb_model_phong_,  sb_model_phong_glsl_, sb_model_mphong_,
+    sb_model_blinn_,   sb_model_nblinn_, sb_model_ct_,         sb_model_microfacet_};
 
 size_t sb_model_count(void) { return NMODELS; }
 const sb_model_info_t *sb_model_at(size_t i) { return i < NMODELS ? &models[i] : NULL; }
@@ -684,6 +399,18 @@ static void describe(const model_t *m, char *buf, size_t size) {
             }
         }
     }
+}
+
+/* Normalised Blinn-Phong: f = kd/pi + ks C_n (n.h)^n with
+ *   rtr:   C_n = (n + 8)/(8 pi)                      (the usual approximation)
+ *   exact: C_n = (n + 2)(n + 4) / (8 pi (2^(-n/2) + n))
+ * "exact" makes the lobe's albedo at normal incidence exactly ks:
+ *   int (n.h)^n cos theta_o dw_o = 8 pi (n + 2^(-n/2)) / ((n + 2)(n + 4))
+ * (h bisects n and v, substitute u = cos(theta_o/2)).  "rtr" overshoots it
+ * by (n + 8)(n + 2^(-n/2)) / ((n + 2)(n + 4)), up to 1.075 near n = 10. */
+static double blinn_norm(double n, int exact) {
+    if (!exact) return (n + 8) / (8 * SB_PI);
+    return (n + 2) * (n + 4) / (8 * SB_PI * (pow(2.0, -n / 2) + n));
 }
 
 /* Resolve defaults that depend on other keys, reject combinations where a

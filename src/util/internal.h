@@ -15,6 +15,11 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
  * them (fewer page faults on first touch); released with free(). */
 void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *what);
 
+/* Write the n parts (bytes sizes[i]) to `path` under the temporary name
+ * "PATH.tmp-PID", then rename; the temporary is removed on failure.
+ * Returns 0 or the errno of the failure (ENAMETOOLONG for a long path). */
+int sb_write_atomic(const char *path, const void *const *parts, const size_t *sizes, size_t n);
+
 /* While from is set, sb_error writes `to` for every occurrence of `from` in
  * its messages (an output set names its target, not its staging folder).
  * Both strings stay owned by the caller; from NULL ends it. */

@@ -1,6 +1,8 @@
 /* Allocation with limits, strings, thread counts, scaling. */
 #define _DEFAULT_SOURCE /* madvise, MADV_HUGEPAGE */
+#include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -71,4 +73,21 @@ double sb_pow2_scale(double amax) {
     int e;
     frexp(amax, &e);
     return ldexp(1, e > 1020 ? -1020 : (e < -1020 ? 1020 : -e));
+}
+
+int sb_write_atomic(const char *path, const void *const *parts, const size_t *sizes, size_t n) {
+    char tmp[4200];
+    int len = snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
+    if (len < 0 || (size_t)len >= sizeof tmp) return ENAMETOOLONG;
+    FILE *fp = fopen(tmp, "wb");
+    if (!fp) return errno;
+    int e = 0;
+    errno = 0;
+    for (size_t i = 0; i < n && !e; i++)
+        if (fwrite(parts[i], 1, sizes[i], fp) != sizes[i]) e = errno ? errno : EIO;
+    if (!e && fflush(fp) != 0) e = errno ? errno : EIO;
+    if (fclose(fp) != 0 && !e) e = errno ? errno : EIO;
+    if (!e && rename(tmp, path) != 0) e = errno;
+    if (e) remove(tmp);
+    return e;
 }

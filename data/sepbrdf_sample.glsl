@@ -1,0 +1,174 @@
+// sepbrdf_sample.glsl - importance sampling of non-negative factors in a shader.
+//
+//     bool  sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf);
+//     float sb_pdf(vec3 L, vec3 V);
+//
+// The same steps as sb_sample() / sb_pdf() of sepbrdf/sampler.h, on the
+// tables of sampler.bin: V (towards the viewer) in the tangent frame, u in
+// [0,1)^2; L is drawn with a density pdf (1/sr) close to f_r(L, V) cos(theta_L)
+// (the factored form f cos(theta_i), or f for form f); the BRDF value is
+// sb_brdf(L, V).  sb_sample returns false (L = 0, pdf = 0) when no direction
+// results.  `sepbrdf factor` appends this block to sepbrdf.glsl after the
+// snippet, when the factors are non-negative (--method nmf), with a header
+// defining SB_SAMPLE_CH (channels of the factors), SB_HALF_ROWS (rows index
+// the half vector: hd, iso), SB_COSINE_SHARE and the parameterisation's
+// sb_row_dir().
+//
+// sb_cdf: sampler.bin's float32 data as an R32F GL_TEXTURE_2D_ARRAY of
+// (W + 1) x (H + 1) texels and J * SB_SAMPLE_CH + 1 layers (read with
+// texelFetch only, any filter).  Layer k = j * SB_SAMPLE_CH + c: texel
+// (x, y < H) the conditional CDF of texel row y, (W, y) the marginal CDF,
+// (0, H) the integral of g_k; layer K = J * SB_SAMPLE_CH the solid angle of
+// each cell; with SB_HALF_ROWS, layer K + 1 + k the weight of k for V in
+// each cell.
+
+uniform sampler2DArray sb_cdf;
+
+const float SB_ONE_MINUS = 0.99999994; // the largest float below 1
+
+float sb_cdf_at(int k, ivec2 p) { return texelFetch(sb_cdf, ivec3(p, k), 0).r; }
+
+// Smallest i < n with u < cdf(o + i step) (binary search), u rescaled to
+// [0, 1) within entry i.
+int sb_cdf_find(int k, ivec2 o, ivec2 step, int n, inout float u) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (u < sb_cdf_at(k, o + mid * step))
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    float below = lo > 0 ? sb_cdf_at(k, o + (lo - 1) * step) : 0.0;
+    u = clamp((u - below) / (sb_cdf_at(k, o + lo * step) - below), 0.0, SB_ONE_MINUS);
+    return lo;
+}
+
+float sb_cdf_prob(int k, ivec2 o, ivec2 step, int i) {
+    return sb_cdf_at(k, o + i * step) - (i > 0 ? sb_cdf_at(k, o + (i - 1) * step) : 0.0);
+}
+
+// Number of distributions K = J * SB_SAMPLE_CH (layers 0 .. K - 1; layer K
+// holds the cells' solid angles, layers K + 1 .. 2K the weight tables of
+// the half-vector layouts).
+int sb_dists() {
+#if SB_HALF_ROWS
+    return (textureSize(sb_cdf, 0).z - 1) / 2;
+#else
+    return textureSize(sb_cdf, 0).z - 1;
+#endif
+}
+
+#if SB_HALF_ROWS
+// The weights' key: the row cell of V (that of the pair (V, V), whose half
+// vector is V); the weight of k is the table's texel there.
+bool sb_weight_key(vec3 V, out vec2 key) {
+    vec4 st = sb_coords(V, V);
+    ivec2 n = textureSize(sb_cdf, 0).xy - 1;
+    key = vec2(clamp(ivec2(floor(st.xy * vec2(n))), ivec2(0), n - 1));
+    return sb_domain(V, V, st);
+}
+
+float sb_weight(int k, vec2 key) { return sb_cdf_at(sb_dists() + 1 + k, ivec2(key)); }
+#else
+// The weights' key: the h coordinate of the pair (mirror(V), V).
+bool sb_weight_key(vec3 V, out vec2 key) {
+    vec3 M = vec3(-V.xy, V.z);
+    vec4 st = sb_coords(M, V);
+    key = st.zw;
+    return sb_domain(M, V, st);
+}
+
+// Weight of distribution k: lum_c h_jc(key) I_jc.
+float sb_weight(int k, vec2 key) {
+    int j = k / SB_SAMPLE_CH, c = k - j * SB_SAMPLE_CH;
+    vec3 lum = SB_SAMPLE_CH == 1 ? vec3(1.0) : vec3(0.2126, 0.7152, 0.0722);
+    float h = texture(sb_h, vec3(key, float(j)))[c];
+    return lum[c] * h * sb_scale[j] * sb_cdf_at(k, ivec2(0, textureSize(sb_cdf, 0).y - 1));
+}
+#endif
+
+float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
+    ivec3 n = textureSize(sb_cdf, 0);
+    int W = n.x - 1, H = n.y - 1, K = sb_dists();
+    ivec2 cell = clamp(ivec2(floor(st_g * vec2(W, H))), ivec2(0), ivec2(W - 1, H - 1));
+    float num = 0.0, total = 0.0;
+    for (int k = 0; k < K; k++) {
+        float w = sb_weight(k, sw);
+        if (!(w > 0.0)) continue;
+        total += w;
+        num += w * sb_cdf_prob(k, ivec2(W, 0), ivec2(0, 1), cell.y) *
+               sb_cdf_prob(k, ivec2(0, cell.y), ivec2(1, 0), cell.x);
+    }
+    if (!(total > 0.0)) return 0.0;
+    float pdf = num / total / sb_cdf_at(K, cell);
+#if SB_HALF_ROWS
+    float c = dot(normalize(L + V), V);
+    pdf = c > 0.0 ? pdf / (4.0 * c) : 0.0;
+#endif
+    return pdf;
+}
+
+float sb_pdf(vec3 L, vec3 V) {
+    vec4 st = sb_coords(L, V);
+    vec2 sw;
+    if (!sb_domain(L, V, st) || !sb_weight_key(V, sw)) return 0.0;
+    return SB_COSINE_SHARE * L.z / SB_PI + (1.0 - SB_COSINE_SHARE) * sb_factored_pdf(L, V, st.xy, sw);
+}
+
+// The factored component: distribution k by u0, then the cell's row y (u0
+// rescaled) and column x (u1), a direction in the cell, reflected for half rows.
+bool sb_factored_dir(vec3 V, vec2 sw, float u0, float u1, out vec3 D) {
+    D = vec3(0.0);
+    ivec3 n = textureSize(sb_cdf, 0);
+    int W = n.x - 1, H = n.y - 1, K = sb_dists();
+    float total = 0.0;
+    for (int k = 0; k < K; k++)
+        total += sb_weight(k, sw);
+    if (!(total > 0.0)) return false;
+    float target = u0 * total, acc = 0.0;
+    int pick = -1, last = 0;
+    for (int k = 0; k < K && pick < 0; k++) {
+        float w = sb_weight(k, sw);
+        if (!(w > 0.0)) continue;
+        if (target < acc + w) {
+            pick = k;
+            u0 = clamp((target - acc) / w, 0.0, SB_ONE_MINUS);
+        }
+        last = k;
+        acc += w;
+    }
+    if (pick < 0) {
+        pick = last;
+        u0 = SB_ONE_MINUS;
+    }
+    int y = sb_cdf_find(pick, ivec2(W, 0), ivec2(0, 1), H, u0);
+    int x = sb_cdf_find(pick, ivec2(0, y), ivec2(1, 0), W, u1);
+    D = sb_row_dir(ivec2(x, y), vec2(u1, u0));
+#if SB_HALF_ROWS
+    float c = dot(D, V);
+    if (!(c > 0.0)) return false;
+    D = 2.0 * c * D - V;
+#endif
+    return true;
+}
+
+bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf) {
+    L = vec3(0.0);
+    pdf = 0.0;
+    vec2 sw;
+    if (!sb_weight_key(V, sw)) return false;
+    vec3 D;
+    if (u.x < SB_COSINE_SHARE) { // cosine-weighted share
+        float r = sqrt(u.x / SB_COSINE_SHARE), phi = 2.0 * SB_PI * u.y;
+        D = vec3(r * cos(phi), r * sin(phi), sqrt(max(1.0 - r * r, 0.0)));
+    } else if (!sb_factored_dir(V, sw, min((u.x - SB_COSINE_SHARE) / (1.0 - SB_COSINE_SHARE), SB_ONE_MINUS), u.y, D)) {
+        return false;
+    }
+    vec3 Ln = normalize(D);
+    float p = sb_pdf(Ln, V);
+    if (!(p > 0.0) || !(Ln.z > 0.0)) return false;
+    L = Ln;
+    pdf = p;
+    return true;
+}

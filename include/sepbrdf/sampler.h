@@ -1,0 +1,113 @@
+/* sepbrdf: importance sampling from non-negative factors (Lawrence et al.
+ * 2004), in C and in the GLSL snippet.
+ *
+ * For non-negative factors (--method nmf) the stored form of the BRDF
+ * (matrix.h: f, f cos(theta_i) or f cos(theta_i) cos(theta_o)) is, for a
+ * fixed outgoing direction wo,
+ *     F(wi) = sum_k g_k(row(wi, wo)) h_k(wo)      k = (term j, channel c)
+ * and the sampler draws wi with a density proportional to the luminance
+ * (Rec. 709 weights 0.2126, 0.7152, 0.0722; 1 for a single channel) of
+ * F at the texel centres, piecewise constant in solid angle over the row
+ * cells of the parameterisation:
+ *   1. pick k with probability W_k / sum W: for io and io-area
+ *      W_k = lum_c h_k(st_h) I_k, where I_k = sum_r g_k[r] m_r (m_r =
+ *      sb_param_row_measure) and st_h is the h coordinate of wo (that of
+ *      the pair (mirror(wo), wo), mirror(wo) = (-x, -y, z)); this is exact.
+ *      For the half-vector layouts (hd, iso) h_k depends on wi too, and
+ *      W_k is tabulated per row cell c of wo (taken as a direction: the
+ *      cell of the pair (wo, wo)):
+ *          W_k(c) = lum_c sum_r g_k[r] m_r h_k(st_h(wi_rc, wo_c)),
+ *      over the cells r whose centre h_r reflects the centre wo_c of cell c
+ *      to wi_rc = 2 (wo_c.h_r) h_r - wo_c inside the domain (the integral
+ *      of term k over the directions this wo can reach; (W H)^2 J C
+ *      lookups at creation: 0.5 s for hd at 32 cells, 16x that at 64);
+ *   2. pick the row cell r = (x, y) of g_k's texture by a marginal CDF over
+ *      y and a conditional CDF over x, P_k(r) = g_k[r] m_r / I_k
+ *      (piecewise constant: one value per texel, the matrix cell, not the
+ *      bilinear lookup between texel centres);
+ *   3. draw a direction uniformly in solid angle over the cell
+ *      (sb_param_row_sample): wi itself (io, io-area), or the half vector h
+ *      and wi = 2 (wo.h) h - wo (hd, iso: SB_CAP_HALF_ROWS).
+ * So the factored density with respect to solid angle is
+ *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / m_r   [/ (4 wo.h)]
+ * with r the row cell of wi (of h).  With the form f cos(theta_i) or
+ * f cos(theta_i) cos(theta_o) it is proportional to f cos(theta_i) at the
+ * cell centres (io, io-area); with the form f, to f.  A share s =
+ * SB_SAMPLER_COSINE_SHARE of the samples is cosine-weighted (defensive
+ * sampling), so that the density is positive wherever the reconstruction
+ * is, also between texel centres where the bilinear lookup reaches a
+ * texel that is 0 in the tables, and where a half-vector layout's weight
+ * table (constant over wo's cell) is 0 for a term:
+ *     pdf(wi | wo) = s cos(theta_i) / pi + (1 - s) p_F(wi | wo).
+ * In the half-vector layouts an h that reflects wo below the horizon (or
+ * beyond theta_max) is a failed sample (25-47 % of them in the tests):
+ * the pdf then integrates over the hemisphere to 1 minus the probability
+ * of failure (as for microfacet sampling in pbrt and Mitsuba); in io and
+ * io-area it integrates to 1 (with theta_max at the horizon).
+ *
+ * Two random numbers drive a sample: u[0] < s picks the cosine lobe
+ * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,
+ * then (rescaled) y, then (rescaled) the position along y inside the
+ * cell; u[1] picks x, then (rescaled) the position along x.  The GLSL
+ * sampler (sb_glsl_sampler) repeats these steps on the tables that
+ * sb_sampler_write stores. */
+#ifndef SEPBRDF_SAMPLER_H
+#define SEPBRDF_SAMPLER_H
+
+#include "common.h"
+#include "factor.h"
+#include "matrix.h"
+#include "param.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The cosine-weighted share s of the samples (see above). */
+#define SB_SAMPLER_COSINE_SHARE 0.05
+
+typedef struct sb_sampler sb_sampler_t;
+
+/* Build the tables of a sampler for the factors f on p (textures of p's
+ * sizes), factored in `form`.  f and p are borrowed: they must outlive the
+ * sampler.  Errors: SB_ERR_ARG (NULL argument, unknown form, textures not
+ * of p's sizes, a negative or non-finite texel: signed factors, e.g. from
+ * the SVD, cannot be sampled; factor with --method nmf), SB_ERR_NUMERIC
+ * (no positive texel: nothing to sample), SB_ERR_OVERFLOW, SB_ERR_NOMEM. */
+sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
+                              sb_sampler_t **out);
+void sb_sampler_destroy(sb_sampler_t *s); /* accepts NULL */
+
+/* Draw wi for the outgoing direction wo (unit, tangent frame) from u in
+ * [0,1)^2.  Returns 1 with wi (unit), *pdf = sb_pdf(s, wo, wi) > 0 (1/sr)
+ * and rgb = f_r(wi, wo) as sb_factors_eval reconstructs it (form divided
+ * back; rgb may be NULL); 0 when no direction results (wo outside the
+ * domain, all weights 0 for this wo, a reflected wi below the horizon):
+ * wi and rgb zero, *pdf 0.  0 also for NULL arguments. */
+int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2], double wi[3], double *pdf, double rgb[3]);
+
+/* Density of sb_sample's wi for wo, with respect to solid angle (1/sr): 0
+ * outside the domain or for NULL arguments. */
+double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]);
+
+/* The tables as the GLSL sampler reads them (file "sampler.bin" of an
+ * output set; README "Importance sampling"): little-endian,
+ *     char[8] "sbsampl1", uint32 W + 1, uint32 H + 1, uint32 layers,
+ *     uint32 channels C, then layers x (H + 1) x (W + 1) float32,
+ * layer-major, then row-major (x fastest): an R32F texture array
+ * uploaded as is.  W x H is the g texture's size; layers = J C + 1.
+ * Layer k = j C + c (term j, channel c): texel (x, y < H) the conditional
+ * CDF of row y inclusive of x (the last is 1), texel (W, y) the marginal
+ * CDF inclusive of y, texel (0, H) I_k / g_scale[j], the integral in the
+ * units the g texture stores (g_scale: each g_j texture's storage scale,
+ * sepbrdf.scale of g_JJ.exr; NULL = all 1, FLOAT textures).  Layer J C
+ * holds m_r at texel (x, y).  For SB_CAP_HALF_ROWS layouts layers = 2 J C
+ * + 1: layer J C + 1 + k holds W_k(c) of wo's cell c at texel (x, y).
+ * Unused texels are 0.  Written under a
+ * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
+sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,383 @@
+/* Importance sampling from non-negative factors: the tables (marginal and
+ * conditional CDFs of every g_k weighted by the row measures), the term
+ * weights of an outgoing direction, sb_sample and sb_pdf (the maths is in
+ * sepbrdf/sampler.h), and the tables' file for the GLSL sampler. */
+#include "sepbrdf/sampler.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sepbrdf/outset.h"
+#include "util/internal.h"
+
+struct sb_sampler {
+    const sb_factors_t *f;
+    const sb_param_t *p;
+    sb_form_t form;
+    size_t W, H, J, C, K; /* g texture W x H, K = J C distributions */
+    int half_rows;        /* SB_CAP_HALF_ROWS: rows index h, wi = reflect(wo, h) */
+    double lum[3];
+    double *cond;     /* K x H x W: conditional CDF of x in row y, inclusive */
+    double *marg;     /* K x H: marginal CDF of y, inclusive */
+    double *integral; /* K: I_k = sum_r g_k[r] m_r */
+    double *measure;  /* H x W: m_r */
+    double *wtab;     /* half rows: K x H x W, W_k for wo in row cell c (sampler.h) */
+};
+
+/* Where the weights of an outgoing direction are read: the h coordinate
+ * (io, io-area) or the row cell of wo (half rows). */
+typedef struct wkey {
+    double st_h[2];
+    size_t cell;
+} wkey_t;
+
+/* Refuse what cannot be sampled: a negative or non-finite texel on either
+ * side (the message names the first one). */
+static sb_result_t check_nonneg(sb_context_t *ctx, const sb_factors_t *f) {
+    static const char *const side_name[2] = {"g", "h"};
+    for (int side = 0; side < 2; side++) {
+        size_t w, h;
+        sb_factors_size(f, side, &w, &h);
+        for (size_t j = 0; j < sb_factors_terms(f); j++)
+            for (size_t c = 0; c < sb_factors_channels(f); c++) {
+                const double *t = sb_factors_tex_const(f, side, j, c);
+                for (size_t i = 0; i < w * h; i++)
+                    if (!(t[i] >= 0) || !isfinite(t[i]))
+                        return sb_error(ctx, SB_ERR_ARG,
+                                        "sampler: %s_%02zu channel %zu has texel %g at (%zu, %zu): signed factors "
+                                        "(the SVD's) cannot be sampled; factor with --method nmf",
+                                        side_name[side], j, c, t[i], i % w, i / w);
+            }
+    }
+    return SB_OK;
+}
+
+/* Inclusive CDF of n non-negative values (the last forced to 1); uniform
+ * when they sum to 0.  Returns the sum. */
+static double cdf_build(const double *v, size_t n, double *cdf) {
+    double sum = 0;
+    for (size_t i = 0; i < n; i++)
+        sum += v[i];
+    double acc = 0;
+    for (size_t i = 0; i < n; i++) {
+        acc += v[i];
+        cdf[i] = sum > 0 ? acc / sum : (double)(i + 1) / (double)n;
+    }
+    cdf[n - 1] = 1;
+    return sum;
+}
+
+/* Smallest i with *u < cdf[i] (binary search; the last entry is 1 > *u),
+ * and *u rescaled to [0, 1) within that entry. */
+static size_t cdf_find(const double *cdf, size_t n, double *u) {
+    size_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (*u < cdf[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    double below = lo ? cdf[lo - 1] : 0, r = (*u - below) / (cdf[lo] - below);
+    *u = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
+    return lo;
+}
+
+static double cdf_prob(const double *cdf, size_t i) { return cdf[i] - (i ? cdf[i - 1] : 0); }
+
+/* The tables of distribution k: g_k m_r per texel, rows' CDFs, marginal. */
+static void build_tables(sb_sampler_t *s, size_t k, double *rowsum, double *tmp) {
+    const double *g = sb_factors_tex_const(s->f, SB_SIDE_G, k / s->C, k % s->C);
+    for (size_t y = 0; y < s->H; y++) {
+        for (size_t x = 0; x < s->W; x++)
+            tmp[x] = g[y * s->W + x] * s->measure[y * s->W + x];
+        rowsum[y] = cdf_build(tmp, s->W, s->cond + (k * s->H + y) * s->W);
+    }
+    s->integral[k] = cdf_build(rowsum, s->H, s->marg + k * s->H);
+}
+
+static size_t texel_of(double s, size_t n) {
+    double v = floor(s * (double)n);
+    if (!(v >= 0)) return 0;
+    return v >= (double)n ? n - 1 : (size_t)v;
+}
+
+static size_t cell_of(const sb_sampler_t *s, const double st_g[2]) {
+    return texel_of(st_g[1], s->H) * s->W + texel_of(st_g[0], s->W);
+}
+
+/* The weights' key for wo: st_h of the pair (mirror(wo), wo),
+ * mirror(wo) = (-x, -y, z), or for half rows the row cell of wo (that of
+ * the pair (wo, wo), whose half vector is wo).  0 when wo is outside the
+ * domain. */
+static int weight_key(const sb_sampler_t *s, const double wo[3], wkey_t *key) {
+    const double m[3] = {-wo[0], -wo[1], wo[2]};
+    double st_g[2], st_h[2];
+    if (!s->half_rows) return sb_param_coords(s->p, m, wo, st_g, key->st_h);
+    if (!sb_param_coords(s->p, wo, wo, st_g, st_h)) return 0;
+    key->cell = cell_of(s, st_g);
+    return 1;
+}
+
+/* W_k = lum_c h_k(st_h) I_k (a bilinear lookup of non-negative texels), or
+ * the table's value for half rows. */
+static double weight(const sb_sampler_t *s, size_t k, const wkey_t *key) {
+    if (s->half_rows) return s->wtab[k * s->W * s->H + key->cell];
+    size_t c = k % s->C;
+    double h = sb_factors_lookup(s->f, s->p, SB_SIDE_H, k / s->C, c, key->st_h);
+    return s->lum[c] * h * s->integral[k];
+}
+
+/* Half rows: W_k(wo_c) = lum_c sum_r g_k[r] m_r h_k(st_h(wi_rc, wo_c)) over
+ * the row cells r whose reflection wi_rc = 2 (wo_c.h_r) h_r - wo_c is in
+ * the domain, h_r and wo_c the centres of cells r and c (u = 1/2). */
+static void build_wtab(sb_sampler_t *s) {
+    size_t n = s->W * s->H;
+    const double mid[2] = {0.5, 0.5};
+    for (size_t c = 0; c < n; c++) {
+        double wo[3];
+        sb_param_row_sample(s->p, c, mid, wo);
+        for (size_t k = 0; k < s->K; k++)
+            s->wtab[k * n + c] = 0;
+        for (size_t r = 0; r < n; r++) {
+            double h[3], wi[3], sg[2], sh[2];
+            sb_param_row_sample(s->p, r, mid, h);
+            double d = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];
+            for (int i = 0; i < 3; i++)
+                wi[i] = 2 * d * h[i] - wo[i];
+            if (!(d > 0) || !sb_param_coords(s->p, wi, wo, sg, sh)) continue;
+            for (size_t k = 0; k < s->K; k++) {
+                double g = sb_factors_tex_const(s->f, SB_SIDE_G, k / s->C, k % s->C)[r];
+                if (g > 0)
+                    s->wtab[k * n + c] += s->lum[k % s->C] * g * s->measure[r] *
+                                          sb_factors_lookup(s->f, s->p, SB_SIDE_H, k / s->C, k % s->C, sh);
+            }
+        }
+    }
+}
+
+static sb_result_t sampler_alloc(sb_context_t *ctx, sb_sampler_t *s) {
+    size_t n = s->W * s->H;
+    s->cond = sb_alloc(ctx, n, s->K * sizeof(double), "sampler tables");
+    s->marg = sb_alloc(ctx, s->H, s->K * sizeof(double), "sampler tables");
+    s->integral = sb_alloc(ctx, s->K, sizeof(double), "sampler tables");
+    s->measure = sb_alloc(ctx, n, sizeof(double), "sampler tables");
+    if (s->half_rows) s->wtab = sb_alloc(ctx, n, s->K * sizeof(double), "sampler tables");
+    return s->cond && s->marg && s->integral && s->measure && (s->wtab || !s->half_rows) ? SB_OK : SB_ERR_NOMEM;
+}
+
+sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
+                              sb_sampler_t **out) {
+    if (!out) return sb_error(ctx, SB_ERR_ARG, "sampler: no output");
+    *out = NULL;
+    if (!f || !p || (unsigned)form >= SB_FORM_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "sampler: no factors, no parameterisation or unknown form");
+    size_t gw, gh, hw, hh, pw[2], ph[2];
+    sb_factors_size(f, SB_SIDE_G, &gw, &gh);
+    sb_factors_size(f, SB_SIDE_H, &hw, &hh);
+    sb_param_texture_size(p, SB_SIDE_G, &pw[0], &ph[0]);
+    sb_param_texture_size(p, SB_SIDE_H, &pw[1], &ph[1]);
+    if (gw != pw[0] || gh != ph[0] || hw != pw[1] || hh != ph[1] || gw * gh == 0)
+        return sb_error(ctx, SB_ERR_ARG, "sampler: textures %zux%zu and %zux%zu are not those of %s", gw, gh, hw, hh,
+                        sb_param_spec(p));
+    if (!sb_param_warps_default(p))
+        return sb_error(ctx, SB_ERR_UNSUPPORTED,
+                        "sampler: %s has a warp of its own (--warp); the sampler covers the layouts' own spacing only",
+                        sb_param_spec(p));
+    sb_result_t r = check_nonneg(ctx, f);
+    if (r != SB_OK) return r;
+    sb_sampler_t *s = sb_calloc(ctx, 1, sizeof *s, "sampler");
+    if (!s) return SB_ERR_NOMEM;
+    *s = (sb_sampler_t){.f = f, .p = p, .form = form, .W = gw, .H = gh, .J = sb_factors_terms(f)};
+    s->C = sb_factors_channels(f);
+    s->K = s->J * s->C;
+    s->half_rows = (sb_param_caps(p) & SB_CAP_HALF_ROWS) != 0;
+    const double rec709[3] = {0.2126, 0.7152, 0.0722};
+    for (int c = 0; c < 3; c++)
+        s->lum[c] = s->C == 1 ? 1 : rec709[c];
+    double *rowsum = NULL, *tmp = NULL;
+    if ((r = sampler_alloc(ctx, s)) == SB_OK) {
+        rowsum = sb_alloc(ctx, gh, sizeof *rowsum, "sampler tables");
+        tmp = sb_alloc(ctx, gw, sizeof *tmp, "sampler tables");
+        if (!rowsum || !tmp) r = SB_ERR_NOMEM;
+    }
+    double total = 0;
+    for (size_t i = 0; r == SB_OK && i < gw * gh; i++)
+        s->measure[i] = sb_param_row_measure(p, i);
+    for (size_t k = 0; r == SB_OK && k < s->K; k++) {
+        build_tables(s, k, rowsum, tmp);
+        total += s->integral[k];
+    }
+    free(rowsum);
+    free(tmp);
+    if (r == SB_OK && s->half_rows) build_wtab(s);
+    if (r == SB_OK && !(total > 0)) r = sb_error(ctx, SB_ERR_NUMERIC, "sampler: every texel is 0, nothing to sample");
+    if (r != SB_OK) {
+        sb_sampler_destroy(s);
+        return r;
+    }
+    *out = s;
+    return SB_OK;
+}
+
+void sb_sampler_destroy(sb_sampler_t *s) {
+    if (!s) return;
+    free(s->cond);
+    free(s->marg);
+    free(s->integral);
+    free(s->measure);
+    free(s->wtab);
+    free(s);
+}
+
+/* Pick k by u[0] (rescaled in place); the last k of positive weight when
+ * rounding runs past the end.  total > 0. */
+static size_t pick_term(const sb_sampler_t *s, const wkey_t *key, double total, double *u) {
+    double target = *u * total, acc = 0;
+    size_t last = 0;
+    for (size_t k = 0; k < s->K; k++) {
+        double wk = weight(s, k, key);
+        if (!(wk > 0)) continue;
+        if (target < acc + wk) {
+            double r = (target - acc) / wk;
+            *u = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
+            return k;
+        }
+        last = k;
+        acc += wk;
+    }
+    *u = nextafter(1.0, 0.0);
+    return last;
+}
+
+/* The factored component's density at wi (0 where no term has weight). */
+static double factored_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3], const double sg[2],
+                           const wkey_t *key) {
+    size_t x = texel_of(sg[0], s->W), y = texel_of(sg[1], s->H);
+    double num = 0, total = 0;
+    for (size_t k = 0; k < s->K; k++) {
+        double wk = weight(s, k, key);
+        if (!(wk > 0)) continue;
+        total += wk;
+        num += wk * cdf_prob(s->marg + k * s->H, y) * cdf_prob(s->cond + (k * s->H + y) * s->W, x);
+    }
+    if (!(total > 0)) return 0;
+    double pdf = num / total / s->measure[y * s->W + x];
+    if (s->half_rows) {
+        double h[3], n = 0;
+        for (int i = 0; i < 3; i++) {
+            h[i] = wi[i] + wo[i];
+            n += h[i] * h[i];
+        }
+        double c = (h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2]) / sqrt(n);
+        pdf = c > 0 ? pdf / (4 * c) : 0;
+    }
+    return pdf;
+}
+
+double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {
+    double sg[2], sh[2];
+    wkey_t key;
+    if (!s || !wo || !wi || !sb_param_coords(s->p, wi, wo, sg, sh) || !weight_key(s, wo, &key)) return 0;
+    return SB_SAMPLER_COSINE_SHARE * wi[2] / SB_PI + (1 - SB_SAMPLER_COSINE_SHARE) * factored_pdf(s, wo, wi, sg, &key);
+}
+
+/* The factored component's direction (before the domain check): the
+ * row cell by the tables, a direction in it, reflected for half rows.
+ * 0 when none (no weight, h facing away from wo). */
+static int factored_dir(const sb_sampler_t *s, const double wo[3], const wkey_t *key, double u0, double u1,
+                        double d[3]) {
+    double total = 0;
+    for (size_t k = 0; k < s->K; k++)
+        total += weight(s, k, key);
+    if (!(total > 0)) return 0;
+    size_t k = pick_term(s, key, total, &u0);
+    size_t y = cdf_find(s->marg + k * s->H, s->H, &u0);
+    size_t x = cdf_find(s->cond + (k * s->H + y) * s->W, s->W, &u1);
+    double uc[2] = {u1, u0};
+    sb_param_row_sample(s->p, y * s->W + x, uc, d);
+    if (s->half_rows) {
+        double c = d[0] * wo[0] + d[1] * wo[1] + d[2] * wo[2];
+        if (!(c > 0)) return 0;
+        for (int i = 0; i < 3; i++)
+            d[i] = 2 * c * d[i] - wo[i];
+    }
+    return 1;
+}
+
+int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2], double wi[3], double *pdf, double rgb[3]) {
+    if (wi) wi[0] = wi[1] = wi[2] = 0;
+    if (pdf) *pdf = 0;
+    if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
+    double d[3];
+    wkey_t key;
+    if (!s || !wo || !u || !wi || !pdf || !weight_key(s, wo, &key)) return 0;
+    if (u[0] < SB_SAMPLER_COSINE_SHARE) { /* cosine-weighted: r = sqrt(u0'), phi = 2 pi u1 */
+        double r = sqrt(u[0] / SB_SAMPLER_COSINE_SHARE), phi = 2 * SB_PI * u[1];
+        d[0] = r * cos(phi);
+        d[1] = r * sin(phi);
+        d[2] = sqrt(fmax(1 - r * r, 0));
+    } else {
+        double u0 = (u[0] - SB_SAMPLER_COSINE_SHARE) / (1 - SB_SAMPLER_COSINE_SHARE);
+        if (!factored_dir(s, wo, &key, u0 < 1 ? u0 : nextafter(1.0, 0.0), u[1], d)) return 0;
+    }
+    double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double w[3] = {d[0] / n, d[1] / n, d[2] / n};
+    double p = sb_pdf(s, wo, w);
+    if (!(p > 0) || !(w[2] > 0)) return 0;
+    memcpy(wi, w, sizeof w);
+    *pdf = p;
+    if (rgb) sb_factors_eval(s->f, s->p, s->form, s->J, wi, wo, rgb);
+    return 1;
+}
+
+/* ---- the tables' file --------------------------------------------------- */
+
+static void put_u32(unsigned char *b, uint32_t v) {
+    for (int i = 0; i < 4; i++)
+        b[i] = (unsigned char)(v >> (8 * i));
+}
+
+/* Texel (x, y) of layer k of the file (layout: sampler.h). */
+static double file_texel(const sb_sampler_t *s, const double *g_scale, size_t k, size_t x, size_t y) {
+    int in = x < s->W && y < s->H;
+    if (k > s->K) return in ? s->wtab[(k - s->K - 1) * s->W * s->H + y * s->W + x] : 0;
+    if (k == s->K) return in ? s->measure[y * s->W + x] : 0;
+    if (in) return s->cond[(k * s->H + y) * s->W + x];
+    if (x == s->W && y < s->H) return s->marg[k * s->H + y];
+    return x == 0 ? s->integral[k] / (g_scale ? g_scale[k / s->C] : 1) : 0;
+}
+
+/* Layers x (H + 1) x (W + 1) little-endian float32. */
+static void fill_layers(const sb_sampler_t *s, const double *g_scale, size_t layers, unsigned char *out) {
+    size_t W1 = s->W + 1, H1 = s->H + 1;
+    for (size_t k = 0; k < layers; k++)
+        for (size_t y = 0; y < H1; y++)
+            for (size_t x = 0; x < W1; x++) {
+                float fv = (float)file_texel(s, g_scale, k, x, y);
+                uint32_t bits;
+                memcpy(&bits, &fv, sizeof bits);
+                put_u32(out + 4 * ((k * H1 + y) * W1 + x), bits);
+            }
+}
+
+sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale) {
+    if (!s || !path) return sb_error(ctx, SB_ERR_ARG, "sampler: no sampler or no path");
+    size_t layers = s->half_rows ? 2 * s->K + 1 : s->K + 1, count = (s->W + 1) * (s->H + 1);
+    unsigned char *buf = sb_alloc(ctx, layers * count, 4, "sampler file");
+    if (!buf) return SB_ERR_NOMEM;
+    unsigned char head[24] = "sbsampl1";
+    put_u32(head + 8, (uint32_t)(s->W + 1));
+    put_u32(head + 12, (uint32_t)(s->H + 1));
+    put_u32(head + 16, (uint32_t)layers);
+    put_u32(head + 20, (uint32_t)s->C);
+    fill_layers(s, g_scale, layers, buf);
+    const void *parts[2] = {head, buf};
+    size_t sizes[2] = {sizeof head, layers * count * 4};
+    int e = sb_write_atomic(path, parts, sizes, 2);
+    free(buf);
+    if (e) return sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, sb_io_why(e));
+    return SB_OK;
+}

@@ -1,0 +1,119 @@
+/* The factor job's warps (job.h: opts.warp): the axes' warps of the kept
+ * layout, measured from the source for "adaptive", and the kept fit made
+ * again on the warped layout. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "job_impl.h"
+
+sb_result_t job_warp_parse(sb_context_t *ctx, const char *name, int *adaptive, sb_warp_kind_t *kind) {
+    *adaptive = name && (strcmp(name, "adaptive") == 0 || strcmp(name, "auto") == 0);
+    *kind = SB_WARP_DEFAULT;
+    if (!name || *adaptive) return SB_OK;
+    if (sb_warp_kind_parse(name, kind) == SB_OK && (*kind == SB_WARP_UNIFORM || *kind == SB_WARP_MERL)) return SB_OK;
+    return sb_error(ctx, SB_ERR_UNKNOWN, "warp '%s' unknown, need one of uniform, merl, adaptive, auto", name);
+}
+
+/* The warps of job->o.warp into po->warp: uniform (both axes), merl
+ * (theta_h MERL, theta_d uniform) or adaptive and auto (both measured,
+ * for the texels per axis of `like`). */
+static sb_result_t job_warps(sb_context_t *ctx, sb_job_t *job, const sb_param_t *like, sb_param_opts_t *po) {
+    int adaptive;
+    sb_warp_kind_t kind;
+    sb_result_t r = job_warp_parse(ctx, job->o.warp, &adaptive, &kind);
+    for (int a = 0; a < SB_AXIS_COUNT_ && r == SB_OK; a++) {
+        if (!adaptive) {
+            po->warp[a].kind = kind == SB_WARP_MERL && a == SB_AXIS_THETA_D ? SB_WARP_UNIFORM : kind;
+            continue;
+        }
+        sb_warp_measure_opts_t wo = {0};
+        wo.theta_max = po->theta_max;
+        sb_param_texture_size(like, a == SB_AXIS_THETA_H ? SB_SIDE_G : SB_SIDE_H, &wo.cells, NULL);
+        r = sb_warp_measure(ctx, job->src, a, &wo, &po->warp[a]);
+    }
+    return r;
+}
+
+/* The headline at the attempt's J. */
+static double rank_at_j(const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
+}
+
+/* A masked fit of a warped layout can drift with more sweeps (its error
+ * out of sample rising, measured on GGX roughness 0.1), so the matrix is
+ * also fitted with the screening's early stop (a sweep gaining less than
+ * 1e-3, at most 40) and the lower headline at J kept, as --param auto
+ * does for its kept fit. */
+static sb_result_t keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a) {
+    job_level_t lv = *full;
+    lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
+    lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
+    job_attempt_t t = *a; /* a's matrix and param, fitted again into t.f / t.est */
+    t.f = NULL;
+    t.est = NULL;
+    sb_result_t r = job_factor(ctx, job, &lv, a->weighted, &t);
+    if (r == SB_OK && rank_at_j(&t) < rank_at_j(a)) {
+        sb_factors_destroy(a->f);
+        free(a->est);
+        a->f = t.f;
+        a->est = t.est;
+        a->stats = t.stats;
+        a->metric = t.metric;
+        a->t_factor += t.t_factor;
+        return SB_OK;
+    }
+    sb_factors_destroy(t.f);
+    free(t.est);
+    return r == SB_ERR_NUMERIC ? SB_OK : r;
+}
+
+/* With opts.warp on a layout with SB_CAP_WARPS: sample the kept candidate
+ * again on the warped layout and (unless sample_only) fit it with the
+ * requested settings (a masked fit: the better of two, keep_early_fit),
+ * replacing job->best (max_error: the fewest terms that meet it); "auto" keeps the warped fit only when its headline at
+ * J is lower (both on the estimator's pairs). */
+sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
+    job_attempt_t *b = &job->best, a = {0};
+    if (!job->o.warp) return SB_OK;
+    if (!(sb_param_caps(b->param) & SB_CAP_WARPS)) {
+        job_warn(job, "%s has no axis that takes a warp; the warp asked for (%s) is not applied",
+                 sb_param_name(b->param), job->o.warp);
+        return SB_OK;
+    }
+    double t0 = job_now();
+    sb_param_opts_t po = {0};
+    po.res = job->o.res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    sb_result_t r = job_warps(ctx, job, b->param, &po);
+    if (r == SB_OK) r = sb_param_create(ctx, sb_param_kind(b->param), &po, &a.param);
+    sb_matrix_opts_t mo = {0};
+    mo.form = b->m.form;
+    mo.channels = job->o.channels;
+    mo.structured = 1;
+    if (r == SB_OK) r = sb_matrix_build(ctx, job->eval_src, a.param, &mo, &a.m);
+    a.t_sample = job_now() - t0;
+    a.weighted = b->weighted;
+    job_level_t lv = {.res = job->o.res,
+                      .terms = job->o.terms,
+                      .metric_res = job->o.metric_res,
+                      .fit_tol = job->o.fit_tol,
+                      .fit_max_iters = job->o.fit_max_iters};
+    int fit = !job->o.sample_only;
+    if (r == SB_OK && fit) r = job_factor(ctx, job, &lv, b->weighted, &a);
+    if (r == SB_OK && fit && job_attempt_masked(job, &a)) r = keep_early_fit(ctx, job, &lv, &a);
+    if (r == SB_OK && fit && job->o.max_error > 0) {
+        size_t keep = sb_factors_terms(a.f);
+        for (size_t k = keep; k >= 1; k--)
+            if (sb_estimate_headline(a.est, k) <= job->o.max_error) keep = k;
+        r = job_truncate(ctx, &a, keep);
+    }
+    int worse = r == SB_OK && fit && strcmp(job->o.warp, "auto") == 0 && !(rank_at_j(&a) < rank_at_j(b));
+    if (r != SB_OK || worse) {
+        job_attempt_free(&a);
+        return r;
+    }
+    job_attempt_free(b);
+    *b = a;
+    return SB_OK;
+}

@@ -1,0 +1,178 @@
+/* Local fits of the scattered-sample source: the value at an embedded
+ * position from its neighbours (weighted least-squares polynomial, inverse
+ * distance weights or the nearest sample), and the source's eval with its
+ * blend towards the azimuthal mean near the normal. */
+#include <math.h>
+#include <string.h>
+
+#include "source/scattered_impl.h"
+#include "util/internal.h"
+
+#define MAX_TERMS 15 /* 1 + 4 + 10: quadratic in 4D */
+/* Ridge on the polynomial's slopes and curvatures, relative to the
+ * weighted spread of the neighbours: directions the neighbours do not span
+ * get a zero slope instead of a wild one. */
+#define RIDGE 1e-2
+
+/* Azimuth differences averaged over at the pole (pole_mean): 5 deg steps. */
+#define POLE_STEPS 37
+
+/* Weighted least squares y ~ sum_m c_m u_m(p - x) over the neighbours with
+ * u = (1, p - x) (linear) or (1, p - x, (p - x)_a (p - x)_b, a <= b)
+ * (quadratic), weights count/d^2 (count: samples merged into the point),
+ * a ridge RIDGE * spread (spread^2 for the quadratic terms) on all but c_0,
+ * solved by Cholesky; c_0 is the value at x, clamped to the neighbours'
+ * range.  Returns 0 (rgb untouched) if the system is not positive
+ * definite. */
+static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadratic, double rgb[3]) {
+    int D = t->dim, P = 1 + D + (quadratic ? D * (D + 1) / 2 : 0);
+    double A[MAX_TERMS * MAX_TERMS] = {0}, B[MAX_TERMS * 3] = {0};
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, spread = 0, wsum = 0;
+    for (size_t i = 0; i < q->n; i++) {
+        const double *p = t->pts + q->at[i] * MAX_DIM, *v = t->val + 4 * q->at[i];
+        double w = v[3] / q->d2[i], u[MAX_TERMS];
+        u[0] = 1;
+        for (int a = 0; a < D; a++)
+            u[a + 1] = p[a] - x[a];
+        for (int a = 0, m = 1 + D; quadratic && a < D; a++)
+            for (int b = a; b < D; b++)
+                u[m++] = u[a + 1] * u[b + 1];
+        for (int a = 0; a < P; a++) {
+            for (int b = 0; b <= a; b++)
+                A[a * P + b] += w * u[a] * u[b];
+            for (int c = 0; c < 3; c++)
+                B[a * 3 + c] += w * u[a] * v[c];
+        }
+        for (int c = 0; c < 3; c++) {
+            if (v[c] < lo[c]) lo[c] = v[c];
+            if (v[c] > hi[c]) hi[c] = v[c];
+        }
+        spread += w * q->d2[i];
+        wsum += w;
+    }
+    double s2 = spread / wsum;
+    for (int a = 1; a < P; a++)
+        A[a * P + a] += RIDGE * wsum * (a <= D ? s2 : s2 * s2);
+    /* Cholesky A = L L^T in the lower triangle */
+    for (int j = 0; j < P; j++) {
+        double d = A[j * P + j];
+        for (int k = 0; k < j; k++)
+            d -= A[j * P + k] * A[j * P + k];
+        if (!(d > 0)) return 0;
+        d = sqrt(d);
+        A[j * P + j] = d;
+        for (int i = j + 1; i < P; i++) {
+            double s = A[i * P + j];
+            for (int k = 0; k < j; k++)
+                s -= A[i * P + k] * A[j * P + k];
+            A[i * P + j] = s / d;
+        }
+    }
+    double out[3];
+    for (int c = 0; c < 3; c++) {
+        double y[MAX_TERMS];
+        for (int i = 0; i < P; i++) {
+            double s = B[i * 3 + c];
+            for (int k = 0; k < i; k++)
+                s -= A[i * P + k] * y[k];
+            y[i] = s / A[i * P + i];
+        }
+        for (int i = P - 1; i >= 0; i--) {
+            double s = y[i];
+            for (int k = i + 1; k < P; k++)
+                s -= A[k * P + i] * y[k];
+            y[i] = s / A[i * P + i];
+        }
+        if (!isfinite(y[0])) return 0;
+        out[c] = y[0] < lo[c] ? lo[c] : (y[0] > hi[c] ? hi[c] : y[0]);
+    }
+    memcpy(rgb, out, sizeof out);
+    return 1;
+}
+
+/* The value at embedded position x by method `interp` with k neighbours,
+ * leaving out the points at the nskip positions of `skip`: 0 missing, 1
+ * known, 2 known at a measured position (the measurement). */
+int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
+                 double rgb[3]) {
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    knn_t q;
+    q.k = interp == SB_INTERP_NEAREST ? 1 : k;
+    q.n = 0;
+    q.r2 = interp == SB_INTERP_NEAREST ? t->r2 : t->s2;
+    q.skip = skip;
+    q.nskip = nskip;
+    sb_kd_query_(t, x, 0, t->n, &q);
+    sb_knn_sort_(&q);
+    if (q.n == 0 || q.d2[0] > t->r2) return 0;
+    /* At a measured position (or for nearest): the sample, repeats averaged. */
+    if (q.d2[0] <= SAME_POSITION * SAME_POSITION || interp == SB_INTERP_NEAREST) {
+        double lim = q.d2[0] <= SAME_POSITION * SAME_POSITION ? SAME_POSITION * SAME_POSITION : q.d2[0];
+        double cnt = 0;
+        for (size_t m = 0; m < q.n && q.d2[m] <= lim; m++) {
+            const double *v = t->val + 4 * q.at[m];
+            for (int c = 0; c < 3; c++)
+                rgb[c] += v[3] * v[c];
+            cnt += v[3];
+        }
+        for (int c = 0; c < 3; c++)
+            rgb[c] /= cnt;
+        return q.d2[0] <= SAME_POSITION * SAME_POSITION ? 2 : 1;
+    }
+    /* Inverse squared distance weights: the value, or the fallback. */
+    double wsum = 0;
+    for (size_t i = 0; i < q.n; i++) {
+        double w = t->val[4 * q.at[i] + 3] / q.d2[i];
+        for (int c = 0; c < 3; c++)
+            rgb[c] += w * t->val[4 * q.at[i] + c];
+        wsum += w;
+    }
+    for (int c = 0; c < 3; c++)
+        rgb[c] /= wsum;
+    /* Local polynomial when there are enough neighbours: twice the terms. */
+    size_t lin = 2 * ((size_t)t->dim + 1), quad = 2 * (1 + (size_t)t->dim + (size_t)(t->dim * (t->dim + 1) / 2));
+    if (interp == SB_INTERP_QUADRATIC && q.n >= quad && poly_fit(t, x, &q, 1, rgb)) return 1;
+    if ((interp == SB_INTERP_QUADRATIC || interp == SB_INTERP_LINEAR) && q.n >= lin) poly_fit(t, x, &q, 0, rgb);
+    return 1;
+}
+
+/* Near the normal the azimuth difference is undefined: f is continuous at
+ * theta = 0 whatever dphi, yet the isotropic embedding keeps dphi as a
+ * coordinate, so near the pole the value depended on dphi and a pair could
+ * be missing only because no sample shares its dphi (black pinholes where
+ * light or view is along the normal).  Within the pole zone theta_min <
+ * radius / pi (where every dphi lies within the radius on the sphere) the
+ * value blends, linearly in theta_min, from the azimuthal mean at the pole
+ * (the mean over POLE_STEPS values of dphi in [0, pi] of the values known
+ * at the pair's two elevations) to the value itself at the zone's edge:
+ * dphi-independent at the pole, continuous at the edge, never missing
+ * where any azimuth is known.  A measured position keeps its measurement. */
+static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
+    double acc[3] = {0, 0, 0}, v[3], y[MAX_DIM] = {x[0], x[1], 0, 0};
+    int n = 0;
+    for (int k = 0; k < POLE_STEPS; k++) {
+        y[2] = SB_PI * k / (POLE_STEPS - 1);
+        if (!sb_table_at_(t, t->interp, t->k, y, NULL, 0, v)) continue;
+        for (int c = 0; c < 3; c++)
+            acc[c] += v[c];
+        n++;
+    }
+    for (int c = 0; c < 3; c++)
+        rgb[c] = n ? acc[c] / n : 0;
+    return n > 0;
+}
+
+int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    const table_t *t = self;
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
+    double x[MAX_DIM] = {0};
+    sb_scat_embed_(t->iso, t->recip, wi, wo, x);
+    int known = sb_table_at_(t, t->interp, t->k, x, NULL, 0, rgb);
+    double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
+    if (known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole)) return known != 0;
+    double w = known ? tmin / zone : 0;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = w * rgb[c] + (1 - w) * pole[c];
+    return 1;
+}

@@ -1,0 +1,75 @@
+/* Private: the interpolated source of scattered samples, shared by its
+ * files: scattered.c (building the source), scattered_kd.c (embedding,
+ * k-d tree, nearest neighbours), scattered_fit.c (local fits, evaluation)
+ * and scattered_cv.c (cross-validation of the methods).  The maths of the
+ * embedding and of the fits is in scattered.c's opening comment. */
+#ifndef SEPBRDF_SCATTERED_IMPL_H
+#define SEPBRDF_SCATTERED_IMPL_H
+
+#include "source/measured_impl.h"
+
+#define KNN_MAX 64
+#define MAX_DIM 4
+
+/* Two configurations closer than this (radians of the embedding) are the
+ * same measurement position: text tables print angles to about 6 decimals
+ * and rounding leaves copies 1e-16 apart. */
+#define SAME_POSITION 1e-6
+
+typedef struct table {
+    size_t n; /* points in the tree */
+    int dim;  /* 3 (isotropic) or 4 */
+    int iso, recip;
+    double *pts;          /* n * MAX_DIM (unused coordinates 0), tree order */
+    double *val;          /* n * 4: f_r (RGB, the mean over repeats) and
+                           * the number of samples merged into the point */
+    unsigned char *split; /* split axis of the node whose median is at i */
+    size_t k;
+    double r2; /* squared radius: nearest farther = missing */
+    double s2; /* squared support: neighbours used */
+    sb_interp_t interp;
+    double *smp; /* the samples as read, SB_SAMPLE_DOUBLES each */
+    size_t ns;
+} table_t;
+
+/* The k nearest within sqrt(r2): a max-heap on d2 while searching
+ * (d2[0] the farthest kept), sorted ascending by sb_knn_sort_ afterwards. */
+typedef struct knn {
+    size_t k, n;
+    double r2;
+    double d2[KNN_MAX];
+    size_t at[KNN_MAX];
+    const double *skip; /* cross-validation: nskip positions (MAX_DIM each) held out */
+    int nskip;
+} knn_t;
+
+/* scattered_kd.c */
+/* Embedded position x (MAX_DIM doubles, unused ones left as they are) of
+ * the pair (wi, wo), symmetries folded. */
+void sb_scat_embed_(int iso, int recip, const double wi[3], const double wo[3], double *x);
+/* Build the implicit tree over the points p (MAX_DIM each) of idx[lo, hi),
+ * split axes into split[]. */
+void sb_kd_build_(size_t *idx, const double *p, unsigned char *split, size_t lo, size_t hi);
+/* Push the points of the tree's [lo, hi) near x into q (q->k nearest
+ * within sqrt(q->r2), held-out positions skipped). */
+void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t *q);
+/* Sort q ascending by distance. */
+void sb_knn_sort_(knn_t *q);
+/* Median spacing of the tree's points (see scattered_kd.c); < 0 on no memory. */
+double sb_table_spacing_(sb_context_t *ctx, const table_t *t);
+
+/* scattered_fit.c */
+/* The value at embedded position x by method interp with k neighbours,
+ * leaving out the nskip positions of skip: 0 missing, 1 known, 2 known at
+ * a measured position. */
+int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
+                 double rgb[3]);
+/* The source's eval: f_r of (wi, wo), with the pole blend. */
+int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]);
+
+/* scattered_cv.c */
+/* Cross-validate every method into info; set t->interp and t->k from o
+ * (the lowest error when o->interp is DEFAULT). */
+void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, sb_measured_info_t *info);
+
+#endif
