@@ -149,8 +149,6 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
                       .fit_max_iters = job->o.fit_max_iters};
     free(job->rel_stored);
     job->rel_stored = NULL;
-    free(job->term_w);
-    job->term_w = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
     if (r == SB_OK) r = job_term_weights(ctx, job, &lv, &job->best);
     job->t.factor_s = job->best.t_factor;
@@ -164,7 +162,6 @@ void sb_job_destroy(sb_job_t *job) {
     job_attempt_free(&job->best);
     sb_pairs_destroy(job->pairs);
     free(job->rel_stored);
-    free(job->term_w);
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);
     free(job->source_spec);

@@ -13,6 +13,7 @@ typedef struct job_attempt {
     sb_plan_stats_t stats;
     sb_metric_t metric; /* grid quadrature (comparable_grid), the kept fit only */
     sb_estimate_t *est; /* the estimator's errors of the stored factors */
+    double *term_w;     /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     int weighted;
     double t_sample, t_factor, t_metric, t_estimate;
 } job_attempt_t;
@@ -43,7 +44,6 @@ struct sb_job {
     size_t ncand;
     job_attempt_t best;
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
-    double *term_w;     /* J * C term weights of the kept fit (job_weights.c); NULL: all 1 */
     int wrote_sampler;  /* sb_job_write wrote sampler.bin (non-negative factors) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
@@ -61,7 +61,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
 /* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Weight the terms of the kept fit a so that its headline is non-increasing
- * in J' (estimate.h sb_estimate_term_weights; job->term_w), then measure
+ * in J' (estimate.h sb_estimate_term_weights; a->term_w), then measure
  * its errors again; nothing when the weights are all 1, for a structured
  * matrix or with o.plain_terms. */
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);

@@ -201,7 +201,7 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
         sb_json_number(j, "max_abs", e->max_abs[sb_err_at(k, SB_CH_ALL)]);
         sb_json_begin_array(j, "term_weight"); /* per factor channel; 1: as fitted */
         for (size_t c = 0; c < sb_factors_channels(a->f); c++)
-            sb_json_number(j, NULL, job->term_w ? job->term_w[k * sb_factors_channels(a->f) + c] : 1.0);
+            sb_json_number(j, NULL, a->term_w ? a->term_w[k * sb_factors_channels(a->f) + c] : 1.0);
         sb_json_end_array(j);
         report_estimate(j, job, k);
         report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + sb_err_at(k, 0));

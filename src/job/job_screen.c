@@ -75,6 +75,8 @@ static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_leve
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
     sb_factors_destroy(a->f);
     a->f = NULL;
+    free(a->term_w);
+    a->term_w = NULL;
     memset(&a->metric, 0, sizeof a->metric);
     memset(&a->stats, 0, sizeof a->stats);
     a->weighted = weighted;
@@ -117,6 +119,7 @@ sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv,
 
 void job_attempt_free(job_attempt_t *a) {
     free(a->est);
+    free(a->term_w);
     sb_factors_destroy(a->f);
     sb_matrix_free(&a->m);
     sb_param_destroy(a->param);

@@ -44,8 +44,8 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
     for (size_t j = 0; j < J; j++)
         for (size_t c = 0; c < C; c++)
             scale_term(a->f, j, c, w[j * C + c]);
-    free(job->term_w);
-    job->term_w = w;
+    free(a->term_w);
+    a->term_w = w;
     /* the errors of the weighted terms: on the matrix, then the estimate
      * on the same pairs (no growth) and the grid quadrature */
     sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
