@@ -130,3 +130,25 @@ SB_TEST(kept_is_best_full_fit) {
         }
     CHECKF(kept <= 1.25 * best, "auto kept %s/%s with %.4g; the best full fit has %.4g", p, f, kept, best);
 }
+
+/* The up-front memory check counts what a layout stores: under a limit
+ * below the dense io matrix at R = 48 (2304^2 x 3 doubles, 127 MB) an
+ * isotropic source on io stores its 48^3 distinct values (2.7 MB) and is
+ * factored; hd, dense, is refused naming the memory limit (exit 1, lower
+ * --res); auto leaves the layouts that do not fit out and keeps another. */
+SB_TEST(memory_limit_counts_what_is_stored) {
+    char args[4200];
+    const char *dir = sb_tmpdir("auto_mem");
+    snprintf(args, sizeof args, "factor --param io -r 48 -J 2 --memory-limit 40M -q -o %s", dir);
+    int rc = run(args);
+    CHECKF(rc == 0, "io: rc %d: %s", rc, out);
+    snprintf(args, sizeof args, "factor --param hd -r 48 -J 2 --memory-limit 40M -q -o %s", dir);
+    rc = run(args);
+    CHECKF(rc == 1 && strstr(out, "memory limit"), "hd: rc %d: %s", rc, out);
+    snprintf(args, sizeof args, "factor -r 48 -J 2 --memory-limit 40M -q -o %s", dir);
+    rc = run(args);
+    CHECKF(rc == 0, "auto: rc %d: %s", rc, out);
+    CHECK(load_report(dir) == 0);
+    CHECK(count(report, "needs more than the memory limit") == 2); /* hd, forms f and cos */
+    CHECK(count(report, "\"kept\": true") == 1);
+}

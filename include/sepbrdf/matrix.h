@@ -47,6 +47,11 @@ typedef struct sb_matrix_opts {
      * its distinct values (see sb_matrix_t.structured): R^3 values a
      * channel instead of R^4.  0 (default): every cell. */
     int structured;
+    /* 1: a streamed matrix (sb_matrix_t.streamed) on layouts that allow it
+     * (every cell a BRDF pair, rows and columns separable: io, io-area);
+     * 0 (default): streamed only where `structured` is set, the layout
+     * allows it and the stored values would exceed the memory limit. */
+    int stream;
 } sb_matrix_opts_t;
 
 typedef struct sb_matrix {
@@ -71,6 +76,17 @@ typedef struct sb_matrix {
      * such a matrix through sb_matrix_at, sb_matrix_col or sb_matrix_mul,
      * or expand it with sb_matrix_expand. */
     int structured;
+    /* 1: nothing is stored (data[] and mask NULL, `channels` says which
+     * channels exist): every read evaluates the cells from `source` on
+     * `param`, which must outlive the matrix; cells the source does not
+     * know read as 0 (as zero-filled) and valid_count counts every cell.
+     * Read it through sb_matrix_at, sb_matrix_col, sb_matrix_cols or
+     * sb_matrix_mul (each product one pass over the source).  `dirs` holds
+     * the row directions, then the column directions (3 doubles each). */
+    int streamed;
+    const sb_source_t *source;
+    const sb_param_t *param;
+    double *dirs;
 } sb_matrix_t;
 
 /* Sample `src` on `param`.  On success *out owns its buffers (sb_matrix_free).
@@ -80,8 +96,14 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
                             const sb_matrix_opts_t *opts, sb_matrix_t *out);
 void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */
 
-/* Cell (row, col) of channel c, dense or structured (0 for a channel not
- * built). */
+/* Bytes sb_matrix_build(src, param, opts) would hold at its peak: the
+ * stored values (and the table of an isotropic source on the io grid), or
+ * the directions of a streamed matrix; SIZE_MAX on overflow or a NULL
+ * argument.  To refuse up front what cannot fit the memory limit. */
+size_t sb_matrix_bytes(const sb_source_t *src, const sb_param_t *param, const sb_matrix_opts_t *opts);
+
+/* Cell (row, col) of channel c, dense, structured or streamed (0 for a
+ * channel not built). */
 double sb_matrix_at(const sb_matrix_t *m, int channel, size_t row, size_t col);
 
 /* Column `col` of channel c (rows values): a pointer into data for a dense
@@ -95,6 +117,18 @@ const double *sb_matrix_col(const sb_matrix_t *m, int channel, size_t col, doubl
  * SB_ERR_OVERFLOW (beyond BLAS's int sizes), SB_ERR_NOMEM. */
 sb_result_t sb_matrix_mul(sb_context_t *ctx, const sb_matrix_t *m, int channel, size_t k, const double *z, size_t ldz,
                           double *y, size_t ldy);
+
+/* Whether channel c (0..2) of m was built (stored or streamed). */
+int sb_matrix_has(const sb_matrix_t *m, int channel);
+
+/* Columns c0 .. c1 - 1 of every channel c with out[c] != NULL (a channel
+ * not built is skipped) into out[c], rows x (c1 - c0) with leading
+ * dimension ldo >= rows: copied from a stored matrix, evaluated from the
+ * source for a streamed one (columns split among `threads` threads, 0 =
+ * all cores).  Errors: SB_ERR_ARG (NULL matrix or out, c0 > c1 or c1 >
+ * cols, ldo < rows). */
+sb_result_t sb_matrix_cols(sb_context_t *ctx, const sb_matrix_t *m, size_t c0, size_t c1, double *const out[3],
+                           size_t ldo, int threads);
 
 /* A dense copy of m (every cell stored, ld = rows; mask and counts kept),
  * in memory backed by huge pages where the system offers them.  Errors:

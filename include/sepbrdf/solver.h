@@ -3,7 +3,8 @@
  * Each solver is one descriptor in a registry (src/solve/solvers.c): a
  * name, a description and capability flags.  The plan (factor.h) picks the
  * first solver of the registry that takes the problem: the masked fit for
- * matrices with excluded cells, the block-circulant SVD for isotropic
+ * matrices with excluded cells, the streamed solver for streamed matrices
+ * (matrix.h: beyond the memory limit) or method stream, the block-circulant SVD for isotropic
  * sources on the io grid (method auto), else the dense method asked for
  * (or the one the auto rule of svd.h picks).  The name of the solver used
  * is the factors' "method" metadata. */
@@ -23,7 +24,9 @@ enum {
     SB_CAP_MASKS = 1u << 2,       /* fits the valid cells only */
     SB_CAP_EXACT_TAILS = 1u << 3, /* gives the exact error of every truncation without a residual pass */
     SB_CAP_ALL_SIGMA = 1u << 4,   /* computes every singular value */
-    SB_CAP_STRUCTURED = 1u << 5   /* reads the sampled values through a structure (weights applied inside) */
+    SB_CAP_STRUCTURED = 1u << 5,  /* reads the sampled values through a structure (weights applied inside) */
+    SB_CAP_STREAMED = 1u << 6     /* reads the matrix in blocks of columns, one pass per product, every channel
+                                     at once: runs on matrices never held (matrix.h, streamed) */
 };
 
 /* Registered solvers, in the order the plan tries them. */

@@ -78,10 +78,11 @@ typedef enum sb_method {
     SB_METHOD_TOPK,       /* exact leading k: restarted block Krylov (or the Gram route) */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
     SB_METHOD_NMF,        /* non-negative factors (the plan's nmf solver; not an SVD: sb_svd_create refuses it) */
+    SB_METHOD_STREAM,     /* the plan's matrix-free solver (solver.h; sb_svd_create refuses it) */
     SB_METHOD_COUNT_
 } sb_method_t;
 
-/* auto|full|topk|randomized|nmf; SB_ERR_UNKNOWN otherwise (NULL name
+/* auto|full|topk|randomized|nmf|stream; SB_ERR_UNKNOWN otherwise (NULL name
  * included), SB_ERR_ARG for a NULL out. */
 sb_result_t sb_method_parse(const char *name, sb_method_t *out);
 const char *sb_method_name(sb_method_t m);

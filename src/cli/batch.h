@@ -25,9 +25,26 @@ void batch_key(batch_item_t *it);
 /* 1 when DIR/NAME holds a published set of the same settings (its fields
  * copied into it->fields). */
 int batch_done(const char *dir, batch_item_t *it);
+/* Longest result line of one material. */
+#define BATCH_LINE 1024
+
+/* Factor item `it` into DIR/NAME (in this process) and write its result
+ * line, "ok\tFIELDS" or "error\tMESSAGE", into line; the exit code. */
+int batch_work(const char *dir, batch_item_t *it, char *line, size_t size);
+/* Read a result line into it (ok, fields, headline or msg); 0 when the
+ * line is neither. */
+int batch_take(batch_item_t *it, const char *line);
+
 /* Run the items not done with up to `jobs` processes at a time; fills
  * ok, fields and msg of each. */
 void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs);
+/* sepbrdf-mpi (SEPBRDF_MPI, batch_mpi.c): MPI_Init and this process's
+ * rank and the number of ranks (-1: MPI failed); MPI_Finalize; the items
+ * over the ranks (one rank: batch_run with `jobs`), results on rank 0. */
+int batch_mpi_begin(int *rank, int *size);
+void batch_mpi_end(void);
+void batch_mpi_run(const char *dir, batch_item_t *items, size_t n, size_t jobs, int rank, int size);
+
 /* Write DIR/summary.csv and DIR/summary.json; exit code. */
 int batch_summary(const char *dir, const batch_item_t *items, size_t n);
 /* The ranked table on stdout. */

@@ -110,9 +110,7 @@ static int publish(sb_context_t *ctx, const char *dir, batch_item_t *it, sb_job_
     return -1;
 }
 
-/* In the child: factor item `it` and write "ok\tFIELDS" or "error\tMSG"
- * to fd; the exit code. */
-static int work(const char *dir, batch_item_t *it, int fd) {
+int batch_work(const char *dir, batch_item_t *it, char *line, size_t size) {
     sb_context_t *ctx = NULL;
     sb_job_t *job = NULL;
     int rc = EXIT_IO;
@@ -129,29 +127,45 @@ static int work(const char *dir, batch_item_t *it, int fd) {
             rc = EXIT_OK;
         }
     }
-    char line[1024];
-    int n = snprintf(line, sizeof line, "%s\t%s", rc == EXIT_OK ? "ok" : "error", rc == EXIT_OK ? it->fields : it->msg);
-    if (n > 0 && write(fd, line, (size_t)n < sizeof line ? (size_t)n : sizeof line - 1) < 0) rc = EXIT_IO;
+    snprintf(line, size, "%s\t%s", rc == EXIT_OK ? "ok" : "error", rc == EXIT_OK ? it->fields : it->msg);
     sb_job_destroy(job);
     sb_context_destroy(ctx);
     return rc;
 }
 
-/* Read the child's line from fd into it. */
-static void collect(batch_item_t *it, int fd, int status) {
-    char line[1024];
-    ssize_t n, got = 0;
-    while (got < (ssize_t)sizeof line - 1 && (n = read(fd, line + got, sizeof line - 1 - (size_t)got)) > 0)
-        got += n;
-    line[got > 0 ? got : 0] = 0;
-    close(fd);
-    if (strncmp(line, "ok\t", 3) == 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+int batch_take(batch_item_t *it, const char *line) {
+    if (strncmp(line, "ok\t", 3) == 0) {
         snprintf(it->fields, sizeof it->fields, "%.511s", line + 3);
         set_headline(it);
         it->ok = 1;
     } else if (strncmp(line, "error\t", 6) == 0) {
         snprintf(it->msg, sizeof it->msg, "%.511s", line + 6);
-    } else if (WIFSIGNALED(status)) {
+    } else {
+        return 0;
+    }
+    return 1;
+}
+
+/* In the child: factor item `it` and write its result line to fd; the
+ * exit code. */
+static int work(const char *dir, batch_item_t *it, int fd) {
+    char line[BATCH_LINE];
+    int rc = batch_work(dir, it, line, sizeof line);
+    if (write(fd, line, strlen(line)) < 0) rc = EXIT_IO;
+    return rc;
+}
+
+/* Read the child's line from fd into it. */
+static void collect(batch_item_t *it, int fd, int status) {
+    char line[BATCH_LINE];
+    ssize_t n, got = 0;
+    while (got < (ssize_t)sizeof line - 1 && (n = read(fd, line + got, sizeof line - 1 - (size_t)got)) > 0)
+        got += n;
+    line[got > 0 ? got : 0] = 0;
+    close(fd);
+    int exited = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    if ((strncmp(line, "ok\t", 3) != 0 || exited) && batch_take(it, line)) return;
+    if (WIFSIGNALED(status)) {
         snprintf(it->msg, sizeof it->msg, "its process was killed by signal %d", WTERMSIG(status));
     } else {
         snprintf(it->msg, sizeof it->msg, "its process ended without a result");

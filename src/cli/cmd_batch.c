@@ -53,6 +53,10 @@ static void help(void) {
            "that fails is reported in the summary and the others finish; the exit\n"
            "status is then 2.\n"
            "\n"
+           "On a cluster: `mpirun -np N sepbrdf-mpi batch ...` (or srun; sepbrdf-mpi is\n"
+           "built where MPI is found) hands the materials to N - 1 ranks, one at a\n"
+           "time, into the same OUT; rank 0 writes the summary.\n"
+           "\n"
            "options:\n"
            "  -o, --out DIR        output folder (default ./" DEFAULT_OUT ")\n");
     cli_table_help(batch_only, CLI_OWN);
@@ -274,12 +278,20 @@ int cmd_batch(int argc, char **argv) {
     batch_t b = {calloc(MAX_ITEMS, sizeof(batch_item_t)), 0, {0}, 0};
     const char *out = DEFAULT_OUT, **inputs = calloc((size_t)argc + 1, sizeof *inputs);
     size_t ninputs = 0;
-    int rc;
+    int rc, rank = 0, size = 0; /* MPI: this rank, the ranks (0: MPI not started) */
     if (!b.items || !inputs) {
         cli_error("batch", "out of memory");
         rc = EXIT_IO;
         goto done;
     }
+#ifdef SEPBRDF_MPI
+    if (batch_mpi_begin(&rank, &size) != 0) {
+        cli_error("batch", "MPI_Init failed");
+        rc = EXIT_IO;
+        goto done;
+    }
+    if (rank != 0) g_verbosity = g_verbosity > 0 ? 0 : g_verbosity; /* rank 0 reports */
+#endif
     if ((rc = parse(argc, argv, &b, &out, inputs, &ninputs)) >= 0) goto done;
     rc = EXIT_OK;
     for (size_t i = 0; i < ninputs && rc == EXIT_OK; i++)
@@ -291,11 +303,19 @@ int cmd_batch(int argc, char **argv) {
         goto done;
     }
     size_t reused = 0;
-    for (size_t i = 0; i < b.n; i++)
+    for (size_t i = 0; i < b.n && rank == 0; i++) /* only rank 0 hands out work */
         reused += b.items[i].skipped = batch_done(out, &b.items[i]);
     if (!b.jobs) b.jobs = default_jobs(&b);
-    cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, b.jobs);
+    if (size > 1)
+        cli_info(1, "batch: %zu materials, %zu reused, over %d ranks", b.n, reused, size - 1);
+    else
+        cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, b.jobs);
+#ifdef SEPBRDF_MPI
+    batch_mpi_run(out, b.items, b.n, b.jobs, rank, size);
+    if (rank != 0) goto done; /* rank 0 writes the summary */
+#else
     batch_run(out, b.items, b.n, b.jobs);
+#endif
     size_t failed = 0;
     for (size_t i = 0; i < b.n; i++)
         if (!b.items[i].ok) {
@@ -306,6 +326,9 @@ int cmd_batch(int argc, char **argv) {
     if (g_verbosity >= 1) batch_table(b.items, b.n);
     if (rc == EXIT_OK && failed) rc = EXIT_IO;
 done:
+#ifdef SEPBRDF_MPI
+    if (size > 0) batch_mpi_end();
+#endif
     free(b.items);
     free(inputs);
     return rc;

@@ -114,7 +114,7 @@ static void print_table(const sb_job_t *job) {
     printf("%4s  %12s  %9s  %12s  %12s  %12s  %9s", "J", "headline", "+-", "comparable", "rel_rms", "max_abs",
            "negative");
     for (int c = 0; c < 3; c++)
-        if (m->data[c]) printf("  %10s_%s", "rel_rms", cn[c]);
+        if (sb_matrix_has(m, c)) printf("  %10s_%s", "rel_rms", cn[c]);
     printf("\n");
     for (size_t k = 0; k < sb_factors_terms(f); k++) {
         double se = k < est->terms ? est->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN;
@@ -122,7 +122,7 @@ static void print_table(const sb_job_t *job) {
                sb_job_comparable(job, k + 1), e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
                100 * sb_job_negative(job, k + 1));
         for (int c = 0; c < 3; c++)
-            if (m->data[c]) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
+            if (sb_matrix_has(m, c)) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
         printf("\n");
     }
 }

@@ -72,6 +72,22 @@ static int set_method(const char *cmd, const cli_option_t *op, const char *v, vo
     return 0;
 }
 
+/* A size in bytes with an optional binary suffix K, M, G or T; the
+ * library's memory limit (process-wide), at least 1 MiB. */
+static int set_memory_limit(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)dst;
+    char *end = NULL;
+    double x = strtod(v, &end);
+    const char *units = "KMGT", *u = end && *end ? strchr(units, *end) : NULL;
+    if (u) x *= (double)(1ull << (10 * (u - units + 1))), end++;
+    if (!end || *end || !(x >= (double)(1u << 20) && x < 0x1p62)) {
+        cli_error(cmd, "%s '%s': need a size of at least 1M, e.g. 2G", op->name, v);
+        return -1;
+    }
+    sb_set_memory_limit((size_t)x);
+    return 0;
+}
+
 static int set_channels(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     unsigned ch = 0;
     for (const char *q = v; *q; q++) {
@@ -136,7 +152,7 @@ const cli_option_t cli_factor_options[] = {
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
     {NULL, "--metric-res", "R", "reference io grid of the comparable error (default 32)", cli_set_size, AT(metric_res),
      2, SB_METRIC_MAX_RES, F_ | S_},
-    {NULL, "--method", "M", "auto (default), full (dgesdd), topk, randomized", set_method, AT(method), 0, 0,
+    {NULL, "--method", "M", "auto (default), full (dgesdd), topk, randomized, stream", set_method, AT(method), 0, 0,
      F_ | R_ | S_},
     {NULL, "--max-error", "E",
      "keep the fewest terms whose headline error (f cos theta_i,\nas a shader outputs it) is <= E (0 < E < 1); J "
@@ -148,6 +164,9 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--theta-max", "DEG", "largest sampled elevation in degrees (default 90)", cli_set_double, AT(theta_max_deg),
      1, 90, F_ | R_},
     {NULL, "--seed", "S", "seed of randomized methods (default 1)", set_seed, AT(seed), 0, 0, F_},
+    {NULL, "--memory-limit", "SIZE",
+     "largest memory to plan for, e.g. 2G (default 3/4 of RAM);\nio and io-area matrices beyond it are streamed",
+     set_memory_limit, 0, 0, 0, F_ | S_},
     {NULL, "--half", NULL, "store half floats with per-term scales", cli_set_flag, AT(half), 0, 0, F_},
     {NULL, "--previews", NULL,
      "also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\ncolour map, blue -S, white 0, red +S (S = max "

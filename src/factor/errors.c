@@ -16,6 +16,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "solve/solver.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 
@@ -173,11 +174,15 @@ static sb_result_t check_fit(sb_context_t *ctx, const sb_factors_t *f, const sb_
     return SB_OK;
 }
 
+static sb_result_t against_streamed(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                                    const sb_param_t *weights, double *rel_rms, double *max_abs);
+
 sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
                                       const sb_param_t *weights, double *rel_rms, double *max_abs) {
     if (!f || !m || !rel_rms || !max_abs) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
     sb_result_t res = check_fit(ctx, f, m, weights);
     if (res != SB_OK) return res;
+    if (m->streamed) return against_streamed(ctx, f, m, weights, rel_rms, max_abs);
     if (m->structured) { /* the residual pass reads every cell: on a dense copy */
         sb_matrix_t d;
         if ((res = sb_matrix_expand(ctx, m, &d)) != SB_OK) return res;
@@ -224,6 +229,66 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
     res = sb_errors_relative(ctx, J, present, ssq, mx, n2, rel_rms, max_abs);
     free(ws);
     return res;
+}
+
+sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, const double *const g[3],
+                            const double *const h[3], size_t gstep, size_t hstep, const double *wr, const double *wc,
+                            double pw, double *ssq, double *mx, double *n2) {
+    size_t rows = m->rows, cols = m->cols, b = sb_solve_stream_cols(rows, cols);
+    int nt = sb_thread_count(0);
+    double *mem = sb_alloc(ctx, 3 * rows * b + 2 * J + sb_resid_scratch(rows, J, nt), sizeof(double), "residual"),
+           *blk[3];
+    if (!mem) return SB_ERR_NOMEM;
+    double *bssq = mem + 3 * rows * b, *bmx = bssq + J, *scratch = bmx + J;
+    memset(ssq, 0, 3 * J * sizeof *ssq);
+    memset(mx, 0, 3 * J * sizeof *mx);
+    for (int ch = 0; ch < 3; ch++) {
+        blk[ch] = g[ch] && sb_matrix_has(m, ch) ? mem + (size_t)ch * rows * b : NULL;
+        n2[ch] = 0;
+    }
+    sb_result_t r = SB_OK;
+    for (size_t c0 = 0; c0 < cols && r == SB_OK; c0 += b) {
+        size_t n = c0 + b < cols ? b : cols - c0;
+        r = sb_matrix_cols(ctx, m, c0, c0 + n, blk, rows, 0);
+        for (size_t ch = 0; ch < 3 && r == SB_OK; ch++) {
+            if (!blk[ch]) continue;
+            sb_resid_t in = {rows, n,     J,          blk[ch], rows, NULL, wr, wr ? wc + c0 : NULL,
+                             pw,   g[ch], h[ch] + c0, gstep,   hstep};
+            double bn2 = 0;
+            sb_resid_channel(&in, nt, scratch, bssq, bmx, &bn2);
+            n2[ch] += bn2; /* blocks added in order: the same bits on every run */
+            for (size_t j = 0; j < J; j++) {
+                ssq[ch * J + j] += bssq[j];
+                mx[ch * J + j] = fmax(mx[ch * J + j], bmx[j]);
+            }
+        }
+    }
+    free(mem);
+    return r;
+}
+
+/* sb_factors_errors_against on a streamed matrix: one blocked pass,
+ * scale 1 (nothing stored to scan for the largest value). */
+static sb_result_t against_streamed(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                                    const sb_param_t *weights, double *rel_rms, double *max_abs) {
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), rows = m->rows, cols = m->cols;
+    double *ws = sb_alloc(ctx, rows + cols + 6 * J, sizeof(double), "errors scratch"), n2[3];
+    if (!ws) return SB_ERR_NOMEM;
+    double *wr = ws, *wc = wr + rows, *ssq = wc + cols, *mx = ssq + 3 * J;
+    if (weights) sb_errors_weights(weights, wr, wc);
+    const double *g[3], *h[3];
+    int present[3];
+    for (int ch = 0; ch < 3; ch++) {
+        size_t fc = C == 1 ? 0 : (size_t)ch;
+        present[ch] = sb_matrix_has(m, ch);
+        g[ch] = present[ch] ? sb_factors_tex_const(f, SB_SIDE_G, 0, fc) : NULL;
+        h[ch] = sb_factors_tex_const(f, SB_SIDE_H, 0, fc);
+    }
+    sb_result_t r =
+        sb_resid_blocks(ctx, m, J, g, h, C * rows, C * cols, weights ? wr : NULL, weights ? wc : NULL, 1, ssq, mx, n2);
+    if (r == SB_OK) r = sb_errors_relative(ctx, J, present, ssq, mx, n2, rel_rms, max_abs);
+    free(ws);
+    return r;
 }
 
 /* Errors of factors `near` close to the fit `fit` (its rounding to the

@@ -32,6 +32,17 @@ size_t sb_resid_scratch(size_t rows, size_t terms, int threads);
 /* ssq and mx receive `terms` values, *n2 one (see above). */
 void sb_resid_channel(const sb_resid_t *in, int threads, double *scratch, double *ssq, double *mx, double *n2);
 
+/* The residual pass of sb_resid_channel on a matrix read in blocks of
+ * columns (sb_matrix_cols: a streamed one is evaluated once), every
+ * channel of m in the same pass.  g[c], h[c]: channel c's textures (term
+ * 0, steps gstep, hstep; g[c] NULL: channel skipped); weights wr, wc
+ * (NULL: unweighted); ssq and mx receive 3 J values (channel c at c J),
+ * n2 three, zero for skipped channels.  Errors: SB_ERR_NOMEM, those of
+ * sb_matrix_cols. */
+sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, const double *const g[3],
+                            const double *const h[3], size_t gstep, size_t hstep, const double *wr, const double *wc,
+                            double pw, double *ssq, double *mx, double *n2);
+
 /* Relative errors from the per-channel sums: rel_rms[sb_err_at(t, c)] =
  * sqrt(ssq[c * J + t] / n2[c]) for the present channels, SB_CH_ALL the
  * channels together, sqrt(sum_c ssq / sum_c n2); max_abs (may be NULL)

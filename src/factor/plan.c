@@ -122,17 +122,20 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
     sb_result_t rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;
     int structured = m && m->structured; /* the R distinct rows are what is stored */
-    sb_result_t r = check_size(ctx, structured ? m->ld : rows, cols, o.weighted, &cells);
+    int streamed = m && m->streamed;     /* nothing is stored */
+    cells = 0;
+    sb_result_t r = streamed ? SB_OK : check_size(ctx, structured ? m->ld : rows, cols, o.weighted, &cells);
     if (r != SB_OK) return r;
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     *p = (sb_plan_t){.ctx = ctx, .rows = rows, .cols = cols, .terms = o.terms, .opts = o};
     p->pb =
-        (sb_solve_problem_t){rows, cols, o.terms, o.svd, o.fit_max_iters, o.fit_tol, o.max_error, 0, 0, o.zero_fill};
+        (sb_solve_problem_t){rows, cols, o.terms, o.svd, o.fit_max_iters, o.fit_tol, o.max_error, 0, 0, o.zero_fill, 0};
     sb_solve_problem_t pb = p->pb;
     if (m) {
         pb.masked = m->mask && !o.zero_fill;
         pb.period = m->mask ? 0 : m->phi_period;
+        pb.streamed = streamed;
     }
     r = plan_solvers(p, &pb);
     if (r == SB_OK) r = alloc_buffers(p, structured ? 0 : cells);
@@ -173,7 +176,7 @@ void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) {
 static sb_solve_in_t channel_in(const sb_plan_t *p, const run_t *rn, int ch) {
     const sb_matrix_t *m = rn->m;
     const double *a = m->data[ch], *wr = p->opts.weighted ? p->wr : NULL, *wc = p->opts.weighted ? p->wc : NULL;
-    return (sb_solve_in_t){a, m->ld, a, m->ld, m->mask, wr, wc, rn->pw, rn->param};
+    return (sb_solve_in_t){a, m->ld, a, m->ld, m->mask, wr, wc, rn->pw, rn->param, m, ch};
 }
 
 /* Step: the solver for this matrix (planned now if the plan was made
@@ -183,6 +186,7 @@ static sb_result_t choose_solver(sb_plan_t *p, run_t *rn) {
     sb_solve_problem_t pb = p->pb;
     pb.masked = m->mask && !p->opts.zero_fill;
     pb.period = m->mask ? 0 : m->phi_period;
+    pb.streamed = m->streamed;
     sb_result_t r = plan_solvers(p, &pb);
     if (r != SB_OK) return r;
     rn->si = sb_solver_index(&pb);
@@ -201,11 +205,16 @@ static sb_result_t choose_solver(sb_plan_t *p, run_t *rn) {
 
 /* Step: proportional channels (M_c = a_c M_base: grey or tinted BRDFs) are
  * factored once, base first; the check also gives the channel norms, which
- * bound max |M| for the power-of-two scale of the sums of squares. */
+ * bound max |M| for the power-of-two scale of the sums of squares.  A
+ * streamed solver factors every channel in the same passes (no check; a
+ * streamed matrix has no stored values to scan: scale 1). */
 static void scan_channels(const sb_plan_t *p, run_t *rn) {
     sb_matrix_t scan = *rn->m; /* a structured solver: its distinct rows hold every value */
-    if (rn->sv->distinct_rows) scan.rows = rn->sv->distinct_rows(p->state[rn->si]);
-    int have = sb_channels_proportional(NULL, &scan, 0, &rn->chs) == SB_OK;
+    if (rn->sv->distinct_rows)
+        scan.rows = rn->sv->distinct_rows(p->state[rn->si]);
+    else if (scan.structured)
+        scan.rows = scan.ld;
+    int have = !(rn->sv->caps & SB_CAP_STREAMED) && sb_channels_proportional(NULL, &scan, 0, &rn->chs) == SB_OK;
     double amax = 0;
     for (int ch = 0; ch < 3; ch++) {
         const double *a = scan.data[ch];
@@ -319,11 +328,24 @@ static sb_result_t channel_errors(sb_plan_t *p, run_t *rn, const sb_factors_t *f
     return SB_OK;
 }
 
+/* Step (SB_CAP_STREAMED): the errors of every channel's stored textures in
+ * one more pass over the matrix, a block of columns at a time
+ * (sb_resid_blocks). */
+static sb_result_t stream_errors(sb_plan_t *p, run_t *rn, const sb_factors_t *f) {
+    const double *g[3], *h[3], *wr = p->opts.weighted ? p->wr : NULL;
+    for (size_t ch = 0; ch < 3; ch++) {
+        g[ch] = sb_factors_tex_const(f, SB_SIDE_G, 0, ch);
+        h[ch] = sb_factors_tex_const(f, SB_SIDE_H, 0, ch);
+    }
+    return sb_resid_blocks(p->ctx, rn->m, p->terms, g, h, 3 * p->rows, 3 * p->cols, wr, wr ? p->wc : NULL, rn->pw,
+                           p->ssq, p->mx, rn->n2);
+}
+
 /* Step: relative errors, norms, and the truncation at the error asked for. */
 static sb_result_t finish_errors(sb_plan_t *p, const run_t *rn, sb_factors_t *f) {
     sb_factor_errors_t *e = sb_factors_errors_mut(f);
     const sb_matrix_t *m = rn->m;
-    int present[3] = {m->data[0] != NULL, m->data[1] != NULL, m->data[2] != NULL};
+    int present[3] = {sb_matrix_has(m, 0), sb_matrix_has(m, 1), sb_matrix_has(m, 2)};
     sb_result_t r = sb_errors_relative(p->ctx, p->terms, present, p->ssq, p->mx, rn->n2, e->rel_rms, e->max_abs);
     if (r != SB_OK) return r;
     double total2 = 0;
@@ -376,7 +398,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (r == SB_OK && p->opts.weighted) sb_errors_weights(param, p->wr, p->wc);
     if (r == SB_OK) r = choose_solver(p, &rn);
     if (r != SB_OK) return r;
-    if (m->structured && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);
+    if ((m->structured || m->streamed) && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);
     p->stats = (sb_plan_stats_t){m->mask && !p->opts.zero_fill, 0, 1, 0};
     scan_channels(p, &rn);
     p->stats.proportional = rn.prop;
@@ -388,14 +410,15 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     memset(p->ssq, 0, 6 * p->terms * sizeof *p->ssq);
     for (int oi = 0; oi < 3 && r == SB_OK; oi++) {
         int ch = rn.order[oi];
-        if (!m->data[ch]) continue;
+        if (!sb_matrix_has(m, ch)) continue;
         sb_solve_in_t in = channel_in(p, &rn, ch);
         weigh(p, &rn, &in);
         r = solve(p, &rn, &in, ch, oi == 0);
         if (r != SB_OK) break;
         store_textures(p, f, ch, rn.prop && rn.chs.scale[ch] < 0 ? -1 : 1);
-        r = channel_errors(p, &rn, f, &in, ch);
+        if (!(rn.sv->caps & SB_CAP_STREAMED)) r = channel_errors(p, &rn, f, &in, ch);
     }
+    if (r == SB_OK && (rn.sv->caps & SB_CAP_STREAMED)) r = stream_errors(p, &rn, f);
     if (r == SB_OK) r = finish_errors(p, &rn, f);
     if (r != SB_OK) {
         sb_factors_destroy(f);

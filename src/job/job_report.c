@@ -67,7 +67,7 @@ static void report_settings(sb_json_t *j, const sb_job_t *job) {
     sb_json_string(j, "storage", job->o.half ? "half" : "float");
     sb_json_begin_array(j, "channels");
     for (int c = 0; c < 3; c++)
-        if (m->data[c]) sb_json_string(j, NULL, chan_name[c]);
+        if (sb_matrix_has(m, c)) sb_json_string(j, NULL, chan_name[c]);
     sb_json_end_array(j);
 }
 
@@ -91,12 +91,12 @@ static void report_fit(sb_json_t *j, const sb_job_t *job) {
     const sb_factor_errors_t *e = sb_factors_errors(a->f);
     sb_json_begin_object(j, "norm");
     for (int c = 0; c < 3; c++)
-        if (m->data[c]) sb_json_number(j, chan_name[c], e->norm[c]);
+        if (sb_matrix_has(m, c)) sb_json_number(j, chan_name[c], e->norm[c]);
     sb_json_number(j, "all", e->norm[3]);
     sb_json_end_object(j);
     sb_json_begin_object(j, "sigma");
     for (int c = 0; c < 3; c++) {
-        if (!m->data[c]) continue;
+        if (!sb_matrix_has(m, c)) continue;
         sb_json_begin_array(j, chan_name[c]);
         for (size_t k = 0; k < sb_factors_terms(a->f); k++)
             sb_json_number(j, NULL, sb_factors_sigma(a->f, k, (size_t)c));
@@ -108,7 +108,7 @@ static void report_fit(sb_json_t *j, const sb_job_t *job) {
 static void report_channels(sb_json_t *j, const char *key, const sb_matrix_t *m, const double *v) {
     sb_json_begin_object(j, key);
     for (int c = 0; c < 3; c++)
-        if (m->data[c]) sb_json_number(j, chan_name[c], v[c]);
+        if (sb_matrix_has(m, c)) sb_json_number(j, chan_name[c], v[c]);
     sb_json_end_object(j);
 }
 
@@ -121,7 +121,7 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     sb_json_number(j, "headline_se", have ? e->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
     sb_json_begin_object(j, "headline_channel");
     for (int c = 0; c < 3; c++)
-        if (a->m.data[c]) sb_json_number(j, chan_name[c], have ? e->rel[k][SB_EST_FCOS][c] : NAN);
+        if (sb_matrix_has(&a->m, c)) sb_json_number(j, chan_name[c], have ? e->rel[k][SB_EST_FCOS][c] : NAN);
     sb_json_end_object(j);
     sb_json_number(j, "comparable", have ? e->rel[k][SB_EST_FCOS2][SB_CH_ALL] : NAN);
     sb_json_number(j, "comparable_se", have ? e->se[k][SB_EST_FCOS2][SB_CH_ALL] : NAN);

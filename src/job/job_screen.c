@@ -158,10 +158,11 @@ static size_t layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t 
     return r < c ? r : c;
 }
 
-/* Refuse up front a candidate whose matrix at R cannot fit in memory: R
- * is then too large for this source whichever layout would win.  An
- * isotropic source on an azimuth grid (io, io-area) stores its R^3
- * distinct values only (matrix.h, structured storage). */
+/* Whether candidate k's matrix at R fits the memory limit, counted as
+ * job_sample builds it (sb_matrix_bytes: an isotropic source on io or
+ * io-area stores its R^3 distinct values, a matrix beyond the limit on
+ * those layouts is streamed); else SB_ERR_OVERFLOW naming the bytes
+ * (through ctx, which may be NULL). */
 static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_kind_t k) {
     sb_param_t *p = NULL;
     sb_param_opts_t po = {0};
@@ -170,11 +171,11 @@ static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_ki
     if (sb_param_create(NULL, k, &po, &p) != SB_OK) return SB_OK; /* sb_job_run names the problem */
     unsigned ch = job->o.channels ? job->o.channels & 7u : 7u;
     size_t nch = (ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1), rows = sb_param_rows(p), cols = sb_param_cols(p);
-    size_t cells, bytes = SIZE_MAX, R = job->o.res;
-    int structured = (sb_param_caps(p) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(job->src) & SB_SOURCE_ISOTROPIC);
+    sb_matrix_opts_t mo = {0};
+    mo.channels = ch;
+    mo.structured = 1; /* as job_sample builds it */
+    size_t bytes = sb_matrix_bytes(job->src, p, &mo);
     sb_param_destroy(p);
-    if (structured ? !sb_size_mul3(R, R, R, &cells) : !sb_size_mul(rows, cols, &cells))
-        if (!sb_size_mul3(cells, nch, sizeof(double), &bytes)) sb_size_add(bytes, cells, &bytes);
     if (bytes <= sb_memory_limit()) return SB_OK;
     return sb_error(ctx, SB_ERR_OVERFLOW,
                     "%s at %zu cells per axis: %zu x %zu cells x %zu channels need more than %zu bytes, the memory "
@@ -193,7 +194,12 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
     if (mn < job->o.terms)
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
-    return cand_fits(ctx, job, k);
+    if (!job->is_auto) return cand_fits(ctx, job, k);
+    /* auto: a layout beyond the memory limit is left out, the others tried */
+    if (!c->why[0] && cand_fits(NULL, job, k) != SB_OK)
+        snprintf(c->why, sizeof c->why, "%s at %zu cells per axis needs more than the memory limit, %zu bytes",
+                 sb_param_kind_name(k), job->o.res, sb_memory_limit());
+    return SB_OK;
 }
 
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
@@ -225,6 +231,8 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
     size_t fit = 0;
     for (size_t i = 0; i < job->ncand; i++)
         fit += job->cands[i].why[0] == 0;
+    if (fit == 0 && strstr(job->cands[0].why, "memory limit"))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "no parameterisation fits: %s (lower --res)", job->cands[0].why);
     if (fit == 0)
         return sb_error(ctx, SB_ERR_RANGE,
                         "%zu terms exceed the rows/columns of every parameterisation at %zu cells "

@@ -15,9 +15,12 @@
 #include "util/internal.h"
 
 /* rel_rms of the stored (FLOAT or HALF) textures against the matrix, for
- * every J' (sb_err_at layout); NULL when it cannot be computed (reported as null). */
+ * every J' (sb_err_at layout); NULL when it cannot be computed (reported as
+ * null), and for a streamed matrix, where it would cost one more pass over
+ * the source per channel. */
 static double *stored_errors(sb_context_t *ctx, const sb_job_t *job) {
     const job_attempt_t *a = &job->best;
+    if (a->m.streamed) return NULL;
     size_t J = sb_factors_terms(a->f);
     sb_exr_opts_t eo = {job->o.half};
     sb_factors_t *q = NULL;

@@ -14,6 +14,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "sample/stream.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 
@@ -308,6 +309,37 @@ static sb_result_t build_general(sb_context_t *ctx, const sb_source_t *src, cons
     return SB_OK;
 }
 
+/* Bytes of the values a stored build holds (and of the isotropic table
+ * it builds them from); SIZE_MAX on overflow. */
+static size_t stored_need(const sb_matrix_t *m, int iso, int structured) {
+    size_t R = (size_t)llround(sqrt((double)m->rows)), n3 = 0, bytes = 0, table = 0;
+    if (iso && (sb_size_mul3(R, R, R, &n3) || stored_bytes(m, R, n3, &table))) return SIZE_MAX;
+    if (!(iso && structured) && stored_bytes(m, m->rows, m->rows * m->cols, &bytes)) return SIZE_MAX;
+    return table > bytes ? table : bytes;
+}
+
+/* Whether the build streams: asked, or beyond the memory limit. */
+static int streams(const sb_param_t *param, const sb_matrix_opts_t *o, const sb_matrix_t *m, int iso) {
+    return sb_matrix_streamable(param) && (o->stream || (o->structured && stored_need(m, iso, 1) > sb_memory_limit()));
+}
+
+static int iso_layout(const sb_source_t *src, const sb_param_t *param) {
+    return (sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC);
+}
+
+size_t sb_matrix_bytes(const sb_source_t *src, const sb_param_t *param, const sb_matrix_opts_t *opts) {
+    if (!src || !param) return SIZE_MAX;
+    sb_matrix_opts_t o = {0};
+    if (opts) o = *opts;
+    sb_matrix_t m = {0};
+    m.rows = sb_param_rows(param);
+    m.cols = sb_param_cols(param);
+    m.channels = o.channels & 7u ? o.channels & 7u : 7u;
+    int iso = iso_layout(src, param);
+    if (streams(param, &o, &m, iso)) return 3 * (m.rows + m.cols) * sizeof(double);
+    return stored_need(&m, iso, o.structured);
+}
+
 sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                             const sb_matrix_opts_t *opts, sb_matrix_t *out) {
     if (!src || !param || !out) return sb_error(ctx, SB_ERR_ARG, "matrix: missing source or parameterisation");
@@ -323,7 +355,11 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     out->form = o.form;
     out->channels = chans;
     sb_result_t r;
-    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC)) {
+    int iso = iso_layout(src, param);
+    if (streams(param, &o, out, iso)) {
+        r = sb_matrix_build_streamed(ctx, src, param, out);
+        if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
+    } else if (iso) {
         r = build_isotropic_io(ctx, src, param, &o, out);
         if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
     } else {
@@ -338,5 +374,6 @@ void sb_matrix_free(sb_matrix_t *m) {
     for (int ch = 0; ch < 3; ch++)
         free(m->data[ch]);
     free(m->mask);
+    free(m->dirs);
     memset(m, 0, sizeof *m);
 }

@@ -14,18 +14,30 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sample/stream.h"
 #include "sepbrdf/matrix.h"
 #include "util/internal.h"
 
+int sb_matrix_has(const sb_matrix_t *m, int ch) {
+    if (!m || ch < 0 || ch > 2) return 0;
+    return m->streamed ? (int)((m->channels >> ch) & 1u) : m->data[ch] != NULL;
+}
+
 double sb_matrix_at(const sb_matrix_t *m, int ch, size_t row, size_t col) {
-    if (ch < 0 || ch > 2 || !m->data[ch]) return 0;
+    if (!sb_matrix_has(m, ch)) return 0;
+    if (m->streamed) return sb_matrix_stream_at(m, ch, row, col);
     if (!m->structured) return m->data[ch][row + col * m->ld];
     size_t R = m->phi_period, ip = row / R, it = row % R, op = col / R, ot = col % R;
     return m->data[ch][it + (((op + R - ip) % R) * R + ot) * R];
 }
 
 const double *sb_matrix_col(const sb_matrix_t *m, int ch, size_t col, double *buf) {
-    if (ch < 0 || ch > 2 || !m->data[ch]) return NULL;
+    if (!sb_matrix_has(m, ch)) return NULL;
+    if (m->streamed) {
+        double *out[3] = {NULL, NULL, NULL};
+        out[ch] = buf;
+        return sb_matrix_cols(NULL, m, col, col + 1, out, m->rows, 1) == SB_OK ? buf : NULL;
+    }
     if (!m->structured) return m->data[ch] + col * m->ld;
     size_t R = m->phi_period, op = col / R, ot = col % R;
     for (size_t ip = 0; ip < R; ip++)
@@ -92,14 +104,36 @@ static void fourier_apply(const fourier_t *w, const double *z, size_t ldz, doubl
     }
 }
 
+/* Bytes of the block of columns a streamed product evaluates at a time. */
+#define SB_STREAM_BLOCK_BYTES ((size_t)32 << 20)
+
+/* Y = M_c Z over blocks of columns evaluated from the source: one pass. */
+static sb_result_t stream_mul(sb_context_t *ctx, const sb_matrix_t *m, int ch, size_t k, const double *z, size_t ldz,
+                              double *y, size_t ldy) {
+    size_t rows = m->rows, b = SB_STREAM_BLOCK_BYTES / (rows * sizeof(double));
+    b = b < 1 ? 1 : (b > m->cols ? m->cols : b);
+    double *blk = sb_alloc(ctx, rows * b, sizeof(double), "streamed product"), *out[3] = {NULL, NULL, NULL};
+    if (!blk) return SB_ERR_NOMEM;
+    out[ch] = blk;
+    for (size_t c0 = 0; c0 < m->cols; c0 += b) {
+        size_t c1 = c0 + b < m->cols ? c0 + b : m->cols;
+        sb_matrix_cols(ctx, m, c0, c1, out, rows, 0);
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)rows, (int)k, (int)(c1 - c0), 1.0, blk, (int)rows,
+                    z + c0, (int)ldz, c0 ? 1.0 : 0.0, y, (int)ldy);
+    }
+    free(blk);
+    return SB_OK;
+}
+
 sb_result_t sb_matrix_mul(sb_context_t *ctx, const sb_matrix_t *m, int ch, size_t k, const double *z, size_t ldz,
                           double *y, size_t ldy) {
-    if (ch < 0 || ch > 2 || !m->data[ch] || !z || !y || ldz < m->cols || ldy < m->rows)
+    if (!sb_matrix_has(m, ch) || !z || !y || ldz < m->cols || ldy < m->rows)
         return sb_error(ctx, SB_ERR_ARG, "matrix: product with a missing channel or bad leading dimensions");
     if (m->rows > (size_t)INT32_MAX || m->cols > (size_t)INT32_MAX || k > (size_t)INT32_MAX / 4 ||
         ldz > (size_t)INT32_MAX || ldy > (size_t)INT32_MAX)
         return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: product of %zu x %zu too large for BLAS", m->rows, m->cols);
     if (k == 0) return SB_OK;
+    if (m->streamed) return stream_mul(ctx, m, ch, k, z, ldz, y, ldy);
     if (!m->structured) {
         cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m->rows, (int)k, (int)m->cols, 1.0, m->data[ch],
                     (int)m->ld, z, (int)ldz, 0.0, y, (int)ldy);
@@ -134,22 +168,27 @@ sb_result_t sb_matrix_expand(sb_context_t *ctx, const sb_matrix_t *m, sb_matrix_
         return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: %zu x %zu cells overflow; lower the resolution", rows, cols);
     *out = *m;
     out->ld = rows;
-    out->structured = 0;
+    out->structured = out->streamed = 0;
     out->mask = NULL;
+    out->dirs = NULL;
+    out->source = NULL;
+    out->param = NULL;
     for (int ch = 0; ch < 3; ch++)
         out->data[ch] = NULL;
     for (int ch = 0; ch < 3; ch++) {
-        if (!m->data[ch]) continue;
+        if (!sb_matrix_has(m, ch)) continue;
         double *d = out->data[ch] = sb_alloc_large(ctx, cells, sizeof(double), "dense matrix");
         if (!d) {
             sb_matrix_free(out);
             return SB_ERR_NOMEM;
         }
+        if (m->streamed) continue;
         for (size_t c = 0; c < cols; c++) {
             const double *col = sb_matrix_col(m, ch, c, d + c * rows);
             if (col != d + c * rows) memcpy(d + c * rows, col, rows * sizeof *d);
         }
     }
+    if (m->streamed) sb_matrix_cols(ctx, m, 0, cols, out->data, rows, 0);
     if (m->mask) {
         if (!(out->mask = sb_alloc_large(ctx, cells, 1, "dense matrix mask"))) {
             sb_matrix_free(out);

@@ -6,6 +6,7 @@
 #ifndef SEPBRDF_SOLVER_INTERNAL_H
 #define SEPBRDF_SOLVER_INTERNAL_H
 
+#include "sepbrdf/matrix.h"
 #include "sepbrdf/param.h"
 #include "sepbrdf/solver.h"
 #include "sepbrdf/svd.h"
@@ -20,6 +21,7 @@ typedef struct sb_solve_problem {
     size_t period;     /* block-circulant period R (rows == cols == R^2), 0 = none */
     int masked;        /* cells to exclude */
     int zero_fill;     /* excluded cells count as zeros (the plan's zero_fill) */
+    int streamed;      /* the matrix is streamed (matrix.h): never held, read in blocks of columns */
 } sb_solve_problem_t;
 
 /* One channel. */
@@ -32,6 +34,8 @@ typedef struct sb_solve_in {
     const double *wr, *wc;     /* weights, NULL = unweighted */
     double pw;                 /* power-of-two scale of sums of squares (sb_pow2_scale) */
     const sb_param_t *param;   /* texture layout and wrap of rows and columns (masked: taps), NULL = unknown */
+    const sb_matrix_t *m;      /* the matrix (SB_CAP_STREAMED solvers read it in blocks of columns) */
+    int channel;               /* which channel of m this is */
 } sb_solve_in_t;
 
 typedef struct sb_solve_out {
@@ -61,6 +65,18 @@ typedef struct sb_solver {
     size_t (*distinct_rows)(const void *state);
 } sb_solver_t;
 
+/* Bytes of the block of columns (all channels) a SB_CAP_STREAMED solver
+ * and the plan's streamed residual pass hold at a time: at most this, and
+ * at most an eighth of the memory limit. */
+#define SB_SOLVE_STREAM_BLOCK ((size_t)96 << 20)
+
+/* Columns of such a block for rows x cols matrices: 1 .. cols. */
+static inline size_t sb_solve_stream_cols(size_t rows, size_t cols) {
+    size_t bytes = sb_memory_limit() / 8 < SB_SOLVE_STREAM_BLOCK ? sb_memory_limit() / 8 : SB_SOLVE_STREAM_BLOCK;
+    size_t b = bytes / (3 * rows * sizeof(double));
+    return b < 1 ? 1 : (b > cols ? cols : b);
+}
+
 /* At most this many solvers in the registry (plans keep one slot each). */
 #define SB_SOLVERS_MAX 8
 
@@ -70,6 +86,6 @@ size_t sb_solver_index(const sb_solve_problem_t *pb);
 const sb_solver_t *sb_solver_at(size_t i);
 
 extern const sb_solver_t sb_solver_full, sb_solver_topk, sb_solver_randomized, sb_solver_circulant, sb_solver_masked,
-    sb_solver_nmf;
+    sb_solver_nmf, sb_solver_stream;
 
 #endif

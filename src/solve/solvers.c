@@ -6,7 +6,8 @@
 #include "solve/solver.h"
 
 static const sb_solver_t *const registry[] = {
-    &sb_solver_nmf, &sb_solver_masked, &sb_solver_circulant, &sb_solver_full, &sb_solver_topk, &sb_solver_randomized,
+    &sb_solver_nmf,  &sb_solver_masked, &sb_solver_stream,     &sb_solver_circulant,
+    &sb_solver_full, &sb_solver_topk,   &sb_solver_randomized,
 };
 #define NSOLVERS (sizeof registry / sizeof registry[0])
 _Static_assert(NSOLVERS <= SB_SOLVERS_MAX, "raise SB_SOLVERS_MAX");

@@ -16,7 +16,7 @@
 #include "solve/svd_internal.h"
 #include "util/internal.h"
 
-static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized", "nmf"};
+static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized", "nmf", "stream"};
 
 sb_result_t sb_method_parse(const char *name, sb_method_t *out) {
     if (!out) return SB_ERR_ARG;
@@ -88,7 +88,7 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
     sb_svd_opts_t o = {0};
     if (opts) o = *opts;
-    if ((unsigned)o.method >= SB_METHOD_COUNT_ || o.method == SB_METHOD_NMF)
+    if ((unsigned)o.method >= SB_METHOD_COUNT_ || o.method == SB_METHOD_NMF || o.method == SB_METHOD_STREAM)
         return sb_error(ctx, SB_ERR_ARG, "svd: method %d is not an SVD method", (int)o.method);
     if (o.power_iters > SB_SVD_MAX_POWER_ITERS)
         return sb_error(ctx, SB_ERR_RANGE, "svd: %d power iterations, at most %d", o.power_iters,

@@ -175,6 +175,10 @@ typedef struct keyspec {
       "0.5")                                                                                                           \
     X("roughness", K_NUM, 0.001, 1, 0, roughness, NULL,                                                                \
       "perceptual roughness: GGX alpha = roughness^2, Schlick-GGX k = ((1 + roughness)/2)^2/2", "[0.001, 1]", "0.5")   \
+    X("anisotropy", K_NUM, 0, 1, 0, anisotropy, NULL,                                                                  \
+      "anisotropic GGX (Burley): alpha_x = alpha/a along the tangent x, alpha_y = alpha a, a = sqrt(1 - 0.9 "          \
+      "anisotropy); 0 is isotropic",                                                                                   \
+      "[0, 1]", "0")                                                                                                   \
     GUARD_KEY(X, "n.l and n.v in G's numerators and the denominator")
 
 #define KEY_TABLES(tag, LIST)                                                                                          \
@@ -354,6 +358,7 @@ static void defaults(model_t *m, int kind) {
 
 /* Whether a key is printed in the canonical description of m. */
 static int key_relevant(const model_t *m, const char *name) {
+    if (strcmp(name, "anisotropy") == 0) return m->anisotropy > 0; /* isotropic specs stay as they were */
     if (m->kind != M_CT) return 1;
     if (strcmp(name, "f0") == 0) return m->f == F_SCHLICK || m->f == F_CONDUCTOR;
     if (strcmp(name, "ior") == 0) return m->f == F_DIELECTRIC;
@@ -438,6 +443,9 @@ static sb_result_t finish(sb_context_t *ctx, model_t *m, int f0_set, int ior_set
         if (metal_base && !metallic_set) m->metallic = 1;
         m->d = D_GGX;
         m->alpha = m->roughness * m->roughness;
+        double aspect = sqrt(1 - 0.9 * m->anisotropy);
+        m->ax = m->alpha / aspect;
+        m->ay = m->alpha * aspect;
         double r = 0.5 + 0.5 * m->roughness;
         m->k = r * r / 2;
         break;
@@ -450,7 +458,7 @@ static sb_result_t finish(sb_context_t *ctx, model_t *m, int f0_set, int ior_set
 
 /* Flags that hold for this instance. */
 static unsigned model_flags(const model_t *m) {
-    unsigned flags = SB_SOURCE_ISOTROPIC;
+    unsigned flags = m->anisotropy > 0 ? 0u : SB_SOURCE_ISOTROPIC;
     /* Only classic Phong divides by n.l alone; with ks = 0 it is constant. */
     if (m->kind != M_PHONG || is_zero(m->ks)) flags |= SB_SOURCE_RECIPROCAL;
     int gray;

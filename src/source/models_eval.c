@@ -218,7 +218,15 @@ int sb_model_ct_(const void *self, const double l[3], const double v[3], double 
     return 1;
 }
 
-/* The lecture's microfacetBRDF, unchanged:
+/* Anisotropic GGX (Burley 2012) with widths ax along the surface tangent
+ * x and ay along y:  D = 1 / (pi ax ay (h_x^2/ax^2 + h_y^2/ay^2 + h_z^2)^2),
+ * which is ndf()'s GGX for ax = ay = alpha. */
+static double ndf_aniso(const model_t *m, const double h[3]) {
+    double x = h[0] / m->ax, y = h[1] / m->ay, b = x * x + y * y + h[2] * h[2];
+    return 1 / (SB_PI * m->ax * m->ay * b * b);
+}
+
+/* The lecture's microfacetBRDF, unchanged (with anisotropy 0):
  *   f0 = mix(0.16 reflectance^2, base, metallic)
  *   F = f0 + (1 - f0)(1 - v.h)^5,  D = GGX(alpha = roughness^2),
  *   G = G1(n.l) G1(n.v), G1(c) = max(c, 0.001)/(c (1 - k) + k), k = ((1 + roughness)/2)^2 / 2
@@ -230,7 +238,7 @@ int sb_model_microfacet_(const void *self, const double l[3], const double v[3],
     double h[3];
     half_vector(l, v, h);
     double nv = clamp01(v[2]), nl = clamp01(l[2]), vh = clamp01(dot3(v, h));
-    double D = ndf(m, h);
+    double D = m->anisotropy > 0 ? ndf_aniso(m, h) : ndf(m, h);
     double k = m->k;
     double G = (fmax(nl, m->cmin) / (nl * (1 - k) + k)) * (fmax(nv, m->cmin) / (nv * (1 - k) + k));
     double f5 = pow(1 - vh, 5);

@@ -26,11 +26,14 @@ typedef struct model {
     int norm, d, g, f, denom;
     double roughness, f0[3], ior;
     double base[3], metallic, reflectance;
+    double
+        anisotropy; /* microfacet: 0 isotropic; alpha_x = alpha / a, alpha_y = alpha a, a = sqrt(1 - 0.9 anisotropy) */
     /* derived */
-    double cmin;  /* guard, or SB_COS_FLOOR when guard = 0 */
-    double cspec; /* constant factor of the specular lobe */
-    double alpha; /* GGX alpha = roughness^2; Beckmann/Gaussian m = roughness */
-    double k;     /* Schlick-GGX k */
+    double cmin;   /* guard, or SB_COS_FLOOR when guard = 0 */
+    double cspec;  /* constant factor of the specular lobe */
+    double alpha;  /* GGX alpha = roughness^2; Beckmann/Gaussian m = roughness */
+    double ax, ay; /* microfacet: GGX widths along the tangent x and the bitangent y */
+    double k;      /* Schlick-GGX k */
 } model_t;
 
 /* f_r of each model (self: its model_t), the source interface's eval. */

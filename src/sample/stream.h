@@ -1,0 +1,20 @@
+/* Private: streamed matrices (matrix_stream.c, matrix.h). */
+#ifndef SEPBRDF_SAMPLE_STREAM_H
+#define SEPBRDF_SAMPLE_STREAM_H
+
+#include "sepbrdf/matrix.h"
+
+/* Whether a matrix on param can be streamed: rows and columns separable,
+ * every cell a BRDF pair. */
+int sb_matrix_streamable(const sb_param_t *param);
+
+/* Make out (rows, cols, form, channels set) a streamed matrix of src on
+ * param: the directions of its rows and columns.  Errors: SB_ERR_OVERFLOW,
+ * SB_ERR_NOMEM. */
+sb_result_t sb_matrix_build_streamed(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                     sb_matrix_t *out);
+
+/* Cell (row, col) of channel ch of a streamed matrix. */
+double sb_matrix_stream_at(const sb_matrix_t *m, int ch, size_t row, size_t col);
+
+#endif
