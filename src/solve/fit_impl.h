@@ -19,8 +19,6 @@
 #define SB_TAPS_COST 1.5
 /* Stages up to this many terms all refit jointly (joint_stage). */
 #define SB_JOINT_ALL 8
-/* Joint sweeps that probe the cost of the taps' constraints. */
-#define SB_TAPS_PROBE 10
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
 struct sb_fit {

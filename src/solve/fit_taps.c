@@ -91,20 +91,6 @@ static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsi
     return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
 }
 
-/* SB_TAPS_PROBE joint sweeps of all k terms on the cells with ext != 0. */
-static sb_result_t taps_probe(sb_fit_t *f, const double *As, size_t lda, const unsigned char *ext, size_t nvalid,
-                              const sb_fit_opts_t *o, int *total) {
-    als_cells_t cl;
-    if (fit_cells_build(f->ctx, &cl, As, f->m, f->n, lda, ext, nvalid) != 0) return SB_ERR_NOMEM;
-    sb_fit_opts_t po = *o;
-    int converged = 1;
-    po.max_iters = SB_TAPS_PROBE;
-    fit_cells_residual(&cl, f, 0);
-    fit_als_until(f, &cl, 0, f->k, &po, 0, total, &converged);
-    fit_cells_free(&cl);
-    return SB_OK;
-}
-
 /* The ALS part of a fit from the warm start in f->P, f->Q: the stages
  * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
  * (constrain_taps, twice at most, warm), and when the prefixes' errors on
@@ -120,10 +106,9 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
     unsigned char *ext = taps ? malloc(m * n) : NULL;
     double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
     double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
-    double *P2 = malloc(m * k * sizeof *P2), *Q2 = malloc(n * k * sizeof *Q2);
     sb_result_t r = SB_OK;
-    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !P2 || !Q2)
-        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 3 * (m + n) * k * sizeof(double));
+    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1)
+        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 2 * (m + n) * k * sizeof(double));
     if (r == SB_OK) {
         memcpy(P0, f->P, m * k * sizeof *P0);
         memcpy(Q0, f->Q, n * k * sizeof *Q0);
@@ -155,18 +140,7 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
             if (added == 0 || r != SB_OK) break;
             nvalid += added;
             constrained += added;
-            /* a few joint sweeps first, from a copy: constraints that
-             * already cost the valid cells more than SB_TAPS_COST there are
-             * dropped without the staged refit (which would not do better) */
-            memcpy(P2, f->P, m * k * sizeof *P2);
-            memcpy(Q2, f->Q, n * k * sizeof *Q2);
-            r = taps_probe(f, As, lda, ext, nvalid, o, total);
-            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
-            memcpy(f->P, P2, m * k * sizeof *P2); /* the stages start where the probe did */
-            memcpy(f->Q, Q2, n * k * sizeof *Q2);
-            if (r == SB_OK)
-                r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
-            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+            r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
         }
         /* data that the rank-k structure extends exactly (or nearly) are
          * their own best extrapolation: a constraint that costs the valid
@@ -184,7 +158,5 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
     free(Q0);
     free(P1);
     free(Q1);
-    free(P2);
-    free(Q2);
     return r;
 }
