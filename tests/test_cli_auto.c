@@ -135,7 +135,8 @@ SB_TEST(kept_is_best_full_fit) {
  * below the dense io matrix at R = 48 (2304^2 x 3 doubles, 127 MB) an
  * isotropic source on io stores its 48^3 distinct values (2.7 MB) and is
  * factored; hd, dense, is refused naming the memory limit (exit 1, lower
- * --res); auto leaves the layouts that do not fit out and keeps another. */
+ * --res); auto leaves the layouts that do not fit out and keeps another.
+ * Streaming (--method stream) is never chosen silently. */
 SB_TEST(memory_limit_counts_what_is_stored) {
     char args[4200];
     const char *dir = sb_tmpdir("auto_mem");
@@ -149,6 +150,7 @@ SB_TEST(memory_limit_counts_what_is_stored) {
     rc = run(args);
     CHECKF(rc == 0, "auto: rc %d: %s", rc, out);
     CHECK(load_report(dir) == 0);
-    CHECK(count(report, "needs more than the memory limit") == 2); /* hd, forms f and cos */
+    /* io-area and hd are dense (2304^2 x 3 doubles), forms f and cos */
+    CHECK(count(report, "needs more than the memory limit") == 4);
     CHECK(count(report, "\"kept\": true") == 1);
 }

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "job_impl.h"
+#include "sample/stream.h"
 #include "sepbrdf/exr.h"
 #include "util/internal.h"
 
@@ -158,11 +159,12 @@ static size_t layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t 
     return r < c ? r : c;
 }
 
-/* Whether candidate k's matrix at R fits the memory limit, counted as
- * job_sample builds it (sb_matrix_bytes: an isotropic source on io or
- * io-area stores its R^3 distinct values, a matrix beyond the limit on
- * those layouts is streamed); else SB_ERR_OVERFLOW naming the bytes
- * (through ctx, which may be NULL). */
+/* Whether candidate k's matrix at R fits the memory limit as job_sample
+ * stores it: an isotropic source on io or io-area its R^3 distinct values,
+ * else the dense matrix; with --method stream a matrix on those layouts is
+ * evaluated block by block instead (sb_matrix_bytes), never chosen
+ * silently: beyond memory it takes hours where a lower R takes seconds.
+ * SB_ERR_OVERFLOW naming the bytes otherwise (through ctx, may be NULL). */
 static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_kind_t k) {
     sb_param_t *p = NULL;
     sb_param_opts_t po = {0};
@@ -171,16 +173,26 @@ static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_ki
     if (sb_param_create(NULL, k, &po, &p) != SB_OK) return SB_OK; /* sb_job_run names the problem */
     unsigned ch = job->o.channels ? job->o.channels & 7u : 7u;
     size_t nch = (ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1), rows = sb_param_rows(p), cols = sb_param_cols(p);
-    sb_matrix_opts_t mo = {0};
-    mo.channels = ch;
-    mo.structured = 1; /* as job_sample builds it */
-    size_t bytes = sb_matrix_bytes(job->src, p, &mo);
+    size_t cells, bytes = SIZE_MAX, R = job->o.res;
+    int structured = (sb_param_caps(p) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(job->src) & SB_SOURCE_ISOTROPIC);
+    int stream = sb_matrix_streamable(p);
+    if (stream && job->o.method == SB_METHOD_STREAM) {
+        sb_matrix_opts_t mo = {0};
+        mo.channels = ch;
+        mo.structured = 1; /* as job_sample builds it */
+        bytes = sb_matrix_bytes(job->src, p, &mo);
+    } else if (structured ? !sb_size_mul3(R, R, R, &cells) : !sb_size_mul(rows, cols, &cells)) {
+        if (!sb_size_mul3(cells, nch, sizeof(double), &bytes)) sb_size_add(bytes, cells, &bytes);
+    }
     sb_param_destroy(p);
     if (bytes <= sb_memory_limit()) return SB_OK;
     return sb_error(ctx, SB_ERR_OVERFLOW,
                     "%s at %zu cells per axis: %zu x %zu cells x %zu channels need more than %zu bytes, the memory "
-                    "limit",
-                    sb_param_kind_name(k), job->o.res, rows, cols, nch, sb_memory_limit());
+                    "limit%s",
+                    sb_param_kind_name(k), job->o.res, rows, cols, nch, sb_memory_limit(),
+                    stream && job->o.method != SB_METHOD_STREAM
+                        ? "; --method stream evaluates it block by block instead (slow)"
+                        : "");
 }
 
 static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k, sb_form_t form, int weighted) {
