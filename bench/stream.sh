@@ -41,6 +41,6 @@ for r in 16 32 64; do
 done
 
 echo "factor --param io -r $big -J 4 (streamed):"
-/usr/bin/time -v "$build/sepbrdf" factor "$src" --param io -r "$big" -J 4 -o "$work/big" 2>"$work/time.txt" |
+/usr/bin/time -v "$build/sepbrdf" factor "$src" --param io -r "$big" -J 4 --method stream -o "$work/big" 2>"$work/time.txt" |
     sed -n '2,7p'
 grep -E 'Maximum resident|Elapsed' "$work/time.txt"
