@@ -424,17 +424,14 @@ sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
  * converged, 3.7e-3 stopped early).  An explicit layout also fits the
  * kept matrix with the early stop and keeps that fit when its headline at
  * J is lower than the converged fit's. */
-static sb_result_t keep_better_fit(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
-    job_attempt_t *a = &job->best;
-    job_level_t lv = full_level(job);
-    lv.est_max_pairs = 1; /* compared on the pairs so far; the kept fit's estimate grows after */
+sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a) {
+    job_level_t lv = *full;
     early_stop(job, &lv);
     job_attempt_t tmp = *a; /* a's matrix and param, fitted again into tmp.f / tmp.est */
     tmp.f = NULL;
     tmp.est = NULL;
-    sb_result_t r = job_factor(ctx, job, &lv, c->weighted, &tmp);
-    size_t J = sb_factors_terms(a->f);
-    if (r == SB_OK && rank_error(&tmp) < sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms)) {
+    sb_result_t r = job_factor(ctx, job, &lv, a->weighted, &tmp);
+    if (r == SB_OK && rank_error(&tmp) < rank_error(a)) {
         sb_factors_destroy(a->f);
         free(a->est);
         a->f = tmp.f;
@@ -465,7 +462,7 @@ static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candi
     if (masked && job->is_auto) early_stop(job, &lv);
     lv.est_max_pairs = two ? 1 : 0;
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
-    if (r == SB_OK && two) r = keep_better_fit(ctx, job, c);
+    if (r == SB_OK && two) r = job_keep_early_fit(ctx, job, &lv, &job->best);
     lv.est_max_pairs = 0;
     if (r == SB_OK && two && !job->best.est->converged) r = job_estimate(ctx, job, &lv, &job->best);
     if (r == SB_OK) r = job_term_weights(ctx, job, &lv, &job->best);

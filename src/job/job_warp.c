@@ -40,37 +40,9 @@ static double rank_at_j(const job_attempt_t *a) {
     return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
 }
 
-/* A masked fit of a warped layout can drift with more sweeps (its error
- * out of sample rising, measured on GGX roughness 0.1), so the matrix is
- * also fitted with the screening's early stop (a sweep gaining less than
- * 1e-3, at most 40) and the lower headline at J kept, as --param auto
- * does for its kept fit. */
-static sb_result_t keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a) {
-    job_level_t lv = *full;
-    lv.fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
-    lv.fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 40;
-    job_attempt_t t = *a; /* a's matrix and param, fitted again into t.f / t.est */
-    t.f = NULL;
-    t.est = NULL;
-    sb_result_t r = job_factor(ctx, job, &lv, a->weighted, &t);
-    if (r == SB_OK && rank_at_j(&t) < rank_at_j(a)) {
-        sb_factors_destroy(a->f);
-        free(a->est);
-        a->f = t.f;
-        a->est = t.est;
-        a->stats = t.stats;
-        a->metric = t.metric;
-        a->t_factor += t.t_factor;
-        return SB_OK;
-    }
-    sb_factors_destroy(t.f);
-    free(t.est);
-    return r == SB_ERR_NUMERIC ? SB_OK : r;
-}
-
 /* With opts.warp on a layout with SB_CAP_WARPS: sample the kept candidate
  * again on the warped layout and (unless sample_only) fit it with the
- * requested settings (a masked fit: the better of two, keep_early_fit),
+ * requested settings (a masked fit: the better of two, job_keep_early_fit),
  * replacing job->best (max_error: the fewest terms that meet it); "auto" keeps the warped fit only when its headline at
  * J is lower (both on the estimator's pairs). */
 sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
@@ -101,7 +73,7 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
                       .fit_max_iters = job->o.fit_max_iters};
     int fit = !job->o.sample_only;
     if (r == SB_OK && fit) r = job_factor(ctx, job, &lv, b->weighted, &a);
-    if (r == SB_OK && fit && job_attempt_masked(job, &a)) r = keep_early_fit(ctx, job, &lv, &a);
+    if (r == SB_OK && fit && job_attempt_masked(job, &a)) r = job_keep_early_fit(ctx, job, &lv, &a);
     if (r == SB_OK && fit) r = job_term_weights(ctx, job, &lv, &a);
     if (r == SB_OK && fit && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(a.f);
