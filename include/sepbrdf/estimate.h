@@ -81,6 +81,15 @@ typedef struct sb_pairs sb_pairs_t;
  * Errors: SB_ERR_ARG, SB_ERR_RANGE (replicate 0, start < 4), SB_ERR_NOMEM. */
 sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
                             sb_pairs_t **out);
+/* A pair drawn from a point x of [0,1)^6 (wi, wo unit, local frame): its
+ * density under the distribution measured over, or 0 for no pair.  Called
+ * from several threads at once. */
+typedef double (*sb_pair_draw_fn)(const void *user, const double x[6], double wi[3], double wo[3]);
+/* As sb_pairs_create, the pairs drawn by `draw` from the same points
+ * instead of the mixture above (user must outlive the pairs): errors over
+ * another distribution of pairs, e.g. a scene's (scene.h). */
+sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
+                                  sb_pair_draw_fn draw, const void *user, sb_pairs_t **out);
 void sb_pairs_destroy(sb_pairs_t *pairs);
 size_t sb_pairs_count(const sb_pairs_t *pairs);
 

@@ -156,6 +156,10 @@ typedef struct sb_plan_opts {
      * unscale the textures (g /= W_r, h /= W_c).  rel_rms is then measured
      * in that weighted norm. */
     int weighted;
+    /* With weighted: these square-root weights W_r (rows values) and W_c
+     * (cols values) instead of the cells' solid angles, e.g. a scene's
+     * (scene.h); both or neither, each > 0; they must outlive the plan. */
+    const double *row_weights, *col_weights;
     /* Cells with mask 0 (outside the domain, unmeasured) are excluded from
      * the fit by iterative imputation (see fit.c) unless zero_fill is set,
      * in which case they are factored as zeros (the lecture's plain method). */

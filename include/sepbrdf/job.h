@@ -40,6 +40,7 @@
 #include "measured.h"
 #include "outset.h"
 #include "param.h"
+#include "scene.h"
 #include "source.h"
 
 #ifdef __cplusplus
@@ -73,7 +74,13 @@ typedef struct sb_job_opts {
      * are screened with the layouts' own warps; the kept one is then
      * sampled and fitted again, warped. */
     const char *warp;
-    int weighted;                /* solid-angle weighting of an explicit param (auto: always) */
+    int weighted; /* solid-angle weighting of an explicit param (auto: always) */
+    /* A scene spec (scene.h) or NULL: with one, the fit is weighted by the
+     * scene's pairs and skips the cells they never touch (instead of the
+     * solid-angle weights), and the headline, with everything decided on
+     * it (auto's ranking, term weights, max_error), is measured over the
+     * scene's pairs; the whole domain's is sb_job_domain_estimate. */
+    const char *scene;
     int zero_fill;               /* factor invalid cells as zeros instead of a masked fit */
     size_t res;                  /* R, cells per angular axis: 32 */
     size_t terms;                /* J: 4; with max_error the upper limit, min(R, 32) */
@@ -181,6 +188,10 @@ int sb_job_masked(const sb_job_t *job); /* a masked fit: prefixes of J are not t
 void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out);
 const sb_metric_t *sb_job_metric(const sb_job_t *job); /* the grid quadrature (comparable_grid) */
 const sb_estimate_t *sb_job_estimate(const sb_job_t *job);
+/* With opts.scene: the scene, and the estimate over the whole domain of the
+ * factors as stored (sb_job_estimate is then the scene's); NULL without. */
+const sb_scene_t *sb_job_scene(const sb_job_t *job);
+const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job);
 /* The estimator's headline (f cos theta_i), comparable (f cos cos) and
  * negative fraction after J' terms; NAN beyond the terms it holds. */
 double sb_job_headline(const sb_job_t *job, size_t terms);

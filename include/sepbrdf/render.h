@@ -60,6 +60,8 @@ typedef struct sb_render_opts {
  * also for a pixel outside the image or a NULL output.  opts may be NULL
  * (defaults). */
 int sb_render_frame(const sb_render_opts_t *opts, size_t x, size_t y, double n[3], double t[3], double b[3]);
+/* The same at the image-plane point (px, py) (y up): 1 when |p| < 1. */
+int sb_render_frame_at(double px, double py, double n[3], double t[3], double b[3]);
 
 /* A BRDF to render: write f_r(wi, wo) (local frame) to rgb; return value
  * ignored (missing pairs give rgb = 0). */

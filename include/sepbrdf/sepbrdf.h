@@ -17,6 +17,7 @@
 #include "param.h"
 #include "render.h"
 #include "sampler.h"
+#include "scene.h"
 #include "solver.h"
 #include "source.h"
 #include "svd.h"

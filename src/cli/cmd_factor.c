@@ -127,6 +127,18 @@ static void print_table(const sb_job_t *job) {
     }
 }
 
+/* With --scene: the headline over the scene's pairs and over the whole
+ * domain at J, with their standard errors. */
+static void print_scene(const sb_job_t *job) {
+    const sb_estimate_t *s = sb_job_estimate(job), *d = sb_job_domain_estimate(job);
+    size_t J = sb_factors_terms(sb_job_factors(job));
+    if (!d || J == 0 || J > s->terms || J > d->terms) return;
+    printf("scene %s: headline at J = %zu over its pairs %.4e +- %.2e, over the whole domain %.4e +- %.2e\n",
+           sb_scene_spec(sb_job_scene(job)), J, s->rel[J - 1][SB_EST_FCOS][SB_CH_ALL],
+           s->se[J - 1][SB_EST_FCOS][SB_CH_ALL], d->rel[J - 1][SB_EST_FCOS][SB_CH_ALL],
+           d->se[J - 1][SB_EST_FCOS][SB_CH_ALL]);
+}
+
 static void print_result(const sb_job_t *job, const char *out) {
     const sb_matrix_t *m = sb_job_matrix(job);
     const sb_factors_t *f = sb_job_factors(job);
@@ -134,9 +146,11 @@ static void print_result(const sb_job_t *job, const char *out) {
     sb_job_timings(job, &t);
     printf("sepbrdf factor: %s\n  %s, %zu x %zu matrix, form %s%s, %zu terms, method %s\n",
            sb_source_description(sb_job_source(job)), sb_param_spec(sb_job_param(job)), m->rows, m->cols,
-           sb_form_name(m->form), sb_job_weighted(job) ? ", solid-angle weighted" : "", sb_factors_terms(f),
-           sb_factors_get_meta(f, "method"));
+           sb_form_name(m->form),
+           sb_job_scene(job) ? ", scene weighted" : (sb_job_weighted(job) ? ", solid-angle weighted" : ""),
+           sb_factors_terms(f), sb_factors_get_meta(f, "method"));
     print_table(job);
+    print_scene(job);
     printf("wrote %zu texture pairs, report.json and sepbrdf.glsl to %s/ (%.3f s)\n", sb_factors_terms(f), out,
            t.total_s);
 }

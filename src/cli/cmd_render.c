@@ -158,6 +158,8 @@ static void help(void) {
            "Scene: unit sphere, orthographic camera looking down -z, tangent frame\n"
            "t = normalize(dP/dphi) of the sphere with its pole up (see docs/rendering.md);\n"
            "radiance = sum over lights of f_r(L, V) E cos(theta_L), E = pi by default.\n"
+           "With --scene lights=EL,AZ/..., the fit is made for those lights and they\n"
+           "replace --light-elev, --light-azim and --light.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -357,9 +359,20 @@ static void print_result(const render_opts_t *o, const render_input_t *in, const
            o->out);
 }
 
+/* --scene lights=...: its lights replace the others (the spec was checked
+ * when parsed). */
+static void scene_lights(render_opts_t *o) {
+    sb_scene_t *s = NULL;
+    if (!o->job.scene || sb_scene_parse(NULL, o->job.scene, &s) != SB_OK) return;
+    size_t n = sb_scene_lights(s, o->scene.lights, SB_RENDER_MAX_LIGHTS);
+    if (n) o->scene.light_count = n;
+    sb_scene_destroy(s);
+}
+
 /* Options checked against each other; the defaults filled in. */
 static int settle(render_opts_t *o, int *from_dir) {
     sb_light_from_angles(o->elev, o->azim, 0, &o->scene.lights[0]);
+    scene_lights(o);
     if (o->scene.size == 0) o->scene.size = 256;
     *from_dir = o->input && is_dir(o->input);
     if (*from_dir && o->factor_opt_name) {

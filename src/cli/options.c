@@ -60,6 +60,21 @@ static int set_warp(const char *cmd, const cli_option_t *op, const char *v, void
     return 0;
 }
 
+/* A scene spec (scene.h), checked now: a malformed spec is a usage error
+ * (exit 1); a pairs file that cannot be read fails later, as input. */
+static int set_scene(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    sb_context_t *ctx = NULL;
+    sb_scene_t *s = NULL;
+    if (sb_context_create(&ctx) != SB_OK) return -1;
+    sb_result_t r = sb_scene_parse(ctx, v, &s);
+    if (r != SB_OK && r != SB_ERR_IO) cli_error(cmd, "%s '%s': %s", op->name, v, sb_context_last_error(ctx));
+    sb_scene_destroy(s);
+    sb_context_destroy(ctx);
+    if (r != SB_OK && r != SB_ERR_IO) return -1;
+    *(const char **)dst = v;
+    return 0;
+}
+
 static int set_method(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     if (sb_method_parse(v, dst) != SB_OK) {
         char names[128] = "";
@@ -142,6 +157,15 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--weighted", NULL,
      "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate)",
      cli_set_flag, AT(weighted), 0, 0, F_ | R_ | S_},
+    {NULL, "--scene", "SPEC",
+     "fit and measure for the direction pairs a scene uses:\n"
+     "'view=A..B;light=C..D' (theta from the normal, degrees),\n"
+     "'lights=EL,AZ/EL,AZ/...' (render's sphere and camera, these\n"
+     "lights), or 'pairs=FILE' (lines theta_i phi_i theta_o phi_o\n"
+     "[weight], degrees); cells no pair touches are not fitted;\n"
+     "the headline is the scene's, report.json: scene also has\n"
+     "the whole domain's (README: Scene-weighted fits)",
+     set_scene, AT(scene), 0, 0, F_ | R_ | S_},
     {NULL, "--zero-fill", NULL,
      "factor cells outside the domain / unmeasured as zeros\ninstead of excluding them (masked fit, the default)",
      cli_set_flag, AT(zero_fill), 0, 0, F_ | R_ | S_},

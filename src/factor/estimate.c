@@ -103,7 +103,7 @@ static void draw_replicate(sb_pairs_t *P, size_t k) {
             double v = shift[e] + (double)(i + 1) * alpha[e];
             x[e] = v - floor(v);
         }
-        double pd = draw_pair(x, d, d + 3);
+        double pd = P->draw ? P->draw(P->draw_user, x, d, d + 3) : draw_pair(x, d, d + 3);
         int known = pd > 0 && sb_source_eval(P->src, d, d + 3, d + 7) && isfinite(d[7] + d[8] + d[9]);
         d[6] = known ? 1 / pd : 0;
         P->known[at] = (unsigned char)known;
@@ -188,6 +188,11 @@ static sb_result_t pairs_grow(sb_context_t *ctx, sb_pairs_t *P, size_t nrep, int
 
 sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
                             sb_pairs_t **out) {
+    return sb_pairs_create_drawn(ctx, src, opts, NULL, NULL, out);
+}
+
+sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
+                                  sb_pair_draw_fn draw, const void *user, sb_pairs_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "estimate: no output pointer");
     *out = NULL;
     if (!src) return sb_error(ctx, SB_ERR_ARG, "estimate: no source");
@@ -200,6 +205,8 @@ sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_
     P->src = src;
     P->rep = o.replicate;
     P->seed = o.seed;
+    P->draw = draw;
+    P->draw_user = user;
     int nt = sb_thread_count(o.threads);
     if (pairs_grow(ctx, P, o.start, nt > MAXT ? MAXT : nt) != SB_OK) {
         sb_pairs_destroy(P);

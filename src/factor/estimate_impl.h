@@ -15,6 +15,8 @@ struct sb_pairs {
     const sb_source_t *src;
     size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
     uint64_t seed;
+    sb_pair_draw_fn draw; /* NULL: the mixture of estimate.h */
+    const void *draw_user;
     double *d;            /* n x PD */
     unsigned char *known; /* n */
     double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */

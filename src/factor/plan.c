@@ -390,12 +390,22 @@ static sb_result_t execute_expanded(sb_plan_t *p, const sb_matrix_t *m, const sb
     return r;
 }
 
+/* Step: the weights W_r, W_c, given (plan opts) or the cells' solid angles. */
+static void plan_weights(sb_plan_t *p, const sb_param_t *param) {
+    if (!p->opts.row_weights || !p->opts.col_weights) {
+        sb_errors_weights(param, p->wr, p->wc);
+        return;
+    }
+    memcpy(p->wr, p->opts.row_weights, p->rows * sizeof *p->wr);
+    memcpy(p->wc, p->opts.col_weights, p->cols * sizeof *p->wc);
+}
+
 sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out) {
     if (!p || !out) return sb_error(p ? p->ctx : NULL, SB_ERR_ARG, "plan: missing plan or output");
     *out = NULL;
     sb_result_t r = check_execute(p, m, param);
     run_t rn = {.m = m, .param = param};
-    if (r == SB_OK && p->opts.weighted) sb_errors_weights(param, p->wr, p->wc);
+    if (r == SB_OK && p->opts.weighted) plan_weights(p, param);
     if (r == SB_OK) r = choose_solver(p, &rn);
     if (r != SB_OK) return r;
     if ((m->structured || m->streamed) && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);

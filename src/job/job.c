@@ -82,7 +82,7 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     if (job->is_auto) o->param = NULL;
     if (o->sample_only && job->is_auto)
         return sb_error(ctx, SB_ERR_ARG, "sample_only needs one parameterisation, not auto");
-    return SB_OK;
+    return job_scene_open(ctx, job);
 }
 
 /* The driver: choose and fit (job_select), then write when asked.  With
@@ -103,6 +103,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job_select(ctx, job);
     if (r == SB_OK) r = job_warp_refit(ctx, job);
+    if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) {
         job_warn_support(job);
         job->t.sample_s = job->best.t_sample;
@@ -152,6 +153,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
     job->rel_stored = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
     if (r == SB_OK) r = job_term_weights(ctx, job, &lv, &job->best);
+    if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) job_warn_support(job);
     job->t.factor_s = job->best.t_factor;
     job->t.metric_s = job->best.t_metric;
@@ -163,6 +165,7 @@ void sb_job_destroy(sb_job_t *job) {
     if (!job) return;
     job_attempt_free(&job->best);
     sb_pairs_destroy(job->pairs);
+    job_scene_free(job);
     free(job->rel_stored);
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);

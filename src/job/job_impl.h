@@ -15,6 +15,8 @@ typedef struct job_attempt {
     sb_estimate_t *est; /* the estimator's errors of the stored factors */
     double *term_w;     /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     int weighted;
+    double *scene_w;      /* with a scene: W_r (rows), W_c (cols) of its fit (job_scene.c); NULL: not yet */
+    sb_form_t scene_form; /* the form scene_w was made for */
     double t_sample, t_factor, t_metric, t_estimate;
 } job_attempt_t;
 
@@ -43,8 +45,11 @@ struct sb_job {
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
     job_attempt_t best;
-    double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
-    int wrote_sampler;  /* sb_job_write wrote sampler.bin (non-negative factors) */
+    sb_scene_t *scene;         /* opts.scene parsed, NULL: none (job_scene.c) */
+    sb_pairs_t *domain_pairs;  /* with a scene: the whole domain's pairs */
+    sb_estimate_t *domain_est; /* with a scene: the kept fit's errors over the whole domain */
+    double *rel_stored;        /* J * 4 after sb_job_write, NULL before or if unknown */
+    int wrote_sampler;         /* sb_job_write wrote sampler.bin (non-negative factors) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */
@@ -91,6 +96,22 @@ sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t ca
  * sampled and factored at the requested settings, in job->best. */
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form);
 sb_result_t job_select(sb_context_t *ctx, sb_job_t *job);
+
+/* Scenes (job_scene.c).  Parse opts.scene into job->scene and check it
+ * against the other options (SB_ERR_PARSE, SB_ERR_RANGE, SB_ERR_IO as
+ * sb_scene_parse; SB_ERR_ARG with zero_fill or sample_only). */
+sb_result_t job_scene_open(sb_context_t *ctx, sb_job_t *job);
+/* With a scene: mask a's matrix to the cells its pairs touch and make
+ * a->scene_w for a's form (dense first: a structured matrix is expanded);
+ * nothing when done for that form or without a scene. */
+sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attempt_t *a);
+/* The estimator's pairs into job->pairs: the scene's, else the domain's. */
+sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
+/* With a scene: the kept fit's estimate over the whole domain. */
+sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
+/* report.json's "scene" object (nothing without a scene). */
+void job_scene_report(sb_json_t *j, const sb_job_t *job);
+void job_scene_free(sb_job_t *job);
 
 /* opts.warp: NULL (the layout's own), "uniform", "merl" (kind set),
  * "adaptive" or "auto" (*adaptive = 1); SB_ERR_UNKNOWN otherwise

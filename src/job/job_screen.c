@@ -41,8 +41,9 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         mo.progress_user = (void *)pu;
     }
     if ((r = sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m)) != SB_OK) return r;
+    r = job_scene_prepare(ctx, job, a);
     a->t_sample = job_now() - t0;
-    return SB_OK;
+    return r;
 }
 
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) { return a->m.mask != NULL && !job->o.zero_fill; }
@@ -60,7 +61,7 @@ static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_leve
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
     sb_result_t r = SB_OK;
-    if (!job->pairs) r = sb_pairs_create(ctx, job->src, NULL, &job->pairs);
+    if (!job->pairs) r = job_pairs_create(ctx, job);
     if (r == SB_OK && !a->est && !(a->est = malloc(sizeof *a->est))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     /* what a shader reads: the texels as stored */
     if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
@@ -81,6 +82,8 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     memset(&a->metric, 0, sizeof a->metric);
     memset(&a->stats, 0, sizeof a->stats);
     a->weighted = weighted;
+    sb_result_t r = job_scene_prepare(ctx, job, a);
+    if (r != SB_OK) return r;
     sb_plan_opts_t pl = {0};
     pl.terms = lv->terms;
     pl.svd.method = job->o.method;
@@ -89,8 +92,13 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     pl.zero_fill = job->o.zero_fill;
     pl.fit_tol = lv->fit_tol;
     pl.fit_max_iters = lv->fit_max_iters;
+    if (a->scene_w) { /* the scene's weights instead of solid angles */
+        pl.weighted = 1;
+        pl.row_weights = a->scene_w;
+        pl.col_weights = a->scene_w + a->m.rows;
+    }
     sb_plan_t *plan = NULL;
-    sb_result_t r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
+    r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
     if (r != SB_OK) return r;
     double t1 = job_now();
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
@@ -121,6 +129,7 @@ sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv,
 void job_attempt_free(job_attempt_t *a) {
     free(a->est);
     free(a->term_w);
+    free(a->scene_w);
     sb_factors_destroy(a->f);
     sb_matrix_free(&a->m);
     sb_param_destroy(a->param);

@@ -32,9 +32,13 @@ static void normalize3(double v[3]) {
  * for the pole on +y, b = n x t. */
 int sb_render_frame(const sb_render_opts_t *opts, size_t x, size_t y, double n[3], double t[3], double b[3]) {
     size_t S = opts && opts->size ? opts->size : DEFAULT_SIZE;
-    if (!n || !t || !b || x >= S || y >= S) return 0;
+    if (x >= S || y >= S) return 0;
     double e = SB_RENDER_EXTENT;
-    double px = (2 * (x + 0.5) / (double)S - 1) * e, py = (1 - 2 * (y + 0.5) / (double)S) * e;
+    return sb_render_frame_at((2 * (x + 0.5) / (double)S - 1) * e, (1 - 2 * (y + 0.5) / (double)S) * e, n, t, b);
+}
+
+int sb_render_frame_at(double px, double py, double n[3], double t[3], double b[3]) {
+    if (!n || !t || !b) return 0;
     double r2 = px * px + py * py;
     if (!(r2 < 1)) return 0;
     n[0] = px;

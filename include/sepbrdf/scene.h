@@ -1,0 +1,101 @@
+/* sepbrdf: scenes, the distribution of direction pairs (wi, wo) a scene
+ * uses, for fits and errors weighted by it.
+ *
+ * A scene is a probability distribution over pairs in the local frame
+ * (wi towards the light, wo towards the viewer), given by a spec of items
+ * KEY=VALUE separated by ';' (or by ',' before the next KEY=):
+ *   view=A..B;light=C..D   elevation ranges, theta from the normal in
+ *                          degrees, 0 <= A < B <= 90 (either may be left
+ *                          out: 0..90); pairs uniform in solid angle over
+ *                          both ranges, every azimuth.
+ *   lights=EL,AZ/EL,AZ/... a product shot: the lit sphere of render.h
+ *                          (orthographic camera, the unit sphere's
+ *                          normals and tangent frames), lit by up to
+ *                          SB_RENDER_MAX_LIGHTS directional lights given
+ *                          as render.h gives them (elevation above the
+ *                          image plane towards the camera, 0..90, and
+ *                          azimuth, degrees); pairs (L, V) in the local
+ *                          frame of a point uniform over the sphere's
+ *                          image (every pixel alike) and a light chosen
+ *                          uniformly, unlit pairs (L.n <= 0) left out:
+ *                          the pairs `sepbrdf render` shades.
+ *   pairs=FILE             a histogram of pairs: a text file with one pair
+ *                          a line, "theta_i phi_i theta_o phi_o [weight]"
+ *                          in degrees (theta 0..90), weight >= 0 (default
+ *                          1), '#' starts a comment; pairs drawn with
+ *                          probability proportional to the weight.
+ * Exactly one of the three kinds; a key given twice, an unknown key, a
+ * malformed number, a range out of order or beyond 0..90 are errors.
+ *
+ * Fits (the factor job's --scene): the pairs are splatted onto the matrix
+ * cells with the bilinear footprints a shader's lookups read (every pair
+ * touches its 4 g texels x 4 h texels), each weighted by the headline's
+ * cos^2(theta_i) over the squared form weight, so that sum over cells
+ * mass x (stored error)^2 estimates the scene's f cos(theta_i) error; cells
+ * no pair touches are left out of the fit (masked), the others weighted by
+ * the best separable fit w_r^2 w_c^2 of their mass (plan weights). */
+#ifndef SEPBRDF_SCENE_H
+#define SEPBRDF_SCENE_H
+
+#include "common.h"
+#include "estimate.h"
+#include "matrix.h"
+#include "param.h"
+#include "render.h"
+#include "source.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sb_scene_kind { SB_SCENE_RANGES = 0, SB_SCENE_LIGHTS, SB_SCENE_PAIRS } sb_scene_kind_t;
+
+typedef struct sb_scene sb_scene_t;
+
+/* Parse a spec (header); a pairs file is read now.  Errors: SB_ERR_ARG
+ * (NULL), SB_ERR_PARSE (the message names the item and what is wrong),
+ * SB_ERR_RANGE (a value beyond its range, too many lights, no pair of
+ * positive weight), SB_ERR_IO (the pairs file), SB_ERR_NOMEM. */
+sb_result_t sb_scene_parse(sb_context_t *ctx, const char *spec, sb_scene_t **out);
+void sb_scene_destroy(sb_scene_t *s); /* accepts NULL */
+
+sb_scene_kind_t sb_scene_kind(const sb_scene_t *s);
+/* Canonical spec ("view=0..60;light=0..90", "lights=45,45/30,150",
+ * "pairs=FILE"). */
+const char *sb_scene_spec(const sb_scene_t *s);
+/* The lights of a lights scene as render.h takes them (irradiance 0: the
+ * default), at most max; returns how many (0 for another kind). */
+size_t sb_scene_lights(const sb_scene_t *s, sb_light_t *out, size_t max);
+
+/* Map a point x of [0,1)^6 to a pair of the scene: returns 1 with wi, wo
+ * set when x maps to a pair the scene uses, 0 for an unlit point (lights)
+ * or a NULL argument.  Uniform x gives pairs distributed as the scene. */
+double sb_scene_draw(const sb_scene_t *s, const double x[6], double wi[3], double wo[3]);
+
+/* The estimator's pairs (estimate.h) drawn from the scene instead of the
+ * whole domain: every pair weight 1, replicates as sb_pairs_create draws
+ * them, so sb_estimate_compute gives the errors over the scene's pairs
+ * with their standard errors.  Errors as sb_pairs_create. */
+sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
+                                  const sb_estimate_opts_t *opts, sb_pairs_t **out);
+
+/* The scene's mass on the cells of p for a matrix of form `form` (header):
+ * mass[row + col * rows] >= 0, the largest 1, from n pairs (0: a default
+ * that grows with the cell count).  Errors: SB_ERR_ARG, SB_ERR_RANGE (no
+ * pair of the scene lies in p's domain), SB_ERR_OVERFLOW, SB_ERR_NOMEM. */
+sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_form_t form, size_t n,
+                          double *mass);
+
+/* Weights for a fit of m on the scene: cells with mass 0 get mask 0 in m
+ * (a stored, dense m: a mask is made when it has none; structure and
+ * phi_period dropped; valid_count recounted), and w (rows + cols values)
+ * the square-root weights W_r, W_c of the separable fit of the mass
+ * (plan opts row_weights, col_weights).  Errors: SB_ERR_ARG (NULL,
+ * structured or streamed m, sizes differ from p), those of
+ * sb_scene_mass, SB_ERR_NOMEM. */
+sb_result_t sb_scene_apply(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_matrix_t *m, double *w);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

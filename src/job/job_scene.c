@@ -1,0 +1,104 @@
+/* The factor job's scene (opts.scene, job.h): the fit weighted by the
+ * scene's direction pairs and masked to the cells they touch (scene.h),
+ * the estimator's pairs drawn from the scene, and the whole domain's
+ * errors beside them in report.json. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "job_impl.h"
+#include "sepbrdf/exr.h"
+#include "util/internal.h"
+
+sb_result_t job_scene_open(sb_context_t *ctx, sb_job_t *job) {
+    if (!job->o.scene) return SB_OK;
+    if (job->o.zero_fill)
+        return sb_error(ctx, SB_ERR_ARG, "a scene skips the cells it never uses: it cannot zero-fill them too");
+    if (job->o.sample_only) return sb_error(ctx, SB_ERR_ARG, "a scene weights the fit: it needs a fit, not sample_only");
+    return sb_scene_parse(ctx, job->o.scene, &job->scene);
+}
+
+sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attempt_t *a) {
+    if (!job->scene || (a->scene_w && a->scene_form == a->m.form)) return SB_OK;
+    sb_result_t r = SB_OK;
+    if (a->m.streamed)
+        return sb_error(ctx, SB_ERR_OVERFLOW,
+                        "a scene weights stored cells: the %zu x %zu matrix is streamed; lower the resolution",
+                        a->m.rows, a->m.cols);
+    if (a->m.structured) {
+        sb_matrix_t d;
+        if ((r = sb_matrix_expand(ctx, &a->m, &d)) != SB_OK) return r;
+        sb_matrix_free(&a->m);
+        a->m = d;
+    }
+    free(a->scene_w);
+    if (!(a->scene_w = sb_alloc(ctx, a->m.rows + a->m.cols, sizeof(double), "scene weights"))) return SB_ERR_NOMEM;
+    a->scene_form = a->m.form;
+    if ((r = sb_scene_apply(ctx, job->scene, a->param, &a->m, a->scene_w)) != SB_OK) {
+        free(a->scene_w);
+        a->scene_w = NULL;
+    }
+    return r;
+}
+
+sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job) {
+    if (job->pairs) return SB_OK;
+    if (job->scene) return sb_scene_pairs_create(ctx, job->scene, job->src, NULL, &job->pairs);
+    return sb_pairs_create(ctx, job->src, NULL, &job->pairs);
+}
+
+sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    if (!job->scene || !a->f) return SB_OK;
+    double t0 = job_now();
+    sb_exr_opts_t xo = {job->o.half};
+    sb_factors_t *q = NULL;
+    sb_result_t r = SB_OK;
+    if (!job->domain_pairs) r = sb_pairs_create(ctx, job->src, NULL, &job->domain_pairs);
+    if (r == SB_OK && !job->domain_est && !(job->domain_est = malloc(sizeof *job->domain_est)))
+        r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL); /* what a shader reads */
+    if (r == SB_OK) r = sb_estimate_compute(ctx, job->domain_pairs, q, NULL, a->param, a->m.form, NULL, job->domain_est);
+    sb_factors_destroy(q);
+    job->t_estimate += job_now() - t0;
+    job->t.estimate_s = job->t_estimate;
+    return r;
+}
+
+static void headline_array(sb_json_t *j, const char *key, const sb_estimate_t *e, int se, size_t J) {
+    sb_json_begin_array(j, key);
+    for (size_t k = 0; k < J; k++)
+        sb_json_number(j, NULL, e && k < e->terms ? (se ? e->se : e->rel)[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
+    sb_json_end_array(j);
+}
+
+void job_scene_report(sb_json_t *j, const sb_job_t *job) {
+    static const char *const kinds[] = {"ranges", "lights", "pairs"};
+    if (!job->scene) return;
+    const sb_estimate_t *s = job->best.est, *d = job->domain_est;
+    size_t J = sb_factors_terms(job->best.f);
+    sb_json_begin_object(j, "scene");
+    sb_json_string(j, "spec", sb_scene_spec(job->scene));
+    sb_json_string(j, "kind", kinds[sb_scene_kind(job->scene)]);
+    sb_json_int(j, "fit_cells", (long long)job->best.m.valid_count);
+    sb_json_int(j, "cells", (long long)(job->best.m.rows * job->best.m.cols));
+    sb_json_int(j, "pairs", (long long)(s ? s->known : 0));
+    headline_array(j, "headline", s, 0, J);
+    headline_array(j, "headline_se", s, 1, J);
+    sb_json_int(j, "domain_pairs", (long long)(d ? d->known : 0));
+    headline_array(j, "domain_headline", d, 0, J);
+    headline_array(j, "domain_headline_se", d, 1, J);
+    sb_json_end_object(j);
+}
+
+void job_scene_free(sb_job_t *job) {
+    sb_scene_destroy(job->scene);
+    sb_pairs_destroy(job->domain_pairs);
+    free(job->domain_est);
+    job->scene = NULL;
+    job->domain_pairs = NULL;
+    job->domain_est = NULL;
+}
+
+const sb_scene_t *sb_job_scene(const sb_job_t *job) { return job->scene; }
+const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job) { return job->scene ? job->domain_est : NULL; }

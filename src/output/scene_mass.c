@@ -1,0 +1,163 @@
+/* A scene's weights for fits and its pairs for the estimator (scene.h).
+ *
+ * Mass: n points of the Kronecker set i alpha (alpha_d = 1/phi^(d+1), phi
+ * the root of x^7 = x + 1, as the estimator draws) mapped to pairs; each
+ * pair in the domain adds q a_r b_c to the cells (r, c) of its bilinear
+ * footprints (a_r over the 4 g texels of its st_g, b_c over the 4 h
+ * texels of st_h, the GL conventions of param.h), with q the headline's
+ * weight over the squared form weight: cos^2(theta_i) for f, 1 for cos,
+ * 1 / cos^2(theta_o) for cos2 (cos(theta_o) at least 0.001, the snippet's
+ * guard).
+ *
+ * Separable weights: a_r b_c ~ mass_rc on the cells of positive mass,
+ * by alternating least squares (rank one, non-negative from a
+ * non-negative start), a few tens of sweeps; W_r = sqrt(a_r), W_c =
+ * sqrt(b_c), at least 1e-3 of their largest. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sepbrdf/scene.h"
+#include "util/internal.h"
+
+#define MASS_MIN_PAIRS ((size_t)1 << 18)
+#define MASS_MAX_PAIRS ((size_t)1 << 22)
+#define MASS_PER_CELL 8
+#define SEP_SWEEPS 30
+#define W_FLOOR 1e-3
+
+static size_t wrap_at(long i, size_t n, int mode) {
+    if (mode == SB_WRAP_REPEAT) {
+        long m = i % (long)n;
+        return (size_t)(m < 0 ? m + (long)n : m);
+    }
+    return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
+}
+
+/* The 4 texels (row-major index) and bilinear weights of st on a w x h
+ * texture with wraps wr. */
+static void footprint(const double st[2], size_t w, size_t h, const int wr[2], size_t at[4], double fw[4]) {
+    double u = st[0] * (double)w - 0.5, v = st[1] * (double)h - 0.5;
+    double x0 = floor(u), y0 = floor(v), fx = u - x0, fy = v - y0;
+    size_t xs[2] = {wrap_at((long)x0, w, wr[0]), wrap_at((long)x0 + 1, w, wr[0])};
+    size_t ys[2] = {wrap_at((long)y0, h, wr[1]), wrap_at((long)y0 + 1, h, wr[1])};
+    for (int k = 0; k < 4; k++) {
+        at[k] = ys[k >> 1] * w + xs[k & 1];
+        fw[k] = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
+    }
+}
+
+static double form_q(sb_form_t form, const double wi[3], const double wo[3]) {
+    if (form == SB_FORM_COS) return 1;
+    if (form == SB_FORM_COS2) return 1 / fmax(wo[2] * wo[2], 1e-6);
+    return wi[2] * wi[2];
+}
+
+sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_form_t form, size_t n,
+                          double *mass) {
+    if (!s || !p || !mass) return sb_error(ctx, SB_ERR_ARG, "scene: NULL argument");
+    size_t rows = sb_param_rows(p), cols = sb_param_cols(p), cells, size[2][2];
+    int wrap[2][2];
+    if (sb_size_mul(rows, cols, &cells)) return sb_error(ctx, SB_ERR_OVERFLOW, "scene: cell count overflows");
+    for (int side = 0; side < 2; side++) {
+        sb_param_texture_size(p, side, &size[side][0], &size[side][1]);
+        sb_param_wrap(p, side, wrap[side]);
+    }
+    if (n == 0) /* enough that every cell the scene's pairs touch is touched by one drawn */
+        n = cells > MASS_MAX_PAIRS / MASS_PER_CELL ? MASS_MAX_PAIRS
+                                                   : (MASS_PER_CELL * cells < MASS_MIN_PAIRS ? MASS_MIN_PAIRS
+                                                                                             : MASS_PER_CELL * cells);
+    memset(mass, 0, cells * sizeof *mass);
+    double alpha[6], a = 1, top = 0;
+    for (int d = 0; d < 6; d++)
+        alpha[d] = (a /= 1.1127756842787055);
+    for (size_t i = 0; i < n; i++) {
+        double x[6], wi[3], wo[3], st[2][2], fw[2][4];
+        size_t at[2][4];
+        for (int d = 0; d < 6; d++) {
+            double v = 0.5 + (double)(i + 1) * alpha[d];
+            x[d] = v - floor(v);
+        }
+        if (!sb_scene_draw(s, x, wi, wo) || !sb_param_coords(p, wi, wo, st[0], st[1])) continue;
+        for (int side = 0; side < 2; side++)
+            footprint(st[side], size[side][0], size[side][1], wrap[side], at[side], fw[side]);
+        double q = form_q(form, wi, wo);
+        for (int g = 0; g < 4; g++)
+            for (int h = 0; h < 4; h++)
+                mass[at[0][g] + at[1][h] * rows] += q * fw[0][g] * fw[1][h];
+    }
+    for (size_t c = 0; c < cells; c++)
+        top = fmax(top, mass[c]);
+    if (!(top > 0))
+        return sb_error(ctx, SB_ERR_RANGE, "scene: none of the pairs of %s lies in the domain of %s", sb_scene_spec(s),
+                        sb_param_spec(p));
+    for (size_t c = 0; c < cells; c++)
+        mass[c] /= top;
+    return SB_OK;
+}
+
+/* Rank-one a b^T ~ mass on its positive cells (header); w = sqrt, floored. */
+static void separable(const double *mass, size_t rows, size_t cols, double *a, double *b) {
+    for (size_t c = 0; c < cols; c++)
+        b[c] = 1;
+    for (int sweep = 0; sweep < SEP_SWEEPS; sweep++) {
+        for (size_t r = 0; r < rows; r++) {
+            double num = 0, den = 0;
+            for (size_t c = 0; c < cols; c++)
+                if (mass[r + c * rows] > 0) num += mass[r + c * rows] * b[c], den += b[c] * b[c];
+            a[r] = den > 0 ? num / den : 0;
+        }
+        for (size_t c = 0; c < cols; c++) {
+            double num = 0, den = 0;
+            for (size_t r = 0; r < rows; r++)
+                if (mass[r + c * rows] > 0) num += mass[r + c * rows] * a[r], den += a[r] * a[r];
+            b[c] = den > 0 ? num / den : 0;
+        }
+    }
+    double *v[2] = {a, b}, ma[2] = {0, 0};
+    size_t len[2] = {rows, cols};
+    for (int k = 0; k < 2; k++) {
+        for (size_t i = 0; i < len[k]; i++)
+            ma[k] = fmax(ma[k], v[k][i]);
+        for (size_t i = 0; i < len[k]; i++)
+            v[k][i] = sqrt(fmax(v[k][i], W_FLOOR * W_FLOOR * ma[k]));
+    }
+}
+
+sb_result_t sb_scene_apply(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_matrix_t *m, double *w) {
+    if (!s || !p || !m || !w) return sb_error(ctx, SB_ERR_ARG, "scene: NULL argument");
+    if (m->structured || m->streamed || m->ld != m->rows)
+        return sb_error(ctx, SB_ERR_ARG, "scene: the matrix must be stored dense");
+    if (m->rows != sb_param_rows(p) || m->cols != sb_param_cols(p))
+        return sb_error(ctx, SB_ERR_ARG, "scene: the matrix does not match %s", sb_param_spec(p));
+    size_t cells = m->rows * m->cols, valid = 0;
+    double *mass = sb_alloc_large(ctx, cells, sizeof *mass, "scene mass");
+    sb_result_t r = mass ? sb_scene_mass(ctx, s, p, m->form, 0, mass) : SB_ERR_NOMEM;
+    if (r == SB_OK && !m->mask) {
+        if ((m->mask = sb_alloc_large(ctx, cells, 1, "matrix mask")) != NULL)
+            memset(m->mask, 1, cells);
+        else
+            r = SB_ERR_NOMEM;
+    }
+    if (r == SB_OK) {
+        for (size_t c = 0; c < cells; c++) {
+            m->mask[c] = (unsigned char)(m->mask[c] && mass[c] > 0);
+            valid += m->mask[c];
+        }
+        m->valid_count = m->measured_count = valid;
+        m->phi_period = 0;
+        separable(mass, m->rows, m->cols, w, w + m->rows);
+    }
+    free(mass);
+    return r;
+}
+
+static double draw_scene(const void *user, const double x[6], double wi[3], double wo[3]) {
+    return sb_scene_draw(user, x, wi, wo);
+}
+
+sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
+                                  const sb_estimate_opts_t *opts, sb_pairs_t **out) {
+    if (!s) return sb_error(ctx, SB_ERR_ARG, "scene: NULL argument");
+    return sb_pairs_create_drawn(ctx, src, opts, draw_scene, s, out);
+}
