@@ -211,16 +211,12 @@ SB_TEST(mass_on_the_footprints) {
 
 /* Headline (f cos theta_i) of job's factors over the scene's pairs. */
 static double scene_error(const sb_scene_t *s, const sb_source_t *src, const sb_job_t *job, size_t J, double *se) {
-    sb_pairs_t *pairs = NULL;
     sb_estimate_t *e = malloc(sizeof *e);
     double v = NAN;
-    if (sb_scene_pairs_create(NULL, s, src, NULL, &pairs) == SB_OK &&
-        sb_estimate_compute(NULL, pairs, sb_job_factors(job), NULL, sb_job_param(job), sb_job_form(job), NULL, e) ==
-            SB_OK) {
+    if (sb_scene_estimate(NULL, s, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job), NULL, e) == SB_OK) {
         v = sb_estimate_headline(e, J);
         *se = e->se[J - 1][SB_EST_FCOS][SB_CH_ALL];
     }
-    sb_pairs_destroy(pairs);
     free(e);
     return v;
 }
@@ -262,7 +258,8 @@ SB_TEST(fit_for_three_lights) {
         o.scene = THREE_LIGHTS;
         CHECK(sb_job_run_source(NULL, src, &o, &fit) == SB_OK);
         if (!plain || !fit) continue;
-        double se_p, se_f, e_p = scene_error(s, src, plain, J, &se_p), e_f = scene_error(s, src, fit, J, &se_f);
+        double se_p = NAN, se_f = NAN, e_p = scene_error(s, src, plain, J, &se_p),
+               e_f = scene_error(s, src, fit, J, &se_f);
         double psnr_p = scene_psnr(s, src, plain), psnr_f = scene_psnr(s, src, fit);
         printf("  %s R=16 J=%zu: scene error %.4f +- %.4f (plain %.4f +- %.4f), PSNR %.2f dB (plain %.2f dB)\n",
                params[k], J, e_f, se_f, e_p, se_p, psnr_f, psnr_p);

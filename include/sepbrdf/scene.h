@@ -79,6 +79,12 @@ double sb_scene_draw(const sb_scene_t *s, const double x[6], double wi[3], doubl
 sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
                                   const sb_estimate_opts_t *opts, sb_pairs_t **out);
 
+/* The errors of factors f (on p, form `form`, as sb_estimate_compute
+ * takes them, scales NULL) over the scene's pairs: sb_scene_pairs_create
+ * then sb_estimate_compute with opts (NULL: defaults).  Errors as those. */
+sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src, const sb_factors_t *f,
+                              const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts, sb_estimate_t *out);
+
 /* The scene's mass on the cells of p for a matrix of form `form` (header):
  * mass[row + col * rows] >= 0, the largest 1, from n pairs (0: a default
  * that grows with the cell count).  Errors: SB_ERR_ARG, SB_ERR_RANGE (no

@@ -99,7 +99,7 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job);
 
 /* Scenes (job_scene.c).  Parse opts.scene into job->scene and check it
  * against the other options (SB_ERR_PARSE, SB_ERR_RANGE, SB_ERR_IO as
- * sb_scene_parse; SB_ERR_ARG with zero_fill or sample_only). */
+ * sb_scene_parse; SB_ERR_ARG with zero_fill). */
 sb_result_t job_scene_open(sb_context_t *ctx, sb_job_t *job);
 /* With a scene: mask a's matrix to the cells its pairs touch and make
  * a->scene_w for a's form (dense first: a structured matrix is expanded);
@@ -109,7 +109,7 @@ sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attemp
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
 /* With a scene: the kept fit's estimate over the whole domain. */
 sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
-/* report.json's "scene" object (nothing without a scene). */
+/* report.json's "scene" object (null without a scene). */
 void job_scene_report(sb_json_t *j, const sb_job_t *job);
 void job_scene_free(sb_job_t *job);
 

@@ -14,7 +14,6 @@ sb_result_t job_scene_open(sb_context_t *ctx, sb_job_t *job) {
     if (!job->o.scene) return SB_OK;
     if (job->o.zero_fill)
         return sb_error(ctx, SB_ERR_ARG, "a scene skips the cells it never uses: it cannot zero-fill them too");
-    if (job->o.sample_only) return sb_error(ctx, SB_ERR_ARG, "a scene weights the fit: it needs a fit, not sample_only");
     return sb_scene_parse(ctx, job->o.scene, &job->scene);
 }
 
@@ -58,7 +57,8 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job) {
     if (r == SB_OK && !job->domain_est && !(job->domain_est = malloc(sizeof *job->domain_est)))
         r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL); /* what a shader reads */
-    if (r == SB_OK) r = sb_estimate_compute(ctx, job->domain_pairs, q, NULL, a->param, a->m.form, NULL, job->domain_est);
+    if (r == SB_OK)
+        r = sb_estimate_compute(ctx, job->domain_pairs, q, NULL, a->param, a->m.form, NULL, job->domain_est);
     sb_factors_destroy(q);
     job->t_estimate += job_now() - t0;
     job->t.estimate_s = job->t_estimate;
@@ -74,7 +74,10 @@ static void headline_array(sb_json_t *j, const char *key, const sb_estimate_t *e
 
 void job_scene_report(sb_json_t *j, const sb_job_t *job) {
     static const char *const kinds[] = {"ranges", "lights", "pairs"};
-    if (!job->scene) return;
+    if (!job->scene) {
+        sb_json_string(j, "scene", NULL);
+        return;
+    }
     const sb_estimate_t *s = job->best.est, *d = job->domain_est;
     size_t J = sb_factors_terms(job->best.f);
     sb_json_begin_object(j, "scene");

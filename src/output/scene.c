@@ -147,8 +147,8 @@ static sb_result_t parse_pairs(sb_context_t *ctx, sb_scene_t *s, const char *pat
         ln++;
         int k = pairs_line(line, v);
         if (k < 0)
-            r = sb_error(ctx, SB_ERR_PARSE, "scene: %s:%zu: not 'theta_i phi_i theta_o phi_o [weight]' (degrees)",
-                         path, ln);
+            r = sb_error(ctx, SB_ERR_PARSE, "scene: %s:%zu: not 'theta_i phi_i theta_o phi_o [weight]' (degrees)", path,
+                         ln);
         else if (k > 0 && !(v[0] >= 0 && v[0] <= 90 && v[2] >= 0 && v[2] <= 90 && v[4] >= 0))
             r = sb_error(ctx, SB_ERR_RANGE, "scene: %s:%zu: theta must be in 0..90 and the weight >= 0", path, ln);
         else if (k > 0)
@@ -186,9 +186,10 @@ static sb_result_t parse_item(sb_context_t *ctx, sb_scene_t *s, const char *it, 
 static sb_result_t settle(sb_context_t *ctx, sb_scene_t *s, const int seen[4]) {
     int kinds = (seen[0] || seen[1]) + seen[2] + seen[3];
     if (kinds != 1)
-        return sb_error(ctx, SB_ERR_PARSE, "scene: %s", kinds ? "one kind only: view/light ranges, lights= or pairs="
-                                                              : "empty; need view=A..B;light=C..D, lights=EL,AZ/... "
-                                                                "or pairs=FILE");
+        return sb_error(ctx, SB_ERR_PARSE, "scene: %s",
+                        kinds ? "one kind only: view/light ranges, lights= or pairs="
+                              : "empty; need view=A..B;light=C..D, lights=EL,AZ/... "
+                                "or pairs=FILE");
     s->kind = seen[2] ? SB_SCENE_LIGHTS : seen[3] ? SB_SCENE_PAIRS : SB_SCENE_RANGES;
     size_t at = 0;
     if (s->kind == SB_SCENE_RANGES) {

@@ -64,9 +64,9 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
         sb_param_wrap(p, side, wrap[side]);
     }
     if (n == 0) /* enough that every cell the scene's pairs touch is touched by one drawn */
-        n = cells > MASS_MAX_PAIRS / MASS_PER_CELL ? MASS_MAX_PAIRS
-                                                   : (MASS_PER_CELL * cells < MASS_MIN_PAIRS ? MASS_MIN_PAIRS
-                                                                                             : MASS_PER_CELL * cells);
+        n = cells > MASS_MAX_PAIRS / MASS_PER_CELL
+                ? MASS_MAX_PAIRS
+                : (MASS_PER_CELL * cells < MASS_MIN_PAIRS ? MASS_MIN_PAIRS : MASS_PER_CELL * cells);
     memset(mass, 0, cells * sizeof *mass);
     double alpha[6], a = 1, top = 0;
     for (int d = 0; d < 6; d++)
@@ -160,4 +160,13 @@ sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const 
                                   const sb_estimate_opts_t *opts, sb_pairs_t **out) {
     if (!s) return sb_error(ctx, SB_ERR_ARG, "scene: NULL argument");
     return sb_pairs_create_drawn(ctx, src, opts, draw_scene, s, out);
+}
+
+sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src, const sb_factors_t *f,
+                              const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts, sb_estimate_t *out) {
+    sb_pairs_t *pairs = NULL;
+    sb_result_t r = sb_scene_pairs_create(ctx, s, src, opts, &pairs);
+    if (r == SB_OK) r = sb_estimate_compute(ctx, pairs, f, NULL, p, form, opts, out);
+    sb_pairs_destroy(pairs);
+    return r;
 }
