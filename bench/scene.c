@@ -74,8 +74,7 @@ static double psnr(const sb_scene_t *s, const sb_source_t *src, const sb_job_t *
 }
 
 /* Fit r (mode 0 plain, 1 solid-angle weighted, 2 scene) and measure it. */
-static int run_fit(const row_t *r, const sb_scene_t *s, const sb_source_t *src, int mode, const char *png,
-                   fit_t *out) {
+static int run_fit(const row_t *r, const sb_scene_t *s, const sb_source_t *src, int mode, const char *png, fit_t *out) {
     sb_job_opts_t o = {0};
     o.param = r->param;
     o.res = r->res;
@@ -87,8 +86,8 @@ static int run_fit(const row_t *r, const sb_scene_t *s, const sb_source_t *src, 
     double t0 = now();
     int ok = e && sb_job_run_source(NULL, src, &o, &job) == SB_OK;
     out->time_s = now() - t0;
-    ok = ok && sb_scene_estimate(NULL, s, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job), NULL, e) ==
-                   SB_OK;
+    ok = ok &&
+         sb_scene_estimate(NULL, s, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job), NULL, e) == SB_OK;
     if (ok) {
         const sb_estimate_t *d = mode == 2 ? sb_job_domain_estimate(job) : sb_job_estimate(job);
         out->scene = sb_estimate_headline(e, r->terms);
