@@ -52,6 +52,11 @@ typedef struct sb_matrix_opts {
      * 0 (default): streamed only where `structured` is set, the layout
      * allows it and the stored values would exceed the memory limit. */
     int stream;
+    /* NULL (default): every cell.  Else rows x cols flags, column-major:
+     * only cells with a flag != 0 are evaluated, the others get mask 0
+     * and value 0 as cells outside the domain (a scene's unused cells,
+     * scene.h); the build is then dense, never structured or streamed. */
+    const unsigned char *only;
 } sb_matrix_opts_t;
 
 typedef struct sb_matrix {

@@ -92,6 +92,11 @@ sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_s
 sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_form_t form, size_t n,
                           double *mass);
 
+/* The square-root weights W_r (rows values), W_c (cols values) into w of
+ * the separable fit W_r^2 W_c^2 ~ mass on its positive cells (header),
+ * each at least 1e-3 of its side's largest. */
+void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
+
 /* Weights for a fit of m on the scene: cells with mass 0 get mask 0 in m
  * (a stored, dense m: a mask is made when it has none; structure and
  * phi_period dropped; valid_count recounted), and w (rows + cols values)

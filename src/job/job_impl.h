@@ -105,6 +105,10 @@ sb_result_t job_scene_open(sb_context_t *ctx, sb_job_t *job);
  * a->scene_w for a's form (dense first: a structured matrix is expanded);
  * nothing when done for that form or without a scene. */
 sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attempt_t *a);
+/* With a scene: sample a's matrix (mo: the options of a plain build) on
+ * the cells the scene's pairs touch only, the others masked unevaluated,
+ * and make a->scene_w for mo's form. */
+sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_matrix_opts_t *mo, job_attempt_t *a);
 /* The estimator's pairs into job->pairs: the scene's, else the domain's. */
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
 /* With a scene: the kept fit's estimate over the whole domain. */

@@ -40,6 +40,31 @@ sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attemp
     return r;
 }
 
+sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_matrix_opts_t *mo, job_attempt_t *a) {
+    size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), cells;
+    if (sb_size_mul(rows, cols, &cells)) return sb_error(ctx, SB_ERR_OVERFLOW, "scene: cell count overflows");
+    double *mass = sb_alloc_large(ctx, cells, sizeof *mass, "scene mass");
+    unsigned char *only = mass ? sb_alloc_large(ctx, cells, 1, "scene cells") : NULL;
+    a->scene_w = only ? sb_alloc(ctx, rows + cols, sizeof(double), "scene weights") : NULL;
+    sb_result_t r = a->scene_w ? sb_scene_mass(ctx, job->scene, a->param, mo->form, 0, mass) : SB_ERR_NOMEM;
+    if (r == SB_OK) {
+        for (size_t c = 0; c < cells; c++)
+            only[c] = mass[c] > 0;
+        sb_scene_weights(mass, rows, cols, a->scene_w);
+        a->scene_form = mo->form;
+        sb_matrix_opts_t o = *mo;
+        o.only = only;
+        r = sb_matrix_build(ctx, job->eval_src, a->param, &o, &a->m);
+    }
+    free(mass);
+    free(only);
+    if (r != SB_OK) {
+        free(a->scene_w);
+        a->scene_w = NULL;
+    }
+    return r;
+}
+
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job) {
     if (job->pairs) return SB_OK;
     if (job->scene) return sb_scene_pairs_create(ctx, job->scene, job->src, NULL, &job->pairs);

@@ -40,8 +40,8 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         mo.progress = sample_progress;
         mo.progress_user = (void *)pu;
     }
-    if ((r = sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m)) != SB_OK) return r;
-    r = job_scene_prepare(ctx, job, a);
+    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
+    if (r != SB_OK) return r;
     a->t_sample = job_now() - t0;
     return r;
 }

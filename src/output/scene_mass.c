@@ -97,7 +97,8 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
 }
 
 /* Rank-one a b^T ~ mass on its positive cells (header); w = sqrt, floored. */
-static void separable(const double *mass, size_t rows, size_t cols, double *a, double *b) {
+void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w) {
+    double *a = w, *b = w + rows;
     for (size_t c = 0; c < cols; c++)
         b[c] = 1;
     for (int sweep = 0; sweep < SEP_SWEEPS; sweep++) {
@@ -146,7 +147,7 @@ sb_result_t sb_scene_apply(sb_context_t *ctx, const sb_scene_t *s, const sb_para
         }
         m->valid_count = m->measured_count = valid;
         m->phi_period = 0;
-        separable(mass, m->rows, m->cols, w, w + m->rows);
+        sb_scene_weights(mass, m->rows, m->cols, w);
     }
     free(mass);
     return r;

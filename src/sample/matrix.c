@@ -52,6 +52,7 @@ typedef struct job {
     size_t valid, measured;
     atomic_size_t *done;       /* columns finished by all threads */
     const sb_matrix_opts_t *o; /* progress callback: job 0 only */
+    const unsigned char *only; /* opts.only: cells to evaluate, NULL = all */
 } job_t;
 
 static void *build_cols(void *arg) {
@@ -61,7 +62,7 @@ static void *build_cols(void *arg) {
     for (size_t c = j->c0; c < j->c1; c++) {
         for (size_t r = 0; r < m->rows; r++) {
             size_t at = r + c * m->ld;
-            int ok = sb_param_cell_dirs(j->param, r, c, wi, wo);
+            int ok = (!j->only || j->only[at]) && sb_param_cell_dirs(j->param, r, c, wi, wo);
             int known = 0;
             rgb[0] = rgb[1] = rgb[2] = 0;
             if (ok) {
@@ -292,7 +293,7 @@ static sb_result_t build_general(sb_context_t *ctx, const sb_source_t *src, cons
     atomic_size_t done;
     atomic_init(&done, 0);
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (job_t){src, param, out, 0, 0, 0, 0, &done, t == 0 && o.progress ? &o : NULL};
+        jobs[t] = (job_t){src, param, out, 0, 0, 0, 0, &done, t == 0 && o.progress ? &o : NULL, o.only};
         sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
     /* report while the other threads finish */
@@ -356,7 +357,9 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     out->channels = chans;
     sb_result_t r;
     int iso = iso_layout(src, param);
-    if (streams(param, &o, out, iso)) {
+    if (o.only) {
+        r = build_general(ctx, src, param, &o, out);
+    } else if (streams(param, &o, out, iso)) {
         r = sb_matrix_build_streamed(ctx, src, param, out);
         if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
     } else if (iso) {
