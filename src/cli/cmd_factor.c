@@ -19,7 +19,10 @@ static void help(void) {
            "  sepbrdf.glsl         GLSL snippet: vec3 sb_brdf(vec3 L, vec3 V)\n"
            "  sampler.bin          with --method nmf only (non-negative factors):\n"
            "                       importance sampling tables; the snippet then also\n"
-           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V) (README)\n"
+           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V) (README);\n"
+           "                       the table and report.json then also show the SVD's\n"
+           "                       errors in the same layout beside (svd_headline,\n"
+           "                       svd_rel_rms, nmf_over_svd): what positivity costs\n"
            "\n"
            "SOURCE  MODEL[:key=value,...] (see `sepbrdf list`) or a measured file.\n"
            "        default: " SB_JOB_DEFAULT_SOURCE "\n"
@@ -115,6 +118,8 @@ static void print_table(const sb_job_t *job) {
            "negative");
     for (int c = 0; c < 3; c++)
         if (sb_matrix_has(m, c)) printf("  %10s_%s", "rel_rms", cn[c]);
+    int beside = !isnan(sb_job_svd_headline(job, 1)); /* --method nmf: the SVD's errors beside */
+    if (beside) printf("  %12s  %11s  %12s", "svd_headline", "svd_rel_rms", "nmf_over_svd");
     printf("\n");
     for (size_t k = 0; k < sb_factors_terms(f); k++) {
         double se = k < est->terms ? est->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN;
@@ -123,6 +128,9 @@ static void print_table(const sb_job_t *job) {
                100 * sb_job_negative(job, k + 1));
         for (int c = 0; c < 3; c++)
             if (sb_matrix_has(m, c)) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
+        if (beside)
+            printf("  %12.4e  %11.4e  %12.3f", sb_job_svd_headline(job, k + 1), sb_job_svd_rel_rms(job, k + 1),
+                   sb_job_headline(job, k + 1) / sb_job_svd_headline(job, k + 1));
         printf("\n");
     }
 }
