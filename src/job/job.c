@@ -154,7 +154,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
     free(job->svd_beside); /* of the previous terms */
     job->svd_beside = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
-    if (r == SB_OK) r = job_term_weights(ctx, job, &lv, &job->best);
+    if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK) job_warn_support(job);
     job->t.factor_s = job->best.t_factor;
     job->t.metric_s = job->best.t_metric;
