@@ -42,6 +42,10 @@ static void help(void) {
            "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
            "and swapped in whole when complete: the folder holds the previous set until\n"
            "then, whatever ends the run; files sepbrdf did not write stay.\n"
+           "\n"
+           "On a cluster: `mpirun -np N sepbrdf-mpi factor ... --method stream` (or srun;\n"
+           "sepbrdf-mpi is built where MPI is found) shares the passes over a streamed\n"
+           "matrix out to N ranks, one per node; rank 0 writes the folder.\n"
            "\n" CLI_EXIT_HELP);
 }
 

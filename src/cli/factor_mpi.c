@@ -40,8 +40,9 @@ int factor_mpi_begin(sb_context_t *ctx, const sb_job_opts_t *o, int *rank, int *
     if (*size < 2) return EXIT_OK;
     if (o->method != SB_METHOD_STREAM) {
         if (*rank == 0)
-            cli_error("factor", "over %d MPI ranks only --method stream is shared out; run other methods with one "
-                                "rank (or `sepbrdf factor`)",
+            cli_error("factor",
+                      "over %d MPI ranks only --method stream is shared out; run other methods with one "
+                      "rank (or `sepbrdf factor`)",
                       *size);
         return EXIT_USAGE;
     }
