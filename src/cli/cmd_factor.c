@@ -6,6 +6,9 @@
 
 #include "cli.h"
 #include "pipeline.h"
+#ifdef SEPBRDF_MPI
+#include "batch.h"
+#endif
 
 #define DEFAULT_OUT "sepbrdf-out"
 
@@ -42,6 +45,10 @@ static void help(void) {
            "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
            "and swapped in whole when complete: the folder holds the previous set until\n"
            "then, whatever ends the run; files sepbrdf did not write stay.\n"
+           "\n"
+           "On a cluster: `mpirun -np N sepbrdf-mpi factor ... --method stream` (or srun;\n"
+           "sepbrdf-mpi is built where MPI is found) shares the passes over a streamed\n"
+           "matrix out to N ranks, one per node; rank 0 writes the folder.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -157,14 +164,19 @@ int cmd_factor(int argc, char **argv) {
     if ((rc = cli_check_outdir("factor", "--out", out)) != EXIT_OK) return rc;
     sb_context_t *ctx = NULL;
     sb_job_t *job = NULL;
+    int rank = 0, size = 0, failed = 0; /* sepbrdf-mpi: this rank, the ranks (0: MPI not started) */
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
         return EXIT_IO;
     }
+#ifdef SEPBRDF_MPI
+    if ((rc = factor_mpi_begin(ctx, &o, &rank, &size)) != EXIT_OK) goto out;
+#endif
     o.progress = cli_job_progress;
     sb_result_t r = sb_job_run(ctx, &o, &job);
     cli_progress_done();
-    if (r == SB_OK) {
+    failed = r != SB_OK;
+    if (r == SB_OK && rank == 0) { /* the other ranks shared the passes */
         for (size_t i = 0; i < sb_job_warning_count(job); i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (sb_job_auto(job) && g_verbosity >= 1) print_candidates(job);
@@ -184,6 +196,11 @@ int cmd_factor(int argc, char **argv) {
     if (r == SB_OK && g_verbosity >= 1) print_result(job, out);
     rc = r == SB_OK ? EXIT_OK : cli_job_fail("factor", ctx, r, o.terms);
 out:
+#ifdef SEPBRDF_MPI
+    factor_mpi_end(size, failed, rc);
+#else
+    (void)size, (void)failed;
+#endif
     sb_job_destroy(job);
     sb_context_destroy(ctx);
     return rc;
