@@ -88,10 +88,176 @@ float sb_weight(int k, vec2 key) {
 }
 #endif
 
+#if SB_HALF_ROWS
+// ---- half rows: only the h that can reflect V above the horizon --------
+// (sepbrdf/sampler.h; the maths in src/factor/sampler_half.c).  hv = (sin
+// theta_V, cos theta_V, phi_V); a row's cells span the phi arc (start,
+// width), a column's the z = 1 - cos(theta) bounds (lo, hi).
+
+vec3 sb_half_view(vec3 V) {
+    float r = length(V.xy);
+    return vec3(r, V.z, r > 0.0 ? atan(V.y, V.x) : 0.0);
+}
+
+float sb_wrap_pi(float d) { return d - 2.0 * SB_PI * floor((d + SB_PI) / (2.0 * SB_PI)); }
+
+vec2 sb_row_arc(int y) {
+    int W = textureSize(sb_cdf, 0).x - 1;
+    vec3 d = sb_row_dir(ivec2(W - 1, y), vec2(1.0, 0.0)), e = sb_row_dir(ivec2(W - 1, y), vec2(1.0, 0.5));
+    float a = atan(d.y, d.x), hw = atan(e.y, e.x) - a;
+    if (hw <= 0.0) hw += 2.0 * SB_PI;
+    return vec2(a, 2.0 * hw);
+}
+
+// z = 1 - cos(theta) of a unit vector, accurate near the pole.
+float sb_one_minus_z(vec3 d) { return dot(d.xy, d.xy) / (1.0 + d.z); }
+
+vec2 sb_col_z(int x) {
+    return vec2(sb_one_minus_z(sb_row_dir(ivec2(x, 0), vec2(0.0))),
+                sb_one_minus_z(sb_row_dir(ivec2(x, 0), vec2(1.0, 0.0))));
+}
+
+// z below which h on the arc can reflect V above the horizon.
+float sb_half_zcut(vec3 hv, vec2 arc) {
+    float d0 = sb_wrap_pi(arc.x - hv.z), w = arc.y, cmax;
+    if (w >= 2.0 * SB_PI || (d0 <= 0.0 && d0 + w >= 0.0) || d0 + w >= 2.0 * SB_PI)
+        cmax = 1.0;
+    else
+        cmax = max(cos(d0), cos(d0 + w));
+    float t = 0.25 * SB_PI + 0.5 * atan(cmax * hv.x, hv.y), s = sin(0.5 * t);
+    return 2.0 * s * s;
+}
+
+// Row y's cut: z_cut and the count of its cells whose z_lo is below it.
+void sb_row_cut(vec3 hv, int y, out float zc, out int xc) {
+    int lo = 0, hi = textureSize(sb_cdf, 0).x - 1;
+    zc = sb_half_zcut(hv, sb_row_arc(y));
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (sb_col_z(mid).x < zc)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    xc = lo;
+}
+
+float sb_row_mass(int k, int y, int xc) {
+    int W = textureSize(sb_cdf, 0).x - 1;
+    return xc > 0 ? sb_cdf_prob(k, ivec2(W, 0), ivec2(0, 1), y) * sb_cdf_at(k, ivec2(xc - 1, y)) : 0.0;
+}
+
+float sb_kept_mass(int k, vec3 hv) {
+    float m = 0.0, zc;
+    int xc;
+    for (int y = 0; y < textureSize(sb_cdf, 0).y - 1; y++) {
+        sb_row_cut(hv, y, zc, xc);
+        m += sb_row_mass(k, y, xc);
+    }
+    return m;
+}
+
+// Half-width of the valid phi - phi_V at z (pi: all; 0: none).
+float sb_half_width(vec3 hv, float z) {
+    float ct = 1.0 - z, st = sqrt(max(z * (2.0 - z), 0.0));
+    float num = -(2.0 * ct * ct - 1.0) * hv.y, den = 2.0 * st * ct * hv.x;
+    if (!(den > 0.0)) return num < 0.0 ? SB_PI : 0.0;
+    float c = num / den;
+    return c <= -1.0 ? SB_PI : (c >= 1.0 ? 0.0 : acos(c));
+}
+
+// The part of the arc valid at z: its length, and phi uniform over it by u.
+float sb_phi_valid(vec3 hv, float z, vec2 arc, float u, out float phi) {
+    float hw = sb_half_width(hv, z), d0 = sb_wrap_pi(arc.x - hv.z), len = 0.0;
+    phi = 0.0;
+    for (int k = -1; k <= 2 && hw > 0.0; k++)
+        len += max(min(d0 + arc.y, hw + 2.0 * SB_PI * float(k)) - max(d0, -hw + 2.0 * SB_PI * float(k)), 0.0);
+    float t = u * len;
+    for (int k = -1; k <= 2 && hw > 0.0; k++) {
+        float lo = max(d0, -hw + 2.0 * SB_PI * float(k)), hi = min(d0 + arc.y, hw + 2.0 * SB_PI * float(k));
+        if (hi <= lo) continue;
+        phi = hv.z + lo + min(t, hi - lo);
+        if (t < hi - lo) break;
+        t -= hi - lo;
+    }
+    return len;
+}
+
+// The factored density of L: h uniform over the cell's z range below the
+// cut and the part of its arc valid at the cell's lowest z.
+float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
+    vec3 hv = sb_half_view(V), Hh = normalize(L + V);
+    float zc, ph;
+    int xc;
+    sb_row_cut(hv, cell.y, zc, xc);
+    if (cell.x >= xc) return 0.0;
+    vec2 zb = sb_col_z(cell.x);
+    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = min(zb.y, zc) - zb.x;
+    float len = sb_phi_valid(hv, zb.x, sb_row_arc(cell.y), 0.0, ph);
+    if (!(c > 0.0) || !(dz > 0.0) || !(len > 0.0) || !(z <= zc)) return 0.0;
+    int W = textureSize(sb_cdf, 0).x - 1, K = sb_dists();
+    float num = 0.0, total = 0.0;
+    for (int k = 0; k < K; k++) {
+        float w = sb_weight(k, sw);
+        if (!(w > 0.0)) continue;
+        total += w;
+        float m = sb_kept_mass(k, hv);
+        if (m > 0.0)
+            num += w * sb_cdf_prob(k, ivec2(W, 0), ivec2(0, 1), cell.y) *
+                   sb_cdf_prob(k, ivec2(0, cell.y), ivec2(1, 0), cell.x) / m;
+    }
+    return total > 0.0 ? num / total / (dz * len) / (4.0 * c) : 0.0;
+}
+
+// Distribution k's cell among those V's cuts keep (row by u0, column by
+// u1, both rescaled), then h in it and D = 2 (V.h) h - V.
+bool sb_half_dir(vec3 V, int k, float u0, float u1, out vec3 D) {
+    D = vec3(0.0);
+    vec3 hv = sb_half_view(V);
+    int H = textureSize(sb_cdf, 0).y - 1, y = H, last = 0, xc;
+    float total = sb_kept_mass(k, hv), target = u0 * total, acc = 0.0, m = 0.0, zc;
+    if (!(total > 0.0)) return false;
+    for (int r = 0; r < H; r++) {
+        sb_row_cut(hv, r, zc, xc);
+        float mr = sb_row_mass(k, r, xc);
+        if (!(mr > 0.0)) continue;
+        last = r;
+        if (target < acc + mr) {
+            y = r;
+            m = mr;
+            break;
+        }
+        acc += mr;
+    }
+    if (y == H) { // rounding ran past the end
+        y = last;
+        sb_row_cut(hv, y, zc, xc);
+        m = sb_row_mass(k, y, xc);
+        acc = total - m;
+    }
+    u0 = clamp((target - acc) / m, 0.0, SB_ONE_MINUS);
+    sb_row_cut(hv, y, zc, xc);
+    u1 *= sb_cdf_at(k, ivec2(xc - 1, y)); // the conditional up to the cut
+    int x = sb_cdf_find(k, ivec2(0, y), ivec2(1, 0), xc, u1);
+    vec2 zb = sb_col_z(x);
+    float z = zb.x + u1 * (min(zb.y, zc) - zb.x), phi;
+    if (!(sb_phi_valid(hv, zb.x, sb_row_arc(y), u0, phi) > 0.0)) return false;
+    float st = sqrt(max(z * (2.0 - z), 0.0));
+    vec3 Hh = vec3(st * cos(phi), st * sin(phi), 1.0 - z);
+    float c = dot(Hh, V);
+    if (!(c > 0.0)) return false;
+    D = 2.0 * c * Hh - V;
+    return true;
+}
+#endif
+
 float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
     ivec3 n = textureSize(sb_cdf, 0);
     int W = n.x - 1, H = n.y - 1, K = sb_dists();
     ivec2 cell = clamp(ivec2(floor(st_g * vec2(W, H))), ivec2(0), ivec2(W - 1, H - 1));
+#if SB_HALF_ROWS
+    return sb_half_pdf(L, V, cell, sw);
+#else
     float num = 0.0, total = 0.0;
     for (int k = 0; k < K; k++) {
         float w = sb_weight(k, sw);
@@ -100,13 +266,8 @@ float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
         num += w * sb_cdf_prob(k, ivec2(W, 0), ivec2(0, 1), cell.y) *
                sb_cdf_prob(k, ivec2(0, cell.y), ivec2(1, 0), cell.x);
     }
-    if (!(total > 0.0)) return 0.0;
-    float pdf = num / total / sb_cdf_at(K, cell);
-#if SB_HALF_ROWS
-    float c = dot(normalize(L + V), V);
-    pdf = c > 0.0 ? pdf / (4.0 * c) : 0.0;
+    return total > 0.0 ? num / total / sb_cdf_at(K, cell) : 0.0;
 #endif
-    return pdf;
 }
 
 float sb_pdf(vec3 L, vec3 V) {
@@ -142,15 +303,14 @@ bool sb_factored_dir(vec3 V, vec2 sw, float u0, float u1, out vec3 D) {
         pick = last;
         u0 = SB_ONE_MINUS;
     }
+#if SB_HALF_ROWS
+    return sb_half_dir(V, pick, u0, u1, D);
+#else
     int y = sb_cdf_find(pick, ivec2(W, 0), ivec2(0, 1), H, u0);
     int x = sb_cdf_find(pick, ivec2(0, y), ivec2(1, 0), W, u1);
     D = sb_row_dir(ivec2(x, y), vec2(u1, u0));
-#if SB_HALF_ROWS
-    float c = dot(D, V);
-    if (!(c > 0.0)) return false;
-    D = 2.0 * c * D - V;
-#endif
     return true;
+#endif
 }
 
 bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf) {

@@ -19,8 +19,8 @@ static char out[65536];
  * analytic specs (in a manifest beside it). */
 static const char *const measured[3] = {"rgl_paper_white_rgb.bsdf", "cornell_acryl_blue.brdf",
                                         "alta_retro-3M-jaune.dat"};
-static const char *const names[5] = {"microfacet_base_gold_roughness_0.3", "lambert_albedo_0.5", "alta_retro-3M-jaune",
-                                     "cornell_acryl_blue", "rgl_paper_white_rgb"};
+static const char *const names[5] = {"microfacet_base_gold_roughness_0.3", "lambert_albedo_0.5_J2",
+                                     "alta_retro-3M-jaune", "cornell_acryl_blue", "rgl_paper_white_rgb"};
 
 /* A folder `tag` with the manifest m.csv and the folder tables/; returns it. */
 static const char *setup(const char *tag, const char *extra_row) {
@@ -127,6 +127,36 @@ SB_TEST(every_material_in_summary) {
     char *x = slurp(dir, "f", "h_01.exr", &na), *y = slurp(dir, "o/cornell_acryl_blue", "h_01.exr", &nb);
     CHECK(x && y && na == nb && memcmp(x, y, na) == 0);
     free(x), free(y);
+}
+
+/* One source under several layouts and J in a manifest: a folder each
+ * (NAME_PARAM_JN), every one in the summary with its layout and J. */
+SB_TEST(manifest_layouts_and_terms) {
+    const char *dir = sb_tmpdir("batch_grid");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "%s/grid.csv", dir);
+    FILE *fp = fopen(cmd, "w");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    fprintf(fp, "source,param,terms\n");
+    for (int k = 0; k < 4; k++)
+        fprintf(fp, "lambert:albedo=0.5,%s,%d\n", k < 2 ? "io" : "hd", 2 + k % 2);
+    fclose(fp);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch grid.csv -r 8 -q -o g", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char *csv = slurp(dir, "g", "summary.csv", NULL);
+    CHECK(csv && count_lines(csv) == 5);
+    for (int k = 0; k < 4 && csv; k++) {
+        char row[128], want[64];
+        snprintf(row, sizeof row, "\nlambert_albedo_0.5_%s_J%d,", k < 2 ? "io" : "hd", 2 + k % 2);
+        snprintf(want, sizeof want, ",%s:res=8,", k < 2 ? "io" : "hd");
+        const char *at = strstr(csv, row), *eol = at ? strchr(at + 1, '\n') : NULL;
+        CHECKF(at && strstr(at, want) && strstr(at, want) < eol, "row %s", row + 1);
+        snprintf(want, sizeof want, ",%d,", 2 + k % 2);
+        CHECKF(at && strstr(at, want) && strstr(at, want) < eol, "J of %s", row + 1);
+    }
+    free(csv);
 }
 
 SB_TEST(parallel_equals_sequential) {

@@ -1,8 +1,10 @@
 /* The non-negative method (--method nmf): signs of textures and
  * reconstructions, exact recovery of non-negative low-rank matrices, the
  * cost of positivity against the SVD, and the CLI's output set. */
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "harness.h"
@@ -84,7 +86,9 @@ static void compare(sb_source_t *s, const char *label, sb_param_kind_t kind, siz
         fprintf(stderr, "%-44s %-3s w%d: J=4 rel_rms svd %.4f nmf %.4f (x%.2f, %d sweeps%s)\n", label,
                 sb_param_kind_name(kind), weighted, ev, en, en / ev, n.st.fit_iterations,
                 n.st.fit_converged ? "" : ", not converged");
-        CHECKF(en <= 1.5 * ev, "%s: nmf %g vs svd %g", label, en, ev);
+        /* an exactly separable source (Blinn-Phong on hd: rank 1) is fitted
+         * to the fits' tolerances by both, 1e-16 or 1e-5: no ratio there */
+        CHECKF(en <= 1.5 * ev + 1e-4, "%s: nmf %g vs svd %g", label, en, ev);
     }
     sb_factors_destroy(n.f);
     sb_factors_destroy(v.f);
@@ -195,6 +199,8 @@ SB_TEST(cli_factor) {
              SB_CLI, dir);
     int rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0, "rc %d: %s", rc, out);
+    /* the SVD's errors in the same layout beside, per J */
+    CHECKF(strstr(out, "svd_headline") && strstr(out, "nmf_over_svd"), "table: %.600s", out);
     for (int j = 0; j < 3; j++) {
         snprintf(p, sizeof p, "%s/out/g_%02d.exr", dir, j);
         CHECK(sb_file_exists(p));
@@ -209,6 +215,57 @@ SB_TEST(cli_factor) {
     out[n] = 0;
     fclose(fp);
     CHECKF(strstr(out, "\"method\": \"nmf\"") != NULL, "report: %.400s", out);
+    CHECKF(strstr(out, "\"svd_method\": \"") != NULL, "report: %.400s", out);
+    double h = NAN, sh = NAN, ratio = NAN;
+    const char *e = strstr(out, "\"errors\"");
+    e = e ? strstr(e, "\"terms\": 3,") : NULL; /* errors[2] */
+    const char *ph = e ? strstr(e, "\"headline\": ") : NULL, *ps = e ? strstr(e, "\"svd_headline\": ") : NULL,
+               *pr = e ? strstr(e, "\"nmf_over_svd\": ") : NULL;
+    if (ph && ps && pr) {
+        h = strtod(ph + 12, NULL);
+        sh = strtod(ps + 16, NULL);
+        ratio = strtod(pr + 16, NULL);
+    }
+    CHECKF(h > 0 && sh > 0 && fabs(ratio - h / sh) < 1e-6 * ratio, "J' = 3: headline %g, svd %g, ratio %g", h, sh,
+           ratio);
     snprintf(cmd, sizeof cmd, "%s factor lambert --method nmff -o %s/bad", SB_CLI, dir);
     CHECK(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "nmf") != NULL);
+}
+
+/* The check of non-negative factors through the factor job, as `factor --method nmf`
+ * reports it: no negative texel, no negative reconstruction at any J',
+ * and the headline at J = 4 within 1.5x that of the SVD fitted beside it
+ * in the same layout (sb_job_svd_headline); 16 cells, weighted. */
+static void job_case(const char *spec, const char *param) {
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_job_opts_t o = {0};
+    o.source = spec;
+    o.param = param;
+    o.res = 16;
+    o.terms = 4;
+    o.weighted = 1;
+    o.method = SB_METHOD_NMF;
+    sb_job_t *job = NULL;
+    sb_result_t r = sb_job_run(ctx, &o, &job);
+    CHECKF(r == SB_OK, "%s on %s: %s", spec, param, sb_context_last_error(ctx));
+    if (job) {
+        const char *name = strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec;
+        check_nonneg(sb_job_factors(job), name);
+        for (size_t j = 1; j <= 4; j++)
+            CHECKF(sb_job_negative(job, j) == 0, "%s on %s: negative fraction %g at J' = %zu", name, param,
+                   sb_job_negative(job, j), j);
+        double hn = sb_job_headline(job, 4), hs = sb_job_svd_headline(job, 4);
+        fprintf(stderr, "%-34s %-7s J=4 headline svd %.4f nmf %.4f (x%.2f)\n", name, param, hs, hn, hn / hs);
+        CHECKF(hn <= 1.5 * hs, "%s on %s: nmf headline %g vs svd %g", name, param, hn, hs);
+    }
+    sb_job_destroy(job);
+    sb_context_destroy(ctx);
+}
+
+SB_TEST(job_headline_ratio) {
+    job_case("cook-torrance:d=ggx,roughness=0.5", "iso");
+    job_case("cook-torrance:d=ggx,roughness=0.1", "io-area");
+    job_case(SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf", "iso");
+    job_case(SB_MEASURED_DIR "/cornell_acryl_blue.brdf", "io");
 }

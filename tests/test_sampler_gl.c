@@ -19,6 +19,12 @@
  * the cell), and in float the first rescaling loses up to total / w_k
  * times 6e-8 for a term of small weight w_k (seen: 2.7e-3 on iso). */
 #define DIR_TOL 5e-3
+/* pdfs agree to 1e-3 relative; in the half-vector layouts to 5e-3: their
+ * density holds the cut geometry of V (sampler_half.c: atan, acos, the
+ * lengths of phi arcs valid near the horizon), in float there (seen:
+ * 2.6e-3 on hd at theta_V 75, where L grazes and the density is 30-50) */
+#define PDF_TOL 1e-3
+#define PDF_TOL_HALF 5e-3
 
 /* sampler.bin read back: header checked, data as floats. */
 static float *read_table(const char *path, gl_sampler_table_t *t) {
@@ -84,6 +90,7 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec) {
             break;
         }
         size_t both = 0, same = 0, fails = 0;
+        double ptol = (sb_param_caps(p) & SB_CAP_HALF_ROWS) ? PDF_TOL_HALF : PDF_TOL;
         double worst_dir = 0, worst_pdf = 0;
         for (size_t i = 0; i < N * N; i++) {
             double u[2] = {((double)(i % N) + 0.5) / N, ((double)(i / N) + 0.5) / N}, L[3], pdf;
@@ -94,15 +101,15 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec) {
             if (ok != gok || !ok) continue;
             both++;
             double dd = fabs(L[0] - g[0]) + fabs(L[1] - g[1]) + fabs(L[2] - g[2]), dp = fabs(pdf - g[3]) / pdf;
-            if (dd < DIR_TOL && dp < 1e-3) same++;
+            if (dd < DIR_TOL && dp < ptol) same++;
             if (dd < 1e-2 && dd > worst_dir) worst_dir = dd;
             if (dp < 1e-2 && dp > worst_pdf) worst_pdf = dp;
         }
         size_t differ = N * N - same - fails;
         fprintf(stderr,
-                "%-7s theta_V %2.0f: %zu of %d samples agree (|L - L'|_1 < 5e-3, pdf within 1e-3 relative), %zu fail "
+                "%-7s theta_V %2.0f: %zu of %d samples agree (|L - L'|_1 < 5e-3, pdf within %g relative), %zu fail "
                 "on both, %zu differ; largest differences among agreeing ones: L %.2g, pdf %.2g\n",
-                sb_param_kind_name(kind), thetas[o], same, N * N, fails, differ, worst_dir, worst_pdf);
+                sb_param_kind_name(kind), thetas[o], same, N * N, ptol, fails, differ, worst_dir, worst_pdf);
         CHECKF(differ <= N * N / 200, "%s theta_V %g: %zu of %d samples differ", sb_param_kind_name(kind), thetas[o],
                differ, N * N);
     }

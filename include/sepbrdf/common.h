@@ -64,6 +64,26 @@ void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user
 const char *sb_context_last_error(const sb_context_t *ctx);
 void sb_context_clear_error(sb_context_t *ctx);
 
+/* A group of processes that share the passes of a streamed factorisation
+ * (solver.h: the stream solver and the plan's residual pass over a
+ * streamed matrix), e.g. MPI ranks.  Every process of the group runs the
+ * same calls with a context holding its group; process `rank` of `size`
+ * reads only the blocks of columns b with b mod size == rank and the
+ * partial results are combined by `reduce`: element-wise over buf[0..n),
+ * op SB_REDUCE_SUM or SB_REDUCE_MAX, and on return every process holds
+ * the same bits (e.g. MPI_Reduce to one rank, then MPI_Bcast).  reduce
+ * returns 0 on success.  The results equal those of one process to the
+ * solver's tolerance (sums in another order), not bit for bit. */
+enum { SB_REDUCE_SUM = 0, SB_REDUCE_MAX = 1 };
+typedef struct sb_group {
+    int rank, size;
+    int (*reduce)(void *user, double *buf, size_t n, int op);
+    void *user;
+} sb_group_t;
+/* Copy *group into ctx (NULL or size < 2: this process alone, the
+ * default).  SB_ERR_ARG for a rank outside 0..size-1 or no reduce. */
+sb_result_t sb_context_set_group(sb_context_t *ctx, const sb_group_t *group);
+
 /* Report an error through the context (ctx may be NULL) and return `code`.
  * Used by every module; public so that sources written outside the library
  * can report in the same way. */

@@ -204,6 +204,14 @@ double sb_job_negative(const sb_job_t *job, size_t terms);
 /* rel_rms of the stored textures (after sb_job_write) after J' terms,
  * index 3 = all channels; NAN if unknown. */
 double sb_job_rel_stored(const sb_job_t *job, size_t terms, size_t channel);
+/* With a non-negative method (--method nmf): the same run with the
+ * default method (the SVD, or the masked fit where cells are excluded) on
+ * the kept layout, form and weighting, fitted with the same J; its
+ * headline and rel_rms after J' terms, beside this job's (what positivity
+ * costs).  NAN for other methods, after sb_job_refactor, or when that run
+ * failed (a warning says why). */
+double sb_job_svd_headline(const sb_job_t *job, size_t terms);
+double sb_job_svd_rel_rms(const sb_job_t *job, size_t terms);
 int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
 size_t sb_job_candidate_count(const sb_job_t *job);
 const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);

@@ -29,8 +29,18 @@
  *      (sb_param_row_sample): wi itself (io, io-area), or the half vector h
  *      and wi = 2 (wo.h) h - wo (hd, iso: SB_CAP_HALF_ROWS).
  * So the factored density with respect to solid angle is
- *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / m_r   [/ (4 wo.h)]
- * with r the row cell of wi (of h).  With the form f cos(theta_i) or
+ *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / m_r
+ * with r the row cell of wi.  In the half-vector layouts only the h that
+ * can reflect wo above the horizon are drawn (src/factor/sampler_half.c):
+ * h does iff theta_h < pi/4 + atan2(cos(phi_h - phi_o) sin(theta_o),
+ * cos(theta_o)) / 2, so the cells of a row whose lowest z = 1 - cos(theta_h)
+ * is at or above the row's cut z_c (that bound at the row's most
+ * favourable phi) are left out of steps 1-2 (P_k restricted to the others
+ * and renormalised by their mass Z_k(wo); a term with Z_k = 0 is a failed
+ * sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
+ * and in phi over the part A of the cell's arc whose h at z_lo reflect wo
+ * above the horizon (a superset of that part at every higher z):
+ *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / Z_k / (dz |A|) / (4 wo.h).  With the form f cos(theta_i) or
  * f cos(theta_i) cos(theta_o) it is proportional to f cos(theta_i) at the
  * cell centres (io, io-area); with the form f, to f.  A share s =
  * SB_SAMPLER_COSINE_SHARE of the samples is cosine-weighted (defensive
@@ -39,11 +49,12 @@
  * texel that is 0 in the tables, and where a half-vector layout's weight
  * table (constant over wo's cell) is 0 for a term:
  *     pdf(wi | wo) = s cos(theta_i) / pi + (1 - s) p_F(wi | wo).
- * In the half-vector layouts an h that reflects wo below the horizon (or
- * beyond theta_max) is a failed sample (25-47 % of them in the tests):
- * the pdf then integrates over the hemisphere to 1 minus the probability
- * of failure (as for microfacet sampling in pbrt and Mitsuba); in io and
- * io-area it integrates to 1 (with theta_max at the horizon).
+ * In the half-vector layouts an h that still reflects wo below the horizon
+ * (or beyond theta_max) is a failed sample (6-12 % of them in the tests,
+ * 25-47 % when h was drawn from all of g_k): the pdf then integrates over
+ * the hemisphere to 1 minus the probability of failure (as for microfacet
+ * sampling in pbrt and Mitsuba); in io and io-area it integrates to 1
+ * (with theta_max at the horizon).
  *
  * Two random numbers drive a sample: u[0] < s picks the cosine lobe
  * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,
@@ -65,6 +76,9 @@ extern "C" {
 
 /* The cosine-weighted share s of the samples (see above). */
 #define SB_SAMPLER_COSINE_SHARE 0.05
+/* The most rows of half vectors (g texture height, SB_CAP_HALF_ROWS) a
+ * sampler takes. */
+#define SB_SAMPLER_MAX_ROWS 1024
 
 typedef struct sb_sampler sb_sampler_t;
 

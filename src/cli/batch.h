@@ -44,6 +44,12 @@ void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs);
 int batch_mpi_begin(int *rank, int *size);
 void batch_mpi_end(void);
 void batch_mpi_run(const char *dir, batch_item_t *items, size_t n, size_t jobs, int rank, int size);
+/* sepbrdf-mpi factor (factor_mpi.c): MPI_Init; over several ranks, the
+ * group of ctx (the streamed passes shared out, --method stream only:
+ * EXIT_USAGE otherwise) and quiet ranks but 0; an exit code.  End: a job
+ * that failed on a rank aborts every rank, else MPI_Finalize. */
+int factor_mpi_begin(sb_context_t *ctx, const sb_job_opts_t *o, int *rank, int *size);
+void factor_mpi_end(int size, int job_failed, int rc);
 
 /* Write DIR/summary.csv and DIR/summary.json; exit code. */
 int batch_summary(const char *dir, const batch_item_t *items, size_t n);

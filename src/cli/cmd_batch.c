@@ -46,7 +46,8 @@ static void help(void) {
            "       1 or 0; a relative file is found beside the manifest).\n"
            "NAME   the file name without its extension, or the spec with other\n"
            "       characters than letters, digits, '-' and '.' as '_'; a manifest row\n"
-           "       that sets param appends _PARAM (several layouts of one material).\n"
+           "       that sets param appends _PARAM, one that sets terms _JN (several\n"
+           "       layouts and J of one material).\n"
            "\n"
            "A material whose folder already holds a complete set of the same settings\n"
            "is reused (a batch interrupted and run again finishes the rest). A material\n"
@@ -65,7 +66,7 @@ static void help(void) {
 }
 
 /* A folder's name from spec or file into buf: see help. */
-static void item_name(const char *source, const char *param, char *buf, size_t size) {
+static void item_name(const char *source, const char *suffix, char *buf, size_t size) {
     const char *base = source;
     size_t n = strlen(source);
     struct stat st;
@@ -83,10 +84,10 @@ static void item_name(const char *source, const char *param, char *buf, size_t s
         buf[k] = keep ? c : '_';
     }
     buf[k] = 0;
-    if (param) snprintf(buf + k, size - k, "_%s", param);
+    if (suffix) snprintf(buf + k, size - k, "%s", suffix);
 }
 
-static int add(batch_t *b, const char *source, const sb_job_opts_t *o, const char *param) {
+static int add(batch_t *b, const char *source, const sb_job_opts_t *o, const char *suffix) {
     if (b->n == MAX_ITEMS) {
         cli_error("batch", "more than %d materials", MAX_ITEMS);
         return -1;
@@ -98,7 +99,7 @@ static int add(batch_t *b, const char *source, const sb_job_opts_t *o, const cha
     /* the row's strings live in the item, the table stored pointers */
     if (o->param) snprintf(it->param, sizeof it->param, "%s", o->param), it->o.param = it->param;
     if (o->form) snprintf(it->form, sizeof it->form, "%s", o->form), it->o.form = it->form;
-    item_name(source, param, it->name, sizeof it->name);
+    item_name(source, suffix, it->name, sizeof it->name);
     for (size_t i = 0; i < b->n; i++)
         if (strcmp(b->items[i].name, it->name) == 0) {
             cli_error("batch", "'%s' and '%s' would both be written to %s/", b->items[i].source, source, it->name);
@@ -132,8 +133,9 @@ static int csv_next(const char **p, char *buf, size_t size) {
 /* One manifest row: cells by the header's columns, through the option tables. */
 static int manifest_row(batch_t *b, const char *file, int line, char cols[][32], int ncols, const char *row) {
     sb_job_opts_t o = b->base;
-    char cells[32][1000], flag[40], source[1000] = "";
+    char cells[32][1000], flag[40], source[1000] = "", suffix[64] = "";
     const char *param = NULL;
+    int terms = 0; /* the row sets terms */
     int nc = 0;
     for (int more = 1; more && nc < ncols; nc++)
         more = csv_next(&row, cells[nc], sizeof cells[nc]);
@@ -154,6 +156,7 @@ static int manifest_row(batch_t *b, const char *file, int line, char cols[][32],
             return -1;
         }
         if (strcmp(cols[c], "param") == 0) param = o.param;
+        terms |= strcmp(cols[c], "terms") == 0;
     }
     if (!source[0]) {
         cli_error("batch", "%s:%d: no source", file, line);
@@ -163,7 +166,9 @@ static int manifest_row(batch_t *b, const char *file, int line, char cols[][32],
     const char *slash = strrchr(file, '/');
     char near[2200];
     snprintf(near, sizeof near, "%.*s/%s", slash ? (int)(slash - file) : 1, slash ? file : ".", source);
-    return add(b, source[0] != '/' && access(near, F_OK) == 0 ? near : source, &o, param);
+    if (param) snprintf(suffix, sizeof suffix, "_%.30s", param);
+    if (terms) snprintf(suffix + strlen(suffix), sizeof suffix - strlen(suffix), "_J%zu", o.terms);
+    return add(b, source[0] != '/' && access(near, F_OK) == 0 ? near : source, &o, suffix[0] ? suffix : NULL);
 }
 
 static int manifest(batch_t *b, const char *file) {

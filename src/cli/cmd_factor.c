@@ -6,6 +6,9 @@
 
 #include "cli.h"
 #include "pipeline.h"
+#ifdef SEPBRDF_MPI
+#include "batch.h"
+#endif
 
 #define DEFAULT_OUT "sepbrdf-out"
 
@@ -19,7 +22,10 @@ static void help(void) {
            "  sepbrdf.glsl         GLSL snippet: vec3 sb_brdf(vec3 L, vec3 V)\n"
            "  sampler.bin          with --method nmf only (non-negative factors):\n"
            "                       importance sampling tables; the snippet then also\n"
-           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V) (README)\n"
+           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V) (README);\n"
+           "                       the table and report.json then also show the SVD's\n"
+           "                       errors in the same layout beside (svd_headline,\n"
+           "                       svd_rel_rms, nmf_over_svd): what positivity costs\n"
            "\n"
            "SOURCE  MODEL[:key=value,...] (see `sepbrdf list`) or a measured file.\n"
            "        default: " SB_JOB_DEFAULT_SOURCE "\n"
@@ -39,6 +45,10 @@ static void help(void) {
            "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
            "and swapped in whole when complete: the folder holds the previous set until\n"
            "then, whatever ends the run; files sepbrdf did not write stay.\n"
+           "\n"
+           "On a cluster: `mpirun -np N sepbrdf-mpi factor ... --method stream` (or srun;\n"
+           "sepbrdf-mpi is built where MPI is found) shares the passes over a streamed\n"
+           "matrix out to N ranks, one per node; rank 0 writes the folder.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -115,6 +125,8 @@ static void print_table(const sb_job_t *job) {
            "negative");
     for (int c = 0; c < 3; c++)
         if (sb_matrix_has(m, c)) printf("  %10s_%s", "rel_rms", cn[c]);
+    int beside = !isnan(sb_job_svd_headline(job, 1)); /* --method nmf: the SVD's errors beside */
+    if (beside) printf("  %12s  %11s  %12s", "svd_headline", "svd_rel_rms", "nmf_over_svd");
     printf("\n");
     for (size_t k = 0; k < sb_factors_terms(f); k++) {
         double se = k < est->terms ? est->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN;
@@ -123,6 +135,9 @@ static void print_table(const sb_job_t *job) {
                100 * sb_job_negative(job, k + 1));
         for (int c = 0; c < 3; c++)
             if (sb_matrix_has(m, c)) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
+        if (beside)
+            printf("  %12.4e  %11.4e  %12.3f", sb_job_svd_headline(job, k + 1), sb_job_svd_rel_rms(job, k + 1),
+                   sb_job_headline(job, k + 1) / sb_job_svd_headline(job, k + 1));
         printf("\n");
     }
 }
@@ -163,14 +178,19 @@ int cmd_factor(int argc, char **argv) {
     if ((rc = cli_check_outdir("factor", "--out", out)) != EXIT_OK) return rc;
     sb_context_t *ctx = NULL;
     sb_job_t *job = NULL;
+    int rank = 0, size = 0, failed = 0; /* sepbrdf-mpi: this rank, the ranks (0: MPI not started) */
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
         return EXIT_IO;
     }
+#ifdef SEPBRDF_MPI
+    if ((rc = factor_mpi_begin(ctx, &o, &rank, &size)) != EXIT_OK) goto out;
+#endif
     o.progress = cli_job_progress;
     sb_result_t r = sb_job_run(ctx, &o, &job);
     cli_progress_done();
-    if (r == SB_OK) {
+    failed = r != SB_OK;
+    if (r == SB_OK && rank == 0) { /* the other ranks shared the passes */
         for (size_t i = 0; i < sb_job_warning_count(job); i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (sb_job_auto(job) && g_verbosity >= 1) print_candidates(job);
@@ -190,6 +210,11 @@ int cmd_factor(int argc, char **argv) {
     if (r == SB_OK && g_verbosity >= 1) print_result(job, out);
     rc = r == SB_OK ? EXIT_OK : cli_job_fail("factor", ctx, r, o.terms);
 out:
+#ifdef SEPBRDF_MPI
+    factor_mpi_end(size, failed, rc);
+#else
+    (void)size, (void)failed;
+#endif
     sb_job_destroy(job);
     sb_context_destroy(ctx);
     return rc;

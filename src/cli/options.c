@@ -178,8 +178,9 @@ const cli_option_t cli_factor_options[] = {
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
     {NULL, "--metric-res", "R", "reference io grid of the comparable error (default 32)", cli_set_size, AT(metric_res),
      2, SB_METRIC_MAX_RES, F_ | S_},
-    {NULL, "--method", "M", "auto (default), full (dgesdd), topk, randomized, stream", set_method, AT(method), 0, 0,
-     F_ | R_ | S_},
+    {NULL, "--method", "M",
+     "auto (default), full (dgesdd), topk, randomized,\nnmf (non-negative factors and a sampler), stream", set_method,
+     AT(method), 0, 0, F_ | R_ | S_},
     {NULL, "--max-error", "E",
      "keep the fewest terms whose headline error (f cos theta_i,\nas a shader outputs it) is <= E (0 < E < 1); J "
      "(default\n32 here, at most R) is then the upper limit",

@@ -249,6 +249,7 @@ sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, c
     sb_result_t r = SB_OK;
     for (size_t c0 = 0; c0 < cols && r == SB_OK; c0 += b) {
         size_t n = c0 + b < cols ? b : cols - c0;
+        if (!sb_group_owns(ctx, c0 / b)) continue; /* another process of the group reads it */
         r = sb_matrix_cols(ctx, m, c0, c0 + n, blk, rows, 0);
         for (size_t ch = 0; ch < 3 && r == SB_OK; ch++) {
             if (!blk[ch]) continue;
@@ -264,6 +265,9 @@ sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, c
         }
     }
     free(mem);
+    if (r == SB_OK) r = sb_group_reduce(ctx, ssq, 3 * J, SB_REDUCE_SUM);
+    if (r == SB_OK) r = sb_group_reduce(ctx, n2, 3, SB_REDUCE_SUM);
+    if (r == SB_OK) r = sb_group_reduce(ctx, mx, 3 * J, SB_REDUCE_MAX);
     return r;
 }
 

@@ -37,8 +37,9 @@ void sb_resid_channel(const sb_resid_t *in, int threads, double *scratch, double
  * channel of m in the same pass.  g[c], h[c]: channel c's textures (term
  * 0, steps gstep, hstep; g[c] NULL: channel skipped); weights wr, wc
  * (NULL: unweighted); ssq and mx receive 3 J values (channel c at c J),
- * n2 three, zero for skipped channels.  Errors: SB_ERR_NOMEM, those of
- * sb_matrix_cols. */
+ * n2 three, zero for skipped channels.  In a group of processes (common.h)
+ * each reads its own blocks and the sums and maxima are combined over the
+ * group.  Errors: SB_ERR_NOMEM, those of sb_matrix_cols and of the group. */
 sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, const double *const g[3],
                             const double *const h[3], size_t gstep, size_t hstep, const double *wr, const double *wc,
                             double pw, double *ssq, double *mx, double *n2);

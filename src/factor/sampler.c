@@ -2,15 +2,13 @@
  * conditional CDFs of every g_k weighted by the row measures), the term
  * weights of an outgoing direction, sb_sample and sb_pdf (the maths is in
  * sepbrdf/sampler.h), and the tables' file for the GLSL sampler. */
-#include "sepbrdf/sampler.h"
-
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "sampler_impl.h"
 #include "sepbrdf/outset.h"
-#include "util/internal.h"
 
 struct sb_sampler {
     const sb_factors_t *f;
@@ -19,12 +17,23 @@ struct sb_sampler {
     size_t W, H, J, C, K; /* g texture W x H, K = J C distributions */
     int half_rows;        /* SB_CAP_HALF_ROWS: rows index h, wi = reflect(wo, h) */
     double lum[3];
-    double *cond;     /* K x H x W: conditional CDF of x in row y, inclusive */
-    double *marg;     /* K x H: marginal CDF of y, inclusive */
-    double *integral; /* K: I_k = sum_r g_k[r] m_r */
-    double *measure;  /* H x W: m_r */
-    double *wtab;     /* half rows: K x H x W, W_k for wo in row cell c (sampler.h) */
+    double *cond;      /* K x H x W: conditional CDF of x in row y, inclusive */
+    double *marg;      /* K x H: marginal CDF of y, inclusive */
+    double *integral;  /* K: I_k = sum_r g_k[r] m_r */
+    double *measure;   /* H x W: m_r */
+    double *wtab;      /* half rows: K x H x W, W_k for wo in row cell c (sampler.h) */
+    double *zlo, *zhi; /* half rows: W, the z = 1 - cos(theta) bounds of column x's cells */
+    double *pa, *pw;   /* half rows: H, the phi arc [pa, pa + pw] of row y's cells */
 };
+
+/* Half rows: the cut of every row for one wo (sampler_half.c): z_cut and
+ * the count of the row's cells whose z_lo is below it (the others cannot
+ * reflect wo above the horizon and are not sampled). */
+typedef struct cuts {
+    half_view_t v;
+    double z[SB_SAMPLER_MAX_ROWS];
+    size_t x[SB_SAMPLER_MAX_ROWS];
+} cuts_t;
 
 /* Where the weights of an outgoing direction are read: the h coordinate
  * (io, io-area) or the row cell of wo (half rows). */
@@ -69,7 +78,7 @@ static double cdf_build(const double *v, size_t n, double *cdf) {
     return sum;
 }
 
-/* Smallest i with *u < cdf[i] (binary search; the last entry is 1 > *u),
+/* Smallest i < n with *u < cdf[i] (binary search; cdf[n - 1] > *u),
  * and *u rescaled to [0, 1) within that entry. */
 static size_t cdf_find(const double *cdf, size_t n, double *u) {
     size_t lo = 0, hi = n - 1;
@@ -158,14 +167,46 @@ static void build_wtab(sb_sampler_t *s) {
     }
 }
 
+/* z = 1 - cos(theta) of a unit vector, accurate near the pole (the GLSL
+ * sampler computes it so in float). */
+static double one_minus_z(const double d[3]) { return (d[0] * d[0] + d[1] * d[1]) / (1 + d[2]); }
+
+/* Half rows: the z bounds of each column of cells and the phi arc of each
+ * row, read off sb_param_row_sample at the corners (linear in z and phi;
+ * phi at z_hi, defined also in the cells at the pole). */
+static void cell_bounds(sb_sampler_t *s) {
+    double d[3], e[3];
+    for (size_t x = 0; x < s->W; x++) {
+        sb_param_row_sample(s->p, x, (const double[2]){0, 0}, d);
+        sb_param_row_sample(s->p, x, (const double[2]){1, 0}, e);
+        s->zlo[x] = one_minus_z(d);
+        s->zhi[x] = one_minus_z(e);
+    }
+    for (size_t y = 0; y < s->H; y++) {
+        sb_param_row_sample(s->p, y * s->W + s->W - 1, (const double[2]){1, 0}, d);
+        sb_param_row_sample(s->p, y * s->W + s->W - 1, (const double[2]){1, 0.5}, e);
+        double a = atan2(d[1], d[0]), half = atan2(e[1], e[0]) - a;
+        if (half <= 0) half += 2 * SB_PI;
+        s->pa[y] = a;
+        s->pw[y] = 2 * half;
+    }
+}
+
 static sb_result_t sampler_alloc(sb_context_t *ctx, sb_sampler_t *s) {
     size_t n = s->W * s->H;
     s->cond = sb_alloc(ctx, n, s->K * sizeof(double), "sampler tables");
     s->marg = sb_alloc(ctx, s->H, s->K * sizeof(double), "sampler tables");
     s->integral = sb_alloc(ctx, s->K, sizeof(double), "sampler tables");
     s->measure = sb_alloc(ctx, n, sizeof(double), "sampler tables");
-    if (s->half_rows) s->wtab = sb_alloc(ctx, n, s->K * sizeof(double), "sampler tables");
-    return s->cond && s->marg && s->integral && s->measure && (s->wtab || !s->half_rows) ? SB_OK : SB_ERR_NOMEM;
+    if (s->half_rows) {
+        s->wtab = sb_alloc(ctx, n, s->K * sizeof(double), "sampler tables");
+        s->zlo = sb_alloc(ctx, s->W, 2 * sizeof(double), "sampler tables");
+        s->pa = sb_alloc(ctx, s->H, 2 * sizeof(double), "sampler tables");
+        if (!s->wtab || !s->zlo || !s->pa) return SB_ERR_NOMEM;
+        s->zhi = s->zlo + s->W;
+        s->pw = s->pa + s->H;
+    }
+    return s->cond && s->marg && s->integral && s->measure ? SB_OK : SB_ERR_NOMEM;
 }
 
 sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
@@ -182,6 +223,9 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     if (gw != pw[0] || gh != ph[0] || hw != pw[1] || hh != ph[1] || gw * gh == 0)
         return sb_error(ctx, SB_ERR_ARG, "sampler: textures %zux%zu and %zux%zu are not those of %s", gw, gh, hw, hh,
                         sb_param_spec(p));
+    if ((sb_param_caps(p) & SB_CAP_HALF_ROWS) && gh > SB_SAMPLER_MAX_ROWS)
+        return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has %zu rows of half vectors, at most %d are sampled",
+                        sb_param_spec(p), gh, SB_SAMPLER_MAX_ROWS);
     if (!sb_param_warps_default(p))
         return sb_error(ctx, SB_ERR_UNSUPPORTED,
                         "sampler: %s has a warp of its own (--warp); the sampler covers the layouts' own spacing only",
@@ -212,7 +256,10 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     }
     free(rowsum);
     free(tmp);
-    if (r == SB_OK && s->half_rows) build_wtab(s);
+    if (r == SB_OK && s->half_rows) {
+        build_wtab(s);
+        cell_bounds(s);
+    }
     if (r == SB_OK && !(total > 0)) r = sb_error(ctx, SB_ERR_NUMERIC, "sampler: every texel is 0, nothing to sample");
     if (r != SB_OK) {
         sb_sampler_destroy(s);
@@ -229,6 +276,8 @@ void sb_sampler_destroy(sb_sampler_t *s) {
     free(s->integral);
     free(s->measure);
     free(s->wtab);
+    free(s->zlo);
+    free(s->pa);
     free(s);
 }
 
@@ -252,29 +301,76 @@ static size_t pick_term(const sb_sampler_t *s, const wkey_t *key, double total, 
     return last;
 }
 
-/* The factored component's density at wi (0 where no term has weight). */
-static double factored_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3], const double sg[2],
-                           const wkey_t *key) {
-    size_t x = texel_of(sg[0], s->W), y = texel_of(sg[1], s->H);
+/* Half rows: every row's cut for wo (cuts_t). */
+static void cuts_of(const sb_sampler_t *s, const double wo[3], cuts_t *c) {
+    half_view(wo, &c->v);
+    for (size_t y = 0; y < s->H; y++) {
+        c->z[y] = half_zcut(&c->v, s->pa[y], s->pw[y]);
+        size_t lo = 0, hi = s->W; /* the first x with z_lo >= z_cut */
+        while (lo < hi) {
+            size_t mid = (lo + hi) / 2;
+            if (s->zlo[mid] < c->z[y])
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        c->x[y] = lo;
+    }
+}
+
+/* Half rows: the mass of distribution k in row y on the cells wo's cuts
+ * keep, and on all of them. */
+static double row_mass(const sb_sampler_t *s, size_t k, const cuts_t *c, size_t y) {
+    const double *cond = s->cond + (k * s->H + y) * s->W;
+    return c->x[y] ? cdf_prob(s->marg + k * s->H, y) * cond[c->x[y] - 1] : 0;
+}
+
+static double kept_mass(const sb_sampler_t *s, size_t k, const cuts_t *c) {
+    double z = 0;
+    for (size_t y = 0; y < s->H; y++)
+        z += row_mass(s, k, c, y);
+    return z;
+}
+
+/* Probability of row cell (x, y) per distribution k, summed with the
+ * terms' weights: sum_k W_k P_k(x, y) / sum W, the tables restricted to
+ * wo's cuts for half rows.  0 where no term has weight. */
+static double cell_prob(const sb_sampler_t *s, const wkey_t *key, const cuts_t *c, size_t x, size_t y) {
     double num = 0, total = 0;
     for (size_t k = 0; k < s->K; k++) {
         double wk = weight(s, k, key);
         if (!(wk > 0)) continue;
         total += wk;
-        num += wk * cdf_prob(s->marg + k * s->H, y) * cdf_prob(s->cond + (k * s->H + y) * s->W, x);
+        double z = c ? kept_mass(s, k, c) : 1;
+        if (z > 0) num += wk * cdf_prob(s->marg + k * s->H, y) * cdf_prob(s->cond + (k * s->H + y) * s->W, x) / z;
     }
-    if (!(total > 0)) return 0;
-    double pdf = num / total / s->measure[y * s->W + x];
-    if (s->half_rows) {
-        double h[3], n = 0;
-        for (int i = 0; i < 3; i++) {
-            h[i] = wi[i] + wo[i];
-            n += h[i] * h[i];
-        }
-        double c = (h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2]) / sqrt(n);
-        pdf = c > 0 ? pdf / (4 * c) : 0;
+    return total > 0 ? num / total : 0;
+}
+
+/* The factored component's density at wi (0 where no term has weight).
+ * Half rows: h uniform over the cell's z range below the row's cut and
+ * the part of its phi arc that reflects wo above the horizon at the
+ * cell's lowest z (a superset of that part at every higher z: the valid
+ * half-width of Delta falls with theta), so the density stays bounded. */
+static double factored_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3], const double sg[2],
+                           const wkey_t *key) {
+    size_t x = texel_of(sg[0], s->W), y = texel_of(sg[1], s->H);
+    if (!s->half_rows) return cell_prob(s, key, NULL, x, y) / s->measure[y * s->W + x];
+    cuts_t c;
+    cuts_of(s, wo, &c);
+    if (x >= c.x[y]) return 0;
+    double h[3], n = 0;
+    for (int i = 0; i < 3; i++) {
+        h[i] = wi[i] + wo[i];
+        n += h[i] * h[i];
     }
-    return pdf;
+    n = sqrt(n);
+    for (int i = 0; i < 3; i++)
+        h[i] /= n;
+    double cosv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2], z = one_minus_z(h);
+    double dz = fmin(s->zhi[x], c.z[y]) - s->zlo[x], len = half_phi_len(&c.v, s->zlo[x], s->pa[y], s->pw[y]);
+    if (!(cosv > 0) || !(dz > 0) || !(len > 0) || !(z <= c.z[y])) return 0;
+    return cell_prob(s, key, &c, x, y) / (dz * len) / (4 * cosv);
 }
 
 double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {
@@ -284,9 +380,44 @@ double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {
     return SB_SAMPLER_COSINE_SHARE * wi[2] / SB_PI + (1 - SB_SAMPLER_COSINE_SHARE) * factored_pdf(s, wo, wi, sg, &key);
 }
 
-/* The factored component's direction (before the domain check): the
- * row cell by the tables, a direction in it, reflected for half rows.
- * 0 when none (no weight, h facing away from wo). */
+/* Half rows: the row cell (x, y) of distribution k among those wo's cuts
+ * keep (row by the restricted marginal, u0; column by the conditional
+ * up to the cut, u1), then h in it and wi = 2 (wo.h) h - wo. */
+static int half_dir(const sb_sampler_t *s, const double wo[3], size_t k, double u0, double u1, double d[3]) {
+    cuts_t c;
+    cuts_of(s, wo, &c);
+    double total = kept_mass(s, k, &c), target = u0 * total, acc = 0, m = 0;
+    if (!(total > 0)) return 0;
+    size_t y = 0, last = 0;
+    for (; y < s->H; y++) {
+        if (!((m = row_mass(s, k, &c, y)) > 0)) continue;
+        last = y;
+        if (target < acc + m) break;
+        acc += m;
+    }
+    if (y == s->H) { /* rounding ran past the end */
+        y = last;
+        m = row_mass(s, k, &c, y);
+        acc = total - m;
+    }
+    double r = (target - acc) / m;
+    u0 = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
+    const double *cond = s->cond + (k * s->H + y) * s->W;
+    u1 *= cond[c.x[y] - 1]; /* the conditional up to the cut */
+    size_t x = cdf_find(cond, c.x[y], &u1);
+    double z = s->zlo[x] + u1 * (fmin(s->zhi[x], c.z[y]) - s->zlo[x]), phi;
+    if (!half_phi_sample(&c.v, s->zlo[x], s->pa[y], s->pw[y], u0, &phi)) return 0;
+    double st = sqrt(fmax(z * (2 - z), 0)), h[3] = {st * cos(phi), st * sin(phi), 1 - z};
+    double cv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];
+    if (!(cv > 0)) return 0;
+    for (int i = 0; i < 3; i++)
+        d[i] = 2 * cv * h[i] - wo[i];
+    return 1;
+}
+
+/* The factored component's direction (before the domain check): the term
+ * by its weight, the row cell by the tables, a direction in it (half rows:
+ * half_dir).  0 when none (no weight, nothing kept for wo). */
 static int factored_dir(const sb_sampler_t *s, const double wo[3], const wkey_t *key, double u0, double u1,
                         double d[3]) {
     double total = 0;
@@ -294,16 +425,11 @@ static int factored_dir(const sb_sampler_t *s, const double wo[3], const wkey_t 
         total += weight(s, k, key);
     if (!(total > 0)) return 0;
     size_t k = pick_term(s, key, total, &u0);
+    if (s->half_rows) return half_dir(s, wo, k, u0, u1, d);
     size_t y = cdf_find(s->marg + k * s->H, s->H, &u0);
     size_t x = cdf_find(s->cond + (k * s->H + y) * s->W, s->W, &u1);
     double uc[2] = {u1, u0};
     sb_param_row_sample(s->p, y * s->W + x, uc, d);
-    if (s->half_rows) {
-        double c = d[0] * wo[0] + d[1] * wo[1] + d[2] * wo[2];
-        if (!(c > 0)) return 0;
-        for (int i = 0; i < 3; i++)
-            d[i] = 2 * c * d[i] - wo[i];
-    }
     return 1;
 }
 

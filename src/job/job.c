@@ -103,6 +103,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job_select(ctx, job);
     if (r == SB_OK) r = job_warp_refit(ctx, job);
+    if (r == SB_OK) r = job_svd_beside(ctx, job);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) {
         job_warn_support(job);
@@ -151,6 +152,8 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
                       .fit_max_iters = job->o.fit_max_iters};
     free(job->rel_stored);
     job->rel_stored = NULL;
+    free(job->svd_beside); /* of the previous terms */
+    job->svd_beside = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
@@ -167,6 +170,7 @@ void sb_job_destroy(sb_job_t *job) {
     sb_pairs_destroy(job->pairs);
     job_scene_free(job);
     free(job->rel_stored);
+    free(job->svd_beside);
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);
     free(job->source_spec);

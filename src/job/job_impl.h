@@ -54,7 +54,11 @@ struct sb_job {
     sb_estimate_t *domain_est; /* with a scene: the kept fit's errors over the whole domain */
     double *rel_stored;        /* J * 4 after sb_job_write, NULL before or if unknown */
     int wrote_sampler;         /* sb_job_write wrote sampler.bin (non-negative factors) */
-    int warp_tried;            /* no --warp given, and "auto" was tried (job_warp.c) */
+    double *svd_beside;        /* non-negative method: J x {headline, rel_rms} of the SVD (job_beside.c); NULL: none */
+    size_t svd_beside_terms;
+    char svd_method[16]; /* the method the SVD beside used ("masked", "circulant", ...) */
+    double svd_s;        /* its whole run */
+    int warp_tried;      /* no --warp given, and "auto" was tried (job_warp.c) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */
@@ -104,6 +108,14 @@ sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j,
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
+
+/* With a non-negative method (SB_CAP_NONNEG), the same run with the
+ * default method on the kept layout beside it (job_beside.c): its headline
+ * and rel_rms per J' (sb_job_svd_headline); a failure adds a warning. */
+sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job);
+/* Whether the solver named `name` (a method, or the factors' "method"
+ * meta) gives non-negative factors by construction (SB_CAP_NONNEG). */
+int job_nonneg_method(const char *name);
 
 /* A source answering as src does, remembering up to 3/4 cap pairs (cap a
  * power of two); src must outlive it. */

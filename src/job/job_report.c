@@ -62,6 +62,7 @@ static void report_settings(sb_json_t *j, const sb_job_t *job) {
     sb_json_string(j, "form", sb_form_name(m->form));
     sb_json_bool(j, "weighted", a->weighted);
     sb_json_string(j, "method", sb_factors_get_meta(a->f, "method"));
+    sb_json_string(j, "svd_method", job->svd_beside ? job->svd_method : NULL);
     sb_json_int(j, "terms", (long long)sb_factors_terms(a->f));
     sb_json_int(j, "terms_requested", (long long)job->o.terms);
     sb_json_number(j, "max_error", job->o.max_error);
@@ -212,6 +213,10 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
             sb_json_number(j, NULL, a->term_w ? a->term_w[k * sb_factors_channels(a->f) + c] : 1.0);
         sb_json_end_array(j);
         report_estimate(j, job, k);
+        double sh = sb_job_svd_headline(job, k + 1);
+        sb_json_number(j, "svd_headline", sh);
+        sb_json_number(j, "svd_rel_rms", sb_job_svd_rel_rms(job, k + 1));
+        sb_json_number(j, "nmf_over_svd", sb_job_headline(job, k + 1) / sh);
         report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + sb_err_at(k, 0));
         report_channels(j, "max_abs_channel", &a->m, e->max_abs + sb_err_at(k, 0));
         sb_json_end_object(j);
@@ -278,6 +283,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     sb_json_number(j, "metric_s", job->t.metric_s);
     sb_json_number(j, "estimate_s", job->t.estimate_s);
     sb_json_number(j, "write_s", job->t.write_s);
+    sb_json_number(j, "svd_s", job->svd_beside ? job->svd_s : NAN);
     sb_json_number(j, "total_s", job->t.total_s);
     sb_json_end_object(j);
     report_files(j, job);

@@ -11,7 +11,6 @@
 #include "sepbrdf/glsl.h"
 #include "sepbrdf/image.h"
 #include "sepbrdf/sampler.h"
-#include "sepbrdf/solver.h"
 #include "util/internal.h"
 
 /* rel_rms of the stored (FLOAT or HALF) textures against the matrix, for
@@ -82,15 +81,6 @@ static sb_result_t write_sampler(sb_context_t *ctx, const sb_job_t *job, sb_outs
     return r;
 }
 
-/* Whether the factors come from a solver whose factors are non-negative
- * by construction (SB_CAP_NONNEG: --method nmf). */
-static int nonneg_solver(const sb_factors_t *f) {
-    const char *m = sb_factors_get_meta(f, "method");
-    for (size_t i = 0; m && i < sb_solver_count(); i++)
-        if (strcmp(sb_solver_name(i), m) == 0) return (sb_solver_caps(i) & SB_CAP_NONNEG) != 0;
-    return 0;
-}
-
 /* sepbrdf.glsl; for non-negative factors (SB_CAP_NONNEG) also sampler.bin
  * and the sampler block appended to the snippet (sampler.h, glsl.h). */
 static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set, const double *scales) {
@@ -99,7 +89,9 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
     char path[4200];
     snprintf(path, sizeof path, "%s/sepbrdf.glsl", sb_outset_dir(set));
     sb_sampler_t *s = NULL;
-    sb_result_t r = nonneg_solver(a->f) ? sb_sampler_create(NULL, a->f, a->param, a->m.form, &s) : SB_OK;
+    sb_result_t r = job_nonneg_method(sb_factors_get_meta(a->f, "method"))
+                        ? sb_sampler_create(NULL, a->f, a->param, a->m.form, &s)
+                        : SB_OK;
     if (r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW) return sb_error(ctx, r, "sampler: out of memory");
     if (r != SB_OK) job_warn(job, "no sampler: %s", sb_result_message(r)); /* e.g. every term weighted to 0 */
     if (s) {

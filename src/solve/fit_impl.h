@@ -71,6 +71,14 @@ void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const u
 /* Whether those errors are non-increasing. */
 int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask);
 /* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */
+/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
+ * data around them (fit_taps.c): invalid cells (ext 0) whose fitted value
+ * sum_j P_rj Q_cj overshoots the valid cells (ext 1) of the rows and
+ * columns within two texels (layout o->tex, o->wrap) join the data (ext
+ * 2) with target x clamped into their range (x m x n, ld m).  Reads f->m,
+ * n, k, P, Q only (the non-negative solver passes its own).  Returns the
+ * cells added, or (size_t)-1 without memory. */
+size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext);
 sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
                     const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err);
 

@@ -40,7 +40,7 @@ static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t
  * and breaks exact recovery of low-rank data with holes.)  Per column the
  * column neighbours are reduced first, then the row neighbours: 50 reads
  * per cell.  Returns the cells added, or (size_t)-1 without memory. */
-static size_t constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
+size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
     size_t m = f->m, n = f->n, k = f->k, added = 0;
     double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
     if (!lo1 || !hi1) {
@@ -93,7 +93,7 @@ static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsi
 
 /* The ALS part of a fit from the warm start in f->P, f->Q: the stages
  * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
- * (constrain_taps, twice at most, warm), and when the prefixes' errors on
+ * (fit_constrain_taps, twice at most, warm), and when the prefixes' errors on
  * the valid cells then rise anywhere, or the last stage made a prefix more
  * than SB_PREFIX_SLACK times worse, all of it again from the same start
  * with strict stages (a joint refit kept only if the prefixes' errors stay
@@ -138,7 +138,7 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
         }
         size_t constrained = 0;
         for (int round = 0; r == SB_OK && taps && round < 2; round++) {
-            size_t added = constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
+            size_t added = fit_constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
             if (added == (size_t)-1) r = SB_ERR_NOMEM;
             if (added == 0 || r != SB_OK) break;
             nvalid += added;

@@ -23,7 +23,11 @@
  * 4.0e-3, 8.7e-4, 2.0e-5.  Memory:
  * P l (rows + cols) + l rows doubles a channel plus one block of columns
  * (sb_solve_stream_cols), never rows x cols.  The plan (plan.c) measures the errors of the
- * stored textures in one more streamed pass (SB_CAP_STREAMED). */
+ * stored textures in one more streamed pass (SB_CAP_STREAMED).
+ * Over a group of processes (common.h, sb_context_set_group: MPI ranks)
+ * each reads every size-th block; Y is summed after every pass and C^T
+ * (cols x L a channel) once before Rayleigh-Ritz, which every process
+ * then runs on the same bits. */
 #include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
@@ -160,11 +164,15 @@ static void weigh_block(const stream_state_t *s, const sb_solve_in_t *in, double
             x[i + k * s->rows] *= in->wr[i] * in->wc[c0 + k];
 }
 
-/* Step: pass k over the blocks: C_k^T = X^T Q_k and, unless last, Y = X C_k^T. */
+/* Step: pass k over the blocks: C_k^T = X^T Q_k and, unless last, Y = X C_k^T.
+ * In a group (sb_context_set_group) this process reads its own blocks:
+ * its rows of C_k^T (the others stay 0) and its part of Y, summed over
+ * the group at the end of the pass. */
 static sb_result_t one_pass(stream_state_t *s, const sb_solve_in_t *in, const int *present, int k, int last) {
-    int rows = (int)s->rows, cols = (int)s->cols, l = (int)s->l;
+    int rows = (int)s->rows, cols = (int)s->cols, l = (int)s->l, first = 1;
     for (size_t c0 = 0; c0 < s->cols; c0 += s->b) {
         size_t n = c0 + s->b < s->cols ? s->b : s->cols - c0;
+        if (!sb_group_owns(s->ctx, c0 / s->b)) continue;
         sb_result_t r = sb_matrix_cols(s->ctx, in->m, c0, c0 + n, s->blk, s->rows, 0);
         if (r != SB_OK) return r;
         for (int c = 0; c < 3; c++) {
@@ -175,8 +183,15 @@ static sb_result_t one_pass(stream_state_t *s, const sb_solve_in_t *in, const in
                         ct, cols);
             if (!last)
                 cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, rows, l, (int)n, 1.0, s->blk[c], rows, ct, cols,
-                            c0 ? 1.0 : 0.0, s->y[c], rows);
+                            first ? 0.0 : 1.0, s->y[c], rows);
         }
+        first = 0;
+    }
+    for (int c = 0; c < 3 && !last; c++) {
+        if (!present[c]) continue;
+        if (first) memset(s->y[c], 0, s->rows * s->l * sizeof(double)); /* no block of this process */
+        sb_result_t r = sb_group_reduce(s->ctx, s->y[c], s->rows * s->l, SB_REDUCE_SUM);
+        if (r != SB_OK) return r;
     }
     return SB_OK;
 }
@@ -225,9 +240,13 @@ static sb_result_t factor_all(stream_state_t *s, const sb_solve_in_t *in) {
     for (int c = 0; c < 3; c++)
         present[c] = sb_matrix_has(in->m, c);
     sb_result_t r = draw_omega(s, present);
+    for (int c = 0; c < 3 && sb_group_active(s->ctx); c++) /* the rows of C^T of others' blocks */
+        if (present[c]) memset(s->ct[c], 0, s->cols * s->L * sizeof(double));
     for (int k = 0; k < s->passes && r == SB_OK; k++) {
         int last = k == s->passes - 1;
         r = one_pass(s, in, present, k, last);
+        for (int c = 0; c < 3 && r == SB_OK && last; c++)
+            if (present[c]) r = sb_group_reduce(s->ctx, s->ct[c], s->cols * s->L, SB_REDUCE_SUM);
         for (int c = 0; c < 3 && r == SB_OK; c++)
             if (present[c]) r = last ? small_svd(s, c) : orthonormalise(s, c, k + 1);
     }

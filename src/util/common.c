@@ -1,6 +1,8 @@
 /* Result codes, the context and overflow-checked sizes. */
 #include "sepbrdf/common.h"
 
+#include "util/internal.h"
+
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,6 +14,7 @@ struct sb_context {
     void *user;
     char last[1024];
     const char *alias_from, *alias_to; /* sb_context_alias */
+    sb_group_t group;                  /* sb_context_set_group; size 0: alone */
 };
 
 static const char *const names[SB_RESULT_COUNT_] = {
@@ -43,6 +46,28 @@ void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user
 const char *sb_context_last_error(const sb_context_t *ctx) { return ctx ? ctx->last : ""; }
 void sb_context_clear_error(sb_context_t *ctx) {
     if (ctx) ctx->last[0] = 0;
+}
+
+sb_result_t sb_context_set_group(sb_context_t *ctx, const sb_group_t *group) {
+    if (!ctx) return SB_ERR_ARG;
+    if (group && group->size > 1 && (group->rank < 0 || group->rank >= group->size || !group->reduce))
+        return sb_error(ctx, SB_ERR_ARG, "group: rank %d of %d, or no reduce function", group->rank, group->size);
+    memset(&ctx->group, 0, sizeof ctx->group);
+    if (group && group->size > 1) ctx->group = *group;
+    return SB_OK;
+}
+
+int sb_group_owns(const sb_context_t *ctx, size_t block) {
+    return !ctx || ctx->group.size < 2 || block % (size_t)ctx->group.size == (size_t)ctx->group.rank;
+}
+
+int sb_group_active(const sb_context_t *ctx) { return ctx && ctx->group.size > 1; }
+
+sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op) {
+    if (!sb_group_active(ctx) || n == 0) return SB_OK;
+    if (ctx->group.reduce(ctx->group.user, buf, n, op) != 0)
+        return sb_error(ctx, SB_ERR_IO, "group: combining %zu values over %d processes failed", n, ctx->group.size);
+    return SB_OK;
 }
 
 void sb_context_alias(sb_context_t *ctx, const char *from, const char *to) {

@@ -24,6 +24,13 @@ int sb_write_atomic(const char *path, const void *const *parts, const size_t *si
  * its messages (an output set names its target, not its staging folder).
  * Both strings stay owned by the caller; from NULL ends it. */
 void sb_context_alias(sb_context_t *ctx, const char *from, const char *to);
+/* The group of ctx (sb_context_set_group): whether it has more than one
+ * process; whether this process reads block `block` (always when alone);
+ * buf[0..n) combined over the group with op (nothing when alone;
+ * SB_ERR_IO when the group's reduce fails). */
+int sb_group_active(const sb_context_t *ctx);
+int sb_group_owns(const sb_context_t *ctx, size_t block);
+sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op);
 
 /* Most threads any parallel loop uses (parallel.h). */
 #define SB_THREADS_MAX 64
