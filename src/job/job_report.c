@@ -258,6 +258,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     report_fit(j, job);
     report_errors(j, job);
     if (job->is_auto) report_auto(j, job);
+    job_budget_report(j, job);
     sb_json_begin_array(j, "warnings");
     for (size_t i = 0; i < job->nwarn; i++)
         sb_json_string(j, NULL, job->warn[i]);
