@@ -38,7 +38,8 @@ static double counted_bytes(const char *dir, int half) {
     size_t gw, gh, hw, hh;
     sb_factors_size(f, SB_SIDE_G, &gw, &gh);
     sb_factors_size(f, SB_SIDE_H, &hw, &hh);
-    double b = (double)sb_factors_terms(f) * (double)sb_factors_channels(f) * (double)(gw * gh + hw * hh) * (half ? 2 : 4);
+    double b =
+        (double)sb_factors_terms(f) * (double)sb_factors_channels(f) * (double)(gw * gh + hw * hh) * (half ? 2 : 4);
     sb_factors_destroy(f);
     return b;
 }
@@ -190,4 +191,47 @@ SB_TEST(units) {
         snprintf(want, sizeof want, "--budget %s: budget %s bytes is too small", ok[i].bytes, ok[i].bytes);
         CHECKF(rc == 1 && strstr(out, want) != NULL, "'%s': rc %d: %s", ok[i].text, rc, out);
     }
+}
+
+/* study --budget LIST: one row per budget, each choice within its budget,
+ * error not rising with bytes where fits are nested (io, isotropic
+ * source); --terms is refused beside it, a bad list names the value. */
+SB_TEST(study_sweep) {
+    const char *dir = sb_tmpdir("budget");
+    char cmd[4096], path[4200];
+    snprintf(cmd, sizeof cmd, "%s study cook-torrance:roughness=0.4 --param io --budget 8K,2K -q -o %s/s", SB_CLI, dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/s/study.csv", dir);
+    const char *csv = slurp(path);
+    const char *head = "source,asked,budget,ok,param,param_spec,form,warp,resolution,terms,storage,bytes,";
+    CHECKF(csv && strncmp(csv, head, strlen(head)) == 0, "%s", csv ? csv : "no study.csv");
+    if (!csv) return;
+    double prev = INFINITY;
+    size_t rows = 0, want[2] = {2048, 8192};
+    for (const char *p = strchr(csv, '\n'); p && p[1]; p = strchr(p + 1, '\n'), rows++) {
+        /* source (no comma in it), asked, budget, ok, param, param_spec, ... */
+        const char *q = strchr(p + 1, ',');
+        if (!q) break;
+        char asked[16], param[16], spec[64], form[8], warp[16], storage[8];
+        size_t budget, res, terms, bytes;
+        int ok;
+        double headline;
+        int n = sscanf(q, ",%15[^,],%zu,%d,%15[^,],%63[^,],%7[^,],%15[^,],%zu,%zu,%7[^,],%zu,%*u,%*u,%lf", asked,
+                       &budget, &ok, param, spec, form, warp, &res, &terms, storage, &bytes, &headline);
+        CHECKF(n == 12 && ok == 1, "row %zu: %d fields: %.120s", rows, n, q);
+        if (n != 12 || rows >= 2) continue;
+        CHECK(budget == want[rows] && bytes <= budget && strcmp(param, "io") == 0);
+        CHECKF(headline <= prev, "%zu bytes: headline %g above %g at less", budget, headline, prev);
+        prev = headline;
+    }
+    CHECK(rows == 2);
+    snprintf(path, sizeof path, "%s/s/study.json", dir);
+    CHECK(sb_file_exists(path));
+    snprintf(cmd, sizeof cmd, "%s study lambert --budget 4K -J 4 -o %s/s", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 1 && strstr(out, "--terms"), "rc %d: %s", rc, out);
+    snprintf(cmd, sizeof cmd, "%s study lambert --budget 4K,0 -o %s/s", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 1 && strstr(out, "--budget '0'"), "rc %d: %s", rc, out);
 }

@@ -139,10 +139,10 @@ typedef struct sb_job sb_job_t;
  * budget allows there gives, on the estimator's first pairs, the headline
  * of every J' <= J for HALF and for FLOAT storage: every (J', storage)
  * whose bytes fit is an entry of the search.  Along the ladder a layout
- * stops after two shapes in a row whose best entry is worse than its best
+ * stops at the first R whose best entry is no better than its best
  * so far.  The entry of the lowest headline is fitted in full, as an
- * explicit layout would be.  A larger budget can only add entries, so its
- * choice's screened headline is never higher. */
+ * explicit layout would be.  Within one search a smaller budget's entries
+ * are a subset of a larger one's, so its best is never better. */
 typedef struct sb_job_budget_try {
     sb_param_kind_t kind;
     sb_form_t form;

@@ -25,9 +25,9 @@
 #define BUDGET_CHANNELS 3
 #define BUDGET_MAX_CELLS ((size_t)1 << 20) /* matrix cells of a screening fit: io, hd up to R = 32 */
 #define BUDGET_LADDER (sizeof ladder / sizeof *ladder)
-#define BUDGET_MAX_TERMS 32                /* terms of a screening fit (as --max-error's default cap) */
-#define BUDGET_PATIENCE 2                  /* shapes in a row worse than the best so far end a ladder */
-#define BUDGET_SHAPES 3                    /* texture shapes per R (those a layout takes) */
+#define BUDGET_MAX_TERMS 32 /* terms of a screening fit (as --max-error's default cap) */
+#define BUDGET_PATIENCE 1   /* an R no better than the best so far ends a ladder */
+#define BUDGET_SHAPES 3     /* texture shapes per R (those a layout takes) */
 
 static const size_t ladder[] = {4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128};
 
@@ -235,7 +235,8 @@ static sb_result_t screen_fit(sb_context_t *ctx, sb_job_t *job, size_t ci, const
 
 /* Candidate ci along the ladder of R (the given R alone), each R in every
  * shape the layout takes; stops after BUDGET_PATIENCE R in a row whose
- * best entry is no better than the best so far. */
+ * best entry is no better than the best so far (at a fixed budget the
+ * error falls with R while terms are cheap, then rises as they run out). */
 static sb_result_t ladder_walk(sb_context_t *ctx, sb_job_t *job, size_t ci, int adaptive) {
     job_budget_t *b = job->budget;
     double best = INFINITY;
@@ -297,8 +298,8 @@ static sb_result_t check_room(sb_context_t *ctx, const sb_job_t *job) {
     }
     if (least <= b->res.budget) return SB_OK;
     if (least == SIZE_MAX)
-        return sb_error(ctx, SB_ERR_ARG, "budget %zu bytes: no layout can be made at %zu cells per axis",
-                        b->res.budget, R);
+        return sb_error(ctx, SB_ERR_ARG, "budget %zu bytes: no layout can be made at %zu cells per axis", b->res.budget,
+                        R);
     return sb_error(ctx, SB_ERR_ARG,
                     "budget %zu bytes is too small: the smallest texture set searched (%s at %zu cells per axis, "
                     "%zu term%s, %d channels, HALF) takes %zu bytes",
@@ -346,6 +347,11 @@ static sb_result_t fit_best(sb_context_t *ctx, sb_job_t *job) {
         b->res.bytes_half = entry_bytes(e->t.terms, e->t.texels, 1);
     }
     if (r == SB_OK) return SB_OK;
+    if (b->res.fits == 0)
+        return sb_error(ctx, SB_ERR_ARG,
+                        "budget %zu bytes: no texture shape searched holds %s within it at up to %zu matrix cells (a "
+                        "screening fit's limit; lower -r)",
+                        b->res.budget, b->fixed_terms ? "the terms asked" : "one term", BUDGET_MAX_CELLS);
     const char *why = sb_context_last_error(ctx);
     return sb_error(ctx, SB_ERR_NUMERIC, "no layout could be factored within the budget of %zu bytes%s%s",
                     b->res.budget, why && *why ? ": " : "", why ? why : "");
