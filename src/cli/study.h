@@ -65,6 +65,17 @@ int study_write_set(sb_outset_t *set, const study_opts_t *o, const runs_t *rs, s
 /* One output file of the set, through a temporary name (study_out.c);
  * messages name it in the target folder; 0 on success, -1 after a
  * message. */
+/* study.gp's output: study.png, or outfile given with -e; pngcairo where
+ * there is one. */
+#define STUDY_GP_OUTPUT                                                                                                \
+    "if (!exists(\"outfile\")) outfile = 'study.png'\n"                                                                \
+    "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"                                                                \
+    "    set terminal pngcairo size 1000,640 noenhanced font ',10'\n"                                                  \
+    "} else {\n"                                                                                                       \
+    "    set terminal png size 1000,640 noenhanced\n"                                                                  \
+    "}\n"                                                                                                              \
+    "set output outfile\n"
+
 /* A CSV field, quoted where it must be; a gnuplot single-quoted string
  * ('' is a quote). */
 void study_csv_field(FILE *fp, const char *s);

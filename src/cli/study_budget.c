@@ -103,9 +103,10 @@ static void write_csv(FILE *fp, const void *arg) {
         }
         fprintf(fp, ",%s,", sb_param_kind_name(c->kind));
         study_csv_field(fp, w->param_spec);
-        fprintf(fp, ",%s,%s,%zu,%zu,%s,%zu,%zu,%zu,%.9g,%.9g,%.9g,%.9g,%zu,%.3f\n", sb_form_name(c->form), c->adaptive ? "adaptive" : "own", c->res, c->terms,
-                c->half ? "half" : "float", c->bytes, w->b.bytes_float, w->b.bytes_half, w->headline, c->headline,
-                w->comparable, w->sample_rel, w->b.fits, w->time_s);
+        fprintf(fp, ",%s,%s,%zu,%zu,%s,%zu,%zu,%zu,%.9g,%.9g,%.9g,%.9g,%zu,%.3f\n", sb_form_name(c->form),
+                c->adaptive ? "adaptive" : "own", c->res, c->terms, c->half ? "half" : "float", c->bytes,
+                w->b.bytes_float, w->b.bytes_half, w->headline, c->headline, w->comparable, w->sample_rel, w->b.fits,
+                w->time_s);
     }
 }
 
@@ -189,14 +190,7 @@ static void write_dat(FILE *fp, const void *arg) {
 static void write_gp(FILE *fp, const void *arg) {
     const brows_t *rs = arg;
     fprintf(fp, "# sepbrdf study --budget: headline error against bytes. Re-run with\n"
-                "# `gnuplot study.gp` in this folder.\n"
-                "if (!exists(\"outfile\")) outfile = 'study.png'\n"
-                "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"
-                "    set terminal pngcairo size 1000,640 noenhanced font ',10'\n"
-                "} else {\n"
-                "    set terminal png size 1000,640 noenhanced\n"
-                "}\n"
-                "set output outfile\n"
+                "# `gnuplot study.gp` in this folder.\n" STUDY_GP_OUTPUT
                 "set title 'sepbrdf study: headline error within byte budgets (choice of factor --budget)'\n"
                 "set xlabel 'bytes of the textures written (all terms, g and h, RGB)'\n"
                 "set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'\n"
@@ -217,8 +211,8 @@ static void write_gp(FILE *fp, const void *arg) {
 }
 
 static void print_rows(const brows_t *rs) {
-    printf("%-30s %-7s %9s  %-7s %-9s %4s %4s %-5s %9s  %11s  %11s\n", "source", "asked", "budget", "param", "warp", "R",
-           "J", "store", "bytes", "headline", "sample_rel");
+    printf("%-30s %-7s %9s  %-7s %-9s %4s %4s %-5s %9s  %11s  %11s\n", "source", "asked", "budget", "param", "warp",
+           "R", "J", "store", "bytes", "headline", "sample_rel");
     for (size_t i = 0; i < rs->n; i++) {
         const brow_t *w = &rs->v[i];
         const sb_job_budget_try_t *c = &w->b.chosen;

@@ -157,14 +157,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp,
             "# sepbrdf study: headline error vs J. Re-run with `gnuplot study.gp` in this\n"
             "# folder; `gnuplot -e \"outfile='x.png'\" study.gp` writes elsewhere.\n"
-            "# Errors below %g (exact fits) are drawn at %g.\n"
-            "if (!exists(\"outfile\")) outfile = 'study.png'\n"
-            "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"
-            "    set terminal pngcairo size 1000,640 noenhanced font ',10'\n"
-            "} else {\n"
-            "    set terminal png size 1000,640 noenhanced\n"
-            "}\n"
-            "set output outfile\n"
+            "# Errors below %g (exact fits) are drawn at %g.\n" STUDY_GP_OUTPUT
             "set title 'sepbrdf study: R = %zu, form %s%s'\n"
             "set xlabel 'J (terms)'\n"
             "set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'\n"
