@@ -69,7 +69,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
 /* A masked fit is a local optimum, and the closest fit to the valid cells
  * is not the best between them: fit a's matrix again with the early stop
- * (a sweep gaining less than 1e-3, at most 40 per stage) on level `full`
+ * (a sweep gaining less than 1e-3, at most 20 per stage) on level `full`
  * and keep that fit when its headline at J is lower.  Used for an explicit
  * layout's kept fit and for a warped refit (converged, a warped fit can
  * drift: GGX roughness 0.1 rose from 1.4 % at 10 sweeps to 6-130 %). */
@@ -100,7 +100,7 @@ void job_screen(sb_context_t *ctx, sb_job_t *job);
 /* Sample and factor candidate c at the requested settings (o.res, o.terms,
  * job->shape) into job->best, as the kept one of job_select. */
 sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c);
-/* The masked fit's early stop (a sweep gaining less than 1e-3, at most 40
+/* The masked fit's early stop (a sweep gaining less than 1e-3, at most 20
  * per stage) into lv, unless the caller set its own. */
 void job_early_stop(const sb_job_t *job, job_level_t *lv);
 
