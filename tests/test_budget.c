@@ -235,3 +235,23 @@ SB_TEST(study_sweep) {
     rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 1 && strstr(out, "--budget '0'"), "rc %d: %s", rc, out);
 }
+
+/* batch --budget: every material within the budget; a set made with
+ * another budget is made again, one with the same budget reused. */
+SB_TEST(batch_budget) {
+    const char *dir = sb_tmpdir("budget");
+    char cmd[4096];
+    static const char *const budgets[] = {"2K", "4K", "4K"};
+    for (int k = 0; k < 3; k++) {
+        snprintf(cmd, sizeof cmd, "%s batch lambert cook-torrance:roughness=0.4 --param io --budget %s -o %s/b", SB_CLI,
+                 budgets[k], dir);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 0, "rc %d: %s", rc, out);
+        CHECKF((strstr(out, "(reused)") != NULL) == (k == 2), "run %d: %s", k, out);
+        char path[4200];
+        snprintf(path, sizeof path, "%s/b/lambert/report.json", dir);
+        const char *js = slurp(path);
+        double written = js ? json_num(js, strstr(js, "\"budget\": {"), "bytes_written") : NAN;
+        CHECKF(written > 0 && written <= (k ? 4096 : 2048), "run %d: %g bytes", k, written);
+    }
+}

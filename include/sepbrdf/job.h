@@ -139,8 +139,8 @@ typedef struct sb_job sb_job_t;
  * budget allows there gives, on the estimator's first pairs, the headline
  * of every J' <= J for HALF and for FLOAT storage: every (J', storage)
  * whose bytes fit is an entry of the search.  Along the ladder a layout
- * stops at the first R whose best entry is no better than its best
- * so far.  The entry of the lowest headline is fitted in full, as an
+ * stops, from R = 16 on, after two R in a row whose best entry is no
+ * better than its best so far.  The entry of the lowest headline is fitted in full, as an
  * explicit layout would be.  Within one search a smaller budget's entries
  * are a subset of a larger one's, so its best is never better. */
 typedef struct sb_job_budget_try {

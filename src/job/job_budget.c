@@ -26,7 +26,8 @@
 #define BUDGET_MAX_CELLS ((size_t)1 << 20) /* matrix cells of a screening fit: io, hd up to R = 32 */
 #define BUDGET_LADDER (sizeof ladder / sizeof *ladder)
 #define BUDGET_MAX_TERMS 32 /* terms of a screening fit (as --max-error's default cap) */
-#define BUDGET_PATIENCE 1   /* an R no better than the best so far ends a ladder */
+#define BUDGET_PATIENCE 2   /* R in a row no better than the best so far end a ladder ... */
+#define BUDGET_MIN_STOP 16  /* ... from this R on (below, fits are cheap and errors can sit near 1) */
 #define BUDGET_SHAPES 3     /* texture shapes per R (those a layout takes) */
 
 static const size_t ladder[] = {4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128};
@@ -71,11 +72,10 @@ sb_result_t job_budget_begin(sb_context_t *ctx, sb_job_t *job, const sb_job_opts
     int adaptive;
     sb_warp_kind_t kind;
     if (job_warp_parse(ctx, in->warp, &adaptive, &kind) != SB_OK) return SB_ERR_UNKNOWN;
-    int auto_warp = !in->warp || strcmp(in->warp, "auto") == 0;
-    b->try_adaptive = adaptive;
-    b->try_own = auto_warp || !adaptive;
+    /* none given: a budget's default is auto (both, the better kept) */
+    b->try_adaptive = adaptive || !in->warp;
+    b->try_own = !in->warp || strcmp(in->warp, "adaptive") != 0;
     b->own = kind;
-    if (!in->warp) b->try_adaptive = 1; /* a budget's default: the adaptive warp where it is better */
     return SB_OK;
 }
 
@@ -234,9 +234,11 @@ static sb_result_t screen_fit(sb_context_t *ctx, sb_job_t *job, size_t ci, const
 }
 
 /* Candidate ci along the ladder of R (the given R alone), each R in every
- * shape the layout takes; stops after BUDGET_PATIENCE R in a row whose
- * best entry is no better than the best so far (at a fixed budget the
- * error falls with R while terms are cheap, then rises as they run out). */
+ * shape the layout takes; stops, from BUDGET_MIN_STOP on, after
+ * BUDGET_PATIENCE R in a row whose best entry is no better than the best
+ * so far (at a fixed budget the error falls with R while terms are cheap,
+ * then rises as they run out; a sharp lobe leaves errors near 1 at small R,
+ * rung after rung: patience 1 stopped the RGL vinyl at R = 6). */
 static sb_result_t ladder_walk(sb_context_t *ctx, sb_job_t *job, size_t ci, int adaptive) {
     job_budget_t *b = job->budget;
     double best = INFINITY;
@@ -262,7 +264,7 @@ static sb_result_t ladder_walk(sb_context_t *ctx, sb_job_t *job, size_t ci, int 
         if (at < best) {
             best = at;
             worse = 0;
-        } else if (isfinite(best) && ++worse >= BUDGET_PATIENCE) {
+        } else if (isfinite(best) && ++worse >= BUDGET_PATIENCE && R >= BUDGET_MIN_STOP) {
             break;
         }
     }
