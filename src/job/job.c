@@ -153,7 +153,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
     free(job->rel_stored);
     job->rel_stored = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
-    if (r == SB_OK) r = job_term_weights(ctx, job, &lv, &job->best);
+    if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK) job_warn_support(job);
     job->t.factor_s = job->best.t_factor;
     job->t.metric_s = job->best.t_metric;

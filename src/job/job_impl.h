@@ -14,6 +14,7 @@ typedef struct job_attempt {
     sb_metric_t metric; /* grid quadrature (comparable_grid), the kept fit only */
     sb_estimate_t *est; /* the estimator's errors of the stored factors */
     double *term_w;     /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
+    unsigned texel_fit; /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
     int weighted;
     double t_sample, t_factor, t_metric, t_estimate;
 } job_attempt_t;
@@ -76,12 +77,24 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
 sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a);
 /* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* After a->f changed (texels filtered, terms weighted): its errors on the
+ * matrix's cells, then job_measure on the same pairs (no growth). */
+sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Weight the terms of the kept fit a so that its headline is non-increasing
  * in J' (estimate.h sb_estimate_term_weights; a->term_w), then measure
  * its errors again; nothing when the weights are all 1, for a structured
  * matrix or with o.plain_terms. */
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* Filter the texture axes of the kept fit a for bilinear lookups where
+ * that lowers its headline at J (job_texels.c; a->texel_fit), then measure
+ * its errors again; nothing for a structured matrix, non-negative factors
+ * or with o.plain_terms. */
+sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* job_texel_fit, then job_term_weights: what every kept fit goes through. */
+sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 void job_attempt_free(job_attempt_t *a);
+/* A copy of the first j terms of f (textures, sigma, metadata, errors). */
+sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out);
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);

@@ -87,6 +87,13 @@ static void report_fit(sb_json_t *j, const sb_job_t *job) {
     sb_json_bool(j, "masked", a->stats.masked);
     sb_json_int(j, "iterations", a->stats.fit_iterations);
     sb_json_bool(j, "converged", a->stats.fit_converged);
+    /* texture axes whose texels were fitted for the bilinear lookup
+     * (t - D t / 12) instead of holding the samples at their centres */
+    static const char *const axes[4] = {"g.s", "g.t", "h.s", "h.t"};
+    sb_json_begin_array(j, "texels_fitted");
+    for (int b = 0; b < 4; b++)
+        if (a->texel_fit & (1u << b)) sb_json_string(j, NULL, axes[b]);
+    sb_json_end_array(j);
     sb_json_end_object(j);
     const sb_factor_errors_t *e = sb_factors_errors(a->f);
     sb_json_begin_object(j, "norm");

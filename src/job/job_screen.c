@@ -79,6 +79,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     a->f = NULL;
     free(a->term_w);
     a->term_w = NULL;
+    a->texel_fit = 0;
     memset(&a->metric, 0, sizeof a->metric);
     memset(&a->stats, 0, sizeof a->stats);
     a->weighted = weighted;
@@ -104,6 +105,14 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     a->t_factor = t2 - t1;
     return job_measure(ctx, job, lv, a);
+}
+
+sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
+    sb_result_t r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
+    job_level_t same = *lv;
+    same.est_max_pairs = 1;
+    return r == SB_OK ? job_measure(ctx, job, &same, a) : r;
 }
 
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
@@ -386,26 +395,25 @@ static size_t rank(const sb_job_t *job, size_t *order) {
     return n;
 }
 
-sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
-    size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f), w[2], h[2];
-    if (j >= J) return SB_OK;
+sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out) {
+    size_t C = sb_factors_channels(f), w[2], h[2];
     for (int s = 0; s < 2; s++)
-        sb_factors_size(a->f, s, &w[s], &h[s]);
+        sb_factors_size(f, s, &w[s], &h[s]);
     sb_factors_t *t = NULL;
     sb_result_t r = sb_factors_create(ctx, j, C, w[0], h[0], w[1], h[1], &t);
     if (r != SB_OK) return r;
     for (size_t k = 0; k < j; k++)
         for (size_t c = 0; c < C; c++) {
             for (int s = 0; s < 2; s++)
-                memcpy(sb_factors_tex(t, s, k, c), sb_factors_tex_const(a->f, s, k, c), w[s] * h[s] * sizeof(double));
-            sb_factors_set_sigma(t, k, c, sb_factors_sigma(a->f, k, c));
+                memcpy(sb_factors_tex(t, s, k, c), sb_factors_tex_const(f, s, k, c), w[s] * h[s] * sizeof(double));
+            sb_factors_set_sigma(t, k, c, sb_factors_sigma(f, k, c));
         }
-    for (size_t i = 0; i < sb_factors_meta_count(a->f) && r == SB_OK; i++) {
+    for (size_t i = 0; i < sb_factors_meta_count(f) && r == SB_OK; i++) {
         const char *key, *value;
-        sb_factors_meta_at(a->f, i, &key, &value);
+        sb_factors_meta_at(f, i, &key, &value);
         r = sb_factors_set_meta(t, key, value);
     }
-    const sb_factor_errors_t *e = sb_factors_errors(a->f);
+    const sb_factor_errors_t *e = sb_factors_errors(f);
     sb_factor_errors_t *et = sb_factors_errors_mut(t);
     if (r == SB_OK && et->rel_rms && et->max_abs) {
         memcpy(et->rel_rms, e->rel_rms, sb_err_at(j, 0) * sizeof *e->rel_rms);
@@ -416,6 +424,15 @@ sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
         sb_factors_destroy(t);
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
+    *out = t;
+    return SB_OK;
+}
+
+sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
+    if (j >= sb_factors_terms(a->f)) return SB_OK;
+    sb_factors_t *t = NULL;
+    sb_result_t r = job_factors_copy(ctx, a->f, j, &t);
+    if (r != SB_OK) return r;
     sb_factors_destroy(a->f);
     a->f = t;
     if (a->est && a->est->terms > j) a->est->terms = j;
@@ -471,7 +488,7 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
     if (r == SB_OK && two) r = job_keep_early_fit(ctx, job, &lv, &job->best);
     lv.est_max_pairs = 0;
     if (r == SB_OK && two && !job->best.est->converged) r = job_estimate(ctx, job, &lv, &job->best);
-    if (r == SB_OK) r = job_term_weights(ctx, job, &lv, &job->best);
+    if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(job->best.f);
         for (size_t k = keep; k >= 1; k--)

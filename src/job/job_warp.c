@@ -78,7 +78,7 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     int fit = !job->o.sample_only;
     if (r == SB_OK && fit) r = job_factor(ctx, job, &lv, b->weighted, &a);
     if (r == SB_OK && fit && job_attempt_masked(job, &a)) r = job_keep_early_fit(ctx, job, &lv, &a);
-    if (r == SB_OK && fit) r = job_term_weights(ctx, job, &lv, &a);
+    if (r == SB_OK && fit) r = job_refine(ctx, job, &lv, &a);
     if (r == SB_OK && fit && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(a.f);
         for (size_t k = keep; k >= 1; k--)

@@ -46,12 +46,5 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
             scale_term(a->f, j, c, w[j * C + c]);
     free(a->term_w);
     a->term_w = w;
-    /* the errors of the weighted terms: on the matrix, then the estimate
-     * on the same pairs (no growth) and the grid quadrature */
-    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
-    r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
-    job_level_t same = *lv;
-    same.est_max_pairs = 1;
-    if (r == SB_OK) r = job_measure(ctx, job, &same, a);
-    return r;
+    return job_remeasure(ctx, job, lv, a);
 }
