@@ -170,7 +170,8 @@ const cli_option_t cli_factor_options[] = {
      "hd): uniform; merl (theta_h as MERL: square root); adaptive\n"
      "(measured from the source: equal interpolation error of\n"
      "f cos theta_i between texels); auto (adaptive where its\n"
-     "headline error is lower); default: iso merl, hd uniform",
+     "headline error is lower); default: iso merl, hd uniform,\n"
+     "and auto where the headline at J is above 5 % with those",
      set_warp, AT(warp), 0, 0, F_ | R_ | S_},
     {NULL, "--weighted", NULL,
      "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate)",

@@ -32,6 +32,9 @@ typedef struct job_level {
 
 #define JOB_MAX_CANDS (3 * SB_PARAM_KIND_COUNT_)
 #define JOB_MAX_WARN 8
+/* Without --warp, the kept layout's headline at J above which "auto"
+ * warps are tried (one more fit). */
+#define JOB_WARP_TRY 0.05
 
 struct sb_job {
     sb_job_opts_t o;   /* resolved: every default filled in */
@@ -47,6 +50,7 @@ struct sb_job {
     job_attempt_t best;
     double *rel_stored; /* J * 4 after sb_job_write, NULL before or if unknown */
     int wrote_sampler;  /* sb_job_write wrote sampler.bin (non-negative factors) */
+    int warp_tried;     /* no --warp given, and "auto" was tried (job_warp.c) */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */

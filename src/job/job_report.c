@@ -28,6 +28,7 @@ static void report_warps(sb_json_t *j, const sb_job_t *job) {
     static const char *const axes[SB_AXIS_COUNT_] = {"theta_h", "theta_d"};
     sb_json_begin_object(j, "warp");
     sb_json_string(j, "requested", job->o.warp);
+    sb_json_bool(j, "auto_tried", job->warp_tried); /* none asked for, headline above 5 %: auto tried */
     for (int a = 0; a < SB_AXIS_COUNT_; a++) {
         const sb_warp_t *w = sb_param_warp(job->best.param, a);
         if (!w) continue;

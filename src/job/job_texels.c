@@ -85,8 +85,7 @@ static sb_result_t headline(sb_context_t *ctx, sb_job_t *job, const job_attempt_
 
 sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     a->texel_fit = 0;
-    if (job->o.plain_terms || job->o.method == SB_METHOD_NMF || a->m.structured || !a->est || !job->pairs)
-        return SB_OK;
+    if (job->o.plain_terms || job->o.method == SB_METHOD_NMF || a->m.structured || !a->est || !job->pairs) return SB_OK;
     double t0 = job_now(), best = sb_estimate_headline(a->est, sb_factors_terms(a->f));
     sb_result_t r = SB_OK;
     for (int side = 0; r == SB_OK && side < 2; side++)
