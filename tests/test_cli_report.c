@@ -201,12 +201,13 @@ SB_TEST(keys_documented) {
     CHECKF(readme_keys(&doc) == 0, "no \"## report.json\" section in %s/README.md", SB_SOURCE_DIR);
     CHECKF(doc.n >= 20, "only %d keys in the README table", doc.n);
     /* --param auto (the default) so that auto_tried is there too, a
-     * measured table so that measured is, and --warp adaptive (auto keeps
-     * iso here) so that the warp tables are */
+     * measured table so that measured is, --warp adaptive (auto keeps
+     * iso here) so that the warp tables are, and --budget (searched at the
+     * given R and J only) so that budget is */
     const char *dir = sb_tmpdir("report");
     char cmd[4096], out[8192], path[4200];
-    snprintf(cmd, sizeof cmd, "%s factor %s/data/example_gonio.csv --res 8 -J 3 --warp adaptive -q -o %s", SB_CLI,
-             SB_SOURCE_DIR, dir);
+    snprintf(cmd, sizeof cmd, "%s factor %s/data/example_gonio.csv --res 8 -J 3 --warp adaptive --budget 64K -q -o %s",
+             SB_CLI, SB_SOURCE_DIR, dir);
     int rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0, "rc %d: %s", rc, out);
     snprintf(path, sizeof path, "%s/report.json", dir);

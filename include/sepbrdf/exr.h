@@ -47,6 +47,14 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
  * terms from the files' headers).  Values are the stored ones, exactly. */
 sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out);
 
+/* The sizes of the set of factor textures in `dir` as written, read back
+ * from the files: texel_bytes = sum over g_KK.exr, h_KK.exr (K < the
+ * terms of g_00.exr's header) of width * height * channels * (4 FLOAT, 2
+ * HALF), what the textures take in GPU memory; file_bytes = the files'
+ * sizes (headers and attributes included).  Errors: those of
+ * sb_factors_read_exr's header checks (SB_ERR_IO, SB_ERR_FORMAT), SB_ERR_ARG. */
+sb_result_t sb_exr_set_bytes(sb_context_t *ctx, const char *dir, size_t *texel_bytes, size_t *file_bytes);
+
 /* What sb_factors_quantize found. */
 typedef struct sb_quantize_info {
     size_t texels;  /* texels of the kept terms, both sides, every channel */

@@ -81,21 +81,29 @@ typedef struct sb_job_opts {
      * it (auto's ranking, term weights, max_error), is measured over the
      * scene's pairs; the whole domain's is sb_job_domain_estimate. */
     const char *scene;
-    int zero_fill;               /* factor invalid cells as zeros instead of a masked fit */
-    size_t res;                  /* R, cells per angular axis: 32 */
-    size_t terms;                /* J: 4; with max_error the upper limit, min(R, 32) */
-    size_t metric_res;           /* reference grid of the comparable error: 32 */
-    double max_error;            /* keep the fewest terms whose headline is <= this; 0 = off */
-    double theta_max_deg;        /* largest sampled elevation, degrees: 90 */
-    sb_method_t method;          /* SVD method: SB_METHOD_AUTO */
-    unsigned long long seed;     /* randomized methods: 1 */
-    unsigned channels;           /* channels to factor (1 R, 2 G, 4 B): all */
-    int fit_max_iters;           /* masked fit sweeps: the plan's default */
-    double fit_tol;              /* masked fit tolerance: the plan's default */
-    int plain_terms;             /* keep the factorisation's terms as they are: no term weights (job_weights.c) */
-    int half;                    /* sb_job_write: HALF textures with per-term scales */
-    int previews;                /* sb_job_write: PNG previews of the textures too */
-    int sample_only;             /* explicit param only: sample the matrix, factor later with sb_job_refactor */
+    int zero_fill;           /* factor invalid cells as zeros instead of a masked fit */
+    size_t res;              /* R, cells per angular axis: 32 */
+    size_t terms;            /* J: 4; with max_error the upper limit, min(R, 32) */
+    size_t metric_res;       /* reference grid of the comparable error: 32 */
+    double max_error;        /* keep the fewest terms whose headline is <= this; 0 = off */
+    double theta_max_deg;    /* largest sampled elevation, degrees: 90 */
+    sb_method_t method;      /* SVD method: SB_METHOD_AUTO */
+    unsigned long long seed; /* randomized methods: 1 */
+    unsigned channels;       /* channels to factor (1 R, 2 G, 4 B): all */
+    int fit_max_iters;       /* masked fit sweeps: the plan's default */
+    double fit_tol;          /* masked fit tolerance: the plan's default */
+    int plain_terms;         /* keep the factorisation's terms as they are: no term weights (job_weights.c) */
+    int half;                /* sb_job_write: HALF textures with per-term scales */
+    int previews;            /* sb_job_write: PNG previews of the textures too */
+    int sample_only;         /* explicit param only: sample the matrix, factor later with sb_job_refactor */
+    /* A byte budget (job_budget.c): the texels of every texture written
+     * (all terms, g and h, every channel, 4 bytes FLOAT or 2 HALF) may take
+     * at most this many bytes; the job then chooses the layout, texture
+     * shape, warp, J and storage of the lowest screened headline within it
+     * (see "Byte budgets" below).  0: off.  What is given of param, form,
+     * res, terms, half and warp constrains the search; max_error is
+     * refused (SB_ERR_ARG), as is sample_only. */
+    size_t budget;
     const char *out;             /* sb_job_run also writes the set here (sb_job_write); NULL: no */
     sb_job_progress_fn progress; /* NULL: none */
     void *progress_user;
@@ -128,6 +136,43 @@ typedef struct sb_job_timings {
 } sb_job_timings_t;
 
 typedef struct sb_job sb_job_t;
+
+/* Byte budgets (opts.budget).  The candidates' layouts and forms are
+ * screened as auto screens them (above); then for each candidate left,
+ * each texture shape of a ladder (R = 8 .. 128, at most 2^20 matrix cells;
+ * iso also with 4R theta_h cells, cheap in bytes, and R/4 phi_d cells) and
+ * each warp (the layout's own and, on layouts that take one, adaptive),
+ * one screening fit (masked fits stopped early) with the most terms the
+ * budget allows there gives, on the estimator's first pairs, the headline
+ * of every J' <= J for HALF and for FLOAT storage: every (J', storage)
+ * whose bytes fit is an entry of the search.  Along the ladder a layout
+ * stops, from R = 16 on, after two R in a row whose best entry is no
+ * better than its best so far.  The entry of the lowest headline is fitted in full, as an
+ * explicit layout would be.  Within one search a smaller budget's entries
+ * are a subset of a larger one's, so its best is never better. */
+typedef struct sb_job_budget_try {
+    sb_param_kind_t kind;
+    sb_form_t form;
+    int adaptive;      /* elevation axes warped by tables measured from the source */
+    size_t res;        /* R */
+    size_t g[2], h[2]; /* width, height of the g and the h textures */
+    size_t texels;     /* texels of one term: g and h, one channel */
+    size_t terms;      /* J */
+    int half;          /* storage HALF (2 bytes), else FLOAT (4) */
+    size_t bytes;      /* terms * channels * texels * (2 or 4) */
+    double headline;   /* screened headline at J (the estimator's first pairs) */
+} sb_job_budget_try_t;
+
+typedef struct sb_job_budget {
+    size_t budget;              /* opts.budget */
+    sb_job_budget_try_t chosen; /* the entry fitted in full */
+    size_t bytes_float;         /* its textures stored as FLOAT */
+    size_t bytes_half;          /* its textures stored as HALF */
+    size_t bytes_written; /* texel bytes of the EXR files written, read back from their headers; 0 before a write */
+    size_t file_bytes;    /* those files' sizes (headers included); 0 before a write */
+    size_t fits;          /* screening fits made */
+    double search_s;      /* seconds of the search (layout screening included) */
+} sb_job_budget_t;
 
 /* Open a source like sb_source_open, or a measured table file with mo
  * (NULL: defaults).  A spec whose name part holds '/' or '.' can only be a
@@ -216,6 +261,12 @@ int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
 size_t sb_job_candidate_count(const sb_job_t *job);
 const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
 void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
+/* The budget search (opts.budget): 1 and *out filled when the job ran with
+ * one, else 0.  Its entries (every (layout, shape, warp, J, storage)
+ * screened within the budget) by index; NULL beyond the count. */
+int sb_job_budget(const sb_job_t *job, sb_job_budget_t *out);
+size_t sb_job_budget_tried_count(const sb_job_t *job);
+const sb_job_budget_try_t *sb_job_budget_tried(const sb_job_t *job, size_t i);
 /* Warnings of the run (report.json "warnings"): a layout that folds a
  * non-reciprocal source; for a measured table, a grid finer than half the
  * samples' median spacing and terms beyond the last one that lowers the

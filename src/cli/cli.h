@@ -128,6 +128,9 @@ typedef struct cli_parser {
 int cli_parse(int argc, char **argv, const cli_parser_t *p);
 
 int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, size_t hi, size_t *out);
+/* A byte count such as 16K, 48KiB, 1M or 3.2KB (options.c); -1 after a
+ * message naming opt and the text. */
+int cli_parse_bytes(const char *cmd, const char *opt, const char *v, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 
 /* Check, before any work, that an output set can be published in folder

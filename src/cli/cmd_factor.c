@@ -154,6 +154,19 @@ static void print_scene(const sb_job_t *job) {
            d->se[J - 1][SB_EST_FCOS][SB_CH_ALL]);
 }
 
+/* With --budget: what the search chose, and the bytes written. */
+static void print_budget(const sb_job_t *job) {
+    sb_job_budget_t b;
+    if (!sb_job_budget(job, &b)) return;
+    const sb_job_budget_try_t *c = &b.chosen;
+    printf("budget %zu bytes: chose %s, form %s, %s warp, R = %zu (g %zux%zu, h %zux%zu texels), J = %zu, %s;\n"
+           "  screened headline %.4e (%zu fits, %.3f s); its textures take %zu bytes as FLOAT, %zu as HALF;\n"
+           "  the files written hold %zu bytes of texels (read back; %zu bytes on disk with headers)\n",
+           b.budget, sb_param_kind_name(c->kind), sb_form_name(c->form), c->adaptive ? "adaptive" : "the layout's",
+           c->res, c->g[0], c->g[1], c->h[0], c->h[1], c->terms, c->half ? "HALF" : "FLOAT", c->headline, b.fits,
+           b.search_s, b.bytes_float, b.bytes_half, b.bytes_written, b.file_bytes);
+}
+
 static void print_result(const sb_job_t *job, const char *out) {
     const sb_matrix_t *m = sb_job_matrix(job);
     const sb_factors_t *f = sb_job_factors(job);
@@ -168,6 +181,7 @@ static void print_result(const sb_job_t *job, const char *out) {
     print_scene(job);
     printf("wrote %zu texture pairs, report.json and sepbrdf.glsl to %s/ (%.3f s)\n", sb_factors_terms(f), out,
            t.total_s);
+    print_budget(job);
 }
 
 int cmd_factor(int argc, char **argv) {
@@ -208,7 +222,9 @@ int cmd_factor(int argc, char **argv) {
         }
     }
     if (r == SB_OK && g_verbosity >= 1) print_result(job, out);
-    rc = r == SB_OK ? EXIT_OK : cli_job_fail("factor", ctx, r, o.terms);
+    if (r == SB_ERR_ARG && o.budget) /* the budget's own problems name it */
+        cli_error("factor", "--budget %zu: %s", o.budget, sb_context_last_error(ctx));
+    rc = r == SB_OK ? EXIT_OK : r == SB_ERR_ARG && o.budget ? EXIT_USAGE : cli_job_fail("factor", ctx, r, o.terms);
 out:
 #ifdef SEPBRDF_MPI
     factor_mpi_end(size, failed, rc);

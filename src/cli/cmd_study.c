@@ -29,6 +29,7 @@
 
 static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst);
 static int set_params(const char *cmd, const cli_option_t *op, const char *v, void *dst);
+static int set_budgets(const char *cmd, const cli_option_t *op, const char *v, void *dst);
 /* The options of `study` alone (stored into its study_opts_t). */
 static const cli_option_t study_only[] = {
     {"-J", "--terms", "LIST",
@@ -42,6 +43,12 @@ static const cli_option_t study_only[] = {
      "also fit non-negative factors (--method nmf) with every J\nstudied and show their errors beside (nmf_headline,\n"
      "nmf_rel_rms): what positivity costs at each J",
      cli_set_flag, offsetof(study_opts_t, nmf), 0, 0, CLI_STUDY},
+    {NULL, "--budget", "LIST",
+     "byte budgets, comma separated (e.g. 4K,16K,48KiB): per\n"
+     "source x layout (auto, or each of --param's list) x budget\n"
+     "the choice of `factor --budget` and its headline error;\n"
+     "study.png plots error against bytes (not with --terms)",
+     set_budgets, 0, 0, 0, CLI_STUDY},
     {0},
 };
 
@@ -200,7 +207,13 @@ bad:
 
 static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     (void)cmd, (void)op;
+    ((study_opts_t *)dst)->terms_given = 1;
     return parse_terms(v, dst);
+}
+
+static int set_budgets(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)cmd, (void)op;
+    return study_parse_budgets(v, dst);
 }
 
 static int set_params(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
@@ -464,6 +477,24 @@ static int publish(sb_context_t *ctx, const study_opts_t *o, const runs_t *rs, d
     return failed ? EXIT_IO : EXIT_OK;
 }
 
+/* study --budget: a sweep over budgets (study_budget.c); J is each
+ * budget's choice, so --terms and --nmf do not apply. */
+static int run_budgets(const study_opts_t *o) {
+    if (o->terms_given || o->nmf) {
+        cli_error("study", "--budget chooses J itself: %s does not apply (drop it, or --budget)",
+                  o->terms_given ? "--terms" : "--nmf");
+        return EXIT_USAGE;
+    }
+    sb_context_t *ctx = NULL;
+    if (sb_context_create(&ctx) != SB_OK) {
+        cli_error("study", "out of memory");
+        return EXIT_IO;
+    }
+    int rc = study_budgets(ctx, o, cli_now());
+    sb_context_destroy(ctx);
+    return rc;
+}
+
 int cmd_study(int argc, char **argv) {
     study_opts_t o = {0};
     o.sources = calloc((size_t)argc + 1, sizeof *o.sources);
@@ -485,6 +516,11 @@ int cmd_study(int argc, char **argv) {
         return rc;
     }
 
+    if (o.nbudgets) {
+        rc = run_budgets(&o);
+        free(o.sources);
+        return rc;
+    }
     sb_context_t *ctx = NULL;
     runs_t rs = {0};
     sb_source_t **srcs = calloc(o.nsources, sizeof *srcs);

@@ -1,6 +1,8 @@
 /* Option tables: one row per option generates both its parsing and its
  * --help line (cli.h).  The factor group (factor, render, study) shares
  * cli_factor_options, parsed into an sb_job_opts_t. */
+#include <errno.h>
+#include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
@@ -103,6 +105,37 @@ static int set_memory_limit(const char *cmd, const cli_option_t *op, const char 
     return 0;
 }
 
+/* A byte count: a positive number with an optional unit, binary K, Ki,
+ * KiB (1024), M, Mi, MiB, G, Gi, GiB, decimal kB / KB (1000), MB, GB, or
+ * B; fractions are rounded down to whole bytes (3.2KB = 3200).  0, -1 and
+ * garbage fail with a message naming the option and the text. */
+int cli_parse_bytes(const char *cmd, const char *opt, const char *v, size_t *out) {
+    static const struct {
+        const char *unit;
+        double scale;
+    } units[] = {{"", 1},        {"B", 1},        {"K", 1024},      {"Ki", 1024},    {"KiB", 1024},    {"k", 1024},
+                 {"kB", 1e3},    {"KB", 1e3},     {"M", 1 << 20},   {"Mi", 1 << 20}, {"MiB", 1 << 20}, {"MB", 1e6},
+                 {"G", 1 << 30}, {"Gi", 1 << 30}, {"GiB", 1 << 30}, {"GB", 1e9}};
+    char *end = NULL;
+    errno = 0;
+    double x = *v == '-' || *v == '+' ? NAN : strtod(v, &end);
+    for (size_t i = 0; end && end != v && i < sizeof units / sizeof *units; i++) {
+        if (strcmp(end, units[i].unit) != 0) continue;
+        x *= units[i].scale;
+        if (errno == 0 && x >= 1 && x < 0x1p52) {
+            *out = (size_t)x;
+            return 0;
+        }
+        break;
+    }
+    cli_error(cmd, "%s '%s': need a positive size in bytes, e.g. 3200, 16K, 48KiB, 1M (K = 1024, kB = 1000)", opt, v);
+    return -1;
+}
+
+static int set_bytes(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    return cli_parse_bytes(cmd, op->name, v, dst);
+}
+
 static int set_channels(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     unsigned ch = 0;
     for (const char *q = v; *q; q++) {
@@ -195,6 +228,14 @@ const cli_option_t cli_factor_options[] = {
      "largest memory to plan for, e.g. 2G (default 3/4 of RAM);\nio and io-area matrices beyond it are streamed",
      set_memory_limit, 0, 0, 0, F_ | S_},
     {NULL, "--half", NULL, "store half floats with per-term scales", cli_set_flag, AT(half), 0, 0, F_},
+    {NULL, "--budget", "BYTES",
+     "bytes of all textures written (every term, g and h, every\n"
+     "channel; e.g. 16K, 48KiB, 1M): choose the layout, texture\n"
+     "shape, warp, J and FLOAT or HALF of the lowest headline\n"
+     "error within it; --param, --form, -r, -J, --half and --warp\n"
+     "given constrain the search (--warp default there: auto);\n"
+     "not with --max-error",
+     set_bytes, AT(budget), 0, 0, F_},
     {NULL, "--previews", NULL,
      "also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\ncolour map, blue -S, white 0, red +S (S = max "
      "|value|)",

@@ -5,6 +5,7 @@
 #include "cli.h"
 
 #define MAX_J 256 /* sb_metric_t holds 256 terms */
+#define STUDY_MAX_BUDGETS 32
 
 typedef struct study_opts {
     const char **sources;
@@ -19,7 +20,10 @@ typedef struct study_opts {
     sb_form_t form;    /* resolved from job for the outputs */
     int weighted, zero_fill;
     sb_method_t method;
-    int nmf; /* --nmf: also the non-negative fit for every J (row_t.nmf_*) */
+    int nmf;                           /* --nmf: also the non-negative fit for every J (row_t.nmf_*) */
+    int terms_given;                   /* --terms was given */
+    size_t budgets[STUDY_MAX_BUDGETS]; /* --budget LIST: bytes, ascending; nbudgets 0: a study over J */
+    size_t nbudgets;
 } study_opts_t;
 
 /* Errors after J terms of one run. */
@@ -57,5 +61,38 @@ typedef struct runs {
  * 0 on success, -1 after a message. */
 int study_write_set(sb_outset_t *set, const study_opts_t *o, const runs_t *rs, size_t failed, size_t good,
                     int *plotted);
+
+/* One output file of the set, through a temporary name (study_out.c);
+ * messages name it in the target folder; 0 on success, -1 after a
+ * message. */
+/* study.gp's output: study.png, or outfile given with -e; pngcairo where
+ * there is one. */
+#define STUDY_GP_OUTPUT                                                                                                \
+    "if (!exists(\"outfile\")) outfile = 'study.png'\n"                                                                \
+    "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"                                                                \
+    "    set terminal pngcairo size 1000,640 noenhanced font ',10'\n"                                                  \
+    "} else {\n"                                                                                                       \
+    "    set terminal png size 1000,640 noenhanced\n"                                                                  \
+    "}\n"                                                                                                              \
+    "set output outfile\n"
+
+/* A CSV field, quoted where it must be; a gnuplot single-quoted string
+ * ('' is a quote). */
+void study_csv_field(FILE *fp, const char *s);
+void study_gp_quote(FILE *fp, const char *s);
+typedef void (*study_writer_fn)(FILE *fp, const void *arg);
+int study_write_file(sb_outset_t *set, const char *name, study_writer_fn fn, const void *arg);
+/* Run gnuplot on study.gp in `dir`, output to a temporary, renamed to
+ * study.png on success.  1 plotted, 0 skipped (warning printed). */
+int study_gnuplot(const char *dir, const char *target);
+
+/* study --budget LIST (study_budget.c): per source x layout asked (auto,
+ * or each of --param's list) x budget, one factor job with that budget;
+ * writes study.csv, study.json, study.dat, study.gp, study.png (headline
+ * error against bytes) and prints the table.  Returns the exit code. */
+int study_budgets(sb_context_t *ctx, const study_opts_t *o, double t0);
+/* --budget LIST: comma separated byte counts (cli_parse_bytes), sorted,
+ * duplicates dropped; -1 after a message. */
+int study_parse_budgets(const char *s, study_opts_t *o);
 
 #endif

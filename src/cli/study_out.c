@@ -11,7 +11,7 @@
 
 #include "study.h"
 
-static void csv_field(FILE *fp, const char *s) {
+void study_csv_field(FILE *fp, const char *s) {
     if (!s) s = "";
     if (!strpbrk(s, ",\"\n\r")) {
         fputs(s, fp);
@@ -35,9 +35,9 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
         if (!r->ok) continue;
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            csv_field(fp, r->spec);
+            study_csv_field(fp, r->spec);
             fprintf(fp, ",%s,", sb_param_kind_name((sb_param_kind_t)r->kind));
-            csv_field(fp, r->param_spec);
+            study_csv_field(fp, r->param_spec);
             fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g", sb_form_name(o->form), o->weighted,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
                     r->t_sample, w->t_factor, w->t_metric, w->headline);
@@ -144,8 +144,7 @@ static void write_dat(FILE *fp, const runs_t *rs) {
     }
 }
 
-/* gnuplot single-quoted string: no escapes, '' is a quote. */
-static void gp_quote(FILE *fp, const char *s) {
+void study_gp_quote(FILE *fp, const char *s) {
     fputc('\'', fp);
     for (; *s; s++) {
         if (*s == '\'') fputc('\'', fp);
@@ -158,14 +157,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp,
             "# sepbrdf study: headline error vs J. Re-run with `gnuplot study.gp` in this\n"
             "# folder; `gnuplot -e \"outfile='x.png'\" study.gp` writes elsewhere.\n"
-            "# Errors below %g (exact fits) are drawn at %g.\n"
-            "if (!exists(\"outfile\")) outfile = 'study.png'\n"
-            "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n"
-            "    set terminal pngcairo size 1000,640 noenhanced font ',10'\n"
-            "} else {\n"
-            "    set terminal png size 1000,640 noenhanced\n"
-            "}\n"
-            "set output outfile\n"
+            "# Errors below %g (exact fits) are drawn at %g.\n" STUDY_GP_OUTPUT
             "set title 'sepbrdf study: R = %zu, form %s%s'\n"
             "set xlabel 'J (terms)'\n"
             "set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'\n"
@@ -185,14 +177,12 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
         fprintf(fp, "'study.dat' index %d using 1:2 with linespoints lw 2 title ", block);
         char title[512];
         snprintf(title, sizeof title, "%.200s (%s)", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
-        gp_quote(fp, title);
+        study_gp_quote(fp, title);
         block++;
     }
     fputs(block ? "\n" : "print 'no results to plot'\n", fp);
 }
 
-/* Write one output through a temporary name; 0 on success. */
-typedef void (*writer_fn)(FILE *fp, const void *arg);
 typedef struct out_args {
     const study_opts_t *o;
     const runs_t *rs;
@@ -216,8 +206,7 @@ static void w_gp(FILE *fp, const void *p) {
     write_gp(fp, a->o, a->rs);
 }
 
-/* One file of the set; messages name it in the target folder. */
-static int write_file(sb_outset_t *set, const char *name, writer_fn fn, const void *arg) {
+int study_write_file(sb_outset_t *set, const char *name, study_writer_fn fn, const void *arg) {
     char path[4200], tmp[4300];
     int e = cli_set_file(set, name, path, sizeof path) ? ENAMETOOLONG : 0;
     FILE *fp = e ? NULL : cli_open_tmp(path, tmp, sizeof tmp);
@@ -230,9 +219,7 @@ static int write_file(sb_outset_t *set, const char *name, writer_fn fn, const vo
     return e ? -1 : 0;
 }
 
-/* Run gnuplot on study.gp in `dir`, output to a temporary, renamed to
- * study.png on success.  1 plotted, 0 skipped (warning printed). */
-static int run_gnuplot(const char *dir, const char *target) {
+int study_gnuplot(const char *dir, const char *target) {
     const char *exe = getenv("SEPBRDF_GNUPLOT");
     if (!exe || !*exe) exe = "gnuplot";
     char tmpname[64], tmp[4300], path[4200], expr[128];
@@ -276,10 +263,10 @@ int study_write_set(sb_outset_t *set, const study_opts_t *o, const runs_t *rs, s
                     int *plotted) {
     out_args_t oa = {o, rs, failed, NULL};
     *plotted = 0;
-    if (write_file(set, "study.csv", w_csv, &oa) || write_file(set, "study.dat", w_dat, &oa) ||
-        write_file(set, "study.gp", w_gp, &oa))
+    if (study_write_file(set, "study.csv", w_csv, &oa) || study_write_file(set, "study.dat", w_dat, &oa) ||
+        study_write_file(set, "study.gp", w_gp, &oa))
         return -1;
-    if (good) *plotted = run_gnuplot(sb_outset_dir(set), o->out);
+    if (good) *plotted = study_gnuplot(sb_outset_dir(set), o->out);
     oa.plot = *plotted ? "study.png" : NULL;
-    return write_file(set, "study.json", w_json, &oa);
+    return study_write_file(set, "study.json", w_json, &oa);
 }

@@ -80,6 +80,8 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     if (o->form && sb_form_parse(o->form, form) != SB_OK)
         return sb_error(ctx, SB_ERR_UNKNOWN, "form '%s' unknown, need one of f, cos, cos2", o->form);
     if (job->is_auto) o->param = NULL;
+    sb_result_t rb = job_budget_begin(ctx, job, in);
+    if (rb != SB_OK) return rb;
     if (o->sample_only && job->is_auto)
         return sb_error(ctx, SB_ERR_ARG, "sample_only needs one parameterisation, not auto");
     return job_scene_open(ctx, job);
@@ -101,8 +103,8 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     sb_form_t form;
     sb_result_t r = resolve(ctx, job, opts, &kind, &form);
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
-    if (r == SB_OK) r = job_select(ctx, job);
-    if (r == SB_OK) r = job_warp_refit(ctx, job);
+    if (r == SB_OK) r = job->budget ? job_budget_select(ctx, job) : job_select(ctx, job);
+    if (r == SB_OK && !job->budget) r = job_warp_refit(ctx, job);
     if (r == SB_OK) r = job_svd_beside(ctx, job);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) {
@@ -167,6 +169,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
 void sb_job_destroy(sb_job_t *job) {
     if (!job) return;
     job_attempt_free(&job->best);
+    job_budget_free(job);
     sb_pairs_destroy(job->pairs);
     job_scene_free(job);
     free(job->rel_stored);

@@ -27,8 +27,9 @@ typedef struct job_level {
     size_t est_max_pairs;          /* the estimator's growth: 0 default, 1 none (screening) */
     double fit_tol;
     int fit_max_iters;
-    const char *label; /* progress label of the sampling; NULL = none */
-    double base, span; /* progress = base + span * fraction */
+    const sb_param_opts_t *po; /* the layout's options (shape, warps; res is lv's); NULL: res alone */
+    const char *label;         /* progress label of the sampling; NULL = none */
+    double base, span;         /* progress = base + span * fraction */
 } job_level_t;
 
 #define JOB_MAX_CANDS (3 * SB_PARAM_KIND_COUNT_)
@@ -64,6 +65,8 @@ struct sb_job {
     size_t nsupport; /* the last of warn[] are job_warn_support's */
     sb_job_timings_t t;
     double t_start;
+    struct job_budget *budget;    /* opts.budget: the search (job_budget.c); NULL without */
+    const sb_param_opts_t *shape; /* the kept layout's options (a budget's choice); NULL: o.res alone */
 };
 
 double job_now(void);
@@ -125,6 +128,25 @@ sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t ca
  * sampled and factored at the requested settings, in job->best. */
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form);
 sb_result_t job_select(sb_context_t *ctx, sb_job_t *job);
+/* The cheap screening of several candidates (job.h; a measured table read
+ * through a memo), recorded in job->cands and job->t.screen_s. */
+void job_screen(sb_context_t *ctx, sb_job_t *job);
+/* Sample and factor candidate c at the requested settings (o.res, o.terms,
+ * job->shape) into job->best, as the kept one of job_select. */
+sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c);
+/* The masked fit's early stop (a sweep gaining less than 1e-3, at most 20
+ * per stage) into lv, unless the caller set its own. */
+void job_early_stop(const sb_job_t *job, job_level_t *lv);
+
+/* opts.budget (job_budget.c): check the options against it (begin), then search
+ * and fit the choice into job->best; the state is freed by
+ * job_budget_free.  job_budget_written records what sb_job_write wrote
+ * into dir (read back from the files). */
+sb_result_t job_budget_begin(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t *in);
+sb_result_t job_budget_select(sb_context_t *ctx, sb_job_t *job);
+sb_result_t job_budget_written(sb_context_t *ctx, sb_job_t *job, const char *dir);
+void job_budget_report(sb_json_t *j, const sb_job_t *job);
+void job_budget_free(sb_job_t *job);
 
 /* Scenes (job_scene.c).  Parse opts.scene into job->scene and check it
  * against the other options (SB_ERR_PARSE, SB_ERR_RANGE, SB_ERR_IO as
@@ -152,5 +174,8 @@ void job_scene_free(sb_job_t *job);
 sb_result_t job_warp_parse(sb_context_t *ctx, const char *name, int *adaptive, sb_warp_kind_t *kind);
 /* With opts.warp, the kept fit again on the warped layout (job_warp.c). */
 sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job);
+/* Both axes' warps measured from the source (sb_warp_measure) into po,
+ * for the texels per axis of `like` (job_warp.c). */
+sb_result_t job_warps_measure(sb_context_t *ctx, const sb_job_t *job, const sb_param_t *like, sb_param_opts_t *po);
 
 #endif

@@ -272,6 +272,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     report_errors(j, job);
     job_scene_report(j, job);
     if (job->is_auto) report_auto(j, job);
+    job_budget_report(j, job);
     sb_json_begin_array(j, "warnings");
     for (size_t i = 0; i < job->nwarn; i++)
         sb_json_string(j, NULL, job->warn[i]);

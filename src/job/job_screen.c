@@ -21,6 +21,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
                        sb_form_t form, job_attempt_t *a) {
     memset(a, 0, sizeof *a);
     sb_param_opts_t po = {0};
+    if (lv->po) po = *lv->po;
     po.res = lv->res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
     sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
@@ -350,7 +351,7 @@ static void screen_layout(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
  * headline errors of the default gold, GGX, Blinn-Phong and the measured
  * tables came out the same or lower than at 40), unless the caller set its
  * own. */
-static void early_stop(const sb_job_t *job, job_level_t *lv) {
+void job_early_stop(const sb_job_t *job, job_level_t *lv) {
     lv->fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
     lv->fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 20;
 }
@@ -369,7 +370,7 @@ static job_level_t screen_level(const sb_job_t *job, size_t res) {
     }
     lv.metric_res = 0;    /* no grid quadrature */
     lv.est_max_pairs = 1; /* the estimator's first pairs, no growth */
-    early_stop(job, &lv);
+    job_early_stop(job, &lv);
     return lv;
 }
 
@@ -379,6 +380,7 @@ static job_level_t full_level(const sb_job_t *job) {
                       .metric_res = job->o.metric_res,
                       .fit_tol = job->o.fit_tol,
                       .fit_max_iters = job->o.fit_max_iters,
+                      .po = job->shape,
                       .label = "sampling",
                       .span = 1};
     return lv;
@@ -456,7 +458,7 @@ sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
  * J is lower than the converged fit's. */
 sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a) {
     job_level_t lv = *full;
-    early_stop(job, &lv);
+    job_early_stop(job, &lv);
     job_attempt_t tmp = *a; /* a's matrix and param, fitted again into tmp.f / tmp.est */
     tmp.f = NULL;
     tmp.est = NULL;
@@ -478,7 +480,7 @@ sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level
 
 /* Sample and factor candidate c at the requested settings into job->best;
  * with max_error, keep the fewest terms whose headline meets it. */
-static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
     job_level_t lv = full_level(job);
     sb_result_t r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
     job_progress(job, lv.label, 1);
@@ -489,7 +491,7 @@ static sb_result_t fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candi
      * the target standard error */
     int masked = r == SB_OK && job_attempt_masked(job, &job->best);
     int two = masked && !job->is_auto;
-    if (masked && job->is_auto) early_stop(job, &lv);
+    if (masked && job->is_auto) job_early_stop(job, &lv);
     lv.est_max_pairs = two ? 1 : 0;
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
     if (r == SB_OK && two) r = job_keep_early_fit(ctx, job, &lv, &job->best);
@@ -536,6 +538,20 @@ static void screen(sb_context_t *ctx, sb_job_t *job) {
     job_progress(job, "screening", 1);
 }
 
+void job_screen(sb_context_t *ctx, sb_job_t *job) {
+    double t0 = job_now();
+    /* a measured table: the screening grids and the reference grid of the
+     * candidates' errors repeat pairs, each an interpolation */
+    sb_source_t *memo = NULL;
+    if ((sb_source_flags(job->src) & SB_SOURCE_MEASURED) &&
+        job_memo_create(ctx, job->src, SB_JOB_MEMO_CAP, &memo) == SB_OK)
+        job->eval_src = memo;
+    screen(ctx, job);
+    job->eval_src = job->src;
+    sb_source_destroy(memo);
+    job->t.screen_s = job_now() - t0;
+}
+
 /* One candidate: fit it at the requested settings.  Several: screen them,
  * then fit the best that succeeds at the requested settings (the next on
  * a failure). */
@@ -549,29 +565,19 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
             job->best.weighted = c->weighted;
             return r;
         }
-        r = fit_kept(ctx, job, c);
+        r = job_fit_kept(ctx, job, c);
         c->ok = r == SB_OK;
         c->error = c->ok ? rank_error(&job->best) : NAN;
         c->res = job->o.res;
         return r;
     }
-    double t0 = job_now();
-    /* a measured table: the screening grids and the reference grid of the
-     * candidates' errors repeat pairs, each an interpolation */
-    sb_source_t *memo = NULL;
-    if ((sb_source_flags(job->src) & SB_SOURCE_MEASURED) &&
-        job_memo_create(ctx, job->src, SB_JOB_MEMO_CAP, &memo) == SB_OK)
-        job->eval_src = memo;
-    screen(ctx, job);
-    job->eval_src = job->src;
-    sb_source_destroy(memo);
-    job->t.screen_s = job_now() - t0;
+    job_screen(ctx, job);
     size_t order[JOB_MAX_CANDS], n = rank(job, order);
     sb_result_t r = SB_ERR_NUMERIC;
     for (size_t k = 0; k < n && r != SB_OK; k++) {
         sb_job_candidate_t *c = &job->cands[order[k]];
         double t1 = job_now();
-        if ((r = fit_kept(ctx, job, c)) != SB_OK) {
+        if ((r = job_fit_kept(ctx, job, c)) != SB_OK) {
             c->ok = 0;
             c->result = r;
             snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));

@@ -22,11 +22,15 @@ static sb_result_t job_warps(sb_context_t *ctx, sb_job_t *job, const char *warp,
     int adaptive;
     sb_warp_kind_t kind;
     sb_result_t r = job_warp_parse(ctx, warp, &adaptive, &kind);
+    if (r == SB_OK && adaptive) return job_warps_measure(ctx, job, like, po);
+    for (int a = 0; a < SB_AXIS_COUNT_ && r == SB_OK; a++)
+        po->warp[a].kind = kind == SB_WARP_MERL && a == SB_AXIS_THETA_D ? SB_WARP_UNIFORM : kind;
+    return r;
+}
+
+sb_result_t job_warps_measure(sb_context_t *ctx, const sb_job_t *job, const sb_param_t *like, sb_param_opts_t *po) {
+    sb_result_t r = SB_OK;
     for (int a = 0; a < SB_AXIS_COUNT_ && r == SB_OK; a++) {
-        if (!adaptive) {
-            po->warp[a].kind = kind == SB_WARP_MERL && a == SB_AXIS_THETA_D ? SB_WARP_UNIFORM : kind;
-            continue;
-        }
         sb_warp_measure_opts_t wo = {0};
         wo.theta_max = po->theta_max;
         sb_param_texture_size(like, a == SB_AXIS_THETA_H ? SB_SIDE_G : SB_SIDE_H, &wo.cells, NULL);

@@ -115,6 +115,7 @@ sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
     sb_exr_opts_t eo = {job->o.half};
     sb_result_t r = sb_factors_write_exr(ctx, a->f, dir, &eo);
     if (r == SB_OK && (r = add_textures(set, J)) != SB_OK) r = sb_error(ctx, r, "out of memory");
+    if (r == SB_OK) r = job_budget_written(ctx, job, dir); /* what the files hold, read back */
     if (r != SB_OK) return r;
     free(job->rel_stored);
     job->rel_stored = stored_errors(ctx, job);

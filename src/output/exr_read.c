@@ -1,10 +1,12 @@
 /* Reading the factor textures back: every file of a set checked against
  * the first (terms, channels, sizes, errors, sigma, metadata), pixels
  * decoded through the stored precision of exr.c. */
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "output/exr_impl.h"
 #include "util/internal.h"
@@ -364,5 +366,29 @@ out:
     free(first);
     free(buf);
     free(rel);
+    return r;
+}
+
+sb_result_t sb_exr_set_bytes(sb_context_t *ctx, const char *dir, size_t *texel_bytes, size_t *file_bytes) {
+    if (!dir || !texel_bytes || !file_bytes) return sb_error(ctx, SB_ERR_ARG, "sb_exr_set_bytes: NULL argument");
+    *texel_bytes = *file_bytes = 0;
+    sb_result_t r = SB_OK;
+    size_t n = 2;
+    for (size_t k = 0; k < n && r == SB_OK; k++) {
+        char *path = NULL;
+        exr_context_t ex = NULL;
+        hdr_t hd;
+        struct stat st;
+        r = open_header(ctx, dir, (int)(k % 2), k / 2, &path, &ex, &hd);
+        if (r == SB_OK && k == 0) n = 2 * (size_t)hd.terms;
+        if (r == SB_OK && stat(path, &st) != 0) r = sb_error(ctx, SB_ERR_IO, "%s: %s", path, strerror(errno));
+        size_t b;
+        if (r == SB_OK && (sb_size_mul3(hd.w, hd.h, (size_t)hd.channels * (hd.half ? 2 : 4), &b) ||
+                           sb_size_add(*texel_bytes, b, texel_bytes)))
+            r = sb_error(ctx, SB_ERR_FORMAT, "%s: %zu x %zu texels overflow a size", path, hd.w, hd.h);
+        if (r == SB_OK) *file_bytes += (size_t)st.st_size;
+        if (ex) exr_finish(&ex);
+        free(path);
+    }
     return r;
 }
