@@ -285,24 +285,48 @@ SB_TEST(refused_folders) {
     CHECK(clean(parent, out));
 }
 
+/* Whether process pid has exited and waits to be reaped. */
+static int zombie_state(pid_t pid) {
+    char path[64], buf[512];
+    snprintf(path, sizeof path, "/proc/%ld/stat", (long)pid);
+    FILE *fp = fopen(path, "r");
+    size_t n = fp ? fread(buf, 1, sizeof buf - 1, fp) : 0;
+    if (fp) fclose(fp);
+    buf[n] = 0;
+    const char *paren = strrchr(buf, ')');
+    return paren && paren[1] == ' ' && paren[2] == 'Z';
+}
+
 /* Staging folders of runs that died are recovered by the next run: files
  * of their set removed, a user's file only there moved back; a live
  * process's staging folder is left alone. */
 SB_TEST(stale_staging_recovered) {
-    char parent[512], out[600], st1[700], st2[700], live[700], msg[4096];
+    char parent[512], out[600], st1[700], st2[700], st3[700], live[700], msg[4096];
     snprintf(parent, sizeof parent, "%s", sb_tmpdir("rel-stale"));
     snprintf(out, sizeof out, "%s/out", parent);
     CHECK(cli(msg, sizeof msg, PREV_CMD, out) == 0);
     snprintf(st1, sizeof st1, "%s/.out.sepbrdf-new-factor-%ld", parent, dead_pid());
     snprintf(st2, sizeof st2, "%s/.out.sepbrdf-new-render-%ld", parent, dead_pid());
     snprintf(live, sizeof live, "%s/.out.sepbrdf-new-factor-%ld", parent, (long)getpid());
-    CHECK(mkdir(st1, 0777) == 0 && mkdir(st2, 0777) == 0 && mkdir(live, 0777) == 0);
+    /* a killed worker nothing has reaped yet (a zombie answers kill(pid, 0),
+     * as orphans do for good where no init reaps them) is gone too */
+    pid_t zombie = fork();
+    if (zombie == 0) _exit(0);
+    CHECK(zombie > 0);
+    snprintf(st3, sizeof st3, "%s/.out.sepbrdf-new-factor-%ld", parent, (long)zombie);
+    for (int i = 0; i < 1000 && !zombie_state(zombie); i++)
+        usleep(1000);
+    CHECK(zombie_state(zombie));
+    CHECK(mkdir(st1, 0777) == 0 && mkdir(st2, 0777) == 0 && mkdir(live, 0777) == 0 && mkdir(st3, 0777) == 0);
+    put(st3, "g_00.exr", "half written by a killed worker");
     put(st1, "g_00.exr", "half written");
     put(st2, "sepbrdf-set-render.txt", "# sepbrdf output set 1, render\nrender_J01.png\n");
     put(st2, "render_J01.png", "old render");
     put(st2, "lost.txt", "a user's file only here");
     CHECK(cli(msg, sizeof msg, "factor lambert --res 8 -J 2 --param io -q -o %s", out) == 0);
     CHECK(!sb_file_exists(st1) && !sb_file_exists(st2) && sb_file_exists(live));
+    CHECK(!sb_file_exists(st3));
+    waitpid(zombie, NULL, 0);
     char *lost = slurp(out, "lost.txt");
     CHECKF(lost && strcmp(lost, "a user's file only here") == 0, "the user's file was not moved back");
     free(lost);

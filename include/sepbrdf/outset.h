@@ -118,6 +118,11 @@ sb_result_t sb_outset_cleanup(sb_context_t *ctx, const char *dir);
  * (sb_outset_dir() gives the name to keep).  Never touches DIR. */
 void sb_outset_discard_signal_safe(const char *staging);
 
+/* Whether process `pid`, named in a staging folder or a temporary file,
+ * may still run: 1 when a signal could reach it and it is not a zombie
+ * (a killed run's workers stay zombies where nothing reaps orphans). */
+int sb_outset_pid_alive(long pid);
+
 /* Why a file operation failed, for messages: errno `err` in words, naming
  * a full disk ("disk full (no space left on device)"), a quota and the
  * file size limit plainly; strerror() otherwise.  A static string. */

@@ -264,7 +264,7 @@ static void remove_stale_tmp(const char *path) {
         const char *pid = e->d_name + n;
         if (strncmp(e->d_name, name, (size_t)n) != 0 || !*pid || strspn(pid, "0123456789") != strlen(pid)) continue;
         long p = strtol(pid, NULL, 10);
-        if (p > 0 && p != (long)getpid() && kill((pid_t)p, 0) != 0 && errno == ESRCH) unlinkat(dirfd(d), e->d_name, 0);
+        if (p > 0 && p != (long)getpid() && !sb_outset_pid_alive(p)) unlinkat(dirfd(d), e->d_name, 0);
     }
     if (d) closedir(d);
 }

@@ -195,8 +195,22 @@ static void manifest_name(const char *cmd, size_t n, char out[64]) {
         snprintf(out, 64, "%s", SB_OUTSET_MANIFEST);
 }
 
-/* Whether process pid may still run (a signal could reach it). */
-static int pid_alive(long pid) { return pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM); }
+/* kill(pid, 0) succeeds on a zombie, and a killed run's workers stay
+ * zombies for good where nothing reaps orphans (a container whose first
+ * process is a plain shell): /proc tells them apart. */
+int sb_outset_pid_alive(long pid) {
+    if (pid <= 0 || (kill((pid_t)pid, 0) != 0 && errno != EPERM)) return 0;
+    char path[64], buf[512];
+    snprintf(path, sizeof path, "/proc/%ld/stat", pid);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return 1; /* no /proc: assume it runs */
+    ssize_t n = read(fd, buf, sizeof buf - 1);
+    close(fd);
+    if (n <= 0) return 1;
+    buf[n] = 0;
+    const char *paren = strrchr(buf, ')'); /* "PID (COMM) STATE ...", COMM may hold ')' */
+    return !(paren && paren[1] == ' ' && (paren[2] == 'Z' || paren[2] == 'X'));
+}
 
 /* Recover every staging folder of DIR whose process is gone. */
 static void cleanup_stale(const char *parent, const char *base, const char *dir) {
@@ -213,7 +227,7 @@ static void cleanup_stale(const char *parent, const char *base, const char *dir)
         if (dash) digits = dash + 1;
         if (!*digits || strspn(digits, "0123456789") != strlen(digits) || strlen(digits) > 12 || nc > 16) continue;
         long pid = strtol(digits, NULL, 10);
-        if (pid == (long)getpid() || pid_alive(pid)) continue;
+        if (pid == (long)getpid() || sb_outset_pid_alive(pid)) continue;
         manifest_name(nm + 1 + nb + nt, nc, manifest);
         char *path = outset_join(parent, nm);
         if (!path) break;
