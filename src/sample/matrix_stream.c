@@ -62,6 +62,10 @@ static void stream_cell(const sb_matrix_t *m, size_t r, size_t c, double rgb[3])
     }
 }
 
+int sb_matrix_stream_grey(const sb_matrix_t *m) {
+    return m && m->streamed && (sb_source_flags(m->source) & SB_SOURCE_GRAY);
+}
+
 double sb_matrix_stream_at(const sb_matrix_t *m, int ch, size_t row, size_t col) {
     double rgb[3];
     stream_cell(m, row, col, rgb);

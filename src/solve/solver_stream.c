@@ -35,6 +35,7 @@
 
 #include <cblas.h>
 
+#include "sample/stream.h"
 #include "sepbrdf/matrix.h"
 #include "solve/solver.h"
 #include "util/internal.h"
@@ -48,6 +49,7 @@ typedef struct stream_state {
     sb_context_t *ctx;
     size_t rows, cols, J, l, b;
     int passes, nt; /* passes over the matrix; threads of a pass */
+    int same;       /* channel whose results every channel takes (grey), or -1 */
     uint64_t seed;
     size_t L;                      /* P l: columns of the Krylov basis */
     sb_svd_t *small;               /* FULL SVD of C^T W (cols x L) */
@@ -188,7 +190,7 @@ static void *pass_slice(void *arg) {
     int rows = (int)s->rows, cols = (int)s->cols, l = (int)s->l, n = (int)(j->b - j->a);
     double *x[3];
     for (int c = 0; c < 3; c++)
-        x[c] = s->blk[c] + (j->a - j->c0) * s->rows;
+        x[c] = j->present[c] ? s->blk[c] + (j->a - j->c0) * s->rows : NULL;
     if (n == 0 || j->r != SB_OK) return NULL;
     j->r = sb_matrix_cols(s->ctx, j->in->m, j->a, j->b, x, s->rows, 1);
     for (int c = 0; c < 3 && j->r == SB_OK; c++) {
@@ -288,9 +290,12 @@ static sb_result_t small_svd(stream_state_t *s, int c) {
 
 /* Every channel of the matrix, in P passes. */
 static sb_result_t factor_all(stream_state_t *s, const sb_solve_in_t *in) {
-    int present[3];
+    int present[3], first = 0;
+    while (first < 2 && !sb_matrix_has(in->m, first))
+        first++;
+    s->same = sb_matrix_stream_grey(in->m) ? first : -1; /* one channel for all: a third of the products */
     for (int c = 0; c < 3; c++)
-        present[c] = sb_matrix_has(in->m, c);
+        present[c] = sb_matrix_has(in->m, c) && (s->same < 0 || c == first);
     sb_result_t r = draw_omega(s, present);
     for (int c = 0; c < 3 && sb_group_active(s->ctx); c++) /* the rows of C^T of others' blocks */
         if (present[c]) memset(s->ct[c], 0, s->cols * s->L * sizeof(double));
@@ -317,9 +322,10 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         sb_result_t r = factor_all(s, in);
         if (r != SB_OK) return r;
     }
-    memcpy(out->s, s->s[c], s->J * sizeof(double));
-    memcpy(out->u, s->u[c], s->rows * s->J * sizeof(double));
-    memcpy(out->v, s->v[c], s->cols * s->J * sizeof(double));
+    int from = s->same >= 0 ? s->same : c;
+    memcpy(out->s, s->s[from], s->J * sizeof(double));
+    memcpy(out->u, s->u[from], s->rows * s->J * sizeof(double));
+    memcpy(out->v, s->v[from], s->cols * s->J * sizeof(double));
     return SB_OK;
 }
 
