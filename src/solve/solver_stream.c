@@ -23,7 +23,9 @@
  * 4.0e-3, 8.7e-4, 2.0e-5.  Memory:
  * P l (rows + cols) + l rows doubles a channel plus one block of columns
  * (sb_solve_stream_cols), never rows x cols.  The plan (plan.c) measures the errors of the
- * stored textures in one more streamed pass (SB_CAP_STREAMED).
+ * stored textures in one more streamed pass (SB_CAP_STREAMED).  A grey
+ * streamed matrix (every channel the same cells) is factored on its first
+ * channel, whose results every channel takes.
  * Over a group of processes (common.h, sb_context_set_group: MPI ranks)
  * each reads every size-th block; Y is summed after every pass and C^T
  * (cols x L a channel) once before Rayleigh-Ritz, which every process
