@@ -17,6 +17,7 @@
  * the bit on any thread count. */
 #include "sepbrdf/estimate.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -285,9 +286,29 @@ void est_reconstruct(const eval_t *e, const double *wi, const double *wo, double
     }
 }
 
-static size_t bin_of(double r) {
-    if (!(r > 1e-12)) return 0;
-    double b = (log10(r) + 12) * 40;
+/* log2 x for x > 0 to about 1e-9: exponent from the bits, the mantissa
+ * m in [1/sqrt 2, sqrt 2) through ln m = 2 atanh t, t = (m - 1)/(m + 1),
+ * |t| <= 0.172.  libm's log10 per pair, term and channel was a quarter of
+ * a whole io run. */
+static double log2_fast(double x) {
+    if (!(x >= DBL_MIN) || !(x <= DBL_MAX)) return log2(x);
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    int ex = (int)((b >> 52) & 0x7ff) - 1023;
+    b = (b & 0x000fffffffffffffULL) | 0x3ff0000000000000ULL;
+    double m;
+    memcpy(&m, &b, sizeof m);
+    if (m > 1.4142135623730951) m *= 0.5, ex++;
+    double t = (m - 1) / (m + 1), s = t * t;
+    double ln = 2 * t * (1 + s * (1.0 / 3 + s * (1.0 / 5 + s * (1.0 / 7 + s * (1.0 / 9 + s / 11)))));
+    return ex + ln * 1.4426950408889634;
+}
+
+/* The histogram bin of relative error r = sqrt(d2 / f2), from the squares:
+ * 40 bins a decade from 1e-12 (bin 0 below); lf2 = log2 f2. */
+static size_t bin_of(double d2, double f2, double lf2) {
+    if (!(d2 > 1e-24 * f2)) return 0;
+    double b = 20 * 0.30102999566398120 * (log2_fast(d2) - lf2) + 480;
     return b >= NB - 1 ? NB - 1 : (size_t)b;
 }
 
@@ -295,8 +316,10 @@ static size_t bin_of(double r) {
 static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
     const double *f = d + 7, w = d[6];
     double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
-    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
+    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4];
     f2[3] = f2[0] + f2[1] + f2[2];
+    for (int c = 0; c < 4; c++)
+        lf2[c] = f2[c] > 0 ? log2_fast(f2[c]) : 0;
     uint64_t ew[4];
     for (int c = 0; c < 4; c++)
         ew[c] = e->P->e0[c] > 0 ? (uint64_t)(f2[c] * ci2 * w / e->P->e0[c] * 0x1.0p40) : 0;
@@ -321,9 +344,9 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
         maxv[j] = fmax(maxv[j], vmax);
         for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
-            double rel = sqrt(d2[c] / f2[c]);
-            hist[(j * 4 + c) * NB + bin_of(rel)] += ew[c];
-            maxr[j * 4 + c] = fmax(maxr[j * 4 + c], rel);
+            hist[(j * 4 + c) * NB + bin_of(d2[c], f2[c], lf2[c])] += ew[c];
+            double rel2 = d2[c] / f2[c]; /* maxr holds squares: roots taken in combine() */
+            if (rel2 > maxr[j * 4 + c]) maxr[j * 4 + c] = rel2;
         }
     }
 }
@@ -396,7 +419,7 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
                 const uint64_t *src = e->hist + ((size_t)t * J * 4 + j * 4 + (size_t)c) * NB;
                 for (size_t b = 0; b < NB; b++)
                     hb[b] += src[b];
-                mx = fmax(mx, e->maxr[((size_t)t * J + j) * 4 + (size_t)c]);
+                mx = fmax(mx, sqrt(e->maxr[((size_t)t * J + j) * 4 + (size_t)c]));
             }
             for (size_t b = 0; b < NB; b++)
                 total += hb[b];
