@@ -1,6 +1,7 @@
 /* Analytic models: values against the formulas written out again from the
- * seeds, reciprocity, isotropy, flags, energy (directional albedo by
- * adaptive quadrature), special configurations, spec errors and presets. */
+ * lecture and the paper, reciprocity, isotropy, flags, energy (directional
+ * albedo by adaptive quadrature), special configurations, spec errors and
+ * presets. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -11,8 +12,8 @@
 
 /* ---- small vector helpers (GLSL style, as in the lecture) ------------ */
 
-/* The reference formulas are evaluated in long double: they are the seeds'
- * expressions as written, some of which lose digits in double (the GGX
+/* The reference formulas are evaluated in long double: they are the
+ * lecture's and the paper's expressions as written, some of which lose digits in double (the GGX
  * denominator (n.h)^2 (alpha^2 - 1) + 1 cancels for sharp lobes). */
 typedef long double ld;
 
@@ -49,7 +50,7 @@ static sb_source_t *make(const char *spec) {
     return s;
 }
 
-/* ---- reference formulas, written out from the seeds ------------------ */
+/* ---- reference formulas, written out from the lecture and the paper ---- */
 
 typedef struct ref {
     const char *model;
