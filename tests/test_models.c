@@ -13,8 +13,9 @@
 /* ---- small vector helpers (GLSL style, as in the lecture) ------------ */
 
 /* The reference formulas are evaluated in long double: they are the
- * lecture's and the paper's expressions as written, some of which lose digits in double (the GGX
- * denominator (n.h)^2 (alpha^2 - 1) + 1 cancels for sharp lobes). */
+ * lecture's and the paper's expressions as written, some of which lose
+ * digits in double (the GGX denominator (n.h)^2 (alpha^2 - 1) + 1 cancels
+ * for sharp lobes). */
 typedef long double ld;
 
 static ld dot(const ld a[3], const ld b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
