@@ -122,7 +122,7 @@ SB_TEST(sizes_wraps_specs) {
         {SB_PARAM_IO, 49, 49, 7, 7, 7, 7, {0, 1}, {0, 1}, "io:res=7"},
         {SB_PARAM_IO_AREA, 49, 49, 7, 7, 7, 7, {0, 0}, {0, 0}, "io-area:res=7"},
         {SB_PARAM_HD, 49, 49, 7, 7, 7, 7, {0, 1}, {0, 1}, "hd:res=7"},
-        {SB_PARAM_ISO, 7, 42, 7, 1, 14, 3, {0, 0}, {0, 1}, "iso:th=7,td=14,pd=3"},
+        {SB_PARAM_ISO, 14, 36, 14, 1, 12, 3, {0, 0}, {0, 1}, "iso:th=14,td=12,pd=3"},
     };
     for (size_t i = 0; i < NKINDS; i++) {
         sb_param_t *p = make(want[i].kind, 7);
@@ -142,6 +142,20 @@ SB_TEST(sizes_wraps_specs) {
     }
 }
 
+/* iso's own shape at even R spends R^2 + R texels a term (g + h), as
+ * th = R, td = 2R, pd = R/2 did, with th = 2R rows of theta_h. */
+SB_TEST(iso_default_texels) {
+    for (size_t R = 4; R <= 128; R *= 2) {
+        sb_param_t *p = make(SB_PARAM_ISO, R);
+        size_t gw, gh, hw, hh;
+        sb_param_texture_size(p, SB_SIDE_G, &gw, &gh);
+        sb_param_texture_size(p, SB_SIDE_H, &hw, &hh);
+        CHECKF(gw * gh + hw * hh == R * R + R && gw == 2 * R && sb_param_rows(p) == 2 * R, "R %zu: %s", R,
+               sb_param_spec(p));
+        sb_param_destroy(p);
+    }
+}
+
 SB_TEST(iso_resolutions_per_axis) {
     sb_param_opts_t o = {0};
     o.res = 5;
@@ -149,8 +163,8 @@ SB_TEST(iso_resolutions_per_axis) {
     o.res_phi_d = 3;
     sb_param_t *p;
     CHECK(sb_param_create(NULL, SB_PARAM_ISO, &o, &p) == SB_OK);
-    CHECK(sb_param_rows(p) == 9 && sb_param_cols(p) == 30);
-    CHECK(strcmp(sb_param_spec(p), "iso:th=9,td=10,pd=3") == 0);
+    CHECK(sb_param_rows(p) == 9 && sb_param_cols(p) == 24);
+    CHECK(strcmp(sb_param_spec(p), "iso:th=9,td=8,pd=3") == 0);
     sb_param_destroy(p);
     o.res_theta_d = 1;
     sb_context_t *ctx;
@@ -362,6 +376,8 @@ SB_TEST(invalid_cells_are_below_the_horizon) {
         o.theta_max = tmax;
         sb_param_t *hd, *iso;
         CHECK(sb_param_create(NULL, SB_PARAM_HD, &o, &hd) == SB_OK);
+        o.res_theta_h = 12;
+        o.res_theta_d = 24;
         o.res_phi_d = 17;
         CHECK(sb_param_create(NULL, SB_PARAM_ISO, &o, &iso) == SB_OK);
         size_t nvalid[2] = {0, 0}, ncells[2] = {144 * 144, 12 * 24 * 17};

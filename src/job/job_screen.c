@@ -165,11 +165,13 @@ int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const cha
     return w == NULL;
 }
 
-/* Smaller side of the matrix of `kind` at res cells per axis; 0 when the
- * parameterisation cannot be created there. */
-static size_t layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res) {
+/* Smaller side of the matrix of `kind` at res cells per axis (the shape
+ * of `shape`, NULL: the layout's own); 0 when the parameterisation cannot
+ * be created there. */
+static size_t layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res, const sb_param_opts_t *shape) {
     sb_param_t *p = NULL;
     sb_param_opts_t po = {0};
+    if (shape) po = *shape;
     po.res = res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
     if (sb_param_create(NULL, kind, &po, &p) != SB_OK) return 0;
@@ -221,7 +223,7 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
     c->form = form;
     c->weighted = weighted;
     c->error = NAN;
-    size_t mn = layout_min_side(job, k, job->o.res);
+    size_t mn = layout_min_side(job, k, job->o.res, NULL);
     if (mn < job->o.terms)
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
@@ -247,7 +249,7 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         sb_param_kind_t k = (sb_param_kind_t)i;
         sb_result_t r = SB_OK;
         if (!sb_job_param_applies(k, job->src, NULL)) continue;
-        if (layout_min_side(job, k, job->o.res) == 0) continue; /* not available at R */
+        if (layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
         if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
         /* cos: not on a layout that folds by reciprocity (f cos theta_i is
          * not reciprocal); cos2 is none: dividing by cos theta_o is
@@ -360,12 +362,20 @@ void job_early_stop(const sb_job_t *job, job_level_t *lv) {
  * (at most the smallest matrix side there), masked fits stopped early (a
  * sweep gaining less than 1e-3, at most 20: the candidates' errors differ
  * by factors, not digits). */
-static job_level_t screen_level(const sb_job_t *job, size_t res) {
+static job_level_t screen_level(const sb_job_t *job, size_t res, sb_param_opts_t *po) {
     job_level_t lv = {0};
     lv.res = res;
+    /* iso on R rows of theta_h (td = 2R, pd = R/2) here, half its default:
+     * the layouts' ranking is the same, the masked fit half the cost */
+    memset(po, 0, sizeof *po);
+    po->res = res;
+    po->theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po->res_theta_h = res;
+    po->res_theta_d = 2 * res;
+    lv.po = po;
     lv.terms = job->o.terms;
     for (size_t i = 0; i < job->ncand; i++) {
-        size_t mn = job->cands[i].why[0] ? 0 : layout_min_side(job, job->cands[i].kind, lv.res);
+        size_t mn = job->cands[i].why[0] ? 0 : layout_min_side(job, job->cands[i].kind, lv.res, po);
         if (mn && mn < lv.terms) lv.terms = mn;
     }
     lv.metric_res = 0;    /* no grid quadrature */
@@ -520,7 +530,8 @@ static void screen(sb_context_t *ctx, sb_job_t *job) {
         size_t res = levels[s] < job->o.res ? levels[s] : job->o.res;
         if (res == prev) break;
         prev = res;
-        job_level_t lv = screen_level(job, res);
+        sb_param_opts_t po;
+        job_level_t lv = screen_level(job, res, &po);
         for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
             job_progress(job, "screening", (s + (double)k / SB_PARAM_KIND_COUNT_) / 2);
             screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
