@@ -23,7 +23,7 @@ echo "# OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-unset} OPENBLAS_CORETYPE=${
 "$build/sepbrdf_bench" -o "$here" --matrices "$work/matrices" "$@"
 
 # The whole command: sample, plan, factor, metric, write EXR + report + GLSL.
-# `--param io` is the seeds' R x R layout (the N = R^2 matrix of the table
+# `--param io` is the lecture's theta-phi grid, R x R (the N = R^2 matrix of the table
 # above); the default (`--param auto`) tries every parameterisation.
 io64=
 if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then

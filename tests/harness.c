@@ -15,6 +15,8 @@ static struct {
 } tests[MAX_TESTS];
 static int ntests;
 static int cur_failed, cur_skipped;
+static char **tmpdirs; /* made by sb_tmpdir, removed at the end */
+static size_t ntmpdirs;
 
 void sb_test_register(const char *name, sb_test_fn fn) {
     if (ntests < MAX_TESTS) {
@@ -70,7 +72,30 @@ const char *sb_tmpdir(const char *tag) {
         perror("mkdtemp");
         exit(2);
     }
+    char **v = realloc(tmpdirs, (ntmpdirs + 1) * sizeof *v);
+    if (v && (v[ntmpdirs] = strdup(buf)) != NULL)
+        tmpdirs = v, ntmpdirs++;
+    else if (v)
+        tmpdirs = v;
     return buf;
+}
+
+/* Remove the folders sb_tmpdir made (when every case passed; a failure
+ * keeps them to look at, or SB_KEEP_TMP=1 keeps them always). */
+static void remove_tmpdirs(int keep) {
+    for (size_t i = 0; i < ntmpdirs; i++) {
+        if (keep) {
+            fprintf(stderr, "kept: %s\n", tmpdirs[i]);
+        } else if (!strchr(tmpdirs[i], '\'')) {
+            char cmd[4300];
+            snprintf(cmd, sizeof cmd, "chmod -R u+rwX '%s' 2>/dev/null; rm -rf '%s'", tmpdirs[i], tmpdirs[i]);
+            if (system(cmd) != 0) fprintf(stderr, "note: could not remove %s\n", tmpdirs[i]);
+        }
+        free(tmpdirs[i]);
+    }
+    free(tmpdirs);
+    tmpdirs = NULL;
+    ntmpdirs = 0;
 }
 
 int sb_file_exists(const char *path) {
@@ -107,6 +132,8 @@ int main(int argc, char **argv) {
         fprintf(stderr, "no such test case: %s\n", argv[1]);
         return 1;
     }
+    const char *keep = getenv("SB_KEEP_TMP");
+    remove_tmpdirs(failed > 0 || (keep && *keep && strcmp(keep, "0") != 0));
     printf("%d passed, %d failed, %d skipped\n", passed, failed, skipped);
     if (failed) return 1;
     if (skipped && !passed) return 77;

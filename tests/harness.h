@@ -51,7 +51,9 @@ int sb_test_failed_now(void);
 
 /* Helpers for CLI tests: run a shell command, capture stdout+stderr. */
 int sb_run(const char *cmd, char *out, size_t out_size);
-/* Make a fresh empty temporary directory; returns a static buffer. */
+/* Make a fresh empty temporary directory; returns a static buffer.  It is
+ * removed when the executable ends with every case passed (kept on a
+ * failure, or always with SB_KEEP_TMP=1). */
 const char *sb_tmpdir(const char *tag);
 int sb_file_exists(const char *path);
 /* Deterministic uniform random numbers in [0, 1). */

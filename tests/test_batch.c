@@ -219,6 +219,22 @@ SB_TEST(interrupted_run_resumes) {
     CHECK(atoi(out) == 0);
 }
 
+/* A set is reused only under the same settings, those given since the
+ * key first existed (--plain-terms, --scene, --warp) included. */
+SB_TEST(other_settings_not_reused) {
+    const char *dir = setup("batch_key", "");
+    CHECK(batch(dir, "k", "-j 2 -q") == 0);
+    const char *runs[][2] = {{"-j 2 --plain-terms", "5 materials, 0 reused"},
+                             {"-j 2 --plain-terms", "5 materials, 5 reused"},
+                             {"-j 2 --scene 'view=0..60;light=0..60'", "5 materials, 0 reused"},
+                             {"-j 2", "5 materials, 0 reused"},
+                             {"-j 2", "5 materials, 5 reused"}};
+    for (size_t i = 0; i < sizeof runs / sizeof *runs; i++) {
+        int rc = batch(dir, "k", runs[i][0]);
+        CHECKF(rc == 0 && strstr(out, runs[i][1]), "%s: rc %d: %.300s", runs[i][0], rc, out);
+    }
+}
+
 SB_TEST(bad_source_reported_others_finish) {
     const char *dir = setup("batch_bad", "missing/nowhere.binary,\n");
     char cmd[8192];

@@ -261,6 +261,68 @@ SB_TEST(deterministic_and_se_target) {
     sb_source_destroy(src);
 }
 
+/* The estimate of f on `shared` (opts o) equals the one on fresh pairs
+ * drawn to the same count (the pairs of a replicate do not depend on
+ * when it was drawn). */
+static void same_as_fresh(const sb_source_t *src, sb_pairs_t *shared, const sb_factors_t *f, const sb_param_t *p,
+                          const sb_estimate_opts_t *o, const char *what) {
+    static sb_estimate_t want, got;
+    sb_estimate_opts_t fo = *o;
+    fo.start = sb_pairs_count(shared) / o->replicate;
+    sb_pairs_t *fresh = NULL;
+    CHECK(sb_pairs_create(NULL, src, &fo, &fresh) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, fresh, f, NULL, p, SB_FORM_F, o, &want) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, shared, f, NULL, p, SB_FORM_F, o, &got) == SB_OK);
+    CHECKF(memcmp(&got, &want, sizeof got) == 0, "%s", what);
+    CHECKF(sb_pairs_count(fresh) == sb_pairs_count(shared), "%s: the pairs grew alike", what);
+    sb_pairs_destroy(fresh);
+}
+
+/* Pairs shared by estimates of several layouts (the screening's and the
+ * kept fit's), in any order, with the pairs growing in between and a
+ * layout destroyed and another created: every estimate equals the one on
+ * fresh pairs (the pairs keep the layouts' coordinates between calls). */
+SB_TEST(shared_pairs_equal_fresh) {
+    sb_param_t *p[3] = {NULL, NULL, NULL};
+    sb_source_t *src[3] = {NULL, NULL, NULL};
+    sb_factors_t *f[3];
+    f[0] = factor_exr(GGX_SPEC "0.3", SB_PARAM_IO, 12, 2, SB_FORM_F, 0, &p[0], &src[0]);
+    f[1] = factor_exr(GGX_SPEC "0.3", SB_PARAM_HD, 12, 2, SB_FORM_F, 0, &p[1], &src[1]);
+    sb_estimate_opts_t o = {0}, few, grow;
+    o.start = 4;
+    o.replicate = 256;
+    o.max_pairs = 16 * 256;
+    few = o;
+    few.replicates = 2; /* the first replicates only (screening) */
+    grow = o;
+    grow.rel_se = 1e-6; /* not met: the pairs double up to max_pairs */
+    grow.max_pairs = 64 * 256;
+    sb_pairs_t *shared = NULL;
+    CHECK(sb_pairs_create(NULL, src[0], &o, &shared) == SB_OK);
+    const sb_estimate_opts_t *seq[] = {&few, &o, &few, &o, &o};
+    for (size_t s = 0; s < sizeof seq / sizeof *seq; s++)
+        for (int k = 0; k < 2; k++)
+            same_as_fresh(src[0], shared, f[k], p[k], seq[s], k ? "hd" : "io");
+    /* a new layout where the io one was: its own coordinates, not the old ones */
+    sb_factors_destroy(f[0]);
+    sb_param_destroy(p[0]);
+    f[2] = factor_exr(GGX_SPEC "0.3", SB_PARAM_IO, 8, 2, SB_FORM_F, 0, &p[2], &src[2]);
+    same_as_fresh(src[0], shared, f[2], p[2], &o, "io after another io");
+    /* the pairs grow; estimates after that still equal fresh ones */
+    size_t before = sb_pairs_count(shared);
+    same_as_fresh(src[0], shared, f[1], p[1], &grow, "hd while the pairs grow");
+    CHECKF(sb_pairs_count(shared) > before, "%zu pairs before, %zu after", before, sb_pairs_count(shared));
+    same_as_fresh(src[0], shared, f[1], p[1], &o, "hd after growth");
+    same_as_fresh(src[0], shared, f[2], p[2], &few, "io, first replicates, after growth");
+    sb_pairs_destroy(shared);
+    for (int k = 1; k < 3; k++) {
+        sb_factors_destroy(f[k]);
+        sb_param_destroy(p[k]);
+    }
+    for (int k = 0; k < 3; k++)
+        sb_source_destroy(src[k]);
+}
+
 /* Honest nesting, the issue's case: GGX roughness 0.3, F0 0.04, iso,
  * J = 8, a masked fit.  The native errors written for J' = 1..8 are
  * non-increasing (they were 0.230, 0.223, 0.0126, 0.0294, ...), and so is

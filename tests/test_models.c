@@ -1,6 +1,7 @@
 /* Analytic models: values against the formulas written out again from the
- * seeds, reciprocity, isotropy, flags, energy (directional albedo by
- * adaptive quadrature), special configurations, spec errors and presets. */
+ * lecture and the paper, reciprocity, isotropy, flags, energy (directional
+ * albedo by adaptive quadrature), special configurations, spec errors and
+ * presets. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -11,9 +12,10 @@
 
 /* ---- small vector helpers (GLSL style, as in the lecture) ------------ */
 
-/* The reference formulas are evaluated in long double: they are the seeds'
- * expressions as written, some of which lose digits in double (the GGX
- * denominator (n.h)^2 (alpha^2 - 1) + 1 cancels for sharp lobes). */
+/* The reference formulas are evaluated in long double: they are the
+ * lecture's and the paper's expressions as written, some of which lose
+ * digits in double (the GGX denominator (n.h)^2 (alpha^2 - 1) + 1 cancels
+ * for sharp lobes). */
 typedef long double ld;
 
 static ld dot(const ld a[3], const ld b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -49,7 +51,7 @@ static sb_source_t *make(const char *spec) {
     return s;
 }
 
-/* ---- reference formulas, written out from the seeds ------------------ */
+/* ---- reference formulas, written out from the lecture and the paper ---- */
 
 typedef struct ref {
     const char *model;

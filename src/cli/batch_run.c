@@ -34,8 +34,12 @@ void batch_key(batch_item_t *it) {
              it->source, o->param ? o->param : "auto", o->form ? o->form : "-", o->weighted, o->zero_fill, o->res,
              o->terms, o->metric_res, o->max_error, o->theta_max_deg, (int)o->method, o->seed, o->channels, o->half,
              o->previews, m->format ? m->format : "auto", (int)m->interp, m->neighbours, m->radius, (int)m->white);
-    size_t n = strlen(it->key); /* a budget's sets are other sets (keys without one unchanged) */
-    if (o->budget) snprintf(it->key + n, sizeof it->key - n, " budget=%zu", o->budget);
+    /* settings added later only when given: the keys of sets without them stay as they were */
+    size_t n = strlen(it->key);
+    if (o->budget) n += (size_t)snprintf(it->key + n, sizeof it->key - n, " budget=%zu", o->budget);
+    if (o->warp && n < sizeof it->key) n += (size_t)snprintf(it->key + n, sizeof it->key - n, " warp=%s", o->warp);
+    if (o->scene && n < sizeof it->key) n += (size_t)snprintf(it->key + n, sizeof it->key - n, " scene=%s", o->scene);
+    if (o->plain_terms && n < sizeof it->key) snprintf(it->key + n, sizeof it->key - n, " plain_terms=1");
 }
 
 int batch_done(const char *dir, batch_item_t *it) {

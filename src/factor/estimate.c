@@ -17,8 +17,10 @@
  * the bit on any thread count. */
 #include "sepbrdf/estimate.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -202,6 +204,10 @@ sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, con
     sb_estimate_opts_t o = opts_or_default(opts);
     sb_pairs_t *P = calloc(1, sizeof *P);
     if (!P) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
+    if (pthread_mutex_init(&P->mu, NULL) != 0) {
+        free(P);
+        return sb_error(ctx, SB_ERR_NOMEM, "estimate: cannot create a lock");
+    }
     P->src = src;
     P->rep = o.replicate;
     P->seed = o.seed;
@@ -226,6 +232,11 @@ sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, con
 
 void sb_pairs_destroy(sb_pairs_t *P) {
     if (!P) return;
+    for (int s = 0; s < EST_COORD_SLOTS; s++) {
+        free(P->coords[s].st);
+        free(P->coords[s].in);
+    }
+    pthread_mutex_destroy(&P->mu);
     free(P->d);
     free(P->known);
     free(P);
@@ -264,11 +275,79 @@ static double tap(const double *t, const size_t at[4], const double fw[4]) {
     return fw[0] * t[at[0]] + fw[1] * t[at[1]] + fw[2] * t[at[2]] + fw[3] * t[at[3]];
 }
 
-/* Reconstructed RGB of every prefix at one pair: rec[j * 3 + c]; 0 outside. */
-void est_reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec) {
+/* ---- coordinates of the pairs under a layout --------------------------- */
+
+/* A slot to fill: an empty one, else the least recently used one nobody
+ * reads; NULL when all are read.  Under P->mu. */
+static est_coords_t *coords_victim(sb_pairs_t *P) {
+    est_coords_t *v = NULL;
+    for (int s = 0; s < EST_COORD_SLOTS; s++) {
+        est_coords_t *c = &P->coords[s];
+        if (c->users) continue;
+        if (!c->serial) return c;
+        if (!v || c->used < v->used) v = c;
+    }
+    return v;
+}
+
+est_coords_t *est_coords_acquire(const sb_pairs_t *cP, const sb_param_t *p, size_t need, int *ready) {
+    sb_pairs_t *P = (sb_pairs_t *)cP; /* the slots are a memo: the pairs themselves stay as they are */
+    unsigned long serial = sb_param_serial_(p);
+    *ready = 0;
+    if (!P || !serial || !need) return NULL;
+    pthread_mutex_lock(&P->mu);
+    est_coords_t *co = NULL;
+    for (int s = 0; s < EST_COORD_SLOTS && !co; s++)
+        if (P->coords[s].serial == serial && P->coords[s].n >= need) co = &P->coords[s];
+    *ready = co != NULL;
+    if (!co && (co = coords_victim(P)) != NULL) co->serial = 0; /* being filled: nobody else finds it */
+    if (co) co->users++, co->used = ++P->tick;
+    pthread_mutex_unlock(&P->mu);
+    if (!co || *ready) return co;
+    if (co->cap < need) {
+        free(co->st), free(co->in);
+        co->st = malloc(need * 4 * sizeof *co->st);
+        co->in = malloc(need);
+        co->cap = co->st && co->in ? need : 0;
+    }
+    co->n = 0;
+    if (co->cap) return co;
+    est_coords_release(P, co, p, 0);
+    return NULL;
+}
+
+void est_coords_release(const sb_pairs_t *cP, est_coords_t *co, const sb_param_t *p, size_t filled) {
+    if (!cP || !co) return;
+    sb_pairs_t *P = (sb_pairs_t *)cP;
+    pthread_mutex_lock(&P->mu);
+    if (filled) {
+        co->n = filled;
+        co->serial = sb_param_serial_(p);
+    }
+    co->users--;
+    pthread_mutex_unlock(&P->mu);
+}
+
+/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside. */
+void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     double sg[2], sh[2], fg[4], fh[4];
     size_t ag[4], ah[4], J = e->J, C = e->C;
-    if (!sb_param_coords(e->p, wi, wo, sg, sh)) {
+    const double *wi = e->P->d + i * PD, *wo = wi + 3;
+    est_coords_t *co = e->co;
+    int in;
+    if (co && e->co_ready && i < co->n) {
+        const double *st = co->st + 4 * i;
+        sg[0] = st[0], sg[1] = st[1], sh[0] = st[2], sh[1] = st[3];
+        in = co->in[i];
+    } else {
+        in = sb_param_coords(e->p, wi, wo, sg, sh);
+        if (co && !e->co_ready && i < co->cap) { /* filling: each pair written by the unit that owns it */
+            double *st = co->st + 4 * i;
+            st[0] = sg[0], st[1] = sg[1], st[2] = sh[0], st[3] = sh[1];
+            co->in[i] = (unsigned char)in;
+        }
+    }
+    if (!in) {
         memset(rec, 0, J * 3 * sizeof *rec);
         return;
     }
@@ -285,9 +364,29 @@ void est_reconstruct(const eval_t *e, const double *wi, const double *wo, double
     }
 }
 
-static size_t bin_of(double r) {
-    if (!(r > 1e-12)) return 0;
-    double b = (log10(r) + 12) * 40;
+/* log2 x for x > 0 to about 1e-9: exponent from the bits, the mantissa
+ * m in [1/sqrt 2, sqrt 2) through ln m = 2 atanh t, t = (m - 1)/(m + 1),
+ * |t| <= 0.172.  libm's log10 per pair, term and channel was a quarter of
+ * a whole io run. */
+static double log2_fast(double x) {
+    if (!(x >= DBL_MIN) || !(x <= DBL_MAX)) return log2(x);
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    int ex = (int)((b >> 52) & 0x7ff) - 1023;
+    b = (b & 0x000fffffffffffffULL) | 0x3ff0000000000000ULL;
+    double m;
+    memcpy(&m, &b, sizeof m);
+    if (m > 1.4142135623730951) m *= 0.5, ex++;
+    double t = (m - 1) / (m + 1), s = t * t;
+    double ln = 2 * t * (1 + s * (1.0 / 3 + s * (1.0 / 5 + s * (1.0 / 7 + s * (1.0 / 9 + s / 11)))));
+    return ex + ln * 1.4426950408889634;
+}
+
+/* The histogram bin of relative error r = sqrt(d2 / f2), from the squares:
+ * 40 bins a decade from 1e-12 (bin 0 below); lf2 = log2 f2. */
+static size_t bin_of(double d2, double f2, double lf2) {
+    if (!(d2 > 1e-24 * f2)) return 0;
+    double b = 20 * 0.30102999566398120 * (log2_fast(d2) - lf2) + 480;
     return b >= NB - 1 ? NB - 1 : (size_t)b;
 }
 
@@ -295,8 +394,10 @@ static size_t bin_of(double r) {
 static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
     const double *f = d + 7, w = d[6];
     double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
-    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
+    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4];
     f2[3] = f2[0] + f2[1] + f2[2];
+    for (int c = 0; c < 4; c++)
+        lf2[c] = f2[c] > 0 ? log2_fast(f2[c]) : 0;
     uint64_t ew[4];
     for (int c = 0; c < 4; c++)
         ew[c] = e->P->e0[c] > 0 ? (uint64_t)(f2[c] * ci2 * w / e->P->e0[c] * 0x1.0p40) : 0;
@@ -321,9 +422,9 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
         maxv[j] = fmax(maxv[j], vmax);
         for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
-            double rel = sqrt(d2[c] / f2[c]);
-            hist[(j * 4 + c) * NB + bin_of(rel)] += ew[c];
-            maxr[j * 4 + c] = fmax(maxr[j * 4 + c], rel);
+            hist[(j * 4 + c) * NB + bin_of(d2[c], f2[c], lf2[c])] += ew[c];
+            double rel2 = d2[c] / f2[c]; /* maxr holds squares: roots taken in combine() */
+            if (rel2 > maxr[j * 4 + c]) maxr[j * 4 + c] = rel2;
         }
     }
 }
@@ -347,7 +448,7 @@ static void eval_unit(void *user, size_t k, int t) {
             den[q * 4 + 3] += (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * qw[q] * d[6];
         }
         e->meas[k] += d[6];
-        est_reconstruct(e, d, d + 3, rec);
+        est_reconstruct(e, i, rec);
         add_pair(e, d, rec, num, neg, t);
     }
 }
@@ -396,7 +497,7 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
                 const uint64_t *src = e->hist + ((size_t)t * J * 4 + j * 4 + (size_t)c) * NB;
                 for (size_t b = 0; b < NB; b++)
                     hb[b] += src[b];
-                mx = fmax(mx, e->maxr[((size_t)t * J + j) * 4 + (size_t)c]);
+                mx = fmax(mx, sqrt(e->maxr[((size_t)t * J + j) * 4 + (size_t)c]));
             }
             for (size_t b = 0; b < NB; b++)
                 total += hb[b];
@@ -499,6 +600,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
         use = use < pairs->nrep ? use : pairs->nrep;
         kmax = 0;
     }
+    e.co = est_coords_acquire(pairs, p, use * pairs->rep, &e.co_ready);
     sb_result_t r = eval_alloc(ctx, &e, kmax > use ? kmax : use, nt);
     /* evaluate the replicates not yet evaluated, then add replicates
      * (doubling) until the headline's standard error meets the target */
@@ -512,6 +614,8 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
         use = pairs->nrep;
     }
     if (r == SB_OK) finish(pairs, use * pairs->rep, out);
+    size_t filled = e.co && !e.co_ready && r == SB_OK ? use * pairs->rep : 0;
+    est_coords_release(pairs, e.co, p, e.co && filled > e.co->cap ? e.co->cap : filled);
     free(ones);
     est_eval_free(&e);
     return r == SB_OK ? SB_OK : sb_error(ctx, r, "estimate: out of memory");

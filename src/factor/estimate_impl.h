@@ -4,12 +4,30 @@
 #ifndef SEPBRDF_ESTIMATE_IMPL_H
 #define SEPBRDF_ESTIMATE_IMPL_H
 
+#include <pthread.h>
+
 #include "sepbrdf/estimate.h"
 
 #define PD 10   /* doubles per pair */
 #define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
 #define MAXT 64 /* threads */
 #define QC (SB_EST_Q_COUNT_ * 4)
+
+/* The texture coordinates of the pairs under one parameterisation: the
+ * estimator evaluates many factorisations of the same layout on the same
+ * pairs (screening, texel fits, term weights), and the coordinates
+ * (acos, atan2 per pair) were a tenth of a default run.  Filled once,
+ * then read only while users > 0. */
+typedef struct est_coords {
+    unsigned long serial; /* sb_param_serial_ of the layout; 0: empty or being filled */
+    size_t n, cap;        /* pairs covered (the first n), room */
+    double *st;           /* cap x 4: s, t on side g, then on side h */
+    unsigned char *in;    /* cap: the pair is in the layout's domain */
+    int users;
+    unsigned long used; /* when last acquired (eviction) */
+} est_coords_t;
+
+#define EST_COORD_SLOTS 4
 
 struct sb_pairs {
     const sb_source_t *src;
@@ -20,6 +38,9 @@ struct sb_pairs {
     double *d;            /* n x PD */
     unsigned char *known; /* n */
     double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */
+    pthread_mutex_t mu;   /* guards the slots' bookkeeping */
+    est_coords_t coords[EST_COORD_SLOTS];
+    unsigned long tick;
 };
 
 typedef struct eval {
@@ -30,6 +51,8 @@ typedef struct eval {
     size_t tw[2], th[2];
     int wrap[2][2];
     const double *scale; /* J per-term factors */
+    est_coords_t *co;    /* the pairs' coordinates under p (co_ready), or being filled, or NULL */
+    int co_ready;
     sb_form_t form;
     int headline_only; /* no per-pair histograms or maxima (p99, max_rel 0) */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
@@ -41,8 +64,15 @@ typedef struct eval {
 
 /* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
 void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user);
-/* Reconstructed RGB of every prefix at one pair: rec[j * 3 + c]; 0 outside. */
-void est_reconstruct(const eval_t *e, const double *wi, const double *wo, double *rec);
+/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside. */
+void est_reconstruct(const eval_t *e, size_t i, double *rec);
+/* The coordinates of P's first `need` pairs under p: *ready when a slot
+ * has them (est_reconstruct reads them), else a slot est_reconstruct
+ * fills as it goes (each pair by the unit that owns it); NULL when every
+ * slot is in use or memory is short.  est_coords_release(.., filled)
+ * publishes the first `filled` pairs (0: nothing was filled). */
+est_coords_t *est_coords_acquire(const sb_pairs_t *P, const sb_param_t *p, size_t need, int *ready);
+void est_coords_release(const sb_pairs_t *P, est_coords_t *co, const sb_param_t *p, size_t filled);
 /* e's textures, sizes, wraps and per-term scales (*ones: scales or 1) for
  * the first min(J, SB_EST_MAXJ) terms of f; SB_OK or SB_ERR_NOMEM. */
 sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p, double **ones);

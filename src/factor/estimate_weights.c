@@ -32,7 +32,7 @@ static void tw_unit(void *user, size_t k, int t) {
         if (!P->known[i]) continue;
         const double *d = P->d + i * PD, *f = d + 7;
         double q = d[6] * d[2] * d[2];
-        est_reconstruct(e, d, d + 3, rec);
+        est_reconstruct(e, i, rec);
         for (int c = 0; c < 3; c++) {
             size_t fc = C == 1 ? 0 : (size_t)c;
             double *G = s + fc * (L + J), *b = G + L;
@@ -60,6 +60,7 @@ sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs,
     if (nt > MAXT) nt = MAXT;
     double *tot = sb_calloc(ctx, len, sizeof *tot, "term weights");
     tw_sums_t ts = {&e, 0, sb_alloc(ctx, block * len, sizeof(double), "term weights")};
+    e.co = tot && ts.sums ? est_coords_acquire(pairs, p, pairs->n, &e.co_ready) : NULL;
     if (!tot || !ts.sums) {
         free(tot);
         free(ts.sums);
@@ -98,6 +99,7 @@ sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs,
             *wj = Gj[j] - 2 * num > 0 ? fmin(fmax(num / Gj[j], 0), 1) : 1;
         }
     }
+    est_coords_release(pairs, e.co, p, e.co_ready ? 0 : pairs->n);
     free(tot);
     free(ts.sums);
     free(ones);

@@ -2,6 +2,7 @@
  * helpers, spherical angles. */
 #include <errno.h>
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -179,6 +180,8 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     /* 0 and pi/2 up to rounding (e.g. 90 degrees converted) mean the hemisphere */
     if (p->opts.theta_max == 0 || fabs(p->opts.theta_max - SB_PI / 2) < 1e-12) p->opts.theta_max = SB_PI / 2;
     p->kind = kind;
+    static atomic_ulong serials;
+    p->serial = atomic_fetch_add(&serials, 1) + 1;
     sb_result_t r;
     if (p->opts.res < 2 || p->opts.res > 4096) {
         r = sb_error(ctx, SB_ERR_RANGE, "resolution %zu out of range, need 2..4096", p->opts.res);
@@ -203,6 +206,8 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     *out = p;
     return SB_OK;
 }
+
+unsigned long sb_param_serial_(const sb_param_t *p) { return p ? p->serial : 0; }
 
 void sb_param_destroy(sb_param_t *p) {
     if (!p) return;

@@ -109,37 +109,72 @@ typedef struct iso_job {
     const sb_source_t *src;
     const sb_param_t *param;
     sb_matrix_t *m;
-    size_t R, a0, a1; /* table slices (theta_i) or matrix columns */
+    size_t R, a0, a1; /* table chunks of ISO_CHUNK theta_i, azimuth differences or matrix columns */
     double *tab[3];   /* per channel, NULL when not built */
     unsigned char *known;
-    size_t step; /* table: every step-th theta_i from a0 */
-    int recip;   /* table: reciprocal source, only theta_o >= theta_i */
+    size_t step;        /* table: every step-th chunk from a0 */
+    int recip;          /* table: reciprocal source, only theta_o >= theta_i */
+    const double *wi;   /* R directions theta_i (phi_i at the first cell centre) */
+    const double *wo;   /* R^2 directions (theta_o, d): wo + 3 (d R + ot) */
+    const double *cosi; /* cos theta of the R elevations */
+    sb_form_t form;
 } iso_job_t;
 
+/* theta_i a table chunk: one cache line of doubles, so the threads write
+ * whole lines of the table (theta_i runs fastest in it). */
+#define ISO_CHUNK 8
+
 static size_t iso_at(size_t R, size_t it, size_t ot, size_t d) { return it + (d * R + ot) * R; }
+
+static void iso_cell(const iso_job_t *j, size_t it, size_t ot, size_t d) {
+    const double *wi = j->wi + 3 * it, *wo = j->wo + 3 * (d * j->R + ot);
+    double rgb[3] = {0, 0, 0};
+    int known = sb_source_eval(j->src, wi, wo, rgb);
+    double w = sb_form_weight(j->m->form, wi, wo);
+    for (int c = 0; c < 3; c++) {
+        rgb[c] = known ? rgb[c] * w : 0.0;
+        if (!isfinite(rgb[c])) known = 0;
+    }
+    size_t at = iso_at(j->R, it, ot, d);
+    for (int c = 0; c < 3; c++)
+        if (j->tab[c]) j->tab[c][at] = known ? rgb[c] : 0.0;
+    j->known[at] = (unsigned char)known;
+}
 
 static void *iso_table(void *arg) {
     iso_job_t *j = arg;
     size_t R = j->R;
-    double tmax = sb_param_theta_max(j->param), dt = tmax / (double)R, dp = 2 * SB_PI / (double)R;
-    double wi[3], wo[3], rgb[3];
-    for (size_t it = j->a0; it < j->a1; it += j->step) {
-        sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi);
+    for (size_t k = j->a0; k < j->a1; k += j->step) {
+        size_t i0 = k * ISO_CHUNK, i1 = i0 + ISO_CHUNK < R ? i0 + ISO_CHUNK : R;
         for (size_t d = 0; d < R; d++)
-            for (size_t ot = j->recip ? it : 0; ot < R; ot++) {
-                size_t at = iso_at(R, it, ot, d);
-                sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo);
-                rgb[0] = rgb[1] = rgb[2] = 0;
-                int known = sb_source_eval(j->src, wi, wo, rgb);
-                double w = sb_form_weight(j->m->form, wi, wo);
-                for (int c = 0; c < 3; c++) {
-                    rgb[c] = known ? rgb[c] * w : 0.0;
-                    if (!isfinite(rgb[c])) known = 0;
+            for (size_t ot = j->recip ? i0 : 0; ot < R; ot++)
+                for (size_t it = i0, end = j->recip && ot + 1 < i1 ? ot + 1 : i1; it < end; it++)
+                    iso_cell(j, it, ot, d);
+    }
+    return NULL;
+}
+
+/* Reciprocity: swapping wi and wo and rotating by -phi_o gives
+ * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d); the form cos is
+ * f cos(theta_i), not symmetric: move the cosine across.  Azimuth
+ * differences [a0, a1), one channel (then the flags) at a time, theta_i
+ * innermost: the cells written run contiguously, those read lie in one
+ * R x R plane. */
+static void *iso_mirror(void *arg) {
+    const iso_job_t *j = arg;
+    size_t R = j->R;
+    for (int c = 0; c < 4; c++) {
+        double *t = c < 3 ? j->tab[c] : NULL;
+        if (c < 3 && !t) continue;
+        for (size_t d = j->a0; d < j->a1; d++)
+            for (size_t ot = 0; ot < R; ot++)
+                for (size_t it = ot + 1; it < R; it++) {
+                    size_t at = iso_at(R, it, ot, d), from = iso_at(R, ot, it, (R - d) % R);
+                    if (!t)
+                        j->known[at] = j->known[from];
+                    else
+                        t[at] = t[from] * (j->form == SB_FORM_COS ? j->cosi[it] / j->cosi[ot] : 1);
                 }
-                for (int c = 0; c < 3; c++)
-                    if (j->tab[c]) j->tab[c][at] = known ? rgb[c] : 0.0;
-                j->known[at] = (unsigned char)known;
-            }
     }
     return NULL;
 }
@@ -216,21 +251,21 @@ static sb_result_t alloc_dense(sb_context_t *ctx, sb_matrix_t *m) {
     return m->mask ? SB_OK : SB_ERR_NOMEM;
 }
 
-/* Reciprocity: swapping wi and wo and rotating by -phi_o gives
- * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d); the form cos is
- * f cos(theta_i), not symmetric: move the cosine across. */
-static void mirror_reciprocal(const iso_job_t *j, double dt, sb_form_t form) {
-    size_t R = j->R;
-    for (size_t it = 0; it < R; it++)
-        for (size_t ot = 0; ot < it; ot++) {
-            double w = form == SB_FORM_COS ? cos((it + 0.5) * dt) / cos((ot + 0.5) * dt) : 1;
-            for (size_t d = 0; d < R; d++) {
-                size_t at = iso_at(R, it, ot, d), from = iso_at(R, ot, it, (R - d) % R);
-                for (int c = 0; c < 3; c++)
-                    if (j->tab[c]) j->tab[c][at] = j->tab[c][from] * w;
-                j->known[at] = j->known[from];
-            }
-        }
+/* The table's directions into dirs (3 R^2 + 3 R + R doubles): wo at
+ * (theta_o, d), wi at theta_i, and cos theta of each elevation. */
+static void iso_dirs(const sb_param_t *param, size_t R, double *dirs, iso_job_t *job) {
+    double dt = sb_param_theta_max(param) / (double)R, dp = 2 * SB_PI / (double)R;
+    double *wo = dirs, *wi = dirs + 3 * R * R, *cosi = wi + 3 * R;
+    for (size_t d = 0; d < R; d++)
+        for (size_t ot = 0; ot < R; ot++)
+            sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo + 3 * (d * R + ot));
+    for (size_t it = 0; it < R; it++) {
+        sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi + 3 * it);
+        cosi[it] = cos((it + 0.5) * dt);
+    }
+    job->wi = wi;
+    job->wo = wo;
+    job->cosi = cosi;
 }
 
 static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
@@ -242,18 +277,21 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
     if (r != SB_OK) return r;
     int nt = sb_thread_count(o->threads);
     if ((size_t)nt > R) nt = (int)R;
-    iso_job_t job = {src, param, out, R, 0, 0, {NULL, NULL, NULL}, NULL, 1, 0}, jobs[SB_THREADS_MAX];
+    iso_job_t job = {src, param, out, R, 0, 0, {NULL, NULL, NULL}, NULL, 1, 0, NULL, NULL, NULL, out->form};
+    iso_job_t jobs[SB_THREADS_MAX];
     job.recip = (sb_source_flags(src) & SB_SOURCE_RECIPROCAL) != 0;
     job.known = sb_alloc(ctx, n3, 1, "isotropic table");
-    r = job.known ? SB_OK : SB_ERR_NOMEM;
+    double *dirs = sb_alloc(ctx, 3 * R * (R + 1) + R, sizeof(double), "isotropic table directions");
+    r = job.known && dirs ? SB_OK : SB_ERR_NOMEM;
+    if (r == SB_OK) iso_dirs(param, R, dirs, &job);
     for (int c = 0; c < 3 && r == SB_OK; c++)
         if ((out->channels & (1u << c)) && !(job.tab[c] = sb_alloc_large(ctx, n3, sizeof(double), "isotropic table")))
             r = SB_ERR_NOMEM;
     if (r != SB_OK) goto done;
     for (int t = 0; t < nt; t++)
         jobs[t] = job;
-    run_parallel(iso_table, jobs, nt, R, job.recip);
-    if (job.recip) mirror_reciprocal(&job, sb_param_theta_max(param) / (double)R, out->form);
+    run_parallel(iso_table, jobs, nt, (R + ISO_CHUNK - 1) / ISO_CHUNK, job.recip);
+    if (job.recip) run_parallel(iso_mirror, jobs, nt, R, 0);
     size_t nknown = 0;
     for (size_t i = 0; i < n3; i++)
         nknown += job.known[i];
@@ -278,6 +316,7 @@ done:
     for (int c = 0; c < 3; c++)
         free(job.tab[c]);
     free(job.known);
+    free(dirs);
     return r;
 }
 
