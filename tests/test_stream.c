@@ -48,15 +48,18 @@ static sb_factors_t *factor(const sb_matrix_t *m, const sb_param_t *p, size_t J,
     return f;
 }
 
-/* Every way of reading a streamed matrix gives the stored matrix's bits. */
+/* Every way of reading a streamed matrix gives the stored matrix's bits,
+ * in every form (the streamed one weighs a cell by a row factor times a
+ * column factor). */
 SB_TEST(reads_as_stored) {
     sb_source_t *s = model(ANISO);
     static const sb_param_kind_t kinds[] = {SB_PARAM_IO, SB_PARAM_IO_AREA};
-    for (int k = 0; k < 2; k++) {
-        sb_param_t *p = layout(kinds[k], 6);
+    static const sb_form_t forms[] = {SB_FORM_F, SB_FORM_COS, SB_FORM_COS2};
+    for (int k = 0; k < 6; k++) {
+        sb_param_t *p = layout(kinds[k % 2], 6);
         sb_matrix_t d, m, e;
-        build(s, p, SB_FORM_COS, 0, &d);
-        build(s, p, SB_FORM_COS, 1, &m);
+        build(s, p, forms[k / 2], 0, &d);
+        build(s, p, forms[k / 2], 1, &m);
         CHECK(!d.mask && !m.mask && !m.data[0] && m.valid_count == d.valid_count);
         size_t n = d.rows, bad = 0;
         double *col = malloc(n * sizeof *col), *z = malloc(n * 3 * sizeof *z), *y1 = malloc(n * 3 * sizeof *y1),
@@ -141,6 +144,76 @@ SB_TEST(rank_one_and_stored) {
     sb_matrix_free(&m), sb_matrix_free(&d);
     sb_param_destroy(p);
     sb_source_destroy(s);
+}
+
+/* A pass cuts every block of columns among the threads, each multiplying
+ * its own columns and adding its part of X X^T Q: one thread, two and
+ * three (blocks of 85, 85, 85 and 1 columns, cut unevenly) give the same
+ * factors. */
+SB_TEST(threads_agree) {
+    sb_source_t *s = model(ANISO);
+    sb_param_t *p = layout(SB_PARAM_IO, 16);
+    sb_set_memory_limit((size_t)4 << 20); /* blocks of (4 MiB / 8) / (256 rows x 3 doubles) = 85 columns */
+    sb_matrix_t m;
+    build(s, p, SB_FORM_COS2, 1, &m);
+    static const char *const counts[] = {"1", "2", "3"};
+    sb_factors_t *f[3];
+    for (int t = 0; t < 3; t++) {
+        setenv("SEPBRDF_THREADS", counts[t], 1);
+        f[t] = factor(&m, p, 6, SB_METHOD_STREAM, 0);
+    }
+    unsetenv("SEPBRDF_THREADS");
+    sb_set_memory_limit(0);
+    for (int t = 1; t < 3; t++)
+        for (size_t j = 0; j < 6; j++)
+            for (size_t c = 0; c < 3; c++) {
+                CHECK_REL(sb_factors_sigma(f[t], j, c), sb_factors_sigma(f[0], j, c), 1e-10);
+                size_t e = sb_err_at(j, c);
+                CHECK_REL(sb_factors_errors(f[t])->rel_rms[e], sb_factors_errors(f[0])->rel_rms[e], 1e-10);
+            }
+    for (int t = 0; t < 3; t++)
+        sb_factors_destroy(f[t]);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* A grey source (R = G = B) streamed is factored on one channel, its
+ * residual pass reads one: every channel gets the bits that the three
+ * channels of the stored matrix give (the same passes, channel by
+ * channel); a coloured source keeps its channels apart. */
+SB_TEST(grey_one_channel) {
+    sb_source_t *grey = model("microfacet:base=0.6,roughness=0.4,anisotropy=0.8"), *col = model(ANISO);
+    CHECK(sb_source_flags(grey) & SB_SOURCE_GRAY);
+    CHECK(!(sb_source_flags(col) & SB_SOURCE_GRAY));
+    sb_param_t *p = layout(SB_PARAM_IO, 10);
+    sb_matrix_t d, m;
+    build(grey, p, SB_FORM_COS2, 0, &d);
+    build(grey, p, SB_FORM_COS2, 1, &m);
+    sb_factors_t *a = factor(&m, p, 5, SB_METHOD_STREAM, 1), *b = factor(&d, p, 5, SB_METHOD_STREAM, 1);
+    const sb_factor_errors_t *ea = sb_factors_errors(a), *eb = sb_factors_errors(b);
+    for (size_t j = 0; j < 5; j++)
+        for (size_t c = 0; c < 3; c++) {
+            CHECK(sb_factors_sigma(a, j, c) == sb_factors_sigma(b, j, c));
+            CHECK(sb_factors_sigma(a, j, c) == sb_factors_sigma(a, j, 0));
+            CHECK(ea->rel_rms[sb_err_at(j, c)] == eb->rel_rms[sb_err_at(j, c)]);
+            CHECK(ea->max_abs[sb_err_at(j, c)] == eb->max_abs[sb_err_at(j, c)]);
+            for (int side = 0; side < 2; side++) {
+                size_t n = side ? d.cols : d.rows;
+                int sd = side ? SB_SIDE_H : SB_SIDE_G;
+                CHECK(memcmp(sb_factors_tex_const(a, sd, j, c), sb_factors_tex_const(b, sd, j, c),
+                             n * sizeof(double)) == 0);
+            }
+        }
+    sb_factors_destroy(a), sb_factors_destroy(b);
+    sb_matrix_free(&m), sb_matrix_free(&d);
+    build(col, p, SB_FORM_COS2, 1, &m);
+    a = factor(&m, p, 2, SB_METHOD_STREAM, 0);
+    CHECK(sb_factors_sigma(a, 0, 0) > 1.2 * sb_factors_sigma(a, 0, 2)); /* base 0.9 against 0.3 */
+    sb_factors_destroy(a);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(grey), sb_source_destroy(col);
 }
 
 /* Beyond the memory limit a build that reads through the plan

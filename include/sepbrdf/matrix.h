@@ -87,7 +87,8 @@ typedef struct sb_matrix {
      * know read as 0 (as zero-filled) and valid_count counts every cell.
      * Read it through sb_matrix_at, sb_matrix_col, sb_matrix_cols or
      * sb_matrix_mul (each product one pass over the source).  `dirs` holds
-     * the row directions, then the column directions (3 doubles each). */
+     * the row directions, then the column directions (3 doubles each), then
+     * the factors of the form's weight of every row, then of every column. */
     int streamed;
     const sb_source_t *source;
     const sb_param_t *param;

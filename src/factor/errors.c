@@ -16,6 +16,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "sample/stream.h"
 #include "solve/solver.h"
 #include "util/internal.h"
 #include "util/parallel.h"
@@ -231,6 +232,22 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
     return res;
 }
 
+/* The first channel of m whose residual channel ch repeats (-1 if none):
+ * a grey streamed matrix (every channel the same cells) with the same
+ * textures bit for bit, as the stream solver gives them. */
+static int same_as_first(const sb_matrix_t *m, size_t J, const double *const g[3], const double *const h[3],
+                         size_t gstep, size_t hstep, int ch) {
+    int f = 0;
+    while (f < ch && !(g[f] && sb_matrix_has(m, f)))
+        f++;
+    if (f == ch || !g[ch] || !sb_matrix_has(m, ch) || !sb_matrix_stream_grey(m)) return -1;
+    for (size_t j = 0; j < J; j++)
+        if (memcmp(g[f] + j * gstep, g[ch] + j * gstep, m->rows * sizeof(double)) ||
+            memcmp(h[f] + j * hstep, h[ch] + j * hstep, m->cols * sizeof(double)))
+            return -1;
+    return f;
+}
+
 sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, const double *const g[3],
                             const double *const h[3], size_t gstep, size_t hstep, const double *wr, const double *wc,
                             double pw, double *ssq, double *mx, double *n2) {
@@ -242,8 +259,10 @@ sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, c
     double *bssq = mem + 3 * rows * b, *bmx = bssq + J, *scratch = bmx + J;
     memset(ssq, 0, 3 * J * sizeof *ssq);
     memset(mx, 0, 3 * J * sizeof *mx);
+    int same[3];
     for (int ch = 0; ch < 3; ch++) {
-        blk[ch] = g[ch] && sb_matrix_has(m, ch) ? mem + (size_t)ch * rows * b : NULL;
+        same[ch] = same_as_first(m, J, g, h, gstep, hstep, ch);
+        blk[ch] = g[ch] && sb_matrix_has(m, ch) && same[ch] < 0 ? mem + (size_t)ch * rows * b : NULL;
         n2[ch] = 0;
     }
     sb_result_t r = SB_OK;
@@ -265,6 +284,12 @@ sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, c
         }
     }
     free(mem);
+    for (int ch = 0; ch < 3; ch++)
+        if (same[ch] >= 0) {
+            memcpy(ssq + ch * J, ssq + same[ch] * J, J * sizeof *ssq);
+            memcpy(mx + ch * J, mx + same[ch] * J, J * sizeof *mx);
+            n2[ch] = n2[same[ch]];
+        }
     if (r == SB_OK) r = sb_group_reduce(ctx, ssq, 3 * J, SB_REDUCE_SUM);
     if (r == SB_OK) r = sb_group_reduce(ctx, n2, 3, SB_REDUCE_SUM);
     if (r == SB_OK) r = sb_group_reduce(ctx, mx, 3 * J, SB_REDUCE_MAX);

@@ -3,9 +3,10 @@
  *
  * On a layout whose rows and columns are separable and whose cells are all
  * BRDF pairs (io, io-area), cell (r, c) pairs the direction of row r with
- * that of column c; both lists are computed once (6 N doubles, 3 MiB at
- * io R = 256) and a block of columns is then one source evaluation a cell,
- * columns split among threads.  M_c[r, c] = w(wi, wo) f_c(wi, wo) as
+ * that of column c; both lists are computed once, with the factors of the
+ * form's weight a row and a column (8 N doubles, 4 MiB at io R = 256), and
+ * a block of columns is then one source evaluation a cell, columns split
+ * among threads.  M_c[r, c] = w(wi, wo) f_c(wi, wo) as
  * sb_matrix_build writes it; a value the source does not know (or a
  * non-finite one) reads as 0. */
 #include <math.h>
@@ -21,20 +22,26 @@ int sb_matrix_streamable(const sb_param_t *param) {
     return (caps & SB_CAP_SEPARABLE) && !(caps & SB_CAP_PARTIAL_DOMAIN);
 }
 
+/* The weight of the form is a product a(wi) b(wo) (f: 1, cos: cos theta_i,
+ * cos2: both cosines): a(wi) = w(wi, n) / w(n, n) and b(wo) = w(n, wo)
+ * with n the normal, computed once per row and column. */
 sb_result_t sb_matrix_build_streamed(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                                      sb_matrix_t *out) {
     size_t rows = out->rows, cols = out->cols, n;
-    if (sb_size_add(rows, cols, &n) || sb_size_mul(n, 3, &n))
+    if (sb_size_add(rows, cols, &n) || sb_size_mul(n, 4, &n))
         return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: %zu x %zu directions overflow", rows, cols);
     if (!(out->dirs = sb_alloc(ctx, n, sizeof(double), "streamed matrix directions"))) return SB_ERR_NOMEM;
-    double wi[3], wo[3];
+    double wi[3], wo[3], *wr = out->dirs + 3 * (rows + cols), *wc = wr + rows;
+    const double up[3] = {0, 0, 1}, wn = sb_form_weight(out->form, up, up);
     for (size_t r = 0; r < rows; r++) {
         sb_param_cell_dirs(param, r, 0, wi, wo);
         memcpy(out->dirs + 3 * r, wi, sizeof wi);
+        wr[r] = sb_form_weight(out->form, wi, up) / wn;
     }
     for (size_t c = 0; c < cols; c++) {
         sb_param_cell_dirs(param, 0, c, wi, wo);
         memcpy(out->dirs + 3 * (rows + c), wo, sizeof wo);
+        wc[c] = sb_form_weight(out->form, up, wo);
     }
     out->streamed = 1;
     out->source = src;
@@ -45,14 +52,18 @@ sb_result_t sb_matrix_build_streamed(sb_context_t *ctx, const sb_source_t *src, 
 
 /* One cell of a streamed matrix, every channel, as sb_matrix_build writes it. */
 static void stream_cell(const sb_matrix_t *m, size_t r, size_t c, double rgb[3]) {
-    const double *wi = m->dirs + 3 * r, *wo = m->dirs + 3 * (m->rows + c);
+    const double *wr = m->dirs + 3 * (m->rows + m->cols), *wc = wr + m->rows;
     rgb[0] = rgb[1] = rgb[2] = 0;
-    int known = sb_source_eval(m->source, wi, wo, rgb);
-    double w = sb_form_weight(m->form, wi, wo);
+    int known = sb_source_eval(m->source, m->dirs + 3 * r, m->dirs + 3 * (m->rows + c), rgb);
+    double w = wr[r] * wc[c];
     for (int ch = 0; ch < 3; ch++) {
         double v = known ? rgb[ch] * w : 0.0;
         rgb[ch] = isfinite(v) ? v : 0.0;
     }
+}
+
+int sb_matrix_stream_grey(const sb_matrix_t *m) {
+    return m && m->streamed && (sb_source_flags(m->source) & SB_SOURCE_GRAY);
 }
 
 double sb_matrix_stream_at(const sb_matrix_t *m, int ch, size_t row, size_t col) {
@@ -70,13 +81,16 @@ typedef struct block_job {
 static void *stream_block(void *arg) {
     const block_job_t *j = arg;
     const sb_matrix_t *m = j->m;
-    double rgb[3];
-    for (size_t c = j->c0; c < j->c1; c++)
+    double rgb[3], *col[3];
+    for (size_t c = j->c0; c < j->c1; c++) {
+        for (int ch = 0; ch < 3; ch++)
+            col[ch] = j->out[ch] ? j->out[ch] + (c - j->first) * j->ldo : NULL;
         for (size_t r = 0; r < m->rows; r++) {
             stream_cell(m, r, c, rgb);
             for (int ch = 0; ch < 3; ch++)
-                if (j->out[ch]) j->out[ch][r + (c - j->first) * j->ldo] = rgb[ch];
+                if (col[ch]) col[ch][r] = rgb[ch];
         }
+    }
     return NULL;
 }
 

@@ -14,6 +14,10 @@ int sb_matrix_streamable(const sb_param_t *param);
 sb_result_t sb_matrix_build_streamed(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                                      sb_matrix_t *out);
 
+/* Whether every channel of m reads the same bits: streamed from a grey
+ * source (SB_SOURCE_GRAY), so one channel's products serve all. */
+int sb_matrix_stream_grey(const sb_matrix_t *m);
+
 /* Cell (row, col) of channel ch of a streamed matrix. */
 double sb_matrix_stream_at(const sb_matrix_t *m, int ch, size_t row, size_t col);
 

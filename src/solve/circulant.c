@@ -171,27 +171,6 @@ static double phi_vec(const sb_circ_t *c, unsigned k, unsigned member, size_t i)
     return amp * sin(2 * SB_PI * (double)q / (double)R);
 }
 
-/* The blocks are small (R x R): OpenBLAS's threads cost more than they
- * save there (measured at R = 64: 6.5 ms a channel with one thread, 15-30
- * with two), so the block SVDs run with one BLAS thread and the setting is
- * restored afterwards. */
-static int blas_threads_begin(void) {
-#ifdef OPENBLAS_CONFIG_H
-    int n = openblas_get_num_threads();
-    if (n > 1) openblas_set_num_threads(1);
-    return n;
-#else
-    return 1;
-#endif
-}
-static void blas_threads_end(int n) {
-#ifdef OPENBLAS_CONFIG_H
-    if (n > 1) openblas_set_num_threads(n);
-#else
-    (void)n;
-#endif
-}
-
 /* Blocks [k0, k1) of one thread: the cosine transform of their columns
  * (pass 0) and dgesdd of each, values only (pass 0) or with vectors for
  * the blocks holding a selected triplet (pass 1), on the thread's own
@@ -240,11 +219,15 @@ static sb_result_t blocks_run(sb_circ_t *c, int pass) {
 static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
                             double *s, double *u, double *v, double *tails);
 
+/* The blocks are small (R x R): OpenBLAS's threads cost more than they
+ * save there (measured at R = 64: 6.5 ms a channel with one thread, 15-30
+ * with two), so the block SVDs run with one BLAS thread and the setting is
+ * restored afterwards (sb_blas_threads_begin). */
 sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale, double *s,
                         double *u, double *v, double *tails) {
-    int nt = blas_threads_begin();
+    int nt = sb_blas_threads_begin();
     sb_result_t r = circ_svd(c, a, ld, w, J, scale, s, u, v, tails);
-    blas_threads_end(nt);
+    sb_blas_threads_end(nt);
     return r;
 }
 

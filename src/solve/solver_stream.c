@@ -23,7 +23,9 @@
  * 4.0e-3, 8.7e-4, 2.0e-5.  Memory:
  * P l (rows + cols) + l rows doubles a channel plus one block of columns
  * (sb_solve_stream_cols), never rows x cols.  The plan (plan.c) measures the errors of the
- * stored textures in one more streamed pass (SB_CAP_STREAMED).
+ * stored textures in one more streamed pass (SB_CAP_STREAMED).  A grey
+ * streamed matrix (every channel the same cells) is factored on its first
+ * channel, whose results every channel takes.
  * Over a group of processes (common.h, sb_context_set_group: MPI ranks)
  * each reads every size-th block; Y is summed after every pass and C^T
  * (cols x L a channel) once before Rayleigh-Ritz, which every process
@@ -35,9 +37,11 @@
 
 #include <cblas.h>
 
+#include "sample/stream.h"
 #include "sepbrdf/matrix.h"
 #include "solve/solver.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 #include "util/rng.h"
 
 /* Power iterations by default: each one more pass over the source. */
@@ -46,7 +50,8 @@
 typedef struct stream_state {
     sb_context_t *ctx;
     size_t rows, cols, J, l, b;
-    int passes;
+    int passes, nt; /* passes over the matrix; threads of a pass */
+    int same;       /* channel whose results every channel takes (grey), or -1 */
     uint64_t seed;
     size_t L;                      /* P l: columns of the Krylov basis */
     sb_svd_t *small;               /* FULL SVD of C^T W (cols x L) */
@@ -55,6 +60,7 @@ typedef struct stream_state {
     double *s[3], *u[3], *v[3];    /* results: J, rows x J, cols x J a channel */
     double *g, *w, *ev, *ut, *cw;  /* L x L: G, W; L; L x J: U~; cols x L: C^T W */
     double *wu, *tau, *work, *mem; /* L x J: W U~; l; LAPACK workspace; one allocation */
+    double *yt;                    /* the parts of Y of threads 1 .. nt-1: rows x l a channel */
     lapack_int lwork;
 } stream_state_t;
 
@@ -86,7 +92,8 @@ static sb_result_t alloc_all(stream_state_t *s) {
     size_t rows = s->rows, cols = s->cols, l = s->l, J = s->J, L = s->L, per, total;
     if (sb_size_mul(rows + cols, L + l + J, &per) || sb_size_add(per, J + rows * s->b, &per) ||
         sb_size_mul(per, 3, &total) || sb_size_add(total, cols * L + 2 * L * L + 2 * L * J + L + l, &total) ||
-        sb_size_add(total, (size_t)s->lwork, &total))
+        sb_size_add(total, (size_t)s->lwork, &total) || sb_size_mul(rows * l, 3 * (size_t)(s->nt - 1), &per) ||
+        sb_size_add(total, per, &total))
         return sb_error(s->ctx, SB_ERR_OVERFLOW, "stream: workspace overflows");
     double *p = s->mem = sb_alloc(s->ctx, total, sizeof(double), "stream plan");
     if (!p) return SB_ERR_NOMEM;
@@ -106,6 +113,7 @@ static sb_result_t alloc_all(stream_state_t *s) {
     s->ut = p, p += L * J;
     s->wu = p, p += L * J;
     s->tau = p, p += l;
+    s->yt = p, p += rows * l * 3 * (size_t)(s->nt - 1);
     s->work = p;
     return SB_OK;
 }
@@ -124,6 +132,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->L = s->l * (size_t)s->passes;
     s->seed = pb->svd.seed ? pb->svd.seed : 1;
     s->b = sb_solve_stream_cols(pb->rows, pb->cols);
+    s->nt = sb_thread_count(0);
     sb_svd_opts_t so = {0};
     so.method = SB_METHOD_FULL;
     sb_result_t r = query_qr(s);
@@ -164,32 +173,79 @@ static void weigh_block(const stream_state_t *s, const sb_solve_in_t *in, double
             x[i + k * s->rows] *= in->wr[i] * in->wc[c0 + k];
 }
 
+/* One thread's columns [a, b) of the block at c0 in pass k: evaluated
+ * and weighed, their rows of C_k^T = X^T Q_k and, unless last, their part
+ * of X C_k^T added to y (this thread's sum; first: nothing added yet). */
+typedef struct slice {
+    stream_state_t *s;
+    const sb_solve_in_t *in;
+    const int *present;
+    size_t c0, a, b;
+    int k, last, first;
+    double *y[3];
+    sb_result_t r;
+} slice_t;
+
+static void *pass_slice(void *arg) {
+    slice_t *j = arg;
+    stream_state_t *s = j->s;
+    int rows = (int)s->rows, cols = (int)s->cols, l = (int)s->l, n = (int)(j->b - j->a);
+    double *x[3];
+    for (int c = 0; c < 3; c++)
+        x[c] = j->present[c] ? s->blk[c] + (j->a - j->c0) * s->rows : NULL;
+    if (n == 0 || j->r != SB_OK) return NULL;
+    j->r = sb_matrix_cols(s->ctx, j->in->m, j->a, j->b, x, s->rows, 1);
+    for (int c = 0; c < 3 && j->r == SB_OK; c++) {
+        if (!j->present[c]) continue;
+        double *q = s->k[c] + (size_t)j->k * s->l * s->rows, *ct = s->ct[c] + (size_t)j->k * s->l * s->cols + j->a;
+        weigh_block(s, j->in, x[c], j->a, (size_t)n);
+        cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, n, l, rows, 1.0, x[c], rows, q, rows, 0.0, ct, cols);
+        if (!j->last)
+            cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, rows, l, n, 1.0, x[c], rows, ct, cols,
+                        j->first ? 0.0 : 1.0, j->y[c], rows);
+    }
+    j->first = 0;
+    return NULL;
+}
+
+/* Step: Y = the threads' parts added in thread order (0 where none). */
+static void sum_parts(stream_state_t *s, const slice_t *sl, int c) {
+    size_t n = s->rows * s->l;
+    if (sl[0].first) memset(s->y[c], 0, n * sizeof(double));
+    for (int t = 1; t < s->nt; t++)
+        for (size_t i = 0; !sl[t].first && i < n; i++)
+            s->y[c][i] += sl[t].y[c][i];
+}
+
 /* Step: pass k over the blocks: C_k^T = X^T Q_k and, unless last, Y = X C_k^T.
+ * Every block is cut among the threads, each evaluating its columns and
+ * multiplying them itself with BLAS on one thread (sb_blas_threads_begin).
  * In a group (sb_context_set_group) this process reads its own blocks:
  * its rows of C_k^T (the others stay 0) and its part of Y, summed over
  * the group at the end of the pass. */
 static sb_result_t one_pass(stream_state_t *s, const sb_solve_in_t *in, const int *present, int k, int last) {
-    int rows = (int)s->rows, cols = (int)s->cols, l = (int)s->l, first = 1;
+    slice_t sl[SB_THREADS_MAX];
+    for (int t = 0; t < s->nt; t++) {
+        sl[t] = (slice_t){.s = s, .in = in, .present = present, .k = k, .last = last, .first = 1, .r = SB_OK};
+        for (int c = 0; c < 3; c++)
+            sl[t].y[c] = t == 0 ? s->y[c] : s->yt + ((size_t)(t - 1) * 3 + (size_t)c) * s->rows * s->l;
+    }
+    int blas = sb_blas_threads_begin();
     for (size_t c0 = 0; c0 < s->cols; c0 += s->b) {
         size_t n = c0 + s->b < s->cols ? s->b : s->cols - c0;
         if (!sb_group_owns(s->ctx, c0 / s->b)) continue;
-        sb_result_t r = sb_matrix_cols(s->ctx, in->m, c0, c0 + n, s->blk, s->rows, 0);
-        if (r != SB_OK) return r;
-        for (int c = 0; c < 3; c++) {
-            if (!present[c]) continue;
-            double *q = s->k[c] + (size_t)k * s->l * s->rows, *ct = s->ct[c] + (size_t)k * s->l * s->cols + c0;
-            weigh_block(s, in, s->blk[c], c0, n);
-            cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, (int)n, l, rows, 1.0, s->blk[c], rows, q, rows, 0.0,
-                        ct, cols);
-            if (!last)
-                cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, rows, l, (int)n, 1.0, s->blk[c], rows, ct, cols,
-                            first ? 0.0 : 1.0, s->y[c], rows);
+        for (int t = 0; t < s->nt; t++) {
+            sb_part(n, t, s->nt, &sl[t].a, &sl[t].b);
+            sl[t].c0 = c0, sl[t].a += c0, sl[t].b += c0;
         }
-        first = 0;
+        sb_parallel_run(pass_slice, sl, sizeof *sl, s->nt, NULL, NULL);
     }
+    sb_blas_threads_end(blas);
+    for (int t = 0; t < s->nt; t++)
+        if (sl[t].r != SB_OK) return sl[t].r;
     for (int c = 0; c < 3 && !last; c++) {
         if (!present[c]) continue;
-        if (first) memset(s->y[c], 0, s->rows * s->l * sizeof(double)); /* no block of this process */
+        sum_parts(s, sl, c);
         sb_result_t r = sb_group_reduce(s->ctx, s->y[c], s->rows * s->l, SB_REDUCE_SUM);
         if (r != SB_OK) return r;
     }
@@ -236,9 +292,12 @@ static sb_result_t small_svd(stream_state_t *s, int c) {
 
 /* Every channel of the matrix, in P passes. */
 static sb_result_t factor_all(stream_state_t *s, const sb_solve_in_t *in) {
-    int present[3];
+    int present[3], first = 0;
+    while (first < 2 && !sb_matrix_has(in->m, first))
+        first++;
+    s->same = sb_matrix_stream_grey(in->m) ? first : -1; /* one channel for all: a third of the products */
     for (int c = 0; c < 3; c++)
-        present[c] = sb_matrix_has(in->m, c);
+        present[c] = sb_matrix_has(in->m, c) && (s->same < 0 || c == first);
     sb_result_t r = draw_omega(s, present);
     for (int c = 0; c < 3 && sb_group_active(s->ctx); c++) /* the rows of C^T of others' blocks */
         if (present[c]) memset(s->ct[c], 0, s->cols * s->L * sizeof(double));
@@ -265,9 +324,10 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         sb_result_t r = factor_all(s, in);
         if (r != SB_OK) return r;
     }
-    memcpy(out->s, s->s[c], s->J * sizeof(double));
-    memcpy(out->u, s->u[c], s->rows * s->J * sizeof(double));
-    memcpy(out->v, s->v[c], s->cols * s->J * sizeof(double));
+    int from = s->same >= 0 ? s->same : c;
+    memcpy(out->s, s->s[from], s->J * sizeof(double));
+    memcpy(out->u, s->u[from], s->rows * s->J * sizeof(double));
+    memcpy(out->v, s->v[from], s->cols * s->J * sizeof(double));
     return SB_OK;
 }
 

@@ -8,8 +8,18 @@
 
 /* ---- shared pieces ------------------------------------------------------ */
 
+/* max(x, lo) and min(x, hi) as fmax/fmin give them for a NaN x (the bound),
+ * written out: libm's fmax/fmin are calls (through the PLT) where these
+ * are a compare, and they sit in the inner loop of every matrix cell. */
+static inline double max_lo(double x, double lo) { return x > lo ? x : lo; }
+static inline double min_hi(double x, double hi) { return x < hi ? x : hi; }
+/* x^5 as products: pow() was 18 % of a streamed factorisation (perf). */
+static inline double pow5(double x) {
+    double x2 = x * x;
+    return x2 * x2 * x;
+}
 static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-static double clamp01(double x) { return fmin(fmax(x, 0.0), 1.0); }
+static double clamp01(double x) { return min_hi(max_lo(x, 0.0), 1.0); }
 
 static int below_horizon(const double l[3], const double v[3], double rgb[3]) {
     if (l[2] > 0 && v[2] > 0) return 0;
@@ -21,13 +31,19 @@ static int below_horizon(const double l[3], const double v[3], double rgb[3]) {
  * length is taken after scaling by the largest component, so that it does
  * not underflow to 0 for grazing l = -v (l_z = v_z = 1e-300). */
 static void half_vector(const double l[3], const double v[3], double h[3]) {
-    double s[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
-    double big = fmax(fabs(s[0]), fmax(fabs(s[1]), s[2]));
+    double s[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]}, len2 = dot3(s, s);
+    if (len2 > 0x1p-900) { /* far from underflow: one quotient, then products (each ~1 ulp) */
+        double ilen = 1 / sqrt(len2);
+        for (int i = 0; i < 3; i++)
+            h[i] = s[i] * ilen;
+        return;
+    }
+    double big = max_lo(fabs(s[0]), max_lo(fabs(s[1]), s[2]));
     for (int i = 0; i < 3; i++)
-        s[i] /= big;
-    double len = sqrt(dot3(s, s));
+        s[i] /= big;                    /* not * (1 / big): that overflows for a subnormal big */
+    double ilen = 1 / sqrt(dot3(s, s)); /* len in [1, sqrt 3]: one quotient, then products */
     for (int i = 0; i < 3; i++)
-        h[i] = s[i] / len;
+        h[i] = s[i] * ilen;
 }
 
 /* sin^2 of the angle between n and the unit vector h, as h_x^2 + h_y^2:
@@ -56,7 +72,7 @@ int sb_model_lambert_(const void *self, const double l[3], const double v[3], do
 int sb_model_phong_(const void *self, const double l[3], const double v[3], double rgb[3]) {
     const model_t *m = self;
     if (below_horizon(l, v, rgb)) return 1;
-    double s = pow(fmax(mirror_dot(l, v), 0.0), m->n) / fmax(l[2], m->cmin);
+    double s = pow(max_lo(mirror_dot(l, v), 0.0), m->n) / max_lo(l[2], m->cmin);
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] + m->ks[c] * s;
     return 1;
@@ -67,7 +83,7 @@ int sb_model_phong_(const void *self, const double l[3], const double v[3], doub
 int sb_model_phong_glsl_(const void *self, const double l[3], const double v[3], double rgb[3]) {
     const model_t *m = self;
     if (below_horizon(l, v, rgb)) return 1;
-    double s = pow(fmax(mirror_dot(l, v), 0.0), m->n);
+    double s = pow(max_lo(mirror_dot(l, v), 0.0), m->n);
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] + m->ks[c] * s;
     return 1;
@@ -81,7 +97,7 @@ int sb_model_phong_glsl_(const void *self, const double l[3], const double v[3],
 int sb_model_mphong_(const void *self, const double l[3], const double v[3], double rgb[3]) {
     const model_t *m = self;
     if (below_horizon(l, v, rgb)) return 1;
-    double s = m->cspec * pow(fmax(mirror_dot(l, v), m->rv_floor), m->n);
+    double s = m->cspec * pow(max_lo(mirror_dot(l, v), m->rv_floor), m->n);
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] / SB_PI + m->ks[c] * s;
     return 1;
@@ -93,7 +109,7 @@ int sb_model_blinn_(const void *self, const double l[3], const double v[3], doub
     if (below_horizon(l, v, rgb)) return 1;
     double h[3];
     half_vector(l, v, h);
-    double s = pow(fmax(h[2], 0.0), m->n);
+    double s = pow(max_lo(h[2], 0.0), m->n);
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] + m->ks[c] * s;
     return 1;
@@ -106,7 +122,7 @@ int sb_model_nblinn_(const void *self, const double l[3], const double v[3], dou
     if (below_horizon(l, v, rgb)) return 1;
     double h[3];
     half_vector(l, v, h);
-    double s = m->cspec * pow(fmax(h[2], 0.0), m->n);
+    double s = m->cspec * pow(max_lo(h[2], 0.0), m->n);
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] / SB_PI + m->ks[c] * s;
     return 1;
@@ -170,7 +186,7 @@ static double shadowing(const model_t *m, double nl, double nv, double nh, doubl
     case G_SMITH_ALPHA:
         return nl / (nl * (1 - k) + k) * (nv / (nv * (1 - k) + k));
     case G_SMITH_DISNEY:
-        return fmax(nl, m->cmin) / (nl * (1 - k) + k) * (fmax(nv, m->cmin) / (nv * (1 - k) + k));
+        return max_lo(nl, m->cmin) / (nl * (1 - k) + k) * (max_lo(nv, m->cmin) / (nv * (1 - k) + k));
     case G_VCAVITY:
         return fmin(1.0, fmin(2 * nh * nv / vh, 2 * nh * nl / vh));
     default:
@@ -188,7 +204,7 @@ static double fresnel(const model_t *m, double c, int ch) {
     switch (m->f) {
     case F_SCHLICK:
     case F_CONDUCTOR:
-        return m->f0[ch] + (1 - m->f0[ch]) * pow(1 - c, 5);
+        return m->f0[ch] + (1 - m->f0[ch]) * pow5(1 - c);
     case F_DIELECTRIC: {
         double g = sqrt(m->ior * m->ior + c * c - 1);
         if (g + c <= 0) return 1; /* c -> 0 with eta = 1: the grazing limit */
@@ -212,7 +228,7 @@ int sb_model_ct_(const void *self, const double l[3], const double v[3], double 
     double h[3];
     half_vector(l, v, h);
     double nl = clamp01(l[2]), nv = clamp01(v[2]), nh = clamp01(h[2]), vh = clamp01(dot3(v, h));
-    double dg = ndf(m, h) * shadowing(m, nl, nv, nh, vh) / (m->cspec * fmax(nl, m->cmin) * fmax(nv, m->cmin));
+    double dg = ndf(m, h) * shadowing(m, nl, nv, nh, vh) / (m->cspec * max_lo(nl, m->cmin) * max_lo(nv, m->cmin));
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] * m->albedo[c] / SB_PI + m->ks[c] * dg * fresnel(m, vh, c);
     return 1;
@@ -222,8 +238,11 @@ int sb_model_ct_(const void *self, const double l[3], const double v[3], double 
  * x and ay along y:  D = 1 / (pi ax ay (h_x^2/ax^2 + h_y^2/ay^2 + h_z^2)^2),
  * which is ndf()'s GGX for ax = ay = alpha. */
 static double ndf_aniso(const model_t *m, const double h[3]) {
-    double x = h[0] / m->ax, y = h[1] / m->ay, b = x * x + y * y + h[2] * h[2];
-    return 1 / (SB_PI * m->ax * m->ay * b * b);
+    /* = (ax ay)^3 / (pi B^2), B = ax^2 ay^2 b = h_x^2 ay^2 + h_y^2 ax^2 + h_z^2 ax^2 ay^2:
+     * one quotient; every term positive, in range for widths >= 1e-6. */
+    double ax2 = m->ax * m->ax, ay2 = m->ay * m->ay, axy = m->ax * m->ay;
+    double b = h[0] * h[0] * ay2 + h[1] * h[1] * ax2 + h[2] * h[2] * (ax2 * ay2);
+    return axy * axy * axy / (SB_PI * b * b);
 }
 
 /* The lecture's microfacetBRDF, unchanged (with anisotropy 0):
@@ -240,13 +259,14 @@ int sb_model_microfacet_(const void *self, const double l[3], const double v[3],
     double nv = clamp01(v[2]), nl = clamp01(l[2]), vh = clamp01(dot3(v, h));
     double D = m->anisotropy > 0 ? ndf_aniso(m, h) : ndf(m, h);
     double k = m->k;
-    double G = (fmax(nl, m->cmin) / (nl * (1 - k) + k)) * (fmax(nv, m->cmin) / (nv * (1 - k) + k));
-    double f5 = pow(1 - vh, 5);
+    /* D G / (4 max(n.v, guard) max(n.l, guard)) with the guards of G's
+     * numerators and of the denominator cancelled: one quotient. */
+    double f5 = pow5(1 - vh), dgw = D / (4 * (nl * (1 - k) + k) * (nv * (1 - k) + k));
     for (int c = 0; c < 3; c++) {
         double f0 = 0.16 * m->reflectance * m->reflectance;
         f0 = f0 * (1 - m->metallic) + m->base[c] * m->metallic;
         double F = f0 + (1 - f0) * f5;
-        double spec = F * D * G / (4 * fmax(nv, m->cmin) * fmax(nl, m->cmin));
+        double spec = F * dgw;
         double diff = m->base[c] * (1 - F) * (1 - m->metallic) / SB_PI;
         rgb[c] = diff + spec;
     }

@@ -58,3 +58,25 @@ sb_result_t sb_blas_reserve(sb_context_t *ctx) {
     reserved = 1;
     return SB_OK;
 }
+
+/* OpenBLAS's own threads, when the caller runs BLAS in threads of its own:
+ * after every call they wait spinning (sched_yield) for the next, taking
+ * the cores from the caller's threads (perf of a streamed factorisation:
+ * 15 % in sched_yield).  Other BLAS builds keep their setting. */
+int sb_blas_threads_begin(void) {
+#ifdef OPENBLAS_CONFIG_H
+    int n = openblas_get_num_threads();
+    if (n > 1) openblas_set_num_threads(1);
+    return n;
+#else
+    return 1;
+#endif
+}
+
+void sb_blas_threads_end(int n) {
+#ifdef OPENBLAS_CONFIG_H
+    if (n > 1) openblas_set_num_threads(n);
+#else
+    (void)n;
+#endif
+}

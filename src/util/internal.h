@@ -56,4 +56,9 @@ double sb_pow2_scale(double amax);
  * the allocation (blas_guard.c).  SB_ERR_NOMEM names the bytes. */
 sb_result_t sb_blas_reserve(sb_context_t *ctx);
 
+/* BLAS on one thread until sb_blas_threads_end(the value returned), for
+ * BLAS calls made from the library's own parallel loops (blas_guard.c). */
+int sb_blas_threads_begin(void);
+void sb_blas_threads_end(int n);
+
 #endif
