@@ -100,8 +100,8 @@ sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Filter the texture axes of the kept fit a for bilinear lookups where
  * that lowers its headline at J (job_texels.c; a->texel_fit), then measure
- * its errors again; nothing for a structured matrix, non-negative factors
- * or with o.plain_terms. */
+ * its errors again (non-negative factors: texels clamped at 0); nothing
+ * for a structured matrix or with o.plain_terms. */
 sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* job_texel_fit, then job_term_weights: what every kept fit goes through. */
 sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);

@@ -14,7 +14,9 @@
  * is.  Near a sharp peak, a domain edge or the cells a masked fit
  * extrapolated, the curvature is not that of a smooth f, so each axis is
  * filtered only when the estimator's headline at J falls on its pairs
- * (greedily, g's axes then h's); the end texels of a clamped axis stay. */
+ * (greedily, g's axes then h's); the end texels of a clamped axis stay.
+ * Non-negative factors keep their sign: their filtered texels are clamped
+ * at 0 (Blinn-Phong on iso, 32 cells, J = 4: headline 8.2e-4 -> 3.4e-4). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,8 +28,9 @@
 #define TEXEL_FIT_ALPHA (1.0 / 12.0)
 
 /* t (w x h, row-major, x fastest) along axis (0: x, 1: y): t_i -= alpha
- * (t_{i-1} - 2 t_i + t_{i+1}); wrap: repeated, else the end texels stay. */
-static void filter_axis(double *t, size_t w, size_t h, int axis, int wrap, double *line) {
+ * (t_{i-1} - 2 t_i + t_{i+1}), at least lowest; wrap: repeated, else the end
+ * texels stay. */
+static void filter_axis(double *t, size_t w, size_t h, int axis, int wrap, double lowest, double *line) {
     size_t n = axis ? h : w, lines = axis ? w : h, step = axis ? w : 1, stride = axis ? 1 : w;
     for (size_t l = 0; l < lines; l++) {
         double *p = t + l * stride;
@@ -37,7 +40,7 @@ static void filter_axis(double *t, size_t w, size_t h, int axis, int wrap, doubl
             int end = i == 0 || i + 1 == n;
             if (end && !wrap) continue;
             double lo = line[(i + n - 1) % n], hi = line[(i + 1) % n];
-            p[i * step] = line[i] - TEXEL_FIT_ALPHA * (lo - 2 * line[i] + hi);
+            p[i * step] = fmax(lowest, line[i] - TEXEL_FIT_ALPHA * (lo - 2 * line[i] + hi));
         }
     }
 }
@@ -56,9 +59,10 @@ static sb_result_t filtered(sb_context_t *ctx, const sb_factors_t *f, const sb_p
         *out = NULL;
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
+    double lowest = job_nonneg_method(sb_factors_get_meta(f, "method")) ? 0 : -INFINITY;
     for (size_t k = 0; r == SB_OK && k < J; k++)
         for (size_t c = 0; c < C; c++)
-            filter_axis(sb_factors_tex(*out, side, k, c), w, h, axis, wrap[axis] == SB_WRAP_REPEAT, line);
+            filter_axis(sb_factors_tex(*out, side, k, c), w, h, axis, wrap[axis] == SB_WRAP_REPEAT, lowest, line);
     free(line);
     return r;
 }
@@ -85,7 +89,7 @@ static sb_result_t headline(sb_context_t *ctx, sb_job_t *job, const job_attempt_
 
 sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     a->texel_fit = 0;
-    if (job->o.plain_terms || job->o.method == SB_METHOD_NMF || a->m.structured || !a->est || !job->pairs) return SB_OK;
+    if (job->o.plain_terms || a->m.structured || !a->est || !job->pairs) return SB_OK;
     double t0 = job_now(), best = sb_estimate_headline(a->est, sb_factors_terms(a->f));
     sb_result_t r = SB_OK;
     for (int side = 0; r == SB_OK && side < 2; side++)
