@@ -108,6 +108,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_svd_beside(ctx, job);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) {
+        job_warn_weights(job);
         job_warn_support(job);
         job->t.sample_s = job->best.t_sample;
         job->t.factor_s = job->best.t_factor;

@@ -11,10 +11,11 @@ typedef struct job_attempt {
     sb_matrix_t m;
     sb_factors_t *f;
     sb_plan_stats_t stats;
-    sb_metric_t metric; /* grid quadrature (comparable_grid), the kept fit only */
-    sb_estimate_t *est; /* the estimator's errors of the stored factors */
-    double *term_w;     /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
-    unsigned texel_fit; /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
+    sb_metric_t metric;        /* grid quadrature (comparable_grid), the kept fit only */
+    sb_estimate_t *est;        /* the estimator's errors of the stored factors */
+    double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
+    unsigned texel_fit;        /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
+    double weights_dropped[2]; /* term weights dropped (job_weights.c): headline at J as fitted, weighted; 0: not */
     int weighted;
     double *scene_w;      /* with a scene: W_r (rows), W_c (cols) of its fit (job_scene.c); NULL: not yet */
     sb_form_t scene_form; /* the form scene_w was made for */
@@ -96,8 +97,11 @@ sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
 /* Weight the terms of the kept fit a so that its headline is non-increasing
  * in J' (estimate.h sb_estimate_term_weights; a->term_w), then measure
  * its errors again; nothing when the weights are all 1, for a structured
- * matrix or with o.plain_terms. */
+ * matrix or with o.plain_terms.  Weights that would raise the headline at
+ * J more than JOB_WEIGHTS_MAX_LOSS times are dropped (a->weights_dropped). */
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* The warning that the kept fit's term weights were dropped, if they were. */
+void job_warn_weights(sb_job_t *job);
 /* Filter the texture axes of the kept fit a for bilinear lookups where
  * that lowers its headline at J (job_texels.c; a->texel_fit), then measure
  * its errors again (non-negative factors: texels clamped at 0); nothing

@@ -30,6 +30,7 @@ static void scale_term(sb_factors_t *f, size_t j, size_t c, double w) {
 
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f);
+    a->weights_dropped[0] = a->weights_dropped[1] = 0;
     if (job->o.plain_terms || a->m.structured || !a->est || !job->pairs) return SB_OK;
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
@@ -72,9 +73,16 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
     free(a->term_w);
     a->term_w = NULL;
     if ((r = job_remeasure(ctx, job, lv, a)) != SB_OK) return r;
-    job_warn(job,
-             "the terms are kept as fitted: weights that keep the error falling with J' would raise it at J = %zu "
-             "from %.4g to %.4g; prefixes of fewer terms may have higher errors (report.json: errors)",
-             J, sb_estimate_headline(a->est, J), weighted);
+    a->weights_dropped[0] = sb_estimate_headline(a->est, J);
+    a->weights_dropped[1] = weighted;
     return SB_OK;
+}
+
+void job_warn_weights(sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    if (a->weights_dropped[1] > 0)
+        job_warn(job,
+                 "the terms are kept as fitted: weights that keep the error falling with J' would raise it at J = "
+                 "%zu from %.4g to %.4g; prefixes of fewer terms may have higher errors (report.json: errors)",
+                 a->f ? sb_factors_terms(a->f) : 0, a->weights_dropped[0], a->weights_dropped[1]);
 }
