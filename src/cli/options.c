@@ -206,8 +206,8 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--plain-terms", NULL,
      "keep the factorisation's terms as they are; by default a\nterm that raises the headline error at its J' is "
      "scaled\n"
-     "down (report.json: term_weight), so errors fall with J',\nand texels are fitted for the bilinear lookup where "
-     "that\nlowers the error (report.json: fit.texels_fitted)",
+     "down (report.json: term_weight), so errors fall with J'\n(unless that raises the error at J 1.25x), "
+     "and texels are\nfitted for the bilinear lookup where that lowers the\nerror (report.json: fit.texels_fitted)",
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
     {NULL, "--metric-res", "R", "reference io grid of the comparable error (default 32)", cli_set_size, AT(metric_res),
      2, SB_METRIC_MAX_RES, F_ | S_},
