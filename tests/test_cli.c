@@ -170,3 +170,24 @@ SB_TEST(warp_adaptive_round_trip) {
     CHECK(run("%s", args) == 0);
     CHECK(strstr(out, "io has no axis that takes a warp") != NULL);
 }
+
+/* --param takes a whole layout as report.json writes it (param_spec):
+ * the same shape again, and its res checked against -r. */
+SB_TEST(param_spec_round_trip) {
+    const char *dir = sb_tmpdir("cli");
+    char sub[2048], rep[2100];
+    snprintf(sub, sizeof sub, "%s/o", dir);
+    snprintf(rep, sizeof rep, "%s/report.json", sub);
+    CHECK(run("factor blinn-phong -r 8 -J 2 --param iso:th=12,td=10,pd=6 -q -o %s", sub) == 0);
+    CHECK(file_matches(rep, "\"param_spec\": \"iso:th=12,td=10,pd=6\"") == 0);
+    CHECK(json_first_number(rep, "rows") == 12);
+    CHECK(json_first_number(rep, "cols") == 60);
+    CHECK(run("factor blinn-phong -r 8 -J 2 --param hd:res=6 -q -o %s", sub) != 0); /* res=6 against -r 8 */
+    CHECK(strstr(out, "res=6") != NULL && strstr(out, "-r") != NULL);
+    CHECK(run("factor blinn-phong -J 2 --param hd:res=6 -q -o %s", sub) == 0); /* res from the spec */
+    CHECK(file_matches(rep, "\"param_spec\": \"hd:res=6\"") == 0);
+    CHECK(run("factor blinn-phong -r 8 --param iso:th=x -o %s", sub) == 1);
+    CHECK(strstr(out, "--param") != NULL && strstr(out, "not a number") != NULL);
+    CHECK(run("factor blinn-phong -r 8 --param iso:res=8,warp_h=0.1/0.5 --warp merl -q -o %s", sub) != 0);
+    CHECK(strstr(out, "--warp") != NULL);
+}

@@ -3,6 +3,7 @@
  * examples/gl_render.c's gl_sample_grid on the tables read back from
  * sampler.bin, draws the same directions with the same pdf as sb_sample
  * for the same random numbers, in every parameterisation. */
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,9 +49,16 @@ static float *read_table(const char *path, gl_sampler_table_t *t) {
     return data;
 }
 
-static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec) {
+static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int warped) {
     sb_param_opts_t po = {0};
     po.res = 16;
+    if (warped) { /* a table on theta_h, finer near the pole, as an adaptive warp for a lobe */
+        sb_warp_t *w = &po.warp[SB_AXIS_THETA_H];
+        w->kind = SB_WARP_TABLE;
+        w->knots = 8;
+        for (size_t k = 0; k <= 8; k++)
+            w->x[k] = pow((double)k / 8, 1.6);
+    }
     sb_matrix_opts_t mo = {0};
     mo.form = SB_FORM_COS;
     sb_plan_opts_t pl = {0};
@@ -126,18 +134,20 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec) {
     sb_source_destroy(src);
 }
 
-static void run(sb_param_kind_t kind, const char *spec) {
+static void run(sb_param_kind_t kind, const char *spec, int warped) {
     gl_sphere_t *gl = NULL;
     char err[2048];
     if (gl_sphere_open(&gl, err, sizeof err) != 0) {
         sb_test_fail(__FILE__, __LINE__, "OSMesa found at build time but no context: %s", err);
         return;
     }
-    agree(gl, kind, spec);
+    agree(gl, kind, spec, warped);
     gl_sphere_close(gl);
 }
-#define RUN(kind, spec) run(kind, spec)
+#define RUN(kind, spec) run(kind, spec, 0)
+#define RUN_WARPED(kind, spec) run(kind, spec, 1)
 #else
+#define RUN_WARPED(kind, spec) RUN(kind, spec)
 #define RUN(kind, spec) SKIP("built without OSMesa (Debian: libosmesa6-dev), no GLSL sampler test")
 #endif
 
@@ -145,3 +155,5 @@ SB_TEST(io) { RUN(SB_PARAM_IO, "cook-torrance:d=ggx,roughness=0.3"); }
 SB_TEST(io_area) { RUN(SB_PARAM_IO_AREA, "cook-torrance:d=ggx,roughness=0.2"); }
 SB_TEST(hd) { RUN(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.5"); }
 SB_TEST(iso) { RUN(SB_PARAM_ISO, "blinn-phong:n=50"); }
+SB_TEST(hd_warped) { RUN_WARPED(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.2"); }
+SB_TEST(iso_warped) { RUN_WARPED(SB_PARAM_ISO, "cook-torrance:d=ggx,roughness=0.2"); }

@@ -31,7 +31,15 @@ int cli_set_string(const char *cmd, const cli_option_t *op, const char *v, void 
 
 static int set_param(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     sb_param_kind_t k;
-    if (strcmp(v, "auto") != 0 && sb_param_kind_parse(v, &k) != SB_OK) {
+    sb_param_opts_t po;
+    if (strchr(v, ':')) { /* a layout spec as report.json's param_spec, e.g. iso:th=64,td=62,pd=16 */
+        sb_context_t *ctx = NULL;
+        sb_result_t r = sb_context_create(&ctx);
+        if (r == SB_OK) r = sb_param_parse_spec(ctx, v, &k, &po);
+        if (r != SB_OK) cli_error(cmd, "%s '%s': %s", op->name, v, ctx ? sb_context_last_error(ctx) : "out of memory");
+        sb_context_destroy(ctx);
+        if (r != SB_OK) return -1;
+    } else if (strcmp(v, "auto") != 0 && sb_param_kind_parse(v, &k) != SB_OK) {
         cli_error(cmd, "%s '%s' unknown, need one of auto, %s", op->name, v, cli_param_names());
         return -1;
     }
@@ -175,7 +183,8 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--param", "P",
      "parameterisation: auto (default) or one of those below.\nauto screens every one that applies (iso: isotropic,\n"
      "reciprocal sources), with forms f and cos (not on iso),\nsolid-angle weighted, on coarse grids, and factors the\n"
-     "lowest headline error at J",
+     "lowest headline error at J.  A whole layout as report.json\n"
+     "writes it (param_spec, e.g. iso:th=64,td=62,pd=16 or\nhd:res=32,warp_h=...) is used as given: no warp tried",
      set_param, AT(param), 0, 0, F_ | R_},
     {NULL, "--form", "F",
      "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",

@@ -254,8 +254,7 @@ static size_t wrap_i(long i, size_t n, int mode) {
     return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
 }
 
-/* GL bilinear footprint of st on a side: texel indices and weights. */
-static void taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]) {
+void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]) {
     size_t tw = e->tw[side], th = e->th[side];
     double u = st[0] * (double)tw - 0.5, v = st[1] * (double)th - 0.5;
     double fu = floor(u), fv = floor(v), a = u - fu, b = v - fv;
@@ -351,8 +350,8 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
         memset(rec, 0, J * 3 * sizeof *rec);
         return;
     }
-    taps(e, SB_SIDE_G, sg, ag, fg);
-    taps(e, SB_SIDE_H, sh, ah, fh);
+    est_taps(e, SB_SIDE_G, sg, ag, fg);
+    est_taps(e, SB_SIDE_H, sh, ah, fh);
     double div = 1, acc[3] = {0, 0, 0};
     if (e->form == SB_FORM_COS || e->form == SB_FORM_COS2) div = fmax(wi[2], 0.001);
     if (e->form == SB_FORM_COS2) div *= fmax(wo[2], 0.001);

@@ -64,6 +64,8 @@ typedef struct eval {
 
 /* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
 void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user);
+/* GL bilinear footprint of st on a side of e: texel indices and weights. */
+void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]);
 /* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside. */
 void est_reconstruct(const eval_t *e, size_t i, double *rec);
 /* The coordinates of P's first `need` pairs under p: *ready when a slot

@@ -226,10 +226,6 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     if ((sb_param_caps(p) & SB_CAP_HALF_ROWS) && gh > SB_SAMPLER_MAX_ROWS)
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has %zu rows of half vectors, at most %d are sampled",
                         sb_param_spec(p), gh, SB_SAMPLER_MAX_ROWS);
-    if (!sb_param_warps_default(p))
-        return sb_error(ctx, SB_ERR_UNSUPPORTED,
-                        "sampler: %s has a warp of its own (--warp); the sampler covers the layouts' own spacing only",
-                        sb_param_spec(p));
     sb_result_t r = check_nonneg(ctx, f);
     if (r != SB_OK) return r;
     sb_sampler_t *s = sb_calloc(ctx, 1, sizeof *s, "sampler");

@@ -50,6 +50,29 @@ sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_mea
     return sb_source_open(ctx, spec, out);
 }
 
+/* --param KIND:key=value (report.json's param_spec): the layout's shape
+ * for the fit; its res, when given, is -r's (the two must agree). */
+static sb_result_t resolve_spec(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t *in, sb_param_kind_t *kind) {
+    sb_param_opts_t *po = &job->spec_shape;
+    sb_result_t r = sb_param_parse_spec(ctx, job->o.param, kind, po);
+    if (r != SB_OK) return r;
+    if ((po->warp[0].kind != SB_WARP_DEFAULT || po->warp[1].kind != SB_WARP_DEFAULT) && in->warp)
+        return sb_error(ctx, SB_ERR_ARG, "parameterisation '%s' has its warp; --warp %s asks for another", job->o.param,
+                        in->warp);
+    if (po->theta_max > 0 && !(in->theta_max_deg > 0)) job->o.theta_max_deg = po->theta_max * 180 / SB_PI;
+    double tmax = job->o.theta_max_deg * SB_PI / 180;
+    if (po->theta_max > 0 && fabs(po->theta_max - tmax) > 1e-6 * tmax)
+        return sb_error(ctx, SB_ERR_ARG, "parameterisation '%s' has its theta_max; --theta-max is %g", job->o.param,
+                        tmax * 180 / SB_PI);
+    if (po->res && in->res && po->res != in->res)
+        return sb_error(ctx, SB_ERR_ARG, "parameterisation '%s' has res=%zu and -r is %zu; give one", job->o.param,
+                        po->res, in->res);
+    if (po->res) job->o.res = po->res;
+    po->res = job->o.res;
+    job->shape = po;
+    return SB_OK;
+}
+
 /* Fill in the defaults of o (job.h) and check the names. */
 static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t *in, sb_param_kind_t *kind,
                            sb_form_t *form) {
@@ -67,7 +90,10 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     *kind = SB_PARAM_IO;
     *form = SB_FORM_F;
     job->is_auto = !o->param || strcmp(o->param, "auto") == 0;
-    if (!job->is_auto && sb_param_kind_parse(o->param, kind) != SB_OK) {
+    if (!job->is_auto && strchr(o->param, ':')) {
+        sb_result_t r = resolve_spec(ctx, job, in, kind);
+        if (r != SB_OK) return r;
+    } else if (!job->is_auto && sb_param_kind_parse(o->param, kind) != SB_OK) {
         char names[128] = "auto";
         for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
             snprintf(names + strlen(names), sizeof names - strlen(names), ", %s",

@@ -15,7 +15,7 @@ int job_nonneg_method(const char *name) {
 }
 
 /* The same run with the default method (an SVD; a masked fit where cells
- * are excluded) on the kept layout, form, weighting and warp option, with
+ * are excluded) on the kept layout and warp, form and weighting, with
  * the kept number of terms: its headline and rel_rms per J'.  A failure
  * is a warning: the non-negative fit stands on its own. */
 sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
@@ -24,7 +24,8 @@ sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     size_t J = sb_factors_terms(a->f);
     sb_job_opts_t o = job->o;
     o.method = SB_METHOD_AUTO;
-    o.param = sb_param_kind_name(sb_param_kind(a->param));
+    o.param = sb_param_spec(a->param); /* the same layout and warp, none tried */
+    o.warp = NULL;
     o.form = sb_form_name(a->m.form);
     o.weighted = a->weighted;
     o.terms = J;

@@ -68,6 +68,7 @@ struct sb_job {
     double t_start;
     struct job_budget *budget;    /* opts.budget: the search (job_budget.c); NULL without */
     const sb_param_opts_t *shape; /* the kept layout's options (a budget's choice); NULL: o.res alone */
+    sb_param_opts_t spec_shape;   /* --param KIND:key=value's options (job->shape then points here) */
 };
 
 double job_now(void);

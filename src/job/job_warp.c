@@ -55,9 +55,9 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     const char *warp = job->o.warp;
     /* none asked for: "auto" where the layout's own spacing leaves more
      * than JOB_WARP_TRY at J (sharp lobes: GGX roughness 0.1 5.2 % ->
-     * 1.8 %, the RGL vinyl 91 % -> 35 %); not for non-negative factors
-     * (their sampler takes the layouts' own spacing) */
-    if (!warp && b->f && b->est && !job->o.sample_only && job->o.method != SB_METHOD_NMF &&
+     * 1.8 %, the RGL vinyl 91 % -> 35 %); not where --param gave the
+     * whole layout (KIND:key=value, its warps included) */
+    if (!warp && b->f && b->est && !job->o.sample_only && job->shape != &job->spec_shape &&
         (sb_param_caps(b->param) & SB_CAP_WARPS) && rank_at_j(b) > JOB_WARP_TRY)
         warp = "auto";
     job->warp_tried = warp && !job->o.warp;
@@ -69,6 +69,7 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     }
     double t0 = job_now();
     sb_param_opts_t po = {0};
+    if (job->shape) po = *job->shape; /* the layout's shape (--param KIND:key=value), its warps replaced */
     po.res = job->o.res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
     sb_result_t r = job_warps(ctx, job, warp, b->param, &po);
@@ -82,6 +83,7 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     a.weighted = b->weighted;
     job_level_t lv = {.res = job->o.res,
                       .terms = job->o.terms,
+                      .po = &po,
                       .metric_res = job->o.metric_res,
                       .fit_tol = job->o.fit_tol,
                       .fit_max_iters = job->o.fit_max_iters};

@@ -309,7 +309,12 @@ void sb_grid_row_sample(const sb_param_t *p, size_t k, const double u[2], double
     size_t R = p->opts.res;
     double tmax = p->opts.theta_max;
     size_t it = k % R, ip = k / R;
+    const sb_warp_t *wt = sb_param_warp(p, SB_AXIS_THETA_H); /* hd's theta_h; none on io */
     double dt = tmax / (double)R, slo = sin(0.5 * (double)it * dt), shi = sin(0.5 * (double)(it + 1) * dt);
+    if (wt && wt->kind != SB_WARP_UNIFORM) {
+        slo = sin(0.5 * sb_warp_theta(wt, (double)it, R, tmax));
+        shi = sin(0.5 * sb_warp_theta(wt, (double)(it + 1), R, tmax));
+    }
     double zlo = 2 * slo * slo, zhi = 2 * shi * shi, z = zlo + u[0] * (zhi - zlo);
     double s = sqrt(fmax(z * (2 - z), 0)), phi = ((double)ip + u[1]) * 2 * SB_PI / (double)R;
     w[0] = s * cos(phi);

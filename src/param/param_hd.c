@@ -115,6 +115,20 @@ static const sb_param_vt_t hd_vt = {
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
+/* sb_grid_sample_glsl with the theta_h warp: the band's bounds through
+ * its inverse, as sb_grid_row_sample takes them. */
+static const char hd_sample_glsl[] =
+    "// half-vector cell (x = theta_h through sb_warp_h, y = phi_h): 1 - cos(theta) and phi linear in u\n"
+    "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+    "    vec2 n = vec2(textureSize(sb_g, 0).xy);\n"
+    "    float tlo = sb_warp_h_inv(float(cell.x) / n.x) * SB_THETA_MAX;\n"
+    "    float thi = sb_warp_h_inv(float(cell.x + 1) / n.x) * SB_THETA_MAX;\n"
+    "    float slo = sin(0.5 * tlo), shi = sin(0.5 * thi);\n"
+    "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
+    "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
+    "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n";
+
 const sb_param_desc_t sb_param_desc_hd = {
     .name = "hd",
     .description = "half and difference vectors in the Gram-Schmidt frame of Kautz and McCool",
@@ -124,4 +138,4 @@ const sb_param_desc_t sb_param_desc_hd = {
     .wrap_y = SB_WRAP_REPEAT,
     .vt = &hd_vt,
     .row_sample = sb_grid_row_sample,
-    .sample_glsl = sb_grid_sample_glsl};
+    .sample_glsl = hd_sample_glsl};

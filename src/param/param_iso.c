@@ -69,11 +69,14 @@ static double iso_row_measure(const sb_param_t *p, size_t row) {
             cos(sb_warp_theta(w, (double)row + 1, iso_th(p), tmax)));
 }
 
-/* Uniform in solid angle over the theta_h band of `row` (square-root
- * spacing: bounds theta_max (i / th)^2), phi_h uniform in [0, 2pi). */
+/* Uniform in solid angle over the theta_h band of `row` (bounds through
+ * the theta_h warp: theta_max (i / th)^2 with merl), phi_h uniform in
+ * [0, 2pi). */
 static void iso_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
-    double n = (double)iso_th(p), lo = (double)row / n, hi = (double)(row + 1) / n, tmax = p->opts.theta_max;
-    double slo = sin(0.5 * lo * lo * tmax), shi = sin(0.5 * hi * hi * tmax);
+    const sb_warp_t *wh = &p->opts.warp[SB_AXIS_THETA_H];
+    double tmax = p->opts.theta_max;
+    double slo = sin(0.5 * sb_warp_theta(wh, (double)row, iso_th(p), tmax));
+    double shi = sin(0.5 * sb_warp_theta(wh, (double)row + 1, iso_th(p), tmax));
     double z = 2 * (slo * slo + u[0] * (shi * shi - slo * slo)), s = sqrt(fmax(z * (2 - z), 0)), phi = 2 * SB_PI * u[1];
     w[0] = s * cos(phi);
     w[1] = s * sin(phi);
@@ -131,10 +134,11 @@ static const sb_param_vt_t iso_vt = {
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
 
 static const char iso_sample_glsl[] =
-    "// iso: theta_h band x (bounds SB_THETA_MAX (x / th)^2), phi_h = 2pi u.y\n"
+    "// iso: theta_h band x (bounds through sb_warp_h), phi_h = 2pi u.y\n"
     "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
-    "    float n = float(textureSize(sb_g, 0).x), lo = float(cell.x) / n, hi = float(cell.x + 1) / n;\n"
-    "    float slo = sin(0.5 * lo * lo * SB_THETA_MAX), shi = sin(0.5 * hi * hi * SB_THETA_MAX);\n"
+    "    float n = float(textureSize(sb_g, 0).x);\n"
+    "    float slo = sin(0.5 * sb_warp_h_inv(float(cell.x) / n) * SB_THETA_MAX);\n"
+    "    float shi = sin(0.5 * sb_warp_h_inv(float(cell.x + 1) / n) * SB_THETA_MAX);\n"
     "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
     "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = 2.0 * SB_PI * u.y;\n"
     "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"

@@ -165,7 +165,9 @@ static void glsl_float(char *buf, size_t size, size_t *n, double v) {
 size_t sb_warp_glsl(const sb_warp_t *w, const char *name, char *buf, size_t size, size_t *n) {
     size_t n0 = *n;
     if (w->kind != SB_WARP_TABLE) {
-        append(buf, size, n, "float %s(float x) { return %s; }\n", name, w->kind == SB_WARP_MERL ? "sqrt(x)" : "x");
+        int merl = w->kind == SB_WARP_MERL;
+        append(buf, size, n, "float %s(float x) { return %s; }\n", name, merl ? "sqrt(x)" : "x");
+        append(buf, size, n, "float %s_inv(float s) { return %s; }\n", name, merl ? "s * s" : "s");
         return *n - n0;
     }
     int steps = 0;
@@ -188,7 +190,12 @@ size_t sb_warp_glsl(const sb_warp_t *w, const char *name, char *buf, size_t size
            "    }\n"
            "    float t = clamp((x - %s_x[lo]) / (%s_x[hi] - %s_x[lo]), 0.0, 1.0);\n"
            "    return (float(lo) + t) / %zu.0;\n"
+           "}\n"
+           "float %s_inv(float s) {\n" /* sb_warp_inverse */
+           "    float u = clamp(s, 0.0, 1.0) * %zu.0;\n"
+           "    int k = min(int(u), %zu);\n"
+           "    return %s_x[k] + (u - float(k)) * (%s_x[k + 1] - %s_x[k]);\n"
            "}\n",
-           name, w->knots, steps, name, name, name, name, w->knots);
+           name, w->knots, steps, name, name, name, name, w->knots, name, w->knots, w->knots - 1, name, name, name);
     return *n - n0;
 }
