@@ -11,7 +11,7 @@
 typedef struct batch_item {
     char name[128]; /* its folder under --out */
     char source[1024];
-    char param[32], form[16]; /* storage of the row's --param and --form */
+    char param[2048], form[16]; /* storage of the row's --param (a whole layout spec too) and --form */
     sb_job_opts_t o;
     char key[1600];   /* its settings: the set is reused when they match */
     char fields[512]; /* BATCH_FIELDS, tab-separated */
