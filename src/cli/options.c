@@ -218,8 +218,10 @@ const cli_option_t cli_factor_options[] = {
      "down (report.json: term_weight), so errors fall with J'\n(unless that raises the error at J 1.25x), "
      "and texels are\nfitted for the bilinear lookup where that lowers the\nerror (report.json: fit.texels_fitted)",
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
-    {NULL, "--metric-res", "R", "reference io grid of the comparable error (default 32)", cli_set_size, AT(metric_res),
-     2, SB_METRIC_MAX_RES, F_ | S_},
+    {NULL, "--metric-res", "R",
+     "also the comparable error by the grid quadrature on an\nR-cell reference io grid (report.json "
+     "comparable_grid;\nnone by default)",
+     cli_set_size, AT(metric_res), 2, SB_METRIC_MAX_RES, F_ | S_},
     {NULL, "--method", "M",
      "auto (default), full (dgesdd), topk, randomized,\nnmf (non-negative factors and a sampler), stream", set_method,
      AT(method), 0, 0, F_ | R_ | S_},

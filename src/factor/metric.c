@@ -389,7 +389,7 @@ static void work_sums(const work_t *w, sb_metric_t *out) {
 }
 
 /* The fraction of negative texels over every texture of the first J terms. */
-static double negative_texels(const sb_factors_t *f, size_t J) {
+double sb_factors_negative_fraction(const sb_factors_t *f, size_t J) {
     size_t nneg = 0, ntex = 0, C = sb_factors_channels(f);
     for (int side = 0; side < 2; side++) {
         size_t tw, th;
@@ -426,6 +426,6 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
     work_run(&w, caps, iso_src, sb_threads_for(o.threads, R, R, 0));
     work_sums(&w, out);
     work_free(&w);
-    out->neg_texels = negative_texels(f, J);
+    out->neg_texels = sb_factors_negative_fraction(f, J);
     return SB_OK;
 }

@@ -84,7 +84,7 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     o->out = NULL; /* not kept: the folder is sb_job_write's argument */
     if (!o->res) o->res = 32;
     if (!o->terms) o->terms = o->max_error > 0 ? (o->res < 32 ? o->res : 32) : 4;
-    if (!o->metric_res) o->metric_res = 32;
+    /* metric_res 0: no grid quadrature (comparable_grid), only when asked */
     if (!(o->theta_max_deg > 0)) o->theta_max_deg = 90;
     if (!o->seed) o->seed = 1;
     *kind = SB_PARAM_IO;

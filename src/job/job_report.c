@@ -224,7 +224,10 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
     sb_json_end_array(j);
     report_measured(j, job);
     sb_json_number(j, "negative_texels", a->metric.neg_texels);
-    sb_json_int(j, "metric_resolution", (long long)job->o.metric_res);
+    if (job->o.metric_res)
+        sb_json_int(j, "metric_resolution", (long long)job->o.metric_res);
+    else
+        sb_json_number(j, "metric_resolution", NAN); /* null: no comparable_grid asked for */
     report_estimator(j, job);
 }
 

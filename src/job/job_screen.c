@@ -127,7 +127,11 @@ sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv,
     a->t_metric = 0;
     sb_result_t r;
     memset(&a->metric, 0, sizeof a->metric);
-    if ((r = job_estimate(ctx, job, lv, a)) != SB_OK || lv->metric_res == 0) return r;
+    if ((r = job_estimate(ctx, job, lv, a)) != SB_OK) return r;
+    if (lv->metric_res == 0) { /* no grid quadrature: its texel count alone */
+        a->metric.neg_texels = sb_factors_negative_fraction(a->f, sb_factors_terms(a->f));
+        return SB_OK;
+    }
     sb_metric_opts_t mo = {0};
     mo.res = lv->metric_res;
     double t3 = job_now();
