@@ -38,6 +38,7 @@ typedef struct job_level {
 /* Without --warp, the kept layout's headline at J above which "auto"
  * warps are tried (one more fit). */
 #define JOB_WARP_TRY 0.05
+#define JOB_CONVERGED_TRY 0.01 /* auto: headline at J above which the converged masked fit is tried too */
 
 struct sb_job {
     sb_job_opts_t o;   /* resolved: every default filled in */
