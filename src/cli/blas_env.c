@@ -1,5 +1,5 @@
-/* OpenBLAS's thread count under a memory limit, chosen before OpenBLAS
- * starts.
+/* OpenBLAS's thread count under a memory limit, and its workers' spin
+ * time, chosen before OpenBLAS starts.
  *
  * OpenBLAS starts one worker thread per core in its library constructor,
  * and each worker at once allocates a 128 MiB working buffer, retrying
@@ -43,15 +43,31 @@ static int tight(char **envp) {
     return lim < BLAS_BASE_BYTES || (lim - BLAS_BASE_BYTES) / BLAS_THREAD_BYTES < (unsigned long long)n;
 }
 
+static int has(char **envp, const char *name) {
+    for (char **e = envp; *e; e++)
+        if (strncmp(*e, name, strlen(name)) == 0) return 1;
+    return 0;
+}
+
+/* Also: OpenBLAS's idle workers spin (sched_yield) for 2^28 cycles, about
+ * 0.1 s, after they start and after every threaded call before they sleep;
+ * that took the second core from our own threads for the whole of a short
+ * run (`factor --param io -r 64 -J 8`: 0.12 s wall, 0.09 s of it system
+ * time in sched_yield; 0.10 s with 0.02 s).  OPENBLAS_THREAD_TIMEOUT=4
+ * (2^4 cycles) makes them sleep at once; a wake-up costs microseconds.
+ * Set unless the user set it. */
 static void blas_threads_for_limit(int argc, char **argv, char **envp) {
     static char *env[1024];
-    static char one[] = "OPENBLAS_NUM_THREADS=1";
+    static char one[] = "OPENBLAS_NUM_THREADS=1", timeout[] = "OPENBLAS_THREAD_TIMEOUT=4";
     (void)argc;
-    if (!envp || !tight(envp)) return;
+    if (!envp) return;
+    int one_thread = tight(envp), sleep_at_once = !has(envp, "OPENBLAS_THREAD_TIMEOUT=");
+    if (!one_thread && !sleep_at_once) return;
     size_t k = 0;
-    for (char **e = envp; *e && k + 2 < sizeof env / sizeof env[0]; e++)
-        if (strncmp(*e, "OPENBLAS_NUM_THREADS=", 21) != 0) env[k++] = *e;
-    env[k++] = one;
+    for (char **e = envp; *e && k + 3 < sizeof env / sizeof env[0]; e++)
+        if (!one_thread || strncmp(*e, "OPENBLAS_NUM_THREADS=", 21) != 0) env[k++] = *e;
+    if (one_thread) env[k++] = one;
+    if (sleep_at_once) env[k++] = timeout;
     env[k] = NULL;
     execve("/proc/self/exe", argv, env); /* returns only on failure: run as is */
 }

@@ -166,7 +166,7 @@ static sb_estimate_opts_t opts_or_default(const sb_estimate_opts_t *opts) {
 static sb_result_t pairs_grow(sb_context_t *ctx, sb_pairs_t *P, size_t nrep, int nt) {
     if (nrep <= P->nrep) return SB_OK;
     size_t n = nrep * P->rep;
-    double *d = sb_alloc(ctx, n, PD * sizeof *d, "estimator pairs");
+    double *d = sb_alloc_large(ctx, n, PD * sizeof *d, "estimator pairs"); /* 5 MiB at first: 2 MiB pages */
     unsigned char *kn = sb_alloc(ctx, n, 1, "estimator pairs");
     if (!d || !kn) {
         free(d);
@@ -270,10 +270,6 @@ void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], doubl
     fw[3] = a * b;
 }
 
-static double tap(const double *t, const size_t at[4], const double fw[4]) {
-    return fw[0] * t[at[0]] + fw[1] * t[at[1]] + fw[2] * t[at[2]] + fw[3] * t[at[3]];
-}
-
 /* ---- coordinates of the pairs under a layout --------------------------- */
 
 /* A slot to fill: an empty one, else the least recently used one nobody
@@ -305,7 +301,7 @@ est_coords_t *est_coords_acquire(const sb_pairs_t *cP, const sb_param_t *p, size
     if (!co || *ready) return co;
     if (co->cap < need) {
         free(co->st), free(co->in);
-        co->st = malloc(need * 4 * sizeof *co->st);
+        co->st = sb_alloc_large(NULL, need, 4 * sizeof *co->st, "estimator coordinates");
         co->in = malloc(need);
         co->cap = co->st && co->in ? need : 0;
     }
@@ -355,9 +351,16 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     double div = 1, acc[3] = {0, 0, 0};
     if (e->form == SB_FORM_COS || e->form == SB_FORM_COS2) div = fmax(wi[2], 0.001);
     if (e->form == SB_FORM_COS2) div *= fmax(wo[2], 0.001);
+    size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
+    const double *g[4], *h[4];
+    for (int k = 0; k < 4; k++) {
+        g[k] = e->itex[0] + ag[k] * S;
+        h[k] = e->itex[1] + ah[k] * S;
+    }
     for (size_t j = 0; j < J; j++) {
-        for (size_t c = 0; c < C; c++)
-            acc[c] += tap(e->tex[0][j * C + c], ag, fg) * tap(e->tex[1][j * C + c], ah, fh) * e->scale[j];
+        for (size_t c = 0, at = j * C; c < C; c++, at++)
+            acc[c] += (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
+                      (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scale[j];
         for (int c = 0; c < 3; c++)
             rec[j * 3 + c] = acc[C == 1 ? 0 : c] / div;
     }
@@ -513,6 +516,8 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
 void est_eval_free(eval_t *e) {
     free(e->tex[0]);
     free(e->tex[1]);
+    free(e->itex[0]);
+    free(e->itex[1]);
     free(e->num);
     free(e->den);
     free(e->neg);
@@ -576,6 +581,15 @@ sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scale
         for (size_t j = 0; j < J; j++)
             for (size_t c = 0; c < C; c++)
                 e->tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);
+        size_t n = e->tw[s] * e->th[s];
+        if (!(e->itex[s] = malloc(n * J * C * sizeof *e->itex[s]))) {
+            free(*ones);
+            est_eval_free(e);
+            return SB_ERR_NOMEM;
+        }
+        for (size_t k = 0; k < J * C; k++)
+            for (size_t i = 0; i < n; i++)
+                e->itex[s][i * J * C + k] = e->tex[s][k][i];
     }
     return SB_OK;
 }

@@ -48,6 +48,7 @@ typedef struct eval {
     const sb_param_t *p;
     size_t J, C;
     const double **tex[2]; /* [side][j * C + c] */
+    double *itex[2];       /* [side][texel * J * C + j * C + c]: a tap's J C values in a row */
     size_t tw[2], th[2];
     int wrap[2][2];
     const double *scale; /* J per-term factors */

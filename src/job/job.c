@@ -127,6 +127,12 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->own_src = own;
     sb_param_kind_t kind;
     sb_form_t form;
+    /* one OpenBLAS thread but where a large dense matrix is factored
+     * (job_factor): its workers, idle between the many small calls of the
+     * masked and block fits, spin (sched_yield) on the cores the
+     * estimator's and the samplers' threads need */
+    int blas = sb_blas_threads_begin();
+    job->blas_threads = blas;
     sb_result_t r = resolve(ctx, job, opts, &kind, &form);
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job->budget ? job_budget_select(ctx, job) : job_select(ctx, job);
@@ -143,6 +149,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         job->t.total_s = job_now() - job->t_start;
     }
     if (r == SB_OK && opts->out) r = sb_job_write(ctx, job, opts->out);
+    sb_blas_threads_end(blas);
     if (r != SB_OK) {
         sb_job_destroy(job);
         return r;

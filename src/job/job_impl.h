@@ -38,6 +38,7 @@ typedef struct job_level {
 /* Without --warp, the kept layout's headline at J above which "auto"
  * warps are tried (one more fit). */
 #define JOB_WARP_TRY 0.05
+#define JOB_BLAS_DENSE_CELLS ((size_t)1 << 20) /* a dense matrix from this many cells factors on every core */
 #define JOB_CONVERGED_TRY 0.01 /* auto: headline at J above which the converged masked fit is tried too */
 
 struct sb_job {
@@ -70,6 +71,7 @@ struct sb_job {
     struct job_budget *budget;    /* opts.budget: the search (job_budget.c); NULL without */
     const sb_param_opts_t *shape; /* the kept layout's options (a budget's choice); NULL: o.res alone */
     sb_param_opts_t spec_shape;   /* --param KIND:key=value's options (job->shape then points here) */
+    int blas_threads;             /* OpenBLAS's thread count before the job (one thread during it) */
 };
 
 double job_now(void);

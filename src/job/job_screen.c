@@ -103,7 +103,11 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
     if (r != SB_OK) return r;
     double t1 = job_now();
+    /* a large dense matrix: the BLAS threads the job set aside (job.c) */
+    int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
+    if (dense) sb_blas_threads_end(job->blas_threads);
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
     sb_plan_destroy(plan);
     if (r != SB_OK) return r;

@@ -12,6 +12,7 @@
 #include "output/exr_impl.h"
 #include "sepbrdf/outset.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 /* The writer's stream: a file is assembled in memory (OpenEXR writes its
  * header in many small pieces and seeks back for the offset table) and
@@ -270,6 +271,31 @@ static sb_result_t check_format(sb_context_t *ctx, const sb_factors_t *f, size_t
     return SB_OK;
 }
 
+/* Files lo..hi-1 of sb_factors_write_exr's phase 1, on one thread: its
+ * own pixel buffer and context; the first failure is kept. */
+typedef struct exr_part {
+    const sb_factors_t *f;
+    int half, longnames;
+    char **tmp, **fin;
+    size_t lo, hi, bytes;
+    sb_result_t r;
+    char why[1024];
+} exr_part_t;
+
+static void *write_part(void *arg) {
+    exr_part_t *w = arg;
+    sb_context_t *c = NULL;
+    void *buf = malloc(w->bytes);
+    w->r = sb_context_create(&c) == SB_OK && buf ? SB_OK : SB_ERR_NOMEM;
+    snprintf(w->why, sizeof w->why, "exr write: out of memory");
+    for (size_t k = w->lo; k < w->hi && w->r == SB_OK; k++)
+        if ((w->r = write_one(c, w->f, (int)(k % 2), k / 2, w->half, w->longnames, w->tmp[k], w->fin[k], buf)) != SB_OK)
+            snprintf(w->why, sizeof w->why, "%s", sb_context_last_error(c));
+    sb_context_destroy(c);
+    free(buf);
+    return NULL;
+}
+
 sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir, const sb_exr_opts_t *opts) {
     if (!f || !dir) return sb_error(ctx, SB_ERR_ARG, "exr write: no factors or no folder");
     int half = opts && opts->half, longnames = 0;
@@ -280,8 +306,7 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
     size_t nfiles = 2 * J, done = 0, renamed = 0;
     char **tmp = sb_calloc(ctx, nfiles, sizeof(char *), "exr paths");
     char **fin = sb_calloc(ctx, nfiles, sizeof(char *), "exr paths");
-    void *buf = sb_alloc(ctx, (n[0] > n[1] ? n[0] : n[1]) * C, sizeof(float), "exr pixel buffer");
-    if (!tmp || !fin || !buf) {
+    if (!tmp || !fin) {
         r = SB_ERR_NOMEM;
         goto out;
     }
@@ -301,14 +326,23 @@ sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const
         codec_t cd;
         if ((r = sb_exr_texture_codec_(ctx, f, (int)(k % 2), k / 2, half, fin[k], &cd)) != SB_OK) goto out;
     }
-    /* Phase 1: every file complete under its temporary name */
-    for (; done < nfiles; done++) {
-        r = write_one(ctx, f, (int)(done % 2), done / 2, half, longnames, tmp[done], fin[done], buf);
-        if (r != SB_OK) {
-            done++; /* its temporary may exist */
+    /* Phase 1: every file complete under its temporary name, the files
+     * shared among the cores (zlib is most of it); on a failure every
+     * temporary may exist */
+    exr_part_t parts[SB_THREADS_MAX];
+    int nt = sb_threads_for(0, nfiles, nfiles * (n[0] > n[1] ? n[0] : n[1]), (size_t)1 << 14);
+    for (int t = 0; t < nt; t++) {
+        parts[t] = (exr_part_t){f,     half, longnames, tmp, fin, 0, 0, (n[0] > n[1] ? n[0] : n[1]) * C * sizeof(float),
+                                SB_OK, ""};
+        sb_part(nfiles, t, nt, &parts[t].lo, &parts[t].hi);
+    }
+    sb_parallel_run(write_part, parts, sizeof *parts, nt, NULL, NULL);
+    done = nfiles;
+    for (int t = 0; t < nt; t++)
+        if (parts[t].r != SB_OK) {
+            r = sb_error(ctx, parts[t].r, "%s", parts[t].why);
             goto out;
         }
-    }
     /* Phase 2: rename */
     for (; renamed < nfiles; renamed++)
         if (rename(tmp[renamed], fin[renamed]) != 0) {
@@ -328,6 +362,5 @@ out:
     }
     free(tmp);
     free(fin);
-    free(buf);
     return r;
 }
