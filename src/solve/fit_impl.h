@@ -62,10 +62,21 @@ void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0);
  * cells stops improving (o->tol) or o->max_iters; returns the error. */
 double fit_als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, const sb_fit_opts_t *o, double norm,
                      int *sweeps, int *converged);
-/* The staged ALS (fit_als.c). */
+/* The state of a non-strict staged run before its last stage, from which
+ * a strict run resumes (fit_als.c): the last stage is the only one whose
+ * rule differs, unless a joint refit kept earlier left the prefixes'
+ * errors increasing (same 0). */
+typedef struct als_resume {
+    int save, resume; /* record (non-strict run) / start from the record (strict run) */
+    int valid, same;  /* recorded; every earlier decision was also the strict one */
+    double *P, *Q;    /* m x k, n x k */
+    double acc[SB_ALS_MAX_K], err;
+    int converged;
+} als_resume_t;
+/* The staged ALS (fit_als.c); rs may be NULL. */
 sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
                            const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
-                           int *stretched);
+                           int *stretched, als_resume_t *rs);
 /* Squared errors of the prefixes of f on the cells of X with mask != 0. */
 void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2);
 /* Whether those errors are non-increasing. */

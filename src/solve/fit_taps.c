@@ -106,8 +106,9 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
     unsigned char *ext = taps ? malloc(m * n) : NULL;
     double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
     double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
+    als_resume_t rs = {.P = malloc(m * k * sizeof *rs.P), .Q = malloc(n * k * sizeof *rs.Q)};
     sb_result_t r = SB_OK;
-    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1)
+    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !rs.P || !rs.Q)
         r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 2 * (m + n) * k * sizeof(double));
     if (r == SB_OK) {
         memcpy(P0, f->P, m * k * sizeof *P0);
@@ -122,7 +123,12 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
             for (size_t c = 0; c < n; c++)
                 for (size_t i = 0; i < m; i++)
                     ext[i + c * m] = mask[i + c * lda] ? 1 : 0;
-        r = fit_als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err, &stretched);
+        /* the strict pass resumes from the first one's state before its
+         * last stage where every decision before was the strict one (the
+         * same result, without doing the stages again) */
+        rs.save = !strict;
+        rs.resume = strict && rs.valid && rs.same;
+        r = fit_als_stages(f, As, lda, mask, nvalid, o, strict, norm2, total, converged, err, &stretched, &rs);
         /* a stretched pass is redone strictly whatever its taps give: go
          * there at once (the result is the same, a third of the cost) */
         if (r == SB_OK && stretched && !strict) continue;
@@ -143,7 +149,7 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
             if (added == 0 || r != SB_OK) break;
             nvalid += added;
             constrained += added;
-            r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched);
+            r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, NULL);
         }
         /* data that the rank-k structure extends exactly (or nearly) are
          * their own best extrapolation: a constraint that costs the valid
@@ -157,6 +163,8 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
         if (r != SB_OK || (!stretched && fit_prefixes_monotone(f, As, lda, mask))) break;
     }
     free(ext);
+    free(rs.P);
+    free(rs.Q);
     free(P0);
     free(Q0);
     free(P1);
