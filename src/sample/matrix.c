@@ -93,7 +93,10 @@ static void *build_cols(void *arg) {
 static void report_progress(void *arg) {
     const job_t *j = arg;
     j->o->progress(j->o->progress_user, (double)atomic_load(j->done) / (double)j->m->cols);
-    struct timespec ts = {0, 50 * 1000 * 1000};
+    /* 2 ms naps, not 50: sb_parallel_run ends the loop only between calls,
+     * and a 50 ms nap made a sampling of 7 ms take 55 (the default run's
+     * kept iso matrix); the display itself redraws at most every 0.1 s */
+    struct timespec ts = {0, 2 * 1000 * 1000};
     nanosleep(&ts, NULL);
 }
 
