@@ -525,9 +525,10 @@ SB_TEST(file_layout) {
 
 static int have_validator(void) { return sb_run("command -v glslangValidator", NULL, 0) == 0; }
 
-/* The snippet with the sampler block compiles for every parameterisation,
- * 1 and 3 channels, in GLSL 3.30 core, 4.50 core and ES 3.00, in a shader
- * that calls sb_sample and sb_pdf. */
+/* The snippet with the sampler block compiles for every parameterisation
+ * (iso and hd also with a table warp on theta_h: sb_warp_h_inv), 1 and 3
+ * channels, in GLSL 3.30 core, 4.50 core and ES 3.00, in a shader that
+ * calls sb_sample and sb_pdf. */
 SB_TEST(glsl_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
     static const char *const profiles[] = {"#version 330 core", "#version 450 core", "#version 300 es"};
@@ -535,14 +536,24 @@ SB_TEST(glsl_compiles) {
     char path[4200], cmd[4400], log[8192];
     snprintf(path, sizeof path, "%s/test.frag", dir);
     snprintf(cmd, sizeof cmd, "glslangValidator %s", path);
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
+    for (int at = 0; at < 2 * SB_PARAM_KIND_COUNT_; at++) {
+        int kind = at % SB_PARAM_KIND_COUNT_, warped = at >= SB_PARAM_KIND_COUNT_;
+        if (warped && !(sb_param_kind_caps((sb_param_kind_t)kind) & SB_CAP_WARPS)) continue;
         sb_param_t *p = NULL;
         sb_param_opts_t o = {0};
         o.res = 8;
+        if (warped) {
+            sb_warp_t *w = &o.warp[SB_AXIS_THETA_H];
+            w->kind = SB_WARP_TABLE;
+            w->knots = 8;
+            for (size_t k = 0; k <= 8; k++)
+                w->x[k] = pow((double)k / 8, 1.3);
+        }
         CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
         for (size_t ch = 1; ch <= 3; ch += 2) {
             char *head = sb_glsl_snippet(p, SB_FORM_COS, 2, NULL), *tail = sb_glsl_sampler(p, ch);
             CHECK(head && tail && strstr(tail, "bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf)"));
+            CHECK(!warped || (head && strstr(head, "float sb_warp_h_inv(float s) {\n"))); /* the table's inverse */
             for (size_t v = 0; v < 3 && head && tail; v++) {
                 FILE *fp = fopen(path, "w");
                 fprintf(fp,
