@@ -421,13 +421,14 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
             d2[c] = dc * dc;
             d2[3] += d2[c];
             below |= r[c] < 0;
-            vmax = fmax(vmax, fabs(r[c]));
+            double a = fabs(r[c]);
+            vmax = a > vmax ? a : vmax; /* fmax's result, inline (a NaN leaves vmax) */
         }
         for (int q = 0; q < SB_EST_Q_COUNT_; q++)
             for (int c = 0; c < 4; c++)
                 num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
         neg[j] += below ? w : 0;
-        maxv[j] = fmax(maxv[j], vmax);
+        maxv[j] = vmax > maxv[j] ? vmax : maxv[j];
         for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
             hist[(j * 4 + c) * NB + bin_of(d2[c], f2[c], lf2[c])] += ew[c];
@@ -441,11 +442,12 @@ static void eval_unit(void *user, size_t k, int t) {
     eval_t *e = user;
     const sb_pairs_t *P = e->P;
     size_t J = e->J;
-    double *num = e->num + k * J * QC, *den = e->den + k * QC, *neg = e->neg + k * J, rec[SB_EST_MAXJ * 3];
+    /* the sums in local arrays (nothing else can alias them), copied out
+     * at the end */
+    double num[SB_EST_MAXJ * QC], den[QC], neg[SB_EST_MAXJ], meas = 0, rec[SB_EST_MAXJ * 3];
     memset(num, 0, J * QC * sizeof *num);
-    memset(den, 0, QC * sizeof *den);
+    memset(den, 0, sizeof den);
     memset(neg, 0, J * sizeof *neg);
-    e->meas[k] = 0;
     for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
         if (!P->known[i]) continue;
         const double *d = P->d + i * PD, *f = d + 7;
@@ -455,10 +457,14 @@ static void eval_unit(void *user, size_t k, int t) {
                 den[q * 4 + c] += f[c] * f[c] * qw[q] * d[6];
             den[q * 4 + 3] += (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * qw[q] * d[6];
         }
-        e->meas[k] += d[6];
+        meas += d[6];
         est_reconstruct(e, i, rec);
         add_pair(e, d, rec, num, neg, t);
     }
+    memcpy(e->num + k * J * QC, num, J * QC * sizeof *num);
+    memcpy(e->den + k * QC, den, sizeof den);
+    memcpy(e->neg + k * J, neg, J * sizeof *neg);
+    e->meas[k] = meas;
 }
 
 /* The sums of the replicates and threads into out; returns whether the

@@ -380,7 +380,7 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
         *converged = rs->converged;
         ka0 = k;
     }
-    if (rs && rs->save) rs->same = 1, rs->valid = 0;
+    if (rs && rs->save) rs->same = 1, rs->valid = 0, rs->last = 0;
     for (size_t ka = ka0; ka <= k; ka++) {
         if (rs && rs->save && ka == k && k > 1) {
             memcpy(rs->P, f->P, m * k * sizeof *f->P);
@@ -394,7 +394,21 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
          * error can only go down (its first half-sweep is a least-squares
          * step from the warm start) */
         int c1 = 1, cj = 1, keep = 0;
-        *err = fit_als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
+        /* the strict run's last stage computes what the recorded one did
+         * (the same start and cells): taken from the record */
+        int replay = rs && rs->resume && rs->last && ka == k, record = rs && rs->save && ka == k && k > 1;
+        if (replay) {
+            memcpy(f->P, rs->P1, m * k * sizeof *f->P);
+            memcpy(f->Q, rs->Q1, n * k * sizeof *f->Q);
+            *err = rs->err1, c1 = rs->c1;
+        } else {
+            *err = fit_als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
+        }
+        if (record) {
+            memcpy(rs->P1, f->P, m * k * sizeof *f->P);
+            memcpy(rs->Q1, f->Q, n * k * sizeof *f->Q);
+            rs->err1 = *err, rs->c1 = c1;
+        }
         if (joint_stage(ka)) {
             /* then all ka jointly: a joint refit may trade the prefixes'
              * accuracy for cancelling terms that are large outside the
@@ -402,8 +416,22 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
              * edge */
             memcpy(saveP, f->P, m * ka * sizeof *saveP);
             memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-            double ej = fit_als_until(f, &cl, 0, ka, o, sqrt(norm2), total, &cj);
-            prefix_errors(f, &cl, ka, e2);
+            double ej;
+            if (replay) {
+                memcpy(f->P, rs->Pj, m * k * sizeof *f->P);
+                memcpy(f->Q, rs->Qj, n * k * sizeof *f->Q);
+                memcpy(e2, rs->e2, sizeof e2);
+                ej = rs->errj, cj = rs->cj;
+            } else {
+                ej = fit_als_until(f, &cl, 0, ka, o, sqrt(norm2), total, &cj);
+                prefix_errors(f, &cl, ka, e2);
+            }
+            if (record) {
+                memcpy(rs->Pj, f->P, m * k * sizeof *f->P);
+                memcpy(rs->Qj, f->Q, n * k * sizeof *f->Q);
+                memcpy(rs->e2, e2, sizeof e2);
+                rs->errj = ej, rs->cj = cj, rs->last = 1;
+            }
             /* kept only if no shorter prefix gets more than
              * SB_PREFIX_SLACK times worse (at the last stage: no worse than
              * no term at all); strict: and the prefixes' errors stay

@@ -72,6 +72,12 @@ typedef struct als_resume {
     double *P, *Q;    /* m x k, n x k */
     double acc[SB_ALS_MAX_K], err;
     int converged;
+    /* the last stage's two fits from that state, the same in both runs
+     * (only the rule that keeps one differs): the new term alone (err1,
+     * c1) and the joint refit (errj, cj, its prefixes' squared errors
+     * e2), m x k and n x k each; last: recorded */
+    double *P1, *Q1, *Pj, *Qj, e2[SB_ALS_MAX_K], err1, errj;
+    int c1, cj, last;
 } als_resume_t;
 /* The staged ALS (fit_als.c); rs may be NULL. */
 sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,

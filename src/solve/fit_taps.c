@@ -43,29 +43,38 @@ static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t
 size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
     size_t m = f->m, n = f->n, k = f->k, added = 0;
     double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
-    if (!lo1 || !hi1) {
+    size_t *nrs = malloc(m * 26 * sizeof *nrs); /* row r's neighbours: count, then the list */
+    if (!lo1 || !hi1 || !nrs) {
         free(lo1);
         free(hi1);
+        free(nrs);
         return (size_t)-1;
     }
+    for (size_t r = 0; r < m; r++)
+        nrs[r * 26] = neighbours(o->tex[0], o->wrap[0], r, nrs + r * 26 + 1);
+    /* the minima and maxima below are fmin / fmax written inline (the
+     * library calls were a tenth of the default run's fit); the values
+     * read are valid data, never NaN */
     for (size_t c = 0; c < n; c++) {
-        size_t nc[25], nr[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+        size_t nc[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
         for (size_t r = 0; r < m; r++) {
-            lo1[r] = INFINITY;
-            hi1[r] = -INFINITY;
+            double l1 = INFINITY, h1 = -INFINITY;
             for (size_t q = 0; q < kc; q++)
                 if (ext[r + nc[q] * m] == 1) {
-                    lo1[r] = fmin(lo1[r], x[r + nc[q] * m]);
-                    hi1[r] = fmax(hi1[r], x[r + nc[q] * m]);
+                    double a = x[r + nc[q] * m];
+                    l1 = a < l1 ? a : l1;
+                    h1 = a > h1 ? a : h1;
                 }
+            lo1[r] = l1;
+            hi1[r] = h1;
         }
         for (size_t r = 0; r < m; r++) {
             if (ext[r + c * m]) continue;
-            size_t kr = neighbours(o->tex[0], o->wrap[0], r, nr);
+            const size_t kr = nrs[r * 26], *nr = nrs + r * 26 + 1;
             double lo = INFINITY, hi = -INFINITY, v = 0;
             for (size_t q = 0; q < kr; q++) {
-                lo = fmin(lo, lo1[nr[q]]);
-                hi = fmax(hi, hi1[nr[q]]);
+                lo = lo1[nr[q]] < lo ? lo1[nr[q]] : lo;
+                hi = hi1[nr[q]] > hi ? hi1[nr[q]] : hi;
             }
             if (!(lo <= hi)) continue;
             for (size_t j = 0; j < k; j++)
@@ -79,6 +88,7 @@ size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, 
     }
     free(lo1);
     free(hi1);
+    free(nrs);
     return added;
 }
 
@@ -106,10 +116,12 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
     unsigned char *ext = taps ? malloc(m * n) : NULL;
     double *P0 = malloc(m * k * sizeof *P0), *Q0 = malloc(n * k * sizeof *Q0);
     double *P1 = malloc(m * k * sizeof *P1), *Q1 = malloc(n * k * sizeof *Q1);
-    als_resume_t rs = {.P = malloc(m * k * sizeof *rs.P), .Q = malloc(n * k * sizeof *rs.Q)};
+    size_t pb = m * k * sizeof(double), qb = n * k * sizeof(double);
+    als_resume_t rs = {
+        .P = malloc(pb), .Q = malloc(qb), .P1 = malloc(pb), .Q1 = malloc(qb), .Pj = malloc(pb), .Qj = malloc(qb)};
     sb_result_t r = SB_OK;
-    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !rs.P || !rs.Q)
-        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 2 * (m + n) * k * sizeof(double));
+    if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !rs.P || !rs.Q || !rs.P1 || !rs.Q1 || !rs.Pj || !rs.Qj)
+        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 5 * (pb + qb));
     if (r == SB_OK) {
         memcpy(P0, f->P, m * k * sizeof *P0);
         memcpy(Q0, f->Q, n * k * sizeof *Q0);
@@ -165,6 +177,10 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
     free(ext);
     free(rs.P);
     free(rs.Q);
+    free(rs.P1);
+    free(rs.Q1);
+    free(rs.Pj);
+    free(rs.Qj);
     free(P0);
     free(Q0);
     free(P1);
