@@ -438,3 +438,84 @@ SB_TEST(term_weights_keep_headline_falling) {
     sb_param_destroy(p);
     sb_source_destroy(src);
 }
+
+/* A copy of f with side s's texels of every term multiplied by 1 + a
+ * (i mod 5) / 4 (a variant of that side only). */
+static sb_factors_t *side_variant(const sb_factors_t *f, int s, double a) {
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), w[2], h[2];
+    for (int k = 0; k < 2; k++)
+        sb_factors_size(f, k, &w[k], &h[k]);
+    sb_factors_t *g = NULL;
+    CHECK(sb_factors_create(NULL, J, C, w[0], h[0], w[1], h[1], &g) == SB_OK);
+    for (size_t j = 0; j < J; j++)
+        for (size_t c = 0; c < C; c++)
+            for (int k = 0; k < 2; k++) {
+                double *t = sb_factors_tex(g, k, j, c);
+                for (size_t i = 0; i < w[k] * h[k]; i++)
+                    t[i] = sb_factors_tex_const(f, k, j, c)[i] * (k == s ? 1 + a * (double)(i % 5) / 4 : 1);
+            }
+    return g;
+}
+
+/* sb_estimate_headlines: every combination of g variants with h variants
+ * in one pass equals sb_estimate_compute's headline at J of the factors
+ * put together (to rounding), on io (cos form) and hd; sizes that differ
+ * are refused. */
+SB_TEST(headlines_equal_compute) {
+    const sb_param_kind_t kinds[2] = {SB_PARAM_IO, SB_PARAM_HD};
+    const sb_form_t forms[2] = {SB_FORM_COS, SB_FORM_F};
+    for (int k = 0; k < 2; k++) {
+        sb_param_t *p = NULL;
+        sb_source_t *src = NULL;
+        sb_factors_t *f = factor_exr(GGX_SPEC "0.3", kinds[k], 12, 3, forms[k], 0, &p, &src);
+        sb_estimate_opts_t o = {0};
+        o.start = 4;
+        o.replicate = 512;
+        o.max_pairs = 1;
+        o.headline_only = 1;
+        sb_pairs_t *pairs = NULL;
+        CHECK(sb_pairs_create(NULL, src, &o, &pairs) == SB_OK);
+        sb_factors_t *g[2] = {side_variant(f, SB_SIDE_G, 0), side_variant(f, SB_SIDE_G, 0.3)};
+        sb_factors_t *h[3] = {side_variant(f, SB_SIDE_H, 0), side_variant(f, SB_SIDE_H, -0.2),
+                              side_variant(f, SB_SIDE_H, 0.5)};
+        double out[6];
+        CHECK(sb_estimate_headlines(NULL, pairs, (const sb_factors_t *const *)g, 2, (const sb_factors_t *const *)h, 3,
+                                    p, forms[k], out) == SB_OK);
+        for (size_t a = 0; a < 2; a++)
+            for (size_t b = 0; b < 3; b++) {
+                /* g's textures from g[a], h's from h[b] */
+                sb_factors_t *both = side_variant(g[a], SB_SIDE_H, 0);
+                size_t J = sb_factors_terms(f), C = sb_factors_channels(f), w, hh;
+                sb_factors_size(f, SB_SIDE_H, &w, &hh);
+                for (size_t j = 0; j < J; j++)
+                    for (size_t c = 0; c < C; c++)
+                        memcpy(sb_factors_tex(both, SB_SIDE_H, j, c), sb_factors_tex_const(h[b], SB_SIDE_H, j, c),
+                               w * hh * sizeof(double));
+                static sb_estimate_t est;
+                CHECK(sb_estimate_compute(NULL, pairs, both, NULL, p, forms[k], &o, &est) == SB_OK);
+                double want = sb_estimate_headline(&est, J);
+                CHECKF(fabs(out[a * 3 + b] - want) <= 1e-12 * want, "%s g %zu h %zu: %.15g, compute %.15g",
+                       k ? "hd" : "io", a, b, out[a * 3 + b], want);
+                sb_factors_destroy(both);
+            }
+        /* the variants differ: the combinations' headlines do too */
+        CHECK(out[0] != out[1] && out[0] != out[3]);
+        sb_param_t *p8 = NULL;
+        sb_source_t *src8 = NULL;
+        sb_factors_t *other = factor_exr(GGX_SPEC "0.3", kinds[k], 8, 3, forms[k], 0, &p8, &src8);
+        const sb_factors_t *mixed[2] = {f, other};
+        CHECK(sb_estimate_headlines(NULL, pairs, mixed, 2, (const sb_factors_t *const *)h, 1, p, forms[k], out) ==
+              SB_ERR_ARG);
+        sb_factors_destroy(other);
+        sb_param_destroy(p8);
+        sb_source_destroy(src8);
+        for (int i = 0; i < 2; i++)
+            sb_factors_destroy(g[i]);
+        for (int i = 0; i < 3; i++)
+            sb_factors_destroy(h[i]);
+        sb_pairs_destroy(pairs);
+        sb_factors_destroy(f);
+        sb_param_destroy(p);
+        sb_source_destroy(src);
+    }
+}

@@ -73,6 +73,7 @@ typedef struct sb_estimate_opts {
     int threads;       /* 0 = all cores */
     int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
     size_t replicates; /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
+    int last_only;     /* with headline_only: the errors of all J terms only (those of shorter prefixes are 0) */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */
@@ -127,6 +128,15 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
  * get 1.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
 sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
                                      const double *scales, const sb_param_t *p, sb_form_t form, double *w);
+/* The headline at J (all terms) of every combination of the g textures of
+ * gs[a] (a < ng) with the h textures of hs[b] (b < nh), all of one layout
+ * (the same terms, channels and texture sizes), on all of the pairs in one
+ * pass: out[a * nh + b] as sb_estimate_headline(est, J) of
+ * sb_estimate_compute with headline_only on the same pairs and factors, to
+ * rounding.  The pairs are not grown.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
+sb_result_t sb_estimate_headlines(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *const *gs, size_t ng,
+                                  const sb_factors_t *const *hs, size_t nh, const sb_param_t *p, sb_form_t form,
+                                  double *out);
 
 /* The headline (relative L2 error of f cos(theta_i), all channels) after
  * j >= 1 terms; NAN beyond est->terms. */

@@ -402,17 +402,17 @@ static size_t bin_of(double d2, double f2, double lf2) {
 static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
     const double *f = d + 7, w = d[6];
     double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
-    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4];
+    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4] = {0, 0, 0, 0};
     f2[3] = f2[0] + f2[1] + f2[2];
-    for (int c = 0; c < 4; c++)
+    uint64_t ew[4] = {0, 0, 0, 0};
+    for (int c = 0; c < 4 && !e->headline_only; c++) { /* the histograms' logs and weights */
         lf2[c] = f2[c] > 0 ? log2_fast(f2[c]) : 0;
-    uint64_t ew[4];
-    for (int c = 0; c < 4; c++)
         ew[c] = e->P->e0[c] > 0 ? (uint64_t)(f2[c] * ci2 * w / e->P->e0[c] * 0x1.0p40) : 0;
+    }
     size_t J = e->J;
     uint64_t *hist = e->hist + (size_t)t * J * 4 * NB;
     double *maxr = e->maxr + (size_t)t * J * 4, *maxv = e->maxv + (size_t)t * J;
-    for (size_t j = 0; j < J; j++) {
+    for (size_t j = e->last_only ? J - 1 : 0; j < J; j++) {
         const double *r = rec + j * 3;
         double d2[4] = {0, 0, 0, 0}, vmax = 0;
         int below = 0;
@@ -617,6 +617,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     int nt = sb_thread_count(o.threads);
     if (nt > MAXT) nt = MAXT;
     eval_t e = {.P = pairs, .p = p, .form = form, .headline_only = o.headline_only};
+    e.last_only = o.headline_only && o.last_only;
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
     size_t J = e.J;

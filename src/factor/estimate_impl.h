@@ -56,6 +56,7 @@ typedef struct eval {
     int co_ready;
     sb_form_t form;
     int headline_only; /* no per-pair histograms or maxima (p99, max_rel 0) */
+    int last_only;     /* sums of the prefix of all J terms only */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
     double *num, *den, *neg, *meas;
     /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */

@@ -218,7 +218,7 @@ static sb_result_t screen_fit(sb_context_t *ctx, sb_job_t *job, size_t ci, const
     sb_result_t r = fit_warps(ctx, job, c->kind, adaptive, &f->po);
     if (r != SB_OK) return r == SB_ERR_NOMEM ? r : SB_OK;
     size_t fi = b->nfit++;
-    job_level_t lv = {.res = shape->res, .terms = J, .po = &b->fits[fi].po, .est_max_pairs = 1};
+    job_level_t lv = {.res = shape->res, .terms = J, .po = &b->fits[fi].po, .est_max_pairs = 1, .rank_only = 1};
     job_early_stop(job, &lv);
     job_attempt_t a = {0};
     int keep = job->o.half;

@@ -13,6 +13,7 @@ typedef struct job_attempt {
     sb_plan_stats_t stats;
     sb_metric_t metric;        /* grid quadrature (comparable_grid), the kept fit only */
     sb_estimate_t *est;        /* the estimator's errors of the stored factors */
+    int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     unsigned texel_fit;        /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
     double weights_dropped[2]; /* term weights dropped (job_weights.c): headline at J as fitted, weighted; 0: not */
@@ -25,7 +26,9 @@ typedef struct job_attempt {
 /* What one attempt is asked: resolution, J and the fit's limits. */
 typedef struct job_level {
     size_t res, terms, metric_res; /* metric_res 0: no grid quadrature */
-    size_t est_max_pairs;          /* the estimator's growth: 0 default, 1 none (screening) */
+    size_t est_max_pairs;          /* the estimator's growth: 0 default, 1 none */
+    int rank_only;                 /* a ranking: the headline only, on the first 16384 pairs */
+    int rank_at_j;                 /* with rank_only: at J only (the shorter prefixes' errors 0) */
     double fit_tol;
     int fit_max_iters;
     const sb_param_opts_t *po; /* the layout's options (shape, warps; res is lv's); NULL: res alone */
@@ -97,6 +100,9 @@ sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* After a->f changed (texels filtered, terms weighted): its errors on the
  * matrix's cells, then job_measure on the same pairs (no growth). */
+/* a's estimate as reported: a ranking's (lv.rank_only) is done again
+ * with p99 and maxima, growing as lv allows. */
+sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Weight the terms of the kept fit a so that its headline is non-increasing
  * in J' (estimate.h sb_estimate_term_weights; a->term_w), then measure

@@ -55,9 +55,10 @@ static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_leve
     double t0 = job_now();
     sb_estimate_opts_t eo = {0};
     eo.max_pairs = lv->est_max_pairs;
-    if (lv->est_max_pairs == 1 && lv->metric_res == 0) { /* screening: ranked on the headline, 16384 pairs */
+    if (lv->rank_only) { /* screening: ranked on the headline, 16384 pairs */
         eo.headline_only = 1;
         eo.replicates = 4;
+        eo.last_only = lv->rank_at_j;
     }
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
@@ -68,6 +69,7 @@ static sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_leve
     if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
     if (r == SB_OK) r = sb_estimate_compute(ctx, job->pairs, q, NULL, a->param, a->m.form, &eo, a->est);
     sb_factors_destroy(q);
+    a->est_rank = lv->rank_only;
     a->t_estimate = job_now() - t0;
     job->t_estimate += a->t_estimate;
     return r;
@@ -119,11 +121,19 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     return job_measure(ctx, job, lv, a);
 }
 
+sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    if (!a->est || !a->est_rank) return SB_OK;
+    job_level_t full = *lv;
+    full.rank_only = full.rank_at_j = 0;
+    return job_estimate(ctx, job, &full, a);
+}
+
 sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
     sb_result_t r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
     job_level_t same = *lv;
     same.est_max_pairs = 1;
+    same.rank_only = same.rank_at_j = 0; /* what is reported: p99 and maxima too */
     return r == SB_OK ? job_measure(ctx, job, &same, a) : r;
 }
 
@@ -388,6 +398,8 @@ static job_level_t screen_level(const sb_job_t *job, size_t res, sb_param_opts_t
     }
     lv.metric_res = 0;    /* no grid quadrature */
     lv.est_max_pairs = 1; /* the estimator's first pairs, no growth */
+    lv.rank_only = 1;
+    lv.rank_at_j = 1; /* ranked at J (rank_error) */
     job_early_stop(job, &lv);
     return lv;
 }
@@ -494,6 +506,7 @@ static sb_result_t keep_better_fit(sb_context_t *ctx, sb_job_t *job, const job_l
         free(a->est);
         a->f = tmp.f;
         a->est = tmp.est;
+        a->est_rank = tmp.est_rank;
         a->stats = tmp.stats;
         a->metric = tmp.metric;
         a->t_factor += tmp.t_factor;
@@ -519,6 +532,7 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
     int two = masked && !job->is_auto;
     if (masked && job->is_auto) job_early_stop(job, &lv);
     lv.est_max_pairs = two ? 1 : 0;
+    lv.rank_only = lv.rank_at_j = two; /* the two fits compared on their headlines at J */
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
     if (r == SB_OK && two) r = job_keep_early_fit(ctx, job, &lv, &job->best);
     if (r == SB_OK && masked && job->is_auto && rank_error(&job->best) > JOB_CONVERGED_TRY) {
@@ -527,11 +541,14 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
          * F0 0.04, iso, J = 4: 2.7 % -> 1.9 %) */
         job_level_t conv = full_level(job);
         conv.est_max_pairs = 1;
+        conv.rank_only = conv.rank_at_j = 1;
         r = keep_better_fit(ctx, job, &conv, &job->best);
         two = 1; /* the kept one's estimate grows below */
     }
     lv.est_max_pairs = 0;
-    if (r == SB_OK && two && !job->best.est->converged) r = job_estimate(ctx, job, &lv, &job->best);
+    lv.rank_only = lv.rank_at_j = 0;
+    if (r == SB_OK && two && !job->best.est->converged && !job->best.est_rank)
+        r = job_estimate(ctx, job, &lv, &job->best); /* a ranking's estimate is redone in job_refine */
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(job->best.f);

@@ -75,6 +75,7 @@ static sb_result_t headline(sb_context_t *ctx, sb_job_t *job, const job_attempt_
     sb_estimate_opts_t eo = {0};
     eo.max_pairs = 1;
     eo.headline_only = 1;
+    eo.last_only = 1;
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
     sb_estimate_t *est = malloc(sizeof *est);
@@ -87,10 +88,15 @@ static sb_result_t headline(sb_context_t *ctx, sb_job_t *job, const job_attempt_
     return r;
 }
 
-sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
-    a->texel_fit = 0;
-    if (job->o.plain_terms || a->m.structured || !a->est || !job->pairs) return SB_OK;
-    double t0 = job_now(), best = sb_estimate_headline(a->est, sb_factors_terms(a->f));
+/* The texel fit's candidates: every combination of the filtered axes
+ * (bit i: axis ax[i], filters applied in ascending order) ranked in one
+ * pass (sb_estimate_headlines), then the greedy choice replayed on the
+ * ranks; above this many bytes of variants' texels, one pass per axis. */
+#define TEXEL_MANY_BYTES ((size_t)64 << 20)
+
+/* Greedy, one estimator pass per axis: the way for large textures. */
+static sb_result_t texel_fit_passes(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a) {
+    double best = sb_estimate_headline(a->est, sb_factors_terms(a->f));
     sb_result_t r = SB_OK;
     for (int side = 0; r == SB_OK && side < 2; side++)
         for (int axis = 0; r == SB_OK && axis < 2; axis++) {
@@ -109,6 +115,86 @@ sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
                 sb_factors_destroy(g);
             }
         }
+    return r;
+}
+
+/* a->f filtered along the axes ax[i] of the bits i of mask, in ascending
+ * order (a copy; mask 0: a plain copy). */
+static sb_result_t filtered_mask(sb_context_t *ctx, const job_attempt_t *a, const int *ax, size_t mask,
+                                 sb_factors_t **out) {
+    sb_factors_t *cur = NULL;
+    sb_result_t r = job_factors_copy(ctx, a->f, sb_factors_terms(a->f), &cur);
+    for (size_t i = 0; r == SB_OK && mask >> i; i++) {
+        if (!(mask >> i & 1)) continue;
+        sb_factors_t *next = NULL;
+        r = filtered(ctx, cur, a->param, ax[i] / 2, ax[i] % 2, &next);
+        sb_factors_destroy(cur);
+        cur = next;
+    }
+    if (r != SB_OK) sb_factors_destroy(cur), cur = NULL;
+    *out = cur;
+    return r;
+}
+
+/* The same choice from one pass: the g variants (every subset of g's
+ * filtered axes, ax[0..na_g-1]) against the h variants (h's axes, the
+ * rest), sb_estimate_headlines; the greedy choice replayed on the ranks. */
+static sb_result_t texel_fit_combined(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a, const int *ax, size_t na,
+                                      size_t na_g) {
+    size_t ng = (size_t)1 << na_g, nh = (size_t)1 << (na - na_g);
+    sb_factors_t *v[8] = {0}, *q[8] = {0}; /* g variants, then h variants (at most 4 + 4) */
+    double h[16];
+    sb_exr_opts_t xo = {job->o.half};
+    sb_result_t r = SB_OK;
+    for (size_t k = 0; r == SB_OK && k < ng + nh; k++) {
+        size_t mask = k < ng ? k : (k - ng) << na_g;
+        r = filtered_mask(ctx, a, ax, mask, &v[k]);
+        if (r == SB_OK) r = sb_factors_quantize(ctx, v[k], &xo, &q[k], NULL); /* what a shader reads */
+    }
+    if (r == SB_OK)
+        r = sb_estimate_headlines(ctx, job->pairs, (const sb_factors_t *const *)q, ng,
+                                  (const sb_factors_t *const *)(q + ng), nh, a->param, a->m.form, h);
+    for (size_t k = 0; k < ng + nh; k++) {
+        sb_factors_destroy(v[k]);
+        sb_factors_destroy(q[k]);
+    }
+    /* combination `mask` (bit i: axis ax[i]) is g variant mask & (ng - 1)
+     * with h variant mask >> na_g */
+    size_t cur = 0;
+    for (size_t i = 0; r == SB_OK && i < na; i++) { /* greedy, axis by axis, as texel_fit_passes */
+        size_t c = cur | (size_t)1 << i;
+        if (h[(c & (ng - 1)) * nh + (c >> na_g)] < h[(cur & (ng - 1)) * nh + (cur >> na_g)]) cur = c;
+    }
+    if (r != SB_OK || cur == 0) return r;
+    sb_factors_t *g = NULL;
+    if ((r = filtered_mask(ctx, a, ax, cur, &g)) != SB_OK) return r;
+    sb_factors_destroy(a->f);
+    a->f = g;
+    for (size_t i = 0; i < na; i++)
+        if (cur >> i & 1) a->texel_fit |= 1u << ax[i];
+    return SB_OK;
+}
+
+sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    a->texel_fit = 0;
+    if (job->o.plain_terms || a->m.structured || !a->est || !job->pairs) return SB_OK;
+    double t0 = job_now();
+    int ax[4];
+    size_t na = 0, na_g = 0, texels = 0, J = sb_factors_terms(a->f), C = sb_factors_channels(a->f);
+    for (int side = 0; side < 2; side++) {
+        size_t w, h;
+        sb_factors_size(a->f, side, &w, &h);
+        texels += w * h;
+        for (int axis = 0; axis < 2; axis++)
+            if ((axis ? h : w) >= 3) ax[na++] = 2 * side + axis;
+        if (side == 0) na_g = na;
+    }
+    if (!na) return SB_OK;
+    /* interleaved texels of both sides for every variant */
+    double bytes = (double)(((size_t)1 << na_g) + ((size_t)1 << (na - na_g))) * (double)texels *
+                   (double)(J < SB_EST_MAXJ ? J : SB_EST_MAXJ) * (double)C * sizeof(double);
+    sb_result_t r = bytes <= (double)TEXEL_MANY_BYTES ? texel_fit_combined(ctx, job, a, ax, na, na_g)
+                                                      : texel_fit_passes(ctx, job, a);
     job->t_estimate += job_now() - t0;
     if (r != SB_OK || !a->texel_fit) return r;
     /* the texels no longer hold the samples */
@@ -116,6 +202,7 @@ sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
 }
 
 sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
-    sb_result_t r = job_texel_fit(ctx, job, lv, a);
+    sb_result_t r = job_estimate_reported(ctx, job, lv, a);
+    if (r == SB_OK) r = job_texel_fit(ctx, job, lv, a);
     return r == SB_OK ? job_term_weights(ctx, job, lv, a) : r;
 }
