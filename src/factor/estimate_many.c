@@ -113,7 +113,8 @@ sb_result_t sb_estimate_headlines(sb_context_t *ctx, const sb_pairs_t *pairs, co
             sb_factors_size(gs[0], side, &w0, &h0);
             sb_factors_size(f, side, &w1, &h1);
             if (w0 != w1 || h0 != h1)
-                return sb_error(ctx, SB_ERR_ARG, "headlines: variant %zu's textures differ in size from the first's", s);
+                return sb_error(ctx, SB_ERR_ARG, "headlines: variant %zu's textures differ in size from the first's",
+                                s);
         }
         if (sb_factors_terms(f) != J || sb_factors_channels(f) != C)
             return sb_error(ctx, SB_ERR_ARG, "headlines: variant %zu has other terms or channels than the first", s);

@@ -2,6 +2,7 @@
  * helpers, spherical angles. */
 #include <errno.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -170,6 +171,64 @@ static sb_result_t build_glsl(sb_context_t *ctx, sb_param_t *p) {
     return SB_OK;
 }
 
+/* What sb_param_coords of a layout depends on, padding zeroed (compared
+ * with memcmp). */
+typedef struct layout_id {
+    int kind, wrap[2][2], warp_kind[SB_AXIS_COUNT_];
+    size_t rows, cols, tex_w[2], tex_h[2], res[4], knots[SB_AXIS_COUNT_];
+    double theta_max, x[SB_AXIS_COUNT_][SB_WARP_MAX_KNOTS + 1];
+} layout_id_t;
+
+#define LAYOUTS_MAX 4096 /* layouts remembered; beyond, a new number each */
+static layout_id_t *layouts;
+static size_t nlayouts, caplayouts;
+static pthread_mutex_t layouts_mu = PTHREAD_MUTEX_INITIALIZER;
+
+/* The number of p's layout: the same for every parameterisation created
+ * with the same resolved layout (the estimator's pairs keep coordinates
+ * under it: auto's candidates of one layout and several forms share
+ * them), a new one for a layout not seen before. */
+static unsigned long layout_serial(const sb_param_t *p) {
+    static atomic_ulong fresh = LAYOUTS_MAX; /* numbers 1..LAYOUTS_MAX name the remembered layouts */
+    layout_id_t id;
+    memset(&id, 0, sizeof id);
+    id.kind = (int)p->kind;
+    memcpy(id.wrap, p->wrap, sizeof id.wrap);
+    id.rows = p->rows, id.cols = p->cols;
+    memcpy(id.tex_w, p->tex_w, sizeof id.tex_w);
+    memcpy(id.tex_h, p->tex_h, sizeof id.tex_h);
+    id.res[0] = p->opts.res;
+    if (p->kind == SB_PARAM_ISO) { /* its own cell counts; the others ignore them */
+        id.res[1] = p->opts.res_theta_h, id.res[2] = p->opts.res_theta_d;
+        id.res[3] = p->opts.res_phi_d;
+    }
+    id.theta_max = p->opts.theta_max;
+    for (int a = 0; a < SB_AXIS_COUNT_; a++) {
+        const sb_warp_t *w = &p->opts.warp[a];
+        id.warp_kind[a] = (int)w->kind;
+        id.knots[a] = w->kind == SB_WARP_TABLE ? w->knots : 0;
+        for (size_t k = 0; w->kind == SB_WARP_TABLE && k <= w->knots && k <= SB_WARP_MAX_KNOTS; k++)
+            id.x[a][k] = w->x[k];
+    }
+    unsigned long serial = 0;
+    pthread_mutex_lock(&layouts_mu);
+    for (size_t i = 0; i < nlayouts && !serial; i++)
+        if (memcmp(&layouts[i], &id, sizeof id) == 0) serial = (unsigned long)i + 1;
+    if (!serial && nlayouts < LAYOUTS_MAX) {
+        if (nlayouts == caplayouts) {
+            size_t cap = caplayouts ? 2 * caplayouts : 16;
+            layout_id_t *grown = realloc(layouts, cap * sizeof *grown);
+            if (grown) layouts = grown, caplayouts = cap;
+        }
+        if (nlayouts < caplayouts) {
+            layouts[nlayouts++] = id;
+            serial = (unsigned long)nlayouts;
+        }
+    }
+    pthread_mutex_unlock(&layouts_mu);
+    return serial ? serial : atomic_fetch_add(&fresh, 1) + 1;
+}
+
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "param: no output pointer");
     *out = NULL;
@@ -180,8 +239,6 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     /* 0 and pi/2 up to rounding (e.g. 90 degrees converted) mean the hemisphere */
     if (p->opts.theta_max == 0 || fabs(p->opts.theta_max - SB_PI / 2) < 1e-12) p->opts.theta_max = SB_PI / 2;
     p->kind = kind;
-    static atomic_ulong serials;
-    p->serial = atomic_fetch_add(&serials, 1) + 1;
     sb_result_t r;
     if (p->opts.res < 2 || p->opts.res > 4096) {
         r = sb_error(ctx, SB_ERR_RANGE, "resolution %zu out of range, need 2..4096", p->opts.res);
@@ -203,6 +260,7 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
         sb_param_destroy(p);
         return r;
     }
+    p->serial = layout_serial(p);
     *out = p;
     return SB_OK;
 }

@@ -46,7 +46,7 @@ struct sb_param {
     int wrap[2][2];
     char *glsl; /* the vt's GLSL, after the warp functions of SB_CAP_WARPS layouts */
     char spec[SB_PARAM_SPEC_MAX];
-    unsigned long serial; /* unique per created parameterisation (sb_param_serial_) */
+    unsigned long serial; /* the same for the same resolved layout (sb_param_serial_) */
 };
 
 /* Warps (warp.c).  Elevation of texel edge or centre i (i = index, or
