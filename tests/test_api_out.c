@@ -365,7 +365,7 @@ SB_TEST(every_code) {
     snprintf(path, sizeof path, "%s/t.alta", sb_tmpdir("api-codes"));
     /* an ALTA table of another parameterisation is recognised, not supported */
     FILE *fp = fopen(path, "w");
-    CHECK(fp && fputs("#DIM 4 1\n#PARAM_IN CARTESIAN\n", fp) >= 0 && fclose(fp) == 0);
+    CHECK(fp && fputs("#DIM 2 1\n#PARAM_IN RUSIN_TH_TD\n", fp) >= 0 && fclose(fp) == 0);
     CHECK_CODE(sb_measured_open(ctx(), path, NULL, &s, NULL), SB_ERR_UNSUPPORTED);
     remove(path);
     /* NOMEM: a real allocation failure, in a child under an address-space

@@ -56,9 +56,9 @@ static void mat_vec(const double m[3][3], const double v[3], double out[3]) {
         out[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
 }
 
-/* Rusinkiewicz angles by explicit rotation matrices, then the MERL bins of
- * the reference code (BRDFRead.cpp). */
-static size_t ref_index(const double l[3], const double v[3]) {
+/* Rusinkiewicz angles of (l, v) by explicit rotation matrices (a[0..3] =
+ * theta_h, phi_h, theta_d, phi_d; phi_d in (-pi, pi]). */
+static void ref_halfdiff(const double l[3], const double v[3], double a[4]) {
     double h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
     double n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
     for (int k = 0; k < 3; k++)
@@ -69,7 +69,14 @@ static size_t ref_index(const double l[3], const double v[3]) {
     double t[3], d[3];
     mat_vec(rz, l, t);
     mat_vec(ry, t, d);
-    double td = acos(d[2] > 1 ? 1 : d[2]), pd = atan2(d[1], d[0]);
+    a[0] = th, a[1] = ph, a[2] = acos(d[2] > 1 ? 1 : d[2]), a[3] = atan2(d[1], d[0]);
+}
+
+/* The MERL bins of the reference code (BRDFRead.cpp). */
+static size_t ref_index(const double l[3], const double v[3]) {
+    double a[4];
+    ref_halfdiff(l, v, a);
+    double th = a[0], td = a[2], pd = a[3];
     if (pd < 0) pd += SB_PI; /* the reference folds (-pi, 0) onto (0, pi) */
     if (pd >= SB_PI) pd -= SB_PI;
     int ih = th <= 0 ? 0 : (int)(sqrt(th / (SB_PI / 2)) * 90);
@@ -957,7 +964,9 @@ SB_TEST(hostile_text) {
         {"garbage.brdf", "# num wls\n2\n# wls\n400 700\n0.1 0 0.2 0 x 1\n", SB_ERR_FORMAT,
          ":5: spectral value 'x' is not a number"},
         {"data.alta", "#DIM 3 1\n0.1 0.2 0.3 0.4\n", SB_ERR_FORMAT, ":2: data before the ALTA header"},
-        {"param.alta", "#DIM 3 1\n#PARAM_IN RUSIN_TH_TD_PD\n", SB_ERR_UNSUPPORTED, ":2: ALTA #PARAM_IN RUSIN_TH_TD_PD"},
+        {"param.alta", "#DIM 3 1\n#PARAM_IN STEREOGRAPHIC\n", SB_ERR_UNSUPPORTED, ":2: ALTA #PARAM_IN STEREOGRAPHIC"},
+        {"dims.alta", "#DIM 4 1\n#PARAM_IN RUSIN_TH_TD_PD\n", SB_ERR_FORMAT,
+         ":2: #PARAM_IN RUSIN_TH_TD_PD has 3 inputs, #DIM says 4"},
         {"vs.alta", "#DIM 3 1\n#VS 2\n", SB_ERR_UNSUPPORTED, ":2: ALTA confidence"},
         {"cols.alta", "#DIM 3 1\n#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI\n#PARAM_OUT INV_STERADIAN\n0.1 0.2 0.3\n",
          SB_ERR_FORMAT, ":4: 3 numbers, expected 4"},
@@ -1258,4 +1267,118 @@ SB_TEST(coverage_map) {
     size_t a, b;
     CHECK(sb_measured_coverage_map(NULL, NULL, p, 3, &a, &b) == SB_ERR_ARG);
     sb_param_destroy(p);
+}
+
+/* ---- ALTA parameterisations ------------------------------------------------ */
+
+/* A smooth reciprocal function (the reader takes ALTA tables as
+ * reciprocal) that depends on the azimuth difference through wi . wo. */
+static double alta_g(const double wi[3], const double wo[3]) {
+    return 0.2 + 0.15 * (wi[2] * wi[2] + wo[2] * wo[2]) + 0.1 * (wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2]);
+}
+/* The same plus a reciprocal anisotropic term (a wrong sign of phi moves it). */
+static double alta_ga(const double wi[3], const double wo[3]) {
+    double s = wi[0] + wi[1] + wo[0] + wo[1];
+    return alta_g(wi, wo) + 0.1 * s * s;
+}
+
+/* The row inputs of pair (l = wi, v = wo) under ALTA parameterisation
+ * `name`, by independent formulas (Rusinkiewicz by the rotation matrices
+ * of ref_index, unfolded); the count. */
+static int alta_inputs(const char *name, const double l[3], const double v[3], double *a) {
+    double tl = acos(l[2]), pl = atan2(l[1], l[0]), tv = acos(v[2]), pv = atan2(v[1], v[0]);
+    if (strcmp(name, "ISOTROPIC_TL_TV_PROJ_DPHI") == 0) {
+        a[0] = tl, a[1] = tv * cos(pv - pl), a[2] = tv * sin(pv - pl);
+        return 3;
+    }
+    if (strcmp(name, "ISOTROPIC_TV_TL_DPHI") == 0) {
+        double dp = remainder(pv - pl, 2 * SB_PI);
+        a[0] = tv, a[1] = tl, a[2] = dp;
+        return 3;
+    }
+    if (strcmp(name, "SPHERICAL_TL_PL_TV_PV") == 0) {
+        a[0] = tl, a[1] = pl, a[2] = tv, a[3] = pv;
+        return 4;
+    }
+    if (strcmp(name, "CARTESIAN") == 0) {
+        for (int k = 0; k < 3; k++)
+            a[k] = l[k], a[3 + k] = v[k];
+        return 6;
+    }
+    double r[4];
+    ref_halfdiff(l, v, r);
+    if (strcmp(name, "RUSIN_TH_TD_PD") == 0) { /* isotropic: phi_h dropped */
+        a[0] = r[0], a[1] = r[2], a[2] = r[3];
+        return 3;
+    }
+    memcpy(a, r, sizeof r); /* RUSIN_TH_PH_TD_PD */
+    return 4;
+}
+
+/* Every ALTA #PARAM_IN read: a table of alta_g written in it (rows at
+ * pairs of our own; isotropic layouts get pairs with phi_l = 0, the others
+ * any azimuth; INV_STERADIAN_COSINE_FACTOR, f cos(theta_v), in one of them:
+ * the view direction must be wo) reads back as the same function at pairs
+ * between the rows, so each layout's angles are as ALTA defines them (a
+ * wrong sign of an azimuth moves wi . wo, the cosine of the wrong
+ * direction scales f by cos(theta_l) / cos(theta_v)). */
+SB_TEST(alta_parameterisations) {
+    static const char *const names[] = {"ISOTROPIC_TL_TV_PROJ_DPHI", "ISOTROPIC_TV_TL_DPHI",  "RUSIN_TH_TD_PD",
+                                        "RUSIN_TH_PH_TD_PD",         "SPHERICAL_TL_PL_TV_PV", "CARTESIAN"};
+    for (size_t k = 0; k < sizeof names / sizeof *names; k++) {
+        int iso = k < 3, cosine = k == 1;
+        const char *path = tmp_path("alta_params", "table.alta");
+        FILE *fp = fopen(path, "w");
+        CHECK(fp != NULL);
+        if (!fp) return;
+        double a[6];
+        double l0[3] = {0, 0, 1};
+        int din = alta_inputs(names[k], l0, l0, a);
+        fprintf(fp, "#DIM %d 1\n#PARAM_IN %s\n#PARAM_OUT %s\n", din, names[k],
+                cosine ? "INV_STERADIAN_COSINE_FACTOR" : "INV_STERADIAN");
+        uint64_t seed = 11 + k;
+        size_t rows = 0;
+        for (int it = 0; it < 14; it++)
+            for (int ip = 0; ip < (iso ? 1 : 12); ip++)
+                for (int ot = 0; ot < 14; ot++)
+                    for (int op = 0; op < 24; op++) {
+                        double l[3], v[3];
+                        double pl = iso ? 0 : 2 * SB_PI * (ip + 0.5) / 12;
+                        sb_dir_from_angles((it + 0.5) / 14 * SB_PI / 2 * 0.98, pl, l);
+                        sb_dir_from_angles((ot + 0.5) / 14 * SB_PI / 2 * 0.98, pl + 2 * SB_PI * (op + 0.5) / 24, v);
+                        int n = alta_inputs(names[k], l, v, a);
+                        for (int c = 0; c < n; c++)
+                            fprintf(fp, "%.17g ", a[c]);
+                        fprintf(fp, "%.17g\n", (iso ? alta_g(l, v) : alta_ga(l, v)) * (cosine ? v[2] : 1));
+                        rows++;
+                    }
+        (void)seed;
+        fclose(fp);
+        sb_measured_info_t info;
+        sb_source_t *s = open_table(path, NULL, &info);
+        CHECK(s != NULL);
+        if (!s) continue;
+        CHECKF(info.samples == rows, "%s: %zu samples of %zu rows", names[k], info.samples, rows);
+        CHECKF(((sb_source_flags(s) & SB_SOURCE_ISOTROPIC) != 0) == iso, "%s: isotropic %d", names[k], iso);
+        double worst = 0, node = 0;
+        for (int t = 0; t < 200; t++) { /* pairs between the rows, away from the table's edges */
+            double l[3], v[3], rgb[3];
+            sb_dir_from_angles((0.1 + 0.7 * fmod(t * 0.618034, 1)) * SB_PI / 2,
+                               iso ? 0 : fmod(t * 0.3819, 1) * 2 * SB_PI, l);
+            sb_dir_from_angles((0.1 + 0.7 * fmod(t * 0.7548, 1)) * SB_PI / 2, fmod(t * 0.5698, 1) * 2 * SB_PI, v);
+            if (sb_source_eval(s, l, v, rgb))
+                worst = fmax(worst, fabs(rgb[0] / (iso ? alta_g(l, v) : alta_ga(l, v)) - 1));
+            /* and at a row's own pair (inside the grid) */
+            int it = 1 + t % 12, ip = iso ? 0 : t % 12, ot = 1 + (t * 7) % 12, op = (t * 5) % 24;
+            double pl = iso ? 0 : 2 * SB_PI * (ip + 0.5) / 12;
+            sb_dir_from_angles((it + 0.5) / 14 * SB_PI / 2 * 0.98, pl, l);
+            sb_dir_from_angles((ot + 0.5) / 14 * SB_PI / 2 * 0.98, pl + 2 * SB_PI * (op + 0.5) / 24, v);
+            if (sb_source_eval(s, l, v, rgb))
+                node = fmax(node, fabs(rgb[0] / (iso ? alta_g(l, v) : alta_ga(l, v)) - 1));
+        }
+        printf("  %-26s %zu rows, worst relative error at rows %.2e, between them %.2e\n", names[k], rows, node, worst);
+        CHECKF(node < 0.01, "%s: at the rows %.3g", names[k], node);
+        CHECKF(worst < (iso ? 0.03 : 0.15), "%s: between the rows %.3g", names[k], worst);
+        sb_source_destroy(s);
+    }
 }

@@ -518,8 +518,9 @@ SB_TEST(bad_files_exit_2) {
     } files[] = {
         {"version2.bsdf", "rgl_paper_white_rgb.bsdf", 12, 2, 0, NULL, "tensor_file version 2.0"},
         {"short.bsdf", "rgl_chm_orange_rgb.bsdf", -1, 0, 300, NULL, "past the end"},
-        {"felt1d.alta", "alta_merl_pink-felt-1d.alta", -1, 0, 0, NULL, "#DIM 1 3 not supported"},
-        {"rusin.alta", NULL, 0, 0, 0, "#DIM 3 1\n#PARAM_IN RUSIN_TH_TD_PD\n1 2 3 4\n", "#PARAM_IN RUSIN_TH_TD_PD"},
+        {"felt1d.alta", "alta_merl_pink-felt-1d.alta", -1, 0, 0, NULL, "#DIM 1 3: a table of 1 input (a slice"},
+        {"stereo.alta", NULL, 0, 0, 0, "#DIM 3 1\n#PARAM_IN STEREOGRAPHIC\n1 2 3 4\n",
+         "#PARAM_IN STEREOGRAPHIC not supported"},
         {"waves.brdf", NULL, 0, 0, 0, "# num wls\n2\n# wls\n500 450\n", "wavelengths not increasing"},
         {"noise.xyz", NULL, 0, 0, 0, "\x01\x02\x03 hello", "unrecognised measured table"},
     };

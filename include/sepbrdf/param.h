@@ -266,6 +266,10 @@ sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis,
 /* Unit direction <-> spherical angles in the local frame, phi in [0, 2pi). */
 void sb_dir_from_angles(double theta, double phi, double w[3]);
 void sb_dir_to_angles(const double w[3], double *theta, double *phi);
+/* The pair of Rusinkiewicz's half/difference angles: h at (theta_h,
+ * phi_h), d at (theta_d, phi_d) in h's frame; wi = R_z(phi_h) R_y(theta_h)
+ * d, wo its mirror about h (either may lie below the horizon). */
+void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]);
 
 #ifdef __cplusplus
 }

@@ -323,6 +323,24 @@ int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], doub
 }
 const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
 
+void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
+    double d[3], ct = cos(theta_h), st = sin(theta_h), h[3] = {st, 0, ct}, l[3], v[3];
+    sb_dir_from_angles(theta_d, phi_d, d);
+    l[0] = d[0] * ct + d[2] * st;
+    l[1] = d[1];
+    l[2] = -d[0] * st + d[2] * ct;
+    for (int i = 0; i < 3; i++)
+        v[i] = 2 * d[2] * h[i] - l[i];
+    if (phi_h == 0) { /* no rotation: the values as computed */
+        memcpy(wi, l, sizeof l);
+        memcpy(wo, v, sizeof v);
+        return;
+    }
+    double cp = cos(phi_h), sp = sin(phi_h);
+    wi[0] = cp * l[0] - sp * l[1], wi[1] = sp * l[0] + cp * l[1], wi[2] = l[2];
+    wo[0] = cp * v[0] - sp * v[1], wo[1] = sp * v[0] + cp * v[1], wo[2] = v[2];
+}
+
 void sb_dir_from_angles(double theta, double phi, double w[3]) {
     if (!w) return;
     double s = sin(theta);

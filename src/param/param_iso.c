@@ -51,13 +51,7 @@ static int iso_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[
     double th = sb_warp_theta(&p->opts.warp[SB_AXIS_THETA_H], (double)row + 0.5, iso_th(p), tmax);
     double td = sb_warp_theta(&p->opts.warp[SB_AXIS_THETA_D], (double)(col % iso_td(p)) + 0.5, iso_td(p), tmax);
     double pd = ((double)(col / iso_td(p)) + 0.5) * SB_PI / (double)iso_pd(p);
-    double d[3], ct = cos(th), st = sin(th), h[3] = {st, 0, ct};
-    sb_dir_from_angles(td, pd, d);
-    wi[0] = d[0] * ct + d[2] * st;
-    wi[1] = d[1];
-    wi[2] = -d[0] * st + d[2] * ct;
-    for (int i = 0; i < 3; i++)
-        wo[i] = 2 * d[2] * h[i] - wi[i];
+    sb_dirs_from_halfdiff(th, 0, td, pd, wi, wo);
     return sb_dir_in_cap(tmax, wi) && sb_dir_in_cap(tmax, wo);
 }
 
