@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "solve/fit_impl.h"
+#include "util/chol.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 
@@ -19,31 +20,8 @@ static inline void spd_solve(double *G, double *b, size_t k) {
     double ridge = 1e-12 * (tr > 0 ? tr / (double)k : 1.0) + 1e-300;
     for (size_t i = 0; i < k; i++)
         G[i * k + i] += ridge;
-    for (size_t j = 0; j < k; j++) {
-        double d = G[j * k + j];
-        for (size_t p = 0; p < j; p++)
-            d -= G[j * k + p] * G[j * k + p];
-        d = d > 0 ? sqrt(d) : 1e-150;
-        G[j * k + j] = d;
-        for (size_t i = j + 1; i < k; i++) {
-            double v = G[i * k + j];
-            for (size_t p = 0; p < j; p++)
-                v -= G[i * k + p] * G[j * k + p];
-            G[i * k + j] = v / d;
-        }
-    }
-    for (size_t i = 0; i < k; i++) { /* L y = b */
-        double v = b[i];
-        for (size_t p = 0; p < i; p++)
-            v -= G[i * k + p] * b[p];
-        b[i] = v / G[i * k + i];
-    }
-    for (size_t i = k; i-- > 0;) { /* L^T x = y */
-        double v = b[i];
-        for (size_t p = i + 1; p < k; p++)
-            v -= G[p * k + i] * b[p];
-        b[i] = v / G[i * k + i];
-    }
+    sb_chol(G, k, 1e-150);
+    sb_chol_solve(G, k, b, 1);
 }
 
 void fit_cells_free(als_cells_t *cl) {

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "source/scattered_impl.h"
+#include "util/chol.h"
 #include "util/internal.h"
 
 #define MAX_TERMS 15 /* 1 + 4 + 10: quadratic in 4D */
@@ -53,38 +54,13 @@ static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadr
     double s2 = spread / wsum;
     for (int a = 1; a < P; a++)
         A[a * P + a] += RIDGE * wsum * (a <= D ? s2 : s2 * s2);
-    /* Cholesky A = L L^T in the lower triangle */
-    for (int j = 0; j < P; j++) {
-        double d = A[j * P + j];
-        for (int k = 0; k < j; k++)
-            d -= A[j * P + k] * A[j * P + k];
-        if (!(d > 0)) return 0;
-        d = sqrt(d);
-        A[j * P + j] = d;
-        for (int i = j + 1; i < P; i++) {
-            double s = A[i * P + j];
-            for (int k = 0; k < j; k++)
-                s -= A[i * P + k] * A[j * P + k];
-            A[i * P + j] = s / d;
-        }
-    }
+    if (!sb_chol(A, (size_t)P, 0)) return 0; /* A = L L^T in the lower triangle */
     double out[3];
     for (int c = 0; c < 3; c++) {
-        double y[MAX_TERMS];
-        for (int i = 0; i < P; i++) {
-            double s = B[i * 3 + c];
-            for (int k = 0; k < i; k++)
-                s -= A[i * P + k] * y[k];
-            y[i] = s / A[i * P + i];
-        }
-        for (int i = P - 1; i >= 0; i--) {
-            double s = y[i];
-            for (int k = i + 1; k < P; k++)
-                s -= A[k * P + i] * y[k];
-            y[i] = s / A[i * P + i];
-        }
-        if (!isfinite(y[0])) return 0;
-        out[c] = y[0] < lo[c] ? lo[c] : (y[0] > hi[c] ? hi[c] : y[0]);
+        sb_chol_solve(A, (size_t)P, B + c, 3); /* column c of B (row-major P x 3) */
+        double y0 = B[c];
+        if (!isfinite(y0)) return 0;
+        out[c] = y0 < lo[c] ? lo[c] : (y0 > hi[c] ? hi[c] : y0);
     }
     memcpy(rgb, out, sizeof out);
     return 1;
