@@ -103,16 +103,19 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
 sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a);
 /* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
-/* After a->f changed (texels filtered, terms weighted): its errors on the
- * matrix's cells, then job_measure on the same pairs (no growth). */
 /* a's estimate as reported: a ranking's (lv.rank_only) is done again
  * with p99 and maxima, growing as lv allows. */
 sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* a's estimate again on the job's pairs as they are (no growth), the
+ * errors on the cells left as they are. */
+sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* After a->f changed (texels filtered, terms weighted): its errors on the
+ * matrix's cells, then job_measure on the same pairs (no growth). */
 sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Weight the terms of the kept fit a so that its headline is non-increasing
  * in J' (estimate.h sb_estimate_term_weights; a->term_w), then measure
- * its errors again; nothing when the weights are all 1, for a structured
- * matrix or with o.plain_terms.  Weights that would raise the headline at
+ * its errors again; nothing when the weights are all 1 (the estimate's
+ * headline already non-increasing per channel) or with o.plain_terms.  Weights that would raise the headline at
  * J more than JOB_WEIGHTS_MAX_LOSS times are dropped (a->weights_dropped). */
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* The warning that the kept fit's term weights were dropped, if they were. */

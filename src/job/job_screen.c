@@ -128,13 +128,17 @@ sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_le
     return job_estimate(ctx, job, &full, a);
 }
 
-sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
-    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
-    sb_result_t r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
+sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     job_level_t same = *lv;
     same.est_max_pairs = 1;
     same.rank_only = same.rank_at_j = 0; /* what is reported: p99 and maxima too */
-    return r == SB_OK ? job_measure(ctx, job, &same, a) : r;
+    return job_measure(ctx, job, &same, a);
+}
+
+sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
+    sb_result_t r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
+    return r == SB_OK ? job_estimate_again(ctx, job, lv, a) : r;
 }
 
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {

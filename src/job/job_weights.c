@@ -28,10 +28,22 @@ static void scale_term(sb_factors_t *f, size_t j, size_t c, double w) {
     sb_factors_set_sigma(f, j, c, sb_factors_sigma(f, j, c) * w);
 }
 
+/* Whether every weight would be 1: a's estimate, on the pairs the weights
+ * would be fitted on, has each channel's headline at most 1 after one term
+ * and non-increasing after it (each term lowers the channel's error sum). */
+static int weights_all_one(const sb_job_t *job, const job_attempt_t *a) {
+    const sb_estimate_t *e = a->est;
+    if (a->est_rank || e->pairs != sb_pairs_count(job->pairs) || e->terms != sb_factors_terms(a->f)) return 0;
+    for (size_t j = 0; j < e->terms; j++)
+        for (int c = 0; c < 3; c++)
+            if (!(e->rel[j][SB_EST_FCOS][c] <= (j ? e->rel[j - 1][SB_EST_FCOS][c] : 1))) return 0;
+    return 1;
+}
+
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f);
     a->weights_dropped[0] = a->weights_dropped[1] = 0;
-    if (job->o.plain_terms || a->m.structured || !a->est || !job->pairs) return SB_OK;
+    if (job->o.plain_terms || !a->est || !job->pairs || weights_all_one(job, a)) return SB_OK;
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
     double *w = malloc(J * C * sizeof *w);
@@ -72,7 +84,7 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
     a->f = keep;
     free(a->term_w);
     a->term_w = NULL;
-    if ((r = job_remeasure(ctx, job, lv, a)) != SB_OK) return r;
+    if ((r = a->m.structured ? job_estimate_again(ctx, job, lv, a) : job_remeasure(ctx, job, lv, a)) != SB_OK) return r;
     a->weights_dropped[0] = sb_estimate_headline(a->est, J);
     a->weights_dropped[1] = weighted;
     return SB_OK;
