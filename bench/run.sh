@@ -3,7 +3,7 @@
 #   bench/run.sh [sepbrdf_bench options]     e.g. --quick, --sizes 1024
 # Builds sepbrdf_bench in $BUILD (default ./build), writes bench/results.csv
 # and bench/results.png (gnuplot), then times the whole `sepbrdf factor`
-# command (best of 3, with its stage times) when the CLI is built, and
+# command (best of 5, with its stage times) when the CLI is built, and
 # last runs the peers (numpy, scipy svds, sklearn randomized_svd) on the
 # very matrices of the run (bench/peers.py -> bench/peers.csv, with the
 # ratios), when Python has numpy, scipy and scikit-learn
@@ -31,7 +31,7 @@ if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then
         label=$1
         shift
         best= stages=
-        for i in 1 2 3; do
+        for i in 1 2 3 4 5; do
             t0=$(date +%s.%N)
             "$build/sepbrdf" factor "$@" -q -o "$work/run"
             t1=$(date +%s.%N)
@@ -42,7 +42,7 @@ if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then
                 stages=$(tr -d ' \n' <"$work/run/report.json" | sed 's/.*"timings":{\([^}]*\)}.*/\1/')
             fi
         done
-        echo "# sepbrdf factor $label: best of 3 $best s ($stages)"
+        echo "# sepbrdf factor $label: best of 5 $best s ($stages)"
     }
     for R in 32 64; do
         whole "--param io -r $R -J 8" --param io -r "$R" -J 8
