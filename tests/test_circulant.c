@@ -60,6 +60,10 @@ SB_TEST(matches_dense_full) {
         {"cook-torrance:roughness=0.4,kd=0", 7, 10, 1, SB_FORM_F, 70}, /* grey: proportional channels */
         {"lambert:albedo=0.8", 6, 5, 0, SB_FORM_F, 90},                /* rank 1 */
         {"blinn-phong:n=20", 6, 36, 0, SB_FORM_COS, 90},               /* J = N */
+        /* few terms of many blocks: the blocks whose norm is below the
+         * J-th value are not decomposed, their energy enters the tails */
+        {"microfacet:base=gold,roughness=0.5", 16, 3, 1, SB_FORM_F, 90},
+        {"cook-torrance:roughness=0.2", 12, 5, 0, SB_FORM_F, 90},
     };
     for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
         sb_source_t *s = model(cases[t].spec);

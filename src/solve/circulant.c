@@ -31,6 +31,9 @@ struct sb_circ {
     double *Cv;               /* a copy of C, overwritten by dgesdd */
     double *T;                /* R x nb: cos(2 pi k m / R) */
     unsigned char *need;      /* nb: block k holds a selected triplet */
+    size_t *list, nlist;      /* the blocks whose singular values this batch computes */
+    unsigned char *done;      /* nb: block k's singular values are known */
+    double *fro;              /* nb: ||C_k||_F^2, the sum of block k's squared singular values */
     double *sv, *A, *VT;      /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
     double *ct;               /* cos(2 pi q / R), q = 0..R-1 */
     double *work;             /* per thread: lwork doubles */
@@ -48,6 +51,9 @@ void sb_circ_destroy(sb_circ_t *c) {
     free(c->C);
     free(c->Cv);
     free(c->T);
+    free(c->list);
+    free(c->done);
+    free(c->fro);
     free(c->need);
     free(c->sv);
     free(c->A);
@@ -79,6 +85,9 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->Cv = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->T = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant");
     c->need = sb_alloc(ctx, c->nb, 1, "circulant");
+    c->list = sb_alloc(ctx, c->nb, sizeof(size_t), "circulant");
+    c->done = sb_alloc(ctx, c->nb, 1, "circulant");
+    c->fro = sb_alloc(ctx, c->nb, sizeof(double), "circulant");
     c->A = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->VT = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
@@ -90,8 +99,8 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->at = sb_alloc(ctx, R, sizeof(double), "circulant");
     c->bt = sb_alloc(ctx, R, sizeof(double), "circulant");
     c->e = sb_alloc(ctx, 3 * R, sizeof(double), "circulant");
-    if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->sv || !c->A || !c->VT || !c->ct || !c->iwork || !c->cand ||
-        !c->res || !c->at || !c->bt || !c->e) {
+    if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->list || !c->done || !c->fro || !c->sv || !c->A || !c->VT ||
+        !c->ct || !c->iwork || !c->cand || !c->res || !c->at || !c->bt || !c->e) {
         sb_circ_destroy(c);
         return SB_ERR_NOMEM;
     }
@@ -188,15 +197,26 @@ static void *blk_svd(void *arg) {
     size_t R = c->R, R2 = R * R;
     lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * 8 * R;
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
-    if (j->pass == 0 && j->k1 > j->k0)
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->K,
-                    (int)R2, c->T + j->k0 * R, (int)R, 0.0, c->C + j->k0 * R2, (int)R2);
-    for (size_t k = j->k0; k < j->k1 && j->info == 0; k++) {
+    if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
+        if (j->k1 > j->k0)
+            cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->K,
+                        (int)R2, c->T + j->k0 * R, (int)R, 0.0, c->C + j->k0 * R2, (int)R2);
+        for (size_t k = j->k0; k < j->k1; k++) {
+            double f = 0;
+            for (size_t i = 0; i < R2; i++)
+                f += c->C[k * R2 + i] * c->C[k * R2 + i];
+            c->fro[k] = f;
+        }
+        return NULL;
+    }
+    for (size_t p = j->k0; p < j->k1 && j->info == 0; p++) {
+        size_t k = j->pass == 2 ? c->list[p] : p; /* pass 2: positions in the batch's list */
         if (j->pass == 1 && !c->need[k]) continue;
         memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
-        j->info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, j->pass ? 'S' : 'N', n, n, c->Cv + k * R2, n, c->sv + k * R,
-                                      j->pass ? c->A + k * R2 : NULL, n, j->pass ? c->VT + k * R2 : NULL, n, work,
-                                      c->lwork, iw);
+        int vec = j->pass == 1;
+        j->info =
+            LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, c->sv + k * R,
+                                vec ? c->A + k * R2 : NULL, n, vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
         j->bad = k;
     }
     return NULL;
@@ -206,7 +226,7 @@ static sb_result_t blocks_run(sb_circ_t *c, int pass) {
     blk_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < c->nth; t++) {
         jobs[t] = (blk_job_t){c, t, pass, 0, 0, 0, 0};
-        sb_part(c->nb, t, c->nth, &jobs[t].k0, &jobs[t].k1);
+        sb_part(pass == 2 ? c->nlist : c->nb, t, c->nth, &jobs[t].k0, &jobs[t].k1);
     }
     sb_parallel_run(blk_svd, jobs, sizeof *jobs, c->nth, NULL, NULL);
     for (int t = 0; t < c->nth; t++)
@@ -231,6 +251,65 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
     return r;
 }
 
+/* Norms with their blocks, to sort. */
+typedef struct fro_k {
+    double f;
+    size_t k;
+} fro_k_t;
+
+static int fro_cmp(const void *a, const void *b) {
+    const fro_k_t *x = a, *y = b;
+    if (x->f != y->f) return x->f > y->f ? -1 : 1;
+    return x->k < y->k ? -1 : x->k > y->k;
+}
+
+/* The candidates (every singular value of the computed blocks, each pair
+ * member once) into c->cand, largest first; their count. */
+static size_t gather(sb_circ_t *c) {
+    size_t R = c->R, nc = 0;
+    for (unsigned k = 0; k < c->nb; k++)
+        for (unsigned i = 0; i < R && c->done[k]; i++)
+            for (unsigned mb = 0; mb < (single(c, k) ? 1u : 2u); mb++)
+                c->cand[nc++] = (cand_t){c->sv[k * R + i], k, i, mb};
+    qsort(c->cand, nc, sizeof *c->cand, cand_cmp);
+    return nc;
+}
+
+/* Compute the blocks' singular values, in decreasing norm, a batch of two
+ * blocks a thread at a time, until the next block cannot hold one of the J
+ * largest (c->done marks the computed blocks); c->cand and *nc as
+ * gather. */
+static sb_result_t select_blocks(sb_circ_t *c, size_t J, size_t *nc) {
+    size_t nb = c->nb, next = 0, R = c->R;
+    fro_k_t *o = malloc(nb * sizeof *o);
+    if (!o) return sb_error(c->ctx, SB_ERR_NOMEM, "circulant: out of memory");
+    for (size_t k = 0; k < nb; k++)
+        o[k] = (fro_k_t){c->fro[k], k};
+    qsort(o, nb, sizeof *o, fro_cmp);
+    memset(c->done, 0, nb);
+    size_t have = 0;
+    double sJ = -1;
+    sb_result_t r = SB_OK;
+    while (next < nb && r == SB_OK) {
+        if (have >= J && sqrt(o[next].f) < sJ) break;
+        c->nlist = 0;
+        for (size_t b = 0; b < 2 * (size_t)c->nth && next < nb; b++) {
+            size_t k = o[next++].k;
+            c->list[c->nlist++] = k;
+            c->done[k] = 1;
+            have += (single(c, k) ? 1 : 2) * R;
+        }
+        r = blocks_run(c, 2);
+        if (r == SB_OK && have >= J) {
+            *nc = gather(c);
+            sJ = c->cand[J - 1].s;
+        }
+    }
+    free(o);
+    if (r == SB_OK) *nc = gather(c);
+    return r;
+}
+
 static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
                             double *s, double *u, double *v, double *tails) {
     size_t R = c->R, R2 = R * R, N = R2;
@@ -243,25 +322,28 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
-     * the singular values of every block (no vectors: the cheap part),
-     * blocks split among threads */
+     * each block's squared Frobenius norm, blocks split among threads */
     sb_result_t res = blocks_run(c, 0);
     if (res != SB_OK) return res;
-    /* Step: every singular value of the matrix, largest first */
+    /* Step: the singular values (no vectors: the cheap part) of the blocks
+     * in decreasing norm, a batch at a time, until the next block's norm,
+     * a bound on its largest value, is below the J-th largest value known:
+     * no block after it holds a selected triplet.  Their squared values
+     * enter the tails as their squared norms (the same sum, all terms
+     * positive). */
     size_t nc = 0;
-    for (unsigned k = 0; k < c->nb; k++)
-        for (unsigned i = 0; i < R; i++)
-            for (unsigned mb = 0; mb < (single(c, k) ? 1u : 2u); mb++)
-                c->cand[nc++] = (cand_t){c->sv[k * R + i], k, i, mb};
-    qsort(c->cand, nc, sizeof *c->cand, cand_cmp);
+    if ((res = select_blocks(c, J, &nc)) != SB_OK) return res;
+    double skipped = 0;
+    for (size_t k = 0; k < c->nb; k++)
+        if (!c->done[k]) skipped += (single(c, k) ? 1.0 : 2.0) * c->fro[k];
     /* Step: tails, summed from the smallest value up */
-    double t = 0;
+    double t = skipped * scale * scale;
     for (size_t r = nc; r-- > 1;) {
         double x = c->cand[r].s * scale;
         t += x * x;
         if (r - 1 < J) tails[r - 1] = t;
     }
-    if (J >= nc) tails[nc - 1] = 0;
+    if (J >= nc) tails[nc - 1] = skipped * scale * scale; /* 0 unless blocks were skipped */
     /* Step: vectors of the blocks that hold a selected triplet; their
      * values replace the first pass's (equal to rounding, same order) */
     memset(c->need, 0, c->nb);
