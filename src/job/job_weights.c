@@ -84,7 +84,9 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
     a->f = keep;
     free(a->term_w);
     a->term_w = NULL;
-    if ((r = a->m.structured ? job_estimate_again(ctx, job, lv, a) : job_remeasure(ctx, job, lv, a)) != SB_OK) return r;
+    /* keep holds the plain terms' errors on the cells (job_factors_copy):
+     * only the estimate is redone */
+    if ((r = job_estimate_again(ctx, job, lv, a)) != SB_OK) return r;
     a->weights_dropped[0] = sb_estimate_headline(a->est, J);
     a->weights_dropped[1] = weighted;
     return SB_OK;
