@@ -1,7 +1,9 @@
 /* CLI: `sepbrdf study` with the real binary (SB_CLI): files, nesting of J,
  * failures that keep the other results, gnuplot missing. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "harness.h"
 
@@ -175,4 +177,32 @@ SB_TEST(gnuplot_missing) {
     const char *json = slurp(n, "study.json");
     CHECK(json && strstr(json, "\"plot\": null"));
     CHECK(!slurp(n, "study.png"));
+}
+
+/* The CLI starts with its own malloc tunables (src/cli/blas_env.c) unless
+ * the user set GLIBC_TUNABLES; the programs it starts (here the plotter)
+ * get the user's environment: no GLIBC_TUNABLES of ours, the user's own
+ * passed through unchanged. */
+SB_TEST(children_get_user_environment) {
+    const char *dir = sb_tmpdir("study");
+    char script[4200], cmd[8192], path[4300];
+    snprintf(script, sizeof script, "%s/fake-gnuplot.sh", dir);
+    FILE *fp = fopen(script, "w");
+    CHECK(fp);
+    fprintf(fp, "#!/bin/sh\necho \"tunables=${GLIBC_TUNABLES-unset}\" > \"%s/env.txt\"\nexit 1\n", dir);
+    fclose(fp);
+    snprintf(cmd, sizeof cmd, "chmod +x %s", script);
+    CHECK(system(cmd) == 0);
+    const char *user[] = {"", "GLIBC_TUNABLES=glibc.malloc.check=0 "};
+    const char *want[] = {"tunables=unset\n", "tunables=glibc.malloc.check=0\n"};
+    for (int k = 0; k < 2; k++) {
+        snprintf(cmd, sizeof cmd, "%sSEPBRDF_GNUPLOT=%s %s study lambert --param io --terms 1 --res 4 -o %s/r%d",
+                 user[k], script, SB_CLI, dir, k);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 0, "rc %d: %s", rc, out);
+        const char *env = slurp(dir, "env.txt");
+        CHECKF(env && strcmp(env, want[k]) == 0, "case %d: %s", k, env ? env : "(no env.txt)");
+        snprintf(path, sizeof path, "%s/env.txt", dir);
+        unlink(path);
+    }
 }

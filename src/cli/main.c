@@ -90,6 +90,7 @@ static int run(int argc, char **argv) {
 }
 
 int main(int argc, char **argv) {
+    sb_cli_malloc_env_restore();
     cli_signals_install();
     return finish(run(argc, argv));
 }
