@@ -26,7 +26,7 @@ res=${1:-16}
 [ $# -ge 1 ] && shift
 [ $# -ge 1 ] || set -- 16
 [ -d "$build" ] || cmake -S "$root" -B "$build" >/dev/null
-cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null
+cmake --build "$build" --target sepbrdf_launch -j2 >/dev/null
 cmake --build "$build" --target sepbrdf_mpi -j2 >/dev/null 2>&1 || true
 cli=$build/sepbrdf
 work=$(mktemp -d)

@@ -26,7 +26,7 @@ echo "# OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-unset} OPENBLAS_CORETYPE=${
 # `--param io` is the lecture's theta-phi grid, R x R (the N = R^2 matrix of the table
 # above); the default (`--param auto`) tries every parameterisation.
 io64=
-if cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null 2>&1; then
+if cmake --build "$build" --target sepbrdf_launch -j2 >/dev/null 2>&1; then
     whole() { # label, then the factor options; sets $best
         label=$1
         shift

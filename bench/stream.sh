@@ -23,7 +23,7 @@ rmpi=${2:-48}
 src="microfacet:roughness=0.3,anisotropy=0.8"
 iso="microfacet:roughness=0.3"
 [ -d "$build" ] || cmake -S "$root" -B "$build" >/dev/null
-cmake --build "$build" --target sepbrdf_cli -j2 >/dev/null
+cmake --build "$build" --target sepbrdf_launch -j2 >/dev/null
 cmake --build "$build" --target sepbrdf_mpi -j2 >/dev/null 2>&1 || true
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -1,3 +1,4 @@
+#include <stdio.h>
 /* CLI: the real binary, its exit codes, files and messages. */
 #include <stdlib.h>
 #include <string.h>
@@ -190,4 +191,26 @@ SB_TEST(param_spec_round_trip) {
     CHECK(strstr(out, "--param") != NULL && strstr(out, "not a number") != NULL);
     CHECK(run("factor blinn-phong -r 8 --param iso:res=8,warp_h=0.1/0.5 --warp merl -q -o %s", sub) != 0);
     CHECK(strstr(out, "--warp") != NULL);
+}
+
+/* `sepbrdf` is a launcher that executes sepbrdf-main next to it (or in
+ * libexec/sepbrdf when installed: install_test.cmake); alone, it says what
+ * is missing and exits 127, and it passes the arguments through as given. */
+SB_TEST(launcher_alone_and_arguments) {
+    const char *dir = sb_tmpdir("launch");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "cp %s %s/sepbrdf", SB_CLI, dir);
+    CHECK(system(cmd) == 0);
+    snprintf(cmd, sizeof cmd, "%s/sepbrdf --version", dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 127, "rc %d: %s", rc, out);
+    CHECKF(strstr(out, "sepbrdf-main") && strstr(out, "broken installation"), "%s", out);
+    snprintf(cmd, sizeof cmd, "%s factor lambert --res 4 --terms 1 -q -o '%s/with space'", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char path[4300];
+    snprintf(path, sizeof path, "%s/with space/report.json", dir);
+    FILE *fp = fopen(path, "r");
+    CHECKF(fp != NULL, "%s missing", path);
+    if (fp) fclose(fp);
 }

@@ -1,100 +1,29 @@
-/* OpenBLAS's thread count under a memory limit, and its workers' spin
- * time, chosen before OpenBLAS starts.
- *
- * OpenBLAS starts one worker thread per core in its library constructor,
- * and each worker at once allocates a 128 MiB working buffer, retrying
- * forever (100 % CPU) when that fails; at exit the main thread joins the
- * workers.  Under `ulimit -v` of a few hundred MB this hung runs that had
- * finished (or had already reported "cannot allocate"), and at 60 MB the
- * constructor failed before main (`sepbrdf --version` exited 130).  A
- * function in .preinit_array runs before the constructors of the shared
- * libraries (but before the C library has set up `environ`, so setenv
- * there is lost): when the limit does not hold every worker's buffer plus
- * room for the data, it executes the program again with
- * OPENBLAS_NUM_THREADS=1 added to its environment, and OpenBLAS then runs
- * on the calling thread only (the library checks that thread's
- * buffer before its first BLAS call, sb_blas_reserve). */
-#include <stdio.h>
+/* The CLI's environment (env_plan.c) when the CLI is started directly,
+ * not through the launcher (launch/launch.c), e.g. from the build tree or
+ * as libexec/sepbrdf/sepbrdf-main.  A function in .preinit_array runs
+ * before the constructors of the shared libraries (but before the C library
+ * has set up `environ`, so setenv there is lost): when the environment
+ * lacks what the CLI wants, it executes the program again with it.  That
+ * second start costs about 10 ms on the 2-core VM (the libraries are mapped
+ * and relocated twice), which is why `sepbrdf` is a launcher. */
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
-/* per OpenBLAS thread: buffer 128 MiB + its page, and the thread's stack */
-#define BLAS_THREAD_BYTES ((unsigned long long)136 << 20)
-/* room for the program, its libraries and a small factorisation */
-#define BLAS_BASE_BYTES ((unsigned long long)512 << 20)
+#include "cli.h"
+#include "env_plan.h"
 
-static unsigned long long limit_bytes(void) {
-    unsigned long long lim = ~0ull;
-    struct rlimit r;
-    if (getrlimit(RLIMIT_AS, &r) == 0 && r.rlim_cur != RLIM_INFINITY) lim = r.rlim_cur;
-    if (getrlimit(RLIMIT_DATA, &r) == 0 && r.rlim_cur != RLIM_INFINITY && r.rlim_cur < lim) lim = r.rlim_cur;
-    return lim;
-}
-
-static int tight(char **envp) {
-    unsigned long long lim = limit_bytes();
-    if (lim == ~0ull) return 0;
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    for (char **e = envp; *e; e++)
-        if (strncmp(*e, "OPENBLAS_NUM_THREADS=", 21) == 0) n = atol(*e + 21) > 0 ? atol(*e + 21) : n;
-    if (n <= 1) return 0;
-    return lim < BLAS_BASE_BYTES || (lim - BLAS_BASE_BYTES) / BLAS_THREAD_BYTES < (unsigned long long)n;
-}
-
-static int has(char **envp, const char *name) {
-    for (char **e = envp; *e; e++)
-        if (strncmp(*e, name, strlen(name)) == 0) return 1;
-    return 0;
-}
-
-/* Also: OpenBLAS's idle workers spin (sched_yield) for 2^28 cycles, about
- * 0.1 s, after they start and after every threaded call before they sleep;
- * that took the second core from our own threads for the whole of a short
- * run (`factor --param io -r 64 -J 8`: 0.12 s wall, 0.09 s of it system
- * time in sched_yield; 0.10 s with 0.02 s).  OPENBLAS_THREAD_TIMEOUT=4
- * (2^4 cycles) makes them sleep at once; a wake-up costs microseconds.
- * Set unless the user set it.
- *
- * And the C library's allocator: every page a run touches first is a page
- * fault, and on the 2-core AMD EPYC VM of docs/performance.md a fault
- * costs about 9 us (io -r 64: 9 100 faults, 0.09 s of system time in a
- * 0.165 s run).  SB_MALLOC_TUNABLES asks glibc (2.35 and later) to back
- * its heap with transparent huge pages (hugetlb=1: madvise, used where
- * the kernel's THP mode is `madvise` or `always`), to serve blocks up to
- * 32 MiB from that heap instead of fresh mmap()s, and to keep 32 MiB of
- * freed heap before returning it: io -r 64 0.165 -> 0.088 s (1 800
- * faults), io -r 256 5.5 -> 2.6 s, the default 0.32 -> 0.26 s, at +5 MiB
- * and +21 MiB peak.  Set unless the user set GLIBC_TUNABLES;
- * sb_cli_malloc_env_restore() takes it out again once running, so that
- * programs the CLI starts (a browser, gnuplot, mpirun) do not inherit it. */
-#define SB_MALLOC_TUNABLES                                                                                             \
-    "GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold="          \
-    "33554432"
-static void blas_threads_for_limit(int argc, char **argv, char **envp) {
-    static char *env[1024];
-    static char one[] = "OPENBLAS_NUM_THREADS=1", timeout[] = "OPENBLAS_THREAD_TIMEOUT=4",
-                tunables[] = SB_MALLOC_TUNABLES;
+static void env_for_blas(int argc, char **argv, char **envp) {
+    static char *env[SB_ENV_MAX];
     (void)argc;
-    if (!envp) return;
-    int one_thread = tight(envp), sleep_at_once = !has(envp, "OPENBLAS_THREAD_TIMEOUT="),
-        tune = !has(envp, "GLIBC_TUNABLES=");
-    if (!one_thread && !sleep_at_once && !tune) return;
-    size_t k = 0;
-    for (char **e = envp; *e && k + 4 < sizeof env / sizeof env[0]; e++)
-        if (!one_thread || strncmp(*e, "OPENBLAS_NUM_THREADS=", 21) != 0) env[k++] = *e;
-    if (one_thread) env[k++] = one;
-    if (sleep_at_once) env[k++] = timeout;
-    if (tune) env[k++] = tunables;
-    env[k] = NULL;
+    if (!envp || !sb_env_plan(envp, env)) return;
     execve("/proc/self/exe", argv, env); /* returns only on failure: run as is */
 }
 
 void sb_cli_malloc_env_restore(void) {
     const char *v = getenv("GLIBC_TUNABLES");
-    if (v && strcmp(v, SB_MALLOC_TUNABLES + sizeof "GLIBC_TUNABLES=" - 1) == 0) unsetenv("GLIBC_TUNABLES");
+    if (v && strcmp(v, sb_env_malloc_tunables) == 0) unsetenv("GLIBC_TUNABLES");
 }
 
 __attribute__((used, section(".preinit_array"))) static void (*const sb_preinit_blas)(int, char **,
-                                                                                      char **) = blas_threads_for_limit;
+                                                                                      char **) = env_for_blas;

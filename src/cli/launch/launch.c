@@ -1,0 +1,47 @@
+/* `sepbrdf`: the launcher.  OpenBLAS and the C library read their settings
+ * at process start, before main (env_plan.c), so the CLI needs them in its
+ * environment when it starts.  This small program (the C library only)
+ * adds them and executes the CLI proper, sepbrdf-main, found next to it (the
+ * build tree) or in SB_LIBEXEC_REL relative to it (an installed tree).
+ * Started directly, sepbrdf-main re-executes itself with the same
+ * environment instead (blas_env.c), which costs a second start of the
+ * libraries: about 10 ms on the 2-core VM, a tenth of `factor --param io
+ * -r 64`. */
+#include <errno.h>
+#include <limits.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "env_plan.h"
+
+#ifndef SB_LIBEXEC_REL
+#define SB_LIBEXEC_REL "../libexec/sepbrdf"
+#endif
+
+int main(int argc, char **argv, char **envp) {
+    static char *env[SB_ENV_MAX];
+    char self[PATH_MAX], path[PATH_MAX + 64];
+    (void)argc;
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0) {
+        fprintf(stderr, "sepbrdf: cannot find its own executable (/proc/self/exe): %s\n", strerror(errno));
+        return 127;
+    }
+    self[n] = '\0';
+    char *slash = strrchr(self, '/');
+    if (slash) slash[1] = '\0';
+    char **use = sb_env_plan(envp, env) ? env : envp; /* envp itself when nothing is added */
+    const char *where[] = {"", SB_LIBEXEC_REL "/"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(path, sizeof path, "%s%ssepbrdf-main", self, where[i]);
+        if (access(path, X_OK) == 0) {
+            execve(path, argv, use);
+            fprintf(stderr, "sepbrdf: cannot run %s: %s\n", path, strerror(errno));
+            return 127;
+        }
+    }
+    fprintf(stderr, "sepbrdf: the CLI sepbrdf-main is neither in %s nor in %s%s (a broken installation)\n", self,
+            self, SB_LIBEXEC_REL);
+    return 127;
+}
