@@ -676,5 +676,9 @@ int sb_bench_main(int argc, char **argv, const char *prog) {
 }
 
 #ifndef SB_BENCH_NO_MAIN
-int main(int argc, char **argv) { return sb_bench_main(argc, argv, "sepbrdf_bench"); }
+#include "env_plan.h" /* src/cli: the CLI's environment, set before OpenBLAS starts */
+int main(int argc, char **argv) {
+    sb_cli_malloc_env_restore();
+    return sb_bench_main(argc, argv, "sepbrdf_bench");
+}
 #endif

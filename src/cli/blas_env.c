@@ -10,7 +10,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cli.h"
 #include "env_plan.h"
 
 static void env_for_blas(int argc, char **argv, char **envp) {

@@ -164,12 +164,6 @@ typedef sb_json_t json_t;
 FILE *cli_open_tmp(const char *path, char *tmp, size_t tmp_size);
 int cli_commit(FILE *fp, const char *tmp, const char *path, int ok);
 
-/* blas_env.c: the CLI starts with glibc's malloc tunables of
- * SB_MALLOC_TUNABLES unless the user set GLIBC_TUNABLES; this takes them
- * out of the environment again (first thing in main) so that the programs
- * the CLI starts do not inherit them. */
-void sb_cli_malloc_env_restore(void);
-
 /* Cleanup on interruption.  cli_signals_install() catches SIGINT, SIGTERM
  * and SIGHUP (those not ignored) and ignores SIGXFSZ (so a write past the
  * file size limit fails with EFBIG and is reported).  The handler removes

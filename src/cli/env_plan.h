@@ -18,4 +18,9 @@ extern const char sb_env_malloc_tunables[];
  * that differs from envp, 0 when envp is already what the CLI wants. */
 int sb_env_plan(char **envp, char **out);
 
+/* Takes GLIBC_TUNABLES out of the environment again when it is the CLI's
+ * own (first thing in main), so that the programs the CLI starts do not
+ * inherit it (blas_env.c). */
+void sb_cli_malloc_env_restore(void);
+
 #endif

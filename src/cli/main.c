@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "env_plan.h"
 
 typedef struct command {
     const char *name;

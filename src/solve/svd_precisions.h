@@ -1,11 +1,13 @@
 /* Includes the precision template named by SB_SVD_TEMPLATE twice: with
- *     R = double, SFX = d, and the d-prefixed BLAS/LAPACK routines, then
+ *     R = double, SFX = d, and the d-prefixed BLAS/LAPACK routines (GEMM_THIN:
+ *     the library's threaded product of a large matrix with a thin block), then
  *     R = float,  SFX = f, and the s-prefixed ones.
  * Not a header of its own: no guard. */
 
 #define R double
 #define SFX d
 #define GEMM cblas_dgemm
+#define GEMM_THIN sb_dgemm_thin
 #define SYRK cblas_dsyrk
 #define GESDD LAPACKE_dgesdd_work
 #define SYEVR LAPACKE_dsyevr_work
@@ -15,6 +17,7 @@
 #undef R
 #undef SFX
 #undef GEMM
+#undef GEMM_THIN
 #undef SYRK
 #undef GESDD
 #undef SYEVR
@@ -24,6 +27,7 @@
 #define R float
 #define SFX f
 #define GEMM cblas_sgemm
+#define GEMM_THIN sb_sgemm_thin
 #define SYRK cblas_ssyrk
 #define GESDD LAPACKE_sgesdd_work
 #define SYEVR LAPACKE_ssyevr_work
@@ -33,6 +37,7 @@
 #undef R
 #undef SFX
 #undef GEMM
+#undef GEMM_THIN
 #undef SYRK
 #undef GESDD
 #undef SYEVR

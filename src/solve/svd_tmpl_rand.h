@@ -130,16 +130,14 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om
     while (tv < lmax) {
         size_t bb = lmax - tv < b ? lmax - tv : b, c0 = c;
         R *Y = Q + c * m;
-        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Om + tv * n, (int)n, 0,
-             Y, (int)m);
+        GEMM_THIN(0, (int)m, (int)bb, (int)n, A, (int)lda, Om + tv * n, (int)n, Y, (int)m);
         if ((r = FN(orth_against)(s, Q, c, Y, m, bb)) != SB_OK) return r;
         for (int it = 0;; it++) {
             /* A^T Y: the start of the next iteration, and the rows Y^T A of
              * B when Y stays in the basis (every iterate for Krylov, which
              * so needs no extra read of A for B) */
             R *AtY = s->krylov || it == s->q ? Bt + c * n : Z;
-            GEMM(CblasColMajor, CblasTrans, CblasNoTrans, (int)n, (int)bb, (int)m, 1, A, (int)lda, Y, (int)m, 0, AtY,
-                 (int)n);
+            GEMM_THIN(1, (int)n, (int)bb, (int)m, A, (int)lda, Y, (int)m, AtY, (int)n);
             if (it == s->q) break;
             if (AtY != Z) memcpy(Z, AtY, n * bb * sizeof(R));
             if ((r = FN(orth)(s, Z, n, bb)) != SB_OK) return r;
@@ -147,8 +145,7 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om
                 c += bb;
                 Y = Q + c * m;
             }
-            GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)bb, (int)n, 1, A, (int)lda, Z, (int)n, 0, Y,
-                 (int)m);
+            GEMM_THIN(0, (int)m, (int)bb, (int)n, A, (int)lda, Z, (int)n, Y, (int)m);
             if ((r = FN(orth_against)(s, Q, c, Y, m, bb)) != SB_OK) return r;
         }
         c += bb;
@@ -217,8 +214,7 @@ static sb_result_t FN(run_topk_krylov)(sb_svd_t *s, const R *A, size_t lda, int 
     for (int cycle = 1; cycle <= max_cycles; cycle++) {
         sb_result_t r = FN(run_rand)(s, A, lda, V, 0, 0, -1, 0, &lused, &rank);
         if (r != SB_OK) return r;
-        GEMM(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)k, (int)n, 1, A, (int)lda, s->ws, (int)n, 0, AW,
-             (int)m);
+        GEMM_THIN(0, (int)m, (int)k, (int)n, A, (int)lda, s->ws, (int)n, AW, (int)m);
         double worst = 0;
         for (size_t j = 0; j < k; j++) {
             double r2 = 0, sj = (double)sv[j];

@@ -63,4 +63,13 @@ sb_result_t sb_blas_reserve(sb_context_t *ctx);
 int sb_blas_threads_begin(void);
 void sb_blas_threads_end(int n);
 
+/* C (rows x cols, ldc) = op(A) B with op(A) rows x inner (trans: A is
+ * stored inner x rows) and B inner x cols: for a large A and a thin B, C's
+ * rows cut over the library's threads with OpenBLAS on one thread in each
+ * (gemm_thin.c); one call where OpenBLAS has one thread or A is small. */
+void sb_dgemm_thin(int trans, int rows, int cols, int inner, const double *A, int lda, const double *B, int ldb,
+                   double *C, int ldc);
+void sb_sgemm_thin(int trans, int rows, int cols, int inner, const float *A, int lda, const float *B, int ldb, float *C,
+                   int ldc);
+
 #endif

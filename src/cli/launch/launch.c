@@ -41,7 +41,7 @@ int main(int argc, char **argv, char **envp) {
             return 127;
         }
     }
-    fprintf(stderr, "sepbrdf: the CLI sepbrdf-main is neither in %s nor in %s%s (a broken installation)\n", self,
-            self, SB_LIBEXEC_REL);
+    fprintf(stderr, "sepbrdf: the CLI sepbrdf-main is neither in %s nor in %s%s (a broken installation)\n", self, self,
+            SB_LIBEXEC_REL);
     return 127;
 }
