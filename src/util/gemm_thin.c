@@ -74,8 +74,8 @@ void sb_dgemm_thin(int trans, int rows, int cols, int inner, const double *A, in
     thin(&g);
 }
 
-void sb_sgemm_thin(int trans, int rows, int cols, int inner, const float *A, int lda, const float *B, int ldb,
-                   float *C, int ldc) {
+void sb_sgemm_thin(int trans, int rows, int cols, int inner, const float *A, int lda, const float *B, int ldb, float *C,
+                   int ldc) {
     thin_t g = {1, trans, rows, cols, inner, lda, ldb, ldc, 1, A, B, C};
     thin(&g);
 }
