@@ -10,6 +10,7 @@
 #include <errno.h>
 #include <limits.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -19,18 +20,42 @@
 #define SB_LIBEXEC_REL "../libexec/sepbrdf"
 #endif
 
+/* The folder of this executable, with a trailing '/', into dir: from
+ * /proc/self/exe, else from argv[0] (a path, or a name looked up in PATH
+ * as the shell did).  0 when it cannot be found. */
+static int own_folder(const char *argv0, char *dir, size_t size) {
+    ssize_t n = readlink("/proc/self/exe", dir, size - 1);
+    if (n > 0) {
+        dir[n] = '\0';
+    } else if (argv0 && strchr(argv0, '/')) {
+        snprintf(dir, size, "%s", argv0);
+    } else if (argv0 && *argv0) {
+        const char *path = getenv("PATH"), *p = path ? path : "";
+        int found = 0;
+        while (!found && *p) {
+            size_t len = strcspn(p, ":");
+            snprintf(dir, size, "%.*s/%s", (int)len, len ? p : ".", argv0);
+            found = access(dir, X_OK) == 0;
+            p += len + (p[len] == ':');
+        }
+        if (!found) return 0;
+    } else {
+        return 0;
+    }
+    char *slash = strrchr(dir, '/');
+    if (!slash) return 0;
+    slash[1] = '\0';
+    return 1;
+}
+
 int main(int argc, char **argv, char **envp) {
     static char *env[SB_ENV_MAX];
     char self[PATH_MAX], path[PATH_MAX + 64];
     (void)argc;
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    if (n <= 0) {
-        fprintf(stderr, "sepbrdf: cannot find its own executable (/proc/self/exe): %s\n", strerror(errno));
+    if (!own_folder(argv[0], self, sizeof self)) {
+        fprintf(stderr, "sepbrdf: cannot find its own folder (/proc/self/exe: %s)\n", strerror(errno));
         return 127;
     }
-    self[n] = '\0';
-    char *slash = strrchr(self, '/');
-    if (slash) slash[1] = '\0';
     char **use = sb_env_plan(envp, env) ? env : envp; /* envp itself when nothing is added */
     const char *where[] = {"", SB_LIBEXEC_REL "/"};
     for (int i = 0; i < 2; i++) {
