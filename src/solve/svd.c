@@ -119,6 +119,12 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
             s->q--;
         s->krylov = 2 * s->l * (size_t)(s->q + 1) <= d && !gram;
         s->gram = !s->krylov;
+        /* a cycle that does not converge restarts with twice the block
+         * (the leading Ritz vectors of the last one), up to 2 (k + p),
+         * where that basis fits too: the plan holds the largest block */
+        s->l0 = s->l;
+        size_t grown = 2 * s->l < d ? 2 * s->l : d;
+        if (s->krylov && 2 * grown * (size_t)(s->q + 1) <= d) s->l = grown;
     }
     s->L = s->krylov ? s->l * (size_t)(s->q + 1) : s->l;
 

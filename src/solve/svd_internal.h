@@ -20,6 +20,7 @@ struct sb_svd {
     sb_context_t *ctx;
     size_t m, n, k, d; /* d = min(m, n) */
     size_t l, b, L;    /* randomized: test vectors k + p (<= d), adaptive block, basis columns */
+    size_t l0;         /* TOPK Krylov: the first cycle's block (k + p); l is the largest a restart grows to */
     int p, q, single, tr, krylov;
     uint64_t seed;
     sb_method_t method;

@@ -19,10 +19,10 @@ sb_result_t sb_svd_plan_rand(sb_svd_t *s) { return s->single ? plan_rand_f(s) : 
 
 sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run) {
     size_t r = s->k, sketch = 0;
-    sb_result_t res =
-        s->single
-            ? run_rand_f(s, run->a, run->la, s->om, run->adaptive, run->tol2, run->nrm, run->min_rank, &sketch, &r)
-            : run_rand_d(s, run->a, run->la, s->om, run->adaptive, run->tol2, run->nrm, run->min_rank, &sketch, &r);
+    sb_result_t res = s->single ? run_rand_f(s, run->a, run->la, s->om, s->l, run->adaptive, run->tol2, run->nrm,
+                                             run->min_rank, &sketch, &r)
+                                : run_rand_d(s, run->a, run->la, s->om, s->l, run->adaptive, run->tol2, run->nrm,
+                                             run->min_rank, &sketch, &r);
     if (res != SB_OK) return res;
     if (s->single)
         out_rand_f(s, r, run->sv, run->U, run->V);

@@ -118,11 +118,11 @@ static sb_result_t FN(orth_against)(sb_svd_t *s, const R *Q, size_t l, R *Yb, si
  * A ~ Q B = (Q X) S W^T.  Non-adaptive: one block of l vectors (the plain
  * HMT algorithm, or its block Krylov form).  Adaptive: blocks of s->b until
  * the relative error 1 - captured meets the target with r + p <= columns (see
- * svd.h).  Om is the start block (n x l).  Returns the columns of Q in
+ * svd.h).  Om is the start block (n x lmax, lmax <= s->l).  Returns the columns of Q in
  * *lused and the rank in *rank. */
-static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om, int adaptive, double tol2, double nrm,
-                                size_t min_rank, size_t *lused, size_t *rank) {
-    size_t m = s->m, n = s->n, k = s->k, lmax = s->l, b = adaptive ? s->b : lmax, tv = 0, c = 0;
+static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om, size_t lmax, int adaptive,
+                                double tol2, double nrm, size_t min_rank, size_t *lused, size_t *rank) {
+    size_t m = s->m, n = s->n, k = s->k, b = adaptive ? s->b : lmax, tv = 0, c = 0;
     R *Q = s->y, *Z = s->z, *Bt = s->bt;
     double captured = 0, inv = nrm > 0 ? 1 / nrm : 0; /* captured energy relative to ||A||^2 */
     sb_result_t r;
@@ -202,17 +202,18 @@ static void FN(out_rand)(const sb_svd_t *s, size_t r, double *sv, double *U, dou
  * ~|r|^2 / gap.  Stop when max_j |r_j| <= tol s_1 (svd.h: tol = 2^-40 in
  * double, 2^-12 in single); otherwise restart from the l leading right
  * Ritz vectors (thick restart: the cycle keeps what it found and each new
- * one raises the polynomial degree by 2q + 1).  Every cycle reads A 2q + 3
+ * one raises the polynomial degree by 2q + 1; the block doubles up to
+ * s->l = 2 (k + p) from the second cycle on).  Every cycle reads A 2q + 3
  * times in BLAS-3 products.  *done = 0 when max_cycles did not suffice. */
 static sb_result_t FN(run_topk_krylov)(sb_svd_t *s, const R *A, size_t lda, int max_cycles, int *done) {
-    size_t m = s->m, n = s->n, k = s->k, l = s->l, lused, rank;
+    size_t m = s->m, n = s->n, k = s->k, l = s->l0 ? s->l0 : s->l, lused, rank;
     const double tol = sizeof(R) == sizeof(float) ? 0x1.0p-12 : 0x1.0p-40;
     R *AW = s->g, *V = s->st;
     const R *sv = s->sv, *U = s->u;
     *done = 0;
     memcpy(V, s->om, n * l * sizeof(R));
     for (int cycle = 1; cycle <= max_cycles; cycle++) {
-        sb_result_t r = FN(run_rand)(s, A, lda, V, 0, 0, -1, 0, &lused, &rank);
+        sb_result_t r = FN(run_rand)(s, A, lda, V, l, 0, 0, -1, 0, &lused, &rank);
         if (r != SB_OK) return r;
         GEMM_THIN(0, (int)m, (int)k, (int)n, A, (int)lda, s->ws, (int)n, AW, (int)m);
         double worst = 0;
@@ -230,7 +231,14 @@ static sb_result_t FN(run_topk_krylov)(sb_svd_t *s, const R *A, size_t lda, int 
             *done = 1;
             return SB_OK;
         }
-        memcpy(V, s->ws, n * l * sizeof(R)); /* the l leading right Ritz vectors, orthonormal */
+        /* restart from the leading right Ritz vectors (orthonormal; the
+         * basis had lused >= 2 l of them), with twice the block up to the
+         * plan's s->l: a slowly decaying spectrum (GGX roughness 0.1 at
+         * N = 4096: 40 cycles of 18 columns and the Gram route, 57 s for
+         * three channels) converges in a few cycles of a wider block */
+        l = 2 * l < s->l ? 2 * l : s->l;
+        if (l > lused) l = lused;
+        memcpy(V, s->ws, n * l * sizeof(R));
     }
     return SB_OK;
 }
