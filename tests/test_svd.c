@@ -8,6 +8,7 @@
  * where err = ||A - U_k S_k V_k^T||_F is computed explicitly. */
 #include <cblas.h>
 #include <lapacke.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -615,4 +616,45 @@ SB_TEST(errors) {
             sb_svd_destroy(svd);
         }
     sb_context_destroy(ctx);
+}
+
+/* TOPK on a slowly decaying spectrum where a cycle does not converge: the
+ * restart doubles the block (its leading Ritz vectors, up to 2 (k + p);
+ * the basis fits at 700 x 660) and still gives dgesdd's triplets. */
+SB_TEST(topk_restart_grows_block) {
+    size_t m = 700, n = 660, k = 8, d = 660;
+    unsigned long long st = 4242;
+    double *sig = malloc(d * sizeof *sig);
+    for (size_t j = 0; j < d; j++)
+        sig[j] = pow(1.0 + (double)j, -0.25);
+    double *A = make_matrix(m, n, m, sig, &st), *C = malloc(m * n * sizeof *C);
+    double *ref = malloc(d * sizeof *ref), *Ur = malloc(m * d * sizeof *Ur), *Vt = malloc(d * n * sizeof *Vt);
+    memcpy(C, A, m * n * sizeof *C);
+    CHECK(LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'S', (int)m, (int)n, C, (int)m, ref, Ur, (int)m, Vt, (int)d) == 0);
+    double *Vr = malloc(n * k * sizeof *Vr), *s = malloc(k * sizeof *s), *U = malloc(m * k * sizeof *U),
+           *V = malloc(n * k * sizeof *V);
+    for (size_t j = 0; j < k; j++)
+        for (size_t i = 0; i < n; i++)
+            Vr[i + j * n] = Vt[j + i * d];
+    sb_svd_opts_t o = {.method = SB_METHOD_TOPK};
+    sb_svd_t *svd;
+    CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
+    CHECK(sb_svd_execute(svd, A, m, s, U, V, NULL, NULL) == SB_OK);
+    sb_svd_info_t in = sb_svd_last_info(svd);
+    CHECKF(in.cycles >= 2, "Krylov cycles %zu: the restart was not exercised", in.cycles);
+    for (size_t j = 0; j < k; j++)
+        CHECKF(fabs(s[j] - ref[j]) <= 1e-10 * ref[0], "sigma %zu: %.17g vs dgesdd %.17g", j, s[j], ref[j]);
+    double su = sin2_angles(U, Ur, m, k), sv = sin2_angles(V, Vr, n, k);
+    CHECKF(su <= 1e-16 && sv <= 1e-16, "sin^2 of the angles %.3g (U), %.3g (V)", su, sv);
+    sb_svd_destroy(svd);
+    free(sig);
+    free(A);
+    free(C);
+    free(ref);
+    free(Ur);
+    free(Vt);
+    free(Vr);
+    free(s);
+    free(U);
+    free(V);
 }
