@@ -115,6 +115,7 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     s->krylov = o.krylov >= 0 && s->q > 0 && 2 * s->l * (size_t)(s->q + 1) <= d;
     if (s->method == SB_METHOD_TOPK) { /* Krylov cycles when the basis fits, else the Gram route */
         s->q = o.power_iters > 0 ? o.power_iters : SB_SVD_TOPK_Q;
+        if (s->l < SB_SVD_TOPK_MIN_BLOCK) s->l = SB_SVD_TOPK_MIN_BLOCK < d ? SB_SVD_TOPK_MIN_BLOCK : d;
         while (s->q > 1 && 2 * s->l * (size_t)(s->q + 1) > d)
             s->q--;
         s->krylov = 2 * s->l * (size_t)(s->q + 1) <= d && !gram;

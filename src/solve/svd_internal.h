@@ -14,6 +14,11 @@
  * took 3, 2, 1 (33, 30, 19 reads).  q is lowered where the basis
  * l (q + 1) would exceed d / 2. */
 #define SB_SVD_TOPK_Q 8
+/* TOPK's smallest Krylov block: a read of a large A with 18 columns costs
+ * about what one with 12 does (OpenBLAS packs A either way), and a wider
+ * block converges in fewer cycles (N = 4096, J = 4: l = 14 took two cycles,
+ * 1.34-1.66 s, l = 16 one, 0.93-0.99 s; J = 1: 0.94 s with l = 11, 0.96-0.98 s) */
+#define SB_SVD_TOPK_MIN_BLOCK 16
 #define SB_SVD_TOPK_CYCLES 40
 
 struct sb_svd {
