@@ -18,13 +18,19 @@ sepbrdf time (the SVD of the three channels, svd_s; factor_s where the CSV
 has no svd_s): above 1, sepbrdf is faster.
 --whole S compares the whole `sepbrdf factor --param io -r 64 -J 8`
 command (S seconds, from bench/run.sh) with sklearn-q2 alone at N = 4096,
-J = 8.  Writes OUT (default DIR/peers.csv).  Exit status 77 when numpy,
+J = 8.  The machine's speed drifts over the minutes between those two
+timings, so with --whole-cmd CMD (the command) and --topk-cmd CMD (a
+sepbrdf_bench line timing topk at N = 4096, J = 8, writing DIR/results.csv
+under the folder it names after -o) the two pairs are also timed in
+alternation, three rounds of (ours, the peer), and each round's ratio is
+reported with the median.  Writes OUT (default DIR/peers.csv).  Exit status 77 when numpy,
 scipy or scikit-learn are missing (scripts/setup-deps.sh --bench)."""
 import argparse
 import csv
 import glob
 import os
 import re
+import subprocess
 import sys
 import time
 
@@ -71,6 +77,41 @@ def run_peer(fn, chans, J, reps):
     return best, (err2 / norm2) ** 0.5 if norm2 > 0 else 0.0
 
 
+def timed(cmd):
+    t0 = time.perf_counter()
+    subprocess.run(cmd, shell=True, check=True, stdout=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
+def topk_svd_s(cmd):
+    """Run the sepbrdf_bench line; its svd_s (the three channels' SVD) from results.csv."""
+    subprocess.run(cmd, shell=True, check=True, stdout=subprocess.DEVNULL)
+    out = cmd.split(" -o ")[1].split()[0]
+    rows = list(csv.DictReader(open(os.path.join(out, "results.csv"))))
+    return float(rows[-1]["svd_s"])
+
+
+def interleaved(a, chans, w):
+    """Ours and the peer in alternation, three rounds (the ratio of each)."""
+    pairs = []
+    if a.whole_cmd:
+        pairs.append(("whole factor --param io -r 64 -J 8", "sklearn-q2",
+                      lambda: min(timed(a.whole_cmd) for _ in range(5)),
+                      lambda: run_peer(PEERS[3][2], chans, 8, 3)[0]))
+    if a.topk_cmd:
+        pairs.append(("topk svd", "svds", lambda: topk_svd_s(a.topk_cmd), lambda: run_peer(PEERS[1][2], chans, 8, 3)[0]))
+    for ours_name, peer, ours, theirs in pairs:
+        ratios = []
+        for rnd in range(3):
+            t_ours, t_peer = ours(), theirs()
+            ratios.append(t_peer / t_ours)
+            w.writerow([4096, 8, peer, f"{t_peer:.6f}", "", f"{ours_name}, alternating round {rnd + 1}",
+                        f"{t_ours:.6f}", "interleaved", f"{ratios[-1]:.3f}"])
+            print(f"# alternating round {rnd + 1}: {ours_name} {t_ours:.3f} s, {peer} {t_peer:.3f} s: ratio {ratios[-1]:.2f}",
+                  flush=True)
+        print(f"# {ours_name} against {peer}, alternating: median ratio {sorted(ratios)[1]:.2f}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--matrices", required=True)
@@ -78,6 +119,8 @@ def main():
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--whole", type=float, default=None)
     ap.add_argument("--full-max", type=int, default=2304, help="largest N for numpy's full SVD (minutes at 4096)")
+    ap.add_argument("--whole-cmd", default=None, help="the whole command, timed in alternation with sklearn-q2")
+    ap.add_argument("--topk-cmd", default=None, help="sepbrdf_bench timing topk at N = 4096, J = 8 (-o DIR)")
     ap.add_argument("-o", "--out", default=None)
     a = ap.parse_args()
     rows = list(csv.DictReader(open(a.results)))
@@ -112,6 +155,8 @@ def main():
             w.writerow([4096, 8, "sklearn-q2", f"{q2_4096_8:.6f}", "", "whole factor --param io -r 64 -J 8", f"{a.whole:.6f}", "command", f"{q2_4096_8 / a.whole:.3f}"])
             print(f"# whole `sepbrdf factor --param io -r 64 -J 8` {a.whole:.3f} s; sklearn randomized_svd n_iter=2 alone "
                   f"on its three matrices {q2_4096_8:.3f} s: ratio {q2_4096_8 / a.whole:.2f}")
+        if 4096 in sizes:
+            interleaved(a, load(a.matrices, 4096), w)
     print(f"# wrote {out_path}")
 
 

@@ -65,6 +65,10 @@ if [ -z "$py" ]; then
     echo "# peers skipped: no Python with numpy, scipy and scikit-learn (scripts/setup-deps.sh --bench)"
 else
     echo "# peers ($("$py" -c 'import numpy, scipy, sklearn; print("numpy", numpy.__version__, "scipy", scipy.__version__, "sklearn", sklearn.__version__)')), best of 3:"
+    # the ratios of the issue's checks are also timed in alternation (peers.py --whole-cmd, --topk-cmd)
+    whole_cmd=
+    [ -n "$io64" ] && whole_cmd="$build/sepbrdf factor --param io -r 64 -J 8 -q -o $work/run"
     "$py" "$here/peers.py" --matrices "$work/matrices" --results "$here/results.csv" -o "$here/peers.csv" \
-        ${io64:+--whole "$io64"}
+        ${io64:+--whole "$io64"} ${whole_cmd:+--whole-cmd "$whole_cmd"} \
+        --topk-cmd "$build/sepbrdf_bench --sizes 4096 --terms 8 --methods topk --no-baseline --no-write --min-time 0 -q -o $work/topk"
 fi
