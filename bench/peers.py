@@ -85,7 +85,7 @@ def timed(cmd):
 
 def topk_svd_s(cmd):
     """Run the sepbrdf_bench line; its svd_s (the three channels' SVD) from results.csv."""
-    subprocess.run(cmd, shell=True, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(cmd, shell=True, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     out = cmd.split(" -o ")[1].split()[0]
     rows = list(csv.DictReader(open(os.path.join(out, "results.csv"))))
     return float(rows[-1]["svd_s"])
