@@ -248,6 +248,52 @@ static double sin2_angles(const double *X, const double *Y, size_t rows, size_t 
     return f;
 }
 
+/* TOPK on the m x n matrix with singular values sig (d = min(m, n) of
+ * them, descending) against LAPACK dgesdd on the same matrix: the largest
+ * error of the k values over sigma_1, the sin^2 of the angles between the
+ * singular subspaces (U and V), and TOPK's Krylov cycles.  0 when a call
+ * failed. */
+typedef struct {
+    double dsig, su, sv;
+    size_t cycles;
+} topk_vs_t;
+
+static int topk_vs_gesdd(size_t m, size_t n, size_t k, const double *sig, unsigned long long *st, topk_vs_t *out) {
+    size_t d = m < n ? m : n;
+    double *A = make_matrix(m, n, m, sig, st), *C = malloc(m * n * sizeof *C);
+    double *ref = malloc(d * sizeof *ref), *Ur = malloc(m * d * sizeof *Ur), *Vt = malloc(d * n * sizeof *Vt);
+    double *Vr = malloc(n * k * sizeof *Vr), *s = malloc(k * sizeof *s), *U = malloc(m * k * sizeof *U),
+           *V = malloc(n * k * sizeof *V);
+    memcpy(C, A, m * n * sizeof *C);
+    int ok = LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'S', (int)m, (int)n, C, (int)m, ref, Ur, (int)m, Vt, (int)d) == 0;
+    for (size_t j = 0; j < k; j++)
+        for (size_t i = 0; i < n; i++)
+            Vr[i + j * n] = Vt[j + i * d];
+    sb_svd_opts_t o = {.method = SB_METHOD_TOPK};
+    sb_svd_t *svd = NULL;
+    ok = ok && sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK &&
+         sb_svd_execute(svd, A, m, s, U, V, NULL, NULL) == SB_OK;
+    if (ok) {
+        out->cycles = sb_svd_last_info(svd).cycles;
+        out->dsig = 0;
+        for (size_t j = 0; j < k; j++)
+            out->dsig = fmax(out->dsig, fabs(s[j] - ref[j]) / ref[0]);
+        out->su = sin2_angles(U, Ur, m, k);
+        out->sv = sin2_angles(V, Vr, n, k);
+    }
+    sb_svd_destroy(svd);
+    free(A);
+    free(C);
+    free(ref);
+    free(Ur);
+    free(Vt);
+    free(Vr);
+    free(s);
+    free(U);
+    free(V);
+    return ok;
+}
+
 /* TOPK where its Krylov cycles apply (d >= 2 l (q + 1)) against LAPACK
  * dgesdd on the same matrix: the k values to 1e-10 sigma_1 and, where the
  * cut has a gap, both singular subspaces to an angle of 1e-9; on spectra
@@ -277,39 +323,13 @@ SB_TEST(topk_krylov_vs_gesdd) {
                 sig[j] = sig[j - 1];
                 sig[j - 1] = t;
             }
-        double *A = make_matrix(m, n, m, sig, &st), *C = malloc(m * n * sizeof *C);
-        double *ref = malloc(d * sizeof *ref), *Ur = malloc(m * d * sizeof *Ur), *Vt = malloc(d * n * sizeof *Vt);
-        memcpy(C, A, m * n * sizeof *C);
-        CHECK(LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'S', (int)m, (int)n, C, (int)m, ref, Ur, (int)m, Vt, (int)d) == 0);
-        double *Vr = malloc(n * k * sizeof *Vr), *s = malloc(k * sizeof *s), *U = malloc(m * k * sizeof *U),
-               *V = malloc(n * k * sizeof *V);
-        for (size_t j = 0; j < k; j++)
-            for (size_t i = 0; i < n; i++)
-                Vr[i + j * n] = Vt[j + i * d];
-        sb_svd_opts_t o = {.method = SB_METHOD_TOPK};
-        sb_svd_t *svd;
-        CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
-        CHECK(sb_svd_execute(svd, A, m, s, U, V, NULL, NULL) == SB_OK);
-        sb_svd_info_t in = sb_svd_last_info(svd);
-        CHECKF(kind == 4 || in.cycles >= 1, "kind %d: Krylov cycles %zu", kind, in.cycles);
-        for (size_t j = 0; j < k; j++)
-            CHECKF(fabs(s[j] - ref[j]) <= 1e-10 * ref[0], "kind %d sigma %zu: %.17g vs dgesdd %.17g", kind, j, s[j],
-                   ref[j]);
-        if (ref[k - 1] - ref[k] > 1e-3 * ref[0]) {
-            double su = sin2_angles(U, Ur, m, k), sv = sin2_angles(V, Vr, n, k);
-            CHECKF(su <= 1e-18 && sv <= 1e-18, "kind %d: sin^2 of the angles %.3g (U), %.3g (V)", kind, su, sv);
-        }
-        sb_svd_destroy(svd);
+        topk_vs_t r = {1, 1, 1, 0}; /* failing values if the call fails */
+        CHECK(topk_vs_gesdd(m, n, k, sig, &st, &r));
+        CHECKF(kind == 4 || r.cycles >= 1, "kind %d: Krylov cycles %zu", kind, r.cycles);
+        CHECKF(r.dsig <= 1e-10, "kind %d: values %.3g sigma_1 from dgesdd's", kind, r.dsig);
+        if (sig[k - 1] - sig[k] > 1e-3 * sig[0])
+            CHECKF(r.su <= 1e-18 && r.sv <= 1e-18, "kind %d: sin^2 of the angles %.3g (U), %.3g (V)", kind, r.su, r.sv);
         free(sig);
-        free(A);
-        free(C);
-        free(ref);
-        free(Ur);
-        free(Vt);
-        free(Vr);
-        free(s);
-        free(U);
-        free(V);
     }
 }
 
@@ -627,34 +647,10 @@ SB_TEST(topk_restart_grows_block) {
     double *sig = malloc(d * sizeof *sig);
     for (size_t j = 0; j < d; j++)
         sig[j] = pow(1.0 + (double)j, -0.25);
-    double *A = make_matrix(m, n, m, sig, &st), *C = malloc(m * n * sizeof *C);
-    double *ref = malloc(d * sizeof *ref), *Ur = malloc(m * d * sizeof *Ur), *Vt = malloc(d * n * sizeof *Vt);
-    memcpy(C, A, m * n * sizeof *C);
-    CHECK(LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'S', (int)m, (int)n, C, (int)m, ref, Ur, (int)m, Vt, (int)d) == 0);
-    double *Vr = malloc(n * k * sizeof *Vr), *s = malloc(k * sizeof *s), *U = malloc(m * k * sizeof *U),
-           *V = malloc(n * k * sizeof *V);
-    for (size_t j = 0; j < k; j++)
-        for (size_t i = 0; i < n; i++)
-            Vr[i + j * n] = Vt[j + i * d];
-    sb_svd_opts_t o = {.method = SB_METHOD_TOPK};
-    sb_svd_t *svd;
-    CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
-    CHECK(sb_svd_execute(svd, A, m, s, U, V, NULL, NULL) == SB_OK);
-    sb_svd_info_t in = sb_svd_last_info(svd);
-    CHECKF(in.cycles >= 2, "Krylov cycles %zu: the restart was not exercised", in.cycles);
-    for (size_t j = 0; j < k; j++)
-        CHECKF(fabs(s[j] - ref[j]) <= 1e-10 * ref[0], "sigma %zu: %.17g vs dgesdd %.17g", j, s[j], ref[j]);
-    double su = sin2_angles(U, Ur, m, k), sv = sin2_angles(V, Vr, n, k);
-    CHECKF(su <= 1e-16 && sv <= 1e-16, "sin^2 of the angles %.3g (U), %.3g (V)", su, sv);
-    sb_svd_destroy(svd);
+    topk_vs_t r = {1, 1, 1, 0}; /* failing values if the call fails */
+    CHECK(topk_vs_gesdd(m, n, k, sig, &st, &r));
+    CHECKF(r.cycles >= 2, "Krylov cycles %zu: the restart was not exercised", r.cycles);
+    CHECKF(r.dsig <= 1e-10, "values %.3g sigma_1 from dgesdd's", r.dsig);
+    CHECKF(r.su <= 1e-16 && r.sv <= 1e-16, "sin^2 of the angles %.3g (U), %.3g (V)", r.su, r.sv);
     free(sig);
-    free(A);
-    free(C);
-    free(ref);
-    free(Ur);
-    free(Vt);
-    free(Vr);
-    free(s);
-    free(U);
-    free(V);
 }
