@@ -639,7 +639,7 @@ SB_TEST(errors) {
 }
 
 /* TOPK on a slowly decaying spectrum where a cycle does not converge: the
- * restart doubles the block (its leading Ritz vectors, up to 2 (k + p);
+ * restart doubles the block (its leading Ritz vectors, up to twice the first;
  * the basis fits at 700 x 660) and still gives dgesdd's triplets. */
 SB_TEST(topk_restart_grows_block) {
     size_t m = 700, n = 660, k = 8, d = 660;

@@ -121,7 +121,7 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         s->krylov = 2 * s->l * (size_t)(s->q + 1) <= d && !gram;
         s->gram = !s->krylov;
         /* a cycle that does not converge restarts with twice the block
-         * (the leading Ritz vectors of the last one), up to 2 (k + p),
+         * (the leading Ritz vectors of the last one), up to twice the first,
          * where that basis fits too: the plan holds the largest block */
         s->l0 = s->l;
         size_t grown = 2 * s->l < d ? 2 * s->l : d;

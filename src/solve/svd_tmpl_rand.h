@@ -203,7 +203,7 @@ static void FN(out_rand)(const sb_svd_t *s, size_t r, double *sv, double *U, dou
  * double, 2^-12 in single); otherwise restart from the l leading right
  * Ritz vectors (thick restart: the cycle keeps what it found and each new
  * one raises the polynomial degree by 2q + 1; the block doubles up to
- * s->l = 2 (k + p) from the second cycle on).  Every cycle reads A 2q + 3
+ * s->l, twice the first block, from the second cycle on).  Every cycle reads A 2q + 3
  * times in BLAS-3 products.  *done = 0 when max_cycles did not suffice. */
 static sb_result_t FN(run_topk_krylov)(sb_svd_t *s, const R *A, size_t lda, int max_cycles, int *done) {
     size_t m = s->m, n = s->n, k = s->k, l = s->l0 ? s->l0 : s->l, lused, rank;
