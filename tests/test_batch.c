@@ -190,6 +190,15 @@ static int interrupted_run(const char *dir) {
         if (access(first, F_OK) == 0) {
             kill(-pid, SIGKILL);
             waitpid(pid, &status, 0);
+            /* the batch's worker processes die with it, but a killed
+             * process still counts as running until its exit is through
+             * (seconds for a large address space, e.g. under ASan), and the
+             * resumed run leaves the staging folders of running processes
+             * alone: wait until none of the group is left (10 s at most) */
+            for (int i = 0; i < 1000 && kill(-pid, 0) == 0; i++) {
+                struct timespec w = {0, 10000000};
+                nanosleep(&w, NULL);
+            }
             cut = 1;
             break;
         }

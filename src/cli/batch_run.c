@@ -57,6 +57,11 @@ int batch_done(const char *dir, batch_item_t *it) {
         *strchr(it->fields, '\n') = 0;
         set_headline(it);
         it->ok = 1;
+        /* a run killed between publishing this set and removing its
+         * staging folder left that folder beside it: gone now that the
+         * set is reused (only folders whose process has ended) */
+        snprintf(path, sizeof path, "%s/%s", dir, it->name);
+        (void)sb_outset_cleanup(NULL, path);
     }
     return same;
 }
