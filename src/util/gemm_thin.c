@@ -56,7 +56,6 @@ static void thin(thin_t *g) {
     if (n > g->rows) n = g->rows;
     if (n <= 1) {
         sb_blas_threads_end(blas); /* OpenBLAS's own threads, as configured */
-        g->parts = 1;
         thin_call(g, 0, g->rows);
         return;
     }
