@@ -332,35 +332,6 @@ SB_TEST(shared_pairs_equal_fresh) {
         sb_source_destroy(src[k]);
 }
 
-/* Honest nesting, the issue's case: GGX roughness 0.3, F0 0.04, iso,
- * J = 8, a masked fit.  The native errors written for J' = 1..8 are
- * non-increasing (they were 0.230, 0.223, 0.0126, 0.0294, ...), and so is
- * the headline within two standard errors. */
-SB_TEST(masked_prefixes_non_increasing) {
-    sb_param_t *p = NULL;
-    sb_source_t *src = NULL;
-    sb_factors_t *f = factor_exr("cook-torrance:roughness=0.3,f0=0.04", SB_PARAM_ISO, 32, 8, SB_FORM_F, 0, &p, &src);
-    sb_pairs_t *pairs = NULL;
-    static sb_estimate_t e;
-    CHECK(f && sb_pairs_create(NULL, src, NULL, &pairs) == SB_OK);
-    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, NULL, &e) == SB_OK);
-    const sb_factor_errors_t *fe = sb_factors_errors(f);
-    for (size_t j = 1; j < 8; j++) {
-        printf("  J=%zu native %.4f headline %.4f +- %.4f overshoot %.3f\n", j + 1, fe->rel_rms[j * 4 + 3],
-               e.rel[j][SB_EST_FCOS][3], e.se[j][SB_EST_FCOS][3], e.overshoot[j]);
-        CHECKF(fe->rel_rms[j * 4 + 3] <= fe->rel_rms[(j - 1) * 4 + 3], "native J=%zu %.4g > %.4g", j + 1,
-               fe->rel_rms[j * 4 + 3], fe->rel_rms[(j - 1) * 4 + 3]);
-        double rise = e.rel[j][SB_EST_FCOS][3] - e.rel[j - 1][SB_EST_FCOS][3];
-        CHECKF(rise <= 2 * hypot(e.se[j][SB_EST_FCOS][3], e.se[j - 1][SB_EST_FCOS][3]), "headline rises at J=%zu",
-               j + 1);
-        CHECKF(e.overshoot[j] <= 1.5, "overshoot %.3g at J=%zu", e.overshoot[j], j + 1);
-    }
-    sb_pairs_destroy(pairs);
-    sb_factors_destroy(f);
-    sb_param_destroy(p);
-    sb_source_destroy(src);
-}
-
 /* Term weights (sb_estimate_term_weights): on the fit above with a noise
  * term appended (term 9: textures of random values, which can only add
  * error), the weights are in [0, 1], the noise term's are near 0, and the
@@ -434,6 +405,55 @@ SB_TEST(term_weights_keep_headline_falling) {
     sb_pairs_destroy(pairs);
     sb_factors_destroy(f);
     sb_factors_destroy(g);
+    sb_factors_destroy(h);
+    sb_param_destroy(p);
+    sb_source_destroy(src);
+}
+
+/* Honest nesting, the issue's case: GGX roughness 0.3, F0 0.04, iso,
+ * J = 8, a masked fit.  The native errors written for J' = 1..8 are
+ * non-increasing (they were 0.230, 0.223, 0.0126, 0.0294, ...).  The
+ * headline of the raw prefixes need not be (a term that lowers the cells'
+ * error can raise the lookups' between them); with the term weights that
+ * factor and study apply, fitted on one set of pairs, it is non-increasing
+ * within two standard errors on another set, and no prefix is more than
+ * 1 % worse than the raw one. */
+SB_TEST(masked_prefixes_non_increasing) {
+    sb_param_t *p = NULL;
+    sb_source_t *src = NULL;
+    sb_factors_t *f = factor_exr("cook-torrance:roughness=0.3,f0=0.04", SB_PARAM_ISO, 32, 8, SB_FORM_F, 0, &p, &src);
+    sb_factors_t *h = with_noise_term(f);
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
+    sb_pairs_t *fit_pairs = NULL, *pairs = NULL;
+    static sb_estimate_t raw, e;
+    sb_estimate_opts_t other = {0};
+    other.seed = 977;
+    double wts[16 * 3];
+    CHECK(f && h && J == 8 && sb_pairs_create(NULL, src, NULL, &fit_pairs) == SB_OK);
+    CHECK(sb_pairs_create(NULL, src, &other, &pairs) == SB_OK);
+    CHECK(sb_estimate_term_weights(NULL, fit_pairs, f, NULL, p, SB_FORM_F, wts) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, &other, &raw) == SB_OK);
+    for (size_t c = 0; c < C; c++)
+        wts[J * C + c] = 0; /* h's appended noise term, unused */
+    scale_copy(h, wts);
+    CHECK(sb_estimate_compute(NULL, pairs, h, NULL, p, SB_FORM_F, &other, &e) == SB_OK);
+    const sb_factor_errors_t *fe = sb_factors_errors(f);
+    for (size_t j = 1; j < 8; j++) {
+        printf("  J=%zu native %.4f headline raw %.4f weighted %.4f +- %.4f (weight %.3f) overshoot %.3f\n", j + 1,
+               fe->rel_rms[j * 4 + 3], raw.rel[j][SB_EST_FCOS][3], e.rel[j][SB_EST_FCOS][3], e.se[j][SB_EST_FCOS][3],
+               wts[j * C], e.overshoot[j]);
+        CHECKF(fe->rel_rms[j * 4 + 3] <= fe->rel_rms[(j - 1) * 4 + 3], "native J=%zu %.4g > %.4g", j + 1,
+               fe->rel_rms[j * 4 + 3], fe->rel_rms[(j - 1) * 4 + 3]);
+        double rise = e.rel[j][SB_EST_FCOS][3] - e.rel[j - 1][SB_EST_FCOS][3];
+        CHECKF(rise <= 2 * hypot(e.se[j][SB_EST_FCOS][3], e.se[j - 1][SB_EST_FCOS][3]), "headline rises at J=%zu",
+               j + 1);
+        CHECKF(e.rel[j][SB_EST_FCOS][3] <= raw.rel[j][SB_EST_FCOS][3] * 1.01 + 2 * raw.se[j][SB_EST_FCOS][3],
+               "weighted J=%zu %.4g worse than raw %.4g", j + 1, e.rel[j][SB_EST_FCOS][3], raw.rel[j][SB_EST_FCOS][3]);
+        CHECKF(e.overshoot[j] <= 1.5, "overshoot %.3g at J=%zu", e.overshoot[j], j + 1);
+    }
+    sb_pairs_destroy(fit_pairs);
+    sb_pairs_destroy(pairs);
+    sb_factors_destroy(f);
     sb_factors_destroy(h);
     sb_param_destroy(p);
     sb_source_destroy(src);

@@ -29,6 +29,10 @@ const char *sb_form_name(sb_form_t form);
 /* The factor that turns f_r into the stored form for this pair; NaN for
  * an unknown form or a NULL direction. */
 double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
+/* What a reconstruction of the stored form is divided by to give f_r, as
+ * the GLSL snippet does: cos theta raised to the grazing guard 0.001
+ * (max(cos, 0.001)) per cosine of the form; 1 for SB_FORM_F. */
+double sb_form_divisor(sb_form_t form, const double wi[3], const double wo[3]);
 
 /* Progress of a long build: `fraction` of the columns done, in [0, 1]. */
 typedef void (*sb_progress_fn)(void *user, double fraction);

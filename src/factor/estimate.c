@@ -349,8 +349,7 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     est_taps(e, SB_SIDE_G, sg, ag, fg);
     est_taps(e, SB_SIDE_H, sh, ah, fh);
     double div = 1, acc[3] = {0, 0, 0};
-    if (e->form == SB_FORM_COS || e->form == SB_FORM_COS2) div = fmax(wi[2], 0.001);
-    if (e->form == SB_FORM_COS2) div *= fmax(wo[2], 0.001);
+    div = sb_form_divisor(e->form, wi, wo);
     size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
     const double *g[4], *h[4];
     for (int k = 0; k < 4; k++) {

@@ -79,8 +79,7 @@ static void many_unit(void *user, size_t k, int t) {
         for (size_t b = 0; b < nh; b++)
             lookup(&m->e[ng + b], SB_SIDE_H, ah, fh, look + (ng + b) * S);
         double div = 1;
-        if (e0->form == SB_FORM_COS || e0->form == SB_FORM_COS2) div = fmax(wi[2], 0.001);
-        if (e0->form == SB_FORM_COS2) div *= fmax(wo[2], 0.001);
+        div = sb_form_divisor(e0->form, wi, wo);
         for (size_t a = 0; a < ng; a++)
             for (size_t b = 0; b < nh; b++) {
                 const double *G = look + a * S, *H = look + (ng + b) * S;

@@ -201,9 +201,7 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
             acc[c] += sb_factors_lookup(f, p, 0, j, c, sg) * sb_factors_lookup(f, p, 1, j, c, sh);
     if (f->channels == 1) acc[1] = acc[2] = acc[0];
     /* divide back the factored form, with the lecture's grazing guard */
-    double w = 1;
-    if (form == SB_FORM_COS) w = fmax(wi[2], 0.001);
-    if (form == SB_FORM_COS2) w = fmax(wi[2], 0.001) * fmax(wo[2], 0.001);
+    double w = sb_form_divisor(form, wi, wo);
     for (int c = 0; c < 3; c++)
         rgb[c] = acc[c] / w;
     return 1;

@@ -15,9 +15,7 @@ static int prefix_values(const sb_factors_t *f, const sb_param_t *p, sb_form_t f
     memset(acc, 0, J * 3 * sizeof *acc);
     if (!sb_param_coords(p, wi, wo, sg, sh)) return 0;
     size_t ch = sb_factors_channels(f);
-    double w = 1;
-    if (form == SB_FORM_COS) w = fmax(wi[2], 0.001);
-    if (form == SB_FORM_COS2) w = fmax(wi[2], 0.001) * fmax(wo[2], 0.001);
+    double w = sb_form_divisor(form, wi, wo);
     for (size_t j = 0; j < J; j++) {
         for (size_t c = 0; c < ch; c++)
             run[c] += sb_factors_lookup(f, p, 0, j, c, sg) * sb_factors_lookup(f, p, 1, j, c, sh);

@@ -44,6 +44,13 @@ double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]) {
     }
 }
 
+double sb_form_divisor(sb_form_t form, const double wi[3], const double wo[3]) {
+    double w = 1;
+    if (form == SB_FORM_COS || form == SB_FORM_COS2) w = fmax(wi[2], 0.001);
+    if (form == SB_FORM_COS2) w *= fmax(wo[2], 0.001);
+    return w;
+}
+
 typedef struct job {
     const sb_source_t *src;
     const sb_param_t *param;

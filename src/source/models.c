@@ -165,7 +165,8 @@ typedef struct keyspec {
       "specular denominator: 4 = 4 (n.l)(n.v) (paper), cos = (n.l)(n.v) (slides), pi = pi (n.l)(n.v) "                 \
       "(Cook & Torrance 1982)",                                                                                        \
       "4|cos|pi", "4")                                                                                                 \
-    GUARD_KEY(X, "n.l and n.v in the denominator (and smith-disney's numerator)")
+    GUARD_KEY(X, "n.l and n.v in the denominator with g=vcavity|none (a Smith G cancels them: "                        \
+                 "f is finite at the horizon and the guard has no effect)")
 #define MICROFACET_KEYS(X)                                                                                             \
     X("base", K_BASE, 0, 1.1, 0, base, NULL, "base colour (RGB, or a metal preset name: the metal's F0)",              \
       "[0, 1.1] (the table's gold has 1.022)", "0.5")                                                                  \

@@ -221,14 +221,24 @@ static double fresnel(const model_t *m, double c, int ch) {
  *   den = 4 (n.l)(n.v)  (denom=4, paper eq. 5/11)
  *       =   (n.l)(n.v)  (denom=cos, slides)
  *       = pi (n.l)(n.v) (denom=pi, Cook & Torrance 1982)
- * with n.l and n.v in den raised to the guard (lecture: max(n.v, 0.001)). */
+ * with n.l and n.v in den raised to the guard (lecture: max(n.v, 0.001))
+ * where G does not cancel them (vcavity, none); a Smith G cancels them. */
 int sb_model_ct_(const void *self, const double l[3], const double v[3], double rgb[3]) {
     const model_t *m = self;
     if (below_horizon(l, v, rgb)) return 1;
     double h[3];
     half_vector(l, v, h);
     double nl = clamp01(l[2]), nv = clamp01(v[2]), nh = clamp01(h[2]), vh = clamp01(dot3(v, h));
-    double dg = ndf(m, h) * shadowing(m, nl, nv, nh, vh) / (m->cspec * max_lo(nl, m->cmin) * max_lo(nv, m->cmin));
+    double dg;
+    if (m->g == G_SMITH_SCHLICK || m->g == G_SMITH_ALPHA || m->g == G_SMITH_DISNEY)
+        /* G1(c)/c = 1/(c (1-k) + k): G's numerators cancel the
+         * denominator's cosines (as in the lecture's microfacetBRDF), so f
+         * is one quotient, finite up to the horizon, and needs no guard.
+         * Raising only the denominator to the guard would make f fall
+         * linearly to 0 within 0.06 degrees of the horizon. */
+        dg = ndf(m, h) / (m->cspec * (nl * (1 - m->k) + m->k) * (nv * (1 - m->k) + m->k));
+    else
+        dg = ndf(m, h) * shadowing(m, nl, nv, nh, vh) / (m->cspec * max_lo(nl, m->cmin) * max_lo(nv, m->cmin));
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] * m->albedo[c] / SB_PI + m->ks[c] * dg * fresnel(m, vh, c);
     return 1;
