@@ -1,9 +1,23 @@
 /* The parallel-for (parallel.h): fork/join over at most SB_THREADS_MAX
- * threads, the caller's included. */
+ * threads, the caller's included.
+ *
+ * The jobs beyond the caller's run on workers that live for the process:
+ * starting a thread costs about 60 us on the 2-core VMs we measure on
+ * (pthread_create + join), as much as a half-sweep of the default masked
+ * fit, and every new thread that calls BLAS gets OpenBLAS's working buffer
+ * afresh (first-touch page faults on every call of the thin products).  A
+ * worker waits for the next call spinning for a while (consecutive calls
+ * come microseconds apart), then sleeps on a condition variable.  Every
+ * worker acknowledges every call, so the caller returns only when none of
+ * them still reads the call's fields.  The pool serves one call at a
+ * time: a call made while it is busy (from another thread, or from inside
+ * a job) starts threads of its own as before. */
 #include "util/parallel.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
+#include <stdint.h>
 
 #include "util/internal.h"
 
@@ -20,9 +34,8 @@ static void *run_one(void *p) {
     return NULL;
 }
 
-void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, void (*idle)(void *), void *idle_arg) {
-    if (n < 1) n = 1;
-    if (n > SB_THREADS_MAX) n = SB_THREADS_MAX;
+/* A call on threads started for it (the pool is busy). */
+static void run_started(void *(*fn)(void *), void *jobs, size_t job_size, int n, void (*idle)(void *), void *idle_arg) {
     pthread_t th[SB_THREADS_MAX];
     run_t runs[SB_THREADS_MAX];
     int started[SB_THREADS_MAX] = {0};
@@ -39,6 +52,130 @@ void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, vo
         idle(idle_arg);
     for (int t = 1; t < n; t++)
         if (started[t]) pthread_join(th[t], NULL);
+}
+
+/* ---- the pool ---------------------------------------------------------- */
+
+#define SB_POOL_SPIN 20000 /* pause loops a worker spins before it sleeps (~0.1 ms) */
+
+static struct {
+    pthread_mutex_t mu;
+    pthread_cond_t wake;
+    int workers;     /* started; worker w runs job w (1-based) */
+    int sleepers;    /* workers waiting on `wake` (under mu) */
+    atomic_uint gen; /* bumped by every call, under mu */
+    atomic_int left; /* workers that have not yet acknowledged the call */
+    void *(*fn)(void *);
+    char *jobs;
+    size_t job_size;
+    int n;
+} pool = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0, 0, 0, NULL, NULL, 0, 0};
+static atomic_flag pool_busy = ATOMIC_FLAG_INIT;
+static pthread_once_t pool_once = PTHREAD_ONCE_INIT;
+static struct {
+    int index;
+    unsigned gen;
+} worker_arg[SB_THREADS_MAX];
+
+static inline void relax(void) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield");
+#endif
+}
+
+static void *worker(void *arg) {
+    int me = *(int *)arg;
+    unsigned seen = worker_arg[me].gen;
+    for (;;) {
+        unsigned g;
+        for (int spins = 0; (g = atomic_load_explicit(&pool.gen, memory_order_acquire)) == seen; spins++) {
+            if (spins < SB_POOL_SPIN) {
+                relax();
+                continue;
+            }
+            pthread_mutex_lock(&pool.mu);
+            pool.sleepers++;
+            while ((g = atomic_load_explicit(&pool.gen, memory_order_acquire)) == seen)
+                pthread_cond_wait(&pool.wake, &pool.mu);
+            pool.sleepers--;
+            pthread_mutex_unlock(&pool.mu);
+            break;
+        }
+        seen = g;
+        if (me < pool.n) pool.fn(pool.jobs + (size_t)me * pool.job_size);
+        atomic_fetch_sub_explicit(&pool.left, 1, memory_order_acq_rel);
+    }
+    return NULL;
+}
+
+/* In a child of fork() only the forking thread exists: the pool starts
+ * empty there. */
+static void pool_after_fork(void) {
+    pthread_mutex_t mu = PTHREAD_MUTEX_INITIALIZER;
+    pthread_cond_t wake = PTHREAD_COND_INITIALIZER;
+    pool.mu = mu;
+    pool.wake = wake;
+    pool.workers = pool.sleepers = 0;
+    atomic_store(&pool.left, 0);
+    atomic_flag_clear(&pool_busy);
+}
+
+static void pool_init(void) { pthread_atfork(NULL, NULL, pool_after_fork); }
+
+/* Start workers up to `want` (the pool is held); returns how many run. */
+static int pool_grow(int want) {
+    while (pool.workers < want) {
+        int w = pool.workers + 1;
+        worker_arg[w].index = w;
+        worker_arg[w].gen = atomic_load(&pool.gen);
+        pthread_t th;
+        pthread_attr_t at;
+        if (pthread_attr_init(&at) != 0) break;
+        int ok = pthread_attr_setdetachstate(&at, PTHREAD_CREATE_DETACHED) == 0 &&
+                 pthread_create(&th, &at, worker, &worker_arg[w].index) == 0;
+        pthread_attr_destroy(&at);
+        if (!ok) break;
+        pool.workers = w;
+    }
+    return pool.workers;
+}
+
+void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, void (*idle)(void *), void *idle_arg) {
+    if (n < 1) n = 1;
+    if (n > SB_THREADS_MAX) n = SB_THREADS_MAX;
+    if (n == 1) {
+        fn(jobs);
+        return;
+    }
+    pthread_once(&pool_once, pool_init);
+    if (atomic_flag_test_and_set_explicit(&pool_busy, memory_order_acquire)) {
+        run_started(fn, jobs, job_size, n, idle, idle_arg);
+        return;
+    }
+    int workers = pool_grow(n - 1);
+    pool.fn = fn;
+    pool.jobs = jobs;
+    pool.job_size = job_size;
+    pool.n = n < workers + 1 ? n : workers + 1;
+    atomic_store_explicit(&pool.left, workers, memory_order_relaxed);
+    pthread_mutex_lock(&pool.mu);
+    atomic_fetch_add_explicit(&pool.gen, 1, memory_order_release);
+    if (pool.sleepers > 0) pthread_cond_broadcast(&pool.wake);
+    pthread_mutex_unlock(&pool.mu);
+    fn(jobs);
+    for (int t = workers + 1; t < n; t++) /* no worker for it: done here */
+        fn((char *)jobs + (size_t)t * job_size);
+    for (int spins = 0; atomic_load_explicit(&pool.left, memory_order_acquire) > 0; spins++) {
+        if (idle)
+            idle(idle_arg);
+        else if (spins < SB_POOL_SPIN)
+            relax();
+        else
+            sched_yield(); /* a long job: leave the core to whoever can use it */
+    }
+    atomic_flag_clear_explicit(&pool_busy, memory_order_release);
 }
 
 void sb_part(size_t count, int t, int n, size_t *begin, size_t *end) {

@@ -2,11 +2,13 @@
  *
  * Work is cut into n jobs (n <= SB_THREADS_MAX, usually sb_thread_count()
  * capped by the amount of work); job 0 runs on the caller's thread, the
- * others on threads started for the call and joined before it returns (a
- * thread that cannot start runs its job on the caller instead, so the
- * result never depends on how many threads started).  Jobs write only to
- * their own slots; callers add per-job partial results in job order, so
- * sums are the same bits on every run. */
+ * others on the library's persistent workers (started at the first call
+ * that needs them, living for the process), or on threads started for the
+ * call when another call holds the workers; a job with no thread runs on
+ * the caller, so the result never depends on how many threads started.
+ * Every job has finished when the call returns.  Jobs write only to their
+ * own slots; callers add per-job partial results in job order, so sums
+ * are the same bits on every run. */
 #ifndef SEPBRDF_PARALLEL_H
 #define SEPBRDF_PARALLEL_H
 
