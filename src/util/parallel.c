@@ -18,6 +18,7 @@
 #include <sched.h>
 #include <stdatomic.h>
 #include <stdint.h>
+#include <unistd.h>
 
 #include "util/internal.h"
 
@@ -72,6 +73,7 @@ static struct {
 } pool = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0, 0, 0, NULL, NULL, 0, 0};
 static atomic_flag pool_busy = ATOMIC_FLAG_INIT;
 static pthread_once_t pool_once = PTHREAD_ONCE_INIT;
+static int pool_cores = 1; /* online cores, at the first call */
 static struct {
     int index;
     unsigned gen;
@@ -88,10 +90,13 @@ static inline void relax(void) {
 static void *worker(void *arg) {
     int me = *(int *)arg;
     unsigned seen = worker_arg[me].gen;
+    /* more threads than cores (SEPBRDF_THREADS above them): spinning would
+     * take the cores from the jobs, so sleep at once */
+    int spin = me < pool_cores ? SB_POOL_SPIN : 0;
     for (;;) {
         unsigned g;
         for (int spins = 0; (g = atomic_load_explicit(&pool.gen, memory_order_acquire)) == seen; spins++) {
-            if (spins < SB_POOL_SPIN) {
+            if (spins < spin) {
                 relax();
                 continue;
             }
@@ -122,7 +127,11 @@ static void pool_after_fork(void) {
     atomic_flag_clear(&pool_busy);
 }
 
-static void pool_init(void) { pthread_atfork(NULL, NULL, pool_after_fork); }
+static void pool_init(void) {
+    long c = sysconf(_SC_NPROCESSORS_ONLN);
+    pool_cores = c > 0 ? (int)c : 1;
+    pthread_atfork(NULL, NULL, pool_after_fork);
+}
 
 /* Start workers up to `want` (the pool is held); returns how many run. */
 static int pool_grow(int want) {
