@@ -30,7 +30,7 @@
 #include "util/rng.h"
 
 #define NCOMP 7 /* wo mixture components: uniform, cosine, four GGX lobes, grazing */
-#define GRAZE NCOMP - 1
+#define GRAZE (NCOMP - 1)
 
 static const double comp_w[NCOMP] = {0.18, 0.18, 0.135, 0.135, 0.135, 0.135, 0.1};
 static const double lobe_alpha[NCOMP] = {0, 0, 0.005, 0.02, 0.08, 0.3, 0};

@@ -168,7 +168,8 @@ static double ndf(const model_t *m, const double h[3]) {
     }
 }
 
-/* Shadowing-masking; nl = n.l, nv = n.v, nh = n.h, vh = v.h = l.h.
+/* Shadowing-masking G over the denominator's cosines, G / ((n.l)(n.v));
+ * nl = n.l, nv = n.v, nh = n.h, vh = v.h = l.h.
  *   smith-schlick (paper eqs. 7-9): G = G1(n.l) G1(n.v), G1(c) = c/(c (1-k) + k),
  *       k = (roughness + 1)^2 / 8
  *   smith-disney (lecture G1_GGX_Schlick): the same k (Disney remapping
@@ -178,19 +179,24 @@ static double ndf(const model_t *m, const double h[3]) {
  *       commented-out original r = roughness, k = r^2/2; numerator c
  *   vcavity (slides, Cook-Torrance):
  *       G = min{1, 2 (n.h)(n.v)/(v.h), 2 (n.h)(n.l)/(l.h)}
- *   none: G = 1 */
-static double shadowing(const model_t *m, double nl, double nv, double nh, double vh) {
+ *   none: G = 1
+ * A Smith G's numerators cancel the cosines (the guarded ones of
+ * smith-disney too, as in the lecture's microfacetBRDF): one quotient
+ * 1 / ((n.l (1-k) + k)(n.v (1-k) + k)), finite up to the horizon, that
+ * needs no guard (raising only the cosines below to the guard made f fall
+ * linearly to 0 within 0.06 degrees of the horizon).  With vcavity and
+ * none the cosines are raised to the guard (lecture: max(n.v, 0.001)). */
+static double shadowing_over_cos(const model_t *m, double nl, double nv, double nh, double vh) {
     double k = m->k;
     switch (m->g) {
     case G_SMITH_SCHLICK:
     case G_SMITH_ALPHA:
-        return nl / (nl * (1 - k) + k) * (nv / (nv * (1 - k) + k));
     case G_SMITH_DISNEY:
-        return max_lo(nl, m->cmin) / (nl * (1 - k) + k) * (max_lo(nv, m->cmin) / (nv * (1 - k) + k));
+        return 1 / ((nl * (1 - k) + k) * (nv * (1 - k) + k));
     case G_VCAVITY:
-        return fmin(1.0, fmin(2 * nh * nv / vh, 2 * nh * nl / vh));
+        return fmin(1.0, fmin(2 * nh * nv / vh, 2 * nh * nl / vh)) / (max_lo(nl, m->cmin) * max_lo(nv, m->cmin));
     default:
-        return 1;
+        return 1 / (max_lo(nl, m->cmin) * max_lo(nv, m->cmin));
     }
 }
 
@@ -221,24 +227,15 @@ static double fresnel(const model_t *m, double c, int ch) {
  *   den = 4 (n.l)(n.v)  (denom=4, paper eq. 5/11)
  *       =   (n.l)(n.v)  (denom=cos, slides)
  *       = pi (n.l)(n.v) (denom=pi, Cook & Torrance 1982)
- * with n.l and n.v in den raised to the guard (lecture: max(n.v, 0.001))
- * where G does not cancel them (vcavity, none); a Smith G cancels them. */
+ * with G / ((n.l)(n.v)) from shadowing_over_cos (a Smith G cancels the
+ * cosines; the others raise them to the guard). */
 int sb_model_ct_(const void *self, const double l[3], const double v[3], double rgb[3]) {
     const model_t *m = self;
     if (below_horizon(l, v, rgb)) return 1;
     double h[3];
     half_vector(l, v, h);
     double nl = clamp01(l[2]), nv = clamp01(v[2]), nh = clamp01(h[2]), vh = clamp01(dot3(v, h));
-    double dg;
-    if (m->g == G_SMITH_SCHLICK || m->g == G_SMITH_ALPHA || m->g == G_SMITH_DISNEY)
-        /* G1(c)/c = 1/(c (1-k) + k): G's numerators cancel the
-         * denominator's cosines (as in the lecture's microfacetBRDF), so f
-         * is one quotient, finite up to the horizon, and needs no guard.
-         * Raising only the denominator to the guard would make f fall
-         * linearly to 0 within 0.06 degrees of the horizon. */
-        dg = ndf(m, h) / (m->cspec * (nl * (1 - m->k) + m->k) * (nv * (1 - m->k) + m->k));
-    else
-        dg = ndf(m, h) * shadowing(m, nl, nv, nh, vh) / (m->cspec * max_lo(nl, m->cmin) * max_lo(nv, m->cmin));
+    double dg = ndf(m, h) * shadowing_over_cos(m, nl, nv, nh, vh) / m->cspec;
     for (int c = 0; c < 3; c++)
         rgb[c] = m->kd[c] * m->albedo[c] / SB_PI + m->ks[c] * dg * fresnel(m, vh, c);
     return 1;
