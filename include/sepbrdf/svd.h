@@ -21,7 +21,11 @@
  *               practice within ~tol^2 s_1^2 / gap) and the vectors within
  *               an angle tol s_1 / gap of the singular subspaces.  BLAS-3
  *               products only: 2q + 3 reads of A a cycle, one on the io
- *               matrices of docs/performance.md.  Where the basis
+ *               matrices of docs/performance.md.  A cycle stops below
+ *               depth q when the residuals, estimated from the next
+ *               Krylov block without a read of A, are below tol / 2
+ *               (2i + 4 reads at degree i; the certificate is still the
+ *               residual read from A).  Where the basis
  *               l (q + 1) would exceed d / 2 (q lowered to 1 first), or
  *               after 40 cycles without convergence (a flat spectrum), the
  *               Gram route: G of the smaller side (dsyrk), its k largest
@@ -101,7 +105,7 @@ typedef struct sb_svd_opts {
     sb_method_t method;
     int oversample;       /* randomized: p, 0 = default 10, negative = none */
     int power_iters;      /* randomized: q, 0 = default 2, negative = none, at most SB_SVD_MAX_POWER_ITERS;
-                             TOPK: depth, default 8 */
+                             TOPK: the largest depth, default 8 */
     uint64_t seed;        /* randomized: seed of the test matrix, 0 = default 1 */
     int single_precision; /* compute in float (inputs/outputs stay double) */
     size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
@@ -116,6 +120,7 @@ typedef struct sb_svd_info {
     double norm_fro;  /* ||A||_F when known (given, adaptive mode, FULL, TOPK, single), else 0 */
     double resid_fro; /* ||A - U_r S_r V_r^T||_F from the identity above, -1 if unknown */
     size_t cycles;    /* TOPK: Krylov cycles run (0: the Gram route alone) */
+    size_t degree;    /* TOPK: Krylov degree of the last cycle (its basis has degree + 1 blocks; 0: Gram route) */
 } sb_svd_info_t;
 
 typedef struct sb_svd sb_svd_t;

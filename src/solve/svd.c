@@ -149,13 +149,15 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 
 void sb_svd_destroy(sb_svd_t *s) {
     if (!s) return;
-    void *bufs[] = {s->a,  s->sv, s->u,  s->vt, s->g,   s->w,    s->z, s->y,
-                    s->bt, s->ws, s->om, s->c,  s->tau, s->work, s->st};
+    void *bufs[] = {s->a,    s->sv, s->u,  s->vt,  s->g,  s->w,  s->z,  s->y,   s->bt, s->ws,  s->om, s->c, s->tau,
+                    s->work, s->st, s->eg, s->egc, s->ew, s->ex, s->er, s->erx, s->ep, s->ewk, s->rs, s->ur};
     sb_svd_destroy(s->gram_plan);
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
         free(bufs[i]);
     free(s->iwork);
     free(s->isuppz);
+    free(s->eiw);
+    free(s->eisuppz);
     free(s);
 }
 
@@ -163,7 +165,7 @@ sb_method_t sb_svd_method(const sb_svd_t *s) { return s ? s->method : SB_METHOD_
 size_t sb_svd_rank(const sb_svd_t *s) { return s ? s->k : 0; }
 size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s ? s->bytes : 0; }
 sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) {
-    sb_svd_info_t none = {0, 0, 0, 0, 0};
+    sb_svd_info_t none = {0, 0, 0, 0, 0, 0};
     return s ? s->info : none;
 }
 
@@ -284,7 +286,7 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
         if (norm_of(s, A, run->la, &got)) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries");
         run->nrm = got;
     }
-    run->info = (sb_svd_info_t){0, 0, 0, -1, 0};
+    run->info = (sb_svd_info_t){0, 0, 0, -1, 0, 0};
     sb_result_t res = s->method == SB_METHOD_FULL ? sb_svd_run_full(s, run)
                       : s->method == SB_METHOD_TOPK
                           ? (s->gram ? sb_svd_run_topk(s, run) : sb_svd_run_topk_krylov(s, run))

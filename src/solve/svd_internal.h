@@ -12,12 +12,18 @@
  * need fewer restarts: on the io matrix of N = 1024 q = 2, 3, 4, 6 took
  * 6, 4, 2, 1 cycles (42, 36, 22, 15 reads of A), on N = 4096 q = 4, 6, 8
  * took 3, 2, 1 (33, 30, 19 reads).  q is lowered where the basis
- * l (q + 1) would exceed d / 2. */
+ * l (q + 1) would exceed d / 2.  A cycle ends below q once the residual
+ * estimate meets the tolerance (run_rand): at N = 4096 the top 1 at degree
+ * 5-6, the top 16 at 7 (Xeon VM, 2026-12-02: 0.88 -> 0.64 s for three
+ * channels at J = 1); the top 8 still needs 8. */
 #define SB_SVD_TOPK_Q 8
 /* TOPK's smallest Krylov block: a read of a large A with 18 columns costs
  * about what one with 12 does (OpenBLAS packs A either way), and a wider
  * block converges in fewer cycles (N = 4096, J = 4: l = 14 took two cycles,
- * 1.34-1.66 s, l = 16 one, 0.93-0.99 s; J = 1: 0.94 s with l = 11, 0.96-0.98 s) */
+ * 1.34-1.66 s, l = 16 one, 0.93-0.99 s; J = 1: 0.94 s with l = 11, 0.96-0.98 s).
+ * Wider still does not pay on the Xeon VM: at J = 8, l = 24 and 32 stop at
+ * degree 7 and 6 (18 and 16 reads against 20), but a read costs 12.4,
+ * 15 and 16.9 ms, and the basis to orthogonalise grows. */
 #define SB_SVD_TOPK_MIN_BLOCK 16
 #define SB_SVD_TOPK_CYCLES 40
 
@@ -32,7 +38,18 @@ struct sb_svd {
     /* Workspace, typed double or float by `single` (see the templates for
      * what each holds per method); NULL when the method does not use it. */
     void *a, *sv, *u, *vt, *g, *w, *z, *y, *bt, *ws, *om, *c, *tau, *work;
-    void *st;            /* TOPK Krylov: start block of the next cycle (n x l) */
+    void *st;      /* TOPK Krylov: start block of the next cycle (n x l) */
+    void *rs, *ur; /* RANDOMIZED, TOPK Krylov: R of B^T's QR and its left singular vectors (L x L) */
+    /* TOPK Krylov, the residual estimate of each degree (run_rand): the Gram
+     * matrix of B^T (L x L, upper) and its copy for syevr, the eigenvalues
+     * (L) and k leading eigenvectors (L x k), R of the last block (l x l),
+     * R X (l x k), the projected residual block (m x k), syevr's workspace */
+    void *eg, *egc, *ew, *ex, *er, *erx, *ep, *ewk;
+    lapack_int *eiw, *eisuppz;
+    lapack_int elwork, eliwork;
+    double est_tol;      /* > 0: stop the Krylov expansion once the estimate is below it */
+    int est_stop;        /* the degree at which the last cycle stopped early, or -1 */
+    size_t eg_cols;      /* columns of eg formed in this cycle */
     int gram;            /* TOPK by the Gram route (when the Krylov basis does not fit) */
     int cycles;          /* TOPK Krylov: cycles of the last execute */
     double resid;        /* TOPK Krylov: its largest residual / s_1 */

@@ -13,6 +13,7 @@
 #define SYEVR LAPACKE_dsyevr_work
 #define GEQRF LAPACKE_dgeqrf_work
 #define ORGQR LAPACKE_dorgqr_work
+#define ORMQR LAPACKE_dormqr_work
 #include SB_SVD_TEMPLATE
 #undef R
 #undef SFX
@@ -23,6 +24,7 @@
 #undef SYEVR
 #undef GEQRF
 #undef ORGQR
+#undef ORMQR
 
 #define R float
 #define SFX f
@@ -33,6 +35,7 @@
 #define SYEVR LAPACKE_ssyevr_work
 #define GEQRF LAPACKE_sgeqrf_work
 #define ORGQR LAPACKE_sorgqr_work
+#define ORMQR LAPACKE_sormqr_work
 #include SB_SVD_TEMPLATE
 #undef R
 #undef SFX
@@ -43,3 +46,4 @@
 #undef SYEVR
 #undef GEQRF
 #undef ORGQR
+#undef ORMQR

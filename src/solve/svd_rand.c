@@ -45,6 +45,7 @@ sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s, const sb_svd_opts_t *opts) {
     sb_result_t r = s->single ? plan_rand_f(s) : plan_rand_d(s);
     size_t z = s->single ? sizeof(float) : sizeof(double);
     if (r == SB_OK && (!(s->g = ws_alloc(s, s->m, s->k, z)) || !(s->st = ws_alloc(s, s->n, s->l, z)))) r = SB_ERR_NOMEM;
+    if (r == SB_OK) r = s->single ? plan_est_f(s) : plan_est_d(s);
     if (r == SB_OK) sb_svd_create_gram(s->m, s->n, s->k, opts, &s->gram_plan);
     return r;
 }
@@ -75,6 +76,7 @@ sb_result_t sb_svd_run_topk_krylov(sb_svd_t *s, sb_svd_run_t *run) {
     run->info.norm_fro = run->nrm;
     run->info.resid_fro = sb_svd_resid_from(run->nrm, run->sv, run->r);
     run->info.cycles = (size_t)s->cycles;
+    run->info.degree = done ? (size_t)(s->est_stop >= 0 ? s->est_stop : s->q) : 0;
     run->sketch = k;
     return SB_OK;
 }
