@@ -42,13 +42,20 @@ struct sb_fit {
  * current stage, a_rc - sum_{j<j0} P_rj Q_cj, computed once per stage (the
  * fixed terms do not move during its sweeps); they alias cv / rv when
  * j0 = 0.  Every sum runs in the order of the plain loops over the mask
- * (rows: c increasing; columns: r increasing), so the results are the same
- * to the bit. */
+ * (rows: c increasing; columns: r increasing).  A row (column) with
+ * more cells in than out has its Gram formed as the sum over all columns
+ * (rows) less those left out (ls_update). */
 typedef struct als_cells {
     size_t *cp, *rp;
     uint32_t *cr, *rc;
     double *cv, *rv, *cbuf, *rbuf;
     const double *cres, *rres;
+    /* the cells left out, likewise: column c's rows ci[u], u in
+     * [cip[c], cip[c+1]); row r's columns ri[u], u in [rip[r], rip[r+1]) */
+    size_t *cip, *rip;
+    uint32_t *ci, *ri;
+    /* sum of cres^2 per column (n) and in all (fit_cells_residual) */
+    double *ca2, a2;
 } als_cells_t;
 
 /* Gather the valid cells of X (m x n, ld lda) with mask != 0 (nvalid of
