@@ -42,6 +42,16 @@ unsigned long sb_param_serial_(const struct sb_param *p);
 /* Most threads any parallel loop uses (parallel.h). */
 #define SB_THREADS_MAX 64
 
+/* A hot loop compiled twice, with FMA (and 256-bit AVX) and for the
+ * baseline x86-64 the library is built for, the one the CPU runs chosen
+ * when the library loads (GCC's target_clones, on x86-64 Linux; elsewhere
+ * the baseline only).  Functions it inlines are compiled with it. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define SB_FMA_CLONES __attribute__((target_clones("fma", "default")))
+#else
+#define SB_FMA_CLONES
+#endif
+
 /* Number of worker threads to use: `requested` if > 0, else env
  * SEPBRDF_THREADS or the online cores; at most SB_THREADS_MAX. */
 int sb_thread_count(int requested);
