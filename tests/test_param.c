@@ -640,3 +640,35 @@ SB_TEST(registry_caps) {
     }
     CHECK(sb_param_kind_caps(SB_PARAM_KIND_COUNT_) == 0 && !sb_param_kind_applies(SB_PARAM_KIND_COUNT_, ~0u));
 }
+
+/* The domain's edge: on the whole hemisphere (theta_max 90 degrees) a
+ * direction is in exactly when its z > 0, however close to grazing; under
+ * a smaller theta_max the angle decides.  Every kind, both sides. */
+SB_TEST(domain_edge_at_grazing) {
+    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++)
+        for (int capped = 0; capped < 2; capped++) {
+            sb_param_opts_t o = {0};
+            o.res = 8;
+            if (capped) o.theta_max = 80 * SB_PI / 180;
+            sb_param_t *p;
+            CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
+            double in[3] = {0.3, 0.2, 0.9}, sg[2], sh[2];
+            double n = sqrt(in[0] * in[0] + in[1] * in[1] + in[2] * in[2]);
+            for (int i = 0; i < 3; i++)
+                in[i] /= n;
+            const double zs[] = {1e-300, 1e-17, 1e-9, 0.0, -1e-300, -1e-9};
+            for (size_t k = 0; k < sizeof zs / sizeof zs[0]; k++) {
+                double c = sqrt(1 - zs[k] * zs[k]), w[3] = {0.6 * c, 0.8 * c, zs[k]};
+                int want = zs[k] > 0 && !capped;
+                CHECK(sb_param_coords(p, w, in, sg, sh) == want);
+                CHECK(sb_param_coords(p, in, w, sg, sh) == want);
+            }
+            for (int deg = 70; deg <= 89; deg += 19) { /* 70: inside the cap, 89: outside it */
+                double t = deg * SB_PI / 180, w[3] = {sin(t), 0, cos(t)};
+                int want = !capped || deg < 80;
+                CHECK(sb_param_coords(p, w, in, sg, sh) == want);
+                CHECK(sb_param_coords(p, in, w, sg, sh) == want);
+            }
+            sb_param_destroy(p);
+        }
+}

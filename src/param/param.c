@@ -417,7 +417,10 @@ double sb_grid_measure_4cos(size_t R, double tmax, const sb_warp_t *w, size_t k)
 
 double sb_dir_theta(const double w[3]) { return atan2(hypot(w[0], w[1]), w[2]); }
 
-int sb_dir_in_cap(double tmax, const double w[3]) { return w[2] > 0 && sb_dir_theta(w) <= tmax; }
+/* The whole hemisphere (tmax = pi/2, the default) needs no angle: with
+ * w[2] > 0, atan2 returns at most the double nearest pi/2 (a quarter of
+ * the default run's estimator went to this atan2 and its hypot). */
+int sb_dir_in_cap(double tmax, const double w[3]) { return w[2] > 0 && (tmax >= SB_PI / 2 || sb_dir_theta(w) <= tmax); }
 
 void sb_dir_half(const double l[3], const double v[3], double h[3]) {
     double s[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
