@@ -342,6 +342,62 @@ SB_TEST(masked_fit_exact_rank1) {
     sb_source_destroy(s);
 }
 
+/* A source missing on one of two patterns (self: 0, rank 2 with most
+ * cells measured; 1, rank 1 with fewer than half): the masked fit keeps a
+ * dense residual for the first and gathers cells for the second; both fit
+ * the measured cells exactly, the rank-1 one also the hidden ones. */
+static int holey2_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    int sparse = *(const int *)self;
+    double v = (1 + wi[0] * wi[0]) * (2 + wo[1] + wo[2]) + (sparse ? 0 : (0.5 + wi[1]) * (1 - wo[0] * wo[0]));
+    for (int c = 0; c < 3; c++)
+        rgb[c] = v * (c + 1);
+    if (!sparse) return !(wi[0] > 0.3 && wo[1] < -0.2);
+    return wi[0] * wo[1] - wi[1] * wo[0] > 0.15 || wi[2] * wo[2] > 0.8;
+}
+
+SB_TEST(masked_fit_exact_dense_and_sparse) {
+    for (int sparse = 0; sparse < 2; sparse++) {
+        sb_source_ops_t ops = {holey2_eval, NULL};
+        sb_source_t *s = NULL;
+        CHECK(sb_source_create(NULL, &ops, &sparse, SB_SOURCE_MEASURED, "holey2", &s) == SB_OK);
+        sb_param_t *p = io(8);
+        sb_matrix_t m;
+        CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+        size_t cells = m.rows * m.cols, J = sparse ? 1 : 2;
+        CHECKF(sparse ? m.valid_count < cells / 2 && m.valid_count > cells / 5
+                      : m.valid_count > cells / 2 && m.valid_count < cells,
+               "pattern %d: %zu of %zu cells", sparse, m.valid_count, cells);
+        sb_plan_opts_t po = {0};
+        po.terms = J;
+        po.fit_tol = 1e-13;
+        po.fit_max_iters = 5000;
+        sb_plan_t *plan;
+        sb_factors_t *f;
+        CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
+        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        sb_plan_stats_t st;
+        sb_plan_stats(plan, &st);
+        double e = sb_factors_errors(f)->rel_rms[(J - 1) * 4 + 3];
+        CHECK(st.masked);
+        CHECKF(e < 1e-6, "pattern %d: masked rank-%zu fit error %g after %d iterations", sparse, J, e,
+               st.fit_iterations);
+        int hidden = 0; /* a hidden cell, imputed */
+        for (size_t r = 0; r < m.rows && sparse && !hidden; r++)
+            for (size_t c = 0; c < m.cols && !hidden; c++) {
+                double wi[3], wo[3], ref[3];
+                if (sb_param_cell_dirs(p, r, c, wi, wo) != 1 || holey2_eval(&sparse, wi, wo, ref)) continue;
+                hidden = 1;
+                CHECK_REL(sb_factors_cell(f, J, 2, r, c), ref[2], 1e-5);
+            }
+        CHECK(hidden == sparse);
+        sb_factors_destroy(f);
+        sb_plan_destroy(plan);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+        sb_source_destroy(s);
+    }
+}
+
 /* The comparable metric on io with form cos2, solid-angle weights and the
  * reference grid equal to the factor grid is exactly the weighted native
  * error (it samples the texel centres). */

@@ -2,6 +2,7 @@
  * squares on the valid cells, gathered once per execute in both orders,
  * and the nested stages that add one term at a time. */
 #include <assert.h>
+#include <cblas.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -25,6 +26,9 @@ static inline void spd_solve(double *G, double *b, size_t k) {
 }
 
 void fit_cells_free(als_cells_t *cl) {
+    free(cl->D);
+    free(cl->DT);
+    free(cl->bt);
     free(cl->ca2);
     free(cl->cip);
     free(cl->rip);
@@ -38,6 +42,18 @@ void fit_cells_free(als_cells_t *cl) {
     free(cl->rv);
     free(cl->cbuf);
     free(cl->rbuf);
+}
+
+/* D and DT from cres (zeros stay where no cell is). */
+static void dense_residual(als_cells_t *cl, size_t m, size_t n) {
+    if (!cl->D) return;
+    memset(cl->D, 0, m * n * sizeof *cl->D);
+    memset(cl->DT, 0, m * n * sizeof *cl->DT);
+    for (size_t c = 0; c < n; c++)
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
+            cl->D[cl->cr[t] + c * m] = cl->cres[t];
+            cl->DT[c + cl->cr[t] * n] = cl->cres[t];
+        }
 }
 
 /* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
@@ -109,6 +125,20 @@ int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t 
     free(next);
     cl->cres = cl->cv;
     cl->rres = cl->rv;
+    /* the dense residual where at least half the cells are valid (the
+     * default's iso cells: 75 %) and it takes at most 64 MiB (a quarter
+     * of the memory limit); without it (or without the memory) the
+     * gathers.  The default run: 12 % fewer instructions, the same
+     * errors to 1e-8 */
+    if (2 * nvalid >= m * n && m * n <= ((size_t)1 << 22) && 16 * m * n <= sb_memory_limit() / 4) {
+        cl->D = malloc(m * n * sizeof *cl->D);
+        cl->DT = malloc(m * n * sizeof *cl->DT);
+        cl->bt = malloc((m > n ? m : n) * SB_ALS_MAX_K * sizeof *cl->bt);
+        if (!cl->D || !cl->DT || !cl->bt) {
+            free(cl->D), free(cl->DT), free(cl->bt);
+            cl->D = cl->DT = cl->bt = NULL;
+        }
+    }
     return 0;
 }
 
@@ -133,6 +163,7 @@ void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0) {
         cl->cres = cl->cv;
         cl->rres = cl->rv;
         column_sums(cl, n);
+        dense_residual(cl, m, n);
         return;
     }
     for (size_t c = 0; c < n; c++)
@@ -152,6 +183,7 @@ void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0) {
     cl->cres = cl->cbuf;
     cl->rres = cl->rbuf;
     column_sums(cl, n);
+    dense_residual(cl, m, n);
 }
 
 /* x (k values) and its outer product's lower triangle, row by row
@@ -176,11 +208,15 @@ static inline void put_row(double *xt, double *xx, const double *x, size_t k) {
 static inline __attribute__((always_inline)) void ls_update(const uint32_t *idx, const double *a, size_t t0, size_t t1,
                                                             const uint32_t *out, size_t u0, size_t u1,
                                                             const double *all, const double *xt, const double *xx,
-                                                            size_t kf, double *y, double *quad) {
+                                                            size_t kf, const double *bx, size_t bs, double *y,
+                                                            double *quad) {
     size_t kt = kf * (kf + 1) / 2;
     /* local accumulators: y may not alias what the loop reads */
     double g[SB_ALS_MAX_K * (SB_ALS_MAX_K + 1) / 2], b[SB_ALS_MAX_K], G[SB_ALS_MAX_K * SB_ALS_MAX_K];
     memset(b, 0, kf * sizeof *b);
+    if (bx) /* the right-hand side from the dense product (als_sweep) */
+        for (size_t i = 0; i < kf; i++)
+            b[i] = bx[i * bs];
     if (u1 - u0 < t1 - t0) {
         memcpy(g, all, kt * sizeof *g);
         for (size_t u = u0; u < u1; u++) {
@@ -188,11 +224,18 @@ static inline __attribute__((always_inline)) void ls_update(const uint32_t *idx,
             for (size_t i = 0; i < kt; i++)
                 g[i] -= x2[i];
         }
-        for (size_t t = t0; t < t1; t++) {
+        for (size_t t = t0; t < t1 && !bx; t++) {
             const double *x = xt + idx[t] * kf;
             double v = a[t];
             for (size_t i = 0; i < kf; i++)
                 b[i] += v * x[i];
+        }
+    } else if (bx) {
+        memset(g, 0, kt * sizeof *g);
+        for (size_t t = t0; t < t1; t++) {
+            const double *x2 = xx + idx[t] * kt;
+            for (size_t i = 0; i < kt; i++)
+                g[i] += x2[i];
         }
     } else {
         memset(g, 0, kt * sizeof *g);
@@ -251,7 +294,7 @@ static inline __attribute__((always_inline)) void rows_k(const als_job_t *jb, si
     for (size_t r = jb->lo; r < jb->hi; r++) {
         double p[SB_ALS_MAX_K];
         ls_update(cl->rc, cl->rres, cl->rp[r], cl->rp[r + 1], cl->ri, cl->rip[r], cl->rip[r + 1], jb->all, f->qt, f->qq,
-                  kf, p, NULL);
+                  kf, cl->D ? cl->bt + r : NULL, m, p, NULL);
         for (size_t j = 0; j < kf; j++)
             f->P[r + (j0 + j) * m] = p[j];
         put_row(f->pt + r * kf, f->pp + r * kt, p, kf);
@@ -268,8 +311,8 @@ static inline __attribute__((always_inline)) void cols_k(als_job_t *jb, size_t k
         double q[SB_ALS_MAX_K];
         size_t t0 = cl->cp[c], t1 = cl->cp[c + 1];
         double quad;
-        ls_update(cl->cr, cl->cres, t0, t1, cl->ci, cl->cip[c], cl->cip[c + 1], jb->all, f->pt, f->pp, kf, q,
-                  jb->quick ? &quad : NULL);
+        ls_update(cl->cr, cl->cres, t0, t1, cl->ci, cl->cip[c], cl->cip[c + 1], jb->all, f->pt, f->pp, kf,
+                  cl->D ? cl->bt + c : NULL, n, q, jb->quick ? &quad : NULL);
         for (size_t j = 0; j < kf; j++)
             f->Q[c + (j0 + j) * n] = q[j];
         if (jb->quick) { /* |a - P q|^2 = |a|^2 + q^T Gram q - 2 q . b */
@@ -370,9 +413,16 @@ static double als_sweep(sb_fit_t *f, const als_cells_t *cl, size_t j0, size_t ka
         put_row(f->qt + c * kf, f->qq + c * kt, q, kf);
     }
     sum_rows(f->qq, f->n, kt, all);
-    als_parallel(als_rows, &proto, f->m, NULL);
-    sum_rows(f->pp, f->m, kt, all);
-    als_parallel(als_cols, &proto, f->n, &e2);
+    size_t m = f->m, n = f->n;
+    if (cl->D) /* every row's right-hand side: D Q_free (m x kf) */
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)kf, (int)n, 1.0, cl->D, (int)m,
+                    f->Q + j0 * n, (int)n, 0.0, cl->bt, (int)m);
+    als_parallel(als_rows, &proto, m, NULL);
+    sum_rows(f->pp, m, kt, all);
+    if (cl->D) /* every column's: D^T P_free (n x kf), P as the rows left it */
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)n, (int)kf, (int)m, 1.0, cl->DT, (int)n,
+                    f->P + j0 * m, (int)m, 0.0, cl->bt, (int)n);
+    als_parallel(als_cols, &proto, n, &e2);
     return e2;
 }
 

@@ -42,7 +42,8 @@ struct sb_fit {
  * current stage, a_rc - sum_{j<j0} P_rj Q_cj, computed once per stage (the
  * fixed terms do not move during its sweeps); they alias cv / rv when
  * j0 = 0.  Every sum runs in the order of the plain loops over the mask
- * (rows: c increasing; columns: r increasing).  A row (column) with
+ * (rows: c increasing; columns: r increasing), but for the right-hand
+ * sides where D is kept (a BLAS product's order).  A row (column) with
  * more cells in than out has its Gram formed as the sum over all columns
  * (rows) less those left out (ls_update). */
 typedef struct als_cells {
@@ -56,6 +57,11 @@ typedef struct als_cells {
     uint32_t *ci, *ri;
     /* sum of cres^2 per column (n) and in all (fit_cells_residual) */
     double *ca2, a2;
+    /* where most cells are valid: cres as a dense m x n matrix D (0 at the
+     * cells left out) and its transpose DT, so that the right-hand sides
+     * of a half-sweep are one BLAS product (bt, m x kf or n x kf) instead
+     * of a gather per cell; NULL otherwise */
+    double *D, *DT, *bt;
 } als_cells_t;
 
 /* Gather the valid cells of X (m x n, ld lda) with mask != 0 (nvalid of
