@@ -300,6 +300,24 @@ static int holey_eval(const void *self, const double wi[3], const double wo[3], 
     return 1;
 }
 
+/* J terms of m fitted (masked unless zero) to tolerance tol in at most
+ * iters sweeps; the plan's statistics in *st. */
+static sb_factors_t *fit_tight(const sb_matrix_t *m, const sb_param_t *p, size_t J, int zero, double tol, int iters,
+                               sb_plan_stats_t *st) {
+    sb_plan_opts_t po = {0};
+    po.terms = J;
+    po.zero_fill = zero;
+    po.fit_tol = tol;
+    po.fit_max_iters = iters;
+    sb_plan_t *plan;
+    sb_factors_t *f = NULL;
+    CHECK(sb_plan_create(NULL, m->rows, m->cols, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, m, p, &f) == SB_OK);
+    sb_plan_stats(plan, st);
+    sb_plan_destroy(plan);
+    return f;
+}
+
 SB_TEST(masked_fit_exact_rank1) {
     sb_source_ops_t ops = {holey_eval, NULL};
     sb_source_t *s = NULL;
@@ -310,17 +328,8 @@ SB_TEST(masked_fit_exact_rank1) {
     CHECK(m.mask != NULL);
     CHECK(m.valid_count > m.rows * m.cols / 3 && m.valid_count < m.rows * m.cols);
     for (int zero = 0; zero < 2; zero++) {
-        sb_plan_opts_t po = {0};
-        po.terms = 1;
-        po.zero_fill = zero;
-        po.fit_tol = 1e-12;
-        po.fit_max_iters = 2000;
-        sb_plan_t *plan;
-        sb_factors_t *f;
-        CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
         sb_plan_stats_t st;
-        sb_plan_stats(plan, &st);
+        sb_factors_t *f = fit_tight(&m, p, 1, zero, 1e-12, 2000, &st);
         double e = sb_factors_errors(f)->rel_rms[3];
         if (zero) {
             CHECK(!st.masked);
@@ -335,7 +344,6 @@ SB_TEST(masked_fit_exact_rank1) {
             CHECK_REL(sb_factors_cell(f, 1, 2, 0, 5), ref[2], 1e-5);
         }
         sb_factors_destroy(f);
-        sb_plan_destroy(plan);
     }
     sb_matrix_free(&m);
     sb_param_destroy(p);
@@ -367,16 +375,8 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
         CHECKF(sparse ? m.valid_count < cells / 2 && m.valid_count > cells / 5
                       : m.valid_count > cells / 2 && m.valid_count < cells,
                "pattern %d: %zu of %zu cells", sparse, m.valid_count, cells);
-        sb_plan_opts_t po = {0};
-        po.terms = J;
-        po.fit_tol = 1e-13;
-        po.fit_max_iters = 5000;
-        sb_plan_t *plan;
-        sb_factors_t *f;
-        CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
         sb_plan_stats_t st;
-        sb_plan_stats(plan, &st);
+        sb_factors_t *f = fit_tight(&m, p, J, 0, 1e-13, 5000, &st);
         double e = sb_factors_errors(f)->rel_rms[(J - 1) * 4 + 3];
         CHECK(st.masked);
         CHECKF(e < 1e-6, "pattern %d: masked rank-%zu fit error %g after %d iterations", sparse, J, e,
@@ -391,7 +391,6 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
             }
         CHECK(hidden == sparse);
         sb_factors_destroy(f);
-        sb_plan_destroy(plan);
         sb_matrix_free(&m);
         sb_param_destroy(p);
         sb_source_destroy(s);
