@@ -126,9 +126,9 @@ int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t 
     cl->cres = cl->cv;
     cl->rres = cl->rv;
     /* the dense residual where at least half the cells are valid (the
-     * default's iso cells: 75 %) and it takes at most 64 MiB (a quarter
-     * of the memory limit); without it (or without the memory) the
-     * gathers.  The default run: 12 % fewer instructions, the same
+     * default's iso cells: 75 %) and the two copies take at most 64 MiB
+     * and a quarter of the memory limit; without them (or without the
+     * memory) the gathers.  The default run: 12 % fewer instructions, the same
      * errors to 1e-8 */
     if (2 * nvalid >= m * n && m * n <= ((size_t)1 << 22) && 16 * m * n <= sb_memory_limit() / 4) {
         cl->D = malloc(m * n * sizeof *cl->D);
