@@ -155,7 +155,7 @@ static size_t check(const sb_source_t *s, const sb_factors_t *f, const sb_param_
     return negs;
 }
 
-static const sb_param_kind_t kinds[] = {SB_PARAM_IO, SB_PARAM_IO_AREA, SB_PARAM_HD, SB_PARAM_ISO};
+static const sb_param_kind_t kinds[] = {SB_PARAM_IO, SB_PARAM_IO_AREA, SB_PARAM_HD, SB_PARAM_ISO, SB_PARAM_VH};
 
 /* Every parameterisation, an isotropic source (table; sides or rotation
  * classes) and the same source without the flag, forms f, cos and cos2.

@@ -68,7 +68,7 @@ SB_TEST(kind_names) {
 #include <stdlib.h>
 #include <string.h>
 
-static const sb_param_kind_t all_kinds[] = {SB_PARAM_IO, SB_PARAM_IO_AREA, SB_PARAM_HD, SB_PARAM_ISO};
+static const sb_param_kind_t all_kinds[] = {SB_PARAM_IO, SB_PARAM_IO_AREA, SB_PARAM_HD, SB_PARAM_ISO, SB_PARAM_VH};
 #define NKINDS (sizeof all_kinds / sizeof all_kinds[0])
 
 static sb_param_t *make(sb_param_kind_t kind, size_t res) {
@@ -123,6 +123,7 @@ SB_TEST(sizes_wraps_specs) {
         {SB_PARAM_IO_AREA, 49, 49, 7, 7, 7, 7, {0, 0}, {0, 0}, "io-area:res=7"},
         {SB_PARAM_HD, 49, 49, 7, 7, 7, 7, {0, 1}, {0, 1}, "hd:res=7"},
         {SB_PARAM_ISO, 14, 36, 14, 1, 12, 3, {0, 0}, {0, 1}, "iso:th=14,td=12,pd=3"},
+        {SB_PARAM_VH, 7, 42, 7, 1, 14, 3, {0, 0}, {0, 0}, "vh:tv=7,th=14,ph=3"},
     };
     for (size_t i = 0; i < NKINDS; i++) {
         sb_param_t *p = make(want[i].kind, 7);
@@ -270,8 +271,8 @@ SB_TEST(random_pairs_land_near_their_cell) {
             size_t x = (size_t)fmin(sg[0] * gw, gw - 1), y = (size_t)fmin(sg[1] * gh, gh - 1);
             size_t x2 = (size_t)fmin(sh[0] * hw, hw - 1), y2 = (size_t)fmin(sh[1] * hh, hh - 1);
             if (!sb_param_cell_dirs(p, y * gw + x, y2 * hw + x2, wi, wo)) {
-                /* only hd and iso have invalid cells, on the horizon's edge */
-                CHECK(all_kinds[i] == SB_PARAM_HD || all_kinds[i] == SB_PARAM_ISO);
+                /* only layouts with a partial domain have invalid cells, on the horizon's edge */
+                CHECK(sb_param_caps(p) & SB_CAP_PARTIAL_DOMAIN);
                 continue;
             }
             used++;
@@ -281,10 +282,17 @@ SB_TEST(random_pairs_land_near_their_cell) {
                 double l2[3] = {c * l[0] + s * l[1], -s * l[0] + c * l[1], l[2]};
                 double v2[3] = {c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]};
                 d = fmin(fmax(dist3(l2, wi), dist3(v2, wo)), fmax(dist3(v2, wi), dist3(l2, wo)));
+            } else if (all_kinds[i] == SB_PARAM_VH) { /* V at phi = 0, phi folded by the mirror y -> -y */
+                double ph = atan2(v[1], v[0]), c = cos(ph), s = sin(ph);
+                double l2[3] = {c * l[0] + s * l[1], -s * l[0] + c * l[1], l[2]};
+                double v2[3] = {c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]};
+                double l3[3] = {l2[0], -l2[1], l2[2]}, v3[3] = {v2[0], -v2[1], v2[2]};
+                d = fmin(fmax(dist3(l2, wi), dist3(v2, wo)), fmax(dist3(l3, wi), dist3(v3, wo)));
             } else {
                 d = fmax(dist3(l, wi), dist3(v, wo));
             }
-            if (d > bound * (all_kinds[i] == SB_PARAM_HD ? 1.5 : 1)) far++;
+            /* vh: a phi cell of pi / (R/2) moves h by up to that, and L twice as far */
+            if (d > bound * (all_kinds[i] == SB_PARAM_HD ? 1.5 : all_kinds[i] == SB_PARAM_VH ? 4 : 1)) far++;
             if (d > worst) worst = d;
         }
         CHECK(used > n * 9 / 10);
@@ -301,6 +309,14 @@ SB_TEST(measures) {
     for (size_t i = 0; i < NKINDS; i++) {
         sb_param_t *p = make(all_kinds[i], 24);
         int hd_like = all_kinds[i] == SB_PARAM_HD || all_kinds[i] == SB_PARAM_ISO;
+        if (all_kinds[i] == SB_PARAM_VH) { /* columns weigh dw_h by 4 cos theta_h: V.h at the normal view */
+            double sc = 0;
+            for (size_t c = 0; c < sb_param_cols(p); c++)
+                sc += sb_param_col_measure(p, c);
+            CHECK_REL(sc, 4 * SB_PI, 2e-3);
+            sb_param_destroy(p);
+            continue;
+        }
         size_t rows = sb_param_rows(p), cols = sb_param_cols(p);
         double sr = 0, sc = 0, s1 = 0, scos = 0;
         for (size_t r = 0; r < rows; r++)
@@ -446,6 +462,12 @@ static void ref_coords(sb_param_kind_t kind, const double l[3], const double v[3
         double d[3] = {dot3(l, t), dot3(l, b), dot3(l, h)};
         sg[0] = acos(h[2]) / (SB_PI / 2), sg[1] = ref_phi(h) / (2 * SB_PI);
         sh[0] = acos(d[2]) / (SB_PI / 2), sh[1] = ref_phi(d) / (2 * SB_PI);
+    } else if (kind == SB_PARAM_VH) {
+        /* explicit angles: |phi_h - phi_v| brought into [0, pi] */
+        double dp = fabs(ref_phi(h) - ref_phi(v));
+        if (dp > SB_PI) dp = 2 * SB_PI - dp;
+        sg[0] = acos(v[2]) / (SB_PI / 2), sg[1] = 0.5;
+        sh[0] = sqrt(acos(h[2]) / (SB_PI / 2)), sh[1] = dp / SB_PI;
     } else {
         /* d = Ry(-theta_h) Rz(-phi_h) l with explicit angles */
         double th = acos(h[2]), ph = atan2(h[1], h[0]);

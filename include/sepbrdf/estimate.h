@@ -104,6 +104,12 @@ typedef struct sb_estimate {
     double max_rel[SB_EST_MAXJ][4];              /* largest relative error of a pair */
     double neg_frac[SB_EST_MAXJ];                /* fraction of the pair domain with a negative channel */
     double overshoot[SB_EST_MAXJ];               /* max |f~| / max |f| over the sampled pairs */
+    /* colour: mean CIEDE2000 between the original's and the reconstruction's
+     * colour at equal luminance (both scaled to Y = 0.5), over pairs where
+     * the original's f cos theta_i is above 1 % of its largest luminance
+     * (every 4th pair of the first 16 replicates); NaN when none or with
+     * headline_only.  About 1 is just noticeable, above 2 visible. */
+    double chroma_de[SB_EST_MAXJ];
 } sb_estimate_t;
 
 /* Estimate the errors of the first J' = 1..min(J, SB_EST_MAXJ) terms of f

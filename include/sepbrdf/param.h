@@ -62,6 +62,7 @@ typedef enum sb_param_kind {
     SB_PARAM_IO_AREA, /* (wi, wo) on an equal-area (concentric) hemisphere map */
     SB_PARAM_HD,      /* half / difference vectors, Gram-Schmidt frame */
     SB_PARAM_ISO,     /* rows theta_h, columns (theta_d, phi_d), isotropic */
+    SB_PARAM_VH,      /* rows theta_v, columns the half vector from the view's azimuth, isotropic */
     SB_PARAM_KIND_COUNT_
 } sb_param_kind_t;
 
@@ -106,6 +107,8 @@ typedef struct sb_param_opts {
     size_t res; /* R: cells per angular axis (default 32) */
     /* iso only, 0 = default: theta_h cells res, theta_d cells 2 res, phi_d cells max(res / 2, 2) */
     size_t res_theta_h, res_theta_d, res_phi_d;
+    /* vh only, 0 = default: theta_v cells res (keys tv; th = res_theta_h, ph = res_phi_d) */
+    size_t res_theta_v;
     double theta_max; /* largest sampled elevation in radians, 0 = pi/2 */
     /* per axis (SB_AXIS_*), SB_CAP_WARPS layouts only; kind 0 = the layout's own */
     sb_warp_t warp[SB_AXIS_COUNT_];
@@ -216,6 +219,11 @@ const char *sb_param_sample_glsl(const sb_param_t *p);
  * SB_WARP_DEFAULT); NULL for a layout without SB_CAP_WARPS, a NULL p or
  * another axis. */
 const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis);
+/* Texels along warp axis SB_AXIS_THETA_H or SB_AXIS_THETA_D that an
+ * adaptive table (sb_warp_measure) is made for; 0 where that scan does not
+ * describe the axis (vh's theta_d axis is the view's elevation), for a
+ * layout without SB_CAP_WARPS, a NULL p or another axis. */
+size_t sb_param_warp_cells(const sb_param_t *p, int axis);
 /* 1 when every warp of p is the layout's own (or p takes none, or is
  * NULL); 0 when one was chosen (uniform or merl instead, or a table). */
 int sb_param_warps_default(const sb_param_t *p);

@@ -467,6 +467,8 @@ static void eval_unit(void *user, size_t k, int t) {
     /* the sums in local arrays (nothing else can alias them), copied out
      * at the end */
     double num[SB_EST_MAXJ * QC], den[QC], neg[SB_EST_MAXJ], meas = 0, rec[SB_EST_MAXJ * 3];
+    double de[SB_EST_MAXJ], dew = 0;
+    memset(de, 0, J * sizeof *de);
     memset(num, 0, J * QC * sizeof *num);
     memset(den, 0, sizeof den);
     memset(neg, 0, J * sizeof *neg);
@@ -482,7 +484,10 @@ static void eval_unit(void *user, size_t k, int t) {
         meas += d[6];
         est_reconstruct(e, i, rec);
         add_pair(e, d, rec, num, neg, t);
+        if (!e->headline_only && est_chroma_pair(e, i, rec, de)) dew += d[6];
     }
+    memcpy(e->de + k * J, de, J * sizeof *de);
+    e->dew[k] = dew;
     memcpy(e->num + k * J * QC, num, J * QC * sizeof *num);
     memcpy(e->den + k * QC, den, sizeof den);
     memcpy(e->neg + k * J, neg, J * sizeof *neg);
@@ -508,6 +513,10 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
             ng += e->neg[k * J + j];
         }
         out->neg_frac[j] = msum > 0 ? ng / msum : 0;
+        double ds = 0, dw = 0;
+        for (size_t k = 0; k < K; k++)
+            ds += e->de[k * J + j], dw += e->dew[k];
+        out->chroma_de[j] = dw > 0 ? ds / dw : NAN;
         for (int i = 0; i < QC; i++) {
             double r2 = dsum[i] > 0 ? nsum[i] / dsum[i] : (nsum[i] > 0 ? INFINITY : 0), v = 0;
             for (size_t k = 0; k < K && isfinite(r2); k++) {
@@ -556,6 +565,8 @@ void est_eval_free(eval_t *e) {
     free(e->den);
     free(e->neg);
     free(e->meas);
+    free(e->de);
+    free(e->dew);
     free(e->hist);
     free(e->maxr);
     free(e->maxv);
@@ -568,10 +579,13 @@ static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt)
     e->den = sb_alloc(ctx, kmax, QC * sizeof *e->den, "estimator sums");
     e->neg = sb_alloc(ctx, kmax, J * sizeof *e->neg, "estimator sums");
     e->meas = sb_alloc(ctx, kmax, sizeof *e->meas, "estimator sums");
+    e->de = sb_alloc(ctx, kmax, J * sizeof *e->de, "estimator sums");
+    e->dew = sb_alloc(ctx, kmax, sizeof *e->dew, "estimator sums");
     e->hist = sb_calloc(ctx, T * J * 4, NB * sizeof *e->hist, "estimator histograms");
     e->maxr = sb_calloc(ctx, T * J, 4 * sizeof *e->maxr, "estimator sums");
     e->maxv = sb_calloc(ctx, T, J * sizeof *e->maxv, "estimator sums");
-    return e->num && e->den && e->neg && e->meas && e->hist && e->maxr && e->maxv ? SB_OK : SB_ERR_NOMEM;
+    return e->num && e->den && e->neg && e->meas && e->de && e->dew && e->hist && e->maxr && e->maxv ? SB_OK
+                                                                                                     : SB_ERR_NOMEM;
 }
 
 /* Pair counts and the overshoot's denominator, max |f| over the pairs. */
@@ -650,6 +664,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
         kmax = 0;
     }
     e.co = est_coords_acquire(pairs, p, use * pairs->rep, &e.co_ready);
+    e.chroma_thr = o.headline_only ? 0 : est_chroma_threshold(pairs, use);
     sb_result_t r = eval_alloc(ctx, &e, kmax > use ? kmax : use, nt);
     /* evaluate the replicates not yet evaluated, then add replicates
      * (doubling) until the headline's standard error meets the target */

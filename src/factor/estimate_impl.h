@@ -59,10 +59,26 @@ typedef struct eval {
     int last_only;     /* sums of the prefix of all J terms only */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
     double *num, *den, *neg, *meas;
+    /* colour (estimate_colour.c): the luminance threshold, 0 for none;
+     * per replicate: sums of w CIEDE2000 [J], of w */
+    double chroma_thr;
+    double *de, *dew;
     /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */
     uint64_t *hist;
     double *maxr, *maxv;
 } eval_t;
+
+/* Colour error (estimate_colour.c): pairs of the first EST_CHROMA_REPS
+ * replicates, every EST_CHROMA_STRIDE-th. */
+#define EST_CHROMA_REPS 16
+#define EST_CHROMA_STRIDE 4
+/* 1 % of the largest luminance of f cos theta_i over the pairs of the
+ * first min(reps, EST_CHROMA_REPS) replicates. */
+double est_chroma_threshold(const sb_pairs_t *P, size_t reps);
+/* Add pair i's w CIEDE2000 at equal luminance of every prefix (rec as
+ * est_reconstruct fills it) to de[J]; 1 when the pair counts, 0 (nothing
+ * added) when it is not one of the colour error's. */
+int est_chroma_pair(const eval_t *e, size_t i, const double *rec, double *de);
 
 /* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
 void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user);

@@ -302,6 +302,27 @@ static void store_textures(const sb_plan_t *p, sb_factors_t *f, int ch, double h
     }
 }
 
+/* A non-finite sigma or texel of channel ch is a numerical failure of the
+ * solver, named with the term and channel (never blamed on an option). */
+static sb_result_t check_finite(const sb_plan_t *p, const run_t *rn, const sb_factors_t *f, int ch) {
+    static const char names[] = "RGB";
+    size_t rows = p->rows, cols = p->cols, c = (size_t)ch;
+    for (size_t j = 0; j < p->terms; j++) {
+        const double *g = sb_factors_tex_const(f, SB_SIDE_G, j, c), *h = sb_factors_tex_const(f, SB_SIDE_H, j, c);
+        int ok = isfinite(sb_factors_sigma(f, j, c));
+        for (size_t i = 0; i < rows && ok; i++)
+            ok = isfinite(g[i]);
+        for (size_t i = 0; i < cols && ok; i++)
+            ok = isfinite(h[i]);
+        if (!ok)
+            return sb_error(p->ctx, SB_ERR_NUMERIC,
+                            "factor: the %s solver gave non-finite values in term %zu of channel %c (%zu x %zu "
+                            "matrix): a numerical failure",
+                            rn->sv->name, j, names[c], rows, cols);
+    }
+    return SB_OK;
+}
+
 /* Step: errors of every truncation of one channel: exact from the solver,
  * or the residual pass of errors.h on the stored textures. */
 static sb_result_t channel_errors(sb_plan_t *p, run_t *rn, const sb_factors_t *f, const sb_solve_in_t *in, int ch) {
@@ -373,7 +394,9 @@ static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const
     sb_param_texture_size(param, SB_SIDE_G, &gw, &gh);
     sb_param_texture_size(param, SB_SIDE_H, &hw, &hh);
     if (gw * gh != p->rows || hw * hh != p->cols)
-        return sb_error(p->ctx, SB_ERR_ARG, "plan: parameterisation does not match the matrix");
+        return sb_error(p->ctx, SB_ERR_ARG,
+                        "plan: parameterisation %s (%zu x %zu, %zu x %zu texels) does not match the %zu x %zu matrix",
+                        sb_param_spec(param), gw, gh, hw, hh, p->rows, p->cols);
     return SB_OK;
 }
 
@@ -426,6 +449,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
         r = solve(p, &rn, &in, ch, oi == 0);
         if (r != SB_OK) break;
         store_textures(p, f, ch, rn.prop && rn.chs.scale[ch] < 0 ? -1 : 1);
+        if ((r = check_finite(p, &rn, f, ch)) != SB_OK) break;
         if (!(rn.sv->caps & SB_CAP_STREAMED)) r = channel_errors(p, &rn, f, &in, ch);
     }
     if (r == SB_OK && (rn.sv->caps & SB_CAP_STREAMED)) r = stream_errors(p, &rn, f);

@@ -223,6 +223,9 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     if (gw != pw[0] || gh != ph[0] || hw != pw[1] || hh != ph[1] || gw * gh == 0)
         return sb_error(ctx, SB_ERR_ARG, "sampler: textures %zux%zu and %zux%zu are not those of %s", gw, gh, hw, hh,
                         sb_param_spec(p));
+    if (!sb_param_sample_glsl(p)[0])
+        return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has no sampler (its rows are not light directions)",
+                        sb_param_spec(p));
     if ((sb_param_caps(p) & SB_CAP_HALF_ROWS) && gh > SB_SAMPLER_MAX_ROWS)
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has %zu rows of half vectors, at most %d are sampled",
                         sb_param_spec(p), gh, SB_SAMPLER_MAX_ROWS);

@@ -115,6 +115,19 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
 
 /* The driver: choose and fit (job_select), then write when asked.  With
  * own != NULL the job takes the source over (also on failure). */
+/* --max-error not reached within the terms allowed: a warning (stderr and
+ * report.json), never a quiet success. */
+static void job_warn_max_error(sb_job_t *job) {
+    if (!(job->o.max_error > 0) || !job->best.est) return;
+    size_t J = sb_factors_terms(job->best.f);
+    double e = sb_estimate_headline(job->best.est, J < job->best.est->terms ? J : job->best.est->terms);
+    if (e <= job->o.max_error) return;
+    job_warn(job,
+             "--max-error %g not reached: the lowest headline error is %.4g at J = %zu, the most terms allowed "
+             "(report.json: max_error_met false); raise --terms or --res",
+             job->o.max_error, e, J);
+}
+
 static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *own, const sb_job_opts_t *opts,
                        double t0, sb_job_t **out) {
     sb_job_t *job = calloc(1, sizeof *job);
@@ -140,6 +153,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_svd_beside(ctx, job);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) {
+        job_warn_max_error(job);
         job_warn_weights(job);
         job_warn_support(job);
         job->t.sample_s = job->best.t_sample;

@@ -66,6 +66,12 @@ static void report_settings(sb_json_t *j, const sb_job_t *job) {
     sb_json_int(j, "terms", (long long)sb_factors_terms(a->f));
     sb_json_int(j, "terms_requested", (long long)job->o.terms);
     sb_json_number(j, "max_error", job->o.max_error);
+    if (job->o.max_error > 0 && a->est) { /* whether the kept terms meet it */
+        size_t J = sb_factors_terms(a->f);
+        double e = sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
+        sb_json_bool(j, "max_error_met", e <= job->o.max_error);
+        sb_json_number(j, "max_error_reached", e);
+    }
     sb_json_string(j, "storage", job->o.half ? "half" : "float");
     sb_json_begin_array(j, "channels");
     for (int c = 0; c < 3; c++)
@@ -141,6 +147,7 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     sb_json_number(j, "max_rel", have ? e->max_rel[k][SB_CH_ALL] : NAN);
     sb_json_number(j, "overshoot", have ? e->overshoot[k] : NAN);
     sb_json_number(j, "negative_fraction", have ? e->neg_frac[k] : NAN);
+    sb_json_number(j, "chroma_de", have ? e->chroma_de[k] : NAN);
 }
 
 int sb_job_headline_non_increasing(const sb_job_t *job) {

@@ -306,6 +306,7 @@ static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_
     memset(a, 0, sizeof *a);
     double t0 = job_now();
     sb_param_opts_t po = {0};
+    if (lv->po) po = *lv->po; /* the level's shape, as job_sample made `from` */
     po.res = lv->res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
     sb_result_t r = sb_param_create(ctx, sb_param_kind(from->param), &po, &a->param);
@@ -387,13 +388,14 @@ void job_early_stop(const sb_job_t *job, job_level_t *lv) {
 static job_level_t screen_level(const sb_job_t *job, size_t res, sb_param_opts_t *po) {
     job_level_t lv = {0};
     lv.res = res;
-    /* iso on R rows of theta_h (td = 2R, pd = R/2) here, half its default:
-     * the layouts' ranking is the same, the masked fit half the cost */
+    /* the layouts' own shapes (iso: th = 2R, td = 2R - 2, pd = R/2; vh:
+     * tv = R, th = 2R, ph = R/2): theta_h carries narrow specular peaks,
+     * and at R rows of it a measured vinyl's peak fell between texels, so
+     * screening ranked its best layout last (RGL malachite: vh 159 % at
+     * R = 16 with th = 16, 23 % with th = 32, 6.3 % kept at R = 32) */
     memset(po, 0, sizeof *po);
     po->res = res;
     po->theta_max = job->o.theta_max_deg * SB_PI / 180;
-    po->res_theta_h = res;
-    po->res_theta_d = 2 * res;
     lv.po = po;
     lv.terms = job->o.terms;
     for (size_t i = 0; i < job->ncand; i++) {

@@ -33,7 +33,7 @@ sb_result_t job_warps_measure(sb_context_t *ctx, const sb_job_t *job, const sb_p
     for (int a = 0; a < SB_AXIS_COUNT_ && r == SB_OK; a++) {
         sb_warp_measure_opts_t wo = {0};
         wo.theta_max = po->theta_max;
-        sb_param_texture_size(like, a == SB_AXIS_THETA_H ? SB_SIDE_G : SB_SIDE_H, &wo.cells, NULL);
+        if (!(wo.cells = sb_param_warp_cells(like, a))) continue; /* the layout's own spacing */
         r = sb_warp_measure(ctx, job->src, a, &wo, &po->warp[a]);
     }
     return r;

@@ -278,8 +278,9 @@ sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const 
         for (size_t c = 0; c < C; c++) {
             float s;
             if (!sb_exr_to_float_(sb_factors_sigma(f, j, c), &s)) {
-                r = sb_error(ctx, SB_ERR_RANGE, "quantize: sigma %g of term %zu is not representable as a float",
-                             sb_factors_sigma(f, j, c), j);
+                double v = sb_factors_sigma(f, j, c);
+                r = sb_error(ctx, isfinite(v) ? SB_ERR_RANGE : SB_ERR_NUMERIC,
+                             "quantize: sigma %g of term %zu is not representable as a float", v, j);
                 break;
             }
             sb_factors_set_sigma(q, j, c, s);

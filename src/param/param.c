@@ -15,10 +15,7 @@
 /* The registry, one row per parameterisation, in the order of
  * sb_param_kind_t: adding one is its file, its kind and a row here. */
 static const sb_param_desc_t *const registry[SB_PARAM_KIND_COUNT_] = {
-    &sb_param_desc_io,
-    &sb_param_desc_io_area,
-    &sb_param_desc_hd,
-    &sb_param_desc_iso,
+    &sb_param_desc_io, &sb_param_desc_io_area, &sb_param_desc_hd, &sb_param_desc_iso, &sb_param_desc_vh,
 };
 
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
@@ -79,7 +76,8 @@ static size_t *count_key(sb_param_opts_t *o, const char *key) {
     if (strcmp(key, "res") == 0) return &o->res;
     if (strcmp(key, "th") == 0) return &o->res_theta_h;
     if (strcmp(key, "td") == 0) return &o->res_theta_d;
-    if (strcmp(key, "pd") == 0) return &o->res_phi_d;
+    if (strcmp(key, "pd") == 0 || strcmp(key, "ph") == 0) return &o->res_phi_d;
+    if (strcmp(key, "tv") == 0) return &o->res_theta_v;
     return NULL;
 }
 
@@ -175,7 +173,7 @@ static sb_result_t build_glsl(sb_context_t *ctx, sb_param_t *p) {
  * with memcmp). */
 typedef struct layout_id {
     int kind, wrap[2][2], warp_kind[SB_AXIS_COUNT_];
-    size_t rows, cols, tex_w[2], tex_h[2], res[4], knots[SB_AXIS_COUNT_];
+    size_t rows, cols, tex_w[2], tex_h[2], res[5], knots[SB_AXIS_COUNT_];
     double theta_max, x[SB_AXIS_COUNT_][SB_WARP_MAX_KNOTS + 1];
 } layout_id_t;
 
@@ -198,9 +196,9 @@ static unsigned long layout_serial(const sb_param_t *p) {
     memcpy(id.tex_w, p->tex_w, sizeof id.tex_w);
     memcpy(id.tex_h, p->tex_h, sizeof id.tex_h);
     id.res[0] = p->opts.res;
-    if (p->kind == SB_PARAM_ISO) { /* its own cell counts; the others ignore them */
+    if (p->kind == SB_PARAM_ISO || p->kind == SB_PARAM_VH) { /* their own cell counts; the others ignore them */
         id.res[1] = p->opts.res_theta_h, id.res[2] = p->opts.res_theta_d;
-        id.res[3] = p->opts.res_phi_d;
+        id.res[3] = p->opts.res_phi_d, id.res[4] = p->opts.res_theta_v;
     }
     id.theta_max = p->opts.theta_max;
     for (int a = 0; a < SB_AXIS_COUNT_; a++) {
@@ -316,8 +314,35 @@ const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis) {
     if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return NULL;
     return &p->opts.warp[axis];
 }
+sb_result_t sb_param_line_by_grid(sb_context_t *ctx, sb_param_t *p, const sb_param_vt_t *vt, const char *name,
+                                  const size_t n[3], const char *const axes[3], const char *const keys[3], size_t max,
+                                  int wrap_y) {
+    for (int i = 0; i < 3; i++)
+        if (n[i] < 2 || n[i] > max)
+            return sb_error(ctx, SB_ERR_RANGE, "%s: %s cells %zu out of range, need 2..%zu", name, axes[i], n[i], max);
+    p->vt = vt;
+    p->rows = n[0];
+    p->cols = n[1] * n[2];
+    p->tex_w[SB_SIDE_G] = n[0];
+    p->tex_h[SB_SIDE_G] = 1;
+    p->tex_w[SB_SIDE_H] = n[1];
+    p->tex_h[SB_SIDE_H] = n[2];
+    p->wrap[SB_SIDE_G][0] = p->wrap[SB_SIDE_G][1] = SB_WRAP_CLAMP;
+    p->wrap[SB_SIDE_H][0] = SB_WRAP_CLAMP;
+    p->wrap[SB_SIDE_H][1] = wrap_y;
+    char body[128];
+    snprintf(body, sizeof body, "%s:%s=%zu,%s=%zu,%s=%zu", name, keys[0], n[0], keys[1], n[1], keys[2], n[2]);
+    sb_param_spec_set(p, body);
+    return SB_OK;
+}
+
+size_t sb_param_warp_cells(const sb_param_t *p, int axis) {
+    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return 0;
+    if (registry[p->kind]->warp_cells) return registry[p->kind]->warp_cells(p, axis);
+    return p->tex_w[axis == SB_AXIS_THETA_H ? SB_SIDE_G : SB_SIDE_H];
+}
 int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
-    if (!p || !u || !w || row >= p->rows) return 0;
+    if (!p || !u || !w || row >= p->rows || !registry[p->kind]->row_sample) return 0;
     registry[p->kind]->row_sample(p, row, u, w);
     return 1;
 }

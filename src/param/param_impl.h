@@ -29,13 +29,18 @@ typedef struct sb_param_desc {
      * an error reported through ctx.  NULL: both sides on R x R grids */
     sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
     const sb_param_vt_t *vt;
+    /* texels along warp axis `axis` that sb_warp_measure's scan describes,
+     * 0 for none; NULL: theta_h along the g textures' x, theta_d along the
+     * h textures' x */
+    size_t (*warp_cells)(const sb_param_t *p, int axis);
     /* sampling (sb_param_row_sample): a direction uniform in solid angle
      * over row cell `row`, and its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` */
     void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
     const char *sample_glsl;
 } sb_param_desc_t;
 
-extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso;
+extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso,
+    sb_param_desc_vh;
 
 struct sb_param {
     sb_param_kind_t kind;
@@ -87,6 +92,13 @@ int sb_dir_in_cap(double tmax, const double w[3]);
 void sb_dir_half(const double l[3], const double v[3], double h[3]);
 /* p->spec = body, plus ",theta_max=DEG" when theta_max is not pi/2. */
 void sb_param_spec_set(sb_param_t *p, const char *body);
+/* A row line and a column grid (iso, vh): rows n[0] (texture n[0] x 1,
+ * CLAMP), columns n[1] x n[2] (x CLAMP, y wrap_y); each count checked
+ * against 2..max (SB_ERR_RANGE naming axes[i]); spec "NAME:k0=n0,k1=n1,k2=n2"
+ * with keys[i]; vtable vt. */
+sb_result_t sb_param_line_by_grid(sb_context_t *ctx, sb_param_t *p, const sb_param_vt_t *vt, const char *name,
+                                  const size_t n[3], const char *const axes[3], const char *const keys[3], size_t max,
+                                  int wrap_y);
 /* Both sides on R x R textures (R = p->opts.res), rows = cols = R^2,
  * wrap CLAMP along x and wrap_y along y, vtable vt, spec "NAME:res=R". */
 void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y);

@@ -36,7 +36,6 @@
  * (phi_d, phi_d + pi) cells (column = 2 * 4 dphi_d int cos sin dtheta_d
  * = 4 dphi_d (sin^2 hi - sin^2 lo)). */
 #include <math.h>
-#include <stdio.h>
 
 #include "param/param_impl.h"
 
@@ -153,25 +152,8 @@ static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
     if (!o->res_theta_d) o->res_theta_d = o->res > 2 ? 2 * o->res - 2 : 2;
     if (!o->res_phi_d) o->res_phi_d = o->res / 2 > 2 ? o->res / 2 : 2;
     const size_t n[3] = {o->res_theta_h, o->res_theta_d, o->res_phi_d};
-    static const char *const names[3] = {"theta_h", "theta_d", "phi_d"};
-    for (int i = 0; i < 3; i++)
-        if (n[i] < 2 || n[i] > ISO_MAX_CELLS)
-            return sb_error(ctx, SB_ERR_RANGE, "iso: %s cells %zu out of range, need 2..%d", names[i], n[i],
-                            ISO_MAX_CELLS);
-    p->vt = &iso_vt;
-    p->rows = n[0];
-    p->cols = n[1] * n[2];
-    p->tex_w[SB_SIDE_G] = n[0];
-    p->tex_h[SB_SIDE_G] = 1;
-    p->tex_w[SB_SIDE_H] = n[1];
-    p->tex_h[SB_SIDE_H] = n[2];
-    p->wrap[SB_SIDE_G][0] = p->wrap[SB_SIDE_G][1] = SB_WRAP_CLAMP;
-    p->wrap[SB_SIDE_H][0] = SB_WRAP_CLAMP;
-    p->wrap[SB_SIDE_H][1] = SB_WRAP_REPEAT;
-    char body[80];
-    snprintf(body, sizeof body, "iso:th=%zu,td=%zu,pd=%zu", n[0], n[1], n[2]);
-    sb_param_spec_set(p, body);
-    return SB_OK;
+    static const char *const axes[3] = {"theta_h", "theta_d", "phi_d"}, *const keys[3] = {"th", "td", "pd"};
+    return sb_param_line_by_grid(ctx, p, &iso_vt, "iso", n, axes, keys, ISO_MAX_CELLS, SB_WRAP_REPEAT);
 }
 
 const sb_param_desc_t sb_param_desc_iso = {

@@ -1,0 +1,78 @@
+/* Colour difference as people judge it: linear sRGB (D65) -> CIE XYZ ->
+ * CIELAB, and CIEDE2000 (Sharma, Wu & Dalal 2005, "The CIEDE2000
+ * color-difference formula: implementation notes, supplementary test data,
+ * and mathematical observations", with kL = kC = kH = 1). */
+#include <math.h>
+
+#include "util/colour.h"
+#include "util/internal.h"
+
+/* CIELAB's f: cube root above (6/29)^3, linear below. */
+static double lab_f(double t) {
+    const double d = 6.0 / 29.0;
+    return t > d * d * d ? cbrt(t) : t / (3 * d * d) + 4.0 / 29.0;
+}
+
+void sb_srgb_to_lab(const double rgb[3], double lab[3]) {
+    /* IEC 61966-2-1 linear sRGB to XYZ (D65), white Y = 1 */
+    double x = 0.4124 * rgb[0] + 0.3576 * rgb[1] + 0.1805 * rgb[2];
+    double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+    double z = 0.0193 * rgb[0] + 0.1192 * rgb[1] + 0.9505 * rgb[2];
+    double fx = lab_f(x / 0.95047), fy = lab_f(y), fz = lab_f(z / 1.08883);
+    lab[0] = 116 * fy - 16;
+    lab[1] = 500 * (fx - fy);
+    lab[2] = 200 * (fy - fz);
+}
+
+/* Hue angle in degrees, [0, 360); 0 for a = b = 0 (Sharma's convention). */
+static double hue_deg(double b, double a) {
+    if (a == 0 && b == 0) return 0;
+    double h = atan2(b, a) * 180 / SB_PI;
+    return h < 0 ? h + 360 : h;
+}
+
+static double rad(double deg) { return deg * SB_PI / 180; }
+
+double sb_ciede2000(const double lab1[3], const double lab2[3]) {
+    double L1 = lab1[0], a1 = lab1[1], b1 = lab1[2], L2 = lab2[0], a2 = lab2[1], b2 = lab2[2];
+    /* a' = (1 + G) a, G from the mean chroma */
+    double cb = (hypot(a1, b1) + hypot(a2, b2)) / 2, cb7 = pow(cb, 7);
+    double G = 0.5 * (1 - sqrt(cb7 / (cb7 + pow(25, 7))));
+    double ap1 = (1 + G) * a1, ap2 = (1 + G) * a2;
+    double C1 = hypot(ap1, b1), C2 = hypot(ap2, b2), h1 = hue_deg(b1, ap1), h2 = hue_deg(b2, ap2);
+    /* differences of lightness, chroma and hue */
+    double dL = L2 - L1, dC = C2 - C1, dh = 0;
+    if (C1 * C2 != 0) {
+        dh = h2 - h1;
+        if (dh > 180) dh -= 360;
+        if (dh < -180) dh += 360;
+    }
+    double dH = 2 * sqrt(C1 * C2) * sin(rad(dh / 2));
+    /* means: the hue's around the circle */
+    double Lm = (L1 + L2) / 2, Cm = (C1 + C2) / 2, hm = h1 + h2;
+    if (C1 * C2 != 0) {
+        if (fabs(h1 - h2) <= 180)
+            hm = (h1 + h2) / 2;
+        else
+            hm = h1 + h2 < 360 ? (h1 + h2 + 360) / 2 : (h1 + h2 - 360) / 2;
+    }
+    double T = 1 - 0.17 * cos(rad(hm - 30)) + 0.24 * cos(rad(2 * hm)) + 0.32 * cos(rad(3 * hm + 6)) -
+               0.20 * cos(rad(4 * hm - 63));
+    double dtheta = 30 * exp(-((hm - 275) / 25) * ((hm - 275) / 25)), Cm7 = pow(Cm, 7);
+    double RC = 2 * sqrt(Cm7 / (Cm7 + pow(25, 7))), l50 = (Lm - 50) * (Lm - 50);
+    double SL = 1 + 0.015 * l50 / sqrt(20 + l50), SC = 1 + 0.045 * Cm, SH = 1 + 0.015 * Cm * T;
+    double RT = -sin(rad(2 * dtheta)) * RC;
+    double tl = dL / SL, tc = dC / SC, th = dH / SH;
+    return sqrt(tl * tl + tc * tc + th * th + RT * tc * th);
+}
+
+double sb_delta_e_exposed(const double ref[3], const double rec[3], double exposure) {
+    double a[3], b[3], la[3], lb[3];
+    for (int c = 0; c < 3; c++) {
+        a[c] = fmax(ref[c], 0) * exposure;
+        b[c] = fmax(rec[c], 0) * exposure;
+    }
+    sb_srgb_to_lab(a, la);
+    sb_srgb_to_lab(b, lb);
+    return sb_ciede2000(la, lb);
+}
