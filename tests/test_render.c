@@ -675,3 +675,24 @@ SB_TEST(cli_render_measured_folder) {
     rc = run("render %s -s 32 -q %s", fdir, tail);
     CHECKF(rc == 0, "rc %d: %s", rc, out);
 }
+
+/* render's default exposure: the log-average luminance of the covered
+ * pixels (black ones count through delta = 1e-4 of the largest Y). */
+SB_TEST(log_average_luminance) {
+    sb_image_t img = {0};
+    CHECK(sb_image_alloc(NULL, 3, 1, &img) == SB_OK);
+    if (!img.rgb) return;
+    double px[3][3] = {{1, 1, 1}, {4, 4, 4}, {0, 0, 0}};
+    for (int i = 0; i < 3; i++)
+        for (int c = 0; c < 3; c++)
+            img.rgb[3 * i + c] = px[i][c];
+    img.mask[0] = img.mask[1] = 1; /* the black pixel is not covered */
+    CHECK_REL(sb_image_log_average(&img), sqrt((1 + 4e-4) * (4 + 4e-4)), 1e-12);
+    img.mask[2] = 1;
+    CHECK_REL(sb_image_log_average(&img), cbrt((1 + 4e-4) * (4 + 4e-4) * 4e-4), 1e-12);
+    img.rgb[3] = -8;                                    /* a negative channel counts as 0 */
+    double y1 = 0.7152 * 4 + 0.0722 * 4, d = 1e-4 * y1; /* now the largest Y */
+    CHECK_REL(sb_image_log_average(&img), cbrt((1 + d) * (y1 + d) * d), 1e-12);
+    sb_image_free(&img);
+    CHECK(sb_image_log_average(NULL) == 0 && sb_image_log_average(&img) == 0);
+}

@@ -66,6 +66,11 @@ typedef struct sb_image_diff {
 /* Largest channel value over the covered pixels (all pixels if mask is
  * NULL); 0 for an empty or all-black image.  NaN is skipped. */
 double sb_image_max(const sb_image_t *img);
+/* Log-average luminance (Reinhard et al. 2002's key) over the covered
+ * pixels: exp(mean log(delta + Y)), Y = 0.2126 R + 0.7152 G + 0.0722 B
+ * (negative channels as 0), delta = 1e-4 of the largest Y so black pixels
+ * count without sending it to 0; 0 for an empty or all-black image. */
+double sb_image_log_average(const sb_image_t *img);
 
 /* Compare two images of one size (header).  Errors: SB_ERR_ARG (NULL, size
  * mismatch). */

@@ -23,6 +23,7 @@ typedef struct render_opts {
     double elev, azim;
     sb_tonemap_t tm;
     double diff_scale;
+    const char *exposure_rule; /* "auto" or "peak" when the exposure came from the original, else NULL */
 } render_opts_t;
 
 static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
@@ -90,8 +91,8 @@ static int set_light(const char *cmd, const cli_option_t *op, const char *v, voi
 
 static int set_exposure(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     double *x = dst;
-    if (strcmp(v, "auto") == 0) {
-        *x = 0;
+    if (strcmp(v, "auto") == 0 || strcmp(v, "peak") == 0) {
+        *x = v[0] == 'a' ? 0 : -1; /* resolved from the original (render_set) */
         return 0;
     }
     return cli_parse_double(cmd, op->name, v, 1e-6, 1e6, x);
@@ -121,8 +122,9 @@ static const cli_option_t render_only[] = {
      "one more light (repeatable, up to " STR(SB_RENDER_MAX_LIGHTS) " in all), E its\nirradiance (default pi)",
      set_light, 0, 0, 0, CLI_RENDER},
     {NULL, "--exposure", "X|auto",
-     "multiply radiance by X before tone mapping; auto\n(default): 1 / the original's brightest channel", set_exposure,
-     AT(tm.exposure), 0, 0, CLI_RENDER},
+     "multiply radiance by X before tone mapping; auto\n(default): the original's log-average luminance to 0.18\n"
+     "(middle grey; a dark coloured material stays visible);\npeak: 1 / the original's brightest channel",
+     set_exposure, AT(tm.exposure), 0, 0, CLI_RENDER},
     {NULL, "--tonemap", "T", "clamp (default) or reinhard (x / (1 + x))", set_tonemap, AT(tm.op), 0, 0, CLI_RENDER},
     {NULL, "--diff-scale", "N", "magnification of the difference panel (default 4)", cli_set_double, AT(diff_scale),
      1e-3, 1e6, CLI_RENDER},
@@ -214,6 +216,7 @@ static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src
     json_end_array(j);
     json_string(j, "tonemap", sb_tonemap_name(o->tm.op));
     json_number(j, "exposure", o->tm.exposure);
+    json_string(j, "exposure_rule", o->exposure_rule ? o->exposure_rule : "given");
     json_number(j, "diff_scale", o->diff_scale);
     json_string(j, "psnr_on",
                 "display values in [0, 1] (exposure, tone map, sRGB OETF), sphere pixels; null = identical");
@@ -317,9 +320,13 @@ static sb_result_t render_set(sb_context_t *ctx, render_opts_t *o, const render_
                               sb_image_diff_t *d, char names[][32]) {
     sb_image_t orig = {0}, rec = {0};
     sb_result_t r = sb_render_source(ctx, &o->scene, in->src, &orig);
-    if (r == SB_OK && o->tm.exposure == 0) {
-        double peak = sb_image_max(&orig);
-        o->tm.exposure = peak > 0 ? 1 / peak : 1;
+    if (r == SB_OK && o->tm.exposure <= 0) { /* auto (0) or peak (-1) */
+        double peak = sb_image_max(&orig), key = sb_image_log_average(&orig);
+        o->exposure_rule = o->tm.exposure < 0 ? "peak" : "auto";
+        if (o->tm.exposure < 0 || !(key > 0))
+            o->tm.exposure = peak > 0 ? 1 / peak : 1;
+        else
+            o->tm.exposure = 0.18 / key;
     }
     if (r == SB_OK) r = write_png(ctx, set, "original.png", &orig, NULL, o);
     for (size_t k = 0; k < o->nterms && r == SB_OK; k++) {
@@ -351,6 +358,11 @@ static void print_result(const render_opts_t *o, const render_input_t *in, const
     printf("sepbrdf render: %s\n  %s, form %s, %zu x %zu pixels, %zu light%s, tonemap %s, exposure %.4g\n",
            sb_source_description(in->src), sb_param_spec(in->pc), sb_form_name(in->form), o->scene.size, o->scene.size,
            o->scene.light_count, o->scene.light_count == 1 ? "" : "s", sb_tonemap_name(o->tm.op), o->tm.exposure);
+    if (o->exposure_rule)
+        printf("  exposure %s: %s\n", o->exposure_rule,
+               o->exposure_rule[0] == 'a'
+                   ? "the original's log-average luminance to 0.18 (--exposure peak: 1 / brightest)"
+                   : "1 / the original's brightest channel");
     printf("%4s  %12s  %12s  %10s  %9s\n", "J", "rmse_linear", "max_linear", "rmse", "psnr_dB");
     for (size_t k = 0; k < o->nterms; k++)
         printf("%4zu  %12.4e  %12.4e  %10.4e  %9.2f\n", o->terms[k], d[k].rmse_linear, d[k].max_linear, d[k].rmse,

@@ -132,6 +132,7 @@ void job_attempt_free(job_attempt_t *a);
 sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out);
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
+int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
 /* With a non-negative method (SB_CAP_NONNEG), the same run with the

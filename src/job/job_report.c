@@ -88,8 +88,8 @@ static void report_fit(sb_json_t *j, const sb_job_t *job) {
     sb_json_int(j, "valid", (long long)m->valid_count);
     sb_json_number(j, "coverage", cells ? (double)m->valid_count / (double)cells : 0);
     sb_json_string(j, "invalid_cells",
-                   job->o.zero_fill ? "zero-filled in the fit, excluded from the error"
-                                    : "excluded from the fit (masked imputation) and from the error");
+                   job_attempt_zero_fill(job, a) ? "zero-filled in the fit, excluded from the error"
+                                                 : "excluded from the fit (masked imputation) and from the error");
     sb_json_end_object(j);
     sb_json_begin_object(j, "fit");
     sb_json_bool(j, "masked", a->stats.masked);

@@ -47,7 +47,20 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     return r;
 }
 
-int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) { return a->m.mask != NULL && !job->o.zero_fill; }
+/* Cells outside a's domain fitted as zeros: asked for (--zero-fill), or
+ * where the form continues by 0 there (SB_CAP_LIGHT_EDGE on the whole
+ * hemisphere with a form holding cos theta_i): a plain SVD, exact and
+ * fast, instead of the masked fit. */
+int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a) {
+    if (job->o.zero_fill) return 1;
+    int hemisphere = fabs(job->o.theta_max_deg - 90) < 1e-9;
+    return a->param && (sb_param_caps(a->param) & SB_CAP_LIGHT_EDGE) && hemisphere && !job->scene &&
+           (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
+}
+
+int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) {
+    return a->m.mask != NULL && !job_attempt_zero_fill(job, a);
+}
 
 /* The estimator's errors of a->f as stored (HALF or FLOAT) into a->est,
  * on the job's pairs, growing them up to lv->est_max_pairs. */
@@ -93,7 +106,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     pl.svd.method = job->o.method;
     pl.svd.seed = job->o.seed;
     pl.weighted = weighted;
-    pl.zero_fill = job->o.zero_fill;
+    pl.zero_fill = job_attempt_zero_fill(job, a);
     pl.fit_tol = lv->fit_tol;
     pl.fit_max_iters = lv->fit_max_iters;
     if (a->scene_w) { /* the scene's weights instead of solid angles */

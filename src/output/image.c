@@ -92,6 +92,27 @@ double sb_image_max(const sb_image_t *img) {
     return m;
 }
 
+static double pixel_y(const double *c) {
+    return 0.2126 * fmax(c[0], 0) + 0.7152 * fmax(c[1], 0) + 0.0722 * fmax(c[2], 0);
+}
+
+double sb_image_log_average(const sb_image_t *img) {
+    if (!img || !img->rgb) return 0;
+    double ymax = 0, sum = 0;
+    size_t n = 0, N = img->width * img->height;
+    for (size_t i = 0; i < N; i++)
+        if ((!img->mask || img->mask[i]) && pixel_y(img->rgb + 3 * i) > ymax) ymax = pixel_y(img->rgb + 3 * i);
+    if (!(ymax > 0) || !isfinite(ymax)) return 0;
+    for (size_t i = 0; i < N; i++) {
+        if (img->mask && !img->mask[i]) continue;
+        double y = pixel_y(img->rgb + 3 * i);
+        if (!isfinite(y)) continue;
+        sum += log(1e-4 * ymax + y);
+        n++;
+    }
+    return n ? exp(sum / (double)n) : 0;
+}
+
 sb_result_t sb_image_compare(sb_context_t *ctx, const sb_image_t *a, const sb_image_t *b, const sb_tonemap_t *tm,
                              sb_image_diff_t *out) {
     if (!a || !b || !out || !a->rgb || !b->rgb) return sb_error(ctx, SB_ERR_ARG, "image compare: NULL image");

@@ -30,7 +30,15 @@
  * Measures: dw_l dw_v = 4 (V.h) dw_h dw_v.  The rows take the solid angle
  * of the theta_v band (2 pi (cos lo - cos hi)); V.h depends on both sides,
  * so the columns take it at the normal view, cos theta_h, times the solid
- * angle of the h cell, doubled for the fold (a weight, not a quadrature). */
+ * angle of the h cell, doubled for the fold (a weight, not a quadrature).
+ *
+ * The rows are views, all in the cap, and a cell leaves the domain only
+ * where L = 2 (V.h) h - V passes below the horizon (V.h > 0 holds before
+ * that), so on the whole hemisphere f cos theta_l falls to 0 at the edge
+ * and continues by 0 outside (SB_CAP_LIGHT_EDGE): the job fits forms with
+ * cos theta_i by a plain weighted SVD with those cells 0 instead of a
+ * masked fit (RGL paper at J = 8: 1.63 % against 1.56 %, 0.3 s against
+ * 20 s CPU). */
 #include <math.h>
 
 #include "param/param_impl.h"
@@ -54,7 +62,8 @@ static int vh_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3
     sb_dir_from_angles(tv, 0, wo);
     sb_dir_from_angles(th, ph, h);
     double vh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
-    for (int k = 0; k < 3; k++) wi[k] = 2 * vh * h[k] - wo[k];
+    for (int k = 0; k < 3; k++)
+        wi[k] = 2 * vh * h[k] - wo[k];
     return vh > 0 && sb_dir_in_cap(p->opts.theta_max, wi) && sb_dir_in_cap(p->opts.theta_max, wo);
 }
 
@@ -127,7 +136,8 @@ const sb_param_desc_t sb_param_desc_vh = {
     .description = "view elevation and half vector (RGL's own layout), isotropic: rows theta_v, columns (theta_h, "
                    "phi_h - phi_v)",
     .keys = "res,tv,th,ph",
-    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_PARTIAL_DOMAIN | SB_CAP_WARPS,
+    .caps =
+        SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_PARTIAL_DOMAIN | SB_CAP_WARPS | SB_CAP_LIGHT_EDGE,
     .warp = {SB_WARP_MERL, SB_WARP_UNIFORM},
     .init = init_vh,
     .vt = &vh_vt,
