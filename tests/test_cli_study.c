@@ -37,15 +37,18 @@ static int count_lines(const char *s) {
 
 /* Value of CSV column `col` (0-based) in the row whose source starts with
  * `source` and whose terms column (6) is J; NAN if absent.  Sources in
- * these tests hold no commas. */
+ * these tests hold no commas; quoted fields may. */
 static double csv_value(const char *csv, const char *source, int J, int col) {
     for (const char *line = csv; line && *line; line = strchr(line, '\n') ? strchr(line, '\n') + 1 : NULL) {
         if (strncmp(line, source, strlen(source)) != 0) continue;
         const char *f[16];
         int n = 0;
         f[n++] = line;
-        for (const char *p = line; *p && *p != '\n' && n < 16; p++)
-            if (*p == ',') f[n++] = p + 1;
+        int quoted = 0; /* commas inside a quoted field (a layout spec) do not split */
+        for (const char *p = line; *p && *p != '\n' && n < 16; p++) {
+            if (*p == '"') quoted = !quoted;
+            if (*p == ',' && !quoted) f[n++] = p + 1;
+        }
         if (n >= 14 && atoi(f[6]) == J) return atof(f[col]);
     }
     return NAN;
@@ -58,6 +61,19 @@ static double json_number_after(const char *text, const char *anchor, const char
     snprintf(pat, sizeof pat, "\"%s\": ", key);
     p = strstr(p, pat);
     return p ? atof(p + strlen(pat)) : NAN;
+}
+
+/* `sepbrdf factor SOURCE ARGS -q -o DIR/f`: its report.json (NULL after a
+ * failed check) and the anchor of errors[J - 1] in it. */
+static const char *factor_report(const char *source_args, const char *dir, int J, char anchor[64]) {
+    int rc = run("factor %s -q -o %s/f", source_args, dir);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char fdir[4200];
+    snprintf(fdir, sizeof fdir, "%s/f", dir);
+    const char *rep = slurp(fdir, "report.json");
+    CHECK(rep != NULL);
+    snprintf(anchor, 64, "\"terms\": %d,\n      \"rel_rms\"", J);
+    return rep;
 }
 
 SB_TEST(three_sources) {
@@ -102,23 +118,42 @@ SB_TEST(nested_equals_separate) {
     static char csvcopy[1 << 20];
     snprintf(csvcopy, sizeof csvcopy, "%s", csv);
     for (int J = 1; J <= 5; J += 2) {
-        char args[256];
-        snprintf(args, sizeof args, "--param io --res 8 --method full -J %d", J);
-        rc = run("factor microfacet:roughness=0.4 %s -q -o %s/f", args, dir);
-        CHECKF(rc == 0, "rc %d: %s", rc, out);
-        char fdir[4200];
-        snprintf(fdir, sizeof fdir, "%s/f", dir);
-        const char *rep = slurp(fdir, "report.json");
-        CHECK(rep != NULL);
+        char args[256], anchor[64];
+        snprintf(args, sizeof args, "microfacet:roughness=0.4 --param io --res 8 --method full -J %d", J);
+        const char *rep = factor_report(args, dir, J, anchor);
         if (!rep) return;
-        char anchor[64];
-        snprintf(anchor, sizeof anchor, "\"terms\": %d,\n      \"rel_rms\"", J);
         CHECK_REL(csv_value(csvcopy, "microfacet:roughness=0.4", J, 8), json_number_after(rep, anchor, "rel_rms"),
                   1e-7);
         CHECK_REL(csv_value(csvcopy, "microfacet:roughness=0.4", J, 7), json_number_after(rep, anchor, "comparable"),
                   1e-7);
         CHECK_REL(csv_value(csvcopy, "microfacet:roughness=0.4", J, 9), json_number_after(rep, anchor, "max_abs"),
                   1e-7);
+    }
+}
+
+/* By default study measures what factor builds: at every J the headline
+ * of `factor SOURCE -J J` (auto layout, form, weighting, warps and term
+ * weights), here on a measured table; the row names the layout kept. */
+SB_TEST(auto_equals_factor) {
+    const char *dir = sb_tmpdir("study");
+    char src[4200];
+    snprintf(src, sizeof src, "%s/rgl_paper_white_rgb.bsdf", SB_MEASURED_DIR);
+    int rc = run("study %s --terms 1,3 --res 12 -q -o %s/s", src, dir);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char sdir[4200];
+    snprintf(sdir, sizeof sdir, "%s/s", dir);
+    const char *csv = slurp(sdir, "study.csv");
+    CHECK(csv != NULL);
+    if (!csv) return;
+    static char csvcopy[1 << 20];
+    snprintf(csvcopy, sizeof csvcopy, "%s", csv);
+    CHECKF(strstr(csvcopy, ",auto,") && strstr(csvcopy, "vh:tv="), "%s", csvcopy); /* J = 3 keeps vh */
+    for (int J = 1; J <= 3; J += 2) {
+        char args[4300], anchor[64];
+        snprintf(args, sizeof args, "%s --res 12 -J %d", src, J);
+        const char *rep = factor_report(args, dir, J, anchor);
+        if (!rep) return;
+        CHECK_REL(csv_value(csvcopy, src, J, 14), json_number_after(rep, anchor, "headline"), 1e-7);
     }
 }
 
@@ -155,7 +190,7 @@ SB_TEST(failures_keep_others) {
 
 SB_TEST(param_all) {
     const char *dir = sb_tmpdir("study");
-    int rc = run("study lambert --terms 2 --res 4 -q -o %s%s", dir, "");
+    int rc = run("study lambert --param all --terms 2 --res 4 -q -o %s%s", dir, "");
     CHECKF(rc == 0, "rc %d: %s", rc, out); /* parameterisations not in this build are left out, not failures */
     const char *csv = slurp(dir, "study.csv");
     CHECK(csv && strstr(csv, ",io,io:res=4,"));

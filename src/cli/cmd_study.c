@@ -36,8 +36,10 @@ static const cli_option_t study_only[] = {
      "the J to study: N (= 1..N), A..B, or a comma list of\nnumbers and ranges (1..4,8,16); 1..256 (default 1..8)",
      set_terms, 0, 0, 0, CLI_STUDY},
     {NULL, "--param", "LIST",
-     "parameterisations, comma separated (io,io-area,hd,iso),\nor all (default): every one this build supports, iso\n"
-     "only for isotropic sources",
+     "parameterisations, comma separated (auto,io,hd,...):\nauto (default) studies what `factor SOURCE -J J` builds\n"
+     "at every J (its layout, form, weighting, warps and term\nweights, one run per J; the table names the layout "
+     "kept);\n"
+     "all: every one this build supports, as `factor --param P`\n(iso only for isotropic sources)",
      set_params, 0, 0, 0, CLI_STUDY},
     {NULL, "--nmf", NULL,
      "also fit non-negative factors (--method nmf) with every J\nstudied and show their errors beside (nmf_headline,\n"
@@ -115,6 +117,8 @@ static void runs_free(runs_t *rs) {
         free(rs->v[i].error);
         for (size_t k = 0; k < rs->v[i].nwarn; k++)
             free(rs->v[i].warn[k]);
+        for (size_t k = 0; k < rs->v[i].nr; k++)
+            free(rs->v[i].r[k].spec);
         free(rs->v[i].r);
     }
     free(rs->v);
@@ -182,6 +186,7 @@ bad:
 }
 
 static int parse_params(const char *s, study_opts_t *o) {
+    o->param_auto = 0;
     if (strcmp(s, "all") == 0) {
         o->param_all = 1;
         return 0;
@@ -193,15 +198,19 @@ static int parse_params(const char *s, study_opts_t *o) {
     strcpy(buf, s);
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         sb_param_kind_t k;
+        if (strcmp(t, "auto") == 0) {
+            o->param_auto = 1;
+            continue;
+        }
         if (sb_param_kind_parse(t, &k) != SB_OK) {
-            cli_error("study", "--param '%s' unknown, need a comma list of %s, or all", t, cli_param_names());
+            cli_error("study", "--param '%s' unknown, need a comma list of auto, %s, or all", t, cli_param_names());
             return -1;
         }
         o->params |= 1u << k;
     }
-    if (o->params) return 0;
+    if (o->params || o->param_auto) return 0;
 bad:
-    cli_error("study", "--param '%s': need a comma list of %s, or all", s, cli_param_names());
+    cli_error("study", "--param '%s': need a comma list of auto, %s, or all", s, cli_param_names());
     return -1;
 }
 
@@ -290,11 +299,60 @@ static void nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const 
 
 /* Sample once (the job on one parameterisation), factor once (nested) or
  * once per J (masked). */
+/* An auto run: `factor`'s whole job at every studied J (its choice of
+ * layout, form, weighting and warps depends on J, and term weights and
+ * texel fits are made for J), the row of J from each. */
+static void run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, const char *label,
+                     double base, double span) {
+    sb_job_opts_t jo = o->job;
+    jo.param = NULL;
+    sb_result_t res = (r->r = calloc(o->nj, sizeof *r->r)) ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    size_t done = 0, J = 0;
+    r->converged = 1;
+    for (J = 1; J <= o->jmax && res == SB_OK; J++) {
+        if (!o->want_j[J]) continue;
+        cli_progress(label, base + span * (double)done++ / (double)o->nj);
+        jo.terms = J;
+        sb_job_t *job = NULL;
+        sb_context_clear_error(ctx);
+        if ((res = sb_job_run_source(ctx, src, &jo, &job)) == SB_OK) {
+            sb_job_timings_t t;
+            sb_job_timings(job, &t);
+            take_rows(r, o, job, J, 1);
+            row_t *w = &r->r[r->nr - 1];
+            w->spec = dup_str(sb_param_spec(sb_job_param(job)));
+            w->form = sb_form_name(sb_job_form(job));
+            w->weighted = sb_job_weighted(job);
+            w->t_factor = t.total_s;
+            w->t_metric = 0;
+            free(r->param_spec);
+            r->param_spec = dup_str(w->spec);
+            r->rows = sb_job_matrix(job)->rows;
+            r->cols = sb_job_matrix(job)->cols;
+            r->masked = 1; /* one fit per J */
+        }
+        if (J == o->jmax || res != SB_OK) run_warnings(r, job, "auto");
+        sb_job_destroy(job);
+    }
+    if (res != SB_OK) {
+        char msg[1024];
+        cli_job_message(msg, sizeof msg, ctx, res, J - 1);
+        run_fail(r, msg);
+        return;
+    }
+    r->ok = 1;
+}
+
 static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, size_t task,
                     size_t ntasks) {
     char label[64];
-    snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, sb_param_kind_name((sb_param_kind_t)r->kind));
+    snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, study_kind_name(r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
+    if (r->kind == STUDY_AUTO) {
+        run_auto(ctx, src, o, r, label, base, span);
+        cli_progress(label, base + span);
+        return;
+    }
     sb_job_opts_t jo = o->job;
     jo.param = sb_param_kind_name((sb_param_kind_t)r->kind);
     jo.terms = o->jmax;
@@ -349,14 +407,17 @@ static void print_table(const study_opts_t *o, const runs_t *rs) {
     printf(o->nmf ? "   %12s  %11s\n" : "\n", "nmf_headline", "nmf_rel_rms");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
-        const char *pn = r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : "-";
+        const char *pn = r->kind >= 0 ? study_kind_name(r->kind) : "-";
         if (!r->ok) {
             printf("%-30.30s %-7s  failed: %s\n", r->spec, pn, r->error ? r->error : "");
             continue;
         }
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, pn, w->terms,
+            char kept[24]; /* auto: the layout kept at this J */
+            snprintf(kept, sizeof kept, "%s%s%.*s", pn, w->spec ? ">" : "", w->spec ? (int)strcspn(w->spec, ":") : 0,
+                     w->spec ? w->spec : "");
+            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, kept, w->terms,
                    w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
                    r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
             if (o->nmf) printf("  %12.4e  %11.4e", w->nmf_headline, w->nmf_rel_rms);
@@ -371,6 +432,12 @@ static void print_table(const study_opts_t *o, const runs_t *rs) {
 static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_source_t *src, const char *spec,
                         runs_t *rs) {
     unsigned flags = sb_source_flags(src);
+    if (o->param_auto) {
+        run_t *ru = runs_add(rs, spec, STUDY_AUTO);
+        if (!ru) return -1;
+        ru->source = dup_str(sb_source_description(src));
+        ru->ok = -1; /* to run */
+    }
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
         if (!o->param_all && !(o->params & (1u << k))) continue;
         int iso_ok = sb_param_kind_applies((sb_param_kind_t)k, flags);
@@ -429,8 +496,7 @@ static void run_all(sb_context_t *ctx, const study_opts_t *o, sb_source_t **srcs
             if (ru->ok != -1) continue;
             run_one(ctx, srcs[s], o, ru, task++, ntasks);
             if (!ru->ok) {
-                cli_error("study", "%s on %s: %s (skipped)", ru->spec, sb_param_kind_name((sb_param_kind_t)ru->kind),
-                          ru->error);
+                cli_error("study", "%s on %s: %s (skipped)", ru->spec, study_kind_name(ru->kind), ru->error);
                 continue;
             }
             cli_info(2, "study: %s on %s done (%s)", ru->spec, ru->param_spec, ru->masked ? "refit" : "nested");
@@ -503,7 +569,7 @@ int cmd_study(int argc, char **argv) {
         return EXIT_IO;
     }
     o.out = DEFAULT_OUT;
-    o.param_all = 1;
+    o.param_auto = 1; /* what `factor` builds */
     parse_terms("1..8", &o);
     int rc = parse(argc, argv, &o);
     if (rc >= 0) {

@@ -15,6 +15,7 @@ typedef struct study_opts {
     unsigned char want_j[MAX_J + 1]; /* want_j[J] = 1 if J is studied */
     size_t jmax, nj;
     int param_all;
+    int param_auto;    /* study what `factor` builds: the auto layout per J (the default) */
     unsigned params;   /* bit per sb_param_kind_t when not all */
     sb_job_opts_t job; /* the factor group's options, as parsed */
     sb_form_t form;    /* resolved from job for the outputs */
@@ -32,7 +33,15 @@ typedef struct row {
     double headline, comparable, rel_rms, max_abs, neg_frac;
     double t_factor, t_metric;        /* of the factorisation the row was read from */
     double nmf_headline, nmf_rel_rms; /* --nmf: the J-term non-negative fit (NaN when it failed) */
+    char *spec;                       /* auto runs: the layout kept at this J (owned), else NULL */
+    const char *form;                 /* auto runs: its form, else NULL */
+    int weighted;
 } row_t;
+
+/* run_t.kind of the auto runs (factor's own choice at every J). */
+#define STUDY_AUTO 0x7fff
+/* "auto" or the parameterisation's name. */
+const char *study_kind_name(int kind);
 
 /* One source x parameterisation (or a source that could not be opened,
  * kind < 0). */

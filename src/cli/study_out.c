@@ -25,6 +25,10 @@ void study_csv_field(FILE *fp, const char *s) {
     fputc('"', fp);
 }
 
+const char *study_kind_name(int kind) {
+    return kind == STUDY_AUTO ? "auto" : sb_param_kind_name((sb_param_kind_t)kind);
+}
+
 static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     fprintf(fp,
             "source,param,param_spec,form,weighted,fit,terms,comparable,rel_rms,max_abs,negative_fraction,"
@@ -36,9 +40,10 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
             study_csv_field(fp, r->spec);
-            fprintf(fp, ",%s,", sb_param_kind_name((sb_param_kind_t)r->kind));
-            study_csv_field(fp, r->param_spec);
-            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g", sb_form_name(o->form), o->weighted,
+            fprintf(fp, ",%s,", study_kind_name(r->kind));
+            study_csv_field(fp, w->spec ? w->spec : r->param_spec);
+            fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g",
+                    w->form ? w->form : sb_form_name(o->form), w->form ? w->weighted : o->weighted,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
                     r->t_sample, w->t_factor, w->t_metric, w->headline);
             if (o->nmf) fprintf(fp, ",%.9g,%.9g", w->nmf_headline, w->nmf_rel_rms);
@@ -59,6 +64,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
         if (o->want_j[J]) json_int(&j, NULL, (long long)J);
     json_end_array(&j);
     json_begin_array(&j, "params");
+    if (o->param_auto) json_string(&j, NULL, "auto");
     if (o->param_all) json_string(&j, NULL, "all");
     for (int k = 0; k < SB_PARAM_KIND_COUNT_ && !o->param_all; k++)
         if (o->params & (1u << k)) json_string(&j, NULL, sb_param_kind_name((sb_param_kind_t)k));
@@ -75,7 +81,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
         json_begin_object(&j, NULL);
         json_string(&j, "source_spec", r->spec);
         json_string(&j, "source", r->source);
-        json_string(&j, "param", r->kind >= 0 ? sb_param_kind_name((sb_param_kind_t)r->kind) : NULL);
+        json_string(&j, "param", r->kind >= 0 ? study_kind_name(r->kind) : NULL);
         json_string(&j, "param_spec", r->param_spec);
         json_bool(&j, "ok", r->ok);
         json_begin_array(&j, "warnings");
@@ -137,7 +143,7 @@ static void write_dat(FILE *fp, const runs_t *rs) {
         const run_t *r = &rs->v[i];
         if (!r->ok || !r->nr) continue;
         if (block++) fputs("\n\n", fp); /* gnuplot: two blank lines end an index block */
-        fprintf(fp, "# %s (%s)\n# J headline rel_rms\n", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
+        fprintf(fp, "# %s (%s)\n# J headline rel_rms\n", r->spec, study_kind_name(r->kind));
         for (size_t k = 0; k < r->nr; k++)
             fprintf(fp, "%zu %.9g %.9g\n", r->r[k].terms, fmax(r->r[k].headline, PLOT_FLOOR),
                     fmax(r->r[k].rel_rms, PLOT_FLOOR));
@@ -176,7 +182,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
         fputs(block ? ", \\\n     " : "plot ", fp);
         fprintf(fp, "'study.dat' index %d using 1:2 with linespoints lw 2 title ", block);
         char title[512];
-        snprintf(title, sizeof title, "%.200s (%s)", r->spec, sb_param_kind_name((sb_param_kind_t)r->kind));
+        snprintf(title, sizeof title, "%.200s (%s)", r->spec, study_kind_name(r->kind));
         study_gp_quote(fp, title);
         block++;
     }
