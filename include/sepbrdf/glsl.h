@@ -46,7 +46,8 @@ sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t 
  *     bool  sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf);
  *     float sb_pdf(vec3 L, vec3 V);
  * to be placed after the snippet of the same factorisation.  malloc'ed;
- * NULL on no memory, a NULL p or channels not 1 or 3. */
+ * NULL on no memory, a NULL p, channels not 1 or 3, or a layout without a
+ * sampler (vh: its rows are views, not light directions). */
 char *sb_glsl_sampler(const sb_param_t *p, size_t channels);
 
 /* sb_glsl_write with the sampler block appended (the file `sepbrdf factor`

@@ -104,6 +104,12 @@ typedef struct sb_job_opts {
      * res, terms, half and warp constrains the search; max_error is
      * refused (SB_ERR_ARG), as is sample_only. */
     size_t budget;
+    /* Scattered measured tables (Cornell, ALTA, CSV, simulated gonio): the
+     * kept layout, form and weighting refitted cv_folds times, each time
+     * without one fold of the measurements (sb_measured_fold), and the
+     * error of f cos theta_i at the measurements left out reported per J'
+     * (sb_job_cv).  0: 5 folds; 1: none. */
+    size_t cv_folds;
     const char *out;             /* sb_job_run also writes the set here (sb_job_write); NULL: no */
     sb_job_progress_fn progress; /* NULL: none */
     void *progress_user;
@@ -273,6 +279,13 @@ const sb_job_budget_try_t *sb_job_budget_tried(const sb_job_t *job, size_t i);
  * error at the measured samples (sb_measured_sample_errors), checked again
  * by sb_job_refactor. */
 size_t sb_job_warning_count(const sb_job_t *job);
+/* The cross-validated error at J' terms (1..J) of a scattered table: the
+ * relative L2 of f cos theta_i over the measurements, each predicted by
+ * the refit that left its fold out (sb_job_opts_t.cv_folds), its standard
+ * error from the folds' spread into *se (may be NULL); NaN (and 0 held
+ * out) when not computed: analytic sources, grids (MERL, RGL), cv_folds 1,
+ * a NULL job or J' out of range.  *held: the measurements held out. */
+double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held);
 const char *sb_job_warning(const sb_job_t *job, size_t i);
 
 /* ---- a minimal JSON writer (report.json; the CLI's reports use it too) ----

@@ -135,7 +135,16 @@ typedef struct sb_measured_opts {
                          * other sample.  < 0: no limit */
     sb_white_t white;   /* spectral tables: SB_WHITE_E (default) */
     sb_gamut_t gamut;   /* spectral tables: SB_GAMUT_KEEP (default) */
+    /* scattered tables, cross-validation: with cv_folds >= 2, the samples
+     * of fold cv_fold (sample i, in reading order, is in fold
+     * sb_measured_fold(i, cv_folds)) are left out of the table */
+    size_t cv_folds, cv_fold;
 } sb_measured_opts_t;
+
+/* The fold of sample i (reading order, as sb_source_sample numbers a
+ * table's samples) among `folds`: a fixed pseudo-random assignment, about
+ * equal sizes; 0 for folds < 2. */
+size_t sb_measured_fold(size_t i, size_t folds);
 
 /* What a table held.  Value statistics are over the used samples, of the
  * RGB f_r in 1/sr (MERL: after the channel scales). */

@@ -154,6 +154,20 @@ static void print_scene(const sb_job_t *job) {
            d->se[J - 1][SB_EST_FCOS][SB_CH_ALL]);
 }
 
+/* A scattered table: the error at the measurements left out of each
+ * fold's refit, every J'. */
+static void print_cv(const sb_job_t *job) {
+    size_t J = sb_factors_terms(sb_job_factors(job)), held = 0;
+    double se;
+    if (isnan(sb_job_cv(job, 1, &se, &held))) return;
+    printf("held-out measurements (%zu, each predicted by a refit without its fold), f cos theta_i:", held);
+    for (size_t k = 1; k <= J; k++) {
+        double v = sb_job_cv(job, k, &se, NULL);
+        printf("%s J %zu %.4e +- %.1e", k > 1 ? "," : "", k, v, se);
+    }
+    printf("\n");
+}
+
 /* With --budget: what the search chose, and the bytes written. */
 static void print_budget(const sb_job_t *job) {
     sb_job_budget_t b;
@@ -179,6 +193,7 @@ static void print_result(const sb_job_t *job, const char *out) {
            sb_factors_terms(f), sb_factors_get_meta(f, "method"));
     print_table(job);
     print_scene(job);
+    print_cv(job);
     printf("wrote %zu texture pairs, report.json and sepbrdf.glsl to %s/ (%.3f s)\n", sb_factors_terms(f), out,
            t.total_s);
     print_budget(job);

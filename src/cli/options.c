@@ -219,6 +219,11 @@ const cli_option_t cli_factor_options[] = {
      "down (report.json: term_weight), so errors fall with J'\n(unless that raises the error at J 1.25x), "
      "and texels are\nfitted for the bilinear lookup where that lowers the\nerror (report.json: fit.texels_fitted)",
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
+    {NULL, "--cv-folds", "K",
+     "scattered tables (Cornell, ALTA, CSV, simulated gonio):\nrefit the kept layout K times, each without one fold "
+     "of\n"
+     "the measurements, and report the error at those left\nout (report.json cv_headline; default 5, 1: none)",
+     cli_set_size, AT(cv_folds), 1, 100, F_},
     {NULL, "--metric-res", "R",
      "also the comparable error by the grid quadrature on an\nR-cell reference io grid (report.json "
      "comparable_grid;\nnone by default)",

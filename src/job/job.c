@@ -152,6 +152,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK && !job->budget) r = job_warp_refit(ctx, job);
     if (r == SB_OK) r = job_svd_beside(ctx, job);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
+    if (r == SB_OK) r = job_cv(ctx, job);
     if (r == SB_OK) {
         job_warn_max_error(job);
         job_warn_weights(job);
@@ -222,6 +223,8 @@ void sb_job_destroy(sb_job_t *job) {
     job_scene_free(job);
     free(job->rel_stored);
     free(job->svd_beside);
+    free(job->cv);
+    free(job->cv_se);
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);
     free(job->source_spec);

@@ -80,8 +80,15 @@ struct sb_job {
     const sb_param_opts_t *shape; /* the kept layout's options (a budget's choice); NULL: o.res alone */
     sb_param_opts_t spec_shape;   /* --param KIND:key=value's options (job->shape then points here) */
     int blas_threads;             /* OpenBLAS's thread count before the job (one thread during it) */
+    /* scattered tables (job_cv.c): the error of f cos theta_i at the
+     * measurements each fold's refit left out, per J' (NULL: none) */
+    double *cv, *cv_se;
+    size_t cv_folds, cv_held, cv_terms;
+    double cv_s; /* its time */
 };
 
+/* k-fold cross-validation of a scattered table's kept fit (job_cv.c). */
+sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job);
 double job_now(void);
 void job_progress(const sb_job_t *job, const char *label, double fraction);
 void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

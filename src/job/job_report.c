@@ -71,6 +71,9 @@ static void report_settings(sb_json_t *j, const sb_job_t *job) {
         double e = sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
         sb_json_bool(j, "max_error_met", e <= job->o.max_error);
         sb_json_number(j, "max_error_reached", e);
+    } else { /* no target */
+        sb_json_string(j, "max_error_met", NULL);
+        sb_json_number(j, "max_error_reached", NAN);
     }
     sb_json_string(j, "storage", job->o.half ? "half" : "float");
     sb_json_begin_array(j, "channels");
@@ -148,6 +151,9 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     sb_json_number(j, "overshoot", have ? e->overshoot[k] : NAN);
     sb_json_number(j, "negative_fraction", have ? e->neg_frac[k] : NAN);
     sb_json_number(j, "chroma_de", have ? e->chroma_de[k] : NAN);
+    double cse;
+    sb_json_number(j, "cv_headline", sb_job_cv(job, k + 1, &cse, NULL));
+    sb_json_number(j, "cv_headline_se", cse);
 }
 
 int sb_job_headline_non_increasing(const sb_job_t *job) {
@@ -200,6 +206,15 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
         sb_json_number(j, sb_interp_name((sb_interp_t)m), in->interp_cv[m]);
     sb_json_end_object(j);
     sb_json_int(j, "cv_held_out", (long long)in->cv_held_out);
+    sb_json_begin_object(j, "cv");
+    sb_json_int(j, "folds", (long long)job->cv_folds);
+    sb_json_int(j, "held_out", (long long)job->cv_held);
+    sb_json_string(j, "what",
+                   job->cv
+                       ? "errors[].cv_headline: relative L2 of f cos theta_i at the measurements, each predicted by "
+                         "the refit of the kept layout, form and J without its fold"
+                       : "not computed (a grid table, or cv_folds 1)");
+    sb_json_end_object(j);
     sb_json_int(j, "out_of_gamut", (long long)in->out_of_gamut);
     sb_json_string(j, "gamut", sb_gamut_name(in->gamut));
     sb_json_end_object(j);
@@ -295,6 +310,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     sb_json_number(j, "estimate_s", job->t.estimate_s);
     sb_json_number(j, "write_s", job->t.write_s);
     sb_json_number(j, "svd_s", job->svd_beside ? job->svd_s : NAN);
+    sb_json_number(j, "cv_s", job->cv ? job->cv_s : NAN);
     sb_json_number(j, "total_s", job->t.total_s);
     sb_json_end_object(j);
     report_files(j, job);

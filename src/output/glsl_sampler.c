@@ -14,6 +14,7 @@
 char *sb_glsl_sampler(const sb_param_t *p, size_t channels) {
     if (!p || (channels != 1 && channels != 3)) return NULL;
     const char *rows = sb_param_sample_glsl(p);
+    if (!*rows) return NULL; /* a layout whose rows are not light directions (vh): no sampler */
     size_t cap = strlen(rows) + strlen(sb_glsl_sample_text_) + 512;
     char *s = malloc(cap);
     if (!s) return NULL;

@@ -37,6 +37,7 @@
  * scattered_kd.c embeds and searches neighbours, scattered_fit.c fits and
  * evaluates, scattered_cv.c cross-validates the methods. */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -224,10 +225,32 @@ static sb_result_t table_source(sb_context_t *ctx, const char *path, table_t *t,
     return SB_OK;
 }
 
+size_t sb_measured_fold(size_t i, size_t folds) {
+    if (folds < 2) return 0;
+    uint64_t z = (uint64_t)i + 0x9e3779b97f4a7c15ull; /* splitmix64 */
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return (size_t)((z ^ (z >> 31)) % folds);
+}
+
+/* Cross-validation: drop the samples of fold o->cv_fold. */
+static void drop_fold(sb_samples_t *ss, const sb_measured_opts_t *o) {
+    if (o->cv_folds < 2) return;
+    size_t kept = 0;
+    for (size_t i = 0; i < ss->n; i++) {
+        if (sb_measured_fold(i, o->cv_folds) == o->cv_fold) continue;
+        if (kept != i)
+            memmove(ss->s + kept * SB_SAMPLE_DOUBLES, ss->s + i * SB_SAMPLE_DOUBLES, SB_SAMPLE_DOUBLES * sizeof *ss->s);
+        kept++;
+    }
+    ss->n = kept;
+}
+
 /* Build the source from the samples. */
 sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *ss, int iso, int recip,
                              const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out) {
     sb_interp_t interp = o->interp == SB_INTERP_DEFAULT ? SB_INTERP_QUADRATIC : o->interp; /* until cv chooses */
+    drop_fold(ss, o);
     if (ss->n == 0)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: no usable samples (%zu rows: %zu NaN, %zu at or below the horizon)",
                         path, info->rows, info->nan_rows, info->horizon_rows);
