@@ -687,3 +687,29 @@ SB_TEST(cv_predicts_unseen_measurements) {
     sb_job_destroy(job);
     sb_source_destroy(other);
 }
+
+/* convert to MERL says what it wrote that the table did not measure: an
+ * RGL file's f cos theta_o divided by grazing cosines exceeds its largest
+ * measured value (counted, and warned about by the CLI); a model has no
+ * measured range. */
+SB_TEST(convert_merl_reports_extrapolation) {
+    const char *dir = sb_tmpdir("mcli");
+    char src[4200], bin[4300];
+    snprintf(src, sizeof src, "%s/rgl_paper_white_rgb.bsdf", SB_MEASURED_DIR);
+    snprintf(bin, sizeof bin, "%s/p.binary", dir);
+    sb_source_t *s = NULL, *m = NULL;
+    CHECK(sb_source_open(NULL, src, &s) == SB_OK && sb_source_open(NULL, "lambert", &m) == SB_OK);
+    if (!s || !m) return;
+    sb_merl_write_stats_t st;
+    CHECK(sb_merl_write_stats(NULL, bin, s, &st) == SB_OK);
+    const sb_measured_info_t *in = sb_measured_source_info(s);
+    CHECK(st.cells == SB_MERL_CELLS && st.written > 0 && st.written < st.cells);
+    double vm = fmax(in->value_max[0], fmax(in->value_max[1], in->value_max[2]));
+    CHECKF(st.above > 0 && st.value_max > vm && st.value_measured == vm, "above %zu, max %g, measured %g (table %g)",
+           st.above, st.value_max, st.value_measured, vm);
+    CHECK(sb_merl_write_stats(NULL, bin, m, &st) == SB_OK && st.above == 0 && isnan(st.value_measured));
+    CHECK(cli("convert %s -o %s", src, bin) == 0);
+    CHECKF(strstr(out, "extrapolated, not measured") != NULL, "%s", out);
+    sb_source_destroy(s);
+    sb_source_destroy(m);
+}

@@ -306,6 +306,20 @@ int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
  * Evaluated in parallel; written to a temporary name, then renamed.
  * Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
+/* What sb_merl_write_stats wrote: cells with a value (the others -1),
+ * the largest f_r written, and, for a measured source, the cells above
+ * the largest value it measured (value_measured: a table's own range;
+ * interpolation between samples stays inside it, so these are
+ * extrapolated, e.g. an RGL table's f cos theta_o divided by a grazing
+ * cos theta_o) and the smallest theta_d index among them. */
+typedef struct sb_merl_write_stats {
+    size_t cells, written, above;
+    double value_max, value_measured; /* f_r, 1/sr; value_measured NaN for a model */
+    size_t above_td_min;              /* SB_MERL_TD when none */
+} sb_merl_write_stats_t;
+/* sb_merl_write, and what it wrote into *stats (may be NULL). */
+sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_source_t *src,
+                                sb_merl_write_stats_t *stats);
 
 /* ---- conversion ----------------------------------------------------------- */
 

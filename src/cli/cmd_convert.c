@@ -103,8 +103,9 @@ int cmd_convert(int argc, char **argv) {
         return EXIT_IO;
     }
     if ((r = sb_job_source_open(ctx, o.source, &o.mo, &src)) != SB_OK) goto fail;
+    sb_merl_write_stats_t st;
     if (o.format == OUT_MERL) {
-        if ((r = sb_merl_write(ctx, o.out, src)) != SB_OK) goto fail;
+        if ((r = sb_merl_write_stats(ctx, o.out, src, &st)) != SB_OK) goto fail;
     } else {
         char tmp[4200];
         FILE *fp = cli_open_tmp(o.out, tmp, sizeof tmp);
@@ -123,9 +124,17 @@ int cmd_convert(int argc, char **argv) {
             goto done;
         }
     }
-    if (o.format == OUT_MERL)
-        cli_info(1, "sepbrdf convert: %s to %s (MERL)", sb_source_description(src), o.out);
-    else
+    if (o.format == OUT_MERL) {
+        cli_info(1, "sepbrdf convert: %s to %s (MERL): %zu of %zu cells with a value (%.1f %%), largest f_r %.4g",
+                 sb_source_description(src), o.out, st.written, st.cells, 100.0 * (double)st.written / (double)st.cells,
+                 st.value_max);
+        if (st.above)
+            cli_error("convert",
+                      "warning: %zu cells hold values above the largest the table measured (%.4g, up to %.4g): "
+                      "extrapolated, not measured (e.g. an RGL table's f cos theta_o divided by a grazing cos "
+                      "theta_o); a fit of %s will spend its terms on them",
+                      st.above, st.value_measured, st.value_max, o.out);
+    } else
         cli_info(1, "sepbrdf convert: %zu rows of %s to %s (CSV)", rows, sb_source_description(src), o.out);
     rc = EXIT_OK;
     goto done;

@@ -387,6 +387,8 @@ typedef struct merl_job {
     const sb_source_t *src;
     double *v; /* 3 planes of stored values */
     size_t h0, h1;
+    double above;             /* f_r beyond which a cell counts in st.above (inf: none) */
+    sb_merl_write_stats_t st; /* this thread's share */
 } merl_job_t;
 
 static void *merl_fill(void *arg) {
@@ -398,12 +400,27 @@ static void *merl_fill(void *arg) {
             ok = isfinite(rgb[c]);
         for (int c = 0; c < 3; c++)
             j->v[(size_t)c * SB_MERL_CELLS + k] = ok ? rgb[c] / sb_merl_scale[c] : -1.0;
+        j->st.written += (size_t)ok;
+        double m = ok ? fmax(rgb[0], fmax(rgb[1], rgb[2])) : 0;
+        if (m > j->st.value_max) j->st.value_max = m;
+        if (m > j->above) {
+            size_t td = (k / SB_MERL_PD) % SB_MERL_TD;
+            j->st.above++;
+            if (td < j->st.above_td_min) j->st.above_td_min = td;
+        }
     }
     return NULL;
 }
 
 sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src) {
+    return sb_merl_write_stats(ctx, path, src, NULL);
+}
+
+sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_source_t *src,
+                                sb_merl_write_stats_t *stats) {
     if (!path || !src) return sb_error(ctx, SB_ERR_ARG, "merl write: missing path or source");
+    const sb_measured_info_t *in = sb_measured_source_info(src);
+    double vmax = in ? fmax(in->value_max[0], fmax(in->value_max[1], in->value_max[2])) : INFINITY;
     char tmp[4200];
     if (sb_tmp_name(path, tmp, sizeof tmp) != 0) return sb_error(ctx, SB_ERR_ARG, "%s: path too long", path);
     double *v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), "merl write");
@@ -412,10 +429,19 @@ sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t
     int nt = sb_threads_for(0, SB_MERL_TH, SB_MERL_TH, 0);
     merl_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (merl_job_t){src, v, 0, 0};
+        jobs[t] = (merl_job_t){src, v, 0, 0, vmax > 0 ? vmax : INFINITY, {0}};
+        jobs[t].st.above_td_min = SB_MERL_TD;
         sb_part(SB_MERL_TH, t, nt, &jobs[t].h0, &jobs[t].h1);
     }
     sb_parallel_run(merl_fill, jobs, sizeof *jobs, nt, NULL, NULL);
+    sb_merl_write_stats_t st = {SB_MERL_CELLS, 0, 0, 0, in && vmax > 0 ? vmax : NAN, SB_MERL_TD};
+    for (int t = 0; t < nt; t++) {
+        st.written += jobs[t].st.written;
+        st.above += jobs[t].st.above;
+        st.value_max = fmax(st.value_max, jobs[t].st.value_max);
+        if (jobs[t].st.above_td_min < st.above_td_min) st.above_td_min = jobs[t].st.above_td_min;
+    }
+    if (stats) *stats = st;
     /* Encode and write under the temporary name, then rename. */
     FILE *fp = fopen(tmp, "wb");
     if (!fp) {
