@@ -82,8 +82,8 @@ int batch_key(batch_item_t *it) {
                      "interp=%d neighbours=%zu radius=%.17g white=%d%s%s%s%s%s%s",
                      it->source, o->param ? o->param : "auto", o->form ? o->form : "-", o->weighted, o->zero_fill,
                      o->res, o->terms, o->metric_res, o->max_error, o->theta_max_deg, (int)o->method, o->seed,
-                     o->channels, o->half, o->previews, m->format ? m->format : "auto", (int)m->interp,
-                     m->neighbours, m->radius, (int)m->white, budget, o->warp ? " warp=" : "", o->warp ? o->warp : "",
+                     o->channels, o->half, o->previews, m->format ? m->format : "auto", (int)m->interp, m->neighbours,
+                     m->radius, (int)m->white, budget, o->warp ? " warp=" : "", o->warp ? o->warp : "",
                      o->scene ? " scene=" : "", o->scene ? o->scene : "", o->plain_terms ? " plain_terms=1" : "");
     return it->key ? 0 : -1;
 }
