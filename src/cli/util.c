@@ -406,14 +406,14 @@ int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size) {
 int cli_read_source_spec(const char *dir, char *buf, size_t size) {
     char path[4200];
     snprintf(path, sizeof path, "%s/report.json", dir);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return -1;
-    static char text[1 << 16];
-    size_t n = fread(text, 1, sizeof text - 1, fp);
-    fclose(fp);
-    text[n] = 0;
+    char *text = NULL;
+    size_t n;
+    if (cli_read_file(path, (size_t)1 << 26, &text, &n) != 0) return -1;
     const char *p = strstr(text, "\"source_spec\": \"");
-    if (!p) return -1;
+    if (!p) {
+        free(text);
+        return -1;
+    }
     p += strlen("\"source_spec\": \"");
     size_t k = 0;
     for (; *p && *p != '"' && k + 1 < size; p++) {
@@ -425,7 +425,9 @@ int cli_read_source_spec(const char *dir, char *buf, size_t size) {
         }
     }
     buf[k] = 0;
-    return *p == '"' && k > 0 ? 0 : -1;
+    int ok = *p == '"' && k > 0;
+    free(text);
+    return ok ? 0 : -1;
 }
 
 int cli_read_file(const char *path, size_t max, char **text, size_t *len) {

@@ -47,6 +47,8 @@ sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_mea
         if (!S_ISREG(st.st_mode)) return sb_error(ctx, SB_ERR_IO, "%s: not a regular file", spec);
     }
     if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open(ctx, spec, mo, out, NULL);
+    if (stat(spec, &st) == 0 && !S_ISDIR(st.st_mode)) /* a FIFO or device named like a model */
+        return sb_error(ctx, SB_ERR_IO, "%s: not a regular file (a device, FIFO or socket is not read)", spec);
     return sb_source_open(ctx, spec, out);
 }
 

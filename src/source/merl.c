@@ -350,10 +350,11 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
     if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
         return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
                         sb_interp_name(interp));
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    sb_result_t r;
+    FILE *fp = sb_fopen_regular(ctx, path, "MERL table", SB_MEASURED_MAX_FILE, &r);
+    if (!fp) return r;
     merl_t *m = NULL;
-    sb_result_t r = merl_check_head(ctx, path, fp);
+    r = merl_check_head(ctx, path, fp);
     if (r == SB_OK && !(m = calloc(1, sizeof *m))) r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
     if (r == SB_OK) {
         m->interp = interp;

@@ -73,10 +73,10 @@ typedef struct tf_file {
 } tf_file_t;
 
 static sb_result_t read_all(sb_context_t *ctx, const char *path, tf_file_t *tf) {
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    struct stat st;
     sb_result_t r = SB_OK;
+    FILE *fp = sb_fopen_regular(ctx, path, "RGL table", SB_MEASURED_MAX_FILE, &r);
+    if (!fp) return r;
+    struct stat st;
     if (fstat(fileno(fp), &st) != 0 || st.st_size < 0) {
         r = sb_error(ctx, SB_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
     } else if ((uintmax_t)st.st_size > SIZE_MAX / 2) {

@@ -1,0 +1,73 @@
+/* Reliability of reading (issue 34): every file the CLI and the library
+ * read is bounded, and devices and FIFOs are refused at once with a
+ * message naming the file (each run under `timeout`: a hang fails). */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+static char out[65536];
+
+/* Run `sepbrdf ARGS` in dir under a 30 s timeout; the exit code (124: it
+ * hung). */
+static int run_in(const char *dir, const char *args) {
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "cd %s && OPENBLAS_NUM_THREADS=1 timeout 30 %s %s", dir, SB_CLI, args);
+    return sb_run(cmd, out, sizeof out);
+}
+
+/* --scene pairs= a device, a FIFO without a writer, a file beyond the
+ * size limit (sparse: nothing is read); a source, a table for info and a
+ * factor folder that are FIFOs or devices: exit 2, the file named. */
+SB_TEST(devices_and_fifos_refused) {
+    const char *dir = sb_tmpdir("rel_fifo");
+    char path[4200];
+    snprintf(path, sizeof path, "%s/fifo", dir);
+    CHECK(mkfifo(path, 0600) == 0);
+    snprintf(path, sizeof path, "%s/huge.txt", dir);
+    FILE *fp = fopen(path, "w");
+    CHECK(fp != NULL);
+    if (fp) fclose(fp);
+    CHECK(truncate(path, (off_t)300 << 20) == 0);
+    static const char *const cases[][2] = {
+        {"factor -r 8 -J 1 --scene pairs=/dev/zero -o o", "/dev/zero"},
+        {"factor -r 8 -J 1 --scene pairs=fifo -o o", "fifo"},
+        {"factor -r 8 -J 1 --scene pairs=huge.txt -o o", "huge.txt"},
+        {"factor fifo -r 8 -J 1 -o o", "fifo"},
+        {"factor /dev/zero -r 8 -J 1 -o o", "/dev/zero"},
+        {"info fifo", "fifo"},
+        {"batch fifo -r 8 -J 1 -o b", "fifo"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        int rc = run_in(dir, cases[i][0]);
+        CHECKF(rc == 2 && strstr(out, cases[i][1]), "%s: rc %d: %s", cases[i][0], rc, out);
+    }
+    snprintf(path, sizeof path, "%s/o", dir);
+    CHECK(!sb_file_exists(path)); /* nothing was written */
+}
+
+/* The library's readers refuse devices and FIFOs with SB_ERR_IO and a
+ * message naming the file. */
+SB_TEST(library_readers_refuse_devices) {
+    const char *dir = sb_tmpdir("rel_lib");
+    char fifo[4200], spec[4300];
+    snprintf(fifo, sizeof fifo, "%s/t.binary", dir);
+    CHECK(mkfifo(fifo, 0600) == 0);
+    sb_context_t *ctx = NULL;
+    CHECK(sb_context_create(&ctx) == SB_OK);
+    const char *paths[2] = {"/dev/zero", fifo};
+    for (int i = 0; i < 2; i++) {
+        sb_source_t *src = NULL;
+        sb_scene_t *s = NULL;
+        CHECK(sb_measured_open(ctx, paths[i], NULL, &src, NULL) == SB_ERR_IO && !src);
+        CHECKF(strstr(sb_context_last_error(ctx), paths[i]) != NULL, "%s", sb_context_last_error(ctx));
+        snprintf(spec, sizeof spec, "pairs=%s", paths[i]);
+        CHECK(sb_scene_parse(ctx, spec, &s) == SB_ERR_IO && !s);
+        CHECKF(strstr(sb_context_last_error(ctx), "not a regular file"), "%s", sb_context_last_error(ctx));
+    }
+    sb_context_destroy(ctx);
+}
