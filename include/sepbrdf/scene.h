@@ -100,7 +100,7 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
 
 /* The square-root weights W_r (rows values), W_c (cols values) into w of
  * the separable fit W_r^2 W_c^2 ~ mass on its positive cells (header),
- * each at least 1e-3 of its side's largest. */
+ * each at least 1e-3 of its side's largest (nothing for a NULL mass or w). */
 void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
 
 /* Weights for a fit of m on the scene: cells with mass 0 get mask 0 in m

@@ -332,6 +332,7 @@ int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], doub
 const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
+    if (!wi || !wo) return;
     double d[3], ct = cos(theta_h), st = sin(theta_h), h[3] = {st, 0, ct}, l[3], v[3];
     sb_dir_from_angles(theta_d, phi_d, d);
     l[0] = d[0] * ct + d[2] * st;
