@@ -25,11 +25,25 @@
 /* An argument of type T for pass 0 (zero), 1 (huge) or 2 (negative, NaN);
  * pointers and structs are zero in every pass. */
 #define SB_HUGE(T)                                                                                                     \
-    _Generic((T){0}, size_t: (size_t)SIZE_MAX, long: LONG_MAX, int: INT_MAX, unsigned: UINT_MAX,                      \
-             long long: LLONG_MAX, unsigned long long: ULLONG_MAX, double: 1e300, float: 1e30f, default: (T){0})
+    _Generic((T){0}, size_t                                                                                            \
+             : (size_t)SIZE_MAX, long                                                                                  \
+             : LONG_MAX, int                                                                                           \
+             : INT_MAX, unsigned                                                                                       \
+             : UINT_MAX, long long                                                                                     \
+             : LLONG_MAX, unsigned long long                                                                           \
+             : ULLONG_MAX, double : 1e300, float : 1e30f, default                                                      \
+             : (T){0})
 #define SB_NEG(T)                                                                                                      \
-    _Generic((T){0}, size_t: (size_t)SIZE_MAX / 2 + 1, long: -1L, int: -1, unsigned: UINT_MAX / 2 + 1,                \
-             long long: -1LL, unsigned long long: ULLONG_MAX / 2 + 1, double: NAN, float: NAN, default: (T){0})
+    _Generic((T){0}, size_t                                                                                            \
+             : (size_t)SIZE_MAX / 2 + 1, long                                                                          \
+             : -1L, int                                                                                                \
+             : -1, unsigned                                                                                            \
+             : UINT_MAX / 2 + 1, long long                                                                             \
+             : -1LL, unsigned long long                                                                                \
+             : ULLONG_MAX / 2 + 1, double                                                                              \
+             : NAN, float                                                                                              \
+             : NAN, default                                                                                            \
+             : (T){0})
 #define SB_ARG(T, pass) ((pass) == 0 ? (T){0} : (pass) == 1 ? (T)SB_HUGE(T) : (T)SB_NEG(T))
 
 #include "api_null_calls.h"
