@@ -72,3 +72,27 @@ SB_TEST(factor_answers) {
     snprintf(rm, sizeof rm, "rm -rf %s", dir);
     CHECK(system(rm) == 0);
 }
+
+/* --param auto candidates lost to the memory limit (--memory-limit, which
+ * also holds under the sanitizers) are warnings on stderr and in
+ * report.json, one per candidate; with room for all, none. */
+SB_TEST(lost_candidates_warned) {
+    static char out[1 << 16];
+    const char *dir = sb_tmpdir("memlost");
+    char cmd[8192], path[4200];
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor microfacet:roughness=0.3 -r 24 -J 2 --memory-limit 3M -o lim", dir,
+             SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "warning: --param auto lost the candidate hd/f (memory)"), "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/lim/report.json", dir);
+    FILE *fp = fopen(path, "r");
+    static char json[1 << 20];
+    size_t n = fp ? fread(json, 1, sizeof json - 1, fp) : 0;
+    if (fp) fclose(fp);
+    json[n] = 0;
+    const char *w = strstr(json, "\"warnings\": [");
+    CHECKF(w && strstr(w, "lost the candidate hd/f (memory)"), "report.json warnings: %.300s", w ? w : "none");
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor microfacet:roughness=0.3 -r 24 -J 2 -o free", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && !strstr(out, "lost the candidate"), "rc %d: %s", rc, out);
+}

@@ -98,7 +98,7 @@ const tf_field_t *tf_find(const tf_file_t *tf, const char *name) {
 
 /* A required float32 field of `ndim` dimensions, each >= lo[d]. */
 sb_result_t tf_need_f32(sb_context_t *ctx, const char *path, const tf_file_t *tf, const char *name, size_t ndim,
-                            const size_t *lo, const tf_field_t **out) {
+                        const size_t *lo, const tf_field_t **out) {
     const tf_field_t *f = tf_find(tf, name);
     if (!f) return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: missing field '%s'", path, name);
     if (f->dtype != 10 || f->ndim != ndim)
