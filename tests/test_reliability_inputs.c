@@ -71,3 +71,44 @@ SB_TEST(library_readers_refuse_devices) {
     }
     sb_context_destroy(ctx);
 }
+
+/* Each bad value is named by the option (or the SOURCE) that carried it:
+ * a model key out of range is not blamed on --terms, J too large is, the
+ * pairs file of --scene names --scene; every option of the factor group
+ * with a bad value names itself (exit 1). */
+SB_TEST(option_errors_name_the_option) {
+    const char *dir = sb_tmpdir("rel_opts");
+    int rc = run_in(dir, "factor microfacet:roughness=-1 -r 8 -J 1 -o o");
+    CHECKF(rc == 1 && strstr(out, "roughness") && !strstr(out, "--terms"), "rc %d: %s", rc, out);
+    rc = run_in(dir, "factor lambert --param io -r 8 -J 100 -o o");
+    CHECKF(rc == 1 && strstr(out, "--terms 100"), "rc %d: %s", rc, out);
+    rc = run_in(dir, "factor lambert -r 8 -J 1 --scene pairs=nowhere.txt -o o");
+    CHECKF(rc == 2 && strstr(out, "--scene") && strstr(out, "nowhere.txt"), "rc %d: %s", rc, out);
+    static const char *const bad[][2] = {
+        {"--res", "abc"},
+        {"--terms", "0"},
+        {"--form", "x"},
+        {"--warp", "q"},
+        {"--method", "zz"},
+        {"--channels", "Q"},
+        {"--seed", "-1"},
+        {"--memory-limit", "3Q"},
+        {"--budget", "0"},
+        {"--theta-max", "100"},
+        {"--metric-res", "1"},
+        {"--interp", "bogus"},
+        {"--neighbours", "0"},
+        {"--radius", "-1"},
+        {"--white", "x"},
+        {"--gamut", "x"},
+        {"--param", "'hd:res=8,warp_h=0.5/0.2'"},
+        {"--scene", "'lights=100,0'"},
+        {"--max-error", "2"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        char args[512];
+        snprintf(args, sizeof args, "factor lambert %s %s -o o", bad[i][0], bad[i][1]);
+        rc = run_in(dir, args);
+        CHECKF(rc == 1 && strstr(out, bad[i][0]), "%s: rc %d: %s", args, rc, out);
+    }
+}
