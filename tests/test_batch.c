@@ -550,3 +550,32 @@ SB_TEST(nothing_to_do_is_an_error) {
     sb_run(cmd, out, sizeof out);
     CHECKF(atoi(out) == 0, "%s", out);
 }
+
+/* A batch killed while its workers run (SIGKILL to the batch alone, as a
+ * job control or a cluster might): the workers keep OUT locked, so a
+ * batch of other settings started then is refused; once they end, it runs
+ * and its summary agrees with every folder. */
+SB_TEST(orphaned_workers_keep_the_lock) {
+    const char *dir = setup("batch_orphan", "");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd %s && { %s batch m.csv tables --param io -r 32 -J 3 -o w -j 2 -q & P=$!; i=0; "
+             "while [ -z \"$(pgrep -P $P)\" ] && [ $i -lt 500 ]; do sleep 0.01; i=$((i+1)); done; "
+             "K=$(pgrep -P $P | tr '\\n' ' '); kill -KILL $P; wait $P 2>/dev/null; "
+             "%s batch m.csv tables --param io -r 8 -J 2 -o w -j 1 -q 2>second.err; echo second=$?; alive=0; "
+             "for k in $K; do kill -0 $k 2>/dev/null && alive=1; done; echo alive=$alive; "
+             "for k in $K; do while kill -0 $k 2>/dev/null; do sleep 0.05; done; done; }",
+             dir, SB_CLI, SB_CLI);
+    sb_run(cmd, out, sizeof out);
+    const char *s = strstr(out, "second="), *a = strstr(out, "alive=");
+    CHECKF(s && a, "%s", out);
+    if (!s || !a) return;
+    if (atoi(a + 6) != 1) SKIP("the workers ended before the second batch could start");
+    CHECKF(atoi(s + 7) == 2, "second batch: %s", out);
+    char *err = slurp(dir, "second.err", NULL, NULL);
+    CHECKF(err && strstr(err, "another batch"), "%s", err ? err : "");
+    free(err);
+    int rc = batch(dir, "w", "--param io -r 8 -J 2 -j 2 -q"), rows = 0;
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(summary_disagrees(dir, "w", &rows) == 0 && rows == 5);
+}
