@@ -21,12 +21,21 @@ static int run_in(const char *dir, const char *args) {
 }
 
 /* --scene pairs= a device, a FIFO without a writer, a file beyond the
- * size limit (sparse: nothing is read); a source, a table for info and a
- * factor folder that are FIFOs or devices: exit 2, the file named. */
+ * size limit (sparse: nothing is read); a source, a table or texture for
+ * info, a factor folder for render and view whose files are FIFOs or
+ * devices: exit 2, the file named. */
 SB_TEST(devices_and_fifos_refused) {
     const char *dir = sb_tmpdir("rel_fifo");
     char path[4200];
     snprintf(path, sizeof path, "%s/fifo", dir);
+    CHECK(mkfifo(path, 0600) == 0);
+    snprintf(path, sizeof path, "%s/t.exr", dir);
+    CHECK(mkfifo(path, 0600) == 0);
+    snprintf(path, sizeof path, "%s/set", dir);
+    CHECK(mkdir(path, 0700) == 0);
+    snprintf(path, sizeof path, "%s/set/report.json", dir);
+    CHECK(mkfifo(path, 0600) == 0);
+    snprintf(path, sizeof path, "%s/set/g_00.exr", dir);
     CHECK(mkfifo(path, 0600) == 0);
     snprintf(path, sizeof path, "%s/huge.txt", dir);
     FILE *fp = fopen(path, "w");
@@ -41,6 +50,9 @@ SB_TEST(devices_and_fifos_refused) {
         {"factor /dev/zero -r 8 -J 1 -o o", "/dev/zero"},
         {"info fifo", "fifo"},
         {"batch fifo -r 8 -J 1 -o b", "fifo"},
+        {"info t.exr", "t.exr"},
+        {"render set --size 16 -o r.png", "set/"},
+        {"view set -o v.html", "set/"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
         int rc = run_in(dir, cases[i][0]);
