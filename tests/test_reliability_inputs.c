@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "harness.h"
@@ -123,4 +124,23 @@ SB_TEST(option_errors_name_the_option) {
         rc = run_in(dir, args);
         CHECKF(rc == 1 && strstr(out, bad[i][0]), "%s: rc %d: %s", args, rc, out);
     }
+}
+
+/* A probe folder left by a process killed while it checked the output's
+ * parent (.sepbrdf-probe-PID of a process that is gone) is removed by the
+ * next run there; a live process's probe stays. */
+SB_TEST(stale_probe_removed) {
+    const char *dir = sb_tmpdir("rel_probe");
+    pid_t p = fork();
+    if (p == 0) _exit(0);
+    waitpid(p, NULL, 0); /* p is gone */
+    char stale[4200], live[4200];
+    snprintf(stale, sizeof stale, "%s/.sepbrdf-probe-%ld", dir, (long)p);
+    snprintf(live, sizeof live, "%s/.sepbrdf-probe-%ld", dir, (long)getppid());
+    CHECK(mkdir(stale, 0700) == 0 && mkdir(live, 0700) == 0);
+    int rc = run_in(dir, "factor lambert -r 8 -J 1 --param io -q -o out");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(!sb_file_exists(stale));
+    CHECK(sb_file_exists(live));
+    rmdir(live);
 }
