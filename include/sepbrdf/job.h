@@ -262,6 +262,10 @@ double sb_job_svd_headline(const sb_job_t *job, size_t terms);
 double sb_job_svd_rel_rms(const sb_job_t *job, size_t terms);
 int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
 size_t sb_job_candidate_count(const sb_job_t *job);
+/* The candidates of --param auto lost to memory (the memory limit, an
+ * allocation) or a failure, each also a warning; not those ranked out or
+ * too small for J.  0 for a NULL job. */
+size_t sb_job_lost_count(const sb_job_t *job);
 const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
 void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
 /* The budget search (opts.budget): 1 and *out filled when the job ran with

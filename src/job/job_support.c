@@ -58,11 +58,27 @@ void job_warn_support(sb_job_t *job) {
     job->nsupport = job->nwarn - before;
 }
 
+/* Whether candidate c was lost to memory (the limit or an allocation); to
+ * a failure: lost(c) and not lost_to_memory(c). */
+static int lost_to_memory(const sb_job_candidate_t *c) {
+    return c->result == SB_ERR_NOMEM || c->result == SB_ERR_OVERFLOW || strstr(c->why, "memory limit");
+}
+static int lost(const sb_job_candidate_t *c) {
+    return !c->ok && !c->kept && c->why[0] && (c->result != SB_OK || lost_to_memory(c));
+}
+
+size_t sb_job_lost_count(const sb_job_t *job) {
+    size_t n = 0;
+    for (size_t i = 0; job && i < job->ncand; i++)
+        n += (size_t)lost(&job->cands[i]);
+    return n;
+}
+
 void job_warn_lost(sb_job_t *job) {
     for (size_t i = 0; i < job->ncand; i++) {
         const sb_job_candidate_t *c = &job->cands[i];
-        int mem = c->result == SB_ERR_NOMEM || c->result == SB_ERR_OVERFLOW || strstr(c->why, "memory limit");
-        if (c->ok || c->kept || !c->why[0] || (c->result == SB_OK && !mem)) continue;
+        int mem = lost_to_memory(c);
+        if (!lost(c)) continue;
         job_warn(job, "--param auto lost the candidate %s/%s (%s): %s; the layout kept may be worse than it",
                  sb_param_kind_name(c->kind), sb_form_name(c->form),
                  mem                           ? "memory"
