@@ -579,3 +579,31 @@ SB_TEST(orphaned_workers_keep_the_lock) {
     CHECKF(rc == 0, "rc %d: %s", rc, out);
     CHECK(summary_disagrees(dir, "w", &rows) == 0 && rows == 5);
 }
+
+/* Two materials whose file names share their first 150 characters: two
+ * folders (long names keep their start and a hash of the whole), the
+ * summary naming each whole source, both reused by a rerun. */
+SB_TEST(long_names_kept_apart) {
+    const char *dir = sb_tmpdir("batch_names");
+    char cmd[8192], stem[160];
+    memset(stem, 'm', 150);
+    stem[150] = 0;
+    snprintf(cmd, sizeof cmd,
+             "cd %s && mkdir in && cp %s/cornell_acryl_blue.brdf in/%s_a.brdf && cp in/%s_a.brdf in/%s_b.brdf", dir,
+             SB_MEASURED_DIR, stem, stem, stem);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch in -r 8 -J 1 --param io -o o -q", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out), rows = 0;
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(summary_disagrees(dir, "o", &rows) == 0 && rows == 2);
+    char *csv = slurp(dir, "o", "summary.csv", NULL);
+    for (int k = 0; k < 2 && csv; k++) {
+        char whole[200];
+        snprintf(whole, sizeof whole, ",in/%s_%c.brdf,", stem, 'a' + k);
+        CHECKF(strstr(csv, whole) != NULL, "source %c not whole in %s", 'a' + k, csv);
+    }
+    free(csv);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch in -r 8 -J 1 --param io -o o", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "2 materials, 2 reused"), "rc %d: %.300s", rc, out);
+}

@@ -55,18 +55,22 @@ void batch_unlock(int fd) {
     if (fd >= 0) close(fd); /* releases the lock once the workers have closed their copies too */
 }
 
-/* printf into a new string; NULL when out of memory. */
+/* printf into a new string (a memory stream: any length); NULL when out
+ * of memory. */
 static char *format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 static char *format(const char *fmt, ...) {
+    char *s = NULL;
+    size_t n = 0;
+    FILE *fp = open_memstream(&s, &n);
+    if (!fp) return NULL;
     va_list ap;
     va_start(ap, fmt);
-    int n = vsnprintf(NULL, 0, fmt, ap);
+    int bad = vfprintf(fp, fmt, ap) < 0;
     va_end(ap);
-    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
-    if (!s) return NULL;
-    va_start(ap, fmt);
-    vsnprintf(s, (size_t)n + 1, fmt, ap);
-    va_end(ap);
+    if (fclose(fp) != 0 || bad) {
+        free(s);
+        return NULL;
+    }
     return s;
 }
 

@@ -54,7 +54,8 @@ static void help(void) {
            "NAME   the file name without its extension, or the spec with other\n"
            "       characters than letters, digits, '-' and '.' as '_'; a manifest row\n"
            "       that sets param appends _PARAM, one that sets terms _JN (several\n"
-           "       layouts and J of one material).\n"
+           "       layouts and J of one material); a name past 80 characters (a\n"
+           "       PARAM past 30) keeps its start and a hash of the whole.\n"
            "\n"
            "A material whose folder already holds a complete set of the same settings\n"
            "is reused (a batch interrupted and run again finishes the rest). A material\n"
@@ -82,6 +83,20 @@ static char name_char(char c, int first) {
     return keep ? c : '_';
 }
 
+/* s[0..n) as folder-name characters into buf; longer than keep, its first
+ * keep - 9 characters and a hash of the whole (FNV-1a), so that long
+ * names stay apart and fit a file system's limit. */
+static void short_name(const char *s, size_t n, size_t keep, char *buf, size_t size) {
+    unsigned long long h = 1469598103934665603ull;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ (unsigned char)s[i]) * 1099511628211ull;
+    size_t k = 0, take = n <= keep ? n : keep - 9;
+    for (; k < take && k + 1 < size; k++)
+        buf[k] = name_char(s[k], k == 0);
+    buf[k] = 0;
+    if (n > keep) snprintf(buf + k, size - k, "-%08llx", h & 0xffffffffull);
+}
+
 /* A folder's name from spec or file into buf: see help. */
 static void item_name(const char *source, const char *suffix, char *buf, size_t size) {
     const char *base = source;
@@ -93,11 +108,8 @@ static void item_name(const char *source, const char *suffix, char *buf, size_t 
         dot = strrchr(base, '.');
         n = dot && dot != base ? (size_t)(dot - base) : strlen(base);
     }
-    size_t k = 0;
-    for (size_t i = 0; i < n && k + 1 < size; i++, k++) {
-        buf[k] = name_char(base[i], k == 0);
-    }
-    buf[k] = 0;
+    short_name(base, n, 80, buf, size);
+    size_t k = strlen(buf);
     if (suffix) snprintf(buf + k, size - k, "%s", suffix);
 }
 
@@ -185,16 +197,8 @@ static int csv_row(char **p, char **cells, int max, int *lines) {
 /* The folder suffix of a row's layout: _PARAM, or for a long spec (a warp
  * table) its start and a hash of the whole, so two long specs stay apart. */
 static void param_suffix(const char *param, char *buf, size_t size) {
-    size_t n = strlen(param);
-    unsigned long long h = 1469598103934665603ull; /* FNV-1a */
-    for (size_t i = 0; i < n; i++)
-        h = (h ^ (unsigned char)param[i]) * 1099511628211ull;
-    if (n <= 30)
-        snprintf(buf, size, "_%s", param);
-    else
-        snprintf(buf, size, "_%.20s-%08llx", param, h & 0xffffffffull);
-    for (char *c = buf + 1; *c; c++) /* a folder's name */
-        *c = name_char(*c, 0);
+    buf[0] = '_';
+    short_name(param, strlen(param), 30, buf + 1, size - 1);
 }
 
 /* The option of manifest column `col` set to `cell` in o; 0 or -1 (message

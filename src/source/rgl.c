@@ -475,10 +475,10 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
         info->flags = SB_SOURCE_MEASURED | (g->isotropic ? SB_SOURCE_ISOTROPIC : 0u);
         rgl_stats(g, info);
         rgl_fields(&tf, g, info);
-        char desc[1200];
-        snprintf(desc, sizeof desc, "rgl:%s", path);
+        char *desc = sb_format("rgl:%s", path); /* paths of any length */
         sb_source_ops_t ops = {rgl_eval, rgl_destroy};
-        r = sb_source_create(ctx, &ops, g, info->flags, desc, out);
+        r = desc ? sb_source_create(ctx, &ops, g, info->flags, desc, out) : SB_ERR_NOMEM;
+        free(desc);
         if (r == SB_OK) sb_source_set_samples_(*out, sb_rgl_sample_count_, sb_rgl_sample_);
     }
     if (r != SB_OK) rgl_destroy(g);

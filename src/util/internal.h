@@ -8,6 +8,9 @@
 #include "sepbrdf/common.h"
 
 char *sb_strdup(const char *s);
+/* printf into a new string of any length (the caller frees it); NULL when
+ * out of memory. */
+char *sb_format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* malloc with the overflow-checked product count * size and the memory
  * limit; reports through ctx naming `what`.  NULL on failure. */
 void *sb_alloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
