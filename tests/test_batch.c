@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "batch_util.h"
 #include "harness.h"
 
 #define OPTS "--param io -r 8 -J 2"
@@ -47,19 +48,6 @@ static int batch(const char *dir, const char *outdir, const char *more) {
     char cmd[8192];
     snprintf(cmd, sizeof cmd, "cd %s && %s batch m.csv tables " OPTS " -o %s %s", dir, SB_CLI, outdir, more);
     return sb_run(cmd, out, sizeof out);
-}
-
-static char *slurp(const char *dir, const char *a, const char *b, size_t *size) {
-    char path[16384];
-    snprintf(path, sizeof path, "%s/%s%s%s", dir, a, b ? "/" : "", b ? b : "");
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return NULL;
-    char *buf = malloc(1 << 20);
-    size_t n = buf ? fread(buf, 1, (1 << 20) - 1, fp) : 0;
-    fclose(fp);
-    if (buf) buf[n] = 0;
-    if (size) *size = n;
-    return buf;
 }
 
 /* The summary.csv of run `o` without its time_s column (12th), quotes
@@ -317,19 +305,6 @@ static int csv_cell(const char **p, char *buf, size_t size) {
     return *s == ',';
 }
 
-/* The value of top-level key `key` in report.json text: a string's text
- * or a number's digits, into buf; 0 when absent. */
-static int report_value(const char *json, const char *key, char *buf, size_t size) {
-    char pat[64];
-    snprintf(pat, sizeof pat, "\n  \"%s\": ", key);
-    const char *at = json ? strstr(json, pat) : NULL;
-    if (!at) return 0;
-    at += strlen(pat);
-    size_t n = *at == '"' ? strcspn(++at, "\"") : strcspn(at, ",\n");
-    snprintf(buf, size, "%.*s", (int)(n < size ? n : size - 1), at);
-    return 1;
-}
-
 /* The number of rows of o/summary.csv whose layout and J are not those of
  * the set their folder holds (report.json), or whose status is ok without
  * a set; -1 without a summary.  *rows: the rows read. */
@@ -469,86 +444,6 @@ SB_TEST(long_layout_spec) {
     snprintf(cmd, sizeof cmd, "cd %s && %s batch w.csv -J 2 -o w", dir, SB_CLI);
     rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0 && strstr(out, "1 materials, 1 reused"), "rc %d: %.300s", rc, out);
-}
-
-/* ---- manifests read as CSV is read (issue 34) ---------------------------- */
-
-/* Run `batch FILE -o m` in a fresh folder holding FILE with `text`. */
-static int manifest_run(const char *tag, const char *file, const char *text) {
-    const char *dir = sb_tmpdir(tag);
-    char cmd[8192];
-    snprintf(cmd, sizeof cmd, "%s/%s", dir, file);
-    FILE *fp = fopen(cmd, "w");
-    if (!fp) return -1;
-    fputs(text, fp);
-    fclose(fp);
-    snprintf(cmd, sizeof cmd, "cd %s && %s batch %s -r 8 -J 1 -o m -q", dir, SB_CLI, file);
-    return sb_run(cmd, out, sizeof out);
-}
-
-/* A comma inside a cell unquoted makes more cells than the header: an
- * error naming the file and row, not a material with a cut spec. */
-SB_TEST(manifest_extra_cells) {
-    int rc = manifest_run("batch_extra", "x.csv", "source\nlambert\nmicrofacet:base=silver,roughness=0.3\n");
-    CHECKF(rc == 1, "rc %d: %s", rc, out);
-    CHECKF(strstr(out, "x.csv:3:") && strstr(out, "more cells"), "%s", out);
-    rc = manifest_run("batch_extra2", "y.csv", "source,terms\nlambert,1,,\n");
-    CHECKF(rc == 1 && strstr(out, "y.csv:2:"), "rc %d: %s", rc, out);
-}
-
-/* Quoted cells: commas, doubled quotes and line breaks inside; the rows
- * after a multi-line cell keep their line numbers. */
-SB_TEST(manifest_quoted) {
-    int rc = manifest_run("batch_quoted", "q.csv",
-                          "source,terms\r\n\"microfacet:base=silver,roughness=0.3\",1\r\n\"lambert\",\"1\"\r\n");
-    CHECKF(rc == 0, "rc %d: %s", rc, out);
-    rc = manifest_run("batch_quoted2", "q.csv", "source,form\n\"lambert\",\"f\nx\"\nlambert,bad\n");
-    CHECKF(rc == 1 && strstr(out, "q.csv:2:") && strstr(out, "column 'form'"), "rc %d: %s", rc, out);
-    rc = manifest_run("batch_quoted3", "q.csv", "source\n\"lambert\n");
-    CHECKF(rc == 1 && strstr(out, "q.csv:2:") && strstr(out, "never closed"), "rc %d: %s", rc, out);
-}
-
-/* The quoted row factors the whole spec: silver at roughness 0.3. */
-SB_TEST(manifest_quoted_spec_whole) {
-    const char *dir = sb_tmpdir("batch_whole");
-    char cmd[8192];
-    snprintf(cmd, sizeof cmd,
-             "cd %s && printf 'source\\n\"microfacet:base=silver,roughness=0.3\"\\n' > q.csv && "
-             "%s batch q.csv -r 8 -J 1 -o m -q",
-             dir, SB_CLI);
-    int rc = sb_run(cmd, out, sizeof out);
-    CHECKF(rc == 0, "rc %d: %s", rc, out);
-    char *json = slurp(dir, "m/microfacet_base_silver_roughness_0.3", "report.json", NULL);
-    char spec[256] = "";
-    CHECK(json && report_value(json, "source_spec", spec, sizeof spec));
-    CHECKF(strcmp(spec, "microfacet:base=silver,roughness=0.3") == 0, "source_spec %s", spec);
-    free(json);
-}
-
-/* Nothing to do is an error: an empty manifest, a header alone, a folder
- * without material files, a glob matching nothing; a FIFO or device as
- * manifest is refused at once (no wait for a writer). */
-SB_TEST(nothing_to_do_is_an_error) {
-    static const char *const texts[][2] = {
-        {"", "no 'source' column"}, {"source,terms\n", "no material rows"}, {"source\n\n\n", "no material rows"}};
-    for (int i = 0; i < 3; i++) {
-        int rc = manifest_run("batch_empty", "e.csv", texts[i][0]);
-        CHECKF(rc == 1 && strstr(out, "e.csv") && strstr(out, texts[i][1]), "case %d: rc %d: %s", i, rc, out);
-    }
-    const char *dir = sb_tmpdir("batch_none");
-    char cmd[8192];
-    snprintf(cmd, sizeof cmd, "cd %s && mkdir empty && touch empty/notes.txt && %s batch empty -o o", dir, SB_CLI);
-    int rc = sb_run(cmd, out, sizeof out);
-    CHECKF(rc == 2 && strstr(out, "'empty': no material file"), "rc %d: %s", rc, out);
-    snprintf(cmd, sizeof cmd, "cd %s && %s batch 'empty/*.binary' -o o", dir, SB_CLI);
-    rc = sb_run(cmd, out, sizeof out);
-    CHECKF(rc == 2 && strstr(out, "matches no file"), "rc %d: %s", rc, out);
-    snprintf(cmd, sizeof cmd, "cd %s && mkfifo f.csv && timeout 20 %s batch f.csv -o o", dir, SB_CLI);
-    rc = sb_run(cmd, out, sizeof out);
-    CHECKF(rc == 2 && strstr(out, "f.csv: not a regular file"), "rc %d: %s", rc, out);
-    snprintf(cmd, sizeof cmd, "cd %s && ls o 2>/dev/null | wc -l", dir);
-    sb_run(cmd, out, sizeof out);
-    CHECKF(atoi(out) == 0, "%s", out);
 }
 
 /* A batch killed while its workers run (SIGKILL to the batch alone, as a

@@ -89,6 +89,8 @@ int batch_key(batch_item_t *it) {
                      o->channels, o->half, o->previews, m->format ? m->format : "auto", (int)m->interp, m->neighbours,
                      m->radius, (int)m->white, budget, o->warp ? " warp=" : "", o->warp ? o->warp : "",
                      o->scene ? " scene=" : "", o->scene ? o->scene : "", o->plain_terms ? " plain_terms=1" : "");
+    for (char *c = it->key; c && *c; c++) /* one line of batch.txt, whatever the names hold */
+        if (*c == '\n' || *c == '\r') *c = '\t';
     return it->key ? 0 : -1;
 }
 
