@@ -44,7 +44,24 @@
              : NAN, float                                                                                              \
              : NAN, default                                                                                            \
              : (T){0})
-#define SB_ARG(T, pass) ((pass) == 0 ? (T){0} : (pass) == 1 ? (T)SB_HUGE(T) : (T)SB_NEG(T))
+/* Pass 3: valid handles (made once, before the children fork), every
+ * other argument zero or NULL: a function given a real object and no
+ * output must not crash either. */
+static struct {
+    sb_context_t *ctx;
+    sb_source_t *src;
+    sb_param_t *param;
+    sb_job_t *job;
+    sb_scene_t *scene;
+    sb_json_t json;
+} h;
+#define SB_VALID(T)                                                                                                    \
+    _Generic((T){0}, sb_context_t *: h.ctx, const sb_source_t *: h.src, const sb_param_t *: h.param,                  \
+             const sb_job_t *: h.job, sb_job_t *: h.job, const sb_factors_t *: sb_job_factors(h.job),                 \
+             const sb_matrix_t *: sb_job_matrix(h.job), const sb_scene_t *: h.scene, sb_json_t *: &h.json,            \
+             FILE *: h.json.fp, default: (T){0})
+#define SB_ARG(T, pass)                                                                                                \
+    ((pass) == 0 ? (T){0} : (pass) == 1 ? (T)SB_HUGE(T) : (pass) == 2 ? (T)SB_NEG(T) : (T)SB_VALID(T))
 
 #include "api_null_calls.h"
 
@@ -70,11 +87,25 @@ static int survives(void (*call)(int), int pass, char *why, size_t size) {
     return WIFEXITED(st) && WEXITSTATUS(st) == 0 ? 0 : -1;
 }
 
+/* The handles of pass 3: lambert on an io grid of 8, factored with J = 1. */
+static int make_handles(void) {
+    sb_job_opts_t o = {0};
+    o.source = "lambert";
+    o.param = "io";
+    o.res = 8;
+    o.terms = 1;
+    h.json.fp = fopen("/dev/null", "w");
+    return sb_context_create(&h.ctx) == SB_OK && sb_model_create(h.ctx, "lambert", &h.src) == SB_OK &&
+           sb_param_create(h.ctx, SB_PARAM_IO, NULL, &h.param) == SB_OK && sb_job_run(h.ctx, &o, &h.job) == SB_OK &&
+           sb_scene_parse(h.ctx, "view=0..60;light=0..60", &h.scene) == SB_OK && h.json.fp;
+}
+
 SB_TEST(every_public_function) {
-    static const char *const passes[3] = {"zero/NULL", "huge", "negative/NaN"};
+    static const char *const passes[4] = {"zero/NULL", "huge", "negative/NaN", "valid handles, zero/NULL others"};
     CHECKF(SB_API_COUNT > 200, "only %d public functions found", SB_API_COUNT);
+    CHECKF(make_handles(), "the handles of pass 3: %s", h.ctx ? sb_context_last_error(h.ctx) : "no context");
     for (int i = 0; i < SB_API_COUNT; i++)
-        for (int pass = 0; pass < 3; pass++) {
+        for (int pass = 0; pass < 4; pass++) {
             char why[128] = "";
             int ok = survives(sb_api_calls[i].call, pass, why, sizeof why) == 0;
             CHECKF(ok, "%s(%s arguments): %s", sb_api_calls[i].name, passes[pass], why);

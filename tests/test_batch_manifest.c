@@ -89,4 +89,3 @@ SB_TEST(nothing_to_do_is_an_error) {
     sb_run(cmd, out, sizeof out);
     CHECKF(atoi(out) == 0, "%s", out);
 }
-
