@@ -1,11 +1,14 @@
-/* Misuse of the public API never crashes (issue 34): every function of
- * the public headers (include/sepbrdf), found by tests/api_null_gen.cmake at build time
- * (a function added to a header is called the day it is added), is called
- * with every argument zero (NULL pointers, 0 sizes, enum 0), huge (SIZE_MAX,
- * INT_MAX, 1e300, enums past their last value; pointers NULL) and negative
- * or NaN, each call in a child process under a time limit: a signal
- * (SIGSEGV, SIGABRT), a sanitizer's report (exit 1 under ASan/UBSan in
- * CI) or a hang names the function and the pass.
+/* Misuse of the public API never crashes (issue 34): every function of the
+ * public headers (include/sepbrdf), found by tests/api_null_gen.cmake at
+ * build time (a function added to a header is called the day it is added),
+ * is called in five passes: every argument zero (NULL pointers, 0 sizes,
+ * enum 0); huge (SIZE_MAX, INT_MAX, 1e300, enums past their last value;
+ * pointers NULL); negative or NaN; real handles (a context, source, layout,
+ * factored job and its factors and matrix, scene, JSON writer) beside zero
+ * numbers and NULL other pointers; real handles beside huge numbers.  Each
+ * call runs in a child process under a time limit: a signal (SIGSEGV,
+ * SIGABRT), a sanitizer's report (exit 1 under ASan/UBSan in CI) or a hang
+ * names the function and the pass.
  *
  * The null_accessors case checks the documented safe values of the
  * accessors the issue names, so a "no crash" that returns garbage fails
@@ -60,8 +63,17 @@ static struct {
              const sb_job_t *: h.job, sb_job_t *: h.job, const sb_factors_t *: sb_job_factors(h.job),                 \
              const sb_matrix_t *: sb_job_matrix(h.job), const sb_scene_t *: h.scene, sb_json_t *: &h.json,            \
              FILE *: h.json.fp, default: (T){0})
+/* Pass 4: valid handles and huge numbers (sizes, indices, counts out of
+ * every range), other pointers NULL. */
 #define SB_ARG(T, pass)                                                                                                \
-    ((pass) == 0 ? (T){0} : (pass) == 1 ? (T)SB_HUGE(T) : (pass) == 2 ? (T)SB_NEG(T) : (T)SB_VALID(T))
+    ((pass) == 0   ? (T){0}                                                                                            \
+     : (pass) == 1 ? (T)SB_HUGE(T)                                                                                     \
+     : (pass) == 2 ? (T)SB_NEG(T)                                                                                      \
+     : (pass) == 3 ? (T)SB_VALID(T)                                                                                    \
+                   : (T)(_Generic((T){0}, size_t : 1, long : 1, int : 1, unsigned : 1, long long : 1,                  \
+                                  unsigned long long : 1, double : 1, float : 1, default : 0)                          \
+                             ? SB_HUGE(T)                                                                              \
+                             : SB_VALID(T)))
 
 #include "api_null_calls.h"
 
@@ -101,11 +113,16 @@ static int make_handles(void) {
 }
 
 SB_TEST(every_public_function) {
-    static const char *const passes[4] = {"zero/NULL", "huge", "negative/NaN", "valid handles, zero/NULL others"};
+    static const char *const passes[5] = {"zero/NULL", "huge", "negative/NaN", "valid handles, zero/NULL others",
+                                          "valid handles, huge numbers"};
     CHECKF(SB_API_COUNT > 200, "only %d public functions found", SB_API_COUNT);
     CHECKF(make_handles(), "the handles of pass 3: %s", h.ctx ? sb_context_last_error(h.ctx) : "no context");
+    /* the passes give what they say */
+    CHECK(SB_ARG(const sb_job_t *, 0) == NULL && SB_ARG(size_t, 1) == SIZE_MAX && isnan(SB_ARG(double, 2)));
+    CHECK(SB_ARG(const sb_job_t *, 3) == h.job && SB_ARG(size_t, 3) == 0 && SB_ARG(double *, 3) == NULL);
+    CHECK(SB_ARG(const sb_param_t *, 4) == h.param && SB_ARG(size_t, 4) == SIZE_MAX && SB_ARG(int, 4) == INT_MAX);
     for (int i = 0; i < SB_API_COUNT; i++)
-        for (int pass = 0; pass < 4; pass++) {
+        for (int pass = 0; pass < 5; pass++) {
             char why[128] = "";
             int ok = survives(sb_api_calls[i].call, pass, why, sizeof why) == 0;
             CHECKF(ok, "%s(%s arguments): %s", sb_api_calls[i].name, passes[pass], why);
