@@ -162,14 +162,15 @@ SB_TEST(parallel_equals_sequential) {
     free(a), free(b);
 }
 
-/* Run the batch in its own process group, kill the group with SIGKILL as
- * soon as the first material is published; 1 if that happened before the
- * run ended. */
-static int interrupted_run(const char *dir) {
+/* Run the batch (OPTS, then `more`) into o in its own process group, kill
+ * the group with SIGKILL as soon as the first material is published (its
+ * batch.txt exists, or holds `want` when not NULL); 1 if that happened
+ * before the run ended. */
+static int interrupted_run(const char *dir, const char *o, const char *more, const char *want) {
     char cmd[8192], first[8400];
-    snprintf(cmd, sizeof cmd, "cd %s && exec %s batch m.csv tables " OPTS " -o cut -j 1 -q >/dev/null 2>&1", dir,
-             SB_CLI);
-    snprintf(first, sizeof first, "%s/cut/%s/batch.txt", dir, names[0]);
+    snprintf(cmd, sizeof cmd, "cd %s && exec %s batch m.csv tables " OPTS " %s -o %s -j 1 -q >/dev/null 2>&1", dir,
+             SB_CLI, more, o);
+    snprintf(first, sizeof first, "%s/%s/%s/batch.txt", dir, o, names[0]);
     pid_t pid = fork();
     if (pid == 0) {
         setpgid(0, 0);
@@ -180,7 +181,12 @@ static int interrupted_run(const char *dir) {
     struct timespec ts = {0, 2000000};
     for (;;) {
         if (waitpid(pid, &status, WNOHANG) == pid) break;
-        if (access(first, F_OK) == 0) {
+        char rel[512];
+        snprintf(rel, sizeof rel, "%s/batch.txt", names[0]);
+        char *txt = want ? slurp(dir, o, rel, NULL) : NULL;
+        int ready = want ? txt && strstr(txt, want) : access(first, F_OK) == 0;
+        free(txt);
+        if (ready) {
             kill(-pid, SIGKILL);
             waitpid(pid, &status, 0);
             /* the batch's worker processes die with it, but a killed
@@ -203,7 +209,7 @@ static int interrupted_run(const char *dir) {
 SB_TEST(interrupted_run_resumes) {
     const char *dir = setup("batch_resume", "");
     CHECK(batch(dir, "full", "-j 1 -q") == 0);
-    if (!interrupted_run(dir)) SKIP("the run ended before it could be interrupted");
+    if (!interrupted_run(dir, "cut", "", NULL)) SKIP("the run ended before it could be interrupted");
     char path[8400];
     snprintf(path, sizeof path, "%s/cut/summary.csv", dir);
     CHECK(!sb_file_exists(path)); /* it was cut before the end */
@@ -501,4 +507,23 @@ SB_TEST(long_names_kept_apart) {
     snprintf(cmd, sizeof cmd, "cd %s && %s batch in -r 8 -J 1 --param io -o o", dir, SB_CLI);
     rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0 && strstr(out, "2 materials, 2 reused"), "rc %d: %.300s", rc, out);
+}
+
+/* The issue's case: a complete batch, then one of other settings (J = 3)
+ * killed after its first material: the folder then holds sets of both,
+ * and no summary may say otherwise (the run removed the old one before it
+ * changed a folder); the rerun's summary agrees with every folder. */
+SB_TEST(interrupted_other_settings_no_stale_summary) {
+    const char *dir = setup("batch_stale", "");
+    int rows = 0;
+    CHECK(batch(dir, "s", "-j 2 -q") == 0);
+    if (!interrupted_run(dir, "s", "-J 3", "terms=3 ")) SKIP("the run ended before it could be interrupted");
+    int bad = summary_disagrees(dir, "s", &rows);
+    CHECKF(bad == -1, "a summary is left after the interrupted run (%d rows disagree)", bad);
+    CHECK(batch(dir, "s", "-J 3 -j 2 -q") == 0);
+    CHECK(summary_disagrees(dir, "s", &rows) == 0 && rows == 5);
+    char *csv = slurp(dir, "s", "summary.csv", NULL);
+    const char *row = csv ? strstr(csv, "\nmicrofacet_base_gold_roughness_0.3,") : NULL;
+    CHECK(row && strstr(row, ",io:res=8,f,3,") && strstr(row, ",io:res=8,f,3,") < strchr(row + 1, '\n'));
+    free(csv);
 }

@@ -65,6 +65,10 @@ void batch_mpi_run(const char *dir, batch_item_t *items, size_t n, size_t jobs, 
 int factor_mpi_begin(sb_context_t *ctx, const sb_job_opts_t *o, int *rank, int *size);
 void factor_mpi_end(int size, int job_failed, int rc);
 
+/* Remove DIR/summary.csv and DIR/summary.json before the run changes any
+ * folder (an interrupted run then leaves no summary rather than one that
+ * disagrees with the folders); exit code, message printed. */
+int batch_summary_remove(const char *dir);
 /* Write DIR/summary.csv and DIR/summary.json; exit code. */
 int batch_summary(const char *dir, const batch_item_t *items, size_t n);
 /* The ranked table on stdout. */

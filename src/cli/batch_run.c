@@ -289,11 +289,24 @@ static int write_summary(const char *path, const batch_item_t *items, size_t n, 
     return e ? e : c;
 }
 
-int batch_summary(const char *dir, const batch_item_t *items, size_t n) {
-    static const char *const files[2] = {"summary.csv", "summary.json"};
+static const char *const summary_files[2] = {"summary.csv", "summary.json"};
+
+int batch_summary_remove(const char *dir) {
     for (int k = 0; k < 2; k++) {
         char path[4200];
-        snprintf(path, sizeof path, "%s/%s", dir, files[k]);
+        snprintf(path, sizeof path, "%s/%s", dir, summary_files[k]);
+        if (unlink(path) != 0 && errno != ENOENT) {
+            cli_error("batch", "%s: cannot remove the summary of the last run: %s", path, sb_io_why(errno));
+            return EXIT_IO;
+        }
+    }
+    return EXIT_OK;
+}
+
+int batch_summary(const char *dir, const batch_item_t *items, size_t n) {
+    for (int k = 0; k < 2; k++) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/%s", dir, summary_files[k]);
         int e = write_summary(path, items, n, k);
         if (e) {
             cli_error("batch", "%s: cannot write: %s", path, sb_io_why(e));

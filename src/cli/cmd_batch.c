@@ -60,8 +60,9 @@ static void help(void) {
            "A material whose folder already holds a complete set of the same settings\n"
            "is reused (a batch interrupted and run again finishes the rest). A material\n"
            "that fails is reported in the summary and the others finish; the exit\n"
-           "status is then 2.  OUT/summary.csv and summary.json are rebuilt from what\n"
-           "the folders hold.  One batch at a time writes into OUT: a second one is\n"
+           "status is then 2.  OUT/summary.csv and summary.json are removed when a run\n"
+           "starts and rebuilt at its end from what the folders hold (an interrupted\n"
+           "run leaves none).  One batch at a time writes into OUT: a second one is\n"
            "refused (exit 2) while the first, or any of its processes, runs.\n"
            "\n"
            "On a cluster: `mpirun -np N sepbrdf-mpi batch ...` (or srun; sepbrdf-mpi is\n"
@@ -395,6 +396,7 @@ static int parse(int argc, char **argv, batch_t *b, const char **out, const char
  * from what the folders hold; the exit code. */
 static int run(batch_t *b, const char *out, int rank, int size) {
     size_t reused = 0, failed = 0;
+    if (rank == 0 && batch_summary_remove(out) != EXIT_OK) return EXIT_IO;
     for (size_t i = 0; i < b->n && rank == 0; i++) /* only rank 0 hands out work */
         reused += b->items[i].skipped = batch_done(out, &b->items[i]);
     if (!b->jobs) b->jobs = default_jobs(b);
