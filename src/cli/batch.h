@@ -50,7 +50,7 @@ int batch_work(const char *dir, batch_item_t *it, char *line, size_t size);
 int batch_take(batch_item_t *it, const char *line);
 
 /* Run the items not done with up to `jobs` processes at a time; fills
- * ok, fields and msg of each. */
+ * ok and msg of each (the fields: batch_reread, from the folders). */
 void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs);
 /* sepbrdf-mpi (SEPBRDF_MPI, batch_mpi.c): MPI_Init and this process's
  * rank and the number of ranks (-1: MPI failed); MPI_Finalize; the items
