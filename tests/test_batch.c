@@ -2,13 +2,19 @@
  * folder plus a manifest in the summary, textures equal to `sepbrdf factor`
  * of the same settings, -j 2 equal to -j 1, an interrupted run resumed equal
  * to an uninterrupted one, a bad source reported while the others finish. */
+#define _DEFAULT_SOURCE /* flock */
+#include <fcntl.h>
+#include <math.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
+#include "batch_util.h"
 #include "harness.h"
 
 #define OPTS "--param io -r 8 -J 2"
@@ -42,19 +48,6 @@ static int batch(const char *dir, const char *outdir, const char *more) {
     char cmd[8192];
     snprintf(cmd, sizeof cmd, "cd %s && %s batch m.csv tables " OPTS " -o %s %s", dir, SB_CLI, outdir, more);
     return sb_run(cmd, out, sizeof out);
-}
-
-static char *slurp(const char *dir, const char *a, const char *b, size_t *size) {
-    char path[8400];
-    snprintf(path, sizeof path, "%s/%s%s%s", dir, a, b ? "/" : "", b ? b : "");
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return NULL;
-    char *buf = malloc(1 << 20);
-    size_t n = buf ? fread(buf, 1, (1 << 20) - 1, fp) : 0;
-    fclose(fp);
-    if (buf) buf[n] = 0;
-    if (size) *size = n;
-    return buf;
 }
 
 /* The summary.csv of run `o` without its time_s column (12th), quotes
@@ -169,14 +162,15 @@ SB_TEST(parallel_equals_sequential) {
     free(a), free(b);
 }
 
-/* Run the batch in its own process group, kill the group with SIGKILL as
- * soon as the first material is published; 1 if that happened before the
- * run ended. */
-static int interrupted_run(const char *dir) {
+/* Run the batch (OPTS, then `more`) into o in its own process group, kill
+ * the group with SIGKILL as soon as the first material is published (its
+ * batch.txt exists, or holds `want` when not NULL); 1 if that happened
+ * before the run ended. */
+static int interrupted_run(const char *dir, const char *o, const char *more, const char *want) {
     char cmd[8192], first[8400];
-    snprintf(cmd, sizeof cmd, "cd %s && exec %s batch m.csv tables " OPTS " -o cut -j 1 -q >/dev/null 2>&1", dir,
-             SB_CLI);
-    snprintf(first, sizeof first, "%s/cut/%s/batch.txt", dir, names[0]);
+    snprintf(cmd, sizeof cmd, "cd %s && exec %s batch m.csv tables " OPTS " %s -o %s -j 1 -q >/dev/null 2>&1", dir,
+             SB_CLI, more, o);
+    snprintf(first, sizeof first, "%s/%s/%s/batch.txt", dir, o, names[0]);
     pid_t pid = fork();
     if (pid == 0) {
         setpgid(0, 0);
@@ -187,7 +181,12 @@ static int interrupted_run(const char *dir) {
     struct timespec ts = {0, 2000000};
     for (;;) {
         if (waitpid(pid, &status, WNOHANG) == pid) break;
-        if (access(first, F_OK) == 0) {
+        char rel[512];
+        snprintf(rel, sizeof rel, "%s/batch.txt", names[0]);
+        char *txt = want ? slurp(dir, o, rel, NULL) : NULL;
+        int ready = want ? txt && strstr(txt, want) : access(first, F_OK) == 0;
+        free(txt);
+        if (ready) {
             kill(-pid, SIGKILL);
             waitpid(pid, &status, 0);
             /* the batch's worker processes die with it, but a killed
@@ -210,7 +209,7 @@ static int interrupted_run(const char *dir) {
 SB_TEST(interrupted_run_resumes) {
     const char *dir = setup("batch_resume", "");
     CHECK(batch(dir, "full", "-j 1 -q") == 0);
-    if (!interrupted_run(dir)) SKIP("the run ended before it could be interrupted");
+    if (!interrupted_run(dir, "cut", "", NULL)) SKIP("the run ended before it could be interrupted");
     char path[8400];
     snprintf(path, sizeof path, "%s/cut/summary.csv", dir);
     CHECK(!sb_file_exists(path)); /* it was cut before the end */
@@ -290,4 +289,241 @@ SB_TEST(mpi_equals_single) {
     CHECK(j && count_lines(j) > 5);
     free(a), free(b), free(j);
 #endif
+}
+
+/* ---- the batch folder is one consistent thing (issue 34) ---------------- */
+
+/* The next CSV cell of *p (quotes undone) into buf; 1 while the row goes on. */
+static int csv_cell(const char **p, char *buf, size_t size) {
+    const char *s = *p;
+    size_t k = 0;
+    int quoted = *s == '"';
+    for (s += quoted; *s && (quoted || (*s != ',' && *s != '\n')); s++) {
+        if (quoted && *s == '"' && s[1] != '"') {
+            quoted = 0;
+            continue;
+        }
+        s += quoted && *s == '"';
+        if (k + 1 < size) buf[k++] = *s;
+    }
+    buf[k] = 0;
+    *p = *s ? s + 1 : s;
+    return *s == ',';
+}
+
+/* The number of rows of o/summary.csv whose layout and J are not those of
+ * the set their folder holds (report.json), or whose status is ok without
+ * a set; -1 without a summary.  *rows: the rows read. */
+static int summary_disagrees(const char *dir, const char *o, int *rows) {
+    char *csv = slurp(dir, o, "summary.csv", NULL);
+    if (!csv) return -1;
+    static char cell[16][8192], want[8192];
+    const char *p = strchr(csv, '\n');
+    int bad = 0;
+    *rows = 0;
+    while (p && *++p) {
+        int n = 0;
+        while (n < 16 && csv_cell(&p, cell[n], sizeof cell[n]))
+            n++;
+        (*rows)++;
+        char sub[8400];
+        snprintf(sub, sizeof sub, "%s/%s", o, cell[0]);
+        char *json = slurp(dir, sub, "report.json", NULL);
+        int held = json != NULL, same = 1;
+        if (held) {
+            same = report_value(json, "param_spec", want, sizeof want) && strcmp(want, cell[2]) == 0;
+            same &= report_value(json, "terms", want, sizeof want) && strcmp(want, cell[4]) == 0;
+        } else {
+            same = !cell[2][0] && !cell[4][0] && strcmp(cell[12], "ok") != 0;
+        }
+        if (!same)
+            fprintf(stderr, "row %s: param %.60s J %s, its folder %s\n", cell[0], cell[2], cell[4],
+                    held ? "holds another set" : "holds none");
+        bad += !same;
+        free(json);
+        p--; /* at the row's last character */
+    }
+    free(csv);
+    return bad;
+}
+
+/* A second batch into a folder a batch is writing is refused, with a
+ * message naming the folder, and writes nothing there; the folder's own
+ * lock holder here is this test (as a running batch holds it). */
+SB_TEST(second_batch_refused) {
+    const char *dir = setup("batch_lock", "");
+    char path[8400];
+    snprintf(path, sizeof path, "%s/busy", dir);
+    CHECK(mkdir(path, 0777) == 0);
+    int fd = open(path, O_RDONLY | O_DIRECTORY);
+    CHECK(fd >= 0 && flock(fd, LOCK_EX | LOCK_NB) == 0);
+    int rc = batch(dir, "busy", "-j 2");
+    CHECKF(rc == 2, "rc %d: %s", rc, out);
+    CHECKF(strstr(out, "--out busy") && strstr(out, "another batch"), "%s", out);
+    snprintf(path, sizeof path, "ls -A %s/busy | wc -l", dir);
+    sb_run(path, out, sizeof out);
+    CHECKF(atoi(out) == 0, "the refused batch wrote %s entries", out);
+    close(fd); /* the lock ends with its holder */
+    rc = batch(dir, "busy", "-j 2 -q");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+}
+
+/* Two batches of other settings started together into one folder: one is
+ * refused while the other runs (or they ran one after the other), and the
+ * summary agrees with every folder. */
+SB_TEST(concurrent_batches_agree) {
+    const char *dir = setup("batch_conc", "");
+    char cmd[16384];
+    snprintf(cmd, sizeof cmd,
+             "cd %s && { %s batch m.csv tables --param io -r 8 -J 2 -o c -j 1 -q 2>a.err; echo a=$?; } & "
+             "{ cd %s && %s batch m.csv tables --param io -r 8 -J 3 -o c -j 1 -q 2>b.err; echo b=$?; } & wait",
+             dir, SB_CLI, dir, SB_CLI);
+    sb_run(cmd, out, sizeof out);
+    const char *a = strstr(out, "a="), *b = strstr(out, "b=");
+    CHECKF(a && b, "%s", out);
+    if (!a || !b) return;
+    int ra = atoi(a + 2), rb = atoi(b + 2), rows = 0;
+    CHECKF((ra == 0 && rb == 0) || (ra == 0 && rb == 2) || (ra == 2 && rb == 0), "exit codes %d %d", ra, rb);
+    if (ra == 2 || rb == 2) {
+        char *err = slurp(dir, ra == 2 ? "a.err" : "b.err", NULL, NULL);
+        CHECKF(err && strstr(err, "another batch"), "%s", err ? err : "");
+        free(err);
+    }
+    CHECK(summary_disagrees(dir, "c", &rows) == 0);
+    CHECK(rows == 5);
+}
+
+/* A batch rerun with other settings in which one material fails: the
+ * summary says what every folder holds (the failed one's earlier set,
+ * with a message saying so), not what the run meant to write. */
+SB_TEST(summary_from_folders) {
+    const char *dir = setup("batch_refold", "");
+    int rows = 0;
+    CHECK(batch(dir, "s", "-j 2 -q") == 0);
+    CHECK(summary_disagrees(dir, "s", &rows) == 0 && rows == 5);
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "printf 'not a table\\n' > %s/tables/cornell_acryl_blue.brdf", dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch m.csv tables --param io -r 8 -J 3 -o s -j 2", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 2, "rc %d: %s", rc, out);
+    CHECK(summary_disagrees(dir, "s", &rows) == 0 && rows == 5);
+    char *csv = slurp(dir, "s", "summary.csv", NULL);
+    const char *row = csv ? strstr(csv, "\ncornell_acryl_blue,") : NULL;
+    CHECKF(row && strstr(row, ",io:res=8,f,2,") && strstr(row, ",error,") && strstr(row, "earlier set"), "%s",
+           csv ? csv : "");
+    free(csv);
+}
+
+/* A layout of about 4 000 characters (warp tables written with 28 digits)
+ * given in a manifest: the summaries hold the whole canonical spec, the
+ * results are real, and a rerun reuses the set. */
+SB_TEST(long_layout_spec) {
+    const char *dir = sb_tmpdir("batch_long");
+    static char spec[9000], knots[4096], cmd[16384];
+    size_t k = 0;
+    for (int i = 1; i < 64; i++)
+        k += (size_t)snprintf(knots + k, sizeof knots - k, "%s%.28f", i > 1 ? "/" : "", pow(i / 64.0, 1.5));
+    snprintf(spec, sizeof spec, "hd:res=8,warp_h=%s,warp_d=%s", knots, knots);
+    CHECK(strlen(spec) > 3800);
+    snprintf(cmd, sizeof cmd, "%s/w.csv", dir);
+    FILE *fp = fopen(cmd, "w");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    fprintf(fp, "source,param\nlambert,\"%s\"\n", spec);
+    fclose(fp);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch w.csv -J 2 -o w -q", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out), rows = 0;
+    CHECKF(rc == 0, "rc %d: %.300s", rc, out);
+    CHECK(summary_disagrees(dir, "w", &rows) == 0 && rows == 1);
+    char *csv = slurp(dir, "w", "summary.csv", NULL), *json = slurp(dir, "w", "summary.json", NULL);
+    const char *row = csv ? strchr(csv, '\n') + 1 : NULL;
+    static char cell[16][8192];
+    int n = 0;
+    while (row && n < 16 && csv_cell(&row, cell[n], sizeof cell[n]))
+        n++;
+    CHECKF(strlen(cell[2]) > 1100 && strstr(cell[2], "0.976654,warp_d=") && strcmp(cell[4], "2") == 0,
+           "param %zu characters, J %s", strlen(cell[2]), cell[4]);
+    CHECK(atof(cell[5]) > 0 && atof(cell[10]) > 0 && strcmp(cell[12], "ok") == 0);
+    CHECK(json && strstr(json, cell[2]) != NULL); /* the whole spec there too */
+    free(csv), free(json);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch w.csv -J 2 -o w", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "1 materials, 1 reused"), "rc %d: %.300s", rc, out);
+}
+
+/* A batch killed while its workers run (SIGKILL to the batch alone, as a
+ * job control or a cluster might): the workers keep OUT locked, so a
+ * batch of other settings started then is refused; once they end, it runs
+ * and its summary agrees with every folder. */
+SB_TEST(orphaned_workers_keep_the_lock) {
+    const char *dir = setup("batch_orphan", "");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd %s && { %s batch m.csv tables --param io -r 32 -J 3 -o w -j 2 -q & P=$!; i=0; "
+             "while [ -z \"$(pgrep -P $P)\" ] && [ $i -lt 500 ]; do sleep 0.01; i=$((i+1)); done; "
+             "K=$(pgrep -P $P | tr '\\n' ' '); kill -KILL $P; wait $P 2>/dev/null; "
+             "%s batch m.csv tables --param io -r 8 -J 2 -o w -j 1 -q 2>second.err; echo second=$?; alive=0; "
+             "for k in $K; do kill -0 $k 2>/dev/null && alive=1; done; echo alive=$alive; "
+             "for k in $K; do while kill -0 $k 2>/dev/null; do sleep 0.05; done; done; }",
+             dir, SB_CLI, SB_CLI);
+    sb_run(cmd, out, sizeof out);
+    const char *s = strstr(out, "second="), *a = strstr(out, "alive=");
+    CHECKF(s && a, "%s", out);
+    if (!s || !a) return;
+    if (atoi(a + 6) != 1) SKIP("the workers ended before the second batch could start");
+    CHECKF(atoi(s + 7) == 2, "second batch: %s", out);
+    char *err = slurp(dir, "second.err", NULL, NULL);
+    CHECKF(err && strstr(err, "another batch"), "%s", err ? err : "");
+    free(err);
+    int rc = batch(dir, "w", "--param io -r 8 -J 2 -j 2 -q"), rows = 0;
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(summary_disagrees(dir, "w", &rows) == 0 && rows == 5);
+}
+
+/* Two materials whose file names share their first 150 characters: two
+ * folders (long names keep their start and a hash of the whole), the
+ * summary naming each whole source, both reused by a rerun. */
+SB_TEST(long_names_kept_apart) {
+    const char *dir = sb_tmpdir("batch_names");
+    char cmd[8192], stem[160];
+    memset(stem, 'm', 150);
+    stem[150] = 0;
+    snprintf(cmd, sizeof cmd,
+             "cd %s && mkdir in && cp %s/cornell_acryl_blue.brdf in/%s_a.brdf && cp in/%s_a.brdf in/%s_b.brdf", dir,
+             SB_MEASURED_DIR, stem, stem, stem);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch in -r 8 -J 1 --param io -o o -q", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out), rows = 0;
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECK(summary_disagrees(dir, "o", &rows) == 0 && rows == 2);
+    char *csv = slurp(dir, "o", "summary.csv", NULL);
+    for (int k = 0; k < 2 && csv; k++) {
+        char whole[200];
+        snprintf(whole, sizeof whole, ",in/%s_%c.brdf,", stem, 'a' + k);
+        CHECKF(strstr(csv, whole) != NULL, "source %c not whole in %s", 'a' + k, csv);
+    }
+    free(csv);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch in -r 8 -J 1 --param io -o o", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "2 materials, 2 reused"), "rc %d: %.300s", rc, out);
+}
+
+/* The issue's case: a complete batch, then one of other settings (J = 3)
+ * killed after its first material: the folder then holds sets of both,
+ * and no summary may say otherwise (the run removed the old one before it
+ * changed a folder); the rerun's summary agrees with every folder. */
+SB_TEST(interrupted_other_settings_no_stale_summary) {
+    const char *dir = setup("batch_stale", "");
+    int rows = 0;
+    CHECK(batch(dir, "s", "-j 2 -q") == 0);
+    if (!interrupted_run(dir, "s", "-J 3", "terms=3 ")) SKIP("the run ended before it could be interrupted");
+    int bad = summary_disagrees(dir, "s", &rows);
+    CHECKF(bad == -1, "a summary is left after the interrupted run (%d rows disagree)", bad);
+    CHECK(batch(dir, "s", "-J 3 -j 2 -q") == 0);
+    CHECK(summary_disagrees(dir, "s", &rows) == 0 && rows == 5);
+    char *csv = slurp(dir, "s", "summary.csv", NULL);
+    const char *row = csv ? strstr(csv, "\nmicrofacet_base_gold_roughness_0.3,") : NULL;
+    CHECK(row && strstr(row, ",io:res=8,f,3,") && strstr(row, ",io:res=8,f,3,") < strchr(row + 1, '\n'));
+    free(csv);
 }

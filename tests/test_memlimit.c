@@ -72,3 +72,62 @@ SB_TEST(factor_answers) {
     snprintf(rm, sizeof rm, "rm -rf %s", dir);
     CHECK(system(rm) == 0);
 }
+
+/* --param auto candidates lost to the memory limit (--memory-limit, which
+ * also holds under the sanitizers) are warnings on stderr and in
+ * report.json, one per candidate; with room for all, none. */
+SB_TEST(lost_candidates_warned) {
+    static char out[1 << 16];
+    const char *dir = sb_tmpdir("memlost");
+    char cmd[8192], path[4200];
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor microfacet:roughness=0.3 -r 24 -J 2 --memory-limit 3M -o lim", dir,
+             SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "warning: --param auto lost the candidate hd/f (memory)"), "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/lim/report.json", dir);
+    FILE *fp = fopen(path, "r");
+    static char json[1 << 20];
+    size_t n = fp ? fread(json, 1, sizeof json - 1, fp) : 0;
+    if (fp) fclose(fp);
+    json[n] = 0;
+    const char *w = strstr(json, "\"warnings\": [");
+    CHECKF(w && strstr(w, "lost the candidate hd/f (memory)"), "report.json warnings: %.300s", w ? w : "none");
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor microfacet:roughness=0.3 -r 24 -J 2 -o free", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && !strstr(out, "lost the candidate"), "rc %d: %s", rc, out);
+}
+
+/* The issue's case: under 256 MB the better candidates of a measured
+ * table cannot allocate and the one kept is poor (headline near 100 %):
+ * each lost candidate is a warning, and the exit status is 2 with a
+ * message saying the result is poor because of them, never 0 in silence.
+ * Whatever this machine's allocator leaves, the status follows: 2 exactly
+ * when candidates were lost and the kept headline is above 50 %. */
+SB_TEST(poor_result_after_loss_exits_2) {
+#ifdef SB_SANITIZED
+    SKIP("address sanitizer: no address-space limit possible");
+#endif
+    static char out[1 << 16];
+    const char *dir = sb_tmpdir("mempoor");
+    char args[4200];
+    snprintf(args, sizeof args, "factor %s/rgl_chm_orange_rgb.bsdf -q -o %s/o", SB_MEASURED_DIR, dir);
+    int rc = run_limited(256, args, out, sizeof out);
+    int lost = strstr(out, "lost the candidate") != NULL, poor = strstr(out, "may do far better") != NULL;
+    CHECKF(rc == (poor ? 2 : 0), "rc %d: %s", rc, out);
+    CHECKF(!poor || lost, "poor without a lost candidate: %s", out);
+    if (!lost) SKIP("every candidate fitted in 256 MB here");
+    /* the kept headline at J: the last of report.json's errors[] */
+    static char json[1 << 20];
+    char path[4300];
+    snprintf(path, sizeof path, "%s/o/report.json", dir);
+    FILE *fp = fopen(path, "r");
+    size_t n = fp ? fread(json, 1, sizeof json - 1, fp) : 0;
+    if (fp) fclose(fp);
+    json[n] = 0;
+    const char *e = strstr(json, "\"errors\": ["), *end = e ? strstr(e, "\n  ]") : NULL, *h = NULL;
+    for (const char *p = e; p && (p = strstr(p, "\"headline\": ")) && p < end; p++)
+        h = p;
+    CHECKF(h != NULL, "no headline in %s", path);
+    double headline = h ? atof(h + strlen("\"headline\": ")) : 0;
+    CHECKF(poor == (headline > 0.5), "headline %g, lost candidates, rc %d: %s", headline, rc, out);
+}

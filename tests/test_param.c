@@ -205,10 +205,16 @@ SB_TEST(parse_spec) {
     CHECK(sb_param_parse_spec(NULL, "io:res=0", &k, &o) == SB_ERR_RANGE);
     CHECK(sb_param_parse_spec(NULL, "io:theta_max=91", &k, &o) == SB_ERR_RANGE);
     CHECK(sb_param_parse_spec(NULL, NULL, &k, &o) == SB_ERR_ARG);
-    char longspec[4000]; /* beyond the longest spec, two warp tables included */
+    /* a spec of any length is judged by its content (issue 34): 4000
+     * characters of an unknown kind are unknown, io:res=000...08 is res 8 */
+    char longspec[4000];
     memset(longspec, 'x', sizeof longspec - 1);
     longspec[sizeof longspec - 1] = 0;
-    CHECK(sb_param_parse_spec(NULL, longspec, &k, &o) == SB_ERR_PARSE);
+    CHECK(sb_param_parse_spec(NULL, longspec, &k, &o) == SB_ERR_UNKNOWN);
+    memset(longspec, '0', sizeof longspec - 1);
+    memcpy(longspec, "io:res=", 7);
+    longspec[sizeof longspec - 2] = '8';
+    CHECK(sb_param_parse_spec(NULL, longspec, &k, &o) == SB_OK && k == SB_PARAM_IO && o.res == 8);
 }
 
 /* Cell (r, c) -> its directions -> coords: exactly the texel centres of

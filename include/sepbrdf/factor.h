@@ -95,7 +95,8 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
  * col), channel c: sum_j g_j[row] h_j[col].  NaN for a NULL f, or a
  * channel, row or column out of range. */
 double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);
-/* Fraction of negative texels over all g_j, h_j of the first `terms` terms. */
+/* Fraction of negative texels over all g_j, h_j of the first `terms` terms
+ * (at most all); NaN for a NULL f. */
 double sb_factors_negative_fraction(const sb_factors_t *f, size_t terms);
 
 /* Texture lookup with the GL conventions of param.h (bilinear, wrap).

@@ -222,12 +222,15 @@ sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
  * sb_outset_begin and sb_outset_commit, SB_ERR_IO, SB_ERR_NOMEM. */
 sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir);
 
-/* Write report.json's content (see README) to fp. */
+/* Write report.json's content (see README) to fp (nothing for a NULL job
+ * or fp). */
 void sb_job_report(const sb_job_t *job, FILE *fp);
 
 void sb_job_destroy(sb_job_t *job); /* accepts NULL */
 
-/* ---- results (owned by the job) ---- */
+/* ---- results (owned by the job) ----
+ * Every accessor takes a NULL job: NULL pointers, "" for the source spec,
+ * 0 counts and flags, SB_FORM_F, NAN errors, zeroed structs. */
 const sb_source_t *sb_job_source(const sb_job_t *job);
 const char *sb_job_source_spec(const sb_job_t *job);
 const sb_factors_t *sb_job_factors(const sb_job_t *job);
@@ -248,7 +251,7 @@ const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job);
 double sb_job_headline(const sb_job_t *job, size_t terms);
 /* Whether the headline does not rise with J' by more than two standard
  * errors plus 2 % (out of sample, more terms can fit the cells better and
- * the pairs between them worse). */
+ * the pairs between them worse); 1 for a NULL job. */
 int sb_job_headline_non_increasing(const sb_job_t *job);
 double sb_job_comparable(const sb_job_t *job, size_t terms);
 double sb_job_negative(const sb_job_t *job, size_t terms);
@@ -265,6 +268,10 @@ double sb_job_svd_headline(const sb_job_t *job, size_t terms);
 double sb_job_svd_rel_rms(const sb_job_t *job, size_t terms);
 int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
 size_t sb_job_candidate_count(const sb_job_t *job);
+/* The candidates of --param auto lost to memory (the memory limit, an
+ * allocation) or a failure, each also a warning; not those ranked out or
+ * too small for J.  0 for a NULL job. */
+size_t sb_job_lost_count(const sb_job_t *job);
 const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
 void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
 /* The budget search (opts.budget): 1 and *out filled when the job ran with
@@ -289,8 +296,10 @@ double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held);
 const char *sb_job_warning(const sb_job_t *job, size_t i);
 
 /* ---- a minimal JSON writer (report.json; the CLI's reports use it too) ----
- * Objects and arrays nest up to 31 deep; key NULL inside arrays and for
- * the outermost value; non-finite numbers are written as null. */
+ * Objects and arrays nest up to 31 deep (deeper ones are not written);
+ * key NULL inside arrays and for the outermost value; value NULL is null;
+ * non-finite numbers are written as null.  A NULL j, or one without fp,
+ * writes nothing. */
 typedef struct sb_json {
     FILE *fp;
     int depth;

@@ -117,7 +117,9 @@ size_t sb_matrix_bytes(const sb_source_t *src, const sb_param_t *param, const sb
 double sb_matrix_at(const sb_matrix_t *m, int channel, size_t row, size_t col);
 
 /* Column `col` of channel c (rows values): a pointer into data for a dense
- * matrix, else gathered into buf (rows doubles), which is returned. */
+ * matrix, else gathered into buf (rows doubles), which is returned; NULL
+ * for a channel the matrix lacks, a column out of range, or a NULL buf
+ * where one is needed. */
 const double *sb_matrix_col(const sb_matrix_t *m, int channel, size_t col, double *buf);
 
 /* Y = M_c Z for Z of k columns (cols x k, ld ldz >= cols) into Y (rows x k,

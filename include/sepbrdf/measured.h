@@ -110,7 +110,8 @@ typedef enum sb_gamut {
 /* "keep", "clip", "desaturate"; parse returns SB_ERR_UNKNOWN. */
 const char *sb_gamut_name(sb_gamut_t g);
 sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out);
-/* Map one RGB value by `g`; returns 1 when it was out of gamut. */
+/* Map one RGB value by `g`; returns 1 when it was out of gamut (0 for a
+ * NULL rgb; a g out of range keeps the value). */
 int sb_gamut_map(sb_gamut_t g, double rgb[3]);
 
 /* Options of sb_measured_open (zero = default everywhere).

@@ -278,7 +278,8 @@ void sb_dir_from_angles(double theta, double phi, double w[3]);
 void sb_dir_to_angles(const double w[3], double *theta, double *phi);
 /* The pair of Rusinkiewicz's half/difference angles: h at (theta_h,
  * phi_h), d at (theta_d, phi_d) in h's frame; wi = R_z(phi_h) R_y(theta_h)
- * d, wo its mirror about h (either may lie below the horizon). */
+ * d, wo its mirror about h (either may lie below the horizon); nothing
+ * for a NULL wi or wo. */
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]);
 
 #ifdef __cplusplus

@@ -23,7 +23,10 @@
  *                          a line, "theta_i phi_i theta_o phi_o [weight]"
  *                          in degrees (theta 0..90), weight >= 0 (default
  *                          1), '#' starts a comment; pairs drawn with
- *                          probability proportional to the weight.
+ *                          probability proportional to the weight.  At
+ *                          most SB_SCENE_MAX_PAIRS pairs and
+ *                          SB_SCENE_MAX_FILE bytes; a device or FIFO is
+ *                          refused (SB_ERR_IO), never read.
  * Exactly one of the three kinds; a key given twice, an unknown key, a
  * malformed number, a range out of order or beyond 0..90 are errors.
  *
@@ -51,6 +54,9 @@ extern "C" {
 typedef enum sb_scene_kind { SB_SCENE_RANGES = 0, SB_SCENE_LIGHTS, SB_SCENE_PAIRS } sb_scene_kind_t;
 
 typedef struct sb_scene sb_scene_t;
+
+#define SB_SCENE_MAX_PAIRS (1 << 22)
+#define SB_SCENE_MAX_FILE (256ull << 20)
 
 /* Parse a spec (header); a pairs file is read now.  Errors: SB_ERR_ARG
  * (NULL), SB_ERR_PARSE (the message names the item and what is wrong),
@@ -94,7 +100,7 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
 
 /* The square-root weights W_r (rows values), W_c (cols values) into w of
  * the separable fit W_r^2 W_c^2 ~ mass on its positive cells (header),
- * each at least 1e-3 of its side's largest. */
+ * each at least 1e-3 of its side's largest (nothing for a NULL mass or w). */
 void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
 
 /* Weights for a fit of m on the scene: cells with mass 0 get mask 0 in m

@@ -9,34 +9,48 @@
 #define BATCH_FIELDS "param,form,J,headline,comparable,rel_rms,max_abs,negative,bytes,time_s"
 
 typedef struct batch_item {
-    char name[128]; /* its folder under --out */
-    char source[1024];
-    char param[2048], form[16]; /* storage of the row's --param (a whole layout spec too) and --form */
+    char name[256];     /* its folder under --out */
+    const char *source; /* strings owned by the batch (argv, a manifest's text) */
     sb_job_opts_t o;
-    char key[1600];   /* its settings: the set is reused when they match */
-    char fields[512]; /* BATCH_FIELDS, tab-separated */
-    char msg[512];    /* why it failed */
+    char *key;     /* its settings (malloc): the set is reused when they match */
+    char *fields;  /* BATCH_FIELDS, tab-separated, as its folder holds them (malloc; NULL: none) */
+    char msg[512]; /* why it failed */
     int ok, skipped;
+    int other; /* its folder holds a set of other settings (fields are that set's) */
     double headline;
 } batch_item_t;
 
-/* Settings key of item (from it->o) into it->key. */
-void batch_key(batch_item_t *it);
+/* Lock folder DIR for this batch (refused, message printed, while another
+ * batch or its workers hold it): the lock's descriptor, inherited by the
+ * workers, or -1.  batch_unlock: this process's hold ends. */
+int batch_lock(const char *dir);
+void batch_unlock(int fd);
+/* Settings key of item (from it->o) into it->key; -1 out of memory. */
+int batch_key(batch_item_t *it);
+/* What DIR/NAME holds: 1 and its key and fields (malloc'd) when a
+ * published set with batch.txt, else 0 (both NULL). */
+int batch_folder_read(const char *dir, const char *name, char **key, char **fields);
 /* 1 when DIR/NAME holds a published set of the same settings (its fields
  * copied into it->fields). */
 int batch_done(const char *dir, batch_item_t *it);
-/* Longest result line of one material. */
+/* After the run: fields, ok and headline of every item from what its
+ * folder holds (a set of its settings: ok; another: other, fields of that
+ * set; none: no fields). */
+void batch_reread(const char *dir, batch_item_t *items, size_t n);
+/* Longest result line of one material ("ok" or "error\tMESSAGE"). */
 #define BATCH_LINE 1024
+/* The file of a set that holds the key and fields. */
+#define BATCH_FILE "batch.txt"
 
 /* Factor item `it` into DIR/NAME (in this process) and write its result
- * line, "ok\tFIELDS" or "error\tMESSAGE", into line; the exit code. */
+ * line, "ok" or "error\tMESSAGE", into line; the exit code. */
 int batch_work(const char *dir, batch_item_t *it, char *line, size_t size);
-/* Read a result line into it (ok, fields, headline or msg); 0 when the
- * line is neither. */
+/* Read a result line into it (ok or msg; the fields are read from its
+ * folder); 0 when the line is neither. */
 int batch_take(batch_item_t *it, const char *line);
 
 /* Run the items not done with up to `jobs` processes at a time; fills
- * ok, fields and msg of each. */
+ * ok and msg of each (the fields: batch_reread, from the folders). */
 void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs);
 /* sepbrdf-mpi (SEPBRDF_MPI, batch_mpi.c): MPI_Init and this process's
  * rank and the number of ranks (-1: MPI failed); MPI_Finalize; the items
@@ -51,6 +65,10 @@ void batch_mpi_run(const char *dir, batch_item_t *items, size_t n, size_t jobs, 
 int factor_mpi_begin(sb_context_t *ctx, const sb_job_opts_t *o, int *rank, int *size);
 void factor_mpi_end(int size, int job_failed, int rc);
 
+/* Remove DIR/summary.csv and DIR/summary.json before the run changes any
+ * folder (an interrupted run then leaves no summary rather than one that
+ * disagrees with the folders); exit code, message printed. */
+int batch_summary_remove(const char *dir);
 /* Write DIR/summary.csv and DIR/summary.json; exit code. */
 int batch_summary(const char *dir, const batch_item_t *items, size_t n);
 /* The ranked table on stdout. */

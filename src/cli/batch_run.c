@@ -14,58 +14,6 @@
 #include "batch.h"
 #include "pipeline.h"
 
-#define BATCH_FILE "batch.txt"
-
-/* it->headline from the fourth of its fields. */
-static void set_headline(batch_item_t *it) {
-    const char *p = it->fields;
-    for (int k = 0; k < 3 && p; k++)
-        p = strchr(p, '\t') ? strchr(p, '\t') + 1 : NULL;
-    it->headline = p ? strtod(p, NULL) : NAN;
-}
-
-void batch_key(batch_item_t *it) {
-    const sb_job_opts_t *o = &it->o;
-    const sb_measured_opts_t *m = &o->measured;
-    snprintf(it->key, sizeof it->key,
-             "source=%s param=%s form=%s weighted=%d zero_fill=%d res=%zu terms=%zu metric_res=%zu max_error=%.17g "
-             "theta_max=%.17g method=%d seed=%llu channels=%u half=%d previews=%d format=%s interp=%d "
-             "neighbours=%zu radius=%.17g white=%d",
-             it->source, o->param ? o->param : "auto", o->form ? o->form : "-", o->weighted, o->zero_fill, o->res,
-             o->terms, o->metric_res, o->max_error, o->theta_max_deg, (int)o->method, o->seed, o->channels, o->half,
-             o->previews, m->format ? m->format : "auto", (int)m->interp, m->neighbours, m->radius, (int)m->white);
-    /* settings added later only when given: the keys of sets without them stay as they were */
-    size_t n = strlen(it->key);
-    if (o->budget) n += (size_t)snprintf(it->key + n, sizeof it->key - n, " budget=%zu", o->budget);
-    if (o->warp && n < sizeof it->key) n += (size_t)snprintf(it->key + n, sizeof it->key - n, " warp=%s", o->warp);
-    if (o->scene && n < sizeof it->key) n += (size_t)snprintf(it->key + n, sizeof it->key - n, " scene=%s", o->scene);
-    if (o->plain_terms && n < sizeof it->key) snprintf(it->key + n, sizeof it->key - n, " plain_terms=1");
-}
-
-int batch_done(const char *dir, batch_item_t *it) {
-    char path[4096], line[2048];
-    snprintf(path, sizeof path, "%s/%s/sepbrdf-set-factor.txt", dir, it->name);
-    if (access(path, F_OK) != 0) return 0;
-    snprintf(path, sizeof path, "%s/%s/" BATCH_FILE, dir, it->name);
-    FILE *fp = fopen(path, "r");
-    if (!fp) return 0;
-    int same = fgets(line, sizeof line, fp) && strcspn(line, "\n") == strlen(it->key) &&
-               strncmp(line, it->key, strlen(it->key)) == 0 && fgets(it->fields, sizeof it->fields, fp) &&
-               strchr(it->fields, '\n');
-    fclose(fp);
-    if (same) {
-        *strchr(it->fields, '\n') = 0;
-        set_headline(it);
-        it->ok = 1;
-        /* a run killed between publishing this set and removing its
-         * staging folder left that folder beside it: gone now that the
-         * set is reused (only folders whose process has ended) */
-        snprintf(path, sizeof path, "%s/%s", dir, it->name);
-        (void)sb_outset_cleanup(NULL, path);
-    }
-    return same;
-}
-
 /* Sum of the sizes of the EXR textures in folder `dir`. */
 static long long texture_bytes(const char *dir) {
     long long sum = 0;
@@ -82,17 +30,17 @@ static long long texture_bytes(const char *dir) {
     return sum;
 }
 
-/* The results of job into it->fields (BATCH_FIELDS). */
-static void job_fields(batch_item_t *it, const sb_job_t *job, long long bytes) {
+/* The results of job (BATCH_FIELDS, tab-separated) to fp. */
+static void job_fields(FILE *fp, const sb_job_t *job, long long bytes) {
     const sb_factors_t *f = sb_job_factors(job);
     const sb_factor_errors_t *e = sb_factors_errors(f);
     size_t J = sb_factors_terms(f);
     sb_job_timings_t t;
     sb_job_timings(job, &t);
-    snprintf(it->fields, sizeof it->fields, "%s\t%s\t%zu\t%.9g\t%.9g\t%.9g\t%.9g\t%.9g\t%lld\t%.3f",
-             sb_param_spec(sb_job_param(job)), sb_form_name(sb_job_form(job)), J, sb_job_headline(job, J),
-             sb_job_comparable(job, J), e->rel_rms[sb_err_at(J - 1, SB_CH_ALL)],
-             e->max_abs[sb_err_at(J - 1, SB_CH_ALL)], sb_job_negative(job, J), bytes, t.total_s);
+    fprintf(fp, "%s\t%s\t%zu\t%.9g\t%.9g\t%.9g\t%.9g\t%.9g\t%lld\t%.3f\n", sb_param_spec(sb_job_param(job)),
+            sb_form_name(sb_job_form(job)), J, sb_job_headline(job, J), sb_job_comparable(job, J),
+            e->rel_rms[sb_err_at(J - 1, SB_CH_ALL)], e->max_abs[sb_err_at(J - 1, SB_CH_ALL)], sb_job_negative(job, J),
+            bytes, t.total_s);
 }
 
 /* Write the set of job plus batch.txt into DIR/NAME; 0 or -1 (it->msg). */
@@ -108,9 +56,10 @@ static int publish(sb_context_t *ctx, const char *dir, batch_item_t *it, sb_job_
     sb_result_t r = sb_job_write_set(ctx, job, set);
     FILE *fp = NULL;
     if (r == SB_OK && cli_set_file(set, BATCH_FILE, tmp, sizeof tmp) == 0 && (fp = fopen(tmp, "w")) != NULL) {
-        job_fields(it, job, texture_bytes(sb_outset_dir(set)));
-        fprintf(fp, "%s\n%s\n", it->key, it->fields);
-        if (fclose(fp) == 0 && cli_outset_end(ctx, "factor", set, 1) == EXIT_OK) return 0;
+        fprintf(fp, "%s\n", it->key);
+        job_fields(fp, job, texture_bytes(sb_outset_dir(set)));
+        int werr = ferror(fp);
+        if ((fclose(fp) == 0) && !werr && cli_outset_end(ctx, "factor", set, 1) == EXIT_OK) return 0;
         set = NULL;
     }
     if (r != SB_OK)
@@ -138,17 +87,15 @@ int batch_work(const char *dir, batch_item_t *it, char *line, size_t size) {
             rc = EXIT_OK;
         }
     }
-    snprintf(line, size, "%s\t%s", rc == EXIT_OK ? "ok" : "error", rc == EXIT_OK ? it->fields : it->msg);
+    snprintf(line, size, "%s%s", rc == EXIT_OK ? "ok" : "error\t", rc == EXIT_OK ? "" : it->msg);
     sb_job_destroy(job);
     sb_context_destroy(ctx);
     return rc;
 }
 
 int batch_take(batch_item_t *it, const char *line) {
-    if (strncmp(line, "ok\t", 3) == 0) {
-        snprintf(it->fields, sizeof it->fields, "%.511s", line + 3);
-        set_headline(it);
-        it->ok = 1;
+    if (strncmp(line, "ok", 2) == 0 && (!line[2] || line[2] == '\t')) {
+        it->ok = 1; /* the fields: batch_reread, from its folder */
     } else if (strncmp(line, "error\t", 6) == 0) {
         snprintf(it->msg, sizeof it->msg, "%.511s", line + 6);
     } else {
@@ -175,7 +122,7 @@ static void collect(batch_item_t *it, int fd, int status) {
     line[got > 0 ? got : 0] = 0;
     close(fd);
     int exited = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-    if ((strncmp(line, "ok\t", 3) != 0 || exited) && batch_take(it, line)) return;
+    if ((strncmp(line, "ok", 2) != 0 || exited) && batch_take(it, line)) return;
     if (WIFSIGNALED(status)) {
         snprintf(it->msg, sizeof it->msg, "its process was killed by signal %d", WTERMSIG(status));
     } else {
@@ -247,16 +194,24 @@ void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs) {
     cli_progress_done();
 }
 
-/* The tab-separated fields of it (BATCH_FIELDS) into f[10]; it->fields is
- * copied into buf. */
-static void split(const batch_item_t *it, char *buf, size_t size, const char *f[10]) {
-    snprintf(buf, size, "%s", it->ok ? it->fields : "");
-    char *p = buf;
+/* The tab-separated fields of it (BATCH_FIELDS, those its folder holds)
+ * into f[10], "" where none; a copy the caller frees (NULL: out of memory). */
+static char *split(const batch_item_t *it, const char *f[10]) {
+    const char *from = it->fields ? it->fields : "";
+    char *buf = malloc(strlen(from) + 1), *p = buf;
+    if (!buf) return NULL;
+    strcpy(buf, from);
     for (int k = 0; k < 10; k++) {
         f[k] = p;
         p += strcspn(p, "\t");
         if (*p) *p++ = 0;
     }
+    return buf;
+}
+
+/* The message of a failed item, and what its folder still holds. */
+static void item_message(const batch_item_t *it, char *buf, size_t size) {
+    snprintf(buf, size, "%s%s", it->msg, it->other ? " (its folder keeps an earlier set of other settings)" : "");
 }
 
 /* A CSV field: quoted when it holds a comma, quote or newline. */
@@ -272,62 +227,87 @@ static void csv_field(FILE *fp, const char *s, const char *sep) {
     fputs(sep, fp);
 }
 
-static int write_csv(const char *path, const batch_item_t *items, size_t n) {
-    char tmp[4200], buf[512];
-    const char *f[10];
-    FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
-    if (!fp) return errno ? errno : EIO;
-    fprintf(fp, "name,source," BATCH_FIELDS ",status,message\n");
-    for (size_t i = 0; i < n; i++) {
-        split(&items[i], buf, sizeof buf, f);
-        csv_field(fp, items[i].name, ",");
-        csv_field(fp, items[i].source, ",");
-        for (int k = 0; k < 10; k++)
-            csv_field(fp, f[k], ",");
-        csv_field(fp, items[i].ok ? "ok" : "error", ",");
-        csv_field(fp, items[i].ok ? "" : items[i].msg, "\n");
-    }
-    return cli_commit(fp, tmp, path, 1);
+static void row_csv(FILE *fp, json_t *j, const batch_item_t *it, const char *const f[10], const char *msg) {
+    (void)j;
+    csv_field(fp, it->name, ",");
+    csv_field(fp, it->source, ",");
+    for (int k = 0; k < 10; k++)
+        csv_field(fp, f[k], ",");
+    csv_field(fp, it->ok ? "ok" : "error", ",");
+    csv_field(fp, it->ok ? "" : msg, "\n");
 }
 
-static int write_json(const char *path, const batch_item_t *items, size_t n) {
+static void row_json(FILE *fp, json_t *j, const batch_item_t *it, const char *const f[10], const char *msg) {
     static const char *const names[10] = {"param",   "form",    "terms",    "headline", "comparable",
                                           "rel_rms", "max_abs", "negative", "bytes",    "time_s"};
-    char tmp[4200], buf[512];
+    (void)fp;
+    json_begin_object(j, NULL);
+    json_string(j, "name", it->name);
+    json_string(j, "source", it->source);
+    json_bool(j, "ok", it->ok);
+    if (it->fields) { /* the set its folder holds */
+        json_string(j, names[0], f[0]);
+        json_string(j, names[1], f[1]);
+        for (int k = 2; k < 10; k++)
+            json_number(j, names[k], strtod(f[k], NULL));
+    }
+    if (!it->ok) json_string(j, "message", msg);
+    json_end_object(j);
+}
+
+/* summary.csv (json 0) or summary.json at path, written whole then renamed
+ * into place; 0 or an errno. */
+static int write_summary(const char *path, const batch_item_t *items, size_t n, int json) {
+    char tmp[4200], msg[600];
     const char *f[10];
     FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
     if (!fp) return errno ? errno : EIO;
     json_t j = {fp, 0, {0}};
-    json_begin_object(&j, NULL);
-    json_begin_array(&j, "materials");
-    for (size_t i = 0; i < n; i++) {
-        split(&items[i], buf, sizeof buf, f);
+    if (json) {
         json_begin_object(&j, NULL);
-        json_string(&j, "name", items[i].name);
-        json_string(&j, "source", items[i].source);
-        json_bool(&j, "ok", items[i].ok);
-        if (items[i].ok) {
-            json_string(&j, names[0], f[0]);
-            json_string(&j, names[1], f[1]);
-            for (int k = 2; k < 10; k++)
-                json_number(&j, names[k], strtod(f[k], NULL));
-        } else {
-            json_string(&j, "message", items[i].msg);
-        }
-        json_end_object(&j);
+        json_begin_array(&j, "materials");
+    } else {
+        fprintf(fp, "name,source," BATCH_FIELDS ",status,message\n");
     }
-    json_end_array(&j);
-    json_end_object(&j);
-    fputc('\n', fp);
-    return cli_commit(fp, tmp, path, 1);
+    int e = 0;
+    for (size_t i = 0; i < n && !e; i++) {
+        char *buf = split(&items[i], f);
+        if (!buf) {
+            e = ENOMEM;
+            break;
+        }
+        item_message(&items[i], msg, sizeof msg);
+        (json ? row_json : row_csv)(fp, &j, &items[i], f, msg);
+        free(buf);
+    }
+    if (json) {
+        json_end_array(&j);
+        json_end_object(&j);
+        fputc('\n', fp);
+    }
+    int c = cli_commit(fp, tmp, path, !e);
+    return e ? e : c;
+}
+
+static const char *const summary_files[2] = {"summary.csv", "summary.json"};
+
+int batch_summary_remove(const char *dir) {
+    for (int k = 0; k < 2; k++) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/%s", dir, summary_files[k]);
+        if (unlink(path) != 0 && errno != ENOENT) {
+            cli_error("batch", "%s: cannot remove the summary of the last run: %s", path, sb_io_why(errno));
+            return EXIT_IO;
+        }
+    }
+    return EXIT_OK;
 }
 
 int batch_summary(const char *dir, const batch_item_t *items, size_t n) {
-    static const char *const files[2] = {"summary.csv", "summary.json"};
     for (int k = 0; k < 2; k++) {
         char path[4200];
-        snprintf(path, sizeof path, "%s/%s", dir, files[k]);
-        int e = k == 0 ? write_csv(path, items, n) : write_json(path, items, n);
+        snprintf(path, sizeof path, "%s/%s", dir, summary_files[k]);
+        int e = write_summary(path, items, n, k);
         if (e) {
             cli_error("batch", "%s: cannot write: %s", path, sb_io_why(e));
             return EXIT_IO;
@@ -352,14 +332,14 @@ void batch_table(const batch_item_t *items, size_t n) {
     printf("%4s  %-32s %-20s %4s  %12s  %12s  %10s  %8s\n", "rank", "material", "param", "J", "headline", "rel_rms",
            "bytes", "time_s");
     for (size_t i = 0; i < n; i++) {
-        char buf[512];
         const char *f[10];
-        split(order[i], buf, sizeof buf, f);
-        if (order[i]->ok)
+        char *buf = split(order[i], f);
+        if (buf && order[i]->ok)
             printf("%4zu  %-32s %-20s %4s  %12.4e  %12.4e  %10s  %8s%s\n", i + 1, order[i]->name, f[0], f[2],
                    strtod(f[3], NULL), strtod(f[5], NULL), f[8], f[9], order[i]->skipped ? "  (reused)" : "");
         else
             printf("%4s  %-32s failed: %s\n", "-", order[i]->name, order[i]->msg);
+        free(buf);
     }
     free(order);
 }

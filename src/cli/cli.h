@@ -189,6 +189,15 @@ sb_outset_t *cli_outset_begin(sb_context_t *ctx, const char *cmd, const char *di
 int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size);
 int cli_outset_end(sb_context_t *ctx, const char *cmd, sb_outset_t *s, int ok);
 
+/* Read the regular file `path` whole, at most max bytes, into a new
+ * NUL-terminated buffer *text of *len bytes (the caller frees it).  A
+ * device, FIFO, socket or folder is refused without reading or waiting.
+ * Returns 0, an errno, CLI_READ_NOT_FILE or CLI_READ_TOO_LARGE;
+ * cli_read_why(e) says why in users' words. */
+enum { CLI_READ_NOT_FILE = -1, CLI_READ_TOO_LARGE = -2 };
+int cli_read_file(const char *path, size_t max, char **text, size_t *len);
+const char *cli_read_why(int e);
+
 /* Subcommands */
 int cmd_batch(int argc, char **argv);
 int cmd_bench(int argc, char **argv);

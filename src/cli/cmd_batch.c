@@ -15,11 +15,16 @@
 #define DEFAULT_OUT "sepbrdf-batch"
 #define MAX_ITEMS 4096
 
+#define MAX_MANIFEST (16u << 20) /* bytes of a manifest */
+#define MAX_COLUMNS 64
+
 typedef struct batch {
     batch_item_t *items;
     size_t n;
     sb_job_opts_t base;
-    size_t jobs; /* -j; 0: default_jobs */
+    size_t jobs;  /* -j; 0: default_jobs */
+    char **owned; /* strings the items point into (manifests' texts, paths) */
+    size_t nowned;
 } batch_t;
 
 /* The options of `batch` alone (stored into its batch_t). */
@@ -43,16 +48,22 @@ static void help(void) {
            "       manifest FILE.csv: a header line naming `source` and any options of\n"
            "       `factor` without dashes (param, form, terms, res, method, ...), then\n"
            "       one material per row (empty cell: the command line's value; a flag:\n"
-           "       1 or 0; a relative file is found beside the manifest).\n"
+           "       1 or 0; a relative file is found beside the manifest).  Read as\n"
+           "       CSV: a cell holding a comma is quoted (\"microfacet:base=gold,roughness=0.3\"),\n"
+           "       a row with more cells than the header is an error.\n"
            "NAME   the file name without its extension, or the spec with other\n"
            "       characters than letters, digits, '-' and '.' as '_'; a manifest row\n"
            "       that sets param appends _PARAM, one that sets terms _JN (several\n"
-           "       layouts and J of one material).\n"
+           "       layouts and J of one material); a name past 80 characters (a\n"
+           "       PARAM past 30) keeps its start and a hash of the whole.\n"
            "\n"
            "A material whose folder already holds a complete set of the same settings\n"
            "is reused (a batch interrupted and run again finishes the rest). A material\n"
            "that fails is reported in the summary and the others finish; the exit\n"
-           "status is then 2.\n"
+           "status is then 2.  OUT/summary.csv and summary.json are removed when a run\n"
+           "starts and rebuilt at its end from what the folders hold (an interrupted\n"
+           "run leaves none).  One batch at a time writes into OUT: a second one is\n"
+           "refused (exit 2) while the first, or any of its processes, runs.\n"
            "\n"
            "On a cluster: `mpirun -np N sepbrdf-mpi batch ...` (or srun; sepbrdf-mpi is\n"
            "built where MPI is found) hands the materials to N - 1 ranks, one at a\n"
@@ -63,6 +74,28 @@ static void help(void) {
     cli_table_help(batch_only, CLI_OWN);
     cli_table_help(cli_factor_options, CLI_FACTOR);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n" CLI_EXIT_HELP);
+}
+
+/* c as a character of a folder's name: letters, digits, '-' and '.' (not
+ * first), others '_'. */
+static char name_char(char c, int first) {
+    int keep =
+        (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || (c == '.' && !first);
+    return keep ? c : '_';
+}
+
+/* s[0..n) as folder-name characters into buf; longer than keep, its first
+ * keep - 9 characters and a hash of the whole (FNV-1a), so that long
+ * names stay apart and fit a file system's limit. */
+static void short_name(const char *s, size_t n, size_t keep, char *buf, size_t size) {
+    unsigned long long h = 1469598103934665603ull;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ (unsigned char)s[i]) * 1099511628211ull;
+    size_t k = 0, take = n <= keep ? n : keep - 9;
+    for (; k < take && k + 1 < size; k++)
+        buf[k] = name_char(s[k], k == 0);
+    buf[k] = 0;
+    if (n > keep) snprintf(buf + k, size - k, "-%08llx", h & 0xffffffffull);
 }
 
 /* A folder's name from spec or file into buf: see help. */
@@ -76,17 +109,29 @@ static void item_name(const char *source, const char *suffix, char *buf, size_t 
         dot = strrchr(base, '.');
         n = dot && dot != base ? (size_t)(dot - base) : strlen(base);
     }
-    size_t k = 0;
-    for (size_t i = 0; i < n && k + 1 < size; i++, k++) {
-        char c = base[i];
-        int keep = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ||
-                   (c == '.' && k > 0);
-        buf[k] = keep ? c : '_';
-    }
-    buf[k] = 0;
+    short_name(base, n, 80, buf, size);
+    size_t k = strlen(buf);
     if (suffix) snprintf(buf + k, size - k, "%s", suffix);
 }
 
+/* Keep s (malloc'd) until the batch ends; s, or NULL when out of memory. */
+static char *own(batch_t *b, char *s) {
+    char **grown = s ? realloc(b->owned, (b->nowned + 1) * sizeof *grown) : NULL;
+    if (!grown) {
+        free(s);
+        cli_error("batch", "out of memory");
+        return NULL;
+    }
+    b->owned = grown;
+    return b->owned[b->nowned++] = s;
+}
+
+static char *own_copy(batch_t *b, const char *s) {
+    char *c = malloc(strlen(s) + 1);
+    return own(b, c ? strcpy(c, s) : NULL);
+}
+
+/* source and the strings of o must live as long as the batch (own). */
 static int add(batch_t *b, const char *source, const sb_job_opts_t *o, const char *suffix) {
     if (b->n == MAX_ITEMS) {
         cli_error("batch", "more than %d materials", MAX_ITEMS);
@@ -94,26 +139,27 @@ static int add(batch_t *b, const char *source, const sb_job_opts_t *o, const cha
     }
     batch_item_t *it = &b->items[b->n];
     memset(it, 0, sizeof *it);
-    snprintf(it->source, sizeof it->source, "%.1023s", source);
+    it->source = source;
     it->o = *o;
-    /* the row's strings live in the item, the table stored pointers */
-    if (o->param) snprintf(it->param, sizeof it->param, "%s", o->param), it->o.param = it->param;
-    if (o->form) snprintf(it->form, sizeof it->form, "%s", o->form), it->o.form = it->form;
     item_name(source, suffix, it->name, sizeof it->name);
     for (size_t i = 0; i < b->n; i++)
         if (strcmp(b->items[i].name, it->name) == 0) {
             cli_error("batch", "'%s' and '%s' would both be written to %s/", b->items[i].source, source, it->name);
             return -1;
         }
-    batch_key(it);
     b->n++;
+    if (batch_key(it) != 0) {
+        cli_error("batch", "out of memory");
+        return -1;
+    }
     return 0;
 }
 
-/* Next CSV field of *p (quotes allowed) into buf; 1 while the line goes on. */
-static int csv_next(const char **p, char *buf, size_t size) {
-    const char *s = *p;
-    size_t k = 0;
+/* The next CSV cell at *p, unquoted in place ("" in quotes: one quote; a
+ * quoted cell may hold commas and line breaks); *end = 1 at the end of its
+ * row, *lines += the line breaks passed.  NULL on a quote left open. */
+static char *csv_cell(char **p, int *end, int *lines) {
+    char *s = *p, *w = s, *cell = s;
     int quoted = *s == '"';
     for (s += quoted; *s && (quoted || (*s != ',' && *s != '\n' && *s != '\r')); s++) {
         if (quoted && *s == '"') {
@@ -123,80 +169,145 @@ static int csv_next(const char **p, char *buf, size_t size) {
             }
             s++;
         }
-        if (k + 1 < size) buf[k++] = *s;
+        *lines += *s == '\n';
+        *w++ = *s;
     }
-    buf[k] = 0;
-    *p = *s == ',' ? s + 1 : s;
-    return *s == ',';
+    if (quoted) return NULL;
+    char sep = *s;
+    s += sep == '\r' && s[1] == '\n';
+    *lines += *s == '\n';
+    *end = sep != ',';
+    *p = *s ? s + 1 : s;
+    *w = 0;
+    return cell;
 }
 
-/* One manifest row: cells by the header's columns, through the option tables. */
-static int manifest_row(batch_t *b, const char *file, int line, char cols[][32], int ncols, const char *row) {
+/* The cells of the row at *p into cells[max] (their count; -1 when more than
+ * max, -2 on an open quote); *lines counts the line breaks. */
+static int csv_row(char **p, char **cells, int max, int *lines) {
+    int n = 0, end = 0;
+    while (!end) {
+        char *c = csv_cell(p, &end, lines);
+        if (!c) return -2;
+        if (n == max) return -1;
+        cells[n++] = c;
+    }
+    return n;
+}
+
+/* The folder suffix of a row's layout: _PARAM, or for a long spec (a warp
+ * table) its start and a hash of the whole, so two long specs stay apart. */
+static void param_suffix(const char *param, char *buf, size_t size) {
+    buf[0] = '_';
+    short_name(param, strlen(param), 30, buf + 1, size - 1);
+}
+
+/* The option of manifest column `col` set to `cell` in o; 0 or -1 (message
+ * printed). */
+static int manifest_cell(sb_job_opts_t *o, const char *file, int line, const char *col, char *cell) {
+    char flag[48];
+    const cli_option_t *op = NULL;
+    int m = 0;
+    if (strlen(col) < 40) {
+        snprintf(flag, sizeof flag, "--%s", col);
+        char *argv[3] = {"batch", flag, cell};
+        cli_args_t a = {3, 1, argv, "batch"};
+        m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, o, &op);
+    }
+    if (m == 1 && op && !op->arg && strcmp(cell, "0") == 0) *(int *)((char *)o + op->offset) = 0;
+    if (m == 1) return 0;
+    cli_error("batch", "%s:%d: column '%s': %s", file, line, col, m ? "bad value" : "not an option of factor");
+    return -1;
+}
+
+/* One manifest row: cells by the header's columns, through the option
+ * tables; the strings stay in the manifest's text, owned by the batch. */
+static int manifest_row(batch_t *b, const char *file, int line, char **cols, char **cells, int nc) {
     sb_job_opts_t o = b->base;
-    char cells[32][1000], flag[40], source[1000] = "", suffix[64] = "";
-    const char *param = NULL;
+    const char *source = NULL, *param = NULL;
+    char suffix[64] = "";
     int terms = 0; /* the row sets terms */
-    int nc = 0;
-    for (int more = 1; more && nc < ncols; nc++)
-        more = csv_next(&row, cells[nc], sizeof cells[nc]);
     for (int c = 0; c < nc; c++) {
         if (!cells[c][0]) continue;
         if (strcmp(cols[c], "source") == 0) {
-            snprintf(source, sizeof source, "%.999s", cells[c]);
-            continue;
-        }
-        snprintf(flag, sizeof flag, "--%.31s", cols[c]);
-        char *argv[3] = {"batch", flag, cells[c]};
-        cli_args_t a = {3, 1, argv, "batch"};
-        const cli_option_t *op = NULL;
-        int m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, &o, &op);
-        if (m == 1 && op && !op->arg && strcmp(cells[c], "0") == 0) *(int *)((char *)&o + op->offset) = 0;
-        if (m != 1) {
-            cli_error("batch", "%s:%d: column '%s': %s", file, line, cols[c], m ? "bad value" : "not an option");
+            source = cells[c];
+        } else if (manifest_cell(&o, file, line, cols[c], cells[c]) != 0) {
             return -1;
+        } else {
+            param = strcmp(cols[c], "param") == 0 ? o.param : param;
+            terms |= strcmp(cols[c], "terms") == 0;
         }
-        if (strcmp(cols[c], "param") == 0) param = o.param;
-        terms |= strcmp(cols[c], "terms") == 0;
     }
-    if (!source[0]) {
+    if (!source) {
         cli_error("batch", "%s:%d: no source", file, line);
         return -1;
     }
     /* a relative file is found beside the manifest */
     const char *slash = strrchr(file, '/');
-    char near[2200];
-    snprintf(near, sizeof near, "%.*s/%s", slash ? (int)(slash - file) : 1, slash ? file : ".", source);
-    if (param) snprintf(suffix, sizeof suffix, "_%.30s", param);
+    size_t nd = slash ? (size_t)(slash - file) : 1;
+    char *near = malloc(nd + strlen(source) + 2);
+    if (!near) return -1;
+    sprintf(near, "%.*s/%s", (int)nd, slash ? file : ".", source);
+    if (source[0] != '/' && access(near, F_OK) == 0) {
+        if (!(source = own(b, near))) return -1;
+    } else {
+        free(near);
+    }
+    if (param) param_suffix(param, suffix, sizeof suffix);
     if (terms) snprintf(suffix + strlen(suffix), sizeof suffix - strlen(suffix), "_J%zu", o.terms);
-    return add(b, source[0] != '/' && access(near, F_OK) == 0 ? near : source, &o, suffix[0] ? suffix : NULL);
+    return add(b, source, &o, suffix[0] ? suffix : NULL);
 }
 
+/* The header's columns into cols (their count) or -1 (message printed). */
+static int manifest_header(const char *file, char **p, char **cols, int *lines) {
+    int ncols = csv_row(p, cols, MAX_COLUMNS, lines), has_source = 0;
+    for (int c = 0; c < ncols; c++)
+        has_source |= strcmp(cols[c], "source") == 0;
+    if (ncols < 0)
+        cli_error("batch", "%s:1: %s", file, ncols == -2 ? "a quoted cell is never closed" : "too many columns");
+    else if (!has_source)
+        cli_error("batch", "%s: the header line names no 'source' column", file);
+    return ncols > 0 && has_source ? ncols : -1;
+}
+
+/* A manifest, read as CSV is (RFC 4180: quoted cells with commas, quotes
+ * and line breaks): a header, then one material per row. */
 static int manifest(batch_t *b, const char *file) {
-    FILE *fp = fopen(file, "r");
-    if (!fp) {
-        cli_error("batch", "%s: %s", file, strerror(errno));
+    char *text, *cols[MAX_COLUMNS], *cells[MAX_COLUMNS];
+    size_t len, rows = 0;
+    int e = cli_read_file(file, MAX_MANIFEST, &text, &len), lines = 0;
+    if (e) {
+        cli_error("batch", "%s: %s", file, cli_read_why(e));
         return EXIT_IO;
     }
-    char line[8192], cols[32][32];
-    int ncols = 0, ln = 0, rc = EXIT_OK, has_source = 0;
-    while (rc == EXIT_OK && fgets(line, sizeof line, fp)) {
-        ln++;
-        const char *p = line;
-        if (ln == 1) {
-            for (int more = 1; more && ncols < 32; ncols++) {
-                more = csv_next(&p, cols[ncols], sizeof cols[ncols]);
-                has_source |= strcmp(cols[ncols], "source") == 0;
-            }
-            if (!has_source) {
-                cli_error("batch", "%s: the header line names no 'source' column", file);
-                rc = EXIT_USAGE;
-            }
-        } else if (line[strspn(line, " \t\r\n")] && manifest_row(b, file, ln, cols, ncols, p) != 0) {
-            rc = EXIT_USAGE;
-        }
+    if (!own(b, text)) return EXIT_IO;
+    if (memchr(text, 0, len)) {
+        cli_error("batch", "%s: not a CSV manifest (it holds NUL bytes)", file);
+        return EXIT_IO;
     }
-    fclose(fp);
-    return rc;
+    char *p = text;
+    int ncols = manifest_header(file, &p, cols, &lines);
+    if (ncols < 0) return EXIT_USAGE;
+    while (*p) {
+        int at = lines + 1, nc = csv_row(&p, cells, MAX_COLUMNS, &lines);
+        if (nc == 1 && !cells[0][strspn(cells[0], " \t")]) continue; /* a blank line */
+        if (nc == -2) {
+            cli_error("batch", "%s:%d: a quoted cell is never closed", file, at);
+            return EXIT_USAGE;
+        }
+        if (nc < 0 || nc > ncols) {
+            cli_error("batch", "%s:%d: more cells than the header's %d columns (quote a cell holding a comma: \"a,b\")",
+                      file, at, ncols);
+            return EXIT_USAGE;
+        }
+        if (manifest_row(b, file, at, cols, cells, nc) != 0) return EXIT_USAGE;
+        rows++;
+    }
+    if (!rows) {
+        cli_error("batch", "%s: no material rows after the header line", file);
+        return EXIT_USAGE;
+    }
+    return EXIT_OK;
 }
 
 static int skip_name(const char *name) {
@@ -213,32 +324,34 @@ static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *
 /* One INPUT: manifest, folder, glob or source. */
 static int input(batch_t *b, const char *in) {
     struct stat st;
-    size_t n = strlen(in);
+    size_t n = strlen(in), before = b->n;
     int isdir = stat(in, &st) == 0 && S_ISDIR(st.st_mode);
     if (!isdir && n > 4 && strcmp(in + n - 4, ".csv") == 0 && access(in, F_OK) == 0) return manifest(b, in);
     glob_t g = {0};
     int rc = EXIT_OK;
     if (isdir) {
-        char pattern[4200];
-        snprintf(pattern, sizeof pattern, "%s/*", in);
-        glob(pattern, 0, NULL, &g);
-    } else if (strpbrk(in, "*?[") && glob(in, 0, NULL, &g) != 0) {
+        char *pattern = malloc(n + 3);
+        if (pattern) sprintf(pattern, "%s/*", in), glob(pattern, 0, NULL, &g);
+        free(pattern);
+    } else if (!strpbrk(in, "*?[")) {
+        return add(b, in, &b->base, NULL) ? EXIT_USAGE : EXIT_OK;
+    } else if (glob(in, 0, NULL, &g) != 0) {
         cli_error("batch", "'%s' matches no file", in);
         return EXIT_IO;
     }
-    if (!g.gl_pathc) {
-        rc = isdir ? EXIT_OK : add(b, in, &b->base, NULL) ? EXIT_USAGE : EXIT_OK;
-        globfree(&g);
-        return rc;
-    }
-    qsort(g.gl_pathv, g.gl_pathc, sizeof *g.gl_pathv, cmp_str);
+    if (g.gl_pathc) qsort(g.gl_pathv, g.gl_pathc, sizeof *g.gl_pathv, cmp_str);
     for (size_t i = 0; i < g.gl_pathc && rc == EXIT_OK; i++) {
-        const char *slash = strrchr(g.gl_pathv[i], '/');
+        const char *slash = strrchr(g.gl_pathv[i], '/'), *path;
         if (stat(g.gl_pathv[i], &st) != 0 || !S_ISREG(st.st_mode) || skip_name(slash ? slash + 1 : g.gl_pathv[i]))
             continue;
-        if (add(b, g.gl_pathv[i], &b->base, NULL)) rc = EXIT_USAGE;
+        if (!(path = own_copy(b, g.gl_pathv[i])) || add(b, path, &b->base, NULL)) rc = EXIT_USAGE;
     }
     globfree(&g);
+    if (rc == EXIT_OK && b->n == before) {
+        cli_error("batch", "'%s': no material file %s (hidden files and *.md, *.txt, *.csv, *.json are skipped)", in,
+                  isdir ? "in this folder" : "matches");
+        rc = EXIT_IO;
+    }
     return rc;
 }
 
@@ -279,11 +392,41 @@ static int parse(int argc, char **argv, batch_t *b, const char **out, const char
     return rc;
 }
 
+/* Rank 0 (or the one process): the items not done, run, then the summary
+ * from what the folders hold; the exit code. */
+static int run(batch_t *b, const char *out, int rank, int size) {
+    size_t reused = 0, failed = 0;
+    if (rank == 0 && batch_summary_remove(out) != EXIT_OK) return EXIT_IO;
+    for (size_t i = 0; i < b->n && rank == 0; i++) /* only rank 0 hands out work */
+        reused += b->items[i].skipped = batch_done(out, &b->items[i]);
+    if (!b->jobs) b->jobs = default_jobs(b);
+    if (size > 1)
+        cli_info(1, "batch: %zu materials, %zu reused, over %d ranks", b->n, reused, size - 1);
+    else
+        cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b->n, reused, b->jobs);
+#ifdef SEPBRDF_MPI
+    batch_mpi_run(out, b->items, b->n, b->jobs, rank, size);
+    if (rank != 0) return EXIT_OK; /* rank 0 writes the summary */
+#else
+    (void)size;
+    batch_run(out, b->items, b->n, b->jobs);
+#endif
+    batch_reread(out, b->items, b->n); /* the summary says what the folders hold */
+    for (size_t i = 0; i < b->n; i++)
+        if (!b->items[i].ok) {
+            failed++;
+            cli_error("batch", "%s (%s): %s", b->items[i].name, b->items[i].source, b->items[i].msg);
+        }
+    int rc = batch_summary(out, b->items, b->n);
+    if (g_verbosity >= 1) batch_table(b->items, b->n);
+    return rc == EXIT_OK && failed ? EXIT_IO : rc;
+}
+
 int cmd_batch(int argc, char **argv) {
-    batch_t b = {calloc(MAX_ITEMS, sizeof(batch_item_t)), 0, {0}, 0};
+    batch_t b = {calloc(MAX_ITEMS, sizeof(batch_item_t)), 0, {0}, 0, NULL, 0};
     const char *out = DEFAULT_OUT, **inputs = calloc((size_t)argc + 1, sizeof *inputs);
     size_t ninputs = 0;
-    int rc, rank = 0, size = 0; /* MPI: this rank, the ranks (0: MPI not started) */
+    int rc, rank = 0, size = 0, lock = -1; /* MPI: this rank, the ranks (0: MPI not started) */
     if (!b.items || !inputs) {
         cli_error("batch", "out of memory");
         rc = EXIT_IO;
@@ -307,33 +450,24 @@ int cmd_batch(int argc, char **argv) {
         rc = EXIT_IO;
         goto done;
     }
-    size_t reused = 0;
-    for (size_t i = 0; i < b.n && rank == 0; i++) /* only rank 0 hands out work */
-        reused += b.items[i].skipped = batch_done(out, &b.items[i]);
-    if (!b.jobs) b.jobs = default_jobs(&b);
-    if (size > 1)
-        cli_info(1, "batch: %zu materials, %zu reused, over %d ranks", b.n, reused, size - 1);
-    else
-        cli_info(1, "batch: %zu materials, %zu reused, %zu at a time", b.n, reused, b.jobs);
+    if (rank == 0 && (lock = batch_lock(out)) < 0) {
 #ifdef SEPBRDF_MPI
-    batch_mpi_run(out, b.items, b.n, b.jobs, rank, size);
-    if (rank != 0) goto done; /* rank 0 writes the summary */
-#else
-    batch_run(out, b.items, b.n, b.jobs);
+        batch_mpi_run(out, b.items, 0, 1, rank, size); /* no work: the other ranks stop */
 #endif
-    size_t failed = 0;
-    for (size_t i = 0; i < b.n; i++)
-        if (!b.items[i].ok) {
-            failed++;
-            cli_error("batch", "%s (%s): %s", b.items[i].name, b.items[i].source, b.items[i].msg);
-        }
-    rc = batch_summary(out, b.items, b.n);
-    if (g_verbosity >= 1) batch_table(b.items, b.n);
-    if (rc == EXIT_OK && failed) rc = EXIT_IO;
+        rc = EXIT_IO;
+        goto done;
+    }
+    rc = run(&b, out, rank, size);
 done:
+    batch_unlock(lock);
 #ifdef SEPBRDF_MPI
     if (size > 0) batch_mpi_end();
 #endif
+    for (size_t i = 0; b.items && i < b.n; i++)
+        free(b.items[i].key), free(b.items[i].fields);
+    for (size_t i = 0; i < b.nowned; i++)
+        free(b.owned[i]);
+    free(b.owned);
     free(b.items);
     free(inputs);
     return rc;

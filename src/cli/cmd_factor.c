@@ -49,6 +49,10 @@ static void help(void) {
            "On a cluster: `mpirun -np N sepbrdf-mpi factor ... --method stream` (or srun;\n"
            "sepbrdf-mpi is built where MPI is found) shares the passes over a streamed\n"
            "matrix out to N ranks, one per node; rank 0 writes the folder.\n"
+           "\n"
+           "Candidates of --param auto lost to memory or a failure are warnings; when\n"
+           "the one kept is then poor (headline above 50 %%), the set is written and\n"
+           "the exit status is 2.\n"
            "\n" CLI_EXIT_HELP);
 }
 
@@ -199,6 +203,21 @@ static void print_result(const sb_job_t *job, const char *out) {
     print_budget(job);
 }
 
+/* Whether the kept result is poor (headline at J above POOR_HEADLINE) while
+ * candidates were lost to memory or failures: said on stderr, and the exit
+ * status is 2 (the set is written all the same). */
+#define POOR_HEADLINE 0.5
+static int poor_after_loss(const sb_job_t *job) {
+    size_t lost = sb_job_lost_count(job), J = sb_factors_terms(sb_job_factors(job));
+    double h = sb_job_headline(job, J);
+    if (!lost || !(h > POOR_HEADLINE)) return 0;
+    cli_error("factor",
+              "the layout kept has a headline error of %.3g %% at J = %zu and %zu candidate%s of --param auto %s lost "
+              "(warnings above): more memory (--memory-limit, ulimit -v) or a lower --res may do far better",
+              100 * h, J, lost, lost == 1 ? "" : "s", lost == 1 ? "was" : "were");
+    return 1;
+}
+
 int cmd_factor(int argc, char **argv) {
     sb_job_opts_t o = {0};
     const char *out = DEFAULT_OUT;
@@ -237,6 +256,10 @@ int cmd_factor(int argc, char **argv) {
         }
     }
     if (r == SB_OK && g_verbosity >= 1) print_result(job, out);
+    if (r == SB_OK && rank == 0 && poor_after_loss(job)) {
+        rc = EXIT_IO; /* written, but far from what the lost candidates might give */
+        goto out;
+    }
     if (r == SB_ERR_ARG && o.budget) /* the budget's own problems name it */
         cli_error("factor", "--budget %zu: %s", o.budget, sb_context_last_error(ctx));
     rc = r == SB_OK ? EXIT_OK : r == SB_ERR_ARG && o.budget ? EXIT_USAGE : cli_job_fail("factor", ctx, r, o.terms);

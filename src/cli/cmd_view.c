@@ -67,22 +67,13 @@ static int parse(int argc, char **argv, view_opts_t *o) {
     return rc;
 }
 
-/* The whole of a small text file, malloc'ed; NULL when unreadable. */
+/* The whole of a small text file (64 MiB at most, a regular file),
+ * malloc'ed; NULL when unreadable. */
 static char *read_text(const char *dir, const char *name) {
-    char path[4200];
+    char path[4200], *s = NULL;
+    size_t n;
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return NULL;
-    char *s = NULL;
-    long n = fseek(fp, 0, SEEK_END) == 0 ? ftell(fp) : -1;
-    if (n >= 0 && n < (1L << 26) && fseek(fp, 0, SEEK_SET) == 0 && (s = malloc((size_t)n + 1))) {
-        if (fread(s, 1, (size_t)n, fp) == (size_t)n)
-            s[n] = 0;
-        else
-            free(s), s = NULL;
-    }
-    fclose(fp);
-    return s;
+    return cli_read_file(path, (size_t)1 << 26, &s, &n) == 0 ? s : NULL;
 }
 
 /* Bytes of the folder's g_JJ.exr and h_JJ.exr. */

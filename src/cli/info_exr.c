@@ -5,6 +5,7 @@
 #include <openexr.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "cli.h"
 
@@ -22,6 +23,11 @@ static exr_result_t open_header(const char *path, exr_context_t *ex) {
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = on_exr_error;
     exr_msg[0] = 0;
+    struct stat st;
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) { /* OpenEXR would wait on a FIFO */
+        snprintf(exr_msg, sizeof exr_msg, "not a regular file (a device, FIFO or folder is not read)");
+        return EXR_ERR_FILE_ACCESS;
+    }
     return exr_start_read(ex, path, &init);
 }
 

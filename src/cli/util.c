@@ -7,6 +7,7 @@
 #include <signal.h>
 #include <stdarg.h>
 #include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -405,14 +406,14 @@ int cli_set_file(sb_outset_t *s, const char *name, char *path, size_t size) {
 int cli_read_source_spec(const char *dir, char *buf, size_t size) {
     char path[4200];
     snprintf(path, sizeof path, "%s/report.json", dir);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return -1;
-    static char text[1 << 16];
-    size_t n = fread(text, 1, sizeof text - 1, fp);
-    fclose(fp);
-    text[n] = 0;
+    char *text = NULL;
+    size_t n;
+    if (cli_read_file(path, (size_t)1 << 26, &text, &n) != 0) return -1;
     const char *p = strstr(text, "\"source_spec\": \"");
-    if (!p) return -1;
+    if (!p) {
+        free(text);
+        return -1;
+    }
     p += strlen("\"source_spec\": \"");
     size_t k = 0;
     for (; *p && *p != '"' && k + 1 < size; p++) {
@@ -424,5 +425,45 @@ int cli_read_source_spec(const char *dir, char *buf, size_t size) {
         }
     }
     buf[k] = 0;
-    return *p == '"' && k > 0 ? 0 : -1;
+    int ok = *p == '"' && k > 0;
+    free(text);
+    return ok ? 0 : -1;
+}
+
+int cli_read_file(const char *path, size_t max, char **text, size_t *len) {
+    *text = NULL;
+    *len = 0;
+    /* O_NONBLOCK: opening a FIFO with no writer does not wait */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return errno;
+    struct stat st;
+    int e = fstat(fd, &st) != 0 ? errno : !S_ISREG(st.st_mode) ? CLI_READ_NOT_FILE : 0;
+    if (!e && (uintmax_t)st.st_size > (uintmax_t)max) e = CLI_READ_TOO_LARGE;
+    char *buf = e ? NULL : malloc((size_t)st.st_size + 1);
+    if (!e && !buf) e = ENOMEM;
+    size_t n = 0;
+    while (!e && n <= (size_t)st.st_size) { /* one byte past the size: a file that grew */
+        ssize_t got = read(fd, buf + n, (size_t)st.st_size + 1 - n);
+        if (got < 0 && errno == EINTR) continue;
+        if (got < 0) e = errno;
+        if (got <= 0) break;
+        n += (size_t)got;
+    }
+    close(fd);
+    if (!e && n > (size_t)st.st_size) e = EAGAIN; /* it changed while read */
+    if (e) {
+        free(buf);
+        return e;
+    }
+    buf[n] = 0;
+    *text = buf;
+    *len = n;
+    return 0;
+}
+
+const char *cli_read_why(int e) {
+    if (e == CLI_READ_NOT_FILE) return "not a regular file (a device, FIFO or folder is not read)";
+    if (e == CLI_READ_TOO_LARGE) return "too large for this kind of file";
+    if (e == EAGAIN) return "it changed while it was read";
+    return sb_io_why(e);
 }

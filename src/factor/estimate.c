@@ -239,7 +239,8 @@ sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, con
     int nt = sb_thread_count(o.threads);
     if (pairs_grow(ctx, P, o.start, nt > MAXT ? MAXT : nt) != SB_OK) {
         sb_pairs_destroy(P);
-        return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory for %zu pairs", o.start * o.replicate);
+        return sb_error(ctx, SB_ERR_NOMEM, "estimate: cannot allocate %zu bytes for %zu pairs",
+                        o.start * o.replicate * PD * sizeof(double), o.start * o.replicate);
     }
     for (size_t i = 0; i < P->n; i++) {
         const double *d = P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];

@@ -390,6 +390,8 @@ static void work_sums(const work_t *w, sb_metric_t *out) {
 
 /* The fraction of negative texels over every texture of the first J terms. */
 double sb_factors_negative_fraction(const sb_factors_t *f, size_t J) {
+    if (!f) return NAN;
+    if (J > sb_factors_terms(f)) J = sb_factors_terms(f);
     size_t nneg = 0, ntex = 0, C = sb_factors_channels(f);
     for (int side = 0; side < 2; side++) {
         size_t tw, th;

@@ -47,6 +47,8 @@ sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_mea
         if (!S_ISREG(st.st_mode)) return sb_error(ctx, SB_ERR_IO, "%s: not a regular file", spec);
     }
     if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open(ctx, spec, mo, out, NULL);
+    if (stat(spec, &st) == 0 && !S_ISDIR(st.st_mode)) /* a FIFO or device named like a model */
+        return sb_error(ctx, SB_ERR_IO, "%s: not a regular file (a device, FIFO or socket is not read)", spec);
     return sb_source_open(ctx, spec, out);
 }
 
@@ -232,42 +234,49 @@ void sb_job_destroy(sb_job_t *job) {
     free(job);
 }
 
-const sb_source_t *sb_job_source(const sb_job_t *job) { return job->src; }
-const char *sb_job_source_spec(const sb_job_t *job) { return job->o.source; }
-const sb_factors_t *sb_job_factors(const sb_job_t *job) { return job->best.f; }
-const sb_param_t *sb_job_param(const sb_job_t *job) { return job->best.param; }
-const sb_matrix_t *sb_job_matrix(const sb_job_t *job) { return &job->best.m; }
-sb_form_t sb_job_form(const sb_job_t *job) { return job->best.m.form; }
-int sb_job_weighted(const sb_job_t *job) { return job->best.weighted; }
-int sb_job_masked(const sb_job_t *job) { return job_attempt_masked(job, &job->best); }
-void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out) { *out = job->best.stats; }
-const sb_metric_t *sb_job_metric(const sb_job_t *job) { return &job->best.metric; }
-int sb_job_auto(const sb_job_t *job) { return job->is_auto; }
-size_t sb_job_candidate_count(const sb_job_t *job) { return job->ncand; }
-const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i) {
-    return i < job->ncand ? &job->cands[i] : NULL;
+/* The accessors take a NULL job (issue 34): NULL pointers, "" strings, 0
+ * counts and flags, SB_FORM_F, NAN errors, zeroed structs. */
+const sb_source_t *sb_job_source(const sb_job_t *job) { return job ? job->src : NULL; }
+const char *sb_job_source_spec(const sb_job_t *job) { return job && job->o.source ? job->o.source : ""; }
+const sb_factors_t *sb_job_factors(const sb_job_t *job) { return job ? job->best.f : NULL; }
+const sb_param_t *sb_job_param(const sb_job_t *job) { return job ? job->best.param : NULL; }
+const sb_matrix_t *sb_job_matrix(const sb_job_t *job) { return job ? &job->best.m : NULL; }
+sb_form_t sb_job_form(const sb_job_t *job) { return job ? job->best.m.form : SB_FORM_F; }
+int sb_job_weighted(const sb_job_t *job) { return job ? job->best.weighted : 0; }
+int sb_job_masked(const sb_job_t *job) { return job ? job_attempt_masked(job, &job->best) : 0; }
+void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out) {
+    if (out) *out = job ? job->best.stats : (sb_plan_stats_t){0};
 }
-void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out) { *out = job->t; }
-size_t sb_job_warning_count(const sb_job_t *job) { return job->nwarn; }
-const char *sb_job_warning(const sb_job_t *job, size_t i) { return i < job->nwarn ? job->warn[i] : NULL; }
+const sb_metric_t *sb_job_metric(const sb_job_t *job) { return job ? &job->best.metric : NULL; }
+int sb_job_auto(const sb_job_t *job) { return job ? job->is_auto : 0; }
+size_t sb_job_candidate_count(const sb_job_t *job) { return job ? job->ncand : 0; }
+const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i) {
+    return job && i < job->ncand ? &job->cands[i] : NULL;
+}
+void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out) {
+    if (out) *out = job ? job->t : (sb_job_timings_t){0};
+}
+size_t sb_job_warning_count(const sb_job_t *job) { return job ? job->nwarn : 0; }
+const char *sb_job_warning(const sb_job_t *job, size_t i) { return job && i < job->nwarn ? job->warn[i] : NULL; }
 
-const sb_estimate_t *sb_job_estimate(const sb_job_t *job) { return job->best.est; }
+const sb_estimate_t *sb_job_estimate(const sb_job_t *job) { return job ? job->best.est : NULL; }
 
 double sb_job_headline(const sb_job_t *job, size_t j) {
-    return job->best.est ? sb_estimate_headline(job->best.est, j) : NAN;
+    return job && job->best.est ? sb_estimate_headline(job->best.est, j) : NAN;
 }
 
 double sb_job_comparable(const sb_job_t *job, size_t j) {
-    const sb_estimate_t *e = job->best.est;
+    const sb_estimate_t *e = job ? job->best.est : NULL;
     return e && j >= 1 && j <= e->terms ? e->rel[j - 1][SB_EST_FCOS2][SB_CH_ALL] : NAN;
 }
 
 double sb_job_negative(const sb_job_t *job, size_t j) {
-    const sb_estimate_t *e = job->best.est;
+    const sb_estimate_t *e = job ? job->best.est : NULL;
     return e && j >= 1 && j <= e->terms ? e->neg_frac[j - 1] : NAN;
 }
 
 double sb_job_rel_stored(const sb_job_t *job, size_t j, size_t c) {
+    if (!job) return NAN;
     size_t J = sb_factors_terms(job->best.f);
     return job->rel_stored && j >= 1 && j <= J && c <= SB_CH_ALL ? job->rel_stored[sb_err_at(j - 1, c)] : NAN;
 }

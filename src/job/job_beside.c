@@ -59,9 +59,9 @@ sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
 }
 
 double sb_job_svd_headline(const sb_job_t *job, size_t j) {
-    return job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[2 * (j - 1)] : NAN;
+    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[2 * (j - 1)] : NAN;
 }
 
 double sb_job_svd_rel_rms(const sb_job_t *job, size_t j) {
-    return job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[2 * (j - 1) + 1] : NAN;
+    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[2 * (j - 1) + 1] : NAN;
 }

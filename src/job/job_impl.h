@@ -97,6 +97,10 @@ void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf,
  * longer lower the error at the measured samples; replaces the warnings of
  * the previous check.  Nothing for analytic sources. */
 void job_warn_support(sb_job_t *job);
+/* A warning for each candidate of --param auto lost to memory (the memory
+ * limit, an allocation) or a failure, not those ranked out or too small
+ * for J: a result that may be worse than a lost one is never silent. */
+void job_warn_lost(sb_job_t *job);
 
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);

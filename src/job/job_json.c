@@ -22,6 +22,11 @@ static void json_escape(FILE *fp, const char *s) {
     fputc('"', fp);
 }
 
+/* Every writer takes a NULL j or a j without a FILE (nothing written) and
+ * keeps depth within first[] (deeper nesting is written flat). */
+#define JSON_MAX_DEPTH ((int)(sizeof((sb_json_t *)0)->first / sizeof(int)) - 1)
+static int usable(const sb_json_t *j) { return j && j->fp && j->depth >= 0 && j->depth <= JSON_MAX_DEPTH; }
+
 static void put_key(sb_json_t *j, const char *key) {
     if (j->depth > 0) {
         if (!j->first[j->depth]) fputc(',', j->fp);
@@ -36,34 +41,30 @@ static void put_key(sb_json_t *j, const char *key) {
     }
 }
 
-void sb_json_begin_object(sb_json_t *j, const char *key) {
+/* Open an object or array (deeper than JSON_MAX_DEPTH: nothing). */
+static void begin(sb_json_t *j, const char *key, char open) {
+    if (!usable(j) || j->depth == JSON_MAX_DEPTH) return;
     put_key(j, key);
-    fputc('{', j->fp);
+    fputc(open, j->fp);
     j->depth++;
     j->first[j->depth] = 1;
 }
-void sb_json_end_object(sb_json_t *j) {
+static void end(sb_json_t *j, char close) {
+    if (!usable(j) || j->depth == 0) return;
     j->depth--;
     fputc('\n', j->fp);
     for (int i = 0; i < j->depth; i++)
         fputs("  ", j->fp);
-    fputc('}', j->fp);
-    if (j->depth == 0) fputc('\n', j->fp);
+    fputc(close, j->fp);
+    if (j->depth == 0 && close == '}') fputc('\n', j->fp);
 }
-void sb_json_begin_array(sb_json_t *j, const char *key) {
-    put_key(j, key);
-    fputc('[', j->fp);
-    j->depth++;
-    j->first[j->depth] = 1;
-}
-void sb_json_end_array(sb_json_t *j) {
-    j->depth--;
-    fputc('\n', j->fp);
-    for (int i = 0; i < j->depth; i++)
-        fputs("  ", j->fp);
-    fputc(']', j->fp);
-}
+
+void sb_json_begin_object(sb_json_t *j, const char *key) { begin(j, key, '{'); }
+void sb_json_end_object(sb_json_t *j) { end(j, '}'); }
+void sb_json_begin_array(sb_json_t *j, const char *key) { begin(j, key, '['); }
+void sb_json_end_array(sb_json_t *j) { end(j, ']'); }
 void sb_json_string(sb_json_t *j, const char *key, const char *value) {
+    if (!usable(j)) return;
     put_key(j, key);
     if (value)
         json_escape(j->fp, value);
@@ -71,6 +72,7 @@ void sb_json_string(sb_json_t *j, const char *key, const char *value) {
         fputs("null", j->fp);
 }
 void sb_json_number(sb_json_t *j, const char *key, double v) {
+    if (!usable(j)) return;
     put_key(j, key);
     if (isfinite(v))
         fprintf(j->fp, "%.17g", v);
@@ -78,10 +80,12 @@ void sb_json_number(sb_json_t *j, const char *key, double v) {
         fputs("null", j->fp);
 }
 void sb_json_int(sb_json_t *j, const char *key, long long v) {
+    if (!usable(j)) return;
     put_key(j, key);
     fprintf(j->fp, "%lld", v);
 }
 void sb_json_bool(sb_json_t *j, const char *key, int v) {
+    if (!usable(j)) return;
     put_key(j, key);
     fputs(v ? "true" : "false", j->fp);
 }

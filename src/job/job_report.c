@@ -157,7 +157,7 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
 }
 
 int sb_job_headline_non_increasing(const sb_job_t *job) {
-    const sb_estimate_t *e = job->best.est;
+    const sb_estimate_t *e = job ? job->best.est : NULL;
     for (size_t k = 1; e && k < e->terms; k++) {
         double prev = e->rel[k - 1][SB_EST_FCOS][SB_CH_ALL], d = e->rel[k][SB_EST_FCOS][SB_CH_ALL] - prev;
         double se = hypot(e->se[k][SB_EST_FCOS][SB_CH_ALL], e->se[k - 1][SB_EST_FCOS][SB_CH_ALL]);
@@ -290,6 +290,7 @@ static void report_files(sb_json_t *j, const sb_job_t *job) {
 }
 
 void sb_job_report(const sb_job_t *job, FILE *fp) {
+    if (!job || !fp) return;
     sb_json_t jw = {fp, 0, {0}}, *j = &jw;
     sb_json_begin_object(j, NULL);
     report_settings(j, job);

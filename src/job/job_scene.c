@@ -130,5 +130,5 @@ void job_scene_free(sb_job_t *job) {
     job->domain_est = NULL;
 }
 
-const sb_scene_t *sb_job_scene(const sb_job_t *job) { return job->scene; }
-const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job) { return job->scene ? job->domain_est : NULL; }
+const sb_scene_t *sb_job_scene(const sb_job_t *job) { return job ? job->scene : NULL; }
+const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job) { return job && job->scene ? job->domain_est : NULL; }

@@ -657,7 +657,10 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
         c->kept = r == SB_OK;
         c->time_s += job_now() - t1;
     }
-    if (r == SB_OK) return SB_OK;
+    if (r == SB_OK) {
+        job_warn_lost(job);
+        return SB_OK;
+    }
     /* Out of memory or beyond the size limits anywhere is what the user can
      * act on (exit 2, lower the resolution); anything else is numerical. */
     const char *why = "";

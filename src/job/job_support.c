@@ -1,7 +1,9 @@
 /* Warnings when a run asks a measured table for more than its data
- * support (docs/measured.md, "Unmeasured regions: the policy"). */
+ * support (docs/measured.md, "Unmeasured regions: the policy"), and when
+ * --param auto lost candidates. */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "job_impl.h"
 #include "sepbrdf/measured.h"
@@ -54,4 +56,34 @@ void job_warn_support(sb_job_t *job) {
                      keep, se.samples, 100 * se.rel_l2[keep - 1], keep, 100 * se.rel_l2[se.terms - 1], se.terms);
     }
     job->nsupport = job->nwarn - before;
+}
+
+/* Whether candidate c was lost to memory (the limit or an allocation); to
+ * a failure: lost(c) and not lost_to_memory(c). */
+static int lost_to_memory(const sb_job_candidate_t *c) {
+    return c->result == SB_ERR_NOMEM || c->result == SB_ERR_OVERFLOW || strstr(c->why, "memory limit");
+}
+static int lost(const sb_job_candidate_t *c) {
+    return !c->ok && !c->kept && c->why[0] && (c->result != SB_OK || lost_to_memory(c));
+}
+
+size_t sb_job_lost_count(const sb_job_t *job) {
+    size_t n = 0;
+    for (size_t i = 0; job && i < job->ncand; i++)
+        n += (size_t)lost(&job->cands[i]);
+    return n;
+}
+
+void job_warn_lost(sb_job_t *job) {
+    for (size_t i = 0; i < job->ncand; i++) {
+        const sb_job_candidate_t *c = &job->cands[i];
+        int mem = lost_to_memory(c);
+        if (!lost(c)) continue;
+        job_warn(job, "--param auto lost the candidate %s/%s (%s): %s; the layout kept may be worse than it",
+                 sb_param_kind_name(c->kind), sb_form_name(c->form),
+                 mem                           ? "memory"
+                 : c->result == SB_ERR_NUMERIC ? "numerical failure"
+                                               : sb_result_message(c->result),
+                 c->why);
+    }
 }

@@ -122,6 +122,10 @@ static sb_result_t read_header(sb_context_t *ctx, exr_context_t ex, const char *
 }
 
 static sb_result_t open_read(sb_context_t *ctx, const char *path, exr_context_t *ex) {
+    struct stat st;
+    /* OpenEXR would wait on a FIFO and read a device without end */
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
+        return sb_error(ctx, SB_ERR_IO, "%s: not a regular file (a device, FIFO or folder is not read)", path);
     sb_exr_msg_reset_();
     exr_context_initializer_t init = sb_exr_init_(1);
     exr_result_t rv = exr_start_read(ex, path, &init);

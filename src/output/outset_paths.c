@@ -5,6 +5,8 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <pthread.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -86,17 +88,44 @@ static sb_result_t check_name_length(sb_context_t *ctx, const char *target, cons
     return SB_OK;
 }
 
+#define PROBE ".sepbrdf-probe-"
+
+/* Probe folders of processes that are gone (one killed between creating
+ * and removing its probe) in `dir`: removed. */
+static void remove_stale_probes(const char *dir) {
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    size_t n = strlen(PROBE);
+    while (d && (e = readdir(d)) != NULL) {
+        const char *pid = e->d_name + n;
+        if (strncmp(e->d_name, PROBE, n) != 0 || !*pid || strspn(pid, "0123456789") != strlen(pid)) continue;
+        long p = strtol(pid, NULL, 10);
+        if (p > 0 && p != (long)getpid() && !sb_outset_pid_alive(p)) unlinkat(dirfd(d), e->d_name, AT_REMOVEDIR);
+    }
+    if (d) closedir(d);
+}
+
 /* Whether we can create entries in folder `dir`: try it (access() says yes
- * to root everywhere) with a probe folder removed at once.  0 or errno. */
+ * to root everywhere) with a probe folder removed at once, with INT, TERM
+ * and HUP held back on this thread in between; a probe left by a process
+ * killed all the same is removed by the next probe there.  0 or errno. */
 static int probe_dir(const char *dir) {
-    char *probe = outset_join(dir, ".sepbrdf-probe-");
+    char *probe = outset_join(dir, PROBE);
     size_t len = probe ? strlen(probe) + 24 : 0;
     char *full = probe ? malloc(len) : NULL;
     int e = ENOMEM;
+    remove_stale_probes(dir);
     if (full) {
+        sigset_t hold, old;
+        sigemptyset(&hold);
+        sigaddset(&hold, SIGINT);
+        sigaddset(&hold, SIGTERM);
+        sigaddset(&hold, SIGHUP);
+        pthread_sigmask(SIG_BLOCK, &hold, &old);
         snprintf(full, len, "%s%ld", probe, (long)getpid());
         e = mkdir(full, 0700) == 0 ? 0 : errno;
         if (!e) rmdir(full);
+        pthread_sigmask(SIG_SETMASK, &old, NULL);
     }
     free(probe);
     free(full);

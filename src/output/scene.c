@@ -137,11 +137,11 @@ static sb_result_t pairs_add(sb_context_t *ctx, sb_scene_t *s, const double v[5]
 }
 
 static sb_result_t parse_pairs(sb_context_t *ctx, sb_scene_t *s, const char *path) {
-    FILE *fp = fopen(path, "r");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "scene: pairs file %s: %s", path, strerror(errno));
+    sb_result_t r = SB_OK;
+    FILE *fp = sb_fopen_regular(ctx, path, "scene: pairs file", SB_SCENE_MAX_FILE, &r);
+    if (!fp) return SB_ERR_IO; /* the message names the file and why */
     char line[1024];
     size_t cap = 0, ln = 0;
-    sb_result_t r = SB_OK;
     while (r == SB_OK && fgets(line, sizeof line, fp)) {
         double v[5];
         ln++;
@@ -151,6 +151,8 @@ static sb_result_t parse_pairs(sb_context_t *ctx, sb_scene_t *s, const char *pat
                          ln);
         else if (k > 0 && !(v[0] >= 0 && v[0] <= 90 && v[2] >= 0 && v[2] <= 90 && v[4] >= 0))
             r = sb_error(ctx, SB_ERR_RANGE, "scene: %s:%zu: theta must be in 0..90 and the weight >= 0", path, ln);
+        else if (k > 0 && s->npairs == SB_SCENE_MAX_PAIRS)
+            r = sb_error(ctx, SB_ERR_RANGE, "scene: %s:%zu: more than %d pairs", path, ln, SB_SCENE_MAX_PAIRS);
         else if (k > 0)
             r = pairs_add(ctx, s, v, &cap);
     }

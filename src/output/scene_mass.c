@@ -98,6 +98,7 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
 
 /* Rank-one a b^T ~ mass on its positive cells (header); w = sqrt, floored. */
 void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w) {
+    if (!mass || !w) return;
     double *a = w, *b = w + rows;
     for (size_t c = 0; c < cols; c++)
         b[c] = 1;

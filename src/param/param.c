@@ -81,12 +81,9 @@ static size_t *count_key(sb_param_opts_t *o, const char *key) {
     return NULL;
 }
 
-/* "KIND[:key=value,...]": split on ':' and ',', numbers by strtod. */
-sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
-    if (!spec || !kind || !opts) return sb_error(ctx, SB_ERR_ARG, "param: no spec or output");
-    char buf[SB_PARAM_SPEC_MAX];
-    if (strlen(spec) >= sizeof buf) return sb_error(ctx, SB_ERR_PARSE, "param spec too long");
-    snprintf(buf, sizeof buf, "%s", spec);
+/* "KIND[:key=value,...]" in buf (split in place on ':' and ','), numbers
+ * by strtod. */
+static sb_result_t parse_spec(sb_context_t *ctx, char *buf, sb_param_kind_t *kind, sb_param_opts_t *opts) {
     char *args = strchr(buf, ':');
     if (args) *args++ = 0;
     sb_param_kind_t k;
@@ -133,6 +130,17 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
     *kind = k;
     *opts = o;
     return SB_OK;
+}
+
+/* A copy of spec of any length (warp tables written with many digits run
+ * to thousands of characters), parsed. */
+sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts) {
+    if (!spec || !kind || !opts) return sb_error(ctx, SB_ERR_ARG, "param: no spec or output");
+    char *buf = malloc(strlen(spec) + 1);
+    if (!buf) return sb_error(ctx, SB_ERR_NOMEM, "param: out of memory");
+    sb_result_t r = parse_spec(ctx, strcpy(buf, spec), kind, opts);
+    free(buf);
+    return r;
 }
 
 /* The layout's own warp where opts name none; tables rounded to the
@@ -349,6 +357,7 @@ int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], doub
 const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
+    if (!wi || !wo) return;
     double d[3], ct = cos(theta_h), st = sin(theta_h), h[3] = {st, 0, ct}, l[3], v[3];
     sb_dir_from_angles(theta_d, phi_d, d);
     l[0] = d[0] * ct + d[2] * st;

@@ -32,7 +32,8 @@ double sb_matrix_at(const sb_matrix_t *m, int ch, size_t row, size_t col) {
 }
 
 const double *sb_matrix_col(const sb_matrix_t *m, int ch, size_t col, double *buf) {
-    if (!sb_matrix_has(m, ch)) return NULL;
+    if (!sb_matrix_has(m, ch) || col >= m->cols) return NULL;
+    if (!buf && (m->streamed || m->structured)) return NULL; /* no room to gather it */
     if (m->streamed) {
         double *out[3] = {NULL, NULL, NULL};
         out[ch] = buf;

@@ -635,8 +635,9 @@ static void scattered_fields(sb_measured_info_t *info) {
 
 static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered_kind_t kind,
                                   const sb_measured_opts_t *o, sb_source_t **out, sb_measured_info_t *info) {
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    sb_result_t r;
+    FILE *fp = sb_fopen_regular(ctx, path, "measured table", SB_MEASURED_MAX_FILE, &r);
+    if (!fp) return r;
     reader_t rd = {ctx, path, {fp, path, 0, NULL, 0}, {NULL, 0, 0}, info};
     for (int c = 0; c < 3; c++) {
         info->value_min[c] = INFINITY;
@@ -645,7 +646,6 @@ static sb_result_t scattered_open(sb_context_t *ctx, const char *path, scattered
     info->white = o->white;
     info->gamut = o->gamut;
     int iso = 1, recip = 1;
-    sb_result_t r;
     if (kind == KIND_CORNELL)
         r = read_cornell(&rd, o);
     else if (kind == KIND_ALTA)

@@ -230,8 +230,8 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
     sb_result_t r = check_opts(ctx, path, &o, &rd);
     if (r != SB_OK) return r;
     if (!rd) {
-        FILE *fp = fopen(path, "rb");
-        if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+        FILE *fp = sb_fopen_regular(ctx, path, "measured table", SB_MEASURED_MAX_FILE, &r);
+        if (!fp) return r;
         unsigned char head[4096];
         size_t n = fread(head, 1, sizeof head, fp);
         int bad = ferror(fp);

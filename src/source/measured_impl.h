@@ -10,6 +10,9 @@
 /* A direction with z below this (theta >= pi/2 - 1e-9) is at or below the
  * horizon: f_r is not defined there, and text tables round angles. */
 #define SB_HORIZON_Z 1e-9
+/* The largest measured file read (bytes); every reader opens its file
+ * with sb_fopen_regular, so devices and FIFOs are refused. */
+#define SB_MEASURED_MAX_FILE (16ull << 30)
 
 /* Open a measured table file: the entry point source.c calls for a path. */
 sb_result_t sb_measured_open_hook(sb_context_t *ctx, const char *path, sb_source_t **out);

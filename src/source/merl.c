@@ -332,10 +332,10 @@ static sb_result_t merl_source(sb_context_t *ctx, const char *path, merl_t *m, s
     sb_info_field(info, "cells", (double)info->rows, "%zu (measured %zu, missing %zu: negative %zu, NaN %zu)",
                   info->rows, info->samples, info->missing, info->negative, info->nan_rows);
     sb_info_field(info, "interp", NAN, "%s", sb_interp_name(interp));
-    char desc[1200];
-    snprintf(desc, sizeof desc, "merl:%s (%s)", path, sb_interp_name(interp));
+    char *desc = sb_format("merl:%s (%s)", path, sb_interp_name(interp)); /* paths of any length */
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};
-    sb_result_t r = sb_source_create(ctx, &ops, m, info->flags, desc, out);
+    sb_result_t r = desc ? sb_source_create(ctx, &ops, m, info->flags, desc, out) : SB_ERR_NOMEM;
+    free(desc);
     if (r != SB_OK) {
         merl_destroy(m);
         return r;
@@ -350,10 +350,11 @@ static sb_result_t merl_open(sb_context_t *ctx, const char *path, const sb_measu
     if (interp != SB_INTERP_NEAREST && interp != SB_INTERP_LINEAR)
         return sb_error(ctx, SB_ERR_ARG, "%s: MERL tables interpolate 'nearest' or 'linear', not '%s'", path,
                         sb_interp_name(interp));
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    sb_result_t r;
+    FILE *fp = sb_fopen_regular(ctx, path, "MERL table", SB_MEASURED_MAX_FILE, &r);
+    if (!fp) return r;
     merl_t *m = NULL;
-    sb_result_t r = merl_check_head(ctx, path, fp);
+    r = merl_check_head(ctx, path, fp);
     if (r == SB_OK && !(m = calloc(1, sizeof *m))) r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
     if (r == SB_OK) {
         m->interp = interp;

@@ -34,142 +34,8 @@
 #include "sepbrdf/measured.h"
 #include "source/measured_impl.h"
 #include "source/rgl_impl.h"
+#include "source/rgl_tensor.h"
 #include "util/internal.h"
-
-#define RGL_MAX_FIELDS 4096
-#define RGL_MAX_DIMS 8
-
-typedef struct tf_field {
-    const unsigned char *name;
-    size_t name_len;
-    unsigned dtype;
-    size_t ndim;
-    uint64_t shape[RGL_MAX_DIMS];
-    const unsigned char *data; /* inside the file buffer, bounds checked */
-    size_t count;              /* product of shape */
-} tf_field_t;
-
-static const size_t dtype_size[12] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 2, 4, 8};
-
-static uint64_t le_u(const unsigned char *b, int n) {
-    uint64_t u = 0;
-    for (int k = n - 1; k >= 0; k--)
-        u = u << 8 | b[k];
-    return u;
-}
-static double le_f32(const unsigned char *b) {
-    uint32_t u = (uint32_t)le_u(b, 4);
-    float f;
-    memcpy(&f, &u, sizeof f);
-    return f;
-}
-
-/* ---- container ----------------------------------------------------------- */
-
-typedef struct tf_file {
-    unsigned char *buf;
-    size_t size, nfields;
-    tf_field_t *fields;
-} tf_file_t;
-
-static sb_result_t read_all(sb_context_t *ctx, const char *path, tf_file_t *tf) {
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return sb_error(ctx, SB_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    struct stat st;
-    sb_result_t r = SB_OK;
-    if (fstat(fileno(fp), &st) != 0 || st.st_size < 0) {
-        r = sb_error(ctx, SB_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
-    } else if ((uintmax_t)st.st_size > SIZE_MAX / 2) {
-        r = sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: file too large (%jd bytes)", path, (intmax_t)st.st_size);
-    } else {
-        tf->size = (size_t)st.st_size;
-        tf->buf = sb_alloc(ctx, tf->size ? tf->size : 1, 1, path);
-        if (!tf->buf)
-            r = SB_ERR_NOMEM;
-        else if (fread(tf->buf, 1, tf->size, fp) != tf->size)
-            r = sb_error(ctx, SB_ERR_IO, "%s: read error", path);
-    }
-    fclose(fp);
-    return r;
-}
-
-/* Parse the field table at p; every offset and size checked against the
- * file (size products overflow-checked). */
-static sb_result_t parse_fields(sb_context_t *ctx, const char *path, tf_file_t *tf) {
-    const unsigned char *b = tf->buf;
-    size_t n = tf->size, p = 18;
-    if (n < 18 || memcmp(b, "tensor_file", 12) != 0)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: not a tensor_file (bad magic or shorter than 18 bytes)", path);
-    if (b[12] != 1 || b[13] != 0)
-        return sb_error(ctx, SB_ERR_UNSUPPORTED, "%s: RGL: tensor_file version %u.%u, only 1.0 is supported", path,
-                        b[12], b[13]);
-    uint64_t count = le_u(b + 14, 4);
-    if (count == 0 || count > RGL_MAX_FIELDS)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: %ju fields, need 1..%d", path, (uintmax_t)count, RGL_MAX_FIELDS);
-    tf->fields = sb_calloc(ctx, (size_t)count, sizeof *tf->fields, path);
-    if (!tf->fields) return SB_ERR_NOMEM;
-    for (size_t k = 0; k < count; k++) {
-        tf_field_t *f = &tf->fields[k];
-        if (n - p < 2) goto truncated;
-        f->name_len = (size_t)le_u(b + p, 2);
-        f->name = b + (p += 2);
-        if (n - p < f->name_len + 11) goto truncated;
-        p += f->name_len;
-        f->ndim = (size_t)le_u(b + p, 2);
-        f->dtype = b[p + 2];
-        uint64_t off = le_u(b + p + 3, 8);
-        p += 11;
-        if (f->ndim > RGL_MAX_DIMS || f->dtype < 1 || f->dtype > 11)
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field %.*s: %zu dimensions, dtype %u (need <= %d, 1..11)",
-                            path, (int)f->name_len, (const char *)f->name, f->ndim, f->dtype, RGL_MAX_DIMS);
-        if ((n - p) / 8 < f->ndim) goto truncated;
-        size_t cnt = 1;
-        for (size_t d = 0; d < f->ndim; d++, p += 8) {
-            f->shape[d] = le_u(b + p, 8);
-            if (f->shape[d] > SIZE_MAX || sb_size_mul(cnt, (size_t)f->shape[d], &cnt))
-                return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field %.*s: shape overflows", path, (int)f->name_len,
-                                (const char *)f->name);
-        }
-        size_t bytes;
-        if (sb_size_mul(cnt, dtype_size[f->dtype], &bytes) || off > n || bytes > n - off)
-            return sb_error(ctx, SB_ERR_FORMAT,
-                            "%s: RGL: field %.*s: data (%zu values at offset %ju) past the end "
-                            "of the file (%zu bytes)",
-                            path, (int)f->name_len, (const char *)f->name, cnt, (uintmax_t)off, n);
-        f->count = cnt;
-        f->data = b + off;
-    }
-    tf->nfields = (size_t)count;
-    return SB_OK;
-truncated:
-    return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field table truncated at byte %zu", path, p);
-}
-
-static const tf_field_t *find(const tf_file_t *tf, const char *name) {
-    size_t len = strlen(name);
-    for (size_t k = 0; k < tf->nfields; k++)
-        if (tf->fields[k].name_len == len && memcmp(tf->fields[k].name, name, len) == 0) return &tf->fields[k];
-    return NULL;
-}
-
-/* A required float32 field of `ndim` dimensions, each >= lo[d]. */
-static sb_result_t need_f32(sb_context_t *ctx, const char *path, const tf_file_t *tf, const char *name, size_t ndim,
-                            const size_t *lo, const tf_field_t **out) {
-    const tf_field_t *f = find(tf, name);
-    if (!f) return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: missing field '%s'", path, name);
-    if (f->dtype != 10 || f->ndim != ndim)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' is %zu-D of dtype %u, need %zu-D float32", path, name,
-                        f->ndim, f->dtype, ndim);
-    for (size_t d = 0; d < ndim; d++)
-        if (f->shape[d] < lo[d])
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' dimension %zu is %ju, need at least %zu", path,
-                            name, d, (uintmax_t)f->shape[d], lo[d]);
-    for (size_t k = 0; k < f->count; k++)
-        if (!isfinite(le_f32(f->data + 4 * k)))
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' value %zu is not finite", path, name, k);
-    *out = f;
-    return SB_OK;
-}
 
 /* ---- tables ----------------------------------------------------------------- */
 
@@ -184,7 +50,7 @@ static sb_result_t table_load(sb_context_t *ctx, const char *path, const tf_fiel
     t->v = sb_alloc(ctx, f->count, sizeof(double), path);
     if (!t->v) return SB_ERR_NOMEM;
     for (size_t k = 0; k < f->count; k++)
-        t->v[k] = le_f32(f->data + 4 * k);
+        t->v[k] = tf_f32(f->data + 4 * k);
     return SB_OK;
 }
 
@@ -387,13 +253,13 @@ static sb_result_t load_angles(sb_context_t *ctx, const char *path, const tf_fie
     if (!g->theta || !g->phi) return SB_ERR_NOMEM;
     const double slack = 1e-5;
     for (size_t k = 0; k < g->n_theta; k++) {
-        g->theta[k] = le_f32(th->data + 4 * k);
+        g->theta[k] = tf_f32(th->data + 4 * k);
         if (g->theta[k] < -slack || g->theta[k] > SB_PI / 2 + slack || (k && !(g->theta[k] > g->theta[k - 1])))
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: theta_i[%zu] = %g rad: need increasing values in [0, pi/2]",
                             path, k, g->theta[k]);
     }
     for (size_t k = 0; k < g->n_phi; k++) {
-        g->phi[k] = le_f32(ph->data + 4 * k);
+        g->phi[k] = tf_f32(ph->data + 4 * k);
         if (fabs(g->phi[k]) > SB_PI + slack || (k && !(g->phi[k] > g->phi[k - 1])))
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: phi_i[%zu] = %g rad: need increasing values in [-pi, pi]",
                             path, k, g->phi[k]);
@@ -415,27 +281,27 @@ static sb_result_t load_angles(sb_context_t *ctx, const char *path, const tf_fie
  * linear in the table, so converting first gives the same values). */
 static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_file_t *tf, const sb_measured_opts_t *o,
                                rgl_t *g, sb_measured_info_t *info) {
-    size_t slices = g->n_phi * g->n_theta, lo5[5] = {g->n_phi, g->n_theta, 3, 2, 2};
-    const tf_field_t *f = find(tf, "spectra"), *wl = NULL;
+    size_t slices = g->n_phi * g->n_theta, lo5[5] = {1, 1, 3, 2, 2};
+    const tf_field_t *f = tf_find(tf, "spectra"), *wl = NULL;
     sb_result_t r;
     if (!f) {
-        if ((r = need_f32(ctx, path, tf, "rgb", 5, lo5, &f)) != SB_OK) return r;
+        if ((r = tf_need_f32(ctx, path, tf, "rgb", 5, lo5, &f)) != SB_OK) return r;
         if (f->shape[2] != 3)
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: rgb has %ju channels, need 3", path, (uintmax_t)f->shape[2]);
         info->channels = 3;
     } else {
         lo5[2] = 1;
-        if ((r = need_f32(ctx, path, tf, "spectra", 5, lo5, &f)) != SB_OK) return r;
+        if ((r = tf_need_f32(ctx, path, tf, "spectra", 5, lo5, &f)) != SB_OK) return r;
         size_t lo1[1] = {1};
-        if ((r = need_f32(ctx, path, tf, "wavelengths", 1, lo1, &wl)) != SB_OK) return r;
+        if ((r = tf_need_f32(ctx, path, tf, "wavelengths", 1, lo1, &wl)) != SB_OK) return r;
         if (wl->count != f->shape[2])
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: %zu wavelengths for %ju spectral channels", path, wl->count,
                             (uintmax_t)f->shape[2]);
         info->channels = info->wavelengths = wl->count;
     }
     if (f->shape[0] != g->n_phi || f->shape[1] != g->n_theta)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: colour table has %ju x %ju slices, phi_i x theta_i is %zu x %zu",
-                        path, (uintmax_t)f->shape[0], (uintmax_t)f->shape[1], g->n_phi, g->n_theta);
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: %s has %ju x %ju slices, phi_i x theta_i is %zu x %zu", path,
+                        wl ? "spectra" : "rgb", (uintmax_t)f->shape[0], (uintmax_t)f->shape[1], g->n_phi, g->n_theta);
     table2d_t raw = {0};
     if ((r = table_load(ctx, path, f, slices, (size_t)f->shape[2], &raw)) != SB_OK) return r;
     if (!wl) {
@@ -447,7 +313,7 @@ static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_fil
     g->rgb = (table2d_t){raw.w, raw.h, slices, 3, sb_alloc(ctx, slices * 3 * nodes, sizeof(double), path), NULL, NULL};
     if (!nm || !w || !g->rgb.v) r = SB_ERR_NOMEM;
     for (size_t k = 0; r == SB_OK && k < n; k++)
-        nm[k] = le_f32(wl->data + 4 * k);
+        nm[k] = tf_f32(wl->data + 4 * k);
     if (r == SB_OK) {
         info->wl_min = nm[0];
         info->wl_max = nm[n - 1];
@@ -471,12 +337,12 @@ static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_fil
 
 /* ndf, sigma, vndf and jacobian, shapes checked against the slices. */
 static sb_result_t load_tables(sb_context_t *ctx, const char *path, const tf_file_t *tf, rgl_t *g) {
-    size_t lo2[2] = {2, 2}, lo4[4] = {g->n_phi, g->n_theta, 2, 2};
-    const tf_field_t *ndf = NULL, *sigma = NULL, *vndf = NULL, *jac = find(tf, "jacobian");
+    size_t lo2[2] = {2, 2}, lo4[4] = {1, 1, 2, 2};
+    const tf_field_t *ndf = NULL, *sigma = NULL, *vndf = NULL, *jac = tf_find(tf, "jacobian");
     sb_result_t r;
-    if ((r = need_f32(ctx, path, tf, "ndf", 2, lo2, &ndf)) != SB_OK ||
-        (r = need_f32(ctx, path, tf, "sigma", 2, lo2, &sigma)) != SB_OK ||
-        (r = need_f32(ctx, path, tf, "vndf", 4, lo4, &vndf)) != SB_OK)
+    if ((r = tf_need_f32(ctx, path, tf, "ndf", 2, lo2, &ndf)) != SB_OK ||
+        (r = tf_need_f32(ctx, path, tf, "sigma", 2, lo2, &sigma)) != SB_OK ||
+        (r = tf_need_f32(ctx, path, tf, "vndf", 4, lo4, &vndf)) != SB_OK)
         return r;
     if (vndf->shape[0] != g->n_phi || vndf->shape[1] != g->n_theta)
         return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: vndf has %ju x %ju slices, phi_i x theta_i is %zu x %zu", path,
@@ -493,6 +359,41 @@ static sb_result_t load_tables(sb_context_t *ctx, const char *path, const tf_fil
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: sigma[%zu] = %g, the projected area must be positive", path,
                             k, g->sigma.v[k]);
     return table_warp(ctx, path, "vndf", &g->vndf);
+}
+
+/* A field's shape as "[a, b, ...]" into buf. */
+static const char *shape_text(const tf_field_t *f, char *buf, size_t size) {
+    size_t n = (size_t)snprintf(buf, size, "[");
+    for (size_t d = 0; d < f->ndim && n < size; d++)
+        n += (size_t)snprintf(buf + n, size - n, "%s%ju", d ? ", " : "", (uintmax_t)f->shape[d]);
+    if (n < size) snprintf(buf + n, size - n, "]");
+    return buf;
+}
+
+/* The fields' shapes against each other, each refusal naming both fields
+ * (theta_i and the slices of vndf and the colour table: load_tables,
+ * load_colour): sigma on ndf's grid; the optional luminance [n_phi,
+ * n_theta, H, W] on the colour table's H x W grid; the optional valid mask
+ * one flag per colour node. */
+static sb_result_t check_shapes(sb_context_t *ctx, const char *path, const tf_file_t *tf, const rgl_t *g) {
+    const tf_field_t *ndf = tf_find(tf, "ndf"), *sigma = tf_find(tf, "sigma"), *lum = tf_find(tf, "luminance");
+    const tf_field_t *valid = tf_find(tf, "valid");
+    const char *colour = tf_find(tf, "spectra") ? "spectra" : "rgb";
+    char a[160], b[160];
+    if (ndf->shape[0] != sigma->shape[0] || ndf->shape[1] != sigma->shape[1])
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: sigma %s and ndf %s differ: both lie on one grid", path,
+                        shape_text(sigma, a, sizeof a), shape_text(ndf, b, sizeof b));
+    if (lum && (lum->ndim != 4 || lum->shape[0] != g->n_phi || lum->shape[1] != g->n_theta))
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: luminance %s does not hold phi_i x theta_i = %zu x %zu slices",
+                        path, shape_text(lum, a, sizeof a), g->n_phi, g->n_theta);
+    if (lum && (lum->shape[2] != g->rgb.h || lum->shape[3] != g->rgb.w))
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: luminance's grid %ju x %ju differs from %s's %zu x %zu", path,
+                        (uintmax_t)lum->shape[2], (uintmax_t)lum->shape[3], colour, g->rgb.h, g->rgb.w);
+    if (valid && valid->count != g->rgb.w * g->rgb.h)
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: valid %s holds %zu flags, %s's grid %zu x %zu has %zu nodes",
+                        path, shape_text(valid, a, sizeof a), valid->count, colour, g->rgb.h, g->rgb.w,
+                        g->rgb.w * g->rgb.h);
+    return SB_OK;
 }
 
 /* Value statistics of f_r with the view at each theta_i slice (below 89.5
@@ -525,7 +426,7 @@ static void rgl_stats(const rgl_t *g, sb_measured_info_t *info) {
 }
 
 static void rgl_fields(const tf_file_t *tf, const rgl_t *g, sb_measured_info_t *info) {
-    const tf_field_t *d = find(tf, "description");
+    const tf_field_t *d = tf_find(tf, "description");
     char text[200] = "";
     if (d && d->dtype == 1) {
         size_t n = d->count < sizeof text - 1 ? d->count : sizeof text - 1;
@@ -556,15 +457,16 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
                         path, sb_interp_name(o->interp));
     tf_file_t tf = {0};
     rgl_t *g = sb_calloc(ctx, 1, sizeof *g, path);
-    sb_result_t r = g ? read_all(ctx, path, &tf) : SB_ERR_NOMEM;
+    sb_result_t r = g ? tf_read(ctx, path, &tf) : SB_ERR_NOMEM;
     size_t lo1[1] = {1};
     const tf_field_t *th = NULL, *ph = NULL;
-    if (r == SB_OK) r = parse_fields(ctx, path, &tf);
-    if (r == SB_OK && (r = need_f32(ctx, path, &tf, "theta_i", 1, lo1, &th)) == SB_OK &&
-        (r = need_f32(ctx, path, &tf, "phi_i", 1, lo1, &ph)) == SB_OK)
+    if (r == SB_OK) r = tf_parse(ctx, path, &tf);
+    if (r == SB_OK && (r = tf_need_f32(ctx, path, &tf, "theta_i", 1, lo1, &th)) == SB_OK &&
+        (r = tf_need_f32(ctx, path, &tf, "phi_i", 1, lo1, &ph)) == SB_OK)
         r = load_angles(ctx, path, th, ph, g);
     if (r == SB_OK) r = load_tables(ctx, path, &tf, g);
     if (r == SB_OK) r = load_colour(ctx, path, &tf, o, g, info);
+    if (r == SB_OK) r = check_shapes(ctx, path, &tf, g);
     if (r == SB_OK) {
         info->rows = info->samples = g->rgb.slices * g->rgb.w * g->rgb.h;
         info->white = o->white;
@@ -573,10 +475,10 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
         info->flags = SB_SOURCE_MEASURED | (g->isotropic ? SB_SOURCE_ISOTROPIC : 0u);
         rgl_stats(g, info);
         rgl_fields(&tf, g, info);
-        char desc[1200];
-        snprintf(desc, sizeof desc, "rgl:%s", path);
+        char *desc = sb_format("rgl:%s", path); /* paths of any length */
         sb_source_ops_t ops = {rgl_eval, rgl_destroy};
-        r = sb_source_create(ctx, &ops, g, info->flags, desc, out);
+        r = desc ? sb_source_create(ctx, &ops, g, info->flags, desc, out) : SB_ERR_NOMEM;
+        free(desc);
         if (r == SB_OK) sb_source_set_samples_(*out, sb_rgl_sample_count_, sb_rgl_sample_);
     }
     if (r != SB_OK) rgl_destroy(g);

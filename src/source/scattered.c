@@ -212,11 +212,11 @@ static sb_result_t table_source(sb_context_t *ctx, const char *path, table_t *t,
     info->dims = (size_t)t->dim;
     info->flags = SB_SOURCE_MEASURED | (t->iso ? SB_SOURCE_ISOTROPIC : 0u) | (t->recip ? SB_SOURCE_RECIPROCAL : 0u) |
                   (info->channels == 1 ? SB_SOURCE_GRAY : 0u);
-    char desc[1400];
-    snprintf(desc, sizeof desc, "%s:%s (%s, k=%zu, radius=%.3g deg)", info->format, path, sb_interp_name(t->interp),
-             info->neighbours, radius * 180 / SB_PI);
+    char *desc = sb_format("%s:%s (%s, k=%zu, radius=%.3g deg)", info->format, path, sb_interp_name(t->interp),
+                           info->neighbours, radius * 180 / SB_PI); /* paths of any length */
     sb_source_ops_t ops = {sb_table_eval_, table_destroy};
-    sb_result_t r = sb_source_create(ctx, &ops, t, info->flags, desc, out);
+    sb_result_t r = desc ? sb_source_create(ctx, &ops, t, info->flags, desc, out) : SB_ERR_NOMEM;
+    free(desc);
     if (r != SB_OK) {
         table_destroy(t);
         return r;

@@ -164,6 +164,7 @@ sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out) {
 /* Desaturation: rgb' = Y + t (rgb - Y) with the largest t in [0, 1] that
  * leaves every channel >= 0, i.e. t = Y / (Y - min); Y is unchanged. */
 int sb_gamut_map(sb_gamut_t g, double rgb[3]) {
+    if (!rgb) return 0;
     double mn = fmin(rgb[0], fmin(rgb[1], rgb[2]));
     if (!(mn < 0)) return 0;
     if (g == SB_GAMUT_CLIP)

@@ -3,10 +3,14 @@
 #define SEPBRDF_INTERNAL_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "sepbrdf/common.h"
 
 char *sb_strdup(const char *s);
+/* printf into a new string of any length (the caller frees it); NULL when
+ * out of memory. */
+char *sb_format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* malloc with the overflow-checked product count * size and the memory
  * limit; reports through ctx naming `what`.  NULL on failure. */
 void *sb_alloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
@@ -14,6 +18,13 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
 /* sb_alloc for large buffers: backed by huge pages where the system offers
  * them (fewer page faults on first touch); released with free(). */
 void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *what);
+
+/* Open `path` for reading as a stream when it is a regular file of at
+ * most max bytes; a device, FIFO, socket or folder is refused without
+ * waiting for it (no read of /dev/zero or of a FIFO without a writer).
+ * `what` starts the messages ("scene: pairs file").  NULL and *r set
+ * (SB_ERR_IO, or SB_ERR_FORMAT for a file larger than max) on failure. */
+FILE *sb_fopen_regular(sb_context_t *ctx, const char *path, const char *what, unsigned long long max, sb_result_t *r);
 
 /* Write the n parts (bytes sizes[i]) to `path` under the temporary name
  * "PATH.tmp-PID", then rename; the temporary is removed on failure.

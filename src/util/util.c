@@ -1,11 +1,14 @@
 /* Allocation with limits, strings, thread counts, scaling. */
 #define _DEFAULT_SOURCE /* madvise, MADV_HUGEPAGE */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "util/internal.h"
@@ -15,6 +18,38 @@ char *sb_strdup(const char *s) {
     char *d = malloc(n);
     if (d) memcpy(d, s, n);
     return d;
+}
+
+FILE *sb_fopen_regular(sb_context_t *ctx, const char *path, const char *what, unsigned long long max, sb_result_t *r) {
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC), e = fd < 0 ? errno : 0;
+    struct stat st;
+    if (!e && fstat(fd, &st) != 0) e = errno;
+    FILE *fp = NULL;
+    if (e) {
+        *r = sb_error(ctx, SB_ERR_IO, "%s %s: cannot open: %s", what, path, strerror(e));
+    } else if (!S_ISREG(st.st_mode)) {
+        *r = sb_error(ctx, SB_ERR_IO, "%s %s: not a regular file (a device, FIFO or folder is not read)", what, path);
+    } else if ((unsigned long long)st.st_size > max) {
+        *r = sb_error(ctx, SB_ERR_FORMAT, "%s %s: %lld bytes, more than the %llu this kind of file may have", what,
+                      path, (long long)st.st_size, max);
+    } else if (fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) & ~O_NONBLOCK) != 0 || !(fp = fdopen(fd, "rb"))) {
+        *r = sb_error(ctx, SB_ERR_IO, "%s %s: cannot open: %s", what, path, strerror(errno));
+    }
+    if (!fp && fd >= 0) close(fd);
+    return fp;
+}
+
+char *sb_format(const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (!s) return NULL;
+    va_start(ap, fmt);
+    vsnprintf(s, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    return s;
 }
 
 static void *alloc_impl(sb_context_t *ctx, size_t count, size_t size, const char *what, int zero) {

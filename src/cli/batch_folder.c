@@ -1,0 +1,176 @@
+/* sepbrdf batch: the batch folder OUT as one consistent thing.
+ *
+ * One batch at a time: the folder itself is locked (flock on OUT, or on
+ * OUT/.sepbrdf-batch.lock where a file system locks no folders) for the
+ * whole run, and the lock is inherited by the worker processes, so a batch
+ * killed while its workers still publish keeps OUT locked until they end.
+ *
+ * What a material's folder holds is read back from the folder: batch.txt,
+ * published inside the set, holds its settings key (line 1) and its result
+ * fields (line 2, BATCH_FIELDS).  A set is reused when its key is the
+ * item's, and the summary is rebuilt from these files after the run, so it
+ * describes what the folders hold whatever happened during the run.  Keys
+ * and fields have no length limit (a layout spec with warp tables runs to
+ * thousands of characters). */
+#define _DEFAULT_SOURCE /* flock (BSD, Linux, macOS) */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include "batch.h"
+
+#define LOCK_FILE ".sepbrdf-batch.lock"
+#define MAX_BATCH_FILE (16u << 20) /* batch.txt: a key and one line of fields */
+
+int batch_lock(const char *dir) {
+    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    int r = fd >= 0 ? flock(fd, LOCK_EX | LOCK_NB) : -1;
+    if (r != 0 && fd >= 0 && errno != EWOULDBLOCK) { /* no folder locks here (NFS): a lock file */
+        char path[4200];
+        close(fd);
+        snprintf(path, sizeof path, "%s/" LOCK_FILE, dir);
+        fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+        r = fd >= 0 ? flock(fd, LOCK_EX | LOCK_NB) : -1;
+    }
+    if (r == 0) return fd;
+    int e = errno;
+    if (fd >= 0) close(fd);
+    if (e == EWOULDBLOCK)
+        cli_error("batch",
+                  "--out %s: another batch is writing into this folder (or its worker processes still are); "
+                  "wait until it ends or choose another --out",
+                  dir);
+    else
+        cli_error("batch", "--out %s: cannot lock the folder: %s", dir, sb_io_why(e));
+    return -1;
+}
+
+void batch_unlock(int fd) {
+    if (fd >= 0) close(fd); /* releases the lock once the workers have closed their copies too */
+}
+
+/* printf into a new string (a memory stream: any length); NULL when out
+ * of memory. */
+static char *format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static char *format(const char *fmt, ...) {
+    char *s = NULL;
+    size_t n = 0;
+    FILE *fp = open_memstream(&s, &n);
+    if (!fp) return NULL;
+    va_list ap;
+    va_start(ap, fmt);
+    int bad = vfprintf(fp, fmt, ap) < 0;
+    va_end(ap);
+    if (fclose(fp) != 0 || bad) {
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+int batch_key(batch_item_t *it) {
+    const sb_job_opts_t *o = &it->o;
+    const sb_measured_opts_t *m = &o->measured;
+    char budget[40] = "";
+    if (o->budget) snprintf(budget, sizeof budget, " budget=%zu", o->budget);
+    /* settings added later only when given: the keys of sets without them stay as they were */
+    free(it->key);
+    it->key = format("source=%s param=%s form=%s weighted=%d zero_fill=%d res=%zu terms=%zu metric_res=%zu "
+                     "max_error=%.17g theta_max=%.17g method=%d seed=%llu channels=%u half=%d previews=%d format=%s "
+                     "interp=%d neighbours=%zu radius=%.17g white=%d%s%s%s%s%s%s",
+                     it->source, o->param ? o->param : "auto", o->form ? o->form : "-", o->weighted, o->zero_fill,
+                     o->res, o->terms, o->metric_res, o->max_error, o->theta_max_deg, (int)o->method, o->seed,
+                     o->channels, o->half, o->previews, m->format ? m->format : "auto", (int)m->interp, m->neighbours,
+                     m->radius, (int)m->white, budget, o->warp ? " warp=" : "", o->warp ? o->warp : "",
+                     o->scene ? " scene=" : "", o->scene ? o->scene : "", o->plain_terms ? " plain_terms=1" : "");
+    for (char *c = it->key; c && *c; c++) /* one line of batch.txt, whatever the names hold */
+        if (*c == '\n' || *c == '\r') *c = '\t';
+    return it->key ? 0 : -1;
+}
+
+int batch_folder_read(const char *dir, const char *name, char **key, char **fields) {
+    char *path = format("%s/%s/sepbrdf-set-factor.txt", dir, name), *text = NULL;
+    *key = *fields = NULL;
+    int held = path && access(path, F_OK) == 0;
+    free(path);
+    path = held ? format("%s/%s/" BATCH_FILE, dir, name) : NULL;
+    size_t n = 0;
+    if (!path || cli_read_file(path, MAX_BATCH_FILE, &text, &n) != 0) {
+        free(path);
+        return 0;
+    }
+    free(path);
+    char *eol = memchr(text, '\n', n), *eol2 = eol ? memchr(eol + 1, '\n', n - (size_t)(eol + 1 - text)) : NULL;
+    if (!eol2 || memchr(text, 0, n)) { /* not two whole lines */
+        free(text);
+        return 0;
+    }
+    *eol = *eol2 = 0;
+    *key = text;
+    *fields = malloc(strlen(eol + 1) + 1);
+    if (!*fields) {
+        free(text);
+        *key = NULL;
+        return 0;
+    }
+    strcpy(*fields, eol + 1);
+    return 1;
+}
+
+/* it->headline from the fourth of its fields. */
+static void set_headline(batch_item_t *it) {
+    const char *p = it->fields;
+    for (int k = 0; k < 3 && p; k++)
+        p = strchr(p, '\t') ? strchr(p, '\t') + 1 : NULL;
+    it->headline = p ? strtod(p, NULL) : NAN;
+}
+
+int batch_done(const char *dir, batch_item_t *it) {
+    char *key, *fields;
+    if (!batch_folder_read(dir, it->name, &key, &fields)) return 0;
+    int same = strcmp(key, it->key) == 0;
+    free(key);
+    if (!same) {
+        free(fields);
+        return 0;
+    }
+    free(it->fields);
+    it->fields = fields;
+    set_headline(it);
+    it->ok = 1;
+    /* a run killed between publishing this set and removing its staging
+     * folder left that folder beside it: gone now that the set is reused
+     * (only folders whose process has ended) */
+    char *path = format("%s/%s", dir, it->name);
+    if (path) (void)sb_outset_cleanup(NULL, path);
+    free(path);
+    return 1;
+}
+
+void batch_reread(const char *dir, batch_item_t *items, size_t n) {
+    for (size_t i = 0; i < n; i++) {
+        batch_item_t *it = &items[i];
+        char *key, *fields;
+        int held = batch_folder_read(dir, it->name, &key, &fields), same = held && strcmp(key, it->key) == 0;
+        free(key);
+        free(it->fields);
+        it->fields = fields; /* what the folder holds, whatever this run did */
+        it->other = held && !same;
+        if (same) {
+            it->ok = 1;
+            set_headline(it);
+            continue;
+        }
+        if (it->ok) /* its process said it published, yet the folder holds no such set */
+            snprintf(it->msg, sizeof it->msg, "its folder does not hold the set this run wrote (%s)",
+                     held ? "another process replaced it" : "it was removed");
+        it->ok = 0;
+        it->headline = NAN;
+    }
+}

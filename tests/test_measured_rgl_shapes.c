@@ -1,0 +1,113 @@
+/* RGL tensor_files checked against themselves (issue 34): a real file
+ * (tests/data/measured) with one field's shape patched in its field table,
+ * so it disagrees with another field, is refused with SB_ERR_FORMAT and a
+ * message naming both fields; the file as it is loads.  The patches keep
+ * every field's data inside the file, so only the disagreement is left to
+ * catch. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+#define REAL SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf"
+
+static unsigned char *file;
+static size_t file_size;
+
+static int load(void) {
+    if (file) return 1;
+    FILE *fp = fopen(REAL, "rb");
+    if (!fp) return 0;
+    fseek(fp, 0, SEEK_END);
+    file_size = (size_t)ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    file = malloc(file_size);
+    int ok = file && fread(file, 1, file_size, fp) == file_size;
+    fclose(fp);
+    return ok;
+}
+
+static uint64_t get(const unsigned char *b, int n) {
+    uint64_t u = 0;
+    for (int k = n - 1; k >= 0; k--)
+        u = u << 8 | b[k];
+    return u;
+}
+
+/* Byte offset of field `name`'s shape in the field table (its ndim into
+ * *ndim); 0 when absent.  The test's own walk of the container. */
+static size_t shape_at(const unsigned char *b, const char *name, size_t *ndim) {
+    size_t count = (size_t)get(b + 14, 4), p = 18;
+    for (size_t k = 0; k < count; k++) {
+        size_t len = (size_t)get(b + p, 2);
+        int hit = len == strlen(name) && memcmp(b + p + 2, name, len) == 0;
+        p += 2 + len;
+        *ndim = (size_t)get(b + p, 2);
+        p += 11;
+        if (hit) return p;
+        p += 8 * *ndim;
+    }
+    return 0;
+}
+
+/* The real file with field `name`'s shape set to shape[0..n) (n must be
+ * its ndim), opened; the result code, the message in msg. */
+static sb_result_t open_patched(const char *name, const uint64_t *shape, size_t n, char *msg, size_t size) {
+    unsigned char *b = malloc(file_size);
+    memcpy(b, file, file_size);
+    size_t ndim = 0, at = shape_at(b, name, &ndim);
+    CHECKF(at && ndim == n, "%s: %zu dimensions in the file", name, ndim);
+    for (size_t d = 0; at && d < n && d < ndim; d++)
+        for (int i = 0; i < 8; i++)
+            b[at + 8 * d + (size_t)i] = (unsigned char)(shape[d] >> (8 * i));
+    char path[4200];
+    snprintf(path, sizeof path, "%s/patched.bsdf", sb_tmpdir("rgl_shapes"));
+    FILE *fp = fopen(path, "wb");
+    CHECK(fp && fwrite(b, 1, file_size, fp) == file_size);
+    if (fp) fclose(fp);
+    free(b);
+    sb_context_t *ctx = NULL;
+    sb_context_create(&ctx);
+    sb_source_t *src = NULL;
+    sb_result_t r = sb_measured_open(ctx, path, NULL, &src, NULL);
+    snprintf(msg, size, "%s", sb_context_last_error(ctx));
+    sb_source_destroy(src);
+    sb_context_destroy(ctx);
+    return r;
+}
+
+SB_TEST(unpatched_loads) {
+    if (!load()) SKIP("no " REAL);
+    char msg[1024];
+    size_t nd;
+    const uint64_t lum[4] = {1, 8, 32, 32};
+    CHECK(shape_at(file, "luminance", &nd) && nd == 4);
+    CHECKF(open_patched("luminance", lum, 4, msg, sizeof msg) == SB_OK, "%s", msg); /* the same shape */
+}
+
+SB_TEST(disagreeing_fields_refused) {
+    if (!load()) SKIP("no " REAL);
+    static const struct {
+        const char *field;
+        size_t n;
+        uint64_t shape[5];
+        const char *a, *b; /* the two fields the message names */
+    } cases[] = {
+        {"luminance", 4, {1, 4, 32, 32}, "luminance", "theta_i"},
+        {"rgb", 5, {1, 8, 3, 16, 64}, "luminance", "rgb"},
+        {"valid", 1, {1}, "valid", "rgb"},
+        {"sigma", 2, {2, 3}, "sigma", "ndf"},
+        {"ndf", 2, {2, 64}, "sigma", "ndf"},
+        {"vndf", 4, {1, 4, 128, 128}, "vndf", "theta_i"},
+        {"rgb", 5, {1, 4, 3, 32, 32}, "rgb", "theta_i"},
+        {"theta_i", 1, {7}, "vndf", "theta_i"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char msg[1024] = "";
+        sb_result_t r = open_patched(cases[i].field, cases[i].shape, cases[i].n, msg, sizeof msg);
+        CHECKF(r == SB_ERR_FORMAT && strstr(msg, cases[i].a) && strstr(msg, cases[i].b), "%s patched: %s: %s",
+               cases[i].field, sb_result_name(r), msg);
+    }
+}
