@@ -41,6 +41,7 @@ int main(void) {
     FIELD(sb_job_opts_t, out);
     FIELD(sb_job_opts_t, progress);
     FIELD(sb_job_opts_t, progress_user);
+    FIELD(sb_job_opts_t, shaders);
     FIELD(sb_source_ops_t, eval);
     FIELD(sb_source_ops_t, destroy);
     printf("sizeof sb_measured_opts_t %zu\nsizeof sb_job_opts_t %zu\nsizeof sb_source_ops_t %zu\n",

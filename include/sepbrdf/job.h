@@ -107,6 +107,11 @@ typedef struct sb_job_opts {
     const char *out;             /* sb_job_run also writes the set here (sb_job_write); NULL: no */
     sb_job_progress_fn progress; /* NULL: none */
     void *progress_user;
+    /* Shading languages of the snippet besides sepbrdf.glsl (glsl.h,
+     * sb_shader_translate): a comma list of "hlsl", "msl" ("glsl" is
+     * always written; "all": every language), each written by sb_job_write
+     * as sepbrdf.<ext> (sepbrdf.hlsl, sepbrdf.metal).  NULL: GLSL only. */
+    const char *shaders;
 } sb_job_opts_t;
 
 /* One candidate of the job and what its screening gave. */

@@ -295,9 +295,10 @@ class Factorisation:
         raise TypeError("use sepbrdf.factor() or sepbrdf.read()")
 
     @classmethod
-    def _from(cls, factors, param, form, job=None, source=None, report=None, warnings=()):
+    def _from(cls, factors, param, form, job=None, source=None, report=None, warnings=(), keep=None):
         self = cls.__new__(cls)
         self._job, self._source = job, source
+        self._keep = keep  # the job's option strings: the job refers to them until it is destroyed
         self._factors, self._param, self._form = factors, param, form
         self._owned = job is None  # factors and param read from files are ours to free
         self._sampler = None
@@ -497,10 +498,10 @@ def _job_opts(o, source_spec):
 
     jo.source = s(source_spec)
     jo.measured = _measured_opts(*(o.pop(k, None) for k in ("interp", "neighbours", "radius", "white", "gamut")))
-    for k in ("param", "form", "warp", "scene"):
+    for k in ("param", "form", "warp", "scene", "shader"):
         v = o.pop(k, None)
         if v is not None:
-            setattr(jo, k, s(v))
+            setattr(jo, "shaders" if k == "shader" else k, s(v))
     if jo.form is not None:
         _parse_enum(lib.sb_form_parse, jo.form.decode(), "form", "f, cos, cos2")
     for k in ("weighted", "zero_fill", "plain_terms", "half", "previews"):
@@ -545,8 +546,10 @@ def factor(source=None, *, progress=None, **options):
     ("uniform", "merl", "adaptive", "auto"), weighted, scene, zero_fill,
     plain_terms, metric_res, method ("auto", "full", "topk", "randomized",
     "nmf", "stream"), max_error, channels ("R,B" or ["R", "B"]), theta_max
-    (degrees), seed, half, budget (bytes: 16384 or "16K"), previews, and for
-    measured tables interp, neighbours, radius (degrees), white, gamut.
+    (degrees), seed, half, budget (bytes: 16384 or "16K"), previews, shader
+    (the snippet also in "hlsl", "msl" or "all": sepbrdf.hlsl, sepbrdf.metal
+    beside sepbrdf.glsl in write()), and for measured tables interp,
+    neighbours, radius (degrees), white, gamut.
     progress: None or a function progress(label, fraction) called as the
     job goes on (on the calling thread).
 
@@ -589,4 +592,5 @@ def factor(source=None, *, progress=None, **options):
         source=src,
         report=_report(job),
         warnings=warnings,
+        keep=(jo, keep),
     )

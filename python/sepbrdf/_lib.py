@@ -81,6 +81,7 @@ class JobOpts(ctypes.Structure):
         ("out", ctypes.c_char_p),
         ("progress", PROGRESS_FN),
         ("progress_user", ctypes.c_void_p),
+        ("shaders", ctypes.c_char_p),
     ]
 
 

@@ -86,7 +86,7 @@ def test_layout():
             field = getattr(structs[w[0]], w[1])
             assert (field.offset, field.size) == (int(w[2]), int(w[3])), line
         checked += 1
-    assert checked == 6 + 26 + 2 + 3
+    assert checked == 6 + 27 + 2 + 3
 
 
 def test_default_equals_cli(tmp_path):
@@ -166,6 +166,8 @@ def test_errors_carry_the_library_message(tmp_path):
         sepbrdf.factor(res=1)
     with pytest.raises(ValueError, match="method 'svd' unknown"):
         sepbrdf.factor(method="svd")
+    with pytest.raises(sepbrdf.Error, match="shader language 'wgsl' unknown"):
+        sepbrdf.factor("lambert", param="io", res=4, terms=1, shader="wgsl")
     with pytest.raises(TypeError, match="colour"):
         sepbrdf.factor(colour=1)
 
@@ -260,10 +262,11 @@ def test_progress_and_options(tmp_path):
     assert fac.report["channels"] == ["R", "B"]
     assert np.all(fac.g[..., 1] == 0) and np.all(fac.g[..., 0] != 0) and np.all(fac.g[..., 2] != 0)
     assert seen and all(label == "sampling" and 0 <= x <= 1 for label, x in seen)
-    cli = cli_factor(tmp_path, "cli", "lambert", "--budget", "4K", "--half", "-J", "1")
-    fac = sepbrdf.factor("lambert", budget="4K", half=True, terms=1)
+    cli = cli_factor(tmp_path, "cli", "lambert", "--budget", "4K", "--half", "-J", "1", "--shader", "hlsl,msl")
+    fac = sepbrdf.factor("lambert", budget="4K", half=True, terms=1, shader="hlsl,msl")
     fac.write(tmp_path / "py")
     assert_same_set(cli, tmp_path / "py")
+    assert {"sepbrdf.hlsl", "sepbrdf.metal"} <= set(os.listdir(tmp_path / "py"))
 
 
 def test_installed_package(tmp_path):

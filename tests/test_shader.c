@@ -1,0 +1,208 @@
+/* The snippet in HLSL and the Metal Shading Language (glsl.h,
+ * sb_shader_translate): the rewrite rules on small texts, every layout,
+ * warp, form and the sampler block compiled by glslangValidator's HLSL
+ * front end to SPIR-V, and the CLI's --shader files.  (Executed against
+ * the CPU: tests/test_glsl.c, hlsl_matches_cpu.) */
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+static int have_validator(void) { return sb_run("command -v glslangValidator", NULL, 0) == 0; }
+
+static char *tr(const char *glsl, const char *lang) { return sb_shader_translate(glsl, lang); }
+
+SB_TEST(registry) {
+    CHECK(sb_shader_lang_count() == 3);
+    CHECK(strcmp(sb_shader_lang_name(1), "hlsl") == 0 && strcmp(sb_shader_lang_ext(1), "hlsl") == 0);
+    CHECK(strcmp(sb_shader_lang_name(2), "msl") == 0 && strcmp(sb_shader_lang_ext(2), "metal") == 0);
+    CHECK(strcmp(sb_shader_lang_name(3), "?") == 0 && strcmp(sb_shader_lang_ext(99), "?") == 0);
+    CHECK(sb_shader_lang_find("msl") == 2 && sb_shader_lang_find("wgsl") == -1 && sb_shader_lang_find(NULL) == -1);
+    unsigned m = 0;
+    CHECK(sb_shader_lang_list(NULL, NULL, &m) == SB_OK && m == 1);
+    CHECK(sb_shader_lang_list(NULL, "hlsl", &m) == SB_OK && m == 3);
+    CHECK(sb_shader_lang_list(NULL, "msl,glsl", &m) == SB_OK && m == 5);
+    CHECK(sb_shader_lang_list(NULL, "all", &m) == SB_OK && m == 7);
+    sb_context_t *ctx = NULL;
+    CHECK(sb_context_create(&ctx) == SB_OK);
+    CHECK(sb_shader_lang_list(ctx, "hlsl,wgsl", &m) == SB_ERR_UNKNOWN);
+    CHECK(strstr(sb_context_last_error(ctx), "'wgsl'") != NULL);
+    CHECK(sb_shader_lang_list(ctx, "hlslx", NULL) == SB_ERR_UNKNOWN);
+    sb_context_destroy(ctx);
+    CHECK(tr("x", "wgsl") == NULL && tr(NULL, "hlsl") == NULL);
+    char *g = tr("vec3 f(vec3 a) { return a; }\n", "glsl");
+    CHECK(g && strcmp(g, "vec3 f(vec3 a) { return a; }\n") == 0);
+    free(g);
+}
+
+/* Each rule of shader.c on a line that needs it. */
+SB_TEST(rules) {
+    static const struct {
+        const char *lang, *glsl, *want;
+    } cases[] = {
+        {"hlsl", "vec3 a = vec3(0.0);", "float3 a = ((float3)(0.0));"},
+        {"msl", "vec3 a = vec3(0.0);", "float3 a = float3(0.0f);"},
+        {"hlsl", "vec4 b = vec4(vec2(x), y, 1.0);", "float4 b = float4(((float2)(x)), y, 1.0);"},
+        {"hlsl", "ivec2 c = ivec2(floor(st * vec2(n)));", "int2 c = ((int2)(floor(st * ((float2)(n)))));"},
+        {"hlsl", "float p = atan(w.y, w.x) + atan(t);", "float p = atan2(w.y, w.x) + atan(t);"},
+        {"hlsl", "float m = mix(a, b, fract(t)) * inversesqrt(d);", "float m = lerp(a, b, frac(t)) * rsqrt(d);"},
+        {"msl", "float m = mix(a, b, fract(t)) * inversesqrt(d);", "float m = mix(a, b, fract(t)) * rsqrt(d);"},
+        {"hlsl", "vec3 g = texture(sb_g, vec3(st.xy, float(j))).rgb;",
+         "float3 g = sb_texture_sb_g(float3(st.xy, float(j))).rgb;"},
+        {"hlsl", "float c = texelFetch(sb_cdf, ivec3(p, k), 0).r;", "float c = sb_fetch_sb_cdf(int3(p, k), 0).r;"},
+        {"hlsl", "int n = textureSize(sb_cdf, 0).z - 1;", "int n = sb_size_sb_cdf(0).z - 1;"},
+        {"msl", "bool f(vec3 V, out vec3 D, inout float u) {", "bool f(float3 V, thread float3& D, thread float& u) {"},
+        {"msl", "float e = 1e-30 + 2.5e+3 + 0.5 + 7;", "float e = 1e-30f + 2.5e+3f + 0.5f + 7;"},
+        {"hlsl", "x = vec2(1.0); // atan(y, x) stays as written",
+         "x = ((float2)(1.0)); // atan(y, x) stays as written"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char *s = tr(cases[i].glsl, cases[i].lang);
+        CHECKF(s != NULL, "%s", cases[i].glsl);
+        if (!s) continue;
+        CHECKF(strstr(s, cases[i].want) != NULL, "%s: %s\n  gives\n%s", cases[i].lang, cases[i].glsl, s);
+        free(s);
+    }
+    /* global constants: brace initialisers, static const / constant */
+    char *h = tr("const float k[2] = float[2](1.0, 2.0);\nconst float one = 1.0;\n", "hlsl");
+    CHECK(h && strstr(h, "static const float k[2] = {1.0, 2.0};") && strstr(h, "static const float one = 1.0;"));
+    free(h);
+    char *m = tr("#define N 2\nconst float k[N] = float[N](1.0, 2.0);\nfloat f() { return k[0]; }\n", "msl");
+    CHECK(m && strstr(m, "constant float k[N] = {1.0f, 2.0f};") && strstr(m, "struct sb_shader {"));
+    CHECK(m && strstr(m, "#define N 2") < strstr(m, "constant float k") && /* before the struct */
+          strstr(m, "constant float k") < strstr(m, "struct sb_shader {") &&
+          strstr(m, "float f()") > strstr(m, "struct sb_shader {"));
+    free(m);
+    /* textures: declarations and helpers; the GL_ES precision block goes */
+    h = tr("#ifdef GL_ES\nprecision highp float;\n#endif\nuniform sampler2DArray sb_g;\n", "hlsl");
+    CHECK(h && !strstr(h, "precision") && strstr(h, "Texture2DArray<float4> sb_g : register(t0);") &&
+          strstr(h, "SamplerState sb_g_sampler : register(s0);") && strstr(h, "float4 sb_texture_sb_g(float3 c)"));
+    free(h);
+    m = tr("uniform sampler2DArray sb_g;\nuniform sampler2DArray sb_h;\n", "msl");
+    CHECK(m &&
+          strstr(m, "    texture2d_array<float> sb_g;\n    sampler sb_g_sampler;\n    texture2d_array<float> sb_h;"));
+    free(m);
+}
+
+/* One layout, form and sampler choice as the library writes it, in
+ * `lang`; glsl: the snippet alone.  NULL on failure. */
+static char *shader_text(const sb_param_t *p, sb_form_t form, int sampled, const char *lang) {
+    double scales[3] = {1, 0.5, 2};
+    char *head = sb_glsl_snippet(p, form, 3, form == SB_FORM_COS ? scales : NULL);
+    char *tail = sampled ? sb_glsl_sampler(p, sampled) : NULL;
+    size_t n = (head ? strlen(head) : 0) + (tail ? strlen(tail) : 0) + 1;
+    char *glsl = head && (tail || !sampled) ? malloc(n) : NULL;
+    if (glsl) snprintf(glsl, n, "%s%s", head, tail ? tail : "");
+    char *out = glsl ? tr(glsl, lang) : NULL;
+    free(head);
+    free(tail);
+    free(glsl);
+    return out;
+}
+
+/* The layouts: each kind at R = 12, theta_max limited on hd, and iso and hd
+ * with warp tables in their specs. */
+static const char *const specs[] = {"io:res=12",
+                                    "io-area:res=12",
+                                    "hd:res=12,theta_max=1.2",
+                                    "iso:th=12,td=12,pd=6",
+                                    "iso:th=12,td=12,pd=6,warp_h=0.05/0.2/0.5,warp_d=0.3/0.6",
+                                    "hd:res=12,warp_h=merl,warp_d=0.1/0.4/0.7"};
+#define NSPECS (sizeof specs / sizeof specs[0])
+
+static sb_param_t *param_of(const char *spec) {
+    sb_param_kind_t k;
+    sb_param_opts_t o;
+    sb_param_t *p = NULL;
+    if (sb_param_parse_spec(NULL, spec, &k, &o) != SB_OK || sb_param_create(NULL, k, &o, &p) != SB_OK) return NULL;
+    return p;
+}
+
+/* A pixel shader around the snippet: sb_brdf, and with the sampler block
+ * sb_sample and sb_pdf, so that every function is compiled. */
+static const char hlsl_main[] = "float4 main(float3 L : TEXCOORD0, float3 V : TEXCOORD1) : SV_Target {\n"
+                                "    float3 f = sb_brdf(normalize(L), normalize(V));\n"
+                                "#ifdef SB_SAMPLE_CH\n"
+                                "    float3 Ls;\n    float pdf;\n"
+                                "    if (sb_sample(normalize(V), L.xy, Ls, pdf)) f += Ls * pdf + sb_pdf(Ls, V);\n"
+                                "#endif\n"
+                                "    return float4(f, 1.0);\n}\n";
+
+static int compile_hlsl(const char *text, const char *dir, char *log, size_t logsz) {
+    char path[512], cmd[1200];
+    snprintf(path, sizeof path, "%s/test.hlsl", dir);
+    FILE *fp = fopen(path, "w");
+    if (!fp) return -1;
+    fprintf(fp, "%s\n%s", text, hlsl_main);
+    fclose(fp);
+    /* -D: the HLSL front end; -V: on to SPIR-V, so that every function is
+     * type-checked and lowered, not only parsed */
+    snprintf(cmd, sizeof cmd, "glslangValidator -D -V -S frag -e main -o %s/test.spv %s", dir, path);
+    return sb_run(cmd, log, logsz);
+}
+
+SB_TEST(hlsl_compiles) {
+    if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
+    const char *dir = sb_tmpdir("shader");
+    for (size_t i = 0; i < NSPECS; i++) {
+        sb_param_t *p = param_of(specs[i]);
+        CHECKF(p != NULL, "%s", specs[i]);
+        if (!p) continue;
+        for (int form = 0; form < SB_FORM_COUNT_; form++)
+            for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
+                if (sampled == 2) continue; /* the sampler block: 1 or 3 channels */
+                char *s = shader_text(p, (sb_form_t)form, sampled, "hlsl"), log[8192];
+                CHECK(s != NULL);
+                if (!s) continue;
+                CHECK(strstr(s, "float3 sb_brdf(float3 L, float3 V)") != NULL);
+                CHECK(!sampled || strstr(s, "bool sb_sample(float3 V, float2 u, out float3 L, out float pdf)"));
+                int rc = compile_hlsl(s, dir, log, sizeof log);
+                CHECKF(rc == 0, "%s form %d sampler %d: glslangValidator -D failed:\n%s", specs[i], form, sampled, log);
+                free(s);
+            }
+        sb_param_destroy(p);
+    }
+}
+
+/* The check is real: GLSL that was not translated, or a snippet missing
+ * its coordinate function, fails the HLSL front end. */
+SB_TEST(hlsl_broken_fails) {
+    if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
+    const char *dir = sb_tmpdir("shader");
+    sb_param_t *p = param_of("iso:th=12,td=12,pd=6");
+    CHECK(p != NULL);
+    char log[8192], *glsl = sb_glsl_snippet(p, SB_FORM_F, 2, NULL), *hlsl = tr(glsl, "hlsl");
+    CHECK(compile_hlsl(hlsl, dir, log, sizeof log) == 0);
+    CHECK(compile_hlsl(glsl, dir, log, sizeof log) != 0);
+    char *cut = strstr(hlsl, "float4 sb_coords(");
+    CHECK(cut != NULL);
+    if (cut) memcpy(cut, "float4 sb_cords(", 16);
+    CHECK(compile_hlsl(hlsl, dir, log, sizeof log) != 0);
+    free(glsl);
+    free(hlsl);
+    sb_param_destroy(p);
+}
+
+/* `sepbrdf factor --shader all` writes the three files into the set (and
+ * its list); an unknown language is a usage error naming it. */
+SB_TEST(cli_shader_option) {
+    const char *dir = sb_tmpdir("shader_cli");
+    char cmd[1024], out[4096];
+    snprintf(cmd, sizeof cmd, "%s factor lambert --param io -r 8 -J 1 --method nmf --shader all -q -o %s/set", SB_CLI,
+             dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    static const char *const names[] = {"sepbrdf.glsl", "sepbrdf.hlsl", "sepbrdf.metal"};
+    for (int i = 0; i < 3; i++) {
+        char path[600];
+        snprintf(path, sizeof path, "%s/set/%s", dir, names[i]);
+        CHECKF(sb_file_exists(path), "%s missing", names[i]);
+    }
+    snprintf(cmd, sizeof cmd, "grep -c 'sb_sample' %s/set/sepbrdf.hlsl %s/set/sepbrdf.metal", dir, dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 0); /* the sampler block too */
+    snprintf(cmd, sizeof cmd, "grep -qx sepbrdf.metal %s/set/sepbrdf-set-factor.txt", dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    snprintf(cmd, sizeof cmd, "%s factor lambert --shader hlsl,wgsl -o %s/bad 2>&1", SB_CLI, dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 1);
+    CHECKF(strstr(out, "--shader 'hlsl,wgsl': shader language 'wgsl' unknown") != NULL, "%s", out);
+}
