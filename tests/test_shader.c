@@ -14,23 +14,24 @@ static int have_validator(void) { return sb_run("command -v glslangValidator", N
 static char *tr(const char *glsl, const char *lang) { return sb_shader_translate(glsl, lang); }
 
 SB_TEST(registry) {
-    CHECK(sb_shader_lang_count() == 3);
+    CHECK(sb_shader_lang_count() == 4);
+    CHECK(strcmp(sb_shader_lang_name(3), "wgsl") == 0 && strcmp(sb_shader_lang_ext(3), "wgsl") == 0);
     CHECK(strcmp(sb_shader_lang_name(1), "hlsl") == 0 && strcmp(sb_shader_lang_ext(1), "hlsl") == 0);
     CHECK(strcmp(sb_shader_lang_name(2), "msl") == 0 && strcmp(sb_shader_lang_ext(2), "metal") == 0);
-    CHECK(strcmp(sb_shader_lang_name(3), "?") == 0 && strcmp(sb_shader_lang_ext(99), "?") == 0);
-    CHECK(sb_shader_lang_find("msl") == 2 && sb_shader_lang_find("wgsl") == -1 && sb_shader_lang_find(NULL) == -1);
+    CHECK(strcmp(sb_shader_lang_name(4), "?") == 0 && strcmp(sb_shader_lang_ext(99), "?") == 0);
+    CHECK(sb_shader_lang_find("msl") == 2 && sb_shader_lang_find("cg") == -1 && sb_shader_lang_find(NULL) == -1);
     unsigned m = 0;
     CHECK(sb_shader_lang_list(NULL, NULL, &m) == SB_OK && m == 1);
     CHECK(sb_shader_lang_list(NULL, "hlsl", &m) == SB_OK && m == 3);
     CHECK(sb_shader_lang_list(NULL, "msl,glsl", &m) == SB_OK && m == 5);
-    CHECK(sb_shader_lang_list(NULL, "all", &m) == SB_OK && m == 7);
+    CHECK(sb_shader_lang_list(NULL, "all", &m) == SB_OK && m == 15);
     sb_context_t *ctx = NULL;
     CHECK(sb_context_create(&ctx) == SB_OK);
-    CHECK(sb_shader_lang_list(ctx, "hlsl,wgsl", &m) == SB_ERR_UNKNOWN);
-    CHECK(strstr(sb_context_last_error(ctx), "'wgsl'") != NULL);
+    CHECK(sb_shader_lang_list(ctx, "hlsl,spirv", &m) == SB_ERR_UNKNOWN);
+    CHECK(strstr(sb_context_last_error(ctx), "'spirv'") != NULL);
     CHECK(sb_shader_lang_list(ctx, "hlslx", NULL) == SB_ERR_UNKNOWN);
     sb_context_destroy(ctx);
-    CHECK(tr("x", "wgsl") == NULL && tr(NULL, "hlsl") == NULL);
+    CHECK(tr("x", "cg") == NULL && tr(NULL, "hlsl") == NULL);
     char *g = tr("vec3 f(vec3 a) { return a; }\n", "glsl");
     CHECK(g && strcmp(g, "vec3 f(vec3 a) { return a; }\n") == 0);
     free(g);
@@ -184,7 +185,7 @@ SB_TEST(hlsl_broken_fails) {
     sb_param_destroy(p);
 }
 
-/* `sepbrdf factor --shader all` writes the three files into the set (and
+/* `sepbrdf factor --shader all` writes the four files into the set (and
  * its list); an unknown language is a usage error naming it. */
 SB_TEST(cli_shader_option) {
     const char *dir = sb_tmpdir("shader_cli");
@@ -192,8 +193,8 @@ SB_TEST(cli_shader_option) {
     snprintf(cmd, sizeof cmd, "%s factor lambert --param io -r 8 -J 1 --method nmf --shader all -q -o %s/set", SB_CLI,
              dir);
     CHECK(sb_run(cmd, out, sizeof out) == 0);
-    static const char *const names[] = {"sepbrdf.glsl", "sepbrdf.hlsl", "sepbrdf.metal"};
-    for (int i = 0; i < 3; i++) {
+    static const char *const names[] = {"sepbrdf.glsl", "sepbrdf.hlsl", "sepbrdf.metal", "sepbrdf.wgsl"};
+    for (int i = 0; i < 4; i++) {
         char path[600];
         snprintf(path, sizeof path, "%s/set/%s", dir, names[i]);
         CHECKF(sb_file_exists(path), "%s missing", names[i]);
@@ -202,7 +203,114 @@ SB_TEST(cli_shader_option) {
     CHECK(sb_run(cmd, out, sizeof out) == 0); /* the sampler block too */
     snprintf(cmd, sizeof cmd, "grep -qx sepbrdf.metal %s/set/sepbrdf-set-factor.txt", dir);
     CHECK(sb_run(cmd, out, sizeof out) == 0);
-    snprintf(cmd, sizeof cmd, "%s factor lambert --shader hlsl,wgsl -o %s/bad 2>&1", SB_CLI, dir);
+    snprintf(cmd, sizeof cmd, "%s factor lambert --shader hlsl,spirv -o %s/bad 2>&1", SB_CLI, dir);
     CHECK(sb_run(cmd, out, sizeof out) == 1);
-    CHECKF(strstr(out, "--shader 'hlsl,wgsl': shader language 'wgsl' unknown") != NULL, "%s", out);
+    CHECKF(strstr(out, "--shader 'hlsl,spirv': shader language 'spirv' unknown") != NULL, "%s", out);
+}
+
+/* ---- WGSL through a real front end: Tint, in headless Chromium's WebGPU
+ * (SwiftShader): every module's getCompilationInfo() errors. ---- */
+
+static const char wgsl_main[] =
+    "@fragment fn main(@location(0) L: vec3f, @location(1) V: vec3f) -> @location(0) vec4f {\n"
+    "    var f = sb_brdf(normalize(L), normalize(V));\n"
+    "    return vec4f(f, 1.0);\n}\n";
+static const char wgsl_main_sampled[] =
+    "@fragment fn main(@location(0) L: vec3f, @location(1) V: vec3f) -> @location(0) vec4f {\n"
+    "    var f = sb_brdf(normalize(L), normalize(V));\n    var Ls: vec3f;\n    var pdf: f32;\n"
+    "    if (sb_sample(normalize(V), L.xy, &Ls, &pdf)) { f += Ls * pdf + sb_pdf(Ls, V); }\n"
+    "    return vec4f(f, 1.0);\n}\n";
+
+/* A JS string literal of s. */
+static void js_string(FILE *fp, const char *s) {
+    fputc('"', fp);
+    for (; *s; s++) {
+        if (*s == '\n')
+            fputs("\\n", fp);
+        else if (*s == '"' || *s == '\\')
+            fprintf(fp, "\\%c", *s);
+        else if (*s == '<')
+            fputs("\\x3c", fp); /* no "</script>" inside the page */
+        else
+            fputc(*s, fp);
+    }
+    fputc('"', fp);
+}
+
+/* Compile the n modules with Chromium's WebGPU; the console log (one
+ * "SB-WGSL k ERRORS" line per module, then SB-WGSL-DONE) into log.
+ * 0 when the page ran, 77 when there is no browser or no WebGPU adapter. */
+static int chromium_wgsl(char *const *mods, int n, const char *dir, char *log, size_t logsz) {
+    char path[512], cmd[2048];
+    if (sb_run("command -v chromium", NULL, 0) != 0) return 77;
+    snprintf(path, sizeof path, "%s/wgsl.html", dir);
+    FILE *fp = fopen(path, "w");
+    if (!fp) return -1;
+    fputs("<html><body><script>\nconst mods = [", fp);
+    for (int i = 0; i < n; i++) {
+        if (i) fputs(",\n", fp);
+        js_string(fp, mods[i]);
+    }
+    fputs("];\n(async () => {\n  const a = navigator.gpu && await navigator.gpu.requestAdapter();\n"
+          "  if (!a) { console.log('SB-WGSL-NOADAPTER'); return; }\n  const d = await a.requestDevice();\n"
+          "  for (let i = 0; i < mods.length; i++) {\n"
+          "    const info = await d.createShaderModule({code: mods[i]}).getCompilationInfo();\n"
+          "    const e = info.messages.filter(m => m.type == 'error');\n"
+          "    console.log('SB-WGSL ' + i + ' ' + e.length + ' ' + e.map(m => m.lineNum + ':' + m.linePos + ' ' + "
+          "m.message).join(' | '));\n"
+          "  }\n  console.log('SB-WGSL-DONE');\n})();\n</script></body></html>\n",
+          fp);
+    fclose(fp);
+    /* the page runs until killed: wait for its last line */
+    snprintf(cmd, sizeof cmd,
+             "cd %s && { timeout 300 chromium --headless=new --no-sandbox --no-first-run --disable-gpu-sandbox "
+             "--enable-unsafe-webgpu --enable-unsafe-swiftshader --use-webgpu-adapter=swiftshader "
+             "--user-data-dir=%s/profile --enable-logging=stderr --v=0 file://%s 2> log & pid=$!; "
+             "for i in $(seq 1 600); do grep -q 'SB-WGSL-DONE\\|SB-WGSL-NOADAPTER' log && break; sleep 0.5; done; "
+             "kill $pid; wait $pid; grep -o 'SB-WGSL[^\"]*' log; }",
+             dir, dir, path);
+    sb_run(cmd, log, logsz);
+    if (strstr(log, "SB-WGSL-NOADAPTER")) return 77;
+    return strstr(log, "SB-WGSL-DONE") ? 0 : -1;
+}
+
+/* Every layout, form and the sampler block in WGSL, compiled by Tint: no
+ * error; and the check is real: the untranslated GLSL fails. */
+SB_TEST(wgsl_compiles) {
+    const char *dir = sb_tmpdir("shader_wgsl");
+    char *mods[NSPECS * 8 + 1];
+    int n = 0;
+    for (size_t i = 0; i < NSPECS; i++) {
+        sb_param_t *p = param_of(specs[i]);
+        CHECKF(p != NULL, "%s", specs[i]);
+        for (int form = 0; p && form < SB_FORM_COUNT_; form++)
+            for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
+                if (sampled == 2) continue;
+                char *s = shader_text(p, (sb_form_t)form, sampled, "wgsl");
+                CHECK(s != NULL);
+                if (!s) continue;
+                CHECK(strstr(s, "fn sb_brdf(L: vec3f, V: vec3f) -> vec3f {") != NULL);
+                size_t len = strlen(s) + sizeof wgsl_main_sampled;
+                mods[n] = malloc(len);
+                snprintf(mods[n++], len, "%s%s", s, sampled ? wgsl_main_sampled : wgsl_main);
+                free(s);
+            }
+        sb_param_destroy(p);
+    }
+    sb_param_t *io = param_of(specs[0]);
+    mods[n++] = shader_text(io, SB_FORM_F, 0, "glsl"); /* must fail */
+    sb_param_destroy(io);
+    static char log[1 << 16];
+    int rc = chromium_wgsl(mods, n, dir, log, sizeof log);
+    for (int i = 0; i < n; i++)
+        free(mods[i]);
+    if (rc == 77) SKIP("no chromium with WebGPU (Debian: chromium): WGSL not compiled");
+    CHECKF(rc == 0, "chromium did not finish:\n%s", log);
+    for (int i = 0; i < n; i++) {
+        char want[64];
+        snprintf(want, sizeof want, "SB-WGSL %d %s", i, i == n - 1 ? "" : "0 ");
+        const char *at = strstr(log, want);
+        CHECKF(at != NULL && (i < n - 1 || at[strlen(want)] != '0'), "module %d (%s): %.300s", i,
+               i == n - 1 ? "GLSL, must fail" : "WGSL", at ? at : log);
+    }
 }

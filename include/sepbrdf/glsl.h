@@ -57,8 +57,9 @@ sb_result_t sb_glsl_write_sampled(sb_context_t *ctx, const char *path, const sb_
 
 /* ---- the snippet in other shading languages ----
  * Languages by name, a registry: "glsl" (the snippet itself), "hlsl"
- * (HLSL, shader model 5.0 and later; file sepbrdf.hlsl) and "msl" (the
- * Metal Shading Language 2.0 and later; sepbrdf.metal).  Count, name, file
+ * (HLSL, shader model 5.0 and later; file sepbrdf.hlsl), "msl" (the Metal
+ * Shading Language 2.0 and later; sepbrdf.metal) and "wgsl" (WebGPU;
+ * sepbrdf.wgsl).  Count, name, file
  * extension of language k ("?" out of range), and the index of a name
  * (-1 if none). */
 size_t sb_shader_lang_count(void);
@@ -76,8 +77,8 @@ sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *m
  * constants, with the language's texture bindings stated in a header
  * comment (HLSL: registers t0/s0 sb_g, t1/s1 sb_h, t2 sb_cdf; MSL: the
  * functions are members of `struct sb_shader`, made from the textures and
- * samplers).  malloc'ed; NULL for a NULL text, an unknown language or no
- * memory.  Only the GLSL subset the library writes is translated. */
+ * samplers; WGSL: @group(0) bindings 0..5, out parameters as pointers).  malloc'ed; NULL for a NULL text, an unknown
+ * language or no memory.  Only the GLSL subset the library writes is translated. */
 char *sb_shader_translate(const char *glsl, const char *lang);
 
 #ifdef __cplusplus

@@ -108,9 +108,10 @@ typedef struct sb_job_opts {
     sb_job_progress_fn progress; /* NULL: none */
     void *progress_user;
     /* Shading languages of the snippet besides sepbrdf.glsl (glsl.h,
-     * sb_shader_translate): a comma list of "hlsl", "msl" ("glsl" is
-     * always written; "all": every language), each written by sb_job_write
-     * as sepbrdf.<ext> (sepbrdf.hlsl, sepbrdf.metal).  NULL: GLSL only. */
+     * sb_shader_translate): a comma list of "hlsl", "msl", "wgsl" ("glsl"
+     * is always written; "all": every language), each written by
+     * sb_job_write as sepbrdf.<ext> (sepbrdf.hlsl, sepbrdf.metal,
+     * sepbrdf.wgsl).  NULL: GLSL only. */
     const char *shaders;
 } sb_job_opts_t;
 

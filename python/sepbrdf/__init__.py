@@ -547,8 +547,9 @@ def factor(source=None, *, progress=None, **options):
     plain_terms, metric_res, method ("auto", "full", "topk", "randomized",
     "nmf", "stream"), max_error, channels ("R,B" or ["R", "B"]), theta_max
     (degrees), seed, half, budget (bytes: 16384 or "16K"), previews, shader
-    (the snippet also in "hlsl", "msl" or "all": sepbrdf.hlsl, sepbrdf.metal
-    beside sepbrdf.glsl in write()), and for measured tables interp,
+    (the snippet also in "hlsl", "msl", "wgsl" or "all": sepbrdf.hlsl,
+    sepbrdf.metal, sepbrdf.wgsl beside sepbrdf.glsl in write()), and for
+    measured tables interp,
     neighbours, radius (degrees), white, gamut.
     progress: None or a function progress(label, fraction) called as the
     job goes on (on the calling thread).

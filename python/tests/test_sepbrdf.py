@@ -166,8 +166,8 @@ def test_errors_carry_the_library_message(tmp_path):
         sepbrdf.factor(res=1)
     with pytest.raises(ValueError, match="method 'svd' unknown"):
         sepbrdf.factor(method="svd")
-    with pytest.raises(sepbrdf.Error, match="shader language 'wgsl' unknown"):
-        sepbrdf.factor("lambert", param="io", res=4, terms=1, shader="wgsl")
+    with pytest.raises(sepbrdf.Error, match="shader language 'spirv' unknown"):
+        sepbrdf.factor("lambert", param="io", res=4, terms=1, shader="spirv")
     with pytest.raises(TypeError, match="colour"):
         sepbrdf.factor(colour=1)
 

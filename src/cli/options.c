@@ -259,8 +259,8 @@ const cli_option_t cli_factor_options[] = {
      "not with --max-error",
      set_bytes, AT(budget), 0, 0, F_},
     {NULL, "--shader", "LANGS",
-     "also write the snippet in these shading languages, a\ncomma list of hlsl (sepbrdf.hlsl), msl (sepbrdf.metal)\n"
-     "or all; sepbrdf.glsl is always written",
+     "also write the snippet in these shading languages, a\ncomma list of hlsl (sepbrdf.hlsl), msl (sepbrdf.metal),\n"
+     "wgsl (sepbrdf.wgsl) or all; sepbrdf.glsl is always written",
      set_shaders, AT(shaders), 0, 0, F_},
     {NULL, "--previews", NULL,
      "also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\ncolour map, blue -S, white 0, red +S (S = max "
