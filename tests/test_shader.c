@@ -120,6 +120,28 @@ static sb_param_t *param_of(const char *spec) {
     return p;
 }
 
+/* A check of one translated text: 0 when it passes, else a message in log. */
+typedef int (*check_fn)(void *user, const char *text, int sampled, char *log, size_t logsz);
+
+/* Every layout of specs with every form and, for form f, the sampler block
+ * for 1 and 3 channels (form cos and cos2 with 3), in `lang`, through check. */
+static void each_variant(const char *lang, check_fn check, void *user) {
+    for (size_t i = 0; i < NSPECS; i++) {
+        sb_param_t *p = param_of(specs[i]);
+        CHECKF(p != NULL, "%s", specs[i]);
+        for (int form = 0; p && form < SB_FORM_COUNT_; form++)
+            for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
+                if (sampled == 2) continue;
+                char *s = shader_text(p, (sb_form_t)form, sampled, lang), log[8192] = "";
+                CHECK(s != NULL);
+                int rc = s ? check(user, s, sampled, log, sizeof log) : 0;
+                CHECKF(rc == 0, "%s of %s, form %d, sampler %d:\n%s", lang, specs[i], form, sampled, log);
+                free(s);
+            }
+        sb_param_destroy(p);
+    }
+}
+
 /* A pixel shader around the snippet: sb_brdf, and with the sampler block
  * sb_sample and sb_pdf, so that every function is compiled. */
 static const char hlsl_main[] = "float4 main(float3 L : TEXCOORD0, float3 V : TEXCOORD1) : SV_Target {\n"
@@ -130,40 +152,37 @@ static const char hlsl_main[] = "float4 main(float3 L : TEXCOORD0, float3 V : TE
                                 "#endif\n"
                                 "    return float4(f, 1.0);\n}\n";
 
-static int compile_hlsl(const char *text, const char *dir, char *log, size_t logsz) {
-    char path[512], cmd[1200];
-    snprintf(path, sizeof path, "%s/test.hlsl", dir);
+/* Write text and then tail into DIR/NAME and run cmd on it; 0 on success,
+ * the tool's output in log. */
+static int write_and_run(const char *dir, const char *name, const char *text, const char *tail, const char *cmd,
+                         char *log, size_t logsz) {
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
     FILE *fp = fopen(path, "w");
     if (!fp) return -1;
-    fprintf(fp, "%s\n%s", text, hlsl_main);
+    fprintf(fp, "%s\n%s", text, tail);
     fclose(fp);
+    return sb_run(cmd, log, logsz);
+}
+
+static int compile_hlsl(const char *text, const char *dir, char *log, size_t logsz) {
+    char cmd[1200];
     /* -D: the HLSL front end; -V: on to SPIR-V, so that every function is
      * type-checked and lowered, not only parsed */
-    snprintf(cmd, sizeof cmd, "glslangValidator -D -V -S frag -e main -o %s/test.spv %s", dir, path);
-    return sb_run(cmd, log, logsz);
+    snprintf(cmd, sizeof cmd, "glslangValidator -D -V -S frag -e main -o %s/test.spv %s/test.hlsl", dir, dir);
+    return write_and_run(dir, "test.hlsl", text, hlsl_main, cmd, log, logsz);
+}
+
+static int check_hlsl(void *dir, const char *text, int sampled, char *log, size_t logsz) {
+    if (!strstr(text, "float3 sb_brdf(float3 L, float3 V)") ||
+        (sampled && !strstr(text, "bool sb_sample(float3 V, float2 u, out float3 L, out float pdf)")))
+        return snprintf(log, logsz, "sb_brdf or sb_sample missing"), -1;
+    return compile_hlsl(text, dir, log, logsz);
 }
 
 SB_TEST(hlsl_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
-    const char *dir = sb_tmpdir("shader");
-    for (size_t i = 0; i < NSPECS; i++) {
-        sb_param_t *p = param_of(specs[i]);
-        CHECKF(p != NULL, "%s", specs[i]);
-        if (!p) continue;
-        for (int form = 0; form < SB_FORM_COUNT_; form++)
-            for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
-                if (sampled == 2) continue; /* the sampler block: 1 or 3 channels */
-                char *s = shader_text(p, (sb_form_t)form, sampled, "hlsl"), log[8192];
-                CHECK(s != NULL);
-                if (!s) continue;
-                CHECK(strstr(s, "float3 sb_brdf(float3 L, float3 V)") != NULL);
-                CHECK(!sampled || strstr(s, "bool sb_sample(float3 V, float2 u, out float3 L, out float pdf)"));
-                int rc = compile_hlsl(s, dir, log, sizeof log);
-                CHECKF(rc == 0, "%s form %d sampler %d: glslangValidator -D failed:\n%s", specs[i], form, sampled, log);
-                free(s);
-            }
-        sb_param_destroy(p);
-    }
+    each_variant("hlsl", check_hlsl, (void *)sb_tmpdir("shader"));
 }
 
 /* The check is real: GLSL that was not translated, or a snippet missing
@@ -206,6 +225,50 @@ SB_TEST(cli_shader_option) {
     snprintf(cmd, sizeof cmd, "%s factor lambert --shader hlsl,spirv -o %s/bad 2>&1", SB_CLI, dir);
     CHECK(sb_run(cmd, out, sizeof out) == 1);
     CHECKF(strstr(out, "--shader 'hlsl,spirv': shader language 'spirv' unknown") != NULL, "%s", out);
+}
+
+/* ---- MSL: no Metal compiler on Linux; a C++ front end (clang++) against
+ * a model of <metal_stdlib> (tests/data/metal/metal_stdlib: vector types
+ * with swizzles, Metal's constructors, math, texture2d_array): names,
+ * arities, vector sizes and members are checked. ---- */
+
+static const char msl_use[] =
+    "float4 sb_test(texture2d_array<float> g, sampler gs, texture2d_array<float> h, sampler hs, float3 L, float3 V) {\n"
+    "    sb_shader s = {g, gs, h, hs};\n    return float4(s.sb_brdf(normalize(L), normalize(V)), 1.0f);\n}\n";
+static const char msl_use_sampled[] =
+    "float4 sb_test(texture2d_array<float> g, sampler gs, texture2d_array<float> h, sampler hs,\n"
+    "               texture2d_array<float> c, sampler cs, float3 L, float3 V) {\n"
+    "    sb_shader s = {g, gs, h, hs, c, cs};\n    float3 Ls;\n    float pdf;\n"
+    "    float3 f = s.sb_brdf(normalize(L), normalize(V));\n"
+    "    if (s.sb_sample(normalize(V), L.xy, Ls, pdf)) f += Ls * pdf + s.sb_pdf(Ls, V);\n"
+    "    return float4(f, 1.0f);\n}\n";
+
+static int check_msl(const char *text, const char *use, const char *dir, char *log, size_t logsz) {
+    char cmd[1400];
+    snprintf(cmd, sizeof cmd, "clang++ -std=c++14 -fsyntax-only -I %s/tests/data/metal -x c++ %s/test.metal",
+             SB_SOURCE_DIR, dir);
+    return write_and_run(dir, "test.metal", text, use, cmd, log, logsz);
+}
+
+static int check_msl_variant(void *dir, const char *text, int sampled, char *log, size_t logsz) {
+    return check_msl(text, sampled ? msl_use_sampled : msl_use, dir, log, logsz);
+}
+
+SB_TEST(msl_parses) {
+    if (sb_run("command -v clang++", NULL, 0) != 0) SKIP("no clang++ (Debian: clang): MSL not checked");
+    const char *dir = sb_tmpdir("shader_msl");
+    each_variant("msl", check_msl_variant, (void *)dir);
+    /* the check is real: GLSL fails, and so does a vector size mixed up */
+    sb_param_t *p = param_of(specs[3]);
+    char *glsl = shader_text(p, SB_FORM_F, 0, "glsl"), *msl = shader_text(p, SB_FORM_F, 0, "msl"), log[8192];
+    CHECK(glsl && msl && check_msl(glsl, msl_use, dir, log, sizeof log) != 0);
+    char *at = msl ? strstr(msl, "float4 st = sb_coords(L, V);") : NULL;
+    CHECK(at != NULL);
+    if (at) memcpy(at, "float3", 6);
+    CHECK(msl && check_msl(msl, msl_use, dir, log, sizeof log) != 0);
+    free(glsl);
+    free(msl);
+    sb_param_destroy(p);
 }
 
 /* ---- WGSL through a real front end: Tint, in headless Chromium's WebGPU
@@ -276,27 +339,27 @@ static int chromium_wgsl(char *const *mods, int n, const char *dir, char *log, s
 
 /* Every layout, form and the sampler block in WGSL, compiled by Tint: no
  * error; and the check is real: the untranslated GLSL fails. */
+typedef struct modules {
+    char *text[NSPECS * 8 + 1];
+    int n;
+} modules_t;
+
+/* Collect the module with an entry point (compiled all at once, below). */
+static int add_wgsl(void *user, const char *text, int sampled, char *log, size_t logsz) {
+    modules_t *m = user;
+    if (!strstr(text, "fn sb_brdf(L: vec3f, V: vec3f) -> vec3f {")) return snprintf(log, logsz, "no sb_brdf"), -1;
+    size_t len = strlen(text) + sizeof wgsl_main_sampled;
+    if (!(m->text[m->n] = malloc(len))) return -1;
+    snprintf(m->text[m->n++], len, "%s%s", text, sampled ? wgsl_main_sampled : wgsl_main);
+    return 0;
+}
+
 SB_TEST(wgsl_compiles) {
     const char *dir = sb_tmpdir("shader_wgsl");
-    char *mods[NSPECS * 8 + 1];
-    int n = 0;
-    for (size_t i = 0; i < NSPECS; i++) {
-        sb_param_t *p = param_of(specs[i]);
-        CHECKF(p != NULL, "%s", specs[i]);
-        for (int form = 0; p && form < SB_FORM_COUNT_; form++)
-            for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
-                if (sampled == 2) continue;
-                char *s = shader_text(p, (sb_form_t)form, sampled, "wgsl");
-                CHECK(s != NULL);
-                if (!s) continue;
-                CHECK(strstr(s, "fn sb_brdf(L: vec3f, V: vec3f) -> vec3f {") != NULL);
-                size_t len = strlen(s) + sizeof wgsl_main_sampled;
-                mods[n] = malloc(len);
-                snprintf(mods[n++], len, "%s%s", s, sampled ? wgsl_main_sampled : wgsl_main);
-                free(s);
-            }
-        sb_param_destroy(p);
-    }
+    static modules_t m;
+    char **mods = m.text;
+    each_variant("wgsl", add_wgsl, &m);
+    int n = m.n;
     sb_param_t *io = param_of(specs[0]);
     mods[n++] = shader_text(io, SB_FORM_F, 0, "glsl"); /* must fail */
     sb_param_destroy(io);

@@ -75,8 +75,8 @@ static const char *ident_end(const char *p, const char *end) {
 
 /* A GLSL type name -> WGSL; NULL if the name is none. */
 static const char *type_of(const char *a, size_t n) {
-    static const char *const map[][2] = {{"float", "f32"},  {"int", "i32"},    {"uint", "u32"},   {"bool", "bool"},
-                                         {"vec2", "vec2f"}, {"vec3", "vec3f"}, {"vec4", "vec4f"}, {"ivec2", "vec2i"},
+    static const char *const map[][2] = {{"float", "f32"},   {"int", "i32"},     {"uint", "u32"},    {"bool", "bool"},
+                                         {"vec2", "vec2f"},  {"vec3", "vec3f"},  {"vec4", "vec4f"},  {"ivec2", "vec2i"},
                                          {"ivec3", "vec3i"}, {"ivec4", "vec4i"}, {"uvec2", "vec2u"}, {"uvec3", "vec3u"},
                                          {"void", ""}};
     for (size_t k = 0; k < sizeof map / sizeof map[0]; k++)
@@ -86,10 +86,10 @@ static const char *type_of(const char *a, size_t n) {
 
 /* Names WGSL reserves that the GLSL may use. */
 static int reserved(const char *a, size_t n) {
-    static const char *const words[] = {"target", "filter", "set",    "get",   "type",   "self",  "mod",
-                                        "module", "meta",   "match",  "move",  "pass",   "patch", "ref",
-                                        "use",    "where",  "with",   "from",  "common", "layout", "shared",
-                                        "static", "final",  "precise", "std",  "enum",   "do",    "new"};
+    static const char *const words[] = {"target", "filter", "set",     "get",  "type",   "self",   "mod",
+                                        "module", "meta",   "match",   "move", "pass",   "patch",  "ref",
+                                        "use",    "where",  "with",    "from", "common", "layout", "shared",
+                                        "static", "final",  "precise", "std",  "enum",   "do",     "new"};
     for (size_t k = 0; k < sizeof words / sizeof words[0]; k++)
         if (same(a, n, words[k])) return 1;
     return 0;
@@ -280,7 +280,8 @@ static void expr(wg_t *w, const char *p, const char *end) {
             p = b;
         } else if (sb_sh_digit(*p)) {
             const char *b = p;
-            while (b < end && (sb_sh_id(*b) || *b == '.' || ((*b == '-' || *b == '+') && (b[-1] == 'e' || b[-1] == 'E'))))
+            while (b < end &&
+                   (sb_sh_id(*b) || *b == '.' || ((*b == '-' || *b == '+') && (b[-1] == 'e' || b[-1] == 'E'))))
                 b++;
             sb_shbuf_put(&w->out, p, (size_t)(b - p));
             p = b;
@@ -575,7 +576,8 @@ static void texture(wg_t *w, const char *x, size_t n) {
                   "fn sb_texture_%.*s(c: vec3f) -> vec4f {\n"
                   "    return textureSampleLevel(%.*s, %.*s_sampler, c.xy, i32(round(c.z)), 0.0);\n}\n",
                   (int)n, x, (int)n, x, (int)n, x);
-    sb_shbuf_putf(&w->out, "fn sb_fetch_%.*s(p: vec3i, lod: i32) -> vec4f { return textureLoad(%.*s, p.xy, p.z, lod); }\n",
+    sb_shbuf_putf(&w->out,
+                  "fn sb_fetch_%.*s(p: vec3i, lod: i32) -> vec4f { return textureLoad(%.*s, p.xy, p.z, lod); }\n",
                   (int)n, x, (int)n, x);
     sb_shbuf_putf(&w->out,
                   "fn sb_size_%.*s(lod: i32) -> vec3i {\n"
@@ -661,8 +663,9 @@ static void header(wg_t *w, int sampled) {
                   "// sepbrdf.wgsl - the snippet of sepbrdf.glsl in WGSL (WebGPU).  The same functions:\n"
                   "//     fn sb_brdf(L: vec3f, V: vec3f) -> vec3f   // f_r(L, V), L and V unit, tangent frame\n");
     if (sampled)
-        sb_shbuf_puts(&w->out, "//     fn sb_sample(V: vec3f, u: vec2f, L: ptr<function, vec3f>, pdf: ptr<function, f32>) "
-                               "-> bool\n//     fn sb_pdf(L: vec3f, V: vec3f) -> f32\n");
+        sb_shbuf_puts(&w->out,
+                      "//     fn sb_sample(V: vec3f, u: vec2f, L: ptr<function, vec3f>, pdf: ptr<function, f32>) "
+                      "-> bool\n//     fn sb_pdf(L: vec3f, V: vec3f) -> f32\n");
     sb_shbuf_puts(&w->out,
                   "// Bindings, @group(0): sb_g @binding(0) (texture_2d_array<f32>, layer j = g_JJ.exr, RGB),\n"
                   "// sb_g_sampler @binding(1); sb_h, sb_h_sampler @binding(2), @binding(3) (h_JJ.exr)");
