@@ -147,46 +147,50 @@ class Source:
     def from_function(
         cls, f, *, isotropic=False, reciprocal=False, gray=False, description="python function"
     ):
-        """A source whose f_r(wi, wo) is the Python function f.
+        """A source whose f_r(wi, wo) is the Python function f, evaluated in batches.
 
         f takes two float64 arrays of unit directions of shape (n, 3) (wi
         towards the light, wo towards the viewer, local frame, z the normal)
         and returns f_r in 1/sr as an array of shape (n, 3) (RGB) or (n,)
         (grey); a non-finite value marks a pair as unknown (excluded from
-        the fit, as an unmeasured cell).  The library asks for one pair at a
-        time (n = 1), from its worker threads, each call under the GIL.
-        Declare the symmetries that hold, so that the library may use them:
-        isotropic (depends on phi_o - phi_i only), reciprocal
-        (f(wi, wo) == f(wo, wi)), gray (R == G == B).  An exception raised
-        by f stops nothing at once; it is raised again by the call that used
-        the source."""
+        the fit, as an unmeasured cell).  The library passes whole batches:
+        a column of the sampled matrix, a replicate of the error
+        estimator's pairs, a line of the warp scan (n from tens to
+        thousands; n = 1 where it asks for one pair), from its worker
+        threads, each call under the GIL.  Declare the symmetries that
+        hold, so that the library may use them: isotropic (depends on
+        phi_o - phi_i only), reciprocal (f(wi, wo) == f(wo, wi)), gray
+        (R == G == B).  An exception raised by f is raised again by the call
+        that used the source."""
         self = cls.__new__(cls)
         self.spec = description
         self._errors = []
         lock = threading.Lock()
 
-        def eval_cb(_self, wi, wo, rgb):
+        def many_cb(_self, n, wi, wo, rgb, known):
+            out = np.ctypeslib.as_array(rgb, (n, 3))
+            ok = np.ctypeslib.as_array(known, (n,))
             try:
-                a = np.array([[wi[0], wi[1], wi[2]]])
-                b = np.array([[wo[0], wo[1], wo[2]]])
-                v = np.asarray(f(a, b), dtype=np.float64).reshape(-1)
-                if v.size == 1:
-                    v = np.repeat(v, 3)
-                if v.size != 3:
-                    raise ValueError(f"the function returned {v.size} values for one pair, need 3 (RGB) or 1")
-                if not np.all(np.isfinite(v)):
-                    rgb[0] = rgb[1] = rgb[2] = 0.0
-                    return 0
-                rgb[0], rgb[1], rgb[2] = float(v[0]), float(v[1]), float(v[2])
-                return 1
+                a = np.ctypeslib.as_array(wi, (n, 3)).copy()
+                b = np.ctypeslib.as_array(wo, (n, 3)).copy()
+                v = np.asarray(f(a, b), dtype=np.float64)
+                if v.shape == (n,):
+                    v = np.repeat(v[:, None], 3, axis=1)
+                elif v.shape != (n, 3) and n == 1 and v.size == 3:
+                    v = v.reshape(1, 3)
+                if v.shape != (n, 3):
+                    raise ValueError(f"the function returned shape {v.shape} for {n} pairs, need ({n}, 3) or ({n},)")
+                finite = np.isfinite(v).all(axis=1)
+                out[:] = np.where(finite[:, None], v, 0.0)
+                ok[:] = finite
             except BaseException as e:  # noqa: B036 - kept and raised by the caller
                 with lock:
                     if not self._errors:
                         self._errors.append(e)
-                rgb[0] = rgb[1] = rgb[2] = 0.0
-                return 0
+                out[:] = 0.0
+                ok[:] = 0
 
-        ops = _lib.SourceOps(_lib.EVAL_FN(eval_cb), _lib.DESTROY_FN(0))
+        ops = _lib.SourceBatchOps(_lib.EVAL_MANY_FN(many_cb), _lib.DESTROY_FN(0))
         flags = (
             (_lib.SOURCE_ISOTROPIC if isotropic else 0)
             | (_lib.SOURCE_RECIPROCAL if reciprocal else 0)
@@ -194,9 +198,11 @@ class Source:
         )
         ptr = ctypes.c_void_p()
         with _Context() as ctx:
-            r = lib.sb_source_create(ctx.ptr, ctypes.byref(ops), None, flags, _b(description), ctypes.byref(ptr))
+            r = lib.sb_source_create_batched(
+                ctx.ptr, ctypes.byref(ops), None, flags, _b(description), ctypes.byref(ptr)
+            )
             ctx.check(r)
-        self._keep = (ops, eval_cb)  # the C side holds pointers into these
+        self._keep = (ops, many_cb)  # the C side holds pointers into these
         self._ptr = ptr
         return self
 

@@ -35,6 +35,9 @@ SOURCE_RECIPROCAL, SOURCE_ISOTROPIC, SOURCE_MEASURED, SOURCE_GRAY = 1, 2, 4, 8
 PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_double)
 EVAL_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, c_double_p, c_double_p, c_double_p)
 DESTROY_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
+EVAL_MANY_FN = ctypes.CFUNCTYPE(
+    None, ctypes.c_void_p, ctypes.c_size_t, c_double_p, c_double_p, c_double_p, ctypes.POINTER(ctypes.c_ubyte)
+)
 
 
 class MeasuredOpts(ctypes.Structure):
@@ -91,6 +94,12 @@ class SourceOps(ctypes.Structure):
     _fields_ = [("eval", EVAL_FN), ("destroy", DESTROY_FN)]
 
 
+class SourceBatchOps(ctypes.Structure):
+    """sb_source_batch_ops_t (source.h)."""
+
+    _fields_ = [("eval_many", EVAL_MANY_FN), ("destroy", DESTROY_FN)]
+
+
 _P = ctypes.c_void_p
 _S = ctypes.c_size_t
 _I = ctypes.c_int
@@ -120,6 +129,8 @@ _PROTOTYPES = {
     "sb_job_warning": (_C, [_P, _S]),
     "sb_job_headline": (_D, [_P, _S]),
     "sb_source_create": (_R, [_P, ctypes.POINTER(SourceOps), _P, ctypes.c_uint, _C, _PP]),
+    "sb_source_create_batched": (_R, [_P, ctypes.POINTER(SourceBatchOps), _P, ctypes.c_uint, _C, _PP]),
+    "sb_source_batched": (_I, [_P]),
     "sb_source_destroy": (None, [_P]),
     "sb_source_eval": (_I, [_P, _P, _P, _P]),
     "sb_source_flags": (ctypes.c_uint, [_P]),

@@ -138,6 +138,21 @@ def test_numpy_function_equals_cli_model(tmp_path):
             assert mine[k] == pytest.approx(theirs[k], rel=1e-9), k
 
 
+def test_function_is_called_in_batches():
+    """The library hands a Python function whole columns and sets of pairs,
+    not one pair a call."""
+    calls, pairs = [0], [0]
+
+    def f(wi, wo):
+        calls[0] += 1
+        pairs[0] += len(wi)
+        return phong_glsl(wi, wo)
+
+    src = sepbrdf.Source.from_function(f, isotropic=True, reciprocal=True, gray=True)
+    fac = sepbrdf.factor(src, param="iso", res=16, terms=2)
+    assert fac.terms == 2 and pairs[0] > 10000 and calls[0] * 20 < pairs[0], (calls, pairs)
+
+
 def test_function_any_symmetry_and_grey():
     """A plain callable (no symmetries declared) is accepted by factor();
     a grey (n,) result counts for all three channels."""
