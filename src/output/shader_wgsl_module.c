@@ -113,7 +113,8 @@ static void signatures(wg_t *w, const char *p, const char *end) {
         if (*c == '{') depth++;
         if (*c == '}') depth--;
         if (depth || !sb_sh_id0(*c) || (c > p && sb_sh_id(c[-1]))) continue;
-        const char *te = sb_wg_ident_end(c, end), *n = sb_wg_skip_ws(te, end), *ne = sb_wg_ident_end(n, end), *o = sb_wg_skip_ws(ne, end);
+        const char *te = sb_wg_ident_end(c, end), *n = sb_wg_skip_ws(te, end), *ne = sb_wg_ident_end(n, end),
+                   *o = sb_wg_skip_ws(ne, end);
         if (!sb_wg_type_of(c, (size_t)(te - c)) || ne == n || o >= end || *o != '(' || w->nfns == MAX_FN) continue;
         const char *close = sb_sh_close_paren(o, end);
         if (!close) return;
@@ -122,7 +123,8 @@ static void signatures(wg_t *w, const char *p, const char *end) {
         f->returns_int = sb_wg_same(c, (size_t)(te - c), "int");
         for (const char *a = o + 1; a < close && f->nparams < MAX_PARAMS; f->nparams++) {
             const char *cm = sb_sh_top_comma(a, close), *q = sb_wg_skip_ws(a, cm), *qe = sb_wg_ident_end(q, cm);
-            if (sb_wg_same(q, (size_t)(qe - q), "out") || sb_wg_same(q, (size_t)(qe - q), "inout")) f->ptr |= 1u << f->nparams;
+            if (sb_wg_same(q, (size_t)(qe - q), "out") || sb_wg_same(q, (size_t)(qe - q), "inout"))
+                f->ptr |= 1u << f->nparams;
             a = cm + 1;
         }
         c = close;
@@ -148,8 +150,10 @@ static void texture(wg_t *w, const char *x, size_t n) {
 
 /* `const T a[N] = T[N](...);` or `const T a = v;` ([p, end) after "const"). */
 static void constant(wg_t *w, const char *p, const char *end) {
-    const char *t = sb_wg_skip_ws(p, end), *te = sb_wg_ident_end(t, end), *a = sb_wg_skip_ws(te, end), *ae = sb_wg_ident_end(a, end);
-    const char *ty = sb_wg_type_of(t, (size_t)(te - t)), *br = sb_wg_skip_ws(ae, end), *eq = memchr(ae, '=', (size_t)(end - ae));
+    const char *t = sb_wg_skip_ws(p, end), *te = sb_wg_ident_end(t, end), *a = sb_wg_skip_ws(te, end),
+               *ae = sb_wg_ident_end(a, end);
+    const char *ty = sb_wg_type_of(t, (size_t)(te - t)), *br = sb_wg_skip_ws(ae, end),
+               *eq = memchr(ae, '=', (size_t)(end - ae));
     const char *semi = sb_wg_stmt_end(ae, end);
     if (!eq) return;
     if (*br == '[') {
@@ -169,7 +173,8 @@ static void constant(wg_t *w, const char *p, const char *end) {
 
 /* A function definition at p: `R name(params) { body }`; returns after it. */
 static const char *function(wg_t *w, const char *p, const char *end) {
-    const char *te = sb_wg_ident_end(p, end), *n = sb_wg_skip_ws(te, end), *ne = sb_wg_ident_end(n, end), *o = sb_wg_skip_ws(ne, end);
+    const char *te = sb_wg_ident_end(p, end), *n = sb_wg_skip_ws(te, end), *ne = sb_wg_ident_end(n, end),
+               *o = sb_wg_skip_ws(ne, end);
     const char *close = sb_sh_close_paren(o, end), *open = close ? sb_wg_skip_ws(close + 1, end) : end;
     if (!close || open >= end || *open != '{') return end;
     const char *bend = open, *rt = sb_wg_type_of(p, (size_t)(te - p));
@@ -255,7 +260,8 @@ char *sb_shader_wgsl_(const char *glsl) {
     for (p = sb_wg_skip_ws(p, end); p < end; p = sb_wg_skip_ws(p, end)) {
         const char *te = sb_wg_ident_end(p, end);
         if (sb_wg_same(p, (size_t)(te - p), "uniform")) { /* uniform sampler2DArray X; */
-            const char *x = sb_wg_skip_ws(sb_wg_ident_end(sb_wg_skip_ws(te, end), end), end), *semi = sb_wg_stmt_end(x, end);
+            const char *x = sb_wg_skip_ws(sb_wg_ident_end(sb_wg_skip_ws(te, end), end), end),
+                       *semi = sb_wg_stmt_end(x, end);
             texture(w, x, (size_t)(sb_wg_ident_end(x, end) - x));
             p = semi + 1;
         } else if (sb_wg_same(p, (size_t)(te - p), "const")) {
