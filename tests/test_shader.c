@@ -570,3 +570,34 @@ SB_TEST(wgsl_matches_cpu) {
     for (size_t c = 0; c < NSPECS; c++)
         sb_factors_destroy(fs[c]), sb_param_destroy(ps[c]);
 }
+
+/* Text the library did not write is answered, never crashed on: every
+ * prefix of a snippet with the sampler (cut anywhere: unbalanced
+ * parentheses, braces, a directive without its #endif) and random bytes,
+ * in every language (under ASan in CI). */
+SB_TEST(hostile_input) {
+    sb_param_t *p = param_of(specs[4]);
+    char *full = shader_text(p, SB_FORM_COS, 3, "glsl");
+    CHECK(full != NULL);
+    size_t n = full ? strlen(full) : 0;
+    char *cut = malloc(n + 1);
+    unsigned long long st = 99;
+    for (size_t len = 0; cut && len <= n; len += 1 + len / 64) {
+        memcpy(cut, full, len);
+        cut[len] = 0;
+        for (size_t k = 1; k < sb_shader_lang_count(); k++)
+            free(sb_shader_translate(cut, sb_shader_lang_name(k)));
+    }
+    static const char alphabet[] = "(){}[];,?:=#!<>+-*/ \n\tabcvec3float2if else for while out return const uniform";
+    for (int t = 0; cut && t < 300; t++) {
+        size_t len = (size_t)(sb_rand01(&st) * 200);
+        for (size_t i = 0; i < len && i < n; i++)
+            cut[i] = alphabet[(size_t)(sb_rand01(&st) * (sizeof alphabet - 1))];
+        cut[len < n ? len : n] = 0;
+        for (size_t k = 1; k < sb_shader_lang_count(); k++)
+            free(sb_shader_translate(cut, sb_shader_lang_name(k)));
+    }
+    free(cut);
+    free(full);
+    sb_param_destroy(p);
+}

@@ -77,8 +77,11 @@ sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *m
  * constants, with the language's texture bindings stated in a header
  * comment (HLSL: registers t0/s0 sb_g, t1/s1 sb_h, t2 sb_cdf; MSL: the
  * functions are members of `struct sb_shader`, made from the textures and
- * samplers; WGSL: @group(0) bindings 0..5, out parameters as pointers).  malloc'ed; NULL for a NULL text, an unknown
- * language or no memory.  Only the GLSL subset the library writes is translated. */
+ * samplers; WGSL: @group(0) bindings 0..5, out parameters as pointers).
+ * malloc'ed; NULL for a NULL text, an unknown language or no memory, and
+ * for WGSL also for a top-level declaration outside the subset.  Only the
+ * GLSL subset the library writes is translated; other text gives some
+ * output (or NULL), never a crash. */
 char *sb_shader_translate(const char *glsl, const char *lang);
 
 #ifdef __cplusplus

@@ -351,6 +351,7 @@ static const char *paren(const char *p, const char *end, const char **open) {
 
 const char *sb_wg_statement(wg_t *w, const char *p, const char *end) {
     p = sb_wg_skip_ws(p, end);
+    if (p >= end) return end; /* cut text: nothing left */
     const char *te = sb_wg_ident_end(p, end), *open, *close;
     size_t n = (size_t)(te - p);
     indent(w);

@@ -69,7 +69,7 @@ static void preprocess(wg_t *w, defs_t *d, const char *glsl, sb_shbuf_t *code) {
     for (const char *line = glsl; *line;) {
         const char *end = strchr(line, '\n');
         end = end ? end + 1 : line + strlen(line);
-        const char *p = sb_sh_skip_blanks(line, end), *kw = p + 1, *ke = sb_wg_ident_end(kw, end);
+        const char *p = sb_sh_skip_blanks(line, end), *kw = p < end ? p + 1 : end, *ke = sb_wg_ident_end(kw, end);
         const char *arg = sb_sh_skip_blanks(ke, end);
         size_t kn = (size_t)(ke - kw);
         char text[256];
@@ -263,11 +263,11 @@ char *sb_shader_wgsl_(const char *glsl) {
             const char *x = sb_wg_skip_ws(sb_wg_ident_end(sb_wg_skip_ws(te, end), end), end),
                        *semi = sb_wg_stmt_end(x, end);
             texture(w, x, (size_t)(sb_wg_ident_end(x, end) - x));
-            p = semi + 1;
+            p = semi < end ? semi + 1 : end;
         } else if (sb_wg_same(p, (size_t)(te - p), "const")) {
             const char *semi = sb_wg_stmt_end(te, end);
-            constant(w, te, semi + 1);
-            p = semi + 1;
+            constant(w, te, semi < end ? semi + 1 : end);
+            p = semi < end ? semi + 1 : end;
         } else if (sb_wg_type_of(p, (size_t)(te - p))) {
             p = function(w, p, end);
         } else { /* what the subset does not hold: stop, and fail */
