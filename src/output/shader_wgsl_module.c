@@ -239,6 +239,8 @@ static void header(wg_t *w, int sampled) {
                                      "textureLoad only).\n"
                                    : ".\n");
     sb_shbuf_puts(&w->out,
+                  "// Filtering float32 textures needs the device feature float32-filterable; without it\n"
+                  "// upload the textures as rgba16float (exact for `sepbrdf factor --half`).\n"
                   "// Samplers: magFilter / minFilter linear, no mipmaps; addressModeU / V per SB_WRAP_G_S,\n"
                   "// SB_WRAP_G_T (sb_g), SB_WRAP_H_S, SB_WRAP_H_T (sb_h): 0 = clamp-to-edge, 1 = repeat.  Texel x\n"
                   "// of a W-wide texture has its centre at u = (x + 0.5) / W, as in GLSL.\n\n");
