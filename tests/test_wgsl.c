@@ -1,0 +1,193 @@
+/* The WGSL snippet executed in headless Chromium's WebGPU (SwiftShader)
+ * against the CPU: the evaluation (sb_coords, sb_domain, sb_brdf) on random
+ * pairs and textures, and the sampler (sb_sample) on the tables of
+ * sampler.bin for non-negative factors, as tests/test_glsl.c and
+ * tests/test_sampler_gl.c run the GLSL. */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+#include "shader_check.h"
+
+/* ---- the evaluation: a compute shader around the WGSL snippet runs in
+ * Chromium's WebGPU (SwiftShader) on random pairs and random factor
+ * textures, and its sb_coords / sb_domain / sb_brdf are compared with
+ * sb_param_coords / sb_factors_eval, as tests/test_glsl.c does for GLSL
+ * and HLSL. ---- */
+
+enum { WN = 256, WJ = 3 };
+
+static const char wgsl_compute[] =
+    "@group(1) @binding(0) var<storage, read> sb_pairs: array<vec4f>;\n"
+    "@group(1) @binding(1) var<storage, read_write> sb_res: array<vec4f>;\n"
+    "@compute @workgroup_size(64) fn main(@builtin(global_invocation_id) id: vec3u) {\n"
+    "    let i = id.x;\n"
+    "    if (i >= arrayLength(&sb_res) / 2u) { return; }\n"
+    "    let L = normalize(sb_pairs[2u * i].xyz);\n    let V = normalize(sb_pairs[2u * i + 1u].xyz);\n"
+    "    let st = sb_coords(L, V);\n    sb_res[2u * i] = st;\n"
+    "    sb_res[2u * i + 1u] = vec4f(sb_brdf(L, V), select(0.0, 1.0, sb_domain(L, V, st)));\n}\n";
+
+/* The page: every case's textures (rgba32float, linear, wrap as the layout
+ * says), pairs and module; one line "SB-WGSL-OUT case pair 8 values" per
+ * pair.  Float textures filtered linearly need float32-filterable. */
+static const char wgsl_run_js[] =
+    "(async () => {\n"
+    "  const a = navigator.gpu && await navigator.gpu.requestAdapter();\n"
+    "  if (!a || !a.features.has('float32-filterable')) { console.log('SB-WGSL-NOADAPTER'); return; }\n"
+    "  const d = await a.requestDevice({requiredFeatures: ['float32-filterable']});\n"
+    "  const mode = w => w ? 'repeat' : 'clamp-to-edge';\n"
+    "  for (let c = 0; c < cases.length; c++) {\n"
+    "    const k = cases[c], entries = [];\n"
+    "    for (let s = 0; s < 2; s++) {\n"
+    "      const t = d.createTexture({size: [k.w[s], k.h[s], k.J], format: 'rgba32float',\n"
+    "                                 usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST});\n"
+    "      d.queue.writeTexture({texture: t}, new Float32Array(k.tex[s]), {bytesPerRow: 16 * k.w[s], rowsPerImage: "
+    "k.h[s]},\n"
+    "                           [k.w[s], k.h[s], k.J]);\n"
+    "      entries.push({binding: 2 * s, resource: t.createView({dimension: '2d-array'})});\n"
+    "      entries.push({binding: 2 * s + 1, resource: d.createSampler({magFilter: 'linear', minFilter: 'linear',\n"
+    "                    addressModeU: mode(k.wrap[s][0]), addressModeV: mode(k.wrap[s][1])})});\n"
+    "    }\n"
+    "    const m = d.createShaderModule({code: k.code});\n"
+    "    const p = d.createComputePipeline({layout: 'auto', compute: {module: m, entryPoint: 'main'}});\n"
+    "    const n = k.pairs.length / 8, inb = d.createBuffer({size: 32 * n, usage: GPUBufferUsage.STORAGE | "
+    "GPUBufferUsage.COPY_DST});\n"
+    "    d.queue.writeBuffer(inb, 0, new Float32Array(k.pairs));\n"
+    "    const out = d.createBuffer({size: 32 * n, usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_SRC});\n"
+    "    const rd = d.createBuffer({size: 32 * n, usage: GPUBufferUsage.MAP_READ | GPUBufferUsage.COPY_DST});\n"
+    "    const e = d.createCommandEncoder(), pass = e.beginComputePass();\n"
+    "    pass.setPipeline(p);\n"
+    "    pass.setBindGroup(0, d.createBindGroup({layout: p.getBindGroupLayout(0), entries}));\n"
+    "    pass.setBindGroup(1, d.createBindGroup({layout: p.getBindGroupLayout(1), entries: [\n"
+    "      {binding: 0, resource: {buffer: inb}}, {binding: 1, resource: {buffer: out}}]}));\n"
+    "    pass.dispatchWorkgroups(Math.ceil(n / 64));\n    pass.end();\n"
+    "    e.copyBufferToBuffer(out, 0, rd, 0, 32 * n);\n    d.queue.submit([e.finish()]);\n"
+    "    await rd.mapAsync(GPUMapMode.READ);\n    const r = new Float32Array(rd.getMappedRange());\n"
+    "    for (let i = 0; i < n; i++) console.log('SB-WGSL-OUT ' + c + ' ' + i + ' ' + "
+    "Array.from(r.slice(8 * i, 8 * i + 8)).join(' '));\n"
+    "  }\n  console.log('SB-WGSL-DONE');\n})();\n";
+
+/* Case c of the page: p's WGSL with the compute entry, random textures into
+ * f (kept for the CPU), random pairs into dir (renormalised as floats). */
+static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*dirs)[2][3], unsigned long long *st) {
+    char *s = sb_shader_text(p, SB_FORM_F, 0, "wgsl");
+    size_t len = (s ? strlen(s) : 0) + sizeof wgsl_compute;
+    char *code = malloc(len);
+    if (code) snprintf(code, len, "%s%s", s ? s : "", wgsl_compute);
+    fputs("cases.push({code: ", fp);
+    sb_js_string(fp, code ? code : "");
+    free(s);
+    free(code);
+    size_t tw[2], th[2];
+    int wrap[2][2];
+    for (int side = 0; side < 2; side++) {
+        sb_param_texture_size(p, side, &tw[side], &th[side]);
+        sb_param_wrap(p, side, wrap[side]);
+    }
+    fprintf(fp, ", J: %d, w: [%zu, %zu], h: [%zu, %zu], wrap: [[%d, %d], [%d, %d]], tex: [", WJ, tw[0], tw[1], th[0],
+            th[1], wrap[0][0], wrap[0][1], wrap[1][0], wrap[1][1]);
+    for (int side = 0; side < 2; side++) { /* layer j, row y, texel x, RGBA */
+        fputs(side ? "], [" : "[", fp);
+        for (size_t j = 0; j < WJ; j++)
+            for (size_t i = 0; i < tw[side] * th[side]; i++)
+                for (int c = 0; c < 4; c++) {
+                    double v = c < 3 ? (double)(float)sb_rand01(st) : 0;
+                    if (c < 3) sb_factors_tex(f, side, j, (size_t)c)[i] = v;
+                    fprintf(fp, "%s%.9g", j || i || c ? "," : "", v);
+                }
+    }
+    fputs("]], pairs: [", fp);
+    for (int i = 0; i < WN; i++)
+        for (int k = 0; k < 2; k++) {
+            double *w = dirs[i][k], z = (i % 9 == k) ? 2 * sb_rand01(st) - 1 : 1 - sb_rand01(st);
+            double ph = 2 * SB_PI * sb_rand01(st), r = sqrt(1 - z * z), n = 0;
+            float v[3] = {(float)(r * cos(ph)), (float)(r * sin(ph)), (float)z};
+            for (int a = 0; a < 3; a++)
+                n += (double)v[a] * v[a];
+            for (int a = 0; a < 3; a++)
+                w[a] = v[a] / sqrt(n);
+            fprintf(fp, "%s%.9g,%.9g,%.9g,0", i || k ? "," : "", v[0], v[1], v[2]);
+        }
+    fputs("]});\n", fp);
+}
+
+SB_TEST(eval_matches_cpu) {
+    const char *dir = sb_tmpdir("shader_wgsl_run");
+    FILE *fp = sb_page_file(dir);
+    CHECK(fp != NULL);
+    if (!fp) return;
+    static double dirs[SB_NSPECS][WN][2][3];
+    sb_param_t *ps[SB_NSPECS];
+    sb_factors_t *fs[SB_NSPECS];
+    unsigned long long st = 4321;
+    fputs("<html><body><script>\nconst cases = [];\n", fp);
+    for (size_t c = 0; c < SB_NSPECS; c++) {
+        size_t tw[2], th[2];
+        ps[c] = sb_param_of(sb_specs[c]);
+        fs[c] = NULL;
+        for (int side = 0; ps[c] && side < 2; side++)
+            sb_param_texture_size(ps[c], side, &tw[side], &th[side]);
+        CHECK(ps[c] && sb_factors_create(NULL, WJ, 3, tw[0], th[0], tw[1], th[1], &fs[c]) == SB_OK);
+        if (fs[c]) write_case(fp, ps[c], fs[c], dirs[c], &st);
+    }
+    fprintf(fp, "%s</script></body></html>\n", wgsl_run_js);
+    fclose(fp);
+    static char log[1 << 22];
+    int rc = sb_chromium_page(dir, log, sizeof log);
+    if (rc == 77) {
+        for (size_t c = 0; c < SB_NSPECS; c++)
+            sb_factors_destroy(fs[c]), sb_param_destroy(ps[c]);
+        SKIP("no chromium with WebGPU and float32-filterable (Debian: chromium): WGSL not executed");
+    }
+    CHECKF(rc == 0, "chromium did not finish:\n%.2000s", log);
+    /* compare, as test_glsl.c's gl_compare: texels, the domain up to the cap's rim, values */
+    double worst_st = 0, worst_f = 0;
+    int seen = 0, mismatch = 0, inside = 0;
+    for (const char *line = strstr(log, "SB-WGSL-OUT "); line; line = strstr(line + 1, "SB-WGSL-OUT ")) {
+        int c, i, used = 0;
+        float o[8];
+        if (sscanf(line, "SB-WGSL-OUT %d %d %f %f %f %f %f %f %f %f%n", &c, &i, &o[0], &o[1], &o[2], &o[3], &o[4],
+                   &o[5], &o[6], &o[7], &used) != 10 ||
+            c < 0 || c >= (int)SB_NSPECS || i < 0 || i >= WN || !fs[c])
+            continue;
+        seen++;
+        const sb_param_t *p = ps[c];
+        const double *l = dirs[c][i][0], *v = dirs[c][i][1];
+        double sg[2], sh[2], rgb[3], tmax = sb_param_theta_max(p);
+        int cpu = sb_param_coords(p, l, v, sg, sh), gpu = o[7] > 0.5f;
+        if (cpu != gpu) {
+            double e = fmin(fmin(fabs(acos(l[2]) - tmax), fabs(acos(v[2]) - tmax)), fmin(fabs(l[2]), fabs(v[2])));
+            mismatch += e > 1e-5;
+            continue;
+        }
+        if (!cpu) continue;
+        inside++;
+        const double cs[4] = {sg[0], sg[1], sh[0], sh[1]};
+        for (int a = 0; a < 4; a++) {
+            size_t tw, th;
+            int wrap[2];
+            sb_param_texture_size(p, a / 2, &tw, &th);
+            sb_param_wrap(p, a / 2, wrap);
+            double d = fabs(cs[a] - o[a]);
+            if (wrap[a % 2] == SB_WRAP_REPEAT) d = fmin(d, 1 - d);
+            worst_st = fmax(worst_st, d * (double)(a % 2 ? th : tw));
+        }
+        sb_factors_eval(fs[c], p, SB_FORM_F, WJ, l, v, rgb);
+        for (int k = 0; k < 3; k++)
+            worst_f = fmax(worst_f, fabs(rgb[k] - o[4 + k]));
+    }
+    printf("  %d pairs (%d inside): worst |st| %.3g texels, worst |f| %.3g\n", seen, inside, worst_st, worst_f);
+    CHECKF(seen == (int)SB_NSPECS * WN, "%d of %d results came back", seen, (int)SB_NSPECS * WN);
+    CHECKF(mismatch == 0, "sb_domain differs from the CPU on %d pairs", mismatch);
+    CHECKF(inside > seen / 4, "%d pairs inside", inside);
+    /* float rounding: SwiftShader filters float32 textures in float32 */
+    CHECKF(worst_st < 1e-4, "sb_coords differs by %g texels", worst_st);
+    CHECKF(worst_f < 1e-4, "sb_brdf differs by %g", worst_f);
+    for (size_t c = 0; c < SB_NSPECS; c++)
+        sb_factors_destroy(fs[c]), sb_param_destroy(ps[c]);
+}
+
