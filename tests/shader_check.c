@@ -9,11 +9,11 @@
 /* The layouts: each kind at R = 12, theta_max limited on hd, and iso and hd
  * with warp tables in their specs. */
 const char *const sb_specs[SB_NSPECS] = {"io:res=12",
-                                    "io-area:res=12",
-                                    "hd:res=12,theta_max=1.2",
-                                    "iso:th=12,td=12,pd=6",
-                                    "iso:th=12,td=12,pd=6,warp_h=0.05/0.2/0.5,warp_d=0.3/0.6",
-                                    "hd:res=12,warp_h=merl,warp_d=0.1/0.4/0.7"};
+                                         "io-area:res=12",
+                                         "hd:res=12,theta_max=1.2",
+                                         "iso:th=12,td=12,pd=6",
+                                         "iso:th=12,td=12,pd=6,warp_h=0.05/0.2/0.5,warp_d=0.3/0.6",
+                                         "hd:res=12,warp_h=merl,warp_d=0.1/0.4/0.7"};
 
 sb_param_t *sb_param_of(const char *spec) {
     sb_param_kind_t k;
@@ -38,7 +38,6 @@ char *sb_shader_text(const sb_param_t *p, sb_form_t form, int sampled, const cha
     free(glsl);
     return out;
 }
-
 
 /* A JS string literal of s. */
 void sb_js_string(FILE *fp, const char *s) {
@@ -82,4 +81,3 @@ int sb_chromium_page(const char *dir, char *log, size_t logsz) {
     if (strstr(log, "SB-WGSL-NOADAPTER")) return 77;
     return strstr(log, "SB-WGSL-DONE") ? 0 : -1;
 }
-

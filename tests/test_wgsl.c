@@ -31,20 +31,22 @@ static const char wgsl_compute[] =
     "    let st = sb_coords(L, V);\n    sb_res[2u * i] = st;\n"
     "    sb_res[2u * i + 1u] = vec4f(sb_brdf(L, V), select(0.0, 1.0, sb_domain(L, V, st)));\n}\n";
 
-/* The page: every case's textures (rgba32float, linear, wrap as the layout
- * says), pairs and module; one line "SB-WGSL-OUT case pair 8 values" per
- * pair.  Float textures filtered linearly need float32-filterable. */
+/* The page: every case's factor textures (rgba32float, linear, wrap as
+ * the layout says; binding 0..3), its sampler table (r32float, binding 4)
+ * when it has one, its inputs (vec4s, @group(1) @binding(0)) and module;
+ * the nout vec4s of its output in lines "SB-WGSL-OUT case first v ...", 32
+ * vec4s a line.  Float textures filtered linearly need float32-filterable. */
 static const char wgsl_run_js[] =
     "(async () => {\n"
     "  const a = navigator.gpu && await navigator.gpu.requestAdapter();\n"
     "  if (!a || !a.features.has('float32-filterable')) { console.log('SB-WGSL-NOADAPTER'); return; }\n"
     "  const d = await a.requestDevice({requiredFeatures: ['float32-filterable']});\n"
     "  const mode = w => w ? 'repeat' : 'clamp-to-edge';\n"
+    "  const usage = GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST;\n"
     "  for (let c = 0; c < cases.length; c++) {\n"
     "    const k = cases[c], entries = [];\n"
     "    for (let s = 0; s < 2; s++) {\n"
-    "      const t = d.createTexture({size: [k.w[s], k.h[s], k.J], format: 'rgba32float',\n"
-    "                                 usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST});\n"
+    "      const t = d.createTexture({size: [k.w[s], k.h[s], k.J], format: 'rgba32float', usage});\n"
     "      d.queue.writeTexture({texture: t}, new Float32Array(k.tex[s]), {bytesPerRow: 16 * k.w[s], rowsPerImage: "
     "k.h[s]},\n"
     "                           [k.w[s], k.h[s], k.J]);\n"
@@ -52,35 +54,57 @@ static const char wgsl_run_js[] =
     "      entries.push({binding: 2 * s + 1, resource: d.createSampler({magFilter: 'linear', minFilter: 'linear',\n"
     "                    addressModeU: mode(k.wrap[s][0]), addressModeV: mode(k.wrap[s][1])})});\n"
     "    }\n"
+    "    if (k.cdf) {\n"
+    "      const t = d.createTexture({size: [k.cdf.w, k.cdf.h, k.cdf.layers], format: 'r32float', usage});\n"
+    "      d.queue.writeTexture({texture: t}, new Float32Array(k.cdf.data), {bytesPerRow: 4 * k.cdf.w, rowsPerImage: "
+    "k.cdf.h},\n"
+    "                           [k.cdf.w, k.cdf.h, k.cdf.layers]);\n"
+    "      entries.push({binding: 4, resource: t.createView({dimension: '2d-array'})});\n"
+    "    }\n"
     "    const m = d.createShaderModule({code: k.code});\n"
     "    const p = d.createComputePipeline({layout: 'auto', compute: {module: m, entryPoint: 'main'}});\n"
-    "    const n = k.pairs.length / 8, inb = d.createBuffer({size: 32 * n, usage: GPUBufferUsage.STORAGE | "
+    "    const inb = d.createBuffer({size: 4 * k.inputs.length, usage: GPUBufferUsage.STORAGE | "
     "GPUBufferUsage.COPY_DST});\n"
-    "    d.queue.writeBuffer(inb, 0, new Float32Array(k.pairs));\n"
-    "    const out = d.createBuffer({size: 32 * n, usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_SRC});\n"
-    "    const rd = d.createBuffer({size: 32 * n, usage: GPUBufferUsage.MAP_READ | GPUBufferUsage.COPY_DST});\n"
+    "    d.queue.writeBuffer(inb, 0, new Float32Array(k.inputs));\n"
+    "    const out = d.createBuffer({size: 16 * k.nout, usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_SRC});\n"
+    "    const rd = d.createBuffer({size: 16 * k.nout, usage: GPUBufferUsage.MAP_READ | GPUBufferUsage.COPY_DST});\n"
     "    const e = d.createCommandEncoder(), pass = e.beginComputePass();\n"
     "    pass.setPipeline(p);\n"
     "    pass.setBindGroup(0, d.createBindGroup({layout: p.getBindGroupLayout(0), entries}));\n"
     "    pass.setBindGroup(1, d.createBindGroup({layout: p.getBindGroupLayout(1), entries: [\n"
     "      {binding: 0, resource: {buffer: inb}}, {binding: 1, resource: {buffer: out}}]}));\n"
-    "    pass.dispatchWorkgroups(Math.ceil(n / 64));\n    pass.end();\n"
-    "    e.copyBufferToBuffer(out, 0, rd, 0, 32 * n);\n    d.queue.submit([e.finish()]);\n"
+    "    pass.dispatchWorkgroups(Math.ceil(k.nout / 64));\n    pass.end();\n"
+    "    e.copyBufferToBuffer(out, 0, rd, 0, 16 * k.nout);\n    d.queue.submit([e.finish()]);\n"
     "    await rd.mapAsync(GPUMapMode.READ);\n    const r = new Float32Array(rd.getMappedRange());\n"
-    "    for (let i = 0; i < n; i++) console.log('SB-WGSL-OUT ' + c + ' ' + i + ' ' + "
-    "Array.from(r.slice(8 * i, 8 * i + 8)).join(' '));\n"
+    "    for (let i = 0; i < k.nout; i += 32) console.log('SB-WGSL-OUT ' + c + ' ' + i + ' ' + "
+    "Array.from(r.slice(4 * i, 4 * Math.min(i + 32, k.nout))).join(' '));\n"
     "  }\n  console.log('SB-WGSL-DONE');\n})();\n";
 
-/* Case c of the page: p's WGSL with the compute entry, random textures into
- * f (kept for the CPU), random pairs into dir (renormalised as floats). */
-static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*dirs)[2][3], unsigned long long *st) {
-    char *s = sb_shader_text(p, SB_FORM_F, 0, "wgsl");
-    size_t len = (s ? strlen(s) : 0) + sizeof wgsl_compute;
+/* The output of case c (nout vec4s) from the log into out; the number of
+ * vec4s that came back. */
+static size_t collect(const char *log, int c, size_t nout, float *out) {
+    size_t got = 0;
+    for (const char *line = strstr(log, "SB-WGSL-OUT "); line; line = strstr(line + 1, "SB-WGSL-OUT ")) {
+        char *q;
+        long lc = strtol(line + 12, &q, 10), first = strtol(q, &q, 10);
+        if (lc != c || first < 0) continue;
+        for (size_t i = (size_t)first * 4; i < nout * 4 && *q == ' '; i++) {
+            out[i] = strtof(q, &q);
+            got += i % 4 == 3;
+        }
+    }
+    return got;
+}
+
+/* A case's module (the snippet text in WGSL, then the compute entry) and
+ * its factor textures from f, as JS fields. */
+static void write_code_and_textures(FILE *fp, const char *wgsl, const char *entry, const sb_param_t *p,
+                                    const sb_factors_t *f) {
+    size_t len = (wgsl ? strlen(wgsl) : 0) + strlen(entry) + 1, J = sb_factors_terms(f);
     char *code = malloc(len);
-    if (code) snprintf(code, len, "%s%s", s ? s : "", wgsl_compute);
+    if (code) snprintf(code, len, "%s%s", wgsl ? wgsl : "", entry);
     fputs("cases.push({code: ", fp);
     sb_js_string(fp, code ? code : "");
-    free(s);
     free(code);
     size_t tw[2], th[2];
     int wrap[2][2];
@@ -88,19 +112,36 @@ static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*
         sb_param_texture_size(p, side, &tw[side], &th[side]);
         sb_param_wrap(p, side, wrap[side]);
     }
-    fprintf(fp, ", J: %d, w: [%zu, %zu], h: [%zu, %zu], wrap: [[%d, %d], [%d, %d]], tex: [", WJ, tw[0], tw[1], th[0],
+    fprintf(fp, ", J: %zu, w: [%zu, %zu], h: [%zu, %zu], wrap: [[%d, %d], [%d, %d]], tex: [", J, tw[0], tw[1], th[0],
             th[1], wrap[0][0], wrap[0][1], wrap[1][0], wrap[1][1]);
     for (int side = 0; side < 2; side++) { /* layer j, row y, texel x, RGBA */
         fputs(side ? "], [" : "[", fp);
-        for (size_t j = 0; j < WJ; j++)
+        for (size_t j = 0; j < J; j++)
             for (size_t i = 0; i < tw[side] * th[side]; i++)
-                for (int c = 0; c < 4; c++) {
-                    double v = c < 3 ? (double)(float)sb_rand01(st) : 0;
-                    if (c < 3) sb_factors_tex(f, side, j, (size_t)c)[i] = v;
+                for (size_t c = 0; c < 4; c++) {
+                    size_t ch = sb_factors_channels(f) == 1 ? 0 : c;
+                    double v = c < 3 ? sb_factors_tex_const(f, side, j, ch)[i] : 0;
                     fprintf(fp, "%s%.9g", j || i || c ? "," : "", v);
                 }
     }
-    fputs("]], pairs: [", fp);
+    fputs("]]", fp);
+}
+
+/* Case c of the page: p's WGSL with the compute entry, random textures into
+ * f (kept for the CPU), random pairs into dir (renormalised as floats). */
+static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*dirs)[2][3], unsigned long long *st) {
+    size_t tw[2], th[2];
+    for (int side = 0; side < 2; side++) {
+        sb_param_texture_size(p, side, &tw[side], &th[side]);
+        for (size_t j = 0; j < WJ; j++)
+            for (size_t c = 0; c < 3; c++)
+                for (size_t i = 0; i < tw[side] * th[side]; i++)
+                    sb_factors_tex(f, side, j, c)[i] = (double)(float)sb_rand01(st);
+    }
+    char *s = sb_shader_text(p, SB_FORM_F, 0, "wgsl");
+    write_code_and_textures(fp, s, wgsl_compute, p, f);
+    free(s);
+    fprintf(fp, ", nout: %d, inputs: [", 2 * WN);
     for (int i = 0; i < WN; i++)
         for (int k = 0; k < 2; k++) {
             double *w = dirs[i][k], z = (i % 9 == k) ? 2 * sb_rand01(st) - 1 : 1 - sb_rand01(st);
@@ -147,39 +188,37 @@ SB_TEST(eval_matches_cpu) {
     /* compare, as test_glsl.c's gl_compare: texels, the domain up to the cap's rim, values */
     double worst_st = 0, worst_f = 0;
     int seen = 0, mismatch = 0, inside = 0;
-    for (const char *line = strstr(log, "SB-WGSL-OUT "); line; line = strstr(line + 1, "SB-WGSL-OUT ")) {
-        int c, i, used = 0;
-        float o[8];
-        if (sscanf(line, "SB-WGSL-OUT %d %d %f %f %f %f %f %f %f %f%n", &c, &i, &o[0], &o[1], &o[2], &o[3], &o[4],
-                   &o[5], &o[6], &o[7], &used) != 10 ||
-            c < 0 || c >= (int)SB_NSPECS || i < 0 || i >= WN || !fs[c])
-            continue;
-        seen++;
-        const sb_param_t *p = ps[c];
-        const double *l = dirs[c][i][0], *v = dirs[c][i][1];
-        double sg[2], sh[2], rgb[3], tmax = sb_param_theta_max(p);
-        int cpu = sb_param_coords(p, l, v, sg, sh), gpu = o[7] > 0.5f;
-        if (cpu != gpu) {
-            double e = fmin(fmin(fabs(acos(l[2]) - tmax), fabs(acos(v[2]) - tmax)), fmin(fabs(l[2]), fabs(v[2])));
-            mismatch += e > 1e-5;
-            continue;
+    static float res[SB_NSPECS][2 * WN * 4];
+    for (int c = 0; c < (int)SB_NSPECS; c++)
+        seen += fs[c] ? (int)collect(log, c, 2 * WN, res[c]) / 2 : 0;
+    for (int c = 0; c < (int)SB_NSPECS; c++)
+        for (int i = 0; i < WN && fs[c]; i++) {
+            const float *o = res[c] + 8 * i;
+            const sb_param_t *p = ps[c];
+            const double *l = dirs[c][i][0], *v = dirs[c][i][1];
+            double sg[2], sh[2], rgb[3], tmax = sb_param_theta_max(p);
+            int cpu = sb_param_coords(p, l, v, sg, sh), gpu = o[7] > 0.5f;
+            if (cpu != gpu) {
+                double e = fmin(fmin(fabs(acos(l[2]) - tmax), fabs(acos(v[2]) - tmax)), fmin(fabs(l[2]), fabs(v[2])));
+                mismatch += e > 1e-5;
+                continue;
+            }
+            if (!cpu) continue;
+            inside++;
+            const double cs[4] = {sg[0], sg[1], sh[0], sh[1]};
+            for (int a = 0; a < 4; a++) {
+                size_t tw, th;
+                int wrap[2];
+                sb_param_texture_size(p, a / 2, &tw, &th);
+                sb_param_wrap(p, a / 2, wrap);
+                double d = fabs(cs[a] - o[a]);
+                if (wrap[a % 2] == SB_WRAP_REPEAT) d = fmin(d, 1 - d);
+                worst_st = fmax(worst_st, d * (double)(a % 2 ? th : tw));
+            }
+            sb_factors_eval(fs[c], p, SB_FORM_F, WJ, l, v, rgb);
+            for (int k = 0; k < 3; k++)
+                worst_f = fmax(worst_f, fabs(rgb[k] - o[4 + k]));
         }
-        if (!cpu) continue;
-        inside++;
-        const double cs[4] = {sg[0], sg[1], sh[0], sh[1]};
-        for (int a = 0; a < 4; a++) {
-            size_t tw, th;
-            int wrap[2];
-            sb_param_texture_size(p, a / 2, &tw, &th);
-            sb_param_wrap(p, a / 2, wrap);
-            double d = fabs(cs[a] - o[a]);
-            if (wrap[a % 2] == SB_WRAP_REPEAT) d = fmin(d, 1 - d);
-            worst_st = fmax(worst_st, d * (double)(a % 2 ? th : tw));
-        }
-        sb_factors_eval(fs[c], p, SB_FORM_F, WJ, l, v, rgb);
-        for (int k = 0; k < 3; k++)
-            worst_f = fmax(worst_f, fabs(rgb[k] - o[4 + k]));
-    }
     printf("  %d pairs (%d inside): worst |st| %.3g texels, worst |f| %.3g\n", seen, inside, worst_st, worst_f);
     CHECKF(seen == (int)SB_NSPECS * WN, "%d of %d results came back", seen, (int)SB_NSPECS * WN);
     CHECKF(mismatch == 0, "sb_domain differs from the CPU on %d pairs", mismatch);
@@ -190,4 +229,3 @@ SB_TEST(eval_matches_cpu) {
     for (size_t c = 0; c < SB_NSPECS; c++)
         sb_factors_destroy(fs[c]), sb_param_destroy(ps[c]);
 }
-
