@@ -281,40 +281,27 @@ static int write_table(FILE *fp, const sb_sampler_t *s, const char *dir) {
 }
 
 typedef struct scase {
-    sb_source_t *src;
-    sb_param_t *p;
-    sb_matrix_t m;
-    sb_plan_t *plan;
-    sb_factors_t *f;
+    sb_job_t *job;
+    const sb_param_t *p;
+    const sb_factors_t *f;
     sb_sampler_t *s;
 } scase_t;
 
-static void scase_free(scase_t *k) {
-    sb_sampler_destroy(k->s);
-    sb_factors_destroy(k->f);
-    sb_plan_destroy(k->plan);
-    sb_matrix_free(&k->m);
-    sb_param_destroy(k->p);
-    sb_source_destroy(k->src);
-}
-
-/* Factor spec on kind at R = 12 (nmf), build its sampler, write the case. */
+/* Factor spec on kind at R = 12 as `sepbrdf factor --method nmf --form cos
+ * --weighted --plain-terms -J 4` does, build the sampler, write the case. */
 static int sampler_case(FILE *fp, scase_t *k, sb_param_kind_t kind, const char *spec, const char *dir) {
-    sb_param_opts_t po = {0};
-    po.res = 12;
-    sb_matrix_opts_t mo = {0};
-    mo.form = SB_FORM_COS;
-    sb_plan_opts_t pl = {0};
-    pl.terms = 4;
-    pl.weighted = 1;
-    pl.svd.method = SB_METHOD_NMF;
-    sb_result_t r = sb_model_create(NULL, spec, &k->src);
-    if (!r) r = sb_param_create(NULL, kind, &po, &k->p);
-    if (!r) r = sb_matrix_build(NULL, k->src, k->p, &mo, &k->m);
-    if (!r) r = sb_plan_create_for(NULL, &k->m, &pl, &k->plan);
-    if (!r) r = sb_plan_execute(k->plan, &k->m, k->p, &k->f);
-    if (!r) r = sb_sampler_create(NULL, k->f, k->p, SB_FORM_COS, &k->s);
-    if (r) return -1;
+    sb_job_opts_t o = {0};
+    o.source = spec;
+    o.param = sb_param_kind_name(kind);
+    o.form = "cos";
+    o.res = 12;
+    o.terms = 4;
+    o.weighted = o.plain_terms = 1;
+    o.method = SB_METHOD_NMF;
+    if (sb_job_run(NULL, &o, &k->job) != SB_OK) return -1;
+    k->p = sb_job_param(k->job);
+    k->f = sb_job_factors(k->job);
+    if (sb_sampler_create(NULL, k->f, k->p, SB_FORM_COS, &k->s) != SB_OK) return -1;
     char *head = sb_glsl_snippet(k->p, SB_FORM_COS, 4, NULL), *tail = sb_glsl_sampler(k->p, sb_factors_channels(k->f));
     size_t n = (head ? strlen(head) : 0) + (tail ? strlen(tail) : 0) + 1;
     char *glsl = head && tail ? malloc(n) : NULL, *wgsl = NULL;
@@ -397,8 +384,10 @@ SB_TEST(sampler_matches_cpu) {
                    sb_param_kind_name(kinds[c].kind), view_thetas[o], differ, SN * SN);
         }
     }
-    for (int c = 0; c < NK; c++)
-        scase_free(&k[c]);
+    for (int c = 0; c < NK; c++) {
+        sb_sampler_destroy(k[c].s);
+        sb_job_destroy(k[c].job);
+    }
     if (rc == 77) SKIP("no chromium with WebGPU and float32-filterable (Debian: chromium): WGSL not executed");
     CHECKF(rc == 0, "chromium did not finish:\n%.2000s", log);
 }
