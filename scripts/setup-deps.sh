@@ -9,7 +9,7 @@ set -eu
 PKGS="cmake make gcc pkg-config liblapacke-dev libopenblas-dev libopenexr-dev \
 openexr glslang-tools libpng-dev gnuplot-nox libosmesa6-dev libegl-dev \
 libgles-dev libgl-dev libgl1-mesa-dri clang libclang-rt-14-dev clang-format chromium \
-libopenmpi-dev openmpi-bin"
+libopenmpi-dev openmpi-bin python3 python3-numpy python3-pytest spirv-cross"
 if [ "${1:-}" = --bench ]; then PKGS="python3 python3-numpy python3-scipy python3-sklearn"; fi
 
 missing=""

@@ -238,8 +238,87 @@ static double glsl_rand_dir(unsigned long long *st, double w[3], int below) {
 
 enum { GW = 64, GH = 64, GN = GW * GH, GJ = 2 };
 
-/* One parameterisation: render, read back, compare. */
-static void gl_compare(sb_param_t *p) {
+/* Every occurrence of `from` in the malloc'ed *s replaced by `to`. */
+static void replace_all(char **s, const char *from, const char *to) {
+    for (char *at; *s && (at = strstr(*s, from)) != NULL;) {
+        size_t head = (size_t)(at - *s), n = strlen(*s) - strlen(from) + strlen(to) + 1;
+        char *t = malloc(n);
+        if (t) snprintf(t, n, "%.*s%s%s", (int)head, *s, to, at + strlen(from));
+        free(*s);
+        *s = t;
+    }
+}
+
+/* gl_compare's fragment shader: texelFetch the pair, write sb_coords and
+ * (sb_brdf, sb_domain). */
+static char *glsl_shader(const sb_param_t *p) {
+    char *snip = sb_glsl_snippet(p, SB_FORM_F, GJ, NULL);
+    size_t len = strlen(snip) + 1024;
+    char *fs = malloc(len);
+    if (fs)
+        snprintf(fs, len,
+                 "#version 330 core\n%s\nuniform sampler2D inL;\nuniform sampler2D inV;\n"
+                 "layout(location = 0) out vec4 o0;\nlayout(location = 1) out vec4 o1;\n"
+                 "void main() {\n    ivec2 q = ivec2(gl_FragCoord.xy);\n"
+                 "    vec3 L = normalize(texelFetch(inL, q, 0).xyz), V = normalize(texelFetch(inV, q, 0).xyz);\n"
+                 "    vec4 st = sb_coords(L, V);\n    o0 = st;\n"
+                 "    o1 = vec4(sb_brdf(L, V), sb_domain(L, V, st) ? 1.0 : 0.0);\n}\n",
+                 snip);
+    free(snip);
+    return fs;
+}
+
+/* gl_compare's fragment shader through the HLSL snippet: the same main in
+ * HLSL, compiled by glslangValidator's HLSL front end to SPIR-V, turned into
+ * GLSL 3.30 by spirv-cross, its textures renamed as gl_compare binds them.
+ * NULL (after a failed check) if a tool fails. */
+static char *hlsl_shader(const sb_param_t *p) {
+    const char *dir = sb_tmpdir("glsl_hlsl");
+    char *glsl = sb_glsl_snippet(p, SB_FORM_F, GJ, NULL), *hlsl = sb_shader_translate(glsl, "hlsl"), path[512];
+    char cmd[1600], log[8192];
+    free(glsl);
+    snprintf(path, sizeof path, "%s/cmp.hlsl", dir);
+    FILE *fp = hlsl ? fopen(path, "w") : NULL;
+    CHECK(fp != NULL);
+    if (!fp) return NULL;
+    fprintf(fp,
+            "%s\nTexture2D<float4> inL : register(t3);\nTexture2D<float4> inV : register(t4);\n"
+            "struct sb_out { float4 o0 : SV_Target0; float4 o1 : SV_Target1; };\n"
+            "sb_out main(float4 pos : SV_Position) {\n    int2 q = int2(pos.xy);\n"
+            "    float3 L = normalize(inL.Load(int3(q, 0)).xyz), V = normalize(inV.Load(int3(q, 0)).xyz);\n"
+            "    float4 st = sb_coords(L, V);\n    sb_out o;\n    o.o0 = st;\n"
+            "    o.o1 = float4(sb_brdf(L, V), sb_domain(L, V, st) ? 1.0 : 0.0);\n    return o;\n}\n",
+            hlsl);
+    fclose(fp);
+    free(hlsl);
+    snprintf(cmd, sizeof cmd,
+             "glslangValidator -D -V -S frag -e main -o %s/cmp.spv %s && "
+             "spirv-cross --version 330 --no-es %s/cmp.spv --output %s/cmp.frag",
+             dir, path, dir, dir);
+    int rc = sb_run(cmd, log, sizeof log);
+    CHECKF(rc == 0, "%s: HLSL -> SPIR-V -> GLSL failed:\n%s", sb_param_spec(p), log);
+    snprintf(path, sizeof path, "%s/cmp.frag", dir);
+    fp = rc == 0 ? fopen(path, "rb") : NULL;
+    if (!fp) return NULL;
+    char *text = calloc(1, 1 << 20);
+    if (text) fread(text, 1, (1 << 20) - 1, fp);
+    fclose(fp);
+    static const char *const names[][2] = {{"SPIRV_Cross_Combinedsb_gsb_g_sampler", "sb_g"},
+                                           {"SPIRV_Cross_Combinedsb_hsb_h_sampler", "sb_h"},
+                                           {"SPIRV_Cross_CombinedinLSPIRV_Cross_DummySampler", "inL"},
+                                           {"SPIRV_Cross_CombinedinVSPIRV_Cross_DummySampler", "inV"}};
+    for (int i = 0; i < 4; i++) {
+        CHECKF(text && strstr(text, names[i][0]), "%s: no %s in spirv-cross's GLSL", sb_param_spec(p), names[i][0]);
+        replace_all(&text, names[i][0], names[i][1]);
+    }
+    return text;
+}
+
+/* One parameterisation: render, read back, compare; through the HLSL
+ * snippet (hlsl_shader) when hlsl is set. */
+static void gl_compare(sb_param_t *p, int hlsl) {
+    char *fs = hlsl ? hlsl_shader(p) : glsl_shader(p);
+    if (!fs) return;
     size_t tw[2], th[2];
     int wrap[2][2];
     for (int s = 0; s < 2; s++) {
@@ -266,18 +345,6 @@ static void gl_compare(sb_param_t *p) {
             }
             in[(k * GN + i) * 4 + 3] = 0;
         }
-    /* shader: texelFetch the pair, write sb_coords and (sb_brdf, sb_domain) */
-    char *snip = sb_glsl_snippet(p, SB_FORM_F, GJ, NULL);
-    size_t len = strlen(snip) + 1024;
-    char *fs = malloc(len);
-    snprintf(fs, len,
-             "#version 330 core\n%s\nuniform sampler2D inL;\nuniform sampler2D inV;\n"
-             "layout(location = 0) out vec4 o0;\nlayout(location = 1) out vec4 o1;\n"
-             "void main() {\n    ivec2 q = ivec2(gl_FragCoord.xy);\n"
-             "    vec3 L = normalize(texelFetch(inL, q, 0).xyz), V = normalize(texelFetch(inV, q, 0).xyz);\n"
-             "    vec4 st = sb_coords(L, V);\n    o0 = st;\n"
-             "    o1 = vec4(sb_brdf(L, V), sb_domain(L, V, st) ? 1.0 : 0.0);\n}\n",
-             snip);
     const char *vs =
         "#version 330 core\nvoid main() {\n"
         "    gl_Position = vec4(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID >> 1) * 4 - 1), 0, 1);\n}\n";
@@ -372,7 +439,6 @@ static void gl_compare(sb_param_t *p) {
     p_glDeleteShader(sv);
     p_glDeleteShader(sf);
     free(fs);
-    free(snip);
     free(dir);
     free(out);
     free(in);
@@ -380,14 +446,8 @@ static void gl_compare(sb_param_t *p) {
     sb_factors_destroy(f);
 }
 
-#endif
-
-SB_TEST(snippet_matches_cpu) {
-#ifndef SB_HAVE_GL_HEADERS
-    SKIP("EGL / GL headers not available at build time");
-#else
-    const char *why = gl_open();
-    if (why) SKIP(why);
+/* gl_compare on every layout, with a limited theta_max, and with warp tables. */
+static void compare_all(int hlsl) {
     for (int kind = 0; kind < SB_PARAM_KIND_COUNT_ + 2; kind++)
         for (int limited = 0; limited < 2; limited++) {
             sb_param_opts_t o = {0};
@@ -399,8 +459,36 @@ SB_TEST(snippet_matches_cpu) {
             else
                 CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
             if (!p) continue;
-            gl_compare(p);
+            gl_compare(p, hlsl);
             sb_param_destroy(p);
         }
+}
+#endif
+
+SB_TEST(snippet_matches_cpu) {
+#ifndef SB_HAVE_GL_HEADERS
+    SKIP("EGL / GL headers not available at build time");
+#else
+    const char *why = gl_open();
+    if (why) SKIP(why);
+    compare_all(0);
+#endif
+}
+
+/* The HLSL snippet (sb_shader_translate) executed: compiled by
+ * glslangValidator's HLSL front end to SPIR-V, made GLSL again by
+ * spirv-cross (a compiler's own lowering: SPIR-V's control flow, constants
+ * folded in float) and run as snippet_matches_cpu runs the GLSL one, on
+ * every layout, limited theta_max and warp tables: the same coordinates
+ * (< 1e-3 texels), domain and values. */
+SB_TEST(hlsl_matches_cpu) {
+#ifndef SB_HAVE_GL_HEADERS
+    SKIP("EGL / GL headers not available at build time");
+#else
+    if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
+    if (sb_run("command -v spirv-cross", NULL, 0) != 0) SKIP("spirv-cross not installed (Debian package spirv-cross)");
+    const char *why = gl_open();
+    if (why) SKIP(why);
+    compare_all(1);
 #endif
 }

@@ -56,6 +56,35 @@ char *sb_glsl_sampler(const sb_param_t *p, size_t channels);
 sb_result_t sb_glsl_write_sampled(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
                                   size_t terms, const double *scales, size_t channels);
 
+/* ---- the snippet in other shading languages ----
+ * Languages by name, a registry: "glsl" (the snippet itself), "hlsl"
+ * (HLSL, shader model 5.0 and later; file sepbrdf.hlsl), "msl" (the Metal
+ * Shading Language 2.0 and later; sepbrdf.metal) and "wgsl" (WebGPU;
+ * sepbrdf.wgsl).  Count, name, file
+ * extension of language k ("?" out of range), and the index of a name
+ * (-1 if none). */
+size_t sb_shader_lang_count(void);
+const char *sb_shader_lang_name(size_t k);
+const char *sb_shader_lang_ext(size_t k);
+int sb_shader_lang_find(const char *name);
+/* A comma list of language names ("hlsl,msl"; "all": every one) as bits
+ * 1 << k in *mask (may be NULL), GLSL's always set; NULL or "" gives GLSL
+ * alone.  SB_ERR_UNKNOWN, naming the word, for a name not in the registry. */
+sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *mask);
+
+/* The snippet text `glsl` (sb_glsl_snippet, optionally followed by
+ * sb_glsl_sampler) in language `lang`: the same functions (sb_brdf, and
+ * sb_sample / sb_pdf with the sampler block), coordinate code, warps and
+ * constants, with the language's texture bindings stated in a header
+ * comment (HLSL: registers t0/s0 sb_g, t1/s1 sb_h, t2 sb_cdf; MSL: the
+ * functions are members of `struct sb_shader`, made from the textures and
+ * samplers; WGSL: @group(0) bindings 0..5, out parameters as pointers).
+ * malloc'ed; NULL for a NULL text, an unknown language or no memory, and
+ * for WGSL also for a top-level declaration outside the subset.  Only the
+ * GLSL subset the library writes is translated; other text gives some
+ * output (or NULL), never a crash. */
+char *sb_shader_translate(const char *glsl, const char *lang);
+
 #ifdef __cplusplus
 }
 #endif

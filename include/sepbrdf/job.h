@@ -60,7 +60,9 @@ extern "C" {
  * of that stage done, 0..1; called on the calling thread only. */
 typedef void (*sb_job_progress_fn)(void *user, const char *label, double fraction);
 
-/* Settings of a job.  Zero (or NULL) means the default given. */
+/* Settings of a job.  Zero (or NULL) means the default given.  The job
+ * keeps a copy of `source` but refers to the other strings (param, form,
+ * warp, scene, shaders): they must outlive the job. */
 typedef struct sb_job_opts {
     const char *source;          /* model spec or measured file; NULL: SB_JOB_DEFAULT_SOURCE */
     sb_measured_opts_t measured; /* how a measured table is read and interpolated */
@@ -113,6 +115,12 @@ typedef struct sb_job_opts {
     const char *out;             /* sb_job_run also writes the set here (sb_job_write); NULL: no */
     sb_job_progress_fn progress; /* NULL: none */
     void *progress_user;
+    /* Shading languages of the snippet besides sepbrdf.glsl (glsl.h,
+     * sb_shader_translate): a comma list of "hlsl", "msl", "wgsl" ("glsl"
+     * is always written; "all": every language), each written by
+     * sb_job_write as sepbrdf.<ext> (sepbrdf.hlsl, sepbrdf.metal,
+     * sepbrdf.wgsl).  NULL: GLSL only. */
+    const char *shaders;
 } sb_job_opts_t;
 
 /* One candidate of the job and what its screening gave. */

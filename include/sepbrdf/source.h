@@ -39,6 +39,30 @@ sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void
                              const char *description, sb_source_t **out);
 void sb_source_destroy(sb_source_t *src); /* accepts NULL */
 
+/* A source that evaluates many pairs in one call (a function over arrays,
+ * e.g. one written in Python with numpy): eval_many writes f_r of the n
+ * pairs (wi[3k..3k+2], wo[3k..3k+2]) to rgb[3k..3k+2] and known[k] = 1, or
+ * known[k] = 0 for a missing pair.  Called from several threads at once,
+ * each with its own arrays; where the library samples a column of a matrix
+ * or the estimator's pairs, it passes them in one call, elsewhere n = 1. */
+typedef struct sb_source_batch_ops {
+    void (*eval_many)(const void *self, size_t n, const double *wi, const double *wo, double *rgb,
+                      unsigned char *known);
+    void (*destroy)(void *self); /* may be NULL */
+} sb_source_batch_ops_t;
+
+/* Wrap a batched implementation as sb_source_create does. */
+sb_result_t sb_source_create_batched(sb_context_t *ctx, const sb_source_batch_ops_t *ops, void *self, unsigned flags,
+                                     const char *description, sb_source_t **out);
+
+/* f_r of n pairs (arrays as eval_many's): one call of a batched source's
+ * eval_many, else sb_source_eval pair by pair; rgb is 0 where known is 0.
+ * Returns the number of known pairs (0 for NULL arguments). */
+size_t sb_source_eval_many(const sb_source_t *src, size_t n, const double *wi, const double *wo, double *rgb,
+                           unsigned char *known);
+/* Whether src has an eval_many (then callers gather pairs for it). */
+int sb_source_batched(const sb_source_t *src);
+
 /* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t) or
  * an argument is NULL (rgb, when given, is then 0). */
 int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]);

@@ -163,6 +163,17 @@ static int set_channels(const char *cmd, const cli_option_t *op, const char *v, 
     return 0;
 }
 
+static int set_shaders(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    sb_context_t *ctx = NULL;
+    sb_result_t r = sb_context_create(&ctx);
+    if (r == SB_OK) r = sb_shader_lang_list(ctx, v, NULL);
+    if (r != SB_OK) cli_error(cmd, "%s '%s': %s", op->name, v, ctx ? sb_context_last_error(ctx) : "out of memory");
+    sb_context_destroy(ctx);
+    if (r != SB_OK) return -1;
+    *(const char **)dst = v;
+    return 0;
+}
+
 static int set_seed(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     size_t s;
     if (cli_parse_size(cmd, op->name, v, 0, SIZE_MAX, &s)) return -1;
@@ -253,6 +264,10 @@ const cli_option_t cli_factor_options[] = {
      "given constrain the search (--warp default there: auto);\n"
      "not with --max-error",
      set_bytes, AT(budget), 0, 0, F_},
+    {NULL, "--shader", "LANGS",
+     "also write the snippet in these shading languages, a\ncomma list of hlsl (sepbrdf.hlsl), msl (sepbrdf.metal),\n"
+     "wgsl (sepbrdf.wgsl) or all; sepbrdf.glsl is always written",
+     set_shaders, AT(shaders), 0, 0, F_},
     {NULL, "--previews", NULL,
      "also write g_JJ/h_JJ_scale-S.png: each texture in a diverging\ncolour map, blue -S, white 0, red +S (S = max "
      "|value|)",

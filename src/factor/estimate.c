@@ -110,12 +110,46 @@ static double draw_pair(const double x[6], double wi[3], double wo[3]) {
     return pi_ * pdf_o(wi, wo);
 }
 
+/* A batched source (sb_source_create_batched): the drawn pairs of
+ * replicate k (density in d[6]) evaluated in one call. */
+static void eval_replicate(sb_pairs_t *P, size_t k) {
+    size_t n = 0, *idx = malloc(P->rep * sizeof *idx);
+    double *buf = malloc(P->rep * 9 * sizeof *buf);
+    unsigned char *known = malloc(P->rep);
+    double *wi = buf, *wo = buf ? buf + 3 * P->rep : NULL, *f = buf ? buf + 6 * P->rep : NULL;
+    int have = idx && buf && known; /* else (no memory) pair by pair */
+    for (size_t i = 0; i < P->rep && have; i++) {
+        const double *d = P->d + (k * P->rep + i) * PD;
+        if (!(d[6] > 0)) continue;
+        memcpy(wi + 3 * n, d, 3 * sizeof *d);
+        memcpy(wo + 3 * n, d + 3, 3 * sizeof *d);
+        idx[n++] = i;
+    }
+    if (have) sb_source_eval_many(P->src, n, wi, wo, f, known);
+    for (size_t i = 0, m = 0; i < P->rep; i++) {
+        size_t at = k * P->rep + i;
+        double *d = P->d + at * PD;
+        int ok = have ? m < n && idx[m] == i : d[6] > 0, kn;
+        if (!have)
+            kn = ok && sb_source_eval(P->src, d, d + 3, d + 7) && isfinite(d[7] + d[8] + d[9]);
+        else
+            kn = ok && known[m] && isfinite(f[3 * m] + f[3 * m + 1] + f[3 * m + 2]);
+        if (have && ok) memcpy(d + 7, f + 3 * m++, 3 * sizeof *d);
+        d[6] = kn ? 1 / d[6] : 0;
+        P->known[at] = (unsigned char)kn;
+    }
+    free(idx);
+    free(buf);
+    free(known);
+}
+
 /* Pairs of replicate k: the Kronecker set i alpha (alpha_d = 1/phi^(d+1),
  * phi the root of x^7 = x + 1) shifted by the replicate's random vector. */
 static void draw_replicate(sb_pairs_t *P, size_t k) {
     static const double phi6 = 1.1127756842787055;
     double alpha[6], shift[6], a = 1;
     uint64_t s = P->seed * 0x2545f4914f6cdd1dULL + k;
+    int batched = sb_source_batched(P->src);
     for (int d = 0; d < 6; d++) {
         a /= phi6;
         alpha[d] = a;
@@ -129,10 +163,15 @@ static void draw_replicate(sb_pairs_t *P, size_t k) {
             x[e] = v - floor(v);
         }
         double pd = P->draw ? P->draw(P->draw_user, x, d, d + 3) : draw_pair(x, d, d + 3);
+        if (batched) { /* evaluated below, all at once */
+            d[6] = pd;
+            continue;
+        }
         int known = pd > 0 && sb_source_eval(P->src, d, d + 3, d + 7) && isfinite(d[7] + d[8] + d[9]);
         d[6] = known ? 1 / pd : 0;
         P->known[at] = (unsigned char)known;
     }
+    if (batched) eval_replicate(P, k);
 }
 
 /* ---- units of work on threads ----------------------------------------- */

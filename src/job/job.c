@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "job_impl.h"
+#include "sepbrdf/glsl.h"
 #include "util/internal.h"
 
 double job_now(void) {
@@ -108,6 +109,7 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     if (o->form && sb_form_parse(o->form, form) != SB_OK)
         return sb_error(ctx, SB_ERR_UNKNOWN, "form '%s' unknown, need one of f, cos, cos2", o->form);
     if (job->is_auto) o->param = NULL;
+    if (sb_shader_lang_list(ctx, o->shaders, NULL) != SB_OK) return SB_ERR_UNKNOWN;
     sb_result_t rb = job_budget_begin(ctx, job, in);
     if (rb != SB_OK) return rb;
     if (o->sample_only && job->is_auto)

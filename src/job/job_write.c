@@ -81,6 +81,37 @@ static sb_result_t write_sampler(sb_context_t *ctx, const sb_job_t *job, sb_outs
     return r;
 }
 
+/* The snippet in the other languages asked for (opts.shaders): the text of
+ * sepbrdf.glsl translated, as sepbrdf.<ext>. */
+static sb_result_t write_translations(sb_context_t *ctx, const sb_job_t *job, sb_outset_t *set, const double *scales) {
+    const job_attempt_t *a = &job->best;
+    unsigned mask = 1;
+    sb_result_t r = sb_shader_lang_list(ctx, job->o.shaders, &mask);
+    if (r != SB_OK || mask == 1) return r;
+    char *head = sb_glsl_snippet(a->param, a->m.form, sb_factors_terms(a->f), scales);
+    char *tail = job->wrote_sampler ? sb_glsl_sampler(a->param, sb_factors_channels(a->f)) : NULL;
+    char *glsl = head && (tail || !job->wrote_sampler) ? malloc(strlen(head) + (tail ? strlen(tail) : 0) + 1) : NULL;
+    if (glsl) sprintf(glsl, "%s%s", head, tail ? tail : "");
+    free(head);
+    free(tail);
+    if (!glsl) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    for (size_t k = 1; k < sb_shader_lang_count() && r == SB_OK; k++) {
+        if (!(mask & (1u << k))) continue;
+        char *text = sb_shader_translate(glsl, sb_shader_lang_name(k)), name[64], path[4200];
+        if (!text) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+        snprintf(name, sizeof name, "sepbrdf.%s", sb_shader_lang_ext(k));
+        snprintf(path, sizeof path, "%s/%s", sb_outset_dir(set), name);
+        size_t len = text ? strlen(text) : 0;
+        const void *parts[1] = {text};
+        int e = text ? sb_write_atomic(path, parts, &len, 1) : 0;
+        if (e) r = sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, sb_io_why(e));
+        if (r == SB_OK && sb_outset_add(set, name) != SB_OK) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+        free(text);
+    }
+    free(glsl);
+    return r;
+}
+
 /* sepbrdf.glsl; for non-negative factors (SB_CAP_NONNEG) also sampler.bin
  * and the sampler block appended to the snippet (sampler.h, glsl.h). */
 static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set, const double *scales) {
@@ -103,6 +134,7 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
         r = sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
     }
     if (r == SB_OK && sb_outset_add(set, "sepbrdf.glsl") != SB_OK) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK) r = write_translations(ctx, job, set, scales);
     return r;
 }
 

@@ -77,16 +77,30 @@ static size_t scan_line(scan_t *s, size_t line) {
     s->w[line] = s->axis == SB_AXIS_THETA_H ? 2 * (sin(hi) * sin(hi) - sin(lo) * sin(lo)) : cos(lo) - cos(hi);
     double *q = s->q + line * FINE * 3, *c2 = s->c2 + line * FINE;
     unsigned char *ok = s->ok + line * FINE;
-    for (size_t i = 0; i < FINE; i++) {
+    /* a batched source (sb_source_create_batched): the line's pairs in one call */
+    double *ls = sb_source_batched(s->src) ? malloc(FINE * 9 * sizeof *ls) : NULL;
+    double *vs = ls ? ls + 3 * FINE : NULL, *fs = ls ? ls + 6 * FINE : NULL;
+    unsigned char kn[FINE];
+    size_t n = 0;
+    for (size_t i = 0; ls && i < FINE; i++) {
+        double th = s->x[i] * s->tmax;
+        n += (size_t)(s->axis == SB_AXIS_THETA_H ? rusink_pair(s->tmax, th, ph, to, pd, ls + 3 * n, vs + 3 * n)
+                                                 : rusink_pair(s->tmax, to, ph, th, pd, ls + 3 * n, vs + 3 * n));
+    }
+    if (ls) sb_source_eval_many(s->src, n, ls, vs, fs, kn);
+    for (size_t i = 0, m = 0; i < FINE; i++) {
         double th = s->x[i] * s->tmax, l[3], v[3], f[3];
         int in = s->axis == SB_AXIS_THETA_H ? rusink_pair(s->tmax, th, ph, to, pd, l, v)
                                             : rusink_pair(s->tmax, to, ph, th, pd, l, v);
-        ok[i] = (unsigned char)(in && sb_source_eval(s->src, l, v, f) && isfinite(f[0] + f[1] + f[2]));
+        int got = ls ? in && kn[m] : in && sb_source_eval(s->src, l, v, f);
+        if (ls && in) memcpy(f, fs + 3 * m++, sizeof f);
+        ok[i] = (unsigned char)(got && isfinite(f[0] + f[1] + f[2]));
         known += ok[i];
         c2[i] = l[2] * l[2];
         for (int c = 0; c < 3; c++)
             q[i * 3 + c] = ok[i] ? f[c] : 0;
     }
+    free(ls);
     return known;
 }
 

@@ -62,18 +62,46 @@ typedef struct job {
     const unsigned char *only; /* opts.only: cells to evaluate, NULL = all */
 } job_t;
 
+/* A batched source (sb_source_create_batched): the pairs of column c in
+ * one call, into dirs (wi of every pair, then wo: 6 rows doubles), vals (3
+ * a pair) and known, in row order; build_cols then takes them in turn.  0
+ * when the buffers are missing (then pair by pair). */
+static int column_batch(const job_t *j, size_t c, double *dirs, double *vals, unsigned char *known) {
+    const sb_matrix_t *m = j->m;
+    if (!dirs || !vals || !known) return 0;
+    double *wi = dirs, *wo = dirs + 3 * m->rows;
+    size_t n = 0;
+    for (size_t r = 0; r < m->rows; r++) {
+        size_t at = r + c * m->ld;
+        n += (!j->only || j->only[at]) && sb_param_cell_dirs(j->param, r, c, wi + 3 * n, wo + 3 * n);
+    }
+    sb_source_eval_many(j->src, n, wi, wo, vals, known);
+    return 1;
+}
+
 static void *build_cols(void *arg) {
     job_t *j = arg;
     sb_matrix_t *m = j->m;
     double wi[3], wo[3], rgb[3];
+    int batched = sb_source_batched(j->src);
+    double *dirs = batched ? malloc(m->rows * 6 * sizeof *dirs) : NULL;
+    double *vals = batched ? malloc(m->rows * 3 * sizeof *vals) : NULL;
+    unsigned char *kn = batched ? malloc(m->rows) : NULL;
     for (size_t c = j->c0; c < j->c1; c++) {
+        int have = batched && column_batch(j, c, dirs, vals, kn);
+        size_t next = 0; /* the next pair of the batch */
         for (size_t r = 0; r < m->rows; r++) {
             size_t at = r + c * m->ld;
             int ok = (!j->only || j->only[at]) && sb_param_cell_dirs(j->param, r, c, wi, wo);
             int known = 0;
             rgb[0] = rgb[1] = rgb[2] = 0;
             if (ok) {
-                known = sb_source_eval(j->src, wi, wo, rgb);
+                if (have) {
+                    known = kn[next];
+                    memcpy(rgb, vals + 3 * next++, sizeof rgb);
+                } else {
+                    known = sb_source_eval(j->src, wi, wo, rgb);
+                }
                 double w = sb_form_weight(m->form, wi, wo);
                 for (int ch = 0; ch < 3; ch++) {
                     double v = known ? rgb[ch] * w : 0.0;
@@ -93,6 +121,9 @@ static void *build_cols(void *arg) {
         size_t done = atomic_fetch_add_explicit(j->done, 1, memory_order_relaxed) + 1;
         if (j->o) j->o->progress(j->o->progress_user, (double)done / (double)m->cols);
     }
+    free(dirs);
+    free(vals);
+    free(kn);
     return NULL;
 }
 

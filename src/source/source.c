@@ -11,6 +11,8 @@
 
 struct sb_source {
     sb_source_ops_t ops;
+    void (*eval_many)(const void *self, size_t n, const double *wi, const double *wo, double *rgb,
+                      unsigned char *known); /* batched sources (sb_source_create_batched), else NULL */
     void *self;
     unsigned flags;
     char *desc;
@@ -37,6 +39,46 @@ sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void
     return SB_OK;
 }
 
+/* The ops of a batched source: its pairs go to eval_one (sb_source_eval). */
+static int no_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    (void)self, (void)wi, (void)wo;
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    return 0;
+}
+
+/* The one-pair eval of a batched source: eval_many with n = 1. */
+static int eval_one(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]) {
+    unsigned char known = 0;
+    src->eval_many(src->self, 1, wi, wo, rgb, &known);
+    if (!known) rgb[0] = rgb[1] = rgb[2] = 0;
+    return known != 0;
+}
+
+sb_result_t sb_source_create_batched(sb_context_t *ctx, const sb_source_batch_ops_t *ops, void *self, unsigned flags,
+                                     const char *description, sb_source_t **out) {
+    if (!ops || !ops->eval_many || !out) return sb_error(ctx, SB_ERR_ARG, "source: missing eval_many function");
+    sb_source_ops_t one = {no_eval, ops->destroy}; /* sb_source_eval goes to eval_one */
+    sb_result_t r = sb_source_create(ctx, &one, self, flags, description, out);
+    if (r == SB_OK) (*out)->eval_many = ops->eval_many;
+    return r;
+}
+
+int sb_source_batched(const sb_source_t *src) { return src && src->eval_many; }
+
+size_t sb_source_eval_many(const sb_source_t *src, size_t n, const double *wi, const double *wo, double *rgb,
+                           unsigned char *known) {
+    if (!src || !wi || !wo || !rgb || !known) return 0;
+    size_t count = 0;
+    if (src->eval_many && n) src->eval_many(src->self, n, wi, wo, rgb, known);
+    for (size_t k = 0; k < n; k++) {
+        if (!src->eval_many)
+            known[k] = (unsigned char)(src->ops.eval(src->self, wi + 3 * k, wo + 3 * k, rgb + 3 * k) != 0);
+        if (!known[k]) rgb[3 * k] = rgb[3 * k + 1] = rgb[3 * k + 2] = 0;
+        count += known[k] != 0;
+    }
+    return count;
+}
+
 void sb_source_destroy(sb_source_t *src) {
     if (!src) return;
     if (src->ops.destroy) src->ops.destroy(src->self);
@@ -50,7 +92,7 @@ int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3
         if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
         return 0;
     }
-    return src->ops.eval(src->self, wi, wo, rgb);
+    return src->eval_many ? eval_one(src, wi, wo, rgb) : src->ops.eval(src->self, wi, wo, rgb);
 }
 unsigned sb_source_flags(const sb_source_t *src) { return src ? src->flags : 0; }
 const char *sb_source_description(const sb_source_t *src) { return src ? src->desc : ""; }
