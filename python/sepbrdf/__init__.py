@@ -441,7 +441,8 @@ def factor(source=None, *, progress=None, **options):
     (the snippet also in "hlsl", "msl", "wgsl" or "all": sepbrdf.hlsl,
     sepbrdf.metal, sepbrdf.wgsl beside sepbrdf.glsl in write()), and for
     measured tables interp,
-    neighbours, radius (degrees), white, gamut.
+    neighbours, radius (degrees), white, gamut, cv_folds (scattered tables:
+    the refits of the cross-validated error, report["errors"][j]["cv_headline"]).
     progress: None or a function progress(label, fraction) called as the
     job goes on (on the calling thread).
 

@@ -50,6 +50,8 @@ class MeasuredOpts(ctypes.Structure):
         ("radius", ctypes.c_double),
         ("white", ctypes.c_int),
         ("gamut", ctypes.c_int),
+        ("cv_folds", ctypes.c_size_t),
+        ("cv_fold", ctypes.c_size_t),
     ]
 
 
@@ -81,6 +83,7 @@ class JobOpts(ctypes.Structure):
         ("previews", ctypes.c_int),
         ("sample_only", ctypes.c_int),
         ("budget", ctypes.c_size_t),
+        ("cv_folds", ctypes.c_size_t),
         ("out", ctypes.c_char_p),
         ("progress", PROGRESS_FN),
         ("progress_user", ctypes.c_void_p),

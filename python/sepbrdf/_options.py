@@ -123,6 +123,8 @@ def _job_opts(o, source_spec):
         jo.channels = _channels(o.pop("channels"))
     if "budget" in o:
         jo.budget = _bytes(o.pop("budget"))
+    if "cv_folds" in o:
+        jo.cv_folds = _number("cv_folds", o.pop("cv_folds"), 1, 100, int)
     if o:
         raise TypeError(f"factor() got unknown option(s) {', '.join(sorted(o))}")
     return jo, keep
