@@ -1,0 +1,154 @@
+/* The viewer's 3D lobe and sky (issue 37), inserted into data/viewer.html
+ * after SB_DATA by sb_viewer_write.  Both run the page's one program: the
+ * lobe is f(L, V) for the chosen light L over a grid of view directions
+ * (u_shape 3), the sky a fixed quadrature of a procedural environment
+ * (u_env 1).  tests/test_view3d.c repeats both on the CPU. */
+
+const LOBE_N = 48; /* the lobe's grid: theta_o rows x phi_o columns */
+const SKY_NT = 12, SKY_NP = 24; /* the sky's quadrature: cell centres in theta (0..pi) x phi */
+
+/* GLSL for the scene, after sb_lit.  The sky: a gradient from a warm
+ * horizon to a blue zenith, a dim ground, and a soft sun towards u_light
+ * (the light the user drags); the sphere sums f cos theta_i sky dw over
+ * the cell centres of an SKY_NT x SKY_NP grid of the sphere of directions. */
+const VIEW3D_GLSL = `
+const float SB_VIEW_PI = 3.14159265358979;
+vec3 sb_sky(vec3 d) {
+  vec3 s = d.z > 0.0 ? mix(vec3(1.0, 0.9, 0.75), vec3(0.25, 0.45, 1.0), d.z) : vec3(0.25, 0.22, 0.2);
+  return 0.4 * s + 3.0 * vec3(1.0, 0.95, 0.85) * pow(max(dot(d, u_light), 0.0), 8.0);
+}
+vec3 sb_sky_radiance(int which, vec3 t, vec3 b, vec3 n, vec3 V) {
+  vec3 sum = vec3(0.0);
+  for (int i = 0; i < ${SKY_NT}; i++) {
+    float th = (float(i) + 0.5) * SB_VIEW_PI / ${SKY_NT}.0;
+    for (int j = 0; j < ${SKY_NP}; j++) {
+      float ph = (float(j) + 0.5) * 2.0 * SB_VIEW_PI / ${SKY_NP}.0;
+      vec3 d = vec3(sin(th) * cos(ph), sin(th) * sin(ph), cos(th));
+      if (dot(d, n) > 0.0) sum += sb_lit(which, vec3(dot(d, t), dot(d, b), dot(d, n)), V) * sb_sky(d) * sin(th);
+    }
+  }
+  return sum * (SB_VIEW_PI / ${SKY_NT}.0) * (2.0 * SB_VIEW_PI / ${SKY_NP}.0);
+}
+// the lobe's cell q (pixels): theta_o = (row + 1/2) / n pi/2, phi_o = (column + 1/2) / n 2 pi
+vec4 sb_lobe_cell(vec2 q) {
+  vec2 a = q / u_size * vec2(2.0 * SB_VIEW_PI, 0.5 * SB_VIEW_PI);
+  vec3 V = vec3(sin(a.y) * cos(a.x), sin(a.y) * sin(a.x), cos(a.y));
+  if (!(u_light.z > 0.0)) return vec4(0.0, 0.0, 0.0, 1.0);
+  return vec4(u_mode == 0 ? sb_original(u_light, V) : sb_brdf(u_light, V), 1.0);
+}
+`;
+
+/* An RGBA32F target of n x n, made once per size; null where the browser
+ * cannot render to float. */
+const floatTargets = {};
+function floatTarget(gl, n) {
+  if (floatTargets[n] !== undefined) return floatTargets[n];
+  const fb = gl.getExtension('EXT_color_buffer_float') ? gl.createFramebuffer() : null;
+  if (fb) {
+    const rb = gl.createRenderbuffer();
+    gl.bindRenderbuffer(gl.RENDERBUFFER, rb);
+    gl.renderbufferStorage(gl.RENDERBUFFER, gl.RGBA32F, n, n);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+    gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, rb);
+    if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) throw new Error('RGBA32F framebuffer incomplete');
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+  }
+  return (floatTargets[n] = fb);
+}
+
+/* f(S.light, V) RGBA over the lobe's grid, rows from theta_o = 0: mode 0
+ * original, 1 reconstruction (J terms as set); null without float targets. */
+function lobeGrid(gl, R, mode) {
+  const fb = floatTarget(gl, LOBE_N);
+  if (!fb) return null;
+  gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+  R.panel(mode, 0, 0, LOBE_N, true, 3);
+  const px = new Float32Array(LOBE_N * LOBE_N * 4);
+  gl.readPixels(0, 0, LOBE_N, LOBE_N, gl.RGBA, gl.FLOAT, px);
+  gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+  return px;
+}
+
+/* test mode, ?lobe=1: the grids as lines lobe_rec= and lobe_orig= */
+function lobeTest(gl, R, lines) {
+  lines.push('lobe_n=' + LOBE_N);
+  for (const [key, mode] of D.ref ? [['lobe_rec', 1], ['lobe_orig', 0]] : [['lobe_rec', 1]]) {
+    const px = lobeGrid(gl, R, mode);
+    if (!px) throw new Error('no float render target for the lobe');
+    lines.push(key + '=' + bytesB64(px));
+  }
+}
+
+/* ---- drawing the lobe: radius = luminance, a wire mesh, drag to turn --- */
+
+const lobeView = { yaw: -0.6, pitch: 0.35 };
+
+function lobeProject(p, W, H, R) {
+  const [cy, sy, cp, sp] = [Math.cos(lobeView.yaw), Math.sin(lobeView.yaw), Math.cos(lobeView.pitch), Math.sin(lobeView.pitch)];
+  const x = cy * p[0] - sy * p[1], y = sy * p[0] + cy * p[1];
+  return [W / 2 + R * x, H * 0.72 - R * (cp * p[2] - sp * y)];
+}
+
+function lobePoints(px, peak) {
+  const pts = [], n = LOBE_N;
+  for (let i = 0; i < n; i++)
+    for (let j = 0; j < n; j++) {
+      const k = (i * n + j) * 4, v = 0.2126 * px[k] + 0.7152 * px[k + 1] + 0.0722 * px[k + 2];
+      const r = S.log ? Math.max(0, Math.log10(Math.max(v, 1e-30) / peak) / 4 + 1) : Math.max(v, 0) / peak;
+      const th = ((i + 0.5) / n) * 0.5 * Math.PI, ph = ((j + 0.5) / n) * 2 * Math.PI;
+      pts.push([r * Math.sin(th) * Math.cos(ph), r * Math.sin(th) * Math.sin(ph), r * Math.cos(th)]);
+    }
+  return pts;
+}
+
+function lobeMesh(x, pts, colour, W, H, R) {
+  const n = LOBE_N, at = (i, j) => lobeProject(pts[i * n + (j % n)], W, H, R);
+  x.strokeStyle = colour;
+  x.beginPath();
+  for (let i = 1; i < n; i += 4)
+    for (let j = 0; j <= n; j++) (j ? x.lineTo : x.moveTo).apply(x, at(i, j));
+  for (let j = 0; j < n; j += 3)
+    for (let i = 0; i < n; i++) (i ? x.lineTo : x.moveTo).apply(x, at(i, j));
+  x.stroke();
+}
+
+function drawLobe(gl, R) {
+  const c = $('lobe'), x = c.getContext('2d'), W = c.width, H = c.height, Rp = Math.min(W, H) * 0.42;
+  x.fillStyle = '#111';
+  x.fillRect(0, 0, W, H);
+  x.fillStyle = '#888';
+  const rec = lobeGrid(gl, R, 1), orig = D.ref ? lobeGrid(gl, R, 0) : null;
+  if (!rec) return void x.fillText('no float render target: no lobe', 10, 20);
+  let peak = 0;
+  for (const px of orig ? [rec, orig] : [rec])
+    for (let k = 0; k < px.length; k += 4) peak = Math.max(peak, 0.2126 * px[k] + 0.7152 * px[k + 1] + 0.0722 * px[k + 2]);
+  x.fillText('f(light, view), ' + (S.log ? 'log, 4 decades' : 'linear') + '; drag to turn', 6, 14);
+  x.strokeStyle = '#444';
+  x.beginPath();
+  for (let a = 0; a <= 64; a++) (a ? x.lineTo : x.moveTo).apply(x, lobeProject([Math.cos(a / 10.186), Math.sin(a / 10.186), 0], W, H, Rp));
+  x.stroke();
+  const L = S.light, M = [-L[0], -L[1], L[2]];
+  [[L, '#ffd54f'], [M, '#666']].forEach(([d, col]) => {
+    x.strokeStyle = col;
+    x.beginPath();
+    x.moveTo.apply(x, lobeProject([0, 0, 0], W, H, Rp));
+    x.lineTo.apply(x, lobeProject(d, W, H, Rp));
+    x.stroke();
+  });
+  if (!(peak > 0) || !(L[2] > 0)) return;
+  if (orig) lobeMesh(x, lobePoints(orig, peak), 'rgba(255,255,255,0.55)', W, H, Rp);
+  lobeMesh(x, lobePoints(rec, peak), curveColour(S.terms), W, H, Rp);
+}
+
+function bindLobe(redraw) {
+  const c = $('lobe');
+  let last = null;
+  c.addEventListener('pointerdown', (e) => { c.setPointerCapture(e.pointerId); last = [e.clientX, e.clientY]; });
+  c.addEventListener('pointermove', (e) => {
+    if (!(e.buttons & 1) || !last) return;
+    lobeView.yaw += (e.clientX - last[0]) * 0.01;
+    lobeView.pitch = Math.max(-0.2, Math.min(1.5, lobeView.pitch + (e.clientY - last[1]) * 0.01));
+    last = [e.clientX, e.clientY];
+    redraw();
+  });
+}
