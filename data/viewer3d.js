@@ -5,6 +5,7 @@
  * (u_env 1).  tests/test_view3d.c repeats both on the CPU. */
 
 const LOBE_N = 48; /* the lobe's grid: theta_o rows x phi_o columns */
+const SLICE_N = 16; /* a slice's SLICE_N^2 samples, theta_o from -90 to 90 degrees */
 const SKY_NT = 12, SKY_NP = 24; /* the sky's quadrature: cell centres in theta (0..pi) x phi */
 
 /* GLSL for the scene, after sb_lit.  The sky: a gradient from a warm
@@ -36,6 +37,15 @@ vec4 sb_lobe_cell(vec2 q) {
   if (!(u_light.z > 0.0)) return vec4(0.0, 0.0, 0.0, 1.0);
   return vec4(u_mode == 0 ? sb_original(u_light, V) : sb_brdf(u_light, V), 1.0);
 }
+// a slice (u_shape 4): sample k = row n + column, signed theta_o = ((k + 1/2) / n^2 2 - 1) pi/2 in the
+// plane of azimuth u_slice_phi (for theta_o > 0; the light's mirror side when it is the light's azimuth + pi)
+uniform float u_slice_phi;
+vec4 sb_slice_cell(vec2 q) {
+  float k = floor(q.y) * u_size + floor(q.x), to = ((k + 0.5) / (u_size * u_size) * 2.0 - 1.0) * 0.5 * SB_VIEW_PI;
+  vec3 V = vec3(sin(to) * cos(u_slice_phi), sin(to) * sin(u_slice_phi), cos(to));
+  if (!(u_light.z > 0.0)) return vec4(0.0, 0.0, 0.0, 1.0);
+  return vec4(u_mode == 0 ? sb_original(u_light, V) : sb_brdf(u_light, V), 1.0);
+}
 `;
 
 /* An RGBA32F target of n x n, made once per size; null where the browser
@@ -56,26 +66,35 @@ function floatTarget(gl, n) {
   return (floatTargets[n] = fb);
 }
 
-/* f(S.light, V) RGBA over the lobe's grid, rows from theta_o = 0: mode 0
- * original, 1 reconstruction (J terms as set); null without float targets. */
-function lobeGrid(gl, R, mode) {
-  const fb = floatTarget(gl, LOBE_N);
+/* f(S.light, V) RGBA over an n x n grid, rows from the bottom: shape 3
+ * the lobe, 4 a slice; mode 0 original, 1 reconstruction (J terms as
+ * set); null without float targets. */
+function fGrid(gl, R, mode, shape, n) {
+  const fb = floatTarget(gl, n);
   if (!fb) return null;
   gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
-  R.panel(mode, 0, 0, LOBE_N, true, 3);
-  const px = new Float32Array(LOBE_N * LOBE_N * 4);
-  gl.readPixels(0, 0, LOBE_N, LOBE_N, gl.RGBA, gl.FLOAT, px);
+  const L = S.light;
+  gl.uniform1f(R.U('u_slice_phi'), Math.atan2(L[1], L[0]) + Math.PI + (S.slicePsi * Math.PI) / 180);
+  R.panel(mode, 0, 0, n, true, shape);
+  const px = new Float32Array(n * n * 4);
+  gl.readPixels(0, 0, n, n, gl.RGBA, gl.FLOAT, px);
   gl.bindFramebuffer(gl.FRAMEBUFFER, null);
   return px;
 }
+const lobeGrid = (gl, R, mode) => fGrid(gl, R, mode, 3, LOBE_N);
+const sliceGrid = (gl, R, mode) => fGrid(gl, R, mode, 4, SLICE_N);
 
-/* test mode, ?lobe=1: the grids as lines lobe_rec= and lobe_orig= */
+/* test mode, ?lobe=1 and ?slice=1 (&psi=DEG): the grids as lines
+ * lobe_rec=, lobe_orig=, slice_rec=, slice_orig= */
 function lobeTest(gl, R, lines) {
-  lines.push('lobe_n=' + LOBE_N);
-  for (const [key, mode] of D.ref ? [['lobe_rec', 1], ['lobe_orig', 0]] : [['lobe_rec', 1]]) {
-    const px = lobeGrid(gl, R, mode);
-    if (!px) throw new Error('no float render target for the lobe');
-    lines.push(key + '=' + bytesB64(px));
+  const modes = D.ref ? [['rec', 1], ['orig', 0]] : [['rec', 1]];
+  for (const [what, grid] of [['lobe', lobeGrid], ['slice', sliceGrid]]) {
+    if (Q.get(what) !== '1') continue;
+    for (const [key, mode] of modes) {
+      const px = grid(gl, R, mode);
+      if (!px) throw new Error('no float render target for the ' + what);
+      lines.push(what + '_' + key + '=' + bytesB64(px));
+    }
   }
 }
 
@@ -151,4 +170,52 @@ function bindLobe(redraw) {
     last = [e.clientX, e.clientY];
     redraw();
   });
+}
+
+/* ---- a slice for the light: any plane through the normal, polar or
+ * Cartesian axes -------------------------------------------------------- */
+
+function sliceCurves(gl, R) {
+  const lum = (px) => Array.from({ length: px.length / 4 }, (_, k) => 0.2126 * px[4 * k] + 0.7152 * px[4 * k + 1] + 0.0722 * px[4 * k + 2]);
+  const rec = sliceGrid(gl, R, 1), orig = D.ref ? sliceGrid(gl, R, 0) : null;
+  return rec ? (orig ? [[lum(orig), '#fff', 2.5], [lum(rec), curveColour(S.terms), 1.5]] : [[lum(rec), curveColour(S.terms), 2]]) : null;
+}
+
+function drawSlice(gl, R) {
+  const c = $('slice'), x = c.getContext('2d'), W = c.width, H = c.height, n = SLICE_N * SLICE_N;
+  x.fillStyle = '#111';
+  x.fillRect(0, 0, W, H);
+  x.fillStyle = '#888';
+  x.strokeStyle = '#444';
+  const curves = sliceCurves(gl, R);
+  if (!curves) return void x.fillText('no float render target: no slice', 10, 20);
+  let peak = 0;
+  for (const [v] of curves) for (const f of v) peak = Math.max(peak, f);
+  const val = (f) => (S.log ? Math.max(0, Math.log10(Math.max(f, 1e-30) / peak) / 4 + 1) : Math.max(f, 0) / peak);
+  const ox = W / 2, oy = H - 16, Rp = Math.min(W / 2 - 12, H - 30), x0 = 36, x1 = W - 10;
+  const at = S.cartesian
+    ? (to, v) => [x0 + ((to / Math.PI + 0.5) * (x1 - x0)), oy - v * Rp]
+    : (to, v) => [ox + Math.sin(to) * v * Rp, oy - Math.cos(to) * v * Rp];
+  x.beginPath();
+  if (S.cartesian) {
+    x.moveTo(x0, oy - Rp);
+    x.lineTo(x0, oy);
+    x.lineTo(x1, oy);
+    for (const d of [-90, -45, 0, 45, 90]) x.fillText(d + '\u00b0', at((d * Math.PI) / 180, 0)[0] - 8, oy + 12);
+  } else {
+    for (const f of [0.5, 1]) x.arc(ox, oy, f * Rp, Math.PI, 2 * Math.PI);
+    x.moveTo(ox, oy);
+    x.lineTo(ox, oy - Rp);
+  }
+  x.stroke();
+  x.fillText((S.cartesian ? 'Cartesian' : 'polar') + ', ' + (S.log ? 'log, 4 decades' : 'linear') + '; \u03b8o > 0 right', 6, 14);
+  if (!(peak > 0)) return;
+  for (const [v, colour, width] of curves) {
+    x.strokeStyle = colour;
+    x.lineWidth = width;
+    x.beginPath();
+    v.forEach((f, k) => (k ? x.lineTo : x.moveTo).apply(x, at(((k + 0.5) / n - 0.5) * Math.PI, val(f))));
+    x.stroke();
+  }
+  x.lineWidth = 1;
 }

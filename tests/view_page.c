@@ -130,7 +130,6 @@ int view_decode_image(const char *text, const char *key, size_t w, size_t h, sb_
     return ok ? 0 : -1;
 }
 
-
 /* DIR/index.html?QUERY in test mode: 0 when the page said status=ok and
  * the browser logged no console error, *text its test output (malloc'ed);
  * else status says why not, *text NULL. */

@@ -16,12 +16,11 @@ const char *view_browser(void);
 /* Skip the case without a browser, except in CI (CI set), where it fails. */
 #define NEED_BROWSER()                                                                                                 \
     do {                                                                                                               \
-        if (!view_browser()) {                                                                                              \
+        if (!view_browser()) {                                                                                         \
             CHECKF(!getenv("CI"), "no chromium in CI: scripts/setup-deps.sh installs it");                             \
             SKIP("no chromium (Debian: apt-get install chromium, or scripts/setup-deps.sh): browser cases skipped");   \
         }                                                                                                              \
     } while (0)
-
 
 /* Open file://PAGE?QUERY headless, no network, a fresh profile; the DOM
  * into *dom (malloc'ed), the browser's log into log.  0 on success. */
