@@ -18,6 +18,8 @@ vec3 sb_sky(vec3 d) {
   vec3 s = d.z > 0.0 ? mix(vec3(1.0, 0.9, 0.75), vec3(0.25, 0.45, 1.0), d.z) : vec3(0.25, 0.22, 0.2);
   return 0.4 * s + 3.0 * vec3(1.0, 0.95, 0.85) * pow(max(dot(d, u_light), 0.0), 8.0);
 }
+uniform int u_sky_hdr;      // 1: the cell's mean of a dropped HDR (u_sky, SKY_NP x SKY_NT) for sb_sky
+uniform sampler2D u_sky;
 vec3 sb_sky_radiance(int which, vec3 t, vec3 b, vec3 n, vec3 V) {
   vec3 sum = vec3(0.0);
   for (int i = 0; i < ${SKY_NT}; i++) {
@@ -25,7 +27,8 @@ vec3 sb_sky_radiance(int which, vec3 t, vec3 b, vec3 n, vec3 V) {
     for (int j = 0; j < ${SKY_NP}; j++) {
       float ph = (float(j) + 0.5) * 2.0 * SB_VIEW_PI / ${SKY_NP}.0;
       vec3 d = vec3(sin(th) * cos(ph), sin(th) * sin(ph), cos(th));
-      if (dot(d, n) > 0.0) sum += sb_lit(which, vec3(dot(d, t), dot(d, b), dot(d, n)), V) * sb_sky(d) * sin(th);
+      vec3 e = u_sky_hdr == 1 ? texelFetch(u_sky, ivec2(j, i), 0).rgb : sb_sky(d);
+      if (dot(d, n) > 0.0) sum += sb_lit(which, vec3(dot(d, t), dot(d, b), dot(d, n)), V) * e * sin(th);
     }
   }
   return sum * (SB_VIEW_PI / ${SKY_NT}.0) * (2.0 * SB_VIEW_PI / ${SKY_NP}.0);
@@ -218,4 +221,105 @@ function drawSlice(gl, R) {
     x.stroke();
   }
   x.lineWidth = 1;
+}
+
+/* ---- an HDR the user drops: Radiance RGBE (flat or RLE scanlines),
+ * equirectangular (row 0 the zenith, u = phi / 2 pi), averaged into the
+ * sky's cells: 4 x 4 points a cell, each the pixel it falls in, weighted
+ * by sin theta ------------------------------------------------------------ */
+
+function parseHDR(buf) {
+  const b = new Uint8Array(buf);
+  let p = 0, line = '';
+  const next = () => { line = ''; while (p < b.length && b[p] !== 10) line += String.fromCharCode(b[p++]); p++; return line; };
+  if (!/^#\?(RADIANCE|RGBE)/.test(next())) throw new Error('not a Radiance .hdr file');
+  while (next() !== '') if (p >= b.length) throw new Error('.hdr: no end of header');
+  const m = /^-Y (\d+) \+X (\d+)$/.exec(next());
+  if (!m) throw new Error('.hdr: only -Y H +X W images');
+  const H = +m[1], W = +m[2], rgbe = new Uint8Array(W * H * 4), row = new Uint8Array(W * 4);
+  for (let y = 0; y < H; y++) {
+    if (W >= 8 && W < 32768 && b[p] === 2 && b[p + 1] === 2 && ((b[p + 2] << 8) | b[p + 3]) === W) {
+      p += 4;
+      for (let c = 0; c < 4; c++)
+        for (let x = 0; x < W; ) {
+          let n = b[p++];
+          if (!(n > 0)) throw new Error('.hdr: bad run');
+          if (n > 128) {
+            const v = b[p++];
+            for (n -= 128; n-- > 0 && x < W; ) row[4 * x++ + c] = v;
+          } else {
+            while (n-- > 0 && x < W) row[4 * x++ + c] = b[p++];
+          }
+          if (p > b.length) throw new Error('.hdr: truncated');
+        }
+      rgbe.set(row, y * W * 4);
+    } else {
+      if (p + W * 4 > b.length) throw new Error('.hdr: truncated');
+      rgbe.set(b.subarray(p, p + W * 4), y * W * 4);
+      p += W * 4;
+    }
+  }
+  const f = new Float32Array(W * H * 3);
+  for (let i = 0; i < W * H; i++) {
+    const e = rgbe[4 * i + 3], s = e ? Math.pow(2, e - 136) : 0;
+    for (let c = 0; c < 3; c++) f[3 * i + c] = rgbe[4 * i + c] * s;
+  }
+  return { W, H, f };
+}
+
+/* the sky's cells (SKY_NP x SKY_NT RGB, row i = theta cell) from an image */
+function skyCells(img) {
+  const out = new Float32Array(SKY_NT * SKY_NP * 3);
+  for (let i = 0; i < SKY_NT; i++)
+    for (let j = 0; j < SKY_NP; j++) {
+      let w = 0;
+      const o = 3 * (i * SKY_NP + j);
+      for (let a = 0; a < 4; a++)
+        for (let k = 0; k < 4; k++) {
+          const th = ((i + (a + 0.5) / 4) * Math.PI) / SKY_NT, ph = ((j + (k + 0.5) / 4) * 2 * Math.PI) / SKY_NP;
+          const x = Math.min(img.W - 1, Math.floor((ph / (2 * Math.PI)) * img.W)), y = Math.min(img.H - 1, Math.floor((th / Math.PI) * img.H));
+          for (let c = 0; c < 3; c++) out[o + c] += Math.sin(th) * img.f[3 * (y * img.W + x) + c];
+          w += Math.sin(th);
+        }
+      for (let c = 0; c < 3; c++) out[o + c] /= w;
+    }
+  return out;
+}
+
+/* unit 3: the sky's cells, zeros until an HDR comes; u_sky_hdr says which */
+function setSky(gl, R, cells) {
+  gl.activeTexture(gl.TEXTURE3);
+  gl.bindTexture(gl.TEXTURE_2D, gl.createTexture());
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGB32F, SKY_NP, SKY_NT, 0, gl.RGB, gl.FLOAT, cells || new Float32Array(SKY_NT * SKY_NP * 3));
+  gl.uniform1i(R.U('u_sky'), 3);
+  gl.uniform1i(R.U('u_sky_hdr'), cells ? 1 : 0);
+}
+
+/* test mode: ?hdr=BASE64URL, a .hdr file as if dropped */
+function skyFromQuery(gl, R) {
+  const q = Q.get('hdr');
+  if (!q) return setSky(gl, R, null);
+  const bin = atob(q.replace(/-/g, '+').replace(/_/g, '/')), u = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) u[i] = bin.charCodeAt(i);
+  setSky(gl, R, skyCells(parseHDR(u.buffer)));
+  S.shape = 2;
+}
+
+/* the page: an .hdr dropped anywhere lights the sphere */
+function bindDrop(gl, R, redraw) {
+  document.addEventListener('dragover', (e) => e.preventDefault());
+  document.addEventListener('drop', (e) => {
+    e.preventDefault();
+    const file = e.dataTransfer.files[0];
+    if (!file) return;
+    file.arrayBuffer().then((buf) => {
+      setSky(gl, R, skyCells(parseHDR(buf)));
+      S.shape = 2;
+      $('shape').value = 2;
+      $('status').textContent = '';
+      redraw();
+    }).catch((err) => ($('status').textContent = 'error: ' + file.name + ': ' + err.message));
+  });
 }

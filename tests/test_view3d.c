@@ -95,9 +95,10 @@ static void sky(const double d[3], const double sun[3], double rgb[3]) {
         rgb[c] = 0.4 * (d[2] > 0 ? hor[c] + (zen[c] - hor[c]) * d[2] : gnd[c]) + 3.0 * sunc[c] * s;
 }
 
-/* One sphere pixel under the sky (sb_sky_radiance): frame t, b, n. */
-static void sky_pixel(const brdf_t *b, const double sun[3], const double t[3], const double bt[3], const double n[3],
-                      double out[3]) {
+/* One sphere pixel under the sky (sb_sky_radiance): frame t, b, n; cells
+ * (SKY_NT x SKY_NP RGB) the dropped HDR's, NULL the procedural sky. */
+static void sky_pixel(const brdf_t *b, const double sun[3], const double *cells, const double t[3], const double bt[3],
+                      const double n[3], double out[3]) {
     double V[3] = {t[2], bt[2], n[2]}, dw = (SB_PI / SKY_NT) * (2 * SB_PI / SKY_NP);
     out[0] = out[1] = out[2] = 0;
     for (int i = 0; i < SKY_NT; i++) {
@@ -109,6 +110,7 @@ static void sky_pixel(const brdf_t *b, const double sun[3], const double t[3], c
             if (!(dot3(d, n) > 0) || !(L[2] > 0)) continue;
             brdf_eval(b, L, V, f);
             sky(d, sun, e);
+            if (cells) memcpy(e, &cells[(i * SKY_NP + j) * 3], sizeof e);
             for (int c = 0; c < 3; c++)
                 out[c] += f[c] * L[2] * e[c] * sin(th) * dw;
         }
@@ -116,7 +118,7 @@ static void sky_pixel(const brdf_t *b, const double sun[3], const double t[3], c
 }
 
 /* The page's sphere (sb_scene, shape 0) under the sky, rows from the top. */
-static int cpu_sky_sphere(const brdf_t *b, const double sun[3], sb_image_t *img) {
+static int cpu_sky_sphere(const brdf_t *b, const double sun[3], const double *cells, sb_image_t *img) {
     if (sb_image_alloc(NULL, SIZE, SIZE, img) != SB_OK) return -1;
     for (size_t r = 0; r < SIZE; r++)
         for (size_t x = 0; x < SIZE; x++) {
@@ -128,7 +130,7 @@ static int cpu_sky_sphere(const brdf_t *b, const double sun[3], sb_image_t *img)
             double n[3] = {px, py, sqrt(1 - r2)}, k = hypot(n[2], n[0]);
             double t[3] = {n[2] / k, 0, -n[0] / k};
             double bt[3] = {n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2], n[0] * t[1] - n[1] * t[0]};
-            sky_pixel(b, sun, t, bt, n, rgb);
+            sky_pixel(b, sun, cells, t, bt, n, rgb);
         }
     return 0;
 }
@@ -250,10 +252,10 @@ SB_TEST(sky_sphere_matches_cpu) {
     snprintf(query, sizeof query, "test=1&size=%d&el=45&az=45&J=2&shape=2", SIZE);
     ok = ok && page_images(dir, query, SIZE, keys, pg) == 0 && brdf_open(dir, 2, &b) == 0;
     if (ok) {
-        CHECK(cpu_sky_sphere(&b, sun, &cpu[1]) == 0);
+        CHECK(cpu_sky_sphere(&b, sun, NULL, &cpu[1]) == 0);
         sb_source_destroy(b.src);
         b.src = NULL;
-        CHECK(cpu_sky_sphere(&b, sun, &cpu[0]) == 0);
+        CHECK(cpu_sky_sphere(&b, sun, NULL, &cpu[0]) == 0);
         brdf_close(&b);
         double rec = view_psnr(&cpu[0], &pg[0]), orig = view_psnr(&cpu[1], &pg[1]),
                apart = view_psnr(&pg[0], &point[0]);
@@ -282,4 +284,135 @@ SB_TEST(page_sky_no_errors) {
     CHECKF(dom && strstr(dom, "id=\"lobe\""), "no lobe canvas");
     CHECKF(!view_console_error(log), "console: %.400s", view_console_error(log));
     free(dom);
+}
+
+/* ---- a dropped HDR ----------------------------------------------------- */
+
+#define HDR_W 32
+#define HDR_H 16
+
+/* An equirectangular test sky: smooth colours and one bright pixel. */
+static void hdr_pixel(int x, int y, double rgb[3]) {
+    rgb[0] = 0.5 + 0.5 * sin(x * 0.4), rgb[1] = 0.3 + y * 0.05, rgb[2] = 1.0 - y * 0.03;
+    if (x == 5 && y == 4) rgb[0] = rgb[1] = rgb[2] = 20;
+}
+
+/* Scanline channel bytes v[0..n) in the RLE form: runs of 3 or more, else
+ * single literals; returns the bytes written. */
+static size_t rle_channel(const unsigned char *v, size_t n, unsigned char *out) {
+    size_t k = 0;
+    for (size_t x = 0; x < n;) {
+        size_t run = 1;
+        while (x + run < n && run < 127 && v[x + run] == v[x])
+            run++;
+        if (run < 3) run = 1;
+        out[k++] = (unsigned char)(run > 1 ? 128 + run : 1);
+        out[k++] = v[x];
+        x += run;
+    }
+    return k;
+}
+
+/* The test sky as a .hdr (even rows RLE, odd rows flat) into buf; *decoded
+ * what a reader gets back (float RGB); the file's length. */
+static size_t hdr_file(unsigned char *buf, double *decoded) {
+    size_t k = (size_t)sprintf((char *)buf, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n", HDR_H, HDR_W);
+    for (int y = 0; y < HDR_H; y++) {
+        unsigned char px[HDR_W][4], ch[4][HDR_W];
+        for (int x = 0; x < HDR_W; x++) {
+            double rgb[3], v;
+            int e;
+            hdr_pixel(x, y, rgb);
+            v = frexp(fmax(rgb[0], fmax(rgb[1], rgb[2])), &e) * 256 / fmax(rgb[0], fmax(rgb[1], rgb[2]));
+            for (int c = 0; c < 4; c++) {
+                px[x][c] = (unsigned char)(c < 3 ? rgb[c] * v : e + 128);
+                ch[c][x] = px[x][c];
+            }
+            for (int c = 0; c < 3; c++)
+                decoded[(y * HDR_W + x) * 3 + c] = px[x][c] * ldexp(1, px[x][3] - 136);
+        }
+        if (y % 2) {
+            memcpy(buf + k, px, sizeof px);
+            k += sizeof px;
+            continue;
+        }
+        unsigned char head[4] = {2, 2, HDR_W >> 8, HDR_W & 255};
+        memcpy(buf + k, head, 4);
+        k += 4;
+        for (int c = 0; c < 4; c++)
+            k += rle_channel(ch[c], HDR_W, buf + k);
+    }
+    return k;
+}
+
+/* skyCells of viewer3d.js: 4 x 4 points a cell, sin theta weights. */
+static void hdr_cells(const double *img, double *cells) {
+    for (int i = 0; i < SKY_NT; i++)
+        for (int j = 0; j < SKY_NP; j++) {
+            double w = 0, *o = &cells[(i * SKY_NP + j) * 3];
+            o[0] = o[1] = o[2] = 0;
+            for (int a = 0; a < 16; a++) {
+                double th = (i + (a / 4 + 0.5) / 4) * SB_PI / SKY_NT, ph = (j + (a % 4 + 0.5) / 4) * 2 * SB_PI / SKY_NP;
+                int x = (int)fmin(HDR_W - 1, floor(ph / (2 * SB_PI) * HDR_W)),
+                    y = (int)fmin(HDR_H - 1, floor(th / SB_PI * HDR_H));
+                for (int c = 0; c < 3; c++)
+                    o[c] += sin(th) * img[(y * HDR_W + x) * 3 + c];
+                w += sin(th);
+            }
+            for (int c = 0; c < 3; c++)
+                o[c] /= w;
+        }
+}
+
+/* base64url of n bytes (the page's ?hdr=) into out. */
+static void b64url(const unsigned char *in, size_t n, char *out) {
+    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
+    size_t k = 0;
+    for (size_t i = 0; i < n; i += 3) {
+        unsigned w = (unsigned)in[i] << 16 | (i + 1 < n ? in[i + 1] << 8 : 0) | (i + 2 < n ? in[i + 2] : 0);
+        for (int c = 0; c < 4; c++)
+            out[k++] = c <= (int)(n - i) ? abc[(w >> (18 - 6 * c)) & 63] : '=';
+    }
+    out[k] = 0;
+}
+
+/* An .hdr as if dropped (RLE and flat scanlines) lights the sphere as the
+ * same cell means do on the CPU; a file that is not one is an error the
+ * page reports. */
+SB_TEST(hdr_sky_matches_cpu) {
+    NEED_BROWSER();
+    const char *made = view_make_folder("-r 16 -J 2");
+    if (!made) return;
+    char dir[4096], status[512], *text = NULL;
+    snprintf(dir, sizeof dir, "%s", made);
+    static unsigned char file[1 << 14];
+    static double img[HDR_W * HDR_H * 3], cells[SKY_NT * SKY_NP * 3];
+    static char query[1 << 15];
+    static const char *const keys[2] = {"rec", "orig"};
+    size_t len = hdr_file(file, img);
+    hdr_cells(img, cells);
+    int q = snprintf(query, sizeof query, "test=1&size=%d&el=45&az=45&J=2&hdr=", SIZE);
+    b64url(file, len, query + q);
+    sb_image_t pg[2] = {{0}}, cpu[2] = {{0}};
+    brdf_t b;
+    double sun[3];
+    light_dir(45, 45, sun);
+    if (page_images(dir, query, SIZE, keys, pg) == 0 && brdf_open(dir, 2, &b) == 0) {
+        CHECK(cpu_sky_sphere(&b, sun, cells, &cpu[1]) == 0);
+        sb_source_destroy(b.src);
+        b.src = NULL;
+        CHECK(cpu_sky_sphere(&b, sun, cells, &cpu[0]) == 0);
+        brdf_close(&b);
+        double rec = view_psnr(&cpu[0], &pg[0]), orig = view_psnr(&cpu[1], &pg[1]);
+        printf("  dropped HDR: page vs CPU %.1f dB, original vs source %.1f dB\n", rec, orig);
+        CHECKF(rec >= PSNR_MIN, "HDR-lit sphere: page vs CPU %.1f dB", rec);
+        CHECKF(orig >= PSNR_ORIG_MIN, "HDR-lit original: page vs source %.1f dB", orig);
+    }
+    for (int k = 0; k < 2; k++) {
+        sb_image_free(&pg[k]);
+        sb_image_free(&cpu[k]);
+    }
+    CHECK(view_page_run(dir, "test=1&size=8&hdr=bm90IGFuIGhkcgo", status, sizeof status, &text) != 0);
+    CHECKF(strstr(status, "status=error") && strstr(status, "Radiance"), "status: %s", status);
+    free(text);
 }

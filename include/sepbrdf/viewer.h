@@ -35,7 +35,8 @@
  * "rec=BASE64" and, with a source, "orig=BASE64": float32 RGBA linear
  * radiance, rows from the top, alpha = coverage.  "&shape=2" lights that
  * sphere by the page's procedural sky instead (a fixed quadrature,
- * data/viewer3d.js); "&lobe=1" adds "lobe_rec=" (and "lobe_orig="), f(L, V)
+ * data/viewer3d.js), "&hdr=BASE64URL" by a .hdr file as if dropped on
+ * the page; "&lobe=1" adds "lobe_rec=" (and "lobe_orig="), f(L, V)
  * for the light L over 48 x 48 cells in theta_o x phi_o; "&slice=1&psi=DEG"
  * adds "slice_rec=" (and "slice_orig="), f(L, V) at 256 signed theta_o in
  * the plane DEG from the plane of incidence.  tests/test_view3d.c has the
