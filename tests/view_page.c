@@ -137,7 +137,7 @@ int view_page_run(const char *dir, const char *query, char *status, size_t statu
     char page[4200], log[1 << 15];
     char *dom = NULL;
     *text = NULL;
-    snprintf(page, 4200, "%s/index.html", dir);
+    snprintf(page, sizeof page, "%s/index.html", dir);
     int rc = view_open_page(page, query, &dom, log, sizeof log);
     const char *t = dom ? strstr(dom, "id=\"sb-test\"") : NULL;
     t = t ? strchr(t, '>') : NULL;
