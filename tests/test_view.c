@@ -14,142 +14,12 @@
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
+#include "view_page.h"
 
 #define PSNR_MIN 40.0 /* the issue's bar for page against CPU */
 #define SIZE 64
 
 static char g_out[1 << 16];
-
-/* ---- the browser ------------------------------------------------------- */
-
-static const char *browser(void) {
-    static char path[4096];
-    const char *env = getenv("SB_CHROMIUM");
-    if (env && *env) return env;
-    const char *dirs = getenv("PATH");
-    if (!dirs) return NULL;
-    static const char *const names[] = {"chromium", "chromium-browser"};
-    for (int k = 0; k < 2; k++)
-        for (const char *d = dirs; *d;) {
-            size_t n = strcspn(d, ":");
-            snprintf(path, sizeof path, "%.*s/%s", (int)n, d, names[k]);
-            if (access(path, X_OK) == 0) return path;
-            d += n + (d[n] == ':');
-        }
-    return NULL;
-}
-
-#define NEED_BROWSER()                                                                                                 \
-    do {                                                                                                               \
-        if (!browser()) {                                                                                              \
-            CHECKF(!getenv("CI"), "no chromium in CI: scripts/setup-deps.sh installs it");                             \
-            SKIP("no chromium (Debian: apt-get install chromium, or scripts/setup-deps.sh): browser cases skipped");   \
-        }                                                                                                              \
-    } while (0)
-
-/* Open file://PAGE?QUERY headless, no network, a fresh profile; the DOM
- * into *dom (malloc'ed), the browser's log into log.  0 on success. */
-static int open_page(const char *page, const char *query, char **dom, char *log, size_t log_size) {
-    char tmp[4096], cmd[16384], path[4200];
-    snprintf(tmp, sizeof tmp, "%s", sb_tmpdir("chromium"));
-    snprintf(cmd, sizeof cmd,
-             "timeout 120 '%s' --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
-             "--disable-background-networking --disable-component-update --disable-sync --enable-unsafe-swiftshader "
-             "--user-data-dir='%s/profile' --enable-logging=stderr --v=0 --dump-dom 'file://%s%s%s' > '%s/dom' "
-             "2> '%s/log'",
-             browser(), tmp, page, query ? "?" : "", query ? query : "", tmp, tmp);
-    int rc = system(cmd);
-    *dom = NULL;
-    snprintf(path, sizeof path, "%s/log", tmp);
-    FILE *fp = fopen(path, "rb");
-    size_t n = fp ? fread(log, 1, log_size - 1, fp) : 0;
-    log[n] = 0;
-    if (fp) fclose(fp);
-    snprintf(path, sizeof path, "%s/dom", tmp);
-    if ((fp = fopen(path, "rb"))) {
-        fseek(fp, 0, SEEK_END);
-        long len = ftell(fp);
-        fseek(fp, 0, SEEK_SET);
-        if (len > 0 && (*dom = malloc((size_t)len + 1))) {
-            n = fread(*dom, 1, (size_t)len, fp);
-            (*dom)[n] = 0;
-        }
-        fclose(fp);
-    }
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
-    if (system(cmd) != 0) fprintf(stderr, "cannot remove %s\n", tmp);
-    return rc == 0 && *dom ? 0 : -1;
-}
-
-/* Console messages other than the GL driver's performance notes (the
- * test mode's readPixels stalls the pipeline, and says so). */
-static const char *console_error(const char *log) {
-    for (const char *p = strstr(log, "CONSOLE"); p; p = strstr(p + 1, "CONSOLE")) {
-        const char *eol = strchr(p, '\n');
-        size_t n = eol ? (size_t)(eol - p) : strlen(p);
-        char line[1024];
-        snprintf(line, sizeof line, "%.*s", (int)n, p);
-        if (!strstr(line, "GL Driver Message (OpenGL, Performance")) return p;
-    }
-    return strstr(log, "Uncaught");
-}
-
-/* ---- the page's test output -------------------------------------------- */
-
-static int b64val(int c) {
-    if (c >= 'A' && c <= 'Z') return c - 'A';
-    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-    if (c >= '0' && c <= '9') return c - '0' + 52;
-    return c == '+' ? 62 : c == '/' ? 63 : -1;
-}
-
-/* base64 of little-endian float32 from p up to the first character that
- * is not base64: malloc'ed, *count floats; NULL on none. */
-static float *b64_floats(const char *p, size_t *count) {
-    size_t len = 0;
-    while (b64val(p[len]) >= 0)
-        len++;
-    size_t nbytes = len * 6 / 8, k = 0;
-    unsigned char *bytes = malloc(nbytes + 4);
-    float *out = malloc(nbytes + 4);
-    uint32_t acc = 0;
-    int bits = 0;
-    for (size_t i = 0; bytes && i < len; i++) {
-        acc = acc << 6 | (uint32_t)b64val(p[i]);
-        if ((bits += 6) >= 8) bytes[k++] = (unsigned char)(acc >> (bits -= 8));
-    }
-    *count = k / 4;
-    for (size_t i = 0; bytes && out && i < *count; i++) {
-        uint32_t u = 0;
-        for (int b = 0; b < 4; b++)
-            u |= (uint32_t)bytes[i * 4 + b] << (8 * b);
-        memcpy(&out[i], &u, 4);
-    }
-    free(bytes);
-    if (!out || *count == 0) {
-        free(out);
-        return NULL;
-    }
-    return out;
-}
-
-/* Line "KEY=BASE64" of the test output: float32 RGBA, rows from the top,
- * into an image (alpha > 0.5: covered).  0 on success. */
-static int decode_image(const char *text, const char *key, size_t size, sb_image_t *img) {
-    char pat[32];
-    size_t n = 0;
-    snprintf(pat, sizeof pat, "\n%s=", key);
-    const char *p = strstr(text, pat);
-    float *px = p ? b64_floats(p + strlen(pat), &n) : NULL;
-    int ok = px && n == size * size * 4 && sb_image_alloc(NULL, size, size, img) == SB_OK;
-    for (size_t i = 0; ok && i < size * size; i++) {
-        for (int c = 0; c < 3; c++)
-            img->rgb[i * 3 + c] = px[i * 4 + c];
-        img->mask[i] = px[i * 4 + 3] > 0.5f;
-    }
-    free(px);
-    return ok ? 0 : -1;
-}
 
 typedef struct page_view {
     char status[512];
@@ -164,41 +34,20 @@ static void view_free(page_view_t *v) {
 /* Render DIR/index.html in test mode; returns 0 when the page said ok and
  * the browser logged no console error (status says why not). */
 static int page_render(const char *dir, double el, double az, size_t J, page_view_t *v) {
-    char page[4200], query[256], log[1 << 15];
-    char *dom = NULL;
+    char query[256], *t = NULL;
     memset(v, 0, sizeof *v);
-    snprintf(page, sizeof page, "%s/index.html", dir);
     snprintf(query, sizeof query, "test=1&size=%d&el=%g&az=%g&J=%zu", SIZE, el, az, J);
-    int rc = open_page(page, query, &dom, log, sizeof log);
-    const char *t = dom ? strstr(dom, "id=\"sb-test\"") : NULL;
-    t = t ? strchr(t, '>') : NULL;
-    if (rc != 0 || !t) {
-        snprintf(v->status, sizeof v->status, "browser failed (exit %d): %.300s", rc, log);
-    } else {
-        snprintf(v->status, sizeof v->status, "%.*s", (int)strcspn(t + 1, "\n<"), t + 1);
-        const char *err = console_error(log);
-        if (strcmp(v->status, "status=ok") == 0 && err)
-            snprintf(v->status, sizeof v->status, "console: %.300s", err);
-        else if (strcmp(v->status, "status=ok") == 0 && decode_image(t, "rec", SIZE, &v->rec) != 0)
+    if (view_page_run(dir, query, v->status, sizeof v->status, &t) == 0) {
+        if (view_decode_image(t, "rec", SIZE, SIZE, &v->rec) != 0)
             snprintf(v->status, sizeof v->status, "no readable rec= image");
-        else if (strstr(t, "\norig=") && decode_image(t, "orig", SIZE, &v->orig) != 0)
+        else if (strstr(t, "\norig=") && view_decode_image(t, "orig", SIZE, SIZE, &v->orig) != 0)
             snprintf(v->status, sizeof v->status, "no readable orig= image");
     }
-    free(dom);
+    free(t);
     return strcmp(v->status, "status=ok") == 0 ? 0 : -1;
 }
 
 /* ---- the CPU side ------------------------------------------------------ */
-
-/* Display PSNR of b against a, exposure from a's brightest channel (as
- * `sepbrdf render` and the GL test do). */
-static double psnr(const sb_image_t *a, const sb_image_t *b) {
-    double peak = sb_image_max(a);
-    sb_tonemap_t tm = {peak > 0 ? 1 / peak : 1, SB_TONEMAP_CLAMP};
-    sb_image_diff_t d;
-    if (sb_image_compare(NULL, a, b, &tm, &d) != SB_OK) return -1;
-    return d.psnr;
-}
 
 /* sb_render_factors of the folder's factors (read back from the EXR
  * files), the same view as the page's test mode. */
@@ -219,18 +68,6 @@ static int cpu_render(const char *dir, double el, double az, size_t J, sb_image_
     return r == SB_OK ? 0 : -1;
 }
 
-/* `sepbrdf factor ARGS -o DIR -q`, then `sepbrdf view DIR`; DIR returned
- * (static), NULL on failure (reported). */
-static const char *make_folder(const char *args) {
-    static char dir[4096];
-    char cmd[20000];
-    snprintf(dir, sizeof dir, "%s", sb_tmpdir("view"));
-    snprintf(cmd, sizeof cmd, "%s factor %s -o '%s' -q && %s view '%s' -q", SB_CLI, args, dir, SB_CLI, dir);
-    int rc = sb_run(cmd, g_out, sizeof g_out);
-    CHECKF(rc == 0, "factor %s + view: exit %d: %s", args, rc, g_out);
-    return rc == 0 ? dir : NULL;
-}
-
 /* The page's sphere against the CPU's for J terms and one light. */
 static double page_psnr(const char *dir, double el, double az, size_t J, page_view_t *v) {
     sb_image_t cpu = {0};
@@ -240,7 +77,7 @@ static double page_psnr(const char *dir, double el, double az, size_t J, page_vi
     } else if (cpu_render(dir, el, az, J, &cpu) != 0) {
         CHECKF(0, "%s: CPU render failed", dir);
     } else {
-        db = psnr(&cpu, &v->rec);
+        db = view_psnr(&cpu, &v->rec);
         CHECKF(db >= PSNR_MIN, "%s J=%zu el=%g az=%g: page vs CPU %.2f dB < %.0f", dir, J, el, az, db, PSNR_MIN);
     }
     sb_image_free(&cpu);
@@ -248,7 +85,7 @@ static double page_psnr(const char *dir, double el, double az, size_t J, page_vi
 }
 
 static void check_folder(const char *args, size_t J) {
-    const char *dir = make_folder(args);
+    const char *dir = view_make_folder(args);
     if (!dir) return;
     page_view_t v;
     double db = page_psnr(dir, 45, 45, J, &v);
@@ -297,7 +134,7 @@ SB_TEST(cli_errors) {
  * person opens it (no test mode) it runs without an error on the page or
  * on the console. */
 SB_TEST(page_offline_no_errors) {
-    const char *dir = make_folder("-r 8 -J 2");
+    const char *dir = view_make_folder("-r 8 -J 2");
     if (!dir) return;
     char path[4200], glsl[4200];
     snprintf(path, sizeof path, "%s/index.html", dir);
@@ -312,9 +149,9 @@ SB_TEST(page_offline_no_errors) {
     CHECK(strstr(page, "// Generated by sepbrdf") && strstr(page, "vec3 sb_brdf(vec3 L, vec3 V)"));
     NEED_BROWSER();
     char *dom = NULL, log[1 << 15];
-    CHECK(open_page(path, NULL, &dom, log, sizeof log) == 0);
+    CHECK(view_open_page(path, NULL, &dom, log, sizeof log) == 0);
     CHECKF(dom && strstr(dom, "<div id=\"status\"></div>"), "the page reports an error");
-    CHECKF(!console_error(log), "console: %.400s", console_error(log));
+    CHECKF(!view_console_error(log), "console: %.400s", view_console_error(log));
     CHECK(dom && strstr(dom, "<td>2</td>")); /* the error table has J = 2 */
     free(dom);
 }
@@ -322,7 +159,7 @@ SB_TEST(page_offline_no_errors) {
 /* The default (the lecture's gold, --param auto) at every J. */
 SB_TEST(default_every_j) {
     NEED_BROWSER();
-    const char *dir = make_folder("-r 16 -J 4");
+    const char *dir = view_make_folder("-r 16 -J 4");
     if (!dir) return;
     for (size_t J = 1; J <= 4; J++) {
         page_view_t v;
@@ -353,7 +190,7 @@ SB_TEST(forms_and_half) {
  * whatever they are, so the sum stays f. */
 SB_TEST(snippet_scales) {
     NEED_BROWSER();
-    const char *dir = make_folder("--param io -r 6 -J 2");
+    const char *dir = view_make_folder("--param io -r 6 -J 2");
     if (!dir) return;
     char cmd[20000];
     snprintf(cmd, sizeof cmd,
@@ -372,7 +209,7 @@ SB_TEST(snippet_scales) {
  * other views by much more than it differs from the CPU. */
 SB_TEST(light_and_terms) {
     NEED_BROWSER();
-    const char *dir = make_folder("--param io -r 12 -J 4");
+    const char *dir = view_make_folder("--param io -r 12 -J 4");
     if (!dir) return;
     static const double views[3][3] = {{45, 45, 1}, {70, 200, 1}, {45, 45, 4}};
     page_view_t v[3];
@@ -384,8 +221,8 @@ SB_TEST(light_and_terms) {
     for (int k = 0; ok && k < 3; k++)
         ok = cpu_render(dir, views[k][0], views[k][1], (size_t)views[k][2], &cpu[k]) == 0;
     if (ok) {
-        double light = psnr(&v[0].rec, &v[1].rec), terms = psnr(&v[0].rec, &v[2].rec);
-        double light_cpu = psnr(&cpu[0], &cpu[1]), terms_cpu = psnr(&cpu[0], &cpu[2]);
+        double light = view_psnr(&v[0].rec, &v[1].rec), terms = view_psnr(&v[0].rec, &v[2].rec);
+        double light_cpu = view_psnr(&cpu[0], &cpu[1]), terms_cpu = view_psnr(&cpu[0], &cpu[2]);
         printf("  page vs CPU %.1f %.1f %.1f dB; other light %.1f dB apart (CPU %.1f), J 1 -> 4 %.1f dB (CPU %.1f)\n",
                db[0], db[1], db[2], light, light_cpu, terms, terms_cpu);
         CHECKF(light < 25 && light < db[0] - 15, "moving the light changed little: %.1f dB", light);
@@ -403,7 +240,7 @@ SB_TEST(light_and_terms) {
  * within what interpolating a table allows. */
 SB_TEST(original_panel) {
     NEED_BROWSER();
-    const char *dir = make_folder("-r 16 -J 2");
+    const char *dir = view_make_folder("-r 16 -J 2");
     if (!dir) return;
     page_view_t v;
     sb_source_t *src = NULL;
@@ -416,7 +253,7 @@ SB_TEST(original_panel) {
     if (page_render(dir, 45, 45, 2, &v) == 0 && v.orig.rgb &&
         sb_source_open(NULL, "microfacet:base=gold,roughness=0.5", &src) == SB_OK &&
         sb_render_source(NULL, &o, src, &cpu) == SB_OK) {
-        double db = psnr(&cpu, &v.orig);
+        double db = view_psnr(&cpu, &v.orig);
         printf("  original panel vs CPU original: %.1f dB\n", db);
         CHECKF(db >= 35, "original panel vs CPU: %.1f dB", db);
     } else {
@@ -443,7 +280,7 @@ SB_TEST(measured_rgl) {
 /* A snippet that does not compile fails the page, and so the test. */
 SB_TEST(shader_error_detected) {
     NEED_BROWSER();
-    const char *dir = make_folder("--param io -r 4 -J 1");
+    const char *dir = view_make_folder("--param io -r 4 -J 1");
     if (!dir) return;
     char cmd[20000];
     snprintf(cmd, sizeof cmd, "echo 'vec3 broken(' >> '%s/sepbrdf.glsl' && %s view '%s' -q", dir, SB_CLI, dir);
@@ -461,7 +298,7 @@ static float *page_floats(const char *page, const char *key, size_t *n) {
     char pat[64];
     snprintf(pat, sizeof pat, "\"%s\":\"", key);
     const char *p = strstr(page, pat);
-    return p ? b64_floats(p + strlen(pat), n) : NULL;
+    return p ? view_b64_floats(p + strlen(pat), n) : NULL;
 }
 
 static long page_int(const char *page, const char *key) {
@@ -490,7 +327,7 @@ static double lum(const double rgb[3]) { return 0.2126 * rgb[0] + 0.7152 * rgb[1
  * directions of viewer.h) and the reference table (sb_source_eval at the
  * cell centres of the smaller parameterisation it names), its size capped. */
 SB_TEST(page_data) {
-    const char *made = make_folder("--param io -r 6 -J 2 phong:n=20");
+    const char *made = view_make_folder("--param io -r 6 -J 2 phong:n=20");
     if (!made) return;
     char dir[4096], path[4200];
     snprintf(dir, sizeof dir, "%s", made);
@@ -564,7 +401,7 @@ out:
 
 /* Every error of sb_viewer_write; a failed write leaves nothing behind. */
 SB_TEST(library_errors) {
-    const char *made = make_folder("--param io -r 4 -J 1 lambert");
+    const char *made = view_make_folder("--param io -r 4 -J 1 lambert");
     if (!made) return;
     char dir[4096], path[4200];
     snprintf(dir, sizeof dir, "%s", made);

@@ -5,7 +5,9 @@
  * snippet on a lit sphere and on a plane seen at a grazing angle, with a
  * light the mouse moves, an exposure control and a J slider, and shows
  * the original, the reconstruction and an error heat map side by side,
- * polar plots of the in-plane slice and the report's numbers.  Embedded:
+ * polar plots of the in-plane slice, a 3D lobe and a slice in any plane
+ * for the chosen light, the sphere under a procedural sky and the
+ * report's numbers.  Embedded:
  *   - the factors' texels as base64 little-endian float32 RGB, layer j =
  *     term j, texel (x, y) of layer j at ((j H + y) W + x) 3 (a
  *     single-channel factorisation replicated to RGB), values as
@@ -31,7 +33,14 @@
  * an RGBA32F framebuffer and writes into <pre id="sb-test"> the lines
  * "status=ok" (or "status=error: why"), "renderer=...", "size=S",
  * "rec=BASE64" and, with a source, "orig=BASE64": float32 RGBA linear
- * radiance, rows from the top, alpha = coverage. */
+ * radiance, rows from the top, alpha = coverage.  "&shape=2" lights that
+ * sphere by the page's procedural sky instead (a fixed quadrature,
+ * data/viewer3d.js), "&hdr=BASE64URL" by a .hdr file as if dropped on
+ * the page; "&lobe=1" adds "lobe_rec=" (and "lobe_orig="), f(L, V)
+ * for the light L over 48 x 48 cells in theta_o x phi_o; "&slice=1&psi=DEG"
+ * adds "slice_rec=" (and "slice_orig="), f(L, V) at 256 signed theta_o in
+ * the plane DEG from the plane of incidence.  tests/test_view3d.c has the
+ * directions and the sky. */
 #ifndef SEPBRDF_VIEWER_H
 #define SEPBRDF_VIEWER_H
 

@@ -1,5 +1,6 @@
 /* The viewer page (viewer.h): the template data/viewer.html with one line
- * replaced by the data of a factorisation, `const SB_DATA = {...};`. */
+ * replaced by the data of a factorisation, `const SB_DATA = {...};`, and
+ * the 3D lobe and sky (data/viewer3d.js). */
 #include "sepbrdf/viewer.h"
 
 #include <assert.h>
@@ -10,6 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "sb_viewer3d_js.h"
 #include "sb_viewer_html.h"
 #include "sepbrdf/glsl.h"
 #include "sepbrdf/render.h"
@@ -291,6 +293,7 @@ sb_result_t sb_viewer_write(sb_context_t *ctx, const char *path, const sb_factor
         assert(cut); /* the template (data/viewer.html) has the line */
         fwrite(sb_viewer_html_, 1, (size_t)(cut - sb_viewer_html_), fp);
         put_data(fp, f, param, form, o.glsl ? o.glsl : own, &o, &d, exposure);
+        fputs(sb_viewer3d_js_, fp);
         fputs(cut + strlen(PLACEHOLDER), fp);
         ok = !ferror(fp) && ok;
         ok = fclose(fp) == 0 && ok;
