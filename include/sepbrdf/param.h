@@ -128,8 +128,10 @@ enum {
     SB_CAP_HALF_ROWS = 1u << 6,          /* rows index the half vector h = normalize(wi + wo): a sampler
                                             (sampler.h) picks h and reflects wo about it */
     SB_CAP_WARPS = 1u << 7,              /* elevation axes theta_h and theta_d take warps (sb_warp_t) */
-    SB_CAP_LIGHT_EDGE = 1u << 8          /* on the whole hemisphere, cells leave the domain only where wi passes its
+    SB_CAP_LIGHT_EDGE = 1u << 8,         /* on the whole hemisphere, cells leave the domain only where wi passes its
                                             horizon: f cos theta_i continues by 0 outside (vh) */
+    SB_CAP_AUTO_NONRECIPROCAL = 1u << 9  /* auto screens it for sources that are not reciprocal only (where no
+                                            layout folding reciprocity applies; vh) */
 };
 
 /* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",

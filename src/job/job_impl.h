@@ -32,6 +32,7 @@ typedef struct job_level {
     double fit_tol;
     int fit_max_iters;
     const sb_param_opts_t *po; /* the layout's options (shape, warps; res is lv's); NULL: res alone */
+    int half_shape;            /* screening: layouts folding reciprocity (iso) on R theta_h rows (job_level_opts) */
     const char *label;         /* progress label of the sampling; NULL = none */
     double base, span;         /* progress = base + span * fraction */
 } job_level_t;
@@ -144,6 +145,9 @@ sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j,
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a);
+/* The options of layout `kind` at level lv (its po, res, theta_max, and
+ * the screening's half shape where it applies). */
+sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
 /* With a non-negative method (SB_CAP_NONNEG), the same run with the

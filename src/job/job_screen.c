@@ -17,13 +17,27 @@ static void sample_progress(void *user, double fraction) {
     job_progress(job, lv->label, lv->base + lv->span * fraction);
 }
 
-sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
-                       sb_form_t form, job_attempt_t *a) {
-    memset(a, 0, sizeof *a);
+sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind) {
     sb_param_opts_t po = {0};
     if (lv->po) po = *lv->po;
     po.res = lv->res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    /* iso screens on R rows of theta_h (td = 2R), half its default: the
+     * layouts' ranking is the same there, the masked fit half the cost;
+     * vh keeps its own th = 2R (at R rows an RGL vinyl's mirror peak fell
+     * between texels and it was ranked last: malachite 159 % at R = 16, 23 %
+     * with th = 32, 6.3 % kept at R = 32) */
+    if (lv->half_shape && (sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !po.res_theta_h) {
+        po.res_theta_h = lv->res;
+        po.res_theta_d = 2 * lv->res;
+    }
+    return po;
+}
+
+sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
+                       sb_form_t form, job_attempt_t *a) {
+    memset(a, 0, sizeof *a);
+    sb_param_opts_t po = job_level_opts(job, lv, kind);
     sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
     if (r != SB_OK) return r;
     size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
@@ -284,6 +298,8 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         sb_param_kind_t k = (sb_param_kind_t)i;
         sb_result_t r = SB_OK;
         if (!sb_job_param_applies(k, job->src, NULL)) continue;
+        if ((sb_param_kind_caps(k) & SB_CAP_AUTO_NONRECIPROCAL) && (sb_source_flags(job->src) & SB_SOURCE_RECIPROCAL))
+            continue;                                                 /* a layout folding reciprocity serves these */
         if (layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
         if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
         /* cos: not on a layout that folds by reciprocity (f cos theta_i is
@@ -318,10 +334,7 @@ static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_
                               sb_form_t form, job_attempt_t *a) {
     memset(a, 0, sizeof *a);
     double t0 = job_now();
-    sb_param_opts_t po = {0};
-    if (lv->po) po = *lv->po; /* the level's shape, as job_sample made `from` */
-    po.res = lv->res;
-    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    sb_param_opts_t po = job_level_opts(job, lv, sb_param_kind(from->param)); /* as job_sample made `from` */
     sb_result_t r = sb_param_create(ctx, sb_param_kind(from->param), &po, &a->param);
     if (r != SB_OK) return r;
     const sb_matrix_t *f = &from->m;
@@ -401,14 +414,10 @@ void job_early_stop(const sb_job_t *job, job_level_t *lv) {
 static job_level_t screen_level(const sb_job_t *job, size_t res, sb_param_opts_t *po) {
     job_level_t lv = {0};
     lv.res = res;
-    /* the layouts' own shapes (iso: th = 2R, td = 2R - 2, pd = R/2; vh:
-     * tv = R, th = 2R, ph = R/2): theta_h carries narrow specular peaks,
-     * and at R rows of it a measured vinyl's peak fell between texels, so
-     * screening ranked its best layout last (RGL malachite: vh 159 % at
-     * R = 16 with th = 16, 23 % with th = 32, 6.3 % kept at R = 32) */
     memset(po, 0, sizeof *po);
     po->res = res;
     po->theta_max = job->o.theta_max_deg * SB_PI / 180;
+    lv.half_shape = 1; /* job_level_opts */
     lv.po = po;
     lv.terms = job->o.terms;
     for (size_t i = 0; i < job->ncand; i++) {
