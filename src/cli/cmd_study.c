@@ -87,7 +87,7 @@ static void help(void) {
            "\n" CLI_EXIT_HELP);
 }
 
-static char *dup_str(const char *s) {
+char *study_dup(const char *s) {
     if (!s) return NULL;
     size_t n = strlen(s) + 1;
     char *d = malloc(n);
@@ -124,18 +124,18 @@ static void runs_free(runs_t *rs) {
     free(rs->v);
 }
 
-static void run_fail(run_t *r, const char *msg) {
+void study_run_fail(run_t *r, const char *msg) {
     r->ok = 0;
     free(r->error);
-    r->error = dup_str(msg && *msg ? msg : "failed");
+    r->error = study_dup(msg && *msg ? msg : "failed");
 }
 
 /* Print the job's warnings and keep them for study.json: after the last
  * refactor, which checks again what the run asks of a measured table. */
-static void run_warnings(run_t *r, const sb_job_t *job, const char *param) {
+void study_run_warnings(run_t *r, const sb_job_t *job, const char *param) {
     for (size_t i = 0; job && i < sb_job_warning_count(job); i++) {
         cli_error("study", "warning: %s on %s: %s", r->spec, param, sb_job_warning(job, i));
-        if (r->nwarn < sizeof r->warn / sizeof r->warn[0]) r->warn[r->nwarn++] = dup_str(sb_job_warning(job, i));
+        if (r->nwarn < sizeof r->warn / sizeof r->warn[0]) r->warn[r->nwarn++] = study_dup(sb_job_warning(job, i));
     }
 }
 
@@ -253,7 +253,7 @@ static int parse(int argc, char **argv, study_opts_t *o) {
 
 /* Fill run r from the metric and errors of the job's factorisation with J
  * terms: the rows for every studied J' <= J (nested), or only J (refit). */
-static void take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size_t J, int only_j) {
+void study_take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size_t J, int only_j) {
     const sb_factors_t *f = sb_job_factors(job);
     const sb_factor_errors_t *e = sb_factors_errors(f);
     size_t have = sb_factors_terms(f);
@@ -299,57 +299,13 @@ static void nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const 
 
 /* Sample once (the job on one parameterisation), factor once (nested) or
  * once per J (masked). */
-/* An auto run: `factor`'s whole job at every studied J (its choice of
- * layout, form, weighting and warps depends on J, and term weights and
- * texel fits are made for J), the row of J from each. */
-static void run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, const char *label,
-                     double base, double span) {
-    sb_job_opts_t jo = o->job;
-    jo.param = NULL;
-    sb_result_t res = (r->r = calloc(o->nj, sizeof *r->r)) ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    size_t done = 0, J = 0;
-    r->converged = 1;
-    for (J = 1; J <= o->jmax && res == SB_OK; J++) {
-        if (!o->want_j[J]) continue;
-        cli_progress(label, base + span * (double)done++ / (double)o->nj);
-        jo.terms = J;
-        sb_job_t *job = NULL;
-        sb_context_clear_error(ctx);
-        if ((res = sb_job_run_source(ctx, src, &jo, &job)) == SB_OK) {
-            sb_job_timings_t t;
-            sb_job_timings(job, &t);
-            take_rows(r, o, job, J, 1);
-            row_t *w = &r->r[r->nr - 1];
-            w->spec = dup_str(sb_param_spec(sb_job_param(job)));
-            w->form = sb_form_name(sb_job_form(job));
-            w->weighted = sb_job_weighted(job);
-            w->t_factor = t.total_s;
-            w->t_metric = 0;
-            free(r->param_spec);
-            r->param_spec = dup_str(w->spec);
-            r->rows = sb_job_matrix(job)->rows;
-            r->cols = sb_job_matrix(job)->cols;
-            r->masked = 1; /* one fit per J */
-        }
-        if (J == o->jmax || res != SB_OK) run_warnings(r, job, "auto");
-        sb_job_destroy(job);
-    }
-    if (res != SB_OK) {
-        char msg[1024];
-        cli_job_message(msg, sizeof msg, ctx, res, J - 1);
-        run_fail(r, msg);
-        return;
-    }
-    r->ok = 1;
-}
-
 static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, size_t task,
                     size_t ntasks) {
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, study_kind_name(r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
     if (r->kind == STUDY_AUTO) {
-        run_auto(ctx, src, o, r, label, base, span);
+        study_run_auto(ctx, src, o, r, label, base, span);
         cli_progress(label, base + span);
         return;
     }
@@ -361,14 +317,14 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     sb_context_clear_error(ctx);
     cli_progress(label, base);
     sb_result_t res = sb_job_run_source(ctx, src, &jo, &job);
-    if (job) r->param_spec = dup_str(sb_param_spec(sb_job_param(job)));
+    if (job) r->param_spec = study_dup(sb_param_spec(sb_job_param(job)));
     r->r = calloc(o->nj, sizeof *r->r);
     if (res == SB_OK && !r->r) res = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (res != SB_OK) {
         char msg[1024];
         cli_job_message(msg, sizeof msg, ctx, res, jo.terms);
-        run_fail(r, msg);
-        run_warnings(r, job, jo.param);
+        study_run_fail(r, msg);
+        study_run_warnings(r, job, jo.param);
         sb_job_destroy(job);
         return;
     }
@@ -383,7 +339,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     for (size_t j = r->masked ? 1 : o->jmax; j <= o->jmax && res == SB_OK; j++) {
         if (r->masked && !o->want_j[j]) continue;
         cli_progress(label, base + span * (0.3 + 0.7 * (double)done++ / (double)o->nj));
-        if ((res = sb_job_refactor(ctx, job, j)) == SB_OK) take_rows(r, o, job, j, r->masked);
+        if ((res = sb_job_refactor(ctx, job, j)) == SB_OK) study_take_rows(r, o, job, j, r->masked);
         failed_j = j;
     }
     if (res == SB_OK && o->nmf) nmf_rows(ctx, src, r, &jo);
@@ -391,11 +347,11 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     if (res != SB_OK) {
         char msg[1024];
         cli_job_message(msg, sizeof msg, ctx, res, failed_j);
-        run_fail(r, msg);
+        study_run_fail(r, msg);
     } else {
         r->ok = 1;
     }
-    run_warnings(r, job, jo.param);
+    study_run_warnings(r, job, jo.param);
     sb_job_destroy(job);
 }
 
@@ -435,7 +391,7 @@ static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_sourc
     if (o->param_auto) {
         run_t *ru = runs_add(rs, spec, STUDY_AUTO);
         if (!ru) return -1;
-        ru->source = dup_str(sb_source_description(src));
+        ru->source = study_dup(sb_source_description(src));
         ru->ok = -1; /* to run */
     }
     for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
@@ -451,11 +407,11 @@ static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_sourc
         if (o->param_all && (pr != SB_OK || !sb_job_param_applies((sb_param_kind_t)k, src, NULL))) continue;
         run_t *ru = runs_add(rs, spec, k);
         if (!ru) return -1;
-        ru->source = dup_str(sb_source_description(src));
+        ru->source = study_dup(sb_source_description(src));
         if (!iso_ok) {
-            run_fail(ru, "iso needs an isotropic source");
+            study_run_fail(ru, "iso needs an isotropic source");
         } else if (pr != SB_OK) {
-            run_fail(ru, sb_context_last_error(ctx));
+            study_run_fail(ru, sb_context_last_error(ctx));
         } else {
             ru->ok = -1; /* to run */
             continue;
@@ -478,7 +434,7 @@ static int list_runs(sb_context_t *ctx, const study_opts_t *o, sb_source_t **src
         }
         run_t *ru = runs_add(rs, o->sources[s], -1);
         if (!ru) return -1;
-        run_fail(ru, sb_context_last_error(ctx));
+        study_run_fail(ru, sb_context_last_error(ctx));
         cli_error("study", "%s (skipped)", ru->error); /* the message names the source */
     }
     first_run[o->nsources] = rs->n;

@@ -65,6 +65,17 @@ typedef struct runs {
     size_t n, cap;
 } runs_t;
 
+/* cmd_study.c: a copy of s (NULL for NULL or no memory); a failed run
+ * with msg; the job's warnings printed and kept; the rows of J (only_j)
+ * or every J' <= J from the job's factorisation. */
+char *study_dup(const char *s);
+void study_run_fail(run_t *r, const char *msg);
+void study_run_warnings(run_t *r, const sb_job_t *job, const char *param);
+void study_take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size_t J, int only_j);
+/* study_auto.c: an auto run (STUDY_AUTO): factor's whole job at every J. */
+void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, const char *label,
+                    double base, double span);
+
 /* Write study.csv, study.dat, study.gp, study.png (when some run worked
  * and gnuplot is there: *plotted = 1) and study.json into the open set;
  * 0 on success, -1 after a message. */
