@@ -10,7 +10,7 @@
  * layout, form, weighting and warps depends on J, and term weights and
  * texel fits are made for J), the row of J from each. */
 void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, const char *label,
-                     double base, double span) {
+                    double base, double span) {
     sb_job_opts_t jo = o->job;
     jo.param = NULL;
     sb_result_t res = (r->r = calloc(o->nj, sizeof *r->r)) ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
@@ -49,4 +49,3 @@ void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     }
     r->ok = 1;
 }
-

@@ -145,6 +145,10 @@ sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j,
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a);
+/* Smaller side of the matrix of `kind` at res cells per axis (the shape
+ * of `shape`, NULL: the layout's own); 0 when it cannot be made there
+ * (job_candidates.c). */
+size_t job_layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res, const sb_param_opts_t *shape);
 /* The options of layout `kind` at level lv (its po, res, theta_max, and
  * the screening's half shape where it applies). */
 sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind);

@@ -1,0 +1,131 @@
+/* The factor job's candidates: which layouts and forms --param auto
+ * screens (the candidate rules), and whether each fits the memory limit. */
+#include <math.h>
+#include <string.h>
+
+#include "job_impl.h"
+#include "sample/stream.h"
+#include "util/internal.h"
+
+int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
+    unsigned flags = sb_source_flags(src);
+    const char *w = NULL;
+    if (!sb_param_kind_applies(kind, flags))
+        w = "needs an isotropic source";
+    else if ((sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !(flags & SB_SOURCE_RECIPROCAL))
+        w = "assumes a reciprocal BRDF, f(wi, wo) = f(wo, wi), and this source is not";
+    if (why) *why = w;
+    return w == NULL;
+}
+
+/* Smaller side of the matrix of `kind` at res cells per axis (the shape
+ * of `shape`, NULL: the layout's own); 0 when the parameterisation cannot
+ * be created there. */
+size_t job_layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res, const sb_param_opts_t *shape) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t po = {0};
+    if (shape) po = *shape;
+    po.res = res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    if (sb_param_create(NULL, kind, &po, &p) != SB_OK) return 0;
+    size_t r = sb_param_rows(p), c = sb_param_cols(p);
+    sb_param_destroy(p);
+    return r < c ? r : c;
+}
+
+/* Whether candidate k's matrix at R fits the memory limit as job_sample
+ * stores it: an isotropic source on io or io-area its R^3 distinct values,
+ * else the dense matrix; with --method stream a matrix on those layouts is
+ * evaluated block by block instead (sb_matrix_bytes), never chosen
+ * silently: beyond memory it takes hours where a lower R takes seconds.
+ * SB_ERR_OVERFLOW naming the bytes otherwise (through ctx, may be NULL). */
+static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_kind_t k) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t po = {0};
+    po.res = job->o.res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    if (sb_param_create(NULL, k, &po, &p) != SB_OK) return SB_OK; /* sb_job_run names the problem */
+    unsigned ch = job->o.channels ? job->o.channels & 7u : 7u;
+    size_t nch = (ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1), rows = sb_param_rows(p), cols = sb_param_cols(p);
+    size_t cells, bytes = SIZE_MAX, R = job->o.res;
+    int structured = (sb_param_caps(p) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(job->src) & SB_SOURCE_ISOTROPIC);
+    int stream = sb_matrix_streamable(p);
+    if (stream && job->o.method == SB_METHOD_STREAM) {
+        sb_matrix_opts_t mo = {0};
+        mo.channels = ch;
+        mo.structured = 1; /* as job_sample builds it */
+        bytes = sb_matrix_bytes(job->src, p, &mo);
+    } else if (structured ? !sb_size_mul3(R, R, R, &cells) : !sb_size_mul(rows, cols, &cells)) {
+        if (!sb_size_mul3(cells, nch, sizeof(double), &bytes)) sb_size_add(bytes, cells, &bytes);
+    }
+    sb_param_destroy(p);
+    if (bytes <= sb_memory_limit()) return SB_OK;
+    return sb_error(ctx, SB_ERR_OVERFLOW,
+                    "%s at %zu cells per axis: %zu x %zu cells x %zu channels need more than %zu bytes, the memory "
+                    "limit%s",
+                    sb_param_kind_name(k), job->o.res, rows, cols, nch, sb_memory_limit(),
+                    stream && job->o.method != SB_METHOD_STREAM
+                        ? "; --method stream evaluates it block by block instead (slow)"
+                        : "");
+}
+
+static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k, sb_form_t form, int weighted) {
+    sb_job_candidate_t *c = &job->cands[job->ncand++];
+    memset(c, 0, sizeof *c);
+    c->kind = k;
+    c->form = form;
+    c->weighted = weighted;
+    c->error = NAN;
+    size_t mn = job_layout_min_side(job, k, job->o.res, NULL);
+    if (mn < job->o.terms)
+        snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
+                 job->o.terms, mn, sb_param_kind_name(k), job->o.res);
+    if (!job->is_auto) return cand_fits(ctx, job, k);
+    /* auto: a layout beyond the memory limit is left out, the others tried */
+    if (!c->why[0] && cand_fits(NULL, job, k) != SB_OK)
+        snprintf(c->why, sizeof c->why, "%s at %zu cells per axis needs more than the memory limit, %zu bytes",
+                 sb_param_kind_name(k), job->o.res, sb_memory_limit());
+    return SB_OK;
+}
+
+sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
+    job->ncand = 0;
+    if (!job->is_auto) {
+        const char *why = NULL;
+        if (!sb_job_param_applies(kind, job->src, &why))
+            job_warn(job, "%s %s; the fit averages what the layout folds together", sb_param_kind_name(kind), why);
+        sb_result_t r = cand_add(ctx, job, kind, form, job->o.weighted);
+        job->cands[0].why[0] = 0; /* the plan names the problem itself */
+        return r;
+    }
+    for (int i = 0; i < SB_PARAM_KIND_COUNT_; i++) {
+        sb_param_kind_t k = (sb_param_kind_t)i;
+        sb_result_t r = SB_OK;
+        if (!sb_job_param_applies(k, job->src, NULL)) continue;
+        if ((sb_param_kind_caps(k) & SB_CAP_AUTO_NONRECIPROCAL) && (sb_source_flags(job->src) & SB_SOURCE_RECIPROCAL))
+            continue;                                                 /* a layout folding reciprocity serves these */
+        if (job_layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
+        if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
+        /* cos: not on a layout that folds by reciprocity (f cos theta_i is
+         * not reciprocal); cos2 is none: dividing by cos theta_o is
+         * unbounded near the horizon in what a shader outputs */
+        if (r == SB_OK && !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY))
+            r = cand_add(ctx, job, k, SB_FORM_COS, 1);
+        if (r != SB_OK) return r;
+    }
+    if (job->ncand == 0)
+        return sb_error(ctx, SB_ERR_UNSUPPORTED, "no parameterisation applies to %s at %zu cells per axis",
+                        sb_source_description(job->src), job->o.res);
+    size_t fit = 0;
+    for (size_t i = 0; i < job->ncand; i++)
+        fit += job->cands[i].why[0] == 0;
+    if (fit == 0 && strstr(job->cands[0].why, "memory limit"))
+        return sb_error(ctx, SB_ERR_OVERFLOW, "no parameterisation fits: %s (lower --res)", job->cands[0].why);
+    if (fit == 0)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%zu terms exceed the rows/columns of every parameterisation at %zu cells "
+                        "per axis; ask for fewer terms or more cells",
+                        job->o.terms, job->o.res);
+    return SB_OK;
+}
+
