@@ -103,7 +103,7 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         sb_result_t r = SB_OK;
         if (!sb_job_param_applies(k, job->src, NULL)) continue;
         if ((sb_param_kind_caps(k) & SB_CAP_AUTO_NONRECIPROCAL) && (sb_source_flags(job->src) & SB_SOURCE_RECIPROCAL))
-            continue;                                                 /* a layout folding reciprocity serves these */
+            continue; /* a layout folding reciprocity serves these */
         if (job_layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
         if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
         /* cos: not on a layout that folds by reciprocity (f cos theta_i is
@@ -128,4 +128,3 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
                         job->o.terms, job->o.res);
     return SB_OK;
 }
-
