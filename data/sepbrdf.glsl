@@ -28,6 +28,9 @@ vec3 sb_brdf(vec3 L, vec3 V) {
         vec3 h = texture(sb_h, vec3(st.zw, float(j))).rgb;
         sum += g * h * sb_scale[j];
     }
+#ifdef SB_GAIN
+    sum = max(sum, vec3(0.0)) * sb_gain(L, V);  // the layout's known factor (vndf: the RGL file's NDF / 4 sigma)
+#endif
 #if SB_FORM == 1
     sum /= max(L.z, 0.001);            // factored f cos(theta_i)
 #elif SB_FORM == 2

@@ -14,6 +14,10 @@ void sb_test_fail(const char *file, int line, const char *fmt, ...) __attribute_
 void sb_test_skip(const char *why);
 int sb_test_failed_now(void);
 
+/* The layouts a test can make from options alone, looped over as kinds
+ * 0 .. SB_TEST_KINDS - 1: every kind before vndf, which is built on an RGL
+ * file's own tables (tests/test_vndf.c). */
+#define SB_TEST_KINDS SB_PARAM_VNDF
 #define SB_TEST(name)                                                                                                  \
     static void sb_test_##name(void);                                                                                  \
     __attribute__((constructor)) static void sb_test_reg_##name(void) { sb_test_register(#name, sb_test_##name); }     \

@@ -100,7 +100,7 @@ SB_TEST(param) {
     CHECK(sb_param_coords(NULL, wi_up, wo_up, st, st2) == 0);
     CHECK(strcmp(sb_param_glsl(NULL), "") == 0);
     /* every kind: out-of-range cells, NULL outputs */
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
+    for (int kind = 0; kind < SB_TEST_KINDS; kind++) {
         sb_param_opts_t po = {.res = 4};
         CHECK(sb_param_create(ctx(), (sb_param_kind_t)kind, &po, &p) == SB_OK);
         size_t R = sb_param_rows(p), C = sb_param_cols(p);

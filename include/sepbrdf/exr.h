@@ -94,6 +94,13 @@ sb_result_t sb_exr_texture_scale(sb_context_t *ctx, const sb_factors_t *f, int s
 /* File name of one texture: "g_00.exr" etc. written into buf. */
 void sb_exr_name(int side, size_t term, char *buf, size_t size);
 
+/* A plain RGB float image (the vndf layout's tables, vndf.exr): rgb holds
+ * width x height x 3 floats, row-major; written whole under a temporary
+ * name and renamed.  Reading gives a malloc'ed array for the caller to
+ * free; SB_ERR_FORMAT for a file that is not three float channels R, G, B. */
+sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t width, size_t height, const float *rgb);
+sb_result_t sb_exr_read_rgb(sb_context_t *ctx, const char *path, size_t *width, size_t *height, float **rgb);
+
 #ifdef __cplusplus
 }
 #endif

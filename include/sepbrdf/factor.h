@@ -47,6 +47,11 @@ void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t channel, double s
  * "source" (source description), "form" (f|cos|cos2), "method". */
 sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value);
 const char *sb_factors_get_meta(const sb_factors_t *f, const char *key); /* NULL if absent */
+/* The tables of a layout built on them (param.h SB_CAP_TABLES: vndf), read
+ * with the set from vndf.exr; f owns them (set replaces and frees the old;
+ * NULL f frees the tables). */
+void sb_factors_set_tables(sb_factors_t *f, struct sb_layout_tables *tables);
+const struct sb_layout_tables *sb_factors_tables(const sb_factors_t *f);
 size_t sb_factors_meta_count(const sb_factors_t *f);
 /* i-th pair; NULL key and value for i >= sb_factors_meta_count(). */
 void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value);

@@ -63,6 +63,7 @@ typedef enum sb_param_kind {
     SB_PARAM_HD,      /* half / difference vectors, Gram-Schmidt frame */
     SB_PARAM_ISO,     /* rows theta_h, columns (theta_d, phi_d), isotropic */
     SB_PARAM_VH,      /* rows theta_v, columns the half vector from the view's azimuth, isotropic */
+    SB_PARAM_VNDF,    /* an RGL file's own grid: its theta_i slices by its VNDF-warped colour grid */
     SB_PARAM_KIND_COUNT_
 } sb_param_kind_t;
 
@@ -103,6 +104,11 @@ typedef struct sb_warp {
     double x[SB_WARP_MAX_KNOTS + 1]; /* table: x_0 = 0 < x_1 < ... < x_K = 1 */
 } sb_warp_t;
 
+/* Tables a layout is built on (SB_CAP_TABLES: vndf takes an RGL file's
+ * VNDF warp, NDF and sigma), from sb_source_layout_tables() or
+ * sb_layout_tables_from_texture(). */
+typedef struct sb_layout_tables sb_layout_tables_t;
+
 typedef struct sb_param_opts {
     size_t res; /* R: cells per angular axis (default 32) */
     /* iso only, 0 = default: theta_h cells res, theta_d cells 2 res, phi_d cells max(res / 2, 2) */
@@ -112,6 +118,9 @@ typedef struct sb_param_opts {
     double theta_max; /* largest sampled elevation in radians, 0 = pi/2 */
     /* per axis (SB_AXIS_*), SB_CAP_WARPS layouts only; kind 0 = the layout's own */
     sb_warp_t warp[SB_AXIS_COUNT_];
+    /* SB_CAP_TABLES layouts only (NULL otherwise): the tables, copied by
+     * sb_param_create (its opts then point at the copy) */
+    const sb_layout_tables_t *tables;
 } sb_param_opts_t;
 
 typedef struct sb_param sb_param_t;
@@ -130,8 +139,10 @@ enum {
     SB_CAP_WARPS = 1u << 7,              /* elevation axes theta_h and theta_d take warps (sb_warp_t) */
     SB_CAP_LIGHT_EDGE = 1u << 8,         /* on the whole hemisphere, cells leave the domain only where wi passes its
                                             horizon: f cos theta_i continues by 0 outside (vh) */
-    SB_CAP_AUTO_NONRECIPROCAL = 1u << 9  /* auto screens it for sources that are not reciprocal only (where no
+    SB_CAP_AUTO_NONRECIPROCAL = 1u << 9, /* auto screens it for sources that are not reciprocal only (where no
                                             layout folding reciprocity applies; vh) */
+    SB_CAP_TABLES = 1u << 10             /* built on a source's own tables (opts.tables; vndf): applies to sources
+                                            with such tables only; value = sb_param_gain x max(0, sum) */
 };
 
 /* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
@@ -214,6 +225,32 @@ const char *sb_param_glsl(const sb_param_t *p);
  * of st_g as sb_param_coords gives it, and row = y W + x.  Returns 1; 0
  * (w unchanged) for a NULL argument or a row out of range. */
 int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+
+/* The layout's known factor of the value at (wi, wo): the reconstruction
+ * is gain x max(0, sum_j g_j h_j) for SB_CAP_TABLES layouts (vndf: the
+ * RGL file's NDF(u_m) / (4 sigma(u_v)), 0 outside the domain), and the
+ * plain sum (gain 1) for every other layout or a NULL argument. */
+double sb_param_gain(const sb_param_t *p, const double wi[3], const double wo[3]);
+/* The tables of an SB_CAP_TABLES layout (its own copy), NULL otherwise. */
+const sb_layout_tables_t *sb_param_tables(const sb_param_t *p);
+/* The entry of form cos (f cos theta_i over the gain) of matrix cell (row,
+ * col) when the layout knows it from its tables (vndf: the RGL file's
+ * node, also where the light falls below the horizon): 1 and rgb; 0 (the
+ * source is sampled) otherwise. */
+int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[3]);
+/* The value from a sum of terms and the gain: gain x max(0, sum) for
+ * SB_CAP_TABLES layouts, sum itself otherwise. */
+double sb_param_apply_gain(const sb_param_t *p, double sum, double gain);
+/* The tables of an SB_CAP_TABLES layout as one RGB float texture (written
+ * as vndf.exr; the GLSL reads it as sb_vndf): *rgb (malloc'ed, width x
+ * height x 3, row-major) for the caller to free.  SB_ERR_ARG for a layout
+ * without tables or a NULL argument, SB_ERR_NOMEM. */
+sb_result_t sb_param_tables_texture(const sb_param_t *p, size_t *width, size_t *height, float **rgb);
+/* The tables back from such a texture (checked: sizes and values);
+ * SB_ERR_FORMAT for a texture that is not one. */
+sb_result_t sb_layout_tables_from_texture(sb_context_t *ctx, size_t width, size_t height, const float *rgb,
+                                          sb_layout_tables_t **out);
+void sb_layout_tables_destroy(sb_layout_tables_t *t);
 
 /* GLSL source defining `vec3 sb_row_dir(ivec2 cell, vec2 u)`, the same map
  * as sb_param_row_sample for texel `cell` of the g textures (sizes from

@@ -20,7 +20,8 @@ enum {
     SB_SOURCE_RECIPROCAL = 1u << 0, /* f(wi, wo) == f(wo, wi) */
     SB_SOURCE_ISOTROPIC = 1u << 1,  /* depends on phi_o - phi_i only */
     SB_SOURCE_MEASURED = 1u << 2,   /* a table: some pairs may be missing */
-    SB_SOURCE_GRAY = 1u << 3        /* R == G == B everywhere */
+    SB_SOURCE_GRAY = 1u << 3,       /* R == G == B everywhere */
+    SB_SOURCE_TABLES = 1u << 4      /* carries tables a layout is built on (sb_source_layout_tables) */
 };
 
 typedef struct sb_source_ops {
@@ -37,7 +38,12 @@ typedef struct sb_source sb_source_t;
  * through ops->destroy).  `description` is copied. */
 sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
                              const char *description, sb_source_t **out);
-void sb_source_destroy(sb_source_t *src); /* accepts NULL */
+void sb_source_destroy(sb_source_t *src);
+
+/* The tables a layout with SB_CAP_TABLES is built on (param.h: an
+ * isotropic RGL file's VNDF warp, NDF and sigma, for the vndf layout),
+ * owned by the source; NULL for a source without them (or NULL). */
+const struct sb_layout_tables *sb_source_layout_tables(const sb_source_t *src); /* accepts NULL */
 
 /* A source that evaluates many pairs in one call (a function over arrays,
  * e.g. one written in Python with numpy): eval_many writes f_r of the n

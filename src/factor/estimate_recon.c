@@ -115,6 +115,7 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     est_taps(e, SB_SIDE_H, sh, ah, fh);
     double div = 1, acc[3] = {0, 0, 0};
     div = sb_form_divisor(e->form, wi, wo);
+    double gain = sb_param_gain(e->p, wi, wo); /* 1 but on SB_CAP_TABLES layouts */
     size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
     const double *g[4], *h[4];
     for (int k = 0; k < 4; k++) {
@@ -126,7 +127,7 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
             acc[c] += (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
                       (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scale[j];
         for (int c = 0; c < 3; c++)
-            rec[j * 3 + c] = acc[C == 1 ? 0 : c] / div;
+            rec[j * 3 + c] = sb_param_apply_gain(e->p, acc[C == 1 ? 0 : c], gain) / div;
     }
 }
 

@@ -24,6 +24,7 @@ struct sb_factors {
     meta_t *meta;
     size_t nmeta;
     sb_factor_errors_t err;
+    sb_layout_tables_t *tables; /* read with the set (vndf.exr), for sb_factors_param */
 };
 
 sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h, size_t h_w,
@@ -67,8 +68,19 @@ sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, 
     return SB_OK;
 }
 
+void sb_factors_set_tables(sb_factors_t *f, sb_layout_tables_t *tables) {
+    if (!f) {
+        sb_layout_tables_destroy(tables);
+        return;
+    }
+    sb_layout_tables_destroy(f->tables);
+    f->tables = tables;
+}
+const sb_layout_tables_t *sb_factors_tables(const sb_factors_t *f) { return f ? f->tables : NULL; }
+
 void sb_factors_destroy(sb_factors_t *f) {
     if (!f) return;
+    sb_layout_tables_destroy(f->tables);
     free(f->tex[0]);
     free(f->tex[1]);
     free(f->sigma);
@@ -201,9 +213,9 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
             acc[c] += sb_factors_lookup(f, p, 0, j, c, sg) * sb_factors_lookup(f, p, 1, j, c, sh);
     if (f->channels == 1) acc[1] = acc[2] = acc[0];
     /* divide back the factored form, with the lecture's grazing guard */
-    double w = sb_form_divisor(form, wi, wo);
+    double w = sb_form_divisor(form, wi, wo), gain = sb_param_gain(p, wi, wo);
     for (int c = 0; c < 3; c++)
-        rgb[c] = acc[c] / w;
+        rgb[c] = sb_param_apply_gain(p, acc[c], gain) / w;
     return 1;
 }
 

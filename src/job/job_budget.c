@@ -96,6 +96,7 @@ static void shape_opts(const sb_job_t *job, size_t R, int variant, sb_param_opts
     memset(po, 0, sizeof *po);
     po->res = R;
     po->theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po->tables = sb_source_layout_tables(job->src); /* layouts built on the source's tables (vndf) */
     if (variant >= 1) po->res_theta_h = 4 * R;
     if (variant >= 2) po->res_phi_d = R / 4 < 2 ? 2 : R / 4;
 }

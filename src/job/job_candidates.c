@@ -5,6 +5,7 @@
 
 #include "job_impl.h"
 #include "sample/stream.h"
+#include "sepbrdf/glsl.h"
 #include "util/internal.h"
 
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
@@ -27,6 +28,7 @@ size_t job_layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res
     if (shape) po = *shape;
     po.res = res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po.tables = sb_source_layout_tables(job->src);
     if (sb_param_create(NULL, kind, &po, &p) != SB_OK) return 0;
     size_t r = sb_param_rows(p), c = sb_param_cols(p);
     sb_param_destroy(p);
@@ -44,6 +46,7 @@ static sb_result_t cand_fits(sb_context_t *ctx, const sb_job_t *job, sb_param_ki
     sb_param_opts_t po = {0};
     po.res = job->o.res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po.tables = sb_source_layout_tables(job->src);
     if (sb_param_create(NULL, k, &po, &p) != SB_OK) return SB_OK; /* sb_job_run names the problem */
     unsigned ch = job->o.channels ? job->o.channels & 7u : 7u;
     size_t nch = (ch & 1) + ((ch >> 1) & 1) + ((ch >> 2) & 1), rows = sb_param_rows(p), cols = sb_param_cols(p);
@@ -80,6 +83,13 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
     if (mn < job->o.terms)
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
+    unsigned langs = 1;
+    if (!c->why[0] && (sb_param_kind_caps(k) & SB_CAP_TABLES) && job->o.shaders &&
+        sb_shader_lang_list(NULL, job->o.shaders, &langs) == SB_OK && langs != 1)
+        snprintf(c->why, sizeof c->why, "%s reads its tables in GLSL only; --shader asks for more",
+                 sb_param_kind_name(k));
+    if (!job->is_auto && c->why[0] && (sb_param_kind_caps(k) & SB_CAP_TABLES))
+        return sb_error(ctx, SB_ERR_UNSUPPORTED, "%s", c->why);
     if (!job->is_auto) return cand_fits(ctx, job, k);
     /* auto: a layout beyond the memory limit is left out, the others tried */
     if (!c->why[0] && cand_fits(NULL, job, k) != SB_OK)
@@ -105,7 +115,9 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         if ((sb_param_kind_caps(k) & SB_CAP_AUTO_NONRECIPROCAL) && (sb_source_flags(job->src) & SB_SOURCE_RECIPROCAL))
             continue; /* a layout folding reciprocity serves these */
         if (job_layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
-        if (r == SB_OK) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
+        /* a layout on the source's tables holds their nodes in form cos (sb_param_cell_value) */
+        int tables = (sb_param_kind_caps(k) & SB_CAP_TABLES) != 0;
+        if (r == SB_OK && !(tables && !job->o.form)) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
         /* cos: not on a layout that folds by reciprocity (f cos theta_i is
          * not reciprocal); cos2 is none: dividing by cos theta_o is
          * unbounded near the horizon in what a shader outputs */

@@ -22,6 +22,7 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
     if (lv->po) po = *lv->po;
     po.res = lv->res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po.tables = sb_source_layout_tables(job->src); /* layouts built on the source's tables (vndf) */
     /* iso screens on R rows of theta_h (td = 2R), half its default: the
      * layouts' ranking is the same there, the masked fit half the cost;
      * vh keeps its own th = 2R (at R rows an RGL vinyl's mirror peak fell
@@ -210,6 +211,10 @@ static double rank_error(const job_attempt_t *a) {
  * sb_matrix_build applies it, so the source is not evaluated again. */
 static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, const job_attempt_t *from,
                               sb_form_t form, job_attempt_t *a) {
+    /* a layout that knows its cells (sb_param_cell_value) samples them again: cheap, and exact where the
+     * light is below the horizon */
+    if (sb_param_caps(from->param) & SB_CAP_TABLES)
+        return job_sample(ctx, job, lv, sb_param_kind(from->param), form, a);
     memset(a, 0, sizeof *a);
     double t0 = job_now();
     sb_param_opts_t po = job_level_opts(job, lv, sb_param_kind(from->param)); /* as job_sample made `from` */

@@ -140,6 +140,22 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
 
 static sb_result_t write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set);
 
+/* vndf.exr: the tables of a layout built on the source's own (SB_CAP_TABLES),
+ * which its snippet reads as sb_vndf and render reads back. */
+static sb_result_t write_tables(sb_context_t *ctx, const sb_param_t *p, sb_outset_t *set) {
+    if (!(sb_param_caps(p) & SB_CAP_TABLES)) return SB_OK;
+    size_t w, h;
+    float *rgb = NULL;
+    sb_result_t r = sb_param_tables_texture(p, &w, &h, &rgb);
+    if (r != SB_OK) return sb_error(ctx, r, "vndf.exr: %s", sb_result_message(r));
+    char path[4200];
+    snprintf(path, sizeof path, "%s/vndf.exr", sb_outset_dir(set));
+    r = sb_exr_write_rgb(ctx, path, w, h, rgb);
+    free(rgb);
+    if (r == SB_OK && sb_outset_add(set, "vndf.exr") != SB_OK) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    return r;
+}
+
 /* One OpenBLAS thread, as in the job (job.c): the stored textures' error
  * pass makes many small calls, and waking the workers for each took 2 s
  * of the 4.7 s of `factor --param io -r 256 -J 8`. */
@@ -159,6 +175,7 @@ static sb_result_t write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
     sb_exr_opts_t eo = {job->o.half};
     sb_result_t r = sb_factors_write_exr(ctx, a->f, dir, &eo);
     if (r == SB_OK && (r = add_textures(set, J)) != SB_OK) r = sb_error(ctx, r, "out of memory");
+    if (r == SB_OK) r = write_tables(ctx, a->param, set);
     if (r == SB_OK) r = job_budget_written(ctx, job, dir); /* what the files hold, read back */
     if (r != SB_OK) return r;
     free(job->rel_stored);

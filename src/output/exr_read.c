@@ -308,6 +308,26 @@ static sb_result_t check_agrees(sb_context_t *ctx, const hdr_t *hd, const hdr_t 
     return SB_OK;
 }
 
+/* DIR/vndf.exr, the tables of a layout built on them (SB_CAP_TABLES), when
+ * the set has one. */
+static sb_result_t read_tables(sb_context_t *ctx, const char *dir, sb_factors_t *f) {
+    char *path = sb_format("%s/vndf.exr", dir);
+    if (!path) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    struct stat st;
+    sb_result_t r = SB_OK;
+    if (stat(path, &st) == 0) {
+        size_t w, h;
+        float *rgb = NULL;
+        sb_layout_tables_t *t = NULL;
+        r = sb_exr_read_rgb(ctx, path, &w, &h, &rgb);
+        if (r == SB_OK) r = sb_layout_tables_from_texture(ctx, w, h, rgb, &t);
+        if (r == SB_OK) sb_factors_set_tables(f, t);
+        free(rgb);
+    }
+    free(path);
+    return r;
+}
+
 sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "exr read: no output pointer");
     *out = NULL;
@@ -361,6 +381,7 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
         }
         if ((r = read_pixels(ctx, ex, p, &hd, f, side, term, buf)) != SB_OK) goto out;
     }
+    if ((r = read_tables(ctx, dir, f)) != SB_OK) goto out;
     *out = f;
     f = NULL;
 out:
@@ -395,4 +416,71 @@ sb_result_t sb_exr_set_bytes(sb_context_t *ctx, const char *dir, size_t *texel_b
         free(path);
     }
     return r;
+}
+
+sb_result_t sb_exr_read_rgb(sb_context_t *ctx, const char *path, size_t *width, size_t *height, float **rgb) {
+    if (!path || !width || !height || !rgb) return sb_error(ctx, SB_ERR_ARG, "exr: no file or output");
+    *rgb = NULL;
+    exr_context_t ex = NULL;
+    sb_result_t r = open_read(ctx, path, &ex);
+    if (r != SB_OK) return r;
+    exr_attr_box2i_t dw;
+    const exr_attr_chlist_t *cl = NULL;
+    int32_t nchunks = 0, lpc = 0;
+    exr_result_t rv = exr_get_data_window(ex, 0, &dw);
+    if (!rv) rv = exr_get_channels(ex, 0, &cl);
+    if (!rv) rv = exr_get_chunk_count(ex, 0, &nchunks);
+    if (!rv) rv = exr_get_scanlines_per_chunk(ex, 0, &lpc);
+    size_t w = rv ? 0 : (size_t)dw.max.x - (size_t)dw.min.x + 1, h = rv ? 0 : (size_t)dw.max.y - (size_t)dw.min.y + 1;
+    if (rv || dw.min.x != 0 || dw.min.y != 0 || dw.max.x < 0 || dw.max.y < 0 || w > (1u << 16) || h > (1u << 20) ||
+        !cl || cl->num_channels != 3 || lpc < 1 || (size_t)nchunks != (h + (size_t)lpc - 1) / (size_t)lpc) {
+        exr_finish(&ex);
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: not an RGB float image from (0, 0)", path);
+    }
+    float *planes = malloc(3 * w * h * sizeof *planes), *out = malloc(3 * w * h * sizeof *out);
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    int live = 0;
+    for (int32_t k = 0; planes && out && k < nchunks && r == SB_OK; k++) {
+        exr_chunk_info_t ci;
+        size_t y = (size_t)k * (size_t)lpc;
+        rv = exr_read_scanline_chunk_info(ex, 0, (int)y, &ci);
+        if (!rv && (ci.start_y != (int32_t)y || ci.height < 1 || (size_t)ci.height > h - y || (size_t)ci.width != w))
+            rv = EXR_ERR_BAD_CHUNK_LEADER;
+        if (!rv) rv = live ? exr_decoding_update(ex, 0, &ci, &dec) : exr_decoding_initialize(ex, 0, &ci, &dec);
+        if (rv) break;
+        live = 1;
+        for (int16_t c = 0; c < dec.channel_count; c++) {
+            exr_coding_channel_info_t *ch = &dec.channels[c];
+            int plane = sb_exr_channel_plane_(3, ch->channel_name);
+            if (plane < 0 || ch->data_type != EXR_PIXEL_FLOAT || ch->width != ci.width || ch->height != ci.height) {
+                r = sb_error(ctx, SB_ERR_FORMAT, "%s: channels are not R, G, B as float", path);
+                break;
+            }
+            ch->user_bytes_per_element = 4;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_pixel_stride = 4;
+            ch->user_line_stride = (int32_t)(w * 4);
+            ch->decode_to_ptr = (uint8_t *)(planes + (size_t)plane * w * h + y * w);
+        }
+        if (r == SB_OK && k == 0) rv = exr_decoding_choose_default_routines(ex, 0, &dec);
+        if (r == SB_OK && !rv) rv = exr_decoding_run(ex, 0, &dec);
+        if (rv) break;
+    }
+    if (live) exr_decoding_destroy(ex, &dec);
+    exr_finish(&ex);
+    if (r == SB_OK && (!planes || !out)) r = sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    if (r == SB_OK && rv) r = sb_exr_fail_(ctx, rv, SB_ERR_FORMAT, path, "cannot decode the pixels");
+    if (r == SB_OK)
+        for (size_t i = 0; i < w * h; i++)
+            for (size_t c = 0; c < 3; c++)
+                out[3 * i + c] = planes[c * w * h + i];
+    free(planes);
+    if (r != SB_OK) {
+        free(out);
+        return r;
+    }
+    *width = w;
+    *height = h;
+    *rgb = out;
+    return SB_OK;
 }

@@ -367,3 +367,46 @@ out:
     free(fin);
     return r;
 }
+
+sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t w, size_t h, const float *rgb) {
+    if (!path || !rgb || w == 0 || h == 0 || w > INT32_MAX || h > INT32_MAX)
+        return sb_error(ctx, SB_ERR_ARG, "exr: no image to write");
+    float *planes = malloc(3 * w * h * sizeof *planes);
+    char *tmp = sb_format("%s.tmp", path);
+    if (!planes || !tmp) {
+        free(planes);
+        free(tmp);
+        return sb_error(ctx, SB_ERR_NOMEM, "%s: out of memory", path);
+    }
+    for (size_t i = 0; i < w * h; i++)
+        for (size_t c = 0; c < 3; c++)
+            planes[c * w * h + i] = rgb[3 * i + c];
+    exr_sink_t sink = {NULL, 0, 0};
+    sb_exr_msg_reset_();
+    exr_context_initializer_t init = sb_exr_init_(0);
+    init.user_data = &sink;
+    init.write_fn = exr_stream_write;
+    exr_context_t ex = NULL;
+    int part = 0;
+    sb_result_t r = SB_OK;
+    exr_result_t rv = exr_start_write(&ex, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (!rv) rv = exr_add_part(ex, NULL, EXR_STORAGE_SCANLINE, &part);
+    if (!rv) rv = exr_initialize_required_attr_simple(ex, part, (int32_t)w, (int32_t)h, EXR_COMPRESSION_ZIP);
+    for (size_t c = 0; c < 3 && !rv; c++)
+        rv = exr_add_channel(ex, part, sb_exr_channel_name_(3, c), EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    if (!rv) rv = exr_write_header(ex);
+    if (!rv) rv = encode_chunks(ex, part, 3, w, h, 0, planes);
+    if (rv) r = sb_exr_fail_(ctx, rv, SB_ERR_IO, path, "cannot write");
+    if (ex) {
+        rv = exr_finish(&ex);
+        if (rv && r == SB_OK) r = sb_exr_fail_(ctx, rv, SB_ERR_IO, path, "cannot complete");
+    }
+    if (r == SB_OK) r = sink_flush(ctx, &sink, tmp, path);
+    if (r == SB_OK && rename(tmp, path) != 0)
+        r = sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, sb_io_why(errno));
+    if (r != SB_OK) unlink(tmp);
+    free(sink.buf);
+    free(planes);
+    free(tmp);
+    return r;
+}

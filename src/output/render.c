@@ -153,6 +153,7 @@ sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_
     sb_param_opts_t po;
     sb_param_t *p = NULL;
     sb_result_t r = sb_param_parse_spec(ctx, spec, &kind, &po);
+    po.tables = sb_factors_tables(f); /* vndf: read with the set */
     if (r == SB_OK) r = sb_param_create(ctx, kind, &po, &p);
     if (r != SB_OK) {
         if (r == SB_ERR_UNSUPPORTED) return r;

@@ -88,6 +88,7 @@ static sb_result_t ref_param(sb_context_t *ctx, const sb_param_t *param, size_t 
     sb_param_opts_t o;
     sb_result_t r = sb_param_parse_spec(ctx, sb_param_spec(param), &kind, &o);
     if (r != SB_OK) return r;
+    o.tables = sb_param_tables(param);
     if (o.res == 0) o.res = 32;
     for (;;) {
         if ((r = sb_param_create(ctx, kind, &o, out)) != SB_OK) return r;
@@ -272,6 +273,11 @@ sb_result_t sb_viewer_write(sb_context_t *ctx, const char *path, const sb_factor
     sb_result_t r = check_args(ctx, path, f, param);
     if (r != SB_OK) return r;
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "viewer: unknown form %d", (int)form);
+    if (sb_param_caps(param) & SB_CAP_TABLES)
+        return sb_error(ctx, SB_ERR_UNSUPPORTED,
+                        "viewer: %s's snippet reads its tables from vndf.exr, which the page does not carry yet; "
+                        "`sepbrdf render` draws the set",
+                        sb_param_name(param));
     sb_viewer_opts_t o = {0};
     if (opts) o = *opts;
     char *own = o.glsl ? NULL : sb_glsl_snippet(param, form, sb_factors_terms(f), NULL);

@@ -15,7 +15,8 @@
 /* The registry, one row per parameterisation, in the order of
  * sb_param_kind_t: adding one is its file, its kind and a row here. */
 static const sb_param_desc_t *const registry[SB_PARAM_KIND_COUNT_] = {
-    &sb_param_desc_io, &sb_param_desc_io_area, &sb_param_desc_hd, &sb_param_desc_iso, &sb_param_desc_vh,
+    &sb_param_desc_io,  &sb_param_desc_io_area, &sb_param_desc_hd,
+    &sb_param_desc_iso, &sb_param_desc_vh,      &sb_param_desc_vndf,
 };
 
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
@@ -42,6 +43,7 @@ unsigned sb_param_caps(const sb_param_t *p) { return p ? registry[p->kind]->caps
 int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
     unsigned caps = sb_param_kind_caps(kind);
     if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) return 0;
+    if ((caps & SB_CAP_TABLES) && !(source_flags & SB_SOURCE_TABLES)) return 0;
     return !(caps & SB_CAP_NEEDS_ISOTROPY) || (source_flags & SB_SOURCE_ISOTROPIC);
 }
 
@@ -165,6 +167,7 @@ static sb_result_t resolve_warps(sb_context_t *ctx, sb_param_t *p, const sb_para
  * the layout's coordinate functions. */
 static sb_result_t build_glsl(sb_context_t *ctx, sb_param_t *p) {
     static const char *const names[SB_AXIS_COUNT_] = {"sb_warp_h", "sb_warp_d"};
+    if (p->glsl) return SB_OK; /* the layout's init built its own */
     int warps = (registry[p->kind]->caps & SB_CAP_WARPS) != 0;
     size_t need = strlen(p->vt->glsl) + 1, n = 0;
     for (int a = 0; a < SB_AXIS_COUNT_ && warps; a++)
@@ -195,7 +198,8 @@ static pthread_mutex_t layouts_mu = PTHREAD_MUTEX_INITIALIZER;
  * under it: auto's candidates of one layout and several forms share
  * them), a new one for a layout not seen before. */
 static unsigned long layout_serial(const sb_param_t *p) {
-    static atomic_ulong fresh = LAYOUTS_MAX; /* numbers 1..LAYOUTS_MAX name the remembered layouts */
+    static atomic_ulong fresh = LAYOUTS_MAX;               /* numbers 1..LAYOUTS_MAX name the remembered layouts */
+    if (p->tables) return atomic_fetch_add(&fresh, 1) + 1; /* its coordinates depend on its tables */
     layout_id_t id;
     memset(&id, 0, sizeof id);
     id.kind = (int)p->kind;
@@ -241,6 +245,7 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     sb_param_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "param: out of memory");
     if (opts) p->opts = *opts;
+    if ((unsigned)kind >= SB_PARAM_KIND_COUNT_ || !(registry[kind]->caps & SB_CAP_TABLES)) p->opts.tables = NULL;
     if (p->opts.res == 0) p->opts.res = 32;
     /* 0 and pi/2 up to rounding (e.g. 90 degrees converted) mean the hemisphere */
     if (p->opts.theta_max == 0 || fabs(p->opts.theta_max - SB_PI / 2) < 1e-12) p->opts.theta_max = SB_PI / 2;
@@ -275,6 +280,7 @@ unsigned long sb_param_serial_(const sb_param_t *p) { return p ? p->serial : 0; 
 
 void sb_param_destroy(sb_param_t *p) {
     if (!p) return;
+    sb_layout_tables_destroy(p->tables);
     free(p->glsl);
     free(p);
 }
@@ -312,6 +318,17 @@ int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3],
     return p->vt->coords(p, wi, wo, st_g, st_h);
 }
 const char *sb_param_glsl(const sb_param_t *p) { return p ? p->glsl : ""; }
+double sb_param_gain(const sb_param_t *p, const double wi[3], const double wo[3]) {
+    return p && wi && wo && p->vt->gain ? p->vt->gain(p, wi, wo) : 1;
+}
+const sb_layout_tables_t *sb_param_tables(const sb_param_t *p) { return p ? p->tables : NULL; }
+int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[3]) {
+    if (!p || !rgb || row >= p->rows || col >= p->cols || !p->vt->cell_value) return 0;
+    return p->vt->cell_value(p, row, col, rgb);
+}
+double sb_param_apply_gain(const sb_param_t *p, double sum, double gain) {
+    return p && (registry[p->kind]->caps & SB_CAP_TABLES) ? (sum > 0 ? sum : 0) * gain : sum;
+}
 int sb_param_warps_default(const sb_param_t *p) {
     if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS)) return 1;
     for (int a = 0; a < SB_AXIS_COUNT_; a++)

@@ -92,7 +92,10 @@ static int hd_coords(const sb_param_t *p, const double wi[3], const double wo[3]
 }
 
 static const sb_param_vt_t hd_vt = {
-    hd_cell_dirs, hd_row_measure, hd_col_measure, hd_coords,
+    hd_cell_dirs,
+    hd_row_measure,
+    hd_col_measure,
+    hd_coords,
     "// hd: h = normalize(L + V), Gram-Schmidt frame t' from T = (1,0,0) (bitangent\n"
     "// when h = +-T), d = L in (t', b', h); theta-phi st of h (g) and d (h):\n"
     "// s = sb_warp_h/d(theta / SB_THETA_MAX) (clamp), t = phi / 2pi (repeat).\n"
@@ -113,7 +116,9 @@ static const sb_param_vt_t hd_vt = {
     "    return vec4(sb_warp_h(h.x), h.y, sb_warp_d(d.x), d.y);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
-    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
+    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n",
+    NULL,
+    NULL};
 
 /* sb_grid_sample_glsl with the theta_h warp: the band's bounds through
  * its inverse, as sb_grid_row_sample takes them. */

@@ -16,6 +16,12 @@ typedef struct sb_param_vt {
     double (*col_measure)(const sb_param_t *p, size_t col);
     int (*coords)(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
     const char *glsl; /* defines vec4 sb_coords(vec3 L, vec3 V) */
+    /* NULL: 1; else the known factor of the value (SB_CAP_TABLES layouts:
+     * value = gain x max(0, sum of the terms)) */
+    double (*gain)(const sb_param_t *p, const double wi[3], const double wo[3]);
+    /* NULL or 0: sample the source; 1: the cell's entry of form cos (the
+     * value over the gain) is rgb, known from the layout's tables */
+    int (*cell_value)(const sb_param_t *p, size_t row, size_t col, double rgb[3]);
 } sb_param_vt_t;
 
 typedef struct sb_param_desc {
@@ -40,7 +46,7 @@ typedef struct sb_param_desc {
 } sb_param_desc_t;
 
 extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso,
-    sb_param_desc_vh;
+    sb_param_desc_vh, sb_param_desc_vndf;
 
 struct sb_param {
     sb_param_kind_t kind;
@@ -49,7 +55,8 @@ struct sb_param {
     size_t rows, cols;
     size_t tex_w[2], tex_h[2];
     int wrap[2][2];
-    char *glsl; /* the vt's GLSL, after the warp functions of SB_CAP_WARPS layouts */
+    char *glsl;                 /* the vt's GLSL, after the warp functions of SB_CAP_WARPS layouts */
+    sb_layout_tables_t *tables; /* SB_CAP_TABLES: its own copy (opts.tables points here) */
     char spec[SB_PARAM_SPEC_MAX];
     unsigned long serial; /* the same for the same resolved layout (sb_param_serial_) */
 };

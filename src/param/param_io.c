@@ -23,7 +23,10 @@ static int io_coords(const sb_param_t *p, const double wi[3], const double wo[3]
 
 /* The shader takes theta = atan(|w_xy|, w_z): acos(w_z) in float loses
  * up to ~1e-3 rad near the pole, 2e-3 of a texel at R = 16. */
-static const sb_param_vt_t io_vt = {io_cell_dirs, io_measure, io_measure, io_coords,
+static const sb_param_vt_t io_vt = {io_cell_dirs,
+                                    io_measure,
+                                    io_measure,
+                                    io_coords,
                                     "// io: theta-phi grid; s = theta / SB_THETA_MAX (clamp), t = phi / 2pi (repeat)\n"
                                     "vec2 sb_grid_st(vec3 w) {\n"
                                     "    float theta = atan(length(w.xy), w.z);\n"
@@ -34,7 +37,9 @@ static const sb_param_vt_t io_vt = {io_cell_dirs, io_measure, io_measure, io_coo
                                     "vec4 sb_coords(vec3 L, vec3 V) { return vec4(sb_grid_st(L), sb_grid_st(V)); }\n"
                                     "bool sb_domain(vec3 L, vec3 V, vec4 st) {\n"
                                     "    return L.z > 0.0 && V.z > 0.0 && st.x <= 1.0 && st.z <= 1.0;\n"
-                                    "}\n"};
+                                    "}\n",
+                                    NULL,
+                                    NULL};
 
 const sb_param_desc_t sb_param_desc_io = {.name = "io",
                                           .description = "the lecture's theta-phi grid for (wi, wo)",

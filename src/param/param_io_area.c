@@ -105,7 +105,10 @@ static int area_coords(const sb_param_t *p, const double wi[3], const double wo[
 }
 
 static const sb_param_vt_t area_vt = {
-    area_cell_dirs, area_measure, area_measure, area_coords,
+    area_cell_dirs,
+    area_measure,
+    area_measure,
+    area_coords,
     "// io-area: Shirley-Chiu concentric map of the cap theta <= SB_THETA_MAX,\n"
     "// equal-area; s = (a + 1)/2, t = (b + 1)/2 for the square point (a, b), both clamp.\n"
     "vec2 sb_area_st(vec3 w) {\n"
@@ -120,7 +123,9 @@ static const sb_param_vt_t area_vt = {
     "}\n"
     "vec4 sb_coords(vec3 L, vec3 V) { return vec4(sb_area_st(L), sb_area_st(V)); }\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
-    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
+    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n",
+    NULL,
+    NULL};
 
 static const char area_sample_glsl[] =
     "// io-area: square cell (x, y) at (x + u.x, y + u.y) texels -> cap (equal-area)\n"

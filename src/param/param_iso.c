@@ -104,7 +104,10 @@ static int iso_coords(const sb_param_t *p, const double wi[3], const double wo[3
 }
 
 static const sb_param_vt_t iso_vt = {
-    iso_cell_dirs, iso_row_measure, iso_col_measure, iso_coords,
+    iso_cell_dirs,
+    iso_row_measure,
+    iso_col_measure,
+    iso_coords,
     "// iso: Rusinkiewicz angles; g: s = sb_warp_h(theta_h / SB_THETA_MAX) (t = 1/2),\n"
     "// h: s = sb_warp_d(theta_d / SB_THETA_MAX) (clamp), t = phi_d / pi, phi_d folded\n"
     "// into [0, pi) by reciprocity (repeat).\n"
@@ -124,7 +127,9 @@ static const sb_param_vt_t iso_vt = {
     "                sb_warp_d(atan(length(D.xy), D.z) / SB_THETA_MAX), phi_d / SB_PI);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
-    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
+    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n",
+    NULL,
+    NULL};
 
 static const char iso_sample_glsl[] =
     "// iso: theta_h band x (bounds through sb_warp_h), phi_h = 2pi u.y\n"

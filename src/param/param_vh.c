@@ -101,7 +101,10 @@ static int vh_coords(const sb_param_t *p, const double wi[3], const double wo[3]
 }
 
 static const sb_param_vt_t vh_vt = {
-    vh_cell_dirs, vh_row_measure, vh_col_measure, vh_coords,
+    vh_cell_dirs,
+    vh_row_measure,
+    vh_col_measure,
+    vh_coords,
     "// vh: the view's elevation and the half vector in the view's azimuthal\n"
     "// frame; g: s = sb_warp_d(theta_v / SB_THETA_MAX) (t = 1/2), h: s =\n"
     "// sb_warp_h(theta_h / SB_THETA_MAX), t = phi / pi, phi = phi_h - phi_v\n"
@@ -119,7 +122,9 @@ static const sb_param_vt_t vh_vt = {
     "                sb_warp_h(min(atan(length(H.xy), H.z) / SB_THETA_MAX, 1.0)), phi / SB_PI);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
-    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n"};
+    "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n",
+    NULL,
+    NULL};
 
 static sb_result_t init_vh(sb_context_t *ctx, sb_param_t *p) {
     sb_param_opts_t *o = &p->opts;

@@ -95,14 +95,19 @@ static void *build_cols(void *arg) {
             int ok = (!j->only || j->only[at]) && sb_param_cell_dirs(j->param, r, c, wi, wo);
             int known = 0;
             rgb[0] = rgb[1] = rgb[2] = 0;
-            if (ok) {
+            if (ok && m->form == SB_FORM_COS && sb_param_cell_value(j->param, r, c, rgb)) {
+                known = 1; /* the layout's table holds the entry itself */
+                if (have) next++;
+            } else if (ok) {
                 if (have) {
                     known = kn[next];
                     memcpy(rgb, vals + 3 * next++, sizeof rgb);
                 } else {
                     known = sb_source_eval(j->src, wi, wo, rgb);
                 }
-                double w = sb_form_weight(m->form, wi, wo);
+                /* a layout's known factor (sb_param_gain) is the shader's, not the fit's */
+                double w = sb_form_weight(m->form, wi, wo), gain = sb_param_gain(j->param, wi, wo);
+                w = gain == 1 ? w : gain > 0 ? w / gain : 0;
                 for (int ch = 0; ch < 3; ch++) {
                     double v = known ? rgb[ch] * w : 0.0;
                     if (!isfinite(v)) { /* a hostile table or a model singularity */

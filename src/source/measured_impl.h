@@ -52,6 +52,10 @@ int sb_half_diff_vec_(const double wi[3], const double wo[3], double *theta_h, d
  * -1 when out of memory. */
 int sb_source_set_measured_(sb_source_t *src, const sb_measured_info_t *info);
 
+/* Give a source the tables a layout is built on (owned by it from then;
+ * sets SB_SOURCE_TABLES; NULL takes them away). */
+void sb_source_set_tables_(sb_source_t *src, sb_layout_tables_t *tables);
+
 /* Give a table source its samples (sb_source_sample_count, sb_source_sample). */
 void sb_source_set_samples_(sb_source_t *src, size_t (*count)(const void *self),
                             int (*sample)(const void *self, size_t k, double wi[3], double wo[3], double f[3]));

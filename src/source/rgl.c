@@ -31,6 +31,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "param/vndf_tables.h"
 #include "sepbrdf/measured.h"
 #include "source/measured_impl.h"
 #include "source/rgl_impl.h"
@@ -96,24 +97,11 @@ static sb_result_t table_warp(sb_context_t *ctx, const char *path, const char *n
     return SB_OK;
 }
 
-/* Largest i in [0, n-2] with x[i] < p (0 if none); weight of i + 1 clamped. */
-static void interval(const double *x, size_t n, double p, size_t *i, double *w1) {
-    *i = 0;
-    *w1 = 0;
-    if (n < 2) return;
-    size_t lo = 0;
-    while (lo + 2 < n && x[lo + 1] < p)
-        lo++;
-    double t = (p - x[lo]) / (x[lo + 1] - x[lo]);
-    *i = lo;
-    *w1 = t < 0 ? 0 : t > 1 ? 1 : t;
-}
-
 static void slice_weights(const rgl_t *g, double phi, double theta, slices_t *s) {
     size_t ip, it;
     double wp, wt;
-    interval(g->phi, g->n_phi, phi, &ip, &wp);
-    interval(g->theta, g->n_theta, theta, &it, &wt);
+    sb_table_interval(g->phi, g->n_phi, phi, &ip, &wp);
+    sb_table_interval(g->theta, g->n_theta, theta, &it, &wt);
     size_t sp = g->n_phi > 1 ? g->n_theta : 0, st = g->n_theta > 1 ? 1 : 0, base = ip * g->n_theta + it;
     s->idx[0] = base;
     s->idx[1] = base + st;
@@ -125,59 +113,6 @@ static void slice_weights(const rgl_t *g, double phi, double theta, slices_t *s)
     s->wt[3] = wp * wt;
 }
 
-/* Value of a per-slice array a[slice * stride + k], slice-interpolated. */
-static double mix(const double *a, size_t stride, size_t k, const slices_t *s) {
-    double v = 0;
-    for (int q = 0; q < 4; q++)
-        if (s->wt[q] != 0) v += s->wt[q] * a[s->idx[q] * stride + k];
-    return v;
-}
-
-/* Patch of a unit-square position: column/row index and fractions. */
-static void patch(const table2d_t *t, const double pos[2], size_t *ix, size_t *iy, double f[2]) {
-    double x = (pos[0] < 0 ? 0 : pos[0] > 1 ? 1 : pos[0]) * (double)(t->w - 1);
-    double y = (pos[1] < 0 ? 0 : pos[1] > 1 ? 1 : pos[1]) * (double)(t->h - 1);
-    *ix = (size_t)x < t->w - 2 ? (size_t)x : t->w - 2;
-    *iy = (size_t)y < t->h - 2 ? (size_t)y : t->h - 2;
-    f[0] = x - (double)*ix;
-    f[1] = y - (double)*iy;
-}
-
-/* Bilinear value at pos of channel c, slices mixed by s (NULL: the one
- * slice of a plain table). */
-double sb_rgl_bilinear_(const table2d_t *t, const double pos[2], const slices_t *s, size_t c) {
-    static const slices_t one = {{0, 0, 0, 0}, {1, 0, 0, 0}};
-    size_t ix, iy;
-    double f[2];
-    patch(t, pos, &ix, &iy, f);
-    size_t n = t->w * t->h, stride = t->chans * n, k = c * n + iy * t->w + ix;
-    if (!s) s = &one;
-    double v00 = mix(t->v, stride, k, s), v10 = mix(t->v, stride, k + 1, s);
-    double v01 = mix(t->v, stride, k + t->w, s), v11 = mix(t->v, stride, k + t->w + 1, s);
-    return (1 - f[1]) * ((1 - f[0]) * v00 + f[0] * v10) + f[1] * ((1 - f[0]) * v01 + f[0] * v11);
-}
-
-/* Inverse of the VNDF warp at u (continuous marginal/conditional
- * inversion): y' = marginal CDF at u_y, x' = conditional CDF of the row
- * interpolated at u_y, evaluated at u_x, over that row's total.  The
- * bilinear patch integrates exactly: x' within the patch adds
- * f_x (c0 + f_x (c1 - c0) / 2) with c0, c1 the patch's column values at f_y. */
-void sb_rgl_warp_invert_(const table2d_t *t, const double u[2], const slices_t *s, double out[2]) {
-    size_t ix, iy;
-    double f[2];
-    patch(t, u, &ix, &iy, f);
-    size_t n = t->w * t->h, k = iy * t->w + ix, last = iy * t->w + t->w - 1;
-    double v00 = mix(t->v, n, k, s), v10 = mix(t->v, n, k + 1, s);
-    double v01 = mix(t->v, n, k + t->w, s), v11 = mix(t->v, n, k + t->w + 1, s);
-    double c0 = (1 - f[1]) * v00 + f[1] * v01, c1 = (1 - f[1]) * v10 + f[1] * v11;
-    double x = f[0] * (c0 + 0.5 * f[0] * (c1 - c0));
-    x += (1 - f[1]) * mix(t->ccdf, n, k, s) + f[1] * mix(t->ccdf, n, k + t->w, s);
-    double r0 = mix(t->ccdf, n, last, s), r1 = mix(t->ccdf, n, last + t->w, s);
-    double row = (1 - f[1]) * r0 + f[1] * r1;
-    out[0] = row > 0 ? x / row : u[0];
-    out[1] = f[1] * (r0 + 0.5 * f[1] * (r1 - r0)) + mix(t->mcdf, t->h, iy, s);
-}
-
 /* ---- evaluation ------------------------------------------------------------ */
 
 double sb_rgl_elevation_(const double d[3]) {
@@ -186,7 +121,8 @@ double sb_rgl_elevation_(const double d[3]) {
     return 2 * asin(h > 1 ? 1 : h);
 }
 double sb_rgl_jacobian_(const rgl_t *g, const double u_m[2], const double u_v[2]) {
-    return g->jacobian ? sb_rgl_bilinear_(&g->ndf, u_m, NULL, 0) / (4 * sb_rgl_bilinear_(&g->sigma, u_v, NULL, 0)) : 1;
+    return g->jacobian ? sb_table_bilinear(&g->ndf, u_m, NULL, 0) / (4 * sb_table_bilinear(&g->sigma, u_v, NULL, 0))
+                       : 1;
 }
 
 /* a with the sign flipped unless b is negative (Mitsuba's mulsign_neg). */
@@ -217,10 +153,10 @@ static int rgl_eval(const void *self, const double wi[3], const double wo[3], do
     slices_t s;
     slice_weights(g, phi_v, theta_v, &s);
     double sample[2];
-    sb_rgl_warp_invert_(&g->vndf, u_m, &s, sample);
+    sb_table_warp_invert(&g->vndf, u_m, &s, sample);
     double scale = sb_rgl_jacobian_(g, u_m, u_v);
     for (size_t c = 0; c < 3; c++) {
-        double val = sb_rgl_bilinear_(&g->rgb, sample, &s, c) * scale;
+        double val = sb_table_bilinear(&g->rgb, sample, &s, c) * scale;
         rgb[c] = val > 0 ? val / l[2] : 0;
     }
     return 1;
@@ -480,6 +416,13 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
         r = desc ? sb_source_create(ctx, &ops, g, info->flags, desc, out) : SB_ERR_NOMEM;
         free(desc);
         if (r == SB_OK) sb_source_set_samples_(*out, sb_rgl_sample_count_, sb_rgl_sample_);
+        /* the vndf layout's tables: isotropic files of one phi_i slice */
+        if (r == SB_OK && g->isotropic && g->n_phi == 1 && g->reduction <= 1)
+            sb_source_set_tables_(*out, sb_layout_tables_make_(g->n_theta, g->theta, &g->vndf, &g->ndf, &g->sigma,
+                                                               g->rgb.w, g->rgb.h, g->jacobian));
+        if (r == SB_OK && sb_source_layout_tables(*out) &&
+            sb_layout_tables_set_rgb_((sb_layout_tables_t *)sb_source_layout_tables(*out), &g->rgb))
+            sb_source_set_tables_(*out, NULL);
     }
     if (r != SB_OK) rgl_destroy(g);
     free(tf.fields);

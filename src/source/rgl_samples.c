@@ -5,7 +5,7 @@
  * Node (x, y) of slice q = p n_theta + t sits at s = (x/(S_x - 1),
  * y/(S_y - 1)) in the VNDF-warped sample space of the view
  * v = (theta_i[t], phi_i[p]).  The warp takes s to u_m, the point that
- * sb_rgl_warp_invert_ maps back to s (found by bisection: the inverse is
+ * sb_table_warp_invert maps back to s (found by bisection: the inverse is
  * monotone in u_y alone for the y part, then in u_x on that row).  u_m
  * gives the microfacet normal m: theta_m = u_x^2 pi/2, phi_m = 2 pi u_y -
  * pi, plus the view's azimuth for isotropic tables; the light is v
@@ -22,35 +22,6 @@
 
 #include "source/measured_impl.h"
 #include "source/rgl_impl.h"
-
-/* Bisection steps: 2^-64 of the unit interval, below double resolution. */
-#define WARP_STEPS 64
-
-/* The u in (0, 1] with warp_invert(u)[axis] = s by bisection, the other
- * coordinate of u at `other` (axis 1 ignores it: the marginal CDF).  For
- * s = 0 it stays 2^-64 off the edge: at x = 0 (theta_m = 0) every row of
- * a slice meets at one pair, and just off it each row keeps its azimuth,
- * so the evaluation reads that row's node back in the limit. */
-static double warp_solve(const table2d_t *t, const slices_t *one, int axis, double other, double s) {
-    double lo = 0, hi = 1, out[2], at[2];
-    at[1 - axis] = other;
-    for (int k = 0; k < WARP_STEPS; k++) {
-        at[axis] = 0.5 * (lo + hi);
-        sb_rgl_warp_invert_(t, at, one, out);
-        if (out[axis] < s)
-            lo = at[axis];
-        else
-            hi = at[axis];
-    }
-    return hi;
-}
-
-/* The u with warp_invert(u) = s on the slice `one`: y from the marginal
- * CDF, then x from the conditional CDF of row u_y. */
-static void warp_sample(const table2d_t *t, const slices_t *one, const double s[2], double u[2]) {
-    u[1] = warp_solve(t, one, 1, 0, s[1]);
-    u[0] = warp_solve(t, one, 0, u[1], s[0]);
-}
 
 size_t sb_rgl_sample_count_(const void *self) {
     const rgl_t *g = self;
@@ -74,7 +45,7 @@ int sb_rgl_sample_(const void *self, size_t k, double wi[3], double wo[3], doubl
     double u_v[2] = {sb_rgl_theta2u(theta_v), sb_rgl_phi2u(phi_v)};
     slices_t one = {{q, q, q, q}, {1, 0, 0, 0}};
     double s[2] = {(double)x / (double)(g->rgb.w - 1), (double)y / (double)(g->rgb.h - 1)}, u_m[2];
-    warp_sample(&g->vndf, &one, s, u_m);
+    sb_table_warp_sample(&g->vndf, &one, s, u_m);
     double tm = u_m[0] * u_m[0] * (SB_PI / 2), pm = 2 * SB_PI * u_m[1] - SB_PI + (g->isotropic ? phi_v : 0);
     double m[3] = {sin(tm) * cos(pm), sin(tm) * sin(pm), cos(tm)};
     double vm = v[0] * m[0] + v[1] * m[1] + v[2] * m[2];

@@ -19,6 +19,7 @@ struct sb_source {
     sb_measured_info_t *minfo; /* a measured table's info (sb_measured_open), else NULL */
     size_t (*sample_count)(const void *self);
     int (*sample)(const void *self, size_t k, double wi[3], double wo[3], double f[3]);
+    sb_layout_tables_t *tables; /* owned (sb_source_set_tables_), else NULL */
 };
 
 sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
@@ -82,6 +83,7 @@ size_t sb_source_eval_many(const sb_source_t *src, size_t n, const double *wi, c
 void sb_source_destroy(sb_source_t *src) {
     if (!src) return;
     if (src->ops.destroy) src->ops.destroy(src->self);
+    sb_layout_tables_destroy(src->tables);
     free(src->minfo);
     free(src->desc);
     free(src);
@@ -111,6 +113,17 @@ void sb_source_set_samples_(sb_source_t *src, size_t (*count)(const void *self),
     src->sample_count = count;
     src->sample = sample;
 }
+
+void sb_source_set_tables_(sb_source_t *src, sb_layout_tables_t *tables) {
+    sb_layout_tables_destroy(src->tables);
+    src->tables = tables;
+    if (tables)
+        src->flags |= SB_SOURCE_TABLES;
+    else
+        src->flags &= ~(unsigned)SB_SOURCE_TABLES;
+}
+
+const sb_layout_tables_t *sb_source_layout_tables(const sb_source_t *src) { return src ? src->tables : NULL; }
 
 int sb_source_set_measured_(sb_source_t *src, const sb_measured_info_t *info) {
     sb_measured_info_t *c = malloc(sizeof *c);

@@ -1,0 +1,157 @@
+/* The vndf layout: an RGL file's own grid.  Its matrix holds the file's
+ * colour nodes, so J = (theta_i slices) terms reproduce the file wherever
+ * it is evaluated, checked against the RGL reader's own evaluation (itself
+ * checked against the reference loader in test_measured_rgl.c). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+
+#define PAPER SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf"
+#define ORANGE SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf"
+
+static sb_source_t *open_rgl(const char *path) {
+    sb_source_t *src = NULL;
+    CHECK(sb_measured_open(NULL, path, NULL, &src, NULL) == SB_OK);
+    CHECK(sb_source_flags(src) & SB_SOURCE_TABLES);
+    return src;
+}
+
+static sb_param_t *vndf_of(const sb_source_t *src) {
+    sb_param_opts_t po = {0};
+    po.tables = sb_source_layout_tables(src);
+    sb_param_t *p = NULL;
+    CHECK(sb_param_create(NULL, SB_PARAM_VNDF, &po, &p) == SB_OK);
+    return p;
+}
+
+/* A pair uniform in solid angle on both hemispheres. */
+static void random_pair(double wi[3], double wo[3]) {
+    for (int k = 0; k < 2; k++) {
+        double *w = k ? wo : wi, z = (double)rand() / RAND_MAX, phi = 2 * SB_PI * rand() / RAND_MAX;
+        double s = sqrt(1 - z * z);
+        w[0] = s * cos(phi), w[1] = s * sin(phi), w[2] = z;
+    }
+}
+
+/* f cos theta_i of the factors against the file's evaluation: relative L2
+ * over n random pairs with cos theta_i above 0.001, where the snippet's
+ * grazing guard (it divides f cos theta_i by max(cos theta_i, 0.001)) does
+ * not act. */
+static double rel_error(const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p, size_t J, int n) {
+    double num = 0, den = 0;
+    srand(7);
+    for (int i = 0; i < n; i++) {
+        double wi[3], wo[3], t[3], r[3];
+        random_pair(wi, wo);
+        if (wi[2] <= 0.001) continue;
+        sb_source_eval(src, wi, wo, t);
+        sb_factors_eval(f, p, SB_FORM_COS, J, wi, wo, r);
+        for (int c = 0; c < 3; c++) {
+            num += (t[c] - r[c]) * (t[c] - r[c]) * wi[2] * wi[2];
+            den += t[c] * t[c] * wi[2] * wi[2];
+        }
+    }
+    return sqrt(num / den);
+}
+
+SB_TEST(exact_at_full_rank) {
+    const char *files[2] = {PAPER, ORANGE};
+    for (int k = 0; k < 2; k++) {
+        sb_source_t *src = open_rgl(files[k]);
+        sb_param_t *p = vndf_of(src);
+        size_t n = sb_param_rows(p);
+        CHECK(n >= 2 && sb_param_cols(p) >= 4);
+        sb_matrix_opts_t mo = {0};
+        mo.form = SB_FORM_COS;
+        sb_matrix_t m = {0};
+        CHECK(sb_matrix_build(NULL, src, p, &mo, &m) == SB_OK);
+        CHECK(m.mask == NULL); /* every node is known, lights below the horizon too */
+        sb_plan_opts_t pl = {0};
+        pl.terms = n;
+        sb_plan_t *plan = NULL;
+        sb_factors_t *f = NULL;
+        CHECK(sb_plan_create_for(NULL, &m, &pl, &plan) == SB_OK);
+        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        sb_plan_destroy(plan);
+        double full = rel_error(src, f, p, n, 20000), half = rel_error(src, f, p, n / 2, 20000);
+        CHECKF(full < 1e-4, "%s: rank %zu error %g", files[k], n, full);
+        CHECKF(half > 10 * full, "%s: %zu terms %g not above the full rank's %g", files[k], n / 2, half, full);
+        sb_factors_destroy(f);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+        sb_source_destroy(src);
+    }
+}
+
+SB_TEST(tables_round_trip) {
+    sb_source_t *src = open_rgl(PAPER);
+    sb_param_t *p = vndf_of(src);
+    size_t w, h;
+    float *rgb = NULL;
+    CHECK(sb_param_tables_texture(p, &w, &h, &rgb) == SB_OK);
+    sb_layout_tables_t *t = NULL;
+    CHECK(sb_layout_tables_from_texture(NULL, w, h, rgb, &t) == SB_OK);
+    sb_param_opts_t po = {0};
+    po.tables = t;
+    sb_param_t *q = NULL;
+    CHECK(sb_param_create(NULL, SB_PARAM_VNDF, &po, &q) == SB_OK);
+    sb_layout_tables_destroy(t);
+    CHECK(strcmp(sb_param_spec(p), sb_param_spec(q)) == 0 && strcmp(sb_param_glsl(p), sb_param_glsl(q)) == 0);
+    srand(3);
+    for (int i = 0; i < 2000; i++) {
+        double wi[3], wo[3], a[4], b[4];
+        random_pair(wi, wo);
+        CHECK(sb_param_coords(p, wi, wo, a, a + 2) == sb_param_coords(q, wi, wo, b, b + 2));
+        for (int c = 0; c < 4; c++)
+            CHECK(a[c] == b[c]);
+        CHECK(sb_param_gain(p, wi, wo) == sb_param_gain(q, wi, wo));
+    }
+    /* a texture that is not one: the header's slice count changed */
+    rgb[3 * (h - 1) * w] += 1;
+    CHECK(sb_layout_tables_from_texture(NULL, w, h, rgb, &t) == SB_ERR_FORMAT);
+    free(rgb);
+    sb_param_destroy(q);
+    sb_param_destroy(p);
+    sb_source_destroy(src);
+}
+
+SB_TEST(needs_tables) {
+    sb_context_t *ctx = NULL;
+    CHECK(sb_context_create(&ctx) == SB_OK);
+    sb_param_t *p = NULL;
+    CHECK(sb_param_create(ctx, SB_PARAM_VNDF, NULL, &p) == SB_ERR_UNSUPPORTED && !p);
+    CHECK(strstr(sb_context_last_error(ctx), "RGL") != NULL);
+    CHECK(!sb_param_kind_applies(SB_PARAM_VNDF, SB_SOURCE_ISOTROPIC));
+    CHECK(sb_param_kind_applies(SB_PARAM_VNDF, SB_SOURCE_ISOTROPIC | SB_SOURCE_TABLES));
+    sb_source_t *gold = NULL;
+    CHECK(sb_source_open(NULL, "microfacet:base=gold,roughness=0.3", &gold) == SB_OK);
+    CHECK(sb_source_layout_tables(gold) == NULL && !(sb_source_flags(gold) & SB_SOURCE_TABLES));
+    sb_source_destroy(gold);
+    sb_context_destroy(ctx);
+}
+
+/* The command a user runs: auto keeps vndf on an RGL file, writes vndf.exr
+ * beside the textures, the snippet compiles, and render reads the set. */
+SB_TEST(cli_factor_render) {
+    char dir[] = "/tmp/sb_vndf_XXXXXX", cmd[4096], out[1 << 14];
+    CHECK(mkdtemp(dir) != NULL);
+    snprintf(cmd, sizeof cmd, "%s -q factor %s -J 8 -o %s/f", SB_CLI, PAPER, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    snprintf(cmd, sizeof cmd, "grep -q '\"param\": \"vndf\"' %s/f/report.json && test -s %s/f/vndf.exr", dir, dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    if (sb_run("command -v glslangValidator", NULL, 0) == 0) {
+        snprintf(cmd, sizeof cmd,
+                 "(echo '#version 330'; cat %s/f/sepbrdf.glsl; echo 'out vec4 c; void main() { c = "
+                 "vec4(sb_brdf(vec3(0.3, 0.1, 0.9), vec3(-0.2, 0.3, 0.8)), 1.0); }') > %s/t.frag && "
+                 "glslangValidator %s/t.frag",
+                 dir, dir, dir);
+        CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    }
+    snprintf(cmd, sizeof cmd, "%s -q render %s/f -o %s/r.png", SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+}
