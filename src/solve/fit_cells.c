@@ -114,7 +114,7 @@ int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t 
     }
     cl->cp[n] = t;
     cl->cip[n] = u;
-    assert(t == nvalid && u == nout);
+    assert(t == nvalid && u == m * n - nvalid);
     if (cells_rows(ctx, cl, m, n) != 0) {
         fit_cells_free(cl);
         return SB_ERR_NOMEM;
