@@ -1,6 +1,7 @@
 #include "harness.h"
 
 #include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -101,6 +102,20 @@ static void remove_tmpdirs(int keep) {
 int sb_file_exists(const char *path) {
     struct stat st;
     return stat(path, &st) == 0;
+}
+
+char *sb_read_file(const char *path, size_t *len) {
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    char *buf = NULL;
+    long n = fseek(fp, 0, SEEK_END) == 0 ? ftell(fp) : -1;
+    if (n >= 0 && fseek(fp, 0, SEEK_SET) == 0 && (buf = malloc((size_t)n + 1)) != NULL) {
+        if (fread(buf, 1, (size_t)n, fp) != (size_t)n) n = 0;
+        buf[n] = 0;
+        if (len) *len = (size_t)n;
+    }
+    fclose(fp);
+    return buf;
 }
 
 double sb_rand01(unsigned long long *s) {

@@ -60,6 +60,9 @@ int sb_run(const char *cmd, char *out, size_t out_size);
  * failure, or always with SB_KEEP_TMP=1). */
 const char *sb_tmpdir(const char *tag);
 int sb_file_exists(const char *path);
+/* A whole file, NUL-terminated (malloc'd; the caller frees), its length
+ * in *len when len is not NULL; NULL when it cannot be read. */
+char *sb_read_file(const char *path, size_t *len);
 /* Deterministic uniform random numbers in [0, 1). */
 double sb_rand01(unsigned long long *state);
 

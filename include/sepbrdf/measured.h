@@ -199,6 +199,31 @@ typedef struct sb_measured_info {
     sb_measured_field_t fields[SB_MEASURED_FIELDS_MAX];
 } sb_measured_info_t;
 
+/* A reader of a measured format, as the built-in ones are: sniff() looks
+ * at the first bytes of a file (at most 4096) and returns 2 = certainly
+ * this format (a magic, a keyword), 1 = plausible (used only when no
+ * extension matches), 0 = no; open() reads `path` into a source (e.g.
+ * through sb_source_create) with resolved options and an `info` whose
+ * `format` is already set (fill what applies: rows, samples, fields via
+ * the format's own lines), and reports errors through ctx.  `exts`: file
+ * name extensions, space separated (".abc .abd"); title: one line. */
+typedef struct sb_measured_reader {
+    const char *name, *title, *exts;
+    int (*sniff)(const unsigned char *head, size_t n);
+    sb_result_t (*open)(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
+                        sb_measured_info_t *info);
+} sb_measured_reader_t;
+
+/* Add a reader to the registry, after the built-in ones (detection tries
+ * them first): sb_measured_format_*, `format` of sb_measured_opts_t and
+ * sb_source_open on a file then know it.  The descriptor is copied; its
+ * strings and functions must outlive every use (static ones do).  Call
+ * before opening tables from other threads (not synchronised).
+ * SB_ERR_ARG: NULL, or a name, title, exts, sniff or open missing, or the
+ * name "auto" or one the registry holds already; SB_ERR_RANGE: the
+ * registry is full (16 added readers). */
+sb_result_t sb_measured_register_reader(const sb_measured_reader_t *reader);
+
 /* Open a measured table.  `opts` may be NULL (defaults); `info` may be NULL.
  * The source carries SB_SOURCE_MEASURED, and ISOTROPIC / RECIPROCAL / GRAY
  * where they hold (MERL and Cornell: isotropic and reciprocal; ALTA

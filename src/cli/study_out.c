@@ -52,6 +52,54 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
     }
 }
 
+/* One run of "runs": its source and layout, then the results per J. */
+static void json_run(json_t *j, const study_opts_t *o, const run_t *r) {
+    json_begin_object(j, NULL);
+    json_string(j, "source_spec", r->spec);
+    json_string(j, "source", r->source);
+    json_string(j, "param", r->kind >= 0 ? study_kind_name(r->kind) : NULL);
+    json_string(j, "param_spec", r->param_spec);
+    json_bool(j, "ok", r->ok);
+    json_begin_array(j, "warnings");
+    for (size_t k = 0; k < r->nwarn; k++)
+        json_string(j, NULL, r->warn[k]);
+    json_end_array(j);
+    if (!r->ok) {
+        json_string(j, "error", r->error);
+        json_end_object(j);
+        return;
+    }
+    json_int(j, "rows", (long long)r->rows);
+    json_int(j, "cols", (long long)r->cols);
+    json_string(j, "fit", r->masked ? "refit" : "nested");
+    json_bool(j, "masked", r->masked);
+    if (r->masked) {
+        json_int(j, "fit_iterations", r->iterations);
+        json_bool(j, "fit_converged", r->converged);
+    }
+    json_number(j, "sample_s", r->t_sample);
+    json_begin_array(j, "results");
+    for (size_t k = 0; k < r->nr; k++) {
+        const row_t *w = &r->r[k];
+        json_begin_object(j, NULL);
+        json_int(j, "terms", (long long)w->terms);
+        json_number(j, "headline", w->headline);
+        json_number(j, "comparable", w->comparable);
+        json_number(j, "rel_rms", w->rel_rms);
+        json_number(j, "max_abs", w->max_abs);
+        json_number(j, "negative_fraction", w->neg_frac);
+        json_number(j, "factor_s", w->t_factor);
+        json_number(j, "metric_s", w->t_metric);
+        if (o->nmf) {
+            json_number(j, "nmf_headline", w->nmf_headline);
+            json_number(j, "nmf_rel_rms", w->nmf_rel_rms);
+        }
+        json_end_object(j);
+    }
+    json_end_array(j);
+    json_end_object(j);
+}
+
 static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t failed, const char *plot) {
     json_t j = {fp, 0, {0}};
     json_begin_object(&j, NULL);
@@ -76,53 +124,8 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
     json_int(&j, "metric_resolution", (long long)o->metric_res);
     json_end_object(&j);
     json_begin_array(&j, "runs");
-    for (size_t i = 0; i < rs->n; i++) {
-        const run_t *r = &rs->v[i];
-        json_begin_object(&j, NULL);
-        json_string(&j, "source_spec", r->spec);
-        json_string(&j, "source", r->source);
-        json_string(&j, "param", r->kind >= 0 ? study_kind_name(r->kind) : NULL);
-        json_string(&j, "param_spec", r->param_spec);
-        json_bool(&j, "ok", r->ok);
-        json_begin_array(&j, "warnings");
-        for (size_t k = 0; k < r->nwarn; k++)
-            json_string(&j, NULL, r->warn[k]);
-        json_end_array(&j);
-        if (!r->ok) {
-            json_string(&j, "error", r->error);
-            json_end_object(&j);
-            continue;
-        }
-        json_int(&j, "rows", (long long)r->rows);
-        json_int(&j, "cols", (long long)r->cols);
-        json_string(&j, "fit", r->masked ? "refit" : "nested");
-        json_bool(&j, "masked", r->masked);
-        if (r->masked) {
-            json_int(&j, "fit_iterations", r->iterations);
-            json_bool(&j, "fit_converged", r->converged);
-        }
-        json_number(&j, "sample_s", r->t_sample);
-        json_begin_array(&j, "results");
-        for (size_t k = 0; k < r->nr; k++) {
-            const row_t *w = &r->r[k];
-            json_begin_object(&j, NULL);
-            json_int(&j, "terms", (long long)w->terms);
-            json_number(&j, "headline", w->headline);
-            json_number(&j, "comparable", w->comparable);
-            json_number(&j, "rel_rms", w->rel_rms);
-            json_number(&j, "max_abs", w->max_abs);
-            json_number(&j, "negative_fraction", w->neg_frac);
-            json_number(&j, "factor_s", w->t_factor);
-            json_number(&j, "metric_s", w->t_metric);
-            if (o->nmf) {
-                json_number(&j, "nmf_headline", w->nmf_headline);
-                json_number(&j, "nmf_rel_rms", w->nmf_rel_rms);
-            }
-            json_end_object(&j);
-        }
-        json_end_array(&j);
-        json_end_object(&j);
-    }
+    for (size_t i = 0; i < rs->n; i++)
+        json_run(&j, o, &rs->v[i]);
     json_end_array(&j);
     json_int(&j, "failed", (long long)failed);
     json_begin_object(&j, "files");

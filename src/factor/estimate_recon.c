@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "factor/estimate_impl.h"
+#include "param/serial.h"
 #include "util/internal.h"
 
 /* ---- evaluating a reconstruction -------------------------------------- */

@@ -12,26 +12,6 @@
 #include "sepbrdf/glsl.h"
 #include "util/internal.h"
 
-double job_now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-void job_progress(const sb_job_t *job, const char *label, double fraction) {
-    if (job->o.progress && label) job->o.progress(job->o.progress_user, label, fraction);
-}
-
-void job_warn(sb_job_t *job, const char *fmt, ...) {
-    if (job->nwarn == JOB_MAX_WARN) return;
-    char buf[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    if ((job->warn[job->nwarn] = sb_strdup(buf)) != NULL) job->nwarn++;
-}
-
 /* A model spec is NAME[:key=value,...] with NAME a plain identifier, so a
  * NAME with '/' or '.' can only be meant as a file.  Values may hold both
  * ("base=1/0.8/0.3", "roughness=0.5"), hence only the part before ':'. */
@@ -130,6 +110,50 @@ static void job_warn_max_error(sb_job_t *job) {
              "--max-error %g not reached: the lowest headline error is %.4g at J = %zu, the most terms allowed "
              "(report.json: max_error_met false); raise --terms or --res",
              job->o.max_error, e, J);
+}
+
+/* The same run with the default method (an SVD; a masked fit where cells
+ * are excluded) on the kept layout and warp, form and weighting, with
+ * the kept number of terms: its headline and rel_rms per J'.  A failure
+ * is a warning: the non-negative fit stands on its own. */
+static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
+    if (!job_nonneg_method(sb_method_name(job->o.method)) || job->o.sample_only) return SB_OK;
+    const job_attempt_t *a = &job->best;
+    size_t J = sb_factors_terms(a->f);
+    sb_job_opts_t o = job->o;
+    o.method = SB_METHOD_AUTO;
+    o.param = sb_param_spec(a->param); /* the same layout and warp, none tried */
+    o.warp = NULL;
+    o.form = sb_form_name(a->m.form);
+    o.weighted = a->weighted;
+    o.terms = J;
+    o.max_error = 0;
+    o.out = NULL;
+    sb_job_t *svd = NULL;
+    sb_result_t r = sb_job_run_source(ctx, job->src, &o, &svd);
+    if (r == SB_ERR_NOMEM) return r;
+    free(job->svd_beside);
+    job->svd_beside = r == SB_OK ? malloc(2 * J * sizeof *job->svd_beside) : NULL;
+    if (r != SB_OK) {
+        job_warn(job, "no SVD beside the non-negative fit: %s", sb_context_last_error(ctx));
+        return SB_OK;
+    }
+    if (!job->svd_beside) {
+        sb_job_destroy(svd);
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    }
+    const sb_factor_errors_t *e = sb_factors_errors(sb_job_factors(svd));
+    size_t have = sb_factors_terms(sb_job_factors(svd));
+    for (size_t k = 0; k < J; k++) {
+        job->svd_beside[2 * k] = sb_job_headline(svd, k + 1);
+        job->svd_beside[2 * k + 1] = k < have ? e->rel_rms[sb_err_at(k, SB_CH_ALL)] : NAN;
+    }
+    job->svd_beside_terms = J;
+    const char *m = sb_factors_get_meta(sb_job_factors(svd), "method");
+    snprintf(job->svd_method, sizeof job->svd_method, "%s", m ? m : "");
+    job->svd_s = svd->t.total_s;
+    sb_job_destroy(svd);
+    return SB_OK;
 }
 
 static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *own, const sb_job_opts_t *opts,
@@ -236,49 +260,5 @@ void sb_job_destroy(sb_job_t *job) {
     free(job);
 }
 
-/* The accessors take a NULL job (issue 34): NULL pointers, "" strings, 0
- * counts and flags, SB_FORM_F, NAN errors, zeroed structs. */
-const sb_source_t *sb_job_source(const sb_job_t *job) { return job ? job->src : NULL; }
-const char *sb_job_source_spec(const sb_job_t *job) { return job && job->o.source ? job->o.source : ""; }
-const sb_factors_t *sb_job_factors(const sb_job_t *job) { return job ? job->best.f : NULL; }
-const sb_param_t *sb_job_param(const sb_job_t *job) { return job ? job->best.param : NULL; }
-const sb_matrix_t *sb_job_matrix(const sb_job_t *job) { return job ? &job->best.m : NULL; }
-sb_form_t sb_job_form(const sb_job_t *job) { return job ? job->best.m.form : SB_FORM_F; }
-int sb_job_weighted(const sb_job_t *job) { return job ? job->best.weighted : 0; }
+/* A masked fit kept (the accessors of job_base.c take a NULL job too). */
 int sb_job_masked(const sb_job_t *job) { return job ? job_attempt_masked(job, &job->best) : 0; }
-void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out) {
-    if (out) *out = job ? job->best.stats : (sb_plan_stats_t){0};
-}
-const sb_metric_t *sb_job_metric(const sb_job_t *job) { return job ? &job->best.metric : NULL; }
-int sb_job_auto(const sb_job_t *job) { return job ? job->is_auto : 0; }
-size_t sb_job_candidate_count(const sb_job_t *job) { return job ? job->ncand : 0; }
-const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i) {
-    return job && i < job->ncand ? &job->cands[i] : NULL;
-}
-void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out) {
-    if (out) *out = job ? job->t : (sb_job_timings_t){0};
-}
-size_t sb_job_warning_count(const sb_job_t *job) { return job ? job->nwarn : 0; }
-const char *sb_job_warning(const sb_job_t *job, size_t i) { return job && i < job->nwarn ? job->warn[i] : NULL; }
-
-const sb_estimate_t *sb_job_estimate(const sb_job_t *job) { return job ? job->best.est : NULL; }
-
-double sb_job_headline(const sb_job_t *job, size_t j) {
-    return job && job->best.est ? sb_estimate_headline(job->best.est, j) : NAN;
-}
-
-double sb_job_comparable(const sb_job_t *job, size_t j) {
-    const sb_estimate_t *e = job ? job->best.est : NULL;
-    return e && j >= 1 && j <= e->terms ? e->rel[j - 1][SB_EST_FCOS2][SB_CH_ALL] : NAN;
-}
-
-double sb_job_negative(const sb_job_t *job, size_t j) {
-    const sb_estimate_t *e = job ? job->best.est : NULL;
-    return e && j >= 1 && j <= e->terms ? e->neg_frac[j - 1] : NAN;
-}
-
-double sb_job_rel_stored(const sb_job_t *job, size_t j, size_t c) {
-    if (!job) return NAN;
-    size_t J = sb_factors_terms(job->best.f);
-    return job->rel_stored && j >= 1 && j <= J && c <= SB_CH_ALL ? job->rel_stored[sb_err_at(j - 1, c)] : NAN;
-}

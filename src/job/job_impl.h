@@ -1,4 +1,16 @@
-/* Private: the factor job's state (job.c, job_screen.c, job_write.c). */
+/* Private: the factor job's state and the functions its files share.  The
+ * files form a tree (scripts/check_layers.sh checks it), each calling only
+ * those on the lines above it:
+ *   job_base.c (clock, progress, warnings, accessors), job_json.c,
+ *   job_cache.c, job_beside.c (which methods are non-negative)
+ *   job_support.c, job_scene.c, job_candidates.c
+ *   job_attempt.c (sample, factor and measure one candidate)
+ *   job_cv.c, job_weights.c
+ *   job_texels.c
+ *   job_screen.c (screen the candidates, fit the kept one)
+ *   job_warp.c, then job_budget.c
+ *   job_report.c, then job_write.c
+ *   job.c (options, the driver, the SVD beside a non-negative fit) */
 #ifndef SEPBRDF_JOB_IMPL_H
 #define SEPBRDF_JOB_IMPL_H
 
@@ -113,6 +125,9 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
  * layout's kept fit and for a warped refit (converged, a warped fit can
  * drift: GGX roughness 0.1 rose from 1.4 % at 10 sweeps to 6-130 %). */
 sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *full, job_attempt_t *a);
+/* The estimator's errors of a->f as stored (HALF or FLOAT) into a->est,
+ * on the job's pairs, growing them up to lv->est_max_pairs. */
+sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* a's estimate as reported: a ranking's (lv.rank_only) is done again
@@ -154,10 +169,6 @@ size_t job_layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res
 sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
-/* With a non-negative method (SB_CAP_NONNEG), the same run with the
- * default method on the kept layout beside it (job_beside.c): its headline
- * and rel_rms per J' (sb_job_svd_headline); a failure adds a warning. */
-sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job);
 /* Whether the solver named `name` (a method, or the factors' "method"
  * meta) gives non-negative factors by construction (SB_CAP_NONNEG). */
 int job_nonneg_method(const char *name);

@@ -16,21 +16,6 @@
 #include "outset_impl.h"
 #include "util/internal.h"
 
-const char *sb_io_why(int err) {
-    switch (err) {
-    case ENOSPC:
-        return "disk full (no space left on device)";
-    case EDQUOT:
-        return "disk quota exceeded";
-    case EFBIG:
-        return "file too large (the file size limit, ulimit -f, was reached)";
-    case ENAMETOOLONG:
-        return "name too long for the file system";
-    default:
-        return strerror(err);
-    }
-}
-
 char *outset_join(const char *a, const char *b) {
     size_t len = strlen(a) + strlen(b) + 2;
     char *p = malloc(len);

@@ -106,6 +106,8 @@ static float *ref_table(sb_context_t *ctx, const sb_source_t *src, const sb_para
                         sb_result_t *r) {
     sb_matrix_t m = {0};
     sb_matrix_opts_t mo = {0};
+    /* a layout on the source's tables: its nodes (form cos over the gain; the page multiplies back) */
+    if (sb_param_caps(ref) & SB_CAP_TABLES) mo.form = SB_FORM_COS;
     if ((*r = sb_matrix_build(ctx, src, ref, &mo, &m)) != SB_OK) return NULL;
     size_t cells = m.rows * m.cols, texels = (cells + TABLE_WIDTH - 1) / TABLE_WIDTH * TABLE_WIDTH;
     float *out = sb_calloc(ctx, texels, 4 * sizeof(float), "viewer reference table");
@@ -230,6 +232,17 @@ static void put_data(FILE *fp, const sb_factors_t *f, const sb_param_t *param, s
     } else {
         fputs("null", fp);
     }
+    fputs(",\"vndf\":", fp);
+    size_t tw, th;
+    float *tab = NULL;
+    if (sb_param_tables_texture(param, &tw, &th, &tab) == SB_OK) {
+        fprintf(fp, "{\"width\":%zu,\"height\":%zu,\"texels\":", tw, th);
+        put_floats(fp, tab, tw * th * 3);
+        fputs("}", fp);
+        free(tab);
+    } else {
+        fputs("null", fp);
+    }
     fputs("};\n", fp);
 }
 
@@ -273,11 +286,6 @@ sb_result_t sb_viewer_write(sb_context_t *ctx, const char *path, const sb_factor
     sb_result_t r = check_args(ctx, path, f, param);
     if (r != SB_OK) return r;
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "viewer: unknown form %d", (int)form);
-    if (sb_param_caps(param) & SB_CAP_TABLES)
-        return sb_error(ctx, SB_ERR_UNSUPPORTED,
-                        "viewer: %s's snippet reads its tables from vndf.exr, which the page does not carry yet; "
-                        "`sepbrdf render` draws the set",
-                        sb_param_name(param));
     sb_viewer_opts_t o = {0};
     if (opts) o = *opts;
     char *own = o.glsl ? NULL : sb_glsl_snippet(param, form, sb_factors_terms(f), NULL);

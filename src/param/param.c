@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "param/param_impl.h"
+#include "param/serial.h"
 #include "sepbrdf/source.h"
 #include "util/internal.h"
 

@@ -431,6 +431,50 @@ static void *rows_max(void *arg) {
     return NULL;
 }
 
+/* The cos vector alone breaks the structure.  With
+ * a = 2 pi k / R, its cell (i, o) is cf (2/R) cos(a i) cos(a o)
+ * = (cf/R) (cos(a (o - i)) + cos(a (o + i))): for each azimuth
+ * difference d the cells differ only in cos(a s), s = o + i =
+ * d + 2i mod R, and |A - B cos| is largest at the extremes of
+ * cos over the reachable s (the parity of d when R is even). */
+static void cos_bounds(const sb_circ_t *c, const cand_t *q, double *e) {
+    size_t R = c->R;
+    double cmx[2] = {-2, -2}, cmn[2] = {2, 2};
+    for (size_t s2 = 0; s2 < R; s2++) {
+        double cv = c->ct[((size_t)q->k * s2) % R];
+        int par = R % 2 == 0 ? (int)(s2 % 2) : 0;
+        if (cv > cmx[par]) cmx[par] = cv;
+        if (cv < cmn[par]) cmn[par] = cv;
+    }
+    if (R % 2) {
+        cmx[1] = cmx[0];
+        cmn[1] = cmn[0];
+    }
+    double *hi = e, *lo = e + R;
+    for (size_t d = 0; d < R; d++) {
+        double ck = c->ct[((size_t)q->k * d) % R];
+        hi[d] = ck + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
+        lo[d] = ck + cmn[d % 2];
+    }
+}
+
+/* The phase of each azimuth difference d in a whole (circulant) term or
+ * pair: 1/R (k = 0), (-1)^d / R (the single Nyquist term), else
+ * 2 cos(2 pi k d / R) / R. */
+static void term_phase(const sb_circ_t *c, const cand_t *q, double *e) {
+    size_t R = c->R;
+    for (size_t d = 0; d < R; d++) {
+        double ph;
+        if (q->k == 0)
+            ph = 1 / (double)R;
+        else if (single(c, q->k))
+            ph = (d % 2 ? -1.0 : 1.0) / (double)R;
+        else
+            ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
+        e[d] = ph;
+    }
+}
+
 sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
                             double *mx) {
     size_t R = c->R, R2 = R * R;
@@ -456,29 +500,7 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
         }
         int pair_next = !single(c, q->k) && j + 1 < J && c->cand[j + 1].k == q->k && c->cand[j + 1].idx == q->idx;
         if (!single(c, q->k)) {
-            /* Step: the cos vector alone breaks the structure.  With
-             * a = 2 pi k / R, its cell (i, o) is cf (2/R) cos(a i) cos(a o)
-             * = (cf/R) (cos(a (o - i)) + cos(a (o + i))): for each azimuth
-             * difference d the cells differ only in cos(a s), s = o + i =
-             * d + 2i mod R, and |A - B cos| is largest at the extremes of
-             * cos over the reachable s (the parity of d when R is even). */
-            double cmx[2] = {-2, -2}, cmn[2] = {2, 2};
-            for (size_t s2 = 0; s2 < R; s2++) {
-                double cv = c->ct[((size_t)q->k * s2) % R];
-                int par = R % 2 == 0 ? (int)(s2 % 2) : 0;
-                if (cv > cmx[par]) cmx[par] = cv;
-                if (cv < cmn[par]) cmn[par] = cv;
-            }
-            if (R % 2) {
-                cmx[1] = cmx[0];
-                cmn[1] = cmn[0];
-            }
-            double *hi = e, *lo = e + R;
-            for (size_t d = 0; d < R; d++) {
-                double ck = c->ct[((size_t)q->k * d) % R];
-                hi[d] = ck + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
-                lo[d] = ck + cmn[d % 2];
-            }
+            cos_bounds(c, q, e);
             st[ns++] = (circ_step_t){1, sg, at, bt, e};
             if (!pair_next) break; /* J ends inside the pair */
             j++;
@@ -486,17 +508,7 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
             memcpy(buf + ns * 4 * R, at, 2 * R * sizeof *at);
             at = buf + ns * 4 * R, bt = at + R, e = bt + R;
         }
-        /* Step: subtract the whole (circulant) term or pair */
-        for (size_t d = 0; d < R; d++) {
-            double ph;
-            if (q->k == 0)
-                ph = 1 / (double)R;
-            else if (single(c, q->k))
-                ph = (d % 2 ? -1.0 : 1.0) / (double)R;
-            else
-                ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
-            e[d] = ph;
-        }
+        term_phase(c, q, e); /* Step: subtract the whole (circulant) term or pair */
         st[ns++] = (circ_step_t){0, sg, at, bt, e};
     }
     /* Step: every row once, split by the azimuth difference d */

@@ -1,6 +1,6 @@
 /* Masked fit, part 2 (fit.c has the whole picture): alternating least
- * squares on the valid cells, gathered once per execute in both orders,
- * and the nested stages that add one term at a time. */
+ * squares on the valid cells (gathered once per execute in both orders by
+ * fit_cells.c), and the nested stages that add one term at a time. */
 #include <assert.h>
 #include <cblas.h>
 #include <math.h>
@@ -23,167 +23,6 @@ static inline void spd_solve(double *G, double *b, size_t k) {
         G[i * k + i] += ridge;
     sb_chol(G, k, 1e-150);
     sb_chol_solve(G, k, b, 1);
-}
-
-void fit_cells_free(als_cells_t *cl) {
-    free(cl->D);
-    free(cl->DT);
-    free(cl->bt);
-    free(cl->ca2);
-    free(cl->cip);
-    free(cl->rip);
-    free(cl->ci);
-    free(cl->ri);
-    free(cl->cp);
-    free(cl->rp);
-    free(cl->cr);
-    free(cl->rc);
-    free(cl->cv);
-    free(cl->rv);
-    free(cl->cbuf);
-    free(cl->rbuf);
-}
-
-/* D and DT from cres (zeros stay where no cell is). */
-static void dense_residual(als_cells_t *cl, size_t m, size_t n) {
-    if (!cl->D) return;
-    memset(cl->D, 0, m * n * sizeof *cl->D);
-    memset(cl->DT, 0, m * n * sizeof *cl->DT);
-    for (size_t c = 0; c < n; c++)
-        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
-            cl->D[cl->cr[t] + c * m] = cl->cres[t];
-            cl->DT[c + cl->cr[t] * n] = cl->cres[t];
-        }
-}
-
-/* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
- * SB_ERR_NOMEM. */
-int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
-                    const unsigned char *mask, size_t nvalid) {
-    /* ~40 bytes per valid cell: through sb_alloc, so the memory limit holds */
-    static const char what[] = "masked fit: gathered cells";
-    memset(cl, 0, sizeof *cl);
-    cl->cp = sb_alloc(ctx, n + 1, sizeof *cl->cp, what);
-    cl->rp = sb_calloc(ctx, m + 1, sizeof *cl->rp, what);
-    cl->cr = sb_alloc(ctx, nvalid, sizeof *cl->cr, what);
-    cl->rc = sb_alloc(ctx, nvalid, sizeof *cl->rc, what);
-    cl->cv = sb_alloc(ctx, nvalid, sizeof *cl->cv, what);
-    cl->rv = sb_alloc(ctx, nvalid, sizeof *cl->rv, what);
-    cl->cbuf = sb_alloc(ctx, nvalid, sizeof *cl->cbuf, what);
-    cl->rbuf = sb_alloc(ctx, nvalid, sizeof *cl->rbuf, what);
-    size_t nout = m * n - nvalid;
-    cl->cip = sb_alloc(ctx, n + 1, sizeof *cl->cip, what);
-    cl->rip = sb_calloc(ctx, m + 1, sizeof *cl->rip, what);
-    cl->ci = sb_alloc(ctx, nout ? nout : 1, sizeof *cl->ci, what);
-    cl->ri = sb_alloc(ctx, nout ? nout : 1, sizeof *cl->ri, what);
-    cl->ca2 = sb_alloc(ctx, n, sizeof *cl->ca2, what);
-    if (!cl->cp || !cl->rp || !cl->cr || !cl->rc || !cl->cv || !cl->rv || !cl->cbuf || !cl->rbuf || !cl->cip ||
-        !cl->rip || !cl->ci || !cl->ri || !cl->ca2) {
-        fit_cells_free(cl);
-        return SB_ERR_NOMEM;
-    }
-    /* column order; count each row's cells on the way */
-    size_t t = 0, u = 0;
-    for (size_t c = 0; c < n; c++) {
-        cl->cp[c] = t;
-        cl->cip[c] = u;
-        for (size_t r = 0; r < m; r++)
-            if (mask[r + c * lda]) {
-                cl->cr[t] = (uint32_t)r;
-                cl->cv[t++] = X[r + c * lda];
-                cl->rp[r + 1]++;
-            } else {
-                cl->ci[u++] = (uint32_t)r;
-                cl->rip[r + 1]++;
-            }
-    }
-    cl->cp[n] = t;
-    cl->cip[n] = u;
-    assert(t == nvalid && u == nout);
-    /* row order: prefix sums, then a scatter in column order keeps each
-     * row's columns increasing */
-    for (size_t r = 0; r < m; r++)
-        cl->rp[r + 1] += cl->rp[r];
-    size_t *next = malloc(m * sizeof *next);
-    if (!next) {
-        fit_cells_free(cl);
-        return sb_error(ctx, SB_ERR_NOMEM, "masked fit: cannot allocate %zu bytes", m * sizeof *next);
-    }
-    memcpy(next, cl->rp, m * sizeof *next);
-    for (size_t c = 0; c < n; c++)
-        for (size_t v = cl->cp[c]; v < cl->cp[c + 1]; v++) {
-            size_t at = next[cl->cr[v]]++;
-            cl->rc[at] = (uint32_t)c;
-            cl->rv[at] = cl->cv[v];
-        }
-    for (size_t r = 0; r < m; r++) /* the cells left out, likewise */
-        cl->rip[r + 1] += cl->rip[r];
-    memcpy(next, cl->rip, m * sizeof *next);
-    for (size_t c = 0; c < n; c++)
-        for (size_t v = cl->cip[c]; v < cl->cip[c + 1]; v++)
-            cl->ri[next[cl->ci[v]]++] = (uint32_t)c;
-    free(next);
-    cl->cres = cl->cv;
-    cl->rres = cl->rv;
-    /* the dense residual where at least half the cells are valid (the
-     * default's iso cells: 75 %) and the two copies take at most 64 MiB
-     * and a quarter of the memory limit; without them (or without the
-     * memory) the gathers.  The default run: 12 % fewer instructions, the same
-     * errors to 1e-8 */
-    if (2 * nvalid >= m * n && m * n <= ((size_t)1 << 22) && 16 * m * n <= sb_memory_limit() / 4) {
-        cl->D = malloc(m * n * sizeof *cl->D);
-        cl->DT = malloc(m * n * sizeof *cl->DT);
-        cl->bt = malloc((m > n ? m : n) * SB_ALS_MAX_K * sizeof *cl->bt);
-        if (!cl->D || !cl->DT || !cl->bt) {
-            free(cl->D), free(cl->DT), free(cl->bt);
-            cl->D = cl->DT = cl->bt = NULL;
-        }
-    }
-    return 0;
-}
-
-/* Step: the sums of squares of cres per column and in all. */
-static void column_sums(als_cells_t *cl, size_t n) {
-    cl->a2 = 0;
-    for (size_t c = 0; c < n; c++) {
-        double a2 = 0;
-        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++)
-            a2 += cl->cres[t] * cl->cres[t];
-        cl->ca2[c] = a2;
-        cl->a2 += a2;
-    }
-}
-
-/* The data less the fixed terms 0..j0-1, in both orders (aliases of the
- * data for j0 = 0). */
-void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0) {
-    size_t m = f->m, n = f->n;
-    const double *P = f->P, *Q = f->Q;
-    if (j0 == 0) {
-        cl->cres = cl->cv;
-        cl->rres = cl->rv;
-        column_sums(cl, n);
-        dense_residual(cl, m, n);
-        return;
-    }
-    for (size_t c = 0; c < n; c++)
-        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
-            double a = cl->cv[t];
-            for (size_t j = 0; j < j0; j++)
-                a -= P[cl->cr[t] + j * m] * Q[c + j * n];
-            cl->cbuf[t] = a;
-        }
-    for (size_t r = 0; r < m; r++)
-        for (size_t t = cl->rp[r]; t < cl->rp[r + 1]; t++) {
-            double a = cl->rv[t];
-            for (size_t j = 0; j < j0; j++)
-                a -= P[r + j * m] * Q[cl->rc[t] + j * n];
-            cl->rbuf[t] = a;
-        }
-    cl->cres = cl->cbuf;
-    cl->rres = cl->rbuf;
-    column_sums(cl, n);
-    dense_residual(cl, m, n);
 }
 
 /* x (k values) and its outer product's lower triangle, row by row
@@ -486,6 +325,94 @@ static int joint_stage(size_t ka) { return ka > 1 && ka <= SB_JOINT_ALL; }
  * when the run that gave the last stage's kept result stopped at
  * max_iters (earlier stages only warm-start the later ones).  SB_OK or
  * SB_ERR_NOMEM. */
+/* A run of the stages: what every stage reads, the copies a rejected
+ * joint refit is restored from, and the accepted prefix errors. */
+typedef struct als_run {
+    sb_fit_t *f;
+    als_cells_t cl;
+    const sb_fit_opts_t *o;
+    int strict, *total, *stretched;
+    double norm2, *saveP, *saveQ;
+    double acc[SB_ALS_MAX_K];
+    als_resume_t *rs;
+} als_run_t;
+
+/* Step: the new term ka - 1 alone on the residual of the others: the error
+ * can only go down (its first half-sweep is a least-squares step from the
+ * warm start).  replay: the strict run's last stage computes what the
+ * recorded one did (the same start and cells), taken from the record;
+ * record: keep it there.  Returns the error. */
+static double stage_new_term(als_run_t *ru, size_t ka, int replay, int record, int *c1) {
+    sb_fit_t *f = ru->f;
+    als_resume_t *rs = ru->rs;
+    size_t m = f->m, n = f->n, k = f->k;
+    double err;
+    if (replay) {
+        memcpy(f->P, rs->P1, m * k * sizeof *f->P);
+        memcpy(f->Q, rs->Q1, n * k * sizeof *f->Q);
+        err = rs->err1, *c1 = rs->c1;
+    } else {
+        err = fit_als_until(f, &ru->cl, ka - 1, ka, ru->o, sqrt(ru->norm2), ru->total, c1);
+    }
+    if (record) {
+        memcpy(rs->P1, f->P, m * k * sizeof *f->P);
+        memcpy(rs->Q1, f->Q, n * k * sizeof *f->Q);
+        rs->err1 = err, rs->c1 = *c1;
+    }
+    return err;
+}
+
+/* Step: then all ka jointly: a joint refit may trade the prefixes'
+ * accuracy for cancelling terms that are large outside the domain, which
+ * also spoil interpolated lookups near its edge.  Kept only if no shorter
+ * prefix gets more than SB_PREFIX_SLACK times worse (at the last stage: no
+ * worse than no term at all); strict: and the prefixes' errors stay
+ * non-increasing.  Returns 1 when kept (*err is then the joint error),
+ * else 0 with the terms restored. */
+static int stage_joint(als_run_t *ru, size_t ka, int replay, int record, double *err, int *cj) {
+    sb_fit_t *f = ru->f;
+    als_resume_t *rs = ru->rs;
+    size_t m = f->m, n = f->n, k = f->k;
+    double e2[SB_ALS_MAX_K], *acc = ru->acc, norm2 = ru->norm2;
+    memcpy(ru->saveP, f->P, m * ka * sizeof *ru->saveP);
+    memcpy(ru->saveQ, f->Q, n * ka * sizeof *ru->saveQ);
+    double ej;
+    if (replay) {
+        memcpy(f->P, rs->Pj, m * k * sizeof *f->P);
+        memcpy(f->Q, rs->Qj, n * k * sizeof *f->Q);
+        memcpy(e2, rs->e2, sizeof e2);
+        ej = rs->errj, *cj = rs->cj;
+    } else {
+        ej = fit_als_until(f, &ru->cl, 0, ka, ru->o, sqrt(norm2), ru->total, cj);
+        prefix_errors(f, &ru->cl, ka, e2);
+    }
+    if (record) {
+        memcpy(rs->Pj, f->P, m * k * sizeof *f->P);
+        memcpy(rs->Qj, f->Q, n * k * sizeof *f->Q);
+        memcpy(rs->e2, e2, sizeof e2);
+        rs->errj = ej, rs->cj = *cj, rs->last = 1;
+    }
+    int keep = ej <= *err;
+    double slack = ka == k && !ru->strict ? INFINITY : SB_PREFIX_SLACK;
+    int within = 1, monotone = 1;
+    for (size_t j = 0; keep && j + 1 < ka; j++) {
+        keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2)) && (!ru->strict || e2[j + 1] <= e2[j]);
+        within &= sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK;
+        monotone &= e2[j + 1] <= e2[j];
+    }
+    if (keep && !monotone && rs && rs->save && ka < k) rs->same = 0; /* strict would not keep it */
+    if (keep && !within) *ru->stretched = 1;
+    if (keep) {
+        *err = ej;
+        for (size_t j = 0; j + 1 < ka; j++)
+            acc[j] = fmax(acc[j], sqrt(e2[j]));
+    } else {
+        memcpy(f->P, ru->saveP, m * ka * sizeof *ru->saveP);
+        memcpy(f->Q, ru->saveQ, n * ka * sizeof *ru->saveQ);
+    }
+    return keep;
+}
+
 sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
                            const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
                            int *stretched, als_resume_t *rs) {
@@ -495,13 +422,13 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
      * masked fit of its rank (the terms are not re-orthogonalised over
      * the whole matrix: that would mix in the unconstrained values the
      * fit implies outside the domain). */
-    double acc[SB_ALS_MAX_K], e2[SB_ALS_MAX_K]; /* accepted prefix errors */
-    double *saveP = malloc(m * k * sizeof *saveP), *saveQ = malloc(n * k * sizeof *saveQ);
-    als_cells_t cl;
-    if (!saveP || !saveQ || fit_cells_build(f->ctx, &cl, As, m, n, lda, mask, nvalid) != 0) {
-        int saved = saveP && saveQ; /* else fit_cells_build failed and named its bytes */
-        free(saveP);
-        free(saveQ);
+    als_run_t ru = {.f = f, .o = o, .strict = strict, .total = total, .stretched = stretched, .norm2 = norm2, .rs = rs};
+    ru.saveP = malloc(m * k * sizeof *ru.saveP);
+    ru.saveQ = malloc(n * k * sizeof *ru.saveQ);
+    if (!ru.saveP || !ru.saveQ || fit_cells_build(f->ctx, &ru.cl, As, m, n, lda, mask, nvalid) != 0) {
+        int saved = ru.saveP && ru.saveQ; /* else fit_cells_build failed and named its bytes */
+        free(ru.saveP);
+        free(ru.saveQ);
         if (saved) return SB_ERR_NOMEM;
         return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + n) * k * sizeof(double));
     }
@@ -509,7 +436,7 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
     if (rs && rs->resume) { /* the non-strict run's state before its last stage */
         memcpy(f->P, rs->P, m * k * sizeof *f->P);
         memcpy(f->Q, rs->Q, n * k * sizeof *f->Q);
-        memcpy(acc, rs->acc, sizeof acc);
+        memcpy(ru.acc, rs->acc, sizeof ru.acc);
         *err = rs->err;
         *converged = rs->converged;
         ka0 = k;
@@ -519,77 +446,16 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
         if (rs && rs->save && ka == k && k > 1) {
             memcpy(rs->P, f->P, m * k * sizeof *f->P);
             memcpy(rs->Q, f->Q, n * k * sizeof *f->Q);
-            memcpy(rs->acc, acc, sizeof acc);
+            memcpy(rs->acc, ru.acc, sizeof ru.acc);
             rs->err = *err;
             rs->converged = *converged;
             rs->valid = 1;
         }
-        /* first the new term alone on the residual of the others: the
-         * error can only go down (its first half-sweep is a least-squares
-         * step from the warm start) */
         int c1 = 1, cj = 1, keep = 0;
-        /* the strict run's last stage computes what the recorded one did
-         * (the same start and cells): taken from the record */
         int replay = rs && rs->resume && rs->last && ka == k, record = rs && rs->save && ka == k && k > 1;
-        if (replay) {
-            memcpy(f->P, rs->P1, m * k * sizeof *f->P);
-            memcpy(f->Q, rs->Q1, n * k * sizeof *f->Q);
-            *err = rs->err1, c1 = rs->c1;
-        } else {
-            *err = fit_als_until(f, &cl, ka - 1, ka, o, sqrt(norm2), total, &c1);
-        }
-        if (record) {
-            memcpy(rs->P1, f->P, m * k * sizeof *f->P);
-            memcpy(rs->Q1, f->Q, n * k * sizeof *f->Q);
-            rs->err1 = *err, rs->c1 = c1;
-        }
-        if (joint_stage(ka)) {
-            /* then all ka jointly: a joint refit may trade the prefixes'
-             * accuracy for cancelling terms that are large outside the
-             * domain, which also spoil interpolated lookups near its
-             * edge */
-            memcpy(saveP, f->P, m * ka * sizeof *saveP);
-            memcpy(saveQ, f->Q, n * ka * sizeof *saveQ);
-            double ej;
-            if (replay) {
-                memcpy(f->P, rs->Pj, m * k * sizeof *f->P);
-                memcpy(f->Q, rs->Qj, n * k * sizeof *f->Q);
-                memcpy(e2, rs->e2, sizeof e2);
-                ej = rs->errj, cj = rs->cj;
-            } else {
-                ej = fit_als_until(f, &cl, 0, ka, o, sqrt(norm2), total, &cj);
-                prefix_errors(f, &cl, ka, e2);
-            }
-            if (record) {
-                memcpy(rs->Pj, f->P, m * k * sizeof *f->P);
-                memcpy(rs->Qj, f->Q, n * k * sizeof *f->Q);
-                memcpy(rs->e2, e2, sizeof e2);
-                rs->errj = ej, rs->cj = cj, rs->last = 1;
-            }
-            /* kept only if no shorter prefix gets more than
-             * SB_PREFIX_SLACK times worse (at the last stage: no worse than
-             * no term at all); strict: and the prefixes' errors stay
-             * non-increasing */
-            keep = ej <= *err;
-            double slack = ka == k && !strict ? INFINITY : SB_PREFIX_SLACK;
-            int within = 1, monotone = 1;
-            for (size_t j = 0; keep && j + 1 < ka; j++) {
-                keep = sqrt(e2[j]) <= fmin(acc[j] * slack, sqrt(norm2)) && (!strict || e2[j + 1] <= e2[j]);
-                within &= sqrt(e2[j]) <= acc[j] * SB_PREFIX_SLACK;
-                monotone &= e2[j + 1] <= e2[j];
-            }
-            if (keep && !monotone && rs && rs->save && ka < k) rs->same = 0; /* strict would not keep it */
-            if (keep && !within) *stretched = 1;
-            if (keep) {
-                *err = ej;
-                for (size_t j = 0; j + 1 < ka; j++)
-                    acc[j] = fmax(acc[j], sqrt(e2[j]));
-            } else {
-                memcpy(f->P, saveP, m * ka * sizeof *saveP);
-                memcpy(f->Q, saveQ, n * ka * sizeof *saveQ);
-            }
-        }
-        acc[ka - 1] = *err;
+        *err = stage_new_term(&ru, ka, replay, record, &c1);
+        if (joint_stage(ka)) keep = stage_joint(&ru, ka, replay, record, err, &cj);
+        ru.acc[ka - 1] = *err;
         *converged = keep ? cj : c1;
         if (o->target > 0 && *err <= o->target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
             memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
@@ -597,9 +463,9 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
             break;
         }
     }
-    free(saveP);
-    free(saveQ);
-    fit_cells_free(&cl);
+    free(ru.saveP);
+    free(ru.saveQ);
+    fit_cells_free(&ru.cl);
     return SB_OK;
 }
 

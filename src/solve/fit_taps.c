@@ -101,6 +101,45 @@ static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsi
     return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
 }
 
+/* Step, after a pass with taps: the taps reaching unconstrained cells that
+ * overshoot are constrained (ext, nvalid cells so far) and the stages run
+ * again from the fit found (twice at most; warm, each stage stops after a
+ * few sweeps).  A round whose fit already costs the valid cells more than
+ * SB_TAPS_COST ends the rounds: its constraints are dropped below, and a
+ * next round adds constraints (the default gold at J = 4 and 32, GGX 0.1
+ * and 0.3, Blinn-Phong, the Cornell, RGL and ALTA tables: the same factors
+ * without it; in the default run it was a third of the fit's time).  Data
+ * that the rank-k structure extends exactly (or nearly) are their own best
+ * extrapolation: a constraint that costs the valid cells more than
+ * SB_TAPS_COST in error is dropped (the pass's terms, kept in P1, Q1,
+ * restored). */
+static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, unsigned char *ext,
+                               size_t nvalid, const sb_fit_opts_t *o, int strict, double norm2, int *total,
+                               int *converged, double *err, int *stretched, double *P1, double *Q1) {
+    size_t m = f->m, n = f->n, k = f->k;
+    double e2[SB_ALS_MAX_K];
+    fit_valid_prefix_e2(f, As, lda, mask, e2);
+    double before = e2[k - 1];
+    memcpy(P1, f->P, m * k * sizeof *P1);
+    memcpy(Q1, f->Q, n * k * sizeof *Q1);
+    size_t constrained = 0;
+    sb_result_t r = SB_OK;
+    for (int round = 0; r == SB_OK && round < 2; round++) {
+        size_t added = fit_constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
+        if (added == (size_t)-1) r = SB_ERR_NOMEM;
+        if (added == 0 || r != SB_OK) break;
+        nvalid += added;
+        constrained += added;
+        r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, stretched, NULL);
+        if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+    }
+    if (r == SB_OK && constrained && taps_cost(f, As, lda, mask, before, norm2)) {
+        memcpy(f->P, P1, m * k * sizeof *P1);
+        memcpy(f->Q, Q1, n * k * sizeof *Q1);
+    }
+    return r;
+}
+
 /* The ALS part of a fit from the warm start in f->P, f->Q: the stages
  * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
  * (fit_constrain_taps, twice at most, warm), and when the prefixes' errors on
@@ -147,38 +186,8 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
         /* taps reaching unconstrained cells that overshoot: constrain
          * them and run the stages again from the fit found (twice at
          * most; warm, each stage stops after a few sweeps) */
-        double e2[SB_ALS_MAX_K], before = 0;
-        if (taps) {
-            fit_valid_prefix_e2(f, As, lda, mask, e2);
-            before = e2[k - 1];
-            memcpy(P1, f->P, m * k * sizeof *P1);
-            memcpy(Q1, f->Q, n * k * sizeof *Q1);
-        }
-        size_t constrained = 0;
-        for (int round = 0; r == SB_OK && taps && round < 2; round++) {
-            size_t added = fit_constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
-            if (added == (size_t)-1) r = SB_ERR_NOMEM;
-            if (added == 0 || r != SB_OK) break;
-            nvalid += added;
-            constrained += added;
-            r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, NULL);
-            /* a round whose fit already costs the valid cells more than
-             * SB_TAPS_COST ends the rounds: its constraints are dropped
-             * below, and a next round adds constraints (the default gold
-             * at J = 4 and 32, GGX 0.1 and 0.3, Blinn-Phong, the Cornell,
-             * RGL and ALTA tables: the same factors without it; in the
-             * default run it was a third of the fit's time) */
-            if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
-        }
-        /* data that the rank-k structure extends exactly (or nearly) are
-         * their own best extrapolation: a constraint that costs the valid
-         * cells more than SB_TAPS_COST in error is dropped */
-        if (r == SB_OK && constrained) {
-            if (taps_cost(f, As, lda, mask, before, norm2)) {
-                memcpy(f->P, P1, m * k * sizeof *P1);
-                memcpy(f->Q, Q1, n * k * sizeof *Q1);
-            }
-        }
+        if (r == SB_OK && taps)
+            r = taps_rounds(f, As, lda, mask, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, P1, Q1);
         if (r != SB_OK || (!stretched && fit_prefixes_monotone(f, As, lda, mask))) break;
     }
     free(ext);

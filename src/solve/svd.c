@@ -33,22 +33,6 @@ const char *sb_method_name(sb_method_t m) { return (unsigned)m < SB_METHOD_COUNT
 #define SB_SVD_DEFAULT_Q 2
 #define SB_SVD_DEFAULT_BLOCK 32
 
-void *sb_svd_ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
-    size_t count;
-    if (sb_size_mul(count1, count2, &count)) {
-        sb_error(s->ctx, SB_ERR_OVERFLOW, "svd: workspace size %zu x %zu overflows", count1, count2);
-        s->failed = SB_ERR_OVERFLOW;
-        return NULL;
-    }
-    void *p = sb_alloc(s->ctx, count, size, "svd workspace");
-    if (!p) {
-        s->failed = count > sb_memory_limit() / size ? SB_ERR_OVERFLOW : SB_ERR_NOMEM;
-        return NULL;
-    }
-    s->bytes += count * size;
-    return p;
-}
-
 /* ---- plan --------------------------------------------------------------- */
 
 /* The AUTO rule (measurements in docs/performance.md). */
@@ -71,10 +55,6 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out) {
     return create(ctx, m, n, k, opts, 0, out);
-}
-
-sb_result_t sb_svd_create_gram(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out) {
-    return create(NULL, m, n, k, opts, 1, out);
 }
 
 static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, int gram,
@@ -133,8 +113,12 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;
     if (r == SB_OK)
         r = s->method == SB_METHOD_RANDOMIZED         ? sb_svd_plan_rand(s)
-            : s->method == SB_METHOD_TOPK && !s->gram ? sb_svd_plan_topk_krylov(s, &o)
+            : s->method == SB_METHOD_TOPK && !s->gram ? sb_svd_plan_topk_krylov(s)
                                                       : sb_svd_plan_dense(s);
+    /* TOPK by Krylov cycles: the Gram route as a plan of its own for
+     * matrices whose cycles do not converge; where that does not fit the
+     * memory limit, such a matrix gives SB_ERR_NUMERIC instead */
+    if (r == SB_OK && s->method == SB_METHOD_TOPK && !s->gram) create(NULL, m, n, k, &o, 1, &s->gram_plan);
     if (r == SB_OK &&
         !(s->work = ws_alloc(s, (size_t)(s->lwork > 0 ? s->lwork : 1), 1, s->single ? sizeof(float) : sizeof(double))))
         r = SB_ERR_NOMEM;
@@ -235,32 +219,6 @@ static int copy_in(sb_svd_t *s, const double *A, size_t lda, double *nrm) {
         }
     }
     return finish_norm(s, A, lda, t, nrm);
-}
-
-double sb_svd_sv_at(const sb_svd_t *s, size_t j) {
-    return s->single ? (double)((const float *)s->sv)[j] : ((const double *)s->sv)[j];
-}
-
-/* The errors below are kept relative to ||A|| (s_j / ||A|| squared) so that
- * neither a huge nor a tiny matrix overflows; nrm = 0 is the zero matrix,
- * whose every truncation is exact. */
-
-double sb_svd_resid_from(double nrm, const double *sv, size_t r) {
-    if (!(nrm > 0)) return 0;
-    double c = 0, inv = 1 / nrm;
-    for (size_t j = 0; j < r; j++)
-        c += (sv[j] * inv) * (sv[j] * inv);
-    return c < 1 ? nrm * sqrt(1 - c) : 0;
-}
-
-size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo) {
-    double c = 0, inv = nrm > 0 ? 1 / nrm : 0;
-    if (lo < 1) lo = 1;
-    for (size_t j = 0; j < k; j++) {
-        c += (sv[j] * inv) * (sv[j] * inv);
-        if (j + 1 >= lo && (!(nrm > 0) || 1 - c <= tol2)) return j + 1;
-    }
-    return k;
 }
 
 /* Copy or read A as the method needs (single precision and FULL take a

@@ -1,5 +1,7 @@
 /* Private: the truncated-SVD plan shared by svd.c (plan, dispatch, norms),
- * svd_dense.c (FULL, TOPK) and svd_rand.c (RANDOMIZED). */
+ * svd_dense.c (FULL, TOPK), svd_rand.c (RANDOMIZED) and svd_common.c (the
+ * helpers below them all).  The files form a tree: svd.c calls the methods,
+ * svd_rand.c may call svd_dense.c, all of them svd_common.c. */
 #ifndef SEPBRDF_SVD_INTERNAL_H
 #define SEPBRDF_SVD_INTERNAL_H
 
@@ -87,14 +89,11 @@ double sb_svd_resid_from(double nrm, const double *sv, size_t r);
 /* Smallest r in [max(lo, 1), k] with 1 - sum_{j<r} (s_j / ||A||)^2 <= tol^2. */
 size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo);
 
-/* A TOPK plan by the Gram route (svd.c): the fallback of the Krylov one. */
-sb_result_t sb_svd_create_gram(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
-
 /* Workspaces of FULL and TOPK by the Gram route (svd_dense.c), RANDOMIZED
  * and TOPK by Krylov cycles (svd_rand.c). */
 sb_result_t sb_svd_plan_dense(sb_svd_t *s);
 sb_result_t sb_svd_plan_rand(sb_svd_t *s);
-sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s, const sb_svd_opts_t *opts);
+sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s);
 /* The methods: fill run->sv, U, V, r, sketch and info. */
 sb_result_t sb_svd_run_full(sb_svd_t *s, sb_svd_run_t *run);
 sb_result_t sb_svd_run_topk(sb_svd_t *s, sb_svd_run_t *run);

@@ -38,15 +38,12 @@ sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run) {
 }
 
 /* TOPK's plan: the Krylov route's buffers (the randomized plan's, plus
- * A W_k in g and the start block st), and the Gram route as a plan of its
- * own for matrices whose cycles do not converge; where that does not fit
- * the memory limit, such a matrix gives SB_ERR_NUMERIC instead. */
-sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s, const sb_svd_opts_t *opts) {
+ * A W_k in g and the start block st); svd.c adds the Gram route. */
+sb_result_t sb_svd_plan_topk_krylov(sb_svd_t *s) {
     sb_result_t r = s->single ? plan_rand_f(s) : plan_rand_d(s);
     size_t z = s->single ? sizeof(float) : sizeof(double);
     if (r == SB_OK && (!(s->g = ws_alloc(s, s->m, s->k, z)) || !(s->st = ws_alloc(s, s->n, s->l, z)))) r = SB_ERR_NOMEM;
     if (r == SB_OK) r = s->single ? plan_est_f(s) : plan_est_d(s);
-    if (r == SB_OK) sb_svd_create_gram(s->m, s->n, s->k, opts, &s->gram_plan);
     return r;
 }
 

@@ -16,15 +16,46 @@
 
 static const char *const interp_names[SB_INTERP_COUNT_] = {"default", "nearest", "linear", "idw", "quadratic"};
 
-/* The registry: detection tries the rows in this order. */
-static const sb_reader_t *const readers[] = {&sb_reader_merl, &sb_reader_rgl, &sb_reader_cornell, &sb_reader_alta,
-                                             &sb_reader_csv};
-#define N_READERS (sizeof readers / sizeof readers[0])
+/* The registry: one row per built-in reader, each a descriptor
+ * `const sb_reader_t sb_reader_<name>` in its own file (merl.c, rgl.c,
+ * gonio_cornell.c, ...); detection tries the rows in this order, then the
+ * readers added by sb_measured_register_reader. */
+#define SB_READERS(X)                                                                                                  \
+    X(merl)                                                                                                            \
+    X(rgl)                                                                                                             \
+    X(cornell)                                                                                                         \
+    X(alta)                                                                                                            \
+    X(csv)
+
+#define SB_READER_EXTERN(name) extern const sb_reader_t sb_reader_##name;
+#define SB_READER_ROW(name) &sb_reader_##name,
+SB_READERS(SB_READER_EXTERN)
+static const sb_reader_t *const builtin[] = {SB_READERS(SB_READER_ROW)};
+#define N_BUILTIN (sizeof builtin / sizeof builtin[0])
+#define N_ADDED_MAX 16
+static sb_reader_t added[N_ADDED_MAX];
+static size_t n_added;
+#define N_READERS (N_BUILTIN + n_added)
+
+static const sb_reader_t *reader_at(size_t k) {
+    return k < N_BUILTIN ? builtin[k] : k < N_READERS ? &added[k - N_BUILTIN] : NULL;
+}
 
 size_t sb_measured_format_count(void) { return N_READERS; }
-const char *sb_measured_format_name(size_t k) { return k < N_READERS ? readers[k]->name : NULL; }
-const char *sb_measured_format_title(size_t k) { return k < N_READERS ? readers[k]->title : NULL; }
-const char *sb_measured_format_exts(size_t k) { return k < N_READERS ? readers[k]->exts : NULL; }
+const char *sb_measured_format_name(size_t k) { return k < N_READERS ? reader_at(k)->name : NULL; }
+const char *sb_measured_format_title(size_t k) { return k < N_READERS ? reader_at(k)->title : NULL; }
+const char *sb_measured_format_exts(size_t k) { return k < N_READERS ? reader_at(k)->exts : NULL; }
+
+sb_result_t sb_measured_register_reader(const sb_measured_reader_t *reader) {
+    if (!reader || !reader->name || !reader->title || !reader->exts || !reader->sniff || !reader->open ||
+        strcmp(reader->name, "auto") == 0)
+        return SB_ERR_ARG;
+    for (size_t k = 0; k < N_READERS; k++)
+        if (strcmp(reader_at(k)->name, reader->name) == 0) return SB_ERR_ARG;
+    if (n_added == N_ADDED_MAX) return SB_ERR_RANGE;
+    added[n_added++] = *reader;
+    return SB_OK;
+}
 
 void sb_info_field(sb_measured_info_t *info, const char *key, double number, const char *fmt, ...) {
     if (info->nfields >= SB_MEASURED_FIELDS_MAX) return;
@@ -182,11 +213,11 @@ static int has_any_ext(const char *path, const char *exts) {
  * plausible content (sniff 1); NULL when nothing matches. */
 static const sb_reader_t *detect(const unsigned char *head, size_t n, const char *path) {
     for (size_t k = 0; k < N_READERS; k++)
-        if (readers[k]->sniff(head, n) == 2) return readers[k];
+        if (reader_at(k)->sniff(head, n) == 2) return reader_at(k);
     for (size_t k = 0; k < N_READERS; k++)
-        if (has_any_ext(path, readers[k]->exts)) return readers[k];
+        if (has_any_ext(path, reader_at(k)->exts)) return reader_at(k);
     for (size_t k = 0; k < N_READERS; k++)
-        if (readers[k]->sniff(head, n) == 1) return readers[k];
+        if (reader_at(k)->sniff(head, n) == 1) return reader_at(k);
     return NULL;
 }
 
@@ -194,7 +225,7 @@ static void formats_text(char *buf, size_t size) {
     size_t at = 0;
     buf[0] = 0;
     for (size_t k = 0; k < N_READERS && at < size; k++) {
-        int m = snprintf(buf + at, size - at, "%s%s", k ? ", " : "", readers[k]->title);
+        int m = snprintf(buf + at, size - at, "%s%s", k ? ", " : "", reader_at(k)->title);
         if (m < 0) break;
         at += (size_t)m;
     }
@@ -205,7 +236,7 @@ static sb_result_t check_opts(sb_context_t *ctx, const char *path, const sb_meas
     *reader = NULL;
     if (o->format && strcmp(o->format, "auto") != 0) {
         for (size_t k = 0; k < N_READERS; k++)
-            if (strcmp(o->format, readers[k]->name) == 0) *reader = readers[k];
+            if (strcmp(o->format, reader_at(k)->name) == 0) *reader = reader_at(k);
         if (!*reader) return sb_error(ctx, SB_ERR_UNKNOWN, "%s: unknown table format '%s'", path, o->format);
     }
     if ((unsigned)o->interp >= SB_INTERP_COUNT_)

@@ -79,19 +79,10 @@ sb_result_t sb_samples_push_(sb_context_t *ctx, const char *path, sb_samples_t *
 sb_result_t sb_table_create_(sb_context_t *ctx, const char *path, sb_samples_t *ss, int iso, int recip,
                              const sb_measured_opts_t *o, sb_measured_info_t *info, sb_source_t **out);
 
-/* A measured format: one descriptor in the reader's file plus one row in
- * the registry (measured.c).  sniff() looks at the first bytes of the file
- * (at most 4096): 2 = certainly this format (a magic, a keyword), 1 =
- * plausible (used only when no extension matches), 0 = no.  open() gets
- * resolved options and an info whose `format` is already set. */
-typedef struct sb_reader {
-    const char *name, *title, *exts;
-    int (*sniff)(const unsigned char *head, size_t n);
-    sb_result_t (*open)(sb_context_t *ctx, const char *path, const sb_measured_opts_t *o, sb_source_t **out,
-                        sb_measured_info_t *info);
-} sb_reader_t;
-
-extern const sb_reader_t sb_reader_merl, sb_reader_rgl, sb_reader_cornell, sb_reader_alta, sb_reader_csv;
+/* A measured format (sb_measured_reader_t, measured.h): one descriptor
+ * `const sb_reader_t sb_reader_<name>` in the reader's own file plus one
+ * row in the registry's list (SB_READERS in measured.c). */
+typedef sb_measured_reader_t sb_reader_t;
 
 /* Append a format-specific field (number: NAN when the value is text);
  * silently ignored beyond SB_MEASURED_FIELDS_MAX. */

@@ -43,12 +43,10 @@ int sb_group_active(const sb_context_t *ctx);
 int sb_group_owns(const sb_context_t *ctx, size_t block);
 sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op);
 
-/* A number that parameterisations created in this process share exactly
- * when their resolved layouts (kind, sizes, wraps, theta_max, warps) are
- * the same: the key of coordinates cached for it (the estimator's
- * pairs). */
-struct sb_param;
-unsigned long sb_param_serial_(const struct sb_param *p);
+/* Why a write failed, from its errno: the library's words for the errors
+ * users act on (a full disk, a quota), else strerror (util.c; declared
+ * for users in outset.h). */
+const char *sb_io_why(int err);
 
 /* Most threads any parallel loop uses (parallel.h). */
 #define SB_THREADS_MAX 64

@@ -1,4 +1,5 @@
-/* sb_warp_measure (param.h): an adaptive warp table from a scan of the
+/* sb_warp_measure (param.h), in sample/ because it evaluates a source over
+ * a layout's axis as the matrix build does: an adaptive warp table from a scan of the
  * source along one elevation axis.
  *
  * Pairs are built from Rusinkiewicz angles (theta_h, phi_h, theta_d,

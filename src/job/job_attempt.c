@@ -1,0 +1,254 @@
+/* The factor job's attempts: sample, factor and measure one candidate (a
+ * layout, form and weighting on one level), copy and truncate its
+ * factors.  Below the stages that refine, screen and select attempts
+ * (job_texels.c, job_weights.c, job_screen.c). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "job_impl.h"
+#include "sample/stream.h"
+#include "sepbrdf/exr.h"
+#include "util/internal.h"
+
+static void sample_progress(void *user, double fraction) {
+    const void *const *pp = user; /* {job, level} */
+    const sb_job_t *job = pp[0];
+    const job_level_t *lv = pp[1];
+    job_progress(job, lv->label, lv->base + lv->span * fraction);
+}
+
+sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind) {
+    sb_param_opts_t po = {0};
+    if (lv->po) po = *lv->po;
+    po.res = lv->res;
+    po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po.tables = sb_source_layout_tables(job->src); /* layouts built on the source's tables (vndf) */
+    /* iso screens on R rows of theta_h (td = 2R), half its default: the
+     * layouts' ranking is the same there, the masked fit half the cost;
+     * vh keeps its own th = 2R (at R rows an RGL vinyl's mirror peak fell
+     * between texels and it was ranked last: malachite 159 % at R = 16, 23 %
+     * with th = 32, 6.3 % kept at R = 32) */
+    if (lv->half_shape && (sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !po.res_theta_h) {
+        po.res_theta_h = lv->res;
+        po.res_theta_d = 2 * lv->res;
+    }
+    return po;
+}
+
+sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
+                       sb_form_t form, job_attempt_t *a) {
+    memset(a, 0, sizeof *a);
+    sb_param_opts_t po = job_level_opts(job, lv, kind);
+    sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
+    if (r != SB_OK) return r;
+    size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
+    if (lv->terms > mn)
+        return sb_error(ctx, SB_ERR_RANGE,
+                        "%zu terms exceed the %zu rows/columns of %s; ask for fewer terms or more cells", lv->terms, mn,
+                        sb_param_spec(a->param));
+    double t0 = job_now();
+    sb_matrix_opts_t mo = {0};
+    mo.form = form;
+    mo.channels = job->o.channels;
+    mo.structured = 1; /* the distinct values only, where the factor plan reads no more */
+    const void *pu[2] = {job, lv};
+    if (lv->label && job->o.progress) {
+        mo.progress = sample_progress;
+        mo.progress_user = (void *)pu;
+    }
+    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
+    if (r != SB_OK) return r;
+    a->t_sample = job_now() - t0;
+    return r;
+}
+
+/* Cells outside a's domain fitted as zeros: asked for (--zero-fill), or
+ * where the form continues by 0 there (SB_CAP_LIGHT_EDGE on the whole
+ * hemisphere with a form holding cos theta_i): a plain SVD, exact and
+ * fast, instead of the masked fit. */
+int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a) {
+    if (job->o.zero_fill) return 1;
+    int hemisphere = fabs(job->o.theta_max_deg - 90) < 1e-9;
+    return a->param && (sb_param_caps(a->param) & SB_CAP_LIGHT_EDGE) && hemisphere && !job->scene &&
+           (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
+}
+
+int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) {
+    return a->m.mask != NULL && !job_attempt_zero_fill(job, a);
+}
+
+/* The estimator's errors of a->f as stored (HALF or FLOAT) into a->est,
+ * on the job's pairs, growing them up to lv->est_max_pairs. */
+sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    double t0 = job_now();
+    sb_estimate_opts_t eo = {0};
+    eo.max_pairs = lv->est_max_pairs;
+    if (lv->rank_only) { /* screening: ranked on the headline, 16384 pairs */
+        eo.headline_only = 1;
+        eo.replicates = 4;
+        eo.last_only = lv->rank_at_j;
+    }
+    sb_exr_opts_t xo = {job->o.half};
+    sb_factors_t *q = NULL;
+    sb_result_t r = SB_OK;
+    if (!job->pairs) r = job_pairs_create(ctx, job);
+    if (r == SB_OK && !a->est && !(a->est = malloc(sizeof *a->est))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    /* what a shader reads: the texels as stored */
+    if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
+    if (r == SB_OK) r = sb_estimate_compute(ctx, job->pairs, q, NULL, a->param, a->m.form, &eo, a->est);
+    sb_factors_destroy(q);
+    a->est_rank = lv->rank_only;
+    a->t_estimate = job_now() - t0;
+    job->t_estimate += a->t_estimate;
+    return r;
+}
+
+/* Factor the sampled a->m with lv->terms terms (replacing a->f), then its
+ * estimated errors and, with lv->metric_res, the grid quadrature. */
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
+    sb_factors_destroy(a->f);
+    a->f = NULL;
+    free(a->term_w);
+    a->term_w = NULL;
+    a->texel_fit = 0;
+    memset(&a->metric, 0, sizeof a->metric);
+    memset(&a->stats, 0, sizeof a->stats);
+    a->weighted = weighted;
+    sb_result_t r = job_scene_prepare(ctx, job, a);
+    if (r != SB_OK) return r;
+    sb_plan_opts_t pl = {0};
+    pl.terms = lv->terms;
+    pl.svd.method = job->o.method;
+    pl.svd.seed = job->o.seed;
+    pl.weighted = weighted;
+    pl.zero_fill = job_attempt_zero_fill(job, a);
+    pl.fit_tol = lv->fit_tol;
+    pl.fit_max_iters = lv->fit_max_iters;
+    if (a->scene_w) { /* the scene's weights instead of solid angles */
+        pl.weighted = 1;
+        pl.row_weights = a->scene_w;
+        pl.col_weights = a->scene_w + a->m.rows;
+    }
+    sb_plan_t *plan = NULL;
+    r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
+    if (r != SB_OK) return r;
+    double t1 = job_now();
+    /* a large dense matrix: the BLAS threads the job set aside (job.c) */
+    int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
+    if (dense) sb_blas_threads_end(job->blas_threads);
+    r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    if (dense) sb_blas_threads_begin();
+    sb_plan_stats(plan, &a->stats);
+    sb_plan_destroy(plan);
+    if (r != SB_OK) return r;
+    double t2 = job_now();
+    if (sb_factors_set_meta(a->f, "source", sb_source_description(job->src)) != SB_OK ||
+        sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK)
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    a->t_factor = t2 - t1;
+    return job_measure(ctx, job, lv, a);
+}
+
+sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    if (!a->est || !a->est_rank) return SB_OK;
+    job_level_t full = *lv;
+    full.rank_only = full.rank_at_j = 0;
+    return job_estimate(ctx, job, &full, a);
+}
+
+sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    job_level_t same = *lv;
+    same.est_max_pairs = 1;
+    same.rank_only = same.rank_at_j = 0; /* what is reported: p99 and maxima too */
+    return job_measure(ctx, job, &same, a);
+}
+
+sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
+    sb_result_t r = sb_factors_errors_against(ctx, a->f, &a->m, a->weighted ? a->param : NULL, e->rel_rms, e->max_abs);
+    return r == SB_OK ? job_estimate_again(ctx, job, lv, a) : r;
+}
+
+sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    a->t_metric = 0;
+    sb_result_t r;
+    memset(&a->metric, 0, sizeof a->metric);
+    if ((r = job_estimate(ctx, job, lv, a)) != SB_OK) return r;
+    if (lv->metric_res == 0) { /* no grid quadrature: its texel count alone */
+        a->metric.neg_texels = sb_factors_negative_fraction(a->f, sb_factors_terms(a->f));
+        return SB_OK;
+    }
+    sb_metric_opts_t mo = {0};
+    mo.res = lv->metric_res;
+    double t3 = job_now();
+    if ((r = sb_metric_compute(ctx, job->eval_src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
+    a->t_metric = job_now() - t3;
+    return SB_OK;
+}
+
+void job_attempt_free(job_attempt_t *a) {
+    free(a->est);
+    free(a->term_w);
+    free(a->scene_w);
+    sb_factors_destroy(a->f);
+    sb_matrix_free(&a->m);
+    sb_param_destroy(a->param);
+    memset(a, 0, sizeof *a);
+}
+
+/* The masked fit's early stop (a sweep gaining less than 1e-3 relative, at
+ * most 20 per stage: the error on the cells then falls by a few per cent
+ * in a run, far below what interpolation between texels adds, and the
+ * headline errors of the default gold, GGX, Blinn-Phong and the measured
+ * tables came out the same or lower than at 40), unless the caller set its
+ * own. */
+void job_early_stop(const sb_job_t *job, job_level_t *lv) {
+    lv->fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
+    lv->fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 20;
+}
+
+sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out) {
+    size_t C = sb_factors_channels(f), w[2], h[2];
+    for (int s = 0; s < 2; s++)
+        sb_factors_size(f, s, &w[s], &h[s]);
+    sb_factors_t *t = NULL;
+    sb_result_t r = sb_factors_create(ctx, j, C, w[0], h[0], w[1], h[1], &t);
+    if (r != SB_OK) return r;
+    for (size_t k = 0; k < j; k++)
+        for (size_t c = 0; c < C; c++) {
+            for (int s = 0; s < 2; s++)
+                memcpy(sb_factors_tex(t, s, k, c), sb_factors_tex_const(f, s, k, c), w[s] * h[s] * sizeof(double));
+            sb_factors_set_sigma(t, k, c, sb_factors_sigma(f, k, c));
+        }
+    for (size_t i = 0; i < sb_factors_meta_count(f) && r == SB_OK; i++) {
+        const char *key, *value;
+        sb_factors_meta_at(f, i, &key, &value);
+        r = sb_factors_set_meta(t, key, value);
+    }
+    const sb_factor_errors_t *e = sb_factors_errors(f);
+    sb_factor_errors_t *et = sb_factors_errors_mut(t);
+    if (r == SB_OK && et->rel_rms && et->max_abs) {
+        memcpy(et->rel_rms, e->rel_rms, sb_err_at(j, 0) * sizeof *e->rel_rms);
+        memcpy(et->max_abs, e->max_abs, sb_err_at(j, 0) * sizeof *e->max_abs);
+        memcpy(et->norm, e->norm, sizeof et->norm);
+    }
+    if (r != SB_OK) {
+        sb_factors_destroy(t);
+        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    }
+    *out = t;
+    return SB_OK;
+}
+
+sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
+    if (j >= sb_factors_terms(a->f)) return SB_OK;
+    sb_factors_t *t = NULL;
+    sb_result_t r = job_factors_copy(ctx, a->f, j, &t);
+    if (r != SB_OK) return r;
+    sb_factors_destroy(a->f);
+    a->f = t;
+    if (a->est && a->est->terms > j) a->est->terms = j;
+    if (a->metric.terms > j) a->metric.terms = j;
+    return SB_OK;
+}

@@ -1,0 +1,49 @@
+/* The truncated SVD's shared helpers (svd_internal.h), below svd.c (plan,
+ * dispatch), svd_dense.c and svd_rand.c (the methods): workspaces, the
+ * singular values of a plan, and the residual and rank they imply. */
+#include <math.h>
+
+#include "solve/svd_internal.h"
+#include "util/internal.h"
+
+void *sb_svd_ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
+    size_t count;
+    if (sb_size_mul(count1, count2, &count)) {
+        sb_error(s->ctx, SB_ERR_OVERFLOW, "svd: workspace size %zu x %zu overflows", count1, count2);
+        s->failed = SB_ERR_OVERFLOW;
+        return NULL;
+    }
+    void *p = sb_alloc(s->ctx, count, size, "svd workspace");
+    if (!p) {
+        s->failed = count > sb_memory_limit() / size ? SB_ERR_OVERFLOW : SB_ERR_NOMEM;
+        return NULL;
+    }
+    s->bytes += count * size;
+    return p;
+}
+
+double sb_svd_sv_at(const sb_svd_t *s, size_t j) {
+    return s->single ? (double)((const float *)s->sv)[j] : ((const double *)s->sv)[j];
+}
+
+/* The errors below are kept relative to ||A|| (s_j / ||A|| squared) so that
+ * neither a huge nor a tiny matrix overflows; nrm = 0 is the zero matrix,
+ * whose every truncation is exact. */
+
+double sb_svd_resid_from(double nrm, const double *sv, size_t r) {
+    if (!(nrm > 0)) return 0;
+    double c = 0, inv = 1 / nrm;
+    for (size_t j = 0; j < r; j++)
+        c += (sv[j] * inv) * (sv[j] * inv);
+    return c < 1 ? nrm * sqrt(1 - c) : 0;
+}
+
+size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo) {
+    double c = 0, inv = nrm > 0 ? 1 / nrm : 0;
+    if (lo < 1) lo = 1;
+    for (size_t j = 0; j < k; j++) {
+        c += (sv[j] * inv) * (sv[j] * inv);
+        if (j + 1 >= lo && (!(nrm > 0) || 1 - c <= tol2)) return j + 1;
+    }
+    return k;
+}
