@@ -221,8 +221,11 @@ static sb_result_t vndf_build_glsl(sb_context_t *ctx, sb_param_t *p) {
                           "const float sb_vtheta[SB_VN] = float[SB_VN](",
                           t->n_theta, t->vndf.w, t->vndf.h, t->ndf.w, t->ndf.h, t->sigma.w, t->sigma.h, t->sw, t->sh,
                           t->jacobian);
-    for (size_t k = 0; k < t->n_theta; k++)
-        n += (size_t)snprintf(p->glsl + n, need - n, "%s%.9g", k ? ", " : "", t->theta[k]);
+    for (size_t k = 0; k < t->n_theta; k++) { /* float literals: GLSL ES converts no int in a constructor */
+        char num[40];
+        snprintf(num, sizeof num, "%.9g", t->theta[k]);
+        n += (size_t)snprintf(p->glsl + n, need - n, "%s%s%s", k ? ", " : "", num, strpbrk(num, ".e") ? "" : ".0");
+    }
     snprintf(p->glsl + n, need - n, ");\n%s", vndf_glsl);
     return SB_OK;
 }
