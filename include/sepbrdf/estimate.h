@@ -100,6 +100,7 @@ typedef struct sb_estimate_opts {
     int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
     size_t replicates; /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
     int last_only;     /* with headline_only: the errors of all J terms only (those of shorter prefixes are 0) */
+    int bands;         /* with headline_only: the band errors too (band, band_se, band_share; not the lit ones) */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */
@@ -193,6 +194,12 @@ sb_result_t sb_estimate_headlines(sb_context_t *ctx, const sb_pairs_t *pairs, co
 /* The headline (relative L2 error of f cos(theta_i), all channels) after
  * j >= 1 terms; NAN beyond est->terms. */
 double sb_estimate_headline(const sb_estimate_t *est, size_t j);
+/* The band bounds after j >= 1 terms (h the headline): the band error
+ * theta_i > 80 degrees at most max(3 h, 1 %) and theta_i > 89 degrees at
+ * most max(10 h, 5 %), each with two standard errors of slack.  1 when
+ * both hold, 0 when one breaks, -1 when unknown (j beyond est->terms or
+ * no band errors). */
+int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j);
 /* The band of the largest error (band[j - 1][b][all]) after j >= 1 terms;
  * -1 beyond est->terms or when no band has a finite error. */
 int sb_estimate_worst_band(const sb_estimate_t *est, size_t j);

@@ -75,8 +75,9 @@ static void print_candidates(const sb_job_t *job) {
     fprintf(stderr, "--param auto screened (headline error, f cos theta_i, at J on an R-cell grid; time):\n");
     for (size_t i = 0; (c = sb_job_candidate(job, i)) != NULL; i++) {
         if (c->ok)
-            fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s%s\n", sb_param_kind_name(c->kind),
+            fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s  %-13s%s\n", sb_param_kind_name(c->kind),
                     sb_form_name(c->form), c->weighted ? "weighted" : "        ", c->error, c->res, c->time_s,
+                    c->bands_ok == 1 ? "bands bounded" : "bands broken",
                     c->kept      ? "  kept"
                     : c->dropped ? "  dropped"
                                  : "");

@@ -215,7 +215,7 @@ static void eval_unit(void *user, size_t k, int t) {
     memset(num, 0, J * QC * sizeof *num);
     memset(den, 0, sizeof den);
     memset(neg, 0, J * sizeof *neg);
-    if (!e->headline_only) est_bands_clear(e, k);
+    if (e->bands) est_bands_clear(e, k);
     for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
         if (!P->known[i]) continue;
         const double *d = P->d + i * PD, *f = d + 7;
@@ -228,7 +228,7 @@ static void eval_unit(void *user, size_t k, int t) {
         meas += d[6];
         est_reconstruct(e, i, rec);
         add_pair(e, d, rec, num, neg, t);
-        if (!e->headline_only) est_bands_pair(e, i, rec, k, t);
+        if (e->bands) est_bands_pair(e, i, rec, k, t);
         if (!e->headline_only && est_chroma_pair(e, i, rec, de)) dew += d[6];
     }
     memcpy(e->de + k * J, de, J * sizeof *de);
@@ -273,7 +273,7 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
             out->max_rel[j][c] = mx;
         }
     }
-    if (!e->headline_only) est_bands_combine(e, K, nt, out);
+    if (e->bands) est_bands_combine(e, K, nt, out);
     return met;
 }
 
@@ -292,7 +292,7 @@ static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt,
     e->maxv = sb_calloc(ctx, T, J * sizeof *e->maxv, "estimator sums");
     if (!(e->num && e->den && e->neg && e->meas && e->de && e->dew && e->hist && e->maxr && e->maxv))
         return SB_ERR_NOMEM;
-    return e->headline_only ? SB_OK : est_bands_alloc(ctx, e, kmax, nt, reps);
+    return e->bands ? est_bands_alloc(ctx, e, kmax, nt, reps) : SB_OK;
 }
 
 /* Pair counts and the denominators of the overshoot and of min_rel, the
@@ -366,6 +366,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     if (nt > MAXT) nt = MAXT;
     eval_t e = {.P = pairs, .p = p, .form = form, .headline_only = o.headline_only};
     e.last_only = o.headline_only && o.last_only;
+    e.bands = !o.headline_only || o.bands;
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
     size_t J = e.J;

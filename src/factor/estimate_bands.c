@@ -31,10 +31,20 @@ unsigned sb_band_mask(const double wi[3], const double wo[3]) {
         m |= wi[2] < cz[k] ? 1u << (SB_BAND_TI60 + k) : 0;
         m |= wo[2] < cz[k] ? 1u << (SB_BAND_TO60 + k) : 0;
     }
-    double mirror = -wi[0] * wo[0] - wi[1] * wo[1] + wi[2] * wo[2], retro = wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2];
+    double mirror = -wi[0] * wo[0] - wi[1] * wo[1] + wi[2] * wo[2],
+           retro = wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2];
     m |= mirror > cc ? 1u << SB_BAND_SPECULAR : 0;
     m |= retro > cc ? 1u << SB_BAND_RETRO : 0;
     return m;
+}
+
+int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j) {
+    if (!est || j < 1 || j > est->terms) return -1;
+    const double h = est->rel[j - 1][SB_EST_FCOS][3];
+    const double *b80 = est->band[j - 1][SB_BAND_TI80], *b89 = est->band[j - 1][SB_BAND_TI89];
+    const double s80 = est->band_se[j - 1][SB_BAND_TI80][3], s89 = est->band_se[j - 1][SB_BAND_TI89][3];
+    if (!(est->band_share[SB_BAND_TI80] > 0) || !isfinite(h)) return -1;
+    return b80[3] - 2 * s80 <= fmax(3 * h, 0.01) && b89[3] - 2 * s89 <= fmax(10 * h, 0.05);
 }
 
 int sb_estimate_worst_band(const sb_estimate_t *est, size_t j) {
@@ -126,9 +136,10 @@ sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, s
     e->bden = sb_alloc(ctx, kmax, BQ * sizeof *e->bden, "estimator band sums");
     e->mnum = sb_alloc(ctx, kmax, MM * sizeof *e->mnum, "estimator band sums");
     e->mden = sb_alloc(ctx, kmax, MM * sizeof *e->mden, "estimator band sums");
-    e->hlit = sb_calloc(ctx, T * J * 4, NB * sizeof *e->hlit, "estimator histograms");
-    e->maxl = sb_calloc(ctx, T * J, 4 * sizeof *e->maxl, "estimator band sums");
-    e->minv = sb_calloc(ctx, T * J, 4 * sizeof *e->minv, "estimator band sums");
+    size_t L = e->headline_only ? 1 : T * J; /* the lit sums: not with headline_only */
+    e->hlit = sb_calloc(ctx, L * 4, NB * sizeof *e->hlit, "estimator histograms");
+    e->maxl = sb_calloc(ctx, L, 4 * sizeof *e->maxl, "estimator band sums");
+    e->minv = sb_calloc(ctx, L, 4 * sizeof *e->minv, "estimator band sums");
     /* the lit thresholds: 1 % of the largest f cos theta_i of the first 16 replicates */
     memset(e->lit_thr, 0, sizeof e->lit_thr);
     for (size_t i = 0; i < (reps < 16 ? reps : 16) * P->rep && i < P->n; i++) {
@@ -158,6 +169,20 @@ static void pair_dens(const eval_t *e, const double *d, unsigned mask, size_t k,
     e->mden[k * MM + *cell] += f2[3] * q;
 }
 
+static void bands_only(const eval_t *e, const double *d, const double *rec, unsigned mask, size_t k, double q) {
+    size_t J = e->J;
+    double *bnum = e->bnum + k * J * BQ;
+    for (size_t j = e->last_only ? J - 1 : 0; j < J && mask; j++) {
+        const double *r = rec + j * 3, *f = d + 7;
+        double d2[4] = {0, 0, 0, 0};
+        for (int c = 0; c < 3; c++)
+            d2[3] += d2[c] = (r[c] - f[c]) * (r[c] - f[c]);
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            for (int c = 0; c < 4 && (mask >> b & 1u); c++)
+                bnum[j * BQ + b * 4 + c] += d2[c] * q;
+    }
+}
+
 void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int t) {
     const double *d = e->P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
     size_t J = e->J, cell;
@@ -165,6 +190,10 @@ void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int 
     double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4];
     f2[3] = f2[0] + f2[1] + f2[2];
     pair_dens(e, d, mask, k, f2, &cell);
+    if (e->headline_only) { /* the bands only (of all J terms with last_only) */
+        bands_only(e, d, rec, mask, k, q);
+        return;
+    }
     int lit[4];
     for (int c = 0; c < 4; c++) {
         lit[c] = f2[c] > 0 && sqrt(f2[c]) * d[2] > e->lit_thr[c];
@@ -210,7 +239,7 @@ void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {
         for (int i = 0; i < BQ; i++)
             est_ratio(e->bnum + j * BQ + i, J * BQ, e->bden + i, BQ, K, &out->band[j][i / 4][i % 4],
                       &out->band_se[j][i / 4][i % 4]);
-        for (int c = 0; c < 4; c++) {
+        for (int c = 0; c < 4 && !e->headline_only; c++) {
             double mx = 0, mn = 0;
             for (int t = 0; t < nt; t++) {
                 mx = fmax(mx, sqrt(e->maxl[((size_t)t * J + j) * 4 + (size_t)c]));

@@ -60,6 +60,7 @@ typedef struct eval {
     sb_form_t form;
     int headline_only; /* no per-pair histograms or maxima (p99, max_rel 0) */
     int last_only;     /* sums of the prefix of all J terms only */
+    int bands;         /* the band sums (estimate_bands.c) */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
     double *num, *den, *neg, *meas;
     /* colour (estimate_colour.c): the luminance threshold, 0 for none;

@@ -326,6 +326,10 @@ static void report_auto(sb_json_t *j, const sb_job_t *job) {
         sb_json_bool(j, "kept", c->kept);
         sb_json_int(j, "resolution", (long long)c->res);
         sb_json_number(j, "headline", c->ok ? c->error : NAN);
+        if (c->bands_ok < 0)
+            sb_json_string(j, "bands_ok", NULL);
+        else
+            sb_json_bool(j, "bands_ok", c->bands_ok);
         sb_json_number(j, "time_s", c->time_s);
         sb_json_string(j, "failure", c->why[0] ? c->why : NULL);
         sb_json_end_object(j);
