@@ -152,3 +152,39 @@ SB_TEST(auto_keeps_band_bounds) {
     }
     sb_job_destroy(job);
 }
+
+/* Scene fits degrade gracefully (issue 33): on a layout with a partial
+ * domain the cells the scene never touches keep a floor of the mass, so
+ * over the whole domain the fit is at most 2x the unweighted one, while
+ * inside the scene it is as good as the fit that leaves them out
+ * (floor=0). */
+SB_TEST(scene_floor_outside) {
+    static const char *const scenes[2] = {"view=0..40;light=0..60", "view=0..40;light=0..60;floor=0"};
+    sb_job_opts_t o = {0};
+    o.source = "cook-torrance:roughness=0.3";
+    o.param = "iso";
+    o.res = 16;
+    o.terms = 2;
+    sb_job_t *plain = NULL, *fit[2] = {NULL, NULL};
+    CHECK(sb_job_run(NULL, &o, &plain) == SB_OK);
+    for (int k = 0; k < 2; k++) {
+        o.scene = scenes[k];
+        CHECK(sb_job_run(NULL, &o, &fit[k]) == SB_OK);
+    }
+    if (plain && fit[0] && fit[1]) {
+        const sb_estimate_t *in[2] = {sb_job_estimate(fit[0]), sb_job_estimate(fit[1])};
+        const sb_estimate_t *all[2] = {sb_job_domain_estimate(fit[0]), sb_job_domain_estimate(fit[1])};
+        double whole_plain = sb_estimate_headline(sb_job_estimate(plain), 2);
+        printf("  inside %.4e (floor=0: %.4e), whole domain %.4e (floor=0: %.4e, unweighted %.4e)\n",
+               sb_estimate_headline(in[0], 2), sb_estimate_headline(in[1], 2), sb_estimate_headline(all[0], 2),
+               sb_estimate_headline(all[1], 2), whole_plain);
+        CHECK(sb_estimate_headline(in[0], 2) <=
+              1.02 * sb_estimate_headline(in[1], 2) +
+                  2 * hypot(in[0]->se[1][SB_EST_FCOS][3], in[1]->se[1][SB_EST_FCOS][3]));
+        CHECK(sb_estimate_headline(all[0], 2) <= 2 * whole_plain);
+        CHECK(sb_estimate_headline(all[1], 2) > 2 * whole_plain); /* what the floor mends */
+    }
+    sb_job_destroy(plain);
+    sb_job_destroy(fit[0]);
+    sb_job_destroy(fit[1]);
+}
