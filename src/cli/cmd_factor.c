@@ -77,7 +77,7 @@ static void print_candidates(const sb_job_t *job) {
         if (c->ok)
             fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s  %-13s%s\n", sb_param_kind_name(c->kind),
                     sb_form_name(c->form), c->weighted ? "weighted" : "        ", c->error, c->res, c->time_s,
-                    c->bands_ok == 1 ? "bands bounded" : "bands broken",
+                    c->bands_ok == 1 ? "bands bounded" : (c->bands_ok == 0 ? "bands broken" : "bands n/a"),
                     c->kept      ? "  kept"
                     : c->dropped ? "  dropped"
                                  : "");
