@@ -274,7 +274,27 @@ SB_TEST(measured_rgl) {
     snprintf(cmd, sizeof cmd, "%s info '" SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf'", SB_CLI);
     if (sb_run(cmd, g_out, sizeof g_out) != 0) SKIP("this build reads no RGL .bsdf");
     NEED_BROWSER();
-    check_folder("'" SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf' -r 8 -J 2", 2);
+    check_folder("'" SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf' --param vh -r 8 -J 2", 2);
+}
+
+/* The default on an RGL file, the vndf layout: the page binds vndf.exr's
+ * tables (sb_vndf) and inverts the file's VNDF warp as the C code does.
+ * Its h textures are the file's own 32 x 32 nodes with the orange film's
+ * mirror peak in them, where the browser's bilinear filtering (weights of
+ * limited precision) leaves the sphere 37.9 dB from the CPU's; a wrong
+ * coordinate or gain would leave it below 20. */
+SB_TEST(measured_rgl_vndf) {
+    NEED_BROWSER();
+    const char *dir = view_make_folder("'" SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf' -J 2");
+    if (!dir) return;
+    page_view_t v;
+    sb_image_t cpu = {0};
+    CHECK(page_render(dir, 45, 45, 2, &v) == 0 && cpu_render(dir, 45, 45, 2, &cpu) == 0);
+    double db = view_psnr(&cpu, &v.rec);
+    CHECKF(db >= 35, "page vs CPU %.2f dB", db);
+    printf("  vndf, J=2: page vs CPU %.1f dB\n", db);
+    sb_image_free(&cpu);
+    view_free(&v);
 }
 
 /* A snippet that does not compile fails the page, and so the test. */

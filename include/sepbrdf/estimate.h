@@ -63,6 +63,32 @@ extern "C" {
 /* Quantities, index q of sb_estimate_t. */
 enum { SB_EST_FCOS = 0 /* headline: f cos(theta_i) */, SB_EST_FCOS2 /* f cos cos */, SB_EST_F, SB_EST_Q_COUNT_ };
 
+/* Angular bands, index b of sb_estimate_t.band: where users see errors.
+ * theta_i (theta_o) above 60, 80, 89 degrees (cos below cos 60 etc.);
+ * specular: wo within SB_BAND_CONE_DEG of the mirror direction of wi
+ * (-wi.x, -wi.y, wi.z); retro: wo within SB_BAND_CONE_DEG of wi.  A
+ * pair may be in several bands. */
+enum {
+    SB_BAND_TI60 = 0,
+    SB_BAND_TI80,
+    SB_BAND_TI89,
+    SB_BAND_TO60,
+    SB_BAND_TO80,
+    SB_BAND_TO89,
+    SB_BAND_SPECULAR,
+    SB_BAND_RETRO,
+    SB_BAND_COUNT_
+};
+#define SB_BAND_CONE_DEG 10.0
+/* Bit b set when (wi, wo) (unit, local frame, z up) is in band b; 0 for NULL. */
+unsigned sb_band_mask(const double wi[3], const double wo[3]);
+/* "theta_i_60", ..., "specular", "retro" (report.json keys); NULL beyond. */
+const char *sb_band_name(int band);
+/* The band map: cells over (theta_i, theta_o) with these edges in degrees
+ * (finer towards the horizon). */
+#define SB_EST_MAP 9
+extern const double sb_band_map_edges[SB_EST_MAP + 1];
+
 typedef struct sb_estimate_opts {
     size_t replicate;  /* pairs per replicate, default 4096 */
     size_t start;      /* replicates drawn at first, default 16 (at least 4) */
@@ -74,6 +100,7 @@ typedef struct sb_estimate_opts {
     int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
     size_t replicates; /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
     int last_only;     /* with headline_only: the errors of all J terms only (those of shorter prefixes are 0) */
+    int bands;         /* with headline_only: the band errors too (band, band_se, band_share; not the lit ones) */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */
@@ -110,6 +137,26 @@ typedef struct sb_estimate {
      * (every 4th pair of the first 16 replicates); NaN when none or with
      * headline_only.  About 1 is just noticeable, above 2 visible. */
     double chroma_de[SB_EST_MAXJ];
+    /* Where the error is (not with headline_only).  band: the headline's
+     * relative L2 error of f cos theta_i over the pairs of band b only
+     * (e^2 = int_b (f~ - f)^2 cos^2 / int_b f^2 cos^2), band_se its standard
+     * error (replicates, as the headline's); band_share: the band's share of
+     * the headline's energy int f^2 cos^2 theta_i (all channels).
+     * Lit: the pairs where the channel's f cos theta_i is above 1 % of its
+     * largest over the first 16 replicates (all: the RGB norm); p99_lit the
+     * 99th percentile of the relative error |f~ - f| / |f| there under the
+     * pair measure dwi dwo (same histogram as p99), max_rel_lit its largest.
+     * min_rel: the most negative reconstructed value over the sampled pairs
+     * divided by the channel's largest |f| (all: over channels, by the
+     * largest of all); 0 when none is negative.  map: at J' = terms, the
+     * headline's relative error per (theta_i, theta_o) cell of
+     * sb_band_map_edges, all channels (NaN where a cell has no energy). */
+    double band[SB_EST_MAXJ][SB_BAND_COUNT_][4];
+    double band_se[SB_EST_MAXJ][SB_BAND_COUNT_][4];
+    double band_share[SB_BAND_COUNT_];
+    double p99_lit[SB_EST_MAXJ][4], max_rel_lit[SB_EST_MAXJ][4];
+    double min_rel[SB_EST_MAXJ][4];
+    double map[SB_EST_MAP][SB_EST_MAP];
 } sb_estimate_t;
 
 /* Estimate the errors of the first J' = 1..min(J, SB_EST_MAXJ) terms of f
@@ -147,6 +194,15 @@ sb_result_t sb_estimate_headlines(sb_context_t *ctx, const sb_pairs_t *pairs, co
 /* The headline (relative L2 error of f cos(theta_i), all channels) after
  * j >= 1 terms; NAN beyond est->terms. */
 double sb_estimate_headline(const sb_estimate_t *est, size_t j);
+/* The band bounds after j >= 1 terms (h the headline): the band error
+ * theta_i > 80 degrees at most max(3 h, 1 %) and theta_i > 89 degrees at
+ * most max(10 h, 5 %), each with two standard errors of slack.  1 when
+ * both hold, 0 when one breaks, -1 when unknown (j beyond est->terms or
+ * no band errors). */
+int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j);
+/* The band of the largest error (band[j - 1][b][all]) after j >= 1 terms;
+ * -1 beyond est->terms or when no band has a finite error. */
+int sb_estimate_worst_band(const sb_estimate_t *est, size_t j);
 
 #ifdef __cplusplus
 }

@@ -133,6 +133,8 @@ typedef struct sb_job_candidate {
     int kept;      /* the one factored at the requested settings */
     size_t res;    /* cells per axis of the grid `error` was measured on */
     double error;  /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
+    int bands_ok;  /* sb_estimate_bands_bounded at J on the same pairs: 1 kept, 0 broken, -1 unknown; auto ranks
+                      the candidates that keep the band bounds first when one does */
     double time_s; /* its screening, and for the kept one its full fit too */
     sb_result_t result; /* SB_OK, or the code of its failure (message in `why`) */
     char why[160];
@@ -175,6 +177,8 @@ typedef struct sb_job_budget_try {
     int half;          /* storage HALF (2 bytes), else FLOAT (4) */
     size_t bytes;      /* terms * channels * texels * (2 or 4) */
     double headline;   /* screened headline at J (the estimator's first pairs) */
+    int bands_ok;      /* sb_estimate_bands_bounded at J on the same pairs (1, 0, -1 unknown): the lowest headline
+                          among entries keeping the band bounds is chosen when one does */
 } sb_job_budget_try_t;
 
 typedef struct sb_job_budget {

@@ -27,6 +27,19 @@
  *                          most SB_SCENE_MAX_PAIRS pairs and
  *                          SB_SCENE_MAX_FILE bytes; a device or FIFO is
  *                          refused (SB_ERR_IO), never read.
+ *   floor=X                with any kind, 0 <= X <= 1: the cells the
+ *                          scene never touches share X of the fit's total
+ *                          mass (each the same) instead of being left out,
+ *                          so the fit stays close to the whole-domain one
+ *                          there; 0 leaves them out (unconstrained: the
+ *                          reconstruction is then arbitrary one step
+ *                          outside the scene).  Not given: SB_SCENE_FLOOR
+ *                          on layouts with SB_CAP_PARTIAL_DOMAIN (their
+ *                          fit is masked anyway; measured: inside as
+ *                          without, outside near the unweighted fit), 0 on
+ *                          the others (io, io-area: there the mask is what
+ *                          makes the scene's fit better inside, and any
+ *                          floor gives that up; docs/bands.md).
  * Exactly one of the three kinds; a key given twice, an unknown key, a
  * malformed number, a range out of order or beyond 0..90 are errors.
  *
@@ -35,8 +48,9 @@
  * touches its 4 g texels x 4 h texels), each weighted by the headline's
  * cos^2(theta_i) over the squared form weight, so that sum over cells
  * mass x (stored error)^2 estimates the scene's f cos(theta_i) error; cells
- * no pair touches are left out of the fit (masked), the others weighted by
- * the best separable fit w_r^2 w_c^2 of their mass (plan weights). */
+ * no pair touches get the mass floor (floor=X; with 0 they are left out of
+ * the fit, masked), and all are weighted by the best separable fit
+ * w_r^2 w_c^2 of their mass (plan weights). */
 #ifndef SEPBRDF_SCENE_H
 #define SEPBRDF_SCENE_H
 
@@ -56,6 +70,11 @@ typedef enum sb_scene_kind { SB_SCENE_RANGES = 0, SB_SCENE_LIGHTS, SB_SCENE_PAIR
 typedef struct sb_scene sb_scene_t;
 
 #define SB_SCENE_MAX_PAIRS (1 << 22)
+/* The default share of the mass floor (floor=X) on layouts with a partial
+ * domain: GGX roughness 0.3, view=0..40;light=0..60, auto (iso), J = 4:
+ * inside the scene 2.26e-4 as without, over the whole domain 0.16 %
+ * instead of 70 % (docs/bands.md). */
+#define SB_SCENE_FLOOR 1e-3
 #define SB_SCENE_MAX_FILE (256ull << 20)
 
 /* Parse a spec (header); a pairs file is read now.  Errors: SB_ERR_ARG
@@ -91,6 +110,14 @@ sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const 
 sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src, const sb_factors_t *f,
                               const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts, sb_estimate_t *out);
 
+/* floor=X of the spec; -1 when not given (or for NULL). */
+double sb_scene_floor(const sb_scene_t *s);
+/* The cells of mass 0 (of cells values, from sb_scene_mass on p) raised
+ * to share the scene's floor X of the total mass, X * sum / (cells of mass
+ * 0) each (X not given: SB_SCENE_FLOOR where p has SB_CAP_PARTIAL_DOMAIN,
+ * else 0); nothing for a NULL mass or X = 0. */
+void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells);
+
 /* The scene's mass on the cells of p for a matrix of form `form` (header):
  * mass[row + col * rows] >= 0, the largest 1, from n pairs (0: a default
  * that grows with the cell count).  Errors: SB_ERR_ARG, SB_ERR_RANGE (no
@@ -103,7 +130,8 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
  * each at least 1e-3 of its side's largest (nothing for a NULL mass or w). */
 void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
 
-/* Weights for a fit of m on the scene: cells with mass 0 get mask 0 in m
+/* Weights for a fit of m on the scene: cells with mass 0 (after the
+ * scene's floor, sb_scene_mass_floor) get mask 0 in m
  * (a stored, dense m: a mask is made when it has none; structure and
  * phi_period dropped; valid_count recounted), and w (rows + cols values)
  * the square-root weights W_r, W_c of the separable fit of the mass

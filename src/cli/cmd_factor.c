@@ -75,8 +75,9 @@ static void print_candidates(const sb_job_t *job) {
     fprintf(stderr, "--param auto screened (headline error, f cos theta_i, at J on an R-cell grid; time):\n");
     for (size_t i = 0; (c = sb_job_candidate(job, i)) != NULL; i++) {
         if (c->ok)
-            fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s%s\n", sb_param_kind_name(c->kind),
+            fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s  %-13s%s\n", sb_param_kind_name(c->kind),
                     sb_form_name(c->form), c->weighted ? "weighted" : "        ", c->error, c->res, c->time_s,
+                    c->bands_ok == 1 ? "bands bounded" : (c->bands_ok == 0 ? "bands broken" : "bands n/a"),
                     c->kept      ? "  kept"
                     : c->dropped ? "  dropped"
                                  : "");
@@ -125,8 +126,8 @@ static void print_table(const sb_job_t *job) {
     const sb_factor_errors_t *e = sb_factors_errors(f);
     static const char *const cn[3] = {"R", "G", "B"};
     const sb_estimate_t *est = sb_job_estimate(job);
-    printf("%4s  %12s  %9s  %12s  %12s  %12s  %9s", "J", "headline", "+-", "comparable", "rel_rms", "max_abs",
-           "negative");
+    printf("%4s  %12s  %9s  %12s  %12s  %12s  %9s  %-10s %10s", "J", "headline", "+-", "comparable", "rel_rms",
+           "max_abs", "negative", "worst_band", "error");
     for (int c = 0; c < 3; c++)
         if (sb_matrix_has(m, c)) printf("  %10s_%s", "rel_rms", cn[c]);
     int beside = !isnan(sb_job_svd_headline(job, 1)); /* --method nmf: the SVD's errors beside */
@@ -137,6 +138,8 @@ static void print_table(const sb_job_t *job) {
         printf("%4zu  %12.4e  %9.2e  %12.4e  %12.4e  %12.4e  %8.2f%%", k + 1, sb_job_headline(job, k + 1), se,
                sb_job_comparable(job, k + 1), e->rel_rms[sb_err_at(k, SB_CH_ALL)], e->max_abs[sb_err_at(k, SB_CH_ALL)],
                100 * sb_job_negative(job, k + 1));
+        int wb = sb_estimate_worst_band(est, k + 1); /* report.json: errors[].band_rel */
+        printf("  %-10s %10.3e", wb < 0 ? "-" : sb_band_name(wb), wb < 0 ? NAN : est->band[k][wb][SB_CH_ALL]);
         for (int c = 0; c < 3; c++)
             if (sb_matrix_has(m, c)) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
         if (beside)

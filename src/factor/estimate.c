@@ -29,151 +29,6 @@
 #include "util/parallel.h"
 #include "util/rng.h"
 
-#define NCOMP 7 /* wo mixture components: uniform, cosine, four GGX lobes, grazing */
-#define GRAZE (NCOMP - 1)
-
-static const double comp_w[NCOMP] = {0.18, 0.18, 0.135, 0.135, 0.135, 0.135, 0.1};
-static const double lobe_alpha[NCOMP] = {0, 0, 0.005, 0.02, 0.08, 0.3, 0};
-/* wi: uniform, cosine, grazing */
-static const double wi_w[3] = {0.45, 0.45, 0.1};
-
-/* ---- drawing the pairs ------------------------------------------------ */
-
-/* The grazing component: cos(theta) = c with density 1 / (K (c + C0)^2)
- * on [0, 1], K = 1/C0 - 1/(1 + C0) (half of its pairs within 0.17 degrees
- * of the horizon), azimuth uniform.  Where a reconstruction grows as
- * 1 / cos theta towards the horizon (a form's division, a non-reciprocal
- * source folded by a reciprocal layout), the squared error grows as
- * 1 / cos^2 and the other components, bounded there, would leave an
- * estimate of unbounded variance that misses the tail; with this one the
- * ratio stays bounded down to the guard 0.001. */
-#define C0 0.003
-static double graze_pdf(double c) {
-    const double K = 1 / C0 - 1 / (1 + C0);
-    return c >= 0 && c <= 1 ? 1 / (K * (c + C0) * (c + C0) * 2 * SB_PI) : 0;
-}
-static double graze_z(double u) {
-    const double K = 1 / C0 - 1 / (1 + C0);
-    return fmin(1, fmax(0, 1 / (1 / C0 - u * K) - C0));
-}
-
-/* GGX normal distribution D(h) for cos(theta_h) = c. */
-static double ggx_d(double alpha, double c) {
-    double a2 = alpha * alpha, t = (a2 - 1) * c * c + 1;
-    return a2 / (SB_PI * t * t);
-}
-
-/* Mixture density of wo given wi (both unit, wo.z > 0). */
-static double pdf_o(const double wi[3], const double wo[3]) {
-    double p = comp_w[0] / (2 * SB_PI) + comp_w[1] * wo[2] / SB_PI + comp_w[GRAZE] * graze_pdf(wo[2]), h[3];
-    for (int i = 0; i < 3; i++)
-        h[i] = wi[i] + wo[i];
-    double nh = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-    if (nh <= 0) return p;
-    double hz = h[2] / nh, oh = (wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]) / nh;
-    if (hz <= 0 || oh <= 0) return p;
-    for (int k = 2; k < GRAZE; k++)
-        p += comp_w[k] * ggx_d(lobe_alpha[k], hz) * hz / (4 * oh);
-    return p;
-}
-
-/* Direction with cos(theta) = z, azimuth 2 pi u. */
-static void dir_z(double z, double u, double w[3]) {
-    double s = sqrt(fmax(0, 1 - z * z)), ph = 2 * SB_PI * u;
-    w[0] = s * cos(ph);
-    w[1] = s * sin(ph);
-    w[2] = z;
-}
-
-/* Map a point x of [0,1)^6 to a pair; returns its density (0: wo below the
- * horizon, no BRDF pair). */
-static double draw_pair(const double x[6], double wi[3], double wo[3]) {
-    dir_z(x[0] < wi_w[0] ? x[1] : x[0] < wi_w[0] + wi_w[1] ? sqrt(1 - x[1]) : graze_z(x[1]), x[2], wi);
-    double pi_ = wi_w[0] / (2 * SB_PI) + wi_w[1] * wi[2] / SB_PI + wi_w[2] * graze_pdf(wi[2]);
-    int k = 0;
-    for (double acc = comp_w[0]; k < NCOMP - 1 && x[3] >= acc; acc += comp_w[++k])
-        ;
-    if (k == 0) {
-        dir_z(x[4], x[5], wo);
-    } else if (k == 1) {
-        dir_z(sqrt(1 - x[4]), x[5], wo);
-    } else if (k == GRAZE) {
-        dir_z(graze_z(x[4]), x[5], wo);
-    } else {
-        double a = lobe_alpha[k], t2 = a * a * x[4] / (1 - x[4]), h[3];
-        dir_z(1 / sqrt(1 + t2), x[5], h);
-        double ih = wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2];
-        for (int i = 0; i < 3; i++)
-            wo[i] = 2 * ih * h[i] - wi[i];
-    }
-    if (!(wo[2] > 0) || !(wi[2] > 0)) return 0;
-    return pi_ * pdf_o(wi, wo);
-}
-
-/* A batched source (sb_source_create_batched): the drawn pairs of
- * replicate k (density in d[6]) evaluated in one call. */
-static void eval_replicate(sb_pairs_t *P, size_t k) {
-    size_t n = 0, *idx = malloc(P->rep * sizeof *idx);
-    double *buf = malloc(P->rep * 9 * sizeof *buf);
-    unsigned char *known = malloc(P->rep);
-    double *wi = buf, *wo = buf ? buf + 3 * P->rep : NULL, *f = buf ? buf + 6 * P->rep : NULL;
-    int have = idx && buf && known; /* else (no memory) pair by pair */
-    for (size_t i = 0; i < P->rep && have; i++) {
-        const double *d = P->d + (k * P->rep + i) * PD;
-        if (!(d[6] > 0)) continue;
-        memcpy(wi + 3 * n, d, 3 * sizeof *d);
-        memcpy(wo + 3 * n, d + 3, 3 * sizeof *d);
-        idx[n++] = i;
-    }
-    if (have) sb_source_eval_many(P->src, n, wi, wo, f, known);
-    for (size_t i = 0, m = 0; i < P->rep; i++) {
-        size_t at = k * P->rep + i;
-        double *d = P->d + at * PD;
-        int ok = have ? m < n && idx[m] == i : d[6] > 0, kn;
-        if (!have)
-            kn = ok && sb_source_eval(P->src, d, d + 3, d + 7) && isfinite(d[7] + d[8] + d[9]);
-        else
-            kn = ok && known[m] && isfinite(f[3 * m] + f[3 * m + 1] + f[3 * m + 2]);
-        if (have && ok) memcpy(d + 7, f + 3 * m++, 3 * sizeof *d);
-        d[6] = kn ? 1 / d[6] : 0;
-        P->known[at] = (unsigned char)kn;
-    }
-    free(idx);
-    free(buf);
-    free(known);
-}
-
-/* Pairs of replicate k: the Kronecker set i alpha (alpha_d = 1/phi^(d+1),
- * phi the root of x^7 = x + 1) shifted by the replicate's random vector. */
-static void draw_replicate(sb_pairs_t *P, size_t k) {
-    static const double phi6 = 1.1127756842787055;
-    double alpha[6], shift[6], a = 1;
-    uint64_t s = P->seed * 0x2545f4914f6cdd1dULL + k;
-    int batched = sb_source_batched(P->src);
-    for (int d = 0; d < 6; d++) {
-        a /= phi6;
-        alpha[d] = a;
-        shift[d] = sb_unit(sb_splitmix64(&s));
-    }
-    for (size_t i = 0; i < P->rep; i++) {
-        size_t at = k * P->rep + i;
-        double x[6], *d = P->d + at * PD;
-        for (int e = 0; e < 6; e++) {
-            double v = shift[e] + (double)(i + 1) * alpha[e];
-            x[e] = v - floor(v);
-        }
-        double pd = P->draw ? P->draw(P->draw_user, x, d, d + 3) : draw_pair(x, d, d + 3);
-        if (batched) { /* evaluated below, all at once */
-            d[6] = pd;
-            continue;
-        }
-        int known = pd > 0 && sb_source_eval(P->src, d, d + 3, d + 7) && isfinite(d[7] + d[8] + d[9]);
-        d[6] = known ? 1 / pd : 0;
-        P->known[at] = (unsigned char)known;
-    }
-    if (batched) eval_replicate(P, k);
-}
-
 /* ---- units of work on threads ----------------------------------------- */
 
 typedef struct runner {
@@ -210,7 +65,7 @@ void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t
 
 static void draw_unit(void *user, size_t k, int t) {
     (void)t;
-    draw_replicate(user, k);
+    est_draw_replicate(user, k);
 }
 
 static sb_estimate_opts_t opts_or_default(const sb_estimate_opts_t *opts) {
@@ -288,6 +143,7 @@ sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, con
             P->e0[c] += f[c] * f[c] * q;
             P->e0[3] += f[c] * f[c] * q;
         }
+        P->m0 += d[6];
     }
     *out = P;
     return SB_OK;
@@ -307,38 +163,6 @@ void sb_pairs_destroy(sb_pairs_t *P) {
 
 size_t sb_pairs_count(const sb_pairs_t *P) { return P ? P->n : 0; }
 
-/* log2 x for x > 0 to about 2e-7 (a bin is 0.083 wide): the exponent
- * from the bits, log2 of the mantissa interpolated linearly in a table of
- * 1024 steps (error h^2 / (8 ln 2) = 1.7e-7).  libm's log10 per pair, term
- * and channel was a quarter of a whole io run, a polynomial with its
- * division half of the estimator's loop. */
-#define LOG2_STEPS 1024
-static double log2_tab[LOG2_STEPS + 1];
-static pthread_once_t log2_once = PTHREAD_ONCE_INIT;
-static void log2_init(void) {
-    for (int i = 0; i <= LOG2_STEPS; i++)
-        log2_tab[i] = log2(1 + (double)i / LOG2_STEPS);
-}
-
-static double log2_fast(double x) {
-    if (!(x >= DBL_MIN) || !(x <= DBL_MAX)) return log2(x);
-    uint64_t b;
-    memcpy(&b, &x, sizeof b);
-    int ex = (int)((b >> 52) & 0x7ff) - 1023;
-    uint64_t mant = b & 0x000fffffffffffffULL;
-    size_t i = (size_t)(mant >> 42); /* the top 10 of 52 bits */
-    double frac = (double)(mant & ((1ULL << 42) - 1)) * 0x1.0p-42;
-    return ex + log2_tab[i] + frac * (log2_tab[i + 1] - log2_tab[i]);
-}
-
-/* The histogram bin of relative error r = sqrt(d2 / f2), from the squares:
- * 40 bins a decade from 1e-12 (bin 0 below); lf2 = log2 f2. */
-static size_t bin_of(double d2, double f2, double lf2) {
-    if (!(d2 > 1e-24 * f2)) return 0;
-    double b = 20 * 0.30102999566398120 * (log2_fast(d2) - lf2) + 480;
-    return b >= NB - 1 ? NB - 1 : (size_t)b;
-}
-
 /* Add one known pair's errors for every prefix to the replicate sums. */
 static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
     const double *f = d + 7, w = d[6];
@@ -347,7 +171,7 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
     f2[3] = f2[0] + f2[1] + f2[2];
     uint64_t ew[4] = {0, 0, 0, 0};
     for (int c = 0; c < 4 && !e->headline_only; c++) { /* the histograms' logs and weights */
-        lf2[c] = f2[c] > 0 ? log2_fast(f2[c]) : 0;
+        lf2[c] = f2[c] > 0 ? est_log2(f2[c]) : 0;
         ew[c] = e->P->e0[c] > 0 ? (uint64_t)(f2[c] * ci2 * w / e->P->e0[c] * 0x1.0p40) : 0;
     }
     size_t J = e->J;
@@ -372,7 +196,7 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
         maxv[j] = vmax > maxv[j] ? vmax : maxv[j];
         for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
-            hist[(j * 4 + c) * NB + bin_of(d2[c], f2[c], lf2[c])] += ew[c];
+            hist[(j * 4 + c) * NB + est_bin_of(d2[c], f2[c], lf2[c])] += ew[c];
             if (d2[c] > maxr[j * 4 + c] * f2[c]) /* a division only for a new maximum */
                 maxr[j * 4 + c] = d2[c] / f2[c]; /* maxr holds squares: roots taken in combine() */
         }
@@ -391,6 +215,7 @@ static void eval_unit(void *user, size_t k, int t) {
     memset(num, 0, J * QC * sizeof *num);
     memset(den, 0, sizeof den);
     memset(neg, 0, J * sizeof *neg);
+    if (e->bands) est_bands_clear(e, k);
     for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
         if (!P->known[i]) continue;
         const double *d = P->d + i * PD, *f = d + 7;
@@ -403,6 +228,7 @@ static void eval_unit(void *user, size_t k, int t) {
         meas += d[6];
         est_reconstruct(e, i, rec);
         add_pair(e, d, rec, num, neg, t);
+        if (e->bands) est_bands_pair(e, i, rec, k, t);
         if (!e->headline_only && est_chroma_pair(e, i, rec, de)) dew += d[6];
     }
     memcpy(e->de + k * J, de, J * sizeof *de);
@@ -418,36 +244,21 @@ static void eval_unit(void *user, size_t k, int t) {
 static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate_t *out) {
     size_t J = e->J;
     int met = 1;
-    double dsum[QC] = {0}, msum = 0;
-    for (size_t k = 0; k < K; k++) {
-        for (int i = 0; i < QC; i++)
-            dsum[i] += e->den[k * QC + i];
+    double msum = 0;
+    for (size_t k = 0; k < K; k++)
         msum += e->meas[k];
-    }
     for (size_t j = 0; j < J; j++) {
-        double nsum[QC] = {0}, ng = 0;
-        for (size_t k = 0; k < K; k++) {
-            for (int i = 0; i < QC; i++)
-                nsum[i] += e->num[(k * J + j) * QC + i];
+        double ng = 0;
+        for (size_t k = 0; k < K; k++)
             ng += e->neg[k * J + j];
-        }
         out->neg_frac[j] = msum > 0 ? ng / msum : 0;
         double ds = 0, dw = 0;
         for (size_t k = 0; k < K; k++)
             ds += e->de[k * J + j], dw += e->dew[k];
         out->chroma_de[j] = dw > 0 ? ds / dw : NAN;
-        for (int i = 0; i < QC; i++) {
-            double r2 = dsum[i] > 0 ? nsum[i] / dsum[i] : (nsum[i] > 0 ? INFINITY : 0), v = 0;
-            for (size_t k = 0; k < K && isfinite(r2); k++) {
-                double x = e->num[(k * J + j) * QC + i] - r2 * e->den[k * QC + i];
-                v += x * x;
-            }
-            /* se of r2 = sd / (sqrt(K) mean D) with sd^2 = v / (K - 1) */
-            double se2 = dsum[i] > 0 ? sqrt(v / (double)(K - 1)) * sqrt((double)K) / dsum[i] : 0;
-            double r = sqrt(r2);
-            out->rel[j][i / 4][i % 4] = r;
-            out->se[j][i / 4][i % 4] = r > 0 ? se2 / (2 * r) : sqrt(se2);
-        }
+        for (int i = 0; i < QC; i++)
+            est_ratio(e->num + j * QC + (size_t)i, J * QC, e->den + i, QC, K, &out->rel[j][i / 4][i % 4],
+                      &out->se[j][i / 4][i % 4]);
         double h = out->rel[j][SB_EST_FCOS][3];
         met &= out->se[j][SB_EST_FCOS][3] <= rel_se * h;
         double vmax = 0;
@@ -455,28 +266,20 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
             vmax = fmax(vmax, e->maxv[(size_t)t * J + j]);
         out->overshoot[j] = vmax;
         for (int c = 0; c < 4; c++) {
-            uint64_t hb[NB] = {0}, total = 0, acc = 0;
             double mx = 0;
-            for (int t = 0; t < nt; t++) {
-                const uint64_t *src = e->hist + ((size_t)t * J * 4 + j * 4 + (size_t)c) * NB;
-                for (size_t b = 0; b < NB; b++)
-                    hb[b] += src[b];
+            for (int t = 0; t < nt; t++)
                 mx = fmax(mx, sqrt(e->maxr[((size_t)t * J + j) * 4 + (size_t)c]));
-            }
-            for (size_t b = 0; b < NB; b++)
-                total += hb[b];
-            size_t b = 0;
-            while (b + 1 < NB && (acc += hb[b]) < total - total / 100)
-                b++;
-            out->p99[j][c] = total ? fmin(pow(10, (double)(b + 1) / 40 - 12), mx) : 0;
+            out->p99[j][c] = est_hist_p99(e->hist + (j * 4 + (size_t)c) * NB, J * 4 * NB, nt, mx);
             out->max_rel[j][c] = mx;
         }
     }
+    if (e->bands) est_bands_combine(e, K, nt, out);
     return met;
 }
 
-/* Sums for kmax replicates and nt threads; SB_OK or SB_ERR_NOMEM. */
-static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt) {
+/* Sums for kmax replicates and nt threads (the lit thresholds over the
+ * first `reps`); SB_OK or SB_ERR_NOMEM. */
+static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, size_t reps) {
     size_t J = e->J, T = (size_t)nt;
     e->num = sb_alloc(ctx, kmax * J, QC * sizeof *e->num, "estimator sums");
     e->den = sb_alloc(ctx, kmax, QC * sizeof *e->den, "estimator sums");
@@ -487,22 +290,28 @@ static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt)
     e->hist = sb_calloc(ctx, T * J * 4, NB * sizeof *e->hist, "estimator histograms");
     e->maxr = sb_calloc(ctx, T * J, 4 * sizeof *e->maxr, "estimator sums");
     e->maxv = sb_calloc(ctx, T, J * sizeof *e->maxv, "estimator sums");
-    return e->num && e->den && e->neg && e->meas && e->de && e->dew && e->hist && e->maxr && e->maxv ? SB_OK
-                                                                                                     : SB_ERR_NOMEM;
+    if (!(e->num && e->den && e->neg && e->meas && e->de && e->dew && e->hist && e->maxr && e->maxv))
+        return SB_ERR_NOMEM;
+    return e->bands ? est_bands_alloc(ctx, e, kmax, nt, reps) : SB_OK;
 }
 
-/* Pair counts and the overshoot's denominator, max |f| over the pairs. */
+/* Pair counts and the denominators of the overshoot and of min_rel, the
+ * largest |f| over the pairs (per channel and of all). */
 static void finish(const sb_pairs_t *P, size_t n, sb_estimate_t *out) {
-    double fmax_ = 0;
+    double fm[4] = {0, 0, 0, 0};
     size_t known = 0;
     for (size_t i = 0; i < n; i++) {
         if (!P->known[i]) continue;
         known++;
         for (int c = 0; c < 3; c++)
-            fmax_ = fmax(fmax_, fabs(P->d[i * PD + 7 + c]));
+            fm[c] = fmax(fm[c], fabs(P->d[i * PD + 7 + c]));
     }
-    for (size_t j = 0; j < out->terms; j++)
-        out->overshoot[j] = fmax_ > 0 ? out->overshoot[j] / fmax_ : 0;
+    fm[3] = fmax(fm[0], fmax(fm[1], fm[2]));
+    for (size_t j = 0; j < out->terms; j++) {
+        out->overshoot[j] = fm[3] > 0 ? out->overshoot[j] / fm[3] : 0;
+        for (int c = 0; c < 4; c++)
+            out->min_rel[j][c] = fm[c] > 0 ? out->min_rel[j][c] / fm[c] : 0;
+    }
     out->known = known;
     out->pairs = n;
 }
@@ -511,7 +320,7 @@ static void finish(const sb_pairs_t *P, size_t n, sb_estimate_t *out) {
  * or 1) for the first min(J, SB_EST_MAXJ) terms of f; SB_OK or
  * SB_ERR_NOMEM (then e's arrays and *ones are freed). */
 sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p, double **ones) {
-    pthread_once(&log2_once, log2_init);
+    est_log2_init();
     size_t J = sb_factors_terms(f), C = sb_factors_channels(f);
     if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
     e->J = J;
@@ -557,6 +366,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     if (nt > MAXT) nt = MAXT;
     eval_t e = {.P = pairs, .p = p, .form = form, .headline_only = o.headline_only};
     e.last_only = o.headline_only && o.last_only;
+    e.bands = !o.headline_only || o.bands;
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
     size_t J = e.J;
@@ -568,7 +378,7 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     }
     e.co = est_coords_acquire(pairs, p, use * pairs->rep, &e.co_ready);
     e.chroma_thr = o.headline_only ? 0 : est_chroma_threshold(pairs, use);
-    sb_result_t r = eval_alloc(ctx, &e, kmax > use ? kmax : use, nt);
+    sb_result_t r = eval_alloc(ctx, &e, kmax > use ? kmax : use, nt, use);
     /* evaluate the replicates not yet evaluated, then add replicates
      * (doubling) until the headline's standard error meets the target */
     for (size_t done = 0; r == SB_OK;) {

@@ -12,6 +12,8 @@
 #define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
 #define MAXT 64 /* threads */
 #define QC (SB_EST_Q_COUNT_ * 4)
+#define BQ (SB_BAND_COUNT_ * 4)      /* band sums per J': band, channel */
+#define MM (SB_EST_MAP * SB_EST_MAP) /* band map cells */
 
 /* The texture coordinates of the pairs under one parameterisation: the
  * estimator evaluates many factorisations of the same layout on the same
@@ -38,6 +40,7 @@ struct sb_pairs {
     double *d;            /* n x PD */
     unsigned char *known; /* n */
     double e0[4];         /* headline energy of the first replicates per channel (R, G, B, all) */
+    double m0;            /* pair measure (sum of 1/p) of the known pairs of the first replicates */
     pthread_mutex_t mu;   /* guards the slots' bookkeeping */
     est_coords_t coords[EST_COORD_SLOTS];
     unsigned long tick;
@@ -57,6 +60,7 @@ typedef struct eval {
     sb_form_t form;
     int headline_only; /* no per-pair histograms or maxima (p99, max_rel 0) */
     int last_only;     /* sums of the prefix of all J terms only */
+    int bands;         /* the band sums (estimate_bands.c) */
     /* per replicate: num [J][QC], den [QC], neg measure [J], measure */
     double *num, *den, *neg, *meas;
     /* colour (estimate_colour.c): the luminance threshold, 0 for none;
@@ -66,7 +70,41 @@ typedef struct eval {
     /* per thread: histograms [J][4][NB], maxima [J][4], |f~| maxima [J] */
     uint64_t *hist;
     double *maxr, *maxv;
+    /* where the error is (estimate_bands.c), not with headline_only: per
+     * replicate band sums num [J][BQ], den [BQ], map sums at J num, den
+     * [MM]; lit thresholds per channel (R, G, B, norm); per thread the
+     * lit histograms [J][4][NB], their maxima (squares) and the smallest
+     * reconstructed values [J][4] */
+    double *bnum, *bden, *mnum, *mden;
+    double lit_thr[4];
+    uint64_t *hlit;
+    double *maxl, *minv;
 } eval_t;
+
+/* Where the error is (estimate_bands.c). */
+void est_log2_init(void);
+/* The histogram bin of relative error r = sqrt(d2 / f2), from the squares:
+ * 40 bins a decade from 1e-12 (bin 0 below); lf2 = log2 f2. */
+size_t est_bin_of(double d2, double f2, double lf2);
+double est_log2(double x);
+/* The 99th percentile of the sum of nt histograms (stride apart), at most mx. */
+double est_hist_p99(const uint64_t *hist, size_t stride, int nt, double mx);
+/* Ratio estimate r = sqrt(sum num / sum den) over K replicates (num[k *
+ * ns], den[k * ds]) and its standard error (delta method). */
+void est_ratio(const double *num, size_t ns, const double *den, size_t ds, size_t K, double *r, double *se);
+/* Allocate e's band sums for kmax replicates and nt threads; the lit
+ * thresholds over P's first `reps` replicates.  SB_OK or SB_ERR_NOMEM. */
+sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, size_t reps);
+/* Add known pair i (rec as est_reconstruct fills it) of replicate k to the
+ * band sums (cleared by est_bands_clear(e, k) first), on thread t. */
+void est_bands_clear(const eval_t *e, size_t k);
+void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int t);
+/* Band errors, lit percentiles, smallest values (raw: finish divides) and
+ * the map from K replicates and nt threads into out. */
+void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out);
+void est_bands_free(eval_t *e);
+/* Draw and evaluate replicate k of P (estimate_draw.c). */
+void est_draw_replicate(sb_pairs_t *P, size_t k);
 
 /* Colour error (estimate_colour.c): pairs of the first EST_CHROMA_REPS
  * replicates, every EST_CHROMA_STRIDE-th. */

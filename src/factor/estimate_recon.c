@@ -146,4 +146,5 @@ void est_eval_free(eval_t *e) {
     free(e->hist);
     free(e->maxr);
     free(e->maxv);
+    est_bands_free(e);
 }

@@ -88,6 +88,7 @@ sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv
         eo.headline_only = 1;
         eo.replicates = 4;
         eo.last_only = lv->rank_at_j;
+        eo.bands = 1; /* the band bounds (auto ranks those that keep them first) */
     }
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;

@@ -163,6 +163,7 @@ static sb_result_t add_entries(sb_context_t *ctx, job_budget_t *b, const job_att
         en->t.half = half;
         en->t.bytes = bytes;
         en->t.headline = e;
+        en->t.bands_ok = sb_estimate_bands_bounded(a->est, j);
         if (e < *best) *best = e;
     }
     return SB_OK;
@@ -310,12 +311,16 @@ static sb_result_t check_room(sb_context_t *ctx, const sb_job_t *job) {
 }
 
 /* The entry of the lowest headline (fewer bytes on a tie) among fits not
- * failed; SIZE_MAX when none. */
+ * failed, among those keeping the band bounds when one does; SIZE_MAX
+ * when none. */
 static size_t best_entry(const job_budget_t *b) {
     size_t k = SIZE_MAX;
+    int bounded = 0;
+    for (size_t i = 0; i < b->n; i++)
+        bounded |= !b->fits[b->v[i].fit].failed && b->v[i].t.bands_ok == 1;
     for (size_t i = 0; i < b->n; i++) {
         const sb_job_budget_try_t *e = &b->v[i].t;
-        if (b->fits[b->v[i].fit].failed) continue;
+        if (b->fits[b->v[i].fit].failed || (bounded && e->bands_ok != 1)) continue;
         if (k == SIZE_MAX || e->headline < b->v[k].t.headline ||
             (e->headline == b->v[k].t.headline && e->bytes < b->v[k].t.bytes))
             k = i;
@@ -401,6 +406,10 @@ static void report_entry(sb_json_t *j, const sb_job_budget_try_t *e) {
     sb_json_string(j, "storage", e->half ? "half" : "float");
     sb_json_int(j, "bytes", (long long)e->bytes);
     sb_json_number(j, "headline", e->headline);
+    if (e->bands_ok < 0)
+        sb_json_string(j, "bands_ok", NULL);
+    else
+        sb_json_bool(j, "bands_ok", e->bands_ok);
 }
 
 void job_budget_report(sb_json_t *j, const sb_job_t *job) {

@@ -140,3 +140,29 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
                         job->o.terms, job->o.res);
     return SB_OK;
 }
+
+/* Candidates that screened, finest screening first, then by ascending
+ * error; returns how many. */
+static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
+    if (a->res != b->res) return a->res > b->res;
+    if ((a->bands_ok == 1) != (b->bands_ok == 1)) return a->bands_ok == 1; /* the band bounds first */
+    return a->error < b->error;
+}
+
+size_t job_rank(const sb_job_t *job, size_t *order) {
+    size_t n = 0;
+    for (size_t i = 0; i < job->ncand; i++) {
+        if (!job->cands[i].ok) continue;
+        size_t k = n++;
+        for (; k > 0 && ranks_before(&job->cands[i], &job->cands[order[k - 1]]); k--)
+            order[k] = order[k - 1];
+        order[k] = i;
+    }
+    return n;
+}
+
+/* Candidate a before b by the screening alone (finest grid, then headline). */
+int job_ranks_by_error(const sb_job_t *job, size_t a, size_t b) {
+    const sb_job_candidate_t *x = &job->cands[a], *y = &job->cands[b];
+    return x->res != y->res ? x->res > y->res : x->error < y->error;
+}

@@ -164,6 +164,12 @@ int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a);
  * of `shape`, NULL: the layout's own); 0 when it cannot be made there
  * (job_candidates.c). */
 size_t job_layout_min_side(const sb_job_t *job, sb_param_kind_t kind, size_t res, const sb_param_opts_t *shape);
+/* The candidates that screened into order: finest screening first, then
+ * those keeping the band bounds (estimate.h) first, then by ascending
+ * error; returns how many. */
+size_t job_rank(const sb_job_t *job, size_t *order);
+/* Candidate a before b by the screening alone (finest grid, then headline). */
+int job_ranks_by_error(const sb_job_t *job, size_t a, size_t b);
 /* The options of layout `kind` at level lv (its po, res, theta_max, and
  * the screening's half shape where it applies). */
 sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind);

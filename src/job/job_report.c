@@ -130,6 +130,65 @@ static void report_channels(sb_json_t *j, const char *key, const sb_matrix_t *m,
     sb_json_end_object(j);
 }
 
+/* Where the error of errors[k] is: the bands, the lit pairs, the most
+ * negative value. */
+static void report_bands(sb_json_t *j, const sb_job_t *job, size_t k) {
+    const job_attempt_t *a = &job->best;
+    const sb_estimate_t *e = a->est;
+    int have = k < e->terms;
+    static const char *const keys[2] = {"band_rel", "band_rel_se"};
+    for (int s = 0; s < 2; s++) {
+        sb_json_begin_object(j, keys[s]);
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            sb_json_number(j, sb_band_name(b), have ? (s ? e->band_se : e->band)[k][b][SB_CH_ALL] : NAN);
+        sb_json_end_object(j);
+    }
+    sb_json_begin_object(j, "band_rel_channel");
+    for (int c = 0; c < 3; c++) {
+        if (!sb_matrix_has(&a->m, c)) continue;
+        sb_json_begin_array(j, chan_name[c]);
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            sb_json_number(j, NULL, have ? e->band[k][b][c] : NAN);
+        sb_json_end_array(j);
+    }
+    sb_json_end_object(j);
+    sb_json_string(j, "worst_band", sb_band_name(have ? sb_estimate_worst_band(e, k + 1) : -1));
+    static const char *const lit[3] = {"p99_rel_lit", "max_rel_lit", "min_rel"};
+    for (int s = 0; s < 3; s++) {
+        const double(*v)[4] = s == 0 ? e->p99_lit : s == 1 ? e->max_rel_lit : e->min_rel;
+        double nan3[3] = {NAN, NAN, NAN};
+        char key[32];
+        snprintf(key, sizeof key, "%s_channel", lit[s]);
+        sb_json_number(j, lit[s], have ? v[k][SB_CH_ALL] : NAN);
+        report_channels(j, key, &a->m, have ? v[k] : nan3);
+    }
+}
+
+/* The bands' definitions, shares and the map of the kept J. */
+static void report_band_map(sb_json_t *j, const sb_job_t *job) {
+    const sb_estimate_t *e = job->best.est;
+    sb_json_begin_object(j, "bands");
+    sb_json_number(j, "cone_deg", SB_BAND_CONE_DEG);
+    sb_json_begin_object(j, "share");
+    for (int b = 0; b < SB_BAND_COUNT_; b++)
+        sb_json_number(j, sb_band_name(b), e->band_share[b]);
+    sb_json_end_object(j);
+    sb_json_begin_array(j, "map_edges");
+    for (int k = 0; k <= SB_EST_MAP; k++)
+        sb_json_number(j, NULL, sb_band_map_edges[k]);
+    sb_json_end_array(j);
+    sb_json_int(j, "map_terms", (long long)e->terms);
+    sb_json_begin_array(j, "map");
+    for (int r = 0; r < SB_EST_MAP; r++) {
+        sb_json_begin_array(j, NULL);
+        for (int c = 0; c < SB_EST_MAP; c++)
+            sb_json_number(j, NULL, e->map[r][c]);
+        sb_json_end_array(j);
+    }
+    sb_json_end_array(j);
+    sb_json_end_object(j);
+}
+
 /* The estimator's keys of errors[k] (J' = k + 1). */
 static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     const job_attempt_t *a = &job->best;
@@ -151,6 +210,7 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     sb_json_number(j, "overshoot", have ? e->overshoot[k] : NAN);
     sb_json_number(j, "negative_fraction", have ? e->neg_frac[k] : NAN);
     sb_json_number(j, "chroma_de", have ? e->chroma_de[k] : NAN);
+    report_bands(j, job, k);
     double cse;
     sb_json_number(j, "cv_headline", sb_job_cv(job, k + 1, &cse, NULL));
     sb_json_number(j, "cv_headline_se", cse);
@@ -251,6 +311,7 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
     else
         sb_json_number(j, "metric_resolution", NAN); /* null: no comparable_grid asked for */
     report_estimator(j, job);
+    report_band_map(j, job);
 }
 
 static void report_auto(sb_json_t *j, const sb_job_t *job) {
@@ -265,6 +326,10 @@ static void report_auto(sb_json_t *j, const sb_job_t *job) {
         sb_json_bool(j, "kept", c->kept);
         sb_json_int(j, "resolution", (long long)c->res);
         sb_json_number(j, "headline", c->ok ? c->error : NAN);
+        if (c->bands_ok < 0)
+            sb_json_string(j, "bands_ok", NULL);
+        else
+            sb_json_bool(j, "bands_ok", c->bands_ok);
         sb_json_number(j, "time_s", c->time_s);
         sb_json_string(j, "failure", c->why[0] ? c->why : NULL);
         sb_json_end_object(j);

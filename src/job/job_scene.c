@@ -48,6 +48,7 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
     a->scene_w = only ? sb_alloc(ctx, rows + cols, sizeof(double), "scene weights") : NULL;
     sb_result_t r = a->scene_w ? sb_scene_mass(ctx, job->scene, a->param, mo->form, 0, mass) : SB_ERR_NOMEM;
     if (r == SB_OK) {
+        sb_scene_mass_floor(job->scene, a->param, mass, cells); /* outside the scene: near the whole domain's fit */
         for (size_t c = 0; c < cells; c++)
             only[c] = mass[c] > 0;
         sb_scene_weights(mass, rows, cols, a->scene_w);

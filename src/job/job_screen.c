@@ -18,6 +18,12 @@ static double rank_error(const job_attempt_t *a) {
     return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
 }
 
+/* Whether the attempt keeps the band bounds at its J (estimate.h). */
+static int rank_bands(const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    return sb_estimate_bands_bounded(a->est, J < a->est->terms ? J : a->est->terms);
+}
+
 #define SB_JOB_MEMO_CAP ((size_t)1 << 16)
 
 /* The same layout as `from` (sampled as f, dense) with form `form`: each
@@ -27,7 +33,8 @@ static sb_result_t job_reform(sb_context_t *ctx, const sb_job_t *job, const job_
                               sb_form_t form, job_attempt_t *a) {
     /* a layout that knows its cells (sb_param_cell_value) samples them again: cheap, and exact where the
      * light is below the horizon */
-    if (sb_param_caps(from->param) & SB_CAP_TABLES) return job_sample(ctx, job, lv, sb_param_kind(from->param), form, a);
+    if (sb_param_caps(from->param) & SB_CAP_TABLES)
+        return job_sample(ctx, job, lv, sb_param_kind(from->param), form, a);
     memset(a, 0, sizeof *a);
     double t0 = job_now();
     sb_param_opts_t po = job_level_opts(job, lv, sb_param_kind(from->param)); /* as job_sample made `from` */
@@ -65,6 +72,7 @@ static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_
     if (r == SB_OK) r = job_factor(ctx, job, lv, c->weighted, a);
     c->ok = r == SB_OK;
     c->error = c->ok ? rank_error(a) : NAN;
+    c->bands_ok = c->ok ? rank_bands(a) : -1;
     c->res = lv->res;
     c->result = r;
     if (!c->ok) snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
@@ -127,24 +135,6 @@ static job_level_t full_level(const sb_job_t *job) {
                       .label = "sampling",
                       .span = 1};
     return lv;
-}
-
-/* Candidates that screened, finest screening first, then by ascending
- * error; returns how many. */
-static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
-    return a->res != b->res ? a->res > b->res : a->error < b->error;
-}
-
-static size_t rank(const sb_job_t *job, size_t *order) {
-    size_t n = 0;
-    for (size_t i = 0; i < job->ncand; i++) {
-        if (!job->cands[i].ok) continue;
-        size_t k = n++;
-        for (; k > 0 && ranks_before(&job->cands[i], &job->cands[order[k - 1]]); k--)
-            order[k] = order[k - 1];
-        order[k] = i;
-    }
-    return n;
 }
 
 /* A masked fit is a local optimum, and the closest fit to the valid cells
@@ -219,9 +209,14 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
         r = job_estimate(ctx, job, &lv, &job->best); /* a ranking's estimate is redone in job_refine */
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK && job->o.max_error > 0) {
-        size_t keep = sb_factors_terms(job->best.f);
-        for (size_t k = keep; k >= 1; k--)
-            if (sb_estimate_headline(job->best.est, k) <= job->o.max_error) keep = k;
+        /* the fewest terms meeting it, keeping the band bounds where some do */
+        size_t keep = sb_factors_terms(job->best.f), bounded = 0;
+        for (size_t k = keep; k >= 1; k--) {
+            int met = sb_estimate_headline(job->best.est, k) <= job->o.max_error;
+            keep = met ? k : keep;
+            bounded = met && sb_estimate_bands_bounded(job->best.est, k) == 1 ? k : bounded;
+        }
+        keep = bounded ? bounded : keep;
         r = job_truncate(ctx, &job->best, keep);
     }
     if (r != SB_OK) job_attempt_free(&job->best);
@@ -246,13 +241,18 @@ static void screen(sb_context_t *ctx, sb_job_t *job) {
             job_progress(job, "screening", (s + (double)k / SB_PARAM_KIND_COUNT_) / 2);
             screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
         }
-        double best = INFINITY;
+        /* the best of all, and of those keeping the band bounds: each is
+         * dropped against the best of its own kind */
+        double best[2] = {INFINITY, INFINITY};
         for (size_t i = 0; i < job->ncand; i++)
-            if (job->cands[i].ok && job->cands[i].error < best) best = job->cands[i].error;
+            for (int k = 0; k < 2; k++)
+                if (job->cands[i].ok && (!k || job->cands[i].bands_ok == 1) && job->cands[i].error < best[k])
+                    best[k] = job->cands[i].error;
         size_t live = 0;
         for (size_t i = 0; i < job->ncand; i++) {
-            if (job->cands[i].ok && job->cands[i].error > SB_JOB_SCREEN_DROP * best) job->cands[i].dropped = 1;
-            live += job->cands[i].ok && !job->cands[i].dropped;
+            sb_job_candidate_t *c = &job->cands[i];
+            if (c->ok && c->error > SB_JOB_SCREEN_DROP * best[c->bands_ok == 1]) c->dropped = 1;
+            live += c->ok && !c->dropped;
         }
         if (live <= 1) break; /* nothing left to rank */
     }
@@ -271,6 +271,24 @@ void job_screen(sb_context_t *ctx, sb_job_t *job) {
     job->eval_src = job->src;
     sb_source_destroy(memo);
     job->t.screen_s = job_now() - t0;
+}
+
+/* Fit the candidates in `order` at the requested settings until one
+ * succeeds (job->best, marked kept). */
+static sb_result_t fit_first(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
+    sb_result_t r = SB_ERR_NUMERIC;
+    for (size_t k = 0; k < n && r != SB_OK; k++) {
+        sb_job_candidate_t *c = &job->cands[order[k]];
+        double t1 = job_now();
+        if ((r = job_fit_kept(ctx, job, c)) != SB_OK) {
+            c->ok = 0;
+            c->result = r;
+            snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
+        }
+        c->kept = r == SB_OK;
+        c->time_s += job_now() - t1;
+    }
+    return r;
 }
 
 /* One candidate: fit it at the requested settings.  Several: screen them,
@@ -293,18 +311,20 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
         return r;
     }
     job_screen(ctx, job);
-    size_t order[JOB_MAX_CANDS], n = rank(job, order);
-    sb_result_t r = SB_ERR_NUMERIC;
-    for (size_t k = 0; k < n && r != SB_OK; k++) {
-        sb_job_candidate_t *c = &job->cands[order[k]];
-        double t1 = job_now();
-        if ((r = job_fit_kept(ctx, job, c)) != SB_OK) {
-            c->ok = 0;
-            c->result = r;
-            snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
+    size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
+    sb_result_t r = fit_first(ctx, job, order, n);
+    if (r == SB_OK && n > 1 && sb_estimate_bands_bounded(job->best.est, sb_factors_terms(job->best.f)) == 0) {
+        /* ranked first for its band bounds, it broke them at the requested
+         * settings: the lowest screened headline instead */
+        size_t first = n;
+        for (size_t k = 0; k < n; k++)
+            if (job->cands[order[k]].ok && (first == n || job_ranks_by_error(job, order[k], order[first]))) first = k;
+        if (first < n && !job->cands[order[first]].kept) {
+            for (size_t k = 0; k < n; k++)
+                job->cands[order[k]].kept = 0;
+            job_attempt_free(&job->best);
+            r = fit_first(ctx, job, order + first, 1);
         }
-        c->kept = r == SB_OK;
-        c->time_s += job_now() - t1;
     }
     if (r == SB_OK) {
         job_warn_lost(job);

@@ -35,6 +35,7 @@ struct sb_scene {
     double *pairs; /* pairs: wi, wo (6 doubles a pair) */
     double *cdf;   /* pairs: cumulative weights */
     char *file;
+    double floor; /* mass floor of the cells the scene never touches (scene.h) */
 };
 
 /* ---- parsing ----------------------------------------------------------- */
@@ -163,19 +164,34 @@ static sb_result_t parse_pairs(sb_context_t *ctx, sb_scene_t *s, const char *pat
 }
 
 /* One item KEY=VALUE of n characters; seen[] marks keys given. */
-static sb_result_t parse_item(sb_context_t *ctx, sb_scene_t *s, const char *it, size_t n, int seen[4]) {
-    static const char *const keys[4] = {"view", "light", "lights", "pairs"};
+/* floor=X: a number in [0, 1]. */
+static sb_result_t parse_floor(sb_context_t *ctx, sb_scene_t *s, const char *v, size_t vn) {
+    char buf[64], *end = NULL;
+    if (vn == 0 || vn >= sizeof buf) return sb_error(ctx, SB_ERR_PARSE, "scene: floor=X needs a number in 0..1");
+    memcpy(buf, v, vn);
+    buf[vn] = 0;
+    double x = strtod(buf, &end);
+    if (*end || !(x >= 0 && x <= 1))
+        return sb_error(ctx, SB_ERR_RANGE, "scene: floor '%s' must be a number in 0..1", buf);
+    s->floor = x;
+    return SB_OK;
+}
+
+static sb_result_t parse_item(sb_context_t *ctx, sb_scene_t *s, const char *it, size_t n, int seen[5]) {
+    static const char *const keys[5] = {"view", "light", "lights", "pairs", "floor"};
     const char *eq = memchr(it, '=', n);
     size_t kn = eq ? (size_t)(eq - it) : n;
     int k = 0;
-    while (k < 4 && !(strlen(keys[k]) == kn && strncmp(it, keys[k], kn) == 0))
+    while (k < 5 && !(strlen(keys[k]) == kn && strncmp(it, keys[k], kn) == 0))
         k++;
-    if (!eq || k == 4)
+    if (!eq || k == 5)
         return sb_error(ctx, SB_ERR_PARSE,
-                        "scene: '%.*s' is not one of view=A..B, light=A..B, lights=EL,AZ/..., pairs=FILE", (int)n, it);
+                        "scene: '%.*s' is not one of view=A..B, light=A..B, lights=EL,AZ/..., pairs=FILE, floor=X",
+                        (int)n, it);
     if (seen[k]++) return sb_error(ctx, SB_ERR_PARSE, "scene: %s given twice", keys[k]);
     const char *v = eq + 1;
     size_t vn = n - kn - 1;
+    if (k == 4) return parse_floor(ctx, s, v, vn);
     if (k < 2) return parse_range(ctx, keys[k], v, vn, s->range[k]);
     if (k == 2) return parse_lights(ctx, s, v, vn);
     if (!(s->file = sb_alloc(ctx, vn + 1, 1, "scene"))) return SB_ERR_NOMEM;
@@ -185,7 +201,7 @@ static sb_result_t parse_item(sb_context_t *ctx, sb_scene_t *s, const char *it, 
 }
 
 /* The kind from the keys given; the canonical spec. */
-static sb_result_t settle(sb_context_t *ctx, sb_scene_t *s, const int seen[4]) {
+static sb_result_t settle(sb_context_t *ctx, sb_scene_t *s, const int seen[5]) {
     int kinds = (seen[0] || seen[1]) + seen[2] + seen[3];
     if (kinds != 1)
         return sb_error(ctx, SB_ERR_PARSE, "scene: %s",
@@ -208,8 +224,10 @@ static sb_result_t settle(sb_context_t *ctx, sb_scene_t *s, const int seen[4]) {
             at += (size_t)snprintf(s->spec + at, sizeof s->spec - at, "%s%g,%g", i ? "/" : "", s->light_deg[i][0],
                                    s->light_deg[i][1]);
     } else {
-        snprintf(s->spec, sizeof s->spec, "pairs=%s", s->file);
+        at = (size_t)snprintf(s->spec, sizeof s->spec, "pairs=%s", s->file);
     }
+    at = strlen(s->spec);
+    if (s->floor >= 0) snprintf(s->spec + at, sizeof s->spec - at, ";floor=%g", s->floor);
     return SB_OK;
 }
 
@@ -218,7 +236,8 @@ sb_result_t sb_scene_parse(sb_context_t *ctx, const char *spec, sb_scene_t **out
     *out = NULL;
     sb_scene_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "scene: out of memory");
-    int seen[4] = {0, 0, 0, 0};
+    int seen[5] = {0, 0, 0, 0, 0};
+    s->floor = -1; /* not given: sb_scene_mass_floor's default */
     sb_result_t r = SB_OK;
     for (const char *p = spec; *p && r == SB_OK;) {
         size_t n = item_end(p);
@@ -248,6 +267,7 @@ void sb_scene_destroy(sb_scene_t *s) {
 
 sb_scene_kind_t sb_scene_kind(const sb_scene_t *s) { return s ? s->kind : SB_SCENE_RANGES; }
 const char *sb_scene_spec(const sb_scene_t *s) { return s ? s->spec : ""; }
+double sb_scene_floor(const sb_scene_t *s) { return s ? s->floor : -1; }
 
 size_t sb_scene_lights(const sb_scene_t *s, sb_light_t *out, size_t max) {
     if (!s || !out || s->kind != SB_SCENE_LIGHTS) return 0;

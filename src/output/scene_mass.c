@@ -96,6 +96,16 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
     return SB_OK;
 }
 
+void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells) {
+    double x = sb_scene_floor(s), total = 0;
+    if (x < 0) x = p && (sb_param_caps(p) & SB_CAP_PARTIAL_DOMAIN) ? SB_SCENE_FLOOR : 0;
+    size_t empty = 0;
+    for (size_t c = 0; mass && x > 0 && c < cells; c++)
+        total += mass[c], empty += !(mass[c] > 0);
+    for (size_t c = 0; empty && c < cells; c++)
+        if (!(mass[c] > 0)) mass[c] = x * total / (double)empty;
+}
+
 /* Rank-one a b^T ~ mass on its positive cells (header); w = sqrt, floored. */
 void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w) {
     if (!mass || !w) return;
@@ -135,6 +145,7 @@ sb_result_t sb_scene_apply(sb_context_t *ctx, const sb_scene_t *s, const sb_para
     size_t cells = m->rows * m->cols, valid = 0;
     double *mass = sb_alloc_large(ctx, cells, sizeof *mass, "scene mass");
     sb_result_t r = mass ? sb_scene_mass(ctx, s, p, m->form, 0, mass) : SB_ERR_NOMEM;
+    if (r == SB_OK) sb_scene_mass_floor(s, p, mass, cells);
     if (r == SB_OK && !m->mask) {
         if ((m->mask = sb_alloc_large(ctx, cells, 1, "matrix mask")) != NULL)
             memset(m->mask, 1, cells);

@@ -60,8 +60,8 @@ static void view_slices(const sb_layout_tables_t *t, double theta_v, size_t *k, 
 }
 
 /* The file's coordinates of a pair: u_m, u_v and the view's slices. */
-static void pair_coords(const sb_layout_tables_t *t, const double l[3], const double v[3], double u_m[2],
-                        double u_v[2], size_t *k, double *w, slices_t *s) {
+static void pair_coords(const sb_layout_tables_t *t, const double l[3], const double v[3], double u_m[2], double u_v[2],
+                        size_t *k, double *w, slices_t *s) {
     double m[3] = {v[0] + l[0], v[1] + l[1], v[2] + l[2]};
     double len = sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
     for (int c = 0; c < 3; c++)
@@ -355,8 +355,8 @@ sb_result_t sb_param_tables_texture(const sb_param_t *p, size_t *width, size_t *
     for (size_t k = 0; k < t->sigma.w * t->sigma.h; k++)
         a[3 * ((r0 + k / t->sigma.w) * W + k % t->sigma.w)] = (float)t->sigma.v[k];
     float *last = a + 3 * (H - 1) * W;
-    const size_t head[VNDF_HEADER] = {t->n_theta, t->vndf.w, t->vndf.h, t->ndf.w, t->ndf.h,
-                                      t->sigma.w, t->sigma.h, t->sw,      t->sh,    (size_t)t->jacobian};
+    const size_t head[VNDF_HEADER] = {t->n_theta, t->vndf.w,  t->vndf.h, t->ndf.w, t->ndf.h,
+                                      t->sigma.w, t->sigma.h, t->sw,     t->sh,    (size_t)t->jacobian};
     for (size_t k = 0; k < VNDF_HEADER; k++)
         last[3 * k] = (float)head[k];
     for (size_t k = 0; k < t->n_theta; k++)
@@ -368,9 +368,7 @@ sb_result_t sb_param_tables_texture(const sb_param_t *p, size_t *width, size_t *
 }
 
 /* A whole number in 1..max stored in a float, or 0. */
-static size_t header_count(float v, size_t max) {
-    return v >= 1 && v <= (float)max && v == floorf(v) ? (size_t)v : 0;
-}
+static size_t header_count(float v, size_t max) { return v >= 1 && v <= (float)max && v == floorf(v) ? (size_t)v : 0; }
 
 sb_result_t sb_layout_tables_from_texture(sb_context_t *ctx, size_t W, size_t H, const float *rgb,
                                           sb_layout_tables_t **out) {
@@ -386,12 +384,18 @@ sb_result_t sb_layout_tables_from_texture(sb_context_t *ctx, size_t W, size_t H,
     ok = ok && (last[27] == 0 || last[27] == 1) && VNDF_HEADER + n <= W && vw <= W && nw <= W && sw <= W;
     ok = ok && H == n * vh + nh + sh + 1;
     for (size_t k = 0; ok && k < n; k++)
-        ok = isfinite(last[3 * (VNDF_HEADER + k)]) && (k == 0 || last[3 * (VNDF_HEADER + k)] > last[3 * (VNDF_HEADER + k - 1)]);
+        ok = isfinite(last[3 * (VNDF_HEADER + k)]) &&
+             (k == 0 || last[3 * (VNDF_HEADER + k)] > last[3 * (VNDF_HEADER + k - 1)]);
     for (size_t k = 0; ok && k < 3 * W * (H - 1); k++)
         ok = isfinite(rgb[k]);
     if (!ok) return sb_error(ctx, SB_ERR_FORMAT, "vndf tables: the texture's sizes or values are not an RGL grid's");
     double *theta = malloc(n * sizeof *theta);
-    table2d_t v = {vw, vh, n, 1, malloc(n * vw * vh * sizeof(double)), malloc(n * vw * vh * sizeof(double)),
+    table2d_t v = {vw,
+                   vh,
+                   n,
+                   1,
+                   malloc(n * vw * vh * sizeof(double)),
+                   malloc(n * vw * vh * sizeof(double)),
                    malloc(n * vh * sizeof(double))};
     table2d_t nd = {nw, nh, 1, 1, malloc(nw * nh * sizeof(double)), NULL, NULL};
     table2d_t sg = {sw, sh, 1, 1, malloc(sw * sh * sizeof(double)), NULL, NULL};

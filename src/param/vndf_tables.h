@@ -8,12 +8,12 @@
 
 struct sb_layout_tables {
     size_t n_theta;
-    double *theta;                /* the view's elevation per slice, increasing (radians) */
-    table2d_t vndf, ndf, sigma;   /* vndf: n_theta slices with its CDFs; ndf, sigma: one slice */
-    size_t sw, sh;                /* the colour grid's nodes */
-    table2d_t rgb;                /* the nodes themselves, [slice][3][sh][sw] (from the source; v NULL when read
-                                     back from vndf.exr) */
-    int jacobian;                 /* the value carries NDF / (4 sigma) */
+    double *theta;              /* the view's elevation per slice, increasing (radians) */
+    table2d_t vndf, ndf, sigma; /* vndf: n_theta slices with its CDFs; ndf, sigma: one slice */
+    size_t sw, sh;              /* the colour grid's nodes */
+    table2d_t rgb;              /* the nodes themselves, [slice][3][sh][sw] (from the source; v NULL when read
+                                   back from vndf.exr) */
+    int jacobian;               /* the value carries NDF / (4 sigma) */
 };
 
 /* Copies of the arrays, every value rounded to float (as vndf.exr holds

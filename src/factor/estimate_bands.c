@@ -1,0 +1,271 @@
+/* Where the error is (estimate.h: band, p99_lit, min_rel, map): the
+ * headline's ratio restricted to angular bands, the per-pair relative
+ * errors where the BRDF is lit, the most negative reconstructed value and
+ * the error per (theta_i, theta_o) cell, from the same reconstruction and
+ * the same pairs as the headline.  Sums per replicate (bands, map) and per
+ * thread in integers or by min/max (histograms, extremes), so the results
+ * are the same to the bit on any thread count, as the headline's. */
+#include <float.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "factor/estimate_impl.h"
+#include "util/internal.h"
+
+const double sb_band_map_edges[SB_EST_MAP + 1] = {0, 20, 40, 60, 70, 80, 85, 88, 89, 90};
+
+static const char *const band_names[SB_BAND_COUNT_] = {"theta_i_60", "theta_i_80", "theta_i_89", "theta_o_60",
+                                                       "theta_o_80", "theta_o_89", "specular",   "retro"};
+
+const char *sb_band_name(int band) { return band >= 0 && band < SB_BAND_COUNT_ ? band_names[band] : NULL; }
+
+unsigned sb_band_mask(const double wi[3], const double wo[3]) {
+    /* cos 60, cos 80, cos 89 degrees; cos of the cone */
+    static const double cz[3] = {0.5, 0.17364817766693041, 0.017452406437283376};
+    const double cc = cos(SB_BAND_CONE_DEG * SB_PI / 180);
+    unsigned m = 0;
+    if (!wi || !wo) return 0;
+    for (int k = 0; k < 3; k++) {
+        m |= wi[2] < cz[k] ? 1u << (SB_BAND_TI60 + k) : 0;
+        m |= wo[2] < cz[k] ? 1u << (SB_BAND_TO60 + k) : 0;
+    }
+    double mirror = -wi[0] * wo[0] - wi[1] * wo[1] + wi[2] * wo[2],
+           retro = wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2];
+    m |= mirror > cc ? 1u << SB_BAND_SPECULAR : 0;
+    m |= retro > cc ? 1u << SB_BAND_RETRO : 0;
+    return m;
+}
+
+int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j) {
+    if (!est || j < 1 || j > est->terms) return -1;
+    const double h = est->rel[j - 1][SB_EST_FCOS][3];
+    const double *b80 = est->band[j - 1][SB_BAND_TI80], *b89 = est->band[j - 1][SB_BAND_TI89];
+    const double s80 = est->band_se[j - 1][SB_BAND_TI80][3], s89 = est->band_se[j - 1][SB_BAND_TI89][3];
+    if (!(est->band_share[SB_BAND_TI80] > 0) || !isfinite(h)) return -1;
+    return b80[3] - 2 * s80 <= fmax(3 * h, 0.01) && b89[3] - 2 * s89 <= fmax(10 * h, 0.05);
+}
+
+int sb_estimate_worst_band(const sb_estimate_t *est, size_t j) {
+    int w = -1;
+    for (int b = 0; est && j >= 1 && j <= est->terms && b < SB_BAND_COUNT_; b++) {
+        double v = est->band[j - 1][b][3];
+        if (isfinite(v) && (w < 0 || v > est->band[j - 1][w][3])) w = b;
+    }
+    return w;
+}
+
+/* The map cell of cos theta. */
+static size_t map_cell(double c) {
+    double deg = acos(fmin(1, fmax(-1, c))) * 180 / SB_PI;
+    size_t k = 0;
+    while (k + 1 < SB_EST_MAP && deg >= sb_band_map_edges[k + 1])
+        k++;
+    return k;
+}
+
+/* ---- histograms --------------------------------------------------------- */
+
+/* log2 x for x > 0 to about 2e-7 (a bin is 0.083 wide): the exponent
+ * from the bits, log2 of the mantissa interpolated linearly in a table of
+ * 1024 steps (error h^2 / (8 ln 2) = 1.7e-7).  libm's log10 per pair, term
+ * and channel was a quarter of a whole io run, a polynomial with its
+ * division half of the estimator's loop. */
+#define LOG2_STEPS 1024
+static double log2_tab[LOG2_STEPS + 1];
+static pthread_once_t log2_once = PTHREAD_ONCE_INIT;
+static void log2_fill(void) {
+    for (int i = 0; i <= LOG2_STEPS; i++)
+        log2_tab[i] = log2(1 + (double)i / LOG2_STEPS);
+}
+
+void est_log2_init(void) { pthread_once(&log2_once, log2_fill); }
+
+double est_log2(double x) {
+    if (!(x >= DBL_MIN) || !(x <= DBL_MAX)) return log2(x);
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    int ex = (int)((b >> 52) & 0x7ff) - 1023;
+    uint64_t mant = b & 0x000fffffffffffffULL;
+    size_t i = (size_t)(mant >> 42); /* the top 10 of 52 bits */
+    double frac = (double)(mant & ((1ULL << 42) - 1)) * 0x1.0p-42;
+    return ex + log2_tab[i] + frac * (log2_tab[i + 1] - log2_tab[i]);
+}
+
+size_t est_bin_of(double d2, double f2, double lf2) {
+    if (!(d2 > 1e-24 * f2)) return 0;
+    double b = 20 * 0.30102999566398120 * (est_log2(d2) - lf2) + 480;
+    return b >= NB - 1 ? NB - 1 : (size_t)b;
+}
+
+double est_hist_p99(const uint64_t *hist, size_t stride, int nt, double mx) {
+    uint64_t hb[NB] = {0}, total = 0, acc = 0;
+    for (int t = 0; t < nt; t++)
+        for (size_t b = 0; b < NB; b++)
+            hb[b] += hist[(size_t)t * stride + b];
+    for (size_t b = 0; b < NB; b++)
+        total += hb[b];
+    size_t b = 0;
+    while (b + 1 < NB && (acc += hb[b]) < total - total / 100)
+        b++;
+    return total ? fmin(pow(10, (double)(b + 1) / 40 - 12), mx) : 0;
+}
+
+/* se of r^2 = sd_k(N_k - r^2 D_k) / (sqrt(K) mean D), se of r = se(r^2) / (2 r) */
+void est_ratio(const double *num, size_t ns, const double *den, size_t ds, size_t K, double *r, double *se) {
+    double n = 0, d = 0, v = 0;
+    for (size_t k = 0; k < K; k++)
+        n += num[k * ns], d += den[k * ds];
+    double r2 = d > 0 ? n / d : (n > 0 ? INFINITY : 0);
+    for (size_t k = 0; k < K && isfinite(r2); k++) {
+        double x = num[k * ns] - r2 * den[k * ds];
+        v += x * x;
+    }
+    double se2 = d > 0 && K > 1 ? sqrt(v / (double)(K - 1)) * sqrt((double)K) / d : 0;
+    *r = sqrt(r2);
+    *se = *r > 0 ? se2 / (2 * *r) : sqrt(se2);
+}
+
+/* ---- the sums ------------------------------------------------------------ */
+
+sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, size_t reps) {
+    size_t J = e->J, T = (size_t)nt;
+    const sb_pairs_t *P = e->P;
+    e->bnum = sb_alloc(ctx, kmax * J, BQ * sizeof *e->bnum, "estimator band sums");
+    e->bden = sb_alloc(ctx, kmax, BQ * sizeof *e->bden, "estimator band sums");
+    e->mnum = sb_alloc(ctx, kmax, MM * sizeof *e->mnum, "estimator band sums");
+    e->mden = sb_alloc(ctx, kmax, MM * sizeof *e->mden, "estimator band sums");
+    size_t L = e->headline_only ? 1 : T * J; /* the lit sums: not with headline_only */
+    e->hlit = sb_calloc(ctx, L * 4, NB * sizeof *e->hlit, "estimator histograms");
+    e->maxl = sb_calloc(ctx, L, 4 * sizeof *e->maxl, "estimator band sums");
+    e->minv = sb_calloc(ctx, L, 4 * sizeof *e->minv, "estimator band sums");
+    /* the lit thresholds: 1 % of the largest f cos theta_i of the first 16 replicates */
+    memset(e->lit_thr, 0, sizeof e->lit_thr);
+    for (size_t i = 0; i < (reps < 16 ? reps : 16) * P->rep && i < P->n; i++) {
+        const double *d = P->d + i * PD, *f = d + 7;
+        if (!P->known[i]) continue;
+        for (int c = 0; c < 3; c++)
+            e->lit_thr[c] = fmax(e->lit_thr[c], 0.01 * fabs(f[c]) * d[2]);
+        e->lit_thr[3] = fmax(e->lit_thr[3], 0.01 * sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * d[2]);
+    }
+    return e->bnum && e->bden && e->mnum && e->mden && e->hlit && e->maxl && e->minv ? SB_OK : SB_ERR_NOMEM;
+}
+
+void est_bands_clear(const eval_t *e, size_t k) {
+    memset(e->bnum + k * e->J * BQ, 0, e->J * BQ * sizeof *e->bnum);
+    memset(e->bden + k * BQ, 0, BQ * sizeof *e->bden);
+    memset(e->mnum + k * MM, 0, MM * sizeof *e->mnum);
+    memset(e->mden + k * MM, 0, MM * sizeof *e->mden);
+}
+
+/* The denominators of pair i: bands (mask) and its map cell (*cell). */
+static void pair_dens(const eval_t *e, const double *d, unsigned mask, size_t k, const double f2[4], size_t *cell) {
+    double q = d[2] * d[2] * d[6], *bden = e->bden + k * BQ;
+    for (int b = 0; b < SB_BAND_COUNT_; b++)
+        for (int c = 0; c < 4 && (mask >> b & 1u); c++)
+            bden[b * 4 + c] += f2[c] * q;
+    *cell = map_cell(d[2]) * SB_EST_MAP + map_cell(d[5]);
+    e->mden[k * MM + *cell] += f2[3] * q;
+}
+
+static void bands_only(const eval_t *e, const double *d, const double *rec, unsigned mask, size_t k, double q) {
+    size_t J = e->J;
+    double *bnum = e->bnum + k * J * BQ;
+    for (size_t j = e->last_only ? J - 1 : 0; j < J && mask; j++) {
+        const double *r = rec + j * 3, *f = d + 7;
+        double d2[4] = {0, 0, 0, 0};
+        for (int c = 0; c < 3; c++)
+            d2[3] += d2[c] = (r[c] - f[c]) * (r[c] - f[c]);
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            for (int c = 0; c < 4 && (mask >> b & 1u); c++)
+                bnum[j * BQ + b * 4 + c] += d2[c] * q;
+    }
+}
+
+void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int t) {
+    const double *d = e->P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
+    size_t J = e->J, cell;
+    unsigned mask = sb_band_mask(d, d + 3);
+    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4];
+    f2[3] = f2[0] + f2[1] + f2[2];
+    pair_dens(e, d, mask, k, f2, &cell);
+    if (e->headline_only) { /* the bands only (of all J terms with last_only) */
+        bands_only(e, d, rec, mask, k, q);
+        return;
+    }
+    int lit[4];
+    for (int c = 0; c < 4; c++) {
+        lit[c] = f2[c] > 0 && sqrt(f2[c]) * d[2] > e->lit_thr[c];
+        lf2[c] = lit[c] ? est_log2(f2[c]) : 0;
+    }
+    uint64_t lw = e->P->m0 > 0 ? (uint64_t)(d[6] / e->P->m0 * 0x1.0p40) : 0;
+    double *bnum = e->bnum + k * J * BQ;
+    uint64_t *hist = e->hlit + (size_t)t * J * 4 * NB;
+    double *maxl = e->maxl + (size_t)t * J * 4, *minv = e->minv + (size_t)t * J * 4;
+    for (size_t j = 0; j < J; j++) {
+        const double *r = rec + j * 3;
+        double d2[4] = {0, 0, 0, 0};
+        for (int c = 0; c < 3; c++) {
+            d2[c] = (r[c] - f[c]) * (r[c] - f[c]);
+            d2[3] += d2[c];
+            minv[j * 4 + c] = fmin(minv[j * 4 + c], r[c]);
+            minv[j * 4 + 3] = fmin(minv[j * 4 + 3], r[c]);
+        }
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            for (int c = 0; c < 4 && (mask >> b & 1u); c++)
+                bnum[j * BQ + b * 4 + c] += d2[c] * q;
+        for (int c = 0; c < 4; c++) {
+            if (!lit[c]) continue;
+            hist[(j * 4 + c) * NB + est_bin_of(d2[c], f2[c], lf2[c])] += lw;
+            if (d2[c] > maxl[j * 4 + c] * f2[c]) maxl[j * 4 + c] = d2[c] / f2[c];
+        }
+        if (j + 1 == J) e->mnum[k * MM + cell] += d2[3] * q;
+    }
+}
+
+void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {
+    size_t J = e->J;
+    double all = 0, share[SB_BAND_COUNT_] = {0};
+    for (size_t k = 0; k < K; k++)
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            share[b] += e->bden[k * BQ + b * 4 + 3];
+    for (size_t k = 0; k < K; k++)
+        for (size_t c = 0; c < MM; c++)
+            all += e->mden[k * MM + c];
+    for (int b = 0; b < SB_BAND_COUNT_; b++)
+        out->band_share[b] = all > 0 ? share[b] / all : 0;
+    for (size_t j = 0; j < J; j++) {
+        for (int i = 0; i < BQ; i++)
+            est_ratio(e->bnum + j * BQ + i, J * BQ, e->bden + i, BQ, K, &out->band[j][i / 4][i % 4],
+                      &out->band_se[j][i / 4][i % 4]);
+        for (int c = 0; c < 4 && !e->headline_only; c++) {
+            double mx = 0, mn = 0;
+            for (int t = 0; t < nt; t++) {
+                mx = fmax(mx, sqrt(e->maxl[((size_t)t * J + j) * 4 + (size_t)c]));
+                mn = fmin(mn, e->minv[((size_t)t * J + j) * 4 + (size_t)c]);
+            }
+            out->p99_lit[j][c] = est_hist_p99(e->hlit + (j * 4 + (size_t)c) * NB, J * 4 * NB, nt, mx);
+            out->max_rel_lit[j][c] = mx;
+            out->min_rel[j][c] = mn;
+        }
+    }
+    for (size_t c = 0; c < MM; c++) {
+        double r, se;
+        est_ratio(e->mnum + c, MM, e->mden + c, MM, K, &r, &se);
+        int none = 1;
+        for (size_t k = 0; k < K && none; k++)
+            none = !(e->mden[k * MM + c] > 0);
+        out->map[c / SB_EST_MAP][c % SB_EST_MAP] = none ? NAN : r;
+    }
+}
+
+void est_bands_free(eval_t *e) {
+    free(e->bnum);
+    free(e->bden);
+    free(e->mnum);
+    free(e->mden);
+    free(e->hlit);
+    free(e->maxl);
+    free(e->minv);
+}
