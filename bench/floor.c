@@ -29,12 +29,18 @@ static int parse(int argc, char **argv, floor_opts_t *o) {
     int ok = argc % 2 == 1;
     for (int i = 1; ok && i + 1 < argc; i += 2) {
         const char *a = argv[i], *v = argv[i + 1];
-        if (!strcmp(a, "--source")) o->source = v;
-        else if (!strcmp(a, "-r")) o->R = strtoul(v, NULL, 10);
-        else if (!strcmp(a, "-J")) o->J = strtoul(v, NULL, 10);
-        else if (!strcmp(a, "-o")) o->out = v;
-        else if (!strcmp(a, "--size")) ok = sscanf(v, "%zux%zu", &o->w[0], &o->h[0]) == 2;
-        else ok = !strcmp(a, "--hsize") && sscanf(v, "%zux%zu", &o->w[1], &o->h[1]) == 2;
+        if (!strcmp(a, "--source"))
+            o->source = v;
+        else if (!strcmp(a, "-r"))
+            o->R = strtoul(v, NULL, 10);
+        else if (!strcmp(a, "-J"))
+            o->J = strtoul(v, NULL, 10);
+        else if (!strcmp(a, "-o"))
+            o->out = v;
+        else if (!strcmp(a, "--size"))
+            ok = sscanf(v, "%zux%zu", &o->w[0], &o->h[0]) == 2;
+        else
+            ok = !strcmp(a, "--hsize") && sscanf(v, "%zux%zu", &o->w[1], &o->h[1]) == 2;
     }
     if (!ok || !o->out || o->R < 2 || o->J < 1)
         fprintf(stderr, "usage: sepbrdf_bench_floor [--source SPEC] [-r R] [-J J] [--size WxH] [--hsize WxH] -o DIR\n");
