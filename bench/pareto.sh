@@ -22,7 +22,7 @@ for case in default measured; do
     src=
     [ "$case" = measured ] && src="--source $measured"
     [ "$case" = measured ] && [ -z "$measured" ] && continue
-    echo "# $case ${measured:+($measured)}"
+    echo "# $case${src:+ ($measured)}"
     # shellcheck disable=SC2086
     "$build/sepbrdf" bench --pareto $src --layouts io,iso,hd --methods auto,randomized,topk --res 16,32 \
         --terms 1,2,4,8 -o "$work/$case"
