@@ -15,13 +15,7 @@ build=${BUILD:-$root/build}
 rounds=${1:-5}
 n=${2:-4096}
 J=${3:-8}
-py=
-for p in ${PYTHON:-} /usr/bin/python3 python3; do
-    if command -v "$p" >/dev/null 2>&1 && "$p" -c 'import numpy, scipy, sklearn' 2>/dev/null; then
-        py=$p
-        break
-    fi
-done
+py=$("$here/python.sh" || true)
 if [ -z "$py" ]; then
     echo "# solvers skipped: no Python with numpy, scipy and scikit-learn"
     exit 0
