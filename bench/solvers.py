@@ -10,6 +10,7 @@ alive and asked for one method at a time, so every round times
     topk        (sepbrdf, exact)       against scipy svds (ARPACK, tol 0)
     randomized  (sepbrdf, q = 2)       against sklearn randomized_svd(n_iter=2)
     randomized:q=1 (sepbrdf, q = 1)    against the same sklearn call
+    randomized:f32 (sepbrdf, q = 2 in single precision)   against it too
 back to back, the order swapped every round.  Each side factors the three
 channels; wall and CPU seconds (the whole process, every BLAS thread), and
 the relative error sqrt(sum ||A - A_J||^2 / sum ||A||^2) from ||A||^2 -
@@ -39,7 +40,8 @@ SK2 = ("sklearn n_iter=2", lambda M, J: randomized_svd(M, J, n_iter=2, random_st
 PEERS = {  # sepbrdf method -> (peer name, factor(M, J) -> singular values)
     "topk": SVDS,
     "randomized": SK2,
-    "randomized:q=1": SK2,  # one power step less: sklearn's error or lower, at less cost
+    "randomized:q=1": SK2,  # one power step less: faster, its error above sklearn's
+    "randomized:f32": SK2,  # q = 2 in single precision: its error still below sklearn's
 }
 
 
