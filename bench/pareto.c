@@ -89,9 +89,12 @@ static int parse(int argc, char **argv, popts_t *o) {
     for (int i = 1; i < argc && !r; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int takes = 1;
-        if (!strcmp(a, "--pareto")) takes = 0;
-        else if (!strcmp(a, "-h") || !strcmp(a, "--help")) return help(o->prog), -1;
-        else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->quiet = 1, takes = 0;
+        if (!strcmp(a, "--pareto"))
+            takes = 0;
+        else if (!strcmp(a, "-h") || !strcmp(a, "--help"))
+            return help(o->prog), -1;
+        else if (!strcmp(a, "-q") || !strcmp(a, "--quiet"))
+            o->quiet = 1, takes = 0;
         else if (!strcmp(a, "--quick")) {
             r = split(o, "--layouts", "io,iso", o->layouts, &o->nlayouts) ||
                 split(o, "--methods", "auto", o->methods, &o->nmethods) ||
@@ -100,12 +103,18 @@ static int parse(int argc, char **argv, popts_t *o) {
         } else if (!v) {
             fprintf(stderr, "%s --pareto: unknown option or missing value: %s\n", o->prog, a);
             return 1;
-        } else if (!strcmp(a, "--source")) o->source = v;
-        else if (!strcmp(a, "-o") || !strcmp(a, "--out")) o->out = v;
-        else if (!strcmp(a, "--layouts")) r = split(o, a, v, o->layouts, &o->nlayouts);
-        else if (!strcmp(a, "--methods")) r = split(o, a, v, o->methods, &o->nmethods);
-        else if (!strcmp(a, "--res")) r = numbers(o, a, v, o->res, &o->nres);
-        else if (!strcmp(a, "--terms")) r = numbers(o, a, v, o->terms, &o->nterms);
+        } else if (!strcmp(a, "--source"))
+            o->source = v;
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out"))
+            o->out = v;
+        else if (!strcmp(a, "--layouts"))
+            r = split(o, a, v, o->layouts, &o->nlayouts);
+        else if (!strcmp(a, "--methods"))
+            r = split(o, a, v, o->methods, &o->nmethods);
+        else if (!strcmp(a, "--res"))
+            r = numbers(o, a, v, o->res, &o->nres);
+        else if (!strcmp(a, "--terms"))
+            r = numbers(o, a, v, o->terms, &o->nterms);
         else {
             fprintf(stderr, "%s --pareto: unknown option %s\n", o->prog, a);
             return 1;

@@ -65,8 +65,12 @@ typedef struct axes {
     double x0, x1, y0, y1; /* log10 ranges */
 } axes_t;
 
-static int px_x(const axes_t *a, double v) { return ML + (int)lround((log10(v) - a->x0) / (a->x1 - a->x0) * (W - ML - MR)); }
-static int px_y(const axes_t *a, double v) { return H - MB - (int)lround((log10(v) - a->y0) / (a->y1 - a->y0) * (H - MT - MB)); }
+static int px_x(const axes_t *a, double v) {
+    return ML + (int)lround((log10(v) - a->x0) / (a->x1 - a->x0) * (W - ML - MR));
+}
+static int px_y(const axes_t *a, double v) {
+    return H - MB - (int)lround((log10(v) - a->y0) / (a->y1 - a->y0) * (H - MT - MB));
+}
 
 /* Decade ranges that hold every point. */
 static axes_t fit_axes(const pareto_point_t *p, size_t n) {
@@ -110,8 +114,9 @@ int pareto_plot(const char *path, const pareto_point_t *p, size_t n, const size_
     grid(&c, &a);
     static const unsigned char blue[3] = {60, 90, 200}, red[3] = {220, 30, 30};
     for (size_t i = 0; i < n; i++)
-        if (p[i].ok) rect(&c, px_x(&a, p[i].cpu_s) - 2, px_y(&a, p[i].headline) - 2, px_x(&a, p[i].cpu_s) + 2,
-                          px_y(&a, p[i].headline) + 2, blue);
+        if (p[i].ok)
+            rect(&c, px_x(&a, p[i].cpu_s) - 2, px_y(&a, p[i].headline) - 2, px_x(&a, p[i].cpu_s) + 2,
+                 px_y(&a, p[i].headline) + 2, blue);
     for (size_t k = 0; k < nfront; k++) {
         const pareto_point_t *q = &p[front[k]];
         int x = px_x(&a, q->cpu_s), y = px_y(&a, q->headline);

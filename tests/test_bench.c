@@ -31,7 +31,7 @@ static int read_csv(const char *path, row_t *rows) {
         for (; tok && k < 10; tok = strtok_r(NULL, ",", &save))
             f[k++] = tok;
         if (k != 10 && k != 9) break; /* a failed run has no method used: 9 fields */
-        int o = k - 10;                 /* 0, or -1 without `used` */
+        int o = k - 10;               /* 0, or -1 without `used` */
         rows[n] = (row_t){atoi(f[5 + o]), atoi(f[9 + o]), atof(f[6 + o]), atof(f[7 + o])};
         n++;
     }
