@@ -54,13 +54,7 @@ else
 fi
 
 # The peers on the same matrices.
-py=
-for p in ${PYTHON:-} python3 /usr/bin/python3; do
-    if command -v "$p" >/dev/null 2>&1 && "$p" -c 'import numpy, scipy, sklearn' 2>/dev/null; then
-        py=$p
-        break
-    fi
-done
+py=$("$here/python.sh" || true)
 if [ -z "$py" ]; then
     echo "# peers skipped: no Python with numpy, scipy and scikit-learn (scripts/setup-deps.sh --bench)"
 else

@@ -260,6 +260,20 @@ SB_TEST(cli_memory_limit_and_method) {
     CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
     snprintf(cmd, sizeof cmd, "grep -c '\"method\": \"stream\"' %s/ok/report.json", dir);
     CHECK(sb_run(cmd, out, sizeof out) == 0 && atoi(out) == 1);
+    /* without --memory-limit the matrix is streamed all the same (never
+     * stored: issue 36), and the report says so; auto on the same source
+     * stores it, since it fits */
+    snprintf(cmd, sizeof cmd,
+             "%s factor '" ANISO "' --param io -r 8 -J 3 --method stream -q -o %s/nolimit && grep -c "
+             "'\"method_why\": \"stream: the matrix is evaluated from the source in blocks of columns, never "
+             "stored (--method stream)' %s/nolimit/report.json",
+             SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0 && atoi(out) == 1, "%s", out);
+    snprintf(cmd, sizeof cmd,
+             "%s factor '" ANISO "' --param io -r 8 -J 3 -q -o %s/auto && grep -c 'the stored matrix (.* MiB) fits "
+             "the memory limit' %s/auto/report.json",
+             SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0 && atoi(out) == 1, "%s", out);
 }
 
 /* A group of processes (common.h) played by threads: reduce leaves the

@@ -51,7 +51,8 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     sb_matrix_opts_t mo = {0};
     mo.form = form;
     mo.channels = job->o.channels;
-    mo.structured = 1; /* the distinct values only, where the factor plan reads no more */
+    mo.structured = 1;                             /* the distinct values only, where the factor plan reads no more */
+    mo.stream = job->o.method == SB_METHOD_STREAM; /* never stored: a working set bounded by the memory limit */
     const void *pu[2] = {job, lv};
     if (lv->label && job->o.progress) {
         mo.progress = sample_progress;

@@ -6,6 +6,7 @@
 #include "job_impl.h"
 #include "sepbrdf/exr.h"
 #include "sepbrdf/measured.h"
+#include "solve/solver.h"
 
 static const char *const chan_name[3] = {"R", "G", "B"};
 
@@ -45,6 +46,35 @@ static void report_warps(sb_json_t *j, const sb_job_t *job) {
     sb_json_end_object(j);
 }
 
+/* Why the factors' method: what it holds and the rule that picked it
+ * (auto: the exact block-circulant SVD where the structure holds, a
+ * stored matrix and a dense SVD where that fits the memory limit, else
+ * the streamed passes, slower but bounded). */
+static void method_why(const sb_job_t *job, char *why, size_t n) {
+    const sb_matrix_t *m = &job->best.m;
+    const char *method = sb_factors_get_meta(job->best.f, "method");
+    double mib = 1.0 / (1 << 20), lim = (double)sb_memory_limit() * mib;
+    double stored = (double)sb_matrix_bytes(job->eval_src, job->best.param, &(sb_matrix_opts_t){.structured = 1}) * mib;
+    if (!method) method = "none";
+    if (m->streamed)
+        snprintf(why, n,
+                 "%s: the matrix is evaluated from the source in blocks of columns, never stored (%s): %.1f MiB "
+                 "of columns at a time and the Krylov basis, O(R^2 (J + 10)) (the memory limit is %.0f MiB)",
+                 method, job->o.method == SB_METHOD_STREAM ? "--method stream" : "its values exceed the memory limit",
+                 (double)(sb_solve_stream_cols(m->rows, m->cols) * m->rows * 3 * sizeof(double)) * mib, lim);
+    else if (m->structured)
+        snprintf(why, n,
+                 "%s: an isotropic source on an azimuth grid: the exact block-circulant SVD of its distinct values "
+                 "(%.1f MiB stored), faster than a dense SVD and exact",
+                 method, stored);
+    else
+        snprintf(why, n, "%s: %s; the stored matrix (%.1f MiB) fits the memory limit (%.0f MiB)", method,
+                 job->o.method == SB_METHOD_AUTO ? "picked for the shape, J and mask (a stored matrix is read faster "
+                                                   "than streamed passes)"
+                                                 : "asked for",
+                 stored, lim);
+}
+
 static void report_settings(sb_json_t *j, const sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     const sb_matrix_t *m = &a->m;
@@ -63,6 +93,9 @@ static void report_settings(sb_json_t *j, const sb_job_t *job) {
     sb_json_bool(j, "weighted", a->weighted);
     sb_json_string(j, "method", sb_factors_get_meta(a->f, "method"));
     sb_json_string(j, "svd_method", job->svd_beside ? job->svd_method : NULL);
+    char why[400];
+    method_why(job, why, sizeof why);
+    sb_json_string(j, "method_why", why);
     sb_json_int(j, "terms", (long long)sb_factors_terms(a->f));
     sb_json_int(j, "terms_requested", (long long)job->o.terms);
     sb_json_number(j, "max_error", job->o.max_error);

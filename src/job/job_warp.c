@@ -78,6 +78,7 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     mo.form = b->m.form;
     mo.channels = job->o.channels;
     mo.structured = 1;
+    mo.stream = job->o.method == SB_METHOD_STREAM;
     if (r == SB_OK) r = sb_matrix_build(ctx, job->eval_src, a.param, &mo, &a.m);
     a.t_sample = job_now() - t0;
     a.weighted = b->weighted;

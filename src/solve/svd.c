@@ -245,10 +245,15 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
         run->nrm = got;
     }
     run->info = (sb_svd_info_t){0, 0, 0, -1, 0, 0};
+    /* Krylov and randomized read A only through the thin products: the
+     * rest (QR of thin blocks, Rayleigh-Ritz) on one BLAS thread */
+    int thin = s->method == SB_METHOD_RANDOMIZED || (s->method == SB_METHOD_TOPK && !s->gram);
+    int blas = thin ? sb_blas_thin_begin() : 1;
     sb_result_t res = s->method == SB_METHOD_FULL ? sb_svd_run_full(s, run)
                       : s->method == SB_METHOD_TOPK
                           ? (s->gram ? sb_svd_run_topk(s, run) : sb_svd_run_topk_krylov(s, run))
                           : sb_svd_run_rand(s, run);
+    if (thin) sb_blas_thin_end(blas);
     if (res != SB_OK) return res;
     for (size_t j = 0; j < run->r; j++)
         if (!isfinite(run->sv[j]))

@@ -67,7 +67,10 @@ sb_result_t sb_svd_run_topk_krylov(sb_svd_t *s, sb_svd_run_t *run) {
         s->gram_plan->ctx = s->ctx;
         sb_svd_run_t g = *run;
         g.adaptive = 0;
-        if ((r = sb_svd_run_topk(s->gram_plan, &g)) != SB_OK) return r;
+        sb_blas_threads_end(sb_blas_thin_threads()); /* the Gram route's dsyrk of A: every BLAS thread */
+        r = sb_svd_run_topk(s->gram_plan, &g);
+        sb_blas_threads_begin();
+        if (r != SB_OK) return r;
     }
     run->r = run->adaptive ? sb_svd_rank_for(run->sv, k, run->nrm, run->tol2, run->min_rank) : k;
     run->info.norm_fro = run->nrm;

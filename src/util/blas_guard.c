@@ -11,6 +11,7 @@
  * SB_ERR_NOMEM naming the bytes when it does not), then calls one small
  * dgemm so that OpenBLAS allocates the buffer into the space just released.
  * Without a limit the kernel overcommits and nothing is checked. */
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <sys/resource.h>
 
@@ -80,3 +81,24 @@ void sb_blas_threads_end(int n) {
     (void)n;
 #endif
 }
+
+/* The thread count OpenBLAS had when a thin solver began (0 outside one):
+ * its small products and factorisations then run on one thread, and only
+ * the reads of the large matrix (gemm_thin.c) use that many.  Under load
+ * a threaded call of a few microseconds of work waits for the other
+ * thread to be scheduled: topk at N = 4096 with two BLAS threads took
+ * 2.2x the wall time of scipy svds on a loaded 2-core VM. */
+static _Atomic int thin_outer;
+
+int sb_blas_thin_begin(void) {
+    int n = sb_blas_threads_begin();
+    atomic_store(&thin_outer, n);
+    return n;
+}
+
+void sb_blas_thin_end(int n) {
+    atomic_store(&thin_outer, 0);
+    sb_blas_threads_end(n);
+}
+
+int sb_blas_thin_threads(void) { return atomic_load(&thin_outer); }

@@ -50,9 +50,9 @@ static void *thin_run(void *arg) {
 
 static void thin(thin_t *g) {
     size_t cells = (size_t)g->rows * (size_t)g->inner;
-    int blas = sb_blas_threads_begin();
-    int n = blas > 1 && cells >= SB_THIN_MIN_CELLS ? sb_thread_count(0) : 1;
-    if (n > blas) n = blas;
+    int blas = sb_blas_threads_begin(), avail = blas > 1 ? blas : sb_blas_thin_threads();
+    int n = avail > 1 && cells >= SB_THIN_MIN_CELLS ? sb_thread_count(0) : 1;
+    if (n > avail) n = avail;
     if (n > g->rows) n = g->rows;
     if (n <= 1) {
         sb_blas_threads_end(blas); /* OpenBLAS's own threads, as configured */

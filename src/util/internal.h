@@ -81,6 +81,12 @@ sb_result_t sb_blas_reserve(sb_context_t *ctx);
  * BLAS calls made from the library's own parallel loops (blas_guard.c). */
 int sb_blas_threads_begin(void);
 void sb_blas_threads_end(int n);
+/* As those, for a solver that reads a large matrix only through
+ * sb_dgemm_thin / sb_sgemm_thin: they keep the threads OpenBLAS had
+ * (sb_blas_thin_threads, 0 outside), every other BLAS call runs on one. */
+int sb_blas_thin_begin(void);
+void sb_blas_thin_end(int n);
+int sb_blas_thin_threads(void);
 
 /* C (rows x cols, ldc) = op(A) B with op(A) rows x inner (trans: A is
  * stored inner x rows) and B inner x cols: for a large A and a thin B, C's

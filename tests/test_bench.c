@@ -1,0 +1,88 @@
+/* `sepbrdf bench --pareto`: the real binary writes pareto.csv and
+ * pareto.png, and the points it marks are exactly those that no other
+ * point beats on both CPU seconds and headline error. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+
+#define MAXROWS 16
+
+typedef struct row {
+    int ok, front;
+    double cpu, headline;
+} row_t;
+
+/* The rows of pareto.csv (header checked); -1 when it cannot be read. */
+static int read_csv(const char *path, row_t *rows) {
+    FILE *fp = fopen(path, "r");
+    char line[512];
+    int n = 0;
+    if (!fp || !fgets(line, sizeof line, fp) ||
+        strcmp(line, "layout,method,used,res,terms,ok,cpu_s,headline,peak_mib,front\n") != 0) {
+        if (fp) fclose(fp);
+        return -1;
+    }
+    while (n < MAXROWS && fgets(line, sizeof line, fp)) {
+        char *f[10], *save = NULL, *tok = strtok_r(line, ",", &save);
+        int k = 0;
+        for (; tok && k < 10; tok = strtok_r(NULL, ",", &save))
+            f[k++] = tok;
+        if (k != 10 && k != 9) break; /* a failed run has no method used: 9 fields */
+        int o = k - 10;               /* 0, or -1 without `used` */
+        rows[n] = (row_t){atoi(f[5 + o]), atoi(f[9 + o]), atof(f[6 + o]), atof(f[7 + o])};
+        n++;
+    }
+    fclose(fp);
+    return n;
+}
+
+/* Point i is dominated: another costs no more and errs no more, and is
+ * better in one of them. */
+static int dominated(const row_t *r, int n, int i) {
+    for (int j = 0; j < n; j++)
+        if (j != i && r[j].ok && r[j].cpu <= r[i].cpu && r[j].headline <= r[i].headline &&
+            (r[j].cpu < r[i].cpu || r[j].headline < r[i].headline))
+            return 1;
+    return 0;
+}
+
+SB_TEST(pareto_front_and_files) {
+    const char *dir = sb_tmpdir("bench_pareto");
+    char cmd[4096], out[8192];
+    snprintf(cmd, sizeof cmd, "%s bench --pareto --layouts io,iso --methods auto --res 8 --terms 1,2 -q -o %s 2>&1",
+             SB_CLI, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/pareto.csv", dir);
+    row_t r[MAXROWS];
+    int n = read_csv(path, r), fronts = 0;
+    CHECKF(n == 4, "%d rows", n);
+    for (int i = 0; i < n; i++) {
+        CHECK(r[i].ok && r[i].cpu > 0 && r[i].headline > 0 && r[i].headline < 10);
+        CHECKF(r[i].front == !dominated(r, n, i), "row %d: front %d", i, r[i].front);
+        fronts += r[i].front;
+    }
+    CHECK(fronts >= 1);
+    /* the plot: a PNG of 640 x 420 */
+    snprintf(path, sizeof path, "%s/pareto.png", dir);
+    FILE *fp = fopen(path, "rb");
+    unsigned char h[24] = {0};
+    CHECK(fp && fread(h, 1, sizeof h, fp) == sizeof h);
+    if (fp) fclose(fp);
+    CHECK(memcmp(h, "\x89PNG\r\n\x1a\n", 8) == 0 && memcmp(h + 12, "IHDR", 4) == 0);
+    CHECK(((h[16] << 24) | (h[17] << 16) | (h[18] << 8) | h[19]) == 640);
+    CHECK(((h[20] << 24) | (h[21] << 16) | (h[22] << 8) | h[23]) == 420);
+}
+
+SB_TEST(pareto_bad_options) {
+    char cmd[4096], out[8192];
+    snprintf(cmd, sizeof cmd, "%s bench --pareto --methods nosuch 2>&1", SB_CLI);
+    CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "nosuch"), "%s", out);
+    snprintf(cmd, sizeof cmd, "%s bench --pareto --res 0 2>&1", SB_CLI);
+    CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "--res"), "%s", out);
+    snprintf(cmd, sizeof cmd, "%s bench --pareto --frobnicate 2>&1", SB_CLI);
+    CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "--frobnicate"), "%s", out);
+}
