@@ -59,7 +59,7 @@ static void run_free(run_t *r) {
 }
 
 SB_TEST(lambert_exact_everywhere) {
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         run_t r;
         factor("lambert:albedo=0.7/0.5/0.3", (sb_param_kind_t)k, 16, SB_FORM_F, 1, 0, 0, &r);
         double e = sb_factors_errors(r.f)->rel_rms[3];
@@ -99,7 +99,7 @@ SB_TEST(blinn_phong_depends_on_h) {
 SB_TEST(ggx_target) {
     const char *spec = "microfacet:base=0,metallic=0,reflectance=0.5,roughness=0.5477226";
     double best = 1, io = 0;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+    for (int k = 0; k < (int)sb_param_kind_count(); k++)
         for (int form = 0; form < SB_FORM_COUNT_; form += 2) { /* f and cos2 */
             run_t r;
             sb_param_opts_t po = {.res = 32};
@@ -127,7 +127,7 @@ static double *sigmas(const double *a, size_t m, size_t n) {
 }
 
 SB_TEST(eckart_young_every_param) {
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         run_t r;
         size_t J = 6;
         factor("microfacet:base=copper,roughness=0.4", (sb_param_kind_t)k, 10, SB_FORM_COS2, J, 0, 1, &r);

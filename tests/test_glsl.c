@@ -60,13 +60,14 @@ static int compile(const char *snippet, const char *dir, char *log, size_t logsz
 SB_TEST(snippet_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
     const char *dir = sb_tmpdir("glsl");
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_ + 2; kind++) {
+    for (int kind = 0; kind < (int)sb_param_kind_count() + 2; kind++) {
         sb_param_opts_t o = {0};
         o.res = 16;
         o.theta_max = kind == SB_PARAM_HD ? 1.0 : 0;
         sb_param_t *p = NULL;
-        if (kind >= SB_PARAM_KIND_COUNT_)
-            CHECK((p = warped_param(kind - SB_PARAM_KIND_COUNT_, 16, kind == SB_PARAM_KIND_COUNT_ ? 0 : 1.0)) != NULL);
+        if (kind >= (int)sb_param_kind_count())
+            CHECK((p = warped_param(kind - (int)sb_param_kind_count(), 16,
+                                    kind == (int)sb_param_kind_count() ? 0 : 1.0)) != NULL);
         else
             CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
         if (!p) continue;
@@ -448,14 +449,14 @@ static void gl_compare(sb_param_t *p, int hlsl) {
 
 /* gl_compare on every layout, with a limited theta_max, and with warp tables. */
 static void compare_all(int hlsl) {
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_ + 2; kind++)
+    for (int kind = 0; kind < (int)sb_param_kind_count() + 2; kind++)
         for (int limited = 0; limited < 2; limited++) {
             sb_param_opts_t o = {0};
             o.res = 12;
             o.theta_max = limited ? 1.3 : 0;
             sb_param_t *p = NULL;
-            if (kind >= SB_PARAM_KIND_COUNT_) /* warp tables */
-                CHECK((p = warped_param(kind - SB_PARAM_KIND_COUNT_, 12, o.theta_max)) != NULL);
+            if (kind >= (int)sb_param_kind_count()) /* warp tables */
+                CHECK((p = warped_param(kind - (int)sb_param_kind_count(), 12, o.theta_max)) != NULL);
             else
                 CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
             if (!p) continue;

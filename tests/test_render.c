@@ -140,7 +140,7 @@ SB_TEST(lambert_one_term_exact) {
     o.size = 64;
     sb_image_t orig;
     CHECK(sb_render_source(NULL, &o, src, &orig) == SB_OK);
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         sb_param_t *p = NULL;
         sb_factors_t *f = NULL;
         sb_result_t r = factor("lambert:albedo=0.6", (sb_param_kind_t)k, 16, 1, SB_FORM_F, &p, &f);
@@ -248,7 +248,7 @@ SB_TEST(factors_param) {
     sb_context_t *ctx;
     CHECK(sb_context_create(&ctx) == SB_OK);
     int tried = 0;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         static const double tmax[2] = {0, 60 * SB_PI / 180};
         for (int t = 0; t < 2; t++) {
             sb_param_opts_t po = {0};
@@ -304,7 +304,7 @@ SB_TEST(factors_param) {
     CHECK(sb_factors_param(ctx, f, &q, &form) == SB_OK && form == SB_FORM_F);
     sb_param_destroy(q);
     /* a kind this build lacks */
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         sb_param_t *p;
         if (sb_param_create(NULL, (sb_param_kind_t)k, NULL, &p) != SB_ERR_UNSUPPORTED) {
             sb_param_destroy(p);

@@ -139,7 +139,7 @@ SB_TEST(agrees_every_param) {
     sb_render_opts_t o = {0};
     o.size = SIZE;
     int tried = 0;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         sb_param_t *p = NULL;
         sb_factors_t *f = NULL;
         sb_result_t r = factor_via_exr(GOLD, (sb_param_kind_t)k, 16, 4, SB_FORM_F, &p, &f);
@@ -210,7 +210,7 @@ SB_TEST(half_texel_shift_detected) {
 #ifdef SB_HAVE_GL
     sb_render_opts_t o = {0};
     o.size = SIZE;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         sb_param_t *p = NULL;
         sb_factors_t *f = NULL;
         sb_result_t r = factor_via_exr(GOLD, (sb_param_kind_t)k, 16, 4, SB_FORM_F, &p, &f);

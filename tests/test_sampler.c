@@ -361,7 +361,7 @@ SB_TEST(integrals_iso) { integrals(SB_PARAM_ISO); }
  * the cell's centre. */
 SB_TEST(row_sample_cells) {
     unsigned long long rng = 11;
-    for (int kind = 0; kind < SB_PARAM_KIND_COUNT_; kind++) {
+    for (int kind = 0; kind < (int)sb_param_kind_count(); kind++) {
         sb_param_t *p = NULL;
         sb_param_opts_t po = {0};
         po.res = 12;
@@ -542,8 +542,8 @@ SB_TEST(glsl_compiles) {
     char path[4200], cmd[4400], log[8192];
     snprintf(path, sizeof path, "%s/test.frag", dir);
     snprintf(cmd, sizeof cmd, "glslangValidator %s", path);
-    for (int at = 0; at < 2 * SB_PARAM_KIND_COUNT_; at++) {
-        int kind = at % SB_PARAM_KIND_COUNT_, warped = at >= SB_PARAM_KIND_COUNT_;
+    for (int at = 0; at < 2 * (int)sb_param_kind_count(); at++) {
+        int kind = at % (int)sb_param_kind_count(), warped = at >= (int)sb_param_kind_count();
         if (warped && !(sb_param_kind_caps((sb_param_kind_t)kind) & SB_CAP_WARPS)) continue;
         sb_param_t *p = NULL;
         sb_param_opts_t o = {0};

@@ -30,6 +30,15 @@ extern "C" {
 #define SB_VERSION_PATCH 0
 #define SB_VERSION_STRING "0.1.0"
 
+/* SB_API marks every function of the public headers: the library is built
+ * with hidden visibility (-fvisibility=hidden), so it exports these and
+ * nothing else (scripts/check_exports.sh checks it). */
+#if defined(__GNUC__) || defined(__clang__)
+#define SB_API __attribute__((visibility("default")))
+#else
+#define SB_API
+#endif
+
 #define SB_PI 3.14159265358979323846
 
 typedef enum sb_result {

@@ -57,13 +57,18 @@
 extern "C" {
 #endif
 
+/* Kinds are chosen by name (sb_param_kind_parse, specs): kind k is the
+ * registry's row k, 0 .. sb_param_kind_count() - 1.  The five below keep
+ * their numbers for programs that name them; other layouts, built-in or
+ * registered by a program (experimental/layout.h), get the numbers after
+ * them, so adding one changes no enum. */
 typedef enum sb_param_kind {
-    SB_PARAM_IO = 0,  /* the lecture's theta-phi grid for (wi, wo) */
-    SB_PARAM_IO_AREA, /* (wi, wo) on an equal-area (concentric) hemisphere map */
-    SB_PARAM_HD,      /* half / difference vectors, Gram-Schmidt frame */
-    SB_PARAM_ISO,     /* rows theta_h, columns (theta_d, phi_d), isotropic */
-    SB_PARAM_VH,      /* rows theta_v, columns the half vector from the view's azimuth, isotropic */
-    SB_PARAM_KIND_COUNT_
+    SB_PARAM_NONE = -1, /* no layout: the kind of a NULL parameterisation */
+    SB_PARAM_IO = 0,    /* the lecture's theta-phi grid for (wi, wo) */
+    SB_PARAM_IO_AREA,   /* (wi, wo) on an equal-area (concentric) hemisphere map */
+    SB_PARAM_HD,        /* half / difference vectors, Gram-Schmidt frame */
+    SB_PARAM_ISO,       /* rows theta_h, columns (theta_d, phi_d), isotropic */
+    SB_PARAM_VH         /* rows theta_v, columns the half vector from the view's azimuth, isotropic */
 } sb_param_kind_t;
 
 enum { SB_WRAP_CLAMP = 0, SB_WRAP_REPEAT = 1 };
@@ -134,10 +139,10 @@ enum {
                                             layout folding reciprocity applies; vh) */
 };
 
-/* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
- * "io-area", "hd", "iso"), one-line description and capabilities ("?" and 0
- * for a kind out of range). */
-size_t sb_param_kind_count(void); /* SB_PARAM_KIND_COUNT_ */
+/* The registry, indexed by kind 0 .. sb_param_kind_count() - 1: name ("io",
+ * "io-area", "hd", "iso", "vh"), one-line description and capabilities ("?"
+ * and 0 for a kind out of range). */
+size_t sb_param_kind_count(void); /* the built-in layouts and those a program registered */
 const char *sb_param_kind_name(sb_param_kind_t kind);
 const char *sb_param_kind_description(sb_param_kind_t kind);
 unsigned sb_param_kind_caps(sb_param_kind_t kind);
@@ -165,7 +170,7 @@ sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_ki
 sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out);
 void sb_param_destroy(sb_param_t *p);
 
-/* Getters: for a NULL p, kind SB_PARAM_KIND_COUNT_, "" names, 0 counts,
+/* Getters: for a NULL p, kind SB_PARAM_NONE, "" names, 0 counts,
  * NaN theta_max; side is SB_SIDE_G or SB_SIDE_H (another side: 0 sizes,
  * wrap CLAMP). */
 sb_param_kind_t sb_param_kind(const sb_param_t *p);

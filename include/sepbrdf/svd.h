@@ -76,20 +76,32 @@
 extern "C" {
 #endif
 
+/* Methods are chosen by name (sb_method_parse): "auto" and the solvers
+ * with SB_CAP_METHOD (solver.h), numbered 0 .. sb_method_count() - 1.
+ * The six below keep their numbers for programs that name them; other
+ * methods, built-in or registered by a program (experimental/solver.h),
+ * get the numbers after them, so adding one changes no enum. */
 typedef enum sb_method {
+    SB_METHOD_NONE = -1,  /* no method: an unknown one asked for, or a NULL plan */
     SB_METHOD_AUTO = 0,   /* pick from m, n, k (see above) */
     SB_METHOD_FULL,       /* LAPACK dgesdd, all singular values */
     SB_METHOD_TOPK,       /* exact leading k: restarted block Krylov (or the Gram route) */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
     SB_METHOD_NMF,        /* non-negative factors (the plan's nmf solver; not an SVD: sb_svd_create refuses it) */
-    SB_METHOD_STREAM,     /* the plan's matrix-free solver (solver.h; sb_svd_create refuses it) */
-    SB_METHOD_COUNT_
+    SB_METHOD_STREAM      /* the plan's matrix-free solver (solver.h; sb_svd_create refuses it) */
 } sb_method_t;
 
-/* auto|full|topk|randomized|nmf|stream; SB_ERR_UNKNOWN otherwise (NULL name
- * included), SB_ERR_ARG for a NULL out. */
+/* A method's number by name (auto, full, topk, randomized, nmf, stream
+ * and those registered); SB_ERR_UNKNOWN otherwise (NULL name included),
+ * SB_ERR_ARG for a NULL out. */
 sb_result_t sb_method_parse(const char *name, sb_method_t *out);
+/* Name of method m ("?" for an unknown m), and a few words on it for
+ * lists ("dgesdd" for full, "default" for auto; "" for none or an
+ * unknown m). */
 const char *sb_method_name(sb_method_t m);
+const char *sb_method_note(sb_method_t m);
+/* The methods: auto, the built-in ones and those a program registered. */
+size_t sb_method_count(void);
 
 /* AUTO thresholds (see the comment at the top). */
 #define SB_SVD_AUTO_FULL_MAX 128
@@ -126,7 +138,7 @@ typedef struct sb_svd_info {
 typedef struct sb_svd sb_svd_t;
 
 /* The method a plan for (m, n, k, opts) would use: opts->method unless it
- * is AUTO, then the AUTO rule (SB_METHOD_COUNT_ for an unknown method).
+ * is AUTO, then the AUTO rule (SB_METHOD_NONE for an unknown method).
  * Plans nothing, allocates nothing. */
 sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
 
@@ -136,7 +148,7 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
  * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
  * (workspace query failed). */
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
-/* Getters on a NULL plan: SB_METHOD_COUNT_, 0, 0 and a zeroed info. */
+/* Getters on a NULL plan: SB_METHOD_NONE, 0, 0 and a zeroed info. */
 void sb_svd_destroy(sb_svd_t *svd);             /* accepts NULL */
 sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
 size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */

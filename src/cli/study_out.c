@@ -66,7 +66,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
     json_begin_array(&j, "params");
     if (o->param_auto) json_string(&j, NULL, "auto");
     if (o->param_all) json_string(&j, NULL, "all");
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_ && !o->param_all; k++)
+    for (int k = 0; k < (int)sb_param_kind_count() && !o->param_all; k++)
         if (o->params & (1u << k)) json_string(&j, NULL, sb_param_kind_name((sb_param_kind_t)k));
     json_end_array(&j);
     json_string(&j, "form", sb_form_name(o->form));

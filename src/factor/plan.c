@@ -117,8 +117,7 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
                         o.terms, mn);
     if (!(o.max_error >= 0 && o.max_error < 1))
         return sb_error(ctx, SB_ERR_RANGE, "plan: maximum error %g out of range, need [0, 1)", o.max_error);
-    if ((unsigned)o.svd.method >= SB_METHOD_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "plan: unknown method %d", (int)o.svd.method);
+    if (!sb_method_known(o.svd.method)) return sb_error(ctx, SB_ERR_ARG, "plan: unknown method %d", (int)o.svd.method);
     sb_result_t rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;
     int structured = m && m->structured; /* the R distinct rows are what is stored */

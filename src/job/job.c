@@ -98,7 +98,7 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
         if (r != SB_OK) return r;
     } else if (!job->is_auto && sb_param_kind_parse(o->param, kind) != SB_OK) {
         char names[128] = "auto";
-        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+        for (int k = 0; k < (int)sb_param_kind_count(); k++)
             snprintf(names + strlen(names), sizeof names - strlen(names), ", %s",
                      sb_param_kind_name((sb_param_kind_t)k));
         return sb_error(ctx, SB_ERR_UNKNOWN, "parameterisation '%s' unknown, need one of %s", o->param, names);

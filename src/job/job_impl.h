@@ -2,6 +2,7 @@
 #ifndef SEPBRDF_JOB_IMPL_H
 #define SEPBRDF_JOB_IMPL_H
 
+#include "sepbrdf/experimental/layout.h"
 #include "sepbrdf/job.h"
 
 /* One factorisation of the source on one parameterisation and form:
@@ -37,7 +38,7 @@ typedef struct job_level {
     double base, span;         /* progress = base + span * fraction */
 } job_level_t;
 
-#define JOB_MAX_CANDS (3 * SB_PARAM_KIND_COUNT_)
+#define JOB_MAX_CANDS (3 * SB_LAYOUTS_MAX) /* f and cos a layout, with room */
 #define JOB_MAX_WARN 8
 /* Without --warp, the kept layout's headline at J above which "auto"
  * warps are tried (one more fit). */

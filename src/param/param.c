@@ -1,5 +1,7 @@
 /* Parameterisations: the registry, spec parsing, dispatch, shared grid
  * helpers, spherical angles. */
+#include <assert.h>
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -12,44 +14,91 @@
 #include "sepbrdf/source.h"
 #include "util/internal.h"
 
-/* The registry, one row per parameterisation, in the order of
- * sb_param_kind_t: adding one is its file, its kind and a row here. */
-static const sb_param_desc_t *const registry[SB_PARAM_KIND_COUNT_] = {
-    &sb_param_desc_io, &sb_param_desc_io_area, &sb_param_desc_hd, &sb_param_desc_iso, &sb_param_desc_vh,
+/* The built-in layouts, one row each: adding one is its file and its row
+ * here.  The order of the rows is the order of help texts and of auto's
+ * candidates; kinds are numbered by name at start-up (registry_build). */
+#define SB_BUILTIN_LAYOUTS(X)                                                                                          \
+    X(sb_param_desc_io)                                                                                                \
+    X(sb_param_desc_io_area)                                                                                           \
+    X(sb_param_desc_hd)                                                                                                \
+    X(sb_param_desc_iso)                                                                                               \
+    X(sb_param_desc_vh)
+
+#define SB_LAYOUT_EXTERN(id) extern const sb_param_desc_t id;
+#define SB_LAYOUT_ROW(id) &id,
+SB_BUILTIN_LAYOUTS(SB_LAYOUT_EXTERN)
+static const sb_param_desc_t *const builtin[] = {SB_BUILTIN_LAYOUTS(SB_LAYOUT_ROW)};
+#define NBUILTIN (sizeof builtin / sizeof builtin[0])
+
+/* The kinds param.h numbers for programs written before kinds were
+ * chosen by name: these names keep these numbers.  Frozen: a new layout
+ * gets the next free number, never a row here. */
+static const char *const numbered[] = {
+    [SB_PARAM_IO] = "io",   [SB_PARAM_IO_AREA] = "io-area", [SB_PARAM_HD] = "hd",
+    [SB_PARAM_ISO] = "iso", [SB_PARAM_VH] = "vh",
 };
+#define NNUMBERED (sizeof numbered / sizeof numbered[0])
+
+/* The process's registry: kind k is registry[k], k < nkinds.  Rows are
+ * written before nkinds counts them (release), so readers need no lock;
+ * registrations take reg_mu. */
+static const sb_param_desc_t *registry[SB_LAYOUTS_MAX];
+static atomic_size_t nkinds;
+static pthread_once_t reg_once = PTHREAD_ONCE_INIT;
+static pthread_mutex_t reg_mu = PTHREAD_MUTEX_INITIALIZER;
+
+/* The numbered kinds at their numbers, the other built-ins after them in
+ * the order of their rows. */
+static void registry_build(void) {
+    size_t n = NNUMBERED;
+    for (size_t i = 0; i < NBUILTIN; i++) {
+        size_t at = n;
+        for (size_t k = 0; k < NNUMBERED; k++)
+            if (strcmp(numbered[k], builtin[i]->name) == 0) at = k;
+        registry[at] = builtin[i];
+        if (at == n) n++;
+    }
+    for (size_t k = 0; k < NNUMBERED; k++)
+        assert(registry[k] && "a numbered kind's layout is missing");
+    atomic_store_explicit(&nkinds, n, memory_order_release);
+}
+
+/* The descriptor of kind, NULL out of range. */
+static const sb_param_desc_t *desc_of(sb_param_kind_t kind) {
+    pthread_once(&reg_once, registry_build);
+    return (size_t)(unsigned)kind < atomic_load_explicit(&nkinds, memory_order_acquire) ? registry[kind] : NULL;
+}
+
+size_t sb_param_kind_count(void) {
+    pthread_once(&reg_once, registry_build);
+    return atomic_load_explicit(&nkinds, memory_order_acquire);
+}
 
 sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
     if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
-        if (name && strcmp(name, registry[k]->name) == 0) {
+    size_t n = sb_param_kind_count();
+    for (size_t k = 0; k < n && name; k++)
+        if (strcmp(name, registry[k]->name) == 0) {
             *out = (sb_param_kind_t)k;
             return SB_OK;
         }
     return SB_ERR_UNKNOWN;
 }
-size_t sb_param_kind_count(void) { return SB_PARAM_KIND_COUNT_; }
-const char *sb_param_kind_name(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->name : "?";
-}
-const char *sb_param_kind_description(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->description : "?";
-}
-unsigned sb_param_kind_caps(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->caps : 0;
-}
-unsigned sb_param_caps(const sb_param_t *p) { return p ? registry[p->kind]->caps : 0; }
+const char *sb_param_kind_name(sb_param_kind_t kind) { return desc_of(kind) ? desc_of(kind)->name : "?"; }
+const char *sb_param_kind_description(sb_param_kind_t kind) { return desc_of(kind) ? desc_of(kind)->description : "?"; }
+unsigned sb_param_kind_caps(sb_param_kind_t kind) { return desc_of(kind) ? desc_of(kind)->caps : 0; }
+unsigned sb_param_caps(const sb_param_t *p) { return p ? p->desc->caps : 0; }
 
 int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
-    unsigned caps = sb_param_kind_caps(kind);
-    if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) return 0;
-    return !(caps & SB_CAP_NEEDS_ISOTROPY) || (source_flags & SB_SOURCE_ISOTROPIC);
+    if (!desc_of(kind)) return 0;
+    return !(sb_param_kind_caps(kind) & SB_CAP_NEEDS_ISOTROPY) || (source_flags & SB_SOURCE_ISOTROPIC);
 }
 
 size_t sb_param_kind_list(char *buf, size_t size, const char *sep) {
-    size_t n = 0;
+    size_t n = 0, count = sb_param_kind_count();
     if (!buf) size = 0;
     if (size) buf[0] = 0;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (size_t k = 0; k < count; k++) {
         const char *parts[2] = {k && sep ? sep : "", registry[k]->name};
         for (int i = 0; i < 2; i++) {
             if (n + 1 < size) snprintf(buf + n, size - n, "%s", parts[i]);
@@ -57,6 +106,39 @@ size_t sb_param_kind_list(char *buf, size_t size, const char *sep) {
         }
     }
     return n;
+}
+
+/* What a registered descriptor must hold (sb_param_register). */
+static const char *desc_problem(const sb_layout_desc_t *d) {
+    if (!d->name || !d->name[0] || strcmp(d->name, "auto") == 0) return "no name, or the name auto";
+    for (const char *c = d->name; *c; c++)
+        if (!isalnum((unsigned char)*c) && *c != '-' && *c != '_') return "a name of letters, digits, - and _ only";
+    if (!d->vt || !d->vt->cell_dirs || !d->vt->row_measure || !d->vt->col_measure || !d->vt->coords || !d->vt->glsl)
+        return "a vt with every function and the GLSL";
+    if (d->init) return "no init (the library's own layouts only)";
+    if (!d->row_sample != !d->sample_glsl) return "row_sample and sample_glsl both or neither";
+    return NULL;
+}
+
+sb_result_t sb_param_register(sb_context_t *ctx, const sb_layout_desc_t *desc, sb_param_kind_t *kind) {
+    if (!desc) return sb_error(ctx, SB_ERR_ARG, "param: no layout to register");
+    const char *need = desc_problem(desc);
+    if (need) return sb_error(ctx, SB_ERR_ARG, "param: layout '%s' needs %s", desc->name ? desc->name : "", need);
+    sb_param_kind_t k;
+    sb_result_t r = SB_OK;
+    pthread_mutex_lock(&reg_mu);
+    size_t n = sb_param_kind_count();
+    if (sb_param_kind_parse(desc->name, &k) == SB_OK)
+        r = sb_error(ctx, SB_ERR_RANGE, "param: a layout named '%s' is registered already", desc->name);
+    else if (n == SB_LAYOUTS_MAX)
+        r = sb_error(ctx, SB_ERR_RANGE, "param: %d layouts registered already, the most", SB_LAYOUTS_MAX);
+    else {
+        registry[n] = desc;
+        atomic_store_explicit(&nkinds, n + 1, memory_order_release);
+        if (kind) *kind = (sb_param_kind_t)n;
+    }
+    pthread_mutex_unlock(&reg_mu);
+    return r;
 }
 
 /* 1 if `key` is one of the comma-separated `keys`. */
@@ -165,7 +247,7 @@ static sb_result_t resolve_warps(sb_context_t *ctx, sb_param_t *p, const sb_para
  * the layout's coordinate functions. */
 static sb_result_t build_glsl(sb_context_t *ctx, sb_param_t *p) {
     static const char *const names[SB_AXIS_COUNT_] = {"sb_warp_h", "sb_warp_d"};
-    int warps = (registry[p->kind]->caps & SB_CAP_WARPS) != 0;
+    int warps = (p->desc->caps & SB_CAP_WARPS) != 0;
     size_t need = strlen(p->vt->glsl) + 1, n = 0;
     for (int a = 0; a < SB_AXIS_COUNT_ && warps; a++)
         need += sb_warp_glsl(&p->opts.warp[a], names[a], NULL, 0, &n);
@@ -204,7 +286,7 @@ static unsigned long layout_serial(const sb_param_t *p) {
     memcpy(id.tex_w, p->tex_w, sizeof id.tex_w);
     memcpy(id.tex_h, p->tex_h, sizeof id.tex_h);
     id.res[0] = p->opts.res;
-    if (p->kind == SB_PARAM_ISO || p->kind == SB_PARAM_VH) { /* their own cell counts; the others ignore them */
+    if (strcmp(p->desc->keys ? p->desc->keys : "", "res") != 0) { /* their own cell counts; the others ignore them */
         id.res[1] = p->opts.res_theta_h, id.res[2] = p->opts.res_theta_d;
         id.res[3] = p->opts.res_phi_d, id.res[4] = p->opts.res_theta_v;
     }
@@ -250,10 +332,10 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
         r = sb_error(ctx, SB_ERR_RANGE, "resolution %zu out of range, need 2..4096", p->opts.res);
     } else if (!(p->opts.theta_max > 0 && p->opts.theta_max <= SB_PI / 2 + 1e-12)) {
         r = sb_error(ctx, SB_ERR_RANGE, "theta_max %g out of range, need (0, pi/2]", p->opts.theta_max);
-    } else if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) {
+    } else if (!(p->desc = desc_of(kind))) {
         r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
-    } else if ((r = resolve_warps(ctx, p, registry[kind])) == SB_OK) {
-        const sb_param_desc_t *d = registry[kind];
+    } else if ((r = resolve_warps(ctx, p, p->desc)) == SB_OK) {
+        const sb_param_desc_t *d = p->desc;
         if (d->init) {
             r = d->init(ctx, p);
         } else {
@@ -280,8 +362,8 @@ void sb_param_destroy(sb_param_t *p) {
 }
 
 /* Getters: safe values on NULL and out-of-range arguments (common.h). */
-sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p ? p->kind : SB_PARAM_KIND_COUNT_; }
-const char *sb_param_name(const sb_param_t *p) { return p ? registry[p->kind]->name : ""; }
+sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p ? p->kind : SB_PARAM_NONE; }
+const char *sb_param_name(const sb_param_t *p) { return p ? p->desc->name : ""; }
 const char *sb_param_spec(const sb_param_t *p) { return p ? p->spec : ""; }
 size_t sb_param_rows(const sb_param_t *p) { return p ? p->rows : 0; }
 size_t sb_param_cols(const sb_param_t *p) { return p ? p->cols : 0; }
@@ -313,13 +395,13 @@ int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3],
 }
 const char *sb_param_glsl(const sb_param_t *p) { return p ? p->glsl : ""; }
 int sb_param_warps_default(const sb_param_t *p) {
-    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS)) return 1;
+    if (!p || !(p->desc->caps & SB_CAP_WARPS)) return 1;
     for (int a = 0; a < SB_AXIS_COUNT_; a++)
-        if (p->opts.warp[a].kind != registry[p->kind]->warp[a]) return 0;
+        if (p->opts.warp[a].kind != p->desc->warp[a]) return 0;
     return 1;
 }
 const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis) {
-    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return NULL;
+    if (!p || !(p->desc->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return NULL;
     return &p->opts.warp[axis];
 }
 sb_result_t sb_param_line_by_grid(sb_context_t *ctx, sb_param_t *p, const sb_param_vt_t *vt, const char *name,
@@ -345,16 +427,16 @@ sb_result_t sb_param_line_by_grid(sb_context_t *ctx, sb_param_t *p, const sb_par
 }
 
 size_t sb_param_warp_cells(const sb_param_t *p, int axis) {
-    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return 0;
-    if (registry[p->kind]->warp_cells) return registry[p->kind]->warp_cells(p, axis);
+    if (!p || !(p->desc->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return 0;
+    if (p->desc->warp_cells) return p->desc->warp_cells(p, axis);
     return p->tex_w[axis == SB_AXIS_THETA_H ? SB_SIDE_G : SB_SIDE_H];
 }
 int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
-    if (!p || !u || !w || row >= p->rows || !registry[p->kind]->row_sample) return 0;
-    registry[p->kind]->row_sample(p, row, u, w);
+    if (!p || !u || !w || row >= p->rows || !p->desc->row_sample) return 0;
+    p->desc->row_sample(p, row, u, w);
     return 1;
 }
-const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
+const char *sb_param_sample_glsl(const sb_param_t *p) { return p && p->desc->sample_glsl ? p->desc->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
     if (!wi || !wo) return;
@@ -470,7 +552,7 @@ void sb_dir_half(const double l[3], const double v[3], double h[3]) {
 
 void sb_param_spec_set(sb_param_t *p, const char *body) {
     static const char *const keys[SB_AXIS_COUNT_] = {"warp_h", "warp_d"};
-    const sb_param_desc_t *d = registry[p->kind];
+    const sb_param_desc_t *d = p->desc;
     size_t n = (size_t)snprintf(p->spec, sizeof p->spec, "%s", body);
     if (p->opts.theta_max != SB_PI / 2)
         n += (size_t)snprintf(p->spec + n, sizeof p->spec - n, ",theta_max=%.6g", p->opts.theta_max * 180 / SB_PI);

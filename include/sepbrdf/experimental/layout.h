@@ -1,0 +1,91 @@
+/* sepbrdf (experimental): your own parameterisation, registered by name.
+ *
+ * Experimental: these declarations may change between minor versions
+ * (as zstd's ZSTD_STATIC_LINKING_ONLY part does); the stable API is
+ * the headers directly in include/sepbrdf/.  Every built-in layout (io, io-area, hd, iso, vh)
+ * is one such descriptor in one file of the library plus one row of its
+ * registry; sb_param_register() adds one from a program, e.g.
+ *
+ *     static const sb_layout_vt_t my_vt = {my_cell_dirs, my_row_measure, my_col_measure, my_coords, MY_GLSL};
+ *     static const sb_layout_desc_t my_layout = {.name = "mine", .description = "...", .keys = "res",
+ *                                                .caps = SB_CAP_SEPARABLE, .wrap_y = SB_WRAP_REPEAT, .vt = &my_vt};
+ *     sb_param_kind_t kind;
+ *     sb_param_register(ctx, &my_layout, &kind);  // then "mine:res=16" works wherever a layout is named
+ *
+ * (docs/extending.md and tests/test_extend.c hold a complete one.)  A
+ * layout registered by a program is one of the process's kinds like the
+ * built-in ones: sb_param_kind_parse() and spec strings name it, the
+ * factor job screens it under param "auto" where it applies, and its
+ * snippet is written as the built-ins' are. */
+#ifndef SEPBRDF_EXPERIMENTAL_LAYOUT_H
+#define SEPBRDF_EXPERIMENTAL_LAYOUT_H
+
+#include "../common.h"
+#include "../param.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A layout's functions.  The library calls them with rows and columns in
+ * range and non-NULL arrays only; they read the layout's options through
+ * the getters of param.h (sb_param_texture_size, sb_param_theta_max,
+ * sb_param_warp). */
+typedef struct sb_layout_vt {
+    /* sb_param_cell_dirs: the directions at the centre of cell (row, col);
+     * 1 for a BRDF pair, 0 for a cell outside the domain */
+    int (*cell_dirs)(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
+    double (*row_measure)(const sb_param_t *p, size_t row); /* sb_param_row_measure */
+    double (*col_measure)(const sb_param_t *p, size_t col); /* sb_param_col_measure */
+    /* sb_param_coords: the g and h texture coordinates of a pair; 0 outside the domain */
+    int (*coords)(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
+    /* GLSL defining vec4 sb_coords(vec3 L, vec3 V) and bool sb_domain(vec3
+     * L, vec3 V, vec4 st) as coords computes them (SB_PI, SB_THETA_MAX
+     * are defined) */
+    const char *glsl;
+} sb_layout_vt_t;
+
+/* A layout.  The library keeps the pointer: the descriptor and every
+ * string it points to must live as long as the process. */
+typedef struct sb_layout_desc {
+    const char *name;                    /* the spec's kind, e.g. "io": letters, digits, '-', '_' */
+    const char *description;             /* one line, for help texts */
+    const char *keys;                    /* spec keys besides theta_max, comma separated ("res") */
+    unsigned caps;                       /* SB_CAP_SEPARABLE ... (param.h) */
+    sb_warp_kind_t warp[SB_AXIS_COUNT_]; /* SB_CAP_WARPS: the layout's own warp per axis */
+    int wrap_y;                          /* init NULL: y wrap of the square grids, SB_WRAP_CLAMP or SB_WRAP_REPEAT */
+    /* The library's own layouts only (their files reach inside sb_param_t):
+     * fill the layout's shape from its options.  NULL, as a program's
+     * layout must have it: rows and columns each on R x R textures (R =
+     * res, cell k = R y + x), rows = cols = R^2, wrap CLAMP along x and
+     * wrap_y along y, spec "NAME:res=R". */
+    sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
+    const sb_layout_vt_t *vt;
+    /* texels along warp axis `axis` that sb_warp_measure's scan describes,
+     * 0 for none; NULL: theta_h along the g textures' x, theta_d along the
+     * h textures' x */
+    size_t (*warp_cells)(const sb_param_t *p, int axis);
+    /* sampling (sb_param_row_sample, sampler.h): a direction uniform in
+     * solid angle over row cell `row` (wi, or h for SB_CAP_HALF_ROWS), and
+     * its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)`; NULL both: the
+     * layout has no sampler */
+    void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+    const char *sample_glsl;
+} sb_layout_desc_t;
+
+/* At most this many layouts in a process, built-in ones included. */
+#define SB_LAYOUTS_MAX 32
+
+/* Add a layout to the process's registry and give its kind (may be
+ * NULL): the next free number after the built-in ones.  desc must stay
+ * valid for the life of the process.  Safe to call from several threads.
+ * Errors: SB_ERR_ARG (NULL desc, a name that is empty, not of letters,
+ * digits, '-' and '_', or "auto", no vt or a vt function or glsl
+ * missing, init set, row_sample without sample_glsl or the reverse),
+ * SB_ERR_RANGE (the name is taken; SB_LAYOUTS_MAX reached). */
+SB_API sb_result_t sb_param_register(sb_context_t *ctx, const sb_layout_desc_t *desc, sb_param_kind_t *kind);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
