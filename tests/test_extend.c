@@ -85,14 +85,15 @@ static const sb_layout_desc_t eq_layout = {
     .wrap_y = SB_WRAP_REPEAT,
     .vt = &eq_vt,
     .row_sample = eq_row_sample,
-    .sample_glsl = "// io-eq cell: z = 1 - cos(theta) and phi linear in u\n"
-                   "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
-                   "    vec2 n = vec2(textureSize(sb_g, 0).xy);\n"
-                   "    float zmax = 2.0 * sin(0.5 * SB_THETA_MAX) * sin(0.5 * SB_THETA_MAX);\n"
-                   "    float z = (float(cell.x) + u.x) * zmax / n.x, phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
-                   "    float s = sqrt(max(z * (2.0 - z), 0.0));\n"
-                   "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
-                   "}\n"};
+    .sample_glsl =
+        "// io-eq cell: z = 1 - cos(theta) and phi linear in u\n"
+        "vec3 sb_row_dir(ivec2 cell, vec2 u) {\n"
+        "    vec2 n = vec2(textureSize(sb_g, 0).xy);\n"
+        "    float zmax = 2.0 * sin(0.5 * SB_THETA_MAX) * sin(0.5 * SB_THETA_MAX);\n"
+        "    float z = (float(cell.x) + u.x) * zmax / n.x, phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
+        "    float s = sqrt(max(z * (2.0 - z), 0.0));\n"
+        "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+        "}\n"};
 
 /* ---- the solver ---------------------------------------------------------- */
 

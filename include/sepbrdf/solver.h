@@ -32,12 +32,12 @@ enum {
 };
 
 /* Registered solvers, in the order the plan tries them. */
-size_t sb_solver_count(void);
+SB_API size_t sb_solver_count(void);
 /* Name ("full", "circulant", ...), one-line description and capabilities
  * of solver i; NULL / 0 for i >= sb_solver_count(). */
-const char *sb_solver_name(size_t i);
-const char *sb_solver_description(size_t i);
-unsigned sb_solver_caps(size_t i);
+SB_API const char *sb_solver_name(size_t i);
+SB_API const char *sb_solver_description(size_t i);
+SB_API unsigned sb_solver_caps(size_t i);
 
 #ifdef __cplusplus
 }

@@ -87,6 +87,7 @@ def _job_opts(o, source_spec):
     """sb_job_opts_t from factor()'s keyword arguments (the CLI's options,
     '-' written '_'), with the CLI's ranges."""
     jo = _lib.JobOpts()
+    jo.size = ctypes.sizeof(_lib.JobOpts)
     keep = []  # the encoded strings, alive as long as jo
 
     def s(v):

@@ -146,7 +146,7 @@ static void write_json(FILE *fp, const void *arg) {
     const brows_t *rs = arg;
     json_t j = {fp, 0, {0}};
     json_begin_object(&j, NULL);
-    json_string(&j, "sepbrdf_version", SB_VERSION_STRING);
+    json_string(&j, "sepbrdf_version", sb_version());
     json_string(&j, "command", "study");
     json_begin_object(&j, "settings");
     json_begin_array(&j, "budgets");

@@ -55,7 +55,7 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
 static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t failed, const char *plot) {
     json_t j = {fp, 0, {0}};
     json_begin_object(&j, NULL);
-    json_string(&j, "sepbrdf_version", SB_VERSION_STRING);
+    json_string(&j, "sepbrdf_version", sb_version());
     json_string(&j, "command", "study");
     json_begin_object(&j, "settings");
     json_int(&j, "resolution", (long long)o->res);

@@ -177,10 +177,28 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     return SB_OK;
 }
 
+/* The caller's options as this library's struct: the first in->size
+ * bytes (0: SB_JOB_OPTS_SIZE_0_1, the struct before it had a size), the
+ * fields a caller built with older headers does not know zero (their
+ * defaults).  A struct larger than this library's is from newer headers:
+ * refused, its fields would be ignored. */
+static sb_result_t opts_take(sb_context_t *ctx, const sb_job_opts_t *in, sb_job_opts_t *o) {
+    size_t n = in->size ? in->size : SB_JOB_OPTS_SIZE_0_1;
+    if (n < sizeof in->size || n > sizeof *o)
+        return sb_error(ctx, SB_ERR_ARG, "job: options of %zu bytes, this library (sepbrdf %s) takes %zu at most",
+                        in->size, SB_VERSION_STRING, sizeof *o);
+    memset(o, 0, sizeof *o);
+    memcpy(o, in, n);
+    o->size = sizeof *o;
+    return SB_OK;
+}
+
 sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out) {
     if (!src || !opts || !out) return sb_error(ctx, SB_ERR_ARG, "sb_job_run_source: NULL argument");
     *out = NULL;
-    return run(ctx, src, NULL, opts, job_now(), out);
+    sb_job_opts_t o;
+    sb_result_t r = opts_take(ctx, opts, &o);
+    return r == SB_OK ? run(ctx, src, NULL, &o, job_now(), out) : r;
 }
 
 sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out) {
@@ -188,10 +206,13 @@ sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **
     *out = NULL;
     double t0 = job_now();
     sb_source_t *src = NULL;
-    const char *spec = opts->source ? opts->source : SB_JOB_DEFAULT_SOURCE;
-    sb_result_t r = sb_job_source_open(ctx, spec, &opts->measured, &src);
+    sb_job_opts_t o;
+    sb_result_t r = opts_take(ctx, opts, &o);
     if (r != SB_OK) return r;
-    return run(ctx, src, src, opts, t0, out);
+    const char *spec = o.source ? o.source : SB_JOB_DEFAULT_SOURCE;
+    r = sb_job_source_open(ctx, spec, &o.measured, &src);
+    if (r != SB_OK) return r;
+    return run(ctx, src, src, &o, t0, out);
 }
 
 sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {

@@ -4,6 +4,7 @@
 
 #include "sepbrdf/experimental/layout.h"
 #include "sepbrdf/job.h"
+#include "util/shared.h"
 
 /* One factorisation of the source on one parameterisation and form:
  * sample (param + matrix) -> plan + execute (factors) -> comparable error. */

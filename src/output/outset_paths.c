@@ -1,5 +1,5 @@
 /* Output sets (outset.h): the paths of a set and the checks made before
- * any computation, and the wording of file errors. */
+ * any computation. */
 #define _GNU_SOURCE
 #include <dirent.h>
 #include <errno.h>
@@ -15,21 +15,6 @@
 
 #include "outset_impl.h"
 #include "util/internal.h"
-
-const char *sb_io_why(int err) {
-    switch (err) {
-    case ENOSPC:
-        return "disk full (no space left on device)";
-    case EDQUOT:
-        return "disk quota exceeded";
-    case EFBIG:
-        return "file too large (the file size limit, ulimit -f, was reached)";
-    case ENAMETOOLONG:
-        return "name too long for the file system";
-    default:
-        return strerror(err);
-    }
-}
 
 char *outset_join(const char *a, const char *b) {
     size_t len = strlen(a) + strlen(b) + 2;

@@ -132,3 +132,6 @@ size_t sb_memory_limit(void) {
     double total = (double)pages * (double)psize;
     return (size_t)(total * 0.75);
 }
+
+const char *sb_version(void) { return SB_VERSION_STRING; }
+unsigned sb_version_number(void) { return SB_VERSION_MAJOR * 10000u + SB_VERSION_MINOR * 100u + SB_VERSION_PATCH; }

@@ -6,6 +6,7 @@
 #include <stdio.h>
 
 #include "sepbrdf/common.h"
+#include "util/shared.h"
 
 char *sb_strdup(const char *s);
 /* printf into a new string of any length (the caller frees it); NULL when
