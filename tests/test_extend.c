@@ -11,6 +11,7 @@
  * The solver, "mine": the truncated SVD through the public svd.h plan
  * with method full, chosen by its name. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -162,6 +163,54 @@ SB_TEST(registration) {
     worse.caps = 0; /* neither takes nor a method */
     CHECK(sb_solver_register(ctx, &worse, NULL) == SB_ERR_ARG && sb_solver_register(ctx, NULL, NULL) == SB_ERR_ARG);
     CHECK(sb_param_kind_count() == kinds + 1 && sb_solver_count() == solvers + 1);
+    sb_context_destroy(ctx);
+}
+
+/* A layout whose init gives the shape itself (sb_param_set_shape): the
+ * io-eq grid again, its spec and wraps set by hand, and one that gives
+ * none. */
+static sb_result_t eq2_init(sb_context_t *ctx, sb_param_t *p) {
+    size_t R = sb_param_options(p)->res;
+    char spec[64];
+    snprintf(spec, sizeof spec, "io-eq2:res=%zu", R);
+    sb_layout_shape_t s = {{R, R}, {R, R}, {SB_WRAP_CLAMP, SB_WRAP_REPEAT}, {SB_WRAP_CLAMP, SB_WRAP_REPEAT}, spec};
+    return sb_param_set_shape(ctx, p, &s);
+}
+static sb_result_t none_init(sb_context_t *ctx, sb_param_t *p) {
+    (void)ctx, (void)p;
+    return SB_OK;
+}
+
+SB_TEST(layout_init) {
+    static sb_layout_desc_t eq2, none;
+    eq2 = eq_layout, none = eq_layout;
+    eq2.name = "io-eq2", eq2.init = eq2_init;
+    none.name = "io-none", none.init = none_init;
+    sb_param_kind_t k2, kn;
+    CHECK(sb_param_register(NULL, &eq2, &k2) == SB_OK && sb_param_register(NULL, &none, &kn) == SB_OK);
+    sb_param_opts_t po = {.res = 5};
+    sb_param_t *p = NULL, *q = NULL;
+    CHECK(sb_param_create(NULL, k2, &po, &p) == SB_OK && sb_param_create(NULL, SB_PARAM_IO, &po, &q) == SB_OK);
+    if (!p || !q) return;
+    CHECK(strcmp(sb_param_spec(p), "io-eq2:res=5") == 0 && sb_param_rows(p) == 25 && sb_param_cols(p) == 25);
+    for (int side = 0; side < 2; side++) { /* the io grid's textures and wraps */
+        size_t w[2], h[2];
+        int wp[2], wq[2];
+        sb_param_texture_size(p, side, &w[0], &h[0]);
+        sb_param_texture_size(q, side, &w[1], &h[1]);
+        sb_param_wrap(p, side, wp);
+        sb_param_wrap(q, side, wq);
+        CHECK(w[0] == w[1] && h[0] == h[1] && wp[0] == wq[0] && wp[1] == wq[1]);
+    }
+    sb_layout_shape_t s = {{5, 5}, {5, 5}, {0, 0}, {0, 0}, "io-eq2"};
+    CHECK(sb_param_set_shape(NULL, p, &s) == SB_ERR_ARG); /* outside init */
+    CHECK(sb_param_options(NULL) == NULL && sb_param_options(p)->res == 5);
+    sb_param_destroy(p);
+    sb_param_destroy(q);
+    sb_context_t *ctx = NULL;
+    CHECK(sb_context_create(&ctx) == SB_OK);
+    CHECK(sb_param_create(ctx, kn, &po, &p) == SB_ERR_ARG && p == NULL);
+    CHECK(strstr(sb_context_last_error(ctx), "no shape") != NULL);
     sb_context_destroy(ctx);
 }
 

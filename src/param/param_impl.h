@@ -1,7 +1,7 @@
 /* Private: the registry of parameterisations.  Each lives in one file
  * (param_io.c, param_hd.c, ...) holding its functions (sb_param_vt_t) and
  * one descriptor (sb_param_desc_t), and has one row in the table of
- * built-in layouts in param.c; nothing else names it. */
+ * built-in layouts in layouts.c; nothing else names it. */
 #ifndef SEPBRDF_PARAM_IMPL_H
 #define SEPBRDF_PARAM_IMPL_H
 
@@ -16,6 +16,9 @@
 typedef sb_layout_vt_t sb_param_vt_t;
 typedef sb_layout_desc_t sb_param_desc_t;
 
+/* The registry (layouts.c): the descriptor of kind, NULL out of range. */
+const sb_param_desc_t *sb_param_desc_of(sb_param_kind_t kind);
+
 struct sb_param {
     sb_param_kind_t kind;
     const sb_param_desc_t *desc; /* the registry's row of kind */
@@ -27,6 +30,7 @@ struct sb_param {
     char *glsl; /* the vt's GLSL, after the warp functions of SB_CAP_WARPS layouts */
     char spec[SB_PARAM_SPEC_MAX];
     unsigned long serial; /* the same for the same resolved layout (sb_param_serial_) */
+    int in_init;          /* within the descriptor's init: sb_param_set_shape allowed */
 };
 
 /* Warps (warp.c).  Elevation of texel edge or centre i (i = index, or

@@ -54,9 +54,9 @@ typedef struct sb_layout_desc {
     unsigned caps;                       /* SB_CAP_SEPARABLE ... (param.h) */
     sb_warp_kind_t warp[SB_AXIS_COUNT_]; /* SB_CAP_WARPS: the layout's own warp per axis */
     int wrap_y;                          /* init NULL: y wrap of the square grids, SB_WRAP_CLAMP or SB_WRAP_REPEAT */
-    /* The library's own layouts only (their files reach inside sb_param_t):
-     * fill the layout's shape from its options.  NULL, as a program's
-     * layout must have it: rows and columns each on R x R textures (R =
+    /* Give the layout its shape from its options (sb_param_options):
+     * call sb_param_set_shape once, return SB_OK or an error reported
+     * through ctx.  NULL: rows and columns each on R x R textures (R =
      * res, cell k = R y + x), rows = cols = R^2, wrap CLAMP along x and
      * wrap_y along y, spec "NAME:res=R". */
     sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
@@ -73,6 +73,28 @@ typedef struct sb_layout_desc {
     const char *sample_glsl;
 } sb_layout_desc_t;
 
+/* A layout's shape: the g textures g[0] x g[1] texels (rows g[0] g[1],
+ * row r at texel (r mod g[0], r / g[0])), the h textures h[0] x h[1]
+ * (columns likewise), the wrap of each axis (SB_WRAP_CLAMP or
+ * SB_WRAP_REPEAT, x then y) and the spec, "NAME:key=value,..." with the
+ * layout's keys (theta_max and warps are appended when not the
+ * defaults). */
+typedef struct sb_layout_shape {
+    size_t g[2], h[2];
+    int wrap_g[2], wrap_h[2];
+    const char *spec;
+} sb_layout_shape_t;
+
+/* Within a layout's init only: set p's shape.  Errors: SB_ERR_ARG (a NULL
+ * argument, outside an init, a wrap that is neither, a spec that does not
+ * start with the layout's name or is longer than 256 bytes), SB_ERR_RANGE
+ * (a size 0, or rows or columns beyond 2^26). */
+SB_API sb_result_t sb_param_set_shape(sb_context_t *ctx, sb_param_t *p, const sb_layout_shape_t *shape);
+/* The options p was created with, resolved: res and theta_max set, the
+ * counts of the layout's keys as given (0 when not), the warps of a
+ * SB_CAP_WARPS layout resolved; NULL for a NULL p. */
+SB_API const sb_param_opts_t *sb_param_options(const sb_param_t *p);
+
 /* At most this many layouts in a process, built-in ones included. */
 #define SB_LAYOUTS_MAX 32
 
@@ -81,7 +103,7 @@ typedef struct sb_layout_desc {
  * valid for the life of the process.  Safe to call from several threads.
  * Errors: SB_ERR_ARG (NULL desc, a name that is empty, not of letters,
  * digits, '-' and '_', or "auto", no vt or a vt function or glsl
- * missing, init set, row_sample without sample_glsl or the reverse),
+ * missing, row_sample without sample_glsl or the reverse),
  * SB_ERR_RANGE (the name is taken; SB_LAYOUTS_MAX reached). */
 SB_API sb_result_t sb_param_register(sb_context_t *ctx, const sb_layout_desc_t *desc, sb_param_kind_t *kind);
 
