@@ -325,7 +325,8 @@ SB_TEST(version) {
 
 /* Versioned options: size 0 (a zeroed struct), SB_JOB_OPTS_INIT and the
  * 0.1 size run the same job; a size beyond the library's struct (newer
- * headers) or below the size field is refused, naming the sizes. */
+ * headers) or below the size field is refused, naming the sizes; the
+ * plan's options alike. */
 SB_TEST(job_opts_size) {
     sb_job_opts_t zero = {0}, init = SB_JOB_OPTS_INIT;
     CHECK(init.size == sizeof(sb_job_opts_t) && SB_JOB_OPTS_SIZE_0_1 <= sizeof(sb_job_opts_t));
@@ -352,4 +353,17 @@ SB_TEST(job_opts_size) {
     sb_source_t *src = lambert();
     CHECK_CODE(sb_job_run_source(ctx(), src, &init, &job), SB_ERR_ARG);
     sb_source_destroy(src);
+    /* the plan's options alike */
+    sb_plan_opts_t po = SB_PLAN_OPTS_INIT;
+    CHECK(po.size == sizeof po && SB_PLAN_OPTS_SIZE_0_1 <= sizeof po);
+    sb_plan_t *plan = NULL;
+    po.terms = 2;
+    CHECK(sb_plan_create(ctx(), 4, 4, &po, &plan) == SB_OK);
+    sb_plan_destroy(plan);
+    po.size = 0;
+    CHECK(sb_plan_create(ctx(), 4, 4, &po, &plan) == SB_OK);
+    sb_plan_destroy(plan);
+    po.size = sizeof po + 1;
+    CHECK_CODE(sb_plan_create(ctx(), 4, 4, &po, &plan), SB_ERR_ARG);
+    CHECK(plan == NULL);
 }

@@ -151,7 +151,11 @@ SB_API sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, 
 
 typedef struct sb_plan sb_plan_t;
 
+/* Options of a plan; zero fields are the defaults.  Versioned by size as
+ * sb_job_opts_t (job.h): SB_PLAN_OPTS_INIT sets it; 0 stands for
+ * SB_PLAN_OPTS_SIZE_0_1; a size beyond the library's is SB_ERR_ARG. */
 typedef struct sb_plan_opts {
+    size_t size;       /* sizeof(sb_plan_opts_t) of the caller's headers; 0: SB_PLAN_OPTS_SIZE_0_1 */
     size_t terms;      /* J, default 4; with max_error: the upper limit */
     double max_error;  /* stop at the first J' with rel_rms <= max_error; 0 = off */
     sb_svd_opts_t svd; /* method and its parameters */
@@ -172,6 +176,10 @@ typedef struct sb_plan_opts {
     double
         fit_tol; /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
 } sb_plan_opts_t;
+#define SB_PLAN_OPTS_INIT                                                                                              \
+    { .size = sizeof(sb_plan_opts_t) }
+/* sepbrdf 0.1's sb_plan_opts_t, which a size of 0 stands for (frozen). */
+#define SB_PLAN_OPTS_SIZE_0_1 (offsetof(sb_plan_opts_t, fit_tol) + sizeof(double))
 
 /* What the last sb_plan_execute did for the masked fit (0 if unmasked). */
 typedef struct sb_plan_stats {

@@ -107,7 +107,9 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
     if (!out) return sb_error(ctx, SB_ERR_ARG, "plan: no output pointer");
     *out = NULL;
     sb_plan_opts_t o = {0};
-    if (opts) o = *opts;
+    if (opts && sb_opts_take(ctx, opts, opts->size, SB_PLAN_OPTS_SIZE_0_1, &o, sizeof o, "plan: options") != SB_OK)
+        return SB_ERR_ARG;
+    o.size = sizeof o;
     if (o.terms == 0) o.terms = 4;
     size_t mn = rows < cols ? rows : cols, cells;
     if (rows == 0 || cols == 0) return sb_error(ctx, SB_ERR_ARG, "plan: empty matrix");

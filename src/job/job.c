@@ -177,20 +177,11 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     return SB_OK;
 }
 
-/* The caller's options as this library's struct: the first in->size
- * bytes (0: SB_JOB_OPTS_SIZE_0_1, the struct before it had a size), the
- * fields a caller built with older headers does not know zero (their
- * defaults).  A struct larger than this library's is from newer headers:
- * refused, its fields would be ignored. */
+/* The caller's options as this library's struct (job.h: versioned). */
 static sb_result_t opts_take(sb_context_t *ctx, const sb_job_opts_t *in, sb_job_opts_t *o) {
-    size_t n = in->size ? in->size : SB_JOB_OPTS_SIZE_0_1;
-    if (n < sizeof in->size || n > sizeof *o)
-        return sb_error(ctx, SB_ERR_ARG, "job: options of %zu bytes, this library (sepbrdf %s) takes %zu at most",
-                        in->size, SB_VERSION_STRING, sizeof *o);
-    memset(o, 0, sizeof *o);
-    memcpy(o, in, n);
+    sb_result_t r = sb_opts_take(ctx, in, in->size, SB_JOB_OPTS_SIZE_0_1, o, sizeof *o, "job: options");
     o->size = sizeof *o;
-    return SB_OK;
+    return r;
 }
 
 sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out) {

@@ -81,8 +81,12 @@ sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
         }
     return SB_ERR_UNKNOWN;
 }
-const char *sb_param_kind_name(sb_param_kind_t kind) { return sb_param_desc_of(kind) ? sb_param_desc_of(kind)->name : "?"; }
-const char *sb_param_kind_description(sb_param_kind_t kind) { return sb_param_desc_of(kind) ? sb_param_desc_of(kind)->description : "?"; }
+const char *sb_param_kind_name(sb_param_kind_t kind) {
+    return sb_param_desc_of(kind) ? sb_param_desc_of(kind)->name : "?";
+}
+const char *sb_param_kind_description(sb_param_kind_t kind) {
+    return sb_param_desc_of(kind) ? sb_param_desc_of(kind)->description : "?";
+}
 unsigned sb_param_kind_caps(sb_param_kind_t kind) { return sb_param_desc_of(kind) ? sb_param_desc_of(kind)->caps : 0; }
 unsigned sb_param_caps(const sb_param_t *p) { return p ? p->desc->caps : 0; }
 

@@ -9,6 +9,14 @@
 #include "util/shared.h"
 
 char *sb_strdup(const char *s);
+/* Versioned options (job.h, factor.h): the caller's struct `in`, whose
+ * size field says `given` bytes (0: size0, the struct before it had a
+ * size), as this library's struct of `size` bytes in out: the bytes the
+ * caller's headers had, the rest zero (the defaults).  SB_ERR_ARG for a
+ * size beyond `size` (newer headers) or below a size_t; `what` names the
+ * struct in the message.  The caller then sets out's size field. */
+sb_result_t sb_opts_take(sb_context_t *ctx, const void *in, size_t given, size_t size0, void *out, size_t size,
+                         const char *what);
 /* printf into a new string of any length (the caller frees it); NULL when
  * out of memory. */
 char *sb_format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
