@@ -155,6 +155,8 @@ _PROTOTYPES = {
     "sb_form_name": (_C, [_I]),
     "sb_form_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_method_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
+    "sb_method_name": (_C, [_I]),
+    "sb_method_count": (ctypes.c_size_t, []),
     "sb_interp_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_gamut_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_sampler_create": (_R, [_P, _P, _P, _I, _PP]),
