@@ -5,7 +5,10 @@
 #define SB_API_CHECK_H
 
 #include "harness.h"
+#include "sepbrdf/experimental/layout.h"
+#include "sepbrdf/experimental/solver.h"
 #include "sepbrdf/sepbrdf.h"
+#include "util/shared.h" /* sizes, JSON: not exported, in the static archive */
 
 #define BAD_ENUM 99
 static const double wi_up[3] = {0, 0, 1}, wo_up[3] = {0.6, 0, 0.8};

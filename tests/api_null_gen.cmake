@@ -5,7 +5,7 @@
 # and a row {"sb_name", call_sb_name} of the table sb_api_calls[], so a
 # function added to a header is called the day it is added.
 #   cmake -DINCLUDE_DIR=include/sepbrdf -DOUT=api_null_calls.h -P api_null_gen.cmake
-file(GLOB headers ${INCLUDE_DIR}/*.h)
+file(GLOB headers ${INCLUDE_DIR}/*.h ${INCLUDE_DIR}/experimental/*.h) # stable and experimental
 list(SORT headers)
 set(callers "")
 set(rows "")

@@ -15,9 +15,9 @@ void sb_test_skip(const char *why);
 int sb_test_failed_now(void);
 
 /* The layouts a test can make from options alone, looped over as kinds
- * 0 .. SB_TEST_KINDS - 1: every kind before vndf, which is built on an RGL
- * file's own tables (tests/test_vndf.c). */
-#define SB_TEST_KINDS SB_PARAM_VNDF
+ * 0 .. SB_TEST_KINDS - 1: the numbered kinds io .. vh (param.h); vndf,
+ * the next, is built on an RGL file's own tables (tests/test_vndf.c). */
+#define SB_TEST_KINDS (SB_PARAM_VH + 1)
 #define SB_TEST(name)                                                                                                  \
     static void sb_test_##name(void);                                                                                  \
     __attribute__((constructor)) static void sb_test_reg_##name(void) { sb_test_register(#name, sb_test_##name); }     \

@@ -15,6 +15,7 @@ int main(void) {
     FIELD(sb_measured_opts_t, radius);
     FIELD(sb_measured_opts_t, white);
     FIELD(sb_measured_opts_t, gamut);
+    FIELD(sb_job_opts_t, size);
     FIELD(sb_job_opts_t, source);
     FIELD(sb_job_opts_t, measured);
     FIELD(sb_job_opts_t, param);

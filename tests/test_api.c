@@ -84,7 +84,7 @@ SB_TEST(param) {
     CHECK_CODE(sb_param_create(ctx(), SB_PARAM_HD, &o, &p), SB_ERR_RANGE);
     sb_param_destroy(NULL);
     /* getters on NULL: the documented safe values */
-    CHECK(sb_param_kind(NULL) == SB_PARAM_KIND_COUNT_);
+    CHECK(sb_param_kind(NULL) == SB_PARAM_NONE);
     CHECK(strcmp(sb_param_name(NULL), "") == 0 && strcmp(sb_param_spec(NULL), "") == 0);
     CHECK(sb_param_rows(NULL) == 0 && sb_param_cols(NULL) == 0);
     CHECK(isnan(sb_param_theta_max(NULL)));
@@ -194,8 +194,8 @@ SB_TEST(svd) {
     CHECK_CODE(sb_method_parse("full", NULL), SB_ERR_ARG);
     CHECK(strcmp(sb_method_name((sb_method_t)BAD_ENUM), "?") == 0);
     sb_svd_opts_t so = {.method = (sb_method_t)BAD_ENUM};
-    CHECK(sb_svd_auto_method(SIZE_MAX, SIZE_MAX, SIZE_MAX, NULL) < SB_METHOD_COUNT_);
-    CHECK(sb_svd_auto_method(0, 0, 0, &so) == SB_METHOD_COUNT_);
+    CHECK((size_t)sb_svd_auto_method(SIZE_MAX, SIZE_MAX, SIZE_MAX, NULL) < sb_method_count());
+    CHECK(sb_svd_auto_method(0, 0, 0, &so) == SB_METHOD_NONE);
     sb_svd_t *s = NULL;
     CHECK_CODE(sb_svd_create(ctx(), 4, 4, 2, NULL, NULL), SB_ERR_ARG);
     CHECK_CODE(sb_svd_create(ctx(), 0, 4, 2, NULL, &s), SB_ERR_ARG);
@@ -210,7 +210,7 @@ SB_TEST(svd) {
     CHECK_CODE(sb_svd_create(ctx(), 4, 4, 2, &wild, &s), SB_OK); /* the sketch is capped at min(m, n) */
     sb_svd_destroy(s);
     sb_svd_destroy(NULL);
-    CHECK(sb_svd_method(NULL) == SB_METHOD_COUNT_ && sb_svd_rank(NULL) == 0 && sb_svd_workspace_bytes(NULL) == 0);
+    CHECK(sb_svd_method(NULL) == SB_METHOD_NONE && sb_svd_rank(NULL) == 0 && sb_svd_workspace_bytes(NULL) == 0);
     sb_svd_info_t info = sb_svd_last_info(NULL);
     CHECK(info.rank == 0 && info.sketch == 0);
     double A[16] = {1, 0, 0, 0, 0, 2, 0, 0, 0, 0, 3, 0, 0, 0, 0, 4}, sv[2], U[8], V[8];
@@ -306,4 +306,64 @@ SB_TEST(factors) {
     CHECK(sb_factors_eval(f, p, SB_FORM_F, SIZE_MAX, wi_up, wo_up, rgb) == 1 && rgb[0] == 0);
     sb_param_destroy(p);
     sb_factors_destroy(f);
+}
+
+/* The version at run time: the headers' macros, CMake's project version,
+ * the number MAJOR * 10000 + MINOR * 100 + PATCH of the string's parts,
+ * and what `sepbrdf --version` prints. */
+SB_TEST(version) {
+    CHECK(strcmp(sb_version(), SB_VERSION_STRING) == 0 && strcmp(sb_version(), SB_PROJECT_VERSION) == 0);
+    unsigned major = 0, minor = 0, patch = 0;
+    CHECK(sscanf(sb_version(), "%u.%u.%u", &major, &minor, &patch) == 3);
+    CHECK(sb_version_number() == major * 10000 + minor * 100 + patch);
+    CHECK(major == SB_VERSION_MAJOR && minor == SB_VERSION_MINOR && patch == SB_VERSION_PATCH);
+    char out[256], want[64];
+    CHECK(sb_run(SB_CLI " --version", out, sizeof out) == 0);
+    snprintf(want, sizeof want, "sepbrdf %s\n", sb_version());
+    CHECKF(strcmp(out, want) == 0, "--version printed '%s'", out);
+}
+
+/* Versioned options: size 0 (a zeroed struct), SB_JOB_OPTS_INIT and the
+ * 0.1 size run the same job; a size beyond the library's struct (newer
+ * headers) or below the size field is refused, naming the sizes; the
+ * plan's options alike. */
+SB_TEST(job_opts_size) {
+    sb_job_opts_t zero = {0}, init = SB_JOB_OPTS_INIT;
+    CHECK(init.size == sizeof(sb_job_opts_t) && SB_JOB_OPTS_SIZE_0_1 <= sizeof(sb_job_opts_t));
+    double e[3];
+    size_t sizes[3] = {0, sizeof(sb_job_opts_t), SB_JOB_OPTS_SIZE_0_1};
+    for (int i = 0; i < 3; i++) {
+        sb_job_opts_t o = i ? init : zero;
+        o.size = sizes[i];
+        o.source = "cook-torrance:roughness=0.4";
+        o.param = "io";
+        o.res = 6;
+        o.terms = 2;
+        sb_job_t *job = NULL;
+        CHECK(sb_job_run(ctx(), &o, &job) == SB_OK);
+        e[i] = sb_job_headline(job, 2);
+        sb_job_destroy(job);
+    }
+    CHECK(e[0] == e[1] && e[1] == e[2] && e[0] > 0);
+    sb_job_t *job = NULL;
+    init.size = sizeof(sb_job_opts_t) + 8;
+    CHECK_CODE(sb_job_run(ctx(), &init, &job), SB_ERR_ARG);
+    CHECK(job == NULL && strstr(sb_context_last_error(ctx()), "bytes") != NULL);
+    init.size = 1;
+    sb_source_t *src = lambert();
+    CHECK_CODE(sb_job_run_source(ctx(), src, &init, &job), SB_ERR_ARG);
+    sb_source_destroy(src);
+    /* the plan's options alike */
+    sb_plan_opts_t po = SB_PLAN_OPTS_INIT;
+    CHECK(po.size == sizeof po && SB_PLAN_OPTS_SIZE_0_1 <= sizeof po);
+    sb_plan_t *plan = NULL;
+    po.terms = 2;
+    CHECK(sb_plan_create(ctx(), 4, 4, &po, &plan) == SB_OK);
+    sb_plan_destroy(plan);
+    po.size = 0;
+    CHECK(sb_plan_create(ctx(), 4, 4, &po, &plan) == SB_OK);
+    sb_plan_destroy(plan);
+    po.size = sizeof po + 1;
+    CHECK_CODE(sb_plan_create(ctx(), 4, 4, &po, &plan), SB_ERR_ARG);
+    CHECK(plan == NULL);
 }

@@ -23,7 +23,10 @@
 #include <unistd.h>
 
 #include "harness.h"
+#include "sepbrdf/experimental/layout.h"
+#include "sepbrdf/experimental/solver.h"
 #include "sepbrdf/sepbrdf.h"
+#include "util/shared.h" /* sizes, JSON: not exported, in the static archive */
 
 /* An argument of type T for pass 0 (zero), 1 (huge) or 2 (negative, NaN);
  * pointers and structs are zero in every pass. */

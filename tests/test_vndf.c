@@ -12,6 +12,12 @@
 #define PAPER SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf"
 #define ORANGE SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf"
 
+static sb_param_kind_t vndf_kind(void) {
+    sb_param_kind_t k = SB_PARAM_NONE;
+    CHECK(sb_param_kind_parse("vndf", &k) == SB_OK);
+    return k;
+}
+
 static sb_source_t *open_rgl(const char *path) {
     sb_source_t *src = NULL;
     CHECK(sb_measured_open(NULL, path, NULL, &src, NULL) == SB_OK);
@@ -23,7 +29,7 @@ static sb_param_t *vndf_of(const sb_source_t *src) {
     sb_param_opts_t po = {0};
     po.tables = sb_source_layout_tables(src);
     sb_param_t *p = NULL;
-    CHECK(sb_param_create(NULL, SB_PARAM_VNDF, &po, &p) == SB_OK);
+    CHECK(sb_param_create(NULL, vndf_kind(), &po, &p) == SB_OK);
     return p;
 }
 
@@ -97,7 +103,7 @@ SB_TEST(tables_round_trip) {
     sb_param_opts_t po = {0};
     po.tables = t;
     sb_param_t *q = NULL;
-    CHECK(sb_param_create(NULL, SB_PARAM_VNDF, &po, &q) == SB_OK);
+    CHECK(sb_param_create(NULL, vndf_kind(), &po, &q) == SB_OK);
     sb_layout_tables_destroy(t);
     CHECK(strcmp(sb_param_spec(p), sb_param_spec(q)) == 0 && strcmp(sb_param_glsl(p), sb_param_glsl(q)) == 0);
     srand(3);
@@ -122,10 +128,10 @@ SB_TEST(needs_tables) {
     sb_context_t *ctx = NULL;
     CHECK(sb_context_create(&ctx) == SB_OK);
     sb_param_t *p = NULL;
-    CHECK(sb_param_create(ctx, SB_PARAM_VNDF, NULL, &p) == SB_ERR_UNSUPPORTED && !p);
+    CHECK(sb_param_create(ctx, vndf_kind(), NULL, &p) == SB_ERR_UNSUPPORTED && !p);
     CHECK(strstr(sb_context_last_error(ctx), "RGL") != NULL);
-    CHECK(!sb_param_kind_applies(SB_PARAM_VNDF, SB_SOURCE_ISOTROPIC));
-    CHECK(sb_param_kind_applies(SB_PARAM_VNDF, SB_SOURCE_ISOTROPIC | SB_SOURCE_TABLES));
+    CHECK(!sb_param_kind_applies(vndf_kind(), SB_SOURCE_ISOTROPIC));
+    CHECK(sb_param_kind_applies(vndf_kind(), SB_SOURCE_ISOTROPIC | SB_SOURCE_TABLES));
     sb_source_t *gold = NULL;
     CHECK(sb_source_open(NULL, "microfacet:base=gold,roughness=0.3", &gold) == SB_OK);
     CHECK(sb_source_layout_tables(gold) == NULL && !(sb_source_flags(gold) & SB_SOURCE_TABLES));

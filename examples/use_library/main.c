@@ -34,7 +34,7 @@ static void print_job(const sb_job_t *job) {
 }
 
 int main(int argc, char **argv) {
-    sb_job_opts_t o = {0}; /* zero: every default of `sepbrdf factor` */
+    sb_job_opts_t o = SB_JOB_OPTS_INIT; /* every default of `sepbrdf factor` */
     o.source = argc > 1 ? argv[1] : NULL;
     o.res = argc > 2 ? (size_t)strtoul(argv[2], NULL, 10) : 16;
     o.terms = argc > 3 ? (size_t)strtoul(argv[3], NULL, 10) : 4;
@@ -45,7 +45,7 @@ int main(int argc, char **argv) {
     sb_context_set_error_callback(ctx, on_error, NULL);
     int rc = 1;
     if (sb_job_run(ctx, &o, &job) == SB_OK) {
-        printf("sepbrdf %s: wrote %s/\n", SB_VERSION_STRING, o.out);
+        printf("sepbrdf %s: wrote %s/\n", sb_version(), o.out);
         print_job(job);
         double wi[3], wo[3], ref[3], rec[3];
         const sb_factors_t *f = sb_job_factors(job);

@@ -40,7 +40,8 @@ typedef struct sb_channels {
  * all-zero matrix, is trivially proportional.  One read of each channel.
  * Errors: SB_ERR_ARG (NULL m or out, no channel present), SB_ERR_RANGE
  * (rel_tol negative or >= 1), SB_ERR_NUMERIC (a non-finite entry). */
-sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol, sb_channels_t *out);
+SB_API sb_result_t sb_channels_proportional(sb_context_t *ctx, const sb_matrix_t *m, double rel_tol,
+                                            sb_channels_t *out);
 
 #ifdef __cplusplus
 }

@@ -30,6 +30,15 @@ extern "C" {
 #define SB_VERSION_PATCH 0
 #define SB_VERSION_STRING "0.1.0"
 
+/* SB_API marks every function of the public headers: the library is built
+ * with hidden visibility (-fvisibility=hidden), so it exports these and
+ * nothing else (scripts/check_exports.sh checks it). */
+#if defined(__GNUC__) || defined(__clang__)
+#define SB_API __attribute__((visibility("default")))
+#else
+#define SB_API
+#endif
+
 #define SB_PI 3.14159265358979323846
 
 typedef enum sb_result {
@@ -47,9 +56,15 @@ typedef enum sb_result {
     SB_RESULT_COUNT_
 } sb_result_t;
 
+/* The library's version at run time ("0.1.0"; the SB_VERSION_* macros
+ * above are the headers' a program was compiled with), and as one number,
+ * MAJOR * 10000 + MINOR * 100 + PATCH (as zstd's ZSTD_versionNumber). */
+SB_API const char *sb_version(void);
+SB_API unsigned sb_version_number(void);
+
 /* Static name ("SB_ERR_RANGE") and one-line description of a code. */
-const char *sb_result_name(sb_result_t r);
-const char *sb_result_message(sb_result_t r);
+SB_API const char *sb_result_name(sb_result_t r);
+SB_API const char *sb_result_message(sb_result_t r);
 
 typedef void (*sb_error_fn)(void *user, sb_result_t code, const char *message);
 
@@ -57,12 +72,12 @@ typedef struct sb_context sb_context_t;
 
 /* Create a context.  The default callback does nothing; the last message is
  * always kept and readable with sb_context_last_error(). */
-sb_result_t sb_context_create(sb_context_t **out);
-void sb_context_destroy(sb_context_t *ctx); /* accepts NULL */
-void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user);
+SB_API sb_result_t sb_context_create(sb_context_t **out);
+SB_API void sb_context_destroy(sb_context_t *ctx); /* accepts NULL */
+SB_API void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user);
 /* Last detailed message, "" if none.  Owned by the context. */
-const char *sb_context_last_error(const sb_context_t *ctx);
-void sb_context_clear_error(sb_context_t *ctx);
+SB_API const char *sb_context_last_error(const sb_context_t *ctx);
+SB_API void sb_context_clear_error(sb_context_t *ctx);
 
 /* A group of processes that share the passes of a streamed factorisation
  * (solver.h: the stream solver and the plan's residual pass over a
@@ -82,27 +97,21 @@ typedef struct sb_group {
 } sb_group_t;
 /* Copy *group into ctx (NULL or size < 2: this process alone, the
  * default).  SB_ERR_ARG for a rank outside 0..size-1 or no reduce. */
-sb_result_t sb_context_set_group(sb_context_t *ctx, const sb_group_t *group);
+SB_API sb_result_t sb_context_set_group(sb_context_t *ctx, const sb_group_t *group);
 
 /* Report an error through the context (ctx may be NULL) and return `code`.
  * Used by every module; public so that sources written outside the library
  * can report in the same way. */
-sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...)
+SB_API sb_result_t sb_error(sb_context_t *ctx, sb_result_t code, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
 
-/* Overflow-checked size arithmetic: return 0 and set *out, or 1 on
- * overflow or a NULL out (then *out is left as it was). */
-int sb_size_mul(size_t a, size_t b, size_t *out);
-int sb_size_mul3(size_t a, size_t b, size_t c, size_t *out);
-int sb_size_add(size_t a, size_t b, size_t *out);
-
 /* Allocation limit used for up-front refusal of huge requests (bytes).
  * Default: 3/4 of physical memory.  0 restores the default. */
-void sb_set_memory_limit(size_t bytes);
-size_t sb_memory_limit(void);
+SB_API void sb_set_memory_limit(size_t bytes);
+SB_API size_t sb_memory_limit(void);
 
 #ifdef __cplusplus
 }

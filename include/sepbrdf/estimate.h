@@ -81,9 +81,9 @@ enum {
 };
 #define SB_BAND_CONE_DEG 10.0
 /* Bit b set when (wi, wo) (unit, local frame, z up) is in band b; 0 for NULL. */
-unsigned sb_band_mask(const double wi[3], const double wo[3]);
+SB_API unsigned sb_band_mask(const double wi[3], const double wo[3]);
 /* "theta_i_60", ..., "specular", "retro" (report.json keys); NULL beyond. */
-const char *sb_band_name(int band);
+SB_API const char *sb_band_name(int band);
 /* The band map: cells over (theta_i, theta_o) with these edges in degrees
  * (finer towards the horizon). */
 #define SB_EST_MAP 9
@@ -107,8 +107,8 @@ typedef struct sb_estimate_opts {
 typedef struct sb_pairs sb_pairs_t;
 /* Draw opts->start replicates of pairs for src (src must outlive them).
  * Errors: SB_ERR_ARG, SB_ERR_RANGE (replicate 0, start < 4), SB_ERR_NOMEM. */
-sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
-                            sb_pairs_t **out);
+SB_API sb_result_t sb_pairs_create(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
+                                   sb_pairs_t **out);
 /* A pair drawn from a point x of [0,1)^6 (wi, wo unit, local frame): its
  * density under the distribution measured over, or 0 for no pair.  Called
  * from several threads at once. */
@@ -116,10 +116,10 @@ typedef double (*sb_pair_draw_fn)(const void *user, const double x[6], double wi
 /* As sb_pairs_create, the pairs drawn by `draw` from the same points
  * instead of the mixture above (user must outlive the pairs): errors over
  * another distribution of pairs, e.g. a scene's (scene.h). */
-sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
-                                  sb_pair_draw_fn draw, const void *user, sb_pairs_t **out);
-void sb_pairs_destroy(sb_pairs_t *pairs);
-size_t sb_pairs_count(const sb_pairs_t *pairs);
+SB_API sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, const sb_estimate_opts_t *opts,
+                                         sb_pair_draw_fn draw, const void *user, sb_pairs_t **out);
+SB_API void sb_pairs_destroy(sb_pairs_t *pairs);
+SB_API size_t sb_pairs_count(const sb_pairs_t *pairs);
 
 typedef struct sb_estimate {
     size_t terms;                                /* J' = 1..terms are filled (at most SB_EST_MAXJ) */
@@ -166,9 +166,9 @@ typedef struct sb_estimate {
  * pairs as the target standard error asks (opts: those given to
  * sb_pairs_create, NULL = defaults).  A 1-channel f is compared with every
  * channel.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
-sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f, const double *scales,
-                                const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts,
-                                sb_estimate_t *out);
+SB_API sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_factors_t *f,
+                                       const double *scales, const sb_param_t *p, sb_form_t form,
+                                       const sb_estimate_opts_t *opts, sb_estimate_t *out);
 
 /* Per-term weights in [0, 1] that make the headline on `pairs` non-increasing
  * in J': w[j * C + c] (C = sb_factors_channels(f), J = sb_factors_terms(f)
@@ -179,30 +179,30 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
  * of the shorter one; 0 leaves a term unused).  f, scales, p and form as in
  * sb_estimate_compute; the pairs are not grown.  Terms beyond SB_EST_MAXJ
  * get 1.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
-sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
-                                     const double *scales, const sb_param_t *p, sb_form_t form, double *w);
+SB_API sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
+                                            const double *scales, const sb_param_t *p, sb_form_t form, double *w);
 /* The headline at J (all terms) of every combination of the g textures of
  * gs[a] (a < ng) with the h textures of hs[b] (b < nh), all of one layout
  * (the same terms, channels and texture sizes), on all of the pairs in one
  * pass: out[a * nh + b] as sb_estimate_headline(est, J) of
  * sb_estimate_compute with headline_only on the same pairs and factors, to
  * rounding.  The pairs are not grown.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
-sb_result_t sb_estimate_headlines(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *const *gs, size_t ng,
-                                  const sb_factors_t *const *hs, size_t nh, const sb_param_t *p, sb_form_t form,
-                                  double *out);
+SB_API sb_result_t sb_estimate_headlines(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *const *gs,
+                                         size_t ng, const sb_factors_t *const *hs, size_t nh, const sb_param_t *p,
+                                         sb_form_t form, double *out);
 
 /* The headline (relative L2 error of f cos(theta_i), all channels) after
  * j >= 1 terms; NAN beyond est->terms. */
-double sb_estimate_headline(const sb_estimate_t *est, size_t j);
+SB_API double sb_estimate_headline(const sb_estimate_t *est, size_t j);
 /* The band bounds after j >= 1 terms (h the headline): the band error
  * theta_i > 80 degrees at most max(3 h, 1 %) and theta_i > 89 degrees at
  * most max(10 h, 5 %), each with two standard errors of slack.  1 when
  * both hold, 0 when one breaks, -1 when unknown (j beyond est->terms or
  * no band errors). */
-int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j);
+SB_API int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j);
 /* The band of the largest error (band[j - 1][b][all]) after j >= 1 terms;
  * -1 beyond est->terms or when no band has a finite error. */
-int sb_estimate_worst_band(const sb_estimate_t *est, size_t j);
+SB_API int sb_estimate_worst_band(const sb_estimate_t *est, size_t j);
 
 #ifdef __cplusplus
 }

@@ -41,11 +41,12 @@ typedef struct sb_exr_opts {
  * BRDF is outside the range of textures), SB_ERR_RANGE (a later term too
  * small to store: J is above the BRDF's numerical rank; sizes beyond EXR's
  * limits), SB_ERR_IO, SB_ERR_NOMEM. */
-sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir, const sb_exr_opts_t *opts);
+SB_API sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f, const char *dir,
+                                        const sb_exr_opts_t *opts);
 
 /* Read the factors in `dir` written by sb_factors_write_exr (the number of
  * terms from the files' headers).  Values are the stored ones, exactly. */
-sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out);
+SB_API sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out);
 
 /* The sizes of the set of factor textures in `dir` as written, read back
  * from the files: texel_bytes = sum over g_KK.exr, h_KK.exr (K < the
@@ -53,7 +54,7 @@ sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t
  * HALF), what the textures take in GPU memory; file_bytes = the files'
  * sizes (headers and attributes included).  Errors: those of
  * sb_factors_read_exr's header checks (SB_ERR_IO, SB_ERR_FORMAT), SB_ERR_ARG. */
-sb_result_t sb_exr_set_bytes(sb_context_t *ctx, const char *dir, size_t *texel_bytes, size_t *file_bytes);
+SB_API sb_result_t sb_exr_set_bytes(sb_context_t *ctx, const char *dir, size_t *texel_bytes, size_t *file_bytes);
 
 /* What sb_factors_quantize found. */
 typedef struct sb_quantize_info {
@@ -72,8 +73,8 @@ typedef struct sb_quantize_info {
  * beyond the format's range, including a first term whose largest value
  * would be stored as 0; SB_ERR_RANGE for a later term stored as 0, J above
  * the numerical rank), SB_ERR_NOMEM. */
-sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
-                                sb_factors_t **stored, sb_quantize_info_t *info);
+SB_API sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
+                                       sb_factors_t **stored, sb_quantize_info_t *info);
 
 /* The per-term factor a shader applies to the stored texels: scales[j] =
  * scale(g_j) * scale(h_j) with each texture's sepbrdf.scale as
@@ -82,24 +83,25 @@ sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const 
  * snippet takes them as sb_scale (sb_glsl_snippet's `scales`).  scales
  * receives sb_factors_terms(f) values.  Errors: the writer's (SB_ERR_NUMERIC,
  * SB_ERR_RANGE), SB_ERR_ARG. */
-sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts, double *scales);
+SB_API sb_result_t sb_exr_term_scales(sb_context_t *ctx, const sb_factors_t *f, const sb_exr_opts_t *opts,
+                                      double *scales);
 
 /* The storage scale of texture (side, term) alone (its sepbrdf.scale: 1
  * for FLOAT), as sb_factors_write_exr(opts) chooses it; the sampler's
  * table stores g's integrals in these units (sampler.h).  Errors: those of
  * sb_exr_term_scales. */
-sb_result_t sb_exr_texture_scale(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term,
-                                 const sb_exr_opts_t *opts, double *scale);
+SB_API sb_result_t sb_exr_texture_scale(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term,
+                                        const sb_exr_opts_t *opts, double *scale);
 
 /* File name of one texture: "g_00.exr" etc. written into buf. */
-void sb_exr_name(int side, size_t term, char *buf, size_t size);
+SB_API void sb_exr_name(int side, size_t term, char *buf, size_t size);
 
 /* A plain RGB float image (the vndf layout's tables, vndf.exr): rgb holds
  * width x height x 3 floats, row-major; written whole under a temporary
  * name and renamed.  Reading gives a malloc'ed array for the caller to
  * free; SB_ERR_FORMAT for a file that is not three float channels R, G, B. */
-sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t width, size_t height, const float *rgb);
-sb_result_t sb_exr_read_rgb(sb_context_t *ctx, const char *path, size_t *width, size_t *height, float **rgb);
+SB_API sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t width, size_t height, const float *rgb);
+SB_API sb_result_t sb_exr_read_rgb(sb_context_t *ctx, const char *path, size_t *width, size_t *height, float **rgb);
 
 #ifdef __cplusplus
 }

@@ -27,34 +27,34 @@ typedef struct sb_factors sb_factors_t;
 
 /* Empty factors: `terms` pairs of `channels` (1 or 3) textures, g of
  * g_w x g_h texels, h of h_w x h_h texels, all zero. */
-sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h, size_t h_w,
-                              size_t h_h, sb_factors_t **out);
-void sb_factors_destroy(sb_factors_t *f);
+SB_API sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h,
+                                     size_t h_w, size_t h_h, sb_factors_t **out);
+SB_API void sb_factors_destroy(sb_factors_t *f);
 
 /* Accessors.  side is SB_SIDE_G or SB_SIDE_H; for a NULL f, another side,
  * a term >= sb_factors_terms() or a channel >= sb_factors_channels() they
  * give 0 sizes, NULL textures, NaN sigma, and set_sigma writes nothing. */
-size_t sb_factors_terms(const sb_factors_t *f);
-size_t sb_factors_channels(const sb_factors_t *f);
-void sb_factors_size(const sb_factors_t *f, int side, size_t *width, size_t *height);
+SB_API size_t sb_factors_terms(const sb_factors_t *f);
+SB_API size_t sb_factors_channels(const sb_factors_t *f);
+SB_API void sb_factors_size(const sb_factors_t *f, int side, size_t *width, size_t *height);
 /* Texture of term j, channel c: width*height doubles, row-major. */
-double *sb_factors_tex(sb_factors_t *f, int side, size_t term, size_t channel);
-const double *sb_factors_tex_const(const sb_factors_t *f, int side, size_t term, size_t channel);
-double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t channel);
-void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t channel, double sigma);
+SB_API double *sb_factors_tex(sb_factors_t *f, int side, size_t term, size_t channel);
+SB_API const double *sb_factors_tex_const(const sb_factors_t *f, int side, size_t term, size_t channel);
+SB_API double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t channel);
+SB_API void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t channel, double sigma);
 
 /* String metadata (copied).  Keys used by the library: "param" (param spec),
  * "source" (source description), "form" (f|cos|cos2), "method". */
-sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value);
-const char *sb_factors_get_meta(const sb_factors_t *f, const char *key); /* NULL if absent */
+SB_API sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value);
+SB_API const char *sb_factors_get_meta(const sb_factors_t *f, const char *key); /* NULL if absent */
 /* The tables of a layout built on them (param.h SB_CAP_TABLES: vndf), read
  * with the set from vndf.exr; f owns them (set replaces and frees the old;
  * NULL f frees the tables). */
-void sb_factors_set_tables(sb_factors_t *f, struct sb_layout_tables *tables);
-const struct sb_layout_tables *sb_factors_tables(const sb_factors_t *f);
-size_t sb_factors_meta_count(const sb_factors_t *f);
+SB_API void sb_factors_set_tables(sb_factors_t *f, struct sb_layout_tables *tables);
+SB_API const struct sb_layout_tables *sb_factors_tables(const sb_factors_t *f);
+SB_API size_t sb_factors_meta_count(const sb_factors_t *f);
 /* i-th pair; NULL key and value for i >= sb_factors_meta_count(). */
-void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value);
+SB_API void sb_factors_meta_at(const sb_factors_t *f, size_t i, const char **key, const char **value);
 
 /* Errors per number of terms, filled by sb_plan_execute (all zero before).
  * rel_rms[sb_err_at(t, c)]: after t+1 terms, channel c (0..2), c =
@@ -68,8 +68,8 @@ typedef struct sb_factor_errors {
     double *max_abs;
     double norm[4];
 } sb_factor_errors_t;
-const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f);
-sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f);
+SB_API const sb_factor_errors_t *sb_factors_errors(const sb_factors_t *f);
+SB_API sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f);
 
 /* Errors of the first J' = 1..J terms of f (J = sb_factors_terms) against
  * the matrix m, measured as sb_plan_execute measures them: on the valid
@@ -82,8 +82,8 @@ sb_factor_errors_t *sb_factors_errors_mut(sb_factors_t *f);
  * channels absent from m: 0).  A 1-channel f is compared with every
  * channel of m.  Errors: SB_ERR_ARG (sizes differ), SB_ERR_NOMEM,
  * SB_ERR_NUMERIC (a non-finite error). */
-sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
-                                      const sb_param_t *weights, double *rel_rms, double *max_abs);
+SB_API sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                                             const sb_param_t *weights, double *rel_rms, double *max_abs);
 
 /* rel_rms as sb_factors_errors_against gives it, for factors `near` that
  * differ little from `fit` (the same terms rounded to the stored precision,
@@ -93,29 +93,29 @@ sb_result_t sb_factors_errors_against(sb_context_t *ctx, const sb_factors_t *f, 
  * product of the matrix with 2J columns per channel (no residual pass,
  * no max_abs).  Unmasked matrices only.  Errors: SB_ERR_ARG (sizes differ,
  * masked matrix), SB_ERR_NOMEM, SB_ERR_NUMERIC. */
-sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
-                                   const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms);
+SB_API sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
+                                          const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms);
 
 /* Value of the first `terms` terms (at most all) at matrix cell (row,
  * col), channel c: sum_j g_j[row] h_j[col].  NaN for a NULL f, or a
  * channel, row or column out of range. */
-double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);
+SB_API double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channel, size_t row, size_t col);
 /* Fraction of negative texels over all g_j, h_j of the first `terms` terms
  * (at most all); NaN for a NULL f. */
-double sb_factors_negative_fraction(const sb_factors_t *f, size_t terms);
+SB_API double sb_factors_negative_fraction(const sb_factors_t *f, size_t terms);
 
 /* Texture lookup with the GL conventions of param.h (bilinear, wrap).
  * NaN for NULL arguments, side, term or channel out of range, or a
  * non-finite st. */
-double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t channel,
-                         const double st[2]);
+SB_API double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t channel,
+                                const double st[2]);
 
 /* Reconstructed f_r(wi, wo) from the first `terms` terms through texture
  * lookups exactly as the GLSL snippet does, divided back by the form
  * weight.  Returns 0 (rgb = 0) outside the domain, and for NULL arguments
  * or an unknown form. */
-int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
-                    const double wo[3], double rgb[3]);
+SB_API int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
+                           const double wo[3], double rgb[3]);
 
 /* ---- comparable metric -------------------------------------------------
  * One error for every parameterisation and form, computed on the same
@@ -126,7 +126,7 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
  *   e(J') = sqrt( sum w (f~ - f)^2 c_i^2 c_o^2 / sum w f^2 c_i^2 c_o^2 ).
  * Computed with exact reductions (an isotropic source tabulated on its R^3
  * distinct values, io / io-area sides tabulated per direction, iso pairs of
- * an isotropic source by rotation class; see metric.c): equal to the
+ * an isotropic source by rotation class): equal to the
  * pair-by-pair sums up to rounding, and the same bits on any thread count. */
 /* Largest reference grid: R^4 pairs (R^3 for an isotropic source), 3 s
  * at 128 on the 2-core test machine, minutes at 256. */
@@ -148,14 +148,19 @@ typedef struct sb_metric {
 /* Compute the metric for the first min(J, 256) terms of f.  Errors:
  * SB_ERR_ARG (NULL argument, unknown form, textures not of p's size),
  * SB_ERR_RANGE (res beyond 2..SB_METRIC_MAX_RES), SB_ERR_NOMEM. */
-sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const sb_factors_t *f, const sb_param_t *p,
-                              sb_form_t form, const sb_metric_opts_t *opts, sb_metric_t *out);
+SB_API sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const sb_factors_t *f,
+                                     const sb_param_t *p, sb_form_t form, const sb_metric_opts_t *opts,
+                                     sb_metric_t *out);
 
 /* ---- plan ------------------------------------------------------------- */
 
 typedef struct sb_plan sb_plan_t;
 
+/* Options of a plan; zero fields are the defaults.  Versioned by size as
+ * sb_job_opts_t (job.h): SB_PLAN_OPTS_INIT sets it; 0 stands for
+ * SB_PLAN_OPTS_SIZE_0_1; a size beyond the library's is SB_ERR_ARG. */
 typedef struct sb_plan_opts {
+    size_t size;       /* sizeof(sb_plan_opts_t) of the caller's headers; 0: SB_PLAN_OPTS_SIZE_0_1 */
     size_t terms;      /* J, default 4; with max_error: the upper limit */
     double max_error;  /* stop at the first J' with rel_rms <= max_error; 0 = off */
     sb_svd_opts_t svd; /* method and its parameters */
@@ -169,13 +174,17 @@ typedef struct sb_plan_opts {
      * (scene.h); both or neither, each > 0; they must outlive the plan. */
     const double *row_weights, *col_weights;
     /* Cells with mask 0 (outside the domain, unmeasured) are excluded from
-     * the fit by iterative imputation (see fit.c) unless zero_fill is set,
+     * the fit by iterative imputation (a low-rank fit of the valid cells) unless zero_fill is set,
      * in which case they are factored as zeros (the lecture's plain method). */
     int zero_fill;
     int fit_max_iters; /* masked fit: outer iterations, default 300 */
     double
         fit_tol; /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
 } sb_plan_opts_t;
+#define SB_PLAN_OPTS_INIT                                                                                              \
+    { .size = sizeof(sb_plan_opts_t) }
+/* sepbrdf 0.1's sb_plan_opts_t, which a size of 0 stands for (frozen). */
+#define SB_PLAN_OPTS_SIZE_0_1 (offsetof(sb_plan_opts_t, fit_tol) + sizeof(double))
 
 /* What the last sb_plan_execute did for the masked fit (0 if unmasked). */
 typedef struct sb_plan_stats {
@@ -184,7 +193,7 @@ typedef struct sb_plan_stats {
     int fit_converged;  /* all channels converged */
     int proportional;   /* channels were proportional: factored once */
 } sb_plan_stats_t;
-void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
+SB_API void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
 
 /* Plan for rows x cols matrices: pick the solver from the registry
  * (solver.h) and allocate every buffer sb_plan_execute needs.  A plan made
@@ -197,9 +206,11 @@ void sb_plan_stats(const sb_plan_t *plan, sb_plan_stats_t *out);
  * Errors: SB_ERR_ARG (no output, empty matrix), SB_ERR_RANGE (terms above
  * min(rows, cols), max_error outside [0, 1)), SB_ERR_OVERFLOW (beyond the
  * memory limit), SB_ERR_NOMEM, and those of the solver's plan. */
-sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts, sb_plan_t **out);
-sb_result_t sb_plan_create_for(sb_context_t *ctx, const sb_matrix_t *m, const sb_plan_opts_t *opts, sb_plan_t **out);
-void sb_plan_destroy(sb_plan_t *plan);
+SB_API sb_result_t sb_plan_create(sb_context_t *ctx, size_t rows, size_t cols, const sb_plan_opts_t *opts,
+                                  sb_plan_t **out);
+SB_API sb_result_t sb_plan_create_for(sb_context_t *ctx, const sb_matrix_t *m, const sb_plan_opts_t *opts,
+                                      sb_plan_t **out);
+SB_API void sb_plan_destroy(sb_plan_t *plan);
 
 /* Factor every channel of m.  *out receives new factors (texture sizes from
  * `param`), with sigma, errors and the meta keys "param", "form", "method"
@@ -207,7 +218,7 @@ void sb_plan_destroy(sb_plan_t *plan);
  * (data[c] == NULL) is not computed.  Errors: SB_ERR_ARG (NULL argument, sizes
  * differ from the plan's or the parameterisation's, ld < rows), SB_ERR_NOMEM, SB_ERR_NUMERIC (a
  * solver failed, a non-finite error). */
-sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out);
+SB_API sb_result_t sb_plan_execute(sb_plan_t *plan, const sb_matrix_t *m, const sb_param_t *param, sb_factors_t **out);
 
 #ifdef __cplusplus
 }

@@ -19,7 +19,7 @@ extern "C" {
 #endif
 
 /* The generic part shipped with the tool (data/sepbrdf.glsl). */
-const char *sb_glsl_library(void);
+SB_API const char *sb_glsl_library(void);
 
 /* Most terms a snippet declares: bounds its size (32 bytes a term).  A
  * shader binds at most GL_MAX_ARRAY_TEXTURE_LAYERS of them (at least 256;
@@ -31,13 +31,13 @@ const char *sb_glsl_library(void);
  * and the generic evaluation.  The returned string is malloc'ed; the
  * caller frees it.  NULL on no memory, a NULL p, an unknown form or terms
  * outside 1..SB_GLSL_MAX_TERMS. */
-char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales);
+SB_API char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const double *scales);
 
 /* Write the snippet to `path` (temporary name "PATH.tmp-PID", then rename).
  * Errors: SB_ERR_ARG (NULL path or p, unknown form), SB_ERR_RANGE (terms
  * outside 1..SB_GLSL_MAX_TERMS), SB_ERR_NOMEM, SB_ERR_IO. */
-sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form, size_t terms,
-                          const double *scales);
+SB_API sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form, size_t terms,
+                                 const double *scales);
 
 /* The sampler block for non-negative factors (data/sepbrdf_sample.glsl,
  * sampler.h): #defines SB_SAMPLE_CH (channels, 1 or 3), SB_HALF_ROWS,
@@ -48,13 +48,13 @@ sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_param_t 
  * to be placed after the snippet of the same factorisation.  malloc'ed;
  * NULL on no memory, a NULL p, channels not 1 or 3, or a layout without a
  * sampler (vh: its rows are views, not light directions). */
-char *sb_glsl_sampler(const sb_param_t *p, size_t channels);
+SB_API char *sb_glsl_sampler(const sb_param_t *p, size_t channels);
 
 /* sb_glsl_write with the sampler block appended (the file `sepbrdf factor`
  * writes for non-negative factors).  Errors: sb_glsl_write's (SB_ERR_ARG
  * for any argument it cannot make a snippet of). */
-sb_result_t sb_glsl_write_sampled(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
-                                  size_t terms, const double *scales, size_t channels);
+SB_API sb_result_t sb_glsl_write_sampled(sb_context_t *ctx, const char *path, const sb_param_t *p, sb_form_t form,
+                                         size_t terms, const double *scales, size_t channels);
 
 /* ---- the snippet in other shading languages ----
  * Languages by name, a registry: "glsl" (the snippet itself), "hlsl"
@@ -63,14 +63,14 @@ sb_result_t sb_glsl_write_sampled(sb_context_t *ctx, const char *path, const sb_
  * sepbrdf.wgsl).  Count, name, file
  * extension of language k ("?" out of range), and the index of a name
  * (-1 if none). */
-size_t sb_shader_lang_count(void);
-const char *sb_shader_lang_name(size_t k);
-const char *sb_shader_lang_ext(size_t k);
-int sb_shader_lang_find(const char *name);
+SB_API size_t sb_shader_lang_count(void);
+SB_API const char *sb_shader_lang_name(size_t k);
+SB_API const char *sb_shader_lang_ext(size_t k);
+SB_API int sb_shader_lang_find(const char *name);
 /* A comma list of language names ("hlsl,msl"; "all": every one) as bits
  * 1 << k in *mask (may be NULL), GLSL's always set; NULL or "" gives GLSL
  * alone.  SB_ERR_UNKNOWN, naming the word, for a name not in the registry. */
-sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *mask);
+SB_API sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *mask);
 
 /* The snippet text `glsl` (sb_glsl_snippet, optionally followed by
  * sb_glsl_sampler) in language `lang`: the same functions (sb_brdf, and
@@ -83,7 +83,7 @@ sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *m
  * for WGSL also for a top-level declaration outside the subset.  Only the
  * GLSL subset the library writes is translated; other text gives some
  * output (or NULL), never a crash. */
-char *sb_shader_translate(const char *glsl, const char *lang);
+SB_API char *sb_shader_translate(const char *glsl, const char *lang);
 
 #ifdef __cplusplus
 }

@@ -34,15 +34,15 @@ typedef struct sb_image {
 
 /* Allocate a zeroed image (mask all 0).  Errors: SB_ERR_ARG (NULL or empty
  * size), SB_ERR_OVERFLOW, SB_ERR_NOMEM. */
-sb_result_t sb_image_alloc(sb_context_t *ctx, size_t width, size_t height, sb_image_t *out);
-void sb_image_free(sb_image_t *img); /* accepts NULL and zeroed structs; zeroes it */
+SB_API sb_result_t sb_image_alloc(sb_context_t *ctx, size_t width, size_t height, sb_image_t *out);
+SB_API void sb_image_free(sb_image_t *img); /* accepts NULL and zeroed structs; zeroes it */
 
 typedef enum sb_tonemap_op { SB_TONEMAP_CLAMP = 0, SB_TONEMAP_REINHARD, SB_TONEMAP_COUNT_ } sb_tonemap_op_t;
 
 /* "clamp", "reinhard"; SB_ERR_UNKNOWN otherwise (NULL name included),
  * SB_ERR_ARG for a NULL out. */
-sb_result_t sb_tonemap_parse(const char *name, sb_tonemap_op_t *out);
-const char *sb_tonemap_name(sb_tonemap_op_t op);
+SB_API sb_result_t sb_tonemap_parse(const char *name, sb_tonemap_op_t *out);
+SB_API const char *sb_tonemap_name(sb_tonemap_op_t op);
 
 typedef struct sb_tonemap {
     double exposure;    /* multiplies radiance first; 0 = 1 */
@@ -50,10 +50,10 @@ typedef struct sb_tonemap {
 } sb_tonemap_t;
 
 /* sRGB OETF of a linear value clamped to [0, 1]. */
-double sb_srgb_oetf(double u);
+SB_API double sb_srgb_oetf(double u);
 /* Display value d in [0, 1] of one linear channel (header formula); tm may
  * be NULL (exposure 1, clamp).  NaN maps to 0. */
-double sb_tonemap_apply(const sb_tonemap_t *tm, double x);
+SB_API double sb_tonemap_apply(const sb_tonemap_t *tm, double x);
 
 typedef struct sb_image_diff {
     size_t pixels;      /* pixels compared (either mask set) */
@@ -65,33 +65,34 @@ typedef struct sb_image_diff {
 
 /* Largest channel value over the covered pixels (all pixels if mask is
  * NULL); 0 for an empty or all-black image.  NaN is skipped. */
-double sb_image_max(const sb_image_t *img);
+SB_API double sb_image_max(const sb_image_t *img);
 /* Log-average luminance (Reinhard et al. 2002's key) over the covered
  * pixels: exp(mean log(delta + Y)), Y = 0.2126 R + 0.7152 G + 0.0722 B
  * (negative channels as 0), delta = 1e-4 of the largest Y so black pixels
  * count without sending it to 0; 0 for an empty or all-black image. */
-double sb_image_log_average(const sb_image_t *img);
+SB_API double sb_image_log_average(const sb_image_t *img);
 
 /* Compare two images of one size (header).  Errors: SB_ERR_ARG (NULL, size
  * mismatch). */
-sb_result_t sb_image_compare(sb_context_t *ctx, const sb_image_t *a, const sb_image_t *b, const sb_tonemap_t *tm,
-                             sb_image_diff_t *out);
+SB_API sb_result_t sb_image_compare(sb_context_t *ctx, const sb_image_t *a, const sb_image_t *b, const sb_tonemap_t *tm,
+                                    sb_image_diff_t *out);
 
 /* Write an 8-bit RGB PNG (rows top to bottom) under the temporary name
  * PATH.tmp-PID, then rename.  `text` is NULL or a NULL-terminated list of key, value, key,
  * value ... stored as PNG tEXt chunks.  Errors: SB_ERR_ARG, SB_ERR_IO. */
-sb_result_t sb_png_write_rgb8(sb_context_t *ctx, const char *path, size_t width, size_t height,
-                              const unsigned char *rgb, const char *const *text);
+SB_API sb_result_t sb_png_write_rgb8(sb_context_t *ctx, const char *path, size_t width, size_t height,
+                                     const unsigned char *rgb, const char *const *text);
 
 /* One image, display-encoded (header); uncovered pixels black. */
-sb_result_t sb_image_write_png(sb_context_t *ctx, const char *path, const sb_image_t *img, const sb_tonemap_t *tm);
+SB_API sb_result_t sb_image_write_png(sb_context_t *ctx, const char *path, const sb_image_t *img,
+                                      const sb_tonemap_t *tm);
 
 /* A comparison strip, three panels left to right with 4-pixel gaps:
  *     a | b | min(1, diff_scale * |d(a) - d(b)|) per channel,
  * d the display values, so the third panel shows the display error
  * magnified diff_scale times (black = equal).  Images of one size. */
-sb_result_t sb_image_write_strip_png(sb_context_t *ctx, const char *path, const sb_image_t *a, const sb_image_t *b,
-                                     const sb_tonemap_t *tm, double diff_scale);
+SB_API sb_result_t sb_image_write_strip_png(sb_context_t *ctx, const char *path, const sb_image_t *a,
+                                            const sb_image_t *b, const sb_tonemap_t *tm, double diff_scale);
 
 /* Texture previews: for every term j and side, one PNG
  *     DIR/g_JJ_scale-S.png, DIR/h_JJ_scale-S.png,  S = "%.2e" of max |value|
@@ -100,10 +101,10 @@ sb_result_t sb_image_write_strip_png(sb_context_t *ctx, const char *path, const 
  * v mapped by a diverging blue-white-red colour map of v / S: -S blue,
  * 0 white, +S red.  S is also stored as tEXt "sepbrdf.scale".  Stale
  * previews of the same texture with another S in DIR are removed. */
-sb_result_t sb_factors_write_previews(sb_context_t *ctx, const sb_factors_t *f, const char *dir);
+SB_API sb_result_t sb_factors_write_previews(sb_context_t *ctx, const sb_factors_t *f, const char *dir);
 
 /* The diverging colour map: u in [-1, 1] -> 8-bit sRGB (clamped). */
-void sb_colormap_diverging(double u, unsigned char rgb[3]);
+SB_API void sb_colormap_diverging(double u, unsigned char rgb[3]);
 
 #ifdef __cplusplus
 }

@@ -62,8 +62,14 @@ typedef void (*sb_job_progress_fn)(void *user, const char *label, double fractio
 
 /* Settings of a job.  Zero (or NULL) means the default given.  The job
  * keeps a copy of `source` but refers to the other strings (param, form,
- * warp, scene, shaders): they must outlive the job. */
+ * warp, scene, shaders): they must outlive the job.  Versioned by size,
+ * as OpenEXR's exr_context_initializer_t: start from SB_JOB_OPTS_INIT
+ * (or set size = sizeof(sb_job_opts_t)), and a later library that has
+ * more fields reads only those your headers had (the others keep their
+ * defaults); size 0 stands for this version's struct, so a zeroed struct
+ * keeps working.  A size larger than the library's is SB_ERR_ARG. */
 typedef struct sb_job_opts {
+    size_t size;                 /* sizeof(sb_job_opts_t) of the caller's headers; 0: SB_JOB_OPTS_SIZE_0_1 */
     const char *source;          /* model spec or measured file; NULL: SB_JOB_DEFAULT_SOURCE */
     sb_measured_opts_t measured; /* how a measured table is read and interpolated */
     const char *param;           /* NULL or "auto": choose among the candidates; else a kind name ("iso") */
@@ -94,11 +100,12 @@ typedef struct sb_job_opts {
     unsigned channels;       /* channels to factor (1 R, 2 G, 4 B): all */
     int fit_max_iters;       /* masked fit sweeps: the plan's default */
     double fit_tol;          /* masked fit tolerance: the plan's default */
-    int plain_terms;         /* keep the factorisation's terms as they are: no term weights (job_weights.c) */
+    int plain_terms;         /* keep the factorisation's terms as they are: no term weights (estimate.h,
+                                sb_estimate_term_weights) */
     int half;                /* sb_job_write: HALF textures with per-term scales */
     int previews;            /* sb_job_write: PNG previews of the textures too */
     int sample_only;         /* explicit param only: sample the matrix, factor later with sb_job_refactor */
-    /* A byte budget (job_budget.c): the texels of every texture written
+    /* A byte budget: the texels of every texture written
      * (all terms, g and h, every channel, 4 bytes FLOAT or 2 HALF) may take
      * at most this many bytes; the job then chooses the layout, texture
      * shape, warp, J and storage of the lowest screened headline within it
@@ -122,6 +129,12 @@ typedef struct sb_job_opts {
      * sepbrdf.wgsl).  NULL: GLSL only. */
     const char *shaders;
 } sb_job_opts_t;
+/* The defaults, with the size set: sb_job_opts_t o = SB_JOB_OPTS_INIT; */
+#define SB_JOB_OPTS_INIT                                                                                               \
+    { .size = sizeof(sb_job_opts_t) }
+/* The size of sepbrdf 0.1's sb_job_opts_t, which a size of 0 stands for:
+ * frozen (a field added later is beyond it). */
+#define SB_JOB_OPTS_SIZE_0_1 (offsetof(sb_job_opts_t, shaders) + sizeof(const char *))
 
 /* One candidate of the job and what its screening gave. */
 typedef struct sb_job_candidate {
@@ -196,12 +209,13 @@ typedef struct sb_job_budget {
  * (NULL: defaults).  A spec whose name part holds '/' or '.' can only be a
  * file: if it does not exist or is not a regular file the call fails with
  * SB_ERR_IO ("PATH: No such file or directory"), not "unknown model". */
-sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_measured_opts_t *mo, sb_source_t **out);
+SB_API sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const sb_measured_opts_t *mo,
+                                      sb_source_t **out);
 
 /* Whether parameterisation `kind` applies to src (iso: isotropic and
  * reciprocal sources only); 0 with a static reason in *why (why may be
  * NULL). */
-int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why);
+SB_API int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why);
 
 /* Run the job: open the source, choose, factor and measure; with opts->out
  * also write the output set (sb_job_write).  *out receives the job (free
@@ -209,15 +223,16 @@ int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const cha
  * SB_ERR_RANGE (J larger than the matrix allows), the source's errors
  * (SB_ERR_IO, SB_ERR_FORMAT, SB_ERR_PARSE ...), SB_ERR_NUMERIC (no
  * candidate could be factored), SB_ERR_NOMEM. */
-sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out);
+SB_API sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out);
 
 /* The same, on a source the caller owns (opts->source is then only
  * recorded as the spec); src must outlive the job. */
-sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out);
+SB_API sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts,
+                                     sb_job_t **out);
 
 /* Factor the kept matrix again with `terms` terms (no sampling), replacing
  * the factors, statistics and comparable errors (studies over J). */
-sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms);
+SB_API sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms);
 
 /* Write the output set of the job into the open output set `set`
  * (outset.h), without publishing it: g_KK.exr, h_KK.exr (K < J),
@@ -225,106 +240,87 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms);
  * each named with sb_outset_add.  For callers that manage the set
  * themselves (a signal handler that knows its staging folder).  Errors:
  * SB_ERR_IO, SB_ERR_NOMEM. */
-sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set);
+SB_API sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set);
 
 /* Write the output set into the folder `dir` (created if missing) and
  * publish it as one unit (outset.h, command "factor"): dir then holds this
  * set, files of an earlier factor set that this one does not write (terms
  * K >= J) are gone, files sepbrdf did not write stay.  Errors: those of
  * sb_outset_begin and sb_outset_commit, SB_ERR_IO, SB_ERR_NOMEM. */
-sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir);
+SB_API sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir);
 
 /* Write report.json's content (see README) to fp (nothing for a NULL job
  * or fp). */
-void sb_job_report(const sb_job_t *job, FILE *fp);
+SB_API void sb_job_report(const sb_job_t *job, FILE *fp);
 
-void sb_job_destroy(sb_job_t *job); /* accepts NULL */
+SB_API void sb_job_destroy(sb_job_t *job); /* accepts NULL */
 
 /* ---- results (owned by the job) ----
  * Every accessor takes a NULL job: NULL pointers, "" for the source spec,
  * 0 counts and flags, SB_FORM_F, NAN errors, zeroed structs. */
-const sb_source_t *sb_job_source(const sb_job_t *job);
-const char *sb_job_source_spec(const sb_job_t *job);
-const sb_factors_t *sb_job_factors(const sb_job_t *job);
-const sb_param_t *sb_job_param(const sb_job_t *job);
-const sb_matrix_t *sb_job_matrix(const sb_job_t *job);
-sb_form_t sb_job_form(const sb_job_t *job);
-int sb_job_weighted(const sb_job_t *job);
-int sb_job_masked(const sb_job_t *job); /* a masked fit: prefixes of J are not the J' fits */
-void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out);
-const sb_metric_t *sb_job_metric(const sb_job_t *job); /* the grid quadrature (comparable_grid) */
-const sb_estimate_t *sb_job_estimate(const sb_job_t *job);
+SB_API const sb_source_t *sb_job_source(const sb_job_t *job);
+SB_API const char *sb_job_source_spec(const sb_job_t *job);
+SB_API const sb_factors_t *sb_job_factors(const sb_job_t *job);
+SB_API const sb_param_t *sb_job_param(const sb_job_t *job);
+SB_API const sb_matrix_t *sb_job_matrix(const sb_job_t *job);
+SB_API sb_form_t sb_job_form(const sb_job_t *job);
+SB_API int sb_job_weighted(const sb_job_t *job);
+SB_API int sb_job_masked(const sb_job_t *job); /* a masked fit: prefixes of J are not the J' fits */
+SB_API void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out);
+SB_API const sb_metric_t *sb_job_metric(const sb_job_t *job); /* the grid quadrature (comparable_grid) */
+SB_API const sb_estimate_t *sb_job_estimate(const sb_job_t *job);
 /* With opts.scene: the scene, and the estimate over the whole domain of the
  * factors as stored (sb_job_estimate is then the scene's); NULL without. */
-const sb_scene_t *sb_job_scene(const sb_job_t *job);
-const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job);
+SB_API const sb_scene_t *sb_job_scene(const sb_job_t *job);
+SB_API const sb_estimate_t *sb_job_domain_estimate(const sb_job_t *job);
 /* The estimator's headline (f cos theta_i), comparable (f cos cos) and
  * negative fraction after J' terms; NAN beyond the terms it holds. */
-double sb_job_headline(const sb_job_t *job, size_t terms);
+SB_API double sb_job_headline(const sb_job_t *job, size_t terms);
 /* Whether the headline does not rise with J' by more than two standard
  * errors plus 2 % (out of sample, more terms can fit the cells better and
  * the pairs between them worse); 1 for a NULL job. */
-int sb_job_headline_non_increasing(const sb_job_t *job);
-double sb_job_comparable(const sb_job_t *job, size_t terms);
-double sb_job_negative(const sb_job_t *job, size_t terms);
+SB_API int sb_job_headline_non_increasing(const sb_job_t *job);
+SB_API double sb_job_comparable(const sb_job_t *job, size_t terms);
+SB_API double sb_job_negative(const sb_job_t *job, size_t terms);
 /* rel_rms of the stored textures (after sb_job_write) after J' terms,
  * index 3 = all channels; NAN if unknown. */
-double sb_job_rel_stored(const sb_job_t *job, size_t terms, size_t channel);
+SB_API double sb_job_rel_stored(const sb_job_t *job, size_t terms, size_t channel);
 /* With a non-negative method (--method nmf): the same run with the
  * default method (the SVD, or the masked fit where cells are excluded) on
  * the kept layout, form and weighting, fitted with the same J; its
  * headline and rel_rms after J' terms, beside this job's (what positivity
  * costs).  NAN for other methods, after sb_job_refactor, or when that run
  * failed (a warning says why). */
-double sb_job_svd_headline(const sb_job_t *job, size_t terms);
-double sb_job_svd_rel_rms(const sb_job_t *job, size_t terms);
-int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
-size_t sb_job_candidate_count(const sb_job_t *job);
+SB_API double sb_job_svd_headline(const sb_job_t *job, size_t terms);
+SB_API double sb_job_svd_rel_rms(const sb_job_t *job, size_t terms);
+SB_API int sb_job_auto(const sb_job_t *job); /* several candidates were screened */
+SB_API size_t sb_job_candidate_count(const sb_job_t *job);
 /* The candidates of --param auto lost to memory (the memory limit, an
  * allocation) or a failure, each also a warning; not those ranked out or
  * too small for J.  0 for a NULL job. */
-size_t sb_job_lost_count(const sb_job_t *job);
-const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
-void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
+SB_API size_t sb_job_lost_count(const sb_job_t *job);
+SB_API const sb_job_candidate_t *sb_job_candidate(const sb_job_t *job, size_t i);
+SB_API void sb_job_timings(const sb_job_t *job, sb_job_timings_t *out);
 /* The budget search (opts.budget): 1 and *out filled when the job ran with
  * one, else 0.  Its entries (every (layout, shape, warp, J, storage)
  * screened within the budget) by index; NULL beyond the count. */
-int sb_job_budget(const sb_job_t *job, sb_job_budget_t *out);
-size_t sb_job_budget_tried_count(const sb_job_t *job);
-const sb_job_budget_try_t *sb_job_budget_tried(const sb_job_t *job, size_t i);
+SB_API int sb_job_budget(const sb_job_t *job, sb_job_budget_t *out);
+SB_API size_t sb_job_budget_tried_count(const sb_job_t *job);
+SB_API const sb_job_budget_try_t *sb_job_budget_tried(const sb_job_t *job, size_t i);
 /* Warnings of the run (report.json "warnings"): a layout that folds a
  * non-reciprocal source; for a measured table, a grid finer than half the
  * samples' median spacing and terms beyond the last one that lowers the
  * error at the measured samples (sb_measured_sample_errors), checked again
  * by sb_job_refactor. */
-size_t sb_job_warning_count(const sb_job_t *job);
+SB_API size_t sb_job_warning_count(const sb_job_t *job);
 /* The cross-validated error at J' terms (1..J) of a scattered table: the
  * relative L2 of f cos theta_i over the measurements, each predicted by
  * the refit that left its fold out (sb_job_opts_t.cv_folds), its standard
  * error from the folds' spread into *se (may be NULL); NaN (and 0 held
  * out) when not computed: analytic sources, grids (MERL, RGL), cv_folds 1,
  * a NULL job or J' out of range.  *held: the measurements held out. */
-double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held);
-const char *sb_job_warning(const sb_job_t *job, size_t i);
-
-/* ---- a minimal JSON writer (report.json; the CLI's reports use it too) ----
- * Objects and arrays nest up to 31 deep (deeper ones are not written);
- * key NULL inside arrays and for the outermost value; value NULL is null;
- * non-finite numbers are written as null.  A NULL j, or one without fp,
- * writes nothing. */
-typedef struct sb_json {
-    FILE *fp;
-    int depth;
-    int first[32];
-} sb_json_t;
-void sb_json_begin_object(sb_json_t *j, const char *key);
-void sb_json_end_object(sb_json_t *j);
-void sb_json_begin_array(sb_json_t *j, const char *key);
-void sb_json_end_array(sb_json_t *j);
-void sb_json_string(sb_json_t *j, const char *key, const char *value); /* value NULL: null */
-void sb_json_number(sb_json_t *j, const char *key, double value);
-void sb_json_int(sb_json_t *j, const char *key, long long value);
-void sb_json_bool(sb_json_t *j, const char *key, int value);
+SB_API double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held);
+SB_API const char *sb_job_warning(const sb_job_t *job, size_t i);
 
 #ifdef __cplusplus
 }

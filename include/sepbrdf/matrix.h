@@ -24,15 +24,15 @@ typedef enum sb_form { SB_FORM_F = 0, SB_FORM_COS, SB_FORM_COS2, SB_FORM_COUNT_ 
 
 /* "f", "cos", "cos2"; SB_ERR_UNKNOWN otherwise (NULL name included),
  * SB_ERR_ARG for a NULL out. */
-sb_result_t sb_form_parse(const char *name, sb_form_t *out);
-const char *sb_form_name(sb_form_t form);
+SB_API sb_result_t sb_form_parse(const char *name, sb_form_t *out);
+SB_API const char *sb_form_name(sb_form_t form);
 /* The factor that turns f_r into the stored form for this pair; NaN for
  * an unknown form or a NULL direction. */
-double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
+SB_API double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]);
 /* What a reconstruction of the stored form is divided by to give f_r, as
  * the GLSL snippet does: cos theta raised to the grazing guard 0.001
  * (max(cos, 0.001)) per cosine of the form; 1 for SB_FORM_F. */
-double sb_form_divisor(sb_form_t form, const double wi[3], const double wo[3]);
+SB_API double sb_form_divisor(sb_form_t form, const double wi[3], const double wo[3]);
 
 /* Progress of a long build: `fraction` of the columns done, in [0, 1]. */
 typedef void (*sb_progress_fn)(void *user, double fraction);
@@ -102,36 +102,36 @@ typedef struct sb_matrix {
 /* Sample `src` on `param`.  On success *out owns its buffers (sb_matrix_free).
  * Errors: SB_ERR_ARG (NULL argument, unknown form, channel bits beyond
  * 1|2|4), SB_ERR_OVERFLOW (size or memory limit), SB_ERR_NOMEM. */
-sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
-                            const sb_matrix_opts_t *opts, sb_matrix_t *out);
-void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */
+SB_API sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                   const sb_matrix_opts_t *opts, sb_matrix_t *out);
+SB_API void sb_matrix_free(sb_matrix_t *m); /* accepts NULL and zeroed structs */
 
 /* Bytes sb_matrix_build(src, param, opts) would hold at its peak: the
  * stored values (and the table of an isotropic source on the io grid), or
  * the directions of a streamed matrix; SIZE_MAX on overflow or a NULL
  * argument.  To refuse up front what cannot fit the memory limit. */
-size_t sb_matrix_bytes(const sb_source_t *src, const sb_param_t *param, const sb_matrix_opts_t *opts);
+SB_API size_t sb_matrix_bytes(const sb_source_t *src, const sb_param_t *param, const sb_matrix_opts_t *opts);
 
 /* Cell (row, col) of channel c, dense, structured or streamed (0 for a
  * channel not built). */
-double sb_matrix_at(const sb_matrix_t *m, int channel, size_t row, size_t col);
+SB_API double sb_matrix_at(const sb_matrix_t *m, int channel, size_t row, size_t col);
 
 /* Column `col` of channel c (rows values): a pointer into data for a dense
  * matrix, else gathered into buf (rows doubles), which is returned; NULL
  * for a channel the matrix lacks, a column out of range, or a NULL buf
  * where one is needed. */
-const double *sb_matrix_col(const sb_matrix_t *m, int channel, size_t col, double *buf);
+SB_API const double *sb_matrix_col(const sb_matrix_t *m, int channel, size_t col, double *buf);
 
 /* Y = M_c Z for Z of k columns (cols x k, ld ldz >= cols) into Y (rows x k,
  * ld ldy >= rows): one dgemm for a dense matrix; for a structured one R
  * products with the stored R x cols block, which holds every value.
  * Errors: SB_ERR_ARG (no such channel, bad leading dimensions),
  * SB_ERR_OVERFLOW (beyond BLAS's int sizes), SB_ERR_NOMEM. */
-sb_result_t sb_matrix_mul(sb_context_t *ctx, const sb_matrix_t *m, int channel, size_t k, const double *z, size_t ldz,
-                          double *y, size_t ldy);
+SB_API sb_result_t sb_matrix_mul(sb_context_t *ctx, const sb_matrix_t *m, int channel, size_t k, const double *z,
+                                 size_t ldz, double *y, size_t ldy);
 
 /* Whether channel c (0..2) of m was built (stored or streamed). */
-int sb_matrix_has(const sb_matrix_t *m, int channel);
+SB_API int sb_matrix_has(const sb_matrix_t *m, int channel);
 
 /* Columns c0 .. c1 - 1 of every channel c with out[c] != NULL (a channel
  * not built is skipped) into out[c], rows x (c1 - c0) with leading
@@ -139,13 +139,13 @@ int sb_matrix_has(const sb_matrix_t *m, int channel);
  * source for a streamed one (columns split among `threads` threads, 0 =
  * all cores).  Errors: SB_ERR_ARG (NULL matrix or out, c0 > c1 or c1 >
  * cols, ldo < rows). */
-sb_result_t sb_matrix_cols(sb_context_t *ctx, const sb_matrix_t *m, size_t c0, size_t c1, double *const out[3],
-                           size_t ldo, int threads);
+SB_API sb_result_t sb_matrix_cols(sb_context_t *ctx, const sb_matrix_t *m, size_t c0, size_t c1, double *const out[3],
+                                  size_t ldo, int threads);
 
 /* A dense copy of m (every cell stored, ld = rows; mask and counts kept),
  * in memory backed by huge pages where the system offers them.  Errors:
  * SB_ERR_ARG, SB_ERR_OVERFLOW (memory limit), SB_ERR_NOMEM. */
-sb_result_t sb_matrix_expand(sb_context_t *ctx, const sb_matrix_t *m, sb_matrix_t *out);
+SB_API sb_result_t sb_matrix_expand(sb_context_t *ctx, const sb_matrix_t *m, sb_matrix_t *out);
 
 #ifdef __cplusplus
 }

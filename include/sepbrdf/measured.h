@@ -21,7 +21,7 @@
  *             theta_v cos(dphi), theta_v sin(dphi), value(s).
  *   RGL       the RGL material database's Mitsuba tensor_file (.bsdf):
  *             VNDF-warped tables per incident slice, evaluated as Mitsuba
- *             3's `measured` plugin does (see src/source/rgl.c); isotropic
+ *             3's `measured` plugin does; isotropic
  *             or anisotropic (symmetry reductions 1, 2, 4), RGB or spectral.
  *   CSV       the sepbrdf gonio table (docs/measured.md): comment lines
  *             "# key: value" (units, symmetry, reciprocal), a header naming
@@ -58,10 +58,10 @@ extern "C" {
  * out-of-range indices give NULL.  Formats are detected from the content
  * first (the magic or keywords of each reader, in registry order), then
  * from the extension. */
-size_t sb_measured_format_count(void);
-const char *sb_measured_format_name(size_t k);  /* "merl", "rgl", ... */
-const char *sb_measured_format_title(size_t k); /* "MERL .binary", ... */
-const char *sb_measured_format_exts(size_t k);  /* ".binary", space separated */
+SB_API size_t sb_measured_format_count(void);
+SB_API const char *sb_measured_format_name(size_t k);  /* "merl", "rgl", ... */
+SB_API const char *sb_measured_format_title(size_t k); /* "MERL .binary", ... */
+SB_API const char *sb_measured_format_exts(size_t k);  /* ".binary", space separated */
 
 typedef enum sb_interp {
     SB_INTERP_DEFAULT = 0, /* MERL: nearest; scattered: the method of lowest
@@ -83,8 +83,8 @@ typedef enum sb_interp {
 
 /* "default", "nearest", "linear", "idw", "quadratic"; parse returns
  * SB_ERR_UNKNOWN (NULL name included), SB_ERR_ARG for a NULL out. */
-const char *sb_interp_name(sb_interp_t m);
-sb_result_t sb_interp_parse(const char *name, sb_interp_t *out);
+SB_API const char *sb_interp_name(sb_interp_t m);
+SB_API sb_result_t sb_interp_parse(const char *name, sb_interp_t *out);
 
 /* How spectra are turned into RGB (Cornell .brdf). */
 typedef enum sb_white {
@@ -108,11 +108,11 @@ typedef enum sb_gamut {
 } sb_gamut_t;
 
 /* "keep", "clip", "desaturate"; parse returns SB_ERR_UNKNOWN. */
-const char *sb_gamut_name(sb_gamut_t g);
-sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out);
+SB_API const char *sb_gamut_name(sb_gamut_t g);
+SB_API sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out);
 /* Map one RGB value by `g`; returns 1 when it was out of gamut (0 for a
  * NULL rgb; a g out of range keeps the value). */
-int sb_gamut_map(sb_gamut_t g, double rgb[3]);
+SB_API int sb_gamut_map(sb_gamut_t g, double rgb[3]);
 
 /* Options of sb_measured_open (zero = default everywhere).
  *
@@ -145,7 +145,7 @@ typedef struct sb_measured_opts {
 /* The fold of sample i (reading order, as sb_source_sample numbers a
  * table's samples) among `folds`: a fixed pseudo-random assignment, about
  * equal sizes; 0 for folds < 2. */
-size_t sb_measured_fold(size_t i, size_t folds);
+SB_API size_t sb_measured_fold(size_t i, size_t folds);
 
 /* What a table held.  Value statistics are over the used samples, of the
  * RGB f_r in 1/sr (MERL: after the channel scales). */
@@ -222,7 +222,7 @@ typedef struct sb_measured_reader {
  * SB_ERR_ARG: NULL, or a name, title, exts, sniff or open missing, or the
  * name "auto" or one the registry holds already; SB_ERR_RANGE: the
  * registry is full (16 added readers). */
-sb_result_t sb_measured_register_reader(const sb_measured_reader_t *reader);
+SB_API sb_result_t sb_measured_register_reader(const sb_measured_reader_t *reader);
 
 /* Open a measured table.  `opts` may be NULL (defaults); `info` may be NULL.
  * The source carries SB_SOURCE_MEASURED, and ISOTROPIC / RECIPROCAL / GRAY
@@ -244,12 +244,12 @@ sb_result_t sb_measured_register_reader(const sb_measured_reader_t *reader);
  *                  (opening takes no size option to lower)
  * A file's content never gives SB_ERR_ARG or SB_ERR_RANGE, so a caller
  * can tell bad input from bad options (the CLI: exit 2, not 1). */
-sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts, sb_source_t **out,
-                             sb_measured_info_t *info);
+SB_API sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measured_opts_t *opts,
+                                    sb_source_t **out, sb_measured_info_t *info);
 
 /* What the table behind `src` held (a copy kept by sb_measured_open), or
  * NULL for a source not opened by it (analytic models). */
-const sb_measured_info_t *sb_measured_source_info(const sb_source_t *src);
+SB_API const sb_measured_info_t *sb_measured_source_info(const sb_source_t *src);
 
 /* ---- errors against the measurements ------------------------------------- */
 
@@ -277,23 +277,23 @@ struct sb_factors;
  * at the samples of `src`.  Errors: SB_ERR_ARG (NULL, or a source without
  * samples: analytic models), SB_ERR_NUMERIC (no sample with
  * a non-zero value). */
-sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
-                                      const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out);
+SB_API sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
+                                             const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out);
 
 /* Fraction of the cells of `param` for which `src` returns a value (1 for
  * analytic sources): *known of *cells cells with both directions above the
  * horizon.  Evaluates every cell once (in parallel).  Either output may be
  * NULL. */
-sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t *known,
-                                 size_t *cells);
+SB_API sb_result_t sb_measured_coverage(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                        size_t *known, size_t *cells);
 
 /* The coverage per pair of elevation bands: known[a * bands + b] of
  * cells[a * bands + b] cells of `param` with theta_i in band a and theta_o
  * in band b (bands of 90/bands degrees), so that users see which regions
  * hold data.  bands 1..90; both arrays hold bands^2 counts.  Errors:
  * SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_OVERFLOW. */
-sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param, size_t bands,
-                                     size_t *known, size_t *cells);
+SB_API sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                            size_t bands, size_t *known, size_t *cells);
 
 /* ---- MERL ------------------------------------------------------------- */
 
@@ -313,25 +313,25 @@ extern const double sb_merl_scale[3];
  * (h along the normal), phi_d = 0 when sin theta_d <= 1e-12 (wi = wo).
  * Returns 0 when h is undefined (wi = -wo, |wi + wo| <= 1e-12) or an
  * argument is NULL. */
-int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d);
+SB_API int sb_half_diff_angles(const double wi[3], const double wo[3], double *theta_h, double *theta_d, double *phi_d);
 /* The inverse with phi_h = 0; returns 1 when both directions are strictly
  * above the horizon. */
-int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3], double wo[3]);
+SB_API int sb_half_diff_dirs(double theta_h, double theta_d, double phi_d, double wi[3], double wo[3]);
 
 /* MERL cell of a pair (the reference code's nearest cell); returns 0 when
  * the pair has a direction at or below the horizon, or wi = -wo. */
-int sb_merl_index(const double wi[3], const double wo[3], size_t *index);
+SB_API int sb_merl_index(const double wi[3], const double wo[3], size_t *index);
 /* Directions at the centre of a cell (index space + 1/2 on each axis, phi_h
  * = 0); returns 1 when both are above the horizon, 0 for an index >=
  * SB_MERL_CELLS or a NULL output. */
-int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
+SB_API int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
 
 /* Write `src` as a MERL file: each cell holds f_r at the cell's centre
  * divided by the channel scale, or -1 (missing) where the centre pair is
  * not above the horizon, or the source is missing or not finite there.
  * Evaluated in parallel; written to a temporary name, then renamed.
  * Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
-sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
+SB_API sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
 /* What sb_merl_write_stats wrote: cells with a value (the others -1),
  * the largest f_r written, and, for a measured source, the cells above
  * the largest value it measured (value_measured: a table's own range;
@@ -344,8 +344,8 @@ typedef struct sb_merl_write_stats {
     size_t above_td_min;              /* SB_MERL_TD when none */
 } sb_merl_write_stats_t;
 /* sb_merl_write, and what it wrote into *stats (may be NULL). */
-sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_source_t *src,
-                                sb_merl_write_stats_t *stats);
+SB_API sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_source_t *src,
+                                       sb_merl_write_stats_t *stats);
 
 /* ---- conversion ----------------------------------------------------------- */
 
@@ -355,7 +355,7 @@ sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_so
  * reading it back gives the same samples.  *rows (may be NULL) receives
  * the number written.  Errors: SB_ERR_ARG (no samples: a model; measure
  * those with sb_gonio_write_csv), SB_ERR_IO. */
-sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows);
+SB_API sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows);
 
 /* ---- simulated gonioreflectometer ------------------------------------- */
 
@@ -375,14 +375,14 @@ typedef struct sb_gonio_opts {
  * receives the number written).  Errors: SB_ERR_ARG, SB_ERR_RANGE (grid
  * sizes 1..4096, noise 0..10), SB_ERR_OVERFLOW (more than 2^31 rows),
  * SB_ERR_IO. */
-sb_result_t sb_gonio_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, const sb_gonio_opts_t *opts,
-                               size_t *rows);
+SB_API sb_result_t sb_gonio_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, const sb_gonio_opts_t *opts,
+                                      size_t *rows);
 
 /* ---- spectra ------------------------------------------------------------ */
 
 /* CIE 1931 2 deg colour matching functions (x, y, z bar) at `nm`, linear
  * between the embedded 1 nm table (380..780 nm), 0 outside. */
-void sb_cie_cmf(double nm, double xyz[3]);
+SB_API void sb_cie_cmf(double nm, double xyz[3]);
 
 /* Linear weights w[c * n + k] such that linear sRGB_c = sum_k w[c n + k]
  * s_k for a spectrum sampled at n increasing wavelengths (nm): s is taken
@@ -392,7 +392,7 @@ void sb_cie_cmf(double nm, double xyz[3]);
  * sRGB matrix.  Errors: SB_ERR_ARG (NULL nm or w, unknown white),
  * SB_ERR_RANGE (n == 0, wavelengths not finite or not increasing),
  * SB_ERR_OVERFLOW (3 n doubles overflow: n cannot be an array's length). */
-sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w);
+SB_API sb_result_t sb_spectral_weights(sb_context_t *ctx, const double *nm, size_t n, sb_white_t white, double *w);
 
 #ifdef __cplusplus
 }

@@ -49,8 +49,8 @@ typedef struct sb_model_info {
     size_t key_count;
 } sb_model_info_t;
 
-size_t sb_model_count(void);
-const sb_model_info_t *sb_model_at(size_t i);
+SB_API size_t sb_model_count(void);
+SB_API const sb_model_info_t *sb_model_at(size_t i);
 
 typedef struct sb_preset {
     const char *name; /* "gold", "glass", ... */
@@ -59,9 +59,9 @@ typedef struct sb_preset {
     double ior;       /* refractive index (dielectrics), 0 for metals */
 } sb_preset_t;
 
-size_t sb_preset_count(void);
-const sb_preset_t *sb_preset_at(size_t i);
-const sb_preset_t *sb_preset_find(const char *name); /* NULL if unknown */
+SB_API size_t sb_preset_count(void);
+SB_API const sb_preset_t *sb_preset_at(size_t i);
+SB_API const sb_preset_t *sb_preset_find(const char *name); /* NULL if unknown */
 
 /* Create an analytic source from a spec; its description is the canonical
  * spec with every key that applies (creating a source from it gives the
@@ -71,7 +71,7 @@ const sb_preset_t *sb_preset_find(const char *name); /* NULL if unknown */
  * SB_ERR_ARG (NULL argument, a key given twice, a key the other keys make
  * meaningless: f0 with ior, f0 with f=dielectric, ior with f=conductor,
  * either with f=none; a dielectric preset as base, a metal as ior). */
-sb_result_t sb_model_create(sb_context_t *ctx, const char *spec, sb_source_t **out);
+SB_API sb_result_t sb_model_create(sb_context_t *ctx, const char *spec, sb_source_t **out);
 
 #ifdef __cplusplus
 }

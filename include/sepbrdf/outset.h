@@ -73,27 +73,27 @@ typedef struct sb_outset_opts {
  * its parent accepts the staging folder.  Errors: SB_ERR_ARG (NULL or empty
  * DIR), SB_ERR_IO (name too long, not a folder, cannot write, a mount point,
  * the current folder, a foreign subfolder; the message names DIR and why). */
-sb_result_t sb_outset_check(sb_context_t *ctx, const char *dir);
+SB_API sb_result_t sb_outset_check(sb_context_t *ctx, const char *dir);
 
 /* Begin a set in DIR (created with its parents if missing); opts may be
  * NULL (defaults).  *out is new; destroy it with sb_outset_destroy.
  * Errors: those of sb_outset_check, SB_ERR_IO (also: no_wait and another
  * run writes DIR), SB_ERR_NOMEM. */
-sb_result_t sb_outset_begin(sb_context_t *ctx, const char *dir, const sb_outset_opts_t *opts, sb_outset_t **out);
+SB_API sb_result_t sb_outset_begin(sb_context_t *ctx, const char *dir, const sb_outset_opts_t *opts, sb_outset_t **out);
 
 /* The folder to write the set's files into (the staging folder); owned by
  * s, valid until sb_outset_destroy. */
-const char *sb_outset_dir(const sb_outset_t *s);
+SB_API const char *sb_outset_dir(const sb_outset_t *s);
 
 /* The target folder DIR as given to sb_outset_begin (for messages). */
-const char *sb_outset_target(const sb_outset_t *s);
+SB_API const char *sb_outset_target(const sb_outset_t *s);
 
 /* Name a file the set must hold (sb_outset_commit fails without it):
  * `name` is a plain file name (no '/', not starting with '.', no control
  * characters, at most 56 bytes, not beginning "sepbrdf-set") written into
  * sb_outset_dir().  Adding a name twice is harmless.  Errors: SB_ERR_ARG,
  * SB_ERR_NOMEM. */
-sb_result_t sb_outset_add(sb_outset_t *s, const char *name);
+SB_API sb_result_t sb_outset_add(sb_outset_t *s, const char *name);
 
 /* Publish the set (see above).  Every added name must exist in
  * sb_outset_dir() as a regular file.  On success DIR holds the new set; on
@@ -101,32 +101,27 @@ sb_result_t sb_outset_add(sb_outset_t *s, const char *name);
  * s can only be destroyed afterwards.  Errors: SB_ERR_ARG (committed twice),
  * SB_ERR_IO (a file missing, disk full writing the manifest, a foreign
  * subfolder that appeared meanwhile, no hard links or RENAME_EXCHANGE). */
-sb_result_t sb_outset_commit(sb_outset_t *s);
+SB_API sb_result_t sb_outset_commit(sb_outset_t *s);
 
 /* Release the lock; a set not committed is discarded (staging folder
  * removed, DIR untouched).  Accepts NULL. */
-void sb_outset_destroy(sb_outset_t *s);
+SB_API void sb_outset_destroy(sb_outset_t *s);
 
 /* Remove what crashed runs left beside DIR (staging folders of processes
  * that are gone) without starting a set; DIR is locked meanwhile when it
  * exists.  Errors: SB_ERR_ARG, SB_ERR_IO. */
-sb_result_t sb_outset_cleanup(sb_context_t *ctx, const char *dir);
+SB_API sb_result_t sb_outset_cleanup(sb_context_t *ctx, const char *dir);
 
 /* Remove the staging folder `staging` and the entries directly in it, using
  * only async-signal-safe system calls (open, getdents64, unlinkat, rmdir,
  * close): for a signal handler that ends the run while a set is open
  * (sb_outset_dir() gives the name to keep).  Never touches DIR. */
-void sb_outset_discard_signal_safe(const char *staging);
+SB_API void sb_outset_discard_signal_safe(const char *staging);
 
 /* Whether process `pid`, named in a staging folder or a temporary file,
  * may still run: 1 when a signal could reach it and it is not a zombie
  * (a killed run's workers stay zombies where nothing reaps orphans). */
-int sb_outset_pid_alive(long pid);
-
-/* Why a file operation failed, for messages: errno `err` in words, naming
- * a full disk ("disk full (no space left on device)"), a quota and the
- * file size limit plainly; strerror() otherwise.  A static string. */
-const char *sb_io_why(int err);
+SB_API int sb_outset_pid_alive(long pid);
 
 #ifdef __cplusplus
 }

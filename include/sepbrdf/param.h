@@ -57,14 +57,18 @@
 extern "C" {
 #endif
 
+/* Kinds are chosen by name (sb_param_kind_parse, specs): kind k is the
+ * registry's row k, 0 .. sb_param_kind_count() - 1.  The five below keep
+ * their numbers for programs that name them; other layouts, built-in or
+ * registered by a program (experimental/layout.h), get the numbers after
+ * them, so adding one changes no enum. */
 typedef enum sb_param_kind {
-    SB_PARAM_IO = 0,  /* the lecture's theta-phi grid for (wi, wo) */
-    SB_PARAM_IO_AREA, /* (wi, wo) on an equal-area (concentric) hemisphere map */
-    SB_PARAM_HD,      /* half / difference vectors, Gram-Schmidt frame */
-    SB_PARAM_ISO,     /* rows theta_h, columns (theta_d, phi_d), isotropic */
-    SB_PARAM_VH,      /* rows theta_v, columns the half vector from the view's azimuth, isotropic */
-    SB_PARAM_VNDF,    /* an RGL file's own grid: its theta_i slices by its VNDF-warped colour grid */
-    SB_PARAM_KIND_COUNT_
+    SB_PARAM_NONE = -1, /* no layout: the kind of a NULL parameterisation */
+    SB_PARAM_IO = 0,    /* the lecture's theta-phi grid for (wi, wo) */
+    SB_PARAM_IO_AREA,   /* (wi, wo) on an equal-area (concentric) hemisphere map */
+    SB_PARAM_HD,        /* half / difference vectors, Gram-Schmidt frame */
+    SB_PARAM_ISO,       /* rows theta_h, columns (theta_d, phi_d), isotropic */
+    SB_PARAM_VH         /* rows theta_v, columns the half vector from the view's azimuth, isotropic */
 } sb_param_kind_t;
 
 enum { SB_WRAP_CLAMP = 0, SB_WRAP_REPEAT = 1 };
@@ -145,22 +149,22 @@ enum {
                                             with such tables only; value = sb_param_gain x max(0, sum) */
 };
 
-/* The registry, indexed by kind 0 .. SB_PARAM_KIND_COUNT_ - 1: name ("io",
- * "io-area", "hd", "iso"), one-line description and capabilities ("?" and 0
- * for a kind out of range). */
-size_t sb_param_kind_count(void); /* SB_PARAM_KIND_COUNT_ */
-const char *sb_param_kind_name(sb_param_kind_t kind);
-const char *sb_param_kind_description(sb_param_kind_t kind);
-unsigned sb_param_kind_caps(sb_param_kind_t kind);
+/* The registry, indexed by kind 0 .. sb_param_kind_count() - 1: name ("io",
+ * "io-area", "hd", "iso", "vh"), one-line description and capabilities ("?"
+ * and 0 for a kind out of range). */
+SB_API size_t sb_param_kind_count(void); /* the built-in layouts and those a program registered */
+SB_API const char *sb_param_kind_name(sb_param_kind_t kind);
+SB_API const char *sb_param_kind_description(sb_param_kind_t kind);
+SB_API unsigned sb_param_kind_caps(sb_param_kind_t kind);
 /* Whether the kind suits a source with these flags (sb_source_flags):
  * SB_CAP_NEEDS_ISOTROPY asks for SB_SOURCE_ISOTROPIC. */
-int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags);
+SB_API int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags);
 /* The names joined by sep into buf (snprintf rules: truncated to size,
  * always terminated when size > 0); returns the full length. */
-size_t sb_param_kind_list(char *buf, size_t size, const char *sep);
+SB_API size_t sb_param_kind_list(char *buf, size_t size, const char *sep);
 /* Parse a name of the registry; SB_ERR_UNKNOWN otherwise (NULL name
  * included), SB_ERR_ARG for a NULL out. */
-sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
+SB_API sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
 
 /* Parse a spec "KIND[:key=value,...]" into kind and options; keys res, th,
  * td, pd (iso only), theta_max (degrees) and, on SB_CAP_WARPS layouts,
@@ -171,51 +175,53 @@ sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out);
  * (malformed pair, number or fractional count), SB_ERR_RANGE (a count 0,
  * theta_max outside (0, 90], knots not increasing inside (0, 1)); finer
  * limits are sb_param_create()'s. */
-sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind, sb_param_opts_t *opts);
+SB_API sb_result_t sb_param_parse_spec(sb_context_t *ctx, const char *spec, sb_param_kind_t *kind,
+                                       sb_param_opts_t *opts);
 
-sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts, sb_param_t **out);
-void sb_param_destroy(sb_param_t *p);
+SB_API sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_param_opts_t *opts,
+                                   sb_param_t **out);
+SB_API void sb_param_destroy(sb_param_t *p);
 
-/* Getters: for a NULL p, kind SB_PARAM_KIND_COUNT_, "" names, 0 counts,
+/* Getters: for a NULL p, kind SB_PARAM_NONE, "" names, 0 counts,
  * NaN theta_max; side is SB_SIDE_G or SB_SIDE_H (another side: 0 sizes,
  * wrap CLAMP). */
-sb_param_kind_t sb_param_kind(const sb_param_t *p);
-const char *sb_param_name(const sb_param_t *p);
-unsigned sb_param_caps(const sb_param_t *p); /* sb_param_kind_caps of its kind */
+SB_API sb_param_kind_t sb_param_kind(const sb_param_t *p);
+SB_API const char *sb_param_name(const sb_param_t *p);
+SB_API unsigned sb_param_caps(const sb_param_t *p); /* sb_param_kind_caps of its kind */
 /* Canonical spec string, e.g. "io:res=32" or "iso:th=90,td=90,pd=180";
  * theta_max (degrees) is appended when not 90, warps (warp_h, warp_d)
  * when not the layout's own (a table's knots with 6 significant digits:
  * sb_param_create rounds them so, and they are the warp exactly). */
-const char *sb_param_spec(const sb_param_t *p);
-size_t sb_param_rows(const sb_param_t *p);
-size_t sb_param_cols(const sb_param_t *p);
-void sb_param_texture_size(const sb_param_t *p, int side, size_t *width, size_t *height);
-void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]);
-double sb_param_theta_max(const sb_param_t *p);
+SB_API const char *sb_param_spec(const sb_param_t *p);
+SB_API size_t sb_param_rows(const sb_param_t *p);
+SB_API size_t sb_param_cols(const sb_param_t *p);
+SB_API void sb_param_texture_size(const sb_param_t *p, int side, size_t *width, size_t *height);
+SB_API void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]);
+SB_API double sb_param_theta_max(const sb_param_t *p);
 
 /* Directions at the centre of matrix cell (row, col).  Returns 1 if the pair
  * is a BRDF pair (both directions above the horizon and within theta_max),
  * 0 if the cell lies outside the BRDF domain (then wi/wo are unspecified;
  * io and io-area have no such cells, hd and iso about 38 %), and for a
  * NULL argument or a row or column out of range. */
-int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
+SB_API int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
 
 /* Solid-angle measure associated with a row / a column cell, so that
  * sum_r sum_c m_r m_c f(r,c) approximates the integral over the domain.
  * NaN for a NULL p or an index out of range. */
-double sb_param_row_measure(const sb_param_t *p, size_t row);
-double sb_param_col_measure(const sb_param_t *p, size_t col);
+SB_API double sb_param_row_measure(const sb_param_t *p, size_t row);
+SB_API double sb_param_col_measure(const sb_param_t *p, size_t col);
 
 /* Continuous texture coordinates of an arbitrary pair for the g and h
  * textures (GL convention above).  Returns 0 when the pair is outside the
  * domain (below the horizon, or beyond theta_max), or an argument is NULL. */
-int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
+SB_API int sb_param_coords(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
 
 /* GLSL source defining `vec4 sb_coords(vec3 L, vec3 V)` (xy: g coordinate,
  * zw: h coordinate) and `bool sb_domain(vec3 L, vec3 V, vec4 st)` that
  * compute exactly sb_param_coords() and its return value.  It may use the
  * constants SB_PI and SB_THETA_MAX defined by the snippet header. */
-const char *sb_param_glsl(const sb_param_t *p);
+SB_API const char *sb_param_glsl(const sb_param_t *p);
 
 /* Importance sampling (sampler.h): the direction a row cell stands for,
  * drawn uniformly in solid angle over the cell.  For u in [0,1)^2 (u[0]
@@ -224,62 +230,62 @@ const char *sb_param_glsl(const sb_param_t *p);
  * wo reflected about h).  The cell of w is texel (floor(s W), floor(t H))
  * of st_g as sb_param_coords gives it, and row = y W + x.  Returns 1; 0
  * (w unchanged) for a NULL argument or a row out of range. */
-int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+SB_API int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
 
 /* The layout's known factor of the value at (wi, wo): the reconstruction
  * is gain x max(0, sum_j g_j h_j) for SB_CAP_TABLES layouts (vndf: the
  * RGL file's NDF(u_m) / (4 sigma(u_v)), 0 outside the domain), and the
  * plain sum (gain 1) for every other layout or a NULL argument. */
-double sb_param_gain(const sb_param_t *p, const double wi[3], const double wo[3]);
+SB_API double sb_param_gain(const sb_param_t *p, const double wi[3], const double wo[3]);
 /* The tables of an SB_CAP_TABLES layout (its own copy), NULL otherwise. */
-const sb_layout_tables_t *sb_param_tables(const sb_param_t *p);
+SB_API const sb_layout_tables_t *sb_param_tables(const sb_param_t *p);
 /* The entry of form cos (f cos theta_i over the gain) of matrix cell (row,
  * col) when the layout knows it from its tables (vndf: the RGL file's
  * node, also where the light falls below the horizon): 1 and rgb; 0 (the
  * source is sampled) otherwise. */
-int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[3]);
+SB_API int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[3]);
 /* The value from a sum of terms and the gain: gain x max(0, sum) for
  * SB_CAP_TABLES layouts, sum itself otherwise. */
-double sb_param_apply_gain(const sb_param_t *p, double sum, double gain);
+SB_API double sb_param_apply_gain(const sb_param_t *p, double sum, double gain);
 /* The tables of an SB_CAP_TABLES layout as one RGB float texture (written
  * as vndf.exr; the GLSL reads it as sb_vndf): *rgb (malloc'ed, width x
  * height x 3, row-major) for the caller to free.  SB_ERR_ARG for a layout
  * without tables or a NULL argument, SB_ERR_NOMEM. */
-sb_result_t sb_param_tables_texture(const sb_param_t *p, size_t *width, size_t *height, float **rgb);
+SB_API sb_result_t sb_param_tables_texture(const sb_param_t *p, size_t *width, size_t *height, float **rgb);
 /* The tables back from such a texture (checked: sizes and values);
  * SB_ERR_FORMAT for a texture that is not one. */
-sb_result_t sb_layout_tables_from_texture(sb_context_t *ctx, size_t width, size_t height, const float *rgb,
-                                          sb_layout_tables_t **out);
-void sb_layout_tables_destroy(sb_layout_tables_t *t);
+SB_API sb_result_t sb_layout_tables_from_texture(sb_context_t *ctx, size_t width, size_t height, const float *rgb,
+                                                 sb_layout_tables_t **out);
+SB_API void sb_layout_tables_destroy(sb_layout_tables_t *t);
 
 /* GLSL source defining `vec3 sb_row_dir(ivec2 cell, vec2 u)`, the same map
  * as sb_param_row_sample for texel `cell` of the g textures (sizes from
  * textureSize(sb_g, 0)); "" for a NULL p. */
-const char *sb_param_sample_glsl(const sb_param_t *p);
+SB_API const char *sb_param_sample_glsl(const sb_param_t *p);
 /* The warp of axis SB_AXIS_THETA_H or SB_AXIS_THETA_D, resolved (never
  * SB_WARP_DEFAULT); NULL for a layout without SB_CAP_WARPS, a NULL p or
  * another axis. */
-const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis);
+SB_API const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis);
 /* Texels along warp axis SB_AXIS_THETA_H or SB_AXIS_THETA_D that an
  * adaptive table (sb_warp_measure) is made for; 0 where that scan does not
  * describe the axis (vh's theta_d axis is the view's elevation), for a
  * layout without SB_CAP_WARPS, a NULL p or another axis. */
-size_t sb_param_warp_cells(const sb_param_t *p, int axis);
+SB_API size_t sb_param_warp_cells(const sb_param_t *p, int axis);
 /* 1 when every warp of p is the layout's own (or p takes none, or is
  * NULL); 0 when one was chosen (uniform or merl instead, or a table). */
-int sb_param_warps_default(const sb_param_t *p);
+SB_API int sb_param_warps_default(const sb_param_t *p);
 
 /* Warp names ("default", "uniform", "merl", "table"; "?" out of range) and
  * parsing ("adaptive" is no kind: sb_warp_measure makes a table). */
-const char *sb_warp_kind_name(sb_warp_kind_t kind);
-sb_result_t sb_warp_kind_parse(const char *name, sb_warp_kind_t *out);
+SB_API const char *sb_warp_kind_name(sb_warp_kind_t kind);
+SB_API sb_result_t sb_warp_kind_parse(const char *name, sb_warp_kind_t *out);
 /* W(x) and W^-1(s) of a resolved warp (not SB_WARP_DEFAULT); table: x and s
  * clamped to [0, 1]; uniform and merl: unclamped (merl: x >= 0). */
-double sb_warp_map(const sb_warp_t *w, double x);
-double sb_warp_inverse(const sb_warp_t *w, double s);
+SB_API double sb_warp_map(const sb_warp_t *w, double x);
+SB_API double sb_warp_inverse(const sb_warp_t *w, double s);
 /* Check a warp: a known kind; a table with 2..SB_WARP_MAX_KNOTS segments,
  * x_0 = 0, x_K = 1, strictly increasing.  SB_ERR_RANGE otherwise. */
-sb_result_t sb_warp_check(sb_context_t *ctx, const sb_warp_t *w);
+SB_API sb_result_t sb_warp_check(sb_context_t *ctx, const sb_warp_t *w);
 
 /* The table a source asks for along one axis, by equalising the error of
  * linear interpolation between the texels along it.  A scan evaluates
@@ -309,17 +315,18 @@ typedef struct sb_warp_measure_opts {
     double theta_max; /* radians, 0 = pi/2 */
     int threads;      /* 0 = all cores */
 } sb_warp_measure_opts_t;
-sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis, const sb_warp_measure_opts_t *opts,
-                            sb_warp_t *out);
+SB_API sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis,
+                                   const sb_warp_measure_opts_t *opts, sb_warp_t *out);
 
 /* Unit direction <-> spherical angles in the local frame, phi in [0, 2pi). */
-void sb_dir_from_angles(double theta, double phi, double w[3]);
-void sb_dir_to_angles(const double w[3], double *theta, double *phi);
+SB_API void sb_dir_from_angles(double theta, double phi, double w[3]);
+SB_API void sb_dir_to_angles(const double w[3], double *theta, double *phi);
 /* The pair of Rusinkiewicz's half/difference angles: h at (theta_h,
  * phi_h), d at (theta_d, phi_d) in h's frame; wi = R_z(phi_h) R_y(theta_h)
  * d, wo its mirror about h (either may lie below the horizon); nothing
  * for a NULL wi or wo. */
-void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]);
+SB_API void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3],
+                                  double wo[3]);
 
 #ifdef __cplusplus
 }

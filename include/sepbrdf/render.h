@@ -47,7 +47,7 @@ typedef struct sb_light {
 
 /* Light from elevation and azimuth in degrees (header); irradiance as
  * sb_light_t (0 = default). */
-void sb_light_from_angles(double elev_deg, double azim_deg, double irradiance, sb_light_t *out);
+SB_API void sb_light_from_angles(double elev_deg, double azim_deg, double irradiance, sb_light_t *out);
 
 typedef struct sb_render_opts {
     size_t size;        /* S, image width = height in pixels; default 256 */
@@ -59,9 +59,9 @@ typedef struct sb_render_opts {
  * Returns 1 when the sphere covers the pixel, 0 otherwise (frame unset),
  * also for a pixel outside the image or a NULL output.  opts may be NULL
  * (defaults). */
-int sb_render_frame(const sb_render_opts_t *opts, size_t x, size_t y, double n[3], double t[3], double b[3]);
+SB_API int sb_render_frame(const sb_render_opts_t *opts, size_t x, size_t y, double n[3], double t[3], double b[3]);
 /* The same at the image-plane point (px, py) (y up): 1 when |p| < 1. */
-int sb_render_frame_at(double px, double py, double n[3], double t[3], double b[3]);
+SB_API int sb_render_frame_at(double px, double py, double n[3], double t[3], double b[3]);
 
 /* A BRDF to render: write f_r(wi, wo) (local frame) to rgb; return value
  * ignored (missing pairs give rgb = 0). */
@@ -71,17 +71,18 @@ typedef int (*sb_render_brdf_fn)(const void *user, const double wi[3], const dou
  * Errors: SB_ERR_ARG (NULL fn/out, light_count > SB_RENDER_MAX_LIGHTS, a
  * zero or non-finite light direction, negative irradiance), SB_ERR_RANGE
  * (size 0 after defaults or above 16384), SB_ERR_NOMEM. */
-sb_result_t sb_render(sb_context_t *ctx, const sb_render_opts_t *opts, sb_render_brdf_fn fn, const void *user,
-                      sb_image_t *out);
+SB_API sb_result_t sb_render(sb_context_t *ctx, const sb_render_opts_t *opts, sb_render_brdf_fn fn, const void *user,
+                             sb_image_t *out);
 
 /* The original: sb_source_eval. */
-sb_result_t sb_render_source(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_source_t *src, sb_image_t *out);
+SB_API sb_result_t sb_render_source(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_source_t *src,
+                                    sb_image_t *out);
 
 /* The reconstruction from the first `terms` terms: sb_factors_eval (the
  * GL conventions of param.h).  terms 0 = all.  Errors as sb_render plus
  * SB_ERR_ARG for NULL factors/param or terms > available. */
-sb_result_t sb_render_factors(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_factors_t *f,
-                              const sb_param_t *param, sb_form_t form, size_t terms, sb_image_t *out);
+SB_API sb_result_t sb_render_factors(sb_context_t *ctx, const sb_render_opts_t *opts, const sb_factors_t *f,
+                                     const sb_param_t *param, sb_form_t form, size_t terms, sb_image_t *out);
 
 /* The parameterisation and form a factorisation was made with, from its
  * metadata "param" (a spec as sb_param_spec() writes it, e.g. "io:res=32",
@@ -89,7 +90,7 @@ sb_result_t sb_render_factors(sb_context_t *ctx, const sb_render_opts_t *opts, c
  * (absent = f).  Checks that the texture sizes match.  *param is new (destroy it).
  * Errors: SB_ERR_FORMAT (meta missing, malformed or not matching the
  * textures), SB_ERR_UNSUPPORTED (parameterisation not in this build). */
-sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_t **param, sb_form_t *form);
+SB_API sb_result_t sb_factors_param(sb_context_t *ctx, const sb_factors_t *f, sb_param_t **param, sb_form_t *form);
 
 #ifdef __cplusplus
 }

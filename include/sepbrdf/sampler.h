@@ -31,7 +31,7 @@
  * So the factored density with respect to solid angle is
  *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / m_r
  * with r the row cell of wi.  In the half-vector layouts only the h that
- * can reflect wo above the horizon are drawn (src/factor/sampler_half.c):
+ * can reflect wo above the horizon are drawn:
  * h does iff theta_h < pi/4 + atan2(cos(phi_h - phi_o) sin(theta_o),
  * cos(theta_o)) / 2, so the cells of a row whose lowest z = 1 - cos(theta_h)
  * is at or above the row's cut z_c (that bound at the row's most
@@ -88,9 +88,9 @@ typedef struct sb_sampler sb_sampler_t;
  * of p's sizes, a negative or non-finite texel: signed factors, e.g. from
  * the SVD, cannot be sampled; factor with --method nmf), SB_ERR_NUMERIC
  * (no positive texel: nothing to sample), SB_ERR_OVERFLOW, SB_ERR_NOMEM. */
-sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
-                              sb_sampler_t **out);
-void sb_sampler_destroy(sb_sampler_t *s); /* accepts NULL */
+SB_API sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
+                                     sb_sampler_t **out);
+SB_API void sb_sampler_destroy(sb_sampler_t *s); /* accepts NULL */
 
 /* Draw wi for the outgoing direction wo (unit, tangent frame) from u in
  * [0,1)^2.  Returns 1 with wi (unit), *pdf = sb_pdf(s, wo, wi) > 0 (1/sr)
@@ -98,11 +98,12 @@ void sb_sampler_destroy(sb_sampler_t *s); /* accepts NULL */
  * back; rgb may be NULL); 0 when no direction results (wo outside the
  * domain, all weights 0 for this wo, a reflected wi below the horizon):
  * wi and rgb zero, *pdf 0.  0 also for NULL arguments. */
-int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2], double wi[3], double *pdf, double rgb[3]);
+SB_API int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2], double wi[3], double *pdf,
+                     double rgb[3]);
 
 /* Density of sb_sample's wi for wo, with respect to solid angle (1/sr): 0
  * outside the domain or for NULL arguments. */
-double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]);
+SB_API double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]);
 
 /* The tables as the GLSL sampler reads them (file "sampler.bin" of an
  * output set; README "Importance sampling"): little-endian,
@@ -119,7 +120,7 @@ double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]);
  * + 1: layer J C + 1 + k holds W_k(c) of wo's cell c at texel (x, y).
  * Unused texels are 0.  Written under a
  * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
-sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);
+SB_API sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);
 
 #ifdef __cplusplus
 }

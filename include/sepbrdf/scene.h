@@ -81,54 +81,55 @@ typedef struct sb_scene sb_scene_t;
  * (NULL), SB_ERR_PARSE (the message names the item and what is wrong),
  * SB_ERR_RANGE (a value beyond its range, too many lights, no pair of
  * positive weight), SB_ERR_IO (the pairs file), SB_ERR_NOMEM. */
-sb_result_t sb_scene_parse(sb_context_t *ctx, const char *spec, sb_scene_t **out);
-void sb_scene_destroy(sb_scene_t *s); /* accepts NULL */
+SB_API sb_result_t sb_scene_parse(sb_context_t *ctx, const char *spec, sb_scene_t **out);
+SB_API void sb_scene_destroy(sb_scene_t *s); /* accepts NULL */
 
-sb_scene_kind_t sb_scene_kind(const sb_scene_t *s);
+SB_API sb_scene_kind_t sb_scene_kind(const sb_scene_t *s);
 /* Canonical spec ("view=0..60;light=0..90", "lights=45,45/30,150",
  * "pairs=FILE"). */
-const char *sb_scene_spec(const sb_scene_t *s);
+SB_API const char *sb_scene_spec(const sb_scene_t *s);
 /* The lights of a lights scene as render.h takes them (irradiance 0: the
  * default), at most max; returns how many (0 for another kind). */
-size_t sb_scene_lights(const sb_scene_t *s, sb_light_t *out, size_t max);
+SB_API size_t sb_scene_lights(const sb_scene_t *s, sb_light_t *out, size_t max);
 
 /* Map a point x of [0,1)^6 to a pair of the scene: returns 1 with wi, wo
  * set when x maps to a pair the scene uses, 0 for an unlit point (lights)
  * or a NULL argument.  Uniform x gives pairs distributed as the scene. */
-double sb_scene_draw(const sb_scene_t *s, const double x[6], double wi[3], double wo[3]);
+SB_API double sb_scene_draw(const sb_scene_t *s, const double x[6], double wi[3], double wo[3]);
 
 /* The estimator's pairs (estimate.h) drawn from the scene instead of the
  * whole domain: every pair weight 1, replicates as sb_pairs_create draws
  * them, so sb_estimate_compute gives the errors over the scene's pairs
  * with their standard errors.  Errors as sb_pairs_create. */
-sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
-                                  const sb_estimate_opts_t *opts, sb_pairs_t **out);
+SB_API sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
+                                         const sb_estimate_opts_t *opts, sb_pairs_t **out);
 
 /* The errors of factors f (on p, form `form`, as sb_estimate_compute
  * takes them, scales NULL) over the scene's pairs: sb_scene_pairs_create
  * then sb_estimate_compute with opts (NULL: defaults).  Errors as those. */
-sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src, const sb_factors_t *f,
-                              const sb_param_t *p, sb_form_t form, const sb_estimate_opts_t *opts, sb_estimate_t *out);
+SB_API sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
+                                     const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
+                                     const sb_estimate_opts_t *opts, sb_estimate_t *out);
 
 /* floor=X of the spec; -1 when not given (or for NULL). */
-double sb_scene_floor(const sb_scene_t *s);
+SB_API double sb_scene_floor(const sb_scene_t *s);
 /* The cells of mass 0 (of cells values, from sb_scene_mass on p) raised
  * to share the scene's floor X of the total mass, X * sum / (cells of mass
  * 0) each (X not given: SB_SCENE_FLOOR where p has SB_CAP_PARTIAL_DOMAIN,
  * else 0); nothing for a NULL mass or X = 0. */
-void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells);
+SB_API void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells);
 
 /* The scene's mass on the cells of p for a matrix of form `form` (header):
  * mass[row + col * rows] >= 0, the largest 1, from n pairs (0: a default
  * that grows with the cell count).  Errors: SB_ERR_ARG, SB_ERR_RANGE (no
  * pair of the scene lies in p's domain), SB_ERR_OVERFLOW, SB_ERR_NOMEM. */
-sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_form_t form, size_t n,
-                          double *mass);
+SB_API sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_form_t form, size_t n,
+                                 double *mass);
 
 /* The square-root weights W_r (rows values), W_c (cols values) into w of
  * the separable fit W_r^2 W_c^2 ~ mass on its positive cells (header),
  * each at least 1e-3 of its side's largest (nothing for a NULL mass or w). */
-void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
+SB_API void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
 
 /* Weights for a fit of m on the scene: cells with mass 0 (after the
  * scene's floor, sb_scene_mass_floor) get mask 0 in m
@@ -138,7 +139,8 @@ void sb_scene_weights(const double *mass, size_t rows, size_t cols, double *w);
  * (plan opts row_weights, col_weights).  Errors: SB_ERR_ARG (NULL,
  * structured or streamed m, sizes differ from p), those of
  * sb_scene_mass, SB_ERR_NOMEM. */
-sb_result_t sb_scene_apply(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_matrix_t *m, double *w);
+SB_API sb_result_t sb_scene_apply(sb_context_t *ctx, const sb_scene_t *s, const sb_param_t *p, sb_matrix_t *m,
+                                  double *w);
 
 #ifdef __cplusplus
 }

@@ -1,7 +1,8 @@
 /* sepbrdf: the factorisation methods (solvers) the plan can use.
  *
- * Each solver is one descriptor in a registry (src/solve/solvers.c): a
- * name, a description and capability flags.  The plan (factor.h) picks the
+ * Each solver is one descriptor in a registry: a name, a description
+ * and capability flags; programs can add their own
+ * (experimental/solver.h).  The plan (factor.h) picks the
  * first solver of the registry that takes the problem: the masked fit for
  * matrices with excluded cells, the streamed solver for streamed matrices
  * (matrix.h: beyond the memory limit) or method stream, the block-circulant SVD for isotropic
@@ -25,17 +26,18 @@ enum {
     SB_CAP_EXACT_TAILS = 1u << 3, /* gives the exact error of every truncation without a residual pass */
     SB_CAP_ALL_SIGMA = 1u << 4,   /* computes every singular value */
     SB_CAP_STRUCTURED = 1u << 5,  /* reads the sampled values through a structure (weights applied inside) */
-    SB_CAP_STREAMED = 1u << 6     /* reads the matrix in blocks of columns, one pass per product, every channel
+    SB_CAP_STREAMED = 1u << 6,    /* reads the matrix in blocks of columns, one pass per product, every channel
                                      at once: runs on matrices never held (matrix.h, streamed) */
+    SB_CAP_METHOD = 1u << 7       /* a method: chosen by its name (sb_method_parse, the CLI's --method) */
 };
 
 /* Registered solvers, in the order the plan tries them. */
-size_t sb_solver_count(void);
+SB_API size_t sb_solver_count(void);
 /* Name ("full", "circulant", ...), one-line description and capabilities
  * of solver i; NULL / 0 for i >= sb_solver_count(). */
-const char *sb_solver_name(size_t i);
-const char *sb_solver_description(size_t i);
-unsigned sb_solver_caps(size_t i);
+SB_API const char *sb_solver_name(size_t i);
+SB_API const char *sb_solver_description(size_t i);
+SB_API unsigned sb_solver_caps(size_t i);
 
 #ifdef __cplusplus
 }

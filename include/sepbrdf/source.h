@@ -36,14 +36,14 @@ typedef struct sb_source sb_source_t;
 
 /* Wrap an implementation.  The source takes ownership of `self` (destroyed
  * through ops->destroy).  `description` is copied. */
-sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
-                             const char *description, sb_source_t **out);
-void sb_source_destroy(sb_source_t *src);
+SB_API sb_result_t sb_source_create(sb_context_t *ctx, const sb_source_ops_t *ops, void *self, unsigned flags,
+                                    const char *description, sb_source_t **out);
+SB_API void sb_source_destroy(sb_source_t *src); /* accepts NULL */
 
 /* The tables a layout with SB_CAP_TABLES is built on (param.h: an
  * isotropic RGL file's VNDF warp, NDF and sigma, for the vndf layout),
  * owned by the source; NULL for a source without them (or NULL). */
-const struct sb_layout_tables *sb_source_layout_tables(const sb_source_t *src); /* accepts NULL */
+SB_API const struct sb_layout_tables *sb_source_layout_tables(const sb_source_t *src);
 
 /* A source that evaluates many pairs in one call (a function over arrays,
  * e.g. one written in Python with numpy): eval_many writes f_r of the n
@@ -58,23 +58,23 @@ typedef struct sb_source_batch_ops {
 } sb_source_batch_ops_t;
 
 /* Wrap a batched implementation as sb_source_create does. */
-sb_result_t sb_source_create_batched(sb_context_t *ctx, const sb_source_batch_ops_t *ops, void *self, unsigned flags,
-                                     const char *description, sb_source_t **out);
+SB_API sb_result_t sb_source_create_batched(sb_context_t *ctx, const sb_source_batch_ops_t *ops, void *self,
+                                            unsigned flags, const char *description, sb_source_t **out);
 
 /* f_r of n pairs (arrays as eval_many's): one call of a batched source's
  * eval_many, else sb_source_eval pair by pair; rgb is 0 where known is 0.
  * Returns the number of known pairs (0 for NULL arguments). */
-size_t sb_source_eval_many(const sb_source_t *src, size_t n, const double *wi, const double *wo, double *rgb,
-                           unsigned char *known);
+SB_API size_t sb_source_eval_many(const sb_source_t *src, size_t n, const double *wi, const double *wo, double *rgb,
+                                  unsigned char *known);
 /* Whether src has an eval_many (then callers gather pairs for it). */
-int sb_source_batched(const sb_source_t *src);
+SB_API int sb_source_batched(const sb_source_t *src);
 
 /* f_r(wi, wo); returns 1 if known, 0 if missing (see sb_source_ops_t) or
  * an argument is NULL (rgb, when given, is then 0). */
-int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]);
-unsigned sb_source_flags(const sb_source_t *src);
-const char *sb_source_description(const sb_source_t *src);
-void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation */
+SB_API int sb_source_eval(const sb_source_t *src, const double wi[3], const double wo[3], double rgb[3]);
+SB_API unsigned sb_source_flags(const sb_source_t *src);
+SB_API const char *sb_source_description(const sb_source_t *src);
+SB_API void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation */
 
 /* The measured samples behind a table, as measured, before any
  * interpolation: the number of sample slots (0 for analytic sources and
@@ -83,13 +83,13 @@ void *sb_source_impl(const sb_source_t *src); /* the `self` passed at creation *
  * range, 1 otherwise.  Tables with samples: MERL (cells), scattered
  * tables (rows), RGL (colour nodes at their directions; a node whose light
  * falls below the horizon holds none). */
-size_t sb_source_sample_count(const sb_source_t *src);
-int sb_source_sample(const sb_source_t *src, size_t k, double wi[3], double wo[3], double f[3]);
+SB_API size_t sb_source_sample_count(const sb_source_t *src);
+SB_API int sb_source_sample(const sb_source_t *src, size_t k, double wi[3], double wo[3], double f[3]);
 
 /* Open a source from a user string: a model spec "MODEL[:key=value,...]"
  * (see models.h) or, when the string names an existing file, a measured
  * table (format by extension and content, see measured.h). */
-sb_result_t sb_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out);
+SB_API sb_result_t sb_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out);
 
 #ifdef __cplusplus
 }

@@ -76,20 +76,32 @@
 extern "C" {
 #endif
 
+/* Methods are chosen by name (sb_method_parse): "auto" and the solvers
+ * with SB_CAP_METHOD (solver.h), numbered 0 .. sb_method_count() - 1.
+ * The six below keep their numbers for programs that name them; other
+ * methods, built-in or registered by a program (experimental/solver.h),
+ * get the numbers after them, so adding one changes no enum. */
 typedef enum sb_method {
+    SB_METHOD_NONE = -1,  /* no method: an unknown one asked for, or a NULL plan */
     SB_METHOD_AUTO = 0,   /* pick from m, n, k (see above) */
     SB_METHOD_FULL,       /* LAPACK dgesdd, all singular values */
     SB_METHOD_TOPK,       /* exact leading k: restarted block Krylov (or the Gram route) */
     SB_METHOD_RANDOMIZED, /* Halko-Martinsson-Tropp range finder */
     SB_METHOD_NMF,        /* non-negative factors (the plan's nmf solver; not an SVD: sb_svd_create refuses it) */
-    SB_METHOD_STREAM,     /* the plan's matrix-free solver (solver.h; sb_svd_create refuses it) */
-    SB_METHOD_COUNT_
+    SB_METHOD_STREAM      /* the plan's matrix-free solver (solver.h; sb_svd_create refuses it) */
 } sb_method_t;
 
-/* auto|full|topk|randomized|nmf|stream; SB_ERR_UNKNOWN otherwise (NULL name
- * included), SB_ERR_ARG for a NULL out. */
-sb_result_t sb_method_parse(const char *name, sb_method_t *out);
-const char *sb_method_name(sb_method_t m);
+/* A method's number by name (auto, full, topk, randomized, nmf, stream
+ * and those registered); SB_ERR_UNKNOWN otherwise (NULL name included),
+ * SB_ERR_ARG for a NULL out. */
+SB_API sb_result_t sb_method_parse(const char *name, sb_method_t *out);
+/* Name of method m ("?" for an unknown m), and a few words on it for
+ * lists ("dgesdd" for full, "default" for auto; "" for none or an
+ * unknown m). */
+SB_API const char *sb_method_name(sb_method_t m);
+SB_API const char *sb_method_note(sb_method_t m);
+/* The methods: auto, the built-in ones and those a program registered. */
+SB_API size_t sb_method_count(void);
 
 /* AUTO thresholds (see the comment at the top). */
 #define SB_SVD_AUTO_FULL_MAX 128
@@ -126,22 +138,23 @@ typedef struct sb_svd_info {
 typedef struct sb_svd sb_svd_t;
 
 /* The method a plan for (m, n, k, opts) would use: opts->method unless it
- * is AUTO, then the AUTO rule (SB_METHOD_COUNT_ for an unknown method).
+ * is AUTO, then the AUTO rule (SB_METHOD_NONE for an unknown method).
  * Plans nothing, allocates nothing. */
-sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
+SB_API sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts);
 
 /* Plan a rank-k SVD of m x n matrices.  opts may be NULL (defaults).
  * Errors: SB_ERR_ARG (no output, empty matrix, bad method), SB_ERR_RANGE
  * (k = 0 or k > min(m, n), power_iters above SB_SVD_MAX_POWER_ITERS), SB_ERR_OVERFLOW (dimension beyond LAPACK's int,
  * or workspace beyond the memory limit), SB_ERR_NOMEM, SB_ERR_NUMERIC
  * (workspace query failed). */
-sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out);
-/* Getters on a NULL plan: SB_METHOD_COUNT_, 0, 0 and a zeroed info. */
-void sb_svd_destroy(sb_svd_t *svd);             /* accepts NULL */
-sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
-size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */
+SB_API sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts,
+                                 sb_svd_t **out);
+/* Getters on a NULL plan: SB_METHOD_NONE, 0, 0 and a zeroed info. */
+SB_API void sb_svd_destroy(sb_svd_t *svd);             /* accepts NULL */
+SB_API sb_method_t sb_svd_method(const sb_svd_t *svd); /* the method actually used */
+SB_API size_t sb_svd_rank(const sb_svd_t *svd);        /* k of the plan */
 /* Bytes of workspace the plan holds (for reports). */
-size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
+SB_API size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
 
 /* s[0..k-1], U (m x k, ld m), V (n x k, ld n).  U or V may be NULL when not
  * wanted.  If all_s is not NULL and the method computes every singular
@@ -150,8 +163,8 @@ size_t sb_svd_workspace_bytes(const sb_svd_t *svd);
  * Errors: SB_ERR_ARG (NULL svd, A or s, lda < m), SB_ERR_OVERFLOW (lda
  * beyond LAPACK's int, or lda x n overflows), SB_ERR_NUMERIC (LAPACK
  * failure or a non-finite entry in A). */
-sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V, double *all_s,
-                           int *have_all);
+SB_API sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s, double *U, double *V,
+                                  double *all_s, int *have_all);
 
 /* Adaptive rank: the smallest r in [min_rank, k] with
  *     ||A - U_r S_r V_r^T||_F <= rel_tol ||A||_F,
@@ -167,11 +180,11 @@ sb_result_t sb_svd_execute(sb_svd_t *svd, const double *A, size_t lda, double *s
  * be NULL) receives rank r, the sketch size and both norms.
  * Errors as sb_svd_execute, and SB_ERR_RANGE for rel_tol outside [0, 1) or
  * min_rank > k. */
-sb_result_t sb_svd_execute_adaptive(sb_svd_t *svd, const double *A, size_t lda, double rel_tol, double norm_fro,
-                                    size_t min_rank, double *s, double *U, double *V, sb_svd_info_t *info);
+SB_API sb_result_t sb_svd_execute_adaptive(sb_svd_t *svd, const double *A, size_t lda, double rel_tol, double norm_fro,
+                                           size_t min_rank, double *s, double *U, double *V, sb_svd_info_t *info);
 
 /* Info of the last successful execute (zeros before the first). */
-sb_svd_info_t sb_svd_last_info(const sb_svd_t *svd);
+SB_API sb_svd_info_t sb_svd_last_info(const sb_svd_t *svd);
 
 #ifdef __cplusplus
 }

@@ -70,8 +70,8 @@ typedef struct sb_viewer_opts {
  * Errors: SB_ERR_ARG (NULL f/param/path, sizes of f and param differ),
  * SB_ERR_NOMEM, SB_ERR_IO (cannot write), those of sb_matrix_build and
  * sb_param_create for the reference table. */
-sb_result_t sb_viewer_write(sb_context_t *ctx, const char *path, const sb_factors_t *f, const sb_param_t *param,
-                            sb_form_t form, const sb_viewer_opts_t *opts);
+SB_API sb_result_t sb_viewer_write(sb_context_t *ctx, const char *path, const sb_factors_t *f, const sb_param_t *param,
+                                   sb_form_t form, const sb_viewer_opts_t *opts);
 
 #ifdef __cplusplus
 }

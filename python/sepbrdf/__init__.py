@@ -36,7 +36,7 @@ DEFAULT_SOURCE = "microfacet:base=gold,roughness=0.5"
 
 def version():
     """The package's version, which is the C library's: "MAJOR.MINOR.PATCH"."""
-    return "0.1.0"
+    return lib.sb_version().decode()
 
 
 class Error(Exception):

@@ -60,6 +60,7 @@ class JobOpts(ctypes.Structure):
     in the tests (python_layout)."""
 
     _fields_ = [
+        ("size", ctypes.c_size_t),  # sizeof(sb_job_opts_t) as mirrored here (versioned options)
         ("source", ctypes.c_char_p),
         ("measured", MeasuredOpts),
         ("param", ctypes.c_char_p),
@@ -113,6 +114,7 @@ _PP = ctypes.POINTER(ctypes.c_void_p)
 
 # name: (restype, argtypes)
 _PROTOTYPES = {
+    "sb_version": (_C, []),
     "sb_result_name": (_C, [_I]),
     "sb_result_message": (_C, [_I]),
     "sb_context_create": (_R, [_PP]),
@@ -153,6 +155,8 @@ _PROTOTYPES = {
     "sb_form_name": (_C, [_I]),
     "sb_form_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_method_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
+    "sb_method_name": (_C, [_I]),
+    "sb_method_count": (ctypes.c_size_t, []),
     "sb_interp_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_gamut_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_sampler_create": (_R, [_P, _P, _P, _I, _PP]),

@@ -87,6 +87,7 @@ def _job_opts(o, source_spec):
     """sb_job_opts_t from factor()'s keyword arguments (the CLI's options,
     '-' written '_'), with the CLI's ranges."""
     jo = _lib.JobOpts()
+    jo.size = ctypes.sizeof(_lib.JobOpts)
     keep = []  # the encoded strings, alive as long as jo
 
     def s(v):
@@ -116,9 +117,8 @@ def _job_opts(o, source_spec):
     if "seed" in o:
         jo.seed = int(o.pop("seed")) or 1
     if "method" in o:
-        jo.method = _parse_enum(
-            lib.sb_method_parse, o.pop("method"), "method", "auto, full, topk, randomized, nmf, stream"
-        )
+        names = ", ".join(lib.sb_method_name(m).decode() for m in range(lib.sb_method_count()))  # the registry's
+        jo.method = _parse_enum(lib.sb_method_parse, o.pop("method"), "method", names)
     if "channels" in o:
         jo.channels = _channels(o.pop("channels"))
     if "budget" in o:

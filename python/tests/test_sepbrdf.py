@@ -86,7 +86,7 @@ def test_layout():
             field = getattr(structs[w[0]], w[1])
             assert (field.offset, field.size) == (int(w[2]), int(w[3])), line
         checked += 1
-    assert checked == 6 + 27 + 2 + 3
+    assert checked == 6 + 28 + 2 + 3
 
 
 def test_default_equals_cli(tmp_path):

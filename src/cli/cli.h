@@ -5,6 +5,7 @@
 #include <stdio.h>
 
 #include "sepbrdf/sepbrdf.h"
+#include "util/shared.h" /* the library's helpers of its own programs: JSON, sizes, file errors */
 
 /* Exit codes (documented in the README and `sepbrdf --help`). */
 enum { EXIT_OK = 0, EXIT_USAGE = 1, EXIT_IO = 2, EXIT_NUMERIC = 3 };

@@ -197,7 +197,7 @@ static sb_result_t write_png(sb_context_t *ctx, sb_outset_t *set, const char *na
 static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src, const sb_param_t *param,
                        sb_form_t form, const sb_image_diff_t *d, char names[][32]) {
     json_begin_object(j, NULL);
-    json_string(j, "sepbrdf_version", SB_VERSION_STRING);
+    json_string(j, "sepbrdf_version", sb_version());
     json_string(j, "command", "render");
     json_string(j, "source", sb_source_description(src));
     json_string(j, "param_spec", sb_param_spec(param));

@@ -394,7 +394,7 @@ static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_sourc
         ru->source = study_dup(sb_source_description(src));
         ru->ok = -1; /* to run */
     }
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
+    for (int k = 0; k < (int)sb_param_kind_count(); k++) {
         if (!o->param_all && !(o->params & (1u << k))) continue;
         int iso_ok = sb_param_kind_applies((sb_param_kind_t)k, flags);
         sb_param_t *probe = NULL;

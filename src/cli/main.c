@@ -77,7 +77,7 @@ static int run(int argc, char **argv) {
         return EXIT_OK;
     }
     if (strcmp(c, "--version") == 0 || strcmp(c, "-V") == 0) {
-        printf("sepbrdf %s\n", SB_VERSION_STRING);
+        printf("sepbrdf %s\n", sb_version());
         return EXIT_OK;
     }
     for (size_t i = 0; i < NCOMMANDS; i++)

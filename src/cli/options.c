@@ -87,14 +87,32 @@ static int set_scene(const char *cmd, const cli_option_t *op, const char *v, voi
 
 static int set_method(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     if (sb_method_parse(v, dst) != SB_OK) {
-        char names[128] = "";
-        for (int m = 0; m < SB_METHOD_COUNT_; m++)
+        char names[256] = "";
+        for (size_t m = 0; m < sb_method_count(); m++)
             snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", m ? ", " : "",
                      sb_method_name((sb_method_t)m));
         cli_error(cmd, "%s '%s' unknown, need one of %s", op->name, v, names);
         return -1;
     }
     return 0;
+}
+
+/* --method's help, from the library's registry: "auto (default), full
+ * (dgesdd), topk, ...", lines broken before METHOD_HELP_WIDTH columns. */
+#define METHOD_HELP_WIDTH 56
+static const char *method_help(void) {
+    static char help[512];
+    size_t n = 0, line = 0;
+    for (size_t m = 0; m < sb_method_count() && n + 1 < sizeof help; m++) {
+        char item[128];
+        const char *note = sb_method_note((sb_method_t)m);
+        int len = snprintf(item, sizeof item, "%s%s%s%s%s", sb_method_name((sb_method_t)m), note[0] ? " (" : "", note,
+                           note[0] ? ")" : "", m + 1 < sb_method_count() ? "," : "");
+        const char *sep = m == 0 ? "" : line + 1 + (size_t)len > METHOD_HELP_WIDTH ? "\n" : " ";
+        n += (size_t)snprintf(help + n, sizeof help - n, "%s%s", sep, item);
+        line = sep[0] == '\n' ? (size_t)len : line + strlen(sep) + (size_t)len;
+    }
+    return help;
 }
 
 /* A size in bytes with an optional binary suffix K, M, G or T; the
@@ -240,9 +258,7 @@ const cli_option_t cli_factor_options[] = {
      "also the comparable error by the grid quadrature on an\nR-cell reference io grid (report.json "
      "comparable_grid;\nnone by default)",
      cli_set_size, AT(metric_res), 2, SB_METRIC_MAX_RES, F_ | S_},
-    {NULL, "--method", "M",
-     "auto (default), full (dgesdd), topk, randomized,\nnmf (non-negative factors and a sampler), stream", set_method,
-     AT(method), 0, 0, F_ | R_ | S_},
+    {NULL, "--method", "M", "" /* method_help(), from the registry */, set_method, AT(method), 0, 0, F_ | R_ | S_},
     {NULL, "--max-error", "E",
      "keep the fewest terms whose headline error (f cos theta_i,\nas a shader outputs it) is <= E (0 < E < 1); J "
      "(default\n32 here, at most R) is then the upper limit",
@@ -298,7 +314,7 @@ void cli_table_help(const cli_option_t *table, unsigned command) {
         char head[64];
         snprintf(head, sizeof head, "  %s%s%s %s", op->short_name ? op->short_name : "    ", op->short_name ? ", " : "",
                  op->name, op->arg ? op->arg : "");
-        const char *h = op->help;
+        const char *h = op->set == set_method ? method_help() : op->help;
         size_t n = strcspn(h, "\n");
         if (strlen(head) > 22)
             printf("%s\n%23s%.*s\n", head, "", (int)n, h);
@@ -310,7 +326,7 @@ void cli_table_help(const cli_option_t *table, unsigned command) {
             printf("%23s%.*s\n", "", (int)n, h);
         }
         if (op->set == set_param) /* the names, from the library's registry */
-            for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+            for (size_t k = 0; k < sb_param_kind_count(); k++)
                 printf("%25s%-8s %s\n", "", sb_param_kind_name((sb_param_kind_t)k),
                        sb_param_kind_description((sb_param_kind_t)k));
     }

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "pipeline.h"
+#include "sepbrdf/experimental/layout.h"
 #include "study.h"
 
 /* One source x layout asked x budget. */
@@ -145,7 +146,7 @@ static void write_json(FILE *fp, const void *arg) {
     const brows_t *rs = arg;
     json_t j = {fp, 0, {0}};
     json_begin_object(&j, NULL);
-    json_string(&j, "sepbrdf_version", SB_VERSION_STRING);
+    json_string(&j, "sepbrdf_version", sb_version());
     json_string(&j, "command", "study");
     json_begin_object(&j, "settings");
     json_begin_array(&j, "budgets");
@@ -258,13 +259,13 @@ static size_t layouts_asked(const study_opts_t *o, const char **names) {
         return 1;
     }
     size_t n = 0;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+    for (int k = 0; k < (int)sb_param_kind_count(); k++)
         if (o->params & (1u << k)) names[n++] = sb_param_kind_name((sb_param_kind_t)k);
     return n;
 }
 
 int study_budgets(sb_context_t *ctx, const study_opts_t *o, double t0) {
-    const char *names[SB_PARAM_KIND_COUNT_ + 1];
+    const char *names[SB_LAYOUTS_MAX + 1];
     size_t nl = layouts_asked(o, names), total = o->nsources * nl * o->nbudgets, done = 0;
     brows_t rs = {calloc(total, sizeof(brow_t)), 0, o};
     if (!rs.v) {

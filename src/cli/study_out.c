@@ -103,7 +103,7 @@ static void json_run(json_t *j, const study_opts_t *o, const run_t *r) {
 static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t failed, const char *plot) {
     json_t j = {fp, 0, {0}};
     json_begin_object(&j, NULL);
-    json_string(&j, "sepbrdf_version", SB_VERSION_STRING);
+    json_string(&j, "sepbrdf_version", sb_version());
     json_string(&j, "command", "study");
     json_begin_object(&j, "settings");
     json_int(&j, "resolution", (long long)o->res);
@@ -114,7 +114,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
     json_begin_array(&j, "params");
     if (o->param_auto) json_string(&j, NULL, "auto");
     if (o->param_all) json_string(&j, NULL, "all");
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_ && !o->param_all; k++)
+    for (int k = 0; k < (int)sb_param_kind_count() && !o->param_all; k++)
         if (o->params & (1u << k)) json_string(&j, NULL, sb_param_kind_name((sb_param_kind_t)k));
     json_end_array(&j);
     json_string(&j, "form", sb_form_name(o->form));

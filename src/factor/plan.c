@@ -107,7 +107,9 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
     if (!out) return sb_error(ctx, SB_ERR_ARG, "plan: no output pointer");
     *out = NULL;
     sb_plan_opts_t o = {0};
-    if (opts) o = *opts;
+    if (opts && sb_opts_take(ctx, opts, opts->size, SB_PLAN_OPTS_SIZE_0_1, &o, sizeof o, "plan: options") != SB_OK)
+        return SB_ERR_ARG;
+    o.size = sizeof o;
     if (o.terms == 0) o.terms = 4;
     size_t mn = rows < cols ? rows : cols, cells;
     if (rows == 0 || cols == 0) return sb_error(ctx, SB_ERR_ARG, "plan: empty matrix");
@@ -117,8 +119,7 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
                         o.terms, mn);
     if (!(o.max_error >= 0 && o.max_error < 1))
         return sb_error(ctx, SB_ERR_RANGE, "plan: maximum error %g out of range, need [0, 1)", o.max_error);
-    if ((unsigned)o.svd.method >= SB_METHOD_COUNT_)
-        return sb_error(ctx, SB_ERR_ARG, "plan: unknown method %d", (int)o.svd.method);
+    if (!sb_method_known(o.svd.method)) return sb_error(ctx, SB_ERR_ARG, "plan: unknown method %d", (int)o.svd.method);
     sb_result_t rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;
     int structured = m && m->structured; /* the R distinct rows are what is stored */

@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "sampler_impl.h"
-#include "sepbrdf/outset.h"
 
 struct sb_sampler {
     const sb_factors_t *f;

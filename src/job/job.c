@@ -78,7 +78,7 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
         if (r != SB_OK) return r;
     } else if (!job->is_auto && sb_param_kind_parse(o->param, kind) != SB_OK) {
         char names[128] = "auto";
-        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
+        for (int k = 0; k < (int)sb_param_kind_count(); k++)
             snprintf(names + strlen(names), sizeof names - strlen(names), ", %s",
                      sb_param_kind_name((sb_param_kind_t)k));
         return sb_error(ctx, SB_ERR_UNKNOWN, "parameterisation '%s' unknown, need one of %s", o->param, names);
@@ -201,10 +201,19 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     return SB_OK;
 }
 
+/* The caller's options as this library's struct (job.h: versioned). */
+static sb_result_t opts_take(sb_context_t *ctx, const sb_job_opts_t *in, sb_job_opts_t *o) {
+    sb_result_t r = sb_opts_take(ctx, in, in->size, SB_JOB_OPTS_SIZE_0_1, o, sizeof *o, "job: options");
+    o->size = sizeof *o;
+    return r;
+}
+
 sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out) {
     if (!src || !opts || !out) return sb_error(ctx, SB_ERR_ARG, "sb_job_run_source: NULL argument");
     *out = NULL;
-    return run(ctx, src, NULL, opts, job_now(), out);
+    sb_job_opts_t o;
+    sb_result_t r = opts_take(ctx, opts, &o);
+    return r == SB_OK ? run(ctx, src, NULL, &o, job_now(), out) : r;
 }
 
 sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out) {
@@ -212,10 +221,13 @@ sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **
     *out = NULL;
     double t0 = job_now();
     sb_source_t *src = NULL;
-    const char *spec = opts->source ? opts->source : SB_JOB_DEFAULT_SOURCE;
-    sb_result_t r = sb_job_source_open(ctx, spec, &opts->measured, &src);
+    sb_job_opts_t o;
+    sb_result_t r = opts_take(ctx, opts, &o);
     if (r != SB_OK) return r;
-    return run(ctx, src, src, opts, t0, out);
+    const char *spec = o.source ? o.source : SB_JOB_DEFAULT_SOURCE;
+    r = sb_job_source_open(ctx, spec, &o.measured, &src);
+    if (r != SB_OK) return r;
+    return run(ctx, src, src, &o, t0, out);
 }
 
 sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {

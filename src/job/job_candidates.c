@@ -108,7 +108,7 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         job->cands[0].why[0] = 0; /* the plan names the problem itself */
         return r;
     }
-    for (int i = 0; i < SB_PARAM_KIND_COUNT_; i++) {
+    for (int i = 0; i < (int)sb_param_kind_count(); i++) {
         sb_param_kind_t k = (sb_param_kind_t)i;
         sb_result_t r = SB_OK;
         if (!sb_job_param_applies(k, job->src, NULL)) continue;

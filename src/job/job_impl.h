@@ -14,7 +14,9 @@
 #ifndef SEPBRDF_JOB_IMPL_H
 #define SEPBRDF_JOB_IMPL_H
 
+#include "sepbrdf/experimental/layout.h"
 #include "sepbrdf/job.h"
+#include "util/shared.h"
 
 /* One factorisation of the source on one parameterisation and form:
  * sample (param + matrix) -> plan + execute (factors) -> comparable error. */
@@ -49,7 +51,7 @@ typedef struct job_level {
     double base, span;         /* progress = base + span * fraction */
 } job_level_t;
 
-#define JOB_MAX_CANDS (3 * SB_PARAM_KIND_COUNT_)
+#define JOB_MAX_CANDS (3 * SB_LAYOUTS_MAX) /* f and cos a layout, with room */
 #define JOB_MAX_WARN 8
 /* Without --warp, the kept layout's headline at J above which "auto"
  * warps are tried (one more fit). */

@@ -237,8 +237,8 @@ static void screen(sb_context_t *ctx, sb_job_t *job) {
         prev = res;
         sb_param_opts_t po;
         job_level_t lv = screen_level(job, res, &po);
-        for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-            job_progress(job, "screening", (s + (double)k / SB_PARAM_KIND_COUNT_) / 2);
+        for (int k = 0; k < (int)sb_param_kind_count(); k++) {
+            job_progress(job, "screening", (s + (double)k / (double)sb_param_kind_count()) / 2);
             screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
         }
         /* the best of all, and of those keeping the band bounds: each is

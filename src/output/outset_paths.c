@@ -1,5 +1,5 @@
 /* Output sets (outset.h): the paths of a set and the checks made before
- * any computation, and the wording of file errors. */
+ * any computation. */
 #define _GNU_SOURCE
 #include <dirent.h>
 #include <errno.h>

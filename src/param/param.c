@@ -1,4 +1,4 @@
-/* Parameterisations: the registry, spec parsing, dispatch, shared grid
+/* Parameterisations: spec parsing, dispatch, shared grid
  * helpers, spherical angles. */
 #include <errno.h>
 #include <math.h>
@@ -12,55 +12,6 @@
 #include "param/serial.h"
 #include "sepbrdf/source.h"
 #include "util/internal.h"
-
-/* The registry, one row per parameterisation, in the order of
- * sb_param_kind_t: adding one is its file, its kind and a row here. */
-static const sb_param_desc_t *const registry[SB_PARAM_KIND_COUNT_] = {
-    &sb_param_desc_io,  &sb_param_desc_io_area, &sb_param_desc_hd,
-    &sb_param_desc_iso, &sb_param_desc_vh,      &sb_param_desc_vndf,
-};
-
-sb_result_t sb_param_kind_parse(const char *name, sb_param_kind_t *out) {
-    if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++)
-        if (name && strcmp(name, registry[k]->name) == 0) {
-            *out = (sb_param_kind_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
-}
-size_t sb_param_kind_count(void) { return SB_PARAM_KIND_COUNT_; }
-const char *sb_param_kind_name(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->name : "?";
-}
-const char *sb_param_kind_description(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->description : "?";
-}
-unsigned sb_param_kind_caps(sb_param_kind_t kind) {
-    return (unsigned)kind < SB_PARAM_KIND_COUNT_ ? registry[kind]->caps : 0;
-}
-unsigned sb_param_caps(const sb_param_t *p) { return p ? registry[p->kind]->caps : 0; }
-
-int sb_param_kind_applies(sb_param_kind_t kind, unsigned source_flags) {
-    unsigned caps = sb_param_kind_caps(kind);
-    if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) return 0;
-    if ((caps & SB_CAP_TABLES) && !(source_flags & SB_SOURCE_TABLES)) return 0;
-    return !(caps & SB_CAP_NEEDS_ISOTROPY) || (source_flags & SB_SOURCE_ISOTROPIC);
-}
-
-size_t sb_param_kind_list(char *buf, size_t size, const char *sep) {
-    size_t n = 0;
-    if (!buf) size = 0;
-    if (size) buf[0] = 0;
-    for (int k = 0; k < SB_PARAM_KIND_COUNT_; k++) {
-        const char *parts[2] = {k && sep ? sep : "", registry[k]->name};
-        for (int i = 0; i < 2; i++) {
-            if (n + 1 < size) snprintf(buf + n, size - n, "%s", parts[i]);
-            n += strlen(parts[i]);
-        }
-    }
-    return n;
-}
 
 /* 1 if `key` is one of the comma-separated `keys`. */
 static int key_listed(const char *keys, const char *key) {
@@ -104,7 +55,7 @@ static sb_result_t parse_spec(sb_context_t *ctx, char *buf, sb_param_kind_t *kin
         *eq = 0;
         const char *key = args, *val = eq + 1;
         int axis = strcmp(key, "warp_h") == 0 ? SB_AXIS_THETA_H : (strcmp(key, "warp_d") == 0 ? SB_AXIS_THETA_D : -1);
-        if (axis >= 0 && (registry[k]->caps & SB_CAP_WARPS)) {
+        if (axis >= 0 && (sb_param_desc_of(k)->caps & SB_CAP_WARPS)) {
             sb_result_t r = sb_warp_parse_value(ctx, val, &o.warp[axis]);
             if (r != SB_OK) return r;
             args = comma ? comma + 1 : NULL;
@@ -115,7 +66,7 @@ static sb_result_t parse_spec(sb_context_t *ctx, char *buf, sb_param_kind_t *kin
         double v = strtod(val, &end);
         if (end == val || *end || errno == ERANGE || !isfinite(v))
             return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a number", buf, key, val);
-        size_t *count = key_listed(registry[k]->keys, key) ? count_key(&o, key) : NULL;
+        size_t *count = key_listed(sb_param_desc_of(k)->keys, key) ? count_key(&o, key) : NULL;
         if (!count && strcmp(key, "theta_max") == 0) {
             if (!(v > 0 && v <= 90)) return sb_error(ctx, SB_ERR_RANGE, "%s: theta_max %s not in (0, 90]", buf, val);
             o.theta_max = v * SB_PI / 180;
@@ -169,7 +120,7 @@ static sb_result_t resolve_warps(sb_context_t *ctx, sb_param_t *p, const sb_para
 static sb_result_t build_glsl(sb_context_t *ctx, sb_param_t *p) {
     static const char *const names[SB_AXIS_COUNT_] = {"sb_warp_h", "sb_warp_d"};
     if (p->glsl) return SB_OK; /* the layout's init built its own */
-    int warps = (registry[p->kind]->caps & SB_CAP_WARPS) != 0;
+    int warps = (p->desc->caps & SB_CAP_WARPS) != 0;
     size_t need = strlen(p->vt->glsl) + 1, n = 0;
     for (int a = 0; a < SB_AXIS_COUNT_ && warps; a++)
         need += sb_warp_glsl(&p->opts.warp[a], names[a], NULL, 0, &n);
@@ -209,7 +160,7 @@ static unsigned long layout_serial(const sb_param_t *p) {
     memcpy(id.tex_w, p->tex_w, sizeof id.tex_w);
     memcpy(id.tex_h, p->tex_h, sizeof id.tex_h);
     id.res[0] = p->opts.res;
-    if (p->kind == SB_PARAM_ISO || p->kind == SB_PARAM_VH) { /* their own cell counts; the others ignore them */
+    if (strcmp(p->desc->keys ? p->desc->keys : "", "res") != 0) { /* their own cell counts; the others ignore them */
         id.res[1] = p->opts.res_theta_h, id.res[2] = p->opts.res_theta_d;
         id.res[3] = p->opts.res_phi_d, id.res[4] = p->opts.res_theta_v;
     }
@@ -246,7 +197,7 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
     sb_param_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "param: out of memory");
     if (opts) p->opts = *opts;
-    if ((unsigned)kind >= SB_PARAM_KIND_COUNT_ || !(registry[kind]->caps & SB_CAP_TABLES)) p->opts.tables = NULL;
+    if (!(sb_param_kind_caps(kind) & SB_CAP_TABLES)) p->opts.tables = NULL; /* only those layouts keep them */
     if (p->opts.res == 0) p->opts.res = 32;
     /* 0 and pi/2 up to rounding (e.g. 90 degrees converted) mean the hemisphere */
     if (p->opts.theta_max == 0 || fabs(p->opts.theta_max - SB_PI / 2) < 1e-12) p->opts.theta_max = SB_PI / 2;
@@ -256,12 +207,16 @@ sb_result_t sb_param_create(sb_context_t *ctx, sb_param_kind_t kind, const sb_pa
         r = sb_error(ctx, SB_ERR_RANGE, "resolution %zu out of range, need 2..4096", p->opts.res);
     } else if (!(p->opts.theta_max > 0 && p->opts.theta_max <= SB_PI / 2 + 1e-12)) {
         r = sb_error(ctx, SB_ERR_RANGE, "theta_max %g out of range, need (0, pi/2]", p->opts.theta_max);
-    } else if ((unsigned)kind >= SB_PARAM_KIND_COUNT_) {
+    } else if (!(p->desc = sb_param_desc_of(kind))) {
         r = sb_error(ctx, SB_ERR_ARG, "param: unknown kind %d", (int)kind);
-    } else if ((r = resolve_warps(ctx, p, registry[kind])) == SB_OK) {
-        const sb_param_desc_t *d = registry[kind];
+    } else if ((r = resolve_warps(ctx, p, p->desc)) == SB_OK) {
+        const sb_param_desc_t *d = p->desc;
         if (d->init) {
+            p->vt = d->vt; /* the library's own may set another */
+            p->in_init = 1;
             r = d->init(ctx, p);
+            p->in_init = 0;
+            if (r == SB_OK && !p->rows) r = sb_error(ctx, SB_ERR_ARG, "param: %s's init gave no shape", d->name);
         } else {
             sb_param_square_grids(p, d->vt, d->name, d->wrap_y);
             r = SB_OK;
@@ -287,8 +242,8 @@ void sb_param_destroy(sb_param_t *p) {
 }
 
 /* Getters: safe values on NULL and out-of-range arguments (common.h). */
-sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p ? p->kind : SB_PARAM_KIND_COUNT_; }
-const char *sb_param_name(const sb_param_t *p) { return p ? registry[p->kind]->name : ""; }
+sb_param_kind_t sb_param_kind(const sb_param_t *p) { return p ? p->kind : SB_PARAM_NONE; }
+const char *sb_param_name(const sb_param_t *p) { return p ? p->desc->name : ""; }
 const char *sb_param_spec(const sb_param_t *p) { return p ? p->spec : ""; }
 size_t sb_param_rows(const sb_param_t *p) { return p ? p->rows : 0; }
 size_t sb_param_cols(const sb_param_t *p) { return p ? p->cols : 0; }
@@ -328,16 +283,16 @@ int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[
     return p->vt->cell_value(p, row, col, rgb);
 }
 double sb_param_apply_gain(const sb_param_t *p, double sum, double gain) {
-    return p && (registry[p->kind]->caps & SB_CAP_TABLES) ? (sum > 0 ? sum : 0) * gain : sum;
+    return p && (p->desc->caps & SB_CAP_TABLES) ? (sum > 0 ? sum : 0) * gain : sum;
 }
 int sb_param_warps_default(const sb_param_t *p) {
-    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS)) return 1;
+    if (!p || !(p->desc->caps & SB_CAP_WARPS)) return 1;
     for (int a = 0; a < SB_AXIS_COUNT_; a++)
-        if (p->opts.warp[a].kind != registry[p->kind]->warp[a]) return 0;
+        if (p->opts.warp[a].kind != p->desc->warp[a]) return 0;
     return 1;
 }
 const sb_warp_t *sb_param_warp(const sb_param_t *p, int axis) {
-    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return NULL;
+    if (!p || !(p->desc->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return NULL;
     return &p->opts.warp[axis];
 }
 sb_result_t sb_param_line_by_grid(sb_context_t *ctx, sb_param_t *p, const sb_param_vt_t *vt, const char *name,
@@ -363,16 +318,16 @@ sb_result_t sb_param_line_by_grid(sb_context_t *ctx, sb_param_t *p, const sb_par
 }
 
 size_t sb_param_warp_cells(const sb_param_t *p, int axis) {
-    if (!p || !(registry[p->kind]->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return 0;
-    if (registry[p->kind]->warp_cells) return registry[p->kind]->warp_cells(p, axis);
+    if (!p || !(p->desc->caps & SB_CAP_WARPS) || axis < 0 || axis >= SB_AXIS_COUNT_) return 0;
+    if (p->desc->warp_cells) return p->desc->warp_cells(p, axis);
     return p->tex_w[axis == SB_AXIS_THETA_H ? SB_SIDE_G : SB_SIDE_H];
 }
 int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]) {
-    if (!p || !u || !w || row >= p->rows || !registry[p->kind]->row_sample) return 0;
-    registry[p->kind]->row_sample(p, row, u, w);
+    if (!p || !u || !w || row >= p->rows || !p->desc->row_sample) return 0;
+    p->desc->row_sample(p, row, u, w);
     return 1;
 }
-const char *sb_param_sample_glsl(const sb_param_t *p) { return p ? registry[p->kind]->sample_glsl : ""; }
+const char *sb_param_sample_glsl(const sb_param_t *p) { return p && p->desc->sample_glsl ? p->desc->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
     if (!wi || !wo) return;
@@ -488,7 +443,7 @@ void sb_dir_half(const double l[3], const double v[3], double h[3]) {
 
 void sb_param_spec_set(sb_param_t *p, const char *body) {
     static const char *const keys[SB_AXIS_COUNT_] = {"warp_h", "warp_d"};
-    const sb_param_desc_t *d = registry[p->kind];
+    const sb_param_desc_t *d = p->desc;
     size_t n = (size_t)snprintf(p->spec, sizeof p->spec, "%s", body);
     if (p->opts.theta_max != SB_PI / 2)
         n += (size_t)snprintf(p->spec + n, sizeof p->spec - n, ",theta_max=%.6g", p->opts.theta_max * 180 / SB_PI);

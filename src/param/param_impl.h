@@ -1,55 +1,27 @@
 /* Private: the registry of parameterisations.  Each lives in one file
  * (param_io.c, param_hd.c, ...) holding its functions (sb_param_vt_t) and
- * one descriptor (sb_param_desc_t), listed in the registry table of
- * param.c. */
+ * one descriptor (sb_param_desc_t), and has one row in the table of
+ * built-in layouts in layouts.c; nothing else names it. */
 #ifndef SEPBRDF_PARAM_IMPL_H
 #define SEPBRDF_PARAM_IMPL_H
 
+#include "sepbrdf/experimental/layout.h"
 #include "sepbrdf/param.h"
 
 /* Longest spec: a kind's keys plus two tables of 63 interior knots. */
 #define SB_PARAM_SPEC_MAX 2048
 
-typedef struct sb_param_vt {
-    int (*cell_dirs)(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]);
-    double (*row_measure)(const sb_param_t *p, size_t row);
-    double (*col_measure)(const sb_param_t *p, size_t col);
-    int (*coords)(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
-    const char *glsl; /* defines vec4 sb_coords(vec3 L, vec3 V) */
-    /* NULL: 1; else the known factor of the value (SB_CAP_TABLES layouts:
-     * value = gain x max(0, sum of the terms)) */
-    double (*gain)(const sb_param_t *p, const double wi[3], const double wo[3]);
-    /* NULL or 0: sample the source; 1: the cell's entry of form cos (the
-     * value over the gain) is rgb, known from the layout's tables */
-    int (*cell_value)(const sb_param_t *p, size_t row, size_t col, double rgb[3]);
-} sb_param_vt_t;
+/* The descriptor is public (experimental/layout.h: programs register
+ * their own); the library's files use these names. */
+typedef sb_layout_vt_t sb_param_vt_t;
+typedef sb_layout_desc_t sb_param_desc_t;
 
-typedef struct sb_param_desc {
-    const char *name;                    /* the spec's kind, e.g. "io" */
-    const char *description;             /* one line, for help texts */
-    const char *keys;                    /* spec keys besides theta_max, comma separated */
-    unsigned caps;                       /* SB_CAP_SEPARABLE ... (param.h) */
-    sb_warp_kind_t warp[SB_AXIS_COUNT_]; /* SB_CAP_WARPS: the layout's own warp per axis */
-    int wrap_y;                          /* init NULL: y wrap of the square grids (sb_param_square_grids) */
-    /* fill p (rows, cols, textures, wrap, spec, vt) from p->opts; SB_OK or
-     * an error reported through ctx.  NULL: both sides on R x R grids */
-    sb_result_t (*init)(sb_context_t *ctx, sb_param_t *p);
-    const sb_param_vt_t *vt;
-    /* texels along warp axis `axis` that sb_warp_measure's scan describes,
-     * 0 for none; NULL: theta_h along the g textures' x, theta_d along the
-     * h textures' x */
-    size_t (*warp_cells)(const sb_param_t *p, int axis);
-    /* sampling (sb_param_row_sample): a direction uniform in solid angle
-     * over row cell `row`, and its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` */
-    void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
-    const char *sample_glsl;
-} sb_param_desc_t;
-
-extern const sb_param_desc_t sb_param_desc_io, sb_param_desc_io_area, sb_param_desc_hd, sb_param_desc_iso,
-    sb_param_desc_vh, sb_param_desc_vndf;
+/* The registry (layouts.c): the descriptor of kind, NULL out of range. */
+const sb_param_desc_t *sb_param_desc_of(sb_param_kind_t kind);
 
 struct sb_param {
     sb_param_kind_t kind;
+    const sb_param_desc_t *desc; /* the registry's row of kind */
     const sb_param_vt_t *vt;
     sb_param_opts_t opts; /* resolved: res, theta_max, warps (SB_CAP_WARPS) set */
     size_t rows, cols;
@@ -59,6 +31,7 @@ struct sb_param {
     sb_layout_tables_t *tables; /* SB_CAP_TABLES: its own copy (opts.tables points here) */
     char spec[SB_PARAM_SPEC_MAX];
     unsigned long serial; /* the same for the same resolved layout (sb_param_serial_) */
+    int in_init;          /* within the descriptor's init: sb_param_set_shape allowed */
 };
 
 /* Warps (warp.c).  Elevation of texel edge or centre i (i = index, or

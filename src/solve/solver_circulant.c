@@ -71,13 +71,13 @@ static sb_result_t exact(void *state, const sb_solve_in_t *in, double t, size_t 
 static size_t distinct_rows(const void *state) { return ((const circ_state_t *)state)->R; }
 
 const sb_solver_t sb_solver_circulant = {
-    "circulant",
-    "exact block-circulant SVD of isotropic sources on the io grid (R/2 + 1 blocks of R x R)",
-    SB_CAP_ORTHONORMAL | SB_CAP_EXACT_TAILS | SB_CAP_ALL_SIGMA | SB_CAP_STRUCTURED,
-    takes,
-    plan,
-    destroy,
-    suits,
-    execute,
-    exact,
-    distinct_rows};
+    .name = "circulant",
+    .description = "exact block-circulant SVD of isotropic sources on the io grid (R/2 + 1 blocks of R x R)",
+    .caps = SB_CAP_ORTHONORMAL | SB_CAP_EXACT_TAILS | SB_CAP_ALL_SIGMA | SB_CAP_STRUCTURED,
+    .takes = takes,
+    .plan = plan,
+    .destroy = destroy,
+    .suits = suits,
+    .execute = execute,
+    .exact = exact,
+    .distinct_rows = distinct_rows};

@@ -21,14 +21,20 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     return sb_svd_execute(state, in->x, in->ldx, out->s, out->u, out->v, NULL, NULL);
 }
 
-/* A dense solver: orthonormal terms, no mask, no structure. */
-#define SB_DENSE_SOLVER(id, name, description, caps, takes)                                                            \
-    const sb_solver_t id = {name, description, SB_CAP_ORTHONORMAL | (caps), takes, plan, destroy, NULL, execute,       \
-                            NULL, NULL}
+/* A dense solver: orthonormal terms, no mask, no structure; a method. */
+#define SB_DENSE_SOLVER(id, name_, description_, caps_, takes_, note_)                                                 \
+    const sb_solver_t id = {.name = name_,                                                                             \
+                            .description = description_,                                                               \
+                            .caps = SB_CAP_ORTHONORMAL | SB_CAP_METHOD | (caps_),                                      \
+                            .takes = takes_,                                                                           \
+                            .plan = plan,                                                                              \
+                            .destroy = destroy,                                                                        \
+                            .execute = execute,                                                                        \
+                            .note = note_}
 
 SB_DENSE_SOLVER(sb_solver_full, "full", "LAPACK dgesdd: every singular value, optimal truncation", SB_CAP_ALL_SIGMA,
-                takes_full);
+                takes_full, "dgesdd");
 SB_DENSE_SOLVER(sb_solver_topk, "topk", "the exact leading terms: Gram matrix, dsyevr and a Rayleigh-Ritz step", 0,
-                takes_topk);
+                takes_topk, NULL);
 SB_DENSE_SOLVER(sb_solver_randomized, "randomized",
-                "Halko-Martinsson-Tropp range finder with block Krylov iterations (seeded)", 0, takes_rand);
+                "Halko-Martinsson-Tropp range finder with block Krylov iterations (seeded)", 0, takes_rand, NULL);

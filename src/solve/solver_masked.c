@@ -50,9 +50,11 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     return r;
 }
 
-const sb_solver_t sb_solver_masked = {
-    "masked",     "fit on the valid cells only: imputation, then alternating least squares",
-    SB_CAP_MASKS, takes,
-    plan,         destroy,
-    NULL,         execute,
-    NULL,         NULL};
+const sb_solver_t sb_solver_masked = {.name = "masked",
+                                      .description =
+                                          "fit on the valid cells only: imputation, then alternating least squares",
+                                      .caps = SB_CAP_MASKS,
+                                      .takes = takes,
+                                      .plan = plan,
+                                      .destroy = destroy,
+                                      .execute = execute};

@@ -73,8 +73,6 @@ typedef struct nmf_state {
     double *u1, *v1;    /* the fit before the taps' constraints, m x J, n x J */
 } nmf_state_t;
 
-static int takes(const sb_solve_problem_t *pb) { return pb->svd.method == SB_METHOD_NMF; }
-
 static void destroy(void *state) {
     nmf_state_t *s = state;
     if (!s) return;
@@ -342,13 +340,11 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
 }
 
 const sb_solver_t sb_solver_nmf = {
-    "nmf",
-    "non-negative factors (HALS, terms added in stages) on the valid cells: every texel and reconstruction >= 0",
-    SB_CAP_NONNEG | SB_CAP_MASKS,
-    takes,
-    plan,
-    destroy,
-    NULL,
-    execute,
-    NULL,
-    NULL};
+    .name = "nmf",
+    .description =
+        "non-negative factors (HALS, terms added in stages) on the valid cells: every texel and reconstruction >= 0",
+    .caps = SB_CAP_NONNEG | SB_CAP_MASKS | SB_CAP_METHOD,
+    .plan = plan,
+    .destroy = destroy,
+    .execute = execute,
+    .note = "non-negative factors and a sampler"};

@@ -332,15 +332,11 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
 }
 
 const sb_solver_t sb_solver_stream = {
-    "stream",
-    "matrix-free subspace iteration: the matrix evaluated from the source in blocks of columns, one pass per "
-    "power step, all channels at once; for matrices beyond the memory limit",
-    SB_CAP_ORTHONORMAL | SB_CAP_STRUCTURED | SB_CAP_STREAMED,
-    takes,
-    plan,
-    destroy,
-    NULL,
-    execute,
-    NULL,
-    NULL,
-};
+    .name = "stream",
+    .description = "matrix-free subspace iteration: the matrix evaluated from the source in blocks of columns, one "
+                   "pass per power step, all channels at once; for matrices beyond the memory limit",
+    .caps = SB_CAP_ORTHONORMAL | SB_CAP_STRUCTURED | SB_CAP_STREAMED | SB_CAP_METHOD,
+    .takes = takes,
+    .plan = plan,
+    .destroy = destroy,
+    .execute = execute};

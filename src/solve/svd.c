@@ -13,21 +13,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "solve/solver.h"
 #include "solve/svd_internal.h"
 #include "util/internal.h"
-
-static const char *const method_names[SB_METHOD_COUNT_] = {"auto", "full", "topk", "randomized", "nmf", "stream"};
-
-sb_result_t sb_method_parse(const char *name, sb_method_t *out) {
-    if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_METHOD_COUNT_; k++)
-        if (name && strcmp(name, method_names[k]) == 0) {
-            *out = (sb_method_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
-}
-const char *sb_method_name(sb_method_t m) { return (unsigned)m < SB_METHOD_COUNT_ ? method_names[m] : "?"; }
 
 #define SB_SVD_DEFAULT_P 10
 #define SB_SVD_DEFAULT_Q 2
@@ -45,7 +33,7 @@ static sb_method_t auto_method(size_t d, size_t k, size_t p) {
 static int resolve_p(int oversample) { return oversample > 0 ? oversample : oversample < 0 ? 0 : SB_SVD_DEFAULT_P; }
 
 sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t *opts) {
-    if (opts && (unsigned)opts->method >= SB_METHOD_COUNT_) return SB_METHOD_COUNT_;
+    if (opts && !sb_method_known(opts->method)) return SB_METHOD_NONE;
     if (opts && opts->method != SB_METHOD_AUTO) return opts->method;
     return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
 }
@@ -68,7 +56,8 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
     sb_svd_opts_t o = {0};
     if (opts) o = *opts;
-    if ((unsigned)o.method >= SB_METHOD_COUNT_ || o.method == SB_METHOD_NMF || o.method == SB_METHOD_STREAM)
+    if (o.method != SB_METHOD_AUTO && o.method != SB_METHOD_FULL && o.method != SB_METHOD_TOPK &&
+        o.method != SB_METHOD_RANDOMIZED)
         return sb_error(ctx, SB_ERR_ARG, "svd: method %d is not an SVD method", (int)o.method);
     if (o.power_iters > SB_SVD_MAX_POWER_ITERS)
         return sb_error(ctx, SB_ERR_RANGE, "svd: %d power iterations, at most %d", o.power_iters,
@@ -145,7 +134,7 @@ void sb_svd_destroy(sb_svd_t *s) {
     free(s);
 }
 
-sb_method_t sb_svd_method(const sb_svd_t *s) { return s ? s->method : SB_METHOD_COUNT_; }
+sb_method_t sb_svd_method(const sb_svd_t *s) { return s ? s->method : SB_METHOD_NONE; }
 size_t sb_svd_rank(const sb_svd_t *s) { return s ? s->k : 0; }
 size_t sb_svd_workspace_bytes(const sb_svd_t *s) { return s ? s->bytes : 0; }
 sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) {

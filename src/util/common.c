@@ -132,3 +132,17 @@ size_t sb_memory_limit(void) {
     double total = (double)pages * (double)psize;
     return (size_t)(total * 0.75);
 }
+
+const char *sb_version(void) { return SB_VERSION_STRING; }
+unsigned sb_version_number(void) { return SB_VERSION_MAJOR * 10000u + SB_VERSION_MINOR * 100u + SB_VERSION_PATCH; }
+
+sb_result_t sb_opts_take(sb_context_t *ctx, const void *in, size_t given, size_t size0, void *out, size_t size,
+                         const char *what) {
+    size_t n = given ? given : size0;
+    if (n < sizeof(size_t) || n > size)
+        return sb_error(ctx, SB_ERR_ARG, "%s of %zu bytes, this library (sepbrdf %s) takes %zu at most", what, given,
+                        SB_VERSION_STRING, size);
+    memset(out, 0, size);
+    memcpy(out, in, n);
+    return SB_OK;
+}

@@ -6,8 +6,17 @@
 #include <stdio.h>
 
 #include "sepbrdf/common.h"
+#include "util/shared.h"
 
 char *sb_strdup(const char *s);
+/* Versioned options (job.h, factor.h): the caller's struct `in`, whose
+ * size field says `given` bytes (0: size0, the struct before it had a
+ * size), as this library's struct of `size` bytes in out: the bytes the
+ * caller's headers had, the rest zero (the defaults).  SB_ERR_ARG for a
+ * size beyond `size` (newer headers) or below a size_t; `what` names the
+ * struct in the message.  The caller then sets out's size field. */
+sb_result_t sb_opts_take(sb_context_t *ctx, const void *in, size_t given, size_t size0, void *out, size_t size,
+                         const char *what);
 /* printf into a new string of any length (the caller frees it); NULL when
  * out of memory. */
 char *sb_format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -42,11 +51,6 @@ void sb_context_alias(sb_context_t *ctx, const char *from, const char *to);
 int sb_group_active(const sb_context_t *ctx);
 int sb_group_owns(const sb_context_t *ctx, size_t block);
 sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op);
-
-/* Why a write failed, from its errno: the library's words for the errors
- * users act on (a full disk, a quota), else strerror (util.c; declared
- * for users in outset.h). */
-const char *sb_io_why(int err);
 
 /* Most threads any parallel loop uses (parallel.h). */
 #define SB_THREADS_MAX 64

@@ -20,23 +20,6 @@ char *sb_strdup(const char *s) {
     return d;
 }
 
-/* What errno `err` of a failed write means, in words a user acts on
- * (outset.h). */
-const char *sb_io_why(int err) {
-    switch (err) {
-    case ENOSPC:
-        return "disk full (no space left on device)";
-    case EDQUOT:
-        return "disk quota exceeded";
-    case EFBIG:
-        return "file too large (the file size limit, ulimit -f, was reached)";
-    case ENAMETOOLONG:
-        return "name too long for the file system";
-    default:
-        return strerror(err);
-    }
-}
-
 FILE *sb_fopen_regular(sb_context_t *ctx, const char *path, const char *what, unsigned long long max, sb_result_t *r) {
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC), e = fd < 0 ? errno : 0;
     struct stat st;

@@ -1,8 +1,8 @@
-/* The minimal JSON writer of job.h. */
+/* The minimal JSON writer (util/shared.h). */
 #include <math.h>
 #include <stdio.h>
 
-#include "sepbrdf/job.h"
+#include "util/shared.h"
 
 static void json_escape(FILE *fp, const char *s) {
     fputc('"', fp);
