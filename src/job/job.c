@@ -133,13 +133,14 @@ static void job_warn_max_error(sb_job_t *job) {
 }
 
 static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *own, const sb_job_opts_t *opts,
-                       double t0, sb_job_t **out) {
+                       double t0, int as_auto, sb_job_t **out) {
     sb_job_t *job = calloc(1, sizeof *job);
     if (!job) {
         sb_source_destroy(own);
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
     job->t_start = t0;
+    job->fit_as_auto = as_auto;
     job->src = job->eval_src = src;
     job->own_src = own;
     sb_param_kind_t kind;
@@ -180,7 +181,13 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
 sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, sb_job_t **out) {
     if (!src || !opts || !out) return sb_error(ctx, SB_ERR_ARG, "sb_job_run_source: NULL argument");
     *out = NULL;
-    return run(ctx, src, NULL, opts, job_now(), out);
+    return run(ctx, src, NULL, opts, job_now(), 0, out);
+}
+
+sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
+                       sb_job_t **out) {
+    *out = NULL;
+    return run(ctx, src, NULL, opts, job_now(), as_auto, out);
 }
 
 sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out) {
@@ -191,7 +198,7 @@ sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **
     const char *spec = opts->source ? opts->source : SB_JOB_DEFAULT_SOURCE;
     sb_result_t r = sb_job_source_open(ctx, spec, &opts->measured, &src);
     if (r != SB_OK) return r;
-    return run(ctx, src, src, opts, t0, out);
+    return run(ctx, src, src, opts, t0, 0, out);
 }
 
 sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {

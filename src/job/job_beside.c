@@ -32,7 +32,7 @@ sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     o.max_error = 0;
     o.out = NULL;
     sb_job_t *svd = NULL;
-    sb_result_t r = sb_job_run_source(ctx, job->src, &o, &svd);
+    sb_result_t r = job_run_as(ctx, job->src, &o, job->is_auto, &svd); /* fitted as the default run fits it */
     if (r == SB_ERR_NOMEM) return r;
     free(job->svd_beside);
     job->svd_beside = r == SB_OK ? malloc(2 * J * sizeof *job->svd_beside) : NULL;
