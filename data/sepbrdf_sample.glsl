@@ -195,8 +195,10 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
     sb_row_cut(hv, cell.y, zc, xc);
     if (cell.x >= xc) return 0.0;
     vec2 zb = sb_col_z(cell.x);
-    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = min(zb.y, zc) - zb.x;
-    float len = sb_phi_valid(hv, zb.x, sb_row_arc(cell.y), 0.0, ph);
+    vec2 arc = sb_row_arc(cell.y);
+    bool circle = arc.y >= 2.0 * SB_PI - 1e-3; // iso: the valid part; hd: the whole cell
+    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = (circle ? min(zb.y, zc) : zb.y) - zb.x;
+    float len = circle ? sb_phi_valid(hv, zb.x, arc, 0.0, ph) : arc.y;
     if (!(c > 0.0) || !(dz > 0.0) || !(len > 0.0) || !(z <= zc)) return 0.0;
     int W = textureSize(sb_cdf, 0).x - 1, K = sb_dists();
     float num = 0.0, total = 0.0;
@@ -242,9 +244,14 @@ bool sb_half_dir(vec3 V, int k, float u0, float u1, out vec3 D) {
     sb_row_cut(hv, y, zc, xc);
     u1 *= sb_cdf_at(k, ivec2(xc - 1, y)); // the conditional up to the cut
     int x = sb_cdf_find(k, ivec2(0, y), ivec2(1, 0), xc, u1);
-    vec2 zb = sb_col_z(x);
-    float z = zb.x + u1 * (min(zb.y, zc) - zb.x), phi;
-    if (!(sb_phi_valid(hv, zb.x, sb_row_arc(y), u0, phi) > 0.0)) return false;
+    vec2 zb = sb_col_z(x), arc = sb_row_arc(y);
+    bool circle = arc.y >= 2.0 * SB_PI - 1e-3;
+    float z = zb.x + u1 * ((circle ? min(zb.y, zc) : zb.y) - zb.x), phi;
+    if (!(z <= zc)) return false;
+    if (!circle)
+        phi = arc.x + u0 * arc.y;
+    else if (!(sb_phi_valid(hv, zb.x, arc, u0, phi) > 0.0))
+        return false;
     float st = sqrt(max(z * (2.0 - z), 0.0));
     vec3 Hh = vec3(st * cos(phi), st * sin(phi), 1.0 - z);
     float c = dot(Hh, V);

@@ -27,7 +27,8 @@ static inline void fixture_free(fixture_t *x) {
  * or, with a '/', a measured file) on kind at res R, and their sampler. */
 static const sb_warp_t *fixture_warp_h; /* theta_h warp of the next fixture (NULL: the layout's own) */
 
-static inline int fixture(const char *spec, sb_param_kind_t kind, size_t R, size_t J, sb_method_t method, fixture_t *x) {
+static inline int fixture(const char *spec, sb_param_kind_t kind, size_t R, size_t J, sb_method_t method,
+                          fixture_t *x) {
     memset(x, 0, sizeof *x);
     sb_param_opts_t po = {0};
     po.res = R;

@@ -359,6 +359,17 @@ static double cell_prob(const sb_sampler_t *s, const wkey_t *key, const cuts_t *
     return total > 0 ? num / total : 0;
 }
 
+/* Whether a row's arc is the whole circle (iso): its h are drawn in z up
+ * to the row's cut and in phi on the part valid at the cell's lowest z.
+ * On the arcs of hd, over the whole cell (an h reflected below the
+ * horizon is a failed sample): the kept part's extent there is a
+ * difference of nearly equal values near the cut, which float and double
+ * round apart (the GLSL's pdf at the same L differed by up to 13 %, beyond
+ * 1e-4 relative at 4 % of the samples; now within 3.1e-5), for 94 -> 89 %
+ * of the samples succeeding (GGX 0.3, 16 cells, theta_o 20; 93 -> 87 % at
+ * 65).  On iso the same cost 90 -> 70 % and 96 -> 55 %. */
+static int full_circle(double w) { return w >= 2 * SB_PI - 1e-6; }
+
 /* The factored component's density at wi (0 where no term has weight).
  * Half rows: h uniform over the cell's z range below the row's cut and
  * the part of its phi arc that reflects wo above the horizon at the
@@ -380,7 +391,9 @@ static double factored_pdf(const sb_sampler_t *s, const double wo[3], const doub
     for (int i = 0; i < 3; i++)
         h[i] /= n;
     double cosv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2], z = one_minus_z(h);
-    double dz = fmin(s->zhi[x], c.z[y]) - s->zlo[x], len = half_phi_len(&c.v, s->zlo[x], s->pa[y], s->pw[y]);
+    int circle = full_circle(s->pw[y]);
+    double dz = (circle ? fmin(s->zhi[x], c.z[y]) : s->zhi[x]) - s->zlo[x];
+    double len = circle ? half_phi_len(&c.v, s->zlo[x], s->pa[y], s->pw[y]) : s->pw[y];
     if (!(cosv > 0) || !(dz > 0) || !(len > 0) || !(z <= c.z[y])) return 0;
     return cell_prob(s, key, &c, x, y) / (dz * len) / (4 * cosv);
 }
@@ -418,8 +431,13 @@ static int half_dir(const sb_sampler_t *s, const double wo[3], size_t k, double 
     const double *cond = s->cond + (k * s->H + y) * s->W;
     u1 *= cond[c.x[y] - 1]; /* the conditional up to the cut */
     size_t x = cdf_find(cond, c.x[y], &u1);
-    double z = s->zlo[x] + u1 * (fmin(s->zhi[x], c.z[y]) - s->zlo[x]), phi;
-    if (!half_phi_sample(&c.v, s->zlo[x], s->pa[y], s->pw[y], u0, &phi)) return 0;
+    int circle = full_circle(s->pw[y]);
+    double z = s->zlo[x] + u1 * ((circle ? fmin(s->zhi[x], c.z[y]) : s->zhi[x]) - s->zlo[x]), phi;
+    if (!(z <= c.z[y])) return 0;
+    if (!circle)
+        phi = s->pa[y] + u0 * s->pw[y];
+    else if (!half_phi_sample(&c.v, s->zlo[x], s->pa[y], s->pw[y], u0, &phi))
+        return 0;
     double st = sqrt(fmax(z * (2 - z), 0)), h[3] = {st * cos(phi), st * sin(phi), 1 - z};
     double cv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];
     if (!(cv > 0)) return 0;

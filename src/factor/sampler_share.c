@@ -36,8 +36,8 @@ static const double TH_DEG[SB_SAMPLER_CHOICE_WO] = {10, 30, 50, 70};
 
 /* For wo: m2[k] = int y^2 / p_{s_k}, over n draws of q = p_{1/2} (the
  * sampler at share 1/2); *mean = L.  Returns 0 when nothing was drawn. */
-static int moments(sb_sampler_t *s, const sb_source_t *src, const double wo[3], size_t n, uint64_t seed,
-                   double *m2, double *mean) {
+static int moments(sb_sampler_t *s, const sb_source_t *src, const double wo[3], size_t n, uint64_t seed, double *m2,
+                   double *mean) {
     sb_rng_t rng;
     sb_rng_seed(&rng, seed);
     double sum = 0;
