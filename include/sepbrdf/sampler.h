@@ -39,10 +39,16 @@
  * and renormalised by their mass Z_k(wo); a term with Z_k = 0 is a failed
  * sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
  * and in phi over the part A of the cell's arc whose h at z_lo reflect wo
- * above the horizon (a superset of that part at every higher z):
+ * above the horizon (a superset of that part at every higher z) where the
+ * row's arc is the whole circle (iso), and over the whole cell (dz = z_hi
+ * - z_lo, |A| its arc; an h beyond z_c or reflected below the horizon is
+ * a failed sample) on the arcs of hd, where the kept part's extent is a
+ * difference of nearly equal values that float (the GLSL) and double
+ * round apart:
  *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / Z_k / (dz |A|) / (4 wo.h).  With the form f cos(theta_i) or
  * f cos(theta_i) cos(theta_o) it is proportional to f cos(theta_i) at the
- * cell centres (io, io-area); with the form f, to f.  A share s of the
+ * cell centres (io, io-area); with the form f, to f cos(theta_i) at the
+ * cell centres on io and io-area (rows are wi), to f on hd and iso.  A share s of the
  * samples is cosine-weighted (defensive sampling, one-sample MIS with the
  * balance heuristic), so that the density is positive wherever the
  * reconstruction is, also between texel centres where the bilinear lookup
@@ -54,7 +60,7 @@
  * the source (sb_sampler_choose_share): 1, cosine sampling itself, where
  * the factored density would add noise against the true BRDF.
  * In the half-vector layouts an h that still reflects wo below the horizon
- * (or beyond theta_max) is a failed sample (6-12 % of them in the tests,
+ * (or beyond theta_max) is a failed sample (6-14 % of them in the tests,
  * 25-47 % when h was drawn from all of g_k): the pdf then integrates over
  * the hemisphere to 1 minus the probability of failure (as for microfacet
  * sampling in pbrt and Mitsuba); in io and io-area it integrates to 1
