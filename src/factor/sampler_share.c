@@ -28,8 +28,9 @@ static const double CANDS[NCAND] = {1, 0.7, 0.5, 0.35, 0.25, 0.15, 0.1, 0.05, SB
 #define NPHI 3
 static const double PHIS[NPHI] = {0.5, 2.6, 4.7};
 /* A share is taken only where its estimated ratio is at least this at
- * every elevation (the estimate's relative standard error at 4096 draws
- * was 1-5 % on GGX 0.1-0.5 and the Cornell table). */
+ * every elevation: a margin for the estimate's noise (the default gold on
+ * iso: 6.4, 6.3, 9.3, 17.1 estimated here, 5.9, 5.4, 8.0, 15.0 by
+ * bench/sampler_variance.c with 10^5 new draws at another azimuth). */
 #define SB_SHARE_MARGIN 1.1
 
 static const double TH_DEG[SB_SAMPLER_CHOICE_WO] = {10, 30, 50, 70};

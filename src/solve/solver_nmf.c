@@ -295,7 +295,7 @@ static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
 
 /* Step: the stages (see the top): term k - 1 seeded from the positive
  * part of the residual of the terms before it, then the k terms refitted
- * jointly. */
+ * (nested: hals). */
 static void stages(nmf_state_t *s, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n;
     memset(out->u, 0, m * s->J * sizeof *out->u);
