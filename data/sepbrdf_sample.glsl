@@ -11,16 +11,16 @@
 // results.  `sepbrdf factor` appends this block to sepbrdf.glsl after the
 // snippet, when the factors are non-negative (--method nmf), with a header
 // defining SB_SAMPLE_CH (channels of the factors), SB_HALF_ROWS (rows index
-// the half vector: hd, iso), SB_COSINE_SHARE and the parameterisation's
-// sb_row_dir().
+// the half vector: hd, iso) and the parameterisation's sb_row_dir().
 //
 // sb_cdf: sampler.bin's float32 data as an R32F GL_TEXTURE_2D_ARRAY of
 // (W + 1) x (H + 1) texels and J * SB_SAMPLE_CH + 1 layers (read with
 // texelFetch only, any filter).  Layer k = j * SB_SAMPLE_CH + c: texel
 // (x, y < H) the conditional CDF of texel row y, (W, y) the marginal CDF,
 // (0, H) the integral of g_k; layer K = J * SB_SAMPLE_CH the solid angle of
-// each cell; with SB_HALF_ROWS, layer K + 1 + k the weight of k for V in
-// each cell.
+// each cell and at (0, H) the share of cosine-weighted samples (chosen per
+// material: 1 where the factored density would add noise); with
+// SB_HALF_ROWS, layer K + 1 + k the weight of k for V in each cell.
 
 uniform sampler2DArray sb_cdf;
 
@@ -58,6 +58,9 @@ int sb_dists() {
     return textureSize(sb_cdf, 0).z - 1;
 #endif
 }
+
+// The share of cosine-weighted samples (sampler.bin, layer K at (0, H)).
+float sb_cosine_share() { return sb_cdf_at(sb_dists(), ivec2(0, textureSize(sb_cdf, 0).y - 1)); }
 
 #if SB_HALF_ROWS
 // The weights' key: the row cell of V (that of the pair (V, V), whose half
@@ -192,8 +195,10 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
     sb_row_cut(hv, cell.y, zc, xc);
     if (cell.x >= xc) return 0.0;
     vec2 zb = sb_col_z(cell.x);
-    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = min(zb.y, zc) - zb.x;
-    float len = sb_phi_valid(hv, zb.x, sb_row_arc(cell.y), 0.0, ph);
+    vec2 arc = sb_row_arc(cell.y);
+    bool circle = arc.y >= 2.0 * SB_PI - 1e-3; // iso: the valid part; hd: the whole cell
+    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = (circle ? min(zb.y, zc) : zb.y) - zb.x;
+    float len = circle ? sb_phi_valid(hv, zb.x, arc, 0.0, ph) : arc.y;
     if (!(c > 0.0) || !(dz > 0.0) || !(len > 0.0) || !(z <= zc)) return 0.0;
     int W = textureSize(sb_cdf, 0).x - 1, K = sb_dists();
     float num = 0.0, total = 0.0;
@@ -239,9 +244,14 @@ bool sb_half_dir(vec3 V, int k, float u0, float u1, out vec3 D) {
     sb_row_cut(hv, y, zc, xc);
     u1 *= sb_cdf_at(k, ivec2(xc - 1, y)); // the conditional up to the cut
     int x = sb_cdf_find(k, ivec2(0, y), ivec2(1, 0), xc, u1);
-    vec2 zb = sb_col_z(x);
-    float z = zb.x + u1 * (min(zb.y, zc) - zb.x), phi;
-    if (!(sb_phi_valid(hv, zb.x, sb_row_arc(y), u0, phi) > 0.0)) return false;
+    vec2 zb = sb_col_z(x), arc = sb_row_arc(y);
+    bool circle = arc.y >= 2.0 * SB_PI - 1e-3;
+    float z = zb.x + u1 * ((circle ? min(zb.y, zc) : zb.y) - zb.x), phi;
+    if (!(z <= zc)) return false;
+    if (!circle)
+        phi = arc.x + u0 * arc.y;
+    else if (!(sb_phi_valid(hv, zb.x, arc, u0, phi) > 0.0))
+        return false;
     float st = sqrt(max(z * (2.0 - z), 0.0));
     vec3 Hh = vec3(st * cos(phi), st * sin(phi), 1.0 - z);
     float c = dot(Hh, V);
@@ -274,7 +284,8 @@ float sb_pdf(vec3 L, vec3 V) {
     vec4 st = sb_coords(L, V);
     vec2 sw;
     if (!sb_domain(L, V, st) || !sb_weight_key(V, sw)) return 0.0;
-    return SB_COSINE_SHARE * L.z / SB_PI + (1.0 - SB_COSINE_SHARE) * sb_factored_pdf(L, V, st.xy, sw);
+    float s = sb_cosine_share();
+    return s * L.z / SB_PI + (s < 1.0 ? (1.0 - s) * sb_factored_pdf(L, V, st.xy, sw) : 0.0);
 }
 
 // The factored component: distribution k by u0, then the cell's row y (u0
@@ -319,10 +330,11 @@ bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf) {
     vec2 sw;
     if (!sb_weight_key(V, sw)) return false;
     vec3 D;
-    if (u.x < SB_COSINE_SHARE) { // cosine-weighted share
-        float r = sqrt(u.x / SB_COSINE_SHARE), phi = 2.0 * SB_PI * u.y;
+    float s = sb_cosine_share();
+    if (u.x < s) { // cosine-weighted share
+        float r = sqrt(u.x / s), phi = 2.0 * SB_PI * u.y;
         D = vec3(r * cos(phi), r * sin(phi), sqrt(max(1.0 - r * r, 0.0)));
-    } else if (!sb_factored_dir(V, sw, min((u.x - SB_COSINE_SHARE) / (1.0 - SB_COSINE_SHARE), SB_ONE_MINUS), u.y, D)) {
+    } else if (!sb_factored_dir(V, sw, min((u.x - s) / (1.0 - s), SB_ONE_MINUS), u.y, D)) {
         return false;
     }
     vec3 Ln = normalize(D);

@@ -306,14 +306,26 @@ static const char *const sample_main = "uniform vec3 u_V;\n"
                                        "    frag = ok ? vec4(L, pdf) : vec4(0.0, 0.0, 0.0, -1.0);\n"
                                        "}\n";
 
-int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
-                   const gl_sampler_table_t *t, const double V[3], size_t n, float *out, char *err, size_t err_size) {
+/* Pixel (x, y) evaluates sb_pdf at L = texel (x, y) of u_L. */
+static const char *const pdf_main = "uniform vec3 u_V;\n"
+                                    "uniform highp sampler2D u_L;\n"
+                                    "out vec4 frag;\n"
+                                    "void main() {\n"
+                                    "    vec3 L = texelFetch(u_L, ivec2(gl_FragCoord.xy), 0).xyz;\n"
+                                    "    frag = vec4(sb_pdf(L, u_V), 0.0, 0.0, 1.0);\n"
+                                    "}\n";
+
+/* main_src over n x n pixels with the factors, the tables and V (and L:
+ * n x n RGB32F directions as u_L, NULL: none). */
+static int sampler_pass(gl_sphere_t *g, const char *snippet, const char *main_src, const sb_factors_t *f,
+                        const sb_param_t *p, const gl_sampler_table_t *t, const double V[3], const float *L, size_t n,
+                        float *out, char *err, size_t err_size) {
     if (!OSMesaMakeCurrent(g->osm, g->dummy, GL_UNSIGNED_BYTE, 4, 4)) return fail(err, err_size, "OSMesa: not current");
-    GLuint prog = program(snippet, sample_main, err, err_size);
+    GLuint prog = program(snippet, main_src, err, err_size);
     if (!prog) return -1;
     int rc = -1;
-    GLuint tex[3] = {0, 0, 0}, target = 0, fbo = 0, vao = 0;
-    glGenTextures(3, tex);
+    GLuint tex[4] = {0, 0, 0, 0}, target = 0, fbo = 0, vao = 0;
+    glGenTextures(4, tex);
     if (upload(f, p, SB_SIDE_G, tex[0], err, err_size) || upload(f, p, SB_SIDE_H, tex[1], err, err_size)) goto out;
     glBindTexture(GL_TEXTURE_2D_ARRAY, tex[2]);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
@@ -322,6 +334,12 @@ int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, c
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAX_LEVEL, 0);
+    if (L) {
+        glBindTexture(GL_TEXTURE_2D, tex[3]);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, (GLsizei)n, (GLsizei)n, 0, GL_RGB, GL_FLOAT, L);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    }
     if (float_target((GLsizei)n, &target, &fbo, err, err_size)) goto out;
     glViewport(0, 0, (GLsizei)n, (GLsizei)n);
     glDisable(GL_DEPTH_TEST);
@@ -333,8 +351,13 @@ int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, c
         glBindTexture(GL_TEXTURE_2D_ARRAY, tex[i]);
         glUniform1i(glGetUniformLocation(prog, names[i]), i);
     }
+    if (L) {
+        glActiveTexture(GL_TEXTURE3);
+        glBindTexture(GL_TEXTURE_2D, tex[3]);
+        glUniform1i(glGetUniformLocation(prog, "u_L"), 3);
+    }
     glUniform3f(glGetUniformLocation(prog, "u_V"), (GLfloat)V[0], (GLfloat)V[1], (GLfloat)V[2]);
-    glUniform1f(glGetUniformLocation(prog, "u_n"), (GLfloat)n);
+    if (!L) glUniform1f(glGetUniformLocation(prog, "u_n"), (GLfloat)n);
     glGenVertexArrays(1, &vao);
     glBindVertexArray(vao);
     glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
@@ -343,6 +366,17 @@ int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, c
     GLenum e = glGetError();
     rc = e == GL_NO_ERROR ? 0 : fail(err, err_size, "GL error 0x%x", e);
 out:
-    release(prog, vao, fbo, target, tex, 3);
+    release(prog, vao, fbo, target, tex, 4);
     return rc;
+}
+
+int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
+                   const gl_sampler_table_t *t, const double V[3], size_t n, float *out, char *err, size_t err_size) {
+    return sampler_pass(g, snippet, sample_main, f, p, t, V, NULL, n, out, err, err_size);
+}
+
+int gl_pdf_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
+                const gl_sampler_table_t *t, const double V[3], const float *L, size_t n, float *out, char *err,
+                size_t err_size) {
+    return sampler_pass(g, snippet, pdf_main, f, p, t, V, L, n, out, err, err_size);
 }

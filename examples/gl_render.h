@@ -50,4 +50,11 @@ typedef struct gl_sampler_table {
 int gl_sample_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
                    const gl_sampler_table_t *t, const double V[3], size_t n, float *out, char *err, size_t err_size);
 
+/* The same setup, evaluating sb_pdf(L, V) at the n x n directions L (3
+ * floats each, pixel (x, y) at (y n + x) * 3): out receives n * n * 4
+ * floats, the pdf first.  0 on success, -1 with a message in err. */
+int gl_pdf_grid(gl_sphere_t *g, const char *snippet, const sb_factors_t *f, const sb_param_t *p,
+                const gl_sampler_table_t *t, const double V[3], const float *L, size_t n, float *out, char *err,
+                size_t err_size);
+
 #endif

@@ -28,58 +28,7 @@
 static int sub_half = SUB_HALF;
 #define MIN_EXP 5. /* bins expecting fewer counts are pooled */
 
-typedef struct fixture {
-    sb_param_t *p;
-    sb_factors_t *f;
-    sb_sampler_t *s;
-    sb_source_t *src;
-} fixture_t;
-
-static void fixture_free(fixture_t *x) {
-    sb_sampler_destroy(x->s);
-    sb_factors_destroy(x->f);
-    sb_param_destroy(x->p);
-    sb_source_destroy(x->src);
-}
-
-/* Non-negative factors (J terms, form f cos(theta_i)) of `spec` (a model
- * or, with a '/', a measured file) on kind at res R, and their sampler. */
-static const sb_warp_t *fixture_warp_h; /* theta_h warp of the next fixture (NULL: the layout's own) */
-
-static int fixture(const char *spec, sb_param_kind_t kind, size_t R, size_t J, sb_method_t method, fixture_t *x) {
-    memset(x, 0, sizeof *x);
-    sb_param_opts_t po = {0};
-    po.res = R;
-    if (fixture_warp_h) po.warp[SB_AXIS_THETA_H] = *fixture_warp_h;
-    sb_matrix_opts_t mo = {0};
-    mo.form = SB_FORM_COS;
-    sb_plan_opts_t pl = {0};
-    pl.terms = J;
-    pl.weighted = 1;
-    pl.svd.method = method;
-    sb_matrix_t m = {0};
-    sb_plan_t *plan = NULL;
-    sb_result_t r =
-        strchr(spec, '/') ? sb_measured_open(NULL, spec, NULL, &x->src, NULL) : sb_model_create(NULL, spec, &x->src);
-    if (!r) r = sb_param_create(NULL, kind, &po, &x->p);
-    if (!r) r = sb_matrix_build(NULL, x->src, x->p, &mo, &m);
-    if (!r) r = sb_plan_create_for(NULL, &m, &pl, &plan);
-    if (!r) r = sb_plan_execute(plan, &m, x->p, &x->f);
-    sb_plan_destroy(plan);
-    sb_matrix_free(&m);
-    CHECKF(r == SB_OK, "%s on %s: %s", spec, sb_param_kind_name(kind), sb_result_name(r));
-    return r == SB_OK;
-}
-
-static int fixture_sampler(const char *spec, sb_param_kind_t kind, size_t R, size_t J, fixture_t *x) {
-    if (!fixture(spec, kind, R, J, SB_METHOD_NMF, x)) return 0;
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_result_t r = sb_sampler_create(ctx, x->f, x->p, SB_FORM_COS, &x->s);
-    CHECKF(r == SB_OK, "sampler: %s", sb_context_last_error(ctx));
-    sb_context_destroy(ctx);
-    return r == SB_OK;
-}
+#include "sampler_fixture.h"
 
 static void dir(double theta_deg, double phi_deg, double w[3]) {
     sb_dir_from_angles(theta_deg * SB_PI / 180, phi_deg * SB_PI / 180, w);
@@ -286,20 +235,6 @@ SB_TEST(chi2_million_hd) {
 
 /* ---- integrals ----------------------------------------------------------- */
 
-/* Integral of g(w) over the upper hemisphere, midpoint rule in (cos theta,
- * phi) on n x 2n cells. */
-typedef double (*hemi_fn)(const fixture_t *x, const double wo[3], const double wi[3]);
-static double hemi_integral(const fixture_t *x, const double wo[3], hemi_fn g, size_t n) {
-    double dz = 1.0 / (double)n, dp = SB_PI / (double)n, sum = 0;
-    for (size_t i = 0; i < n; i++)
-        for (size_t k = 0; k < 2 * n; k++) {
-            double z = 1 - (i + 0.5) * dz, phi = (k + 0.5) * dp, r = sqrt(1 - z * z);
-            double w[3] = {r * cos(phi), r * sin(phi), z};
-            sum += g(x, wo, w);
-        }
-    return sum * dz * dp;
-}
-
 static double pdf_fn(const fixture_t *x, const double wo[3], const double wi[3]) { return sb_pdf(x->s, wo, wi); }
 static double fcos_fn(const fixture_t *x, const double wo[3], const double wi[3]) {
     double rgb[3];
@@ -337,7 +272,12 @@ static void integrals(sb_param_kind_t kind) {
         fprintf(stderr, "%-7s theta_o %2.0f: pdf integral %.5f, successes %.5f; MC %.5f +- %.5f vs quadrature %.5f\n",
                 sb_param_kind_name(kind), theta[o], mass, frac, mean, se, ref);
         if (sb_param_caps(x.p) & SB_CAP_HALF_ROWS) {
-            CHECK_ABS(mass, frac, 4 * sqrt(frac * (1 - frac) / n) + 2e-3);
+            /* plus the quadrature's own error, estimated by halving its
+             * steps: the density has narrow peaks where a cell's z range
+             * below the cut is short (the default nested fit on iso at
+             * theta_o 20: 0.8946 at 512 steps, 0.8985 at 2048, successes 0.9000) */
+            double coarse = hemi_integral(&x, wo, pdf_fn, 256);
+            CHECK_ABS(mass, frac, 4 * sqrt(frac * (1 - frac) / n) + 2e-3 + fabs(mass - coarse));
             /* only the h that can reflect wo above the horizon are drawn:
              * 88-94 % succeed here (53-75 % drawing from all of g_k) */
             CHECKF(frac >= 0.85, "%s theta_o %g: %.3f of the samples succeed", sb_param_kind_name(kind), theta[o],
@@ -434,8 +374,9 @@ SB_TEST(errors) {
     sb_factors_tex(f, SB_SIDE_G, 1, 0)[3] = 1; /* one texel of g, but h is 0: nothing for any wo */
     CHECK(sb_sampler_create(NULL, f, p, SB_FORM_COS, &s) == SB_OK);
     double wo[3] = {0, 0, 1}, u[2] = {0.01, 0.5}, wi[3] = {1, 1, 1}, pdf = 1, rgb[3] = {1, 1, 1};
-    CHECK(sb_sample(s, wo, u, wi, &pdf, rgb) == 1); /* the cosine share still samples */
-    CHECK_REL(pdf, SB_SAMPLER_COSINE_SHARE * wi[2] / SB_PI, 1e-12);
+    CHECK(sb_sample(s, wo, u, wi, &pdf, rgb) == 1);                       /* the cosine share still samples */
+    CHECK_REL(sb_sampler_cosine_share(s), SB_SAMPLER_COSINE_SHARE, 1e-7); /* a float's value */
+    CHECK_REL(pdf, sb_sampler_cosine_share(s) * wi[2] / SB_PI, 1e-12);
     u[0] = 0.9;
     CHECK(sb_sample(s, wo, u, wi, &pdf, rgb) == 0);
     CHECK(wi[0] == 0 && wi[2] == 0 && pdf == 0 && rgb[0] == 0);
@@ -479,6 +420,7 @@ SB_TEST(file_layout) {
     char path[4200];
     snprintf(path, sizeof path, "%s/sampler.bin", sb_tmpdir("sampler"));
     const double scale[3] = {1, 0.5, 4};
+    CHECK(sb_sampler_set_cosine_share(x.s, 0.3) == SB_OK);
     CHECK(sb_sampler_write(NULL, x.s, path, scale) == SB_OK);
     FILE *fp = fopen(path, "rb");
     unsigned char *b = malloc(1 << 20);
@@ -502,6 +444,7 @@ SB_TEST(file_layout) {
     }
     for (size_t r = 0; r < W * H; r++)
         CHECK_REL(AT(K, r % W, r / W), sb_param_row_measure(x.p, r), 1e-6);
+    CHECK(AT(K, 0, H) == 0.3f); /* the cosine-weighted share */
     /* hd's weight table, cell c of wo: the integral of term k over the h
      * cells whose centre reflects wo's centre into the hemisphere */
     const double mid[2] = {0.5, 0.5}, lum[3] = {0.2126, 0.7152, 0.0722};

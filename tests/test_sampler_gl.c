@@ -26,6 +26,16 @@
  * 2.6e-3 on hd at theta_V 75, where L grazes and the density is 30-50) */
 #define PDF_TOL 1e-3
 #define PDF_TOL_HALF 5e-3
+/* The pdfs at the same L (pdf_agree): V at this many elevations, 2-88
+ * degrees, and the relative difference allowed (float rounding). */
+#define PDF_VIEWS 8
+#define PDF_SAME 1e-4
+/* iso draws phi on the part of the circle valid at a cell's lowest z (on
+ * hd the whole cell: sampler.c full_circle), whose length and the cut's z
+ * extent float rounds apart: 1e-4 to 3e-4 at 5 % of the samples, and near
+ * the pole (theta_V 2) 2 of 32768 by 4-7 % */
+#define PDF_SAME_ISO 5e-4
+#define PDF_ISO_OUTLIERS 3
 
 /* sampler.bin read back: header checked, data as floats. */
 static float *read_table(const char *path, gl_sampler_table_t *t) {
@@ -49,7 +59,31 @@ static float *read_table(const char *path, gl_sampler_table_t *t) {
     return data;
 }
 
-static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int warped) {
+/* Non-negative factors (J = 4, form cos, weighted, 16 cells) of spec on
+ * kind, their sampler (a share other than the default: the GLSL reads it
+ * from sampler.bin), the tables read back and the snippet with the
+ * sampler block. */
+typedef struct setup {
+    sb_source_t *src;
+    sb_param_t *p;
+    sb_factors_t *f;
+    sb_sampler_t *s;
+    gl_sampler_table_t t;
+    float *table;
+    char *snippet;
+} setup_t;
+
+static void setup_free(setup_t *x) {
+    free(x->snippet);
+    free(x->table);
+    sb_sampler_destroy(x->s);
+    sb_factors_destroy(x->f);
+    sb_param_destroy(x->p);
+    sb_source_destroy(x->src);
+}
+
+static int setup(sb_param_kind_t kind, const char *spec, int warped, setup_t *x) {
+    *x = (setup_t){0};
     sb_param_opts_t po = {0};
     po.res = 16;
     if (warped) { /* a table on theta_h, finer near the pole, as an adaptive warp for a lobe */
@@ -65,44 +99,53 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int w
     pl.terms = 4;
     pl.weighted = 1;
     pl.svd.method = SB_METHOD_NMF;
-    sb_source_t *src = NULL;
-    sb_param_t *p = NULL;
     sb_matrix_t m = {0};
     sb_plan_t *plan = NULL;
-    sb_factors_t *f = NULL;
-    sb_sampler_t *s = NULL;
-    char path[4200], err[2048];
+    char path[4200];
     snprintf(path, sizeof path, "%s/sampler.bin", sb_tmpdir("sampler-gl"));
-    sb_result_t r = sb_model_create(NULL, spec, &src);
-    if (!r) r = sb_param_create(NULL, kind, &po, &p);
-    if (!r) r = sb_matrix_build(NULL, src, p, &mo, &m);
+    sb_result_t r = sb_model_create(NULL, spec, &x->src);
+    if (!r) r = sb_param_create(NULL, kind, &po, &x->p);
+    if (!r) r = sb_matrix_build(NULL, x->src, x->p, &mo, &m);
     if (!r) r = sb_plan_create_for(NULL, &m, &pl, &plan);
-    if (!r) r = sb_plan_execute(plan, &m, p, &f);
-    if (!r) r = sb_sampler_create(NULL, f, p, SB_FORM_COS, &s);
-    if (!r) r = sb_sampler_write(NULL, s, path, NULL);
+    if (!r) r = sb_plan_execute(plan, &m, x->p, &x->f);
+    if (!r) r = sb_sampler_create(NULL, x->f, x->p, SB_FORM_COS, &x->s);
+    if (!r) r = sb_sampler_set_cosine_share(x->s, 0.15);
+    if (!r) r = sb_sampler_write(NULL, x->s, path, NULL);
+    sb_plan_destroy(plan);
+    sb_matrix_free(&m);
     CHECKF(r == SB_OK, "%s: %s", sb_param_kind_name(kind), sb_result_name(r));
-    gl_sampler_table_t t = {0};
-    float *table = r ? NULL : read_table(path, &t), *out = malloc(N * N * 4 * sizeof *out);
-    char *head = sb_glsl_snippet(p, SB_FORM_COS, 4, NULL), *tail = sb_glsl_sampler(p, sb_factors_channels(f));
-    char *snippet = malloc(strlen(head) + strlen(tail) + 1);
-    strcat(strcpy(snippet, head), tail);
-    CHECK(table != NULL);
+    x->table = r ? NULL : read_table(path, &x->t);
+    CHECK(x->table != NULL);
+    if (!x->table) return 0;
+    char *head = sb_glsl_snippet(x->p, SB_FORM_COS, 4, NULL), *tail = sb_glsl_sampler(x->p, sb_factors_channels(x->f));
+    x->snippet = malloc(strlen(head) + strlen(tail) + 1);
+    strcat(strcpy(x->snippet, head), tail);
+    free(head);
+    free(tail);
+    return 1;
+}
+
+static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int warped) {
+    setup_t x;
+    char err[2048];
+    float *out = malloc(N * N * 4 * sizeof *out);
+    int ok_setup = setup(kind, spec, warped, &x);
     /* away from cell boundaries of wo (hd: every 5.625 degrees), where float
      * and double may take different cells of the weight table */
     const double thetas[3] = {10, 40, 75};
-    for (int o = 0; o < 3 && table; o++) {
+    for (int o = 0; o < 3 && ok_setup; o++) {
         double V[3];
         sb_dir_from_angles(thetas[o] * SB_PI / 180, 0.5, V);
-        if (gl_sample_grid(gl, snippet, f, p, &t, V, N, out, err, sizeof err) != 0) {
+        if (gl_sample_grid(gl, x.snippet, x.f, x.p, &x.t, V, N, out, err, sizeof err) != 0) {
             sb_test_fail(__FILE__, __LINE__, "%s", err);
             break;
         }
         size_t both = 0, same = 0, fails = 0;
-        double ptol = (sb_param_caps(p) & SB_CAP_HALF_ROWS) ? PDF_TOL_HALF : PDF_TOL;
+        double ptol = (sb_param_caps(x.p) & SB_CAP_HALF_ROWS) ? PDF_TOL_HALF : PDF_TOL;
         double worst_dir = 0, worst_pdf = 0;
         for (size_t i = 0; i < N * N; i++) {
             double u[2] = {((double)(i % N) + 0.5) / N, ((double)(i / N) + 0.5) / N}, L[3], pdf;
-            int ok = sb_sample(s, V, u, L, &pdf, NULL);
+            int ok = sb_sample(x.s, V, u, L, &pdf, NULL);
             const float *g = out + 4 * i;
             int gok = g[3] >= 0;
             fails += !ok && !gok;
@@ -121,17 +164,52 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int w
         CHECKF(differ <= N * N / 200, "%s theta_V %g: %zu of %d samples differ", sb_param_kind_name(kind), thetas[o],
                differ, N * N);
     }
-    free(head);
-    free(tail);
-    free(snippet);
     free(out);
-    free(table);
-    sb_sampler_destroy(s);
-    sb_factors_destroy(f);
-    sb_plan_destroy(plan);
-    sb_matrix_free(&m);
-    sb_param_destroy(p);
-    sb_source_destroy(src);
+    setup_free(&x);
+}
+
+/* The pdfs at the same directions: sb_pdf of the GLSL at the L that the C
+ * sampler drew, for V over the hemisphere (cell edges of V included). */
+static void pdf_agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec) {
+    setup_t x;
+    char err[2048];
+    float *L = malloc(N * N * 3 * sizeof *L), *out = malloc(N * N * 4 * sizeof *out);
+    double *ref = malloc(N * N * sizeof *ref);
+    int ok_setup = setup(kind, spec, 0, &x);
+    size_t total = 0, off = 0;
+    double worst = 0, tol = kind == SB_PARAM_ISO ? PDF_SAME_ISO : PDF_SAME;
+    for (int o = 0; o < PDF_VIEWS && ok_setup; o++) {
+        double V[3];
+        sb_dir_from_angles((2.0 + 86.0 * o / (PDF_VIEWS - 1)) * SB_PI / 180, 0.37 * o, V);
+        unsigned long long rng = 11 + (unsigned long long)o;
+        for (size_t i = 0; i < N * N; i++) {
+            double u[2] = {sb_rand01(&rng), sb_rand01(&rng)}, w[3] = {0, 0, 1}, pdf;
+            if (!sb_sample(x.s, V, u, w, &pdf, NULL)) w[0] = w[1] = 0, w[2] = 1;
+            for (int c = 0; c < 3; c++)
+                L[3 * i + c] = (float)w[c];
+            double wf[3] = {L[3 * i], L[3 * i + 1], L[3 * i + 2]}; /* the direction the GLSL reads */
+            ref[i] = sb_pdf(x.s, V, wf);
+        }
+        if (gl_pdf_grid(gl, x.snippet, x.f, x.p, &x.t, V, L, N, out, err, sizeof err) != 0) {
+            sb_test_fail(__FILE__, __LINE__, "%s", err);
+            break;
+        }
+        for (size_t i = 0; i < N * N; i++) {
+            double d = fabs(out[4 * i] - ref[i]) / fmax(ref[i], 1e-30);
+            total++;
+            off += d > tol;
+            worst = fmax(worst, d);
+        }
+    }
+    fprintf(stderr, "%-7s pdf at the same L: %zu of %zu beyond %g relative, largest %.3g\n", sb_param_kind_name(kind),
+            off, total, tol, worst);
+    CHECKF(off <= (kind == SB_PARAM_ISO ? PDF_ISO_OUTLIERS : 0),
+           "%s: %zu of %zu pdfs differ by more than %g relative (largest %g)", sb_param_kind_name(kind), off, total,
+           tol, worst);
+    free(L);
+    free(out);
+    free(ref);
+    setup_free(&x);
 }
 
 static void run(sb_param_kind_t kind, const char *spec, int warped) {
@@ -141,13 +219,18 @@ static void run(sb_param_kind_t kind, const char *spec, int warped) {
         sb_test_fail(__FILE__, __LINE__, "OSMesa found at build time but no context: %s", err);
         return;
     }
-    agree(gl, kind, spec, warped);
+    if (warped < 0)
+        pdf_agree(gl, kind, spec);
+    else
+        agree(gl, kind, spec, warped);
     gl_sphere_close(gl);
 }
 #define RUN(kind, spec) run(kind, spec, 0)
 #define RUN_WARPED(kind, spec) run(kind, spec, 1)
+#define RUN_PDF(kind, spec) run(kind, spec, -1)
 #else
 #define RUN_WARPED(kind, spec) RUN(kind, spec)
+#define RUN_PDF(kind, spec) RUN(kind, spec)
 #define RUN(kind, spec) SKIP("built without OSMesa (Debian: libosmesa6-dev), no GLSL sampler test")
 #endif
 
@@ -157,3 +240,7 @@ SB_TEST(hd) { RUN(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.5"); }
 SB_TEST(iso) { RUN(SB_PARAM_ISO, "blinn-phong:n=50"); }
 SB_TEST(hd_warped) { RUN_WARPED(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.2"); }
 SB_TEST(iso_warped) { RUN_WARPED(SB_PARAM_ISO, "cook-torrance:d=ggx,roughness=0.2"); }
+SB_TEST(pdf_io) { RUN_PDF(SB_PARAM_IO, "cook-torrance:d=ggx,roughness=0.3"); }
+SB_TEST(pdf_io_area) { RUN_PDF(SB_PARAM_IO_AREA, "cook-torrance:d=ggx,roughness=0.2"); }
+SB_TEST(pdf_hd) { RUN_PDF(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.5"); }
+SB_TEST(pdf_iso) { RUN_PDF(SB_PARAM_ISO, "blinn-phong:n=50"); }

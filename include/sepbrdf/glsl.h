@@ -41,7 +41,7 @@ SB_API sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_p
 
 /* The sampler block for non-negative factors (data/sepbrdf_sample.glsl,
  * sampler.h): #defines SB_SAMPLE_CH (channels, 1 or 3), SB_HALF_ROWS,
- * SB_COSINE_SHARE, the parameterisation's sb_row_dir() and
+ * the parameterisation's sb_row_dir() and
  *     uniform sampler2DArray sb_cdf;   // sampler.bin, R32F
  *     bool  sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf);
  *     float sb_pdf(vec3 L, vec3 V);

@@ -39,18 +39,28 @@
  * and renormalised by their mass Z_k(wo); a term with Z_k = 0 is a failed
  * sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
  * and in phi over the part A of the cell's arc whose h at z_lo reflect wo
- * above the horizon (a superset of that part at every higher z):
+ * above the horizon (a superset of that part at every higher z) where the
+ * row's arc is the whole circle (iso), and over the whole cell (dz = z_hi
+ * - z_lo, |A| its arc; an h beyond z_c or reflected below the horizon is
+ * a failed sample) on the arcs of hd, where the kept part's extent is a
+ * difference of nearly equal values that float (the GLSL) and double
+ * round apart:
  *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / Z_k / (dz |A|) / (4 wo.h).  With the form f cos(theta_i) or
  * f cos(theta_i) cos(theta_o) it is proportional to f cos(theta_i) at the
- * cell centres (io, io-area); with the form f, to f.  A share s =
- * SB_SAMPLER_COSINE_SHARE of the samples is cosine-weighted (defensive
- * sampling), so that the density is positive wherever the reconstruction
- * is, also between texel centres where the bilinear lookup reaches a
- * texel that is 0 in the tables, and where a half-vector layout's weight
- * table (constant over wo's cell) is 0 for a term:
+ * cell centres (io, io-area); with the form f, to f cos(theta_i) at the
+ * cell centres on io and io-area (rows are wi), to f on hd and iso.  A share s of the
+ * samples is cosine-weighted (defensive sampling, one-sample MIS with the
+ * balance heuristic), so that the density is positive wherever the
+ * reconstruction is, also between texel centres where the bilinear lookup
+ * reaches a texel that is 0 in the tables, and where a half-vector
+ * layout's weight table (constant over wo's cell) is 0 for a term:
  *     pdf(wi | wo) = s cos(theta_i) / pi + (1 - s) p_F(wi | wo).
+ * s is SB_SAMPLER_COSINE_SHARE unless set (sb_sampler_set_cosine_share);
+ * `sepbrdf factor` sets it per material from the fit's own error against
+ * the source (sb_sampler_choose_share): 1, cosine sampling itself, where
+ * the factored density would add noise against the true BRDF.
  * In the half-vector layouts an h that still reflects wo below the horizon
- * (or beyond theta_max) is a failed sample (6-12 % of them in the tests,
+ * (or beyond theta_max) is a failed sample (6-14 % of them in the tests,
  * 25-47 % when h was drawn from all of g_k): the pdf then integrates over
  * the hemisphere to 1 minus the probability of failure (as for microfacet
  * sampling in pbrt and Mitsuba); in io and io-area it integrates to 1
@@ -69,13 +79,18 @@
 #include "factor.h"
 #include "matrix.h"
 #include "param.h"
+#include "source.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* The cosine-weighted share s of the samples (see above). */
+/* The cosine-weighted share s of the samples by default (see above), and
+ * the least a sampler takes. */
 #define SB_SAMPLER_COSINE_SHARE 0.05
+#define SB_SAMPLER_MIN_SHARE 0.02
+/* The elevations of wo sb_sampler_choose_share measures: 10, 30, 50, 70 deg. */
+#define SB_SAMPLER_CHOICE_WO 4
 /* The most rows of half vectors (g texture height, SB_CAP_HALF_ROWS) a
  * sampler takes. */
 #define SB_SAMPLER_MAX_ROWS 1024
@@ -105,6 +120,32 @@ SB_API int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2
  * outside the domain or for NULL arguments. */
 SB_API double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]);
 
+/* The cosine-weighted share s (stored as a float: the GLSL reads it from
+ * sampler.bin).  Errors: SB_ERR_ARG (NULL, s outside
+ * [SB_SAMPLER_MIN_SHARE, 1]). */
+SB_API sb_result_t sb_sampler_set_cosine_share(sb_sampler_t *s, double share);
+SB_API double sb_sampler_cosine_share(const sb_sampler_t *s); /* NAN for NULL */
+
+/* What sb_sampler_choose_share measured: for wo at theta_o_deg[e] (three
+ * azimuths each), the variance of cosine sampling over that of the
+ * sampler at the chosen share, estimating int Y(f_r) cos(theta_i) dwi of
+ * the source (Y: Rec. 709 luminance); NAN where the source is 0 there. */
+typedef struct sb_sampler_choice {
+    double share;
+    double theta_o_deg[SB_SAMPLER_CHOICE_WO];
+    double ratio[SB_SAMPLER_CHOICE_WO];
+} sb_sampler_choice_t;
+
+/* Choose and set s from the fit's own error against src (the BRDF the
+ * factors were fitted to): the variances of every candidate share come
+ * from `samples` draws per wo (0: 4096) of the sampler at s = 1/2, and
+ * the share kept has the largest geometric mean of the ratios over the
+ * elevations among those whose every ratio is at least 1.1; where none
+ * is, s = 1 (cosine sampling: ratio 1).  Deterministic.  Errors:
+ * SB_ERR_ARG (NULL argument). */
+SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, const sb_source_t *src, size_t samples,
+                                           sb_sampler_choice_t *out);
+
 /* The tables as the GLSL sampler reads them (file "sampler.bin" of an
  * output set; README "Importance sampling"): little-endian,
  *     char[8] "sbsampl1", uint32 W + 1, uint32 H + 1, uint32 layers,
@@ -116,7 +157,7 @@ SB_API double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[
  * CDF inclusive of y, texel (0, H) I_k / g_scale[j], the integral in the
  * units the g texture stores (g_scale: each g_j texture's storage scale,
  * sepbrdf.scale of g_JJ.exr; NULL = all 1, FLOAT textures).  Layer J C
- * holds m_r at texel (x, y).  For SB_CAP_HALF_ROWS layouts layers = 2 J C
+ * holds m_r at texel (x, y) and the cosine-weighted share s at (0, H).  For SB_CAP_HALF_ROWS layouts layers = 2 J C
  * + 1: layer J C + 1 + k holds W_k(c) of wo's cell c at texel (x, y).
  * Unused texels are 0.  Written under a
  * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */

@@ -130,7 +130,7 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     o.max_error = 0;
     o.out = NULL;
     sb_job_t *svd = NULL;
-    sb_result_t r = sb_job_run_source(ctx, job->src, &o, &svd);
+    sb_result_t r = job_run_as(ctx, job->src, &o, job->is_auto, &svd); /* fitted as the default run fits it */
     if (r == SB_ERR_NOMEM) return r;
     free(job->svd_beside);
     job->svd_beside = r == SB_OK ? malloc(2 * J * sizeof *job->svd_beside) : NULL;
@@ -157,13 +157,14 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
 }
 
 static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *own, const sb_job_opts_t *opts,
-                       double t0, sb_job_t **out) {
+                       double t0, int as_auto, sb_job_t **out) {
     sb_job_t *job = calloc(1, sizeof *job);
     if (!job) {
         sb_source_destroy(own);
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
     job->t_start = t0;
+    job->fit_as_auto = as_auto;
     job->src = job->eval_src = src;
     job->own_src = own;
     sb_param_kind_t kind;
@@ -213,7 +214,13 @@ sb_result_t sb_job_run_source(sb_context_t *ctx, const sb_source_t *src, const s
     *out = NULL;
     sb_job_opts_t o;
     sb_result_t r = opts_take(ctx, opts, &o);
-    return r == SB_OK ? run(ctx, src, NULL, &o, job_now(), out) : r;
+    return r == SB_OK ? run(ctx, src, NULL, &o, job_now(), 0, out) : r;
+}
+
+sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
+                       sb_job_t **out) {
+    *out = NULL;
+    return run(ctx, src, NULL, opts, job_now(), as_auto, out);
 }
 
 sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **out) {
@@ -227,7 +234,7 @@ sb_result_t sb_job_run(sb_context_t *ctx, const sb_job_opts_t *opts, sb_job_t **
     const char *spec = o.source ? o.source : SB_JOB_DEFAULT_SOURCE;
     r = sb_job_source_open(ctx, spec, &o.measured, &src);
     if (r != SB_OK) return r;
-    return run(ctx, src, src, &o, t0, out);
+    return run(ctx, src, src, &o, t0, 0, out);
 }
 
 sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {

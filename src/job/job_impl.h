@@ -16,6 +16,7 @@
 
 #include "sepbrdf/experimental/layout.h"
 #include "sepbrdf/job.h"
+#include "sepbrdf/sampler.h"
 #include "util/shared.h"
 
 /* One factorisation of the source on one parameterisation and form:
@@ -73,6 +74,7 @@ struct sb_job {
     sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
     double t_estimate;           /* the estimator, in all */
     int is_auto;
+    int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
     job_attempt_t best;
@@ -81,6 +83,7 @@ struct sb_job {
     sb_estimate_t *domain_est; /* with a scene: the kept fit's errors over the whole domain */
     double *rel_stored;        /* J * 4 after sb_job_write, NULL before or if unknown */
     int wrote_sampler;         /* sb_job_write wrote sampler.bin (non-negative factors) */
+    sb_sampler_choice_t share; /* its cosine-weighted share and variance ratios (when wrote_sampler) */
     double *svd_beside;        /* non-negative method: J x {headline, rel_rms} of the SVD (job_beside.c); NULL: none */
     size_t svd_beside_terms;
     char svd_method[16]; /* the method the SVD beside used ("masked", "circulant", ...) */
@@ -177,6 +180,9 @@ int job_ranks_by_error(const sb_job_t *job, size_t a, size_t b);
 sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind);
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
+/* The job of opts on src (sb_job_run_source), its kept layout fitted as auto fits it when as_auto. */
+sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
+                       sb_job_t **out);
 /* Whether the solver named `name` (a method, or the factors' "method"
  * meta) gives non-negative factors by construction (SB_CAP_NONNEG). */
 int job_nonneg_method(const char *name);

@@ -370,6 +370,23 @@ static void report_auto(sb_json_t *j, const sb_job_t *job) {
     sb_json_end_array(j);
 }
 
+/* The sampler's cosine-weighted share and what it gains against the
+ * source (sampler_share.c); null and empty without a sampler. */
+static void report_sampler(sb_json_t *j, const sb_job_t *job) {
+    int has = job->wrote_sampler;
+    sb_json_begin_object(j, "sampler");
+    sb_json_number(j, "cosine_share", has ? job->share.share : NAN);
+    sb_json_begin_array(j, "theta_o_deg");
+    for (size_t e = 0; has && e < SB_SAMPLER_CHOICE_WO; e++)
+        sb_json_number(j, NULL, job->share.theta_o_deg[e]);
+    sb_json_end_array(j);
+    sb_json_begin_array(j, "variance_ratio");
+    for (size_t e = 0; has && e < SB_SAMPLER_CHOICE_WO; e++)
+        sb_json_number(j, NULL, job->share.ratio[e]);
+    sb_json_end_array(j);
+    sb_json_end_object(j);
+}
+
 static void report_files(sb_json_t *j, const sb_job_t *job) {
     size_t J = sb_factors_terms(job->best.f);
     char name[64];
@@ -413,5 +430,6 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     sb_json_number(j, "total_s", job->t.total_s);
     sb_json_end_object(j);
     report_files(j, job);
+    report_sampler(j, job);
     sb_json_end_object(j);
 }

@@ -187,13 +187,14 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
      * growth), then only the kept one's estimate grows, when needed, to
      * the target standard error */
     int masked = r == SB_OK && job_attempt_masked(job, &job->best);
-    int two = masked && !job->is_auto;
-    if (masked && job->is_auto) job_early_stop(job, &lv);
+    int as_auto = job->is_auto || job->fit_as_auto;
+    int two = masked && !as_auto;
+    if (masked && as_auto) job_early_stop(job, &lv);
     lv.est_max_pairs = two ? 1 : 0;
     lv.rank_only = lv.rank_at_j = two; /* the two fits compared on their headlines at J */
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
     if (r == SB_OK && two) r = job_keep_early_fit(ctx, job, &lv, &job->best);
-    if (r == SB_OK && masked && job->is_auto && rank_error(&job->best) > JOB_CONVERGED_TRY) {
+    if (r == SB_OK && masked && as_auto && rank_error(&job->best) > JOB_CONVERGED_TRY) {
         /* auto's early-stopped fit leaves more than JOB_CONVERGED_TRY:
          * the fit to convergence too, the better kept (GGX roughness 0.3,
          * F0 0.04, iso, J = 4: 2.7 % -> 1.9 %) */

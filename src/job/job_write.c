@@ -126,7 +126,9 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
     if (r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW) return sb_error(ctx, r, "sampler: out of memory");
     if (r != SB_OK) job_warn(job, "no sampler: %s", sb_result_message(r)); /* e.g. every term weighted to 0 */
     if (s) {
-        r = write_sampler(ctx, job, set, s);
+        /* the share from the fit's error against the source (sampler_share.c) */
+        r = sb_sampler_choose_share(ctx, s, job->src, 0, &job->share);
+        if (r == SB_OK) r = write_sampler(ctx, job, set, s);
         if (r == SB_OK) r = sb_glsl_write_sampled(ctx, path, a->param, a->m.form, J, scales, sb_factors_channels(a->f));
         sb_sampler_destroy(s);
         job->wrote_sampler = r == SB_OK;

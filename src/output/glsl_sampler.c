@@ -20,9 +20,8 @@ char *sb_glsl_sampler(const sb_param_t *p, size_t channels) {
     if (!s) return NULL;
     snprintf(s, cap,
              "\n// ---- importance sampling (non-negative factors; sampler.bin) ----\n"
-             "#define SB_SAMPLE_CH %zu\n#define SB_HALF_ROWS %d\n#define SB_COSINE_SHARE %.9g\n\n%s\n%s",
-             channels, (sb_param_caps(p) & SB_CAP_HALF_ROWS) ? 1 : 0, (double)SB_SAMPLER_COSINE_SHARE, rows,
-             sb_glsl_sample_text_);
+             "#define SB_SAMPLE_CH %zu\n#define SB_HALF_ROWS %d\n\n%s\n%s",
+             channels, (sb_param_caps(p) & SB_CAP_HALF_ROWS) ? 1 : 0, rows, sb_glsl_sample_text_);
     return s;
 }
 

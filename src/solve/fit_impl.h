@@ -108,6 +108,8 @@ int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const 
  * 2) with target x clamped into their range (x m x n, ld m).  Reads f->m,
  * n, k, P, Q only (the non-negative solver passes its own).  Returns the
  * cells added, or (size_t)-1 without memory. */
+int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
+                   double *hi);
 size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext);
 sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
                     const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err);

@@ -92,6 +92,47 @@ size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, 
     return added;
 }
 
+/* For each cell that is not data (ext 0), the range [lo, hi] of the data
+ * among rows N(r) x columns N(c) (what taps sharing the cell read, as
+ * fit_constrain_taps), lo = INFINITY where none; lo, hi m x n.  Returns
+ * 0, or -1 without memory. */
+int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
+                   double *hi) {
+    size_t *nrs = malloc(m * 26 * sizeof *nrs);
+    double *l1 = malloc(2 * m * sizeof *l1), *h1 = l1 + m;
+    if (!nrs || !l1) {
+        free(nrs);
+        free(l1);
+        return -1;
+    }
+    for (size_t r = 0; r < m; r++)
+        nrs[r * 26] = neighbours(o->tex[0], o->wrap[0], r, nrs + r * 26 + 1);
+    for (size_t c = 0; c < n; c++) {
+        size_t nc[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+        for (size_t r = 0; r < m; r++) {
+            l1[r] = INFINITY;
+            h1[r] = -INFINITY;
+            for (size_t q = 0; q < kc; q++)
+                if (ext[r + nc[q] * m] == 1) {
+                    l1[r] = fmin(l1[r], x[r + nc[q] * m]);
+                    h1[r] = fmax(h1[r], x[r + nc[q] * m]);
+                }
+        }
+        for (size_t r = 0; r < m; r++) {
+            double a = INFINITY, b = -INFINITY;
+            for (size_t q = 0; !ext[r + c * m] && q < nrs[r * 26]; q++) {
+                a = fmin(a, l1[nrs[r * 26 + 1 + q]]);
+                b = fmax(b, h1[nrs[r * 26 + 1 + q]]);
+            }
+            lo[r + c * m] = a;
+            hi[r + c * m] = b;
+        }
+    }
+    free(nrs);
+    free(l1);
+    return 0;
+}
+
 /* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
  * times the squared error `before` the taps' constraints. */
 static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, double before,
