@@ -462,7 +462,8 @@ SB_TEST(orphaned_workers_keep_the_lock) {
     snprintf(cmd, sizeof cmd,
              "cd %s && { %s batch m.csv tables --param io -r 32 -J 3 -o w -j 2 -q & P=$!; i=0; "
              "while [ -z \"$(pgrep -P $P)\" ] && [ $i -lt 500 ]; do sleep 0.01; i=$((i+1)); done; "
-             "K=$(pgrep -P $P | tr '\\n' ' '); kill -KILL $P; wait $P 2>/dev/null; "
+             /* a forked worker takes the lock over as it starts: give it that moment on a loaded machine */
+             "sleep 0.3; K=$(pgrep -P $P | tr '\\n' ' '); kill -KILL $P; wait $P 2>/dev/null; "
              "%s batch m.csv tables --param io -r 8 -J 2 -o w -j 1 -q 2>second.err; echo second=$?; alive=0; "
              "for k in $K; do kill -0 $k 2>/dev/null && alive=1; done; echo alive=$alive; "
              "for k in $K; do while kill -0 $k 2>/dev/null; do sleep 0.05; done; done; }",

@@ -164,6 +164,8 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
     job->t_start = t0;
+    double ts = job_now();
+    job->stage_s[0] = ts - t0; /* the source opened (sb_job_run) */
     job->fit_as_auto = as_auto;
     job->src = job->eval_src = src;
     job->own_src = own;
@@ -179,9 +181,14 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job->budget ? job_budget_select(ctx, job) : job_select(ctx, job);
     if (r == SB_OK && !job->budget) r = job_warp_refit(ctx, job);
+    double t1 = job_now();
     if (r == SB_OK) r = job_svd_beside(ctx, job);
+    double t2 = job_now();
     if (r == SB_OK) r = job_scene_measure(ctx, job);
+    double t3 = job_now();
     if (r == SB_OK) r = job_cv(ctx, job);
+    double t4 = job_now();
+    job->stage_s[1] = t1 - ts, job->stage_s[2] = t2 - t1, job->stage_s[3] = t3 - t2, job->stage_s[4] = t4 - t3;
     if (r == SB_OK) {
         job_warn_max_error(job);
         job_warn_weights(job);

@@ -94,6 +94,10 @@ struct sb_job {
     size_t nsupport; /* the last of warn[] are job_warn_support's */
     sb_job_timings_t t;
     double t_start;
+    /* the whole job's wall time in consecutive stages (report.json
+     * timings.stages): opening the source, choosing and fitting, the SVD
+     * beside, the scene's errors, cross-validation, writing */
+    double stage_s[6];
     struct job_budget *budget;    /* opts.budget: the search (job_budget.c); NULL without */
     const sb_param_opts_t *shape; /* the kept layout's options (a budget's choice); NULL: o.res alone */
     sb_param_opts_t spec_shape;   /* --param KIND:key=value's options (job->shape then points here) */
