@@ -141,14 +141,16 @@ typedef struct sb_job_candidate {
     sb_param_kind_t kind;
     sb_form_t form;
     int weighted;
-    int ok;        /* it factored; 0: failed (message in `why`) */
-    int dropped;   /* left out after the coarse screening: it cannot win */
-    int kept;      /* the one factored at the requested settings */
-    size_t res;    /* cells per axis of the grid `error` was measured on */
-    double error;  /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
-    int bands_ok;  /* sb_estimate_bands_bounded at J on the same pairs: 1 kept, 0 broken, -1 unknown; auto ranks
-                      the candidates that keep the band bounds first when one does */
-    double time_s; /* its screening, and for the kept one its full fit too */
+    int ok;       /* it factored; 0: failed (message in `why`) */
+    int dropped;  /* left out after the coarse screening: it cannot win */
+    int kept;     /* the one factored at the requested settings */
+    size_t res;   /* cells per axis of the grid `error` was measured on */
+    double error; /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
+    int bands_ok; /* sb_estimate_bands_bounded at J on the same pairs: 1 kept, 0 broken, -1 unknown; auto ranks
+                     the candidates that keep the band bounds first when one does, unless the one breaking
+                     them is no worse in both bands (its bound is tighter for its lower headline) */
+    double band_err[2]; /* the band errors theta_i > 80 and > 89 degrees at J on the same pairs (NAN unknown) */
+    double time_s;      /* its screening, and for the kept one its full fit too */
     sb_result_t result; /* SB_OK, or the code of its failure (message in `why`) */
     char why[160];
 } sb_job_candidate_t;
@@ -182,16 +184,18 @@ typedef struct sb_job sb_job_t;
 typedef struct sb_job_budget_try {
     sb_param_kind_t kind;
     sb_form_t form;
-    int adaptive;      /* elevation axes warped by tables measured from the source */
-    size_t res;        /* R */
-    size_t g[2], h[2]; /* width, height of the g and the h textures */
-    size_t texels;     /* texels of one term: g and h, one channel */
-    size_t terms;      /* J */
-    int half;          /* storage HALF (2 bytes), else FLOAT (4) */
-    size_t bytes;      /* terms * channels * texels * (2 or 4) */
-    double headline;   /* screened headline at J (the estimator's first pairs) */
-    int bands_ok;      /* sb_estimate_bands_bounded at J on the same pairs (1, 0, -1 unknown): the lowest headline
-                          among entries keeping the band bounds is chosen when one does */
+    int adaptive;       /* elevation axes warped by tables measured from the source */
+    size_t res;         /* R */
+    size_t g[2], h[2];  /* width, height of the g and the h textures */
+    size_t texels;      /* texels of one term: g and h, one channel */
+    size_t terms;       /* J */
+    int half;           /* storage HALF (2 bytes), else FLOAT (4) */
+    size_t bytes;       /* terms * channels * texels * (2 or 4) */
+    double headline;    /* screened headline at J (the estimator's first pairs) */
+    int bands_ok;       /* sb_estimate_bands_bounded at J on the same pairs (1, 0, -1 unknown): the lowest headline
+                           among entries keeping the band bounds is chosen when one does (entries breaking them
+                           but no worse in both bands than every entry keeping them compete too) */
+    double band_err[2]; /* the band errors theta_i > 80 and > 89 degrees at J on the same pairs (NAN unknown) */
 } sb_job_budget_try_t;
 
 typedef struct sb_job_budget {

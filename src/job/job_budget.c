@@ -164,6 +164,7 @@ static sb_result_t add_entries(sb_context_t *ctx, job_budget_t *b, const job_att
         en->t.bytes = bytes;
         en->t.headline = e;
         en->t.bands_ok = sb_estimate_bands_bounded(a->est, j);
+        job_band_errors(a->est, j, en->t.band_err);
         if (e < *best) *best = e;
     }
     return SB_OK;
@@ -310,17 +311,24 @@ static sb_result_t check_room(sb_context_t *ctx, const sb_job_t *job) {
                     b->res.budget, name, R, J, J == 1 ? "" : "s", BUDGET_CHANNELS, least);
 }
 
+/* Whether entry i breaks the band bounds and is worse in a band than an
+ * entry keeping them. */
+static int yields(const job_budget_t *b, size_t i) {
+    if (b->v[i].t.bands_ok == 1) return 0;
+    for (size_t k = 0; k < b->n; k++)
+        if (!b->fits[b->v[k].fit].failed && b->v[k].t.bands_ok == 1 &&
+            !job_bands_no_worse(b->v[i].t.band_err, b->v[k].t.band_err))
+            return 1;
+    return 0;
+}
+
 /* The entry of the lowest headline (fewer bytes on a tie) among fits not
- * failed, among those keeping the band bounds when one does; SIZE_MAX
- * when none. */
+ * failed, leaving out those that yield (above); SIZE_MAX when none. */
 static size_t best_entry(const job_budget_t *b) {
     size_t k = SIZE_MAX;
-    int bounded = 0;
-    for (size_t i = 0; i < b->n; i++)
-        bounded |= !b->fits[b->v[i].fit].failed && b->v[i].t.bands_ok == 1;
     for (size_t i = 0; i < b->n; i++) {
         const sb_job_budget_try_t *e = &b->v[i].t;
-        if (b->fits[b->v[i].fit].failed || (bounded && e->bands_ok != 1)) continue;
+        if (b->fits[b->v[i].fit].failed || yields(b, i)) continue;
         if (k == SIZE_MAX || e->headline < b->v[k].t.headline ||
             (e->headline == b->v[k].t.headline && e->bytes < b->v[k].t.bytes))
             k = i;

@@ -73,6 +73,7 @@ static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_
     c->ok = r == SB_OK;
     c->error = c->ok ? rank_error(a) : NAN;
     c->bands_ok = c->ok ? rank_bands(a) : -1;
+    job_band_errors(c->ok ? a->est : NULL, sb_factors_terms(a->f), c->band_err);
     c->res = lv->res;
     c->result = r;
     if (!c->ok) snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
