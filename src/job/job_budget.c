@@ -413,6 +413,10 @@ static void report_entry(sb_json_t *j, const sb_job_budget_try_t *e) {
     sb_json_int(j, "terms", (long long)e->terms);
     sb_json_string(j, "storage", e->half ? "half" : "float");
     sb_json_int(j, "bytes", (long long)e->bytes);
+    sb_json_begin_array(j, "band_err");
+    for (int b = 0; b < 2; b++)
+        sb_json_number(j, NULL, e->band_err[b]);
+    sb_json_end_array(j);
     sb_json_number(j, "headline", e->headline);
     if (e->bands_ok < 0)
         sb_json_string(j, "bands_ok", NULL);

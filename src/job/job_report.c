@@ -363,6 +363,10 @@ static void report_auto(sb_json_t *j, const sb_job_t *job) {
             sb_json_string(j, "bands_ok", NULL);
         else
             sb_json_bool(j, "bands_ok", c->bands_ok);
+        sb_json_begin_array(j, "band_err");
+        for (int b = 0; b < 2; b++)
+            sb_json_number(j, NULL, c->ok ? c->band_err[b] : NAN);
+        sb_json_end_array(j);
         sb_json_number(j, "time_s", c->time_s);
         sb_json_string(j, "failure", c->why[0] ? c->why : NULL);
         sb_json_end_object(j);
