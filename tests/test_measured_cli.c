@@ -715,3 +715,22 @@ SB_TEST(convert_merl_reports_extrapolation) {
     sb_source_destroy(s);
     sb_source_destroy(m);
 }
+
+/* RGL to CSV keeps the colour nodes only: said, with their count, and
+ * every row is one of the file's nodes (the reader's samples). */
+SB_TEST(convert_rgl_csv_warns) {
+    const char *dir = sb_tmpdir("mcli");
+    char src[4200], csv[4300];
+    snprintf(src, sizeof src, "%s/rgl_paper_white_rgb.bsdf", SB_MEASURED_DIR);
+    snprintf(csv, sizeof csv, "%s/p.csv", dir);
+    CHECK(cli("convert %s -o %s", src, csv) == 0);
+    CHECKF(strstr(out, "VNDF warp") && strstr(out, "factor the .bsdf itself"), "%s", out);
+    sb_source_t *s = NULL;
+    CHECK(sb_source_open(NULL, src, &s) == SB_OK);
+    char want[64];
+    snprintf(want, sizeof want, "of %zu;", sb_source_sample_count(s));
+    CHECKF(strstr(out, want) != NULL, "%s", out);
+    size_t rows = count_lines(csv, 1);
+    CHECK(rows > 0 && rows < sb_source_sample_count(s));
+    sb_source_destroy(s);
+}

@@ -134,8 +134,16 @@ int cmd_convert(int argc, char **argv) {
                       "extrapolated, not measured (e.g. an RGL table's f cos theta_o divided by a grazing cos "
                       "theta_o); a fit of %s will spend its terms on them",
                       st.above, st.value_measured, st.value_max, o.out);
-    } else
+    } else {
         cli_info(1, "sepbrdf convert: %zu rows of %s to %s (CSV)", rows, sb_source_description(src), o.out);
+        if (strncmp(sb_source_description(src), "rgl:", 4) == 0)
+            cli_error("convert",
+                      "warning: %s holds the RGL file's %zu colour nodes (of %zu; nodes whose light falls below the "
+                      "horizon are no pair) at their direction pairs: between them the file is read through its "
+                      "VNDF warp, which rows of direction pairs cannot carry, so a fit of the CSV interpolates "
+                      "between its rows instead; factor the .bsdf itself",
+                      o.out, rows, sb_source_sample_count(src));
+    }
     rc = EXIT_OK;
     goto done;
 fail:
