@@ -304,7 +304,8 @@ typedef struct cov_job {
     const sb_source_t *src;
     const sb_param_t *param;
     size_t rows, c0, c1, known, cells, bands;
-    size_t *map; /* bands x bands: known, then bands x bands: cells (NULL: none) */
+    size_t weight; /* each row evaluated stands for this many (an isotropic source on the azimuth grid) */
+    size_t *map;   /* bands x bands: known, then bands x bands: cells (NULL: none) */
 } cov_job_t;
 
 static size_t band(double z, size_t bands) {
@@ -320,11 +321,11 @@ static void *cov_cols(void *arg) {
         for (size_t r = 0; r < j->rows; r++) {
             if (!sb_param_cell_dirs(j->param, r, c, wi, wo) || wi[2] <= 0 || wo[2] <= 0) continue;
             size_t at = j->map ? band(wi[2], j->bands) * j->bands + band(wo[2], j->bands) : 0;
-            j->cells++;
-            if (j->map) j->map[nb + at]++;
+            j->cells += j->weight;
+            if (j->map) j->map[nb + at] += j->weight;
             if (sb_source_eval(j->src, wi, wo, rgb) && isfinite(rgb[0]) && isfinite(rgb[1]) && isfinite(rgb[2])) {
-                j->known++;
-                if (j->map) j->map[at]++;
+                j->known += j->weight;
+                if (j->map) j->map[at] += j->weight;
             }
         }
     return NULL;
@@ -338,10 +339,21 @@ sb_result_t sb_measured_coverage_map(sb_context_t *ctx, const sb_source_t *src, 
     if (sb_size_mul(rows, cols, &total)) return sb_error(ctx, SB_ERR_OVERFLOW, "coverage: cell count overflows");
     int nt = sb_threads_for(0, cols, cols, 0);
     cov_job_t jobs[SB_THREADS_MAX];
+    /* an isotropic source on the theta-phi grid: row (i_theta, i_phi) and
+     * every column see the source as row (i_theta, 0) sees the columns
+     * turned by -i_phi, so the rows of i_phi = 0 stand for all (R times
+     * fewer evaluations: `info` on a 1439-row Cornell table 4.8 -> 0.3 s CPU) */
+    size_t gw, gh, weight = 1, eval_rows = rows;
+    sb_param_texture_size(param, SB_SIDE_G, &gw, &gh);
+    if ((sb_param_caps(param) & SB_CAP_AZIMUTH_GRID) && (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) &&
+        gw * gh == rows && gh > 1) {
+        weight = gh;
+        eval_rows = gw;
+    }
     size_t *maps = nb ? calloc((size_t)nt * 2 * nb, sizeof *maps) : NULL;
     if (nb && !maps) return sb_error(ctx, SB_ERR_NOMEM, "coverage: out of memory");
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (cov_job_t){src, param, rows, 0, 0, 0, 0, bands, nb ? maps + (size_t)t * 2 * nb : NULL};
+        jobs[t] = (cov_job_t){src, param, eval_rows, 0, 0, 0, 0, bands, weight, nb ? maps + (size_t)t * 2 * nb : NULL};
         sb_part(cols, t, nt, &jobs[t].c0, &jobs[t].c1);
     }
     sb_parallel_run(cov_cols, jobs, sizeof *jobs, nt, NULL, NULL);
