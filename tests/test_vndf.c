@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
@@ -137,6 +138,13 @@ SB_TEST(needs_tables) {
     CHECK(sb_source_layout_tables(gold) == NULL && !(sb_source_flags(gold) & SB_SOURCE_TABLES));
     sb_source_destroy(gold);
     sb_context_destroy(ctx);
+    /* asked for on a source without them: the message says what it needs, nothing is written */
+    char cmd[4096], out[4096];
+    snprintf(cmd, sizeof cmd, "%s factor --param vndf -o /tmp/sb_vndf_none_%d", SB_CLI, (int)getpid());
+    CHECK(sb_run(cmd, out, sizeof out) != 0);
+    CHECKF(strstr(out, "RGL file's own tables") != NULL, "%s", out);
+    snprintf(cmd, sizeof cmd, "test ! -e /tmp/sb_vndf_none_%d", (int)getpid());
+    CHECK(sb_run(cmd, NULL, 0) == 0);
 }
 
 /* The command a user runs: auto keeps vndf on an RGL file, writes vndf.exr

@@ -80,7 +80,11 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
     c->weighted = weighted;
     c->error = NAN;
     size_t mn = job_layout_min_side(job, k, job->o.res, NULL);
-    if (mn < job->o.terms)
+    if ((sb_param_kind_caps(k) & SB_CAP_TABLES) && !sb_source_layout_tables(job->src))
+        snprintf(c->why, sizeof c->why,
+                 "%s is built on an RGL file's own tables: factor an isotropic RGL .bsdf file (%s has none)",
+                 sb_param_kind_name(k), sb_source_description(job->src));
+    else if (mn < job->o.terms)
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
     unsigned langs = 1;
