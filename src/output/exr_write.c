@@ -49,6 +49,15 @@ static int64_t exr_stream_write(exr_const_context_t c, void *user, const void *b
     return (int64_t)sz;
 }
 
+/* A write context assembling the file in `sink` (messages reset). */
+static exr_result_t start_write(exr_context_t *ex, const char *path, exr_sink_t *sink) {
+    sb_exr_msg_reset_();
+    exr_context_initializer_t init = sb_exr_init_(0);
+    init.user_data = sink;
+    init.write_fn = exr_stream_write;
+    return exr_start_write(ex, path, EXR_WRITE_FILE_DIRECTLY, &init);
+}
+
 /* The assembled file into `tmp`; messages name `path`. */
 static sb_result_t sink_flush(sb_context_t *ctx, const exr_sink_t *k, const char *tmp, const char *path) {
     int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666), e = fd < 0 ? errno : 0;
@@ -199,13 +208,9 @@ static sb_result_t write_one(sb_context_t *ctx, const sb_factors_t *f, int side,
     if (r != SB_OK) return r;
 
     exr_sink_t sink = {NULL, 0, 0};
-    sb_exr_msg_reset_();
-    exr_context_initializer_t init = sb_exr_init_(0);
-    init.user_data = &sink;
-    init.write_fn = exr_stream_write;
     exr_context_t ex = NULL;
     int part = 0;
-    exr_result_t rv = exr_start_write(&ex, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    exr_result_t rv = start_write(&ex, path, &sink);
     if (rv) {
         r = sb_exr_fail_(ctx, rv, SB_ERR_IO, path, "cannot create");
         goto out;
@@ -382,14 +387,10 @@ sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t w, size
         for (size_t c = 0; c < 3; c++)
             planes[c * w * h + i] = rgb[3 * i + c];
     exr_sink_t sink = {NULL, 0, 0};
-    sb_exr_msg_reset_();
-    exr_context_initializer_t init = sb_exr_init_(0);
-    init.user_data = &sink;
-    init.write_fn = exr_stream_write;
     exr_context_t ex = NULL;
     int part = 0;
     sb_result_t r = SB_OK;
-    exr_result_t rv = exr_start_write(&ex, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    exr_result_t rv = start_write(&ex, path, &sink);
     if (!rv) rv = exr_add_part(ex, NULL, EXR_STORAGE_SCANLINE, &part);
     if (!rv) rv = exr_initialize_required_attr_simple(ex, part, (int32_t)w, (int32_t)h, EXR_COMPRESSION_ZIP);
     for (size_t c = 0; c < 3 && !rv; c++)

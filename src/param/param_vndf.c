@@ -46,12 +46,6 @@
 
 static const sb_layout_tables_t *tab(const sb_param_t *p) { return p->tables; }
 
-/* Elevation as the RGL reader measures it, 2 asin(|d - z| / 2) (accurate near z). */
-static double sb_elevation(const double d[3]) {
-    double h = 0.5 * sqrt(d[0] * d[0] + d[1] * d[1] + (d[2] - 1) * (d[2] - 1));
-    return 2 * asin(h > 1 ? 1 : h);
-}
-
 /* The view's slice weights (the RGL reader's rule: linear in theta_v). */
 static void view_slices(const sb_layout_tables_t *t, double theta_v, size_t *k, double *w, slices_t *s) {
     sb_table_interval(t->theta, t->n_theta, theta_v, k, w);
@@ -66,12 +60,12 @@ static void pair_coords(const sb_layout_tables_t *t, const double l[3], const do
     double len = sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
     for (int c = 0; c < 3; c++)
         m[c] /= len;
-    double theta_v = sb_elevation(v), phi_v = atan2(v[1], v[0]);
-    double theta_m = sb_elevation(m), phi_m = atan2(m[1], m[0]);
-    u_v[0] = sqrt(theta_v * (2 / SB_PI));
-    u_v[1] = (phi_v + SB_PI) / (2 * SB_PI);
-    u_m[0] = sqrt(theta_m * (2 / SB_PI));
-    u_m[1] = (phi_m - phi_v + SB_PI) / (2 * SB_PI);
+    double theta_v = sb_table_elevation(v), phi_v = atan2(v[1], v[0]);
+    double theta_m = sb_table_elevation(m), phi_m = atan2(m[1], m[0]);
+    u_v[0] = sb_table_theta2u(theta_v);
+    u_v[1] = sb_table_phi2u(phi_v);
+    u_m[0] = sb_table_theta2u(theta_m);
+    u_m[1] = sb_table_phi2u(phi_m - phi_v);
     u_m[1] -= floor(u_m[1]);
     view_slices(t, theta_v, k, w, s);
 }

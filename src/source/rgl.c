@@ -115,11 +115,6 @@ static void slice_weights(const rgl_t *g, double phi, double theta, slices_t *s)
 
 /* ---- evaluation ------------------------------------------------------------ */
 
-double sb_rgl_elevation_(const double d[3]) {
-    double dist = sqrt(d[0] * d[0] + d[1] * d[1] + (d[2] - 1) * (d[2] - 1));
-    double h = 0.5 * dist;
-    return 2 * asin(h > 1 ? 1 : h);
-}
 double sb_rgl_jacobian_(const rgl_t *g, const double u_m[2], const double u_v[2]) {
     return g->jacobian ? sb_table_bilinear(&g->ndf, u_m, NULL, 0) / (4 * sb_table_bilinear(&g->sigma, u_v, NULL, 0))
                        : 1;
@@ -145,10 +140,10 @@ static int rgl_eval(const void *self, const double wi[3], const double wo[3], do
     m[0] /= len;
     m[1] /= len;
     m[2] /= len;
-    double theta_v = sb_rgl_elevation_(v), phi_v = atan2(v[1], v[0]);
-    double theta_m = sb_rgl_elevation_(m), phi_m = atan2(m[1], m[0]);
-    double u_v[2] = {sb_rgl_theta2u(theta_v), sb_rgl_phi2u(phi_v)};
-    double u_m[2] = {sb_rgl_theta2u(theta_m), sb_rgl_phi2u(g->isotropic ? phi_m - phi_v : phi_m)};
+    double theta_v = sb_table_elevation(v), phi_v = atan2(v[1], v[0]);
+    double theta_m = sb_table_elevation(m), phi_m = atan2(m[1], m[0]);
+    double u_v[2] = {sb_table_theta2u(theta_v), sb_table_phi2u(phi_v)};
+    double u_m[2] = {sb_table_theta2u(theta_m), sb_table_phi2u(g->isotropic ? phi_m - phi_v : phi_m)};
     u_m[1] -= floor(u_m[1]);
     slices_t s;
     slice_weights(g, phi_v, theta_v, &s);

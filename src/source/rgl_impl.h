@@ -16,14 +16,9 @@ typedef struct rgl {
     int isotropic, jacobian, reduction;
 } rgl_t;
 
-/* Elevation of a unit vector, 2 asin(|d - z| / 2) (accurate near z). */
-double sb_rgl_elevation_(const double d[3]);
 /* The factor NDF(u_m) / (4 sigma(u_v)) when the file's jacobian flag is
  * set, else 1. */
 double sb_rgl_jacobian_(const rgl_t *g, const double u_m[2], const double u_v[2]);
-/* The tables' coordinates of an elevation and an azimuth. */
-static inline double sb_rgl_theta2u(double theta) { return sqrt(theta * (2 / SB_PI)); }
-static inline double sb_rgl_phi2u(double phi) { return (phi + SB_PI) / (2 * SB_PI); }
 
 /* The measured samples (sb_source_sample): every colour node of every
  * (phi_i, theta_i) slice, mapped to its pair of directions. */

@@ -41,8 +41,8 @@ int sb_rgl_sample_(const void *self, size_t k, double wi[3], double wo[3], doubl
     if (g->reduction >= 2) v[1] = -fabs(v[1]);
     if (g->reduction == 4) v[0] = -fabs(v[0]);
     /* the view's coordinates as the evaluation computes them */
-    double theta_v = sb_rgl_elevation_(v), phi_v = atan2(v[1], v[0]);
-    double u_v[2] = {sb_rgl_theta2u(theta_v), sb_rgl_phi2u(phi_v)};
+    double theta_v = sb_table_elevation(v), phi_v = atan2(v[1], v[0]);
+    double u_v[2] = {sb_table_theta2u(theta_v), sb_table_phi2u(phi_v)};
     slices_t one = {{q, q, q, q}, {1, 0, 0, 0}};
     double s[2] = {(double)x / (double)(g->rgb.w - 1), (double)y / (double)(g->rgb.h - 1)}, u_m[2];
     sb_table_warp_sample(&g->vndf, &one, s, u_m);

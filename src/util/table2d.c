@@ -1,6 +1,9 @@
 /* Tabulated 2D functions and warps (table2d.h). */
 #include "util/table2d.h"
 
+#include "util/internal.h"
+
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -91,6 +94,13 @@ void sb_table_warp_sample(const table2d_t *t, const slices_t *one, const double 
     u[1] = warp_solve(t, one, 1, 0, s[1]);
     u[0] = warp_solve(t, one, 0, u[1], s[0]);
 }
+
+double sb_table_elevation(const double d[3]) {
+    double h = 0.5 * sqrt(d[0] * d[0] + d[1] * d[1] + (d[2] - 1) * (d[2] - 1));
+    return 2 * asin(h > 1 ? 1 : h);
+}
+double sb_table_theta2u(double theta) { return sqrt(theta * (2 / SB_PI)); }
+double sb_table_phi2u(double phi) { return (phi + SB_PI) / (2 * SB_PI); }
 
 static double *dup(const double *a, size_t n) {
     if (!a) return NULL;

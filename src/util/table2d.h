@@ -35,6 +35,11 @@ void sb_table_warp_invert(const table2d_t *t, const double u[2], const slices_t 
  * double resolution: the inverse is monotone in u_y alone for the y part,
  * then in u_x on that row). */
 void sb_table_warp_sample(const table2d_t *t, const slices_t *one, const double s[2], double u[2]);
+/* The tensor_file's maps: elevation 2 asin(|d - z| / 2) (accurate near
+ * z), u(theta) = sqrt(2 theta / pi), v(phi) = (phi + pi) / (2 pi). */
+double sb_table_elevation(const double d[3]);
+double sb_table_theta2u(double theta);
+double sb_table_phi2u(double phi);
 /* A deep copy of src's arrays into dst (NULL arrays stay NULL); -1 when out
  * of memory (dst then holds nothing to free). */
 int sb_table_copy(table2d_t *dst, const table2d_t *src);
