@@ -358,14 +358,14 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
 /* ---- outputs ----------------------------------------------------------- */
 
 static void print_table(const study_opts_t *o, const runs_t *rs) {
-    printf("%-30s %-7s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s", "source", "param", "J", "headline", "comparable",
+    printf("%-30s %-12s %4s  %11s  %11s  %11s  %11s  %8s  %8s  %s", "source", "param", "J", "headline", "comparable",
            "rel_rms", "max_abs", "negative", "time_s", "fit");
     printf(o->nmf ? "   %12s  %11s\n" : "\n", "nmf_headline", "nmf_rel_rms");
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
         const char *pn = r->kind >= 0 ? study_kind_name(r->kind) : "-";
         if (!r->ok) {
-            printf("%-30.30s %-7s  failed: %s\n", r->spec, pn, r->error ? r->error : "");
+            printf("%-30.30s %-12s  failed: %s\n", r->spec, pn, r->error ? r->error : "");
             continue;
         }
         for (size_t k = 0; k < r->nr; k++) {
@@ -373,7 +373,7 @@ static void print_table(const study_opts_t *o, const runs_t *rs) {
             char kept[24]; /* auto: the layout kept at this J */
             snprintf(kept, sizeof kept, "%s%s%.*s", pn, w->spec ? ">" : "", w->spec ? (int)strcspn(w->spec, ":") : 0,
                      w->spec ? w->spec : "");
-            printf("%-30.30s %-7s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, kept, w->terms,
+            printf("%-30.30s %-12s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, kept, w->terms,
                    w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
                    r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
             if (o->nmf) printf("  %12.4e  %11.4e", w->nmf_headline, w->nmf_rel_rms);

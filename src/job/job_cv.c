@@ -17,6 +17,10 @@
 #include "job_impl.h"
 #include "util/internal.h"
 
+/* Interpolation CV (leave-one-out at the measurements) above which the
+ * table is said not to predict itself, whatever the refits found. */
+#define JOB_CV_WARN 0.3
+
 /* The refit of fold k: the table read again without it, with the
  * interpolation the whole table resolved (method, neighbours, radius: not
  * chosen again on fewer samples), sampled on the kept layout with the kept
@@ -58,24 +62,55 @@ static sb_result_t fold_fit(sb_context_t *ctx, const sb_job_t *job, size_t K, si
     return r;
 }
 
-/* Add fold k's squared errors (E[j], j < J) and energy (*T) at its samples. */
-static void fold_sums(const sb_job_t *job, const sb_factors_t *f, size_t K, size_t k, size_t J, double *E, double *T,
+const double job_cv_band_deg[JOB_CV_BANDS + 1] = {0, 5, 15, 30, 50, 90};
+
+static int theta_h_band(const double wi[3], const double wo[3]) {
+    double h[3] = {wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]}, n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    double th = n > 0 ? acos(fmin(1, fmax(-1, h[2] / n))) * 180 / SB_PI : 90;
+    int b = 0;
+    while (b + 1 < JOB_CV_BANDS && th >= job_cv_band_deg[b + 1])
+        b++;
+    return b;
+}
+
+/* Add fold k's squared errors (E[j], j < J) and energy (*T) at its
+ * samples, and at J those of each theta_h band into the job's. */
+static void fold_sums(sb_job_t *job, const sb_factors_t *f, size_t K, size_t k, size_t J, double *E, double *T,
                       size_t *held) {
     const sb_param_t *p = job->best.param;
     sb_form_t form = job->best.m.form;
     size_t n = sb_source_sample_count(job->src);
     for (size_t i = 0; i < n; i++) {
-        double wi[3], wo[3], v[3], rec[3];
+        double wi[3], wo[3], v[3], rec[3], e = 0;
         if (sb_measured_fold(i, K) != k || !sb_source_sample(job->src, i, wi, wo, v)) continue;
-        double c2 = wi[2] * wi[2];
+        double c2 = wi[2] * wi[2], t = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * c2;
         for (size_t j = 0; j < J; j++) {
             if (!sb_factors_eval(f, p, form, j + 1, wi, wo, rec)) rec[0] = rec[1] = rec[2] = 0;
+            e = 0;
             for (int c = 0; c < 3; c++)
-                E[j] += (rec[c] - v[c]) * (rec[c] - v[c]) * c2;
+                e += (rec[c] - v[c]) * (rec[c] - v[c]) * c2;
+            E[j] += e;
         }
-        *T += (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * c2;
+        int b = theta_h_band(wi, wo);
+        job->cv_band_e[b] += e;
+        job->cv_band_t[b] += t;
+        job->cv_band_n[b]++;
+        *T += t;
         ++*held;
     }
+}
+
+/* The theta_h band holding the largest share of the held-out error at J
+ * (-1: none), its share into *share. */
+static int worst_band(const sb_job_t *job, double *share) {
+    double all = 0;
+    int w = -1;
+    for (int b = 0; b < JOB_CV_BANDS; b++) {
+        all += job->cv_band_e[b];
+        if (job->cv_band_n[b] && (w < 0 || job->cv_band_e[b] > job->cv_band_e[w])) w = b;
+    }
+    *share = w >= 0 && all > 0 ? job->cv_band_e[w] / all : NAN;
+    return w;
 }
 
 /* cv and its standard error from the folds' sums. */
@@ -131,13 +166,17 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     }
     free(E), free(T);
     job->cv_s = job_now() - t0;
-    double h = job->cv ? sb_estimate_headline(job->best.est, J) : NAN;
-    if (job->cv && h > 0 && job->cv[J - 1] > 1.5 * h)
+    double h = job->cv ? sb_estimate_headline(job->best.est, J) : NAN, icv = in->interp_cv[in->interp], share;
+    int w = job->cv ? worst_band(job, &share) : -1;
+    if (job->cv && h > 0 && (job->cv[J - 1] > 1.5 * h || icv > JOB_CV_WARN) && w >= 0)
         job_warn(job,
                  "at the measurements left out of the fit the error is %.3g at J = %zu (%zu-fold refits), %.1fx the "
-                 "headline %.3g: the table does not predict itself between its samples (interp cv %.3g); trust "
-                 "cv_headline (report.json) for this table",
-                 job->cv[J - 1], J, K, job->cv[J - 1] / h, h, in->interp_cv[in->interp]);
+                 "headline %.3g; the table does not predict itself between its samples (interp cv %.3g): %.0f%% of "
+                 "that error is where theta_h is %g-%g deg (%zu measurements, error %.3g there); trust cv_headline "
+                 "(report.json) for this table",
+                 job->cv[J - 1], J, K, job->cv[J - 1] / h, h, icv, 100 * share, job_cv_band_deg[w],
+                 job_cv_band_deg[w + 1], job->cv_band_n[w],
+                 job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN);
     return r;
 }
 

@@ -65,6 +65,11 @@ typedef struct job_level {
 #define JOB_EST_START 8
 #define JOB_CONVERGED_TRY 0.01 /* auto: headline at J above which the converged masked fit is tried too */
 
+/* theta_h bands of the cross-validated error (degrees, JOB_CV_BANDS + 1
+ * edges in job_cv_band_deg): the highlight's core, its flanks, the body
+ * and the grazing half vectors. */
+#define JOB_CV_BANDS 5
+
 struct sb_job {
     sb_job_opts_t o;   /* resolved: every default filled in */
     char *source_spec; /* o.source points here */
@@ -107,7 +112,13 @@ struct sb_job {
     double *cv, *cv_se;
     size_t cv_folds, cv_held, cv_terms;
     double cv_s; /* its time */
+    /* at the kept J, per theta_h band (JOB_CV_BANDS edges): the held-out
+     * squared error, energy and count, for the warning that says where */
+    double cv_band_e[JOB_CV_BANDS], cv_band_t[JOB_CV_BANDS];
+    size_t cv_band_n[JOB_CV_BANDS];
 };
+
+extern const double job_cv_band_deg[JOB_CV_BANDS + 1];
 
 /* k-fold cross-validation of a scattered table's kept fit (job_cv.c). */
 sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job);

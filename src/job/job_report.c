@@ -307,6 +307,22 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
                        ? "errors[].cv_headline: relative L2 of f cos theta_i at the measurements, each predicted by "
                          "the refit of the kept layout, form and J without its fold"
                        : "not computed (a grid table, or cv_folds 1)");
+    sb_json_begin_array(j, "theta_h_bands");
+    for (int b = 0; job->cv && b < JOB_CV_BANDS; b++) {
+        sb_json_begin_object(j, NULL);
+        sb_json_begin_array(j, "theta_h_deg");
+        sb_json_number(j, NULL, job_cv_band_deg[b]);
+        sb_json_number(j, NULL, job_cv_band_deg[b + 1]);
+        sb_json_end_array(j);
+        sb_json_int(j, "held_out", (long long)job->cv_band_n[b]);
+        sb_json_number(j, "cv", job->cv_band_t[b] > 0 ? sqrt(job->cv_band_e[b] / job->cv_band_t[b]) : NAN);
+        double all = 0;
+        for (int c = 0; c < JOB_CV_BANDS; c++)
+            all += job->cv_band_e[c];
+        sb_json_number(j, "share", all > 0 ? job->cv_band_e[b] / all : NAN);
+        sb_json_end_object(j);
+    }
+    sb_json_end_array(j);
     sb_json_end_object(j);
     sb_json_int(j, "out_of_gamut", (long long)in->out_of_gamut);
     sb_json_string(j, "gamut", sb_gamut_name(in->gamut));

@@ -28,14 +28,20 @@
 #define LINES_T 32 /* elevations of the other axis */
 #define LINES_P 16 /* phi_d over [0, 2pi) */
 #define LINES_H 4  /* phi_h over [0, 2pi), anisotropic sources */
-#define ROUNDS 12  /* equalisation rounds */
+/* A scattered table of fewer samples than this (a Cornell or ALTA
+ * gonioreflectometer table) is scanned on half the elevations and half
+ * the phi_d: its interpolant has no detail between 512 lines that 128
+ * lines miss, and each of its values costs a neighbour search. */
+#define FEW_SAMPLES 4096
+#define ROUNDS 12 /* equalisation rounds */
 #define MIN_GAP 1e-4
 
 typedef struct scan {
     const sb_source_t *src;
     int axis;
     double tmax;
-    size_t nh, lines;      /* phi_h values; lines in all */
+    size_t nt, np, nh;     /* elevations, phi_d and phi_h values of the lines */
+    size_t lines;          /* nt np nh */
     const sb_warp_t *base; /* the fine grid's spacing: the floor's warp */
     double x[FINE];        /* fine grid, normalised */
     double e[FINE + 1];    /* fine cells' edges: 0, midpoints, 1 */
@@ -68,12 +74,12 @@ static int rusink_pair(double tmax, double th, double ph, double td, double pd, 
 
 /* One line: q along the axis and the line's weight. */
 static size_t scan_line(scan_t *s, size_t line) {
-    size_t it = line % LINES_T, ip = (line / LINES_T) % LINES_P, ih = line / (LINES_T * LINES_P), known = 0;
+    size_t it = line % s->nt, ip = (line / s->nt) % s->np, ih = line / (s->nt * s->np), known = 0;
     const sb_warp_t other = {s->axis == SB_AXIS_THETA_H ? SB_WARP_UNIFORM : SB_WARP_MERL, 0, {0}};
-    double to = sb_warp_theta(&other, (double)it + 0.5, LINES_T, s->tmax);
-    double lo = sb_warp_theta(&other, (double)it, LINES_T, s->tmax);
-    double hi = sb_warp_theta(&other, (double)it + 1, LINES_T, s->tmax);
-    double pd = (ip + 0.5) * 2 * SB_PI / LINES_P, ph = (ih + 0.5) * 2 * SB_PI / (double)s->nh;
+    double to = sb_warp_theta(&other, (double)it + 0.5, s->nt, s->tmax);
+    double lo = sb_warp_theta(&other, (double)it, s->nt, s->tmax);
+    double hi = sb_warp_theta(&other, (double)it + 1, s->nt, s->tmax);
+    double pd = (ip + 0.5) * 2 * SB_PI / (double)s->np, ph = (ih + 0.5) * 2 * SB_PI / (double)s->nh;
     /* the other elevation's share: int 4 cos sin dtheta_d, or int sin dtheta_h */
     s->w[line] = s->axis == SB_AXIS_THETA_H ? 2 * (sin(hi) * sin(hi) - sin(lo) * sin(lo)) : cos(lo) - cos(hi);
     double *q = s->q + line * FINE * 3, *c2 = s->c2 + line * FINE;
@@ -262,8 +268,12 @@ sb_result_t sb_warp_measure(sb_context_t *ctx, const sb_source_t *src, int axis,
     scan_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "warp measure: out of memory");
     *s = (scan_t){.src = src, .axis = axis, .tmax = o.theta_max, .base = &base};
+    size_t ns = sb_source_sample_count(src);
+    int few = ns > 0 && ns < FEW_SAMPLES && !(sb_source_flags(src) & SB_SOURCE_TABLES);
+    s->nt = few ? LINES_T / 2 : LINES_T;
+    s->np = few ? LINES_P / 2 : LINES_P;
     s->nh = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) ? 1 : LINES_H;
-    s->lines = LINES_T * LINES_P * s->nh;
+    s->lines = s->nt * s->np * s->nh;
     int nt = sb_threads_for(o.threads, s->lines, s->lines * FINE, 4096);
     scan_job_t *jobs = sb_calloc(ctx, (size_t)nt, sizeof *jobs, "warp scan");
     s->q = sb_alloc(ctx, s->lines * FINE, 3 * sizeof *s->q, "warp scan");

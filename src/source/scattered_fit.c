@@ -66,6 +66,32 @@ static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadr
     return 1;
 }
 
+/* The previous full query's neighbours on this thread.  A matrix row, a
+ * scan line or a warp scan asks for neighbouring positions one after the
+ * other, so the farthest of those k points from the new position bounds
+ * the search from its start: any k distinct points of the table do, so
+ * the k nearest found are the same (knn_after orders ties), with far
+ * fewer nodes visited.  Indices beyond the table (another table since)
+ * are not used. */
+static _Thread_local struct {
+    size_t n;
+    size_t at[KNN_MAX];
+} last;
+
+static double seed_bound(const table_t *t, const double *x, size_t k) {
+    if (last.n != k) return INFINITY;
+    double b = 0;
+    for (size_t i = 0; i < k; i++) {
+        if (last.at[i] >= t->n) return INFINITY;
+        const double *p = t->pts + last.at[i] * MAX_DIM;
+        double d = 0;
+        for (int a = 0; a < MAX_DIM; a++)
+            d += (p[a] - x[a]) * (p[a] - x[a]);
+        if (d > b) b = d;
+    }
+    return b;
+}
+
 /* The value at embedded position x by method `interp` with k neighbours,
  * leaving out the points at the nskip positions of `skip`: 0 missing, 1
  * known, 2 known at a measured position (the measurement). */
@@ -78,14 +104,25 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
     q.r2 = interp == SB_INTERP_NEAREST ? t->r2 : t->s2;
     q.skip = skip;
     q.nskip = nskip;
+    if (!nskip) {
+        double b = seed_bound(t, x, q.k);
+        if (b < q.r2) q.r2 = b;
+    }
     sb_kd_query_(t, x, 0, t->n, &q);
-    sb_knn_sort_(&q);
-    if (q.n == 0 || q.d2[0] > t->r2) return 0;
+    if (!nskip) {
+        last.n = q.n;
+        memcpy(last.at, q.at, q.n * sizeof *q.at);
+    }
+    double d0 = INFINITY; /* the nearest (the heap is ordered by the farthest) */
+    for (size_t i = 0; i < q.n; i++)
+        if (q.d2[i] < d0) d0 = q.d2[i];
+    if (q.n == 0 || d0 > t->r2) return 0;
     /* At a measured position (or for nearest): the sample, repeats averaged. */
-    if (q.d2[0] <= SAME_POSITION * SAME_POSITION || interp == SB_INTERP_NEAREST) {
-        double lim = q.d2[0] <= SAME_POSITION * SAME_POSITION ? SAME_POSITION * SAME_POSITION : q.d2[0];
+    if (d0 <= SAME_POSITION * SAME_POSITION || interp == SB_INTERP_NEAREST) {
+        double lim = d0 <= SAME_POSITION * SAME_POSITION ? SAME_POSITION * SAME_POSITION : d0;
         double cnt = 0;
-        for (size_t m = 0; m < q.n && q.d2[m] <= lim; m++) {
+        for (size_t m = 0; m < q.n; m++) {
+            if (q.d2[m] > lim) continue;
             const double *v = t->val + 4 * q.at[m];
             for (int c = 0; c < 3; c++)
                 rgb[c] += v[3] * v[c];
@@ -93,7 +130,7 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
         }
         for (int c = 0; c < 3; c++)
             rgb[c] /= cnt;
-        return q.d2[0] <= SAME_POSITION * SAME_POSITION ? 2 : 1;
+        return d0 <= SAME_POSITION * SAME_POSITION ? 2 : 1;
     }
     /* Inverse squared distance weights: the value, or the fallback. */
     double wsum = 0;

@@ -96,11 +96,18 @@ static int knn_skips(const knn_t *q, const double *p) {
 
 static double knn_bound(const knn_t *q) { return q->n < q->k ? q->r2 : q->d2[0]; }
 
+/* Entry i of the heap after entry j: farther, or as far and later in the
+ * tree.  The order is total, so the k nearest are one set whatever the
+ * order of the search and whatever bound it starts from (ties included). */
+static int knn_after(const knn_t *q, size_t i, size_t j) {
+    return q->d2[i] > q->d2[j] || (q->d2[i] == q->d2[j] && q->at[i] > q->at[j]);
+}
+
 static void knn_sift_down(knn_t *q, size_t i, size_t n) {
     for (;;) {
         size_t l = 2 * i + 1, r = l + 1, m = i;
-        if (l < n && q->d2[l] > q->d2[m]) m = l;
-        if (r < n && q->d2[r] > q->d2[m]) m = r;
+        if (l < n && knn_after(q, l, m)) m = l;
+        if (r < n && knn_after(q, r, m)) m = r;
         if (m == i) return;
         double d = q->d2[i];
         size_t a = q->at[i];
@@ -116,7 +123,7 @@ static void knn_push(knn_t *q, double d2, size_t at) {
     if (q->n < q->k) {
         if (d2 > q->r2) return;
         size_t i = q->n++;
-        while (i > 0 && q->d2[(i - 1) / 2] < d2) { /* sift up */
+        while (i > 0 && (q->d2[(i - 1) / 2] < d2 || (q->d2[(i - 1) / 2] == d2 && q->at[(i - 1) / 2] < at))) {
             q->d2[i] = q->d2[(i - 1) / 2];
             q->at[i] = q->at[(i - 1) / 2];
             i = (i - 1) / 2;
@@ -125,7 +132,7 @@ static void knn_push(knn_t *q, double d2, size_t at) {
         q->at[i] = at;
         return;
     }
-    if (d2 >= q->d2[0]) return;
+    if (d2 > q->d2[0] || (d2 == q->d2[0] && at > q->at[0])) return;
     q->d2[0] = d2;
     q->at[0] = at;
     knn_sift_down(q, 0, q->n);
@@ -159,8 +166,7 @@ void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t
         int ax = t->split[mid];
         const double *pm = t->pts + mid * MAX_DIM;
         double d2 = dist2(x, pm);
-        if ((d2 < knn_bound(q) || (q->n < q->k && d2 <= q->r2)) && !(q->nskip && knn_skips(q, pm)))
-            knn_push(q, d2, mid);
+        if (d2 <= knn_bound(q) && !(q->nskip && knn_skips(q, pm))) knn_push(q, d2, mid);
         double diff = x[ax] - pm[ax];
         size_t nlo = diff < 0 ? lo : mid + 1, nhi = diff < 0 ? mid : hi;
         size_t flo = diff < 0 ? mid + 1 : lo, fhi = diff < 0 ? hi : mid;
@@ -171,8 +177,7 @@ void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t
     }
     for (size_t i = lo; i < hi; i++) {
         double d2 = dist2(x, t->pts + i * MAX_DIM);
-        if ((d2 < knn_bound(q) || (q->n < q->k && d2 <= q->r2)) && !(q->nskip && knn_skips(q, t->pts + i * MAX_DIM)))
-            knn_push(q, d2, i);
+        if (d2 <= knn_bound(q) && !(q->nskip && knn_skips(q, t->pts + i * MAX_DIM))) knn_push(q, d2, i);
     }
 }
 
