@@ -56,11 +56,15 @@ int sb_estimate_worst_band(const sb_estimate_t *est, size_t j) {
     return w;
 }
 
-/* The map cell of cos theta. */
+/* cos of the map's edges (est_log2_init): theta >= edge where cos theta <=
+ * cos edge, no acos per pair. */
+static double map_cos[SB_EST_MAP + 1];
+
+/* The map cell of cos theta (NaN: the last, as theta = 180 degrees). */
 static size_t map_cell(double c) {
-    double deg = acos(fmin(1, fmax(-1, c))) * 180 / SB_PI;
     size_t k = 0;
-    while (k + 1 < SB_EST_MAP && deg >= sb_band_map_edges[k + 1])
+    c = c == c ? c : -1;
+    while (k + 1 < SB_EST_MAP && c <= map_cos[k + 1])
         k++;
     return k;
 }
@@ -78,6 +82,8 @@ static pthread_once_t log2_once = PTHREAD_ONCE_INIT;
 static void log2_fill(void) {
     for (int i = 0; i <= LOG2_STEPS; i++)
         log2_tab[i] = log2(1 + (double)i / LOG2_STEPS);
+    for (int k = 0; k <= SB_EST_MAP; k++)
+        map_cos[k] = cos(sb_band_map_edges[k] * SB_PI / 180);
 }
 
 void est_log2_init(void) { pthread_once(&log2_once, log2_fill); }
@@ -162,66 +168,59 @@ void est_bands_clear(const eval_t *e, size_t k) {
 /* The denominators of pair i: bands (mask) and its map cell (*cell). */
 static void pair_dens(const eval_t *e, const double *d, unsigned mask, size_t k, const double f2[4], size_t *cell) {
     double q = d[2] * d[2] * d[6], *bden = e->bden + k * BQ;
-    for (int b = 0; b < SB_BAND_COUNT_; b++)
-        for (int c = 0; c < 4 && (mask >> b & 1u); c++)
+    for (unsigned m = mask; m; m &= m - 1) {
+        int b = __builtin_ctz(m);
+        for (int c = 0; c < 4; c++)
             bden[b * 4 + c] += f2[c] * q;
+    }
     *cell = map_cell(d[2]) * SB_EST_MAP + map_cell(d[5]);
     e->mden[k * MM + *cell] += f2[3] * q;
 }
 
-static void bands_only(const eval_t *e, const double *d, const double *rec, unsigned mask, size_t k, double q) {
-    size_t J = e->J;
-    double *bnum = e->bnum + k * J * BQ;
-    for (size_t j = e->last_only ? J - 1 : 0; j < J && mask; j++) {
-        const double *r = rec + j * 3, *f = d + 7;
-        double d2[4] = {0, 0, 0, 0};
-        for (int c = 0; c < 3; c++)
-            d2[3] += d2[c] = (r[c] - f[c]) * (r[c] - f[c]);
-        for (int b = 0; b < SB_BAND_COUNT_; b++)
-            for (int c = 0; c < 4 && (mask >> b & 1u); c++)
-                bnum[j * BQ + b * 4 + c] += d2[c] * q;
+/* Prefix j's squared differences d2[4] (add_pair's) to the bands of mask. */
+static inline void bands_add(double *bnum, unsigned mask, const double *d2, double q) {
+    for (unsigned m = mask; m; m &= m - 1) {
+        int b = __builtin_ctz(m);
+        for (int c = 0; c < 4; c++)
+            bnum[b * 4 + c] += d2[c] * q;
     }
 }
 
-void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int t) {
+void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
+                    int t) {
     const double *d = e->P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
     size_t J = e->J, cell;
     unsigned mask = sb_band_mask(d, d + 3);
-    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4];
+    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
     f2[3] = f2[0] + f2[1] + f2[2];
     pair_dens(e, d, mask, k, f2, &cell);
+    double *bnum = e->bnum + k * J * BQ;
     if (e->headline_only) { /* the bands only (of all J terms with last_only) */
-        bands_only(e, d, rec, mask, k, q);
+        for (size_t j = e->last_only ? J - 1 : 0; j < J && mask; j++)
+            bands_add(bnum + j * BQ, mask, d2 + j * 4, q);
         return;
     }
     int lit[4];
-    for (int c = 0; c < 4; c++) {
+    for (int c = 0; c < 4; c++) /* lit: f > 0, so add_pair has the bin */
         lit[c] = f2[c] > 0 && sqrt(f2[c]) * d[2] > e->lit_thr[c];
-        lf2[c] = lit[c] ? est_log2(f2[c]) : 0;
-    }
     uint64_t lw = e->P->m0 > 0 ? (uint64_t)(d[6] / e->P->m0 * 0x1.0p40) : 0;
-    double *bnum = e->bnum + k * J * BQ;
     uint64_t *hist = e->hlit + (size_t)t * J * 4 * NB;
     double *maxl = e->maxl + (size_t)t * J * 4, *minv = e->minv + (size_t)t * J * 4;
     for (size_t j = 0; j < J; j++) {
-        const double *r = rec + j * 3;
-        double d2[4] = {0, 0, 0, 0};
-        for (int c = 0; c < 3; c++) {
-            d2[c] = (r[c] - f[c]) * (r[c] - f[c]);
-            d2[3] += d2[c];
-            minv[j * 4 + c] = fmin(minv[j * 4 + c], r[c]);
-            minv[j * 4 + 3] = fmin(minv[j * 4 + 3], r[c]);
+        const double *r = rec + j * 3, *dj = d2 + j * 4;
+        double *mv = minv + j * 4;
+        for (int c = 0; c < 3; c++) { /* fmin's result: a NaN r leaves the minimum */
+            mv[c] = r[c] < mv[c] ? r[c] : mv[c];
+            mv[3] = r[c] < mv[3] ? r[c] : mv[3];
         }
-        for (int b = 0; b < SB_BAND_COUNT_; b++)
-            for (int c = 0; c < 4 && (mask >> b & 1u); c++)
-                bnum[j * BQ + b * 4 + c] += d2[c] * q;
+        bands_add(bnum + j * BQ, mask, dj, q);
         for (int c = 0; c < 4; c++) {
             if (!lit[c]) continue;
-            hist[(j * 4 + c) * NB + est_bin_of(d2[c], f2[c], lf2[c])] += lw;
-            if (d2[c] > maxl[j * 4 + c] * f2[c]) maxl[j * 4 + c] = d2[c] / f2[c];
+            hist[(j * 4 + c) * NB + bin[j * 4 + c]] += lw;
+            if (dj[c] > maxl[j * 4 + c] * f2[c]) maxl[j * 4 + c] = dj[c] / f2[c];
         }
-        if (j + 1 == J) e->mnum[k * MM + cell] += d2[3] * q;
     }
+    e->mnum[k * MM + cell] += d2[(J - 1) * 4 + 3] * q;
 }
 
 void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {

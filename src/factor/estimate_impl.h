@@ -95,10 +95,14 @@ void est_ratio(const double *num, size_t ns, const double *den, size_t ds, size_
 /* Allocate e's band sums for kmax replicates and nt threads; the lit
  * thresholds over P's first `reps` replicates.  SB_OK or SB_ERR_NOMEM. */
 sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, size_t reps);
-/* Add known pair i (rec as est_reconstruct fills it) of replicate k to the
- * band sums (cleared by est_bands_clear(e, k) first), on thread t. */
+/* Add known pair i (rec as est_reconstruct fills it; d2 its squared
+ * differences per prefix and channel R, G, B, all [J][4]; bin their
+ * histogram bins, est_bin_of, where f > 0 and not headline_only) of
+ * replicate k to the band sums (cleared by est_bands_clear(e, k) first),
+ * on thread t. */
 void est_bands_clear(const eval_t *e, size_t k);
-void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int t);
+void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
+                    int t);
 /* Band errors, lit percentiles, smallest values (raw: finish divides) and
  * the map from K replicates and nt threads into out. */
 void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out);
