@@ -17,6 +17,7 @@
 
 #include "util/internal.h"
 #include "util/parallel.h"
+#include "util/rdft.h"
 
 typedef struct cand {
     double s;
@@ -39,6 +40,7 @@ struct sb_circ {
     double *work;             /* per thread: lwork doubles */
     lapack_int lwork, *iwork; /* per thread: 8 R */
     int nth;                  /* threads of the block SVDs and the transform */
+    int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
     cand_t *cand;             /* R^2 candidates, sorted */
 };
 
@@ -187,7 +189,7 @@ static void *blk_svd(void *arg) {
     lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * 8 * R;
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
     if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
-        if (j->k1 > j->k0)
+        if (j->k1 > j->k0 && !c->fft)
             cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->K,
                         (int)R2, c->T + j->k0 * R, (int)R, 0.0, c->C + j->k0 * R2, (int)R2);
         for (size_t k = j->k0; k < j->k1; k++) {
@@ -312,6 +314,7 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
             }
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
      * each block's squared Frobenius norm, blocks split among threads */
+    c->fft = sb_rdft_cols(R, c->nb, R2, c->K, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
     sb_result_t res = blocks_run(c, 0);
     if (res != SB_OK) return res;
     /* Step: the singular values (no vectors: the cheap part) of the blocks
