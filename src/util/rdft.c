@@ -28,7 +28,8 @@ typedef struct rdft_job {
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 __attribute__((target_clones("avx2", "default")))
 #endif
-static void fft_block(const rdft_job_t *j, double *restrict re, double *restrict im, size_t n) {
+static void
+fft_block(const rdft_job_t *j, double *restrict re, double *restrict im, size_t n) {
     size_t R = j->R, B = RDFT_B;
     for (size_t len = 2; len <= R; len *= 2) {
         size_t half = len / 2, step = R / len;
@@ -107,7 +108,8 @@ int sb_rdft_cols(size_t R, size_t nb, size_t rows, const double *X, size_t ldx, 
     }
     rdft_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (rdft_job_t){R, nb, 0, 0, ldx, ldc, lds, X, tw, tw + R / 2, rev, C, S, tw + R + 2 * R * RDFT_B * (size_t)t};
+        jobs[t] =
+            (rdft_job_t){R, nb, 0, 0, ldx, ldc, lds, X, tw, tw + R / 2, rev, C, S, tw + R + 2 * R * RDFT_B * (size_t)t};
         sb_part(rows, t, nt, &jobs[t].r0, &jobs[t].r1);
     }
     sb_parallel_run(rdft_rows, jobs, sizeof *jobs, nt, NULL, NULL);
