@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../src/util/rdft.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
@@ -84,7 +85,9 @@ SB_TEST(structured_only_where_it_applies) {
 /* Y = M Z against the product written out cell by cell. */
 SB_TEST(product) {
     sb_source_t *s = model("microfacet:base=copper,roughness=0.3");
-    for (size_t R = 3; R <= 9; R += 3) {
+    static const size_t Rs[] = {3, 4, 6, 8, 9}; /* 4, 8: the transform by FFT (util/rdft.h) */
+    for (size_t ri = 0; ri < sizeof Rs / sizeof Rs[0]; ri++) {
+        size_t R = Rs[ri];
         sb_param_t *p = param(SB_PARAM_IO, R);
         sb_matrix_t m, d;
         build(s, p, SB_FORM_F, 1, &m);
@@ -224,4 +227,40 @@ SB_TEST(memory_follows_storage) {
     sb_param_destroy(p);
     sb_source_destroy(s);
     sb_context_destroy(ctx);
+}
+
+/* The real DFT by FFT (util/rdft.h) against its sums, cos and sin, with
+ * leading dimensions wider than the rows, odd row counts (a lane's second
+ * row missing) and on two threads; sizes it does not take are refused. */
+SB_TEST(rdft_against_sums) {
+    static const size_t Rs[] = {4, 8, 32, 64};
+    static const size_t rows_of[] = {1, 7, 200, 301};
+    for (size_t a = 0; a < sizeof Rs / sizeof Rs[0]; a++)
+        for (size_t b = 0; b < sizeof rows_of / sizeof rows_of[0]; b++) {
+            size_t R = Rs[a], rows = rows_of[b], nb = R / 2 + 1, ldx = rows + 3, ldc = rows + 1;
+            double *x = malloc(ldx * R * sizeof *x), *c = calloc(ldc * nb, sizeof *c),
+                   *sn = calloc(ldc * nb, sizeof *sn);
+            for (size_t i = 0; i < ldx * R; i++)
+                x[i] = sin(0.61 * (double)i + 0.3) + (double)(i % 5);
+            CHECK(sb_rdft_cols(R, nb, rows, x, ldx, c, ldc, sn, ldc, 2) == 1);
+            double worst = 0, scale = 0;
+            for (size_t f = 0; f < nb; f++)
+                for (size_t r = 0; r < rows; r++) {
+                    double wc = 0, ws = 0;
+                    for (size_t d = 0; d < R; d++) {
+                        double ang = 2 * SB_PI * (double)((f * d) % R) / (double)R;
+                        wc += x[r + d * ldx] * cos(ang);
+                        ws += x[r + d * ldx] * sin(ang);
+                        scale = fmax(scale, fabs(x[r + d * ldx]));
+                    }
+                    worst = fmax(worst, fmax(fabs(c[r + f * ldc] - wc), fabs(sn[r + f * ldc] - ws)));
+                }
+            CHECKF(worst <= 1e-14 * (double)R * scale, "R %zu, %zu rows: off by %g of %g", R, rows, worst, scale);
+            free(x);
+            free(c);
+            free(sn);
+        }
+    double one = 1, out[4];
+    CHECK(!sb_rdft_cols(6, 4, 1, &one, 1, out, 1, NULL, 1, 1) && !sb_rdft_cols(2, 2, 1, &one, 1, out, 1, NULL, 1, 1));
+    CHECK(sb_rdft_fits(1024) && !sb_rdft_fits(12) && !sb_rdft_fits(2));
 }

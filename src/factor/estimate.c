@@ -164,7 +164,11 @@ void sb_pairs_destroy(sb_pairs_t *P) {
 size_t sb_pairs_count(const sb_pairs_t *P) { return P ? P->n : 0; }
 
 /* Add one known pair's errors for every prefix to the replicate sums. */
-static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t) {
+/* d2s, bins: each prefix's squared differences [J][4] and the bins of the
+ * channels with f > 0 [J][4] (not with headline_only), which the band sums
+ * read again. */
+static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t, double *d2s,
+                     uint32_t *bins) {
     const double *f = d + 7, w = d[6];
     double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
     double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4] = {0, 0, 0, 0};
@@ -194,9 +198,12 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
                 num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
         neg[j] += below ? w : 0;
         maxv[j] = vmax > maxv[j] ? vmax : maxv[j];
+        memcpy(d2s + j * 4, d2, sizeof d2);
         for (int c = 0; c < 4 && !e->headline_only; c++) {
             if (!(f2[c] > 0)) continue;
-            hist[(j * 4 + c) * NB + est_bin_of(d2[c], f2[c], lf2[c])] += ew[c];
+            size_t bin = est_bin_of(d2[c], f2[c], lf2[c]);
+            bins[j * 4 + c] = (uint32_t)bin;
+            hist[(j * 4 + c) * NB + bin] += ew[c];
             if (d2[c] > maxr[j * 4 + c] * f2[c]) /* a division only for a new maximum */
                 maxr[j * 4 + c] = d2[c] / f2[c]; /* maxr holds squares: roots taken in combine() */
         }
@@ -210,7 +217,8 @@ static void eval_unit(void *user, size_t k, int t) {
     /* the sums in local arrays (nothing else can alias them), copied out
      * at the end */
     double num[SB_EST_MAXJ * QC], den[QC], neg[SB_EST_MAXJ], meas = 0, rec[SB_EST_MAXJ * 3];
-    double de[SB_EST_MAXJ], dew = 0;
+    double de[SB_EST_MAXJ], dew = 0, d2s[SB_EST_MAXJ * 4];
+    uint32_t bins[SB_EST_MAXJ * 4];
     memset(de, 0, J * sizeof *de);
     memset(num, 0, J * QC * sizeof *num);
     memset(den, 0, sizeof den);
@@ -227,8 +235,8 @@ static void eval_unit(void *user, size_t k, int t) {
         }
         meas += d[6];
         est_reconstruct(e, i, rec);
-        add_pair(e, d, rec, num, neg, t);
-        if (e->bands) est_bands_pair(e, i, rec, k, t);
+        add_pair(e, d, rec, num, neg, t, d2s, bins);
+        if (e->bands) est_bands_pair(e, i, rec, d2s, bins, k, t);
         if (!e->headline_only && est_chroma_pair(e, i, rec, de)) dew += d[6];
     }
     memcpy(e->de + k * J, de, J * sizeof *de);

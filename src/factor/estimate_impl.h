@@ -4,7 +4,11 @@
 #ifndef SEPBRDF_ESTIMATE_IMPL_H
 #define SEPBRDF_ESTIMATE_IMPL_H
 
+#include <float.h>
+#include <math.h>
 #include <pthread.h>
+#include <stdint.h>
+#include <string.h>
 
 #include "sepbrdf/estimate.h"
 
@@ -83,10 +87,31 @@ typedef struct eval {
 
 /* Where the error is (estimate_bands.c). */
 void est_log2_init(void);
+
+/* log2 x for x > 0 to about 2e-7 (a bin is 0.083 wide): the exponent
+ * from the bits, log2 of the mantissa interpolated linearly in a table of
+ * 1024 steps (error h^2 / (8 ln 2) = 1.7e-7; est_log2_init fills it).
+ * Inline: called per pair, term and channel from two files. */
+#define EST_LOG2_STEPS 1024
+extern double est_log2_tab[EST_LOG2_STEPS + 1];
+static inline double est_log2(double x) {
+    if (!(x >= DBL_MIN) || !(x <= DBL_MAX)) return log2(x);
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    int ex = (int)((b >> 52) & 0x7ff) - 1023;
+    uint64_t mant = b & 0x000fffffffffffffULL;
+    size_t i = (size_t)(mant >> 42); /* the top 10 of 52 bits */
+    double frac = (double)(mant & ((1ULL << 42) - 1)) * 0x1.0p-42;
+    return ex + est_log2_tab[i] + frac * (est_log2_tab[i + 1] - est_log2_tab[i]);
+}
+
 /* The histogram bin of relative error r = sqrt(d2 / f2), from the squares:
  * 40 bins a decade from 1e-12 (bin 0 below); lf2 = log2 f2. */
-size_t est_bin_of(double d2, double f2, double lf2);
-double est_log2(double x);
+static inline size_t est_bin_of(double d2, double f2, double lf2) {
+    if (!(d2 > 1e-24 * f2)) return 0;
+    double b = 20 * 0.30102999566398120 * (est_log2(d2) - lf2) + 480;
+    return b >= NB - 1 ? NB - 1 : (size_t)b;
+}
 /* The 99th percentile of the sum of nt histograms (stride apart), at most mx. */
 double est_hist_p99(const uint64_t *hist, size_t stride, int nt, double mx);
 /* Ratio estimate r = sqrt(sum num / sum den) over K replicates (num[k *
@@ -95,10 +120,14 @@ void est_ratio(const double *num, size_t ns, const double *den, size_t ds, size_
 /* Allocate e's band sums for kmax replicates and nt threads; the lit
  * thresholds over P's first `reps` replicates.  SB_OK or SB_ERR_NOMEM. */
 sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, size_t reps);
-/* Add known pair i (rec as est_reconstruct fills it) of replicate k to the
- * band sums (cleared by est_bands_clear(e, k) first), on thread t. */
+/* Add known pair i (rec as est_reconstruct fills it; d2 its squared
+ * differences per prefix and channel R, G, B, all [J][4]; bin their
+ * histogram bins, est_bin_of, where f > 0 and not headline_only) of
+ * replicate k to the band sums (cleared by est_bands_clear(e, k) first),
+ * on thread t. */
 void est_bands_clear(const eval_t *e, size_t k);
-void est_bands_pair(const eval_t *e, size_t i, const double *rec, size_t k, int t);
+void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
+                    int t);
 /* Band errors, lit percentiles, smallest values (raw: finish divides) and
  * the map from K replicates and nt threads into out. */
 void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out);

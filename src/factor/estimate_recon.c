@@ -116,7 +116,8 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     est_taps(e, SB_SIDE_H, sh, ah, fh);
     double div = 1, acc[3] = {0, 0, 0};
     div = sb_form_divisor(e->form, wi, wo);
-    double gain = sb_param_gain(e->p, wi, wo); /* 1 but on SB_CAP_TABLES layouts */
+    double gain = sb_param_gain(e->p, wi, wo);               /* 1 but on SB_CAP_TABLES layouts */
+    int tables = (sb_param_caps(e->p) & SB_CAP_TABLES) != 0; /* sb_param_apply_gain, once a pair */
     size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
     const double *g[4], *h[4];
     for (int k = 0; k < 4; k++) {
@@ -127,8 +128,10 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
         for (size_t c = 0, at = j * C; c < C; c++, at++)
             acc[c] += (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
                       (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scale[j];
-        for (int c = 0; c < 3; c++)
-            rec[j * 3 + c] = sb_param_apply_gain(e->p, acc[C == 1 ? 0 : c], gain) / div;
+        for (int c = 0; c < 3; c++) {
+            double v = acc[C == 1 ? 0 : c];
+            rec[j * 3 + c] = (tables ? (v > 0 ? v : 0) * gain : v) / div;
+        }
     }
 }
 

@@ -17,6 +17,8 @@
 #include "sample/stream.h"
 #include "sepbrdf/matrix.h"
 #include "util/internal.h"
+#include "util/parallel.h"
+#include "util/rdft.h"
 
 int sb_matrix_has(const sb_matrix_t *m, int ch) {
     if (!m || ch < 0 || ch > 2) return 0;
@@ -68,6 +70,8 @@ typedef struct fourier {
  * channel at R = 64 (one BLAS thread, Xeon VM, interleaved). */
 static void fourier_transform(const fourier_t *w, const double *t) {
     size_t R = w->R, nb = w->nb, R2 = R * R;
+    int nt = sb_threads_for(0, R2 / 32, R2 * R, (size_t)1 << 22);
+    if (sb_rdft_cols(R, nb, R2, t, R2, w->C, R2, w->S, R2, nt)) return; /* R a power of two: by FFT (util/rdft.h) */
     cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(2 * nb), (int)R, 1.0, t, (int)R2, w->cs,
                 (int)R, 0.0, w->C, (int)R2);
 }

@@ -17,6 +17,7 @@
 
 #include "util/internal.h"
 #include "util/parallel.h"
+#include "util/rdft.h"
 
 typedef struct cand {
     double s;
@@ -39,6 +40,7 @@ struct sb_circ {
     double *work;             /* per thread: lwork doubles */
     lapack_int lwork, *iwork; /* per thread: 8 R */
     int nth;                  /* threads of the block SVDs and the transform */
+    int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
     cand_t *cand;             /* R^2 candidates, sorted */
 };
 
@@ -187,7 +189,7 @@ static void *blk_svd(void *arg) {
     lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * 8 * R;
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
     if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
-        if (j->k1 > j->k0)
+        if (j->k1 > j->k0 && !c->fft)
             cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->K,
                         (int)R2, c->T + j->k0 * R, (int)R, 0.0, c->C + j->k0 * R2, (int)R2);
         for (size_t k = j->k0; k < j->k1; k++) {
@@ -312,6 +314,7 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
             }
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
      * each block's squared Frobenius norm, blocks split among threads */
+    c->fft = sb_rdft_cols(R, c->nb, R2, c->K, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
     sb_result_t res = blocks_run(c, 0);
     if (res != SB_OK) return res;
     /* Step: the singular values (no vectors: the cheap part) of the blocks
@@ -357,14 +360,56 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
     return SB_OK;
 }
 
-/* max_i |x[i] - t y[i]| */
-static double absmax_axpy(const double *x, double t, const double *y, size_t n) {
+/* max_i |x[i] - t y[i]|; with `store`, x[i] becomes x[i] - t y[i] (the
+ * subtraction and the maximum in one pass).  SSE2, or AVX2 where the CPU
+ * has it (circ_avx2): the same operations, so the same bits. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#include <immintrin.h>
+#define CIRC_AVX2 1
+__attribute__((target("avx2"))) static double absmax_axpy_avx2(double *x, double t, const double *y, size_t n,
+                                                               int store) {
+    size_t i = 0;
+    __m256d vm = _mm256_setzero_pd(), vt = _mm256_set1_pd(t), sign = _mm256_set1_pd(-0.0);
+    for (; i + 4 <= n; i += 4) {
+        __m256d d = _mm256_sub_pd(_mm256_loadu_pd(x + i), _mm256_mul_pd(vt, _mm256_loadu_pd(y + i)));
+        if (store) _mm256_storeu_pd(x + i, d);
+        vm = _mm256_max_pd(vm, _mm256_andnot_pd(sign, d));
+    }
+    double tmp[4], mx;
+    _mm256_storeu_pd(tmp, vm);
+    mx = tmp[0] > tmp[1] ? tmp[0] : tmp[1];
+    mx = tmp[2] > mx ? tmp[2] : mx;
+    mx = tmp[3] > mx ? tmp[3] : mx;
+    for (; i < n; i++) {
+        double d = x[i] - t * y[i];
+        if (store) x[i] = d;
+        if (fabs(d) > mx) mx = fabs(d);
+    }
+    return mx;
+}
+#endif
+
+static int circ_avx2(void) {
+#ifdef CIRC_AVX2
+    static int has = -1;
+    if (has < 0) has = __builtin_cpu_supports("avx2") ? 1 : 0;
+    return has;
+#else
+    return 0;
+#endif
+}
+
+static double absmax_axpy_st(double *x, double t, const double *y, size_t n, int store) {
+#ifdef CIRC_AVX2
+    if (circ_avx2()) return absmax_axpy_avx2(x, t, y, n, store);
+#endif
     size_t i = 0;
     double mx = 0;
 #if defined(__SSE2__)
     __m128d vm = _mm_setzero_pd(), vt = _mm_set1_pd(t), sign = _mm_set1_pd(-0.0);
     for (; i + 2 <= n; i += 2) {
         __m128d d = _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(vt, _mm_loadu_pd(y + i)));
+        if (store) _mm_storeu_pd(x + i, d);
         vm = _mm_max_pd(vm, _mm_andnot_pd(sign, d));
     }
     double tmp[2];
@@ -372,13 +417,16 @@ static double absmax_axpy(const double *x, double t, const double *y, size_t n) 
     mx = tmp[0] > tmp[1] ? tmp[0] : tmp[1];
 #endif
     for (; i < n; i++) {
-        double d = fabs(x[i] - t * y[i]);
-        if (d > mx) mx = d;
+        double d = x[i] - t * y[i];
+        if (store) x[i] = d;
+        if (fabs(d) > mx) mx = fabs(d);
     }
     return mx;
 }
 
-static double absmax(const double *x, size_t n) { return absmax_axpy(x, 0.0, x, n); }
+static double absmax_axpy(const double *x, double t, const double *y, size_t n) {
+    return absmax_axpy_st((double *)x, t, y, n, 0); /* store = 0: x is only read */
+}
 
 /* One step of the residual sweep of sb_circ_max_abs, for one error mx[j]:
  * lone, the cos vector of a pair alone (the largest |row - B v at| over v
@@ -421,9 +469,7 @@ static void *rows_max(void *arg) {
                     m = fmax(x, y);
                 } else {
                     double cf = st->sg * st->bt[ot] * st->e[d];
-                    for (size_t it = 0; it < R; it++)
-                        row[it] -= cf * st->at[it];
-                    m = absmax(row, R);
+                    m = absmax_axpy_st(row, cf, st->at, R, 1); /* row -= cf at, and its largest |.| */
                 }
                 j->mx[s] = fmax(j->mx[s], m);
             }
