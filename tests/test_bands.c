@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
@@ -218,5 +219,41 @@ SB_TEST(light_edge_continued) {
         if (s == 1) CHECK(fabs(head[0] - head[1]) <= 0.03 * head[1]);
         sb_job_destroy(job[0]);
         sb_job_destroy(job[1]);
+    }
+}
+
+/* No negative reconstruction (issue 33): by default the reconstruction is
+ * max(0, sum), the snippet's SB_CLAMP 1, so the most negative value
+ * (min_rel) is 0 and no pair drawn here evaluates below 0; the plain
+ * truncated SVD (plain_terms: spec plain=1, SB_CLAMP 0) keeps its negative
+ * lobes, and min_rel says so. */
+SB_TEST(no_negative_unless_plain) {
+    for (int plain = 0; plain < 2; plain++) {
+        sb_job_opts_t o = {0};
+        o.param = "iso";
+        o.res = 16;
+        o.terms = 4;
+        o.plain_terms = plain;
+        sb_job_t *job = NULL;
+        CHECK(sb_job_run(NULL, &o, &job) == SB_OK);
+        if (!job) continue;
+        const sb_estimate_t *e = sb_job_estimate(job);
+        const sb_param_t *p = sb_job_param(job);
+        char *glsl = sb_glsl_snippet(p, sb_job_form(job), 4, NULL);
+        CHECK(glsl && strstr(glsl, plain ? "#define SB_CLAMP 0" : "#define SB_CLAMP 1"));
+        free(glsl);
+        CHECK((strstr(sb_param_spec(p), "plain=1") != NULL) == plain);
+        unsigned long long rng = 99;
+        double lowest = 0;
+        for (int i = 0; i < 100000; i++) {
+            double wi[3], wo[3], rec[3];
+            draw_in_band(SB_BAND_TI80, &rng, wi, wo);
+            if (sb_factors_eval(sb_job_factors(job), p, sb_job_form(job), 4, wi, wo, rec))
+                for (int c = 0; c < 3; c++)
+                    lowest = fmin(lowest, rec[c]);
+        }
+        printf("  plain %d: min_rel %.4g, lowest value drawn %.4g\n", plain, e->min_rel[3][3], lowest);
+        CHECK(plain ? e->min_rel[3][3] < 0 && lowest < 0 : e->min_rel[3][3] == 0 && lowest == 0);
+        sb_job_destroy(job);
     }
 }

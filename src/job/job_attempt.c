@@ -24,6 +24,7 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
     if (lv->po) po = *lv->po;
     po.res = lv->res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po.plain = job->o.plain_terms;                 /* the plain truncated SVD: no clamp at 0 */
     po.tables = sb_source_layout_tables(job->src); /* layouts built on the source's tables (vndf) */
     /* iso screens on R rows of theta_h (td = 2R), half its default: the
      * layouts' ranking is the same there, the masked fit half the cost;
