@@ -41,11 +41,18 @@ def pct(v):
     return "n/a" if v is None else "%.3g %%" % (100 * v)
 
 
-def main():
+def parser(J):
+    """The options the bench/ scripts share: --build (default $BUILD or
+    the repository's build/) and --J (a comma list)."""
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser()
     ap.add_argument("--build", default=os.environ.get("BUILD", os.path.join(os.path.dirname(here), "build")))
-    ap.add_argument("--J", default="1,4,8")
+    ap.add_argument("--J", default=J)
+    return ap
+
+
+def main():
+    ap = parser("1,4,8")
     ap.add_argument("--extra", default="")
     ap.add_argument("files", nargs="*")
     a = ap.parse_args()

@@ -30,6 +30,8 @@ vec3 sb_brdf(vec3 L, vec3 V) {
     }
 #ifdef SB_GAIN
     sum = max(sum, vec3(0.0)) * sb_gain(L, V);  // the layout's known factor (vndf: the RGL file's NDF / 4 sigma)
+#elif SB_CLAMP
+    sum = max(sum, vec3(0.0));  // no negative value (SB_CLAMP 0: the plain truncated SVD's sum)
 #endif
 #if SB_FORM == 1
     sum /= max(L.z, 0.001);            // factored f cos(theta_i)

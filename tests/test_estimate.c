@@ -122,6 +122,7 @@ static double reference(const sb_factors_t *f, sb_form_t form, double alpha, siz
             for (size_t j = 0; j < J; j++)
                 rec += io_lookup(sb_factors_tex_const(f, 0, j, (size_t)c), w, h, ti, phi_i) *
                        io_lookup(sb_factors_tex_const(f, 1, j, (size_t)c), w2, h2, tho, pho);
+            rec = fmax(rec, 0); /* the snippet's max(0, sum) (SB_CLAMP 1) */
             if (form != SB_FORM_F) rec /= fmax(wi[2], 0.001);
             if (form == SB_FORM_COS2) rec /= fmax(wo[2], 0.001);
             double q = wi[2] * wi[2] * wo[2] * wo[2] / p;

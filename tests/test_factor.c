@@ -194,7 +194,11 @@ SB_TEST(sign_convention) {
 SB_TEST(lookup_cell_centres) {
     size_t R = 6;
     sb_source_t *s = probe_source();
-    sb_param_t *p = io(R);
+    sb_param_t *p = NULL, *clamped = io(R);
+    sb_param_opts_t o = {0};
+    o.res = R;
+    o.plain = 1; /* the probe is signed: the plain sum */
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_plan_opts_t po = {0};
@@ -211,6 +215,10 @@ SB_TEST(lookup_cell_centres) {
             probe_eval(NULL, wi, wo, ref);
             for (int c = 0; c < 3; c++)
                 CHECK_REL(rgb[c], ref[c], 1e-9);
+            /* by default the reconstruction is max(0, sum), as the snippet's SB_CLAMP */
+            CHECK(sb_factors_eval(f, clamped, SB_FORM_F, R * R, wi, wo, rgb) == 1);
+            for (int c = 0; c < 3; c++)
+                CHECK_REL(rgb[c], fmax(ref[c], 0), 1e-9);
         }
     /* between two theta centres the lookup is the linear blend */
     size_t k0 = 2 * R + 1, l = 7;
@@ -231,6 +239,7 @@ SB_TEST(lookup_cell_centres) {
     sb_plan_destroy(plan);
     sb_matrix_free(&m);
     sb_param_destroy(p);
+    sb_param_destroy(clamped);
     sb_source_destroy(s);
 }
 

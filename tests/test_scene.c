@@ -171,13 +171,14 @@ SB_TEST(lights_are_the_render_pairs) {
 
 /* The cells a fit uses: on an io grid of R = 8 cells over 90 degrees, a
  * view range of 0..30 degrees reaches texel centres s = (x + 1/2) / 8 up
- * to the bilinear neighbour of s = 30/90: theta index 3, no further.  */
+ * to the bilinear neighbour of s = 30/90: theta index 3, no further
+ * (floor=0: by default ranges on io keep a floor on the others).  */
 SB_TEST(mass_on_the_footprints) {
     sb_scene_t *s = NULL;
     sb_param_t *p = NULL;
     sb_param_opts_t po = {0};
     po.res = 8;
-    CHECK(sb_scene_parse(NULL, "view=0..30", &s) == SB_OK);
+    CHECK(sb_scene_parse(NULL, "view=0..30;floor=0", &s) == SB_OK);
     CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK);
     size_t rows = sb_param_rows(p), cols = sb_param_cols(p);
     double *mass = malloc(rows * cols * sizeof *mass), top = 0;
@@ -201,6 +202,16 @@ SB_TEST(mass_on_the_footprints) {
     CHECK(m.valid_count == rows * 8 * 4);
     for (size_t i = 0; i < rows + cols; i++)
         CHECK(w[i] > 0 && isfinite(w[i]));
+    { /* the default on io for ranges: every cell, the others at the floor */
+        sb_scene_t *sf = NULL;
+        sb_matrix_t mf;
+        CHECK(sb_scene_parse(NULL, "view=0..30", &sf) == SB_OK);
+        CHECK(sb_matrix_build(NULL, src, p, NULL, &mf) == SB_OK);
+        CHECK(sb_scene_apply(NULL, sf, p, &mf, w) == SB_OK);
+        CHECK(mf.valid_count == rows * cols);
+        sb_matrix_free(&mf);
+        sb_scene_destroy(sf);
+    }
     /* sampled on those cells only: the same values there, nothing elsewhere */
     unsigned char *only = malloc(rows * cols);
     for (size_t c = 0; c < rows * cols; c++)

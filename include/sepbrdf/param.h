@@ -125,6 +125,11 @@ typedef struct sb_param_opts {
     /* SB_CAP_TABLES layouts only (NULL otherwise): the tables, copied by
      * sb_param_create (its opts then point at the copy) */
     const sb_layout_tables_t *tables;
+    /* 0 (default): the reconstruction is max(0, sum of the terms) (the
+     * snippet's SB_CLAMP 1): no negative value where the source is never
+     * negative.  1: the plain sum, as the truncated SVD gives it (spec key
+     * plain=1; the job's plain_terms). */
+    int plain;
 } sb_param_opts_t;
 
 typedef struct sb_param sb_param_t;
@@ -244,8 +249,9 @@ SB_API const sb_layout_tables_t *sb_param_tables(const sb_param_t *p);
  * node, also where the light falls below the horizon): 1 and rgb; 0 (the
  * source is sampled) otherwise. */
 SB_API int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[3]);
-/* The value from a sum of terms and the gain: gain x max(0, sum) for
- * SB_CAP_TABLES layouts, sum itself otherwise. */
+/* The value from a sum of terms and the gain: gain x max(0, sum), the
+ * snippet's; the sum itself where opts.plain (not on SB_CAP_TABLES
+ * layouts, whose gain is always applied to max(0, sum)). */
 SB_API double sb_param_apply_gain(const sb_param_t *p, double sum, double gain);
 /* The tables of an SB_CAP_TABLES layout as one RGB float texture (written
  * as vndf.exr; the GLSL reads it as sb_vndf): *rgb (malloc'ed, width x

@@ -36,10 +36,15 @@
  *                          outside the scene).  Not given: SB_SCENE_FLOOR
  *                          on layouts with SB_CAP_PARTIAL_DOMAIN (their
  *                          fit is masked anyway; measured: inside as
- *                          without, outside near the unweighted fit), 0 on
- *                          the others (io, io-area: there the mask is what
- *                          makes the scene's fit better inside, and any
- *                          floor gives that up; docs/bands.md).
+ *                          without, outside near the unweighted fit) and
+ *                          for view/light ranges on separable layouts (io,
+ *                          io-area: the ranges' mass is rows x columns,
+ *                          which the fit's separable weights hold exactly;
+ *                          inside as without, outside 842x -> 0.56x the
+ *                          unweighted fit, GGX 0.3 on io, R = 16, J = 2),
+ *                          0 for lights and pairs there (the mask is what
+ *                          makes their fit better inside, and any floor
+ *                          gives that up; docs/bands.md).
  * Exactly one of the three kinds; a key given twice, an unknown key, a
  * malformed number, a range out of order or beyond 0..90 are errors.
  *
@@ -116,7 +121,8 @@ SB_API double sb_scene_floor(const sb_scene_t *s);
 /* The cells of mass 0 (of cells values, from sb_scene_mass on p) raised
  * to share the scene's floor X of the total mass, X * sum / (cells of mass
  * 0) each (X not given: SB_SCENE_FLOOR where p has SB_CAP_PARTIAL_DOMAIN,
- * else 0); nothing for a NULL mass or X = 0. */
+ * or SB_CAP_SEPARABLE and s is of kind SB_SCENE_RANGES, else 0); nothing
+ * for a NULL mass or X = 0. */
 SB_API void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells);
 
 /* The scene's mass on the cells of p for a matrix of form `form` (header):

@@ -247,7 +247,9 @@ const cli_option_t cli_factor_options[] = {
      "keep the factorisation's terms as they are; by default a\nterm that raises the headline error at its J' is "
      "scaled\n"
      "down (report.json: term_weight), so errors fall with J'\n(unless that raises the error at J 1.25x), "
-     "and texels are\nfitted for the bilinear lookup where that lowers the\nerror (report.json: fit.texels_fitted)",
+     "and texels are\nfitted for the bilinear lookup where that lowers the\nerror (report.json: fit.texels_fitted); "
+     "the "
+     "reconstruction\nis max(0, sum of the terms) unless this is given (the\nsnippet's SB_CLAMP, the layout's plain=1)",
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
     {NULL, "--cv-folds", "K",
      "scattered tables (Cornell, ALTA, CSV, simulated gonio):\nrefit the kept layout K times, each without one fold "

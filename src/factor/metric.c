@@ -58,6 +58,7 @@ typedef struct work {
     const sb_source_t *src;
     const sb_param_t *p;
     size_t R, N, J, C;
+    int clamp;             /* the reconstruction is max(0, sum) (sb_param_apply_gain) */
     const double **tex[2]; /* [side][j * C + c] */
     size_t tw[2], th[2];   /* texture sizes per side */
     int wrap[2][2];
@@ -95,8 +96,9 @@ static void lookups(const work_t *w, int side, const double st[2], double div, d
  * num, neg of a unit (J + 1 each, see work_t); gv, hv: the looked-up values
  * of both sides ([j C + c]), NULL outside the domain (the reconstruction
  * is 0 there). */
-static inline void add_pair(double *restrict num, size_t *restrict neg, size_t J, size_t C, const double f[3],
-                            double wgt, size_t mult, const double *restrict gv, const double *restrict hv) {
+static inline void add_pair(double *restrict num, size_t *restrict neg, size_t J, size_t C, int clamp,
+                            const double f[3], double wgt, size_t mult, const double *restrict gv,
+                            const double *restrict hv) {
     double f2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
     num[J] += wgt * f2;
     neg[J] += mult;
@@ -112,7 +114,9 @@ static inline void add_pair(double *restrict num, size_t *restrict neg, size_t J
         double e2 = 0;
         int below = 0;
         for (int c = 0; c < 3; c++) {
-            double rec = acc[C == 1 ? 0 : c], d = rec - f[c];
+            double rec = acc[C == 1 ? 0 : c];
+            rec = clamp && rec < 0 ? 0 : rec;
+            double d = rec - f[c];
             e2 += d * d;
             below |= rec < 0;
         }
@@ -142,7 +146,7 @@ static void add_dirs(const work_t *w, double *num, size_t *neg, size_t k, size_t
         lookups(w, SB_SIDE_G, sg, w->guard[0][it], gv);
         lookups(w, SB_SIDE_H, sh, w->guard[1][ot], hv);
     }
-    add_pair(num, neg, w->J, w->C, f, wgt, mult, in ? gv : NULL, hv);
+    add_pair(num, neg, w->J, w->C, w->clamp, f, wgt, mult, in ? gv : NULL, hv);
 }
 
 /* ---- units of work ---------------------------------------------------- */
@@ -202,7 +206,8 @@ static inline void separable_row(const work_t *w, double *num, size_t *neg, size
         for (size_t ot = 0; ot < R; ot++, l++) {
             double f[3];
             if (!source_at(w, k, l, it, ot, (op + R - ip) % R, f)) continue;
-            add_pair(num, neg, J, C, f, w->wt[it] * w->wt[ot], 1, w->inside[l] ? gv : NULL, w->side[1] + l * JC);
+            add_pair(num, neg, J, C, w->clamp, f, w->wt[it] * w->wt[ot], 1, w->inside[l] ? gv : NULL,
+                     w->side[1] + l * JC);
         }
 }
 
@@ -419,7 +424,7 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
     int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
     unsigned caps = sb_param_caps(p);
 
-    work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C};
+    work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C, .clamp = sb_param_apply_gain(p, -1, 1) == 0};
     if (work_alloc(ctx, &w, iso_src, caps) != 0) {
         work_free(&w);
         return sb_error(ctx, SB_ERR_NOMEM, "metric: out of memory");

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "job_impl.h"
+#include "sample/edge.h"
 #include "sample/stream.h"
 #include "sepbrdf/exr.h"
 #include "util/internal.h"
@@ -23,6 +24,7 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
     if (lv->po) po = *lv->po;
     po.res = lv->res;
     po.theta_max = job->o.theta_max_deg * SB_PI / 180;
+    po.plain = job->o.plain_terms;                 /* the plain truncated SVD: no clamp at 0 */
     po.tables = sb_source_layout_tables(job->src); /* layouts built on the source's tables (vndf) */
     /* iso screens on R rows of theta_h (td = 2R), half its default: the
      * layouts' ranking is the same there, the masked fit half the cost;
@@ -60,14 +62,17 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     }
     r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
     if (r != SB_OK) return r;
+    /* the zero fill of SB_CAP_LIGHT_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
+    if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->eval_src, a->param, &a->m);
     a->t_sample = job_now() - t0;
     return r;
 }
 
-/* Cells outside a's domain fitted as zeros: asked for (--zero-fill), or
- * where the form continues by 0 there (SB_CAP_LIGHT_EDGE on the whole
- * hemisphere with a form holding cos theta_i): a plain SVD, exact and
- * fast, instead of the masked fit. */
+/* Cells outside a's domain fitted as given: zeros asked for (--zero-fill),
+ * or where the form continues by its value at the edge there
+ * (SB_CAP_LIGHT_EDGE on the whole hemisphere with a form holding cos
+ * theta_i; sample/edge.h): a plain SVD, exact and fast, instead of the
+ * masked fit. */
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a) {
     if (job->o.zero_fill) return 1;
     int hemisphere = fabs(job->o.theta_max_deg - 90) < 1e-9;

@@ -8,6 +8,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "param/param_impl.h"
 #include "sb_glsl_text.h"
 #include "sepbrdf/outset.h"
 #include "util/internal.h"
@@ -48,14 +49,15 @@ char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const d
                                 "#endif\n"
                                 "#define SB_TERMS %zu\n"
                                 "#define SB_FORM %d\n"
+                                "#define SB_CLAMP %d\n"
                                 "#define SB_PI 3.14159265358979\n"
                                 "#define SB_THETA_MAX %s\n"
                                 "// wrap: 0 = CLAMP_TO_EDGE, 1 = REPEAT (s, t axes)\n"
                                 "#define SB_WRAP_G_S %d\n#define SB_WRAP_G_T %d\n"
                                 "#define SB_WRAP_H_S %d\n#define SB_WRAP_H_T %d\n"
                                 "const float sb_scale[SB_TERMS] = float[SB_TERMS](",
-                                SB_VERSION_STRING, sb_param_spec(p), sb_form_name(form), terms, terms, (int)form, tmax,
-                                wg[0], wg[1], wh[0], wh[1]);
+                                SB_VERSION_STRING, sb_param_spec(p), sb_form_name(form), terms, terms, (int)form,
+                                !p->opts.plain, tmax, wg[0], wg[1], wh[0], wh[1]);
     for (size_t j = 0; j < terms; j++) {
         if (j) n += (size_t)snprintf(s + n, cap - n, ", ");
         n += float_literal(s + n, cap - n, scales ? scales[j] : 1.0);

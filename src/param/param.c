@@ -67,7 +67,10 @@ static sb_result_t parse_spec(sb_context_t *ctx, char *buf, sb_param_kind_t *kin
         if (end == val || *end || errno == ERANGE || !isfinite(v))
             return sb_error(ctx, SB_ERR_PARSE, "%s: key '%s': '%s' is not a number", buf, key, val);
         size_t *count = key_listed(sb_param_desc_of(k)->keys, key) ? count_key(&o, key) : NULL;
-        if (!count && strcmp(key, "theta_max") == 0) {
+        if (!count && strcmp(key, "plain") == 0) {
+            if (v != 0 && v != 1) return sb_error(ctx, SB_ERR_RANGE, "%s: plain %s, need 0 or 1", buf, val);
+            o.plain = (int)v;
+        } else if (!count && strcmp(key, "theta_max") == 0) {
             if (!(v > 0 && v <= 90)) return sb_error(ctx, SB_ERR_RANGE, "%s: theta_max %s not in (0, 90]", buf, val);
             o.theta_max = v * SB_PI / 180;
         } else if (!count)
@@ -283,7 +286,8 @@ int sb_param_cell_value(const sb_param_t *p, size_t row, size_t col, double rgb[
     return p->vt->cell_value(p, row, col, rgb);
 }
 double sb_param_apply_gain(const sb_param_t *p, double sum, double gain) {
-    return p && (p->desc->caps & SB_CAP_TABLES) ? (sum > 0 ? sum : 0) * gain : sum;
+    if (!p) return sum;
+    return (p->desc->caps & SB_CAP_TABLES) || !p->opts.plain ? (sum > 0 ? sum : 0) * gain : sum;
 }
 int sb_param_warps_default(const sb_param_t *p) {
     if (!p || !(p->desc->caps & SB_CAP_WARPS)) return 1;
@@ -450,6 +454,7 @@ void sb_param_spec_set(sb_param_t *p, const char *body) {
     for (int a = 0; a < SB_AXIS_COUNT_ && (d->caps & SB_CAP_WARPS); a++)
         if (p->opts.warp[a].kind != d->warp[a])
             sb_warp_spec_append(&p->opts.warp[a], keys[a], p->spec, sizeof p->spec, &n);
+    if (p->opts.plain && !(d->caps & SB_CAP_TABLES)) snprintf(p->spec + n, sizeof p->spec - n, ",plain=1");
 }
 
 void sb_param_square_grids(sb_param_t *p, const sb_param_vt_t *vt, const char *name, int wrap_y) {
