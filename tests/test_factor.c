@@ -408,10 +408,15 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
 
 /* The comparable metric on io with form cos2, solid-angle weights and the
  * reference grid equal to the factor grid is exactly the weighted native
- * error (it samples the texel centres). */
+ * error (it samples the texel centres), for the plain sum the native error
+ * measures (plain=1: no max(0, sum)). */
 SB_TEST(metric_matches_weighted_native) {
     sb_source_t *s = model("microfacet:base=copper,roughness=0.4");
-    sb_param_t *p = io(12);
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = 12;
+    o.plain = 1;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
     sb_matrix_t m;
     sb_matrix_opts_t mo = {0};
     mo.form = SB_FORM_COS2;
