@@ -131,6 +131,16 @@ float sb_half_zcut(vec3 hv, vec2 arc) {
     return 2.0 * s * s;
 }
 
+// A whole-circle row's cut cell (iso): z over [lo, lo + sb_cut_dz], phi on
+// the arc valid at sb_arc_z, the cut rounded away by a 64th of the cell
+// (src/factor/sampler_half.c half_cut_dz).
+#define SB_CUT_STEPS 64.0
+float sb_cut_dz(vec2 zb, float zc) {
+    float w = zb.y - zb.x;
+    return zc < zb.y ? w * max(ceil(SB_CUT_STEPS * (zc - zb.x) / w), 1.0) / SB_CUT_STEPS : w;
+}
+float sb_arc_z(vec2 zb, float zc) { return min(zb.x, zc - (zb.y - zb.x) / SB_CUT_STEPS); }
+
 // Row y's cut: z_cut and the count of its cells whose z_lo is below it.
 void sb_row_cut(vec3 hv, int y, out float zc, out int xc) {
     int lo = 0, hi = textureSize(sb_cdf, 0).x - 1;
@@ -166,7 +176,8 @@ float sb_half_width(vec3 hv, float z) {
     float num = -(2.0 * ct * ct - 1.0) * hv.y, den = 2.0 * st * ct * hv.x;
     if (!(den > 0.0)) return num < 0.0 ? SB_PI : 0.0;
     float c = num / den;
-    return c <= -1.0 ? SB_PI : (c >= 1.0 ? 0.0 : acos(c));
+    // acos(c) as an atan: llvmpipe's float acos is 7e-5 off (at c = 0.78)
+    return c <= -1.0 ? SB_PI : (c >= 1.0 ? 0.0 : atan(sqrt((1.0 - c) * (1.0 + c)), c));
 }
 
 // The part of the arc valid at z: its length, and phi uniform over it by u.
@@ -197,8 +208,8 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
     vec2 zb = sb_col_z(cell.x);
     vec2 arc = sb_row_arc(cell.y);
     bool circle = arc.y >= 2.0 * SB_PI - 1e-3; // iso: the valid part; hd: the whole cell
-    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = (circle ? min(zb.y, zc) : zb.y) - zb.x;
-    float len = circle ? sb_phi_valid(hv, zb.x, arc, 0.0, ph) : arc.y;
+    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = circle ? sb_cut_dz(zb, zc) : zb.y - zb.x;
+    float len = circle ? sb_phi_valid(hv, sb_arc_z(zb, zc), arc, 0.0, ph) : arc.y;
     if (!(c > 0.0) || !(dz > 0.0) || !(len > 0.0) || !(z <= zc)) return 0.0;
     int W = textureSize(sb_cdf, 0).x - 1, K = sb_dists();
     float num = 0.0, total = 0.0;
@@ -246,11 +257,11 @@ bool sb_half_dir(vec3 V, int k, float u0, float u1, out vec3 D) {
     int x = sb_cdf_find(k, ivec2(0, y), ivec2(1, 0), xc, u1);
     vec2 zb = sb_col_z(x), arc = sb_row_arc(y);
     bool circle = arc.y >= 2.0 * SB_PI - 1e-3;
-    float z = zb.x + u1 * ((circle ? min(zb.y, zc) : zb.y) - zb.x), phi;
+    float z = zb.x + u1 * (circle ? sb_cut_dz(zb, zc) : zb.y - zb.x), phi;
     if (!(z <= zc)) return false;
     if (!circle)
         phi = arc.x + u0 * arc.y;
-    else if (!(sb_phi_valid(hv, zb.x, arc, u0, phi) > 0.0))
+    else if (!(sb_phi_valid(hv, sb_arc_z(zb, zc), arc, u0, phi) > 0.0))
         return false;
     float st = sqrt(max(z * (2.0 - z), 0.0));
     vec3 Hh = vec3(st * cos(phi), st * sin(phi), 1.0 - z);

@@ -267,10 +267,12 @@ static void job_case_at(const char *spec, const char *param, size_t res, int wei
                 hn, hn / hs);
         /* every prefix a fit of its own (nested; the greedy order of a
          * J-term fit was 3-45x the SVD's at J' = 1-3 on the default gold),
-         * weighted as `factor` weighs by default (unweighted, the matrix's
-         * error follows the grazing cells and the headline at J' = 2 can
-         * lag: GGX 0.2 on iso, 16 cells, 7.9x the SVD's; docs/positive.md) */
-        for (size_t j = 1; weighted && j < 4; j++) {
+         * weighted (unweighted, the matrix's error followed the grazing
+         * cells and the headline at J' = 2 could lag: GGX 0.2 on iso, 16
+         * cells, 7.9x the SVD's; docs/positive.md) */
+        /* asked unweighted or not, the job weighs a non-negative fit */
+        CHECKF(sb_job_weighted(job), "%s on %s: not weighted", name, param);
+        for (size_t j = 1; j < 4; j++) {
             double pn = sb_job_headline(job, j), ps = sb_job_svd_headline(job, j);
             fprintf(stderr, "  J' = %zu: svd %.4f nmf %.4f (x%.2f)\n", j, ps, pn, pn / ps);
             CHECKF(pn <= fmax(SB_NMF_PREFIX_RATIO * ps, 0.005), "%s on %s: J' = %zu: nmf headline %g vs svd %g", name,
@@ -300,7 +302,8 @@ SB_TEST(job_headline_ratio) {
     job_case(SB_MEASURED_DIR "/cornell_acryl_blue.brdf", "io");
 }
 
-/* As a user runs it (`factor SRC --method nmf --param P`: unweighted) on
+/* As a user runs it (`factor SRC --method nmf --param P`: asked unweighted,
+ * fitted weighted) on
  * sources whose ratio was 2.5-6.5 at 32 cells when the non-negative fit
  * started from an NNDSVD and skipped the texel fit (README: non-negative
  * factors). */

@@ -229,7 +229,8 @@ const cli_option_t cli_factor_options[] = {
      "and auto where the headline at J is above 5 % with those",
      set_warp, AT(warp), 0, 0, F_ | R_ | S_},
     {NULL, "--weighted", NULL,
-     "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate)",
+     "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate\nand "
+     "for --method nmf)",
      cli_set_flag, AT(weighted), 0, 0, F_ | R_ | S_},
     {NULL, "--scene", "SPEC",
      "fit and measure for the direction pairs a scene uses:\n"

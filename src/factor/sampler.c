@@ -391,8 +391,8 @@ static double factored_pdf(const sb_sampler_t *s, const double wo[3], const doub
         h[i] /= n;
     double cosv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2], z = one_minus_z(h);
     int circle = full_circle(s->pw[y]);
-    double dz = (circle ? fmin(s->zhi[x], c.z[y]) : s->zhi[x]) - s->zlo[x];
-    double len = circle ? half_phi_len(&c.v, s->zlo[x], s->pa[y], s->pw[y]) : s->pw[y];
+    double dz = circle ? half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) : s->zhi[x] - s->zlo[x];
+    double len = circle ? half_phi_len(&c.v, half_arc_z(s->zlo[x], s->zhi[x], c.z[y]), s->pa[y], s->pw[y]) : s->pw[y];
     if (!(cosv > 0) || !(dz > 0) || !(len > 0) || !(z <= c.z[y])) return 0;
     return cell_prob(s, key, &c, x, y) / (dz * len) / (4 * cosv);
 }
@@ -431,11 +431,11 @@ static int half_dir(const sb_sampler_t *s, const double wo[3], size_t k, double 
     u1 *= cond[c.x[y] - 1]; /* the conditional up to the cut */
     size_t x = cdf_find(cond, c.x[y], &u1);
     int circle = full_circle(s->pw[y]);
-    double z = s->zlo[x] + u1 * ((circle ? fmin(s->zhi[x], c.z[y]) : s->zhi[x]) - s->zlo[x]), phi;
+    double z = s->zlo[x] + u1 * (circle ? half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) : s->zhi[x] - s->zlo[x]), phi;
     if (!(z <= c.z[y])) return 0;
     if (!circle)
         phi = s->pa[y] + u0 * s->pw[y];
-    else if (!half_phi_sample(&c.v, s->zlo[x], s->pa[y], s->pw[y], u0, &phi))
+    else if (!half_phi_sample(&c.v, half_arc_z(s->zlo[x], s->zhi[x], c.z[y]), s->pa[y], s->pw[y], u0, &phi))
         return 0;
     double st = sqrt(fmax(z * (2 - z), 0)), h[3] = {st * cos(phi), st * sin(phi), 1 - z};
     double cv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];

@@ -20,5 +20,10 @@ double half_zcut(const half_view_t *v, double a, double w);
 double half_phi_len(const half_view_t *v, double z, double a, double w);
 /* phi uniform over that set by u in [0, 1); 0 when it is empty. */
 int half_phi_sample(const half_view_t *v, double z, double a, double w, double u, double *phi);
+/* The steps of a cell that a whole-circle row's cut is rounded to
+ * (half_cut_dz, half_arc_z; the GLSL's SB_CUT_STEPS). */
+#define SB_HALF_CUT_STEPS 64
+double half_cut_dz(double zlo, double zhi, double zc);
+double half_arc_z(double zlo, double zhi, double zc);
 
 #endif
