@@ -154,13 +154,15 @@ float sb_cut_dz(vec2 zb, float zc) {
 }
 float sb_arc_z(vec2 zb, float zc) { return min(zb.x, zc - (zb.y - zb.x) / SB_CUT_STEPS); }
 
-// Row y's cut: z_cut and the count of its cells whose z_lo is below it.
+// Row y's cut: z_cut and the count of its cells whose z_lo is below it by a
+// step of the cell or more (a thinner cut part is left out: src/factor/sampler.c cuts_of).
 void sb_row_cut(vec3 hv, int y, out float zc, out int xc) {
     int lo = 0, hi = textureSize(sb_cdf, 0).x - 1;
     zc = sb_half_zcut(hv, sb_row_arc(y));
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        if (sb_col_z(mid).x < zc)
+        vec2 zb = sb_col_z(mid);
+        if (zb.x < zc - (zb.y - zb.x) / SB_CUT_STEPS)
             lo = mid + 1;
         else
             hi = mid;

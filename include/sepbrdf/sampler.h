@@ -37,10 +37,11 @@
  * can reflect wo above the horizon are drawn:
  * h does iff theta_h < pi/4 + atan2(cos(phi_h - phi_o) sin(theta_o),
  * cos(theta_o)) / 2, so the cells of a row whose lowest z = 1 - cos(theta_h)
- * is at or above the row's cut z_c (that bound at the row's most
- * favourable phi) are left out of steps 1-2 (P_k restricted to the others
- * and renormalised by their mass Z_k(wo); a term with Z_k = 0 is a failed
- * sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
+ * is above the row's cut z_c (that bound at the row's most favourable phi)
+ * less a 64th of the cell's z range are left out of steps 1-2 (a thinner
+ * part below the cut would depend on rounding: the cosine share covers
+ * it; P_k restricted to the others and renormalised by their mass
+ * Z_k(wo); a term with Z_k = 0 is a failed sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
  * and in phi over the part A of the cell's arc whose h at z_lo reflect wo
  * above the horizon (a superset of that part at every higher z) where the
  * row's arc is the whole circle (iso), and over the whole cell (dz = z_hi

@@ -339,10 +339,10 @@ static void cuts_of(const sb_sampler_t *s, const double wo[3], cuts_t *c) {
     half_view(wo, &c->v);
     for (size_t y = 0; y < s->H; y++) {
         c->z[y] = half_zcut(&c->v, s->pa[y], s->pw[y]);
-        size_t lo = 0, hi = s->W; /* the first x with z_lo >= z_cut */
+        size_t lo = 0, hi = s->W; /* the first x with z_lo >= z_cut less a step of the cell */
         while (lo < hi) {
             size_t mid = (lo + hi) / 2;
-            if (s->zlo[mid] < c->z[y])
+            if (s->zlo[mid] < c->z[y] - (s->zhi[mid] - s->zlo[mid]) / SB_HALF_CUT_STEPS)
                 lo = mid + 1;
             else
                 hi = mid;
