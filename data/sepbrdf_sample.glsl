@@ -20,7 +20,8 @@
 // (0, H) the integral of g_k; layer K = J * SB_SAMPLE_CH the solid angle of
 // each cell and at (0, H) the share of cosine-weighted samples (chosen per
 // material: 1 where the factored density would add noise); with
-// SB_HALF_ROWS, layer K + 1 + k the weight of k for V in each cell.
+// SB_HALF_ROWS, layer K + 1 + k the weight of k for V at each cell's centre
+// (read bilinear between the centres).
 
 uniform sampler2DArray sb_cdf;
 
@@ -63,16 +64,28 @@ int sb_dists() {
 float sb_cosine_share() { return sb_cdf_at(sb_dists(), ivec2(0, textureSize(sb_cdf, 0).y - 1)); }
 
 #if SB_HALF_ROWS
-// The weights' key: the row cell of V (that of the pair (V, V), whose half
-// vector is V); the weight of k is the table's texel there.
+// The weights' key: the g coordinate of the pair (V, V), whose half
+// vector is V; the weight of k is the table bilinear between cell centres
+// there (src/factor/sampler.c weight_key: continuous in V, so that float
+// and double pick the same weights at a cell edge).
 bool sb_weight_key(vec3 V, out vec2 key) {
     vec4 st = sb_coords(V, V);
-    ivec2 n = textureSize(sb_cdf, 0).xy - 1;
-    key = vec2(clamp(ivec2(floor(st.xy * vec2(n))), ivec2(0), n - 1));
+    key = clamp(st.xy, vec2(0.0), vec2(1.0));
     return sb_domain(V, V, st);
 }
 
-float sb_weight(int k, vec2 key) { return sb_cdf_at(sb_dists() + 1 + k, ivec2(key)); }
+// Cell i of an axis of n cells, wrapped (repeat = 1) or clamped.
+int sb_wrap_cell(int i, int n, int repeat) { return repeat == 1 ? (i + n) % n : clamp(i, 0, n - 1); }
+
+float sb_weight(int k, vec2 key) {
+    ivec2 n = textureSize(sb_cdf, 0).xy - 1;
+    vec2 u = key * vec2(n) - vec2(0.5), f = floor(u), a = u - f;
+    ivec2 i = ivec2(f);
+    int x0 = sb_wrap_cell(i.x, n.x, SB_WRAP_G_S), x1 = sb_wrap_cell(i.x + 1, n.x, SB_WRAP_G_S);
+    int y0 = sb_wrap_cell(i.y, n.y, SB_WRAP_G_T), y1 = sb_wrap_cell(i.y + 1, n.y, SB_WRAP_G_T), l = sb_dists() + 1 + k;
+    return (1.0 - a.x) * (1.0 - a.y) * sb_cdf_at(l, ivec2(x0, y0)) + a.x * (1.0 - a.y) * sb_cdf_at(l, ivec2(x1, y0)) +
+           (1.0 - a.x) * a.y * sb_cdf_at(l, ivec2(x0, y1)) + a.x * a.y * sb_cdf_at(l, ivec2(x1, y1));
+}
 #else
 // The weights' key: the h coordinate of the pair (mirror(V), V).
 bool sb_weight_key(vec3 V, out vec2 key) {
@@ -141,13 +154,15 @@ float sb_cut_dz(vec2 zb, float zc) {
 }
 float sb_arc_z(vec2 zb, float zc) { return min(zb.x, zc - (zb.y - zb.x) / SB_CUT_STEPS); }
 
-// Row y's cut: z_cut and the count of its cells whose z_lo is below it.
+// Row y's cut: z_cut and the count of its cells whose z_lo is below it by a
+// step of the cell or more (a thinner cut part is left out: src/factor/sampler.c cuts_of).
 void sb_row_cut(vec3 hv, int y, out float zc, out int xc) {
     int lo = 0, hi = textureSize(sb_cdf, 0).x - 1;
     zc = sb_half_zcut(hv, sb_row_arc(y));
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        if (sb_col_z(mid).x < zc)
+        vec2 zb = sb_col_z(mid);
+        if (zb.x < zc - (zb.y - zb.x) / SB_CUT_STEPS)
             lo = mid + 1;
         else
             hi = mid;

@@ -20,7 +20,10 @@
  *      over the cells r whose centre h_r reflects the centre wo_c of cell c
  *      to wi_rc = 2 (wo_c.h_r) h_r - wo_c inside the domain (the integral
  *      of term k over the directions this wo can reach; (W H)^2 J C
- *      lookups at creation: 0.5 s for hd at 32 cells, 16x that at 64);
+ *      lookups at creation: 0.5 s for hd at 32 cells, 16x that at 64),
+ *      and read bilinear between the cell centres at wo's g coordinate
+ *      (GL filtering with the g texture's wraps): continuous in wo, so
+ *      that float (the GLSL) and double agree where wo is on a cell edge;
  *   2. pick the row cell r = (x, y) of g_k's texture by a marginal CDF over
  *      y and a conditional CDF over x, P_k(r) = g_k[r] m_r / I_k
  *      (piecewise constant: one value per texel, the matrix cell, not the
@@ -34,10 +37,11 @@
  * can reflect wo above the horizon are drawn:
  * h does iff theta_h < pi/4 + atan2(cos(phi_h - phi_o) sin(theta_o),
  * cos(theta_o)) / 2, so the cells of a row whose lowest z = 1 - cos(theta_h)
- * is at or above the row's cut z_c (that bound at the row's most
- * favourable phi) are left out of steps 1-2 (P_k restricted to the others
- * and renormalised by their mass Z_k(wo); a term with Z_k = 0 is a failed
- * sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
+ * is above the row's cut z_c (that bound at the row's most favourable phi)
+ * less a 64th of the cell's z range are left out of steps 1-2 (a thinner
+ * part below the cut would depend on rounding: the cosine share covers
+ * it; P_k restricted to the others and renormalised by their mass
+ * Z_k(wo); a term with Z_k = 0 is a failed sample), and step 3 draws h uniformly in z over [z_lo, min(z_hi, z_c)]
  * and in phi over the part A of the cell's arc whose h at z_lo reflect wo
  * above the horizon (a superset of that part at every higher z) where the
  * row's arc is the whole circle (iso), and over the whole cell (dz = z_hi
@@ -53,7 +57,7 @@
  * balance heuristic), so that the density is positive wherever the
  * reconstruction is, also between texel centres where the bilinear lookup
  * reaches a texel that is 0 in the tables, and where a half-vector
- * layout's weight table (constant over wo's cell) is 0 for a term:
+ * layout's weight table is 0 for a term:
  *     pdf(wi | wo) = s cos(theta_i) / pi + (1 - s) p_F(wi | wo).
  * s is SB_SAMPLER_COSINE_SHARE unless set (sb_sampler_set_cosine_share);
  * `sepbrdf factor` sets it per material from the fit's own error against
@@ -158,7 +162,8 @@ SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, c
  * units the g texture stores (g_scale: each g_j texture's storage scale,
  * sepbrdf.scale of g_JJ.exr; NULL = all 1, FLOAT textures).  Layer J C
  * holds m_r at texel (x, y) and the cosine-weighted share s at (0, H).  For SB_CAP_HALF_ROWS layouts layers = 2 J C
- * + 1: layer J C + 1 + k holds W_k(c) of wo's cell c at texel (x, y).
+ * + 1: layer J C + 1 + k holds W_k(c) for wo at the centre of cell c at texel
+ * (x, y).
  * Unused texels are 0.  Written under a
  * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 SB_API sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);

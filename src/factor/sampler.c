@@ -37,10 +37,12 @@ typedef struct cuts {
 } cuts_t;
 
 /* Where the weights of an outgoing direction are read: the h coordinate
- * (io, io-area) or the row cell of wo (half rows). */
+ * (io, io-area), or for half rows the four row cells around wo's g
+ * coordinate and their bilinear weights (GL: between cell centres). */
 typedef struct wkey {
     double st_h[2];
-    size_t cell;
+    size_t cell[4];
+    double bw[4];
 } wkey_t;
 
 /* Refuse what cannot be sampled: a negative or non-finite texel on either
@@ -116,27 +118,47 @@ static size_t texel_of(double s, size_t n) {
     return v >= (double)n ? n - 1 : (size_t)v;
 }
 
-static size_t cell_of(const sb_sampler_t *s, const double st_g[2]) {
-    return texel_of(st_g[1], s->H) * s->W + texel_of(st_g[0], s->W);
+/* The two cells around st (in [0, 1]) on an axis of n cells, wrapped
+ * (REPEAT) or clamped, and the weight of the second (GL bilinear). */
+static double axis_taps(double st, size_t n, int repeat, size_t i[2]) {
+    double u = (st < 0 ? 0 : (st > 1 ? 1 : st)) * (double)n - 0.5, f = floor(u);
+    for (int t = 0; t < 2; t++) {
+        long v = (long)f + t;
+        i[t] = repeat ? (size_t)((v + (long)n) % (long)n) : (v < 0 ? 0 : (v >= (long)n ? n - 1 : (size_t)v));
+    }
+    return u - f;
 }
 
 /* The weights' key for wo: st_h of the pair (mirror(wo), wo),
- * mirror(wo) = (-x, -y, z), or for half rows the row cell of wo (that of
- * the pair (wo, wo), whose half vector is wo).  0 when wo is outside the
- * domain. */
+ * mirror(wo) = (-x, -y, z), or for half rows the table's bilinear
+ * footprint at the g coordinate of the pair (wo, wo), whose half vector is
+ * wo: continuous in wo, so that float (the GLSL) and double pick the same
+ * weights at a cell edge.  0 when wo is outside the domain. */
 static int weight_key(const sb_sampler_t *s, const double wo[3], wkey_t *key) {
     const double m[3] = {-wo[0], -wo[1], wo[2]};
     double st_g[2], st_h[2];
     if (!s->half_rows) return sb_param_coords(s->p, m, wo, st_g, key->st_h);
     if (!sb_param_coords(s->p, wo, wo, st_g, st_h)) return 0;
-    key->cell = cell_of(s, st_g);
+    int wrap[2];
+    size_t x[2], y[2];
+    sb_param_wrap(s->p, SB_SIDE_G, wrap);
+    double a = axis_taps(st_g[0], s->W, wrap[0] == SB_WRAP_REPEAT, x);
+    double b = axis_taps(st_g[1], s->H, wrap[1] == SB_WRAP_REPEAT, y);
+    for (int t = 0; t < 4; t++) {
+        key->cell[t] = y[t / 2] * s->W + x[t % 2];
+        key->bw[t] = (t % 2 ? a : 1 - a) * (t / 2 ? b : 1 - b);
+    }
     return 1;
 }
 
 /* W_k = lum_c h_k(st_h) I_k (a bilinear lookup of non-negative texels), or
- * the table's value for half rows. */
+ * the table bilinear between cell centres for half rows. */
 static double weight(const sb_sampler_t *s, size_t k, const wkey_t *key) {
-    if (s->half_rows) return s->wtab[k * s->W * s->H + key->cell];
+    if (s->half_rows) {
+        const double *t = s->wtab + k * s->W * s->H;
+        return key->bw[0] * t[key->cell[0]] + key->bw[1] * t[key->cell[1]] + key->bw[2] * t[key->cell[2]] +
+               key->bw[3] * t[key->cell[3]];
+    }
     size_t c = k % s->C;
     double h = sb_factors_lookup(s->f, s->p, SB_SIDE_H, k / s->C, c, key->st_h);
     return s->lum[c] * h * s->integral[k];
@@ -317,10 +339,10 @@ static void cuts_of(const sb_sampler_t *s, const double wo[3], cuts_t *c) {
     half_view(wo, &c->v);
     for (size_t y = 0; y < s->H; y++) {
         c->z[y] = half_zcut(&c->v, s->pa[y], s->pw[y]);
-        size_t lo = 0, hi = s->W; /* the first x with z_lo >= z_cut */
+        size_t lo = 0, hi = s->W; /* the first x with z_lo >= z_cut less a step of the cell */
         while (lo < hi) {
             size_t mid = (lo + hi) / 2;
-            if (s->zlo[mid] < c->z[y])
+            if (s->zlo[mid] < c->z[y] - (s->zhi[mid] - s->zlo[mid]) / SB_HALF_CUT_STEPS)
                 lo = mid + 1;
             else
                 hi = mid;
