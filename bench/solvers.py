@@ -11,6 +11,7 @@ alive and asked for one method at a time, so every round times
     randomized  (sepbrdf, q = 2)       against sklearn randomized_svd(n_iter=2)
     randomized:q=1 (sepbrdf, q = 1)    against the same sklearn call
     randomized:f32 (sepbrdf, q = 2 in single precision)   against it too
+    randomized:mixed (sepbrdf, q = 2, float sketch, double projection)   too
 back to back, the order swapped every round.  Each side factors the three
 channels; wall and CPU seconds (the whole process, every BLAS thread), and
 the relative error sqrt(sum ||A - A_J||^2 / sum ||A||^2) from ||A||^2 -
@@ -42,6 +43,7 @@ PEERS = {  # sepbrdf method -> (peer name, factor(M, J) -> singular values)
     "randomized": SK2,
     "randomized:q=1": SK2,  # one power step less: faster, its error above sklearn's
     "randomized:f32": SK2,  # q = 2 in single precision: its error still below sklearn's
+    "randomized:mixed": SK2,  # q = 2, sketch in float, projection in double
 }
 
 

@@ -123,6 +123,11 @@ typedef struct sb_svd_opts {
     size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
     int krylov;           /* randomized: 0 = block Krylov when it fits, negative = plain
                              subspace iteration (see RANDOMIZED above) */
+    int mixed;            /* randomized: > 0 = mixed precision: the sketch and its power steps in
+                             float on a converted copy, then the k leading Ritz vectors
+                             re-orthonormalised in double and A projected on them in double, so
+                             the values and the error identity are those of an exact projection;
+                             0 = the default (double); negative = every step in double */
 } sb_svd_opts_t;
 
 /* What one execute did. */
