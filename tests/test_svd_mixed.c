@@ -102,8 +102,8 @@ SB_TEST(against_double) {
         CHECKF(mix.defect <= 1e3 * eps, "case %zu: orthonormality defect %g", c, mix.defect);
         /* the excess over the optimum: the double method's, to second order */
         double ex_d = dbl.err - best.err, ex_m = mix.err - best.err;
-        CHECKF(ex_m <= ex_d + MIXED_FLOOR * 0x1.0p-24 * norm, "case %zu: excess mixed %.6g, double %.6g (optimum %.10g)",
-               c, ex_m, ex_d, best.err);
+        CHECKF(ex_m <= ex_d + MIXED_FLOOR * 0x1.0p-24 * norm,
+               "case %zu: excess mixed %.6g, double %.6g (optimum %.10g)", c, ex_m, ex_d, best.err);
         free(A);
     }
 }
@@ -127,5 +127,31 @@ SB_TEST(other_methods_and_adaptive) {
     CHECKF(info.rank >= 1 && info.rank <= k && info.resid_fro <= 0.05 * norm * (1 + 1e-12), "rank %zu resid %g of %g",
            info.rank, info.resid_fro, norm);
     sb_svd_destroy(svd);
+    free(A);
+}
+
+/* The float copy is scaled by a power of two: a matrix beyond the float
+ * range (1e39 .. 1e200) or below it (1e-200) gives the values of the
+ * unscaled one, scaled; the default (mixed = 0) is the mixed path. */
+SB_TEST(scaled_and_default) {
+    size_t m = 120, n = 100, k = 6;
+    double *A = low_rank(m, n, 0.7, 1e-3, 11);
+    fit_t ref = fit(A, m, n, k, SB_METHOD_RANDOMIZED, 1), dflt = fit(A, m, n, k, SB_METHOD_RANDOMIZED, 0);
+    CHECK(memcmp(ref.s, dflt.s, sizeof ref.s) == 0);
+    static const double scales[] = {1e39, 1e200, 1e-200};
+    for (size_t c = 0; c < 3; c++) {
+        double *B = malloc(m * n * sizeof *B), s[6];
+        for (size_t i = 0; i < m * n; i++)
+            B[i] = A[i] * scales[c];
+        sb_svd_opts_t o = {.method = SB_METHOD_RANDOMIZED, .mixed = 1};
+        sb_svd_t *svd = NULL;
+        CHECK(sb_svd_create(NULL, m, n, k, &o, &svd) == SB_OK);
+        CHECK(svd && sb_svd_execute(svd, B, m, s, NULL, NULL, NULL, NULL) == SB_OK);
+        for (size_t j = 0; j < k; j++)
+            CHECKF(fabs(s[j] / scales[c] - ref.s[j]) <= MIXED_SV_TOL * ref.s[0], "scale %g sigma_%zu %.12g vs %.12g",
+                   scales[c], j, s[j] / scales[c], ref.s[j]);
+        sb_svd_destroy(svd);
+        free(B);
+    }
     free(A);
 }

@@ -44,6 +44,8 @@ struct sb_svd {
     void *st;             /* TOPK Krylov: start block of the next cycle (n x l) */
     void *rs, *ur;        /* RANDOMIZED, TOPK Krylov: R of B^T's QR and its left singular vectors (L x L) */
     double *mu, *mv, *mz; /* mixed: U (m x k), A^T U (n x k), Z^T and tau (k x k + k), all double */
+    sb_svd_opts_t opts;   /* mixed: the options, for the plan in double (dbl) */
+    sb_svd_t *dbl;        /* mixed: the plan in double, made when first needed (execute) */
     /* TOPK Krylov, the residual estimate of each degree (run_rand): the Gram
      * matrix of B^T (L x L, upper) and its copy for syevr, the eigenvalues
      * (L) and k leading eigenvectors (L x k), R of the last block (l x l),
