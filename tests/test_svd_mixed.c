@@ -1,5 +1,6 @@
-/* RANDOMIZED in mixed precision (sb_svd_opts_t.mixed > 0: the sketch in
- * float, the projection in double) against the same method in double and
+/* RANDOMIZED in mixed precision (sb_svd_opts_t.mixed >= 0, the default: the
+ * sketch in float, the projection in double) against the same method in
+ * double (mixed < 0) and
  * against FULL (LAPACK's gesdd, the Eckart-Young optimum).  What the mixed
  * path promises (svd.h):
  *   - its values are those of an exact projection in double: the reported

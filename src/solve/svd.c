@@ -253,7 +253,11 @@ static int copy_mixed(sb_svd_t *s, const double *A, size_t lda, double *nrm) {
         t += col_sumsq(A + j * lda, m, f + j * m, 1);
     *nrm = sqrt(t);
     if (isfinite(t) && *nrm >= 0x1.0p-60 && *nrm <= 0x1.0p60) return 0;
-    if (norm_of(s, A, lda, nrm)) return 1;
+    if (!isfinite(t)) { /* an entry not finite (1), or squares that overflow */
+        if (norm_of(s, A, lda, nrm)) return 1;
+    } else { /* squares that underflow: the scaled sum */
+        *nrm = LAPACKE_dlange_work(LAPACK_COL_MAJOR, 'F', (lapack_int)m, (lapack_int)n, A, (lapack_int)lda, NULL);
+    }
     double sc = *nrm > 0 ? ldexp(1.0, -ilogb(*nrm) - 1) : 1;
     for (size_t j = 0; j < n; j++)
         for (size_t i = 0; i < m; i++)
