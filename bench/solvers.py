@@ -8,9 +8,11 @@ One process pair on the same matrices (DIR/ioN_{r,g,b}.f64, written by
 BIN (sepbrdf_bench_svd, bench/svd_serve.c) runs sepbrdf's solvers, kept
 alive and asked for one method at a time, so every round times
     topk        (sepbrdf, exact)       against scipy svds (ARPACK, tol 0)
-    randomized  (sepbrdf, q = 2)       against sklearn randomized_svd(n_iter=2)
+    randomized  (sepbrdf, q = 2, mixed precision: the default)
+                                       against sklearn randomized_svd(n_iter=2)
     randomized:q=1 (sepbrdf, q = 1)    against the same sklearn call
     randomized:f32 (sepbrdf, q = 2 in single precision)   against it too
+    randomized:double (sepbrdf, q = 2, every step in double)   too
 back to back, the order swapped every round.  Each side factors the three
 channels; wall and CPU seconds (the whole process, every BLAS thread), and
 the relative error sqrt(sum ||A - A_J||^2 / sum ||A||^2) from ||A||^2 -
@@ -42,6 +44,7 @@ PEERS = {  # sepbrdf method -> (peer name, factor(M, J) -> singular values)
     "randomized": SK2,
     "randomized:q=1": SK2,  # one power step less: faster, its error above sklearn's
     "randomized:f32": SK2,  # q = 2 in single precision: its error still below sklearn's
+    "randomized:double": SK2,  # q = 2, every step in double (before the default became mixed)
 }
 
 

@@ -6,10 +6,12 @@
  *
  * loads DIR/ioN_{r,g,b}.f64 (raw float64, column-major N x N, written by
  * `sepbrdf_bench --matrices DIR`), plans topk and randomized (block
- * Krylov, p = 10, q = 1, 2, 3: "randomized" is q = 2, the default) for J
+ * Krylov, p = 10, q = 1, 2, 3: "randomized" is q = 2, the default, in
+ * mixed precision, the default too) for J
  * terms, then reads method names from stdin ("topk", "randomized",
  * "randomized:q=1", "randomized:q=3", "randomized:f32": q = 2 in single
- * precision on a converted copy, "quit").  For each it factors the
+ * precision on a converted copy, "randomized:double": q = 2 with every
+ * step in double (sb_svd_opts_t.mixed < 0), "quit").  For each it factors the
  * three channels and prints one line:
  *     METHOD WALL_S CPU_S REL
  * (CPU of the whole process, every BLAS thread; REL the relative error
@@ -60,16 +62,17 @@ int main(int argc, char **argv) {
         if (!(a[c] = load(argv[1], n, "rgb"[c], &n2[c]))) return 2;
         total += n2[c];
     }
-    enum { NPLANS = 5 };
-    static const char *const names[NPLANS] = {"topk", "randomized", "randomized:q=1", "randomized:q=3",
-                                              "randomized:f32"};
-    static const int q[NPLANS] = {0, 2, 1, 3, 2};
+    enum { NPLANS = 6 };
+    static const char *const names[NPLANS] = {"topk",           "randomized",     "randomized:q=1",
+                                              "randomized:q=3", "randomized:f32", "randomized:double"};
+    static const int q[NPLANS] = {0, 2, 1, 3, 2, 2};
     sb_svd_t *plan[NPLANS] = {NULL};
     for (int k = 0; k < NPLANS; k++) {
         sb_svd_opts_t o = {0};
         o.method = k ? SB_METHOD_RANDOMIZED : SB_METHOD_TOPK;
         o.power_iters = q[k];
         o.single_precision = k == 4;
+        o.mixed = k == 5 ? -1 : 0;
         if (sb_svd_create(NULL, n, n, J, &o, &plan[k]) != SB_OK) return 3;
     }
     double *s = malloc(J * sizeof *s), *u = malloc(n * J * sizeof *u), *v = malloc(n * J * sizeof *v);

@@ -50,7 +50,16 @@
  *               q = 2).  Used when l (q + 1) <= d/2 (beyond, the SVD of the
  *               n x l (q + 1) matrix B^T costs more than it saves).  Worst
  *               case: a flat spectrum (noise).  Deterministic: the same
- *               seed gives the same bits.
+ *               seed gives the same bits.  In mixed precision by default
+ *               (sb_svd_opts_t.mixed): the reads of the sketch in float
+ *               (sgemm, twice the rate), the projection on the k leading
+ *               Ritz vectors in double (one more read, k columns), so the
+ *               identity below holds to double rounding; the subspace
+ *               carries float rounding, a floor of a few 2^-24 ||A||_F
+ *               in the error, so an execute whose residual is below
+ *               2^-10 ||A||_F is made again in double.  Same error as
+ *               double to 1e-10 relative on the io matrices of
+ *               docs/performance.md, 1.6-2.5x less CPU.
  *   single precision: the same methods in float on a converted copy of A
  *               (one more read); singular values within ~1e-5 sigma_1.
  *   AUTO        FULL when d <= SB_SVD_AUTO_FULL_MAX (under 2 ms a matrix,
@@ -123,6 +132,14 @@ typedef struct sb_svd_opts {
     size_t block;         /* adaptive randomized: test vectors per step, 0 = default 32 */
     int krylov;           /* randomized: 0 = block Krylov when it fits, negative = plain
                              subspace iteration (see RANDOMIZED above) */
+    int mixed;            /* randomized: >= 0 = mixed precision (the default): the sketch and its
+                             power steps in float on a copy scaled by a power of two, then the k
+                             leading Ritz vectors re-orthonormalised in double and A projected on
+                             them in double, so the values, U, V and the residual identity are
+                             those of an exact projection (the subspace moves by float rounding
+                             only); the copy takes m n floats, and where it does not fit the
+                             memory limit the plan is made in double; negative = every step in
+                             double.  Ignored with single_precision and by FULL and TOPK. */
 } sb_svd_opts_t;
 
 /* What one execute did. */

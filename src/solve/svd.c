@@ -41,8 +41,18 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
 static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, int gram,
                           sb_svd_t **out);
 
+/* RANDOMIZED is in mixed precision by default; where its float copy of A
+ * does not fit (the memory limit), the plan is made in double instead. */
 sb_result_t sb_svd_create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, sb_svd_t **out) {
-    return create(ctx, m, n, k, opts, 0, out);
+    sb_result_t r = create(ctx, m, n, k, opts, 0, out);
+    if ((r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW) && (!opts || (opts->mixed == 0 && !opts->single_precision)) &&
+        sb_svd_auto_method(m, n, k, opts) == SB_METHOD_RANDOMIZED) {
+        sb_svd_opts_t o = {0};
+        if (opts) o = *opts;
+        o.mixed = -1;
+        r = create(ctx, m, n, k, &o, 0, out);
+    }
+    return r;
 }
 
 static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, int gram,
@@ -75,6 +85,8 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
     s->q = o.power_iters > 0 ? o.power_iters : o.power_iters < 0 ? 0 : SB_SVD_DEFAULT_Q;
     s->seed = o.seed ? o.seed : 1;
     s->single = o.single_precision != 0;
+    s->mixed = !s->single && o.mixed >= 0;
+    s->opts = o;
     s->tr = m < n;
     s->method = o.method == SB_METHOD_AUTO ? auto_method(d, k, (size_t)s->p) : o.method;
     s->l = k + (size_t)s->p > d ? d : k + (size_t)s->p;
@@ -97,9 +109,15 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         if (s->krylov && 2 * grown * (size_t)(s->q + 1) <= d) s->l = grown;
     }
     s->L = s->krylov ? s->l * (size_t)(s->q + 1) : s->l;
+    if (s->method != SB_METHOD_RANDOMIZED) s->mixed = 0;
+    if (s->mixed) s->single = 1; /* the sketch in float; sb_svd_mixed_finish in double */
 
     sb_result_t r = SB_OK;
     if (s->single && s->method != SB_METHOD_FULL && !(s->a = ws_alloc(s, m, n, sizeof(float)))) r = SB_ERR_NOMEM;
+    if (r == SB_OK && s->mixed &&
+        (!(s->mu = ws_alloc(s, m, k, sizeof(double))) || !(s->mv = ws_alloc(s, n, k, sizeof(double))) ||
+         !(s->mz = ws_alloc(s, k + 1, k, sizeof(double)))))
+        r = SB_ERR_NOMEM;
     if (r == SB_OK)
         r = s->method == SB_METHOD_RANDOMIZED         ? sb_svd_plan_rand(s)
             : s->method == SB_METHOD_TOPK && !s->gram ? sb_svd_plan_topk_krylov(s)
@@ -122,9 +140,11 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
 
 void sb_svd_destroy(sb_svd_t *s) {
     if (!s) return;
-    void *bufs[] = {s->a,    s->sv, s->u,  s->vt,  s->g,  s->w,  s->z,  s->y,   s->bt, s->ws,  s->om, s->c, s->tau,
-                    s->work, s->st, s->eg, s->egc, s->ew, s->ex, s->er, s->erx, s->ep, s->ewk, s->rs, s->ur};
+    void *bufs[] = {s->a,   s->sv, s->u,   s->vt,   s->g,  s->w,  s->z,   s->y,  s->bt, s->ws,
+                    s->om,  s->c,  s->tau, s->work, s->st, s->eg, s->egc, s->ew, s->ex, s->er,
+                    s->erx, s->ep, s->ewk, s->rs,   s->ur, s->mu, s->mv,  s->mz};
     sb_svd_destroy(s->gram_plan);
+    sb_svd_destroy(s->dbl);
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
         free(bufs[i]);
     free(s->iwork);
@@ -146,12 +166,18 @@ sb_svd_info_t sb_svd_last_info(const sb_svd_t *s) {
 
 /* Sum of squares of one column, eight partial sums (which the compiler
  * vectorises); when f is not NULL the column is also converted to float
- * there and the squares are those of the float values, so an entry beyond
- * the float range shows as inf. */
-static double col_sumsq(const double *a, size_t m, float *f) {
+ * there and the squares are those of the float values (exact: of the
+ * double ones), so an entry beyond the float range shows as inf (or NaN). */
+static double col_sumsq(const double *a, size_t m, float *f, int exact) {
     double s8[8] = {0};
     size_t i = 0;
-    if (f)
+    if (f && exact)
+        for (; i + 8 <= m; i += 8)
+            for (int t = 0; t < 8; t++) {
+                f[i + t] = (float)a[i + t]; /* f - f: 0, or NaN where f overflowed */
+                s8[t] += a[i + t] * a[i + t] + ((double)f[i + t] - (double)f[i + t]);
+            }
+    else if (f)
         for (; i + 8 <= m; i += 8)
             for (int t = 0; t < 8; t++) {
                 f[i + t] = (float)a[i + t];
@@ -163,7 +189,9 @@ static double col_sumsq(const double *a, size_t m, float *f) {
                 s8[t] += a[i + t] * a[i + t];
     for (; i < m; i++) {
         double x = a[i];
-        if (f) x = f[i] = (float)a[i];
+        if (f) f[i] = (float)a[i];
+        if (f && !exact) x = f[i];
+        if (f && exact) s8[1] += (double)f[i] - (double)f[i];
         s8[0] += x * x;
     }
     return ((s8[0] + s8[1]) + (s8[2] + s8[3])) + ((s8[4] + s8[5]) + (s8[6] + s8[7]));
@@ -179,7 +207,7 @@ static int finish_norm(const sb_svd_t *s, const double *A, size_t lda, double t,
     for (size_t j = 0; j < s->n; j++)
         for (size_t i = 0; i < s->m; i++) {
             double x = A[i + j * lda];
-            if (!isfinite(x) || (s->single && fabs(x) > FLT_MAX)) return 1;
+            if (!isfinite(x) || (s->single && !s->mixed && fabs(x) > FLT_MAX)) return 1;
         }
     *nrm = LAPACKE_dlange_work(LAPACK_COL_MAJOR, 'F', (lapack_int)s->m, (lapack_int)s->n, A, (lapack_int)lda, NULL);
     return 0;
@@ -189,7 +217,7 @@ static int finish_norm(const sb_svd_t *s, const double *A, size_t lda, double t,
 static int norm_of(const sb_svd_t *s, const double *A, size_t lda, double *nrm) {
     double t = 0;
     for (size_t j = 0; j < s->n; j++)
-        t += col_sumsq(A + j * lda, s->m, NULL);
+        t += col_sumsq(A + j * lda, s->m, NULL, 1);
     return finish_norm(s, A, lda, t, nrm);
 }
 
@@ -201,13 +229,64 @@ static int copy_in(sb_svd_t *s, const double *A, size_t lda, double *nrm) {
     for (size_t j = 0; j < n; j++) {
         const double *a = A + j * lda;
         if (s->single) {
-            t += col_sumsq(a, m, (float *)s->a + j * m);
+            t += col_sumsq(a, m, (float *)s->a + j * m, s->mixed);
         } else {
             memcpy((double *)s->a + j * m, a, m * sizeof(double));
-            t += col_sumsq(a, m, NULL);
+            t += col_sumsq(a, m, NULL, 1);
         }
     }
     return finish_norm(s, A, lda, t, nrm);
+}
+
+/* Mixed precision's float copy of A with ||A||_F (of the double values).
+ * At scale 1 where ||A||_F lies in [2^-60, 2^60]: every entry then fits a
+ * float, and one lost below 2^-126 is below 2^-66 ||A||.  Otherwise (or
+ * where an entry overflowed) A is copied again scaled by the power of two
+ * that brings ||A||_F into [1/2, 1): the basis does not depend on the scale,
+ * and mixed_finish (svd_rand.c) projects the caller's A.  1 if an entry is
+ * not finite. */
+static int copy_mixed(sb_svd_t *s, const double *A, size_t lda, double *nrm) {
+    size_t m = s->m, n = s->n;
+    float *f = s->a;
+    double t = 0;
+    for (size_t j = 0; j < n; j++)
+        t += col_sumsq(A + j * lda, m, f + j * m, 1);
+    *nrm = sqrt(t);
+    if (isfinite(t) && *nrm >= 0x1.0p-60 && *nrm <= 0x1.0p60) return 0;
+    if (!isfinite(t)) { /* an entry not finite (1), or squares that overflow */
+        if (norm_of(s, A, lda, nrm)) return 1;
+    } else { /* squares that underflow: the scaled sum */
+        *nrm = LAPACKE_dlange_work(LAPACK_COL_MAJOR, 'F', (lapack_int)m, (lapack_int)n, A, (lapack_int)lda, NULL);
+    }
+    double sc = *nrm > 0 ? ldexp(1.0, -ilogb(*nrm) - 1) : 1;
+    for (size_t j = 0; j < n; j++)
+        for (size_t i = 0; i < m; i++)
+            f[i + j * m] = (float)(A[i + j * lda] * sc);
+    return 0;
+}
+
+static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm);
+
+/* Mixed precision leaves a floor of float rounding, a few 2^-24 ||A||_F
+ * (A in float is within 2^-24 ||A||_F of A), in the error.  Below
+ * SB_SVD_MIXED_MIN_RESID ||A||_F (an A of rank about k, a tight adaptive
+ * tolerance) that floor could show, so the execute is made again in double
+ * (a plan of its own, made once; where it does not fit the memory limit the
+ * mixed result stays). */
+#define SB_SVD_MIXED_MIN_RESID 0x1.0p-10
+static sb_result_t in_double(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
+    if (!s->dbl) {
+        sb_svd_opts_t o = s->opts;
+        o.mixed = -1;
+        if (create(NULL, s->m, s->n, s->k, &o, 0, &s->dbl) != SB_OK) return SB_OK;
+    }
+    s->dbl->ctx = s->ctx;
+    sb_svd_run_t r = *run;
+    r.a = run->a0;
+    r.la = run->la0;
+    sb_result_t res = execute(s->dbl, &r, want_norm);
+    if (res == SB_OK) *run = r;
+    return res;
 }
 
 /* Copy or read A as the method needs (single precision and FULL take a
@@ -221,10 +300,12 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
     const double *A = run->a;
     double got = 0;
     if (run->have_all) *run->have_all = 0;
+    run->a0 = A;
+    run->la0 = run->la;
     if (s->single || s->method == SB_METHOD_FULL) {
-        if (copy_in(s, A, run->la, &got))
+        if (s->mixed ? copy_mixed(s, A, run->la, &got) : copy_in(s, A, run->la, &got))
             return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: matrix has non-finite entries%s",
-                            s->single ? " or overflows single precision" : "");
+                            s->single && !s->mixed ? " or overflows single precision" : "");
         if (run->nrm < 0) run->nrm = got;
         run->a = s->a;
         run->la = s->m;
@@ -243,6 +324,8 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
                           ? (s->gram ? sb_svd_run_topk(s, run) : sb_svd_run_topk_krylov(s, run))
                           : sb_svd_run_rand(s, run);
     if (thin) sb_blas_thin_end(blas);
+    if (res == SB_OK && s->mixed && run->nrm > 0 && !(run->info.resid_fro >= SB_SVD_MIXED_MIN_RESID * run->nrm))
+        res = in_double(s, run, want_norm);
     if (res != SB_OK) return res;
     for (size_t j = 0; j < run->r; j++)
         if (!isfinite(run->sv[j]))
@@ -256,7 +339,7 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
 sb_result_t sb_svd_execute(sb_svd_t *s, const double *A, size_t lda, double *sv, double *U, double *V, double *all_s,
                            int *have_all) {
     if (!s) return sb_error(NULL, SB_ERR_ARG, "svd: no plan");
-    sb_svd_run_t run = {A, lda, 0, 0, -1, s->k, sv, U, V, all_s, have_all, 0, 0, {0}};
+    sb_svd_run_t run = {A, lda, 0, 0, -1, s->k, sv, U, V, all_s, have_all, 0, 0, {0}, NULL, 0};
     return execute(s, &run, 0);
 }
 
@@ -268,9 +351,22 @@ sb_result_t sb_svd_execute_adaptive(sb_svd_t *s, const double *A, size_t lda, do
                         "svd: tolerance %g (need [0, 1)), norm %g or minimum rank %zu (need <= %zu)", rel_tol, norm_fro,
                         min_rank, s->k);
     /* rel_tol = 0 asks for no truncation: a plain execute (with the norm) */
-    sb_svd_run_t run = {
-        A, lda, rel_tol > 0, rel_tol * rel_tol, norm_fro > 0 ? norm_fro : -1, min_rank, sv, U, V, NULL, NULL,
-        0, 0,   {0}};
+    sb_svd_run_t run = {A,
+                        lda,
+                        rel_tol > 0,
+                        rel_tol * rel_tol,
+                        norm_fro > 0 ? norm_fro : -1,
+                        min_rank,
+                        sv,
+                        U,
+                        V,
+                        NULL,
+                        NULL,
+                        0,
+                        0,
+                        {0},
+                        NULL,
+                        0};
     sb_result_t r = execute(s, &run, 1);
     if (r == SB_OK && info) *info = s->info;
     return r;

@@ -13,7 +13,7 @@ void *sb_svd_ws_alloc(sb_svd_t *s, size_t count1, size_t count2, size_t size) {
         s->failed = SB_ERR_OVERFLOW;
         return NULL;
     }
-    void *p = sb_alloc(s->ctx, count, size, "svd workspace");
+    void *p = sb_alloc_large(s->ctx, count, size, "svd workspace"); /* huge pages from 4 MiB on */
     if (!p) {
         s->failed = count > sb_memory_limit() / size ? SB_ERR_OVERFLOW : SB_ERR_NOMEM;
         return NULL;

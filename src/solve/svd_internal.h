@@ -35,13 +35,17 @@ struct sb_svd {
     size_t l, b, L;    /* randomized: test vectors k + p (<= d), adaptive block, basis columns */
     size_t l0;         /* TOPK Krylov: the first cycle's block (k + p); l is the largest a restart grows to */
     int p, q, single, tr, krylov;
+    int mixed; /* RANDOMIZED in mixed precision (single is set too): see sb_svd_mixed_finish */
     uint64_t seed;
     sb_method_t method;
     /* Workspace, typed double or float by `single` (see the templates for
      * what each holds per method); NULL when the method does not use it. */
     void *a, *sv, *u, *vt, *g, *w, *z, *y, *bt, *ws, *om, *c, *tau, *work;
-    void *st;      /* TOPK Krylov: start block of the next cycle (n x l) */
-    void *rs, *ur; /* RANDOMIZED, TOPK Krylov: R of B^T's QR and its left singular vectors (L x L) */
+    void *st;             /* TOPK Krylov: start block of the next cycle (n x l) */
+    void *rs, *ur;        /* RANDOMIZED, TOPK Krylov: R of B^T's QR and its left singular vectors (L x L) */
+    double *mu, *mv, *mz; /* mixed: U (m x k), A^T U (n x k), Z^T and tau (k x k + k), all double */
+    sb_svd_opts_t opts;   /* mixed: the options, for the plan in double (dbl) */
+    sb_svd_t *dbl;        /* mixed: the plan in double, made when first needed (execute) */
     /* TOPK Krylov, the residual estimate of each degree (run_rand): the Gram
      * matrix of B^T (L x L, upper) and its copy for syevr, the eigenvalues
      * (L) and k leading eigenvectors (L x k), R of the last block (l x l),
@@ -75,6 +79,8 @@ typedef struct sb_svd_run {
     int *have_all;
     size_t r, sketch; /* out: rank written, basis size */
     sb_svd_info_t info;
+    const double *a0; /* the caller's A (mixed precision projects it), set by execute */
+    size_t la0;
 } sb_svd_run_t;
 
 /* count1 * count2 elements of `size` bytes, overflow-checked; counted in

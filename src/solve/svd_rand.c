@@ -15,6 +15,36 @@
 #include "solve/svd_precisions.h"
 #undef SB_SVD_TEMPLATE
 
+/* Mixed precision: the float sketch gave the leading Ritz vectors Uf
+ * (s->u, m x r).  In double: U0 = the orthonormal factor of Uf (QR), W =
+ * A^T U0 from the caller's A (one read, r columns), W = P S Z^T (gesdd,
+ * n x r), so U0^T A = Z S P^T and the rank-r approximation U0 U0^T A =
+ * (U0 Z) S P^T: values S, U = U0 Z, V = P.  It is an exact projection in
+ * double, so ||A - U S V^T||^2 = ||A||^2 - sum S^2 holds to double
+ * rounding (sb_svd_resid_from), and the subspace differs from the double
+ * method's by float rounding only, a second-order change of the error. */
+static sb_result_t mixed_finish(sb_svd_t *s, const sb_svd_run_t *run, size_t r) {
+    size_t m = s->m, n = s->n;
+    double *U0 = s->mu, *W = s->mv, *Zt = s->mz, *tau = s->mz + r * r;
+    const float *uf = s->u;
+    for (size_t i = 0; i < m * r; i++)
+        U0[i] = (double)uf[i];
+    lapack_int info = LAPACKE_dgeqrf(LAPACK_COL_MAJOR, (lapack_int)m, (lapack_int)r, U0, (lapack_int)m, tau);
+    if (info == 0)
+        info = LAPACKE_dorgqr(LAPACK_COL_MAJOR, (lapack_int)m, (lapack_int)r, (lapack_int)r, U0, (lapack_int)m, tau);
+    if (info != 0) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: mixed precision QR failed (info %d)", (int)info);
+    sb_dgemm_thin(1, (int)n, (int)r, (int)m, run->a0, (int)run->la0, U0, (int)m, W, (int)n);
+    double one = 0;
+    info = LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'O', (lapack_int)n, (lapack_int)r, W, (lapack_int)n, run->sv, &one, 1, Zt,
+                          (lapack_int)r);
+    if (info != 0) return sb_error(s->ctx, SB_ERR_NUMERIC, "svd: mixed precision gesdd failed (info %d)", (int)info);
+    if (run->U)
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)m, (int)r, (int)r, 1, U0, (int)m, Zt, (int)r, 0,
+                    run->U, (int)m);
+    if (run->V) memcpy(run->V, W, n * r * sizeof(double));
+    return SB_OK;
+}
+
 sb_result_t sb_svd_plan_rand(sb_svd_t *s) { return s->single ? plan_rand_f(s) : plan_rand_d(s); }
 
 sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run) {
@@ -24,7 +54,9 @@ sb_result_t sb_svd_run_rand(sb_svd_t *s, sb_svd_run_t *run) {
                                 : run_rand_d(s, run->a, run->la, s->om, s->l, run->adaptive, run->tol2, run->nrm,
                                              run->min_rank, &sketch, &r);
     if (res != SB_OK) return res;
-    if (s->single)
+    if (s->mixed) {
+        if ((res = mixed_finish(s, run, r)) != SB_OK) return res;
+    } else if (s->single)
         out_rand_f(s, r, run->sv, run->U, run->V);
     else
         out_rand_d(s, r, run->sv, run->U, run->V);
