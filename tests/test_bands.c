@@ -158,14 +158,16 @@ SB_TEST(auto_keeps_band_bounds) {
  * domain (and for ranges on io) the cells the scene never touches keep a floor of the mass, so
  * over the whole domain the fit is at most 2x the unweighted one, while
  * inside the scene it is as good as the fit that leaves them out
- * (floor=0). */
-static void scene_floor_outside_on(const char *param) {
+ * (floor=0).  A term that spoils the whole domain is dropped (iso at J = 4:
+ * the fourth term, fitted where the weights barely see, took the whole
+ * domain from 0.69 % to 22 %); the report gives its weight 0. */
+static void scene_floor_outside_on(const char *param, size_t J) {
     static const char *const scenes[2] = {"view=0..40;light=0..60", "view=0..40;light=0..60;floor=0"};
     sb_job_opts_t o = {0};
     o.source = "cook-torrance:roughness=0.3";
     o.param = param;
     o.res = 16;
-    o.terms = 2;
+    o.terms = J;
     sb_job_t *plain = NULL, *fit[2] = {NULL, NULL};
     CHECK(sb_job_run(NULL, &o, &plain) == SB_OK);
     for (int k = 0; k < 2; k++) {
@@ -175,15 +177,15 @@ static void scene_floor_outside_on(const char *param) {
     if (plain && fit[0] && fit[1]) {
         const sb_estimate_t *in[2] = {sb_job_estimate(fit[0]), sb_job_estimate(fit[1])};
         const sb_estimate_t *all[2] = {sb_job_domain_estimate(fit[0]), sb_job_domain_estimate(fit[1])};
-        double whole_plain = sb_estimate_headline(sb_job_estimate(plain), 2);
-        printf("  %s: inside %.4e (floor=0: %.4e), whole domain %.4e (floor=0: %.4e, unweighted %.4e)\n", param,
-               sb_estimate_headline(in[0], 2), sb_estimate_headline(in[1], 2), sb_estimate_headline(all[0], 2),
-               sb_estimate_headline(all[1], 2), whole_plain);
-        CHECK(sb_estimate_headline(in[0], 2) <=
-              1.02 * sb_estimate_headline(in[1], 2) +
-                  2 * hypot(in[0]->se[1][SB_EST_FCOS][3], in[1]->se[1][SB_EST_FCOS][3]));
-        CHECK(sb_estimate_headline(all[0], 2) <= 2 * whole_plain);
-        CHECK(sb_estimate_headline(all[1], 2) > 2 * whole_plain); /* what the floor mends */
+        double whole_plain = sb_estimate_headline(sb_job_estimate(plain), J);
+        printf("  %s J = %zu: inside %.4e (floor=0: %.4e), whole domain %.4e (floor=0: %.4e, unweighted %.4e)\n", param,
+               J, sb_estimate_headline(in[0], J), sb_estimate_headline(in[1], J), sb_estimate_headline(all[0], J),
+               sb_estimate_headline(all[1], J), whole_plain);
+        CHECK(sb_estimate_headline(in[0], J) <=
+              1.02 * sb_estimate_headline(in[1], J) +
+                  2 * hypot(in[0]->se[J - 1][SB_EST_FCOS][3], in[1]->se[J - 1][SB_EST_FCOS][3]));
+        CHECK(sb_estimate_headline(all[0], J) <= 2 * whole_plain);
+        CHECK(sb_estimate_headline(all[1], J) > 2 * whole_plain); /* what the floor mends */
     }
     sb_job_destroy(plain);
     sb_job_destroy(fit[0]);
@@ -193,8 +195,8 @@ static void scene_floor_outside_on(const char *param) {
 /* io: view and light ranges are rows x columns there, held exactly by the
  * fit's separable weights, so the floor is on by default too. */
 SB_TEST(scene_floor_outside) {
-    scene_floor_outside_on("iso");
-    scene_floor_outside_on("io");
+    scene_floor_outside_on("iso", 4);
+    scene_floor_outside_on("io", 2);
 }
 
 /* vh's zero fill (SB_CAP_LIGHT_EDGE) continues f cos theta_i beyond the
