@@ -81,7 +81,7 @@ static void many_unit(void *user, size_t k, int t) {
         double div = 1;
         div = sb_form_divisor(e0->form, wi, wo);
         double gain = sb_param_gain(e0->p, wi, wo);
-        int tables = (sb_param_caps(e0->p) & SB_CAP_TABLES) != 0; /* sb_param_apply_gain, once a pair */
+        int clamp = sb_param_apply_gain(e0->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
         for (size_t a = 0; a < ng; a++)
             for (size_t b = 0; b < nh; b++) {
                 const double *G = look + a * S, *H = look + (ng + b) * S;
@@ -91,7 +91,7 @@ static void many_unit(void *user, size_t k, int t) {
                         acc[c] += G[at] * H[at] * e0->scale[j];
                 double d2 = 0;
                 for (int c = 0; c < 3; c++) {
-                    double v = acc[C == 1 ? 0 : c], r = (tables ? (v > 0 ? v : 0) * gain : v) / div - f[c];
+                    double v = acc[C == 1 ? 0 : c], r = (clamp && v < 0 ? 0 : v) * gain / div - f[c];
                     d2 += r * r;
                 }
                 num[a * nh + b] += d2 * q;

@@ -116,8 +116,8 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     est_taps(e, SB_SIDE_H, sh, ah, fh);
     double div = 1, acc[3] = {0, 0, 0};
     div = sb_form_divisor(e->form, wi, wo);
-    double gain = sb_param_gain(e->p, wi, wo);               /* 1 but on SB_CAP_TABLES layouts */
-    int tables = (sb_param_caps(e->p) & SB_CAP_TABLES) != 0; /* sb_param_apply_gain, once a pair */
+    double gain = sb_param_gain(e->p, wi, wo);         /* 1 but on SB_CAP_TABLES layouts */
+    int clamp = sb_param_apply_gain(e->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
     size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
     const double *g[4], *h[4];
     for (int k = 0; k < 4; k++) {
@@ -130,7 +130,7 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
                       (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scale[j];
         for (int c = 0; c < 3; c++) {
             double v = acc[C == 1 ? 0 : c];
-            rec[j * 3 + c] = (tables ? (v > 0 ? v : 0) * gain : v) / div;
+            rec[j * 3 + c] = (clamp && v < 0 ? 0 : v) * gain / div;
         }
     }
 }
