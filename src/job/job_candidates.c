@@ -151,19 +151,14 @@ void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]) {
     out[1] = ok ? e->band[j - 1][SB_BAND_TI89][3] : NAN;
 }
 
-int job_bands_no_worse(const double a[2], const double b[2]) { return a[0] <= b[0] && a[1] <= b[1]; }
-
 /* Candidates that screened, finest screening first, then by ascending
  * error; returns how many.  One keeping the band bounds goes before one
- * breaking them, unless the one breaking them is no worse in both bands
- * (a lower headline makes its bound tighter: an RGL file on vndf breaks
- * it at 0.2 % where vh keeps it at 7 %, worse in every band). */
+ * breaking them (issue 33: the bounds are rejected, not traded; RGL paper
+ * at J = 1: io cos 17.8 % breaks theta_i > 80 degrees at 66 %, vndf 33 %
+ * keeps it at 75 %). */
 static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
     if (a->res != b->res) return a->res > b->res;
-    if ((a->bands_ok == 1) != (b->bands_ok == 1)) {
-        const sb_job_candidate_t *keep = a->bands_ok == 1 ? a : b, *broken = keep == a ? b : a;
-        if (!job_bands_no_worse(broken->band_err, keep->band_err)) return keep == a;
-    }
+    if ((a->bands_ok == 1) != (b->bands_ok == 1)) return a->bands_ok == 1;
     return a->error < b->error;
 }
 

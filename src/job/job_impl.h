@@ -199,9 +199,8 @@ int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
 /* The job of opts on src (sb_job_run_source), its kept layout fitted as auto fits it when as_auto. */
 /* The band errors theta_i > 80 and > 89 degrees after j terms (NAN
- * unknown), and whether a is no worse than b in both (job_candidates.c). */
+ * unknown; job_candidates.c). */
 void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]);
-int job_bands_no_worse(const double a[2], const double b[2]);
 sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
                        sb_job_t **out);
 /* Whether the solver named `name` (a method, or the factors' "method"
