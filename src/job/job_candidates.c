@@ -151,14 +151,24 @@ void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]) {
     out[1] = ok ? e->band[j - 1][SB_BAND_TI89][3] : NAN;
 }
 
+int job_bands_trade(const double broken[2], double broken_err, const double keep[2], double keep_err) {
+    return broken[0] <= keep[0] && broken[1] <= keep[1] && JOB_BANDS_TRADE * broken_err < keep_err;
+}
+
 /* Candidates that screened, finest screening first, then by ascending
  * error; returns how many.  One keeping the band bounds goes before one
- * breaking them (issue 33: the bounds are rejected, not traded; RGL paper
- * at J = 1: io cos 17.8 % breaks theta_i > 80 degrees at 66 %, vndf 33 %
- * keeps it at 75 %). */
+ * breaking them, unless the one breaking them is no worse in both bands
+ * and JOB_BANDS_TRADE x lower in the headline: a fit wrong everywhere
+ * keeps the bounds too (RGL paper, R = 12, J = 3: hd f 99.9 % against vh
+ * cos, lower in both bands), but RGL paper at J = 1 keeps vndf cos
+ * (33 %, theta_i > 80 degrees 75 %) rather than io cos (17.8 %, 66 % above
+ * its bound 53 %). */
 static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
     if (a->res != b->res) return a->res > b->res;
-    if ((a->bands_ok == 1) != (b->bands_ok == 1)) return a->bands_ok == 1;
+    if ((a->bands_ok == 1) != (b->bands_ok == 1)) {
+        const sb_job_candidate_t *keep = a->bands_ok == 1 ? a : b, *broken = keep == a ? b : a;
+        if (!job_bands_trade(broken->band_err, broken->error, keep->band_err, keep->error)) return keep == a;
+    }
     return a->error < b->error;
 }
 

@@ -201,6 +201,11 @@ int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 /* The band errors theta_i > 80 and > 89 degrees after j terms (NAN
  * unknown; job_candidates.c). */
 void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]);
+/* Whether a candidate breaking the band bounds (its band errors, headline)
+ * may go before one keeping them: no worse in both bands and its headline
+ * below the other's / JOB_BANDS_TRADE. */
+#define JOB_BANDS_TRADE 2.0
+int job_bands_trade(const double broken[2], double broken_err, const double keep[2], double keep_err);
 sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
                        sb_job_t **out);
 /* Whether the solver named `name` (a method, or the factors' "method"
