@@ -411,7 +411,13 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
  * error (it samples the texel centres). */
 SB_TEST(metric_matches_weighted_native) {
     sb_source_t *s = model("microfacet:base=copper,roughness=0.4");
-    sb_param_t *p = io(12);
+    /* the plain sum (plain=1): the metric follows the clamp max(0, sum), the
+     * cells' errors are those of the sum itself */
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = 12;
+    o.plain = 1;
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
     sb_matrix_t m;
     sb_matrix_opts_t mo = {0};
     mo.form = SB_FORM_COS2;
