@@ -148,7 +148,7 @@ typedef struct sb_job_candidate {
     double error; /* ranking error at J: the headline (estimate.h) on the estimator's first pairs; NAN if not ok */
     int bands_ok; /* sb_estimate_bands_bounded at J on the same pairs: 1 kept, 0 broken, -1 unknown; auto ranks
                      the candidates that keep the band bounds first when one does, unless the one breaking
-                     them is no worse in both bands (its bound is tighter for its lower headline) */
+                     them is no worse in both bands and below half its headline */
     double band_err[2]; /* the band errors theta_i > 80 and > 89 degrees at J on the same pairs (NAN unknown) */
     double time_s;      /* its screening, and for the kept one its full fit too */
     sb_result_t result; /* SB_OK, or the code of its failure (message in `why`) */
@@ -194,7 +194,8 @@ typedef struct sb_job_budget_try {
     double headline;    /* screened headline at J (the estimator's first pairs) */
     int bands_ok;       /* sb_estimate_bands_bounded at J on the same pairs (1, 0, -1 unknown): the lowest headline
                            among entries keeping the band bounds is chosen when one does (entries breaking them
-                           but no worse in both bands than every entry keeping them compete too) */
+                           but no worse in both bands and below half the headline of every entry keeping
+                           them compete too) */
     double band_err[2]; /* the band errors theta_i > 80 and > 89 degrees at J on the same pairs (NAN unknown) */
 } sb_job_budget_try_t;
 

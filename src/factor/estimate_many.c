@@ -81,7 +81,7 @@ static void many_unit(void *user, size_t k, int t) {
         double div = 1;
         div = sb_form_divisor(e0->form, wi, wo);
         double gain = sb_param_gain(e0->p, wi, wo);
-        int clamp = sb_param_apply_gain(e0->p, -1, 1) == 0; /* sb_param_apply_gain, decided once a pair */
+        int clamp = sb_param_apply_gain(e0->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
         for (size_t a = 0; a < ng; a++)
             for (size_t b = 0; b < nh; b++) {
                 const double *G = look + a * S, *H = look + (ng + b) * S;

@@ -117,7 +117,7 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     double div = 1, acc[3] = {0, 0, 0};
     div = sb_form_divisor(e->form, wi, wo);
     double gain = sb_param_gain(e->p, wi, wo);         /* 1 but on SB_CAP_TABLES layouts */
-    int clamp = sb_param_apply_gain(e->p, -1, 1) == 0; /* sb_param_apply_gain, decided once a pair */
+    int clamp = sb_param_apply_gain(e->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
     size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
     const double *g[4], *h[4];
     for (int k = 0; k < 4; k++) {

@@ -311,14 +311,17 @@ static sb_result_t check_room(sb_context_t *ctx, const sb_job_t *job) {
                     b->res.budget, name, R, J, J == 1 ? "" : "s", BUDGET_CHANNELS, least);
 }
 
-/* Whether entry i breaks the band bounds and is worse in a band than an
- * entry keeping them. */
+/* Whether entry i breaks the band bounds where an entry keeps them and it
+ * may not trade them for that entry (job_bands_trade). */
 static int yields(const job_budget_t *b, size_t i) {
-    if (b->v[i].t.bands_ok == 1) return 0;
-    for (size_t k = 0; k < b->n; k++)
-        if (!b->fits[b->v[k].fit].failed && b->v[k].t.bands_ok == 1 &&
-            !job_bands_no_worse(b->v[i].t.band_err, b->v[k].t.band_err))
+    const sb_job_budget_try_t *t = &b->v[i].t;
+    if (t->bands_ok == 1) return 0;
+    for (size_t k = 0; k < b->n; k++) {
+        const sb_job_budget_try_t *u = &b->v[k].t;
+        if (!b->fits[b->v[k].fit].failed && u->bands_ok == 1 &&
+            !job_bands_trade(t->band_err, t->headline, u->band_err, u->headline))
             return 1;
+    }
     return 0;
 }
 

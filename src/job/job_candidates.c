@@ -156,18 +156,23 @@ void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]) {
     out[1] = ok ? e->band[j - 1][SB_BAND_TI89][3] : NAN;
 }
 
-int job_bands_no_worse(const double a[2], const double b[2]) { return a[0] <= b[0] && a[1] <= b[1]; }
+int job_bands_trade(const double broken[2], double broken_err, const double keep[2], double keep_err) {
+    return broken[0] <= keep[0] && broken[1] <= keep[1] && JOB_BANDS_TRADE * broken_err < keep_err;
+}
 
 /* Candidates that screened, finest screening first, then by ascending
  * error; returns how many.  One keeping the band bounds goes before one
  * breaking them, unless the one breaking them is no worse in both bands
- * (a lower headline makes its bound tighter: an RGL file on vndf breaks
- * it at 0.2 % where vh keeps it at 7 %, worse in every band). */
+ * and JOB_BANDS_TRADE x lower in the headline: a fit wrong everywhere
+ * keeps the bounds too (RGL paper, R = 12, J = 3: hd f 99.9 % against vh
+ * cos, lower in both bands), but RGL paper at J = 1 keeps vndf cos
+ * (33 %, theta_i > 80 degrees 75 %) rather than io cos (17.8 %, 66 % above
+ * its bound 53 %). */
 static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
     if (a->res != b->res) return a->res > b->res;
     if ((a->bands_ok == 1) != (b->bands_ok == 1)) {
         const sb_job_candidate_t *keep = a->bands_ok == 1 ? a : b, *broken = keep == a ? b : a;
-        if (!job_bands_no_worse(broken->band_err, keep->band_err)) return keep == a;
+        if (!job_bands_trade(broken->band_err, broken->error, keep->band_err, keep->error)) return keep == a;
     }
     return a->error < b->error;
 }

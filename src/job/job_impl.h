@@ -159,6 +159,8 @@ sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level
 /* After a->f changed (texels filtered, terms weighted): its errors on the
  * matrix's cells, then job_measure on the same pairs (no growth). */
 sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* Term j, channel c of f times w (g and h by sqrt(w), sigma by w). */
+void job_scale_term(sb_factors_t *f, size_t j, size_t c, double w);
 /* Weight the terms of the kept fit a so that its headline is non-increasing
  * in J' (estimate.h sb_estimate_term_weights; a->term_w), then measure
  * its errors again; nothing when the weights are all 1 (the estimate's
@@ -197,9 +199,13 @@ int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a);
 
 /* The job of opts on src (sb_job_run_source), its kept layout fitted as auto fits it when as_auto. */
 /* The band errors theta_i > 80 and > 89 degrees after j terms (NAN
- * unknown), and whether a is no worse than b in both (job_candidates.c). */
+ * unknown; job_candidates.c). */
 void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]);
-int job_bands_no_worse(const double a[2], const double b[2]);
+/* Whether a candidate breaking the band bounds (its band errors, headline)
+ * may go before one keeping them: no worse in both bands and its headline
+ * below the other's / JOB_BANDS_TRADE. */
+#define JOB_BANDS_TRADE 2.0
+int job_bands_trade(const double broken[2], double broken_err, const double keep[2], double keep_err);
 sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
                        sb_job_t **out);
 /* Whether the solver named `name` (a method, or the factors' "method"

@@ -16,7 +16,7 @@
 #define JOB_WEIGHTS_MAX_LOSS 1.25
 
 /* Scale term j, channel c of f by w (g and h by sqrt(w), sigma by w). */
-static void scale_term(sb_factors_t *f, size_t j, size_t c, double w) {
+void job_scale_term(sb_factors_t *f, size_t j, size_t c, double w) {
     double rt = sqrt(w);
     for (int s = 0; s < 2; s++) {
         size_t tw, th;
@@ -69,7 +69,7 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
     }
     for (size_t j = 0; j < J; j++)
         for (size_t c = 0; c < C; c++)
-            scale_term(a->f, j, c, w[j * C + c]);
+            job_scale_term(a->f, j, c, w[j * C + c]);
     free(a->term_w);
     a->term_w = w;
     r = job_remeasure(ctx, job, lv, a);
