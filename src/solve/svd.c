@@ -38,6 +38,16 @@ sb_method_t sb_svd_auto_method(size_t m, size_t n, size_t k, const sb_svd_opts_t
     return auto_method(m < n ? m : n, k, (size_t)resolve_p(opts ? opts->oversample : 0));
 }
 
+static sb_result_t check_opts(sb_context_t *ctx, const sb_svd_opts_t *o) {
+    if (o->method != SB_METHOD_AUTO && o->method != SB_METHOD_FULL && o->method != SB_METHOD_TOPK &&
+        o->method != SB_METHOD_RANDOMIZED)
+        return sb_error(ctx, SB_ERR_ARG, "svd: method %d is not an SVD method", (int)o->method);
+    if (o->power_iters > SB_SVD_MAX_POWER_ITERS)
+        return sb_error(ctx, SB_ERR_RANGE, "svd: %d power iterations, at most %d", o->power_iters,
+                        SB_SVD_MAX_POWER_ITERS);
+    return SB_OK;
+}
+
 static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const sb_svd_opts_t *opts, int gram,
                           sb_svd_t **out);
 
@@ -66,13 +76,8 @@ static sb_result_t create(sb_context_t *ctx, size_t m, size_t n, size_t k, const
         return sb_error(ctx, SB_ERR_OVERFLOW, "svd: dimension %zu x %zu too large for LAPACK", m, n);
     sb_svd_opts_t o = {0};
     if (opts) o = *opts;
-    if (o.method != SB_METHOD_AUTO && o.method != SB_METHOD_FULL && o.method != SB_METHOD_TOPK &&
-        o.method != SB_METHOD_RANDOMIZED)
-        return sb_error(ctx, SB_ERR_ARG, "svd: method %d is not an SVD method", (int)o.method);
-    if (o.power_iters > SB_SVD_MAX_POWER_ITERS)
-        return sb_error(ctx, SB_ERR_RANGE, "svd: %d power iterations, at most %d", o.power_iters,
-                        SB_SVD_MAX_POWER_ITERS);
-    sb_result_t rb = sb_blas_reserve(ctx);
+    sb_result_t rb = check_opts(ctx, &o);
+    if (rb == SB_OK) rb = sb_blas_reserve(ctx);
     if (rb != SB_OK) return rb;
     sb_svd_t *s = calloc(1, sizeof *s);
     if (!s) return sb_error(ctx, SB_ERR_NOMEM, "svd: out of memory");
