@@ -34,8 +34,8 @@ import json, sys
 r = json.load(open(sys.argv[1]))
 J = int(sys.argv[4])
 e = [x for x in r["errors"] if x["terms"] == J][0]
-ch = " / ".join("%.3f" % v for v in e.get("headline_channel", {}).values())
-print("| %s | %s %s | %.4f | %.4f | %s | %s |" % (sys.argv[2], r["param"], r["form"], e["headline"],
+ch = " / ".join("%.3g" % v for v in e.get("headline_channel", {}).values())
+print("| %s | %s %s | %.3g | %.2g | %s | %s |" % (sys.argv[2], r["param"], r["form"], e["headline"],
       e["headline_se"], ch, sys.argv[3]))
 PY
 done
