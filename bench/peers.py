@@ -34,6 +34,8 @@ import subprocess
 import sys
 import time
 
+import bench_matrices
+
 try:
     import numpy as np
     from scipy.sparse.linalg import svds
@@ -48,16 +50,6 @@ PEERS = [  # name, the sepbrdf method it is compared with, factor(M, J) -> (U, s
     ("sklearn-q1", "randomized:q=1", lambda M, J: randomized_svd(M, J, n_iter=1, random_state=0)),
     ("sklearn-q2", "randomized", lambda M, J: randomized_svd(M, J, n_iter=2, random_state=0)),
 ]
-
-
-def load(folder, n):
-    chans = []
-    for c in "rgb":
-        a = np.fromfile(os.path.join(folder, f"io{n}_{c}.f64"), dtype=np.float64)
-        if a.size != n * n:
-            sys.exit(f"peers.py: io{n}_{c}.f64: {a.size} values, expected {n * n}")
-        chans.append(a.reshape((n, n), order="F"))
-    return chans
 
 
 def run_peer(fn, chans, J, reps):
@@ -137,7 +129,7 @@ def main():
         print(f"{'N':>6} {'J':>3} {'peer':<11} {'peer s':>9} {'rel_err':>11} {'sepbrdf':<15} {'s':>9} {'ratio':>7}")
         q2_4096_8 = None
         for n in sizes:
-            chans = load(a.matrices, n)
+            chans = bench_matrices.load(a.matrices, n, "peers.py")
             for J in terms:
                 for name, method, fn in PEERS:
                     if name == "numpy" and n > a.full_max:
@@ -156,7 +148,7 @@ def main():
             print(f"# whole `sepbrdf factor --param io -r 64 -J 8` {a.whole:.3f} s; sklearn randomized_svd n_iter=2 alone "
                   f"on its three matrices {q2_4096_8:.3f} s: ratio {q2_4096_8 / a.whole:.2f}")
         if 4096 in sizes:
-            interleaved(a, load(a.matrices, 4096), w)
+            interleaved(a, bench_matrices.load(a.matrices, 4096, "peers.py"), w)
     print(f"# wrote {out_path}")
 
 

@@ -29,6 +29,8 @@ import subprocess
 import sys
 import time
 
+import bench_matrices
+
 try:
     import numpy as np
     from scipy.sparse.linalg import svds
@@ -46,16 +48,6 @@ PEERS = {  # sepbrdf method -> (peer name, factor(M, J) -> singular values)
     "randomized:f32": SK2,  # q = 2 in single precision: its error still below sklearn's
     "randomized:double": SK2,  # q = 2, every step in double (before the default became mixed)
 }
-
-
-def load(folder, n):
-    chans = []
-    for c in "rgb":
-        a = np.fromfile(os.path.join(folder, f"io{n}_{c}.f64"), dtype=np.float64)
-        if a.size != n * n:
-            sys.exit(f"solvers.py: io{n}_{c}.f64: {a.size} values, expected {n * n}")
-        chans.append(np.asfortranarray(a.reshape((n, n), order="F")))
-    return chans
 
 
 def peer(method, mats, J, norms):
@@ -88,7 +80,7 @@ def main():
     ap.add_argument("--terms", type=int, default=8)
     ap.add_argument("--rounds", type=int, default=5)
     a = ap.parse_args()
-    mats = load(a.matrices, a.n)
+    mats = bench_matrices.load(a.matrices, a.n, "solvers.py")
     norms = [float(np.sum(M * M)) for M in mats]
     threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
     server = subprocess.Popen([a.server, a.matrices, str(a.n), str(a.terms)], stdin=subprocess.PIPE,
