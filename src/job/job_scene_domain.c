@@ -77,4 +77,3 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job) {
     job->t.estimate_s = job->t_estimate;
     return r;
 }
-
