@@ -114,6 +114,40 @@ SB_API sb_result_t sb_gamut_parse(const char *name, sb_gamut_t *out);
  * NULL rgb; a g out of range keeps the value). */
 SB_API int sb_gamut_map(sb_gamut_t g, double rgb[3]);
 
+/* Scattered tables: whether values are interpolated relative to a fitted
+ * lobe.  A diffuse term plus one Cook-Torrance specular lobe (GGX or
+ * exponential D, Smith G, Schlick F; per-channel weights, one width and F0)
+ * is fitted to the samples by least squares in f cos theta_i; the
+ * interpolation then works on f / (lobe + floor) and multiplies back, so a
+ * highlight held by a few samples keeps its measured shape between them
+ * instead of spreading over the neighbours' radius, and a held-out peak
+ * sample is predicted by the lobe the others define. */
+typedef enum sb_lobe_mode {
+    SB_LOBE_AUTO = 0, /* on when it lowers the interpolation's cross-validated error by 10 % */
+    SB_LOBE_OFF,      /* the values as measured */
+    SB_LOBE_ON,       /* always relative to the lobe */
+    SB_LOBE_COUNT_
+} sb_lobe_mode_t;
+
+/* "auto", "off", "on"; parse returns SB_ERR_UNKNOWN. */
+SB_API const char *sb_lobe_mode_name(sb_lobe_mode_t m);
+SB_API sb_result_t sb_lobe_mode_parse(const char *name, sb_lobe_mode_t *out);
+
+/* The lobe fitted to a scattered table (sb_measured_info_t.lobe). */
+typedef struct sb_lobe_fit {
+    int fitted;           /* 0: not fitted (not a scattered table, or off) */
+    int used;             /* the interpolation is relative to it */
+    const char *ndf;      /* "ggx", "beckmann", "exp4", "exp8": GGX or exp(-(tan theta_h / alpha)^p)
+                           * for p = 2, 4, 8 (static string) */
+    double alpha, f0;     /* the D width (GGX alpha, Beckmann m) and Schlick F0 */
+    double cos_power;     /* p of the denominator's cosines: 1, 0.5 or 0 */
+    int smith_k_remapped; /* Smith-Schlick k = (sqrt(alpha) + 1)^2 / 8; 0: alpha / 2 */
+    double kd[3], ks[3];  /* f = min(kd + ks D G F / (4 (cos theta_i cos theta_o)^p), cap) */
+    double cap[3];        /* 2x the brightest sample: the lobe claims no higher peak */
+    double floor[3];      /* added to the lobe before dividing: the median sample value */
+    double cv_off, cv_on; /* interpolation CV (the best method) without and with it */
+} sb_lobe_fit_t;
+
 /* Options of sb_measured_open (zero = default everywhere).
  *
  * Scattered tables are interpolated in an embedding of the pair (l, v) in
@@ -140,6 +174,11 @@ typedef struct sb_measured_opts {
      * of fold cv_fold (sample i, in reading order, is in fold
      * sb_measured_fold(i, cv_folds)) are left out of the table */
     size_t cv_folds, cv_fold;
+    sb_lobe_mode_t lobe; /* scattered tables: SB_LOBE_AUTO */
+    /* with lobe SB_LOBE_ON, NULL or a lobe whose shape family (ndf, f0,
+     * cos_power, smith_k_remapped) is kept: only its width and weights are fitted (the
+     * cross-validation's refits keep what the whole table chose) */
+    const sb_lobe_fit_t *lobe_shape;
 } sb_measured_opts_t;
 
 /* The fold of sample i (reading order, as sb_source_sample numbers a
@@ -195,7 +234,8 @@ typedef struct sb_measured_info {
      * the radius, for the method in use (not in the error). */
     double interp_cv[SB_INTERP_COUNT_];
     size_t cv_held_out, cv_missing;
-    size_t nfields; /* format-specific details, in reading order */
+    sb_lobe_fit_t lobe; /* scattered tables: the fitted lobe */
+    size_t nfields;     /* format-specific details, in reading order */
     sb_measured_field_t fields[SB_MEASURED_FIELDS_MAX];
 } sb_measured_info_t;
 

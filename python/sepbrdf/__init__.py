@@ -99,14 +99,14 @@ class Source:
     .brdf, scattered tables ...).  Keyword arguments set how a measured
     table is interpolated, as the CLI's options of the same names: interp
     ("nearest", "linear", "idw", "quadratic"), neighbours (1..64), radius
-    (degrees), white ("e" or "d65") and gamut ("keep", "clip",
-    "desaturate").  Source.from_function(f) wraps a Python function."""
+    (degrees), white ("e" or "d65"), gamut ("keep", "clip",
+    "desaturate") and lobe ("auto", "off", "on").  Source.from_function(f) wraps a Python function."""
 
-    def __init__(self, spec=None, *, interp=None, neighbours=None, radius=None, white=None, gamut=None):
+    def __init__(self, spec=None, *, interp=None, neighbours=None, radius=None, white=None, gamut=None, lobe=None):
         self.spec = str(spec) if spec is not None else DEFAULT_SOURCE
         self._keep = None
         self._errors = []
-        mo = _measured_opts(interp, neighbours, radius, white, gamut)
+        mo = _measured_opts(interp, neighbours, radius, white, gamut, lobe)
         ptr = ctypes.c_void_p()
         with _Context() as ctx:
             ctx.check(lib.sb_job_source_open(ctx.ptr, _b(self.spec), ctypes.byref(mo), ctypes.byref(ptr)))
@@ -441,7 +441,7 @@ def factor(source=None, *, progress=None, **options):
     (the snippet also in "hlsl", "msl", "wgsl" or "all": sepbrdf.hlsl,
     sepbrdf.metal, sepbrdf.wgsl beside sepbrdf.glsl in write()), and for
     measured tables interp,
-    neighbours, radius (degrees), white, gamut, cv_folds (scattered tables:
+    neighbours, radius (degrees), white, gamut, lobe, cv_folds (scattered tables:
     the refits of the cross-validated error, report["errors"][j]["cv_headline"]).
     progress: None or a function progress(label, fraction) called as the
     job goes on (on the calling thread).

@@ -52,6 +52,8 @@ class MeasuredOpts(ctypes.Structure):
         ("gamut", ctypes.c_int),
         ("cv_folds", ctypes.c_size_t),
         ("cv_fold", ctypes.c_size_t),
+        ("lobe", ctypes.c_int),
+        ("lobe_shape", ctypes.c_void_p),
     ]
 
 
@@ -159,6 +161,7 @@ _PROTOTYPES = {
     "sb_method_count": (ctypes.c_size_t, []),
     "sb_interp_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_gamut_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
+    "sb_lobe_mode_parse": (_R, [_C, ctypes.POINTER(ctypes.c_int)]),
     "sb_sampler_create": (_R, [_P, _P, _P, _I, _PP]),
     "sb_sampler_destroy": (None, [_P]),
     "sb_sample": (_I, [_P, _P, _P, _P, _P, _P]),

@@ -22,7 +22,7 @@ def _parse_enum(fn, value, what, names):
     return out.value
 
 
-def _measured_opts(interp=None, neighbours=None, radius=None, white=None, gamut=None):
+def _measured_opts(interp=None, neighbours=None, radius=None, white=None, gamut=None, lobe=None):
     mo = _lib.MeasuredOpts()
     if interp is not None:
         mo.interp = _parse_enum(lib.sb_interp_parse, interp, "interp", "nearest, linear, idw, quadratic")
@@ -40,6 +40,8 @@ def _measured_opts(interp=None, neighbours=None, radius=None, white=None, gamut=
         mo.white = 0 if white == "e" else 1
     if gamut is not None:
         mo.gamut = _parse_enum(lib.sb_gamut_parse, gamut, "gamut", "keep, clip, desaturate")
+    if lobe is not None:
+        mo.lobe = _parse_enum(lib.sb_lobe_mode_parse, lobe, "lobe", "auto, off, on")
     return mo
 
 
@@ -95,7 +97,9 @@ def _job_opts(o, source_spec):
         return keep[-1]
 
     jo.source = s(source_spec)
-    jo.measured = _measured_opts(*(o.pop(k, None) for k in ("interp", "neighbours", "radius", "white", "gamut")))
+    jo.measured = _measured_opts(
+        *(o.pop(k, None) for k in ("interp", "neighbours", "radius", "white", "gamut", "lobe"))
+    )
     for k in ("param", "form", "warp", "scene", "shader"):
         v = o.pop(k, None)
         if v is not None:

@@ -60,6 +60,10 @@ int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo);
     "                       tables: local linear fit), idw, quadratic (local\n"                                        \
     "                       quadratic fit); scattered tables default to the one\n"                                     \
     "                       of lowest cross-validated error (see `info`)\n"                                            \
+    "      --lobe L         scattered: auto (default), on or off: interpolate\n"                                       \
+    "                       relative to a diffuse + specular lobe fitted to the\n"                                     \
+    "                       samples (auto: when it lowers the cross-validated\n"                                       \
+    "                       error; `info` prints the lobe)\n"                                                          \
     "      --neighbours K   scattered: k nearest samples, 1..64 (default 24; idw 4)\n"                                 \
     "      --radius DEG     scattered: farther than this from every sample is\n"                                       \
     "                       missing, in degrees of the embedding distance\n"                                           \

@@ -45,8 +45,8 @@ static const cli_option_t info_only[] = {
 };
 
 static void help(void) {
-    printf("usage: sepbrdf info FILE [--res R] [--json] [--interp M] [--neighbours K] [--radius DEG]\n"
-           "                         [--white e|d65]\n"
+    printf("usage: sepbrdf info FILE [--res R] [--json] [--interp M] [--lobe L] [--neighbours K]\n"
+           "                         [--radius DEG] [--white e|d65]\n"
            "\n"
            "Print what FILE holds.  For a factor file (g_KK.exr or h_KK.exr written by\n"
            "`sepbrdf factor`): its texture size, term and J, sigma_j per channel (from the\n"

@@ -127,13 +127,19 @@ int cli_out_opt(cli_args_t *a, const char *what, const char **out) {
 int cli_measured_opt(cli_args_t *a, sb_measured_opts_t *mo) {
     static const char *const n_interp[] = {"--interp", NULL}, *const n_k[] = {"--neighbours", NULL},
                              *const n_rad[] = {"--radius", NULL}, *const n_white[] = {"--white", NULL},
-                             *const n_gamut[] = {"--gamut", NULL};
+                             *const n_gamut[] = {"--gamut", NULL}, *const n_lobe[] = {"--lobe", NULL};
     const char *v = NULL;
     int m;
     if ((m = cli_opt(a, n_interp, 1, &v))) {
         if (m < 0) return -1;
         if (sb_interp_parse(v, &mo->interp) != SB_OK) {
             cli_error(a->cmd, "--interp '%s' unknown, need one of nearest, linear, idw, quadratic", v);
+            return -1;
+        }
+    } else if ((m = cli_opt(a, n_lobe, 1, &v))) {
+        if (m < 0) return -1;
+        if (sb_lobe_mode_parse(v, &mo->lobe) != SB_OK) {
+            cli_error(a->cmd, "--lobe '%s' unknown, need auto, off or on", v);
             return -1;
         }
     } else if ((m = cli_opt(a, n_k, 1, &v))) {

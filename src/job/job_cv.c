@@ -35,6 +35,8 @@ static sb_result_t fold_fit(sb_context_t *ctx, const sb_job_t *job, size_t K, si
     mo.cv_folds = K;
     mo.cv_fold = k;
     mo.interp = in->interp;
+    mo.lobe = in->lobe.used ? SB_LOBE_ON : SB_LOBE_OFF; /* its width and weights fitted again */
+    mo.lobe_shape = &in->lobe;
     mo.neighbours = in->neighbours;
     mo.radius = isfinite(in->radius) ? in->radius : -1;
     sb_source_t *src = NULL;

@@ -277,6 +277,34 @@ static void report_estimator(sb_json_t *j, const sb_job_t *job) {
 
 /* A measured table: what it held and the errors against its measurements
  * (docs/measured.md); nothing for analytic sources. */
+static void json_rgb(sb_json_t *j, const char *key, const double v[3]) {
+    sb_json_begin_array(j, key);
+    for (int c = 0; c < 3; c++)
+        sb_json_number(j, NULL, v[c]);
+    sb_json_end_array(j);
+}
+
+/* The lobe a scattered table is interpolated relative to (null: none fitted). */
+static void report_lobe(sb_json_t *j, const sb_lobe_fit_t *L) {
+    if (!L->fitted) {
+        sb_json_string(j, "lobe", NULL);
+        return;
+    }
+    sb_json_begin_object(j, "lobe");
+    sb_json_bool(j, "used", L->used);
+    sb_json_string(j, "ndf", L->ndf);
+    sb_json_number(j, "alpha", L->alpha);
+    sb_json_number(j, "f0", L->f0);
+    sb_json_number(j, "cos_power", L->cos_power);
+    json_rgb(j, "kd", L->kd);
+    json_rgb(j, "ks", L->ks);
+    json_rgb(j, "cap", L->cap);
+    json_rgb(j, "floor", L->floor);
+    sb_json_number(j, "interp_cv_without", L->cv_off);
+    sb_json_number(j, "interp_cv_with", L->cv_on);
+    sb_json_end_object(j);
+}
+
 static void report_measured(sb_json_t *j, const sb_job_t *job) {
     const sb_measured_info_t *in = sb_measured_source_info(job->src);
     if (!in) return;
@@ -299,6 +327,7 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
         sb_json_number(j, sb_interp_name((sb_interp_t)m), in->interp_cv[m]);
     sb_json_end_object(j);
     sb_json_int(j, "cv_held_out", (long long)in->cv_held_out);
+    report_lobe(j, &in->lobe);
     sb_json_begin_object(j, "cv");
     sb_json_int(j, "folds", (long long)job->cv_folds);
     sb_json_int(j, "held_out", (long long)job->cv_held);

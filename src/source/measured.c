@@ -79,6 +79,18 @@ sb_result_t sb_interp_parse(const char *name, sb_interp_t *out) {
     return SB_ERR_UNKNOWN;
 }
 
+static const char *const lobe_names[SB_LOBE_COUNT_] = {"auto", "off", "on"};
+const char *sb_lobe_mode_name(sb_lobe_mode_t m) { return (unsigned)m < SB_LOBE_COUNT_ ? lobe_names[m] : "?"; }
+sb_result_t sb_lobe_mode_parse(const char *name, sb_lobe_mode_t *out) {
+    if (!out) return SB_ERR_ARG;
+    for (int k = 0; k < SB_LOBE_COUNT_; k++)
+        if (name && strcmp(name, lobe_names[k]) == 0) {
+            *out = (sb_lobe_mode_t)k;
+            return SB_OK;
+        }
+    return SB_ERR_UNKNOWN;
+}
+
 /* ---- text helpers ------------------------------------------------------ */
 
 int sb_lines_next(sb_context_t *ctx, sb_lines_t *lr, char **out, sb_result_t *err) {
@@ -241,6 +253,8 @@ static sb_result_t check_opts(sb_context_t *ctx, const char *path, const sb_meas
     }
     if ((unsigned)o->interp >= SB_INTERP_COUNT_)
         return sb_error(ctx, SB_ERR_ARG, "%s: unknown interpolation %d", path, (int)o->interp);
+    if ((unsigned)o->lobe >= SB_LOBE_COUNT_)
+        return sb_error(ctx, SB_ERR_ARG, "%s: unknown lobe mode %d", path, (int)o->lobe);
     if ((unsigned)o->white >= SB_WHITE_COUNT_)
         return sb_error(ctx, SB_ERR_ARG, "%s: unknown white %d", path, (int)o->white);
     if ((unsigned)o->gamut >= SB_GAMUT_COUNT_)
@@ -280,6 +294,7 @@ sb_result_t sb_measured_open(sb_context_t *ctx, const char *path, const sb_measu
     inf->format = rd->name;
     for (int k = 0; k < SB_INTERP_COUNT_; k++)
         inf->interp_cv[k] = NAN;
+    inf->lobe.cv_off = inf->lobe.cv_on = NAN;
     r = rd->open(ctx, path, &o, out, inf);
     /* sb_alloc refuses sizes beyond the memory limit with SB_ERR_OVERFLOW
      * (lower --res); a table's size comes from the file, not an option */

@@ -85,6 +85,7 @@ static void table_destroy(void *self) {
     if (!t) return;
     free(t->pts);
     free(t->val);
+    free(t->raw);
     free(t->split);
     free(t->smp);
     free(t);

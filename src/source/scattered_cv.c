@@ -1,12 +1,18 @@
 /* Cross-validation of the scattered-sample source: the leave-one-position-
  * out error of every interpolation method, and the choice among them. */
 #include <math.h>
+#include <stdlib.h>
 
 #include "source/scattered_impl.h"
 
 /* Cross-validation holds out at most this many samples (evenly spread):
  * enough for a 1 % estimate, bounded time on large tables. */
 #define CV_MAX 2000
+
+/* auto keeps the lobe when it lowers the interpolation's error by at least
+ * 10 %: a lobe that barely helps (a retro-reflector's peak is not where a
+ * specular lobe sits) only adds its dynamic range. */
+#define LOBE_GAIN 0.9
 
 /* Leave-one-position-out error of method m (k neighbours): each held-out
  * sample (at most CV_MAX, evenly spread over the table) is predicted from
@@ -27,9 +33,16 @@ static double cv_error(const table_t *t, sb_interp_t m, size_t k, size_t *held, 
         sb_scat_embed_(t->iso, t->recip, s, s + 3, x);
         int nskip = 1;
         if (!t->iso && t->recip) sb_scat_embed_(t->iso, t->recip, s + 3, s, x + MAX_DIM), nskip = 2;
-        if (!sb_table_at_(t, m, k, x, x, nskip, rgb)) {
+        int known = sb_table_at_(t, m, k, x, x, nskip, rgb);
+        if (!known) {
             (*missing)++;
             continue;
+        }
+        if (t->lobe_on && known == 1) {
+            double b[3];
+            sb_lobe_base_(&t->lobe, s, s + 3, b);
+            for (int c = 0; c < 3; c++)
+                rgb[c] *= b[c];
         }
         double w = s[2] * s[5];
         for (int c = 0; c < 3; c++) {
@@ -40,26 +53,66 @@ static double cv_error(const table_t *t, sb_interp_t m, size_t k, size_t *held, 
     return *missing < n && den > 0 ? sqrt(num / den) : NAN;
 }
 
-/* Cross-validate every method; with interp DEFAULT keep the one of lowest
- * error (on ties the earlier of quadratic, linear, idw, nearest). */
-void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, sb_measured_info_t *info) {
+/* Cross-validate every method into cv[] (misses into miss[]); the
+ * method of lowest error (on ties the earlier of quadratic, linear, idw,
+ * nearest) into *best; returns the error of the method that will be used
+ * (o->interp, or the best). */
+static double cv_all(const table_t *t, const sb_measured_opts_t *o, size_t kfit, double *cv, size_t *miss, size_t *held,
+                     sb_interp_t *best) {
     static const sb_interp_t order[4] = {SB_INTERP_QUADRATIC, SB_INTERP_LINEAR, SB_INTERP_IDW, SB_INTERP_NEAREST};
-    sb_interp_t best = SB_INTERP_QUADRATIC;
     double best_e = INFINITY;
-    size_t miss[SB_INTERP_COUNT_] = {0};
+    *best = SB_INTERP_QUADRATIC;
     for (int k = 0; k < SB_INTERP_COUNT_; k++)
-        info->interp_cv[k] = NAN;
+        cv[k] = NAN, miss[k] = 0;
     for (int i = 0; i < 4; i++) {
         sb_interp_t m = order[i];
         size_t kk = o->neighbours ? o->neighbours : m == SB_INTERP_IDW ? (size_t)t->dim + 1 : kfit;
-        double e = cv_error(t, m, kk, &info->cv_held_out, &miss[m]);
-        info->interp_cv[m] = e;
+        double e = cv_error(t, m, kk, held, &miss[m]);
+        cv[m] = e;
         if (isfinite(e) && e < best_e) {
             best_e = e;
-            best = m;
+            *best = m;
         }
     }
+    double e = cv[o->interp == SB_INTERP_DEFAULT ? *best : o->interp];
+    return isfinite(e) ? e : INFINITY;
+}
+
+/* Cross-validate every method, without the lobe and with it (as o->lobe
+ * allows); keep the lobe when asked, or (auto) when it lowers the error
+ * by LOBE_GAIN;
+ * with interp DEFAULT keep the method of lowest error. */
+void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, sb_measured_info_t *info) {
+    double cv_off[SB_INTERP_COUNT_], cv_on[SB_INTERP_COUNT_], e_off = INFINITY, e_on = INFINITY;
+    size_t miss_off[SB_INTERP_COUNT_], miss_on[SB_INTERP_COUNT_];
+    sb_interp_t best_off = SB_INTERP_QUADRATIC, best_on = SB_INTERP_QUADRATIC;
+    if (o->lobe != SB_LOBE_ON) e_off = cv_all(t, o, kfit, cv_off, miss_off, &info->cv_held_out, &best_off);
+    double *raw = t->val, *q = NULL;
+    if (o->lobe != SB_LOBE_OFF) {
+        sb_lobe_fit_(t->smp, t->ns, o->lobe == SB_LOBE_ON ? o->lobe_shape : NULL, &t->lobe);
+        q = sb_lobe_values_(t, &t->lobe);
+    }
+    if (q) {
+        t->val = q;
+        t->lobe_on = 1;
+        e_on = cv_all(t, o, kfit, cv_on, miss_on, &info->cv_held_out, &best_on);
+    }
+    int use = q && (o->lobe == SB_LOBE_ON || e_on < LOBE_GAIN * e_off);
+    if (q && !use) {
+        t->val = raw;
+        t->lobe_on = 0;
+        free(q);
+    } else if (use) {
+        t->raw = raw; /* measured positions return their measurement */
+    }
+    const double *cv = use ? cv_on : cv_off;
+    for (int k = 0; k < SB_INTERP_COUNT_; k++)
+        info->interp_cv[k] = cv[k];
+    sb_interp_t best = use ? best_on : best_off;
     t->interp = o->interp == SB_INTERP_DEFAULT ? best : o->interp;
     t->k = o->neighbours ? o->neighbours : t->interp == SB_INTERP_IDW ? (size_t)t->dim + 1 : kfit;
-    info->cv_missing = miss[t->interp];
+    info->cv_missing = (use ? miss_on : miss_off)[t->interp];
+    if (t->lobe.fitted) sb_lobe_report_(&t->lobe, use, &info->lobe);
+    info->lobe.cv_off = isfinite(e_off) ? e_off : NAN;
+    info->lobe.cv_on = isfinite(e_on) ? e_on : NAN;
 }

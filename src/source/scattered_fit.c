@@ -121,9 +121,10 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
     if (d0 <= SAME_POSITION * SAME_POSITION || interp == SB_INTERP_NEAREST) {
         double lim = d0 <= SAME_POSITION * SAME_POSITION ? SAME_POSITION * SAME_POSITION : d0;
         double cnt = 0;
+        const double *vals = d0 <= SAME_POSITION * SAME_POSITION && t->raw ? t->raw : t->val;
         for (size_t m = 0; m < q.n; m++) {
             if (q.d2[m] > lim) continue;
-            const double *v = t->val + 4 * q.at[m];
+            const double *v = vals + 4 * q.at[m];
             for (int c = 0; c < 3; c++)
                 rgb[c] += v[3] * v[c];
             cnt += v[3];
@@ -165,7 +166,15 @@ static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
     int n = 0;
     for (int k = 0; k < POLE_STEPS; k++) {
         y[2] = SB_PI * k / (POLE_STEPS - 1);
-        if (!sb_table_at_(t, t->interp, t->k, y, NULL, 0, v)) continue;
+        int known = sb_table_at_(t, t->interp, t->k, y, NULL, 0, v);
+        if (!known) continue;
+        if (known == 2 && t->lobe_on) { /* a measurement: relative to the lobe as the others */
+            double wi[3], wo[3], b[3];
+            sb_table_dirs_(t, y, wi, wo);
+            sb_lobe_base_(&t->lobe, wi, wo, b);
+            for (int c = 0; c < 3; c++)
+                v[c] /= b[c];
+        }
         for (int c = 0; c < 3; c++)
             acc[c] += v[c];
         n++;
@@ -183,9 +192,17 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
     sb_scat_embed_(t->iso, t->recip, wi, wo, x);
     int known = sb_table_at_(t, t->interp, t->k, x, NULL, 0, rgb);
     double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
-    if (known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole)) return known != 0;
-    double w = known ? tmin / zone : 0;
-    for (int c = 0; c < 3; c++)
-        rgb[c] = w * rgb[c] + (1 - w) * pole[c];
-    return 1;
+    if (!(known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole))) {
+        double w = known ? tmin / zone : 0;
+        for (int c = 0; c < 3; c++)
+            rgb[c] = w * rgb[c] + (1 - w) * pole[c];
+        known = 1;
+    }
+    if (known == 1 && t->lobe_on) { /* the values are relative to the lobe */
+        double b[3];
+        sb_lobe_base_(&t->lobe, wi, wo, b);
+        for (int c = 0; c < 3; c++)
+            rgb[c] *= b[c];
+    }
+    return known != 0;
 }

@@ -16,6 +16,14 @@
  * and rounding leaves copies 1e-16 apart. */
 #define SAME_POSITION 1e-6
 
+/* The lobe a table's values are interpolated relative to
+ * (scattered_lobe.c): f = kd + ks S(l, v), S of width alpha, Schlick F0. */
+typedef struct lobe {
+    int fitted, ndf; /* ndf: 0 GGX, 1 Beckmann, 2 exp4, 3 exp8 */
+    int cosp;        /* the cosines' power in the denominator: (cosp % 3) / 2; cosp >= 3: remapped Smith k */
+    double alpha, f0, kd[3], ks[3], floor[3], cap[3]; /* cap: CAP x the brightest sample */
+} lobe_t;
+
 typedef struct table {
     size_t n; /* points in the tree */
     int dim;  /* 3 (isotropic) or 4 */
@@ -30,6 +38,9 @@ typedef struct table {
     sb_interp_t interp;
     double *smp; /* the samples as read, SB_SAMPLE_DOUBLES each */
     size_t ns;
+    lobe_t lobe;
+    int lobe_on; /* val holds f / base (sb_lobe_base_), eval multiplies back */
+    double *raw; /* with lobe_on: the values as measured (n * 4), returned at measured positions */
 } table_t;
 
 /* The k nearest within sqrt(r2): a max-heap on d2 while searching
@@ -66,6 +77,20 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
                  double rgb[3]);
 /* The source's eval: f_r of (wi, wo), with the pole blend. */
 int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]);
+
+/* scattered_lobe.c */
+/* Fit the lobe to ns samples (SB_SAMPLE_DOUBLES each) into L; keep: NULL
+ * or a lobe whose family (ndf, f0, cos_power) is kept. */
+void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L);
+/* The base b = kd + ks S + floor of the pair (wi, wo). */
+void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], double b[3]);
+/* A direction pair at embedded position x (its symmetric representative). */
+void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]);
+/* The points' values divided by the base at their positions (n * 4, the
+ * counts kept; malloc'd, NULL on no memory). */
+double *sb_lobe_values_(const table_t *t, const lobe_t *L);
+/* The public description of L. */
+void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out);
 
 /* scattered_cv.c */
 /* Cross-validate every method into info; set t->interp and t->k from o

@@ -1,0 +1,244 @@
+/* The lobe a scattered table is interpolated relative to (sb_lobe_mode_t).
+ *
+ * Model: f_c(l, v) = kd_c + ks_c S(l, v), with one shape for all channels
+ *   S = D(h) F(v.h) / (4 (n.l (1 - k) + k)(n.v (1 - k) + k)),  k = alpha / 2,
+ * that is D G F / (4 n.l n.v) with the Smith-Schlick G cancelling the
+ * cosines (finite up to the horizon); D is GGX (alpha) or of the
+ * exponential family exp(-(tan theta_h / alpha)^p) / (pi alpha^2 cos^4),
+ * p = 2 (Beckmann), 4 or 8 (flat-topped: a near-mirror coat seen through
+ * an instrument's aperture), F Schlick's with one F0.  The shape's parameters (D, alpha, F0)
+ * are searched on a grid (alpha log-spaced, then refined by golden
+ * section); for each, kd and ks of every channel are the non-negative
+ * least-squares solution in the norm of f cos theta_i (the headline's),
+ * a 2 x 2 problem closed in form from five sums.  Tables of more than
+ * FIT_MAX samples search on FIT_MAX evenly spread ones.
+ *
+ * The interpolation then sees q = f / (kd + ks S + floor), floor the
+ * channel's median sample value (so q stays of order one away from the
+ * highlight whatever the diffuse fit), and the source returns q times
+ * that base: the base carries the highlight's shape, q what the lobe gets
+ * wrong, and it is q, smooth and of order one, that is spread between
+ * samples. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "source/scattered_impl.h"
+#include "util/internal.h"
+
+#define FIT_MAX 4000
+#define ALPHA_MIN 1e-3
+#define ALPHA_MAX 1.0
+#define ALPHA_STEPS 40
+#define GOLDEN_STEPS 24
+#define NDFS 4
+/* denominators: cosine powers 0, 1/2, 1, each with Smith k = alpha/2 or
+ * the remapped (sqrt(alpha) + 1)^2 / 8 */
+#define COSP 6
+/* The lobe never exceeds this many times the brightest sample or its own
+ * largest value at a sample: a lobe narrower than the samples resolve
+ * would otherwise claim any height between them. */
+#define CAP 2.0
+
+static const double f0_grid[] = {0.04, 0.25, 1.0};
+static const char *const ndf_names[NDFS] = {"ggx", "beckmann", "exp4", "exp8"};
+
+static double lobe_shape(int ndf, double alpha, double f0, int cosp, const double l[3], const double v[3]) {
+    double h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
+    double n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    if (!(n > 0) || !(l[2] > 0) || !(v[2] > 0)) return 0;
+    double c = h[2] / n, c2 = c * c, s2 = 1 - c2, a2 = alpha * alpha, d;
+    if (ndf == 0) {
+        double b = s2 + c2 * a2;
+        d = a2 / (SB_PI * b * b);
+    } else { /* exp(-(tan^2 / alpha^2)^(p/2)), p = 2 (Beckmann), 4, 8 */
+        double x = c2 > 0 ? (s2 / c2) / a2 : INFINITY;
+        x = ndf == 1 ? x : ndf == 2 ? x * x : x * x * x * x;
+        d = c2 > 0 ? exp(-x) / (SB_PI * a2 * c2 * c2) : 0;
+    }
+    double vh = (v[0] * h[0] + v[1] * h[1] + v[2] * h[2]) / n, m = 1 - fmin(fmax(vh, 0), 1);
+    double fr = f0 + (1 - f0) * m * m * m * m * m, r = sqrt(alpha) + 1, k = cosp >= 3 ? r * r / 8 : alpha / 2;
+    cosp %= 3;
+    double g = (l[2] * (1 - k) + k) * (v[2] * (1 - k) + k);
+    return d * fr / (4 * (cosp == 2 ? g : cosp == 1 ? sqrt(g) : 1));
+}
+
+/* Five sums per channel for the 2 x 2 least squares of one shape. */
+typedef struct sums {
+    double w, ws, wss, wf[3], wsf[3], wff[3];
+} sums_t;
+
+/* Non-negative (kd, ks) of channel c minimising sum w (kd + ks S - f)^2;
+ * returns the residual sum. */
+static double solve2(const sums_t *m, int c, double *kd, double *ks) {
+    double best = INFINITY, cand[3][2] = {{0, 0}, {0, 0}, {0, 0}};
+    double det = m->w * m->wss - m->ws * m->ws;
+    if (det > 1e-300 * (m->w * m->wss + 1e-300)) {
+        cand[0][0] = (m->wss * m->wf[c] - m->ws * m->wsf[c]) / det;
+        cand[0][1] = (m->w * m->wsf[c] - m->ws * m->wf[c]) / det;
+    }
+    cand[1][0] = m->w > 0 ? fmax(m->wf[c] / m->w, 0) : 0;
+    cand[2][1] = m->wss > 0 ? fmax(m->wsf[c] / m->wss, 0) : 0;
+    for (int i = 0; i < 3; i++) {
+        double a = cand[i][0], b = cand[i][1];
+        if (a < 0 || b < 0) continue;
+        double r = m->wff[c] - 2 * (a * m->wf[c] + b * m->wsf[c]) + a * a * m->w + 2 * a * b * m->ws + b * b * m->wss;
+        if (r < best) best = r, *kd = a, *ks = b;
+    }
+    return best;
+}
+
+/* Residual of the best linear weights for one shape over the samples. */
+static double shape_cost(const double *smp, size_t ns, size_t step, int ndf, double alpha, double f0, int cosp,
+                         double kd[3], double ks[3]) {
+    sums_t m;
+    memset(&m, 0, sizeof m);
+    for (size_t i = 0; i < ns; i += step) {
+        const double *s = smp + i * SB_SAMPLE_DOUBLES;
+        double S = lobe_shape(ndf, alpha, f0, cosp, s, s + 3), w = s[2] * s[2];
+        m.w += w;
+        m.ws += w * S;
+        m.wss += w * S * S;
+        for (int c = 0; c < 3; c++) {
+            m.wf[c] += w * s[6 + c];
+            m.wsf[c] += w * S * s[6 + c];
+            m.wff[c] += w * s[6 + c] * s[6 + c];
+        }
+    }
+    double r = 0, a, b;
+    for (int c = 0; c < 3; c++) {
+        r += solve2(&m, c, &a, &b);
+        if (kd) kd[c] = a, ks[c] = b;
+    }
+    return r;
+}
+
+/* Golden-section refinement of log alpha in [lo, hi] for one (ndf, f0). */
+static double refine_alpha(const double *smp, size_t ns, size_t step, int ndf, double f0, int cosp, double lo,
+                           double hi, double *cost) {
+    const double g = 0.6180339887498949;
+    double a = lo, b = hi, x1 = b - g * (b - a), x2 = a + g * (b - a);
+    double c1 = shape_cost(smp, ns, step, ndf, exp(x1), f0, cosp, NULL, NULL);
+    double c2 = shape_cost(smp, ns, step, ndf, exp(x2), f0, cosp, NULL, NULL);
+    for (int it = 0; it < GOLDEN_STEPS; it++) {
+        if (c1 < c2) {
+            b = x2, x2 = x1, c2 = c1, x1 = b - g * (b - a);
+            c1 = shape_cost(smp, ns, step, ndf, exp(x1), f0, cosp, NULL, NULL);
+        } else {
+            a = x1, x1 = x2, c1 = c2, x2 = a + g * (b - a);
+            c2 = shape_cost(smp, ns, step, ndf, exp(x2), f0, cosp, NULL, NULL);
+        }
+    }
+    *cost = c1 < c2 ? c1 : c2;
+    return exp(c1 < c2 ? x1 : x2);
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The channel's median sample value (the floor under the base), at least
+ * 1e-3 of its largest and 1e-12; 0 on no memory. */
+static void median_floor(const double *smp, size_t ns, double floor_[3], double cap[3]) {
+    double *v = malloc(ns * sizeof *v);
+    for (int c = 0; c < 3; c++) {
+        floor_[c] = 0;
+        if (!v) continue;
+        for (size_t i = 0; i < ns; i++)
+            v[i] = smp[i * SB_SAMPLE_DOUBLES + 6 + (size_t)c];
+        qsort(v, ns, sizeof *v, cmp_double);
+        floor_[c] = fmax(v[ns / 2], 1e-3 * fmax(v[ns - 1], 0)) + 1e-12;
+        cap[c] = CAP * fmax(v[ns - 1], 0) + 1e-12; /* raised to CAP x the lobe's own largest below */
+    }
+    free(v);
+}
+
+/* The index of family name `ndf` (0 when unknown). */
+static int ndf_index(const char *ndf) {
+    for (int k = 0; ndf && k < NDFS; k++)
+        if (strcmp(ndf, ndf_names[k]) == 0) return k;
+    return 0;
+}
+
+void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L) {
+    memset(L, 0, sizeof *L);
+    if (ns == 0) return;
+    size_t step = ns > FIT_MAX ? (ns + FIT_MAX - 1) / FIT_MAX : 1;
+    median_floor(smp, ns, L->floor, L->cap);
+    double best = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
+    int nf = (int)(sizeof f0_grid / sizeof *f0_grid);
+    for (int ndf = 0; ndf < NDFS; ndf++)
+        for (int cf = 0; cf < COSP * nf; cf++) {
+            int cosp = cf % COSP;
+            size_t fi = (size_t)cf / COSP;
+            if (keep && (ndf != ndf_index(keep->ndf) || f0_grid[fi] != keep->f0 ||
+                         cosp != (int)(2 * keep->cos_power) + (keep->smith_k_remapped ? 3 : 0)))
+                continue;
+            int at = 0;
+            double cb = INFINITY;
+            for (int k = 0; k < ALPHA_STEPS; k++) {
+                double c = shape_cost(smp, ns, step, ndf, exp(la + k * dl), f0_grid[fi], cosp, NULL, NULL);
+                if (c < cb) cb = c, at = k;
+            }
+            double lo = la + (at > 0 ? at - 1 : 0) * dl, hi = la + (at < ALPHA_STEPS - 1 ? at + 1 : at) * dl, c;
+            double alpha = refine_alpha(smp, ns, step, ndf, f0_grid[fi], cosp, lo, hi, &c);
+            if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
+        }
+    shape_cost(smp, ns, 1, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
+    /* The cap: CAP x the largest of the sample values and of the lobe at
+     * the samples (a fold that lost the brightest sample keeps the lobe's
+     * shape there; only the height between samples is bounded). */
+    for (size_t i = 0; i < ns; i++) {
+        const double *s = smp + i * SB_SAMPLE_DOUBLES;
+        double S = lobe_shape(L->ndf, L->alpha, L->f0, L->cosp, s, s + 3);
+        for (int c = 0; c < 3; c++)
+            L->cap[c] = fmax(L->cap[c], CAP * (L->kd[c] + L->ks[c] * S));
+    }
+    L->fitted = 1;
+}
+
+void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], double b[3]) {
+    double S = lobe_shape(L->ndf, L->alpha, L->f0, L->cosp, wi, wo);
+    for (int c = 0; c < 3; c++)
+        b[c] = fmin(L->kd[c] + L->ks[c] * S, L->cap[c]) + L->floor[c];
+}
+
+void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]) {
+    double ti, pi_, to, po;
+    if (t->iso) {
+        ti = x[0], pi_ = 0, to = x[1], po = x[2];
+    } else {
+        ti = hypot(x[0], x[1]), pi_ = atan2(x[1], x[0]), to = hypot(x[2], x[3]), po = atan2(x[3], x[2]);
+    }
+    wi[0] = sin(ti) * cos(pi_), wi[1] = sin(ti) * sin(pi_), wi[2] = cos(ti);
+    wo[0] = sin(to) * cos(po), wo[1] = sin(to) * sin(po), wo[2] = cos(to);
+}
+
+double *sb_lobe_values_(const table_t *t, const lobe_t *L) {
+    double *q = malloc(t->n * 4 * sizeof *q);
+    if (!q) return NULL;
+    for (size_t i = 0; i < t->n; i++) {
+        double wi[3], wo[3], b[3];
+        sb_table_dirs_(t, t->pts + i * MAX_DIM, wi, wo);
+        sb_lobe_base_(L, wi, wo, b);
+        for (int c = 0; c < 3; c++)
+            q[4 * i + (size_t)c] = t->val[4 * i + (size_t)c] / b[c];
+        q[4 * i + 3] = t->val[4 * i + 3];
+    }
+    return q;
+}
+
+void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out) {
+    out->fitted = L->fitted;
+    out->used = used;
+    out->ndf = ndf_names[L->ndf];
+    out->alpha = L->alpha;
+    out->f0 = L->f0;
+    memcpy(out->kd, L->kd, sizeof out->kd);
+    memcpy(out->ks, L->ks, sizeof out->ks);
+    memcpy(out->floor, L->floor, sizeof out->floor);
+    memcpy(out->cap, L->cap, sizeof out->cap);
+    out->cos_power = (L->cosp % 3) / 2.0;
+    out->smith_k_remapped = L->cosp >= 3;
+}
