@@ -333,7 +333,7 @@ sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scale
     if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
     e->J = J;
     e->C = C;
-    *ones = malloc(J * sizeof **ones);
+    *ones = malloc(J * (1 + C) * sizeof **ones); /* scale, then scs */
     e->tex[0] = malloc(J * C * sizeof *e->tex[0]);
     e->tex[1] = malloc(J * C * sizeof *e->tex[1]);
     if (!*ones || !e->tex[0] || !e->tex[1]) {
@@ -341,9 +341,13 @@ sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scale
         est_eval_free(e);
         return SB_ERR_NOMEM;
     }
-    for (size_t j = 0; j < J; j++)
+    for (size_t j = 0; j < J; j++) {
         (*ones)[j] = scales ? scales[j] : 1;
+        for (size_t c = 0; c < C; c++)
+            (*ones)[J + j * C + c] = (*ones)[j];
+    }
     e->scale = *ones;
+    e->scs = *ones + J;
     for (int s = 0; s < 2; s++) {
         sb_factors_size(f, s, &e->tw[s], &e->th[s]);
         sb_param_wrap(p, s, e->wrap[s]);
