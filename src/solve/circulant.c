@@ -74,10 +74,11 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->ctx = ctx;
     c->R = R;
     c->nb = R / 2 + 1;
-    c->K = sb_alloc(ctx, R3, sizeof(double), "circulant kernel");
-    c->C = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    /* the R^3 and (R/2 + 1) R^2 arrays on 2 MiB pages (first touch: util.c) */
+    c->K = sb_alloc_large(ctx, R3, sizeof(double), "circulant kernel");
+    c->C = sb_alloc_large(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->sv = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant blocks");
-    c->Cv = sb_alloc(ctx, c->nb * R2, sizeof(double), "circulant blocks");
+    c->Cv = sb_alloc_large(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->T = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant");
     c->need = sb_alloc(ctx, c->nb, 1, "circulant");
     c->list = sb_alloc(ctx, c->nb, sizeof(size_t), "circulant");
