@@ -59,6 +59,7 @@ typedef struct eval {
     size_t tw[2], th[2];
     int wrap[2][2];
     const double *scale; /* J per-term factors */
+    const double *scs;   /* J C: scale[j] at j C + c, the itex rows' order */
     est_coords_t *co;    /* the pairs' coordinates under p (co_ready), or being filled, or NULL */
     int co_ready;
     sb_form_t form;

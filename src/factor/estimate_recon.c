@@ -13,6 +13,7 @@
 /* ---- evaluating a reconstruction -------------------------------------- */
 
 static size_t wrap_i(long i, size_t n, int mode) {
+    if (i >= 0 && (size_t)i < n) return (size_t)i; /* inside: no division */
     if (mode == SB_WRAP_REPEAT) {
         long m = i % (long)n;
         return (size_t)(m < 0 ? m + (long)n : m);
@@ -124,10 +125,16 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec) {
         g[k] = e->itex[0] + ag[k] * S;
         h[k] = e->itex[1] + ah[k] * S;
     }
+    /* every term and channel's product in one loop the compiler vectorises
+     * (the same operations per value as one at a time, so the same bits),
+     * then the prefix sums in term order */
+    double t[SB_EST_MAXJ * 3];
+    for (size_t at = 0; at < S; at++)
+        t[at] = (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
+                (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scs[at];
     for (size_t j = 0; j < J; j++) {
         for (size_t c = 0, at = j * C; c < C; c++, at++)
-            acc[c] += (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
-                      (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scale[j];
+            acc[c] += t[at];
         for (int c = 0; c < 3; c++) {
             double v = acc[C == 1 ? 0 : c];
             rec[j * 3 + c] = (clamp && v < 0 ? 0 : v) * gain / div;

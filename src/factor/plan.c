@@ -57,15 +57,14 @@ static sb_result_t plan_solver(sb_plan_t *p, const sb_solve_problem_t *pb, size_
     return sb_solver_at(i)->plan(p->ctx, pb, &p->state[i]);
 }
 
-/* The solver for pb, and for a structured one also the dense solver its
- * unsuited data fall back to. */
+/* The solver for pb.  The dense solver that a structured one's unsuited
+ * data fall back to is planned by execute when data do not suit
+ * (choose_solver): an isotropic io run never needs it, and planning it
+ * (the randomized SVD of the R^2 x R^2 matrix and its workspaces) was
+ * 1.7 % of `factor --param io -r 64`'s instructions. */
 static sb_result_t plan_solvers(sb_plan_t *p, const sb_solve_problem_t *pb) {
     size_t i = 0;
-    sb_result_t r = plan_solver(p, pb, &i);
-    if (r != SB_OK || !(sb_solver_at(i)->caps & SB_CAP_STRUCTURED)) return r;
-    sb_solve_problem_t plain = *pb;
-    plain.period = 0;
-    return plan_solver(p, &plain, &i);
+    return plan_solver(p, pb, &i);
 }
 
 /* Refuse up front what cannot fit: at least one channel of the matrix and
@@ -196,7 +195,7 @@ static sb_result_t choose_solver(sb_plan_t *p, run_t *rn) {
         sb_solve_in_t in = channel_in(p, rn, ch);
         if (m->data[ch] && !sv->suits(p->state[rn->si], &in)) {
             pb.period = 0;
-            rn->si = sb_solver_index(&pb);
+            if ((r = plan_solver(p, &pb, &rn->si)) != SB_OK) return r;
             break;
         }
     }

@@ -58,11 +58,15 @@ typedef struct job_level {
  * warps are tried (one more fit). */
 #define JOB_WARP_TRY 0.05
 #define JOB_BLAS_DENSE_CELLS ((size_t)1 << 20) /* a dense matrix from this many cells factors on every core */
-/* Replicates of 4096 pairs the job's estimator starts with (grown to the
- * standard-error target; screening reads the first 4): the default gold
- * meets the target at 2 % with 32768 pairs, and the 65536 of the library's
- * default start made the estimator a fifth of the default run. */
-#define JOB_EST_START 8
+/* Replicates of 4096 pairs the job's estimator starts with (grown while
+ * the upper bound of the headline's standard error is above the target,
+ * estimate.h; screening reads the first 4): gold on io at R = 64 has a
+ * standard error of 0.2-0.7 % of its headline at 16384 pairs, the default
+ * 0.7-1.1 %, within 5 % with the bound's factor 3; the 32768 pairs this
+ * started with were 30 % of the CPU of `factor --param io -r 64 -J 8`
+ * (issue 36), and the 65536 of the library's default start a fifth of the
+ * default run. */
+#define JOB_EST_START 4
 #define JOB_CONVERGED_TRY 0.01 /* auto: headline at J above which the converged masked fit is tried too */
 
 /* theta_h bands of the cross-validated error (degrees, JOB_CV_BANDS + 1

@@ -78,19 +78,25 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what) 
 /* First touch of a 4 KiB page costs a fault; on the VMs measured a matrix
  * of 400 MiB took 0.6 s of faults, 2.5x less on 2 MiB pages.  With
  * transparent huge pages in "madvise" mode a buffer must ask for them:
- * align it to 2 MiB (posix_memalign, so free() releases it) and advise. */
+ * align it to 2 MiB (posix_memalign, so free() releases it), round its
+ * size up to whole huge pages and advise.  From 1 MiB on: a fault there
+ * costs about 6 us (io -r 64 spent 630 of its 1050 faults on the 2 MiB
+ * isotropic tables, which plain malloc put on 4 KiB pages), and zeroing a
+ * whole huge page costs less than 256 of them; the rounding adds at most
+ * 1 MiB a buffer. */
 void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *what) {
     const size_t huge = (size_t)2 << 20;
     size_t bytes;
-    if (sb_size_mul(count, size, &bytes) || bytes < 2 * huge) return sb_alloc(ctx, count, size, what);
+    if (sb_size_mul(count, size, &bytes) || bytes < huge / 2) return sb_alloc(ctx, count, size, what);
     if (bytes > sb_memory_limit()) return sb_alloc(ctx, count, size, what); /* reports the limit */
+    size_t whole = (bytes + huge - 1) / huge * huge;
     void *p = NULL;
-    if (posix_memalign(&p, huge, bytes) != 0) {
+    if (posix_memalign(&p, huge, whole) != 0) {
         sb_error(ctx, SB_ERR_NOMEM, "%s: cannot allocate %zu bytes", what, bytes);
         return NULL;
     }
 #ifdef MADV_HUGEPAGE
-    madvise(p, bytes / huge * huge, MADV_HUGEPAGE); /* advice: a refusal changes nothing */
+    madvise(p, whole, MADV_HUGEPAGE); /* advice: a refusal changes nothing */
 #endif
     return p;
 }
