@@ -273,3 +273,28 @@ SB_TEST(no_negative_unless_plain) {
         sb_job_destroy(job);
     }
 }
+
+/* Classic Phong n = 100 (issue 33): auto keeps rv (param_rv.c) at J = 4
+ * and the band bounds hold, by the report and by brute force: theta_i >
+ * 80 degrees at most max(3 x headline, 1 %), > 89 at most max(10 x
+ * headline, 5 %) (vh, kept before: 22 % and 85 % against a 2.8 %
+ * headline at R = 32). */
+SB_TEST(phong_keeps_band_bounds) {
+    sb_job_opts_t o = {0};
+    o.source = "phong:n=100";
+    o.res = 32;
+    o.terms = 4;
+    sb_job_t *job = NULL;
+    CHECK(sb_job_run(NULL, &o, &job) == SB_OK);
+    if (!job) return;
+    CHECK(strcmp(sb_param_kind_name(sb_param_kind(sb_job_param(job))), "rv") == 0);
+    const sb_estimate_t *e = sb_job_estimate(job);
+    double h = sb_estimate_headline(e, 4), se80, se89;
+    double b80 = brute_band(job, SB_BAND_TI80, 4, 200000, &se80), b89 = brute_band(job, SB_BAND_TI89, 4, 200000, &se89);
+    printf("  headline %.4g; theta_i > 80: %.4g +- %.2g (report %.4g), > 89: %.4g +- %.2g (report %.4g)\n", h, b80,
+           se80, e->band[3][SB_BAND_TI80][3], b89, se89, e->band[3][SB_BAND_TI89][3]);
+    CHECK(sb_estimate_bands_bounded(e, 4) == 1);
+    CHECK(b80 <= fmax(3 * h, 0.01));
+    CHECK(b89 <= fmax(10 * h, 0.05));
+    sb_job_destroy(job);
+}

@@ -62,7 +62,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     }
     r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
     if (r != SB_OK) return r;
-    /* the zero fill of SB_CAP_LIGHT_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
+    /* the zero fill of SB_CAP_LIGHT_EDGE, SB_CAP_VIEW_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
     if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->eval_src, a->param, &a->m);
     a->t_sample = job_now() - t0;
     return r;
@@ -70,14 +70,18 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
 
 /* Cells outside a's domain fitted as given: zeros asked for (--zero-fill),
  * or where the form continues by its value at the edge there
- * (SB_CAP_LIGHT_EDGE on the whole hemisphere with a form holding cos
- * theta_i; sample/edge.h): a plain SVD, exact and fast, instead of the
- * masked fit. */
+ * (SB_CAP_LIGHT_EDGE, or SB_CAP_VIEW_EDGE for an analytic source, on the
+ * whole hemisphere with a form holding cos theta_i; sample/edge.h): a
+ * plain SVD, exact and fast, instead of the masked fit.  On rv the masked
+ * fit left the columns that few rows see underdetermined (Phong n = 100,
+ * R = 32, J = 4: 1.1 % with theta_o > 89 degrees 7 %; continued, 0.10 %). */
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a) {
     if (job->o.zero_fill) return 1;
     int hemisphere = fabs(job->o.theta_max_deg - 90) < 1e-9;
-    return a->param && (sb_param_caps(a->param) & SB_CAP_LIGHT_EDGE) && hemisphere && !job->scene &&
-           (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
+    unsigned caps = a->param ? sb_param_caps(a->param) : 0;
+    int edge =
+        (caps & SB_CAP_LIGHT_EDGE) || ((caps & SB_CAP_VIEW_EDGE) && !(sb_source_flags(job->src) & SB_SOURCE_MEASURED));
+    return edge && hemisphere && !job->scene && (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
 }
 
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) {
