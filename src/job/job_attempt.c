@@ -117,6 +117,48 @@ sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv
 
 /* Factor the sampled a->m with lv->terms terms (replacing a->f), then its
  * estimated errors and, with lv->metric_res, the grid quadrature. */
+/* Cells past the view's horizon (SB_CAP_VIEW_EDGE) start at the edge's
+ * value (sample/edge.h); the fit then imputes them (hard impute): each
+ * sweep sets them to the current fit's value and fits again, so they
+ * follow the low-rank structure of the valid cells rather than the edge,
+ * while the columns that only a few grazing rows see keep the edge's value
+ * as their start (the masked fit, from zeros, left them underdetermined).
+ * Phong n = 100, R = 32, J = 4: 0.104 % -> 0.044 %, theta_i > 80 degrees
+ * 0.83 % -> 0.33 %.  At most JOB_EDGE_SWEEPS sweeps, until one moves the
+ * imputed cells by less than JOB_EDGE_TOL of the valid cells' norm. */
+#define JOB_EDGE_SWEEPS 100
+#define JOB_EDGE_TOL 1e-6
+static double edge_impute(job_attempt_t *a, size_t J) {
+    double moved = 0, norm = 0;
+    sb_matrix_t *m = &a->m;
+    for (size_t c = 0; c < m->cols; c++)
+        for (size_t r = 0; r < m->rows; r++)
+            for (int ch = 0; ch < 3; ch++) {
+                double *x = m->data[ch] ? &m->data[ch][r + c * m->ld] : NULL;
+                if (!x) continue;
+                if (m->mask[r + c * m->ld]) {
+                    norm += *x * *x;
+                    continue;
+                }
+                double v = sb_factors_cell(a->f, J, (size_t)ch, r, c);
+                moved += (v - *x) * (v - *x);
+                *x = v;
+            }
+    return norm > 0 ? sqrt(moved / norm) : 0;
+}
+
+static sb_result_t edge_sweeps(sb_plan_t *plan, const sb_job_t *job, size_t J, job_attempt_t *a) {
+    int view_edge = (sb_param_caps(a->param) & SB_CAP_VIEW_EDGE) && !job->o.zero_fill;
+    if (!view_edge || !a->m.mask || a->m.structured || !job_attempt_zero_fill(job, a)) return SB_OK;
+    sb_result_t r = SB_OK;
+    for (int k = 0; k < JOB_EDGE_SWEEPS && r == SB_OK && edge_impute(a, J) > JOB_EDGE_TOL; k++) {
+        sb_factors_destroy(a->f);
+        a->f = NULL;
+        r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    }
+    return r;
+}
+
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
     sb_factors_destroy(a->f);
     a->f = NULL;
@@ -149,6 +191,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
     if (dense) sb_blas_threads_end(job->blas_threads);
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    if (r == SB_OK) r = edge_sweeps(plan, job, lv->terms, a);
     if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
     sb_plan_destroy(plan);
