@@ -49,23 +49,32 @@ static sb_param_t *warped_param(int which, size_t res, double theta_max) {
     return p;
 }
 
+/* rv (param_rv.c): a kind numbered by name, after the numbered ones. */
+static sb_param_kind_t rv_kind(void) {
+    sb_param_kind_t k = SB_PARAM_NONE;
+    CHECK(sb_param_kind_parse("rv", &k) == SB_OK);
+    return k;
+}
+
 static int compile(const char *snippet, const char *dir, char *log, size_t logsz) {
     return compile_as(profiles[0], snippet, dir, log, logsz);
 }
 
-/* Every parameterisation's sb_coords()/sb_domain() with every form, also
+/* Every parameterisation's sb_coords()/sb_domain() (rv too) with every form, also
  * with a limited theta_max, and with warp tables (iso, hd), in every
  * profile; scales with integral values (1, 2) and fractional ones, as
  * --half writes them. */
 SB_TEST(snippet_compiles) {
     if (!have_validator()) SKIP("glslangValidator not installed (Debian package glslang-tools)");
     const char *dir = sb_tmpdir("glsl");
-    for (int kind = 0; kind < SB_TEST_KINDS + 2; kind++) {
+    for (int kind = 0; kind < SB_TEST_KINDS + 3; kind++) {
         sb_param_opts_t o = {0};
         o.res = 16;
         o.theta_max = kind == SB_PARAM_HD ? 1.0 : 0;
         sb_param_t *p = NULL;
-        if (kind >= SB_TEST_KINDS)
+        if (kind == SB_TEST_KINDS + 2) /* rv, numbered by name */
+            CHECK(sb_param_create(NULL, rv_kind(), &o, &p) == SB_OK);
+        else if (kind >= SB_TEST_KINDS)
             CHECK((p = warped_param(kind - SB_TEST_KINDS, 16, kind == SB_TEST_KINDS ? 0 : 1.0)) != NULL);
         else
             CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);
@@ -446,15 +455,17 @@ static void gl_compare(sb_param_t *p, int hlsl) {
     sb_factors_destroy(f);
 }
 
-/* gl_compare on every layout, with a limited theta_max, and with warp tables. */
+/* gl_compare on every layout (rv too), with a limited theta_max, and with warp tables. */
 static void compare_all(int hlsl) {
-    for (int kind = 0; kind < SB_TEST_KINDS + 2; kind++)
+    for (int kind = 0; kind < SB_TEST_KINDS + 3; kind++)
         for (int limited = 0; limited < 2; limited++) {
             sb_param_opts_t o = {0};
             o.res = 12;
             o.theta_max = limited ? 1.3 : 0;
             sb_param_t *p = NULL;
-            if (kind >= SB_TEST_KINDS) /* warp tables */
+            if (kind == SB_TEST_KINDS + 2) /* rv */
+                CHECK(sb_param_create(NULL, rv_kind(), &o, &p) == SB_OK);
+            else if (kind >= SB_TEST_KINDS) /* warp tables */
                 CHECK((p = warped_param(kind - SB_TEST_KINDS, 12, o.theta_max)) != NULL);
             else
                 CHECK(sb_param_create(NULL, (sb_param_kind_t)kind, &o, &p) == SB_OK);

@@ -150,8 +150,13 @@ enum {
                                             horizon: f cos theta_i continues by 0 outside (vh) */
     SB_CAP_AUTO_NONRECIPROCAL = 1u << 9, /* auto screens it for sources that are not reciprocal only (where no
                                             layout folding reciprocity applies; vh) */
-    SB_CAP_TABLES = 1u << 10             /* built on a source's own tables (opts.tables; vndf): applies to sources
+    SB_CAP_TABLES = 1u << 10,            /* built on a source's own tables (opts.tables; vndf): applies to sources
                                             with such tables only; value = sb_param_gain x max(0, sum) */
+    SB_CAP_AUTO_ANALYTIC = 1u << 11,     /* auto screens it for analytic sources only (rv: on the RGL files it
+                                            won only at J = 1, breaking the band bounds vndf keeps) */
+    SB_CAP_VIEW_EDGE = 1u << 12          /* on the whole hemisphere, cells leave the domain only where wo passes its
+                                            horizon, where f cos theta_i need not fall to 0: an analytic source's
+                                            cells there continue by its value at the edge (rv) */
 };
 
 /* The registry, indexed by kind 0 .. sb_param_kind_count() - 1: name ("io",

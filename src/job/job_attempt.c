@@ -62,7 +62,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     }
     r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
     if (r != SB_OK) return r;
-    /* the zero fill of SB_CAP_LIGHT_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
+    /* the zero fill of SB_CAP_LIGHT_EDGE, SB_CAP_VIEW_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
     if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->eval_src, a->param, &a->m);
     a->t_sample = job_now() - t0;
     return r;
@@ -70,14 +70,18 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
 
 /* Cells outside a's domain fitted as given: zeros asked for (--zero-fill),
  * or where the form continues by its value at the edge there
- * (SB_CAP_LIGHT_EDGE on the whole hemisphere with a form holding cos
- * theta_i; sample/edge.h): a plain SVD, exact and fast, instead of the
- * masked fit. */
+ * (SB_CAP_LIGHT_EDGE, or SB_CAP_VIEW_EDGE for an analytic source, on the
+ * whole hemisphere with a form holding cos theta_i; sample/edge.h): a
+ * plain SVD, exact and fast, instead of the masked fit.  On rv the masked
+ * fit left the columns that few rows see underdetermined (Phong n = 100,
+ * R = 32, J = 4: 1.1 % with theta_o > 89 degrees 7 %; continued, 0.10 %). */
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a) {
     if (job->o.zero_fill) return 1;
     int hemisphere = fabs(job->o.theta_max_deg - 90) < 1e-9;
-    return a->param && (sb_param_caps(a->param) & SB_CAP_LIGHT_EDGE) && hemisphere && !job->scene &&
-           (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
+    unsigned caps = a->param ? sb_param_caps(a->param) : 0;
+    int edge =
+        (caps & SB_CAP_LIGHT_EDGE) || ((caps & SB_CAP_VIEW_EDGE) && !(sb_source_flags(job->src) & SB_SOURCE_MEASURED));
+    return edge && hemisphere && !job->scene && (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
 }
 
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) {
@@ -113,6 +117,48 @@ sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv
 
 /* Factor the sampled a->m with lv->terms terms (replacing a->f), then its
  * estimated errors and, with lv->metric_res, the grid quadrature. */
+/* Cells past the view's horizon (SB_CAP_VIEW_EDGE) start at the edge's
+ * value (sample/edge.h); the fit then imputes them (hard impute): each
+ * sweep sets them to the current fit's value and fits again, so they
+ * follow the low-rank structure of the valid cells rather than the edge,
+ * while the columns that only a few grazing rows see keep the edge's value
+ * as their start (the masked fit, from zeros, left them underdetermined).
+ * Phong n = 100, R = 32, J = 4: 0.104 % -> 0.044 %, theta_i > 80 degrees
+ * 0.83 % -> 0.33 %.  At most JOB_EDGE_SWEEPS sweeps, until one moves the
+ * imputed cells by less than JOB_EDGE_TOL of the valid cells' norm. */
+#define JOB_EDGE_SWEEPS 100
+#define JOB_EDGE_TOL 1e-6
+static double edge_impute(job_attempt_t *a, size_t J) {
+    double moved = 0, norm = 0;
+    sb_matrix_t *m = &a->m;
+    for (size_t c = 0; c < m->cols; c++)
+        for (size_t r = 0; r < m->rows; r++)
+            for (int ch = 0; ch < 3; ch++) {
+                double *x = m->data[ch] ? &m->data[ch][r + c * m->ld] : NULL;
+                if (!x) continue;
+                if (m->mask[r + c * m->ld]) {
+                    norm += *x * *x;
+                    continue;
+                }
+                double v = sb_factors_cell(a->f, J, (size_t)ch, r, c);
+                moved += (v - *x) * (v - *x);
+                *x = v;
+            }
+    return norm > 0 ? sqrt(moved / norm) : 0;
+}
+
+static sb_result_t edge_sweeps(sb_plan_t *plan, const sb_job_t *job, size_t J, job_attempt_t *a) {
+    int view_edge = (sb_param_caps(a->param) & SB_CAP_VIEW_EDGE) && !job->o.zero_fill;
+    if (!view_edge || !a->m.mask || a->m.structured || !job_attempt_zero_fill(job, a)) return SB_OK;
+    sb_result_t r = SB_OK;
+    for (int k = 0; k < JOB_EDGE_SWEEPS && r == SB_OK && edge_impute(a, J) > JOB_EDGE_TOL; k++) {
+        sb_factors_destroy(a->f);
+        a->f = NULL;
+        r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    }
+    return r;
+}
+
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
     sb_factors_destroy(a->f);
     a->f = NULL;
@@ -145,6 +191,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
     if (dense) sb_blas_threads_end(job->blas_threads);
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    if (r == SB_OK) r = edge_sweeps(plan, job, lv->terms, a);
     if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
     sb_plan_destroy(plan);

@@ -123,6 +123,8 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         if (!sb_job_param_applies(k, job->src, NULL)) continue;
         if ((sb_param_kind_caps(k) & SB_CAP_AUTO_NONRECIPROCAL) && (sb_source_flags(job->src) & SB_SOURCE_RECIPROCAL))
             continue; /* a layout folding reciprocity serves these */
+        if ((sb_param_kind_caps(k) & SB_CAP_AUTO_ANALYTIC) && (sb_source_flags(job->src) & SB_SOURCE_MEASURED))
+            continue; /* the measured tables' own layouts serve these */
         if (job_layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
         /* a layout on the source's tables holds their nodes in form cos (sb_param_cell_value) */
         int tables = (sb_param_kind_caps(k) & SB_CAP_TABLES) != 0;

@@ -21,7 +21,8 @@
     X(sb_param_desc_hd)                                                                                                \
     X(sb_param_desc_iso)                                                                                               \
     X(sb_param_desc_vh)                                                                                                \
-    X(sb_param_desc_vndf)
+    X(sb_param_desc_vndf)                                                                                              \
+    X(sb_param_desc_rv)
 
 #define SB_LAYOUT_EXTERN(id) extern const sb_param_desc_t id;
 #define SB_LAYOUT_ROW(id) &id,

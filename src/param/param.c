@@ -31,7 +31,9 @@ static size_t *count_key(sb_param_opts_t *o, const char *key) {
     if (strcmp(key, "th") == 0) return &o->res_theta_h;
     if (strcmp(key, "td") == 0) return &o->res_theta_d;
     if (strcmp(key, "pd") == 0 || strcmp(key, "ph") == 0) return &o->res_phi_d;
-    if (strcmp(key, "tv") == 0) return &o->res_theta_v;
+    if (strcmp(key, "tv") == 0 || strcmp(key, "ti") == 0) return &o->res_theta_v;
+    if (strcmp(key, "tr") == 0) return &o->res_theta_h;
+    if (strcmp(key, "pr") == 0) return &o->res_phi_d;
     return NULL;
 }
 

@@ -1,5 +1,5 @@
-/* Private: cells beyond the light's horizon continued by the horizon's
- * value (matrix_edge.c). */
+/* Private: cells beyond the light's or the view's horizon continued by
+ * the horizon's value (matrix_edge.c). */
 #ifndef SEPBRDF_SAMPLE_EDGE_H
 #define SEPBRDF_SAMPLE_EDGE_H
 
@@ -10,7 +10,10 @@
  * below the horizon (z <= 0, wo in the cap) gets the form's value at wi
  * lifted to just above the horizon, (x, y) / |(x, y)| sin t, cos t, with
  * t = SB_EDGE_THETA: f cos theta_i continued outside by its value at the
- * edge instead of by 0.  The mask keeps those cells invalid.  For a BRDF
+ * edge instead of by 0.  Likewise where wo passes below it (wi in the
+ * cap: rv, SB_CAP_VIEW_EDGE), wo lifted, times the cell's cos theta_i:
+ * there f cos theta_i need not fall to 0 even for a physical BRDF
+ * (Lambert's kd cos theta_i does not).  The mask keeps those cells invalid.  For a BRDF
  * whose f cos theta_i falls to 0 at the horizon (every physical one) that
  * is 0 as before; for one that does not (classic Phong: ks (r.v)^n at the
  * horizon) a zero-filled fit would see a jump at the horizon, and the

@@ -1,4 +1,4 @@
-/* The light's horizon continued outside the domain (edge.h). */
+/* The light's or the view's horizon continued outside the domain (edge.h). */
 #include <math.h>
 #include <stdlib.h>
 
@@ -20,16 +20,20 @@ static int lift(const double wi[3], double out[3]) {
     return 1;
 }
 
-/* The form's value at cell `at` lifted to the edge into v (3); 0 when the
- * cell is valid or not below the light's horizon. */
+/* The form's value at cell (r, c) with the direction below its horizon
+ * (wi, or wo; the other in the cap) lifted to the edge into v (3); 0 when
+ * the cell is valid or neither is. */
 static int edge_value(const sb_source_t *src, const sb_param_t *param, const sb_matrix_t *m, size_t r, size_t c,
                       double v[3]) {
     double wi[3], wo[3], l[3];
     v[0] = v[1] = v[2] = 0;
     if (m->mask[r + c * m->ld] || sb_param_cell_dirs(param, r, c, wi, wo)) return 0;
-    if (!(wi[2] <= 0 && wo[2] > 0 && lift(wi, l) && sb_source_eval(src, l, wo, v))) return 0;
+    int light = wi[2] <= 0 && wo[2] > 0, view = wo[2] <= 0 && wi[2] > 0;
+    if (!(light || view) || !lift(light ? wi : wo, l)) return 0;
+    if (!(light ? sb_source_eval(src, l, wo, v) : sb_source_eval(src, wi, l, v))) return 0;
+    double c_i = light ? SB_EDGE_COS : wi[2]; /* the form's cos theta_i */
     for (int ch = 0; ch < 3; ch++)
-        v[ch] = isfinite(v[ch]) ? v[ch] * SB_EDGE_COS : 0;
+        v[ch] = isfinite(v[ch]) ? v[ch] * c_i : 0;
     return 1;
 }
 
