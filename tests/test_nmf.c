@@ -240,7 +240,8 @@ SB_TEST(cli_factor) {
  * (or under 0.5 %) in the same layout (sb_job_svd_headline); res cells, weighted or not. */
 static const char *job_case_warp;   /* --warp of the next case (NULL: none given) */
 static double job_case_ratio = 1.5; /* the largest nmf / svd headline of the next case */
-#define SB_NMF_PREFIX_RATIO 3.0     /* at J' < 4 */
+/* at J' < 4 as at J (issue 38: at most 1.5x the SVD's headline at every J') */
+#define SB_NMF_PREFIX_RATIO 1.5
 
 static void job_case_at(const char *spec, const char *param, size_t res, int weighted) {
     sb_context_t *ctx;
@@ -255,6 +256,7 @@ static void job_case_at(const char *spec, const char *param, size_t res, int wei
     o.method = SB_METHOD_NMF;
     sb_job_t *job = NULL;
     sb_result_t r = sb_job_run(ctx, &o, &job);
+    if (!spec) spec = "default gold";
     CHECKF(r == SB_OK, "%s on %s: %s", spec, param, sb_context_last_error(ctx));
     if (job) {
         const char *name = strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec;
@@ -272,6 +274,9 @@ static void job_case_at(const char *spec, const char *param, size_t res, int wei
          * cells, 7.9x the SVD's; docs/positive.md) */
         /* asked unweighted or not, the job weighs a non-negative fit */
         CHECKF(sb_job_weighted(job), "%s on %s: not weighted", name, param);
+        /* each prefix a fit: no more terms give a larger error (within the
+         * estimator's standard errors) */
+        CHECKF(sb_job_headline_non_increasing(job), "%s on %s: the headline rises with J'", name, param);
         for (size_t j = 1; j < 4; j++) {
             double pn = sb_job_headline(job, j), ps = sb_job_svd_headline(job, j);
             fprintf(stderr, "  J' = %zu: svd %.4f nmf %.4f (x%.2f)\n", j, ps, pn, pn / ps);
@@ -300,6 +305,9 @@ SB_TEST(job_headline_ratio) {
     job_case("cook-torrance:d=ggx,roughness=0.1", "io-area");
     job_case(SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf", "iso");
     job_case(SB_MEASURED_DIR "/cornell_acryl_blue.brdf", "io");
+    /* the default gold (source NULL), 8 cells: at 32 cells (docs/positive.md)
+     * J' = 1 is the one prefix beyond 1.5x */
+    job_case_at(NULL, "iso", 8, 1);
 }
 
 /* As a user runs it (`factor SRC --method nmf --param P`: asked unweighted,
