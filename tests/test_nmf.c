@@ -201,6 +201,8 @@ SB_TEST(cli_factor) {
              SB_CLI, dir);
     int rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0, "rc %d: %s", rc, out);
+    /* its sweep cap is a stated stop: never a warning */
+    CHECKF(strstr(out, "did not converge") == NULL, "%s", out);
     /* the SVD's errors in the same layout beside, per J */
     CHECKF(strstr(out, "svd_headline") && strstr(out, "nmf_over_svd"), "table: %.600s", out);
     for (int j = 0; j < 3; j++) {
@@ -218,6 +220,13 @@ SB_TEST(cli_factor) {
     fclose(fp);
     CHECKF(strstr(out, "\"method\": \"nmf\"") != NULL, "report: %.400s", out);
     CHECKF(strstr(out, "\"svd_method\": \"") != NULL, "report: %.400s", out);
+    /* fit.stopped says what ended the sweeps, as fit.converged does */
+    const char *fo = strstr(out, "\"fit\": {"), *fc = fo ? strstr(fo, "\"converged\": ") : NULL,
+               *fs = fo ? strstr(fo, "\"stopped\": ") : NULL;
+    CHECKF(fc && fs, "report: %.400s", fo ? fo : out);
+    if (fc && fs)
+        CHECKF(strncmp(fs + 11, strncmp(fc + 13, "true", 4) == 0 ? "\"tolerance\"" : "\"sweeps\"", 8) == 0,
+               "fit: %.200s", fo);
     double h = NAN, sh = NAN, ratio = NAN;
     const char *e = strstr(out, "\"errors\"");
     e = e ? strstr(e, "\"terms\": 3,") : NULL; /* errors[2] */
