@@ -3,9 +3,10 @@
 # on the same layout (report.json errors[].nmf_over_svd at every J'), and
 # the wall time of each against the default run's.  Usage:
 #     bench/positive.sh [build dir] [out dir]      (RES=32 TERMS=4 by default)
-# One line per source and layout: the ratios at J' = 1..TERMS, whether
-# the fit converged, the times of nmf (with its SVD beside) and of the
-# default run.  docs/positive.md has our figures.
+# One line per source and layout: the ratios at J' = 1..TERMS, what
+# stopped the fit (report.json fit.stopped: tolerance or its sweep cap),
+# the times of nmf (with its SVD beside) and of the default run.
+# docs/positive.md has our figures.
 set -eu
 BIN=${1:-build}/sepbrdf
 OUT=${2:-/tmp/sepbrdf-positive}
@@ -13,11 +14,11 @@ RES=${RES:-32}
 TERMS=${TERMS:-4}
 MEAS=${MEAS:-$(dirname "$0")/../tests/data}
 mkdir -p "$OUT"
-ratios() { # report.json -> "r1 r2 ... converged"
+ratios() { # report.json -> "r1 r2 ... stopped=..."
     python3 -c '
 import json, sys
 r = json.load(open(sys.argv[1]))
-print(" ".join("%.3f" % e["nmf_over_svd"] for e in r["errors"]), "conv=%s" % r["fit"]["converged"])' "$1"
+print(" ".join("%.3f" % e["nmf_over_svd"] for e in r["errors"]), "stopped=%s" % r["fit"]["stopped"])' "$1"
 }
 secs() { python3 -c 'import json,sys; print("%.2f" % json.load(open(sys.argv[1]))["timings"]["total_s"])' "$1"; }
 run() { # source ("default": the embedded gold) param

@@ -185,14 +185,17 @@ float sb_kept_mass(int k, vec3 hv) {
     return m;
 }
 
-// Half-width of the valid phi - phi_V at z (pi: all; 0: none).
+// Half-width of the valid phi - phi_V at z (pi: all; 0: none); the whole
+// circle within SB_FULL_ARC of c = -1, where acos's slope is unbounded
+// (the C's SB_HALF_FULL_ARC, src/factor/sampler_impl.h).
+#define SB_FULL_ARC 1e-5
 float sb_half_width(vec3 hv, float z) {
     float ct = 1.0 - z, st = sqrt(max(z * (2.0 - z), 0.0));
     float num = -(2.0 * ct * ct - 1.0) * hv.y, den = 2.0 * st * ct * hv.x;
     if (!(den > 0.0)) return num < 0.0 ? SB_PI : 0.0;
     float c = num / den;
     // acos(c) as an atan: llvmpipe's float acos is 7e-5 off (at c = 0.78)
-    return c <= -1.0 ? SB_PI : (c >= 1.0 ? 0.0 : atan(sqrt((1.0 - c) * (1.0 + c)), c));
+    return c <= -1.0 + SB_FULL_ARC ? SB_PI : (c >= 1.0 ? 0.0 : atan(sqrt((1.0 - c) * (1.0 + c)), c));
 }
 
 // The part of the arc valid at z: its length, and phi uniform over it by u.

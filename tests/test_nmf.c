@@ -201,6 +201,8 @@ SB_TEST(cli_factor) {
              SB_CLI, dir);
     int rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0, "rc %d: %s", rc, out);
+    /* its sweep cap is a stated stop: never a warning */
+    CHECKF(strstr(out, "did not converge") == NULL, "%s", out);
     /* the SVD's errors in the same layout beside, per J */
     CHECKF(strstr(out, "svd_headline") && strstr(out, "nmf_over_svd"), "table: %.600s", out);
     for (int j = 0; j < 3; j++) {
@@ -218,6 +220,13 @@ SB_TEST(cli_factor) {
     fclose(fp);
     CHECKF(strstr(out, "\"method\": \"nmf\"") != NULL, "report: %.400s", out);
     CHECKF(strstr(out, "\"svd_method\": \"") != NULL, "report: %.400s", out);
+    /* fit.stopped says what ended the sweeps, as fit.converged does */
+    const char *fo = strstr(out, "\"fit\": {"), *fc = fo ? strstr(fo, "\"converged\": ") : NULL,
+               *fs = fo ? strstr(fo, "\"stopped\": ") : NULL;
+    CHECKF(fc && fs, "report: %.400s", fo ? fo : out);
+    if (fc && fs)
+        CHECKF(strncmp(fs + 11, strncmp(fc + 13, "true", 4) == 0 ? "\"tolerance\"" : "\"sweeps\"", 8) == 0,
+               "fit: %.200s", fo);
     double h = NAN, sh = NAN, ratio = NAN;
     const char *e = strstr(out, "\"errors\"");
     e = e ? strstr(e, "\"terms\": 3,") : NULL; /* errors[2] */
@@ -240,7 +249,8 @@ SB_TEST(cli_factor) {
  * (or under 0.5 %) in the same layout (sb_job_svd_headline); res cells, weighted or not. */
 static const char *job_case_warp;   /* --warp of the next case (NULL: none given) */
 static double job_case_ratio = 1.5; /* the largest nmf / svd headline of the next case */
-#define SB_NMF_PREFIX_RATIO 3.0     /* at J' < 4 */
+/* at J' < 4 as at J (issue 38: at most 1.5x the SVD's headline at every J') */
+#define SB_NMF_PREFIX_RATIO 1.5
 
 static void job_case_at(const char *spec, const char *param, size_t res, int weighted) {
     sb_context_t *ctx;
@@ -255,6 +265,7 @@ static void job_case_at(const char *spec, const char *param, size_t res, int wei
     o.method = SB_METHOD_NMF;
     sb_job_t *job = NULL;
     sb_result_t r = sb_job_run(ctx, &o, &job);
+    if (!spec) spec = "default gold";
     CHECKF(r == SB_OK, "%s on %s: %s", spec, param, sb_context_last_error(ctx));
     if (job) {
         const char *name = strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec;
@@ -272,6 +283,9 @@ static void job_case_at(const char *spec, const char *param, size_t res, int wei
          * cells, 7.9x the SVD's; docs/positive.md) */
         /* asked unweighted or not, the job weighs a non-negative fit */
         CHECKF(sb_job_weighted(job), "%s on %s: not weighted", name, param);
+        /* each prefix a fit: no more terms give a larger error (within the
+         * estimator's standard errors) */
+        CHECKF(sb_job_headline_non_increasing(job), "%s on %s: the headline rises with J'", name, param);
         for (size_t j = 1; j < 4; j++) {
             double pn = sb_job_headline(job, j), ps = sb_job_svd_headline(job, j);
             fprintf(stderr, "  J' = %zu: svd %.4f nmf %.4f (x%.2f)\n", j, ps, pn, pn / ps);
@@ -300,6 +314,9 @@ SB_TEST(job_headline_ratio) {
     job_case("cook-torrance:d=ggx,roughness=0.1", "io-area");
     job_case(SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf", "iso");
     job_case(SB_MEASURED_DIR "/cornell_acryl_blue.brdf", "io");
+    /* the default gold (source NULL), 8 cells: at 32 cells (docs/positive.md)
+     * J' = 1 is the one prefix beyond 1.5x */
+    job_case_at(NULL, "iso", 8, 1);
 }
 
 /* As a user runs it (`factor SRC --method nmf --param P`: asked unweighted,

@@ -102,11 +102,25 @@ static void print_detail(const sb_job_t *job) {
              sb_factors_get_meta(sb_job_factors(job), "method"), t.factor_s, t.metric_s);
 }
 
-/* What the user must know about the kept fit, on stderr. */
+/* Whether the kept factors' method is non-negative (SB_CAP_NONNEG). */
+static int nonneg_factors(const sb_job_t *job) {
+    const char *name = sb_factors_get_meta(sb_job_factors(job), "method");
+    for (size_t i = 0; name && i < sb_solver_count(); i++)
+        if (strcmp(sb_solver_name(i), name) == 0) return (sb_solver_caps(i) & SB_CAP_NONNEG) != 0;
+    return 0;
+}
+
+/* What the user must know about the kept fit, on stderr.  A non-negative
+ * fit that ends at its sweep cap stopped by its stated rule (README:
+ * Non-negative factors): a note, not a warning. */
 static void print_warnings(const sb_job_t *job) {
     sb_plan_stats_t st;
     sb_job_stats(job, &st);
-    if (st.masked && !st.fit_converged)
+    if (!st.fit_converged && nonneg_factors(job))
+        cli_info(1,
+                 "factor: the non-negative fit stopped at its sweep cap (%d sweeps in all; report.json: fit.stopped)",
+                 st.fit_iterations);
+    else if (st.masked && !st.fit_converged)
         cli_error("factor",
                   "warning: the masked fit did not converge in %d sweeps (report.json: fit.converged false); "
                   "its errors are those of the factors written",

@@ -45,7 +45,7 @@ static double half_width(const half_view_t *v, double z) {
     double num = -(2 * ct * ct - 1) * v->cv, den = 2 * st * ct * v->sv;
     if (!(den > 0)) return num < 0 ? SB_PI : 0;
     double c = num / den;
-    return c <= -1 ? SB_PI : (c >= 1 ? 0 : acos(c));
+    return c <= -1 + SB_HALF_FULL_ARC ? SB_PI : (c >= 1 ? 0 : acos(c));
 }
 
 /* The valid part of the arc [a, a + w] at z as up to 3 intervals of phi

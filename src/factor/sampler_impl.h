@@ -16,7 +16,15 @@ void half_view(const double wo[3], half_view_t *v);
  * wo above the horizon (w >= 2 pi: the whole circle). */
 double half_zcut(const half_view_t *v, double a, double w);
 /* Length of the phi in [a, a + w] whose h at z reflects wo above the
- * horizon. */
+ * horizon.  Where the half-width's cosine c is within SB_HALF_FULL_ARC of
+ * -1 the whole circle counts (the GLSL's SB_FULL_ARC): there acos(c) = pi
+ * - sqrt(2 (1 + c)) turns float's rounding of c (1e-7) into 4.5e-4 of
+ * the arc; at theta_V = 2 theta of a row's edge (45 deg and the iso
+ * grid's middle edge, 22.5) c is -1 exactly, and the GLSL's pdfs of that
+ * row were 6.7e-5 to 1.09e-4 off the C's (401 of the view's 4096, the
+ * others within 2e-6).  The snap lengthens an arc by at most sqrt(2e-5)
+ * rad; an h drawn there fails, as beyond the cut. */
+#define SB_HALF_FULL_ARC 1e-5
 double half_phi_len(const half_view_t *v, double z, double a, double w);
 /* phi uniform over that set by u in [0, 1); 0 when it is empty. */
 int half_phi_sample(const half_view_t *v, double z, double a, double w, double u, double *phi);
