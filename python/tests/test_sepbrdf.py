@@ -303,3 +303,20 @@ def test_installed_package(tmp_path):
     pkg, library, shape = run.stdout.split("\n")[:3]
     assert pkg.startswith(str(prefix)) and os.path.realpath(library).startswith(os.path.realpath(prefix))
     assert shape == "(1, 4, 4, 3)"
+
+
+def test_measured_lobe_option():
+    """lobe="off" reads a Cornell table's values as measured: beside the
+    acrylic's highlight, between its samples, the two differ; an unknown
+    mode is refused with the CLI's words."""
+    path = os.path.join(MEASURED, "cornell_acryl_blue.brdf")
+    on, off = sepbrdf.Source(path), sepbrdf.Source(path, lobe="off")
+    t = np.radians([47.0, 52.0, 57.0])
+    wi = np.stack([np.sin(t), 0 * t, np.cos(t)], axis=-1)
+    wo = np.stack([-np.sin(t + 0.03), 0 * t, np.cos(t + 0.03)], axis=-1)
+    a, ka = on.eval(wi, wo)
+    b, kb = off.eval(wi, wo)
+    assert ka.all() and kb.all() and np.all(a >= 0)
+    assert not np.allclose(a, b, rtol=1e-2)
+    with pytest.raises(ValueError, match="lobe 'sometimes' unknown"):
+        sepbrdf.Source(path, lobe="sometimes")
