@@ -1,0 +1,124 @@
+/* Measured tables checked as a scientist would (docs/measured.md, "Held
+ * out at random"): a scattered table's rows are split at random, the rest
+ * factored with the defaults at J, and the reconstruction (what the
+ * shader returns) compared with the rows left out, f cos theta_i, next to
+ * the cross-validated figure (cv_headline) the whole table's run reports.
+ *
+ *   sepbrdf_bench_holdout FILE [FRACTION [SEEDS [J]]]
+ *     FILE      a Cornell .brdf or sepbrdf CSV table
+ *     FRACTION  of the rows left out (default 0.1)
+ *     SEEDS     splits 1..SEEDS (default 8)
+ *     J         terms (default 8)
+ *
+ * A data row is a line with the largest count of numbers in the file (a
+ * Cornell file's wavelength lines have fewer); every other line goes to
+ * both halves.  The halves are written beside each other in a temporary
+ * folder and removed. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "sepbrdf/sepbrdf.h"
+
+static int numbers(const char *line) {
+    int n = 0;
+    const char *p = line;
+    char *e;
+    for (;;) {
+        p += strspn(p, " \t,");
+        strtod(p, &e);
+        if (e == p) break;
+        n++;
+        p = e;
+    }
+    p += strspn(p, " \t,\r\n");
+    return *p ? 0 : n; /* text after the numbers: not a data row */
+}
+
+/* The whole run's cv_headline at J (NAN when it fails). */
+static sb_job_t *run(const char *path, size_t J) {
+    sb_job_opts_t o = {0};
+    o.source = path;
+    o.terms = J;
+    sb_job_t *job = NULL;
+    if (sb_job_run(NULL, &o, &job) != SB_OK) return NULL;
+    return job;
+}
+
+/* Relative L2 of f cos theta_i of job's reconstruction at held's samples. */
+static double held_error(const sb_job_t *job, const char *held, size_t J) {
+    sb_source_t *h = NULL;
+    if (sb_source_open(NULL, held, &h) != SB_OK) return NAN;
+    double e2 = 0, t2 = 0;
+    for (size_t i = 0; i < sb_source_sample_count(h); i++) {
+        double wi[3], wo[3], v[3], r[3];
+        if (!sb_source_sample(h, i, wi, wo, v)) continue;
+        if (!sb_factors_eval(sb_job_factors(job), sb_job_param(job), sb_job_form(job), J, wi, wo, r))
+            r[0] = r[1] = r[2] = 0;
+        for (int c = 0; c < 3; c++)
+            e2 += (r[c] - v[c]) * (r[c] - v[c]) * wi[2] * wi[2], t2 += v[c] * v[c] * wi[2] * wi[2];
+    }
+    sb_source_destroy(h);
+    return sqrt(e2 / t2);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) {
+        fprintf(stderr, "usage: %s FILE [FRACTION [SEEDS [J]]]\n", argv[0]);
+        return 2;
+    }
+    const char *path = argv[1], *ext = strrchr(path, '.');
+    double frac = argc > 2 ? atof(argv[2]) : 0.1;
+    int seeds = argc > 3 ? atoi(argv[3]) : 8;
+    size_t J = argc > 4 ? (size_t)atoi(argv[4]) : 8;
+    FILE *f = fopen(path, "r");
+    if (!f || !(frac > 0 && frac < 1) || seeds < 1 || J < 1) {
+        fprintf(stderr, "%s: cannot read, or FRACTION not in (0, 1), SEEDS or J below 1\n", path);
+        return 2;
+    }
+    static char line[1 << 16];
+    int most = 0;
+    while (fgets(line, sizeof line, f)) {
+        int n = numbers(line);
+        if (n > most) most = n;
+    }
+    char dir[] = "/tmp/sb_holdoutXXXXXX", tr[4096], he[4096];
+    if (!mkdtemp(dir)) return 1;
+    snprintf(tr, sizeof tr, "%s/train%s", dir, ext ? ext : "");
+    snprintf(he, sizeof he, "%s/held%s", dir, ext ? ext : "");
+    sb_job_t *whole = run(path, J);
+    double se = NAN, cv = whole ? sb_job_cv(whole, J, &se, NULL) : NAN;
+    sb_job_destroy(whole);
+    printf("# %s: %.0f %% of the rows held out, J = %zu; cv_headline of the whole table %.4f +- %.2g\n", path,
+           100 * frac, J, cv, se);
+    printf("| seed | rows held out | error there | / cv_headline |\n|---|---|---|---|\n");
+    for (int s = 1; s <= seeds; s++) {
+        rewind(f);
+        FILE *a = fopen(tr, "w"), *b = fopen(he, "w");
+        size_t nh = 0;
+        srand((unsigned)s);
+        while (fgets(line, sizeof line, f)) {
+            if (numbers(line) == most && (double)rand() / RAND_MAX < frac) {
+                fputs(line, b);
+                nh++;
+            } else {
+                fputs(line, a);
+                if (numbers(line) != most) fputs(line, b);
+            }
+        }
+        fclose(a);
+        fclose(b);
+        sb_job_t *job = run(tr, J);
+        double e = job ? held_error(job, he, J) : NAN;
+        sb_job_destroy(job);
+        printf("| %d | %zu | %.4f | %.2f |\n", s, nh, e, e / cv);
+        fflush(stdout);
+    }
+    fclose(f);
+    unlink(tr);
+    unlink(he);
+    rmdir(dir);
+    return 0;
+}
