@@ -194,14 +194,14 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     if (r == SB_OK) r = edge_sweeps(plan, job, lv->terms, a);
     if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
-    sb_plan_destroy(plan);
-    if (r != SB_OK) return r;
     double t2 = job_now();
-    if (sb_factors_set_meta(a->f, "source", sb_source_description(job->src)) != SB_OK ||
-        sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK)
-        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    if (r == SB_OK && (sb_factors_set_meta(a->f, "source", sb_source_description(job->src)) != SB_OK ||
+                       sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK))
+        r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     a->t_factor = t2 - t1;
-    return job_measure(ctx, job, lv, a);
+    if (r == SB_OK) r = job_measure(ctx, job, lv, a);
+    sb_plan_destroy(plan);
+    return r == SB_OK ? job_band_refit(ctx, job, lv, a) : r;
 }
 
 sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {

@@ -30,6 +30,7 @@ typedef struct job_attempt {
     sb_estimate_t *est;        /* the estimator's errors of the stored factors */
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
+    double band_weight;        /* the band's weight 1 + w of the cell-weighted fit (job_bandfit.c); 0: plain */
     unsigned texel_fit;        /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
     double weights_dropped[2]; /* term weights dropped (job_weights.c): headline at J as fitted, weighted; 0: not */
     int weighted;
@@ -154,6 +155,9 @@ sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level
 sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* The plain fit breaking the band bounds on a tables layout: refitted
+ * weighted cell by cell toward the light's grazing band (job_bandfit.c). */
+sb_result_t job_band_refit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* a's estimate as reported: a ranking's (lv.rank_only) is done again
  * with p99 and maxima, growing as lv allows. */
 sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
