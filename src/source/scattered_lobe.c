@@ -139,11 +139,11 @@ static int cmp_double(const void *a, const void *b) {
 }
 
 /* The channel's median sample value (the floor under the base), at least
- * 1e-3 of its largest and 1e-12; 0 on no memory. */
+ * 1e-3 of its largest and 1e-12 (1e-12 alone on no memory). */
 static void median_floor(const double *smp, size_t ns, double floor_[3], double cap[3]) {
     double *v = malloc(ns * sizeof *v);
     for (int c = 0; c < 3; c++) {
-        floor_[c] = 0;
+        floor_[c] = 1e-12; /* never 0: the base divides */
         if (!v) continue;
         for (size_t i = 0; i < ns; i++)
             v[i] = smp[i * SB_SAMPLE_DOUBLES + 6 + (size_t)c];
