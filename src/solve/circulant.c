@@ -393,15 +393,13 @@ __attribute__((target("avx2"))) static double absmax_axpy_avx2(double *x, double
 }
 #endif
 
-static int circ_avx2(void) {
 #ifdef CIRC_AVX2
+static int circ_avx2(void) {
     static int has = -1;
     if (has < 0) has = __builtin_cpu_supports("avx2") ? 1 : 0;
     return has;
-#else
-    return 0;
-#endif
 }
+#endif
 
 static double absmax_axpy_st(double *x, double t, const double *y, size_t n, int store) {
 #ifdef CIRC_AVX2

@@ -80,14 +80,16 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
 
 /* scattered_lobe.c */
 /* Fit the lobe to ns samples (SB_SAMPLE_DOUBLES each) into L; keep: NULL
- * or a lobe whose family (ndf, f0, cos_power) is kept. */
+ * or a lobe whose family (ndf, f0, cos_power) is kept.  L->fitted stays 0
+ * when no fit is finite. */
 void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L);
 /* The base b = kd + ks S + floor of the pair (wi, wo). */
 void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], double b[3]);
 /* A direction pair at embedded position x (its symmetric representative). */
 void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]);
 /* The points' values divided by the base at their positions (n * 4, the
- * counts kept; malloc'd, NULL on no memory). */
+ * counts kept; malloc'd; NULL when L is not fitted, on no memory or when a
+ * quotient is not finite). */
 double *sb_lobe_values_(const table_t *t, const lobe_t *L);
 /* The public description of L. */
 void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out);

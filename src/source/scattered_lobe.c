@@ -185,6 +185,7 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
             double alpha = refine_alpha(smp, ns, step, ndf, f0_grid[fi], cosp, lo, hi, &c);
             if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
         }
+    if (!(best < INFINITY) || !(L->alpha > 0)) return; /* no finite fit (values near overflow): not fitted */
     shape_cost(smp, ns, 1, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
     /* The cap: CAP x the largest of the sample values and of the lobe at
      * the samples (a fold that lost the brightest sample keeps the lobe's
@@ -216,14 +217,19 @@ void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3
 }
 
 double *sb_lobe_values_(const table_t *t, const lobe_t *L) {
-    double *q = malloc(t->n * 4 * sizeof *q);
+    double *q = L->fitted ? malloc(t->n * 4 * sizeof *q) : NULL;
     if (!q) return NULL;
     for (size_t i = 0; i < t->n; i++) {
         double wi[3], wo[3], b[3];
         sb_table_dirs_(t, t->pts + i * MAX_DIM, wi, wo);
         sb_lobe_base_(L, wi, wo, b);
-        for (int c = 0; c < 3; c++)
+        for (int c = 0; c < 3; c++) {
             q[4 * i + (size_t)c] = t->val[4 * i + (size_t)c] / b[c];
+            if (!isfinite(q[4 * i + (size_t)c])) { /* the lobe cannot carry these values */
+                free(q);
+                return NULL;
+            }
+        }
         q[4 * i + 3] = t->val[4 * i + 3];
     }
     return q;
