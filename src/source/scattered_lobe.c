@@ -1,24 +1,27 @@
 /* The lobe a scattered table is interpolated relative to (sb_lobe_mode_t).
  *
- * Model: f_c(l, v) = kd_c + ks_c S(l, v), with one shape for all channels
- *   S = D(h) F(v.h) / (4 (n.l (1 - k) + k)(n.v (1 - k) + k)),  k = alpha / 2,
- * that is D G F / (4 n.l n.v) with the Smith-Schlick G cancelling the
- * cosines (finite up to the horizon); D is GGX (alpha) or of the
- * exponential family exp(-(tan theta_h / alpha)^p) / (pi alpha^2 cos^4),
- * p = 2 (Beckmann), 4 or 8 (flat-topped: a near-mirror coat seen through
- * an instrument's aperture), F Schlick's with one F0.  The shape's parameters (D, alpha, F0)
- * are searched on a grid (alpha log-spaced, then refined by golden
- * section); for each, kd and ks of every channel are the non-negative
- * least-squares solution in the norm of f cos theta_i (the headline's),
- * a 2 x 2 problem closed in form from five sums.  Tables of more than
- * FIT_MAX samples search on FIT_MAX evenly spread ones.
+ * Model: f_c(l, v) = min(kd_c + ks_c S(l, v), cap_c), one shape for all
+ * channels:
+ *   S = D(h) F(v.h) / (4 ((n.l (1 - k) + k)(n.v (1 - k) + k))^p)
+ * with p = 1 the microfacet model D G F / (4 n.l n.v), the Smith-Schlick G
+ * cancelling the cosines (finite up to the horizon), k = alpha / 2 or the
+ * remapped (sqrt(alpha) + 1)^2 / 8; p = 1/2 or 0 for peaks that grow less
+ * towards the horizon (a near-mirror coat measured through an aperture).
+ * D is GGX (alpha) or exp(-(tan theta_h / alpha)^q) / (pi alpha^2 cos^4),
+ * q = 2 (Beckmann), 4 or 8 (flat-topped); F is Schlick's with one F0.
+ * The shape's parameters are searched on grids (alpha log-spaced, then
+ * refined by golden section); for each shape kd and ks of every channel
+ * are the non-negative least-squares solution in the norm of f cos theta_i
+ * (the headline's), a 2 x 2 problem closed in form from five sums.
+ * Tables of more than FIT_MAX samples search on FIT_MAX evenly spread ones.
+ * cap_c is CAP times the largest of the samples' values and of the lobe's
+ * at the samples.
  *
- * The interpolation then sees q = f / (kd + ks S + floor), floor the
- * channel's median sample value (so q stays of order one away from the
- * highlight whatever the diffuse fit), and the source returns q times
- * that base: the base carries the highlight's shape, q what the lobe gets
- * wrong, and it is q, smooth and of order one, that is spread between
- * samples. */
+ * The interpolation then sees q = f / (lobe + floor), floor the channel's
+ * median sample value (so q stays of order one away from the highlight
+ * whatever the diffuse fit), and the source returns q times that base: the
+ * base carries the highlight's shape, q what the lobe gets wrong, and it is
+ * q, smooth and of order one, that is spread between samples. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
