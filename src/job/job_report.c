@@ -302,6 +302,7 @@ static void report_lobe(sb_json_t *j, const sb_lobe_fit_t *L) {
     sb_json_number(j, "alpha", L->alpha);
     sb_json_number(j, "f0", L->f0);
     sb_json_number(j, "cos_power", L->cos_power);
+    sb_json_bool(j, "smith_k_remapped", L->smith_k_remapped);
     json_rgb(j, "kd", L->kd);
     json_rgb(j, "ks", L->ks);
     json_rgb(j, "cap", L->cap);
