@@ -212,7 +212,7 @@ SB_TEST(merl_bad_files) {
 
 /* report.json's measured.cv.theta_h_bands against the rest of the report
  * and the warning: the held-out counts add up to measured.cv.held_out,
- * the shares to 1, the bands' errors combine into cv_headline at J
+ * the shares to 1, the bands' errors combine into cv_pooled at J
  * (cv^2 = 1 / sum_b share_b / cv_b^2, as each band's energy is
  * E_b / cv_b^2), and the warning names the band of the largest share. */
 static void check_cv_bands(const char *rep, const char *msg, size_t J) {
@@ -237,13 +237,13 @@ static void check_cv_bands(const char *rep, const char *msg, size_t J) {
     }
     const char *e = strstr(rep, "\"errors\"");
     for (size_t j = 0; e && j < J; j++)
-        e = strstr(e + 1, "\"cv_headline\": ");
-    double cvj = e ? strtod(e + 15, NULL) : NAN;
+        e = strstr(e + 1, "\"cv_pooled\": ");
+    double cvj = e ? strtod(e + 13, NULL) : NAN;
     const char *ho = strstr(rep, "\"cv\": {");
     ho = ho ? strstr(ho, "\"held_out\": ") : NULL;
     CHECKF(ho && held == strtol(ho + 12, NULL, 10), "bands hold %ld measurements", held);
     CHECKF(fabs(share_sum - 1) < 1e-9, "shares add up to %.12f", share_sum);
-    CHECKF(inv > 0 && fabs(1 / sqrt(inv) - cvj) < 1e-6 * cvj, "bands give %g, cv_headline at J %g", 1 / sqrt(inv), cvj);
+    CHECKF(inv > 0 && fabs(1 / sqrt(inv) - cvj) < 1e-6 * cvj, "bands give %g, cv_pooled at J %g", 1 / sqrt(inv), cvj);
     char want[64];
     snprintf(want, sizeof want, "where theta_h is %g-%g deg", lo, hi);
     CHECKF(strstr(msg, want) != NULL, "'%s' not in: %s", want, msg);

@@ -114,10 +114,12 @@ typedef struct sb_job_opts {
      * refused (SB_ERR_ARG), as is sample_only. */
     size_t budget;
     /* Scattered measured tables (Cornell, ALTA, CSV, simulated gonio): the
-     * kept layout, form and weighting refitted cv_folds times, each time
-     * without one fold of the measurements (sb_measured_fold), and the
+     * measurements cut into cv_folds folds (sb_measured_fold), the kept
+     * layout, form and weighting refitted without each fold, and the
      * error of f cos theta_i at the measurements left out reported per J'
-     * (sb_job_cv).  0: 5 folds; 1: none. */
+     * (sb_job_cv: the median over the refits).  0: 10 folds of which the
+     * first 5 are refitted (five splits, each without a random tenth);
+     * K >= 2: all K refitted; 1: none. */
     size_t cv_folds;
     const char *out;             /* sb_job_run also writes the set here (sb_job_write); NULL: no */
     sb_job_progress_fn progress; /* NULL: none */
@@ -318,10 +320,10 @@ SB_API const sb_job_budget_try_t *sb_job_budget_tried(const sb_job_t *job, size_
  * error at the measured samples (sb_measured_sample_errors), checked again
  * by sb_job_refactor. */
 SB_API size_t sb_job_warning_count(const sb_job_t *job);
-/* The cross-validated error at J' terms (1..J) of a scattered table: the
- * relative L2 of f cos theta_i over the measurements, each predicted by
- * the refit that left its fold out (sb_job_opts_t.cv_folds), its standard
- * error from the folds' spread into *se (may be NULL); NaN (and 0 held
+/* The cross-validated error at J' terms (1..J) of a scattered table: per
+ * refit (sb_job_opts_t.cv_folds) the relative L2 of f cos theta_i at the
+ * measurements it left out, the median over the refits; the median's
+ * standard error from their spread into *se (may be NULL); NaN (and 0 held
  * out) when not computed: analytic sources, grids (MERL, RGL), cv_folds 1,
  * a NULL job or J' out of range.  *held: the measurements held out. */
 SB_API double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held);

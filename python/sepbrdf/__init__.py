@@ -442,7 +442,7 @@ def factor(source=None, *, progress=None, **options):
     sepbrdf.metal, sepbrdf.wgsl beside sepbrdf.glsl in write()), and for
     measured tables interp,
     neighbours, radius (degrees), white, gamut, lobe, cv_folds (scattered tables:
-    the refits of the cross-validated error, report["errors"][j]["cv_headline"]).
+    the folds of the cross-validated error, report["errors"][j]["cv_headline"]).
     progress: None or a function progress(label, fraction) called as the
     job goes on (on the calling thread).
 

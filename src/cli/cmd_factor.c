@@ -175,13 +175,15 @@ static void print_scene(const sb_job_t *job) {
            d->se[J - 1][SB_EST_FCOS][SB_CH_ALL]);
 }
 
-/* A scattered table: the error at the measurements left out of each
- * fold's refit, every J'. */
+/* A scattered table: the error at the measurements each refit left out
+ * (the median over the refits), every J'. */
 static void print_cv(const sb_job_t *job) {
     size_t J = sb_factors_terms(sb_job_factors(job)), held = 0;
     double se;
     if (isnan(sb_job_cv(job, 1, &se, &held))) return;
-    printf("held-out measurements (%zu, each predicted by a refit without its fold), f cos theta_i:", held);
+    printf("held-out measurements (%zu, each predicted by a refit without its fold; the median of the refits' "
+           "errors), f cos theta_i:",
+           held);
     for (size_t k = 1; k <= J; k++) {
         double v = sb_job_cv(job, k, &se, NULL);
         printf("%s J %zu %.4e +- %.1e", k > 1 ? "," : "", k, v, se);

@@ -253,9 +253,9 @@ const cli_option_t cli_factor_options[] = {
      "reconstruction\nis max(0, sum of the terms) unless this is given (the\nsnippet's SB_CLAMP, the layout's plain=1)",
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
     {NULL, "--cv-folds", "K",
-     "scattered tables (Cornell, ALTA, CSV, simulated gonio):\nrefit the kept layout K times, each without one fold "
-     "of\n"
-     "the measurements, and report the error at those left\nout (report.json cv_headline; default 5, 1: none)",
+     "scattered tables (Cornell, ALTA, CSV, simulated gonio):\ncut the measurements into K folds, refit the kept "
+     "layout\nwithout each, and report the error at those left out, the\nmedian over the refits (report.json "
+     "cv_headline; default:\n5 refits of 10 folds, each without a random tenth; 1: none)",
      cli_set_size, AT(cv_folds), 1, 100, F_},
     {NULL, "--metric-res", "R",
      "also the comparable error by the grid quadrature on an\nR-cell reference io grid (report.json "

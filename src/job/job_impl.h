@@ -112,10 +112,13 @@ struct sb_job {
     const sb_param_opts_t *shape; /* the kept layout's options (a budget's choice); NULL: o.res alone */
     sb_param_opts_t spec_shape;   /* --param KIND:key=value's options (job->shape then points here) */
     int blas_threads;             /* OpenBLAS's thread count before the job (one thread during it) */
-    /* scattered tables (job_cv.c): the error of f cos theta_i at the
-     * measurements each fold's refit left out, per J' (NULL: none) */
-    double *cv, *cv_se;
-    size_t cv_folds, cv_held, cv_terms;
+    /* scattered tables (job_cv.c), per J' (NULL: none): the error of
+     * f cos theta_i at the measurements a fold's refit left out, the
+     * median over the refits (cv) with its standard error, over all the
+     * measurements held out (cv_pooled) and in the worst fold (cv_max);
+     * one allocation, cv the first of its four rows */
+    double *cv, *cv_se, *cv_pooled, *cv_max;
+    size_t cv_folds, cv_refits, cv_held, cv_terms;
     double cv_s; /* its time */
     /* at the kept J, per theta_h band (JOB_CV_BANDS edges): the held-out
      * squared error, energy and count, for the warning that says where */

@@ -251,6 +251,9 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     double cse;
     sb_json_number(j, "cv_headline", sb_job_cv(job, k + 1, &cse, NULL));
     sb_json_number(j, "cv_headline_se", cse);
+    int cv = job->cv && k < job->cv_terms;
+    sb_json_number(j, "cv_pooled", cv ? job->cv_pooled[k] : NAN);
+    sb_json_number(j, "cv_fold_max", cv ? job->cv_max[k] : NAN);
 }
 
 int sb_job_headline_non_increasing(const sb_job_t *job) {
@@ -337,12 +340,12 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
     report_lobe(j, &in->lobe);
     sb_json_begin_object(j, "cv");
     sb_json_int(j, "folds", (long long)job->cv_folds);
+    sb_json_int(j, "refits", (long long)job->cv_refits);
     sb_json_int(j, "held_out", (long long)job->cv_held);
     sb_json_string(j, "what",
-                   job->cv
-                       ? "errors[].cv_headline: relative L2 of f cos theta_i at the measurements, each predicted by "
-                         "the refit of the kept layout, form and J without its fold"
-                       : "not computed (a grid table, or cv_folds 1)");
+                   job->cv ? "errors[].cv_headline: the median over the refits of the relative L2 of f cos theta_i at "
+                             "the measurements each refit of the kept layout, form and J left out (its fold)"
+                           : "not computed (a grid table, or cv_folds 1)");
     sb_json_begin_array(j, "theta_h_bands");
     for (int b = 0; job->cv && b < JOB_CV_BANDS; b++) {
         sb_json_begin_object(j, NULL);
