@@ -177,3 +177,30 @@ SB_TEST(cli_factor_render) {
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     CHECK(sb_run(cmd, NULL, 0) == 0);
 }
+
+/* auto on an RGL file screens vndf first: at J = 8 (the file's slices) it
+ * returns the file to float rounding and the other layouts are not
+ * screened; at J = 4 it does not, and they are. */
+SB_TEST(exact_ends_screening) {
+    for (size_t J = 4; J <= 8; J += 4) {
+        sb_job_opts_t o = {0};
+        o.source = PAPER;
+        o.terms = J;
+        sb_job_t *job = NULL;
+        CHECK(sb_job_run(NULL, &o, &job) == SB_OK);
+        if (!job) return;
+        CHECK(sb_param_kind(sb_job_param(job)) == vndf_kind());
+        size_t skipped = 0, others = 0;
+        for (size_t i = 0; i < sb_job_candidate_count(job); i++) {
+            const sb_job_candidate_t *c = sb_job_candidate(job, i);
+            if (c->kind == vndf_kind()) continue;
+            others++;
+            skipped += strncmp(c->why, "not screened", 12) == 0;
+        }
+        double h = sb_job_headline(job, J);
+        CHECKF(others > 0 && skipped == (J == 8 ? others : 0), "J %zu: %zu of %zu not screened, headline %g", J,
+               skipped, others, h);
+        CHECKF(J == 8 ? h < 1e-6 : h > 1e-3, "J %zu: headline %g", J, h);
+        sb_job_destroy(job);
+    }
+}

@@ -10,7 +10,10 @@
  * stopped early), those that cannot win are dropped, the others screened
  * again on SB_JOB_SCREEN_RES cells (both at most R), and ranked by their
  * headline error at J (estimate.h: f cos theta_i as a shader returns it,
- * on the estimator's first pairs, shared by every candidate).  Forms f and
+ * on the estimator's first pairs, shared by every candidate).  Layouts on
+ * the source's own tables (vndf) are screened first; when one returns the
+ * source at J (headline at most SB_JOB_SCREEN_EXACT, band bounds kept) the
+ * others are not screened.  Forms f and
  * cos of one layout share one sampling.  Only the best is then sampled and
  * factored at the requested settings, exactly as a run that asks for it
  * alone.  A candidate that fails (too few cells for J, a numerical
@@ -55,6 +58,10 @@ extern "C" {
 #define SB_JOB_SCREEN_COARSE 8
 #define SB_JOB_SCREEN_RES 16
 #define SB_JOB_SCREEN_DROP 2.0
+/* A layout on the source's own tables (vndf) screened at or below this
+ * headline returns the file to float rounding: the others are not
+ * screened. */
+#define SB_JOB_SCREEN_EXACT 1e-6
 
 /* Progress of a job: a label ("sampling", "screening") and the fraction
  * of that stage done, 0..1; called on the calling thread only. */
@@ -143,7 +150,7 @@ typedef struct sb_job_candidate {
     sb_param_kind_t kind;
     sb_form_t form;
     int weighted;
-    int ok;       /* it factored; 0: failed (message in `why`) */
+    int ok;       /* it factored; 0: failed or not screened (message in `why`) */
     int dropped;  /* left out after the coarse screening: it cannot win */
     int kept;     /* the one factored at the requested settings */
     size_t res;   /* cells per axis of the grid `error` was measured on */

@@ -230,6 +230,28 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
  * errors of one layout at two resolutions differ far less than that), and
  * screen the others again at SB_JOB_SCREEN_RES (each at most R), unless
  * only one is left. */
+/* A layout on the source's own tables (vndf) that returns the source to
+ * float rounding at J, keeping the band bounds, cannot be beaten: the
+ * other candidates are not screened (an RGL file at J >= its slices). */
+static int own_tables_exact(sb_job_t *job) {
+    const sb_job_candidate_t *best = NULL;
+    for (size_t i = 0; i < job->ncand; i++) {
+        const sb_job_candidate_t *c = &job->cands[i];
+        if (c->ok && c->bands_ok == 1 && c->error <= SB_JOB_SCREEN_EXACT &&
+            (sb_param_kind_caps(c->kind) & SB_CAP_TABLES))
+            best = c;
+    }
+    if (!best) return 0;
+    for (size_t i = 0; i < job->ncand; i++) {
+        sb_job_candidate_t *c = &job->cands[i];
+        if (c->ok || c->why[0]) continue;
+        snprintf(c->why, sizeof c->why, "not screened: %s %s returns the file's own nodes at J (headline %.2g)",
+                 sb_param_kind_name(best->kind), sb_form_name(best->form), best->error);
+        c->dropped = 1;
+    }
+    return 1;
+}
+
 static void screen(sb_context_t *ctx, sb_job_t *job) {
     static const size_t levels[2] = {SB_JOB_SCREEN_COARSE, SB_JOB_SCREEN_RES};
     size_t prev = 0;
@@ -239,9 +261,14 @@ static void screen(sb_context_t *ctx, sb_job_t *job) {
         prev = res;
         sb_param_opts_t po;
         job_level_t lv = screen_level(job, res, &po);
-        for (int k = 0; k < (int)sb_param_kind_count(); k++) {
-            job_progress(job, "screening", (s + (double)k / (double)sb_param_kind_count()) / 2);
-            screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
+        /* the layouts on the source's own tables first: they may end it */
+        for (int pass = 0; pass < 2; pass++) {
+            if (pass == 1 && s == 0 && own_tables_exact(job)) break;
+            for (int k = 0; k < (int)sb_param_kind_count(); k++) {
+                if (((sb_param_kind_caps((sb_param_kind_t)k) & SB_CAP_TABLES) != 0) != (pass == 0)) continue;
+                job_progress(job, "screening", (s + (double)k / (double)sb_param_kind_count()) / 2);
+                screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
+            }
         }
         /* the best of all, and of those keeping the band bounds: each is
          * dropped against the best of its own kind */
