@@ -49,7 +49,15 @@ void job_warn_support(sb_job_t *job) {
     sb_sample_errors_t se;
     if (a->f && sb_measured_sample_errors(NULL, job->src, a->f, a->param, a->m.form, &se) == SB_OK) {
         size_t keep = supported_terms(&se);
-        if (keep < se.terms)
+        /* at the table's own floor (its evaluation against its samples: an
+         * RGL file's pole nodes disagree), the terms are not the cause */
+        if (keep < se.terms && se.rel_l2[keep - 1] <= 1.01 * se.source_rel_l2 + 1e-12)
+            job_warn(job,
+                     "terms beyond J = %zu do not lower the error at the %zu measured samples (%.3g%%): at J = %zu "
+                     "the textures return them as the table's own evaluation does, which differs from its samples "
+                     "by %.3g%% (samples that share a pair of directions)",
+                     keep, se.samples, 100 * se.rel_l2[keep - 1], keep, 100 * se.source_rel_l2);
+        else if (keep < se.terms)
             job_warn(job,
                      "terms beyond J = %zu do not lower the error at the %zu measured samples (%.3g%% at J = %zu, "
                      "%.3g%% at J = %zu): they fit the interpolation, not the data",

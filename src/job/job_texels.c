@@ -204,5 +204,6 @@ sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
 sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     sb_result_t r = job_estimate_reported(ctx, job, lv, a);
     if (r == SB_OK) r = job_texel_fit(ctx, job, lv, a);
-    return r == SB_OK ? job_term_weights(ctx, job, lv, a) : r;
+    if (r == SB_OK) r = job_term_weights(ctx, job, lv, a);
+    return r == SB_OK ? job_sample_weights(ctx, job, lv, a) : r;
 }
