@@ -1,11 +1,13 @@
 /* Block-circulant factorisation of isotropic sources on the io grid: the
  * exact structured SVD against dense LAPACK on the same matrix, its errors
  * against an explicit residual, and the fall-backs to the dense path. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
+#include "solve/circulant.h" /* sb_circ_is_even: not exported, in the static archive */
 
 static sb_source_t *model(const char *spec) {
     sb_source_t *s = NULL;
@@ -174,4 +176,56 @@ SB_TEST(deterministic) {
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_source_destroy(s);
+}
+
+/* The evenness test in the azimuth difference (two lanes at a time, the
+ * scalar tail at odd R) against the definition entry by entry: mirrored
+ * tables with and without theta weights are even; one entry moved by more
+ * than the tolerance, or an entry not finite, makes it not even; a move
+ * below the tolerance keeps it even. */
+static int even_by_definition(const double *a, size_t R, const double *w, double tol) {
+    double big = 0, diff = 0;
+    for (size_t m = 0; m < R; m++)
+        for (size_t ot = 0; ot < R; ot++)
+            for (size_t it = 0; it < R; it++) {
+                double wt = w ? w[it] * w[ot] : 1, x = wt * a[it + (m * R + ot) * R * R];
+                double y = wt * a[it + (((R - m) % R) * R + ot) * R * R];
+                if (!isfinite(x)) return 0;
+                big = fmax(big, fabs(x)), diff = fmax(diff, fabs(x - y));
+            }
+    return diff <= tol * big;
+}
+
+SB_TEST(is_even_against_definition) {
+    for (size_t R = 5; R <= 8; R++) {
+        size_t n = R * R * R * R; /* ld = R^2, R^2 columns */
+        double *a = calloc(n, sizeof *a), w[8];
+        sb_circ_t *c = NULL;
+        CHECK(a && sb_circ_create(NULL, R, &c) == SB_OK);
+        unsigned long long s = 7 + R;
+        for (size_t m = 0; m <= R / 2; m++) /* mirrored: x(m) = x(R - m), at rows it < R of column m R + ot */
+            for (size_t k = 0; k < R * R; k++) {
+                s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+                size_t it = k % R, ot = k / R;
+                a[it + (m * R + ot) * R * R] = a[it + (((R - m) % R) * R + ot) * R * R] =
+                    (double)(s >> 11) / 9007199254740992.0;
+            }
+        for (size_t i = 0; i < R; i++)
+            w[i] = 0.5 + (double)i / (double)R;
+        for (int wi = 0; wi < 2; wi++) {
+            const double *ww = wi ? w : NULL;
+            CHECK(sb_circ_is_even(c, a, R * R, ww, 1e-9) == 1 && even_by_definition(a, R, ww, 1e-9) == 1);
+            size_t at = (R - 1) + ((1 * R + 2) * R * R); /* the last theta_i (the tail at odd R), m = 1 */
+            double keep = a[at], moves[] = {1e-6, 1e-12, NAN, INFINITY};
+            for (int k = 0; k < 4; k++) {
+                a[at] = keep + moves[k];
+                CHECKF(sb_circ_is_even(c, a, R * R, ww, 1e-9) == even_by_definition(a, R, ww, 1e-9),
+                       "R %zu weights %d move %g", R, wi, moves[k]);
+                CHECK(sb_circ_is_even(c, a, R * R, ww, 1e-9) == (k == 1));
+            }
+            a[at] = keep;
+        }
+        sb_circ_destroy(c);
+        free(a);
+    }
 }

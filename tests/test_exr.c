@@ -471,6 +471,10 @@ SB_TEST(write_failure_leaves_nothing) {
     CHECKF(r == SB_ERR_NUMERIC, "%s", sb_result_name(r));
     CHECK(strstr(sb_context_last_error(ctx), "h_02.exr") != NULL);
     CHECK(count_entries(dir) == 0);
+    sb_factors_tex(f, SB_SIDE_H, 2, 1)[5] = -INFINITY; /* named by its texel, as a NaN */
+    CHECK(sb_factors_write_exr(ctx, f, dir, &o) == SB_ERR_NUMERIC);
+    CHECK(strstr(sb_context_last_error(ctx), "texel (1, 1)") && strstr(sb_context_last_error(ctx), "not finite"));
+    CHECK(count_entries(dir) == 0);
     sb_factors_tex(f, SB_SIDE_H, 2, 1)[5] = 1e39; /* beyond float: the BRDF is outside the storage range */
     CHECK(sb_factors_write_exr(ctx, f, dir, &o) == SB_ERR_NUMERIC);
     CHECK(strstr(sb_context_last_error(ctx), "h_02.exr") && !strstr(sb_context_last_error(ctx), ".tmp-"));

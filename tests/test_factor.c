@@ -543,8 +543,11 @@ SB_TEST(isotropic_fast_path) {
 /* The stored-precision error from factor space (sb_factors_errors_near)
  * equals the explicit residual of the rounded factors, for float and half,
  * weighted or not, structured or dense fits, a rank-1 source whose fit
- * error is ~1e-15 (the rounding then dominates), and tiny values. */
+ * error is ~1e-15 (the rounding then dominates), and tiny values; fits
+ * whose own error is large (the direct form, errors.c NEAR_DIRECT_REL)
+ * and small (the form in differences) both among them. */
 SB_TEST(errors_near_matches_explicit) {
+    int large = 0, small = 0;
     struct {
         const char *spec;
         sb_param_kind_t kind;
@@ -575,6 +578,8 @@ SB_TEST(errors_near_matches_explicit) {
         CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
         CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
         size_t J = sb_factors_terms(f);
+        double fit_rel = sb_factors_errors(f)->rel_rms[sb_err_at(J - 1, 3)];
+        large += fit_rel >= 0.05, small += fit_rel < 0.01;
         for (int half = 0; half < 2; half++) {
             sb_exr_opts_t eo = {half};
             sb_factors_t *q;
@@ -600,6 +605,7 @@ SB_TEST(errors_near_matches_explicit) {
         sb_param_destroy(p);
         sb_source_destroy(s);
     }
+    CHECKF(large > 0 && small > 0, "fits with a large error %d, with a small one %d", large, small);
 }
 
 /* The solver registry: unique names; the factors' method is a registered

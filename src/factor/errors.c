@@ -327,7 +327,15 @@ static sb_result_t against_streamed(sb_context_t *ctx, const sb_factors_t *f, co
  * (<A B^T, C D^T> = sum_ab (a_a . c_b)(b_a . d_b)); every term is built
  * from the small differences dG, dH themselves, so nothing cancels beyond
  * eps ||X|| ||D||.  One product X [H, dH] per channel is the only read of
- * the matrix.  Values are scaled by powers of two near 1 / ||X|| (exact). */
+ * the matrix.  Where the fit's own error is large (rel_rms at J of at
+ * least NEAR_DIRECT_REL, which every prefix's is too), the direct form
+ *   ||X - G~ H~^T||^2 = ||X||^2 - 2 <X, G~ H~^T> + ||G~ H~^T||^2
+ * loses at most eps ||X||^2 against ||R||^2 >= NEAR_DIRECT_REL^2 ||X||^2
+ * (a relative 1e-13 here), and reads the matrix with J columns, X H~,
+ * instead of 2 J: half of the product, which is most of this routine's
+ * work (issue 36, round six).  Values are scaled by powers of two near
+ * 1 / ||X|| (exact). */
+#define NEAR_DIRECT_REL 0x1.0p-5
 static void gram(size_t n, size_t J, const double *a, const double *b, double *out) {
     cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, (int)J, (int)J, (int)n, 1.0, a, (int)n, b, (int)n, 0.0, out,
                 (int)J);
@@ -335,16 +343,16 @@ static void gram(size_t n, size_t J, const double *a, const double *b, double *o
 
 /* Workspace of sb_factors_errors_near: G, G~, dG (rows x J); H, dH
  * together, then Z (cols x 2J); Y = M Z (rows x 2J); the Gram blocks
- * (J x J each); the weights. */
+ * (J x J each); the weights; H~ (cols x J). */
 typedef struct near_ws {
     size_t rows, cols, J;
-    double *G, *Gq, *dG, *HdH, *Z, *Y, *wr, *wc;
+    double *G, *Gq, *dG, *HdH, *Hq, *Z, *Y, *wr, *wc;
     double *GdG, *HH, *GGq, *HdH2, *dGdG, *dGGq, *GqGq, *dHdH;
 } near_ws_t;
 
 static double *near_alloc(sb_context_t *ctx, near_ws_t *w, size_t rows, size_t cols, size_t J) {
     size_t nr, nc, total;
-    if (sb_size_mul(rows, 3 * J, &nr) || sb_size_mul(cols, 4 * J, &nc) || sb_size_add(nr, nc, &total) ||
+    if (sb_size_mul(rows, 3 * J, &nr) || sb_size_mul(cols, 5 * J, &nc) || sb_size_add(nr, nc, &total) ||
         sb_size_add(total, rows * 2 * J + 8 * J * J + rows + cols + 3 * J, &total)) {
         sb_error(ctx, SB_ERR_OVERFLOW, "errors: workspace size overflows");
         return NULL;
@@ -363,6 +371,7 @@ static double *near_alloc(sb_context_t *ctx, near_ws_t *w, size_t rows, size_t c
     for (size_t i = 0; i < 8; i++) /* the Gram blocks, J x J each; then the weights */
         *blocks[i] = at += J * J;
     w->wc = w->wr + rows;
+    w->Hq = w->wc + cols + 3 * J;
     return ws; /* 3 J doubles after wc: the sums of squares */
 }
 
@@ -383,6 +392,7 @@ static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors
         for (size_t i = 0; i < cols; i++) {
             w->HdH[i + j * cols] = w->wc[i] * h[i] * sh;
             w->HdH[i + (J + j) * cols] = w->wc[i] * (h[i] - p[i]) * sh;
+            w->Hq[i + j * cols] = w->wc[i] * p[i] * sh;
         }
     }
 }
@@ -431,6 +441,32 @@ static void near_prefix(const near_ws_t *w, const double *rel, double nx, double
     }
 }
 
+/* Step, direct form (NEAR_DIRECT_REL): Y = X H~ (J columns), the Gram
+ * blocks of G~ and H~, and the prefix sums ssq[b] = ||X||^2 -
+ * 2 sum_a g~_a . (X h~_a) + sum_ac (g~_a . g~_c)(h~_a . h~_c) over a, c <= b. */
+static sb_result_t near_direct(sb_context_t *ctx, near_ws_t *w, const sb_matrix_t *m, int ch, double sx, double nx,
+                               double *ssq) {
+    size_t rows = w->rows, cols = w->cols, J = w->J;
+    for (size_t i = 0; i < cols * J; i++)
+        w->Z[i] = w->Hq[i] * w->wc[i % cols] * sx;
+    sb_result_t r = sb_matrix_mul(ctx, m, ch, J, w->Z, cols, w->Y, rows);
+    if (r != SB_OK) return r;
+    for (size_t i = 0; i < rows * J; i++)
+        w->Y[i] *= w->wr[i % rows];
+    gram(rows, J, w->Gq, w->Gq, w->GqGq);
+    gram(cols, J, w->Hq, w->Hq, w->HH);
+    double xd = 0, dd = 0;
+    for (size_t b = 0; b < J; b++) {
+        for (size_t i = 0; i < rows; i++)
+            xd += w->Gq[i + b * rows] * w->Y[i + b * rows];
+        for (size_t a = 0; a <= b; a++) /* pairs (a, b) and (b, a) with max(a, b) == b */
+            dd += (a != b ? 2 : 1) * w->GqGq[a + b * J] * w->HH[a + b * J];
+        double s2 = nx * nx - 2 * xd + dd;
+        ssq[b] = s2 < 0 ? 0 : s2;
+    }
+    return SB_OK;
+}
+
 sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, const sb_factors_t *near,
                                    const sb_matrix_t *m, const sb_param_t *weights, double *rel_rms) {
     if (!fit || !near || !m || !rel_rms) return sb_error(ctx, SB_ERR_ARG, "errors: missing argument");
@@ -461,14 +497,16 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
         present[ch] = m->data[ch] != NULL;
         if (!present[ch]) continue;
         near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh);
-        sb_result_t r = near_products(ctx, &w, m, ch, sx);
+        double nx = fe->norm[ch] * sx;
+        n2[ch] = nx * nx;
+        int direct = fe->rel_rms[sb_err_at(J - 1, (size_t)ch)] >= NEAR_DIRECT_REL;
+        sb_result_t r =
+            direct ? near_direct(ctx, &w, m, ch, sx, nx, ssq + (size_t)ch * J) : near_products(ctx, &w, m, ch, sx);
         if (r != SB_OK) {
             free(ws);
             return r;
         }
-        double nx = fe->norm[ch] * sx;
-        n2[ch] = nx * nx;
-        near_prefix(&w, fe->rel_rms + ch, nx, ssq + (size_t)ch * J);
+        if (!direct) near_prefix(&w, fe->rel_rms + ch, nx, ssq + (size_t)ch * J);
     }
     sb_result_t res = sb_errors_relative(ctx, J, present, ssq, NULL, n2, rel_rms, NULL);
     free(ws);

@@ -30,6 +30,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "output/exr_impl.h"
 #include "util/internal.h"
@@ -184,6 +187,28 @@ static sb_result_t not_storable(sb_context_t *ctx, const sb_factors_t *f, size_t
  * 2^-149), through not_storable().  Single texels far below their
  * texture's maximum may still flush to zero; sb_factors_quantize counts
  * them. */
+/* max |t[i]| over n values, and *z the sum of 0 t[i] (NaN where a value is
+ * not finite): two lanes, the maximum exact in any order. */
+static double abs_max(const double *t, size_t n, double *z) {
+    size_t i = 0;
+    double m = 0, zs = 0;
+#if defined(__SSE2__)
+    __m128d vm = _mm_setzero_pd(), vz = _mm_setzero_pd(), sign = _mm_set1_pd(-0.0);
+    for (; i + 2 <= n; i += 2) {
+        __m128d x = _mm_loadu_pd(t + i);
+        vz = _mm_add_pd(vz, _mm_mul_pd(x, _mm_setzero_pd()));
+        vm = _mm_max_pd(vm, _mm_andnot_pd(sign, x));
+    }
+    double v[4];
+    _mm_storeu_pd(v, vm), _mm_storeu_pd(v + 2, vz);
+    m = v[0] > v[1] ? v[0] : v[1], zs = v[2] + v[3];
+#endif
+    for (; i < n; i++)
+        zs += t[i] * 0, m = fabs(t[i]) > m ? fabs(t[i]) : m;
+    *z += zs;
+    return m;
+}
+
 sb_result_t sb_exr_texture_codec_(sb_context_t *ctx, const sb_factors_t *f, int side, size_t term, int half,
                                   const char *path, codec_t *out) {
     size_t C = sb_factors_channels(f), w, h;
@@ -192,12 +217,12 @@ sb_result_t sb_exr_texture_codec_(sb_context_t *ctx, const sb_factors_t *f, int 
     double amax = 0;
     for (size_t c = 0; c < C; c++) {
         const double *t = sb_factors_tex_const(f, side, term, c);
-        for (size_t i = 0; i < n; i++) {
+        double z = 0, m = abs_max(t, n, &z);
+        for (size_t i = 0; z != 0 && i < n; i++) /* a value not finite: find the first for the message */
             if (!isfinite(t[i]))
                 return sb_error(ctx, SB_ERR_NUMERIC, "%s: value %g at texel (%zu, %zu) of channel %s is not finite",
                                 path, t[i], i % w, i / w, sb_exr_channel_name_(C, c));
-            if (fabs(t[i]) > amax) amax = fabs(t[i]);
-        }
+        amax = m > amax ? m : amax;
     }
     out->half = half;
     out->scale = 1;

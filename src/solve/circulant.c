@@ -121,23 +121,44 @@ static double kernel_at(const double *a, size_t ld, size_t R, size_t m, size_t i
     return a[it + (m * R + ot) * ld];
 }
 
-/* |x(m) - x(R - m)| is the same at m and R - m, so the differences are
- * taken for m <= R / 2 only; the largest |x| and the finiteness over all. */
+/* Row (m, ot) of sb_circ_is_even: mx[0], mx[1] raised to the largest |x|
+ * and |x - y| (y the mirror row, NULL: none), x = wt a; returns the sum of
+ * 0 x (NaN where an x is not finite).  Maxima are exact in any order. */
+static double even_row(const double *a, const double *y, const double *w, double wo, size_t R, double mx[2]) {
+    size_t it = 0;
+    double z = 0, big = mx[0], diff = mx[1];
+#if defined(__SSE2__)
+    __m128d vb = _mm_set1_pd(big), vd = _mm_set1_pd(diff), vz = _mm_setzero_pd(), sign = _mm_set1_pd(-0.0);
+    for (; it + 2 <= R; it += 2) {
+        __m128d wt = w ? _mm_mul_pd(_mm_loadu_pd(w + it), _mm_set1_pd(wo)) : _mm_set1_pd(1);
+        __m128d x = _mm_mul_pd(wt, _mm_loadu_pd(a + it));
+        vz = _mm_add_pd(vz, _mm_mul_pd(x, _mm_setzero_pd()));
+        vb = _mm_max_pd(vb, _mm_andnot_pd(sign, x));
+        if (y) vd = _mm_max_pd(vd, _mm_andnot_pd(sign, _mm_sub_pd(x, _mm_mul_pd(wt, _mm_loadu_pd(y + it)))));
+    }
+    double t[6];
+    _mm_storeu_pd(t, vb), _mm_storeu_pd(t + 2, vd), _mm_storeu_pd(t + 4, vz);
+    big = t[0] > t[1] ? t[0] : t[1], diff = t[2] > t[3] ? t[2] : t[3], z = t[4] + t[5];
+#endif
+    for (; it < R; it++) {
+        double wt = w ? w[it] * wo : 1, x = wt * a[it], dx = y ? fabs(x - wt * y[it]) : 0;
+        z += x * 0, big = fabs(x) > big ? fabs(x) : big, diff = dx > diff ? dx : diff;
+    }
+    mx[0] = big, mx[1] = diff;
+    return z;
+}
+
+/* Differences at m <= R / 2 only (the same at R - m); |x| and finiteness over all. */
 int sb_circ_is_even(const sb_circ_t *c, const double *a, size_t ld, const double *w, double rel_tol) {
     size_t R = c->R;
-    double big = 0, diff = 0;
+    double mx[2] = {0, 0}, z = 0;
     for (size_t m = 0; m < R; m++)
-        for (size_t ot = 0; ot < R; ot++)
-            for (size_t it = 0; it < R; it++) {
-                double wt = w ? w[it] * w[ot] : 1, x = wt * kernel_at(a, ld, R, m, it, ot);
-                if (!isfinite(x)) return 0;
-                double ax = fabs(x);
-                if (ax > big) big = ax;
-                if (m == 0 || 2 * m > R) continue; /* m = 0 is its own mirror */
-                double dx = fabs(x - wt * kernel_at(a, ld, R, R - m, it, ot));
-                if (dx > diff) diff = dx;
-            }
-    return diff <= rel_tol * big;
+        for (size_t ot = 0; ot < R; ot++) {
+            int mirror = m != 0 && 2 * m <= R; /* m = 0 is its own mirror */
+            const double *y = mirror ? a + ((R - m) * R + ot) * ld : NULL;
+            z += even_row(a + (m * R + ot) * ld, y, w, w ? w[ot] : 1, R, mx);
+        }
+    return z == 0 && mx[1] <= rel_tol * mx[0];
 }
 
 double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, double scale) {
