@@ -53,6 +53,7 @@
 #include "solve/nmf_gram.h"
 #include "solve/solver.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 #define SB_NMF_MAX_ITERS 300
 /* Sweeps of a stage before the last (joint refit of the terms so far),
@@ -100,6 +101,8 @@ typedef struct nmf_state {
     double *r;          /* m x n: the weighted sum of the prefixes' residuals a term is fitted to */
     double *alpha;      /* J: the prefixes' weights 1 / ||E_p||^2 (prefix_weights) */
     double *cq;         /* J: the terms' weights in a term's target (nested_term) */
+    double *tw;         /* nt x (3 m + J): the parts' numbers (nmf_job_t) */
+    int nt;             /* parts at most */
     double *x;          /* m x n: the data, and the targets of the cells within the taps' reach */
     double *w;          /* m x n: the cells' weights (cell_weights) */
     unsigned char *ext; /* m x n: 1 data, 2 within the taps' reach, 0 beyond */
@@ -115,6 +118,7 @@ static void destroy(void *state) {
     free(s->r);
     free(s->alpha);
     free(s->cq);
+    free(s->tw);
     free(s->x);
     free(s->w);
     free(s->ext);
@@ -140,11 +144,13 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->r = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
     s->alpha = sb_alloc(ctx, s->J, sizeof(double), "nmf plan");
     s->cq = sb_alloc(ctx, s->J, sizeof(double), "nmf plan");
+    s->nt = sb_thread_count(0);
+    s->tw = sb_alloc(ctx, (size_t)s->nt * (3 * s->m + s->J), sizeof(double), "nmf plan");
     s->x = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
     s->w = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
     s->ext = sb_alloc(ctx, cells, 1, "nmf plan");
     s->t = sb_alloc(ctx, 2 * s->m, sizeof(double), "nmf plan");
-    if (!s->e || !s->r || !s->alpha || !s->cq || !s->x || !s->w || !s->ext || !s->t) {
+    if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
@@ -210,47 +216,6 @@ static void axpy_neg(double *restrict y, const double *restrict x, double a, siz
         y[i] -= a * x[i];
 }
 
-/* Step: HALS update of u (rows) against v on the target R = a E' (E'
- * the residual without this term, folded over the prefixes holding it:
- * nested_term), with E and R kept current (R is E itself for a = 1). */
-static void update_rows(nmf_state_t *s, double *r, double a, double *u, const double *v) {
-    size_t m = s->m;
-    double *restrict b = s->t, *restrict d = s->t + m;
-    memset(s->t, 0, 2 * m * sizeof *s->t);
-    for (size_t c = 0; c < s->n; c++) {
-        const double *restrict w = s->w + c * m, *restrict rc = r + c * m;
-        double vc = v[c], vc2 = vc * vc;
-        for (size_t i = 0; i < m; i++) {
-            b[i] += w[i] * rc[i] * vc;
-            d[i] += w[i] * vc2;
-        }
-    }
-    for (size_t i = 0; i < m; i++) { /* b becomes the change of u */
-        double nu = d[i] > 0 ? fmax(0, u[i] + b[i] / (a * d[i])) : 0;
-        b[i] = nu - u[i];
-        u[i] = nu;
-    }
-    for (size_t c = 0; c < s->n; c++) {
-        if (v[c] == 0) continue;
-        axpy_neg(s->e + c * m, b, v[c], m);
-        if (r != s->e) axpy_neg(r + c * m, b, a * v[c], m);
-    }
-}
-
-/* Step: HALS update of v (columns) against u, as update_rows. */
-static void update_cols(nmf_state_t *s, double *r, double a, const double *u, double *v) {
-    size_t m = s->m;
-    for (size_t c = 0; c < s->n; c++) {
-        double *e = s->e + c * m, *rc = r + c * m, b, d;
-        wdot(s->w + c * m, rc, u, m, &b, &d);
-        double nv = d > 0 ? fmax(0, v[c] + b / (a * d)) : 0, dv = nv - v[c];
-        v[c] = nv;
-        if (dv == 0) continue;
-        axpy_neg(e, u, dv, m);
-        if (rc != e) axpy_neg(rc, u, a * dv, m);
-    }
-}
-
 /* Step: s_j = |u_j| |v_j| with unit u_j, v_j, in the order fitted (each
  * prefix is a fit: nested_term). */
 static void normalise(nmf_state_t *s, double *sig, double *U, double *V) {
@@ -287,20 +252,115 @@ static double wsq_add(const double *restrict w, double *restrict r, const double
     return (fl[0] + fl[1]) + (fl[2] + fl[3]);
 }
 
+/* A part of the columns of one parallel step (sb_parallel_run): the
+ * term's rows accumulated (term_rows), its columns updated (term_cols), or
+ * the prefixes' errors (prefix_cols). */
+typedef struct nmf_job {
+    nmf_state_t *s;
+    double *U, *V;
+    size_t k, j, c0, c1;
+    double A;   /* the weight of the term's target (1: the last term, R = E) */
+    double *ws; /* this part's 3 m + J numbers: b, d, a column, f */
+} nmf_job_t;
+
+/* Job: the term's target R = A E + sum_{q>j} c_q u_q v_q^T on the part's
+ * columns (R is E itself for the last term), and the row sums b_i = sum_c
+ * W R v_j, d_i = sum_c W v_j^2 over them. */
+static void *term_rows(void *arg) {
+    nmf_job_t *jb = arg;
+    nmf_state_t *s = jb->s;
+    size_t m = s->m, n = s->n, j = jb->j;
+    double *restrict b = jb->ws, *restrict d = jb->ws + m;
+    memset(jb->ws, 0, 2 * m * sizeof *b);
+    for (size_t col = jb->c0; col < jb->c1; col++) {
+        double *restrict rc = s->r + col * m;
+        const double *restrict ec = s->e + col * m, *restrict w = s->w + col * m;
+        if (j + 1 < jb->k) {
+            for (size_t i = 0; i < m; i++)
+                rc[i] = jb->A * ec[i];
+            for (size_t q = j + 1; q < jb->k; q++)
+                if (jb->V[col + q * n] != 0) axpy_neg(rc, jb->U + q * m, -s->cq[q] * jb->V[col + q * n], m);
+        } else
+            rc = s->e + col * m;
+        double vc = jb->V[col + j * n], vc2 = vc * vc;
+        for (size_t i = 0; i < m; i++) {
+            b[i] += w[i] * rc[i] * vc;
+            d[i] += w[i] * vc2;
+        }
+    }
+    return NULL;
+}
+
+/* Job: on the part's columns, E and R follow the change du of u_j (in
+ * the part's b), then v_j(c) <- max(0, v + sum_i W R u / (A sum_i W u^2))
+ * and E, R follow it. */
+static void *term_cols(void *arg) {
+    nmf_job_t *jb = arg;
+    nmf_state_t *s = jb->s;
+    size_t m = s->m, n = s->n, j = jb->j;
+    const double *du = jb->ws, *u = jb->U + j * m;
+    double *v = jb->V + j * n, A = jb->A;
+    int own = j + 1 < jb->k; /* R apart from E */
+    for (size_t col = jb->c0; col < jb->c1; col++) {
+        double *e = s->e + col * m, *rc = own ? s->r + col * m : e, b, d;
+        if (v[col] != 0) {
+            axpy_neg(e, du, v[col], m);
+            if (own) axpy_neg(rc, du, A * v[col], m);
+        }
+        wdot(s->w + col * m, rc, u, m, &b, &d);
+        double nv = d > 0 ? fmax(0, v[col] + b / (A * d)) : 0, dv = nv - v[col];
+        v[col] = nv;
+        if (dv == 0) continue;
+        axpy_neg(e, u, dv, m);
+        if (own) axpy_neg(rc, u, A * dv, m);
+    }
+    return NULL;
+}
+
+/* Job: f_p = sum over the part's columns of W E_p^2, p = k..1 (E_p = E_k
+ * + the terms p + 1..k), in the part's f. */
+static void *prefix_cols(void *arg) {
+    nmf_job_t *jb = arg;
+    nmf_state_t *s = jb->s;
+    size_t m = s->m, n = s->n, k = jb->k;
+    double *col = jb->ws + 2 * m, *f = jb->ws + 3 * m;
+    memset(f, 0, k * sizeof *f);
+    for (size_t c = jb->c0; c < jb->c1; c++) {
+        memcpy(col, s->e + c * m, m * sizeof *col);
+        for (size_t p = k; p >= 1; p--)
+            f[p - 1] += wsq_add(s->w + c * m, col, jb->U + (p - 1) * m, jb->V[c + (p - 1) * n], m);
+    }
+    return NULL;
+}
+
+/* Step: fn over the columns in parts (threads where the work is large
+ * enough: every core for the default gold's 64 x 992 cells); returns the
+ * number of parts. */
+static int columns_run(nmf_state_t *s, void *(*fn)(void *), const nmf_job_t *proto, nmf_job_t *jobs) {
+    int nt = sb_threads_for(0, s->n, s->m * s->n * proto->k, (size_t)1 << 17);
+    if (nt > s->nt) nt = s->nt;
+    for (int t = 0; t < nt; t++) {
+        jobs[t] = *proto;
+        jobs[t].ws = s->tw + (size_t)t * (3 * s->m + s->J);
+        sb_part(s->n, t, nt, &jobs[t].c0, &jobs[t].c1);
+    }
+    sb_parallel_run(fn, jobs, sizeof *jobs, nt, NULL, NULL);
+    return nt;
+}
+
 /* Step: the prefixes' weighted errors f_p = ||E_p||^2, p = 1..k, from E
  * = E_k (E_p = E_k + the terms p + 1..k), set the weights alpha_p = 1 /
  * f_p of the next sweep; returns sum_p log f_p. */
-static double prefix_weights(nmf_state_t *s, const double *U, const double *V, size_t k) {
-    size_t m = s->m, n = s->n;
+static double prefix_weights(nmf_state_t *s, double *U, double *V, size_t k) {
+    nmf_job_t proto = {s, U, V, k, 0, 0, 0, 1, NULL}, jobs[SB_THREADS_MAX];
+    int nt = columns_run(s, prefix_cols, &proto, jobs);
     double F = 0;
-    memcpy(s->r, s->e, m * n * sizeof *s->r);
-    for (size_t p = k; p >= 1; p--) {
+    for (size_t p = 0; p < k; p++) {
         double f = 0;
-        const double *u = U + (p - 1) * m, *v = V + (p - 1) * n;
-        for (size_t c = 0; c < n; c++)
-            f += wsq_add(s->w + c * m, s->r + c * m, u, v[c], m);
+        for (int t = 0; t < nt; t++) /* fixed order: deterministic */
+            f += jobs[t].ws[3 * s->m + p];
         f = fmax(f, s->floor2);
-        s->alpha[p - 1] = 1 / f;
+        s->alpha[p] = 1 / f;
         F += log(f);
     }
     return F;
@@ -311,28 +371,28 @@ static double prefix_weights(nmf_state_t *s, const double *U, const double *V, s
  * target is R = sum_p alpha_p E_p = A E + sum_{q > j} c_q u_q v_q^T with
  * A = sum_{p > j} alpha_p, c_q = sum_{j < p <= q} alpha_p. */
 static void nested_term(nmf_state_t *s, double *U, double *V, size_t k, size_t j) {
-    size_t m = s->m, n = s->n;
-    double *u = U + j * m, *v = V + j * n, A = 0, cq = 0;
-    if (j + 1 == k) { /* the last term: its one prefix, E itself */
-        update_rows(s, s->e, 1, u, v);
-        update_cols(s, s->e, 1, u, v);
-        return;
-    }
+    size_t m = s->m;
+    double A = 0, cq = 0, *u = U + j * m;
     for (size_t p = j + 1; p <= k; p++)
         A += s->alpha[p - 1];
-    double *c = s->cq;
     for (size_t q = j + 1; q < k; q++)
-        c[q] = cq += s->alpha[q - 1];
-    for (size_t col = 0; col < n; col++) { /* R = A E + sum_q c_q u_q v_q^T, column by column */
-        double *restrict rc = s->r + col * m;
-        const double *restrict ec = s->e + col * m;
-        for (size_t i = 0; i < m; i++)
-            rc[i] = A * ec[i];
-        for (size_t q = j + 1; q < k; q++)
-            if (V[col + q * n] != 0) axpy_neg(rc, U + q * m, -c[q] * V[col + q * n], m);
+        s->cq[q] = cq += s->alpha[q - 1];
+    nmf_job_t proto = {s, U, V, k, j, 0, 0, j + 1 == k ? 1 : A, NULL}, jobs[SB_THREADS_MAX];
+    int nt = columns_run(s, term_rows, &proto, jobs);
+    double *b = jobs[0].ws, *d = jobs[0].ws + m;
+    for (int t = 1; t < nt; t++) /* fixed order: deterministic */
+        for (size_t i = 0; i < m; i++) {
+            b[i] += jobs[t].ws[i];
+            d[i] += jobs[t].ws[m + i];
+        }
+    for (size_t i = 0; i < m; i++) { /* b becomes the change of u */
+        double nu = d[i] > 0 ? fmax(0, u[i] + b[i] / (proto.A * d[i])) : 0;
+        b[i] = nu - u[i];
+        u[i] = nu;
     }
-    update_rows(s, s->r, A, u, v);
-    update_cols(s, s->r, A, u, v);
+    for (int t = 1; t < nt; t++)
+        memcpy(jobs[t].ws, b, m * sizeof *b);
+    columns_run(s, term_cols, &proto, jobs);
 }
 
 /* Step: nested HALS sweeps of the first k terms, each sweep a step of
@@ -363,14 +423,12 @@ static void stages(nmf_state_t *s, sb_solve_out_t *out) {
     out->iterations = 0;
     for (size_t k = 1; k <= s->J; k++) {
         residual(s, out->u, out->v, k - 1);
-        double *u = out->u + (k - 1) * m, *v = out->v + (k - 1) * n;
+        double *v = out->v + (k - 1) * n;
         for (size_t c = 0; c < n; c++)
             for (size_t i = 0; i < m; i++)
                 v[c] += fmax(s->e[i + c * m], 0);
-        for (int it = 0; it < SB_NMF_SEED_SWEEPS; it++) {
-            update_rows(s, s->e, 1, u, v);
-            update_cols(s, s->e, 1, u, v);
-        }
+        for (int it = 0; it < SB_NMF_SEED_SWEEPS; it++)
+            nested_term(s, out->u, out->v, k, k - 1); /* the new term alone, against E */
         hals(s, out, k, k == s->J ? s->max_iters : SB_NMF_STAGE_SWEEPS);
     }
 }
