@@ -41,6 +41,11 @@
  * the stages do (rank 2 on the default gold: 5x the SVD's error on the
  * cells, after 3000 sweeps too).
  *
+ * Without cells out of the data every cell weighs 1 and the sweeps run
+ * on products with X and the factors' Gram matrices (nmf_gram.c); with
+ * them, a term's update is two passes over the columns, split among
+ * threads (nested_term).
+ *
  * The terms come out as s_j = |u_j| |v_j| with unit u_j, v_j, in the
  * order fitted. */
 #include <float.h>
