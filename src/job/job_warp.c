@@ -88,9 +88,10 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
                       .metric_res = job->o.metric_res,
                       .fit_tol = job->o.fit_tol,
                       .fit_max_iters = job->o.fit_max_iters};
-    int fit = !job->o.sample_only;
+    int fit = !job->o.sample_only, nonneg = job_nonneg_method(sb_method_name(job->o.method));
+    if (nonneg) job_early_stop(job, &lv); /* one fit (job_fit_kept) */
     if (r == SB_OK && fit) r = job_factor(ctx, job, &lv, b->weighted, &a);
-    if (r == SB_OK && fit && job_attempt_masked(job, &a)) r = job_keep_early_fit(ctx, job, &lv, &a);
+    if (r == SB_OK && fit && !nonneg && job_attempt_masked(job, &a)) r = job_keep_early_fit(ctx, job, &lv, &a);
     if (r == SB_OK && fit) r = job_refine(ctx, job, &lv, &a);
     if (r == SB_OK && fit && job->o.max_error > 0) {
         size_t keep = sb_factors_terms(a.f);
