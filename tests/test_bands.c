@@ -8,43 +8,20 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../bench/band_draw.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
 #define PI 3.14159265358979323846
 
-/* A direction at polar cos z, azimuth 2 pi u about axis a (unit). */
-static void around(const double a[3], double z, double u, double w[3]) {
-    double t[3] = {fabs(a[0]) < 0.9 ? 1 : 0, fabs(a[0]) < 0.9 ? 0 : 1, 0}, b1[3], b2[3];
-    b1[0] = a[1] * t[2] - a[2] * t[1], b1[1] = a[2] * t[0] - a[0] * t[2], b1[2] = a[0] * t[1] - a[1] * t[0];
-    double n = sqrt(b1[0] * b1[0] + b1[1] * b1[1] + b1[2] * b1[2]);
-    for (int k = 0; k < 3; k++)
-        b1[k] /= n;
-    b2[0] = a[1] * b1[2] - a[2] * b1[1], b2[1] = a[2] * b1[0] - a[0] * b1[2], b2[2] = a[0] * b1[1] - a[1] * b1[0];
-    double s = sqrt(fmax(0, 1 - z * z)), ph = 2 * PI * u;
-    for (int k = 0; k < 3; k++)
-        w[k] = s * cos(ph) * b1[k] + s * sin(ph) * b2[k] + z * a[k];
-}
-
 /* A pair drawn uniformly (solid angle) inside band b, written out from the
- * band's definition; 0 when the draw falls outside the hemisphere. */
+ * band's definition (bench/band_draw.h); 0 when the draw falls outside the
+ * hemisphere. */
 static int draw_in_band(int b, unsigned long long *rng, double wi[3], double wo[3]) {
-    static const double deg[3] = {60, 80, 89};
-    const double up[3] = {0, 0, 1};
     double u[4];
     for (int k = 0; k < 4; k++)
         u[k] = sb_rand01(rng);
-    if (b <= SB_BAND_TO89) { /* theta above T on one side, the other side uniform */
-        double cT = cos(deg[b % 3] * PI / 180);
-        around(up, cT * u[0], u[1], b < SB_BAND_TO60 ? wi : wo);
-        around(up, u[2], u[3], b < SB_BAND_TO60 ? wo : wi);
-        return 1;
-    }
-    around(up, u[0], u[1], wi);
-    double axis[3] = {b == SB_BAND_SPECULAR ? -wi[0] : wi[0], b == SB_BAND_SPECULAR ? -wi[1] : wi[1], wi[2]};
-    double cc = cos(10 * PI / 180);
-    around(axis, cc + (1 - cc) * u[2], u[3], wo);
-    return wo[2] > 0;
+    return band_draw(b, u, wi, wo);
 }
 
 /* Brute force: relative L2 error of f cos theta_i (all channels) over band
@@ -52,23 +29,15 @@ static int draw_in_band(int b, unsigned long long *rng, double wi[3], double wo[
 static double brute_band(const sb_job_t *job, int b, size_t J, size_t n, double *se) {
     const sb_source_t *src = sb_job_source(job);
     unsigned long long rng = 777 + (unsigned long long)b;
-    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    band_sums_t s = {0};
     for (size_t i = 0; i < n; i++) {
-        double wi[3], wo[3], f[3] = {0, 0, 0}, rec[3] = {0, 0, 0}, a = 0, d = 0;
-        if (draw_in_band(b, &rng, wi, wo) && sb_source_eval(src, wi, wo, f)) {
-            if (!sb_factors_eval(sb_job_factors(job), sb_job_param(job), sb_job_form(job), J, wi, wo, rec))
-                rec[0] = rec[1] = rec[2] = 0;
-            for (int c = 0; c < 3; c++) {
-                a += (rec[c] - f[c]) * (rec[c] - f[c]) * wi[2] * wi[2];
-                d += f[c] * f[c] * wi[2] * wi[2];
-            }
-        }
-        sa += a, sb += d, saa += a * a, sbb += d * d, sab += a * d;
+        double wi[3], wo[3], f[3] = {0, 0, 0}, rec[3] = {0, 0, 0};
+        if (draw_in_band(b, &rng, wi, wo) && sb_source_eval(src, wi, wo, f) &&
+            !sb_factors_eval(sb_job_factors(job), sb_job_param(job), sb_job_form(job), J, wi, wo, rec))
+            rec[0] = rec[1] = rec[2] = 0;
+        band_add(&s, f, rec, wi[2]);
     }
-    double N = (double)n, r = sa / sb, ma = sa / N, mb = sb / N;
-    double var = (saa / N - ma * ma) - 2 * r * (sab / N - ma * mb) + r * r * (sbb / N - mb * mb);
-    *se = sqrt(fmax(var, 0) / N) / mb / (2 * sqrt(r));
-    return sqrt(r);
+    return band_ratio(&s, se);
 }
 
 static void check_bands(const char *spec, const char *param, const char *form, size_t J) {
