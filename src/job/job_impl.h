@@ -31,6 +31,7 @@ typedef struct job_attempt {
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     double band_weight;        /* the band's weight 1 + w of the cell-weighted fit (job_bandfit.c); 0: plain */
+    size_t band_pairs;         /* pairs of the grazing bands' own estimate (job_bandpairs.c); 0: none */
     unsigned texel_fit;        /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
     double weights_dropped[2]; /* term weights dropped (job_weights.c): headline at J as fitted, weighted; 0: not */
     int weighted;
@@ -82,6 +83,7 @@ struct sb_job {
     const sb_source_t *src;
     const sb_source_t *eval_src; /* what is evaluated: src, or its memo while screening */
     sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
+    sb_pairs_t *band_pairs;      /* pairs with theta_i > 60 degrees for the reported grazing bands (job_bandpairs.c) */
     double t_estimate;           /* the estimator, in all */
     int is_auto;
     int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
@@ -180,6 +182,10 @@ sb_result_t job_band_refit_prefix(sb_context_t *ctx, sb_job_t *job, const job_le
 sb_result_t job_keep_fewest(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Whether a's headline at its J meets --max-error and keeps the bounds. */
 int job_meets_bounded(const sb_job_t *job, const job_attempt_t *a);
+/* The bands theta_i > 60, 80, 89 degrees of a's estimate measured again
+ * on pairs drawn inside them (job_bandpairs.c), for the kept fit as
+ * reported; nothing for a ranking's estimate, a scene's or sample_only. */
+sb_result_t job_band_pairs_measure(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a);
 /* a's estimate as reported: a ranking's (lv.rank_only) is done again
  * with p99 and maxima, growing as lv allows. */
 sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
