@@ -24,7 +24,7 @@
 
 #define BP_C80 0.17364817766693041
 #define BP_C0 0.003                    /* the grazing density's offset, as the estimator's */
-#define BP_START 16                    /* replicates of 4096 pairs at first */
+#define BP_START 32                    /* replicates of 4096 pairs at first */
 #define BP_MAX_PAIRS ((size_t)1 << 18) /* grown while the theta_i > 60 band's se is above 5 % of it */
 
 static double graze_k(void) { return 1 / BP_C0 - 1 / (BP_C80 + BP_C0); }
