@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/estimate_draw.h"
 #include "factor/estimate_impl.h"
 #include "util/internal.h"
 #include "util/rng.h"
@@ -59,36 +60,39 @@ static double pdf_o(const double wi[3], const double wo[3]) {
 }
 
 /* Direction with cos(theta) = z, azimuth 2 pi u. */
-static void dir_z(double z, double u, double w[3]) {
+void sb_estimate_dir_z(double z, double u, double w[3]) {
     double s = sqrt(fmax(0, 1 - z * z)), ph = 2 * SB_PI * u;
     w[0] = s * cos(ph);
     w[1] = s * sin(ph);
     w[2] = z;
 }
 
-/* Map a point x of [0,1)^6 to a pair; returns its density (0: wo below the
- * horizon, no BRDF pair). */
-static double draw_pair(const double x[6], double wi[3], double wo[3]) {
-    dir_z(x[0] < wi_w[0] ? x[1] : x[0] < wi_w[0] + wi_w[1] ? sqrt(1 - x[1]) : graze_z(x[1]), x[2], wi);
-    double pi_ = wi_w[0] / (2 * SB_PI) + wi_w[1] * wi[2] / SB_PI + wi_w[2] * graze_pdf(wi[2]);
+double sb_estimate_draw_wo(const double wi[3], const double x[3], double wo[3]) {
     int k = 0;
-    for (double acc = comp_w[0]; k < NCOMP - 1 && x[3] >= acc; acc += comp_w[++k])
+    for (double acc = comp_w[0]; k < NCOMP - 1 && x[0] >= acc; acc += comp_w[++k])
         ;
     if (k == 0) {
-        dir_z(x[4], x[5], wo);
+        sb_estimate_dir_z(x[1], x[2], wo);
     } else if (k == 1) {
-        dir_z(sqrt(1 - x[4]), x[5], wo);
+        sb_estimate_dir_z(sqrt(1 - x[1]), x[2], wo);
     } else if (k == GRAZE) {
-        dir_z(graze_z(x[4]), x[5], wo);
+        sb_estimate_dir_z(graze_z(x[1]), x[2], wo);
     } else {
-        double a = lobe_alpha[k], t2 = a * a * x[4] / (1 - x[4]), h[3];
-        dir_z(1 / sqrt(1 + t2), x[5], h);
+        double a = lobe_alpha[k], t2 = a * a * x[1] / (1 - x[1]), h[3];
+        sb_estimate_dir_z(1 / sqrt(1 + t2), x[2], h);
         double ih = wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2];
         for (int i = 0; i < 3; i++)
             wo[i] = 2 * ih * h[i] - wi[i];
     }
-    if (!(wo[2] > 0) || !(wi[2] > 0)) return 0;
-    return pi_ * pdf_o(wi, wo);
+    return wo[2] > 0 && wi[2] > 0 ? pdf_o(wi, wo) : 0;
+}
+
+/* Map a point x of [0,1)^6 to a pair; returns its density (0: wo below the
+ * horizon, no BRDF pair). */
+static double draw_pair(const double x[6], double wi[3], double wo[3]) {
+    sb_estimate_dir_z(x[0] < wi_w[0] ? x[1] : x[0] < wi_w[0] + wi_w[1] ? sqrt(1 - x[1]) : graze_z(x[1]), x[2], wi);
+    double pi_ = wi_w[0] / (2 * SB_PI) + wi_w[1] * wi[2] / SB_PI + wi_w[2] * graze_pdf(wi[2]);
+    return pi_ * sb_estimate_draw_wo(wi, x + 3, wo);
 }
 
 /* A batched source (sb_source_create_batched): the drawn pairs of

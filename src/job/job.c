@@ -187,6 +187,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     double t3 = job_now();
     if (r == SB_OK) r = job_cv(ctx, job);
+    if (r == SB_OK) r = job_band_pairs_measure(ctx, job, &job->best);
     double t4 = job_now();
     job->stage_s[1] = t1 - ts, job->stage_s[2] = t2 - t1, job->stage_s[3] = t3 - t2, job->stage_s[4] = t4 - t3;
     if (r == SB_OK) {
@@ -262,6 +263,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK) r = job_scene_measure(ctx, job);
+    if (r == SB_OK) r = job_band_pairs_measure(ctx, job, &job->best);
     if (r == SB_OK) job_warn_support(job);
     job->t.factor_s = job->best.t_factor;
     job->t.metric_s = job->best.t_metric;
@@ -274,6 +276,7 @@ void sb_job_destroy(sb_job_t *job) {
     job_attempt_free(&job->best);
     job_budget_free(job);
     sb_pairs_destroy(job->pairs);
+    sb_pairs_destroy(job->band_pairs);
     job_scene_free(job);
     free(job->rel_stored);
     free(job->svd_beside);

@@ -38,6 +38,10 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
     return po;
 }
 
+size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, size_t mn) {
+    return job->o.max_error > 0 && lv->terms > mn ? mn : lv->terms;
+}
+
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a) {
     memset(a, 0, sizeof *a);
@@ -45,7 +49,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
     if (r != SB_OK) return r;
     size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
-    if (lv->terms > mn)
+    if (job_level_terms(job, lv, mn) > mn)
         return sb_error(ctx, SB_ERR_RANGE,
                         "%zu terms exceed the %zu rows/columns of %s; ask for fewer terms or more cells", lv->terms, mn,
                         sb_param_spec(a->param));
@@ -144,7 +148,8 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     sb_result_t r = job_scene_prepare(ctx, job, a);
     if (r != SB_OK) return r;
     sb_plan_opts_t pl = {0};
-    pl.terms = lv->terms;
+    size_t J = job_level_terms(job, lv, a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
+    pl.terms = J;
     pl.svd.method = job->o.method;
     pl.svd.seed = job->o.seed;
     pl.weighted = weighted;
@@ -164,7 +169,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
     if (dense) sb_blas_threads_end(job->blas_threads);
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
-    if (r == SB_OK) r = edge_sweeps(plan, job, lv->terms, a);
+    if (r == SB_OK) r = edge_sweeps(plan, job, J, a);
     if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
     double t2 = job_now();

@@ -177,3 +177,32 @@ sb_result_t job_band_refit(sb_context_t *ctx, sb_job_t *job, const job_level_t *
     free(cw);
     return r;
 }
+
+sb_result_t job_band_refit_prefix(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a, size_t k,
+                                  double max_error, int *kept) {
+    *kept = 0;
+    if (!a->param || !(sb_param_caps(a->param) & SB_CAP_TABLES) || !a->est || k < 1 || k >= sb_factors_terms(a->f) ||
+        k > a->est->terms)
+        return SB_OK;
+    job_attempt_t t = *a; /* a's matrix and layout; its own factors and estimate */
+    t.f = NULL;
+    t.term_w = NULL;
+    if (!(t.est = malloc(sizeof *t.est))) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    *t.est = *a->est;
+    t.est->terms = k; /* the prefix's errors, measured with the others */
+    if (t.metric.terms > k) t.metric.terms = k;
+    sb_result_t r = job_factors_copy(ctx, a->f, k, &t.f);
+    if (r == SB_OK) r = job_band_refit(ctx, job, lv, &t);
+    if (r == SB_OK && t.band_weight > 0 && sb_estimate_headline(t.est, k) <= max_error) {
+        job_attempt_adopt(a, &t);
+        free(a->term_w);
+        a->term_w = NULL; /* the refit's terms are its own */
+        a->band_weight = t.band_weight;
+        a->t_estimate += t.t_estimate;
+        *kept = 1;
+        return SB_OK;
+    }
+    sb_factors_destroy(t.f);
+    free(t.est);
+    return r;
+}

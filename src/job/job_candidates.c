@@ -84,7 +84,7 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
         snprintf(c->why, sizeof c->why,
                  "%s is built on an RGL file's own tables: factor an isotropic RGL .bsdf file (%s has none)",
                  sb_param_kind_name(k), sb_source_description(job->src));
-    else if (mn < job->o.terms)
+    else if (mn < job->o.terms && !(job->o.max_error > 0)) /* with --max-error: fitted with its mn terms */
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
     unsigned langs = 1;
@@ -162,16 +162,21 @@ int job_bands_trade(const double broken[2], double broken_err, const double keep
     return broken[0] <= keep[0] && broken[1] <= keep[1] && JOB_BANDS_TRADE * broken_err < keep_err;
 }
 
-/* Candidates that screened, finest screening first, then by ascending
- * error; returns how many.  One keeping the band bounds goes before one
+/* Candidates that screened, finest screening first, then (--max-error)
+ * the fewest terms of the screening that meet it and keep the band bounds
+ * (job_screen.c, cand_need; none last), then by ascending error; returns
+ * how many.  One keeping the band bounds goes before one
  * breaking them, unless the one breaking them is no worse in both bands
  * and JOB_BANDS_TRADE x lower in the headline: a fit wrong everywhere
  * keeps the bounds too (RGL paper, R = 12, J = 3: hd f 99.9 % against vh
  * cos, lower in both bands), but RGL paper at J = 1 keeps vndf cos
  * (33 %, theta_i > 80 degrees 75 %) rather than io cos (17.8 %, 66 % above
  * its bound 53 %). */
-static int ranks_before(const sb_job_candidate_t *a, const sb_job_candidate_t *b) {
+static int ranks_before(const sb_job_t *job, size_t i, size_t k) {
+    const sb_job_candidate_t *a = &job->cands[i], *b = &job->cands[k];
+    size_t na = job->cand_need[i], nb = job->cand_need[k];
     if (a->res != b->res) return a->res > b->res;
+    if (na != nb) return na && (!nb || na < nb); /* --max-error: the fewest terms meeting it within the bounds */
     if ((a->bands_ok == 1) != (b->bands_ok == 1)) {
         const sb_job_candidate_t *keep = a->bands_ok == 1 ? a : b, *broken = keep == a ? b : a;
         if (!job_bands_trade(broken->band_err, broken->error, keep->band_err, keep->error)) return keep == a;
@@ -184,7 +189,7 @@ size_t job_rank(const sb_job_t *job, size_t *order) {
     for (size_t i = 0; i < job->ncand; i++) {
         if (!job->cands[i].ok) continue;
         size_t k = n++;
-        for (; k > 0 && ranks_before(&job->cands[i], &job->cands[order[k - 1]]); k--)
+        for (; k > 0 && ranks_before(job, i, order[k - 1]); k--)
             order[k] = order[k - 1];
         order[k] = i;
     }

@@ -31,6 +31,7 @@ typedef struct job_attempt {
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     double band_weight;        /* the band's weight 1 + w of the cell-weighted fit (job_bandfit.c); 0: plain */
+    size_t band_pairs;         /* pairs of the grazing bands' own estimate (job_bandpairs.c); 0: none */
     unsigned texel_fit;        /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
     double weights_dropped[2]; /* term weights dropped (job_weights.c): headline at J as fitted, weighted; 0: not */
     int weighted;
@@ -82,11 +83,17 @@ struct sb_job {
     const sb_source_t *src;
     const sb_source_t *eval_src; /* what is evaluated: src, or its memo while screening */
     sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
+    sb_pairs_t *band_pairs;      /* pairs with theta_i > 60 degrees for the reported grazing bands (job_bandpairs.c) */
     double t_estimate;           /* the estimator, in all */
     int is_auto;
     int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
+    /* --max-error: per candidate, the fewest terms of its screening whose
+     * headline meets it and that keep the band bounds (0: none, or no
+     * --max-error); job_rank ranks by it first */
+    size_t cand_need[JOB_MAX_CANDS];
+    size_t cand_terms[JOB_MAX_CANDS]; /* the terms it is fitted with at R (they differ only with --max-error) */
     job_attempt_t best;
     sb_scene_t *scene;         /* opts.scene parsed, NULL: none (job_scene.c) */
     sb_pairs_t *domain_pairs;  /* with a scene: the whole domain's pairs */
@@ -143,6 +150,11 @@ void job_warn_support(sb_job_t *job);
  * for J: a result that may be worse than a lost one is never silent. */
 void job_warn_lost(sb_job_t *job);
 
+/* The terms an attempt on a matrix of smaller side mn is fitted with:
+ * lv->terms, with --max-error at most mn (a layout with fewer rows, such
+ * as vndf's 8 slices, is fitted with all it has rather than left out;
+ * the kept fit is cut to the fewest terms meeting the error anyway). */
+size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, size_t mn);
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
@@ -161,6 +173,22 @@ sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv,
 /* The plain fit breaking the band bounds on a tables layout: refitted
  * weighted cell by cell toward the light's grazing band (job_bandfit.c). */
 sb_result_t job_band_refit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* --max-error: the first k terms of a (fewer than its J) refitted so;
+ * a keeps them (*kept 1) when the refit keeps the bounds with a headline
+ * at most max_error, else a is as it was (job_bandfit.c). */
+sb_result_t job_band_refit_prefix(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a, size_t k,
+                                  double max_error, int *kept);
+/* --max-error: keep the fewest terms of a whose headline meets it and
+ * that keep the band bounds where some do (a prefix that meets it but
+ * breaks them refitted toward the band first, job_band_refit_prefix), else
+ * the fewest meeting it, else all (job_screen.c). */
+sb_result_t job_keep_fewest(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* Whether a's headline at its J meets --max-error and keeps the bounds. */
+int job_meets_bounded(const sb_job_t *job, const job_attempt_t *a);
+/* The bands theta_i > 60, 80, 89 degrees of a's estimate measured again
+ * on pairs drawn inside them (job_bandpairs.c), for the kept fit as
+ * reported; nothing for a ranking's estimate, a scene's or sample_only. */
+sb_result_t job_band_pairs_measure(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a);
 /* a's estimate as reported: a ranking's (lv.rank_only) is done again
  * with p99 and maxima, growing as lv allows. */
 sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
@@ -192,6 +220,9 @@ sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
 void job_attempt_free(job_attempt_t *a);
 /* A copy of the first j terms of f (textures, sigma, metadata, errors). */
 sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out);
+/* a takes t's fit (factors, estimate, stats, metric; t made from a copy
+ * of a, sharing its matrix and layout), its own fit freed. */
+void job_attempt_adopt(job_attempt_t *a, const job_attempt_t *t);
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a);

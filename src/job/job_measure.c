@@ -119,3 +119,13 @@ sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j) {
     if (a->metric.terms > j) a->metric.terms = j;
     return SB_OK;
 }
+
+void job_attempt_adopt(job_attempt_t *a, const job_attempt_t *t) {
+    sb_factors_destroy(a->f);
+    free(a->est);
+    a->f = t->f;
+    a->est = t->est;
+    a->est_rank = t->est_rank;
+    a->stats = t->stats;
+    a->metric = t->metric;
+}

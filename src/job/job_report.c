@@ -272,6 +272,7 @@ static void report_estimator(sb_json_t *j, const sb_job_t *job) {
     sb_json_int(j, "pairs", (long long)est->pairs);
     sb_json_int(j, "known", (long long)est->known);
     sb_json_int(j, "replicates", (long long)est->replicates);
+    sb_json_int(j, "band_pairs", (long long)job->best.band_pairs);
     sb_json_number(j, "se_target", SB_EST_REL_SE);
     sb_json_bool(j, "converged", est->converged);
     sb_json_bool(j, "headline_non_increasing", sb_job_headline_non_increasing(job));

@@ -71,6 +71,13 @@ static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_
     sb_result_t r = from ? job_reform(ctx, job, lv, from, c->form, a) : job_sample(ctx, job, lv, c->kind, c->form, a);
     if (r == SB_OK) r = job_factor(ctx, job, lv, c->weighted, a);
     c->ok = r == SB_OK;
+    size_t i = (size_t)(c - job->cands), J = c->ok && a->est ? sb_factors_terms(a->f) : 0;
+    size_t full = job_layout_min_side(job, c->kind, job->o.res, NULL);
+    job->cand_terms[i] = job->o.max_error > 0 && full < job->o.terms ? full : job->o.terms;
+    job->cand_need[i] = 0; /* --max-error: the fewest terms meeting it within the band bounds */
+    for (size_t k = J && J > a->est->terms ? a->est->terms : J; job->o.max_error > 0 && k >= 1; k--)
+        if (sb_estimate_headline(a->est, k) <= job->o.max_error && sb_estimate_bands_bounded(a->est, k) == 1)
+            job->cand_need[i] = k;
     c->error = c->ok ? rank_error(a) : NAN;
     c->bands_ok = c->ok ? rank_bands(a) : -1;
     job_band_errors(c->ok ? a->est : NULL, sb_factors_terms(a->f), c->band_err);
@@ -114,14 +121,19 @@ static job_level_t screen_level(const sb_job_t *job, size_t res, sb_param_opts_t
     lv.half_shape = 1; /* job_level_opts */
     lv.po = po;
     lv.terms = job->o.terms;
+    /* --max-error: a layout with fewer rows than o.terms at R is screened
+     * with all it has (job_level_terms), the others with as many terms as
+     * before; their shorter prefixes too (cand_need) */
     for (size_t i = 0; i < job->ncand; i++) {
-        size_t mn = job->cands[i].why[0] ? 0 : job_layout_min_side(job, job->cands[i].kind, lv.res, po);
+        const sb_job_candidate_t *c = &job->cands[i];
+        int capped = job->o.max_error > 0 && job_layout_min_side(job, c->kind, job->o.res, NULL) < job->o.terms;
+        size_t mn = c->why[0] || capped ? 0 : job_layout_min_side(job, c->kind, lv.res, po);
         if (mn && mn < lv.terms) lv.terms = mn;
     }
     lv.metric_res = 0;    /* no grid quadrature */
     lv.est_max_pairs = 1; /* the estimator's first pairs, no growth */
     lv.rank_only = 1;
-    lv.rank_at_j = 1; /* ranked at J (rank_error) */
+    lv.rank_at_j = !(job->o.max_error > 0); /* ranked at J (rank_error) */
     job_early_stop(job, &lv);
     return lv;
 }
@@ -161,19 +173,38 @@ static sb_result_t keep_better_fit(sb_context_t *ctx, sb_job_t *job, const job_l
     tmp.est = NULL;
     sb_result_t r = job_factor(ctx, job, lv, a->weighted, &tmp);
     if (r == SB_OK && rank_error(&tmp) < rank_error(a)) {
-        sb_factors_destroy(a->f);
-        free(a->est);
-        a->f = tmp.f;
-        a->est = tmp.est;
-        a->est_rank = tmp.est_rank;
-        a->stats = tmp.stats;
-        a->metric = tmp.metric;
+        job_attempt_adopt(a, &tmp);
         a->t_factor += tmp.t_factor;
         return SB_OK;
     }
     sb_factors_destroy(tmp.f);
     free(tmp.est);
     return r == SB_ERR_NUMERIC ? SB_OK : r;
+}
+
+int job_meets_bounded(const sb_job_t *job, const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    J = J < a->est->terms ? J : a->est->terms;
+    return sb_estimate_headline(a->est, J) <= job->o.max_error && sb_estimate_bands_bounded(a->est, J) == 1;
+}
+
+/* RGL paper, vndf cos, --max-error 0.03: J = 4 refitted (2.31 %, theta_i >
+ * 80 degrees 5.8 %), where the plain J = 4 breaks the bounds and J = 7 is
+ * the first plain prefix keeping them. */
+sb_result_t job_keep_fewest(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f), met = 0, bounded = 0;
+    J = J < a->est->terms ? J : a->est->terms;
+    for (size_t k = J; k >= 1; k--) {
+        if (!(sb_estimate_headline(a->est, k) <= job->o.max_error)) continue;
+        met = k;
+        bounded = sb_estimate_bands_bounded(a->est, k) == 1 ? k : bounded;
+    }
+    sb_result_t r = SB_OK;
+    int kept = 0;
+    for (size_t k = met; met && !kept && r == SB_OK && k < (bounded ? bounded : J); k++)
+        r = job_band_refit_prefix(ctx, job, lv, a, k, job->o.max_error, &kept);
+    if (r != SB_OK || kept) return r;
+    return job_truncate(ctx, a, bounded ? bounded : met ? met : sb_factors_terms(a->f));
 }
 
 /* Sample and factor candidate c at the requested settings into job->best;
@@ -215,19 +246,25 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
     if (r == SB_OK && two && !job->best.est->converged && !job->best.est_rank)
         r = job_estimate(ctx, job, &lv, &job->best); /* a ranking's estimate is redone in job_refine */
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
-    if (r == SB_OK && job->o.max_error > 0) {
-        /* the fewest terms meeting it, keeping the band bounds where some do */
-        size_t keep = sb_factors_terms(job->best.f), bounded = 0;
-        for (size_t k = keep; k >= 1; k--) {
-            int met = sb_estimate_headline(job->best.est, k) <= job->o.max_error;
-            keep = met ? k : keep;
-            bounded = met && sb_estimate_bands_bounded(job->best.est, k) == 1 ? k : bounded;
-        }
-        keep = bounded ? bounded : keep;
-        r = job_truncate(ctx, &job->best, keep);
-    }
+    if (r == SB_OK && job->o.max_error > 0) r = job_keep_fewest(ctx, job, &lv, &job->best);
     if (r != SB_OK) job_attempt_free(&job->best);
     return r;
+}
+
+/* The best screened error that candidate i is dropped against: of all,
+ * or of those keeping the band bounds when i keeps them (each against the
+ * best of its own kind), among those fitted with as many terms at the
+ * requested settings (with --max-error, vndf's 8 rows drop no layout that
+ * may meet it with more terms). */
+static double screen_best(const sb_job_t *job, size_t i) {
+    const sb_job_candidate_t *c = &job->cands[i];
+    double best = INFINITY;
+    for (size_t k = 0; k < job->ncand; k++) {
+        const sb_job_candidate_t *o = &job->cands[k];
+        if (o->ok && (c->bands_ok != 1 || o->bands_ok == 1) && job->cand_terms[k] == job->cand_terms[i])
+            best = fmin(best, o->error);
+    }
+    return best;
 }
 
 /* Screen at SB_JOB_SCREEN_COARSE cells per axis, drop the candidates more
@@ -275,17 +312,10 @@ static void screen(sb_context_t *ctx, sb_job_t *job) {
                 screen_layout(ctx, job, &lv, (sb_param_kind_t)k, job->cands, job->ncand);
             }
         }
-        /* the best of all, and of those keeping the band bounds: each is
-         * dropped against the best of its own kind */
-        double best[2] = {INFINITY, INFINITY};
-        for (size_t i = 0; i < job->ncand; i++)
-            for (int k = 0; k < 2; k++)
-                if (job->cands[i].ok && (!k || job->cands[i].bands_ok == 1) && job->cands[i].error < best[k])
-                    best[k] = job->cands[i].error;
         size_t live = 0;
         for (size_t i = 0; i < job->ncand; i++) {
             sb_job_candidate_t *c = &job->cands[i];
-            if (c->ok && c->error > SB_JOB_SCREEN_DROP * best[c->bands_ok == 1]) c->dropped = 1;
+            if (c->ok && c->error > SB_JOB_SCREEN_DROP * screen_best(job, i)) c->dropped = 1;
             live += c->ok && !c->dropped;
         }
         if (live <= 1) break; /* nothing left to rank */
@@ -325,6 +355,40 @@ static sb_result_t fit_first(sb_context_t *ctx, sb_job_t *job, const size_t *ord
     return r;
 }
 
+/* --max-error: the kept fit (order[0]'s or, having failed, a later one's)
+ * does not meet it within the band bounds: the next candidates whose
+ * screening did (cand_need) are fitted in turn, the first that does kept
+ * instead; none: the first fit stays. */
+static sb_result_t max_error_next(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
+    if (job_meets_bounded(job, &job->best)) return SB_OK;
+    size_t k = 0;
+    while (k < n && !job->cands[order[k]].kept)
+        k++;
+    job_attempt_t first = job->best;
+    memset(&job->best, 0, sizeof job->best);
+    sb_result_t r = SB_OK;
+    for (k++; k < n; k++) {
+        sb_job_candidate_t *c = &job->cands[order[k]];
+        if (!job->cand_need[order[k]]) continue;
+        double t1 = job_now();
+        r = job_fit_kept(ctx, job, c);
+        c->time_s += job_now() - t1;
+        if (r == SB_ERR_NOMEM) break;
+        if (r == SB_OK && job_meets_bounded(job, &job->best)) {
+            for (size_t i = 0; i < job->ncand; i++)
+                job->cands[i].kept = 0;
+            c->kept = 1;
+            job_attempt_free(&first);
+            return SB_OK;
+        }
+        job_attempt_free(&job->best);
+        r = SB_OK;
+    }
+    job_attempt_free(&job->best);
+    job->best = first;
+    return r;
+}
+
 /* One candidate: fit it at the requested settings.  Several: screen them,
  * then fit the best that succeeds at the requested settings (the next on
  * a failure). */
@@ -347,7 +411,9 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
     job_screen(ctx, job);
     size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
     sb_result_t r = fit_first(ctx, job, order, n);
-    if (r == SB_OK && n > 1 && sb_estimate_bands_bounded(job->best.est, sb_factors_terms(job->best.f)) == 0) {
+    if (r == SB_OK && n > 1 && job->o.max_error > 0) {
+        r = max_error_next(ctx, job, order, n);
+    } else if (r == SB_OK && n > 1 && sb_estimate_bands_bounded(job->best.est, sb_factors_terms(job->best.f)) == 0) {
         /* ranked first for its band bounds, it broke them at the requested
          * settings: the lowest screened headline instead */
         size_t first = n;

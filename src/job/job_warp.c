@@ -45,6 +45,18 @@ static double rank_at_j(const job_attempt_t *a) {
     return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
 }
 
+/* Whether the warped fit a is better than b: a lower headline at J; with
+ * --max-error, meeting it within the band bounds first, then fewer terms. */
+static int warp_better(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *b) {
+    if (job->o.max_error > 0) {
+        int ma = job_meets_bounded(job, a), mb = job_meets_bounded(job, b);
+        size_t ja = sb_factors_terms(a->f), jb = sb_factors_terms(b->f);
+        if (ma != mb) return ma;
+        if (ma && ja != jb) return ja < jb;
+    }
+    return rank_at_j(a) < rank_at_j(b);
+}
+
 /* With opts.warp on a layout with SB_CAP_WARPS: sample the kept candidate
  * again on the warped layout and (unless sample_only) fit it with the
  * requested settings (a masked fit: the better of two, job_keep_early_fit),
@@ -93,13 +105,8 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     if (r == SB_OK && fit) r = job_factor(ctx, job, &lv, b->weighted, &a);
     if (r == SB_OK && fit && !nonneg && job_attempt_masked(job, &a)) r = job_keep_early_fit(ctx, job, &lv, &a);
     if (r == SB_OK && fit) r = job_refine(ctx, job, &lv, &a);
-    if (r == SB_OK && fit && job->o.max_error > 0) {
-        size_t keep = sb_factors_terms(a.f);
-        for (size_t k = keep; k >= 1; k--)
-            if (sb_estimate_headline(a.est, k) <= job->o.max_error) keep = k;
-        r = job_truncate(ctx, &a, keep);
-    }
-    int worse = r == SB_OK && fit && strcmp(warp, "auto") == 0 && !(rank_at_j(&a) < rank_at_j(b));
+    if (r == SB_OK && fit && job->o.max_error > 0) r = job_keep_fewest(ctx, job, &lv, &a);
+    int worse = r == SB_OK && fit && strcmp(warp, "auto") == 0 && !warp_better(job, &a, b);
     if (r != SB_OK || worse) {
         job_attempt_free(&a);
         return r;

@@ -1,0 +1,72 @@
+/* Pairs drawn uniformly in solid angle inside an angular band by the
+ * band's own definition (estimate.h SB_BAND_*), written out here and not
+ * through the library: the brute-force side of tests/test_bands.c and of
+ * sepbrdf_bench_bands (bench/bands_check.c). */
+#ifndef SEPBRDF_BENCH_BAND_DRAW_H
+#define SEPBRDF_BENCH_BAND_DRAW_H
+
+#include <math.h>
+
+#include "sepbrdf/estimate.h"
+
+/* A direction at polar cos z, azimuth 2 pi u about the unit axis a. */
+static inline void band_around(const double a[3], double z, double u, double w[3]) {
+    double t[3] = {fabs(a[0]) < 0.9 ? 1 : 0, fabs(a[0]) < 0.9 ? 0 : 1, 0}, b1[3], b2[3];
+    b1[0] = a[1] * t[2] - a[2] * t[1], b1[1] = a[2] * t[0] - a[0] * t[2], b1[2] = a[0] * t[1] - a[1] * t[0];
+    double n = sqrt(b1[0] * b1[0] + b1[1] * b1[1] + b1[2] * b1[2]);
+    for (int k = 0; k < 3; k++)
+        b1[k] /= n;
+    b2[0] = a[1] * b1[2] - a[2] * b1[1], b2[1] = a[2] * b1[0] - a[0] * b1[2], b2[2] = a[0] * b1[1] - a[1] * b1[0];
+    double s = sqrt(fmax(0, 1 - z * z)), ph = 2 * 3.14159265358979323846 * u;
+    for (int k = 0; k < 3; k++)
+        w[k] = s * cos(ph) * b1[k] + s * sin(ph) * b2[k] + z * a[k];
+}
+
+/* The pair of the uniform numbers u[4] inside band b (SB_BAND_*; -1: all
+ * pairs); 0 when it falls below the horizon (it adds nothing to either
+ * sum of a band's error, so the ratio is that over the band). */
+static inline int band_draw(int b, const double u[4], double wi[3], double wo[3]) {
+    static const double deg[3] = {60, 80, 89};
+    const double up[3] = {0, 0, 1};
+    if (b <= SB_BAND_TO89) { /* theta above T on one side (b = -1: none), the other side uniform */
+        double cT = b >= 0 ? cos(deg[b % 3] * 3.14159265358979323846 / 180) : 1;
+        band_around(up, cT * u[0], u[1], b < SB_BAND_TO60 ? wi : wo);
+        band_around(up, u[2], u[3], b < SB_BAND_TO60 ? wo : wi);
+        return wi[2] > 0 && wo[2] > 0;
+    }
+    band_around(up, u[0], u[1], wi);
+    double axis[3] = {b == SB_BAND_SPECULAR ? -wi[0] : wi[0], b == SB_BAND_SPECULAR ? -wi[1] : wi[1], wi[2]};
+    double cc = cos(SB_BAND_CONE_DEG * 3.14159265358979323846 / 180);
+    band_around(axis, cc + (1 - cc) * u[2], u[3], wo);
+    return wo[2] > 0 && wi[2] > 0;
+}
+
+/* Plain Monte Carlo sums of one band: per pair the squared error of
+ * f cos theta_i (all channels) and the squared value; the band's relative
+ * L2 error is the ratio of their means, its standard error by the delta
+ * method. */
+typedef struct band_sums {
+    double sa, sd, saa, sdd, sad;
+    size_t n;
+} band_sums_t;
+
+/* A pair (f, its reconstruction rec, cos theta_i); a draw outside the band
+ * or an unknown value adds zeros (f = rec = 0) and still counts. */
+static inline void band_add(band_sums_t *s, const double f[3], const double rec[3], double ci) {
+    double a = 0, d = 0;
+    for (int c = 0; c < 3; c++) {
+        a += (rec[c] - f[c]) * (rec[c] - f[c]) * ci * ci;
+        d += f[c] * f[c] * ci * ci;
+    }
+    s->sa += a, s->sd += d, s->saa += a * a, s->sdd += d * d, s->sad += a * d;
+    s->n++;
+}
+
+static inline double band_ratio(const band_sums_t *s, double *se) {
+    double N = (double)s->n, q = s->sa / s->sd, ma = s->sa / N, md = s->sd / N;
+    double var = (s->saa / N - ma * ma) - 2 * q * (s->sad / N - ma * md) + q * q * (s->sdd / N - md * md);
+    *se = sqrt(fmax(var, 0) / N) / md / (2 * sqrt(q));
+    return sqrt(q);
+}
+
+#endif

@@ -1,0 +1,88 @@
+/* sepbrdf_bench_bands: the band errors of a written output set measured
+ * without the library's estimator (issue 33), for bench/bands.py --check:
+ * plain Monte Carlo with pairs drawn uniformly in solid angle inside each
+ * band by the band's own definition (docs/bands.md), the source's values,
+ * the textures read back from the folder's EXR files and evaluated as the
+ * snippet evaluates them (sb_factors_eval, bilinear lookups).
+ *
+ *   sepbrdf_bench_bands SOURCE DIR J [N [M]]
+ *
+ * SOURCE: a model spec or a measured file; DIR: `sepbrdf factor -o DIR`;
+ * J: the terms evaluated; N: pairs per band (default 1000000).  Prints one
+ * line per band, "name error standard_error", the headline ("all") first:
+ * the relative L2 error of f cos theta_i over the band, all channels.
+ * With M, then the library's estimator on the same files grown to M pairs
+ * ("estimator name error standard_error").  Environment: SB_BANDS_ONLY=name
+ * measures that band alone, SB_BANDS_SEED=k draws another sequence. */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "band_draw.h"
+#include "sepbrdf/sepbrdf.h"
+
+static double rnd(uint64_t *s) { /* splitmix64, 53 bits */
+    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return (double)((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+}
+
+static const char *const names[] = {"all",        "theta_i_60", "theta_i_80", "theta_i_89", "theta_o_60",
+                                    "theta_o_80", "theta_o_89", "specular",   "retro"};
+
+int main(int argc, char **argv) {
+    if (argc < 4) {
+        fprintf(stderr, "usage: %s SOURCE DIR J [N]\n", argv[0]);
+        return 2;
+    }
+    size_t J = strtoul(argv[3], NULL, 10), n = argc > 4 ? strtoul(argv[4], NULL, 10) : 1000000;
+    sb_source_t *src = NULL;
+    sb_factors_t *f = NULL;
+    sb_param_t *p = NULL;
+    sb_form_t form;
+    if (sb_job_source_open(NULL, argv[1], NULL, &src) != SB_OK || sb_factors_read_exr(NULL, argv[2], &f) != SB_OK ||
+        sb_factors_param(NULL, f, &p, &form) != SB_OK || J < 1 || J > sb_factors_terms(f)) {
+        fprintf(stderr, "%s: cannot open %s, %s or J = %zu\n", argv[0], argv[1], argv[2], J);
+        return 1;
+    }
+    const char *only = getenv("SB_BANDS_ONLY"), *seed = getenv("SB_BANDS_SEED");
+    for (int b = 0; b < 9; b++) {
+        if (only && strcmp(only, names[b]) != 0) continue;
+        uint64_t s = 0x5eed + (uint64_t)b + (seed ? strtoull(seed, NULL, 10) << 8 : 0);
+        band_sums_t sums = {0};
+        for (size_t i = 0; i < n; i++) {
+            double wi[3], wo[3], v[3] = {0, 0, 0}, r[3] = {0, 0, 0}, u[4];
+            for (int k = 0; k < 4; k++)
+                u[k] = rnd(&s);
+            if (band_draw(b - 1, u, wi, wo) && sb_source_eval(src, wi, wo, v) &&
+                !sb_factors_eval(f, p, form, J, wi, wo, r))
+                r[0] = r[1] = r[2] = 0;
+            band_add(&sums, v, r, wi[2]);
+        }
+        double se, q = band_ratio(&sums, &se);
+        printf("%s %.6e %.3e\n", names[b], q, se);
+        fflush(stdout);
+    }
+    size_t m = argc > 5 ? strtoul(argv[5], NULL, 10) : 0;
+    sb_estimate_opts_t eo = {0};
+    eo.max_pairs = m;
+    eo.rel_se = 1e-9; /* grow to max_pairs */
+    sb_pairs_t *P = NULL;
+    sb_estimate_t *e = malloc(sizeof *e);
+    if (m && e && sb_pairs_create(NULL, src, &eo, &P) == SB_OK &&
+        sb_estimate_compute(NULL, P, f, NULL, p, form, &eo, e) == SB_OK) {
+        printf("estimator all %.6e %.3e (%zu pairs)\n", e->rel[J - 1][SB_EST_FCOS][3], e->se[J - 1][SB_EST_FCOS][3],
+               e->pairs);
+        for (int b = 0; b < SB_BAND_COUNT_; b++)
+            printf("estimator %s %.6e %.3e\n", sb_band_name(b), e->band[J - 1][b][3], e->band_se[J - 1][b][3]);
+    }
+    free(e);
+    sb_pairs_destroy(P);
+    sb_param_destroy(p);
+    sb_factors_destroy(f);
+    sb_source_destroy(src);
+    return 0;
+}

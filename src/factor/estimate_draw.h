@@ -1,0 +1,15 @@
+/* Private: the estimator's mixture for wo given wi (estimate.h), for
+ * draws of pairs over another distribution of wi (job_bandpairs.c). */
+#ifndef SEPBRDF_FACTOR_ESTIMATE_DRAW_H
+#define SEPBRDF_FACTOR_ESTIMATE_DRAW_H
+
+/* wo drawn from the point x of [0,1)^3 given wi (both unit, local frame):
+ * uniform, cosine, four GGX lobes of the half vector around the normal
+ * (wo = reflect(wi, h)) and the grazing density; returns its density
+ * p_o(wo | wi), 0 when wi or wo is below the horizon. */
+double sb_estimate_draw_wo(const double wi[3], const double x[3], double wo[3]);
+
+/* The unit direction at cos theta = z, azimuth 2 pi u. */
+void sb_estimate_dir_z(double z, double u, double w[3]);
+
+#endif
