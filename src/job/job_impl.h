@@ -200,6 +200,10 @@ sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level
 sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Term j, channel c of f times w (g and h by sqrt(w), sigma by w). */
 void job_scale_term(sb_factors_t *f, size_t j, size_t c, double w);
+/* Put back terms kept aside by job_factors_copy (keep, with its term
+ * weights term_w, NULL: all 1) in place of a's, and a's estimate with them. */
+sb_result_t job_terms_restore(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a,
+                              sb_factors_t *keep, double *term_w);
 /* job_sample_weights.c: a scattered table's term weights at its samples */
 sb_result_t job_sample_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Weight the terms of the kept fit a so that its headline is non-increasing

@@ -126,9 +126,5 @@ sb_result_t job_sample_weights(sb_context_t *ctx, sb_job_t *job, const job_level
         return r;
     }
     /* the headline at J is what the user asked for: the terms as they were */
-    sb_factors_destroy(a->f);
-    a->f = keep;
-    free(a->term_w);
-    a->term_w = old;
-    return job_estimate_again(ctx, job, lv, a);
+    return job_terms_restore(ctx, job, lv, a, keep, old);
 }

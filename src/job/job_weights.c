@@ -40,6 +40,17 @@ static int weights_all_one(const sb_job_t *job, const job_attempt_t *a) {
     return 1;
 }
 
+sb_result_t job_terms_restore(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a,
+                              sb_factors_t *keep, double *term_w) {
+    sb_factors_destroy(a->f);
+    a->f = keep;
+    free(a->term_w);
+    a->term_w = term_w;
+    /* keep holds its terms' errors on the cells (job_factors_copy): only
+     * the estimate is redone */
+    return job_estimate_again(ctx, job, lv, a);
+}
+
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f);
     a->weights_dropped[0] = a->weights_dropped[1] = 0;
@@ -80,13 +91,7 @@ sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t
     }
     /* the headline at J is what the user asked for: keep the plain terms,
      * and say that their prefixes are not nested */
-    sb_factors_destroy(a->f);
-    a->f = keep;
-    free(a->term_w);
-    a->term_w = NULL;
-    /* keep holds the plain terms' errors on the cells (job_factors_copy):
-     * only the estimate is redone */
-    if ((r = job_estimate_again(ctx, job, lv, a)) != SB_OK) return r;
+    if ((r = job_terms_restore(ctx, job, lv, a, keep, NULL)) != SB_OK) return r;
     a->weights_dropped[0] = sb_estimate_headline(a->est, J);
     a->weights_dropped[1] = weighted;
     return SB_OK;
