@@ -139,7 +139,7 @@ static double median(double *x, size_t n) {
 /* cv (the median of the refits' errors), its standard error, cv_pooled
  * and cv_max from the refits' sums (E[k * J + j], T[k], k < K). */
 static void cv_combine(sb_job_t *job, size_t K, size_t J, const double *E, const double *T) {
-    double *r = malloc(2 * K * sizeof *r), *d = r + K;
+    double *r = malloc(2 * K * sizeof *r), *d = r ? r + K : NULL;
     for (size_t j = 0; j < J && !r; j++) /* no memory: no figures, said by NaN */
         job->cv[j] = job->cv_se[j] = job->cv_pooled[j] = job->cv_max[j] = NAN;
     for (size_t j = 0; j < J && r; j++) {
