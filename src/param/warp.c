@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "param/param_impl.h"
+#include "util/shared.h"
 
 static const char *const warp_names[SB_WARP_KIND_COUNT_] = {"default", "uniform", "merl", "table"};
 
@@ -25,12 +26,10 @@ const char *sb_warp_kind_name(sb_warp_kind_t kind) {
 
 sb_result_t sb_warp_kind_parse(const char *name, sb_warp_kind_t *out) {
     if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_WARP_KIND_COUNT_; k++)
-        if (name && strcmp(name, warp_names[k]) == 0) {
-            *out = (sb_warp_kind_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
+    int k = sb_name_find(warp_names, SB_WARP_KIND_COUNT_, name);
+    if (k < 0) return SB_ERR_UNKNOWN;
+    *out = (sb_warp_kind_t)k;
+    return SB_OK;
 }
 
 /* Segment lo of x (binary search above). */

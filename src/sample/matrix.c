@@ -22,12 +22,10 @@ static const char *const form_names[SB_FORM_COUNT_] = {"f", "cos", "cos2"};
 
 sb_result_t sb_form_parse(const char *name, sb_form_t *out) {
     if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_FORM_COUNT_; k++)
-        if (name && strcmp(name, form_names[k]) == 0) {
-            *out = (sb_form_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
+    int k = sb_name_find(form_names, SB_FORM_COUNT_, name);
+    if (k < 0) return SB_ERR_UNKNOWN;
+    *out = (sb_form_t)k;
+    return SB_OK;
 }
 const char *sb_form_name(sb_form_t f) { return (unsigned)f < SB_FORM_COUNT_ ? form_names[f] : "?"; }
 

@@ -71,24 +71,20 @@ void sb_info_field(sb_measured_info_t *info, const char *key, double number, con
 const char *sb_interp_name(sb_interp_t m) { return (unsigned)m < SB_INTERP_COUNT_ ? interp_names[m] : "?"; }
 sb_result_t sb_interp_parse(const char *name, sb_interp_t *out) {
     if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_INTERP_COUNT_; k++)
-        if (name && strcmp(name, interp_names[k]) == 0) {
-            *out = (sb_interp_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
+    int k = sb_name_find(interp_names, SB_INTERP_COUNT_, name);
+    if (k < 0) return SB_ERR_UNKNOWN;
+    *out = (sb_interp_t)k;
+    return SB_OK;
 }
 
 static const char *const lobe_names[SB_LOBE_COUNT_] = {"auto", "off", "on"};
 const char *sb_lobe_mode_name(sb_lobe_mode_t m) { return (unsigned)m < SB_LOBE_COUNT_ ? lobe_names[m] : "?"; }
 sb_result_t sb_lobe_mode_parse(const char *name, sb_lobe_mode_t *out) {
     if (!out) return SB_ERR_ARG;
-    for (int k = 0; k < SB_LOBE_COUNT_; k++)
-        if (name && strcmp(name, lobe_names[k]) == 0) {
-            *out = (sb_lobe_mode_t)k;
-            return SB_OK;
-        }
-    return SB_ERR_UNKNOWN;
+    int k = sb_name_find(lobe_names, SB_LOBE_COUNT_, name);
+    if (k < 0) return SB_ERR_UNKNOWN;
+    *out = (sb_lobe_mode_t)k;
+    return SB_OK;
 }
 
 /* ---- text helpers ------------------------------------------------------ */

@@ -19,6 +19,10 @@ int sb_size_add(size_t a, size_t b, size_t *out);
  * file size limit plainly; strerror() otherwise.  A static string. */
 const char *sb_io_why(int err);
 
+/* The index of `name` among names[0..n) (the registries' names: forms,
+ * warps, interpolations), -1 for none or a NULL name. */
+int sb_name_find(const char *const *names, int n, const char *name);
+
 /* A minimal JSON writer (report.json; the CLI's reports use it too).
  * Objects and arrays nest up to 31 deep (deeper ones are not written);
  * key NULL inside arrays and for the outermost value; value NULL is null;

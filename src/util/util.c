@@ -146,3 +146,9 @@ int sb_write_atomic(const char *path, const void *const *parts, const size_t *si
     if (e) remove(tmp);
     return e;
 }
+
+int sb_name_find(const char *const *names, int n, const char *name) {
+    for (int k = 0; name && k < n; k++)
+        if (strcmp(name, names[k]) == 0) return k;
+    return -1;
+}
