@@ -178,6 +178,23 @@ SB_TEST(cli_factor_render) {
     CHECK(sb_run(cmd, NULL, 0) == 0);
 }
 
+/* An RGL file's values are f cos theta_i (SB_SOURCE_STORES_COS): towards
+ * the horizon f grows as 1 / cos theta_i while f cos theta_i settles. */
+SB_TEST(stores_cos) {
+    sb_source_t *src = open_rgl(PAPER);
+    CHECK(sb_source_flags(src) & SB_SOURCE_STORES_COS);
+    double wo[3] = {0.5, 0, sqrt(0.75)}, fc[3];
+    for (int k = 0; k < 3; k++) {
+        double eps = pow(10, -2 - 2 * k), wi[3] = {-cos(eps), 0, sin(eps)}, f[3];
+        CHECK(sb_source_eval(src, wi, wo, f) == 1);
+        fc[k] = f[1] * wi[2];
+    }
+    /* 0.0076, 0.0048, 0.0048 on paper: f itself 100x from one to the next */
+    CHECKF(fc[0] > 0 && fabs(fc[1] / fc[0] - 1) < 0.5 && fabs(fc[2] / fc[1] - 1) < 0.02, "f cos %g %g %g", fc[0], fc[1],
+           fc[2]);
+    sb_source_destroy(src);
+}
+
 /* auto on an RGL file screens vndf first: at J = 8 (the file's slices) it
  * returns the file to float rounding and the other layouts are not
  * screened; at J = 4 it does not, and they are. */
@@ -193,6 +210,8 @@ SB_TEST(exact_ends_screening) {
         size_t skipped = 0, others = 0;
         for (size_t i = 0; i < sb_job_candidate_count(job); i++) {
             const sb_job_candidate_t *c = sb_job_candidate(job, i);
+            CHECKF(c->form == SB_FORM_COS, "%s %s: the file's f diverges at the horizon", sb_param_kind_name(c->kind),
+                   sb_form_name(c->form));
             if (c->kind == vndf_kind()) continue;
             others++;
             skipped += strncmp(c->why, "not screened", 12) == 0;

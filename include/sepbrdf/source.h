@@ -21,7 +21,11 @@ enum {
     SB_SOURCE_ISOTROPIC = 1u << 1,  /* depends on phi_o - phi_i only */
     SB_SOURCE_MEASURED = 1u << 2,   /* a table: some pairs may be missing */
     SB_SOURCE_GRAY = 1u << 3,       /* R == G == B everywhere */
-    SB_SOURCE_TABLES = 1u << 4      /* carries tables a layout is built on (sb_source_layout_tables) */
+    SB_SOURCE_TABLES = 1u << 4,     /* carries tables a layout is built on (sb_source_layout_tables) */
+    /* its data are f cos theta_i (an RGL file's values): f itself grows as
+     * 1 / cos theta_i towards the horizon, so --param auto fits the form
+     * cos only (a texture of f would have to hold the divergence) */
+    SB_SOURCE_STORES_COS = 1u << 5
 };
 
 typedef struct sb_source_ops {

@@ -128,12 +128,16 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         if (job_layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
         /* a layout on the source's tables holds their nodes in form cos (sb_param_cell_value) */
         int tables = (sb_param_kind_caps(k) & SB_CAP_TABLES) != 0;
-        if (r == SB_OK && !(tables && !job->o.form)) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
         /* cos: not on a layout that folds by reciprocity (f cos theta_i is
          * not reciprocal); cos2 is none: dividing by cos theta_o is
          * unbounded near the horizon in what a shader outputs */
-        if (r == SB_OK && !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY))
-            r = cand_add(ctx, job, k, SB_FORM_COS, 1);
+        int cos = !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY);
+        /* f: not where the data are f cos theta_i and cos serves (an RGL
+         * file: its f reaches 1e10-1e12 at the horizon, and the screened fit
+         * of hd on it cost a third of paper's default run for a headline of 4e4) */
+        int f = !(tables && !job->o.form) && !(cos && (sb_source_flags(job->src) & SB_SOURCE_STORES_COS));
+        if (r == SB_OK && f) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
+        if (r == SB_OK && cos) r = cand_add(ctx, job, k, SB_FORM_COS, 1);
         if (r != SB_OK) return r;
     }
     if (job->ncand == 0)

@@ -403,7 +403,7 @@ static sb_result_t rgl_open(sb_context_t *ctx, const char *path, const sb_measur
         info->white = o->white;
         info->gamut = o->gamut;
         info->theta_i_max = info->theta_o_max = SB_PI / 2;
-        info->flags = SB_SOURCE_MEASURED | (g->isotropic ? SB_SOURCE_ISOTROPIC : 0u);
+        info->flags = SB_SOURCE_MEASURED | SB_SOURCE_STORES_COS | (g->isotropic ? SB_SOURCE_ISOTROPIC : 0u);
         rgl_stats(g, info);
         rgl_fields(&tf, g, info);
         char *desc = sb_format("rgl:%s", path); /* paths of any length */

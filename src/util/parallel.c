@@ -60,7 +60,7 @@ static void run_started(void *(*fn)(void *), void *jobs, size_t job_size, int n,
 
 /* ---- the pool ---------------------------------------------------------- */
 
-#define SB_POOL_SPIN 2000 /* pause loops a worker spins before it sleeps (~10-40 us) */
+#define SB_POOL_SPIN 300 /* pause loops a worker spins before it sleeps (a few us) */
 
 static struct {
     pthread_mutex_t mu;
