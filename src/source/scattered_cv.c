@@ -14,60 +14,79 @@
  * specular lobe sits) only adds its dynamic range. */
 #define LOBE_GAIN 0.9
 
-/* Leave-one-position-out error of method m (k neighbours): each held-out
- * sample (at most CV_MAX, evenly spread over the table) is predicted from
- * the others, every point at its position (repeats, and the swapped copy
- * of a reciprocal anisotropic table) left out, and compared with its
- * measured value in the norm of the comparable error:
- *   e = sqrt( sum (f~ - f)^2 c_i^2 c_o^2 / sum f^2 c_i^2 c_o^2 ).
- * Samples with no neighbour left within the radius are not predicted
- * (*missing); NAN when none was. */
-static double cv_error(const table_t *t, sb_interp_t m, size_t k, size_t *held, size_t *missing) {
-    size_t n = t->ns < CV_MAX ? t->ns : CV_MAX;
-    double num = 0, den = 0;
-    *held = n;
-    *missing = 0;
-    for (size_t h = 0; h < n; h++) {
-        const double *s = t->smp + (h * t->ns / n) * SB_SAMPLE_DOUBLES;
-        double x[2 * MAX_DIM] = {0}, rgb[3];
-        sb_scat_embed_(t->iso, t->recip, s, s + 3, x);
-        int nskip = 1;
-        if (!t->iso && t->recip) sb_scat_embed_(t->iso, t->recip, s + 3, s, x + MAX_DIM), nskip = 2;
-        int known = sb_table_at_(t, m, k, x, x, nskip, rgb);
+/* The prediction of the held-out sample s (embedded at x, its nskip
+ * positions skipped) by each of the methods order[0..3] with kk[i]
+ * neighbours: one query for the most neighbours within the larger radius,
+ * sorted, each method reading the nearest kk[i] within its own radius
+ * (the k nearest within a radius are the first k of a longer list within
+ * a larger one).  Adds to num[i], den[i] in the norm of the comparable
+ * error, or counts a miss. */
+static void cv_sample(const table_t *t, const sb_interp_t order[4], const size_t kk[4], const double *s,
+                      const double *x, int nskip, double num[4], double den[4], size_t miss[SB_INTERP_COUNT_]) {
+    size_t kmax = 0;
+    for (int i = 0; i < 4; i++)
+        kmax = kk[i] > kmax ? kk[i] : kmax;
+    knn_t all = {kmax, 0, fmax(t->r2, t->s2), {0}, {0}, x, nskip};
+    sb_kd_query_(t, x, 0, t->n, &all);
+    sb_knn_sort_(&all);
+    double b[3] = {1, 1, 1}, w = s[2] * s[5];
+    if (t->lobe_on) sb_lobe_base_(&t->lobe, s, s + 3, b);
+    for (int i = 0; i < 4; i++) {
+        knn_t q = {kk[i], 0, order[i] == SB_INTERP_NEAREST ? t->r2 : t->s2, {0}, {0}, x, nskip};
+        for (size_t a = 0; a < all.n && q.n < q.k && all.d2[a] <= q.r2; a++, q.n++)
+            q.d2[q.n] = all.d2[a], q.at[q.n] = all.at[a];
+        double rgb[3];
+        int known = sb_table_from_knn_(t, order[i], x, &q, rgb);
         if (!known) {
-            (*missing)++;
+            miss[order[i]]++;
             continue;
         }
-        if (t->lobe_on && known == 1) {
-            double b[3];
-            sb_lobe_base_(&t->lobe, s, s + 3, b);
-            for (int c = 0; c < 3; c++)
-                rgb[c] *= b[c];
-        }
-        double w = s[2] * s[5];
         for (int c = 0; c < 3; c++) {
-            num += (rgb[c] - s[6 + c]) * (rgb[c] - s[6 + c]) * w * w;
-            den += s[6 + c] * s[6 + c] * w * w;
+            double v = known == 1 ? rgb[c] * b[c] : rgb[c];
+            num[i] += (v - s[6 + c]) * (v - s[6 + c]) * w * w;
+            den[i] += s[6 + c] * s[6 + c] * w * w;
         }
     }
-    return *missing < n && den > 0 ? sqrt(num / den) : NAN;
 }
 
-/* Cross-validate every method into cv[] (misses into miss[]); the
- * method of lowest error (on ties the earlier of quadratic, linear, idw,
- * nearest) into *best; returns the error of the method that will be used
- * (o->interp, or the best). */
+/* Leave-one-position-out error of every method (k neighbours each, as
+ * kfit, idw dim + 1 or o->neighbours): each held-out sample (at most
+ * CV_MAX, evenly spread over the table) is predicted from the others,
+ * every point at its position (repeats, and the swapped copy of a
+ * reciprocal anisotropic table) left out, and compared with its measured
+ * value in the norm of the comparable error:
+ *   e = sqrt( sum (f~ - f)^2 c_i^2 c_o^2 / sum f^2 c_i^2 c_o^2 ).
+ * Samples with no neighbour left within the radius are not predicted
+ * (miss); NAN when none was.  cv[m] per method; the method of lowest error
+ * (on ties the earlier of quadratic, linear, idw, nearest) into *best;
+ * returns the error of the method that will be used (o->interp, or the
+ * best). */
 static double cv_all(const table_t *t, const sb_measured_opts_t *o, size_t kfit, double *cv, size_t *miss, size_t *held,
                      sb_interp_t *best) {
     static const sb_interp_t order[4] = {SB_INTERP_QUADRATIC, SB_INTERP_LINEAR, SB_INTERP_IDW, SB_INTERP_NEAREST};
-    double best_e = INFINITY;
-    *best = SB_INTERP_QUADRATIC;
+    size_t kk[4], n = t->ns < CV_MAX ? t->ns : CV_MAX;
+    for (int i = 0; i < 4; i++)
+        kk[i] = order[i] == SB_INTERP_NEAREST ? 1
+                : o->neighbours               ? o->neighbours
+                : order[i] == SB_INTERP_IDW   ? (size_t)t->dim + 1
+                                              : kfit;
     for (int k = 0; k < SB_INTERP_COUNT_; k++)
         cv[k] = NAN, miss[k] = 0;
+    double num[4] = {0}, den[4] = {0};
+    *held = n;
+    for (size_t h = 0; h < n; h++) {
+        const double *s = t->smp + (h * t->ns / n) * SB_SAMPLE_DOUBLES;
+        double x[2 * MAX_DIM] = {0};
+        sb_scat_embed_(t->iso, t->recip, s, s + 3, x);
+        int nskip = 1;
+        if (!t->iso && t->recip) sb_scat_embed_(t->iso, t->recip, s + 3, s, x + MAX_DIM), nskip = 2;
+        cv_sample(t, order, kk, s, x, nskip, num, den, miss);
+    }
+    double best_e = INFINITY;
+    *best = SB_INTERP_QUADRATIC;
     for (int i = 0; i < 4; i++) {
         sb_interp_t m = order[i];
-        size_t kk = o->neighbours ? o->neighbours : m == SB_INTERP_IDW ? (size_t)t->dim + 1 : kfit;
-        double e = cv_error(t, m, kk, held, &miss[m]);
+        double e = miss[m] < n && den[i] > 0 ? sqrt(num[i] / den[i]) : NAN;
         cv[m] = e;
         if (isfinite(e) && e < best_e) {
             best_e = e;

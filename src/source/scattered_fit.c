@@ -113,18 +113,23 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
         last.n = q.n;
         memcpy(last.at, q.at, q.n * sizeof *q.at);
     }
+    return sb_table_from_knn_(t, interp, x, &q, rgb);
+}
+
+int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double rgb[3]) {
+    rgb[0] = rgb[1] = rgb[2] = 0;
     double d0 = INFINITY; /* the nearest (the heap is ordered by the farthest) */
-    for (size_t i = 0; i < q.n; i++)
-        if (q.d2[i] < d0) d0 = q.d2[i];
-    if (q.n == 0 || d0 > t->r2) return 0;
+    for (size_t i = 0; i < q->n; i++)
+        if (q->d2[i] < d0) d0 = q->d2[i];
+    if (q->n == 0 || d0 > t->r2) return 0;
     /* At a measured position (or for nearest): the sample, repeats averaged. */
     if (d0 <= SAME_POSITION * SAME_POSITION || interp == SB_INTERP_NEAREST) {
         double lim = d0 <= SAME_POSITION * SAME_POSITION ? SAME_POSITION * SAME_POSITION : d0;
         double cnt = 0;
         const double *vals = d0 <= SAME_POSITION * SAME_POSITION && t->raw ? t->raw : t->val;
-        for (size_t m = 0; m < q.n; m++) {
-            if (q.d2[m] > lim) continue;
-            const double *v = vals + 4 * q.at[m];
+        for (size_t m = 0; m < q->n; m++) {
+            if (q->d2[m] > lim) continue;
+            const double *v = vals + 4 * q->at[m];
             for (int c = 0; c < 3; c++)
                 rgb[c] += v[3] * v[c];
             cnt += v[3];
@@ -135,18 +140,18 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
     }
     /* Inverse squared distance weights: the value, or the fallback. */
     double wsum = 0;
-    for (size_t i = 0; i < q.n; i++) {
-        double w = t->val[4 * q.at[i] + 3] / q.d2[i];
+    for (size_t i = 0; i < q->n; i++) {
+        double w = t->val[4 * q->at[i] + 3] / q->d2[i];
         for (int c = 0; c < 3; c++)
-            rgb[c] += w * t->val[4 * q.at[i] + c];
+            rgb[c] += w * t->val[4 * q->at[i] + c];
         wsum += w;
     }
     for (int c = 0; c < 3; c++)
         rgb[c] /= wsum;
     /* Local polynomial when there are enough neighbours: twice the terms. */
     size_t lin = 2 * ((size_t)t->dim + 1), quad = 2 * (1 + (size_t)t->dim + (size_t)(t->dim * (t->dim + 1) / 2));
-    if (interp == SB_INTERP_QUADRATIC && q.n >= quad && poly_fit(t, x, &q, 1, rgb)) return 1;
-    if ((interp == SB_INTERP_QUADRATIC || interp == SB_INTERP_LINEAR) && q.n >= lin) poly_fit(t, x, &q, 0, rgb);
+    if (interp == SB_INTERP_QUADRATIC && q->n >= quad && poly_fit(t, x, q, 1, rgb)) return 1;
+    if ((interp == SB_INTERP_QUADRATIC || interp == SB_INTERP_LINEAR) && q->n >= lin) poly_fit(t, x, q, 0, rgb);
     return 1;
 }
 

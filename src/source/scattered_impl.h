@@ -75,6 +75,9 @@ double sb_table_spacing_(sb_context_t *ctx, const table_t *t);
  * a measured position. */
 int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
                  double rgb[3]);
+/* The value at x by method interp from its neighbours q, as sb_table_at_
+ * finds them (the k nearest within the method's radius). */
+int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double rgb[3]);
 /* The source's eval: f_r of (wi, wo), with the pole blend. */
 int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]);
 
