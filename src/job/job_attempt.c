@@ -169,6 +169,14 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
     if (dense) sb_blas_threads_end(job->blas_threads);
     r = sb_plan_execute(plan, &a->m, a->param, &a->f);
+    if (r == SB_ERR_NUMERIC && a->m.form == SB_FORM_F && (sb_source_flags(job->src) & SB_SOURCE_STORES_COS)) {
+        char why[512]; /* the message, copied: the context's buffer is rewritten */
+        snprintf(why, sizeof why, "%s", sb_context_last_error(ctx));
+        r = sb_error(ctx, r,
+                     "%s; %s stores f cos theta_i, and f grows as 1 / cos theta_i towards the horizon: --form cos "
+                     "factors what the file holds",
+                     why, sb_source_description(job->src));
+    }
     if (r == SB_OK) r = edge_sweeps(plan, job, J, a);
     if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
