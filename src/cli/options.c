@@ -212,7 +212,8 @@ const cli_option_t cli_factor_options[] = {
     {NULL, "--param", "P",
      "parameterisation: auto (default) or one of those below.\nauto screens every one that applies (iso: isotropic,\n"
      "reciprocal sources; vh: isotropic sources that are not\n"
-     "reciprocal, RGL's own layout), with forms f and cos (not on iso),\nsolid-angle weighted, on coarse grids, and "
+     "reciprocal, RGL's own layout), with forms f and cos (not on iso;\ncos only on an RGL file: it stores f cos "
+     "theta_i),\nsolid-angle weighted, on coarse grids, and "
      "factors the\n"
      "lowest headline error at J.  A whole layout as report.json\n"
      "writes it (param_spec, e.g. iso:th=64,td=62,pd=16 or\nhd:res=32,warp_h=...) is used as given: no warp tried",
