@@ -12,11 +12,35 @@
 
 #include "env_plan.h"
 
+/* A page of the stack below the caller's frame, zeroed. */
+static __attribute__((noinline)) void stack_zero_below(void) {
+    volatile char page[4096];
+    for (size_t i = 0; i < sizeof page; i++)
+        page[i] = 0;
+}
+
+/* glibc's heap on transparent huge pages (glibc.malloc.hugetlb=1, set by
+ * env_plan.c) is decided once, when malloc starts: glibc 2.36 (Debian 12)
+ * reads /sys/kernel/mm/transparent_hugepage/enabled, 23 bytes, into a
+ * 24-byte stack buffer that it compares with strcmp without terminating
+ * it (later releases terminate it).  So the huge-page heap was on or off
+ * by whatever byte the stack held there: on in sepbrdf-main as built, off
+ * in the same program linked with OpenBLAS's static archive (io -r 64:
+ * 3 000 page faults instead of 600; a heap on 4 KiB pages costs it 1.3-1.65x
+ * the CPU, docs/performance.md).  Malloc is
+ * started here, before any library's constructor, from a zeroed stack:
+ * the buffer's last byte is then 0 and the mode is read as written. */
+static void malloc_start_clean(void) {
+    stack_zero_below();
+    void *volatile p = malloc(1); /* volatile: the pair is not optimised away */
+    free(p);
+}
+
 static void env_for_blas(int argc, char **argv, char **envp) {
     static char *env[SB_ENV_MAX];
     (void)argc;
-    if (!envp || !sb_env_plan(envp, env)) return;
-    execve("/proc/self/exe", argv, env); /* returns only on failure: run as is */
+    if (envp && sb_env_plan(envp, env)) execve("/proc/self/exe", argv, env); /* returns only on failure */
+    malloc_start_clean();
 }
 
 void sb_cli_malloc_env_restore(void) {

@@ -4,6 +4,7 @@
 #include "util/internal.h"
 
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -124,14 +125,21 @@ int sb_size_add(size_t a, size_t b, size_t *out) {
 
 static size_t mem_limit;
 
-void sb_set_memory_limit(size_t bytes) { mem_limit = bytes; }
-size_t sb_memory_limit(void) {
-    if (mem_limit) return mem_limit;
+/* Three quarters of the physical memory, asked once: sysconf(_SC_PHYS_PAGES)
+ * is a sysinfo() system call, and every allocation checked against the
+ * limit made one (126 of them in `factor --param io -r 64`). */
+static size_t physical_limit(void) {
+    static _Atomic size_t cached;
+    size_t v = atomic_load_explicit(&cached, memory_order_relaxed);
+    if (v) return v;
     long pages = sysconf(_SC_PHYS_PAGES), psize = sysconf(_SC_PAGE_SIZE);
-    if (pages <= 0 || psize <= 0) return (size_t)8 << 30;
-    double total = (double)pages * (double)psize;
-    return (size_t)(total * 0.75);
+    v = pages <= 0 || psize <= 0 ? (size_t)8 << 30 : (size_t)((double)pages * (double)psize * 0.75);
+    atomic_store_explicit(&cached, v, memory_order_relaxed);
+    return v;
 }
+
+void sb_set_memory_limit(size_t bytes) { mem_limit = bytes; }
+size_t sb_memory_limit(void) { return mem_limit ? mem_limit : physical_limit(); }
 
 const char *sb_version(void) { return SB_VERSION_STRING; }
 unsigned sb_version_number(void) { return SB_VERSION_MAJOR * 10000u + SB_VERSION_MINOR * 100u + SB_VERSION_PATCH; }
