@@ -50,16 +50,22 @@ typedef struct band_sums {
     size_t n;
 } band_sums_t;
 
-/* A pair (f, its reconstruction rec, cos theta_i); a draw outside the band
- * or an unknown value adds zeros (f = rec = 0) and still counts. */
-static inline void band_add(band_sums_t *s, const double f[3], const double rec[3], double ci) {
+/* A pair (f, its reconstruction rec, cos theta_i) of weight w (its density
+ * in the band's measure over the draw's: 1 for a uniform draw); a draw
+ * outside the band or an unknown value adds zeros (f = rec = 0) and still
+ * counts. */
+static inline void band_add_w(band_sums_t *s, const double f[3], const double rec[3], double ci, double w) {
     double a = 0, d = 0;
     for (int c = 0; c < 3; c++) {
-        a += (rec[c] - f[c]) * (rec[c] - f[c]) * ci * ci;
-        d += f[c] * f[c] * ci * ci;
+        a += (rec[c] - f[c]) * (rec[c] - f[c]) * ci * ci * w;
+        d += f[c] * f[c] * ci * ci * w;
     }
     s->sa += a, s->sd += d, s->saa += a * a, s->sdd += d * d, s->sad += a * d;
     s->n++;
+}
+
+static inline void band_add(band_sums_t *s, const double f[3], const double rec[3], double ci) {
+    band_add_w(s, f, rec, ci, 1);
 }
 
 static inline double band_ratio(const band_sums_t *s, double *se) {
