@@ -37,40 +37,6 @@ static double rnd(uint64_t *s) { /* splitmix64, 53 bits */
     return (double)((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
 }
 
-/* GGX's density of the half vector's cos c (per solid angle of h). */
-static double ggx_d(double a, double c) {
-    if (c <= 0) return 0;
-    double c2 = c * c, k = a * a + (1 - c2) / c2;
-    return a * a / (3.14159265358979323846 * c2 * c2 * k * k);
-}
-
-/* Density (per solid angle) of wo reflected about h ~ D(h) cos theta_h. */
-static double ggx_pdf(double a, const double wi[3], const double wo[3]) {
-    double h[3] = {wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]}, n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-    if (!(n > 0)) return 0;
-    double oh = fabs(wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]) / n;
-    return oh > 0 ? ggx_d(a, h[2] / n) * h[2] / n / (4 * oh) : 0;
-}
-
-/* wo of the mixture (SB_BANDS_MIX) for wi from u[3] in [0, 1)^3; the
- * weight 1 / (2 pi p(wo)), 0 below the horizon. */
-static double mix_draw(double a, const double wi[3], const double u[3], double wo[3]) {
-    const double pi = 3.14159265358979323846;
-    if (u[0] < 1.0 / 3) {
-        double z = u[1], s = sqrt(1 - z * z);
-        wo[0] = s * cos(2 * pi * u[2]), wo[1] = s * sin(2 * pi * u[2]), wo[2] = z;
-    } else {
-        double b = u[0] < 2.0 / 3 ? a : 3 * a, v = fmin(u[1], 1 - 1e-16), t2 = b * b * v / (1 - v);
-        double ch = 1 / sqrt(1 + t2), sh = sqrt(1 - ch * ch),
-               h[3] = {sh * cos(2 * pi * u[2]), sh * sin(2 * pi * u[2]), ch};
-        double d = wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2];
-        for (int k = 0; k < 3; k++)
-            wo[k] = 2 * d * h[k] - wi[k];
-    }
-    double p = (wo[2] > 0 ? 1 / (2 * pi) : 0) / 3 + ggx_pdf(a, wi, wo) / 3 + ggx_pdf(3 * a, wi, wo) / 3;
-    return wo[2] > 0 && p > 0 ? 1 / (2 * pi * p) : 0;
-}
-
 static const char *const names[] = {"all",        "theta_i_60", "theta_i_80", "theta_i_89", "theta_o_60",
                                     "theta_o_80", "theta_o_89", "specular",   "retro"};
 
@@ -100,7 +66,7 @@ int main(int argc, char **argv) {
             for (int k = 0; k < 6; k++)
                 u[k] = rnd(&s);
             int in = band_draw(b - 1, u, wi, wo);
-            if (ma > 0 && b >= 1 && b <= 3) in = (w = mix_draw(ma, wi, u + 3, wo)) > 0; /* theta_i bands */
+            if (ma > 0 && b >= 1 && b <= 3) in = (w = band_mix_draw(ma, wi, u + 3, wo)) > 0; /* theta_i bands */
             if (in && sb_source_eval(src, wi, wo, v) && !sb_factors_eval(f, p, form, J, wi, wo, r))
                 r[0] = r[1] = r[2] = 0;
             band_add_w(&sums, v, r, wi[2], w);
