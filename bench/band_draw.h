@@ -41,6 +41,43 @@ static inline int band_draw(int b, const double u[4], double wi[3], double wo[3]
     return wo[2] > 0 && wi[2] > 0;
 }
 
+/* GGX's density of the half vector's cos c (per solid angle of h). */
+static inline double band_ggx_d(double a, double c) {
+    if (c <= 0) return 0;
+    double c2 = c * c, k = a * a + (1 - c2) / c2;
+    return a * a / (3.14159265358979323846 * c2 * c2 * k * k);
+}
+
+/* Density (per solid angle) of wo reflected about h ~ D(h) cos theta_h. */
+static inline double band_ggx_pdf(double a, const double wi[3], const double wo[3]) {
+    double h[3] = {wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]}, n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    if (!(n > 0)) return 0;
+    double oh = fabs(wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]) / n;
+    return oh > 0 ? band_ggx_d(a, h[2] / n) * h[2] / n / (4 * oh) : 0;
+}
+
+/* wo for wi from the mixture of u[3] in [0, 1)^3: a third uniform over the
+ * hemisphere, a third each reflected about a GGX half vector of roughness
+ * a and 3a (the mirror peaks at grazing incidence, where a sharp lobe's
+ * error sits, drawn often enough).  Returns the pair's weight against a
+ * uniform wo, 1 / (2 pi p(wo)); 0 below the horizon. */
+static inline double band_mix_draw(double a, const double wi[3], const double u[3], double wo[3]) {
+    const double pi = 3.14159265358979323846;
+    if (u[0] < 1.0 / 3) {
+        double z = u[1], s = sqrt(1 - z * z);
+        wo[0] = s * cos(2 * pi * u[2]), wo[1] = s * sin(2 * pi * u[2]), wo[2] = z;
+    } else {
+        double b = u[0] < 2.0 / 3 ? a : 3 * a, v = fmin(u[1], 1 - 1e-16), t2 = b * b * v / (1 - v);
+        double ch = 1 / sqrt(1 + t2), sh = sqrt(1 - ch * ch),
+               h[3] = {sh * cos(2 * pi * u[2]), sh * sin(2 * pi * u[2]), ch};
+        double d = wi[0] * h[0] + wi[1] * h[1] + wi[2] * h[2];
+        for (int k = 0; k < 3; k++)
+            wo[k] = 2 * d * h[k] - wi[k];
+    }
+    double p = (wo[2] > 0 ? 1 / (2 * pi) : 0) / 3 + band_ggx_pdf(a, wi, wo) / 3 + band_ggx_pdf(3 * a, wi, wo) / 3;
+    return wo[2] > 0 && p > 0 ? 1 / (2 * pi * p) : 0;
+}
+
 /* Plain Monte Carlo sums of one band: per pair the squared error of
  * f cos theta_i (all channels) and the squared value; the band's relative
  * L2 error is the ratio of their means, its standard error by the delta
@@ -50,16 +87,22 @@ typedef struct band_sums {
     size_t n;
 } band_sums_t;
 
-/* A pair (f, its reconstruction rec, cos theta_i); a draw outside the band
- * or an unknown value adds zeros (f = rec = 0) and still counts. */
-static inline void band_add(band_sums_t *s, const double f[3], const double rec[3], double ci) {
+/* A pair (f, its reconstruction rec, cos theta_i) of weight w (its density
+ * in the band's measure over the draw's: 1 for a uniform draw); a draw
+ * outside the band or an unknown value adds zeros (f = rec = 0) and still
+ * counts. */
+static inline void band_add_w(band_sums_t *s, const double f[3], const double rec[3], double ci, double w) {
     double a = 0, d = 0;
     for (int c = 0; c < 3; c++) {
-        a += (rec[c] - f[c]) * (rec[c] - f[c]) * ci * ci;
-        d += f[c] * f[c] * ci * ci;
+        a += (rec[c] - f[c]) * (rec[c] - f[c]) * ci * ci * w;
+        d += f[c] * f[c] * ci * ci * w;
     }
     s->sa += a, s->sd += d, s->saa += a * a, s->sdd += d * d, s->sad += a * d;
     s->n++;
+}
+
+static inline void band_add(band_sums_t *s, const double f[3], const double rec[3], double ci) {
+    band_add_w(s, f, rec, ci, 1);
 }
 
 static inline double band_ratio(const band_sums_t *s, double *se) {

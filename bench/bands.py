@@ -11,6 +11,11 @@ errors theta_i > 80 and > 89 degrees with their bounds (3x the headline or
 f cos theta_i is above 1 % of its largest, and the most negative value over
 the largest.  Prints a Markdown table; a row fails its bound with "NO".
 
+--seeds K: with --check, the uniform draw repeated with K sequences
+(SB_BANDS_SEED=1..K, N pairs each, as an independent evaluator of N pairs
+would read it): the median reading, the pooled value of all K N pairs and
+how many of the K readings agree with the report.
+
 --check N: then, per row, the reported band errors theta_i > 60, 80, 89
 degrees against sepbrdf_bench_bands (bench/bands_check.c: N pairs drawn
 uniformly in solid angle inside each band, the written EXR files evaluated
@@ -64,6 +69,38 @@ def parser(J):
 CHECKED = ["theta_i_60", "theta_i_80", "theta_i_89"]
 
 
+def agrees(v, se, u, use):
+    """Within 10 % or two standard errors (both) of the uniform draw."""
+    return abs(v - u) <= 0.1 * u or abs(v - u) <= 2 * (se ** 2 + use ** 2) ** 0.5
+
+
+def draw(build, rep, out, n, band, seed):
+    """One uniform draw of n pairs inside band (sepbrdf_bench_bands): (error, se)."""
+    cmd = [os.path.join(build, "sepbrdf_bench_bands"), rep["source_spec"], out, str(rep["terms"]), str(n)]
+    env = dict(os.environ, SB_BANDS_ONLY=band, SB_BANDS_SEED=str(seed))
+    w = subprocess.run(cmd, capture_output=True, text=True, env=env).stdout.split()
+    return float(w[1]), float(w[2])
+
+
+def check_seeds(build, rep, out, n, k):
+    """The rows of the --check --seeds table: per band the report, the
+    median of k readings of n pairs, the pooled value of the k n pairs
+    (the mean of the squared ratios' numerators over the denominators is
+    not available here: the mean of the squared readings) and how many
+    readings agree with the report."""
+    e = rep["errors"][rep["terms"] - 1]
+    rows = []
+    for b in CHECKED:
+        v, se = e["band_rel"][b], e["band_rel_se"][b]
+        got = [draw(build, rep, out, n, b, s) for s in range(1, k + 1)]
+        med = sorted(u for u, _ in got)[k // 2]
+        pooled = (sum(u * u for u, _ in got) / k) ** 0.5
+        ok = sum(agrees(v, se, u, use) for u, use in got)
+        rows.append((b, "%s ± %s" % (pct(v), pct(se)), pct(med), pct(pooled), "%d/%d" % (ok, k),
+                     "%.2f" % (v / med)))
+    return rows
+
+
 def check(build, rep, out, n, grow):
     """The rows of the --check table for one written fit (see the docstring)."""
     J = rep["terms"]
@@ -84,7 +121,7 @@ def check(build, rep, out, n, grow):
         if b not in got:
             continue
         u, use = got[b]
-        ok = abs(v - u) <= 0.1 * u or abs(v - u) <= 2 * (se ** 2 + use ** 2) ** 0.5
+        ok = agrees(v, se, u, use)
         g = "%s ± %s" % (pct(est[b][0]), pct(est[b][1])) if b in est else "—"
         rows.append((b, "%s ± %s" % (pct(v), pct(se)), "%s ± %s" % (pct(u), pct(use)), g, "ok" if ok else "NO"))
     return rows
@@ -95,6 +132,7 @@ def main():
     ap.add_argument("--extra", default="")
     ap.add_argument("--check", type=int, default=0, help="pairs per band of the uniform draw (0: none)")
     ap.add_argument("--grow", type=int, default=0, help="with --check: the estimator grown to this many pairs too")
+    ap.add_argument("--seeds", type=int, default=0, help="with --check: repeat the uniform draw with this many sequences")
     ap.add_argument("files", nargs="*")
     a = ap.parse_args()
     sources = MODELS + [(os.path.basename(f), f) for f in a.files]
@@ -117,9 +155,18 @@ def main():
                     "ok" if ok80 else "NO", pct(b["theta_i_89"]), "ok" if ok89 else "NO", e["worst_band"],
                     pct(e["p99_rel_lit"]), "%.3g" % e["max_rel_lit"], pct(e["min_rel"])))
                 sys.stdout.flush()
-                if a.check:
+                if a.check and a.seeds:
+                    checked += [(name, J) + row for row in check_seeds(a.build, rep, os.path.join(tmp, "o"), a.check,
+                                                                          a.seeds)]
+                elif a.check:
                     checked += [(name, J) + row for row in check(a.build, rep, os.path.join(tmp, "o"), a.check, a.grow)]
-    if checked:
+    if checked and a.seeds:
+        print("\n| source | J | band | report | median of %d draws of %d | pooled | agree | report / median |"
+              % (a.seeds, a.check))
+        print("|---|---|---|---|---|---|---|---|")
+        for row in checked:
+            print("| %s | %d | %s | %s | %s | %s | %s | %s |" % row)
+    elif checked:
         print("\n| source | J | band | report | uniform in the band | estimator grown | agree |")
         print("|---|---|---|---|---|---|---|")
         for row in checked:

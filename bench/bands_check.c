@@ -13,7 +13,14 @@
  * the relative L2 error of f cos theta_i over the band, all channels.
  * With M, then the library's estimator on the same files grown to M pairs
  * ("estimator name error standard_error").  Environment: SB_BANDS_ONLY=name
- * measures that band alone, SB_BANDS_SEED=k draws another sequence. */
+ * measures that band alone, SB_BANDS_SEED=k draws another sequence,
+ * SB_BANDS_MIX=a draws wo of the theta_i bands from a mixture instead (a
+ * third uniform over the hemisphere, a third each reflected about a half
+ * vector of a GGX distribution of roughness a and 3a), each pair weighted
+ * by the uniform density over the mixture's: still no estimator, but the
+ * mirror peaks where a sharp lobe's error sits (GGX 0.1 and 0.3 at grazing
+ * incidence, docs/bands.md) drawn often enough for their band to come out
+ * with a small standard error. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -48,19 +55,21 @@ int main(int argc, char **argv) {
         fprintf(stderr, "%s: cannot open %s, %s or J = %zu\n", argv[0], argv[1], argv[2], J);
         return 1;
     }
-    const char *only = getenv("SB_BANDS_ONLY"), *seed = getenv("SB_BANDS_SEED");
+    const char *only = getenv("SB_BANDS_ONLY"), *seed = getenv("SB_BANDS_SEED"), *mix = getenv("SB_BANDS_MIX");
+    double ma = mix ? atof(mix) : 0;
     for (int b = 0; b < 9; b++) {
         if (only && strcmp(only, names[b]) != 0) continue;
         uint64_t s = 0x5eed + (uint64_t)b + (seed ? strtoull(seed, NULL, 10) << 8 : 0);
         band_sums_t sums = {0};
         for (size_t i = 0; i < n; i++) {
-            double wi[3], wo[3], v[3] = {0, 0, 0}, r[3] = {0, 0, 0}, u[4];
-            for (int k = 0; k < 4; k++)
+            double wi[3], wo[3], v[3] = {0, 0, 0}, r[3] = {0, 0, 0}, u[6], w = 1;
+            for (int k = 0; k < 6; k++)
                 u[k] = rnd(&s);
-            if (band_draw(b - 1, u, wi, wo) && sb_source_eval(src, wi, wo, v) &&
-                !sb_factors_eval(f, p, form, J, wi, wo, r))
+            int in = band_draw(b - 1, u, wi, wo);
+            if (ma > 0 && b >= 1 && b <= 3) in = (w = band_mix_draw(ma, wi, u + 3, wo)) > 0; /* theta_i bands */
+            if (in && sb_source_eval(src, wi, wo, v) && !sb_factors_eval(f, p, form, J, wi, wo, r))
                 r[0] = r[1] = r[2] = 0;
-            band_add(&sums, v, r, wi[2]);
+            band_add_w(&sums, v, r, wi[2], w);
         }
         double se, q = band_ratio(&sums, &se);
         printf("%s %.6e %.3e\n", names[b], q, se);
