@@ -73,14 +73,10 @@
  * 1.01 at J' = 2-4; RGL chm_orange on vndf the same to 3 digits) in 6
  * sweeps of the last stage against 14. */
 #define SB_NMF_GRAM_SEED_SWEEPS 3
-/* per prefix: at 1e-5 the default gold's fit took 3x as long for the same
- * errors (2.08, 2.54, 1.66, 1.88x the SVD's at J' = 1-4; 2.05, 2.51, 1.68, 1.91);
- * at 1e-4 it took 259 sweeps (2.27, 1.38, 1.25, 1.35x), at 3e-4 182 (2.22,
- * 1.34, 1.25, 1.40x), at 1e-3 126 (2.14, 1.29, 1.26, 1.42x); at 1e-3 the
- * other sources of bench/positive.sh moved by at most 0.07 (chm_orange on
- * vndf: 1.39, 1.66, 1.29, 1.33x against 1.42, 1.76, 1.25, 1.26x at 1e-4;
- * the Cornell acrylic 1.33, 1.25, 1.28, 1.32x).  The cap (300 sweeps in
- * the last stage) is what made 1e-3 cost accuracy before (at 20 sweeps). */
+/* per prefix: the default gold's fit took 259 sweeps at 1e-4 (2.27, 1.38,
+ * 1.25, 1.35x the SVD's headline at J' = 1-4), 126 at 1e-3 (2.14, 1.29,
+ * 1.26, 1.42x); bench/positive.sh's other sources moved by at most 0.07
+ * (docs/positive.md, "Time, and the measured files ..."). */
 #define SB_NMF_TOL 1e-3
 /* The weight of a cell out of the data and beyond the taps' reach,
  * pulled towards 0, against 1 for a data cell: no lookup reads such a
@@ -114,7 +110,10 @@
  * masked fit beside, or the SVD where no cell is masked) raised to this
  * power: sum_p log ||E_p||^2 becomes k log (sum_p r_p^gamma)^(1/gamma), r_p =
  * ||E_p||^2 / ||E_p^ref||^2, a soft maximum of the ratios the issue bounds
- * (0: the product of the errors). */
+ * (0: the product of the errors).  Only for J <= min(m, n) / 2: near the
+ * matrix's rank the SVD's last prefixes are exact and their ratios, out of
+ * reach, took the sweeps from the others (RGL files on vndf, 8 rows, J =
+ * 8: up to 13x at J' <= 6, against 2.4-10x with the product). */
 #define SB_NMF_RATIO_POWER 2.0
 /* Cells of a matrix without masked cells above which the sweeps run from
  * products (nmf_gram.c: every cell weighs 1, no reference): io at 32
@@ -545,6 +544,7 @@ static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_so
         for (size_t k = 0; k < m * n; k++)
             if (s->ext[k] == 1) s->w[k] *= 1 - SB_NMF_HEADLINE_MIX + SB_NMF_HEADLINE_MIX * s->hw[k];
     s->gam = 0;
+    if (2 * J > (m < n ? m : n)) return;
     if (s->fit) {
         for (size_t j = 0; j < J; j++) {
             for (size_t i = 0; i < m; i++)
