@@ -18,9 +18,8 @@
  * (and v_j likewise), the exact minimiser of the weighted sum in u_j, so
  * no sweep raises it.  A fit stops when a sweep gains less than tol per
  * prefix (in log ||E_p||^2, i.e. relative), or after its sweep cap.
- * Fitting only the J-term error (the greedy order of the terms
- * afterwards) gave prefixes 3-45x the SVD's on the default gold at J' =
- * 1-4 (2.6 % against 0.095 % at J = 4); nested, 2.1, 2.5, 1.7, 1.9x.
+ * With a reference (toward_headline), alpha_p follows the prefixes'
+ * ratios to its errors (ratio_weights), and W leans to the headline's.
  *
  * Cells out of the data (masked): bilinear taps of in-domain pairs read
  * those within two texels of the data (fit.h), so there the fit follows
