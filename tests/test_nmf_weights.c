@@ -97,3 +97,35 @@ SB_TEST(svd_terms_reproduce) {
         if (p == J) CHECKF(e < 1e-20, "J = min(m, n): %g left", e);
     }
 }
+
+/* The worst prefix against the reference: 1 for the reference itself;
+ * with no terms, each prefix's ratio is ||x||^2 over the reference's error
+ * at it (weighted), the largest of them; cells of weight 0 do not count. */
+SB_TEST(worst_ratio_against_the_reference) {
+    enum { M = 6, N = 9, J = 3 };
+    double x[M * N], hw[M * N], R[M * J], S[N * J], U[M * J] = {0}, V[N * J] = {0};
+    for (size_t k = 0; k < M * N; k++) {
+        x[k] = fabs(cos(0.9 * (double)k)) + 0.05 * (double)(k % 4);
+        hw[k] = k % 5 == 2 ? 0 : 0.5 + 0.1 * (double)(k % 7);
+    }
+    CHECK(sb_nmf_svd_terms(x, M, N, J, R, S) == 0);
+    double self = sb_nmf_worst_ratio(x, hw, M, N, J, R, S, R, S, 1e-300);
+    CHECKF(fabs(self - 1) < 1e-12, "the reference against itself: %g", self);
+    double xx = 0, e[J] = {0}, want = 0;
+    for (size_t c = 0; c < N; c++)
+        for (size_t i = 0; i < M; i++) {
+            double r = x[i + c * M];
+            xx += hw[i + c * M] * r * r;
+            for (size_t j = 0; j < J; j++) {
+                r -= R[i + j * M] * S[c + j * N];
+                e[j] += hw[i + c * M] * r * r;
+            }
+        }
+    for (size_t j = 0; j < J; j++)
+        want = fmax(want, xx / e[j]);
+    double none = sb_nmf_worst_ratio(x, hw, M, N, J, U, V, R, S, 1e-300);
+    CHECKF(fabs(none - want) < 1e-9 * want, "no terms: %g, want %g", none, want);
+    hw[7] = 0;
+    x[7] += 100; /* a cell of weight 0 changes nothing */
+    CHECKF(fabs(sb_nmf_worst_ratio(x, hw, M, N, J, R, S, R, S, 1e-300) - 1) < 1e-12, "weight-0 cell counted");
+}

@@ -113,3 +113,29 @@ int sb_nmf_svd_terms(const double *x, size_t m, size_t n, size_t J, double *U, d
     free(vt);
     return ok ? 0 : -1;
 }
+
+/* Step: sum hw (x - A_p B_p^T)^2 for p = 1..J into f (A: m x J, B: n x J). */
+static void prefix_errors(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *A,
+                          const double *B, double *f) {
+    memset(f, 0, J * sizeof *f);
+    for (size_t c = 0; c < n; c++)
+        for (size_t i = 0; i < m; i++) {
+            double r = x[i + c * m], w = hw[i + c * m];
+            for (size_t p = 0; w > 0 && p < J; p++) {
+                r -= A[i + p * m] * B[c + p * n];
+                f[p] += w * r * r;
+            }
+        }
+}
+
+double sb_nmf_worst_ratio(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
+                          const double *V, const double *R, const double *S, double floor2) {
+    double *f = malloc(2 * J * sizeof *f), worst = 0;
+    if (!f) return INFINITY;
+    prefix_errors(x, hw, m, n, J, U, V, f);
+    prefix_errors(x, hw, m, n, J, R, S, f + J);
+    for (size_t p = 0; p < J; p++)
+        worst = fmax(worst, f[p] / fmax(f[J + p], floor2));
+    free(f);
+    return worst;
+}

@@ -22,4 +22,12 @@ int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned 
  * the SVD fails. */
 int sb_nmf_svd_terms(const double *x, size_t m, size_t n, size_t J, double *U, double *V);
 
+/* The largest over the prefixes p = 1..J of sum hw (x - U_p V_p^T)^2 /
+ * sum hw (x - R_p S_p^T)^2 (U_p the first p columns of U; R, S the
+ * reference's terms): the worst prefix against the reference in the
+ * headline's weights.  A reference prefix without error counts as
+ * floor2. */
+double sb_nmf_worst_ratio(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
+                          const double *V, const double *R, const double *S, double floor2);
+
 #endif

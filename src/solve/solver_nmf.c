@@ -56,6 +56,7 @@
 #include "sepbrdf/param.h"
 #include "solve/fit_impl.h"
 #include "solve/nmf_gram.h"
+#include "solve/nmf_lanes.h"
 #include "solve/nmf_weights.h"
 #include "solve/solver.h"
 #include "util/internal.h"
@@ -105,6 +106,17 @@
  * 0.56, 1.95 at 0.2; 0.96, 1.45, 0.59, 2.16 at 0.5; at 1 (the headline's
  * weights alone) 0.93, 2.45, 1.78, 8.84 (docs/positive.md has the rest). */
 #define SB_NMF_HEADLINE_MIX 0.5
+/* A second fit at this mix, the one kept whose worst prefix in the
+ * headline's weights is lower against the reference
+ * (sb_nmf_worst_ratio), on matrices of at most SB_NMF_MIX_CELLS cells
+ * (vndf 8 x 1024; iso at 32 cells 64 x 992; not hd, 1024^2, where a
+ * second fit costs seconds).  Measured (our runs, J = 4, the worst
+ * nmf_over_svd over J' = 1..4, one fit -> the better of two): RGL on
+ * vndf aurora 1.64 -> 1.59, malachite 1.70 -> 1.72, chm_light_blue 2.13
+ * -> 1.84, chm_orange 1.65 -> 1.46, paper 2.14 -> 1.86, silk 1.82 ->
+ * 1.75; the default gold 1.86 -> 1.66 (docs/positive.md). */
+#define SB_NMF_SECOND_MIX 0.8
+#define SB_NMF_MIX_CELLS ((size_t)1 << 17)
 /* The prefixes' errors weighted by their ratio to a reference's (the
  * masked fit beside, or the SVD where no cell is masked) raised to this
  * power: sum_p log ||E_p||^2 becomes k log (sum_p r_p^gamma)^(1/gamma), r_p =
@@ -122,25 +134,26 @@
 typedef struct nmf_state {
     size_t m, n, J;
     int max_iters, zero_fill;
-    double tol, fill;    /* fill: the weight of the cells out of the data (ext 2) */
-    double floor2;       /* the least ||E_p||^2 a prefix weight takes: 1e-24 of the data's */
-    double *e;           /* m x n: masked residual of all the terms fitted */
-    double *r;           /* m x n: the weighted sum of the prefixes' residuals a term is fitted to */
-    double *alpha;       /* J: the prefixes' weights 1 / ||E_p||^2 (prefix_weights) */
-    double *cq;          /* J: the terms' weights in a term's target (nested_term) */
-    double *tw;          /* nt x (3 m + J): the parts' numbers (nmf_job_t) */
-    int nt;              /* parts at most */
-    double *x;           /* m x n: the data, and the targets of the cells within the taps' reach */
-    double *w;           /* m x n: the cells' weights (cell_weights) */
-    unsigned char *ext;  /* m x n: 1 data, 2 within the taps' reach, 0 beyond */
-    double *t;           /* 2 m + J numbers (prefix_weights) */
-    double *uref, *vref; /* m x J, n x J: the reference's terms (toward_headline) */
-    double *sref;        /* J: the reference's prefixes' errors, in the fit's weights */
-    double gam;          /* SB_NMF_RATIO_POWER where a reference is known, else 0 */
-    double *hw;          /* m x n: the headline's weights of the data cells (toward_headline) */
-    int hw_ok;           /* hw holds them for hw_key (the channels of a matrix share them) */
-    double hw_key[3];    /* the layout's address, the form, a sum over the data cells */
-    sb_fit_t *fit;       /* masked: the masked fit whose extension fills the cells out of the data */
+    double tol, fill;     /* fill: the weight of the cells out of the data (ext 2) */
+    double floor2;        /* the least ||E_p||^2 a prefix weight takes: 1e-24 of the data's */
+    double *e;            /* m x n: masked residual of all the terms fitted */
+    double *r;            /* m x n: the weighted sum of the prefixes' residuals a term is fitted to */
+    double *alpha;        /* J: the prefixes' weights 1 / ||E_p||^2 (prefix_weights) */
+    double *cq;           /* J: the terms' weights in a term's target (nested_term) */
+    double *tw;           /* nt x (3 m + J): the parts' numbers (nmf_job_t) */
+    int nt;               /* parts at most */
+    double *x;            /* m x n: the data, and the targets of the cells within the taps' reach */
+    double *w;            /* m x n: the cells' weights (cell_weights) */
+    unsigned char *ext;   /* m x n: 1 data, 2 within the taps' reach, 0 beyond */
+    double *t;            /* 2 m + J numbers (prefix_weights) */
+    double *uref, *vref;  /* m x J, n x J: the reference's terms (toward_headline) */
+    double *sref;         /* J: the reference's prefixes' errors, in the fit's weights */
+    double gam;           /* SB_NMF_RATIO_POWER where a reference is known, else 0 */
+    double *hw;           /* m x n: the headline's weights of the data cells (toward_headline) */
+    double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights and the terms of the first mix (fit_mixes) */
+    int hw_ok;            /* hw holds them for hw_key (the channels of a matrix share them) */
+    double hw_key[3];     /* the layout's address, the form, a sum over the data cells */
+    sb_fit_t *fit;        /* masked: the masked fit whose extension fills the cells out of the data */
     sb_fit_opts_t fo;
 } nmf_state_t;
 
@@ -160,6 +173,9 @@ static void destroy(void *state) {
     free(s->vref);
     free(s->sref);
     free(s->hw);
+    free(s->w0);
+    free(s->ub);
+    free(s->vb);
     sb_fit_destroy(s->fit);
     free(s);
 }
@@ -191,8 +207,11 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->vref = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     s->sref = sb_alloc(ctx, s->J, sizeof(double), "nmf plan");
     s->hw = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
+    s->w0 = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
+    s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
+    s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
-        !s->sref || !s->hw) {
+        !s->sref || !s->hw || !s->w0 || !s->ub || !s->vb) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
@@ -233,31 +252,6 @@ static double residual(nmf_state_t *s, const double *U, const double *V, size_t 
     return f;
 }
 
-/* Step: *b = sum_i w_i r_i u_i and *d = sum_i w_i u_i^2, in four lanes. */
-static void wdot(const double *restrict w, const double *restrict r, const double *restrict u, size_t m, double *b,
-                 double *d) {
-    double bl[4] = {0, 0, 0, 0}, dl[4] = {0, 0, 0, 0};
-    size_t i = 0;
-    for (; i + 4 <= m; i += 4)
-        for (int l = 0; l < 4; l++) {
-            double wu = w[i + l] * u[i + l];
-            bl[l] += wu * r[i + l];
-            dl[l] += wu * u[i + l];
-        }
-    for (; i < m; i++) {
-        bl[0] += w[i] * u[i] * r[i];
-        dl[0] += w[i] * u[i] * u[i];
-    }
-    *b = (bl[0] + bl[1]) + (bl[2] + bl[3]);
-    *d = (dl[0] + dl[1]) + (dl[2] + dl[3]);
-}
-
-/* Step: y -= a x over n (restrict: the loops vectorise). */
-static void axpy_neg(double *restrict y, const double *restrict x, double a, size_t n) {
-    for (size_t i = 0; i < n; i++)
-        y[i] -= a * x[i];
-}
-
 /* Step: s_j = |u_j| |v_j| with unit u_j, v_j, in the order fitted (each
  * prefix is a fit: nested_term). */
 static void normalise(nmf_state_t *s, double *sig, double *U, double *V) {
@@ -276,22 +270,6 @@ static void normalise(nmf_state_t *s, double *sig, double *U, double *V) {
         for (size_t i = 0; nv > 0 && i < n; i++)
             v[i] /= nv;
     }
-}
-
-/* Step: returns sum_i w_i r_i^2, then r += a u (four lanes). */
-static double wsq_add(const double *restrict w, double *restrict r, const double *restrict u, double a, size_t m) {
-    double fl[4] = {0, 0, 0, 0};
-    size_t i = 0;
-    for (; i + 4 <= m; i += 4)
-        for (int l = 0; l < 4; l++) {
-            fl[l] += w[i + l] * r[i + l] * r[i + l];
-            r[i + l] += a * u[i + l];
-        }
-    for (; i < m; i++) {
-        fl[0] += w[i] * r[i] * r[i];
-        r[i] += a * u[i];
-    }
-    return (fl[0] + fl[1]) + (fl[2] + fl[3]);
 }
 
 /* A part of the columns of one parallel step (sb_parallel_run): the
@@ -533,28 +511,51 @@ static int headline_weights(nmf_state_t *s, const sb_solve_in_t *in) {
     return s->hw_ok;
 }
 
-/* Step: the data cells' weights mixed toward the headline's, and the
- * reference's prefixes' errors in the fit's weights: the masked fit
- * fill_holes left in out, or the SVD (no cell masked); without one the
+/* Step: the data cells' weights mixed toward the headline's (mu of
+ * them), and the reference's prefixes' errors in the fit's weights: the
+ * masked fit fill_holes left in out, or the SVD (no cell masked), taken
+ * unless `again` (the reference of the fit before); without one the
  * prefixes' errors are fitted alone (gam 0). */
-static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out) {
+static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out, double mu, int again) {
     size_t m = s->m, n = s->n, J = s->J;
     if (headline_weights(s, in))
         for (size_t k = 0; k < m * n; k++)
-            if (s->ext[k] == 1) s->w[k] *= 1 - SB_NMF_HEADLINE_MIX + SB_NMF_HEADLINE_MIX * s->hw[k];
+            if (s->ext[k] == 1) s->w[k] *= 1 - mu + mu * s->hw[k];
     s->gam = 0;
     if (2 * J > (m < n ? m : n)) return;
-    if (s->fit) {
-        for (size_t j = 0; j < J; j++) {
-            for (size_t i = 0; i < m; i++)
-                s->uref[i + j * m] = out->s[j] * out->u[i + j * m];
-            memcpy(s->vref + j * n, out->v + j * n, n * sizeof *s->vref);
-        }
-    } else if (sb_nmf_svd_terms(s->x, m, n, J, s->uref, s->vref) != 0)
-        return;
+    for (size_t j = 0; !again && s->fit && j < J; j++) {
+        for (size_t i = 0; i < m; i++)
+            s->uref[i + j * m] = out->s[j] * out->u[i + j * m];
+        memcpy(s->vref + j * n, out->v + j * n, n * sizeof *s->vref);
+    }
+    if (!again && !s->fit && sb_nmf_svd_terms(s->x, m, n, J, s->uref, s->vref) != 0) return;
     for (size_t k = 1; k <= J; k++)
         s->sref[k - 1] = fmax(residual(s, s->uref, s->vref, k), s->floor2);
     s->gam = SB_NMF_RATIO_POWER;
+}
+
+/* Step: the stages at the mix SB_NMF_HEADLINE_MIX, and where the matrix
+ * is small and a reference known, at SB_NMF_SECOND_MIX too: the fit kept
+ * whose worst prefix in the headline's weights is the lower against the
+ * reference (out->iterations counts both). */
+static void fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
+    size_t m = s->m, n = s->n, J = s->J;
+    memcpy(s->w0, s->w, m * n * sizeof *s->w0);
+    toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 0);
+    stages(s, out);
+    if (!s->hw_ok || !(s->gam > 0) || m * n > SB_NMF_MIX_CELLS) return;
+    double first = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
+    int sweeps = out->iterations, conv = out->converged;
+    memcpy(s->ub, out->u, m * J * sizeof *s->ub);
+    memcpy(s->vb, out->v, n * J * sizeof *s->vb);
+    memcpy(s->w, s->w0, m * n * sizeof *s->w);
+    toward_headline(s, in, out, SB_NMF_SECOND_MIX, 1);
+    stages(s, out);
+    out->iterations += sweeps;
+    if (sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2) < first) return;
+    memcpy(out->u, s->ub, m * J * sizeof *s->ub);
+    memcpy(out->v, s->vb, n * J * sizeof *s->vb);
+    out->converged = conv;
 }
 
 static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t *out) {
@@ -580,10 +581,8 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         sb_nmf_gram_opts_t go = {s->max_iters, SB_NMF_STAGE_SWEEPS, SB_NMF_GRAM_SEED_SWEEPS, s->tol, s->floor2};
         if (sb_nmf_gram_fit(&go, s->x, m, n, s->J, out->u, out->v, &out->iterations, &out->converged) != 0)
             return SB_ERR_NOMEM;
-    } else {
-        toward_headline(s, in, out);
-        stages(s, out);
-    }
+    } else
+        fit_mixes(s, in, out);
     normalise(s, out->s, out->u, out->v);
     return SB_OK;
 }
