@@ -206,12 +206,14 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->uref = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vref = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     s->sref = sb_alloc(ctx, s->J, sizeof(double), "nmf plan");
-    s->hw = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
-    s->w0 = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
+    /* headline weights where the sweeps weigh cells, w0 for fit_mixes */
+    int weighted = (pb->masked && !pb->zero_fill) || cells <= SB_NMF_WEIGHTED_CELLS || s->J > SB_NMF_GRAM_MAX_TERMS;
+    s->hw = weighted ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
+    s->w0 = weighted && cells <= SB_NMF_MIX_CELLS ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
-        !s->sref || !s->hw || !s->w0 || !s->ub || !s->vb) {
+        !s->sref || (weighted && !s->hw) || (weighted && cells <= SB_NMF_MIX_CELLS && !s->w0) || !s->ub || !s->vb) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
@@ -501,7 +503,7 @@ static sb_result_t fill_holes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_
  * channels of a matrix (the same layout, form and data cells); returns
  * whether they are there. */
 static int headline_weights(nmf_state_t *s, const sb_solve_in_t *in) {
-    if (!in->param || !in->m) return 0;
+    if (!in->param || !in->m || !s->hw) return 0;
     double key[3] = {(double)(uintptr_t)in->param, (double)in->m->form, 0};
     for (size_t k = 0; k < s->m * s->n; k++)
         key[2] += s->ext[k] == 1 ? (double)(k % 65521) : 0;
@@ -540,10 +542,10 @@ static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_so
  * reference (out->iterations counts both). */
 static void fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J;
-    memcpy(s->w0, s->w, m * n * sizeof *s->w0);
+    if (s->w0) memcpy(s->w0, s->w, m * n * sizeof *s->w0);
     toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 0);
     stages(s, out);
-    if (!s->hw_ok || !(s->gam > 0) || m * n > SB_NMF_MIX_CELLS) return;
+    if (!s->hw_ok || !(s->gam > 0) || !s->w0) return;
     double first = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
     int sweeps = out->iterations, conv = out->converged;
     memcpy(s->ub, out->u, m * J * sizeof *s->ub);
