@@ -1,0 +1,131 @@
+/* The non-negative solver's cell weights toward the headline
+ * (src/solve/nmf_weights.c): the headline's weight of a cell over the
+ * fit's, from the stored form and the layout's cells, and the SVD terms
+ * its prefixes are measured against. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+#include "sepbrdf/sepbrdf.h"
+#include "solve/nmf_weights.h" /* not exported, in the static archive */
+
+static sb_param_t *iso8(void) {
+    sb_param_t *p = NULL;
+    sb_param_opts_t o = {0};
+    o.res = 8;
+    CHECK(sb_param_create(NULL, SB_PARAM_ISO, &o, &p) == SB_OK);
+    return p;
+}
+
+/* ext: 1 where the cell is a BRDF pair with the light above the horizon,
+ * but every seventh such cell (out of the data: weight 0); cz: cos theta_i. */
+static size_t cells(const sb_param_t *p, unsigned char *ext, double *cz) {
+    size_t m = sb_param_rows(p), n = sb_param_cols(p), data = 0, seen = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t i = 0; i < m; i++) {
+            double wi[3], wo[3];
+            size_t k = i + c * m;
+            int in = sb_param_cell_dirs(p, i, c, wi, wo) && wi[2] > 0;
+            ext[k] = (unsigned char)(in && seen++ % 7 != 3);
+            cz[k] = in ? wi[2] : 0;
+            data += ext[k];
+        }
+    return data;
+}
+
+/* Form f: the headline measures f cos theta_i, so a cell weighs cos^2
+ * theta_i (iso's cells are solid angles, no gain) over the mean, clipped
+ * at the 99th percentile; form cos stores what the headline measures:
+ * every data cell weighs 1. */
+SB_TEST(headline_weights_follow_the_form) {
+    sb_param_t *p = iso8();
+    size_t m = sb_param_rows(p), n = sb_param_cols(p);
+    unsigned char *ext = malloc(m * n);
+    double *cz = malloc(m * n * sizeof *cz), *hw = malloc(m * n * sizeof *hw);
+    size_t data = cells(p, ext, cz);
+    CHECK(data > 100);
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw) == 0);
+    double sum = 0, cmax = 0, ref = -1;
+    size_t k_ref = 0;
+    for (size_t k = 0; k < m * n; k++) {
+        sum += hw[k];
+        if (!ext[k]) CHECKF(hw[k] == 0, "cell %zu out of the data weighs %g", k, hw[k]);
+        if (ext[k] && cz[k] > ref && cz[k] < 0.5) ref = cz[k], k_ref = k; /* well under the clip */
+        cmax = fmax(cmax, hw[k]);
+    }
+    CHECKF(fabs(sum / (double)data - 1) < 1e-12, "mean %g", sum / (double)data);
+    size_t below = 0;
+    for (size_t k = 0; k < m * n; k++) {
+        if (!ext[k] || hw[k] >= cmax) continue; /* the clipped ones */
+        double want = hw[k_ref] * (cz[k] * cz[k]) / (ref * ref);
+        CHECKF(fabs(hw[k] - want) <= 1e-12 * want, "cell %zu: %g, cos^2 ratio says %g", k, hw[k], want);
+        below++;
+    }
+    CHECK(below > data * 9 / 10);
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_COS, ext, m, n, hw) == 0);
+    for (size_t k = 0; k < m * n; k++)
+        CHECKF(fabs(hw[k] - (ext[k] ? 1 : 0)) < 1e-12, "form cos, cell %zu: %g", k, hw[k]);
+    memset(ext, 0, m * n); /* no data cell: nothing to weigh */
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw) == -1);
+    free(ext);
+    free(cz);
+    free(hw);
+    sb_param_destroy(p);
+}
+
+/* The reference terms: U V^T of J = min(m, n) reproduces the matrix, and
+ * the squared error of each prefix is the sum of the squared singular
+ * values after it (Eckart-Young), non-increasing with J'. */
+SB_TEST(svd_terms_reproduce) {
+    enum { M = 5, N = 7, J = 5 };
+    double x[M * N], U[M * J], V[N * J], prev = INFINITY;
+    for (size_t k = 0; k < M * N; k++)
+        x[k] = fabs(sin(1.7 * (double)k + 0.3)) + 0.1 * (double)(k % 3);
+    CHECK(sb_nmf_svd_terms(x, M, N, J, U, V) == 0);
+    for (size_t p = 1; p <= J; p++) {
+        double e = 0;
+        for (size_t c = 0; c < N; c++)
+            for (size_t i = 0; i < M; i++) {
+                double r = x[i + c * M];
+                for (size_t j = 0; j < p; j++)
+                    r -= U[i + j * M] * V[c + j * N];
+                e += r * r;
+            }
+        CHECKF(e <= prev + 1e-12, "prefix %zu: %g after %g", p, e, prev);
+        prev = e;
+        if (p == J) CHECKF(e < 1e-20, "J = min(m, n): %g left", e);
+    }
+}
+
+/* The worst prefix against the reference: 1 for the reference itself;
+ * with no terms, each prefix's ratio is ||x||^2 over the reference's error
+ * at it (weighted), the largest of them; cells of weight 0 do not count. */
+SB_TEST(worst_ratio_against_the_reference) {
+    enum { M = 6, N = 9, J = 3 };
+    double x[M * N], hw[M * N], R[M * J], S[N * J], U[M * J] = {0}, V[N * J] = {0};
+    for (size_t k = 0; k < M * N; k++) {
+        x[k] = fabs(cos(0.9 * (double)k)) + 0.05 * (double)(k % 4);
+        hw[k] = k % 5 == 2 ? 0 : 0.5 + 0.1 * (double)(k % 7);
+    }
+    CHECK(sb_nmf_svd_terms(x, M, N, J, R, S) == 0);
+    double self = sb_nmf_worst_ratio(x, hw, M, N, J, R, S, R, S, 1e-300);
+    CHECKF(fabs(self - 1) < 1e-12, "the reference against itself: %g", self);
+    double xx = 0, e[J] = {0}, want = 0;
+    for (size_t c = 0; c < N; c++)
+        for (size_t i = 0; i < M; i++) {
+            double r = x[i + c * M];
+            xx += hw[i + c * M] * r * r;
+            for (size_t j = 0; j < J; j++) {
+                r -= R[i + j * M] * S[c + j * N];
+                e[j] += hw[i + c * M] * r * r;
+            }
+        }
+    for (size_t j = 0; j < J; j++)
+        want = fmax(want, xx / e[j]);
+    double none = sb_nmf_worst_ratio(x, hw, M, N, J, U, V, R, S, 1e-300);
+    CHECKF(fabs(none - want) < 1e-9 * want, "no terms: %g, want %g", none, want);
+    hw[7] = 0;
+    x[7] += 100; /* a cell of weight 0 changes nothing */
+    CHECKF(fabs(sb_nmf_worst_ratio(x, hw, M, N, J, R, S, R, S, 1e-300) - 1) < 1e-12, "weight-0 cell counted");
+}
