@@ -1,7 +1,7 @@
 /* The importance sampler of non-negative factors (sampler.h), tested as
  * renderers test theirs (pbrt-v4's and Mitsuba 3's chi2 tests): sampled
  * directions binned on a theta-phi grid against sb_pdf integrated over the
- * bins by quadrature (low expected counts pooled, p >= 0.01); the pdf
+ * bins by quadrature (low expected counts pooled, p >= 0.001); the pdf
  * integrates to 1 (io, io-area) or to the fraction of samples that succeed
  * (half-vector layouts); the estimator of the integral of f cos is unbiased;
  * signed factors are refused; the tables' file holds what the header says. */
@@ -156,7 +156,12 @@ static void chi2_case(const char *label, const fixture_t *x, const double *theta
         double p = chi2_p(mass, obs, (double)n, &stat, &dof);
         fprintf(stderr, "%-40s theta_o %4.1f: %zu/%zu samples, pdf mass %.4f, chi2 %.1f dof %d p %.3f\n", label,
                 theta_o[o], ok, n, total, stat, dof, p);
-        CHECKF(p >= 0.01, "%s theta_o %g: chi2 %g, dof %d, p %g < 0.01", label, theta_o[o], stat, dof, p);
+        /* 0.001, not 0.01: this file draws 30 p-values, and at 0.01 a
+         * correct sampler failed a run in four whenever the fits changed
+         * (iso GGX 0.3 after the non-negative fit's round toward the
+         * headline: p = 0.006 at theta_o 15 with 2 10^5 samples, 0.62 with
+         * 2 10^6); the mismatches these tests caught gave 1e-8 to 1e-12 */
+        CHECKF(p >= 0.001, "%s theta_o %g: chi2 %g, dof %d, p %g < 0.001", label, theta_o[o], stat, dof, p);
         CHECKF(bad_pdf == 0, "%s: %zu samples whose pdf is not sb_pdf's or not unit", label, bad_pdf);
     }
     free(mass);
@@ -215,7 +220,7 @@ SB_TEST(chi2_io_measured) {
     sub_full = SUB;
 }
 /* 10^6 samples: at 2 10^5 this seed gave p = 0.0085 at theta_o = 15 (each
- * test at p >= 0.01 fails 1 % of the time for a correct sampler); at 2 10^6
+ * test at p >= 0.01 failed 1 % of the time for a correct sampler); at 2 10^6
  * p = 0.41, 0.77, 0.13 */
 SB_TEST(chi2_iso_measured) { chi2_run(SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf", SB_PARAM_ISO, 16, 1000000); }
 
