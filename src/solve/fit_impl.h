@@ -41,7 +41,8 @@ struct sb_fit {
  * cres / rres hold the values less the fixed terms (columns < j0) of the
  * current stage, a_rc - sum_{j<j0} P_rj Q_cj, computed once per stage (the
  * fixed terms do not move during its sweeps); they alias cv / rv when
- * j0 = 0.  Every sum runs in the order of the plain loops over the mask
+ * j0 = 0; with D kept (below) rres is NULL for j0 > 0, the rows reading
+ * D.  Every sum runs in the order of the plain loops over the mask
  * (rows: c increasing; columns: r increasing), but for the right-hand
  * sides where D is kept (a BLAS product's order).  A row (column) with
  * more cells in than out has its Gram formed as the sum over all columns
@@ -100,17 +101,13 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
 void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2);
 /* Whether those errors are non-increasing. */
 int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask);
-/* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */
-/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
- * data around them (fit_taps.c): invalid cells (ext 0) whose fitted value
- * sum_j P_rj Q_cj overshoots the valid cells (ext 1) of the rows and
- * columns within two texels (layout o->tex, o->wrap) join the data (ext
- * 2) with target x clamped into their range (x m x n, ld m).  Reads f->m,
- * n, k, P, Q only (the non-negative solver passes its own).  Returns the
- * cells added, or (size_t)-1 without memory. */
+/* For each cell that is not data (ext 0), the range [lo, hi] of the data
+ * (ext 1) among the rows and columns within two texels (layout o->tex,
+ * o->wrap) that bilinear taps sharing the cell read (x m x n, ld m; lo =
+ * INFINITY where none, and at data).  Returns 0, or -1 without memory. */
 int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
                    double *hi);
-size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext);
+/* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */
 sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
                     const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err);
 

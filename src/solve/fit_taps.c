@@ -30,107 +30,95 @@ static size_t neighbours(const size_t wh[2], const int wrap[2], size_t i, size_t
     return k;
 }
 
-/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
- * data around them: an invalid cell (r, c) with valid cells among rows N(r)
- * x columns N(c) (lo..hi their values in x) whose fitted value
- * sum_j P_rj Q_cj lies outside [lo - d, hi + d], d = hi - lo +
- * max(|lo|, |hi|) / 2, joins the data (ext = 2) with the value clamped
- * into [lo, hi]; cells already joined keep their targets.  (Joining every
- * such cell, or pulling it to its neighbours' mean, fits the data worse
- * and breaks exact recovery of low-rank data with holes.)  Per column the
- * column neighbours are reduced first, then the row neighbours: 50 reads
- * per cell.  Returns the cells added, or (size_t)-1 without memory. */
-size_t fit_constrain_taps(const sb_fit_opts_t *o, const sb_fit_t *f, double *x, unsigned char *ext) {
-    size_t m = f->m, n = f->n, k = f->k, added = 0;
-    double *lo1 = malloc(m * sizeof *lo1), *hi1 = malloc(m * sizeof *hi1);
-    size_t *nrs = malloc(m * 26 * sizeof *nrs); /* row r's neighbours: count, then the list */
-    if (!lo1 || !hi1 || !nrs) {
-        free(lo1);
-        free(hi1);
-        free(nrs);
-        return (size_t)-1;
-    }
-    for (size_t r = 0; r < m; r++)
-        nrs[r * 26] = neighbours(o->tex[0], o->wrap[0], r, nrs + r * 26 + 1);
-    /* the minima and maxima below are fmin / fmax written inline (the
-     * library calls were a tenth of the default run's fit); the values
-     * read are valid data, never NaN */
-    for (size_t c = 0; c < n; c++) {
-        size_t nc[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
-        for (size_t r = 0; r < m; r++) {
-            double l1 = INFINITY, h1 = -INFINITY;
-            for (size_t q = 0; q < kc; q++)
-                if (ext[r + nc[q] * m] == 1) {
-                    double a = x[r + nc[q] * m];
-                    l1 = a < l1 ? a : l1;
-                    h1 = a > h1 ? a : h1;
-                }
-            lo1[r] = l1;
-            hi1[r] = h1;
-        }
-        for (size_t r = 0; r < m; r++) {
-            if (ext[r + c * m]) continue;
-            const size_t kr = nrs[r * 26], *nr = nrs + r * 26 + 1;
-            double lo = INFINITY, hi = -INFINITY, v = 0;
-            for (size_t q = 0; q < kr; q++) {
-                lo = lo1[nr[q]] < lo ? lo1[nr[q]] : lo;
-                hi = hi1[nr[q]] > hi ? hi1[nr[q]] : hi;
-            }
-            if (!(lo <= hi)) continue;
-            for (size_t j = 0; j < k; j++)
-                v += f->P[r + j * m] * f->Q[c + j * n];
-            double d = hi - lo + 0.5 * fmax(fabs(lo), fabs(hi));
-            if (v >= lo - d && v <= hi + d) continue;
-            x[r + c * m] = fmin(fmax(v, lo), hi);
-            ext[r + c * m] = 2; /* data from now on, not a neighbour's source */
-            added++;
-        }
-    }
-    free(lo1);
-    free(hi1);
-    free(nrs);
-    return added;
-}
+/* An invalid cell (ext 0) with valid cells among the rows and columns
+ * its taps share, and their range [lo, hi]. */
+typedef struct taps_cell {
+    size_t at; /* r + c m */
+    double lo, hi;
+} taps_cell_t;
 
 /* For each cell that is not data (ext 0), the range [lo, hi] of the data
- * among rows N(r) x columns N(c) (what taps sharing the cell read, as
- * fit_constrain_taps), lo = INFINITY where none; lo, hi m x n.  Returns
- * 0, or -1 without memory. */
-int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
-                   double *hi) {
-    size_t *nrs = malloc(m * 26 * sizeof *nrs);
-    double *l1 = malloc(2 * m * sizeof *l1), *h1 = l1 + m;
-    if (!nrs || !l1) {
-        free(nrs);
-        free(l1);
-        return -1;
-    }
-    for (size_t r = 0; r < m; r++)
+ * (ext 1) among rows N(r) x columns N(c) (what taps sharing the cell
+ * read): into the m x n arrays lo, hi where given (lo = INFINITY where
+ * none, and at data), and where a range exists into the list *cells (*nc
+ * of them; realloc'd) where given.  Per column the column neighbours are
+ * reduced first, then the row neighbours: 50 reads per cell.  The minima
+ * and maxima are written inline (fmin / fmax library calls were a tenth
+ * of the default run's fit); the values read are data, never NaN.
+ * Returns 0, or -1 without memory. */
+static int taps_scan(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
+                     double *hi, taps_cell_t **cells, size_t *nc) {
+    size_t *nrs = malloc(m * 26 * sizeof *nrs), cap = 0; /* row r's neighbours: count, then the list */
+    double *l1 = malloc(2 * m * sizeof *l1), *h1 = l1 ? l1 + m : NULL;
+    int ok = nrs && l1;
+    for (size_t r = 0; ok && r < m; r++)
         nrs[r * 26] = neighbours(o->tex[0], o->wrap[0], r, nrs + r * 26 + 1);
-    for (size_t c = 0; c < n; c++) {
-        size_t nc[25], kc = neighbours(o->tex[1], o->wrap[1], c, nc);
+    for (size_t c = 0; ok && c < n; c++) {
+        size_t ncol[25], kc = neighbours(o->tex[1], o->wrap[1], c, ncol);
         for (size_t r = 0; r < m; r++) {
-            l1[r] = INFINITY;
-            h1[r] = -INFINITY;
+            double a1 = INFINITY, b1 = -INFINITY;
             for (size_t q = 0; q < kc; q++)
-                if (ext[r + nc[q] * m] == 1) {
-                    l1[r] = fmin(l1[r], x[r + nc[q] * m]);
-                    h1[r] = fmax(h1[r], x[r + nc[q] * m]);
+                if (ext[r + ncol[q] * m] == 1) {
+                    double v = x[r + ncol[q] * m];
+                    a1 = v < a1 ? v : a1;
+                    b1 = v > b1 ? v : b1;
                 }
+            l1[r] = a1;
+            h1[r] = b1;
         }
         for (size_t r = 0; r < m; r++) {
             double a = INFINITY, b = -INFINITY;
-            for (size_t q = 0; !ext[r + c * m] && q < nrs[r * 26]; q++) {
-                a = fmin(a, l1[nrs[r * 26 + 1 + q]]);
-                b = fmax(b, h1[nrs[r * 26 + 1 + q]]);
+            const size_t kr = ext[r + c * m] ? 0 : nrs[r * 26], *nr = nrs + r * 26 + 1;
+            for (size_t q = 0; q < kr; q++) {
+                a = l1[nr[q]] < a ? l1[nr[q]] : a;
+                b = h1[nr[q]] > b ? h1[nr[q]] : b;
             }
-            lo[r + c * m] = a;
-            hi[r + c * m] = b;
+            if (lo) lo[r + c * m] = a, hi[r + c * m] = b;
+            if (!cells || !(a <= b)) continue;
+            if (*nc == cap) {
+                taps_cell_t *g = realloc(*cells, (cap = cap ? 2 * cap : 256) * sizeof *g);
+                if (!g) {
+                    ok = 0;
+                    break;
+                }
+                *cells = g;
+            }
+            (*cells)[(*nc)++] = (taps_cell_t){r + c * m, a, b};
         }
     }
     free(nrs);
     free(l1);
-    return 0;
+    return ok ? 0 : -1;
+}
+
+int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
+                   double *hi) {
+    return taps_scan(o, m, n, x, ext, lo, hi, NULL, NULL);
+}
+
+/* Cells that bilinear taps of in-domain pairs reach, kept bounded by the
+ * data around them: an invalid cell (r, c) of the list (its range [lo,
+ * hi] of data, taps_scan) whose fitted value sum_j P_rj Q_cj lies outside
+ * [lo - d, hi + d], d = hi - lo + max(|lo|, |hi|) / 2, joins the data
+ * (ext = 2) with the value clamped into [lo, hi]; cells already joined
+ * keep their targets.  (Joining every such cell, or pulling it to its
+ * neighbours' mean, fits the data worse and breaks exact recovery of
+ * low-rank data with holes.)  Returns the cells added. */
+static size_t constrain_taps(const sb_fit_t *f, const taps_cell_t *cells, size_t nc, double *x, unsigned char *ext) {
+    size_t m = f->m, n = f->n, k = f->k, added = 0;
+    for (size_t i = 0; i < nc; i++) {
+        size_t at = cells[i].at, r = at % m, c = at / m;
+        if (ext[at]) continue;
+        double lo = cells[i].lo, hi = cells[i].hi, v = 0;
+        for (size_t j = 0; j < k; j++)
+            v += f->P[r + j * m] * f->Q[c + j * n];
+        double d = hi - lo + 0.5 * fmax(fabs(lo), fabs(hi));
+        if (v >= lo - d && v <= hi + d) continue;
+        x[at] = fmin(fmax(v, lo), hi);
+        ext[at] = 2; /* data from now on, not a neighbour's source */
+        added++;
+    }
+    return added;
 }
 
 /* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
@@ -141,6 +129,14 @@ static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsi
     fit_valid_prefix_e2(f, As, lda, mask, e2);
     return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
 }
+
+/* The taps' cells of a fit: the data (ext 1) are the mask in every pass
+ * and round, so one scan serves them all. */
+typedef struct taps_list {
+    taps_cell_t *cells;
+    size_t n;
+    int scanned; /* the data (ext 1) are the mask in every pass: one scan */
+} taps_list_t;
 
 /* Step, after a pass with taps: the taps reaching unconstrained cells that
  * overshoot are constrained (ext, nvalid cells so far) and the stages run
@@ -156,7 +152,7 @@ static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsi
  * restored). */
 static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, unsigned char *ext,
                                size_t nvalid, const sb_fit_opts_t *o, int strict, double norm2, int *total,
-                               int *converged, double *err, int *stretched, double *P1, double *Q1) {
+                               int *converged, double *err, int *stretched, double *P1, double *Q1, taps_list_t *tl) {
     size_t m = f->m, n = f->n, k = f->k;
     double e2[SB_ALS_MAX_K];
     fit_valid_prefix_e2(f, As, lda, mask, e2);
@@ -165,10 +161,12 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
     memcpy(Q1, f->Q, n * k * sizeof *Q1);
     size_t constrained = 0;
     sb_result_t r = SB_OK;
+    if (!tl->scanned && taps_scan(o, m, n, f->x, ext, NULL, NULL, &tl->cells, &tl->n) != 0) /* taps: As is f->x */
+        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate the taps' ranges");
+    tl->scanned = 1;
     for (int round = 0; r == SB_OK && round < 2; round++) {
-        size_t added = fit_constrain_taps(o, f, f->x, ext); /* taps: As is f->x */
-        if (added == (size_t)-1) r = SB_ERR_NOMEM;
-        if (added == 0 || r != SB_OK) break;
+        size_t added = constrain_taps(f, tl->cells, tl->n, f->x, ext);
+        if (added == 0) break;
         nvalid += added;
         constrained += added;
         r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, stretched, NULL);
@@ -183,7 +181,7 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
 
 /* The ALS part of a fit from the warm start in f->P, f->Q: the stages
  * (joint refits kept under SB_PREFIX_SLACK), the taps' constraints
- * (fit_constrain_taps, twice at most, warm), and when the prefixes' errors on
+ * (constrain_taps, twice at most, warm), and when the prefixes' errors on
  * the valid cells then rise anywhere, or the last stage made a prefix more
  * than SB_PREFIX_SLACK times worse, all of it again from the same start
  * with strict stages (a joint refit kept only if the prefixes' errors stay
@@ -200,6 +198,7 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
     als_resume_t rs = {
         .P = malloc(pb), .Q = malloc(qb), .P1 = malloc(pb), .Q1 = malloc(qb), .Pj = malloc(pb), .Qj = malloc(qb)};
     sb_result_t r = SB_OK;
+    taps_list_t tl = {NULL, 0, 0};
     if ((taps && !ext) || !P0 || !Q0 || !P1 || !Q1 || !rs.P || !rs.Q || !rs.P1 || !rs.Q1 || !rs.Pj || !rs.Qj)
         r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", m * n + 5 * (pb + qb));
     if (r == SB_OK) {
@@ -228,10 +227,12 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
          * them and run the stages again from the fit found (twice at
          * most; warm, each stage stops after a few sweeps) */
         if (r == SB_OK && taps)
-            r = taps_rounds(f, As, lda, mask, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, P1, Q1);
+            r = taps_rounds(f, As, lda, mask, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, P1, Q1,
+                            &tl);
         if (r != SB_OK || (!stretched && fit_prefixes_monotone(f, As, lda, mask))) break;
     }
     free(ext);
+    free(tl.cells);
     free(rs.P);
     free(rs.Q);
     free(rs.P1);

@@ -25,32 +25,53 @@
  * solved by Cholesky; c_0 is the value at x, clamped to the neighbours'
  * range.  Returns 0 (rgb untouched) if the system is not positive
  * definite. */
-static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadratic, double rgb[3]) {
-    int D = t->dim, P = 1 + D + (quadratic ? D * (D + 1) / 2 : 0);
-    double A[MAX_TERMS * MAX_TERMS] = {0}, B[MAX_TERMS * 3] = {0};
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, spread = 0, wsum = 0;
+/* The normal equations' lower triangle A (P x P, row-major) and right-hand
+ * sides B (P x 3) over the neighbours, with the weights' sums; inlined
+ * into one copy per (D, P) so that the loops have fixed bounds. */
+static inline __attribute__((always_inline)) void poly_accum(const table_t *t, const double *x, const knn_t *q,
+                                                             const int D, const int P, double *A, double *B,
+                                                             double lo[3], double hi[3], double *spread, double *wsum) {
+    for (int a = 0; a < P * P; a++)
+        A[a] = 0;
+    for (int a = 0; a < P * 3; a++)
+        B[a] = 0;
     for (size_t i = 0; i < q->n; i++) {
         const double *p = t->pts + q->at[i] * MAX_DIM, *v = t->val + 4 * q->at[i];
         double w = v[3] / q->d2[i], u[MAX_TERMS];
         u[0] = 1;
         for (int a = 0; a < D; a++)
             u[a + 1] = p[a] - x[a];
-        for (int a = 0, m = 1 + D; quadratic && a < D; a++)
+        for (int a = 0, m = 1 + D; P > 1 + D && a < D; a++)
             for (int b = a; b < D; b++)
                 u[m++] = u[a + 1] * u[b + 1];
         for (int a = 0; a < P; a++) {
+            double wu = w * u[a];
             for (int b = 0; b <= a; b++)
-                A[a * P + b] += w * u[a] * u[b];
+                A[a * P + b] += wu * u[b];
             for (int c = 0; c < 3; c++)
-                B[a * 3 + c] += w * u[a] * v[c];
+                B[a * 3 + c] += wu * v[c];
         }
         for (int c = 0; c < 3; c++) {
             if (v[c] < lo[c]) lo[c] = v[c];
             if (v[c] > hi[c]) hi[c] = v[c];
         }
-        spread += w * q->d2[i];
-        wsum += w;
+        *spread += w * q->d2[i];
+        *wsum += w;
     }
+}
+
+static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadratic, double rgb[3]) {
+    int D = t->dim, P = 1 + D + (quadratic ? D * (D + 1) / 2 : 0);
+    double A[MAX_TERMS * MAX_TERMS], B[MAX_TERMS * 3];
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, spread = 0, wsum = 0;
+    if (D == 3 && quadratic)
+        poly_accum(t, x, q, 3, 10, A, B, lo, hi, &spread, &wsum);
+    else if (D == 3)
+        poly_accum(t, x, q, 3, 4, A, B, lo, hi, &spread, &wsum);
+    else if (quadratic)
+        poly_accum(t, x, q, 4, 15, A, B, lo, hi, &spread, &wsum);
+    else
+        poly_accum(t, x, q, 4, 5, A, B, lo, hi, &spread, &wsum);
     double s2 = spread / wsum;
     for (int a = 1; a < P; a++)
         A[a * P + a] += RIDGE * wsum * (a <= D ? s2 : s2 * s2);

@@ -160,7 +160,14 @@ static inline double dist2(const double *a, const double *b) {
     return s;
 }
 
-void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t *q) {
+/* The search below node [lo, hi), off[a] the distance of its box from x
+ * along axis a (Arya and Mount's incremental distance): a far child's box
+ * is off by |x - split| along the split axis, the other axes as its
+ * parent's, and is skipped when its squared distance exceeds the k-th
+ * distance so far.  That distance is summed as dist2 sums, each term no
+ * larger than a point's in the box, so rounding never skips a tie (the k
+ * nearest stay one set). */
+static void kd_search(const table_t *t, const double *x, size_t lo, size_t hi, knn_t *q, double *off) {
     while (hi - lo > KD_LEAF) {
         size_t mid = lo + (hi - lo) / 2;
         int ax = t->split[mid];
@@ -170,15 +177,22 @@ void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t
         double diff = x[ax] - pm[ax];
         size_t nlo = diff < 0 ? lo : mid + 1, nhi = diff < 0 ? mid : hi;
         size_t flo = diff < 0 ? mid + 1 : lo, fhi = diff < 0 ? hi : mid;
-        sb_kd_query_(t, x, nlo, nhi, q);
-        if (diff * diff > knn_bound(q)) return;
-        lo = flo;
-        hi = fhi;
+        kd_search(t, x, nlo, nhi, q, off);
+        double old = off[ax];
+        off[ax] = fabs(diff);
+        if (dist2(off, (const double[MAX_DIM]){0}) <= knn_bound(q)) kd_search(t, x, flo, fhi, q, off);
+        off[ax] = old;
+        return;
     }
     for (size_t i = lo; i < hi; i++) {
         double d2 = dist2(x, t->pts + i * MAX_DIM);
         if (d2 <= knn_bound(q) && !(q->nskip && knn_skips(q, t->pts + i * MAX_DIM))) knn_push(q, d2, i);
     }
+}
+
+void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t *q) {
+    double off[MAX_DIM] = {0};
+    kd_search(t, x, lo, hi, q, off);
 }
 
 /* Median over points of the distance to the nearest other point that is

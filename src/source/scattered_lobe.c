@@ -46,11 +46,30 @@
 static const double f0_grid[] = {0.04, 0.25, 1.0};
 static const char *const ndf_names[NDFS] = {"ggx", "beckmann", "exp4", "exp8"};
 
-static double lobe_shape(int ndf, double alpha, double f0, int cosp, const double l[3], const double v[3]) {
+/* What the shape needs of a pair (l, v), apart from its parameters:
+ * cos^2 and sin^2 of theta_h, m = 1 - v.h clamped, and the cosines; ok 0
+ * where the shape is 0 (below the horizon, or l = -v). */
+typedef struct geo {
+    double c2, s2, m, l2, v2;
+    int ok;
+} geo_t;
+
+static geo_t lobe_geo(const double l[3], const double v[3]) {
+    geo_t g = {0, 0, 0, l[2], v[2], 0};
     double h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
     double n = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-    if (!(n > 0) || !(l[2] > 0) || !(v[2] > 0)) return 0;
-    double c = h[2] / n, c2 = c * c, s2 = 1 - c2, a2 = alpha * alpha, d;
+    if (!(n > 0) || !(l[2] > 0) || !(v[2] > 0)) return g;
+    double c = h[2] / n, vh = (v[0] * h[0] + v[1] * h[1] + v[2] * h[2]) / n;
+    g.c2 = c * c;
+    g.s2 = 1 - g.c2;
+    g.m = 1 - fmin(fmax(vh, 0), 1);
+    g.ok = 1;
+    return g;
+}
+
+static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int cosp) {
+    if (!gm->ok) return 0;
+    double c2 = gm->c2, s2 = gm->s2, a2 = alpha * alpha, d, m = gm->m;
     if (ndf == 0) {
         double b = s2 + c2 * a2;
         d = a2 / (SB_PI * b * b);
@@ -61,11 +80,15 @@ static double lobe_shape(int ndf, double alpha, double f0, int cosp, const doubl
          * a tenth of `info` on a Cornell table) */
         d = c2 > 0 && x < 746 ? exp(-x) / (SB_PI * a2 * c2 * c2) : 0;
     }
-    double vh = (v[0] * h[0] + v[1] * h[1] + v[2] * h[2]) / n, m = 1 - fmin(fmax(vh, 0), 1);
     double fr = f0 + (1 - f0) * m * m * m * m * m, r = sqrt(alpha) + 1, k = cosp >= 3 ? r * r / 8 : alpha / 2;
     cosp %= 3;
-    double g = (l[2] * (1 - k) + k) * (v[2] * (1 - k) + k);
+    double g = (gm->l2 * (1 - k) + k) * (gm->v2 * (1 - k) + k);
     return d * fr / (4 * (cosp == 2 ? g : cosp == 1 ? sqrt(g) : 1));
+}
+
+static double lobe_shape(int ndf, double alpha, double f0, int cosp, const double l[3], const double v[3]) {
+    geo_t g = lobe_geo(l, v);
+    return shape_at(&g, ndf, alpha, f0, cosp);
 }
 
 /* Five sums per channel for the 2 x 2 least squares of one shape. */
@@ -93,14 +116,15 @@ static double solve2(const sums_t *m, int c, double *kd, double *ks) {
     return best;
 }
 
-/* Residual of the best linear weights for one shape over the samples. */
-static double shape_cost(const double *smp, size_t ns, size_t step, int ndf, double alpha, double f0, int cosp,
-                         double kd[3], double ks[3]) {
+/* Residual of the best linear weights for one shape over the samples
+ * 0, step, 2 step, ... (geo[i] the geometry of sample i * step). */
+static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, int ndf, double alpha, double f0,
+                         int cosp, double kd[3], double ks[3]) {
     sums_t m;
     memset(&m, 0, sizeof m);
-    for (size_t i = 0; i < ns; i += step) {
+    for (size_t i = 0, j = 0; i < ns; i += step, j++) {
         const double *s = smp + i * SB_SAMPLE_DOUBLES;
-        double S = lobe_shape(ndf, alpha, f0, cosp, s, s + 3), w = s[2] * s[2];
+        double S = shape_at(&geo[j], ndf, alpha, f0, cosp), w = s[2] * s[2];
         m.w += w;
         m.ws += w * S;
         m.wss += w * S * S;
@@ -119,19 +143,19 @@ static double shape_cost(const double *smp, size_t ns, size_t step, int ndf, dou
 }
 
 /* Golden-section refinement of log alpha in [lo, hi] for one (ndf, f0). */
-static double refine_alpha(const double *smp, size_t ns, size_t step, int ndf, double f0, int cosp, double lo,
-                           double hi, double *cost) {
+static double refine_alpha(const double *smp, size_t ns, size_t step, const geo_t *geo, int ndf, double f0, int cosp,
+                           double lo, double hi, double *cost) {
     const double g = 0.6180339887498949;
     double a = lo, b = hi, x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double c1 = shape_cost(smp, ns, step, ndf, exp(x1), f0, cosp, NULL, NULL);
-    double c2 = shape_cost(smp, ns, step, ndf, exp(x2), f0, cosp, NULL, NULL);
+    double c1 = shape_cost(smp, ns, step, geo, ndf, exp(x1), f0, cosp, NULL, NULL);
+    double c2 = shape_cost(smp, ns, step, geo, ndf, exp(x2), f0, cosp, NULL, NULL);
     for (int it = 0; it < GOLDEN_STEPS; it++) {
         if (c1 < c2) {
             b = x2, x2 = x1, c2 = c1, x1 = b - g * (b - a);
-            c1 = shape_cost(smp, ns, step, ndf, exp(x1), f0, cosp, NULL, NULL);
+            c1 = shape_cost(smp, ns, step, geo, ndf, exp(x1), f0, cosp, NULL, NULL);
         } else {
             a = x1, x1 = x2, c1 = c2, x2 = a + g * (b - a);
-            c2 = shape_cost(smp, ns, step, ndf, exp(x2), f0, cosp, NULL, NULL);
+            c2 = shape_cost(smp, ns, step, geo, ndf, exp(x2), f0, cosp, NULL, NULL);
         }
     }
     *cost = c1 < c2 ? c1 : c2;
@@ -166,10 +190,20 @@ static int ndf_index(const char *ndf) {
     return 0;
 }
 
+/* The geometry of samples 0, step, 2 step, ... (NULL on no memory). */
+static geo_t *geo_of(const double *smp, size_t ns, size_t step) {
+    geo_t *g = malloc(((ns + step - 1) / step) * sizeof *g);
+    for (size_t i = 0, j = 0; g && i < ns; i += step, j++)
+        g[j] = lobe_geo(smp + i * SB_SAMPLE_DOUBLES, smp + i * SB_SAMPLE_DOUBLES + 3);
+    return g;
+}
+
 void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L) {
     memset(L, 0, sizeof *L);
     if (ns == 0) return;
     size_t step = ns > FIT_MAX ? (ns + FIT_MAX - 1) / FIT_MAX : 1;
+    geo_t *geo = geo_of(smp, ns, step);
+    if (!geo) return; /* no memory: not fitted, the table interpolates f itself */
     median_floor(smp, ns, L->floor, L->cap);
     double best = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
     int nf = (int)(sizeof f0_grid / sizeof *f0_grid);
@@ -183,24 +217,31 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
             int at = 0;
             double cb = INFINITY;
             for (int k = 0; k < ALPHA_STEPS; k++) {
-                double c = shape_cost(smp, ns, step, ndf, exp(la + k * dl), f0_grid[fi], cosp, NULL, NULL);
+                double c = shape_cost(smp, ns, step, geo, ndf, exp(la + k * dl), f0_grid[fi], cosp, NULL, NULL);
                 if (c < cb) cb = c, at = k;
             }
             double lo = la + (at > 0 ? at - 1 : 0) * dl, hi = la + (at < ALPHA_STEPS - 1 ? at + 1 : at) * dl, c;
-            double alpha = refine_alpha(smp, ns, step, ndf, f0_grid[fi], cosp, lo, hi, &c);
+            double alpha = refine_alpha(smp, ns, step, geo, ndf, f0_grid[fi], cosp, lo, hi, &c);
             if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
         }
-    if (!(best < INFINITY) || !(L->alpha > 0)) return; /* no finite fit (values near overflow): not fitted */
-    shape_cost(smp, ns, 1, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
+    if (step > 1) { /* the weights from every sample */
+        free(geo);
+        geo = geo_of(smp, ns, 1);
+    }
+    if (!geo || !(best < INFINITY) || !(L->alpha > 0)) { /* no finite fit (values near overflow): not fitted */
+        free(geo);
+        return;
+    }
+    shape_cost(smp, ns, 1, geo, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
     /* The cap: CAP x the largest of the sample values and of the lobe at
      * the samples (a fold that lost the brightest sample keeps the lobe's
      * shape there; only the height between samples is bounded). */
     for (size_t i = 0; i < ns; i++) {
-        const double *s = smp + i * SB_SAMPLE_DOUBLES;
-        double S = lobe_shape(L->ndf, L->alpha, L->f0, L->cosp, s, s + 3);
+        double S = shape_at(&geo[i], L->ndf, L->alpha, L->f0, L->cosp);
         for (int c = 0; c < 3; c++)
             L->cap[c] = fmax(L->cap[c], CAP * (L->kd[c] + L->ks[c] * S));
     }
+    free(geo);
     L->fitted = 1;
 }
 
