@@ -81,8 +81,9 @@ SB_TEST(bands_agree_with_brute_force_iso) { check_bands(NULL, "iso", "f", 2); }
 
 /* The grazing bands of a sharp lobe: GGX 0.3 on iso at R = 16, whose
  * error at theta_i > 89 degrees sits in a few pairs near the mirror
- * direction past the last theta_d texel centre (88.5 degrees here; the
- * lookup clamps while f keeps rising), which a uniform draw meets too
+ * direction past the last theta_d texel centre (88.5 degrees here; f
+ * keeps rising there, which the lookup follows linearly since the eighth
+ * pass), which a uniform draw meets too
  * rarely to check the report against (docs/bands.md, seventh pass).  wi
  * uniform in the band, wo from a mixture aimed at the mirror peak
  * (bench/band_draw.h band_mix_draw), weighted back to the uniform measure:
