@@ -2,7 +2,10 @@
 """Where the error is (docs/bands.md): band errors of the default and auto
 fits of the analytic models (and the measured files given) at J = 1, 4, 8.
 
-    bench/bands.py [--build DIR] [--J 1,4,8] [--extra "ARGS"] [--check N [--grow M]] [FILE.bsdf ...]
+    bench/bands.py [--build DIR] [--J 1,4,8] [--models NAMES] [--extra "ARGS"] [--check N [--grow M]] [FILE.bsdf ...]
+
+--models "GGX 0.3,gold": only the models whose names contain one of these
+(empty: none, for measured files alone).
 
 For every source: `sepbrdf factor SOURCE -J J` (auto layout, plus --extra),
 then from report.json the kept layout and form, the headline, the band
@@ -133,9 +136,11 @@ def main():
     ap.add_argument("--check", type=int, default=0, help="pairs per band of the uniform draw (0: none)")
     ap.add_argument("--grow", type=int, default=0, help="with --check: the estimator grown to this many pairs too")
     ap.add_argument("--seeds", type=int, default=0, help="with --check: repeat the uniform draw with this many sequences")
+    ap.add_argument("--models", default=None, help="only the models whose names contain one of these (comma list)")
     ap.add_argument("files", nargs="*")
     a = ap.parse_args()
-    sources = MODELS + [(os.path.basename(f), f) for f in a.files]
+    models = [m for m in MODELS if a.models is None or any(w and w in m[0] for w in a.models.split(","))]
+    sources = models + [(os.path.basename(f), f) for f in a.files]
     checked = []
     print("| source | J | kept | headline | θi>80° | bound | θi>89° | bound | worst band | p99 lit | max lit | most negative |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")

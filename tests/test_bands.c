@@ -81,8 +81,9 @@ SB_TEST(bands_agree_with_brute_force_iso) { check_bands(NULL, "iso", "f", 2); }
 
 /* The grazing bands of a sharp lobe: GGX 0.3 on iso at R = 16, whose
  * error at theta_i > 89 degrees sits in a few pairs near the mirror
- * direction past the last theta_d texel centre (88.5 degrees here; the
- * lookup clamps while f keeps rising), which a uniform draw meets too
+ * direction past the last theta_d texel centre (88.5 degrees here; f
+ * keeps rising there, which the lookup follows linearly since the eighth
+ * pass), which a uniform draw meets too
  * rarely to check the report against (docs/bands.md, seventh pass).  wi
  * uniform in the band, wo from a mixture aimed at the mirror peak
  * (bench/band_draw.h band_mix_draw), weighted back to the uniform measure:
@@ -402,4 +403,32 @@ SB_TEST(max_error_keeps_band_bounds) {
 done:
     sb_job_destroy(job);
     sb_job_destroy(plain);
+}
+
+/* Beyond the last theta_d texel centre of iso (88.5 degrees at R = 16) the
+ * reconstruction follows the line through the last two centres
+ * (SB_EDGE_LINEAR; the snippet's SB_EDGE_H_S): GGX 0.3's grazing mirror
+ * peak keeps rising there, which the edge texel's value (sb_factors_lookup,
+ * CLAMP_TO_EDGE) held flat.  Mirror pairs theta_i = theta_o = theta_d, the
+ * source against sb_factors_eval and against the clamped sum. */
+SB_TEST(horizon_follows_source) {
+    sb_job_t *job = job_at_16("cook-torrance:roughness=0.3", "iso", "f", 2);
+    if (!job) return;
+    const sb_factors_t *f = sb_job_factors(job);
+    const sb_param_t *p = sb_job_param(job);
+    static const double deg[] = {88.5, 89.0, 89.5, 89.9};
+    for (size_t k = 0; k < sizeof deg / sizeof deg[0]; k++) {
+        double t = deg[k] * PI / 180, wi[3] = {sin(t), 0, cos(t)}, wo[3] = {-sin(t), 0, cos(t)};
+        double src[3] = {0, 0, 0}, rec[3] = {0, 0, 0}, sg[2], sh[2], flat = 0;
+        CHECK(sb_source_eval(sb_job_source(job), wi, wo, src) && sb_factors_eval(f, p, SB_FORM_F, 2, wi, wo, rec));
+        CHECK(sb_param_coords(p, wi, wo, sg, sh));
+        for (size_t j = 0; j < 2; j++)
+            flat += sb_factors_lookup(f, p, SB_SIDE_G, j, 1, sg) * sb_factors_lookup(f, p, SB_SIDE_H, j, 1, sh);
+        double e = fabs(rec[1] - src[1]) / src[1], e_flat = fabs(fmax(flat, 0) - src[1]) / src[1];
+        printf("  theta_d %.1f: f %.4g, reconstruction %.4g (rel %.3g), clamped lookup %.4g (rel %.3g)\n", deg[k],
+               src[1], rec[1], e, flat, e_flat);
+        if (k == 0) CHECKF(e < 0.01, "at the last texel centre: rel %.3g", e); /* the fit's own value */
+        if (k > 0) CHECKF(e < 0.1 && e < 0.5 * e_flat, "theta_d %.1f: rel %.3g, clamped %.3g", deg[k], e, e_flat);
+    }
+    sb_job_destroy(job);
 }

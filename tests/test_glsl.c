@@ -320,6 +320,15 @@ static char *hlsl_shader(const sb_param_t *p) {
         CHECKF(text && strstr(text, names[i][0]), "%s: no %s in spirv-cross's GLSL", sb_param_spec(p), names[i][0]);
         replace_all(&text, names[i][0], names[i][1]);
     }
+    /* GetDimensions (textureSize: sb_texture_h with SB_EDGE_H_S) reads a
+     * texture without its sampler: spirv-cross combines it with a dummy */
+    for (int s = 0; s < 2 && text; s++) {
+        char dummy[96], decl[128];
+        snprintf(dummy, sizeof dummy, "SPIRV_Cross_Combined%sSPIRV_Cross_DummySampler", s ? "sb_h" : "sb_g");
+        snprintf(decl, sizeof decl, "uniform sampler2DArray %s;", dummy);
+        replace_all(&text, decl, "");
+        replace_all(&text, dummy, s ? "sb_h" : "sb_g");
+    }
     return text;
 }
 

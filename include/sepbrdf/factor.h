@@ -104,11 +104,18 @@ SB_API double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t channe
  * (at most all); NaN for a NULL f. */
 SB_API double sb_factors_negative_fraction(const sb_factors_t *f, size_t terms);
 
-/* Texture lookup with the GL conventions of param.h (bilinear, wrap).
+/* Texture lookup with the GL conventions of param.h (bilinear, wrap):
+ * what a shader's texture() returns (the sampler's weights read it so).
  * NaN for NULL arguments, side, term or channel out of range, or a
  * non-finite st. */
 SB_API double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t channel,
                                 const double st[2]);
+/* The lookup the reconstruction makes (sb_brdf in the snippet,
+ * sb_factors_eval): sb_factors_lookup, but beyond the last texel centre of
+ * an axis whose edge is SB_EDGE_LINEAR (sb_param_edge) the line through
+ * the last two texel centres. */
+SB_API double sb_factors_lookup_brdf(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t channel,
+                                     const double st[2]);
 
 /* Reconstructed f_r(wi, wo) from the first `terms` terms through texture
  * lookups exactly as the GLSL snippet does, divided back by the form

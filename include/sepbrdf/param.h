@@ -72,6 +72,14 @@ typedef enum sb_param_kind {
 } sb_param_kind_t;
 
 enum { SB_WRAP_CLAMP = 0, SB_WRAP_REPEAT = 1 };
+/* Edge of a CLAMP axis beyond its last texel centre (sb_param_edge): the
+ * edge texel's value (CLAMP_TO_EDGE), or the line through the last two
+ * texel centres continued to the texture's edge s = 1 (half a texel; the
+ * snippet's SB_EDGE_H_S, data/sepbrdf.glsl).  iso's theta_d is LINEAR:
+ * towards the horizon f changes fastest (Fresnel, GGX's grazing mirror
+ * peak), where a clamp holds the value of the last centre (89.27 degrees
+ * at R = 32) up to 90. */
+enum { SB_EDGE_CLAMP = 0, SB_EDGE_LINEAR = 1 };
 enum { SB_SIDE_G = 0, SB_SIDE_H = 1 }; /* row textures g, column textures h */
 
 /* Warps: the monotone map s = W(x) of a texture's elevation axis, x =
@@ -207,6 +215,7 @@ SB_API size_t sb_param_rows(const sb_param_t *p);
 SB_API size_t sb_param_cols(const sb_param_t *p);
 SB_API void sb_param_texture_size(const sb_param_t *p, int side, size_t *width, size_t *height);
 SB_API void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]);
+SB_API void sb_param_edge(const sb_param_t *p, int side, int edge[2]); /* SB_EDGE_*, s then t */
 SB_API double sb_param_theta_max(const sb_param_t *p);
 
 /* Directions at the centre of matrix cell (row, col).  Returns 1 if the pair

@@ -364,6 +364,7 @@ sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scale
     for (int s = 0; s < 2; s++) {
         sb_factors_size(f, s, &e->tw[s], &e->th[s]);
         sb_param_wrap(p, s, e->wrap[s]);
+        sb_param_edge(p, s, e->edge[s]);
         for (size_t j = 0; j < J; j++)
             for (size_t c = 0; c < C; c++)
                 e->tex[s][j * C + c] = sb_factors_tex_const(f, s, j, c);

@@ -57,7 +57,7 @@ typedef struct eval {
     const double **tex[2]; /* [side][j * C + c] */
     double *itex[2];       /* [side][texel * J * C + j * C + c]: a tap's J C values in a row */
     size_t tw[2], th[2];
-    int wrap[2][2];
+    int wrap[2][2], edge[2][2];
     const double *scale; /* J per-term factors */
     const double *scs;   /* J C: scale[j] at j C + c, the itex rows' order */
     est_coords_t *co;    /* the pairs' coordinates under p (co_ready), or being filled, or NULL */

@@ -1,5 +1,5 @@
-/* The estimator's reconstruction (estimate_impl.h): the GL bilinear taps
- * of a texture side, the pairs' coordinates under a parameterisation
+/* The estimator's reconstruction (estimate_impl.h): the snippet's taps of
+ * a texture side (util/tex_axis.h), the pairs' coordinates under a parameterisation
  * (cached in slots of the pair set), every prefix's RGB at a pair, and the
  * evaluation state's release. */
 #include <math.h>
@@ -9,32 +9,12 @@
 #include "factor/estimate_impl.h"
 #include "param/serial.h"
 #include "util/internal.h"
+#include "util/tex_axis.h"
 
 /* ---- evaluating a reconstruction -------------------------------------- */
 
-static size_t wrap_i(long i, size_t n, int mode) {
-    if (i >= 0 && (size_t)i < n) return (size_t)i; /* inside: no division */
-    if (mode == SB_WRAP_REPEAT) {
-        long m = i % (long)n;
-        return (size_t)(m < 0 ? m + (long)n : m);
-    }
-    return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
-}
-
 void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]) {
-    size_t tw = e->tw[side], th = e->th[side];
-    double u = st[0] * (double)tw - 0.5, v = st[1] * (double)th - 0.5;
-    double fu = floor(u), fv = floor(v), a = u - fu, b = v - fv;
-    size_t x0 = wrap_i((long)fu, tw, e->wrap[side][0]), x1 = wrap_i((long)fu + 1, tw, e->wrap[side][0]);
-    size_t y0 = wrap_i((long)fv, th, e->wrap[side][1]), y1 = wrap_i((long)fv + 1, th, e->wrap[side][1]);
-    at[0] = y0 * tw + x0;
-    at[1] = y0 * tw + x1;
-    at[2] = y1 * tw + x0;
-    at[3] = y1 * tw + x1;
-    fw[0] = (1 - a) * (1 - b);
-    fw[1] = a * (1 - b);
-    fw[2] = (1 - a) * b;
-    fw[3] = a * b;
+    sb_tex_footprint(st, e->tw[side], e->th[side], e->wrap[side], e->edge[side], at, fw);
 }
 
 /* ---- coordinates of the pairs under a layout --------------------------- */

@@ -9,6 +9,7 @@
 
 #include "factor/errors.h"
 #include "util/internal.h"
+#include "util/tex_axis.h"
 
 /* ---- factors ----------------------------------------------------------- */
 
@@ -167,37 +168,31 @@ double sb_factors_cell(const sb_factors_t *f, size_t terms, size_t ch, size_t ro
     return s;
 }
 
-/* GL texel addressing: u = s * w - 1/2, i0 = floor(u), a = u - i0; wrap is
- * applied to i0 and i0 + 1 (CLAMP_TO_EDGE clamps, REPEAT takes mod w). */
-static size_t wrap_index(long i, size_t n, int mode) {
-    if (mode == SB_WRAP_REPEAT) {
-        long m = i % (long)n;
-        return (size_t)(m < 0 ? m + (long)n : m);
-    }
-    if (i < 0) return 0;
-    if ((size_t)i >= n) return n - 1;
-    return (size_t)i;
+/* The lookup of side at st with edges `edge` (util/tex_axis.h). */
+static double lookup_edged(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t ch,
+                           const double st[2], const int edge[2]) {
+    if (!in_range(f, side, term, ch) || !p || !st) return NAN;
+    size_t at[4];
+    double fw[4];
+    int wrap[2];
+    sb_param_wrap(p, side, wrap);
+    sb_tex_footprint(st, f->w[side], f->h[side], wrap, edge, at, fw);
+    if (!isfinite(fw[0] + fw[3])) return NAN;
+    const double *t = sb_factors_tex_const(f, side, term, ch);
+    return fw[0] * t[at[0]] + fw[1] * t[at[1]] + fw[2] * t[at[2]] + fw[3] * t[at[3]];
 }
 
 double sb_factors_lookup(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t ch,
                          const double st[2]) {
-    if (!in_range(f, side, term, ch) || !p || !st) return NAN;
-    size_t w = f->w[side], h = f->h[side];
-    int wrap[2];
-    sb_param_wrap(p, side, wrap);
-    const double *t = sb_factors_tex_const(f, side, term, ch);
-    double u = st[0] * (double)w - 0.5, v = st[1] * (double)h - 0.5;
-    if (!isfinite(u) || !isfinite(v)) return NAN;
-    /* far outside: whole periods off (REPEAT) or any edge value (CLAMP), so
-     * that the texel index fits a long */
-    if (fabs(u) > 1e9) u = wrap[0] == SB_WRAP_REPEAT ? fmod(u, (double)w) : copysign(1e9, u);
-    if (fabs(v) > 1e9) v = wrap[1] == SB_WRAP_REPEAT ? fmod(v, (double)h) : copysign(1e9, v);
-    double fu = floor(u), fv = floor(v);
-    double a = u - fu, b = v - fv;
-    size_t x0 = wrap_index((long)fu, w, wrap[0]), x1 = wrap_index((long)fu + 1, w, wrap[0]);
-    size_t y0 = wrap_index((long)fv, h, wrap[1]), y1 = wrap_index((long)fv + 1, h, wrap[1]);
-    return (1 - b) * ((1 - a) * t[y0 * w + x0] + a * t[y0 * w + x1]) +
-           b * ((1 - a) * t[y1 * w + x0] + a * t[y1 * w + x1]);
+    static const int clamp[2] = {SB_EDGE_CLAMP, SB_EDGE_CLAMP};
+    return lookup_edged(f, p, side, term, ch, st, clamp);
+}
+
+double sb_factors_lookup_brdf(const sb_factors_t *f, const sb_param_t *p, int side, size_t term, size_t ch,
+                              const double st[2]) {
+    int edge[2];
+    sb_param_edge(p, side, edge);
+    return lookup_edged(f, p, side, term, ch, st, edge);
 }
 
 int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],
@@ -210,7 +205,7 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
     double acc[3] = {0, 0, 0};
     for (size_t j = 0; j < terms; j++)
         for (size_t c = 0; c < f->channels; c++)
-            acc[c] += sb_factors_lookup(f, p, 0, j, c, sg) * sb_factors_lookup(f, p, 1, j, c, sh);
+            acc[c] += sb_factors_lookup_brdf(f, p, 0, j, c, sg) * sb_factors_lookup_brdf(f, p, 1, j, c, sh);
     if (f->channels == 1) acc[1] = acc[2] = acc[0];
     /* divide back the factored form, with the lecture's grazing guard */
     double w = sb_form_divisor(form, wi, wo), gain = sb_param_gain(p, wi, wo);

@@ -41,16 +41,9 @@
 #include "sepbrdf/factor.h"
 #include "util/internal.h"
 #include "util/parallel.h"
+#include "util/tex_axis.h"
 
 #define MAXJ 256
-
-static size_t wrap_i(long i, size_t n, int mode) {
-    if (mode == SB_WRAP_REPEAT) {
-        long m = i % (long)n;
-        return (size_t)(m < 0 ? m + (long)n : m);
-    }
-    return i < 0 ? 0 : ((size_t)i >= n ? n - 1 : (size_t)i);
-}
 
 /* What the units share: set up before the first phase, except dir, inside,
  * tab and side, which the first phases fill (each unit its own slice). */
@@ -61,7 +54,7 @@ typedef struct work {
     int clamp;             /* the reconstruction is max(0, sum) (sb_param_apply_gain) */
     const double **tex[2]; /* [side][j * C + c] */
     size_t tw[2], th[2];   /* texture sizes per side */
-    int wrap[2][2];
+    int wrap[2][2], edge[2][2];
     double *dir;                   /* N x 3: reference directions */
     double wt[256], guard[2][256]; /* per theta: m c^2; divisor per side */
     unsigned char *inside;         /* N: direction in the domain's cap */
@@ -75,17 +68,12 @@ typedef struct work {
     void (*fn)(struct work *, size_t);
 } work_t;
 
-/* Values of every term and channel of one side at st (GL bilinear,
- * identical to sb_factors_lookup up to rounding), divided by div. */
+/* Values of every term and channel of one side at st (the snippet's
+ * lookup, util/tex_axis.h: sb_factors_lookup_brdf up to rounding), divided by div. */
 static void lookups(const work_t *w, int side, const double st[2], double div, double *out) {
-    size_t tw = w->tw[side], th = w->th[side];
-    const int *wrap = w->wrap[side];
-    double u = st[0] * (double)tw - 0.5, v = st[1] * (double)th - 0.5;
-    double fu = floor(u), fv = floor(v), a = u - fu, b = v - fv;
-    size_t x0 = wrap_i((long)fu, tw, wrap[0]), x1 = wrap_i((long)fu + 1, tw, wrap[0]);
-    size_t y0 = wrap_i((long)fv, th, wrap[1]), y1 = wrap_i((long)fv + 1, th, wrap[1]);
-    size_t at[4] = {y0 * tw + x0, y0 * tw + x1, y1 * tw + x0, y1 * tw + x1};
-    double fw[4] = {(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b};
+    size_t at[4];
+    double fw[4];
+    sb_tex_footprint(st, w->tw[side], w->th[side], w->wrap[side], w->edge[side], at, fw);
     for (size_t i = 0; i < w->J * w->C; i++) {
         const double *t = w->tex[side][i];
         out[i] = (fw[0] * t[at[0]] + fw[1] * t[at[1]] + fw[2] * t[at[2]] + fw[3] * t[at[3]]) / div;
@@ -336,6 +324,7 @@ static void work_setup(work_t *w, const sb_factors_t *f, const sb_param_t *p, sb
     for (int s = 0; s < 2; s++) {
         sb_factors_size(f, s, &w->tw[s], &w->th[s]);
         sb_param_wrap(p, s, w->wrap[s]);
+        sb_param_edge(p, s, w->edge[s]);
         for (size_t j = 0; j < w->J; j++)
             for (size_t c = 0; c < w->C; c++)
                 w->tex[s][j * w->C + c] = sb_factors_tex_const(f, s, j, c);

@@ -18,7 +18,7 @@ static int prefix_values(const sb_factors_t *f, const sb_param_t *p, sb_form_t f
     double w = sb_form_divisor(form, wi, wo), gain = sb_param_gain(p, wi, wo);
     for (size_t j = 0; j < J; j++) {
         for (size_t c = 0; c < ch; c++)
-            run[c] += sb_factors_lookup(f, p, 0, j, c, sg) * sb_factors_lookup(f, p, 1, j, c, sh);
+            run[c] += sb_factors_lookup_brdf(f, p, 0, j, c, sg) * sb_factors_lookup_brdf(f, p, 1, j, c, sh);
         for (size_t c = 0; c < 3; c++)
             acc[j * 3 + c] = sb_param_apply_gain(p, run[ch == 1 ? 0 : c], gain) / w;
     }

@@ -68,8 +68,8 @@ static int sw_choose(const sb_factors_t *f, const sb_param_t *p, const sw_sample
     for (size_t j = 0; j < J; j++) {
         for (size_t i = 0; i < n; i++)
             for (size_t c = 0; c < C; c++)
-                t[i * C + c] =
-                    sb_factors_lookup(f, p, 0, j, c, s[i].sg) * sb_factors_lookup(f, p, 1, j, c, s[i].sh) / s[i].div;
+                t[i * C + c] = sb_factors_lookup_brdf(f, p, 0, j, c, s[i].sg) *
+                               sb_factors_lookup_brdf(f, p, 1, j, c, s[i].sh) / s[i].div;
         double e0 = sw_error(s, n, R, t, C, 0), wj = 1;
         if (sw_error(s, n, R, t, C, 1) > e0) { /* the most of the term that does not raise it */
             double a = 0, b = 0;               /* linear: e(w) = e(0) - 2 w b + w^2 a, e(w) <= e(0) up to w = 2 b / a */

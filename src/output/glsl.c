@@ -37,9 +37,10 @@ char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const d
     const char *coords = sb_param_glsl(p), *lib = sb_glsl_library();
     char *s = malloc(cap);
     if (!s) return NULL;
-    int wg[2], wh[2];
+    int wg[2], wh[2], eh[2];
     sb_param_wrap(p, SB_SIDE_G, wg);
     sb_param_wrap(p, SB_SIDE_H, wh);
+    sb_param_edge(p, SB_SIDE_H, eh);
     char tmax[64];
     float_literal(tmax, sizeof tmax, sb_param_theta_max(p));
     size_t n = (size_t)snprintf(s, cap,
@@ -55,9 +56,12 @@ char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const d
                                 "// wrap: 0 = CLAMP_TO_EDGE, 1 = REPEAT (s, t axes)\n"
                                 "#define SB_WRAP_G_S %d\n#define SB_WRAP_G_T %d\n"
                                 "#define SB_WRAP_H_S %d\n#define SB_WRAP_H_T %d\n"
+                                "// edge of h's s axis: 1 = beyond the last texel centre the line through\n"
+                                "// the last two (sb_texture_h), 0 = the edge texel (CLAMP_TO_EDGE)\n"
+                                "#define SB_EDGE_H_S %d\n"
                                 "const float sb_scale[SB_TERMS] = float[SB_TERMS](",
                                 SB_VERSION_STRING, sb_param_spec(p), sb_form_name(form), terms, terms, (int)form,
-                                !p->opts.plain, tmax, wg[0], wg[1], wh[0], wh[1]);
+                                !p->opts.plain, tmax, wg[0], wg[1], wh[0], wh[1], eh[0]);
     for (size_t j = 0; j < terms; j++) {
         if (j) n += (size_t)snprintf(s + n, cap - n, ", ");
         n += float_literal(s + n, cap - n, scales ? scales[j] : 1.0);

@@ -264,6 +264,12 @@ void sb_param_wrap(const sb_param_t *p, int side, int wrap[2]) {
     wrap[0] = ok ? p->wrap[side][0] : 0;
     wrap[1] = ok ? p->wrap[side][1] : 0;
 }
+void sb_param_edge(const sb_param_t *p, int side, int edge[2]) {
+    if (!edge) return;
+    int ok = p && (side == SB_SIDE_G || side == SB_SIDE_H);
+    edge[0] = ok ? p->edge[side][0] : SB_EDGE_CLAMP;
+    edge[1] = ok ? p->edge[side][1] : SB_EDGE_CLAMP;
+}
 int sb_param_cell_dirs(const sb_param_t *p, size_t row, size_t col, double wi[3], double wo[3]) {
     if (!p || !wi || !wo || row >= p->rows || col >= p->cols) return 0;
     return p->vt->cell_dirs(p, row, col, wi, wo);

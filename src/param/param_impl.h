@@ -27,6 +27,7 @@ struct sb_param {
     size_t rows, cols;
     size_t tex_w[2], tex_h[2];
     int wrap[2][2];
+    int edge[2][2];             /* SB_EDGE_*, per side and axis (0: CLAMP_TO_EDGE's) */
     char *glsl;                 /* the vt's GLSL, after the warp functions of SB_CAP_WARPS layouts */
     sb_layout_tables_t *tables; /* SB_CAP_TABLES: its own copy (opts.tables points here) */
     char spec[SB_PARAM_SPEC_MAX];

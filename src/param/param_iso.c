@@ -17,7 +17,8 @@
  * that filters across phi_d = 0 ~ pi correctly (CLAMP would be right only
  * with the extra mirror symmetry phi_d -> -phi_d).  theta axes CLAMP.
  * st_g = (W_h(theta_h / theta_max), 1/2), st_h = (W_d(theta_d / theta_max), phi_d / pi)
- * with the axes' warps (param.h).
+ * with the axes' warps (param.h).  Beyond the last theta_d texel centre
+ * the lookup follows the line through the last two (SB_EDGE_LINEAR).
  *
  * Cells: by default theta_h follows MERL's square-root spacing, W_h(x) =
  * sqrt(x), theta_h = u^2 theta_max at uniform u = (i + 1/2) / th, which puts
@@ -109,7 +110,8 @@ static const sb_param_vt_t iso_vt = {
     iso_col_measure,
     iso_coords,
     "// iso: Rusinkiewicz angles; g: s = sb_warp_h(theta_h / SB_THETA_MAX) (t = 1/2),\n"
-    "// h: s = sb_warp_d(theta_d / SB_THETA_MAX) (clamp), t = phi_d / pi, phi_d folded\n"
+    "// h: s = sb_warp_d(theta_d / SB_THETA_MAX) (linear beyond the last texel centre,\n"
+    "// SB_EDGE_H_S), t = phi_d / pi, phi_d folded\n"
     "// into [0, pi) by reciprocity (repeat).\n"
     "vec4 sb_coords(vec3 L, vec3 V) {\n"
     "    vec3 s = L + V;\n"
@@ -158,7 +160,12 @@ static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
     if (!o->res_phi_d) o->res_phi_d = o->res / 2 > 2 ? o->res / 2 : 2;
     const size_t n[3] = {o->res_theta_h, o->res_theta_d, o->res_phi_d};
     static const char *const axes[3] = {"theta_h", "theta_d", "phi_d"}, *const keys[3] = {"th", "td", "pd"};
-    return sb_param_line_by_grid(ctx, p, &iso_vt, "iso", n, axes, keys, ISO_MAX_CELLS, SB_WRAP_REPEAT);
+    sb_result_t r = sb_param_line_by_grid(ctx, p, &iso_vt, "iso", n, axes, keys, ISO_MAX_CELLS, SB_WRAP_REPEAT);
+    /* theta_d beyond the last texel centre (89.27 deg at td = 62): the line
+     * through the last two, where a clamp held f (GGX 0.3's mirror peak
+     * rises 94.5 -> 110 there; docs/bands.md) */
+    p->edge[SB_SIDE_H][0] = SB_EDGE_LINEAR;
+    return r;
 }
 
 const sb_param_desc_t sb_param_desc_iso = {
