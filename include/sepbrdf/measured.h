@@ -172,7 +172,10 @@ typedef struct sb_measured_opts {
     sb_gamut_t gamut;   /* spectral tables: SB_GAMUT_KEEP (default) */
     /* scattered tables, cross-validation: with cv_folds >= 2, the samples
      * of fold cv_fold (sample i, in reading order, is in fold
-     * sb_measured_fold(i, cv_folds)) are left out of the table */
+     * sb_measured_fold(i, cv_folds)) are left out of the table; with
+     * interp and lobe given too the table is not cross-validated itself
+     * (interp_cv NAN, cv_held_out 0: a refit's table uses what the whole
+     * table chose) */
     size_t cv_folds, cv_fold;
     sb_lobe_mode_t lobe; /* scattered tables: SB_LOBE_AUTO */
     /* with lobe SB_LOBE_ON, NULL or a lobe whose shape family (ndf, f0,

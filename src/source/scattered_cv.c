@@ -105,7 +105,14 @@ void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, s
     double cv_off[SB_INTERP_COUNT_], cv_on[SB_INTERP_COUNT_], e_off = INFINITY, e_on = INFINITY;
     size_t miss_off[SB_INTERP_COUNT_], miss_on[SB_INTERP_COUNT_];
     sb_interp_t best_off = SB_INTERP_QUADRATIC, best_on = SB_INTERP_QUADRATIC;
-    if (o->lobe != SB_LOBE_ON) e_off = cv_all(t, o, kfit, cv_off, miss_off, &info->cv_held_out, &best_off);
+    /* a fold's table with the method and the lobe given (the refits of
+     * the cross-validation at the measurements) uses them as given: its
+     * own leave-one-out errors would choose nothing (interp_cv NAN) */
+    int fixed = o->cv_folds >= 2 && o->interp != SB_INTERP_DEFAULT && o->lobe != SB_LOBE_AUTO;
+    for (int k = 0; fixed && k < SB_INTERP_COUNT_; k++)
+        cv_off[k] = cv_on[k] = NAN, miss_off[k] = miss_on[k] = 0;
+    if (fixed) info->cv_held_out = 0;
+    if (o->lobe != SB_LOBE_ON && !fixed) e_off = cv_all(t, o, kfit, cv_off, miss_off, &info->cv_held_out, &best_off);
     double *raw = t->val, *q = NULL;
     if (o->lobe != SB_LOBE_OFF) {
         sb_lobe_fit_(t->smp, t->ns, o->lobe == SB_LOBE_ON ? o->lobe_shape : NULL, &t->lobe);
@@ -114,7 +121,7 @@ void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, s
     if (q) {
         t->val = q;
         t->lobe_on = 1;
-        e_on = cv_all(t, o, kfit, cv_on, miss_on, &info->cv_held_out, &best_on);
+        if (!fixed) e_on = cv_all(t, o, kfit, cv_on, miss_on, &info->cv_held_out, &best_on);
     }
     int use = q && (o->lobe == SB_LOBE_ON || e_on < LOBE_GAIN * e_off);
     if (q && !use) {
