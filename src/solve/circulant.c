@@ -15,34 +15,10 @@
 #include <emmintrin.h>
 #endif
 
+#include "solve/circulant_impl.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rdft.h"
-
-typedef struct cand {
-    double s;
-    unsigned k, idx, member; /* frequency, index within block k, 0 = cos (or single), 1 = sin */
-} cand_t;
-
-struct sb_circ {
-    sb_context_t *ctx;
-    size_t R, nb;             /* period, blocks R/2 + 1 */
-    double *K;                /* R blocks R x R (weighted, symmetrised) */
-    double *C;                /* nb blocks C_k (R^2 x nb) */
-    double *Cv;               /* a copy of C, overwritten by dgesdd */
-    double *T;                /* R x nb: cos(2 pi k m / R) */
-    unsigned char *need;      /* nb: block k holds a selected triplet */
-    size_t *list, nlist;      /* the blocks whose singular values this batch computes */
-    unsigned char *done;      /* nb: block k's singular values are known */
-    double *fro;              /* nb: ||C_k||_F^2, the sum of block k's squared singular values */
-    double *sv, *A, *VT;      /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
-    double *ct;               /* cos(2 pi q / R), q = 0..R-1 */
-    double *work;             /* per thread: lwork doubles */
-    lapack_int lwork, *iwork; /* per thread: 8 R */
-    int nth;                  /* threads of the block SVDs and the transform */
-    int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
-    cand_t *cand;             /* R^2 candidates, sorted */
-};
 
 void sb_circ_destroy(sb_circ_t *c) {
     if (!c) return;
@@ -61,6 +37,7 @@ void sb_circ_destroy(sb_circ_t *c) {
     free(c->work);
     free(c->iwork);
     free(c->cand);
+    sb_circ_sym_free(c);
     free(c);
 }
 
@@ -89,7 +66,7 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
     /* the blocks are independent: one thread per core above ~2^22 flops */
     c->nth = sb_threads_for(0, c->nb, c->nb * R2 * R, (size_t)1 << 22);
-    c->iwork = sb_alloc(ctx, 8 * R * (size_t)c->nth, sizeof(lapack_int), "circulant");
+    c->iwork = sb_alloc(ctx, SB_CIRC_IW * R * (size_t)c->nth, sizeof(lapack_int), "circulant");
     c->cand = sb_alloc(ctx, R2, sizeof(cand_t), "circulant");
     if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->list || !c->done || !c->fro || !c->sv || !c->A || !c->VT ||
         !c->ct || !c->iwork || !c->cand) {
@@ -111,6 +88,11 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     if (info != 0 || !c->work) {
         sb_circ_destroy(c);
         return c->work ? sb_error(ctx, SB_ERR_NUMERIC, "circulant: dgesdd workspace query failed") : SB_ERR_NOMEM;
+    }
+    sb_result_t r = sb_circ_sym_alloc(c);
+    if (r != SB_OK) {
+        sb_circ_destroy(c);
+        return r;
     }
     *out = c;
     return SB_OK;
@@ -211,7 +193,7 @@ static void *blk_svd(void *arg) {
     blk_job_t *j = arg;
     sb_circ_t *c = j->c;
     size_t R = c->R, R2 = R * R;
-    lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * 8 * R;
+    lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * SB_CIRC_IW * R;
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
     if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
         if (j->k1 > j->k0 && !c->fft)
@@ -228,12 +210,17 @@ static void *blk_svd(void *arg) {
     for (size_t p = j->k0; p < j->k1 && j->info == 0; p++) {
         size_t k = j->pass == 2 ? c->list[p] : p; /* pass 2: positions in the batch's list */
         if (j->pass == 1 && !c->need[k]) continue;
+        j->bad = k;
+        if (j->pass == 2) /* a symmetric block as such; else (or where LAPACK fails) dgesdd */
+            c->sym[k] = c->ksym && sb_circ_sym_values(c, k, j->t) == 0;
+        else if (c->sym[k])
+            c->sym[k] = sb_circ_sym_vectors(c, k, j->t) == 0;
+        if (c->sym[k]) continue;
         memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
         int vec = j->pass == 1;
         j->info =
             LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, c->sv + k * R,
                                 vec ? c->A + k * R2 : NULL, n, vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
-        j->bad = k;
     }
     return NULL;
 }
@@ -337,6 +324,7 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
                 c->K[m * R2 + it + ot * R] =
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
+    c->ksym = sb_circ_kernel_symmetric(c->K, R);
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
      * each block's squared Frobenius norm, blocks split among threads */
     c->fft = sb_rdft_cols(R, c->nb, R2, c->K, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
@@ -364,8 +352,16 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
     /* Step: vectors of the blocks that hold a selected triplet; their
      * values replace the first pass's (equal to rounding, same order) */
     memset(c->need, 0, c->nb);
-    for (size_t j = 0; j < J; j++)
-        c->need[c->cand[j].k] = 1;
+    c->nsym = 0;
+    for (size_t k = 0; k < c->nb; k++) {
+        c->nvec[k] = 0;
+        c->nsym += c->done[k] && c->sym[k];
+    }
+    for (size_t j = 0; j < J; j++) {
+        const cand_t *q = &c->cand[j];
+        c->need[q->k] = 1;
+        c->nvec[q->k] = q->idx + 1 > c->nvec[q->k] ? q->idx + 1 : c->nvec[q->k];
+    }
     if ((res = blocks_run(c, 1)) != SB_OK) return res;
     for (size_t j = 0; j < J; j++)
         c->cand[j].s = c->sv[c->cand[j].k * R + c->cand[j].idx];

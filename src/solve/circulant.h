@@ -51,6 +51,11 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
 sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
                             double *mx);
 
+/* How many blocks the last sb_circ_svd decomposed as symmetric matrices
+ * (bit-for-bit symmetric: eigenvalues and eigenvectors, see
+ * circulant_sym.c) rather than by dgesdd. */
+size_t sb_circ_sym_blocks(const sb_circ_t *c);
+
 /* ||W A W||_F^2 scaled by scale^2, from the first block row. */
 double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, double scale);
 
