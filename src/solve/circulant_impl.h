@@ -49,6 +49,10 @@ struct sb_circ {
     size_t nsym; /* blocks decomposed as symmetric by the last sb_circ_svd */
 };
 
+/* Frequency k has one vector (k = 0, and R / 2 at even R), not a cos/sin
+ * pair. */
+static inline int sb_circ_single(const sb_circ_t *c, unsigned k) { return k == 0 || (c->R % 2 == 0 && k == c->R / 2); }
+
 /* Whether every block K_m of the kernel K (R blocks R x R, column-major)
  * equals its transpose bit for bit. */
 int sb_circ_kernel_symmetric(const double *K, size_t R);
