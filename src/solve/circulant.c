@@ -209,15 +209,19 @@ static void *blk_svd(void *arg) {
         size_t k = j->pass == 2 ? c->list[p] : p; /* pass 2: positions in the batch's list */
         if (j->pass == 1 && !c->need[k]) continue;
         j->bad = k;
-        if (j->pass == 2) /* a symmetric block as such; else (or where LAPACK fails) dgesdd */
-            c->sym[k] = c->ksym && sb_circ_sym_values(c, k, j->t) == 0;
-        else if (c->sym[k])
-            c->sym[k] = sb_circ_sym_vectors(c, k, j->t) == 0;
+        /* a symmetric block as such, in place; else dgesdd on a copy, also
+         * where LAPACK fails on it (C_k then made again, by the product) */
+        int was = j->pass == 2 ? c->ksym : c->sym[k];
+        c->sym[k] = was && (j->pass == 2 ? sb_circ_sym_values(c, k, j->t) : sb_circ_sym_vectors(c, k, j->t)) == 0;
         if (c->sym[k]) continue;
+        if (was)
+            cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->K, (int)R2, c->T + k * R, 1, 0.0,
+                        c->C + k * R2, 1);
         memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
-        int vec = j->pass == 1;
+        int vec = j->pass == 1, keep = was && vec;              /* keep: the values stay those the selection used */
+        double *sv = keep ? c->tri + k * 3 * R : c->sv + k * R; /* the tridiagonal is of no more use */
         j->info =
-            LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, c->sv + k * R,
+            LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, sv,
                                 vec ? c->A + k * R2 : NULL, n, vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
     }
     return NULL;

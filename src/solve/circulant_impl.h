@@ -22,8 +22,8 @@ struct sb_circ {
     sb_context_t *ctx;
     size_t R, nb;             /* period, blocks R/2 + 1 */
     double *K;                /* R blocks R x R (weighted, symmetrised) */
-    double *C;                /* nb blocks C_k (R^2 x nb) */
-    double *Cv;               /* a copy of C, overwritten by dgesdd (or dsytrd's reflectors) */
+    double *C;                /* nb blocks C_k (R^2 x nb); a symmetric block's dsytrd reflectors */
+    double *Cv;               /* a copy of C, overwritten by dgesdd */
     double *T;                /* R x nb: cos(2 pi k m / R) */
     unsigned char *need;      /* nb: block k holds a selected triplet */
     size_t *nvec;             /* nb: how many of block k's leading triplets are selected */
@@ -53,16 +53,17 @@ struct sb_circ {
  * pair. */
 static inline int sb_circ_single(const sb_circ_t *c, unsigned k) { return k == 0 || (c->R % 2 == 0 && k == c->R / 2); }
 
-/* Whether every block K_m of the kernel K (R blocks R x R, column-major)
- * equals its transpose bit for bit. */
+/* Whether every block K_m of the symmetrised kernel K (R blocks R x R,
+ * column-major, K_m = K_(R-m) to the bit) equals its transpose bit for
+ * bit: the blocks m <= R / 2 are read. */
 int sb_circ_kernel_symmetric(const double *K, size_t R);
 /* The symmetric workspace of c (c->R, c->nb, c->nth set); SB_OK or
  * SB_ERR_NOMEM / SB_ERR_NUMERIC. */
 sb_result_t sb_circ_sym_alloc(sb_circ_t *c);
 void sb_circ_sym_free(sb_circ_t *c);
 /* Block k's singular values (|eigenvalues|, decreasing) into c->sv, its
- * reduction kept in c->Cv and c->tri, on thread t's workspace; LAPACK's
- * info. */
+ * reduction kept in c->C (in place of C_k) and c->tri, on thread t's
+ * workspace; LAPACK's info (C_k is then lost). */
 lapack_int sb_circ_sym_values(sb_circ_t *c, size_t k, int t);
 /* The c->nvec[k] leading triplets' vectors of block k (after
  * sb_circ_sym_values) into c->A and c->VT as dgesdd lays them out. */

@@ -22,7 +22,7 @@
 #include "util/internal.h"
 
 int sb_circ_kernel_symmetric(const double *K, size_t R) {
-    for (size_t m = 0; m < R; m++)
+    for (size_t m = 0; m <= R / 2; m++) /* K_(R-m) is K_m: the same two values summed */
         for (size_t o = 1; o < R; o++)
             for (size_t i = 0; i < o; i++)
                 if (!(K[m * R * R + i + o * R] == K[m * R * R + o + i * R])) return 0; /* a NaN is not symmetric */
@@ -70,12 +70,11 @@ static double *scratch(const sb_circ_t *c, int t) {
 lapack_int sb_circ_sym_values(sb_circ_t *c, size_t k, int t) {
     size_t R = c->R, R2 = R * R;
     lapack_int n = (lapack_int)R;
-    double *a = c->Cv + k * R2, *d = c->tri + k * 3 * R, *e = d + R, *tau = e + R;
+    double *a = c->C + k * R2, *d = c->tri + k * 3 * R, *e = d + R, *tau = e + R;
     double *dc = scratch(c, t), *ec = dc + R, *work = dc + 3 * R + R2;
-    const double *C = c->C + k * R2;
     for (size_t o = 0; o < R; o++) /* the lower triangle, which dsytrd reads: the mean of C_k and its transpose */
-        for (size_t i = o; i < R; i++)
-            a[i + o * R] = 0.5 * (C[i + o * R] + C[o + i * R]);
+        for (size_t i = o + 1; i < R; i++)
+            a[i + o * R] = 0.5 * (a[i + o * R] + a[o + i * R]);
     lapack_int info = LAPACKE_dsytrd_work(LAPACK_COL_MAJOR, 'L', n, a, n, d, e, tau, work, c->slwork);
     if (info != 0) return info;
     memcpy(dc, d, R * sizeof *dc);
@@ -121,7 +120,7 @@ lapack_int sb_circ_sym_vectors(sb_circ_t *c, size_t k, int t) {
     if (b > 0) info = tri_vectors(c, k, t, 1, (lapack_int)b, Z);
     if (info == 0 && a > 0) info = tri_vectors(c, k, t, n - (lapack_int)a + 1, n, Z + b * R);
     if (info == 0)
-        info = LAPACKE_dormtr_work(LAPACK_COL_MAJOR, 'L', 'L', 'N', n, (lapack_int)m, c->Cv + k * R2, n,
+        info = LAPACKE_dormtr_work(LAPACK_COL_MAJOR, 'L', 'L', 'N', n, (lapack_int)m, c->C + k * R2, n,
                                    c->tri + k * 3 * R + 2 * R, Z, n, work, c->slwork);
     if (info != 0) return info;
     for (size_t i = 0, lo = 0; i < m; i++) {
