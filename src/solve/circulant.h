@@ -10,7 +10,8 @@
  *     M (e_k (x) b) = e_k (x) C_k b,   C_k = sum_m K_m cos(2 pi k m / R),
  * and the SVD of M is the union of the SVDs of the R/2 + 1 blocks C_k
  * (k = 0, R/2 once; 0 < k < R/2 twice, with the cos and the sin vector).
- * Cost: R^4 / 2 for the transform and (R/2 + 1) dgesdd of R x R, against
+ * Cost: R^4 / 2 for the transform and at most R/2 + 1 SVDs of R x R
+ * (symmetric blocks by their eigendecomposition, circulant_sym.c), against
  * R^6 for a dense SVD; every singular value comes out, so the error of
  * every truncation is the exact tail sum_{r > J} sigma_r^2.
  *
