@@ -288,10 +288,17 @@ sb_result_t sb_factors_quantize(sb_context_t *ctx, const sb_factors_t *f, const 
             const double *t = sb_factors_tex_const(f, side, term, c);
             double *d = sb_factors_tex(q, side, term, c);
             size_t flushed = 0;
-            for (size_t i = 0; i < n; i++) {
-                d[i] = texel_stored(&cd, t[i]);
-                flushed += t[i] != 0 && d[i] == 0;
-            }
+            if (!cd.half && cd.scale == 1) /* FLOAT: texel_stored's own operations, in a loop that vectorises */
+                for (size_t i = 0; i < n; i++) {
+                    float v = (float)t[i];
+                    d[i] = (double)v;
+                    flushed += t[i] != 0 && v == 0;
+                }
+            else
+                for (size_t i = 0; i < n; i++) {
+                    d[i] = texel_stored(&cd, t[i]);
+                    flushed += t[i] != 0 && d[i] == 0;
+                }
             if (info) {
                 info->texels += n;
                 info->flushed += flushed;

@@ -15,34 +15,10 @@
 #include <emmintrin.h>
 #endif
 
+#include "solve/circulant_impl.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rdft.h"
-
-typedef struct cand {
-    double s;
-    unsigned k, idx, member; /* frequency, index within block k, 0 = cos (or single), 1 = sin */
-} cand_t;
-
-struct sb_circ {
-    sb_context_t *ctx;
-    size_t R, nb;             /* period, blocks R/2 + 1 */
-    double *K;                /* R blocks R x R (weighted, symmetrised) */
-    double *C;                /* nb blocks C_k (R^2 x nb) */
-    double *Cv;               /* a copy of C, overwritten by dgesdd */
-    double *T;                /* R x nb: cos(2 pi k m / R) */
-    unsigned char *need;      /* nb: block k holds a selected triplet */
-    size_t *list, nlist;      /* the blocks whose singular values this batch computes */
-    unsigned char *done;      /* nb: block k's singular values are known */
-    double *fro;              /* nb: ||C_k||_F^2, the sum of block k's squared singular values */
-    double *sv, *A, *VT;      /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
-    double *ct;               /* cos(2 pi q / R), q = 0..R-1 */
-    double *work;             /* per thread: lwork doubles */
-    lapack_int lwork, *iwork; /* per thread: 8 R */
-    int nth;                  /* threads of the block SVDs and the transform */
-    int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
-    cand_t *cand;             /* R^2 candidates, sorted */
-};
 
 void sb_circ_destroy(sb_circ_t *c) {
     if (!c) return;
@@ -61,6 +37,7 @@ void sb_circ_destroy(sb_circ_t *c) {
     free(c->work);
     free(c->iwork);
     free(c->cand);
+    sb_circ_sym_free(c);
     free(c);
 }
 
@@ -89,7 +66,7 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
     /* the blocks are independent: one thread per core above ~2^22 flops */
     c->nth = sb_threads_for(0, c->nb, c->nb * R2 * R, (size_t)1 << 22);
-    c->iwork = sb_alloc(ctx, 8 * R * (size_t)c->nth, sizeof(lapack_int), "circulant");
+    c->iwork = sb_alloc(ctx, SB_CIRC_IW * R * (size_t)c->nth, sizeof(lapack_int), "circulant");
     c->cand = sb_alloc(ctx, R2, sizeof(cand_t), "circulant");
     if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->list || !c->done || !c->fro || !c->sv || !c->A || !c->VT ||
         !c->ct || !c->iwork || !c->cand) {
@@ -111,6 +88,11 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     if (info != 0 || !c->work) {
         sb_circ_destroy(c);
         return c->work ? sb_error(ctx, SB_ERR_NUMERIC, "circulant: dgesdd workspace query failed") : SB_ERR_NOMEM;
+    }
+    sb_result_t r = sb_circ_sym_alloc(c);
+    if (r != SB_OK) {
+        sb_circ_destroy(c);
+        return r;
     }
     *out = c;
     return SB_OK;
@@ -182,13 +164,11 @@ static int cand_cmp(const void *pa, const void *pb) {
     return a->member < b->member ? -1 : (a->member > b->member);
 }
 
-static int single(const sb_circ_t *c, unsigned k) { return k == 0 || (c->R % 2 == 0 && k == c->R / 2); }
-
 /* The unit phi vector of (k, member) at azimuth index i. */
 static double phi_vec(const sb_circ_t *c, unsigned k, unsigned member, size_t i) {
     size_t R = c->R;
     if (k == 0) return 1 / sqrt((double)R);
-    if (single(c, k)) return (i % 2 ? -1.0 : 1.0) / sqrt((double)R);
+    if (sb_circ_single(c, k)) return (i % 2 ? -1.0 : 1.0) / sqrt((double)R);
     size_t q = ((size_t)k * i) % R;
     double ang = c->ct[q], amp = sqrt(2.0 / (double)R);
     if (member == 0) return amp * ang;
@@ -211,7 +191,7 @@ static void *blk_svd(void *arg) {
     blk_job_t *j = arg;
     sb_circ_t *c = j->c;
     size_t R = c->R, R2 = R * R;
-    lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * 8 * R;
+    lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * SB_CIRC_IW * R;
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
     if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
         if (j->k1 > j->k0 && !c->fft)
@@ -228,12 +208,21 @@ static void *blk_svd(void *arg) {
     for (size_t p = j->k0; p < j->k1 && j->info == 0; p++) {
         size_t k = j->pass == 2 ? c->list[p] : p; /* pass 2: positions in the batch's list */
         if (j->pass == 1 && !c->need[k]) continue;
-        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
-        int vec = j->pass == 1;
-        j->info =
-            LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, c->sv + k * R,
-                                vec ? c->A + k * R2 : NULL, n, vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
         j->bad = k;
+        /* a symmetric block as such, in place; else dgesdd on a copy, also
+         * where LAPACK fails on it (C_k then made again, by the product) */
+        int was = j->pass == 2 ? c->ksym : c->sym[k];
+        c->sym[k] = was && (j->pass == 2 ? sb_circ_sym_values(c, k, j->t) : sb_circ_sym_vectors(c, k, j->t)) == 0;
+        if (c->sym[k]) continue;
+        if (was)
+            cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->K, (int)R2, c->T + k * R, 1, 0.0,
+                        c->C + k * R2, 1);
+        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
+        int vec = j->pass == 1, keep = was && vec;              /* keep: the values stay those the selection used */
+        double *sv = keep ? c->tri + k * 3 * R : c->sv + k * R; /* the tridiagonal is of no more use */
+        j->info =
+            LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, sv,
+                                vec ? c->A + k * R2 : NULL, n, vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
     }
     return NULL;
 }
@@ -285,7 +274,7 @@ static size_t gather(sb_circ_t *c) {
     size_t R = c->R, nc = 0;
     for (unsigned k = 0; k < c->nb; k++)
         for (unsigned i = 0; i < R && c->done[k]; i++)
-            for (unsigned mb = 0; mb < (single(c, k) ? 1u : 2u); mb++)
+            for (unsigned mb = 0; mb < (sb_circ_single(c, k) ? 1u : 2u); mb++)
                 c->cand[nc++] = (cand_t){c->sv[k * R + i], k, i, mb};
     qsort(c->cand, nc, sizeof *c->cand, cand_cmp);
     return nc;
@@ -313,7 +302,7 @@ static sb_result_t select_blocks(sb_circ_t *c, size_t J, size_t *nc) {
             size_t k = o[next++].k;
             c->list[c->nlist++] = k;
             c->done[k] = 1;
-            have += (single(c, k) ? 1 : 2) * R;
+            have += (sb_circ_single(c, k) ? 1 : 2) * R;
         }
         r = blocks_run(c, 2);
         if (r == SB_OK && have >= J) {
@@ -337,6 +326,7 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
                 c->K[m * R2 + it + ot * R] =
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
+    c->ksym = sb_circ_kernel_symmetric(c->K, R);
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
      * each block's squared Frobenius norm, blocks split among threads */
     c->fft = sb_rdft_cols(R, c->nb, R2, c->K, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
@@ -352,7 +342,7 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
     if ((res = select_blocks(c, J, &nc)) != SB_OK) return res;
     double skipped = 0;
     for (size_t k = 0; k < c->nb; k++)
-        if (!c->done[k]) skipped += (single(c, k) ? 1.0 : 2.0) * c->fro[k];
+        if (!c->done[k]) skipped += (sb_circ_single(c, k) ? 1.0 : 2.0) * c->fro[k];
     /* Step: tails, summed from the smallest value up */
     double t = skipped * scale * scale;
     for (size_t r = nc; r-- > 1;) {
@@ -364,8 +354,16 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
     /* Step: vectors of the blocks that hold a selected triplet; their
      * values replace the first pass's (equal to rounding, same order) */
     memset(c->need, 0, c->nb);
-    for (size_t j = 0; j < J; j++)
-        c->need[c->cand[j].k] = 1;
+    c->nsym = 0;
+    for (size_t k = 0; k < c->nb; k++) {
+        c->nvec[k] = 0;
+        c->nsym += c->done[k] && c->sym[k];
+    }
+    for (size_t j = 0; j < J; j++) {
+        const cand_t *q = &c->cand[j];
+        c->need[q->k] = 1;
+        c->nvec[q->k] = q->idx + 1 > c->nvec[q->k] ? q->idx + 1 : c->nvec[q->k];
+    }
     if ((res = blocks_run(c, 1)) != SB_OK) return res;
     for (size_t j = 0; j < J; j++)
         c->cand[j].s = c->sv[c->cand[j].k * R + c->cand[j].idx];
@@ -382,219 +380,5 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
             }
         }
     }
-    return SB_OK;
-}
-
-/* max_i |x[i] - t y[i]|; with `store`, x[i] becomes x[i] - t y[i] (the
- * subtraction and the maximum in one pass).  SSE2, or AVX2 where the CPU
- * has it (circ_avx2): the same operations, so the same bits. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#include <immintrin.h>
-#define CIRC_AVX2 1
-__attribute__((target("avx2"))) static double absmax_axpy_avx2(double *x, double t, const double *y, size_t n,
-                                                               int store) {
-    size_t i = 0;
-    __m256d vm = _mm256_setzero_pd(), vt = _mm256_set1_pd(t), sign = _mm256_set1_pd(-0.0);
-    for (; i + 4 <= n; i += 4) {
-        __m256d d = _mm256_sub_pd(_mm256_loadu_pd(x + i), _mm256_mul_pd(vt, _mm256_loadu_pd(y + i)));
-        if (store) _mm256_storeu_pd(x + i, d);
-        vm = _mm256_max_pd(vm, _mm256_andnot_pd(sign, d));
-    }
-    double tmp[4], mx;
-    _mm256_storeu_pd(tmp, vm);
-    mx = tmp[0] > tmp[1] ? tmp[0] : tmp[1];
-    mx = tmp[2] > mx ? tmp[2] : mx;
-    mx = tmp[3] > mx ? tmp[3] : mx;
-    for (; i < n; i++) {
-        double d = x[i] - t * y[i];
-        if (store) x[i] = d;
-        if (fabs(d) > mx) mx = fabs(d);
-    }
-    return mx;
-}
-#endif
-
-#ifdef CIRC_AVX2
-static int circ_avx2(void) {
-    static int has = -1;
-    if (has < 0) has = __builtin_cpu_supports("avx2") ? 1 : 0;
-    return has;
-}
-#endif
-
-static double absmax_axpy_st(double *x, double t, const double *y, size_t n, int store) {
-#ifdef CIRC_AVX2
-    if (circ_avx2()) return absmax_axpy_avx2(x, t, y, n, store);
-#endif
-    size_t i = 0;
-    double mx = 0;
-#if defined(__SSE2__)
-    __m128d vm = _mm_setzero_pd(), vt = _mm_set1_pd(t), sign = _mm_set1_pd(-0.0);
-    for (; i + 2 <= n; i += 2) {
-        __m128d d = _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(vt, _mm_loadu_pd(y + i)));
-        if (store) _mm_storeu_pd(x + i, d);
-        vm = _mm_max_pd(vm, _mm_andnot_pd(sign, d));
-    }
-    double tmp[2];
-    _mm_storeu_pd(tmp, vm);
-    mx = tmp[0] > tmp[1] ? tmp[0] : tmp[1];
-#endif
-    for (; i < n; i++) {
-        double d = x[i] - t * y[i];
-        if (store) x[i] = d;
-        if (fabs(d) > mx) mx = fabs(d);
-    }
-    return mx;
-}
-
-static double absmax_axpy(const double *x, double t, const double *y, size_t n) {
-    return absmax_axpy_st((double *)x, t, y, n, 0); /* store = 0: x is only read */
-}
-
-/* One step of the residual sweep of sb_circ_max_abs, for one error mx[j]:
- * lone, the cos vector of a pair alone (the largest |row - B v at| over v
- * in {hi[d], lo[d]}, B = sg bt[ot] / R, the row left as it is); else the
- * whole term or pair subtracted (row -= sg bt[ot] e[d] at) and the
- * largest |row| after it. */
-typedef struct circ_step {
-    int lone;
-    double sg;
-    const double *at, *bt, *e; /* R each; lone: hi at e, lo at e + R */
-} circ_step_t;
-
-/* The residual kernel's rows d in [d0, d1) of one thread, every step on
- * each row while it is in the cache: one read of the stored values instead
- * of a read and a write of an R^3 copy per term (io R = 256, J = 8: the
- * factor step 1.95 -> 1.70 s, the peak 802 -> 675 MiB). */
-typedef struct rows_job {
-    const circ_step_t *st;
-    size_t nst, R, ld, d0, d1;
-    const double *a;
-    double *row, *mx; /* R scratch; nst maxima */
-} rows_job_t;
-
-static void *rows_max(void *arg) {
-    rows_job_t *j = arg;
-    size_t R = j->R;
-    double *row = j->row;
-    for (size_t s = 0; s < j->nst; s++)
-        j->mx[s] = 0;
-    for (size_t d = j->d0; d < j->d1; d++)
-        for (size_t ot = 0; ot < R; ot++) {
-            memcpy(row, j->a + (d * R + ot) * j->ld, R * sizeof *row); /* over theta_i */
-            for (size_t s = 0; s < j->nst; s++) {
-                const circ_step_t *st = &j->st[s];
-                double m;
-                if (st->lone) {
-                    double B = st->sg * st->bt[ot] / (double)R;
-                    double x = absmax_axpy(row, B * st->e[d], st->at, R);
-                    double y = absmax_axpy(row, B * st->e[R + d], st->at, R);
-                    m = fmax(x, y);
-                } else {
-                    double cf = st->sg * st->bt[ot] * st->e[d];
-                    m = absmax_axpy_st(row, cf, st->at, R, 1); /* row -= cf at, and its largest |.| */
-                }
-                j->mx[s] = fmax(j->mx[s], m);
-            }
-        }
-    return NULL;
-}
-
-/* The cos vector alone breaks the structure.  With
- * a = 2 pi k / R, its cell (i, o) is cf (2/R) cos(a i) cos(a o)
- * = (cf/R) (cos(a (o - i)) + cos(a (o + i))): for each azimuth
- * difference d the cells differ only in cos(a s), s = o + i =
- * d + 2i mod R, and |A - B cos| is largest at the extremes of
- * cos over the reachable s (the parity of d when R is even). */
-static void cos_bounds(const sb_circ_t *c, const cand_t *q, double *e) {
-    size_t R = c->R;
-    double cmx[2] = {-2, -2}, cmn[2] = {2, 2};
-    for (size_t s2 = 0; s2 < R; s2++) {
-        double cv = c->ct[((size_t)q->k * s2) % R];
-        int par = R % 2 == 0 ? (int)(s2 % 2) : 0;
-        if (cv > cmx[par]) cmx[par] = cv;
-        if (cv < cmn[par]) cmn[par] = cv;
-    }
-    if (R % 2) {
-        cmx[1] = cmx[0];
-        cmn[1] = cmn[0];
-    }
-    double *hi = e, *lo = e + R;
-    for (size_t d = 0; d < R; d++) {
-        double ck = c->ct[((size_t)q->k * d) % R];
-        hi[d] = ck + cmx[d % 2]; /* A - B cmx = row - B (ck + cmx) */
-        lo[d] = ck + cmn[d % 2];
-    }
-}
-
-/* The phase of each azimuth difference d in a whole (circulant) term or
- * pair: 1/R (k = 0), (-1)^d / R (the single Nyquist term), else
- * 2 cos(2 pi k d / R) / R. */
-static void term_phase(const sb_circ_t *c, const cand_t *q, double *e) {
-    size_t R = c->R;
-    for (size_t d = 0; d < R; d++) {
-        double ph;
-        if (q->k == 0)
-            ph = 1 / (double)R;
-        else if (single(c, q->k))
-            ph = (d % 2 ? -1.0 : 1.0) / (double)R;
-        else
-            ph = 2 * c->ct[((size_t)q->k * d) % R] / (double)R;
-        e[d] = ph;
-    }
-}
-
-sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
-                            double *mx) {
-    size_t R = c->R, R2 = R * R;
-    if (J == 0) return SB_OK;
-    /* Step: the steps' vectors (at, bt, phi factors: 4R each) */
-    int nt = c->nth;
-    double *buf = sb_alloc(c->ctx, J * 4 * R + (size_t)nt * (R + J), sizeof *buf, "circulant residual steps");
-    circ_step_t *st = malloc(J * sizeof *st);
-    if (!buf || !st) {
-        free(buf);
-        free(st);
-        return buf ? sb_error(c->ctx, SB_ERR_NOMEM, "circulant: out of memory") : SB_ERR_NOMEM;
-    }
-    size_t ns = 0;
-    for (size_t j = 0; j < J; j++) {
-        const cand_t *q = &c->cand[j];
-        const double *A = c->A + (size_t)q->k * R2 + (size_t)q->idx * R, *VT = c->VT + (size_t)q->k * R2;
-        double sg = q->s * sigma_scale, *at = buf + ns * 4 * R, *bt = at + R, *e = bt + R;
-        for (size_t i = 0; i < R; i++) {
-            double wi = w ? w[i] : 1;
-            at[i] = wi > 0 ? A[i] / wi : 0;
-            bt[i] = wi > 0 ? VT[q->idx + i * R] / wi : 0;
-        }
-        int pair_next = !single(c, q->k) && j + 1 < J && c->cand[j + 1].k == q->k && c->cand[j + 1].idx == q->idx;
-        if (!single(c, q->k)) {
-            cos_bounds(c, q, e);
-            st[ns++] = (circ_step_t){1, sg, at, bt, e};
-            if (!pair_next) break; /* J ends inside the pair */
-            j++;
-            /* the pair's next step subtracts both members: the same vectors */
-            memcpy(buf + ns * 4 * R, at, 2 * R * sizeof *at);
-            at = buf + ns * 4 * R, bt = at + R, e = bt + R;
-        }
-        term_phase(c, q, e); /* Step: subtract the whole (circulant) term or pair */
-        st[ns++] = (circ_step_t){0, sg, at, bt, e};
-    }
-    /* Step: every row once, split by the azimuth difference d */
-    rows_job_t jobs[SB_THREADS_MAX];
-    double *scratch = buf + J * 4 * R;
-    for (int t = 0; t < nt; t++) {
-        jobs[t] =
-            (rows_job_t){st, ns, R, ld, 0, 0, a, scratch + (size_t)t * (R + J), scratch + (size_t)t * (R + J) + R};
-        sb_part(R, t, nt, &jobs[t].d0, &jobs[t].d1);
-    }
-    sb_parallel_run(rows_max, jobs, sizeof *jobs, nt, NULL, NULL);
-    for (size_t s2 = 0; s2 < ns; s2++) {
-        mx[s2] = 0;
-        for (int t = 0; t < nt; t++)
-            mx[s2] = fmax(mx[s2], jobs[t].mx[s2]);
-    }
-    free(buf);
-    free(st);
     return SB_OK;
 }

@@ -10,7 +10,8 @@
  *     M (e_k (x) b) = e_k (x) C_k b,   C_k = sum_m K_m cos(2 pi k m / R),
  * and the SVD of M is the union of the SVDs of the R/2 + 1 blocks C_k
  * (k = 0, R/2 once; 0 < k < R/2 twice, with the cos and the sin vector).
- * Cost: R^4 / 2 for the transform and (R/2 + 1) dgesdd of R x R, against
+ * Cost: R^4 / 2 for the transform and at most R/2 + 1 SVDs of R x R
+ * (symmetric blocks by their eigendecomposition, circulant_sym.c), against
  * R^6 for a dense SVD; every singular value comes out, so the error of
  * every truncation is the exact tail sum_{r > J} sigma_r^2.
  *
@@ -50,6 +51,11 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
  * pair (closed form over the azimuths).  mx receives J values. */
 sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const double *w, double sigma_scale, size_t J,
                             double *mx);
+
+/* How many blocks the last sb_circ_svd decomposed as symmetric matrices
+ * (bit-for-bit symmetric: eigenvalues and eigenvectors, see
+ * circulant_sym.c) rather than by dgesdd. */
+size_t sb_circ_sym_blocks(const sb_circ_t *c);
 
 /* ||W A W||_F^2 scaled by scale^2, from the first block row. */
 double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, double scale);

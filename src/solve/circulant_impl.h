@@ -1,0 +1,72 @@
+/* Private to the block-circulant solver: its workspace, shared by
+ * circulant.c (transform, selection, residual maxima) and circulant_sym.c
+ * (blocks that are symmetric decomposed as such). */
+#ifndef SEPBRDF_CIRCULANT_IMPL_H
+#define SEPBRDF_CIRCULANT_IMPL_H
+
+#include <lapacke.h>
+#include <stddef.h>
+
+#include "solve/circulant.h"
+
+typedef struct cand {
+    double s;
+    unsigned k, idx, member; /* frequency, index within block k, 0 = cos (or single), 1 = sin */
+} cand_t;
+
+/* LAPACK integers per thread: dgesdd's 8 R, or dstemr's 10 R and its
+ * support 2 R. */
+#define SB_CIRC_IW 12
+
+struct sb_circ {
+    sb_context_t *ctx;
+    size_t R, nb;             /* period, blocks R/2 + 1 */
+    double *K;                /* R blocks R x R (weighted, symmetrised) */
+    double *C;                /* nb blocks C_k (R^2 x nb); a symmetric block's dsytrd reflectors */
+    double *Cv;               /* a copy of C, overwritten by dgesdd */
+    double *T;                /* R x nb: cos(2 pi k m / R) */
+    unsigned char *need;      /* nb: block k holds a selected triplet */
+    size_t *nvec;             /* nb: how many of block k's leading triplets are selected */
+    size_t *list, nlist;      /* the blocks whose singular values this batch computes */
+    unsigned char *done;      /* nb: block k's singular values are known */
+    double *fro;              /* nb: ||C_k||_F^2, the sum of block k's squared singular values */
+    double *sv, *A, *VT;      /* per block: R singular values, R x R left vectors, R x R right vectors (transposed) */
+    double *ct;               /* cos(2 pi q / R), q = 0..R-1 */
+    double *work;             /* per thread: lwork doubles */
+    lapack_int lwork, *iwork; /* per thread: SB_CIRC_IW R */
+    int nth;                  /* threads of the block SVDs and the transform */
+    int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
+    cand_t *cand;             /* R^2 candidates, sorted */
+    /* symmetric blocks (circulant_sym.c): C_k = Q diag(lambda) Q^T, so
+     * sigma = |lambda|, v = q, u = sign(lambda) q */
+    int ksym;           /* the kernel of the last sb_circ_svd is symmetric (sb_circ_kernel_symmetric) */
+    unsigned char *sym; /* nb: block k was decomposed as symmetric */
+    double *tri;        /* nb x 3 R: dsytrd's diagonal, off-diagonal and tau of block k */
+    double *lam;        /* nb x R: the eigenvalues in the order of sv (|lambda| decreasing) */
+    lapack_int *pos;    /* nb x R: their places in the ascending order */
+    double *swork;      /* per thread: slwork doubles */
+    lapack_int slwork;
+    size_t nsym; /* blocks decomposed as symmetric by the last sb_circ_svd */
+};
+
+/* Frequency k has one vector (k = 0, and R / 2 at even R), not a cos/sin
+ * pair. */
+static inline int sb_circ_single(const sb_circ_t *c, unsigned k) { return k == 0 || (c->R % 2 == 0 && k == c->R / 2); }
+
+/* Whether every block K_m of the symmetrised kernel K (R blocks R x R,
+ * column-major, K_m = K_(R-m) to the bit) equals its transpose bit for
+ * bit: the blocks m <= R / 2 are read. */
+int sb_circ_kernel_symmetric(const double *K, size_t R);
+/* The symmetric workspace of c (c->R, c->nb, c->nth set); SB_OK or
+ * SB_ERR_NOMEM / SB_ERR_NUMERIC. */
+sb_result_t sb_circ_sym_alloc(sb_circ_t *c);
+void sb_circ_sym_free(sb_circ_t *c);
+/* Block k's singular values (|eigenvalues|, decreasing) into c->sv, its
+ * reduction kept in c->C (in place of C_k) and c->tri, on thread t's
+ * workspace; LAPACK's info (C_k is then lost). */
+lapack_int sb_circ_sym_values(sb_circ_t *c, size_t k, int t);
+/* The c->nvec[k] leading triplets' vectors of block k (after
+ * sb_circ_sym_values) into c->A and c->VT as dgesdd lays them out. */
+lapack_int sb_circ_sym_vectors(sb_circ_t *c, size_t k, int t);
+
+#endif
