@@ -112,8 +112,8 @@
  * 1.75; the default gold 1.86 -> 1.66 (docs/positive.md). */
 #define SB_NMF_SECOND_MIX 0.8
 #define SB_NMF_MIX_CELLS ((size_t)1 << 17)
-/* A third fit at the headline's own weights (mu = 1) on matrices of at
- * most SB_NMF_THIRD_CELLS cells (vndf), kept only by this margin on the
+/* A third fit at the headline's own weights (mu = 1) on unmasked matrices
+ * of at most SB_NMF_THIRD_CELLS cells (vndf), kept by this margin on the
  * squared ratio: the proxy misses vndf's interpolation between rows (RGL
  * malachite, red: 1.279 against 1.289 kept, J' = 4 1.72 -> 2.42x the
  * SVD's headline); chm_light_blue 1.84 -> 1.49, silk 1.75 -> 1.49. */
@@ -555,7 +555,7 @@ static void fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     fit_mix(s, in, out, SB_NMF_HEADLINE_MIX, 0, 1, &best);
     if (!s->hw_ok || !(s->gam > 0)) return;
     fit_mix(s, in, out, SB_NMF_SECOND_MIX, 1, 1, &best);
-    if (m * n <= SB_NMF_THIRD_CELLS) fit_mix(s, in, out, 1, 1, SB_NMF_THIRD_MARGIN, &best);
+    if (!s->fit && m * n <= SB_NMF_THIRD_CELLS) fit_mix(s, in, out, 1, 1, SB_NMF_THIRD_MARGIN, &best);
     memcpy(out->u, s->ub, m * J * sizeof *s->ub);
     memcpy(out->v, s->vb, n * J * sizeof *s->vb);
     out->converged = s->conv;
