@@ -8,7 +8,8 @@
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
-#include "solve/nmf_weights.h" /* not exported, in the static archive */
+#include "solve/nmf_gram.h" /* not exported, in the static archive */
+#include "solve/nmf_weights.h"
 
 static sb_param_t *iso8(void) {
     sb_param_t *p = NULL;
@@ -128,4 +129,31 @@ SB_TEST(worst_ratio_against_the_reference) {
     hw[7] = 0;
     x[7] += 100; /* a cell of weight 0 changes nothing */
     CHECKF(fabs(sb_nmf_worst_ratio(x, hw, M, N, J, R, S, R, S, 1e-300) - 1) < 1e-12, "weight-0 cell counted");
+}
+
+/* The terms as s_j |u_j| |v_j| (src/solve/nmf_gram.c sb_nmf_normalise):
+ * unit factors, each product s_j u_j v_j^T as before, and a term with a
+ * zero factor left at s_j = 0 without NaNs. */
+SB_TEST(normalise_keeps_every_term) {
+    enum { M = 4, N = 6, J = 3 };
+    double U[M * J], V[N * J], U0[M * J], V0[N * J], sig[J];
+    for (size_t k = 0; k < M * J; k++)
+        U0[k] = U[k] = 0.3 + fabs(sin(1.3 * (double)k));
+    for (size_t k = 0; k < N * J; k++)
+        V0[k] = V[k] = k / N == 2 ? 0 : 2.5 * fabs(cos(0.7 * (double)k));
+    sb_nmf_normalise(M, N, J, sig, U, V);
+    for (size_t j = 0; j < J; j++) {
+        double nu = 0, nv = 0;
+        for (size_t i = 0; i < M; i++)
+            nu += U[i + j * M] * U[i + j * M];
+        for (size_t c = 0; c < N; c++)
+            nv += V[c + j * N] * V[c + j * N];
+        CHECKF(fabs(nu - 1) < 1e-12, "term %zu: |u|^2 = %g", j, nu);
+        CHECKF(j == 2 ? nv == 0 && sig[j] == 0 : fabs(nv - 1) < 1e-12, "term %zu: |v|^2 = %g, s = %g", j, nv, sig[j]);
+        for (size_t i = 0; i < M; i++)
+            for (size_t c = 0; c < N; c++) {
+                double was = U0[i + j * M] * V0[c + j * N], now = sig[j] * U[i + j * M] * V[c + j * N];
+                CHECKF(fabs(now - was) <= 1e-12 * (1 + was), "term %zu at (%zu, %zu): %g, was %g", j, i, c, now, was);
+            }
+    }
 }

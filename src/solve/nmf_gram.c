@@ -179,3 +179,20 @@ int sb_nmf_gram_fit(const sb_nmf_gram_opts_t *o, const double *x, size_t m, size
     free(g.t);
     return 0;
 }
+
+void sb_nmf_normalise(size_t m, size_t n, size_t J, double *sig, double *U, double *V) {
+    for (size_t j = 0; j < J; j++) {
+        double nu = 0, nv = 0, *u = U + j * m, *v = V + j * n;
+        for (size_t i = 0; i < m; i++)
+            nu += u[i] * u[i];
+        for (size_t i = 0; i < n; i++)
+            nv += v[i] * v[i];
+        nu = sqrt(nu);
+        nv = sqrt(nv);
+        sig[j] = nu * nv;
+        for (size_t i = 0; nu > 0 && i < m; i++)
+            u[i] /= nu;
+        for (size_t i = 0; nv > 0 && i < n; i++)
+            v[i] /= nv;
+    }
+}

@@ -27,4 +27,8 @@ typedef struct sb_nmf_gram_opts {
 int sb_nmf_gram_fit(const sb_nmf_gram_opts_t *o, const double *x, size_t m, size_t n, size_t J, double *U, double *V,
                     int *iterations, int *converged);
 
+/* The terms as s_j = |u_j| |v_j| with unit u_j (m rows) and v_j (n),
+ * in place, j = 0..J-1 (a zero factor stays zero). */
+void sb_nmf_normalise(size_t m, size_t n, size_t J, double *sig, double *U, double *V);
+
 #endif
