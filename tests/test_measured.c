@@ -1297,6 +1297,45 @@ SB_TEST(pole_no_pinholes) {
     sb_source_destroy(s);
 }
 
+/* A value of the interpolated table is a function of the pair alone: the
+ * same bits whatever was asked before (the search starts from the previous
+ * query's neighbours, the table remembers values by position), at random
+ * pairs asked forward on one table, backward on a second, and again. */
+SB_TEST(value_independent_of_history) {
+    const char *path = SB_MEASURED_DIR "/cornell_acryl_blue.brdf";
+    sb_source_t *a = open_table(path, NULL, NULL), *b = open_table(path, NULL, NULL);
+    enum { N = 3000 };
+    static double wi[N][3], wo[N][3], va[N][3], vb[N][3], vc[N][3];
+    int ka[N], kb[N], kc[N];
+    if (!a || !b) goto done;
+    uint64_t st = 42;
+#define NEXT (st = st * 6364136223846793005ull + 1442695040888963407ull, st >> 33)
+    for (int i = 0; i < N; i++) {
+        /* clustered: pairs near each other, as a matrix row asks them */
+        double ti = (i / 50) * 0.026 + 0.001 * (double)(NEXT % 100), to = 0.4 + 0.002 * (i % 50);
+        double pi_ = 0.01 * (double)(NEXT % 628), po = pi_ + 0.05 * (double)(i % 7);
+        sb_dir_from_angles(ti, pi_, wi[i]);
+        sb_dir_from_angles(to, po, wo[i]);
+    }
+#undef NEXT
+    for (int i = 0; i < N; i++)
+        ka[i] = sb_source_eval(a, wi[i], wo[i], va[i]);
+    for (int i = N - 1; i >= 0; i--)
+        kb[i] = sb_source_eval(b, wi[i], wo[i], vb[i]);
+    for (int i = 0; i < N; i++)
+        kc[i] = sb_source_eval(a, wi[i], wo[i], vc[i]);
+    size_t differ = 0, known = 0;
+    for (int i = 0; i < N; i++) {
+        known += ka[i] != 0;
+        differ += ka[i] != kb[i] || ka[i] != kc[i] || memcmp(va[i], vb[i], sizeof va[i]) != 0 ||
+                  memcmp(va[i], vc[i], sizeof va[i]) != 0;
+    }
+    CHECKF(differ == 0 && known > N / 2, "%zu of %d pairs differ (%zu known)", differ, N, known);
+done:
+    sb_source_destroy(a);
+    sb_source_destroy(b);
+}
+
 /* The coverage map sums to the coverage; a table measured everywhere is
  * known in every band, the 3M tape (four light elevations) is not. */
 SB_TEST(coverage_map) {

@@ -758,6 +758,18 @@ SB_TEST(cv_predicts_unseen_measurements) {
     CHECKF(unseen < 2 * cv, "cv_headline %g, unseen measurements %g (headline %g)", cv, unseen,
            sb_job_headline(job, 4));
     CHECKF(unseen < 0.05, "unseen measurements %g (without the lobe 0.33)", unseen);
+    /* the refits run side by side on the cores: on one thread, in turn,
+     * the figures are the same bits */
+    sb_job_t *one = NULL;
+    setenv("SEPBRDF_THREADS", "1", 1);
+    CHECK(sb_job_run(NULL, &o, &one) == SB_OK);
+    unsetenv("SEPBRDF_THREADS");
+    for (size_t j = 1; one && j <= 4; j++) {
+        double se1, cv1 = sb_job_cv(one, j, &se1, NULL), se2, cv2 = sb_job_cv(job, j, &se2, NULL);
+        CHECKF(memcmp(&cv1, &cv2, sizeof cv1) == 0 && memcmp(&se1, &se2, sizeof se1) == 0,
+               "J' = %zu: cv %.17g +- %.17g on one thread, %.17g +- %.17g on all", j, cv1, se1, cv2, se2);
+    }
+    sb_job_destroy(one);
     /* an analytic source has none */
     sb_job_t *an = NULL;
     o.source = model;

@@ -11,6 +11,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../src/util/internal.h"
 #include "../src/util/parallel.h"
 #include "harness.h"
 
@@ -83,6 +84,44 @@ SB_TEST(calls_from_inside_a_job) {
         CHECKF(atomic_load(&runs[t]) == 200, "outer job %d ran %d times", t, atomic_load(&runs[t]));
     for (int t = 0; t < NJOB; t++) /* 3 outer jobs, each one inner call of NJOB jobs */
         CHECKF(atomic_load(&runs[NJOB + t]) == 600, "inner job %d ran %d times", t, atomic_load(&runs[NJOB + t]));
+}
+
+/* A call from inside a job runs its jobs on the job's thread, one after
+ * the other, and sees one thread (sb_thread_count): the outer call has the
+ * cores. */
+typedef struct where {
+    pthread_t self, inner[NJOB];
+    int nested, count;
+} where_t;
+
+static void *inner_where(void *arg) {
+    where_t *w = arg;
+    w->self = pthread_self();
+    return NULL;
+}
+
+static void *outer_where(void *arg) {
+    where_t *w = arg;
+    w->self = pthread_self();
+    w->nested = sb_parallel_nested();
+    w->count = sb_thread_count(0);
+    where_t in[NJOB];
+    sb_parallel_run(inner_where, in, sizeof in[0], NJOB, NULL, NULL);
+    for (int t = 0; t < NJOB; t++)
+        w->inner[t] = in[t].self;
+    return NULL;
+}
+
+SB_TEST(nested_call_runs_on_its_thread) {
+    CHECK(!sb_parallel_nested());
+    where_t w[3];
+    sb_parallel_run(outer_where, w, sizeof w[0], 3, NULL, NULL);
+    CHECK(!sb_parallel_nested());
+    for (int t = 0; t < 3; t++) {
+        CHECKF(w[t].nested == 1 && w[t].count == 1, "job %d: nested %d, threads %d", t, w[t].nested, w[t].count);
+        for (int u = 0; u < NJOB; u++)
+            CHECKF(pthread_equal(w[t].inner[u], w[t].self), "job %d: inner job %d ran on another thread", t, u);
+    }
 }
 
 typedef struct caller {

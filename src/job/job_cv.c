@@ -17,12 +17,14 @@
  * the median's, 1.2533 * 1.4826 MAD / sqrt(K) (the normal's relative
  * efficiency with the MAD as the scale); cv_max is the worst fold. */
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
 #include "job_impl.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 /* Interpolation CV (leave-one-out at the measurements) above which the
  * table is said not to predict itself, whatever the refits found. */
@@ -161,6 +163,54 @@ static void cv_combine(sb_job_t *job, size_t K, size_t J, const double *E, const
     free(r);
 }
 
+/* The refits run side by side, one per thread, each on one thread inside
+ * (a fold's matrix, fit and table are its own): every fork and join of a
+ * fit's sweeps cost a wake-up, and two refits share no data.  Each thread
+ * takes the next fold from a counter and keeps its errors in its own
+ * context; the sums are added in fold order, so the figures do not depend
+ * on which thread refitted which fold. */
+typedef struct folds {
+    const sb_job_t *job;
+    size_t K, refits;
+    atomic_size_t next;
+    sb_factors_t **ff;
+    sb_result_t *r;
+    sb_context_t **ctx; /* per fold, for its error message */
+} folds_t;
+
+static void *folds_run(void *arg) {
+    folds_t *fs = arg;
+    for (size_t k; (k = atomic_fetch_add(&fs->next, 1)) < fs->refits;)
+        fs->r[k] = sb_context_create(&fs->ctx[k]) == SB_OK ? fold_fit(fs->ctx[k], fs->job, fs->K, k, &fs->ff[k])
+                                                           : SB_ERR_NOMEM;
+    return NULL;
+}
+
+static sb_result_t folds_fit(sb_context_t *ctx, sb_job_t *job, size_t K, size_t refits, size_t J, double *E,
+                             double *T) {
+    job_progress(job, "cross-validation", 0);
+    folds_t fs = {
+        job, K, refits, 0, calloc(refits, sizeof *fs.ff), calloc(refits, sizeof *fs.r), calloc(refits, sizeof *fs.ctx)};
+    sb_result_t r = fs.ff && fs.r && fs.ctx ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "cross-validation: out of memory");
+    int nt = sb_group_active(ctx) ? 1 : sb_threads_for(0, refits, refits, 2);
+    if (r == SB_OK && nt == 1) { /* a group of processes shares the refits' matrices: in turn, with ctx */
+        for (size_t k = 0; k < refits && (r = fold_fit(ctx, job, K, k, &fs.ff[k])) == SB_OK; k++)
+            job_progress(job, "cross-validation", (double)(k + 1) / (double)refits);
+    } else if (r == SB_OK) {
+        sb_parallel_run(folds_run, &fs, 0, nt, NULL, NULL); /* BLAS is on one thread during a job */
+        for (size_t k = 0; k < refits && r == SB_OK; k++)
+            if ((r = fs.r[k]) != SB_OK) sb_error(ctx, r, "%s", fs.ctx[k] ? sb_context_last_error(fs.ctx[k]) : "");
+    }
+    for (size_t k = 0; k < refits && r == SB_OK; k++)
+        fold_sums(job, fs.ff[k], K, k, J, E + k * J, T + k, &job->cv_held);
+    for (size_t k = 0; fs.ff && fs.ctx && k < refits; k++) {
+        sb_factors_destroy(fs.ff[k]);
+        sb_context_destroy(fs.ctx[k]);
+    }
+    free(fs.ff), free(fs.r), free(fs.ctx);
+    return r;
+}
+
 sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     const sb_measured_info_t *in = sb_measured_source_info(job->src);
     size_t K = job->o.cv_folds ? job->o.cv_folds : JOB_CV_FOLDS, refits = job->o.cv_folds ? K : JOB_CV_REFITS;
@@ -176,13 +226,7 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
         return sb_error(ctx, SB_ERR_NOMEM, "cross-validation: out of memory");
     }
     job->cv_se = job->cv + J, job->cv_pooled = job->cv + 2 * J, job->cv_max = job->cv + 3 * J;
-    sb_result_t r = SB_OK;
-    for (size_t k = 0; k < refits && r == SB_OK; k++) {
-        job_progress(job, "cross-validation", (double)k / (double)refits);
-        sb_factors_t *ff = NULL;
-        if ((r = fold_fit(ctx, job, K, k, &ff)) == SB_OK) fold_sums(job, ff, K, k, J, E + k * J, T + k, &job->cv_held);
-        sb_factors_destroy(ff);
-    }
+    sb_result_t r = folds_fit(ctx, job, K, refits, J, E, T);
     if (r == SB_OK) {
         cv_combine(job, refits, J, E, T);
         job->cv_folds = K;

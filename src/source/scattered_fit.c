@@ -134,6 +134,10 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
         last.n = q.n;
         memcpy(last.at, q.at, q.n * sizeof *q.at);
     }
+    /* The heap's order depends on the bound the search started from; in
+     * one order the fits sum the same terms in the same order whatever
+     * was asked before (a value is a function of x alone). */
+    sb_knn_canon_(&q);
     return sb_table_from_knn_(t, interp, x, &q, rgb);
 }
 
@@ -188,6 +192,9 @@ int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, co
  * dphi-independent at the pole, continuous at the edge, never missing
  * where any azimuth is known.  A measured position keeps its measurement. */
 static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
+    const double key[SB_MEMO_KEY] = {x[0], x[1], -1, 0, 0, 0}; /* no position has x[2] < 0 */
+    int state = t->memo ? sb_memo_find(t->memo, key, rgb) : 0;
+    if (state) return state == 1;
     double acc[3] = {0, 0, 0}, v[3], y[MAX_DIM] = {x[0], x[1], 0, 0};
     int n = 0;
     for (int k = 0; k < POLE_STEPS; k++) {
@@ -207,15 +214,17 @@ static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
     }
     for (int c = 0; c < 3; c++)
         rgb[c] = n ? acc[c] / n : 0;
+    if (t->memo) sb_memo_store(t->memo, key, rgb, n > 0 ? 1 : 2);
     return n > 0;
 }
 
-int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
-    const table_t *t = self;
-    rgb[0] = rgb[1] = rgb[2] = 0;
-    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
-    double x[MAX_DIM] = {0};
-    sb_scat_embed_(t->iso, t->recip, wi, wo, x);
+/* The value at embedded position x with the pole blend, before the lobe's
+ * factor (0 missing, 1 known, 2 measured), remembered by position: pairs
+ * that reciprocity and isotropy fold onto one position share it. */
+static int table_at_pole(const table_t *t, const double *x, double rgb[3]) {
+    const double key[SB_MEMO_KEY] = {x[0], x[1], x[2], x[3], 0, 0};
+    int state = t->memo ? sb_memo_find(t->memo, key, rgb) : 0;
+    if (state) return state - 1;
     int known = sb_table_at_(t, t->interp, t->k, x, NULL, 0, rgb);
     double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
     if (!(known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole))) {
@@ -224,6 +233,17 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
             rgb[c] = w * rgb[c] + (1 - w) * pole[c];
         known = 1;
     }
+    if (t->memo) sb_memo_store(t->memo, key, rgb, known + 1);
+    return known;
+}
+
+int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    const table_t *t = self;
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
+    double x[MAX_DIM] = {0};
+    sb_scat_embed_(t->iso, t->recip, wi, wo, x);
+    int known = table_at_pole(t, x, rgb);
     if (known == 1 && t->lobe_on) { /* the values are relative to the lobe */
         double b[3];
         sb_lobe_base_(&t->lobe, wi, wo, b);

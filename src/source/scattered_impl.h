@@ -7,6 +7,7 @@
 #define SEPBRDF_SCATTERED_IMPL_H
 
 #include "source/measured_impl.h"
+#include "util/memo.h"
 
 #define KNN_MAX 64
 #define MAX_DIM 4
@@ -39,8 +40,9 @@ typedef struct table {
     double *smp; /* the samples as read, SB_SAMPLE_DOUBLES each */
     size_t ns;
     lobe_t lobe;
-    int lobe_on; /* val holds f / base (sb_lobe_base_), eval multiplies back */
-    double *raw; /* with lobe_on: the values as measured (n * 4), returned at measured positions */
+    int lobe_on;     /* val holds f / base (sb_lobe_base_), eval multiplies back */
+    double *raw;     /* with lobe_on: the values as measured (n * 4), returned at measured positions */
+    sb_memo_t *memo; /* values before the lobe's factor by embedded position, and pole means (scattered_fit.c) */
 } table_t;
 
 /* The k nearest within sqrt(r2): a max-heap on d2 while searching
@@ -66,6 +68,9 @@ void sb_kd_build_(size_t *idx, const double *p, unsigned char *split, size_t lo,
 void sb_kd_query_(const table_t *t, const double *x, size_t lo, size_t hi, knn_t *q);
 /* Sort q ascending by distance. */
 void sb_knn_sort_(knn_t *q);
+/* Sort q descending by (distance, index): one order for one set of
+ * neighbours, whatever the search's path. */
+void sb_knn_canon_(knn_t *q);
 /* Median spacing of the tree's points (see scattered_kd.c); < 0 on no memory. */
 double sb_table_spacing_(sb_context_t *ctx, const table_t *t);
 

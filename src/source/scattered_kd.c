@@ -138,6 +138,21 @@ static void knn_push(knn_t *q, double d2, size_t at) {
     knn_sift_down(q, 0, q->n);
 }
 
+/* Descending (d2, at), the order knn_after defines, by insertion: a
+ * max-heap is nearly in that order already, so few entries move. */
+void sb_knn_canon_(knn_t *q) {
+    for (size_t i = 1; i < q->n; i++) {
+        double d = q->d2[i];
+        size_t a = q->at[i], j = i;
+        for (; j > 0 && (q->d2[j - 1] < d || (q->d2[j - 1] == d && q->at[j - 1] < a)); j--) {
+            q->d2[j] = q->d2[j - 1];
+            q->at[j] = q->at[j - 1];
+        }
+        q->d2[j] = d;
+        q->at[j] = a;
+    }
+}
+
 /* Heap sort in place: ascending d2. */
 void sb_knn_sort_(knn_t *q) {
     for (size_t n = q->n; n > 1; n--) {

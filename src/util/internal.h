@@ -65,8 +65,9 @@ sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op);
 #define SB_FMA_CLONES
 #endif
 
-/* Number of worker threads to use: `requested` if > 0, else env
- * SEPBRDF_THREADS or the online cores; at most SB_THREADS_MAX. */
+/* Number of worker threads to use: 1 inside a job of a parallel call
+ * (parallel.h), else `requested` if > 0, else env SEPBRDF_THREADS or the
+ * online cores; at most SB_THREADS_MAX. */
 int sb_thread_count(int requested);
 
 /* The power of two 2^-e nearest below 1 / amax (amax in [2^(e-1), 2^e)),

@@ -21,9 +21,25 @@
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #include "util/internal.h"
+
+/* Set while this thread runs a job of a parallel call: a call made from
+ * inside a job runs its jobs on that thread, one after the other (the
+ * cores are busy with the outer call's jobs already). */
+static _Thread_local int in_job;
+
+int sb_parallel_nested(void) { return in_job; }
+
+/* fn(arg) with in_job set. */
+static void run_job(void *(*fn)(void *), void *arg) {
+    int was = in_job;
+    in_job = 1;
+    fn(arg);
+    in_job = was;
+}
 
 typedef struct run {
     void *(*fn)(void *);
@@ -33,7 +49,7 @@ typedef struct run {
 
 static void *run_one(void *p) {
     run_t *r = p;
-    r->fn(r->arg);
+    run_job(r->fn, r->arg);
     atomic_fetch_sub(r->left, 1);
     return NULL;
 }
@@ -49,7 +65,7 @@ static void run_started(void *(*fn)(void *), void *jobs, size_t job_size, int n,
         runs[t] = (run_t){fn, (char *)jobs + (size_t)t * job_size, &left};
         started[t] = pthread_create(&th[t], NULL, run_one, &runs[t]) == 0;
     }
-    fn(jobs);
+    run_job(fn, jobs);
     for (int t = 1; t < n; t++)
         if (!started[t]) run_one(&runs[t]); /* no thread: do it here */
     while (idle && atomic_load(&left) > 0)
@@ -115,7 +131,7 @@ static void *worker(void *arg) {
             break;
         }
         seen = g;
-        if (me < pool.n) pool.fn(pool.jobs + (size_t)me * pool.job_size);
+        if (me < pool.n) run_job(pool.fn, pool.jobs + (size_t)me * pool.job_size);
         if (atomic_fetch_sub_explicit(&pool.left, 1, memory_order_acq_rel) == 1) { /* the last: wake the caller */
             pthread_mutex_lock(&pool.mu);
             if (pool.waiting) pthread_cond_signal(&pool.done);
@@ -165,8 +181,9 @@ static int pool_grow(int want) {
 void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, void (*idle)(void *), void *idle_arg) {
     if (n < 1) n = 1;
     if (n > SB_THREADS_MAX) n = SB_THREADS_MAX;
-    if (n == 1) {
-        fn(jobs);
+    if (n == 1 || in_job) {
+        for (int t = 0; t < n; t++) /* job_size 0: the first call takes all the shared work */
+            fn((char *)jobs + (size_t)t * job_size);
         return;
     }
     pthread_once(&pool_once, pool_init);
@@ -184,9 +201,9 @@ void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, vo
     atomic_fetch_add_explicit(&pool.gen, 1, memory_order_release);
     if (pool.sleepers > 0) pthread_cond_broadcast(&pool.wake);
     pthread_mutex_unlock(&pool.mu);
-    fn(jobs);
+    run_job(fn, jobs);
     for (int t = workers + 1; t < n; t++) /* no worker for it: done here */
-        fn((char *)jobs + (size_t)t * job_size);
+        run_job(fn, (char *)jobs + (size_t)t * job_size);
     for (int spins = 0; atomic_load_explicit(&pool.left, memory_order_acquire) > 0; spins++) {
         if (idle) {
             idle(idle_arg);
@@ -202,6 +219,28 @@ void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, vo
         }
     }
     atomic_flag_clear_explicit(&pool_busy, memory_order_release);
+}
+
+/* The processors online, asked once: glibc reads sysfs on every call,
+ * which cost 3 % of a scattered table's default run (one call per
+ * parallel loop). */
+static long cpus_online(void) {
+    static _Atomic long online;
+    long n = atomic_load_explicit(&online, memory_order_relaxed);
+    if (n == 0) {
+        n = sysconf(_SC_NPROCESSORS_ONLN);
+        atomic_store_explicit(&online, n > 0 ? n : 1, memory_order_relaxed);
+    }
+    return n;
+}
+
+int sb_thread_count(int requested) {
+    if (in_job) return 1; /* the outer call has the cores */
+    long n = requested;
+    const char *e = getenv("SEPBRDF_THREADS");
+    if (n <= 0 && e && atoi(e) > 0) n = atoi(e);
+    if (n <= 0) n = cpus_online();
+    return n > 0 ? (int)(n > SB_THREADS_MAX ? SB_THREADS_MAX : n) : 1;
 }
 
 void sb_part(size_t count, int t, int n, size_t *begin, size_t *end) {

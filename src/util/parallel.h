@@ -21,6 +21,10 @@
  * little).  n < 1 counts as 1. */
 void sb_parallel_run(void *(*fn)(void *), void *jobs, size_t job_size, int n, void (*idle)(void *), void *idle_arg);
 
+/* Whether this thread runs a job of a parallel call (sb_thread_count is
+ * then 1, and a call runs its jobs on this thread in turn). */
+int sb_parallel_nested(void);
+
 /* Part t of n contiguous parts of [0, count): [*begin, *end). */
 void sb_part(size_t count, int t, int n, size_t *begin, size_t *end);
 

@@ -4,7 +4,6 @@
 #include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -100,27 +99,6 @@ void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *w
     madvise(p, whole, MADV_HUGEPAGE); /* advice: a refusal changes nothing */
 #endif
     return p;
-}
-
-/* The processors online, asked once: glibc reads sysfs on every call,
- * which cost 3 % of a scattered table's default run (one call per
- * parallel loop). */
-static long cpus_online(void) {
-    static _Atomic long online;
-    long n = atomic_load_explicit(&online, memory_order_relaxed);
-    if (n == 0) {
-        n = sysconf(_SC_NPROCESSORS_ONLN);
-        atomic_store_explicit(&online, n > 0 ? n : 1, memory_order_relaxed);
-    }
-    return n;
-}
-
-int sb_thread_count(int requested) {
-    long n = requested;
-    const char *e = getenv("SEPBRDF_THREADS");
-    if (n <= 0 && e && atoi(e) > 0) n = atoi(e);
-    if (n <= 0) n = cpus_online();
-    return n > 0 ? (int)(n > SB_THREADS_MAX ? SB_THREADS_MAX : n) : 1;
 }
 
 double sb_pow2_scale(double amax) {
