@@ -33,6 +33,7 @@ typedef struct nmf_state {
     double *sref;         /* J: the reference's prefixes' errors, in the fit's weights */
     double gam;           /* SB_NMF_RATIO_POWER where a reference is known, else 0 */
     double *hw;           /* m x n: the headline's weights of the data cells (toward_headline) */
+    double *hwr;          /* m x n: the same unclipped, where w0 is (fit_mixes) */
     double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights and the terms of the first mix (fit_mixes) */
     int hw_ok;            /* hw holds them for hw_key (the channels of a matrix share them) */
     int conv;             /* whether the fit in ub, vb converged (fit_mix) */

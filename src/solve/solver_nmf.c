@@ -113,6 +113,7 @@ static void destroy(void *state) {
     free(s->vref);
     free(s->sref);
     free(s->hw);
+    free(s->hwr);
     free(s->w0);
     free(s->ub);
     free(s->vb);
@@ -150,10 +151,12 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     int weighted = (pb->masked && !pb->zero_fill) || cells <= SB_NMF_WEIGHTED_CELLS || s->J > SB_NMF_GRAM_MAX_TERMS;
     s->hw = weighted ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->w0 = weighted && cells <= SB_NMF_MIX_CELLS ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
+    s->hwr = s->w0 ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
-        !s->sref || (weighted && !s->hw) || (weighted && cells <= SB_NMF_MIX_CELLS && !s->w0) || !s->ub || !s->vb) {
+        !s->sref || (weighted && !s->hw) || (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub ||
+        !s->vb) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
