@@ -46,7 +46,7 @@ SB_TEST(headline_weights_follow_the_form) {
     double *cz = malloc(m * n * sizeof *cz), *hw = malloc(m * n * sizeof *hw);
     size_t data = cells(p, ext, cz);
     CHECK(data > 100);
-    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw) == 0);
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw, NULL) == 0);
     double sum = 0, cmax = 0, ref = -1;
     size_t k_ref = 0;
     for (size_t k = 0; k < m * n; k++) {
@@ -64,14 +64,55 @@ SB_TEST(headline_weights_follow_the_form) {
         below++;
     }
     CHECK(below > data * 9 / 10);
-    CHECK(sb_nmf_headline_weights(p, SB_FORM_COS, ext, m, n, hw) == 0);
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_COS, ext, m, n, hw, NULL) == 0);
     for (size_t k = 0; k < m * n; k++)
         CHECKF(fabs(hw[k] - (ext[k] ? 1 : 0)) < 1e-12, "form cos, cell %zu: %g", k, hw[k]);
     memset(ext, 0, m * n); /* no data cell: nothing to weigh */
-    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw) == -1);
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw, NULL) == -1);
     free(ext);
     free(cz);
     free(hw);
+    sb_param_destroy(p);
+}
+
+/* The unclipped weights (a fit of their own, nmf_mixes.c): cos^2 theta_i
+ * over their own mean on every data cell, the clipped ones among them
+ * included, and 0 out of the data; where the clipped weights are under
+ * their clip the two differ by one factor, above it the unclipped are
+ * larger by that factor. */
+SB_TEST(headline_weights_unclipped) {
+    sb_param_t *p = iso8();
+    size_t m = sb_param_rows(p), n = sb_param_cols(p);
+    unsigned char *ext = malloc(m * n);
+    double *cz = malloc(m * n * sizeof *cz), *hw = malloc(m * n * sizeof *hw), *raw = malloc(m * n * sizeof *raw);
+    size_t data = cells(p, ext, cz);
+    CHECK(sb_nmf_headline_weights(p, SB_FORM_F, ext, m, n, hw, raw) == 0);
+    double sum = 0, c2 = 0, hmax = 0, scale = 0;
+    for (size_t k = 0; k < m * n; k++) {
+        sum += raw[k];
+        c2 += ext[k] ? cz[k] * cz[k] : 0;
+        hmax = fmax(hmax, hw[k]);
+    }
+    CHECKF(fabs(sum / (double)data - 1) < 1e-12, "mean %g", sum / (double)data);
+    size_t clipped = 0;
+    for (size_t k = 0; k < m * n; k++) {
+        double want = ext[k] ? cz[k] * cz[k] * (double)data / c2 : 0;
+        CHECKF(fabs(raw[k] - want) <= 1e-12 * (want + 1), "cell %zu: %g, cos^2 over its mean says %g", k, raw[k], want);
+        if (!ext[k]) continue;
+        if (hw[k] < hmax) {
+            if (scale == 0) scale = raw[k] / hw[k];
+            CHECKF(fabs(raw[k] / hw[k] - scale) <= 1e-12 * scale, "cell %zu: ratio %g against %g", k, raw[k] / hw[k],
+                   scale);
+        } else
+            clipped++;
+    }
+    CHECK(clipped >= 1 && scale > 0);
+    for (size_t k = 0; k < m * n; k++)
+        if (ext[k] && hw[k] >= hmax) CHECKF(raw[k] >= scale * hw[k] * (1 - 1e-12), "clipped cell %zu", k);
+    free(ext);
+    free(cz);
+    free(hw);
+    free(raw);
     sb_param_destroy(p);
 }
 

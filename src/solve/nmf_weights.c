@@ -53,6 +53,18 @@ static double select_kth(double *q, size_t n, size_t k) {
     return q[k];
 }
 
+/* Step: w (n numbers) divided by its mean over `data` cells; returns 0,
+ * or -1 where it sums to 0. */
+static int normalise(double *w, size_t n, size_t data) {
+    double sum = 0;
+    for (size_t k = 0; k < n; k++)
+        sum += w[k];
+    if (!(sum > 0)) return -1;
+    for (size_t k = 0; k < n; k++)
+        w[k] *= (double)data / sum;
+    return 0;
+}
+
 /* Step: the weight of one cell, 0 where it is no BRDF pair. */
 static double cell_weight(const sb_param_t *p, sb_form_t form, size_t row, size_t col) {
     double wi[3], wo[3];
@@ -64,7 +76,7 @@ static double cell_weight(const sb_param_t *p, sb_form_t form, size_t row, size_
 }
 
 int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned char *ext, size_t m, size_t n,
-                            double *hw) {
+                            double *hw, double *raw) {
     size_t cnt = 0;
     for (size_t c = 0; c < n; c++)
         for (size_t i = 0; i < m; i++) {
@@ -73,6 +85,7 @@ int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned 
             cnt += hw[k] > 0;
         }
     if (!cnt) return -1;
+    if (raw) memcpy(raw, hw, m * n * sizeof *raw);
     double *q = malloc(cnt * sizeof *q);
     if (!q) return -1;
     for (size_t k = 0, at = 0; k < m * n; k++)
@@ -88,7 +101,7 @@ int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned 
     if (!(sum > 0)) return -1;
     for (size_t k = 0; k < m * n; k++)
         hw[k] *= (double)data / sum;
-    return 0;
+    return raw ? normalise(raw, m * n, data) : 0;
 }
 
 int sb_nmf_svd_terms(const double *x, size_t m, size_t n, size_t J, double *U, double *V) {

@@ -12,10 +12,11 @@
  * the fit (ext 1: a data cell; the others get 0), clipped at the 99th
  * percentile of the data cells and divided by their mean: (f_r cos
  * theta_i / the stored form)^2, times the layout's gain (vndf: gain^2 x
- * the node's solid angle, which its warp makes 1 / gain).  Returns 0, or
- * -1 when out of memory or no data cell has a weight. */
+ * the node's solid angle, which its warp makes 1 / gain).  Where raw is
+ * given, the same weights unclipped (over their own mean) into it.
+ * Returns 0, or -1 when out of memory or no data cell has a weight. */
 int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned char *ext, size_t m, size_t n,
-                            double *hw);
+                            double *hw, double *raw);
 
 /* U (m x J) and V (n x J): the J leading terms s_j u_j, v_j of the dense
  * m x n matrix x (LAPACK's SVD).  Returns 0, or -1 when out of memory or

@@ -18,7 +18,7 @@
  * (and v_j likewise), the exact minimiser of the weighted sum in u_j, so
  * no sweep raises it.  A fit stops when a sweep gains less than tol per
  * prefix (in log ||E_p||^2, i.e. relative), or after its sweep cap.
- * With a reference (toward_headline), alpha_p follows the prefixes'
+ * With a reference (nmf_mixes.c toward_headline), alpha_p follows the prefixes'
  * ratios to its errors (ratio_weights), and W leans to the headline's.
  *
  * Cells out of the data (masked): bilinear taps of in-domain pairs read
@@ -49,7 +49,6 @@
  * order fitted. */
 #include <float.h>
 #include <math.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -57,6 +56,7 @@
 #include "solve/fit_impl.h"
 #include "solve/nmf_gram.h"
 #include "solve/nmf_lanes.h"
+#include "solve/nmf_state.h"
 #include "solve/nmf_weights.h"
 #include "solve/solver.h"
 #include "util/internal.h"
@@ -92,73 +92,10 @@
  * the headline on hd (GGX 0.3, 16 cells: 2.5x the SVD's at J = 4 against
  * 1.9x at 0.1); 0.01 with the hole weight 1e-6 (above). */
 #define SB_NMF_FILL_WEIGHT 0.01
-/* The data cells' weights: 1 - mu + mu x the headline's own weight of the
- * cell over its mean (nmf_weights.c), mu = SB_NMF_HEADLINE_MIX.  The fit
- * then trades its error where the headline measures it, and still
- * everywhere the SVD beside fits (the bands near the horizon).  Measured
- * (our runs, 32 cells, J = 4, nmf_over_svd at J' = 1..4): RGL
- * cc_green_malachite on vndf 1.45, 1.42, 3.65, 2.08 at mu = 0; 0.97, 1.48,
- * 0.56, 1.95 at 0.2; 0.96, 1.45, 0.59, 2.16 at 0.5; at 1 (the headline's
- * weights alone) 0.93, 2.45, 1.78, 8.84 (docs/positive.md has the rest). */
-#define SB_NMF_HEADLINE_MIX 0.5
-/* A second fit at this mix, the one kept whose worst prefix in the
- * headline's weights is lower against the reference
- * (sb_nmf_worst_ratio), on matrices of at most SB_NMF_MIX_CELLS cells
- * (vndf 8 x 1024; iso at 32 cells 64 x 992; not hd, 1024^2, where a
- * second fit costs seconds).  Measured (our runs, J = 4, the worst
- * nmf_over_svd over J' = 1..4, one fit -> the better of two): RGL on
- * vndf aurora 1.64 -> 1.59, malachite 1.70 -> 1.72, chm_light_blue 2.13
- * -> 1.84, chm_orange 1.65 -> 1.46, paper 2.14 -> 1.86, silk 1.82 ->
- * 1.75; the default gold 1.86 -> 1.66 (docs/positive.md). */
-#define SB_NMF_SECOND_MIX 0.8
-#define SB_NMF_MIX_CELLS ((size_t)1 << 17)
-/* A third fit at the headline's own weights (mu = 1) on unmasked matrices
- * of at most SB_NMF_THIRD_CELLS cells (vndf), kept by this margin on the
- * squared ratio: the proxy misses vndf's interpolation between rows (RGL
- * malachite, red: 1.279 against 1.289 kept, J' = 4 1.72 -> 2.42x the
- * SVD's headline); chm_light_blue 1.84 -> 1.49, silk 1.75 -> 1.49. */
-#define SB_NMF_THIRD_CELLS ((size_t)1 << 14)
-#define SB_NMF_THIRD_MARGIN 0.81
-/* The prefixes' errors weighted by their ratio to a reference's (the
- * masked fit beside, or the SVD where no cell is masked) raised to this
- * power: sum_p log ||E_p||^2 becomes k log (sum_p r_p^gamma)^(1/gamma), r_p =
- * ||E_p||^2 / ||E_p^ref||^2, a soft maximum of the ratios the issue bounds
- * (0: the product of the errors).  Only for J <= min(m, n) / 2: near the
- * matrix's rank the SVD's last prefixes are exact and their ratios, out of
- * reach, took the sweeps from the others (RGL files on vndf, 8 rows, J =
- * 8: up to 13x at J' <= 6, against 2.4-10x with the product). */
-#define SB_NMF_RATIO_POWER 2.0
 /* Cells of a matrix without masked cells above which the sweeps run from
  * products (nmf_gram.c: every cell weighs 1, no reference): io at 32
  * cells, 1024 x 1024.  Below, the cells are weighted (vndf: 8 x 1024). */
 #define SB_NMF_WEIGHTED_CELLS ((size_t)1 << 16)
-
-typedef struct nmf_state {
-    size_t m, n, J;
-    int max_iters, zero_fill;
-    double tol, fill;     /* fill: the weight of the cells out of the data (ext 2) */
-    double floor2;        /* the least ||E_p||^2 a prefix weight takes: 1e-24 of the data's */
-    double *e;            /* m x n: masked residual of all the terms fitted */
-    double *r;            /* m x n: the weighted sum of the prefixes' residuals a term is fitted to */
-    double *alpha;        /* J: the prefixes' weights 1 / ||E_p||^2 (prefix_weights) */
-    double *cq;           /* J: the terms' weights in a term's target (nested_term) */
-    double *tw;           /* nt x (3 m + J): the parts' numbers (nmf_job_t) */
-    int nt;               /* parts at most */
-    double *x;            /* m x n: the data, and the targets of the cells within the taps' reach */
-    double *w;            /* m x n: the cells' weights (cell_weights) */
-    unsigned char *ext;   /* m x n: 1 data, 2 within the taps' reach, 0 beyond */
-    double *t;            /* 2 m + J numbers (prefix_weights) */
-    double *uref, *vref;  /* m x J, n x J: the reference's terms (toward_headline) */
-    double *sref;         /* J: the reference's prefixes' errors, in the fit's weights */
-    double gam;           /* SB_NMF_RATIO_POWER where a reference is known, else 0 */
-    double *hw;           /* m x n: the headline's weights of the data cells (toward_headline) */
-    double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights and the terms of the first mix (fit_mixes) */
-    int hw_ok;            /* hw holds them for hw_key (the channels of a matrix share them) */
-    int conv;             /* whether the fit in ub, vb converged (fit_mix) */
-    double hw_key[3];     /* the layout's address, the form, a sum over the data cells */
-    sb_fit_t *fit;        /* masked: the masked fit whose extension fills the cells out of the data */
-    sb_fit_opts_t fo;
-} nmf_state_t;
 
 static void destroy(void *state) {
     nmf_state_t *s = state;
@@ -176,6 +113,7 @@ static void destroy(void *state) {
     free(s->vref);
     free(s->sref);
     free(s->hw);
+    free(s->hwr);
     free(s->w0);
     free(s->ub);
     free(s->vb);
@@ -213,10 +151,12 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     int weighted = (pb->masked && !pb->zero_fill) || cells <= SB_NMF_WEIGHTED_CELLS || s->J > SB_NMF_GRAM_MAX_TERMS;
     s->hw = weighted ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->w0 = weighted && cells <= SB_NMF_MIX_CELLS ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
+    s->hwr = s->w0 ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
-        !s->sref || (weighted && !s->hw) || (weighted && cells <= SB_NMF_MIX_CELLS && !s->w0) || !s->ub || !s->vb) {
+        !s->sref || (weighted && !s->hw) || (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub ||
+        !s->vb) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
@@ -244,7 +184,7 @@ static void cell_weights(nmf_state_t *s) {
 }
 
 /* Step: E = M o (X - U V^T) of the first k terms; returns ||E||^2. */
-static double residual(nmf_state_t *s, const double *U, const double *V, size_t k) {
+double sb_nmf_residual(nmf_state_t *s, const double *U, const double *V, size_t k) {
     double f = 0;
     for (size_t c = 0; c < s->n; c++)
         for (size_t i = 0; i < s->m; i++) {
@@ -422,7 +362,7 @@ static void nested_term(nmf_state_t *s, double *U, double *V, size_t k, size_t j
  * ratios to any reference such as the SVD's), until a sweep gains less
  * than tol per prefix or after `sweeps` (out->iterations counts them all). */
 static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
-    residual(s, out->u, out->v, k);
+    sb_nmf_residual(s, out->u, out->v, k);
     double F = prefix_weights(s, out->u, out->v, k);
     out->converged = 0;
     for (int it = 0; it < sweeps && !out->converged; it++, out->iterations++) {
@@ -437,13 +377,13 @@ static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
 /* Step: the stages (see the top): term k - 1 seeded from the positive
  * part of the residual of the terms before it, then the k terms refitted
  * (nested: hals). */
-static void stages(nmf_state_t *s, sb_solve_out_t *out) {
+void sb_nmf_stages(nmf_state_t *s, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n;
     memset(out->u, 0, m * s->J * sizeof *out->u);
     memset(out->v, 0, n * s->J * sizeof *out->v);
     out->iterations = 0;
     for (size_t k = 1; k <= s->J; k++) {
-        residual(s, out->u, out->v, k - 1);
+        sb_nmf_residual(s, out->u, out->v, k - 1);
         double *v = out->v + (k - 1) * n;
         for (size_t c = 0; c < n; c++)
             for (size_t i = 0; i < m; i++)
@@ -482,85 +422,6 @@ static sb_result_t fill_holes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_
     return SB_OK;
 }
 
-/* Step: the headline's weights of the data cells in s->hw, once for the
- * channels of a matrix (the same layout, form and data cells); returns
- * whether they are there. */
-static int headline_weights(nmf_state_t *s, const sb_solve_in_t *in) {
-    if (!in->param || !in->m || !s->hw) return 0;
-    double key[3] = {(double)(uintptr_t)in->param, (double)in->m->form, 0};
-    for (size_t k = 0; k < s->m * s->n; k++)
-        key[2] += s->ext[k] == 1 ? (double)(k % 65521) : 0;
-    if (s->hw_ok && !memcmp(key, s->hw_key, sizeof key)) return 1;
-    s->hw_ok = sb_nmf_headline_weights(in->param, in->m->form, s->ext, s->m, s->n, s->hw) == 0;
-    memcpy(s->hw_key, key, sizeof key);
-    return s->hw_ok;
-}
-
-/* Step: the data cells' weights mixed toward the headline's (mu of
- * them), and the reference's prefixes' errors in the fit's weights: the
- * masked fit fill_holes left in out, or the SVD (no cell masked), taken
- * unless `again` (the reference of the fit before); without one the
- * prefixes' errors are fitted alone (gam 0). */
-static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out, double mu, int again) {
-    size_t m = s->m, n = s->n, J = s->J;
-    if (headline_weights(s, in))
-        for (size_t k = 0; k < m * n; k++)
-            if (s->ext[k] == 1) s->w[k] *= 1 - mu + mu * s->hw[k];
-    s->gam = 0;
-    if (2 * J > (m < n ? m : n)) return;
-    for (size_t j = 0; !again && s->fit && j < J; j++) {
-        for (size_t i = 0; i < m; i++)
-            s->uref[i + j * m] = out->s[j] * out->u[i + j * m];
-        memcpy(s->vref + j * n, out->v + j * n, n * sizeof *s->vref);
-    }
-    if (!again && !s->fit && sb_nmf_svd_terms(s->x, m, n, J, s->uref, s->vref) != 0) return;
-    for (size_t k = 1; k <= J; k++)
-        s->sref[k - 1] = fmax(residual(s, s->uref, s->vref, k), s->floor2);
-    s->gam = SB_NMF_RATIO_POWER;
-}
-
-/* Step: the stages at `mix` (the reference of the fit before, `again`);
- * the fit kept in ub, vb when its worst prefix in the headline's weights
- * is below `margin` times *best (which it then becomes). */
-static void fit_mix(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out, double mix, int again, double margin,
-                    double *best) {
-    size_t m = s->m, n = s->n, J = s->J;
-    int sweeps = out->iterations;
-    memcpy(s->w, s->w0, m * n * sizeof *s->w);
-    toward_headline(s, in, out, mix, again);
-    stages(s, out);
-    out->iterations += again ? sweeps : 0;
-    if (!s->hw_ok || !(s->gam > 0)) return;
-    double r = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
-    if (again && !(r < margin * *best)) return;
-    *best = r;
-    s->conv = out->converged;
-    memcpy(s->ub, out->u, m * J * sizeof *s->ub);
-    memcpy(s->vb, out->v, n * J * sizeof *s->vb);
-}
-
-/* Step: the stages at SB_NMF_HEADLINE_MIX, where the matrix is small and
- * a reference known at SB_NMF_SECOND_MIX and (smaller) at 1 too: the fit
- * kept whose worst prefix in the headline's weights is the lowest against
- * the reference (out->iterations counts them all). */
-static void fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
-    size_t m = s->m, n = s->n, J = s->J;
-    if (!s->w0) {
-        toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 0);
-        stages(s, out);
-        return;
-    }
-    memcpy(s->w0, s->w, m * n * sizeof *s->w0);
-    double best = INFINITY;
-    fit_mix(s, in, out, SB_NMF_HEADLINE_MIX, 0, 1, &best);
-    if (!s->hw_ok || !(s->gam > 0)) return;
-    fit_mix(s, in, out, SB_NMF_SECOND_MIX, 1, 1, &best);
-    if (!s->fit && m * n <= SB_NMF_THIRD_CELLS) fit_mix(s, in, out, 1, 1, SB_NMF_THIRD_MARGIN, &best);
-    memcpy(out->u, s->ub, m * J * sizeof *s->ub);
-    memcpy(out->v, s->vb, n * J * sizeof *s->vb);
-    out->converged = s->conv;
-}
-
 static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t *out) {
     nmf_state_t *s = state;
     size_t m = s->m, n = s->n;
@@ -585,7 +446,7 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         if (sb_nmf_gram_fit(&go, s->x, m, n, s->J, out->u, out->v, &out->iterations, &out->converged) != 0)
             return SB_ERR_NOMEM;
     } else
-        fit_mixes(s, in, out);
+        sb_nmf_fit_mixes(s, in, out);
     sb_nmf_normalise(m, n, s->J, out->s, out->u, out->v);
     return SB_OK;
 }

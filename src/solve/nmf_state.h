@@ -1,0 +1,60 @@
+/* The non-negative solver's state (solver_nmf.c: the sweeps and the
+ * stages; nmf_mixes.c: the fits toward the headline and the choice among
+ * them), shared by its two files. */
+#ifndef SB_SOLVE_NMF_STATE_H
+#define SB_SOLVE_NMF_STATE_H
+
+#include <stddef.h>
+
+#include "solve/fit_impl.h"
+#include "solve/solver.h"
+
+/* Matrices of at most this many cells take more than one fit (fit_mixes:
+ * vndf 8 x 1024; iso at 32 cells 64 x 992; not hd, 1024^2, where a
+ * second fit costs seconds). */
+#define SB_NMF_MIX_CELLS ((size_t)1 << 17)
+
+typedef struct nmf_state {
+    size_t m, n, J;
+    int max_iters, zero_fill;
+    double tol, fill;     /* fill: the weight of the cells out of the data (ext 2) */
+    double floor2;        /* the least ||E_p||^2 a prefix weight takes: 1e-24 of the data's */
+    double *e;            /* m x n: masked residual of all the terms fitted */
+    double *r;            /* m x n: the weighted sum of the prefixes' residuals a term is fitted to */
+    double *alpha;        /* J: the prefixes' weights 1 / ||E_p||^2 (prefix_weights) */
+    double *cq;           /* J: the terms' weights in a term's target (nested_term) */
+    double *tw;           /* nt x (3 m + J): the parts' numbers (nmf_job_t) */
+    int nt;               /* parts at most */
+    double *x;            /* m x n: the data, and the targets of the cells within the taps' reach */
+    double *w;            /* m x n: the cells' weights (cell_weights) */
+    unsigned char *ext;   /* m x n: 1 data, 2 within the taps' reach, 0 beyond */
+    double *t;            /* 2 m + J numbers (prefix_weights) */
+    double *uref, *vref;  /* m x J, n x J: the reference's terms (toward_headline) */
+    double *sref;         /* J: the reference's prefixes' errors, in the fit's weights */
+    double gam;           /* SB_NMF_RATIO_POWER where a reference is known, else 0 */
+    double *hw;           /* m x n: the headline's weights of the data cells (toward_headline) */
+    double *hwr;          /* m x n: the same unclipped, where w0 is (fit_mixes) */
+    double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights and the terms of the first mix (fit_mixes) */
+    int hw_ok;            /* hw holds them for hw_key (the channels of a matrix share them) */
+    int conv;             /* whether the fit in ub, vb converged (fit_mix) */
+    double hw_key[3];     /* the layout's address, the form, a sum over the data cells */
+    sb_fit_t *fit;        /* masked: the masked fit whose extension fills the cells out of the data */
+    sb_fit_opts_t fo;
+} nmf_state_t;
+
+/* E = M o (X - U V^T) of the first k terms into s->e; returns the
+ * weighted ||E||^2 (solver_nmf.c). */
+double sb_nmf_residual(nmf_state_t *s, const double *U, const double *V, size_t k);
+
+/* The stages of a fit in s's weights: term k seeded from the positive part
+ * of the residual of the k - 1 before it, then the k terms refitted
+ * (nested sweeps), into out->u, out->v (solver_nmf.c). */
+void sb_nmf_stages(nmf_state_t *s, sb_solve_out_t *out);
+
+/* The fits toward the headline (nmf_mixes.c): at SB_NMF_HEADLINE_MIX and,
+ * on small matrices with a reference, at other mixes, the one kept whose
+ * worst prefix in the headline's weights is the lowest against the
+ * reference; out->iterations counts every sweep. */
+void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
+
+#endif
