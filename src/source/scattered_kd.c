@@ -7,7 +7,7 @@
 #include "source/scattered_impl.h"
 #include "util/internal.h"
 
-#define KD_LEAF 8
+#define KD_LEAF 16
 
 void sb_scat_embed_(int iso, int recip, const double wi[3], const double wo[3], double *x) {
     double ti = atan2(hypot(wi[0], wi[1]), wi[2]), to = atan2(hypot(wo[0], wo[1]), wo[2]);
