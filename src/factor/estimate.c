@@ -167,8 +167,9 @@ size_t sb_pairs_count(const sb_pairs_t *P) { return P ? P->n : 0; }
 /* d2s, bins: each prefix's squared differences [J][4] and the bins of the
  * channels with f > 0 [J][4] (not with headline_only), which the band sums
  * read again. */
-static void add_pair(const eval_t *e, const double *d, const double *rec, double *num, double *neg, int t, double *d2s,
-                     uint32_t *bins) {
+static inline __attribute__((always_inline)) void add_pair(const eval_t *e, const double *d, const double *rec,
+                                                           double *num, double *neg, int t, double *d2s,
+                                                           uint32_t *bins) {
     const double *f = d + 7, w = d[6];
     double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
     double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0}, lf2[4] = {0, 0, 0, 0};
@@ -210,7 +211,7 @@ static void add_pair(const eval_t *e, const double *d, const double *rec, double
     }
 }
 
-static void eval_unit(void *user, size_t k, int t) {
+SB_AVX2_CLONES static void eval_unit(void *user, size_t k, int t) {
     eval_t *e = user;
     const sb_pairs_t *P = e->P;
     size_t J = e->J;

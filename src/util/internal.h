@@ -58,11 +58,16 @@ sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op);
 /* A hot loop compiled twice, with FMA (and 256-bit AVX) and for the
  * baseline x86-64 the library is built for, the one the CPU runs chosen
  * when the library loads (GCC's target_clones, on x86-64 Linux; elsewhere
- * the baseline only).  Functions it inlines are compiled with it. */
+ * the baseline only).  Functions it inlines are compiled with it.
+ * SB_AVX2_CLONES: the same with 256-bit AVX2 and no FMA (and C11 does
+ * not contract a * b + c), so the same operations and the same bits as
+ * the baseline, four doubles a vector instead of two. */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #define SB_FMA_CLONES __attribute__((target_clones("fma", "default")))
+#define SB_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define SB_FMA_CLONES
+#define SB_AVX2_CLONES
 #endif
 
 /* Number of worker threads to use: 1 inside a job of a parallel call
