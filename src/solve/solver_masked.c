@@ -1,10 +1,11 @@
 /* The masked solver (fit.h): cells outside the domain or not measured are
  * excluded from the fit (imputation warm start, then alternating least
- * squares on the valid cells, one term at a time so every prefix of the
- * terms is itself a fit).  Taken whenever the matrix has excluded cells. */
+ * squares on the valid cells: two terms jointly, then one term at a time,
+ * so that the first j terms of a k-term fit are the j-term fit;
+ * fit_chain.c).  Taken whenever the matrix has excluded cells. */
 #include <stdlib.h>
 
-#include "solve/fit.h"
+#include "solve/fit_impl.h"
 #include "solve/solver.h"
 #include "util/internal.h"
 
@@ -25,8 +26,8 @@ static void destroy(void *state) {
 static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **state) {
     masked_state_t *s = sb_calloc(ctx, 1, sizeof *s, "masked plan");
     if (!s) return SB_ERR_NOMEM;
-    s->opts = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol,      pb->svd.seed,
-                              pb->max_error,     {{0, 0}, {0, 0}}, {{0, 0}, {0, 0}}};
+    s->opts = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol, pb->svd.seed,      pb->max_error, {{0, 0}, {0, 0}},
+                              {{0, 0}, {0, 0}},  1,           SB_CHAIN_TAPS_COST};
     sb_result_t r = sb_fit_create(ctx, pb->rows, pb->cols, pb->terms, &s->fit);
     if (r != SB_OK) {
         destroy(s);
