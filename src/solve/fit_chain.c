@@ -1,11 +1,12 @@
 /* Masked fit, part 4 (fit.c has the whole picture): nested terms.  A
- * k-term fit is the SB_CHAIN_JOINT-term fit (stages and strict pass:
- * fit_taps.c), then one term at a time, each a one-term masked fit of what
- * the terms before leave on the valid cells.  Nothing in a term depends on
- * k, so the first j terms of a k-term fit are the j-term fit to the bit,
- * and what a shader returns with J' = j terms of a -J 8 run is what the
- * -J j run returns (but for the texel filter and term weights the job
- * chooses at J).
+ * k-term fit (k > SB_CHAIN_JOINT) is the SB_CHAIN_JOINT-term fit (stages,
+ * taps, strict pass: fit_taps.c), then one term at a time, each a one-term
+ * masked fit of what the terms before leave on the valid cells (without
+ * taps: the cells outside continue the fit so far).  Nothing in a term
+ * depends on k, so the first j >= SB_CHAIN_JOINT terms of a k-term fit are
+ * the j-term fit to the bit, and what a shader returns with J' = j terms
+ * of a -J 8 run is what the -J j run returns (but for the texel filter and
+ * term weights the job chooses at J).
  *
  * Why: the staged fit of all k terms at once made its decisions for k.
  * Its warm start is a rank-k imputation, its taps' constraints are the
@@ -13,10 +14,11 @@
  * error), its last stage keeps a joint refit that stretches the shorter
  * prefixes, and a taps' round reruns every stage from the k-term fit: GGX
  * roughness 0.3 (iso, f) at -J 8 had 5.05e-4 at J' = 4 where -J 4 has
- * 4.22e-4, and 7.9e-4 at J' = 2 where -J 2 has 5.8e-4.  Beyond two terms
- * its joint refits were almost never kept (they stretch a shorter prefix
- * beyond SB_PREFIX_SLACK), so a term at a time loses little (docs/bands.md,
- * "More terms never worse"). */
+ * 4.22e-4, and 7.9e-4 at J' = 2 where -J 2 has 5.8e-4.  The joint stages
+ * stay up to four terms: a term at a time from two on was exactly nested
+ * but lost 40 % on the Cornell acrylic (iso, adaptive warp, J = 4: 2.46e-2
+ * -> 3.50e-2); beyond four its joint refits were almost never kept
+ * (docs/bands.md, "More terms never worse"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -21,8 +21,9 @@
 #define SB_JOINT_ALL 8
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
-/* Nested fits (fit_chain.c): the first this many terms fitted jointly. */
-#define SB_CHAIN_JOINT 2
+/* Nested fits (fit_chain.c): the first this many terms fitted jointly
+ * (the staged fit), the others one at a time. */
+#define SB_CHAIN_JOINT 4
 /* Nested fits' SB_TAPS_COST (its first SB_CHAIN_JOINT terms; the one-term
  * pieces after them go without taps). */
 #define SB_CHAIN_TAPS_COST 1.25

@@ -1,7 +1,7 @@
 /* The masked solver (fit.h): cells outside the domain or not measured are
  * excluded from the fit (imputation warm start, then alternating least
- * squares on the valid cells: two terms jointly, then one term at a time,
- * so that the first j terms of a k-term fit are the j-term fit;
+ * squares on the valid cells: four terms jointly, then one term at a
+ * time, so that the first j >= 4 terms of a k-term fit are the j-term fit;
  * fit_chain.c).  Taken whenever the matrix has excluded cells. */
 #include <stdlib.h>
 
