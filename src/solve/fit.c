@@ -255,7 +255,6 @@ static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const u
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
                            const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info) {
     size_t m = f->m, n = f->n, k = f->k, l = f->l;
-    if (opts && opts->nested && k > SB_CHAIN_JOINT && f->P) return fit_chain(f, A, lda, mask, opts, s, U, V, info);
     sb_fit_opts_t o = {0};
     if (opts) o = *opts;
     if (o.max_iters <= 0) o.max_iters = 300;

@@ -21,11 +21,6 @@ typedef struct sb_fit_opts {
      * domain's edge stay bounded.  0: no layout. */
     size_t tex[2][2];
     int wrap[2][2];
-    /* Nested terms (fit_chain.c): beyond SB_CHAIN_JOINT terms, each term
-     * a one-term fit of what the previous leave, so that the first j
-     * terms of a k-term fit are the j-term fit itself (the masked solver:
-     * 1, and tex left 0). */
-    int nested;
     /* A taps' constraint is dropped when it raises the error on the valid
      * cells more than this factor; 0: SB_TAPS_COST (fit_impl.h). */
     double taps_cost;

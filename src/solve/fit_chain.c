@@ -47,7 +47,6 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
                       double *s, double *U, double *V, sb_fit_info_t *info) {
     size_t m = f->m, n = f->n, k = f->k;
     sb_fit_opts_t o = *opts;
-    o.nested = 0;
     size_t ninvalid = 0;
     double norm2 = 0;
     for (size_t c = 0; c < n; c++)
@@ -56,7 +55,10 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
             ninvalid += !ok;
             if (ok) norm2 += A[r + c * lda] * A[r + c * lda];
         }
-    if (ninvalid == 0) return sb_fit_execute(f, A, lda, mask, &o, s, U, V, info); /* an SVD: nested already */
+    /* every cell valid: an SVD, nested already; beyond SB_ALS_MAX_K terms
+     * imputation alone */
+    if (ninvalid == 0 || k <= SB_CHAIN_JOINT || k > SB_ALS_MAX_K)
+        return sb_fit_execute(f, A, lda, mask, &o, s, U, V, info);
     sb_result_t r = SB_OK;
     for (int i = 0; i < 2 && r == SB_OK; i++)
         if (!f->sub[i]) r = sb_fit_create(f->ctx, m, n, i ? 1 : SB_CHAIN_JOINT, &f->sub[i]);

@@ -114,8 +114,8 @@ int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const 
  * INFINITY where none, and at data).  Returns 0, or -1 without memory. */
 int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
                    double *hi);
-/* A nested fit of f->k > SB_CHAIN_JOINT terms (opts->nested): as
- * sb_fit_execute. */
+/* A nested fit (the masked solver's): as sb_fit_execute, with more than
+ * SB_CHAIN_JOINT terms one term at a time after those. */
 sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, const sb_fit_opts_t *opts,
                       double *s, double *U, double *V, sb_fit_info_t *info);
 /* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */

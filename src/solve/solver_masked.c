@@ -26,8 +26,8 @@ static void destroy(void *state) {
 static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **state) {
     masked_state_t *s = sb_calloc(ctx, 1, sizeof *s, "masked plan");
     if (!s) return SB_ERR_NOMEM;
-    s->opts = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol, pb->svd.seed,      pb->max_error, {{0, 0}, {0, 0}},
-                              {{0, 0}, {0, 0}},  1,           SB_CHAIN_TAPS_COST};
+    s->opts = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol,      pb->svd.seed,      pb->max_error,
+                              {{0, 0}, {0, 0}},  {{0, 0}, {0, 0}}, SB_CHAIN_TAPS_COST};
     sb_result_t r = sb_fit_create(ctx, pb->rows, pb->cols, pb->terms, &s->fit);
     if (r != SB_OK) {
         destroy(s);
@@ -45,7 +45,7 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         sb_param_texture_size(in->param, side, &o.tex[side][0], &o.tex[side][1]);
         sb_param_wrap(in->param, side, o.wrap[side]);
     }
-    sb_result_t r = sb_fit_execute(s->fit, in->x, in->ldx, in->mask, &o, out->s, out->u, out->v, &fi);
+    sb_result_t r = fit_chain(s->fit, in->x, in->ldx, in->mask, &o, out->s, out->u, out->v, &fi);
     out->iterations = fi.iterations;
     out->converged = fi.converged;
     return r;
