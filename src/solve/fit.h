@@ -21,9 +21,6 @@ typedef struct sb_fit_opts {
      * domain's edge stay bounded.  0: no layout. */
     size_t tex[2][2];
     int wrap[2][2];
-    /* A taps' constraint is dropped when it raises the error on the valid
-     * cells more than this factor; 0: SB_TAPS_COST (fit_impl.h). */
-    double taps_cost;
 } sb_fit_opts_t;
 
 typedef struct sb_fit_info {

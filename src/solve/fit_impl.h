@@ -24,9 +24,6 @@
 /* Nested fits (fit_chain.c): the first this many terms fitted jointly
  * (the staged fit), the others one at a time. */
 #define SB_CHAIN_JOINT 4
-/* Nested fits' SB_TAPS_COST (its first SB_CHAIN_JOINT terms; the one-term
- * pieces after them go without taps). */
-#define SB_CHAIN_TAPS_COST 1.25
 struct sb_fit {
     sb_context_t *ctx;
     struct sb_fit *sub[2]; /* nested fits: the joint SB_CHAIN_JOINT terms, one term */

@@ -124,10 +124,10 @@ static size_t constrain_taps(const sb_fit_t *f, const taps_cell_t *cells, size_t
 /* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
  * times the squared error `before` the taps' constraints. */
 static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, double before,
-                     double norm2, double cost) {
+                     double norm2) {
     double e2[SB_ALS_MAX_K];
     fit_valid_prefix_e2(f, As, lda, mask, e2);
-    return sqrt(e2[f->k - 1]) > cost * sqrt(before) + 1e-12 * sqrt(norm2);
+    return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
 }
 
 /* The taps' cells of a fit: the data (ext 1) are the mask in every pass
@@ -170,11 +170,9 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
         nvalid += added;
         constrained += added;
         r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, stretched, NULL);
-        if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2, o->taps_cost > 0 ? o->taps_cost : SB_TAPS_COST))
-            break;
+        if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
     }
-    if (r == SB_OK && constrained &&
-        taps_cost(f, As, lda, mask, before, norm2, o->taps_cost > 0 ? o->taps_cost : SB_TAPS_COST)) {
+    if (r == SB_OK && constrained && taps_cost(f, As, lda, mask, before, norm2)) {
         memcpy(f->P, P1, m * k * sizeof *P1);
         memcpy(f->Q, Q1, n * k * sizeof *Q1);
     }

@@ -26,8 +26,8 @@ static void destroy(void *state) {
 static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **state) {
     masked_state_t *s = sb_calloc(ctx, 1, sizeof *s, "masked plan");
     if (!s) return SB_ERR_NOMEM;
-    s->opts = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol,      pb->svd.seed,      pb->max_error,
-                              {{0, 0}, {0, 0}},  {{0, 0}, {0, 0}}, SB_CHAIN_TAPS_COST};
+    s->opts = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol,      pb->svd.seed,
+                              pb->max_error,     {{0, 0}, {0, 0}}, {{0, 0}, {0, 0}}};
     sb_result_t r = sb_fit_create(ctx, pb->rows, pb->cols, pb->terms, &s->fit);
     if (r != SB_OK) {
         destroy(s);

@@ -220,7 +220,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
         destroy(s);
         return SB_ERR_NOMEM;
     }
-    s->fo = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol, pb->svd.seed, 0, {{0, 0}, {0, 0}}, {{0, 0}, {0, 0}}, 0};
+    s->fo = (sb_fit_opts_t){pb->fit_max_iters, pb->fit_tol, pb->svd.seed, 0, {{0, 0}, {0, 0}}, {{0, 0}, {0, 0}}};
     sb_result_t r = pb->masked && !pb->zero_fill ? sb_fit_create(ctx, s->m, s->n, s->J, &s->fit) : SB_OK;
     if (r != SB_OK) {
         destroy(s);
