@@ -112,6 +112,8 @@ sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fi
 
 void sb_fit_destroy(sb_fit_t *f) {
     if (!f) return;
+    sb_fit_destroy(f->sub[0]);
+    sb_fit_destroy(f->sub[1]);
     free(f->x);
     free(f->v);
     free(f->y);

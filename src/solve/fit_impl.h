@@ -21,8 +21,12 @@
 #define SB_JOINT_ALL 8
 /* Imputation steps that warm-start ALS. */
 #define SB_ALS_WARM 4
+/* Nested fits (fit_chain.c): the first this many terms fitted jointly
+ * (the staged fit), the others one at a time. */
+#define SB_CHAIN_JOINT 4
 struct sb_fit {
     sb_context_t *ctx;
+    struct sb_fit *sub[2]; /* nested fits: the joint SB_CHAIN_JOINT terms, one term */
     size_t m, n, k, l;
     double *x, *v, *y, *tau, *b, *sb, *ub, *vbt, *work;
     double *P, *Q; /* ALS: factors m x k, n x k */
@@ -107,6 +111,10 @@ int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const 
  * INFINITY where none, and at data).  Returns 0, or -1 without memory. */
 int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
                    double *hi);
+/* A nested fit (the masked solver's): as sb_fit_execute, with more than
+ * SB_CHAIN_JOINT terms one term at a time after those. */
+sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, const sb_fit_opts_t *opts,
+                      double *s, double *U, double *V, sb_fit_info_t *info);
 /* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */
 sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
                     const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err);

@@ -1,10 +1,11 @@
 /* The masked solver (fit.h): cells outside the domain or not measured are
  * excluded from the fit (imputation warm start, then alternating least
- * squares on the valid cells, one term at a time so every prefix of the
- * terms is itself a fit).  Taken whenever the matrix has excluded cells. */
+ * squares on the valid cells: four terms jointly, then one term at a
+ * time, so that the first j >= 4 terms of a k-term fit are the j-term fit;
+ * fit_chain.c).  Taken whenever the matrix has excluded cells. */
 #include <stdlib.h>
 
-#include "solve/fit.h"
+#include "solve/fit_impl.h"
 #include "solve/solver.h"
 #include "util/internal.h"
 
@@ -44,7 +45,7 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         sb_param_texture_size(in->param, side, &o.tex[side][0], &o.tex[side][1]);
         sb_param_wrap(in->param, side, o.wrap[side]);
     }
-    sb_result_t r = sb_fit_execute(s->fit, in->x, in->ldx, in->mask, &o, out->s, out->u, out->v, &fi);
+    sb_result_t r = fit_chain(s->fit, in->x, in->ldx, in->mask, &o, out->s, out->u, out->v, &fi);
     out->iterations = fi.iterations;
     out->converged = fi.converged;
     return r;
