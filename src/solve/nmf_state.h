@@ -1,6 +1,7 @@
-/* The non-negative solver's state (solver_nmf.c: the sweeps and the
- * stages; nmf_mixes.c: the fits toward the headline and the choice among
- * them), shared by its two files. */
+/* The non-negative solver's state, shared by its three files: from the
+ * bottom, nmf_sweeps.c (the cells' weights, the sweeps and the stages),
+ * nmf_mixes.c (the fits toward the headline and the choice among them)
+ * and solver_nmf.c (the method: plan, holes, execute). */
 #ifndef SB_SOLVE_NMF_STATE_H
 #define SB_SOLVE_NMF_STATE_H
 
@@ -42,13 +43,29 @@ typedef struct nmf_state {
     sb_fit_opts_t fo;
 } nmf_state_t;
 
+/* Sweeps of a stage before the last (joint refit of the terms so far),
+ * and rank-one updates seeding a term. */
+#define SB_NMF_STAGE_SWEEPS 50
+#define SB_NMF_SEED_SWEEPS 10
+/* The weight of a cell out of the data and beyond the taps' reach,
+ * pulled towards 0, against 1 for a data cell: no lookup reads such a
+ * cell, but nothing else bounds a product u_i v_c whose row and column
+ * are fitted only elsewhere.  Small, since these cells are many (the
+ * default gold on iso: the terms' values there 0.6-0.9 of the data's
+ * norm) and every one of them pulls the terms away from the data: the
+ * default gold's prefixes at 1e-4 2.05, 2.52, 1.69, 1.92x the SVD's
+ * headline (J' = 1-4), at 1e-6 (and SB_NMF_FILL_WEIGHT 0.01) 2.27, 1.38,
+ * 1.25, 1.35x (docs/positive.md, "The cells no lookup reads"). */
+#define SB_NMF_HOLE_WEIGHT 1e-6
+/* Step: the weight of every cell in the fit (s->w, nmf_sweeps.c). */
+void sb_nmf_cell_weights(nmf_state_t *s);
 /* E = M o (X - U V^T) of the first k terms into s->e; returns the
- * weighted ||E||^2 (solver_nmf.c). */
+ * weighted ||E||^2 (nmf_sweeps.c). */
 double sb_nmf_residual(nmf_state_t *s, const double *U, const double *V, size_t k);
 
 /* The stages of a fit in s's weights: term k seeded from the positive part
  * of the residual of the k - 1 before it, then the k terms refitted
- * (nested sweeps), into out->u, out->v (solver_nmf.c). */
+ * (nested sweeps), into out->u, out->v (nmf_sweeps.c). */
 void sb_nmf_stages(nmf_state_t *s, sb_solve_out_t *out);
 
 /* The fits toward the headline (nmf_mixes.c): at SB_NMF_HEADLINE_MIX and,
