@@ -208,12 +208,15 @@ SB_FMA_CLONES static void *als_cols(void *arg) {
 /* Run fn on [0, n) split among threads (the caller's included). */
 static void als_parallel(void *(*fn)(void *), als_job_t *proto, size_t n, double *e2) {
     /* small: not worth a thread (a cell costs kf (kf + 3) / 2 multiply-adds
-     * a half-sweep).  With the library's persistent workers a call costs
-     * microseconds, so the default's 4 terms at 64 x 992 cells (0.9 M
-     * multiply-adds a half-sweep) take every core: its fit step 0.21 ->
-     * 0.14 s; the R = 8 screening fits (14 k) stay on one. */
+     * a half-sweep).  A call costs a worker's wake-up, in the kernel on
+     * the 2-core VMs (a half-sweep at 64 x 992 cells and 4 terms, 0.9 M
+     * multiply-adds, takes about 0.3 ms): below 2 M multiply-adds the
+     * sweeps stay on one thread.  On two threads the default gold run
+     * took 0.89x the CPU at J = 4 and 0.87x at J = 8 against a bound of
+     * 128 k, at the same wall time; the Cornell acrylic's 0.93x and 0.94x
+     * the wall (its cross-validation refits run one per thread). */
     size_t kf = proto->ka - proto->j0;
-    int nt = sb_threads_for(0, n, proto->f->m * proto->f->n * kf * (kf + 3) / 2, (size_t)1 << 17);
+    int nt = sb_threads_for(0, n, proto->f->m * proto->f->n * kf * (kf + 3) / 2, (size_t)1 << 21);
     als_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
         jobs[t] = *proto;

@@ -1,22 +1,36 @@
-/* The memo of memo.h: open addressing with linear probing over a table
- * allocated on the first store, FNV-style hashing of the keys' bits. */
+/* The memo of memo.h: open addressing with linear probing, FNV-style
+ * hashing of the keys' bits, and no lock.  A slot is claimed by a
+ * compare-and-swap of its tag from empty to WRITING, its key and values
+ * are written, and its tag is published with release order; a reader
+ * that loads a published tag with acquire order sees the key and values
+ * whole.  A slot still being written counts as a miss: the caller computes
+ * the value itself, which the memo's functions allow (they are
+ * deterministic).  Two threads evaluating side by side no longer wait for
+ * each other (with a mutex, the Cornell acrylic's default run took 1.09x
+ * the CPU of no memo on two threads). */
 #include "util/memo.h"
 
-#include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* A slot's tag: 0 empty, WRITING while claimed, else the key's hash with
+ * bit 1 set (never 0 or 1).  The tags are an array of their own, 8 bytes a
+ * slot: a probe reads them (a 10 MiB table's tags fit in 1 MiB of cache)
+ * and an entry only where the hashes agree. */
+#define WRITING 1u
+
 typedef struct memo_entry {
     double key[SB_MEMO_KEY];
     double val[3];
-    int state; /* 0 empty */
+    int state;
 } memo_entry_t;
 
 struct sb_memo {
-    pthread_mutex_t mu;
-    size_t cap, used; /* cap a power of two; no insertion beyond 3/4 */
-    int failed;       /* the table could not be allocated: store nothing */
+    size_t cap;         /* a power of two */
+    atomic_size_t used; /* slots claimed; none beyond 3/4 */
+    _Atomic uint64_t *tag;
     memo_entry_t *t;
 };
 
@@ -30,57 +44,65 @@ static uint64_t hash_key(const double k[SB_MEMO_KEY]) {
     return h;
 }
 
-/* The slot of key k: its entry, or the empty one where it would go. */
-static memo_entry_t *slot(const sb_memo_t *m, const double k[SB_MEMO_KEY]) {
-    for (size_t i = (size_t)hash_key(k) & (m->cap - 1);; i = (i + 1) & (m->cap - 1))
-        if (m->t[i].state == 0 || memcmp(m->t[i].key, k, sizeof m->t[i].key) == 0) return &m->t[i];
-}
-
 sb_memo_t *sb_memo_create(size_t cap) {
     sb_memo_t *m = calloc(1, sizeof *m);
     if (!m) return NULL;
-    if (pthread_mutex_init(&m->mu, NULL) != 0) {
-        free(m);
-        return NULL;
-    }
     for (m->cap = 4; m->cap < cap; m->cap *= 2) {
     }
+    m->tag = calloc(m->cap, sizeof *m->tag); /* zero: every slot empty */
+    m->t = malloc(m->cap * sizeof *m->t);
+    if (!m->tag || !m->t) {
+        sb_memo_destroy(m);
+        return NULL;
+    }
+    atomic_init(&m->used, 0);
     return m;
 }
 
 void sb_memo_destroy(sb_memo_t *m) {
     if (!m) return;
-    pthread_mutex_destroy(&m->mu);
+    free((void *)m->tag);
     free(m->t);
     free(m);
 }
 
 int sb_memo_find(sb_memo_t *m, const double key[SB_MEMO_KEY], double val[3]) {
-    int state = 0;
-    pthread_mutex_lock(&m->mu);
-    if (m->t) {
-        const memo_entry_t *e = slot(m, key);
-        state = e->state;
-        if (state) memcpy(val, e->val, sizeof e->val);
+    uint64_t h = hash_key(key), fp = h | 2;
+    for (size_t i = (size_t)h & (m->cap - 1);; i = (i + 1) & (m->cap - 1)) {
+        uint64_t g = atomic_load_explicit(&m->tag[i], memory_order_acquire);
+        if (g <= WRITING) return 0; /* empty, or being written (perhaps this key): a miss */
+        const memo_entry_t *e = &m->t[i];
+        if (g == fp && memcmp(e->key, key, sizeof e->key) == 0) {
+            memcpy(val, e->val, sizeof e->val);
+            return e->state;
+        }
     }
-    pthread_mutex_unlock(&m->mu);
-    return state;
 }
 
 void sb_memo_store(sb_memo_t *m, const double key[SB_MEMO_KEY], const double val[3], int state) {
-    pthread_mutex_lock(&m->mu);
-    if (!m->t && !m->failed) {
-        m->t = calloc(m->cap, sizeof *m->t);
-        m->failed = m->t == NULL;
-    }
-    if (m->t && 4 * (m->used + 1) <= 3 * m->cap) {
-        memo_entry_t *s = slot(m, key);
-        if (s->state == 0) {
-            memcpy(s->key, key, sizeof s->key);
-            memcpy(s->val, val, sizeof s->val);
-            s->state = state;
-            m->used++;
+    if (4 * (atomic_load_explicit(&m->used, memory_order_relaxed) + 1) > 3 * m->cap) return;
+    uint64_t h = hash_key(key), fp = h | 2;
+    for (size_t i = (size_t)h & (m->cap - 1);; i = (i + 1) & (m->cap - 1)) {
+        uint64_t g = atomic_load_explicit(&m->tag[i], memory_order_acquire), empty = 0;
+        if (g == WRITING) return; /* perhaps this key, by another thread: leave it */
+        if (g > WRITING) {
+            if (g == fp && memcmp(m->t[i].key, key, sizeof m->t[i].key) == 0) return; /* stored already */
+            continue;
         }
+        if (!atomic_compare_exchange_strong_explicit(&m->tag[i], &empty, WRITING, memory_order_acquire,
+                                                     memory_order_relaxed)) {
+            i = (i - 1) & (m->cap - 1); /* claimed meanwhile: look at it again */
+            continue;
+        }
+        if (4 * (atomic_fetch_add_explicit(&m->used, 1, memory_order_relaxed) + 1) > 3 * m->cap) {
+            atomic_store_explicit(&m->tag[i], 0, memory_order_release); /* full: give the slot back */
+            return;
+        }
+        memo_entry_t *e = &m->t[i];
+        memcpy(e->key, key, sizeof e->key);
+        memcpy(e->val, val, sizeof e->val);
+        e->state = state;
+        atomic_store_explicit(&m->tag[i], fp, memory_order_release);
+        return;
     }
-    pthread_mutex_unlock(&m->mu);
 }

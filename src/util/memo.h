@@ -1,8 +1,9 @@
 /* Private: a memo of a deterministic function of up to SB_MEMO_KEY
- * doubles to three doubles and a small state (memo.c).  Thread-safe (one
- * mutex), of fixed capacity: once 3/4 full it stops storing and answers
- * what it holds.  Keys compare bit for bit, so a hit returns the very
- * values stored. */
+ * doubles to three doubles and a small state (memo.c).  Thread-safe
+ * without a lock (a value being stored by another thread is a miss), of
+ * fixed capacity: once 3/4 full it stops storing and answers what it
+ * holds.  Keys compare bit for bit, so a hit returns the very values
+ * stored. */
 #ifndef SEPBRDF_MEMO_H
 #define SEPBRDF_MEMO_H
 
@@ -12,8 +13,7 @@
 
 typedef struct sb_memo sb_memo_t;
 
-/* A memo of cap entries (rounded up to a power of two; its table is
- * allocated on the first store, and without it the memo stores nothing).
+/* A memo of cap entries (rounded up to a power of two, 80 bytes each);
  * NULL on no memory. */
 sb_memo_t *sb_memo_create(size_t cap);
 void sb_memo_destroy(sb_memo_t *m);
