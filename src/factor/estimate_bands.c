@@ -169,8 +169,8 @@ static inline void bands_add(double *bnum, unsigned mask, const double *d2, doub
     }
 }
 
-SB_AVX2_CLONES void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin,
-                                   size_t k, int t) {
+void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
+                    int t) {
     const double *d = e->P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
     size_t J = e->J, cell;
     unsigned mask = band_mask(d, d + 3);

@@ -71,7 +71,7 @@ void est_coords_release(const sb_pairs_t *cP, est_coords_t *co, const sb_param_t
 }
 
 /* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside. */
-SB_AVX2_CLONES void est_reconstruct(const eval_t *e, size_t i, double *rec) {
+void est_reconstruct(const eval_t *e, size_t i, double *rec) {
     double sg[2], sh[2], fg[4], fh[4];
     size_t ag[4], ah[4], J = e->J, C = e->C;
     const double *wi = e->P->d + i * PD, *wo = wi + 3;

@@ -61,7 +61,9 @@ sb_result_t sb_group_reduce(sb_context_t *ctx, double *buf, size_t n, int op);
  * the baseline only).  Functions it inlines are compiled with it.
  * SB_AVX2_CLONES: the same with 256-bit AVX2 and no FMA (and C11 does
  * not contract a * b + c), so the same operations and the same bits as
- * the baseline, four doubles a vector instead of two. */
+ * the baseline, four doubles a vector instead of two.  On static
+ * functions only: GCC exports a non-static function's clones and
+ * resolver whatever -fvisibility says (exports.match_headers). */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #define SB_FMA_CLONES __attribute__((target_clones("fma", "default")))
 #define SB_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
