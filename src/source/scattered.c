@@ -46,12 +46,15 @@
 
 #define RADIUS_FACTOR 2.5
 #define SUPPORT_FACTOR 2.0
-/* The values a table's memo holds (80 bytes each, 10 MiB, allocated on the
- * first value): a default run evaluates the Cornell acrylic's table at
- * 340 000 pairs, 255 000 positions; the screening grids and the kept
- * layout's grid repeat a quarter of them (reciprocity and isotropy fold
- * distinct pairs onto one position), the drawn pairs next to none. */
-#define TABLE_MEMO_CAP ((size_t)1 << 17)
+/* The slots of a table's memo (88 bytes each with the tag, 5.5 MiB; it
+ * stores up to 3/4 of them): a default run evaluates the Cornell
+ * acrylic's table at 340 000 pairs, 255 000 positions; the screening grids
+ * (41 000 positions) and the kept layout's grid repeat a quarter of them
+ * (reciprocity and isotropy fold distinct pairs onto one position), the
+ * drawn pairs next to none.  A refit's table holds 40 000.  Two threads,
+ * in alternation against no memo: 2^16 slots 0.97x the CPU, 2^17 1.01x
+ * (twice the pages to fault in and the tags to probe). */
+#define TABLE_MEMO_CAP ((size_t)1 << 16)
 
 /* ---- samples ----------------------------------------------------------- */
 
