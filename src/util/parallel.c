@@ -14,8 +14,9 @@
  * it used to call sched_yield in a loop, and on a loaded machine, where a
  * worker waits for a core, those calls were CPU time of the caller's own
  * (SEPBRDF_THREADS=1 took 5 % less CPU than two threads on io -r 64).  The pool serves one call at a
- * time: a call made while it is busy (from another thread, or from inside
- * a job) starts threads of its own as before. */
+ * time: a call made from another thread while it is busy starts threads
+ * of its own; a call made from inside a job runs its jobs on that job's
+ * thread, one after the other (sb_parallel_nested). */
 #include "util/parallel.h"
 
 #include <pthread.h>
