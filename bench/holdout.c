@@ -14,6 +14,7 @@
  * Cornell file's wavelength lines have fewer); every other line goes to
  * both halves.  The halves are written beside each other in a temporary
  * folder and removed. */
+#define _GNU_SOURCE
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -48,18 +49,52 @@ static sb_job_t *run(const char *path, size_t J) {
 }
 
 /* Relative L2 of f cos theta_i of job's reconstruction at held's samples. */
-static double held_error(const sb_job_t *job, const char *held, size_t J) {
+static double held_error(const sb_job_t *job, const char *held, size_t J, int worst) {
     sb_source_t *h = NULL;
     if (sb_source_open(NULL, held, &h) != SB_OK) return NAN;
-    double e2 = 0, t2 = 0;
+    double e2 = 0, t2 = 0, top[8] = {0}, row[8][13];
+    if (worst > 8) worst = 8;
     for (size_t i = 0; i < sb_source_sample_count(h); i++) {
-        double wi[3], wo[3], v[3], r[3];
+        double wi[3], wo[3], v[3], r[3], ei = 0;
         if (!sb_source_sample(h, i, wi, wo, v)) continue;
         if (!sb_factors_eval(sb_job_factors(job), sb_job_param(job), sb_job_form(job), J, wi, wo, r))
             r[0] = r[1] = r[2] = 0;
-        for (int c = 0; c < 3; c++)
-            e2 += (r[c] - v[c]) * (r[c] - v[c]) * wi[2] * wi[2], t2 += v[c] * v[c] * wi[2] * wi[2];
+        for (int c = 0; c < 3; c++) {
+            ei += (r[c] - v[c]) * (r[c] - v[c]) * wi[2] * wi[2];
+            t2 += v[c] * v[c] * wi[2] * wi[2];
+        }
+        e2 += ei;
+        for (int k = 0; k < worst; k++) /* keep the rows of the largest squared error, largest first */
+            if (ei > top[k]) {
+                memmove(top + k + 1, top + k, (size_t)(worst - k - 1) * sizeof *top);
+                memmove(row + k + 1, row + k, (size_t)(worst - k - 1) * sizeof *row);
+                top[k] = ei;
+                double hv[3] = {wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]};
+                double hn = sqrt(hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2]);
+                double t[3] = {0, 0, 0};
+                sb_source_eval(sb_job_source(job), wi, wo, t); /* the training table's own value there */
+                double d[13] = {acos(wi[2]) * 180 / M_PI,
+                                acos(wo[2]) * 180 / M_PI,
+                                acos(hv[2] / hn) * 180 / M_PI,
+                                v[0] * wi[2],
+                                v[1] * wi[2],
+                                v[2] * wi[2],
+                                r[0] * wi[2],
+                                r[1] * wi[2],
+                                r[2] * wi[2],
+                                (double)i,
+                                t[0] * wi[2],
+                                t[1] * wi[2],
+                                t[2] * wi[2]};
+                memcpy(row[k], d, sizeof d);
+                break;
+            }
     }
+    for (int k = 0; k < worst && top[k] > 0; k++)
+        printf("#   held sample %4.0f: theta_i %5.1f theta_o %5.1f theta_h %5.2f  f cos %.3g %.3g %.3g  "
+               "fit %.3g %.3g %.3g  table %.3g %.3g %.3g  (%.0f %% of the squared error)\n",
+               row[k][9], row[k][0], row[k][1], row[k][2], row[k][3], row[k][4], row[k][5], row[k][6], row[k][7],
+               row[k][8], row[k][10], row[k][11], row[k][12], 100 * top[k] / e2);
     sb_source_destroy(h);
     return sqrt(e2 / t2);
 }
@@ -73,6 +108,10 @@ int main(int argc, char **argv) {
     double frac = argc > 2 ? atof(argv[2]) : 0.1;
     int seeds = argc > 3 ? atoi(argv[3]) : 8;
     size_t J = argc > 4 ? (size_t)atoi(argv[4]) : 8;
+    const char *w = getenv("SB_HOLDOUT_WORST"); /* print the N worst held-out rows of each split (N <= 8) */
+    int worst = w ? atoi(w) : 0, first = 1;
+    const char *o = getenv("SB_HOLDOUT_FIRST"); /* start at this seed */
+    if (o) first = atoi(o);
     FILE *f = fopen(path, "r");
     if (!f || !(frac > 0 && frac < 1) || seeds < 1 || J < 1) {
         fprintf(stderr, "%s: cannot read, or FRACTION not in (0, 1), SEEDS or J below 1\n", path);
@@ -94,7 +133,7 @@ int main(int argc, char **argv) {
     printf("# %s: %.0f %% of the rows held out, J = %zu; cv_headline of the whole table %.4f +- %.2g\n", path,
            100 * frac, J, cv, se);
     printf("| seed | rows held out | error there | / cv_headline |\n|---|---|---|---|\n");
-    for (int s = 1; s <= seeds; s++) {
+    for (int s = first; s < first + seeds; s++) {
         rewind(f);
         FILE *a = fopen(tr, "w"), *b = fopen(he, "w");
         size_t nh = 0;
@@ -111,7 +150,7 @@ int main(int argc, char **argv) {
         fclose(a);
         fclose(b);
         sb_job_t *job = run(tr, J);
-        double e = job ? held_error(job, he, J) : NAN;
+        double e = job ? held_error(job, he, J, worst) : NAN;
         sb_job_destroy(job);
         printf("| %d | %zu | %.4f | %.2f |\n", s, nh, e, e / cv);
         fflush(stdout);

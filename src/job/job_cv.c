@@ -35,7 +35,9 @@
 
 /* The refit of fold k: the table read again without it, with the
  * interpolation the whole table resolved (method, neighbours, radius: not
- * chosen again on fewer samples), sampled on the kept layout with the kept
+ * chosen again on fewer samples; the lobe, when the table uses one, fitted
+ * again from its family on: a narrow highlight's shape is what a fold
+ * that holds out its edge sees differently), sampled on the kept layout with the kept
  * form, and factored with the kept weighting and J (masked fits stopped
  * early, as auto screens: the error at unseen measurements is far above
  * what more sweeps change).  No estimator, term weights or texel fits:
@@ -47,8 +49,8 @@ static sb_result_t fold_fit(sb_context_t *ctx, const sb_job_t *job, size_t K, si
     mo.cv_folds = K;
     mo.cv_fold = k;
     mo.interp = in->interp;
-    mo.lobe = in->lobe.used ? SB_LOBE_ON : SB_LOBE_OFF; /* its width and weights fitted again */
-    mo.lobe_shape = &in->lobe;
+    mo.lobe = in->lobe.used ? SB_LOBE_ON : SB_LOBE_OFF; /* its shape, width and weights fitted again */
+    mo.lobe_shape = NULL; /* as a refit by hand would: where a fold held the highlight's edge, the shape parts */
     mo.neighbours = in->neighbours;
     mo.radius = isfinite(in->radius) ? in->radius : -1;
     sb_source_t *src = NULL;

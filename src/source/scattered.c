@@ -95,6 +95,7 @@ static void table_destroy(void *self) {
     free(t->pts);
     free(t->val);
     free(t->raw);
+    free(t->lb);
     free(t->split);
     free(t->smp);
     sb_memo_destroy(t->memo);

@@ -36,13 +36,13 @@ static void cv_sample(const table_t *t, const sb_interp_t order[4], const size_t
         for (size_t a = 0; a < all.n && q.n < q.k && all.d2[a] <= q.r2; a++, q.n++)
             q.d2[q.n] = all.d2[a], q.at[q.n] = all.at[a];
         double rgb[3];
-        int known = sb_table_from_knn_(t, order[i], x, &q, rgb);
+        int known = sb_table_from_knn_(t, order[i], x, &q, NAN, rgb);
         if (!known) {
             miss[order[i]]++;
             continue;
         }
         for (int c = 0; c < 3; c++) {
-            double v = known == 1 ? rgb[c] * b[c] : rgb[c];
+            double v = known == 1 && t->lobe_on ? rgb[c] * b[c] - t->lobe.floor[c] : rgb[c];
             num[i] += (v - s[6 + c]) * (v - s[6 + c]) * w * w;
             den[i] += s[6 + c] * s[6 + c] * w * w;
         }
@@ -113,13 +113,14 @@ void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, s
         cv_off[k] = cv_on[k] = NAN, miss_off[k] = miss_on[k] = 0;
     if (fixed) info->cv_held_out = 0;
     if (o->lobe != SB_LOBE_ON && !fixed) e_off = cv_all(t, o, kfit, cv_off, miss_off, &info->cv_held_out, &best_off);
-    double *raw = t->val, *q = NULL;
+    double *raw = t->val, *q = NULL, *lb = NULL;
     if (o->lobe != SB_LOBE_OFF) {
         sb_lobe_fit_(t->smp, t->ns, o->lobe == SB_LOBE_ON ? o->lobe_shape : NULL, &t->lobe);
-        q = sb_lobe_values_(t, &t->lobe);
+        q = sb_lobe_values_(t, &t->lobe, &lb);
     }
     if (q) {
         t->val = q;
+        t->lb = lb;
         t->lobe_on = 1;
         if (!fixed) e_on = cv_all(t, o, kfit, cv_on, miss_on, &info->cv_held_out, &best_on);
     }
@@ -127,7 +128,9 @@ void sb_table_cv_choose_(table_t *t, const sb_measured_opts_t *o, size_t kfit, s
     if (q && !use) {
         t->val = raw;
         t->lobe_on = 0;
+        t->lb = NULL;
         free(q);
+        free(lb);
     } else if (use) {
         t->raw = raw; /* measured positions return their measurement */
     }

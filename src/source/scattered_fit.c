@@ -15,6 +15,16 @@
  * get a zero slope instead of a wild one. */
 #define RIDGE 1e-2
 
+/* With the lobe: a neighbour whose base differs from the position's by
+ * the factor e^LEVEL_SCALE counts e^-1 of its weight (Gaussian in the ln
+ * of the ratio), and the weight its neighbours lose this way goes to the
+ * lobe itself (q = 1 at the position).  Beside a highlight narrower than
+ * the samples' spacing the neighbours of a position on the peak are off
+ * it, and their quotients (the diffuse colour over the diffuse fit) say
+ * nothing about the peak's: the lobe's colour and height then hold there,
+ * as the samples on the peak hold them. */
+#define LEVEL_SCALE 1.3862943611198906 /* ln 4 */
+
 /* Azimuth differences averaged over at the pole (pole_mean): 5 deg steps. */
 #define POLE_STEPS 37
 
@@ -29,15 +39,16 @@
  * sides B (P x 3) over the neighbours, with the weights' sums; inlined
  * into one copy per (D, P) so that the loops have fixed bounds. */
 static inline __attribute__((always_inline)) void poly_accum(const table_t *t, const double *x, const knn_t *q,
-                                                             const int D, const int P, double *A, double *B,
-                                                             double lo[3], double hi[3], double *spread, double *wsum) {
+                                                             const double *kw, const int D, const int P, double *A,
+                                                             double *B, double lo[3], double hi[3], double *spread,
+                                                             double *wsum) {
     for (int a = 0; a < P * P; a++)
         A[a] = 0;
     for (int a = 0; a < P * 3; a++)
         B[a] = 0;
     for (size_t i = 0; i < q->n; i++) {
         const double *p = t->pts + q->at[i] * MAX_DIM, *v = t->val + 4 * q->at[i];
-        double w = v[3] / q->d2[i], u[MAX_TERMS];
+        double w = v[3] / q->d2[i] * (kw ? kw[i] : 1), u[MAX_TERMS];
         u[0] = 1;
         for (int a = 0; a < D; a++)
             u[a + 1] = p[a] - x[a];
@@ -60,18 +71,27 @@ static inline __attribute__((always_inline)) void poly_accum(const table_t *t, c
     }
 }
 
-static int poly_fit(const table_t *t, const double *x, const knn_t *q, int quadratic, double rgb[3]) {
+static int poly_fit(const table_t *t, const double *x, const knn_t *q, const double *kw, double prior, int quadratic,
+                    double rgb[3]) {
     int D = t->dim, P = 1 + D + (quadratic ? D * (D + 1) / 2 : 0);
     double A[MAX_TERMS * MAX_TERMS], B[MAX_TERMS * 3];
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, spread = 0, wsum = 0;
     if (D == 3 && quadratic)
-        poly_accum(t, x, q, 3, 10, A, B, lo, hi, &spread, &wsum);
+        poly_accum(t, x, q, kw, 3, 10, A, B, lo, hi, &spread, &wsum);
     else if (D == 3)
-        poly_accum(t, x, q, 3, 4, A, B, lo, hi, &spread, &wsum);
+        poly_accum(t, x, q, kw, 3, 4, A, B, lo, hi, &spread, &wsum);
     else if (quadratic)
-        poly_accum(t, x, q, 4, 15, A, B, lo, hi, &spread, &wsum);
+        poly_accum(t, x, q, kw, 4, 15, A, B, lo, hi, &spread, &wsum);
     else
-        poly_accum(t, x, q, 4, 5, A, B, lo, hi, &spread, &wsum);
+        poly_accum(t, x, q, kw, 4, 5, A, B, lo, hi, &spread, &wsum);
+    if (prior > 0) { /* the lobe's own value, q = 1, observed at x */
+        A[0] += prior;
+        for (int c = 0; c < 3; c++) {
+            B[c] += prior;
+            lo[c] = fmin(lo[c], 1);
+            hi[c] = fmax(hi[c], 1);
+        }
+    }
     double s2 = spread / wsum;
     for (int a = 1; a < P; a++)
         A[a * P + a] += RIDGE * wsum * (a <= D ? s2 : s2 * s2);
@@ -117,7 +137,7 @@ static double seed_bound(const table_t *t, const double *x, size_t k) {
  * leaving out the points at the nskip positions of `skip`: 0 missing, 1
  * known, 2 known at a measured position (the measurement). */
 int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
-                 double rgb[3]) {
+                 double lx, double rgb[3]) {
     rgb[0] = rgb[1] = rgb[2] = 0;
     knn_t q;
     q.k = interp == SB_INTERP_NEAREST ? 1 : k;
@@ -138,10 +158,11 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
      * one order the fits sum the same terms in the same order whatever
      * was asked before (a value is a function of x alone). */
     sb_knn_canon_(&q);
-    return sb_table_from_knn_(t, interp, x, &q, rgb);
+    return sb_table_from_knn_(t, interp, x, &q, lx, rgb);
 }
 
-int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double rgb[3]) {
+int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double lx,
+                       double rgb[3]) {
     rgb[0] = rgb[1] = rgb[2] = 0;
     double d0 = INFINITY; /* the nearest (the heap is ordered by the farthest) */
     for (size_t i = 0; i < q->n; i++)
@@ -163,10 +184,25 @@ int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, co
             rgb[c] /= cnt;
         return d0 <= SAME_POSITION * SAME_POSITION ? 2 : 1;
     }
+    /* With the lobe: each neighbour's weight by how near its base is to
+     * the position's, the rest to the lobe (LEVEL_SCALE). */
+    double kw[KNN_MAX], prior = 0;
+    const double *kwp = NULL;
+    if (t->lobe_on && t->lb) {
+        if (isnan(lx)) lx = sb_lobe_level_(t, x);
+        for (size_t i = 0; i < q->n; i++) {
+            double d = (t->lb[q->at[i]] - lx) / LEVEL_SCALE, w = t->val[4 * q->at[i] + 3] / q->d2[i];
+            kw[i] = exp(-d * d);
+            prior += w * (1 - kw[i]);
+        }
+        kwp = kw;
+    }
     /* Inverse squared distance weights: the value, or the fallback. */
-    double wsum = 0;
+    double wsum = prior;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = prior;
     for (size_t i = 0; i < q->n; i++) {
-        double w = t->val[4 * q->at[i] + 3] / q->d2[i];
+        double w = t->val[4 * q->at[i] + 3] / q->d2[i] * (kwp ? kw[i] : 1);
         for (int c = 0; c < 3; c++)
             rgb[c] += w * t->val[4 * q->at[i] + c];
         wsum += w;
@@ -175,8 +211,9 @@ int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, co
         rgb[c] /= wsum;
     /* Local polynomial when there are enough neighbours: twice the terms. */
     size_t lin = 2 * ((size_t)t->dim + 1), quad = 2 * (1 + (size_t)t->dim + (size_t)(t->dim * (t->dim + 1) / 2));
-    if (interp == SB_INTERP_QUADRATIC && q->n >= quad && poly_fit(t, x, q, 1, rgb)) return 1;
-    if ((interp == SB_INTERP_QUADRATIC || interp == SB_INTERP_LINEAR) && q->n >= lin) poly_fit(t, x, q, 0, rgb);
+    if (interp == SB_INTERP_QUADRATIC && q->n >= quad && poly_fit(t, x, q, kwp, prior, 1, rgb)) return 1;
+    if ((interp == SB_INTERP_QUADRATIC || interp == SB_INTERP_LINEAR) && q->n >= lin)
+        poly_fit(t, x, q, kwp, prior, 0, rgb);
     return 1;
 }
 
@@ -199,14 +236,14 @@ static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
     int n = 0;
     for (int k = 0; k < POLE_STEPS; k++) {
         y[2] = SB_PI * k / (POLE_STEPS - 1);
-        int known = sb_table_at_(t, t->interp, t->k, y, NULL, 0, v);
+        int known = sb_table_at_(t, t->interp, t->k, y, NULL, 0, NAN, v);
         if (!known) continue;
         if (known == 2 && t->lobe_on) { /* a measurement: relative to the lobe as the others */
             double wi[3], wo[3], b[3];
             sb_table_dirs_(t, y, wi, wo);
             sb_lobe_base_(&t->lobe, wi, wo, b);
             for (int c = 0; c < 3; c++)
-                v[c] /= b[c];
+                v[c] = (v[c] + t->lobe.floor[c]) / b[c];
         }
         for (int c = 0; c < 3; c++)
             acc[c] += v[c];
@@ -221,11 +258,11 @@ static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
 /* The value at embedded position x with the pole blend, before the lobe's
  * factor (0 missing, 1 known, 2 measured), remembered by position: pairs
  * that reciprocity and isotropy fold onto one position share it. */
-static int table_at_pole(const table_t *t, const double *x, double rgb[3]) {
+static int table_at_pole(const table_t *t, const double *x, double lx, double rgb[3]) {
     const double key[SB_MEMO_KEY] = {x[0], x[1], x[2], x[3], 0, 0};
     int state = t->memo ? sb_memo_find(t->memo, key, rgb) : 0;
     if (state) return state - 1;
-    int known = sb_table_at_(t, t->interp, t->k, x, NULL, 0, rgb);
+    int known = sb_table_at_(t, t->interp, t->k, x, NULL, 0, lx, rgb);
     double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
     if (!(known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole))) {
         double w = known ? tmin / zone : 0;
@@ -241,14 +278,17 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
     const table_t *t = self;
     rgb[0] = rgb[1] = rgb[2] = 0;
     if (!(wi[2] > 0 && wo[2] > 0)) return 0;
-    double x[MAX_DIM] = {0};
+    double x[MAX_DIM] = {0}, b[3] = {1, 1, 1}, lx = NAN;
     sb_scat_embed_(t->iso, t->recip, wi, wo, x);
-    int known = table_at_pole(t, x, rgb);
-    if (known == 1 && t->lobe_on) { /* the values are relative to the lobe */
-        double b[3];
-        sb_lobe_base_(&t->lobe, wi, wo, b);
-        for (int c = 0; c < 3; c++)
-            rgb[c] *= b[c];
+    if (t->lobe_on) { /* the base at x's own pair: a function of x alone, as the value */
+        double dwi[3], dwo[3];
+        sb_table_dirs_(t, x, dwi, dwo);
+        sb_lobe_base_(&t->lobe, dwi, dwo, b);
+        lx = log(b[0] + b[1] + b[2]);
     }
+    int known = table_at_pole(t, x, lx, rgb);
+    if (known == 1 && t->lobe_on) /* the values are relative to the lobe */
+        for (int c = 0; c < 3; c++)
+            rgb[c] = rgb[c] * b[c] - t->lobe.floor[c];
     return known != 0;
 }

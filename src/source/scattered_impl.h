@@ -19,10 +19,17 @@
 
 /* The lobe a table's values are interpolated relative to
  * (scattered_lobe.c): f = kd + ks S(l, v), S of width alpha, Schlick F0. */
+#define LOBE_ALTS 4 /* the best shape and up to three that fit about as well */
+typedef struct lobe_alt {
+    int ndf, cosp;
+    double alpha, f0, kd[3], ks[3];
+} lobe_alt_t;
 typedef struct lobe {
     int fitted, ndf; /* ndf: 0 GGX, 1 Beckmann, 2 exp4, 3 exp8 */
     int cosp;        /* the cosines' power in the denominator: (cosp % 3) / 2; cosp >= 3: remapped Smith k */
     double alpha, f0, kd[3], ks[3], floor[3], cap[3]; /* cap: CAP x the brightest sample */
+    int nalt;                                         /* shapes in alt (alt[0] the one above) */
+    lobe_alt_t alt[LOBE_ALTS];                        /* the base takes the lowest of them (sb_lobe_fit_) */
 } lobe_t;
 
 typedef struct table {
@@ -42,6 +49,7 @@ typedef struct table {
     lobe_t lobe;
     int lobe_on;     /* val holds f / base (sb_lobe_base_), eval multiplies back */
     double *raw;     /* with lobe_on: the values as measured (n * 4), returned at measured positions */
+    double *lb;      /* with lobe_on: ln of the base's channel sum at each point (n), NULL without */
     sb_memo_t *memo; /* values before the lobe's factor by embedded position, and pole means (scattered_fit.c) */
 } table_t;
 
@@ -77,12 +85,14 @@ double sb_table_spacing_(sb_context_t *ctx, const table_t *t);
 /* scattered_fit.c */
 /* The value at embedded position x by method interp with k neighbours,
  * leaving out the nskip positions of skip: 0 missing, 1 known, 2 known at
- * a measured position. */
+ * a measured position; lx as for sb_table_from_knn_. */
 int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x, const double *skip, int nskip,
-                 double rgb[3]);
+                 double lx, double rgb[3]);
 /* The value at x by method interp from its neighbours q, as sb_table_at_
- * finds them (the k nearest within the method's radius). */
-int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double rgb[3]);
+ * finds them (the k nearest within the method's radius).  lx: with the
+ * lobe, ln of the base's channel sum at x (sb_lobe_level_), NAN to have
+ * it computed. */
+int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double lx, double rgb[3]);
 /* The source's eval: f_r of (wi, wo), with the pole blend. */
 int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]);
 
@@ -95,10 +105,13 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
 void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], double b[3]);
 /* A direction pair at embedded position x (its symmetric representative). */
 void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]);
-/* The points' values divided by the base at their positions (n * 4, the
- * counts kept; malloc'd; NULL when L is not fitted, on no memory or when a
- * quotient is not finite). */
-double *sb_lobe_values_(const table_t *t, const lobe_t *L);
+/* The points' values relative to the base at their positions, (f +
+ * floor) / base (n * 4, the counts kept; malloc'd; NULL when L is not
+ * fitted, on no memory or when a quotient is not finite), and into *lb
+ * (malloc'd, n) ln of the base's channel sum at each point. */
+double *sb_lobe_values_(const table_t *t, const lobe_t *L, double **lb);
+/* ln of the base's channel sum at embedded position x. */
+double sb_lobe_level_(const table_t *t, const double *x);
 /* The public description of L. */
 void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out);
 

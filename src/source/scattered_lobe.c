@@ -42,6 +42,10 @@
  * largest value at a sample: a lobe narrower than the samples resolve
  * would otherwise claim any height between them. */
 #define CAP 2.0
+/* Shapes within this much of the best cost (log_cost: squared ln
+ * errors summed over samples) fit about as well: one sample off by a
+ * factor e costs 1. */
+#define ALT_MARGIN 1.0
 
 static const double f0_grid[] = {0.04, 0.25, 1.0};
 static const char *const ndf_names[NDFS] = {"ggx", "beckmann", "exp4", "exp8"};
@@ -84,11 +88,6 @@ static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int co
     cosp %= 3;
     double g = (gm->l2 * (1 - k) + k) * (gm->v2 * (1 - k) + k);
     return d * fr / (4 * (cosp == 2 ? g : cosp == 1 ? sqrt(g) : 1));
-}
-
-static double lobe_shape(int ndf, double alpha, double f0, int cosp, const double l[3], const double v[3]) {
-    geo_t g = lobe_geo(l, v);
-    return shape_at(&g, ndf, alpha, f0, cosp);
 }
 
 /* Five sums per channel for the 2 x 2 least squares of one shape. */
@@ -138,6 +137,29 @@ static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t 
     for (int c = 0; c < 3; c++) {
         r += solve2(&m, c, &a, &b);
         if (kd) kd[c] = a, ks[c] = b;
+    }
+    return r;
+}
+
+/* How far the base kd + ks S + floor is from the samples, as a factor:
+ * the sum over samples and channels of ln^2((f+ + floor) / base), kd and
+ * ks the least-squares weights of the shape.  The interpolation spreads
+ * q = f / base between the samples, so the shape to keep is the one that
+ * leaves q nearest one everywhere, the highlight's tail as much as its
+ * peak (the squares of f cos theta_i alone see the peak only: a family
+ * whose tail overshoots the first samples beside a narrow peak by 10x
+ * cost less there than one that misses the peak's shoulder by 20 %). */
+static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, int ndf, double alpha, double f0,
+                       int cosp, const double floor_[3]) {
+    double kd[3], ks[3], r = 0;
+    shape_cost(smp, ns, step, geo, ndf, alpha, f0, cosp, kd, ks);
+    for (size_t i = 0, j = 0; i < ns; i += step, j++) {
+        const double *s = smp + i * SB_SAMPLE_DOUBLES;
+        double S = shape_at(&geo[j], ndf, alpha, f0, cosp);
+        for (int c = 0; c < 3; c++) {
+            double l = log((fmax(s[6 + c], 0) + floor_[c]) / (kd[c] + ks[c] * S + floor_[c]));
+            r += l * l;
+        }
     }
     return r;
 }
@@ -198,6 +220,43 @@ static geo_t *geo_of(const double *smp, size_t ns, size_t step) {
     return g;
 }
 
+/* A shape tried, with its cost (log_cost). */
+typedef struct cand {
+    double cost;
+    lobe_alt_t s;
+} cand_t;
+
+/* Shapes whose cost is within ALT_MARGIN of the best fit the samples about
+ * as well; between the samples they can still part (one lobe's shoulder
+ * reaches where another's has fallen 100x).  The base takes the lowest
+ * of them: a highlight is not claimed where no sample shows it, and a
+ * prediction too low there is off by at most the value, one too high by
+ * any multiple of it.  alt[0] is the best; up to LOBE_ALTS - 1 more, the
+ * cheapest first, each a different shape (cosine power 0 has no Smith k). */
+static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, cand_t *c, int nc, double best,
+                              lobe_t *L) {
+    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}};
+    memcpy(L->alt[0].kd, L->kd, sizeof L->kd);
+    memcpy(L->alt[0].ks, L->ks, sizeof L->ks);
+    L->nalt = 1;
+    while (L->nalt < LOBE_ALTS) {
+        int at = -1;
+        for (int i = 0; i < nc; i++) {
+            if (!(c[i].cost < best + ALT_MARGIN) || (at >= 0 && c[i].cost >= c[at].cost)) continue;
+            int same = 0;
+            for (int a = 0; a < L->nalt && !same; a++)
+                same = L->alt[a].ndf == c[i].s.ndf && L->alt[a].f0 == c[i].s.f0 &&
+                       (L->alt[a].cosp == c[i].s.cosp || (L->alt[a].cosp % 3 == 0 && c[i].s.cosp % 3 == 0));
+            if (!same) at = i;
+        }
+        if (at < 0) break;
+        lobe_alt_t *a = &L->alt[L->nalt++];
+        *a = c[at].s;
+        shape_cost(smp, ns, 1, geo, a->ndf, a->alpha, a->f0, a->cosp, a->kd, a->ks);
+        c[at].cost = INFINITY;
+    }
+}
+
 void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L) {
     memset(L, 0, sizeof *L);
     if (ns == 0) return;
@@ -206,7 +265,8 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
     if (!geo) return; /* no memory: not fitted, the table interpolates f itself */
     median_floor(smp, ns, L->floor, L->cap);
     double best = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
-    int nf = (int)(sizeof f0_grid / sizeof *f0_grid);
+    int nf = (int)(sizeof f0_grid / sizeof *f0_grid), nc = 0;
+    cand_t cands[NDFS * COSP * 3];
     for (int ndf = 0; ndf < NDFS; ndf++)
         for (int cf = 0; cf < COSP * nf; cf++) {
             int cosp = cf % COSP;
@@ -222,6 +282,8 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
             }
             double lo = la + (at > 0 ? at - 1 : 0) * dl, hi = la + (at < ALPHA_STEPS - 1 ? at + 1 : at) * dl, c;
             double alpha = refine_alpha(smp, ns, step, geo, ndf, f0_grid[fi], cosp, lo, hi, &c);
+            c = log_cost(smp, ns, step, geo, ndf, alpha, f0_grid[fi], cosp, L->floor);
+            if (nc < NDFS * COSP * 3) cands[nc++] = (cand_t){c, {ndf, cosp, alpha, f0_grid[fi], {0}, {0}}};
             if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
         }
     if (step > 1) { /* the weights from every sample */
@@ -233,6 +295,7 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
         return;
     }
     shape_cost(smp, ns, 1, geo, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
+    pick_alternatives(smp, ns, geo, cands, nc, best, L);
     /* The cap: CAP x the largest of the sample values and of the lobe at
      * the samples (a fold that lost the brightest sample keeps the lobe's
      * shape there; only the height between samples is bounded). */
@@ -246,9 +309,16 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
 }
 
 void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], double b[3]) {
-    double S = lobe_shape(L->ndf, L->alpha, L->f0, L->cosp, wi, wo);
+    geo_t g = lobe_geo(wi, wo);
+    double m[3] = {L->cap[0], L->cap[1], L->cap[2]};
+    for (int a = 0; a < L->nalt; a++) {
+        const lobe_alt_t *s = &L->alt[a];
+        double S = shape_at(&g, s->ndf, s->alpha, s->f0, s->cosp);
+        for (int c = 0; c < 3; c++)
+            m[c] = fmin(m[c], s->kd[c] + s->ks[c] * S);
+    }
     for (int c = 0; c < 3; c++)
-        b[c] = fmin(L->kd[c] + L->ks[c] * S, L->cap[c]) + L->floor[c];
+        b[c] = m[c] + L->floor[c];
 }
 
 void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]) {
@@ -262,20 +332,34 @@ void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3
     wo[0] = sin(to) * cos(po), wo[1] = sin(to) * sin(po), wo[2] = cos(to);
 }
 
-double *sb_lobe_values_(const table_t *t, const lobe_t *L) {
+double sb_lobe_level_(const table_t *t, const double *x) {
+    double wi[3], wo[3], b[3];
+    sb_table_dirs_(t, x, wi, wo);
+    sb_lobe_base_(&t->lobe, wi, wo, b);
+    return log(b[0] + b[1] + b[2]);
+}
+
+double *sb_lobe_values_(const table_t *t, const lobe_t *L, double **lb) {
     double *q = L->fitted ? malloc(t->n * 4 * sizeof *q) : NULL;
-    if (!q) return NULL;
+    *lb = q ? malloc(t->n * sizeof **lb) : NULL;
+    if (!*lb) {
+        free(q);
+        return NULL;
+    }
     for (size_t i = 0; i < t->n; i++) {
         double wi[3], wo[3], b[3];
         sb_table_dirs_(t, t->pts + i * MAX_DIM, wi, wo);
         sb_lobe_base_(L, wi, wo, b);
         for (int c = 0; c < 3; c++) {
-            q[4 * i + (size_t)c] = t->val[4 * i + (size_t)c] / b[c];
+            q[4 * i + (size_t)c] = (t->val[4 * i + (size_t)c] + L->floor[c]) / b[c];
             if (!isfinite(q[4 * i + (size_t)c])) { /* the lobe cannot carry these values */
                 free(q);
+                free(*lb);
+                *lb = NULL;
                 return NULL;
             }
         }
+        (*lb)[i] = log(b[0] + b[1] + b[2]);
         q[4 * i + 3] = t->val[4 * i + 3];
     }
     return q;
