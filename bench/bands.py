@@ -19,6 +19,14 @@ the largest.  Prints a Markdown table; a row fails its bound with "NO".
 would read it): the median reading, the pooled value of all K N pairs and
 how many of the K readings agree with the report.
 
+--mix: with --check --seeds, the draws of the GGX models take wo from
+sepbrdf_bench_bands' mixture (SB_BANDS_MIX) with the model's own alpha
+(roughness^2), each pair weighted by the uniform density over the
+mixture's: the same band, with the mirror peak that holds it drawn (GGX
+0.1, theta_i > 89 degrees: 99 % of f^2 cos^2 theta_i at theta_h < 1
+degree, where a uniform pair falls with probability 6e-6; docs/bands.md,
+"Ninth pass").
+
 --check N: then, per row, the reported band errors theta_i > 60, 80, 89
 degrees against sepbrdf_bench_bands (bench/bands_check.c: N pairs drawn
 uniformly in solid angle inside each band, the written EXR files evaluated
@@ -35,6 +43,9 @@ import os
 import subprocess
 import sys
 import tempfile
+
+# GGX alpha (roughness^2) of the models that --mix draws about the mirror
+ALPHA = {"cook-torrance:roughness=0.1": 0.01, "cook-torrance:roughness=0.3": 0.09}
 
 MODELS = [
     ("gold (default)", None),
@@ -77,28 +88,33 @@ def agrees(v, se, u, use):
     return abs(v - u) <= 0.1 * u or abs(v - u) <= 2 * (se ** 2 + use ** 2) ** 0.5
 
 
-def draw(build, rep, out, n, band, seed):
-    """One uniform draw of n pairs inside band (sepbrdf_bench_bands): (error, se)."""
+def draw(build, rep, out, n, band, seed, mix=None):
+    """One uniform draw of n pairs inside band (sepbrdf_bench_bands), wo from
+    the mixture of GGX alpha mix where given: (error, se, the sums of the
+    squared errors and of the squared values)."""
     cmd = [os.path.join(build, "sepbrdf_bench_bands"), rep["source_spec"], out, str(rep["terms"]), str(n)]
-    env = dict(os.environ, SB_BANDS_ONLY=band, SB_BANDS_SEED=str(seed))
+    env = dict(os.environ, SB_BANDS_ONLY=band, SB_BANDS_SEED=str(seed), SB_BANDS_SUMS="1")
+    if mix:
+        env["SB_BANDS_MIX"] = str(mix)
     w = subprocess.run(cmd, capture_output=True, text=True, env=env).stdout.split()
-    return float(w[1]), float(w[2])
+    return float(w[1]), float(w[2]), float(w[3]), float(w[4])
 
 
-def check_seeds(build, rep, out, n, k):
+def check_seeds(build, rep, out, n, k, mix=None):
     """The rows of the --check --seeds table: per band the report, the
     median of k readings of n pairs, the pooled value of the k n pairs
-    (the mean of the squared ratios' numerators over the denominators is
-    not available here: the mean of the squared readings) and how many
-    readings agree with the report."""
+    (the ratio of the summed squared errors to the summed squared values,
+    as one draw of k n pairs reads it) and how many readings agree with
+    the report."""
     e = rep["errors"][rep["terms"] - 1]
     rows = []
     for b in CHECKED:
         v, se = e["band_rel"][b], e["band_rel_se"][b]
-        got = [draw(build, rep, out, n, b, s) for s in range(1, k + 1)]
-        med = sorted(u for u, _ in got)[k // 2]
-        pooled = (sum(u * u for u, _ in got) / k) ** 0.5
-        ok = sum(agrees(v, se, u, use) for u, use in got)
+        got = [draw(build, rep, out, n, b, s, mix) for s in range(1, k + 1)]
+        med = sorted(g[0] for g in got)[k // 2]
+        sd = sum(g[3] for g in got)
+        pooled = (sum(g[2] for g in got) / sd) ** 0.5 if sd > 0 else float("nan")
+        ok = sum(agrees(v, se, g[0], g[1]) for g in got)
         rows.append((b, "%s ± %s" % (pct(v), pct(se)), pct(med), pct(pooled), "%d/%d" % (ok, k),
                      "%.2f" % (v / med)))
     return rows
@@ -136,6 +152,7 @@ def main():
     ap.add_argument("--check", type=int, default=0, help="pairs per band of the uniform draw (0: none)")
     ap.add_argument("--grow", type=int, default=0, help="with --check: the estimator grown to this many pairs too")
     ap.add_argument("--seeds", type=int, default=0, help="with --check: repeat the uniform draw with this many sequences")
+    ap.add_argument("--mix", action="store_true", help="with --check --seeds: GGX models drawn about the mirror")
     ap.add_argument("--models", default=None, help="only the models whose names contain one of these (comma list)")
     ap.add_argument("files", nargs="*")
     a = ap.parse_args()
@@ -161,13 +178,14 @@ def main():
                     pct(e["p99_rel_lit"]), "%.3g" % e["max_rel_lit"], pct(e["min_rel"])))
                 sys.stdout.flush()
                 if a.check and a.seeds:
+                    mix = ALPHA.get(src) if a.mix else None
                     checked += [(name, J) + row for row in check_seeds(a.build, rep, os.path.join(tmp, "o"), a.check,
-                                                                          a.seeds)]
+                                                                          a.seeds, mix)]
                 elif a.check:
                     checked += [(name, J) + row for row in check(a.build, rep, os.path.join(tmp, "o"), a.check, a.grow)]
     if checked and a.seeds:
-        print("\n| source | J | band | report | median of %d draws of %d | pooled | agree | report / median |"
-              % (a.seeds, a.check))
+        print("\n| source | J | band | report | median of %d draws of %d%s | pooled | agree | report / median |"
+              % (a.seeds, a.check, " (GGX: mixture)" if a.mix else ""))
         print("|---|---|---|---|---|---|---|---|")
         for row in checked:
             print("| %s | %d | %s | %s | %s | %s | %s | %s |" % row)

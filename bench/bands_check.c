@@ -20,7 +20,9 @@
  * by the uniform density over the mixture's: still no estimator, but the
  * mirror peaks where a sharp lobe's error sits (GGX 0.1 and 0.3 at grazing
  * incidence, docs/bands.md) drawn often enough for their band to come out
- * with a small standard error. */
+ * with a small standard error; SB_BANDS_SUMS=1 appends to each band's line
+ * the sum of the squared errors, the sum of the squared values and the
+ * pairs drawn, so that draws can be pooled exactly (bench/bands.py --seeds). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -61,6 +63,12 @@ int main(int argc, char **argv) {
         if (only && strcmp(only, names[b]) != 0) continue;
         uint64_t s = 0x5eed + (uint64_t)b + (seed ? strtoull(seed, NULL, 10) << 8 : 0);
         band_sums_t sums = {0};
+        /* SB_BANDS_HALF=1: the share of the band's squared error and value,
+         * and the uniform probability, at theta_h below each of ht (how
+         * rare the pairs that carry the band are for a uniform draw) */
+        static const double ht[5] = {0.25, 0.5, 1, 2, 5};
+        double hs[5][3] = {{0}};
+        int half = getenv("SB_BANDS_HALF") != NULL;
         for (size_t i = 0; i < n; i++) {
             double wi[3], wo[3], v[3] = {0, 0, 0}, r[3] = {0, 0, 0}, u[6], w = 1;
             for (int k = 0; k < 6; k++)
@@ -69,10 +77,22 @@ int main(int argc, char **argv) {
             if (ma > 0 && b >= 1 && b <= 3) in = (w = band_mix_draw(ma, wi, u + 3, wo)) > 0; /* theta_i bands */
             if (in && sb_source_eval(src, wi, wo, v) && !sb_factors_eval(f, p, form, J, wi, wo, r))
                 r[0] = r[1] = r[2] = 0;
+            double sa0 = sums.sa, sd0 = sums.sd;
             band_add_w(&sums, v, r, wi[2], w);
+            double hz = wi[2] + wo[2],
+                   hn = sqrt((wi[0] + wo[0]) * (wi[0] + wo[0]) + (wi[1] + wo[1]) * (wi[1] + wo[1]) + hz * hz);
+            double th = hn > 0 ? acos(fmin(1, hz / hn)) * 180 / 3.14159265358979323846 : 90;
+            for (int q = 0; half && in && q < 5; q++)
+                if (th < ht[q]) hs[q][0] += sums.sa - sa0, hs[q][1] += sums.sd - sd0, hs[q][2] += w;
         }
+        for (int q = 0; half && q < 5; q++)
+            printf("%s theta_h<%g: error share %.4f, value share %.4f, uniform probability %.3g\n", names[b], ht[q],
+                   hs[q][0] / sums.sa, hs[q][1] / sums.sd, hs[q][2] / (double)n);
         double se, q = band_ratio(&sums, &se);
-        printf("%s %.6e %.3e\n", names[b], q, se);
+        printf("%s %.6e %.3e", names[b], q, se);
+        if (getenv("SB_BANDS_SUMS")) /* the sums, for pooling draws exactly */
+            printf(" %.17g %.17g %zu", sums.sa, sums.sd, sums.n);
+        printf("\n");
         fflush(stdout);
     }
     size_t m = argc > 5 ? strtoul(argv[5], NULL, 10) : 0;
