@@ -206,7 +206,7 @@ void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *
     e->mnum[k * MM + cell] += d2[(J - 1) * 4 + 3] * q;
 }
 
-void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {
+void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t *out) {
     size_t J = e->J;
     double all = 0, share[SB_BAND_COUNT_] = {0};
     for (size_t k = 0; k < K; k++)
@@ -217,7 +217,7 @@ void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {
             all += e->mden[k * MM + c];
     for (int b = 0; b < SB_BAND_COUNT_; b++)
         out->band_share[b] = all > 0 ? share[b] / all : 0;
-    for (size_t j = 0; j < J; j++) {
+    for (size_t j = jlo; j < J; j++) {
         for (int i = 0; i < BQ; i++)
             est_ratio(e->bnum + j * BQ + i, J * BQ, e->bden + i, BQ, K, &out->band[j][i / 4][i % 4],
                       &out->band_se[j][i / 4][i % 4]);

@@ -38,6 +38,7 @@ typedef struct est_coords {
 struct sb_pairs {
     const sb_source_t *src;
     size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
+    size_t start;        /* replicates drawn at first: where an estimate's doubling starts */
     uint64_t seed;
     sb_pair_draw_fn draw; /* NULL: the mixture of estimate.h */
     const void *draw_user;
@@ -129,9 +130,10 @@ sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, s
 void est_bands_clear(const eval_t *e, size_t k);
 void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
                     int t);
-/* Band errors, lit percentiles, smallest values (raw: finish divides) and
- * the map from K replicates and nt threads into out. */
-void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out);
+/* Band errors, lit percentiles, smallest values (raw: finish divides) of
+ * the prefixes from J' = jlo + 1 on, the shares and the map, from K
+ * replicates and nt threads into out. */
+void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t *out);
 void est_bands_free(eval_t *e);
 /* Draw and evaluate replicate k of P (estimate_draw.c). */
 void est_draw_replicate(sb_pairs_t *P, size_t k);
