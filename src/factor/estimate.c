@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "factor/estimate_impl.h"
+#include "factor/estimate_pair.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rng.h"
