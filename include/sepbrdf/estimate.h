@@ -28,9 +28,14 @@
  * over the pairs where the source is known is estimated by the ratio of
  * the two replicate means; its standard error comes from the spread of the
  * replicates (delta method: se(e^2) = sd_k(N_k - e^2 D_k) / (sqrt(K) mean D),
- * se(e) = se(e^2) / (2 e)).  sb_estimate_compute adds replicates until the
- * headline's standard error is at most `rel_se` of the estimate for every
- * J' (or max_pairs is reached: then `converged` is 0), and since a
+ * se(e) = se(e^2) / (2 e)).  sb_estimate_compute adds replicates (the
+ * first ones, then doubling them) until the headline's standard error is
+ * at most `rel_se` of the estimate for every J' (or max_pairs is reached:
+ * then `converged` is 0).  Prefix J' is reported from the first count at
+ * which J'' = 1..J' all met the target (reps[J' - 1]): the count an
+ * estimate of J' terms stops at, so the figures of a prefix do not depend
+ * on how many terms follow it, nor on how far earlier estimates grew the
+ * pairs.  Since a
  * standard error from K replicates is itself uncertain (K - 1 degrees of
  * freedom: at K = 4 it can be a third of the true one), the test is on its
  * one-sided 95 % upper confidence bound, se sqrt((K - 1) / chi2_0.05(K - 1))
@@ -99,8 +104,8 @@ extern const double sb_band_map_edges[SB_EST_MAP + 1];
 typedef struct sb_estimate_opts {
     size_t replicate;  /* pairs per replicate, default 4096 */
     size_t start;      /* replicates drawn at first, default 16 (at least 4) */
-    size_t max_pairs;  /* sb_estimate_compute adds replicates up to this many pairs, default 2^19; start * replicate
-                          or less: never grows */
+    size_t max_pairs;  /* sb_estimate_compute adds replicates up to this many pairs (and uses no more), default
+                          2^19; start * replicate or less: never grows, uses the pairs there are */
     double rel_se;     /* target standard error of the headline relative to it, default SB_EST_REL_SE */
     uint64_t seed;     /* default 1 */
     int threads;       /* 0 = all cores */
@@ -129,10 +134,11 @@ SB_API void sb_pairs_destroy(sb_pairs_t *pairs);
 SB_API size_t sb_pairs_count(const sb_pairs_t *pairs);
 
 typedef struct sb_estimate {
-    size_t terms;                                /* J' = 1..terms are filled (at most SB_EST_MAXJ) */
-    size_t pairs, known;                         /* pairs used, pairs where the source is known */
-    size_t replicates;                           /* replicates of the pairs used (the standard errors' K) */
-    int converged;                               /* the headline's standard error met rel_se for every J' */
+    size_t terms;             /* J' = 1..terms are filled (at most SB_EST_MAXJ) */
+    size_t pairs, known;      /* pairs used, pairs where the source is known */
+    size_t replicates;        /* replicates of the pairs used at J' = terms (the standard errors' K) */
+    size_t reps[SB_EST_MAXJ]; /* [J'-1] the replicates prefix J' comes from (at most replicates) */
+    int converged;            /* the headline's standard error met rel_se for every J' */
     double rel[SB_EST_MAXJ][SB_EST_Q_COUNT_][4]; /* [J'-1][quantity][R, G, B, all] relative L2 error */
     double se[SB_EST_MAXJ][SB_EST_Q_COUNT_][4];  /* its standard error */
     double p99[SB_EST_MAXJ][4];                  /* 99th-percentile relative error per pair */
@@ -182,13 +188,18 @@ SB_API sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, con
  * in J': w[j * C + c] (C = sb_factors_channels(f), J = sb_factors_terms(f)
  * values per channel), for j = 0, 1, ... in turn with the terms before
  * scaled by their weights, is 1 when term j lowers the headline's error
- * sum of channel c over the pairs, else the w that minimises that sum
- * (a least-squares step: the error of every prefix is then at most that
- * of the shorter one; 0 leaves a term unused).  f, scales, p and form as in
- * sb_estimate_compute; the pairs are not grown.  Terms beyond SB_EST_MAXJ
- * get 1.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
+ * sum of channel c over the pairs of the first reps[j] replicates, else
+ * the w that minimises that sum (a least-squares step: the error of every
+ * prefix is then at most that of the shorter one; 0 leaves a term unused).
+ * reps: J counts, non-decreasing, as sb_estimate_t.reps gives them for f
+ * (term j's weight on the pairs an estimate of j + 1 terms stops at, so a
+ * prefix's weights do not depend on the terms after it); NULL: all of the
+ * pairs for every term.  f, scales, p and form as in sb_estimate_compute;
+ * the pairs are not grown (a count beyond them: all of them).  Terms
+ * beyond SB_EST_MAXJ get 1.  Errors: SB_ERR_ARG, SB_ERR_NOMEM. */
 SB_API sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
-                                            const double *scales, const sb_param_t *p, sb_form_t form, double *w);
+                                            const double *scales, const sb_param_t *p, sb_form_t form,
+                                            const size_t *reps, double *w);
 /* The headline at J (all terms) of every combination of the g textures of
  * gs[a] (a < ng) with the h textures of hs[b] (b < nh), all of one layout
  * (the same terms, channels and texture sizes), on all of the pairs in one

@@ -25,7 +25,12 @@ enum {
     /* its data are f cos theta_i (an RGL file's values): f itself grows as
      * 1 / cos theta_i towards the horizon, so --param auto fits the form
      * cos only (a texture of f would have to hold the divergence) */
-    SB_SOURCE_STORES_COS = 1u << 5
+    SB_SOURCE_STORES_COS = 1u << 5,
+    /* isotropic and even in the azimuth difference, f(theta_i, theta_o, d)
+     * == f(theta_i, theta_o, -d) (mirror-symmetric about the plane of
+     * incidence, as every analytic isotropic model): the io grid's table
+     * is then evaluated for d <= 180 degrees and mirrored */
+    SB_SOURCE_EVEN = 1u << 6
 };
 
 typedef struct sb_source_ops {

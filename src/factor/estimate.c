@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "factor/estimate_impl.h"
+#include "factor/estimate_pair.h"
 #include "util/internal.h"
 #include "util/parallel.h"
 #include "util/rng.h"
@@ -127,6 +128,7 @@ sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, con
     }
     P->src = src;
     P->rep = o.replicate;
+    P->start = o.start;
     P->seed = o.seed;
     P->draw = draw;
     P->draw_user = user;
@@ -258,18 +260,29 @@ static double se_upper(size_t K) {
     return c > 0 ? sqrt(1 / (c * c * c)) : INFINITY;
 }
 
-/* The sums of the replicates and threads into out; returns whether the
- * headline met the target standard error at every J' (its upper bound,
- * se_upper). */
-static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate_t *out) {
-    size_t J = e->J;
-    int met = 1;
+/* How many prefixes met the target at K replicates: the largest m with
+ * the headline's standard error (its upper bound, se_upper) at most rel_se
+ * of it at every J' <= m. */
+static size_t prefixes_met(const eval_t *e, size_t K, double rel_se) {
+    size_t J = e->J, at = SB_EST_FCOS * 4 + 3;
     double up = se_upper(K);
+    for (size_t j = 0; j < J; j++) {
+        double h, se;
+        est_ratio(e->num + j * QC + at, J * QC, e->den + at, QC, K, &h, &se);
+        if (!(se * up <= rel_se * h)) return j;
+    }
+    return J;
+}
+
+/* The sums of K replicates and nt threads into out: the prefixes from
+ * J' = jlo + 1 on (those below are kept from fewer replicates). */
+static void combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t *out) {
+    size_t J = e->J;
     out->replicates = K;
     double msum = 0;
     for (size_t k = 0; k < K; k++)
         msum += e->meas[k];
-    for (size_t j = 0; j < J; j++) {
+    for (size_t j = jlo; j < J; j++) {
         double ng = 0;
         for (size_t k = 0; k < K; k++)
             ng += e->neg[k * J + j];
@@ -281,8 +294,6 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
         for (int i = 0; i < QC; i++)
             est_ratio(e->num + j * QC + (size_t)i, J * QC, e->den + i, QC, K, &out->rel[j][i / 4][i % 4],
                       &out->se[j][i / 4][i % 4]);
-        double h = out->rel[j][SB_EST_FCOS][3];
-        met &= out->se[j][SB_EST_FCOS][3] * up <= rel_se * h;
         double vmax = 0;
         for (int t = 0; t < nt; t++)
             vmax = fmax(vmax, e->maxv[(size_t)t * J + j]);
@@ -295,8 +306,7 @@ static int combine(const eval_t *e, size_t K, int nt, double rel_se, sb_estimate
             out->max_rel[j][c] = mx;
         }
     }
-    if (e->bands) est_bands_combine(e, K, nt, out);
-    return met;
+    if (e->bands) est_bands_combine(e, K, nt, jlo, out);
 }
 
 /* Sums for kmax replicates and nt threads (the lit thresholds over the
@@ -317,9 +327,10 @@ static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt,
     return e->bands ? est_bands_alloc(ctx, e, kmax, nt, reps) : SB_OK;
 }
 
-/* Pair counts and the denominators of the overshoot and of min_rel, the
- * largest |f| over the pairs (per channel and of all). */
-static void finish(const sb_pairs_t *P, size_t n, sb_estimate_t *out) {
+/* Pair counts and the denominators of the overshoot and of min_rel of
+ * the prefixes from J' = jlo + 1 on, the largest |f| over the first n
+ * pairs (per channel and of all). */
+static void finish(const sb_pairs_t *P, size_t n, size_t jlo, sb_estimate_t *out) {
     double fm[4] = {0, 0, 0, 0};
     size_t known = 0;
     for (size_t i = 0; i < n; i++) {
@@ -329,7 +340,7 @@ static void finish(const sb_pairs_t *P, size_t n, sb_estimate_t *out) {
             fm[c] = fmax(fm[c], fabs(P->d[i * PD + 7 + c]));
     }
     fm[3] = fmax(fm[0], fmax(fm[1], fm[2]));
-    for (size_t j = 0; j < out->terms; j++) {
+    for (size_t j = jlo; j < out->terms; j++) {
         out->overshoot[j] = fm[3] > 0 ? out->overshoot[j] / fm[3] : 0;
         for (int c = 0; c < 4; c++)
             out->min_rel[j][c] = fm[c] > 0 ? out->min_rel[j][c] / fm[c] : 0;
@@ -396,29 +407,40 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
     e.bands = !o.headline_only || o.bands;
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK) return sb_error(ctx, SB_ERR_NOMEM, "estimate: out of memory");
-    size_t J = e.J;
-    size_t kmax = o.max_pairs / pairs->rep, use = pairs->nrep;
+    size_t J = e.J, rep = pairs->rep;
+    /* the counts: the first replicates, doubled up to cap (max_pairs; the
+     * pairs there are when max_pairs allows no growth) */
+    size_t cap = o.max_pairs / rep > pairs->start ? o.max_pairs / rep : pairs->nrep;
+    size_t K = pairs->start < cap ? pairs->start : cap;
     if (o.replicates) { /* the first ones only, no growth */
-        use = o.replicates < 4 ? 4 : o.replicates;
-        use = use < pairs->nrep ? use : pairs->nrep;
-        kmax = 0;
+        K = o.replicates < 4 ? 4 : o.replicates;
+        cap = K = K < pairs->nrep ? K : pairs->nrep;
     }
-    e.co = est_coords_acquire(pairs, p, use * pairs->rep, &e.co_ready);
-    e.chroma_thr = o.headline_only ? 0 : est_chroma_threshold(pairs, use);
-    sb_result_t r = eval_alloc(ctx, &e, kmax > use ? kmax : use, nt, use);
-    /* evaluate the replicates not yet evaluated, then add replicates
-     * (doubling) until the headline's standard error meets the target */
-    for (size_t done = 0; r == SB_OK;) {
-        est_run_units(done, use - done, nt, eval_unit, &e);
-        done = use;
-        out->terms = J;
-        out->converged = combine(&e, done, nt, o.rel_se, out);
-        if (out->converged || done >= kmax) break;
-        r = pairs_grow(ctx, pairs, done * 2 < kmax ? done * 2 : kmax, nt);
-        use = pairs->nrep;
+    size_t have = pairs->nrep < cap ? pairs->nrep : cap;
+    e.co = est_coords_acquire(pairs, p, have * rep, &e.co_ready);
+    e.chroma_thr = o.headline_only ? 0 : est_chroma_threshold(pairs, K);
+    sb_result_t r = eval_alloc(ctx, &e, cap, nt, K);
+    /* evaluate the replicates up to K and take the prefixes that met the
+     * target there (with every shorter one: where an estimate of that many
+     * terms stops), then double K (drawing replicates where needed) until
+     * every prefix is taken or K is cap */
+    size_t done = 0, jlo = 0;
+    out->terms = J;
+    while (r == SB_OK && (r = pairs_grow(ctx, pairs, K, nt)) == SB_OK) {
+        est_run_units(done, K - done, nt, eval_unit, &e);
+        done = K;
+        size_t met = prefixes_met(&e, K, o.rel_se);
+        combine(&e, K, nt, jlo, out);
+        finish(pairs, K * rep, jlo, out);
+        for (; jlo < met; jlo++)
+            out->reps[jlo] = K;
+        if (jlo == J || K >= cap) break;
+        K = 2 * K < cap ? 2 * K : cap;
     }
-    if (r == SB_OK) finish(pairs, use * pairs->rep, out);
-    size_t filled = e.co && !e.co_ready && r == SB_OK ? use * pairs->rep : 0;
+    out->converged = jlo == J;
+    for (size_t j = jlo; j < J; j++)
+        out->reps[j] = done; /* not met: at the most replicates */
+    size_t filled = e.co && !e.co_ready && r == SB_OK ? done * rep : 0;
     est_coords_release(pairs, e.co, p, e.co && filled > e.co->cap ? e.co->cap : filled);
     free(ones);
     est_eval_free(&e);

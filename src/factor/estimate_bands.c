@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "factor/estimate_impl.h"
+#include "factor/estimate_pair.h"
 #include "util/internal.h"
 
 const double sb_band_map_edges[SB_EST_MAP + 1] = {0, 20, 40, 60, 70, 80, 85, 88, 89, 90};
@@ -19,31 +20,11 @@ const double sb_band_map_edges[SB_EST_MAP + 1] = {0, 20, 40, 60, 70, 80, 85, 88,
 static const char *const band_names[SB_BAND_COUNT_] = {"theta_i_60", "theta_i_80", "theta_i_89", "theta_o_60",
                                                        "theta_o_80", "theta_o_89", "specular",   "retro"};
 
-/* cos of the map's edges (est_log2_init): theta >= edge where cos theta <=
- * cos edge, no acos per pair. */
-static double map_cos[SB_EST_MAP + 1];
+double est_map_cos[SB_EST_MAP + 1];
 
 const char *sb_band_name(int band) { return band >= 0 && band < SB_BAND_COUNT_ ? band_names[band] : NULL; }
 
-/* sb_band_mask of a pair (inlined into the per-pair sums: an exported
- * function is called, not inlined, from its own file). */
-static inline unsigned band_mask(const double wi[3], const double wo[3]) {
-    /* cos 60, cos 80, cos 89 degrees; cos of the cone */
-    static const double cz[3] = {0.5, 0.17364817766693041, 0.017452406437283376};
-    const double cc = cos(SB_BAND_CONE_DEG * SB_PI / 180);
-    unsigned m = 0;
-    for (int k = 0; k < 3; k++) {
-        m |= wi[2] < cz[k] ? 1u << (SB_BAND_TI60 + k) : 0;
-        m |= wo[2] < cz[k] ? 1u << (SB_BAND_TO60 + k) : 0;
-    }
-    double mirror = -wi[0] * wo[0] - wi[1] * wo[1] + wi[2] * wo[2],
-           retro = wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2];
-    m |= mirror > cc ? 1u << SB_BAND_SPECULAR : 0;
-    m |= retro > cc ? 1u << SB_BAND_RETRO : 0;
-    return m;
-}
-
-unsigned sb_band_mask(const double wi[3], const double wo[3]) { return wi && wo ? band_mask(wi, wo) : 0; }
+unsigned sb_band_mask(const double wi[3], const double wo[3]) { return wi && wo ? est_band_mask(wi, wo) : 0; }
 
 int sb_estimate_bands_bounded(const sb_estimate_t *est, size_t j) {
     if (!est || j < 1 || j > est->terms) return -1;
@@ -63,15 +44,6 @@ int sb_estimate_worst_band(const sb_estimate_t *est, size_t j) {
     return w;
 }
 
-/* The map cell of cos theta (NaN: the last, as theta = 180 degrees). */
-static size_t map_cell(double c) {
-    size_t k = 0;
-    c = c == c ? c : -1;
-    while (k + 1 < SB_EST_MAP && c <= map_cos[k + 1])
-        k++;
-    return k;
-}
-
 /* ---- histograms --------------------------------------------------------- */
 
 /* log2 x (est_log2, estimate_impl.h): the table of log2 of the mantissa.
@@ -83,7 +55,7 @@ static void log2_fill(void) {
     for (int i = 0; i <= EST_LOG2_STEPS; i++)
         est_log2_tab[i] = log2(1 + (double)i / EST_LOG2_STEPS);
     for (int k = 0; k <= SB_EST_MAP; k++)
-        map_cos[k] = cos(sb_band_map_edges[k] * SB_PI / 180);
+        est_map_cos[k] = cos(sb_band_map_edges[k] * SB_PI / 180);
 }
 
 void est_log2_init(void) { pthread_once(&log2_once, log2_fill); }
@@ -148,65 +120,7 @@ void est_bands_clear(const eval_t *e, size_t k) {
     memset(e->mden + k * MM, 0, MM * sizeof *e->mden);
 }
 
-/* The denominators of pair i: bands (mask) and its map cell (*cell). */
-static void pair_dens(const eval_t *e, const double *d, unsigned mask, size_t k, const double f2[4], size_t *cell) {
-    double q = d[2] * d[2] * d[6], *bden = e->bden + k * BQ;
-    for (unsigned m = mask; m; m &= m - 1) {
-        int b = __builtin_ctz(m);
-        for (int c = 0; c < 4; c++)
-            bden[b * 4 + c] += f2[c] * q;
-    }
-    *cell = map_cell(d[2]) * SB_EST_MAP + map_cell(d[5]);
-    e->mden[k * MM + *cell] += f2[3] * q;
-}
-
-/* Prefix j's squared differences d2[4] (add_pair's) to the bands of mask. */
-static inline void bands_add(double *bnum, unsigned mask, const double *d2, double q) {
-    for (unsigned m = mask; m; m &= m - 1) {
-        int b = __builtin_ctz(m);
-        for (int c = 0; c < 4; c++)
-            bnum[b * 4 + c] += d2[c] * q;
-    }
-}
-
-void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
-                    int t) {
-    const double *d = e->P->d + i * PD, *f = d + 7, q = d[2] * d[2] * d[6];
-    size_t J = e->J, cell;
-    unsigned mask = band_mask(d, d + 3);
-    double f2[4] = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
-    f2[3] = f2[0] + f2[1] + f2[2];
-    pair_dens(e, d, mask, k, f2, &cell);
-    double *bnum = e->bnum + k * J * BQ;
-    if (e->headline_only) { /* the bands only (of all J terms with last_only) */
-        for (size_t j = e->last_only ? J - 1 : 0; j < J && mask; j++)
-            bands_add(bnum + j * BQ, mask, d2 + j * 4, q);
-        return;
-    }
-    int lit[4];
-    for (int c = 0; c < 4; c++) /* lit: f > 0, so add_pair has the bin */
-        lit[c] = f2[c] > 0 && sqrt(f2[c]) * d[2] > e->lit_thr[c];
-    uint64_t lw = e->P->m0 > 0 ? (uint64_t)(d[6] / e->P->m0 * 0x1.0p40) : 0;
-    uint64_t *hist = e->hlit + (size_t)t * J * 4 * NB;
-    double *maxl = e->maxl + (size_t)t * J * 4, *minv = e->minv + (size_t)t * J * 4;
-    for (size_t j = 0; j < J; j++) {
-        const double *r = rec + j * 3, *dj = d2 + j * 4;
-        double *mv = minv + j * 4;
-        for (int c = 0; c < 3; c++) { /* fmin's result: a NaN r leaves the minimum */
-            mv[c] = r[c] < mv[c] ? r[c] : mv[c];
-            mv[3] = r[c] < mv[3] ? r[c] : mv[3];
-        }
-        bands_add(bnum + j * BQ, mask, dj, q);
-        for (int c = 0; c < 4; c++) {
-            if (!lit[c]) continue;
-            hist[(j * 4 + c) * NB + bin[j * 4 + c]] += lw;
-            if (dj[c] > maxl[j * 4 + c] * f2[c]) maxl[j * 4 + c] = dj[c] / f2[c];
-        }
-    }
-    e->mnum[k * MM + cell] += d2[(J - 1) * 4 + 3] * q;
-}
-
-void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {
+void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t *out) {
     size_t J = e->J;
     double all = 0, share[SB_BAND_COUNT_] = {0};
     for (size_t k = 0; k < K; k++)
@@ -217,7 +131,7 @@ void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out) {
             all += e->mden[k * MM + c];
     for (int b = 0; b < SB_BAND_COUNT_; b++)
         out->band_share[b] = all > 0 ? share[b] / all : 0;
-    for (size_t j = 0; j < J; j++) {
+    for (size_t j = jlo; j < J; j++) {
         for (int i = 0; i < BQ; i++)
             est_ratio(e->bnum + j * BQ + i, J * BQ, e->bden + i, BQ, K, &out->band[j][i / 4][i % 4],
                       &out->band_se[j][i / 4][i % 4]);

@@ -11,6 +11,8 @@
 #include <string.h>
 
 #include "sepbrdf/estimate.h"
+#include "sepbrdf/matrix.h"
+#include "util/tex_axis.h"
 
 #define PD 10   /* doubles per pair */
 #define NB 960  /* histogram bins: 40 per decade over [1e-12, 1e12] */
@@ -38,6 +40,7 @@ typedef struct est_coords {
 struct sb_pairs {
     const sb_source_t *src;
     size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
+    size_t start;        /* replicates drawn at first: where an estimate's doubling starts */
     uint64_t seed;
     sb_pair_draw_fn draw; /* NULL: the mixture of estimate.h */
     const void *draw_user;
@@ -121,17 +124,13 @@ void est_ratio(const double *num, size_t ns, const double *den, size_t ds, size_
 /* Allocate e's band sums for kmax replicates and nt threads; the lit
  * thresholds over P's first `reps` replicates.  SB_OK or SB_ERR_NOMEM. */
 sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, size_t reps);
-/* Add known pair i (rec as est_reconstruct fills it; d2 its squared
- * differences per prefix and channel R, G, B, all [J][4]; bin their
- * histogram bins, est_bin_of, where f > 0 and not headline_only) of
- * replicate k to the band sums (cleared by est_bands_clear(e, k) first),
- * on thread t. */
+/* Clear replicate k's band sums (est_bands_pair, estimate_pair.h, adds
+ * to them). */
 void est_bands_clear(const eval_t *e, size_t k);
-void est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, const uint32_t *bin, size_t k,
-                    int t);
-/* Band errors, lit percentiles, smallest values (raw: finish divides) and
- * the map from K replicates and nt threads into out. */
-void est_bands_combine(const eval_t *e, size_t K, int nt, sb_estimate_t *out);
+/* Band errors, lit percentiles, smallest values (raw: finish divides) of
+ * the prefixes from J' = jlo + 1 on, the shares and the map, from K
+ * replicates and nt threads into out. */
+void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t *out);
 void est_bands_free(eval_t *e);
 /* Draw and evaluate replicate k of P (estimate_draw.c). */
 void est_draw_replicate(sb_pairs_t *P, size_t k);
@@ -151,9 +150,9 @@ int est_chroma_pair(const eval_t *e, size_t i, const double *rec, double *de);
 /* fn(user, unit, thread) for units first .. first + count - 1 on nt threads. */
 void est_run_units(size_t first, size_t count, int nt, void (*fn)(void *, size_t, int), void *user);
 /* GL bilinear footprint of st on a side of e: texel indices and weights. */
-void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]);
-/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside. */
-void est_reconstruct(const eval_t *e, size_t i, double *rec);
+static inline void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]) {
+    sb_tex_footprint(st, e->tw[side], e->th[side], e->wrap[side], e->edge[side], at, fw);
+}
 /* The coordinates of P's first `need` pairs under p: *ready when a slot
  * has them (est_reconstruct reads them), else a slot est_reconstruct
  * fills as it goes (each pair by the unit that owns it); NULL when every
@@ -161,6 +160,61 @@ void est_reconstruct(const eval_t *e, size_t i, double *rec);
  * publishes the first `filled` pairs (0: nothing was filled). */
 est_coords_t *est_coords_acquire(const sb_pairs_t *P, const sb_param_t *p, size_t need, int *ready);
 void est_coords_release(const sb_pairs_t *P, est_coords_t *co, const sb_param_t *p, size_t filled);
+/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside.
+ * Inline: in the per-pair loops' AVX2 clones (SB_AVX2_CLONES, on static
+ * functions only) its product over terms and channels takes four doubles a
+ * vector, the same operations and bits as the baseline's two. */
+static inline __attribute__((always_inline)) void est_reconstruct(const eval_t *e, size_t i, double *rec) {
+    double sg[2], sh[2], fg[4], fh[4];
+    size_t ag[4], ah[4], J = e->J, C = e->C;
+    const double *wi = e->P->d + i * PD, *wo = wi + 3;
+    est_coords_t *co = e->co;
+    int in;
+    if (co && e->co_ready && i < co->n) {
+        const double *st = co->st + 4 * i;
+        sg[0] = st[0], sg[1] = st[1], sh[0] = st[2], sh[1] = st[3];
+        in = co->in[i];
+    } else {
+        in = sb_param_coords(e->p, wi, wo, sg, sh);
+        if (co && !e->co_ready && i < co->cap) { /* filling: each pair written by the unit that owns it */
+            double *st = co->st + 4 * i;
+            st[0] = sg[0], st[1] = sg[1], st[2] = sh[0], st[3] = sh[1];
+            co->in[i] = (unsigned char)in;
+        }
+    }
+    if (!in) {
+        memset(rec, 0, J * 3 * sizeof *rec);
+        return;
+    }
+    est_taps(e, SB_SIDE_G, sg, ag, fg);
+    est_taps(e, SB_SIDE_H, sh, ah, fh);
+    double div = 1, acc[3] = {0, 0, 0};
+    div = sb_form_divisor(e->form, wi, wo);
+    double gain = sb_param_gain(e->p, wi, wo);         /* 1 but on SB_CAP_TABLES layouts */
+    int clamp = sb_param_apply_gain(e->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
+    size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
+    const double *g[4], *h[4];
+    for (int k = 0; k < 4; k++) {
+        g[k] = e->itex[0] + ag[k] * S;
+        h[k] = e->itex[1] + ah[k] * S;
+    }
+    /* every term and channel's product in one loop the compiler vectorises
+     * (the same operations per value as one at a time, so the same bits),
+     * then the prefix sums in term order */
+    double t[SB_EST_MAXJ * 3];
+    for (size_t at = 0; at < S; at++)
+        t[at] = (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
+                (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scs[at];
+    for (size_t j = 0; j < J; j++) {
+        for (size_t c = 0, at = j * C; c < C; c++, at++)
+            acc[c] += t[at];
+        for (int c = 0; c < 3; c++) {
+            double v = acc[C == 1 ? 0 : c];
+            rec[j * 3 + c] = (clamp && v < 0 ? 0 : v) * gain / div;
+        }
+    }
+}
+
 /* e's textures, sizes, wraps and per-term scales (*ones: scales or 1) for
  * the first min(J, SB_EST_MAXJ) terms of f; SB_OK or SB_ERR_NOMEM. */
 sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scales, const sb_param_t *p, double **ones);

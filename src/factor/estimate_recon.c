@@ -1,7 +1,7 @@
-/* The estimator's reconstruction (estimate_impl.h): the snippet's taps of
- * a texture side (util/tex_axis.h), the pairs' coordinates under a parameterisation
- * (cached in slots of the pair set), every prefix's RGB at a pair, and the
- * evaluation state's release. */
+/* The estimator's reconstruction (estimate_impl.h, where the taps and
+ * every prefix's RGB at a pair are inline): the pairs' coordinates under a
+ * parameterisation (cached in slots of the pair set) and the evaluation
+ * state's release. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,13 +9,6 @@
 #include "factor/estimate_impl.h"
 #include "param/serial.h"
 #include "util/internal.h"
-#include "util/tex_axis.h"
-
-/* ---- evaluating a reconstruction -------------------------------------- */
-
-void est_taps(const eval_t *e, int side, const double st[2], size_t at[4], double fw[4]) {
-    sb_tex_footprint(st, e->tw[side], e->th[side], e->wrap[side], e->edge[side], at, fw);
-}
 
 /* ---- coordinates of the pairs under a layout --------------------------- */
 
@@ -68,58 +61,6 @@ void est_coords_release(const sb_pairs_t *cP, est_coords_t *co, const sb_param_t
     }
     co->users--;
     pthread_mutex_unlock(&P->mu);
-}
-
-/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside. */
-void est_reconstruct(const eval_t *e, size_t i, double *rec) {
-    double sg[2], sh[2], fg[4], fh[4];
-    size_t ag[4], ah[4], J = e->J, C = e->C;
-    const double *wi = e->P->d + i * PD, *wo = wi + 3;
-    est_coords_t *co = e->co;
-    int in;
-    if (co && e->co_ready && i < co->n) {
-        const double *st = co->st + 4 * i;
-        sg[0] = st[0], sg[1] = st[1], sh[0] = st[2], sh[1] = st[3];
-        in = co->in[i];
-    } else {
-        in = sb_param_coords(e->p, wi, wo, sg, sh);
-        if (co && !e->co_ready && i < co->cap) { /* filling: each pair written by the unit that owns it */
-            double *st = co->st + 4 * i;
-            st[0] = sg[0], st[1] = sg[1], st[2] = sh[0], st[3] = sh[1];
-            co->in[i] = (unsigned char)in;
-        }
-    }
-    if (!in) {
-        memset(rec, 0, J * 3 * sizeof *rec);
-        return;
-    }
-    est_taps(e, SB_SIDE_G, sg, ag, fg);
-    est_taps(e, SB_SIDE_H, sh, ah, fh);
-    double div = 1, acc[3] = {0, 0, 0};
-    div = sb_form_divisor(e->form, wi, wo);
-    double gain = sb_param_gain(e->p, wi, wo);         /* 1 but on SB_CAP_TABLES layouts */
-    int clamp = sb_param_apply_gain(e->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
-    size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
-    const double *g[4], *h[4];
-    for (int k = 0; k < 4; k++) {
-        g[k] = e->itex[0] + ag[k] * S;
-        h[k] = e->itex[1] + ah[k] * S;
-    }
-    /* every term and channel's product in one loop the compiler vectorises
-     * (the same operations per value as one at a time, so the same bits),
-     * then the prefix sums in term order */
-    double t[SB_EST_MAXJ * 3];
-    for (size_t at = 0; at < S; at++)
-        t[at] = (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
-                (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scs[at];
-    for (size_t j = 0; j < J; j++) {
-        for (size_t c = 0, at = j * C; c < C; c++, at++)
-            acc[c] += t[at];
-        for (int c = 0; c < 3; c++) {
-            double v = acc[C == 1 ? 0 : c];
-            rec[j * 3 + c] = (clamp && v < 0 ? 0 : v) * gain / div;
-        }
-    }
 }
 
 void est_eval_free(eval_t *e) {

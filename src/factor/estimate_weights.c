@@ -47,20 +47,56 @@ static void tw_unit(void *user, size_t k, int t) {
     }
 }
 
+/* In term order, given w_0..j-1: w_j = 1 when the term lowers the
+ * channel's error sum, else the w in [0, 1] that minimises it (0: the term
+ * is not used, the prefix keeps the shorter one's error); terms j0..j1-1
+ * from the sums tot (C blocks of G's lower triangle and b). */
+static void weights_from(const double *tot, size_t J, size_t C, size_t j0, size_t j1, double *w) {
+    size_t L = J * (J + 1) / 2;
+    for (size_t c = 0; c < C; c++) {
+        const double *G = tot + c * (L + J), *b = G + L;
+        for (size_t j = j0; j < j1; j++) {
+            const double *Gj = G + j * (j + 1) / 2; /* row j: G[j][0..j] */
+            double num = b[j];
+            for (size_t i = 0; i < j; i++)
+                num -= w[i * C + c] * Gj[i];
+            /* the error sum changes by G_jj w^2 - 2 num w: kept at w = 1
+             * unless that raises it, then the least-squares w */
+            w[j * C + c] = Gj[j] - 2 * num > 0 ? fmin(fmax(num / Gj[j], 0), 1) : 1;
+        }
+    }
+}
+
+/* The replicates term j's weight comes from: reps[j] (NULL: all), at most
+ * those there are. */
+static size_t reps_of(const sb_pairs_t *P, const size_t *reps, size_t j) {
+    return reps && reps[j] < P->nrep ? reps[j] : P->nrep;
+}
+
 sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs, const sb_factors_t *f,
-                                     const double *scales, const sb_param_t *p, sb_form_t form, double *w) {
+                                     const double *scales, const sb_param_t *p, sb_form_t form, const size_t *reps,
+                                     double *w) {
     if (!pairs || !f || !p || !w) return sb_error(ctx, SB_ERR_ARG, "term weights: missing argument");
     if ((unsigned)form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "term weights: unknown form %d", (int)form);
     eval_t e = {.P = pairs, .p = p, .form = form};
     double *ones = NULL;
     if (est_eval_setup(&e, f, scales, p, &ones) != SB_OK)
         return sb_error(ctx, SB_ERR_NOMEM, "term weights: out of memory");
-    size_t J = e.J, C = e.C, L = J * (J + 1) / 2, len = tw_len(J, C), block = 8;
+    size_t J = e.J, C = e.C, len = tw_len(J, C), block = 8, nrep = J ? reps_of(pairs, reps, J - 1) : 0;
+    int ordered = 1;
+    for (size_t j = 0; j < J; j++)
+        ordered &= reps_of(pairs, reps, j) >= (j ? reps_of(pairs, reps, j - 1) : 1);
+    if (!ordered) {
+        free(ones);
+        est_eval_free(&e);
+        return sb_error(ctx, SB_ERR_ARG,
+                        "term weights: replicate counts must be at least 1 and non-decreasing in the term");
+    }
     int nt = sb_thread_count(0);
     if (nt > MAXT) nt = MAXT;
     double *tot = sb_calloc(ctx, len, sizeof *tot, "term weights");
     tw_sums_t ts = {&e, 0, sb_alloc(ctx, block * len, sizeof(double), "term weights")};
-    e.co = tot && ts.sums ? est_coords_acquire(pairs, p, pairs->n, &e.co_ready) : NULL;
+    e.co = tot && ts.sums ? est_coords_acquire(pairs, p, nrep * pairs->rep, &e.co_ready) : NULL;
     if (!tot || !ts.sums) {
         free(tot);
         free(ts.sums);
@@ -68,38 +104,27 @@ sb_result_t sb_estimate_term_weights(sb_context_t *ctx, const sb_pairs_t *pairs,
         est_eval_free(&e);
         return SB_ERR_NOMEM;
     }
-    /* blocks of replicates, added in replicate order: the same to the bit
-     * on any thread count */
-    for (size_t k0 = 0; k0 < pairs->nrep; k0 += block) {
-        size_t nk = pairs->nrep - k0 < block ? pairs->nrep - k0 : block;
+    /* blocks of replicates, added in replicate order (the same to the bit
+     * on any thread count), cut where a term's count is reached: then its
+     * weights */
+    size_t j = 0;
+    for (size_t k0 = 0; k0 < nrep;) {
+        size_t end = k0 + block < reps_of(pairs, reps, j) ? k0 + block : reps_of(pairs, reps, j);
         ts.first = k0;
-        est_run_units(k0, nk, nt, tw_unit, &ts);
-        for (size_t k = 0; k < nk; k++)
+        est_run_units(k0, end - k0, nt, tw_unit, &ts);
+        for (size_t k = 0; k < end - k0; k++)
             for (size_t i = 0; i < len; i++)
                 tot[i] += ts.sums[k * len + i];
+        k0 = end;
+        size_t j1 = j;
+        while (j1 < J && reps_of(pairs, reps, j1) == k0)
+            j1++;
+        weights_from(tot, J, C, j, j1, w);
+        j = j1;
     }
-    /* in term order, given w_0..j-1: w_j = 1 when the term lowers the
-     * channel's error sum, else the w in [0, 1] that minimises it (0: the
-     * term is not used, the prefix keeps the shorter one's error) */
-    size_t Jall = sb_factors_terms(f);
-    for (size_t c = 0; c < C; c++) {
-        const double *G = tot + c * (L + J), *b = G + L;
-        for (size_t j = 0; j < Jall; j++) {
-            double *wj = &w[j * C + c];
-            if (j >= J) {
-                *wj = 1;
-                continue;
-            }
-            const double *Gj = G + j * (j + 1) / 2; /* row j: G[j][0..j] */
-            double num = b[j];
-            for (size_t i = 0; i < j; i++)
-                num -= w[i * C + c] * Gj[i];
-            /* the error sum changes by G_jj w^2 - 2 num w: kept at w = 1
-             * unless that raises it, then the least-squares w */
-            *wj = Gj[j] - 2 * num > 0 ? fmin(fmax(num / Gj[j], 0), 1) : 1;
-        }
-    }
-    est_coords_release(pairs, e.co, p, e.co_ready ? 0 : pairs->n);
+    for (size_t i = J * C; i < sb_factors_terms(f) * C; i++)
+        w[i] = 1; /* beyond SB_EST_MAXJ */
+    est_coords_release(pairs, e.co, p, e.co_ready ? 0 : nrep * pairs->rep);
     free(tot);
     free(ts.sums);
     free(ones);

@@ -192,11 +192,12 @@ sb_result_t job_band_pairs_measure(sb_context_t *ctx, sb_job_t *job, job_attempt
 /* a's estimate as reported: a ranking's (lv.rank_only) is done again
  * with p99 and maxima, growing as lv allows. */
 sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
-/* a's estimate again on the job's pairs as they are (no growth), the
- * errors on the cells left as they are. */
+/* a's estimate again on the job's pairs (growing them as lv says: each
+ * prefix at the replicates a run of that many terms stops at), the errors
+ * on the cells left as they are. */
 sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* After a->f changed (texels filtered, terms weighted): its errors on the
- * matrix's cells, then job_measure on the same pairs (no growth). */
+ * matrix's cells, then job_estimate_again. */
 sb_result_t job_remeasure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Term j, channel c of f times w (g and h by sqrt(w), sigma by w). */
 void job_scale_term(sb_factors_t *f, size_t j, size_t c, double w);

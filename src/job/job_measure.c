@@ -62,8 +62,7 @@ sb_result_t job_estimate_reported(sb_context_t *ctx, sb_job_t *job, const job_le
 }
 
 sb_result_t job_estimate_again(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
-    job_level_t same = *lv;
-    same.est_max_pairs = 1;
+    job_level_t same = *lv; /* growing as lv says: the pairs each prefix needs, whatever grew them before */
     same.rank_only = same.rank_at_j = 0; /* what is reported: p99 and maxima too */
     return job_measure(ctx, job, &same, a);
 }

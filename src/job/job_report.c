@@ -233,6 +233,7 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     int have = k < e->terms;
     sb_json_number(j, "headline", have ? e->rel[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
     sb_json_number(j, "headline_se", have ? e->se[k][SB_EST_FCOS][SB_CH_ALL] : NAN);
+    sb_json_number(j, "replicates", have ? (double)e->reps[k] : NAN);
     sb_json_begin_object(j, "headline_channel");
     for (int c = 0; c < 3; c++)
         if (sb_matrix_has(&a->m, c)) sb_json_number(j, chan_name[c], have ? e->rel[k][SB_EST_FCOS][c] : NAN);

@@ -28,15 +28,26 @@ void job_scale_term(sb_factors_t *f, size_t j, size_t c, double w) {
     sb_factors_set_sigma(f, j, c, sb_factors_sigma(f, j, c) * w);
 }
 
-/* Whether every weight would be 1: a's estimate, on the pairs the weights
- * would be fitted on, has each channel's headline at most 1 after one term
- * and non-increasing after it (each term lowers the channel's error sum). */
-static int weights_all_one(const sb_job_t *job, const job_attempt_t *a) {
+/* The replicates each term's weight is fitted on: those a's estimate took
+ * each prefix from (what a run of that many terms stops at, so a prefix's
+ * weights do not depend on the terms after it); NULL (all the pairs) when
+ * a has no full estimate of all its terms. */
+static const size_t *weight_reps(const job_attempt_t *a) {
+    return !a->est_rank && a->est->terms == sb_factors_terms(a->f) ? a->est->reps : NULL;
+}
+
+/* Whether every weight would be 1: a's estimate has each channel's
+ * headline at most 1 after one term and non-increasing after it (each term
+ * lowers the channel's error sum), where it compares two prefixes on the
+ * pairs the weight is fitted on (the same replicates). */
+static int weights_all_one(const job_attempt_t *a) {
     const sb_estimate_t *e = a->est;
-    if (a->est_rank || e->pairs != sb_pairs_count(job->pairs) || e->terms != sb_factors_terms(a->f)) return 0;
+    if (!weight_reps(a)) return 0;
     for (size_t j = 0; j < e->terms; j++)
         for (int c = 0; c < 3; c++)
-            if (!(e->rel[j][SB_EST_FCOS][c] <= (j ? e->rel[j - 1][SB_EST_FCOS][c] : 1))) return 0;
+            if ((j && e->reps[j] != e->reps[j - 1]) ||
+                !(e->rel[j][SB_EST_FCOS][c] <= (j ? e->rel[j - 1][SB_EST_FCOS][c] : 1)))
+                return 0;
     return 1;
 }
 
@@ -54,13 +65,13 @@ sb_result_t job_terms_restore(sb_context_t *ctx, sb_job_t *job, const job_level_
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f), C = sb_factors_channels(a->f);
     a->weights_dropped[0] = a->weights_dropped[1] = 0;
-    if (job->o.plain_terms || !a->est || !job->pairs || weights_all_one(job, a)) return SB_OK;
+    if (job->o.plain_terms || !a->est || !job->pairs || weights_all_one(a)) return SB_OK;
     sb_exr_opts_t xo = {job->o.half};
     sb_factors_t *q = NULL;
     double *w = malloc(J * C * sizeof *w);
     if (!w) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     sb_result_t r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
-    if (r == SB_OK) r = sb_estimate_term_weights(ctx, job->pairs, q, NULL, a->param, a->m.form, w);
+    if (r == SB_OK) r = sb_estimate_term_weights(ctx, job->pairs, q, NULL, a->param, a->m.form, weight_reps(a), w);
     sb_factors_destroy(q);
     int any = 0;
     for (size_t i = 0; r == SB_OK && i < J * C; i++)

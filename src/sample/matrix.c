@@ -158,6 +158,7 @@ typedef struct iso_job {
     unsigned char *known;
     size_t step;        /* table: every step-th chunk from a0 */
     int recip;          /* table: reciprocal source, only theta_o >= theta_i */
+    int even;           /* table: even source (SB_SOURCE_EVEN), only d <= R / 2 */
     const double *wi;   /* R directions theta_i (phi_i at the first cell centre) */
     const double *wo;   /* R^2 directions (theta_o, d): wo + 3 (d R + ot) */
     const double *cosi; /* cos theta of the R elevations */
@@ -190,7 +191,7 @@ static void *iso_table(void *arg) {
     size_t R = j->R;
     for (size_t k = j->a0; k < j->a1; k += j->step) {
         size_t i0 = k * ISO_CHUNK, i1 = i0 + ISO_CHUNK < R ? i0 + ISO_CHUNK : R;
-        for (size_t d = 0; d < R; d++)
+        for (size_t d = 0; d < (j->even ? R / 2 + 1 : R); d++)
             for (size_t ot = j->recip ? i0 : 0; ot < R; ot++)
                 for (size_t it = i0, end = j->recip && ot + 1 < i1 ? ot + 1 : i1; it < end; it++)
                     iso_cell(j, it, ot, d);
@@ -199,8 +200,9 @@ static void *iso_table(void *arg) {
 }
 
 /* Reciprocity: swapping wi and wo and rotating by -phi_o gives
- * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d); the form cos is
- * f cos(theta_i), not symmetric: move the cosine across.  Azimuth
+ * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d), and for an even
+ * source f(theta_o, theta_i, d) (the plane d itself, evaluated); the form
+ * cos is f cos(theta_i), not symmetric: move the cosine across.  Azimuth
  * differences [a0, a1), one channel (then the flags) at a time, theta_i
  * innermost: the cells written run contiguously, those read lie in one
  * R x R plane. */
@@ -213,12 +215,27 @@ static void *iso_mirror(void *arg) {
         for (size_t d = j->a0; d < j->a1; d++)
             for (size_t ot = 0; ot < R; ot++)
                 for (size_t it = ot + 1; it < R; it++) {
-                    size_t at = iso_at(R, it, ot, d), from = iso_at(R, ot, it, (R - d) % R);
+                    size_t at = iso_at(R, it, ot, d), from = iso_at(R, ot, it, j->even ? d : (R - d) % R);
                     if (!t)
                         j->known[at] = j->known[from];
                     else
                         t[at] = t[from] * (j->form == SB_FORM_COS ? j->cosi[it] / j->cosi[ot] : 1);
                 }
+    }
+    return NULL;
+}
+
+/* An even source: plane d > R / 2 of the table (theta_i, theta_o at
+ * azimuth difference d, R^2 values in a row) is plane R - d, for d in
+ * [a0, a1): f(theta_i, theta_o, d) = f(theta_i, theta_o, -d). */
+static void *iso_even(void *arg) {
+    const iso_job_t *j = arg;
+    size_t R = j->R, R2 = R * R;
+    for (size_t d = j->a0; d < j->a1; d++) {
+        if (2 * d <= R) continue;
+        for (int c = 0; c < 3; c++)
+            if (j->tab[c]) memcpy(j->tab[c] + d * R2, j->tab[c] + (R - d) * R2, R2 * sizeof(double));
+        memcpy(j->known + d * R2, j->known + (R - d) * R2, R2);
     }
     return NULL;
 }
@@ -321,9 +338,10 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
     if (r != SB_OK) return r;
     int nt = sb_thread_count(o->threads);
     if ((size_t)nt > R) nt = (int)R;
-    iso_job_t job = {src, param, out, R, 0, 0, {NULL, NULL, NULL}, NULL, 1, 0, NULL, NULL, NULL, out->form};
+    iso_job_t job = {src, param, out, R, 0, 0, {NULL, NULL, NULL}, NULL, 1, 0, 0, NULL, NULL, NULL, out->form};
     iso_job_t jobs[SB_THREADS_MAX];
     job.recip = (sb_source_flags(src) & SB_SOURCE_RECIPROCAL) != 0;
+    job.even = (sb_source_flags(src) & SB_SOURCE_EVEN) != 0;
     job.known = sb_alloc(ctx, n3, 1, "isotropic table");
     double *dirs = sb_alloc(ctx, 3 * R * (R + 1) + R, sizeof(double), "isotropic table directions");
     r = job.known && dirs ? SB_OK : SB_ERR_NOMEM;
@@ -335,7 +353,8 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
     for (int t = 0; t < nt; t++)
         jobs[t] = job;
     run_parallel(iso_table, jobs, nt, (R + ISO_CHUNK - 1) / ISO_CHUNK, job.recip);
-    if (job.recip) run_parallel(iso_mirror, jobs, nt, R, 0);
+    if (job.recip) run_parallel(iso_mirror, jobs, nt, job.even ? R / 2 + 1 : R, 0);
+    if (job.even) run_parallel(iso_even, jobs, nt, R, 0);
     size_t nknown = 0;
     for (size_t i = 0; i < n3; i++)
         nknown += job.known[i];

@@ -6,6 +6,7 @@
 #include "solve/circulant.h"
 
 #include <cblas.h>
+#include <float.h>
 #include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
@@ -195,7 +196,7 @@ static void *blk_svd(void *arg) {
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
     if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
         if (j->k1 > j->k0 && !c->fft)
-            cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->K,
+            cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(j->k1 - j->k0), (int)R, 1.0, c->Kd,
                         (int)R2, c->T + j->k0 * R, (int)R, 0.0, c->C + j->k0 * R2, (int)R2);
         for (size_t k = j->k0; k < j->k1; k++) {
             double f = 0;
@@ -215,7 +216,7 @@ static void *blk_svd(void *arg) {
         c->sym[k] = was && (j->pass == 2 ? sb_circ_sym_values(c, k, j->t) : sb_circ_sym_vectors(c, k, j->t)) == 0;
         if (c->sym[k]) continue;
         if (was)
-            cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->K, (int)R2, c->T + k * R, 1, 0.0,
+            cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->Kd, (int)R2, c->T + k * R, 1, 0.0,
                         c->C + k * R2, 1);
         memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
         int vec = j->pass == 1, keep = was && vec;              /* keep: the values stay those the selection used */
@@ -315,10 +316,36 @@ static sb_result_t select_blocks(sb_circ_t *c, size_t J, size_t *nc) {
     return r;
 }
 
-static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
-                            double *s, double *u, double *v, double *tails) {
-    size_t R = c->R, R2 = R * R, N = R2;
-    /* Step: symmetrised, weighted kernel (K_m + K_{R-m}) / 2 */
+/* The symmetrised, weighted kernel (K_m + K_{R-m}) / 2 into c->Kd: the
+ * stored values themselves where they are it to the bit (no weights,
+ * K's layout: ld = R, a structured matrix; plane m equal to plane R - m
+ * bit for bit, as an even source's table is, SB_SOURCE_EVEN; no |x| above
+ * DBL_MAX / 2, so 0.5 (x + x) is x), else c->K filled.  Read in place:
+ * an R^3 copy (2 MiB at R = 64, a fresh huge page) neither written nor
+ * faulted in, and the same bits downstream. */
+static void kernel_fill(sb_circ_t *c, const double *a, size_t ld, const double *w) {
+    size_t R = c->R, R2 = R * R;
+    int same = !w && ld == R;
+    for (size_t m = 1; same && 2 * m < R; m++)
+        same = memcmp(a + m * R2, a + (R - m) * R2, R2 * sizeof *a) == 0;
+    double mx = 0; /* a NaN: passed over or taken (then K is filled), a NaN in K either way */
+    size_t i = 0, n = same ? R2 * R : 0;
+#if defined(__SSE2__)
+    __m128d vm = _mm_setzero_pd(), sign = _mm_set1_pd(-0.0);
+    for (; i + 2 <= n; i += 2)
+        vm = _mm_max_pd(vm, _mm_andnot_pd(sign, _mm_loadu_pd(a + i)));
+    double t[2];
+    _mm_storeu_pd(t, vm);
+    mx = t[0] > t[1] || t[1] != t[1] ? t[0] : t[1];
+#endif
+    for (; i < n; i++) {
+        double x = fabs(a[i]);
+        mx = x > mx || x != x ? x : mx;
+    }
+    if (same && mx <= DBL_MAX / 2) {
+        c->Kd = a;
+        return;
+    }
     for (size_t m = 0; m < R; m++)
         for (size_t ot = 0; ot < R; ot++)
             for (size_t it = 0; it < R; it++) {
@@ -326,10 +353,18 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
                 c->K[m * R2 + it + ot * R] =
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
-    c->ksym = sb_circ_kernel_symmetric(c->K, R);
+    c->Kd = c->K;
+}
+
+static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
+                            double *s, double *u, double *v, double *tails) {
+    size_t R = c->R, R2 = R * R, N = R2;
+    /* Step: symmetrised, weighted kernel (K_m + K_{R-m}) / 2 */
+    kernel_fill(c, a, ld, w);
+    c->ksym = sb_circ_kernel_symmetric(c->Kd, R);
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
      * each block's squared Frobenius norm, blocks split among threads */
-    c->fft = sb_rdft_cols(R, c->nb, R2, c->K, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
+    c->fft = sb_rdft_cols(R, c->nb, R2, c->Kd, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
     sb_result_t res = blocks_run(c, 0);
     if (res != SB_OK) return res;
     /* Step: the singular values (no vectors: the cheap part) of the blocks

@@ -22,6 +22,7 @@ struct sb_circ {
     sb_context_t *ctx;
     size_t R, nb;             /* period, blocks R/2 + 1 */
     double *K;                /* R blocks R x R (weighted, symmetrised) */
+    const double *Kd;         /* the kernel read: K, or the stored values where they are it (kernel_fill) */
     double *C;                /* nb blocks C_k (R^2 x nb); a symmetric block's dsytrd reflectors */
     double *Cv;               /* a copy of C, overwritten by dgesdd */
     double *T;                /* R x nb: cos(2 pi k m / R) */

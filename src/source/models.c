@@ -459,7 +459,7 @@ static sb_result_t finish(sb_context_t *ctx, model_t *m, int f0_set, int ior_set
 
 /* Flags that hold for this instance. */
 static unsigned model_flags(const model_t *m) {
-    unsigned flags = m->anisotropy > 0 ? 0u : SB_SOURCE_ISOTROPIC;
+    unsigned flags = m->anisotropy > 0 ? 0u : SB_SOURCE_ISOTROPIC | SB_SOURCE_EVEN; /* of dot products only */
     /* Only classic Phong divides by n.l alone; with ks = 0 it is constant. */
     if (m->kind != M_PHONG || is_zero(m->ks)) flags |= SB_SOURCE_RECIPROCAL;
     int gray;
