@@ -221,6 +221,8 @@ static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
     }
 }
 
+void sb_nmf_refit(nmf_state_t *s, sb_solve_out_t *out) { hals(s, out, s->J, s->max_iters); }
+
 /* Step: the stages (see the top): term k - 1 seeded from the positive
  * part of the residual of the terms before it, then the k terms refitted
  * (nested: hals). */

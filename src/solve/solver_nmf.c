@@ -19,7 +19,9 @@
  * no sweep raises it.  A fit stops when a sweep gains less than tol per
  * prefix (in log ||E_p||^2, i.e. relative), or after its sweep cap.
  * With a reference (nmf_mixes.c toward_headline), alpha_p follows the prefixes'
- * ratios to its errors (ratio_weights), and W leans to the headline's.
+ * ratios to its errors (ratio_weights), and W leans to the headline's;
+ * the kept fit's terms are then tried in the order of the prefixes'
+ * errors and refitted (reorder).
  *
  * Cells out of the data (masked): bilinear taps of in-domain pairs read
  * those within two texels of the data (fit.h), so there the fit follows
