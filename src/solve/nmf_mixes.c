@@ -198,14 +198,18 @@ static void reorder(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out
  * (sb_nmf_worst_ratio) by safeguarded steps: one nested sweep with the
  * ratios to SB_NMF_POLISH_POWER from out, then out + t (sweep - out), t = 1,
  * 1/2, .. 1/8, the first that lowers the worst prefix taken; stops at the
- * first sweep none of them lowers, or after s->polish_steps.  So the
+ * first sweep none of them lowers, after a step that gains less than the
+ * fit's tolerance, or after s->polish_steps.  So the
  * worst prefix never rises (s->ub, vb, u1, v1 hold the steps' ends). */
 static void polish(nmf_state_t *s, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J, mu = m * J, nv = n * J;
     if (!s->u1 || !s->hw_ok || !(s->gam > 0)) return;
     double best = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2), g0 = s->gam;
+    double before = INFINITY;
     int conv = out->converged, ok = 1;
-    for (int it = 0; ok && it < s->polish_steps; it++) {
+    if (!(best > 1)) return; /* no prefix worse than the reference's */
+    for (int it = 0; ok && it < s->polish_steps && best < before * (1 - s->tol); it++) {
+        before = best;
         memcpy(s->ub, out->u, mu * sizeof *s->ub);
         memcpy(s->vb, out->v, nv * sizeof *s->vb);
         s->gam = SB_NMF_POLISH_POWER;
