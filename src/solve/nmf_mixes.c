@@ -162,9 +162,9 @@ static void greedy_order(nmf_state_t *s, const double *U, const double *V, size_
 }
 
 /* Step: out's terms reordered greedily (greedy_order) and refitted from
- * there (nested sweeps at the kept mix); kept where their worst prefix in
- * the headline's weights is lower. */
-static void reorder(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
+ * there (nested sweeps in s's weights: the kept mix's); kept where their
+ * worst prefix in the headline's weights is lower. */
+static void reorder(nmf_state_t *s, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J, order[32];
     if (!s->hw_ok || !(s->gam > 0) || J < 2 || J > 32) return;
     memcpy(s->ub, out->u, m * J * sizeof *s->ub);
@@ -178,10 +178,6 @@ static void reorder(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out
     }
     if (!moved) return;
     double r0 = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, s->ub, s->vb, s->uref, s->vref, s->floor2);
-    if (s->w0) {
-        memcpy(s->w, s->w0, m * n * sizeof *s->w);
-        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
-    }
     int conv = out->converged;
     double g0 = s->gam;
     s->gam = SB_NMF_REORDER_POWER;
@@ -245,7 +241,7 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     if (!s->w0) {
         toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 0, 0);
         sb_nmf_stages(s, out);
-        reorder(s, in, out);
+        reorder(s, out);
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
@@ -260,6 +256,8 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     memcpy(out->u, s->ub, m * J * sizeof *s->ub);
     memcpy(out->v, s->vb, n * J * sizeof *s->vb);
     out->converged = s->conv;
-    reorder(s, in, out);
+    memcpy(s->w, s->w0, m * n * sizeof *s->w); /* the kept mix's weights and reference errors */
+    toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
+    reorder(s, out);
     polish(s, out);
 }
