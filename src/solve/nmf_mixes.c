@@ -63,12 +63,13 @@
  * docs/positive.md). */
 #define SB_NMF_REORDER_POWER 4.0
 /* Then, where the matrix takes more than one fit (SB_NMF_MIX_CELLS), at
- * most SB_NMF_POLISH_STEPS safeguarded steps (polish) of one nested sweep with the
- * ratios to this power: RGL cc_green_malachite (auto: vh, J = 4), J' = 1
- * 1.56 -> 1.46x the SVD's headline, chm_light_blue J' = 4 1.49 -> 1.45;
- * at power 4, 1.51 and 1.48; at 16, 1.45 and 1.45.  The default gold
- * stops after 0-2 steps (its worst prefix 1.654 -> 1.642 in the proxy on
- * red: no step lowers it further; round h38f, docs/positive.md). */
+ * most SB_NMF_POLISH_STEPS safeguarded steps (polish) of one nested sweep
+ * with the ratios to this power, in the kept mix's weights: RGL
+ * cc_green_malachite (auto: vh, J = 4), J' = 1 1.56 -> 1.46x the SVD's
+ * headline, vch_silk_blue J' = 4 1.49 -> 1.45 (swept in the last mix's
+ * weights, malachite at power 4 1.51, at 16 1.45).  The default gold stops
+ * after 0-2 steps (its worst prefix 1.654 -> 1.642 in the proxy on red:
+ * no step lowers it further; round h38f, docs/positive.md). */
 #define SB_NMF_POLISH_POWER 8.0
 /* Step: the headline's weights of the data cells in s->hw, once for the
  * channels of a matrix (the same layout, form and data cells); returns
