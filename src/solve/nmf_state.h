@@ -14,7 +14,7 @@
  * vndf 8 x 1024; iso at 32 cells 64 x 992; not hd, 1024^2, where a
  * second fit costs seconds). */
 #define SB_NMF_MIX_CELLS ((size_t)1 << 17)
-/* Their kept fit's safeguarded steps at most (nmf_mixes.c polish). */
+/* A kept fit's safeguarded steps at most (nmf_mixes.c polish). */
 #define SB_NMF_POLISH_STEPS 40
 
 typedef struct nmf_state {
@@ -39,7 +39,7 @@ typedef struct nmf_state {
     double *hwr;          /* m x n: the same unclipped, where w0 is (fit_mixes) */
     double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights of the first mix, the terms kept (fit_mixes, reorder) */
     int hw_ok;            /* hw holds them for hw_key (the channels of a matrix share them) */
-    double *u1, *v1;      /* m x J, n x J: a sweep's end (polish; where w0 is) */
+    double *u1, *v1;      /* m x J, n x J: a sweep's end (polish; where hw is) */
     int polish_steps;     /* SB_NMF_POLISH_STEPS (0 in a test: no polish) */
     double kept_mix;      /* the mix of the fit in ub, vb (fit_mix) */
     int conv;             /* whether the fit in ub, vb converged (fit_mix) */

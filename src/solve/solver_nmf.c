@@ -21,8 +21,8 @@
  * With a reference (nmf_mixes.c toward_headline), alpha_p follows the prefixes'
  * ratios to its errors (ratio_weights), and W leans to the headline's;
  * the kept fit's terms are then tried in the order of the prefixes'
- * errors and refitted (reorder), and on small matrices moved by
- * safeguarded steps toward the least worst prefix (polish).
+ * errors and refitted (reorder), and moved by safeguarded steps toward
+ * the least worst prefix (polish).
  *
  * Cells out of the data (masked): bilinear taps of in-domain pairs read
  * those within two texels of the data (fit.h), so there the fit follows
@@ -144,13 +144,13 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->hw = weighted ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->w0 = weighted && cells <= SB_NMF_MIX_CELLS ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->hwr = s->w0 ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
-    s->u1 = s->w0 ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
-    s->v1 = s->w0 ? sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan") : NULL;
+    s->u1 = s->hw ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
+    s->v1 = s->hw ? sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan") : NULL;
     s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
-        !s->sref || (weighted && !s->hw) ||
-        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr || !s->u1 || !s->v1)) || !s->ub || !s->vb) {
+        !s->sref || (weighted && !s->hw) || (weighted && (!s->u1 || !s->v1)) ||
+        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub || !s->vb) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
