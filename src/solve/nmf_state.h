@@ -14,6 +14,8 @@
  * vndf 8 x 1024; iso at 32 cells 64 x 992; not hd, 1024^2, where a
  * second fit costs seconds). */
 #define SB_NMF_MIX_CELLS ((size_t)1 << 17)
+/* A kept fit's safeguarded steps at most (nmf_mixes.c polish). */
+#define SB_NMF_POLISH_STEPS 40
 
 typedef struct nmf_state {
     size_t m, n, J;
@@ -35,8 +37,11 @@ typedef struct nmf_state {
     double gam;           /* SB_NMF_RATIO_POWER where a reference is known, else 0 */
     double *hw;           /* m x n: the headline's weights of the data cells (toward_headline) */
     double *hwr;          /* m x n: the same unclipped, where w0 is (fit_mixes) */
-    double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights and the terms of the first mix (fit_mixes) */
+    double *w0, *ub, *vb; /* m x n, m x J, n x J: the weights of the first mix, the terms kept (fit_mixes, reorder) */
     int hw_ok;            /* hw holds them for hw_key (the channels of a matrix share them) */
+    double *u1, *v1;      /* m x J, n x J: a sweep's end (polish; where hw is) */
+    int polish_steps;     /* SB_NMF_POLISH_STEPS (0 in a test: no polish) */
+    double kept_mix;      /* the mix of the fit in ub, vb (fit_mix) */
     int conv;             /* whether the fit in ub, vb converged (fit_mix) */
     double hw_key[3];     /* the layout's address, the form, a sum over the data cells */
     sb_fit_t *fit;        /* masked: the masked fit whose extension fills the cells out of the data */
@@ -67,6 +72,12 @@ double sb_nmf_residual(nmf_state_t *s, const double *U, const double *V, size_t 
  * of the residual of the k - 1 before it, then the k terms refitted
  * (nested sweeps), into out->u, out->v (nmf_sweeps.c). */
 void sb_nmf_stages(nmf_state_t *s, sb_solve_out_t *out);
+
+/* Nested sweeps of all J terms from out's, until the fit's tolerance or
+ * max_iters (sb_nmf_refit) or at most n (sb_nmf_refit_n); added to
+ * out->iterations (nmf_sweeps.c). */
+void sb_nmf_refit(nmf_state_t *s, sb_solve_out_t *out);
+void sb_nmf_refit_n(nmf_state_t *s, sb_solve_out_t *out, int n);
 
 /* The fits toward the headline (nmf_mixes.c): at SB_NMF_HEADLINE_MIX and,
  * on small matrices with a reference, at other mixes, the one kept whose

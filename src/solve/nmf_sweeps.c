@@ -221,6 +221,9 @@ static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
     }
 }
 
+void sb_nmf_refit(nmf_state_t *s, sb_solve_out_t *out) { hals(s, out, s->J, s->max_iters); }
+void sb_nmf_refit_n(nmf_state_t *s, sb_solve_out_t *out, int n) { hals(s, out, s->J, n); }
+
 /* Step: the stages (see the top): term k - 1 seeded from the positive
  * part of the residual of the terms before it, then the k terms refitted
  * (nested: hals). */

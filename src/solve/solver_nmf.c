@@ -19,7 +19,10 @@
  * no sweep raises it.  A fit stops when a sweep gains less than tol per
  * prefix (in log ||E_p||^2, i.e. relative), or after its sweep cap.
  * With a reference (nmf_mixes.c toward_headline), alpha_p follows the prefixes'
- * ratios to its errors (ratio_weights), and W leans to the headline's.
+ * ratios to its errors (ratio_weights), and W leans to the headline's;
+ * the kept fit's terms are then tried in the order of the prefixes'
+ * errors and refitted (reorder), and moved by safeguarded steps toward
+ * the least worst prefix (polish).
  *
  * Cells out of the data (masked): bilinear taps of in-domain pairs read
  * those within two texels of the data (fit.h), so there the fit follows
@@ -103,6 +106,8 @@ static void destroy(void *state) {
     free(s->w0);
     free(s->ub);
     free(s->vb);
+    free(s->u1);
+    free(s->v1);
     sb_fit_destroy(s->fit);
     free(s);
 }
@@ -118,6 +123,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
      * nested prefixes up to 1.3x further from the SVD's */
     s->max_iters = pb->fit_max_iters > SB_NMF_MAX_ITERS ? pb->fit_max_iters : SB_NMF_MAX_ITERS;
     s->zero_fill = pb->zero_fill;
+    s->polish_steps = SB_NMF_POLISH_STEPS;
     s->tol = pb->fit_tol > 0 && pb->fit_tol < SB_NMF_TOL ? pb->fit_tol : SB_NMF_TOL;
     size_t cells = s->m * s->n; /* checked by the plan */
     s->e = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
@@ -138,11 +144,13 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->hw = weighted ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->w0 = weighted && cells <= SB_NMF_MIX_CELLS ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->hwr = s->w0 ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
+    s->u1 = s->hw ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
+    s->v1 = s->hw ? sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan") : NULL;
     s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
-        !s->sref || (weighted && !s->hw) || (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub ||
-        !s->vb) {
+        !s->sref || (weighted && !s->hw) || (weighted && (!s->u1 || !s->v1)) ||
+        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub || !s->vb) {
         destroy(s);
         return SB_ERR_NOMEM;
     }
