@@ -236,6 +236,39 @@ SB_TEST(study_sweep) {
     CHECKF(rc == 1 && strstr(out, "--budget '0'"), "rc %d: %s", rc, out);
 }
 
+/* study --budget without --param studies what `factor --budget` chooses
+ * (the auto layout, the default): one row per budget, within it, the
+ * same layout and bytes as factor's report; a source that cannot be
+ * opened is a failed row (exit 2), not an empty study. */
+SB_TEST(study_default_auto) {
+    const char *dir = sb_tmpdir("budget");
+    char cmd[4096], path[4200];
+    snprintf(cmd, sizeof cmd, "%s study lambert:albedo=0.5 /nonexistent/t.binary --budget 2K -r 8 -q -o %s/s", SB_CLI,
+             dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 2, "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/s/study.csv", dir);
+    const char *csv = slurp(path);
+    CHECKF(csv && strstr(csv, "\nlambert:albedo=0.5,auto,2048,1,") && strstr(csv, "/nonexistent/t.binary,auto,2048,0"),
+           "%s", csv ? csv : "no study.csv");
+    char param[16] = "", study_param[16] = "";
+    size_t bytes = 0, study_bytes = 1;
+    const char *row = csv ? strstr(csv, "\nlambert:albedo=0.5,auto,2048,1,") : NULL;
+    if (row) sscanf(row + 32, "%15[^,]", study_param); /* then param_spec, quoted: it holds commas */
+    const char *st = row ? strstr(row, ",float,") : NULL;
+    if (st) sscanf(st + 7, "%zu", &study_bytes);
+    snprintf(cmd, sizeof cmd, "%s factor lambert:albedo=0.5 --budget 2K -r 8 -q -o %s/f", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/f/report.json", dir);
+    const char *rep = slurp(path), *ch = rep ? strstr(rep, "\"chosen\": {") : NULL;
+    const char *p = ch ? strstr(ch, "\"param\": \"") : NULL, *b = ch ? strstr(ch, "\"bytes\": ") : NULL;
+    if (p) sscanf(p + 10, "%15[^\"]", param);
+    if (b) sscanf(b + 9, "%zu", &bytes);
+    CHECKF(study_bytes <= 2048 && strcmp(param, study_param) == 0 && bytes == study_bytes,
+           "study %s %zu bytes, factor %s %zu bytes", study_param, study_bytes, param, bytes);
+}
+
 /* batch --budget: every material within the budget; a set made with
  * another budget is made again, one with the same budget reused. */
 SB_TEST(batch_budget) {

@@ -259,6 +259,7 @@ static size_t layouts_asked(const study_opts_t *o, const char **names) {
         return 1;
     }
     size_t n = 0;
+    if (o->param_auto) names[n++] = "auto"; /* the default, as `factor --budget` chooses */
     for (int k = 0; k < (int)sb_param_kind_count(); k++)
         if (o->params & (1u << k)) names[n++] = sb_param_kind_name((sb_param_kind_t)k);
     return n;
