@@ -96,7 +96,7 @@ static void help(const char *prog) {
            "\n"
            "options:\n"
            "  --sizes LIST      matrix sizes N = R*R of the io grid (default 256,1024,2304,4096)\n"
-           "  --terms LIST      numbers of terms J (default 1,4,8,16)\n"
+           "  -J, --terms LIST  numbers of terms J (default 1,4,8,16)\n"
            "  --methods LIST    methods, each NAME[:opt:opt...] with NAME auto|full|topk|randomized\n"
            "                    and opt q=Q (power iterations), p=P (oversampling), f32 (single\n"
            "                    precision), hmt (plain subspace iteration, no Krylov basis),\n"
@@ -104,7 +104,8 @@ static void help(const char *prog) {
            "                    auto factors an isotropic model on the io grid with the exact\n"
            "                    block-circulant SVD (column `used`: circulant), the others\n"
            "                    always run on the dense matrix\n"
-           "  --model SPEC      source (default " DEFAULT_MODEL ")\n"
+           "  --model SPEC      source: a model spec (see `sepbrdf list`) or a measured\n"
+           "                    file (default " DEFAULT_MODEL ")\n"
            "  --form F          f (default), cos, cos2\n"
            "  --quick           sizes 256,1024, terms 4,8: a few seconds\n"
            "  --min-time S      repeat short runs until S seconds, keep the fastest (default 0.3)\n"
@@ -235,7 +236,7 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
                 size_t r = (size_t)llround(sqrt((double)o->sizes[k]));
                 if (r * r != o->sizes[k]) return bad(o, "--sizes: %s: every N must be a square R*R (io grid)", v);
             }
-        } else if ((m = opt(argc, argv, &i, "--terms", NULL, &v))) {
+        } else if ((m = opt(argc, argv, &i, "--terms", "-J", &v))) {
             if (m < 0 || parse_list(o, "--terms", v, 1, 1 << 20, o->terms, &o->nterms))
                 return m < 0 ? bad(o, "%s needs a value", a) : 1;
         } else if ((m = opt(argc, argv, &i, "--methods", NULL, &v))) {
@@ -477,7 +478,10 @@ static void plot(const bench_opts_t *o, const char *csv) {
     /* the paths go through gnuplot's stdin, not through the shell */
     FILE *gp = popen("gnuplot", "w");
     if (!gp) return;
-    fprintf(gp, "csv = '%s'\nout = '%s'\n", csv, png);
+    size_t J = 0; /* the left panel's J: 8 when run, else the largest (a J not run plots nothing: gnuplot fails) */
+    for (size_t i = 0; i < o->nterms; i++)
+        if (J != 8 && (o->terms[i] == 8 || o->terms[i] > J)) J = o->terms[i];
+    fprintf(gp, "csv = '%s'\nout = '%s'\nJ = %zu\nnobase = %d\n", csv, png, J, !o->baseline);
     fputs(sb_plot_gp_, gp);
     if (pclose(gp) != 0)
         fprintf(stderr, "%s: gnuplot failed, no plot\n", o->prog);
@@ -531,7 +535,7 @@ static int run_all(bench_opts_t *o) {
         mo.form = o->form;
         sb_context_create(&ctx);
         double t0 = now();
-        if (sb_model_create(ctx, o->model, &src) != SB_OK || sb_param_create(ctx, SB_PARAM_IO, &po, &param) != SB_OK ||
+        if (sb_source_open(ctx, o->model, &src) != SB_OK || sb_param_create(ctx, SB_PARAM_IO, &po, &param) != SB_OK ||
             sb_matrix_build(ctx, src, param, &mo, &m) != SB_OK) {
             fprintf(stderr, "%s: %s\n", o->prog, sb_context_last_error(ctx));
             rc = 1;

@@ -20,9 +20,12 @@ set ylabel 'factor step wall time (s)'
 set title sprintf('J = %d', J)
 rows(m) = sprintf("< awk -F, -v m='%s' -v J=%d '$4 == m && $3 == J' '%s'", m, J, csv)
 plot for [m in methods] rows(m) using 1:11 with linespoints title m
+# without the baseline (--no-baseline: excess is nan) the relative error itself
+if (!exists("nobase")) nobase = 0
+ycol = nobase ? 15 : 17
 set xlabel 'factor step wall time (s)'
-set ylabel '(error - optimum) / optimum   (floored at 1e-16)'
+set ylabel (nobase ? 'relative error (no baseline run)' : '(error - optimum) / optimum   (floored at 1e-16)')
 set title 'all N and J'
 set key bottom left
-plot for [m in methods] csv skip 1 using (strcol(4) eq m ? $11 : NaN):($17 > 1e-16 ? $17 : 1e-16) with points pt 7 ps 0.8 title m
+plot for [m in methods] csv skip 1 using (strcol(4) eq m ? $11 : NaN):(column(ycol) > 1e-16 ? column(ycol) : 1e-16) with points pt 7 ps 0.8 title m
 unset multiplot

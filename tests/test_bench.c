@@ -86,3 +86,38 @@ SB_TEST(pareto_bad_options) {
     snprintf(cmd, sizeof cmd, "%s bench --pareto --frobnicate 2>&1", SB_CLI);
     CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "--frobnicate"), "%s", out);
 }
+
+/* bench takes what the other commands take: a measured file as --model
+ * and -J for --terms; the full method's error is the Eckart-Young optimum
+ * (dgesdd, excess ~ 0); a J list without 8 still plots (the left panel
+ * shows the largest J). */
+SB_TEST(measured_model_and_J) {
+    const char *dir = sb_tmpdir("bench_measured");
+    char cmd[4096], out[8192];
+    snprintf(cmd, sizeof cmd,
+             "%s bench --model %s/rgl_chm_orange_rgb.bsdf -J 2 --sizes 16 --methods full --min-time 0 -o %s 2>&1",
+             SB_CLI, SB_MEASURED_DIR, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    CHECKF(!strstr(out, "gnuplot failed"), "%s", out);
+    char path[4200], line[512];
+    snprintf(path, sizeof path, "%s/results.csv", dir);
+    FILE *fp = fopen(path, "r");
+    int rows = 0;
+    while (fp && fgets(line, sizeof line, fp)) {
+        char *f[21], *save = NULL, *tok = strtok_r(line, ",", &save);
+        int k = 0;
+        for (; tok && k < 21; tok = strtok_r(NULL, ",", &save))
+            f[k++] = tok;
+        if (k < 17 || strcmp(f[0], "n") == 0) continue;
+        rows++;
+        double rel = atof(f[14]), opt = atof(f[15]);
+        CHECKF(atoi(f[0]) == 16 && atoi(f[2]) == 2 && rel > 0 && rel < 1, "%s %s %s", f[0], f[2], f[14]);
+        CHECKF(fabs(rel - opt) <= 1e-9 * opt, "full %.12g against dgesdd %.12g", rel, opt);
+    }
+    if (fp) fclose(fp);
+    CHECK(rows == 1);
+    /* --no-baseline: the excess is nan, the right panel shows the error itself */
+    snprintf(cmd, sizeof cmd, "%s bench -J 2 --sizes 16 --methods full --min-time 0 --no-baseline -o %s/nb 2>&1",
+             SB_CLI, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0 && !strstr(out, "gnuplot failed"), "%s", out);
+}
