@@ -144,3 +144,28 @@ SB_TEST(stale_probe_removed) {
     CHECK(sb_file_exists(live));
     rmdir(live);
 }
+
+/* sample where no gonioreflectometer position meets the table (its rows
+ * all near one pair of directions, far from the one position asked): exit
+ * 2 naming --gonio, no file left (info refuses a table of no rows); the
+ * same position on a model writes its one row. */
+SB_TEST(sample_no_rows_refused) {
+    const char *dir = sb_tmpdir("rel_sample");
+    char path[4200];
+    snprintf(path, sizeof path, "%s/t.csv", dir);
+    FILE *fp = fopen(path, "w");
+    CHECK(fp != NULL);
+    if (!fp) return;
+    fputs("theta_i,phi_i,theta_o,phi_o,r,g,b\n", fp);
+    for (int k = 0; k < 8; k++)
+        fprintf(fp, "%d,0,%d,180,0.2,0.3,0.4\n", 70 + k % 2, 70 + k / 2);
+    fclose(fp);
+    int rc = run_in(dir, "sample t.csv --gonio 1,1,1,1 -o s.csv");
+    CHECKF(rc == 2 && strstr(out, "--gonio 1,1,1,1") && strstr(out, "0 rows"), "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/s.csv", dir);
+    CHECK(!sb_file_exists(path));
+    rc = run_in(dir, "sample t.csv --gonio 1,1,1,1");
+    CHECKF(rc == 2, "stdout: rc %d: %s", rc, out);
+    rc = run_in(dir, "sample lambert --gonio 1,1,1,1 -o s.csv");
+    CHECKF(rc == 0 && sb_file_exists(path), "rc %d: %s", rc, out);
+}

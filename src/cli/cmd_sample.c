@@ -76,6 +76,14 @@ static void help(void) {
            "Rows where SOURCE has no value (a table's missing pairs) are left out.\n\n" CLI_EXIT_HELP);
 }
 
+/* A table of no rows is no measurement: `info` and `factor` refuse it. */
+static sb_result_t no_rows(sb_context_t *ctx, const sb_gonio_opts_t *go) {
+    return sb_error(ctx, SB_ERR_FORMAT,
+                    "no position of --gonio %zu,%zu,%zu,%zu falls where the source has a value (0 rows; nothing "
+                    "written): try a finer --gonio, or `sepbrdf convert` for a table's own directions",
+                    go->n_theta_i, go->n_phi_i, go->n_theta_o, go->n_phi_o);
+}
+
 int cmd_sample(int argc, char **argv) {
     const char *source = NULL, *out = NULL;
     sb_gonio_opts_t go = {18, 1, 18, 72, 0, 1};
@@ -115,6 +123,7 @@ int cmd_sample(int argc, char **argv) {
     size_t rows = 0;
     if (!out || strcmp(out, "-") == 0) {
         r = sb_gonio_write_csv(ctx, stdout, src, &go, &rows);
+        if (r == SB_OK && rows == 0) r = no_rows(ctx, &go);
         if (r == SB_OK && fflush(stdout) != 0)
             r = sb_error(ctx, SB_ERR_IO, "standard output: cannot write: %s", sb_io_why(errno));
         rc = r == SB_OK ? EXIT_OK : cli_fail("sample", ctx, r);
@@ -132,6 +141,7 @@ int cmd_sample(int argc, char **argv) {
     }
     r = sb_gonio_write_csv(ctx, fp, src, &go, &rows);
     int e = r == SB_ERR_IO && ferror(fp) ? (errno ? errno : EIO) : 0; /* the failed write's */
+    if (r == SB_OK && rows == 0) r = no_rows(ctx, &go);
     if (r != SB_OK) {
         cli_commit(fp, tmp, out, 0);
         if (e) cli_error("sample", "--out %s: cannot write: %s", out, sb_io_why(e));
