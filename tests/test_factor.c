@@ -359,6 +359,32 @@ SB_TEST(masked_fit_exact_rank1) {
     sb_source_destroy(s);
 }
 
+/* More terms than the masked data hold (a holey rank-1 source at J = 8):
+ * the terms beyond its rank have nothing to fit; every sigma is finite,
+ * the fit stays exact at every J' and the factor succeeds (a degenerate
+ * term's sigma was 0 x inf = NaN, the next term's SVD then failed). */
+SB_TEST(masked_fit_terms_beyond_rank) {
+    sb_source_ops_t ops = {holey_eval, NULL};
+    sb_source_t *s = NULL;
+    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    sb_param_t *p = io(6);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
+    sb_plan_stats_t st;
+    sb_factors_t *f = fit_tight(&m, p, 8, 0, 1e-12, 2000, &st);
+    CHECK(f != NULL && st.masked);
+    for (size_t j = 1; f && j <= 8; j++) {
+        double e = sb_factors_errors(f)->rel_rms[(j - 1) * 4 + 3];
+        CHECKF(isfinite(e) && e < 1e-6, "J' = %zu: error %g", j, e);
+        for (int c = 0; c < 3; c++)
+            CHECKF(isfinite(sb_factors_sigma(f, j - 1, c)), "sigma %zu channel %d", j, c);
+    }
+    sb_factors_destroy(f);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
 /* A source missing on one of two patterns (self: 0, rank 2 with most
  * cells measured; 1, rank 1 with fewer than half): the masked fit keeps a
  * dense residual for the first and gathers cells for the second; both fit

@@ -242,11 +242,15 @@ static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const u
     if (r != SB_OK) return r; /* fit_als and the gathered cells named the bytes */
     for (size_t j = 0; j < k; j++) {
         double np = cblas_dnrm2((int)m, f->P + j * m, 1), nq = cblas_dnrm2((int)n, f->Q + j * n, 1);
-        s[j] = np * nq / pw;
+        /* a degenerate term (one side 0, the other grown without bound by
+         * the ridge: 0 x inf) holds nothing: sigma 0, not NaN (a NaN sigma
+         * made the chain's residual NaN and its next term's SVD fail) */
+        int keep = np > 0 && nq > 0 && isfinite(np * nq / pw);
+        s[j] = keep ? np * nq / pw : 0;
         for (size_t i = 0; i < m && U; i++)
-            U[i + j * m] = np > 0 ? f->P[i + j * m] / np : 0;
+            U[i + j * m] = keep ? f->P[i + j * m] / np : 0;
         for (size_t i = 0; i < n && V; i++)
-            V[i + j * n] = nq > 0 ? f->Q[i + j * n] / nq : 0;
+            V[i + j * n] = keep ? f->Q[i + j * n] / nq : 0;
     }
     if (info) *info = (sb_fit_info_t){total, converged, norm2 > 0 ? err / sqrt(norm2) : 0};
     return SB_OK;
