@@ -124,6 +124,16 @@ SB_TEST(option_errors_name_the_option) {
         rc = run_in(dir, args);
         CHECKF(rc == 1 && strstr(out, bad[i][0]), "%s: rc %d: %s", args, rc, out);
     }
+    /* render --exposure: a bad value names what it takes, the words too */
+    static const char *const exposures[] = {"0", "-1", "nan", "inf", "2x", "1e7"};
+    for (size_t i = 0; i < sizeof exposures / sizeof *exposures; i++) {
+        char args[512];
+        snprintf(args, sizeof args, "render lambert -r 4 -J 1 -s 8 --exposure %s -o r", exposures[i]);
+        rc = run_in(dir, args);
+        CHECKF(rc == 1 && strstr(out, "--exposure") && strstr(out, "auto or peak"), "%s: rc %d: %s", args, rc, out);
+    }
+    rc = run_in(dir, "render lambert -r 4 -J 1 -s 8 --exposure 2 -q -o r");
+    CHECKF(rc == 0, "--exposure 2: rc %d: %s", rc, out);
 }
 
 /* A probe folder left by a process killed while it checked the output's

@@ -95,7 +95,11 @@ static int set_exposure(const char *cmd, const cli_option_t *op, const char *v, 
         *x = v[0] == 'a' ? 0 : -1; /* resolved from the original (render_set) */
         return 0;
     }
-    return cli_parse_double(cmd, op->name, v, 1e-6, 1e6, x);
+    char *end = NULL;
+    double e = strtod(v, &end);
+    if (end != v && !*end && e >= 1e-6 && e <= 1e6) return cli_parse_double(cmd, op->name, v, 1e-6, 1e6, x);
+    cli_error(cmd, "%s '%s': need a number in 1e-06..1e+06 (a factor on radiance), auto or peak", op->name, v);
+    return -1;
 }
 
 static int set_tonemap(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
