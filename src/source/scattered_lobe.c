@@ -230,20 +230,24 @@ static void fitset_d(const fitset_t *fs, int ndf, double alpha, double *D) {
     }
 }
 
-/* 4 times the denominator of cosine power cosp at width alpha into den. */
-static void fitset_den(const fitset_t *fs, int cosp, double alpha, double *den) {
+/* 4 times the denominator of cosine power cosp at width alpha into den
+ * (where D is not 0 when D is given). */
+static void fitset_den(const fitset_t *fs, int cosp, double alpha, const double *D, double *den) {
     double r = sqrt(alpha) + 1, k = cosp >= 3 ? r * r / 8 : alpha / 2;
     int p = cosp % 3;
     for (size_t j = 0; j < fs->n; j++) {
+        if (D && D[j] == 0) continue;
         double g = (fs->l2[j] * (1 - k) + k) * (fs->v2[j] * (1 - k) + k);
         den[j] = 4 * (p == 2 ? g : p == 1 ? sqrt(g) : 1);
     }
 }
 
-/* shape_cost's residual of the shape D fr / den. */
+/* shape_cost's residual of the shape D fr / den.  Where D is 0 (an exp
+ * family's far tail) the sample adds exactly 0: skipped. */
 static double fitset_cost(const fitset_t *fs, const double *D, const double *fr, const double *den) {
     sums_t m = fs->base;
     for (size_t j = 0; j < fs->n; j++) {
+        if (D[j] == 0) continue;
         double S = D[j] * fr[j] / den[j], wS = fs->w[j] * S;
         m.ws += wS;
         m.wss += wS * S;
@@ -259,7 +263,7 @@ static double fitset_cost(const fitset_t *fs, const double *D, const double *fr,
 /* The residual of one shape (shape_cost's). */
 static double fitset_shape(fitset_t *fs, int ndf, double alpha, size_t fi, int cosp) {
     fitset_d(fs, ndf, alpha, fs->D);
-    fitset_den(fs, cosp, alpha, fs->den[0]);
+    fitset_den(fs, cosp, alpha, fs->D, fs->den[0]);
     return fitset_cost(fs, fs->D, fs->fr[fi], fs->den[0]);
 }
 
@@ -373,7 +377,7 @@ static void grid_search(fitset_t *fs, const sb_lobe_fit_t *keep, double la, doub
     for (int k = 0; k < ALPHA_STEPS; k++) {
         double alpha = exp(la + k * dl);
         for (int cosp = 0; cosp < COSP; cosp++)
-            fitset_den(fs, cosp, alpha, fs->den[cosp]);
+            fitset_den(fs, cosp, alpha, NULL, fs->den[cosp]);
         for (int ndf = 0; ndf < NDFS; ndf++) {
             int d = 0;
             for (int cf = 0; cf < COSP * 3; cf++) {
