@@ -256,12 +256,8 @@ static int pole_mean(const table_t *t, const double *x, double rgb[3]) {
 }
 
 /* The value at embedded position x with the pole blend, before the lobe's
- * factor (0 missing, 1 known, 2 measured), remembered by position: pairs
- * that reciprocity and isotropy fold onto one position share it. */
+ * factor (0 missing, 1 known, 2 measured). */
 static int table_at_pole(const table_t *t, const double *x, double lx, double rgb[3]) {
-    const double key[SB_MEMO_KEY] = {x[0], x[1], x[2], x[3], 0, 0};
-    int state = t->memo ? sb_memo_find(t->memo, key, rgb) : 0;
-    if (state) return state - 1;
     int known = sb_table_at_(t, t->interp, t->k, x, NULL, 0, lx, rgb);
     double tmin = fmin(x[0], x[1]), zone = sqrt(t->r2) / SB_PI, pole[3];
     if (!(known == 2 || !t->iso || !(tmin < zone) || !pole_mean(t, x, pole))) {
@@ -270,17 +266,22 @@ static int table_at_pole(const table_t *t, const double *x, double lx, double rg
             rgb[c] = w * rgb[c] + (1 - w) * pole[c];
         known = 1;
     }
-    if (t->memo) sb_memo_store(t->memo, key, rgb, known + 1);
     return known;
 }
 
+/* The value, remembered by embedded position (pairs that reciprocity and
+ * isotropy fold onto one position share it, the lobe's factor included:
+ * the base is that of x's own pair). */
 int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
     const table_t *t = self;
     rgb[0] = rgb[1] = rgb[2] = 0;
     if (!(wi[2] > 0 && wo[2] > 0)) return 0;
     double x[MAX_DIM] = {0}, b[3] = {1, 1, 1}, lx = NAN;
     sb_scat_embed_(t->iso, t->recip, wi, wo, x);
-    if (t->lobe_on) { /* the base at x's own pair: a function of x alone, as the value */
+    const double key[SB_MEMO_KEY] = {x[0], x[1], x[2], x[3], 0, 0};
+    int state = t->memo ? sb_memo_find(t->memo, key, rgb) : 0;
+    if (state) return state > 1;
+    if (t->lobe_on) {
         double dwi[3], dwo[3];
         sb_table_dirs_(t, x, dwi, dwo);
         sb_lobe_base_(&t->lobe, dwi, dwo, b);
@@ -290,5 +291,6 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
     if (known == 1 && t->lobe_on) /* the values are relative to the lobe */
         for (int c = 0; c < 3; c++)
             rgb[c] = rgb[c] * b[c] - t->lobe.floor[c];
+    if (t->memo) sb_memo_store(t->memo, key, rgb, known + 1);
     return known != 0;
 }

@@ -50,7 +50,7 @@ typedef struct table {
     int lobe_on;     /* val holds f / base (sb_lobe_base_), eval multiplies back */
     double *raw;     /* with lobe_on: the values as measured (n * 4), returned at measured positions */
     double *lb;      /* with lobe_on: ln of the base's channel sum at each point (n), NULL without */
-    sb_memo_t *memo; /* values before the lobe's factor by embedded position, and pole means (scattered_fit.c) */
+    sb_memo_t *memo; /* values by embedded position, and pole means before the lobe's factor (scattered_fit.c) */
 } table_t;
 
 /* The k nearest within sqrt(r2): a max-heap on d2 while searching

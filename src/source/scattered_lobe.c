@@ -164,20 +164,121 @@ static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *g
     return r;
 }
 
+/* The search's samples (0, step, 2 step, ...), laid out for passes over
+ * one shape at a time: the parts of the geometry at those where the shape
+ * is not 0 (ok), their weights and values, and the sums no shape changes.
+ * A shape's residual from them is shape_cost's to the bit: the same
+ * operations in the same order, where the samples left out (shape 0) add
+ * exactly 0.  The grid of alpha shares D across the families (F0, cosine
+ * power) and the denominators across the distributions. */
+typedef struct fitset {
+    size_t n;                               /* samples where the shape is not 0 */
+    double *c2, *s2, *t2, *l2, *v2, *fr[3]; /* t2: s2 / c2 (INFINITY at c2 = 0); fr: Schlick's F per f0_grid */
+    double *w, *f, *D, *den[COSP];          /* f: 3 per sample; D and den: one shape's (scratch) */
+    sums_t base;                            /* w, wf and wff over all the samples */
+} fitset_t;
+
+/* fs for the samples 0, step, ... (geometry geo); 0 on no memory. */
+static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, const geo_t *geo) {
+    memset(fs, 0, sizeof *fs);
+    size_t m = (ns + step - 1) / step, nf = sizeof f0_grid / sizeof *f0_grid;
+    double *p = malloc(m * (7 + nf + COSP + 3) * sizeof *p); /* the columns below, f's 3 last */
+    if (!p) return 0;
+    double **col[] = {&fs->c2, &fs->s2, &fs->t2, &fs->l2, &fs->v2, &fs->w, &fs->D};
+    for (size_t a = 0; a < sizeof col / sizeof *col; a++, p += m)
+        *col[a] = p;
+    for (size_t a = 0; a < nf; a++, p += m)
+        fs->fr[a] = p;
+    for (int a = 0; a < COSP; a++, p += m)
+        fs->den[a] = p;
+    fs->f = p;
+    for (size_t i = 0, j = 0; i < ns; i += step, j++) {
+        const double *s = smp + i * SB_SAMPLE_DOUBLES;
+        const geo_t *g = &geo[j];
+        double w = s[2] * s[2], m = g->m;
+        fs->base.w += w;
+        for (int c = 0; c < 3; c++) {
+            fs->base.wf[c] += w * s[6 + c];
+            fs->base.wff[c] += w * s[6 + c] * s[6 + c];
+        }
+        if (!g->ok) continue;
+        size_t k = fs->n++;
+        fs->c2[k] = g->c2, fs->s2[k] = g->s2, fs->l2[k] = g->l2, fs->v2[k] = g->v2, fs->w[k] = w;
+        fs->t2[k] = g->c2 > 0 ? g->s2 / g->c2 : INFINITY;
+        for (size_t a = 0; a < nf; a++)
+            fs->fr[a][k] = f0_grid[a] + (1 - f0_grid[a]) * m * m * m * m * m;
+        for (int c = 0; c < 3; c++)
+            fs->f[3 * k + (size_t)c] = s[6 + c];
+    }
+    return 1;
+}
+
+/* D of distribution ndf at width alpha into D (shape_at's D). */
+static void fitset_d(const fitset_t *fs, int ndf, double alpha, double *D) {
+    double a2 = alpha * alpha;
+    if (ndf == 0) {
+        for (size_t j = 0; j < fs->n; j++) {
+            double b = fs->s2[j] + fs->c2[j] * a2;
+            D[j] = a2 / (SB_PI * b * b);
+        }
+        return;
+    }
+    for (size_t j = 0; j < fs->n; j++) {
+        double x = fs->t2[j] / a2;
+        x = ndf == 1 ? x : ndf == 2 ? x * x : x * x * x * x;
+        D[j] = x < 746 ? exp(-x) / (SB_PI * a2 * fs->c2[j] * fs->c2[j]) : 0; /* t2 = INFINITY at c2 = 0 */
+    }
+}
+
+/* 4 times the denominator of cosine power cosp at width alpha into den
+ * (where D is not 0 when D is given). */
+static void fitset_den(const fitset_t *fs, int cosp, double alpha, const double *D, double *den) {
+    double r = sqrt(alpha) + 1, k = cosp >= 3 ? r * r / 8 : alpha / 2;
+    int p = cosp % 3;
+    for (size_t j = 0; j < fs->n; j++) {
+        if (D && D[j] == 0) continue;
+        double g = (fs->l2[j] * (1 - k) + k) * (fs->v2[j] * (1 - k) + k);
+        den[j] = 4 * (p == 2 ? g : p == 1 ? sqrt(g) : 1);
+    }
+}
+
+/* shape_cost's residual of the shape D fr / den.  Where D is 0 (an exp
+ * family's far tail) the sample adds exactly 0: skipped. */
+static double fitset_cost(const fitset_t *fs, const double *D, const double *fr, const double *den) {
+    sums_t m = fs->base;
+    for (size_t j = 0; j < fs->n; j++) {
+        if (D[j] == 0) continue;
+        double S = D[j] * fr[j] / den[j], wS = fs->w[j] * S;
+        m.ws += wS;
+        m.wss += wS * S;
+        for (int c = 0; c < 3; c++)
+            m.wsf[c] += wS * fs->f[3 * j + (size_t)c];
+    }
+    double r = 0, a, b;
+    for (int c = 0; c < 3; c++)
+        r += solve2(&m, c, &a, &b);
+    return r;
+}
+
+/* The residual of one shape (shape_cost's). */
+static double fitset_shape(fitset_t *fs, int ndf, double alpha, size_t fi, int cosp) {
+    fitset_d(fs, ndf, alpha, fs->D);
+    fitset_den(fs, cosp, alpha, fs->D, fs->den[0]);
+    return fitset_cost(fs, fs->D, fs->fr[fi], fs->den[0]);
+}
+
 /* Golden-section refinement of log alpha in [lo, hi] for one (ndf, f0). */
-static double refine_alpha(const double *smp, size_t ns, size_t step, const geo_t *geo, int ndf, double f0, int cosp,
-                           double lo, double hi, double *cost) {
+static double refine_alpha(fitset_t *fs, int ndf, size_t fi, int cosp, double lo, double hi, double *cost) {
     const double g = 0.6180339887498949;
     double a = lo, b = hi, x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double c1 = shape_cost(smp, ns, step, geo, ndf, exp(x1), f0, cosp, NULL, NULL);
-    double c2 = shape_cost(smp, ns, step, geo, ndf, exp(x2), f0, cosp, NULL, NULL);
+    double c1 = fitset_shape(fs, ndf, exp(x1), fi, cosp), c2 = fitset_shape(fs, ndf, exp(x2), fi, cosp);
     for (int it = 0; it < GOLDEN_STEPS; it++) {
         if (c1 < c2) {
             b = x2, x2 = x1, c2 = c1, x1 = b - g * (b - a);
-            c1 = shape_cost(smp, ns, step, geo, ndf, exp(x1), f0, cosp, NULL, NULL);
+            c1 = fitset_shape(fs, ndf, exp(x1), fi, cosp);
         } else {
             a = x1, x1 = x2, c1 = c2, x2 = a + g * (b - a);
-            c2 = shape_cost(smp, ns, step, geo, ndf, exp(x2), f0, cosp, NULL, NULL);
+            c2 = fitset_shape(fs, ndf, exp(x2), fi, cosp);
         }
     }
     *cost = c1 < c2 ? c1 : c2;
@@ -257,6 +358,63 @@ static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, ca
     }
 }
 
+/* Whether family (ndf, cf) is searched: all, or keep's alone. */
+static int family_wanted(const sb_lobe_fit_t *keep, int ndf, int cf) {
+    int cosp = cf % COSP;
+    size_t fi = (size_t)cf / COSP;
+    return !keep || (ndf == ndf_index(keep->ndf) && f0_grid[fi] == keep->f0 &&
+                     cosp == (int)(2 * keep->cos_power) + (keep->smith_k_remapped ? 3 : 0));
+}
+
+#define FAMILIES (NDFS * COSP * 3)
+
+/* For each family wanted, the grid's alpha of the lowest residual (the
+ * first of equals) into at[ndf * COSP * 3 + cf]. */
+static void grid_search(fitset_t *fs, const sb_lobe_fit_t *keep, double la, double dl, int at[FAMILIES]) {
+    double cb[FAMILIES];
+    for (int i = 0; i < FAMILIES; i++)
+        cb[i] = INFINITY, at[i] = 0;
+    for (int k = 0; k < ALPHA_STEPS; k++) {
+        double alpha = exp(la + k * dl);
+        for (int cosp = 0; cosp < COSP; cosp++)
+            fitset_den(fs, cosp, alpha, NULL, fs->den[cosp]);
+        for (int ndf = 0; ndf < NDFS; ndf++) {
+            int d = 0;
+            for (int cf = 0; cf < COSP * 3; cf++) {
+                if (!family_wanted(keep, ndf, cf)) continue;
+                if (!d) fitset_d(fs, ndf, alpha, fs->D), d = 1;
+                double c = fitset_cost(fs, fs->D, fs->fr[cf / COSP], fs->den[cf % COSP]);
+                int i = ndf * COSP * 3 + cf;
+                if (c < cb[i]) cb[i] = c, at[i] = k;
+            }
+        }
+    }
+}
+
+/* Every family wanted: alpha on the grid, refined, costed by log_cost
+ * into cands (*nc of them); the best into L's shape; returns its cost. */
+static double search(const double *smp, size_t ns, size_t step, const geo_t *geo, const sb_lobe_fit_t *keep,
+                     cand_t *cands, int *nc, lobe_t *L) {
+    fitset_t fs;
+    if (!fitset_init(&fs, smp, ns, step, geo)) return INFINITY;
+    double best = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
+    int at[FAMILIES];
+    grid_search(&fs, keep, la, dl, at);
+    for (int ndf = 0; ndf < NDFS; ndf++)
+        for (int cf = 0; cf < COSP * 3; cf++) {
+            if (!family_wanted(keep, ndf, cf)) continue;
+            int cosp = cf % COSP, k = at[ndf * COSP * 3 + cf];
+            size_t fi = (size_t)cf / COSP;
+            double lo = la + (k > 0 ? k - 1 : 0) * dl, hi = la + (k < ALPHA_STEPS - 1 ? k + 1 : k) * dl, c;
+            double alpha = refine_alpha(&fs, ndf, fi, cosp, lo, hi, &c);
+            c = log_cost(smp, ns, step, geo, ndf, alpha, f0_grid[fi], cosp, L->floor);
+            if (*nc < FAMILIES) cands[(*nc)++] = (cand_t){c, {ndf, cosp, alpha, f0_grid[fi], {0}, {0}}};
+            if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
+        }
+    free(fs.c2);
+    return best;
+}
+
 void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L) {
     memset(L, 0, sizeof *L);
     if (ns == 0) return;
@@ -264,28 +422,9 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
     geo_t *geo = geo_of(smp, ns, step);
     if (!geo) return; /* no memory: not fitted, the table interpolates f itself */
     median_floor(smp, ns, L->floor, L->cap);
-    double best = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
-    int nf = (int)(sizeof f0_grid / sizeof *f0_grid), nc = 0;
-    cand_t cands[NDFS * COSP * 3];
-    for (int ndf = 0; ndf < NDFS; ndf++)
-        for (int cf = 0; cf < COSP * nf; cf++) {
-            int cosp = cf % COSP;
-            size_t fi = (size_t)cf / COSP;
-            if (keep && (ndf != ndf_index(keep->ndf) || f0_grid[fi] != keep->f0 ||
-                         cosp != (int)(2 * keep->cos_power) + (keep->smith_k_remapped ? 3 : 0)))
-                continue;
-            int at = 0;
-            double cb = INFINITY;
-            for (int k = 0; k < ALPHA_STEPS; k++) {
-                double c = shape_cost(smp, ns, step, geo, ndf, exp(la + k * dl), f0_grid[fi], cosp, NULL, NULL);
-                if (c < cb) cb = c, at = k;
-            }
-            double lo = la + (at > 0 ? at - 1 : 0) * dl, hi = la + (at < ALPHA_STEPS - 1 ? at + 1 : at) * dl, c;
-            double alpha = refine_alpha(smp, ns, step, geo, ndf, f0_grid[fi], cosp, lo, hi, &c);
-            c = log_cost(smp, ns, step, geo, ndf, alpha, f0_grid[fi], cosp, L->floor);
-            if (nc < NDFS * COSP * 3) cands[nc++] = (cand_t){c, {ndf, cosp, alpha, f0_grid[fi], {0}, {0}}};
-            if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
-        }
+    int nc = 0;
+    cand_t cands[FAMILIES];
+    double best = search(smp, ns, step, geo, keep, cands, &nc, L);
     if (step > 1) { /* the weights from every sample */
         free(geo);
         geo = geo_of(smp, ns, 1);
