@@ -10,6 +10,9 @@
  *     SEEDS     splits 1..SEEDS (default 8)
  *     J         terms (default 8)
  *
+ * SB_HOLDOUT_LOO=DEG instead holds out each row with theta_h below DEG
+ * alone and prints the training table's value there (no factoring).
+ *
  * A data row is a line with the largest count of numbers in the file (a
  * Cornell file's wavelength lines have fewer); every other line goes to
  * both halves.  The halves are written beside each other in a temporary
@@ -99,6 +102,60 @@ static double held_error(const sb_job_t *job, const char *held, size_t J, int wo
     return sqrt(e2 / t2);
 }
 
+/* Every row with theta_h below `deg` held out alone: the training table's
+ * own value there (its interpolation and lobe, no factoring), f cos theta_i.
+ * Prints each row and the relative L2 over them (SB_HOLDOUT_LOO=DEG). */
+static void loo_peak(FILE *f, int most, const char *tr, const char *he, double deg) {
+    static char line[1 << 16];
+    double e2 = 0, t2 = 0;
+    int n = 0;
+    for (long r = 0;; r++) {
+        rewind(f);
+        FILE *a = fopen(tr, "w"), *b = fopen(he, "w");
+        long k = 0;
+        int held = 0;
+        while (fgets(line, sizeof line, f)) {
+            int data = numbers(line) == most;
+            if (data && k++ == r) {
+                fputs(line, b);
+                held = 1;
+                continue;
+            }
+            fputs(line, a);
+            if (!data) fputs(line, b);
+        }
+        fclose(a);
+        fclose(b);
+        if (!held) break;
+        sb_source_t *h = NULL, *t = NULL;
+        double wi[3], wo[3], v[3], p[3] = {0, 0, 0};
+        if (sb_source_open(NULL, he, &h) != SB_OK || !sb_source_sample(h, 0, wi, wo, v)) {
+            sb_source_destroy(h);
+            continue;
+        }
+        sb_source_destroy(h);
+        double hv[3] = {wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]};
+        double th = acos(hv[2] / sqrt(hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2])) * 180 / M_PI;
+        if (th >= deg || sb_source_open(NULL, tr, &t) != SB_OK) continue;
+        sb_source_eval(t, wi, wo, p);
+        sb_source_destroy(t);
+        double ei = 0, ti = 0;
+        for (int c = 0; c < 3; c++) {
+            ei += (p[c] - v[c]) * (p[c] - v[c]) * wi[2] * wi[2];
+            ti += v[c] * v[c] * wi[2] * wi[2];
+        }
+        e2 += ei;
+        t2 += ti;
+        n++;
+        printf("row %4ld theta_i %5.1f theta_o %5.1f theta_h %5.2f  f cos %.3g %.3g %.3g  table %.3g %.3g %.3g  rel "
+               "%.3f\n",
+               r, acos(wi[2]) * 180 / M_PI, acos(wo[2]) * 180 / M_PI, th, v[0] * wi[2], v[1] * wi[2], v[2] * wi[2],
+               p[0] * wi[2], p[1] * wi[2], p[2] * wi[2], sqrt(ei / ti));
+        fflush(stdout);
+    }
+    printf("# %d rows with theta_h below %g deg, each held out alone: relative L2 %.4f\n", n, deg, sqrt(e2 / t2));
+}
+
 int main(int argc, char **argv) {
     if (argc < 2) {
         fprintf(stderr, "usage: %s FILE [FRACTION [SEEDS [J]]]\n", argv[0]);
@@ -127,6 +184,14 @@ int main(int argc, char **argv) {
     if (!mkdtemp(dir)) return 1;
     snprintf(tr, sizeof tr, "%s/train%s", dir, ext ? ext : "");
     snprintf(he, sizeof he, "%s/held%s", dir, ext ? ext : "");
+    const char *l = getenv("SB_HOLDOUT_LOO"); /* hold out each row below this theta_h alone, table only */
+    if (l) {
+        loo_peak(f, most, tr, he, atof(l));
+        unlink(tr);
+        unlink(he);
+        rmdir(dir);
+        return 0;
+    }
     sb_job_t *whole = run(path, J);
     double se = NAN, cv = whole ? sb_job_cv(whole, J, &se, NULL) : NAN;
     sb_job_destroy(whole);
