@@ -1,5 +1,5 @@
 #!/bin/sh
-# A database in one command (README "Batches"):
+# A database in one command (docs/guide.md, "Batches"):
 #   bench/batch.sh [R] [J...]           default: 16 16
 # Sources: the measured files of MEASURED (default tests/data/measured,
 # the tables of ../shared/data/measured) plus 36 analytic ones (the

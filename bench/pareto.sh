@@ -1,5 +1,5 @@
 #!/bin/sh
-# The Pareto pictures of the README and docs/performance.md (issue 36):
+# The Pareto pictures of docs/guide.md ("Performance") and docs/performance.md (issue 36):
 #   bench/pareto.sh [OUT]     (default docs/perf)
 # `sepbrdf bench --pareto`: CPU seconds of the whole job against the
 # headline error, front marked, on the default source (gold GGX: layouts

@@ -1,9 +1,9 @@
 /* CLI: report.json of a real `factor` run against the key table of the
- * README's "report.json" section, both ways, so that docs and output cannot
+ * docs/report.md ("## report.json"), both ways, so that docs and output cannot
  * drift.  Runs the binary SB_CLI.
  *
  * Key paths: "a.b" is key b of object a, "a[]" an element of array a (its
- * keys "a[].k"); in the README, "x.{R,G,B}" stands for x.R, x.G, x.B. */
+ * keys "a[].k"); in that table, "x.{R,G,B}" stands for x.R, x.G, x.B. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -158,10 +158,10 @@ static char *slurp(const char *path) {
     return buf;
 }
 
-/* Keys of the README table under "## report.json": the first `code` span
+/* Keys of the docs/report.md table under "## report.json": the first `code` span
  * of each table row, with {a,b} expanded. */
 static int readme_keys(keyset_t *s) {
-    char *text = slurp(SB_SOURCE_DIR "/README.md");
+    char *text = slurp(SB_SOURCE_DIR "/docs/report.md");
     if (!text) return -1;
     char *sec = strstr(text, "\n## report.json");
     if (!sec) {
@@ -198,8 +198,8 @@ static int readme_keys(keyset_t *s) {
 static keyset_t doc, rep;
 
 SB_TEST(keys_documented) {
-    CHECKF(readme_keys(&doc) == 0, "no \"## report.json\" section in %s/README.md", SB_SOURCE_DIR);
-    CHECKF(doc.n >= 20, "only %d keys in the README table", doc.n);
+    CHECKF(readme_keys(&doc) == 0, "no \"## report.json\" section in %s/docs/report.md", SB_SOURCE_DIR);
+    CHECKF(doc.n >= 20, "only %d keys in the docs/report.md table", doc.n);
     /* --param auto (the default) so that auto_tried is there too, a
      * measured table so that measured is, --warp adaptive (auto keeps
      * iso here) so that the warp tables are, and --budget (searched at the
@@ -222,12 +222,12 @@ SB_TEST(keys_documented) {
     CHECKF(!r.bad && *r.p == 0, "report.json does not parse near: %.40s", r.p);
     free(json);
     for (int i = 0; i < doc.n; i++)
-        CHECKF(has_key(&rep, doc.k[i]), "README key `%s` missing in report.json", doc.k[i]);
+        CHECKF(has_key(&rep, doc.k[i]), "docs/report.md key `%s` missing in report.json", doc.k[i]);
     for (int i = 0; i < rep.n; i++)
-        CHECKF(has_key(&doc, rep.k[i]), "report.json key `%s` is not documented in README.md", rep.k[i]);
+        CHECKF(has_key(&doc, rep.k[i]), "report.json key `%s` is not documented in docs/report.md", rep.k[i]);
 }
 
-/* The reader and the README parser themselves, on a known text. */
+/* The reader and the table parser themselves, on a known text. */
 SB_TEST(reader_paths) {
     keyset_t s;
     s.n = 0;

@@ -263,7 +263,7 @@ SB_API sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_
  * sb_outset_begin and sb_outset_commit, SB_ERR_IO, SB_ERR_NOMEM. */
 SB_API sb_result_t sb_job_write(sb_context_t *ctx, sb_job_t *job, const char *dir);
 
-/* Write report.json's content (see README) to fp (nothing for a NULL job
+/* Write report.json's content (see docs/report.md) to fp (nothing for a NULL job
  * or fp). */
 SB_API void sb_job_report(const sb_job_t *job, FILE *fp);
 

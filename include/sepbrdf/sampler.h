@@ -151,7 +151,7 @@ SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, c
                                            sb_sampler_choice_t *out);
 
 /* The tables as the GLSL sampler reads them (file "sampler.bin" of an
- * output set; README "Importance sampling"): little-endian,
+ * output set; docs/guide.md "Importance sampling"): little-endian,
  *     char[8] "sbsampl1", uint32 W + 1, uint32 H + 1, uint32 layers,
  *     uint32 channels C, then layers x (H + 1) x (W + 1) float32,
  * layer-major, then row-major (x fastest): an R32F texture array

@@ -431,7 +431,7 @@ def factor(source=None, *, progress=None, **options):
     anisotropic and non-reciprocal: wrap it in Source.from_function to
     declare its symmetries).
 
-    Options, the CLI's with '-' written '_' (README, `sepbrdf factor
+    Options, the CLI's with '-' written '_' (docs/guide.md, `sepbrdf factor
     --help`): terms (-J), res (-r), param ("auto", a kind such as "iso", or
     a whole spec "iso:th=64,td=62,pd=16"), form ("f", "cos", "cos2"), warp
     ("uniform", "merl", "adaptive", "auto"), weighted, scene, zero_fill,

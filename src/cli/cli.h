@@ -7,7 +7,7 @@
 #include "sepbrdf/sepbrdf.h"
 #include "util/shared.h" /* the library's helpers of its own programs: JSON, sizes, file errors */
 
-/* Exit codes (documented in the README and `sepbrdf --help`). */
+/* Exit codes (documented in the README, docs/guide.md and `sepbrdf --help`). */
 enum { EXIT_OK = 0, EXIT_USAGE = 1, EXIT_IO = 2, EXIT_NUMERIC = 3 };
 /* The exit-code paragraph every --help ends with. */
 #define CLI_EXIT_HELP                                                                                                  \

@@ -22,7 +22,7 @@ static void help(void) {
            "  sepbrdf.glsl         GLSL snippet: vec3 sb_brdf(vec3 L, vec3 V)\n"
            "  sampler.bin          with --method nmf only (non-negative factors):\n"
            "                       importance sampling tables; the snippet then also\n"
-           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V) (README);\n"
+           "                       has sb_sample(V, u, L, pdf) and sb_pdf(L, V);\n"
            "                       the table and report.json then also show the SVD's\n"
            "                       errors in the same layout beside (svd_headline,\n"
            "                       svd_rel_rms, nmf_over_svd): what positivity costs\n"
@@ -111,7 +111,7 @@ static int nonneg_factors(const sb_job_t *job) {
 }
 
 /* What the user must know about the kept fit, on stderr.  A non-negative
- * fit that ends at its sweep cap stopped by its stated rule (README:
+ * fit that ends at its sweep cap stopped by its stated rule (docs/guide.md:
  * Non-negative factors): a note, not a warning. */
 static void print_warnings(const sb_job_t *job) {
     sb_plan_stats_t st;

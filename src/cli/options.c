@@ -240,7 +240,7 @@ const cli_option_t cli_factor_options[] = {
      "lights), or 'pairs=FILE' (lines theta_i phi_i theta_o phi_o\n"
      "[weight], degrees); cells no pair touches are not fitted;\n"
      "the headline is the scene's, report.json: scene also has\n"
-     "the whole domain's (README: Scene-weighted fits)",
+     "the whole domain's (docs/guide.md: Scene-weighted fits)",
      set_scene, AT(scene), 0, 0, F_ | R_ | S_},
     {NULL, "--zero-fill", NULL,
      "factor cells outside the domain / unmeasured as zeros\ninstead of excluding them (masked fit, the default)",

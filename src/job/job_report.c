@@ -1,4 +1,4 @@
-/* report.json of the factor job: every key is listed in README's
+/* report.json of the factor job: every key is listed in docs/report.md's
  * "report.json" table (a test compares the two). */
 #include <math.h>
 #include <stdio.h>

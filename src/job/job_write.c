@@ -1,5 +1,5 @@
 /* The factor job's output set: textures, the error of what was stored,
- * previews, sepbrdf.glsl and report.json (keys: README "report.json"). */
+ * previews, sepbrdf.glsl and report.json (keys: docs/report.md). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>

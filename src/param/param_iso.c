@@ -154,7 +154,7 @@ static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
      * texel count th = 32, td = 64 -> th = 64, td = 62 takes the headline
      * at J = 4 of the default gold microfacet from 1.8e-3 to 9.6e-4, of
      * GGX roughness 0.5 from 2.6 % to 0.6 %, of GGX roughness 0.1 from
-     * 1.8 % (with the adaptive warp) to 1.3 % (2-core VM, README). */
+     * 1.8 % (with the adaptive warp) to 1.3 % (2-core VM, docs/guide.md). */
     if (!o->res_theta_h) o->res_theta_h = 2 * o->res;
     if (!o->res_theta_d) o->res_theta_d = o->res > 2 ? 2 * o->res - 2 : 2;
     if (!o->res_phi_d) o->res_phi_d = o->res / 2 > 2 ? o->res / 2 : 2;
