@@ -105,6 +105,28 @@ SB_TEST(three_sources) {
     CHECKF(png && memcmp(png, "\x89PNG", 4) == 0, "no PNG: %s", out);
 }
 
+/* Errors all within a decade (a Lambert source: the same at every J) get a
+ * y range a decade either side, so gnuplot draws them without its "empty y
+ * range" warning on the user's terminal. */
+SB_TEST(flat_curve_plotted_quietly) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study lambert:albedo=0.5 --param io --terms 1..3 --res 8 --metric-res 8 -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *gp = slurp(dir, "study.gp");
+    const char *y = gp ? strstr(gp, "set yrange [") : NULL;
+    CHECKF(y != NULL, "no y range in study.gp");
+    if (!y) return;
+    double lo = atof(y + strlen("set yrange [")), hi = atof(strchr(y, ':') + 1);
+    const char *dat = slurp(dir, "study.dat"); /* (slurp's buffer: gp is not read below) */
+    CHECK(dat != NULL);
+    for (const char *l = dat; l && *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : NULL) {
+        if (*l == '#' || *l == '\n') continue;
+        double e = atof(strchr(l, ' ') + 1); /* J headline rel_rms */
+        CHECKF(lo <= e / 9.99 && e * 9.99 <= hi, "%g outside [%g, %g]/10", e, lo, hi);
+    }
+    CHECKF(!strstr(out, "empty y range"), "%s", out);
+}
+
 /* Rows read from the one largest-J factorisation equal separate runs. */
 SB_TEST(nested_equals_separate) {
     const char *dir = sb_tmpdir("study");

@@ -178,6 +178,13 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             "set xrange [0.5:%zu.5]\n",
             PLOT_FLOOR, PLOT_FLOOR, o->res, sb_form_name(o->form), o->weighted ? ", weighted" : "", o->jmax);
     if (o->jmax > 20) fprintf(fp, "set xtics %zu\n", (o->jmax + 9) / 10);
+    double lo = INFINITY, hi = 0; /* all errors within a decade (a Lambert source: equal): a decade each side */
+    for (size_t i = 0; i < rs->n; i++)
+        for (size_t k = 0; rs->v[i].ok && k < rs->v[i].nr; k++) {
+            double e = fmax(rs->v[i].r[k].headline, PLOT_FLOOR);
+            lo = fmin(lo, e), hi = fmax(hi, e);
+        }
+    if (hi > 0 && hi < 10 * lo) fprintf(fp, "set yrange [%.3g:%.3g]\n", lo / 10, hi * 10);
     int block = 0;
     for (size_t i = 0; i < rs->n; i++) {
         const run_t *r = &rs->v[i];
