@@ -343,6 +343,33 @@ SB_TEST(sample_then_factor) {
     CHECKF(strstr(out, "65536 of 65536 cells (100.00 %)") != NULL, "%s", out);
 }
 
+/* A noise-free glossy table sampled coarsely: the lobe makes the table
+ * predict its own samples (interp cv below 1 %), and the error at held-out
+ * measurements is the 4-term fit's, not the table's.  The warning must say
+ * whose it is (it once said the table did not predict itself). */
+SB_TEST(cv_warning_names_the_fit) {
+    const char *dir = sb_tmpdir("mcli");
+    char t[4200], o[4200], p[4300];
+    snprintf(t, sizeof t, "%s/g.csv", dir);
+    snprintf(o, sizeof o, "%s/g", dir);
+    CHECK(cli("sample microfacet:base=0.5/0.1/0.05,metallic=0,roughness=0.15 --gonio 6,1,12,24 -q -o %s", t) == 0);
+    int rc = cli("factor %s --res 16 --terms 4 -o %s", t, o);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(p, sizeof p, "%s/report.json", o);
+    const char *rep = slurp(p);
+    const char *ic = rep ? strstr(rep, "\"interp_cv_with\": ") : NULL,
+               *cv = rep ? strstr(rep, "\"cv_headline\": ") : NULL;
+    for (int j = 1; cv && j < 4; j++) /* errors[3] */
+        cv = strstr(cv + 1, "\"cv_headline\": ");
+    CHECK(ic && cv);
+    if (!ic || !cv) return;
+    double icv = strtod(ic + 18, NULL), c = strtod(cv + 15, NULL);
+    CHECKF(icv < 0.01 && c > 3 * icv, "interp cv %g, cv_headline %g", icv, c);
+    CHECKF(strstr(out, "the table predicts itself") && strstr(out, "4 terms do not reproduce it there") &&
+               !strstr(out, "does not predict itself"),
+           "%s", out);
+}
+
 /* The table options mean the same in factor, study, render and info: the
  * interpolation asked for is the one used (named in the report's source),
  * and a bad value stops the command before anything is written. */

@@ -18,6 +18,7 @@
  * efficiency with the MAD as the scale); cv_max is the worst fold. */
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -246,17 +247,26 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     job->cv_s = job_now() - t0;
     double h = job->cv ? sb_estimate_headline(job->best.est, J) : NAN, icv = in->interp_cv[in->interp], share;
     int w = job->cv ? worst_band(job, &share) : -1;
-    if (job->cv && h > 0 && (job->cv_max[J - 1] > 1.5 * h || icv > JOB_CV_WARN) && w >= 0)
-        job_warn(
-            job,
-            "at the measurements left out of the fit the error is %.3g at J = %zu (median of %zu refits, each "
-            "without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; the table does not predict "
-            "itself between its samples (interp cv %.3g): %.0f%% of the held-out squared error is where theta_h is "
-            "%g-%g deg "
-            "(%zu measurements, error %.3g there); trust cv_headline (report.json) for this table",
-            job->cv[J - 1], J, job->cv_refits, K, job->cv_max[J - 1], job->cv[J - 1] / h, h, icv, 100 * share,
-            job_cv_band_deg[w], job_cv_band_deg[w + 1], job->cv_band_n[w],
-            job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN);
+    if (job->cv && h > 0 && (job->cv_max[J - 1] > 1.5 * h || icv > JOB_CV_WARN) && w >= 0) {
+        char why[160]; /* whose error it is: the table's between its samples, or the fit's at them */
+        if (icv > JOB_CV_WARN)
+            snprintf(why, sizeof why, "the table does not predict itself between its samples (interp cv %.3g)", icv);
+        else if (!(job->cv[J - 1] > 2 * icv))
+            snprintf(why, sizeof why, "about the table's own error between its samples (interp cv %.3g)", icv);
+        else
+            snprintf(why, sizeof why,
+                     "the table predicts itself (interp cv %.3g) but %zu terms do not reproduce it there (more terms "
+                     "or a finer -r may)",
+                     icv, J);
+        job_warn(job,
+                 "at the measurements left out of the fit the error is %.3g at J = %zu (median of %zu refits, each "
+                 "without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; %s: %.0f%% of the held-out "
+                 "squared error is where theta_h is %g-%g deg (%zu measurements, error %.3g there); trust "
+                 "cv_headline (report.json) for this table",
+                 job->cv[J - 1], J, job->cv_refits, K, job->cv_max[J - 1], job->cv[J - 1] / h, h, why, 100 * share,
+                 job_cv_band_deg[w], job_cv_band_deg[w + 1], job->cv_band_n[w],
+                 job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN);
+    }
     return r;
 }
 
