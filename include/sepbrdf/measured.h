@@ -142,8 +142,10 @@ typedef struct sb_lobe_fit {
     double alpha, f0;     /* the D width (GGX alpha, Beckmann m) and Schlick F0 */
     double cos_power;     /* p of the denominator's cosines: 1, 0.5 or 0 */
     int smith_k_remapped; /* Smith-Schlick k = (sqrt(alpha) + 1)^2 / 8; 0: alpha / 2 */
-    double kd[3], ks[3];  /* f = min(kd + ks D G F / (4 (cos theta_i cos theta_o)^p), cap) */
-    double cap[3];        /* 2x the brightest sample: the lobe claims no higher peak */
+    double kd[3], ks[3];  /* f = kd + ks min(D, d_cap) G F / (4 (cos theta_i cos theta_o)^p) */
+    double d_cap;         /* D is at most this, 2x its largest at a sample: the lobe claims
+                           * no higher peak between the samples (F, G and the cosines still
+                           * grow towards the horizon) */
     double floor[3];      /* added to the lobe before dividing: the median sample value */
     double cv_off, cv_on; /* interpolation CV (the best method) without and with it */
 } sb_lobe_fit_t;

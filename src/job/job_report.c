@@ -310,7 +310,7 @@ static void report_lobe(sb_json_t *j, const sb_lobe_fit_t *L) {
     sb_json_bool(j, "smith_k_remapped", L->smith_k_remapped);
     json_rgb(j, "kd", L->kd);
     json_rgb(j, "ks", L->ks);
-    json_rgb(j, "cap", L->cap);
+    sb_json_number(j, "d_cap", L->d_cap);
     json_rgb(j, "floor", L->floor);
     sb_json_number(j, "interp_cv_without", L->cv_off);
     sb_json_number(j, "interp_cv_with", L->cv_on);

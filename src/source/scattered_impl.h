@@ -22,14 +22,14 @@
 #define LOBE_ALTS 4 /* the best shape and up to three that fit about as well */
 typedef struct lobe_alt {
     int ndf, cosp;
-    double alpha, f0, kd[3], ks[3];
+    double alpha, f0, kd[3], ks[3], dcap; /* dcap: D at most CAP x its largest at a sample */
 } lobe_alt_t;
 typedef struct lobe {
     int fitted, ndf; /* ndf: 0 GGX, 1 Beckmann, 2 exp4, 3 exp8 */
     int cosp;        /* the cosines' power in the denominator: (cosp % 3) / 2; cosp >= 3: remapped Smith k */
-    double alpha, f0, kd[3], ks[3], floor[3], cap[3]; /* cap: CAP x the brightest sample */
-    int nalt;                                         /* shapes in alt (alt[0] the one above) */
-    lobe_alt_t alt[LOBE_ALTS];                        /* the base takes the lowest of them (sb_lobe_fit_) */
+    double alpha, f0, kd[3], ks[3], floor[3];
+    int nalt;                  /* shapes in alt (alt[0] the one above) */
+    lobe_alt_t alt[LOBE_ALTS]; /* the base takes the lowest of them (sb_lobe_fit_) */
 } lobe_t;
 
 typedef struct table {

@@ -1,8 +1,7 @@
 /* The lobe a scattered table is interpolated relative to (sb_lobe_mode_t).
  *
- * Model: f_c(l, v) = min(kd_c + ks_c S(l, v), cap_c), one shape for all
- * channels:
- *   S = D(h) F(v.h) / (4 ((n.l (1 - k) + k)(n.v (1 - k) + k))^p)
+ * Model: f_c(l, v) = kd_c + ks_c S(l, v), one shape for all channels:
+ *   S = min(D(h), d_cap) F(v.h) / (4 ((n.l (1 - k) + k)(n.v (1 - k) + k))^p)
  * with p = 1 the microfacet model D G F / (4 n.l n.v), the Smith-Schlick G
  * cancelling the cosines (finite up to the horizon), k = alpha / 2 or the
  * remapped (sqrt(alpha) + 1)^2 / 8; p = 1/2 or 0 for peaks that grow less
@@ -14,8 +13,8 @@
  * are the non-negative least-squares solution in the norm of f cos theta_i
  * (the headline's), a 2 x 2 problem closed in form from five sums.
  * Tables of more than FIT_MAX samples search on FIT_MAX evenly spread ones.
- * cap_c is CAP times the largest of the samples' values and of the lobe's
- * at the samples.
+ * d_cap is CAP times the shape's largest D at a sample (the cap applies
+ * to the base, not to the search).
  *
  * The interpolation then sees q = f / (lobe + floor), floor the channel's
  * median sample value (so q stays of order one away from the highlight
@@ -38,10 +37,10 @@
 /* denominators: cosine powers 0, 1/2, 1, each with Smith k = alpha/2 or
  * the remapped (sqrt(alpha) + 1)^2 / 8 */
 #define COSP 6
-/* The lobe never exceeds this many times the brightest sample or its own
- * largest value at a sample: a lobe narrower than the samples resolve
- * would otherwise claim any height between them. */
-#define CAP 2.0
+/* A shape's D never exceeds this many times its largest at a sample: a
+ * lobe narrower than the samples resolve would otherwise claim any height
+ * between them. */
+#define CAP 16.0
 /* Shapes within this much of the best cost (log_cost: squared ln
  * errors summed over samples) fit about as well: one sample off by a
  * factor e costs 1. */
@@ -71,9 +70,9 @@ static geo_t lobe_geo(const double l[3], const double v[3]) {
     return g;
 }
 
-static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int cosp) {
-    if (!gm->ok) return 0;
-    double c2 = gm->c2, s2 = gm->s2, a2 = alpha * alpha, d, m = gm->m;
+/* D of distribution ndf at width alpha. */
+static double ndf_at(const geo_t *gm, int ndf, double alpha) {
+    double c2 = gm->c2, s2 = gm->s2, a2 = alpha * alpha, d;
     if (ndf == 0) {
         double b = s2 + c2 * a2;
         d = a2 / (SB_PI * b * b);
@@ -84,10 +83,21 @@ static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int co
          * a tenth of `info` on a Cornell table) */
         d = c2 > 0 && x < 746 ? exp(-x) / (SB_PI * a2 * c2 * c2) : 0;
     }
-    double fr = f0 + (1 - f0) * m * m * m * m * m, r = sqrt(alpha) + 1, k = cosp >= 3 ? r * r / 8 : alpha / 2;
+    return d;
+}
+
+/* The shape with its D at most dcap (INFINITY: uncapped). */
+static double shape_capped(const geo_t *gm, int ndf, double alpha, double f0, int cosp, double dcap) {
+    if (!gm->ok) return 0;
+    double m = gm->m, fr = f0 + (1 - f0) * m * m * m * m * m, r = sqrt(alpha) + 1;
+    double k = cosp >= 3 ? r * r / 8 : alpha / 2;
     cosp %= 3;
     double g = (gm->l2 * (1 - k) + k) * (gm->v2 * (1 - k) + k);
-    return d * fr / (4 * (cosp == 2 ? g : cosp == 1 ? sqrt(g) : 1));
+    return fmin(ndf_at(gm, ndf, alpha), dcap) * fr / (4 * (cosp == 2 ? g : cosp == 1 ? sqrt(g) : 1));
+}
+
+static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int cosp) {
+    return shape_capped(gm, ndf, alpha, f0, cosp, INFINITY);
 }
 
 /* Five sums per channel for the 2 x 2 least squares of one shape. */
@@ -292,7 +302,7 @@ static int cmp_double(const void *a, const void *b) {
 
 /* The channel's median sample value (the floor under the base), at least
  * 1e-3 of its largest and 1e-12 (1e-12 alone on no memory). */
-static void median_floor(const double *smp, size_t ns, double floor_[3], double cap[3]) {
+static void median_floor(const double *smp, size_t ns, double floor_[3]) {
     double *v = malloc(ns * sizeof *v);
     for (int c = 0; c < 3; c++) {
         floor_[c] = 1e-12; /* never 0: the base divides */
@@ -301,7 +311,6 @@ static void median_floor(const double *smp, size_t ns, double floor_[3], double 
             v[i] = smp[i * SB_SAMPLE_DOUBLES + 6 + (size_t)c];
         qsort(v, ns, sizeof *v, cmp_double);
         floor_[c] = fmax(v[ns / 2], 1e-3 * fmax(v[ns - 1], 0)) + 1e-12;
-        cap[c] = CAP * fmax(v[ns - 1], 0) + 1e-12; /* raised to CAP x the lobe's own largest below */
     }
     free(v);
 }
@@ -336,7 +345,7 @@ typedef struct cand {
  * cheapest first, each a different shape (cosine power 0 has no Smith k). */
 static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, cand_t *c, int nc, double best,
                               lobe_t *L) {
-    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}};
+    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY};
     memcpy(L->alt[0].kd, L->kd, sizeof L->kd);
     memcpy(L->alt[0].ks, L->ks, sizeof L->ks);
     L->nalt = 1;
@@ -408,7 +417,7 @@ static double search(const double *smp, size_t ns, size_t step, const geo_t *geo
             double lo = la + (k > 0 ? k - 1 : 0) * dl, hi = la + (k < ALPHA_STEPS - 1 ? k + 1 : k) * dl, c;
             double alpha = refine_alpha(&fs, ndf, fi, cosp, lo, hi, &c);
             c = log_cost(smp, ns, step, geo, ndf, alpha, f0_grid[fi], cosp, L->floor);
-            if (*nc < FAMILIES) cands[(*nc)++] = (cand_t){c, {ndf, cosp, alpha, f0_grid[fi], {0}, {0}}};
+            if (*nc < FAMILIES) cands[(*nc)++] = (cand_t){c, {ndf, cosp, alpha, f0_grid[fi], {0}, {0}, INFINITY}};
             if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
         }
     free(fs.c2);
@@ -421,7 +430,7 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
     size_t step = ns > FIT_MAX ? (ns + FIT_MAX - 1) / FIT_MAX : 1;
     geo_t *geo = geo_of(smp, ns, step);
     if (!geo) return; /* no memory: not fitted, the table interpolates f itself */
-    median_floor(smp, ns, L->floor, L->cap);
+    median_floor(smp, ns, L->floor);
     int nc = 0;
     cand_t cands[FAMILIES];
     double best = search(smp, ns, step, geo, keep, cands, &nc, L);
@@ -435,13 +444,17 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
     }
     shape_cost(smp, ns, 1, geo, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
     pick_alternatives(smp, ns, geo, cands, nc, best, L);
-    /* The cap: CAP x the largest of the sample values and of the lobe at
-     * the samples (a fold that lost the brightest sample keeps the lobe's
-     * shape there; only the height between samples is bounded). */
-    for (size_t i = 0; i < ns; i++) {
-        double S = shape_at(&geo[i], L->ndf, L->alpha, L->f0, L->cosp);
-        for (int c = 0; c < 3; c++)
-            L->cap[c] = fmax(L->cap[c], CAP * (L->kd[c] + L->ks[c] * S));
+    /* Each shape's D is capped at CAP x its largest at a sample: a lobe
+     * narrower than the samples resolve claims no higher peak between them.
+     * F, the cosines and the shadowing still grow towards the horizon as
+     * the shape says (a cap on f itself clipped a glossy table's grazing
+     * peak beyond its last elevation: the retro band of its fit 17 % where
+     * the model's own is 1.2 %). */
+    for (int a = 0; a < L->nalt; a++) {
+        double dm = 0;
+        for (size_t i = 0; i < ns; i++)
+            if (geo[i].ok) dm = fmax(dm, ndf_at(&geo[i], L->alt[a].ndf, L->alt[a].alpha));
+        L->alt[a].dcap = CAP * dm;
     }
     free(geo);
     L->fitted = 1;
@@ -449,10 +462,10 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
 
 void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], double b[3]) {
     geo_t g = lobe_geo(wi, wo);
-    double m[3] = {L->cap[0], L->cap[1], L->cap[2]};
+    double m[3] = {INFINITY, INFINITY, INFINITY};
     for (int a = 0; a < L->nalt; a++) {
         const lobe_alt_t *s = &L->alt[a];
-        double S = shape_at(&g, s->ndf, s->alpha, s->f0, s->cosp);
+        double S = shape_capped(&g, s->ndf, s->alpha, s->f0, s->cosp, s->dcap);
         for (int c = 0; c < 3; c++)
             m[c] = fmin(m[c], s->kd[c] + s->ks[c] * S);
     }
@@ -513,7 +526,7 @@ void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out) {
     memcpy(out->kd, L->kd, sizeof out->kd);
     memcpy(out->ks, L->ks, sizeof out->ks);
     memcpy(out->floor, L->floor, sizeof out->floor);
-    memcpy(out->cap, L->cap, sizeof out->cap);
+    out->d_cap = L->alt[0].dcap;
     out->cos_power = (L->cosp % 3) / 2.0;
     out->smith_k_remapped = L->cosp >= 3;
 }
