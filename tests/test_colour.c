@@ -69,6 +69,24 @@ SB_TEST(srgb_to_lab) {
     CHECK(sb_delta_e_exposed((const double[3]){0.2, 0.3, 0.4}, (const double[3]){0.2, 0.3, -5}, 1) > 10);
 }
 
+/* CIELAB's cube root (colour.c computes it inline, not by libm's cbrt)
+ * to the last bits: for grey (r = g = b = y, so Y = y to 1 ulp) above
+ * (6/29)^3, L = 116 cbrt(y) - 16, and the root from L cubed gives y back
+ * within a few ulp, over y from 0.009 to 1e4 (12 decades of exponents:
+ * every residue of the exponent mod 3); and against libm within 4 ulp. */
+SB_TEST(lab_cube_root_to_the_last_bits) {
+    double worst = 0;
+    for (int i = 0; i <= 3000; i++) {
+        double y = 0.009 * pow(10, i / 500.0), lab[3];
+        sb_srgb_to_lab((const double[3]){y, y, y}, lab);
+        double fy = (lab[0] + 16) / 116, yy = 0.2126 * y + 0.7152 * y + 0.0722 * y;
+        double rel = fabs(fy - cbrt(yy)) / cbrt(yy);
+        worst = rel > worst ? rel : worst;
+    }
+    /* L = 116 fy - 16 and back cost about 2 ulp of fy (L < 116 fy) */
+    CHECKF(worst < 8 * 2.2e-16, "largest relative difference to libm's cbrt %.3g", worst);
+}
+
 /* A grey source factored in full keeps its colour (chroma_de near 0); the
  * same factors read as the tinted source's reconstruction miss its tint by
  * the CIEDE2000 of grey against that tint at equal luminance. */

@@ -341,58 +341,66 @@ static void gram(size_t n, size_t J, const double *a, const double *b, double *o
                 (int)J);
 }
 
-/* Workspace of sb_factors_errors_near: G, G~, dG (rows x J); H, dH
- * together, then Z (cols x 2J); Y = M Z (rows x 2J); the Gram blocks
- * (J x J each); the weights; H~ (cols x J). */
+/* Workspace of sb_factors_errors_near: G~ (rows x J), H~ (cols x J), the
+ * weights, the sums of squares (3 J), the Gram blocks (J x J each), Z
+ * (cols x 2J), Y = M Z (rows x 2J), then G, dG (rows x J) and H, dH
+ * together (cols x 2J).  In this order the direct form (which reads G~,
+ * H~ and the first J columns of Z and Y only) touches the first 40 % of
+ * it: on the heap's 2 MiB pages the rest is neither faulted nor zeroed. */
 typedef struct near_ws {
     size_t rows, cols, J;
-    double *G, *Gq, *dG, *HdH, *Hq, *Z, *Y, *wr, *wc;
+    double *G, *Gq, *dG, *HdH, *Hq, *Z, *Y, *wr, *wc, *ssq;
     double *GdG, *HH, *GGq, *HdH2, *dGdG, *dGGq, *GqGq, *dHdH;
 } near_ws_t;
 
 static double *near_alloc(sb_context_t *ctx, near_ws_t *w, size_t rows, size_t cols, size_t J) {
     size_t nr, nc, total;
-    if (sb_size_mul(rows, 3 * J, &nr) || sb_size_mul(cols, 5 * J, &nc) || sb_size_add(nr, nc, &total) ||
-        sb_size_add(total, rows * 2 * J + 8 * J * J + rows + cols + 3 * J, &total)) {
+    if (sb_size_mul(rows, 5 * J, &nr) || sb_size_mul(cols, 5 * J, &nc) || sb_size_add(nr, nc, &total) ||
+        sb_size_add(total, 8 * J * J + rows + cols + 3 * J, &total)) {
         sb_error(ctx, SB_ERR_OVERFLOW, "errors: workspace size overflows");
         return NULL;
     }
     double *ws = sb_alloc(ctx, total, sizeof(double), "errors workspace");
     if (!ws) return NULL;
-    *w = (near_ws_t){.rows = rows, .cols = cols, .J = J, .G = ws};
-    double **rows_x_j[] = {&w->Gq, &w->dG, &w->HdH},
-           **blocks[] = {&w->HH, &w->GGq, &w->HdH2, &w->dGdG, &w->dGGq, &w->GqGq, &w->dHdH, &w->wr};
-    double *at = ws;
-    for (size_t i = 0; i < 3; i++) /* G, G~, dG: rows x J each */
-        *rows_x_j[i] = at += rows * J;
-    w->Z = at += cols * 2 * J; /* after H, dH */
-    w->Y = at += cols * 2 * J;
-    w->GdG = at += rows * 2 * J;
-    for (size_t i = 0; i < 8; i++) /* the Gram blocks, J x J each; then the weights */
-        *blocks[i] = at += J * J;
+    *w = (near_ws_t){.rows = rows, .cols = cols, .J = J, .Gq = ws};
+    w->Hq = w->Gq + rows * J;
+    w->wr = w->Hq + cols * J;
     w->wc = w->wr + rows;
-    w->Hq = w->wc + cols + 3 * J;
-    return ws; /* 3 J doubles after wc: the sums of squares */
+    w->ssq = w->wc + cols;
+    double **blocks[] = {&w->GdG, &w->HH, &w->GGq, &w->HdH2, &w->dGdG, &w->dGGq, &w->GqGq, &w->dHdH};
+    double *at = w->ssq + 3 * J;
+    for (size_t i = 0; i < 8; i++, at += J * J) /* the Gram blocks, J x J each */
+        *blocks[i] = at;
+    w->Z = at;
+    w->Y = w->Z + cols * 2 * J;
+    w->G = w->Y + rows * 2 * J;
+    w->dG = w->G + rows * J;
+    w->HdH = w->dG + rows * J;
+    return ws;
 }
 
-/* Step: weighted, scaled factors and their differences (channel fc). */
+/* Step: weighted, scaled factors and their differences (channel fc); the
+ * direct form's G~ and H~ alone where direct is set. */
 static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors_t *near, size_t fc, double sg,
-                         double sh) {
+                         double sh, int direct) {
     size_t rows = w->rows, cols = w->cols, J = w->J;
     for (size_t j = 0; j < J; j++) {
         const double *g = sb_factors_tex_const(fit, SB_SIDE_G, j, fc),
                      *q = sb_factors_tex_const(near, SB_SIDE_G, j, fc);
         const double *h = sb_factors_tex_const(fit, SB_SIDE_H, j, fc),
                      *p = sb_factors_tex_const(near, SB_SIDE_H, j, fc);
+        for (size_t i = 0; i < rows; i++)
+            w->Gq[i + j * rows] = w->wr[i] * q[i] * sg;
+        for (size_t i = 0; i < cols; i++)
+            w->Hq[i + j * cols] = w->wc[i] * p[i] * sh;
+        if (direct) continue;
         for (size_t i = 0; i < rows; i++) {
             w->G[i + j * rows] = w->wr[i] * g[i] * sg;
-            w->Gq[i + j * rows] = w->wr[i] * q[i] * sg;
             w->dG[i + j * rows] = w->wr[i] * (g[i] - q[i]) * sg;
         }
         for (size_t i = 0; i < cols; i++) {
             w->HdH[i + j * cols] = w->wc[i] * h[i] * sh;
             w->HdH[i + (J + j) * cols] = w->wc[i] * (h[i] - p[i]) * sh;
-            w->Hq[i + j * cols] = w->wc[i] * p[i] * sh;
         }
     }
 }
@@ -488,7 +496,7 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
     near_ws_t w;
     double *ws = near_alloc(ctx, &w, rows, cols, J);
     if (!ws) return sb_error(ctx, SB_ERR_NOMEM, "errors: out of memory");
-    double *ssq = w.wc + cols, n2[3] = {0, 0, 0};
+    double *ssq = w.ssq, n2[3] = {0, 0, 0};
     for (size_t i = 0; i < rows + cols; i++)
         w.wr[i] = 1;
     if (weights) sb_errors_weights(weights, w.wr, w.wc);
@@ -496,10 +504,10 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
     for (int ch = 0; ch < 3; ch++) {
         present[ch] = m->data[ch] != NULL;
         if (!present[ch]) continue;
-        near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh);
+        int direct = fe->rel_rms[sb_err_at(J - 1, (size_t)ch)] >= NEAR_DIRECT_REL;
+        near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh, direct);
         double nx = fe->norm[ch] * sx;
         n2[ch] = nx * nx;
-        int direct = fe->rel_rms[sb_err_at(J - 1, (size_t)ch)] >= NEAR_DIRECT_REL;
         sb_result_t r =
             direct ? near_direct(ctx, &w, m, ch, sx, nx, ssq + (size_t)ch * J) : near_products(ctx, &w, m, ch, sx);
         if (r != SB_OK) {

@@ -29,10 +29,12 @@ int est_chroma_pair(const eval_t *e, size_t i, const double *rec, double *de) {
     if (!(y * d[2] >= e->chroma_thr)) return 0;
     double lo[3], a[3];
     for (int c = 0; c < 3; c++)
-        a[c] = fmax(f[c], 0) * 0.5 / y;
+        a[c] = (f[c] > 0 ? f[c] : 0) * 0.5 / y;
     sb_srgb_to_lab(a, lo);
     for (size_t j = 0; j < e->J; j++) {
-        double r[3] = {fmax(rec[j * 3], 0), fmax(rec[j * 3 + 1], 0), fmax(rec[j * 3 + 2], 0)}, lr[3];
+        double r[3], lr[3];
+        for (int c = 0; c < 3; c++) /* fmax(x, 0) inline: 0 for NaN and -0 as well */
+            r[c] = rec[j * 3 + c] > 0 ? rec[j * 3 + c] : 0;
         double yr = luminance(r);
         for (int c = 0; c < 3; c++)
             r[c] = yr > 1e-12 * y ? r[c] * 0.5 / yr : 0.5;

@@ -77,8 +77,8 @@ static void fourier_transform(const fourier_t *w, const double *t) {
     int nt = sb_threads_for(0, R2 / 32, R2 * R, (size_t)1 << 22);
     if (sb_rdft_cols(R, nb, R2, t, R2, w->C, R2, w->even ? NULL : w->S, R2, nt))
         return; /* R a power of two: by FFT (util/rdft.h) */
-    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(2 * nb), (int)R, 1.0, t, (int)R2, w->cs,
-                (int)R, 0.0, w->C, (int)R2);
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)R2, (int)(w->even ? nb : 2 * nb), (int)R, 1.0, t,
+                (int)R2, w->cs, (int)R, 0.0, w->C, (int)R2); /* even: C alone (no room for S) */
 }
 
 static void fourier_apply(const fourier_t *w, const double *z, size_t ldz, double *y, size_t ldy) {
@@ -162,13 +162,16 @@ sb_result_t sb_matrix_mul(sb_context_t *ctx, const sb_matrix_t *m, int ch, size_
     fourier_t w = {m->phi_period, m->phi_period / 2 + 1, k, 0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL,
                    NULL};
     w.even = table_even(m->data[ch], w.R);
+    /* S (Rb R doubles, 1 MiB at R = 64) only where it is formed: on the
+     * heap's 2 MiB pages an unused block still costs its pages' zeroing */
     size_t R = w.R, nb = w.nb, Rb = R * nb, n, total;
-    if (sb_size_mul3(Rb, R, 2, &n) || sb_size_mul3(Rb, k, 4, &total) || sb_size_add(n, total, &total) ||
+    if (sb_size_mul3(Rb, R, w.even ? 1 : 2, &n) || sb_size_mul3(Rb, k, 4, &total) || sb_size_add(n, total, &total) ||
         sb_size_add(total, 2 * Rb + 6 * R * k, &total))
         return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: product workspace overflows");
     double *ws = sb_alloc(ctx, total, sizeof(double), "matrix product");
     if (!ws) return SB_ERR_NOMEM;
-    w.cs = ws, w.sn = w.cs + Rb, w.C = w.sn + Rb, w.S = w.C + Rb * R, w.ac = w.S + Rb * R;
+    w.cs = ws, w.sn = w.cs + Rb, w.C = w.sn + Rb, w.S = w.even ? NULL : w.C + Rb * R;
+    w.ac = w.C + Rb * R * (w.even ? 1 : 2);
     w.as = w.ac + Rb * k, w.e = w.as + Rb * k, w.o = w.e + Rb * k, w.in = w.o + Rb * k, w.out = w.in + 2 * R * k;
     for (size_t f = 0; f < nb; f++)
         for (size_t q = 0; q < R; q++) {

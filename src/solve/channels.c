@@ -31,10 +31,42 @@ static inline __attribute__((always_inline)) double dot2(const double *a, const 
 
 /* g[c][e] = <M_c, M_e> (c <= e, present channels) on values times pw,
  * column by column with two partial sums. */
+/* The six dot2 of three columns in one pass (each value read once, not
+ * four times): the same two partial sums each, so the same bits. */
+static inline __attribute__((always_inline)) void dot6(const double *const c[3], size_t rows, double pw,
+                                                       double p[3][3]) {
+    double s[6][2] = {{0}};
+    size_t i = 0;
+    for (; i + 2 <= rows; i += 2)
+        for (int l = 0; l < 2; l++) {
+            double a = c[0][i + l] * pw, b = c[1][i + l] * pw, d = c[2][i + l] * pw;
+            s[0][l] += a * a, s[1][l] += a * b, s[2][l] += a * d;
+            s[3][l] += b * b, s[4][l] += b * d, s[5][l] += d * d;
+        }
+    if (i < rows) {
+        double a = c[0][i] * pw, b = c[1][i] * pw, d = c[2][i] * pw;
+        s[0][0] += a * a, s[1][0] += a * b, s[2][0] += a * d;
+        s[3][0] += b * b, s[4][0] += b * d, s[5][0] += d * d;
+    }
+    p[0][0] = s[0][0] + s[0][1], p[0][1] = s[1][0] + s[1][1], p[0][2] = s[2][0] + s[2][1];
+    p[1][1] = s[3][0] + s[3][1], p[1][2] = s[4][0] + s[4][1], p[2][2] = s[5][0] + s[5][1];
+}
+
 static void gram3(const double *const x[3], size_t rows, size_t cols, size_t ld, double pw, double g[3][3]) {
     memset(g, 0, 9 * sizeof g[0][0]);
     for (size_t j = 0; j < cols; j++) {
         double p[3][3] = {{0}};
+        if (x[0] && x[1] && x[2]) {
+            const double *c[3] = {x[0] + j * ld, x[1] + j * ld, x[2] + j * ld};
+            if (pw == 1)
+                dot6(c, rows, 1, p);
+            else
+                dot6(c, rows, pw, p);
+            for (int a = 0; a < 3; a++)
+                for (int e = a; e < 3; e++)
+                    g[a][e] += p[a][e];
+            continue;
+        }
         for (int c = 0; c < 3; c++) {
             if (!x[c]) continue;
             const double *a = x[c] + j * ld;
