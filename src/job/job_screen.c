@@ -197,7 +197,8 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
     job_attempt_t *a = &job->best;
     size_t J = sb_factors_terms(a->f);
     double ratio[SB_EST_MAXJ];
-    if (!job->svd_beside || job->o.max_error > 0 || job->budget || J > SB_EST_MAXJ || !a->est || a->est->terms < J)
+    if (!job->svd_beside || job->o.max_error > 0 || job->budget || job->scene || J > SB_EST_MAXJ || !a->est ||
+        a->est->terms < J)
         return SB_OK;
     /* masked layouts (iso, hd): the solver's measure of the prefixes is
      * close to the headline's (the default gold: 1.65 against 1.66 at J'

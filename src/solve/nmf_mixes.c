@@ -73,9 +73,11 @@
  * no step lowers it further; round h38f, docs/positive.md). */
 #define SB_NMF_POLISH_POWER 8.0
 /* The worst prefix of U, V in the headline's weights against the
- * reference, with the headline's floor where the plan gave its headlines
- * (sb_nmf_worst_ratio_floor). */
+ * reference (sb_nmf_worst_ratio), each prefix's ratio times its
+ * correction cp (1 but after to_headline's). */
 static double worst_ratio(const nmf_state_t *s, const double *U, const double *V) {
+    if (s->J > SB_NMF_MAX_TERMS)
+        return sb_nmf_worst_ratio(s->x, s->hw, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2);
     double f[SB_NMF_MAX_TERMS], worst = 0;
     sb_nmf_prefix_ratios(s->x, s->hw, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2, f);
     for (size_t p = 0; p < s->J; p++)
