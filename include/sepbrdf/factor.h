@@ -187,6 +187,15 @@ typedef struct sb_plan_opts {
     int fit_max_iters; /* masked fit: outer iterations, default 300 */
     double
         fit_tol; /* masked fit: relative improvement to stop, default 1e-5 (a sweep that gains less stops the stage) */
+    /* Non-negative factors (SB_METHOD_NMF) only; NULL: none.  `terms`
+     * numbers: the headline errors (estimate.h) of the factors this plan's
+     * options gave without it for the same matrix, each over the default
+     * method's headline at J' = 1..terms.  The solver then weighs each
+     * prefix by its ratio corrected to these and fits again toward the
+     * lowest worst ratio, keeping that fit only where its corrected worst
+     * prefix is lower (docs/positive.md, "Refitted toward the headline's
+     * own ratios").  Must outlive the plan. */
+    const double *nonneg_ratio;
 } sb_plan_opts_t;
 #define SB_PLAN_OPTS_INIT                                                                                              \
     { .size = sizeof(sb_plan_opts_t) }

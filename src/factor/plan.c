@@ -129,8 +129,15 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
     sb_plan_t *p = calloc(1, sizeof *p);
     if (!p) return sb_error(ctx, SB_ERR_NOMEM, "plan: out of memory");
     *p = (sb_plan_t){.ctx = ctx, .rows = rows, .cols = cols, .terms = o.terms, .opts = o};
-    p->pb =
-        (sb_solve_problem_t){rows, cols, o.terms, o.svd, o.fit_max_iters, o.fit_tol, o.max_error, 0, 0, o.zero_fill, 0};
+    p->pb = (sb_solve_problem_t){.rows = rows,
+                                 .cols = cols,
+                                 .terms = o.terms,
+                                 .svd = o.svd,
+                                 .fit_max_iters = o.fit_max_iters,
+                                 .fit_tol = o.fit_tol,
+                                 .max_error = o.max_error,
+                                 .zero_fill = o.zero_fill,
+                                 .nonneg_ratio = o.nonneg_ratio};
     sb_solve_problem_t pb = p->pb;
     if (m) {
         pb.masked = m->mask && !o.zero_fill;

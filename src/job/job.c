@@ -183,6 +183,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK && !job->budget) r = job_warp_refit(ctx, job);
     double t1 = job_now();
     if (r == SB_OK) r = job_svd_beside(ctx, job);
+    if (r == SB_OK) r = job_nonneg_refit(ctx, job);
     double t2 = job_now();
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     double t3 = job_now();

@@ -30,6 +30,10 @@ static int applies(const sb_job_t *job, const job_level_t *lv, const job_attempt
     if (!a->param || !(sb_param_caps(a->param) & SB_CAP_TABLES) || a->m.mask || a->m.structured || a->m.streamed)
         return 0;
     if (job->scene || job->o.plain_terms || lv->rank_only || !a->est) return 0;
+    /* the weighted fit is signed: on non-negative factors (RGL paper,
+     * --method nmf --param vndf --form cos) it was kept with 15 % of the
+     * texels negative */
+    if (job_nonneg_method(sb_method_name(job->o.method))) return 0;
     size_t J = sb_factors_terms(a->f);
     return sb_estimate_bands_bounded(a->est, J < a->est->terms ? J : a->est->terms) == 0;
 }

@@ -52,6 +52,8 @@ typedef struct job_level {
     int half_shape;            /* screening: layouts folding reciprocity (iso) on R theta_h rows (job_level_opts) */
     const char *label;         /* progress label of the sampling; NULL = none */
     double base, span;         /* progress = base + span * fraction */
+    /* the plan's nonneg_ratio (factor.h; job_nonneg_refit); NULL: none */
+    const double *nonneg_ratio;
 } job_level_t;
 
 #define JOB_MAX_CANDS (3 * SB_LAYOUTS_MAX) /* f and cos a layout, with room */
@@ -69,6 +71,8 @@ typedef struct job_level {
  * (issue 36), and the 65536 of the library's default start a fifth of the
  * default run. */
 #define JOB_EST_START 4
+/* The bound on nmf_over_svd (issue 38) above which job_nonneg_refit runs. */
+#define JOB_NONNEG_RATIO 1.5
 #define JOB_CONVERGED_TRY 0.01 /* auto: headline at J above which the converged masked fit is tried too */
 
 /* theta_h bands of the cross-validated error (degrees, JOB_CV_BANDS + 1
@@ -223,6 +227,11 @@ sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
 /* job_texel_fit, then job_term_weights: what every kept fit goes through. */
 sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 void job_attempt_free(job_attempt_t *a);
+/* Non-negative factors whose headline is above JOB_NONNEG_RATIO times the
+ * SVD beside's at some J': the kept fit made again with those ratios
+ * (the plan's nonneg_ratio) and refined, kept where its worst ratio to
+ * the SVD beside is lower (job_screen.c). */
+sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job);
 /* A copy of the first j terms of f (textures, sigma, metadata, errors). */
 sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out);
 /* a takes t's fit (factors, estimate, stats, metric; t made from a copy

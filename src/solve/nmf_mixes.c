@@ -72,6 +72,19 @@
  * after 0-2 steps (its worst prefix 1.654 -> 1.642 in the proxy on red:
  * no step lowers it further; round h38f, docs/positive.md). */
 #define SB_NMF_POLISH_POWER 8.0
+/* The worst prefix of U, V in the headline's weights against the
+ * reference (sb_nmf_worst_ratio), each prefix's ratio times its
+ * correction cp (1 but after to_headline's). */
+static double worst_ratio(const nmf_state_t *s, const double *U, const double *V) {
+    if (s->J > SB_NMF_MAX_TERMS)
+        return sb_nmf_worst_ratio(s->x, s->hw, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2);
+    double f[SB_NMF_MAX_TERMS], worst = 0;
+    sb_nmf_prefix_ratios(s->x, s->hw, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2, f);
+    for (size_t p = 0; p < s->J; p++)
+        worst = fmax(worst, s->cp[p] * f[p]);
+    return worst;
+}
+
 /* Step: the headline's weights of the data cells in s->hw, once for the
  * channels of a matrix (the same layout, form and data cells); returns
  * whether they are there. */
@@ -94,6 +107,8 @@ static int headline_weights(nmf_state_t *s, const sb_solve_in_t *in) {
 static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out, double mu, int again,
                             int raw) {
     size_t m = s->m, n = s->n, J = s->J;
+    for (size_t p = 0; p < J && p < SB_NMF_MAX_TERMS; p++)
+        s->cp[p] = 1;
     if (headline_weights(s, in))
         for (size_t k = 0; k < m * n; k++)
             if (s->ext[k] == 1) s->w[k] *= 1 - mu + mu * (raw ? s->hwr : s->hw)[k];
@@ -123,7 +138,7 @@ static void fit_mix(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out
     sb_nmf_stages(s, out);
     out->iterations += again ? sweeps : 0;
     if (!s->hw_ok || !(s->gam > 0)) return;
-    double r = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
+    double r = worst_ratio(s, out->u, out->v);
     if (again && !(r < margin * *best)) return;
     *best = r;
     s->kept_mix = mix;
@@ -179,13 +194,13 @@ static void reorder(nmf_state_t *s, sb_solve_out_t *out) {
         memcpy(out->v + p * n, s->vb + order[p] * n, n * sizeof *s->vb);
     }
     if (!moved) return;
-    double r0 = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, s->ub, s->vb, s->uref, s->vref, s->floor2);
+    double r0 = worst_ratio(s, s->ub, s->vb);
     int conv = out->converged;
     double g0 = s->gam;
     s->gam = SB_NMF_REORDER_POWER;
     sb_nmf_refit(s, out);
     s->gam = g0;
-    double r1 = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
+    double r1 = worst_ratio(s, out->u, out->v);
     if (r1 < r0) return;
     memcpy(out->u, s->ub, m * J * sizeof *s->ub);
     memcpy(out->v, s->vb, n * J * sizeof *s->vb);
@@ -202,7 +217,7 @@ static void reorder(nmf_state_t *s, sb_solve_out_t *out) {
 static void polish(nmf_state_t *s, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J, mu = m * J, nv = n * J;
     if (!s->u1 || !s->hw_ok || !(s->gam > 0)) return;
-    double best = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2), g0 = s->gam;
+    double best = worst_ratio(s, out->u, out->v), g0 = s->gam;
     double before = INFINITY;
     int conv = out->converged, ok = 1;
     if (!(best > 1)) return; /* no prefix worse than the reference's */
@@ -217,7 +232,7 @@ static void polish(nmf_state_t *s, sb_solve_out_t *out) {
         memcpy(s->v1, out->v, nv * sizeof *s->v1);
         ok = 0;
         for (double t = 0.5; !ok && t >= 1.0 / 16; t *= 0.5) {
-            double r = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
+            double r = worst_ratio(s, out->u, out->v);
             ok = r < best;
             best = ok ? r : best;
             for (size_t k = 0; !ok && k < mu; k++) /* out at 2t failed: the step to t */
@@ -233,6 +248,66 @@ static void polish(nmf_state_t *s, sb_solve_out_t *out) {
     out->converged = conv;
 }
 
+/* Step: the reference's errors in the fit's weights (sref) at the
+ * corrected ratios cp. */
+static void correct_sref(nmf_state_t *s, const double *cp) {
+    for (size_t p = 0; p < s->J; p++) {
+        s->cp[p] = cp[p];
+        s->sref[p] /= cp[p];
+    }
+}
+
+/* Step: out's fit refitted at the corrected ratios to SB_NMF_REORDER_POWER
+ * (kept where its corrected worst prefix is lower), then polished. */
+static void refit_corrected(nmf_state_t *s, sb_solve_out_t *out) {
+    size_t m = s->m, n = s->n, J = s->J;
+    memcpy(s->ub, out->u, m * J * sizeof *s->ub);
+    memcpy(s->vb, out->v, n * J * sizeof *s->vb);
+    double r0 = worst_ratio(s, s->ub, s->vb), g0 = s->gam;
+    int conv = out->converged;
+    s->gam = SB_NMF_REORDER_POWER;
+    sb_nmf_refit(s, out);
+    s->gam = g0;
+    if (!(worst_ratio(s, out->u, out->v) < r0)) {
+        memcpy(out->u, s->ub, m * J * sizeof *s->ub);
+        memcpy(out->v, s->vb, n * J * sizeof *s->vb);
+        out->converged = conv;
+    }
+    polish(s, out);
+}
+
+/* Step: with the headline's own ratios of this fit (s->rho, the plan's
+ * nonneg_ratio: the job's estimate of the fit this solver made from the
+ * same matrix without them), each prefix's ratio in the headline's
+ * weights corrected to them (s->cp; the reference's errors in the fit's
+ * weights likewise), then two candidates at the corrected ratios: the
+ * fit refitted (refit_corrected) and the stages again in the kept mix's
+ * weights, polished; the one kept whose corrected worst prefix is the
+ * lower (s->uc, vc hold the first).  The stages again at the other mixes
+ * were never kept (RGL paper and aurora, J = 4) and cost a fifth of the
+ * run (docs/positive.md). */
+static void to_headline(nmf_state_t *s, sb_solve_out_t *out) {
+    size_t m = s->m, n = s->n, J = s->J;
+    if (!s->rho || !s->hw_ok || !(s->gam > 0) || J > SB_NMF_MAX_TERMS || !s->uc) return;
+    double f[SB_NMF_MAX_TERMS], cp[SB_NMF_MAX_TERMS];
+    sb_nmf_prefix_ratios(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2, f);
+    for (size_t p = 0; p < J; p++)
+        cp[p] = s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1;
+    correct_sref(s, cp);
+    refit_corrected(s, out);
+    double best = worst_ratio(s, out->u, out->v);
+    int conv = out->converged, sweeps = out->iterations;
+    memcpy(s->uc, out->u, m * J * sizeof *s->uc);
+    memcpy(s->vc, out->v, n * J * sizeof *s->vc);
+    sb_nmf_stages(s, out);
+    out->iterations += sweeps;
+    polish(s, out);
+    if (worst_ratio(s, out->u, out->v) < best) return;
+    memcpy(out->u, s->uc, m * J * sizeof *s->uc);
+    memcpy(out->v, s->vc, n * J * sizeof *s->vc);
+    out->converged = conv;
+}
+
 /* Step: the stages at SB_NMF_HEADLINE_MIX, where the matrix is small and
  * a reference known at SB_NMF_SECOND_MIX and (smaller, no cell masked) at
  * 1, clipped and unclipped, too: the fit
@@ -245,6 +320,7 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
         sb_nmf_stages(s, out);
         reorder(s, out);
         polish(s, out);
+        to_headline(s, out);
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
@@ -263,4 +339,5 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
     reorder(s, out);
     polish(s, out);
+    to_headline(s, out);
 }

@@ -16,6 +16,8 @@
 #define SB_NMF_MIX_CELLS ((size_t)1 << 17)
 /* A kept fit's safeguarded steps at most (nmf_mixes.c polish). */
 #define SB_NMF_POLISH_STEPS 40
+/* Terms a fit toward the headline's own ratios takes at most (cp). */
+#define SB_NMF_MAX_TERMS 32
 
 typedef struct nmf_state {
     size_t m, n, J;
@@ -46,6 +48,14 @@ typedef struct nmf_state {
     double hw_key[3];     /* the layout's address, the form, a sum over the data cells */
     sb_fit_t *fit;        /* masked: the masked fit whose extension fills the cells out of the data */
     sb_fit_opts_t fo;
+    /* J: the headline's ratios of the fit made without them to the default
+     * method's (the plan's nonneg_ratio); NULL: none */
+    const double *rho;
+    /* each prefix's ratio in the headline's weights times this: rho^2 over
+     * that ratio of the fit made without rho (to_headline), else 1 */
+    double cp[SB_NMF_MAX_TERMS];
+    /* m x J, n x J: the first candidate toward rho (to_headline; with rho) */
+    double *uc, *vc;
 } nmf_state_t;
 
 /* Sweeps of a stage before the last (joint refit of the terms so far),

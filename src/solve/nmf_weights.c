@@ -141,14 +141,26 @@ static void prefix_errors(const double *x, const double *hw, size_t m, size_t n,
         }
 }
 
-double sb_nmf_worst_ratio(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
-                          const double *V, const double *R, const double *S, double floor2) {
-    double *f = malloc(2 * J * sizeof *f), worst = 0;
-    if (!f) return INFINITY;
+void sb_nmf_prefix_ratios(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
+                          const double *V, const double *R, const double *S, double floor2, double *ratio) {
+    double *f = malloc(2 * J * sizeof *f);
+    for (size_t p = 0; !f && p < J; p++)
+        ratio[p] = INFINITY;
+    if (!f) return;
     prefix_errors(x, hw, m, n, J, U, V, f);
     prefix_errors(x, hw, m, n, J, R, S, f + J);
     for (size_t p = 0; p < J; p++)
-        worst = fmax(worst, f[p] / fmax(f[J + p], floor2));
+        ratio[p] = f[p] / fmax(f[J + p], floor2);
+    free(f);
+}
+
+double sb_nmf_worst_ratio(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
+                          const double *V, const double *R, const double *S, double floor2) {
+    double *f = malloc(J * sizeof *f), worst = 0;
+    if (!f) return INFINITY;
+    sb_nmf_prefix_ratios(x, hw, m, n, J, U, V, R, S, floor2, f);
+    for (size_t p = 0; p < J; p++)
+        worst = fmax(worst, f[p]);
     free(f);
     return worst;
 }

@@ -30,5 +30,8 @@ int sb_nmf_svd_terms(const double *x, size_t m, size_t n, size_t J, double *U, d
  * floor2. */
 double sb_nmf_worst_ratio(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
                           const double *V, const double *R, const double *S, double floor2);
+/* The same ratios per prefix, p = 1..J, into ratio (J numbers). */
+void sb_nmf_prefix_ratios(const double *x, const double *hw, size_t m, size_t n, size_t J, const double *U,
+                          const double *V, const double *R, const double *S, double floor2, double *ratio);
 
 #endif

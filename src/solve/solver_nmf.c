@@ -22,7 +22,10 @@
  * ratios to its errors (ratio_weights), and W leans to the headline's;
  * the kept fit's terms are then tried in the order of the prefixes'
  * errors and refitted (reorder), and moved by safeguarded steps toward
- * the least worst prefix (polish).
+ * the least worst prefix (polish).  Given the headline's own ratios of
+ * that fit (the plan's nonneg_ratio), the prefixes' ratios are corrected
+ * to them and the fit made again toward the least corrected worst prefix
+ * (nmf_mixes.c to_headline).
  *
  * Cells out of the data (masked): bilinear taps of in-domain pairs read
  * those within two texels of the data (fit.h), so there the fit follows
@@ -108,6 +111,8 @@ static void destroy(void *state) {
     free(s->vb);
     free(s->u1);
     free(s->v1);
+    free(s->uc);
+    free(s->vc);
     sb_fit_destroy(s->fit);
     free(s);
 }
@@ -124,6 +129,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->max_iters = pb->fit_max_iters > SB_NMF_MAX_ITERS ? pb->fit_max_iters : SB_NMF_MAX_ITERS;
     s->zero_fill = pb->zero_fill;
     s->polish_steps = SB_NMF_POLISH_STEPS;
+    s->rho = pb->nonneg_ratio;
     s->tol = pb->fit_tol > 0 && pb->fit_tol < SB_NMF_TOL ? pb->fit_tol : SB_NMF_TOL;
     size_t cells = s->m * s->n; /* checked by the plan */
     s->e = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
@@ -146,11 +152,14 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->hwr = s->w0 ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->u1 = s->hw ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
     s->v1 = s->hw ? sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan") : NULL;
+    s->uc = s->hw && s->rho ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
+    s->vc = s->hw && s->rho ? sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan") : NULL;
     s->ub = sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan");
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
         !s->sref || (weighted && !s->hw) || (weighted && (!s->u1 || !s->v1)) ||
-        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub || !s->vb) {
+        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub || !s->vb ||
+        (s->hw && s->rho && (!s->uc || !s->vc))) {
         destroy(s);
         return SB_ERR_NOMEM;
     }

@@ -38,6 +38,8 @@ typedef struct sb_solve_problem {
     int masked;        /* cells to exclude */
     int zero_fill;     /* excluded cells count as zeros (the plan's zero_fill) */
     int streamed;      /* the matrix is streamed (matrix.h): never held, read in blocks of columns */
+    /* the plan's nonneg_ratio (factor.h); NULL: none */
+    const double *nonneg_ratio;
 } sb_solve_problem_t;
 
 /* One channel. */
