@@ -166,7 +166,8 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->t_start = t0;
     double ts = job_now();
     job->stage_s[0] = ts - t0; /* the source opened (sb_job_run) */
-    job->fit_as_auto = as_auto;
+    job->fit_as_auto = as_auto & 1;
+    job->no_scene_guard = (as_auto & JOB_RUN_NO_GUARD) != 0;
     job->src = job->eval_src = src;
     job->own_src = own;
     sb_param_kind_t kind;
@@ -185,6 +186,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_svd_beside(ctx, job);
     double t2 = job_now();
     if (r == SB_OK) r = job_scene_measure(ctx, job);
+    if (r == SB_OK) r = job_scene_guard(ctx, job);
     double t3 = job_now();
     if (r == SB_OK) r = job_cv(ctx, job);
     if (r == SB_OK) r = job_band_pairs_measure(ctx, job, &job->best);
