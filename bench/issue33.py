@@ -90,8 +90,9 @@ def case(a, tmp, name, src, alpha, J):
             pct(sd[0]), pct(sc["domain_headline"][J - 1]) if both else "none", pct(h), sd[0] / h,
             pct(sc["headline"][J - 1]) if both else "?")
         if sc.get("fallback"):
-            scn += ", unweighted kept (scene fit: inside %s, whole %.3gx)" % (pct(sc["fallback_inside"]),
-                                                                             sc["fallback_ratio"])
+            kept = "floor=%g" % sc["fallback_floor"] if sc.get("fallback_floor") else "unweighted"
+            scn += ", %s kept (scene fit: inside %s, whole %.3gx)" % (kept, pct(sc["fallback_inside"]),
+                                                                      sc["fallback_ratio"])
     yn = lambda ok: "yes" if ok else "**NO**"  # noqa: E731
     row = "| %s | %d | %s %s | %s (%s) | %s | %s | %s | %s | %d/4 %s | %s | %s | %s | %s |" % (
         name, J, rep["param"], rep["form"], pct(h), pct(e["headline"]), pct(d["theta_i_80"][0]), yn(ok80),

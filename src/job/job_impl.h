@@ -315,9 +315,20 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
 /* With a scene: the kept fit's estimate over the whole domain. */
 sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
-/* The same run without the scene beside it; the scene fit replaced by it
- * where it is far worse over the whole domain (job_scene_guard.c). */
-sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job);
+/* A scene fit against the same run without the scene beside it
+ * (job_scene_guard.c decides, job.c's job_scene_guard runs and destroys
+ * the jobs): whether the kept fit is one to compare; the unweighted fit
+ * u's headlines recorded and *replace set where the scene fit is far
+ * worse over the whole domain; whether the scene fit with a higher floor
+ * w is to be kept rather than v (either may be NULL); the scene fit
+ * replaced by u or v, whichever is lower inside the scene (the attempts
+ * set aside left in u and v). */
+#define JOB_SCENE_FLOORS 2
+extern const double job_scene_floors[JOB_SCENE_FLOORS];
+int job_scene_guarded(const sb_job_t *job);
+sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, const sb_job_t *u, int *replace);
+int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w);
+sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor);
 /* report.json's "scene" object (null without a scene). */
 void job_scene_report(sb_json_t *j, const sb_job_t *job);
 void job_scene_free(sb_job_t *job);

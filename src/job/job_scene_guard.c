@@ -6,7 +6,8 @@
  * cells outside the scene weigh SCENE_FLOORS x the scene's mass) or by the
  * unweighted fit, whichever of those within SCENE_OUTSIDE outside is the
  * lowest inside the scene.  Apart from job_scene_domain.c, which measures
- * and drops terms; this runs whole jobs beside (job.c). */
+ * and drops terms; the runs themselves, whole jobs beside this one, are
+ * job_scene_guard in job.c, which asks this file what to run and keep. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,7 +26,7 @@
 /* Floors tried before the unweighted fit: Phong n = 100 at J = 1, floor 1
  * inside 3.5 % (the unweighted fit 36 %), 0.34x outside; RGL light blue
  * at J = 4, floor 10 inside 1.1 % (unweighted 1.4 %), 1.2x outside. */
-static const double scene_floors[2] = {1, 10};
+const double job_scene_floors[JOB_SCENE_FLOORS] = {1, 10};
 
 /* The attempt and the screening of u become job's (and job's u's, to be
  * destroyed with it). */
@@ -44,65 +45,47 @@ static void take_fit(sb_job_t *job, sb_job_t *u) {
     job->warp_tried = u->warp_tried;
 }
 
-/* Run the job's options at J terms into *out: without the scene (floor
- * < 0) or with it at floor=floor. */
-static sb_result_t beside(sb_context_t *ctx, const sb_job_t *job, size_t J, double floor, sb_job_t **out) {
-    char spec[1100];
-    sb_job_opts_t o = job->o;
-    o.scene = NULL;
-    if (floor >= 0) {
-        if ((size_t)snprintf(spec, sizeof spec, "%s;floor=%g", sb_scene_spec(job->scene), floor) >= sizeof spec)
-            return sb_error(ctx, SB_ERR_RANGE, "scene: spec too long for a floor beside it");
-        o.scene = spec;
-    }
-    o.out = NULL;
-    o.terms = J;
-    o.max_error = 0;
-    o.budget = 0;
-    o.cv_folds = 1; /* none: only the fit is wanted */
-    o.progress = NULL;
-    return job_run_as(ctx, job->src, &o, job->fit_as_auto | JOB_RUN_NO_GUARD, out);
-}
-
 static double domain_at(const sb_job_t *job, size_t J) {
     const sb_estimate_t *d = job->domain_est;
     return d && J <= d->terms ? d->rel[J - 1][SB_EST_FCOS][SB_CH_ALL] : NAN;
 }
 
-/* The scene fit with the floor of scene_floors that is within SCENE_OUTSIDE
- * x ref outside and the lowest inside, into *out (NULL: none). */
-static sb_result_t floor_candidate(sb_context_t *ctx, const sb_job_t *job, size_t J, double ref, sb_job_t **out,
-                                   double *floor) {
-    *out = NULL;
-    for (size_t i = 0; i < sizeof scene_floors / sizeof *scene_floors; i++) {
-        sb_job_t *v = NULL;
-        sb_result_t r = beside(ctx, job, J, scene_floors[i], &v);
-        if (r == SB_ERR_NOMEM) {
-            sb_job_destroy(*out);
-            *out = NULL;
-            return r;
-        }
-        if (r == SB_OK && domain_at(v, J) <= SCENE_OUTSIDE * ref &&
-            (!*out || sb_job_headline(v, J) < sb_job_headline(*out, J))) {
-            sb_job_destroy(*out);
-            *out = v, *floor = scene_floors[i];
-        } else {
-            sb_job_destroy(v);
-        }
-    }
+int job_scene_guarded(const sb_job_t *job) {
+    return job->scene && !job->no_scene_guard && job->best.f && job->domain_est && !job->budget && !job->o.sample_only;
+}
+
+sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, const sb_job_t *u, int *replace) {
+    size_t J = sb_factors_terms(job->best.f);
+    *replace = 0;
+    free(job->scene_ref);
+    if (!(job->scene_ref = malloc(J * sizeof *job->scene_ref))) return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    for (size_t k = 0; k < J; k++)
+        job->scene_ref[k] = sb_job_headline(u, k + 1);
+    job->scene_ref_terms = J;
+    /* floor=X given: the user's trade between the scene and the rest */
+    *replace = domain_at(job, J) > SCENE_OUTSIDE * job->scene_ref[J - 1] && sb_scene_floor(job->scene) < 0 &&
+               !job->o.plain_terms;
     return SB_OK;
 }
 
+int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w) {
+    size_t J = sb_factors_terms(job->best.f);
+    return w && domain_at(w, J) <= SCENE_OUTSIDE * job->scene_ref[J - 1] &&
+           (!v || sb_job_headline(w, J) < sb_job_headline(v, J));
+}
+
 /* Replace the scene fit by the unweighted fit u or the floor candidate v,
- * whichever is lower inside the scene; both are destroyed. */
+ * whichever is lower inside the scene; the attempts set aside stay in u
+ * and v (job.c destroys them). */
 static sb_result_t replace(sb_context_t *ctx, sb_job_t *job, size_t J, sb_job_t *u, sb_job_t *v, double floor) {
+    job->scene_fit_inside = job->best.est ? sb_estimate_headline(job->best.est, J) : NAN;
+    job->scene_fallback = domain_at(job, J) / job->scene_ref[J - 1];
     job_level_t lv = {.res = job->o.res,
                       .terms = J,
                       .metric_res = job->o.metric_res,
                       .fit_tol = job->o.fit_tol,
                       .fit_max_iters = job->o.fit_max_iters};
     take_fit(job, u);
-    sb_job_destroy(u);
     sb_result_t r = job_estimate_again(ctx, job, &lv, &job->best); /* the unweighted fit inside the scene */
     job->scene_kept_floor = 0;
     if (r == SB_OK && v && sb_job_headline(v, J) < sb_job_headline(job, J)) {
@@ -110,42 +93,14 @@ static sb_result_t replace(sb_context_t *ctx, sb_job_t *job, size_t J, sb_job_t 
         job->scene_kept_floor = floor;
         r = job_estimate_again(ctx, job, &lv, &job->best);
     }
-    sb_job_destroy(v);
     return r == SB_OK ? job_scene_measure(ctx, job) : r;
 }
 
-sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job) {
-    if (!job->scene || job->no_scene_guard || !job->best.f || !job->domain_est || job->budget || job->o.sample_only)
-        return SB_OK;
+sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor) {
     size_t J = sb_factors_terms(job->best.f);
-    sb_job_t *u = NULL, *v = NULL;
-    sb_result_t r = beside(ctx, job, J, -1, &u);
-    if (r == SB_ERR_NOMEM) return r;
-    if (r != SB_OK) {
-        job_warn(job, "no unweighted fit beside the scene's: %s", sb_context_last_error(ctx));
-        return SB_OK;
-    }
-    free(job->scene_ref);
-    if (!(job->scene_ref = malloc(J * sizeof *job->scene_ref))) {
-        sb_job_destroy(u);
-        return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    }
-    for (size_t k = 0; k < J; k++)
-        job->scene_ref[k] = sb_job_headline(u, k + 1);
-    job->scene_ref_terms = J;
-    double out = domain_at(job, J), ref = job->scene_ref[J - 1], floor = 0;
-    /* floor=X given: the user's trade between the scene and the rest */
-    if (!(out > SCENE_OUTSIDE * ref) || sb_scene_floor(job->scene) >= 0 || job->o.plain_terms) {
-        sb_job_destroy(u);
-        return SB_OK;
-    }
-    if ((r = floor_candidate(ctx, job, J, ref, &v, &floor)) != SB_OK) {
-        sb_job_destroy(u);
-        return r;
-    }
-    job->scene_fit_inside = job->best.est ? sb_estimate_headline(job->best.est, J) : NAN;
-    job->scene_fallback = out / ref;
-    if ((r = replace(ctx, job, J, u, v, floor)) != SB_OK) return r;
+    double out = domain_at(job, J), ref = job->scene_ref[J - 1];
+    sb_result_t r = replace(ctx, job, J, u, v, floor);
+    if (r != SB_OK) return r;
     char what[64] = "the unweighted fit";
     if (job->scene_kept_floor > 0) snprintf(what, sizeof what, "the scene's fit with floor=%g", job->scene_kept_floor);
     job_warn(job,
