@@ -48,7 +48,7 @@
  *                          gives that up; docs/bands.md).  Not given,
  *                          the factor job replaces a fit above 1.8x the
  *                          unweighted one over the whole domain (floors 1
- *                          and 10, then the unweighted fit: README,
+ *                          and 10, then the unweighted fit: docs/guide.md,
  *                          Scene-weighted fits).
  * Exactly one of the three kinds; a key given twice, an unknown key, a
  * malformed number, a range out of order or beyond 0..90 are errors.
