@@ -14,7 +14,7 @@
  * With M, then the library's estimator on the same files grown to M pairs
  * ("estimator name error standard_error").  Environment: SB_BANDS_ONLY=name
  * measures that band alone, SB_BANDS_SEED=k draws another sequence,
- * SB_BANDS_MIX=a draws wo of the theta_i bands from a mixture instead (a
+ * SB_BANDS_MIX=a draws wo of "all" and the theta_i bands from a mixture instead (a
  * third uniform over the hemisphere, a third each reflected about a half
  * vector of a GGX distribution of roughness a and 3a), each pair weighted
  * by the uniform density over the mixture's: still no estimator, but the
@@ -22,7 +22,10 @@
  * incidence, docs/bands.md) drawn often enough for their band to come out
  * with a small standard error; SB_BANDS_SUMS=1 appends to each band's line
  * the sum of the squared errors, the sum of the squared values and the
- * pairs drawn, so that draws can be pooled exactly (bench/bands.py --seeds). */
+ * pairs drawn, so that draws can be pooled exactly (bench/bands.py --seeds);
+ * SB_BANDS_NEG=1 adds per band a line "negative name v": the most negative
+ * reconstructed channel where the source's is positive, over the largest
+ * |f| drawn in the band (0: none; bench/issue33.py). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -69,14 +72,19 @@ int main(int argc, char **argv) {
         static const double ht[5] = {0.25, 0.5, 1, 2, 5};
         double hs[5][3] = {{0}};
         int half = getenv("SB_BANDS_HALF") != NULL;
+        double neg = 0, fmx = 0; /* the most negative reconstruction where f > 0, the largest |f| */
         for (size_t i = 0; i < n; i++) {
             double wi[3], wo[3], v[3] = {0, 0, 0}, r[3] = {0, 0, 0}, u[6], w = 1;
             for (int k = 0; k < 6; k++)
                 u[k] = rnd(&s);
             int in = band_draw(b - 1, u, wi, wo);
-            if (ma > 0 && b >= 1 && b <= 3) in = (w = band_mix_draw(ma, wi, u + 3, wo)) > 0; /* theta_i bands */
+            if (ma > 0 && b <= 3) in = (w = band_mix_draw(ma, wi, u + 3, wo)) > 0; /* all, theta_i bands */
             if (in && sb_source_eval(src, wi, wo, v) && !sb_factors_eval(f, p, form, J, wi, wo, r))
                 r[0] = r[1] = r[2] = 0;
+            for (int c = 0; in && c < 3; c++) {
+                fmx = fmax(fmx, fabs(v[c]));
+                if (v[c] > 0) neg = fmin(neg, r[c]);
+            }
             double sa0 = sums.sa, sd0 = sums.sd;
             band_add_w(&sums, v, r, wi[2], w);
             double hz = wi[2] + wo[2],
@@ -93,6 +101,7 @@ int main(int argc, char **argv) {
         if (getenv("SB_BANDS_SUMS")) /* the sums, for pooling draws exactly */
             printf(" %.17g %.17g %zu", sums.sa, sums.sd, sums.n);
         printf("\n");
+        if (getenv("SB_BANDS_NEG")) printf("negative %s %.6e\n", names[b], fmx > 0 ? neg / fmx : 0);
         fflush(stdout);
     }
     size_t m = argc > 5 ? strtoul(argv[5], NULL, 10) : 0;

@@ -94,7 +94,10 @@ typedef struct sb_job_opts {
      * scene's pairs and skips the cells they never touch (instead of the
      * solid-angle weights), and the headline, with everything decided on
      * it (auto's ranking, term weights, max_error), is measured over the
-     * scene's pairs; the whole domain's is sb_job_domain_estimate. */
+     * scene's pairs; the whole domain's is sb_job_domain_estimate.  The
+     * same run without the scene runs beside it, and a scene fit above
+     * 1.8x its error over the whole domain is replaced unless the spec
+     * gives floor=X (scene.h; report.json scene.fallback). */
     const char *scene;
     int zero_fill;           /* factor invalid cells as zeros instead of a masked fit */
     size_t res;              /* R, cells per angular axis: 32 */

@@ -27,9 +27,10 @@
  *                          most SB_SCENE_MAX_PAIRS pairs and
  *                          SB_SCENE_MAX_FILE bytes; a device or FIFO is
  *                          refused (SB_ERR_IO), never read.
- *   floor=X                with any kind, 0 <= X <= 1: the cells the
- *                          scene never touches share X of the fit's total
- *                          mass (each the same) instead of being left out,
+ *   floor=X                with any kind, 0 <= X <= SB_SCENE_FLOOR_MAX:
+ *                          the cells the scene never touches share X times
+ *                          the scene's mass (each the same; above 1 they
+ *                          outweigh the scene) instead of being left out,
  *                          so the fit stays close to the whole-domain one
  *                          there; 0 leaves them out (unconstrained: the
  *                          reconstruction is then arbitrary one step
@@ -44,7 +45,11 @@
  *                          unweighted fit, GGX 0.3 on io, R = 16, J = 2),
  *                          0 for lights and pairs there (the mask is what
  *                          makes their fit better inside, and any floor
- *                          gives that up; docs/bands.md).
+ *                          gives that up; docs/bands.md).  Not given,
+ *                          the factor job replaces a fit above 1.8x the
+ *                          unweighted one over the whole domain (floors 1
+ *                          and 10, then the unweighted fit: docs/guide.md,
+ *                          Scene-weighted fits).
  * Exactly one of the three kinds; a key given twice, an unknown key, a
  * malformed number, a range out of order or beyond 0..90 are errors.
  *
@@ -80,6 +85,7 @@ typedef struct sb_scene sb_scene_t;
  * inside the scene 2.26e-4 as without, over the whole domain 0.16 %
  * instead of 70 % (docs/bands.md). */
 #define SB_SCENE_FLOOR 1e-3
+#define SB_SCENE_FLOOR_MAX 1000.0
 #define SB_SCENE_MAX_FILE (256ull << 20)
 
 /* Parse a spec (header); a pairs file is read now.  Errors: SB_ERR_ARG

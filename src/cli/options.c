@@ -238,9 +238,12 @@ const cli_option_t cli_factor_options[] = {
      "'view=A..B;light=C..D' (theta from the normal, degrees),\n"
      "'lights=EL,AZ/EL,AZ/...' (render's sphere and camera, these\n"
      "lights), or 'pairs=FILE' (lines theta_i phi_i theta_o phi_o\n"
-     "[weight], degrees); cells no pair touches are not fitted;\n"
-     "the headline is the scene's, report.json: scene also has\n"
-     "the whole domain's (docs/guide.md: Scene-weighted fits)",
+     "[weight], degrees), ';floor=X' (0..1000) the weight of the\n"
+     "cells no pair touches; the headline is the scene's,\n"
+     "report.json: scene also has the whole domain's and the\n"
+     "unweighted fit's; a scene fit above 1.8x that over the\n"
+     "whole domain is replaced unless floor=X is given\n"
+     "(scene.fallback; docs/guide.md: Scene-weighted fits)",
      set_scene, AT(scene), 0, 0, F_ | R_ | S_},
     {NULL, "--zero-fill", NULL,
      "factor cells outside the domain / unmeasured as zeros\ninstead of excluding them (masked fit, the default)",

@@ -156,6 +156,56 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     return SB_OK;
 }
 
+/* The job's options at J terms, beside it, into *out: without the scene
+ * (floor < 0) or with it at floor=floor (job_scene_guard.c). */
+static sb_result_t scene_beside(sb_context_t *ctx, const sb_job_t *job, size_t J, double floor, sb_job_t **out) {
+    char spec[1100];
+    sb_job_opts_t o = job->o;
+    o.scene = NULL;
+    if (floor >= 0) {
+        if ((size_t)snprintf(spec, sizeof spec, "%s;floor=%g", sb_scene_spec(job->scene), floor) >= sizeof spec)
+            return sb_error(ctx, SB_ERR_RANGE, "scene: spec too long for a floor beside it");
+        o.scene = spec;
+    }
+    o.out = NULL;
+    o.terms = J;
+    o.max_error = 0;
+    o.budget = 0;
+    o.cv_folds = 1; /* none: only the fit is wanted */
+    o.progress = NULL;
+    return job_run_as(ctx, job->src, &o, job->fit_as_auto | JOB_RUN_NO_GUARD, out);
+}
+
+/* A scene fit far worse than the unweighted one over the whole domain
+ * replaced (job_scene_guard.c): the unweighted fit, then the floors. */
+static sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job) {
+    if (!job_scene_guarded(job)) return SB_OK;
+    size_t J = sb_factors_terms(job->best.f);
+    sb_job_t *u = NULL, *v = NULL;
+    sb_result_t r = scene_beside(ctx, job, J, -1, &u);
+    if (r != SB_OK) {
+        if (r != SB_ERR_NOMEM) job_warn(job, "no unweighted fit beside the scene's: %s", sb_context_last_error(ctx));
+        return r == SB_ERR_NOMEM ? r : SB_OK;
+    }
+    int replace = 0;
+    double floor = 0;
+    if ((r = job_scene_reference(ctx, job, u, &replace)) != SB_OK || !replace) {
+        sb_job_destroy(u);
+        return r;
+    }
+    for (int i = 0; i < JOB_SCENE_FLOORS && r == SB_OK; i++) {
+        sb_job_t *w = NULL;
+        if ((r = scene_beside(ctx, job, J, job_scene_floors[i], &w)) != SB_ERR_NOMEM) r = SB_OK;
+        int keep = job_scene_better(job, v, w);
+        sb_job_destroy(keep ? v : w);
+        if (keep) v = w, floor = job_scene_floors[i];
+    }
+    if (r == SB_OK) r = job_scene_replace(ctx, job, u, v, floor);
+    sb_job_destroy(u);
+    sb_job_destroy(v);
+    return r;
+}
+
 static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *own, const sb_job_opts_t *opts,
                        double t0, int as_auto, sb_job_t **out) {
     sb_job_t *job = calloc(1, sizeof *job);
@@ -166,7 +216,8 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->t_start = t0;
     double ts = job_now();
     job->stage_s[0] = ts - t0; /* the source opened (sb_job_run) */
-    job->fit_as_auto = as_auto;
+    job->fit_as_auto = as_auto & 1;
+    job->no_scene_guard = (as_auto & JOB_RUN_NO_GUARD) != 0;
     job->src = job->eval_src = src;
     job->own_src = own;
     sb_param_kind_t kind;
@@ -186,6 +237,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_nonneg_refit(ctx, job);
     double t2 = job_now();
     if (r == SB_OK) r = job_scene_measure(ctx, job);
+    if (r == SB_OK) r = job_scene_guard(ctx, job);
     double t3 = job_now();
     if (r == SB_OK) r = job_cv(ctx, job);
     if (r == SB_OK) r = job_band_pairs_measure(ctx, job, &job->best);

@@ -102,8 +102,14 @@ struct sb_job {
     sb_scene_t *scene;         /* opts.scene parsed, NULL: none (job_scene.c) */
     sb_pairs_t *domain_pairs;  /* with a scene: the whole domain's pairs */
     sb_estimate_t *domain_est; /* with a scene: the kept fit's errors over the whole domain */
-    double *rel_stored;        /* J * 4 after sb_job_write, NULL before or if unknown */
-    int wrote_sampler;         /* sb_job_write wrote sampler.bin (non-negative factors) */
+    double *scene_ref;         /* with a scene: the unweighted fit's headline per J' (job_scene_guard.c); NULL: none */
+    size_t scene_ref_terms;
+    double scene_fallback;   /* the scene fit's whole-domain error over scene_ref at J when it was replaced; 0: kept */
+    double scene_fit_inside; /* the replaced scene fit's headline at J over the scene's pairs */
+    double scene_kept_floor; /* the floor of the scene fit kept instead (floor=X), 0: the unweighted fit */
+    int no_scene_guard;      /* JOB_RUN_NO_GUARD: a candidate of job_scene_guard.c itself */
+    double *rel_stored;      /* J * 4 after sb_job_write, NULL before or if unknown */
+    int wrote_sampler;       /* sb_job_write wrote sampler.bin (non-negative factors) */
     sb_sampler_choice_t share; /* its cosine-weighted share and variance ratios (when wrote_sampler) */
     double *svd_beside;        /* non-negative method: J x {headline, rel_rms} of the SVD (job_beside.c); NULL: none */
     size_t svd_beside_terms;
@@ -264,6 +270,10 @@ void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]);
  * below the other's / JOB_BANDS_TRADE. */
 #define JOB_BANDS_TRADE 2.0
 int job_bands_trade(const double broken[2], double broken_err, const double keep[2], double keep_err);
+/* A job inside a job: as_auto bit 0 fits an explicit layout as auto fits
+ * its kept one, JOB_RUN_NO_GUARD runs no unweighted fit beside a scene's
+ * (job_scene_guard.c: its own candidates). */
+#define JOB_RUN_NO_GUARD 2
 sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
                        sb_job_t **out);
 /* Whether the solver named `name` (a method, or the factors' "method"
@@ -314,6 +324,20 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
 /* With a scene: the kept fit's estimate over the whole domain. */
 sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
+/* A scene fit against the same run without the scene beside it
+ * (job_scene_guard.c decides, job.c's job_scene_guard runs and destroys
+ * the jobs): whether the kept fit is one to compare; the unweighted fit
+ * u's headlines recorded and *replace set where the scene fit is far
+ * worse over the whole domain; whether the scene fit with a higher floor
+ * w is to be kept rather than v (either may be NULL); the scene fit
+ * replaced by u or v, whichever is lower inside the scene (the attempts
+ * set aside left in u and v). */
+#define JOB_SCENE_FLOORS 2
+extern const double job_scene_floors[JOB_SCENE_FLOORS];
+int job_scene_guarded(const sb_job_t *job);
+sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, const sb_job_t *u, int *replace);
+int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w);
+sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor);
 /* report.json's "scene" object (null without a scene). */
 void job_scene_report(sb_json_t *j, const sb_job_t *job);
 void job_scene_free(sb_job_t *job);

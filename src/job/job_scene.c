@@ -100,6 +100,15 @@ void job_scene_report(sb_json_t *j, const sb_job_t *job) {
     sb_json_int(j, "domain_pairs", (long long)(d ? d->known : 0));
     headline_array(j, "domain_headline", d, 0, J);
     headline_array(j, "domain_headline_se", d, 1, J);
+    sb_json_begin_array(j, "unweighted_headline");
+    for (size_t k = 0; k < J; k++)
+        sb_json_number(j, NULL, job->scene_ref && k < job->scene_ref_terms ? job->scene_ref[k] : NAN);
+    sb_json_end_array(j);
+    sb_json_bool(j, "fallback", job->scene_fallback > 0);
+    sb_json_number(j, "fallback_ratio", job->scene_fallback > 0 ? job->scene_fallback : NAN);
+    sb_json_number(j, "fallback_inside", job->scene_fallback > 0 ? job->scene_fit_inside : NAN);
+    sb_json_number(j, "fallback_floor",
+                   job->scene_fallback > 0 && job->scene_kept_floor > 0 ? job->scene_kept_floor : NAN);
     sb_json_end_object(j);
 }
 
@@ -107,6 +116,8 @@ void job_scene_free(sb_job_t *job) {
     sb_scene_destroy(job->scene);
     sb_pairs_destroy(job->domain_pairs);
     free(job->domain_est);
+    free(job->scene_ref);
+    job->scene_ref = NULL;
     job->scene = NULL;
     job->domain_pairs = NULL;
     job->domain_est = NULL;

@@ -77,8 +77,8 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job) {
     if (r == SB_OK) r = domain_estimate(ctx, job);
     /* terms that spoil the whole domain are dropped: zero, at the same bytes */
     size_t J = sb_factors_terms(a->f), k;
-    for (size_t n = 0;
-         r == SB_OK && !job->o.plain_terms && n < J && a->est && (k = spoiling_term(a->est, job->domain_est, J)) < J;
+    for (size_t n = 0; r == SB_OK && !job->o.plain_terms && !job->scene_fallback && n < J && a->est &&
+                       (k = spoiling_term(a->est, job->domain_est, J)) < J;
          n++) {
         if ((r = drop_term(ctx, job, k)) == SB_OK) r = domain_estimate(ctx, job);
     }

@@ -164,15 +164,16 @@ static sb_result_t parse_pairs(sb_context_t *ctx, sb_scene_t *s, const char *pat
 }
 
 /* One item KEY=VALUE of n characters; seen[] marks keys given. */
-/* floor=X: a number in [0, 1]. */
+/* floor=X: a number in [0, SB_SCENE_FLOOR_MAX]. */
 static sb_result_t parse_floor(sb_context_t *ctx, sb_scene_t *s, const char *v, size_t vn) {
     char buf[64], *end = NULL;
-    if (vn == 0 || vn >= sizeof buf) return sb_error(ctx, SB_ERR_PARSE, "scene: floor=X needs a number in 0..1");
+    if (vn == 0 || vn >= sizeof buf)
+        return sb_error(ctx, SB_ERR_PARSE, "scene: floor=X needs a number in 0..%g", SB_SCENE_FLOOR_MAX);
     memcpy(buf, v, vn);
     buf[vn] = 0;
     double x = strtod(buf, &end);
-    if (*end || !(x >= 0 && x <= 1))
-        return sb_error(ctx, SB_ERR_RANGE, "scene: floor '%s' must be a number in 0..1", buf);
+    if (*end || !(x >= 0 && x <= SB_SCENE_FLOOR_MAX))
+        return sb_error(ctx, SB_ERR_RANGE, "scene: floor '%s' must be a number in 0..%g", buf, SB_SCENE_FLOOR_MAX);
     s->floor = x;
     return SB_OK;
 }
