@@ -179,3 +179,51 @@ SB_TEST(sample_no_rows_refused) {
     rc = run_in(dir, "sample lambert --gonio 1,1,1,1 -o s.csv");
     CHECKF(rc == 0 && sb_file_exists(path), "rc %d: %s", rc, out);
 }
+
+/* Copy the gonio table `from` to `to` with the values of every `every`-th
+ * row negated (-x; every 1: all of them). */
+static int negate_rows(const char *from, const char *to, int every) {
+    FILE *in = fopen(from, "r"), *o = fopen(to, "w");
+    char line[512];
+    int k = 0, header = 0;
+    while (in && o && fgets(line, sizeof line, in)) {
+        double a[4], v[3];
+        if (line[0] == '#' || !header) {
+            header |= line[0] != '#';
+            fputs(line, o);
+            continue;
+        }
+        if (sscanf(line, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", a, a + 1, a + 2, a + 3, v, v + 1, v + 2) != 7) break;
+        double s = k++ % every == 0 ? -1 : 1;
+        fprintf(o, "%g,%g,%g,%g,%.17g,%.17g,%.17g\n", a[0], a[1], a[2], a[3], s * v[0], s * v[1], s * v[2]);
+    }
+    int ok = in && o && k > 0;
+    if (in) fclose(in);
+    if (o) fclose(o);
+    return ok;
+}
+
+/* A table whose values are negated (a sign or unit error) is refused
+ * naming the mean and the negative rows, nothing written (before: exit 0,
+ * headline 1.0, no word); one with a fifth of its rows negative is fitted
+ * with a warning that says how many. */
+SB_TEST(negative_values_refused_or_warned) {
+    const char *dir = sb_tmpdir("rel_negative");
+    char from[4200], to[4200], path[4200];
+    int rc = run_in(dir, "sample lambert --gonio 6,4,6,8 -o t.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(from, sizeof from, "%s/t.csv", dir);
+    snprintf(to, sizeof to, "%s/neg.csv", dir);
+    CHECK(negate_rows(from, to, 1));
+    rc = run_in(dir, "factor neg.csv -r 8 -J 1 -q -o n");
+    CHECKF(rc == 2 && strstr(out, "neg.csv") && strstr(out, "is not negative") && strstr(out, "1152 of 1152 rows"),
+           "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/n", dir);
+    CHECK(!sb_file_exists(path));
+    snprintf(to, sizeof to, "%s/some.csv", dir);
+    CHECK(negate_rows(from, to, 5));
+    rc = run_in(dir, "factor some.csv -r 8 -J 1 -q -o s");
+    CHECKF(rc == 0 && strstr(out, "231 of 1152 rows (20%) hold a negative value"), "rc %d: %s", rc, out);
+    rc = run_in(dir, "factor t.csv -r 8 -J 1 -q -o t");
+    CHECKF(rc == 0 && !strstr(out, "negative"), "rc %d: %s", rc, out);
+}

@@ -145,6 +145,9 @@ void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf,
  * longer lower the error at the measured samples; replaces the warnings of
  * the previous check.  Nothing for analytic sources. */
 void job_warn_support(sb_job_t *job);
+/* A measured table's values refused (mean not positive) or warned about
+ * (many negative rows) before any fit (job_support.c). */
+sb_result_t job_check_values(sb_context_t *ctx, sb_job_t *job);
 /* A warning for each candidate of --param auto lost to memory (the memory
  * limit, an allocation) or a failure, not those ranked out or too small
  * for J: a result that may be worse than a lost one is never silent. */
