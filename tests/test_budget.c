@@ -292,13 +292,13 @@ SB_TEST(batch_budget) {
 /* A ladder that cannot win stops at R = 16: on a sharp lobe (Cook-Torrance
  * 0.1, iso, warps auto) the layout's own warps are more than twice the
  * adaptive warps' best at R = 16 and gain less than that factor from R =
- * 12 to 16, so no finer R is fitted with them (before: R = 24 to 64, a
- * quarter of the fits); the choice is the one the whole search made. */
+ * 12 to 16, so no finer R is fitted with them (before: R = 24 and 32 at
+ * 6 KiB); the choice is the one the whole search made. */
 SB_TEST(hopeless_ladder_stops) {
     sb_job_opts_t o = {0};
     o.source = "cook-torrance:roughness=0.1";
     o.param = "iso";
-    o.budget = 16 * 1024;
+    o.budget = 6 * 1024;
     sb_job_t *job = NULL;
     sb_result_t r = sb_job_run(NULL, &o, &job);
     CHECKF(r == SB_OK, "run: %s", sb_result_name(r));
@@ -318,6 +318,6 @@ SB_TEST(hopeless_ladder_stops) {
     CHECK(adaptive_past > 0);
     sb_job_budget_t b;
     CHECK(sb_job_budget(job, &b) == 1);
-    CHECK(b.chosen.adaptive && b.chosen.res > 16 && b.chosen.headline == best);
+    CHECK(b.chosen.adaptive && b.chosen.headline == best);
     sb_job_destroy(job);
 }
