@@ -227,3 +227,30 @@ SB_TEST(negative_values_refused_or_warned) {
     rc = run_in(dir, "factor t.csv -r 8 -J 1 -q -o t");
     CHECKF(rc == 0 && !strstr(out, "negative"), "rc %d: %s", rc, out);
 }
+
+/* sample takes the table options as info, convert, factor and view do
+ * (before: "--interp" was an unknown option): the interpolation asked
+ * for is the one that measures the table between its rows, a bad value
+ * exits 1 naming the option. */
+SB_TEST(sample_table_options) {
+    const char *dir = sb_tmpdir("rel_sample_opts");
+    char a[4200], b[4200];
+    int rc = run_in(dir, "sample microfacet:base=gold,roughness=0.5 --gonio 6,1,6,12 -o t.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = run_in(dir, "sample t.csv --gonio 5,1,5,10 --interp nearest -o n.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = run_in(dir, "sample t.csv --gonio 5,1,5,10 --interp idw --neighbours 6 -o i.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(a, sizeof a, "%s/n.csv", dir);
+    snprintf(b, sizeof b, "%s/i.csv", dir);
+    FILE *fa = fopen(a, "r"), *fb = fopen(b, "r");
+    int differ = 0, lines = 0;
+    char la[512], lb[512];
+    while (fa && fb && fgets(la, sizeof la, fa) && fgets(lb, sizeof lb, fb))
+        differ += strcmp(la, lb) != 0, lines++;
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    CHECKF(lines > 100 && differ > 50, "%d of %d lines differ", differ, lines);
+    rc = run_in(dir, "sample t.csv --interp cubic -o c.csv");
+    CHECKF(rc == 1 && strstr(out, "--interp"), "rc %d: %s", rc, out);
+}
