@@ -107,6 +107,11 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
     if (r == SB_OK && fit) r = job_refine(ctx, job, &lv, &a);
     if (r == SB_OK && fit && job->o.max_error > 0) r = job_keep_fewest(ctx, job, &lv, &a);
     int worse = r == SB_OK && fit && strcmp(warp, "auto") == 0 && !warp_better(job, &a, b);
+    if (r == SB_OK && worse && (job->fit_pending & FINISH_PENDING)) { /* the unwarped fit whole, then again */
+        r = job_fit_finish(ctx, job);
+        worse = r == SB_OK && !warp_better(job, &a, b);
+    }
+    job->fit_pending = 0;
     if (r != SB_OK || worse) {
         job_attempt_free(&a);
         return r;
