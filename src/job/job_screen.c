@@ -212,7 +212,7 @@ sb_result_t job_keep_fewest(sb_context_t *ctx, sb_job_t *job, const job_level_t 
  * warps on it: its converged fit and refinement are then left until the
  * warped fit is known (job_fit_finish), since a warped fit that is better
  * replaces it whole (the Cornell acrylic: 0.24 unwarped, 0.020 warped;
- * the skipped work was a seventh of the default run). */
+ * the skipped work was a fifth of the default run's CPU). */
 static int warp_first(const sb_job_t *job, const job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f);
     J = J < a->est->terms ? J : a->est->terms;
