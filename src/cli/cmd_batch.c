@@ -324,6 +324,8 @@ static int skip_name(const char *name) {
  * material: its header, the first line not a comment, names theta_i)
  * rather than a manifest (which names source). */
 static int gonio_csv(const char *path) {
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return 0; /* a FIFO is not opened (manifest() says so) */
     FILE *fp = fopen(path, "r");
     char line[1024];
     int is = 0;
