@@ -528,3 +528,28 @@ SB_TEST(interrupted_other_settings_no_stale_summary) {
     CHECK(row && strstr(row, ",io:res=8,f,3,") && strstr(row, ",io:res=8,f,3,") < strchr(row + 1, '\n'));
     free(csv);
 }
+
+/* A gonio table written as CSV is a material, in a folder and given by its
+ * path (before: skipped in a folder without a word, read as a manifest
+ * when given); the files a folder's expansion skips are named on stderr. */
+SB_TEST(gonio_csv_tables_batched) {
+    const char *dir = sb_tmpdir("batch_csv");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd %s && mkdir t && %s sample lambert --gonio 4,2,4,8 -o t/lam.csv && echo notes > t/README.md && "
+             "printf 'source\\nlambert\\n' > t/list.csv",
+             dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch t -r 8 -J 1 -o o", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "batch: 1 materials") && strstr(out, "2 files skipped") &&
+               strstr(out, "README.md, list.csv"),
+           "rc %d: %s", rc, out);
+    char *s = slurp(dir, "o", "summary.csv", NULL);
+    CHECKF(s && strstr(s, "lam,"), "summary: %s", s ? s : "(none)");
+    free(s);
+    snprintf(cmd, sizeof cmd, "cd %s && %s batch t/lam.csv -r 8 -J 1 -o p", dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "batch: 1 materials"), "rc %d: %s", rc, out);
+}

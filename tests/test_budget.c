@@ -288,3 +288,36 @@ SB_TEST(batch_budget) {
         CHECKF(written > 0 && written <= (k ? 4096 : 2048), "run %d: %g bytes", k, written);
     }
 }
+
+/* A ladder that cannot win stops at R = 16: on a sharp lobe (Cook-Torrance
+ * 0.1, iso, warps auto) the layout's own warps are more than twice the
+ * adaptive warps' best at R = 16 and gain less than that factor from R =
+ * 12 to 16, so no finer R is fitted with them (before: R = 24 and 32 at
+ * 6 KiB); the choice is the one the whole search made. */
+SB_TEST(hopeless_ladder_stops) {
+    sb_job_opts_t o = {0};
+    o.source = "cook-torrance:roughness=0.1";
+    o.param = "iso";
+    o.budget = 6 * 1024;
+    sb_job_t *job = NULL;
+    sb_result_t r = sb_job_run(NULL, &o, &job);
+    CHECKF(r == SB_OK, "run: %s", sb_result_name(r));
+    if (r != SB_OK) return;
+    double own16 = INFINITY, adaptive16 = INFINITY, best = INFINITY;
+    size_t own_past = 0, adaptive_past = 0, n = sb_job_budget_tried_count(job);
+    for (size_t i = 0; i < n; i++) {
+        const sb_job_budget_try_t *e = sb_job_budget_tried(job, i);
+        double *at = e->adaptive ? &adaptive16 : &own16;
+        if (e->res <= 16 && e->headline < *at) *at = e->headline;
+        if (e->res > 16) ++*(e->adaptive ? &adaptive_past : &own_past);
+        if (e->headline < best) best = e->headline;
+    }
+    CHECKF(own16 > 2 * adaptive16, "own %g, adaptive %g at R <= 16: the case no longer tests the stop", own16,
+           adaptive16);
+    CHECKF(own_past == 0, "%zu entries of the own warps past R = 16", own_past);
+    CHECK(adaptive_past > 0);
+    sb_job_budget_t b;
+    CHECK(sb_job_budget(job, &b) == 1);
+    CHECK(b.chosen.adaptive && b.chosen.headline == best);
+    sb_job_destroy(job);
+}

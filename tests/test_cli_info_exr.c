@@ -88,3 +88,24 @@ SB_TEST(not_factor_files) {
     CHECK(run("info %s", path) == 2);
     CHECK(strstr(out, "missing.exr"));
 }
+
+/* info on folders: the set `factor` wrote is described by its first
+ * texture and its report named (before: "not a file this command
+ * knows"); a folder without factors (a render's) is refused saying what
+ * info takes; view on a render's folder says that it is one (before:
+ * "g_00.exr: cannot read as OpenEXR"). */
+SB_TEST(folders) {
+    const char *dir = factor_dir();
+    int rc = run("info %s", dir);
+    CHECKF(rc == 0 && strstr(out, "a factor set") && strstr(out, "report.json") && strstr(out, "term 0 of J = 3"),
+           "rc %d: %s", rc, out);
+    char rdir[4300];
+    snprintf(rdir, sizeof rdir, "%s/r", sb_tmpdir("info_render"));
+    rc = run("render lambert -s 16 -o %s", rdir);
+    CHECKF(rc == 0, "render: rc %d: %s", rc, out);
+    rc = run("info %s", rdir);
+    CHECKF(rc == 2 && strstr(out, "a folder without factors") && strstr(out, "a folder `factor` wrote"), "rc %d: %s",
+           rc, out);
+    rc = run("view %s", rdir);
+    CHECKF(rc == 2 && strstr(out, "no factors in it") && strstr(out, "`sepbrdf render` wrote"), "rc %d: %s", rc, out);
+}

@@ -179,3 +179,78 @@ SB_TEST(sample_no_rows_refused) {
     rc = run_in(dir, "sample lambert --gonio 1,1,1,1 -o s.csv");
     CHECKF(rc == 0 && sb_file_exists(path), "rc %d: %s", rc, out);
 }
+
+/* Copy the gonio table `from` to `to` with the values of every `every`-th
+ * row negated (-x; every 1: all of them). */
+static int negate_rows(const char *from, const char *to, int every) {
+    FILE *in = fopen(from, "r"), *o = fopen(to, "w");
+    char line[512];
+    int k = 0, header = 0;
+    while (in && o && fgets(line, sizeof line, in)) {
+        double a[4], v[3];
+        if (line[0] == '#' || !header) {
+            header |= line[0] != '#';
+            fputs(line, o);
+            continue;
+        }
+        if (sscanf(line, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", a, a + 1, a + 2, a + 3, v, v + 1, v + 2) != 7) break;
+        double s = k++ % every == 0 ? -1 : 1;
+        fprintf(o, "%g,%g,%g,%g,%.17g,%.17g,%.17g\n", a[0], a[1], a[2], a[3], s * v[0], s * v[1], s * v[2]);
+    }
+    int ok = in && o && k > 0;
+    if (in) fclose(in);
+    if (o) fclose(o);
+    return ok;
+}
+
+/* A table whose values are negated (a sign or unit error) is refused
+ * naming the mean and the negative rows, nothing written (before: exit 0,
+ * headline 1.0, no word); one with a fifth of its rows negative is fitted
+ * with a warning that says how many. */
+SB_TEST(negative_values_refused_or_warned) {
+    const char *dir = sb_tmpdir("rel_negative");
+    char from[4200], to[4200], path[4200];
+    int rc = run_in(dir, "sample lambert --gonio 6,4,6,8 -o t.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(from, sizeof from, "%s/t.csv", dir);
+    snprintf(to, sizeof to, "%s/neg.csv", dir);
+    CHECK(negate_rows(from, to, 1));
+    rc = run_in(dir, "factor neg.csv -r 8 -J 1 -q -o n");
+    CHECKF(rc == 2 && strstr(out, "neg.csv") && strstr(out, "is not negative") && strstr(out, "1152 of 1152 rows"),
+           "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/n", dir);
+    CHECK(!sb_file_exists(path));
+    snprintf(to, sizeof to, "%s/some.csv", dir);
+    CHECK(negate_rows(from, to, 5));
+    rc = run_in(dir, "factor some.csv -r 8 -J 1 -q -o s");
+    CHECKF(rc == 0 && strstr(out, "231 of 1152 rows (20%) hold a negative value"), "rc %d: %s", rc, out);
+    rc = run_in(dir, "factor t.csv -r 8 -J 1 -q -o t");
+    CHECKF(rc == 0 && !strstr(out, "negative"), "rc %d: %s", rc, out);
+}
+
+/* sample takes the table options as info, convert, factor and view do
+ * (before: "--interp" was an unknown option): the interpolation asked
+ * for is the one that measures the table between its rows, a bad value
+ * exits 1 naming the option. */
+SB_TEST(sample_table_options) {
+    const char *dir = sb_tmpdir("rel_sample_opts");
+    char a[4200], b[4200];
+    int rc = run_in(dir, "sample microfacet:base=gold,roughness=0.5 --gonio 6,1,6,12 -o t.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = run_in(dir, "sample t.csv --gonio 5,1,5,10 --interp nearest -o n.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = run_in(dir, "sample t.csv --gonio 5,1,5,10 --interp idw --neighbours 6 -o i.csv");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(a, sizeof a, "%s/n.csv", dir);
+    snprintf(b, sizeof b, "%s/i.csv", dir);
+    FILE *fa = fopen(a, "r"), *fb = fopen(b, "r");
+    int differ = 0, lines = 0;
+    char la[512], lb[512];
+    while (fa && fb && fgets(la, sizeof la, fa) && fgets(lb, sizeof lb, fb))
+        differ += strcmp(la, lb) != 0, lines++;
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    CHECKF(lines > 100 && differ > 50, "%d of %d lines differ", differ, lines);
+    rc = run_in(dir, "sample t.csv --interp cubic -o c.csv");
+    CHECKF(rc == 1 && strstr(out, "--interp"), "rc %d: %s", rc, out);
+}

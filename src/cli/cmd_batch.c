@@ -44,8 +44,9 @@ static void help(void) {
            "OUT/summary.json and a table ranked by headline error to stdout.\n"
            "\n"
            "INPUT  a measured file or model spec; a folder (its files, except hidden ones\n"
-           "       and *.md, *.txt, *.csv, *.json); a quoted glob ('data/*.binary'); or a\n"
-           "       manifest FILE.csv: a header line naming `source` and any options of\n"
+           "       and *.md, *.txt, *.json, and *.csv but gonio tables: said on stderr); a\n"
+           "       quoted glob ('data/*.binary'); a gonio table FILE.csv (its header names\n"
+           "       theta_i); or a manifest FILE.csv: a header line naming `source` and any options of\n"
            "       `factor` without dashes (param, form, terms, res, method, ...), then\n"
            "       one material per row (empty cell: the command line's value; a flag:\n"
            "       1 or 0; a relative file is found beside the manifest).  Read as\n"
@@ -319,6 +320,24 @@ static int skip_name(const char *name) {
     return 0;
 }
 
+/* Whether the .csv file at path is a gonio table (sepbrdf CSV, a
+ * material: its header, the first line not a comment, names theta_i)
+ * rather than a manifest (which names source). */
+static int gonio_csv(const char *path) {
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return 0; /* a FIFO is not opened (manifest() says so) */
+    FILE *fp = fopen(path, "r");
+    char line[1024];
+    int is = 0;
+    while (fp && fgets(line, sizeof line, fp))
+        if (line[0] != '#' && line[strspn(line, " \t\r\n")]) {
+            is = strstr(line, "theta_i") != NULL && strstr(line, "source") == NULL;
+            break;
+        }
+    if (fp) fclose(fp);
+    return is;
+}
+
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
 /* One INPUT: manifest, folder, glob or source. */
@@ -326,7 +345,8 @@ static int input(batch_t *b, const char *in) {
     struct stat st;
     size_t n = strlen(in), before = b->n;
     int isdir = stat(in, &st) == 0 && S_ISDIR(st.st_mode);
-    if (!isdir && n > 4 && strcmp(in + n - 4, ".csv") == 0 && access(in, F_OK) == 0) return manifest(b, in);
+    if (!isdir && n > 4 && strcmp(in + n - 4, ".csv") == 0 && access(in, F_OK) == 0 && !gonio_csv(in))
+        return manifest(b, in);
     glob_t g = {0};
     int rc = EXIT_OK;
     if (isdir) {
@@ -340,16 +360,29 @@ static int input(batch_t *b, const char *in) {
         return EXIT_IO;
     }
     if (g.gl_pathc) qsort(g.gl_pathv, g.gl_pathc, sizeof *g.gl_pathv, cmp_str);
+    size_t skipped = 0;
+    char names[160] = "";
     for (size_t i = 0; i < g.gl_pathc && rc == EXIT_OK; i++) {
-        const char *slash = strrchr(g.gl_pathv[i], '/'), *path;
-        if (stat(g.gl_pathv[i], &st) != 0 || !S_ISREG(st.st_mode) || skip_name(slash ? slash + 1 : g.gl_pathv[i]))
+        const char *slash = strrchr(g.gl_pathv[i], '/'), *path, *name = slash ? slash + 1 : g.gl_pathv[i];
+        if (stat(g.gl_pathv[i], &st) != 0 || !S_ISREG(st.st_mode)) continue;
+        if (skip_name(name) && !(name[0] != '.' && strlen(name) > 4 && !strcmp(name + strlen(name) - 4, ".csv") &&
+                                 gonio_csv(g.gl_pathv[i]))) {
+            if (name[0] != '.' && skipped++ < 3)
+                snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", skipped > 1 ? ", " : "", name);
             continue;
+        }
         if (!(path = own_copy(b, g.gl_pathv[i])) || add(b, path, &b->base, NULL)) rc = EXIT_USAGE;
     }
     globfree(&g);
+    if (rc == EXIT_OK && skipped)
+        cli_info(1, "batch: '%s': %zu file%s skipped (*.md, *.txt, *.json, CSV files that are no gonio table): %s%s",
+                 in, skipped, skipped == 1 ? "" : "s", names, skipped > 3 ? ", ..." : "");
     if (rc == EXIT_OK && b->n == before) {
-        cli_error("batch", "'%s': no material file %s (hidden files and *.md, *.txt, *.csv, *.json are skipped)", in,
-                  isdir ? "in this folder" : "matches");
+        cli_error(
+            "batch",
+            "'%s': no material file %s (hidden files, *.md, *.txt, *.json and CSV files that are no gonio table are "
+            "skipped)",
+            in, isdir ? "in this folder" : "matches");
         rc = EXIT_IO;
     }
     return rc;

@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli.h"
 
@@ -251,7 +252,30 @@ static int is_factor_exr(const char *path) {
 }
 static int info_factors(const info_opts_t *o) { return info_exr(o->path, stdout); }
 
+/* A folder: the set `factor` wrote (its first texture, g_00.exr, says
+ * what the set is) or refused saying what info takes. */
+static int is_dir(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+static int info_folder(const info_opts_t *o) {
+    char g[4200], rep[4200];
+    snprintf(g, sizeof g, "%s/g_00.exr", o->path);
+    snprintf(rep, sizeof rep, "%s/report.json", o->path);
+    if (access(g, F_OK) != 0) {
+        cli_error("info",
+                  "%s: a folder without factors (no g_00.exr: not a set `factor` wrote); info takes a measured "
+                  "table (%s), a factor texture (.exr) or a folder `factor` wrote",
+                  o->path, formats_text());
+        return EXIT_IO;
+    }
+    printf("%s: a factor set (its errors, timings and choices: %s%s)\n", o->path, rep,
+           access(rep, F_OK) == 0 ? "" : ", missing");
+    return info_exr(g, stdout);
+}
+
 static const info_kind_t kinds[] = {
+    {"factor folder", is_dir, info_folder},
     {"factor textures", is_factor_exr, info_factors},
     {"measured table", is_regular_file, info_measured},
 };

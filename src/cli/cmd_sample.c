@@ -58,7 +58,8 @@ static const cli_option_t sample_only[] = {
 };
 
 static void help(void) {
-    printf("usage: sepbrdf sample SOURCE [--gonio Nti,Npi,Nto,Npo] [--noise SIGMA] [--seed S] [-o FILE]\n"
+    printf("usage: sepbrdf sample SOURCE [--gonio Nti,Npi,Nto,Npo] [--noise SIGMA] [--seed S] [table options]\n"
+           "       [-o FILE]\n"
            "\n"
            "Measure SOURCE (a model spec, see `sepbrdf list`, or a measured file) at\n"
            "the positions of a simulated gonioreflectometer and write a sepbrdf CSV\n"
@@ -72,7 +73,7 @@ static void help(void) {
            "                       (Npi = 1) suffices for an isotropic source.\n");
     cli_table_help(sample_only, CLI_OWN);
     printf("  -o, --out FILE       output CSV (default: standard output); written to a\n"
-           "                       temporary name and renamed when complete\n" CLI_VERBOSITY_HELP "\n"
+           "                       temporary name and renamed when complete\n" CLI_MEASURED_HELP CLI_VERBOSITY_HELP "\n"
            "Rows where SOURCE has no value (a table's missing pairs) are left out.\n\n" CLI_EXIT_HELP);
 }
 
@@ -87,11 +88,14 @@ static sb_result_t no_rows(sb_context_t *ctx, const sb_gonio_opts_t *go) {
 int cmd_sample(int argc, char **argv) {
     const char *source = NULL, *out = NULL;
     sb_gonio_opts_t go = {18, 1, 18, 72, 0, 1};
+    sb_measured_opts_t mo;
+    memset(&mo, 0, sizeof mo);
     cli_parser_t p = {.cmd = "sample",
                       .help = help,
                       .out_what = "file",
                       .out = &out,
                       .tables = {{sample_only, CLI_OWN, &go, NULL}},
+                      .measured = &mo,
                       .what = "SOURCE",
                       .args = &source,
                       .max_args = 1};
@@ -116,7 +120,7 @@ int cmd_sample(int argc, char **argv) {
         return EXIT_IO;
     }
     /* The source is opened before anything is written. */
-    if ((r = sb_source_open(ctx, source, &src)) != SB_OK) {
+    if ((r = sb_job_source_open(ctx, source, &mo, &src)) != SB_OK) {
         rc = cli_fail("sample", ctx, r);
         goto done;
     }

@@ -119,6 +119,15 @@ static int write_page(sb_context_t *ctx, const view_opts_t *o) {
     char *glsl = NULL, *report = NULL;
     int rc = -1;
     sb_result_t r;
+    char g[4200];
+    struct stat st;
+    snprintf(g, sizeof g, "%s/g_00.exr", o->dir);
+    if (stat(o->dir, &st) == 0 && S_ISDIR(st.st_mode) && stat(g, &st) != 0) { /* a render's folder, or any other */
+        snprintf(g, sizeof g, "%s/render.json", o->dir);
+        cli_error("view", "%s: no factors in it (no g_00.exr)%s: view shows a folder `sepbrdf factor` wrote", o->dir,
+                  stat(g, &st) == 0 ? "; it is a folder `sepbrdf render` wrote (its PNGs are the images)" : "");
+        return EXIT_IO;
+    }
     if ((r = sb_factors_read_exr(ctx, o->dir, &f)) != SB_OK || (r = sb_factors_param(ctx, f, &param, &form)) != SB_OK) {
         rc = cli_fail("view", ctx, r);
         goto out;

@@ -229,6 +229,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     int blas = sb_blas_threads_begin();
     job->blas_threads = blas;
     sb_result_t r = resolve(ctx, job, opts, &kind, &form);
+    if (r == SB_OK) r = job_check_values(ctx, job);
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
     if (r == SB_OK) r = job->budget ? job_budget_select(ctx, job) : job_select(ctx, job);
     if (r == SB_OK && !job->budget) r = job_warp_refit(ctx, job);

@@ -113,9 +113,10 @@ struct sb_job {
     sb_sampler_choice_t share; /* its cosine-weighted share and variance ratios (when wrote_sampler) */
     double *svd_beside;        /* non-negative method: J x {headline, rel_rms} of the SVD (job_beside.c); NULL: none */
     size_t svd_beside_terms;
-    char svd_method[16]; /* the method the SVD beside used ("masked", "circulant", ...) */
-    double svd_s;        /* its whole run */
-    int warp_tried;      /* no --warp given, and "auto" was tried (job_warp.c) */
+    char svd_method[16];  /* the method the SVD beside used ("masked", "circulant", ...) */
+    double svd_s;         /* its whole run */
+    int warp_tried;       /* no --warp given, and "auto" was tried (job_warp.c) */
+    unsigned fit_pending; /* job_fit_kept's FINISH_* flags; FINISH_PENDING: best awaits job_fit_finish */
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */
@@ -155,6 +156,9 @@ void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf,
  * longer lower the error at the measured samples; replaces the warnings of
  * the previous check.  Nothing for analytic sources. */
 void job_warn_support(sb_job_t *job);
+/* A measured table's values refused (mean not positive) or warned about
+ * (many negative rows) before any fit (job_support.c). */
+sb_result_t job_check_values(sb_context_t *ctx, sb_job_t *job);
 /* A warning for each candidate of --param auto lost to memory (the memory
  * limit, an allocation) or a failure, not those ranked out or too small
  * for J: a result that may be worse than a lost one is never silent. */
@@ -294,6 +298,15 @@ void job_screen(sb_context_t *ctx, sb_job_t *job);
 /* Sample and factor candidate c at the requested settings (o.res, o.terms,
  * job->shape) into job->best, as the kept one of job_select. */
 sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c);
+/* The rest of job_fit_kept's fit of job->best (the converged fit tried,
+ * the estimate grown, refinement, --max-error's fewest terms), which it
+ * leaves pending (FINISH_PENDING in job->fit_pending) where a warped fit
+ * will be tried first (job_warp.c). */
+#define FINISH_EARLY 1u     /* the fit was stopped early (auto) */
+#define FINISH_CONVERGED 2u /* the converged fit is tried above JOB_CONVERGED_TRY */
+#define FINISH_TWO 4u       /* two fits were compared on a ranking's estimate */
+#define FINISH_PENDING 8u
+sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job);
 /* The masked fit's early stop (a sweep gaining less than 1e-3, at most 20
  * per stage) into lv, unless the caller set its own. */
 void job_early_stop(const sb_job_t *job, job_level_t *lv);

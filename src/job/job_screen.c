@@ -252,10 +252,25 @@ sb_result_t job_keep_fewest(sb_context_t *ctx, sb_job_t *job, const job_level_t 
     return job_truncate(ctx, a, bounded ? bounded : met ? met : sb_factors_terms(a->f));
 }
 
+/* Whether the kept fit a, stopped early, leaves so much (twice
+ * JOB_WARP_TRY at J, within the band bounds) that job_warp_refit will try
+ * warps on it: its converged fit and refinement are then left until the
+ * warped fit is known (job_fit_finish), since a warped fit that is better
+ * replaces it whole (the Cornell acrylic: 0.24 unwarped, 0.020 warped;
+ * the skipped work was a fifth of the default run's CPU). */
+static int warp_first(const sb_job_t *job, const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    J = J < a->est->terms ? J : a->est->terms;
+    return !job->o.warp && !job->o.sample_only && !job->budget && !job->scene && !(job->o.max_error > 0) &&
+           job->shape != &job->spec_shape && (sb_param_caps(a->param) & SB_CAP_WARPS) &&
+           rank_error(a) > 2 * JOB_WARP_TRY && sb_estimate_bands_bounded(a->est, J) == 1;
+}
+
 /* Sample and factor candidate c at the requested settings into job->best;
  * with max_error, keep the fewest terms whose headline meets it. */
 sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
     job_level_t lv = full_level(job);
+    job->fit_pending = 0;
     sb_result_t r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
     job_progress(job, lv.label, 1);
     /* masked: auto fits once with the early stop (its screening ranked
@@ -276,7 +291,24 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
     lv.rank_only = lv.rank_at_j = two; /* the two fits compared on their headlines at J */
     if (r == SB_OK) r = job_factor(ctx, job, &lv, c->weighted, &job->best);
     if (r == SB_OK && two) r = job_keep_early_fit(ctx, job, &lv, &job->best);
-    if (r == SB_OK && masked && as_auto && !nonneg && rank_error(&job->best) > JOB_CONVERGED_TRY) {
+    job->fit_pending = (masked && as_auto ? FINISH_EARLY : 0) | (masked && as_auto && !nonneg ? FINISH_CONVERGED : 0) |
+                       (two ? FINISH_TWO : 0);
+    if (r == SB_OK && (job->fit_pending & FINISH_CONVERGED) && warp_first(job, &job->best)) {
+        job->fit_pending |= FINISH_PENDING; /* job_fit_finish, when the warped fit does not replace it */
+        return SB_OK;
+    }
+    if (r == SB_OK) r = job_fit_finish(ctx, job);
+    if (r != SB_OK) job_attempt_free(&job->best);
+    return r;
+}
+
+sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job) {
+    job_level_t lv = full_level(job);
+    sb_result_t r = SB_OK;
+    unsigned f = job->fit_pending;
+    int two = (f & FINISH_TWO) != 0;
+    job->fit_pending = 0;
+    if ((f & FINISH_CONVERGED) && rank_error(&job->best) > JOB_CONVERGED_TRY) {
         /* auto's early-stopped fit leaves more than JOB_CONVERGED_TRY:
          * the fit to convergence too, the better kept (GGX roughness 0.3,
          * F0 0.04, iso, J = 4: 2.7 % -> 1.9 %) */
@@ -286,13 +318,11 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
         r = keep_better_fit(ctx, job, &conv, &job->best);
         two = 1; /* the kept one's estimate grows below */
     }
-    lv.est_max_pairs = 0;
-    lv.rank_only = lv.rank_at_j = 0;
+    if (f & FINISH_EARLY) job_early_stop(job, &lv); /* as the fit was made */
     if (r == SB_OK && two && !job->best.est->converged && !job->best.est_rank)
         r = job_estimate(ctx, job, &lv, &job->best); /* a ranking's estimate is redone in job_refine */
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &job->best);
     if (r == SB_OK && job->o.max_error > 0) r = job_keep_fewest(ctx, job, &lv, &job->best);
-    if (r != SB_OK) job_attempt_free(&job->best);
     return r;
 }
 

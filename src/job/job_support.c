@@ -24,6 +24,29 @@ static size_t supported_terms(const sb_sample_errors_t *se) {
     return best + 1;
 }
 
+/* A scattered table's values against what a BRDF is (f >= 0): refused
+ * when their mean is not positive (every value negated: a sign or unit
+ * error, which the fit returned as a headline of 1.0, exit 0); a warning
+ * when more than JOB_NEGATIVE_WARN of the rows hold a negative value
+ * (kept: a little measurement noise around 0 averages out). */
+#define JOB_NEGATIVE_WARN 0.1
+sb_result_t job_check_values(sb_context_t *ctx, sb_job_t *job) {
+    const sb_measured_info_t *in = sb_measured_source_info(job->src);
+    if (!in || !in->dims || !in->samples) return SB_OK;
+    double mean = in->value_mean[0] + in->value_mean[1] + in->value_mean[2];
+    if (!(mean > 0))
+        return sb_error(ctx, SB_ERR_FORMAT,
+                        "%s: the mean of its values is %.3g 1/sr (%zu of %zu rows negative): a BRDF is not negative; "
+                        "are the values negated or in other units?",
+                        sb_source_description(job->src), mean / 3, in->negative, in->samples);
+    if ((double)in->negative > JOB_NEGATIVE_WARN * (double)in->samples)
+        job_warn(job,
+                 "%zu of %zu rows (%.0f%%) hold a negative value: kept as measured (noise around 0 averages out), "
+                 "but a BRDF is not negative and the fit follows them",
+                 in->negative, in->samples, 100.0 * (double)in->negative / (double)in->samples);
+    return SB_OK;
+}
+
 /* Drop the previous check's warnings: a refactor asks again. */
 static void drop_support(sb_job_t *job) {
     for (; job->nsupport && job->nwarn; job->nsupport--)
