@@ -201,13 +201,17 @@ SB_TEST(failures_keep_others) {
     CHECKF(csv && count_lines(csv) == 1 + 3, "csv: %s", csv ? csv : "(none)");
     const char *json = slurp(dir, "study.json");
     CHECK(json && strstr(json, "\"failed\": 2") && strstr(json, "\"ok\": false") && strstr(json, "\"ok\": true"));
-    /* a run that fails after sampling starts: J above the matrix size */
-    rc = run("study lambert --param io --terms 1..5 --res 2 -o %s/b%s", dir, "");
-    CHECKF(rc == 2, "rc %d: %s", rc, out);
-    CHECK(strstr(out, "--terms 5 exceeds"));
+    /* every run failed, one after sampling started (J above the matrix
+     * size): said, nothing written, and the folder keeps its earlier set */
     char b[4200];
     snprintf(b, sizeof b, "%s/b", dir);
-    CHECK(slurp(b, "study.csv") && slurp(b, "study.json"));
+    rc = run("study lambert --param io --terms 1..2 --res 4 -o %s/b%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = run("study lambert --param io --terms 1..5 --res 2 -o %s/b%s", dir, "");
+    CHECKF(rc == 2 && strstr(out, "--terms 5 exceeds") && strstr(out, "every run failed (1); nothing written"),
+           "rc %d: %s", rc, out);
+    const char *kept = slurp(b, "study.csv");
+    CHECKF(kept && count_lines(kept) == 1 + 2, "the earlier set is gone: %s", kept ? kept : "(none)");
 }
 
 SB_TEST(param_all) {

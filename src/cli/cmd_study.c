@@ -482,6 +482,11 @@ static int publish(sb_context_t *ctx, const study_opts_t *o, const runs_t *rs, d
             failed++;
     }
     int rc, plotted = 0;
+    if (!good) { /* nothing to show: the folder keeps what it held */
+        if (g_verbosity >= 1) print_table(o, rs);
+        cli_error("study", "every run failed (%zu); nothing written to %s", failed, o->out);
+        return EXIT_IO;
+    }
     sb_outset_t *set = cli_outset_begin(ctx, "study", o->out, &rc);
     if (!set) return rc;
     if (study_write_set(set, o, rs, failed, good, &plotted) != 0) {
