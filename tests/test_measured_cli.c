@@ -806,9 +806,11 @@ SB_TEST(cv_predicts_unseen_measurements) {
     sb_source_destroy(other);
 }
 
-/* convert to MERL says what it wrote that the table did not measure: an
- * RGL file's f cos theta_o divided by grazing cosines exceeds its largest
- * measured value (counted, and warned about by the CLI); a model has no
+/* convert to MERL writes only what the table measured: an RGL file's f
+ * cos theta divided by grazing cosines (cells above its largest measured
+ * value, cells with the light within 1 deg of the horizon) is written as
+ * missing and counted; --extrapolated keep / --horizon 0 write them (the
+ * old behaviour: values up to 1e4-1e7), with a warning; a model has no
  * measured range. */
 SB_TEST(convert_merl_reports_extrapolation) {
     const char *dir = sb_tmpdir("mcli");
@@ -818,18 +820,82 @@ SB_TEST(convert_merl_reports_extrapolation) {
     sb_source_t *s = NULL, *m = NULL;
     CHECK(sb_source_open(NULL, src, &s) == SB_OK && sb_source_open(NULL, "lambert", &m) == SB_OK);
     if (!s || !m) return;
-    sb_merl_write_stats_t st;
-    CHECK(sb_merl_write_stats(NULL, bin, s, &st) == SB_OK);
+    sb_merl_write_stats_t st, kept;
+    CHECK(sb_merl_write_stats(NULL, bin, s, NULL, &st) == SB_OK);
     const sb_measured_info_t *in = sb_measured_source_info(s);
     CHECK(st.cells == SB_MERL_CELLS && st.written > 0 && st.written < st.cells);
     double vm = fmax(in->value_max[0], fmax(in->value_max[1], in->value_max[2]));
-    CHECKF(st.above > 0 && st.value_max > vm && st.value_measured == vm, "above %zu, max %g, measured %g (table %g)",
-           st.above, st.value_max, st.value_measured, vm);
-    CHECK(sb_merl_write_stats(NULL, bin, m, &st) == SB_OK && st.above == 0 && isnan(st.value_measured));
+    CHECKF(st.above > 0 && st.above_max > vm && st.value_max <= vm && st.value_measured == vm,
+           "above %zu (up to %g), written max %g, measured %g (table %g)", st.above, st.above_max, st.value_max,
+           st.value_measured, vm);
+    CHECKF(st.grazing > 0 && st.horizon_deg == 1, "grazing %zu at %g deg", st.grazing, st.horizon_deg);
+    /* the file holds no cell above the measured range, none with a grazing light */
+    sb_source_t *b = NULL;
+    CHECK(sb_source_open(NULL, bin, &b) == SB_OK);
+    size_t bad = 0, cells = 0;
+    for (size_t k = 0; b && k < sb_source_sample_count(b); k++) {
+        double wi[3], wo[3], f[3];
+        if (!sb_source_sample(b, k, wi, wo, f)) continue;
+        cells++;
+        bad += fmax(f[0], fmax(f[1], f[2])) > vm * (1 + 1e-12) || wi[2] <= sin(SB_PI / 180);
+    }
+    CHECKF(bad == 0 && cells == st.written, "%zu of %zu cells beyond the table (%zu written)", bad, cells, st.written);
+    sb_source_destroy(b);
+    sb_write_opts_t keep = {1, -1};
+    CHECK(sb_merl_write_stats(NULL, bin, s, &keep, &kept) == SB_OK);
+    CHECKF(kept.grazing == 0 && kept.above > st.above && kept.value_max == kept.above_max &&
+               kept.value_max > 1e3 * vm && kept.written == st.written + st.above + st.grazing,
+           "kept: above %zu, max %g, written %zu (default: %zu + %zu + %zu)", kept.above, kept.value_max, kept.written,
+           st.written, st.above, st.grazing);
+    CHECK(sb_merl_write_stats(NULL, bin, m, NULL, &st) == SB_OK && st.above == 0 && st.grazing == 0 &&
+          isnan(st.value_measured) && st.written > 1000000);
     CHECK(cli("convert %s -o %s", src, bin) == 0);
-    CHECKF(strstr(out, "extrapolated, not measured") != NULL, "%s", out);
+    CHECKF(strstr(out, "written as missing (-1); --extrapolated keep") && strstr(out, "within 1 deg of the horizon") &&
+               !strstr(out, "warning"),
+           "%s", out);
+    CHECK(cli("convert %s -o %s --extrapolated keep --horizon 0", src, bin) == 0);
+    CHECKF(strstr(out, "warning") && strstr(out, "extrapolated, not measured"), "%s", out);
+    CHECK(cli("convert %s -o %s --extrapolated maybe", src, bin) == 1 && strstr(out, "keep or drop"));
+    CHECK(cli("convert %s -o %s/p.csv --extrapolated keep", src, dir) == 1 && strstr(out, "MERL output"));
+    CHECK(cli("convert %s -o %s --horizon 90", src, bin) == 1 && strstr(out, "--horizon"));
     sb_source_destroy(s);
     sb_source_destroy(m);
+}
+
+/* The largest value of a CSV's rows (max over r, g, b) and its largest
+ * theta_i (degrees). */
+static void csv_extent(const char *path, double *vmax, double *ti_max) {
+    FILE *fp = fopen(path, "r");
+    char line[1024];
+    *vmax = *ti_max = -1;
+    while (fp && fgets(line, sizeof line, fp)) {
+        double a[7];
+        if (sscanf(line, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", a, a + 1, a + 2, a + 3, a + 4, a + 5, a + 6) != 7) continue;
+        *ti_max = fmax(*ti_max, a[0]);
+        *vmax = fmax(*vmax, fmax(a[4], fmax(a[5], a[6])));
+    }
+    if (fp) fclose(fp);
+}
+
+/* Factoring the MERL file that convert writes from an RGL file spends its
+ * terms on the material, not on extrapolated grazing cells: the headline
+ * at J = 2 (default otherwise) is far below the 0.99 it was when those
+ * cells were written (up to 8.6e4 1/sr, the file's measured range 6.3),
+ * 0.17 now. */
+SB_TEST(convert_rgl_merl_factors) {
+    const char *dir = sb_tmpdir("mcli");
+    char bin[4300], set[4300], rep[4400];
+    snprintf(bin, sizeof bin, "%s/a.binary", dir);
+    snprintf(set, sizeof set, "%s/a", dir);
+    snprintf(rep, sizeof rep, "%s/report.json", set);
+    CHECK(cli("convert %s/rgl_paper_white_rgb.bsdf -o %s -q", SB_MEASURED_DIR, bin) == 0);
+    int rc = cli("factor %s -J 2 -o %s -q", bin, set);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *p = slurp(rep);
+    double h = NAN;
+    for (int k = 0; p && k < 2 && (p = strstr(p, "\"headline\": ")); k++)
+        h = atof(p += 12);
+    CHECKF(h < 0.4, "headline at J = 2: %g (0.99 with the extrapolated cells)", h);
 }
 
 /* RGL to CSV keeps the colour nodes only: said, with their count, and
@@ -844,9 +910,26 @@ SB_TEST(convert_rgl_csv_warns) {
     sb_source_t *s = NULL;
     CHECK(sb_source_open(NULL, src, &s) == SB_OK);
     char want[64];
-    snprintf(want, sizeof want, "of %zu;", sb_source_sample_count(s));
+    snprintf(want, sizeof want, "of the RGL file's %zu colour nodes", sb_source_sample_count(s));
     CHECKF(strstr(out, want) != NULL, "%s", out);
     size_t rows = count_lines(csv, 1);
     CHECK(rows > 0 && rows < sb_source_sample_count(s));
+    /* no row with the light within 1 deg of the horizon, where f is the
+     * stored f cos theta_i over a cosine near 0: said, with the count and
+     * the largest value left out; --horizon 0 writes them (up to 5e6) */
+    double vmax, ti_max, v0, t0;
+    csv_extent(csv, &vmax, &ti_max);
+    CHECKF(ti_max < 89 && vmax < 1e3, "theta_i up to %g deg, values up to %g", ti_max, vmax);
+    CHECKF(strstr(out, "samples with the light within 1 deg of the horizon left out") != NULL, "%s", out);
+    char csv0[4300];
+    snprintf(csv0, sizeof csv0, "%s/p0.csv", dir);
+    CHECK(cli("convert %s -o %s --horizon 0 -q", src, csv0) == 0);
+    csv_extent(csv0, &v0, &t0);
+    size_t rows0 = count_lines(csv0, 1);
+    CHECKF(t0 > 89 && v0 > 1e5 && rows0 > rows, "--horizon 0: theta_i up to %g, values up to %g, %zu rows", t0, v0,
+           rows0);
+    snprintf(want, sizeof want, "%zu samples with", rows0 - rows);
+    CHECKF(strstr(out, want) == NULL, "-q: %s", out);
+    CHECK(cli("convert %s -o %s", src, csv) == 0 && strstr(out, want));
     sb_source_destroy(s);
 }

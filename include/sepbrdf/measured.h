@@ -371,36 +371,74 @@ SB_API int sb_merl_index(const double wi[3], const double wo[3], size_t *index);
  * SB_MERL_CELLS or a NULL output. */
 SB_API int sb_merl_cell_dirs(size_t index, double wi[3], double wo[3]);
 
+/* What a converted file leaves out (sb_merl_write_stats,
+ * sb_measured_write_csv_stats); NULL or zero = the defaults, which write
+ * only what the target format holds faithfully. */
+typedef struct sb_write_opts {
+    /* MERL: cells whose value lies above the largest the source measured
+     * (value_measured below: extrapolated, not measured) are written as
+     * missing (-1) unless this is non-zero */
+    int keep_extrapolated;
+    /* a source that stores f cos theta_i (SB_SOURCE_STORES_COS: an RGL
+     * file): CSV samples and MERL cells whose light lies within this angle
+     * of the horizon (theta_i >= 90 deg - horizon_deg) are left out
+     * (missing, -1, in MERL), as f there is the stored value over a cosine
+     * near 0 (up to 1e9 1/sr); 0 = 1 deg, negative = keep them */
+    double horizon_deg;
+} sb_write_opts_t;
+
 /* Write `src` as a MERL file: each cell holds f_r at the cell's centre
  * divided by the channel scale, or -1 (missing) where the centre pair is
- * not above the horizon, or the source is missing or not finite there.
- * Evaluated in parallel; written to a temporary name, then renamed.
- * Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
+ * not above the horizon, the source is missing or not finite there, or
+ * (sb_write_opts_t, defaults) the value lies above the largest the source
+ * measured or the source stores f cos theta_i and the light lies within
+ * 1 deg of the horizon.  Evaluated in parallel; written to a
+ * temporary name, then renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM,
+ * SB_ERR_IO. */
 SB_API sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src);
 /* What sb_merl_write_stats wrote: cells with a value (the others -1),
  * the largest f_r written, and, for a measured source, the cells above
  * the largest value it measured (value_measured: a table's own range;
  * interpolation between samples stays inside it, so these are
  * extrapolated, e.g. an RGL table's f cos theta_o divided by a grazing
- * cos theta_o) and the smallest theta_d index among them. */
+ * cos theta_o; written as missing unless kept), the largest of them
+ * (above_max, 0 when none) and the smallest theta_d index among them. */
 typedef struct sb_merl_write_stats {
     size_t cells, written, above;
     double value_max, value_measured; /* f_r, 1/sr; value_measured NaN for a model */
     size_t above_td_min;              /* SB_MERL_TD when none */
+    double above_max;                 /* f_r, 1/sr */
+    size_t grazing;                   /* cells left missing for their light's horizon (horizon_deg) */
+    double horizon_deg;               /* the bound applied, 0 when none */
 } sb_merl_write_stats_t;
-/* sb_merl_write, and what it wrote into *stats (may be NULL). */
+/* sb_merl_write with options (may be NULL), and what it wrote into *stats
+ * (may be NULL). */
 SB_API sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_source_t *src,
-                                       sb_merl_write_stats_t *stats);
+                                       const sb_write_opts_t *opts, sb_merl_write_stats_t *stats);
 
 /* ---- conversion ----------------------------------------------------------- */
 
 /* Write the measured samples of `src` (sb_source_sample: as read, no
  * interpolation) as a sepbrdf CSV table to fp: degrees, the source's
  * symmetry and reciprocity as metadata, RGB f_r with 17 digits, so that
- * reading it back gives the same samples.  *rows (may be NULL) receives
+ * reading it back gives the same samples; a source that stores f cos
+ * theta_i leaves out the samples with its light within 1 deg of the
+ * horizon (sb_write_opts_t.horizon_deg).  *rows (may be NULL) receives
  * the number written.  Errors: SB_ERR_ARG (no samples: a model; measure
  * those with sb_gonio_write_csv), SB_ERR_IO. */
 SB_API sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows);
+/* What sb_measured_write_csv_stats wrote: rows, the samples left out for
+ * their light's nearness to the horizon, the largest value among those
+ * (max over channels, 1/sr; 0 when none) and the bound applied (degrees
+ * from the horizon; 0 when none: the source does not store f cos). */
+typedef struct sb_csv_write_stats {
+    size_t rows, left_out;
+    double left_out_max, horizon_deg;
+} sb_csv_write_stats_t;
+/* sb_measured_write_csv with options (may be NULL), and what it wrote into
+ * *stats (may be NULL). */
+SB_API sb_result_t sb_measured_write_csv_stats(sb_context_t *ctx, FILE *fp, const sb_source_t *src,
+                                               const sb_write_opts_t *opts, sb_csv_write_stats_t *stats);
 
 /* ---- simulated gonioreflectometer ------------------------------------- */
 

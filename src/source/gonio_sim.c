@@ -43,21 +43,43 @@ static void csv_header(FILE *fp, const sb_source_t *src) {
 }
 
 sb_result_t sb_measured_write_csv(sb_context_t *ctx, FILE *fp, const sb_source_t *src, size_t *rows) {
+    sb_csv_write_stats_t st;
+    sb_result_t r = sb_measured_write_csv_stats(ctx, fp, src, NULL, &st);
+    if (rows) *rows = r == SB_OK ? st.rows : 0;
+    return r;
+}
+
+sb_result_t sb_measured_write_csv_stats(sb_context_t *ctx, FILE *fp, const sb_source_t *src,
+                                        const sb_write_opts_t *opts, sb_csv_write_stats_t *stats) {
     if (!fp || !src) return sb_error(ctx, SB_ERR_ARG, "csv: missing output or source");
-    size_t n = sb_source_sample_count(src), written = 0;
+    size_t n = sb_source_sample_count(src);
     if (n == 0) return sb_error(ctx, SB_ERR_ARG, "csv: %s has no measured samples", sb_source_description(src));
+    double margin = opts && opts->horizon_deg != 0 ? opts->horizon_deg : 1;
+    if (!(margin < 90)) return sb_error(ctx, SB_ERR_RANGE, "csv: horizon %g deg out of range, need < 90", margin);
+    /* f of a source that stores f cos theta_i is its value over cos theta_i */
+    if (!(sb_source_flags(src) & SB_SOURCE_STORES_COS) || margin < 0) margin = 0;
+    double z_min = sin(margin * SB_PI / 180); /* cos theta_i at 90 deg - margin */
+    sb_csv_write_stats_t st = {0, 0, 0, margin};
     fprintf(fp, "# sepbrdf table of measured samples (docs/measured.md)\n# source: %s\n", sb_source_description(src));
+    if (margin > 0)
+        fprintf(fp, "# left out: samples with the light within %.17g deg of the horizon (f cos theta_i stored)\n",
+                margin);
     csv_header(fp, src);
     for (size_t k = 0; k < n; k++) {
         double wi[3], wo[3], f[3];
         if (!sb_source_sample(src, k, wi, wo, f)) continue;
+        if (margin > 0 && wi[2] <= z_min * sqrt(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2])) {
+            st.left_out++;
+            st.left_out_max = fmax(st.left_out_max, fmax(f[0], fmax(f[1], f[2])));
+            continue;
+        }
         double a[4] = {atan2(hypot(wi[0], wi[1]), wi[2]), atan2(wi[1], wi[0]), atan2(hypot(wo[0], wo[1]), wo[2]),
                        atan2(wo[1], wo[0])};
         fprintf(fp, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", a[0] * 180 / SB_PI, a[1] * 180 / SB_PI,
                 a[2] * 180 / SB_PI, a[3] * 180 / SB_PI, f[0], f[1], f[2]);
-        written++;
+        st.rows++;
     }
-    if (rows) *rows = written;
+    if (stats) *stats = st;
     if (ferror(fp)) return sb_error(ctx, SB_ERR_IO, "csv: write error: %s", strerror(errno));
     return SB_OK;
 }

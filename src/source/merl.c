@@ -389,6 +389,8 @@ typedef struct merl_job {
     double *v; /* 3 planes of stored values */
     size_t h0, h1;
     double above;             /* f_r beyond which a cell counts in st.above (inf: none) */
+    int keep;                 /* write the cells above as evaluated, else as missing */
+    double z_min;             /* cells whose light has cos theta_i <= this are missing (0: none) */
     sb_merl_write_stats_t st; /* this thread's share */
 } merl_job_t;
 
@@ -397,31 +399,43 @@ static void *merl_fill(void *arg) {
     double wi[3], wo[3], rgb[3];
     for (size_t k = j->h0 * SB_MERL_TD * SB_MERL_PD; k < j->h1 * SB_MERL_TD * SB_MERL_PD; k++) {
         int ok = sb_merl_cell_dirs(k, wi, wo) && sb_source_eval(j->src, wi, wo, rgb);
+        if (ok && wi[2] <= j->z_min) {
+            j->st.grazing++;
+            ok = 0;
+        }
         for (int c = 0; c < 3 && ok; c++)
             ok = isfinite(rgb[c]);
-        for (int c = 0; c < 3; c++)
-            j->v[(size_t)c * SB_MERL_CELLS + k] = ok ? rgb[c] / sb_merl_scale[c] : -1.0;
-        j->st.written += (size_t)ok;
         double m = ok ? fmax(rgb[0], fmax(rgb[1], rgb[2])) : 0;
-        if (m > j->st.value_max) j->st.value_max = m;
         if (m > j->above) {
             size_t td = (k / SB_MERL_PD) % SB_MERL_TD;
             j->st.above++;
             if (td < j->st.above_td_min) j->st.above_td_min = td;
+            if (m > j->st.above_max) j->st.above_max = m;
+            ok = j->keep;
         }
+        for (int c = 0; c < 3; c++)
+            j->v[(size_t)c * SB_MERL_CELLS + k] = ok ? rgb[c] / sb_merl_scale[c] : -1.0;
+        j->st.written += (size_t)ok;
+        if (ok && m > j->st.value_max) j->st.value_max = m;
     }
     return NULL;
 }
 
 sb_result_t sb_merl_write(sb_context_t *ctx, const char *path, const sb_source_t *src) {
-    return sb_merl_write_stats(ctx, path, src, NULL);
+    return sb_merl_write_stats(ctx, path, src, NULL, NULL);
 }
 
 sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_source_t *src,
-                                sb_merl_write_stats_t *stats) {
+                                const sb_write_opts_t *opts, sb_merl_write_stats_t *stats) {
     if (!path || !src) return sb_error(ctx, SB_ERR_ARG, "merl write: missing path or source");
     const sb_measured_info_t *in = sb_measured_source_info(src);
     double vmax = in ? fmax(in->value_max[0], fmax(in->value_max[1], in->value_max[2])) : INFINITY;
+    /* the light's margin from the horizon, for a source that stores f cos theta_i */
+    double margin = opts && opts->horizon_deg != 0 ? opts->horizon_deg : 1;
+    if (!(margin < 90))
+        return sb_error(ctx, SB_ERR_RANGE, "merl write: horizon %g deg out of range, need < 90", margin);
+    if (!(sb_source_flags(src) & SB_SOURCE_STORES_COS) || margin < 0) margin = 0;
+    double z_min = margin > 0 ? sin(margin * SB_PI / 180) : 0;
     char tmp[4200];
     if (sb_tmp_name(path, tmp, sizeof tmp) != 0) return sb_error(ctx, SB_ERR_ARG, "%s: path too long", path);
     double *v = sb_alloc(ctx, 3 * SB_MERL_CELLS, sizeof(double), "merl write");
@@ -430,16 +444,18 @@ sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_so
     int nt = sb_threads_for(0, SB_MERL_TH, SB_MERL_TH, 0);
     merl_job_t jobs[SB_THREADS_MAX];
     for (int t = 0; t < nt; t++) {
-        jobs[t] = (merl_job_t){src, v, 0, 0, vmax > 0 ? vmax : INFINITY, {0}};
+        jobs[t] = (merl_job_t){src, v, 0, 0, vmax > 0 ? vmax : INFINITY, opts && opts->keep_extrapolated, z_min, {0}};
         jobs[t].st.above_td_min = SB_MERL_TD;
         sb_part(SB_MERL_TH, t, nt, &jobs[t].h0, &jobs[t].h1);
     }
     sb_parallel_run(merl_fill, jobs, sizeof *jobs, nt, NULL, NULL);
-    sb_merl_write_stats_t st = {SB_MERL_CELLS, 0, 0, 0, in && vmax > 0 ? vmax : NAN, SB_MERL_TD};
+    sb_merl_write_stats_t st = {SB_MERL_CELLS, 0, 0, 0, in && vmax > 0 ? vmax : NAN, SB_MERL_TD, 0, 0, margin};
     for (int t = 0; t < nt; t++) {
         st.written += jobs[t].st.written;
         st.above += jobs[t].st.above;
+        st.grazing += jobs[t].st.grazing;
         st.value_max = fmax(st.value_max, jobs[t].st.value_max);
+        st.above_max = fmax(st.above_max, jobs[t].st.above_max);
         if (jobs[t].st.above_td_min < st.above_td_min) st.above_td_min = jobs[t].st.above_td_min;
     }
     if (stats) *stats = st;
