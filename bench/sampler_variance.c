@@ -4,7 +4,7 @@
  * job, J = 4), its sampler at the share sb_sampler_choose_share picks
  * (what `factor` writes to sampler.bin) and at the fixed default share
  * (SB_SAMPLER_COSINE_SHARE, for comparison), and per elevation theta_o
- * (azimuth 0.3 rad, not one the choice measured; new random numbers) the
+ * (azimuth 0.3 rad or --azimuth, not one the choice measured; new random numbers) the
  * variance of one-sample estimates x = Y(f_r(wi, wo)) cos(theta_i) / pdf
  * of L = int Y(f_r) cos dwi with f_r the source itself (Y: Rec. 709
  * luminance; a failed draw counts 0): cosine sampling's variance over the
@@ -13,7 +13,8 @@
  * against its own pdf (n draws, bins and pooling of tests/sampler_chi2.h;
  * the fixed share, so that the factored part is drawn in every case).
  *
- *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area] [SOURCE...]
+ *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area] [--azimuth A]
+ *                                 [SOURCE...]
  * Run from the source tree (the measured files under tests/data/measured). */
 #include <math.h>
 #include <stdio.h>
@@ -24,6 +25,7 @@
 #include "sepbrdf/sepbrdf.h"
 
 #define NWO 4
+static double azimuth = 0.3; /* of wo, radians (--azimuth) */
 static const double WO_DEG[NWO] = {10, 30, 50, 70};
 
 static const char *const DEFAULT_SOURCES[] = {
@@ -120,7 +122,7 @@ static int run(sb_context_t *ctx, const char *spec, const char *param, size_t re
     double p[NWO];
     for (int w = 0; w < NWO; w++) {
         double wo[3], vc, sc, vs, ss, vd, sd;
-        sb_dir_from_angles(WO_DEG[w] * SB_PI / 180, 0.3, wo);
+        sb_dir_from_angles(WO_DEG[w] * SB_PI / 180, azimuth, wo);
         variance(NULL, src, wo, n, &vc, &sc);
         variance(s, src, wo, n, &vs, &ss);
         sb_sampler_set_cosine_share(s, SB_SAMPLER_COSINE_SHARE);
@@ -145,16 +147,19 @@ int main(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--samples") && i + 1 < argc)
             n = strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--azimuth") && i + 1 < argc)
+            azimuth = strtod(argv[++i], NULL);
         else if (!strcmp(argv[i], "--param") && i + 1 < argc)
             plist = argv[++i];
         else if (!strcmp(argv[i], "--res") && i + 1 < argc)
             res = strtoul(argv[++i], NULL, 10);
         else if (argv[i][0] == '-') {
             printf(
-                "usage: sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param LIST] [SOURCE...]\n"
+                "usage: sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param LIST] [--azimuth A] "
+                "[SOURCE...]\n"
                 "Variance of cosine sampling over the factored sampler's, against the source, per layout and\n"
                 "elevation (the chosen share; in parentheses the fixed share %g); chi2 p-values at the fixed share.\n"
-                "--param: layouts, comma-separated (default iso,hd,io,io-area).\n",
+                "--param: layouts, comma-separated (default iso,hd,io,io-area); --azimuth: of V in radians (0.3).\n",
                 SB_SAMPLER_COSINE_SHARE);
             return strcmp(argv[i], "-h") && strcmp(argv[i], "--help");
         } else if (first == argc)
@@ -163,8 +168,8 @@ int main(int argc, char **argv) {
     if (n < 100) return 1;
     sb_context_t *ctx = NULL;
     sb_context_create(&ctx);
-    printf("Var(cosine) / Var(sampler) against the source, %zu samples per theta_o (azimuth 0.3), res %zu, J = 4\n\n",
-           n, res);
+    printf("Var(cosine) / Var(sampler) against the source, %zu samples per theta_o (azimuth %g), res %zu, J = 4\n\n", n,
+           azimuth, res);
     printf("| %-34s | %-5s | share | theta_o 10 | 30 | 50 | 70 | chi2 p 10 30 50 70 "
            "|\n|---|---|---|---|---|---|---|---|\n",
            "source", "param");

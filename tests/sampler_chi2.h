@@ -10,8 +10,8 @@
 
 #include "sepbrdf/sepbrdf.h"
 
-#define NT 16 /* chi2 bins in theta over [0, pi/2] */
-#define NP 32 /* and in phi */
+#define NT 16      /* chi2 bins in theta over [0, pi/2] */
+#define NP 32      /* and in phi */
 #define MIN_EXP 5. /* bins expecting fewer counts are pooled */
 
 /* Regularised upper incomplete gamma Q(a, x) (series below a + 1, Lentz's
