@@ -183,7 +183,9 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int w
 /* Whether L is on an edge of the piecewise constant density, whose cell
  * float (the GLSL's coordinates of L) and double may take on either side:
  * the C's pdf jumps (beyond tol) within EDGE_L of L along an axis, to the
- * GLSL's value g (seen: 3 of 102 400 on hd, all within 1e-5). */
+ * GLSL's value g (seen: 3 of 102 400 on hd, all within 1e-5; at most 1 in
+ * 10 000 allowed, was 1 in 1000: the most seen on any layout, form or warp
+ * is 3). */
 #define EDGE_L 1e-5
 static int on_edge(const sb_sampler_t *s, const double V[3], const float *L, double ref, float g, double tol) {
     for (int t = 0; t < 6; t++) {
@@ -236,7 +238,7 @@ static void pdf_agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, i
             sb_param_kind_name(kind), off, total, tol, worst, edges);
     CHECKF(off == 0, "%s: %zu of %zu pdfs differ by more than %g relative (largest %g)", sb_param_kind_name(kind), off,
            total, tol, worst);
-    CHECKF(edges <= total / 1000, "%s: %zu of %zu L on a cell edge", sb_param_kind_name(kind), edges, total);
+    CHECKF(edges <= total / 10000, "%s: %zu of %zu L on a cell edge", sb_param_kind_name(kind), edges, total);
     free(L);
     free(out);
     free(ref);
