@@ -4,22 +4,28 @@
  * job, J = 4), its sampler at the share sb_sampler_choose_share picks
  * (what `factor` writes to sampler.bin) and at the fixed default share
  * (SB_SAMPLER_COSINE_SHARE, for comparison), and per elevation theta_o
- * (azimuth 0.3 rad, not one the choice measured; new random numbers) the
+ * (azimuth 0.3 rad or --azimuth, not one the choice measured; new random numbers) the
  * variance of one-sample estimates x = Y(f_r(wi, wo)) cos(theta_i) / pdf
  * of L = int Y(f_r) cos dwi with f_r the source itself (Y: Rec. 709
  * luminance; a failed draw counts 0): cosine sampling's variance over the
- * sampler's, with its standard error (delta method on the fourth moments).
+ * sampler's, with its standard error (delta method on the fourth moments);
+ * and the chi2 p-value of the sampler's directions at the fixed share
+ * against its own pdf (n draws, bins and pooling of tests/sampler_chi2.h;
+ * the fixed share, so that the factored part is drawn in every case).
  *
- *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [SOURCE...]
+ *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area] [--azimuth A]
+ *                                 [SOURCE...]
  * Run from the source tree (the measured files under tests/data/measured). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "../tests/sampler_chi2.h"
 #include "sepbrdf/sepbrdf.h"
 
 #define NWO 4
+static double azimuth = 0.3; /* of wo, radians (--azimuth) */
 static const double WO_DEG[NWO] = {10, 30, 50, 70};
 
 static const char *const DEFAULT_SOURCES[] = {
@@ -67,6 +73,23 @@ static void variance(const sb_sampler_t *s, const sb_source_t *src, const double
     *se = sqrt(fmax(m4 - m2 * m2, 0) / (double)n);
 }
 
+/* chi2 p-value of n draws of s for wo against sb_pdf (48 quadrature
+ * points a bin and axis, as the tests' half-vector layouts). */
+static double chi2_of(const sb_sampler_t *s, const double wo[3], size_t n) {
+    double *mass = malloc(NT * NP * sizeof *mass), *obs = calloc(NT * NP, sizeof *obs), stat;
+    unsigned long long seed = 0xc41ULL;
+    for (size_t t = 0; t < n; t++) {
+        double u[2] = {rnd(&seed), rnd(&seed)}, wi[3], pdf;
+        if (sb_sample(s, wo, u, wi, &pdf, NULL)) obs[bin_of(wi)] += 1;
+    }
+    expected_mass(s, wo, 48, mass);
+    int dof;
+    double p = chi2_p(mass, obs, (double)n, &stat, &dof);
+    free(mass);
+    free(obs);
+    return p;
+}
+
 static double ratio_se(double vc, double sc, double vs, double ss) {
     double r = vc / vs;
     return r * sqrt((sc / vc) * (sc / vc) + (ss / vs) * (ss / vs));
@@ -96,16 +119,19 @@ static int run(sb_context_t *ctx, const char *spec, const char *param, size_t re
     }
     const char *name = strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec;
     printf("| %-34s | %-5s | %5.3f |", name, sb_param_kind_name(sb_param_kind(sb_job_param(job))), ch.share);
+    double p[NWO];
     for (int w = 0; w < NWO; w++) {
         double wo[3], vc, sc, vs, ss, vd, sd;
-        sb_dir_from_angles(WO_DEG[w] * SB_PI / 180, 0.3, wo);
+        sb_dir_from_angles(WO_DEG[w] * SB_PI / 180, azimuth, wo);
         variance(NULL, src, wo, n, &vc, &sc);
         variance(s, src, wo, n, &vs, &ss);
         sb_sampler_set_cosine_share(s, SB_SAMPLER_COSINE_SHARE);
         variance(s, src, wo, n, &vd, &sd);
+        p[w] = chi2_of(s, wo, n);
         sb_sampler_set_cosine_share(s, ch.share);
         printf(" %6.3g ± %-5.2g (%5.3g) |", vc / vs, ratio_se(vc, sc, vs, ss), vc / vd);
     }
+    printf(" %.3f %.3f %.3f %.3f |", p[0], p[1], p[2], p[3]);
     printf("\n");
     fflush(stdout);
     sb_sampler_destroy(s);
@@ -116,17 +142,25 @@ static int run(sb_context_t *ctx, const char *spec, const char *param, size_t re
 
 int main(int argc, char **argv) {
     size_t n = 200000, res = 32;
+    const char *plist = "iso,hd,io,io-area";
     int first = argc;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--samples") && i + 1 < argc)
             n = strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--azimuth") && i + 1 < argc)
+            azimuth = strtod(argv[++i], NULL);
+        else if (!strcmp(argv[i], "--param") && i + 1 < argc)
+            plist = argv[++i];
         else if (!strcmp(argv[i], "--res") && i + 1 < argc)
             res = strtoul(argv[++i], NULL, 10);
         else if (argv[i][0] == '-') {
-            printf("usage: sepbrdf_bench_sampler_variance [--samples N] [--res R] [SOURCE...]\n"
-                   "Variance of cosine sampling over the factored sampler's, against the source, per layout and\n"
-                   "elevation (the chosen share; in parentheses the fixed share %g).\n",
-                   SB_SAMPLER_COSINE_SHARE);
+            printf(
+                "usage: sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param LIST] [--azimuth A] "
+                "[SOURCE...]\n"
+                "Variance of cosine sampling over the factored sampler's, against the source, per layout and\n"
+                "elevation (the chosen share; in parentheses the fixed share %g); chi2 p-values at the fixed share.\n"
+                "--param: layouts, comma-separated (default iso,hd,io,io-area); --azimuth: of V in radians (0.3).\n",
+                SB_SAMPLER_COSINE_SHARE);
             return strcmp(argv[i], "-h") && strcmp(argv[i], "--help");
         } else if (first == argc)
             first = i;
@@ -134,14 +168,22 @@ int main(int argc, char **argv) {
     if (n < 100) return 1;
     sb_context_t *ctx = NULL;
     sb_context_create(&ctx);
-    printf("Var(cosine) / Var(sampler) against the source, %zu samples per theta_o (azimuth 0.3), res %zu, J = 4\n\n",
-           n, res);
-    printf("| %-34s | %-5s | share | theta_o 10 | 30 | 50 | 70 |\n|---|---|---|---|---|---|---|\n", "source", "param");
-    static const char *const params[3] = {"iso", "hd", "io"};
+    printf("Var(cosine) / Var(sampler) against the source, %zu samples per theta_o (azimuth %g), res %zu, J = 4\n\n", n,
+           azimuth, res);
+    printf("| %-34s | %-5s | share | theta_o 10 | 30 | 50 | 70 | chi2 p 10 30 50 70 "
+           "|\n|---|---|---|---|---|---|---|---|\n",
+           "source", "param");
+    char params[8][16];
+    int np = 0;
+    for (const char *c = plist; *c && np < 8;) {
+        size_t l = strcspn(c, ",");
+        snprintf(params[np++], sizeof params[0], "%.*s", (int)(l < 15 ? l : 15), c);
+        c += l + (c[l] == ',');
+    }
     int rc = 0;
     size_t ns = first < argc ? (size_t)(argc - first) : sizeof DEFAULT_SOURCES / sizeof DEFAULT_SOURCES[0];
     for (size_t k = 0; k < ns; k++)
-        for (int p = 0; p < 3; p++) {
+        for (int p = 0; p < np; p++) {
             const char *spec = first < argc ? argv[first + (int)k] : DEFAULT_SOURCES[k];
             if (first < argc && argv[first + (int)k][0] == '-') continue;
             rc |= run(ctx, spec, params[p], res, n);

@@ -63,7 +63,12 @@ static float *read_table(const char *path, gl_sampler_table_t *t) {
     return data;
 }
 
-/* Non-negative factors (J = 4, form cos, weighted, 16 cells) of spec on
+/* The form of the next setup: cos (the tests' own) or f (what `factor`
+ * makes by default: on io and io-area the row tables weigh each cell by
+ * cos theta_i at its centre). */
+static sb_form_t setup_form = SB_FORM_COS;
+
+/* Non-negative factors (J = 4, form setup_form, weighted, 16 cells) of spec on
  * kind, their sampler (a share other than the default: the GLSL reads it
  * from sampler.bin), the tables read back and the snippet with the
  * sampler block. */
@@ -98,7 +103,7 @@ static int setup(sb_param_kind_t kind, const char *spec, int warped, setup_t *x)
             w->x[k] = pow((double)k / 8, 1.6);
     }
     sb_matrix_opts_t mo = {0};
-    mo.form = SB_FORM_COS;
+    mo.form = setup_form;
     sb_plan_opts_t pl = {0};
     pl.terms = 4;
     pl.weighted = 1;
@@ -112,7 +117,7 @@ static int setup(sb_param_kind_t kind, const char *spec, int warped, setup_t *x)
     if (!r) r = sb_matrix_build(NULL, x->src, x->p, &mo, &m);
     if (!r) r = sb_plan_create_for(NULL, &m, &pl, &plan);
     if (!r) r = sb_plan_execute(plan, &m, x->p, &x->f);
-    if (!r) r = sb_sampler_create(NULL, x->f, x->p, SB_FORM_COS, &x->s);
+    if (!r) r = sb_sampler_create(NULL, x->f, x->p, setup_form, &x->s);
     if (!r) r = sb_sampler_set_cosine_share(x->s, 0.15);
     if (!r) r = sb_sampler_write(NULL, x->s, path, NULL);
     sb_plan_destroy(plan);
@@ -121,7 +126,7 @@ static int setup(sb_param_kind_t kind, const char *spec, int warped, setup_t *x)
     x->table = r ? NULL : read_table(path, &x->t);
     CHECK(x->table != NULL);
     if (!x->table) return 0;
-    char *head = sb_glsl_snippet(x->p, SB_FORM_COS, 4, NULL), *tail = sb_glsl_sampler(x->p, sb_factors_channels(x->f));
+    char *head = sb_glsl_snippet(x->p, setup_form, 4, NULL), *tail = sb_glsl_sampler(x->p, sb_factors_channels(x->f));
     x->snippet = malloc(strlen(head) + strlen(tail) + 1);
     strcat(strcpy(x->snippet, head), tail);
     free(head);
@@ -178,7 +183,9 @@ static void agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int w
 /* Whether L is on an edge of the piecewise constant density, whose cell
  * float (the GLSL's coordinates of L) and double may take on either side:
  * the C's pdf jumps (beyond tol) within EDGE_L of L along an axis, to the
- * GLSL's value g (seen: 3 of 102 400 on hd, all within 1e-5). */
+ * GLSL's value g (seen: 3 of 102 400 on hd, all within 1e-5; at most 1 in
+ * 10 000 allowed, was 1 in 1000: the most seen on any layout, form or warp
+ * is 3). */
 #define EDGE_L 1e-5
 static int on_edge(const sb_sampler_t *s, const double V[3], const float *L, double ref, float g, double tol) {
     for (int t = 0; t < 6; t++) {
@@ -190,6 +197,8 @@ static int on_edge(const sb_sampler_t *s, const double V[3], const float *L, dou
     return 0;
 }
 
+static int pdf_warped; /* the next pdf_agree on a theta_h warp (setup's table) */
+
 /* The pdfs at the same directions: sb_pdf of the GLSL at the L that the C
  * sampler drew, for V over the hemisphere (cell edges of V included). */
 static void pdf_agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, int views) {
@@ -197,7 +206,7 @@ static void pdf_agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, i
     char err[2048];
     float *L = malloc(N * N * 3 * sizeof *L), *out = malloc(N * N * 4 * sizeof *out);
     double *ref = malloc(N * N * sizeof *ref);
-    int ok_setup = setup(kind, spec, 0, &x);
+    int ok_setup = setup(kind, spec, pdf_warped, &x);
     size_t total = 0, off = 0, edges = 0;
     double worst = 0, tol = PDF_SAME;
     for (int o = 0; o < views && ok_setup; o++) {
@@ -229,7 +238,7 @@ static void pdf_agree(gl_sphere_t *gl, sb_param_kind_t kind, const char *spec, i
             sb_param_kind_name(kind), off, total, tol, worst, edges);
     CHECKF(off == 0, "%s: %zu of %zu pdfs differ by more than %g relative (largest %g)", sb_param_kind_name(kind), off,
            total, tol, worst);
-    CHECKF(edges <= total / 1000, "%s: %zu of %zu L on a cell edge", sb_param_kind_name(kind), edges, total);
+    CHECKF(edges <= total / 10000, "%s: %zu of %zu L on a cell edge", sb_param_kind_name(kind), edges, total);
     free(L);
     free(out);
     free(ref);
@@ -253,9 +262,13 @@ static void run(sb_param_kind_t kind, const char *spec, int warped) {
 #define RUN(kind, spec) run(kind, spec, 0)
 #define RUN_WARPED(kind, spec) run(kind, spec, 1)
 #define RUN_PDF(kind, spec, views) run(kind, spec, -(views))
+#define RUN_PDF_F(kind, spec) (setup_form = SB_FORM_F, RUN_PDF(kind, spec, PDF_VIEWS), setup_form = SB_FORM_COS)
+#define RUN_PDF_WARPED(kind, spec) (pdf_warped = 1, RUN_PDF(kind, spec, PDF_VIEWS), pdf_warped = 0)
 #else
 #define RUN_WARPED(kind, spec) RUN(kind, spec)
 #define RUN_PDF(kind, spec, views) RUN(kind, spec)
+#define RUN_PDF_F(kind, spec) RUN(kind, spec)
+#define RUN_PDF_WARPED(kind, spec) RUN(kind, spec)
 #define RUN(kind, spec) SKIP("built without OSMesa (Debian: libosmesa6-dev), no GLSL sampler test")
 #endif
 
@@ -269,3 +282,11 @@ SB_TEST(pdf_io) { RUN_PDF(SB_PARAM_IO, "cook-torrance:d=ggx,roughness=0.3", PDF_
 SB_TEST(pdf_io_area) { RUN_PDF(SB_PARAM_IO_AREA, "cook-torrance:d=ggx,roughness=0.2", PDF_VIEWS); }
 SB_TEST(pdf_hd) { RUN_PDF(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.5", PDF_VIEWS); }
 SB_TEST(pdf_iso) { RUN_PDF(SB_PARAM_ISO, "blinn-phong:n=50", PDF_VIEWS_ISO); }
+/* The same on the default form f and on the warped half-vector layouts
+ * (issue 38, item 3: every layout as `factor` makes it). */
+SB_TEST(pdf_io_form_f) { RUN_PDF_F(SB_PARAM_IO, "cook-torrance:d=ggx,roughness=0.3"); }
+SB_TEST(pdf_io_area_form_f) { RUN_PDF_F(SB_PARAM_IO_AREA, "cook-torrance:d=ggx,roughness=0.2"); }
+SB_TEST(pdf_hd_form_f) { RUN_PDF_F(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.5"); }
+SB_TEST(pdf_iso_form_f) { RUN_PDF_F(SB_PARAM_ISO, "blinn-phong:n=50"); }
+SB_TEST(pdf_hd_warped) { RUN_PDF_WARPED(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.2"); }
+SB_TEST(pdf_iso_warped) { RUN_PDF_WARPED(SB_PARAM_ISO, "cook-torrance:d=ggx,roughness=0.2"); }

@@ -251,7 +251,7 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
                         sb_param_spec(p));
     if (!sb_param_sample_glsl(p)[0])
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has no sampler (its rows are not light directions)",
-                        sb_param_spec(p));
+                        sb_param_kind_name(sb_param_kind(p)));
     if ((sb_param_caps(p) & SB_CAP_HALF_ROWS) && gh > SB_SAMPLER_MAX_ROWS)
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has %zu rows of half vectors, at most %d are sampled",
                         sb_param_spec(p), gh, SB_SAMPLER_MAX_ROWS);

@@ -120,11 +120,16 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
     char path[4200];
     snprintf(path, sizeof path, "%s/sepbrdf.glsl", sb_outset_dir(set));
     sb_sampler_t *s = NULL;
+    sb_context_t *sc = NULL; /* the refusal's own message (a layout without one, every term 0) */
     sb_result_t r = job_nonneg_method(sb_factors_get_meta(a->f, "method"))
-                        ? sb_sampler_create(NULL, a->f, a->param, a->m.form, &s)
+                        ? (sb_context_create(&sc), sb_sampler_create(sc, a->f, a->param, a->m.form, &s))
                         : SB_OK;
-    if (r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW) return sb_error(ctx, r, "sampler: out of memory");
-    if (r != SB_OK) job_warn(job, "no sampler: %s", sb_result_message(r)); /* e.g. every term weighted to 0 */
+    if (r == SB_ERR_NOMEM || r == SB_ERR_OVERFLOW) {
+        sb_context_destroy(sc);
+        return sb_error(ctx, r, "sampler: out of memory");
+    }
+    if (r != SB_OK) job_warn(job, "no %s", sc ? sb_context_last_error(sc) : sb_result_message(r));
+    sb_context_destroy(sc);
     if (s) {
         /* the share from the fit's error against the source (sampler_share.c) */
         r = sb_sampler_choose_share(ctx, s, job->src, 0, &job->share);
