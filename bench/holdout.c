@@ -12,6 +12,11 @@
  *
  * SB_HOLDOUT_LOO=DEG instead holds out each row with theta_h below DEG
  * alone and prints the training table's value there (no factoring).
+ * SB_HOLDOUT_FOLDS=K holds out, for seed s, the rows of fold s - 1 of K
+ * (sb_measured_fold, the folds of cv_headline) instead of a random part:
+ * the whole pipeline refitted on the folds the report's refits use.
+ * SB_HOLDOUT_PLAIN=1 refits without term weights or texel filters
+ * (plain_terms); SB_HOLDOUT_PARAM=SPEC on a fixed layout (weighted).
  *
  * A data row is a line with the largest count of numbers in the file (a
  * Cornell file's wavelength lines have fewer); every other line goes to
@@ -46,6 +51,9 @@ static sb_job_t *run(const char *path, size_t J) {
     sb_job_opts_t o = {0};
     o.source = path;
     o.terms = J;
+    o.plain_terms = getenv("SB_HOLDOUT_PLAIN") != NULL; /* no term or sample weights */
+    o.param = getenv("SB_HOLDOUT_PARAM");               /* a fixed layout instead of auto */
+    o.weighted = o.param != NULL;
     sb_job_t *job = NULL;
     if (sb_job_run(NULL, &o, &job) != SB_OK) return NULL;
     return job;
@@ -169,6 +177,8 @@ int main(int argc, char **argv) {
     int worst = w ? atoi(w) : 0, first = 1;
     const char *o = getenv("SB_HOLDOUT_FIRST"); /* start at this seed */
     if (o) first = atoi(o);
+    const char *fk = getenv("SB_HOLDOUT_FOLDS"); /* the report's folds instead of random parts */
+    size_t folds = fk ? (size_t)atoi(fk) : 0;
     FILE *f = fopen(path, "r");
     if (!f || !(frac > 0 && frac < 1) || seeds < 1 || J < 1) {
         fprintf(stderr, "%s: cannot read, or FRACTION not in (0, 1), SEEDS or J below 1\n", path);
@@ -201,10 +211,14 @@ int main(int argc, char **argv) {
     for (int s = first; s < first + seeds; s++) {
         rewind(f);
         FILE *a = fopen(tr, "w"), *b = fopen(he, "w");
-        size_t nh = 0;
+        size_t nh = 0, row = 0;
         srand((unsigned)s);
         while (fgets(line, sizeof line, f)) {
-            if (numbers(line) == most && (double)rand() / RAND_MAX < frac) {
+            int data = numbers(line) == most;
+            int out =
+                data && (folds ? sb_measured_fold(row, folds) == (size_t)(s - 1) : (double)rand() / RAND_MAX < frac);
+            row += (size_t)data;
+            if (out) {
                 fputs(line, b);
                 nh++;
             } else {

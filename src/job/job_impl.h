@@ -234,6 +234,10 @@ void job_warn_weights(sb_job_t *job);
  * its errors again (non-negative factors: texels clamped at 0); nothing
  * for a structured matrix or with o.plain_terms. */
 sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* *f (replaced) filtered along the texture axes of mask (bit 2 side + axis,
+ * a->texel_fit), in the order job_texel_fit applies them: a refit given
+ * the kept fit's texel choice (job_cv.c). */
+sb_result_t job_texel_replay(sb_context_t *ctx, const sb_param_t *p, unsigned mask, sb_factors_t **f);
 /* job_texel_fit, then job_term_weights: what every kept fit goes through. */
 sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 void job_attempt_free(job_attempt_t *a);

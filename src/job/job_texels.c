@@ -201,6 +201,20 @@ sb_result_t job_texel_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
     return job_remeasure(ctx, job, lv, a);
 }
 
+sb_result_t job_texel_replay(sb_context_t *ctx, const sb_param_t *p, unsigned mask, sb_factors_t **f) {
+    sb_result_t r = SB_OK;
+    for (int b = 0; r == SB_OK && b < 4; b++) {
+        size_t w, h;
+        sb_factors_size(*f, b / 2, &w, &h);
+        if (!(mask >> b & 1) || (b % 2 ? h : w) < 3) continue;
+        sb_factors_t *g = NULL;
+        if ((r = filtered(ctx, *f, p, b / 2, b % 2, &g)) != SB_OK) break;
+        sb_factors_destroy(*f);
+        *f = g;
+    }
+    return r;
+}
+
 sb_result_t job_refine(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a) {
     sb_result_t r = job_estimate_reported(ctx, job, lv, a);
     if (r == SB_OK) r = job_texel_fit(ctx, job, lv, a);
