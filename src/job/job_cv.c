@@ -50,7 +50,8 @@
  * refitted on the same five folds erred by 0.041, 0.030, 0.034, 0.024,
  * 0.042 (median 0.034); replayed, 0.0335 (the Cornell acrylic: 0.1189 ->
  * 0.1193). */
-static sb_result_t fold_fit(sb_context_t *ctx, const sb_job_t *job, size_t K, size_t k, sb_factors_t **out) {
+static sb_result_t fold_fit(sb_context_t *ctx, const sb_job_t *job, size_t K, size_t k, sb_factors_t **out,
+                            sb_source_t **table) {
     const job_attempt_t *b = &job->best;
     const sb_measured_info_t *in = sb_measured_source_info(job->src);
     sb_measured_opts_t mo = job->o.measured;
@@ -87,7 +88,7 @@ static sb_result_t fold_fit(sb_context_t *ctx, const sb_job_t *job, size_t K, si
             job_scale_term(*out, i / C, i % C, b->term_w[i]);
     sb_plan_destroy(plan);
     sb_matrix_free(&m);
-    sb_source_destroy(src);
+    *table = src; /* what the fit was sampled from: its own error at the fold (fold_sums) */
     return r;
 }
 
@@ -104,8 +105,8 @@ static int theta_h_band(const double wi[3], const double wo[3]) {
 
 /* Add fold k's squared errors (E[j], j < J) and energy (*T) at its
  * samples, and at J those of each theta_h band into the job's. */
-static void fold_sums(sb_job_t *job, const sb_factors_t *f, size_t K, size_t k, size_t J, double *E, double *T,
-                      size_t *held) {
+static void fold_sums(sb_job_t *job, const sb_factors_t *f, const sb_source_t *table, size_t K, size_t k, size_t J,
+                      double *E, double *T, double *Etab, size_t *held) {
     const sb_param_t *p = job->best.param;
     sb_form_t form = job->best.m.form;
     size_t n = sb_source_sample_count(job->src);
@@ -120,6 +121,10 @@ static void fold_sums(sb_job_t *job, const sb_factors_t *f, size_t K, size_t k, 
                 e += (rec[c] - v[c]) * (rec[c] - v[c]) * c2;
             E[j] += e;
         }
+        double tv[3] = {0, 0, 0};
+        if (!table || !sb_source_eval(table, wi, wo, tv)) tv[0] = tv[1] = tv[2] = 0;
+        for (int c = 0; c < 3; c++)
+            *Etab += (tv[c] - v[c]) * (tv[c] - v[c]) * c2;
         int b = theta_h_band(wi, wo);
         job->cv_band_e[b] += e;
         job->cv_band_t[b] += t;
@@ -189,6 +194,7 @@ typedef struct folds {
     size_t K, refits;
     atomic_size_t next;
     sb_factors_t **ff;
+    sb_source_t **tab; /* per fold, the table the refit sampled */
     sb_result_t *r;
     sb_context_t **ctx; /* per fold, for its error message */
 } folds_t;
@@ -196,20 +202,30 @@ typedef struct folds {
 static void *folds_run(void *arg) {
     folds_t *fs = arg;
     for (size_t k; (k = atomic_fetch_add(&fs->next, 1)) < fs->refits;)
-        fs->r[k] = sb_context_create(&fs->ctx[k]) == SB_OK ? fold_fit(fs->ctx[k], fs->job, fs->K, k, &fs->ff[k])
-                                                           : SB_ERR_NOMEM;
+        fs->r[k] = sb_context_create(&fs->ctx[k]) == SB_OK
+                       ? fold_fit(fs->ctx[k], fs->job, fs->K, k, &fs->ff[k], &fs->tab[k])
+                       : SB_ERR_NOMEM;
     return NULL;
 }
 
+/* E[k * J + j], T[k] as fold_sums adds them; T[refits + k] the squared
+ * error there of the table refit k sampled. */
 static sb_result_t folds_fit(sb_context_t *ctx, sb_job_t *job, size_t K, size_t refits, size_t J, double *E,
                              double *T) {
     job_progress(job, "cross-validation", 0);
-    folds_t fs = {
-        job, K, refits, 0, calloc(refits, sizeof *fs.ff), calloc(refits, sizeof *fs.r), calloc(refits, sizeof *fs.ctx)};
-    sb_result_t r = fs.ff && fs.r && fs.ctx ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "cross-validation: out of memory");
+    folds_t fs = {job,
+                  K,
+                  refits,
+                  0,
+                  calloc(refits, sizeof *fs.ff),
+                  calloc(refits, sizeof *fs.tab),
+                  calloc(refits, sizeof *fs.r),
+                  calloc(refits, sizeof *fs.ctx)};
+    sb_result_t r =
+        fs.ff && fs.tab && fs.r && fs.ctx ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "cross-validation: out of memory");
     int nt = sb_group_active(ctx) ? 1 : sb_threads_for(0, refits, refits, 2);
     if (r == SB_OK && nt == 1) { /* a group of processes shares the refits' matrices: in turn, with ctx */
-        for (size_t k = 0; k < refits && (r = fold_fit(ctx, job, K, k, &fs.ff[k])) == SB_OK; k++)
+        for (size_t k = 0; k < refits && (r = fold_fit(ctx, job, K, k, &fs.ff[k], &fs.tab[k])) == SB_OK; k++)
             job_progress(job, "cross-validation", (double)(k + 1) / (double)refits);
     } else if (r == SB_OK) {
         sb_parallel_run(folds_run, &fs, 0, nt, NULL, NULL); /* BLAS is on one thread during a job */
@@ -217,12 +233,13 @@ static sb_result_t folds_fit(sb_context_t *ctx, sb_job_t *job, size_t K, size_t 
             if ((r = fs.r[k]) != SB_OK) sb_error(ctx, r, "%s", fs.ctx[k] ? sb_context_last_error(fs.ctx[k]) : "");
     }
     for (size_t k = 0; k < refits && r == SB_OK; k++)
-        fold_sums(job, fs.ff[k], K, k, J, E + k * J, T + k, &job->cv_held);
-    for (size_t k = 0; fs.ff && fs.ctx && k < refits; k++) {
+        fold_sums(job, fs.ff[k], fs.tab[k], K, k, J, E + k * J, T + k, T + refits + k, &job->cv_held);
+    for (size_t k = 0; fs.ff && fs.tab && fs.ctx && k < refits; k++) {
         sb_factors_destroy(fs.ff[k]);
+        sb_source_destroy(fs.tab[k]);
         sb_context_destroy(fs.ctx[k]);
     }
-    free(fs.ff), free(fs.r), free(fs.ctx);
+    free(fs.ff), free(fs.tab), free(fs.r), free(fs.ctx);
     return r;
 }
 
@@ -234,7 +251,7 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     size_t J = sb_factors_terms(job->best.f), n = sb_source_sample_count(job->src);
     struct stat st; /* the folds read the table again */
     if (n < 4 * K || !job->o.source || stat(job->o.source, &st) != 0 || !S_ISREG(st.st_mode)) return SB_OK;
-    double t0 = job_now(), *E = calloc(refits * J, sizeof *E), *T = calloc(refits, sizeof *T);
+    double t0 = job_now(), *E = calloc(refits * J, sizeof *E), *T = calloc(2 * refits, sizeof *T);
     job->cv = calloc(4 * J, sizeof *job->cv);
     if (!E || !T || !job->cv) {
         free(E), free(T);
@@ -244,6 +261,10 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     sb_result_t r = folds_fit(ctx, job, K, refits, J, E, T);
     if (r == SB_OK) {
         cv_combine(job, refits, J, E, T);
+        size_t nt = 0;
+        for (size_t k = 0; k < refits; k++) /* the refits' tables' errors, over E's first row (used) */
+            if (T[k] > 0) E[nt++] = sqrt(T[refits + k] / T[k]);
+        job->cv_table = nt ? median(E, nt) : NAN;
         job->cv_folds = K;
         job->cv_refits = refits;
         job->cv_terms = J;
@@ -260,24 +281,30 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     double h = job->cv ? sb_estimate_headline(job->best.est, J) : NAN, icv = in->interp_cv[in->interp], share;
     int w = job->cv ? worst_band(job, &share) : -1;
     if (job->cv && h > 0 && (job->cv_max[J - 1] > 1.5 * h || icv > JOB_CV_WARN) && w >= 0) {
-        char why[160]; /* whose error it is: the table's between its samples, or the fit's at them */
-        if (icv > JOB_CV_WARN)
-            snprintf(why, sizeof why, "the table does not predict itself between its samples (interp cv %.3g)", icv);
-        else if (!(job->cv[J - 1] > 2 * icv))
-            snprintf(why, sizeof why, "about the table's own error between its samples (interp cv %.3g)", icv);
+        char why[200]; /* whose error it is: the refits' tables' (lobe, interpolation) or their fits' */
+        double tc = job->cv_table;
+        if (tc > JOB_CV_WARN)
+            snprintf(why, sizeof why,
+                     "the table does not predict them: without them its lobe and interpolation err by %.3g there "
+                     "(interp cv %.3g)",
+                     tc, icv);
+        else if (!(job->cv[J - 1] > 2 * tc))
+            snprintf(why, sizeof why, "about the table's own error between its samples (without them it errs by %.3g)",
+                     tc);
         else
             snprintf(why, sizeof why,
-                     "the table predicts itself (interp cv %.3g) but %zu terms do not reproduce it there (more terms "
-                     "or a finer -r may)",
-                     icv, J);
-        job_warn(job,
-                 "at the measurements left out of the fit the error is %.3g at J = %zu (median of %zu refits, each "
-                 "without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; %s: %.0f%% of the held-out "
-                 "squared error is where theta_h is %g-%g deg (%zu measurements, error %.3g there); trust "
-                 "cv_headline (report.json) for this table",
-                 job->cv[J - 1], J, job->cv_refits, K, job->cv_max[J - 1], job->cv[J - 1] / h, h, why, 100 * share,
-                 job_cv_band_deg[w], job_cv_band_deg[w + 1], job->cv_band_n[w],
-                 job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN);
+                     "the table predicts them (without them it errs by %.3g) but %zu terms do not reproduce it there "
+                     "(more terms or a finer -r may)",
+                     tc, J);
+        job_warn(
+            job,
+            "at the measurements left out of the fit the error is %.3g at J = %zu (median of %zu refits, each "
+            "without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; %s: %.0f%% of the held-out "
+            "squared error is where theta_h is %g-%g deg (%zu measurements, error %.3g there over all refits); trust "
+            "cv_headline (report.json) for this table",
+            job->cv[J - 1], J, job->cv_refits, K, job->cv_max[J - 1], job->cv[J - 1] / h, h, why, 100 * share,
+            job_cv_band_deg[w], job_cv_band_deg[w + 1], job->cv_band_n[w],
+            job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN);
     }
     return r;
 }

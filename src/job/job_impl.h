@@ -136,6 +136,9 @@ struct sb_job {
      * measurements held out (cv_pooled) and in the worst fold (cv_max);
      * one allocation, cv the first of its four rows */
     double *cv, *cv_se, *cv_pooled, *cv_max;
+    /* the same median for the tables the refits sampled (their lobe and
+     * interpolation, no factoring): the table's share of cv */
+    double cv_table;
     size_t cv_folds, cv_refits, cv_held, cv_terms;
     double cv_s; /* its time */
     /* at the kept J, per theta_h band (JOB_CV_BANDS edges): the held-out

@@ -344,6 +344,7 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
     sb_json_int(j, "folds", (long long)job->cv_folds);
     sb_json_int(j, "refits", (long long)job->cv_refits);
     sb_json_int(j, "held_out", (long long)job->cv_held);
+    sb_json_number(j, "table", job->cv ? job->cv_table : NAN);
     sb_json_string(j, "what",
                    job->cv ? "errors[].cv_headline: the median over the refits of the relative L2 of f cos theta_i at "
                              "the measurements each refit of the kept layout, form and J left out (its fold)"
