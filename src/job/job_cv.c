@@ -33,6 +33,8 @@
 /* Folds and refits by default: a tenth of the table out each time. */
 #define JOB_CV_FOLDS 10
 #define JOB_CV_REFITS 5
+/* The warning names fewer terms whose held-out error is this much lower. */
+#define JOB_CV_FEWER 1.25
 
 /* The refit of fold k: the table read again without it, with the
  * interpolation the whole table resolved (method, neighbours, radius: not
@@ -296,15 +298,21 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
                      "the table predicts them (without them it errs by %.3g) but %zu terms do not reproduce it there "
                      "(more terms or a finer -r may)",
                      tc, J);
-        job_warn(
-            job,
-            "at the measurements left out of the fit the error is %.3g at J = %zu (median of %zu refits, each "
-            "without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; %s: %.0f%% of the held-out "
-            "squared error is where theta_h is %g-%g deg (%zu measurements, error %.3g there over all refits); trust "
-            "cv_headline (report.json) for this table",
-            job->cv[J - 1], J, job->cv_refits, K, job->cv_max[J - 1], job->cv[J - 1] / h, h, why, 100 * share,
-            job_cv_band_deg[w], job_cv_band_deg[w + 1], job->cv_band_n[w],
-            job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN);
+        char fewer[120] = ""; /* terms past the best held-out error fit the samples, not the material */
+        size_t jb = J - 1;
+        for (size_t j = 0; j + 1 < J; j++)
+            if (job->cv[j] < job->cv[jb]) jb = j;
+        if (jb + 1 < J && job->cv[jb] * JOB_CV_FEWER < job->cv[J - 1])
+            snprintf(fewer, sizeof fewer, "; fewer terms predict them better: %zu terms err by %.3g there", jb + 1,
+                     job->cv[jb]);
+        job_warn(job,
+                 "at the measurements left out of the fit the error is %.3g at J = %zu (median of %zu refits, each "
+                 "without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; %s: %.0f%% of the held-out "
+                 "squared error is where theta_h is %g-%g deg (%zu measurements, error %.3g there over all "
+                 "refits)%s; trust cv_headline (report.json) for this table",
+                 job->cv[J - 1], J, job->cv_refits, K, job->cv_max[J - 1], job->cv[J - 1] / h, h, why, 100 * share,
+                 job_cv_band_deg[w], job_cv_band_deg[w + 1], job->cv_band_n[w],
+                 job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN, fewer);
     }
     return r;
 }
