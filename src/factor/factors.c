@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "factor/errors.h"
+#include "factor/lookup.h"
 #include "util/internal.h"
 #include "util/tex_axis.h"
 
@@ -193,6 +194,30 @@ double sb_factors_lookup_brdf(const sb_factors_t *f, const sb_param_t *p, int si
     int edge[2];
     sb_param_edge(p, side, edge);
     return lookup_edged(f, p, side, term, ch, st, edge);
+}
+
+void sb_factors_prefix_sums_(const sb_factors_t *f, const sb_param_t *p, size_t J, const double sg[2],
+                             const double sh[2], double *run) {
+    size_t at[2][4], C = f->channels;
+    double fw[2][4], acc[3] = {0, 0, 0};
+    int ok = J <= f->terms;
+    for (int s = 0; s < 2 && ok; s++) {
+        int wrap[2], edge[2];
+        sb_param_wrap(p, s, wrap);
+        sb_param_edge(p, s, edge);
+        sb_tex_footprint(s ? sh : sg, f->w[s], f->h[s], wrap, edge, at[s], fw[s]);
+        ok = isfinite(fw[s][0] + fw[s][3]);
+    }
+    for (size_t j = 0; j < J; j++)
+        for (size_t c = 0; c < C; c++) {
+            const double *g = sb_factors_tex_const(f, 0, j, c), *h = sb_factors_tex_const(f, 1, j, c);
+            if (ok)
+                acc[c] +=
+                    (fw[0][0] * g[at[0][0]] + fw[0][1] * g[at[0][1]] + fw[0][2] * g[at[0][2]] +
+                     fw[0][3] * g[at[0][3]]) *
+                    (fw[1][0] * h[at[1][0]] + fw[1][1] * h[at[1][1]] + fw[1][2] * h[at[1][2]] + fw[1][3] * h[at[1][3]]);
+            run[j * C + c] = ok ? acc[c] : NAN;
+        }
 }
 
 int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t terms, const double wi[3],

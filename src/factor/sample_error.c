@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "factor/lookup.h"
 #include "sepbrdf/factor.h"
 #include "sepbrdf/measured.h"
 
@@ -11,17 +12,15 @@
  * terms, divided by the form weight as sb_factors_eval does; 0 outside. */
 static int prefix_values(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, size_t J, const double wi[3],
                          const double wo[3], double *acc) {
-    double sg[2], sh[2], run[3] = {0, 0, 0};
+    double sg[2], sh[2], run[SB_SAMPLE_ERRORS_MAX * 3];
     memset(acc, 0, J * 3 * sizeof *acc);
     if (!sb_param_coords(p, wi, wo, sg, sh)) return 0;
     size_t ch = sb_factors_channels(f);
     double w = sb_form_divisor(form, wi, wo), gain = sb_param_gain(p, wi, wo);
-    for (size_t j = 0; j < J; j++) {
-        for (size_t c = 0; c < ch; c++)
-            run[c] += sb_factors_lookup_brdf(f, p, 0, j, c, sg) * sb_factors_lookup_brdf(f, p, 1, j, c, sh);
+    sb_factors_prefix_sums_(f, p, J, sg, sh, run); /* each side's footprint once */
+    for (size_t j = 0; j < J; j++)
         for (size_t c = 0; c < 3; c++)
-            acc[j * 3 + c] = sb_param_apply_gain(p, run[ch == 1 ? 0 : c], gain) / w;
-    }
+            acc[j * 3 + c] = sb_param_apply_gain(p, run[j * ch + (ch == 1 ? 0 : c)], gain) / w;
     return 1;
 }
 

@@ -312,6 +312,7 @@ sb_result_t sb_job_refactor(sb_context_t *ctx, sb_job_t *job, size_t terms) {
                       .fit_max_iters = job->o.fit_max_iters};
     free(job->rel_stored);
     job->rel_stored = NULL;
+    job->se_f = NULL;      /* the sample errors were those of the previous terms */
     free(job->svd_beside); /* of the previous terms */
     job->svd_beside = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, job->best.weighted, &job->best);

@@ -120,6 +120,10 @@ struct sb_job {
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */
+    /* the errors at a measured table's samples of best.f (job_support.c),
+     * kept for the report while best.f is se_f (NULL: none kept) */
+    sb_sample_errors_t se;
+    const sb_factors_t *se_f;
     sb_job_timings_t t;
     double t_start;
     /* the whole job's wall time in consecutive stages (report.json
