@@ -247,7 +247,9 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) {
         job_warn_max_error(job);
         job_warn_weights(job);
-        job_warn_support(job);
+        double t5 = job_now();
+        job_warn_support(job); /* the errors at a measured table's samples: seconds for a MERL file */
+        job->stage_s[5] = job_now() - t5;
         job->t.sample_s = job->best.t_sample;
         job->t.factor_s = job->best.t_factor;
         job->t.metric_s = job->best.t_metric;

@@ -492,10 +492,10 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     sb_json_number(j, "cv_s", job->cv ? job->cv_s : NAN);
     sb_json_number(j, "total_s", job->t.total_s);
     /* consecutive stages: they add up to total_s, other_s what lies between them (warnings, the summary) */
-    static const char *const stage[5] = {"open_s", "choose_s", "beside_s", "scene_s", "cv_s"};
+    static const char *const stage[6] = {"open_s", "choose_s", "beside_s", "scene_s", "cv_s", "samples_s"};
     double sum = job->t.write_s;
     sb_json_begin_object(j, "stages");
-    for (int k = 0; k < 5; k++) {
+    for (int k = 0; k < 6; k++) {
         sb_json_number(j, stage[k], job->stage_s[k]);
         sum += job->stage_s[k];
     }
