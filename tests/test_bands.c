@@ -278,6 +278,38 @@ SB_TEST(scene_outside_unweighted) {
     scene_within_2x_outside(o, "view=0..40;light=0..60");
 }
 
+/* Where the guard replaces a scene fit, the fit kept is better inside the
+ * scene than the unweighted one and within 2x of it over the whole domain
+ * (job_scene_guard.c's walk of floors; docs/scene.md, "Where the guard
+ * fires").  RGL aurora on vndf, J = 4: the scene fit 84x outside; floors
+ * 1 and 10 were 1.99x and 4.3 % inside, so the unweighted fit was kept
+ * (3.3 % inside, as the unweighted fit itself); floor 2 is 2.3 % / 1.6x. */
+SB_TEST(scene_fallback_keeps_inside) {
+    sb_job_opts_t o = {.source = SB_MEASURED_DIR "/rgl_aurora_white_rgb.bsdf", .terms = 4};
+    sb_job_t *plain = NULL, *fit = NULL;
+    CHECK(sb_job_run(NULL, &o, &plain) == SB_OK);
+    o.scene = "view=0..40;light=0..60";
+    CHECK(sb_job_run(NULL, &o, &fit) == SB_OK);
+    sb_estimate_t *e = malloc(sizeof *e);
+    CHECK(e != NULL);
+    if (plain && fit && e) {
+        CHECK(sb_scene_estimate(NULL, sb_job_scene(fit), sb_job_source(plain), sb_job_factors(plain),
+                                sb_job_param(plain), sb_job_form(plain), NULL, e) == SB_OK);
+        const sb_estimate_t *in = sb_job_estimate(fit);
+        double inside = sb_estimate_headline(in, 4), se = in->se[3][SB_EST_FCOS][SB_CH_ALL];
+        double plain_in = sb_estimate_headline(e, 4), plain_se = e->se[3][SB_EST_FCOS][SB_CH_ALL];
+        double whole = sb_estimate_headline(sb_job_domain_estimate(fit), 4);
+        double whole_plain = sb_estimate_headline(sb_job_estimate(plain), 4);
+        printf("  inside %.4g +- %.2g (unweighted %.4g +- %.2g), whole domain %.4g (unweighted %.4g)\n", inside, se,
+               plain_in, plain_se, whole, whole_plain);
+        CHECK(inside + 2 * hypot(se, plain_se) < plain_in);
+        CHECK(whole <= 2 * whole_plain);
+    }
+    free(e);
+    sb_job_destroy(plain);
+    sb_job_destroy(fit);
+}
+
 /* io: view and light ranges are rows x columns there, held exactly by the
  * fit's separable weights, so the floor is on by default too. */
 SB_TEST(scene_floor_outside) {

@@ -47,8 +47,9 @@
  *                          makes their fit better inside, and any floor
  *                          gives that up; docs/bands.md).  Not given,
  *                          the factor job replaces a fit above 1.8x the
- *                          unweighted one over the whole domain (floors 1
- *                          and 10, then the unweighted fit: docs/guide.md,
+ *                          unweighted one over the whole domain (floors
+ *                          from 1 down to 0.01 while within, else up to
+ *                          10, then the unweighted fit: docs/guide.md,
  *                          Scene-weighted fits).
  * Exactly one of the three kinds; a key given twice, an unknown key, a
  * malformed number, a range out of order or beyond 0..90 are errors.

@@ -177,7 +177,8 @@ static sb_result_t scene_beside(sb_context_t *ctx, const sb_job_t *job, size_t J
 }
 
 /* A scene fit far worse than the unweighted one over the whole domain
- * replaced (job_scene_guard.c): the unweighted fit, then the floors. */
+ * replaced (job_scene_guard.c): the unweighted fit, then the floors in
+ * the order job_scene_next_floor gives them. */
 static sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job) {
     if (!job_scene_guarded(job)) return SB_OK;
     size_t J = sb_factors_terms(job->best.f);
@@ -193,12 +194,14 @@ static sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job) {
         sb_job_destroy(u);
         return r;
     }
-    for (int i = 0; i < JOB_SCENE_FLOORS && r == SB_OK; i++) {
+    int step = 0;
+    for (int i = job_scene_next_floor(job, NULL, -1, &step); i >= 0 && r == SB_OK;) {
         sb_job_t *w = NULL;
         if ((r = scene_beside(ctx, job, J, job_scene_floors[i], &w)) != SB_ERR_NOMEM) r = SB_OK;
-        int keep = job_scene_better(job, v, w);
+        int keep = job_scene_better(job, v, w), next = job_scene_next_floor(job, w, i, &step);
         sb_job_destroy(keep ? v : w);
         if (keep) v = w, floor = job_scene_floors[i];
+        i = next;
     }
     if (r == SB_OK) r = job_scene_replace(ctx, job, u, v, floor);
     sb_job_destroy(u);

@@ -107,6 +107,7 @@ struct sb_job {
     double scene_fallback;   /* the scene fit's whole-domain error over scene_ref at J when it was replaced; 0: kept */
     double scene_fit_inside; /* the replaced scene fit's headline at J over the scene's pairs */
     double scene_kept_floor; /* the floor of the scene fit kept instead (floor=X), 0: the unweighted fit */
+    double scene_ref_inside; /* the unweighted fit's headline at J over the scene's pairs, when replaced */
     int no_scene_guard;      /* JOB_RUN_NO_GUARD: a candidate of job_scene_guard.c itself */
     double *rel_stored;      /* J * 4 after sb_job_write, NULL before or if unknown */
     int wrote_sampler;       /* sb_job_write wrote sampler.bin (non-negative factors) */
@@ -352,14 +353,17 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
  * (job_scene_guard.c decides, job.c's job_scene_guard runs and destroys
  * the jobs): whether the kept fit is one to compare; the unweighted fit
  * u's headlines recorded and *replace set where the scene fit is far
- * worse over the whole domain; whether the scene fit with a higher floor
- * w is to be kept rather than v (either may be NULL); the scene fit
- * replaced by u or v, whichever is lower inside the scene (the attempts
- * set aside left in u and v). */
-#define JOB_SCENE_FLOORS 2
+ * worse over the whole domain; the index into job_scene_floors of the
+ * next floor to try after floor i gave w (i < 0: the first; w NULL: its
+ * run failed; *step the walk's direction, set there), -1: none; whether
+ * the scene fit with floor w is to be kept rather than v (either may be
+ * NULL); the scene fit replaced by u or v, whichever is lower inside the
+ * scene (the attempts set aside left in u and v). */
+#define JOB_SCENE_FLOORS 7
 extern const double job_scene_floors[JOB_SCENE_FLOORS];
 int job_scene_guarded(const sb_job_t *job);
 sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, const sb_job_t *u, int *replace);
+int job_scene_next_floor(const sb_job_t *job, const sb_job_t *w, int i, int *step);
 int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w);
 sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor);
 /* report.json's "scene" object (null without a scene). */

@@ -107,6 +107,7 @@ void job_scene_report(sb_json_t *j, const sb_job_t *job) {
     sb_json_bool(j, "fallback", job->scene_fallback > 0);
     sb_json_number(j, "fallback_ratio", job->scene_fallback > 0 ? job->scene_fallback : NAN);
     sb_json_number(j, "fallback_inside", job->scene_fallback > 0 ? job->scene_fit_inside : NAN);
+    sb_json_number(j, "fallback_unweighted_inside", job->scene_fallback > 0 ? job->scene_ref_inside : NAN);
     sb_json_number(j, "fallback_floor",
                    job->scene_fallback > 0 && job->scene_kept_floor > 0 ? job->scene_kept_floor : NAN);
     sb_json_end_object(j);

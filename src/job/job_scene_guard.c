@@ -3,11 +3,13 @@
  * reference (report.json scene.unweighted_headline).  A scene fit whose
  * error over the whole domain is above SCENE_OUTSIDE x that reference is
  * replaced (scene.fallback): by the scene fit with a higher floor (the
- * cells outside the scene weigh SCENE_FLOORS x the scene's mass) or by the
- * unweighted fit, whichever of those within SCENE_OUTSIDE outside is the
- * lowest inside the scene.  Apart from job_scene_domain.c, which measures
- * and drops terms; the runs themselves, whole jobs beside this one, are
- * job_scene_guard in job.c, which asks this file what to run and keep. */
+ * cells outside the scene weigh X x the scene's mass, X walked along
+ * job_scene_floors: from 1 down while within SCENE_OUTSIDE outside, else
+ * up to the first within) or by the unweighted fit, whichever of those
+ * within SCENE_OUTSIDE outside is the lowest inside the scene.  Apart
+ * from job_scene_domain.c, which measures and drops terms; the runs
+ * themselves, whole jobs beside this one, are job_scene_guard in job.c,
+ * which asks this file what to run and keep. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,10 +25,20 @@
  * draw reads the ratio within about 10 % of the report's (gold J = 8:
  * 1.84 drawn, 2.0 in the report). */
 #define SCENE_OUTSIDE 1.8
-/* Floors tried before the unweighted fit: Phong n = 100 at J = 1, floor 1
- * inside 3.5 % (the unweighted fit 36 %), 0.34x outside; RGL light blue
- * at J = 4, floor 10 inside 1.1 % (unweighted 1.4 %), 1.2x outside. */
-const double job_scene_floors[JOB_SCENE_FLOORS] = {1, 10};
+/* The floors walked (docs/scene.md, "Where the guard fires"), inside /
+ * whole domain over the unweighted fit at R = 32: the walk's first pass
+ * is at most 1.6x the lowest inside of these within 1.8x.  RGL aurora
+ * J = 4: floor 1 1.59 % / 1.99x, 2 2.31 % / 1.61x, 10 4.29 % / 1.2x
+ * (the unweighted fit 3.32 % inside); light blue J = 4: 3 0.92 % / 3.4x,
+ * 5 0.68 % / 1.74x, 10 1.14 % / 1.23x; Phong n = 100 J = 1: 1 3.52 % /
+ * 0.34x, 0.1 2.53 % / 0.19x.  Not monotone (silk blue J = 4: 3 1.71x,
+ * 5 2.3x), hence a walk that stops at the first within, not a bisection. */
+const double job_scene_floors[JOB_SCENE_FLOORS] = {0.01, 0.1, 1, 2, 3, 5, 10};
+#define FLOOR_START 2 /* floor 1: the cells outside weigh what the scene does */
+/* A floor fit within this share of the scene fit's inside and ratio
+ * changed nothing (every cell touched: Phong n = 100 on rv, J = 4, any
+ * floor 0.0313 % / 30.4x): no other floor will. */
+#define FLOOR_SAME 0.01
 
 /* The attempt and the screening of u become job's (and job's u's, to be
  * destroyed with it). */
@@ -68,6 +80,26 @@ sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, const sb_job_t
     return SB_OK;
 }
 
+static int same(double a, double b) { return fabs(a - b) <= FLOOR_SAME * fabs(b); }
+
+int job_scene_next_floor(const sb_job_t *job, const sb_job_t *w, int i, int *step) {
+    if (i < 0) {
+        *step = 0;
+        return FLOOR_START;
+    }
+    size_t J = sb_factors_terms(job->best.f);
+    int pass = w && domain_at(w, J) <= SCENE_OUTSIDE * job->scene_ref[J - 1];
+    if (*step == 0) {
+        if (!pass && w && same(domain_at(w, J), domain_at(job, J)) &&
+            same(sb_job_headline(w, J), sb_job_headline(job, J)))
+            return -1;
+        *step = pass ? -1 : 1; /* down while within, else up to the first within */
+    } else if (*step < 0 ? !pass : pass)
+        return -1;
+    int next = i + *step;
+    return next >= 0 && next < JOB_SCENE_FLOORS ? next : -1;
+}
+
 int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w) {
     size_t J = sb_factors_terms(job->best.f);
     return w && domain_at(w, J) <= SCENE_OUTSIDE * job->scene_ref[J - 1] &&
@@ -88,6 +120,7 @@ static sb_result_t replace(sb_context_t *ctx, sb_job_t *job, size_t J, sb_job_t 
     take_fit(job, u);
     sb_result_t r = job_estimate_again(ctx, job, &lv, &job->best); /* the unweighted fit inside the scene */
     job->scene_kept_floor = 0;
+    job->scene_ref_inside = r == SB_OK ? sb_job_headline(job, J) : NAN;
     if (r == SB_OK && v && sb_job_headline(v, J) < sb_job_headline(job, J)) {
         take_fit(job, v);
         job->scene_kept_floor = floor;
@@ -105,7 +138,9 @@ sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_
     if (job->scene_kept_floor > 0) snprintf(what, sizeof what, "the scene's fit with floor=%g", job->scene_kept_floor);
     job_warn(job,
              "the scene's fit was %.3gx the unweighted fit's error over the whole domain (%.3g %% against %.3g %%): "
-             "kept %s (report.json scene.fallback); floor=X in --scene keeps the scene's as asked",
-             out / ref, 100 * out, 100 * ref, what);
+             "kept %s (inside the scene %.3g %%, the scene's fit %.3g %%, the unweighted fit %.3g %%; report.json "
+             "scene.fallback); floor=X in --scene keeps the scene's as asked",
+             out / ref, 100 * out, 100 * ref, what, 100 * sb_job_headline(job, J), 100 * job->scene_fit_inside,
+             100 * job->scene_ref_inside);
     return SB_OK;
 }
