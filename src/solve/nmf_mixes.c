@@ -83,7 +83,10 @@
  * 1.61-1.86; the Cornell acrylic's worst prefix 1.39 -> 1.44.  A fixed
  * weight 1.3 (no target) gave the gold 1.28, 1.35, 1.44 and the acrylic
  * 1.54 at J' = 1; 1.2: 1.34, 1.38, 1.49 (docs/positive.md, round h38n).
- * Not on vndf and vh: there it moved RGL aurora's J' = 2 1.58 -> 1.84. */
+ * Not on unmasked layouts: on vndf the same took RGL aurora and paper
+ * from 0.81, 1.59, 1.36, 1.56 and 1.33, 1.66, 0.92, 1.68 to 0.83, 1.80,
+ * 1.79, 1.23 and 1.39, 1.98, 1.19, 1.27 (everywhere, malachite's auto
+ * went from vh to hd, 7x the CPU). */
 #define SB_NMF_LAST_TARGET 1.25
 #define SB_NMF_LAST_WEIGHT 1.3
 /* The worst prefix of U, V in the headline's weights against the
@@ -268,7 +271,7 @@ static void polish(nmf_state_t *s, sb_solve_out_t *out) {
  * corrected ratios cp. */
 static void correct_sref(nmf_state_t *s, const double *cp) {
     for (size_t p = 0; p < s->J; p++) {
-        s->cp[p] = cp[p];
+        s->cp[p] *= cp[p]; /* on push_last's weight of the last prefix, if any */
         s->sref[p] /= cp[p];
     }
 }
