@@ -56,7 +56,20 @@ typedef struct nmf_state {
     double cp[SB_NMF_MAX_TERMS];
     /* m x J, n x J: the first candidate toward rho (to_headline; with rho) */
     double *uc, *vc;
+    /* the last prefix's squared ratio r above last_tau2 counts
+     * min(r / last_tau2, last_kap2) times (sb_nmf_last_boost; 0: not) */
+    double last_tau2, last_kap2;
 } nmf_state_t;
+
+/* The factor on the last prefix's squared ratio r to the reference, in
+ * the sweeps' weights (ratio_weights) and in the measure the fits are
+ * chosen and polished by (nmf_mixes.c worst_ratio): 1 up to last_tau2,
+ * then r / last_tau2 up to last_kap2 (SB_NMF_LAST_TARGET, _WEIGHT). */
+static inline double sb_nmf_last_boost(const nmf_state_t *s, double r) {
+    if (!(s->last_tau2 > 0) || !(r > s->last_tau2)) return 1;
+    double b = r / s->last_tau2;
+    return b < s->last_kap2 ? b : s->last_kap2;
+}
 
 /* Sweeps of a stage before the last (joint refit of the terms so far),
  * and rank-one updates seeding a term. */

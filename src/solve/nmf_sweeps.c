@@ -140,15 +140,16 @@ static int columns_run(nmf_state_t *s, void *(*fn)(void *), const nmf_job_t *pro
     return nt;
 }
 
-/* Step: with the ratios r_p = f_p / sref_p (rmax their largest), the
+/* Step: with the ratios r_p = f_p / sref_p (rmax their largest; the last
+ * prefix's of all J times sb_nmf_last_boost, held for the sweep), the
  * weights alpha_p = (r_p / rmax)^gamma / f_p, the gradient of k log (sum_p
  * r_p^gamma)^(1/gamma), returned (SB_NMF_RATIO_POWER). */
 static double ratio_weights(nmf_state_t *s, const double *f, size_t k) {
-    double rmax = 0, S = 0;
+    double rmax = 0, S = 0, bl = k == s->J ? sb_nmf_last_boost(s, f[k - 1] / s->sref[k - 1]) : 1;
     for (size_t p = 0; p < k; p++)
-        rmax = fmax(rmax, f[p] / s->sref[p]);
+        rmax = fmax(rmax, f[p] / s->sref[p] * (p + 1 == k ? bl : 1));
     for (size_t p = 0; p < k; p++) {
-        double q = pow(f[p] / s->sref[p] / rmax, s->gam);
+        double q = pow(f[p] / s->sref[p] * (p + 1 == k ? bl : 1) / rmax, s->gam);
         s->alpha[p] = q / f[p];
         S += q;
     }
