@@ -48,4 +48,6 @@ const sb_param_desc_t sb_param_desc_io = {.name = "io",
                                           .wrap_y = SB_WRAP_REPEAT,
                                           .vt = &io_vt,
                                           .row_sample = sb_grid_row_sample,
-                                          .sample_glsl = sb_grid_sample_glsl};
+                                          .sample_glsl = sb_grid_sample_glsl,
+                                          .row_edge = sb_theta_phi_row_edge,
+                                          .row_cell = sb_grid_row_cell};
