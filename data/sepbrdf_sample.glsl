@@ -165,7 +165,7 @@ float sb_weight(int k, vec2 key) {
 
 vec3 sb_half_view(vec3 V) {
     float r = length(V.xy);
-    return vec3(r, V.z, r > 0.0 ? atan(V.y, V.x) : 0.0);
+    return vec3(r, V.z, r > 0.0 ? sb_atan2(V.y, V.x) : 0.0);
 }
 
 float sb_wrap_pi(float d) { return d - 2.0 * SB_PI * floor((d + SB_PI) / (2.0 * SB_PI)); }
@@ -173,7 +173,7 @@ float sb_wrap_pi(float d) { return d - 2.0 * SB_PI * floor((d + SB_PI) / (2.0 * 
 vec2 sb_row_arc(int y) {
     int W = textureSize(sb_cdf, 0).x - 1;
     vec3 d = sb_row_dir(ivec2(W - 1, y), vec2(1.0, 0.0)), e = sb_row_dir(ivec2(W - 1, y), vec2(1.0, 0.5));
-    float a = atan(d.y, d.x), hw = atan(e.y, e.x) - a;
+    float a = sb_atan2(d.y, d.x), hw = sb_atan2(e.y, e.x) - a;
     if (hw <= 0.0) hw += 2.0 * SB_PI;
     return vec2(a, 2.0 * hw);
 }
@@ -193,7 +193,7 @@ float sb_half_zcut(vec3 hv, vec2 arc) {
         cmax = 1.0;
     else
         cmax = max(cos(d0), cos(d0 + w));
-    float t = 0.25 * SB_PI + 0.5 * atan(cmax * hv.x, hv.y), s = sin(0.5 * t);
+    float t = 0.25 * SB_PI + 0.5 * sb_atan2(cmax * hv.x, hv.y), s = sin(0.5 * t);
     return 2.0 * s * s;
 }
 
@@ -248,7 +248,7 @@ float sb_half_width(vec3 hv, float z) {
     if (!(den > 0.0)) return num < 0.0 ? SB_PI : 0.0;
     float c = num / den;
     // acos(c) as an atan: llvmpipe's float acos is 7e-5 off (at c = 0.78)
-    return c <= -1.0 + SB_FULL_ARC ? SB_PI : (c >= 1.0 ? 0.0 : atan(sqrt((1.0 - c) * (1.0 + c)), c));
+    return c <= -1.0 + SB_FULL_ARC ? SB_PI : (c >= 1.0 ? 0.0 : sb_atan2(sqrt((1.0 - c) * (1.0 + c)), c));
 }
 
 // The part of the arc valid at z: its length, and phi uniform over it by u.
@@ -278,11 +278,11 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
     if (cell.x >= xc) return 0.0;
     vec2 zb = sb_col_z(cell.x);
     vec2 arc = sb_row_arc(cell.y);
-    bool circle = arc.y >= 2.0 * SB_PI - 1e-3; // iso: the valid part; hd: the whole cell
-    float c = dot(Hh, V), dz = circle ? sb_cut_dz(zb, zc) : zb.y - zb.x;
-    float len = circle ? sb_phi_valid(hv, sb_arc_z(zb, zc), arc, 0.0, ph) : arc.y;
-    if (!(c > 0.0) || !(dz > 0.0) || !(len > 0.0)) return 0.0;
     int W = textureSize(sb_cdf, 0).x - 1, K = sb_dists();
+    // iso: the valid part; hd: the whole cell, its solid angle from the table
+    float c = dot(Hh, V), area = sb_cdf_at(K, cell);
+    if (arc.y >= 2.0 * SB_PI - 1e-3) area = sb_cut_dz(zb, zc) * sb_phi_valid(hv, sb_arc_z(zb, zc), arc, 0.0, ph);
+    if (!(c > 0.0) || !(area > 0.0)) return 0.0;
     float num = 0.0, total = 0.0;
     for (int k = 0; k < K; k++) {
         float w = sb_weight(k, sw);
@@ -293,7 +293,7 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
             num += w * sb_cdf_prob(k, ivec2(W, 0), ivec2(0, 1), cell.y) *
                    sb_cdf_prob(k, ivec2(0, cell.y), ivec2(1, 0), cell.x) / m;
     }
-    return total > 0.0 ? num / total / (dz * len) / (4.0 * c) : 0.0;
+    return total > 0.0 ? num / total / area / (4.0 * c) : 0.0;
 }
 
 // Distribution k's cell among those V's cuts keep (row by u0, column by

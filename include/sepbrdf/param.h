@@ -239,7 +239,10 @@ SB_API int sb_param_coords(const sb_param_t *p, const double wi[3], const double
 /* GLSL source defining `vec4 sb_coords(vec3 L, vec3 V)` (xy: g coordinate,
  * zw: h coordinate) and `bool sb_domain(vec3 L, vec3 V, vec4 st)` that
  * compute exactly sb_param_coords() and its return value.  It may use the
- * constants SB_PI and SB_THETA_MAX defined by the snippet header. */
+ * constants SB_PI and SB_THETA_MAX and the functions float sb_atan2(float
+ * y, float x) and sb_atan_q(float t) = (4/pi) atan(t) on [0, 1] (a
+ * polynomial in float, more exact than GPUs' atan) defined by the
+ * snippet header. */
 SB_API const char *sb_param_glsl(const sb_param_t *p);
 
 /* Importance sampling (sampler.h): the direction a row cell stands for,

@@ -424,11 +424,14 @@ static double factored_pdf(const sb_sampler_t *s, const double wo[3], const doub
     for (int i = 0; i < 3; i++)
         h[i] /= n;
     double cosv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];
-    int circle = full_circle(s->pw[y]);
-    double dz = circle ? half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) : s->zhi[x] - s->zlo[x];
-    double len = circle ? half_phi_len(&c.v, half_arc_z(s->zlo[x], s->zhi[x], c.z[y]), s->pa[y], s->pw[y]) : s->pw[y];
-    if (!(cosv > 0) || !(dz > 0) || !(len > 0)) return 0;
-    return cell_prob(s, key, &c, x, y) / (dz * len) / (4 * cosv);
+    /* hd: the whole cell, its solid angle the file's m_r (the GLSL's arc and
+     * z bounds from float atan and sin put its pdfs 5.6e-5 off the C's) */
+    double area = s->measure[y * s->W + x];
+    if (full_circle(s->pw[y]))
+        area = half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) *
+               half_phi_len(&c.v, half_arc_z(s->zlo[x], s->zhi[x], c.z[y]), s->pa[y], s->pw[y]);
+    if (!(cosv > 0) || !(area > 0)) return 0;
+    return cell_prob(s, key, &c, x, y) / area / (4 * cosv);
 }
 
 double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {

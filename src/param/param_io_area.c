@@ -111,26 +111,12 @@ static const sb_param_vt_t area_vt = {
     area_coords,
     "// io-area: Shirley-Chiu concentric map of the cap theta <= SB_THETA_MAX,\n"
     "// equal-area; s = (a + 1)/2, t = (b + 1)/2 for the square point (a, b), both clamp.\n"
-    "// (4/pi) atan(t) for t in [0, 1] (the wedge's ratio): a polynomial within\n"
-    "// 2.2e-7 (llvmpipe's atan was 1e-5 off, which moved the sampler's term\n"
-    "// weights 6e-5 from the C's); the C's row cells evaluate it alike.\n"
-    "float sb_area_q(float t) {\n"
-    "    float x = t * t, p = -0.005805707536637783;\n"
-    "    p = p * x + 0.030278297141194344;\n"
-    "    p = p * x + -0.07490436732769012;\n"
-    "    p = p * x + 0.12565429508686066;\n"
-    "    p = p * x + -0.17829543352127075;\n"
-    "    p = p * x + 0.25422725081443787;\n"
-    "    p = p * x + -0.42439383268356323;\n"
-    "    p = p * x + 1.2732393741607666;\n"
-    "    return t * p;\n"
-    "}\n"
     "vec2 sb_area_st(vec3 w) {\n"
     "    float c = 1.0 - cos(SB_THETA_MAX);\n"
     "    float rho = sqrt(dot(w.xy, w.xy) / (max(1.0 + w.z, 1e-30) * c));\n"
     "    vec2 q = abs(w.xy);\n"
     "    bool wa = q.y <= q.x; // |a| = rho; else |b| = rho\n"
-    "    float r = rho * sb_area_q(wa ? (q.x > 0.0 ? q.y / q.x : 0.0) : q.x / q.y);\n"
+    "    float r = rho * sb_atan_q(wa ? (q.x > 0.0 ? q.y / q.x : 0.0) : q.x / q.y);\n"
     "    vec2 ab = wa ? vec2(rho, r) : vec2(r, rho);\n"
     "    ab = vec2(w.x < 0.0 ? -ab.x : ab.x, w.y < 0.0 ? -ab.y : ab.y);\n"
     "    return 0.5 * ab + 0.5;\n"
@@ -147,7 +133,7 @@ static const sb_param_vt_t area_vt = {
  * way round on the other; rho^2 c = 1 - z.  So |a|^2 c is 1 - z or (1 -
  * z) q^2, compared with e_i, and the sign of a is that of x (-0 as +0).
  * q is a polynomial in float (area_q; 2.2e-7 from the exact, against
- * 1e-5 for llvmpipe's atan), the GLSL's sb_area_q step by step. */
+ * 1e-5 for llvmpipe's atan), the snippet's sb_atan_q step by step. */
 static const float area_q_coef[8] = {1.2732393741607666f,   -0.42439383268356323f, 0.25422725081443787f,
                                      -0.17829543352127075f, 0.12565429508686066f,  -0.07490436732769012f,
                                      0.030278297141194344f, -0.005805707536637783f};
@@ -204,7 +190,7 @@ static const char area_sample_glsl[] =
     "    float c = 1.0 - cos(SB_THETA_MAX), z = r * r * c, q = sqrt(max(c * (2.0 - z), 0.0));\n"
     "    return vec3(r * cos(psi) * q, r * sin(psi) * q, 1.0 - z);\n"
     "}\n"
-    "// the cell of L: its ring 1 - z and wedge ratio q (sb_area_q) against the edges a_i^2 c\n"
+    "// the cell of L: its ring 1 - z and wedge ratio q (sb_atan_q) against the edges a_i^2 c\n"
     "bool sb_area_past(float v, float m2, int i, int n, float e) {\n"
     "    if (2 * i == n) return v >= 0.0;\n"
     "    return 2 * i > n ? (v > 0.0 && m2 >= e) : (v >= 0.0 || m2 <= e);\n"
@@ -226,7 +212,7 @@ static const char area_sample_glsl[] =
     "    float m = 1.0 - L.z;\n"
     "    vec2 a = abs(L.xy);\n"
     "    bool wa = a.y <= a.x;\n"
-    "    float t = wa ? (a.x > 0.0 ? a.y / a.x : 0.0) : a.x / a.y, q = sb_area_q(t), mq = m * (q * q);\n"
+    "    float t = wa ? (a.x > 0.0 ? a.y / a.x : 0.0) : a.x / a.y, q = sb_atan_q(t), mq = m * (q * q);\n"
     "    return ivec2(sb_area_axis(L.x, wa ? m : mq, n, 0), sb_area_axis(L.y, wa ? mq : m, n, 1));\n"
     "}\n";
 

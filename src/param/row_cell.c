@@ -81,8 +81,8 @@ static void theta_phi_cell(const sb_param_t *p, const float *const e[2], const f
  * of the phi edges (phi_j = 2 pi j / H; 0 at pi, which is tested by signs). */
 float sb_theta_phi_row_edge(const sb_param_t *p, int axis, size_t i) {
     if (axis == 0) {
-        double t = tan(sb_warp_theta(sb_param_warp(p, SB_AXIS_THETA_H), (double)i, p->tex_w[SB_SIDE_G],
-                                     p->opts.theta_max));
+        double t =
+            tan(sb_warp_theta(sb_param_warp(p, SB_AXIS_THETA_H), (double)i, p->tex_w[SB_SIDE_G], p->opts.theta_max));
         return (float)(t * t);
     }
     size_t n = p->tex_h[SB_SIDE_G];

@@ -40,8 +40,8 @@ typedef struct sb_layout_vt {
     /* sb_param_coords: the g and h texture coordinates of a pair; 0 outside the domain */
     int (*coords)(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
     /* GLSL defining vec4 sb_coords(vec3 L, vec3 V) and bool sb_domain(vec3
-     * L, vec3 V, vec4 st) as coords computes them (SB_PI, SB_THETA_MAX
-     * are defined) */
+     * L, vec3 V, vec4 st) as coords computes them (SB_PI, SB_THETA_MAX,
+     * sb_atan2 and sb_atan_q are defined: sb_param_glsl) */
     const char *glsl;
     /* Optional (NULL for most layouts).  gain: the known factor of the
      * value at a pair (sb_param_gain; SB_CAP_TABLES layouts: value = gain
