@@ -63,6 +63,53 @@ int sb_dists() {
 // The share of cosine-weighted samples (sampler.bin, layer K at (0, H)).
 float sb_cosine_share() { return sb_cdf_at(sb_dists(), ivec2(0, textureSize(sb_cdf, 0).y - 1)); }
 
+// The edges of the row cells (sb_row_cell, src/param/row_cell.c): float
+// constants in layer K, edge i of x (1 <= i < W) at texel (i, H), edge j
+// of y (1 <= j < H) at (W, j).  The cell of L is found by comparisons
+// against them, on values made by single float operations in the order
+// the C takes (sb_param_row_cell), so both take the same cell.
+float sb_edge_x(int i) { return sb_cdf_at(sb_dists(), ivec2(i, textureSize(sb_cdf, 0).y - 1)); }
+float sb_edge_y(int j) { return sb_cdf_at(sb_dists(), ivec2(textureSize(sb_cdf, 0).x - 1, j)); }
+
+// The theta cell of s among n: the largest i with s_x^2 + s_y^2 >=
+// tan^2(theta_i) s_z^2 (edge x), by a binary search.
+int sb_cell_tan2(vec3 s, int n) {
+    float r2 = s.x * s.x + s.y * s.y, z2 = s.z * s.z;
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (r2 >= sb_edge_x(mid) * z2)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
+// Whether the azimuth of q is at or past phi_j = 2 pi j / n (edge y: cot phi_j).
+bool sb_past_phi(vec2 q, int j, int n) {
+    if (2 * j == n) return q.y < 0.0 || (q.y == 0.0 && q.x < 0.0);
+    float p = q.y * sb_edge_y(j);
+    return 2 * j < n ? (q.y < 0.0 || q.x <= p) : (q.y < 0.0 && q.x >= p);
+}
+
+int sb_cell_phi(vec2 q, int n) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (sb_past_phi(q, mid, n))
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
+// @ROWS: sb_glsl_sampler puts the layout's sb_row_dir (and sb_row_cell) here
+
+// Cell i of an axis of n cells, wrapped (repeat = 1) or clamped.
+int sb_wrap_cell(int i, int n, int repeat) { return repeat == 1 ? (i + n) % n : clamp(i, 0, n - 1); }
+
 #if SB_HALF_ROWS
 // The weights' key: the g coordinate of the pair (V, V), whose half
 // vector is V; the weight of k is the table bilinear between cell centres
@@ -73,9 +120,6 @@ bool sb_weight_key(vec3 V, out vec2 key) {
     key = clamp(st.xy, vec2(0.0), vec2(1.0));
     return sb_domain(V, V, st);
 }
-
-// Cell i of an axis of n cells, wrapped (repeat = 1) or clamped.
-int sb_wrap_cell(int i, int n, int repeat) { return repeat == 1 ? (i + n) % n : clamp(i, 0, n - 1); }
 
 float sb_weight(int k, vec2 key) {
     ivec2 n = textureSize(sb_cdf, 0).xy - 1;
@@ -95,11 +139,20 @@ bool sb_weight_key(vec3 V, out vec2 key) {
     return sb_domain(M, V, st);
 }
 
-// Weight of distribution k: lum_c h_jc(key) I_jc.
+// Weight of distribution k: lum_c h_jc(key) I_jc, h bilinear between the
+// texel centres in float, as the C reads it (a GPU's filter may weigh the
+// texels in 8-bit steps: at a steep h, 1e-3 and more of the weight).
 float sb_weight(int k, vec2 key) {
     int j = k / SB_SAMPLE_CH, c = k - j * SB_SAMPLE_CH;
     vec3 lum = SB_SAMPLE_CH == 1 ? vec3(1.0) : vec3(0.2126, 0.7152, 0.0722);
-    float h = texture(sb_h, vec3(key, float(j)))[c];
+    ivec2 n = textureSize(sb_h, 0).xy;
+    vec2 u = clamp(key, vec2(0.0), vec2(1.0)) * vec2(n) - vec2(0.5), f = floor(u), a = u - f;
+    ivec2 i = ivec2(f);
+    int x0 = sb_wrap_cell(i.x, n.x, SB_WRAP_H_S), x1 = sb_wrap_cell(i.x + 1, n.x, SB_WRAP_H_S);
+    int y0 = sb_wrap_cell(i.y, n.y, SB_WRAP_H_T), y1 = sb_wrap_cell(i.y + 1, n.y, SB_WRAP_H_T);
+    float h = (1.0 - a.x) * (1.0 - a.y) * texelFetch(sb_h, ivec3(x0, y0, j), 0)[c] +
+              a.x * (1.0 - a.y) * texelFetch(sb_h, ivec3(x1, y0, j), 0)[c] +
+              (1.0 - a.x) * a.y * texelFetch(sb_h, ivec3(x0, y1, j), 0)[c] + a.x * a.y * texelFetch(sb_h, ivec3(x1, y1, j), 0)[c];
     return lum[c] * h * sb_scale[j] * sb_cdf_at(k, ivec2(0, textureSize(sb_cdf, 0).y - 1));
 }
 #endif
@@ -112,7 +165,7 @@ float sb_weight(int k, vec2 key) {
 
 vec3 sb_half_view(vec3 V) {
     float r = length(V.xy);
-    return vec3(r, V.z, r > 0.0 ? atan(V.y, V.x) : 0.0);
+    return vec3(r, V.z, r > 0.0 ? sb_atan2(V.y, V.x) : 0.0);
 }
 
 float sb_wrap_pi(float d) { return d - 2.0 * SB_PI * floor((d + SB_PI) / (2.0 * SB_PI)); }
@@ -120,7 +173,7 @@ float sb_wrap_pi(float d) { return d - 2.0 * SB_PI * floor((d + SB_PI) / (2.0 * 
 vec2 sb_row_arc(int y) {
     int W = textureSize(sb_cdf, 0).x - 1;
     vec3 d = sb_row_dir(ivec2(W - 1, y), vec2(1.0, 0.0)), e = sb_row_dir(ivec2(W - 1, y), vec2(1.0, 0.5));
-    float a = atan(d.y, d.x), hw = atan(e.y, e.x) - a;
+    float a = sb_atan2(d.y, d.x), hw = sb_atan2(e.y, e.x) - a;
     if (hw <= 0.0) hw += 2.0 * SB_PI;
     return vec2(a, 2.0 * hw);
 }
@@ -140,7 +193,7 @@ float sb_half_zcut(vec3 hv, vec2 arc) {
         cmax = 1.0;
     else
         cmax = max(cos(d0), cos(d0 + w));
-    float t = 0.25 * SB_PI + 0.5 * atan(cmax * hv.x, hv.y), s = sin(0.5 * t);
+    float t = 0.25 * SB_PI + 0.5 * sb_atan2(cmax * hv.x, hv.y), s = sin(0.5 * t);
     return 2.0 * s * s;
 }
 
@@ -195,7 +248,7 @@ float sb_half_width(vec3 hv, float z) {
     if (!(den > 0.0)) return num < 0.0 ? SB_PI : 0.0;
     float c = num / den;
     // acos(c) as an atan: llvmpipe's float acos is 7e-5 off (at c = 0.78)
-    return c <= -1.0 + SB_FULL_ARC ? SB_PI : (c >= 1.0 ? 0.0 : atan(sqrt((1.0 - c) * (1.0 + c)), c));
+    return c <= -1.0 + SB_FULL_ARC ? SB_PI : (c >= 1.0 ? 0.0 : sb_atan2(sqrt((1.0 - c) * (1.0 + c)), c));
 }
 
 // The part of the arc valid at z: its length, and phi uniform over it by u.
@@ -225,11 +278,11 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
     if (cell.x >= xc) return 0.0;
     vec2 zb = sb_col_z(cell.x);
     vec2 arc = sb_row_arc(cell.y);
-    bool circle = arc.y >= 2.0 * SB_PI - 1e-3; // iso: the valid part; hd: the whole cell
-    float c = dot(Hh, V), z = sb_one_minus_z(Hh), dz = circle ? sb_cut_dz(zb, zc) : zb.y - zb.x;
-    float len = circle ? sb_phi_valid(hv, sb_arc_z(zb, zc), arc, 0.0, ph) : arc.y;
-    if (!(c > 0.0) || !(dz > 0.0) || !(len > 0.0) || !(z <= zc)) return 0.0;
     int W = textureSize(sb_cdf, 0).x - 1, K = sb_dists();
+    // iso: the valid part; hd: the whole cell, its solid angle from the table
+    float c = dot(Hh, V), area = sb_cdf_at(K, cell);
+    if (arc.y >= 2.0 * SB_PI - 1e-3) area = sb_cut_dz(zb, zc) * sb_phi_valid(hv, sb_arc_z(zb, zc), arc, 0.0, ph);
+    if (!(c > 0.0) || !(area > 0.0)) return 0.0;
     float num = 0.0, total = 0.0;
     for (int k = 0; k < K; k++) {
         float w = sb_weight(k, sw);
@@ -240,7 +293,7 @@ float sb_half_pdf(vec3 L, vec3 V, ivec2 cell, vec2 sw) {
             num += w * sb_cdf_prob(k, ivec2(W, 0), ivec2(0, 1), cell.y) *
                    sb_cdf_prob(k, ivec2(0, cell.y), ivec2(1, 0), cell.x) / m;
     }
-    return total > 0.0 ? num / total / (dz * len) / (4.0 * c) : 0.0;
+    return total > 0.0 ? num / total / area / (4.0 * c) : 0.0;
 }
 
 // Distribution k's cell among those V's cuts keep (row by u0, column by
@@ -293,7 +346,11 @@ bool sb_half_dir(vec3 V, int k, float u0, float u1, out vec3 D) {
 float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
     ivec3 n = textureSize(sb_cdf, 0);
     int W = n.x - 1, H = n.y - 1, K = sb_dists();
+#ifdef SB_ROW_CELL
+    ivec2 cell = sb_row_cell(L, V);
+#else
     ivec2 cell = clamp(ivec2(floor(st_g * vec2(W, H))), ivec2(0), ivec2(W - 1, H - 1));
+#endif
 #if SB_HALF_ROWS
     return sb_half_pdf(L, V, cell, sw);
 #else

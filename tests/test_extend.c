@@ -83,6 +83,12 @@ static const sb_layout_vt_t eq_vt = {
     NULL,
     NULL}; /* no gain, no cell values (vndf's: layout.h) */
 
+/* A row edge without a row cell: refused (registration). */
+static float eq_row_edge(const sb_param_t *p, int axis, size_t i) {
+    (void)p, (void)axis;
+    return (float)i;
+}
+
 static const sb_layout_desc_t eq_layout = {
     .name = "io-eq",
     .description = "the theta-phi grid, uniform in 1 - cos(theta): cells of equal solid angle",
@@ -161,6 +167,11 @@ SB_TEST(registration) {
     bad.name = "eq2";
     bad.vt = NULL;
     CHECK(sb_param_register(ctx, &bad, NULL) == SB_ERR_ARG && sb_param_register(ctx, NULL, NULL) == SB_ERR_ARG);
+    bad = eq_layout; /* row cells: row_cell and row_edge both (sampler.h) */
+    bad.name = "eq3";
+    bad.row_edge = eq_row_edge;
+    CHECK(sb_param_register(ctx, &bad, NULL) == SB_ERR_ARG);
+    CHECK(strstr(sb_context_last_error(ctx), "row_cell and row_edge") != NULL);
     sb_solver_t worse = mine_solver;
     worse.name = "auto";
     CHECK(sb_solver_register(ctx, &worse, NULL) == SB_ERR_ARG);

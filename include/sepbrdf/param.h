@@ -239,7 +239,10 @@ SB_API int sb_param_coords(const sb_param_t *p, const double wi[3], const double
 /* GLSL source defining `vec4 sb_coords(vec3 L, vec3 V)` (xy: g coordinate,
  * zw: h coordinate) and `bool sb_domain(vec3 L, vec3 V, vec4 st)` that
  * compute exactly sb_param_coords() and its return value.  It may use the
- * constants SB_PI and SB_THETA_MAX defined by the snippet header. */
+ * constants SB_PI and SB_THETA_MAX and the functions float sb_atan2(float
+ * y, float x) and sb_atan_q(float t) = (4/pi) atan(t) on [0, 1] (a
+ * polynomial in float, more exact than GPUs' atan) defined by the
+ * snippet header. */
 SB_API const char *sb_param_glsl(const sb_param_t *p);
 
 /* Importance sampling (sampler.h): the direction a row cell stands for,
@@ -250,6 +253,19 @@ SB_API const char *sb_param_glsl(const sb_param_t *p);
  * of st_g as sb_param_coords gives it, and row = y W + x.  Returns 1; 0
  * (w unchanged) for a NULL argument or a row out of range. */
 SB_API int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
+/* The row cell (x, y) of the pair (wi, wo) as the sampler's density
+ * reads it: by comparisons against float constants, edge[0][i] =
+ * sb_param_row_edge(p, 0, i) for 1 <= i < W and edge[1][j] = (p, 1, j)
+ * for 1 <= j < H, in float arithmetic (each step rounded once, as IEEE
+ * single) on wi and wo rounded to float, so that the GLSL's sb_row_cell
+ * on the same float L and V takes the same cell, also at a cell's edge
+ * (io, hd, iso: tan^2 of theta and cot of phi; io-area: its rings and
+ * a polynomial atan).  Returns 1; 0 (cell unchanged) where the layout
+ * places no cells so (the cell is then the texel of st_g) or for a NULL
+ * argument.  sb_param_row_edge: NAN there. */
+SB_API int sb_param_row_cell(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
+                             size_t cell[2]);
+SB_API float sb_param_row_edge(const sb_param_t *p, int axis, size_t i);
 
 /* The layout's known factor of the value at (wi, wo): the reconstruction
  * is gain x max(0, sum_j g_j h_j) for SB_CAP_TABLES layouts (vndf: the

@@ -33,7 +33,12 @@
  *      and wi = 2 (wo.h) h - wo (hd, iso: SB_CAP_HALF_ROWS).
  * So the factored density with respect to solid angle is
  *     p_F(wi | wo) = sum_k (W_k / sum W) P_k(r) / m_r
- * with r the row cell of wi.  In the half-vector layouts only the h that
+ * with r the row cell of wi: the one sb_param_row_cell places wi (io,
+ * io-area) or h (hd, iso) in, by float comparisons against the edges that
+ * the GLSL repeats exactly, so that both take the same cell for the same
+ * float L and V also at a cell's edge.  The CDFs are rounded to float,
+ * as the GLSL reads them, so that a cell's probability (a difference of
+ * two entries) is the same in both.  In the half-vector layouts only the h that
  * can reflect wo above the horizon are drawn:
  * h does iff theta_h < pi/4 + atan2(cos(phi_h - phi_o) sin(theta_o),
  * cos(theta_o)) / 2, so the cells of a row whose lowest z = 1 - cos(theta_h)
@@ -161,7 +166,9 @@ SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, c
  * CDF inclusive of y, texel (0, H) I_k / g_scale[j], the integral in the
  * units the g texture stores (g_scale: each g_j texture's storage scale,
  * sepbrdf.scale of g_JJ.exr; NULL = all 1, FLOAT textures).  Layer J C
- * holds m_r at texel (x, y) and the cosine-weighted share s at (0, H).  For SB_CAP_HALF_ROWS layouts layers = 2 J C
+ * holds m_r at texel (x, y), the cosine-weighted share s at (0, H), and
+ * the row cells' edges (sb_param_row_edge, as float) of x at (i, H) for
+ * 1 <= i < W and of y at (W, j) for 1 <= j < H.  For SB_CAP_HALF_ROWS layouts layers = 2 J C
  * + 1: layer J C + 1 + k holds W_k(c) for wo at the centre of cell c at texel
  * (x, y).
  * Unused texels are 0.  Written under a

@@ -25,6 +25,7 @@ struct sb_sampler {
     double *wtab;      /* half rows: K x H x W, W_k for wo in row cell c (sampler.h) */
     double *zlo, *zhi; /* half rows: W, the z = 1 - cos(theta) bounds of column x's cells */
     double *pa, *pw;   /* half rows: H, the phi arc [pa, pa + pw] of row y's cells */
+    float *edge[2];    /* W + 1, H + 1: the row cells' edges (sb_param_row_cell), in the file's layer K */
 };
 
 /* Half rows: the cut of every row for one wo (sampler_half.c): z_cut and
@@ -73,9 +74,9 @@ static double cdf_build(const double *v, size_t n, double *cdf) {
     for (size_t i = 0; i < n; i++)
         sum += v[i];
     double acc = 0;
-    for (size_t i = 0; i < n; i++) {
-        acc += v[i];
-        cdf[i] = sum > 0 ? acc / sum : (double)(i + 1) / (double)n;
+    for (size_t i = 0; i < n; i++) { /* as float, the file's values: a cell's probability is a difference */
+        acc += v[i];                 /* of two entries near 1, which C and GLSL then take alike */
+        cdf[i] = (float)(sum > 0 ? acc / sum : (double)(i + 1) / (double)n);
     }
     cdf[n - 1] = 1;
     return sum;
@@ -224,6 +225,13 @@ static sb_result_t sampler_alloc(sb_context_t *ctx, sb_sampler_t *s) {
     s->integral = sb_alloc(ctx, s->K, sizeof(double), "sampler tables");
     s->measure = sb_alloc(ctx, n, sizeof(double), "sampler tables");
     s->mcos = sb_alloc(ctx, n, sizeof(double), "sampler tables");
+    s->edge[0] = sb_calloc(ctx, s->W + s->H + 2, sizeof(float), "sampler tables");
+    if (!s->edge[0]) return SB_ERR_NOMEM;
+    s->edge[1] = s->edge[0] + s->W + 1;
+    for (size_t i = 1; i < s->W; i++)
+        s->edge[0][i] = sb_param_row_edge(s->p, 0, i);
+    for (size_t j = 1; j < s->H; j++)
+        s->edge[1][j] = sb_param_row_edge(s->p, 1, j);
     if (s->half_rows) {
         s->wtab = sb_alloc(ctx, n, s->K * sizeof(double), "sampler tables");
         s->zlo = sb_alloc(ctx, s->W, 2 * sizeof(double), "sampler tables");
@@ -276,7 +284,7 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     double total = 0;
     for (size_t i = 0; r == SB_OK && i < gw * gh; i++) {
         double d[3];
-        s->measure[i] = s->mcos[i] = sb_param_row_measure(p, i);
+        s->measure[i] = s->mcos[i] = (float)sb_param_row_measure(p, i); /* the file's value */
         if (form == SB_FORM_F && !s->half_rows) { /* f: the density follows f cos theta_i (rows are wi) */
             sb_param_row_sample(p, i, (const double[2]){0.5, 0.5}, d);
             s->mcos[i] *= fmax(d[2], 0);
@@ -311,6 +319,7 @@ void sb_sampler_destroy(sb_sampler_t *s) {
     free(s->wtab);
     free(s->zlo);
     free(s->pa);
+    free(s->edge[0]);
     free(s);
 }
 
@@ -398,7 +407,10 @@ static int full_circle(double w) { return w >= 2 * SB_PI - 1e-6; }
  * half-width of Delta falls with theta), so the density stays bounded. */
 static double factored_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3], const double sg[2],
                            const wkey_t *key) {
-    size_t x = texel_of(sg[0], s->W), y = texel_of(sg[1], s->H);
+    size_t cell[2] = {texel_of(sg[0], s->W), texel_of(sg[1], s->H)}; /* kept where the layout places none */
+    const float *const edge[2] = {s->edge[0], s->edge[1]};
+    sb_param_row_cell(s->p, edge, wi, wo, cell);
+    size_t x = cell[0], y = cell[1];
     if (!s->half_rows) return cell_prob(s, key, NULL, x, y) / s->measure[y * s->W + x];
     cuts_t c;
     cuts_of(s, wo, &c);
@@ -411,12 +423,15 @@ static double factored_pdf(const sb_sampler_t *s, const double wo[3], const doub
     n = sqrt(n);
     for (int i = 0; i < 3; i++)
         h[i] /= n;
-    double cosv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2], z = one_minus_z(h);
-    int circle = full_circle(s->pw[y]);
-    double dz = circle ? half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) : s->zhi[x] - s->zlo[x];
-    double len = circle ? half_phi_len(&c.v, half_arc_z(s->zlo[x], s->zhi[x], c.z[y]), s->pa[y], s->pw[y]) : s->pw[y];
-    if (!(cosv > 0) || !(dz > 0) || !(len > 0) || !(z <= c.z[y])) return 0;
-    return cell_prob(s, key, &c, x, y) / (dz * len) / (4 * cosv);
+    double cosv = h[0] * wo[0] + h[1] * wo[1] + h[2] * wo[2];
+    /* hd: the whole cell, its solid angle the file's m_r (the GLSL's arc and
+     * z bounds from float atan and sin put its pdfs 5.6e-5 off the C's) */
+    double area = s->measure[y * s->W + x];
+    if (full_circle(s->pw[y]))
+        area = half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) *
+               half_phi_len(&c.v, half_arc_z(s->zlo[x], s->zhi[x], c.z[y]), s->pa[y], s->pw[y]);
+    if (!(cosv > 0) || !(area > 0)) return 0;
+    return cell_prob(s, key, &c, x, y) / area / (4 * cosv);
 }
 
 double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {
@@ -530,7 +545,8 @@ static void put_u32(unsigned char *b, uint32_t v) {
 static double file_texel(const sb_sampler_t *s, const double *g_scale, size_t k, size_t x, size_t y) {
     int in = x < s->W && y < s->H;
     if (k > s->K) return in ? s->wtab[(k - s->K - 1) * s->W * s->H + y * s->W + x] : 0;
-    if (k == s->K) return in ? s->measure[y * s->W + x] : (x == 0 && y == s->H ? s->share : 0);
+    if (k == s->K && in) return s->measure[y * s->W + x];
+    if (k == s->K) return x == 0 && y == s->H ? s->share : (y == s->H ? s->edge[0][x % s->W] : s->edge[1][y]);
     if (in) return s->cond[(k * s->H + y) * s->W + x];
     if (x == s->W && y < s->H) return s->marg[k * s->H + y];
     return x == 0 ? s->integral[k] / (g_scale ? g_scale[k / s->C] : 1) : 0;

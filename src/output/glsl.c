@@ -18,9 +18,38 @@ const char *sb_glsl_library(void) { return sb_glsl_text_; }
 /* Bytes of the snippet (header, one scale per term, coords, library), 0 for
  * arguments it cannot be made of: no parameterisation, unknown form, terms
  * outside 1..SB_GLSL_MAX_TERMS. */
+/* atan in float from a polynomial, for the layouts' coordinates and the
+ * sampler: GPUs' own atan is less exact (llvmpipe's about 1e-5 rad, which
+ * moved the sampler's term weights on io-area 6e-5 from the C's). */
+static const char atan_glsl[] = "// (4/pi) atan(t) for t in [0, 1]: a polynomial within 2.2e-7 (io-area's\n"
+                                "// row cells in C evaluate it step by step alike: src/param/param_io_area.c)\n"
+                                "float sb_atan_q(float t) {\n"
+                                "    float x = t * t, p = -0.005805707536637783;\n"
+                                "    p = p * x + 0.030278297141194344;\n"
+                                "    p = p * x + -0.07490436732769012;\n"
+                                "    p = p * x + 0.12565429508686066;\n"
+                                "    p = p * x + -0.17829543352127075;\n"
+                                "    p = p * x + 0.25422725081443787;\n"
+                                "    p = p * x + -0.42439383268356323;\n"
+                                "    p = p * x + 1.2732393741607666;\n"
+                                "    return t * p;\n"
+                                "}\n"
+                                "// atan(y, x) in [-pi, pi] from it (0 at the origin)\n"
+                                "float sb_atan2(float y, float x) {\n"
+                                "    vec2 a = abs(vec2(x, y));\n"
+                                "    float r = 0.0;\n"
+                                "    if (a.y > a.x) {\n"
+                                "        r = 0.5 * SB_PI - 0.25 * SB_PI * sb_atan_q(a.x / a.y);\n"
+                                "    } else if (a.x > 0.0) {\n"
+                                "        r = 0.25 * SB_PI * sb_atan_q(a.y / a.x);\n"
+                                "    }\n"
+                                "    if (x < 0.0) r = SB_PI - r;\n"
+                                "    return y < 0.0 ? -r : r;\n"
+                                "}\n";
+
 static size_t snippet_size(const sb_param_t *p, sb_form_t form, size_t terms) {
     if (!p || (unsigned)form >= SB_FORM_COUNT_ || terms == 0 || terms > SB_GLSL_MAX_TERMS) return 0;
-    return strlen(sb_param_glsl(p)) + strlen(sb_glsl_library()) + 2048 + terms * 32;
+    return strlen(sb_param_glsl(p)) + strlen(sb_glsl_library()) + sizeof atan_glsl + 2048 + terms * 32;
 }
 
 /* A GLSL float literal of v: "%.9g" plus ".0" when that printed an
@@ -66,7 +95,7 @@ char *sb_glsl_snippet(const sb_param_t *p, sb_form_t form, size_t terms, const d
         if (j) n += (size_t)snprintf(s + n, cap - n, ", ");
         n += float_literal(s + n, cap - n, scales ? scales[j] : 1.0);
     }
-    n += (size_t)snprintf(s + n, cap - n, ");\n\n%s\n%s", coords, lib);
+    n += (size_t)snprintf(s + n, cap - n, ");\n\n%s\n%s\n%s", atan_glsl, coords, lib);
     return s;
 }
 

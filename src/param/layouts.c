@@ -120,6 +120,8 @@ static const char *desc_problem(const sb_layout_desc_t *d) {
     if (!d->vt || !d->vt->cell_dirs || !d->vt->row_measure || !d->vt->col_measure || !d->vt->coords || !d->vt->glsl)
         return "a vt with every function and the GLSL";
     if (!d->row_sample != !d->sample_glsl) return "row_sample and sample_glsl both or neither";
+    if (!d->row_cell != !d->row_edge || (d->row_cell && !d->row_sample))
+        return "row_cell and row_edge both or neither, and row_sample with them";
     return NULL;
 }
 

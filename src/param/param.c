@@ -339,6 +339,15 @@ int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2], doub
     p->desc->row_sample(p, row, u, w);
     return 1;
 }
+int sb_param_row_cell(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
+                      size_t cell[2]) {
+    if (!p || !edge || !wi || !wo || !cell || !p->desc->row_cell || !p->desc->row_edge) return 0;
+    p->desc->row_cell(p, edge, wi, wo, cell);
+    return 1;
+}
+float sb_param_row_edge(const sb_param_t *p, int axis, size_t i) {
+    return p && p->desc->row_edge && p->desc->row_cell ? p->desc->row_edge(p, axis, i) : NAN;
+}
 const char *sb_param_sample_glsl(const sb_param_t *p) { return p && p->desc->sample_glsl ? p->desc->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {
@@ -426,6 +435,12 @@ const char sb_grid_sample_glsl[] =
     "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
     "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
     "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n"
+    "// the cell of L by tan^2 theta and cot phi against the edges (src/param/row_cell.c)\n"
+    "#define SB_ROW_CELL 1\n"
+    "ivec2 sb_row_cell(vec3 L, vec3 V) {\n"
+    "    ivec2 n = textureSize(sb_g, 0).xy;\n"
+    "    return ivec2(sb_cell_tan2(L, n.x), sb_cell_phi(L.xy, n.y));\n"
     "}\n";
 
 /* Integral of 4 cos(theta) dw over the cell: 4 dphi int cos sin dtheta. */

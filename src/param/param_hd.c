@@ -100,8 +100,8 @@ static const sb_param_vt_t hd_vt = {
     "// when h = +-T), d = L in (t', b', h); theta-phi st of h (g) and d (h):\n"
     "// s = sb_warp_h/d(theta / SB_THETA_MAX) (clamp), t = phi / 2pi (repeat).\n"
     "vec2 sb_hd_st(vec3 w) {\n"
-    "    float theta = atan(length(w.xy), w.z);\n"
-    "    float phi = (w.x != 0.0 || w.y != 0.0) ? atan(w.y, w.x) : 0.0;\n"
+    "    float theta = sb_atan2(length(w.xy), w.z);\n"
+    "    float phi = (w.x != 0.0 || w.y != 0.0) ? sb_atan2(w.y, w.x) : 0.0;\n"
     "    if (phi < 0.0) phi += 2.0 * SB_PI;\n"
     "    return vec2(theta / SB_THETA_MAX, phi / (2.0 * SB_PI));\n"
     "}\n"
@@ -132,6 +132,13 @@ static const char hd_sample_glsl[] =
     "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
     "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = (float(cell.y) + u.y) * 2.0 * SB_PI / n.y;\n"
     "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
+    "}\n"
+    "// the cell of h by tan^2 theta and cot phi of L + V against the edges (src/param/row_cell.c)\n"
+    "#define SB_ROW_CELL 1\n"
+    "ivec2 sb_row_cell(vec3 L, vec3 V) {\n"
+    "    ivec2 n = textureSize(sb_g, 0).xy;\n"
+    "    vec3 s = L + V;\n"
+    "    return ivec2(sb_cell_tan2(s, n.x), sb_cell_phi(s.xy, n.y));\n"
     "}\n";
 
 const sb_param_desc_t sb_param_desc_hd = {
@@ -143,4 +150,6 @@ const sb_param_desc_t sb_param_desc_hd = {
     .wrap_y = SB_WRAP_REPEAT,
     .vt = &hd_vt,
     .row_sample = sb_grid_row_sample,
-    .sample_glsl = hd_sample_glsl};
+    .sample_glsl = hd_sample_glsl,
+    .row_edge = sb_theta_phi_row_edge,
+    .row_cell = sb_half_row_cell};

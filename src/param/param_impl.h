@@ -61,6 +61,21 @@ double sb_grid_measure(size_t R, double tmax, const sb_warp_t *w, size_t index);
 void sb_grid_row_sample(const sb_param_t *p, size_t row, const double u[2], double w[3]);
 /* GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` of sb_grid_row_sample. */
 extern const char sb_grid_sample_glsl[];
+/* Row cells (row_cell.c, sb_param_row_cell): float arithmetic as the
+ * GLSL's (each result rounded once to float); the largest i < n with
+ * past(arg, i), past(0) taken as true, in the GLSL's order of steps; the
+ * theta-phi rows' edges (tan^2 theta_i, cot phi_j) and cells of L (io)
+ * and of L + V (hd, iso). */
+float sb_f32(double v); /* v rounded to float, subnormals flushed to 0 */
+float sb_f32_mul(float a, float b);
+float sb_f32_add(float a, float b);
+float sb_f32_div(float a, float b);
+size_t sb_cell_search(size_t n, int (*past)(const void *arg, size_t i), const void *arg);
+float sb_theta_phi_row_edge(const sb_param_t *p, int axis, size_t i);
+void sb_grid_row_cell(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
+                      size_t cell[2]);
+void sb_half_row_cell(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
+                      size_t cell[2]);
 /* integral of 4 cos(theta) over grid cell `index`: 2 dphi (sin^2 hi - sin^2 lo),
  * the half/difference Jacobian dw_i dw_o = 4 cos(theta_d) dw_h dw_d. */
 double sb_grid_measure_4cos(size_t R, double tmax, const sb_warp_t *w, size_t index);

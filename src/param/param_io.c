@@ -21,16 +21,17 @@ static int io_coords(const sb_param_t *p, const double wi[3], const double wo[3]
     return 1;
 }
 
-/* The shader takes theta = atan(|w_xy|, w_z): acos(w_z) in float loses
- * up to ~1e-3 rad near the pole, 2e-3 of a texel at R = 16. */
+/* The shader takes theta = atan(|w_xy|, w_z) (the snippet's sb_atan2):
+ * acos(w_z) in float loses up to ~1e-3 rad near the pole, 2e-3 of a
+ * texel at R = 16. */
 static const sb_param_vt_t io_vt = {io_cell_dirs,
                                     io_measure,
                                     io_measure,
                                     io_coords,
                                     "// io: theta-phi grid; s = theta / SB_THETA_MAX (clamp), t = phi / 2pi (repeat)\n"
                                     "vec2 sb_grid_st(vec3 w) {\n"
-                                    "    float theta = atan(length(w.xy), w.z);\n"
-                                    "    float phi = atan(w.y, w.x);\n"
+                                    "    float theta = sb_atan2(length(w.xy), w.z);\n"
+                                    "    float phi = sb_atan2(w.y, w.x);\n"
                                     "    if (phi < 0.0) phi += 2.0 * SB_PI;\n"
                                     "    return vec2(theta / SB_THETA_MAX, phi / (2.0 * SB_PI));\n"
                                     "}\n"
@@ -48,4 +49,6 @@ const sb_param_desc_t sb_param_desc_io = {.name = "io",
                                           .wrap_y = SB_WRAP_REPEAT,
                                           .vt = &io_vt,
                                           .row_sample = sb_grid_row_sample,
-                                          .sample_glsl = sb_grid_sample_glsl};
+                                          .sample_glsl = sb_grid_sample_glsl,
+                                          .row_edge = sb_theta_phi_row_edge,
+                                          .row_cell = sb_grid_row_cell};

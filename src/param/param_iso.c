@@ -122,11 +122,11 @@ static const sb_param_vt_t iso_vt = {
     "    float x1 = L.x * cs.x + L.y * cs.y;\n"
     "    float y1 = -L.x * cs.y + L.y * cs.x;\n"
     "    vec3 D = vec3(x1 * H.z - L.z * hxy, y1, x1 * hxy + L.z * H.z);\n"
-    "    float phi_d = (D.x != 0.0 || D.y != 0.0) ? atan(D.y, D.x) : 0.0;\n"
+    "    float phi_d = (D.x != 0.0 || D.y != 0.0) ? sb_atan2(D.y, D.x) : 0.0;\n"
     "    if (phi_d < 0.0) phi_d += SB_PI;\n"
     "    if (phi_d >= SB_PI) phi_d -= SB_PI;\n"
-    "    return vec4(sb_warp_h(atan(hxy, H.z) / SB_THETA_MAX), 0.5,\n"
-    "                sb_warp_d(atan(length(D.xy), D.z) / SB_THETA_MAX), phi_d / SB_PI);\n"
+    "    return vec4(sb_warp_h(sb_atan2(hxy, H.z) / SB_THETA_MAX), 0.5,\n"
+    "                sb_warp_d(sb_atan2(length(D.xy), D.z) / SB_THETA_MAX), phi_d / SB_PI);\n"
     "}\n"
     "bool sb_in_cap(vec3 w) { return w.z > 0.0 && atan(length(w.xy), w.z) <= SB_THETA_MAX; }\n"
     "bool sb_domain(vec3 L, vec3 V, vec4 st) { return sb_in_cap(L) && sb_in_cap(V); }\n",
@@ -142,7 +142,10 @@ static const char iso_sample_glsl[] =
     "    float z = 2.0 * (slo * slo + u.x * (shi * shi - slo * slo));\n"
     "    float s = sqrt(max(z * (2.0 - z), 0.0)), phi = 2.0 * SB_PI * u.y;\n"
     "    return vec3(s * cos(phi), s * sin(phi), 1.0 - z);\n"
-    "}\n";
+    "}\n"
+    "// the theta_h band of L + V by tan^2 against the edges (src/param/row_cell.c)\n"
+    "#define SB_ROW_CELL 1\n"
+    "ivec2 sb_row_cell(vec3 L, vec3 V) { return ivec2(sb_cell_tan2(L + V, textureSize(sb_g, 0).x), 0); }\n";
 
 static sb_result_t init_iso(sb_context_t *ctx, sb_param_t *p) {
     sb_param_opts_t *o = &p->opts;
@@ -178,4 +181,6 @@ const sb_param_desc_t sb_param_desc_iso = {
     .init = init_iso,
     .vt = &iso_vt,
     .row_sample = iso_row_sample,
-    .sample_glsl = iso_sample_glsl};
+    .sample_glsl = iso_sample_glsl,
+    .row_edge = sb_theta_phi_row_edge,
+    .row_cell = sb_half_row_cell};

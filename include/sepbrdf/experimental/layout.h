@@ -40,8 +40,8 @@ typedef struct sb_layout_vt {
     /* sb_param_coords: the g and h texture coordinates of a pair; 0 outside the domain */
     int (*coords)(const sb_param_t *p, const double wi[3], const double wo[3], double st_g[2], double st_h[2]);
     /* GLSL defining vec4 sb_coords(vec3 L, vec3 V) and bool sb_domain(vec3
-     * L, vec3 V, vec4 st) as coords computes them (SB_PI, SB_THETA_MAX
-     * are defined) */
+     * L, vec3 V, vec4 st) as coords computes them (SB_PI, SB_THETA_MAX,
+     * sb_atan2 and sb_atan_q are defined: sb_param_glsl) */
     const char *glsl;
     /* Optional (NULL for most layouts).  gain: the known factor of the
      * value at a pair (sb_param_gain; SB_CAP_TABLES layouts: value = gain
@@ -79,6 +79,16 @@ typedef struct sb_layout_desc {
      * layout has no sampler */
     void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
     const char *sample_glsl;
+    /* Optional, with row_sample (sb_param_row_cell): the row cell whose
+     * density the sampler gives a pair, decided by float operations that
+     * the GLSL's `ivec2 sb_row_cell(vec3 L, vec3 V)` (in sample_glsl,
+     * which then defines SB_ROW_CELL) repeats, against the constants
+     * row_edge(p, axis, i) (axis 0: x, 1 <= i < W; axis 1: y, 1 <= i < H)
+     * that sampler.bin holds as float (sb_edge_x, sb_edge_y).  NULL both:
+     * the texel of st_g. */
+    float (*row_edge)(const sb_param_t *p, int axis, size_t i);
+    void (*row_cell)(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
+                     size_t cell[2]);
 } sb_layout_desc_t;
 
 /* A layout's shape: the g textures g[0] x g[1] texels (rows g[0] g[1],
@@ -111,7 +121,8 @@ SB_API const sb_param_opts_t *sb_param_options(const sb_param_t *p);
  * valid for the life of the process.  Safe to call from several threads.
  * Errors: SB_ERR_ARG (NULL desc, a name that is empty, not of letters,
  * digits, '-' and '_', or "auto", no vt or a vt function or glsl
- * missing, row_sample without sample_glsl or the reverse),
+ * missing, row_sample without sample_glsl or the reverse, row_cell
+ * without row_edge or the reverse, or either without row_sample),
  * SB_ERR_RANGE (the name is taken; SB_LAYOUTS_MAX reached). */
 SB_API sb_result_t sb_param_register(sb_context_t *ctx, const sb_layout_desc_t *desc, sb_param_kind_t *kind);
 
