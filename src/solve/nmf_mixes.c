@@ -72,7 +72,7 @@
  * after 0-2 steps (its worst prefix 1.654 -> 1.642 in the proxy on red:
  * no step lowers it further; round h38f, docs/positive.md). */
 #define SB_NMF_POLISH_POWER 8.0
-/* On masked layouts (iso, hd) the last prefix's ratio to the reference
+/* On masked layouts (iso, hd) and vndf the last prefix's ratio to the reference
  * counts more above SB_NMF_LAST_TARGET, growing with it up to
  * SB_NMF_LAST_WEIGHT times (on the squared ratios, the target and weight
  * squared; sb_nmf_last_boost): the J terms a renderer uses are the fit
@@ -83,10 +83,11 @@
  * 1.61-1.86; the Cornell acrylic's worst prefix 1.39 -> 1.44.  A fixed
  * weight 1.3 (no target) gave the gold 1.28, 1.35, 1.44 and the acrylic
  * 1.54 at J' = 1; 1.2: 1.34, 1.38, 1.49 (docs/positive.md, round h38n).
- * Not on unmasked layouts: on vndf the same took RGL aurora and paper
- * from 0.81, 1.59, 1.36, 1.56 and 1.33, 1.66, 0.92, 1.68 to 0.83, 1.80,
- * 1.79, 1.23 and 1.39, 1.98, 1.19, 1.27 (everywhere, malachite's auto
- * went from vh to hd, 7x the CPU). */
+ * On vndf (SB_CAP_TABLES) it took RGL aurora and paper at J = 4 from
+ * 0.81, 1.58, 1.36, 1.56 and 1.33, 1.66, 0.92, 1.68 to 0.83, 1.80, 1.79,
+ * 1.23 and 1.39, 1.98, 1.19, 1.27; every RGL file keeps its auto layout
+ * (round h38v).  Not on the other unmasked layouts (vh, io, rv): on all
+ * of them malachite's auto went from vh to hd, 7x the CPU. */
 #define SB_NMF_LAST_TARGET 1.25
 #define SB_NMF_LAST_WEIGHT 1.3
 /* The worst prefix of U, V in the headline's weights against the
@@ -126,7 +127,8 @@ static void toward_headline(nmf_state_t *s, const sb_solve_in_t *in, const sb_so
     size_t m = s->m, n = s->n, J = s->J;
     for (size_t p = 0; p < J && p < SB_NMF_MAX_TERMS; p++)
         s->cp[p] = 1;
-    s->last_tau2 = s->fit && J > 1 && J <= SB_NMF_MAX_TERMS ? SB_NMF_LAST_TARGET * SB_NMF_LAST_TARGET : 0;
+    int last = s->fit || (in->param && (sb_param_caps(in->param) & SB_CAP_TABLES)); /* masked, or vndf */
+    s->last_tau2 = last && J > 1 && J <= SB_NMF_MAX_TERMS ? SB_NMF_LAST_TARGET * SB_NMF_LAST_TARGET : 0;
     s->last_kap2 = SB_NMF_LAST_WEIGHT * SB_NMF_LAST_WEIGHT;
     if (headline_weights(s, in))
         for (size_t k = 0; k < m * n; k++)
@@ -328,7 +330,7 @@ static void to_headline(nmf_state_t *s, sb_solve_out_t *out) {
 }
 
 /* Step: where the last prefix's squared ratio in the headline's weights is
- * above the target (masked layouts: last_tau2), the fit polished once more
+ * above the target (masked layouts and vndf: last_tau2), the fit polished once more
  * with that prefix counting SB_NMF_LAST_WEIGHT^2 times more (cp, sref):
  * the default gold's J' = J, J = 2, 3, 4, 1.38, 1.44, 1.45 -> 1.20, 1.42,
  * 1.42x the SVD's headline (docs/positive.md, round h38n). */
