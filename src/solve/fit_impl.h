@@ -1,7 +1,7 @@
 /* Private: the state and the parts of the masked fit shared by fit.c
- * (imputation, the driver), fit_als.c (alternating least squares on the
- * valid cells) and fit_taps.c (bounding what bilinear taps reach outside
- * the data). */
+ * (imputation, the driver), fit_als.c and fit_sweep.c (alternating least
+ * squares on the valid cells: the stages, the sweeps) and fit_taps.c
+ * (bounding what bilinear taps reach outside the data). */
 #ifndef SEPBRDF_FIT_IMPL_H
 #define SEPBRDF_FIT_IMPL_H
 
