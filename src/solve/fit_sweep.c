@@ -11,7 +11,6 @@
 #include "util/internal.h"
 #include "util/parallel.h"
 
-
 /* Solve (G + ridge I) x = b for k x k SPD G in place (Cholesky); ridge
  * keeps rows with fewer than k valid cells well posed. */
 static inline void spd_solve(double *G, double *b, size_t k) {
@@ -46,10 +45,9 @@ static inline void put_row(double *xt, double *xx, const double *x, size_t k) {
  * default's iso cells are 75 % in: 19 % fewer instructions here), no
  * worse than 2 eps |all| / |Gram| in rounding while they are fewer. */
 static inline __attribute__((always_inline)) void ls_gram(const uint32_t *idx, const double *a, size_t t0, size_t t1,
-                                                          const uint32_t *out, size_t u0, size_t u1,
-                                                          const double *all, const double *xt, const double *xx,
-                                                          size_t kf, const double *bx, size_t bs, double *g,
-                                                          double *b) {
+                                                          const uint32_t *out, size_t u0, size_t u1, const double *all,
+                                                          const double *xt, const double *xx, size_t kf,
+                                                          const double *bx, size_t bs, double *g, double *b) {
     size_t kt = kf * (kf + 1) / 2;
     memset(b, 0, kf * sizeof *b);
     if (bx) /* the right-hand side from the dense product (als_sweep) */
@@ -126,8 +124,8 @@ static inline __attribute__((always_inline)) void ls_solve(const double *g, cons
 #define LANE_MAX_K 8
 typedef double lanes_t __attribute__((vector_size(LANES * sizeof(double))));
 
-static inline __attribute__((always_inline)) void ls_solve_lanes(const double *g, const double *b, size_t kf,
-                                                                 double *y, double *quad) {
+static inline __attribute__((always_inline)) void ls_solve_lanes(const double *g, const double *b, size_t kf, double *y,
+                                                                 double *quad) {
     size_t kt = kf * (kf + 1) / 2;
     lanes_t G[LANE_MAX_K * LANE_MAX_K], x[LANE_MAX_K], tr = {0, 0, 0, 0}, d;
     for (size_t i = 0, at = 0; i < kf; i++)
@@ -380,7 +378,6 @@ static double als_sweep(sb_fit_t *f, const als_cells_t *cl, size_t j0, size_t ka
     als_parallel(als_cols, &proto, n, &e2);
     return e2;
 }
-
 
 /* The squared error on the cells after a sweep, from the cells, as the
  * column half sums it where it is not quick (the same parts of the
