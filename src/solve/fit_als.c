@@ -206,10 +206,14 @@ void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const u
         }
 }
 
+int fit_e2_monotone(const double *e2, size_t k) {
+    for (size_t j = 1; j < k; j++)
+        if (e2[j] > e2[j - 1]) return 0;
+    return 1;
+}
+
 int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask) {
     double e2[SB_ALS_MAX_K];
     fit_valid_prefix_e2(f, X, lda, mask, e2);
-    for (size_t j = 1; j < f->k; j++)
-        if (e2[j] > e2[j - 1]) return 0;
-    return 1;
+    return fit_e2_monotone(e2, f->k);
 }

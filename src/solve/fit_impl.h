@@ -114,6 +114,8 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
 void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2);
 /* Whether those errors are non-increasing. */
 int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask);
+/* Whether the k squared errors e2 are non-increasing. */
+int fit_e2_monotone(const double *e2, size_t k);
 /* For each cell that is not data (ext 0), the range [lo, hi] of the data
  * (ext 1) among the rows and columns within two texels (layout o->tex,
  * o->wrap) that bilinear taps sharing the cell read (x m x n, ld m; lo =

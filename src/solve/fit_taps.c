@@ -164,10 +164,10 @@ static size_t constrain_taps(const sb_fit_t *f, const taps_cell_t *cells, size_t
 }
 
 /* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
- * times the squared error `before` the taps' constraints. */
+ * times the squared error `before` the taps' constraints; its prefixes'
+ * squared errors on them into e2. */
 static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, double before,
-                     double norm2) {
-    double e2[SB_ALS_MAX_K];
+                     double norm2, double *e2) {
     fit_valid_prefix_e2(f, As, lda, mask, e2);
     return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
 }
@@ -194,11 +194,14 @@ typedef struct taps_list {
  * restored). */
 static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, unsigned char *ext,
                                size_t nvalid, const sb_fit_opts_t *o, int strict, double norm2, int *total,
-                               int *converged, double *err, int *stretched, double *P1, double *Q1, taps_list_t *tl) {
+                               int *converged, double *err, int *stretched, double *P1, double *Q1, taps_list_t *tl,
+                               double *e2) {
     size_t m = f->m, n = f->n, k = f->k;
-    double e2[SB_ALS_MAX_K];
-    fit_valid_prefix_e2(f, As, lda, mask, e2);
-    double before = e2[k - 1];
+    double e2b[SB_ALS_MAX_K]; /* the prefixes' errors before, e2 those of the fit now */
+    fit_valid_prefix_e2(f, As, lda, mask, e2b);
+    memcpy(e2, e2b, k * sizeof *e2);
+    double before = e2b[k - 1];
+    int cost = 0;
     memcpy(P1, f->P, m * k * sizeof *P1);
     memcpy(Q1, f->Q, n * k * sizeof *Q1);
     size_t constrained = 0;
@@ -212,11 +215,13 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
         nvalid += added;
         constrained += added;
         r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, stretched, NULL);
-        if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+        if (r == SB_OK && (cost = taps_cost(f, As, lda, mask, before, norm2, e2))) break;
     }
-    if (r == SB_OK && constrained && taps_cost(f, As, lda, mask, before, norm2)) {
+    /* cost: the last round's, of the fit now (every round made one) */
+    if (r == SB_OK && constrained && cost) {
         memcpy(f->P, P1, m * k * sizeof *P1);
         memcpy(f->Q, Q1, n * k * sizeof *Q1);
+        memcpy(e2, e2b, k * sizeof *e2);
     }
     return r;
 }
@@ -268,10 +273,12 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
         /* taps reaching unconstrained cells that overshoot: constrain
          * them and run the stages again from the fit found (twice at
          * most; warm, each stage stops after a few sweeps) */
+        double e2[SB_ALS_MAX_K]; /* with taps: the prefixes' errors of the fit now, from the rounds */
         if (r == SB_OK && taps)
             r = taps_rounds(f, As, lda, mask, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, P1, Q1,
-                            &tl);
-        if (r != SB_OK || (!stretched && fit_prefixes_monotone(f, As, lda, mask))) break;
+                            &tl, e2);
+        if (r != SB_OK || (!stretched && (taps ? fit_e2_monotone(e2, k) : fit_prefixes_monotone(f, As, lda, mask))))
+            break;
     }
     free(ext);
     free(tl.cells);
