@@ -40,8 +40,8 @@ SB_TEST(dense_product_sums_in_order) {
                         R[i + j * ldc] = s;
                     }
                 fit_dense_product(A, m, n, B, ldb, kf, C, ldc);
-                CHECKF(memcmp(C, R, ldc * kf * sizeof *C) == 0, "%zu x %zu times %zu columns: not the plain sums", m,
-                       n, kf);
+                CHECKF(memcmp(C, R, ldc * kf * sizeof *C) == 0, "%zu x %zu times %zu columns: not the plain sums", m, n,
+                       kf);
                 free(A), free(B), free(C), free(R);
             }
 }
