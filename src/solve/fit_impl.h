@@ -1,7 +1,7 @@
 /* Private: the state and the parts of the masked fit shared by fit.c
- * (imputation, the driver), fit_als.c (alternating least squares on the
- * valid cells) and fit_taps.c (bounding what bilinear taps reach outside
- * the data). */
+ * (imputation, the driver), fit_als.c and fit_sweep.c (alternating least
+ * squares on the valid cells: the stages, the sweeps) and fit_taps.c
+ * (bounding what bilinear taps reach outside the data). */
 #ifndef SEPBRDF_FIT_IMPL_H
 #define SEPBRDF_FIT_IMPL_H
 
@@ -64,9 +64,14 @@ typedef struct als_cells {
     double *ca2, a2;
     /* where most cells are valid: cres as a dense m x n matrix D (0 at the
      * cells left out) and its transpose DT, so that the right-hand sides
-     * of a half-sweep are one BLAS product (bt, m x kf or n x kf) instead
-     * of a gather per cell; NULL otherwise */
+     * of a half-sweep are one product (bt, m x kf or n x kf) instead of a
+     * gather per cell; NULL otherwise */
     double *D, *DT, *bt;
+    /* what D, DT, ca2 and a2 point to or hold: for the data itself (j0 =
+     * 0, every joint stage; made once, at the first) and for the data
+     * less fixed terms; dv: the data's are made */
+    double *Dv, *DTv, *ca2v, a2v, *Dr, *DTr, *ca2r;
+    int dv;
 } als_cells_t;
 
 /* Gather the valid cells of X (m x n, ld lda) with mask != 0 (nvalid of
@@ -76,6 +81,10 @@ int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t 
 void fit_cells_free(als_cells_t *cl);
 /* The data less the fixed terms 0..j0-1 of f, in both orders. */
 void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0);
+/* C (rows x kf, ld ldc) = A (rows x inner, ld rows) B (inner x kf, ld
+ * ldb), every entry summed over the inner index in order. */
+void fit_dense_product(const double *A, size_t rows, size_t inner, const double *B, size_t ldb, size_t kf, double *C,
+                       size_t ldc);
 /* ALS sweeps on the columns j0..ka-1 of f->P, f->Q until the error on the
  * cells stops improving (o->tol) or o->max_iters; returns the error. */
 double fit_als_until(sb_fit_t *f, als_cells_t *cl, size_t j0, size_t ka, const sb_fit_opts_t *o, double norm,
@@ -105,6 +114,8 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
 void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2);
 /* Whether those errors are non-increasing. */
 int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask);
+/* Whether the k squared errors e2 are non-increasing. */
+int fit_e2_monotone(const double *e2, size_t k);
 /* For each cell that is not data (ext 0), the range [lo, hi] of the data
  * (ext 1) among the rows and columns within two texels (layout o->tex,
  * o->wrap) that bilinear taps sharing the cell read (x m x n, ld m; lo =

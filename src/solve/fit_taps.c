@@ -37,32 +37,73 @@ typedef struct taps_cell {
     double lo, hi;
 } taps_cell_t;
 
+/* The texel coordinates within two steps of x on an axis of w texels
+ * (CLAMP stops at the edge, REPEAT wraps; a coordinate may repeat there,
+ * which no minimum or maximum minds). */
+static size_t window(size_t w, int wrap, long x, long out[5]) {
+    size_t k = 0;
+    for (long d = -2; d <= 2; d++) {
+        long xs = x + d;
+        if (wrap == SB_WRAP_REPEAT) xs = (xs % (long)w + (long)w) % (long)w;
+        if (xs >= 0 && xs < (long)w) out[k++] = xs;
+    }
+    return k;
+}
+
+/* Step: hl, hh (m x n) the range of the data (ext 1) of each row among
+ * the columns in the same texel row of the column texture within two
+ * steps along it (INFINITY, -INFINITY where none): the first half of the
+ * 5 x 5 window, which is the product of a window along each axis. */
+static void taps_along(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext,
+                       double *hl, double *hh) {
+    size_t w = o->tex[1][0];
+    for (size_t c = 0; c < n; c++) {
+        long xs[5];
+        size_t k = window(w, o->wrap[1][0], (long)(c % w), xs), y0 = c - c % w;
+        for (size_t r = 0; r < m; r++) {
+            double a = INFINITY, b = -INFINITY;
+            for (size_t q = 0; q < k; q++) {
+                size_t at = r + (y0 + (size_t)xs[q]) * m;
+                if (ext[at] != 1) continue;
+                a = x[at] < a ? x[at] : a;
+                b = x[at] > b ? x[at] : b;
+            }
+            hl[r + c * m] = a;
+            hh[r + c * m] = b;
+        }
+    }
+}
+
 /* For each cell that is not data (ext 0), the range [lo, hi] of the data
  * (ext 1) among rows N(r) x columns N(c) (what taps sharing the cell
  * read): into the m x n arrays lo, hi where given (lo = INFINITY where
  * none, and at data), and where a range exists into the list *cells (*nc
  * of them; realloc'd) where given.  Per column the column neighbours are
- * reduced first, then the row neighbours: 50 reads per cell.  The minima
- * and maxima are written inline (fmin / fmax library calls were a tenth
- * of the default run's fit); the values read are data, never NaN.
- * Returns 0, or -1 without memory. */
+ * reduced first, separably (along the texel row, then across: 10 reads a
+ * cell where the 25 texels of the window took 25), then the row
+ * neighbours.  The minima and maxima are written inline (fmin / fmax
+ * library calls were a tenth of the default run's fit); the values read
+ * are data, never NaN.  Returns 0, or -1 without memory. */
 static int taps_scan(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, const unsigned char *ext, double *lo,
                      double *hi, taps_cell_t **cells, size_t *nc) {
     size_t *nrs = malloc(m * 26 * sizeof *nrs), cap = 0; /* row r's neighbours: count, then the list */
     double *l1 = malloc(2 * m * sizeof *l1), *h1 = l1 ? l1 + m : NULL;
-    int ok = nrs && l1;
+    double *hl = malloc(2 * m * n * sizeof *hl), *hh = hl ? hl + m * n : NULL;
+    size_t w = o->tex[1][0], h = o->tex[1][1];
+    int ok = nrs && l1 && hl;
     for (size_t r = 0; ok && r < m; r++)
         nrs[r * 26] = neighbours(o->tex[0], o->wrap[0], r, nrs + r * 26 + 1);
+    if (ok) taps_along(o, m, n, x, ext, hl, hh);
     for (size_t c = 0; ok && c < n; c++) {
-        size_t ncol[25], kc = neighbours(o->tex[1], o->wrap[1], c, ncol);
+        long ys[5];
+        size_t ky = window(h, o->wrap[1][1], (long)(c / w), ys), xc = c % w;
         for (size_t r = 0; r < m; r++) {
             double a1 = INFINITY, b1 = -INFINITY;
-            for (size_t q = 0; q < kc; q++)
-                if (ext[r + ncol[q] * m] == 1) {
-                    double v = x[r + ncol[q] * m];
-                    a1 = v < a1 ? v : a1;
-                    b1 = v > b1 ? v : b1;
-                }
+            for (size_t q = 0; q < ky; q++) {
+                size_t at = r + (xc + (size_t)ys[q] * w) * m;
+                a1 = hl[at] < a1 ? hl[at] : a1;
+                b1 = hh[at] > b1 ? hh[at] : b1;
+            }
             l1[r] = a1;
             h1[r] = b1;
         }
@@ -88,6 +129,7 @@ static int taps_scan(const sb_fit_opts_t *o, size_t m, size_t n, const double *x
     }
     free(nrs);
     free(l1);
+    free(hl);
     return ok ? 0 : -1;
 }
 
@@ -122,10 +164,10 @@ static size_t constrain_taps(const sb_fit_t *f, const taps_cell_t *cells, size_t
 }
 
 /* Whether the fit costs the valid cells (mask) more than SB_TAPS_COST
- * times the squared error `before` the taps' constraints. */
+ * times the squared error `before` the taps' constraints; its prefixes'
+ * squared errors on them into e2. */
 static int taps_cost(const sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, double before,
-                     double norm2) {
-    double e2[SB_ALS_MAX_K];
+                     double norm2, double *e2) {
     fit_valid_prefix_e2(f, As, lda, mask, e2);
     return sqrt(e2[f->k - 1]) > SB_TAPS_COST * sqrt(before) + 1e-12 * sqrt(norm2);
 }
@@ -152,11 +194,14 @@ typedef struct taps_list {
  * restored). */
 static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, unsigned char *ext,
                                size_t nvalid, const sb_fit_opts_t *o, int strict, double norm2, int *total,
-                               int *converged, double *err, int *stretched, double *P1, double *Q1, taps_list_t *tl) {
+                               int *converged, double *err, int *stretched, double *P1, double *Q1, taps_list_t *tl,
+                               double *e2) {
     size_t m = f->m, n = f->n, k = f->k;
-    double e2[SB_ALS_MAX_K];
-    fit_valid_prefix_e2(f, As, lda, mask, e2);
-    double before = e2[k - 1];
+    double e2b[SB_ALS_MAX_K]; /* the prefixes' errors before, e2 those of the fit now */
+    fit_valid_prefix_e2(f, As, lda, mask, e2b);
+    memcpy(e2, e2b, k * sizeof *e2);
+    double before = e2b[k - 1];
+    int cost = 0;
     memcpy(P1, f->P, m * k * sizeof *P1);
     memcpy(Q1, f->Q, n * k * sizeof *Q1);
     size_t constrained = 0;
@@ -170,11 +215,13 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
         nvalid += added;
         constrained += added;
         r = fit_als_stages(f, As, lda, ext, nvalid, o, strict, norm2, total, converged, err, stretched, NULL);
-        if (r == SB_OK && taps_cost(f, As, lda, mask, before, norm2)) break;
+        if (r == SB_OK && (cost = taps_cost(f, As, lda, mask, before, norm2, e2))) break;
     }
-    if (r == SB_OK && constrained && taps_cost(f, As, lda, mask, before, norm2)) {
+    /* cost: the last round's, of the fit now (every round made one) */
+    if (r == SB_OK && constrained && cost) {
         memcpy(f->P, P1, m * k * sizeof *P1);
         memcpy(f->Q, Q1, n * k * sizeof *Q1);
+        memcpy(e2, e2b, k * sizeof *e2);
     }
     return r;
 }
@@ -226,10 +273,12 @@ sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned ch
         /* taps reaching unconstrained cells that overshoot: constrain
          * them and run the stages again from the fit found (twice at
          * most; warm, each stage stops after a few sweeps) */
+        double e2[SB_ALS_MAX_K]; /* with taps: the prefixes' errors of the fit now, from the rounds */
         if (r == SB_OK && taps)
             r = taps_rounds(f, As, lda, mask, ext, nvalid, o, strict, norm2, total, converged, err, &stretched, P1, Q1,
-                            &tl);
-        if (r != SB_OK || (!stretched && fit_prefixes_monotone(f, As, lda, mask))) break;
+                            &tl, e2);
+        if (r != SB_OK || (!stretched && (taps ? fit_e2_monotone(e2, k) : fit_prefixes_monotone(f, As, lda, mask))))
+            break;
     }
     free(ext);
     free(tl.cells);
