@@ -202,15 +202,17 @@ static double impute(sb_fit_t *f, size_t lda, const unsigned char *mask, double 
     if ((*r = step(f)) != SB_OK) return NAN;
     cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)m, (int)k, (int)l, 1.0, f->y, (int)m, f->ub, (int)l,
                 0.0, qu, (int)m);
-    double e2 = 0;
+    double e2 = 0, *col = qu + m * k; /* L's column c, a term at a time (each cell's sum in the order j) */
     for (size_t c = 0; c < n; c++) {
         for (size_t j = 0; j < k; j++)
             coef[j] = f->sb[j] * f->vbt[j + c * l];
+        memset(col, 0, m * sizeof *col);
+        for (size_t j = 0; j < k; j++)
+            for (size_t r2 = 0; r2 < m; r2++)
+                col[r2] += qu[r2 + j * m] * coef[j];
         for (size_t r2 = 0; r2 < m; r2++) {
             size_t at = r2 + c * m;
-            double lv = 0;
-            for (size_t j = 0; j < k; j++)
-                lv += qu[r2 + j * m] * coef[j];
+            double lv = col[r2];
             if (mask[r2 + c * lda]) {
                 double d = f->x[at] - lv;
                 e2 += d * d;
@@ -271,12 +273,12 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
         f->v[i] = gauss(&seed);
     double prev = INFINITY, err = 0;
     int it;
-    double *qu = malloc(m * k * sizeof *qu); /* Q Ub[:, :k] */
+    double *qu = malloc(m * (k + 1) * sizeof *qu); /* Q Ub[:, :k], then a column of L (impute) */
     double *coef = malloc(k * sizeof *coef);
     if (!qu || !coef) {
         free(qu);
         free(coef);
-        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m + 1) * k * sizeof(double));
+        return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate %zu bytes", (m * (k + 1) + k) * sizeof(double));
     }
     sb_result_t r = SB_OK;
     int use_als = f->P != NULL && ninvalid > 0;
