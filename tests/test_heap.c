@@ -80,7 +80,7 @@ SB_TEST(heap_starts_on_a_huge_page) {
 SB_TEST(large_buffers_packed_on_a_huge_page_heap) {
     if (!SB_OWN_MALLOC) SKIP("a sanitizer's allocator");
     CHECK(sb_heap_huge_below(getenv("GLIBC_TUNABLES")) == 32 * MIB); /* started as the CLI starts */
-    size_t n = 33 * 64 * 64;                                          /* doubles */
+    size_t n = 33 * 64 * 64;                                         /* doubles */
     double *a = sb_alloc_large(NULL, n, sizeof *a, "test"), *b = sb_alloc_large(NULL, n, sizeof *b, "test");
     CHECK(a && b);
     if (a && b) {

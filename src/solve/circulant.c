@@ -358,9 +358,9 @@ static sb_result_t select_blocks(sb_circ_t *c, size_t J, size_t *nc) {
  * stored values themselves where they are it to the bit (no weights,
  * K's layout: ld = R, a structured matrix; plane m equal to plane R - m
  * bit for bit, as an even source's table is, SB_SOURCE_EVEN; no |x| above
- * DBL_MAX / 2, so 0.5 (x + x) is x), else c->K filled.  Read in place:
- * an R^3 copy (2 MiB at R = 64, a fresh huge page) neither written nor
- * faulted in, and the same bits downstream. */
+ * DBL_MAX / 2, so 0.5 (x + x) is x), else c->K filled (made on the first
+ * such call, kept for the next).  Read in place: an R^3 copy (2 MiB at
+ * R = 64) neither made nor written, and the same bits downstream. */
 static sb_result_t kernel_fill(sb_circ_t *c, const double *a, size_t ld, const double *w) {
     size_t R = c->R, R2 = R * R;
     int same = !w && ld == R;
