@@ -18,8 +18,14 @@
 
 #define MIB ((size_t)1 << 20)
 
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define SB_OWN_MALLOC 0 /* the sanitizer's allocator, not glibc's heap */
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#define SB_OWN_MALLOC 0
+#else
+#define SB_OWN_MALLOC 1
+#endif
 #else
 #define SB_OWN_MALLOC 1
 #endif
