@@ -282,8 +282,8 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
                        sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK))
         r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     a->t_factor = t2 - t1;
+    sb_plan_destroy(plan); /* before the estimate: its buffers reuse the plan's memory */
     if (r == SB_OK) r = job_measure(ctx, job, lv, a);
-    sb_plan_destroy(plan);
     return r == SB_OK ? job_band_refit(ctx, job, lv, a) : r;
 }
 

@@ -52,11 +52,10 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->ctx = ctx;
     c->R = R;
     c->nb = R / 2 + 1;
-    /* the R^3 and (R/2 + 1) R^2 arrays on 2 MiB pages (first touch: util.c) */
-    c->K = sb_alloc_large(ctx, R3, sizeof(double), "circulant kernel");
+    /* the (R/2 + 1) R^2 blocks on 2 MiB pages (first touch: util.c); the
+     * R^3 kernel K only where the stored values are not it (kernel_fill) */
     c->C = sb_alloc_large(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->sv = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant blocks");
-    c->Cv = sb_alloc_large(ctx, c->nb * R2, sizeof(double), "circulant blocks");
     c->T = sb_alloc(ctx, c->nb * R, sizeof(double), "circulant");
     c->need = sb_alloc(ctx, c->nb, 1, "circulant");
     c->list = sb_alloc(ctx, c->nb, sizeof(size_t), "circulant");
@@ -67,9 +66,13 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     c->ct = sb_alloc(ctx, R, sizeof(double), "circulant");
     /* the blocks are independent: one thread per core above ~2^22 flops */
     c->nth = sb_threads_for(0, c->nb, c->nb * R2 * R, (size_t)1 << 22);
+    /* a block's copy for dgesdd, one a thread: it lives within one block's
+     * step (a copy of every block, nb R^2, was 1 MiB at R = 64 and 66 MiB
+     * at R = 256, and untouched where the blocks are symmetric) */
+    c->Cv = sb_alloc(ctx, R2 * (size_t)c->nth, sizeof(double), "circulant blocks");
     c->iwork = sb_alloc(ctx, SB_CIRC_IW * R * (size_t)c->nth, sizeof(lapack_int), "circulant");
     c->cand = sb_alloc(ctx, R2, sizeof(cand_t), "circulant");
-    if (!c->K || !c->C || !c->Cv || !c->T || !c->need || !c->list || !c->done || !c->fro || !c->sv || !c->A || !c->VT ||
+    if (!c->C || !c->Cv || !c->T || !c->need || !c->list || !c->done || !c->fro || !c->sv || !c->A || !c->VT ||
         !c->ct || !c->iwork || !c->cand) {
         sb_circ_destroy(c);
         return SB_ERR_NOMEM;
@@ -253,12 +256,12 @@ static void *blk_svd(void *arg) {
         if (was)
             cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->Kd, (int)R2, c->T + k * R, 1, 0.0,
                         c->C + k * R2, 1);
-        memcpy(c->Cv + k * R2, c->C + k * R2, R2 * sizeof *c->C);
+        double *cv = c->Cv + (size_t)j->t * R2;
+        memcpy(cv, c->C + k * R2, R2 * sizeof *c->C);
         int vec = j->pass == 1, keep = was && vec;              /* keep: the values stay those the selection used */
         double *sv = keep ? c->tri + k * 3 * R : c->sv + k * R; /* the tridiagonal is of no more use */
-        j->info =
-            LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, c->Cv + k * R2, n, sv,
-                                vec ? c->A + k * R2 : NULL, n, vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
+        j->info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, cv, n, sv, vec ? c->A + k * R2 : NULL, n,
+                                      vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
     }
     return NULL;
 }
@@ -355,10 +358,10 @@ static sb_result_t select_blocks(sb_circ_t *c, size_t J, size_t *nc) {
  * stored values themselves where they are it to the bit (no weights,
  * K's layout: ld = R, a structured matrix; plane m equal to plane R - m
  * bit for bit, as an even source's table is, SB_SOURCE_EVEN; no |x| above
- * DBL_MAX / 2, so 0.5 (x + x) is x), else c->K filled.  Read in place:
- * an R^3 copy (2 MiB at R = 64, a fresh huge page) neither written nor
- * faulted in, and the same bits downstream. */
-static void kernel_fill(sb_circ_t *c, const double *a, size_t ld, const double *w) {
+ * DBL_MAX / 2, so 0.5 (x + x) is x), else c->K filled (made on the first
+ * such call, kept for the next).  Read in place: an R^3 copy (2 MiB at
+ * R = 64) neither made nor written, and the same bits downstream. */
+static sb_result_t kernel_fill(sb_circ_t *c, const double *a, size_t ld, const double *w) {
     size_t R = c->R, R2 = R * R;
     int same = !w && ld == R;
     for (size_t m = 1; same && 2 * m < R; m++)
@@ -379,8 +382,9 @@ static void kernel_fill(sb_circ_t *c, const double *a, size_t ld, const double *
     }
     if (same && mx <= DBL_MAX / 2) {
         c->Kd = a;
-        return;
+        return SB_OK;
     }
+    if (!c->K && !(c->K = sb_alloc_large(c->ctx, R2 * R, sizeof(double), "circulant kernel"))) return SB_ERR_NOMEM;
     for (size_t m = 0; m < R; m++)
         for (size_t ot = 0; ot < R; ot++)
             for (size_t it = 0; it < R; it++) {
@@ -389,18 +393,20 @@ static void kernel_fill(sb_circ_t *c, const double *a, size_t ld, const double *
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
     c->Kd = c->K;
+    return SB_OK;
 }
 
 static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *w, size_t J, double scale,
                             double *s, double *u, double *v, double *tails) {
     size_t R = c->R, R2 = R * R, N = R2;
     /* Step: symmetrised, weighted kernel (K_m + K_{R-m}) / 2 */
-    kernel_fill(c, a, ld, w);
+    sb_result_t res = kernel_fill(c, a, ld, w);
+    if (res != SB_OK) return res;
     c->ksym = sb_circ_kernel_symmetric(c->Kd, R);
     /* Step: cosine transform over m, C_k = sum_m K_m cos(2 pi k m / R), and
      * each block's squared Frobenius norm, blocks split among threads */
     c->fft = sb_rdft_cols(R, c->nb, R2, c->Kd, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
-    sb_result_t res = blocks_run(c, 0);
+    res = blocks_run(c, 0);
     if (res != SB_OK) return res;
     /* Step: the singular values (no vectors: the cheap part) of the blocks
      * in decreasing norm, a batch at a time, until the next block's norm,

@@ -21,10 +21,10 @@ typedef struct cand {
 struct sb_circ {
     sb_context_t *ctx;
     size_t R, nb;             /* period, blocks R/2 + 1 */
-    double *K;                /* R blocks R x R (weighted, symmetrised) */
+    double *K;                /* R blocks R x R (weighted, symmetrised); made by the first execute that needs it */
     const double *Kd;         /* the kernel read: K, or the stored values where they are it (kernel_fill) */
     double *C;                /* nb blocks C_k (R^2 x nb); a symmetric block's dsytrd reflectors */
-    double *Cv;               /* a copy of C, overwritten by dgesdd */
+    double *Cv;               /* per thread: R x R, the copy of a block that dgesdd overwrites */
     double *T;                /* R x nb: cos(2 pi k m / R) */
     unsigned char *need;      /* nb: block k holds a selected triplet */
     size_t *nvec;             /* nb: how many of block k's leading triplets are selected */

@@ -41,9 +41,8 @@ sb_result_t sb_circ_sym_alloc(sb_circ_t *c) {
     /* LAPACK workspace queries: the reduction and the back-transform of R
      * vectors; dstemr needs 18 R */
     double q1 = 0, q2 = 0;
-    info = LAPACKE_dsytrd_work(LAPACK_COL_MAJOR, 'L', n, c->Cv, n, c->tri, c->tri, c->tri, &q1, -1);
-    if (info == 0)
-        info = LAPACKE_dormtr_work(LAPACK_COL_MAJOR, 'L', 'L', 'N', n, n, c->Cv, n, c->tri, c->A, n, &q2, -1);
+    info = LAPACKE_dsytrd_work(LAPACK_COL_MAJOR, 'L', n, c->C, n, c->tri, c->tri, c->tri, &q1, -1);
+    if (info == 0) info = LAPACKE_dormtr_work(LAPACK_COL_MAJOR, 'L', 'L', 'N', n, n, c->C, n, c->tri, c->A, n, &q2, -1);
     if (info != 0) return sb_error(c->ctx, SB_ERR_NUMERIC, "circulant: symmetric workspace query failed");
     double lw = fmax(fmax(q1, q2), 18.0 * (double)R) + 1;
     c->slwork = (lapack_int)lw;

@@ -27,6 +27,11 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what);
 /* sb_alloc for large buffers: backed by huge pages where the system offers
  * them (fewer page faults on first touch); released with free(). */
 void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *what);
+/* Below what size glibc's malloc serves blocks from a heap on transparent
+ * huge pages, by the GLIBC_TUNABLES string it started with (NULL: none);
+ * 0 where the heap is not on huge pages.  sb_alloc_large takes such
+ * buffers from the heap (util.c). */
+size_t sb_heap_huge_below(const char *tunables);
 
 /* Open `path` for reading as a stream when it is a regular file of at
  * most max bytes; a device, FIFO, socket or folder is refused without

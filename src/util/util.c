@@ -1,9 +1,11 @@
 /* Allocation with limits, strings, thread counts, scaling. */
 #define _DEFAULT_SOURCE /* madvise, MADV_HUGEPAGE */
+#include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -75,6 +77,36 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what) 
     return alloc_impl(ctx, count, size, what, 1);
 }
 
+/* Up to what size glibc's malloc serves a block from a heap on transparent
+ * huge pages, by the GLIBC_TUNABLES it started with (`tunables`, colon-
+ * separated name=value): glibc.malloc.mmap_threshold where
+ * glibc.malloc.hugetlb is 1, else 0.  The CLI's launcher sets hugetlb=1 and a
+ * 32 MiB threshold (src/cli/env_plan.c). */
+size_t sb_heap_huge_below(const char *tunables) {
+    static const char hp[] = "glibc.malloc.hugetlb=", mt[] = "glibc.malloc.mmap_threshold=";
+    int thp = 0;
+    size_t below = 0;
+    for (const char *t = tunables; t && *t; t += *t == ':') {
+        size_t n = strcspn(t, ":");
+        if (n >= sizeof hp && strncmp(t, hp, sizeof hp - 1) == 0) {
+            thp = n == sizeof hp && t[n - 1] == '1';
+        } else if (n >= sizeof mt && strncmp(t, mt, sizeof mt - 1) == 0 && isdigit((unsigned char)t[sizeof mt - 1])) {
+            char *end;
+            unsigned long long v = strtoull(t + sizeof mt - 1, &end, 0); /* glibc's bases: 0x, 0 and decimal */
+            below = end == t + n && v <= SIZE_MAX ? (size_t)v : 0;
+        }
+        t += n;
+    }
+    return thp ? below : 0;
+}
+
+/* Read while the program starts: the CLI takes GLIBC_TUNABLES out of the
+ * environment again once running (sb_cli_malloc_env_restore). */
+static size_t heap_huge;
+__attribute__((constructor)) static void heap_huge_read(void) {
+    heap_huge = sb_heap_huge_below(getenv("GLIBC_TUNABLES"));
+}
+
 /* First touch of a 4 KiB page costs a fault; on the VMs measured a matrix
  * of 400 MiB took 0.6 s of faults, 2.5x less on 2 MiB pages.  With
  * transparent huge pages in "madvise" mode a buffer must ask for them:
@@ -83,11 +115,16 @@ void *sb_calloc(sb_context_t *ctx, size_t count, size_t size, const char *what) 
  * costs about 6 us (io -r 64 spent 630 of its 1050 faults on the 2 MiB
  * isotropic tables, which plain malloc put on 4 KiB pages), and zeroing a
  * whole huge page costs less than 256 of them; the rounding adds at most
- * 1 MiB a buffer. */
+ * 1 MiB a buffer.  Where malloc's heap is on huge pages itself (the CLI:
+ * glibc.malloc.hugetlb=1) a buffer it serves from there needs none of
+ * this, and the rounding and alignment only spread the job over more huge
+ * pages, each zeroed by the kernel on first touch (io -r 64: 13 -> 9 huge
+ * pages a run with the heap's start aligned too, src/cli/blas_env.c). */
 void *sb_alloc_large(sb_context_t *ctx, size_t count, size_t size, const char *what) {
     const size_t huge = (size_t)2 << 20;
     size_t bytes;
-    if (sb_size_mul(count, size, &bytes) || bytes < huge / 2) return sb_alloc(ctx, count, size, what);
+    if (sb_size_mul(count, size, &bytes) || bytes < huge / 2 || bytes < heap_huge)
+        return sb_alloc(ctx, count, size, what);
     if (bytes > sb_memory_limit()) return sb_alloc(ctx, count, size, what); /* reports the limit */
     size_t whole = (bytes + huge - 1) / huge * huge;
     void *p = NULL;
