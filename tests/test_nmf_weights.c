@@ -8,7 +8,8 @@
 
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
-#include "solve/nmf_gram.h" /* not exported, in the static archive */
+#include "solve/nmf_gram.h"  /* not exported, in the static archive */
+#include "solve/nmf_lanes.h" /* the sweeps' column loops */
 #include "solve/nmf_weights.h"
 
 static sb_param_t *iso8(void) {
@@ -196,5 +197,41 @@ SB_TEST(normalise_keeps_every_term) {
                 double was = U0[i + j * M] * V0[c + j * N], now = sig[j] * U[i + j * M] * V[c + j * N];
                 CHECKF(fabs(now - was) <= 1e-12 * (1 + was), "term %zu at (%zu, %zu): %g, was %g", j, i, c, now, was);
             }
+    }
+}
+
+/* The sweeps' fused column loops (src/solve/nmf_lanes.h, four lanes in
+ * one vector where GCC has them) give the bits of the loops they fuse,
+ * two axpy_neg then wdot, and wsq_add those of its plain four lanes, for
+ * columns of every length mod 4 (the default gold's 64 rows, tails). */
+SB_TEST(lanes_fused_same_bits) {
+    static const size_t ms[] = {1, 3, 4, 7, 64, 65, 66, 67};
+    for (size_t t = 0; t < sizeof ms / sizeof *ms; t++) {
+        size_t m = ms[t];
+        double e[80], r[80], e1[80], r1[80], du[80], u[80], w[80];
+        for (size_t i = 0; i < m; i++) {
+            e[i] = e1[i] = sin(1.3 * (double)i + 0.1) * 1e-2;
+            r[i] = r1[i] = cos(0.7 * (double)i) * 3e-3;
+            du[i] = sin(2.9 * (double)i) * 1e-4;
+            u[i] = fabs(cos(0.37 * (double)i + 0.2));
+            w[i] = i % 5 == 2 ? 1e-6 : 1 + 0.1 * (double)(i % 3);
+        }
+        double a = 0.731, ar = 1.913, b, d, b1, d1;
+        sub2_wdot(e, r, du, a, ar, w, u, m, &b, &d);
+        axpy_neg(e1, du, a, m);
+        axpy_neg(r1, du, ar, m);
+        wdot(w, r1, u, m, &b1, &d1);
+        CHECK(b == b1 && d == d1 && !memcmp(e, e1, m * sizeof *e) && !memcmp(r, r1, m * sizeof *r));
+        axpy2_neg(e, r, u, a, ar, m);
+        axpy_neg(e1, u, a, m);
+        axpy_neg(r1, u, ar, m);
+        CHECK(!memcmp(e, e1, m * sizeof *e) && !memcmp(r, r1, m * sizeof *r));
+        double f = wsq_add(w, e, u, a, m), fl[4] = {0, 0, 0, 0};
+        for (size_t i = 0; i < m; i++) { /* the plain lanes: lane i % 4 but the tail's into lane 0 */
+            size_t l = i < m / 4 * 4 ? i % 4 : 0;
+            fl[l] += w[i] * e1[i] * e1[i];
+            e1[i] += a * u[i];
+        }
+        CHECK(f == (fl[0] + fl[1]) + (fl[2] + fl[3]) && !memcmp(e, e1, m * sizeof *e));
     }
 }

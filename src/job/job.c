@@ -130,7 +130,8 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     o.max_error = 0;
     o.out = NULL;
     sb_job_t *svd = NULL;
-    sb_result_t r = job_run_as(ctx, job->src, &o, job->is_auto, &svd); /* fitted as the default run fits it */
+    /* fitted as the default run fits it; its headline alone is read */
+    sb_result_t r = job_run_as(ctx, job->src, &o, job->is_auto | JOB_RUN_HEADLINE, &svd);
     if (r == SB_ERR_NOMEM) return r;
     free(job->svd_beside);
     job->svd_beside = r == SB_OK ? malloc(2 * J * sizeof *job->svd_beside) : NULL;
@@ -221,6 +222,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->stage_s[0] = ts - t0; /* the source opened (sb_job_run) */
     job->fit_as_auto = as_auto & 1;
     job->no_scene_guard = (as_auto & JOB_RUN_NO_GUARD) != 0;
+    job->headline_only = (as_auto & JOB_RUN_HEADLINE) != 0;
     job->src = job->eval_src = src;
     job->own_src = own;
     sb_param_kind_t kind;
@@ -243,15 +245,16 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) r = job_scene_guard(ctx, job);
     double t3 = job_now();
-    if (r == SB_OK) r = job_cv(ctx, job);
-    if (r == SB_OK) r = job_band_pairs_measure(ctx, job, &job->best);
+    if (r == SB_OK && !job->headline_only) r = job_cv(ctx, job);
+    if (r == SB_OK && !job->headline_only) r = job_band_pairs_measure(ctx, job, &job->best);
     double t4 = job_now();
     job->stage_s[1] = t1 - ts, job->stage_s[2] = t2 - t1, job->stage_s[3] = t3 - t2, job->stage_s[4] = t4 - t3;
     if (r == SB_OK) {
         job_warn_max_error(job);
         job_warn_weights(job);
         double t5 = job_now();
-        job_warn_support(job); /* the errors at a measured table's samples: seconds for a MERL file */
+        if (!job->headline_only)
+            job_warn_support(job); /* the errors at a measured table's samples: seconds for a MERL file */
         job->stage_s[5] = job_now() - t5;
         job->t.sample_s = job->best.t_sample;
         job->t.factor_s = job->best.t_factor;

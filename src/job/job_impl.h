@@ -109,6 +109,7 @@ struct sb_job {
     double scene_kept_floor; /* the floor of the scene fit kept instead (floor=X), 0: the unweighted fit */
     double scene_ref_inside; /* the unweighted fit's headline at J over the scene's pairs, when replaced */
     int no_scene_guard;      /* JOB_RUN_NO_GUARD: a candidate of job_scene_guard.c itself */
+    int headline_only;       /* JOB_RUN_HEADLINE: read for its headline alone (job_svd_beside) */
     double *rel_stored;      /* J * 4 after sb_job_write, NULL before or if unknown */
     int wrote_sampler;       /* sb_job_write wrote sampler.bin (non-negative factors) */
     sb_sampler_choice_t share; /* its cosine-weighted share and variance ratios (when wrote_sampler) */
@@ -288,8 +289,13 @@ void job_band_errors(const sb_estimate_t *e, size_t j, double out[2]);
 int job_bands_trade(const double broken[2], double broken_err, const double keep[2], double keep_err);
 /* A job inside a job: as_auto bit 0 fits an explicit layout as auto fits
  * its kept one, JOB_RUN_NO_GUARD runs no unweighted fit beside a scene's
- * (job_scene_guard.c: its own candidates). */
+ * (job_scene_guard.c: its own candidates), JOB_RUN_HEADLINE is read for
+ * its fit's headline and rel_rms alone (job_svd_beside): no
+ * cross-validation, band pairs or support warning, which its caller
+ * measures on its own fit (the default gold's non-negative run: 0.07 s of
+ * CPU, 7 %; docs/positive.md, round h38t). */
 #define JOB_RUN_NO_GUARD 2
+#define JOB_RUN_HEADLINE 4
 sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_opts_t *opts, int as_auto,
                        sb_job_t **out);
 /* Whether the solver named `name` (a method, or the factors' "method"

@@ -46,7 +46,11 @@ double sb_nmf_residual(nmf_state_t *s, const double *U, const double *V, size_t 
 
 /* A part of the columns of one parallel step (sb_parallel_run): the
  * term's rows accumulated (term_rows), its columns updated (term_cols), or
- * the prefixes' errors (prefix_cols). */
+ * the prefixes' errors (prefix_cols).  The three jobs are compiled twice
+ * (SB_AVX2_CLONES: the same operations, so the same bits) and term_cols
+ * makes one pass where it made three (nmf_lanes.h sub2_wdot): the default
+ * gold's non-negative run, J = 4, spent 20 % of its CPU in term_cols,
+ * then 10 % (docs/positive.md, round h38t). */
 typedef struct nmf_job {
     nmf_state_t *s;
     double *U, *V;
@@ -58,7 +62,7 @@ typedef struct nmf_job {
 /* Job: the term's target R = A E + sum_{q>j} c_q u_q v_q^T on the part's
  * columns (R is E itself for the last term), and the row sums b_i = sum_c
  * W R v_j, d_i = sum_c W v_j^2 over them. */
-static void *term_rows(void *arg) {
+SB_AVX2_CLONES static void *term_rows(void *arg) {
     nmf_job_t *jb = arg;
     nmf_state_t *s = jb->s;
     size_t m = s->m, n = s->n, j = jb->j;
@@ -86,7 +90,7 @@ static void *term_rows(void *arg) {
 /* Job: on the part's columns, E and R follow the change du of u_j (in
  * the part's b), then v_j(c) <- max(0, v + sum_i W R u / (A sum_i W u^2))
  * and E, R follow it. */
-static void *term_cols(void *arg) {
+SB_AVX2_CLONES static void *term_cols(void *arg) {
     nmf_job_t *jb = arg;
     nmf_state_t *s = jb->s;
     size_t m = s->m, n = s->n, j = jb->j;
@@ -95,23 +99,27 @@ static void *term_cols(void *arg) {
     int own = j + 1 < jb->k; /* R apart from E */
     for (size_t col = jb->c0; col < jb->c1; col++) {
         double *e = s->e + col * m, *rc = own ? s->r + col * m : e, b, d;
-        if (v[col] != 0) {
-            axpy_neg(e, du, v[col], m);
-            if (own) axpy_neg(rc, du, A * v[col], m);
+        const double *w = s->w + col * m;
+        if (v[col] != 0 && own)
+            sub2_wdot(e, rc, du, v[col], A * v[col], w, u, m, &b, &d);
+        else {
+            if (v[col] != 0) axpy_neg(e, du, v[col], m);
+            wdot(w, rc, u, m, &b, &d);
         }
-        wdot(s->w + col * m, rc, u, m, &b, &d);
         double nv = d > 0 ? fmax(0, v[col] + b / (A * d)) : 0, dv = nv - v[col];
         v[col] = nv;
         if (dv == 0) continue;
-        axpy_neg(e, u, dv, m);
-        if (own) axpy_neg(rc, u, A * dv, m);
+        if (own)
+            axpy2_neg(e, rc, u, dv, A * dv, m);
+        else
+            axpy_neg(e, u, dv, m);
     }
     return NULL;
 }
 
 /* Job: f_p = sum over the part's columns of W E_p^2, p = k..1 (E_p = E_k
  * + the terms p + 1..k), in the part's f. */
-static void *prefix_cols(void *arg) {
+SB_AVX2_CLONES static void *prefix_cols(void *arg) {
     nmf_job_t *jb = arg;
     nmf_state_t *s = jb->s;
     size_t m = s->m, n = s->n, k = jb->k;
