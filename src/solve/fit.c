@@ -114,6 +114,7 @@ void sb_fit_destroy(sb_fit_t *f) {
     if (!f) return;
     sb_fit_destroy(f->sub[0]);
     sb_fit_destroy(f->sub[1]);
+    if (f->cells && !f->cells_borrowed) fit_cells_free(f->cells), free(f->cells);
     free(f->x);
     free(f->v);
     free(f->y);

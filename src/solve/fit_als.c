@@ -49,7 +49,7 @@ static int joint_stage(size_t ka) { return ka > 1 && ka <= SB_JOINT_ALL; }
  * joint refit is restored from, and the accepted prefix errors. */
 typedef struct als_run {
     sb_fit_t *f;
-    als_cells_t cl;
+    als_cells_t *cl; /* f->cells */
     const sb_fit_opts_t *o;
     int strict, *total, *stretched;
     double norm2, *saveP, *saveQ;
@@ -72,7 +72,7 @@ static double stage_new_term(als_run_t *ru, size_t ka, int replay, int record, i
         memcpy(f->Q, rs->Q1, n * k * sizeof *f->Q);
         err = rs->err1, *c1 = rs->c1;
     } else {
-        err = fit_als_until(f, &ru->cl, ka - 1, ka, ru->o, sqrt(ru->norm2), ru->total, c1);
+        err = fit_als_until(f, ru->cl, ka - 1, ka, ru->o, sqrt(ru->norm2), ru->total, c1);
     }
     if (record) {
         memcpy(rs->P1, f->P, m * k * sizeof *f->P);
@@ -103,8 +103,8 @@ static int stage_joint(als_run_t *ru, size_t ka, int replay, int record, double 
         memcpy(e2, rs->e2, sizeof e2);
         ej = rs->errj, *cj = rs->cj;
     } else {
-        ej = fit_als_until(f, &ru->cl, 0, ka, ru->o, sqrt(norm2), ru->total, cj);
-        prefix_errors(f, &ru->cl, ka, e2);
+        ej = fit_als_until(f, ru->cl, 0, ka, ru->o, sqrt(norm2), ru->total, cj);
+        prefix_errors(f, ru->cl, ka, e2);
     }
     if (record) {
         memcpy(rs->Pj, f->P, m * k * sizeof *f->P);
@@ -145,8 +145,10 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
     als_run_t ru = {.f = f, .o = o, .strict = strict, .total = total, .stretched = stretched, .norm2 = norm2, .rs = rs};
     ru.saveP = malloc(m * k * sizeof *ru.saveP);
     ru.saveQ = malloc(n * k * sizeof *ru.saveQ);
-    if (!ru.saveP || !ru.saveQ || fit_cells_build(f->ctx, &ru.cl, As, m, n, lda, mask, nvalid) != 0) {
-        int saved = ru.saveP && ru.saveQ; /* else fit_cells_build failed and named its bytes */
+    if (!f->cells) f->cells = calloc(1, sizeof *f->cells);
+    ru.cl = f->cells;
+    if (!ru.saveP || !ru.saveQ || !ru.cl || fit_cells_build(f->ctx, ru.cl, As, m, n, lda, mask, nvalid) != 0) {
+        int saved = ru.saveP && ru.saveQ && ru.cl; /* else fit_cells_build failed and named its bytes */
         free(ru.saveP);
         free(ru.saveQ);
         if (saved) return SB_ERR_NOMEM;
@@ -184,8 +186,7 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
         }
     }
     free(ru.saveP);
-    free(ru.saveQ);
-    fit_cells_free(&ru.cl);
+    free(ru.saveQ); /* the cells stay for the next run (sb_fit_destroy frees them) */
     return SB_OK;
 }
 

@@ -28,16 +28,47 @@ void fit_cells_free(als_cells_t *cl) {
     free(cl->rv);
     free(cl->cbuf);
     free(cl->rbuf);
+    free(cl->cmask);
+    memset(cl, 0, sizeof *cl);
+}
+
+/* DT (n x m) = D (m x n) transposed, by square blocks of TRANSPOSE_BLOCK
+ * and within them 4 x 4 through vectors: DT written a cell at a time
+ * down D's columns (a store every 8 KiB at 1024 x 1024, every one in the
+ * same cache set) was 70 % of the residual's time and 8 % of a MERL
+ * file's default run; blocks of 32 cells by scalars took 1.8x these. */
+#define TRANSPOSE_BLOCK 16
+typedef double v4d_t __attribute__((vector_size(32), aligned(8))); /* four doubles, loads at any 8-byte address */
+
+SB_AVX2_CLONES static void transpose(const double *D, size_t m, size_t n, double *DT) {
+    for (size_t c0 = 0; c0 < n; c0 += TRANSPOSE_BLOCK)
+        for (size_t r0 = 0; r0 < m; r0 += TRANSPOSE_BLOCK) {
+            size_t c1 = n - c0 < TRANSPOSE_BLOCK ? n : c0 + TRANSPOSE_BLOCK;
+            size_t r1 = m - r0 < TRANSPOSE_BLOCK ? m : r0 + TRANSPOSE_BLOCK;
+            if (c1 - c0 < TRANSPOSE_BLOCK || r1 - r0 < TRANSPOSE_BLOCK) { /* the edges */
+                for (size_t r = r0; r < r1; r++)
+                    for (size_t c = c0; c < c1; c++)
+                        DT[c + r * n] = D[r + c * m];
+                continue;
+            }
+            for (size_t c = c0; c < c1; c += 4)
+                for (size_t r = r0; r < r1; r += 4) {
+                    const double *d = D + r + c * m;
+                    v4d_t a0 = *(const v4d_t *)d, a1 = *(const v4d_t *)(d + m);
+                    v4d_t a2 = *(const v4d_t *)(d + 2 * m), a3 = *(const v4d_t *)(d + 3 * m);
+                    for (int i = 0; i < 4; i++)
+                        *(v4d_t *)(DT + c + (r + (size_t)i) * n) = (v4d_t){a0[i], a1[i], a2[i], a3[i]};
+                }
+        }
 }
 
 /* D and DT from cres (zeros stay where no cell is). */
 static void dense_residual(als_cells_t *cl, size_t m, size_t n) {
     if (!cl->D) return; /* zero where no cell is valid since fit_cells_build */
     for (size_t c = 0; c < n; c++)
-        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++) {
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++)
             cl->D[cl->cr[t] + c * m] = cl->cres[t];
-            cl->DT[c + cl->cr[t] * n] = cl->cres[t];
-        }
+    transpose(cl->D, m, n, cl->DT);
 }
 
 /* Step: allocate the index and value arrays (~40 bytes per valid cell,
@@ -66,7 +97,8 @@ static int cells_alloc(sb_context_t *ctx, als_cells_t *cl, size_t m, size_t n, s
 }
 
 /* Step: the row order from the column order: prefix sums, then a scatter
- * in column order keeps each row's columns increasing; the cells left
+ * in column order keeps each row's columns increasing (values too where
+ * there is no dense residual: the rows read it instead); the cells left
  * out likewise.  0 or SB_ERR_NOMEM. */
 static int cells_rows(sb_context_t *ctx, als_cells_t *cl, size_t m, size_t n) {
     for (size_t r = 0; r < m; r++)
@@ -78,7 +110,7 @@ static int cells_rows(sb_context_t *ctx, als_cells_t *cl, size_t m, size_t n) {
         for (size_t v = cl->cp[c]; v < cl->cp[c + 1]; v++) {
             size_t at = next[cl->cr[v]]++;
             cl->rc[at] = (uint32_t)c;
-            cl->rv[at] = cl->cv[v];
+            if (!cl->Dv) cl->rv[at] = cl->cv[v];
         }
     for (size_t r = 0; r < m; r++) /* the cells left out, likewise */
         cl->rip[r + 1] += cl->rip[r];
@@ -90,11 +122,62 @@ static int cells_rows(sb_context_t *ctx, als_cells_t *cl, size_t m, size_t n) {
     return 0;
 }
 
+/* Step: the dense residual's copies where at least half the cells are
+ * valid (the default's iso cells: 75 %) and the four (the data's and the
+ * residual's, each with its transpose) take at most 128 MiB and a quarter
+ * of the memory limit; without them (or without the memory) the gathers.
+ * The default run: 12 % fewer instructions, the same errors to 1e-8 */
+static void cells_dense(als_cells_t *cl, size_t m, size_t n, size_t nvalid) {
+    cl->D = cl->DT = NULL;
+    if (2 * nvalid >= m * n && m * n <= ((size_t)1 << 22) && 32 * m * n <= sb_memory_limit() / 4) {
+        cl->Dv = calloc(m * n, sizeof *cl->Dv);
+        cl->DTv = calloc(m * n, sizeof *cl->DTv);
+        cl->Dr = calloc(m * n, sizeof *cl->Dr);
+        cl->DTr = calloc(m * n, sizeof *cl->DTr);
+        cl->bt = malloc((m > n ? m : n) * SB_ALS_MAX_K * sizeof *cl->bt);
+        if (!cl->Dv || !cl->DTv || !cl->Dr || !cl->DTr || !cl->bt) {
+            free(cl->Dv), free(cl->DTv), free(cl->Dr), free(cl->DTr), free(cl->bt);
+            cl->Dv = cl->DTv = cl->Dr = cl->DTr = cl->bt = NULL;
+        }
+    }
+}
+
+/* Whether cl was gathered for this mask (m x n, ld lda, nvalid cells). */
+static int same_mask(const als_cells_t *cl, size_t m, size_t n, size_t lda, const unsigned char *mask, size_t nvalid) {
+    if (!cl->cmask || cl->cm != m || cl->cn != n || cl->ncv != nvalid) return 0;
+    for (size_t c = 0; c < n; c++)
+        if (memcmp(cl->cmask + c * m, mask + c * lda, m) != 0) return 0;
+    return 1;
+}
+
+/* Step, on the mask gathered before: the values anew, in both orders (the
+ * row order only where the rows read it), the dense copies to be made
+ * again from them (their cells left out are still 0: the same mask). */
+static void cells_values(als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda) {
+    for (size_t c = 0; c < n; c++)
+        for (size_t t = cl->cp[c]; t < cl->cp[c + 1]; t++)
+            cl->cv[t] = X[cl->cr[t] + c * lda];
+    for (size_t r = 0; !cl->Dv && r < m; r++)
+        for (size_t t = cl->rp[r]; t < cl->rp[r + 1]; t++)
+            cl->rv[t] = X[r + cl->rc[t] * lda];
+    cl->cres = cl->cv;
+    cl->rres = cl->rv;
+    cl->D = cl->DT = NULL;
+    cl->dv = 0;
+}
+
 /* Gather the valid cells of X (m x n, ld lda) in both orders; 0 or
- * SB_ERR_NOMEM. */
+ * SB_ERR_NOMEM.  A run on the mask of the last (a nested fit's pieces and
+ * channels: 15 runs a MERL file's matrix at J = 8) gathers the values
+ * only: the indices, and the buffers' pages, serve again (the gathering
+ * and the first touch of some 60 MB a run were 12 % of the default run). */
 int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
                     const unsigned char *mask, size_t nvalid) {
-    memset(cl, 0, sizeof *cl);
+    if (same_mask(cl, m, n, lda, mask, nvalid)) {
+        cells_values(cl, X, m, n, lda);
+        return 0;
+    }
+    fit_cells_free(cl);
     if (cells_alloc(ctx, cl, m, n, nvalid) != 0) {
         fit_cells_free(cl);
         return SB_ERR_NOMEM;
@@ -117,29 +200,17 @@ int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t 
     cl->cp[n] = t;
     cl->cip[n] = u;
     assert(t == nvalid && u == m * n - nvalid);
+    cells_dense(cl, m, n, nvalid);
     if (cells_rows(ctx, cl, m, n) != 0) {
         fit_cells_free(cl);
         return SB_ERR_NOMEM;
     }
     cl->cres = cl->cv;
     cl->rres = cl->rv;
-    /* the dense residual where at least half the cells are valid (the
-     * default's iso cells: 75 %) and the four copies (the data's and the
-     * residual's, each with its transpose) take at most 128 MiB and a
-     * quarter of the memory limit; without them (or without the memory)
-     * the gathers.  The default run: 12 % fewer instructions, the same
-     * errors to 1e-8 */
-    cl->D = cl->DT = NULL;
-    if (2 * nvalid >= m * n && m * n <= ((size_t)1 << 22) && 32 * m * n <= sb_memory_limit() / 4) {
-        cl->Dv = calloc(m * n, sizeof *cl->Dv);
-        cl->DTv = calloc(m * n, sizeof *cl->DTv);
-        cl->Dr = calloc(m * n, sizeof *cl->Dr);
-        cl->DTr = calloc(m * n, sizeof *cl->DTr);
-        cl->bt = malloc((m > n ? m : n) * SB_ALS_MAX_K * sizeof *cl->bt);
-        if (!cl->Dv || !cl->DTv || !cl->Dr || !cl->DTr || !cl->bt) {
-            free(cl->Dv), free(cl->DTv), free(cl->Dr), free(cl->DTr), free(cl->bt);
-            cl->Dv = cl->DTv = cl->Dr = cl->DTr = cl->bt = NULL;
-        }
+    if ((cl->cmask = malloc(m * n))) { /* without it: gathered again next time */
+        for (size_t c = 0; c < n; c++)
+            memcpy(cl->cmask + c * m, mask + c * lda, m);
+        cl->cm = m, cl->cn = n, cl->ncv = nvalid;
     }
     return 0;
 }
@@ -206,19 +277,27 @@ void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0) {
  * residual on every call for a product with 1-4 columns (its copy was 7 %
  * of the Cornell acrylic's default run, its kernel 5 %).  A block of
  * PROD_ROWS rows and up to 4 columns of C stays in registers while the
- * inner index runs. */
+ * inner index runs through a panel of PROD_PANEL columns of A; the next
+ * panel carries on from what the block left in C (the same additions in
+ * the same order).  A block that ran down the whole inner index read one
+ * cache line of A every 8 KiB (a MERL file's 1024 x 1024 hd matrix), a
+ * new page at every step that no prefetcher follows: the product was a
+ * third of the run's CPU.  A panel of 8 columns is 8 streams of
+ * consecutive lines, and the 4-column blocks beyond the first read it
+ * from cache (4-7x faster at 1024 x 1024, the same at 64 x 992). */
 #define PROD_ROWS 8
-typedef double v4d_t __attribute__((vector_size(32), aligned(8))); /* four doubles, loads at any 8-byte address */
+#define PROD_PANEL 8
 
-/* A block of PROD_ROWS rows and nj (constant, 1-4) columns of C. */
-static inline __attribute__((always_inline)) void prod_block(const double *A, size_t rows, size_t inner,
+/* A block of PROD_ROWS rows and nj (constant, 1-4) columns of C over the
+ * inner indices t0..t1-1, from 0 (first) or from what C holds. */
+static inline __attribute__((always_inline)) void prod_block(const double *A, size_t rows, size_t t0, size_t t1,
                                                              const double *B, size_t ldb, double *C, size_t ldc,
-                                                             const size_t nj) {
+                                                             const size_t nj, int first) {
     v4d_t acc[4][PROD_ROWS / 4];
     for (size_t j = 0; j < nj; j++)
         for (size_t i = 0; i < PROD_ROWS / 4; i++)
-            acc[j][i] = (v4d_t){0, 0, 0, 0};
-    for (size_t t = 0; t < inner; t++) {
+            acc[j][i] = first ? (v4d_t){0, 0, 0, 0} : *(const v4d_t *)(C + 4 * i + j * ldc);
+    for (size_t t = t0; t < t1; t++) {
         const v4d_t *a = (const v4d_t *)(A + t * rows);
         v4d_t a0 = a[0], a1 = a[1];
         for (size_t j = 0; j < nj; j++) {
@@ -232,13 +311,13 @@ static inline __attribute__((always_inline)) void prod_block(const double *A, si
             *(v4d_t *)(C + 4 * i + j * ldc) = acc[j][i];
 }
 
-/* Rows and columns beyond the blocks, one entry at a time. */
-static void prod_rest(const double *A, size_t rows, size_t inner, const double *B, size_t ldb, double *C, size_t ldc,
-                      size_t nr, size_t nj) {
+/* Rows beyond the blocks, one entry at a time, likewise. */
+static void prod_rest(const double *A, size_t rows, size_t t0, size_t t1, const double *B, size_t ldb, double *C,
+                      size_t ldc, size_t nr, size_t nj) {
     for (size_t j = 0; j < nj; j++)
         for (size_t i = 0; i < nr; i++) {
-            double s = 0;
-            for (size_t t = 0; t < inner; t++)
+            double s = t0 == 0 ? 0 : C[i + j * ldc];
+            for (size_t t = t0; t < t1; t++)
                 s += A[i + t * rows] * B[t + j * ldb];
             C[i + j * ldc] = s;
         }
@@ -246,22 +325,28 @@ static void prod_rest(const double *A, size_t rows, size_t inner, const double *
 
 SB_AVX2_CLONES static void prod(const double *A, size_t rows, size_t inner, const double *B, size_t ldb, size_t kf,
                                 double *C, size_t ldc) {
-    for (size_t r = 0; r < rows; r += PROD_ROWS) {
-        size_t nr = rows - r < PROD_ROWS ? rows - r : PROD_ROWS;
+    for (size_t j = 0; inner == 0 && j < kf; j++) /* empty sums */
+        memset(C + j * ldc, 0, rows * sizeof *C);
+    for (size_t t0 = 0; t0 < inner; t0 += PROD_PANEL) {
+        size_t t1 = inner - t0 < PROD_PANEL ? inner : t0 + PROD_PANEL;
+        int first = t0 == 0;
         for (size_t j = 0; j < kf; j += 4) {
             size_t nj = kf - j < 4 ? kf - j : 4;
             const double *b = B + j * ldb;
-            double *c = C + r + j * ldc;
-            if (nr == PROD_ROWS && nj == 4)
-                prod_block(A + r, rows, inner, b, ldb, c, ldc, 4);
-            else if (nr == PROD_ROWS && nj == 3)
-                prod_block(A + r, rows, inner, b, ldb, c, ldc, 3);
-            else if (nr == PROD_ROWS && nj == 2)
-                prod_block(A + r, rows, inner, b, ldb, c, ldc, 2);
-            else if (nr == PROD_ROWS)
-                prod_block(A + r, rows, inner, b, ldb, c, ldc, 1);
-            else
-                prod_rest(A + r, rows, inner, b, ldb, c, ldc, nr, nj);
+            for (size_t r = 0; r < rows; r += PROD_ROWS) {
+                size_t nr = rows - r < PROD_ROWS ? rows - r : PROD_ROWS;
+                double *c = C + r + j * ldc;
+                if (nr == PROD_ROWS && nj == 4)
+                    prod_block(A + r, rows, t0, t1, b, ldb, c, ldc, 4, first);
+                else if (nr == PROD_ROWS && nj == 3)
+                    prod_block(A + r, rows, t0, t1, b, ldb, c, ldc, 3, first);
+                else if (nr == PROD_ROWS && nj == 2)
+                    prod_block(A + r, rows, t0, t1, b, ldb, c, ldc, 2, first);
+                else if (nr == PROD_ROWS)
+                    prod_block(A + r, rows, t0, t1, b, ldb, c, ldc, 1, first);
+                else
+                    prod_rest(A + r, rows, t0, t1, b, ldb, c, ldc, nr, nj);
+            }
         }
     }
 }

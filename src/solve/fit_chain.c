@@ -62,7 +62,13 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
     sb_result_t r = SB_OK;
     for (int i = 0; i < 2 && r == SB_OK; i++)
         if (!f->sub[i]) r = sb_fit_create(f->ctx, m, n, i ? 1 : SB_CHAIN_JOINT, &f->sub[i]);
+    if (r == SB_OK && !f->cells && !(f->cells = calloc(1, sizeof *f->cells)))
+        r = sb_error(f->ctx, SB_ERR_NOMEM, "fit: out of memory");
     if (r != SB_OK) return r;
+    /* the pieces share one gathering of the cells: the same mask in every
+     * piece (and channel), gathered once (fit_cells_build) */
+    for (int i = 0; i < 2; i++)
+        f->sub[i]->cells = f->cells, f->sub[i]->cells_borrowed = 1;
     double *R = malloc(lda * n * sizeof *R), *u = malloc(m * k * sizeof *u), *v = malloc(n * k * sizeof *v);
     if (!R || !u || !v) {
         free(R), free(u), free(v);

@@ -30,6 +30,11 @@ struct sb_fit {
     size_t m, n, k, l;
     double *x, *v, *y, *tau, *b, *sb, *ub, *vbt, *work;
     double *P, *Q; /* ALS: factors m x k, n x k */
+    /* the valid cells gathered for the last mask the stages ran on, kept
+     * for the next run on the same mask (fit_cells_build); the nested
+     * fits borrow their parent's (cells_borrowed: not theirs to free) */
+    struct als_cells *cells;
+    int cells_borrowed;
     /* ALS sweep copies of the free columns, row-major: pt[r*kf + j] =
      * P[r + (j0+j)*m], qt likewise, and their outer products (lower
      * triangles, kt = kf(kf+1)/2 values per row / column) */
@@ -72,13 +77,19 @@ typedef struct als_cells {
      * less fixed terms; dv: the data's are made */
     double *Dv, *DTv, *ca2v, a2v, *Dr, *DTr, *ca2r;
     int dv;
+    /* the mask the cells were gathered for (m x n, ld m; cm x cn, ncv
+     * valid cells): a run on the same mask gathers only the values */
+    unsigned char *cmask;
+    size_t cm, cn, ncv;
 } als_cells_t;
 
 /* Gather the valid cells of X (m x n, ld lda) with mask != 0 (nvalid of
- * them) in both orders; 0 or SB_ERR_NOMEM. */
+ * them) in both orders into cl (zeroed, or as the last build left it: on
+ * the same mask its indices and buffers serve again, the values are
+ * gathered anew); 0 or SB_ERR_NOMEM (cl then zeroed). */
 int fit_cells_build(sb_context_t *ctx, als_cells_t *cl, const double *X, size_t m, size_t n, size_t lda,
                     const unsigned char *mask, size_t nvalid);
-void fit_cells_free(als_cells_t *cl);
+void fit_cells_free(als_cells_t *cl); /* and zero it */
 /* The data less the fixed terms 0..j0-1 of f, in both orders. */
 void fit_cells_residual(als_cells_t *cl, const sb_fit_t *f, size_t j0);
 /* C (rows x kf, ld ldc) = A (rows x inner, ld rows) B (inner x kf, ld

@@ -3,6 +3,7 @@
  * in both orders by fit_cells.c), and the sweeps of a stage until its
  * error stops improving. */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -214,11 +215,49 @@ static inline __attribute__((always_inline)) void line_gram(const als_job_t *jb,
                 kf, bx, f->m, g, b);
 }
 
+/* line_gram of LANES lines of one term with the dense residual, side by
+ * side: a line's Gram is one sum, all less its cells out or its cells in,
+ * a chain of dependent additions (the MERL file's 1024 x 1024 sweeps: 40
+ * % of each half's time waiting on it); the lanes' chains go in one
+ * vector, each lane adding its terms in its order (x - y is x + (-y):
+ * the same bits), the longer ones finished alone. */
+static inline __attribute__((always_inline)) void gram1_lanes(const als_job_t *jb, int cols, size_t i, double *g,
+                                                              double *b) {
+    const sb_fit_t *f = jb->f;
+    const als_cells_t *cl = jb->cl;
+    const size_t *p = cols ? cl->cp : cl->rp, *pu = cols ? cl->cip : cl->rip;
+    const uint32_t *in = cols ? cl->cr : cl->rc, *out = cols ? cl->ci : cl->ri, *at[LANES];
+    const double *xx = cols ? f->pp : f->qq;
+    size_t len[LANES], common = SIZE_MAX;
+    lanes_t sum = {0, 0, 0, 0}, sign = {0, 0, 0, 0};
+    for (size_t l = 0; l < LANES; l++) {
+        size_t t0 = p[i + l], t1 = p[i + l + 1], u0 = pu[i + l], u1 = pu[i + l + 1];
+        int less = u1 - u0 < t1 - t0; /* ls_gram's choice */
+        at[l] = less ? out + u0 : in + t0;
+        len[l] = less ? u1 - u0 : t1 - t0;
+        sum[l] = less ? jb->all[0] : 0;
+        sign[l] = less ? -1 : 1;
+        common = len[l] < common ? len[l] : common;
+    }
+    memcpy(b, cl->bt + i, LANES * sizeof *b);
+    for (size_t u = 0; u < common; u++)
+        sum += sign * (lanes_t){xx[at[0][u]], xx[at[1][u]], xx[at[2][u]], xx[at[3][u]]};
+    for (size_t l = 0; l < LANES; l++) {
+        double v = sum[l], s = sign[l];
+        for (size_t u = common; u < len[l]; u++)
+            v += s * xx[at[l][u]];
+        g[l] = v;
+    }
+}
+
 static inline __attribute__((always_inline)) void half_solve(const als_job_t *jb, int cols, size_t c, size_t nb,
                                                              size_t kf, double *y, double *quad) {
     size_t kt = kf * (kf + 1) / 2;
     double g[SB_ALS_MAX_K * (SB_ALS_MAX_K + 1) / 2], b[SB_ALS_MAX_K];
-    if (nb == LANES) {
+    if (nb == LANES && kf == 1 && jb->cl->D) {
+        gram1_lanes(jb, cols, c, g, b);
+        ls_solve_lanes(g, b, kf, y, quad);
+    } else if (nb == LANES) {
         for (size_t l = 0; l < LANES; l++)
             line_gram(jb, cols, c + l, kf, g + l * kt, b + l * kf);
         ls_solve_lanes(g, b, kf, y, quad);
