@@ -13,7 +13,9 @@
 #include "../src/util/internal.h"
 #include "harness.h"
 
-static double frand(unsigned long long *st) { return (double)((*st = *st * 6364136223846793005ULL + 1) >> 11) * 0x1.0p-53 - 0.5; }
+static double frand(unsigned long long *st) {
+    return (double)((*st = *st * 6364136223846793005ULL + 1) >> 11) * 0x1.0p-53 - 0.5;
+}
 
 /* max |C - C_blas| / (||a_j|| ||b_q||) over the entries, double */
 static double err_d(int rows, int cols, int inner, int pad, unsigned long long seed) {

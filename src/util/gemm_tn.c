@@ -43,27 +43,27 @@ TN_ATTR float hsum_f(__m256 v) {
  * and nb <= TN_TB columns b_q (stride ldb) of m rows, into c (ldc).  na
  * and nb are constants where it is inlined, so the accumulators are
  * registers. */
-#define TN_TILE(NAME, R, V, LANES, SET0, LOAD, FMA, HSUM)                                                           \
-    TN_ATTR void NAME(const R *a, size_t lda, int na, const R *b, size_t ldb, int nb, int m, R *c, size_t ldc) {    \
-        V s[TN_TA][TN_TB];                                                                                          \
-        for (int p = 0; p < TN_TA; p++)                                                                            \
-            for (int q = 0; q < TN_TB; q++)                                                                        \
-                s[p][q] = SET0();                                                                                  \
-        int i = 0;                                                                                                  \
-        for (; i + LANES <= m; i += LANES) {                                                                        \
-            V y[TN_TB];                                                                                             \
-            _Pragma("GCC unroll 3") for (int q = 0; q < nb; q++) y[q] = LOAD(b + (size_t)q * ldb + i);              \
-            _Pragma("GCC unroll 4") for (int p = 0; p < na; p++) {                                                  \
-                V x = LOAD(a + (size_t)p * lda + i);                                                                \
-                _Pragma("GCC unroll 3") for (int q = 0; q < nb; q++) s[p][q] = FMA(x, y[q], s[p][q]);               \
-            }                                                                                                       \
-        }                                                                                                           \
-        _Pragma("GCC unroll 4") for (int p = 0; p < na; p++) _Pragma("GCC unroll 3") for (int q = 0; q < nb; q++) { \
-            R t = HSUM(s[p][q]);                                                                                    \
-            for (int r = i; r < m; r++)                                                                             \
-                t += a[(size_t)p * lda + r] * b[(size_t)q * ldb + r];                                               \
-            c[p + (size_t)q * ldc] = t;                                                                             \
-        }                                                                                                           \
+#define TN_TILE(NAME, R, V, LANES, SET0, LOAD, FMA, HSUM)                                                              \
+    TN_ATTR void NAME(const R *a, size_t lda, int na, const R *b, size_t ldb, int nb, int m, R *c, size_t ldc) {       \
+        V s[TN_TA][TN_TB];                                                                                             \
+        for (int p = 0; p < TN_TA; p++)                                                                                \
+            for (int q = 0; q < TN_TB; q++)                                                                            \
+                s[p][q] = SET0();                                                                                      \
+        int i = 0;                                                                                                     \
+        for (; i + LANES <= m; i += LANES) {                                                                           \
+            V y[TN_TB];                                                                                                \
+            _Pragma("GCC unroll 3") for (int q = 0; q < nb; q++) y[q] = LOAD(b + (size_t)q * ldb + i);                 \
+            _Pragma("GCC unroll 4") for (int p = 0; p < na; p++) {                                                     \
+                V x = LOAD(a + (size_t)p * lda + i);                                                                   \
+                _Pragma("GCC unroll 3") for (int q = 0; q < nb; q++) s[p][q] = FMA(x, y[q], s[p][q]);                  \
+            }                                                                                                          \
+        }                                                                                                              \
+        _Pragma("GCC unroll 4") for (int p = 0; p < na; p++) _Pragma("GCC unroll 3") for (int q = 0; q < nb; q++) {    \
+            R t = HSUM(s[p][q]);                                                                                       \
+            for (int r = i; r < m; r++)                                                                                \
+                t += a[(size_t)p * lda + r] * b[(size_t)q * ldb + r];                                                  \
+            c[p + (size_t)q * ldc] = t;                                                                                \
+        }                                                                                                              \
     }
 
 TN_TILE(tile_d, double, __m256d, 4, _mm256_setzero_pd, _mm256_loadu_pd, _mm256_fmadd_pd, hsum_d)
@@ -72,29 +72,29 @@ TN_TILE(tile_f, float, __m256, 8, _mm256_setzero_ps, _mm256_loadu_ps, _mm256_fma
 /* C (rows x cols) = A^T B: A is inner x rows, B inner x cols.  The tiles
  * of TN_TA x TN_TB, then the columns of A and B left over; each call of
  * the tile with constant sizes is its own specialisation. */
-#define TN_MAIN(NAME, TILE, R)                                                                                      \
-    __attribute__((target("avx2,fma"))) static void NAME(int rows, int cols, int inner, const R *A, size_t lda,      \
-                                                         const R *B, size_t ldb, R *C, size_t ldc) {                \
-        for (int j = 0; j < rows; j += TN_TA) {                                                                     \
-            const R *a = A + (size_t)j * lda;                                                                       \
-            int na = rows - j < TN_TA ? rows - j : TN_TA;                                                           \
-            for (int t = 0; t < cols; t += TN_TB) {                                                                 \
-                const R *b = B + (size_t)t * ldb;                                                                   \
-                R *c = C + j + (size_t)t * ldc;                                                                     \
-                int nb = cols - t < TN_TB ? cols - t : TN_TB;                                                       \
-                if (na == 4 && nb == 3)                                                                             \
-                    TILE(a, lda, 4, b, ldb, 3, inner, c, ldc);                                                      \
-                else if (na == 4 && nb == 2)                                                                        \
-                    TILE(a, lda, 4, b, ldb, 2, inner, c, ldc);                                                      \
-                else if (na == 4)                                                                                   \
-                    TILE(a, lda, 4, b, ldb, 1, inner, c, ldc);                                                      \
-                else                                                                                                \
-                    for (int p = 0; p < na; p++)                                                                    \
-                        for (int q = 0; q < nb; q++)                                                                \
-                            TILE(a + (size_t)p * lda, lda, 1, b + (size_t)q * ldb, ldb, 1, inner,                   \
-                                 c + p + (size_t)q * ldc, ldc);                                                     \
-            }                                                                                                       \
-        }                                                                                                           \
+#define TN_MAIN(NAME, TILE, R)                                                                                         \
+    __attribute__((target("avx2,fma"))) static void NAME(int rows, int cols, int inner, const R *A, size_t lda,        \
+                                                         const R *B, size_t ldb, R *C, size_t ldc) {                   \
+        for (int j = 0; j < rows; j += TN_TA) {                                                                        \
+            const R *a = A + (size_t)j * lda;                                                                          \
+            int na = rows - j < TN_TA ? rows - j : TN_TA;                                                              \
+            for (int t = 0; t < cols; t += TN_TB) {                                                                    \
+                const R *b = B + (size_t)t * ldb;                                                                      \
+                R *c = C + j + (size_t)t * ldc;                                                                        \
+                int nb = cols - t < TN_TB ? cols - t : TN_TB;                                                          \
+                if (na == 4 && nb == 3)                                                                                \
+                    TILE(a, lda, 4, b, ldb, 3, inner, c, ldc);                                                         \
+                else if (na == 4 && nb == 2)                                                                           \
+                    TILE(a, lda, 4, b, ldb, 2, inner, c, ldc);                                                         \
+                else if (na == 4)                                                                                      \
+                    TILE(a, lda, 4, b, ldb, 1, inner, c, ldc);                                                         \
+                else                                                                                                   \
+                    for (int p = 0; p < na; p++)                                                                       \
+                        for (int q = 0; q < nb; q++)                                                                   \
+                            TILE(a + (size_t)p * lda, lda, 1, b + (size_t)q * ldb, ldb, 1, inner,                      \
+                                 c + p + (size_t)q * ldc, ldc);                                                        \
+            }                                                                                                          \
+        }                                                                                                              \
     }
 
 TN_MAIN(tn_d, tile_d, double)
