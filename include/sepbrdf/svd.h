@@ -19,13 +19,17 @@
  *               exactly): tol = 2^-40 in double, 2^-12 in single.  Then
  *               each s_j is within tol s_1 of a singular value (in
  *               practice within ~tol^2 s_1^2 / gap) and the vectors within
- *               an angle tol s_1 / gap of the singular subspaces.  BLAS-3
+ *               an angle tol s_1 / gap of the singular subspaces.  Block
  *               products only: 2q + 3 reads of A a cycle, one on the io
  *               matrices of docs/performance.md.  A cycle stops below
  *               depth q when the residuals, estimated from the next
  *               Krylov block without a read of A, are below tol / 2
  *               (2i + 4 reads at degree i; the certificate is still the
- *               residual read from A).  Where the basis
+ *               residual read from A).  On a square A equal to
+ *               A^T entry for entry (an io matrix of a reciprocal
+ *               source; checked each execute, about two reads) every
+ *               product A B is formed as A^T B, the faster read on x86-64
+ *               with AVX2 (the same maths, other rounding).  Where the basis
  *               l (q + 1) would exceed d / 2 (q lowered to 1 first), or
  *               after 40 cycles without convergence (a flat spectrum), the
  *               Gram route: G of the smaller side (dsyrk), its k largest

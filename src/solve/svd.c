@@ -323,6 +323,12 @@ static sb_result_t execute(sb_svd_t *s, sb_svd_run_t *run, int want_norm) {
     /* Krylov and randomized read A only through the thin products: the
      * rest (QR of thin blocks, Rayleigh-Ritz) on one BLAS thread */
     int thin = s->method == SB_METHOD_RANDOMIZED || (s->method == SB_METHOD_TOPK && !s->gram);
+    /* TOPK by Krylov cycles, on a symmetric A (m = n): its products A B are
+     * A^T B, which gemm_tn.c reads in place where the kernel runs, 1.6x
+     * dgemm's rate at 18 columns; the check costs about two reads, the
+     * cycles read A B 2q + 2 times (RANDOMIZED's 2 + q would not repay it) */
+    s->sym = s->method == SB_METHOD_TOPK && !s->gram && s->m == s->n && sb_gemm_tn_usable((int)s->l) &&
+             sb_svd_symmetric(run->a, s->m, run->la, s->single);
     int blas = thin ? sb_blas_thin_begin() : 1;
     sb_result_t res = s->method == SB_METHOD_FULL ? sb_svd_run_full(s, run)
                       : s->method == SB_METHOD_TOPK

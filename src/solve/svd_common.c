@@ -47,3 +47,34 @@ size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size
     }
     return k;
 }
+
+/* A == A^T, entry for entry (an io matrix of a reciprocal source is).
+ * Blocks of SYM_B x SYM_B: the mirror block, read a column (SYM_B
+ * contiguous values) at a time, is stored transposed in t, then compared
+ * with the block, again a column at a time, so both sides stream.  The
+ * first block pair that differs (or holds a NaN) ends it, so a matrix
+ * that is not symmetric costs about one block. */
+#define SYM_B 64
+#define SYM_BODY(R)                                                                                                    \
+    R t[SYM_B * SYM_B];                                                                                                \
+    const R *a = A;                                                                                                    \
+    for (size_t j0 = 0; j0 < n; j0 += SYM_B)                                                                           \
+        for (size_t i0 = 0; i0 <= j0; i0 += SYM_B) {                                                                   \
+            size_t nj = n - j0 < SYM_B ? n - j0 : SYM_B, ni = n - i0 < SYM_B ? n - i0 : SYM_B;                         \
+            for (size_t i = 0; i < ni; i++) /* the mirror: rows j0.., columns i0.. */                                  \
+                for (size_t j = 0; j < nj; j++)                                                                        \
+                    t[i + j * SYM_B] = a[j0 + j + (i0 + i) * lda];                                                     \
+            int differ = 0;                                                                                            \
+            for (size_t j = 0; j < nj; j++)                                                                            \
+                for (size_t i = 0; i < ni; i++)                                                                        \
+                    differ |= !(a[i0 + i + (j0 + j) * lda] == t[i + j * SYM_B]);                                       \
+            if (differ) return 0;                                                                                      \
+        }                                                                                                              \
+    return 1;
+
+static int symmetric_d(const double *A, size_t n, size_t lda) { SYM_BODY(double) }
+static int symmetric_f(const float *A, size_t n, size_t lda) { SYM_BODY(float) }
+
+int sb_svd_symmetric(const void *A, size_t n, size_t lda, int single) {
+    return single ? symmetric_f(A, n, lda) : symmetric_d(A, n, lda);
+}

@@ -35,6 +35,7 @@ struct sb_svd {
     size_t l, b, L;    /* randomized: test vectors k + p (<= d), adaptive block, basis columns */
     size_t l0;         /* TOPK Krylov: the first cycle's block (k + p); l is the largest a restart grows to */
     int p, q, single, tr, krylov;
+    int sym;   /* TOPK: this execute's A is symmetric, so A B is read as A^T B (gemm_tn.c) */
     int mixed; /* RANDOMIZED in mixed precision (single is set too): see sb_svd_mixed_finish */
     uint64_t seed;
     sb_method_t method;
@@ -94,6 +95,9 @@ double sb_svd_sv_at(const sb_svd_t *s, size_t j);
 double sb_svd_resid_from(double nrm, const double *sv, size_t r);
 /* Smallest r in [max(lo, 1), k] with 1 - sum_{j<r} (s_j / ||A||)^2 <= tol^2. */
 size_t sb_svd_rank_for(const double *sv, size_t k, double nrm, double tol2, size_t lo);
+
+/* A (n x n, ld lda; float with single) equals A^T entry for entry. */
+int sb_svd_symmetric(const void *A, size_t n, size_t lda, int single);
 
 /* Workspaces of FULL and TOPK by the Gram route (svd_dense.c), RANDOMIZED
  * and TOPK by Krylov cycles (svd_rand.c). */

@@ -252,7 +252,7 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om
     while (tv < lmax) {
         size_t bb = lmax - tv < b ? lmax - tv : b, c0 = c;
         R *Y = Q + c * m;
-        GEMM_THIN(0, (int)m, (int)bb, (int)n, A, (int)lda, Om + tv * n, (int)n, Y, (int)m);
+        GEMM_THIN(s->sym, (int)m, (int)bb, (int)n, A, (int)lda, Om + tv * n, (int)n, Y, (int)m);
         if ((r = FN(orth_against)(s, Q, c, Y, m, bb)) != SB_OK) return r;
         for (int it = 0;; it++) {
             /* A^T Y: the start of the next iteration, and the rows Y^T A of
@@ -267,7 +267,7 @@ static sb_result_t FN(run_rand)(sb_svd_t *s, const R *A, size_t lda, const R *Om
                 c += bb;
                 Y = Q + c * m;
             }
-            GEMM_THIN(0, (int)m, (int)bb, (int)n, A, (int)lda, Z, (int)n, Y, (int)m);
+            GEMM_THIN(s->sym, (int)m, (int)bb, (int)n, A, (int)lda, Z, (int)n, Y, (int)m);
             /* TOPK: stop at the degree that suffices.  The estimate is
              * skipped where it could not be met (before degree 2, or while
              * the last one was more than 10^4 per degree above the
@@ -356,7 +356,7 @@ static sb_result_t FN(run_topk_krylov)(sb_svd_t *s, const R *A, size_t lda, int 
         s->eg_cols = 0;
         sb_result_t r = FN(run_rand)(s, A, lda, V, l, 0, 0, -1, 0, &lused, &rank);
         if (r != SB_OK) return r;
-        GEMM_THIN(0, (int)m, (int)k, (int)n, A, (int)lda, s->ws, (int)n, AW, (int)m);
+        GEMM_THIN(s->sym, (int)m, (int)k, (int)n, A, (int)lda, s->ws, (int)n, AW, (int)m);
         double worst = 0;
         for (size_t j = 0; j < k; j++) {
             double r2 = 0, sj = (double)sv[j];

@@ -31,6 +31,15 @@ static void thin_call(const thin_t *g, int r0, int r1) {
     if (rows <= 0) return;
     /* NoTrans: A is rows x inner, its rows r0..; Trans: A is inner x rows, its columns r0.. */
     size_t off = g->trans ? (size_t)r0 * (size_t)g->lda : (size_t)r0;
+    if (g->trans && sb_gemm_tn_usable(g->cols)) { /* A^T B without packing A (gemm_tn.c) */
+        if (g->single)
+            sb_sgemm_tn(rows, g->cols, g->inner, (const float *)g->A + off, g->lda, g->B, g->ldb, (float *)g->C + r0,
+                        g->ldc);
+        else
+            sb_dgemm_tn(rows, g->cols, g->inner, (const double *)g->A + off, g->lda, g->B, g->ldb, (double *)g->C + r0,
+                        g->ldc);
+        return;
+    }
     CBLAS_TRANSPOSE ta = g->trans ? CblasTrans : CblasNoTrans;
     if (g->single)
         cblas_sgemm(CblasColMajor, ta, CblasNoTrans, rows, g->cols, g->inner, 1.0f, (const float *)g->A + off, g->lda,

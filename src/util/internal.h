@@ -113,5 +113,12 @@ void sb_dgemm_thin(int trans, int rows, int cols, int inner, const double *A, in
                    double *C, int ldc);
 void sb_sgemm_thin(int trans, int rows, int cols, int inner, const float *A, int lda, const float *B, int ldb, float *C,
                    int ldc);
+/* C (rows x cols, ldc) = A^T B, A inner x rows, B inner x cols, by a kernel
+ * that reads A in place (gemm_tn.c): sb_gemm_tn_usable says whether it
+ * runs here (x86-64 with AVX2 and FMA, B at most 64 columns); where it
+ * does not, the two products do nothing. */
+int sb_gemm_tn_usable(int cols);
+void sb_dgemm_tn(int rows, int cols, int inner, const double *A, int lda, const double *B, int ldb, double *C, int ldc);
+void sb_sgemm_tn(int rows, int cols, int inner, const float *A, int lda, const float *B, int ldb, float *C, int ldc);
 
 #endif
