@@ -199,7 +199,7 @@ static sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job) {
     while (x >= 0 && r == SB_OK) {
         sb_job_t *w = NULL;
         if ((r = scene_beside(ctx, job, J, x, &w)) != SB_ERR_NOMEM) r = SB_OK;
-        int keep = job_scene_better(job, v, w);
+        int keep = job_scene_better(job, v, w, job_scene_walk_bound(&k));
         double next = job_scene_next_floor(job, w, &k);
         sb_job_destroy(keep ? v : w);
         if (keep) v = w, floor = x;

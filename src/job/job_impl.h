@@ -372,7 +372,9 @@ typedef struct job_floor_walk {
     double within, beyond;        /* the lowest floor within, the highest below it not */
 } job_floor_walk_t;
 double job_scene_next_floor(const sb_job_t *job, const sb_job_t *w, job_floor_walk_t *k);
-int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w);
+/* the bound over the unweighted fit the floor the walk k gave is held to */
+double job_scene_walk_bound(const job_floor_walk_t *k);
+int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w, double bound);
 sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor, int why);
 /* report.json's "scene" object (null without a scene). */
 void job_scene_report(sb_json_t *j, const sb_job_t *job);
