@@ -130,6 +130,9 @@ SB_API double sb_scene_floor(const sb_scene_t *s);
  * 0) each (X not given: SB_SCENE_FLOOR where p has SB_CAP_PARTIAL_DOMAIN,
  * or SB_CAP_SEPARABLE and s is of kind SB_SCENE_RANGES, else 0); nothing
  * for a NULL mass or X = 0. */
+/* The floor sb_scene_mass_floor applies on p: floor=X of the spec, or
+ * its default there (0 where cells of mass 0 stay out of the fit). */
+SB_API double sb_scene_floor_on(const sb_scene_t *s, const sb_param_t *p);
 SB_API void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells);
 
 /* The scene's mass on the cells of p for a matrix of form `form` (header):

@@ -195,16 +195,18 @@ static sb_result_t job_scene_guard(sb_context_t *ctx, sb_job_t *job) {
         sb_job_destroy(u);
         return r;
     }
-    int step = 0;
-    for (int i = job_scene_next_floor(job, NULL, -1, &step); i >= 0 && r == SB_OK;) {
+    job_floor_walk_t k = {0};
+    double x = replace == JOB_SCENE_OUTSIDE ? job_scene_next_floor(job, NULL, &k) : -1;
+    while (x >= 0 && r == SB_OK) {
         sb_job_t *w = NULL;
-        if ((r = scene_beside(ctx, job, J, job_scene_floors[i], &w)) != SB_ERR_NOMEM) r = SB_OK;
-        int keep = job_scene_better(job, v, w), next = job_scene_next_floor(job, w, i, &step);
+        if ((r = scene_beside(ctx, job, J, x, &w)) != SB_ERR_NOMEM) r = SB_OK;
+        int keep = job_scene_better(job, v, w, job_scene_walk_bound(&k));
+        double next = job_scene_next_floor(job, w, &k);
         sb_job_destroy(keep ? v : w);
-        if (keep) v = w, floor = job_scene_floors[i];
-        i = next;
+        if (keep) v = w, floor = x;
+        x = next;
     }
-    if (r == SB_OK) r = job_scene_replace(ctx, job, u, v, floor);
+    if (r == SB_OK) r = job_scene_replace(ctx, job, u, v, floor, replace);
     sb_job_destroy(u);
     sb_job_destroy(v);
     return r;

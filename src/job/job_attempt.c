@@ -85,7 +85,9 @@ int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a) {
     unsigned caps = a->param ? sb_param_caps(a->param) : 0;
     int edge =
         (caps & SB_CAP_LIGHT_EDGE) || ((caps & SB_CAP_VIEW_EDGE) && !(sb_source_flags(job->src) & SB_SOURCE_MEASURED));
-    return edge && hemisphere && !job->scene && (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
+    /* a scene with a floor fits every cell of the domain (scene.h) */
+    int scene_ok = !job->scene || sb_scene_floor_on(job->scene, a->param) > 0;
+    return edge && hemisphere && scene_ok && (a->m.form == SB_FORM_COS || a->m.form == SB_FORM_COS2);
 }
 
 int job_attempt_masked(const sb_job_t *job, const job_attempt_t *a) {

@@ -105,6 +105,7 @@ struct sb_job {
     double *scene_ref;         /* with a scene: the unweighted fit's headline per J' (job_scene_guard.c); NULL: none */
     size_t scene_ref_terms;
     double scene_fallback;   /* the scene fit's whole-domain error over scene_ref at J when it was replaced; 0: kept */
+    int scene_fallback_why;  /* JOB_SCENE_OUTSIDE or JOB_SCENE_INSIDE where replaced */
     double scene_fit_inside; /* the replaced scene fit's headline at J over the scene's pairs */
     double scene_kept_floor; /* the floor of the scene fit kept instead (floor=X), 0: the unweighted fit */
     double scene_ref_inside; /* the unweighted fit's headline at J over the scene's pairs, when replaced */
@@ -359,19 +360,28 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
  * (job_scene_guard.c decides, job.c's job_scene_guard runs and destroys
  * the jobs): whether the kept fit is one to compare; the unweighted fit
  * u's headlines recorded and *replace set where the scene fit is far
- * worse over the whole domain; the index into job_scene_floors of the
- * next floor to try after floor i gave w (i < 0: the first; w NULL: its
- * run failed; *step the walk's direction, set there), -1: none; whether
+ * worse over the whole domain (JOB_SCENE_OUTSIDE) or, within, worse
+ * inside the scene than u (JOB_SCENE_INSIDE; u's estimate then the
+ * scene's); the next floor to try after the last
+ * gave w (k zeroed: the first; w NULL: its run failed; k the walk's
+ * state, set there), -1: none; whether
  * the scene fit with floor w is to be kept rather than v (either may be
  * NULL); the scene fit replaced by u or v, whichever is lower inside the
  * scene (the attempts set aside left in u and v). */
 #define JOB_SCENE_FLOORS 7
 extern const double job_scene_floors[JOB_SCENE_FLOORS];
 int job_scene_guarded(const sb_job_t *job);
-sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, const sb_job_t *u, int *replace);
-int job_scene_next_floor(const sb_job_t *job, const sb_job_t *w, int i, int *step);
-int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w);
-sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor);
+enum { JOB_SCENE_OUTSIDE = 1, JOB_SCENE_INSIDE = 2 }; /* why replaced: over the whole domain, inside */
+sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, int *replace);
+typedef struct job_floor_walk {
+    int started, i, step, bisect; /* ladder index and direction; bisections left */
+    double within, beyond;        /* the lowest floor within, the highest below it not */
+} job_floor_walk_t;
+double job_scene_next_floor(const sb_job_t *job, const sb_job_t *w, job_floor_walk_t *k);
+/* the bound over the unweighted fit the floor the walk k gave is held to */
+double job_scene_walk_bound(const job_floor_walk_t *k);
+int job_scene_better(const sb_job_t *job, const sb_job_t *v, const sb_job_t *w, double bound);
+sb_result_t job_scene_replace(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, sb_job_t *v, double floor, int why);
 /* report.json's "scene" object (null without a scene). */
 void job_scene_report(sb_json_t *j, const sb_job_t *job);
 void job_scene_free(sb_job_t *job);

@@ -105,6 +105,9 @@ void job_scene_report(sb_json_t *j, const sb_job_t *job) {
         sb_json_number(j, NULL, job->scene_ref && k < job->scene_ref_terms ? job->scene_ref[k] : NAN);
     sb_json_end_array(j);
     sb_json_bool(j, "fallback", job->scene_fallback > 0);
+    sb_json_string(j, "fallback_why",
+                   job->scene_fallback > 0 ? (job->scene_fallback_why == JOB_SCENE_INSIDE ? "inside" : "outside")
+                                           : NULL);
     sb_json_number(j, "fallback_ratio", job->scene_fallback > 0 ? job->scene_fallback : NAN);
     sb_json_number(j, "fallback_inside", job->scene_fallback > 0 ? job->scene_fit_inside : NAN);
     sb_json_number(j, "fallback_unweighted_inside", job->scene_fallback > 0 ? job->scene_ref_inside : NAN);

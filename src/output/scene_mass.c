@@ -96,14 +96,19 @@ sb_result_t sb_scene_mass(sb_context_t *ctx, const sb_scene_t *s, const sb_param
     return SB_OK;
 }
 
-void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells) {
-    double x = sb_scene_floor(s), total = 0;
+double sb_scene_floor_on(const sb_scene_t *s, const sb_param_t *p) {
+    double x = sb_scene_floor(s);
     /* not given: on a partial domain (masked anyway), and for ranges on a
      * separable layout (io, io-area: the mass is then rows x columns, which
      * the fit's separable weights hold exactly, so the mask adds nothing) */
     unsigned caps = p ? sb_param_caps(p) : 0;
     int ranges = s && sb_scene_kind(s) == SB_SCENE_RANGES;
     if (x < 0) x = (caps & SB_CAP_PARTIAL_DOMAIN) || (ranges && (caps & SB_CAP_SEPARABLE)) ? SB_SCENE_FLOOR : 0;
+    return x;
+}
+
+void sb_scene_mass_floor(const sb_scene_t *s, const sb_param_t *p, double *mass, size_t cells) {
+    double x = sb_scene_floor_on(s, p), total = 0;
     size_t empty = 0;
     for (size_t c = 0; mass && x > 0 && c < cells; c++)
         total += mass[c], empty += !(mass[c] > 0);
