@@ -212,8 +212,11 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
     sb_result_t r = job_factor(ctx, job, &lv, a->weighted, &t);
     lv.nonneg_ratio = NULL;
     if (r == SB_OK) r = job_refine(ctx, job, &lv, &t);
+    /* kept where its worst prefix is lower and its last, the fit a run of
+     * J terms renders, not above the bound (or a's, if that is above) */
     double again[SB_EST_MAXJ];
-    if (r == SB_OK && nonneg_worst(job, &t, again) < nonneg_worst(job, a, ratio)) {
+    if (r == SB_OK && nonneg_worst(job, &t, again) < nonneg_worst(job, a, ratio) &&
+        !(again[J - 1] > fmax(ratio[J - 1], JOB_NONNEG_RATIO))) {
         sb_factors_destroy(a->f);
         free(a->est);
         free(a->term_w);
