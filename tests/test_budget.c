@@ -321,3 +321,24 @@ SB_TEST(hopeless_ladder_stops) {
     CHECK(b.chosen.adaptive && b.chosen.headline == best);
     sb_job_destroy(job);
 }
+
+/* A budget below what the layouts screening kept can hold: an RGL file's
+ * vndf (h is the file's 32 x 32 grid, 6 KiB a term as HALF) within 4 KiB.
+ * The layouts screening dropped are searched then (vh: 0.18 at J = 4);
+ * before, --param auto failed ("no texture shape searched holds one term
+ * ... lower -r") where `--param iso` alone fitted. */
+SB_TEST(dropped_layouts_searched) {
+    sb_job_opts_t o = {0};
+    o.source = SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf";
+    o.budget = 4096;
+    sb_job_t *job = NULL;
+    sb_result_t r = sb_job_run(NULL, &o, &job);
+    CHECKF(r == SB_OK, "run: %s", sb_result_name(r));
+    sb_job_budget_t b;
+    if (r == SB_OK && sb_job_budget(job, &b) == 1) {
+        CHECKF(b.chosen.bytes <= 4096, "%zu bytes", b.chosen.bytes);
+        CHECK(strcmp(sb_param_kind_name(b.chosen.kind), "vndf") != 0); /* vndf cannot fit */
+        CHECKF(b.chosen.headline < 0.5, "headline %g", b.chosen.headline);
+    }
+    sb_job_destroy(job);
+}

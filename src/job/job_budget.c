@@ -292,20 +292,20 @@ static sb_result_t ladder_walk(sb_context_t *ctx, sb_job_t *job, size_t ci, int 
     return SB_OK;
 }
 
-/* Whether candidate i is searched: auto's left after screening, or the
- * one asked for. */
-static int searched(const sb_job_t *job, size_t i) {
+/* Whether candidate i is searched in pass `dropped`: auto's left after
+ * screening (pass 0) or those it dropped (pass 1), or the one asked for. */
+static int searched(const sb_job_t *job, size_t i, int dropped) {
     const sb_job_candidate_t *c = &job->cands[i];
-    return job->is_auto ? c->ok && !c->dropped : i == 0;
+    return job->is_auto ? c->ok && !c->dropped == !dropped : i == 0 && !dropped;
 }
 
 /* The candidates searched, the lowest screened error first (then in
  * their order): the ladders likely to hold the best entry are walked
  * first, so that the others can stop early (ladder_walk). */
-static size_t search_order(const sb_job_t *job, size_t *order) {
+static size_t search_order(const sb_job_t *job, int dropped, size_t *order) {
     size_t n = 0;
     for (size_t i = 0; i < job->ncand; i++) {
-        if (!searched(job, i)) continue;
+        if (!searched(job, i, dropped)) continue;
         size_t k = n++;
         double e = job->cands[i].error;
         while (k > 0 && (isnan(job->cands[order[k - 1]].error) ? !isnan(e) : e < job->cands[order[k - 1]].error)) {
@@ -418,12 +418,17 @@ sb_result_t job_budget_select(sb_context_t *ctx, sb_job_t *job) {
     sb_result_t r = check_room(ctx, job);
     if (r != SB_OK) return r;
     if (job->is_auto) job_screen(ctx, job);
-    size_t order[JOB_MAX_CANDS], n = search_order(job, order);
-    for (size_t k = 0; k < n && r == SB_OK; k++) {
-        size_t i = order[k];
-        int warps = (sb_param_kind_caps(job->cands[i].kind) & SB_CAP_WARPS) != 0;
-        if (b->try_adaptive && warps) r = ladder_walk(ctx, job, i, 1);
-        if (r == SB_OK && (b->try_own || !warps)) r = ladder_walk(ctx, job, i, 0);
+    /* the layouts screening dropped too where those it kept hold no term
+     * within the budget (an RGL file's vndf: its h is the file's 32 x 32
+     * grid, 6 KiB a term as HALF; a budget of 4 KiB failed, "lower -r") */
+    for (int dropped = 0; dropped < 2 && r == SB_OK && b->n == 0; dropped++) {
+        size_t order[JOB_MAX_CANDS], n = search_order(job, dropped, order);
+        for (size_t k = 0; k < n && r == SB_OK; k++) {
+            size_t i = order[k];
+            int warps = (sb_param_kind_caps(job->cands[i].kind) & SB_CAP_WARPS) != 0;
+            if (b->try_adaptive && warps) r = ladder_walk(ctx, job, i, 1);
+            if (r == SB_OK && (b->try_own || !warps)) r = ladder_walk(ctx, job, i, 0);
+        }
     }
     job_progress(job, "budget search", 1);
     b->res.search_s = job_now() - t0;
