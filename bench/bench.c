@@ -117,7 +117,7 @@ static void help(const char *prog) {
            "  --matrices DIR    also write each sampled matrix, DIR/ioN_C.f64 (C = r, g, b:\n"
            "                    raw float64, column-major, N x N) for bench/peers.py\n"
            "  -q, --quiet       no table on stdout\n"
-           "  -v, --verbose     accepted for symmetry with the other commands\n"
+           "  -v, --verbose     also gnuplot's own messages (warnings such as an empty range)\n"
            "  -h, --help        this text\n"
            "\n"
            "OpenBLAS reads OPENBLAS_NUM_THREADS and OPENBLAS_CORETYPE at start-up: set them\n"
@@ -268,7 +268,7 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
         } else if (strcmp(a, "--no-baseline") == 0) {
             o->baseline = 0;
         } else if (strcmp(a, "-v") == 0 || strcmp(a, "--verbose") == 0 || strcmp(a, "-vv") == 0) {
-            continue;
+            o->verbosity = 2; /* gnuplot's own messages too */
         } else if (strcmp(a, "-q") == 0 || strcmp(a, "--quiet") == 0) {
             o->verbosity = 0;
         } else {
@@ -476,7 +476,7 @@ static void plot(const bench_opts_t *o, const char *csv) {
         return;
     }
     /* the paths go through gnuplot's stdin, not through the shell */
-    FILE *gp = popen("gnuplot", "w");
+    FILE *gp = popen(o->verbosity >= 2 ? "gnuplot" : "gnuplot 2>/dev/null", "w"); /* "empty y range": not ours */
     if (!gp) return;
     size_t J = 0; /* the left panel's J: 8 when run, else the largest (a J not run plots nothing: gnuplot fails) */
     for (size_t i = 0; i < o->nterms; i++)
@@ -484,7 +484,8 @@ static void plot(const bench_opts_t *o, const char *csv) {
     fprintf(gp, "csv = '%s'\nout = '%s'\nJ = %zu\nnobase = %d\n", csv, png, J, !o->baseline);
     fputs(sb_plot_gp_, gp);
     if (pclose(gp) != 0)
-        fprintf(stderr, "%s: gnuplot failed, no plot\n", o->prog);
+        fprintf(stderr, "%s: gnuplot failed, no plot%s\n", o->prog,
+                o->verbosity >= 2 ? "" : " (-v shows its messages)");
     else if (o->verbosity)
         fprintf(stderr, "%s: wrote %s\n", o->prog, png);
 }

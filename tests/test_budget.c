@@ -3,6 +3,7 @@
  * larger budget never gives a higher headline in one search, nor, where
  * fits are nested (exact SVDs), across searches; options given constrain
  * the search; bad budgets are refused naming the value. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -319,5 +320,50 @@ SB_TEST(hopeless_ladder_stops) {
     sb_job_budget_t b;
     CHECK(sb_job_budget(job, &b) == 1);
     CHECK(b.chosen.adaptive && b.chosen.headline == best);
+    sb_job_destroy(job);
+}
+
+/* A budget below what the layouts screening kept can hold: an RGL file's
+ * vndf (h is the file's 32 x 32 grid, 6 KiB a term as HALF) within 4 KiB.
+ * The layouts screening dropped are searched then (vh: 0.18 at J = 4);
+ * before, --param auto failed ("no texture shape searched holds one term
+ * ... lower -r") where `--param iso` alone fitted. */
+SB_TEST(dropped_layouts_searched) {
+    sb_job_opts_t o = {0};
+    o.source = SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf";
+    o.budget = 4096;
+    sb_job_t *job = NULL;
+    sb_result_t r = sb_job_run(NULL, &o, &job);
+    CHECKF(r == SB_OK, "run: %s", sb_result_name(r));
+    sb_job_budget_t b;
+    if (r == SB_OK && sb_job_budget(job, &b) == 1) {
+        CHECKF(b.chosen.bytes <= 4096, "%zu bytes", b.chosen.bytes);
+        CHECK(strcmp(sb_param_kind_name(b.chosen.kind), "vndf") != 0); /* vndf cannot fit */
+        CHECKF(b.chosen.headline < 0.5, "headline %g", b.chosen.headline);
+    }
+    sb_job_destroy(job);
+}
+
+/* The full fit of the budget's choice whose last term raises the headline
+ * (the default gold in 48 KiB: J = 6 at 0.114 %, its J = 5 0.096 %, and a
+ * warning that fewer terms do better) keeps the prefix: no prefix is then
+ * lower than the J kept by two standard errors, and the bytes fall. */
+SB_TEST(rising_last_term_dropped) {
+    sb_job_opts_t o = {0};
+    o.budget = 48 * 1024;
+    sb_job_t *job = NULL;
+    sb_result_t r = sb_job_run(NULL, &o, &job);
+    CHECKF(r == SB_OK, "run: %s", sb_result_name(r));
+    sb_job_budget_t b;
+    if (r == SB_OK && sb_job_budget(job, &b) == 1) {
+        const sb_estimate_t *e = sb_job_estimate(job);
+        size_t J = sb_factors_terms(sb_job_factors(job));
+        CHECK(b.chosen.terms == J && b.bytes_written <= b.chosen.bytes && b.chosen.bytes <= o.budget);
+        double hJ = sb_estimate_headline(e, J), seJ = e->se[J - 1][SB_EST_FCOS][SB_CH_ALL];
+        for (size_t j = 1; j < J; j++)
+            CHECKF(sb_estimate_headline(e, j) + 2 * hypot(e->se[j - 1][SB_EST_FCOS][SB_CH_ALL], seJ) >= hJ,
+                   "J' = %zu: %g below J = %zu: %g", j, sb_estimate_headline(e, j), J, hJ);
+        CHECK(sb_job_headline_non_increasing(job));
+    }
     sb_job_destroy(job);
 }

@@ -127,6 +127,19 @@ SB_TEST(flat_curve_plotted_quietly) {
     CHECKF(!strstr(out, "empty y range"), "%s", out);
 }
 
+/* A budget study of one point (a model: no measured samples): gnuplot's
+ * "empty x range" warnings stayed off the terminal only for the J plot,
+ * and the CSV held "nan" where a failed row's fields are empty. */
+SB_TEST(budget_point_plotted_quietly) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study lambert --param io --budget 2K -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECKF(!strstr(out, "range"), "%s", out);
+    const char *csv = slurp(dir, "study.csv");
+    CHECK(csv != NULL);
+    CHECKF(csv && !strstr(csv, "nan"), "%s", csv);
+}
+
 /* Rows read from the one largest-J factorisation equal separate runs. */
 SB_TEST(nested_equals_separate) {
     const char *dir = sb_tmpdir("study");

@@ -174,13 +174,16 @@ SB_TEST(hlsl_broken_fails) {
 }
 
 /* `sepbrdf factor --shader all` writes the four files into the set (and
- * its list); an unknown language is a usage error naming it. */
+ * its list) and names them in its last line (it named sepbrdf.glsl
+ * alone); an unknown language is a usage error naming it. */
 SB_TEST(cli_shader_option) {
     const char *dir = sb_tmpdir("shader_cli");
-    char cmd[1024], out[4096];
-    snprintf(cmd, sizeof cmd, "%s factor lambert --param io -r 8 -J 1 --method nmf --shader all -q -o %s/set", SB_CLI,
-             dir);
+    char cmd[1024], out[8192];
+    snprintf(cmd, sizeof cmd, "%s factor lambert --param io -r 8 -J 1 --method nmf --shader all -o %s/set 2>/dev/null",
+             SB_CLI, dir);
     CHECK(sb_run(cmd, out, sizeof out) == 0);
+    CHECKF(strstr(out, "report.json and sepbrdf.glsl, sepbrdf.hlsl, sepbrdf.metal, sepbrdf.wgsl to ") != NULL, "%s",
+           out);
     static const char *const names[] = {"sepbrdf.glsl", "sepbrdf.hlsl", "sepbrdf.metal", "sepbrdf.wgsl"};
     for (int i = 0; i < 4; i++) {
         char path[600];

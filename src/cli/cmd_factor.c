@@ -204,7 +204,19 @@ static void print_budget(const sb_job_t *job) {
            b.search_s, b.bytes_float, b.bytes_half, b.bytes_written, b.file_bytes);
 }
 
-static void print_result(const sb_job_t *job, const char *out) {
+/* The snippet files written: sepbrdf.glsl, then one per language of
+ * --shader (sepbrdf.hlsl, ...). */
+static void snippet_names(const char *shaders, char *buf, size_t size) {
+    unsigned mask = 1;
+    sb_shader_lang_list(NULL, shaders, &mask); /* parsed before the run: valid */
+    buf[0] = 0;
+    for (size_t k = 0; k < sb_shader_lang_count(); k++) {
+        size_t len = strlen(buf);
+        if ((mask >> k) & 1) snprintf(buf + len, size - len, "%ssepbrdf.%s", len ? ", " : "", sb_shader_lang_ext(k));
+    }
+}
+
+static void print_result(const sb_job_t *job, const char *out, const char *shaders) {
     const sb_matrix_t *m = sb_job_matrix(job);
     const sb_factors_t *f = sb_job_factors(job);
     sb_job_timings_t t;
@@ -217,7 +229,9 @@ static void print_result(const sb_job_t *job, const char *out) {
     print_table(job);
     print_scene(job);
     print_cv(job);
-    printf("wrote %zu texture pairs, report.json and sepbrdf.glsl to %s/ (%.3f s)\n", sb_factors_terms(f), out,
+    char snippets[128];
+    snippet_names(shaders, snippets, sizeof snippets);
+    printf("wrote %zu texture pairs, report.json and %s to %s/ (%.3f s)\n", sb_factors_terms(f), snippets, out,
            t.total_s);
     print_budget(job);
 }
@@ -274,7 +288,7 @@ int cmd_factor(int argc, char **argv) {
             goto out;
         }
     }
-    if (r == SB_OK && g_verbosity >= 1) print_result(job, out);
+    if (r == SB_OK && g_verbosity >= 1) print_result(job, out, o.shaders);
     if (r == SB_OK && rank == 0 && poor_after_loss(job)) {
         rc = EXIT_IO; /* written, but far from what the lost candidates might give */
         goto out;

@@ -104,10 +104,11 @@ static void write_csv(FILE *fp, const void *arg) {
         }
         fprintf(fp, ",%s,", sb_param_kind_name(c->kind));
         study_csv_field(fp, w->param_spec);
-        fprintf(fp, ",%s,%s,%zu,%zu,%s,%zu,%zu,%zu,%.9g,%.9g,%.9g,%.9g,%zu,%.3f\n", sb_form_name(c->form),
+        fprintf(fp, ",%s,%s,%zu,%zu,%s,%zu,%zu,%zu,%.9g,%.9g,%.9g,", sb_form_name(c->form),
                 c->adaptive ? "adaptive" : "own", c->res, c->terms, c->half ? "half" : "float", c->bytes,
-                w->b.bytes_float, w->b.bytes_half, w->headline, c->headline, w->comparable, w->sample_rel, w->b.fits,
-                w->time_s);
+                w->b.bytes_float, w->b.bytes_half, w->headline, c->headline, w->comparable);
+        if (isfinite(w->sample_rel)) fprintf(fp, "%.9g", w->sample_rel); /* empty for a model, as a failed row's */
+        fprintf(fp, ",%zu,%.3f\n", w->b.fits, w->time_s);
     }
 }
 
@@ -221,9 +222,13 @@ static void print_rows(const brows_t *rs) {
             printf("%-30.30s %-7s %9zu  failed: %s\n", w->spec, w->asked, w->budget, w->error);
             continue;
         }
-        printf("%-30.30s %-7s %9zu  %-7s %-9s %4zu %4zu %-5s %9zu  %11.4e  %11.4e\n", w->spec, w->asked, w->budget,
+        printf("%-30.30s %-7s %9zu  %-7s %-9s %4zu %4zu %-5s %9zu  %11.4e", w->spec, w->asked, w->budget,
                sb_param_kind_name(c->kind), c->adaptive ? "adaptive" : "own", c->res, c->terms,
-               c->half ? "half" : "float", c->bytes, w->headline, w->sample_rel);
+               c->half ? "half" : "float", c->bytes, w->headline);
+        if (isfinite(w->sample_rel))
+            printf("  %11.4e\n", w->sample_rel);
+        else
+            printf("  %11s\n", "-");
     }
 }
 

@@ -245,10 +245,12 @@ int study_gnuplot(const char *dir, const char *target) {
     snprintf(expr, sizeof expr, "outfile='%s'", tmpname);
     cli_guard(tmp);
     fflush(NULL);
+    int verbose = g_verbosity >= 2;
     pid_t pid = fork();
     if (pid == 0) { /* child: only async-signal-safe calls until exec */
         int null = open("/dev/null", O_WRONLY);
         if (null >= 0) dup2(null, 1);
+        if (null >= 0 && !verbose) dup2(null, 2); /* "Warning: empty y range" on one point: not ours to say */
         if (chdir(dir) != 0) _exit(126);
         execlp(exe, exe, "-e", expr, "study.gp", (char *)NULL);
         _exit(127);
@@ -264,7 +266,8 @@ int study_gnuplot(const char *dir, const char *target) {
                   "are written",
                   exe);
     } else if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
-        cli_error("study", "warning: %s failed on %s/study.gp; study.png skipped", exe, target);
+        cli_error("study", "warning: %s failed on %s/study.gp; study.png skipped%s", exe, target,
+                  verbose ? "" : " (-v shows its messages)");
     } else if (rename(tmp, path) != 0) {
         cli_error("study", "warning: %s/study.png: cannot rename: %s", target, strerror(errno));
     } else {
