@@ -367,3 +367,40 @@ SB_TEST(rising_last_term_dropped) {
     }
     sb_job_destroy(job);
 }
+
+/* Auto under a budget does not walk the own-warp ladder of a candidate it
+ * screened at more than 8x the best entry of the ladders walked before
+ * (Cook-Torrance 0.1 at 3 KiB: iso unwarped screens at 0.22, iso
+ * adaptive's entries reach 0.0067), and what it leaves out could not have
+ * won: that ladder walked alone (iso, weighted as auto's candidates,
+ * uniform warp) gives no entry below auto's choice. */
+SB_TEST(hopeless_ladder_skipped) {
+    static const char *const param[2] = {"auto", "iso"};
+    double chosen = NAN, own_best = INFINITY;
+    size_t own[2] = {0, 0};
+    for (int k = 0; k < 2; k++) {
+        sb_job_opts_t o = {0};
+        o.source = "cook-torrance:roughness=0.1";
+        o.param = param[k];
+        o.weighted = 1;
+        o.warp = k ? "uniform" : NULL;
+        o.budget = 3 * 1024;
+        sb_job_t *job = NULL;
+        sb_result_t r = sb_job_run(NULL, &o, &job);
+        CHECKF(r == SB_OK, "%s: run: %s", param[k], sb_result_name(r));
+        if (r != SB_OK) return;
+        for (size_t i = 0, n = sb_job_budget_tried_count(job); i < n; i++) {
+            const sb_job_budget_try_t *e = sb_job_budget_tried(job, i);
+            if (e->kind != SB_PARAM_ISO || e->adaptive) continue;
+            own[k]++;
+            if (k && e->headline < own_best) own_best = e->headline;
+        }
+        sb_job_budget_t b;
+        CHECK(sb_job_budget(job, &b) == 1);
+        if (!k) chosen = b.chosen.headline;
+        sb_job_destroy(job);
+    }
+    CHECKF(own[0] == 0, "auto walked %zu unwarped iso entries", own[0]);
+    CHECKF(own[1] > 0, "iso alone walked no unwarped entry: the case no longer tests the skip");
+    CHECKF(own_best > chosen, "the unwarped ladder reaches %.9g, auto chose %.9g", own_best, chosen);
+}

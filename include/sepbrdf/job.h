@@ -190,7 +190,9 @@ typedef struct sb_job sb_job_t;
  * of every J' <= J for HALF and for FLOAT storage: every (J', storage)
  * whose bytes fit is an entry of the search.  Along the ladder a layout
  * stops, from R = 16 on, after two R in a row whose best entry is no
- * better than its best so far.  The entry of the lowest headline is fitted in full, as an
+ * better than its best so far; under auto, a candidate screened at more than
+ * 8 times the best entry so far walks no ladder on its own warp (report.json
+ * budget.ladders_skipped).  The entry of the lowest headline is fitted in full, as an
  * explicit layout would be.  Within one search a smaller budget's entries
  * are a subset of a larger one's, so its best is never better. */
 typedef struct sb_job_budget_try {
