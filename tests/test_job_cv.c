@@ -95,7 +95,7 @@ SB_TEST(split_figure_edges) {
     size_t all = 4, two[2] = {2, 4};
     job_cv_split_figure(e, t, &all, 1, 4, 1, 1.5, f, se);
     CHECK_REL(f[0], sqrt(0.30 / 4), 1e-12);
-    CHECK(isnan(se[0])); /* one fold: no jackknife */
+    CHECK(isnan(se[0]));                                         /* one fold: no jackknife */
     double e2[8] = {0.01, 0.0, 0.04, 0.0, 0.09, 0.0, 0.16, 0.0}; /* J = 2: the second all exact */
     job_cv_split_figure(e2, t, two, 2, 2, 2, 1.5, f, se);
     CHECK(f[0] > 0 && f[1] == 0 && se[0] > 0 && se[1] == 0);
