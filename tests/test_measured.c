@@ -1307,6 +1307,54 @@ SB_TEST(lobe_keeps_grazing_peak) {
     sb_source_destroy(m);
 }
 
+/* A clean table of a material the lobe's families hold (GGX alpha 0.3,
+ * 1536 rows, a Cornell paint's count) predicts a grazing mirror row it
+ * does not hold: the row held out, the lobe fitted to the others and the
+ * table's value there within 5 % of the model.  The base took the lowest
+ * of the shapes within 1 of the best cost, shapes 17-32 % worse than it
+ * here (0.53, 0.60 against 0.45): the rows came back 10-20 % low, and a
+ * random split holding one erred 4-13x the reported figure
+ * (docs/measured.md, "Random splits against the reported figure"). */
+SB_TEST(lobe_predicts_held_out_mirror) {
+    const char *spec = "microfacet:roughness=0.548";
+    sb_gonio_opts_t go = {8, 1, 8, 24, 0, 0};
+    size_t rows = 0;
+    const char *p = write_gonio(spec, &go, &rows);
+    sb_source_t *m = model(spec);
+    char held[4096];
+    snprintf(held, sizeof held, "%s", tmp_path("gonio", "held.csv"));
+    for (int k = 5; k < 8 && m; k++) { /* theta 61.9, 73.1, 84.4 deg */
+        double th = (k + 0.5) * 90.0 / 8, a, b, c, d, l[3], v[3], f[3], g[3];
+        FILE *in = fopen(p, "r"), *out = fopen(held, "w");
+        CHECK(in && out);
+        if (!in || !out) break;
+        char line[512];
+        int dropped = 0;
+        while (fgets(line, sizeof line, in)) {
+            int row = sscanf(line, "%lf,%lf,%lf,%lf", &a, &b, &c, &d) == 4;
+            if (row && fabs(a - th) < 1e-6 && fabs(c - th) < 1e-6 && fabs(fabs(d - b) - 180) < 1e-6) {
+                dropped++;
+                continue;
+            }
+            fputs(line, out);
+        }
+        fclose(in);
+        fclose(out);
+        CHECKF(dropped == 1, "theta %g: %d mirror rows", th, dropped);
+        sb_measured_info_t info;
+        sb_source_t *t = open_table(held, NULL, &info);
+        if (!t) break;
+        double r = th * SB_PI / 180;
+        l[0] = sin(r), l[1] = 0, l[2] = cos(r), v[0] = -l[0], v[1] = 0, v[2] = l[2];
+        CHECK(info.lobe.used && sb_source_eval(t, l, v, f) == 1 && sb_source_eval(m, l, v, g) == 1);
+        printf("mirror row at %.1f deg held out: table %.4f, model %.4f\n", th, f[1], g[1]);
+        for (int ch = 0; ch < 3; ch++)
+            CHECKF(fabs(f[ch] - g[ch]) < 0.05 * g[ch], "theta %.1f: table %g, model %g", th, f[ch], g[ch]);
+        sb_source_destroy(t);
+    }
+    sb_source_destroy(m);
+}
+
 /* MERL samples: every measured cell at its centre, missing cells not. */
 SB_TEST(merl_samples) {
     const char *p = tmp_path("merl", "idx.binary");

@@ -127,7 +127,7 @@ typedef struct sb_job_opts {
      * measurements cut into cv_folds folds (sb_measured_fold), the kept
      * layout, form and weighting refitted without each fold, and the
      * error of f cos theta_i at the measurements left out reported per J'
-     * (sb_job_cv: the median over the refits).  0: 10 folds of which the
+     * (sb_job_cv: what most random splits see).  0: 10 folds of which the
      * first 5 are refitted (five splits, each without a random tenth);
      * K >= 2: all K refitted; 1: none. */
     size_t cv_folds;
@@ -332,12 +332,14 @@ SB_API const sb_job_budget_try_t *sb_job_budget_tried(const sb_job_t *job, size_
  * error at the measured samples (sb_measured_sample_errors), checked again
  * by sb_job_refactor. */
 SB_API size_t sb_job_warning_count(const sb_job_t *job);
-/* The cross-validated error at J' terms (1..J) of a scattered table: per
- * refit (sb_job_opts_t.cv_folds) the relative L2 of f cos theta_i at the
- * measurements it left out, the median over the refits; the median's
- * standard error from their spread into *se (may be NULL); NaN (and 0 held
- * out) when not computed: analytic sources, grids (MERL, RGL), cv_folds 1,
- * a NULL job or J' out of range.  *held: the measurements held out. */
+/* The cross-validated error at J' terms (1..J) of a scattered table: the
+ * relative L2 of f cos theta_i at the measurements a random split of a
+ * fold's size (a tenth by default) leaves out, the figure such splits land
+ * within 1.5x of most often, drawn from the measurements each refit
+ * (sb_job_opts_t.cv_folds) left out; its standard error (the jackknife
+ * over the refits) into *se (may be NULL); NaN (and 0 held out) when not
+ * computed: analytic sources, grids (MERL, RGL), cv_folds 1, a NULL job or
+ * J' out of range.  *held: the measurements held out. */
 SB_API double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held);
 SB_API const char *sb_job_warning(const sb_job_t *job, size_t i);
 

@@ -176,13 +176,13 @@ static void print_scene(const sb_job_t *job) {
 }
 
 /* A scattered table: the error at the measurements each refit left out
- * (the median over the refits), every J'. */
+ * (what most random splits see), every J'. */
 static void print_cv(const sb_job_t *job) {
     size_t J = sb_factors_terms(sb_job_factors(job)), held = 0;
     double se;
     if (isnan(sb_job_cv(job, 1, &se, &held))) return;
-    printf("held-out measurements (%zu, each predicted by a refit without its fold; the median of the refits' "
-           "errors), f cos theta_i:",
+    printf("held-out measurements (%zu, each predicted by a refit without its fold; what most random "
+           "splits see), f cos theta_i:",
            held);
     for (size_t k = 1; k <= J; k++) {
         double v = sb_job_cv(job, k, &se, NULL);

@@ -258,7 +258,8 @@ const cli_option_t cli_factor_options[] = {
      cli_set_flag, AT(plain_terms), 0, 0, F_ | R_ | S_},
     {NULL, "--cv-folds", "K",
      "scattered tables (Cornell, ALTA, CSV, simulated gonio):\ncut the measurements into K folds, refit the kept "
-     "layout\nwithout each, and report the error at those left out, the\nmedian over the refits (report.json "
+     "layout\nwithout each, and report the error at those left out, the\nfigure most random splits land near "
+     "(report.json "
      "cv_headline; default:\n5 refits of 10 folds, each without a random tenth; 1: none)",
      cli_set_size, AT(cv_folds), 1, 100, F_},
     {NULL, "--metric-res", "R",

@@ -345,7 +345,7 @@ void sb_job_destroy(sb_job_t *job) {
     job_scene_free(job);
     free(job->rel_stored);
     free(job->svd_beside);
-    free(job->cv); /* cv_se, cv_pooled, cv_max with it */
+    free(job->cv); /* cv_se, cv_pooled, cv_max, cv_median with it */
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);
     free(job->source_spec);

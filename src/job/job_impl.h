@@ -138,11 +138,13 @@ struct sb_job {
     sb_param_opts_t spec_shape;   /* --param KIND:key=value's options (job->shape then points here) */
     int blas_threads;             /* OpenBLAS's thread count before the job (one thread during it) */
     /* scattered tables (job_cv.c), per J' (NULL: none): the error of
-     * f cos theta_i at the measurements a fold's refit left out, the
-     * median over the refits (cv) with its standard error, over all the
-     * measurements held out (cv_pooled) and in the worst fold (cv_max);
-     * one allocation, cv the first of its four rows */
-    double *cv, *cv_se, *cv_pooled, *cv_max;
+     * f cos theta_i at the measurements a fold's refit left out: the
+     * figure a random split lands within 1.5x of most often (cv, drawn
+     * from the refits' held-out rows, job_cv_stat.c) with its standard
+     * error, over all the measurements held out (cv_pooled), in the worst
+     * fold (cv_max) and the median over the folds (cv_median); one
+     * allocation, cv the first of its five rows */
+    double *cv, *cv_se, *cv_pooled, *cv_max, *cv_median;
     /* the same median for the tables the refits sampled (their lobe and
      * interpolation, no factoring): the table's share of cv */
     double cv_table;
@@ -158,6 +160,16 @@ extern const double job_cv_band_deg[JOB_CV_BANDS + 1];
 
 /* k-fold cross-validation of a scattered table's kept fit (job_cv.c). */
 sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job);
+
+/* The figure random splits of n_split rows land within w of most often,
+ * per J' < J, into fig[J], and its standard error into se[J] (NULL: not
+ * wanted) (job_cv_stat.c): the splits drawn from the refits' held-out
+ * rows, e[i * J + j] the squared error of row i at J' = j + 1, t[i] its
+ * energy; fold k's rows end at fold_end[k] (k < folds; the jackknife of
+ * the standard error leaves out one fold at a time).  NaN without
+ * memory, n_split 0 or more than the rows. */
+void job_cv_split_figure(const double *e, const double *t, const size_t *fold_end, size_t folds, size_t n_split,
+                         size_t J, double w, double *fig, double *se);
 double job_now(void);
 void job_progress(const sb_job_t *job, const char *label, double fraction);
 void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

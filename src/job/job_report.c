@@ -255,6 +255,7 @@ static void report_estimate(sb_json_t *j, const sb_job_t *job, size_t k) {
     int cv = job->cv && k < job->cv_terms;
     sb_json_number(j, "cv_pooled", cv ? job->cv_pooled[k] : NAN);
     sb_json_number(j, "cv_fold_max", cv ? job->cv_max[k] : NAN);
+    sb_json_number(j, "cv_fold_median", cv ? job->cv_median[k] : NAN);
 }
 
 int sb_job_headline_non_increasing(const sb_job_t *job) {
@@ -347,8 +348,10 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
     sb_json_int(j, "held_out", (long long)job->cv_held);
     sb_json_number(j, "table", job->cv ? job->cv_table : NAN);
     sb_json_string(j, "what",
-                   job->cv ? "errors[].cv_headline: the median over the refits of the relative L2 of f cos theta_i at "
-                             "the measurements each refit of the kept layout, form and J left out (its fold)"
+                   job->cv ? "errors[].cv_headline: the relative L2 of f cos theta_i at the measurements a random "
+                             "split of the table would leave out, the figure most such splits land within 1.5x of, "
+                             "drawn from the measurements each refit of the kept layout, form and J left out (its "
+                             "fold)"
                            : "not computed (a grid table, or cv_folds 1)");
     sb_json_begin_array(j, "theta_h_bands");
     for (int b = 0; job->cv && b < JOB_CV_BANDS; b++) {

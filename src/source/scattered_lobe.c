@@ -45,6 +45,13 @@
  * errors summed over samples) fit about as well: one sample off by a
  * factor e costs 1. */
 #define ALT_MARGIN 1.0
+/* ... and within this fraction of it: where the best shape fits the
+ * samples closely (a clean table of a microfacet material: GGX alpha 0.3
+ * sampled at 1536 positions, best 0.45, the next shapes 0.53 and 0.60)
+ * the others are worse shapes, not equal ones, and the lowest of them put
+ * the held-out mirror rows 10-20 % low; a measured coat's shapes part by
+ * under 1 % of a large cost (Cornell acrylic: 72.8, 73.3, 73.6). */
+#define ALT_REL 0.05
 
 static const double f0_grid[] = {0.04, 0.25, 1.0};
 static const char *const ndf_names[NDFS] = {"ggx", "beckmann", "exp4", "exp8"};
@@ -352,7 +359,8 @@ static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, ca
     while (L->nalt < LOBE_ALTS) {
         int at = -1;
         for (int i = 0; i < nc; i++) {
-            if (!(c[i].cost < best + ALT_MARGIN) || (at >= 0 && c[i].cost >= c[at].cost)) continue;
+            if (!(c[i].cost < best + fmin(ALT_MARGIN, ALT_REL * best)) || (at >= 0 && c[i].cost >= c[at].cost))
+                continue;
             int same = 0;
             for (int a = 0; a < L->nalt && !same; a++)
                 same = L->alt[a].ndf == c[i].s.ndf && L->alt[a].f0 == c[i].s.f0 &&
