@@ -23,6 +23,20 @@ sb_param_t *sb_param_of(const char *spec) {
     return p;
 }
 
+/* The vndf layout of an RGL file (the orange film: its mirror peak in the
+ * tables), as auto picks it there; NULL on failure. */
+sb_param_t *sb_param_vndf(void) {
+    sb_source_t *src = NULL;
+    sb_param_kind_t k;
+    sb_param_opts_t o = {0};
+    sb_param_t *p = NULL;
+    if (sb_measured_open(NULL, SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf", NULL, &src, NULL) != SB_OK) return NULL;
+    o.tables = sb_source_layout_tables(src);
+    if (sb_param_kind_parse("vndf", &k) != SB_OK || sb_param_create(NULL, k, &o, &p) != SB_OK) p = NULL;
+    sb_source_destroy(src);
+    return p;
+}
+
 /* One layout, form and sampler choice as the library writes it, in
  * `lang`; glsl: the snippet alone.  NULL on failure. */
 char *sb_shader_text(const sb_param_t *p, sb_form_t form, int sampled, const char *lang) {

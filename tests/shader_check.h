@@ -1,4 +1,4 @@
-/* What the shading-language tests share (test_shader.c, test_wgsl.c): the
+/* What the shading-language tests share (test_shader.c, test_wgsl.c, test_glsl.c): the
  * layouts they translate, the text the library writes for one of them, and
  * pages for headless Chromium's WebGPU (SwiftShader): write dir/wgsl.html,
  * run it, read its console lines "SB-WGSL...". */
@@ -15,6 +15,9 @@
 #define SB_NSPECS 6
 extern const char *const sb_specs[SB_NSPECS];
 sb_param_t *sb_param_of(const char *spec); /* NULL on failure */
+/* The vndf layout of tests/data/measured/rgl_chm_orange_rgb.bsdf (the
+ * file's own tables, read by the shaders as sb_vndf); NULL on failure. */
+sb_param_t *sb_param_vndf(void);
 /* The snippet for p, form, 3 terms (scales 1, 0.5, 2 for form cos) and,
  * with sampled = 1 or 3 channels, the sampler block, in `lang`; NULL on
  * failure. */

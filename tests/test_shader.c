@@ -93,18 +93,20 @@ SB_TEST(rules) {
 typedef int (*check_fn)(void *user, const char *text, int sampled, char *log, size_t logsz);
 
 /* Every layout of specs with every form and, for form f, the sampler block
- * for 1 and 3 channels (form cos and cos2 with 3), in `lang`, through check. */
+ * for 1 and 3 channels (form cos and cos2 with 3), in `lang`, through check;
+ * last the vndf layout of an RGL file (its tables as the texture sb_vndf; no
+ * sampler block: its rows are not light directions alone). */
 static void each_variant(const char *lang, check_fn check, void *user) {
-    for (size_t i = 0; i < SB_NSPECS; i++) {
-        sb_param_t *p = sb_param_of(sb_specs[i]);
-        CHECKF(p != NULL, "%s", sb_specs[i]);
+    for (size_t i = 0; i <= SB_NSPECS; i++) {
+        sb_param_t *p = i < SB_NSPECS ? sb_param_of(sb_specs[i]) : sb_param_vndf();
+        CHECKF(p != NULL, "%s", i < SB_NSPECS ? sb_specs[i] : "vndf");
         for (int form = 0; p && form < SB_FORM_COUNT_; form++)
             for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
-                if (sampled == 2) continue;
+                if (sampled == 2 || (sampled && i == SB_NSPECS)) continue;
                 char *s = sb_shader_text(p, (sb_form_t)form, sampled, lang), log[8192] = "";
                 CHECK(s != NULL);
                 int rc = s ? check(user, s, sampled, log, sizeof log) : 0;
-                CHECKF(rc == 0, "%s of %s, form %d, sampler %d:\n%s", lang, sb_specs[i], form, sampled, log);
+                CHECKF(rc == 0, "%s of %s, form %d, sampler %d:\n%s", lang, sb_param_spec(p), form, sampled, log);
                 free(s);
             }
         sb_param_destroy(p);
@@ -215,6 +217,11 @@ static const char msl_use_sampled[] =
     "    if (s.sb_sample(normalize(V), L.xy, Ls, pdf)) f += Ls * pdf + s.sb_pdf(Ls, V);\n"
     "    return float4(f, 1.0f);\n}\n";
 
+static const char msl_use_vndf[] =
+    "float4 sb_test(texture2d_array<float> g, sampler gs, texture2d_array<float> h, sampler hs,\n"
+    "               texture2d<float> v, float3 L, float3 V) {\n"
+    "    sb_shader s = {g, gs, h, hs, v};\n    return float4(s.sb_brdf(normalize(L), normalize(V)), 1.0f);\n}\n";
+
 static int check_msl(const char *text, const char *use, const char *dir, char *log, size_t logsz) {
     char cmd[1400];
     snprintf(cmd, sizeof cmd, "clang++ -std=c++14 -fsyntax-only -I %s/tests/data/metal -x c++ %s/test.metal",
@@ -223,7 +230,8 @@ static int check_msl(const char *text, const char *use, const char *dir, char *l
 }
 
 static int check_msl_variant(void *dir, const char *text, int sampled, char *log, size_t logsz) {
-    return check_msl(text, sampled ? msl_use_sampled : msl_use, dir, log, logsz);
+    int vndf = strstr(text, "    texture2d<float> sb_vndf;\n") != NULL;
+    return check_msl(text, sampled ? msl_use_sampled : vndf ? msl_use_vndf : msl_use, dir, log, logsz);
 }
 
 SB_TEST(msl_parses) {
@@ -282,7 +290,7 @@ static int chromium_wgsl(char *const *mods, int n, const char *dir, char *log, s
 /* Every layout, form and the sampler block in WGSL, compiled by Tint: no
  * error; and the check is real: the untranslated GLSL fails. */
 typedef struct modules {
-    char *text[SB_NSPECS * 8 + 1];
+    char *text[(SB_NSPECS + 1) * 8 + 1];
     int n;
 } modules_t;
 

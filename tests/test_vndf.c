@@ -223,3 +223,44 @@ SB_TEST(exact_ends_screening) {
         sb_job_destroy(job);
     }
 }
+
+/* --shader all keeps vndf (its tables are read in HLSL, MSL and WGSL as in
+ * GLSL: auto dropped it there before, and an RGL file got vh's 2.4x the
+ * error): the same layout and headline as the GLSL-only run, and the set's
+ * HLSL, with its sb_vndf, compiles. */
+SB_TEST(shader_all_keeps_vndf) {
+    double h[2] = {0, 0};
+    for (int all = 0; all < 2; all++) {
+        sb_job_opts_t o = {0};
+        o.source = ORANGE;
+        o.terms = 4;
+        o.shaders = all ? "all" : NULL;
+        sb_job_t *job = NULL;
+        CHECK(sb_job_run(NULL, &o, &job) == SB_OK);
+        if (!job) return;
+        CHECK(sb_param_kind(sb_job_param(job)) == vndf_kind());
+        h[all] = sb_job_headline(job, 4);
+        sb_job_destroy(job);
+    }
+    CHECKF(h[0] > 0 && h[1] == h[0], "headline %g with --shader all, %g GLSL only", h[1], h[0]);
+    char dir[] = "/tmp/sb_vndf_XXXXXX", cmd[4096], out[1 << 14];
+    CHECK(mkdtemp(dir) != NULL);
+    snprintf(cmd, sizeof cmd, "%s -q factor %s -J 4 --shader all -o %s/f", SB_CLI, ORANGE, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    snprintf(cmd, sizeof cmd,
+             "grep -q '\"param\": \"vndf\"' %s/f/report.json && test -s %s/f/vndf.exr && "
+             "grep -q 'Texture2D<float4> sb_vndf' %s/f/sepbrdf.hlsl && grep -q 'texture2d<float> sb_vndf' "
+             "%s/f/sepbrdf.metal && grep -q 'var sb_vndf: texture_2d<f32>' %s/f/sepbrdf.wgsl",
+             dir, dir, dir, dir, dir);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    if (sb_run("command -v glslangValidator", NULL, 0) == 0) {
+        snprintf(cmd, sizeof cmd,
+                 "(cat %s/f/sepbrdf.hlsl; echo 'float4 main(float3 L : TEXCOORD0, float3 V : TEXCOORD1) : "
+                 "SV_Target { return float4(sb_brdf(normalize(L), normalize(V)), 1.0); }') > %s/t.hlsl && "
+                 "glslangValidator -D -V -S frag -e main -o %s/t.spv %s/t.hlsl",
+                 dir, dir, dir, dir);
+        CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    }
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+}

@@ -17,7 +17,8 @@
  * Chromium's WebGPU (SwiftShader) on random pairs and random factor
  * textures, and its sb_coords / sb_domain / sb_brdf are compared with
  * sb_param_coords / sb_factors_eval, as tests/test_glsl.c does for GLSL
- * and HLSL. ---- */
+ * and HLSL; last the vndf layout of an RGL file, its tables (vndf.exr's
+ * texels) bound as sb_vndf at @binding(6). ---- */
 
 enum { WN = 256, WJ = 3 };
 
@@ -60,6 +61,12 @@ static const char wgsl_run_js[] =
     "k.cdf.h},\n"
     "                           [k.cdf.w, k.cdf.h, k.cdf.layers]);\n"
     "      entries.push({binding: 4, resource: t.createView({dimension: '2d-array'})});\n"
+    "    }\n"
+    "    if (k.vndf) {\n"
+    "      const t = d.createTexture({size: [k.vndf.w, k.vndf.h], format: 'rgba32float', usage});\n"
+    "      d.queue.writeTexture({texture: t}, new Float32Array(k.vndf.data), {bytesPerRow: 16 * k.vndf.w},\n"
+    "                           [k.vndf.w, k.vndf.h]);\n"
+    "      entries.push({binding: 6, resource: t.createView()});\n"
     "    }\n"
     "    const m = d.createShaderModule({code: k.code});\n"
     "    const p = d.createComputePipeline({layout: 'auto', compute: {module: m, entryPoint: 'main'}});\n"
@@ -127,6 +134,19 @@ static void write_code_and_textures(FILE *fp, const char *wgsl, const char *entr
     fputs("]]", fp);
 }
 
+/* A layout's tables (vndf.exr's texels, RGB -> RGBA) as the case's field
+ * vndf, bound at @binding(6); nothing for a layout without. */
+static void write_tables(FILE *fp, const sb_param_t *p) {
+    size_t w, h;
+    float *rgb = NULL;
+    if (sb_param_tables_texture(p, &w, &h, &rgb) != SB_OK) return;
+    fprintf(fp, ", vndf: {w: %zu, h: %zu, data: [", w, h);
+    for (size_t i = 0; i < w * h; i++)
+        fprintf(fp, "%s%.9g,%.9g,%.9g,0", i ? "," : "", rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]);
+    fputs("]}", fp);
+    free(rgb);
+}
+
 /* Case c of the page: p's WGSL with the compute entry, random textures into
  * f (kept for the CPU), random pairs into dir (renormalised as floats). */
 static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*dirs)[2][3], unsigned long long *st) {
@@ -140,6 +160,7 @@ static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*
     }
     char *s = sb_shader_text(p, SB_FORM_F, 0, "wgsl");
     write_code_and_textures(fp, s, wgsl_compute, p, f);
+    write_tables(fp, p);
     free(s);
     fprintf(fp, ", nout: %d, inputs: [", 2 * WN);
     for (int i = 0; i < WN; i++)
@@ -158,17 +179,18 @@ static void write_case(FILE *fp, const sb_param_t *p, sb_factors_t *f, double (*
 
 SB_TEST(eval_matches_cpu) {
     const char *dir = sb_tmpdir("shader_wgsl_run");
+    enum { NC = SB_NSPECS + 1 }; /* the layouts of sb_specs, then vndf */
     FILE *fp = sb_page_file(dir);
     CHECK(fp != NULL);
     if (!fp) return;
-    static double dirs[SB_NSPECS][WN][2][3];
-    sb_param_t *ps[SB_NSPECS];
-    sb_factors_t *fs[SB_NSPECS];
+    static double dirs[NC][WN][2][3];
+    sb_param_t *ps[NC];
+    sb_factors_t *fs[NC];
     unsigned long long st = 4321;
     fputs("<html><body><script>\nconst cases = [];\n", fp);
-    for (size_t c = 0; c < SB_NSPECS; c++) {
+    for (size_t c = 0; c < NC; c++) {
         size_t tw[2], th[2];
-        ps[c] = sb_param_of(sb_specs[c]);
+        ps[c] = c < SB_NSPECS ? sb_param_of(sb_specs[c]) : sb_param_vndf();
         fs[c] = NULL;
         for (int side = 0; ps[c] && side < 2; side++)
             sb_param_texture_size(ps[c], side, &tw[side], &th[side]);
@@ -180,18 +202,18 @@ SB_TEST(eval_matches_cpu) {
     static char log[1 << 22];
     int rc = sb_chromium_page(dir, log, sizeof log);
     if (rc == 77) {
-        for (size_t c = 0; c < SB_NSPECS; c++)
+        for (size_t c = 0; c < NC; c++)
             sb_factors_destroy(fs[c]), sb_param_destroy(ps[c]);
         SKIP("no chromium with WebGPU and float32-filterable (Debian: chromium): WGSL not executed");
     }
     CHECKF(rc == 0, "chromium did not finish:\n%.2000s", log);
     /* compare, as test_glsl.c's gl_compare: texels, the domain up to the cap's rim, values */
-    double worst_st = 0, worst_f = 0;
+    double worst_st = 0, worst_f = 0, tab_st = 0, tab_f = 0; /* tab: vndf's (1.3e-5 texels, 2.4e-6 measured) */
     int seen = 0, mismatch = 0, inside = 0;
-    static float res[SB_NSPECS][2 * WN * 4];
-    for (int c = 0; c < (int)SB_NSPECS; c++)
+    static float res[NC][2 * WN * 4];
+    for (int c = 0; c < (int)NC; c++)
         seen += fs[c] ? (int)collect(log, c, 2 * WN, res[c]) / 2 : 0;
-    for (int c = 0; c < (int)SB_NSPECS; c++)
+    for (int c = 0; c < (int)NC; c++)
         for (int i = 0; i < WN && fs[c]; i++) {
             const float *o = res[c] + 8 * i;
             const sb_param_t *p = ps[c];
@@ -213,20 +235,26 @@ SB_TEST(eval_matches_cpu) {
                 sb_param_wrap(p, a / 2, wrap);
                 double d = fabs(cs[a] - o[a]);
                 if (wrap[a % 2] == SB_WRAP_REPEAT) d = fmin(d, 1 - d);
-                worst_st = fmax(worst_st, d * (double)(a % 2 ? th : tw));
+                double *w = c < SB_NSPECS ? &worst_st : &tab_st;
+                *w = fmax(*w, d * (double)(a % 2 ? th : tw));
             }
             sb_factors_eval(fs[c], p, SB_FORM_F, WJ, l, v, rgb);
-            for (int k = 0; k < 3; k++)
-                worst_f = fmax(worst_f, fabs(rgb[k] - o[4 + k]));
+            for (int k = 0; k < 3; k++) /* vndf: relative above 1 (its gain, NDF / 4 sigma, reaches 1e3) */
+                if (c < SB_NSPECS)
+                    worst_f = fmax(worst_f, fabs(rgb[k] - o[4 + k]));
+                else
+                    tab_f = fmax(tab_f, fabs(rgb[k] - o[4 + k]) / fmax(1, fabs(rgb[k])));
         }
     printf("  %d pairs (%d inside): worst |st| %.3g texels, worst |f| %.3g\n", seen, inside, worst_st, worst_f);
-    CHECKF(seen == (int)SB_NSPECS * WN, "%d of %d results came back", seen, (int)SB_NSPECS * WN);
+    CHECKF(seen == (int)NC * WN, "%d of %d results came back", seen, (int)NC * WN);
     CHECKF(mismatch == 0, "sb_domain differs from the CPU on %d pairs", mismatch);
     CHECKF(inside > seen / 4, "%d pairs inside", inside);
     /* float rounding: SwiftShader filters float32 textures in float32 */
     CHECKF(worst_st < 1e-4, "sb_coords differs by %g texels", worst_st);
     CHECKF(worst_f < 1e-4, "sb_brdf differs by %g", worst_f);
-    for (size_t c = 0; c < SB_NSPECS; c++)
+    printf("  vndf (the orange film's tables): worst |st| %.3g texels, worst |f| %.3g relative\n", tab_st, tab_f);
+    CHECKF(tab_st < 1e-3 && tab_f < 1e-4, "vndf: sb_coords differs by %g texels, sb_brdf by %g", tab_st, tab_f);
+    for (size_t c = 0; c < NC; c++)
         sb_factors_destroy(fs[c]), sb_param_destroy(ps[c]);
 }
 

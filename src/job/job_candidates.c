@@ -5,7 +5,6 @@
 
 #include "job_impl.h"
 #include "sample/stream.h"
-#include "sepbrdf/glsl.h"
 #include "util/internal.h"
 
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
@@ -87,11 +86,6 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
     else if (mn < job->o.terms && !(job->o.max_error > 0)) /* with --max-error: fitted with its mn terms */
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
-    unsigned langs = 1;
-    if (!c->why[0] && (sb_param_kind_caps(k) & SB_CAP_TABLES) && job->o.shaders &&
-        sb_shader_lang_list(NULL, job->o.shaders, &langs) == SB_OK && langs != 1)
-        snprintf(c->why, sizeof c->why, "%s reads its tables in GLSL only; --shader asks for more",
-                 sb_param_kind_name(k));
     if (!job->is_auto && c->why[0] && (sb_param_kind_caps(k) & SB_CAP_TABLES))
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "%s", c->why);
     if (!job->is_auto) return cand_fits(ctx, job, k);

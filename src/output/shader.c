@@ -13,7 +13,9 @@
  *   textures     `uniform sampler2DArray X;` -> a texture and a sampler
  *                per language, and texture(X, c), texelFetch(X, p, l),
  *                textureSize(X, l) -> calls of helpers sb_texture_X(c),
- *                sb_fetch_X(p, l), sb_size_X(l) defined beside them
+ *                sb_fetch_X(p, l), sb_size_X(l) defined beside them;
+ *                `uniform sampler2D X;` (a layout's tables, texelFetch
+ *                only: vndf's sb_vndf) -> a 2D texture, no sampler
  *   constants    global `const T a[N] = T[N](...)` -> brace initialisers,
  *                `static const` (HLSL) or `constant` (MSL)
  *   MSL          out / inout parameters -> thread T&; the functions and
@@ -126,6 +128,7 @@ typedef struct tr {
     sb_shbuf_t fn;      /* functions (MSL: the members of sb_shader) */
     sb_shbuf_t glob;    /* MSL: constants before the struct */
     sb_shbuf_t members; /* MSL: the texture members */
+    sb_shbuf_t tables;  /* MSL: the 2D texture members, after the others */
     int textures;       /* textures declared so far: their register / binding */
 } tr_t;
 
@@ -283,6 +286,22 @@ static void declare_texture(tr_t *t, const char *x, size_t n) {
                   (int)n, x, (int)n, x, (int)n, x, (int)n, x);
 }
 
+/* `uniform sampler2D X;` (a layout's tables, read with texelFetch only:
+ * vndf's sb_vndf) -> a 2D texture without a sampler and sb_fetch_X(p, l).
+ * Its slot follows every array's (HLSL t3; MSL the last member), so the
+ * documented bindings of sb_g, sb_h and sb_cdf stay where they are. */
+static void declare_table(tr_t *t, const char *x, size_t n) {
+    if (t->lang == L_HLSL) {
+        sb_shbuf_putf(&t->fn, "Texture2D<float4> %.*s : register(t3);\n", (int)n, x);
+        sb_shbuf_putf(&t->fn, "float4 sb_fetch_%.*s(int2 p, int lod) { return %.*s.Load(int3(p, lod)); }\n", (int)n, x,
+                      (int)n, x);
+        return;
+    }
+    sb_shbuf_putf(&t->tables, "    texture2d<float> %.*s;\n", (int)n, x);
+    sb_shbuf_putf(&t->fn, "float4 sb_fetch_%.*s(int2 p, int lod) { return %.*s.read(uint2(p), uint(lod)); }\n", (int)n,
+                  x, (int)n, x);
+}
+
 /* A global constant line: `const T a[N] = T[N](v, ...);` or `const T a = v;`. */
 static void global_const(tr_t *t, const char *line, const char *end) {
     sb_shbuf_t *out = t->lang == L_MSL ? &t->glob : &t->fn;
@@ -302,7 +321,7 @@ static void global_const(tr_t *t, const char *line, const char *end) {
     xlate(t, close + 1, end, out);
 }
 
-static void header(sb_shbuf_t *b, int lang, int sampled) {
+static void header(sb_shbuf_t *b, int lang, int sampled, int tables) {
     if (lang == L_HLSL) {
         sb_shbuf_puts(b,
                       "// sepbrdf.hlsl - the snippet of sepbrdf.glsl in HLSL (shader model 5.0 and later: DXC, FXC,\n"
@@ -315,6 +334,9 @@ static void header(sb_shbuf_t *b, int lang, int sampled) {
                          "// register(s0) (layer j = g_JJ.exr, RGB), sb_h and sb_h_sampler at t1 / s1 (h_JJ.exr)");
         sb_shbuf_puts(b, sampled ? ",\n// sb_cdf at t2 (sampler.bin as an R32_FLOAT array, read with Load only).\n"
                                  : ".\n");
+        if (tables)
+            sb_shbuf_puts(b, "// Texture2D sb_vndf : register(t3): vndf.exr (the file's warp, NDF and sigma tables,\n"
+                             "// R32G32B32A32_FLOAT or RGB float, read with Load only: no sampler).\n");
         sb_shbuf_puts(b,
                       "// Samplers: MIN_MAG_MIP_LINEAR, no mipmaps (read with SampleLevel 0); AddressU / AddressV\n"
                       "// per SB_WRAP_G_S, SB_WRAP_G_T (sb_g), SB_WRAP_H_S, SB_WRAP_H_T (sb_h): 0 = CLAMP, 1 = WRAP.\n"
@@ -325,11 +347,15 @@ static void header(sb_shbuf_t *b, int lang, int sampled) {
                      "// later).  Metal has no global textures: the functions are members of struct sb_shader,\n"
                      "// made from the textures and samplers in the order of its members, e.g.\n"
                      "//     sb_shader s = {g, g_sampler, h, h_sampler");
-    sb_shbuf_puts(b, sampled ? ", cdf, cdf_sampler};\n" : "};\n");
+    sb_shbuf_puts(b, sampled ? ", cdf, cdf_sampler" : "");
+    sb_shbuf_puts(b, tables ? ", vndf};\n" : "};\n");
     sb_shbuf_puts(b, "//     float3 f = s.sb_brdf(L, V);          // f_r(L, V), L and V unit, tangent frame\n");
     if (sampled)
         sb_shbuf_puts(b, "//     bool ok = s.sb_sample(V, u, L, pdf); float p = s.sb_pdf(L, V);\n"
                          "// cdf: sampler.bin as an R32Float texture2d_array (read() only; its sampler unused).\n");
+    if (tables)
+        sb_shbuf_puts(b,
+                      "// vndf: texture2d<float> of vndf.exr (the file's warp, NDF and sigma tables; read() only).\n");
     sb_shbuf_puts(b, "// g: texture2d_array<float>, layer j = g_JJ.exr (RGB); h likewise from h_JJ.exr.\n"
                      "// Samplers: filter::linear, no mipmaps; address per SB_WRAP_G_S, SB_WRAP_G_T (g),\n"
                      "// SB_WRAP_H_S, SB_WRAP_H_T (h): 0 = clamp_to_edge, 1 = repeat.  Texel x of a W-wide\n"
@@ -344,7 +370,7 @@ char *sb_shader_translate(const char *glsl, const char *lang) {
     if (l == L_WGSL) return sb_shader_wgsl_(glsl);
     tr_t t = {.lang = l};
     sb_shbuf_t out = {0};
-    header(&out, l, strstr(glsl, "sb_cdf") != NULL);
+    header(&out, l, strstr(glsl, "sb_cdf") != NULL, strstr(glsl, "uniform sampler2D ") != NULL);
     int depth = 0, skip = 0;
     for (const char *line = glsl; *line;) {
         const char *end = strchr(line, '\n');
@@ -363,6 +389,11 @@ char *sb_shader_translate(const char *glsl, const char *lang) {
             while (xe < end && sb_sh_id(*xe))
                 xe++;
             declare_texture(&t, x, (size_t)(xe - x));
+        } else if (depth == 0 && !strncmp(p, "uniform sampler2D ", 18)) {
+            const char *x = sb_sh_skip_blanks(p + 18, end), *xe = x;
+            while (xe < end && sb_sh_id(*xe))
+                xe++;
+            declare_table(&t, x, (size_t)(xe - x));
         } else if (depth == 0 && !strncmp(p, "const ", 6)) {
             global_const(&t, p, end);
         } else {
@@ -376,11 +407,13 @@ char *sb_shader_translate(const char *glsl, const char *lang) {
         sb_shbuf_put(&out, t.glob.s ? t.glob.s : "", t.glob.n);
         sb_shbuf_puts(&out, "\nstruct sb_shader {\n");
         sb_shbuf_put(&out, t.members.s ? t.members.s : "", t.members.n);
+        sb_shbuf_put(&out, t.tables.s ? t.tables.s : "", t.tables.n);
         sb_shbuf_puts(&out, "\n");
     }
     sb_shbuf_put(&out, t.fn.s ? t.fn.s : "", t.fn.n);
     if (l == L_MSL) sb_shbuf_puts(&out, "};\n");
-    int oom = out.oom || t.fn.oom || t.glob.oom || t.members.oom;
+    int oom = out.oom || t.fn.oom || t.glob.oom || t.members.oom || t.tables.oom;
+    free(t.tables.s);
     free(t.fn.s);
     free(t.glob.s);
     free(t.members.s);

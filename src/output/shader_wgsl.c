@@ -16,7 +16,8 @@
  *                 int -> vecNf, vecNi, f32, i32; atan(y, x) -> atan2;
  *                 inversesqrt -> inverseSqrt; texture / texelFetch /
  *                 textureSize -> helpers over textureSampleLevel,
- *                 textureLoad, textureDimensions; names WGSL reserves get
+ *                 textureLoad, textureDimensions (`uniform sampler2D`:
+ *                 texture_2d, textureLoad only); names WGSL reserves get
  *                 a trailing '_'. */
 #include <stdio.h>
 #include <stdlib.h>

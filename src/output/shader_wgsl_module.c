@@ -148,6 +148,15 @@ static void texture(wg_t *w, const char *x, size_t n) {
                   (int)n, x, (int)n, x, (int)n, x);
 }
 
+/* `uniform sampler2D X;` (a layout's tables, texelFetch only: vndf's
+ * sb_vndf) -> texture_2d<f32> at @binding(6), after every array's
+ * texture and sampler (sb_cdf's at 4 and 5), with no sampler. */
+static void table(wg_t *w, const char *x, size_t n) {
+    sb_shbuf_putf(&w->out, "@group(0) @binding(6) var %.*s: texture_2d<f32>;\n", (int)n, x);
+    sb_shbuf_putf(&w->out, "fn sb_fetch_%.*s(p: vec2i, lod: i32) -> vec4f { return textureLoad(%.*s, p, lod); }\n",
+                  (int)n, x, (int)n, x);
+}
+
 /* `const T a[N] = T[N](...);` or `const T a = v;` ([p, end) after "const"). */
 static void constant(wg_t *w, const char *p, const char *end) {
     const char *t = sb_wg_skip_ws(p, end), *te = sb_wg_ident_end(t, end), *a = sb_wg_skip_ws(te, end),
@@ -224,7 +233,7 @@ static const char *function(wg_t *w, const char *p, const char *end) {
     return bend < end ? bend + 1 : end;
 }
 
-static void header(wg_t *w, int sampled) {
+static void header(wg_t *w, int sampled, int tables) {
     sb_shbuf_puts(&w->out,
                   "// sepbrdf.wgsl - the snippet of sepbrdf.glsl in WGSL (WebGPU).  The same functions:\n"
                   "//     fn sb_brdf(L: vec3f, V: vec3f) -> vec3f   // f_r(L, V), L and V unit, tangent frame\n");
@@ -238,6 +247,9 @@ static void header(wg_t *w, int sampled) {
     sb_shbuf_puts(&w->out, sampled ? ";\n// sb_cdf @binding(4) (sampler.bin as r32float, unfilterable-float; read with "
                                      "textureLoad only).\n"
                                    : ".\n");
+    if (tables)
+        sb_shbuf_puts(&w->out, "// sb_vndf @binding(6): vndf.exr (the file's warp, NDF and sigma tables) as a "
+                               "texture_2d<f32>,\n// rgba32float, unfilterable-float: read with textureLoad only.\n");
     sb_shbuf_puts(&w->out,
                   "// Filtering float32 textures needs the device feature float32-filterable; without it\n"
                   "// upload the textures as rgba16float (exact for `sepbrdf factor --half`).\n"
@@ -255,16 +267,19 @@ char *sb_shader_wgsl_(const char *glsl) {
         free(d);
         return NULL;
     }
-    header(w, strstr(glsl, "sb_cdf") != NULL);
+    header(w, strstr(glsl, "sb_cdf") != NULL, strstr(glsl, "uniform sampler2D ") != NULL);
     preprocess(w, d, glsl, &code);
     const char *p = code.s ? code.s : "", *end = p + code.n;
     signatures(w, p, end);
     for (p = sb_wg_skip_ws(p, end); p < end; p = sb_wg_skip_ws(p, end)) {
         const char *te = sb_wg_ident_end(p, end);
-        if (sb_wg_same(p, (size_t)(te - p), "uniform")) { /* uniform sampler2DArray X; */
-            const char *x = sb_wg_skip_ws(sb_wg_ident_end(sb_wg_skip_ws(te, end), end), end),
+        if (sb_wg_same(p, (size_t)(te - p), "uniform")) { /* uniform sampler2DArray X; or sampler2D */
+            const char *ty = sb_wg_skip_ws(te, end), *tye = sb_wg_ident_end(ty, end), *x = sb_wg_skip_ws(tye, end),
                        *semi = sb_wg_stmt_end(x, end);
-            texture(w, x, (size_t)(sb_wg_ident_end(x, end) - x));
+            if (sb_wg_same(ty, (size_t)(tye - ty), "sampler2D"))
+                table(w, x, (size_t)(sb_wg_ident_end(x, end) - x));
+            else
+                texture(w, x, (size_t)(sb_wg_ident_end(x, end) - x));
             p = semi < end ? semi + 1 : end;
         } else if (sb_wg_same(p, (size_t)(te - p), "const")) {
             const char *semi = sb_wg_stmt_end(te, end);

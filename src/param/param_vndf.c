@@ -21,7 +21,8 @@
  * the RGL source, or read back from vndf.exr), applies the known factor
  * NDF / (4 sigma) as its gain (sb_param_gain; the reconstruction is
  * max(0, sum) x gain), and its GLSL reads them from the texture sb_vndf
- * (vndf.exr, texelFetch only):
+ * (vndf.exr, texelFetch only; the HLSL, MSL and WGSL rewritten from it
+ * likewise, src/output/shader.c):
  *     rows q H_v + y (q < n, y < H_v): R the slice's normalised density,
  *         G its conditional CDF, B its marginal CDF at row y;
  *     then H_n rows of the NDF (R), H_s rows of sigma (R);
@@ -145,8 +146,8 @@ static double vndf_gain(const sb_param_t *p, const double wi[3], const double wo
 static const char vndf_glsl[] =
     "uniform sampler2D sb_vndf; // vndf.exr: the file's VNDF, NDF and sigma tables (RGB float, texelFetch)\n"
     "float sb_vt(int c, int y, int x) { return texelFetch(sb_vndf, ivec2(x, y), 0)[c]; }\n"
-    "float sb_elev(vec3 d) { return 2.0 * asin(min(0.5 * length(d - vec3(0.0, 0.0, 1.0)), 1.0)); }\n"
-    "float sb_azim(vec3 d) { return (d.x != 0.0 || d.y != 0.0) ? atan(d.y, d.x) : 0.0; }\n"
+    "float sb_elev(vec3 d) { return sb_atan2(length(d.xy), d.z); } // the polynomial atan: GPUs' asin is less exact\n"
+    "float sb_azim(vec3 d) { return (d.x != 0.0 || d.y != 0.0) ? sb_atan2(d.y, d.x) : 0.0; }\n"
     "// the slice of a view's elevation and the weight of the next (linear in theta_v)\n"
     "void sb_vslice(float tv, out int k, out float w) {\n"
     "    k = 0;\n"
