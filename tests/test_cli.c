@@ -214,3 +214,30 @@ SB_TEST(launcher_alone_and_arguments) {
     CHECKF(fp != NULL, "%s missing", path);
     if (fp) fclose(fp);
 }
+
+/* H5 (docs/measured.md): `factor --max-error 0.001` keeps J = 4 of a
+ * 32-term fit, the same 4 terms as the default run (nested, fit_chain.c):
+ * report.json's fit.converged and the warning are those of the terms
+ * written, the same in both runs (the 32-term fit's last stage once set
+ * it, and a dropped taps' round the default run's). */
+SB_TEST(max_error_reports_the_terms_written) {
+    const char *dir = sb_tmpdir("cli");
+    char cmd[8192], path[2][1024], warned[2];
+    const char *args[2] = {"", "--max-error 0.001 "};
+    int conv[2] = {-1, -1};
+    for (int i = 0; i < 2; i++) {
+        snprintf(path[i], sizeof path[i], "%s/run%d/report.json", dir, i);
+        snprintf(cmd, sizeof cmd, "%s factor %s-o %s/run%d", SB_CLI, args[i], dir, i);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 0, "rc %d: %s", rc, out);
+        warned[i] = strstr(out, "masked fit did not converge") != NULL;
+        CHECKF(json_first_number(path[i], "terms") == 4, "%s: %.400s", args[i], out);
+        char *rep = sb_read_file(path[i], NULL);
+        const char *fit = rep ? strstr(rep, "\"fit\": {") : NULL, *c = fit ? strstr(fit, "\"converged\": ") : NULL;
+        CHECKF(c != NULL, "%s: no fit.converged", path[i]);
+        conv[i] = c && strncmp(c + 13, "true", 4) == 0;
+        free(rep);
+        CHECKF(warned[i] == !conv[i], "%s: converged %d: %.600s", args[i], conv[i], out);
+    }
+    CHECKF(conv[0] == conv[1], "the same 4 terms: converged %d (default), %d (--max-error 0.001)", conv[0], conv[1]);
+}

@@ -3,6 +3,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/plan_conv.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
@@ -310,9 +311,10 @@ static int holey_eval(const void *self, const double wi[3], const double wo[3], 
 }
 
 /* J terms of m fitted (masked unless zero) to tolerance tol in at most
- * iters sweeps; the plan's statistics in *st. */
+ * iters sweeps; the plan's statistics in *st, the leading terms from
+ * converged sweeps (factor/plan_conv.h) in *conv unless NULL. */
 static sb_factors_t *fit_tight(const sb_matrix_t *m, const sb_param_t *p, size_t J, int zero, double tol, int iters,
-                               sb_plan_stats_t *st) {
+                               sb_plan_stats_t *st, size_t *conv) {
     sb_plan_opts_t po = {0};
     po.terms = J;
     po.zero_fill = zero;
@@ -323,6 +325,7 @@ static sb_factors_t *fit_tight(const sb_matrix_t *m, const sb_param_t *p, size_t
     CHECK(sb_plan_create(NULL, m->rows, m->cols, &po, &plan) == SB_OK);
     CHECK(sb_plan_execute(plan, m, p, &f) == SB_OK);
     sb_plan_stats(plan, st);
+    if (conv) *conv = sb_plan_converged_terms(plan);
     sb_plan_destroy(plan);
     return f;
 }
@@ -338,7 +341,7 @@ SB_TEST(masked_fit_exact_rank1) {
     CHECK(m.valid_count > m.rows * m.cols / 3 && m.valid_count < m.rows * m.cols);
     for (int zero = 0; zero < 2; zero++) {
         sb_plan_stats_t st;
-        sb_factors_t *f = fit_tight(&m, p, 1, zero, 1e-12, 2000, &st);
+        sb_factors_t *f = fit_tight(&m, p, 1, zero, 1e-12, 2000, &st, NULL);
         double e = sb_factors_errors(f)->rel_rms[3];
         if (zero) {
             CHECK(!st.masked);
@@ -371,7 +374,7 @@ SB_TEST(masked_fit_terms_beyond_rank) {
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
     sb_plan_stats_t st;
-    sb_factors_t *f = fit_tight(&m, p, 8, 0, 1e-12, 2000, &st);
+    sb_factors_t *f = fit_tight(&m, p, 8, 0, 1e-12, 2000, &st, NULL);
     CHECK(f != NULL && st.masked);
     for (size_t j = 1; f && j <= 8; j++) {
         double e = sb_factors_errors(f)->rel_rms[(j - 1) * 4 + 3];
@@ -411,7 +414,7 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
                       : m.valid_count > cells / 2 && m.valid_count < cells,
                "pattern %d: %zu of %zu cells", sparse, m.valid_count, cells);
         sb_plan_stats_t st;
-        sb_factors_t *f = fit_tight(&m, p, J, 0, 1e-13, 5000, &st);
+        sb_factors_t *f = fit_tight(&m, p, J, 0, 1e-13, 5000, &st, NULL);
         double e = sb_factors_errors(f)->rel_rms[(J - 1) * 4 + 3];
         CHECK(st.masked);
         CHECKF(e < 1e-6, "pattern %d: masked rank-%zu fit error %g after %d iterations", sparse, J, e,
@@ -676,4 +679,59 @@ SB_TEST(solver_registry) {
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_source_destroy(s);
+}
+
+/* J terms of m (masked) at tolerance 1e-4 in at most iters sweeps a
+ * stage: fit_converged in *conv, the leading terms from converged sweeps
+ * returned. */
+static size_t converged_terms(const sb_matrix_t *m, const sb_param_t *p, size_t J, int iters, int *conv) {
+    sb_plan_stats_t st;
+    size_t k = 0;
+    sb_factors_destroy(fit_tight(m, p, J, 0, 1e-4, iters, &st, &k));
+    *conv = st.fit_converged;
+    return k;
+}
+
+/* H5 (docs/measured.md): a fit whose later terms stop at the sweep cap
+ * says how many leading terms come from converged sweeps; those are the
+ * fit of that many terms (nested, fit_chain.c), itself converged; the
+ * plan's fit_converged is every term's.  At caps 16-18 the holey source's
+ * 8-term fit has 5 such terms (more sweeps: all 8; fewer: none). */
+SB_TEST(masked_converged_terms) {
+    sb_source_ops_t ops = {holey_eval, NULL};
+    sb_source_t *s = NULL;
+    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    sb_param_t *p = io(6);
+    sb_matrix_t m;
+    CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
+    int partial = 0, none = 0, all = 0;
+    for (int iters = 2; iters <= 40; iters += 2) {
+        int conv = 0, conv_k = 0;
+        size_t k = converged_terms(&m, p, 8, iters, &conv);
+        CHECKF(k <= 8 && conv == (k == 8), "cap %d: %zu terms converged, fit_converged %d", iters, k, conv);
+        if (k > 0 && k < 8 && converged_terms(&m, p, k, iters, &conv_k) == k)
+            CHECKF(conv_k, "cap %d: the %zu-term fit is not converged", iters, k);
+        partial += k > 0 && k < 8, none += k == 0, all += k == 8;
+    }
+    CHECKF(partial && none && all, "caps 2-40: %d partly, %d not, %d wholly converged", partial, none, all);
+    sb_matrix_free(&m);
+    sb_param_destroy(p);
+    sb_source_destroy(s);
+}
+
+/* A job whose masked fit is capped at 2 sweeps a stage reports it (the
+ * CLI's warning, report.json's fit.converged false). */
+SB_TEST(capped_job_not_converged) {
+    sb_job_opts_t o = {0};
+    o.param = "iso";
+    o.res = 16;
+    o.fit_max_iters = 2;
+    sb_job_t *job = NULL;
+    sb_result_t r = sb_job_run(NULL, &o, &job);
+    CHECKF(r == SB_OK, "run: %s", sb_result_name(r));
+    sb_plan_stats_t st;
+    sb_job_stats(job, &st);
+    CHECKF(st.masked && !st.fit_converged, "masked %d, converged %d after %d sweeps", st.masked, st.fit_converged,
+           st.fit_iterations);
+    sb_job_destroy(job);
 }

@@ -53,8 +53,12 @@ static double case_at(const char *spec, sb_param_kind_t kind, size_t R) {
     CHECK(buf != NULL);
     sb_solve_out_t out[3];
     for (int k = 0; k < 3; k++)
-        out[k] = (sb_solve_out_t){buf + k * (J + (m + n) * J), buf + k * (J + (m + n) * J) + J,
-                                  buf + k * (J + (m + n) * J) + J + m * J, 0, 1};
+        out[k] = (sb_solve_out_t){buf + k * (J + (m + n) * J),
+                                  buf + k * (J + (m + n) * J) + J,
+                                  buf + k * (J + (m + n) * J) + J + m * J,
+                                  0,
+                                  1,
+                                  0};
     int ch = mat.data[1] ? 1 : 0;
     sb_solve_in_t in = {mat.data[ch], mat.ld, mat.data[ch], mat.ld, mat.mask, NULL, NULL, 1, p, &mat, ch};
     double w[3];

@@ -122,9 +122,10 @@ static void print_warnings(const sb_job_t *job) {
                  st.fit_iterations);
     else if (st.masked && !st.fit_converged)
         cli_error("factor",
-                  "warning: the masked fit did not converge in %d sweeps (report.json: fit.converged false); "
-                  "its errors are those of the factors written",
-                  st.fit_iterations);
+                  "warning: the masked fit of the %zu terms written did not converge: a stage stopped at its sweep "
+                  "cap (%d sweeps in all; report.json: fit.converged false); its errors are those of the factors "
+                  "written",
+                  sb_factors_terms(sb_job_factors(job)), st.fit_iterations);
     if (!sb_job_headline_non_increasing(job))
         cli_error("factor",
                   "warning: the headline error rises with J' (report.json: errors[].headline): the later terms fit "

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "factor/errors.h"
+#include "factor/plan_conv.h"
 #include "sepbrdf/channels.h"
 #include "solve/solver.h"
 #include "util/internal.h"
@@ -33,6 +34,7 @@ struct sb_plan {
     double *ssq, *mx, *scratch;  /* errors: 3 J sums, 3 J maxima, residual scratch */
     int nthreads;                /* residual threads */
     sb_plan_stats_t stats;
+    size_t conv_terms; /* the leading terms converged in every channel (plan_conv.h) */
 };
 
 /* What execute does to one matrix: the solver, channel order and scale. */
@@ -173,6 +175,8 @@ void sb_plan_destroy(sb_plan_t *p) {
     free(p);
 }
 
+size_t sb_plan_converged_terms(const sb_plan_t *p) { return p ? p->conv_terms : 0; }
+
 void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) {
     sb_plan_stats_t none = {0, 0, 0, 0};
     if (out) *out = p ? p->stats : none;
@@ -281,10 +285,12 @@ static sb_result_t solve(sb_plan_t *p, const run_t *rn, const sb_solve_in_t *in,
             p->s[j] = p->sbase[j] * fabs(rn->chs.scale[ch]);
         return SB_OK;
     }
-    sb_solve_out_t out = {p->s, p->u, p->v, 0, 1};
+    sb_solve_out_t out = {p->s, p->u, p->v, 0, 1, 0};
     sb_result_t r = rn->sv->execute(p->state[rn->si], in, &out);
     if (out.iterations > p->stats.fit_iterations) p->stats.fit_iterations = out.iterations;
     if (!out.converged) p->stats.fit_converged = 0;
+    size_t conv = out.converged_terms ? out.converged_terms : out.converged ? p->terms : 0;
+    if (conv < p->conv_terms) p->conv_terms = conv;
     if (r != SB_OK) return r;
     if (!(rn->sv->caps & SB_CAP_NONNEG)) sign_rule(p);
     if (rn->prop) memcpy(p->sbase, p->s, p->terms * sizeof *p->s);
@@ -440,6 +446,7 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (r != SB_OK) return r;
     if ((m->structured || m->streamed) && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);
     p->stats = (sb_plan_stats_t){m->mask && !p->opts.zero_fill, 0, 1, 0};
+    p->conv_terms = p->terms;
     scan_channels(p, &rn);
     p->stats.proportional = rn.prop;
     size_t gw, gh, hw, hh;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/plan_conv.h"
 #include "job_impl.h"
 #include "sample/edge.h"
 #include "sample/stream.h"
@@ -237,6 +238,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     a->texel_fit = 0;
     memset(&a->metric, 0, sizeof a->metric);
     memset(&a->stats, 0, sizeof a->stats);
+    a->conv_terms = 0;
     a->weighted = weighted;
     sb_result_t r = job_scene_prepare(ctx, job, a);
     if (r != SB_OK) return r;
@@ -279,6 +281,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     if (r == SB_OK && nested) r = edge_chain(ctx, job, &pl, J, a);
     if (dense) sb_blas_threads_begin();
     sb_plan_stats(plan, &a->stats);
+    a->conv_terms = sb_plan_converged_terms(plan);
     double t2 = job_now();
     if (r == SB_OK && (sb_factors_set_meta(a->f, "source", sb_source_description(job->src)) != SB_OK ||
                        sb_factors_set_meta(a->f, "source_spec", job->o.source) != SB_OK))

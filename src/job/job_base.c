@@ -38,8 +38,13 @@ const sb_param_t *sb_job_param(const sb_job_t *job) { return job ? job->best.par
 const sb_matrix_t *sb_job_matrix(const sb_job_t *job) { return job ? &job->best.m : NULL; }
 sb_form_t sb_job_form(const sb_job_t *job) { return job ? job->best.m.form : SB_FORM_F; }
 int sb_job_weighted(const sb_job_t *job) { return job ? job->best.weighted : 0; }
+int job_fit_converged(const job_attempt_t *a) {
+    return a->stats.fit_converged || (a->f && a->conv_terms >= sb_factors_terms(a->f));
+}
+
 void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out) {
     if (out) *out = job ? job->best.stats : (sb_plan_stats_t){0};
+    if (out && job) out->fit_converged = job_fit_converged(&job->best); /* of the terms written */
 }
 const sb_metric_t *sb_job_metric(const sb_job_t *job) { return job ? &job->best.metric : NULL; }
 int sb_job_auto(const sb_job_t *job) { return job ? job->is_auto : 0; }

@@ -26,6 +26,7 @@ typedef struct job_attempt {
     sb_matrix_t m;
     sb_factors_t *f;
     sb_plan_stats_t stats;
+    size_t conv_terms;         /* the leading terms from converged sweeps (plan_conv.h; job_fit_converged) */
     sb_metric_t metric;        /* grid quadrature (comparable_grid), the kept fit only */
     sb_estimate_t *est;        /* the estimator's errors of the stored factors */
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
@@ -273,6 +274,10 @@ sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j,
 /* a takes t's fit (factors, estimate, stats, metric; t made from a copy
  * of a, sharing its matrix and layout), its own fit freed. */
 void job_attempt_adopt(job_attempt_t *a, const job_attempt_t *t);
+/* Whether the terms of a->f (those written) come from converged sweeps:
+ * a fit of more terms whose later stage stopped at its sweep cap, cut to
+ * a J before it, is converged (docs/measured.md, H5). */
+int job_fit_converged(const job_attempt_t *a);
 /* Keep the first j terms of a->f (errors and estimate with them). */
 sb_result_t job_truncate(sb_context_t *ctx, job_attempt_t *a, size_t j);
 int job_attempt_zero_fill(const sb_job_t *job, const job_attempt_t *a);

@@ -130,10 +130,11 @@ static void report_fit(sb_json_t *j, const sb_job_t *job) {
     sb_json_begin_object(j, "fit");
     sb_json_bool(j, "masked", a->stats.masked);
     sb_json_int(j, "iterations", a->stats.fit_iterations);
-    sb_json_bool(j, "converged", a->stats.fit_converged);
+    int conv = job_fit_converged(a); /* the terms written (a fit of more, cut to J: its first J terms') */
+    sb_json_bool(j, "converged", conv);
     /* what ended the sweeps: a sweep's gain under the tolerance, or the
      * sweep cap (a non-negative fit's stated stop, not a failure) */
-    sb_json_string(j, "stopped", !a->stats.fit_iterations ? "none" : (a->stats.fit_converged ? "tolerance" : "sweeps"));
+    sb_json_string(j, "stopped", !a->stats.fit_iterations ? "none" : (conv ? "tolerance" : "sweeps"));
     sb_json_number(j, "band_weight", a->band_weight); /* job_bandfit.c: 0 the plain fit */
     /* texture axes whose texels were fitted for the bilinear lookup
      * (t - D t / 12) instead of holding the samples at their centres */

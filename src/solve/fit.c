@@ -239,7 +239,7 @@ static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const u
         for (size_t i = 0; i < n; i++)
             f->Q[i + j * n] = f->vbt[j + i * l] * rt;
     }
-    int converged = 1;
+    int converged = 1; /* the last stage's (fit_als_stages); the info reads the terms' flags */
     double err = 0;
     sb_result_t r = fit_als(f, As, lda, mask, nvalid, o, norm2, &total, &converged, &err);
     if (r != SB_OK) return r; /* fit_als and the gathered cells named the bytes */
@@ -255,7 +255,8 @@ static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const u
         for (size_t i = 0; i < n && V; i++)
             V[i + j * n] = keep ? f->Q[i + j * n] / nq : 0;
     }
-    if (info) *info = (sb_fit_info_t){total, converged, norm2 > 0 ? err / sqrt(norm2) : 0};
+    size_t conv = fit_conv_terms(f); /* the terms' own flags, not the last stage's alone */
+    if (info) *info = (sb_fit_info_t){total, conv == k, norm2 > 0 ? err / sqrt(norm2) : 0, conv};
     return SB_OK;
 }
 
@@ -302,7 +303,7 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
                 V[i + j * n] = f->vbt[j + i * l];
         if (info)
             *info = (sb_fit_info_t){it > o.max_iters ? o.max_iters : it, it <= o.max_iters,
-                                    norm2 > 0 ? err / sqrt(norm2) : 0};
+                                    norm2 > 0 ? err / sqrt(norm2) : 0, it <= o.max_iters ? k : 0};
     }
     free(qu);
     free(coef);

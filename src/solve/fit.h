@@ -24,8 +24,12 @@ typedef struct sb_fit_opts {
 } sb_fit_opts_t;
 
 typedef struct sb_fit_info {
-    int iterations, converged;
-    double rel_err; /* on valid cells */
+    int iterations, converged; /* converged: every term's sweeps ended by the tolerance */
+    double rel_err;            /* on valid cells */
+    /* the leading terms whose sweeps (those that last set them) all ended
+     * by the tolerance: k when converged; a prefix of that many terms
+     * written alone is a converged fit */
+    size_t conv_terms;
 } sb_fit_info_t;
 
 sb_result_t sb_fit_create(sb_context_t *ctx, size_t m, size_t n, size_t k, sb_fit_t **out);

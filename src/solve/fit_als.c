@@ -43,8 +43,12 @@ static int joint_stage(size_t ka) { return ka > 1 && ka <= SB_JOINT_ALL; }
  * when the last stage kept a joint refit that made a shorter prefix more
  * than SB_PREFIX_SLACK times worse (not strict only); *converged 0
  * when the run that gave the last stage's kept result stopped at
- * max_iters (earlier stages only warm-start the later ones).  SB_OK or
- * SB_ERR_NOMEM. */
+ * max_iters.  f->tconv[j]: whether the run that last set term j did not
+ * (a joint refit kept at stage ka sets terms 0..ka-1, a new term alone
+ * only itself; terms never fitted, past --max-error, count as set), so
+ * that a prefix written alone is known converged or not (H5 in
+ * docs/measured.md: the last stage, cut away by the job's J, made every
+ * fit "not converged").  SB_OK or SB_ERR_NOMEM. */
 /* A run of the stages: what every stage reads, the copies a rejected
  * joint refit is restored from, and the accepted prefix errors. */
 typedef struct als_run {
@@ -161,7 +165,10 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
         memcpy(ru.acc, rs->acc, sizeof ru.acc);
         *err = rs->err;
         *converged = rs->converged;
+        memcpy(f->tconv, rs->tconv, sizeof f->tconv);
         ka0 = k;
+    } else {
+        memset(f->tconv, 1, sizeof f->tconv);
     }
     if (rs && rs->save) rs->same = 1, rs->valid = 0, rs->last = 0;
     for (size_t ka = ka0; ka <= k; ka++) {
@@ -171,6 +178,7 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
             memcpy(rs->acc, ru.acc, sizeof ru.acc);
             rs->err = *err;
             rs->converged = *converged;
+            memcpy(rs->tconv, f->tconv, sizeof rs->tconv);
             rs->valid = 1;
         }
         int c1 = 1, cj = 1, keep = 0;
@@ -179,6 +187,7 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
         if (joint_stage(ka)) keep = stage_joint(&ru, ka, replay, record, err, &cj);
         ru.acc[ka - 1] = *err;
         *converged = keep ? cj : c1;
+        memset(f->tconv + (keep ? 0 : ka - 1), *converged, keep ? ka : 1);
         if (o->target > 0 && *err <= o->target * sqrt(norm2)) { /* --max-error reached: stop adding terms */
             memset(f->P + ka * m, 0, (k - ka) * m * sizeof *f->P);
             memset(f->Q + ka * n, 0, (k - ka) * n * sizeof *f->Q);
@@ -205,6 +214,13 @@ void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const u
                 e2[j] += d * d;
             }
         }
+}
+
+size_t fit_conv_terms(const sb_fit_t *f) {
+    size_t j = 0;
+    while (j < f->k && j < SB_ALS_MAX_K && f->tconv[j])
+        j++;
+    return j;
 }
 
 int fit_e2_monotone(const double *e2, size_t k) {

@@ -80,15 +80,17 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
     memset(u, 0, m * k * sizeof *u);
     memset(v, 0, n * k * sizeof *v);
     int iters = 0, converged = 1;
+    size_t conv = 0; /* the leading terms from converged sweeps (a piece's own conv_terms) */
     double e2 = norm2;
     for (size_t done = 0; done < k && r == SB_OK;) {
         size_t kk = done == 0 ? SB_CHAIN_JOINT : 1;
-        sb_fit_info_t fi = {0, 1, 0};
+        sb_fit_info_t fi = {0, 1, 0, kk};
         sb_fit_opts_t oo = o;
         if (done) memset(oo.tex, 0, sizeof oo.tex); /* the pieces: no taps */
         r = sb_fit_execute(f->sub[done ? 1 : 0], R, lda, mask, &oo, s + done, u + done * m, v + done * n, &fi);
         if (r != SB_OK) break;
         iters += fi.iterations;
+        conv += conv == done ? (fi.conv_terms < kk ? fi.conv_terms : kk) : 0;
         converged &= fi.converged;
         e2 = subtract(R, lda, mask, m, n, s, u, v, done, done + kk);
         done += kk;
@@ -98,7 +100,8 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
     if (r == SB_OK) {
         if (U) memcpy(U, u, m * k * sizeof *U);
         if (V) memcpy(V, v, n * k * sizeof *V);
-        if (info) *info = (sb_fit_info_t){iters, converged, norm2 > 0 ? sqrt(e2 / norm2) : 0};
+        if (converged) conv = k; /* the terms past --max-error: none fitted */
+        if (info) *info = (sb_fit_info_t){iters, converged, norm2 > 0 ? sqrt(e2 / norm2) : 0, conv};
     }
     free(R), free(u), free(v);
     return r;

@@ -30,6 +30,10 @@ struct sb_fit {
     size_t m, n, k, l;
     double *x, *v, *y, *tau, *b, *sb, *ub, *vbt, *work;
     double *P, *Q; /* ALS: factors m x k, n x k */
+    /* ALS: tconv[j] 1 when the sweeps that last set term j (its stage's
+     * new term, or a kept joint refit of a later stage) ended by the
+     * tolerance, 0 at max_iters (fit_als_stages) */
+    unsigned char tconv[SB_ALS_MAX_K];
     /* the valid cells gathered for the last mask the stages ran on, kept
      * for the next run on the same mask (fit_cells_build); the nested
      * fits borrow their parent's (cells_borrowed: not theirs to free) */
@@ -110,6 +114,7 @@ typedef struct als_resume {
     double *P, *Q;    /* m x k, n x k */
     double acc[SB_ALS_MAX_K], err;
     int converged;
+    unsigned char tconv[SB_ALS_MAX_K]; /* f->tconv then */
     /* the last stage's two fits from that state, the same in both runs
      * (only the rule that keeps one differs): the new term alone (err1,
      * c1) and the joint refit (errj, cj, its prefixes' squared errors
@@ -117,7 +122,8 @@ typedef struct als_resume {
     double *P1, *Q1, *Pj, *Qj, e2[SB_ALS_MAX_K], err1, errj;
     int c1, cj, last;
 } als_resume_t;
-/* The staged ALS (fit_als.c); rs may be NULL. */
+/* The staged ALS (fit_als.c); rs may be NULL.  f->tconv says which of
+ * the terms left come from converged sweeps. */
 sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
                            const sb_fit_opts_t *o, int strict, double norm2, int *total, int *converged, double *err,
                            int *stretched, als_resume_t *rs);
@@ -125,6 +131,8 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
 void fit_valid_prefix_e2(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask, double *e2);
 /* Whether those errors are non-increasing. */
 int fit_prefixes_monotone(const sb_fit_t *f, const double *X, size_t lda, const unsigned char *mask);
+/* The leading terms of f whose flags f->tconv are all set (k: all). */
+size_t fit_conv_terms(const sb_fit_t *f);
 /* Whether the k squared errors e2 are non-increasing. */
 int fit_e2_monotone(const double *e2, size_t k);
 /* For each cell that is not data (ext 0), the range [lo, hi] of the data

@@ -205,6 +205,8 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
     memcpy(P1, f->P, m * k * sizeof *P1);
     memcpy(Q1, f->Q, n * k * sizeof *Q1);
     size_t constrained = 0;
+    unsigned char tconv[SB_ALS_MAX_K]; /* the flags of the terms in P1, Q1 */
+    memcpy(tconv, f->tconv, sizeof tconv);
     sb_result_t r = SB_OK;
     if (!tl->scanned && taps_scan(o, m, n, f->x, ext, NULL, NULL, &tl->cells, &tl->n) != 0) /* taps: As is f->x */
         return sb_error(f->ctx, SB_ERR_NOMEM, "fit: cannot allocate the taps' ranges");
@@ -222,6 +224,7 @@ static sb_result_t taps_rounds(sb_fit_t *f, const double *As, size_t lda, const 
         memcpy(f->P, P1, m * k * sizeof *P1);
         memcpy(f->Q, Q1, n * k * sizeof *Q1);
         memcpy(e2, e2b, k * sizeof *e2);
+        memcpy(f->tconv, tconv, sizeof tconv);
     }
     return r;
 }

@@ -48,6 +48,7 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     sb_result_t r = fit_chain(s->fit, in->x, in->ldx, in->mask, &o, out->s, out->u, out->v, &fi);
     out->iterations = fi.iterations;
     out->converged = fi.converged;
+    out->converged_terms = fi.conv_terms;
     return r;
 }
 

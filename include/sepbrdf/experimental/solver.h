@@ -60,6 +60,11 @@ typedef struct sb_solve_out {
     double *s, *u, *v; /* J, rows x J, cols x J (column-major) */
     int iterations;    /* iterative solvers; 0 otherwise */
     int converged;     /* 1 unless an iterative solver stopped early */
+    /* iterative solvers that fit terms in stages: the leading terms whose
+     * sweeps all ended by the tolerance (J when converged), so that a
+     * caller keeping fewer terms knows whether those converged; 0 (as the
+     * plan passes it): converged says for every term */
+    size_t converged_terms;
 } sb_solve_out_t;
 
 /* A solver.  The library keeps the pointer: the descriptor and every

@@ -1,0 +1,15 @@
+/* Private: how many leading terms of the plan's last execute come from
+ * converged sweeps in every channel (plan.c), so that a caller keeping
+ * fewer terms (the job's J, job_measure.c) reports the convergence of the
+ * terms it writes; sb_plan_stats_t's fit_converged is every term's. */
+#ifndef SEPBRDF_FACTOR_PLAN_CONV_H
+#define SEPBRDF_FACTOR_PLAN_CONV_H
+
+#include "sepbrdf/factor.h"
+
+/* The terms when every solver converged; fewer when a masked fit's stage
+ * stopped at its sweep cap (the terms before it are still converged);
+ * 0 for a NULL plan. */
+size_t sb_plan_converged_terms(const sb_plan_t *p);
+
+#endif
