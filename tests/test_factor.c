@@ -733,5 +733,6 @@ SB_TEST(capped_job_not_converged) {
     sb_job_stats(job, &st);
     CHECKF(st.masked && !st.fit_converged, "masked %d, converged %d after %d sweeps", st.masked, st.fit_converged,
            st.fit_iterations);
+    CHECK(!sb_job_fit_early_stop(job)); /* the caller's own cap: a failure to converge, warned */
     sb_job_destroy(job);
 }

@@ -286,6 +286,10 @@ SB_API sb_form_t sb_job_form(const sb_job_t *job);
 SB_API int sb_job_weighted(const sb_job_t *job);
 SB_API int sb_job_masked(const sb_job_t *job); /* a masked fit: prefixes of J are not the J' fits */
 SB_API void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out);
+/* 1 if the kept masked fit ran under auto's early stop (a sweep gaining
+ * less than 1e-3, at most 20 sweeps a stage: docs/guide.md), so that a stage
+ * ending at its cap is that stated rule, not a failure to converge. */
+SB_API int sb_job_fit_early_stop(const sb_job_t *job);
 SB_API const sb_metric_t *sb_job_metric(const sb_job_t *job); /* the grid quadrature (comparable_grid) */
 SB_API const sb_estimate_t *sb_job_estimate(const sb_job_t *job);
 /* With opts.scene: the scene, and the estimate over the whole domain of the

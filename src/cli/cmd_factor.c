@@ -120,6 +120,11 @@ static void print_warnings(const sb_job_t *job) {
         cli_info(1,
                  "factor: the non-negative fit stopped at its sweep cap (%d sweeps in all; report.json: fit.stopped)",
                  st.fit_iterations);
+    else if (st.masked && !st.fit_converged && sb_job_fit_early_stop(job))
+        cli_info(2,
+                 "factor: a stage of the masked fit of the %zu terms written stopped at auto's early-stop cap (20 "
+                 "sweeps a stage, %d in all; report.json: fit.early_stop): its stated rule, not a failure",
+                 sb_factors_terms(sb_job_factors(job)), st.fit_iterations);
     else if (st.masked && !st.fit_converged)
         cli_error("factor",
                   "warning: the masked fit of the %zu terms written did not converge: a stage stopped at its sweep "

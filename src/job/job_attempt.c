@@ -239,6 +239,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     memset(&a->metric, 0, sizeof a->metric);
     memset(&a->stats, 0, sizeof a->stats);
     a->conv_terms = 0;
+    a->early_stop = lv->early_stop;
     a->weighted = weighted;
     sb_result_t r = job_scene_prepare(ctx, job, a);
     if (r != SB_OK) return r;
@@ -311,4 +312,5 @@ void job_attempt_free(job_attempt_t *a) {
 void job_early_stop(const sb_job_t *job, job_level_t *lv) {
     lv->fit_tol = job->o.fit_tol > 0 ? job->o.fit_tol : 1e-3;
     lv->fit_max_iters = job->o.fit_max_iters > 0 ? job->o.fit_max_iters : 20;
+    lv->early_stop = !(job->o.fit_max_iters > 0); /* the caller's own cap is no early stop */
 }

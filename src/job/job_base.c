@@ -46,6 +46,7 @@ void sb_job_stats(const sb_job_t *job, sb_plan_stats_t *out) {
     if (out) *out = job ? job->best.stats : (sb_plan_stats_t){0};
     if (out && job) out->fit_converged = job_fit_converged(&job->best); /* of the terms written */
 }
+int sb_job_fit_early_stop(const sb_job_t *job) { return job ? job->best.early_stop : 0; }
 const sb_metric_t *sb_job_metric(const sb_job_t *job) { return job ? &job->best.metric : NULL; }
 int sb_job_auto(const sb_job_t *job) { return job ? job->is_auto : 0; }
 size_t sb_job_candidate_count(const sb_job_t *job) { return job ? job->ncand : 0; }

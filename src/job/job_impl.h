@@ -27,6 +27,7 @@ typedef struct job_attempt {
     sb_factors_t *f;
     sb_plan_stats_t stats;
     size_t conv_terms;         /* the leading terms from converged sweeps (plan_conv.h; job_fit_converged) */
+    int early_stop;            /* the masked fit ran under auto's early stop (job_early_stop) */
     sb_metric_t metric;        /* grid quadrature (comparable_grid), the kept fit only */
     sb_estimate_t *est;        /* the estimator's errors of the stored factors */
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
@@ -49,6 +50,7 @@ typedef struct job_level {
     int rank_at_j;                 /* with rank_only: at J only (the shorter prefixes' errors 0) */
     double fit_tol;
     int fit_max_iters;
+    int early_stop;            /* fit_tol, fit_max_iters are auto's early stop (job_early_stop) */
     const sb_param_opts_t *po; /* the layout's options (shape, warps; res is lv's); NULL: res alone */
     int half_shape;            /* screening: layouts folding reciprocity (iso) on R theta_h rows (job_level_opts) */
     const char *label;         /* progress label of the sampling; NULL = none */

@@ -143,5 +143,6 @@ void job_attempt_adopt(job_attempt_t *a, const job_attempt_t *t) {
     a->est_rank = t->est_rank;
     a->stats = t->stats;
     a->conv_terms = t->conv_terms;
+    a->early_stop = t->early_stop;
     a->metric = t->metric;
 }

@@ -135,6 +135,9 @@ static void report_fit(sb_json_t *j, const sb_job_t *job) {
     /* what ended the sweeps: a sweep's gain under the tolerance, or the
      * sweep cap (a non-negative fit's stated stop, not a failure) */
     sb_json_string(j, "stopped", !a->stats.fit_iterations ? "none" : (conv ? "tolerance" : "sweeps"));
+    /* the sweeps were auto's early stop (1e-3, at most 20 a stage): a
+     * stage at its cap is that stated rule (job_early_stop) */
+    sb_json_bool(j, "early_stop", a->stats.masked && a->early_stop);
     sb_json_number(j, "band_weight", a->band_weight); /* job_bandfit.c: 0 the plain fit */
     /* texture axes whose texels were fitted for the bilinear lookup
      * (t - D t / 12) instead of holding the samples at their centres */
