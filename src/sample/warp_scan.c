@@ -140,15 +140,28 @@ static void taps_of(const scan_t *s, const double *xc, size_t n, taps_t *tp) {
     }
 }
 
-/* Value of a line at node position xc: linear between the fine points
- * around it (the valid one when only one is); 0 in *ok when neither is. */
-static void node_value(const scan_t *s, const double *q, const unsigned char *ok, double xc, double v[3], int *valid) {
+/* Where a line is read at node position xc: between the fine points j
+ * and j1 with weight t on j1 (the same for every line: found once per
+ * round, not per line). */
+typedef struct node_at {
+    size_t j, j1;
+    double t;
+} node_at_t;
+
+static node_at_t node_at(const scan_t *s, double xc) {
     size_t j = 0;
     while (j + 1 < FINE && s->x[j + 1] <= xc)
         j++;
     size_t j1 = j + 1 < FINE ? j + 1 : j;
     double t = j1 == j ? 0 : (xc - s->x[j]) / (s->x[j1] - s->x[j]);
-    t = t < 0 ? 0 : (t > 1 ? 1 : t);
+    return (node_at_t){j, j1, t < 0 ? 0 : (t > 1 ? 1 : t)};
+}
+
+/* Value of a line at node a: linear between the fine points around it
+ * (the valid one when only one is); 0 in *valid when neither is. */
+static void node_value(const double *q, const unsigned char *ok, node_at_t a, double v[3], int *valid) {
+    size_t j = a.j, j1 = a.j1;
+    double t = a.t;
     if (!ok[j]) t = 1;
     if (!ok[j1]) t = 0;
     *valid = ok[j] || ok[j1];
@@ -162,14 +175,17 @@ static void segment_errors(const scan_t *s, const double *xc, size_t n, double *
     taps_t *tp = malloc(sizeof *tp);
     double(*nv)[3] = malloc(n * sizeof *nv);
     int *nok = malloc(n * sizeof *nok);
+    node_at_t *at = malloc(n * sizeof *at);
     memset(err, 0, (n + 1) * sizeof *err);
-    if (tp && nv && nok) {
+    if (tp && nv && nok && at) {
         taps_of(s, xc, n, tp);
+        for (size_t k = 0; k < n; k++)
+            at[k] = node_at(s, xc[k]);
         for (size_t l = 0; l < s->lines; l++) {
             const double *q = s->q + l * FINE * 3, *c2 = s->c2 + l * FINE;
             const unsigned char *ok = s->ok + l * FINE;
             for (size_t k = 0; k < n; k++)
-                node_value(s, q, ok, xc[k], nv[k], &nok[k]);
+                node_value(q, ok, at[k], nv[k], &nok[k]);
             for (size_t i = 0; i < FINE; i++) {
                 size_t a = tp->lo[i], b = tp->hi[i];
                 if (!ok[i] || (!nok[a] && !nok[b])) continue;
@@ -185,6 +201,7 @@ static void segment_errors(const scan_t *s, const double *xc, size_t n, double *
     free(tp);
     free(nv);
     free(nok);
+    free(at);
 }
 
 /* Knots at the quantiles k / K of the masses mass[i] of the fine cells. */
