@@ -313,6 +313,10 @@ static char guard_path[GUARD_SLOTS][GUARD_PATH];
 static atomic_int guard_used[GUARD_SLOTS];
 
 static char guard_set[GUARD_PATH]; /* staging folder of the open output set */
+/* the name it is moved to before it is emptied: ".sepbrdf-new-CMD~gone-PID",
+ * a staging name still (a run killed meanwhile leaves what the next run's
+ * stale cleanup removes), whose manifest no command writes (removed whole) */
+static char guard_doomed[GUARD_PATH + 8];
 static atomic_int guard_set_on;
 
 int cli_guard(const char *path) {
@@ -337,7 +341,16 @@ void cli_unguard(const char *path) {
 
 static void on_signal(int sig) {
     int saved = errno;
-    if (atomic_load(&guard_set_on)) sb_outset_discard_signal_safe(guard_set);
+    if (atomic_load(&guard_set_on)) {
+        /* The writers share the set among threads: one may create a file
+         * in the staging folder after the handler's last pass, and the
+         * folder then outlives the process.  Moved first, the folder takes
+         * no new entry (they open it by its old name), and is emptied. */
+        if (guard_doomed[0] && rename(guard_set, guard_doomed) == 0)
+            sb_outset_discard_signal_safe(guard_doomed);
+        else
+            sb_outset_discard_signal_safe(guard_set);
+    }
     for (int i = 0; i < GUARD_SLOTS; i++)
         if (atomic_load(&guard_used[i])) unlink(guard_path[i]);
     if (prog_shown) {
@@ -374,6 +387,10 @@ static void guard_staging(void *user, const char *staging) {
     atomic_store(&guard_set_on, 0);
     if (n >= GUARD_PATH) return;
     memcpy(guard_set, staging, n + 1);
+    const char *dash = strrchr(staging, '-'), *slash = strrchr(staging, '/');
+    guard_doomed[0] = 0;
+    if (dash && (!slash || dash > slash))
+        snprintf(guard_doomed, sizeof guard_doomed, "%.*s~gone%s", (int)(dash - staging), staging, dash);
     atomic_store(&guard_set_on, 1);
 }
 
