@@ -5,15 +5,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 #include "solve/circulant.h" /* sb_circ_is_even: not exported, in the static archive */
-
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    CHECKF(sb_model_create(NULL, spec, &s) == SB_OK, "model %s", spec);
-    return s;
-}
 
 static sb_param_t *io(size_t R, double theta_max_deg) {
     sb_param_t *p = NULL;
@@ -68,7 +63,7 @@ SB_TEST(matches_dense_full) {
         {"cook-torrance:roughness=0.2", 12, 5, 0, SB_FORM_F, 90},
     };
     for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
-        sb_source_t *s = model(cases[t].spec);
+        sb_source_t *s = fx_model(cases[t].spec);
         sb_param_t *p = io(cases[t].R, cases[t].tmax);
         sb_matrix_opts_t mo = {0};
         mo.form = cases[t].form;
@@ -117,7 +112,7 @@ SB_TEST(matches_dense_full) {
 /* The plan falls back to the dense path when the structure is not
  * declared, not even, or another method is asked for; results agree. */
 SB_TEST(fallbacks) {
-    sb_source_t *s = model("microfacet:base=copper,roughness=0.4");
+    sb_source_t *s = fx_model("microfacet:base=copper,roughness=0.4");
     sb_param_t *p = io(6, 90);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
@@ -159,7 +154,7 @@ SB_TEST(fallbacks) {
 
 /* Same result for the same input, run twice (no hidden state). */
 SB_TEST(deterministic) {
-    sb_source_t *s = model("microfacet:base=gold,roughness=0.25");
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.25");
     sb_param_t *p = io(10, 90);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
@@ -268,7 +263,7 @@ SB_TEST(symmetric_blocks_are_eigendecomposed) {
         {"blinn-phong:n=20", 6, 36, 1, 1, SB_FORM_F},
     };
     for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
-        sb_source_t *s = model(cases[t].spec);
+        sb_source_t *s = fx_model(cases[t].spec);
         size_t R = cases[t].R, J = cases[t].J, N = R * R;
         sb_param_t *p = io(R, 90);
         sb_matrix_opts_t mo = {0};

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "factor/plan_conv.h"
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
@@ -23,29 +24,11 @@ static sb_source_t *probe_source(void) {
     return s;
 }
 
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_result_t r = sb_model_create(ctx, spec, &s);
-    CHECKF(r == SB_OK, "model %s: %s", spec, sb_context_last_error(ctx));
-    sb_context_destroy(ctx);
-    return s;
-}
-
-static sb_param_t *io(size_t R) {
-    sb_param_t *p = NULL;
-    sb_param_opts_t o = {0};
-    o.res = R;
-    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
-    return p;
-}
-
 /* M[k][l] = f(w_i^k, w_o^l), k = R i_phi + i_theta, column-major. */
 SB_TEST(matrix_layout) {
     size_t R = 5;
     sb_source_t *s = probe_source();
-    sb_param_t *p = io(R);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, R);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     CHECK(m.rows == R * R && m.cols == R * R && m.ld == R * R && m.mask == NULL);
@@ -82,17 +65,14 @@ SB_TEST(eckart_young) {
     size_t R = 8, J = 12, N = R * R;
     const char *specs[] = {"microfacet:base=gold,roughness=0.5", "microfacet:roughness=0.2"};
     for (int which = 0; which < 2; which++) {
-        sb_source_t *s = which < 2 ? model(specs[which]) : probe_source();
-        sb_param_t *p = io(R);
+        sb_source_t *s = which < 2 ? fx_model(specs[which]) : probe_source();
+        sb_param_t *p = fx_layout(SB_PARAM_IO, R);
         sb_matrix_t m;
         CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
         sb_plan_opts_t po = {0};
         po.terms = J;
         po.svd.method = SB_METHOD_FULL;
-        sb_plan_t *plan;
-        sb_factors_t *f;
-        CHECK(sb_plan_create(NULL, N, N, &po, &plan) == SB_OK);
-        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        sb_factors_t *f = fx_factor(&m, p, &po);
         const sb_factor_errors_t *e = sb_factors_errors(f);
         double tot2 = 0, tail2[64] = {0};
         for (int c = 0; c < 3; c++) {
@@ -115,7 +95,6 @@ SB_TEST(eckart_young) {
             if (j) CHECK(e->rel_rms[j * 4 + 3] <= e->rel_rms[(j - 1) * 4 + 3]);
         }
         sb_factors_destroy(f);
-        sb_plan_destroy(plan);
         sb_matrix_free(&m);
         sb_param_destroy(p);
         sb_source_destroy(s);
@@ -123,16 +102,13 @@ SB_TEST(eckart_young) {
 }
 
 SB_TEST(lambert_rank1) {
-    sb_source_t *s = model("lambert:albedo=0.8/0.5/0.2");
-    sb_param_t *p = io(16);
+    sb_source_t *s = fx_model("lambert:albedo=0.8/0.5/0.2");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 16);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_plan_opts_t po = {0};
     po.terms = 2;
-    sb_plan_t *plan;
-    sb_factors_t *f;
-    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_factors_t *f = fx_factor(&m, p, &po);
     const sb_factor_errors_t *e = sb_factors_errors(f);
     CHECKF(e->rel_rms[3] < 1e-12, "rel_rms %g", e->rel_rms[3]);
     /* g_0 h_0 reconstructs albedo / pi everywhere */
@@ -142,15 +118,14 @@ SB_TEST(lambert_rank1) {
             for (size_t col = 0; col < m.cols; col += 5)
                 CHECK_REL(sb_factors_cell(f, 1, c, r, col), alb[c] / SB_PI, 1e-12);
     sb_factors_destroy(f);
-    sb_plan_destroy(plan);
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_source_destroy(s);
 }
 
 SB_TEST(sign_convention) {
-    sb_source_t *s = model("microfacet:base=copper,roughness=0.3");
-    sb_param_t *p = io(8);
+    sb_source_t *s = fx_model("microfacet:base=copper,roughness=0.3");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_plan_opts_t po = {0};
@@ -195,7 +170,7 @@ SB_TEST(sign_convention) {
 SB_TEST(lookup_cell_centres) {
     size_t R = 6;
     sb_source_t *s = probe_source();
-    sb_param_t *p = NULL, *clamped = io(R);
+    sb_param_t *p = NULL, *clamped = fx_layout(SB_PARAM_IO, R);
     sb_param_opts_t o = {0};
     o.res = R;
     o.plain = 1; /* the probe is signed: the plain sum */
@@ -204,10 +179,7 @@ SB_TEST(lookup_cell_centres) {
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_plan_opts_t po = {0};
     po.terms = R * R;
-    sb_plan_t *plan;
-    sb_factors_t *f;
-    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_factors_t *f = fx_factor(&m, p, &po);
     double wi[3], wo[3], rgb[3], ref[3];
     for (size_t k = 0; k < R * R; k += 5)
         for (size_t l = 0; l < R * R; l += 3) {
@@ -237,7 +209,6 @@ SB_TEST(lookup_cell_centres) {
     CHECK_REL(rm[0], 0.5 * (ra[0] + rb[0]), 1e-9);
     CHECK(fabs(ra[0] - rb[0]) > 1e-3); /* the blend is not trivially equal */
     sb_factors_destroy(f);
-    sb_plan_destroy(plan);
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_param_destroy(clamped);
@@ -271,8 +242,8 @@ SB_TEST(plan_errors) {
 /* Every method (structured, and the adaptive range finder of the dense
  * ones) keeps the fewest terms that meet the target, as its errors say. */
 SB_TEST(max_error_stops) {
-    sb_source_t *s = model("microfacet:base=gold,roughness=0.5");
-    sb_param_t *p = io(12);
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.5");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 12);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_method_t methods[] = {SB_METHOD_AUTO, SB_METHOD_FULL, SB_METHOD_TOPK, SB_METHOD_RANDOMIZED};
@@ -281,10 +252,7 @@ SB_TEST(max_error_stops) {
         po.terms = 24;
         po.max_error = 0.35;
         po.svd.method = methods[k];
-        sb_plan_t *plan;
-        sb_factors_t *f;
-        CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        sb_factors_t *f = fx_factor(&m, p, &po);
         size_t J = sb_factors_terms(f);
         const sb_factor_errors_t *e = sb_factors_errors(f);
         CHECK(J > 1 && J < 24);
@@ -293,7 +261,6 @@ SB_TEST(max_error_stops) {
         CHECKF(e->rel_rms[(J - 2) * 4 + 3] > 0.35, "method %s: J-1=%zu err %g", sb_method_name(methods[k]), J - 1,
                e->rel_rms[(J - 2) * 4 + 3]);
         sb_factors_destroy(f);
-        sb_plan_destroy(plan);
     }
     sb_matrix_free(&m);
     sb_param_destroy(p);
@@ -334,7 +301,7 @@ SB_TEST(masked_fit_exact_rank1) {
     sb_source_ops_t ops = {holey_eval, NULL};
     sb_source_t *s = NULL;
     CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
-    sb_param_t *p = io(8);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     CHECK(m.mask != NULL);
@@ -370,7 +337,7 @@ SB_TEST(masked_fit_terms_beyond_rank) {
     sb_source_ops_t ops = {holey_eval, NULL};
     sb_source_t *s = NULL;
     CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
-    sb_param_t *p = io(6);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 6);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
     sb_plan_stats_t st;
@@ -406,7 +373,7 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
         sb_source_ops_t ops = {holey2_eval, NULL};
         sb_source_t *s = NULL;
         CHECK(sb_source_create(NULL, &ops, &sparse, SB_SOURCE_MEASURED, "holey2", &s) == SB_OK);
-        sb_param_t *p = io(8);
+        sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
         sb_matrix_t m;
         CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
         size_t cells = m.rows * m.cols, J = sparse ? 1 : 2;
@@ -440,7 +407,7 @@ SB_TEST(masked_fit_exact_dense_and_sparse) {
  * error (it samples the texel centres), for the plain sum the native error
  * measures (plain=1: no max(0, sum)). */
 SB_TEST(metric_matches_weighted_native) {
-    sb_source_t *s = model("microfacet:base=copper,roughness=0.4");
+    sb_source_t *s = fx_model("microfacet:base=copper,roughness=0.4");
     sb_param_t *p = NULL;
     sb_param_opts_t o = {0};
     o.res = 12;
@@ -453,10 +420,7 @@ SB_TEST(metric_matches_weighted_native) {
     sb_plan_opts_t po = {0};
     po.terms = 6;
     po.weighted = 1;
-    sb_plan_t *plan;
-    sb_factors_t *f;
-    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_factors_t *f = fx_factor(&m, p, &po);
     sb_metric_opts_t mt = {0};
     mt.res = 12;
     sb_metric_t r;
@@ -469,29 +433,24 @@ SB_TEST(metric_matches_weighted_native) {
     CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_COS2, &mt, &r) == SB_OK);
     CHECK(r.rel_l2[5] > 0 && isfinite(r.rel_l2[5]));
     sb_factors_destroy(f);
-    sb_plan_destroy(plan);
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_source_destroy(s);
 }
 
 SB_TEST(metric_lambert_zero) {
-    sb_source_t *s = model("lambert:albedo=0.3/0.6/0.9");
-    sb_param_t *p = io(6);
+    sb_source_t *s = fx_model("lambert:albedo=0.3/0.6/0.9");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 6);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_plan_opts_t po = {0};
     po.terms = 1;
-    sb_plan_t *plan;
-    sb_factors_t *f;
-    CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_factors_t *f = fx_factor(&m, p, &po);
     sb_metric_t r;
     CHECK(sb_metric_compute(NULL, s, f, p, SB_FORM_F, NULL, &r) == SB_OK);
     CHECKF(r.rel_l2[0] < 1e-12, "lambert metric %g", r.rel_l2[0]);
     CHECK(r.neg_frac[0] == 0 && r.neg_texels == 0);
     sb_factors_destroy(f);
-    sb_plan_destroy(plan);
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_source_destroy(s);
@@ -500,18 +459,15 @@ SB_TEST(metric_lambert_zero) {
 /* Weighted plans minimise the weighted norm: their weighted error equals the
  * Eckart-Young tail of W_r M W_c computed independently. */
 SB_TEST(weighted_eckart_young) {
-    sb_source_t *s = model("microfacet:roughness=0.3");
+    sb_source_t *s = fx_model("microfacet:roughness=0.3");
     size_t R = 6, N = R * R, J = 5;
-    sb_param_t *p = io(R);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, R);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
     sb_plan_opts_t po = {0};
     po.terms = J;
     po.weighted = 1;
-    sb_plan_t *plan;
-    sb_factors_t *f;
-    CHECK(sb_plan_create(NULL, N, N, &po, &plan) == SB_OK);
-    CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+    sb_factors_t *f = fx_factor(&m, p, &po);
     double *x = malloc(N * N * sizeof *x);
     for (size_t c = 0; c < N; c++)
         for (size_t r = 0; r < N; r++)
@@ -525,7 +481,6 @@ SB_TEST(weighted_eckart_young) {
     free(sig);
     free(x);
     sb_factors_destroy(f);
-    sb_plan_destroy(plan);
     sb_matrix_free(&m);
     sb_param_destroy(p);
     sb_source_destroy(s);
@@ -540,13 +495,13 @@ static int wrap_eval(const void *self, const double wi[3], const double wo[3], d
 }
 
 SB_TEST(isotropic_fast_path) {
-    sb_source_t *s = model("microfacet:base=gold,roughness=0.3");
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.3");
     CHECK(sb_source_flags(s) & SB_SOURCE_ISOTROPIC);
     wrapped = s;
     sb_source_ops_t ops = {wrap_eval, NULL};
     sb_source_t *plain;
     CHECK(sb_source_create(NULL, &ops, NULL, 0, "plain", &plain) == SB_OK);
-    sb_param_t *p = io(9);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 9);
     for (int form = 0; form < SB_FORM_COUNT_; form++) {
         sb_matrix_t a, b;
         sb_matrix_opts_t mo = {0};
@@ -590,7 +545,7 @@ SB_TEST(errors_near_matches_explicit) {
         {"blinn-phong:n=50,kd=1e-20/1e-20/1e-20,ks=3e-21/2e-21/1e-21", SB_PARAM_IO, 7, 5, 0, SB_METHOD_RANDOMIZED},
     };
     for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
-        sb_source_t *s = model(cases[t].spec);
+        sb_source_t *s = fx_model(cases[t].spec);
         sb_param_t *p = NULL;
         sb_param_opts_t o = {0};
         o.res = cases[t].R;
@@ -602,10 +557,7 @@ SB_TEST(errors_near_matches_explicit) {
         po.terms = cases[t].J;
         po.weighted = cases[t].weighted;
         po.svd.method = cases[t].method;
-        sb_plan_t *plan;
-        sb_factors_t *f;
-        CHECK(sb_plan_create(NULL, m.rows, m.cols, &po, &plan) == SB_OK);
-        CHECK(sb_plan_execute(plan, &m, p, &f) == SB_OK);
+        sb_factors_t *f = fx_factor(&m, p, &po);
         size_t J = sb_factors_terms(f);
         double fit_rel = sb_factors_errors(f)->rel_rms[sb_err_at(J - 1, 3)];
         large += fit_rel >= 0.05, small += fit_rel < 0.01;
@@ -629,7 +581,6 @@ SB_TEST(errors_near_matches_explicit) {
         double tmp[64];
         CHECK(sb_factors_errors_near(NULL, f, f, &m, NULL, tmp) == SB_ERR_ARG);
         sb_factors_destroy(f);
-        sb_plan_destroy(plan);
         sb_matrix_free(&m);
         sb_param_destroy(p);
         sb_source_destroy(s);
@@ -649,7 +600,7 @@ SB_TEST(solver_registry) {
         for (size_t k = 0; k < i; k++)
             CHECK(strcmp(sb_solver_name(i), sb_solver_name(k)) != 0);
     }
-    sb_source_t *s = model("microfacet:base=gold,roughness=0.5");
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.5");
     sb_param_t *p = NULL;
     sb_param_opts_t o = {0};
     o.res = 6;
@@ -701,7 +652,7 @@ SB_TEST(masked_converged_terms) {
     sb_source_ops_t ops = {holey_eval, NULL};
     sb_source_t *s = NULL;
     CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
-    sb_param_t *p = io(6);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 6);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
     int partial = 0, none = 0, all = 0;

@@ -7,22 +7,9 @@
 #include <string.h>
 
 #include "../src/util/rdft.h"
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
-
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    CHECKF(sb_model_create(NULL, spec, &s) == SB_OK, "model %s", spec);
-    return s;
-}
-
-static sb_param_t *param(sb_param_kind_t kind, size_t R) {
-    sb_param_t *p = NULL;
-    sb_param_opts_t o = {0};
-    o.res = R;
-    CHECK(sb_param_create(NULL, kind, &o, &p) == SB_OK);
-    return p;
-}
 
 static void build(const sb_source_t *s, const sb_param_t *p, sb_form_t form, int structured, sb_matrix_t *m) {
     sb_matrix_opts_t mo = {0};
@@ -36,9 +23,9 @@ static void build(const sb_source_t *s, const sb_param_t *p, sb_form_t form, int
 SB_TEST(structured_cells) {
     const char *specs[] = {"microfacet:base=gold,roughness=0.4", "lambert:albedo=0.5", "blinn-phong:n=30"};
     for (size_t t = 0; t < 3; t++) {
-        sb_source_t *s = model(specs[t]);
+        sb_source_t *s = fx_model(specs[t]);
         size_t R = 6 + t;
-        sb_param_t *p = param(SB_PARAM_IO, R);
+        sb_param_t *p = fx_layout(SB_PARAM_IO, R);
         sb_matrix_t d, m, e;
         build(s, p, t == 1 ? SB_FORM_COS : SB_FORM_COS2, 0, &d);
         build(s, p, t == 1 ? SB_FORM_COS : SB_FORM_COS2, 1, &m);
@@ -77,10 +64,10 @@ SB_TEST(structured_cells) {
 SB_TEST(even_table_mirrors) {
     const char *specs[] = {"microfacet:base=gold,roughness=0.4", "phong:n=20", "lambert:albedo=0.5"};
     for (size_t t = 0; t < 3; t++) {
-        sb_source_t *s = model(specs[t]);
+        sb_source_t *s = fx_model(specs[t]);
         CHECKF(sb_source_flags(s) & SB_SOURCE_EVEN, "%s: not even", specs[t]);
         for (size_t R = 5; R <= 8; R += 3) {
-            sb_param_t *p = param(SB_PARAM_IO, R);
+            sb_param_t *p = fx_layout(SB_PARAM_IO, R);
             sb_matrix_t m;
             build(s, p, SB_FORM_F, 1, &m);
             CHECK(m.structured == 1 && m.phi_period == R);
@@ -112,8 +99,8 @@ SB_TEST(even_table_mirrors) {
 /* Only the distinct values are stored where the structure applies: a
  * masked or anisotropic matrix is built dense even when asked. */
 SB_TEST(structured_only_where_it_applies) {
-    sb_source_t *s = model("microfacet:base=gold,roughness=0.4");
-    sb_param_t *hd = param(SB_PARAM_HD, 6);
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.4");
+    sb_param_t *hd = fx_layout(SB_PARAM_HD, 6);
     sb_matrix_t m;
     build(s, hd, SB_FORM_F, 1, &m);
     CHECK(m.structured == 0 && m.ld == m.rows && m.phi_period == 0);
@@ -145,9 +132,9 @@ static double product_off(const sb_matrix_t *m, int c, size_t k, const double *z
  * no sine part) and of one that is not (a plane changed by hand, block
  * circulant but not even: the sine part taken), against the sums. */
 SB_TEST(product_even_and_not) {
-    sb_source_t *s = model("microfacet:base=copper,roughness=0.3");
+    sb_source_t *s = fx_model("microfacet:base=copper,roughness=0.3");
     for (size_t R = 3; R <= 8; R++) {
-        sb_param_t *p = param(SB_PARAM_IO, R);
+        sb_param_t *p = fx_layout(SB_PARAM_IO, R);
         sb_matrix_t m;
         build(s, p, SB_FORM_F, 1, &m);
         size_t N = m.cols, k = 3;
@@ -168,11 +155,11 @@ SB_TEST(product_even_and_not) {
 
 /* Y = M Z against the product written out cell by cell. */
 SB_TEST(product) {
-    sb_source_t *s = model("microfacet:base=copper,roughness=0.3");
+    sb_source_t *s = fx_model("microfacet:base=copper,roughness=0.3");
     static const size_t Rs[] = {3, 4, 6, 8, 9}; /* 4, 8: the transform by FFT (util/rdft.h) */
     for (size_t ri = 0; ri < sizeof Rs / sizeof Rs[0]; ri++) {
         size_t R = Rs[ri];
-        sb_param_t *p = param(SB_PARAM_IO, R);
+        sb_param_t *p = fx_layout(SB_PARAM_IO, R);
         sb_matrix_t m, d;
         build(s, p, SB_FORM_F, 1, &m);
         build(s, p, SB_FORM_F, 0, &d);
@@ -222,8 +209,8 @@ static sb_factors_t *factor(const sb_matrix_t *m, const sb_param_t *p, size_t J,
  * circulant method reads the stored values, the dense methods an expanded
  * copy; the stored-precision errors (sb_factors_errors_near) agree too. */
 SB_TEST(plan_on_structured) {
-    sb_source_t *s = model("microfacet:base=gold,roughness=0.5");
-    sb_param_t *p = param(SB_PARAM_IO, 8);
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.5");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m, d;
     build(s, p, SB_FORM_F, 1, &m);
     build(s, p, SB_FORM_F, 0, &d);
@@ -266,8 +253,8 @@ SB_TEST(plan_on_structured) {
 
 /* Proportional channels: the same answer from the stored values. */
 SB_TEST(channels_on_structured) {
-    sb_source_t *s = model("lambert:albedo=0.2/0.4/0.8");
-    sb_param_t *p = param(SB_PARAM_IO, 7);
+    sb_source_t *s = fx_model("lambert:albedo=0.2/0.4/0.8");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 7);
     sb_matrix_t m, d;
     build(s, p, SB_FORM_COS2, 1, &m);
     build(s, p, SB_FORM_COS2, 0, &d);
@@ -290,8 +277,8 @@ SB_TEST(channels_on_structured) {
 SB_TEST(memory_follows_storage) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
-    sb_source_t *s = model("lambert");
-    sb_param_t *p = param(SB_PARAM_IO, 32);
+    sb_source_t *s = fx_model("lambert");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 32);
     sb_set_memory_limit((size_t)4 << 20); /* dense: 24 MiB + 1 MiB mask; distinct values: 768 KiB */
     sb_matrix_t m;
     sb_matrix_opts_t mo = {0};

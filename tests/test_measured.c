@@ -7,6 +7,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "fixtures.h"
 #include "harness.h"
 #include "measured_util.h"
 #include "sepbrdf/sepbrdf.h"
@@ -28,16 +29,6 @@ static const char *tmp_path(const char *tag, const char *name) {
 static int has_measured_dir(void) {
     struct stat st;
     return stat(SB_MEASURED_DIR, &st) == 0 && S_ISDIR(st.st_mode);
-}
-
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_result_t r = sb_model_create(ctx, spec, &s);
-    CHECKF(r == SB_OK, "model %s: %s", spec, sb_context_last_error(ctx));
-    sb_context_destroy(ctx);
-    return s;
 }
 
 /* Open a table; on failure report the message. */
@@ -181,7 +172,7 @@ SB_TEST(merl_index_mapping) {
  * centres (as stored: value / scale, little-endian, channel-planar). */
 SB_TEST(merl_write_read_model) {
     const char *path = tmp_path("merl", "gold.binary");
-    sb_source_t *m = model("microfacet:base=gold,roughness=0.5");
+    sb_source_t *m = fx_model("microfacet:base=gold,roughness=0.5");
     sb_context_t *ctx;
     sb_context_create(&ctx);
     sb_result_t r = sb_merl_write(ctx, path, m);
@@ -373,7 +364,7 @@ SB_TEST(merl_hostile) {
     /* the writer: unwritable folder, nothing left behind */
     sb_context_t *ctx;
     sb_context_create(&ctx);
-    sb_source_t *m = model("lambert:albedo=0.5");
+    sb_source_t *m = fx_model("lambert:albedo=0.5");
     snprintf(p, sizeof p, "%s/no/such/dir/x.binary", dir);
     CHECK(sb_merl_write(ctx, p, m) == SB_ERR_IO);
     CHECK(strstr(sb_context_last_error(ctx), p) != NULL);
@@ -692,7 +683,7 @@ static double rel_frobenius_rank(const sb_factors_t *a, const sb_factors_t *b, s
 
 static const char *write_gonio(const char *spec, const sb_gonio_opts_t *go, size_t *rows) {
     const char *path = tmp_path("gonio", "table.csv");
-    sb_source_t *m = model(spec);
+    sb_source_t *m = fx_model(spec);
     FILE *fp = fopen(path, "w");
     CHECK(fp != NULL);
     sb_result_t r = sb_gonio_write_csv(NULL, fp, m, go, rows);
@@ -716,7 +707,7 @@ SB_TEST(gonio_roundtrip) {
     CHECK(rows == 18 * 18 * 72);
     sb_measured_info_t info;
     sb_source_t *t = open_table(path, NULL, &info);
-    sb_source_t *m = model("microfacet:base=gold,roughness=0.5");
+    sb_source_t *m = fx_model("microfacet:base=gold,roughness=0.5");
     if (!t) return;
     CHECK(strcmp(info.format, "csv") == 0 && info.rows == rows && info.samples == rows);
     CHECK(sb_source_flags(t) & SB_SOURCE_ISOTROPIC);
@@ -763,7 +754,7 @@ SB_TEST(gonio_symmetry_modes) {
     sb_gonio_opts_t go = {9, 1, 9, 36, 0, 0};
     size_t rows;
     const char *path = write_gonio("microfacet:base=0.7/0.5/0.3,roughness=0.6", &go, &rows);
-    sb_source_t *m = model("microfacet:base=0.7/0.5/0.3,roughness=0.6");
+    sb_source_t *m = fx_model("microfacet:base=0.7/0.5/0.3,roughness=0.6");
     static const sb_interp_t modes[4] = {SB_INTERP_NEAREST, SB_INTERP_IDW, SB_INTERP_LINEAR, SB_INTERP_QUADRATIC};
     for (int k = 0; k < 4; k++) {
         sb_measured_opts_t o = {0};
@@ -810,7 +801,7 @@ SB_TEST(gonio_symmetry_modes) {
 /* An anisotropic table (several light azimuths, declared anisotropic). */
 SB_TEST(gonio_anisotropic) {
     const char *path = tmp_path("gonio", "aniso.csv");
-    sb_source_t *m = model("microfacet:base=0.5,roughness=0.7");
+    sb_source_t *m = fx_model("microfacet:base=0.5,roughness=0.7");
     FILE *fp = fopen(path, "w");
     sb_gonio_opts_t go = {9, 12, 9, 24, 0, 0};
     CHECK(sb_gonio_write_csv(NULL, fp, m, &go, NULL) == SB_OK);
@@ -855,7 +846,7 @@ SB_TEST(gonio_anisotropic) {
 }
 
 SB_TEST(gonio_noise_and_ranges) {
-    sb_source_t *m = model("lambert:albedo=0.5");
+    sb_source_t *m = fx_model("lambert:albedo=0.5");
     const char *dir = sb_tmpdir("noise");
     char p[3][4200];
     sb_gonio_opts_t go = {6, 1, 6, 24, 0.1, 7};
@@ -999,7 +990,7 @@ SB_TEST(coverage_radius) {
         sb_source_destroy(s);
     }
     /* an analytic source covers everything */
-    sb_source_t *m = model("lambert");
+    sb_source_t *m = fx_model("lambert");
     CHECK(sb_measured_coverage(NULL, m, prm, &known, &cells) == SB_OK && known == cells);
     sb_source_destroy(m);
     sb_param_destroy(prm);
@@ -1209,7 +1200,7 @@ SB_TEST(samples_and_cv) {
         sb_source_destroy(s);
     }
     /* a model has no samples: no error against them */
-    sb_source_t *m = model("lambert");
+    sb_source_t *m = fx_model("lambert");
     CHECK(sb_source_sample_count(m) == 0 && sb_measured_source_info(m) == NULL);
     sb_sample_errors_t se;
     CHECK(sb_measured_sample_errors(NULL, m, NULL, NULL, SB_FORM_F, &se) == SB_ERR_ARG);
@@ -1244,7 +1235,7 @@ SB_TEST(lobe_recovers_model) {
     sb_measured_opts_t o = {0};
     sb_measured_info_t on, off;
     o.lobe = SB_LOBE_ON;
-    sb_source_t *t = open_table(p, &o, &on), *m = model(spec);
+    sb_source_t *t = open_table(p, &o, &on), *m = fx_model(spec);
     o.lobe = SB_LOBE_OFF;
     sb_source_t *u = open_table(p, &o, &off);
     if (!t || !u || !m) return;
@@ -1288,7 +1279,7 @@ SB_TEST(lobe_keeps_grazing_peak) {
     sb_measured_opts_t o = {0};
     sb_measured_info_t in;
     o.lobe = SB_LOBE_ON;
-    sb_source_t *t = open_table(p, &o, &in), *m = model(spec);
+    sb_source_t *t = open_table(p, &o, &in), *m = fx_model(spec);
     if (!t || !m) return;
     CHECKF(in.lobe.fitted && strcmp(in.lobe.ndf, "ggx") == 0, "%s", in.lobe.ndf);
     CHECK(in.lobe.d_cap > 0 && isfinite(in.lobe.d_cap));
@@ -1320,7 +1311,7 @@ SB_TEST(lobe_predicts_held_out_mirror) {
     sb_gonio_opts_t go = {8, 1, 8, 24, 0, 0};
     size_t rows = 0;
     const char *p = write_gonio(spec, &go, &rows);
-    sb_source_t *m = model(spec);
+    sb_source_t *m = fx_model(spec);
     char held[4096];
     snprintf(held, sizeof held, "%s", tmp_path("gonio", "held.csv"));
     for (int k = 5; k < 8 && m; k++) { /* theta 61.9, 73.1, 84.4 deg */

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
@@ -98,17 +99,11 @@ static void compare(sb_source_t *s, const char *label, sb_param_kind_t kind, siz
     sb_param_destroy(p);
 }
 
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    CHECKF(sb_model_create(NULL, spec, &s) == SB_OK, "model %s", spec);
-    return s;
-}
-
 SB_TEST(analytic_nonneg) {
     const char *specs[] = {"cook-torrance:d=ggx,roughness=0.1", "cook-torrance:d=ggx,roughness=0.3",
                            "cook-torrance:d=ggx,roughness=0.5", "blinn-phong:n=50"};
     for (size_t k = 0; k < sizeof specs / sizeof specs[0]; k++) {
-        sb_source_t *s = model(specs[k]);
+        sb_source_t *s = fx_model(specs[k]);
         if (!s) continue;
         compare(s, specs[k], SB_PARAM_IO, 12, 0, 0);
         compare(s, specs[k], SB_PARAM_HD, 8, 1, 0);

@@ -8,24 +8,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
 #define ANISO "microfacet:base=0.9/0.6/0.3,metallic=0.5,roughness=0.4,anisotropy=0.8"
-
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    CHECKF(sb_model_create(NULL, spec, &s) == SB_OK, "model %s", spec);
-    return s;
-}
-
-static sb_param_t *layout(sb_param_kind_t kind, size_t R) {
-    sb_param_t *p = NULL;
-    sb_param_opts_t o = {0};
-    o.res = R;
-    CHECK(sb_param_create(NULL, kind, &o, &p) == SB_OK);
-    return p;
-}
 
 static void build(const sb_source_t *s, const sb_param_t *p, sb_form_t form, int stream, sb_matrix_t *m) {
     sb_matrix_opts_t mo = {0};
@@ -52,11 +39,11 @@ static sb_factors_t *factor(const sb_matrix_t *m, const sb_param_t *p, size_t J,
  * in every form (the streamed one weighs a cell by a row factor times a
  * column factor). */
 SB_TEST(reads_as_stored) {
-    sb_source_t *s = model(ANISO);
+    sb_source_t *s = fx_model(ANISO);
     static const sb_param_kind_t kinds[] = {SB_PARAM_IO, SB_PARAM_IO_AREA};
     static const sb_form_t forms[] = {SB_FORM_F, SB_FORM_COS, SB_FORM_COS2};
     for (int k = 0; k < 6; k++) {
-        sb_param_t *p = layout(kinds[k % 2], 6);
+        sb_param_t *p = fx_layout(kinds[k % 2], 6);
         sb_matrix_t d, m, e;
         build(s, p, forms[k / 2], 0, &d);
         build(s, p, forms[k / 2], 1, &m);
@@ -95,8 +82,8 @@ SB_TEST(reads_as_stored) {
  * streamed residual equals the explicit one of sb_factors_errors_against,
  * which on the streamed matrix (a blocked pass) gives the dense errors. */
 SB_TEST(matches_dense_svd) {
-    sb_source_t *s = model(ANISO);
-    sb_param_t *p = layout(SB_PARAM_IO, 12);
+    sb_source_t *s = fx_model(ANISO);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 12);
     sb_matrix_t d, m;
     build(s, p, SB_FORM_F, 0, &d);
     build(s, p, SB_FORM_F, 1, &m);
@@ -130,8 +117,8 @@ SB_TEST(matches_dense_svd) {
  * by one term; method stream on a stored matrix gives the bits of the
  * streamed one (the same blocks, the same products). */
 SB_TEST(rank_one_and_stored) {
-    sb_source_t *s = model("lambert:albedo=0.2/0.5/0.8");
-    sb_param_t *p = layout(SB_PARAM_IO, 8);
+    sb_source_t *s = fx_model("lambert:albedo=0.2/0.5/0.8");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t d, m;
     build(s, p, SB_FORM_COS2, 0, &d);
     build(s, p, SB_FORM_COS2, 1, &m);
@@ -151,8 +138,8 @@ SB_TEST(rank_one_and_stored) {
  * three (blocks of 85, 85, 85 and 1 columns, cut unevenly) give the same
  * factors. */
 SB_TEST(threads_agree) {
-    sb_source_t *s = model(ANISO);
-    sb_param_t *p = layout(SB_PARAM_IO, 16);
+    sb_source_t *s = fx_model(ANISO);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 16);
     sb_set_memory_limit((size_t)4 << 20); /* blocks of (4 MiB / 8) / (256 rows x 3 doubles) = 85 columns */
     sb_matrix_t m;
     build(s, p, SB_FORM_COS2, 1, &m);
@@ -183,10 +170,10 @@ SB_TEST(threads_agree) {
  * channels of the stored matrix give (the same passes, channel by
  * channel); a coloured source keeps its channels apart. */
 SB_TEST(grey_one_channel) {
-    sb_source_t *grey = model("microfacet:base=0.6,roughness=0.4,anisotropy=0.8"), *col = model(ANISO);
+    sb_source_t *grey = fx_model("microfacet:base=0.6,roughness=0.4,anisotropy=0.8"), *col = fx_model(ANISO);
     CHECK(sb_source_flags(grey) & SB_SOURCE_GRAY);
     CHECK(!(sb_source_flags(col) & SB_SOURCE_GRAY));
-    sb_param_t *p = layout(SB_PARAM_IO, 10);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 10);
     sb_matrix_t d, m;
     build(grey, p, SB_FORM_COS2, 0, &d);
     build(grey, p, SB_FORM_COS2, 1, &m);
@@ -220,8 +207,8 @@ SB_TEST(grey_one_channel) {
  * (structured) streams instead of failing; a plain build still refuses;
  * layouts with cells outside the domain (hd) never stream. */
 SB_TEST(streams_beyond_limit) {
-    sb_source_t *s = model(ANISO);
-    sb_param_t *p = layout(SB_PARAM_IO, 24), *hd = layout(SB_PARAM_HD, 24);
+    sb_source_t *s = fx_model(ANISO);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 24), *hd = fx_layout(SB_PARAM_HD, 24);
     sb_matrix_opts_t mo = {0};
     mo.structured = 1;
     size_t dense = sb_matrix_bytes(s, p, &mo);
@@ -349,8 +336,8 @@ static int run_group(shared_t *sh, member_t *mem, const sb_matrix_t *m, const sb
  * combined) equal those of one process to 1e-9; a failing reduce is
  * SB_ERR_IO on every member; a rank outside the group is refused. */
 SB_TEST(group_equals_alone) {
-    sb_source_t *s = model(ANISO);
-    sb_param_t *p = layout(SB_PARAM_IO, 24);
+    sb_source_t *s = fx_model(ANISO);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 24);
     sb_set_memory_limit((size_t)4 << 20); /* blocks of 37 columns of 576 */
     sb_matrix_t m;
     build(s, p, SB_FORM_F, 1, &m);

@@ -27,6 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 #include "util/shared.h" /* sizes, file errors: not exported, in the static archive */
@@ -118,24 +119,6 @@ static sb_source_t *custom(custom_t c, unsigned flags) {
     sb_source_t *s = NULL;
     CHECK(sb_source_create(NULL, &ops, self, flags, "stress", &s) == SB_OK);
     return s;
-}
-
-static sb_source_t *model(const char *spec) {
-    sb_source_t *s = NULL;
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_result_t r = sb_model_create(ctx, spec, &s);
-    CHECKF(r == SB_OK, "model %s: %s", spec, sb_context_last_error(ctx));
-    sb_context_destroy(ctx);
-    return s;
-}
-
-static sb_param_t *io(size_t R) {
-    sb_param_t *p = NULL;
-    sb_param_opts_t o = {0};
-    o.res = R;
-    CHECK(sb_param_create(NULL, SB_PARAM_IO, &o, &p) == SB_OK);
-    return p;
 }
 
 /* ---- invariants --------------------------------------------------------- */
@@ -420,7 +403,7 @@ out:
     return f;
 }
 
-/* Build m for src on io(R), checking the build is deterministic. */
+/* Build m for src on fx_layout(SB_PARAM_IO, R), checking the build is deterministic. */
 static int build(const sb_source_t *src, const sb_param_t *p, sb_form_t form, unsigned channels, sb_matrix_t *m) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -436,9 +419,9 @@ static int build(const sb_source_t *src, const sb_param_t *p, sb_form_t form, un
     return 1;
 }
 
-/* One source through check_fit on io(R), J terms, every form asked for. */
+/* One source through check_fit on fx_layout(SB_PARAM_IO, R), J terms, every form asked for. */
 static void run_source(const sb_source_t *src, size_t R, size_t J, int weighted, const char *label) {
-    sb_param_t *p = io(R);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, R);
     for (int form = 0; form < SB_FORM_COUNT_; form += 2) { /* f and cos2 */
         sb_matrix_t m;
         if (!build(src, p, (sb_form_t)form, 0, &m)) continue;
@@ -459,7 +442,7 @@ SB_TEST(ggx_low_roughness) {
     static const char *const specs[] = {"microfacet:roughness=0.001", "microfacet:base=gold,roughness=0.0316",
                                         "microfacet:roughness=0.01,metallic=1,base=0.9/0.5/0.1"};
     for (size_t i = 0; i < 3; i++) {
-        sb_source_t *s = model(specs[i]);
+        sb_source_t *s = fx_model(specs[i]);
         if (!s) continue;
         run_source(s, 12, 144, 0, specs[i]); /* J = N: every term */
         run_source(s, 16, 12, 1, specs[i]);
@@ -472,8 +455,8 @@ SB_TEST(ggx_low_roughness) {
 SB_TEST(grazing) {
     sb_source_t *s = custom((custom_t){GRAZING, 1, 0, 0, NULL}, SB_SOURCE_RECIPROCAL);
     run_source(s, 24, 8, 0, "1/(cos cos)");
-    sb_source_t *ggx = model("microfacet:roughness=0.001");
-    sb_param_t *p = io(8);
+    sb_source_t *ggx = fx_model("microfacet:roughness=0.001");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(build(ggx, p, SB_FORM_F, 0, &m));
     fit_opts_t fo = {6, 0, 0, SB_METHOD_FULL, 1, 0};
@@ -510,7 +493,7 @@ SB_TEST(grazing) {
 /* f = 0: sigma 0, textures 0, errors 0, no division by a zero norm. */
 SB_TEST(zero_brdf) {
     sb_source_t *s = custom((custom_t){ZERO, 1, 0, 0, NULL}, SB_SOURCE_RECIPROCAL | SB_SOURCE_ISOTROPIC);
-    sb_param_t *p = io(8);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(build(s, p, SB_FORM_COS2, 0, &m));
     for (int weighted = 0; weighted < 2; weighted++) {
@@ -534,7 +517,7 @@ SB_TEST(zero_brdf) {
  * that must still be finite, signed by the rule and non-increasing. */
 SB_TEST(constant_brdf) {
     sb_source_t *s = custom((custom_t){CONSTANT, 1, 0, 0, NULL}, SB_SOURCE_RECIPROCAL | SB_SOURCE_ISOTROPIC);
-    sb_param_t *p = io(8);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(build(s, p, SB_FORM_F, 0, &m));
     fit_opts_t fo = {64, 0, 0, SB_METHOD_FULL, 1, 0};
@@ -554,7 +537,7 @@ SB_TEST(constant_brdf) {
  * sum (g_last = g_0 + g_1) of K products has rank K - 1. */
 SB_TEST(exact_rank_k) {
     static const int ranks[] = {1, 2, 3, 5, 7};
-    sb_param_t *p = io(12);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 12);
     for (size_t i = 0; i < sizeof ranks / sizeof ranks[0]; i++)
         for (int dep = 0; dep < 2; dep++) {
             int K = ranks[i];
@@ -590,8 +573,8 @@ SB_TEST(exact_rank_k) {
  * instead of flushing it. */
 SB_TEST(extreme_scales) {
     static const double scales[] = {1, 1e300, 1e30, 1e-30, 1e-300, 1e-310}; /* 1 first: the reference */
-    sb_source_t *ggx = model("microfacet:base=copper,roughness=0.2");
-    sb_param_t *p = io(8);
+    sb_source_t *ggx = fx_model("microfacet:base=copper,roughness=0.2");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     double ref[8 * 4], ref_masked = 0;
     for (size_t i = 0; i < sizeof scales / sizeof scales[0]; i++) {
         sb_source_t *s = custom((custom_t){SCALED, scales[i], 0, 0, ggx}, 0);
@@ -646,9 +629,9 @@ SB_TEST(extreme_scales) {
  * (mask 0, value 0), negative values stay values; the masked fit and the
  * zero-filled fit give finite outputs. */
 SB_TEST(hostile_cells) {
-    sb_source_t *ggx = model("microfacet:base=gold,roughness=0.3");
+    sb_source_t *ggx = fx_model("microfacet:base=gold,roughness=0.3");
     sb_source_t *s = custom((custom_t){HOSTILE, 1, 0, 0, ggx}, SB_SOURCE_MEASURED);
-    sb_param_t *p = io(8);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     if (build(s, p, SB_FORM_F, 0, &m)) {
         CHECK(m.mask != NULL);
@@ -685,13 +668,13 @@ SB_TEST(hostile_cells) {
 /* R from 2 up, J from 1 to the full rank. */
 SB_TEST(resolutions) {
     static const size_t Rs[] = {2, 3, 4, 5, 7, 8, 16};
-    sb_source_t *ggx = model("microfacet:base=silver,roughness=0.15");
-    sb_source_t *lam = model("lambert:albedo=0.9/0.5/0.1");
+    sb_source_t *ggx = fx_model("microfacet:base=silver,roughness=0.15");
+    sb_source_t *lam = fx_model("lambert:albedo=0.9/0.5/0.1");
     for (size_t i = 0; i < sizeof Rs / sizeof Rs[0]; i++) {
         size_t R = Rs[i], N = R * R;
         size_t Js[3] = {1, N / 2 ? N / 2 : 1, N};
         if (R == 16) Js[2] = 64; /* N = 256: keep the run short */
-        sb_param_t *p = io(R);
+        sb_param_t *p = fx_layout(SB_PARAM_IO, R);
         sb_matrix_t m, ml;
         if (build(ggx, p, SB_FORM_COS2, 0, &m) && build(lam, p, SB_FORM_F, 0, &ml)) {
             for (int k = 0; k < 3; k++) {
@@ -710,7 +693,7 @@ SB_TEST(resolutions) {
         sb_param_destroy(p);
     }
     /* R = 32 (N = 1024), one channel */
-    sb_param_t *p = io(32);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 32);
     sb_matrix_t m;
     if (build(ggx, p, SB_FORM_COS2, 2, &m)) {
         fit_opts_t fo = {16, 1, 0, SB_METHOD_FULL, 1, 0};
@@ -762,14 +745,14 @@ SB_TEST(methods_on_low_rank) {
             }
         }
         for (size_t ri = 0; ri < 2; ri++) {
-            sb_param_t *p = io(Rs[ri]);
+            sb_param_t *p = fx_layout(SB_PARAM_IO, Rs[ri]);
             for (int src_kind = 0; src_kind < 5; src_kind++) {
                 int rank = src_kind == 0 ? 0 : src_kind == 1 ? 1 : src_kind == 2 ? 3 : src_kind == 3 ? 4 : -1;
                 sb_source_t *s = src_kind == 0   ? custom((custom_t){ZERO, 1, 0, 0, NULL}, 0)
                                  : src_kind == 1 ? custom((custom_t){CONSTANT, 1, 0, 0, NULL}, 0)
                                  : src_kind == 2 ? custom((custom_t){SEPARABLE, 1, 3, 0, NULL}, 0)
                                  : src_kind == 3 ? custom((custom_t){SEPARABLE, 1, 5, 1, NULL}, 0)
-                                                 : model("microfacet:base=gold,roughness=0.3");
+                                                 : fx_model("microfacet:base=gold,roughness=0.3");
                 sb_matrix_t m;
                 if (s && build(s, p, SB_FORM_F, 2, &m)) { /* one channel: the methods are per channel */
                     for (size_t ji = 0; ji < 4; ji++) {
@@ -800,8 +783,8 @@ SB_TEST(methods_on_low_rank) {
 SB_TEST(large_resolutions) {
     sb_method_t meth = fast_method();
     if (meth == SB_METHOD_AUTO) SKIP("R = 64, 128: no top-k or randomized SVD in this build (dgesdd only)");
-    sb_source_t *ggx = model("microfacet:base=gold,roughness=0.3");
-    sb_param_t *p = io(64);
+    sb_source_t *ggx = fx_model("microfacet:base=gold,roughness=0.3");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 64);
     sb_matrix_t m;
     if (build(ggx, p, SB_FORM_COS2, 2, &m)) {
         fit_opts_t fo = {4, 1, 0, meth, meth == SB_METHOD_TOPK, 1};
@@ -811,8 +794,8 @@ SB_TEST(large_resolutions) {
     sb_param_destroy(p);
     sb_source_destroy(ggx);
     if (sb_memory_limit() < ((size_t)8 << 30)) SKIP("R = 128: less than 8 GiB of memory");
-    sb_source_t *lam = model("lambert:albedo=0.5");
-    p = io(128);
+    sb_source_t *lam = fx_model("lambert:albedo=0.5");
+    p = fx_layout(SB_PARAM_IO, 128);
     if (build(lam, p, SB_FORM_F, 1, &m)) {
         sb_context_t *ctx;
         sb_context_create(&ctx);
@@ -840,9 +823,9 @@ SB_TEST(large_resolutions) {
 /* The same seed gives the same masked fit; the matrix build does not depend
  * on the number of threads. */
 SB_TEST(determinism) {
-    sb_source_t *ggx = model("microfacet:base=gold,roughness=0.3");
+    sb_source_t *ggx = fx_model("microfacet:base=gold,roughness=0.3");
     sb_source_t *s = custom((custom_t){HOSTILE, 1, 0, 0, ggx}, SB_SOURCE_MEASURED);
-    sb_param_t *p = io(8);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t a, b;
     sb_matrix_opts_t mo = {0};
     mo.threads = 1;
@@ -913,7 +896,7 @@ SB_TEST(phong_high_exponent) {
  * covered without editing this file). */
 SB_TEST(all_models) {
     for (size_t i = 0; i < sb_model_count(); i++) {
-        sb_source_t *s = model(sb_model_at(i)->name);
+        sb_source_t *s = fx_model(sb_model_at(i)->name);
         if (!s) continue;
         run_source(s, 8, 16, 1, sb_model_at(i)->name);
         sb_source_destroy(s);
@@ -926,8 +909,8 @@ SB_TEST(all_models) {
 SB_TEST(memory_limit) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
-    sb_source_t *s = model("lambert");
-    sb_param_t *p = io(32);
+    sb_source_t *s = fx_model("lambert");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 32);
     sb_set_memory_limit((size_t)1 << 20);
     sb_matrix_t m;
     CHECK(sb_matrix_build(ctx, s, p, NULL, &m) == SB_ERR_OVERFLOW);
@@ -963,9 +946,9 @@ SB_TEST(memory_limit) {
  * at least the half rounding level where the fit is exact. */
 SB_TEST(half_precision_ggx) {
     static const char *const specs[] = {"microfacet:roughness=0.0316", "microfacet:roughness=0.001"};
-    sb_param_t *p = io(16);
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 16);
     for (size_t i = 0; i < 2; i++) {
-        sb_source_t *s = model(specs[i]);
+        sb_source_t *s = fx_model(specs[i]);
         sb_matrix_t m;
         if (!s || !build(s, p, SB_FORM_COS2, 0, &m)) {
             sb_source_destroy(s);
@@ -1014,8 +997,8 @@ SB_TEST(half_precision_ggx) {
 
 /* sb_factors_quantize is exactly a write and a read of the EXR files. */
 SB_TEST(quantize_is_write_read) {
-    sb_source_t *s = model("microfacet:base=copper,roughness=0.05");
-    sb_param_t *p = io(8);
+    sb_source_t *s = fx_model("microfacet:base=copper,roughness=0.05");
+    sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(build(s, p, SB_FORM_F, 0, &m));
     sb_plan_opts_t po = {0};
