@@ -196,6 +196,11 @@ typedef struct sb_plan_opts {
      * prefix is lower (docs/positive.md, "Refitted toward the headline's
      * own ratios").  Must outlive the plan. */
     const double *nonneg_ratio;
+    /* As nonneg_ratio, per colour channel: 3 x `terms` numbers, channel c's
+     * at c * terms (each channel's headline over the default method's
+     * channel); where given, a channel's solve takes its own instead of
+     * nonneg_ratio.  NULL: none.  Must outlive the plan. */
+    const double *nonneg_ratio_channel;
 } sb_plan_opts_t;
 #define SB_PLAN_OPTS_INIT                                                                                              \
     { .size = sizeof(sb_plan_opts_t) }

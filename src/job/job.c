@@ -134,7 +134,7 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     sb_result_t r = job_run_as(ctx, job->src, &o, job->is_auto | JOB_RUN_HEADLINE, &svd);
     if (r == SB_ERR_NOMEM) return r;
     free(job->svd_beside);
-    job->svd_beside = r == SB_OK ? malloc(2 * J * sizeof *job->svd_beside) : NULL;
+    job->svd_beside = r == SB_OK ? malloc(JOB_BESIDE_STRIDE * J * sizeof *job->svd_beside) : NULL;
     if (r != SB_OK) {
         job_warn(job, "no SVD beside the non-negative fit: %s", sb_context_last_error(ctx));
         return SB_OK;
@@ -145,9 +145,13 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     }
     const sb_factor_errors_t *e = sb_factors_errors(sb_job_factors(svd));
     size_t have = sb_factors_terms(sb_job_factors(svd));
+    const sb_estimate_t *est = sb_job_estimate(svd);
     for (size_t k = 0; k < J; k++) {
-        job->svd_beside[2 * k] = sb_job_headline(svd, k + 1);
-        job->svd_beside[2 * k + 1] = k < have ? e->rel_rms[sb_err_at(k, SB_CH_ALL)] : NAN;
+        double *b = job->svd_beside + JOB_BESIDE_STRIDE * k;
+        b[0] = sb_job_headline(svd, k + 1);
+        b[1] = k < have ? e->rel_rms[sb_err_at(k, SB_CH_ALL)] : NAN;
+        for (int c = 0; c < 3; c++) /* the channel's headline (NAN: not factored) */
+            b[2 + c] = est && k < est->terms && sb_matrix_has(&svd->best.m, c) ? est->rel[k][SB_EST_FCOS][c] : NAN;
     }
     job->svd_beside_terms = J;
     const char *m = sb_factors_get_meta(sb_job_factors(svd), "method");

@@ -254,6 +254,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     pl.fit_max_iters = lv->fit_max_iters;
     /* nonneg_ratio is beyond sepbrdf 0.1's options: the size says so */
     pl.nonneg_ratio = lv->nonneg_ratio;
+    pl.nonneg_ratio_channel = lv->nonneg_ratio_channel;
     pl.size = sizeof pl;
     if (a->scene_w) { /* the scene's weights instead of solid angles */
         pl.weighted = 1;

@@ -17,9 +17,18 @@ int job_nonneg_method(const char *name) {
 }
 
 double sb_job_svd_headline(const sb_job_t *job, size_t j) {
-    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[2 * (j - 1)] : NAN;
+    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[JOB_BESIDE_STRIDE * (j - 1)]
+                                                                          : NAN;
 }
 
 double sb_job_svd_rel_rms(const sb_job_t *job, size_t j) {
-    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms ? job->svd_beside[2 * (j - 1) + 1] : NAN;
+    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms
+               ? job->svd_beside[JOB_BESIDE_STRIDE * (j - 1) + 1]
+               : NAN;
+}
+
+double job_svd_headline_channel(const sb_job_t *job, size_t j, int c) {
+    return job && job->svd_beside && j >= 1 && j <= job->svd_beside_terms && c >= 0 && c < 3
+               ? job->svd_beside[JOB_BESIDE_STRIDE * (j - 1) + 2 + c]
+               : NAN;
 }

@@ -57,6 +57,7 @@ typedef struct job_level {
     double base, span;         /* progress = base + span * fraction */
     /* the plan's nonneg_ratio (factor.h; job_nonneg_refit); NULL: none */
     const double *nonneg_ratio;
+    const double *nonneg_ratio_channel; /* per channel, 3 x terms (factor.h); NULL: none */
 } job_level_t;
 
 #define JOB_MAX_CANDS (3 * SB_LAYOUTS_MAX) /* f and cos a layout, with room */
@@ -117,7 +118,8 @@ struct sb_job {
     double *rel_stored;      /* J * 4 after sb_job_write, NULL before or if unknown */
     int wrote_sampler;       /* sb_job_write wrote sampler.bin (non-negative factors) */
     sb_sampler_choice_t share; /* its cosine-weighted share and variance ratios (when wrote_sampler) */
-    double *svd_beside;        /* non-negative method: J x {headline, rel_rms} of the SVD (job_beside.c); NULL: none */
+    double *svd_beside; /* non-negative method: J x {headline, rel_rms, R, G, B headlines} of the SVD (job_beside.c);
+                           NULL: none */
     size_t svd_beside_terms;
     char svd_method[16];  /* the method the SVD beside used ("masked", "circulant", ...) */
     double svd_s;         /* its whole run */
@@ -271,6 +273,10 @@ void job_attempt_free(job_attempt_t *a);
  * (the plan's nonneg_ratio) and refined, kept where its worst ratio to
  * the SVD beside is lower (job_screen.c). */
 sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job);
+/* Numbers per J' in job->svd_beside; channel c's headline of the SVD
+ * beside at J' = j (NAN: none). */
+#define JOB_BESIDE_STRIDE 5
+double job_svd_headline_channel(const sb_job_t *job, size_t j, int c);
 /* A copy of the first j terms of f (textures, sigma, metadata, errors). */
 sb_result_t job_factors_copy(sb_context_t *ctx, const sb_factors_t *f, size_t j, sb_factors_t **out);
 /* a takes t's fit (factors, estimate, stats, metric; t made from a copy

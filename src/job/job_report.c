@@ -398,6 +398,14 @@ static void report_errors(sb_json_t *j, const sb_job_t *job) {
         sb_json_number(j, "svd_headline", sh);
         sb_json_number(j, "svd_rel_rms", sb_job_svd_rel_rms(job, k + 1));
         sb_json_number(j, "nmf_over_svd", sb_job_headline(job, k + 1) / sh);
+        double shc[3], ratio[3];
+        int have = k < a->est->terms;
+        for (int c = 0; c < 3; c++) {
+            shc[c] = job_svd_headline_channel(job, k + 1, c);
+            ratio[c] = have ? a->est->rel[k][SB_EST_FCOS][c] / shc[c] : NAN;
+        }
+        report_channels(j, "svd_headline_channel", &a->m, shc);
+        report_channels(j, "nmf_over_svd_channel", &a->m, ratio);
         report_channels(j, "rel_rms_channel", &a->m, e->rel_rms + sb_err_at(k, 0));
         report_channels(j, "max_abs_channel", &a->m, e->max_abs + sb_err_at(k, 0));
         sb_json_end_object(j);

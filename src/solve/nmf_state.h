@@ -51,6 +51,7 @@ typedef struct nmf_state {
     /* J: the headline's ratios of the fit made without them to the default
      * method's (the plan's nonneg_ratio); NULL: none */
     const double *rho;
+    const double *rho_all, *rho_ch; /* the plan's nonneg_ratio and nonneg_ratio_channel (rho: the channel's) */
     /* each prefix's ratio in the headline's weights times this: rho^2 over
      * that ratio of the fit made without rho (to_headline), else 1 */
     double cp[SB_NMF_MAX_TERMS];

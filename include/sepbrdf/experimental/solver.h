@@ -40,6 +40,8 @@ typedef struct sb_solve_problem {
     int streamed;      /* the matrix is streamed (matrix.h): never held, read in blocks of columns */
     /* the plan's nonneg_ratio (factor.h); NULL: none */
     const double *nonneg_ratio;
+    /* the plan's nonneg_ratio_channel (factor.h); NULL: none */
+    const double *nonneg_ratio_channel;
 } sb_solve_problem_t;
 
 /* One channel. */
