@@ -65,6 +65,13 @@ typedef struct job_level {
 /* Without --warp, the kept layout's headline at J above which "auto"
  * warps are tried (one more fit). */
 #define JOB_WARP_TRY 0.05
+/* A scattered table of fewer rows (four a cross-validation fold: below
+ * it job_cv holds none out) cannot tell layouts apart: every candidate's
+ * screened headline measures how it fits the interpolation between a few
+ * points, not the points.  Auto fits iso form f weighted there (its choice
+ * on every full scattered table measured) and tries no warps
+ * (job_few_rows). */
+#define JOB_FEW_ROWS 40
 #define JOB_BLAS_DENSE_CELLS ((size_t)1 << 20) /* a dense matrix from this many cells factors on every core */
 /* Replicates of 4096 pairs the job's estimator starts with (grown while
  * the upper bound of the headline's standard error is above the target,
@@ -423,6 +430,8 @@ void job_scene_free(sb_job_t *job);
 sb_result_t job_warp_parse(sb_context_t *ctx, const char *name, int *adaptive, sb_warp_kind_t *kind);
 /* With opts.warp, the kept fit again on the warped layout (job_warp.c). */
 sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job);
+/* Whether the source is a scattered table of fewer than JOB_FEW_ROWS rows. */
+int job_few_rows(const sb_job_t *job);
 /* The warped layout screened against candidate c (job_fit_kept, where
  * warp_first would leave its fit pending): whether it wins there. */
 int job_warp_screen(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c);

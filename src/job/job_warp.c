@@ -42,7 +42,7 @@ sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job) {
      * than JOB_WARP_TRY at J (sharp lobes: GGX roughness 0.1 5.2 % ->
      * 1.8 %, the RGL vinyl 91 % -> 35 %); not where --param gave the
      * whole layout (KIND:key=value, its warps included) */
-    if (!warp && b->f && b->est && !job->o.sample_only && job->shape != &job->spec_shape &&
+    if (!warp && b->f && b->est && !job->o.sample_only && job->shape != &job->spec_shape && !job_few_rows(job) &&
         (sb_param_caps(b->param) & SB_CAP_WARPS) && rank_at_j(b) > JOB_WARP_TRY)
         warp = "auto";
     job->warp_tried = warp && !job->o.warp;
