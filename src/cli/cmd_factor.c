@@ -82,8 +82,8 @@ static void print_candidates(const sb_job_t *job) {
                     : c->dropped ? "  dropped"
                                  : "");
         else
-            fprintf(stderr, "  %-8s form %-4s failed: %s\n", sb_param_kind_name(c->kind), sb_form_name(c->form),
-                    c->why);
+            fprintf(stderr, "  %-8s form %-4s %s%s\n", sb_param_kind_name(c->kind), sb_form_name(c->form),
+                    c->dropped ? "" : "failed: ", c->why); /* dropped unscreened: the why says so */
     }
 }
 

@@ -65,6 +65,13 @@ typedef struct job_level {
 /* Without --warp, the kept layout's headline at J above which "auto"
  * warps are tried (one more fit). */
 #define JOB_WARP_TRY 0.05
+/* A scattered table of fewer rows (four a cross-validation fold: below
+ * it job_cv holds none out) cannot tell layouts apart: every candidate's
+ * screened headline measures how it fits the interpolation between a few
+ * points, not the points.  Auto fits iso form f weighted there (its choice
+ * on every full scattered table measured) and tries no warps
+ * (job_few_rows). */
+#define JOB_FEW_ROWS 40
 #define JOB_BLAS_DENSE_CELLS ((size_t)1 << 20) /* a dense matrix from this many cells factors on every core */
 /* Replicates of 4096 pairs the job's estimator starts with (grown while
  * the upper bound of the headline's standard error is above the target,
@@ -125,6 +132,12 @@ struct sb_job {
     double svd_s;         /* its whole run */
     int warp_tried;       /* no --warp given, and "auto" was tried (job_warp.c) */
     unsigned fit_pending; /* job_fit_kept's FINISH_* flags; FINISH_PENDING: best awaits job_fit_finish */
+    /* job_warp_screen: the kept candidate's layout on adaptive warps at
+     * its screening resolution, its headline at J (0: not screened) and
+     * whether that decided the warp (best is the warped fit, no unwarped
+     * fit made) */
+    double warp_screen_error;
+    int warp_screened;
     char *warn[JOB_MAX_WARN];
     size_t nwarn;
     size_t nsupport; /* the last of warn[] are job_warn_support's */
@@ -417,8 +430,19 @@ void job_scene_free(sb_job_t *job);
 sb_result_t job_warp_parse(sb_context_t *ctx, const char *name, int *adaptive, sb_warp_kind_t *kind);
 /* With opts.warp, the kept fit again on the warped layout (job_warp.c). */
 sb_result_t job_warp_refit(sb_context_t *ctx, sb_job_t *job);
+/* Whether the source is a scattered table of fewer than JOB_FEW_ROWS rows. */
+int job_few_rows(const sb_job_t *job);
+/* The warped layout screened against candidate c (job_fit_kept, where
+ * warp_first would leave its fit pending): whether it wins there. */
+int job_warp_screen(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c);
+sb_result_t job_warp_fit(sb_context_t *ctx, sb_job_t *job, const char *warp, const sb_param_t *like, sb_form_t form,
+                         int weighted, job_attempt_t *a);
+job_level_t job_screen_level(const sb_job_t *job, size_t res, sb_param_opts_t *po);
+/* a's matrix fitted again on level lv; that fit replaces a's when its
+ * headline at J is lower (job_warp_fit.c) */
+sb_result_t job_keep_better_fit(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* Both axes' warps measured from the source (sb_warp_measure) into po,
- * for the texels per axis of `like` (job_warp.c). */
+ * for the texels per axis of `like` (job_warp_fit.c). */
 sb_result_t job_warps_measure(sb_context_t *ctx, const sb_job_t *job, const sb_param_t *like, sb_param_opts_t *po);
 
 #endif

@@ -30,6 +30,9 @@ static void report_warps(sb_json_t *j, const sb_job_t *job) {
     sb_json_begin_object(j, "warp");
     sb_json_string(j, "requested", job->o.warp);
     sb_json_bool(j, "auto_tried", job->warp_tried); /* none asked for, headline above 5 %: auto tried */
+    /* the kept candidate's layout on warps screened beside it (job_warp_screen) */
+    sb_json_number(j, "screen_headline", job->warp_screen_error > 0 ? job->warp_screen_error : NAN);
+    sb_json_bool(j, "screen_kept", job->warp_screened);
     for (int a = 0; a < SB_AXIS_COUNT_; a++) {
         const sb_warp_t *w = sb_param_warp(job->best.param, a);
         if (!w) continue;
