@@ -231,7 +231,7 @@ int main(int argc, char **argv) {
         sb_job_t *job = run(tr, J);
         double e = job ? held_error(job, he, J, worst) : NAN;
         sb_job_destroy(job);
-        printf("| %d | %zu | %.4f | %.2f |\n", s, nh, e, e / cv);
+        printf("| %d | %zu | %.4g | %.2f |\n", s, nh, e, e / cv);
         fflush(stdout);
     }
     fclose(f);

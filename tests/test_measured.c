@@ -1316,10 +1316,10 @@ SB_TEST(lobe_keeps_grazing_peak) {
  * random split holding one erred 4-13x the reported figure
  * (docs/measured.md, "Random splits against the reported figure"). */
 /* Each mirror row theta = (k + 0.5) 90 / 8 deg for k in [k0, k1) of a
- * table of spec sampled at --gonio 8,1,8,24, held out alone: the lobe
- * fitted to the others and the table's value there, every channel,
- * within tol of the model. */
-static void held_out_mirror(const char *spec, int k0, int k1, double tol) {
+ * table of spec sampled at --gonio 8,1,8,24, held out alone (or all of
+ * them together: `together`): the lobe fitted to the others and the
+ * table's value there, every channel, within tol of the model. */
+static void held_out_mirror(const char *spec, int k0, int k1, double tol, int together) {
     sb_gonio_opts_t go = {8, 1, 8, 24, 0, 0};
     size_t rows = 0;
     const char *p = write_gonio(spec, &go, &rows);
@@ -1328,6 +1328,7 @@ static void held_out_mirror(const char *spec, int k0, int k1, double tol) {
     snprintf(held, sizeof held, "%s", tmp_path("gonio", "held.csv"));
     for (int k = k0; k < k1 && m; k++) {
         double th = (k + 0.5) * 90.0 / 8, a, b, c, d, l[3], v[3], f[3], g[3];
+        int lo = together ? k0 : k, hi = together ? k1 : k + 1; /* the rows left out */
         FILE *in = fopen(p, "r"), *out = fopen(held, "w");
         CHECK(in && out);
         if (!in || !out) break;
@@ -1335,7 +1336,9 @@ static void held_out_mirror(const char *spec, int k0, int k1, double tol) {
         int dropped = 0;
         while (fgets(line, sizeof line, in)) {
             int row = sscanf(line, "%lf,%lf,%lf,%lf", &a, &b, &c, &d) == 4;
-            if (row && fabs(a - th) < 1e-6 && fabs(c - th) < 1e-6 && fabs(fabs(d - b) - 180) < 1e-6) {
+            double ka = a * 8 / 90 - 0.5; /* the row's elevation index */
+            if (row && fabs(ka - floor(ka + 0.5)) < 1e-6 && ka > lo - 0.5 && ka < hi - 0.5 && fabs(a - c) < 1e-6 &&
+                fabs(fabs(d - b) - 180) < 1e-6) {
                 dropped++;
                 continue;
             }
@@ -1343,7 +1346,7 @@ static void held_out_mirror(const char *spec, int k0, int k1, double tol) {
         }
         fclose(in);
         fclose(out);
-        CHECKF(dropped == 1, "theta %g: %d mirror rows", th, dropped);
+        CHECKF(dropped == hi - lo, "theta %g: %d mirror rows", th, dropped);
         sb_measured_info_t info;
         sb_source_t *t = open_table(held, NULL, &info);
         if (!t) break;
@@ -1361,7 +1364,19 @@ static void held_out_mirror(const char *spec, int k0, int k1, double tol) {
 }
 
 SB_TEST(lobe_predicts_held_out_mirror) {
-    held_out_mirror("microfacet:roughness=0.548", 5, 8, 0.05); /* theta 61.9, 73.1, 84.4 deg */
+    held_out_mirror("microfacet:roughness=0.548", 5, 8, 0.05, 0); /* theta 61.9, 73.1, 84.4 deg */
+}
+
+/* The grazing mirror rows of a glossy table held out together (as a
+ * random split holding two of them does): the microfacet model's diffuse
+ * (1 - F) base / pi falls towards grazing, which a constant kd could not
+ * follow (the lobe fitted GGX alpha 0.286 for 0.3 and the rows came back
+ * 4-7 % low: splits holding them erred 3-11x the reported figure).  With
+ * the diffuse factor 1 - (1 - v.h)^5 among the lobe's families they are
+ * within 1 %. */
+SB_TEST(lobe_predicts_grazing_mirror_rows_together) {
+    held_out_mirror("microfacet:roughness=0.548", 5, 8, 0.01, 1);
+    held_out_mirror("microfacet:roughness=0.316", 5, 8, 0.01, 1);
 }
 
 /* A coloured metal's highlight whitens towards grazing (Schlick's F per
@@ -1372,7 +1387,7 @@ SB_TEST(lobe_predicts_held_out_mirror) {
  * (docs/measured.md, "Random splits against the reported figure").  With
  * an F0 per channel they are within 5 % in every channel. */
 SB_TEST(lobe_predicts_coloured_grazing_mirror) {
-    held_out_mirror("microfacet:base=gold,roughness=0.4", 6, 8, 0.05); /* theta 73.1, 84.4 deg */
+    held_out_mirror("microfacet:base=gold,roughness=0.4", 6, 8, 0.05, 0); /* theta 73.1, 84.4 deg */
     sb_measured_info_t info;
     sb_gonio_opts_t go = {8, 1, 8, 24, 0, 0};
     size_t rows = 0;

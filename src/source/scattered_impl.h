@@ -18,13 +18,15 @@
 #define SAME_POSITION 1e-6
 
 /* The lobe a table's values are interpolated relative to
- * (scattered_lobe.c): f = kd + ks S(l, v), S of width alpha, Schlick F0. */
+ * (scattered_lobe.c): f = kd B + ks S(l, v), S of width alpha, Schlick F0,
+ * B 1 or 1 - (1 - v.h)^5. */
 #define LOBE_ALTS 4 /* the best shape and up to three that fit about as well */
 typedef struct lobe_alt {
     int ndf, cosp;
     double alpha, f0, kd[3], ks[3], dcap; /* dcap: D at most CAP x its largest at a sample */
     int pc;                               /* Schlick's F0 per channel (f0c), else f0 for all */
     double f0c[3];                        /* channel c's F0 (f0 in every channel when !pc) */
+    int fd;                               /* the diffuse term kd (1 - (1 - v.h)^5), else kd */
 } lobe_alt_t;
 typedef struct lobe {
     int fitted, ndf; /* ndf: 0 GGX, 1 Beckmann, 2 exp4, 3 exp8 */
@@ -32,6 +34,7 @@ typedef struct lobe {
     double alpha, f0, kd[3], ks[3], floor[3];
     int pc; /* F0 per channel (f0c) */
     double f0c[3];
+    int fd;                    /* diffuse kd (1 - (1 - v.h)^5) */
     int nalt;                  /* shapes in alt (alt[0] the one above) */
     lobe_alt_t alt[LOBE_ALTS]; /* the base takes the lowest of them (sb_lobe_fit_) */
 } lobe_t;
@@ -103,7 +106,9 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
 /* scattered_lobe_solve.c */
 /* A shape's least-squares sums over the samples (weights w = cos^2
  * theta_i): S the shape (grey F0, or F = 1 with a per-channel F0), T = S
- * (1 - v.h)^5 (per-channel F0 only), f the values. */
+ * (1 - v.h)^5 (per-channel F0 only), f the values; the diffuse term's
+ * factor B (1, or 1 - (1 - v.h)^5) in those of the diffuse weight: w is
+ * sum w B^2, ws sum w B S, wt sum w B T, wf sum w B f. */
 typedef struct lobe_sums {
     double w, ws, wss, wf[3], wsf[3], wff[3];
     double wt, wst, wtt, wtf[3];

@@ -10,7 +10,10 @@
  * q = 2 (Beckmann), 4 or 8 (flat-topped); F is Schlick's with one F0 for
  * all channels (0.04, 0.25 or 1), or one per channel (fitted with kd and ks:
  * scattered_lobe_solve.c), for a coloured metal whose highlight whitens
- * towards grazing.
+ * towards grazing.  The diffuse term is kd, or kd (1 - (1 - v.h)^5) (fd:
+ * the light Schlick's F reflects does not reach the diffuse layer; the
+ * microfacet model's (1 - F) base / pi, which a constant kd misses by 4 %
+ * at a glossy table's grazing mirror rows).
  * The shape's parameters are searched on grids (alpha log-spaced, then
  * refined by golden section); for each shape kd and ks of every channel
  * are the non-negative least-squares solution in the norm of f cos theta_i
@@ -59,9 +62,11 @@
 static const double f0_grid[] = {0.04, 0.25, 1.0};
 #define NF0 3 /* f0_grid's entries; family index NF0: F0 per channel */
 /* The per-channel F0 is kept over the best grey one only when it lowers
- * log_cost by this fraction too (three more weights fit any table a
- * little better; a coloured metal's grey shapes cost 10x more). */
+ * log_cost by this fraction and by PC_MIN (three more weights fit any
+ * table a little better, and two exact fits part by rounding; gold's grey
+ * shapes cost 4.4, its per-channel one 0.006). */
 #define PC_GAIN 0.25
+#define PC_MIN 0.1
 static const char *const ndf_names[NDFS] = {"ggx", "beckmann", "exp4", "exp8"};
 
 /* What the shape needs of a pair (l, v), apart from its parameters:
@@ -115,12 +120,19 @@ static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int co
     return shape_capped(gm, ndf, alpha, f0, cosp, INFINITY);
 }
 
-/* Add a sample of weight w, shape values S and T and values f to m's
- * sums of S and T (those of w and f alone are the caller's). */
-static void sums_add(lobe_sums_t *m, double w, double S, double T, const double f[3]) {
-    m->ws += w * S;
+/* The diffuse term's factor: 1, or 1 - (1 - v.h)^5 (fd). */
+static double diffuse_at(const geo_t *gm, int fd) {
+    double m = gm->m;
+    return fd ? 1 - m * m * m * m * m : 1.0;
+}
+
+/* Add a sample of weight w, diffuse factor B, shape values S and T and
+ * values f to m's sums of S and T (those of w and f alone are the
+ * caller's). */
+static void sums_add(lobe_sums_t *m, double w, double B, double S, double T, const double f[3]) {
+    m->ws += w * B * S;
     m->wss += w * S * S;
-    m->wt += w * T;
+    m->wt += w * B * T;
     m->wst += w * S * T;
     m->wtt += w * T * T;
     for (int c = 0; c < 3; c++) {
@@ -129,8 +141,8 @@ static void sums_add(lobe_sums_t *m, double w, double S, double T, const double 
     }
 }
 
-/* Residual of the best linear weights of shape s (its ndf, alpha, cosp
- * and f0, or pc) over the samples 0, step, 2 step, ... (geo[i] the
+/* Residual of the best linear weights of shape s (its ndf, alpha, cosp,
+ * fd and f0, or pc) over the samples 0, step, 2 step, ... (geo[i] the
  * geometry of sample i * step); its kd, ks and f0c into s. */
 static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, lobe_alt_t *s) {
     lobe_sums_t m;
@@ -139,10 +151,11 @@ static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t 
         const double *x = smp + i * SB_SAMPLE_DOUBLES;
         double S = shape_at(&geo[j], s->ndf, s->alpha, s->pc ? 1.0 : s->f0, s->cosp), w = x[2] * x[2];
         double T = s->pc ? shape_at(&geo[j], s->ndf, s->alpha, 0.0, s->cosp) : 0; /* S (1 - v.h)^5 */
-        m.w += w;
-        sums_add(&m, w, S, T, x + 6);
+        double B = diffuse_at(&geo[j], s->fd);
+        m.w += w * B * B;
+        sums_add(&m, w, B, S, T, x + 6);
         for (int c = 0; c < 3; c++) {
-            m.wf[c] += w * x[6 + c];
+            m.wf[c] += w * B * x[6 + c];
             m.wff[c] += w * x[6 + c] * x[6 + c];
         }
     }
@@ -155,7 +168,7 @@ static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t 
     return r;
 }
 
-/* How far the base kd + ks S + floor is from the samples, as a factor:
+/* How far the base kd B + ks S + floor is from the samples, as a factor:
  * the sum over samples and channels of ln^2((f+ + floor) / base), kd and
  * ks the least-squares weights of the shape.  The interpolation spreads
  * q = f / base between the samples, so the shape to keep is the one that
@@ -170,10 +183,10 @@ static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *g
     const double *kd = s.kd, *ks = s.ks;
     for (size_t i = 0, j = 0; i < ns; i += step, j++) {
         const double *x = smp + i * SB_SAMPLE_DOUBLES;
-        double S = shape_at(&geo[j], s.ndf, s.alpha, s.f0c[0], s.cosp);
+        double S = shape_at(&geo[j], s.ndf, s.alpha, s.f0c[0], s.cosp), B = diffuse_at(&geo[j], s.fd);
         for (int c = 0; c < 3; c++) {
             if (s.pc && c > 0) S = shape_at(&geo[j], s.ndf, s.alpha, s.f0c[c], s.cosp);
-            double l = log((fmax(x[6 + c], 0) + floor_[c]) / (kd[c] + ks[c] * S + floor_[c]));
+            double l = log((fmax(x[6 + c], 0) + floor_[c]) / (kd[c] * B + ks[c] * S + floor_[c]));
             r += l * l;
         }
     }
@@ -190,18 +203,18 @@ static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *g
 typedef struct fitset {
     size_t n;                                 /* samples where the shape is not 0 */
     double *c2, *s2, *t2, *l2, *v2, *fr[NF0]; /* t2: s2 / c2 (INFINITY at c2 = 0); fr: Schlick's F per f0_grid */
-    double *m5;                               /* (1 - v.h)^5 (the per-channel F0's second term) */
+    double *m5, *b1;                          /* (1 - v.h)^5 (the per-channel F0's second term), 1 - m5 */
     double *w, *f, *D, *den[COSP];            /* f: 3 per sample; D and den: one shape's (scratch) */
-    lobe_sums_t base;                         /* w, wf and wff over all the samples */
+    lobe_sums_t base[2];                      /* w, wf and wff over all the samples, diffuse 1 and b1 */
 } fitset_t;
 
 /* fs for the samples 0, step, ... (geometry geo); 0 on no memory. */
 static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, const geo_t *geo) {
     memset(fs, 0, sizeof *fs);
     size_t m = (ns + step - 1) / step, nf = sizeof f0_grid / sizeof *f0_grid;
-    double *p = malloc(m * (8 + nf + COSP + 3) * sizeof *p); /* the columns below, f's 3 last */
+    double *p = malloc(m * (9 + nf + COSP + 3) * sizeof *p); /* the columns below, f's 3 last */
     if (!p) return 0;
-    double **col[] = {&fs->c2, &fs->s2, &fs->t2, &fs->l2, &fs->v2, &fs->w, &fs->D, &fs->m5};
+    double **col[] = {&fs->c2, &fs->s2, &fs->t2, &fs->l2, &fs->v2, &fs->w, &fs->D, &fs->m5, &fs->b1};
     for (size_t a = 0; a < sizeof col / sizeof *col; a++, p += m)
         *col[a] = p;
     for (size_t a = 0; a < nf; a++, p += m)
@@ -213,10 +226,13 @@ static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, 
         const double *s = smp + i * SB_SAMPLE_DOUBLES;
         const geo_t *g = &geo[j];
         double w = s[2] * s[2], m = g->m;
-        fs->base.w += w;
-        for (int c = 0; c < 3; c++) {
-            fs->base.wf[c] += w * s[6 + c];
-            fs->base.wff[c] += w * s[6 + c] * s[6 + c];
+        for (int fd = 0; fd < 2; fd++) {
+            double B = diffuse_at(g, fd);
+            fs->base[fd].w += w * B * B;
+            for (int c = 0; c < 3; c++) {
+                fs->base[fd].wf[c] += w * B * s[6 + c];
+                fs->base[fd].wff[c] += w * s[6 + c] * s[6 + c];
+            }
         }
         if (!g->ok) continue;
         size_t k = fs->n++;
@@ -225,6 +241,7 @@ static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, 
         for (size_t a = 0; a < nf; a++)
             fs->fr[a][k] = f0_grid[a] + (1 - f0_grid[a]) * m * m * m * m * m;
         fs->m5[k] = m * m * m * m * m;
+        fs->b1[k] = diffuse_at(g, 1);
         for (int c = 0; c < 3; c++)
             fs->f[3 * k + (size_t)c] = s[6 + c];
     }
@@ -262,11 +279,12 @@ static void fitset_den(const fitset_t *fs, int cosp, double alpha, const double 
 
 /* shape_cost's residual of the per-channel F0 family: S = D / den, T =
  * D m^5 / den. */
-static double fitset_cost_pc(const fitset_t *fs, const double *D, const double *den) {
-    lobe_sums_t m = fs->base;
+static double fitset_cost_pc(const fitset_t *fs, const double *D, const double *den, int fd) {
+    lobe_sums_t m = fs->base[fd];
     for (size_t j = 0; j < fs->n; j++) {
         if (D[j] == 0) continue;
-        sums_add(&m, fs->w[j], D[j] * 1.0 / den[j], D[j] * fs->m5[j] / den[j], fs->f + 3 * j);
+        double B = fd ? fs->b1[j] : 1.0;
+        sums_add(&m, fs->w[j], B, D[j] * 1.0 / den[j], D[j] * fs->m5[j] / den[j], fs->f + 3 * j);
     }
     double r = 0, a, b, e;
     for (int c = 0; c < 3; c++)
@@ -275,15 +293,15 @@ static double fitset_cost_pc(const fitset_t *fs, const double *D, const double *
 }
 
 /* shape_cost's residual of the shape D fr / den (fr NULL: F0 per
- * channel).  Where D is 0 (an exp family's far tail) the sample adds
- * exactly 0: skipped. */
-static double fitset_cost(const fitset_t *fs, const double *D, const double *fr, const double *den) {
-    if (!fr) return fitset_cost_pc(fs, D, den);
-    lobe_sums_t m = fs->base;
+ * channel), diffuse factor 1 or b1 (fd).  Where D is 0 (an exp family's
+ * far tail) the sample adds exactly 0: skipped. */
+static double fitset_cost(const fitset_t *fs, const double *D, const double *fr, const double *den, int fd) {
+    if (!fr) return fitset_cost_pc(fs, D, den, fd);
+    lobe_sums_t m = fs->base[fd];
     for (size_t j = 0; j < fs->n; j++) {
         if (D[j] == 0) continue;
         double S = D[j] * fr[j] / den[j], wS = fs->w[j] * S;
-        m.ws += wS;
+        m.ws += fd ? fs->w[j] * fs->b1[j] * S : wS;
         m.wss += wS * S;
         for (int c = 0; c < 3; c++)
             m.wsf[c] += wS * fs->f[3 * j + (size_t)c];
@@ -294,25 +312,39 @@ static double fitset_cost(const fitset_t *fs, const double *D, const double *fr,
     return r;
 }
 
-/* The residual of one shape (shape_cost's). */
-static double fitset_shape(fitset_t *fs, int ndf, double alpha, size_t fi, int cosp) {
-    fitset_d(fs, ndf, alpha, fs->D);
-    fitset_den(fs, cosp, alpha, fs->D, fs->den[0]);
-    return fitset_cost(fs, fs->D, fi < NF0 ? fs->fr[fi] : NULL, fs->den[0]);
+/* A family cf of one distribution: the cosines' power cf % COSP, F0
+ * (cf / COSP) % (NF0 + 1) (NF0: per channel), diffuse factor fd. */
+#define FCS (COSP * (NF0 + 1) * 2) /* the families of one distribution */
+#define FAMILIES (NDFS * FCS)
+#define CF_COSP(cf) ((cf) % COSP)
+#define CF_F0(cf) ((size_t)(cf) / COSP % (NF0 + 1))
+#define CF_FD(cf) ((cf) / (COSP * (NF0 + 1)))
+
+/* fitset_cost of family cf with D and den given. */
+static double fitset_family(const fitset_t *fs, const double *D, int cf, const double *den) {
+    size_t fi = CF_F0(cf);
+    return fitset_cost(fs, D, fi < NF0 ? fs->fr[fi] : NULL, den, CF_FD(cf));
 }
 
-/* Golden-section refinement of log alpha in [lo, hi] for one (ndf, f0). */
-static double refine_alpha(fitset_t *fs, int ndf, size_t fi, int cosp, double lo, double hi, double *cost) {
+/* The residual of one shape (shape_cost's). */
+static double fitset_shape(fitset_t *fs, int ndf, double alpha, int cf) {
+    fitset_d(fs, ndf, alpha, fs->D);
+    fitset_den(fs, CF_COSP(cf), alpha, fs->D, fs->den[0]);
+    return fitset_family(fs, fs->D, cf, fs->den[0]);
+}
+
+/* Golden-section refinement of log alpha in [lo, hi] for one (ndf, cf). */
+static double refine_alpha(fitset_t *fs, int ndf, int cf, double lo, double hi, double *cost) {
     const double g = 0.6180339887498949;
     double a = lo, b = hi, x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double c1 = fitset_shape(fs, ndf, exp(x1), fi, cosp), c2 = fitset_shape(fs, ndf, exp(x2), fi, cosp);
+    double c1 = fitset_shape(fs, ndf, exp(x1), cf), c2 = fitset_shape(fs, ndf, exp(x2), cf);
     for (int it = 0; it < GOLDEN_STEPS; it++) {
         if (c1 < c2) {
             b = x2, x2 = x1, c2 = c1, x1 = b - g * (b - a);
-            c1 = fitset_shape(fs, ndf, exp(x1), fi, cosp);
+            c1 = fitset_shape(fs, ndf, exp(x1), cf);
         } else {
             a = x1, x1 = x2, c1 = c2, x2 = a + g * (b - a);
-            c2 = fitset_shape(fs, ndf, exp(x2), fi, cosp);
+            c2 = fitset_shape(fs, ndf, exp(x2), cf);
         }
     }
     *cost = c1 < c2 ? c1 : c2;
@@ -369,7 +401,7 @@ typedef struct cand {
  * cheapest first, each a different shape (cosine power 0 has no Smith k). */
 static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, cand_t *c, int nc, double best,
                               lobe_t *L) {
-    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY, L->pc, {0}};
+    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY, L->pc, {0}, L->fd};
     memcpy(L->alt[0].kd, L->kd, sizeof L->kd);
     memcpy(L->alt[0].ks, L->ks, sizeof L->ks);
     memcpy(L->alt[0].f0c, L->f0c, sizeof L->f0c);
@@ -383,6 +415,7 @@ static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, ca
             int same = 0;
             for (int a = 0; a < L->nalt && !same; a++)
                 same = L->alt[a].ndf == c[i].s.ndf && L->alt[a].f0 == c[i].s.f0 && L->alt[a].pc == c[i].s.pc &&
+                       L->alt[a].fd == c[i].s.fd &&
                        (L->alt[a].cosp == c[i].s.cosp || (L->alt[a].cosp % 3 == 0 && c[i].s.cosp % 3 == 0));
             if (!same) at = i;
         }
@@ -396,15 +429,13 @@ static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, ca
 
 /* Whether family (ndf, cf) is searched: all, or keep's alone. */
 static int family_wanted(const sb_lobe_fit_t *keep, int ndf, int cf) {
-    int cosp = cf % COSP;
-    size_t fi = (size_t)cf / COSP;
+    int cosp = CF_COSP(cf);
+    size_t fi = CF_F0(cf);
+    if (keep && CF_FD(cf) != keep->diffuse_fresnel) return 0;
     int f0_kept = fi == NF0 ? keep && keep->f0_per_channel : keep && !keep->f0_per_channel && f0_grid[fi] == keep->f0;
     return !keep || (ndf == ndf_index(keep->ndf) && f0_kept &&
                      cosp == (int)(2 * keep->cos_power) + (keep->smith_k_remapped ? 3 : 0));
 }
-
-#define FCS (COSP * (NF0 + 1)) /* the families of one distribution */
-#define FAMILIES (NDFS * FCS)
 
 /* For each family wanted, the grid's alpha of the lowest residual (the
  * first of equals) into at[ndf * FCS + cf]. */
@@ -421,7 +452,7 @@ static void grid_search(fitset_t *fs, const sb_lobe_fit_t *keep, double la, doub
             for (int cf = 0; cf < FCS; cf++) {
                 if (!family_wanted(keep, ndf, cf)) continue;
                 if (!d) fitset_d(fs, ndf, alpha, fs->D), d = 1;
-                double c = fitset_cost(fs, fs->D, cf / COSP < NF0 ? fs->fr[cf / COSP] : NULL, fs->den[cf % COSP]);
+                double c = fitset_family(fs, fs->D, cf, fs->den[CF_COSP(cf)]);
                 int i = ndf * FCS + cf;
                 if (c < cb[i]) cb[i] = c, at[i] = k;
             }
@@ -441,21 +472,22 @@ static double search(const double *smp, size_t ns, size_t step, const geo_t *geo
     for (int ndf = 0; ndf < NDFS; ndf++)
         for (int cf = 0; cf < FCS; cf++) {
             if (!family_wanted(keep, ndf, cf)) continue;
-            int cosp = cf % COSP, k = at[ndf * FCS + cf];
-            size_t fi = (size_t)cf / COSP;
+            int cosp = CF_COSP(cf), k = at[ndf * FCS + cf];
+            size_t fi = CF_F0(cf);
             double lo = la + (k > 0 ? k - 1 : 0) * dl, hi = la + (k < ALPHA_STEPS - 1 ? k + 1 : k) * dl, c;
-            double alpha = refine_alpha(&fs, ndf, fi, cosp, lo, hi, &c);
-            lobe_alt_t s = {ndf, cosp, alpha, fi < NF0 ? f0_grid[fi] : 1.0, {0}, {0}, INFINITY, fi == NF0, {0}};
+            double alpha = refine_alpha(&fs, ndf, cf, lo, hi, &c);
+            lobe_alt_t s = {ndf,       cosp, alpha,    fi < NF0 ? f0_grid[fi] : 1.0, {0}, {0}, INFINITY,
+                            fi == NF0, {0},  CF_FD(cf)};
             c = log_cost(smp, ns, step, geo, s, L->floor);
             if (fi < NF0 && c < grey) grey = c, gi = *nc;
             if (fi == NF0 && c < pc) pc = c, pi = *nc;
             cands[(*nc)++] = (cand_t){c, s};
         }
     free(fs.c2);
-    int b = pi >= 0 && (gi < 0 || pc < grey * (1 - PC_GAIN)) ? pi : gi;
+    int b = pi >= 0 && (gi < 0 || (pc < grey * (1 - PC_GAIN) && pc < grey - PC_MIN)) ? pi : gi;
     if (b < 0) return INFINITY;
     const lobe_alt_t *s = &cands[b].s;
-    L->ndf = s->ndf, L->alpha = s->alpha, L->f0 = s->f0, L->cosp = s->cosp, L->pc = s->pc;
+    L->ndf = s->ndf, L->alpha = s->alpha, L->f0 = s->f0, L->cosp = s->cosp, L->pc = s->pc, L->fd = s->fd;
     return cands[b].cost;
 }
 
@@ -477,7 +509,7 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
         free(geo);
         return;
     }
-    lobe_alt_t s = {L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY, L->pc, {0}};
+    lobe_alt_t s = {L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY, L->pc, {0}, L->fd};
     shape_cost(smp, ns, 1, geo, &s);
     memcpy(L->kd, s.kd, sizeof L->kd);
     memcpy(L->ks, s.ks, sizeof L->ks);
@@ -504,58 +536,14 @@ void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], doub
     double m[3] = {INFINITY, INFINITY, INFINITY};
     for (int a = 0; a < L->nalt; a++) {
         const lobe_alt_t *s = &L->alt[a];
-        double S = shape_capped(&g, s->ndf, s->alpha, s->f0c[0], s->cosp, s->dcap);
+        double S = shape_capped(&g, s->ndf, s->alpha, s->f0c[0], s->cosp, s->dcap), B = diffuse_at(&g, s->fd);
         for (int c = 0; c < 3; c++) {
             if (s->pc && c > 0) S = shape_capped(&g, s->ndf, s->alpha, s->f0c[c], s->cosp, s->dcap);
-            m[c] = fmin(m[c], s->kd[c] + s->ks[c] * S);
+            m[c] = fmin(m[c], s->kd[c] * B + s->ks[c] * S);
         }
     }
     for (int c = 0; c < 3; c++)
         b[c] = m[c] + L->floor[c];
-}
-
-void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]) {
-    double ti, pi_, to, po;
-    if (t->iso) {
-        ti = x[0], pi_ = 0, to = x[1], po = x[2];
-    } else {
-        ti = hypot(x[0], x[1]), pi_ = atan2(x[1], x[0]), to = hypot(x[2], x[3]), po = atan2(x[3], x[2]);
-    }
-    wi[0] = sin(ti) * cos(pi_), wi[1] = sin(ti) * sin(pi_), wi[2] = cos(ti);
-    wo[0] = sin(to) * cos(po), wo[1] = sin(to) * sin(po), wo[2] = cos(to);
-}
-
-double sb_lobe_level_(const table_t *t, const double *x) {
-    double wi[3], wo[3], b[3];
-    sb_table_dirs_(t, x, wi, wo);
-    sb_lobe_base_(&t->lobe, wi, wo, b);
-    return log(b[0] + b[1] + b[2]);
-}
-
-double *sb_lobe_values_(const table_t *t, const lobe_t *L, double **lb) {
-    double *q = L->fitted ? malloc(t->n * 4 * sizeof *q) : NULL;
-    *lb = q ? malloc(t->n * sizeof **lb) : NULL;
-    if (!*lb) {
-        free(q);
-        return NULL;
-    }
-    for (size_t i = 0; i < t->n; i++) {
-        double wi[3], wo[3], b[3];
-        sb_table_dirs_(t, t->pts + i * MAX_DIM, wi, wo);
-        sb_lobe_base_(L, wi, wo, b);
-        for (int c = 0; c < 3; c++) {
-            q[4 * i + (size_t)c] = (t->val[4 * i + (size_t)c] + L->floor[c]) / b[c];
-            if (!isfinite(q[4 * i + (size_t)c])) { /* the lobe cannot carry these values */
-                free(q);
-                free(*lb);
-                *lb = NULL;
-                return NULL;
-            }
-        }
-        (*lb)[i] = log(b[0] + b[1] + b[2]);
-        q[4 * i + 3] = t->val[4 * i + 3];
-    }
-    return q;
 }
 
 void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out) {
@@ -565,6 +553,7 @@ void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out) {
     out->alpha = L->alpha;
     out->f0 = L->pc ? (L->f0c[0] + L->f0c[1] + L->f0c[2]) / 3 : L->f0;
     out->f0_per_channel = L->pc;
+    out->diffuse_fresnel = L->fd;
     memcpy(out->f0_rgb, L->f0c, sizeof out->f0_rgb);
     memcpy(out->kd, L->kd, sizeof out->kd);
     memcpy(out->ks, L->ks, sizeof out->ks);
