@@ -205,7 +205,7 @@ int main(int argc, char **argv) {
     sb_job_t *whole = run(path, J);
     double se = NAN, cv = whole ? sb_job_cv(whole, J, &se, NULL) : NAN;
     sb_job_destroy(whole);
-    printf("# %s: %.0f %% of the rows held out, J = %zu; cv_headline of the whole table %.4f +- %.2g\n", path,
+    printf("# %s: %.0f %% of the rows held out, J = %zu; cv_headline of the whole table %.4g +- %.2g\n", path,
            100 * frac, J, cv, se);
     printf("| seed | rows held out | error there | / cv_headline |\n|---|---|---|---|\n");
     for (int s = first; s < first + seeds; s++) {
@@ -231,7 +231,7 @@ int main(int argc, char **argv) {
         sb_job_t *job = run(tr, J);
         double e = job ? held_error(job, he, J, worst) : NAN;
         sb_job_destroy(job);
-        printf("| %d | %zu | %.4f | %.2f |\n", s, nh, e, e / cv);
+        printf("| %d | %zu | %.4g | %.2f |\n", s, nh, e, e / cv);
         fflush(stdout);
     }
     fclose(f);

@@ -1306,16 +1306,20 @@ SB_TEST(lobe_keeps_grazing_peak) {
  * here (0.53, 0.60 against 0.45): the rows came back 10-20 % low, and a
  * random split holding one erred 4-13x the reported figure
  * (docs/measured.md, "Random splits against the reported figure"). */
-SB_TEST(lobe_predicts_held_out_mirror) {
-    const char *spec = "microfacet:roughness=0.548";
+/* Each mirror row theta = (k + 0.5) 90 / 8 deg for k in [k0, k1) of a
+ * table of spec sampled at --gonio 8,1,8,24, held out alone (or all of
+ * them together: `together`): the lobe fitted to the others and the
+ * table's value there, every channel, within tol of the model. */
+static void held_out_mirror(const char *spec, int k0, int k1, double tol, int together) {
     sb_gonio_opts_t go = {8, 1, 8, 24, 0, 0};
     size_t rows = 0;
     const char *p = write_gonio(spec, &go, &rows);
     sb_source_t *m = fx_model(spec);
     char held[4096];
     snprintf(held, sizeof held, "%s", tmp_path("gonio", "held.csv"));
-    for (int k = 5; k < 8 && m; k++) { /* theta 61.9, 73.1, 84.4 deg */
+    for (int k = k0; k < k1 && m; k++) {
         double th = (k + 0.5) * 90.0 / 8, a, b, c, d, l[3], v[3], f[3], g[3];
+        int lo = together ? k0 : k, hi = together ? k1 : k + 1; /* the rows left out */
         FILE *in = fopen(p, "r"), *out = fopen(held, "w");
         CHECK(in && out);
         if (!in || !out) break;
@@ -1323,7 +1327,9 @@ SB_TEST(lobe_predicts_held_out_mirror) {
         int dropped = 0;
         while (fgets(line, sizeof line, in)) {
             int row = sscanf(line, "%lf,%lf,%lf,%lf", &a, &b, &c, &d) == 4;
-            if (row && fabs(a - th) < 1e-6 && fabs(c - th) < 1e-6 && fabs(fabs(d - b) - 180) < 1e-6) {
+            double ka = a * 8 / 90 - 0.5; /* the row's elevation index */
+            if (row && fabs(ka - floor(ka + 0.5)) < 1e-6 && ka > lo - 0.5 && ka < hi - 0.5 && fabs(a - c) < 1e-6 &&
+                fabs(fabs(d - b) - 180) < 1e-6) {
                 dropped++;
                 continue;
             }
@@ -1331,19 +1337,56 @@ SB_TEST(lobe_predicts_held_out_mirror) {
         }
         fclose(in);
         fclose(out);
-        CHECKF(dropped == 1, "theta %g: %d mirror rows", th, dropped);
+        CHECKF(dropped == hi - lo, "theta %g: %d mirror rows", th, dropped);
         sb_measured_info_t info;
         sb_source_t *t = open_table(held, NULL, &info);
         if (!t) break;
         double r = th * SB_PI / 180;
         l[0] = sin(r), l[1] = 0, l[2] = cos(r), v[0] = -l[0], v[1] = 0, v[2] = l[2];
         CHECK(info.lobe.used && sb_source_eval(t, l, v, f) == 1 && sb_source_eval(m, l, v, g) == 1);
-        printf("mirror row at %.1f deg held out: table %.4f, model %.4f\n", th, f[1], g[1]);
+        printf("%s: mirror row at %.1f deg held out: table (%.4f %.4f %.4f), model (%.4f %.4f %.4f)\n", spec, th, f[0],
+               f[1], f[2], g[0], g[1], g[2]);
         for (int ch = 0; ch < 3; ch++)
-            CHECKF(fabs(f[ch] - g[ch]) < 0.05 * g[ch], "theta %.1f: table %g, model %g", th, f[ch], g[ch]);
+            CHECKF(fabs(f[ch] - g[ch]) < tol * g[ch], "theta %.1f channel %d: table %g, model %g", th, ch, f[ch],
+                   g[ch]);
         sb_source_destroy(t);
     }
     sb_source_destroy(m);
+}
+
+SB_TEST(lobe_predicts_held_out_mirror) {
+    held_out_mirror("microfacet:roughness=0.548", 5, 8, 0.05, 0); /* theta 61.9, 73.1, 84.4 deg */
+}
+
+/* The grazing mirror rows of a glossy table held out together (as a
+ * random split holding two of them does): the microfacet model's diffuse
+ * (1 - F) base / pi falls towards grazing, which a constant kd could not
+ * follow (the lobe fitted GGX alpha 0.286 for 0.3 and the rows came back
+ * 4-7 % low: splits holding them erred 3-11x the reported figure).  With
+ * the diffuse factor 1 - (1 - v.h)^5 among the lobe's families they are
+ * within 1 %. */
+SB_TEST(lobe_predicts_grazing_mirror_rows_together) {
+    held_out_mirror("microfacet:roughness=0.548", 5, 8, 0.01, 1);
+    held_out_mirror("microfacet:roughness=0.316", 5, 8, 0.01, 1);
+}
+
+/* A coloured metal's highlight whitens towards grazing (Schlick's F per
+ * channel: gold's blue F0 0.34 rises to 1).  The lobe's one grey F0 kept
+ * the highlight's colour at every angle: gold's grazing mirror rows, held
+ * out alone, came back 12 % (73.1 deg) and 43 % (84.4 deg) low in blue,
+ * and random splits holding them erred 3x the reported figure
+ * (docs/measured.md, "Random splits against the reported figure").  With
+ * an F0 per channel they are within 5 % in every channel. */
+SB_TEST(lobe_predicts_coloured_grazing_mirror) {
+    held_out_mirror("microfacet:base=gold,roughness=0.4", 6, 8, 0.05, 0); /* theta 73.1, 84.4 deg */
+    sb_measured_info_t info;
+    sb_gonio_opts_t go = {8, 1, 8, 24, 0, 0};
+    size_t rows = 0;
+    sb_source_t *t = open_table(write_gonio("microfacet:base=gold,roughness=0.4", &go, &rows), NULL, &info);
+    const sb_lobe_fit_t *L = &info.lobe;
+    CHECKF(t && L->f0_per_channel && L->f0_rgb[0] > L->f0_rgb[1] && L->f0_rgb[1] > L->f0_rgb[2],
+           "F0 per channel %d (%g %g %g)", L->f0_per_channel, L->f0_rgb[0], L->f0_rgb[1], L->f0_rgb[2]);
+    sb_source_destroy(t);
 }
 
 /* MERL samples: every measured cell at its centre, missing cells not. */

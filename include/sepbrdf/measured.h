@@ -116,7 +116,8 @@ SB_API int sb_gamut_map(sb_gamut_t g, double rgb[3]);
 
 /* Scattered tables: whether values are interpolated relative to a fitted
  * lobe.  A diffuse term plus one Cook-Torrance specular lobe (GGX or
- * exponential D, Smith G, Schlick F; per-channel weights, one width and F0)
+ * exponential D, Smith G, Schlick F; per-channel weights, one width, one
+ * F0 or, for a coloured metal, one per channel)
  * is fitted to the samples by least squares in f cos theta_i; the
  * interpolation then works on f / (lobe + floor) and multiplies back, so a
  * highlight held by a few samples keeps its measured shape between them
@@ -139,15 +140,20 @@ typedef struct sb_lobe_fit {
     int used;             /* the interpolation is relative to it */
     const char *ndf;      /* "ggx", "beckmann", "exp4", "exp8": GGX or exp(-(tan theta_h / alpha)^p)
                            * for p = 2, 4, 8 (static string) */
-    double alpha, f0;     /* the D width (GGX alpha, Beckmann m) and Schlick F0 */
+    double alpha, f0;     /* the D width (GGX alpha, Beckmann m) and Schlick F0 (per channel: f0_rgb) */
     double cos_power;     /* p of the denominator's cosines: 1, 0.5 or 0 */
     int smith_k_remapped; /* Smith-Schlick k = (sqrt(alpha) + 1)^2 / 8; 0: alpha / 2 */
-    double kd[3], ks[3];  /* f = kd + ks min(D, d_cap) G F / (4 (cos theta_i cos theta_o)^p) */
+    double kd[3], ks[3];  /* f = kd + ks min(D, d_cap) G F / (4 (cos theta_i cos theta_o)^p)
+                           * (kd (1 - (1 - v.h)^5) with diffuse_fresnel) */
     double d_cap;         /* D is at most this, 2x its largest at a sample: the lobe claims
                            * no higher peak between the samples (F, G and the cosines still
                            * grow towards the horizon) */
     double floor[3];      /* added to the lobe before dividing: the median sample value */
     double cv_off, cv_on; /* interpolation CV (the best method) without and with it */
+    int f0_per_channel;   /* Schlick's F0 fitted per channel (f0_rgb; f0 their mean), else one for all */
+    double f0_rgb[3];     /* each channel's F0 (f0 in each when !f0_per_channel) */
+    int diffuse_fresnel;  /* the diffuse term is kd (1 - (1 - v.h)^5) (the light F reflects does
+                           * not reach it), else kd */
 } sb_lobe_fit_t;
 
 /* Options of sb_measured_open (zero = default everywhere).

@@ -314,6 +314,8 @@ static void report_lobe(sb_json_t *j, const sb_lobe_fit_t *L) {
     sb_json_string(j, "ndf", L->ndf);
     sb_json_number(j, "alpha", L->alpha);
     sb_json_number(j, "f0", L->f0);
+    json_rgb(j, "f0_rgb", L->f0_rgb);
+    sb_json_bool(j, "diffuse_fresnel", L->diffuse_fresnel);
     sb_json_number(j, "cos_power", L->cos_power);
     sb_json_bool(j, "smith_k_remapped", L->smith_k_remapped);
     json_rgb(j, "kd", L->kd);

@@ -86,12 +86,17 @@ static void scattered_fields(sb_measured_info_t *info) {
                   100 * cv[SB_INTERP_LINEAR], 100 * cv[SB_INTERP_IDW], 100 * cv[SB_INTERP_QUADRATIC],
                   info->cv_held_out);
     const sb_lobe_fit_t *L = &info->lobe;
+    char f0[64];
+    if (L->f0_per_channel)
+        snprintf(f0, sizeof f0, "(%.2g, %.2g, %.2g)", L->f0_rgb[0], L->f0_rgb[1], L->f0_rgb[2]);
+    else
+        snprintf(f0, sizeof f0, "%.2g", L->f0);
     if (L->fitted)
         sb_info_field(info, "lobe", L->used,
-                      "%s: diffuse + %s lobe, alpha %.3g, F0 %.2g, ks (%.3g, %.3g, %.3g); interp cv %.3g %% with, %.3g "
-                      "%% without",
-                      L->used ? "used" : "not used", L->ndf, L->alpha, L->f0, L->ks[0], L->ks[1], L->ks[2],
-                      100 * L->cv_on, 100 * L->cv_off);
+                      "%s: diffuse%s + %s lobe, alpha %.3g, F0 %s, ks (%.3g, %.3g, %.3g); interp cv %.3g %% with, "
+                      "%.3g %% without",
+                      L->used ? "used" : "not used", L->diffuse_fresnel ? " x (1 - F)" : "", L->ndf, L->alpha, f0,
+                      L->ks[0], L->ks[1], L->ks[2], 100 * L->cv_on, 100 * L->cv_off);
 }
 
 sb_result_t sb_gonio_open_(sb_context_t *ctx, const char *path, sb_gonio_read_fn read, const sb_measured_opts_t *o,

@@ -3,6 +3,7 @@
  * distance weights or the nearest sample), and the source's eval with its
  * blend towards the azimuthal mean near the normal. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "source/scattered_impl.h"
@@ -293,4 +294,50 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
             rgb[c] = rgb[c] * b[c] - t->lobe.floor[c];
     if (t->memo) sb_memo_store(t->memo, key, rgb, known + 1);
     return known != 0;
+}
+
+/* ---- the values relative to the lobe (scattered_lobe.c fits it) ---- */
+
+void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]) {
+    double ti, pi_, to, po;
+    if (t->iso) {
+        ti = x[0], pi_ = 0, to = x[1], po = x[2];
+    } else {
+        ti = hypot(x[0], x[1]), pi_ = atan2(x[1], x[0]), to = hypot(x[2], x[3]), po = atan2(x[3], x[2]);
+    }
+    wi[0] = sin(ti) * cos(pi_), wi[1] = sin(ti) * sin(pi_), wi[2] = cos(ti);
+    wo[0] = sin(to) * cos(po), wo[1] = sin(to) * sin(po), wo[2] = cos(to);
+}
+
+double sb_lobe_level_(const table_t *t, const double *x) {
+    double wi[3], wo[3], b[3];
+    sb_table_dirs_(t, x, wi, wo);
+    sb_lobe_base_(&t->lobe, wi, wo, b);
+    return log(b[0] + b[1] + b[2]);
+}
+
+double *sb_lobe_values_(const table_t *t, const lobe_t *L, double **lb) {
+    double *q = L->fitted ? malloc(t->n * 4 * sizeof *q) : NULL;
+    *lb = q ? malloc(t->n * sizeof **lb) : NULL;
+    if (!*lb) {
+        free(q);
+        return NULL;
+    }
+    for (size_t i = 0; i < t->n; i++) {
+        double wi[3], wo[3], b[3];
+        sb_table_dirs_(t, t->pts + i * MAX_DIM, wi, wo);
+        sb_lobe_base_(L, wi, wo, b);
+        for (int c = 0; c < 3; c++) {
+            q[4 * i + (size_t)c] = (t->val[4 * i + (size_t)c] + L->floor[c]) / b[c];
+            if (!isfinite(q[4 * i + (size_t)c])) { /* the lobe cannot carry these values */
+                free(q);
+                free(*lb);
+                *lb = NULL;
+                return NULL;
+            }
+        }
+        (*lb)[i] = log(b[0] + b[1] + b[2]);
+        q[4 * i + 3] = t->val[4 * i + 3];
+    }
+    return q;
 }

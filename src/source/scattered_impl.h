@@ -18,16 +18,23 @@
 #define SAME_POSITION 1e-6
 
 /* The lobe a table's values are interpolated relative to
- * (scattered_lobe.c): f = kd + ks S(l, v), S of width alpha, Schlick F0. */
+ * (scattered_lobe.c): f = kd B + ks S(l, v), S of width alpha, Schlick F0,
+ * B 1 or 1 - (1 - v.h)^5. */
 #define LOBE_ALTS 4 /* the best shape and up to three that fit about as well */
 typedef struct lobe_alt {
     int ndf, cosp;
     double alpha, f0, kd[3], ks[3], dcap; /* dcap: D at most CAP x its largest at a sample */
+    int pc;                               /* Schlick's F0 per channel (f0c), else f0 for all */
+    double f0c[3];                        /* channel c's F0 (f0 in every channel when !pc) */
+    int fd;                               /* the diffuse term kd (1 - (1 - v.h)^5), else kd */
 } lobe_alt_t;
 typedef struct lobe {
     int fitted, ndf; /* ndf: 0 GGX, 1 Beckmann, 2 exp4, 3 exp8 */
     int cosp;        /* the cosines' power in the denominator: (cosp % 3) / 2; cosp >= 3: remapped Smith k */
     double alpha, f0, kd[3], ks[3], floor[3];
+    int pc; /* F0 per channel (f0c) */
+    double f0c[3];
+    int fd;                    /* diffuse kd (1 - (1 - v.h)^5) */
     int nalt;                  /* shapes in alt (alt[0] the one above) */
     lobe_alt_t alt[LOBE_ALTS]; /* the base takes the lowest of them (sb_lobe_fit_) */
 } lobe_t;
@@ -95,6 +102,24 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
 int sb_table_from_knn_(const table_t *t, sb_interp_t interp, const double *x, const knn_t *q, double lx, double rgb[3]);
 /* The source's eval: f_r of (wi, wo), with the pole blend. */
 int sb_table_eval_(const void *self, const double wi[3], const double wo[3], double rgb[3]);
+
+/* scattered_lobe_solve.c */
+/* A shape's least-squares sums over the samples (weights w = cos^2
+ * theta_i): S the shape (grey F0, or F = 1 with a per-channel F0), T = S
+ * (1 - v.h)^5 (per-channel F0 only), f the values; the diffuse term's
+ * factor B (1, or 1 - (1 - v.h)^5) in those of the diffuse weight: w is
+ * sum w B^2, ws sum w B S, wt sum w B T, wf sum w B f. */
+typedef struct lobe_sums {
+    double w, ws, wss, wf[3], wsf[3], wff[3];
+    double wt, wst, wtt, wtf[3];
+} lobe_sums_t;
+/* Non-negative (kd, ks) of channel c minimising sum w (kd + ks S - f)^2;
+ * returns the residual sum. */
+double sb_lobe_solve2_(const lobe_sums_t *m, int c, double *kd, double *ks);
+/* Non-negative kd, a, b of channel c minimising sum w (kd + a S + b T -
+ * f)^2, as kd, ks = a + b and Schlick's F0 = a / ks (1 when ks = 0);
+ * returns the residual sum. */
+double sb_lobe_solve3_(const lobe_sums_t *m, int c, double *kd, double *ks, double *f0);
 
 /* scattered_lobe.c */
 /* Fit the lobe to ns samples (SB_SAMPLE_DOUBLES each) into L; keep: NULL

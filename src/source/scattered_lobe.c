@@ -7,7 +7,13 @@
  * remapped (sqrt(alpha) + 1)^2 / 8; p = 1/2 or 0 for peaks that grow less
  * towards the horizon (a near-mirror coat measured through an aperture).
  * D is GGX (alpha) or exp(-(tan theta_h / alpha)^q) / (pi alpha^2 cos^4),
- * q = 2 (Beckmann), 4 or 8 (flat-topped); F is Schlick's with one F0.
+ * q = 2 (Beckmann), 4 or 8 (flat-topped); F is Schlick's with one F0 for
+ * all channels (0.04, 0.25 or 1), or one per channel (fitted with kd and ks:
+ * scattered_lobe_solve.c), for a coloured metal whose highlight whitens
+ * towards grazing.  The diffuse term is kd, or kd (1 - (1 - v.h)^5) (fd:
+ * the light Schlick's F reflects does not reach the diffuse layer; the
+ * microfacet model's (1 - F) base / pi, which a constant kd misses by 4 %
+ * at a glossy table's grazing mirror rows).
  * The shape's parameters are searched on grids (alpha log-spaced, then
  * refined by golden section); for each shape kd and ks of every channel
  * are the non-negative least-squares solution in the norm of f cos theta_i
@@ -54,6 +60,13 @@
 #define ALT_REL 0.05
 
 static const double f0_grid[] = {0.04, 0.25, 1.0};
+#define NF0 3 /* f0_grid's entries; family index NF0: F0 per channel */
+/* The per-channel F0 is kept over the best grey one only when it lowers
+ * log_cost by this fraction and by PC_MIN (three more weights fit any
+ * table a little better, and two exact fits part by rounding; gold's grey
+ * shapes cost 4.4, its per-channel one 0.006). */
+#define PC_GAIN 0.25
+#define PC_MIN 0.1
 static const char *const ndf_names[NDFS] = {"ggx", "beckmann", "exp4", "exp8"};
 
 /* What the shape needs of a pair (l, v), apart from its parameters:
@@ -107,58 +120,55 @@ static double shape_at(const geo_t *gm, int ndf, double alpha, double f0, int co
     return shape_capped(gm, ndf, alpha, f0, cosp, INFINITY);
 }
 
-/* Five sums per channel for the 2 x 2 least squares of one shape. */
-typedef struct sums {
-    double w, ws, wss, wf[3], wsf[3], wff[3];
-} sums_t;
-
-/* Non-negative (kd, ks) of channel c minimising sum w (kd + ks S - f)^2;
- * returns the residual sum. */
-static double solve2(const sums_t *m, int c, double *kd, double *ks) {
-    double best = INFINITY, cand[3][2] = {{0, 0}, {0, 0}, {0, 0}};
-    double det = m->w * m->wss - m->ws * m->ws;
-    if (det > 1e-300 * (m->w * m->wss + 1e-300)) {
-        cand[0][0] = (m->wss * m->wf[c] - m->ws * m->wsf[c]) / det;
-        cand[0][1] = (m->w * m->wsf[c] - m->ws * m->wf[c]) / det;
-    }
-    cand[1][0] = m->w > 0 ? fmax(m->wf[c] / m->w, 0) : 0;
-    cand[2][1] = m->wss > 0 ? fmax(m->wsf[c] / m->wss, 0) : 0;
-    for (int i = 0; i < 3; i++) {
-        double a = cand[i][0], b = cand[i][1];
-        if (a < 0 || b < 0) continue;
-        double r = m->wff[c] - 2 * (a * m->wf[c] + b * m->wsf[c]) + a * a * m->w + 2 * a * b * m->ws + b * b * m->wss;
-        if (r < best) best = r, *kd = a, *ks = b;
-    }
-    return best;
+/* The diffuse term's factor: 1, or 1 - (1 - v.h)^5 (fd). */
+static double diffuse_at(const geo_t *gm, int fd) {
+    double m = gm->m;
+    return fd ? 1 - m * m * m * m * m : 1.0;
 }
 
-/* Residual of the best linear weights for one shape over the samples
- * 0, step, 2 step, ... (geo[i] the geometry of sample i * step). */
-static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, int ndf, double alpha, double f0,
-                         int cosp, double kd[3], double ks[3]) {
-    sums_t m;
+/* Add a sample of weight w, diffuse factor B, shape values S and T and
+ * values f to m's sums of S and T (those of w and f alone are the
+ * caller's). */
+static void sums_add(lobe_sums_t *m, double w, double B, double S, double T, const double f[3]) {
+    m->ws += w * B * S;
+    m->wss += w * S * S;
+    m->wt += w * B * T;
+    m->wst += w * S * T;
+    m->wtt += w * T * T;
+    for (int c = 0; c < 3; c++) {
+        m->wsf[c] += w * S * f[c];
+        m->wtf[c] += w * T * f[c];
+    }
+}
+
+/* Residual of the best linear weights of shape s (its ndf, alpha, cosp,
+ * fd and f0, or pc) over the samples 0, step, 2 step, ... (geo[i] the
+ * geometry of sample i * step); its kd, ks and f0c into s. */
+static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, lobe_alt_t *s) {
+    lobe_sums_t m;
     memset(&m, 0, sizeof m);
     for (size_t i = 0, j = 0; i < ns; i += step, j++) {
-        const double *s = smp + i * SB_SAMPLE_DOUBLES;
-        double S = shape_at(&geo[j], ndf, alpha, f0, cosp), w = s[2] * s[2];
-        m.w += w;
-        m.ws += w * S;
-        m.wss += w * S * S;
+        const double *x = smp + i * SB_SAMPLE_DOUBLES;
+        double S = shape_at(&geo[j], s->ndf, s->alpha, s->pc ? 1.0 : s->f0, s->cosp), w = x[2] * x[2];
+        double T = s->pc ? shape_at(&geo[j], s->ndf, s->alpha, 0.0, s->cosp) : 0; /* S (1 - v.h)^5 */
+        double B = diffuse_at(&geo[j], s->fd);
+        m.w += w * B * B;
+        sums_add(&m, w, B, S, T, x + 6);
         for (int c = 0; c < 3; c++) {
-            m.wf[c] += w * s[6 + c];
-            m.wsf[c] += w * S * s[6 + c];
-            m.wff[c] += w * s[6 + c] * s[6 + c];
+            m.wf[c] += w * B * x[6 + c];
+            m.wff[c] += w * x[6 + c] * x[6 + c];
         }
     }
-    double r = 0, a, b;
+    double r = 0;
     for (int c = 0; c < 3; c++) {
-        r += solve2(&m, c, &a, &b);
-        if (kd) kd[c] = a, ks[c] = b;
+        s->f0c[c] = s->f0;
+        r += s->pc ? sb_lobe_solve3_(&m, c, &s->kd[c], &s->ks[c], &s->f0c[c])
+                   : sb_lobe_solve2_(&m, c, &s->kd[c], &s->ks[c]);
     }
     return r;
 }
 
-/* How far the base kd + ks S + floor is from the samples, as a factor:
+/* How far the base kd B + ks S + floor is from the samples, as a factor:
  * the sum over samples and channels of ln^2((f+ + floor) / base), kd and
  * ks the least-squares weights of the shape.  The interpolation spreads
  * q = f / base between the samples, so the shape to keep is the one that
@@ -166,15 +176,17 @@ static double shape_cost(const double *smp, size_t ns, size_t step, const geo_t 
  * peak (the squares of f cos theta_i alone see the peak only: a family
  * whose tail overshoots the first samples beside a narrow peak by 10x
  * cost less there than one that misses the peak's shoulder by 20 %). */
-static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, int ndf, double alpha, double f0,
-                       int cosp, const double floor_[3]) {
-    double kd[3], ks[3], r = 0;
-    shape_cost(smp, ns, step, geo, ndf, alpha, f0, cosp, kd, ks);
+static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *geo, lobe_alt_t s,
+                       const double floor_[3]) {
+    double r = 0;
+    shape_cost(smp, ns, step, geo, &s);
+    const double *kd = s.kd, *ks = s.ks;
     for (size_t i = 0, j = 0; i < ns; i += step, j++) {
-        const double *s = smp + i * SB_SAMPLE_DOUBLES;
-        double S = shape_at(&geo[j], ndf, alpha, f0, cosp);
+        const double *x = smp + i * SB_SAMPLE_DOUBLES;
+        double S = shape_at(&geo[j], s.ndf, s.alpha, s.f0c[0], s.cosp), B = diffuse_at(&geo[j], s.fd);
         for (int c = 0; c < 3; c++) {
-            double l = log((fmax(s[6 + c], 0) + floor_[c]) / (kd[c] + ks[c] * S + floor_[c]));
+            if (s.pc && c > 0) S = shape_at(&geo[j], s.ndf, s.alpha, s.f0c[c], s.cosp);
+            double l = log((fmax(x[6 + c], 0) + floor_[c]) / (kd[c] * B + ks[c] * S + floor_[c]));
             r += l * l;
         }
     }
@@ -189,19 +201,20 @@ static double log_cost(const double *smp, size_t ns, size_t step, const geo_t *g
  * exactly 0.  The grid of alpha shares D across the families (F0, cosine
  * power) and the denominators across the distributions. */
 typedef struct fitset {
-    size_t n;                               /* samples where the shape is not 0 */
-    double *c2, *s2, *t2, *l2, *v2, *fr[3]; /* t2: s2 / c2 (INFINITY at c2 = 0); fr: Schlick's F per f0_grid */
-    double *w, *f, *D, *den[COSP];          /* f: 3 per sample; D and den: one shape's (scratch) */
-    sums_t base;                            /* w, wf and wff over all the samples */
+    size_t n;                                 /* samples where the shape is not 0 */
+    double *c2, *s2, *t2, *l2, *v2, *fr[NF0]; /* t2: s2 / c2 (INFINITY at c2 = 0); fr: Schlick's F per f0_grid */
+    double *m5, *b1;                          /* (1 - v.h)^5 (the per-channel F0's second term), 1 - m5 */
+    double *w, *f, *D, *den[COSP];            /* f: 3 per sample; D and den: one shape's (scratch) */
+    lobe_sums_t base[2];                      /* w, wf and wff over all the samples, diffuse 1 and b1 */
 } fitset_t;
 
 /* fs for the samples 0, step, ... (geometry geo); 0 on no memory. */
 static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, const geo_t *geo) {
     memset(fs, 0, sizeof *fs);
     size_t m = (ns + step - 1) / step, nf = sizeof f0_grid / sizeof *f0_grid;
-    double *p = malloc(m * (7 + nf + COSP + 3) * sizeof *p); /* the columns below, f's 3 last */
+    double *p = malloc(m * (9 + nf + COSP + 3) * sizeof *p); /* the columns below, f's 3 last */
     if (!p) return 0;
-    double **col[] = {&fs->c2, &fs->s2, &fs->t2, &fs->l2, &fs->v2, &fs->w, &fs->D};
+    double **col[] = {&fs->c2, &fs->s2, &fs->t2, &fs->l2, &fs->v2, &fs->w, &fs->D, &fs->m5, &fs->b1};
     for (size_t a = 0; a < sizeof col / sizeof *col; a++, p += m)
         *col[a] = p;
     for (size_t a = 0; a < nf; a++, p += m)
@@ -213,10 +226,13 @@ static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, 
         const double *s = smp + i * SB_SAMPLE_DOUBLES;
         const geo_t *g = &geo[j];
         double w = s[2] * s[2], m = g->m;
-        fs->base.w += w;
-        for (int c = 0; c < 3; c++) {
-            fs->base.wf[c] += w * s[6 + c];
-            fs->base.wff[c] += w * s[6 + c] * s[6 + c];
+        for (int fd = 0; fd < 2; fd++) {
+            double B = diffuse_at(g, fd);
+            fs->base[fd].w += w * B * B;
+            for (int c = 0; c < 3; c++) {
+                fs->base[fd].wf[c] += w * B * s[6 + c];
+                fs->base[fd].wff[c] += w * s[6 + c] * s[6 + c];
+            }
         }
         if (!g->ok) continue;
         size_t k = fs->n++;
@@ -224,6 +240,8 @@ static int fitset_init(fitset_t *fs, const double *smp, size_t ns, size_t step, 
         fs->t2[k] = g->c2 > 0 ? g->s2 / g->c2 : INFINITY;
         for (size_t a = 0; a < nf; a++)
             fs->fr[a][k] = f0_grid[a] + (1 - f0_grid[a]) * m * m * m * m * m;
+        fs->m5[k] = m * m * m * m * m;
+        fs->b1[k] = diffuse_at(g, 1);
         for (int c = 0; c < 3; c++)
             fs->f[3 * k + (size_t)c] = s[6 + c];
     }
@@ -259,43 +277,74 @@ static void fitset_den(const fitset_t *fs, int cosp, double alpha, const double 
     }
 }
 
-/* shape_cost's residual of the shape D fr / den.  Where D is 0 (an exp
- * family's far tail) the sample adds exactly 0: skipped. */
-static double fitset_cost(const fitset_t *fs, const double *D, const double *fr, const double *den) {
-    sums_t m = fs->base;
+/* shape_cost's residual of the per-channel F0 family: S = D / den, T =
+ * D m^5 / den. */
+static double fitset_cost_pc(const fitset_t *fs, const double *D, const double *den, int fd) {
+    lobe_sums_t m = fs->base[fd];
+    for (size_t j = 0; j < fs->n; j++) {
+        if (D[j] == 0) continue;
+        double B = fd ? fs->b1[j] : 1.0;
+        sums_add(&m, fs->w[j], B, D[j] * 1.0 / den[j], D[j] * fs->m5[j] / den[j], fs->f + 3 * j);
+    }
+    double r = 0, a, b, e;
+    for (int c = 0; c < 3; c++)
+        r += sb_lobe_solve3_(&m, c, &a, &b, &e);
+    return r;
+}
+
+/* shape_cost's residual of the shape D fr / den (fr NULL: F0 per
+ * channel), diffuse factor 1 or b1 (fd).  Where D is 0 (an exp family's
+ * far tail) the sample adds exactly 0: skipped. */
+static double fitset_cost(const fitset_t *fs, const double *D, const double *fr, const double *den, int fd) {
+    if (!fr) return fitset_cost_pc(fs, D, den, fd);
+    lobe_sums_t m = fs->base[fd];
     for (size_t j = 0; j < fs->n; j++) {
         if (D[j] == 0) continue;
         double S = D[j] * fr[j] / den[j], wS = fs->w[j] * S;
-        m.ws += wS;
+        m.ws += fd ? fs->w[j] * fs->b1[j] * S : wS;
         m.wss += wS * S;
         for (int c = 0; c < 3; c++)
             m.wsf[c] += wS * fs->f[3 * j + (size_t)c];
     }
     double r = 0, a, b;
     for (int c = 0; c < 3; c++)
-        r += solve2(&m, c, &a, &b);
+        r += sb_lobe_solve2_(&m, c, &a, &b);
     return r;
 }
 
-/* The residual of one shape (shape_cost's). */
-static double fitset_shape(fitset_t *fs, int ndf, double alpha, size_t fi, int cosp) {
-    fitset_d(fs, ndf, alpha, fs->D);
-    fitset_den(fs, cosp, alpha, fs->D, fs->den[0]);
-    return fitset_cost(fs, fs->D, fs->fr[fi], fs->den[0]);
+/* A family cf of one distribution: the cosines' power cf % COSP, F0
+ * (cf / COSP) % (NF0 + 1) (NF0: per channel), diffuse factor fd. */
+#define FCS (COSP * (NF0 + 1) * 2) /* the families of one distribution */
+#define FAMILIES (NDFS * FCS)
+#define CF_COSP(cf) ((cf) % COSP)
+#define CF_F0(cf) ((size_t)(cf) / COSP % (NF0 + 1))
+#define CF_FD(cf) ((cf) / (COSP * (NF0 + 1)))
+
+/* fitset_cost of family cf with D and den given. */
+static double fitset_family(const fitset_t *fs, const double *D, int cf, const double *den) {
+    size_t fi = CF_F0(cf);
+    return fitset_cost(fs, D, fi < NF0 ? fs->fr[fi] : NULL, den, CF_FD(cf));
 }
 
-/* Golden-section refinement of log alpha in [lo, hi] for one (ndf, f0). */
-static double refine_alpha(fitset_t *fs, int ndf, size_t fi, int cosp, double lo, double hi, double *cost) {
+/* The residual of one shape (shape_cost's). */
+static double fitset_shape(fitset_t *fs, int ndf, double alpha, int cf) {
+    fitset_d(fs, ndf, alpha, fs->D);
+    fitset_den(fs, CF_COSP(cf), alpha, fs->D, fs->den[0]);
+    return fitset_family(fs, fs->D, cf, fs->den[0]);
+}
+
+/* Golden-section refinement of log alpha in [lo, hi] for one (ndf, cf). */
+static double refine_alpha(fitset_t *fs, int ndf, int cf, double lo, double hi, double *cost) {
     const double g = 0.6180339887498949;
     double a = lo, b = hi, x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double c1 = fitset_shape(fs, ndf, exp(x1), fi, cosp), c2 = fitset_shape(fs, ndf, exp(x2), fi, cosp);
+    double c1 = fitset_shape(fs, ndf, exp(x1), cf), c2 = fitset_shape(fs, ndf, exp(x2), cf);
     for (int it = 0; it < GOLDEN_STEPS; it++) {
         if (c1 < c2) {
             b = x2, x2 = x1, c2 = c1, x1 = b - g * (b - a);
-            c1 = fitset_shape(fs, ndf, exp(x1), fi, cosp);
+            c1 = fitset_shape(fs, ndf, exp(x1), cf);
         } else {
             a = x1, x1 = x2, c1 = c2, x2 = a + g * (b - a);
-            c2 = fitset_shape(fs, ndf, exp(x2), fi, cosp);
+            c2 = fitset_shape(fs, ndf, exp(x2), cf);
         }
     }
     *cost = c1 < c2 ? c1 : c2;
@@ -352,41 +401,44 @@ typedef struct cand {
  * cheapest first, each a different shape (cosine power 0 has no Smith k). */
 static void pick_alternatives(const double *smp, size_t ns, const geo_t *geo, cand_t *c, int nc, double best,
                               lobe_t *L) {
-    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY};
+    L->alt[0] = (lobe_alt_t){L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY, L->pc, {0}, L->fd};
     memcpy(L->alt[0].kd, L->kd, sizeof L->kd);
     memcpy(L->alt[0].ks, L->ks, sizeof L->ks);
+    memcpy(L->alt[0].f0c, L->f0c, sizeof L->f0c);
     L->nalt = 1;
     while (L->nalt < LOBE_ALTS) {
         int at = -1;
         for (int i = 0; i < nc; i++) {
-            if (!(c[i].cost < best + fmin(ALT_MARGIN, ALT_REL * best)) || (at >= 0 && c[i].cost >= c[at].cost))
+            if (!(c[i].cost < best + fmin(ALT_MARGIN, ALT_REL * best)) || (at >= 0 && c[i].cost >= c[at].cost) ||
+                c[i].s.pc != L->pc)
                 continue;
             int same = 0;
             for (int a = 0; a < L->nalt && !same; a++)
-                same = L->alt[a].ndf == c[i].s.ndf && L->alt[a].f0 == c[i].s.f0 &&
+                same = L->alt[a].ndf == c[i].s.ndf && L->alt[a].f0 == c[i].s.f0 && L->alt[a].pc == c[i].s.pc &&
+                       L->alt[a].fd == c[i].s.fd &&
                        (L->alt[a].cosp == c[i].s.cosp || (L->alt[a].cosp % 3 == 0 && c[i].s.cosp % 3 == 0));
             if (!same) at = i;
         }
         if (at < 0) break;
         lobe_alt_t *a = &L->alt[L->nalt++];
         *a = c[at].s;
-        shape_cost(smp, ns, 1, geo, a->ndf, a->alpha, a->f0, a->cosp, a->kd, a->ks);
+        shape_cost(smp, ns, 1, geo, a);
         c[at].cost = INFINITY;
     }
 }
 
 /* Whether family (ndf, cf) is searched: all, or keep's alone. */
 static int family_wanted(const sb_lobe_fit_t *keep, int ndf, int cf) {
-    int cosp = cf % COSP;
-    size_t fi = (size_t)cf / COSP;
-    return !keep || (ndf == ndf_index(keep->ndf) && f0_grid[fi] == keep->f0 &&
+    int cosp = CF_COSP(cf);
+    size_t fi = CF_F0(cf);
+    if (keep && CF_FD(cf) != keep->diffuse_fresnel) return 0;
+    int f0_kept = fi == NF0 ? keep && keep->f0_per_channel : keep && !keep->f0_per_channel && f0_grid[fi] == keep->f0;
+    return !keep || (ndf == ndf_index(keep->ndf) && f0_kept &&
                      cosp == (int)(2 * keep->cos_power) + (keep->smith_k_remapped ? 3 : 0));
 }
 
-#define FAMILIES (NDFS * COSP * 3)
-
 /* For each family wanted, the grid's alpha of the lowest residual (the
- * first of equals) into at[ndf * COSP * 3 + cf]. */
+ * first of equals) into at[ndf * FCS + cf]. */
 static void grid_search(fitset_t *fs, const sb_lobe_fit_t *keep, double la, double dl, int at[FAMILIES]) {
     double cb[FAMILIES];
     for (int i = 0; i < FAMILIES; i++)
@@ -397,11 +449,11 @@ static void grid_search(fitset_t *fs, const sb_lobe_fit_t *keep, double la, doub
             fitset_den(fs, cosp, alpha, NULL, fs->den[cosp]);
         for (int ndf = 0; ndf < NDFS; ndf++) {
             int d = 0;
-            for (int cf = 0; cf < COSP * 3; cf++) {
+            for (int cf = 0; cf < FCS; cf++) {
                 if (!family_wanted(keep, ndf, cf)) continue;
                 if (!d) fitset_d(fs, ndf, alpha, fs->D), d = 1;
-                double c = fitset_cost(fs, fs->D, fs->fr[cf / COSP], fs->den[cf % COSP]);
-                int i = ndf * COSP * 3 + cf;
+                double c = fitset_family(fs, fs->D, cf, fs->den[CF_COSP(cf)]);
+                int i = ndf * FCS + cf;
                 if (c < cb[i]) cb[i] = c, at[i] = k;
             }
         }
@@ -414,22 +466,29 @@ static double search(const double *smp, size_t ns, size_t step, const geo_t *geo
                      cand_t *cands, int *nc, lobe_t *L) {
     fitset_t fs;
     if (!fitset_init(&fs, smp, ns, step, geo)) return INFINITY;
-    double best = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
-    int at[FAMILIES];
+    double grey = INFINITY, pc = INFINITY, la = log(ALPHA_MIN), lb = log(ALPHA_MAX), dl = (lb - la) / (ALPHA_STEPS - 1);
+    int at[FAMILIES], gi = -1, pi = -1;
     grid_search(&fs, keep, la, dl, at);
     for (int ndf = 0; ndf < NDFS; ndf++)
-        for (int cf = 0; cf < COSP * 3; cf++) {
+        for (int cf = 0; cf < FCS; cf++) {
             if (!family_wanted(keep, ndf, cf)) continue;
-            int cosp = cf % COSP, k = at[ndf * COSP * 3 + cf];
-            size_t fi = (size_t)cf / COSP;
+            int cosp = CF_COSP(cf), k = at[ndf * FCS + cf];
+            size_t fi = CF_F0(cf);
             double lo = la + (k > 0 ? k - 1 : 0) * dl, hi = la + (k < ALPHA_STEPS - 1 ? k + 1 : k) * dl, c;
-            double alpha = refine_alpha(&fs, ndf, fi, cosp, lo, hi, &c);
-            c = log_cost(smp, ns, step, geo, ndf, alpha, f0_grid[fi], cosp, L->floor);
-            if (*nc < FAMILIES) cands[(*nc)++] = (cand_t){c, {ndf, cosp, alpha, f0_grid[fi], {0}, {0}, INFINITY}};
-            if (c < best) best = c, L->ndf = ndf, L->alpha = alpha, L->f0 = f0_grid[fi], L->cosp = cosp;
+            double alpha = refine_alpha(&fs, ndf, cf, lo, hi, &c);
+            lobe_alt_t s = {ndf,       cosp, alpha,    fi < NF0 ? f0_grid[fi] : 1.0, {0}, {0}, INFINITY,
+                            fi == NF0, {0},  CF_FD(cf)};
+            c = log_cost(smp, ns, step, geo, s, L->floor);
+            if (fi < NF0 && c < grey) grey = c, gi = *nc;
+            if (fi == NF0 && c < pc) pc = c, pi = *nc;
+            cands[(*nc)++] = (cand_t){c, s};
         }
     free(fs.c2);
-    return best;
+    int b = pi >= 0 && (gi < 0 || (pc < grey * (1 - PC_GAIN) && pc < grey - PC_MIN)) ? pi : gi;
+    if (b < 0) return INFINITY;
+    const lobe_alt_t *s = &cands[b].s;
+    L->ndf = s->ndf, L->alpha = s->alpha, L->f0 = s->f0, L->cosp = s->cosp, L->pc = s->pc, L->fd = s->fd;
+    return cands[b].cost;
 }
 
 void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_t *L) {
@@ -450,7 +509,11 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
         free(geo);
         return;
     }
-    shape_cost(smp, ns, 1, geo, L->ndf, L->alpha, L->f0, L->cosp, L->kd, L->ks);
+    lobe_alt_t s = {L->ndf, L->cosp, L->alpha, L->f0, {0}, {0}, INFINITY, L->pc, {0}, L->fd};
+    shape_cost(smp, ns, 1, geo, &s);
+    memcpy(L->kd, s.kd, sizeof L->kd);
+    memcpy(L->ks, s.ks, sizeof L->ks);
+    memcpy(L->f0c, s.f0c, sizeof L->f0c);
     pick_alternatives(smp, ns, geo, cands, nc, best, L);
     /* Each shape's D is capped at CAP x its largest at a sample: a lobe
      * narrower than the samples resolve claims no higher peak between them.
@@ -473,56 +536,14 @@ void sb_lobe_base_(const lobe_t *L, const double wi[3], const double wo[3], doub
     double m[3] = {INFINITY, INFINITY, INFINITY};
     for (int a = 0; a < L->nalt; a++) {
         const lobe_alt_t *s = &L->alt[a];
-        double S = shape_capped(&g, s->ndf, s->alpha, s->f0, s->cosp, s->dcap);
-        for (int c = 0; c < 3; c++)
-            m[c] = fmin(m[c], s->kd[c] + s->ks[c] * S);
+        double S = shape_capped(&g, s->ndf, s->alpha, s->f0c[0], s->cosp, s->dcap), B = diffuse_at(&g, s->fd);
+        for (int c = 0; c < 3; c++) {
+            if (s->pc && c > 0) S = shape_capped(&g, s->ndf, s->alpha, s->f0c[c], s->cosp, s->dcap);
+            m[c] = fmin(m[c], s->kd[c] * B + s->ks[c] * S);
+        }
     }
     for (int c = 0; c < 3; c++)
         b[c] = m[c] + L->floor[c];
-}
-
-void sb_table_dirs_(const table_t *t, const double *x, double wi[3], double wo[3]) {
-    double ti, pi_, to, po;
-    if (t->iso) {
-        ti = x[0], pi_ = 0, to = x[1], po = x[2];
-    } else {
-        ti = hypot(x[0], x[1]), pi_ = atan2(x[1], x[0]), to = hypot(x[2], x[3]), po = atan2(x[3], x[2]);
-    }
-    wi[0] = sin(ti) * cos(pi_), wi[1] = sin(ti) * sin(pi_), wi[2] = cos(ti);
-    wo[0] = sin(to) * cos(po), wo[1] = sin(to) * sin(po), wo[2] = cos(to);
-}
-
-double sb_lobe_level_(const table_t *t, const double *x) {
-    double wi[3], wo[3], b[3];
-    sb_table_dirs_(t, x, wi, wo);
-    sb_lobe_base_(&t->lobe, wi, wo, b);
-    return log(b[0] + b[1] + b[2]);
-}
-
-double *sb_lobe_values_(const table_t *t, const lobe_t *L, double **lb) {
-    double *q = L->fitted ? malloc(t->n * 4 * sizeof *q) : NULL;
-    *lb = q ? malloc(t->n * sizeof **lb) : NULL;
-    if (!*lb) {
-        free(q);
-        return NULL;
-    }
-    for (size_t i = 0; i < t->n; i++) {
-        double wi[3], wo[3], b[3];
-        sb_table_dirs_(t, t->pts + i * MAX_DIM, wi, wo);
-        sb_lobe_base_(L, wi, wo, b);
-        for (int c = 0; c < 3; c++) {
-            q[4 * i + (size_t)c] = (t->val[4 * i + (size_t)c] + L->floor[c]) / b[c];
-            if (!isfinite(q[4 * i + (size_t)c])) { /* the lobe cannot carry these values */
-                free(q);
-                free(*lb);
-                *lb = NULL;
-                return NULL;
-            }
-        }
-        (*lb)[i] = log(b[0] + b[1] + b[2]);
-        q[4 * i + 3] = t->val[4 * i + 3];
-    }
-    return q;
 }
 
 void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out) {
@@ -530,7 +551,10 @@ void sb_lobe_report_(const lobe_t *L, int used, sb_lobe_fit_t *out) {
     out->used = used;
     out->ndf = ndf_names[L->ndf];
     out->alpha = L->alpha;
-    out->f0 = L->f0;
+    out->f0 = L->pc ? (L->f0c[0] + L->f0c[1] + L->f0c[2]) / 3 : L->f0;
+    out->f0_per_channel = L->pc;
+    out->diffuse_fresnel = L->fd;
+    memcpy(out->f0_rgb, L->f0c, sizeof out->f0_rgb);
     memcpy(out->kd, L->kd, sizeof out->kd);
     memcpy(out->ks, L->ks, sizeof out->ks);
     memcpy(out->floor, L->floor, sizeof out->floor);
