@@ -490,6 +490,8 @@ static void plot(const bench_opts_t *o, const char *csv) {
         fprintf(stderr, "%s: wrote %s\n", o->prog, png);
 }
 
+void (*sb_bench_tmp_hook)(const char *path, int on);
+
 static int run_all(bench_opts_t *o) {
     FILE *csv = NULL;
     char csv_path[4200], tmp_path[4300];
@@ -500,7 +502,9 @@ static int run_all(bench_opts_t *o) {
         }
         snprintf(csv_path, sizeof csv_path, "%s/results.csv", o->out);
         snprintf(tmp_path, sizeof tmp_path, "%s.tmp-%ld", csv_path, (long)getpid());
+        if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 1); /* before it exists */
         if (!(csv = fopen(tmp_path, "w"))) {
+            if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 0);
             fprintf(stderr, "%s: %s: cannot write\n", o->prog, csv_path);
             return 2;
         }
@@ -653,12 +657,13 @@ static int run_all(bench_opts_t *o) {
         sb_context_destroy(ctx);
     }
     if (csv) {
-        int ok = fclose(csv) == 0 && rc == 0;
-        if (ok && rename(tmp_path, csv_path) == 0) {
+        int ok = fclose(csv) == 0 && rc == 0, moved = ok && rename(tmp_path, csv_path) == 0;
+        if (!moved) remove(tmp_path);
+        if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 0);
+        if (moved) {
             if (o->verbosity) fprintf(stderr, "%s: wrote %s\n", o->prog, csv_path);
             plot(o, csv_path);
         } else {
-            remove(tmp_path);
             if (rc == 0) {
                 fprintf(stderr, "%s: %s: cannot write\n", o->prog, csv_path);
                 rc = 2;
