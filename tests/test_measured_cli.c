@@ -1080,3 +1080,18 @@ SB_TEST(cv_names_the_table_and_fewer_terms) {
     CHECK(tb != NULL);
     if (tb) CHECKF(strtod(tb + 9, NULL) > 0.3, "measured.cv.table %g", strtod(tb + 9, NULL));
 }
+
+/* A layout that does not hold the table at any J is named as such: the
+ * RGL paper on hd (its nodes with the light at grazing hold values up to
+ * 3e10 that only vndf reproduces) errs by 98 % at its samples at J = 1 and
+ * 2, and the warning blamed the terms beyond J = 1 ("they fit the
+ * interpolation, not the data"). */
+SB_TEST(layout_missing_the_table_named) {
+    const char *dir = sb_tmpdir("mmiss");
+    int rc = cli("factor %s/rgl_paper_white_rgb.bsdf --param hd -r 8 -J 2 -o %s/hd", SB_MEASURED_DIR, dir);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    CHECKF(strstr(out, "the textures miss the") && strstr(out, "at every J") &&
+               strstr(out, "layout hd does not hold this table's values") && strstr(out, "--param auto keeps") &&
+               !strstr(out, "terms beyond J"),
+           "%s", out);
+}
