@@ -253,7 +253,8 @@ static int parse(int argc, char **argv, bench_opts_t *o) {
             if (end == v || *end || !(o->min_time >= 0 && o->min_time <= 60))
                 return bad(o, "--min-time '%s': need 0..60 s", v);
         } else if ((m = opt(argc, argv, &i, "-o", "--out", &v))) {
-            if (m < 0 || !*v) return bad(o, "%s needs a folder", a);
+            if (m < 0) return bad(o, "%s needs a folder", a);
+            if (!*v) return bad(o, "%s: empty folder name", "--out");
             o->out = v;
         } else if (strcmp(a, "--quick") == 0) {
             o->sizes[0] = 256, o->sizes[1] = 1024, o->nsizes = 2;
@@ -490,17 +491,39 @@ static void plot(const bench_opts_t *o, const char *csv) {
         fprintf(stderr, "%s: wrote %s\n", o->prog, png);
 }
 
+void (*sb_bench_tmp_hook)(const char *path, int on);
+
+int sb_bench_out_dir(const char *prog, const char *dir) {
+    char buf[4200];
+    struct stat st;
+    int e = 0, n = snprintf(buf, sizeof buf, "%s", dir);
+    if (n < 0 || (size_t)n >= sizeof buf) e = ENAMETOOLONG;
+    for (char *p = buf + 1; !e; p++) { /* mkdir -p */
+        if (*p != '/' && *p) continue;
+        char c = *p;
+        *p = 0;
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST) e = errno;
+        *p = c;
+        if (!c) break;
+    }
+    if (!e && (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))) {
+        fprintf(stderr, "%s: --out %s: exists and is not a folder\n", prog, dir);
+        return 2;
+    }
+    if (e) fprintf(stderr, "%s: --out %s: cannot create the folder: %s\n", prog, dir, strerror(e));
+    return e ? 2 : 0;
+}
+
 static int run_all(bench_opts_t *o) {
     FILE *csv = NULL;
     char csv_path[4200], tmp_path[4300];
     if (o->out) {
-        if (mkdir(o->out, 0777) != 0 && errno != EEXIST) {
-            fprintf(stderr, "%s: --out %s: cannot create the folder\n", o->prog, o->out);
-            return 2;
-        }
+        if (sb_bench_out_dir(o->prog, o->out) != 0) return 2;
         snprintf(csv_path, sizeof csv_path, "%s/results.csv", o->out);
         snprintf(tmp_path, sizeof tmp_path, "%s.tmp-%ld", csv_path, (long)getpid());
+        if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 1); /* before it exists */
         if (!(csv = fopen(tmp_path, "w"))) {
+            if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 0);
             fprintf(stderr, "%s: %s: cannot write\n", o->prog, csv_path);
             return 2;
         }
@@ -653,12 +676,13 @@ static int run_all(bench_opts_t *o) {
         sb_context_destroy(ctx);
     }
     if (csv) {
-        int ok = fclose(csv) == 0 && rc == 0;
-        if (ok && rename(tmp_path, csv_path) == 0) {
+        int ok = fclose(csv) == 0 && rc == 0, moved = ok && rename(tmp_path, csv_path) == 0;
+        if (!moved) remove(tmp_path);
+        if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 0);
+        if (moved) {
             if (o->verbosity) fprintf(stderr, "%s: wrote %s\n", o->prog, csv_path);
             plot(o, csv_path);
         } else {
-            remove(tmp_path);
             if (rc == 0) {
                 fprintf(stderr, "%s: %s: cannot write\n", o->prog, csv_path);
                 rc = 2;

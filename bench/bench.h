@@ -18,4 +18,16 @@
  * 3 numerical failure). */
 int sb_bench_main(int argc, char **argv, const char *prog);
 
+/* Called with the path of results.csv's temporary before it is created
+ * (on = 1) and once it is renamed or removed (on = 0); NULL (the default,
+ * sepbrdf_bench): nothing.  `sepbrdf bench` registers it with the CLI's
+ * signal cleanup (cli_guard), so that SIGINT, SIGTERM or SIGHUP leaves
+ * no results.csv.tmp-PID behind. */
+extern void (*sb_bench_tmp_hook)(const char *path, int on);
+
+/* The output folder DIR, created with its parents as every writing
+ * command creates its -o folder; 0, or 2 with "PROG: --out DIR: why" on
+ * stderr (exists and is not a folder, cannot create: errno's text). */
+int sb_bench_out_dir(const char *prog, const char *dir);
+
 #endif

@@ -16,6 +16,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "bench.h"
 #include "pareto.h"
 #include "sepbrdf/sepbrdf.h"
 
@@ -254,10 +255,13 @@ int sb_bench_pareto_main(int argc, char **argv, const char *prog) {
     o.out = ".";
     int r = parse(argc, argv, &o);
     if (r) return r < 0 ? 0 : 1;
-    if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {
-        fprintf(stderr, "%s --pareto: cannot create %s: %s\n", prog, o.out, strerror(errno));
-        return 2;
+    char who[96];
+    snprintf(who, sizeof who, "%s --pareto", prog);
+    if (!*o.out) {
+        fprintf(stderr, "%s: --out: empty folder name\n", who);
+        return 1;
     }
+    if (sb_bench_out_dir(who, o.out) != 0) return 2;
     char tmp[2048], path[4200];
     snprintf(tmp, sizeof tmp, "%s/pareto-run-%ld", o.out, (long)getpid());
     size_t n = 0;

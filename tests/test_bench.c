@@ -122,3 +122,27 @@ SB_TEST(measured_model_and_J) {
              SB_CLI, dir);
     CHECKF(sb_run(cmd, out, sizeof out) == 0 && !strstr(out, "gnuplot failed"), "%s", out);
 }
+
+/* bench's -o as every writing command's: a folder created with its parents
+ * (was "cannot create the folder", exit 2, naming no reason), a file
+ * refused as "exists and is not a folder", an empty name a usage error;
+ * --pareto the same. */
+SB_TEST(out_folder_as_other_commands) {
+    const char *dir = sb_tmpdir("bench_out");
+    char cmd[8400], out[8192], path[4200];
+    snprintf(cmd, sizeof cmd, "%s bench -J 1 --sizes 16 --methods full --min-time 0 --no-baseline -o %s/a/b/c 2>&1",
+             SB_CLI, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    snprintf(path, sizeof path, "%s/a/b/c/results.csv", dir);
+    CHECKF(sb_file_exists(path), "%s missing: %s", path, out);
+    snprintf(path, sizeof path, "%s/file", dir);
+    FILE *fp = fopen(path, "w");
+    if (fp) fclose(fp);
+    static const char *const modes[2] = {"", "--pareto "};
+    for (int m = 0; m < 2; m++) {
+        snprintf(cmd, sizeof cmd, "%s bench %s--quick -o %s 2>&1", SB_CLI, modes[m], path);
+        CHECKF(sb_run(cmd, out, sizeof out) == 2 && strstr(out, "exists and is not a folder"), "%s", out);
+        snprintf(cmd, sizeof cmd, "%s bench %s--quick -o '' 2>&1", SB_CLI, modes[m]);
+        CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "--out: empty folder name"), "%s", out);
+    }
+}

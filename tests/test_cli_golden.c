@@ -89,6 +89,28 @@ SB_TEST(help_every_command) {
     }
 }
 
+/* A set's manifest as every command's --help names it is the file that
+ * command writes, sepbrdf-set-CMD.txt (factor's help named
+ * sepbrdf-set.txt, which no command writes). */
+SB_TEST(help_names_the_manifest) {
+    char names[32][32];
+    int n = commands(names, 32);
+    CHECK(n >= 4);
+    for (int i = 0; i < n; i++) {
+        CHECK(cli("%s --help", names[i]) == 0);
+        char want[64];
+        snprintf(want, sizeof want, "sepbrdf-set-%s.txt", names[i]);
+        for (const char *at = strstr(out, "sepbrdf-set"); at; at = strstr(at + 1, "sepbrdf-set"))
+            CHECKF(strncmp(at, want, strlen(want)) == 0, "%s --help names %.24s, the set's manifest is %s", names[i],
+                   at, want);
+    }
+    const char *dir = sb_tmpdir("golden");
+    CHECK(cli("factor lambert --param io -r 8 -J 1 -q -o %s/set", dir) == 0);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/set/sepbrdf-set-factor.txt", dir);
+    CHECKF(sb_file_exists(path), "%s missing", path);
+}
+
 SB_TEST(version) {
     EXPECT(cli("--version"), 0, "sepbrdf 0.");
     EXPECT(cli("-V"), 0, "sepbrdf 0.");

@@ -109,3 +109,24 @@ SB_TEST(folders) {
     rc = run("view %s", rdir);
     CHECKF(rc == 2 && strstr(out, "no factors in it") && strstr(out, "`sepbrdf render` wrote"), "rc %d: %s", rc, out);
 }
+
+/* `info --json` on a factor texture and on a factor folder prints one JSON
+ * object (it printed the text table, exit 0, under --json). */
+SB_TEST(json_for_factor_files) {
+    const char *dir = factor_dir();
+    char g[4300];
+    snprintf(g, sizeof g, "%s/h_01.exr", dir);
+    const char *args[2] = {g, dir};
+    const char *kinds[2] = {"\"kind\": \"factor texture\"", "\"kind\": \"factor set\""};
+    for (int k = 0; k < 2; k++) {
+        int rc = run("info %s --json 2>/dev/null", args[k]);
+        size_t n = strlen(out);
+        while (n && (out[n - 1] == '\n' || out[n - 1] == ' '))
+            n--;
+        CHECKF(rc == 0 && out[0] == '{' && n && out[n - 1] == '}', "rc %d: %s", rc, out);
+        CHECKF(strstr(out, kinds[k]) && strstr(out, "\"terms\": 3") && strstr(out, "\"rel_rms\": [") &&
+                   !strstr(out, "sepbrdf factor texture ("),
+               "%s", out);
+    }
+    CHECK(strstr(out, "\"report\": \"") && strstr(out, "\"texture\": {") && strstr(out, "g_00.exr"));
+}

@@ -171,3 +171,28 @@ SB_TEST(sigterm_study) {
     else
         CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0 && n >= 5, "status %d, %d files", st, n);
 }
+
+/* `sepbrdf bench -o DIR` interrupted while it measures (results.csv's
+ * temporary open) leaves no results.csv.tmp-PID: it was not registered
+ * with the signal cleanup, and every interrupted bench left one. */
+SB_TEST(sigterm_bench) {
+    const char *dir = sb_tmpdir("signal");
+    char out[4200], tmp[4300];
+    snprintf(out, sizeof out, "%s/bench", dir);
+    const char *args[] = {"bench", "--quick", "--no-fork", "-o", out, NULL};
+    pid_t pid = start(args);
+    CHECK(pid > 0);
+    snprintf(tmp, sizeof tmp, "results.csv.tmp-%ld", (long)pid);
+    int has = 0;
+    for (int i = 0; i < 400 && !has; i++) { /* the temporary exists: the run is measuring */
+        sleep_s(0.02);
+        count_dir(out, NULL, tmp, &has);
+    }
+    CHECKF(has, "no %s in %s", tmp, out);
+    kill(pid, SIGTERM);
+    int st = 0;
+    CHECK(waitpid(pid, &st, 0) == pid);
+    count_dir(out, NULL, ".tmp-", &has);
+    CHECKF(!has, "an interrupted bench left %s in %s", tmp, out);
+    if (!WIFSIGNALED(st)) CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0, "status %d", st);
+}

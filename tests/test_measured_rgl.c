@@ -545,8 +545,16 @@ SB_TEST(hostile) {
     /* NaN in the colour table; negative density; zero sigma */
     m.col[5] = NAN;
     mat_write(bad, &m, NULL);
-    expect_fail(bad, NULL, SB_ERR_FORMAT, "'rgb' value 5 is not finite");
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "'rgb' holds NaN at index 5 (of ");
     m.col[5] = 0.5f;
+    /* every colour value negated (a sign error): read as black before */
+    size_t ncol = (size_t)(m.nphi * m.ntheta * m.chans * m.ch * m.cw);
+    for (size_t k = 0; k < ncol; k++)
+        m.col[k] = -m.col[k];
+    mat_write(bad, &m, NULL);
+    expect_fail(bad, NULL, SB_ERR_FORMAT, "a BRDF is not negative");
+    for (size_t k = 0; k < ncol; k++)
+        m.col[k] = -m.col[k];
     m.vndf[3] = -1;
     mat_write(bad, &m, NULL);
     expect_fail(bad, NULL, SB_ERR_FORMAT, "negative density");

@@ -179,7 +179,7 @@ typedef struct sb_measured_opts {
     sb_white_t white;   /* spectral tables: SB_WHITE_E (default) */
     sb_gamut_t gamut;   /* spectral tables: SB_GAMUT_KEEP (default) */
     /* scattered tables, cross-validation: with cv_folds >= 2, the samples
-     * of fold cv_fold (sample i, in reading order, is in fold
+     * of fold cv_fold (sample i, in the table's order, is in fold
      * sb_measured_fold(i, cv_folds)) are left out of the table; with
      * interp and lobe given too the table is not cross-validated itself
      * (interp_cv NAN, cv_held_out 0: a refit's table uses what the whole
@@ -192,8 +192,9 @@ typedef struct sb_measured_opts {
     const sb_lobe_fit_t *lobe_shape;
 } sb_measured_opts_t;
 
-/* The fold of sample i (reading order, as sb_source_sample numbers a
- * table's samples) among `folds`: a fixed pseudo-random assignment, about
+/* The fold of sample i (the table's order, as sb_source_sample numbers a
+ * table's samples: sorted by direction pair and value, whatever the
+ * file's row order) among `folds`: a fixed pseudo-random assignment, about
  * equal sizes; 0 for folds < 2. */
 SB_API size_t sb_measured_fold(size_t i, size_t folds);
 

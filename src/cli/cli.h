@@ -222,8 +222,10 @@ int cli_read_source_spec(const char *dir, char *buf, size_t size);
 /* Print the metadata of a factor file (an EXR written by `factor`) to out:
  * texture size, term and J, sigma_j per channel (of every term whose g file
  * sits in the same folder), parameterisation, source, form, method and
- * rel_rms per J.  Returns an exit code (EXIT_IO: unreadable, not an EXR,
- * or an EXR without the sepbrdf attributes), message printed. */
-int info_exr(const char *path, FILE *out);
+ * rel_rms per J; with json one JSON object (sigma of this term only; set,
+ * may be NULL: the folder whose first texture it is, named first).
+ * Returns an exit code (EXIT_IO: unreadable, not an EXR, or an EXR
+ * without the sepbrdf attributes), message printed. */
+int info_exr(const char *path, FILE *out, int json, const char *set);
 
 #endif

@@ -9,7 +9,16 @@
 #include "cli.h"
 #include "pareto.h"
 
+/* results.csv's temporary, removed by the signal cleanup. */
+static void bench_guard(const char *path, int on) {
+    if (on)
+        cli_guard(path);
+    else
+        cli_unguard(path);
+}
+
 int cmd_bench(int argc, char **argv) {
+    sb_bench_tmp_hook = bench_guard;
     for (int i = 1; i < argc; i++)
         if (strcmp(argv[i], "--pareto") == 0) return sb_bench_pareto_main(argc, argv, "sepbrdf bench");
     int rc = sb_bench_main(argc, argv, "sepbrdf bench");

@@ -42,7 +42,7 @@ static void help(void) {
            "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
            "i.e. direction k = R * i_phi + i_theta of the lecture's sequentialisation.\n"
            "\n"
-           "The set (with sepbrdf-set.txt, its list of files) is written beside the folder\n"
+           "The set (with sepbrdf-set-factor.txt, its list of files) is written beside the folder\n"
            "and swapped in whole when complete: the folder holds the previous set until\n"
            "then, whatever ends the run; files sepbrdf did not write stay.\n"
            "\n"

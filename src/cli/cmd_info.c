@@ -41,7 +41,8 @@ static const char *formats_text(void) {
 static const cli_option_t info_only[] = {
     {"-r", "--res", "R", "io grid of the coverage, 2..512 (default 32)", cli_set_size, offsetof(info_opts_t, res), 2,
      512, CLI_OWN},
-    {NULL, "--json", NULL, "print JSON instead of the table", cli_set_flag, offsetof(info_opts_t, json), 0, 0, CLI_OWN},
+    {NULL, "--json", NULL, "print JSON instead of the table (factor files and folders too)", cli_set_flag,
+     offsetof(info_opts_t, json), 0, 0, CLI_OWN},
     {0},
 };
 
@@ -250,7 +251,7 @@ static int is_factor_exr(const char *path) {
     size_t n = strlen(path);
     return n >= 4 && (strcmp(path + n - 4, ".exr") == 0 || strcmp(path + n - 4, ".EXR") == 0);
 }
-static int info_factors(const info_opts_t *o) { return info_exr(o->path, stdout); }
+static int info_factors(const info_opts_t *o) { return info_exr(o->path, stdout, o->json, NULL); }
 
 /* A folder: the set `factor` wrote (its first texture, g_00.exr, says
  * what the set is) or refused saying what info takes. */
@@ -269,9 +270,10 @@ static int info_folder(const info_opts_t *o) {
                   o->path, formats_text());
         return EXIT_IO;
     }
-    printf("%s: a factor set (its errors, timings and choices: %s%s)\n", o->path, rep,
-           access(rep, F_OK) == 0 ? "" : ", missing");
-    return info_exr(g, stdout);
+    if (!o->json)
+        printf("%s: a factor set (its errors, timings and choices: %s%s)\n", o->path, rep,
+               access(rep, F_OK) == 0 ? "" : ", missing");
+    return info_exr(g, stdout, o->json, o->json ? o->path : NULL);
 }
 
 static const info_kind_t kinds[] = {

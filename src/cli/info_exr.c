@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli.h"
 
@@ -117,7 +118,67 @@ static void print_sigmas(FILE *out, const char *path, exr_context_t self, int32_
     }
 }
 
-int info_exr(const char *path, FILE *out) {
+/* Attribute i (sorted order) when it is a string the writer copied from
+ * the factors' metadata (sepbrdf.*, but version and side): its key without
+ * the prefix and its value; 0 otherwise. */
+static int copied_attr(exr_context_t ex, int32_t i, const char **key, const char **value) {
+    const exr_attribute_t *a = NULL;
+    if (exr_get_attribute_by_index(ex, 0, EXR_ATTR_LIST_SORTED_ORDER, i, &a) != EXR_ERR_SUCCESS || !a) return 0;
+    if (a->type != EXR_ATTR_STRING || strncmp(a->name, PREFIX, strlen(PREFIX)) != 0) return 0;
+    *key = a->name + strlen(PREFIX);
+    *value = a->string && a->string->str ? a->string->str : "";
+    return strcmp(*key, "version") != 0 && strcmp(*key, "side") != 0;
+}
+
+/* The texture as one JSON object; within a set's (set: its folder) the
+ * set, its report.json (null when missing) and the texture. */
+static void exr_json(FILE *out, const char *path, const char *set, exr_context_t ex, int32_t term, int32_t terms,
+                     int32_t channels) {
+    json_t j = {out, 0, {0}};
+    json_begin_object(&j, NULL);
+    if (set) {
+        char rep[4200];
+        snprintf(rep, sizeof rep, "%s/report.json", set);
+        json_string(&j, "file", set);
+        json_string(&j, "kind", "factor set");
+        json_string(&j, "report", access(rep, F_OK) == 0 ? rep : NULL);
+        json_begin_object(&j, "texture");
+    }
+    json_string(&j, "file", path);
+    json_string(&j, "kind", "factor texture");
+    json_string(&j, "version", attr_str(ex, PREFIX "version"));
+    json_string(&j, "side", attr_str(ex, PREFIX "side"));
+    json_int(&j, "term", term);
+    json_int(&j, "terms", terms);
+    exr_attr_box2i_t dw;
+    memset(&dw, 0, sizeof dw);
+    if (exr_get_data_window(ex, 0, &dw) != EXR_ERR_SUCCESS) dw.max.x = dw.max.y = -1;
+    json_int(&j, "width", (long long)(dw.max.x - dw.min.x + 1));
+    json_int(&j, "height", (long long)(dw.max.y - dw.min.y + 1));
+    json_int(&j, "channels", channels);
+    const exr_attribute_t *sc = attr(ex, PREFIX "scale", EXR_ATTR_FLOAT);
+    json_number(&j, "scale", sc ? (double)sc->f : 1.0);
+    json_begin_object(&j, "attributes"); /* the string attributes, as the table lists them */
+    int32_t count = 0;
+    exr_get_attribute_count(ex, 0, &count);
+    for (int32_t i = 0; i < count; i++) {
+        const char *key, *value;
+        if (copied_attr(ex, i, &key, &value)) json_string(&j, key, value);
+    }
+    json_end_object(&j);
+    const char *arrays[2][2] = {{"sigma", PREFIX "sigma"}, {"rel_rms", PREFIX "rel_rms"}};
+    for (int k = 0; k < 2; k++) { /* sigma: this term's, per channel; rel_rms per J' */
+        const exr_attr_float_vector_t *v = attr_floats(ex, arrays[k][1]);
+        json_begin_array(&j, arrays[k][0]);
+        for (int32_t i = 0; v && i < v->length; i++)
+            json_number(&j, NULL, (double)v->arr[i]);
+        json_end_array(&j);
+    }
+    if (set) json_end_object(&j);
+    json_end_object(&j);
+}
+
+int info_exr(const char *path, FILE *out, int json, const char *set) {
     exr_context_t ex = NULL;
     exr_result_t rv = open_header(path, &ex);
     if (rv != EXR_ERR_SUCCESS) {
@@ -134,6 +195,11 @@ int info_exr(const char *path, FILE *out) {
         cli_error("info", "%s: not a factor file (an EXR without the sepbrdf.* attributes `factor` writes)", path);
         exr_finish(&ex);
         return EXIT_IO;
+    }
+    if (json) {
+        exr_json(out, path, set, ex, term, terms, channels);
+        exr_finish(&ex);
+        return EXIT_OK;
     }
     exr_attr_box2i_t dw;
     memset(&dw, 0, sizeof dw);
@@ -162,12 +228,8 @@ int info_exr(const char *path, FILE *out) {
     int32_t count = 0;
     exr_get_attribute_count(ex, 0, &count);
     for (int32_t i = 0; i < count; i++) {
-        const exr_attribute_t *a = NULL;
-        if (exr_get_attribute_by_index(ex, 0, EXR_ATTR_LIST_SORTED_ORDER, i, &a) != EXR_ERR_SUCCESS || !a) continue;
-        if (a->type != EXR_ATTR_STRING || strncmp(a->name, PREFIX, strlen(PREFIX)) != 0) continue;
-        const char *key = a->name + strlen(PREFIX);
-        if (strcmp(key, "version") == 0 || strcmp(key, "side") == 0) continue;
-        fprintf(out, "  %-10s %s\n", key, a->string && a->string->str ? a->string->str : "");
+        const char *key, *value;
+        if (copied_attr(ex, i, &key, &value)) fprintf(out, "  %-10s %s\n", key, value);
     }
     print_sigmas(out, path, ex, term, terms, channels, cn);
     const exr_attr_float_vector_t *rel = attr_floats(ex, PREFIX "rel_rms");

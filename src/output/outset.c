@@ -4,7 +4,7 @@
  * .sepbrdf-new-PID, and swapped with the target DIR by one
  * renameat2(RENAME_EXCHANGE): before the swap DIR holds the previous set,
  * after it the new one, with nothing in between that a reader or a crash
- * could see.  The manifest of a set (DIR/sepbrdf-set.txt) says which files
+ * could see.  The manifest of a set (DIR/sepbrdf-set-CMD.txt) says which files
  * the set wrote; everything else in DIR is the user's and is hard-linked
  * into the new folder before the swap, so it is never lost.
  *

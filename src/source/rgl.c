@@ -207,6 +207,31 @@ static sb_result_t load_angles(sb_context_t *ctx, const char *path, const tf_fie
     return SB_OK;
 }
 
+/* The colour table against what a BRDF is: refused where a channel's mean
+ * is not positive (every value negated, a sign or unit error: Mitsuba's
+ * lookup clamps below 0, so the file read as black in that channel and
+ * factored with exit 0); the real files' channel means are 0.08-0.94, a
+ * few of their values slightly negative (kept, clamped as Mitsuba does). */
+static sb_result_t colour_check(sb_context_t *ctx, const char *path, const table2d_t *t, const char *name) {
+    size_t nodes = t->w * t->h;
+    for (size_t c = 0; c < 3; c++) {
+        double sum = 0;
+        size_t neg = 0;
+        for (size_t s = 0; s < t->slices; s++)
+            for (size_t p = 0; p < nodes; p++) {
+                double v = t->v[(s * 3 + c) * nodes + p];
+                sum += v;
+                neg += v < 0;
+            }
+        if (!(sum > 0))
+            return sb_error(ctx, SB_ERR_FORMAT,
+                            "%s: RGL: the mean of %s channel %c is %.3g (%zu of %zu values negative): a BRDF is not "
+                            "negative; are the values negated?",
+                            path, name, "RGB"[c], sum / (double)(t->slices * nodes), neg, t->slices * nodes);
+    }
+    return SB_OK;
+}
+
 /* The colour table: rgb [n_phi, n_theta, 3, S, S], or spectra [..., n, S, S]
  * with wavelengths [n] turned into linear sRGB node by node (the lookups are
  * linear in the table, so converting first gives the same values). */
@@ -237,7 +262,7 @@ static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_fil
     if ((r = table_load(ctx, path, f, slices, (size_t)f->shape[2], &raw)) != SB_OK) return r;
     if (!wl) {
         g->rgb = raw;
-        return SB_OK;
+        return colour_check(ctx, path, &g->rgb, "rgb");
     }
     size_t n = wl->count, nodes = raw.w * raw.h;
     double *nm = sb_alloc(ctx, n, sizeof(double), path), *w = sb_alloc(ctx, 3 * n, sizeof(double), path);
@@ -263,7 +288,7 @@ static sb_result_t load_colour(sb_context_t *ctx, const char *path, const tf_fil
     free(raw.v);
     free(nm);
     free(w);
-    return r;
+    return r == SB_OK ? colour_check(ctx, path, &g->rgb, "spectra (as sRGB)") : r;
 }
 
 /* ndf, sigma, vndf and jacobian, shapes checked against the slices. */

@@ -108,9 +108,15 @@ sb_result_t tf_need_f32(sb_context_t *ctx, const char *path, const tf_file_t *tf
         if (f->shape[d] < lo[d])
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' dimension %zu is %ju, need at least %zu", path,
                             name, d, (uintmax_t)f->shape[d], lo[d]);
-    for (size_t k = 0; k < f->count; k++)
-        if (!isfinite(tf_f32(f->data + 4 * k)))
-            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' value %zu is not finite", path, name, k);
+    for (size_t k = 0; k < f->count; k++) {
+        float v = tf_f32(f->data + 4 * k);
+        if (!isfinite(v))
+            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' holds %s at index %zu (of %zu values)", path, name,
+                            isnan(v) ? "NaN"
+                            : v > 0  ? "+Inf"
+                                     : "-Inf",
+                            k, f->count);
+    }
     *out = f;
     return SB_OK;
 }

@@ -51,7 +51,7 @@ typedef struct table {
     double r2; /* squared radius: nearest farther = missing */
     double s2; /* squared support: neighbours used */
     sb_interp_t interp;
-    double *smp; /* the samples as read, SB_SAMPLE_DOUBLES each */
+    double *smp; /* the samples (sorted: sort_rows), SB_SAMPLE_DOUBLES each */
     size_t ns;
     lobe_t lobe;
     int lobe_on;     /* val holds f / base (sb_lobe_base_), eval multiplies back */
