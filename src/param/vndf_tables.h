@@ -14,6 +14,7 @@ struct sb_layout_tables {
     table2d_t rgb;              /* the nodes themselves, [slice][3][sh][sw] (from the source; v NULL when read
                                    back from vndf.exr) */
     int jacobian;               /* the value carries NDF / (4 sigma) */
+    double *dirs;               /* per cell (row + col n_theta): wi, wo (vndf_cell_dirs, made once); NULL: none */
 };
 
 /* Copies of the arrays, every value rounded to float (as vndf.exr holds
