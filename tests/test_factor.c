@@ -277,6 +277,14 @@ static int holey_eval(const void *self, const double wi[3], const double wo[3], 
     return 1;
 }
 
+/* holey_eval as a measured source (its missing cells masked, not invented). */
+static sb_source_t *holey_source(void) {
+    sb_source_ops_t ops = {holey_eval, NULL};
+    sb_source_t *s = NULL;
+    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    return s;
+}
+
 /* J terms of m fitted (masked unless zero) to tolerance tol in at most
  * iters sweeps; the plan's statistics in *st, the leading terms from
  * converged sweeps (factor/plan_conv.h) in *conv unless NULL. */
@@ -298,9 +306,7 @@ static sb_factors_t *fit_tight(const sb_matrix_t *m, const sb_param_t *p, size_t
 }
 
 SB_TEST(masked_fit_exact_rank1) {
-    sb_source_ops_t ops = {holey_eval, NULL};
-    sb_source_t *s = NULL;
-    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    sb_source_t *s = holey_source();
     sb_param_t *p = fx_layout(SB_PARAM_IO, 8);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
@@ -334,9 +340,7 @@ SB_TEST(masked_fit_exact_rank1) {
  * the fit stays exact at every J' and the factor succeeds (a degenerate
  * term's sigma was 0 x inf = NaN, the next term's SVD then failed). */
 SB_TEST(masked_fit_terms_beyond_rank) {
-    sb_source_ops_t ops = {holey_eval, NULL};
-    sb_source_t *s = NULL;
-    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    sb_source_t *s = holey_source();
     sb_param_t *p = fx_layout(SB_PARAM_IO, 6);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
@@ -649,9 +653,7 @@ static size_t converged_terms(const sb_matrix_t *m, const sb_param_t *p, size_t 
  * plan's fit_converged is every term's.  At caps 16-18 the holey source's
  * 8-term fit has 5 such terms (more sweeps: all 8; fewer: none). */
 SB_TEST(masked_converged_terms) {
-    sb_source_ops_t ops = {holey_eval, NULL};
-    sb_source_t *s = NULL;
-    CHECK(sb_source_create(NULL, &ops, NULL, SB_SOURCE_MEASURED, "holey", &s) == SB_OK);
+    sb_source_t *s = holey_source();
     sb_param_t *p = fx_layout(SB_PARAM_IO, 6);
     sb_matrix_t m;
     CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK && m.mask != NULL);
