@@ -401,13 +401,15 @@ SB_TEST(job_headline_ratio_refitted) {
 }
 
 /* The J terms a renderer uses: `factor --method nmf -J J` on the default
- * gold (auto: iso, 32 cells), the last prefix within 1.5x the SVD beside's
- * headline at J = 3 and 4.  The nested minimax of the prefixes left it at
- * 1.54 and 1.56x (J' = 1 at 1.59, 1.66); the last prefix weighted above
- * its target (nmf_mixes.c SB_NMF_LAST_TARGET) 1.42 and 1.42 (J' = 1 1.61,
- * 1.86; docs/positive.md, round h38n). */
+ * gold (auto: iso, 32 cells), every prefix within 1.5x the SVD beside's
+ * headline at J = 2 and 3, the last at 4 too and the others within 1.55x.  The nested minimax
+ * of the prefixes left the last at 1.54 and 1.56x (J' = 1 at 1.59, 1.66);
+ * the last prefix weighted above its target (nmf_mixes.c
+ * SB_NMF_LAST_TARGET) 1.42 and 1.42, J' = 1 at 1.67, 1.68, 1.86 (J = 2,
+ * 3, 4; round h38n); the minimax with multiplicative prefix weights
+ * (nmf_mixes.c minimax) 1.46, 1.47, 1.51 (round h38b, docs/positive.md). */
 SB_TEST(job_last_prefix_gold) {
-    for (size_t J = 3; J <= 4; J++) {
+    for (size_t J = 2; J <= 4; J++) {
         sb_context_t *ctx;
         sb_context_create(&ctx);
         sb_job_opts_t o = {0};
@@ -415,11 +417,14 @@ SB_TEST(job_last_prefix_gold) {
         o.method = SB_METHOD_NMF;
         sb_job_t *job = NULL;
         CHECKF(sb_job_run(ctx, &o, &job) == SB_OK, "gold J = %zu: %s", J, sb_context_last_error(ctx));
-        for (size_t j = 1; job && j <= J; j++)
-            fprintf(stderr, "gold J = %zu, J' = %zu: x%.3f\n", J, j,
-                    sb_job_headline(job, j) / sb_job_svd_headline(job, j));
-        double r = job ? sb_job_headline(job, J) / sb_job_svd_headline(job, J) : INFINITY;
-        CHECKF(r <= 1.5, "gold J = %zu: the last prefix %.3fx the SVD's headline", J, r);
+        double worst = job ? 0 : INFINITY, bound = J < 4 ? 1.5 : 1.55;
+        for (size_t j = 1; job && j <= J; j++) {
+            double r = sb_job_headline(job, j) / sb_job_svd_headline(job, j);
+            fprintf(stderr, "gold J = %zu, J' = %zu: x%.3f\n", J, j, r);
+            worst = fmax(worst, r);
+            CHECKF(j < J || r <= 1.5, "gold J = %zu: the last prefix %.3fx the SVD's headline", J, r);
+        }
+        CHECKF(worst <= bound, "gold J = %zu: the worst prefix %.3fx the SVD's headline, above %.2f", J, worst, bound);
         if (job) check_nonneg(sb_job_factors(job), "gold");
         sb_job_destroy(job);
         sb_context_destroy(ctx);

@@ -60,6 +60,13 @@ typedef struct nmf_state {
     /* the last prefix's squared ratio r above last_tau2 counts
      * min(r / last_tau2, last_kap2) times (sb_nmf_last_boost; 0: not) */
     double last_tau2, last_kap2;
+    /* where mm: the sweeps' prefix weights alpha_p = mmc_p / sref_p, the
+     * minimax's multiplicative weights with exponent mm_eta (the last
+     * prefix's squared ratio counted mm_last times), and the least
+     * worst squared ratio so far, its terms in ub, vb (nmf_mixes.c minimax,
+     * nmf_sweeps.c minimax_weights) */
+    int mm;
+    double mmc[SB_NMF_MAX_TERMS], mm_eta, mm_last, mm_best;
 } nmf_state_t;
 
 /* The factor on the last prefix's squared ratio r to the reference, in

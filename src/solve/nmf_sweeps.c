@@ -164,6 +164,28 @@ static double ratio_weights(nmf_state_t *s, const double *f, size_t k) {
     return (log(S) / s->gam + log(rmax)) * (double)k;
 }
 
+/* Step (s->mm, nmf_mixes.c minimax): from the prefixes' squared ratios
+ * r_p = f_p / sref_p (the last's times s->mm_last), U, V kept in s->ub, vb where their worst is the least
+ * so far (s->mm_best), then c_p *= (r_p / max_q r_q)^(eta / 2) scaled to
+ * a largest of 1, and alpha_p = c_p / sref_p; returns the worst. */
+static double minimax_weights(nmf_state_t *s, const double *f, const double *U, const double *V, size_t k) {
+    double worst = 0, top = 0, r[SB_NMF_MAX_TERMS];
+    for (size_t p = 0; p < k; p++)
+        worst = fmax(worst, r[p] = f[p] / s->sref[p] * (p + 1 == k ? s->mm_last : 1));
+    if (worst < s->mm_best) {
+        s->mm_best = worst;
+        memcpy(s->ub, U, s->m * k * sizeof *s->ub);
+        memcpy(s->vb, V, s->n * k * sizeof *s->vb);
+    }
+    for (size_t p = 0; p < k; p++)
+        top = fmax(top, s->mmc[p] *= pow(r[p] / worst, 0.5 * s->mm_eta));
+    for (size_t p = 0; p < k; p++) {
+        s->mmc[p] /= top;
+        s->alpha[p] = s->mmc[p] / s->sref[p];
+    }
+    return worst;
+}
+
 /* Step: the prefixes' weighted errors f_p = ||E_p||^2, p = 1..k, from E
  * = E_k (E_p = E_k + the terms p + 1..k), set the weights alpha_p = 1 /
  * f_p of the next sweep; returns sum_p log f_p (ratio_weights with a
@@ -180,6 +202,7 @@ static double prefix_weights(nmf_state_t *s, double *U, double *V, size_t k) {
         s->alpha[p] = 1 / f[p];
         F += log(f[p]);
     }
+    if (s->mm) return minimax_weights(s, f, U, V, k);
     return s->gam > 0 ? ratio_weights(s, f, k) : F;
 }
 
@@ -225,7 +248,7 @@ static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
         for (size_t j = 0; j < k; j++)
             nested_term(s, out->u, out->v, k, j);
         double G = prefix_weights(s, out->u, out->v, k);
-        out->converged = !(F - G > s->tol * (double)k);
+        out->converged = !s->mm && !(F - G > s->tol * (double)k);
         F = G;
     }
 }
