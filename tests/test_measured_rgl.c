@@ -524,6 +524,9 @@ SB_TEST(terms_beyond_the_slices) {
     /* J = 3: the file's nodes returned (the report's headline line) */
     const char *row = strstr(out, "\n   3 ");
     CHECKF(row && strtod(row + 5, NULL) < 1e-4, "%s", out);
+    /* a budget's search takes the J given as fixed: vndf holds no entry there, the others are searched */
+    snprintf(cmd, sizeof cmd, "%s factor %s/slices.bsdf -J 6 --budget 98304 -o %s/budget 2>&1", SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
     mat_free(&m);
 }
 

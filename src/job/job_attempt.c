@@ -40,7 +40,7 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
 }
 
 int job_terms_capped(const sb_job_t *job, sb_param_kind_t k) {
-    return job->o.max_error > 0 || (job->is_auto && (sb_param_kind_caps(k) & SB_CAP_TABLES));
+    return job->o.max_error > 0 || (job->is_auto && !job->budget && (sb_param_kind_caps(k) & SB_CAP_TABLES));
 }
 
 size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind, size_t mn) {

@@ -213,8 +213,9 @@ size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, sb_param_kind
 /* Whether layout k is fitted with all the rows it has where they are fewer
  * than the terms asked: with --max-error every layout; under auto the one
  * built on an RGL file's tables (vndf: its rows are the file's theta_i
- * slices, which no finer grid adds), else it would be left out and a
- * worse layout kept at J (orange film at J = 12: vh 0.096, vndf 1.7e-7 at
+ * slices, which no finer grid adds; not with --budget, whose search
+ * takes a given J as fixed), else it would be left out and a worse layout
+ * kept at J (orange film at J = 12: vh 0.096, vndf 1.7e-7 at
  * its 8 rows). */
 int job_terms_capped(const sb_job_t *job, sb_param_kind_t k);
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
