@@ -519,7 +519,7 @@ SB_TEST(terms_beyond_the_slices) {
     mat_write(cmd, &m, NULL);
     snprintf(cmd, sizeof cmd, "%s factor %s/slices.bsdf -o %s/out 2>&1", SB_CLI, dir, dir);
     CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
-    CHECKF(strstr(out, "warning: 3 texture pairs written, not the 4 asked: layout vndf") != NULL, "%s", out);
+    CHECKF(strstr(out, "warning: 3 terms fitted, not the 4 asked: layout vndf") != NULL, "%s", out);
     CHECKF(strstr(out, "vndf, 3 x 1024 matrix") != NULL, "%s", out);
     /* J = 3: the file's nodes returned (the report's headline line) */
     const char *row = strstr(out, "\n   3 ");

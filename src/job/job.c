@@ -118,8 +118,8 @@ static void job_warn_fewer_terms(sb_job_t *job) {
     size_t J = job->best.f ? sb_factors_terms(job->best.f) : 0;
     if (job->o.max_error > 0 || !J || J >= job->o.terms) return;
     job_warn(job,
-             "%zu texture pairs written, not the %zu asked: layout %s has %zu rows (an RGL file's theta_i "
-             "slices), each term beyond them would be zero",
+             "%zu terms fitted, not the %zu asked: layout %s has %zu rows (an RGL file's theta_i slices), each "
+             "term beyond them would be zero",
              J, job->o.terms, sb_param_kind_name(sb_param_kind(job->best.param)), J);
 }
 
