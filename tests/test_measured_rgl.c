@@ -632,6 +632,8 @@ SB_TEST(hostile) {
     f[5].dtype = 1;
     write_tensor(bad, f, 7);
     expect_fail(bad, NULL, SB_ERR_FORMAT, "float32");
+    expect_fail(bad, NULL, SB_ERR_FORMAT,
+                "uint8 (dtype 1), need"); /* the dtype by its name (hsw3), not "dtype 1" alone */
 }
 
 /* ---- the command line ----------------------------------------------------------- */

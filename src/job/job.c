@@ -115,8 +115,11 @@ static void job_warn_max_error(sb_job_t *job) {
 /* Fewer terms than asked without --max-error: the kept layout holds fewer
  * rows (job_terms_capped: vndf's theta_i slices); said, never quiet. */
 static void job_warn_fewer_terms(sb_job_t *job) {
-    size_t J = job->best.f ? sb_factors_terms(job->best.f) : 0;
-    if (job->o.max_error > 0 || !J || J >= job->o.terms) return;
+    const sb_matrix_t *m = &job->best.m;
+    size_t J = job->best.f ? sb_factors_terms(job->best.f) : 0, mn = m->rows < m->cols ? m->rows : m->cols;
+    if (job->o.max_error > 0 || !J || J >= job->o.terms || J != mn ||
+        !job_terms_capped(job, sb_param_kind(job->best.param)))
+        return;
     job_warn(job,
              "%zu terms fitted, not the %zu asked: layout %s has %zu rows (an RGL file's theta_i slices), each "
              "term beyond them would be zero",
