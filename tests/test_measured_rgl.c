@@ -527,6 +527,9 @@ SB_TEST(terms_beyond_the_slices) {
     /* a budget's search takes the J given as fixed: vndf holds no entry there, the others are searched */
     snprintf(cmd, sizeof cmd, "%s factor %s/slices.bsdf -J 6 --budget 98304 -o %s/budget 2>&1", SB_CLI, dir, dir);
     CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    /* render's J beyond the terms fitted: the last (it failed, "6 terms asked, the factors have 3") */
+    snprintf(cmd, sizeof cmd, "%s render %s/slices.bsdf -J 2,6 -s 16 -o %s/render 2>&1", SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
     mat_free(&m);
 }
 
