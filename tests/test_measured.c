@@ -379,6 +379,10 @@ static double all_missing(size_t i) {
     return -1;
 }
 static double one_huge(size_t i) { return i == 5 ? 1e300 : 1; }
+static double all_infinite(size_t i) {
+    (void)i;
+    return INFINITY;
+}
 
 SB_TEST(merl_no_sample_overflow) {
     const char *dir = sb_tmpdir("merl");
@@ -386,6 +390,10 @@ SB_TEST(merl_no_sample_overflow) {
     snprintf(p, sizeof p, "%s/missing.binary", dir);
     write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, all_missing, 0);
     expect_fail(p, NULL, SB_ERR_FORMAT, "no measured cell (all 1458000 missing: 1458000 negative");
+    /* an infinite cell is counted as what it is (hsw3: it read "NaN") */
+    snprintf(p, sizeof p, "%s/infinite.binary", dir);
+    write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, all_infinite, 0);
+    expect_fail(p, NULL, SB_ERR_FORMAT, "0 negative, 1458000 NaN or infinite)");
     snprintf(p, sizeof p, "%s/huge.binary", dir);
     write_merl_raw(p, merl_dims, 3 * (size_t)NCELLS, one_huge, 0);
     expect_fail(p, NULL, SB_ERR_FORMAT, "cell 5 (theta_h 0, theta_d 0, phi_d 5) channel 0");

@@ -503,6 +503,36 @@ SB_TEST(sample_errors_independent) {
     mat_free(&m);
 }
 
+/* More terms than the file has theta_i slices (hsw3 D1): auto fits vndf
+ * with all its rows (the file's nodes, returned exactly) and says so,
+ * where it left vndf out ("4 terms exceed the 3 rows/columns of vndf")
+ * and kept another layout at J (the orange film at J = 12: vh, headline
+ * 0.096; vndf 1.7e-7 at its 8 slices).  The real film cut to its first
+ * three slices, the default J = 4. */
+SB_TEST(terms_beyond_the_slices) {
+    mat_t m = {0};
+    CHECK(load_real(SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf", &m));
+    m.ntheta = 3; /* phi_i x theta_i x ...: the first slices are the first values */
+    char dir[4096], cmd[9000], out[16384];
+    snprintf(dir, sizeof dir, "%s", sb_tmpdir("rgl"));
+    snprintf(cmd, sizeof cmd, "%s/slices.bsdf", dir);
+    mat_write(cmd, &m, NULL);
+    snprintf(cmd, sizeof cmd, "%s factor %s/slices.bsdf -o %s/out 2>&1", SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    CHECKF(strstr(out, "warning: 3 terms fitted, not the 4 asked: layout vndf") != NULL, "%s", out);
+    CHECKF(strstr(out, "vndf, 3 x 1024 matrix") != NULL, "%s", out);
+    /* J = 3: the file's nodes returned (the report's headline line) */
+    const char *row = strstr(out, "\n   3 ");
+    CHECKF(row && strtod(row + 5, NULL) < 1e-4, "%s", out);
+    /* a budget's search takes the J given as fixed: vndf holds no entry there, the others are searched */
+    snprintf(cmd, sizeof cmd, "%s factor %s/slices.bsdf -J 6 --budget 98304 -o %s/budget 2>&1", SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    /* render's J beyond the terms fitted: the last (it failed, "6 terms asked, the factors have 3") */
+    snprintf(cmd, sizeof cmd, "%s render %s/slices.bsdf -J 2,6 -s 16 -o %s/render 2>&1", SB_CLI, dir, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
+    mat_free(&m);
+}
+
 /* ---- hostile files ---------------------------------------------------------------- */
 
 /* Truncations at every header byte and in the data, a bad magic, another
@@ -605,6 +635,8 @@ SB_TEST(hostile) {
     f[5].dtype = 1;
     write_tensor(bad, f, 7);
     expect_fail(bad, NULL, SB_ERR_FORMAT, "float32");
+    expect_fail(bad, NULL, SB_ERR_FORMAT,
+                "uint8 (dtype 1), need"); /* the dtype by its name (hsw3), not "dtype 1" alone */
 }
 
 /* ---- the command line ----------------------------------------------------------- */

@@ -1,4 +1,4 @@
-# sepbrdf study: comparable error vs J. Re-run with `gnuplot study.gp` in this
+# sepbrdf study: headline error vs J. Re-run with `gnuplot study.gp` in this
 # folder; `gnuplot -e "outfile='x.png'" study.gp` writes elsewhere.
 # Errors below 1e-16 (exact fits) are drawn at 1e-16.
 if (!exists("outfile")) outfile = 'study.png'
@@ -10,7 +10,7 @@ if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {
 set output outfile
 set title 'sepbrdf study: R = 32, form f'
 set xlabel 'J (terms)'
-set ylabel 'comparable error (relative L2 of f cos cos)'
+set ylabel 'headline error (relative L2 of f cos theta_i, out of sample)'
 set logscale y
 set format y '%.0e'
 set grid

@@ -315,6 +315,15 @@ static int factor_input(sb_context_t *ctx, render_opts_t *o, render_input_t *in)
     in->pc = sb_job_param(in->job);
     in->fc = sb_job_factors(in->job);
     in->form = sb_job_form(in->job);
+    /* fewer terms than asked (the job's warning says why): the J beyond them render as its last */
+    size_t have = sb_factors_terms(in->fc), n = 0;
+    for (size_t k = 0; k < o->nterms; k++) {
+        size_t t = o->terms[k] < have ? o->terms[k] : have, dup = 0;
+        for (size_t i = 0; i < n; i++)
+            dup |= o->terms[i] == t;
+        if (!dup) o->terms[n++] = t;
+    }
+    o->nterms = n;
     return EXIT_OK;
 }
 

@@ -205,8 +205,11 @@ static int set_seed(const char *cmd, const cli_option_t *op, const char *v, void
 #define AT(m) offsetof(sb_job_opts_t, m)
 const cli_option_t cli_factor_options[] = {
     /* render and study take lists of J: their own -J rows */
-    {"-J", "--terms", "J", "number of terms kept, 1..N (default 4)", cli_set_size, AT(terms), 1, (double)(1u << 30),
-     F_},
+    {"-J", "--terms", "J",
+     "number of terms kept, 1..N (default 4); auto fits an RGL\nfile's vndf with at most its theta_i slices (a "
+     "warning\n"
+     "says so)",
+     cli_set_size, AT(terms), 1, (double)(1u << 30), F_},
     {"-r", "--res", "R", "cells per angular axis, 2..512; N = R*R directions (default 32)", cli_set_size, AT(res), 2,
      512, F_ | R_ | S_},
     {NULL, "--param", "P",

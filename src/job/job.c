@@ -112,6 +112,20 @@ static void job_warn_max_error(sb_job_t *job) {
              job->o.max_error, e, J);
 }
 
+/* Fewer terms than asked without --max-error: the kept layout holds fewer
+ * rows (job_terms_capped: vndf's theta_i slices); said, never quiet. */
+static void job_warn_fewer_terms(sb_job_t *job) {
+    const sb_matrix_t *m = &job->best.m;
+    size_t J = job->best.f ? sb_factors_terms(job->best.f) : 0, mn = m->rows < m->cols ? m->rows : m->cols;
+    if (job->o.max_error > 0 || !J || J >= job->o.terms || J != mn ||
+        !job_terms_capped(job, sb_param_kind(job->best.param)))
+        return;
+    job_warn(job,
+             "%zu terms fitted, not the %zu asked: layout %s has %zu rows (an RGL file's theta_i slices), each "
+             "term beyond them would be zero",
+             J, job->o.terms, sb_param_kind_name(sb_param_kind(job->best.param)), J);
+}
+
 /* The same run with the default method (an SVD; a masked fit where cells
  * are excluded) on the kept layout and warp, form and weighting, with
  * the kept number of terms: its headline and rel_rms per J'.  A failure
@@ -257,6 +271,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->stage_s[1] = t1 - ts, job->stage_s[2] = t2 - t1, job->stage_s[3] = t3 - t2, job->stage_s[4] = t4 - t3;
     if (r == SB_OK) {
         job_warn_max_error(job);
+        job_warn_fewer_terms(job);
         job_warn_weights(job);
         double t5 = job_now();
         if (!job->headline_only)

@@ -39,8 +39,12 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
     return po;
 }
 
-size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, size_t mn) {
-    return job->o.max_error > 0 && lv->terms > mn ? mn : lv->terms;
+int job_terms_capped(const sb_job_t *job, sb_param_kind_t k) {
+    return job->o.max_error > 0 || (job->is_auto && !job->budget && (sb_param_kind_caps(k) & SB_CAP_TABLES));
+}
+
+size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind, size_t mn) {
+    return job_terms_capped(job, kind) && lv->terms > mn ? mn : lv->terms;
 }
 
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
@@ -50,7 +54,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
     sb_result_t r = sb_param_create(ctx, kind, &po, &a->param);
     if (r != SB_OK) return r;
     size_t rows = sb_param_rows(a->param), cols = sb_param_cols(a->param), mn = rows < cols ? rows : cols;
-    if (job_level_terms(job, lv, mn) > mn)
+    if (job_level_terms(job, lv, kind, mn) > mn)
         return sb_error(ctx, SB_ERR_RANGE,
                         "%zu terms exceed the %zu rows/columns of %s; ask for fewer terms or more cells", lv->terms, mn,
                         sb_param_spec(a->param));
@@ -244,7 +248,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     sb_result_t r = job_scene_prepare(ctx, job, a);
     if (r != SB_OK) return r;
     sb_plan_opts_t pl = {0};
-    size_t J = job_level_terms(job, lv, a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
+    size_t J = job_level_terms(job, lv, sb_param_kind(a->param), a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
     pl.terms = J;
     pl.svd.method = job->o.method;
     pl.svd.seed = job->o.seed;

@@ -83,7 +83,7 @@ static sb_result_t cand_add(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t k,
         snprintf(c->why, sizeof c->why,
                  "%s is built on an RGL file's own tables: factor an isotropic RGL .bsdf file (%s has none)",
                  sb_param_kind_name(k), sb_source_description(job->src));
-    else if (mn < job->o.terms && !(job->o.max_error > 0)) /* with --max-error: fitted with its mn terms */
+    else if (mn < job->o.terms && !job_terms_capped(job, k)) /* fitted with its mn terms (job_terms_capped) */
         snprintf(c->why, sizeof c->why, "%zu terms exceed the %zu rows/columns of %s at %zu cells per axis",
                  job->o.terms, mn, sb_param_kind_name(k), job->o.res);
     if (!job->is_auto && c->why[0] && (sb_param_kind_caps(k) & SB_CAP_TABLES))

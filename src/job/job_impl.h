@@ -204,11 +204,20 @@ sb_result_t job_check_values(sb_context_t *ctx, sb_job_t *job);
  * for J: a result that may be worse than a lost one is never silent. */
 void job_warn_lost(sb_job_t *job);
 
-/* The terms an attempt on a matrix of smaller side mn is fitted with:
- * lv->terms, with --max-error at most mn (a layout with fewer rows, such
- * as vndf's 8 slices, is fitted with all it has rather than left out;
- * the kept fit is cut to the fewest terms meeting the error anyway). */
-size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, size_t mn);
+/* The terms an attempt of layout `kind` on a matrix of smaller side mn is
+ * fitted with: lv->terms, where job_terms_capped at most mn (a layout with
+ * fewer rows, such as vndf's 8 slices, is fitted with all it has rather
+ * than left out; with --max-error the kept fit is cut to the fewest terms
+ * meeting the error anyway). */
+size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind, size_t mn);
+/* Whether layout k is fitted with all the rows it has where they are fewer
+ * than the terms asked: with --max-error every layout; under auto the one
+ * built on an RGL file's tables (vndf: its rows are the file's theta_i
+ * slices, which no finer grid adds; not with --budget, whose search
+ * takes a given J as fixed), else it would be left out and a worse layout
+ * kept at J (orange film at J = 12: vh 0.096, vndf 1.7e-7 at
+ * its 8 rows). */
+int job_terms_capped(const sb_job_t *job, sb_param_kind_t k);
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);

@@ -73,7 +73,7 @@ static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_
     c->ok = r == SB_OK;
     size_t i = (size_t)(c - job->cands), J = c->ok && a->est ? sb_factors_terms(a->f) : 0;
     size_t full = job_layout_min_side(job, c->kind, job->o.res, NULL);
-    job->cand_terms[i] = job->o.max_error > 0 && full < job->o.terms ? full : job->o.terms;
+    job->cand_terms[i] = job_terms_capped(job, c->kind) && full < job->o.terms ? full : job->o.terms;
     job->cand_need[i] = 0; /* --max-error: the fewest terms meeting it within the band bounds */
     for (size_t k = J && J > a->est->terms ? a->est->terms : J; job->o.max_error > 0 && k >= 1; k--)
         if (sb_estimate_headline(a->est, k) <= job->o.max_error && sb_estimate_bands_bounded(a->est, k) == 1)

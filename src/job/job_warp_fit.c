@@ -34,7 +34,8 @@ job_level_t job_screen_level(const sb_job_t *job, size_t res, sb_param_opts_t *p
      * before; their shorter prefixes too (cand_need) */
     for (size_t i = 0; i < job->ncand; i++) {
         const sb_job_candidate_t *c = &job->cands[i];
-        int capped = job->o.max_error > 0 && job_layout_min_side(job, c->kind, job->o.res, NULL) < job->o.terms;
+        int capped =
+            job_terms_capped(job, c->kind) && job_layout_min_side(job, c->kind, job->o.res, NULL) < job->o.terms;
         size_t mn = c->why[0] || capped ? 0 : job_layout_min_side(job, c->kind, lv.res, po);
         if (mn && mn < lv.terms) lv.terms = mn;
     }

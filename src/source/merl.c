@@ -315,7 +315,8 @@ static sb_result_t merl_scan(sb_context_t *ctx, const char *path, double *v, sb_
         }
     }
     if (!info->samples)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: MERL: no measured cell (all %zu missing: %zu negative, %zu NaN)", path,
+        return sb_error(ctx, SB_ERR_FORMAT,
+                        "%s: MERL: no measured cell (all %zu missing: %zu negative, %zu NaN or infinite)", path,
                         info->rows, info->negative, info->nan_rows);
     for (int c = 0; c < 3; c++)
         info->value_mean[c] = sum[c] / (double)info->samples;
@@ -329,8 +330,9 @@ static sb_result_t merl_source(sb_context_t *ctx, const char *path, merl_t *m, s
     info->theta_i_max = info->theta_o_max = SB_PI / 2;
     info->interp = interp;
     info->flags = SB_SOURCE_MEASURED | SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL;
-    sb_info_field(info, "cells", (double)info->rows, "%zu (measured %zu, missing %zu: negative %zu, NaN %zu)",
-                  info->rows, info->samples, info->missing, info->negative, info->nan_rows);
+    sb_info_field(info, "cells", (double)info->rows,
+                  "%zu (measured %zu, missing %zu: negative %zu, NaN or infinite %zu)", info->rows, info->samples,
+                  info->missing, info->negative, info->nan_rows);
     sb_info_field(info, "interp", NAN, "%s", sb_interp_name(interp));
     char *desc = sb_format("merl:%s (%s)", path, sb_interp_name(interp)); /* paths of any length */
     sb_source_ops_t ops = {interp == SB_INTERP_LINEAR ? merl_eval_linear : merl_eval_nearest, merl_destroy};

@@ -96,14 +96,21 @@ const tf_field_t *tf_find(const tf_file_t *tf, const char *name) {
     return NULL;
 }
 
+/* The tensor_file dtype codes' names (Mitsuba's Struct::Type). */
+static const char *dtype_name(unsigned t) {
+    static const char *const names[] = {"invalid", "uint8",  "int8",  "uint16",  "int16",   "uint32",
+                                        "int32",   "uint64", "int64", "float16", "float32", "float64"};
+    return t < sizeof names / sizeof *names ? names[t] : "of an unknown dtype";
+}
+
 /* A required float32 field of `ndim` dimensions, each >= lo[d]. */
 sb_result_t tf_need_f32(sb_context_t *ctx, const char *path, const tf_file_t *tf, const char *name, size_t ndim,
                         const size_t *lo, const tf_field_t **out) {
     const tf_field_t *f = tf_find(tf, name);
     if (!f) return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: missing field '%s'", path, name);
     if (f->dtype != 10 || f->ndim != ndim)
-        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' is %zu-D of dtype %u, need %zu-D float32", path, name,
-                        f->ndim, f->dtype, ndim);
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' is %zu-D %s (dtype %u), need %zu-D float32", path,
+                        name, f->ndim, dtype_name(f->dtype), f->dtype, ndim);
     for (size_t d = 0; d < ndim; d++)
         if (f->shape[d] < lo[d])
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field '%s' dimension %zu is %ju, need at least %zu", path,
