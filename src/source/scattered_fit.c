@@ -134,6 +134,23 @@ static double seed_bound(const table_t *t, const double *x, size_t k) {
     return b;
 }
 
+/* Whether a point lies within the radius of x (d^2 <= t->r2): a search
+ * for the nearest bounded by the radius.  Where none does the position is
+ * missing whatever its neighbours in the wider support (t->s2), and the
+ * search for the k nearest there was the cost: on the Cornell acrylic cut
+ * to one theta_i, 44 % of the queries of a default run were the pole
+ * means' 37 azimuths (pole_mean) at positions no sample is near. */
+static int has_near(const table_t *t, const double *x) {
+    knn_t q;
+    q.k = 1;
+    q.n = 0;
+    q.r2 = t->r2;
+    q.skip = NULL;
+    q.nskip = 0;
+    sb_kd_query_(t, x, 0, t->n, &q);
+    return q.n > 0;
+}
+
 /* The value at embedded position x by method `interp` with k neighbours,
  * leaving out the points at the nskip positions of `skip`: 0 missing, 1
  * known, 2 known at a measured position (the measurement). */
@@ -146,6 +163,7 @@ int sb_table_at_(const table_t *t, sb_interp_t interp, size_t k, const double *x
     q.r2 = interp == SB_INTERP_NEAREST ? t->r2 : t->s2;
     q.skip = skip;
     q.nskip = nskip;
+    if (!nskip && !has_near(t, x)) return 0; /* missing, as sb_table_from_knn_ would find */
     if (!nskip) {
         double b = seed_bound(t, x, q.k);
         if (b < q.r2) q.r2 = b;
