@@ -1004,6 +1004,37 @@ SB_TEST(coverage_radius) {
     sb_param_destroy(prm);
 }
 
+/* The radius decides alone whether a pair is known: a pair as far as
+ * 0.9 of it from the nearest sample is known, one 1.1 of it away is
+ * missing although every sample of the row lies within the fits' support
+ * (twice the radius) -- the nearest's search bounded by the radius that
+ * settles a missing pair before the k-nearest search (scattered_fit.c,
+ * has_near) answers as that search did. */
+SB_TEST(radius_alone_decides_missing) {
+    const char *p = tmp_path("cov", "row.csv");
+    FILE *f = fopen(p, "w");
+    CHECK(f != NULL);
+    if (!f) return;
+    fprintf(f, "theta_i,phi_i,theta_o,phi_o,value\n");
+    for (int i = 0; i <= 16; i++)
+        fprintf(f, "40,0,%g,180,%g\n", 20 + 2.5 * i, 1 + 0.01 * i);
+    fclose(f);
+    sb_measured_info_t info;
+    sb_source_t *s = open_table(p, NULL, &info);
+    if (!s) return;
+    CHECK(isfinite(info.radius) && info.radius > 0);
+    double l[3], v[3], rgb[3];
+    sb_dir_from_angles(40 * SB_PI / 180, 0, l);
+    for (int side = 0; side < 2; side++) {
+        double d = (side ? 1.1 : 0.9) * info.radius; /* off the row along the azimuth difference */
+        sb_dir_from_angles(40 * SB_PI / 180, SB_PI - d, v);
+        int known = sb_source_eval(s, l, v, rgb);
+        CHECKF(side ? known == 0 && rgb[0] == 0 : known != 0 && rgb[0] > 0.9 && rgb[0] < 1.3,
+               "%.3g radii from the row: known %d, value %g", side ? 1.1 : 0.9, known, rgb[0]);
+    }
+    sb_source_destroy(s);
+}
+
 /* ---- hostile text ------------------------------------------------------- */
 
 typedef struct hostile {
