@@ -97,7 +97,8 @@ static void screen_layout(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
     for (size_t i = 0; i < n; i++) {
         sb_job_candidate_t *c = &cands[i];
         if (c->kind != kind || c->why[0] || c->dropped) continue;
-        int derive = base.param && base.m.form == SB_FORM_F && base.m.phi_period == 0;
+        /* not from a streamed matrix: it holds no values, only its directions (freed with it) */
+        int derive = base.param && base.m.form == SB_FORM_F && base.m.phi_period == 0 && !base.m.streamed;
         sb_result_t r = screen_one(ctx, job, lv, c, derive ? &base : NULL, &a);
         if (r == SB_OK && !base.param) {
             base = a;
@@ -443,7 +444,7 @@ static sb_result_t max_error_next(sb_context_t *ctx, sb_job_t *job, const size_t
  * then fit the best that succeeds at the requested settings (the next on
  * a failure). */
 sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
-    if (job->ncand == 1 && !job->is_auto) {
+    if (job->ncand == 1 && !job->is_auto && !job->layout_auto) {
         sb_job_candidate_t *c = &job->cands[0];
         sb_result_t r;
         if (job->o.sample_only) {
@@ -484,6 +485,11 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
      * act on (exit 2, lower the resolution); anything else is numerical. */
     const char *why = "";
     sb_result_t code = SB_ERR_NUMERIC;
+    /* a layout named alone: its last failure, as a run asking for it alone
+     * reports it (the context holds its whole message) */
+    for (size_t i = job->ncand; job->layout_auto && n == 0 && i-- > 0;)
+        if (job->cands[i].result != SB_OK) return job->cands[i].result;
+    if (job->layout_auto) return r;
     for (size_t i = 0; i < job->ncand; i++) {
         if (!*why) why = job->cands[i].why;
         if (job->cands[i].result == SB_ERR_NOMEM || job->cands[i].result == SB_ERR_OVERFLOW)
