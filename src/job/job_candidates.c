@@ -134,14 +134,19 @@ static void auto_forms(const sb_job_t *job, sb_param_kind_t k, int *f, int *cos)
     *f = !(tables && !job->o.form) && !(*cos && (sb_source_flags(job->src) & SB_SOURCE_STORES_COS));
 }
 
-/* An explicit layout: one candidate as given (sample_only, a whole spec:
- * form f unless asked, unweighted unless asked) or, named alone, auto's
- * candidates on it (job.h: layout_auto), solid-angle weighted unless
- * opts.weighted < 0. */
+/* An explicit layout: one candidate as given (sample_only, a whole spec,
+ * a layout that does not apply to the source: form f unless asked,
+ * unweighted unless asked) or, named alone, auto's candidates on it
+ * (job.h: layout_auto), solid-angle weighted unless opts.weighted < 0. */
 static sb_result_t explicit_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
     const char *why = NULL;
-    if (!sb_job_param_applies(kind, job->src, &why))
+    if (!sb_job_param_applies(kind, job->src, &why)) {
         job_warn(job, "%s %s; the fit averages what the layout folds together", sb_param_kind_name(kind), why);
+        /* auto has no candidate there: the plain fit (iso on the RGL files,
+         * not reciprocal: weighted, 0.96, 0.95, 1.0 at J = 4 where plain
+         * read 0.84, 0.90, 0.90) */
+        if (job->layout_auto) job->layout_auto = job->fit_as_auto = 0;
+    }
     /* non-negative factors solid-angle weighted (as auto's candidates):
      * their nested prefixes trade error between regions, and unweighted
      * the trade follows the grazing cells' values, not the integrated
