@@ -76,7 +76,10 @@ static void help(void) {
     cli_table_help(cli_factor_options, CLI_STUDY);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
            "\n"
-           "Each source x parameterisation is sampled once and, unless the fit is masked,\n"
+           "A layout named (and auto) is fitted as `factor --param P -J J` fits it, one\n"
+           "whole run per J (its forms, weighting, warps and term weights as auto's).\n"
+           "With --form and --unweighted given (the plain fit), each source x\n"
+           "parameterisation is sampled once and, unless the fit is masked,\n"
            "factored once with the largest J: the leading J' terms of a truncated SVD are\n"
            "the rank-J' SVD, so every J' <= J is read from it (fit \"nested\"). A masked\n"
            "fit (cells outside the domain or unmeasured, without --zero-fill) is refitted\n"
