@@ -80,10 +80,9 @@ typedef struct sb_job_opts {
     const char *source;          /* model spec or measured file; NULL: SB_JOB_DEFAULT_SOURCE */
     sb_measured_opts_t measured; /* how a measured table is read and interpolated */
     /* NULL or "auto": choose among the candidates; a kind name ("iso"):
-     * auto's candidates on that layout (its forms and weighting, and the
-     * plain fit, f unweighted, where auto has f there; screened and fitted
-     * as auto fits them; form, weighted and warp given still decide); a
-     * whole spec ("iso:th=64,td=62,pd=16"): used as given */
+     * auto's candidates on that layout (its forms and weighting, screened
+     * and fitted as auto fits them; form, weighted and warp given still
+     * decide); a whole spec ("iso:th=64,td=62,pd=16"): used as given */
     const char *param;
     const char *form; /* NULL: f (auto and a kind name: f and cos as auto makes them); "f", "cos", "cos2" */
     /* warps of the elevation axes (param.h) of a layout that takes them

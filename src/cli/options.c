@@ -228,9 +228,8 @@ const cli_option_t cli_factor_options[] = {
      "theta_i),\nsolid-angle weighted, on coarse grids, and "
      "factors the\n"
      "lowest headline error at J.  A layout named alone (io, hd,\n...) is auto restricted to it: its forms and "
-     "weighting\n(and the plain fit, f unweighted, where auto has f there),\nwarps and term weights as auto would fit "
-     "it, "
-     "unless\n--form, --unweighted, --warp or --plain-terms say otherwise.\nA whole layout as report.json "
+     "weighting,\nwarps and term weights as auto would fit it, unless\n--form, --unweighted, --warp or --plain-terms "
+     "say otherwise.\nA whole layout as report.json "
      "writes it (param_spec, e.g.\niso:th=64,td=62,pd=16 or hd:res=32,warp_h=...) is used as\ngiven: form f, "
      "unweighted, no warp tried, unless asked",
      set_param, AT(param), 0, 0, F_ | R_},

@@ -158,11 +158,6 @@ static sb_result_t explicit_candidates(sb_context_t *ctx, sb_job_t *job, sb_para
     sb_result_t r = SB_OK;
     if (f) r = cand_add(ctx, job, kind, job->o.form ? form : SB_FORM_F, w);
     if (r == SB_OK && cos) r = cand_add(ctx, job, kind, SB_FORM_COS, w);
-    /* and the plain fit beside auto's f, where nothing was asked: auto's
-     * weights cost some layouts (J = 4: the default gold on vh 0.0128
-     * plain, 0.0178 weighted; the Cornell acrylic on hd 0.0272, 0.0295) */
-    if (r == SB_OK && job->layout_auto && f && w && !job->o.form && !job->o.weighted && !nonneg)
-        r = cand_add(ctx, job, kind, SB_FORM_F, 0);
     for (size_t i = 0; i < job->ncand; i++)
         job->cands[i].why[0] = 0; /* the plan names the problem itself */
     return r;
