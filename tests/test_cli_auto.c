@@ -315,7 +315,10 @@ SB_TEST(warps_tried_where_the_spacing_leaves_error) {
 SB_TEST(weights_dropped_where_they_cost_the_headline) {
     char dir[1024], args[8400];
     snprintf(dir, sizeof dir, "%s/w", sb_tmpdir("auto-weights"));
-    const char *src = SB_MEASURED_DIR "/cornell_acryl_blue.brdf --lobe off --param iso -r 12 -J 4";
+    /* the plain fit (form f, unweighted): iso named alone is fitted as auto
+     * fits it now, solid-angle weighted, and its weights cost nothing there */
+    const char *src =
+        SB_MEASURED_DIR "/cornell_acryl_blue.brdf --lobe off --param iso --form f --unweighted -r 12 -J 4";
     snprintf(args, sizeof args, "factor %s --plain-terms -q -o %s", src, dir);
     CHECKF(run(args) == 0, "%s", out);
     CHECK(load_report(dir) == 0);
@@ -501,4 +504,62 @@ SB_TEST(few_rows_fit_iso_alone) {
     CHECKF(strncmp(string_of("param_spec", ps, sizeof ps), "iso:", 4) == 0, "kept %s", ps);
     CHECKF(count(report, "not screened: 3 rows cannot tell layouts apart") == 6, "%s", report);
     CHECK(strstr(report, "\"auto_tried\": false") != NULL);
+}
+
+/* The headline at J of `factor ARGS -J J -q -o DIR` and its standard
+ * error (NAN: the run failed). */
+static double headline_of(const char *args, const char *dir, size_t J, double *se) {
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "factor %s -J %zu -q -o %s", args, J, dir);
+    *se = NAN;
+    if (run(cmd) != 0 || load_report(dir) != 0) return NAN;
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"terms\": %zu,", J);
+    const char *p = strstr(report, "\"errors\"");
+    p = p ? strstr(p, pat) : NULL;
+    *se = number_of(p, "headline_se");
+    return headline_at(J);
+}
+
+/* A layout named alone is auto restricted to it: on an RGL file, which
+ * stores f cos theta_i, `--param vndf` is auto's kept candidate (form cos,
+ * solid-angle weighted) and reaches auto's headline; on main it took form
+ * f unweighted, 0.298 at J = 4 against auto's 0.0231.  `--param vh`, not
+ * kept by auto, fits as auto's vh candidate would (form cos, weighted):
+ * 0.0327 where main's plain fit read 0.645. */
+SB_TEST(named_layout_fits_as_auto) {
+    const char *dir = sb_tmpdir("auto_named");
+    char args[4400], src[4200], f[32];
+    snprintf(src, sizeof src, "%s/rgl_paper_white_rgb.bsdf", SB_MEASURED_DIR);
+    double se_a, se_v, se_h, se_c;
+    double a = headline_of(src, dir, 4, &se_a);
+    snprintf(args, sizeof args, "%s --param vndf", src);
+    double v = headline_of(args, dir, 4, &se_v);
+    CHECKF(strcmp(string_of("form", f, sizeof f), "cos") == 0 && strstr(report, "\"weighted\": true"), "%s", f);
+    CHECKF(fabs(v - a) <= 2 * se_a, "--param vndf %.4g, auto %.4g +- %.2g", v, a, se_a);
+    snprintf(args, sizeof args, "%s --param vh", src);
+    double h = headline_of(args, dir, 4, &se_h);
+    CHECKF(strcmp(string_of("form", f, sizeof f), "cos") == 0, "%s", f);
+    snprintf(args, sizeof args, "%s --param vh --form cos --weighted", src);
+    double c = headline_of(args, dir, 4, &se_c);
+    CHECKF(h <= c + 2 * se_c && h < 0.1, "--param vh %.4g, with auto's form and weighting %.4g +- %.2g", h, c, se_c);
+    /* the plain fit stays reachable, and differs: form f, unweighted */
+    snprintf(args, sizeof args, "%s --param vndf --form f --unweighted", src);
+    double p = headline_of(args, dir, 4, &se_v);
+    CHECKF(p > 5 * a && strstr(report, "\"weighted\": false"), "plain vndf %.4g, auto %.4g", p, a);
+    snprintf(args, sizeof args, "factor %s --weighted --unweighted -q -o %s", src, dir);
+    CHECKF(run(args) == 1 && strstr(out, "--weighted and --unweighted"), "%s", out);
+}
+
+/* A layout that cannot reproduce the source (io form f on an RGL file,
+ * whose f reaches 1e10 at the horizon: 99 % at J = 4) warns, naming what
+ * --param auto keeps there (vndf, form cos) with its headline. */
+SB_TEST(poor_layout_names_auto_choice) {
+    const char *dir = sb_tmpdir("auto_poor");
+    char args[8400];
+    snprintf(args, sizeof args, "factor %s/rgl_aurora_white_rgb.bsdf --param io --form f -J 4 -o %s", SB_MEASURED_DIR,
+             dir);
+    CHECKF(run(args) == 0, "%s", out);
+    CHECKF(strstr(out, "cannot reproduce this source") && strstr(out, "keeps vndf, form cos, headline"), "%s", out);
+    CHECK(load_report(dir) == 0 && strstr(report, "cannot reproduce this source") != NULL);
 }

@@ -293,6 +293,8 @@ SB_TEST(fit_for_three_lights) {
         sb_job_opts_t o = {0};
         size_t J = terms[k];
         o.param = params[k];
+        o.form = "f"; /* the plain fit the scene's weights are measured against */
+        o.weighted = -1;
         o.res = 16;
         o.terms = J;
         sb_job_t *plain = NULL, *fit = NULL;

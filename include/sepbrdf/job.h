@@ -79,8 +79,12 @@ typedef struct sb_job_opts {
     size_t size;                 /* sizeof(sb_job_opts_t) of the caller's headers; 0: SB_JOB_OPTS_SIZE_0_1 */
     const char *source;          /* model spec or measured file; NULL: SB_JOB_DEFAULT_SOURCE */
     sb_measured_opts_t measured; /* how a measured table is read and interpolated */
-    const char *param;           /* NULL or "auto": choose among the candidates; else a kind name ("iso") */
-    const char *form;            /* NULL: f (auto: f and cos2); "f", "cos", "cos2" */
+    /* NULL or "auto": choose among the candidates; a kind name ("iso"):
+     * auto's candidates on that layout (its forms and weighting, screened
+     * and fitted as auto fits them; form, weighted and warp given still
+     * decide); a whole spec ("iso:th=64,td=62,pd=16"): used as given */
+    const char *param;
+    const char *form; /* NULL: f (auto and a kind name: f and cos as auto makes them); "f", "cos", "cos2" */
     /* warps of the elevation axes (param.h) of a layout that takes them
      * (iso, hd): NULL the layout's own; "uniform"; "merl" (theta_h MERL's
      * square root, theta_d uniform); "adaptive" (both measured from the
@@ -89,7 +93,10 @@ typedef struct sb_job_opts {
      * are screened with the layouts' own warps; the kept one is then
      * sampled and fitted again, warped. */
     const char *warp;
-    int weighted; /* solid-angle weighting of an explicit param (auto: always) */
+    /* solid-angle weighting of an explicit param: 0 as auto (weighted, but
+     * for a whole param spec or sample_only: unweighted), 1 weighted, -1
+     * unweighted (auto's candidates: always weighted) */
+    int weighted;
     /* A scene spec (scene.h) or NULL: with one, the fit is weighted by the
      * scene's pairs and skips the cells they never touch (instead of the
      * solid-angle weights), and the headline, with everything decided on

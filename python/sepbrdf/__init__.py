@@ -434,7 +434,8 @@ def factor(source=None, *, progress=None, **options):
     Options, the CLI's with '-' written '_' (docs/guide.md, `sepbrdf factor
     --help`): terms (-J), res (-r), param ("auto", a kind such as "iso", or
     a whole spec "iso:th=64,td=62,pd=16"), form ("f", "cos", "cos2"), warp
-    ("uniform", "merl", "adaptive", "auto"), weighted, scene, zero_fill,
+    ("uniform", "merl", "adaptive", "auto"), weighted (None: as auto, solid
+    angle; True; False: --unweighted), scene, zero_fill,
     plain_terms, metric_res, method ("auto", "full", "topk", "randomized",
     "nmf", "stream"), max_error, channels ("R,B" or ["R", "B"]), theta_max
     (degrees), seed, half, budget (bytes: 16384 or "16K"), previews, shader

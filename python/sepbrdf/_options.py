@@ -106,7 +106,9 @@ def _job_opts(o, source_spec):
             setattr(jo, "shaders" if k == "shader" else k, s(v))
     if jo.form is not None:
         _parse_enum(lib.sb_form_parse, jo.form.decode(), "form", "f, cos, cos2")
-    for k in ("weighted", "zero_fill", "plain_terms", "half", "previews"):
+    w = o.pop("weighted", None)  # None: as auto (weighted); False: unweighted (--unweighted)
+    jo.weighted = 0 if w is None else (1 if w else -1)
+    for k in ("zero_fill", "plain_terms", "half", "previews"):
         setattr(jo, k, 1 if o.pop(k, False) else 0)
     if "terms" in o:
         jo.terms = _number("terms", o.pop("terms"), 1, 1 << 30, int)

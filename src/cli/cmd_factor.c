@@ -35,8 +35,8 @@ static void help(void) {
     cli_table_help(cli_factor_options, CLI_FACTOR);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
            "\n"
-           "`--param io --plain-terms` reproduces the lecture's method exactly\n"
-           "(form f, unweighted, the truncated SVD's terms as they are).\n"
+           "`--param io --form f --unweighted --plain-terms` reproduces the lecture's\n"
+           "method exactly (form f, unweighted, the truncated SVD's terms as they are).\n"
            "\n"
            "Texture layout: texel (x, y) of an R x R io texture is theta index x\n"
            "(s = theta / theta_max, clamped) and phi index y (t = phi / 2pi, repeated),\n"
@@ -70,9 +70,10 @@ static int parse(int argc, char **argv, sb_job_opts_t *o, const char **out) {
     return cli_parse(argc, argv, &p);
 }
 
-static void print_candidates(const sb_job_t *job) {
+static void print_candidates(const sb_job_t *job, const char *param) {
     const sb_job_candidate_t *c;
-    fprintf(stderr, "--param auto screened (headline error, f cos theta_i, at J on an R-cell grid; time):\n");
+    fprintf(stderr, "--param %s screened (headline error, f cos theta_i, at J on an R-cell grid; time):\n",
+            param && *param ? param : "auto");
     for (size_t i = 0; (c = sb_job_candidate(job, i)) != NULL; i++) {
         if (c->ok)
             fprintf(stderr, "  %-8s form %-4s %s %.4e  R = %-3zu %6.3f s  %-13s%s\n", sb_param_kind_name(c->kind),
@@ -280,7 +281,8 @@ int cmd_factor(int argc, char **argv) {
     if (r == SB_OK && rank == 0) { /* the other ranks shared the passes */
         for (size_t i = 0; i < sb_job_warning_count(job); i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
-        if (sb_job_auto(job) && g_verbosity >= 1) print_candidates(job);
+        /* auto's, or those of a layout named alone (its forms) */
+        if ((sb_job_auto(job) || sb_job_candidate(job, 1)) && g_verbosity >= 1) print_candidates(job, o.param);
         print_detail(job);
         print_warnings(job);
         /* The whole set goes into a staging folder published in one step

@@ -76,7 +76,10 @@ static void help(void) {
     cli_table_help(cli_factor_options, CLI_STUDY);
     printf(CLI_MEASURED_HELP CLI_VERBOSITY_HELP
            "\n"
-           "Each source x parameterisation is sampled once and, unless the fit is masked,\n"
+           "A layout named (and auto) is fitted as `factor --param P -J J` fits it, one\n"
+           "whole run per J (its forms, weighting, warps and term weights as auto's).\n"
+           "With --form and --unweighted given (the plain fit), each source x\n"
+           "parameterisation is sampled once and, unless the fit is masked,\n"
            "factored once with the largest J: the leading J' terms of a truncated SVD are\n"
            "the rank-J' SVD, so every J' <= J is read from it (fit \"nested\"). A masked\n"
            "fit (cells outside the domain or unmeasured, without --zero-fill) is refitted\n"
@@ -280,7 +283,7 @@ void study_take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size_
 /* --nmf: the non-negative fit with each studied J (its terms are not
  * nested: one fit per J), its headline and rel_rms beside the row of that
  * J; NaN where it fails (reported, the run stays good). */
-static void nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const sb_job_opts_t *base) {
+void study_nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const sb_job_opts_t *base) {
     sb_job_opts_t jo = *base;
     jo.method = SB_METHOD_NMF;
     sb_job_t *job = NULL;
@@ -304,7 +307,10 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     char label[64];
     snprintf(label, sizeof label, "study %zu/%zu %s", task + 1, ntasks, study_kind_name(r->kind));
     double base = (double)task / (double)ntasks, span = 1.0 / (double)ntasks;
-    if (r->kind == STUDY_AUTO) {
+    /* a layout named alone is fitted as `factor --param P` fits it, one
+     * run per J; sampled once only for the plain fit (--form and
+     * --unweighted given), whose truncations nest */
+    if (r->kind == STUDY_AUTO || !(o->job.form && o->job.weighted < 0)) {
         study_run_auto(ctx, src, o, r, label, base, span);
         cli_progress(label, base + span);
         return;
@@ -342,7 +348,7 @@ static void run_one(sb_context_t *ctx, const sb_source_t *src, const study_opts_
         if ((res = sb_job_refactor(ctx, job, j)) == SB_OK) study_take_rows(r, o, job, j, r->masked);
         failed_j = j;
     }
-    if (res == SB_OK && o->nmf) nmf_rows(ctx, src, r, &jo);
+    if (res == SB_OK && o->nmf) study_nmf_rows(ctx, src, r, &jo);
     cli_progress(label, base + span);
     if (res != SB_OK) {
         char msg[1024];
@@ -371,8 +377,9 @@ static void print_table(const study_opts_t *o, const runs_t *rs) {
         for (size_t k = 0; k < r->nr; k++) {
             const row_t *w = &r->r[k];
             char kept[24]; /* auto: the layout kept at this J */
-            snprintf(kept, sizeof kept, "%s%s%.*s", pn, w->spec ? ">" : "", w->spec ? (int)strcspn(w->spec, ":") : 0,
-                     w->spec ? w->spec : "");
+            int choice = w->spec && r->kind == STUDY_AUTO;
+            snprintf(kept, sizeof kept, "%s%s%.*s", pn, choice ? ">" : "", choice ? (int)strcspn(w->spec, ":") : 0,
+                     choice ? w->spec : "");
             printf("%-30.30s %-12s %4zu  %11.4e  %11.4e  %11.4e  %11.4e  %7.2f%%  %8.3f  %-6s", r->spec, kept, w->terms,
                    w->headline, w->comparable, w->rel_rms, w->max_abs, 100 * w->neg_frac,
                    r->t_sample + w->t_factor + w->t_metric, r->masked ? "refit" : "nested");
@@ -400,6 +407,7 @@ static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_sourc
         sb_param_t *probe = NULL;
         sb_param_opts_t pp = {0};
         pp.res = o->res;
+        pp.tables = sb_source_layout_tables(src); /* vndf: an RGL file's own */
         sb_context_clear_error(ctx);
         sb_result_t pr = iso_ok ? sb_param_create(ctx, (sb_param_kind_t)k, &pp, &probe) : SB_ERR_UNSUPPORTED;
         sb_param_destroy(probe);

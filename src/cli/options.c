@@ -47,6 +47,18 @@ static int set_param(const char *cmd, const cli_option_t *op, const char *v, voi
     return 0;
 }
 
+/* --weighted (lo 1) and --unweighted (lo -1): one of the two */
+static int set_weighting(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    (void)v;
+    int *w = dst;
+    if (*w && *w != (int)op->lo) {
+        cli_error(cmd, "--weighted and --unweighted ask for opposite things: give one");
+        return -1;
+    }
+    *w = (int)op->lo;
+    return 0;
+}
+
 static int set_form(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     sb_form_t f;
     if (sb_form_parse(v, &f) != SB_OK) {
@@ -218,11 +230,15 @@ const cli_option_t cli_factor_options[] = {
      "reciprocal, RGL's own layout), with forms f and cos (not on iso;\ncos only on an RGL file: it stores f cos "
      "theta_i),\nsolid-angle weighted, on coarse grids, and "
      "factors the\n"
-     "lowest headline error at J.  A whole layout as report.json\n"
-     "writes it (param_spec, e.g. iso:th=64,td=62,pd=16 or\nhd:res=32,warp_h=...) is used as given: no warp tried",
+     "lowest headline error at J.  A layout named alone (io, hd,\n...) is auto restricted to it: its forms and "
+     "weighting,\nwarps and term weights as auto would fit it, unless\n--form, --unweighted, --warp or --plain-terms "
+     "say otherwise.\nA whole layout as report.json "
+     "writes it (param_spec, e.g.\niso:th=64,td=62,pd=16 or hd:res=32,warp_h=...) is used as\ngiven: form f, "
+     "unweighted, no warp tried, unless asked",
      set_param, AT(param), 0, 0, F_ | R_},
     {NULL, "--form", "F",
-     "what is factored: f (default), cos (f cos theta_i),\ncos2 (f cos theta_i cos theta_o); the GLSL divides back",
+     "what is factored: f (f_r), cos (f cos theta_i), cos2 (f cos\ntheta_i cos theta_o); the GLSL divides back "
+     "(default: auto's\nchoice of f and cos for the layout; f for a whole spec)",
      set_form, AT(form), 0, 0, F_ | R_ | S_},
     {NULL, "--warp", "W",
      "texel spacing along the elevations theta_h, theta_d (iso,\n"
@@ -233,9 +249,12 @@ const cli_option_t cli_factor_options[] = {
      "and auto where the headline at J is above 5 % with those",
      set_warp, AT(warp), 0, 0, F_ | R_ | S_},
     {NULL, "--weighted", NULL,
-     "weight cells by solid angle so the fit minimises the\nintegrated error (on for every --param auto candidate\nand "
-     "for --method nmf)",
-     cli_set_flag, AT(weighted), 0, 0, F_ | R_ | S_},
+     "weight cells by solid angle so the fit minimises the\nintegrated error (the default for auto and a layout named\n"
+     "alone, always for --method nmf; for a whole spec: off)",
+     set_weighting, AT(weighted), 1, 0, F_ | R_ | S_},
+    {NULL, "--unweighted", NULL,
+     "every cell alike (the lecture's plain SVD with --param io\n--form f --plain-terms); not for --method nmf",
+     set_weighting, AT(weighted), -1, 0, F_ | R_ | S_},
     {NULL, "--scene", "SPEC",
      "fit and measure for the direction pairs a scene uses:\n"
      "'view=A..B;light=C..D' (theta from the normal, degrees),\n"

@@ -72,6 +72,9 @@ char *study_dup(const char *s);
 void study_run_fail(run_t *r, const char *msg);
 void study_run_warnings(run_t *r, const sb_job_t *job, const char *param);
 void study_take_rows(run_t *r, const study_opts_t *o, const sb_job_t *job, size_t J, int only_j);
+/* --nmf: the non-negative fit with each studied J of run r beside its rows
+ * (base: the run's options, terms the largest J). */
+void study_nmf_rows(sb_context_t *ctx, const sb_source_t *src, run_t *r, const sb_job_opts_t *base);
 /* study_auto.c: an auto run (STUDY_AUTO): factor's whole job at every J. */
 void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, const char *label,
                     double base, double span);

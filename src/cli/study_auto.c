@@ -6,13 +6,14 @@
 #include "pipeline.h"
 #include "study.h"
 
-/* An auto run: `factor`'s whole job at every studied J (its choice of
- * layout, form, weighting and warps depends on J, and term weights and
- * texel fits are made for J), the row of J from each. */
+/* An auto run, or a layout named alone: `factor`'s whole job at every
+ * studied J (its choice of layout, form, weighting and warps depends on
+ * J, and term weights and texel fits are made for J), the row of J from
+ * each. */
 void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_t *o, run_t *r, const char *label,
                     double base, double span) {
     sb_job_opts_t jo = o->job;
-    jo.param = NULL;
+    jo.param = r->kind == STUDY_AUTO ? NULL : sb_param_kind_name((sb_param_kind_t)r->kind);
     sb_result_t res = (r->r = calloc(o->nj, sizeof *r->r)) ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     size_t done = 0, J = 0;
     r->converged = 1;
@@ -38,8 +39,12 @@ void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_
             r->cols = sb_job_matrix(job)->cols;
             r->masked = 1; /* one fit per J */
         }
-        if (J == o->jmax || res != SB_OK) study_run_warnings(r, job, "auto");
+        if (J == o->jmax || res != SB_OK) study_run_warnings(r, job, jo.param ? jo.param : "auto");
         sb_job_destroy(job);
+    }
+    if (res == SB_OK && o->nmf && jo.param) { /* a layout named: its non-negative fits beside */
+        jo.terms = o->jmax;
+        study_nmf_rows(ctx, src, r, &jo);
     }
     if (res != SB_OK) {
         char msg[1024];

@@ -43,7 +43,7 @@ static void write_csv(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             fprintf(fp, ",%s,", study_kind_name(r->kind));
             study_csv_field(fp, w->spec ? w->spec : r->param_spec);
             fprintf(fp, ",%s,%d,%s,%zu,%.9g,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f,%.9g",
-                    w->form ? w->form : sb_form_name(o->form), w->form ? w->weighted : o->weighted,
+                    w->form ? w->form : sb_form_name(o->form), w->form ? w->weighted : o->weighted > 0,
                     r->masked ? "refit" : "nested", w->terms, w->comparable, w->rel_rms, w->max_abs, w->neg_frac,
                     r->t_sample, w->t_factor, w->t_metric, w->headline);
             if (o->nmf) fprintf(fp, ",%.9g,%.9g", w->nmf_headline, w->nmf_rel_rms);
@@ -118,7 +118,7 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
         if (o->params & (1u << k)) json_string(&j, NULL, sb_param_kind_name((sb_param_kind_t)k));
     json_end_array(&j);
     json_string(&j, "form", sb_form_name(o->form));
-    json_bool(&j, "weighted", o->weighted);
+    json_bool(&j, "weighted", o->weighted > 0);
     json_bool(&j, "zero_fill", o->zero_fill);
     json_string(&j, "method", sb_method_name(o->method));
     json_int(&j, "metric_resolution", (long long)o->metric_res);
@@ -176,7 +176,7 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             "set key below height 1.5 spacing 1.2\n"
             "set xtics 1\n"
             "set xrange [0.5:%zu.5]\n",
-            PLOT_FLOOR, PLOT_FLOOR, o->res, sb_form_name(o->form), o->weighted ? ", weighted" : "", o->jmax);
+            PLOT_FLOOR, PLOT_FLOOR, o->res, sb_form_name(o->form), o->weighted > 0 ? ", weighted" : "", o->jmax);
     if (o->jmax > 20) fprintf(fp, "set xtics %zu\n", (o->jmax + 9) / 10);
     double lo = INFINITY, hi = 0; /* all errors within a decade (a Lambert source: equal): a decade each side */
     for (size_t i = 0; i < rs->n; i++)

@@ -89,6 +89,9 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     if (o->form && sb_form_parse(o->form, form) != SB_OK)
         return sb_error(ctx, SB_ERR_UNKNOWN, "form '%s' unknown, need one of f, cos, cos2", o->form);
     if (job->is_auto) o->param = NULL;
+    /* a layout named alone: what auto would fit on it (job_candidates) */
+    job->layout_auto = !job->is_auto && !strchr(o->param, ':') && !o->sample_only;
+    if (job->layout_auto) job->fit_as_auto = 1;
     if (sb_shader_lang_list(ctx, o->shaders, NULL) != SB_OK) return SB_ERR_UNKNOWN;
     sb_result_t rb = job_budget_begin(ctx, job, in);
     if (rb != SB_OK) return rb;
@@ -145,7 +148,7 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     o.out = NULL;
     sb_job_t *svd = NULL;
     /* fitted as the default run fits it; its headline alone is read */
-    sb_result_t r = job_run_as(ctx, job->src, &o, job->is_auto | JOB_RUN_HEADLINE, &svd);
+    sb_result_t r = job_run_as(ctx, job->src, &o, (job->is_auto || job->fit_as_auto) | JOB_RUN_HEADLINE, &svd);
     if (r == SB_ERR_NOMEM) return r;
     free(job->svd_beside);
     job->svd_beside = r == SB_OK ? malloc(JOB_BESIDE_STRIDE * J * sizeof *job->svd_beside) : NULL;
@@ -172,6 +175,44 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
     snprintf(job->svd_method, sizeof job->svd_method, "%s", m ? m : "");
     job->svd_s = svd->t.total_s;
     sb_job_destroy(svd);
+    return SB_OK;
+}
+
+/* A layout named alone that leaves more than JOB_EXPLICIT_POOR of the
+ * headline at J (hd --form f on an RGL file, whose f reaches 1e10 at the
+ * horizon: 0.9998): auto beside it (its own form, weighting and warp, the
+ * other options as given), and a warning naming its choice with its
+ * headline where that does better by half.
+ * A failure of that run is no warning: the fit asked for stands. */
+static sb_result_t job_auto_beside(sb_context_t *ctx, sb_job_t *job) {
+    const job_attempt_t *a = &job->best;
+    size_t J = a->f ? sb_factors_terms(a->f) : 0;
+    double h = J && a->est ? sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms) : NAN;
+    /* not beside a streamed matrix: a matrix beyond memory, and auto's run as costly again */
+    if (!job->layout_auto || job->headline_only || job->no_scene_guard || job->budget || job->scene ||
+        job->o.method == SB_METHOD_STREAM || !(h > JOB_EXPLICIT_POOR))
+        return SB_OK;
+    sb_job_opts_t o = job->o;
+    o.param = NULL;
+    o.form = NULL; /* auto's own choice: what `--param auto` keeps */
+    o.weighted = 0;
+    o.warp = NULL;
+    o.out = NULL;
+    o.terms = J;
+    o.max_error = 0;
+    o.progress = NULL;
+    sb_job_t *au = NULL;
+    sb_result_t r = job_run_as(ctx, job->src, &o, JOB_RUN_HEADLINE, &au);
+    if (r == SB_ERR_NOMEM) return r;
+    double e = r == SB_OK ? sb_job_headline(au, J) : NAN;
+    if (r == SB_OK && sb_param_kind(au->best.param) != sb_param_kind(a->param) && 2 * e < h)
+        job_warn(job,
+                 "%s leaves a headline error of %.4g %% at J = %zu: it cannot reproduce this source; --param auto "
+                 "(its own form, weighting and warp) keeps %s, form %s, headline %.4g %%",
+                 sb_param_name(a->param), 100 * h, J, sb_param_spec(au->best.param), sb_form_name(au->best.m.form),
+                 100 * e);
+    sb_job_destroy(au);
+    sb_context_clear_error(ctx);
     return SB_OK;
 }
 
@@ -261,6 +302,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     double t1 = job_now();
     if (r == SB_OK) r = job_svd_beside(ctx, job);
     if (r == SB_OK) r = job_nonneg_refit(ctx, job);
+    if (r == SB_OK) r = job_auto_beside(ctx, job);
     double t2 = job_now();
     if (r == SB_OK) r = job_scene_measure(ctx, job);
     if (r == SB_OK) r = job_scene_guard(ctx, job);

@@ -298,7 +298,7 @@ static sb_result_t ladder_walk(sb_context_t *ctx, sb_job_t *job, size_t ci, int 
  * screening (pass 0) or those it dropped (pass 1), or the one asked for. */
 static int searched(const sb_job_t *job, size_t i, int dropped) {
     const sb_job_candidate_t *c = &job->cands[i];
-    return job->is_auto ? c->ok && !c->dropped == !dropped : i == 0 && !dropped;
+    return job->is_auto || job->layout_auto ? c->ok && !c->dropped == !dropped : i == 0 && !dropped;
 }
 
 /* The candidates searched, the lowest screened error first (then in
@@ -332,7 +332,8 @@ static size_t search_order(const sb_job_t *job, int dropped, size_t *order) {
  * unwarped iso, 34 of 67 fits. */
 static int hopeless(const sb_job_t *job, size_t i) {
     const job_budget_t *b = job->budget;
-    return job->is_auto && !b->fixed_res && job->cands[i].error > BUDGET_HOPELESS * search_best(b);
+    return (job->is_auto || job->layout_auto) && !b->fixed_res &&
+           job->cands[i].error > BUDGET_HOPELESS * search_best(b);
 }
 
 /* Refuse a budget below the smallest texture set searched (the smallest
@@ -466,7 +467,7 @@ sb_result_t job_budget_select(sb_context_t *ctx, sb_job_t *job) {
     double t0 = job_now();
     sb_result_t r = check_room(ctx, job);
     if (r != SB_OK) return r;
-    if (job->is_auto) job_screen(ctx, job);
+    if (job->is_auto || job->layout_auto) job_screen(ctx, job);
     /* the layouts screening dropped too where those it kept hold no term
      * within the budget (an RGL file's vndf: its h is the file's 32 x 32
      * grid, 6 KiB a term as HALF; a budget of 4 KiB failed, "lower -r") */

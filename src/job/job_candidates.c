@@ -119,21 +119,55 @@ static void few_rows_one(sb_job_t *job) {
     }
 }
 
+/* The forms auto makes candidates of on layout k (*f: form f, or the
+ * form asked for; *cos: form cos). */
+static void auto_forms(const sb_job_t *job, sb_param_kind_t k, int *f, int *cos) {
+    /* a layout on the source's tables holds their nodes in form cos (sb_param_cell_value) */
+    int tables = (sb_param_kind_caps(k) & SB_CAP_TABLES) != 0;
+    /* cos: not on a layout that folds by reciprocity (f cos theta_i is
+     * not reciprocal); cos2 is none: dividing by cos theta_o is
+     * unbounded near the horizon in what a shader outputs */
+    *cos = !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY);
+    /* f: not where the data are f cos theta_i and cos serves (an RGL
+     * file: its f reaches 1e10-1e12 at the horizon, and the screened fit
+     * of hd on it cost a third of paper's default run for a headline of 4e4) */
+    *f = !(tables && !job->o.form) && !(*cos && (sb_source_flags(job->src) & SB_SOURCE_STORES_COS));
+}
+
+/* An explicit layout: one candidate as given (sample_only, a whole spec,
+ * a layout that does not apply to the source: form f unless asked,
+ * unweighted unless asked) or, named alone, auto's candidates on it
+ * (job.h: layout_auto), solid-angle weighted unless opts.weighted < 0. */
+static sb_result_t explicit_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
+    const char *why = NULL;
+    if (!sb_job_param_applies(kind, job->src, &why)) {
+        job_warn(job, "%s %s; the fit averages what the layout folds together", sb_param_kind_name(kind), why);
+        /* auto has no candidate there: the plain fit (iso on the RGL files,
+         * not reciprocal: weighted, 0.96, 0.95, 1.0 at J = 4 where plain
+         * read 0.84, 0.90, 0.90) */
+        if (job->layout_auto) job->layout_auto = job->fit_as_auto = 0;
+    }
+    /* non-negative factors solid-angle weighted (as auto's candidates):
+     * their nested prefixes trade error between regions, and unweighted
+     * the trade follows the grazing cells' values, not the integrated
+     * error (GGX 0.3 on iso: 3.3x the SVD's headline at J' = 3, 1.2x weighted) */
+    int nonneg = job_nonneg_method(sb_method_name(job->o.method));
+    int w = job->layout_auto ? job->o.weighted >= 0 || nonneg : job->o.weighted > 0 || nonneg;
+    int f = 1, cos = 0;
+    if (job->layout_auto) auto_forms(job, kind, &f, &cos);
+    sb_result_t r = SB_OK;
+    if (f) r = cand_add(ctx, job, kind, job->o.form ? form : SB_FORM_F, w);
+    if (r == SB_OK && cos) r = cand_add(ctx, job, kind, SB_FORM_COS, w);
+    for (size_t i = 0; i < job->ncand; i++)
+        job->cands[i].why[0] = 0; /* the plan names the problem itself */
+    return r;
+}
+
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
     job->ncand = 0;
-    if (!job->is_auto) {
-        const char *why = NULL;
-        if (!sb_job_param_applies(kind, job->src, &why))
-            job_warn(job, "%s %s; the fit averages what the layout folds together", sb_param_kind_name(kind), why);
-        /* non-negative factors solid-angle weighted (as auto's candidates):
-         * their nested prefixes trade error between regions, and unweighted
-         * the trade follows the grazing cells' values, not the integrated
-         * error (GGX 0.3 on iso: 3.3x the SVD's headline at J' = 3, 1.2x weighted) */
-        int w = job->o.weighted || job_nonneg_method(sb_method_name(job->o.method));
-        sb_result_t r = cand_add(ctx, job, kind, form, w);
-        job->cands[0].why[0] = 0; /* the plan names the problem itself */
-        return r;
-    }
+    if (!job->is_auto) return explicit_candidates(ctx, job, kind, form);
+    /* solid-angle weighted unless --unweighted (never for non-negative factors) */
+    int w = job->o.weighted >= 0 || job_nonneg_method(sb_method_name(job->o.method));
     for (int i = 0; i < (int)sb_param_kind_count(); i++) {
         sb_param_kind_t k = (sb_param_kind_t)i;
         sb_result_t r = SB_OK;
@@ -143,18 +177,10 @@ sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kin
         if ((sb_param_kind_caps(k) & SB_CAP_AUTO_ANALYTIC) && (sb_source_flags(job->src) & SB_SOURCE_MEASURED))
             continue; /* the measured tables' own layouts serve these */
         if (job_layout_min_side(job, k, job->o.res, NULL) == 0) continue; /* not available at R */
-        /* a layout on the source's tables holds their nodes in form cos (sb_param_cell_value) */
-        int tables = (sb_param_kind_caps(k) & SB_CAP_TABLES) != 0;
-        /* cos: not on a layout that folds by reciprocity (f cos theta_i is
-         * not reciprocal); cos2 is none: dividing by cos theta_o is
-         * unbounded near the horizon in what a shader outputs */
-        int cos = !job->o.form && !(sb_param_kind_caps(k) & SB_CAP_FOLDS_RECIPROCITY);
-        /* f: not where the data are f cos theta_i and cos serves (an RGL
-         * file: its f reaches 1e10-1e12 at the horizon, and the screened fit
-         * of hd on it cost a third of paper's default run for a headline of 4e4) */
-        int f = !(tables && !job->o.form) && !(cos && (sb_source_flags(job->src) & SB_SOURCE_STORES_COS));
-        if (r == SB_OK && f) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, 1);
-        if (r == SB_OK && cos) r = cand_add(ctx, job, k, SB_FORM_COS, 1);
+        int f, cos;
+        auto_forms(job, k, &f, &cos);
+        if (r == SB_OK && f) r = cand_add(ctx, job, k, job->o.form ? form : SB_FORM_F, w);
+        if (r == SB_OK && cos) r = cand_add(ctx, job, k, SB_FORM_COS, w);
         if (r != SB_OK) return r;
     }
     few_rows_one(job);

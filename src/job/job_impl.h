@@ -102,6 +102,10 @@ struct sb_job {
     double t_estimate;           /* the estimator, in all */
     int is_auto;
     int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
+    /* --param KIND (a name, not a whole spec; not sample_only): auto
+     * restricted to that layout, its candidates (forms, weighting) as auto
+     * makes them, screened and fitted as auto fits its kept one */
+    int layout_auto;
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
     /* --max-error: per candidate, the fewest terms of its screening whose
@@ -278,6 +282,10 @@ sb_result_t job_sample_weights(sb_context_t *ctx, sb_job_t *job, const job_level
 sb_result_t job_term_weights(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* The warning that the kept fit's term weights were dropped, if they were. */
 void job_warn_weights(sb_job_t *job);
+/* A layout named alone (layout_auto) whose headline at J exceeds this:
+ * auto is run beside it on the same options, and a warning names auto's
+ * choice and headline where it is better by half (job.c). */
+#define JOB_EXPLICIT_POOR 0.5
 /* Filter the texture axes of the kept fit a for bilinear lookups where
  * that lowers its headline at J (job_texels.c; a->texel_fit), then measure
  * its errors again (non-negative factors: texels clamped at 0); nothing

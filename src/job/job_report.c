@@ -288,10 +288,11 @@ static void report_estimator(sb_json_t *j, const sb_job_t *job) {
     sb_json_end_object(j);
     sb_json_string(j, "form_choice",
                    job->o.form ? "as asked; the headline measures what its division does"
-                               : (job->is_auto ? "auto: lowest headline among f and cos (cos2 is no candidate: "
-                                                 "dividing by cos theta_o is unbounded near the horizon in f cos "
-                                                 "theta_i)"
-                                               : "f, the default"));
+                               : (job->is_auto || job->layout_auto
+                                      ? "auto: lowest headline among f and cos (cos2 is no candidate: "
+                                        "dividing by cos theta_o is unbounded near the horizon in f cos "
+                                        "theta_i)"
+                                      : "f, the default"));
 }
 
 /* A measured table: what it held and the errors against its measurements
@@ -495,7 +496,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
     report_fit(j, job);
     report_errors(j, job);
     job_scene_report(j, job);
-    if (job->is_auto) report_auto(j, job);
+    if (job->is_auto || job->layout_auto) report_auto(j, job);
     job_budget_report(j, job);
     sb_json_begin_array(j, "warnings");
     for (size_t i = 0; i < job->nwarn; i++)
