@@ -17,6 +17,12 @@
 #include "util/internal.h"
 #include "util/parallel.h"
 
+/* The minimax's sweeps (nmf_mixes.c minimax) in one part up to this much
+ * work (m n k): the default gold's 64 x 992 cells, J = 4, spent 18 % less
+ * CPU in them on one core than split on two, the same report
+ * (docs/positive.md, round h38b). */
+#define SB_NMF_MM_MIN_WORK ((size_t)1 << 19)
+
 /* Whether cell (i, c) has a target (ext != 0). */
 static int valid(const nmf_state_t *s, size_t i, size_t c) { return s->ext[i + c * s->m] != 0; }
 
@@ -134,10 +140,11 @@ SB_AVX2_CLONES static void *prefix_cols(void *arg) {
 }
 
 /* Step: fn over the columns in parts (threads where the work is large
- * enough: every core for the default gold's 64 x 992 cells); returns the
- * number of parts. */
+ * enough: every core for the default gold's 64 x 992 cells, but one part
+ * in the minimax's sweeps, s->mm: SB_NMF_MM_MIN_WORK); returns the number
+ * of parts. */
 static int columns_run(nmf_state_t *s, void *(*fn)(void *), const nmf_job_t *proto, nmf_job_t *jobs) {
-    int nt = sb_threads_for(0, s->n, s->m * s->n * proto->k, (size_t)1 << 17);
+    int nt = sb_threads_for(0, s->n, s->m * s->n * proto->k, s->mm ? SB_NMF_MM_MIN_WORK : (size_t)1 << 17);
     if (nt > s->nt) nt = s->nt;
     for (int t = 0; t < nt; t++) {
         jobs[t] = *proto;
