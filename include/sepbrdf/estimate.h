@@ -113,6 +113,8 @@ typedef struct sb_estimate_opts {
     size_t replicates; /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
     int last_only;     /* with headline_only: the errors of all J terms only (those of shorter prefixes are 0) */
     int bands;         /* with headline_only: the band errors too (band, band_se, band_share; not the lit ones) */
+    unsigned channels; /* sb_pairs_create: the channels measured (1 R, 2 G, 4 B; 0 = all): the source's others read
+                          as 0, so a fit of some channels (sb_matrix_opts_t.channels) is measured on them only */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */

@@ -140,8 +140,9 @@ SB_API int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t
 #define SB_METRIC_MAX_RES 128
 
 typedef struct sb_metric_opts {
-    size_t res;  /* reference grid cells per angular axis, default 32, at most SB_METRIC_MAX_RES */
-    int threads; /* 0 = all cores */
+    size_t res;        /* reference grid cells per angular axis, default 32, at most SB_METRIC_MAX_RES */
+    int threads;       /* 0 = all cores */
+    unsigned channels; /* the channels measured (1 R, 2 G, 4 B; 0 = all): the source's others read as 0 */
 } sb_metric_opts_t;
 
 typedef struct sb_metric {

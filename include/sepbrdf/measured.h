@@ -331,6 +331,13 @@ struct sb_factors;
  * a non-zero value). */
 SB_API sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
                                              const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out);
+/* As sb_measured_sample_errors, over the channels of the bit mask
+ * `channels` only (1 R, 2 G, 4 B; 0 = all): the others of both the samples
+ * and the reconstruction read as 0, as for a fit of those channels
+ * (sb_matrix_opts_t.channels).  Same errors. */
+SB_API sb_result_t sb_measured_sample_errors_channels(sb_context_t *ctx, const sb_source_t *src,
+                                                      const struct sb_factors *f, const sb_param_t *p, sb_form_t form,
+                                                      unsigned channels, sb_sample_errors_t *out);
 
 /* Fraction of the cells of `param` for which `src` returns a value (1 for
  * analytic sources): *known of *cells cells with both directions above the

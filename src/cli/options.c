@@ -294,8 +294,9 @@ const cli_option_t cli_factor_options[] = {
      "(default\n32 here, at most R) is then the upper limit",
      cli_set_double, AT(max_error), 1e-15, 0.999999, F_},
     {NULL, "--channels", "C",
-     "channels to factor, any of R, G, B (e.g. G or R,B;\ndefault all); the others are written as zero", set_channels,
-     AT(channels), 0, 0, F_},
+     "channels to factor, any of R, G, B (e.g. G or R,B;\ndefault all); the others are written as zero and\nevery "
+     "error is over the channels factored",
+     set_channels, AT(channels), 0, 0, F_},
     {NULL, "--theta-max", "DEG", "largest sampled elevation in degrees (default 90)", cli_set_double, AT(theta_max_deg),
      1, 90, F_ | R_},
     {NULL, "--seed", "S", "seed of randomized methods (default 1)", set_seed, AT(seed), 0, 0, F_},

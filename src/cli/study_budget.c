@@ -83,7 +83,8 @@ static void run_row(sb_context_t *ctx, const sb_source_t *src, const study_opts_
     w->comparable = sb_job_comparable(job, J);
     sb_sample_errors_t se;
     w->sample_rel = NAN;
-    if (sb_measured_sample_errors(NULL, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job), &se) == SB_OK &&
+    if (sb_measured_sample_errors_channels(NULL, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job),
+                                           jo.channels, &se) == SB_OK &&
         se.terms >= J)
         w->sample_rel = se.rel_l2[J - 1];
     sb_job_destroy(job);

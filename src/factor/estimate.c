@@ -130,6 +130,7 @@ sb_result_t sb_pairs_create_drawn(sb_context_t *ctx, const sb_source_t *src, con
     P->rep = o.replicate;
     P->start = o.start;
     P->seed = o.seed;
+    P->channels = o.channels & 7u ? o.channels & 7u : 7u;
     P->draw = draw;
     P->draw_user = user;
     int nt = sb_thread_count(o.threads);

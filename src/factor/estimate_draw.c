@@ -157,4 +157,7 @@ void est_draw_replicate(sb_pairs_t *P, size_t k) {
         P->known[at] = (unsigned char)known;
     }
     if (batched) eval_replicate(P, k);
+    for (size_t i = 0; i < P->rep && P->channels != 7u; i++) /* the channels not measured read as 0 */
+        for (int c = 0; c < 3; c++)
+            if (!(P->channels >> c & 1u)) P->d[(k * P->rep + i) * PD + 7 + (size_t)c] = 0;
 }

@@ -42,6 +42,7 @@ struct sb_pairs {
     size_t rep, n, nrep; /* pairs per replicate, pairs, replicates */
     size_t start;        /* replicates drawn at first: where an estimate's doubling starts */
     uint64_t seed;
+    unsigned channels;    /* the source's channels kept (1 R, 2 G, 4 B); the others read as 0 */
     sb_pair_draw_fn draw; /* NULL: the mixture of estimate.h */
     const void *draw_user;
     double *d;            /* n x PD */

@@ -52,6 +52,7 @@ typedef struct work {
     const sb_param_t *p;
     size_t R, N, J, C;
     int clamp;             /* the reconstruction is max(0, sum) (sb_param_apply_gain) */
+    unsigned channels;     /* the source's channels measured (1 R, 2 G, 4 B); the others read as 0 */
     const double **tex[2]; /* [side][j * C + c] */
     size_t tw[2], th[2];   /* texture sizes per side */
     int wrap[2][2], edge[2][2];
@@ -115,12 +116,17 @@ static inline void add_pair(double *restrict num, size_t *restrict neg, size_t J
 
 /* Source value of the pair (k, l) with classes it, ot, d; 0 if unknown. */
 static int source_at(const work_t *w, size_t k, size_t l, size_t it, size_t ot, size_t d, double f[3]) {
+    int known;
     if (w->tab) {
         size_t at = (it * w->R + ot) * w->R + d;
         memcpy(f, w->tab + at * 3, 3 * sizeof *f);
-        return w->tknown[at];
+        known = w->tknown[at];
+    } else {
+        known = sb_source_eval(w->src, w->dir + 3 * k, w->dir + 3 * l, f) && isfinite(f[0] + f[1] + f[2]);
     }
-    return sb_source_eval(w->src, w->dir + 3 * k, w->dir + 3 * l, f) && isfinite(f[0] + f[1] + f[2]);
+    for (int c = 0; c < 3; c++)
+        f[c] = w->channels >> c & 1u ? f[c] : 0;
+    return known;
 }
 
 /* One pair (k, l) through the parameterisation's coordinates, counted mult times. */
@@ -413,7 +419,14 @@ sb_result_t sb_metric_compute(sb_context_t *ctx, const sb_source_t *src, const s
     int iso_src = (sb_source_flags(src) & SB_SOURCE_ISOTROPIC) != 0;
     unsigned caps = sb_param_caps(p);
 
-    work_t w = {.src = src, .p = p, .R = R, .N = N, .J = J, .C = C, .clamp = sb_param_apply_gain(p, -1, 1) == 0};
+    work_t w = {.src = src,
+                .p = p,
+                .R = R,
+                .N = N,
+                .J = J,
+                .C = C,
+                .clamp = sb_param_apply_gain(p, -1, 1) == 0,
+                .channels = o.channels & 7u ? o.channels & 7u : 7u};
     if (work_alloc(ctx, &w, iso_src, caps) != 0) {
         work_free(&w);
         return sb_error(ctx, SB_ERR_NOMEM, "metric: out of memory");

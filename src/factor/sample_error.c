@@ -26,6 +26,13 @@ static int prefix_values(const sb_factors_t *f, const sb_param_t *p, sb_form_t f
 
 sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
                                       const sb_param_t *p, sb_form_t form, sb_sample_errors_t *out) {
+    return sb_measured_sample_errors_channels(ctx, src, f, p, form, 0, out);
+}
+
+sb_result_t sb_measured_sample_errors_channels(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
+                                               const sb_param_t *p, sb_form_t form, unsigned channels,
+                                               sb_sample_errors_t *out) {
+    unsigned mask = channels & 7u ? channels & 7u : 7u;
     if (!src || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "sample errors: missing argument");
     size_t n = sb_source_sample_count(src), J = sb_factors_terms(f);
     if (n == 0)
@@ -42,6 +49,7 @@ sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src,
         out->outside += (size_t)!prefix_values(f, p, form, J, wi, wo, acc);
         sb_source_eval(src, wi, wo, s);
         for (int c = 0; c < 3; c++) {
+            if (!(mask >> c & 1u)) continue; /* a channel not measured: 0 in both */
             den += v[c] * v[c] * w2;
             src_num += (s[c] - v[c]) * (s[c] - v[c]) * w2;
             for (size_t j = 0; j < J; j++)

@@ -75,6 +75,7 @@ sb_result_t job_band_pairs_measure(sb_context_t *ctx, sb_job_t *job, job_attempt
     eo.seed = job->o.seed;
     eo.headline_only = 1;
     eo.bands = 1;
+    eo.channels = job->o.channels;
     sb_result_t r = SB_OK;
     if (!job->band_pairs) r = sb_pairs_create_drawn(ctx, job->src, &eo, band_draw, NULL, &job->band_pairs);
     sb_exr_opts_t xo = {job->o.half};

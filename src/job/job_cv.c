@@ -125,6 +125,8 @@ static void fold_sums(sb_job_t *job, const sb_factors_t *f, const sb_source_t *t
     for (size_t i = 0; i < n; i++) {
         double wi[3], wo[3], v[3], rec[3], e = 0;
         if (sb_measured_fold(i, K) != k || !sb_source_sample(job->src, i, wi, wo, v)) continue;
+        for (int c = 0; c < 3; c++) /* a channel not factored (--channels) is measured nowhere */
+            v[c] = job_factors_channel(job, c) ? v[c] : 0;
         double c2 = wi[2] * wi[2], t = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * c2;
         for (size_t j = 0; j < J; j++) {
             if (!sb_factors_eval(f, p, form, j + 1, wi, wo, rec)) rec[0] = rec[1] = rec[2] = 0;
@@ -137,6 +139,8 @@ static void fold_sums(sb_job_t *job, const sb_factors_t *f, const sb_source_t *t
         row_t[*held] = t;
         double tv[3] = {0, 0, 0};
         if (!table || !sb_source_eval(table, wi, wo, tv)) tv[0] = tv[1] = tv[2] = 0;
+        for (int c = 0; c < 3; c++)
+            tv[c] = job_factors_channel(job, c) ? tv[c] : 0;
         for (int c = 0; c < 3; c++)
             *Etab += (tv[c] - v[c]) * (tv[c] - v[c]) * c2;
         int b = theta_h_band(wi, wo);

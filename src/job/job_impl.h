@@ -409,6 +409,11 @@ sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attemp
 sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_matrix_opts_t *mo, job_attempt_t *a);
 /* The estimator's pairs into job->pairs: the scene's, else the domain's. */
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
+/* Whether channel c is factored (--channels): the others are written as 0
+ * and every error of the job is over the factored channels only. */
+static inline int job_factors_channel(const sb_job_t *job, int c) {
+    return !job->o.channels || (job->o.channels >> c & 1u);
+}
 /* With a scene: the kept fit's estimate over the whole domain. */
 sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job);
 /* A scene fit against the same run without the scene beside it

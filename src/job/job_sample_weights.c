@@ -39,6 +39,8 @@ static sw_sample_t *sw_samples(const sb_job_t *job, const job_attempt_t *a, size
         sw_sample_t *x = &s[k];
         if (!sb_source_sample(job->src, i, wi, wo, x->v) || !sb_param_coords(a->param, wi, wo, x->sg, x->sh)) continue;
         x->W = wi[2] * wi[2] * wo[2] * wo[2];
+        for (int c = 0; c < 3; c++) /* a channel not factored (--channels) is measured nowhere */
+            x->v[c] = job_factors_channel(job, c) ? x->v[c] : 0;
         x->div = sb_form_divisor(a->m.form, wi, wo);
         k += x->W > 0 && x->div > 0;
     }

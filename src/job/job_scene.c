@@ -68,8 +68,9 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
 
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job) {
     if (job->pairs) return SB_OK;
-    if (job->scene) return sb_scene_pairs_create(ctx, job->scene, job->src, NULL, &job->pairs);
     sb_estimate_opts_t eo = {0};
+    eo.channels = job->o.channels; /* measured on the channels factored (--channels) */
+    if (job->scene) return sb_scene_pairs_create(ctx, job->scene, job->src, &eo, &job->pairs);
     eo.start = JOB_EST_START;
     return sb_pairs_create(ctx, job->src, &eo, &job->pairs);
 }

@@ -71,7 +71,9 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job) {
     if (!job->scene || !a->f) return SB_OK;
     double t0 = job_now();
     sb_result_t r = SB_OK;
-    if (!job->domain_pairs) r = sb_pairs_create(ctx, job->src, NULL, &job->domain_pairs);
+    sb_estimate_opts_t eo = {0};
+    eo.channels = job->o.channels;
+    if (!job->domain_pairs) r = sb_pairs_create(ctx, job->src, &eo, &job->domain_pairs);
     if (r == SB_OK && !job->domain_est && !(job->domain_est = malloc(sizeof *job->domain_est)))
         r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (r == SB_OK) r = domain_estimate(ctx, job);

@@ -78,7 +78,8 @@ void job_warn_support(sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     sb_sample_errors_t se;
     job->se_f = NULL;
-    if (a->f && sb_measured_sample_errors(NULL, job->src, a->f, a->param, a->m.form, &se) == SB_OK) {
+    if (a->f &&
+        sb_measured_sample_errors_channels(NULL, job->src, a->f, a->param, a->m.form, job->o.channels, &se) == SB_OK) {
         job->se = se, job->se_f = a->f; /* for the report: one pass over a MERL file's 1.4 M cells is seconds */
         size_t keep = supported_terms(&se);
         /* at the table's own floor (its evaluation against its samples: an
