@@ -200,7 +200,7 @@ def test_eval_is_the_texture_product_at_texel_centres():
     pi / 2, (k + 1/2) / R 2 pi) reads texel (x = i, y = k) of each texture,
     so the reconstruction there is sum_j g_j[y_i, x_i] h_j[y_o, x_o]."""
     R = 8
-    fac = sepbrdf.factor("modified-phong:n=8", param="io", res=R, terms=3, plain_terms=True)
+    fac = sepbrdf.factor("modified-phong:n=8", param="io", form="f", res=R, terms=3, plain_terms=True)
     rng = np.random.default_rng(5)
     cells = rng.integers(0, R, size=(50, 4))
 
