@@ -406,6 +406,41 @@ static sb_result_t fit_first(sb_context_t *ctx, sb_job_t *job, const size_t *ord
     return r;
 }
 
+static int meets_bound(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
+    (void)first;
+    return job_meets_bounded(job, a);
+}
+
+static int lower_headline(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
+    (void)job;
+    return rank_error(a) < rank_error(first);
+}
+
+/* Candidate c fitted at the requested settings beside the kept fit
+ * (job->best); where wins(job, c's fit, the kept fit) it is kept instead
+ * (*won set), else the kept fit stays.  A failure of c's fit is no error
+ * but for memory. */
+static sb_result_t fit_instead(sb_context_t *ctx, sb_job_t *job, sb_job_candidate_t *c,
+                               int (*wins)(const sb_job_t *, const job_attempt_t *, const job_attempt_t *), int *won) {
+    job_attempt_t first = job->best;
+    memset(&job->best, 0, sizeof job->best);
+    double t1 = job_now();
+    sb_result_t r = job_fit_kept(ctx, job, c);
+    c->time_s += job_now() - t1;
+    *won = r == SB_OK && wins(job, &job->best, &first);
+    if (*won) {
+        for (size_t i = 0; i < job->ncand; i++)
+            job->cands[i].kept = 0;
+        c->kept = 1;
+        job_attempt_free(&first);
+        return SB_OK;
+    }
+    job_attempt_free(&job->best);
+    job->best = first;
+    sb_context_clear_error(ctx);
+    return r == SB_ERR_NOMEM ? r : SB_OK;
+}
+
 /* --max-error: the kept fit (order[0]'s or, having failed, a later one's)
  * does not meet it within the band bounds: the next candidates whose
  * screening did (cand_need) are fitted in turn, the first that does kept
@@ -415,28 +450,10 @@ static sb_result_t max_error_next(sb_context_t *ctx, sb_job_t *job, const size_t
     size_t k = 0;
     while (k < n && !job->cands[order[k]].kept)
         k++;
-    job_attempt_t first = job->best;
-    memset(&job->best, 0, sizeof job->best);
     sb_result_t r = SB_OK;
-    for (k++; k < n; k++) {
-        sb_job_candidate_t *c = &job->cands[order[k]];
-        if (!job->cand_need[order[k]]) continue;
-        double t1 = job_now();
-        r = job_fit_kept(ctx, job, c);
-        c->time_s += job_now() - t1;
-        if (r == SB_ERR_NOMEM) break;
-        if (r == SB_OK && job_meets_bounded(job, &job->best)) {
-            for (size_t i = 0; i < job->ncand; i++)
-                job->cands[i].kept = 0;
-            c->kept = 1;
-            job_attempt_free(&first);
-            return SB_OK;
-        }
-        job_attempt_free(&job->best);
-        r = SB_OK;
-    }
-    job_attempt_free(&job->best);
-    job->best = first;
+    int won = 0;
+    for (k++; k < n && r == SB_OK && !won; k++)
+        if (job->cand_need[order[k]]) r = fit_instead(ctx, job, &job->cands[order[k]], meets_bound, &won);
     return r;
 }
 
@@ -451,21 +468,8 @@ static sb_result_t named_other_form(sb_context_t *ctx, sb_job_t *job, const size
     if (k + 1 >= n) return SB_OK;
     sb_job_candidate_t *kept = &job->cands[order[k]], *c = &job->cands[order[k + 1]];
     if (c->kind != kept->kind || c->form == kept->form) return SB_OK;
-    job_attempt_t first = job->best;
-    memset(&job->best, 0, sizeof job->best);
-    double t1 = job_now();
-    sb_result_t r = job_fit_kept(ctx, job, c);
-    c->time_s += job_now() - t1;
-    if (r == SB_OK && rank_error(&job->best) < rank_error(&first)) {
-        kept->kept = 0;
-        c->kept = 1;
-        job_attempt_free(&first);
-        return SB_OK;
-    }
-    job_attempt_free(&job->best);
-    job->best = first;
-    sb_context_clear_error(ctx);
-    return r == SB_ERR_NOMEM ? r : SB_OK;
+    int won;
+    return fit_instead(ctx, job, c, lower_headline, &won);
 }
 
 /* One candidate: fit it at the requested settings.  Several: screen them,
