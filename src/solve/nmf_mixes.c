@@ -357,7 +357,7 @@ static void refit_corrected(nmf_state_t *s, sb_solve_out_t *out) {
 /* Step (vndf, with rho): s->hws, the headline's weights spread to the
  * nodes beside (SB_NMF_SPREAD_TABLES), and s->cal, rho^2 over out's
  * squared ratios in them: the headline's ratios predicted from that
- * measure, for the minimax after to_headline (minimax_tables). */
+ * measure, for the minimax after to_headline (minimax with cal). */
 static void calibrate(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out) {
     double f[SB_NMF_MAX_TERMS];
     sb_nmf_spread_weights(in->param, s->hw, s->m, s->n, SB_NMF_SPREAD_TABLES, s->hws);
@@ -384,7 +384,7 @@ static void to_headline(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t 
     sb_nmf_prefix_ratios(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2, f);
     for (size_t p = 0; p < J; p++)
         cp[p] = s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1;
-    if (s->tables && s->hws) /* vndf: the minimax's measure (minimax_tables) */
+    if (s->tables && s->hws) /* vndf: the measure of the minimax with cal */
         calibrate(s, in, out);
     correct_sref(s, cp);
     refit_corrected(s, out);
@@ -451,7 +451,7 @@ static double last_spread(const nmf_state_t *s, const double *U, const double *V
  * f_q)^(eta / 2), f_p the prefixes' squared ratios (multiplicative weights:
  * the worst prefix gains weight until it falls); the sweep with the least
  * worst prefix is kept, the fit it starts from included.
- * With cal (vndf after to_headline, minimax_tables): the same in s->hws,
+ * With cal (vndf, after to_headline): the same in s->hws,
  * each prefix's squared ratio times cal (the headline's predicted), the
  * last's counted SB_NMF_MINIMAX_LAST_TABLES times in the sweeps. */
 static int minimax(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out, const double *cal) {
