@@ -367,7 +367,9 @@ SB_TEST(job_headline_ratio_unweighted) {
  * 1.80).  Aurora's J' = 4 went from 1.47 to 1.52 when the solver's node
  * weights became the headline's own (nmf_weights.c, round h32n: 1.52 for
  * every weight of the nodes below the horizon from 0.2 to 0.5), which kept
- * chm_orange and malachite on vndf (docs/positive.md). */
+ * chm_orange and malachite on vndf (docs/positive.md).  The minimax of the
+ * refit on vndf (nmf_mixes.c SB_NMF_MINIMAX_LAST_TABLES) took paper's J' =
+ * 1..4 from 1.36, 1.86, 1.04, 1.43 to 1.52, 1.45, 1.48, 1.45 (round h38r). */
 static void refitted_case(const char *file, double bound, double last_bound) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -396,7 +398,7 @@ static void refitted_case(const char *file, double bound, double last_bound) {
 }
 
 SB_TEST(job_headline_ratio_refitted) {
-    refitted_case("rgl_paper_white_rgb.bsdf", 1.93, 1.5);
+    refitted_case("rgl_paper_white_rgb.bsdf", 1.6, 1.5);
     refitted_case("rgl_aurora_white_rgb.bsdf", 1.7, 1.56);
 }
 

@@ -126,6 +126,19 @@
 #define SB_NMF_MINIMAX_ABOVE 1.5
 #define SB_NMF_MINIMAX_FILL 0.01
 #define SB_NMF_MINIMAX_LAST 1.1
+/* On vndf (SB_CAP_TABLES), given the headline's own ratios (the job's
+ * refit, s->rho): the same minimax after to_headline, in the headline's
+ * weights spread to the nodes beside (max(hw, SB_NMF_SPREAD_TABLES times
+ * theirs): a lookup's bilinear patch reads a node the weights leave at 0
+ * next to one they do not), each prefix's squared ratio there times its
+ * calibration rho^2 / ratio^2, the last's counted
+ * SB_NMF_MINIMAX_LAST_TABLES times, SB_NMF_MINIMAX_SWEEPS_TABLES sweeps.
+ * RGL paper_white J = 4 (round h38r, docs/positive.md): worst channel
+ * 1.88 -> 1.55; unspread the last prefix went to 2.2x in the headline
+ * (predicted 1.36), with the last at 1 1.71 (1.41 predicted). */
+#define SB_NMF_SPREAD_TABLES 0.2
+#define SB_NMF_MINIMAX_LAST_TABLES 1.5
+#define SB_NMF_MINIMAX_SWEEPS_TABLES 200
 /* The worst prefix of U, V in the headline's weights against the
  * reference (sb_nmf_worst_ratio), each prefix's ratio times its
  * correction cp (1 but after to_headline's), the last's boosted. */
@@ -341,6 +354,19 @@ static void refit_corrected(nmf_state_t *s, sb_solve_out_t *out) {
     polish(s, out);
 }
 
+/* Step (vndf, with rho): s->hws, the headline's weights spread to the
+ * nodes beside (SB_NMF_SPREAD_TABLES), and s->cal, rho^2 over out's
+ * squared ratios in them: the headline's ratios predicted from that
+ * measure, for the minimax after to_headline (minimax with cal). */
+static void calibrate(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out) {
+    double f[SB_NMF_MAX_TERMS];
+    sb_nmf_spread_weights(in->param, s->hw, s->m, s->n, SB_NMF_SPREAD_TABLES, s->hws);
+    sb_nmf_prefix_ratios(s->x, s->hws, s->m, s->n, s->J, out->u, out->v, s->uref, s->vref, s->floor2, f);
+    for (size_t p = 0; p < s->J; p++)
+        s->cal[p] = s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1;
+    s->hws_ok = 1;
+}
+
 /* Step: with the headline's own ratios of this fit (s->rho, the plan's
  * nonneg_ratio: the job's estimate of the fit this solver made from the
  * same matrix without them), each prefix's ratio in the headline's
@@ -351,13 +377,15 @@ static void refit_corrected(nmf_state_t *s, sb_solve_out_t *out) {
  * lower (s->uc, vc hold the first).  The stages again at the other mixes
  * were never kept (RGL paper and aurora, J = 4) and cost a fifth of the
  * run (docs/positive.md). */
-static void to_headline(nmf_state_t *s, sb_solve_out_t *out) {
+static void to_headline(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J;
     if (!s->rho || !s->hw_ok || !(s->gam > 0) || J > SB_NMF_MAX_TERMS || !s->uc) return;
     double f[SB_NMF_MAX_TERMS], cp[SB_NMF_MAX_TERMS];
     sb_nmf_prefix_ratios(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2, f);
     for (size_t p = 0; p < J; p++)
         cp[p] = s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1;
+    if (s->tables && s->hws) /* vndf: the measure of the minimax with cal */
+        calibrate(s, in, out);
     correct_sref(s, cp);
     refit_corrected(s, out);
     double best = worst_ratio(s, out->u, out->v);
@@ -397,31 +425,64 @@ static void push_last(nmf_state_t *s, sb_solve_out_t *out) {
  * f_q)^(eta / 2), f_p the prefixes' squared ratios (multiplicative weights:
  * the worst prefix gains weight until it falls); the sweep with the least
  * worst prefix is kept, the fit it starts from included. */
-static void minimax(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
+/* The worst over the prefixes of U, V's squared ratio in the headline's
+ * weights, or (cal) in the spread weights s->hws times cal. */
+static double worst_cal(const nmf_state_t *s, const double *U, const double *V, const double *cal) {
+    if (!cal) return sb_nmf_worst_ratio(s->x, s->hw, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2);
+    double f[SB_NMF_MAX_TERMS], worst = 0;
+    sb_nmf_prefix_ratios(s->x, s->hws, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2, f);
+    for (size_t p = 0; p < s->J; p++)
+        worst = fmax(worst, cal[p] * f[p]);
+    return worst;
+}
+
+/* U, V's last prefix's squared ratio in s->hws. */
+static double last_spread(const nmf_state_t *s, const double *U, const double *V) {
+    double f[SB_NMF_MAX_TERMS];
+    sb_nmf_prefix_ratios(s->x, s->hws, s->m, s->n, s->J, U, V, s->uref, s->vref, s->floor2, f);
+    return f[s->J - 1];
+}
+
+/* Step: on masked layouts (iso; small matrices: s->w0) where the worst
+ * prefix in the headline's weights is above SB_NMF_MINIMAX_ABOVE times the
+ * reference's, a minimax over the prefixes in those weights (mu = 1, the
+ * cells out of the data at SB_NMF_MINIMAX_FILL of their weight): each sweep
+ * fits sum_p c_p ||E_p||^2 / ||E_p^ref||^2, then c_p *= (f_p / max_q
+ * f_q)^(eta / 2), f_p the prefixes' squared ratios (multiplicative weights:
+ * the worst prefix gains weight until it falls); the sweep with the least
+ * worst prefix is kept, the fit it starts from included.
+ * With cal (vndf, after to_headline): the same in s->hws,
+ * each prefix's squared ratio times cal (the headline's predicted), the
+ * last's counted SB_NMF_MINIMAX_LAST_TABLES times in the sweeps. */
+static int minimax(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out, const double *cal) {
     size_t m = s->m, n = s->n, J = s->J;
     int conv = out->converged;
-    if (!s->fit || !s->w0 || !s->u1 || !s->hw_ok || !(s->gam > 0) || J < 2 || J > SB_NMF_MAX_TERMS) return;
-    double r0 = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2);
-    if (!(r0 > SB_NMF_MINIMAX_ABOVE * SB_NMF_MINIMAX_ABOVE)) return;
+    if (!s->w0 || !s->u1 || !s->hw_ok || !(s->gam > 0) || J < 2 || J > SB_NMF_MAX_TERMS) return 0;
+    double r0 = worst_cal(s, out->u, out->v, cal);
+    if (!(r0 > SB_NMF_MINIMAX_ABOVE * SB_NMF_MINIMAX_ABOVE)) return 0;
+    if (cal && !(cal[J - 1] * last_spread(s, out->u, out->v) < r0)) return 0; /* toward an earlier prefix only */
     memcpy(s->w, s->w0, m * n * sizeof *s->w); /* the headline's weights, the reference's errors in them */
     toward_headline(s, in, out, 1, 1, 0);
     for (size_t k = 0; k < m * n; k++)
-        s->w[k] *= s->ext[k] == 1 ? 1 : SB_NMF_MINIMAX_FILL;
+        s->w[k] = s->ext[k] != 1 ? s->w[k] * SB_NMF_MINIMAX_FILL : cal ? s->w0[k] * s->hws[k] : s->w[k];
     for (size_t k = 1; k <= J; k++)
-        s->sref[k - 1] = fmax(sb_nmf_residual(s, s->uref, s->vref, k), s->floor2);
+        s->sref[k - 1] = fmax(sb_nmf_residual(s, s->uref, s->vref, k), s->floor2) / (cal ? cal[k - 1] : 1);
     for (size_t p = 0; p < J; p++)
         s->mmc[p] = 1;
     memcpy(s->u1, out->u, m * J * sizeof *s->u1);
     memcpy(s->v1, out->v, n * J * sizeof *s->v1);
-    s->mm = 1, s->mm_eta = SB_NMF_MINIMAX_ETA, s->mm_last = SB_NMF_MINIMAX_LAST * SB_NMF_MINIMAX_LAST,
-    s->mm_best = INFINITY;
-    sb_nmf_refit_n(s, out, SB_NMF_MINIMAX_SWEEPS);
+    s->mm = 1, s->mm_eta = SB_NMF_MINIMAX_ETA, s->mm_best = INFINITY;
+    s->mm_last = cal ? SB_NMF_MINIMAX_LAST_TABLES : SB_NMF_MINIMAX_LAST * SB_NMF_MINIMAX_LAST;
+    sb_nmf_refit_n(s, out, cal ? SB_NMF_MINIMAX_SWEEPS_TABLES : SB_NMF_MINIMAX_SWEEPS);
     s->mm = 0;
-    double r1 = sb_nmf_worst_ratio(s->x, s->hw, m, n, J, s->ub, s->vb, s->uref, s->vref, s->floor2);
-    int keep = r1 < r0; /* the best sweep's, else the start's */
+    /* the best sweep's, else the start's; on vndf only where its last
+     * prefix, the least sure of the measure, did not rise */
+    int keep =
+        worst_cal(s, s->ub, s->vb, cal) < r0 && (!cal || last_spread(s, s->ub, s->vb) <= last_spread(s, s->u1, s->v1));
     memcpy(out->u, keep ? s->ub : s->u1, m * J * sizeof *s->ub);
     memcpy(out->v, keep ? s->vb : s->v1, n * J * sizeof *s->vb);
     out->converged = conv;
+    return keep;
 }
 
 /* Step: the stages at SB_NMF_HEADLINE_MIX, where the matrix is small and
@@ -437,7 +498,7 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
         reorder(s, out);
         polish(s, out);
         push_last(s, out);
-        to_headline(s, out);
+        to_headline(s, in, out);
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
@@ -457,6 +518,7 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     reorder(s, out);
     polish(s, out);
     push_last(s, out);
-    minimax(s, in, out);
-    to_headline(s, out);
+    if (s->fit) minimax(s, in, out, NULL);
+    to_headline(s, in, out);
+    if (s->tables && s->hws_ok) minimax(s, in, out, s->cal); /* vndf: toward the headline's own ratios */
 }

@@ -55,6 +55,12 @@ typedef struct nmf_state {
     /* each prefix's ratio in the headline's weights times this: rho^2 over
      * that ratio of the fit made without rho (to_headline), else 1 */
     double cp[SB_NMF_MAX_TERMS];
+    /* rho^2 over each prefix's squared ratio in the headline's weights of
+     * the fit before to_headline's: the headline's ratios predicted from
+     * those weights' (nmf_mixes.c minimax on vndf) */
+    double cal[SB_NMF_MAX_TERMS];
+    double *hws; /* m x n: hw spread to the nodes beside (vndf, where w0 is) */
+    int tables, hws_ok;
     /* m x J, n x J: the first candidate toward rho (to_headline; with rho) */
     double *uc, *vc;
     /* the last prefix's squared ratio r above last_tau2 counts

@@ -142,6 +142,24 @@ static size_t below_halved(const sb_param_t *p, double *hw, const unsigned char 
     return cnt;
 }
 
+void sb_nmf_spread_weights(const sb_param_t *p, const double *hw, size_t m, size_t n, double k, double *out) {
+    size_t sw = 0, sh = 0;
+    sb_param_texture_size(p, 1, &sw, &sh);
+    memcpy(out, hw, m * n * sizeof *out);
+    if (!sw || sw * sh != n) return;
+    for (size_t c = 0; c < n; c++) {
+        long x = (long)(c % sw), y = (long)(c / sw);
+        for (long dy = -1; dy <= 1; dy++)
+            for (long dx = -1; dx <= 1; dx++) {
+                long xx = x + dx, yy = y + dy;
+                if (xx < 0 || xx >= (long)sw || yy < 0 || yy >= (long)sh) continue;
+                const double *h = hw + (size_t)(xx + yy * (long)sw) * m;
+                for (size_t i = 0; i < m; i++)
+                    out[i + c * m] = fmax(out[i + c * m], k * h[i]);
+            }
+    }
+}
+
 int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned char *ext, size_t m, size_t n,
                             double *hw, double *raw) {
     unsigned char *below = calloc(m * n, 1);

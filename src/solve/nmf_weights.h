@@ -21,6 +21,10 @@ int sb_nmf_headline_weights(const sb_param_t *p, sb_form_t form, const unsigned 
 /* U (m x J) and V (n x J): the J leading terms s_j u_j, v_j of the dense
  * m x n matrix x (LAPACK's SVD).  Returns 0, or -1 when out of memory or
  * the SVD fails. */
+/* On a layout on the source's tables (columns the sw x sh nodes of the
+ * colour grid): out = max(hw, k times the largest hw of the nodes one step
+ * away in the grid, the same slice); elsewhere hw. */
+void sb_nmf_spread_weights(const sb_param_t *p, const double *hw, size_t m, size_t n, double k, double *out);
 int sb_nmf_svd_terms(const double *x, size_t m, size_t n, size_t J, double *U, double *V);
 
 /* The largest over the prefixes p = 1..J of sum hw (x - U_p V_p^T)^2 /

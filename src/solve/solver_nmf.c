@@ -107,6 +107,7 @@ static void destroy(void *state) {
     free(s->hw);
     free(s->hwr);
     free(s->w0);
+    free(s->hws);
     free(s->ub);
     free(s->vb);
     free(s->u1);
@@ -151,6 +152,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->hw = weighted ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->w0 = weighted && cells <= SB_NMF_MIX_CELLS ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->hwr = s->w0 ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
+    s->hws = s->w0 && s->rho ? sb_alloc(ctx, cells, sizeof(double), "nmf plan") : NULL;
     s->u1 = s->hw ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
     s->v1 = s->hw ? sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan") : NULL;
     s->uc = s->hw && s->rho ? sb_alloc(ctx, s->m * s->J, sizeof(double), "nmf plan") : NULL;
@@ -159,7 +161,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->vb = sb_alloc(ctx, s->n * s->J, sizeof(double), "nmf plan");
     if (!s->e || !s->r || !s->alpha || !s->cq || !s->tw || !s->x || !s->w || !s->ext || !s->t || !s->uref || !s->vref ||
         !s->sref || (weighted && !s->hw) || (weighted && (!s->u1 || !s->v1)) ||
-        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr)) || !s->ub || !s->vb ||
+        (weighted && cells <= SB_NMF_MIX_CELLS && (!s->w0 || !s->hwr || (s->rho && !s->hws))) || !s->ub || !s->vb ||
         (s->hw && s->rho && (!s->uc || !s->vc))) {
         destroy(s);
         return SB_ERR_NOMEM;
@@ -217,6 +219,8 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
         s->floor2 += s->ext[k] ? s->x[k] * s->x[k] : 0;
     s->floor2 = fmax(s->floor2 * 1e-24, DBL_MIN);
     s->fill = SB_NMF_FILL_WEIGHT;
+    s->tables = !masked && in->param && (sb_param_caps(in->param) & SB_CAP_TABLES);
+    s->hws_ok = 0;
     sb_result_t r = s->fit ? fill_holes(s, in, out) : SB_OK;
     if (r != SB_OK) return r;
     sb_nmf_cell_weights(s);
