@@ -213,6 +213,15 @@ SB_TEST(layout_equals_factor) {
     study_equals_factor(src, "--param vndf", 2, 4, ",vndf,vndf,cos,1,");
 }
 
+/* --form and --unweighted without --warp on a layout that takes one: factor
+ * tries the adaptive warp where the layout's own leaves over 5 %, so study
+ * runs factor per J as well (on main it sampled once with the uniform
+ * warp: GGX 0.3 on hd, R = 12, 0.326 at J = 4 against factor's 0.0192). */
+SB_TEST(plain_fit_without_warp_equals_factor) {
+    study_equals_factor("microfacet:roughness=0.3", "--param hd --res 12 --form f --unweighted", 2, 4,
+                        ",hd,\"hd:res=12,warp_h=");
+}
+
 SB_TEST(terms_list) {
     const char *dir = sb_tmpdir("study");
     int rc = run("study lambert --param io --terms 1..2,4 --res 4 -q -o %s%s", dir, "");
