@@ -222,6 +222,31 @@ SB_TEST(plain_fit_without_warp_equals_factor) {
                         ",hd,\"hd:res=12,warp_h=");
 }
 
+/* study.json says what each run fitted, as study.csv does: a layout named
+ * alone keeps auto's choice of form per J, so the settings hold the form
+ * given (null here) and every result its form, weighting and layout (on
+ * main: settings "form": "f", "weighted": false, results without them,
+ * where study.csv said cos, 1). */
+SB_TEST(json_says_what_was_fitted) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study microfacet:roughness=0.3 --param io --terms 2 --res 8 -q -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *csv = slurp(dir, "study.csv");
+    const char *row = csv ? strstr(csv, "\nmicrofacet:roughness=0.3,io,io:res=8,") : NULL;
+    CHECKF(row != NULL, "%s", csv ? csv : "(none)");
+    if (!row) return;
+    char form[16] = "", want[64];
+    sscanf(row + strlen("\nmicrofacet:roughness=0.3,io,io:res=8,"), "%15[a-z0-9]", form);
+    const char *json = slurp(dir, "study.json");
+    CHECK(json != NULL);
+    if (!json) return;
+    CHECKF(strstr(json, "\"form\": null") && strstr(json, "\"weighted\": null"), "%s", json);
+    const char *res = strstr(json, "\"results\"");
+    snprintf(want, sizeof want, "\"form\": \"%s\"", form);
+    CHECKF(res && strstr(res, want) && strstr(res, "\"weighted\": true") && strstr(res, "\"param_spec\": \"io:res=8\""),
+           "%s", json);
+}
+
 SB_TEST(terms_list) {
     const char *dir = sb_tmpdir("study");
     int rc = run("study lambert --param io --terms 1..2,4 --res 4 -q -o %s%s", dir, "");
