@@ -165,6 +165,11 @@ static sb_result_t explicit_candidates(sb_context_t *ctx, sb_job_t *job, sb_para
 
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
     job->ncand = 0;
+    if (job->o.weighted < 0 && job_nonneg_method(sb_method_name(job->o.method)))
+        job_warn(job,
+                 "--unweighted is not applied: non-negative factors (--method %s) are always solid-angle "
+                 "weighted",
+                 sb_method_name(job->o.method));
     if (!job->is_auto) return explicit_candidates(ctx, job, kind, form);
     /* solid-angle weighted unless --unweighted (never for non-negative factors) */
     int w = job->o.weighted >= 0 || job_nonneg_method(sb_method_name(job->o.method));
