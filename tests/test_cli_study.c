@@ -282,6 +282,18 @@ SB_TEST(failures_keep_others) {
     CHECKF(kept && count_lines(kept) == 1 + 2, "the earlier set is gone: %s", kept ? kept : "(none)");
 }
 
+/* A layout that does not apply is named in the failure with its own
+ * reason (on main: "iso needs an isotropic source" for vndf on a model,
+ * and for vh on an anisotropic one). */
+SB_TEST(layout_not_applying_named) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study microfacet:roughness=0.3 --param vndf --terms 1 --res 4 -o %s%s", dir, "");
+    CHECKF(rc == 2 && strstr(out, "vndf is built on an RGL file's own tables") && !strstr(out, "iso needs"),
+           "rc %d: %s", rc, out);
+    rc = run("study microfacet:roughness=0.3,anisotropy=0.5 --param vh --terms 1 --res 4 -o %s%s", dir, "");
+    CHECKF(rc == 2 && strstr(out, "vh needs an isotropic source"), "rc %d: %s", rc, out);
+}
+
 SB_TEST(param_all) {
     const char *dir = sb_tmpdir("study");
     int rc = run("study lambert --param all --terms 2 --res 4 -q -o %s%s", dir, "");

@@ -421,8 +421,12 @@ static int list_layouts(sb_context_t *ctx, const study_opts_t *o, const sb_sourc
         run_t *ru = runs_add(rs, spec, k);
         if (!ru) return -1;
         ru->source = study_dup(sb_source_description(src));
-        if (!iso_ok) {
-            study_run_fail(ru, "iso needs an isotropic source");
+        if (!iso_ok) { /* vh, rv, iso on an anisotropic source; vndf on a source without its tables */
+            const char *why = "";
+            char msg[160];
+            sb_job_param_applies((sb_param_kind_t)k, src, &why);
+            snprintf(msg, sizeof msg, "%s %s", sb_param_kind_name((sb_param_kind_t)k), why ? why : "does not apply");
+            study_run_fail(ru, msg);
         } else if (pr != SB_OK) {
             study_run_fail(ru, sb_context_last_error(ctx));
         } else {

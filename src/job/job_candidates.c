@@ -10,7 +10,9 @@
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
     unsigned flags = sb_source_flags(src);
     const char *w = NULL;
-    if (!sb_param_kind_applies(kind, flags))
+    if ((sb_param_kind_caps(kind) & SB_CAP_TABLES) && !(flags & SB_SOURCE_TABLES))
+        w = "is built on an RGL file's own tables: factor an isotropic RGL .bsdf file";
+    else if (!sb_param_kind_applies(kind, flags))
         w = "needs an isotropic source";
     else if ((sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !(flags & SB_SOURCE_RECIPROCAL))
         w = "assumes a reciprocal BRDF, f(wi, wo) = f(wo, wi), and this source is not";
