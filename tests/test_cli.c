@@ -248,3 +248,12 @@ SB_TEST(max_error_reports_the_terms_written) {
     }
     CHECKF(conv[0] == conv[1], "the same 4 terms: converged %d (default), %d (--max-error 0.001)", conv[0], conv[1]);
 }
+
+/* --unweighted with --method nmf: the non-negative fit weighs by solid
+ * angle always (docs/positive.md), so the option is not applied, and
+ * that is said (on main: silently, report.json "weighted": true). */
+SB_TEST(unweighted_nmf_said) {
+    const char *dir = sb_tmpdir("cli");
+    int rc = run("factor lambert --param io -r 4 -J 1 --method nmf --unweighted -o %s", dir);
+    CHECKF(rc == 0 && strstr(out, "--unweighted is not applied"), "rc %d: %s", rc, out);
+}

@@ -213,6 +213,40 @@ SB_TEST(layout_equals_factor) {
     study_equals_factor(src, "--param vndf", 2, 4, ",vndf,vndf,cos,1,");
 }
 
+/* --form and --unweighted without --warp on a layout that takes one: factor
+ * tries the adaptive warp where the layout's own leaves over 5 %, so study
+ * runs factor per J as well (on main it sampled once with the uniform
+ * warp: GGX 0.3 on hd, R = 12, 0.326 at J = 4 against factor's 0.0192). */
+SB_TEST(plain_fit_without_warp_equals_factor) {
+    study_equals_factor("microfacet:roughness=0.3", "--param hd --res 12 --form f --unweighted", 2, 4,
+                        ",hd,\"hd:res=12,warp_h=");
+}
+
+/* study.json says what each run fitted, as study.csv does: a layout named
+ * alone keeps auto's choice of form per J, so the settings hold the form
+ * given (null here) and every result its form, weighting and layout (on
+ * main: settings "form": "f", "weighted": false, results without them,
+ * where study.csv said cos, 1). */
+SB_TEST(json_says_what_was_fitted) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study microfacet:roughness=0.3 --param io --terms 2 --res 8 -q -o %s%s", dir, "");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    const char *csv = slurp(dir, "study.csv");
+    const char *row = csv ? strstr(csv, "\nmicrofacet:roughness=0.3,io,io:res=8,") : NULL;
+    CHECKF(row != NULL, "%s", csv ? csv : "(none)");
+    if (!row) return;
+    char form[16] = "", want[64];
+    sscanf(row + strlen("\nmicrofacet:roughness=0.3,io,io:res=8,"), "%15[a-z0-9]", form);
+    const char *json = slurp(dir, "study.json");
+    CHECK(json != NULL);
+    if (!json) return;
+    CHECKF(strstr(json, "\"form\": null") && strstr(json, "\"weighted\": null"), "%s", json);
+    const char *res = strstr(json, "\"results\"");
+    snprintf(want, sizeof want, "\"form\": \"%s\"", form);
+    CHECKF(res && strstr(res, want) && strstr(res, "\"weighted\": true") && strstr(res, "\"param_spec\": \"io:res=8\""),
+           "%s", json);
+}
+
 SB_TEST(terms_list) {
     const char *dir = sb_tmpdir("study");
     int rc = run("study lambert --param io --terms 1..2,4 --res 4 -q -o %s%s", dir, "");
@@ -246,6 +280,18 @@ SB_TEST(failures_keep_others) {
            "rc %d: %s", rc, out);
     const char *kept = slurp(b, "study.csv");
     CHECKF(kept && count_lines(kept) == 1 + 2, "the earlier set is gone: %s", kept ? kept : "(none)");
+}
+
+/* A layout that does not apply is named in the failure with its own
+ * reason (on main: "iso needs an isotropic source" for vndf on a model,
+ * and for vh on an anisotropic one). */
+SB_TEST(layout_not_applying_named) {
+    const char *dir = sb_tmpdir("study");
+    int rc = run("study microfacet:roughness=0.3 --param vndf --terms 1 --res 4 -o %s%s", dir, "");
+    CHECKF(rc == 2 && strstr(out, "vndf is built on an RGL file's own tables") && !strstr(out, "iso needs"),
+           "rc %d: %s", rc, out);
+    rc = run("study microfacet:roughness=0.3,anisotropy=0.5 --param vh --terms 1 --res 4 -o %s%s", dir, "");
+    CHECKF(rc == 2 && strstr(out, "vh needs an isotropic source"), "rc %d: %s", rc, out);
 }
 
 SB_TEST(param_all) {

@@ -239,8 +239,8 @@ SB_API sb_result_t sb_job_source_open(sb_context_t *ctx, const char *spec, const
                                       sb_source_t **out);
 
 /* Whether parameterisation `kind` applies to src (iso: isotropic and
- * reciprocal sources only); 0 with a static reason in *why (why may be
- * NULL). */
+ * reciprocal sources only; vh, rv: isotropic; vndf: an RGL file's
+ * tables); 0 with a static reason in *why (why may be NULL). */
 SB_API int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why);
 
 /* Run the job: open the source, choose, factor and measure; with opts->out

@@ -323,19 +323,38 @@ static int by_headline(const void *a, const void *b) {
     return (hx > hy) - (hx < hy);
 }
 
+/* A layout's spec as the table shows it: a warp's list of
+ * texel bounds (warp_h=0.0021/0.0050/..., 1500 characters on hd; what
+ * --warp adaptive builds) as
+ * "table" (report.json warp kind); summary.csv and report.json keep
+ * the whole spec. */
+static void spec_short(const char *spec, char *buf, size_t size) {
+    size_t n = 0;
+    buf[0] = 0;
+    while (*spec && n + 1 < size) {
+        size_t len = strcspn(spec, ","), key = strcspn(spec, "=");
+        int list = key < len && memchr(spec + key, '/', len - key) != NULL;
+        n += (size_t)snprintf(buf + n, size - n, "%.*s%s", (int)(list ? key + 1 : len), spec, list ? "table" : "");
+        spec += len;
+        if (*spec == ',' && n + 1 < size) buf[n++] = *spec++, buf[n] = 0;
+        if (n >= size) n = size - 1;
+    }
+}
+
 void batch_table(const batch_item_t *items, size_t n) {
     const batch_item_t **order = malloc(n * sizeof *order);
     if (!order) return;
     for (size_t i = 0; i < n; i++)
         order[i] = &items[i];
     qsort(order, n, sizeof *order, by_headline);
-    printf("%4s  %-32s %-20s %4s  %12s  %12s  %10s  %8s\n", "rank", "material", "param", "J", "headline", "rel_rms",
-           "bytes", "time_s");
+    printf("%4s  %-32s %-20s %-4s %4s  %12s  %12s  %10s  %8s\n", "rank", "material", "param", "form", "J", "headline",
+           "rel_rms", "bytes", "time_s");
     for (size_t i = 0; i < n; i++) {
         const char *f[10];
-        char *buf = split(order[i], f);
+        char *buf = split(order[i], f), spec[256];
+        if (buf) spec_short(f[0], spec, sizeof spec);
         if (buf && order[i]->ok)
-            printf("%4zu  %-32s %-20s %4s  %12.4e  %12.4e  %10s  %8s%s\n", i + 1, order[i]->name, f[0], f[2],
+            printf("%4zu  %-32s %-20s %-4s %4s  %12.4e  %12.4e  %10s  %8s%s\n", i + 1, order[i]->name, spec, f[1], f[2],
                    strtod(f[3], NULL), strtod(f[5], NULL), f[8], f[9], order[i]->skipped ? "  (reused)" : "");
         else
             printf("%4s  %-32s failed: %s\n", "-", order[i]->name, order[i]->msg);

@@ -24,6 +24,7 @@ typedef struct render_opts {
     sb_tonemap_t tm;
     double diff_scale;
     const char *exposure_rule; /* "auto" or "peak" when the exposure came from the original, else NULL */
+    unsigned dropped;          /* channels of the original left out: the factors hold none (factor --channels) */
 } render_opts_t;
 
 static int set_terms(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
@@ -206,6 +207,10 @@ static void write_json(json_t *j, const render_opts_t *o, const sb_source_t *src
     json_string(j, "source", sb_source_description(src));
     json_string(j, "param_spec", sb_param_spec(param));
     json_string(j, "form", sb_form_name(form));
+    json_begin_array(j, "channels"); /* compared: those the factors hold */
+    for (int c = 0; c < 3; c++)
+        if (!(o->dropped >> c & 1)) json_string(j, NULL, (const char *[]){"R", "G", "B"}[c]);
+    json_end_array(j);
     json_int(j, "size", (long long)o->scene.size);
     json_begin_array(j, "lights");
     for (size_t i = 0; i < o->scene.light_count; i++) {
@@ -327,12 +332,51 @@ static int factor_input(sb_context_t *ctx, render_opts_t *o, render_input_t *in)
     return EXIT_OK;
 }
 
+/* The channels f holds, a bit each: some term with a nonzero g and h
+ * texel (factor --channels writes the others as zero). */
+static unsigned factors_channels(const sb_factors_t *f) {
+    unsigned held = 0;
+    size_t J = sb_factors_terms(f), C = sb_factors_channels(f), n[2];
+    for (int s = 0; s < 2; s++) {
+        size_t w, h;
+        sb_factors_size(f, s, &w, &h);
+        n[s] = w * h;
+    }
+    for (size_t c = 0; c < C && c < 3; c++)
+        for (size_t j = 0; j < J && !(held >> c & 1); j++) {
+            int nz[2] = {0, 0};
+            for (int s = 0; s < 2; s++) {
+                const double *t = sb_factors_tex_const(f, s, j, c);
+                for (size_t i = 0; t && i < n[s] && !nz[s]; i++)
+                    nz[s] = t[i] != 0;
+            }
+            if (nz[0] && nz[1]) held |= 1u << c;
+        }
+    return held;
+}
+
+/* The original's channels the factors do not hold, zeroed so that the
+ * images and errors compare the channels factored (as report.json's
+ * errors do); returns those that had a value. */
+static unsigned drop_channels(sb_image_t *img, unsigned held) {
+    unsigned dropped = 0;
+    size_t n = img->width * img->height;
+    for (int c = 0; c < 3; c++)
+        for (size_t i = 0; !(held >> c & 1) && i < n; i++) {
+            if (img->rgb[3 * i + c] != 0) dropped |= 1u << c;
+            img->rgb[3 * i + c] = 0;
+        }
+    return dropped;
+}
+
 /* Render the original and each reconstruction into the set: PNGs and
  * render.json; d and names receive one entry per J. */
 static sb_result_t render_set(sb_context_t *ctx, render_opts_t *o, const render_input_t *in, sb_outset_t *set,
                               sb_image_diff_t *d, char names[][32]) {
     sb_image_t orig = {0}, rec = {0};
     sb_result_t r = sb_render_source(ctx, &o->scene, in->src, &orig);
+    unsigned held = factors_channels(in->fc);
+    if (r == SB_OK && held) o->dropped = drop_channels(&orig, held);
     if (r == SB_OK && o->tm.exposure <= 0) { /* auto (0) or peak (-1) */
         double peak = sb_image_max(&orig), key = sb_image_log_average(&orig);
         o->exposure_rule = o->tm.exposure < 0 ? "peak" : "auto";
@@ -376,6 +420,13 @@ static void print_result(const render_opts_t *o, const render_input_t *in, const
                o->exposure_rule[0] == 'a'
                    ? "the original's log-average luminance to 0.18 (--exposure peak: 1 / brightest)"
                    : "1 / the original's brightest channel");
+    if (o->dropped) {
+        char names[8] = "";
+        size_t n = 0;
+        for (int c = 0; c < 3; c++)
+            if (o->dropped >> c & 1) names[n++] = "RGB"[c];
+        printf("  channels %s left out of the original: the factors hold none (factor --channels)\n", names);
+    }
     printf("%4s  %12s  %12s  %10s  %9s\n", "J", "rmse_linear", "max_linear", "rmse", "psnr_dB");
     for (size_t k = 0; k < o->nterms; k++)
         printf("%4zu  %12.4e  %12.4e  %10.4e  %9.2f\n", o->terms[k], d[k].rmse_linear, d[k].max_linear, d[k].rmse,

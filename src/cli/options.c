@@ -242,11 +242,12 @@ const cli_option_t cli_factor_options[] = {
      set_form, AT(form), 0, 0, F_ | R_ | S_},
     {NULL, "--warp", "W",
      "texel spacing along the elevations theta_h, theta_d (iso,\n"
-     "hd): uniform; merl (theta_h as MERL: square root); adaptive\n"
-     "(measured from the source: equal interpolation error of\n"
-     "f cos theta_i between texels); auto (adaptive where its\n"
-     "headline error is lower); default: iso merl, hd uniform,\n"
-     "and auto where the headline at J is above 5 % with those",
+     "hd; vh: theta_h, theta_v): uniform; merl (theta_h as MERL:\n"
+     "square root); adaptive (measured from the source: equal\n"
+     "interpolation error of f cos theta_i between texels); auto\n"
+     "(adaptive where its headline error is lower); default: iso and\n"
+     "vh merl, hd uniform, and auto where the headline at J is above\n"
+     "5 % with those",
      set_warp, AT(warp), 0, 0, F_ | R_ | S_},
     {NULL, "--weighted", NULL,
      "weight cells by solid angle so the fit minimises the\nintegrated error (the default for auto and a layout named\n"

@@ -83,6 +83,11 @@ static void json_run(json_t *j, const study_opts_t *o, const run_t *r) {
         const row_t *w = &r->r[k];
         json_begin_object(j, NULL);
         json_int(j, "terms", (long long)w->terms);
+        if (w->form) { /* a factor run per J: what it fitted there, as study.csv says */
+            json_string(j, "param_spec", w->spec);
+            json_string(j, "form", w->form);
+            json_bool(j, "weighted", w->weighted);
+        }
         json_number(j, "headline", w->headline);
         json_number(j, "comparable", w->comparable);
         json_number(j, "rel_rms", w->rel_rms);
@@ -117,8 +122,12 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
     for (int k = 0; k < (int)sb_param_kind_count() && !o->param_all; k++)
         if (o->params & (1u << k)) json_string(&j, NULL, sb_param_kind_name((sb_param_kind_t)k));
     json_end_array(&j);
-    json_string(&j, "form", sb_form_name(o->form));
-    json_bool(&j, "weighted", o->weighted > 0);
+    /* as given; null: each run's own choice (results[].form, .weighted) */
+    json_string(&j, "form", o->job.form ? sb_form_name(o->form) : NULL);
+    if (o->weighted)
+        json_bool(&j, "weighted", o->weighted > 0);
+    else
+        json_string(&j, "weighted", NULL);
     json_bool(&j, "zero_fill", o->zero_fill);
     json_string(&j, "method", sb_method_name(o->method));
     json_int(&j, "metric_resolution", (long long)o->metric_res);
@@ -176,7 +185,11 @@ static void write_gp(FILE *fp, const study_opts_t *o, const runs_t *rs) {
             "set key below height 1.5 spacing 1.2\n"
             "set xtics 1\n"
             "set xrange [0.5:%zu.5]\n",
-            PLOT_FLOOR, PLOT_FLOOR, o->res, sb_form_name(o->form), o->weighted > 0 ? ", weighted" : "", o->jmax);
+            PLOT_FLOOR, PLOT_FLOOR, o->res, o->job.form ? sb_form_name(o->form) : "per run",
+            o->weighted > 0   ? ", weighted"
+            : o->weighted < 0 ? ", unweighted"
+                              : "",
+            o->jmax);
     if (o->jmax > 20) fprintf(fp, "set xtics %zu\n", (o->jmax + 9) / 10);
     double lo = INFINITY, hi = 0; /* all errors within a decade (a Lambert source: equal): a decade each side */
     for (size_t i = 0; i < rs->n; i++)

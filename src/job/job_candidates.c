@@ -10,7 +10,9 @@
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
     unsigned flags = sb_source_flags(src);
     const char *w = NULL;
-    if (!sb_param_kind_applies(kind, flags))
+    if ((sb_param_kind_caps(kind) & SB_CAP_TABLES) && !(flags & SB_SOURCE_TABLES))
+        w = "is built on an RGL file's own tables: factor an isotropic RGL .bsdf file";
+    else if (!sb_param_kind_applies(kind, flags))
         w = "needs an isotropic source";
     else if ((sb_param_kind_caps(kind) & SB_CAP_FOLDS_RECIPROCITY) && !(flags & SB_SOURCE_RECIPROCAL))
         w = "assumes a reciprocal BRDF, f(wi, wo) = f(wo, wi), and this source is not";
@@ -165,6 +167,11 @@ static sb_result_t explicit_candidates(sb_context_t *ctx, sb_job_t *job, sb_para
 
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form) {
     job->ncand = 0;
+    if (job->o.weighted < 0 && job_nonneg_method(sb_method_name(job->o.method)))
+        job_warn(job,
+                 "--unweighted is not applied: non-negative factors (--method %s) are always solid-angle "
+                 "weighted",
+                 sb_method_name(job->o.method));
     if (!job->is_auto) return explicit_candidates(ctx, job, kind, form);
     /* solid-angle weighted unless --unweighted (never for non-negative factors) */
     int w = job->o.weighted >= 0 || job_nonneg_method(sb_method_name(job->o.method));
