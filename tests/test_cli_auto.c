@@ -572,3 +572,19 @@ SB_TEST(poor_layout_names_auto_choice) {
     CHECKF(strstr(out, "cannot reproduce this source; --param auto chooses") && !strstr(out, "headline 0."), "%s", out);
     CHECK(load_report(dir) == 0 && strstr(report, "\"stages\"") != NULL);
 }
+
+/* The file's own grid beside a poor named layout also where that layout
+ * does not apply (iso on a non-reciprocal RGL file: 81 %, the named-alone
+ * mark survived the plain fit it falls back to), and at most its rows
+ * (io -J 12 on a file of 8 slices: vndf named at J = 8, not failing). */
+SB_TEST(poor_layout_beside_own_grid_everywhere) {
+    const char *dir = sb_tmpdir("auto_poor_own");
+    char args[8400];
+    snprintf(args, sizeof args, "factor %s/rgl_paper_white_rgb.bsdf --param iso -J 4 -o %s", SB_MEASURED_DIR, dir);
+    CHECKF(run(args) == 0, "%s", out);
+    CHECKF(strstr(out, "iso leaves a headline error") && strstr(out, "--param vndf"), "%s", out);
+    snprintf(args, sizeof args, "factor %s/rgl_aurora_white_rgb.bsdf --param io -J 12 -o %s", SB_MEASURED_DIR, dir);
+    CHECKF(run(args) == 0, "%s", out);
+    CHECKF(strstr(out, "io leaves a headline error") && strstr(out, "--param vndf") && strstr(out, "at J = 8"), "%s",
+           out);
+}

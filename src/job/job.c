@@ -91,7 +91,7 @@ static sb_result_t resolve(sb_context_t *ctx, sb_job_t *job, const sb_job_opts_t
     if (job->is_auto) o->param = NULL;
     /* a layout named alone: what auto would fit on it (job_candidates) */
     job->layout_auto = !job->is_auto && !strchr(o->param, ':') && !o->sample_only;
-    if (job->layout_auto) job->fit_as_auto = 1;
+    if (job->layout_auto) job->fit_as_auto = job->named_alone = 1;
     if (sb_shader_lang_list(ctx, o->shaders, NULL) != SB_OK) return SB_ERR_UNKNOWN;
     sb_result_t rb = job_budget_begin(ctx, job, in);
     if (rb != SB_OK) return rb;
@@ -192,7 +192,7 @@ static sb_result_t job_auto_beside(sb_context_t *ctx, sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     size_t J = a->f ? sb_factors_terms(a->f) : 0;
     double h = J && a->est ? sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms) : NAN;
-    if (!job->layout_auto || job->headline_only || job->no_scene_guard || job->budget || job->scene ||
+    if (!job->named_alone || job->headline_only || job->no_scene_guard || job->budget || job->scene ||
         !(h > JOB_EXPLICIT_POOR))
         return SB_OK;
     int own = -1; /* a layout on the source's own tables, not the named one */
@@ -213,18 +213,20 @@ static sb_result_t job_auto_beside(sb_context_t *ctx, sb_job_t *job) {
     o.weighted = 0;
     o.warp = NULL;
     o.out = NULL;
-    o.terms = J;
+    /* at most its rows (vndf: the file's theta_i slices), as auto fits it */
+    size_t mn = job_layout_min_side(job, (sb_param_kind_t)own, job->o.res, NULL);
+    o.terms = mn && mn < J ? mn : J;
     o.max_error = 0;
     o.progress = NULL;
     sb_job_t *au = NULL;
     sb_result_t r = job_run_as(ctx, job->src, &o, 1 | JOB_RUN_HEADLINE, &au);
     if (r == SB_ERR_NOMEM) return r;
-    double e = r == SB_OK ? sb_job_headline(au, J) : NAN;
+    double e = r == SB_OK ? sb_job_headline(au, o.terms) : NAN;
     if (r == SB_OK && 2 * e < h)
         job_warn(job,
                  "%s leaves a headline error of %.4g %% at J = %zu: it cannot reproduce this source; --param %s "
-                 "(the file's own grid, as auto fits it) keeps form %s, headline %.4g %%",
-                 named, 100 * h, J, o.param, sb_form_name(au->best.m.form), 100 * e);
+                 "(the file's own grid, as auto fits it) keeps form %s, headline %.4g %% at J = %zu",
+                 named, 100 * h, J, o.param, sb_form_name(au->best.m.form), 100 * e, o.terms);
     else
         job_warn(job,
                  "%s leaves a headline error of %.4g %% at J = %zu: it cannot reproduce this source; --param auto "

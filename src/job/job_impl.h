@@ -106,6 +106,7 @@ struct sb_job {
      * restricted to that layout, its candidates (forms, weighting) as auto
      * makes them, screened and fitted as auto fits its kept one */
     int layout_auto;
+    int named_alone; /* --param KIND named so, kept where layout_auto is dropped (a layout not applying) */
     sb_job_candidate_t cands[JOB_MAX_CANDS];
     size_t ncand;
     /* --max-error: per candidate, the fewest terms of its screening whose
