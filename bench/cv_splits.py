@@ -7,9 +7,10 @@ f cos theta_i, relative L2); counted: the splits whose error is within
 1.5x, both ways, of the cross-validated figure (`errors[].cv_headline`)
 that `factor` reports on the whole table.
 
-    bench/cv_splits.py [--build DIR] [--J 4] [--splits 10] [--keep DIR] [NAME ...]
+    bench/cv_splits.py [--build DIR] [--J 4] [--splits 10] [--keep DIR] [NAME|FILE ...]
 
-Tables (NAME; all by default), made in a temporary folder (or --keep DIR):
+Tables (NAME, or the path of a scattered table FILE of your own; all
+NAMEs by default), made in a temporary folder (or --keep DIR):
   acrylic      ../shared/data/measured/cornell_acryl_blue.brdf (1439 rows)
   acrylic-7    the acrylic, every 7th row dropped, angles moved by up to
                0.002 rad, azimuths turned by 0.3 rad, values x (1 + 2 % z)
@@ -18,6 +19,11 @@ Tables (NAME; all by default), made in a temporary folder (or --keep DIR):
   ggx-0.3      `sepbrdf sample microfacet:roughness=0.548` (GGX alpha 0.3)
   gold         `sepbrdf sample microfacet:base=gold,roughness=0.4` (GGX alpha
                0.16, the default source made glossier)
+  new-blue     `microfacet:base=0.1/0.2/0.6,roughness=0.45` at the acrylic's
+               1439 direction pairs, 3 % noise (sepbrdf_bench_at_directions)
+  new-red      `microfacet:base=0.7/0.15/0.1,roughness=0.35` there, 3 % noise
+  new-rgl      RGL chm_light_blue (../shared/data/measured) there
+  new-drop     the acrylic with each row dropped with probability 0.2
 The three analytic tables are Cornell-like: `--gonio 8,1,8,24` (1536 rows,
 a Cornell paint's count), without noise (with 2 % noise every split
 errs by the noise); the variants' noise has fixed seeds.  Prints one row
@@ -25,7 +31,7 @@ per table (the figure, each split's error / figure, the count within
 1.5x), a comment line with the errors and the count for every figure the
 whole table's report.json gives (cv_headline, cv_fold_median where the
 build has it, cv_pooled, cv_fold_max), and the totals.  About 10 s CPU per
-split (20 minutes wall for the six tables on the loaded 2-core VM).
+split (20 minutes wall for the six first tables on the loaded 2-core VM).
 """
 import argparse
 import json
@@ -46,7 +52,14 @@ ANALYTIC = {
     "ggx-0.3": "microfacet:roughness=0.548",
     "gold": "microfacet:base=gold,roughness=0.4",
 }
-TABLES = ["acrylic", "acrylic-7", "acrylic-5"] + list(ANALYTIC)
+MEASURED = os.path.join(ROOT, "..", "shared", "data", "measured")
+AT = {  # NAME: (source, noise, seed, drop) at the acrylic's direction pairs
+    "new-blue": ("microfacet:base=0.1/0.2/0.6,roughness=0.45", 0.03, 11, 0),
+    "new-red": ("microfacet:base=0.7/0.15/0.1,roughness=0.35", 0.03, 12, 0),
+    "new-rgl": (os.path.join(MEASURED, "rgl_chm_light_blue_rgb.bsdf"), 0, 13, 0),
+    "new-drop": ("=", 0, 14, 0.2),
+}
+TABLES = ["acrylic", "acrylic-7", "acrylic-5"] + list(ANALYTIC) + list(AT)
 STATS = ["cv_headline", "cv_fold_median", "cv_pooled", "cv_fold_max"]
 WITHIN = 1.5
 
@@ -87,7 +100,9 @@ def variant(src, dst, every, jitter, turn, noise, seed):
 
 
 def make(name, folder, build):
-    """The table NAME in folder (made once)."""
+    """The table NAME in folder (made once); a FILE as it is."""
+    if name not in TABLES:
+        return name
     ext = ".brdf" if name.startswith("acrylic") else ".csv"
     path = os.path.join(folder, name + ext)
     if os.path.exists(path):
@@ -98,6 +113,11 @@ def make(name, folder, build):
         variant(ACRYLIC, path, 7, 0.002, 0.3, 0.02, 7)
     elif name == "acrylic-5":
         variant(ACRYLIC, path, 5, 0.0, -0.7, 0.05, 5)
+    elif name in AT:
+        src, noise, seed, drop = AT[name]
+        with open(path, "w") as f:
+            subprocess.run([os.path.join(build, "sepbrdf_bench_at_directions"), ACRYLIC, src, str(noise), str(seed),
+                            str(drop)], stdout=f, check=True)
     else:
         subprocess.run([os.path.join(build, "sepbrdf"), "-q", "sample", ANALYTIC[name], "--gonio", GONIO,
                         "--noise", NOISE, "-o", path], check=True)
@@ -136,8 +156,8 @@ def main():
     ap.add_argument("names", nargs="*", default=TABLES)
     a = ap.parse_args()
     for n in a.names:
-        if n not in TABLES:
-            sys.exit("cv_splits.py: unknown table %s (known: %s)" % (n, ", ".join(TABLES)))
+        if n not in TABLES and not os.path.isfile(n):
+            sys.exit("cv_splits.py: unknown table %s (known: %s, or a file)" % (n, ", ".join(TABLES)))
     folder = a.keep or tempfile.mkdtemp(prefix="sb_cv_splits")
     os.makedirs(folder, exist_ok=True)
     total, hits = 0, {}
@@ -151,9 +171,9 @@ def main():
             figs = figures(a.build, make(n, folder, a.build), a.J, folder)
             for k, v in figs.items():
                 hits[k] = hits.get(k, 0) + within(v, errs)
-            print("| %s | %.4g ± %.2g | %s | %d of %d |" % (n, cv, se, " ".join("%.2f" % q for q in ratios),
+            print("| %s | %.4g ± %.2g | %s | %d of %d |" % (os.path.basename(n), cv, se, " ".join("%.2f" % q for q in ratios),
                                                            within(cv, errs), len(ratios)))
-            print("# %s: errors %s; %s" % (n, " ".join("%.4g" % e for e in errs), ", ".join(
+            print("# %s: errors %s; %s" % (os.path.basename(n), " ".join("%.4g" % e for e in errs), ", ".join(
                 "%s %.4g (%d within)" % (k, v, within(v, errs)) for k, v in figs.items())), flush=True)
     finally:
         if not a.keep:

@@ -15,6 +15,13 @@
  * SB_HOLDOUT_FOLDS=K holds out, for seed s, the rows of fold s - 1 of K
  * (sb_measured_fold, the folds of cv_headline) instead of a random part:
  * the whole pipeline refitted on the folds the report's refits use.
+ * With SB_HOLDOUT_FOLDS=K and SEEDS = K (every row held out once, each
+ * predicted by the whole pipeline refitted without its fold) it then draws
+ * SB_HOLDOUT_DRAWS (default 4000) random splits of FRACTION of the rows
+ * from those errors and prints the share within 1.5x of cv_headline, the
+ * share of the best single figure and the splits' quantiles: what ten
+ * fixed splits estimate with a binomial's noise (docs/measured.md, "What
+ * ten splits can say").
  * SB_HOLDOUT_PLAIN=1 refits without term weights or texel filters
  * (plain_terms); SB_HOLDOUT_PARAM=SPEC on a fixed layout (weighted).
  *
@@ -59,8 +66,65 @@ static sb_job_t *run(const char *path, size_t J) {
     return job;
 }
 
-/* Relative L2 of f cos theta_i of job's reconstruction at held's samples. */
-static double held_error(const sb_job_t *job, const char *held, size_t J, int worst) {
+/* Each held-out row's squared error and energy, over all splits (the
+ * folds' pool, SB_HOLDOUT_FOLDS). */
+typedef struct pool {
+    double *e, *t;
+    size_t n, cap;
+} pool_t;
+
+static void pool_add(pool_t *p, double e, double t) {
+    if (p->n == p->cap) {
+        size_t cap = p->cap ? 2 * p->cap : 1024;
+        double *e2 = realloc(p->e, cap * sizeof *e2), *t2 = e2 ? realloc(p->t, cap * sizeof *t2) : NULL;
+        if (e2) p->e = e2;
+        if (!e2 || !t2) return;
+        p->t = t2, p->cap = cap;
+    }
+    p->e[p->n] = e, p->t[p->n++] = t;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Random splits (each row in with probability frac) drawn from the pool:
+ * the share within w of cv, the best single figure's (the fullest window
+ * of ratio w^2) and the quantiles. */
+static void pool_draws(const pool_t *p, double frac, double cv, double w) {
+    const char *d = getenv("SB_HOLDOUT_DRAWS");
+    size_t m = d ? (size_t)atol(d) : 4000, in = 0, most = 0;
+    double *r = malloc((m ? m : 1) * sizeof *r), best = NAN;
+    if (!r || !m || !p->n) {
+        free(r);
+        return;
+    }
+    srand(12345);
+    for (size_t s = 0; s < m; s++) {
+        double a = 0, b = 0;
+        for (size_t i = 0; i < p->n; i++)
+            if ((double)rand() / RAND_MAX < frac) a += p->e[i], b += p->t[i];
+        r[s] = b > 0 ? sqrt(a / b) : 0;
+        in += r[s] >= cv / w && r[s] <= cv * w;
+    }
+    qsort(r, m, sizeof *r, cmp_double);
+    for (size_t i = 0, k = 0; i < m; i++) {
+        if (k < i) k = i;
+        while (k + 1 < m && r[k + 1] <= r[i] * w * w)
+            k++;
+        if (k - i + 1 > most) most = k - i + 1, best = sqrt(r[i] * r[k]);
+    }
+    printf("# %zu random splits of %.0f %% drawn from the %zu rows the folds held out: %.1f %% within %gx of "
+           "cv_headline %.4g; the best single figure %.4g: %.1f %%; splits' 10/50/90th percentiles %.4g %.4g %.4g\n",
+           m, 100 * frac, p->n, 100.0 * (double)in / (double)m, w, cv, best, 100.0 * (double)most / (double)m,
+           r[m / 10], r[m / 2], r[9 * m / 10]);
+    free(r);
+}
+
+/* Relative L2 of f cos theta_i of job's reconstruction at held's samples
+ * (each row's squared error and energy into pool, when given). */
+static double held_error(const sb_job_t *job, const char *held, size_t J, int worst, pool_t *pool) {
     sb_source_t *h = NULL;
     if (sb_source_open(NULL, held, &h) != SB_OK) return NAN;
     double e2 = 0, t2 = 0, top[8] = {0}, row[8][13];
@@ -75,6 +139,8 @@ static double held_error(const sb_job_t *job, const char *held, size_t J, int wo
             t2 += v[c] * v[c] * wi[2] * wi[2];
         }
         e2 += ei;
+        if (pool)
+            pool_add(pool, ei, v[0] * v[0] * wi[2] * wi[2] + v[1] * v[1] * wi[2] * wi[2] + v[2] * v[2] * wi[2] * wi[2]);
         for (int k = 0; k < worst; k++) /* keep the rows of the largest squared error, largest first */
             if (ei > top[k]) {
                 memmove(top + k + 1, top + k, (size_t)(worst - k - 1) * sizeof *top);
@@ -208,6 +274,7 @@ int main(int argc, char **argv) {
     printf("# %s: %.0f %% of the rows held out, J = %zu; cv_headline of the whole table %.4g +- %.2g\n", path,
            100 * frac, J, cv, se);
     printf("| seed | rows held out | error there | / cv_headline |\n|---|---|---|---|\n");
+    pool_t pool = {0};
     for (int s = first; s < first + seeds; s++) {
         rewind(f);
         FILE *a = fopen(tr, "w"), *b = fopen(he, "w");
@@ -229,11 +296,13 @@ int main(int argc, char **argv) {
         fclose(a);
         fclose(b);
         sb_job_t *job = run(tr, J);
-        double e = job ? held_error(job, he, J, worst) : NAN;
+        double e = job ? held_error(job, he, J, worst, folds ? &pool : NULL) : NAN;
         sb_job_destroy(job);
         printf("| %d | %zu | %.4g | %.2f |\n", s, nh, e, e / cv);
         fflush(stdout);
     }
+    if (folds && first == 1 && (size_t)seeds == folds) pool_draws(&pool, frac, cv, 1.5);
+    free(pool.e), free(pool.t);
     fclose(f);
     unlink(tr);
     unlink(he);
