@@ -42,8 +42,8 @@ int main(int argc, char **argv) {
         for (int c = 0; c < 3; c++)
             f[c] = (own ? v[c] : f[c]) * (noise > 0 ? 1 + noise * gauss() : 1);
         const double deg = 180 / 3.14159265358979323846;
-        printf("%.6f,%.6f,%.6f,%.6f,%.7g,%.7g,%.7g\n", acos(wi[2]) * deg, atan2(wi[1], wi[0]) * deg,
-               acos(wo[2]) * deg, atan2(wo[1], wo[0]) * deg, f[0], f[1], f[2]);
+        printf("%.6f,%.6f,%.6f,%.6f,%.7g,%.7g,%.7g\n", acos(wi[2]) * deg, atan2(wi[1], wi[0]) * deg, acos(wo[2]) * deg,
+               atan2(wo[1], wo[0]) * deg, f[0], f[1], f[2]);
     }
     sb_source_destroy(a);
     sb_source_destroy(b);
