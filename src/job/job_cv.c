@@ -15,8 +15,9 @@
  * sqrt(sum E / sum T)) is that fold's figure, not what a split sees.  cv
  * is the figure a random split of a K-th of the table lands within
  * JOB_CV_WITHIN of most often, drawn from the held-out samples' own errors
- * (job_cv_stat.c; 39 of 60 random splits of six glossy tables within 1.5x
- * of it, 35 of the median of the folds, cv_median: docs/measured.md).
+ * and, for the rows no refit held out, their nearest held-out peers' in
+ * energy (job_cv_stat.c; docs/measured.md, "Random splits against the
+ * reported figure", "What ten splits can say").
  * Its standard error is the jackknife's over the refits (job_cv_stat.c);
  * where no figure is drawn, cv is the median of the folds with the
  * median's, 1.2533 * 1.4826 MAD / sqrt(K) (the normal's relative
@@ -116,9 +117,11 @@ static int theta_h_band(const double wi[3], const double wo[3]) {
 /* Add fold k's squared errors (E[j], j < J) and energy (*T) at its
  * samples, and at J those of each theta_h band into the job's; each
  * sample's own (row_e[h * J + j], row_t[h], h counting the held-out
- * samples of all folds) for the figure a random split lands near. */
+ * samples of all folds) and its place in the table (held_row[h]) for the
+ * figure a random split lands near. */
 static void fold_sums(sb_job_t *job, const sb_factors_t *f, const sb_source_t *table, size_t K, size_t k, size_t J,
-                      double *E, double *T, double *Etab, size_t *held, double *row_e, double *row_t) {
+                      double *E, double *T, double *Etab, size_t *held, double *row_e, double *row_t,
+                      size_t *held_row) {
     const sb_param_t *p = job->best.param;
     sb_form_t form = job->best.m.form;
     size_t n = sb_source_sample_count(job->src);
@@ -137,6 +140,7 @@ static void fold_sums(sb_job_t *job, const sb_factors_t *f, const sb_source_t *t
             row_e[*held * J + j] = e;
         }
         row_t[*held] = t;
+        held_row[*held] = i;
         double tv[3] = {0, 0, 0};
         if (!table || !sb_source_eval(table, wi, wo, tv)) tv[0] = tv[1] = tv[2] = 0;
         for (int c = 0; c < 3; c++)
@@ -233,7 +237,7 @@ static void *folds_run(void *arg) {
 /* E[k * J + j], T[k] as fold_sums adds them; T[refits + k] the squared
  * error there of the table refit k sampled. */
 static sb_result_t folds_fit(sb_context_t *ctx, sb_job_t *job, size_t K, size_t refits, size_t J, double *E, double *T,
-                             double *row_e, size_t *fold_end) {
+                             double *row_e, size_t *held_row, size_t *fold_end) {
     job_progress(job, "cross-validation", 0);
     folds_t fs = {job,
                   K,
@@ -256,7 +260,7 @@ static sb_result_t folds_fit(sb_context_t *ctx, sb_job_t *job, size_t K, size_t 
     }
     for (size_t k = 0; k < refits && r == SB_OK; k++) {
         fold_sums(job, fs.ff[k], fs.tab[k], K, k, J, E + k * J, T + k, T + refits + k, &job->cv_held, row_e,
-                  row_e + sb_source_sample_count(job->src) * J);
+                  row_e + sb_source_sample_count(job->src) * J, held_row);
         fold_end[k] = job->cv_held;
     }
     for (size_t k = 0; fs.ff && fs.tab && fs.ctx && k < refits; k++) {
@@ -268,6 +272,24 @@ static sb_result_t folds_fit(sb_context_t *ctx, sb_job_t *job, size_t K, size_t 
     return r;
 }
 
+/* cv and cv_se from the held-out rows (row: their squared errors, then
+ * from row + n J their energies; held_row their places in the table):
+ * random splits of a K-th of the table drawn from every row of it
+ * (job_cv_stat.c), t_all (n) the table's energies, filled here. */
+static void split_figure(sb_job_t *job, double *row, const size_t *fold_end, const size_t *held_row, double *t_all,
+                         size_t refits, size_t K, size_t J, size_t n) {
+    memmove(row + job->cv_held * J, row + n * J, job->cv_held * sizeof *row); /* energies beside the errors */
+    for (size_t i = 0; i < n; i++) {
+        double wi[3], wo[3], v[3];
+        t_all[i] = 0;
+        if (!sb_source_sample(job->src, i, wi, wo, v)) continue;
+        for (int c = 0; c < 3; c++) /* as fold_sums counts them */
+            t_all[i] += job_factors_channel(job, c) ? v[c] * v[c] * wi[2] * wi[2] : 0;
+    }
+    job_cv_split_figure(row, row + job->cv_held * J, fold_end, refits, held_row, t_all, n, (n + K / 2) / K, J,
+                        JOB_CV_WITHIN, job->cv, job->cv_se);
+}
+
 sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     const sb_measured_info_t *in = sb_measured_source_info(job->src);
     size_t K = job->o.cv_folds ? job->o.cv_folds : JOB_CV_FOLDS, refits = job->o.cv_folds ? K : JOB_CV_REFITS;
@@ -277,8 +299,8 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     struct stat st; /* the folds read the table again */
     if (n < 4 * K || !job->o.source || stat(job->o.source, &st) != 0 || !S_ISREG(st.st_mode)) return SB_OK;
     double t0 = job_now(), *E = calloc(refits * J, sizeof *E), *T = calloc(2 * refits, sizeof *T);
-    double *row = calloc(n * (J + 1), sizeof *row); /* each held-out sample's squared errors, then energies */
-    size_t *fold_end = calloc(refits, sizeof *fold_end);
+    double *row = calloc(n * (J + 2), sizeof *row); /* each held-out sample's squared errors, energies; the table's */
+    size_t *fold_end = calloc(refits + n, sizeof *fold_end); /* then each held-out sample's place in the table */
     job->cv = calloc(5 * J, sizeof *job->cv);
     if (!E || !T || !row || !fold_end || !job->cv) {
         free(E), free(T), free(row), free(fold_end);
@@ -286,11 +308,9 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
     }
     job->cv_se = job->cv + J, job->cv_pooled = job->cv + 2 * J, job->cv_max = job->cv + 3 * J;
     job->cv_median = job->cv + 4 * J;
-    sb_result_t r = folds_fit(ctx, job, K, refits, J, E, T, row, fold_end);
+    sb_result_t r = folds_fit(ctx, job, K, refits, J, E, T, row, fold_end + refits, fold_end);
     if (r == SB_OK) {
-        memmove(row + job->cv_held * J, row + n * J, job->cv_held * sizeof *row); /* energies beside the errors */
-        job_cv_split_figure(row, row + job->cv_held * J, fold_end, refits, (n + K / 2) / K, J, JOB_CV_WITHIN, job->cv,
-                            job->cv_se);
+        split_figure(job, row, fold_end, fold_end + refits, row + n * (J + 1), refits, K, J, n);
         cv_combine(job, refits, J, E, T);
         size_t nt = 0;
         for (size_t k = 0; k < refits; k++) /* the refits' tables' errors, over E's first row (used) */

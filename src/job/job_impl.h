@@ -186,13 +186,18 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job);
 
 /* The figure random splits of n_split rows land within w of most often,
  * per J' < J, into fig[J], and its standard error into se[J] (NULL: not
- * wanted) (job_cv_stat.c): the splits drawn from the refits' held-out
- * rows, e[i * J + j] the squared error of row i at J' = j + 1, t[i] its
- * energy; fold k's rows end at fold_end[k] (k < folds; the jackknife of
- * the standard error leaves out one fold at a time).  NaN without
- * memory, n_split 0 or more than the rows. */
-void job_cv_split_figure(const double *e, const double *t, const size_t *fold_end, size_t folds, size_t n_split,
-                         size_t J, double w, double *fig, double *se);
+ * wanted) (job_cv_stat.c): the refits' held-out rows, e[i * J + j] the
+ * squared error of row i at J' = j + 1, t[i] its energy; fold k's rows
+ * end at fold_end[k] (k < folds; the jackknife of the standard error
+ * leaves out one fold at a time).  With row (row[i]: held-out row i's
+ * place in the table) and the energies of all n_all table rows t_all the
+ * splits are drawn from every table row, a row not held out given the
+ * relative error of the held-out row nearest in energy rank; without
+ * (NULL) from the held-out rows alone.  NaN without memory, n_split 0 or
+ * more than the held-out rows. */
+void job_cv_split_figure(const double *e, const double *t, const size_t *fold_end, size_t folds, const size_t *row,
+                         const double *t_all, size_t n_all, size_t n_split, size_t J, double w, double *fig,
+                         double *se);
 double job_now(void);
 void job_progress(const sb_job_t *job, const char *label, double fraction);
 void job_warn(sb_job_t *job, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

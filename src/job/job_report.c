@@ -362,7 +362,8 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
                    job->cv ? "errors[].cv_headline: the relative L2 of f cos theta_i at the measurements a random "
                              "split of the table would leave out, the figure most such splits land within 1.5x of, "
                              "drawn from the measurements each refit of the kept layout, form and J left out (its "
-                             "fold)"
+                             "fold), each other measurement with the relative error of the held-out one nearest "
+                             "to it in energy"
                            : "not computed (a grid table, or cv_folds 1)");
     sb_json_begin_array(j, "theta_h_bands");
     for (int b = 0; job->cv && b < JOB_CV_BANDS; b++) {
