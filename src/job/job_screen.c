@@ -237,10 +237,9 @@ static sb_result_t fit_warped(sb_context_t *ctx, sb_job_t *job, const sb_job_can
     return r;
 }
 
-/* Sample and factor candidate c at the requested settings into job->best;
- * with max_error, keep the fewest terms whose headline meets it. */
-sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+sb_result_t job_fit_kept_unfinished(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c, int *unfinished) {
     job_level_t lv = full_level(job);
+    if (unfinished) *unfinished = 0;
     job->fit_pending = 0;
     job->warp_screened = 0;
     if (warp_screen_first(job, c) && job_warp_screen(ctx, job, c)) {
@@ -273,9 +272,19 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
         job->fit_pending |= FINISH_PENDING; /* job_fit_finish, when the warped fit does not replace it */
         return SB_OK;
     }
+    if (r == SB_OK && unfinished) {
+        *unfinished = 1;
+        return SB_OK;
+    }
     if (r == SB_OK) r = job_fit_finish(ctx, job);
     if (r != SB_OK) job_attempt_free(&job->best);
     return r;
+}
+
+/* Sample and factor candidate c at the requested settings into job->best;
+ * with max_error, keep the fewest terms whose headline meets it. */
+sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+    return job_fit_kept_unfinished(ctx, job, c, NULL);
 }
 
 sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job) {
@@ -493,6 +502,11 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
     }
     job_screen(ctx, job);
     size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
+    if (job_is_named_pair(job, order, n)) {
+        sb_result_t r = job_named_pair(ctx, job, order);
+        if (r == SB_OK) job_warn_lost(job);
+        return r;
+    }
     sb_result_t r = fit_first(ctx, job, order, n);
     if (r == SB_OK && n > 1 && job->o.max_error > 0) {
         r = max_error_next(ctx, job, order, n);
