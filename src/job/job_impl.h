@@ -391,11 +391,8 @@ sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job);
  * (*unfinished set: the caller finishes it with job_fit_finish, with
  * job->fit_pending as left, or frees it unfinished). */
 sb_result_t job_fit_kept_unfinished(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c, int *unfinished);
-/* job_forms.c: whether job_select's ranked candidates `order` are one
- * layout named alone in two forms, and their fit (the better kept in
- * job->best, its candidate marked kept). */
-int job_is_named_pair(const sb_job_t *job, const size_t *order, size_t n);
-sb_result_t job_named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *order);
+/* The level of the requested settings (o.res, o.terms, job->shape). */
+job_level_t job_full_level(const sb_job_t *job);
 /* The masked fit's early stop (a sweep gaining less than 1e-3, at most 20
  * per stage) into lv, unless the caller set its own. */
 void job_early_stop(const sb_job_t *job, job_level_t *lv);
