@@ -588,3 +588,21 @@ SB_TEST(poor_layout_beside_own_grid_everywhere) {
     CHECKF(strstr(out, "io leaves a headline error") && strstr(out, "--param vndf") && strstr(out, "at J = 8"), "%s",
            out);
 }
+
+/* A layout named alone in two forms fits both at the requested settings
+ * and finishes only the better where the other is far behind
+ * (job_forms.c): the fit kept is the one its form named alone gives,
+ * headline for headline (GGX 0.3 on hd at R = 24, J = 4: cos, 0.00805;
+ * f screened first). */
+SB_TEST(named_pair_keeps_form_alone_fit) {
+    const char *dir = sb_tmpdir("auto_pair");
+    const char *src = "microfacet:base=gold,roughness=0.3 --param hd -r 24";
+    char args[512], form[32];
+    double se, se1;
+    double both = headline_of(src, dir, 4, &se);
+    CHECK(*string_of("form", form, sizeof form) && count(report, "\"kept\": true") == 1);
+    snprintf(args, sizeof args, "%s --form %s", src, form);
+    double alone = headline_of(args, dir, 4, &se1);
+    CHECKF(both > 0 && fabs(both - alone) <= 1e-9 * both, "--param hd %.6g (form %s), that form alone %.6g", both, form,
+           alone);
+}

@@ -387,6 +387,12 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
 #define FINISH_TWO 4u       /* two fits were compared on a ranking's estimate */
 #define FINISH_PENDING 8u
 sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job);
+/* job_fit_kept; where `unfinished`, the fit is left before job_fit_finish
+ * (*unfinished set: the caller finishes it with job_fit_finish, with
+ * job->fit_pending as left, or frees it unfinished). */
+sb_result_t job_fit_kept_unfinished(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c, int *unfinished);
+/* The level of the requested settings (o.res, o.terms, job->shape). */
+job_level_t job_full_level(const sb_job_t *job);
 /* The masked fit's early stop (a sweep gaining less than 1e-3, at most 20
  * per stage) into lv, unless the caller set its own. */
 void job_early_stop(const sb_job_t *job, job_level_t *lv);

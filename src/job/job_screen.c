@@ -109,7 +109,7 @@ static void screen_layout(sb_context_t *ctx, sb_job_t *job, const job_level_t *l
     job_attempt_free(&base);
 }
 
-static job_level_t full_level(const sb_job_t *job) {
+job_level_t job_full_level(const sb_job_t *job) {
     job_level_t lv = {.res = job->o.res,
                       .terms = job->o.terms,
                       .metric_res = job->o.metric_res,
@@ -160,7 +160,7 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
     size_t mn = a->m.rows < a->m.cols ? a->m.rows : a->m.cols; /* the solver's reference: 2 J <= mn (nmf_mixes.c) */
     if (job_attempt_masked(job, a) || 2 * J > mn || !(nonneg_worst(job, a, ratio, rch) > JOB_NONNEG_RATIO))
         return SB_OK;
-    job_level_t lv = full_level(job); /* as job_fit_kept made the kept fit */
+    job_level_t lv = job_full_level(job); /* as job_fit_kept made the kept fit */
     lv.nonneg_ratio = ratio;
     lv.nonneg_ratio_channel = rch;
     job_attempt_t t = *a; /* a's matrix and layout, fitted again */
@@ -225,7 +225,7 @@ static int warp_screen_first(const sb_job_t *job, const sb_job_candidate_t *c) {
 }
 
 static sb_result_t fit_warped(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
-    job_level_t lv = full_level(job);
+    job_level_t lv = job_full_level(job);
     sb_param_opts_t po = job_level_opts(job, &lv, c->kind); /* the unwarped layout job_sample would make */
     sb_param_t *like = NULL;
     sb_result_t r = sb_param_create(ctx, c->kind, &po, &like);
@@ -237,10 +237,9 @@ static sb_result_t fit_warped(sb_context_t *ctx, sb_job_t *job, const sb_job_can
     return r;
 }
 
-/* Sample and factor candidate c at the requested settings into job->best;
- * with max_error, keep the fewest terms whose headline meets it. */
-sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
-    job_level_t lv = full_level(job);
+sb_result_t job_fit_kept_unfinished(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c, int *unfinished) {
+    job_level_t lv = job_full_level(job);
+    if (unfinished) *unfinished = 0;
     job->fit_pending = 0;
     job->warp_screened = 0;
     if (warp_screen_first(job, c) && job_warp_screen(ctx, job, c)) {
@@ -273,13 +272,23 @@ sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidat
         job->fit_pending |= FINISH_PENDING; /* job_fit_finish, when the warped fit does not replace it */
         return SB_OK;
     }
+    if (r == SB_OK && unfinished) {
+        *unfinished = 1;
+        return SB_OK;
+    }
     if (r == SB_OK) r = job_fit_finish(ctx, job);
     if (r != SB_OK) job_attempt_free(&job->best);
     return r;
 }
 
+/* Sample and factor candidate c at the requested settings into job->best;
+ * with max_error, keep the fewest terms whose headline meets it. */
+sb_result_t job_fit_kept(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c) {
+    return job_fit_kept_unfinished(ctx, job, c, NULL);
+}
+
 sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job) {
-    job_level_t lv = full_level(job);
+    job_level_t lv = job_full_level(job);
     sb_result_t r = SB_OK;
     unsigned f = job->fit_pending;
     int two = (f & FINISH_TWO) != 0;
@@ -288,7 +297,7 @@ sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job) {
         /* auto's early-stopped fit leaves more than JOB_CONVERGED_TRY:
          * the fit to convergence too, the better kept (GGX roughness 0.3,
          * F0 0.04, iso, J = 4: 2.7 % -> 1.9 %) */
-        job_level_t conv = full_level(job);
+        job_level_t conv = job_full_level(job);
         conv.est_max_pairs = 1;
         conv.rank_only = conv.rank_at_j = 1;
         r = job_keep_better_fit(ctx, job, &conv, &job->best);
@@ -386,149 +395,4 @@ void job_screen(sb_context_t *ctx, sb_job_t *job) {
     job->eval_src = job->src;
     sb_source_destroy(memo);
     job->t.screen_s = job_now() - t0;
-}
-
-/* Fit the candidates in `order` at the requested settings until one
- * succeeds (job->best, marked kept). */
-static sb_result_t fit_first(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
-    sb_result_t r = SB_ERR_NUMERIC;
-    for (size_t k = 0; k < n && r != SB_OK; k++) {
-        sb_job_candidate_t *c = &job->cands[order[k]];
-        double t1 = job_now();
-        if ((r = job_fit_kept(ctx, job, c)) != SB_OK) {
-            c->ok = 0;
-            c->result = r;
-            snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
-        }
-        c->kept = r == SB_OK;
-        c->time_s += job_now() - t1;
-    }
-    return r;
-}
-
-static int meets_bound(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
-    (void)first;
-    return job_meets_bounded(job, a);
-}
-
-static int lower_headline(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
-    (void)job;
-    return rank_error(a) < rank_error(first);
-}
-
-/* Candidate c fitted at the requested settings beside the kept fit
- * (job->best); where wins(job, c's fit, the kept fit) it is kept instead
- * (*won set), else the kept fit stays.  A failure of c's fit is no error
- * but for memory. */
-static sb_result_t fit_instead(sb_context_t *ctx, sb_job_t *job, sb_job_candidate_t *c,
-                               int (*wins)(const sb_job_t *, const job_attempt_t *, const job_attempt_t *), int *won) {
-    job_attempt_t first = job->best;
-    memset(&job->best, 0, sizeof job->best);
-    double t1 = job_now();
-    sb_result_t r = job_fit_kept(ctx, job, c);
-    c->time_s += job_now() - t1;
-    *won = r == SB_OK && wins(job, &job->best, &first);
-    if (*won) {
-        for (size_t i = 0; i < job->ncand; i++)
-            job->cands[i].kept = 0;
-        c->kept = 1;
-        job_attempt_free(&first);
-        return SB_OK;
-    }
-    job_attempt_free(&job->best);
-    job->best = first;
-    sb_context_clear_error(ctx);
-    return r == SB_ERR_NOMEM ? r : SB_OK;
-}
-
-/* --max-error: the kept fit (order[0]'s or, having failed, a later one's)
- * does not meet it within the band bounds: the next candidates whose
- * screening did (cand_need) are fitted in turn, the first that does kept
- * instead; none: the first fit stays. */
-static sb_result_t max_error_next(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
-    if (job_meets_bounded(job, &job->best)) return SB_OK;
-    size_t k = 0;
-    while (k < n && !job->cands[order[k]].kept)
-        k++;
-    sb_result_t r = SB_OK;
-    int won = 0;
-    for (k++; k < n && r == SB_OK && !won; k++)
-        if (job->cand_need[order[k]]) r = fit_instead(ctx, job, &job->cands[order[k]], meets_bound, &won);
-    return r;
-}
-
-/* A layout named alone whose screening kept two forms (f and cos): the
- * coarse screen can rank them wrongly at the requested R (GGX 0.3 on hd:
- * cos screened first, 0.0517 at R = 32 against f's 0.0220), so the
- * other is fitted too and the lower headline at J kept. */
-static sb_result_t named_other_form(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
-    size_t k = 0;
-    while (k < n && !job->cands[order[k]].kept)
-        k++;
-    if (k + 1 >= n) return SB_OK;
-    sb_job_candidate_t *kept = &job->cands[order[k]], *c = &job->cands[order[k + 1]];
-    if (c->kind != kept->kind || c->form == kept->form) return SB_OK;
-    int won;
-    return fit_instead(ctx, job, c, lower_headline, &won);
-}
-
-/* One candidate: fit it at the requested settings.  Several: screen them,
- * then fit the best that succeeds at the requested settings (the next on
- * a failure). */
-sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
-    if (job->ncand == 1 && !job->is_auto && !job->layout_auto) {
-        sb_job_candidate_t *c = &job->cands[0];
-        sb_result_t r;
-        if (job->o.sample_only) {
-            job_level_t lv = full_level(job);
-            r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
-            job->best.weighted = c->weighted;
-            return r;
-        }
-        r = job_fit_kept(ctx, job, c);
-        c->ok = r == SB_OK;
-        c->error = c->ok ? rank_error(&job->best) : NAN;
-        c->res = job->o.res;
-        return r;
-    }
-    job_screen(ctx, job);
-    size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
-    sb_result_t r = fit_first(ctx, job, order, n);
-    if (r == SB_OK && n > 1 && job->o.max_error > 0) {
-        r = max_error_next(ctx, job, order, n);
-    } else if (r == SB_OK && n > 1 && sb_estimate_bands_bounded(job->best.est, sb_factors_terms(job->best.f)) == 0) {
-        /* ranked first for its band bounds, it broke them at the requested
-         * settings: the lowest screened headline instead */
-        size_t first = n;
-        for (size_t k = 0; k < n; k++)
-            if (job->cands[order[k]].ok && (first == n || job_ranks_by_error(job, order[k], order[first]))) first = k;
-        if (first < n && !job->cands[order[first]].kept) {
-            for (size_t k = 0; k < n; k++)
-                job->cands[order[k]].kept = 0;
-            job_attempt_free(&job->best);
-            r = fit_first(ctx, job, order + first, 1);
-        }
-    }
-    if (r == SB_OK && n > 1 && job->layout_auto && !job->budget && !(job->o.max_error > 0))
-        r = named_other_form(ctx, job, order, n);
-    if (r == SB_OK) {
-        job_warn_lost(job);
-        return SB_OK;
-    }
-    /* Out of memory or beyond the size limits anywhere is what the user can
-     * act on (exit 2, lower the resolution); anything else is numerical. */
-    const char *why = "";
-    sb_result_t code = SB_ERR_NUMERIC;
-    /* a layout named alone: its last failure, as a run asking for it alone
-     * reports it (the context holds its whole message) */
-    for (size_t i = job->ncand; job->layout_auto && n == 0 && i-- > 0;)
-        if (job->cands[i].result != SB_OK) return job->cands[i].result;
-    if (job->layout_auto) return r;
-    for (size_t i = 0; i < job->ncand; i++) {
-        if (!*why) why = job->cands[i].why;
-        if (job->cands[i].result == SB_ERR_NOMEM || job->cands[i].result == SB_ERR_OVERFLOW)
-            code = job->cands[i].result;
-    }
-    return sb_error(ctx, code, "no parameterisation could factor %s%s%s", sb_source_description(job->src),
-                    *why ? "; the first failure: " : "", why);
 }

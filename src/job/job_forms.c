@@ -1,0 +1,259 @@
+/* The factor job's choice at the requested settings (job_select): the
+ * screened candidates fitted in their order; a layout named alone in two
+ * forms: both fitted, only the better finished. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "job_impl.h"
+
+/* The headline at the J the attempt kept (as job_screen.c ranks them). */
+static double headline_j(const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
+}
+
+/* A form's fit of named_pair: the attempt, its FINISH_* flags, whether
+ * job_fit_finish is still to run on it, its result. */
+typedef struct {
+    job_attempt_t a;
+    unsigned pending;
+    int unfinished;
+    sb_result_t r;
+} form_fit_t;
+
+/* Candidate c fitted into o (before job_fit_finish when `finish` is 0, else
+ * finished); a failure is recorded in c. */
+static sb_result_t pair_step(sb_context_t *ctx, sb_job_t *job, sb_job_candidate_t *c, form_fit_t *o, int finish) {
+    double t1 = job_now();
+    job->best = o->a;
+    job->fit_pending = o->pending;
+    if (!finish) {
+        memset(&job->best, 0, sizeof job->best);
+        o->r = job_fit_kept_unfinished(ctx, job, c, &o->unfinished);
+    } else if (o->unfinished) {
+        o->unfinished = 0;
+        if ((o->r = job_fit_finish(ctx, job)) != SB_OK) job_attempt_free(&job->best);
+    }
+    o->a = job->best;
+    o->pending = job->fit_pending;
+    memset(&job->best, 0, sizeof job->best);
+    job->fit_pending = 0;
+    c->time_s += job_now() - t1;
+    if (o->r != SB_OK) {
+        c->ok = 0;
+        c->result = o->r;
+        snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
+    }
+    return o->r;
+}
+
+/* A form's fit behind the other's, both stopped early, by more than this
+ * factor in the headline at J is not finished (job_fit_finish: the
+ * converged fit tried, refinement): the converged fit gained 1.42x at
+ * most where it was kept (GGX 0.3, iso, J = 4: 2.7 % -> 1.9 %). */
+#define JOB_FORM_FINISH_MARGIN 1.5
+
+/* A layout named alone whose screening kept two forms (f and cos) of it:
+ * the coarse screen can rank them wrongly at the requested R (GGX 0.3 on
+ * hd: cos screened first, 0.0517 at R = 32 against f's 0.0220), so both
+ * are fitted there and the lower headline at J kept.  Both are compared
+ * first as fitted (stopped early), and only the better is finished, the
+ * other too where it is within JOB_FORM_FINISH_MARGIN (then compared
+ * finished): on the default gold, hd, cos's converged fit and refinement
+ * were a third of the run and it lost by 1.8x. */
+static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *order) {
+    sb_job_candidate_t *c[2] = {&job->cands[order[0]], &job->cands[order[1]]};
+    form_fit_t o[2];
+    memset(o, 0, sizeof o);
+    for (int k = 0; k < 2; k++)
+        if (pair_step(ctx, job, c[k], &o[k], 0) == SB_ERR_NOMEM) {
+            job_attempt_free(&o[0].a);
+            return SB_ERR_NOMEM;
+        }
+    if (o[0].r != SB_OK && o[1].r != SB_OK) return o[1].r;
+    int w = o[0].r != SB_OK || (o[1].r == SB_OK && headline_j(&o[1].a) < headline_j(&o[0].a)), l = !w;
+    int other = o[l].r == SB_OK && !(headline_j(&o[l].a) > JOB_FORM_FINISH_MARGIN * headline_j(&o[w].a));
+    sb_result_t r = pair_step(ctx, job, c[w], &o[w], 1);
+    if (o[w].pending & FINISH_PENDING) other = 0; /* the warped fit is tried on it first (job_warp.c) */
+    if (r == SB_OK || r == SB_ERR_NUMERIC)
+        r = o[l].r == SB_OK && (other || r != SB_OK) ? pair_step(ctx, job, c[l], &o[l], 1) : r;
+    if (r == SB_ERR_NOMEM) {
+        job_attempt_free(&o[0].a);
+        job_attempt_free(&o[1].a);
+        return r;
+    }
+    /* finished both: the second kept where its headline is lower (as before) */
+    int keep = o[w].r != SB_OK ||
+                       (other && o[l].r == SB_OK &&
+                        (l ? headline_j(&o[l].a) < headline_j(&o[w].a) : !(headline_j(&o[w].a) < headline_j(&o[l].a))))
+                   ? l
+                   : w;
+    if (o[keep].r != SB_OK) return o[keep].r;
+    job_attempt_free(&o[!keep].a);
+    job->best = o[keep].a;
+    job->fit_pending = o[keep].pending;
+    c[keep]->kept = 1;
+    c[!keep]->kept = 0;
+    sb_context_clear_error(ctx);
+    return SB_OK;
+}
+
+/* Whether job_select's candidates are one layout named alone in two forms
+ * (named_pair). */
+static int is_named_pair(const sb_job_t *job, const size_t *order, size_t n) {
+    if (n != 2 || !job->layout_auto || job->budget || job->o.max_error > 0) return 0;
+    const sb_job_candidate_t *a = &job->cands[order[0]], *b = &job->cands[order[1]];
+    return a->kind == b->kind && a->form != b->form;
+}
+
+/* Fit the candidates in `order` at the requested settings until one
+ * succeeds (job->best, marked kept). */
+static sb_result_t fit_first(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
+    sb_result_t r = SB_ERR_NUMERIC;
+    for (size_t k = 0; k < n && r != SB_OK; k++) {
+        sb_job_candidate_t *c = &job->cands[order[k]];
+        double t1 = job_now();
+        if ((r = job_fit_kept(ctx, job, c)) != SB_OK) {
+            c->ok = 0;
+            c->result = r;
+            snprintf(c->why, sizeof c->why, "%s", sb_context_last_error(ctx));
+        }
+        c->kept = r == SB_OK;
+        c->time_s += job_now() - t1;
+    }
+    return r;
+}
+
+static int meets_bound(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
+    (void)first;
+    return job_meets_bounded(job, a);
+}
+
+static int lower_headline(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
+    (void)job;
+    return headline_j(a) < headline_j(first);
+}
+
+/* Candidate c fitted at the requested settings beside the kept fit
+ * (job->best); where wins(job, c's fit, the kept fit) it is kept instead
+ * (*won set), else the kept fit stays.  A failure of c's fit is no error
+ * but for memory. */
+static sb_result_t fit_instead(sb_context_t *ctx, sb_job_t *job, sb_job_candidate_t *c,
+                               int (*wins)(const sb_job_t *, const job_attempt_t *, const job_attempt_t *), int *won) {
+    job_attempt_t first = job->best;
+    memset(&job->best, 0, sizeof job->best);
+    double t1 = job_now();
+    sb_result_t r = job_fit_kept(ctx, job, c);
+    c->time_s += job_now() - t1;
+    *won = r == SB_OK && wins(job, &job->best, &first);
+    if (*won) {
+        for (size_t i = 0; i < job->ncand; i++)
+            job->cands[i].kept = 0;
+        c->kept = 1;
+        job_attempt_free(&first);
+        return SB_OK;
+    }
+    job_attempt_free(&job->best);
+    job->best = first;
+    sb_context_clear_error(ctx);
+    return r == SB_ERR_NOMEM ? r : SB_OK;
+}
+
+/* --max-error: the kept fit (order[0]'s or, having failed, a later one's)
+ * does not meet it within the band bounds: the next candidates whose
+ * screening did (cand_need) are fitted in turn, the first that does kept
+ * instead; none: the first fit stays. */
+static sb_result_t max_error_next(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
+    if (job_meets_bounded(job, &job->best)) return SB_OK;
+    size_t k = 0;
+    while (k < n && !job->cands[order[k]].kept)
+        k++;
+    sb_result_t r = SB_OK;
+    int won = 0;
+    for (k++; k < n && r == SB_OK && !won; k++)
+        if (job->cand_need[order[k]]) r = fit_instead(ctx, job, &job->cands[order[k]], meets_bound, &won);
+    return r;
+}
+
+/* A layout named alone whose screening kept two forms (f and cos): the
+ * coarse screen can rank them wrongly at the requested R (GGX 0.3 on hd:
+ * cos screened first, 0.0517 at R = 32 against f's 0.0220), so the
+ * other is fitted too and the lower headline at J kept. */
+static sb_result_t named_other_form(sb_context_t *ctx, sb_job_t *job, const size_t *order, size_t n) {
+    size_t k = 0;
+    while (k < n && !job->cands[order[k]].kept)
+        k++;
+    if (k + 1 >= n) return SB_OK;
+    sb_job_candidate_t *kept = &job->cands[order[k]], *c = &job->cands[order[k + 1]];
+    if (c->kind != kept->kind || c->form == kept->form) return SB_OK;
+    int won;
+    return fit_instead(ctx, job, c, lower_headline, &won);
+}
+
+/* One candidate: fit it at the requested settings.  Several: screen them,
+ * then fit the best that succeeds at the requested settings (the next on
+ * a failure). */
+sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
+    if (job->ncand == 1 && !job->is_auto && !job->layout_auto) {
+        sb_job_candidate_t *c = &job->cands[0];
+        sb_result_t r;
+        if (job->o.sample_only) {
+            job_level_t lv = job_full_level(job);
+            r = job_sample(ctx, job, &lv, c->kind, c->form, &job->best);
+            job->best.weighted = c->weighted;
+            return r;
+        }
+        r = job_fit_kept(ctx, job, c);
+        c->ok = r == SB_OK;
+        c->error = c->ok ? headline_j(&job->best) : NAN;
+        c->res = job->o.res;
+        return r;
+    }
+    job_screen(ctx, job);
+    size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
+    if (is_named_pair(job, order, n)) {
+        sb_result_t r = named_pair(ctx, job, order);
+        if (r == SB_OK) job_warn_lost(job);
+        return r;
+    }
+    sb_result_t r = fit_first(ctx, job, order, n);
+    if (r == SB_OK && n > 1 && job->o.max_error > 0) {
+        r = max_error_next(ctx, job, order, n);
+    } else if (r == SB_OK && n > 1 && sb_estimate_bands_bounded(job->best.est, sb_factors_terms(job->best.f)) == 0) {
+        /* ranked first for its band bounds, it broke them at the requested
+         * settings: the lowest screened headline instead */
+        size_t first = n;
+        for (size_t k = 0; k < n; k++)
+            if (job->cands[order[k]].ok && (first == n || job_ranks_by_error(job, order[k], order[first]))) first = k;
+        if (first < n && !job->cands[order[first]].kept) {
+            for (size_t k = 0; k < n; k++)
+                job->cands[order[k]].kept = 0;
+            job_attempt_free(&job->best);
+            r = fit_first(ctx, job, order + first, 1);
+        }
+    }
+    if (r == SB_OK && n > 1 && job->layout_auto && !job->budget && !(job->o.max_error > 0))
+        r = named_other_form(ctx, job, order, n);
+    if (r == SB_OK) {
+        job_warn_lost(job);
+        return SB_OK;
+    }
+    /* Out of memory or beyond the size limits anywhere is what the user can
+     * act on (exit 2, lower the resolution); anything else is numerical. */
+    const char *why = "";
+    sb_result_t code = SB_ERR_NUMERIC;
+    /* a layout named alone: its last failure, as a run asking for it alone
+     * reports it (the context holds its whole message) */
+    for (size_t i = job->ncand; job->layout_auto && n == 0 && i-- > 0;)
+        if (job->cands[i].result != SB_OK) return job->cands[i].result;
+    if (job->layout_auto) return r;
+    for (size_t i = 0; i < job->ncand; i++) {
+        if (!*why) why = job->cands[i].why;
+        if (job->cands[i].result == SB_ERR_NOMEM || job->cands[i].result == SB_ERR_OVERFLOW)
+            code = job->cands[i].result;
+    }
+    return sb_error(ctx, code, "no parameterisation could factor %s%s%s", sb_source_description(job->src),
+                    *why ? "; the first failure: " : "", why);
+}
