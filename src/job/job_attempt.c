@@ -39,6 +39,14 @@ sb_param_opts_t job_level_opts(const sb_job_t *job, const job_level_t *lv, sb_pa
     return po;
 }
 
+/* The error candidates are ranked by: the headline (f cos theta_i as a
+ * shader returns it, estimate.h) at the J the attempt kept (the estimate
+ * holds SB_EST_MAXJ terms at most: there beyond). */
+double job_rank_error(const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f);
+    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
+}
+
 int job_terms_capped(const sb_job_t *job, sb_param_kind_t k) {
     return job->o.max_error > 0 || (job->is_auto && !job->budget && (sb_param_kind_caps(k) & SB_CAP_TABLES));
 }

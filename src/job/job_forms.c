@@ -8,12 +8,6 @@
 
 #include "job_impl.h"
 
-/* The headline at the J the attempt kept (as job_screen.c ranks them). */
-static double headline_j(const job_attempt_t *a) {
-    size_t J = sb_factors_terms(a->f);
-    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
-}
-
 /* A form's fit of named_pair: the attempt, its FINISH_* flags, whether
  * job_fit_finish is still to run on it, its result. */
 typedef struct {
@@ -73,8 +67,8 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
             return SB_ERR_NOMEM;
         }
     if (o[0].r != SB_OK && o[1].r != SB_OK) return o[1].r;
-    int w = o[0].r != SB_OK || (o[1].r == SB_OK && headline_j(&o[1].a) < headline_j(&o[0].a)), l = !w;
-    int other = o[l].r == SB_OK && !(headline_j(&o[l].a) > JOB_FORM_FINISH_MARGIN * headline_j(&o[w].a));
+    int w = o[0].r != SB_OK || (o[1].r == SB_OK && job_rank_error(&o[1].a) < job_rank_error(&o[0].a)), l = !w;
+    int other = o[l].r == SB_OK && !(job_rank_error(&o[l].a) > JOB_FORM_FINISH_MARGIN * job_rank_error(&o[w].a));
     sb_result_t r = pair_step(ctx, job, c[w], &o[w], 1);
     if (o[w].pending & FINISH_PENDING) other = 0; /* the warped fit is tried on it first (job_warp.c) */
     if (r == SB_OK || r == SB_ERR_NUMERIC)
@@ -85,9 +79,9 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
         return r;
     }
     /* finished both: the second kept where its headline is lower (as before) */
-    int keep = o[w].r != SB_OK ||
-                       (other && o[l].r == SB_OK &&
-                        (l ? headline_j(&o[l].a) < headline_j(&o[w].a) : !(headline_j(&o[w].a) < headline_j(&o[l].a))))
+    int keep = o[w].r != SB_OK || (other && o[l].r == SB_OK &&
+                                   (l ? job_rank_error(&o[l].a) < job_rank_error(&o[w].a)
+                                      : !(job_rank_error(&o[w].a) < job_rank_error(&o[l].a))))
                    ? l
                    : w;
     if (o[keep].r != SB_OK) return o[keep].r;
@@ -133,7 +127,7 @@ static int meets_bound(const sb_job_t *job, const job_attempt_t *a, const job_at
 
 static int lower_headline(const sb_job_t *job, const job_attempt_t *a, const job_attempt_t *first) {
     (void)job;
-    return headline_j(a) < headline_j(first);
+    return job_rank_error(a) < job_rank_error(first);
 }
 
 /* Candidate c fitted at the requested settings beside the kept fit
@@ -207,7 +201,7 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
         }
         r = job_fit_kept(ctx, job, c);
         c->ok = r == SB_OK;
-        c->error = c->ok ? headline_j(&job->best) : NAN;
+        c->error = c->ok ? job_rank_error(&job->best) : NAN;
         c->res = job->o.res;
         return r;
     }

@@ -393,6 +393,9 @@ sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job);
 sb_result_t job_fit_kept_unfinished(sb_context_t *ctx, sb_job_t *job, const sb_job_candidate_t *c, int *unfinished);
 /* The level of the requested settings (o.res, o.terms, job->shape). */
 job_level_t job_full_level(const sb_job_t *job);
+/* The headline at the J the attempt kept (the estimate's last term beyond
+ * SB_EST_MAXJ): what candidates are ranked by (job_screen.c). */
+double job_rank_error(const job_attempt_t *a);
 /* The masked fit's early stop (a sweep gaining less than 1e-3, at most 20
  * per stage) into lv, unless the caller set its own. */
 void job_early_stop(const sb_job_t *job, job_level_t *lv);

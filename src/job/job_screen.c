@@ -10,14 +10,6 @@
 #include "sepbrdf/exr.h"
 #include "util/internal.h"
 
-/* The error candidates are ranked by: the headline (f cos theta_i as a
- * shader returns it, estimate.h) at the J the attempt kept (the estimate
- * holds SB_EST_MAXJ terms at most: there beyond). */
-static double rank_error(const job_attempt_t *a) {
-    size_t J = sb_factors_terms(a->f);
-    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
-}
-
 /* Whether the attempt keeps the band bounds at its J (estimate.h). */
 static int rank_bands(const job_attempt_t *a) {
     size_t J = sb_factors_terms(a->f);
@@ -78,7 +70,7 @@ static sb_result_t screen_one(sb_context_t *ctx, sb_job_t *job, const job_level_
     for (size_t k = J && J > a->est->terms ? a->est->terms : J; job->o.max_error > 0 && k >= 1; k--)
         if (sb_estimate_headline(a->est, k) <= job->o.max_error && sb_estimate_bands_bounded(a->est, k) == 1)
             job->cand_need[i] = k;
-    c->error = c->ok ? rank_error(a) : NAN;
+    c->error = c->ok ? job_rank_error(a) : NAN;
     c->bands_ok = c->ok ? rank_bands(a) : -1;
     job_band_errors(c->ok ? a->est : NULL, sb_factors_terms(a->f), c->band_err);
     c->res = lv->res;
@@ -203,7 +195,7 @@ static int warp_first(const sb_job_t *job, const job_attempt_t *a) {
     J = J < a->est->terms ? J : a->est->terms;
     return !job->o.warp && !job->o.sample_only && !job->budget && !job->scene && !(job->o.max_error > 0) &&
            job->shape != &job->spec_shape && (sb_param_caps(a->param) & SB_CAP_WARPS) &&
-           rank_error(a) > 2 * JOB_WARP_TRY && sb_estimate_bands_bounded(a->est, J) == 1;
+           job_rank_error(a) > 2 * JOB_WARP_TRY && sb_estimate_bands_bounded(a->est, J) == 1;
 }
 
 /* warp_first on a measured table's candidate c as screened (at
@@ -293,7 +285,7 @@ sb_result_t job_fit_finish(sb_context_t *ctx, sb_job_t *job) {
     unsigned f = job->fit_pending;
     int two = (f & FINISH_TWO) != 0;
     job->fit_pending = 0;
-    if ((f & FINISH_CONVERGED) && rank_error(&job->best) > JOB_CONVERGED_TRY) {
+    if ((f & FINISH_CONVERGED) && job_rank_error(&job->best) > JOB_CONVERGED_TRY) {
         /* auto's early-stopped fit leaves more than JOB_CONVERGED_TRY:
          * the fit to convergence too, the better kept (GGX roughness 0.3,
          * F0 0.04, iso, J = 4: 2.7 % -> 1.9 %) */

@@ -9,13 +9,6 @@
 
 #include "job_impl.h"
 
-/* The error candidates are ranked by: the headline at the J the attempt
- * kept (as job_screen.c ranks them). */
-static double rank_error(const job_attempt_t *a) {
-    size_t J = sb_factors_terms(a->f);
-    return sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms);
-}
-
 /* A screening level: res cells per axis, the same J for every candidate
  * (at most the smallest matrix side there), masked fits stopped early (a
  * sweep gaining less than 1e-3, at most 20: the candidates' errors differ
@@ -42,7 +35,7 @@ job_level_t job_screen_level(const sb_job_t *job, size_t res, sb_param_opts_t *p
     lv.metric_res = 0;    /* no grid quadrature */
     lv.est_max_pairs = 1; /* the estimator's first pairs, no growth */
     lv.rank_only = 1;
-    lv.rank_at_j = !(job->o.max_error > 0); /* ranked at J (rank_error) */
+    lv.rank_at_j = !(job->o.max_error > 0); /* ranked at J (job_rank_error) */
     job_early_stop(job, &lv);
     return lv;
 }
@@ -67,7 +60,7 @@ sb_result_t job_keep_better_fit(sb_context_t *ctx, sb_job_t *job, const job_leve
     tmp.f = NULL;
     tmp.est = NULL;
     sb_result_t r = job_factor(ctx, job, lv, a->weighted, &tmp);
-    if (r == SB_OK && rank_error(&tmp) < rank_error(a)) {
+    if (r == SB_OK && job_rank_error(&tmp) < job_rank_error(a)) {
         job_attempt_adopt(a, &tmp);
         a->t_factor += tmp.t_factor;
         return SB_OK;
