@@ -50,7 +50,7 @@ static int batch(const char *dir, const char *outdir, const char *more) {
     return sb_run(cmd, out, sizeof out);
 }
 
-/* The summary.csv of run `o` without its time_s column (12th), quotes
+/* The summary.csv of run `o` without its time_s column (13th), quotes
  * respected: the only column that differs between equal runs. */
 static char *summary_sans_time(const char *dir, const char *o) {
     char *s = slurp(dir, o, "summary.csv", NULL);
@@ -60,7 +60,7 @@ static char *summary_sans_time(const char *dir, const char *o) {
     for (const char *r = s; *r; r++) {
         if (*r == '"') quoted = !quoted;
         int sep = !quoted && (*r == ',' || *r == '\n');
-        if (field != 11 || (sep && *r == '\n')) *w++ = *r;
+        if (field != 12 || (sep && *r == '\n')) *w++ = *r;
         if (sep) field = *r == '\n' ? 0 : field + 1;
     }
     *w = 0;
@@ -101,7 +101,7 @@ SB_TEST(every_material_in_summary) {
     char *csv = slurp(dir, "o", "summary.csv", NULL), *json = slurp(dir, "o", "summary.json", NULL);
     CHECK(csv && json);
     CHECK(count_lines(csv) == 6); /* header + 5 */
-    CHECK(csv && strstr(csv, "name,source,param,form,J,headline,comparable,rel_rms,max_abs,negative,bytes,"));
+    CHECK(csv && strstr(csv, "name,source,param,form,weighted,J,headline,comparable,rel_rms,max_abs,negative,bytes,"));
     for (int i = 0; i < 5 && csv && json; i++) {
         char row[256], key[256];
         snprintf(row, sizeof row, "\n%s,", names[i]);
@@ -109,7 +109,7 @@ SB_TEST(every_material_in_summary) {
         const char *at = strstr(csv, row);
         /* io named alone: auto's form for it, f or cos (an RGL file: cos) */
         const char *io = at ? strstr(at, ",io:res=8,") : NULL;
-        CHECKF(io && (strncmp(io, ",io:res=8,f,2,", 14) == 0 || strncmp(io, ",io:res=8,cos,2,", 16) == 0) &&
+        CHECKF(io && (strncmp(io, ",io:res=8,f,1,2,", 16) == 0 || strncmp(io, ",io:res=8,cos,1,2,", 18) == 0) &&
                    strstr(at, ",ok,") < strchr(at + 1, '\n'),
                "row %s", names[i]);
         CHECKF(strstr(json, key) != NULL, "%s not in summary.json", names[i]);
@@ -336,12 +336,14 @@ static int summary_disagrees(const char *dir, const char *o, int *rows) {
         int held = json != NULL, same = 1;
         if (held) {
             same = report_value(json, "param_spec", want, sizeof want) && strcmp(want, cell[2]) == 0;
-            same &= report_value(json, "terms", want, sizeof want) && strcmp(want, cell[4]) == 0;
+            same &= report_value(json, "terms", want, sizeof want) && strcmp(want, cell[5]) == 0;
+            same &=
+                report_value(json, "weighted", want, sizeof want) && !strcmp(cell[4], strcmp(want, "true") ? "0" : "1");
         } else {
-            same = !cell[2][0] && !cell[4][0] && strcmp(cell[12], "ok") != 0;
+            same = !cell[2][0] && !cell[5][0] && strcmp(cell[13], "ok") != 0;
         }
         if (!same)
-            fprintf(stderr, "row %s: param %.60s J %s, its folder %s\n", cell[0], cell[2], cell[4],
+            fprintf(stderr, "row %s: param %.60s J %s, its folder %s\n", cell[0], cell[2], cell[5],
                     held ? "holds another set" : "holds none");
         bad += !same;
         free(json);
@@ -414,7 +416,7 @@ SB_TEST(summary_from_folders) {
     CHECK(summary_disagrees(dir, "s", &rows) == 0 && rows == 5);
     char *csv = slurp(dir, "s", "summary.csv", NULL);
     const char *row = csv ? strstr(csv, "\ncornell_acryl_blue,") : NULL;
-    CHECKF(row && strstr(row, ",io:res=8,cos,2,") && strstr(row, ",error,") && strstr(row, "earlier set"), "%s",
+    CHECKF(row && strstr(row, ",io:res=8,cos,1,2,") && strstr(row, ",error,") && strstr(row, "earlier set"), "%s",
            csv ? csv : "");
     free(csv);
 }
@@ -446,9 +448,9 @@ SB_TEST(long_layout_spec) {
     int n = 0;
     while (row && n < 16 && csv_cell(&row, cell[n], sizeof cell[n]))
         n++;
-    CHECKF(strlen(cell[2]) > 1100 && strstr(cell[2], "0.976654,warp_d=") && strcmp(cell[4], "2") == 0,
-           "param %zu characters, J %s", strlen(cell[2]), cell[4]);
-    CHECK(atof(cell[5]) > 0 && atof(cell[10]) > 0 && strcmp(cell[12], "ok") == 0);
+    CHECKF(strlen(cell[2]) > 1100 && strstr(cell[2], "0.976654,warp_d=") && strcmp(cell[5], "2") == 0,
+           "param %zu characters, J %s", strlen(cell[2]), cell[5]);
+    CHECK(atof(cell[6]) > 0 && atof(cell[11]) > 0 && strcmp(cell[13], "ok") == 0);
     CHECK(json && strstr(json, cell[2]) != NULL); /* the whole spec there too */
     free(csv), free(json);
     snprintf(cmd, sizeof cmd, "cd %s && %s batch w.csv -J 2 -o w", dir, SB_CLI);
@@ -534,7 +536,7 @@ SB_TEST(interrupted_other_settings_no_stale_summary) {
     const char *row = csv ? strstr(csv, "\nmicrofacet_base_gold_roughness_0.3,") : NULL;
     /* J = 3 on io (its form: the better of f and cos at R = 8, io named alone) */
     const char *at = row ? strstr(row, ",io:res=8,") : NULL;
-    CHECK(at && at < strchr(row + 1, '\n') && (!strncmp(at + 10, "f,3,", 4) || !strncmp(at + 10, "cos,3,", 6)));
+    CHECK(at && at < strchr(row + 1, '\n') && (!strncmp(at + 10, "f,1,3,", 6) || !strncmp(at + 10, "cos,1,3,", 8)));
     free(csv);
 }
 

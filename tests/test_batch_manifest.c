@@ -89,3 +89,54 @@ SB_TEST(nothing_to_do_is_an_error) {
     sb_run(cmd, out, sizeof out);
     CHECKF(atoi(out) == 0, "%s", out);
 }
+
+/* A flag's cell: weighted 0 fits unweighted (a layout named alone is
+ * otherwise weighted, as auto fits it), weighted 1 overrides the command
+ * line's --unweighted, and summary.csv says which each folder holds; a
+ * flag's cell other than 1 or 0 is an error naming it. */
+SB_TEST(manifest_weighted_cell) {
+    const char *dir = sb_tmpdir("batch_w0");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd %s && printf 'source,param,weighted\\nlambert,io,0\\n' > w.csv && %s batch w.csv -r 8 -J 1 -o m -q",
+             dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    char *json = slurp(dir, "m/lambert_io", "report.json", NULL), *csv = slurp(dir, "m", "summary.csv", NULL);
+    CHECKF(json && strstr(json, "\n  \"weighted\": false,"), "%.300s", json ? json : "no report");
+    CHECKF(csv && strstr(csv, "param,form,weighted,J,") && strstr(csv, "lambert_io,lambert,io:res=8,"), "%s",
+           csv ? csv : "no summary");
+    CHECKF(csv && strstr(strchr(csv, '\n'), ",0,1,"), "%s", csv ? csv : ""); /* weighted 0, J 1 */
+    free(json), free(csv);
+    dir = sb_tmpdir("batch_w1");
+    snprintf(cmd, sizeof cmd,
+             "cd %s && printf 'source,param,weighted\\nlambert,io,1\\n' > w.csv && "
+             "%s batch w.csv -r 8 -J 1 --unweighted -o m -q",
+             dir, SB_CLI);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    json = slurp(dir, "m/lambert_io", "report.json", NULL);
+    CHECKF(json && strstr(json, "\n  \"weighted\": true,"), "%.300s", json ? json : "no report");
+    free(json);
+    rc = manifest_run("batch_wbad", "w.csv", "source,weighted\nlambert,yes\n");
+    CHECKF(rc == 1 && strstr(out, "w.csv:2:") && strstr(out, "'yes' for a flag, need 1 or 0"), "rc %d: %s", rc, out);
+}
+
+/* A folder written before summary.csv had its weighted column (batch.txt
+ * with one field fewer) is reused, its fields in their columns and the
+ * weighted cell empty. */
+SB_TEST(folder_before_weighted_column) {
+    const char *dir = sb_tmpdir("batch_old");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd %s && %s batch lambert -r 8 -J 1 -o m -q && "
+             "awk -F'\\t' -v OFS='\\t' 'NR == 2 { $3 = \"\"; sub(/\\t\\t/, \"\\t\") } 1' m/lambert/batch.txt > b && "
+             "mv b m/lambert/batch.txt && %s batch lambert -r 8 -J 1 -o m",
+             dir, SB_CLI, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "1 reused"), "rc %d: %s", rc, out);
+    char *csv = slurp(dir, "m", "summary.csv", NULL);
+    const char *row = csv ? strchr(csv, '\n') : NULL;
+    CHECKF(row && (strstr(row, ",f,,1,") || strstr(row, ",cos,,1,")), "%s", csv ? csv : "no summary");
+    free(csv);
+}

@@ -571,6 +571,11 @@ SB_TEST(poor_layout_names_auto_choice) {
     CHECKF(run(args) == 0, "%s", out);
     CHECKF(strstr(out, "cannot reproduce this source; --param auto chooses") && !strstr(out, "headline 0."), "%s", out);
     CHECK(load_report(dir) == 0 && strstr(report, "\"stages\"") != NULL);
+    /* under --budget too (io at 8 KiB: 67 % at J = 4), pointing to auto within the budget */
+    snprintf(args, sizeof args, "factor --param io --budget 8KiB -o %s", dir);
+    CHECKF(run(args) == 0, "%s", out);
+    CHECKF(strstr(out, "cannot reproduce this source; --param auto chooses") && strstr(out, "within the same budget"),
+           "%s", out);
 }
 
 /* The file's own grid beside a poor named layout also where that layout

@@ -6,7 +6,8 @@
 
 /* Result fields of one material, in the order of summary.csv after name
  * and source (batch.txt in its folder holds them, tab-separated). */
-#define BATCH_FIELDS "param,form,J,headline,comparable,rel_rms,max_abs,negative,bytes,time_s"
+#define BATCH_FIELDS "param,form,weighted,J,headline,comparable,rel_rms,max_abs,negative,bytes,time_s"
+#define BATCH_NF 11 /* how many */
 
 typedef struct batch_item {
     char name[256];     /* its folder under --out */

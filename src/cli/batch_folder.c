@@ -94,6 +94,22 @@ int batch_key(batch_item_t *it) {
     return it->key ? 0 : -1;
 }
 
+/* A folder written before `weighted` joined BATCH_FIELDS holds one field
+ * fewer: an empty weighted cell is put in its place (the report in that
+ * folder says it), so the later fields keep their columns. */
+static void old_fields(char **fields) {
+    size_t tabs = 0;
+    for (const char *c = *fields; *c; c++)
+        tabs += *c == '\t';
+    char *second = strchr(*fields, '\t');
+    second = second ? strchr(second + 1, '\t') : NULL;
+    if (tabs != BATCH_NF - 2 || !second) return;
+    char *up = format("%.*s\t%s", (int)(second - *fields), *fields, second);
+    if (!up) return;
+    free(*fields);
+    *fields = up;
+}
+
 int batch_folder_read(const char *dir, const char *name, char **key, char **fields) {
     char *path = format("%s/%s/sepbrdf-set-factor.txt", dir, name), *text = NULL;
     *key = *fields = NULL;
@@ -120,13 +136,14 @@ int batch_folder_read(const char *dir, const char *name, char **key, char **fiel
         return 0;
     }
     strcpy(*fields, eol + 1);
+    old_fields(fields);
     return 1;
 }
 
-/* it->headline from the fourth of its fields. */
+/* it->headline from the fifth of its fields. */
 static void set_headline(batch_item_t *it) {
     const char *p = it->fields;
-    for (int k = 0; k < 3 && p; k++)
+    for (int k = 0; k < 4 && p; k++)
         p = strchr(p, '\t') ? strchr(p, '\t') + 1 : NULL;
     it->headline = p ? strtod(p, NULL) : NAN;
 }

@@ -37,10 +37,10 @@ static void job_fields(FILE *fp, const sb_job_t *job, long long bytes) {
     size_t J = sb_factors_terms(f);
     sb_job_timings_t t;
     sb_job_timings(job, &t);
-    fprintf(fp, "%s\t%s\t%zu\t%.9g\t%.9g\t%.9g\t%.9g\t%.9g\t%lld\t%.3f\n", sb_param_spec(sb_job_param(job)),
-            sb_form_name(sb_job_form(job)), J, sb_job_headline(job, J), sb_job_comparable(job, J),
-            e->rel_rms[sb_err_at(J - 1, SB_CH_ALL)], e->max_abs[sb_err_at(J - 1, SB_CH_ALL)], sb_job_negative(job, J),
-            bytes, t.total_s);
+    fprintf(fp, "%s\t%s\t%d\t%zu\t%.9g\t%.9g\t%.9g\t%.9g\t%.9g\t%lld\t%.3f\n", sb_param_spec(sb_job_param(job)),
+            sb_form_name(sb_job_form(job)), sb_job_weighted(job) ? 1 : 0, J, sb_job_headline(job, J),
+            sb_job_comparable(job, J), e->rel_rms[sb_err_at(J - 1, SB_CH_ALL)], e->max_abs[sb_err_at(J - 1, SB_CH_ALL)],
+            sb_job_negative(job, J), bytes, t.total_s);
 }
 
 /* Write the set of job plus batch.txt into DIR/NAME; 0 or -1 (it->msg). */
@@ -195,13 +195,14 @@ void batch_run(const char *dir, batch_item_t *items, size_t n, size_t jobs) {
 }
 
 /* The tab-separated fields of it (BATCH_FIELDS, those its folder holds)
- * into f[10], "" where none; a copy the caller frees (NULL: out of memory). */
-static char *split(const batch_item_t *it, const char *f[10]) {
+ * into f[BATCH_NF], "" where none (a folder written before a field was
+ * added holds fewer); a copy the caller frees (NULL: out of memory). */
+static char *split(const batch_item_t *it, const char *f[BATCH_NF]) {
     const char *from = it->fields ? it->fields : "";
     char *buf = malloc(strlen(from) + 1), *p = buf;
     if (!buf) return NULL;
     strcpy(buf, from);
-    for (int k = 0; k < 10; k++) {
+    for (int k = 0; k < BATCH_NF; k++) {
         f[k] = p;
         p += strcspn(p, "\t");
         if (*p) *p++ = 0;
@@ -227,19 +228,19 @@ static void csv_field(FILE *fp, const char *s, const char *sep) {
     fputs(sep, fp);
 }
 
-static void row_csv(FILE *fp, json_t *j, const batch_item_t *it, const char *const f[10], const char *msg) {
+static void row_csv(FILE *fp, json_t *j, const batch_item_t *it, const char *const f[BATCH_NF], const char *msg) {
     (void)j;
     csv_field(fp, it->name, ",");
     csv_field(fp, it->source, ",");
-    for (int k = 0; k < 10; k++)
+    for (int k = 0; k < BATCH_NF; k++)
         csv_field(fp, f[k], ",");
     csv_field(fp, it->ok ? "ok" : "error", ",");
     csv_field(fp, it->ok ? "" : msg, "\n");
 }
 
-static void row_json(FILE *fp, json_t *j, const batch_item_t *it, const char *const f[10], const char *msg) {
-    static const char *const names[10] = {"param",   "form",    "terms",    "headline", "comparable",
-                                          "rel_rms", "max_abs", "negative", "bytes",    "time_s"};
+static void row_json(FILE *fp, json_t *j, const batch_item_t *it, const char *const f[BATCH_NF], const char *msg) {
+    static const char *const names[BATCH_NF] = {"param",   "form",    "weighted", "terms", "headline", "comparable",
+                                                "rel_rms", "max_abs", "negative", "bytes", "time_s"};
     (void)fp;
     json_begin_object(j, NULL);
     json_string(j, "name", it->name);
@@ -248,7 +249,8 @@ static void row_json(FILE *fp, json_t *j, const batch_item_t *it, const char *co
     if (it->fields) { /* the set its folder holds */
         json_string(j, names[0], f[0]);
         json_string(j, names[1], f[1]);
-        for (int k = 2; k < 10; k++)
+        if (f[2][0]) json_bool(j, names[2], strcmp(f[2], "1") == 0);
+        for (int k = 3; k < BATCH_NF; k++)
             json_number(j, names[k], strtod(f[k], NULL));
     }
     if (!it->ok) json_string(j, "message", msg);
@@ -259,7 +261,7 @@ static void row_json(FILE *fp, json_t *j, const batch_item_t *it, const char *co
  * into place; 0 or an errno. */
 static int write_summary(const char *path, const batch_item_t *items, size_t n, int json) {
     char tmp[4200], msg[600];
-    const char *f[10];
+    const char *f[BATCH_NF];
     FILE *fp = cli_open_tmp(path, tmp, sizeof tmp);
     if (!fp) return errno ? errno : EIO;
     json_t j = {fp, 0, {0}};
@@ -350,12 +352,12 @@ void batch_table(const batch_item_t *items, size_t n) {
     printf("%4s  %-32s %-20s %-4s %4s  %12s  %12s  %10s  %8s\n", "rank", "material", "param", "form", "J", "headline",
            "rel_rms", "bytes", "time_s");
     for (size_t i = 0; i < n; i++) {
-        const char *f[10];
+        const char *f[BATCH_NF];
         char *buf = split(order[i], f), spec[256];
         if (buf) spec_short(f[0], spec, sizeof spec);
         if (buf && order[i]->ok)
-            printf("%4zu  %-32s %-20s %-4s %4s  %12.4e  %12.4e  %10s  %8s%s\n", i + 1, order[i]->name, spec, f[1], f[2],
-                   strtod(f[3], NULL), strtod(f[5], NULL), f[8], f[9], order[i]->skipped ? "  (reused)" : "");
+            printf("%4zu  %-32s %-20s %-4s %4s  %12.4e  %12.4e  %10s  %8s%s\n", i + 1, order[i]->name, spec, f[1], f[3],
+                   strtod(f[4], NULL), strtod(f[6], NULL), f[9], f[10], order[i]->skipped ? "  (reused)" : "");
         else
             printf("%4s  %-32s failed: %s\n", "-", order[i]->name, order[i]->msg);
         free(buf);

@@ -49,8 +49,9 @@ static void help(void) {
            "       theta_i); or a manifest FILE.csv: a header line naming `source` and any options of\n"
            "       `factor` without dashes (param, form, terms, res, method, ...), then\n"
            "       one material per row (empty cell: the command line's value; a flag:\n"
-           "       1 or 0; a relative file is found beside the manifest).  Read as\n"
-           "       CSV: a cell holding a comma is quoted (\"microfacet:base=gold,roughness=0.3\"),\n"
+           "       1 or 0, weighted 0 meaning unweighted; a relative file is found\n"
+           "       beside the manifest).  Read as CSV: a cell holding a comma is quoted\n"
+           "       (\"microfacet:base=gold,roughness=0.3\"),\n"
            "       a row with more cells than the header is an error.\n"
            "NAME   the file name without its extension, or the spec with other\n"
            "       characters than letters, digits, '-' and '.' as '_'; a manifest row\n"
@@ -211,11 +212,21 @@ static int manifest_cell(sb_job_opts_t *o, const char *file, int line, const cha
     int m = 0;
     if (strlen(col) < 40) {
         snprintf(flag, sizeof flag, "--%s", col);
+        /* a flag's cell replaces the command line's (weighted 1 after
+         * --unweighted is no contradiction): the flag cleared first */
+        for (const cli_option_t *t = cli_factor_options; t->name; t++)
+            if (!t->arg && strcmp(t->name, flag) == 0) *(int *)((char *)o + t->offset) = 0;
         char *argv[3] = {"batch", flag, cell};
         cli_args_t a = {3, 1, argv, "batch"};
         m = cli_table_opt(&a, cli_factor_options, CLI_FACTOR, o, &op);
     }
-    if (m == 1 && op && !op->arg && strcmp(cell, "0") == 0) *(int *)((char *)o + op->offset) = 0;
+    if (m == 1 && op && !op->arg && strcmp(cell, "0") != 0 && strcmp(cell, "1") != 0) {
+        cli_error("batch", "%s:%d: column '%s': '%s' for a flag, need 1 or 0", file, line, col, cell);
+        return -1;
+    }
+    /* a flag at 0: off; a pair on one setting (weighted and unweighted,
+     * stored as 1 and -1) at 0: the other of the pair, as its name says */
+    if (m == 1 && op && !op->arg && strcmp(cell, "0") == 0) *(int *)((char *)o + op->offset) = -(int)op->lo;
     if (m == 1) return 0;
     cli_error("batch", "%s:%d: column '%s': %s", file, line, col, m ? "bad value" : "not an option of factor");
     return -1;

@@ -186,25 +186,25 @@ static sb_result_t job_svd_beside(sb_context_t *ctx, sb_job_t *job) {
  * warning names its form and headline where it does better by half: a
  * fit on the file's nodes, cheap.  Elsewhere the warning points to
  * --param auto without running it: auto beside `--param io -r 64 -J 8`
- * on the default source cost 2.5 s CPU against 0.16 s for io itself.
- * A failure of the run beside is no warning: the fit asked for stands. */
+ * on the default source cost 2.5 s CPU against 0.16 s for io itself;
+ * under --budget too (the budget's J and R stand).  A failure of the run beside is no warning: the fit asked for
+ * stands. */
 static sb_result_t job_auto_beside(sb_context_t *ctx, sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     size_t J = a->f ? sb_factors_terms(a->f) : 0;
     double h = J && a->est ? sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms) : NAN;
-    if (!job->named_alone || job->headline_only || job->no_scene_guard || job->budget || job->scene ||
-        !(h > JOB_EXPLICIT_POOR))
+    if (!job->named_alone || job->headline_only || job->no_scene_guard || job->scene || !(h > JOB_EXPLICIT_POOR))
         return SB_OK;
     int own = -1; /* a layout on the source's own tables, not the named one */
     if (sb_source_layout_tables(job->src) && !(sb_param_caps(a->param) & SB_CAP_TABLES))
         for (size_t k = 0; k < sb_param_kind_count() && own < 0; k++)
             if (sb_param_kind_caps((sb_param_kind_t)k) & SB_CAP_TABLES) own = (int)k;
     const char *named = sb_param_name(a->param);
-    if (own < 0 || job->o.method == SB_METHOD_STREAM) {
+    if (own < 0 || job->o.method == SB_METHOD_STREAM || job->budget) { /* under --budget: no fit beside */
         job_warn(job,
                  "%s leaves a headline error of %.4g %% at J = %zu: it cannot reproduce this source; --param auto "
-                 "chooses the layout, form, weighting and warp by the headline",
-                 named, 100 * h, J);
+                 "chooses the layout, form, weighting and warp by the headline%s",
+                 named, 100 * h, J, job->budget ? " within the same budget" : "");
         return SB_OK;
     }
     sb_job_opts_t o = job->o;
