@@ -46,15 +46,18 @@
 
 #define RADIUS_FACTOR 2.5
 #define SUPPORT_FACTOR 2.0
-/* The slots of a table's memo (88 bytes each with the tag, 5.5 MiB; it
- * stores up to 3/4 of them): a default run evaluates the Cornell
- * acrylic's table at 340 000 pairs, 255 000 positions; the screening grids
- * (41 000 positions) and the kept layout's grid repeat a quarter of them
- * (reciprocity and isotropy fold distinct pairs onto one position), the
- * drawn pairs next to none.  A refit's table holds 40 000.  Two threads,
- * in alternation against no memo: 2^16 slots 0.97x the CPU, 2^17 1.01x
- * (twice the pages to fault in and the tags to probe). */
-#define TABLE_MEMO_CAP ((size_t)1 << 16)
+/* The slots of a table's memo (88 bytes each with the tag, 22 MiB; it
+ * stores up to 3/4 of them; pages are touched as slots are used): a
+ * default run evaluates the Cornell acrylic's table at 340 000 pairs,
+ * 255 000 positions; the screening grids (41 000 positions) and the kept
+ * layout's grid repeat a quarter of them (reciprocity and isotropy fold
+ * distinct pairs onto one position), the drawn pairs next to none.  hd at
+ * R = 32 on an isotropic table (1M cells, the acrylic cut to one theta_i)
+ * asks 1.54 M values in a run without the refits, 70 % of them at
+ * positions asked before once positions are rounded (scattered_fit.c,
+ * POSITION_GRID): 2^16 slots found 13 % of them, 2^18 and 2^20 70 %.  Until issue 32's h32t round
+ * 2^16 (2^17 cost the acrylic 1.01x the CPU of 2^16, in alternation). */
+#define TABLE_MEMO_CAP ((size_t)1 << 18)
 
 /* ---- samples ----------------------------------------------------------- */
 

@@ -26,6 +26,15 @@
  * as the samples on the peak hold them. */
 #define LEVEL_SCALE 1.3862943611198906 /* ln 4 */
 
+/* The grid (1 / POSITION_GRID radians, 1.5e-11) evaluated positions are
+ * rounded to: pairs that isotropy and reciprocity fold onto one position
+ * reach it through different arithmetic (hd's frame), a few units of the
+ * last place apart; rounded, they meet in the memo (a value is a
+ * function of the rounded position: the same bits in any order).  The
+ * values move by far less than the interpolation's own error (the
+ * acrylic's figures in the ninth digit). */
+#define POSITION_GRID 68719476736.0 /* 2^36 */
+
 /* Azimuth differences averaged over at the pole (pole_mean): 5 deg steps. */
 #define POLE_STEPS 37
 
@@ -328,6 +337,8 @@ int sb_table_eval_(const void *self, const double wi[3], const double wo[3], dou
     if (!(wi[2] > 0 && wo[2] > 0)) return 0;
     double x[MAX_DIM] = {0}, b[3] = {1, 1, 1}, lx = NAN;
     sb_scat_embed_(t->iso, t->recip, wi, wo, x);
+    for (int a = 0; a < MAX_DIM; a++) /* one position however the pair's arithmetic reached it */
+        x[a] = nearbyint(x[a] * POSITION_GRID) / POSITION_GRID;
     const double key[SB_MEMO_KEY] = {x[0], x[1], x[2], x[3], 0, 0};
     int state = t->memo ? sb_memo_find(t->memo, key, rgb) : 0;
     if (state) return state > 1;
