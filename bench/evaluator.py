@@ -153,16 +153,17 @@ def norm(v):
     return np.linalg.norm(v, axis=-1)
 
 
+def grid_st(w, theta_max):
+    """io's sb_grid_st and hd's sb_hd_st: theta / theta_max, phi / 2 pi."""
+    th = np.arctan2(norm(w[:, :2]), w[:, 2])
+    ph = np.arctan2(w[:, 1], w[:, 0]) % (2 * np.pi)
+    return th / theta_max, ph / (2 * np.pi)
+
+
 def coords(layout, L, V, theta_max, dv, src):
     n = len(L)
-    if layout in ("io",):
-        def st(w):
-            th = np.arctan2(norm(w[:, :2]), w[:, 2])
-            ph = np.arctan2(w[:, 1], w[:, 0]) % (2 * np.pi)
-            return th / theta_max, ph / (2 * np.pi)
-        a, b = st(L)
-        c, d = st(V)
-        return a, b, c, d
+    if layout == "io":
+        return grid_st(L, theta_max) + grid_st(V, theta_max)
     if layout == "io-area":
         def st(w):
             cc = 1 - np.cos(theta_max)
@@ -187,13 +188,8 @@ def coords(layout, L, V, theta_max, dv, src):
         T = np.stack([nn, -H[:, 0] * H[:, 1] / nn, -H[:, 0] * H[:, 2] / nn], -1)
         Bv = np.cross(H, T)
         D = np.stack([(L * T).sum(1), (L * Bv).sum(1), (L * H).sum(1)], -1)
-
-        def st(w):
-            th = np.arctan2(norm(w[:, :2]), w[:, 2])
-            ph = np.arctan2(w[:, 1], w[:, 0]) % (2 * np.pi)
-            return th / theta_max, ph / (2 * np.pi)
-        a, b = st(H)
-        c, d = st(D)
+        a, b = grid_st(H, theta_max)
+        c, d = grid_st(D, theta_max)
         return wh(a), b, wd(c), d
     if layout == "iso":
         hxy = norm(H[:, :2])
