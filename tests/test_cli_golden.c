@@ -158,6 +158,20 @@ SB_TEST(missing_file) {
     char path[4200];
     snprintf(path, sizeof path, "%s/o", dir);
     CHECKF(!sb_file_exists(path), "%s created by a failed run", path);
+    /* a folder named like a model (a factor set in the current folder) is
+     * said to be a folder, exit 2: it was "unknown model 'myset'", exit 1;
+     * one that is a model's name (batch writes such folders) is the model */
+    char cmd[8600], msg[2048];
+    snprintf(path, sizeof path, "%s/myset", dir);
+    CHECK(mkdir(path, 0777) == 0);
+    snprintf(path, sizeof path, "%s/lambert", dir);
+    CHECK(mkdir(path, 0777) == 0);
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor myset -o o", dir, SB_CLI);
+    int rc = sb_run(cmd, msg, sizeof msg);
+    CHECKF(rc == 2 && strstr(msg, "myset: a folder, not a model or a measured file"), "rc %d: %s", rc, msg);
+    snprintf(cmd, sizeof cmd, "cd %s && %s factor lambert --res 4 -J 1 -q -o o", dir, SB_CLI);
+    rc = sb_run(cmd, msg, sizeof msg);
+    CHECKF(rc == 0, "a folder named lambert beside: rc %d: %s", rc, msg);
 }
 
 SB_TEST(unwritable_output) {

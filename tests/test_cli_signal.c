@@ -10,6 +10,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -195,4 +196,35 @@ SB_TEST(sigterm_bench) {
     count_dir(out, NULL, ".tmp-", &has);
     CHECKF(!has, "an interrupted bench left %s in %s", tmp, out);
     if (!WIFSIGNALED(st)) CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0, "status %d", st);
+}
+
+/* The first run into a folder, interrupted, leaves no folder: the run
+ * created it (for its lock) before computing, and an interrupted run left
+ * it behind empty, where an error removes it (sixth outside pass). */
+SB_TEST(sigint_first_run_leaves_no_folder) {
+    const char *dir = sb_tmpdir("signal");
+    char out[4200];
+    snprintf(out, sizeof out, "%s/new", dir);
+    const char *args[] = {"factor",   "lambert", "--res",        "24", "-J", "400", "--param", "io",
+                          "--method", "full",    "--metric-res", "4",  "-o", out,   NULL};
+    pid_t pid = start(args);
+    CHECK(pid > 0);
+    int staging = 0;
+    for (int i = 0; i < 200000 && !staging; i++) { /* the staging folder: DIR exists and is locked */
+        siginfo_t info = {0};
+        count_dir(dir, NULL, ".sepbrdf-new-", &staging);
+        if (waitid(P_PID, (id_t)pid, &info, WEXITED | WNOHANG | WNOWAIT) == 0 && info.si_pid == pid) break;
+        sleep_s(0.0001);
+    }
+    kill(pid, SIGINT);
+    int st = 0;
+    CHECK(waitpid(pid, &st, 0) == pid);
+    count_dir(dir, NULL, ".sepbrdf-new-", &staging);
+    CHECKF(!staging, "the staging folder of the run is left in %s", dir);
+    struct stat sb;
+    if (WIFSIGNALED(st))
+        CHECKF(stat(out, &sb) != 0, "an interrupted first run left the folder %s (%d entries)", out,
+               count_dir(out, NULL, NULL, NULL));
+    else
+        CHECKF(WIFEXITED(st) && WEXITSTATUS(st) == 0 && count_dir(out, NULL, NULL, NULL) == 803, "status %d", st);
 }

@@ -275,11 +275,19 @@ SB_TEST(failures_keep_others) {
     snprintf(b, sizeof b, "%s/b", dir);
     rc = run("study lambert --param io --terms 1..2 --res 4 -o %s/b%s", dir, "");
     CHECKF(rc == 0, "rc %d: %s", rc, out);
-    rc = run("study lambert --param io --terms 1..5 --res 2 -o %s/b%s", dir, "");
+    rc = run("study lambert --param io --terms 5..6 --res 2 -o %s/b%s", dir, "");
     CHECKF(rc == 2 && strstr(out, "--terms 5 exceeds") && strstr(out, "every run failed (1); nothing written"),
            "rc %d: %s", rc, out);
     const char *kept = slurp(b, "study.csv");
     CHECKF(kept && count_lines(kept) == 1 + 2, "the earlier set is gone: %s", kept ? kept : "(none)");
+    /* J beyond the rows after some that fit: those rows are written and
+     * the rest said skipped (sixth outside pass: on main the whole run
+     * failed, nothing written) */
+    rc = run("study lambert --param io --terms 1..5 --res 2 -o %s/c%s", dir, "");
+    CHECKF(rc == 0 && strstr(out, "J = 5..5 skipped: 5 terms exceed"), "rc %d: %s", rc, out);
+    snprintf(b, sizeof b, "%s/c", dir);
+    const char *rows = slurp(b, "study.csv");
+    CHECKF(rows && count_lines(rows) == 1 + 4, "study.csv: %s", rows ? rows : "(none)");
 }
 
 /* A layout that does not apply is named in the failure with its own

@@ -1,10 +1,26 @@
 /* sepbrdf study --param auto (the default): what `factor` builds at
  * every J studied. */
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "cli.h"
 #include "pipeline.h"
 #include "study.h"
+
+/* J terms exceed every layout's rows at this resolution (-r 3: 9): the
+ * rows of fewer terms are kept and the Js beyond said skipped, where the
+ * whole run failed and nothing was written (sixth outside pass).  1 if
+ * that was the failure. */
+static int study_beyond_rows(sb_context_t *ctx, sb_result_t res, run_t *r, size_t J, size_t jmax, const char *param) {
+    const char *detail = sb_context_last_error(ctx);
+    if (res != SB_ERR_RANGE || !detail || !strstr(detail, " terms exceed")) return 0;
+    char msg[1024];
+    snprintf(msg, sizeof msg, "J = %zu..%zu skipped: %s", J, jmax, detail);
+    cli_error("study", "warning: %s on %s: %s", r->spec, param ? param : "auto", msg);
+    if (r->nwarn < sizeof r->warn / sizeof r->warn[0]) r->warn[r->nwarn++] = study_dup(msg);
+    return 1;
+}
 
 /* An auto run, or a layout named alone: `factor`'s whole job at every
  * studied J (its choice of layout, form, weighting and warps depends on
@@ -41,6 +57,10 @@ void study_run_auto(sb_context_t *ctx, const sb_source_t *src, const study_opts_
         }
         if (J == o->jmax || res != SB_OK) study_run_warnings(r, job, jo.param ? jo.param : "auto");
         sb_job_destroy(job);
+        if (res != SB_OK && r->nr > 0 && study_beyond_rows(ctx, res, r, J, o->jmax, jo.param)) {
+            res = SB_OK; /* the rows of fewer terms stand */
+            break;
+        }
     }
     if (res == SB_OK && o->nmf && jo.param) { /* a layout named: its non-negative fits beside */
         jo.terms = o->jmax;

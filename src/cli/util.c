@@ -318,6 +318,11 @@ static char guard_set[GUARD_PATH]; /* staging folder of the open output set */
  * stale cleanup removes), whose manifest no command writes (removed whole) */
 static char guard_doomed[GUARD_PATH + 8];
 static atomic_int guard_set_on;
+/* the output folder itself where this run created it: removed by the
+ * handler if still empty (rmdir removes nothing else), as
+ * sb_outset_destroy removes it on an error */
+static char guard_created[GUARD_PATH];
+static atomic_int guard_created_on;
 
 int cli_guard(const char *path) {
     size_t n = strlen(path);
@@ -351,6 +356,7 @@ static void on_signal(int sig) {
         else
             sb_outset_discard_signal_safe(guard_set);
     }
+    if (atomic_load(&guard_created_on)) rmdir(guard_created); /* only if empty */
     for (int i = 0; i < GUARD_SLOTS; i++)
         if (atomic_load(&guard_used[i])) unlink(guard_path[i]);
     if (prog_shown) {
@@ -397,7 +403,13 @@ static void guard_staging(void *user, const char *staging) {
 sb_outset_t *cli_outset_begin(sb_context_t *ctx, const char *cmd, const char *dir, int *rc) {
     sb_outset_opts_t so = {cmd, 0, guard_staging, NULL};
     sb_outset_t *s = NULL;
+    struct stat st;
+    size_t n = strlen(dir);
+    atomic_store(&guard_created_on, 0);
+    int created = n < GUARD_PATH && stat(dir, &st) != 0 && errno == ENOENT;
+    if (created) memcpy(guard_created, dir, n + 1);
     sb_result_t r = sb_outset_begin(ctx, dir, &so, &s);
+    if (r == SB_OK && created) atomic_store(&guard_created_on, 1);
     if (r != SB_OK) {
         atomic_store(&guard_set_on, 0);
         cli_error(cmd, "--out %s", sb_context_last_error(ctx));
@@ -415,6 +427,7 @@ int cli_outset_end(sb_context_t *ctx, const char *cmd, sb_outset_t *s, int ok) {
     }
     sb_outset_destroy(s); /* discards a set not published */
     atomic_store(&guard_set_on, 0);
+    atomic_store(&guard_created_on, 0);
     return rc;
 }
 

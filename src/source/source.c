@@ -136,11 +136,20 @@ int sb_source_set_measured_(sb_source_t *src, const sb_measured_info_t *info) {
 const sb_measured_info_t *sb_measured_source_info(const sb_source_t *src) { return src ? src->minfo : NULL; }
 
 /* A spec naming an existing regular file is a measured table; anything
- * else is a model spec. */
+ * else is a model spec.  A folder that is not also a model's name (a batch
+ * writes folders named after models) is named as a folder: "unknown model"
+ * misled where it was a factor set or a folder of tables. */
 sb_result_t sb_source_open(sb_context_t *ctx, const char *spec, sb_source_t **out) {
     if (!spec || !out) return sb_error(ctx, SB_ERR_ARG, "source: no spec given");
     *out = NULL; /* also when a reader fails without touching it */
     struct stat st;
-    if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return sb_measured_open_hook(ctx, spec, out);
-    return sb_model_create(ctx, spec, out);
+    int found = stat(spec, &st) == 0;
+    if (found && S_ISREG(st.st_mode)) return sb_measured_open_hook(ctx, spec, out);
+    sb_result_t r = sb_model_create(ctx, spec, out);
+    if (r == SB_ERR_UNKNOWN && found && S_ISDIR(st.st_mode))
+        return sb_error(ctx, SB_ERR_IO,
+                        "%s: a folder, not a model or a measured file (a factor set is read by render, info and "
+                        "view; the tables of a folder are factored by batch)",
+                        spec);
+    return r;
 }
