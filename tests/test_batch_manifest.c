@@ -140,3 +140,16 @@ SB_TEST(folder_before_weighted_column) {
     CHECKF(row && (strstr(row, ",f,,1,") || strstr(row, ",cos,,1,")), "%s", csv ? csv : "no summary");
     free(csv);
 }
+
+/* --out naming a file: said as every writing command says it, exit 2,
+ * the file untouched. */
+SB_TEST(out_is_a_file) {
+    const char *dir = sb_tmpdir("batch_outfile");
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "cd %s && printf 'keep' > f && %s batch lambert -r 8 -J 1 -o f", dir, SB_CLI);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 2 && strstr(out, "--out f: exists and is not a folder"), "rc %d: %s", rc, out);
+    char *f = slurp(dir, "f", NULL, NULL);
+    CHECKF(f && strcmp(f, "keep") == 0, "%s", f ? f : "gone");
+    free(f);
+}

@@ -46,6 +46,8 @@ int batch_lock(const char *dir) {
                   "--out %s: another batch is writing into this folder (or its worker processes still are); "
                   "wait until it ends or choose another --out",
                   dir);
+    else if (e == ENOTDIR)
+        cli_error("batch", "--out %s: exists and is not a folder", dir);
     else
         cli_error("batch", "--out %s: cannot lock the folder: %s", dir, sb_io_why(e));
     return -1;
