@@ -187,7 +187,7 @@ static sb_result_t fill_holes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_
         sb_param_wrap(in->param, side, o.wrap[side]);
     }
     sb_fit_info_t fi;
-    sb_result_t r = sb_fit_execute(s->fit, s->x, s->m, s->ext, &o, out->s, out->u, out->v, &fi);
+    sb_result_t r = fit_memo_execute(s->fit, s->x, s->m, s->ext, &o, out->s, out->u, out->v, &fi);
     if (r != SB_OK || !in->param) return r;
     double *lo = s->e, *hi = s->r; /* free until the stages */
     if (fit_taps_range(&o, s->m, s->n, s->x, s->ext, lo, hi) != 0) return SB_ERR_NOMEM;

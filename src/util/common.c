@@ -1,6 +1,7 @@
 /* Result codes, the context and overflow-checked sizes. */
 #include "sepbrdf/common.h"
 
+#include "util/ctx_memo.h"
 #include "util/internal.h"
 
 #include <stdarg.h>
@@ -16,6 +17,7 @@ struct sb_context {
     char last[1024];
     const char *alias_from, *alias_to; /* sb_context_alias */
     sb_group_t group;                  /* sb_context_set_group; size 0: alone */
+    sb_ctx_memo_t *memo;               /* ctx_memo.c: open while a job runs */
 };
 
 static const char *const names[SB_RESULT_COUNT_] = {
@@ -38,7 +40,11 @@ sb_result_t sb_context_create(sb_context_t **out) {
     *out = calloc(1, sizeof **out);
     return *out ? SB_OK : SB_ERR_NOMEM;
 }
-void sb_context_destroy(sb_context_t *ctx) { free(ctx); }
+void sb_context_destroy(sb_context_t *ctx) {
+    if (ctx) sb_ctx_memo_free(ctx->memo);
+    free(ctx);
+}
+sb_ctx_memo_t **sb_context_memo_slot(sb_context_t *ctx) { return &ctx->memo; }
 void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user) {
     if (!ctx) return;
     ctx->fn = fn;
