@@ -1,11 +1,14 @@
-/* The memo of a job's repeated masked fits (src/util/ctx_memo.c,
- * src/solve/fit_memo.c): the non-negative solver's masked fit beside each
- * channel is the fit the SVD beside makes of the same matrix; made once
- * while a job runs, the second taking the very bits of the first. */
+/* What a non-negative run no longer makes twice or whole (round h38y):
+ * the memo of a job's repeated masked fits (src/util/ctx_memo.c,
+ * src/solve/fit_memo.c: the solver's masked fit beside each channel is the
+ * fit the SVD beside makes of the same matrix, the second taking the very
+ * bits of the first), and the screening's first fit alone (the plan's
+ * nonneg_first_fit). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "fixtures.h"
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 #include "solve/fit_impl.h" /* not exported, in the static archive */
@@ -89,4 +92,64 @@ SB_TEST(masked_fit_repeated_same_bits) {
     free(a);
     free(mask);
     sb_context_destroy(ctx);
+}
+
+/* Factor m (J = 4) non-negative, with the plan's nonneg_first_fit or not. */
+static sb_factors_t *nmf_fit(const sb_matrix_t *m, const sb_param_t *p, int first, sb_plan_stats_t *st) {
+    sb_plan_opts_t po = {0};
+    po.size = sizeof po;
+    po.terms = 4;
+    po.weighted = 1;
+    po.svd.method = SB_METHOD_NMF;
+    po.nonneg_first_fit = first;
+    sb_plan_t *plan = NULL;
+    sb_factors_t *f = NULL;
+    CHECK(sb_plan_create_for(NULL, m, &po, &plan) == SB_OK);
+    CHECK(sb_plan_execute(plan, m, p, &f) == SB_OK);
+    sb_plan_stats(plan, st);
+    sb_plan_destroy(plan);
+    return f;
+}
+
+/* The screening's fit (nonneg_first_fit): on a masked layout (hd) the
+ * first fit alone, fewer sweeps than the whole fit (its refits toward the
+ * headline), non-negative and within 1.5x of the whole fit's error; on a
+ * layout without masked cells (io) the same bits as the whole fit. */
+SB_TEST(first_fit_for_ranking) {
+    sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.548");
+    for (int k = 0; k < 2; k++) {
+        sb_param_t *p = fx_layout(k ? SB_PARAM_IO : SB_PARAM_HD, 8);
+        sb_matrix_t m;
+        CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+        CHECK((m.mask != NULL) == !k);
+        sb_plan_stats_t a, b;
+        sb_factors_t *whole = nmf_fit(&m, p, 0, &a), *first = nmf_fit(&m, p, 1, &b);
+        if (whole && first) {
+            double ew = sb_factors_errors(whole)->rel_rms[sb_err_at(3, SB_CH_ALL)];
+            double ef = sb_factors_errors(first)->rel_rms[sb_err_at(3, SB_CH_ALL)];
+            size_t neg = 0, same = 1;
+            for (size_t j = 0; j < 4; j++)
+                for (size_t c = 0; c < 3; c++)
+                    for (int side = 0; side < 2; side++) {
+                        size_t w, h;
+                        sb_factors_size(first, side, &w, &h);
+                        const double *t = sb_factors_tex_const(first, side, j, c);
+                        const double *u = sb_factors_tex_const(whole, side, j, c);
+                        for (size_t i = 0; i < w * h; i++)
+                            neg += !(t[i] >= 0);
+                        same &= !memcmp(t, u, w * h * sizeof *t);
+                    }
+            CHECK(neg == 0);
+            if (k)
+                CHECK(same && a.fit_iterations == b.fit_iterations);
+            else
+                CHECKF(b.fit_iterations < a.fit_iterations && ef <= 1.5 * ew, "sweeps %d vs %d, error %g vs %g",
+                       b.fit_iterations, a.fit_iterations, ef, ew);
+        }
+        sb_factors_destroy(whole);
+        sb_factors_destroy(first);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+    }
+    sb_source_destroy(s);
 }

@@ -23,8 +23,9 @@
 static unsigned char *make_key(const sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
                                const sb_fit_opts_t *o, size_t *len) {
     size_t m = f->m, n = f->n, cells = m * n;
-    double head[KEY_HEAD] = {(double)m, (double)n, (double)f->k, lda == m, o->max_iters, o->tol, (double)o->seed,
-                             o->target};
+    double head[KEY_HEAD] = {(double)m,    (double)n, (double)f->k,    lda == m,
+                             o->max_iters, o->tol,    (double)o->seed, o->target};
+    memcpy(&head[6], &o->seed, sizeof o->seed); /* every bit of it */
     for (int i = 0; i < 4; i++) {
         head[8 + i] = (double)o->tex[i / 2][i % 2];
         head[12 + i] = o->wrap[i / 2][i % 2];

@@ -129,6 +129,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
      * nested prefixes up to 1.3x further from the SVD's */
     s->max_iters = pb->fit_max_iters > SB_NMF_MAX_ITERS ? pb->fit_max_iters : SB_NMF_MAX_ITERS;
     s->zero_fill = pb->zero_fill;
+    s->first_fit = pb->nonneg_first_fit;
     s->polish_steps = SB_NMF_POLISH_STEPS;
     s->rho = s->rho_all = pb->nonneg_ratio;
     s->rho_ch = pb->nonneg_ratio ? pb->nonneg_ratio_channel : NULL;

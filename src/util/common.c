@@ -1,7 +1,6 @@
 /* Result codes, the context and overflow-checked sizes. */
 #include "sepbrdf/common.h"
 
-#include "util/ctx_memo.h"
 #include "util/internal.h"
 
 #include <stdarg.h>
@@ -17,7 +16,8 @@ struct sb_context {
     char last[1024];
     const char *alias_from, *alias_to; /* sb_context_alias */
     sb_group_t group;                  /* sb_context_set_group; size 0: alone */
-    sb_ctx_memo_t *memo;               /* ctx_memo.c: open while a job runs */
+    void *memo;                        /* ctx_memo.c: open while a job runs */
+    void (*memo_free)(void *);         /* frees it */
 };
 
 static const char *const names[SB_RESULT_COUNT_] = {
@@ -41,10 +41,13 @@ sb_result_t sb_context_create(sb_context_t **out) {
     return *out ? SB_OK : SB_ERR_NOMEM;
 }
 void sb_context_destroy(sb_context_t *ctx) {
-    if (ctx) sb_ctx_memo_free(ctx->memo);
+    if (ctx && ctx->memo && ctx->memo_free) ctx->memo_free(ctx->memo);
     free(ctx);
 }
-sb_ctx_memo_t **sb_context_memo_slot(sb_context_t *ctx) { return &ctx->memo; }
+void **sb_context_memo_slot(sb_context_t *ctx, void (*memo_free)(void *)) {
+    if (memo_free) ctx->memo_free = memo_free;
+    return &ctx->memo;
+}
 void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user) {
     if (!ctx) return;
     ctx->fn = fn;

@@ -3,6 +3,8 @@
  * bytes themselves. */
 #include "util/ctx_memo.h"
 
+#include "util/internal.h"
+
 #include <pthread.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -30,7 +32,8 @@ static uint64_t fnv1a(const void *p, size_t n) {
     return h;
 }
 
-void sb_ctx_memo_free(sb_ctx_memo_t *m) {
+static void memo_free(void *p) {
+    sb_ctx_memo_t *m = p;
     if (!m) return;
     for (entry_t *e = m->head, *nx; e; e = nx) {
         nx = e->next;
@@ -42,7 +45,7 @@ void sb_ctx_memo_free(sb_ctx_memo_t *m) {
 }
 
 void sb_ctx_memo_open(sb_context_t *ctx) {
-    sb_ctx_memo_t **slot = ctx ? sb_context_memo_slot(ctx) : NULL;
+    void **slot = ctx ? sb_context_memo_slot(ctx, memo_free) : NULL;
     if (!slot) return;
     if (!*slot) {
         sb_ctx_memo_t *m = calloc(1, sizeof *m);
@@ -52,13 +55,13 @@ void sb_ctx_memo_open(sb_context_t *ctx) {
         }
         *slot = m;
     }
-    (*slot)->depth++;
+    ((sb_ctx_memo_t *)*slot)->depth++;
 }
 
 void sb_ctx_memo_close(sb_context_t *ctx) {
-    sb_ctx_memo_t **slot = ctx ? sb_context_memo_slot(ctx) : NULL;
-    if (!slot || !*slot || --(*slot)->depth > 0) return;
-    sb_ctx_memo_free(*slot);
+    void **slot = ctx ? sb_context_memo_slot(ctx, NULL) : NULL;
+    if (!slot || !*slot || --((sb_ctx_memo_t *)*slot)->depth > 0) return;
+    memo_free(*slot);
     *slot = NULL;
 }
 
@@ -70,7 +73,7 @@ static entry_t *lookup(const sb_ctx_memo_t *m, uint64_t h, const void *key, size
 }
 
 int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val, size_t vlen) {
-    sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx) : NULL;
+    sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx, NULL) : NULL;
     if (!m) return 0;
     uint64_t h = fnv1a(key, klen);
     pthread_mutex_lock(&m->mu);
@@ -82,7 +85,7 @@ int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val,
 }
 
 void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen) {
-    sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx) : NULL;
+    sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx, NULL) : NULL;
     if (!m || klen > SB_CTX_MEMO_BYTES || vlen > SB_CTX_MEMO_BYTES - klen) return;
     uint64_t h = fnv1a(key, klen);
     entry_t *e = calloc(1, sizeof *e);

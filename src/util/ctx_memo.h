@@ -27,8 +27,5 @@ int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val,
 /* Store val for key, unless no memo is open, it holds the key or the
  * bytes would pass SB_CTX_MEMO_BYTES. */
 void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen);
-/* The context's memo slot (common.c), and its destruction with ctx. */
-sb_ctx_memo_t **sb_context_memo_slot(sb_context_t *ctx);
-void sb_ctx_memo_free(sb_ctx_memo_t *m);
 
 #endif
