@@ -202,6 +202,11 @@ typedef struct sb_plan_opts {
      * channel); where given, a channel's solve takes its own instead of
      * nonneg_ratio.  NULL: none.  Must outlive the plan. */
     const double *nonneg_ratio_channel;
+    /* Non-negative factors only: 1 asks for a fit to rank layouts by (the
+     * job's screening): where cells are out of the data, the solver keeps
+     * its first fit, without the refits toward the headline after it
+     * (docs/positive.md, round h38y).  0: the whole fit. */
+    int nonneg_first_fit;
 } sb_plan_opts_t;
 #define SB_PLAN_OPTS_INIT                                                                                              \
     { .size = sizeof(sb_plan_opts_t) }

@@ -10,6 +10,7 @@
 
 #include "job_impl.h"
 #include "sepbrdf/glsl.h"
+#include "util/ctx_memo.h"
 #include "util/internal.h"
 
 /* A model spec is NAME[:key=value,...] with NAME a plain identifier, so a
@@ -320,6 +321,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
     job->t_start = t0;
+    sb_ctx_memo_open(ctx); /* fits repeated within the run made once (the masked fit beside nmf's channels) */
     double ts = job_now();
     job->stage_s[0] = ts - t0; /* the source opened (sb_job_run) */
     job->fit_as_auto = as_auto & 1;
@@ -369,6 +371,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     }
     if (r == SB_OK && opts->out) r = sb_job_write(ctx, job, opts->out);
     sb_blas_threads_end(blas);
+    sb_ctx_memo_close(ctx);
     if (r != SB_OK) {
         sb_job_destroy(job);
         return r;

@@ -58,6 +58,7 @@ typedef struct job_level {
     /* the plan's nonneg_ratio (factor.h; job_nonneg_refit); NULL: none */
     const double *nonneg_ratio;
     const double *nonneg_ratio_channel; /* per channel, 3 x terms (factor.h); NULL: none */
+    int nonneg_first_fit;               /* the plan's nonneg_first_fit (factor.h): screening */
 } job_level_t;
 
 #define JOB_MAX_CANDS (3 * SB_LAYOUTS_MAX) /* f and cos a layout, with room */

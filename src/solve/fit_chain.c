@@ -58,7 +58,7 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
     /* every cell valid: an SVD, nested already; beyond SB_ALS_MAX_K terms
      * imputation alone */
     if (ninvalid == 0 || k <= SB_CHAIN_JOINT || k > SB_ALS_MAX_K)
-        return sb_fit_execute(f, A, lda, mask, &o, s, U, V, info);
+        return fit_memo_execute(f, A, lda, mask, &o, s, U, V, info);
     sb_result_t r = SB_OK;
     for (int i = 0; i < 2 && r == SB_OK; i++)
         if (!f->sub[i]) r = sb_fit_create(f->ctx, m, n, i ? 1 : SB_CHAIN_JOINT, &f->sub[i]);

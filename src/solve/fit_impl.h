@@ -145,6 +145,12 @@ int fit_taps_range(const sb_fit_opts_t *o, size_t m, size_t n, const double *x, 
  * SB_CHAIN_JOINT terms one term at a time after those. */
 sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask, const sb_fit_opts_t *opts,
                       double *s, double *U, double *V, sb_fit_info_t *info);
+/* sb_fit_execute, memoised while a job runs (fit_memo.c): a fit of the
+ * same shape, options, mask and valid values as one made before in the
+ * job takes its terms and info, the same bits.  U and V non-NULL to be
+ * memoised. */
+sb_result_t fit_memo_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
+                             const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info);
 /* The ALS part of a fit from the warm start in f->P, f->Q (fit_taps.c). */
 sb_result_t fit_als(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid0,
                     const sb_fit_opts_t *o, double norm2, int *total, int *converged, double *err);

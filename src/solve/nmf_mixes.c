@@ -505,6 +505,12 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     double best = INFINITY;
     fit_mix(s, in, out, SB_NMF_HEADLINE_MIX, 0, 1, &best);
     if (!s->hw_ok || !(s->gam > 0)) return;
+    if (s->first_fit && s->fit) { /* a ranking (the plan's nonneg_first_fit): the first fit alone */
+        memcpy(out->u, s->ub, m * J * sizeof *s->ub);
+        memcpy(out->v, s->vb, n * J * sizeof *s->vb);
+        out->converged = s->conv;
+        return;
+    }
     fit_mix(s, in, out, SB_NMF_SECOND_MIX, 1, 1, &best);
     if (!s->fit && m * n <= SB_NMF_THIRD_CELLS) {
         fit_mix(s, in, out, 1, 1, SB_NMF_THIRD_MARGIN, &best);

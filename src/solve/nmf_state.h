@@ -73,6 +73,7 @@ typedef struct nmf_state {
      * nmf_sweeps.c minimax_weights) */
     int mm;
     double mmc[SB_NMF_MAX_TERMS], mm_eta, mm_last, mm_best;
+    int first_fit; /* the plan's nonneg_first_fit: masked, the first mix's fit kept alone */
 } nmf_state_t;
 
 /* The factor on the last prefix's squared ratio r to the reference, in

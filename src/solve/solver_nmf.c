@@ -129,6 +129,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
      * nested prefixes up to 1.3x further from the SVD's */
     s->max_iters = pb->fit_max_iters > SB_NMF_MAX_ITERS ? pb->fit_max_iters : SB_NMF_MAX_ITERS;
     s->zero_fill = pb->zero_fill;
+    s->first_fit = pb->nonneg_first_fit;
     s->polish_steps = SB_NMF_POLISH_STEPS;
     s->rho = s->rho_all = pb->nonneg_ratio;
     s->rho_ch = pb->nonneg_ratio ? pb->nonneg_ratio_channel : NULL;
@@ -187,7 +188,7 @@ static sb_result_t fill_holes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_
         sb_param_wrap(in->param, side, o.wrap[side]);
     }
     sb_fit_info_t fi;
-    sb_result_t r = sb_fit_execute(s->fit, s->x, s->m, s->ext, &o, out->s, out->u, out->v, &fi);
+    sb_result_t r = fit_memo_execute(s->fit, s->x, s->m, s->ext, &o, out->s, out->u, out->v, &fi);
     if (r != SB_OK || !in->param) return r;
     double *lo = s->e, *hi = s->r; /* free until the stages */
     if (fit_taps_range(&o, s->m, s->n, s->x, s->ext, lo, hi) != 0) return SB_ERR_NOMEM;

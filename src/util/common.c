@@ -16,6 +16,8 @@ struct sb_context {
     char last[1024];
     const char *alias_from, *alias_to; /* sb_context_alias */
     sb_group_t group;                  /* sb_context_set_group; size 0: alone */
+    void *memo;                        /* ctx_memo.c: open while a job runs */
+    void (*memo_free)(void *);         /* frees it */
 };
 
 static const char *const names[SB_RESULT_COUNT_] = {
@@ -38,7 +40,14 @@ sb_result_t sb_context_create(sb_context_t **out) {
     *out = calloc(1, sizeof **out);
     return *out ? SB_OK : SB_ERR_NOMEM;
 }
-void sb_context_destroy(sb_context_t *ctx) { free(ctx); }
+void sb_context_destroy(sb_context_t *ctx) {
+    if (ctx && ctx->memo && ctx->memo_free) ctx->memo_free(ctx->memo);
+    free(ctx);
+}
+void **sb_context_memo_slot(sb_context_t *ctx, void (*memo_free)(void *)) {
+    if (memo_free) ctx->memo_free = memo_free;
+    return &ctx->memo;
+}
 void sb_context_set_error_callback(sb_context_t *ctx, sb_error_fn fn, void *user) {
     if (!ctx) return;
     ctx->fn = fn;

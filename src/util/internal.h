@@ -48,6 +48,10 @@ int sb_write_atomic(const char *path, const void *const *parts, const size_t *si
 /* While from is set, sb_error writes `to` for every occurrence of `from` in
  * its messages (an output set names its target, not its staging folder).
  * Both strings stay owned by the caller; from NULL ends it. */
+/* The slot of ctx that util/ctx_memo.c keeps its memo in (its address),
+ * and the function sb_context_destroy frees what it holds with (set when
+ * not NULL). */
+void **sb_context_memo_slot(sb_context_t *ctx, void (*memo_free)(void *));
 void sb_context_alias(sb_context_t *ctx, const char *from, const char *to);
 /* The group of ctx (sb_context_set_group): whether it has more than one
  * process; whether this process reads block `block` (always when alone);

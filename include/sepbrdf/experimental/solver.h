@@ -42,6 +42,8 @@ typedef struct sb_solve_problem {
     const double *nonneg_ratio;
     /* the plan's nonneg_ratio_channel (factor.h); NULL: none */
     const double *nonneg_ratio_channel;
+    /* the plan's nonneg_first_fit (factor.h) */
+    int nonneg_first_fit;
 } sb_solve_problem_t;
 
 /* One channel. */

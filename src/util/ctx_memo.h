@@ -1,0 +1,31 @@
+/* Private: a memo of byte strings on a context (ctx_memo.c), open while a
+ * job runs.  A deterministic computation keyed by all of its input, as
+ * bytes, stores its output; a later one with the same bytes reads the very
+ * bytes stored, so results do not change.  What it saves: the non-negative
+ * run's masked fit beside each channel is the fit the SVD beside makes of
+ * the same matrix (solve/fit_memo.c).  Between sb_ctx_memo_open and the
+ * matching close (nested pairs share one; the last close frees it), else
+ * nothing is stored or found.  Thread-safe (one lock); it holds at most
+ * SB_CTX_MEMO_BYTES and stores nothing beyond. */
+#ifndef SEPBRDF_CTX_MEMO_H
+#define SEPBRDF_CTX_MEMO_H
+
+#include <stddef.h>
+
+#include "sepbrdf/common.h"
+
+#define SB_CTX_MEMO_BYTES ((size_t)64 << 20)
+
+typedef struct sb_ctx_memo sb_ctx_memo_t;
+
+/* Open (or enter) ctx's memo; a memo that cannot be allocated is none. */
+void sb_ctx_memo_open(sb_context_t *ctx);
+/* Leave it; the last close frees what it holds. */
+void sb_ctx_memo_close(sb_context_t *ctx);
+/* 1 and the value (exactly vlen bytes) in val when key was stored. */
+int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val, size_t vlen);
+/* Store val for key, unless no memo is open, it holds the key or the
+ * bytes would pass SB_CTX_MEMO_BYTES. */
+void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen);
+
+#endif
