@@ -208,7 +208,8 @@ static inline __attribute__((always_inline)) void add_pair(const eval_t *e, cons
             size_t bin = est_bin_of(d2[c], f2[c], lf2[c]);
             bins[j * 4 + c] = (uint32_t)bin;
             hist[(j * 4 + c) * NB + bin] += ew[c];
-            est_max_ratio(&maxr[j * 4 + c], d2[c], f2[c]); /* squares: roots taken in combine() */
+            if (d2[c] > maxr[j * 4 + c] * f2[c]) /* a division only for a new maximum */
+                maxr[j * 4 + c] = d2[c] / f2[c]; /* maxr holds squares: roots taken in combine() */
         }
     }
 }

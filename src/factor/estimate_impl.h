@@ -117,18 +117,6 @@ static inline size_t est_bin_of(double d2, double f2, double lf2) {
     double b = 20 * 0.30102999566398120 * (est_log2(d2) - lf2) + 480;
     return b >= NB - 1 ? NB - 1 : (size_t)b;
 }
-/* *m = max(*m, d / f) for f > 0, the same whatever order the pairs come
- * in: the product test only screens (its margin of 2^-50 lets every
- * quotient above *m through), the quotients themselves are compared.  On
- * the product alone a quotient 1 ulp below the maximum could replace it,
- * depending on which thread met which pair first (max_rel_lit of GGX 0.1
- * on io, -r 64 -J 8, differed in its last bit from run to run). */
-static inline void est_max_ratio(double *m, double d, double f) {
-    if (d > *m * f * (1 - 0x1p-50)) { /* a division only near a new maximum */
-        double q = d / f;
-        *m = q > *m ? q : *m;
-    }
-}
 /* The 99th percentile of the sum of nt histograms (stride apart), at most mx. */
 double est_hist_p99(const uint64_t *hist, size_t stride, int nt, double mx);
 /* Ratio estimate r = sqrt(sum num / sum den) over K replicates (num[k *

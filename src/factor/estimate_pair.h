@@ -98,7 +98,7 @@ est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, c
         for (int c = 0; c < 4; c++) {
             if (!lit[c]) continue;
             hist[(j * 4 + c) * NB + bin[j * 4 + c]] += lw;
-            est_max_ratio(&maxl[j * 4 + c], dj[c], f2[c]);
+            if (dj[c] > maxl[j * 4 + c] * f2[c]) maxl[j * 4 + c] = dj[c] / f2[c];
         }
     }
     e->mnum[k * MM + cell] += d2[(J - 1) * 4 + 3] * q;
