@@ -105,3 +105,42 @@ SB_TEST(prefixes_equal_their_own_runs) {
     sb_param_destroy(p);
     sb_source_destroy(src);
 }
+
+/* A lean estimate (headline_only with bands, every J': what the factor
+ * job's choice and refinement of a layout's two forms read, job_forms.c)
+ * equals the whole one in every figure it has, to the bit, where the
+ * replicates grow from one prefix to the next; the whole one is made
+ * after it on the same pairs, as the job makes the kept fit's. */
+SB_TEST(lean_equals_whole) {
+    enum { J = 5 };
+    sb_param_t *p = NULL;
+    sb_source_t *src = NULL;
+    sb_factors_t *f = fit("microfacet:roughness=0.4", 8, J, &p, &src);
+    sb_estimate_opts_t o = {0}, lo;
+    o.replicate = 512;
+    o.start = 4;
+    o.max_pairs = 64 * 512;
+    lo = o;
+    lo.headline_only = 1;
+    lo.bands = 1;
+    static sb_estimate_t whole, lean;
+    sb_pairs_t *pairs = NULL;
+    CHECK(f && sb_pairs_create(NULL, src, &o, &pairs) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, &lo, &lean) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, &o, &whole) == SB_OK);
+    CHECKF(whole.reps[0] < whole.reps[J - 1], "the case must grow the replicates: %zu, %zu", whole.reps[0],
+           whole.reps[J - 1]);
+    CHECK(lean.converged == whole.converged && lean.replicates == whole.replicates && lean.terms == whole.terms);
+    CHECK(memcmp(lean.band_share, whole.band_share, sizeof lean.band_share) == 0);
+    for (size_t j = 0; j < J; j++) {
+#define SAME(x) (memcmp(&lean.x[j], &whole.x[j], sizeof lean.x[j]) == 0)
+        CHECKF(SAME(rel) && SAME(se) && SAME(reps) && SAME(band) && SAME(band_se), "J' = %zu", j + 1);
+#undef SAME
+        CHECK(sb_estimate_bands_bounded(&lean, j + 1) == sb_estimate_bands_bounded(&whole, j + 1));
+        CHECK(lean.p99[j][3] == 0 && whole.p99[j][3] > 0); /* lean: no percentiles */
+    }
+    sb_pairs_destroy(pairs);
+    sb_factors_destroy(f);
+    sb_param_destroy(p);
+    sb_source_destroy(src);
+}

@@ -208,7 +208,13 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
     job_screen(ctx, job);
     size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
     if (is_named_pair(job, order, n)) {
+        job->est_lean = 1; /* both forms fitted and refined on lean estimates, the kept one's made whole */
         sb_result_t r = named_pair(ctx, job, order);
+        job->est_lean = 0;
+        if (r == SB_OK && job->best.est_lean) {
+            job_level_t lv = job_full_level(job);
+            r = job_estimate(ctx, job, &lv, &job->best);
+        }
         if (r == SB_OK) job_warn_lost(job);
         return r;
     }

@@ -31,6 +31,7 @@ typedef struct job_attempt {
     sb_metric_t metric;        /* grid quadrature (comparable_grid), the kept fit only */
     sb_estimate_t *est;        /* the estimator's errors of the stored factors */
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
+    int est_lean;              /* est holds headlines and bands alone (job->est_lean) */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     double band_weight;        /* the band's weight 1 + w of the cell-weighted fit (job_bandfit.c); 0: plain */
     size_t band_pairs;         /* pairs of the grazing bands' own estimate (job_bandpairs.c); 0: none */
@@ -101,6 +102,11 @@ struct sb_job {
     sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
     sb_pairs_t *band_pairs;      /* pairs with theta_i > 60 degrees for the reported grazing bands (job_bandpairs.c) */
     double t_estimate;           /* the estimator, in all */
+    /* estimates at the requested settings take the headlines and bands of
+     * every J' alone (no percentiles, maxima or colour: what choosing and
+     * refining a fit read): named_pair, the whole estimate made for the
+     * kept fit alone */
+    int est_lean;
     int is_auto;
     int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
     /* --param KIND (a name, not a whole spec; not sample_only): auto
