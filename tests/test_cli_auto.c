@@ -611,22 +611,3 @@ SB_TEST(named_pair_keeps_form_alone_fit) {
     CHECKF(both > 0 && fabs(both - alone) <= 1e-9 * both, "--param hd %.6g (form %s), that form alone %.6g", both, form,
            alone);
 }
-
-/* Under --method stream a layout named alone is fitted in the form its
- * screening ranked first, not in both at the requested R (each a pass
- * over the source block by block): anisotropic GGX on io at R = 24
- * screens f first (1.086 against cos's 1.096 at R = 16) and keeps it,
- * the same fit as `--form f` (both forms fitted keep cos, 0.9852
- * against f's 0.9945). */
-SB_TEST(stream_named_layout_one_form) {
-    const char *dir = sb_tmpdir("auto_stream_one");
-    const char *src = "microfacet:base=gold,roughness=0.3,anisotropy=0.8 --param io -r 24 --method stream";
-    char args[512], form[32];
-    double se, se1;
-    double named = headline_of(src, dir, 4, &se);
-    CHECK(*string_of("form", form, sizeof form) && count(report, "\"kept\": true") == 1);
-    CHECKF(strcmp(form, "f") == 0, "kept form %s, not the screening's first (f)", form);
-    snprintf(args, sizeof args, "%s --form f", src);
-    double alone = headline_of(args, dir, 4, &se1);
-    CHECKF(named > 0 && fabs(named - alone) <= 1e-9 * named, "named %.6g, --form f %.6g", named, alone);
-}

@@ -94,16 +94,10 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
     return SB_OK;
 }
 
-/* Under --method stream every fit at the requested R passes over the
- * source block by block (anisotropic GGX, io, R = 128: 300 s wall a form
- * on the 2-core VM): a layout named alone is fitted in the form its
- * screening ranked first, not in both. */
-static int one_form(const sb_job_t *job) { return job->o.method == SB_METHOD_STREAM; }
-
 /* Whether job_select's candidates are one layout named alone in two forms
  * (named_pair). */
 static int is_named_pair(const sb_job_t *job, const size_t *order, size_t n) {
-    if (n != 2 || !job->layout_auto || job->budget || job->o.max_error > 0 || one_form(job)) return 0;
+    if (n != 2 || !job->layout_auto || job->budget || job->o.max_error > 0) return 0;
     const sb_job_candidate_t *a = &job->cands[order[0]], *b = &job->cands[order[1]];
     return a->kind == b->kind && a->form != b->form;
 }
@@ -240,7 +234,7 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
             r = fit_first(ctx, job, order + first, 1);
         }
     }
-    if (r == SB_OK && n > 1 && job->layout_auto && !job->budget && !(job->o.max_error > 0) && !one_form(job))
+    if (r == SB_OK && n > 1 && job->layout_auto && !job->budget && !(job->o.max_error > 0))
         r = named_other_form(ctx, job, order, n);
     if (r == SB_OK) {
         job_warn_lost(job);
