@@ -611,3 +611,28 @@ SB_TEST(named_pair_keeps_form_alone_fit) {
     CHECKF(both > 0 && fabs(both - alone) <= 1e-9 * both, "--param hd %.6g (form %s), that form alone %.6g", both, form,
            alone);
 }
+
+/* Under --method stream a layout named alone is fitted at the requested R
+ * in one form: the one the same layout fitted dense at R <= 32 keeps (each
+ * stream fit passes over the source block by block).  Anisotropic GGX on
+ * io at R = 24: dense keeps cos (the screen at R = 16 ranks f first), the
+ * stream run fits cos alone, the same fit as `--form cos`. */
+SB_TEST(stream_named_layout_one_form) {
+    const char *dir = sb_tmpdir("auto_stream_one");
+    const char *src = "microfacet:base=gold,roughness=0.3,anisotropy=0.8 --param io -r 24 --method stream";
+    char args[512], form[32];
+    double se, se1;
+    double named = headline_of(src, dir, 4, &se);
+    CHECK(*string_of("form", form, sizeof form) && count(report, "\"kept\": true") == 1);
+    /* one candidate in auto_tried (both forms fitted list two) */
+    CHECKF(count(report, "\"bands_ok\"") == 1, "%d candidates fitted at R = 24", count(report, "\"bands_ok\""));
+    snprintf(args, sizeof args,
+             "factor microfacet:base=gold,roughness=0.3,anisotropy=0.8 --param io -r 24 -J 4 -q -o %s", dir);
+    CHECK(run(args) == 0 && load_report(dir) == 0);
+    char dense[32];
+    CHECKF(*string_of("form", dense, sizeof dense) && strcmp(form, dense) == 0, "stream kept %s, dense %s", form,
+           dense);
+    snprintf(args, sizeof args, "%s --form %s", src, form);
+    double alone = headline_of(args, dir, 4, &se1);
+    CHECKF(named > 0 && fabs(named - alone) <= 1e-9 * named, "named %.6g, --form %s %.6g", named, form, alone);
+}
