@@ -49,6 +49,15 @@ static sb_result_t pair_step(sb_context_t *ctx, sb_job_t *job, sb_job_candidate_
  * most where it was kept (GGX 0.3, iso, J = 4: 2.7 % -> 1.9 %). */
 #define JOB_FORM_FINISH_MARGIN 1.5
 
+/* Which fit of named_pair is kept: the other where the better one's
+ * finishing failed; where both were finished, the second in the order
+ * where its headline is lower, else the first (as before). */
+static int pair_keep(const form_fit_t o[2], int w, int finished_both) {
+    if (o[w].r != SB_OK) return !w;
+    if (!finished_both || o[!w].r != SB_OK) return w;
+    return job_rank_error(&o[1].a) < job_rank_error(&o[0].a);
+}
+
 /* A layout named alone whose screening kept two forms (f and cos) of it:
  * the coarse screen can rank them wrongly at the requested R (GGX 0.3 on
  * hd: cos screened first, 0.0517 at R = 32 against f's 0.0220), so both
@@ -78,12 +87,7 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
         job_attempt_free(&o[1].a);
         return r;
     }
-    /* finished both: the second kept where its headline is lower (as before) */
-    int keep = o[w].r != SB_OK || (other && o[l].r == SB_OK &&
-                                   (l ? job_rank_error(&o[l].a) < job_rank_error(&o[w].a)
-                                      : !(job_rank_error(&o[w].a) < job_rank_error(&o[l].a))))
-                   ? l
-                   : w;
+    int keep = pair_keep(o, w, other);
     if (o[keep].r != SB_OK) return o[keep].r;
     job_attempt_free(&o[!keep].a);
     job->best = o[keep].a;
