@@ -84,9 +84,17 @@ int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val,
     return hit;
 }
 
+/* What the memo may hold: SB_CTX_MEMO_BYTES, less under a low memory
+ * limit (--memory-limit): an eighth of it, the rest for the work itself. */
+static size_t memo_cap(void) {
+    size_t lim = sb_memory_limit() / 8;
+    return lim < SB_CTX_MEMO_BYTES ? lim : SB_CTX_MEMO_BYTES;
+}
+
 void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen) {
     sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx, NULL) : NULL;
-    if (!m || klen > SB_CTX_MEMO_BYTES || vlen > SB_CTX_MEMO_BYTES - klen) return;
+    size_t cap = memo_cap();
+    if (!m || klen > cap || vlen > cap - klen) return;
     uint64_t h = fnv1a(key, klen);
     entry_t *e = calloc(1, sizeof *e);
     unsigned char *b = e ? malloc(klen + vlen) : NULL;
@@ -98,7 +106,7 @@ void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const vo
     memcpy(b + klen, val, vlen);
     *e = (entry_t){NULL, h, klen, vlen, b};
     pthread_mutex_lock(&m->mu);
-    int keep = m->bytes + klen + vlen <= SB_CTX_MEMO_BYTES && !lookup(m, h, key, klen);
+    int keep = m->bytes + klen + vlen <= cap && !lookup(m, h, key, klen);
     if (keep) {
         e->next = m->head;
         m->head = e;

@@ -6,7 +6,8 @@
  * the same matrix (solve/fit_memo.c).  Between sb_ctx_memo_open and the
  * matching close (nested pairs share one; the last close frees it), else
  * nothing is stored or found.  Thread-safe (one lock); it holds at most
- * SB_CTX_MEMO_BYTES and stores nothing beyond. */
+ * SB_CTX_MEMO_BYTES (an eighth of sb_memory_limit where that is less) and
+ * stores nothing beyond. */
 #ifndef SEPBRDF_CTX_MEMO_H
 #define SEPBRDF_CTX_MEMO_H
 
