@@ -386,10 +386,14 @@ void cli_signals_install(void) {
 
 /* ---- output sets --------------------------------------------------------- */
 
-/* The staging folder the signal handler removes. */
+/* The staging folder the signal handler removes; with it, the output
+ * folder where this run created it (user: the flag saying so).  Both are
+ * known from before the staging folder exists: a signal that finds the
+ * staging folder finds the folder guarded too. */
 static void guard_staging(void *user, const char *staging) {
-    (void)user;
+    const int *created = user;
     size_t n = strlen(staging);
+    if (created && *created) atomic_store(&guard_created_on, 1);
     atomic_store(&guard_set_on, 0);
     if (n >= GUARD_PATH) return;
     memcpy(guard_set, staging, n + 1);
@@ -401,17 +405,17 @@ static void guard_staging(void *user, const char *staging) {
 }
 
 sb_outset_t *cli_outset_begin(sb_context_t *ctx, const char *cmd, const char *dir, int *rc) {
-    sb_outset_opts_t so = {cmd, 0, guard_staging, NULL};
     sb_outset_t *s = NULL;
     struct stat st;
     size_t n = strlen(dir);
     atomic_store(&guard_created_on, 0);
     int created = n < GUARD_PATH && stat(dir, &st) != 0 && errno == ENOENT;
     if (created) memcpy(guard_created, dir, n + 1);
+    sb_outset_opts_t so = {cmd, 0, guard_staging, &created};
     sb_result_t r = sb_outset_begin(ctx, dir, &so, &s);
-    if (r == SB_OK && created) atomic_store(&guard_created_on, 1);
     if (r != SB_OK) {
         atomic_store(&guard_set_on, 0);
+        atomic_store(&guard_created_on, 0);
         cli_error(cmd, "--out %s", sb_context_last_error(ctx));
         *rc = cli_exit_code(r);
         return NULL;
