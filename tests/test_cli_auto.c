@@ -612,6 +612,31 @@ SB_TEST(named_pair_keeps_form_alone_fit) {
            alone);
 }
 
+/* A layout named alone in two forms on io (every cell a pair, each fit
+ * one SVD) of an analytic source is not screened at R = 8 and 16: both
+ * forms are fitted at R anyway (job_forms.c pair_unscreened), and each
+ * candidate reports its fit at R (as fitted, before the term weights),
+ * the kept one's headline the run's.
+ * Lambert's cos (the screen dropped it at R = 8, 2x behind f's exact fit)
+ * is fitted too and loses. */
+SB_TEST(named_io_pair_unscreened) {
+    const char *dir = sb_tmpdir("auto_io_pair");
+    const char *srcs[2] = {"--param io -r 24", "lambert --param io -r 24"};
+    const char *kept[2] = {"cos", "f"};
+    for (int s = 0; s < 2; s++) {
+        double se, h = headline_of(srcs[s], dir, 4, &se);
+        char form[32];
+        const char *tried = strstr(report, "\"auto_tried\": [");
+        CHECKF(tried && count(tried, "\"resolution\": 24,") == 2 && count(tried, "\"ok\": true") == 2 &&
+                   count(tried, "\"kept\": true") == 1,
+               "%s: %s", srcs[s], tried ? tried : report);
+        CHECKF(strcmp(string_of("form", form, sizeof form), kept[s]) == 0, "%s: kept %s", srcs[s], form);
+        double k = number_of(tried ? strstr(tried, "\"kept\": true") : NULL, "headline");
+        CHECKF(h > 0 && fabs(k - h) <= 1e-6 * h, "%s: kept candidate %.17g, headline %.17g", srcs[s], k, h);
+        CHECKF(number_of(report, "screen_s") == 0, "%s: screened", srcs[s]);
+    }
+}
+
 /* Under --method stream a layout named alone is fitted at the requested R
  * in one form: the one the same layout fitted dense at R <= 32 keeps (each
  * stream fit passes over the source block by block).  Anisotropic GGX on

@@ -58,6 +58,16 @@ static int pair_keep(const form_fit_t o[2], int w, int finished_both) {
     return job_rank_error(&o[1].a) < job_rank_error(&o[0].a);
 }
 
+/* Candidate c, not screened (pair_unscreened), as fitted at R: its
+ * ranking error, band bounds and band errors at J, as a screening records
+ * them (report.json auto_tried). */
+static void pair_record(sb_job_candidate_t *c, const job_attempt_t *a) {
+    size_t J = sb_factors_terms(a->f), j = J < a->est->terms ? J : a->est->terms;
+    c->error = job_rank_error(a);
+    c->bands_ok = sb_estimate_bands_bounded(a->est, j);
+    job_band_errors(a->est, J, c->band_err);
+}
+
 /* A layout named alone whose screening kept two forms (f and cos) of it:
  * the coarse screen can rank them wrongly at the requested R (GGX 0.3 on
  * hd: cos screened first, 0.0517 at R = 32 against f's 0.0220), so both
@@ -66,15 +76,20 @@ static int pair_keep(const form_fit_t o[2], int w, int finished_both) {
  * other too where it is within JOB_FORM_FINISH_MARGIN (then compared
  * finished): on the default gold, hd, cos's converged fit and refinement
  * were a third of the run and it lost by 1.8x. */
-static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *order) {
+static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *order, int unscreened) {
     sb_job_candidate_t *c[2] = {&job->cands[order[0]], &job->cands[order[1]]};
     form_fit_t o[2];
     memset(o, 0, sizeof o);
-    for (int k = 0; k < 2; k++)
-        if (pair_step(ctx, job, c[k], &o[k], 0) == SB_ERR_NOMEM) {
+    for (int k = 0; k < 2; k++) {
+        job->est_lean = !(unscreened && k == 0); /* pair_unscreened_order */
+        sb_result_t rk = pair_step(ctx, job, c[k], &o[k], 0);
+        job->est_lean = 1;
+        if (rk == SB_ERR_NOMEM) {
             job_attempt_free(&o[0].a);
             return SB_ERR_NOMEM;
         }
+        if (unscreened && o[k].r == SB_OK) pair_record(c[k], &o[k].a);
+    }
     if (o[0].r != SB_OK && o[1].r != SB_OK) return o[1].r;
     int w = o[0].r != SB_OK || (o[1].r == SB_OK && job_rank_error(&o[1].a) < job_rank_error(&o[0].a)), l = !w;
     int other = o[l].r == SB_OK && !(job_rank_error(&o[l].a) > JOB_FORM_FINISH_MARGIN * job_rank_error(&o[w].a));
@@ -104,6 +119,53 @@ static int is_named_pair(const sb_job_t *job, const size_t *order, size_t n) {
     if (n != 2 || !job->layout_auto || job->budget || job->o.max_error > 0) return 0;
     const sb_job_candidate_t *a = &job->cands[order[0]], *b = &job->cands[order[1]];
     return a->kind == b->kind && a->form != b->form;
+}
+
+/* A layout named alone in two forms (f and cos) on a layout whose every
+ * cell is a pair (no mask, no tables: io, io-area; each fit one SVD) of
+ * an analytic source: both forms are fitted at R and the lower headline
+ * kept (named_pair) whatever the screening ranks, so it is not screened
+ * (R = 8 and 16, both forms, four ranking estimates: a fifth of io -r 64's
+ * CPU); each candidate records its fit at R instead (pair_record).  A form
+ * the screening would have dropped (2x worse there: lambert's cos) is
+ * fitted too, and kept only where its headline is lower.  Masked layouts
+ * (their fits at R cost seconds, the coarse drop saves one) and measured
+ * tables (the warp screening reads the screened candidates) are screened
+ * as before. */
+static int pair_unscreened(sb_job_t *job) {
+    if (job->ncand != 2 || job->is_auto || !job->layout_auto || job->budget || job->o.max_error > 0 ||
+        job->o.sample_only || job->scene || (sb_source_flags(job->src) & SB_SOURCE_MEASURED))
+        return 0;
+    sb_job_candidate_t *a = &job->cands[0], *b = &job->cands[1];
+    unsigned caps = sb_param_kind_caps(a->kind);
+    if (a->kind != b->kind || a->form == b->form || a->why[0] || b->why[0] || a->dropped || b->dropped ||
+        (caps & (SB_CAP_PARTIAL_DOMAIN | SB_CAP_TABLES)))
+        return 0;
+    for (int k = 0; k < 2; k++) {
+        sb_job_candidate_t *c = &job->cands[k];
+        c->ok = 1;
+        c->res = job->o.res;
+        c->error = NAN;
+        c->bands_ok = -1;
+        c->band_err[0] = c->band_err[1] = NAN;
+        job->cand_need[k] = 0;
+    }
+    return 1;
+}
+
+/* The order of pair_unscreened's two forms: cos first, its estimate made
+ * whole as fitted (the lean one is that estimate's headlines and bands to
+ * the bit: estimate_prefix.lean_equals_whole), so where cos is kept and
+ * not refined no estimate is made again (io -r 64: 5 ms, a lean estimate,
+ * of about 90); f's estimate lean.  cos was kept on io -r 32 and 64 of
+ * the default gold, GGX 0.1 and 0.3, phong:n=100 and blinn-phong:n=200, f
+ * on lambert (its exact fit: then 13 ms more). */
+static void pair_unscreened_order(const sb_job_t *job, size_t *order) {
+    if (job->cands[order[0]].form != SB_FORM_COS) {
+        size_t t = order[0];
+        order[0] = order[1];
+        order[1] = t;
+    }
 }
 
 /* Fit the candidates in `order` at the requested settings until one
@@ -209,11 +271,13 @@ sb_result_t job_select(sb_context_t *ctx, sb_job_t *job) {
         c->res = job->o.res;
         return r;
     }
-    job_screen(ctx, job);
+    int unscreened = pair_unscreened(job);
+    if (!unscreened) job_screen(ctx, job);
     size_t order[JOB_MAX_CANDS] = {0}, n = job_rank(job, order);
     if (is_named_pair(job, order, n)) {
+        if (unscreened) pair_unscreened_order(job, order);
         job->est_lean = 1; /* both forms fitted and refined on lean estimates, the kept one's made whole */
-        sb_result_t r = named_pair(ctx, job, order);
+        sb_result_t r = named_pair(ctx, job, order, unscreened);
         job->est_lean = 0;
         if (r == SB_OK && job->best.est_lean) {
             job_level_t lv = job_full_level(job);
