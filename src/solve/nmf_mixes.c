@@ -120,12 +120,16 @@
  * there: 19-36x at J' = 2-4), the last prefix's ratio counted
  * SB_NMF_MINIMAX_LAST times (at 1 the gold's J' = 4 went 1.42 -> 1.51).
  * The default gold at J = 4: 1.86, 1.39, 1.42, 1.42 -> 1.53, 1.50, 1.21,
- * 1.41x the SVD's headline (round h38b, docs/positive.md). */
+ * 1.41x the SVD's headline (round h38b, docs/positive.md).  Fill 0.01 ->
+ * 0.003 and the last 1.1 -> 1.05 (round h38m): the gold's J = 4 1.53,
+ * 1.46, 1.23, 1.45 (worst channel at J' = 4 1.50 -> 1.49), the Cornell
+ * acrylic's green J' = 1 1.58 -> 1.53; J' = 1 stays at the frontier (1.52
+ * at every fill from 0.001 to 0.01 and last from 1 to 1.1). */
 #define SB_NMF_MINIMAX_SWEEPS 120
 #define SB_NMF_MINIMAX_ETA 1.0
 #define SB_NMF_MINIMAX_ABOVE 1.5
-#define SB_NMF_MINIMAX_FILL 0.01
-#define SB_NMF_MINIMAX_LAST 1.1
+#define SB_NMF_MINIMAX_FILL 0.003
+#define SB_NMF_MINIMAX_LAST 1.05
 /* On vndf (SB_CAP_TABLES), given the headline's own ratios (the job's
  * refit, s->rho): the same minimax after to_headline, in the headline's
  * weights spread to the nodes beside (max(hw, SB_NMF_SPREAD_TABLES times
