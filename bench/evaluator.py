@@ -460,6 +460,10 @@ def main():
             f = model(spec, L, V)
         ft, _ = reconstruct(folder, L, V, terms)
         q = L[:, 2]**2 * wgt
+        if rep["estimate"].get("domain") == "cap":  # --theta-max: both directions within the cap
+            tm = float(rep["param_spec"].split("theta_max=")[1].split(",")[0]) if "theta_max=" in rep[
+                "param_spec"] else 90.0
+            q = q * ((L[:, 2] >= np.cos(np.radians(tm))) & (V[:, 2] >= np.cos(np.radians(tm))))
         e2 = ((ft - f[None])**2).sum(-1) * q[None]
         f2 = (f**2).sum(-1) * q
         r = np.stack([-L[:, 0], -L[:, 1], L[:, 2]], -1)
@@ -469,10 +473,11 @@ def main():
         num.append([[(e2[j] * m).sum() for m in masks] for j in range(terms)])
         den.append([(f2 * m).sum() for m in masks])
     num, den = np.array(num), np.array(den)  # (B, J, K), (B, K)
-    ratio = np.sqrt(num.sum(0) / den.sum(0)[None])
-    # jackknife standard error over the batches
-    jk = np.array([np.sqrt((num.sum(0) - num[i]) / (den.sum(0) - den[i])[None])
-                   for i in range(batches)])
+    with np.errstate(invalid="ignore", divide="ignore"):  # a band beyond a cap: empty, read as 0
+        ratio = np.nan_to_num(np.sqrt(num.sum(0) / den.sum(0)[None]))
+        # jackknife standard error over the batches
+        jk = np.nan_to_num(np.array([np.sqrt((num.sum(0) - num[i]) / (den.sum(0) - den[i])[None])
+                                     for i in range(batches)]))
     se = np.sqrt((batches - 1) / batches * ((jk - jk.mean(0))**2).sum(0))
     bad = 0
     print(f"{folder}: {rep['param_spec'][:60]} form {rep['form']} storage "

@@ -278,6 +278,7 @@ int sb_job_headline_non_increasing(const sb_job_t *job) {
 static void report_estimator(sb_json_t *j, const sb_job_t *job) {
     const sb_estimate_t *est = job->best.est;
     sb_json_begin_object(j, "estimate");
+    sb_json_string(j, "domain", job->scene ? "scene" : (job_measures_cap(job) ? "cap" : "hemisphere"));
     sb_json_int(j, "pairs", (long long)est->pairs);
     sb_json_int(j, "known", (long long)est->known);
     sb_json_int(j, "replicates", (long long)est->replicates);
