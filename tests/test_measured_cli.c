@@ -608,6 +608,10 @@ SB_TEST(convert_errors) {
     CHECK(cli("convert lambert -o %s/x.txt", dir) == 1 && strstr(out, "--format"));
     CHECK(cli("convert lambert -o %s/x.csv --format exr", dir) == 1 && strstr(out, "'exr'"));
     CHECK(cli("convert lambert -o %s/no/such/x.csv", dir) == 2);
+    /* the file asked for, not its temporary name (on main: "x.binary.tmp-PID: cannot create") */
+    CHECKF(cli("convert lambert -o %s/no/such/x.binary", dir) == 2 && strstr(out, "no/such/x.binary: cannot write") &&
+               !strstr(out, ".tmp-"),
+           "%s", out);
     snprintf(p, sizeof p, "%s/bad.csv", dir);
     FILE *fp = fopen(p, "w");
     fputs("theta_i,phi_i,theta_o,phi_o,value\n10,0,oops,180,1\n", fp);

@@ -12,12 +12,15 @@
 #include <map>
 
 namespace metal {
-SB_EW1(round, std::round) SB_EW1(exp, std::exp) SB_EW1(log, std::log) SB_EW1(tan, std::tan) SB_EW1(asin, std::asin)
-SB_EW1(ceil, std::ceil) SB_EW1(trunc, std::trunc)
-SB_EW1(saturate, [](float x) { return x < 0 ? 0.0f : x > 1 ? 1.0f : x; })
-SB_EW1(sign, [](float x) { return x > 0 ? 1.0f : x < 0 ? -1.0f : 0.0f; })
-SB_EW2(pow, std::pow(a, b)) SB_EW2(step, b < a ? 0 : 1)
-inline float fmod(float a, float b) { return std::fmod(a, b); }
+SB_EW1(round, std::round)
+SB_EW1(exp, std::exp) SB_EW1(log, std::log) SB_EW1(tan, std::tan) SB_EW1(asin, std::asin) SB_EW1(ceil, std::ceil)
+    SB_EW1(trunc, std::trunc) SB_EW1(saturate, [](float x) {
+        return x < 0 ? 0.0f : x > 1 ? 1.0f : x;
+    }) SB_EW1(sign, [](float x) {
+        return x > 0 ? 1.0f : x < 0 ? -1.0f : 0.0f;
+    }) SB_EW2(pow, std::pow(a, b)) SB_EW2(step, b < a ? 0 : 1) inline float fmod(float a, float b) {
+    return std::fmod(a, b);
+}
 } // namespace metal
 
 struct sb_tex { /* one texture (array): layers x h x w x 4 floats */
@@ -50,7 +53,8 @@ static float4 sb_load(const void *self, int x, int y, int layer) {
     const sb_tex &t = sb_texs.at(self);
     float4 r;
     for (int c = 0; c < 4; c++)
-        r[c] = x >= 0 && y >= 0 && x < t.w && y < t.h && layer >= 0 && layer < t.layers ? sb_texel(t, layer, y, x, c) : 0;
+        r[c] =
+            x >= 0 && y >= 0 && x < t.w && y < t.h && layer >= 0 && layer < t.layers ? sb_texel(t, layer, y, x, c) : 0;
     return r;
 }
 
