@@ -12,13 +12,15 @@
 #include <map>
 
 namespace metal {
+// clang-format off
 SB_EW1(round, std::round)
 SB_EW1(exp, std::exp) SB_EW1(log, std::log) SB_EW1(tan, std::tan) SB_EW1(asin, std::asin) SB_EW1(ceil, std::ceil)
     SB_EW1(trunc, std::trunc) SB_EW1(saturate, [](float x) {
         return x < 0 ? 0.0f : x > 1 ? 1.0f : x;
     }) SB_EW1(sign, [](float x) {
         return x > 0 ? 1.0f : x < 0 ? -1.0f : 0.0f;
-    }) SB_EW2(pow, std::pow(a, b)) SB_EW2(step, b < a ? 0 : 1) inline float fmod(float a, float b) {
+    }) SB_EW2(pow, std::pow(a, b)) SB_EW2(step, b < a ? 0 : 1) // clang-format on
+    inline float fmod(float a, float b) {
     return std::fmod(a, b);
 }
 } // namespace metal
