@@ -435,6 +435,9 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
  * returns 0 beyond, and the fit's weights are the domain's as before);
  * else the whole hemisphere pair's. */
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
+/* Pairs drawn within the --theta-max cap (both directions within it) into
+ * *out: the estimator's without a scene, a scene's whole domain. */
+sb_result_t job_cap_pairs(sb_context_t *ctx, sb_job_t *job, const sb_estimate_opts_t *eo, sb_pairs_t **out);
 /* Whether the errors are measured within a --theta-max cap without a
  * scene (job_pairs_create). */
 static inline int job_measures_cap(const sb_job_t *job) { return !job->scene && job->o.theta_max_deg < 90 - 1e-9; }

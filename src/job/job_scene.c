@@ -67,18 +67,20 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
     return r;
 }
 
+sb_result_t job_cap_pairs(sb_context_t *ctx, sb_job_t *job, const sb_estimate_opts_t *eo, sb_pairs_t **out) {
+    char spec[96];
+    double t = job->o.theta_max_deg; /* the scene --theta-max means, for measuring only */
+    snprintf(spec, sizeof spec, "view=0..%.17g;light=0..%.17g", t, t);
+    sb_result_t r = job->cap_scene ? SB_OK : sb_scene_parse(ctx, spec, &job->cap_scene);
+    return r == SB_OK ? sb_scene_pairs_create(ctx, job->cap_scene, job->src, eo, out) : r;
+}
+
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job) {
     if (job->pairs) return SB_OK;
     sb_estimate_opts_t eo = {0};
     eo.channels = job->o.channels; /* measured on the channels factored (--channels) */
     if (job->scene) return sb_scene_pairs_create(ctx, job->scene, job->src, &eo, &job->pairs);
-    if (job_measures_cap(job)) { /* the scene --theta-max means, for measuring only */
-        char spec[96];
-        double t = job->o.theta_max_deg;
-        snprintf(spec, sizeof spec, "view=0..%.17g;light=0..%.17g", t, t);
-        sb_result_t r = job->cap_scene ? SB_OK : sb_scene_parse(ctx, spec, &job->cap_scene);
-        return r == SB_OK ? sb_scene_pairs_create(ctx, job->cap_scene, job->src, &eo, &job->pairs) : r;
-    }
+    if (job_measures_cap(job)) return job_cap_pairs(ctx, job, &eo, &job->pairs);
     eo.start = JOB_EST_START;
     return sb_pairs_create(ctx, job->src, &eo, &job->pairs);
 }
