@@ -9,6 +9,8 @@ centres at (x + 0.5)/W, SB_EDGE_H_S, sb_scale, SB_CLAMP, the form's
 division), evaluates the source model from the README's formulas (lambert,
 phong, cook-torrance with GGX / Smith-Schlick / Schlick) and compares the
 headline, theta_i/theta_o > 60 degree and specular bands with report.json.
+Where report.json's estimate.domain is "cap" (--theta-max below 90), only
+the pairs with both directions within the cap count (a band beyond: 0).
 
     python3 bench/evaluator.py DIR [PAIRS] [SEED]
     EVAL_REF=DIR8 python3 bench/evaluator.py DIR   # an RGL file: DIR8 its vndf
