@@ -9,6 +9,8 @@ centres at (x + 0.5)/W, SB_EDGE_H_S, sb_scale, SB_CLAMP, the form's
 division), evaluates the source model from the README's formulas (lambert,
 phong, cook-torrance with GGX / Smith-Schlick / Schlick) and compares the
 headline, theta_i/theta_o > 60 degree and specular bands with report.json.
+Where report.json's estimate.domain is "cap" (--theta-max below 90), only
+the pairs with both directions within the cap count (a band beyond: 0).
 
     python3 bench/evaluator.py DIR [PAIRS] [SEED]
     EVAL_REF=DIR8 python3 bench/evaluator.py DIR   # an RGL file: DIR8 its vndf
@@ -460,6 +462,10 @@ def main():
             f = model(spec, L, V)
         ft, _ = reconstruct(folder, L, V, terms)
         q = L[:, 2]**2 * wgt
+        if rep["estimate"].get("domain") == "cap":  # --theta-max: both directions within the cap
+            tm = float(rep["param_spec"].split("theta_max=")[1].split(",")[0]) if "theta_max=" in rep[
+                "param_spec"] else 90.0
+            q = q * ((L[:, 2] >= np.cos(np.radians(tm))) & (V[:, 2] >= np.cos(np.radians(tm))))
         e2 = ((ft - f[None])**2).sum(-1) * q[None]
         f2 = (f**2).sum(-1) * q
         r = np.stack([-L[:, 0], -L[:, 1], L[:, 2]], -1)
@@ -469,10 +475,11 @@ def main():
         num.append([[(e2[j] * m).sum() for m in masks] for j in range(terms)])
         den.append([(f2 * m).sum() for m in masks])
     num, den = np.array(num), np.array(den)  # (B, J, K), (B, K)
-    ratio = np.sqrt(num.sum(0) / den.sum(0)[None])
-    # jackknife standard error over the batches
-    jk = np.array([np.sqrt((num.sum(0) - num[i]) / (den.sum(0) - den[i])[None])
-                   for i in range(batches)])
+    with np.errstate(invalid="ignore", divide="ignore"):  # a band beyond a cap: empty, read as 0
+        ratio = np.nan_to_num(np.sqrt(num.sum(0) / den.sum(0)[None]))
+        # jackknife standard error over the batches
+        jk = np.nan_to_num(np.array([np.sqrt((num.sum(0) - num[i]) / (den.sum(0) - den[i])[None])
+                                     for i in range(batches)]))
     se = np.sqrt((batches - 1) / batches * ((jk - jk.mean(0))**2).sum(0))
     bad = 0
     print(f"{folder}: {rep['param_spec'][:60]} form {rep['form']} storage "

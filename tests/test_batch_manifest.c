@@ -46,6 +46,18 @@ SB_TEST(manifest_quoted) {
     CHECKF(rc == 1 && strstr(out, "q.csv:2:") && strstr(out, "never closed"), "rc %d: %s", rc, out);
 }
 
+/* Manifest columns: `theta_max` (the Python package's spelling) is
+ * --theta-max, and a column naming no option is an error at the header
+ * (on main: theta_max "not an option of factor" at the first row that set
+ * it, and a column `term` whose cells are empty ran every row without a
+ * word, exit 0).  Seventh outside pass. */
+SB_TEST(manifest_column_names) {
+    int rc = manifest_run("batch_col1", "u.csv", "source,theta_max\nlambert,60\n");
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    rc = manifest_run("batch_col2", "t.csv", "source,term\nlambert,\nlambert,\n");
+    CHECKF(rc == 1 && strstr(out, "t.csv:1: column 'term': not an option of factor"), "rc %d: %s", rc, out);
+}
+
 /* The quoted row factors the whole spec: silver at roughness 0.3. */
 SB_TEST(manifest_quoted_spec_whole) {
     const char *dir = sb_tmpdir("batch_whole");

@@ -47,7 +47,8 @@ static void help(void) {
            "       and *.md, *.txt, *.json, and *.csv but gonio tables: said on stderr); a\n"
            "       quoted glob ('data/*.binary'); a gonio table FILE.csv (its header names\n"
            "       theta_i); or a manifest FILE.csv: a header line naming `source` and any options of\n"
-           "       `factor` without dashes (param, form, terms, res, method, ...), then\n"
+           "       `factor` without dashes (param, form, terms, res, method, theta-max or\n"
+           "       theta_max, ...; another column is an error), then\n"
            "       one material per row (empty cell: the command line's value; a flag:\n"
            "       1 or 0, weighted 0 meaning unweighted; a relative file is found\n"
            "       beside the manifest).  Read as CSV: a cell holding a comma is quoted\n"
@@ -270,7 +271,20 @@ static int manifest_row(batch_t *b, const char *file, int line, char **cols, cha
     return add(b, source, &o, suffix[0] ? suffix : NULL);
 }
 
-/* The header's columns into cols (their count) or -1 (message printed). */
+/* Whether column `col` names an option of factor (its name without the
+ * dashes); '_' is read as '-', as the Python package writes the options
+ * (theta_max), in place. */
+static int manifest_column(char *col) {
+    for (char *q = col; *q; q++)
+        if (*q == '_') *q = '-';
+    for (const cli_option_t *t = cli_factor_options; t->name; t++)
+        if ((t->commands & CLI_FACTOR) && strcmp(t->name + 2, col) == 0) return 1;
+    return 0;
+}
+
+/* The header's columns into cols (their count) or -1 (message printed).
+ * A column that names no option of factor is an error here, not at the
+ * first row whose cell is not empty (rows with it empty ran without it). */
 static int manifest_header(const char *file, char **p, char **cols, int *lines) {
     int ncols = csv_row(p, cols, MAX_COLUMNS, lines), has_source = 0;
     for (int c = 0; c < ncols; c++)
@@ -279,6 +293,14 @@ static int manifest_header(const char *file, char **p, char **cols, int *lines) 
         cli_error("batch", "%s:1: %s", file, ncols == -2 ? "a quoted cell is never closed" : "too many columns");
     else if (!has_source)
         cli_error("batch", "%s: the header line names no 'source' column", file);
+    for (int c = 0; ncols > 0 && has_source && c < ncols; c++)
+        if (strcmp(cols[c], "source") != 0 && !manifest_column(cols[c])) {
+            cli_error("batch",
+                      "%s:1: column '%s': not an option of factor (its name without the dashes, e.g. terms, "
+                      "theta-max or theta_max; `sepbrdf factor --help`)",
+                      file, cols[c]);
+            return -1;
+        }
     return ncols > 0 && has_source ? ncols : -1;
 }
 

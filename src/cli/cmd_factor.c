@@ -233,6 +233,11 @@ static void print_result(const sb_job_t *job, const char *out, const char *shade
            sb_form_name(m->form),
            sb_job_scene(job) ? ", scene weighted" : (sb_job_weighted(job) ? ", solid-angle weighted" : ""),
            sb_factors_terms(f), sb_factors_get_meta(f, "method"));
+    double cap = sb_param_theta_max(sb_job_param(job)) * 180 / SB_PI;
+    if (!sb_job_scene(job) && cap < 90 - 1e-9)
+        printf("  errors measured within the cap: both directions within %g deg of the normal (the snippet returns "
+               "0 beyond)\n",
+               cap);
     print_table(job);
     print_scene(job);
     print_cv(job);

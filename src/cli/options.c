@@ -299,9 +299,10 @@ const cli_option_t cli_factor_options[] = {
      "error is over the channels factored",
      set_channels, AT(channels), 0, 0, F_},
     {NULL, "--theta-max", "DEG",
-     "largest sampled elevation in degrees (default 90); the\nsnippet returns 0 beyond, and the errors are "
-     "measured\nover the whole hemisphere (a warning says so; --scene\n'view=0..DEG;light=0..DEG' measures within)",
-     cli_set_double, AT(theta_max_deg), 1, 90, F_ | R_},
+     "largest sampled elevation in degrees (default 90); the\nsnippet returns 0 beyond, and the errors (headline, "
+     "bands,\nauto's ranking) are measured within the cap: both\ndirections within DEG of the normal "
+     "(report.json\nestimate.domain \"cap\")",
+     cli_set_double, AT(theta_max_deg), 1, 90, F_ | R_ | S_},
     {NULL, "--seed", "S", "seed of randomized methods (default 1)", set_seed, AT(seed), 0, 0, F_},
     {NULL, "--memory-limit", "SIZE",
      "largest memory to plan for, e.g. 2G (default 3/4 of RAM);\nio and io-area matrices beyond it are streamed",

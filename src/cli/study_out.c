@@ -131,6 +131,10 @@ static void write_json(FILE *fp, const study_opts_t *o, const runs_t *rs, size_t
     json_bool(&j, "zero_fill", o->zero_fill);
     json_string(&j, "method", sb_method_name(o->method));
     json_int(&j, "metric_resolution", (long long)o->metric_res);
+    /* --theta-max below 90: the sampled cap, and every error measured within it */
+    double cap = o->job.theta_max_deg > 0 ? o->job.theta_max_deg : 90;
+    json_number(&j, "theta_max", cap);
+    json_string(&j, "domain", o->job.scene ? "scene" : (cap < 90 - 1e-9 ? "cap" : "hemisphere"));
     json_end_object(&j);
     json_begin_array(&j, "runs");
     for (size_t i = 0; i < rs->n; i++)

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "factor/lookup.h"
+#include "factor/sample_error.h"
 #include "sepbrdf/factor.h"
 #include "sepbrdf/measured.h"
 
@@ -32,6 +33,12 @@ sb_result_t sb_measured_sample_errors(sb_context_t *ctx, const sb_source_t *src,
 sb_result_t sb_measured_sample_errors_channels(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
                                                const sb_param_t *p, sb_form_t form, unsigned channels,
                                                sb_sample_errors_t *out) {
+    return sb_sample_errors_(ctx, src, f, p, form, channels, 0, out);
+}
+
+sb_result_t sb_sample_errors_(sb_context_t *ctx, const sb_source_t *src, const struct sb_factors *f,
+                              const sb_param_t *p, sb_form_t form, unsigned channels, int in_domain,
+                              sb_sample_errors_t *out) {
     unsigned mask = channels & 7u ? channels & 7u : 7u;
     if (!src || !f || !p || !out) return sb_error(ctx, SB_ERR_ARG, "sample errors: missing argument");
     size_t n = sb_source_sample_count(src), J = sb_factors_terms(f);
@@ -44,9 +51,11 @@ sb_result_t sb_measured_sample_errors_channels(sb_context_t *ctx, const sb_sourc
     for (size_t k = 0; k < n; k++) {
         double wi[3], wo[3], v[3], s[3];
         if (!sb_source_sample(src, k, wi, wo, v)) continue;
+        int inside = prefix_values(f, p, form, J, wi, wo, acc);
+        out->outside += (size_t)!inside;
+        if (!inside && in_domain) continue;
         out->samples++;
         double w2 = wi[2] * wi[2] * wo[2] * wo[2];
-        out->outside += (size_t)!prefix_values(f, p, form, J, wi, wo, acc);
         sb_source_eval(src, wi, wo, s);
         for (int c = 0; c < 3; c++) {
             if (!(mask >> c & 1u)) continue; /* a channel not measured: 0 in both */

@@ -116,24 +116,6 @@ static void job_warn_max_error(sb_job_t *job) {
              job->o.max_error, e, J);
 }
 
-/* --theta-max below 90 without a scene: the estimator measures the whole
- * hemisphere pair, where the snippet returns 0 beyond the cap, so every
- * error (and auto's ranking) is mostly those pairs: GGX 0.5 at 60 degrees
- * read 0.756 at every J on every layout, 9e-5 within the cap (sixth
- * outside pass).  Said, with the scene that measures within the cap. */
-static void job_warn_cap(sb_job_t *job) {
-    double t = job->o.theta_max_deg;
-    if (!(t < 90 - 1e-9) || job->scene || !job->best.est || !job->best.f) return;
-    size_t J = sb_factors_terms(job->best.f);
-    double e = sb_estimate_headline(job->best.est, J < job->best.est->terms ? J : job->best.est->terms);
-    job_warn(job,
-             "--theta-max %g: the textures hold the directions within %g deg of the normal and return 0 beyond, "
-             "yet every error here (the headline %.4g at J = %zu, the bands, auto's ranking of the layouts) is "
-             "measured over the whole hemisphere, where those pairs count as error; --scene 'view=0..%g;light=0..%g' "
-             "fits and measures within the cap",
-             t, t, e, J, t, t);
-}
-
 /* Fewer terms than asked without --max-error: the kept layout holds fewer
  * rows (job_terms_capped: vndf's theta_i slices); said, never quiet. */
 static void job_warn_fewer_terms(sb_job_t *job) {
@@ -212,9 +194,7 @@ static sb_result_t job_auto_beside(sb_context_t *ctx, sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     size_t J = a->f ? sb_factors_terms(a->f) : 0;
     double h = J && a->est ? sb_estimate_headline(a->est, J < a->est->terms ? J : a->est->terms) : NAN;
-    /* below --theta-max 90 the pairs beyond the cap dominate: job_warn_cap says so */
-    if (!job->named_alone || job->headline_only || job->no_scene_guard || job->scene || !(h > JOB_EXPLICIT_POOR) ||
-        job->o.theta_max_deg < 90 - 1e-9)
+    if (!job->named_alone || job->headline_only || job->no_scene_guard || job->scene || !(h > JOB_EXPLICIT_POOR))
         return SB_OK;
     int own = -1; /* a layout on the source's own tables, not the named one */
     if (sb_source_layout_tables(job->src) && !(sb_param_caps(a->param) & SB_CAP_TABLES))
@@ -387,7 +367,6 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->stage_s[1] = t1 - ts, job->stage_s[2] = t2 - t1, job->stage_s[3] = t3 - t2, job->stage_s[4] = t4 - t3;
     if (r == SB_OK) {
         job_warn_max_error(job);
-        job_warn_cap(job);
         job_warn_fewer_terms(job);
         job_warn_weights(job);
         double t5 = job_now();

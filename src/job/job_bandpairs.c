@@ -66,7 +66,8 @@ static int bands_precise(const sb_estimate_t *e) {
 }
 
 sb_result_t job_band_pairs_measure(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a) {
-    if (!a->est || !a->f || a->est_rank || job->scene || job->o.sample_only) return SB_OK;
+    /* within a --theta-max cap the estimate's pairs are the cap's: the bands beyond it are not measured */
+    if (!a->est || !a->f || a->est_rank || job->scene || job_measures_cap(job) || job->o.sample_only) return SB_OK;
     if (bands_precise(a->est)) return SB_OK; /* the estimate's own figures stand */
     double t0 = job_now();
     sb_estimate_opts_t eo = {0};

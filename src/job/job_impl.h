@@ -123,6 +123,7 @@ struct sb_job {
     size_t cand_terms[JOB_MAX_CANDS]; /* the terms it is fitted with at R (they differ only with --max-error) */
     job_attempt_t best;
     sb_scene_t *scene;         /* opts.scene parsed, NULL: none (job_scene.c) */
+    sb_scene_t *cap_scene;     /* --theta-max below 90, no scene: the cap, where the estimator's pairs lie */
     sb_pairs_t *domain_pairs;  /* with a scene: the whole domain's pairs */
     sb_estimate_t *domain_est; /* with a scene: the kept fit's errors over the whole domain */
     double *scene_ref;         /* with a scene: the unweighted fit's headline per J' (job_scene_guard.c); NULL: none */
@@ -429,8 +430,17 @@ sb_result_t job_scene_prepare(sb_context_t *ctx, const sb_job_t *job, job_attemp
  * the cells the scene's pairs touch only, the others masked unevaluated,
  * and make a->scene_w for mo's form. */
 sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_matrix_opts_t *mo, job_attempt_t *a);
-/* The estimator's pairs into job->pairs: the scene's, else the domain's. */
+/* The estimator's pairs into job->pairs: the scene's; else below
+ * --theta-max 90 the cap's (both directions within it: the snippet
+ * returns 0 beyond, and the fit's weights are the domain's as before);
+ * else the whole hemisphere pair's. */
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job);
+/* Pairs drawn within the --theta-max cap (both directions within it) into
+ * *out: the estimator's without a scene, a scene's whole domain. */
+sb_result_t job_cap_pairs(sb_context_t *ctx, sb_job_t *job, const sb_estimate_opts_t *eo, sb_pairs_t **out);
+/* Whether the errors are measured within a --theta-max cap without a
+ * scene (job_pairs_create). */
+static inline int job_measures_cap(const sb_job_t *job) { return !job->scene && job->o.theta_max_deg < 90 - 1e-9; }
 /* Whether channel c is factored (--channels): the others are written as 0
  * and every error of the job is over the factored channels only. */
 static inline int job_factors_channel(const sb_job_t *job, int c) {

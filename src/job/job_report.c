@@ -3,6 +3,7 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "factor/sample_error.h"
 #include "job_impl.h"
 #include "sepbrdf/exr.h"
 #include "sepbrdf/measured.h"
@@ -278,6 +279,7 @@ int sb_job_headline_non_increasing(const sb_job_t *job) {
 static void report_estimator(sb_json_t *j, const sb_job_t *job) {
     const sb_estimate_t *est = job->best.est;
     sb_json_begin_object(j, "estimate");
+    sb_json_string(j, "domain", job->scene ? "scene" : (job_measures_cap(job) ? "cap" : "hemisphere"));
     sb_json_int(j, "pairs", (long long)est->pairs);
     sb_json_int(j, "known", (long long)est->known);
     sb_json_int(j, "replicates", (long long)est->replicates);
@@ -333,9 +335,8 @@ static void report_measured(sb_json_t *j, const sb_job_t *job) {
     if (!in) return;
     const job_attempt_t *a = &job->best;
     sb_sample_errors_t se = job->se; /* job_warn_support's, while the terms are those it measured */
-    int have =
-        (a->f && a->f == job->se_f) ||
-        sb_measured_sample_errors_channels(NULL, job->src, a->f, a->param, a->m.form, job->o.channels, &se) == SB_OK;
+    int have = (a->f && a->f == job->se_f) || sb_sample_errors_(NULL, job->src, a->f, a->param, a->m.form,
+                                                                job->o.channels, job_measures_cap(job), &se) == SB_OK;
     sb_json_begin_object(j, "measured");
     sb_json_string(j, "format", in->format);
     sb_json_int(j, "rows", (long long)in->rows);

@@ -3,6 +3,7 @@
  * the estimator's pairs drawn from the scene, and the whole domain's
  * errors beside them in report.json. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -66,11 +67,20 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
     return r;
 }
 
+sb_result_t job_cap_pairs(sb_context_t *ctx, sb_job_t *job, const sb_estimate_opts_t *eo, sb_pairs_t **out) {
+    char spec[96];
+    double t = job->o.theta_max_deg; /* the scene --theta-max means, for measuring only */
+    snprintf(spec, sizeof spec, "view=0..%.17g;light=0..%.17g", t, t);
+    sb_result_t r = job->cap_scene ? SB_OK : sb_scene_parse(ctx, spec, &job->cap_scene);
+    return r == SB_OK ? sb_scene_pairs_create(ctx, job->cap_scene, job->src, eo, out) : r;
+}
+
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job) {
     if (job->pairs) return SB_OK;
     sb_estimate_opts_t eo = {0};
     eo.channels = job->o.channels; /* measured on the channels factored (--channels) */
     if (job->scene) return sb_scene_pairs_create(ctx, job->scene, job->src, &eo, &job->pairs);
+    if (job_measures_cap(job)) return job_cap_pairs(ctx, job, &eo, &job->pairs);
     eo.start = JOB_EST_START;
     return sb_pairs_create(ctx, job->src, &eo, &job->pairs);
 }
@@ -119,6 +129,8 @@ void job_scene_report(sb_json_t *j, const sb_job_t *job) {
 
 void job_scene_free(sb_job_t *job) {
     sb_scene_destroy(job->scene);
+    sb_scene_destroy(job->cap_scene);
+    job->cap_scene = NULL;
     sb_pairs_destroy(job->domain_pairs);
     free(job->domain_est);
     free(job->scene_ref);

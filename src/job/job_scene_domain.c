@@ -73,7 +73,11 @@ sb_result_t job_scene_measure(sb_context_t *ctx, sb_job_t *job) {
     sb_result_t r = SB_OK;
     sb_estimate_opts_t eo = {0};
     eo.channels = job->o.channels;
-    if (!job->domain_pairs) r = sb_pairs_create(ctx, job->src, &eo, &job->domain_pairs);
+    /* below --theta-max 90 the whole domain is the cap: the snippet returns 0 beyond, and the unweighted
+     * fit beside (job_scene_guard.c) is measured there too */
+    if (!job->domain_pairs)
+        r = job->o.theta_max_deg < 90 - 1e-9 ? job_cap_pairs(ctx, job, &eo, &job->domain_pairs)
+                                             : sb_pairs_create(ctx, job->src, &eo, &job->domain_pairs);
     if (r == SB_OK && !job->domain_est && !(job->domain_est = malloc(sizeof *job->domain_est)))
         r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (r == SB_OK) r = domain_estimate(ctx, job);

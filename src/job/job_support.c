@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/sample_error.h"
 #include "job_impl.h"
 #include "sepbrdf/measured.h"
 #include "util/internal.h"
@@ -78,8 +79,8 @@ void job_warn_support(sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     sb_sample_errors_t se;
     job->se_f = NULL;
-    if (a->f &&
-        sb_measured_sample_errors_channels(NULL, job->src, a->f, a->param, a->m.form, job->o.channels, &se) == SB_OK) {
+    if (a->f && sb_sample_errors_(NULL, job->src, a->f, a->param, a->m.form, job->o.channels, job_measures_cap(job),
+                                  &se) == SB_OK) { /* within a --theta-max cap: the samples there only */
         job->se = se, job->se_f = a->f; /* for the report: one pass over a MERL file's 1.4 M cells is seconds */
         size_t keep = supported_terms(&se);
         /* at the table's own floor (its evaluation against its samples: an

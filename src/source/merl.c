@@ -465,7 +465,7 @@ sb_result_t sb_merl_write_stats(sb_context_t *ctx, const char *path, const sb_so
     FILE *fp = fopen(tmp, "wb");
     if (!fp) {
         free(v);
-        return sb_error(ctx, SB_ERR_IO, "%s: cannot create: %s", tmp, strerror(errno));
+        return sb_error(ctx, SB_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
     }
     unsigned char head[12], buf[8 * 4096];
     const int32_t dims[3] = {SB_MERL_TH, SB_MERL_TD, SB_MERL_PD};
