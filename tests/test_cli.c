@@ -29,6 +29,20 @@ static double json_first_number(const char *path, const char *key) {
     return p ? atof(p + strlen(pat)) : NAN;
 }
 
+/* The first number of the array at key in the JSON file at path. */
+static double json_array_first(const char *path, const char *key) {
+    FILE *fp = fopen(path, "r");
+    if (!fp) return NAN;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    buf[n] = 0;
+    fclose(fp);
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": [", key);
+    const char *p = strstr(buf, pat);
+    return p ? atof(p + strlen(pat) + strspn(p + strlen(pat), " \n")) : NAN;
+}
+
 /* 0 when the file at path holds a line matching the basic regex re. */
 static int file_matches(const char *path, const char *re) {
     char cmd[4096];
@@ -276,9 +290,12 @@ SB_TEST(theta_max_measured_within_cap) {
     CHECKF(h < 0.01 && se > 0, "within the cap: headline %g +- %g (on main 0.648)", h, se);
     CHECKF(file_matches(path, "\"domain\": \"cap\"") == 0, "%s: no estimate.domain \"cap\"", path);
     rc = run("factor --param iso -r 16 -J 2 --theta-max 60 --scene 'view=0..60;light=0..60' -o %s/b", dir);
-    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    /* the cap's scene fits as the unweighted fit does: no replacement of one by the same (on main a warning,
+     * "worse inside the scene ... (0.0913 % against 0.0913 %)") */
+    CHECKF(rc == 0 && !strstr(out, "worse inside the scene"), "rc %d: %s", rc, out);
     snprintf(path, sizeof path, "%s/b/report.json", dir);
-    double hs = json_first_number(path, "headline"), ses = json_first_number(path, "headline_se");
+    /* the unweighted fit (run a's) measured on the explicit scene's pairs: a's headline within its errors */
+    double hs = json_array_first(path, "unweighted_headline"), ses = json_first_number(path, "headline_se");
     CHECKF(fabs(h - hs) <= 4 * hypot(se, ses) + 1e-12, "cap %g +- %g, the explicit scene %g +- %g", h, se, hs, ses);
     /* with a scene the whole domain is the cap too (on main the whole hemisphere, where the snippet returns
      * 0: 0.644), as the unweighted fit beside is measured now (else its ratio to it, 706x, replaced the fit) */

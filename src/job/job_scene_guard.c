@@ -86,6 +86,8 @@ static job_level_t level(const sb_job_t *job, size_t J) {
                          .fit_max_iters = job->o.fit_max_iters};
 }
 
+static int same(double a, double b) { return fabs(a - b) <= FLOOR_SAME * fabs(b); }
+
 sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, int *replace) {
     size_t J = sb_factors_terms(job->best.f);
     *replace = 0;
@@ -102,14 +104,16 @@ sb_result_t job_scene_reference(sb_context_t *ctx, sb_job_t *job, sb_job_t *u, i
     }
     /* within: the unweighted fit inside the scene (u's estimate is the
      * scene's from here), kept where lower there (Phong n = 100 on rv,
-     * R = 16, J = 4: the scene fit 0.133 %, the unweighted 0.0999 %) */
+     * R = 16, J = 4: the scene fit 0.133 %, the unweighted 0.0999 %); not
+     * where the two are the same within FLOOR_SAME (a scene that is the
+     * --theta-max cap fits as the unweighted fit does: 0.0226 % against
+     * 0.0226 % was a replacement and a warning) */
     job_level_t lv = level(job, J);
     sb_result_t r = job_estimate_again(ctx, job, &lv, &u->best);
-    if (r == SB_OK && sb_job_headline(u, J) < sb_job_headline(job, J)) *replace = JOB_SCENE_INSIDE;
+    double hu = sb_job_headline(u, J), hs = sb_job_headline(job, J);
+    if (r == SB_OK && hu < hs && !same(hu, hs)) *replace = JOB_SCENE_INSIDE;
     return r;
 }
-
-static int same(double a, double b) { return fabs(a - b) <= FLOOR_SAME * fabs(b); }
 
 /* The next floor: the ladder as above, then (a floor within and one not
  * bracketing the bound) FLOOR_BISECT bisections on log floor between the
