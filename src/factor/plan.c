@@ -34,7 +34,7 @@ struct sb_plan {
     double *ssq, *mx, *scratch;  /* errors: 3 J sums, 3 J maxima, residual scratch */
     int nthreads;                /* residual threads */
     sb_plan_stats_t stats;
-    size_t conv_terms; /* the leading terms converged in every channel (plan_conv.h) */
+    size_t conv_terms;         /* the leading terms converged in every channel (plan_conv.h) */
     const sb_factors_t *start; /* the next execute's warm start (sb_plan_set_start) */
 };
 
