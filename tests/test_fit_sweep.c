@@ -88,3 +88,74 @@ SB_TEST(cells_kept_between_runs_change_nothing) {
     }
     sb_fit_destroy(kept);
 }
+
+/* The largest |difference| of the reconstructions sum_j s_j u_j v_j^T of
+ * two k-term fits over every cell, relative to the largest of the first. */
+static double recon_diff(const double *s0, const double *U0, const double *V0, const double *s1, const double *U1,
+                         const double *V1, size_t m, size_t n, size_t k) {
+    double d = 0, big = 0;
+    for (size_t c = 0; c < n; c++)
+        for (size_t r = 0; r < m; r++) {
+            double a = 0, b = 0;
+            for (size_t j = 0; j < k; j++)
+                a += s0[j] * U0[r + j * m] * V0[c + j * n], b += s1[j] * U1[r + j * m] * V1[c + j * n];
+            d = fmax(d, fabs(a - b)), big = fmax(big, fabs(a));
+        }
+    return big > 0 ? d / big : d;
+}
+
+/* A warm start (sb_fit_set_start, the refits of job_cv.c): a fit started
+ * from its own converged factors stops at once (a sweep or two a stage,
+ * where the cold fit took tens) with the same fit, for four terms (the
+ * joint stages alone) and six (then two pieces); started from the fit of
+ * a nearby matrix (the values moved 1 %) it gets that matrix's own fit in
+ * fewer sweeps; and the start is taken once (the next fit is cold: the
+ * same bits as a fresh one). */
+SB_TEST(warm_start_from_converged_fit_stops_at_once) {
+    enum { M = 48, N = 40, KMAX = 6 };
+    static double A[M * N], B[M * N];
+    static unsigned char mask[M * N];
+    uint64_t seed = 4242;
+    for (size_t c = 0; c < N; c++)
+        for (size_t r = 0; r < M; r++) {
+            double x = (double)r / M, y = (double)c / N;
+            A[r + c * M] = exp(-8 * (x - y) * (x - y)) + 0.3 * x * y + 0.02 * uniform(&seed);
+            B[r + c * M] = A[r + c * M] * (1 + 0.01 * uniform(&seed));
+            mask[r + c * M] = uniform(&seed) < 0.25;
+        }
+    sb_fit_opts_t o = {0};
+    o.max_iters = 300, o.tol = 1e-6;
+    for (size_t k = 4; k <= KMAX; k += 2) {
+        static double s[4][KMAX], U[4][M * KMAX], V[4][N * KMAX];
+        sb_fit_info_t cold = {0}, warm = {0}, near = {0}, again = {0};
+        sb_fit_t *f = NULL, *g = NULL;
+        CHECK(sb_fit_create(NULL, M, N, k, &f) == SB_OK && sb_fit_create(NULL, M, N, k, &g) == SB_OK);
+        if (!f || !g) return;
+        CHECK(fit_chain(f, A, M, mask, &o, s[0], U[0], V[0], &cold) == SB_OK && cold.converged);
+        sb_fit_set_start(f, s[0], U[0], V[0]);
+        CHECK(fit_chain(f, A, M, mask, &o, s[1], U[1], V[1], &warm) == SB_OK && warm.converged);
+        int stages = k == 4 ? 2 : 4; /* the last joint stage (term alone, joint); each piece */
+        CHECKF(warm.iterations <= 2 * stages && warm.iterations * 5 < cold.iterations,
+               "k = %zu: started from its converged fit it swept %d times (cold %d)", k, warm.iterations,
+               cold.iterations);
+        double d = recon_diff(s[0], U[0], V[0], s[1], U[1], V[1], M, N, k);
+        CHECKF(d < 1e-4, "k = %zu: started from its converged fit it moved by %.3g", k, d);
+        CHECKF(warm.rel_err <= cold.rel_err * (1 + 1e-6), "k = %zu: error %.9g from the start, %.9g cold", k,
+               warm.rel_err, cold.rel_err);
+        /* a nearby matrix: from the fit of A, B's own fit in fewer sweeps */
+        CHECK(fit_chain(g, B, M, mask, &o, s[2], U[2], V[2], &near) == SB_OK);
+        sb_fit_set_start(f, s[0], U[0], V[0]);
+        CHECK(fit_chain(f, B, M, mask, &o, s[3], U[3], V[3], &warm) == SB_OK);
+        CHECKF(warm.iterations < near.iterations, "k = %zu: from the nearby fit %d sweeps, cold %d", k, warm.iterations,
+               near.iterations);
+        CHECKF(warm.rel_err <= near.rel_err * 1.01, "k = %zu: from the nearby fit error %.6g, cold %.6g", k,
+               warm.rel_err, near.rel_err);
+        /* taken once: the next fit is cold, a fresh fit's bits */
+        CHECK(fit_chain(f, B, M, mask, &o, s[3], U[3], V[3], &again) == SB_OK);
+        CHECKF(again.iterations == near.iterations && memcmp(s[3], s[2], k * sizeof *s[2]) == 0 &&
+                   memcmp(U[3], U[2], M * k * sizeof *U[2]) == 0,
+               "k = %zu: the fit after a warm one is not cold", k);
+        sb_fit_destroy(f);
+        sb_fit_destroy(g);
+    }
+}

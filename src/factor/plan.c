@@ -34,7 +34,8 @@ struct sb_plan {
     double *ssq, *mx, *scratch;  /* errors: 3 J sums, 3 J maxima, residual scratch */
     int nthreads;                /* residual threads */
     sb_plan_stats_t stats;
-    size_t conv_terms; /* the leading terms converged in every channel (plan_conv.h) */
+    size_t conv_terms;         /* the leading terms converged in every channel (plan_conv.h) */
+    const sb_factors_t *start; /* the next execute's warm start (sb_plan_set_start) */
 };
 
 /* What execute does to one matrix: the solver, channel order and scale. */
@@ -46,6 +47,7 @@ typedef struct run {
     int prop, order[3];
     sb_channels_t chs;
     double pw, n2[3];
+    const sb_factors_t *start; /* the warm start of this execute (sb_plan_set_start) */
 } run_t;
 
 /* Plan solver i of the registry unless it is planned already. */
@@ -278,6 +280,35 @@ static void sign_rule(sb_plan_t *p) {
     }
 }
 
+void sb_plan_set_start(sb_plan_t *p, const sb_factors_t *start) {
+    if (p) p->start = start;
+}
+
+/* Step: the warm start of channel ch for a masked fit (sb_plan_set_start):
+ * u_j = g_j w_r / sqrt(s_j), v_j = h_j w_c / sqrt(s_j) (store_textures
+ * undone) into p->u, p->v, s_j into p->s, handed to the solver; 0 where it
+ * is not taken (no start, another solver or shape, a sigma <= 0). */
+static int start_channel(sb_plan_t *p, const run_t *rn, int ch) {
+    const sb_factors_t *st = rn->start;
+    size_t rows = p->rows, cols = p->cols, J = p->terms, c = (size_t)ch, gw, gh, hw, hh;
+    if (!st || rn->sv != &sb_solver_masked || sb_factors_terms(st) != J || sb_factors_channels(st) <= c) return 0;
+    sb_factors_size(st, SB_SIDE_G, &gw, &gh);
+    sb_factors_size(st, SB_SIDE_H, &hw, &hh);
+    if (gw * gh != rows || hw * hh != cols) return 0;
+    for (size_t j = 0; j < J; j++) {
+        double sj = sb_factors_sigma(st, j, c), rt = sqrt(sj > 0 ? sj : 0);
+        if (!(sj > 0) || !isfinite(sj)) return 0;
+        const double *g = sb_factors_tex_const(st, SB_SIDE_G, j, c), *h = sb_factors_tex_const(st, SB_SIDE_H, j, c);
+        p->s[j] = sj;
+        for (size_t i = 0; i < rows; i++)
+            p->u[i + j * rows] = g[i] * (p->opts.weighted ? p->wr[i] : 1) / rt;
+        for (size_t i = 0; i < cols; i++)
+            p->v[i + j * cols] = h[i] * (p->opts.weighted ? p->wc[i] : 1) / rt;
+    }
+    sb_solver_masked_start(p->state[rn->si], p->s, p->u, p->v);
+    return 1;
+}
+
 /* Step: solve one channel; a proportional channel after the base takes the
  * base's vectors with sigma scaled by |a_c| (h negated for a_c < 0 when the
  * textures are stored). */
@@ -288,6 +319,7 @@ static sb_result_t solve(sb_plan_t *p, const run_t *rn, const sb_solve_in_t *in,
         return SB_OK;
     }
     sb_solve_out_t out = {p->s, p->u, p->v, 0, 1, 0};
+    start_channel(p, rn, ch); /* the masked fit copies its start before it writes out's */
     sb_result_t r = rn->sv->execute(p->state[rn->si], in, &out);
     if (out.iterations > p->stats.fit_iterations) p->stats.fit_iterations = out.iterations;
     if (!out.converged) p->stats.fit_converged = 0;
@@ -442,11 +474,15 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     if (!p || !out) return sb_error(p ? p->ctx : NULL, SB_ERR_ARG, "plan: missing plan or output");
     *out = NULL;
     sb_result_t r = check_execute(p, m, param);
-    run_t rn = {.m = m, .param = param};
+    run_t rn = {.m = m, .param = param, .start = p->start};
+    p->start = NULL; /* this execute's alone */
     if (r == SB_OK && p->opts.weighted) plan_weights(p, param);
     if (r == SB_OK) r = choose_solver(p, &rn);
     if (r != SB_OK) return r;
-    if ((m->structured || m->streamed) && !(rn.sv->caps & SB_CAP_STRUCTURED)) return execute_expanded(p, m, param, out);
+    if ((m->structured || m->streamed) && !(rn.sv->caps & SB_CAP_STRUCTURED)) {
+        p->start = rn.start; /* for the execute on the expanded matrix */
+        return execute_expanded(p, m, param, out);
+    }
     p->stats = (sb_plan_stats_t){m->mask && !p->opts.zero_fill, 0, 1, 0};
     p->conv_terms = p->terms;
     scan_channels(p, &rn);

@@ -12,4 +12,12 @@
  * 0 for a NULL plan. */
 size_t sb_plan_converged_terms(const sb_plan_t *p);
 
+/* A warm start for the plan's next execute (NULL: none; it must outlive
+ * that execute): factors of the same layout and terms (the whole table's
+ * fit, for a refit without one fold of it: job_cv.c) from which a masked
+ * fit starts (fit.h sb_fit_set_start), each channel from its own terms,
+ * undone into the solver's weighted unit vectors.  Other solvers, and a
+ * channel with a term of sigma <= 0, start as without it. */
+void sb_plan_set_start(sb_plan_t *p, const sb_factors_t *start);
+
 #endif

@@ -225,20 +225,12 @@ static double impute(sb_fit_t *f, size_t lda, const unsigned char *mask, double 
     return e2;
 }
 
-/* ALS from the imputation's rank-k estimate: P = qu diag(sqrt s), Q = Vb^T'
- * diag(sqrt s), the sweeps (fit_taps.c), then sigma_j = |p_j| |q_j|, u_j =
- * p_j / |p_j|, v_j = q_j / |q_j|. */
-static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
-                              const sb_fit_opts_t *o, double pw, double norm2, const double *qu, int total, double *s,
-                              double *U, double *V, sb_fit_info_t *info) {
-    size_t m = f->m, n = f->n, k = f->k, l = f->l;
-    for (size_t j = 0; j < k; j++) {
-        double rt = sqrt(f->sb[j] > 0 ? f->sb[j] : 0);
-        for (size_t i = 0; i < m; i++)
-            f->P[i + j * m] = qu[i + j * m] * rt;
-        for (size_t i = 0; i < n; i++)
-            f->Q[i + j * n] = f->vbt[j + i * l] * rt;
-    }
+/* The ALS from the start in f->P, f->Q (fit_taps.c), then sigma_j =
+ * |p_j| |q_j|, u_j = p_j / |p_j|, v_j = q_j / |q_j|. */
+static sb_result_t als_done(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                            const sb_fit_opts_t *o, double pw, double norm2, int total, double *s, double *U, double *V,
+                            sb_fit_info_t *info) {
+    size_t m = f->m, n = f->n, k = f->k;
     int converged = 1; /* the last stage's (fit_als_stages); the info reads the terms' flags */
     double err = 0;
     sb_result_t r = fit_als(f, As, lda, mask, nvalid, o, norm2, &total, &converged, &err);
@@ -260,6 +252,54 @@ static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const u
     return SB_OK;
 }
 
+/* ALS from the imputation's rank-k estimate: P = qu diag(sqrt s), Q = Vb^T'
+ * diag(sqrt s). */
+static sb_result_t als_finish(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                              const sb_fit_opts_t *o, double pw, double norm2, const double *qu, int total, double *s,
+                              double *U, double *V, sb_fit_info_t *info) {
+    size_t m = f->m, n = f->n, k = f->k, l = f->l;
+    for (size_t j = 0; j < k; j++) {
+        double rt = sqrt(f->sb[j] > 0 ? f->sb[j] : 0);
+        for (size_t i = 0; i < m; i++)
+            f->P[i + j * m] = qu[i + j * m] * rt;
+        for (size_t i = 0; i < n; i++)
+            f->Q[i + j * n] = f->vbt[j + i * l] * rt;
+    }
+    return als_done(f, As, lda, mask, nvalid, o, pw, norm2, total, s, U, V, info);
+}
+
+void sb_fit_set_start(sb_fit_t *f, const double *s, const double *U, const double *V) {
+    int all = s && U && V;
+    f->init_s = all ? s : NULL, f->init_u = all ? U : NULL, f->init_v = all ? V : NULL;
+}
+
+/* Whether f's warm start is taken (fit.h): given, every sigma > 0. */
+static int warm_given(const sb_fit_t *f) {
+    int ok = f->init_s != NULL;
+    for (size_t j = 0; ok && j < f->k; j++)
+        ok = f->init_s[j] > 0 && isfinite(f->init_s[j]);
+    return ok;
+}
+
+/* ALS from the warm start: P = U diag(sqrt(s pw)), Q = V diag(sqrt(s
+ * pw)) (X is A times pw), its stages from the last (f->warm). */
+static sb_result_t als_warm(sb_fit_t *f, const double *As, size_t lda, const unsigned char *mask, size_t nvalid,
+                            const sb_fit_opts_t *o, double pw, double norm2, double *s, double *U, double *V,
+                            sb_fit_info_t *info) {
+    size_t m = f->m, n = f->n, k = f->k;
+    for (size_t j = 0; j < k; j++) {
+        double rt = sqrt(f->init_s[j] * pw);
+        for (size_t i = 0; i < m; i++)
+            f->P[i + j * m] = f->init_u[i + j * m] * rt;
+        for (size_t i = 0; i < n; i++)
+            f->Q[i + j * n] = f->init_v[i + j * n] * rt;
+    }
+    f->warm = 1;
+    sb_result_t r = als_done(f, As, lda, mask, nvalid, o, pw, norm2, 0, s, U, V, info);
+    f->warm = 0;
+    return r;
+}
+
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
                            const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info) {
     size_t m = f->m, n = f->n, k = f->k, l = f->l;
@@ -270,6 +310,13 @@ sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsig
     double pw, norm2;
     size_t ninvalid = fill_x(f, A, lda, mask, &pw, &norm2);
     const double *As = lda == m ? f->x : A; /* what the ALS stages read */
+    int warm = f->P && ninvalid > 0 && warm_given(f);
+    if (warm) {
+        sb_result_t rw = als_warm(f, As, lda, mask, m * n - ninvalid, &o, pw, norm2, s, U, V, info);
+        sb_fit_set_start(f, NULL, NULL, NULL); /* taken */
+        return rw;
+    }
+    sb_fit_set_start(f, NULL, NULL, NULL); /* not taken: the next fit starts cold */
     uint64_t seed = o.seed ? o.seed : 1;
     for (size_t i = 0; i < n * l; i++)
         f->v[i] = gauss(&seed);

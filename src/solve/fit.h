@@ -38,5 +38,16 @@ void sb_fit_destroy(sb_fit_t *f);
  * dimension lda too).  s (k), U (m x k), V (n x k) as in sb_svd_execute. */
 sb_result_t sb_fit_execute(sb_fit_t *f, const double *A, size_t lda, const unsigned char *mask,
                            const sb_fit_opts_t *opts, double *s, double *U, double *V, sb_fit_info_t *info);
+/* A warm start for f's next fit (fit_chain or sb_fit_execute; that fit
+ * takes it and leaves none; NULL: none): a k-term fit of this shape, s (k),
+ * U (m x k) and V (n x k) as sb_fit_execute writes them (a converged fit
+ * of a nearby matrix: a refit without a tenth of the table), from which
+ * the alternating least squares start instead of the imputation's
+ * estimate, at their last stage (term k alone on the others, then all k
+ * jointly; the shorter prefixes' errors the start's), so that a fit
+ * started from its own converged factors stops after a sweep a stage.
+ * Taken where every sigma is > 0 and the fit runs its ALS (cells masked,
+ * k <= 32); such a fit is not memoised (fit_memo.c). */
+void sb_fit_set_start(sb_fit_t *f, const double *s, const double *U, const double *V);
 
 #endif

@@ -167,6 +167,15 @@ sb_result_t fit_als_stages(sb_fit_t *f, const double *As, size_t lda, const unsi
         *converged = rs->converged;
         memcpy(f->tconv, rs->tconv, sizeof f->tconv);
         ka0 = k;
+    } else if (f->warm) { /* a warm start (fit.h init_*): the last stage alone, from the start's prefixes */
+        double e2[SB_ALS_MAX_K];
+        prefix_errors(f, ru.cl, k, e2);
+        for (size_t j = 0; j < k; j++)
+            ru.acc[j] = sqrt(e2[j]);
+        memset(f->tconv, 1, sizeof f->tconv);
+        *err = ru.acc[k - 1];
+        *converged = 1;
+        ka0 = k;
     } else {
         memset(f->tconv, 1, sizeof f->tconv);
     }

@@ -57,8 +57,14 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
         }
     /* every cell valid: an SVD, nested already; beyond SB_ALS_MAX_K terms
      * imputation alone */
-    if (ninvalid == 0 || k <= SB_CHAIN_JOINT || k > SB_ALS_MAX_K)
-        return fit_memo_execute(f, A, lda, mask, &o, s, U, V, info);
+    if (ninvalid == 0 || k <= SB_CHAIN_JOINT || k > SB_ALS_MAX_K) /* a warm start is not in the memo's key */
+        return f->init_s ? sb_fit_execute(f, A, lda, mask, &o, s, U, V, info)
+                         : fit_memo_execute(f, A, lda, mask, &o, s, U, V, info);
+    double s0[SB_ALS_MAX_K]; /* the start's sigmas (s is written below: they may be its own) */
+    const double *u0 = f->init_u, *v0 = f->init_v;
+    int warm = f->init_s != NULL;
+    if (warm) memcpy(s0, f->init_s, k * sizeof *s0);
+    sb_fit_set_start(f, NULL, NULL, NULL); /* taken: the pieces each start from their own terms of it */
     sb_result_t r = SB_OK;
     for (int i = 0; i < 2 && r == SB_OK; i++)
         if (!f->sub[i]) r = sb_fit_create(f->ctx, m, n, i ? 1 : SB_CHAIN_JOINT, &f->sub[i]);
@@ -87,6 +93,7 @@ sb_result_t fit_chain(sb_fit_t *f, const double *A, size_t lda, const unsigned c
         sb_fit_info_t fi = {0, 1, 0, kk};
         sb_fit_opts_t oo = o;
         if (done) memset(oo.tex, 0, sizeof oo.tex); /* the pieces: no taps */
+        if (warm) sb_fit_set_start(f->sub[done ? 1 : 0], s0 + done, u0 + done * m, v0 + done * n);
         r = sb_fit_execute(f->sub[done ? 1 : 0], R, lda, mask, &oo, s + done, u + done * m, v + done * n, &fi);
         if (r != SB_OK) break;
         iters += fi.iterations;

@@ -39,6 +39,8 @@ struct sb_fit {
      * fits borrow their parent's (cells_borrowed: not theirs to free) */
     struct als_cells *cells;
     int cells_borrowed;
+    const double *init_s, *init_u, *init_v; /* the next fit's warm start (sb_fit_set_start) */
+    int warm; /* the ALS runs from that start: the stages from the last (fit_als_stages) */
     /* ALS sweep copies of the free columns, row-major: pt[r*kf + j] =
      * P[r + (j0+j)*m], qt likewise, and their outer products (lower
      * triangles, kt = kf(kf+1)/2 values per row / column) */

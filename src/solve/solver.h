@@ -24,6 +24,12 @@ static inline size_t sb_solve_stream_cols(size_t rows, size_t cols) {
 size_t sb_solver_index(const sb_solve_problem_t *pb);
 const sb_solver_t *sb_solver_at(size_t i);
 
+/* The masked solver (solver_masked.c) and a warm start for its next
+ * execute on state (fit.h sb_fit_set_start: s, u, v as it writes them,
+ * read before it writes them; the plan's sb_plan_set_start). */
+extern const sb_solver_t sb_solver_masked;
+void sb_solver_masked_start(void *state, const double *s, const double *u, const double *v);
+
 /* 1 when m is "auto" or names a solver (sb_method_name is not "?"). */
 int sb_method_known(sb_method_t m);
 

@@ -37,6 +37,11 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     return SB_OK;
 }
 
+void sb_solver_masked_start(void *state, const double *s, const double *u, const double *v) {
+    masked_state_t *st = state;
+    if (st) sb_fit_set_start(st->fit, s, u, v);
+}
+
 static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t *out) {
     masked_state_t *s = state;
     sb_fit_info_t fi;

@@ -46,8 +46,9 @@
 
 #define RADIUS_FACTOR 2.5
 #define SUPPORT_FACTOR 2.0
-/* The slots of a table's memo (88 bytes each with the tag, 22 MiB; it
- * stores up to 3/4 of them; pages are touched as slots are used): a
+/* The slots of a table's memo (2 MiB of tags, and 80 bytes an entry for
+ * each value stored, up to 3/4 of the slots: 15 MiB; entries are taken in
+ * order, so only the pages of those stored are touched, memo.c): a
  * default run evaluates the Cornell acrylic's table at 340 000 pairs,
  * 255 000 positions; the screening grids (41 000 positions) and the kept
  * layout's grid repeat a quarter of them (reciprocity and isotropy fold

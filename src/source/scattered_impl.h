@@ -121,6 +121,10 @@ double sb_lobe_solve2_(const lobe_sums_t *m, int c, double *kd, double *ks);
  * returns the residual sum. */
 double sb_lobe_solve3_(const lobe_sums_t *m, int c, double *kd, double *ks, double *f0);
 
+/* The channel's median sample value (the floor under the lobe's base), at
+ * least 1e-3 of its largest and 1e-12 (1e-12 alone on no memory). */
+void sb_lobe_floor_(const double *smp, size_t ns, double floor_[3]);
+
 /* scattered_lobe.c */
 /* Fit the lobe to ns samples (SB_SAMPLE_DOUBLES each) into L; keep: NULL
  * or a lobe whose family (ndf, f0, cos_power) is kept.  L->fitted stays 0

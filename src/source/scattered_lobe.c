@@ -351,26 +351,6 @@ static double refine_alpha(fitset_t *fs, int ndf, int cf, double lo, double hi, 
     return exp(c1 < c2 ? x1 : x2);
 }
 
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-/* The channel's median sample value (the floor under the base), at least
- * 1e-3 of its largest and 1e-12 (1e-12 alone on no memory). */
-static void median_floor(const double *smp, size_t ns, double floor_[3]) {
-    double *v = malloc(ns * sizeof *v);
-    for (int c = 0; c < 3; c++) {
-        floor_[c] = 1e-12; /* never 0: the base divides */
-        if (!v) continue;
-        for (size_t i = 0; i < ns; i++)
-            v[i] = smp[i * SB_SAMPLE_DOUBLES + 6 + (size_t)c];
-        qsort(v, ns, sizeof *v, cmp_double);
-        floor_[c] = fmax(v[ns / 2], 1e-3 * fmax(v[ns - 1], 0)) + 1e-12;
-    }
-    free(v);
-}
-
 /* The index of family name `ndf` (0 when unknown). */
 static int ndf_index(const char *ndf) {
     for (int k = 0; ndf && k < NDFS; k++)
@@ -437,26 +417,82 @@ static int family_wanted(const sb_lobe_fit_t *keep, int ndf, int cf) {
                      cosp == (int)(2 * keep->cos_power) + (keep->smith_k_remapped ? 3 : 0));
 }
 
+/* The grid's residuals of the families of one distribution and cosine
+ * power cosp, D and den given, in one pass (cost[cf], cf = cosp, cosp +
+ * COSP, ...): each family's sums are fitset_cost's to the bit (the same
+ * operations in the same order), the diffuse factors sharing all but ws
+ * and wt, the grey F0s the loads. */
+static void fitset_group(const fitset_t *fs, const double *D, int cosp, const double *den, double cost[FCS]) {
+    double gs[2][NF0], gss[NF0], gsf[NF0][3]; /* grey: ws by fd, wss, wsf */
+    double ps[2] = {0, 0}, pt[2] = {0, 0}, pss = 0, pst = 0, ptt = 0, psf[3] = {0, 0, 0}, ptf[3] = {0, 0, 0};
+    memset(gs, 0, sizeof gs), memset(gss, 0, sizeof gss), memset(gsf, 0, sizeof gsf);
+    for (size_t j = 0; j < fs->n; j++) {
+        if (D[j] == 0) continue;
+        double w = fs->w[j], wb = w * fs->b1[j];
+        const double *f = fs->f + 3 * j;
+        for (int a = 0; a < NF0; a++) {
+            double S = D[j] * fs->fr[a][j] / den[j], wS = w * S;
+            gs[0][a] += wS;
+            gs[1][a] += wb * S;
+            gss[a] += wS * S;
+            for (int c = 0; c < 3; c++)
+                gsf[a][c] += wS * f[c];
+        }
+        double S = D[j] * 1.0 / den[j], T = D[j] * fs->m5[j] / den[j]; /* sums_add's, B = 1 or b1 */
+        ps[0] += w * 1.0 * S, ps[1] += wb * S;
+        pss += w * S * S;
+        pt[0] += w * 1.0 * T, pt[1] += wb * T;
+        pst += w * S * T;
+        ptt += w * T * T;
+        for (int c = 0; c < 3; c++) {
+            psf[c] += w * S * f[c];
+            ptf[c] += w * T * f[c];
+        }
+    }
+    for (int cf = cosp; cf < FCS; cf += COSP) {
+        size_t fi = CF_F0(cf);
+        int fd = CF_FD(cf);
+        lobe_sums_t m = fs->base[fd];
+        double r = 0, a, b, e;
+        if (fi < NF0) {
+            m.ws = gs[fd][fi], m.wss = gss[fi];
+            memcpy(m.wsf, gsf[fi], sizeof m.wsf);
+            for (int c = 0; c < 3; c++)
+                r += sb_lobe_solve2_(&m, c, &a, &b);
+        } else {
+            m.ws = ps[fd], m.wss = pss, m.wt = pt[fd], m.wst = pst, m.wtt = ptt;
+            memcpy(m.wsf, psf, sizeof m.wsf);
+            memcpy(m.wtf, ptf, sizeof m.wtf);
+            for (int c = 0; c < 3; c++)
+                r += sb_lobe_solve3_(&m, c, &a, &b, &e);
+        }
+        cost[cf] = r;
+    }
+}
+
 /* For each family wanted, the grid's alpha of the lowest residual (the
- * first of equals) into at[ndf * FCS + cf]. */
+ * first of equals) into at[ndf * FCS + cf], costed by fitset_group. */
 static void grid_search(fitset_t *fs, const sb_lobe_fit_t *keep, double la, double dl, int at[FAMILIES]) {
-    double cb[FAMILIES];
-    for (int i = 0; i < FAMILIES; i++)
+    double cb[FAMILIES], gc[FCS];
+    int wanted[FAMILIES], nw[NDFS][COSP];
+    memset(nw, 0, sizeof nw);
+    for (int i = 0; i < FAMILIES; i++) {
         cb[i] = INFINITY, at[i] = 0;
+        wanted[i] = family_wanted(keep, i / FCS, i % FCS);
+        nw[i / FCS][CF_COSP(i % FCS)] += wanted[i];
+    }
     for (int k = 0; k < ALPHA_STEPS; k++) {
         double alpha = exp(la + k * dl);
         for (int cosp = 0; cosp < COSP; cosp++)
             fitset_den(fs, cosp, alpha, NULL, fs->den[cosp]);
-        for (int ndf = 0; ndf < NDFS; ndf++) {
-            int d = 0;
-            for (int cf = 0; cf < FCS; cf++) {
-                if (!family_wanted(keep, ndf, cf)) continue;
+        for (int ndf = 0, d = 0; ndf < NDFS; ndf++, d = 0)
+            for (int cosp = 0; cosp < COSP; cosp++) {
+                if (!nw[ndf][cosp]) continue;
                 if (!d) fitset_d(fs, ndf, alpha, fs->D), d = 1;
-                double c = fitset_family(fs, fs->D, cf, fs->den[CF_COSP(cf)]);
-                int i = ndf * FCS + cf;
-                if (c < cb[i]) cb[i] = c, at[i] = k;
+                fitset_group(fs, fs->D, cosp, fs->den[cosp], gc);
+                for (int cf = cosp, i = ndf * FCS + cf; cf < FCS; cf += COSP, i += COSP)
+                    if (wanted[i] && gc[cf] < cb[i]) cb[i] = gc[cf], at[i] = k;
             }
-        }
     }
 }
 
@@ -497,7 +533,7 @@ void sb_lobe_fit_(const double *smp, size_t ns, const sb_lobe_fit_t *keep, lobe_
     size_t step = ns > FIT_MAX ? (ns + FIT_MAX - 1) / FIT_MAX : 1;
     geo_t *geo = geo_of(smp, ns, step);
     if (!geo) return; /* no memory: not fitted, the table interpolates f itself */
-    median_floor(smp, ns, L->floor);
+    sb_lobe_floor_(smp, ns, L->floor);
     int nc = 0;
     cand_t cands[FAMILIES];
     double best = search(smp, ns, step, geo, keep, cands, &nc, L);

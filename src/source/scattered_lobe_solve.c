@@ -9,8 +9,10 @@
  * f0_c): a coloured metal's highlight turns white towards grazing, which
  * one F0 for all channels cannot follow.  Both are closed forms from the
  * sums of sums_t: the minimum over the supports (the non-negative
- * optimum is the unconstrained one on its support). */
+ * optimum is the unconstrained one on its support).  Also the floor under
+ * the base (sb_lobe_floor_). */
 #include <math.h>
+#include <stdlib.h>
 
 #include "source/scattered_impl.h"
 
@@ -95,4 +97,22 @@ double sb_lobe_solve3_(const lobe_sums_t *m, int c, double *kd, double *ks, doub
     *ks = x[1] + x[2];
     *f0 = *ks > 0 ? x[1] / *ks : 1;
     return best;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+void sb_lobe_floor_(const double *smp, size_t ns, double floor_[3]) {
+    double *v = malloc(ns * sizeof *v);
+    for (int c = 0; c < 3; c++) {
+        floor_[c] = 1e-12; /* never 0: the base divides */
+        if (!v) continue;
+        for (size_t i = 0; i < ns; i++)
+            v[i] = smp[i * SB_SAMPLE_DOUBLES + 6 + (size_t)c];
+        qsort(v, ns, sizeof *v, cmp_double);
+        floor_[c] = fmax(v[ns / 2], 1e-3 * fmax(v[ns - 1], 0)) + 1e-12;
+    }
+    free(v);
 }

@@ -15,10 +15,17 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* A slot's tag: 0 empty, WRITING while claimed, else the key's hash with
- * bit 1 set (never 0 or 1).  The tags are an array of their own, 8 bytes a
- * slot: a probe reads them (a 10 MiB table's tags fit in 1 MiB of cache)
- * and an entry only where the hashes agree. */
+/* A slot's tag: 0 empty, WRITING while claimed, else the high half of
+ * the key's hash (bit 0 set: never 0) in its high 32 bits and the index of
+ * the slot's entry in its low 32.  The tags are an array of their own, 8
+ * bytes a slot: a probe reads them (a 10 MiB table's tags fit in 1 MiB of
+ * cache) and an entry only where the hashes agree.  Entries are taken in
+ * order from the front of their array (the index is the count of slots
+ * claimed), so a memo that stores n values touches n entries' pages, not
+ * every page of its capacity: a fold's table (job_cv.c) stores 63 000
+ * values of the Cornell acrylic's iso layout, and the kernel zeroed all
+ * 20 MiB of the entries for them when an entry sat at its slot (clear_page
+ * a few % of the default run's CPU, issue 32 item 5). */
 #define WRITING 1u
 
 typedef struct memo_entry {
@@ -47,10 +54,10 @@ static uint64_t hash_key(const double k[SB_MEMO_KEY]) {
 sb_memo_t *sb_memo_create(size_t cap) {
     sb_memo_t *m = calloc(1, sizeof *m);
     if (!m) return NULL;
-    for (m->cap = 4; m->cap < cap; m->cap *= 2) {
+    for (m->cap = 4; m->cap < cap && m->cap < ((size_t)1 << 32); m->cap *= 2) { /* an entry's index: 32 bits */
     }
-    m->tag = calloc(m->cap, sizeof *m->tag); /* zero: every slot empty */
-    m->t = malloc(m->cap * sizeof *m->t);
+    m->tag = calloc(m->cap, sizeof *m->tag);      /* zero: every slot empty */
+    m->t = malloc(m->cap / 4 * 3 * sizeof *m->t); /* at most 3/4 of the slots hold one */
     if (!m->tag || !m->t) {
         sb_memo_destroy(m);
         return NULL;
@@ -66,13 +73,16 @@ void sb_memo_destroy(sb_memo_t *m) {
     free(m);
 }
 
+/* The high half of a tag: the key's fingerprint (bit 0 set). */
+static uint64_t fingerprint(uint64_t h) { return (h >> 32) | 1u; }
+
 int sb_memo_find(sb_memo_t *m, const double key[SB_MEMO_KEY], double val[3]) {
-    uint64_t h = hash_key(key), fp = h | 2;
+    uint64_t h = hash_key(key), fp = fingerprint(h);
     for (size_t i = (size_t)h & (m->cap - 1);; i = (i + 1) & (m->cap - 1)) {
         uint64_t g = atomic_load_explicit(&m->tag[i], memory_order_acquire);
         if (g <= WRITING) return 0; /* empty, or being written (perhaps this key): a miss */
-        const memo_entry_t *e = &m->t[i];
-        if (g == fp && memcmp(e->key, key, sizeof e->key) == 0) {
+        const memo_entry_t *e = &m->t[g & 0xffffffffu];
+        if (g >> 32 == fp && memcmp(e->key, key, sizeof e->key) == 0) {
             memcpy(val, e->val, sizeof e->val);
             return e->state;
         }
@@ -81,12 +91,12 @@ int sb_memo_find(sb_memo_t *m, const double key[SB_MEMO_KEY], double val[3]) {
 
 void sb_memo_store(sb_memo_t *m, const double key[SB_MEMO_KEY], const double val[3], int state) {
     if (4 * (atomic_load_explicit(&m->used, memory_order_relaxed) + 1) > 3 * m->cap) return;
-    uint64_t h = hash_key(key), fp = h | 2;
+    uint64_t h = hash_key(key), fp = fingerprint(h);
     for (size_t i = (size_t)h & (m->cap - 1);; i = (i + 1) & (m->cap - 1)) {
         uint64_t g = atomic_load_explicit(&m->tag[i], memory_order_acquire), empty = 0;
         if (g == WRITING) return; /* perhaps this key, by another thread: leave it */
         if (g > WRITING) {
-            if (g == fp && memcmp(m->t[i].key, key, sizeof m->t[i].key) == 0) return; /* stored already */
+            if (g >> 32 == fp && memcmp(m->t[g & 0xffffffffu].key, key, sizeof m->t->key) == 0) return; /* stored */
             continue;
         }
         if (!atomic_compare_exchange_strong_explicit(&m->tag[i], &empty, WRITING, memory_order_acquire,
@@ -94,15 +104,16 @@ void sb_memo_store(sb_memo_t *m, const double key[SB_MEMO_KEY], const double val
             i = (i - 1) & (m->cap - 1); /* claimed meanwhile: look at it again */
             continue;
         }
-        if (4 * (atomic_fetch_add_explicit(&m->used, 1, memory_order_relaxed) + 1) > 3 * m->cap) {
+        size_t at = atomic_fetch_add_explicit(&m->used, 1, memory_order_relaxed); /* the next entry */
+        if (4 * (at + 1) > 3 * m->cap) {
             atomic_store_explicit(&m->tag[i], 0, memory_order_release); /* full: give the slot back */
             return;
         }
-        memo_entry_t *e = &m->t[i];
+        memo_entry_t *e = &m->t[at];
         memcpy(e->key, key, sizeof e->key);
         memcpy(e->val, val, sizeof e->val);
         e->state = state;
-        atomic_store_explicit(&m->tag[i], fp, memory_order_release);
+        atomic_store_explicit(&m->tag[i], fp << 32 | at, memory_order_release);
         return;
     }
 }

@@ -13,7 +13,8 @@
 
 typedef struct sb_memo sb_memo_t;
 
-/* A memo of cap entries (rounded up to a power of two, 80 bytes each);
+/* A memo of cap slots (rounded up to a power of two; 8 bytes a slot, and
+ * 80 an entry for each value stored, the entries' pages touched as used);
  * NULL on no memory. */
 sb_memo_t *sb_memo_create(size_t cap);
 void sb_memo_destroy(sb_memo_t *m);
