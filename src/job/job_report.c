@@ -506,6 +506,7 @@ void sb_job_report(const sb_job_t *job, FILE *fp) {
         sb_json_string(j, NULL, job->warn[i]);
     sb_json_end_array(j);
     sb_json_begin_object(j, "timings");
+    sb_json_number(j, "open_s", job->stage_s[0]); /* as stages.open_s: the top level's keys then cover the run */
     sb_json_number(j, "screen_s", job->t.screen_s);
     sb_json_number(j, "sample_s", job->t.sample_s);
     sb_json_number(j, "factor_s", job->t.factor_s);
