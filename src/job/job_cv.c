@@ -121,6 +121,16 @@ static int theta_h_band(const double wi[3], const double wo[3]) {
     return b;
 }
 
+/* Whether a sample counts: below a --theta-max cap without a scene the
+ * errors are measured within the cap (job_measures_cap), where the snippet
+ * is defined; a sample beyond it (the textures return 0 there) is left
+ * out, as the errors at the table's samples leave it out. */
+static int sample_counts(const sb_job_t *job, const double wi[3], const double wo[3]) {
+    if (!job_measures_cap(job)) return 1;
+    double c = cos(job->o.theta_max_deg * SB_PI / 180);
+    return wi[2] >= c && wo[2] >= c;
+}
+
 /* Add fold k's squared errors (E[j], j < J) and energy (*T) at its
  * samples, and at J those of each theta_h band into the job's; each
  * sample's own (row_e[h * J + j], row_t[h], h counting the held-out
@@ -134,7 +144,8 @@ static void fold_sums(sb_job_t *job, const sb_factors_t *f, const sb_source_t *t
     size_t n = sb_source_sample_count(job->src);
     for (size_t i = 0; i < n; i++) {
         double wi[3], wo[3], v[3], rec[3], e = 0;
-        if (sb_measured_fold(i, K) != k || !sb_source_sample(job->src, i, wi, wo, v)) continue;
+        if (sb_measured_fold(i, K) != k || !sb_source_sample(job->src, i, wi, wo, v) || !sample_counts(job, wi, wo))
+            continue;
         for (int c = 0; c < 3; c++) /* a channel not factored (--channels) is measured nowhere */
             v[c] = job_factors_channel(job, c) ? v[c] : 0;
         double c2 = wi[2] * wi[2], t = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * c2;
@@ -289,7 +300,7 @@ static void split_figure(sb_job_t *job, double *row, const size_t *fold_end, con
     for (size_t i = 0; i < n; i++) {
         double wi[3], wo[3], v[3];
         t_all[i] = 0;
-        if (!sb_source_sample(job->src, i, wi, wo, v)) continue;
+        if (!sb_source_sample(job->src, i, wi, wo, v) || !sample_counts(job, wi, wo)) continue;
         for (int c = 0; c < 3; c++) /* as fold_sums counts them */
             t_all[i] += job_factors_channel(job, c) ? v[c] * v[c] * wi[2] * wi[2] : 0;
     }
