@@ -555,7 +555,8 @@ static sb_result_t circ_weights(const sb_param_t *weights, size_t R, double *w, 
 /* sb_factors_errors_against on a structured (block-circulant) matrix:
  * rel_rms by Parseval over the azimuthal frequencies (sb_circ_resid, the
  * same sums as the residual pass to rounding), max_abs from
- * sb_circ_resid_max (4 of the R block rows).
+ * sb_circ_resid_max (4 of the R block rows: a lower bound where the
+ * residual is not block-circulant).
  * SB_ERR_UNSUPPORTED (nothing reported) where the weights depend on phi. */
 static sb_result_t against_circulant(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
                                      const sb_param_t *weights, double *rel_rms, double *max_abs) {

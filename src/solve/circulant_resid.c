@@ -47,8 +47,8 @@ static void dft_cols(size_t R, size_t nb, size_t rows, const double *X, size_t l
 /* Step: the frequency parts of J factors (term j at x + j step, cell
  * R i_phi + i_theta), weighted: out[(j R + k) R + t] = w_t xh_jk[t] for
  * every k < R (k > R / 2 the conjugates).  cs: 2 R nb scratch. */
-static void factor_parts(size_t R, size_t nb, size_t J, const double *x, size_t step, const double *w,
-                         const double *ct, const double *st, double *cs, double complex *out) {
+static void factor_parts(size_t R, size_t nb, size_t J, const double *x, size_t step, const double *w, const double *ct,
+                         const double *st, double *cs, double complex *out) {
     double inv = 1 / sqrt((double)R);
     for (size_t j = 0; j < J; j++) {
         double *C = cs, *S = cs + R * nb;
@@ -113,7 +113,7 @@ static void diag_terms(size_t R, size_t nb, size_t J, const double *C, const dou
             double s2 = 0;
             for (size_t ot = 0; ot < R; ot++) {
                 double hr = creal(h[ot]), hi = -cimag(h[ot]); /* conj(h) */
-                double *e = (double *)(E + ot * R);          /* re, im interleaved (C11 6.2.5) */
+                double *e = (double *)(E + ot * R);           /* re, im interleaved (C11 6.2.5) */
                 const double *gg = (const double *)g;
                 for (size_t it = 0; it < R; it++) {
                     double er = e[2 * it] - (gg[2 * it] * hr - gg[2 * it + 1] * hi);
@@ -181,9 +181,10 @@ void sb_circ_resid_max(size_t R, const double *a, size_t J, const double *g, siz
     size_t prev = SIZE_MAX;
     for (size_t j = 0; j < J; j++)
         mx[j] = 0;
-    for (size_t q = 0; q < 4; q++) {
-        size_t ip = q * R / 4;
-        if (ip == prev) continue; /* R < 4 */
+    for (size_t q = 0; q < SB_CIRC_MAX_ROWS; q++) {
+        /* golden-ratio steps: rows q R / 4 see no sin of frequency 2 */
+        size_t ip = (size_t)((double)(q * R) * 0.6180339887498949) % R;
+        if (ip == prev) continue; /* R < 2 */
         prev = ip;
         for (size_t c = 0; c < R * R; c++) {
             size_t op = c / R, ot = c % R;
