@@ -303,3 +303,69 @@ SB_TEST(symmetric_blocks_are_eigendecomposed) {
         sb_source_destroy(s);
     }
 }
+
+/* The errors of factors against a structured matrix (its R^3 distinct
+ * values) come from the blocks of its azimuthal DFT (Parseval,
+ * sb_circ_resid) instead of a pass over the R^4 cells: rel_rms equals the
+ * dense residual pass on the expanded matrix to rounding, for the fit's
+ * own terms, terms weighted one by one (as the job's term weights do) and
+ * factors that are no single frequency at all; max_abs, taken on 4 of
+ * the R block rows, never exceeds the dense maximum and equals it for the
+ * fit's own first term (frequency 0: its residual is block-circulant). */
+SB_TEST(errors_by_blocks_match_dense) {
+    struct {
+        const char *spec;
+        size_t R, J;
+        int weighted;
+    } cases[] = {
+        {"microfacet:base=gold,roughness=0.3", 8, 6, 1},
+        {"cook-torrance:roughness=0.4,kd=0", 6, 5, 0}, /* grey: one channel of factors */
+        {"microfacet:roughness=0.2", 5, 4, 1},         /* odd R: the DFT's sums, no FFT */
+        {"blinn-phong:n=30", 16, 7, 1},
+    };
+    for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
+        sb_source_t *s = fx_model(cases[t].spec);
+        sb_param_t *p = io(cases[t].R, 90);
+        sb_matrix_opts_t mo = {0};
+        mo.structured = 1;
+        sb_matrix_t m, d;
+        CHECK(sb_matrix_build(NULL, s, p, &mo, &m) == SB_OK);
+        CHECK(m.structured == 1 && m.phi_period == cases[t].R);
+        CHECK(sb_matrix_expand(NULL, &m, &d) == SB_OK);
+        size_t J = cases[t].J, C;
+        sb_factors_t *f = factor(&d, p, J, SB_METHOD_AUTO, cases[t].weighted);
+        C = sb_factors_channels(f);
+        double *rs = malloc(J * 16 * sizeof *rs), *ms = rs + 4 * J, *rd = ms + 4 * J, *md = rd + 4 * J;
+        unsigned rng = 12345;
+        for (int pass = 0; pass < 3; pass++) {
+            /* pass 1: terms weighted one by one; pass 2: noise on every texel */
+            for (size_t j = 0; pass && j < J; j++)
+                for (size_t c = 0; c < C; c++)
+                    for (int side = 0; side < 2; side++) {
+                        double *x = sb_factors_tex(f, side, j, c);
+                        for (size_t i = 0; i < m.rows; i++) {
+                            rng = rng * 1103515245u + 12345u;
+                            double u = (double)(rng >> 8) / 16777216.0 - 0.5;
+                            x[i] *= pass == 1 ? 0.9 - 0.05 * (double)j : 1 + 0.1 * u;
+                        }
+                    }
+            CHECK(sb_factors_errors_against(NULL, f, &m, cases[t].weighted ? p : NULL, rs, ms) == SB_OK);
+            CHECK(sb_factors_errors_against(NULL, f, &d, cases[t].weighted ? p : NULL, rd, md) == SB_OK);
+            for (size_t k = 0; k < 4 * J; k++) {
+                CHECKF(fabs(rs[k] - rd[k]) <= 1e-12 * rd[k] + 1e-15, "%s pass %d J'=%zu ch %zu: %.17g vs dense %.17g",
+                       cases[t].spec, pass, k / 4 + 1, k % 4, rs[k], rd[k]);
+                CHECKF(ms[k] <= md[k] * (1 + 1e-12), "%s pass %d: max %.17g above dense %.17g", cases[t].spec, pass,
+                       ms[k], md[k]);
+                if (pass == 0 && k < 4)
+                    CHECKF(fabs(ms[k] - md[k]) <= 1e-12 * md[k], "%s J'=%zu: max %.17g vs dense %.17g", cases[t].spec,
+                           k / 4 + 1, ms[k], md[k]);
+            }
+        }
+        free(rs);
+        sb_factors_destroy(f);
+        sb_matrix_free(&d);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+        sb_source_destroy(s);
+    }
+}

@@ -57,6 +57,32 @@ sb_result_t sb_circ_max_abs(sb_circ_t *c, const double *a, size_t ld, const doub
  * circulant_sym.c) rather than by dgesdd. */
 size_t sb_circ_sym_blocks(const sb_circ_t *c);
 
+/* The residual norms of any factors G, H (term j at g + j gstep and
+ * h + j hstep, R^2 values each, cell R i_phi + i_theta) against a
+ * block-circulant matrix stored as its first block row a (R x R^2, ld R:
+ * cell (i, o) is a[i_theta + (R ((o_phi - i_phi) mod R) + o_theta) R]):
+ *     ssq[j] = ||W_r (A - sum_{i<=j} g_i h_i^T) W_c||_F^2,  j < J,
+ *     *n2   = ||W_r A W_c||_F^2,
+ * W = diag of the theta weights wr, wc (R each, NULL = 1), by Parseval over
+ * the azimuthal DFT (circulant_resid.c): about R^3 (J + log R) work, not
+ * R^4 J; nt threads for the kernel's transform.  Errors: SB_ERR_OVERFLOW,
+ * SB_ERR_NOMEM. */
+sb_result_t sb_circ_resid(sb_context_t *ctx, size_t R, const double *a, const double *wr, const double *wc, size_t J,
+                          const double *g, size_t gstep, const double *h, size_t hstep, int nt, double *ssq,
+                          double *n2);
+
+/* mx[j] = max |A - sum_{i<=j} g_i h_i^T| (unweighted, j < J, arguments as
+ * sb_circ_resid's) over SB_CIRC_MAX_ROWS block rows, i_phi = floor(q R /
+ * phi) mod R, q = 0, 1, ..., phi the golden ratio: every distinct value of
+ * A at q = 0, so the largest cell wherever the residual is block-circulant
+ * too (the two terms of a cos/sin pair kept and weighted alike), else the
+ * largest of a sample of 4 R^3 of the R^4 cells (at most 0.9 % below the
+ * largest on GGX 0.1 and 0.3, io R = 32 to 128: docs/performance.md).
+ * r: R doubles of scratch. */
+#define SB_CIRC_MAX_ROWS 4
+void sb_circ_resid_max(size_t R, const double *a, size_t J, const double *g, size_t gstep, const double *h,
+                       size_t hstep, double *r, double *mx);
+
 /* ||W A W||_F^2 scaled by scale^2, from the first block row. */
 double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, double scale);
 

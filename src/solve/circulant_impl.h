@@ -54,6 +54,10 @@ struct sb_circ {
  * pair. */
 static inline int sb_circ_single(const sb_circ_t *c, unsigned k) { return k == 0 || (c->R % 2 == 0 && k == c->R / 2); }
 
+/* max_i |x[i] - t y[i]|; with store, x[i] becomes x[i] - t y[i]
+ * (circulant_max.c: SSE2, or AVX2 where the CPU has it). */
+double sb_circ_absmax_axpy(double *x, double t, const double *y, size_t n, int store);
+
 /* Whether every block K_m of the symmetrised kernel K (R blocks R x R,
  * column-major, K_m = K_(R-m) to the bit) equals its transpose bit for
  * bit: the blocks m <= R / 2 are read. */

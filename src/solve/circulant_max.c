@@ -51,7 +51,7 @@ static int circ_avx2(void) {
 }
 #endif
 
-static double absmax_axpy_st(double *x, double t, const double *y, size_t n, int store) {
+double sb_circ_absmax_axpy(double *x, double t, const double *y, size_t n, int store) {
 #ifdef CIRC_AVX2
     if (circ_avx2()) return absmax_axpy_avx2(x, t, y, n, store);
 #endif
@@ -77,7 +77,7 @@ static double absmax_axpy_st(double *x, double t, const double *y, size_t n, int
 }
 
 static double absmax_axpy(const double *x, double t, const double *y, size_t n) {
-    return absmax_axpy_st((double *)x, t, y, n, 0); /* store = 0: x is only read */
+    return sb_circ_absmax_axpy((double *)x, t, y, n, 0); /* store = 0: x is only read */
 }
 
 /* The three sweeps of a cos/sin pair on one row in one pass: m[0], m[1]
@@ -130,7 +130,7 @@ static void absmax_pair(double *x, const double t[3], const double *y, size_t n,
 #endif
     m[0] = absmax_axpy(x, t[0], y, n);
     m[1] = absmax_axpy(x, t[1], y, n);
-    m[2] = absmax_axpy_st(x, t[2], y, n, 1);
+    m[2] = sb_circ_absmax_axpy(x, t[2], y, n, 1);
 }
 
 /* One step of the residual sweep of sb_circ_max_abs, for one error mx[j]:
@@ -184,7 +184,7 @@ static void *rows_max(void *arg) {
                     m = fmax(x, y);
                 } else {
                     double cf = st->sg * st->bt[ot] * st->e[d];
-                    m = absmax_axpy_st(row, cf, st->at, R, 1); /* row -= cf at, and its largest |.| */
+                    m = sb_circ_absmax_axpy(row, cf, st->at, R, 1); /* row -= cf at, and its largest |.| */
                 }
                 j->mx[s] = fmax(j->mx[s], m);
             }
