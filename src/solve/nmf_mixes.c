@@ -503,6 +503,12 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
         polish(s, out);
         push_last(s, out);
         to_headline(s, in, out);
+        for (size_t k = 1; k < s->rounds && s->rho; k++) { /* from the fit the round before gave */
+            s->rho = sb_nmf_rho(s, k);
+            toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 1, 0);
+            push_last(s, out);
+            to_headline(s, in, out);
+        }
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
@@ -531,4 +537,13 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     if (s->fit) minimax(s, in, out, NULL);
     to_headline(s, in, out);
     if (s->tables && s->hws_ok) minimax(s, in, out, s->cal); /* vndf: toward the headline's own ratios */
+    for (size_t k = 1; k < s->rounds && s->rho; k++) {       /* from the fit the round before gave, as above */
+        s->rho = sb_nmf_rho(s, k);
+        s->hws_ok = 0;
+        memcpy(s->w, s->w0, m * n * sizeof *s->w);
+        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
+        push_last(s, out);
+        to_headline(s, in, out);
+        if (s->tables && s->hws_ok) minimax(s, in, out, s->cal);
+    }
 }
