@@ -135,10 +135,10 @@ static double nonneg_last(const double *ratio, const double *rch, size_t J) {
 }
 
 /* Refits of job_nonneg_refit, each from the ratios of the one before (the
- * plan's nonneg_rounds): RGL aurora on vndf, J = 4, worst channel 1.66 ->
- * 1.64x the SVD's; a third 1.64 (aurora) and none kept elsewhere: the
- * corrected targets swing (chm_orange 2.07, 3.74, 2.00 at the three
- * refits; round h38v, docs/positive.md). */
+ * plan's nonneg_rounds, its corrections moved partway: nmf_mixes.c damp):
+ * RGL chm_orange on vndf, J = 4, worst channel 2.08 -> 1.93x the SVD's; a
+ * third refit's was never kept (its last prefix above 1.5x, or not lower;
+ * round h38v, docs/positive.md). */
 #define JOB_NONNEG_REFITS 2
 
 /* The kept fit a made again (a's matrix and layout, as job_fit_kept made

@@ -76,6 +76,9 @@ typedef struct nmf_state {
     int first_fit; /* the plan's nonneg_first_fit: masked, the first mix's fit kept alone */
     size_t rounds; /* the plan's nonneg_rounds, at least 1 */
     int channel;   /* the channel solved (sb_solve_in_t), for sb_nmf_rho */
+    size_t round;  /* the round of rho (sb_nmf_rho) */
+    /* the round before's corrections of to_headline and calibrate (nmf_mixes.c damp) */
+    double cpprev[SB_NMF_MAX_TERMS], calprev[SB_NMF_MAX_TERMS];
 } nmf_state_t;
 
 /* Round k's ratios of the plan's nonneg_ratio (the channel's where given). */

@@ -211,7 +211,7 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     size_t m = s->m, n = s->n;
     int masked = in->mask && !s->zero_fill;
     s->channel = in->channel;
-    s->rho = sb_nmf_rho(s, 0);
+    s->rho = sb_nmf_rho(s, 0), s->round = 0;
     for (size_t c = 0; c < n; c++)
         for (size_t i = 0; i < m; i++) {
             s->x[i + c * m] = in->x[i + c * in->ldx];
