@@ -207,6 +207,11 @@ typedef struct sb_plan_opts {
      * its first fit, without the refits toward the headline after it
      * (docs/positive.md, round h38y).  0: the whole fit. */
     int nonneg_first_fit;
+    /* Non-negative factors with nonneg_ratio only: the rounds of ratios it
+     * holds (nonneg_ratio_channel likewise), round k's at k * terms (k * 3
+     * * terms): round k's are the headline's ratios of the fit round k - 1
+     * gave, the fit made again from that fit toward them.  0 or 1: one. */
+    size_t nonneg_rounds;
 } sb_plan_opts_t;
 #define SB_PLAN_OPTS_INIT                                                                                              \
     { .size = sizeof(sb_plan_opts_t) }

@@ -143,7 +143,8 @@ static sb_result_t plan_new(sb_context_t *ctx, size_t rows, size_t cols, const s
                                  .zero_fill = o.zero_fill,
                                  .nonneg_ratio = o.nonneg_ratio,
                                  .nonneg_ratio_channel = o.nonneg_ratio_channel,
-                                 .nonneg_first_fit = o.nonneg_first_fit};
+                                 .nonneg_first_fit = o.nonneg_first_fit,
+                                 .nonneg_rounds = o.nonneg_ratio ? o.nonneg_rounds : 0};
     sb_solve_problem_t pb = p->pb;
     if (m) {
         pb.masked = m->mask && !o.zero_fill;

@@ -268,6 +268,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     pl.nonneg_ratio = lv->nonneg_ratio;
     pl.nonneg_ratio_channel = lv->nonneg_ratio_channel;
     pl.nonneg_first_fit = lv->nonneg_first_fit;
+    pl.nonneg_rounds = lv->nonneg_rounds;
     pl.size = sizeof pl;
     if (a->scene_w) { /* the scene's weights instead of solid angles */
         pl.weighted = 1;

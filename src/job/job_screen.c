@@ -134,11 +134,45 @@ static double nonneg_last(const double *ratio, const double *rch, size_t J) {
     return fmax(ratio[J - 1], fmax(rch[J - 1], fmax(rch[2 * J - 1], rch[3 * J - 1])));
 }
 
+/* Refits of job_nonneg_refit, each from the ratios of the one before (the
+ * plan's nonneg_rounds, its corrections moved partway: nmf_mixes.c damp):
+ * RGL chm_orange on vndf, J = 4, worst channel 2.08 -> 1.93x the SVD's; a
+ * third refit's was never kept (its last prefix above 1.5x, or not lower;
+ * round h38v, docs/positive.md). */
+#define JOB_NONNEG_REFITS 2
+
+/* The kept fit a made again (a's matrix and layout, as job_fit_kept made
+ * it) toward `rounds` rounds of the headline's ratios ratio, rch (the
+ * plan's nonneg_rounds: round k's those of the fit round k - 1 gave, round
+ * 0's a's), and refined, into t. */
+static sb_result_t nonneg_refit_once(sb_context_t *ctx, sb_job_t *job, const job_attempt_t *a, const double *ratio,
+                                     const double *rch, size_t rounds, job_attempt_t *t) {
+    job_level_t lv = job_full_level(job);
+    lv.nonneg_ratio = ratio;
+    lv.nonneg_ratio_channel = rch;
+    lv.nonneg_rounds = rounds;
+    *t = *a;
+    t->f = NULL, t->est = NULL, t->term_w = NULL;
+    sb_result_t r = job_factor(ctx, job, &lv, a->weighted, t);
+    lv.nonneg_ratio = lv.nonneg_ratio_channel = NULL;
+    lv.nonneg_rounds = 0;
+    return r == SB_OK ? job_refine(ctx, job, &lv, t) : r;
+}
+
+static void nonneg_free(job_attempt_t *t) {
+    sb_factors_destroy(t->f);
+    free(t->est);
+    free(t->term_w);
+    t->f = NULL, t->est = NULL, t->term_w = NULL;
+}
+
 /* Each channel is refitted toward its own ratios (the plan's
  * nonneg_ratio_channel) and the fit kept by the worst of the pooled and
  * the channels' ratios: RGL cc_green_malachite on vndf, J = 4, the pooled
  * ratios alone left red and blue at 1.81 and 2.40x the SVD's at J' = 4
- * with the pooled 1.56 (round h32n, docs/positive.md). */
+ * with the pooled 1.56 (round h32n, docs/positive.md).  Then again from
+ * each refit's own ratios (the correction is accurate near the fit it was
+ * taken from), JOB_NONNEG_REFITS in all. */
 sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
     job_attempt_t *a = &job->best;
     size_t J = sb_factors_terms(a->f);
@@ -150,31 +184,33 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
      * close to the headline's (the default gold: 1.65 against 1.66 at J'
      * = 1) and the refit moved nothing (1.656 -> 1.661, not kept) */
     size_t mn = a->m.rows < a->m.cols ? a->m.rows : a->m.cols; /* the solver's reference: 2 J <= mn (nmf_mixes.c) */
-    if (job_attempt_masked(job, a) || 2 * J > mn || !(nonneg_worst(job, a, ratio, rch) > JOB_NONNEG_RATIO))
-        return SB_OK;
-    job_level_t lv = job_full_level(job); /* as job_fit_kept made the kept fit */
-    lv.nonneg_ratio = ratio;
-    lv.nonneg_ratio_channel = rch;
-    job_attempt_t t = *a; /* a's matrix and layout, fitted again */
-    t.f = NULL, t.est = NULL, t.term_w = NULL;
-    sb_result_t r = job_factor(ctx, job, &lv, a->weighted, &t);
-    lv.nonneg_ratio = lv.nonneg_ratio_channel = NULL;
-    if (r == SB_OK) r = job_refine(ctx, job, &lv, &t);
-    /* kept where its worst prefix is lower and its last, the fit a run of
-     * J terms renders, not above the bound (or a's, if that is above) */
-    double again[SB_EST_MAXJ], ach[3 * SB_EST_MAXJ];
-    if (r == SB_OK && nonneg_worst(job, &t, again, ach) < nonneg_worst(job, a, ratio, rch) &&
-        !(nonneg_last(again, ach, J) > fmax(nonneg_last(ratio, rch, J), JOB_NONNEG_RATIO))) {
-        sb_factors_destroy(a->f);
-        free(a->est);
-        free(a->term_w);
-        t.t_factor += a->t_factor;
-        *a = t;
-        return SB_OK;
+    double worst = nonneg_worst(job, a, ratio, rch);
+    if (job_attempt_masked(job, a) || 2 * J > mn || !(worst > JOB_NONNEG_RATIO)) return SB_OK;
+    double last = fmax(nonneg_last(ratio, rch, J), JOB_NONNEG_RATIO);
+    double rho[JOB_NONNEG_REFITS * SB_EST_MAXJ], rho_ch[JOB_NONNEG_REFITS * 3 * SB_EST_MAXJ];
+    memcpy(rho, ratio, J * sizeof *rho);
+    memcpy(rho_ch, rch, 3 * J * sizeof *rho_ch);
+    sb_result_t r = SB_OK;
+    for (size_t k = 1; k <= JOB_NONNEG_REFITS; k++) {
+        job_attempt_t t;
+        r = nonneg_refit_once(ctx, job, a, rho, rho_ch, k, &t);
+        if (r != SB_OK) {
+            nonneg_free(&t);
+            break;
+        }
+        /* kept where its worst prefix is lower and its last, the fit a run
+         * of J terms renders, not above the bound (or a's, if that is above) */
+        double *nr = rho + k * J, *nc = rho_ch + k * 3 * J; /* its ratios: the next round's */
+        double w = k < JOB_NONNEG_REFITS ? nonneg_worst(job, &t, nr, nc) : nonneg_worst(job, &t, ratio, rch);
+        double l = k < JOB_NONNEG_REFITS ? nonneg_last(nr, nc, J) : nonneg_last(ratio, rch, J);
+        if (w < worst && !(l > last)) {
+            nonneg_free(a);
+            t.t_factor += a->t_factor;
+            *a = t;
+            worst = w;
+        } else
+            nonneg_free(&t);
     }
-    sb_factors_destroy(t.f);
-    free(t.est);
-    free(t.term_w);
     return r == SB_ERR_NUMERIC ? SB_OK : r;
 }
 

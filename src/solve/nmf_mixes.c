@@ -362,12 +362,27 @@ static void refit_corrected(nmf_state_t *s, sb_solve_out_t *out) {
  * nodes beside (SB_NMF_SPREAD_TABLES), and s->cal, rho^2 over out's
  * squared ratios in them: the headline's ratios predicted from that
  * measure, for the minimax after to_headline (minimax with cal). */
+/* A round after the first (the plan's nonneg_rounds) moves each
+ * correction c (rho^2 over the prefix's squared ratio in the solver's
+ * weights) from the round before's only this far, geometrically: at 1,
+ * the corrections swing (RGL chm_orange on vndf, J = 4: the second
+ * refit's worst 3.74x the SVD's, its first's 2.07); at 0.3 its second
+ * 1.93 (at 0.2 1.82 with the last prefix 1.52, not kept; at 0.4, 0.5
+ * 2.10, 2.37; round h38v, docs/positive.md). */
+#define SB_NMF_ROUND_STEP 0.3
+/* c, moved from prev[p] by SB_NMF_ROUND_STEP after the first round; into prev[p]. */
+static double damp(const nmf_state_t *s, double *prev, size_t p, double c) {
+    if (s->round > 0) c = pow(prev[p], 1 - SB_NMF_ROUND_STEP) * pow(c, SB_NMF_ROUND_STEP);
+    prev[p] = c;
+    return c;
+}
+
 static void calibrate(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out) {
     double f[SB_NMF_MAX_TERMS];
     sb_nmf_spread_weights(in->param, s->hw, s->m, s->n, SB_NMF_SPREAD_TABLES, s->hws);
     sb_nmf_prefix_ratios(s->x, s->hws, s->m, s->n, s->J, out->u, out->v, s->uref, s->vref, s->floor2, f);
     for (size_t p = 0; p < s->J; p++)
-        s->cal[p] = s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1;
+        s->cal[p] = damp(s, s->calprev, p, s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1);
     s->hws_ok = 1;
 }
 
@@ -387,7 +402,7 @@ static void to_headline(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t 
     double f[SB_NMF_MAX_TERMS], cp[SB_NMF_MAX_TERMS];
     sb_nmf_prefix_ratios(s->x, s->hw, m, n, J, out->u, out->v, s->uref, s->vref, s->floor2, f);
     for (size_t p = 0; p < J; p++)
-        cp[p] = s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1;
+        cp[p] = damp(s, s->cpprev, p, s->rho[p] > 0 && f[p] > 0 ? s->rho[p] * s->rho[p] / f[p] : 1);
     if (s->tables && s->hws) /* vndf: the measure of the minimax with cal */
         calibrate(s, in, out);
     correct_sref(s, cp);
@@ -503,6 +518,12 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
         polish(s, out);
         push_last(s, out);
         to_headline(s, in, out);
+        for (size_t k = 1; k < s->rounds && s->rho; k++) { /* from the fit the round before gave */
+            s->rho = sb_nmf_rho(s, k), s->round = k;
+            toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 1, 0);
+            push_last(s, out);
+            to_headline(s, in, out);
+        }
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
@@ -531,4 +552,13 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     if (s->fit) minimax(s, in, out, NULL);
     to_headline(s, in, out);
     if (s->tables && s->hws_ok) minimax(s, in, out, s->cal); /* vndf: toward the headline's own ratios */
+    for (size_t k = 1; k < s->rounds && s->rho; k++) {       /* from the fit the round before gave, as above */
+        s->rho = sb_nmf_rho(s, k), s->round = k;
+        s->hws_ok = 0;
+        memcpy(s->w, s->w0, m * n * sizeof *s->w);
+        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
+        push_last(s, out);
+        to_headline(s, in, out);
+        if (s->tables && s->hws_ok) minimax(s, in, out, s->cal);
+    }
 }

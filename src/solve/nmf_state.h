@@ -74,7 +74,19 @@ typedef struct nmf_state {
     int mm;
     double mmc[SB_NMF_MAX_TERMS], mm_eta, mm_last, mm_best;
     int first_fit; /* the plan's nonneg_first_fit: masked, the first mix's fit kept alone */
+    size_t rounds; /* the plan's nonneg_rounds, at least 1 */
+    int channel;   /* the channel solved (sb_solve_in_t), for sb_nmf_rho */
+    size_t round;  /* the round of rho (sb_nmf_rho) */
+    /* the round before's corrections of to_headline and calibrate (nmf_mixes.c damp) */
+    double cpprev[SB_NMF_MAX_TERMS], calprev[SB_NMF_MAX_TERMS];
 } nmf_state_t;
+
+/* Round k's ratios of the plan's nonneg_ratio (the channel's where given). */
+static inline const double *sb_nmf_rho(const nmf_state_t *s, size_t k) {
+    if (!s->rho_all) return NULL;
+    if (s->rho_ch && s->channel >= 0 && s->channel < 3) return s->rho_ch + (k * 3 + (size_t)s->channel) * s->J;
+    return s->rho_all + k * s->J;
+}
 
 /* The factor on the last prefix's squared ratio r to the reference, in
  * the sweeps' weights (ratio_weights) and in the measure the fits are

@@ -133,6 +133,7 @@ static sb_result_t plan(sb_context_t *ctx, const sb_solve_problem_t *pb, void **
     s->polish_steps = SB_NMF_POLISH_STEPS;
     s->rho = s->rho_all = pb->nonneg_ratio;
     s->rho_ch = pb->nonneg_ratio ? pb->nonneg_ratio_channel : NULL;
+    s->rounds = pb->nonneg_rounds > 1 ? pb->nonneg_rounds : 1;
     s->tol = pb->fit_tol > 0 && pb->fit_tol < SB_NMF_TOL ? pb->fit_tol : SB_NMF_TOL;
     size_t cells = s->m * s->n; /* checked by the plan */
     s->e = sb_alloc(ctx, cells, sizeof(double), "nmf plan");
@@ -209,7 +210,8 @@ static sb_result_t execute(void *state, const sb_solve_in_t *in, sb_solve_out_t 
     nmf_state_t *s = state;
     size_t m = s->m, n = s->n;
     int masked = in->mask && !s->zero_fill;
-    s->rho = s->rho_ch && in->channel >= 0 && in->channel < 3 ? s->rho_ch + (size_t)in->channel * s->J : s->rho_all;
+    s->channel = in->channel;
+    s->rho = sb_nmf_rho(s, 0), s->round = 0;
     for (size_t c = 0; c < n; c++)
         for (size_t i = 0; i < m; i++) {
             s->x[i + c * m] = in->x[i + c * in->ldx];

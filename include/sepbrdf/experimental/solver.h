@@ -44,6 +44,8 @@ typedef struct sb_solve_problem {
     const double *nonneg_ratio_channel;
     /* the plan's nonneg_first_fit (factor.h) */
     int nonneg_first_fit;
+    /* the plan's nonneg_rounds (factor.h; 0 or 1: one) */
+    size_t nonneg_rounds;
 } sb_solve_problem_t;
 
 /* One channel. */
