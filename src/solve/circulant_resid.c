@@ -25,6 +25,15 @@
 #include "util/internal.h"
 #include "util/rdft.h"
 
+/* glibc's complex.h defines CMPLX for GCC only (clang: __builtin_complex) */
+#ifndef CMPLX
+#if defined(__clang__)
+#define CMPLX(x, y) __builtin_complex((double)(x), (double)(y))
+#else
+#define CMPLX(x, y) ((double)(x) + _Complex_I * (double)(y))
+#endif
+#endif
+
 /* C[r + f rows] = sum_d X[r + d ldx] cos(2 pi f d / R), S likewise with
  * sin, f = 0..nb-1: by FFT where R allows, else the sums (ct, st: the
  * tables of cos and sin(2 pi q / R)). */
