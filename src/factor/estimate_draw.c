@@ -95,6 +95,8 @@ static double draw_pair(const double x[6], double wi[3], double wo[3]) {
     return pi_ * sb_estimate_draw_wo(wi, x + 3, wo);
 }
 
+double sb_estimate_draw_pair(const double x[6], double wi[3], double wo[3]) { return draw_pair(x, wi, wo); }
+
 /* A batched source (sb_source_create_batched): the drawn pairs of
  * replicate k (density in d[6]) evaluated in one call. */
 static void eval_replicate(sb_pairs_t *P, size_t k) {

@@ -9,6 +9,13 @@
  * p_o(wo | wi), 0 when wi or wo is below the horizon. */
 double sb_estimate_draw_wo(const double wi[3], const double x[3], double wo[3]);
 
+/* The whole domain's pair (wi, wo) drawn from the point x of [0,1)^6 as
+ * the estimator draws it (uniform, cosine and grazing wi; wo as above);
+ * returns its density, 0 below the horizon.  Masked to a --theta-max cap
+ * (job_scene.c), it measures within the cap with the mixture's draws
+ * toward the lobe: uniform draws there read a sharp residual low. */
+double sb_estimate_draw_pair(const double x[6], double wi[3], double wo[3]);
+
 /* The unit direction at cos theta = z, azimuth 2 pi u. */
 void sb_estimate_dir_z(double z, double u, double w[3]);
 

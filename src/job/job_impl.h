@@ -124,7 +124,7 @@ struct sb_job {
     size_t cand_terms[JOB_MAX_CANDS]; /* the terms it is fitted with at R (they differ only with --max-error) */
     job_attempt_t best;
     sb_scene_t *scene;         /* opts.scene parsed, NULL: none (job_scene.c) */
-    sb_scene_t *cap_scene;     /* --theta-max below 90, no scene: the cap, where the estimator's pairs lie */
+    double cap_cos;            /* --theta-max below 90: cos of the cap, where the estimator's pairs lie */
     sb_pairs_t *domain_pairs;  /* with a scene: the whole domain's pairs */
     sb_estimate_t *domain_est; /* with a scene: the kept fit's errors over the whole domain */
     double *scene_ref;         /* with a scene: the unweighted fit's headline per J' (job_scene_guard.c); NULL: none */

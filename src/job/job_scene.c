@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/estimate_draw.h"
 #include "job_impl.h"
 #include "sepbrdf/exr.h"
 #include "util/internal.h"
@@ -67,12 +68,19 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
     return r;
 }
 
+/* The whole domain's draw (its mixture toward the lobe) with the pairs
+ * beyond the cap at density 0: left out of every sum, so the errors are
+ * the cap's.  Uniform draws within the cap (as a scene's ranges draw)
+ * read a sharp residual low: GGX 0.5 on hd at 60 deg, J' = 2, 65 536
+ * pairs: the specular band 6.6e-4 against 8.7e-4 (2 M pairs). */
+static double draw_in_cap(const void *user, const double x[6], double wi[3], double wo[3]) {
+    double c = *(const double *)user, p = sb_estimate_draw_pair(x, wi, wo);
+    return wi[2] >= c && wo[2] >= c ? p : 0;
+}
+
 sb_result_t job_cap_pairs(sb_context_t *ctx, sb_job_t *job, const sb_estimate_opts_t *eo, sb_pairs_t **out) {
-    char spec[96];
-    double t = job->o.theta_max_deg; /* the scene --theta-max means, for measuring only */
-    snprintf(spec, sizeof spec, "view=0..%.17g;light=0..%.17g", t, t);
-    sb_result_t r = job->cap_scene ? SB_OK : sb_scene_parse(ctx, spec, &job->cap_scene);
-    return r == SB_OK ? sb_scene_pairs_create(ctx, job->cap_scene, job->src, eo, out) : r;
+    job->cap_cos = cos(job->o.theta_max_deg * SB_PI / 180); /* the pairs keep a pointer to it */
+    return sb_pairs_create_drawn(ctx, job->src, eo, draw_in_cap, &job->cap_cos, out);
 }
 
 sb_result_t job_pairs_create(sb_context_t *ctx, sb_job_t *job) {
@@ -129,8 +137,6 @@ void job_scene_report(sb_json_t *j, const sb_job_t *job) {
 
 void job_scene_free(sb_job_t *job) {
     sb_scene_destroy(job->scene);
-    sb_scene_destroy(job->cap_scene);
-    job->cap_scene = NULL;
     sb_pairs_destroy(job->domain_pairs);
     free(job->domain_est);
     free(job->scene_ref);
