@@ -16,7 +16,9 @@ static int run(const char *fmt, const char *arg) {
     return sb_run(cmd, out, sizeof out);
 }
 
-static double json_first_number(const char *path, const char *key) {
+/* The number after "key": (array: after "key": [) in the JSON file at
+ * path, its first occurrence; NAN where there is none. */
+static double json_number_after(const char *path, const char *key, int array) {
     FILE *fp = fopen(path, "r");
     if (!fp) return NAN;
     static char buf[1 << 20];
@@ -24,24 +26,15 @@ static double json_first_number(const char *path, const char *key) {
     buf[n] = 0;
     fclose(fp);
     char pat[128];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(buf, pat);
-    return p ? atof(p + strlen(pat)) : NAN;
-}
-
-/* The first number of the array at key in the JSON file at path. */
-static double json_array_first(const char *path, const char *key) {
-    FILE *fp = fopen(path, "r");
-    if (!fp) return NAN;
-    static char buf[1 << 20];
-    size_t n = fread(buf, 1, sizeof buf - 1, fp);
-    buf[n] = 0;
-    fclose(fp);
-    char pat[128];
-    snprintf(pat, sizeof pat, "\"%s\": [", key);
+    snprintf(pat, sizeof pat, array ? "\"%s\": [" : "\"%s\": ", key);
     const char *p = strstr(buf, pat);
     return p ? atof(p + strlen(pat) + strspn(p + strlen(pat), " \n")) : NAN;
 }
+
+static double json_first_number(const char *path, const char *key) { return json_number_after(path, key, 0); }
+
+/* The first number of the array at key in the JSON file at path. */
+static double json_array_first(const char *path, const char *key) { return json_number_after(path, key, 1); }
 
 /* 0 when the file at path holds a line matching the basic regex re. */
 static int file_matches(const char *path, const char *re) {
