@@ -27,8 +27,8 @@ static double rnd(unsigned long long *s) { /* splitmix64, 53 bits */
  * direction (GGX alpha), or for retro half uniform in the cone about wi
  * and half that mixture; each pair weighted by the uniform density over
  * the draw's, those outside the ranges adding zeros. */
-static double reference(const sb_source_t *src, const sb_job_t *job, size_t J, double vdeg, double ldeg,
-                        double alpha, int retro, size_t n, double *se) {
+static double reference(const sb_source_t *src, const sb_job_t *job, size_t J, double vdeg, double ldeg, double alpha,
+                        int retro, size_t n, double *se) {
     const double pi = 3.14159265358979323846, cv = cos(vdeg * pi / 180), cl = cos(ldeg * pi / 180);
     const double cc = cos(SB_BAND_CONE_DEG * pi / 180), ucone = 1 / (2 * pi * (1 - cc));
     band_sums_t s = {0};
@@ -46,9 +46,9 @@ static double reference(const sb_source_t *src, const sb_job_t *job, size_t J, d
                 band_around(wi, cc + (1 - cc) * v[1], v[2], wo);
             else
                 band_mix_draw(alpha, wi, v, wo);
-            double q = wo[2] > 0 ? 1 / (2 * pi) / 3 + band_ggx_pdf(alpha, wi, wo) / 3 +
-                                       band_ggx_pdf(3 * alpha, wi, wo) / 3
-                                 : 0;
+            double q = wo[2] > 0
+                           ? 1 / (2 * pi) / 3 + band_ggx_pdf(alpha, wi, wo) / 3 + band_ggx_pdf(3 * alpha, wi, wo) / 3
+                           : 0;
             int cone = wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2] >= cc;
             w = cone ? ucone / (0.5 * ucone + 0.5 * q) : 0;
         }
@@ -63,9 +63,7 @@ static double reference(const sb_source_t *src, const sb_job_t *job, size_t J, d
     return band_ratio(&s, se);
 }
 
-static int agree(double a, double sa, double b, double sb) {
-    return fabs(a - b) <= fmax(0.1 * b, 2 * hypot(sa, sb));
-}
+static int agree(double a, double sa, double b, double sb) { return fabs(a - b) <= fmax(0.1 * b, 2 * hypot(sa, sb)); }
 
 /* Cook-Torrance 0.05 on hd (R = 16, J = 2): its residual is the mirror
  * peak.  Drawn uniformly within the ranges (main before this test) the
@@ -85,7 +83,7 @@ SB_TEST(ranges_drawn_toward_the_lobe) {
         double h = e->rel[1][SB_EST_FCOS][SB_CH_ALL], hs = e->se[1][SB_EST_FCOS][SB_CH_ALL];
         double rb = e->band[1][SB_BAND_RETRO][SB_CH_ALL], rs = e->band_se[1][SB_BAND_RETRO][SB_CH_ALL];
         double hse, rse, href = reference(src, job, 2, 40, 60, 0.0025, 0, (size_t)1 << 20, &hse),
-                    rref = reference(src, job, 2, 40, 60, 0.0025, 1, (size_t)1 << 20, &rse);
+                         rref = reference(src, job, 2, 40, 60, 0.0025, 1, (size_t)1 << 20, &rse);
         printf("  headline %.5g +- %.2g (drawn here %.5g +- %.2g), retro %.5g +- %.2g (%.5g +- %.2g), %zu pairs\n", h,
                hs, href, hse, rb, rs, rref, rse, e->pairs);
         CHECKF(hs <= SB_EST_REL_SE * h, "headline %g: standard error %g above the target %g of it", h, hs,
@@ -111,12 +109,11 @@ SB_TEST(tiny_ranges_covered) {
     CHECK(sb_job_run_source(NULL, src, &o, &job) == SB_OK);
     CHECK(sb_scene_parse(NULL, "view=0..5;light=0..5", &s) == SB_OK);
     if (e && job && s &&
-        sb_scene_estimate(NULL, s, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job), NULL, e) ==
-            SB_OK) {
+        sb_scene_estimate(NULL, s, src, sb_job_factors(job), sb_job_param(job), sb_job_form(job), NULL, e) == SB_OK) {
         double h = e->rel[0][SB_EST_FCOS][SB_CH_ALL], hs = e->se[0][SB_EST_FCOS][SB_CH_ALL], rse,
                ref = reference(src, job, 1, 5, 5, 0.09, 0, (size_t)1 << 19, &rse);
-        printf("  headline %.5g +- %.2g (drawn here %.5g +- %.2g), %zu of %zu pairs known\n", h, hs, ref, rse,
-               e->known, e->pairs);
+        printf("  headline %.5g +- %.2g (drawn here %.5g +- %.2g), %zu of %zu pairs known\n", h, hs, ref, rse, e->known,
+               e->pairs);
         CHECKF(5 * e->known >= e->pairs, "%zu of %zu pairs in the scene", e->known, e->pairs);
         CHECKF(agree(h, hs, ref, rse), "headline %g +- %g, drawn here %g +- %g", h, hs, ref, rse);
     } else {
