@@ -25,7 +25,10 @@
  * pairs drawn, so that draws can be pooled exactly (bench/bands.py --seeds);
  * SB_BANDS_NEG=1 adds per band a line "negative name v": the most negative
  * reconstructed channel where the source's is positive, over the largest
- * |f| drawn in the band (0: none; bench/issue33.py). */
+ * |f| drawn in the band (0: none; bench/issue33.py); SB_BANDS_SCENE=V0,V1,L0,L1
+ * restricts every band to a ranges scene (--scene 'view=V0..V1;light=L0..L1',
+ * degrees): pairs with theta_o or theta_i outside add zeros, so each ratio
+ * is that over the band within the scene (issue 33, the scene's draw). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -61,7 +64,15 @@ int main(int argc, char **argv) {
         return 1;
     }
     const char *only = getenv("SB_BANDS_ONLY"), *seed = getenv("SB_BANDS_SEED"), *mix = getenv("SB_BANDS_MIX");
-    double ma = mix ? atof(mix) : 0;
+    double ma = mix ? atof(mix) : 0, sc[4] = {0, 90, 0, 90}; /* view, light ranges (degrees) */
+    const char *scene = getenv("SB_BANDS_SCENE");
+    if (scene && sscanf(scene, "%lf,%lf,%lf,%lf", &sc[0], &sc[1], &sc[2], &sc[3]) != 4) {
+        fprintf(stderr, "%s: SB_BANDS_SCENE=%s is not V0,V1,L0,L1 (degrees)\n", argv[0], scene);
+        return 2;
+    }
+    double cs[4];
+    for (int k = 0; k < 4; k++)
+        cs[k] = cos(sc[k] * 3.14159265358979323846 / 180);
     for (int b = 0; b < 9; b++) {
         if (only && strcmp(only, names[b]) != 0) continue;
         uint64_t s = 0x5eed + (uint64_t)b + (seed ? strtoull(seed, NULL, 10) << 8 : 0);
@@ -79,6 +90,7 @@ int main(int argc, char **argv) {
                 u[k] = rnd(&s);
             int in = band_draw(b - 1, u, wi, wo);
             if (ma > 0 && b <= 3) in = (w = band_mix_draw(ma, wi, u + 3, wo)) > 0; /* all, theta_i bands */
+            if (in && scene) in = wo[2] <= cs[0] && wo[2] >= cs[1] && wi[2] <= cs[2] && wi[2] >= cs[3];
             if (in && sb_source_eval(src, wi, wo, v) && !sb_factors_eval(f, p, form, J, wi, wo, r))
                 r[0] = r[1] = r[2] = 0;
             for (int c = 0; in && c < 3; c++) {
@@ -103,6 +115,26 @@ int main(int argc, char **argv) {
         printf("\n");
         if (getenv("SB_BANDS_NEG")) printf("negative %s %.6e\n", names[b], fmx > 0 ? neg / fmx : 0);
         fflush(stdout);
+    }
+    /* SB_BANDS_SCENE_SEEDS=K: the library's scene estimator (sb_scene_estimate,
+     * its defaults, as the job measures a --scene) with seeds 1..K: its
+     * spread against its own standard errors */
+    const char *seeds = getenv("SB_BANDS_SCENE_SEEDS");
+    for (unsigned long k = 1; scene && seeds && k <= strtoul(seeds, NULL, 10); k++) {
+        char spec[128];
+        snprintf(spec, sizeof spec, "view=%g..%g;light=%g..%g", sc[0], sc[1], sc[2], sc[3]);
+        sb_scene_t *sn = NULL;
+        sb_estimate_t *es = malloc(sizeof *es);
+        sb_estimate_opts_t so = {0};
+        so.seed = k;
+        if (es && sb_scene_parse(NULL, spec, &sn) == SB_OK &&
+            sb_scene_estimate(NULL, sn, src, f, p, form, &so, es) == SB_OK)
+            printf("scene seed %lu all %.6e %.3e specular %.6e %.3e retro %.6e %.3e (%zu pairs, %zu known)\n", k,
+                   es->rel[J - 1][SB_EST_FCOS][3], es->se[J - 1][SB_EST_FCOS][3], es->band[J - 1][SB_BAND_SPECULAR][3],
+                   es->band_se[J - 1][SB_BAND_SPECULAR][3], es->band[J - 1][SB_BAND_RETRO][3],
+                   es->band_se[J - 1][SB_BAND_RETRO][3], es->pairs, es->known);
+        sb_scene_destroy(sn);
+        free(es);
     }
     size_t m = argc > 5 ? strtoul(argv[5], NULL, 10) : 0;
     sb_estimate_opts_t eo = {0};

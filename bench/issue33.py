@@ -20,9 +20,11 @@ Checks per row (yes/NO):
   neg  no drawn reconstruction below -1 % of the largest |f| where f > 0
   scn  the --scene fit's drawn whole-domain error <= 2x the unweighted
        fit's drawn headline at the same J, and report.json states both
-       (scene.headline and scene.domain_headline); its column also gives
-       the error inside the scene (report.json) and, where the job kept the
-       unweighted fit (scene.fallback), what the scene fit had
+       (scene.headline and scene.domain_headline), and its error inside
+       the scene (report.json) within 10 % or two standard errors of the
+       draw restricted to the scene's ranges (SB_BANDS_SCENE); its column
+       also gives, where the job kept the unweighted fit (scene.fallback),
+       what the scene fit had
 """
 import json
 import os
@@ -34,6 +36,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bands import agrees, parser, pct, run  # noqa: E402
 
 SCENE = "view=0..40;light=0..60"
+SCENE_RANGES = "0,40,0,60"  # the same for sepbrdf_bench_bands (SB_BANDS_SCENE)
 # (name, spec, GGX alpha of the draw's mixture: the lobe's width or near it)
 MODELS = [
     ("gold (default)", None, 0.25),
@@ -49,9 +52,12 @@ BANDS = ["all", "theta_i_60", "theta_i_80", "theta_i_89"]
 FLOAT_FLOOR = 1e-6
 
 
-def draw(build, spec, out, J, n, band, alpha):
-    """sepbrdf_bench_bands on one band: (error, se, most negative / max |f|)."""
+def draw(build, spec, out, J, n, band, alpha, scene=None):
+    """sepbrdf_bench_bands on one band: (error, se, most negative / max |f|);
+    scene: "V0,V1,L0,L1", the band within those ranges (SB_BANDS_SCENE)."""
     env = dict(os.environ, SB_BANDS_ONLY=band, SB_BANDS_MIX=str(alpha), SB_BANDS_NEG="1")
+    if scene:
+        env["SB_BANDS_SCENE"] = scene
     r = subprocess.run([os.path.join(build, "sepbrdf_bench_bands"), spec, out, str(J), str(n)],
                        capture_output=True, text=True, env=env)
     lines = [ln.split() for ln in r.stdout.splitlines()]
@@ -85,10 +91,12 @@ def case(a, tmp, name, src, alpha, J):
         sc = srep.get("scene") or {}
         both = "headline" in sc and "domain_headline" in sc
         sd = draw(a.build, spec, sout, J, a.n, "all", alpha)
-        okscn = both and sd[0] <= 2 * h
-        scn = "%s (report %s) / %s = %.2f; inside %s" % (
+        si = draw(a.build, spec, sout, J, a.n, "all", alpha, SCENE_RANGES)
+        ins = both and agrees(sc["headline"][J - 1], sc["headline_se"][J - 1], si[0], si[1])
+        okscn = both and sd[0] <= 2 * h and ins
+        scn = "%s (report %s) / %s = %.2f; inside %s (drawn %s%s)" % (
             pct(sd[0]), pct(sc["domain_headline"][J - 1]) if both else "none", pct(h), sd[0] / h,
-            pct(sc["headline"][J - 1]) if both else "?")
+            pct(sc["headline"][J - 1]) if both else "?", pct(si[0]), "" if ins else ", **disagrees**")
         if sc.get("fallback"):
             kept = "floor=%g" % sc["fallback_floor"] if sc.get("fallback_floor") else "unweighted"
             scn += ", %s kept (scene fit: inside %s, whole %.3gx)" % (kept, pct(sc["fallback_inside"]),

@@ -70,9 +70,10 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
 
 /* The whole domain's draw (its mixture toward the lobe) with the pairs
  * beyond the cap at density 0: left out of every sum, so the errors are
- * the cap's.  Uniform draws within the cap (as a scene's ranges draw)
+ * the cap's.  Uniform draws within the cap (as a scene's ranges drew)
  * read a sharp residual low: GGX 0.5 on hd at 60 deg, J' = 2, 65 536
- * pairs: the specular band 6.6e-4 against 8.7e-4 (2 M pairs). */
+ * pairs: the specular band 6.6e-4 against 8.7e-4 (2 M pairs); a
+ * scene's ranges now mix both (scene_mass.c draw_ranges). */
 static double draw_in_cap(const void *user, const double x[6], double wi[3], double wo[3]) {
     double c = *(const double *)user, p = sb_estimate_draw_pair(x, wi, wo);
     return wi[2] >= c && wo[2] >= c ? p : 0;

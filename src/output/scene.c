@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "output/scene_impl.h"
 #include "util/internal.h"
 
 #define SPEC_MAX 4096
@@ -321,4 +322,12 @@ double sb_scene_draw(const sb_scene_t *s, const double x[6], double wi[3], doubl
     dir_in(s->cview, x[0], x[1], wo);
     dir_in(s->clight, x[2], x[3], wi);
     return 1;
+}
+
+/* Within [c0, c1], up to rounding of the draw's c0 + (c1 - c0) u. */
+static int within(const double c[2], double z) { return z >= c[0] - 1e-12 && z <= c[1] + 1e-12; }
+
+double sb_scene_ranges_pdf_(const sb_scene_t *s, const double wi[3], const double wo[3]) {
+    if (!s || s->kind != SB_SCENE_RANGES || !within(s->cview, wo[2]) || !within(s->clight, wi[2])) return 0;
+    return 1 / (4 * SB_PI * SB_PI * (s->cview[1] - s->cview[0]) * (s->clight[1] - s->clight[0]));
 }

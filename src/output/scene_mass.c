@@ -17,6 +17,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "factor/estimate_draw.h"
+#include "output/scene_impl.h"
 #include "sepbrdf/scene.h"
 #include "util/internal.h"
 
@@ -25,6 +27,15 @@
 #define MASS_PER_CELL 8
 #define SEP_SWEEPS 30
 #define W_FLOOR 1e-3
+/* A ranges scene's pairs: the share drawn uniformly within the ranges,
+ * the rest by the whole domain's mixture (draw_ranges).  Measured
+ * (docs/scene.md, "A scene's ranges drawn toward the lobe"): the
+ * headline's spread over 8 seeds, view=0..40;light=0..60, uniform / 0.5
+ * / 0.25 / 0.1: Cook-Torrance 0.1 hd J = 4 5.5 % (2^19 pairs) / 1.7 % /
+ * 1.1 % / 1.1 % (65 536), RGL green malachite J = 4 21 % / 1.2 % / 1.5 %
+ * / 1.3 %; smooth lobes (GGX 0.3, gold, Phong n = 100) 0.2-0.7 % / 0.5-0.8
+ * % / 0.4-0.8 % / 0.5-1.7 %. */
+#define RANGES_UNIFORM 0.25
 
 static size_t wrap_at(long i, size_t n, int mode) {
     if (mode == SB_WRAP_REPEAT) {
@@ -179,10 +190,31 @@ static double draw_scene(const void *user, const double x[6], double wi[3], doub
     return sb_scene_draw(user, x, wi, wo);
 }
 
+/* A ranges scene's pairs: with probability RANGES_UNIFORM uniform within
+ * the ranges (sb_scene_draw, x0..x3), else the whole domain's mixture
+ * toward the lobe (estimate_draw.h; x5 rescaled, so each branch sees
+ * uniform points) with the pairs outside the ranges at density 0.  A pair
+ * within has density a u + (1 - a) m (u the ranges' uniform density, m
+ * the mixture's, both per solid angle): the estimate is over the ranges,
+ * with the uniform's coverage on a tiny scene and the mixture's draws of
+ * a sharp lobe's residual, which uniform draws read low. */
+static double draw_ranges(const void *user, const double x[6], double wi[3], double wo[3]) {
+    const double a = RANGES_UNIFORM;
+    if (x[5] < a) {
+        sb_scene_draw(user, x, wi, wo);
+    } else {
+        double y[6] = {x[0], x[1], x[2], x[3], x[4], (x[5] - a) / (1 - a)};
+        if (!(sb_estimate_draw_pair(y, wi, wo) > 0)) return 0;
+    }
+    double u = sb_scene_ranges_pdf_(user, wi, wo);
+    return u > 0 ? a * u + (1 - a) * sb_estimate_pair_pdf(wi, wo) : 0;
+}
+
 sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
                                   const sb_estimate_opts_t *opts, sb_pairs_t **out) {
     if (!s) return sb_error(ctx, SB_ERR_ARG, "scene: NULL argument");
-    return sb_pairs_create_drawn(ctx, src, opts, draw_scene, s, out);
+    sb_pair_draw_fn draw = sb_scene_kind(s) == SB_SCENE_RANGES ? draw_ranges : draw_scene;
+    return sb_pairs_create_drawn(ctx, src, opts, draw, s, out);
 }
 
 sb_result_t sb_scene_estimate(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src, const sb_factors_t *f,
