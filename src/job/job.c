@@ -337,7 +337,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     job->fit_as_auto = as_auto & 1;
     job->no_scene_guard = (as_auto & JOB_RUN_NO_GUARD) != 0;
     job->headline_only = (as_auto & JOB_RUN_HEADLINE) != 0;
-    job->src = job->eval_src = src;
+    job->src = src;
     job->own_src = own;
     sb_param_kind_t kind;
     sb_form_t form;
