@@ -38,6 +38,34 @@ SB_TEST(ctx_memo_open_while_a_job_runs) {
     sb_context_destroy(ctx);
 }
 
+/* By the caller's hash (fit_memo.c: a masked fit's key built only where
+ * the memo holds one of its hash): a key is told apart by its bytes, not
+ * its hash, and the store takes the key it is given. */
+SB_TEST(ctx_memo_by_callers_hash) {
+    sb_context_t *ctx = NULL;
+    CHECK(sb_context_create(&ctx) == SB_OK);
+    const double key[3] = {1, 2, 3}, other[3] = {1, 2, 4}, val[2] = {4.5, -0.0};
+    double got[2] = {0, 0};
+    CHECK(!sb_ctx_memo_room(ctx, 0)); /* not open */
+    sb_ctx_memo_open(ctx);
+    CHECK(sb_ctx_memo_room(ctx, 0) && sb_ctx_memo_room(ctx, SB_CTX_MEMO_BYTES) &&
+          !sb_ctx_memo_room(ctx, SB_CTX_MEMO_BYTES + 1));
+    CHECK(!sb_ctx_memo_holds(ctx, 7, sizeof key));
+    double *k = malloc(sizeof key);
+    CHECK(k != NULL);
+    memcpy(k, key, sizeof key);
+    sb_ctx_memo_store_hashed(ctx, 7, k, sizeof key, val, sizeof val);
+    CHECK(sb_ctx_memo_holds(ctx, 7, sizeof key) && !sb_ctx_memo_holds(ctx, 8, sizeof key) &&
+          !sb_ctx_memo_holds(ctx, 7, sizeof key - 1));
+    CHECK(sb_ctx_memo_find_hashed(ctx, 7, key, sizeof key, got, sizeof got) && !memcmp(got, val, sizeof val));
+    CHECK(!sb_ctx_memo_find_hashed(ctx, 7, other, sizeof other, got, sizeof got)); /* same hash, other bytes */
+    CHECK(!sb_ctx_memo_find_hashed(ctx, 8, key, sizeof key, got, sizeof got));
+    CHECK(!sb_ctx_memo_room(ctx, SB_CTX_MEMO_BYTES)); /* what it holds counts */
+    sb_ctx_memo_close(ctx);
+    CHECK(!sb_ctx_memo_holds(ctx, 7, sizeof key));
+    sb_context_destroy(ctx);
+}
+
 #define M 24
 #define N 40
 #define K 3

@@ -27,8 +27,15 @@
  * THP mode is `madvise` or `always`), to serve blocks up to 32 MiB from that
  * heap instead of fresh mmap()s, and to keep 32 MiB of freed heap before
  * returning it: io -r 64 0.165 -> 0.088 s (1 800 faults), io -r 256 5.5 ->
- * 2.6 s, the default 0.32 -> 0.26 s, at +5 MiB and +21 MiB peak.  Set unless
- * the user set GLIBC_TUNABLES; sb_cli_malloc_env_restore() takes it out
+ * 2.6 s, the default 0.32 -> 0.26 s, at +5 MiB and +21 MiB peak.  One
+ * arena (arena_max=1): a thread's own arena is a heap glibc does not put
+ * on huge pages, and trims to the page what it frees, so the work of the
+ * pool's threads (a scattered table's cross-validation refits, each
+ * reading its table, memo and matrix) took its pages one 4 KiB fault at a
+ * time, again for every refit: the Cornell acrylic's default run 4 800-5 300
+ * faults, 470-500 with one arena (issue 32 item 5, docs/measured.md;
+ * the threads allocate outside their loops, so they seldom wait on the
+ * arena's lock).  Set unless the user set GLIBC_TUNABLES; sb_cli_malloc_env_restore() takes it out
  * again once running, so that programs the CLI starts (a browser, gnuplot,
  * mpirun) do not inherit it. */
 #include "env_plan.h"
@@ -44,7 +51,8 @@
 #define BLAS_BASE_BYTES ((unsigned long long)512 << 20)
 
 const char sb_env_malloc_tunables[] =
-    "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=33554432";
+    "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=33554432:"
+    "glibc.malloc.arena_max=1";
 
 static unsigned long long limit_bytes(void) {
     unsigned long long lim = ~0ull;

@@ -331,13 +331,20 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         return sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     }
     job->t_start = t0;
-    sb_ctx_memo_open(ctx); /* fits repeated within the run made once (the masked fit beside nmf's channels) */
+    /* fits repeated within the run made once: the masked fit beside nmf's
+     * channels, a named layout's fit finished (three of the acrylic's 39
+     * fits under `--param io -r 16`).  Under auto with another method none
+     * repeated (0 of 60 fits of the Cornell acrylic, 48 of a MERL file,
+     * 20 of the ALTA retro, 12 of the default gold): the memo's keys, the
+     * matrix of every fit, cost 21 MB and 2-3 % of the acrylic's CPU. */
+    int memo = (opts->param && strcmp(opts->param, "auto") != 0) || job_nonneg_method(sb_method_name(opts->method));
+    if (memo) sb_ctx_memo_open(ctx);
     double ts = job_now();
     job->stage_s[0] = ts - t0; /* the source opened (sb_job_run) */
     job->fit_as_auto = as_auto & 1;
     job->no_scene_guard = (as_auto & JOB_RUN_NO_GUARD) != 0;
     job->headline_only = (as_auto & JOB_RUN_HEADLINE) != 0;
-    job->src = job->eval_src = src;
+    job->src = src;
     job->own_src = own;
     sb_param_kind_t kind;
     sb_form_t form;
@@ -381,7 +388,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     }
     if (r == SB_OK && opts->out) r = sb_job_write(ctx, job, opts->out);
     sb_blas_threads_end(blas);
-    sb_ctx_memo_close(ctx);
+    if (memo) sb_ctx_memo_close(ctx);
     if (r != SB_OK) {
         sb_job_destroy(job);
         return r;

@@ -77,10 +77,10 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         mo.progress = sample_progress;
         mo.progress_user = (void *)pu;
     }
-    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
+    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->src, a->param, &mo, &a->m);
     if (r != SB_OK) return r;
     /* the zero fill of SB_CAP_LIGHT_EDGE, SB_CAP_VIEW_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
-    if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->eval_src, a->param, &a->m);
+    if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->src, a->param, &a->m);
     a->t_sample = job_now() - t0;
     return r;
 }

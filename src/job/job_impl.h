@@ -2,7 +2,7 @@
  * files form a tree (scripts/check_layers.sh checks it), each calling only
  * those on the lines above it:
  *   job_base.c (clock, progress, warnings, accessors), job_json.c,
- *   job_cache.c, job_beside.c (which methods are non-negative)
+ *   job_beside.c (which methods are non-negative)
  *   job_support.c, job_scene.c, job_candidates.c
  *   job_attempt.c (sample, factor and measure one candidate)
  *   job_cv.c, job_weights.c
@@ -99,10 +99,9 @@ struct sb_job {
     char *source_spec; /* o.source points here */
     sb_source_t *own_src;
     const sb_source_t *src;
-    const sb_source_t *eval_src; /* what is evaluated: src, or its memo while screening */
-    sb_pairs_t *pairs;           /* the estimator's direction pairs, for every candidate and J */
-    sb_pairs_t *band_pairs;      /* pairs with theta_i > 60 degrees for the reported grazing bands (job_bandpairs.c) */
-    double t_estimate;           /* the estimator, in all */
+    sb_pairs_t *pairs;      /* the estimator's direction pairs, for every candidate and J */
+    sb_pairs_t *band_pairs; /* pairs with theta_i > 60 degrees for the reported grazing bands (job_bandpairs.c) */
+    double t_estimate;      /* the estimator, in all */
     /* estimates at the requested settings take the headlines and bands of
      * every J' alone (no percentiles, maxima or colour: what choosing and
      * refining a fit read): named_pair, the whole estimate made for the
@@ -372,10 +371,6 @@ sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_o
 /* Whether the solver named `name` (a method, or the factors' "method"
  * meta) gives non-negative factors by construction (SB_CAP_NONNEG). */
 int job_nonneg_method(const char *name);
-
-/* A source answering as src does, remembering up to 3/4 cap pairs (cap a
- * power of two); src must outlive it. */
-sb_result_t job_memo_create(sb_context_t *ctx, const sb_source_t *src, size_t cap, sb_source_t **out);
 
 /* The candidates of the job (job->cands, job->ncand) and the kept one,
  * sampled and factored at the requested settings, in job->best. */

@@ -90,7 +90,7 @@ sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv,
     mo.res = lv->metric_res;
     mo.channels = job->o.channels;
     double t3 = job_now();
-    if ((r = sb_metric_compute(ctx, job->eval_src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
+    if ((r = sb_metric_compute(ctx, job->src, a->f, a->param, a->m.form, &mo, &a->metric)) != SB_OK) return r;
     a->t_metric = job_now() - t3;
     return SB_OK;
 }

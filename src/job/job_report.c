@@ -58,7 +58,7 @@ static void method_why(const sb_job_t *job, char *why, size_t n) {
     const sb_matrix_t *m = &job->best.m;
     const char *method = sb_factors_get_meta(job->best.f, "method");
     double mib = 1.0 / (1 << 20), lim = (double)sb_memory_limit() * mib;
-    double stored = (double)sb_matrix_bytes(job->eval_src, job->best.param, &(sb_matrix_opts_t){.structured = 1}) * mib;
+    double stored = (double)sb_matrix_bytes(job->src, job->best.param, &(sb_matrix_opts_t){.structured = 1}) * mib;
     if (!method) method = "none";
     if (m->streamed)
         snprintf(why, n,

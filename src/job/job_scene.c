@@ -57,7 +57,7 @@ sb_result_t job_scene_sample(sb_context_t *ctx, const sb_job_t *job, const sb_ma
         a->scene_form = mo->form;
         sb_matrix_opts_t o = *mo;
         o.only = only;
-        r = sb_matrix_build(ctx, job->eval_src, a->param, &o, &a->m);
+        r = sb_matrix_build(ctx, job->src, a->param, &o, &a->m);
     }
     free(mass);
     free(only);

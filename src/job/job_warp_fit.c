@@ -140,7 +140,7 @@ sb_result_t job_warp_fit(sb_context_t *ctx, sb_job_t *job, const char *warp, con
     mo.channels = job->o.channels;
     mo.structured = 1;
     mo.stream = job->o.method == SB_METHOD_STREAM;
-    if (r == SB_OK) r = sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
+    if (r == SB_OK) r = sb_matrix_build(ctx, job->src, a->param, &mo, &a->m);
     a->t_sample = job_now() - t0;
     a->weighted = weighted;
     job_level_t lv = {.res = job->o.res,

@@ -14,7 +14,7 @@ typedef struct entry {
     struct entry *next;
     uint64_t hash;
     size_t klen, vlen;
-    unsigned char *bytes; /* key, then value */
+    unsigned char *key, *val;
 } entry_t;
 
 struct sb_ctx_memo {
@@ -37,7 +37,8 @@ static void memo_free(void *p) {
     if (!m) return;
     for (entry_t *e = m->head, *nx; e; e = nx) {
         nx = e->next;
-        free(e->bytes);
+        free(e->key);
+        free(e->val);
         free(e);
     }
     pthread_mutex_destroy(&m->mu);
@@ -65,23 +66,38 @@ void sb_ctx_memo_close(sb_context_t *ctx) {
     *slot = NULL;
 }
 
-/* The entry of key (NULL: none); under the lock. */
+/* The entry of key (NULL: none; key NULL: the first of hash h and length
+ * klen); under the lock. */
 static entry_t *lookup(const sb_ctx_memo_t *m, uint64_t h, const void *key, size_t klen) {
     for (entry_t *e = m->head; e; e = e->next)
-        if (e->hash == h && e->klen == klen && memcmp(e->bytes, key, klen) == 0) return e;
+        if (e->hash == h && e->klen == klen && (!key || memcmp(e->key, key, klen) == 0)) return e;
     return NULL;
 }
 
-int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val, size_t vlen) {
-    sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx, NULL) : NULL;
+static sb_ctx_memo_t *memo_of(sb_context_t *ctx) { return ctx ? *sb_context_memo_slot(ctx, NULL) : NULL; }
+
+int sb_ctx_memo_find_hashed(sb_context_t *ctx, uint64_t h, const void *key, size_t klen, void *val, size_t vlen) {
+    sb_ctx_memo_t *m = memo_of(ctx);
     if (!m) return 0;
-    uint64_t h = fnv1a(key, klen);
     pthread_mutex_lock(&m->mu);
     const entry_t *e = lookup(m, h, key, klen);
     int hit = e && e->vlen == vlen;
-    if (hit) memcpy(val, e->bytes + klen, vlen);
+    if (hit) memcpy(val, e->val, vlen);
     pthread_mutex_unlock(&m->mu);
     return hit;
+}
+
+int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val, size_t vlen) {
+    return sb_ctx_memo_find_hashed(ctx, fnv1a(key, klen), key, klen, val, vlen);
+}
+
+int sb_ctx_memo_holds(sb_context_t *ctx, uint64_t h, size_t klen) {
+    sb_ctx_memo_t *m = memo_of(ctx);
+    if (!m) return 0;
+    pthread_mutex_lock(&m->mu);
+    int held = lookup(m, h, NULL, klen) != NULL;
+    pthread_mutex_unlock(&m->mu);
+    return held;
 }
 
 /* What the memo may hold: SB_CTX_MEMO_BYTES, less under a low memory
@@ -91,20 +107,28 @@ static size_t memo_cap(void) {
     return lim < SB_CTX_MEMO_BYTES ? lim : SB_CTX_MEMO_BYTES;
 }
 
-void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen) {
-    sb_ctx_memo_t *m = ctx ? *sb_context_memo_slot(ctx, NULL) : NULL;
+int sb_ctx_memo_room(sb_context_t *ctx, size_t bytes) {
+    sb_ctx_memo_t *m = memo_of(ctx);
+    if (!m) return 0;
     size_t cap = memo_cap();
-    if (!m || klen > cap || vlen > cap - klen) return;
-    uint64_t h = fnv1a(key, klen);
-    entry_t *e = calloc(1, sizeof *e);
-    unsigned char *b = e ? malloc(klen + vlen) : NULL;
-    if (!b) {
+    pthread_mutex_lock(&m->mu);
+    int room = bytes <= cap && m->bytes <= cap - bytes;
+    pthread_mutex_unlock(&m->mu);
+    return room;
+}
+
+void sb_ctx_memo_store_hashed(sb_context_t *ctx, uint64_t h, void *key, size_t klen, const void *val, size_t vlen) {
+    sb_ctx_memo_t *m = memo_of(ctx);
+    size_t cap = memo_cap();
+    entry_t *e = m && klen <= cap && vlen <= cap - klen ? calloc(1, sizeof *e) : NULL;
+    unsigned char *v = e ? malloc(vlen ? vlen : 1) : NULL;
+    if (!v) {
         free(e);
+        free(key);
         return;
     }
-    memcpy(b, key, klen);
-    memcpy(b + klen, val, vlen);
-    *e = (entry_t){NULL, h, klen, vlen, b};
+    memcpy(v, val, vlen);
+    *e = (entry_t){NULL, h, klen, vlen, key, v};
     pthread_mutex_lock(&m->mu);
     int keep = m->bytes + klen + vlen <= cap && !lookup(m, h, key, klen);
     if (keep) {
@@ -114,7 +138,15 @@ void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const vo
     }
     pthread_mutex_unlock(&m->mu);
     if (!keep) {
-        free(b);
+        free(key);
+        free(v);
         free(e);
     }
+}
+
+void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen) {
+    unsigned char *k = memo_of(ctx) ? malloc(klen ? klen : 1) : NULL;
+    if (!k) return;
+    memcpy(k, key, klen);
+    sb_ctx_memo_store_hashed(ctx, fnv1a(key, klen), k, klen, val, vlen);
 }

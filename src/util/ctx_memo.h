@@ -12,6 +12,7 @@
 #define SEPBRDF_CTX_MEMO_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "sepbrdf/common.h"
 
@@ -28,5 +29,18 @@ int sb_ctx_memo_find(sb_context_t *ctx, const void *key, size_t klen, void *val,
 /* Store val for key, unless no memo is open, it holds the key or the
  * bytes would pass SB_CTX_MEMO_BYTES. */
 void sb_ctx_memo_store(sb_context_t *ctx, const void *key, size_t klen, const void *val, size_t vlen);
+
+/* The same by a hash of the caller's (any function of the key's bytes:
+ * entries are told apart by their bytes, the hash only sorts them out),
+ * so that a caller whose key is large (a masked fit's matrix) builds it
+ * only where it is needed.  Whether a memo is open with room for `bytes`
+ * more: */
+int sb_ctx_memo_room(sb_context_t *ctx, size_t bytes);
+/* Whether it holds a key of klen bytes stored with hash h: */
+int sb_ctx_memo_holds(sb_context_t *ctx, uint64_t h, size_t klen);
+/* sb_ctx_memo_find for key stored with hash h: */
+int sb_ctx_memo_find_hashed(sb_context_t *ctx, uint64_t h, const void *key, size_t klen, void *val, size_t vlen);
+/* sb_ctx_memo_store with hash h, taking key (malloc'd): kept, or freed. */
+void sb_ctx_memo_store_hashed(sb_context_t *ctx, uint64_t h, void *key, size_t klen, const void *val, size_t vlen);
 
 #endif
