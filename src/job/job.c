@@ -110,10 +110,17 @@ static void job_warn_max_error(sb_job_t *job) {
     size_t J = sb_factors_terms(job->best.f);
     double e = sb_estimate_headline(job->best.est, J < job->best.est->terms ? J : job->best.est->terms);
     if (e <= job->o.max_error) return;
+    size_t jb = job_cv_fewer(job, J); /* a scattered table: do more terms predict its measurements worse? */
+    char hint[256] = "raise --terms or --res";
+    if (jb)
+        snprintf(hint, sizeof hint,
+                 "more terms lower it only against the interpolation between the measurements: at those left out "
+                 "of the fit %zu terms err least (%.3g, against %.3g at J = %zu)",
+                 jb, sb_job_cv(job, jb, NULL, NULL), sb_job_cv(job, J, NULL, NULL), J);
     job_warn(job,
              "--max-error %g not reached: the lowest headline error is %.4g at J = %zu, the most terms allowed "
-             "(report.json: max_error_met false); raise --terms or --res",
-             job->o.max_error, e, J);
+             "(report.json: max_error_met false); %s",
+             job->o.max_error, e, J, hint);
 }
 
 /* Fewer terms than asked without --max-error: the kept layout holds fewer

@@ -366,12 +366,10 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
                      "(more terms or a finer -r may)",
                      tc, J);
         char fewer[120] = ""; /* terms past the best held-out error fit the samples, not the material */
-        size_t jb = J - 1;
-        for (size_t j = 0; j + 1 < J; j++)
-            if (job->cv[j] < job->cv[jb]) jb = j;
-        if (jb + 1 < J && job->cv[jb] * JOB_CV_FEWER < job->cv[J - 1])
-            snprintf(fewer, sizeof fewer, "; fewer terms predict them better: %zu terms err by %.3g there", jb + 1,
-                     job->cv[jb]);
+        size_t jb = job_cv_fewer(job, J);
+        if (jb)
+            snprintf(fewer, sizeof fewer, "; fewer terms predict them better: %zu terms err by %.3g there", jb,
+                     job->cv[jb - 1]);
         job_warn(job,
                  "at the measurements left out of the fit the error is %.3g at J = %zu (what most random splits "
                  "see, from %zu refits, each without 1/%zu of them; up to %.3g in one), %.1fx the headline %.3g; %s: "
@@ -383,6 +381,14 @@ sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job) {
                  job->cv_band_t[w] > 0 ? sqrt(job->cv_band_e[w] / job->cv_band_t[w]) : NAN, fewer);
     }
     return r;
+}
+
+size_t job_cv_fewer(const sb_job_t *job, size_t J) {
+    if (!job || !job->cv || J < 2 || J > job->cv_terms) return 0;
+    size_t jb = J - 1;
+    for (size_t j = 0; j + 1 < J; j++)
+        if (job->cv[j] < job->cv[jb]) jb = j;
+    return jb + 1 < J && job->cv[jb] * JOB_CV_FEWER < job->cv[J - 1] ? jb + 1 : 0;
 }
 
 double sb_job_cv(const sb_job_t *job, size_t terms, double *se, size_t *held) {

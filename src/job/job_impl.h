@@ -191,6 +191,10 @@ extern const double job_cv_band_deg[JOB_CV_BANDS + 1];
 
 /* k-fold cross-validation of a scattered table's kept fit (job_cv.c). */
 sb_result_t job_cv(sb_context_t *ctx, sb_job_t *job);
+/* Where fewer terms predict the held-out measurements better than J do
+ * (their cross-validated error JOB_CV_FEWER times lower): those terms, the
+ * fewest of lowest error; 0 otherwise or without cross-validation. */
+size_t job_cv_fewer(const sb_job_t *job, size_t J);
 
 /* The figure random splits of n_split rows land within w of most often,
  * per J' < J, into fig[J], and its standard error into se[J] (NULL: not
