@@ -508,3 +508,29 @@ SB_TEST(horizon_follows_source) {
     }
     sb_job_destroy(job);
 }
+
+/* The specular and retro bands of the kept fit (J = 4, R = 32, auto) as
+ * reported, against the brute force above (400 000 pairs drawn uniformly
+ * in the band): within 10 % or two combined standard errors (issue 33's
+ * agreement).  The estimate's own pairs read them low where their sums are
+ * heavy-tailed (the default gold at seed 3, specular: 5.19e-4 +- 3.7e-5
+ * against 7.11e-4; the RGL aurora, retro: 2.71e-2 +- 1.0e-3 against
+ * 3.33e-2); the pairs drawn inside the cones (job_bandpairs.c) do not. */
+static void cone_band_agrees(const char *spec, unsigned long long seed, int b) {
+    sb_job_opts_t o = {.source = spec, .terms = 4, .seed = seed};
+    sb_job_t *job = NULL;
+    CHECK(sb_job_run(NULL, &o, &job) == SB_OK);
+    if (!job) return;
+    const sb_estimate_t *e = sb_job_estimate(job);
+    double se, ref = brute_band(job, b, 4, 400000, &se), est = e->band[3][b][3], ese = e->band_se[3][b][3];
+    printf("  %s seed %llu %s: reported %.4e +- %.1e, brute force %.4e +- %.1e\n", spec ? spec : "default", seed,
+           sb_band_name(b), est, ese, ref, se);
+    CHECKF(fabs(est - ref) <= fmax(0.1 * ref, 2 * hypot(ese, se)), "%s: reported %.4g, brute force %.4g",
+           sb_band_name(b), est, ref);
+    sb_job_destroy(job);
+}
+
+SB_TEST(cone_bands_drawn_in_their_cones) {
+    cone_band_agrees(NULL, 3, SB_BAND_SPECULAR);
+    cone_band_agrees(SB_MEASURED_DIR "/rgl_aurora_white_rgb.bsdf", 1, SB_BAND_RETRO);
+}

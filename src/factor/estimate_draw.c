@@ -94,9 +94,13 @@ static double pdf_i(const double wi[3]) {
 
 /* Map a point x of [0,1)^6 to a pair; returns its density (0: wo below the
  * horizon, no BRDF pair). */
-static double draw_pair(const double x[6], double wi[3], double wo[3]) {
+double sb_estimate_draw_wi(const double x[3], double wi[3]) {
     sb_estimate_dir_z(x[0] < wi_w[0] ? x[1] : x[0] < wi_w[0] + wi_w[1] ? sqrt(1 - x[1]) : graze_z(x[1]), x[2], wi);
-    return pdf_i(wi) * sb_estimate_draw_wo(wi, x + 3, wo);
+    return pdf_i(wi);
+}
+
+static double draw_pair(const double x[6], double wi[3], double wo[3]) {
+    return sb_estimate_draw_wi(x, wi) * sb_estimate_draw_wo(wi, x + 3, wo);
 }
 
 double sb_estimate_draw_pair(const double x[6], double wi[3], double wo[3]) { return draw_pair(x, wi, wo); }
@@ -104,6 +108,10 @@ double sb_estimate_draw_pair(const double x[6], double wi[3], double wo[3]) { re
 double sb_estimate_pair_pdf(const double wi[3], const double wo[3]) {
     return wi[2] > 0 && wo[2] > 0 ? pdf_i(wi) * pdf_o(wi, wo) : 0;
 }
+
+double sb_estimate_wi_pdf(const double wi[3]) { return wi[2] >= 0 ? pdf_i(wi) : 0; }
+
+double sb_estimate_wo_pdf(const double wi[3], const double wo[3]) { return wi[2] > 0 && wo[2] > 0 ? pdf_o(wi, wo) : 0; }
 
 /* A batched source (sb_source_create_batched): the drawn pairs of
  * replicate k (density in d[6]) evaluated in one call. */

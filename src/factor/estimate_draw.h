@@ -24,6 +24,15 @@ double sb_estimate_draw_pair(const double x[6], double wi[3], double wo[3]);
  * the horizon. */
 double sb_estimate_pair_pdf(const double wi[3], const double wo[3]);
 
+/* wi drawn from x (three points of [0,1)) by the whole domain's mixture
+ * for wi; returns its density (per solid angle). */
+double sb_estimate_draw_wi(const double x[3], double wi[3]);
+/* The density sb_estimate_draw_wi draws wi with; 0 below the horizon. */
+double sb_estimate_wi_pdf(const double wi[3]);
+/* The density sb_estimate_draw_wo draws wo with given wi (per solid
+ * angle); 0 below the horizon. */
+double sb_estimate_wo_pdf(const double wi[3], const double wo[3]);
+
 /* The unit direction at cos theta = z, azimuth 2 pi u. */
 void sb_estimate_dir_z(double z, double u, double w[3]);
 

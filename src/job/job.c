@@ -472,6 +472,7 @@ void sb_job_destroy(sb_job_t *job) {
     job_budget_free(job);
     sb_pairs_destroy(job->pairs);
     sb_pairs_destroy(job->band_pairs);
+    sb_pairs_destroy(job->cone_pairs);
     job_scene_free(job);
     free(job->rel_stored);
     free(job->svd_beside);

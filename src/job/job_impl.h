@@ -34,7 +34,7 @@ typedef struct job_attempt {
     int est_lean;              /* est holds headlines and bands alone (job->est_lean) */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     double band_weight;        /* the band's weight 1 + w of the cell-weighted fit (job_bandfit.c); 0: plain */
-    size_t band_pairs;         /* pairs of the grazing bands' own estimate (job_bandpairs.c); 0: none */
+    size_t band_pairs;         /* pairs of the bands' own estimates (job_bandpairs.c); 0: none */
     unsigned texel_fit;        /* texture axes filtered for the lookup (job_texels.c): bit 2 side + axis */
     double weights_dropped[2]; /* term weights dropped (job_weights.c): headline at J as fitted, weighted; 0: not */
     int weighted;
@@ -101,7 +101,9 @@ struct sb_job {
     const sb_source_t *src;
     sb_pairs_t *pairs;      /* the estimator's direction pairs, for every candidate and J */
     sb_pairs_t *band_pairs; /* pairs with theta_i > 60 degrees for the reported grazing bands (job_bandpairs.c) */
-    double t_estimate;      /* the estimator, in all */
+    sb_pairs_t
+        *cone_pairs;   /* pairs with wo near the mirror direction or wi for the specular and retro bands (the same) */
+    double t_estimate; /* the estimator, in all */
     /* estimates at the requested settings take the headlines and bands of
      * every J' alone (no percentiles, maxima or colour: what choosing and
      * refining a fit read): named_pair, the whole estimate made for the
