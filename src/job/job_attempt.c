@@ -8,6 +8,7 @@
 
 #include "factor/plan_conv.h"
 #include "job_impl.h"
+#include "param/serial.h"
 #include "sample/edge.h"
 #include "sample/stream.h"
 #include "sepbrdf/exr.h"
@@ -55,6 +56,29 @@ size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, sb_param_kind
     return job_terms_capped(job, kind) && lv->terms > mn ? mn : lv->terms;
 }
 
+/* The matrix of job_sample (no scene): the form shared by the one
+ * sampled before it (job->form_share), else built, with the shared form
+ * too where it is wanted. */
+static sb_result_t job_build(sb_context_t *ctx, const sb_job_t *job, const sb_param_t *param,
+                             const sb_matrix_opts_t *mo, sb_matrix_t *m) {
+    job_form_share_t *s = job->form_share;
+    int plain = s && !mo->stream && mo->structured && !mo->only;
+    if (plain && s->m.rows && s->form == mo->form && s->src == job->eval_src && s->channels == mo->channels &&
+        s->serial == sb_param_serial_(param) && s->m.rows == sb_param_rows(param)) {
+        *m = s->m; /* the same bits as its own build (sb_matrix_build_two) */
+        memset(&s->m, 0, sizeof s->m);
+        if (mo->progress) mo->progress(mo->progress_user, 1.0);
+        return SB_OK;
+    }
+    if (!plain || !s->want || s->form == mo->form) return sb_matrix_build(ctx, job->eval_src, param, mo, m);
+    s->want = 0;
+    sb_matrix_free(&s->m);
+    s->src = job->eval_src;
+    s->serial = sb_param_serial_(param);
+    s->channels = mo->channels;
+    return sb_matrix_build_two(ctx, job->eval_src, param, mo, s->form, &s->m, m);
+}
+
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a) {
     memset(a, 0, sizeof *a);
@@ -77,7 +101,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         mo.progress = sample_progress;
         mo.progress_user = (void *)pu;
     }
-    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->eval_src, a->param, &mo, &a->m);
+    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : job_build(ctx, job, a->param, &mo, &a->m);
     if (r != SB_OK) return r;
     /* the zero fill of SB_CAP_LIGHT_EDGE, SB_CAP_VIEW_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
     if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->eval_src, a->param, &a->m);

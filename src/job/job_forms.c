@@ -80,16 +80,25 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
     sb_job_candidate_t *c[2] = {&job->cands[order[0]], &job->cands[order[1]]};
     form_fit_t o[2];
     memset(o, 0, sizeof o);
+    /* the second form's matrix from the first's evaluations (io: its
+     * sampling was a fifth of the second fit) */
+    job_form_share_t share = {.want = c[0]->kind == c[1]->kind, .form = c[1]->form};
+    job->form_share = &share;
     for (int k = 0; k < 2; k++) {
         job->est_lean = !(unscreened && k == 0); /* pair_unscreened_order */
         sb_result_t rk = pair_step(ctx, job, c[k], &o[k], 0);
+        share.want = 0;
         job->est_lean = 1;
         if (rk == SB_ERR_NOMEM) {
             job_attempt_free(&o[0].a);
+            job->form_share = NULL;
+            sb_matrix_free(&share.m);
             return SB_ERR_NOMEM;
         }
         if (unscreened && o[k].r == SB_OK) pair_record(c[k], &o[k].a);
     }
+    job->form_share = NULL;
+    sb_matrix_free(&share.m);
     if (o[0].r != SB_OK && o[1].r != SB_OK) return o[1].r;
     int w = o[0].r != SB_OK || (o[1].r == SB_OK && job_rank_error(&o[1].a) < job_rank_error(&o[0].a)), l = !w;
     int other = o[l].r == SB_OK && !(job_rank_error(&o[l].a) > JOB_FORM_FINISH_MARGIN * job_rank_error(&o[w].a));

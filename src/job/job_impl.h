@@ -19,6 +19,19 @@
 #include "sepbrdf/sampler.h"
 #include "util/shared.h"
 
+/* The second form of a layout sampled with the first (job_sample): where
+ * `want`, the next build evaluating an isotropic source on the io grid
+ * builds `m` in `form` too, keyed by what it was built from; job_sample
+ * for that form, layout and source takes it.  m.rows 0: none. */
+typedef struct job_form_share {
+    int want;
+    sb_form_t form;
+    sb_matrix_t m;
+    const sb_source_t *src;
+    unsigned long serial; /* sb_param_serial_ of the layout */
+    unsigned channels;
+} job_form_share_t;
+
 /* One factorisation of the source on one parameterisation and form:
  * sample (param + matrix) -> plan + execute (factors) -> comparable error. */
 typedef struct job_attempt {
@@ -108,6 +121,10 @@ struct sb_job {
      * refining a fit read): named_pair, the whole estimate made for the
      * kept fit alone */
     int est_lean;
+    /* named_pair's forms of one layout (job_forms.c): the second form's
+     * matrix built by the first's job_sample from the same evaluations,
+     * taken by the second's; NULL: none */
+    struct job_form_share *form_share;
     int is_auto;
     int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
     /* --param KIND (a name, not a whole spec; not sample_only): auto
