@@ -3,6 +3,7 @@
  * stages that refine, screen and select attempts (job_bandfit.c,
  * job_texels.c, job_weights.c, job_screen.c). */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -266,25 +267,12 @@ static sb_result_t edge_chain(sb_context_t *ctx, const sb_job_t *job, const sb_p
     return SB_OK;
 }
 
-sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
-    sb_factors_destroy(a->f);
-    a->f = NULL;
-    free(a->term_w);
-    a->term_w = NULL;
-    a->texel_fit = 0;
-    memset(&a->metric, 0, sizeof a->metric);
-    memset(&a->stats, 0, sizeof a->stats);
-    a->conv_terms = 0;
-    a->early_stop = lv->early_stop;
-    a->weighted = weighted;
-    sb_result_t r = job_scene_prepare(ctx, job, a);
-    if (r != SB_OK) return r;
+sb_plan_opts_t job_plan_opts(const sb_job_t *job, const job_level_t *lv, const job_attempt_t *a, size_t J) {
     sb_plan_opts_t pl = {0};
-    size_t J = job_level_terms(job, lv, sb_param_kind(a->param), a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
     pl.terms = J;
     pl.svd.method = job->o.method;
     pl.svd.seed = job->o.seed;
-    pl.weighted = weighted;
+    pl.weighted = a->weighted;
     pl.zero_fill = job_attempt_zero_fill(job, a);
     pl.fit_tol = lv->fit_tol;
     pl.fit_max_iters = lv->fit_max_iters;
@@ -299,11 +287,35 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
         pl.row_weights = a->scene_w;
         pl.col_weights = a->scene_w + a->m.rows;
     }
+    return pl;
+}
+
+size_t job_fit_terms(const sb_job_t *job, const job_level_t *lv, const job_attempt_t *a) {
+    return job_level_terms(job, lv, sb_param_kind(a->param), a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
+}
+
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
+    sb_factors_destroy(a->f);
+    a->f = NULL;
+    free(a->term_w);
+    a->term_w = NULL;
+    a->texel_fit = 0;
+    memset(&a->metric, 0, sizeof a->metric);
+    memset(&a->stats, 0, sizeof a->stats);
+    a->conv_terms = 0;
+    a->early_stop = lv->early_stop;
+    a->weighted = weighted;
+    sb_result_t r = job_scene_prepare(ctx, job, a);
+    if (r != SB_OK) return r;
+    size_t J = job_fit_terms(job, lv, a);
+    sb_plan_opts_t pl = job_plan_opts(job, lv, a, J);
     sb_plan_t *plan = NULL;
     int nested = edge_nested(job, a, J);
     if (nested) pl.terms = 2; /* then one term at a time (edge_chain) */
     r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
     if (r != SB_OK) return r;
+    /* the second form of named_pair: its maxima only where it is kept (job_forms.c pair_max_abs) */
+    if (job->form_share && job->form_share->second && a->m.structured && !job->scene) sb_plan_skip_max_(plan, 1);
     double t1 = job_now();
     /* a large dense matrix: the BLAS threads the job set aside (job.c) */
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;
