@@ -3,7 +3,6 @@
  * stages that refine, screen and select attempts (job_bandfit.c,
  * job_texels.c, job_weights.c, job_screen.c). */
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 

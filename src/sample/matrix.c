@@ -512,7 +512,7 @@ sb_result_t sb_matrix_build_two(sb_context_t *ctx, const sb_source_t *src, const
     sb_matrix_opts_t o = {0};
     if (opts) o = *opts;
     if (out2 && param) matrix_shape(param, &o, form2, out2);
-    if (!out2 || !src || !param || !out || (unsigned)form2 >= SB_FORM_COUNT_ || o.only || o.channels & ~7u ||
+    if (!out2 || !src || !param || !out || (unsigned)form2 >= SB_FORM_COUNT_ || o.only || (o.channels & ~7u) ||
         (unsigned)o.form >= SB_FORM_COUNT_ || !iso_layout(src, param) || streams(param, &o, out2, 1)) {
         if (out2) memset(out2, 0, sizeof *out2);
         return sb_matrix_build(ctx, src, param, opts, out);
