@@ -637,6 +637,44 @@ SB_TEST(named_io_pair_unscreened) {
     }
 }
 
+/* Every "max_abs" number of the report in order, as written (the same
+ * text: the same bits), into buf; how many, -1 where one is null. */
+static int max_abs_text(char *buf, size_t size) {
+    int n = 0;
+    size_t at = 0;
+    buf[0] = 0;
+    for (const char *p = strstr(report, "\"max_abs"); p; p = strstr(p + 1, "\"max_abs")) {
+        const char *v = strchr(p, ':');
+        if (!v) break;
+        size_t len = v[2] == '{' ? strcspn(v + 1, "}") : strcspn(v + 1, ",}\n"); /* max_abs_channel: the object */
+        if (at >= size) break;
+        size_t from = at;
+        at += (size_t)snprintf(buf + at, size - at, "%.*s;", (int)len, v + 1);
+        if (strstr(buf + from, "null")) return -1;
+        n++;
+    }
+    return n;
+}
+
+/* The second form of a layout named alone (f after cos on io) is fitted
+ * without its largest-error sweeps, which are made again only where it is
+ * kept (job_forms.c pair_max_abs): lambert keeps f (with --plain-terms no term
+ * weights remeasure it), and every max_abs of its report (each J', each
+ * channel) is the one `--form f` writes, fitting f alone, to the bit. */
+SB_TEST(named_pair_second_form_max_abs) {
+    const char *dir = sb_tmpdir("auto_pair_max");
+    static char named[1 << 14], alone[1 << 14];
+    char form[32], args[4400];
+    snprintf(args, sizeof args, "factor lambert --param io -r 24 -J 4 --plain-terms -q -o %s", dir);
+    CHECK(run(args) == 0 && load_report(dir) == 0);
+    CHECKF(strcmp(string_of("form", form, sizeof form), "f") == 0, "kept %s", form);
+    int n = max_abs_text(named, sizeof named);
+    snprintf(args, sizeof args, "factor lambert --param io -r 24 -J 4 --plain-terms --form f -q -o %s", dir);
+    CHECK(run(args) == 0 && load_report(dir) == 0);
+    int m = max_abs_text(alone, sizeof alone);
+    CHECKF(n >= 4 && n == m && strcmp(named, alone) == 0, "named %d: %s\n--form f %d: %s", n, named, m, alone);
+}
+
 /* Under --method stream a layout named alone is fitted at the requested R
  * in one form: the one the same layout fitted dense at R <= 32 keeps (each
  * stream fit passes over the source block by block).  Anisotropic GGX on

@@ -33,6 +33,7 @@ struct sb_plan {
     double *wr, *wc;             /* row / column weights (weighted plans only) */
     double *ssq, *mx, *scratch;  /* errors: 3 J sums, 3 J maxima, residual scratch */
     int nthreads;                /* residual threads */
+    int no_max;                  /* sb_plan_skip_max_: exact solvers' maxima not computed (NaN) */
     sb_plan_stats_t stats;
     size_t conv_terms;         /* the leading terms converged in every channel (plan_conv.h) */
     const sb_factors_t *start; /* the next execute's warm start (sb_plan_set_start) */
@@ -181,6 +182,10 @@ void sb_plan_destroy(sb_plan_t *p) {
 }
 
 size_t sb_plan_converged_terms(const sb_plan_t *p) { return p ? p->conv_terms : 0; }
+
+void sb_plan_skip_max_(sb_plan_t *p, int skip) {
+    if (p) p->no_max = skip != 0;
+}
 
 void sb_plan_stats(const sb_plan_t *p, sb_plan_stats_t *out) {
     sb_plan_stats_t none = {0, 0, 0, 0};
@@ -378,7 +383,9 @@ static sb_result_t channel_errors(sb_plan_t *p, run_t *rn, const sb_factors_t *f
     double *ssq = p->ssq + c * J, *mx = p->mx + c * J;
     if (rn->sv->caps & SB_CAP_EXACT_TAILS) {
         double t = rn->prop ? rn->chs.scale[ch] : 1; /* 1 for the base */
-        return rn->sv->exact(p->state[rn->si], in, t, J, ssq, mx, &rn->n2[ch]);
+        for (size_t j = 0; p->no_max && j < J; j++)
+            mx[j] = NAN;
+        return rn->sv->exact(p->state[rn->si], in, t, J, ssq, p->no_max ? NULL : mx, &rn->n2[ch]);
     }
     sb_resid_t rs = {p->rows,
                      p->cols,

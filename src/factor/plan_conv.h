@@ -20,4 +20,10 @@ size_t sb_plan_converged_terms(const sb_plan_t *p);
  * channel with a term of sigma <= 0, start as without it. */
 void sb_plan_set_start(sb_plan_t *p, const sb_factors_t *start);
 
+/* skip 1: the next executes leave max_abs of every channel NaN where the
+ * solver knows its errors exactly (SB_CAP_EXACT_TAILS: the block-circulant
+ * solver's largest-error sweeps, a fifth of its execute), the squared
+ * errors and norms as before; skip 0 (the default): everything. */
+void sb_plan_skip_max_(sb_plan_t *p, int skip);
+
 #endif

@@ -8,6 +8,7 @@
 
 #include "factor/plan_conv.h"
 #include "job_impl.h"
+#include "param/serial.h"
 #include "sample/edge.h"
 #include "sample/stream.h"
 #include "sepbrdf/exr.h"
@@ -55,6 +56,29 @@ size_t job_level_terms(const sb_job_t *job, const job_level_t *lv, sb_param_kind
     return job_terms_capped(job, kind) && lv->terms > mn ? mn : lv->terms;
 }
 
+/* The matrix of job_sample (no scene): the form shared by the one
+ * sampled before it (job->form_share), else built, with the shared form
+ * too where it is wanted. */
+static sb_result_t job_build(sb_context_t *ctx, const sb_job_t *job, const sb_param_t *param,
+                             const sb_matrix_opts_t *mo, sb_matrix_t *m) {
+    job_form_share_t *s = job->form_share;
+    int plain = s && !mo->stream && mo->structured && !mo->only;
+    if (plain && s->m.rows && s->form == mo->form && s->src == job->src && s->channels == mo->channels &&
+        s->serial == sb_param_serial_(param) && s->m.rows == sb_param_rows(param)) {
+        *m = s->m; /* the same bits as its own build (sb_matrix_build_two) */
+        memset(&s->m, 0, sizeof s->m);
+        if (mo->progress) mo->progress(mo->progress_user, 1.0);
+        return SB_OK;
+    }
+    if (!plain || !s->want || s->form == mo->form) return sb_matrix_build(ctx, job->src, param, mo, m);
+    s->want = 0;
+    sb_matrix_free(&s->m);
+    s->src = job->src;
+    s->serial = sb_param_serial_(param);
+    s->channels = mo->channels;
+    return sb_matrix_build_two(ctx, job->src, param, mo, s->form, &s->m, m);
+}
+
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a) {
     memset(a, 0, sizeof *a);
@@ -77,7 +101,7 @@ sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t
         mo.progress = sample_progress;
         mo.progress_user = (void *)pu;
     }
-    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : sb_matrix_build(ctx, job->src, a->param, &mo, &a->m);
+    r = job->scene ? job_scene_sample(ctx, job, &mo, a) : job_build(ctx, job, a->param, &mo, &a->m);
     if (r != SB_OK) return r;
     /* the zero fill of SB_CAP_LIGHT_EDGE, SB_CAP_VIEW_EDGE: the horizon's value outside, not 0 (sample/edge.h) */
     if (!job->o.zero_fill && job_attempt_zero_fill(job, a)) sb_matrix_extend_edge(job->src, a->param, &a->m);
@@ -242,25 +266,12 @@ static sb_result_t edge_chain(sb_context_t *ctx, const sb_job_t *job, const sb_p
     return SB_OK;
 }
 
-sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
-    sb_factors_destroy(a->f);
-    a->f = NULL;
-    free(a->term_w);
-    a->term_w = NULL;
-    a->texel_fit = 0;
-    memset(&a->metric, 0, sizeof a->metric);
-    memset(&a->stats, 0, sizeof a->stats);
-    a->conv_terms = 0;
-    a->early_stop = lv->early_stop;
-    a->weighted = weighted;
-    sb_result_t r = job_scene_prepare(ctx, job, a);
-    if (r != SB_OK) return r;
+sb_plan_opts_t job_plan_opts(const sb_job_t *job, const job_level_t *lv, const job_attempt_t *a, size_t J) {
     sb_plan_opts_t pl = {0};
-    size_t J = job_level_terms(job, lv, sb_param_kind(a->param), a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
     pl.terms = J;
     pl.svd.method = job->o.method;
     pl.svd.seed = job->o.seed;
-    pl.weighted = weighted;
+    pl.weighted = a->weighted;
     pl.zero_fill = job_attempt_zero_fill(job, a);
     pl.fit_tol = lv->fit_tol;
     pl.fit_max_iters = lv->fit_max_iters;
@@ -275,11 +286,35 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
         pl.row_weights = a->scene_w;
         pl.col_weights = a->scene_w + a->m.rows;
     }
+    return pl;
+}
+
+size_t job_fit_terms(const sb_job_t *job, const job_level_t *lv, const job_attempt_t *a) {
+    return job_level_terms(job, lv, sb_param_kind(a->param), a->m.rows < a->m.cols ? a->m.rows : a->m.cols);
+}
+
+sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a) {
+    sb_factors_destroy(a->f);
+    a->f = NULL;
+    free(a->term_w);
+    a->term_w = NULL;
+    a->texel_fit = 0;
+    memset(&a->metric, 0, sizeof a->metric);
+    memset(&a->stats, 0, sizeof a->stats);
+    a->conv_terms = 0;
+    a->early_stop = lv->early_stop;
+    a->weighted = weighted;
+    sb_result_t r = job_scene_prepare(ctx, job, a);
+    if (r != SB_OK) return r;
+    size_t J = job_fit_terms(job, lv, a);
+    sb_plan_opts_t pl = job_plan_opts(job, lv, a, J);
     sb_plan_t *plan = NULL;
     int nested = edge_nested(job, a, J);
     if (nested) pl.terms = 2; /* then one term at a time (edge_chain) */
     r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
     if (r != SB_OK) return r;
+    /* the second form of named_pair: its maxima only where it is kept (job_forms.c pair_max_abs) */
+    if (job->form_share && job->form_share->second && a->m.structured && !job->scene) sb_plan_skip_max_(plan, 1);
     double t1 = job_now();
     /* a large dense matrix: the BLAS threads the job set aside (job.c) */
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;

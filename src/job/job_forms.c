@@ -43,6 +43,31 @@ static sb_result_t pair_step(sb_context_t *ctx, sb_job_t *job, sb_job_candidate_
     return o->r;
 }
 
+/* a's max_abs where its fit left it out (the second form's fit,
+ * sb_plan_skip_max_: NaN): its plan executed again on a->m (the same
+ * factors to the bit, every prefix's maximum its own); else nothing. */
+static sb_result_t pair_max_abs(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a) {
+    sb_factor_errors_t *e = sb_factors_errors_mut(a->f);
+    size_t n = a->f ? sb_err_at(sb_factors_terms(a->f), 0) : 0;
+    int skipped = 0;
+    for (size_t i = 0; i < n && e->max_abs; i++)
+        skipped |= isnan(e->max_abs[i]);
+    if (!skipped || !a->m.structured || job->scene) return SB_OK;
+
+    job_level_t lv = job_full_level(job);
+    size_t J = job_fit_terms(job, &lv, a);
+    sb_plan_opts_t pl = job_plan_opts(job, &lv, a, J);
+    sb_plan_t *plan = NULL;
+    sb_factors_t *f = NULL;
+    sb_result_t r = sb_plan_create_for(ctx, &a->m, &pl, &plan);
+    if (r == SB_OK) r = sb_plan_execute(plan, &a->m, a->param, &f);
+    if (r == SB_OK && sb_factors_terms(f) * 4 >= n) /* a prefix's maximum is its own: the first n */
+        memcpy(e->max_abs, sb_factors_errors(f)->max_abs, n * sizeof *e->max_abs);
+    sb_factors_destroy(f);
+    sb_plan_destroy(plan);
+    return r;
+}
+
 /* A form's fit behind the other's, both stopped early, by more than this
  * factor in the headline at J is not finished (job_fit_finish: the
  * converged fit tried, refinement): the converged fit gained 1.42x at
@@ -80,16 +105,26 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
     sb_job_candidate_t *c[2] = {&job->cands[order[0]], &job->cands[order[1]]};
     form_fit_t o[2];
     memset(o, 0, sizeof o);
+    /* the second form's matrix from the first's evaluations (io: its
+     * sampling was a fifth of the second fit) */
+    job_form_share_t share = {.want = c[0]->kind == c[1]->kind, .form = c[1]->form};
+    job->form_share = &share;
     for (int k = 0; k < 2; k++) {
         job->est_lean = !(unscreened && k == 0); /* pair_unscreened_order */
+        share.second = k == 1 && share.want == 0 && c[0]->kind == c[1]->kind;
         sb_result_t rk = pair_step(ctx, job, c[k], &o[k], 0);
+        share.want = share.second = 0;
         job->est_lean = 1;
         if (rk == SB_ERR_NOMEM) {
             job_attempt_free(&o[0].a);
+            job->form_share = NULL;
+            sb_matrix_free(&share.m);
             return SB_ERR_NOMEM;
         }
         if (unscreened && o[k].r == SB_OK) pair_record(c[k], &o[k].a);
     }
+    job->form_share = NULL;
+    sb_matrix_free(&share.m);
     if (o[0].r != SB_OK && o[1].r != SB_OK) return o[1].r;
     int w = o[0].r != SB_OK || (o[1].r == SB_OK && job_rank_error(&o[1].a) < job_rank_error(&o[0].a)), l = !w;
     int other = o[l].r == SB_OK && !(job_rank_error(&o[l].a) > JOB_FORM_FINISH_MARGIN * job_rank_error(&o[w].a));
@@ -104,6 +139,11 @@ static sb_result_t named_pair(sb_context_t *ctx, sb_job_t *job, const size_t *or
     }
     int keep = pair_keep(o, w, other);
     if (o[keep].r != SB_OK) return o[keep].r;
+    if ((r = pair_max_abs(ctx, job, &o[keep].a)) != SB_OK) {
+        job_attempt_free(&o[0].a);
+        job_attempt_free(&o[1].a);
+        return r;
+    }
     job_attempt_free(&o[!keep].a);
     job->best = o[keep].a;
     job->fit_pending = o[keep].pending;

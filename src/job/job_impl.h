@@ -19,6 +19,20 @@
 #include "sepbrdf/sampler.h"
 #include "util/shared.h"
 
+/* The second form of a layout sampled with the first (job_sample): where
+ * `want`, the next build evaluating an isotropic source on the io grid
+ * builds `m` in `form` too, keyed by what it was built from; job_sample
+ * for that form, layout and source takes it.  m.rows 0: none. */
+typedef struct job_form_share {
+    int want;
+    int second; /* the second form is being fitted: its max_abs left out (pair_max_abs, job_forms.c) */
+    sb_form_t form;
+    sb_matrix_t m;
+    const sb_source_t *src;
+    unsigned long serial; /* sb_param_serial_ of the layout */
+    unsigned channels;
+} job_form_share_t;
+
 /* One factorisation of the source on one parameterisation and form:
  * sample (param + matrix) -> plan + execute (factors) -> comparable error. */
 typedef struct job_attempt {
@@ -109,6 +123,10 @@ struct sb_job {
      * refining a fit read): named_pair, the whole estimate made for the
      * kept fit alone */
     int est_lean;
+    /* named_pair's forms of one layout (job_forms.c): the second form's
+     * matrix built by the first's job_sample from the same evaluations,
+     * taken by the second's; NULL: none */
+    struct job_form_share *form_share;
     int is_auto;
     int fit_as_auto; /* an explicit layout fitted as auto fits its kept one (the SVD beside an auto run) */
     /* --param KIND (a name, not a whole spec; not sample_only): auto
@@ -245,6 +263,10 @@ int job_terms_capped(const sb_job_t *job, sb_param_kind_t k);
 sb_result_t job_sample(sb_context_t *ctx, const sb_job_t *job, const job_level_t *lv, sb_param_kind_t kind,
                        sb_form_t form, job_attempt_t *a);
 sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, int weighted, job_attempt_t *a);
+/* The plan options of a's fit on level lv (a->weighted set), J terms,
+ * and the terms job_factor fits there. */
+sb_plan_opts_t job_plan_opts(const sb_job_t *job, const job_level_t *lv, const job_attempt_t *a, size_t J);
+size_t job_fit_terms(const sb_job_t *job, const job_level_t *lv, const job_attempt_t *a);
 /* A masked fit is a local optimum, and the closest fit to the valid cells
  * is not the best between them: fit a's matrix again with the early stop
  * (a sweep gaining less than 1e-3, at most 20 per stage) on level `full`

@@ -163,6 +163,10 @@ typedef struct iso_job {
     const double *wo;   /* R^2 directions (theta_o, d): wo + 3 (d R + ot) */
     const double *cosi; /* cos theta of the R elevations */
     sb_form_t form;
+    /* table: a second form's table from the same evaluations (NULL known2: none) */
+    double *tab2[3];
+    unsigned char *known2;
+    sb_form_t form2;
 } iso_job_t;
 
 /* theta_i a table chunk: one cache line of doubles, so the threads write
@@ -171,19 +175,25 @@ typedef struct iso_job {
 
 static size_t iso_at(size_t R, size_t it, size_t ot, size_t d) { return it + (d * R + ot) * R; }
 
-static void iso_cell(const iso_job_t *j, size_t it, size_t ot, size_t d) {
-    const double *wi = j->wi + 3 * it, *wo = j->wo + 3 * (d * j->R + ot);
-    double rgb[3] = {0, 0, 0};
-    int known = sb_source_eval(j->src, wi, wo, rgb);
-    double w = sb_form_weight(j->m->form, wi, wo);
+/* Cell `at` of a table in a form of weight w from f's values raw. */
+static void iso_put(double *const tab[3], unsigned char *kn, size_t at, int known, const double raw[3], double w) {
+    double rgb[3];
     for (int c = 0; c < 3; c++) {
-        rgb[c] = known ? rgb[c] * w : 0.0;
+        rgb[c] = known ? raw[c] * w : 0.0;
         if (!isfinite(rgb[c])) known = 0;
     }
-    size_t at = iso_at(j->R, it, ot, d);
     for (int c = 0; c < 3; c++)
-        if (j->tab[c]) j->tab[c][at] = known ? rgb[c] : 0.0;
-    j->known[at] = (unsigned char)known;
+        if (tab[c]) tab[c][at] = known ? rgb[c] : 0.0;
+    kn[at] = (unsigned char)known;
+}
+
+static void iso_cell(const iso_job_t *j, size_t it, size_t ot, size_t d) {
+    const double *wi = j->wi + 3 * it, *wo = j->wo + 3 * (d * j->R + ot);
+    double raw[3] = {0, 0, 0};
+    int known = sb_source_eval(j->src, wi, wo, raw);
+    size_t at = iso_at(j->R, it, ot, d);
+    iso_put(j->tab, j->known, at, known, raw, sb_form_weight(j->form, wi, wo));
+    if (j->known2) iso_put(j->tab2, j->known2, at, known, raw, sb_form_weight(j->form2, wi, wo));
 }
 
 static void *iso_table(void *arg) {
@@ -329,8 +339,53 @@ static void iso_dirs(const sb_param_t *param, size_t R, double *dirs, iso_job_t 
     job->cosi = cosi;
 }
 
+/* job's table (mirrored and completed) into job->m: the structured data
+ * where every value is known and o asks for it, else every cell (and the
+ * mask where a value is unknown); the table's channels taken or left to
+ * the caller to free.  jobs: nt copies of job for the threads. */
+static sb_result_t iso_output(sb_context_t *ctx, iso_job_t *job, iso_job_t *jobs, int nt, const sb_matrix_opts_t *o) {
+    size_t R = job->R, n3 = R * R * R;
+    sb_matrix_t *out = job->m;
+    for (int t = 0; t < nt; t++)
+        jobs[t] = *job;
+    if (job->recip) run_parallel(iso_mirror, jobs, nt, job->even ? R / 2 + 1 : R, 0);
+    if (job->even) run_parallel(iso_even, jobs, nt, R, 0);
+    size_t nknown = 0;
+    for (size_t i = 0; i < n3; i++)
+        nknown += job->known[i];
+    out->valid_count = out->measured_count = nknown * R; /* each table value fills R cells */
+    out->phi_period = nknown == n3 ? R : 0;
+    if (o->structured && nknown == n3) { /* the table is the data */
+        out->ld = R;
+        out->structured = 1;
+        for (int c = 0; c < 3; c++) {
+            out->data[c] = job->tab[c];
+            job->tab[c] = NULL;
+        }
+        return SB_OK;
+    }
+    sb_result_t r = alloc_dense(ctx, out);
+    if (r != SB_OK) return r;
+    if (nknown == n3) { /* every cell valid: no mask */
+        free(out->mask);
+        out->mask = NULL;
+    }
+    run_parallel(iso_scatter, jobs, nt, out->cols, 0);
+    return SB_OK;
+}
+
+/* A table's channels (n3 values each) for out's channels. */
+static sb_result_t iso_alloc(sb_context_t *ctx, const sb_matrix_t *out, size_t n3, double *tab[3]) {
+    for (int c = 0; c < 3; c++)
+        if ((out->channels & (1u << c)) && !(tab[c] = sb_alloc_large(ctx, n3, sizeof(double), "isotropic table")))
+            return SB_ERR_NOMEM;
+    return SB_OK;
+}
+
+/* out (and out2, in its own form, where not NULL) from one evaluation of
+ * the R^3 distinct values: the forms differ by their weight alone. */
 static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
-                                      const sb_matrix_opts_t *o, sb_matrix_t *out) {
+                                      const sb_matrix_opts_t *o, sb_matrix_t *out, sb_matrix_t *out2) {
     size_t R = (size_t)llround(sqrt((double)out->rows)), n3;
     if (sb_size_mul3(R, R, R, &n3))
         return sb_error(ctx, SB_ERR_OVERFLOW, "matrix: table size overflows; lower the resolution");
@@ -338,47 +393,46 @@ static sb_result_t build_isotropic_io(sb_context_t *ctx, const sb_source_t *src,
     if (r != SB_OK) return r;
     int nt = sb_thread_count(o->threads);
     if ((size_t)nt > R) nt = (int)R;
-    iso_job_t job = {src, param, out, R, 0, 0, {NULL, NULL, NULL}, NULL, 1, 0, 0, NULL, NULL, NULL, out->form};
-    iso_job_t jobs[SB_THREADS_MAX];
+    iso_job_t job = {.src = src, .param = param, .m = out, .R = R, .step = 1, .form = out->form};
+    iso_job_t jobs[SB_THREADS_MAX], job2;
     job.recip = (sb_source_flags(src) & SB_SOURCE_RECIPROCAL) != 0;
     job.even = (sb_source_flags(src) & SB_SOURCE_EVEN) != 0;
     job.known = sb_alloc(ctx, n3, 1, "isotropic table");
+    job.known2 = out2 ? sb_alloc(ctx, n3, 1, "isotropic table") : NULL;
     double *dirs = sb_alloc(ctx, 3 * R * (R + 1) + R, sizeof(double), "isotropic table directions");
-    r = job.known && dirs ? SB_OK : SB_ERR_NOMEM;
+    r = job.known && dirs && (job.known2 || !out2) ? SB_OK : SB_ERR_NOMEM;
     if (r == SB_OK) iso_dirs(param, R, dirs, &job);
-    for (int c = 0; c < 3 && r == SB_OK; c++)
-        if ((out->channels & (1u << c)) && !(job.tab[c] = sb_alloc_large(ctx, n3, sizeof(double), "isotropic table")))
-            r = SB_ERR_NOMEM;
+    if (r == SB_OK) r = iso_alloc(ctx, out, n3, job.tab);
+    if (r == SB_OK && out2) {
+        job.form2 = out2->form;
+        r = iso_alloc(ctx, out2, n3, job.tab2);
+    }
     if (r != SB_OK) goto done;
     for (int t = 0; t < nt; t++)
         jobs[t] = job;
     run_parallel(iso_table, jobs, nt, (R + ISO_CHUNK - 1) / ISO_CHUNK, job.recip);
-    if (job.recip) run_parallel(iso_mirror, jobs, nt, job.even ? R / 2 + 1 : R, 0);
-    if (job.even) run_parallel(iso_even, jobs, nt, R, 0);
-    size_t nknown = 0;
-    for (size_t i = 0; i < n3; i++)
-        nknown += job.known[i];
-    out->valid_count = out->measured_count = nknown * R; /* each table value fills R cells */
-    out->phi_period = nknown == n3 ? R : 0;
-    if (o->structured && nknown == n3) { /* the table is the data */
-        out->ld = R;
-        out->structured = 1;
-        for (int c = 0; c < 3; c++) {
-            out->data[c] = job.tab[c];
-            job.tab[c] = NULL;
-        }
-        goto done;
+    job2 = job;
+    r = iso_output(ctx, &job, jobs, nt, o);
+    if (r == SB_OK && out2) {
+        memcpy(job2.tab, job2.tab2, sizeof job2.tab);
+        job2.known = job2.known2;
+        job2.known2 = NULL;
+        job2.form = job2.form2;
+        job2.m = out2;
+        memset(job.tab2, 0, sizeof job.tab2); /* job2's now */
+        job.known2 = NULL;
+        r = iso_output(ctx, &job2, jobs, nt, o);
+        for (int c = 0; c < 3; c++)
+            free(job2.tab[c]);
+        free(job2.known);
     }
-    if ((r = alloc_dense(ctx, out)) != SB_OK) goto done;
-    if (nknown == n3) { /* every cell valid: no mask */
-        free(out->mask);
-        out->mask = NULL;
-    }
-    run_parallel(iso_scatter, jobs, nt, out->cols, 0);
 done:
-    for (int c = 0; c < 3; c++)
+    for (int c = 0; c < 3; c++) {
         free(job.tab[c]);
+        free(job.tab2[c]);
+    }
     free(job.known);
+    free(job.known2);
     free(dirs);
     return r;
 }
@@ -443,6 +497,36 @@ size_t sb_matrix_bytes(const sb_source_t *src, const sb_param_t *param, const sb
     return stored_need(&m, iso, o.structured);
 }
 
+/* out's shape, form and channels as a build of o on param sets them. */
+static void matrix_shape(const sb_param_t *param, const sb_matrix_opts_t *o, sb_form_t form, sb_matrix_t *out) {
+    memset(out, 0, sizeof *out);
+    out->rows = sb_param_rows(param);
+    out->cols = sb_param_cols(param);
+    out->ld = out->rows;
+    out->form = form;
+    out->channels = o->channels ? o->channels : 7u;
+}
+
+sb_result_t sb_matrix_build_two(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
+                                const sb_matrix_opts_t *opts, sb_form_t form2, sb_matrix_t *out2, sb_matrix_t *out) {
+    sb_matrix_opts_t o = {0};
+    if (opts) o = *opts;
+    if (out2 && param) matrix_shape(param, &o, form2, out2);
+    if (!out2 || !src || !param || !out || (unsigned)form2 >= SB_FORM_COUNT_ || o.only || (o.channels & ~7u) ||
+        (unsigned)o.form >= SB_FORM_COUNT_ || !iso_layout(src, param) || streams(param, &o, out2, 1)) {
+        if (out2) memset(out2, 0, sizeof *out2);
+        return sb_matrix_build(ctx, src, param, opts, out);
+    }
+    matrix_shape(param, &o, o.form, out);
+    sb_result_t r = build_isotropic_io(ctx, src, param, &o, out, out2);
+    if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
+    if (r != SB_OK) {
+        sb_matrix_free(out);
+        sb_matrix_free(out2);
+    }
+    return r;
+}
+
 sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_param_t *param,
                             const sb_matrix_opts_t *opts, sb_matrix_t *out) {
     if (!src || !param || !out) return sb_error(ctx, SB_ERR_ARG, "matrix: missing source or parameterisation");
@@ -451,12 +535,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
     if (opts) o = *opts;
     if ((unsigned)o.form >= SB_FORM_COUNT_) return sb_error(ctx, SB_ERR_ARG, "matrix: unknown form %d", (int)o.form);
     if (o.channels & ~7u) return sb_error(ctx, SB_ERR_ARG, "matrix: channel mask %#x, need bits 1, 2, 4", o.channels);
-    unsigned chans = o.channels ? o.channels : 7u;
-    out->rows = sb_param_rows(param);
-    out->cols = sb_param_cols(param);
-    out->ld = out->rows;
-    out->form = o.form;
-    out->channels = chans;
+    matrix_shape(param, &o, o.form, out);
     sb_result_t r;
     int iso = iso_layout(src, param);
     if (o.only) {
@@ -465,7 +544,7 @@ sb_result_t sb_matrix_build(sb_context_t *ctx, const sb_source_t *src, const sb_
         r = sb_matrix_build_streamed(ctx, src, param, out);
         if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
     } else if (iso) {
-        r = build_isotropic_io(ctx, src, param, &o, out);
+        r = build_isotropic_io(ctx, src, param, &o, out, NULL);
         if (r == SB_OK && o.progress) o.progress(o.progress_user, 1.0);
     } else {
         r = build_general(ctx, src, param, &o, out);

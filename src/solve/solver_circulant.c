@@ -65,7 +65,7 @@ static sb_result_t exact(void *state, const sb_solve_in_t *in, double t, size_t 
     for (size_t j = 0; j < J; j++)
         ssq[j] = s->tails[j] * t * t;
     *n2 = sb_circ_norm2(s->R, in->a, in->lda, in->wr, in->pw);
-    return sb_circ_max_abs(s->c, in->a, in->lda, in->wr, t, J, mx);
+    return mx ? sb_circ_max_abs(s->c, in->a, in->lda, in->wr, t, J, mx) : SB_OK;
 }
 
 static size_t distinct_rows(const void *state) { return ((const circ_state_t *)state)->R; }

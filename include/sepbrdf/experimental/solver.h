@@ -91,7 +91,9 @@ typedef struct sb_solver {
     /* SB_CAP_EXACT_TAILS: for J' = 1..J, ssq[J'-1] the squared error (times
      * pw^2) and mx[J'-1] the max |error| in native units of the last
      * execute's terms scaled by t (a proportional channel: t A), and *n2 =
-     * ||W_r A W_c||^2 pw^2 of this channel's data. */
+     * ||W_r A W_c||^2 pw^2 of this channel's data.  mx NULL: the maxima
+     * are not wanted (the factor job's second form of a layout, whose
+     * maxima are read only where it is kept): ssq and *n2 alone. */
     sb_result_t (*exact)(void *state, const sb_solve_in_t *in, double t, size_t J, double *ssq, double *mx, double *n2);
     /* SB_CAP_STRUCTURED: rows of A that hold every distinct value (the
      * rest repeat them), so scans of A can stop there. */
