@@ -79,9 +79,6 @@ typedef struct nmf_state {
     size_t round;  /* the round of rho (sb_nmf_rho) */
     /* the round before's corrections of to_headline and calibrate (nmf_mixes.c damp) */
     double cpprev[SB_NMF_MAX_TERMS], calprev[SB_NMF_MAX_TERMS];
-    /* tests: each sweep pass by pass (nested_term, prefix_weights), where
-     * nmf_sweeps.c sweep fuses the passes; the same bits either way */
-    int apart;
 } nmf_state_t;
 
 /* Round k's ratios of the plan's nonneg_ratio (the channel's where given). */

@@ -52,10 +52,7 @@ double sb_nmf_residual(nmf_state_t *s, const double *U, const double *V, size_t 
 
 /* A part of the columns of one parallel step (sb_parallel_run): the
  * term's rows accumulated (term_rows), its columns updated (term_cols), or
- * the prefixes' errors (prefix_cols); in a sweep (sweep_cols) a term's
- * columns and the next term's rows, or the prefixes' errors after the
- * last term, in one pass over each column (the same operations on each
- * column in the same order: the same bits).  The jobs are compiled twice
+ * the prefixes' errors (prefix_cols).  The three jobs are compiled twice
  * (SB_AVX2_CLONES: the same operations, so the same bits) and term_cols
  * makes one pass where it made three (nmf_lanes.h sub2_wdot): the default
  * gold's non-negative run, J = 4, spent 20 % of its CPU in term_cols,
@@ -65,123 +62,79 @@ typedef struct nmf_job {
     double *U, *V;
     size_t k, j, c0, c1;
     double A;   /* the weight of the term's target (1: the last term, R = E) */
-    double *ws; /* this part's 3 m + J numbers: b or du, d, b or du (or a column), f */
-    size_t ob;  /* where in ws the rows' b goes, or the columns' du is */
-    double A1;  /* sweep_cols: the next term's A (its c_q in s->cq) */
+    double *ws; /* this part's 3 m + J numbers: b, d, a column, f */
 } nmf_job_t;
 
-/* Column col of term j's rows (term_rows): the target R = A E + sum_{q>j}
- * c_q u_q v_q^T (R is E itself for the last term), b_i += W R v_j, d_i +=
- * W v_j^2. */
-static inline __attribute__((always_inline)) void rows_col(const nmf_job_t *jb, size_t j, double A, size_t col,
-                                                           double *restrict b, double *restrict d) {
-    nmf_state_t *s = jb->s;
-    size_t m = s->m, n = s->n;
-    double *restrict rc = s->r + col * m;
-    const double *restrict ec = s->e + col * m, *restrict w = s->w + col * m;
-    if (j + 1 < jb->k) {
-        for (size_t i = 0; i < m; i++)
-            rc[i] = A * ec[i];
-        for (size_t q = j + 1; q < jb->k; q++)
-            if (jb->V[col + q * n] != 0) axpy_neg(rc, jb->U + q * m, -s->cq[q] * jb->V[col + q * n], m);
-    } else
-        rc = s->e + col * m;
-    double vc = jb->V[col + j * n], vc2 = vc * vc;
-    for (size_t i = 0; i < m; i++) {
-        b[i] += w[i] * rc[i] * vc;
-        d[i] += w[i] * vc2;
-    }
-}
-
-/* Column col of term j's columns (term_cols): E and R follow the change du
- * of u_j, then v_j(c) <- max(0, v + sum_i W R u / (A sum_i W u^2)) and E,
- * R follow it. */
-static inline __attribute__((always_inline)) void cols_col(const nmf_job_t *jb, size_t col, const double *du) {
-    nmf_state_t *s = jb->s;
-    size_t m = s->m, n = s->n, j = jb->j;
-    const double *u = jb->U + j * m;
-    double *v = jb->V + j * n, A = jb->A;
-    int own = j + 1 < jb->k; /* R apart from E */
-    double *e = s->e + col * m, *rc = own ? s->r + col * m : e, b, d;
-    const double *w = s->w + col * m;
-    if (v[col] != 0 && own)
-        sub2_wdot(e, rc, du, v[col], A * v[col], w, u, m, &b, &d);
-    else {
-        if (v[col] != 0) axpy_neg(e, du, v[col], m);
-        wdot(w, rc, u, m, &b, &d);
-    }
-    double nv = d > 0 ? fmax(0, v[col] + b / (A * d)) : 0, dv = nv - v[col];
-    v[col] = nv;
-    if (dv == 0) return;
-    if (own)
-        axpy2_neg(e, rc, u, dv, A * dv, m);
-    else
-        axpy_neg(e, u, dv, m);
-}
-
-/* Column c's share of f_p = sum of W E_p^2, p = k..1 (E_p = E_k + the
- * terms p + 1..k; col a scratch column). */
-static inline __attribute__((always_inline)) void prefix_col(const nmf_job_t *jb, size_t c, double *restrict col,
-                                                             double *restrict f) {
-    nmf_state_t *s = jb->s;
-    size_t m = s->m, n = s->n;
-    memcpy(col, s->e + c * m, m * sizeof *col);
-    for (size_t p = jb->k; p >= 1; p--)
-        f[p - 1] += wsq_add(s->w + c * m, col, jb->U + (p - 1) * m, jb->V[c + (p - 1) * n], m);
-}
-
-/* Job: term j's rows over the part's columns (rows_col), b at ws + ob, d
- * at ws + m. */
+/* Job: the term's target R = A E + sum_{q>j} c_q u_q v_q^T on the part's
+ * columns (R is E itself for the last term), and the row sums b_i = sum_c
+ * W R v_j, d_i = sum_c W v_j^2 over them. */
 SB_AVX2_CLONES static void *term_rows(void *arg) {
     nmf_job_t *jb = arg;
-    size_t m = jb->s->m;
-    double *b = jb->ws + jb->ob, *d = jb->ws + m;
-    memset(b, 0, m * sizeof *b);
-    memset(d, 0, m * sizeof *d);
-    for (size_t col = jb->c0; col < jb->c1; col++)
-        rows_col(jb, jb->j, jb->A, col, b, d);
+    nmf_state_t *s = jb->s;
+    size_t m = s->m, n = s->n, j = jb->j;
+    double *restrict b = jb->ws, *restrict d = jb->ws + m;
+    memset(jb->ws, 0, 2 * m * sizeof *b);
+    for (size_t col = jb->c0; col < jb->c1; col++) {
+        double *restrict rc = s->r + col * m;
+        const double *restrict ec = s->e + col * m, *restrict w = s->w + col * m;
+        if (j + 1 < jb->k) {
+            for (size_t i = 0; i < m; i++)
+                rc[i] = jb->A * ec[i];
+            for (size_t q = j + 1; q < jb->k; q++)
+                if (jb->V[col + q * n] != 0) axpy_neg(rc, jb->U + q * m, -s->cq[q] * jb->V[col + q * n], m);
+        } else
+            rc = s->e + col * m;
+        double vc = jb->V[col + j * n], vc2 = vc * vc;
+        for (size_t i = 0; i < m; i++) {
+            b[i] += w[i] * rc[i] * vc;
+            d[i] += w[i] * vc2;
+        }
+    }
     return NULL;
 }
 
-/* Job: term j's columns over the part's columns (cols_col), du at ws + ob. */
+/* Job: on the part's columns, E and R follow the change du of u_j (in
+ * the part's b), then v_j(c) <- max(0, v + sum_i W R u / (A sum_i W u^2))
+ * and E, R follow it. */
 SB_AVX2_CLONES static void *term_cols(void *arg) {
     nmf_job_t *jb = arg;
-    for (size_t col = jb->c0; col < jb->c1; col++)
-        cols_col(jb, col, jb->ws + jb->ob);
+    nmf_state_t *s = jb->s;
+    size_t m = s->m, n = s->n, j = jb->j;
+    const double *du = jb->ws, *u = jb->U + j * m;
+    double *v = jb->V + j * n, A = jb->A;
+    int own = j + 1 < jb->k; /* R apart from E */
+    for (size_t col = jb->c0; col < jb->c1; col++) {
+        double *e = s->e + col * m, *rc = own ? s->r + col * m : e, b, d;
+        const double *w = s->w + col * m;
+        if (v[col] != 0 && own)
+            sub2_wdot(e, rc, du, v[col], A * v[col], w, u, m, &b, &d);
+        else {
+            if (v[col] != 0) axpy_neg(e, du, v[col], m);
+            wdot(w, rc, u, m, &b, &d);
+        }
+        double nv = d > 0 ? fmax(0, v[col] + b / (A * d)) : 0, dv = nv - v[col];
+        v[col] = nv;
+        if (dv == 0) continue;
+        if (own)
+            axpy2_neg(e, rc, u, dv, A * dv, m);
+        else
+            axpy_neg(e, u, dv, m);
+    }
     return NULL;
 }
 
-/* Job: f_p over the part's columns (prefix_col) in ws + 3 m. */
+/* Job: f_p = sum over the part's columns of W E_p^2, p = k..1 (E_p = E_k
+ * + the terms p + 1..k), in the part's f. */
 SB_AVX2_CLONES static void *prefix_cols(void *arg) {
     nmf_job_t *jb = arg;
-    double *f = jb->ws + 3 * jb->s->m;
-    memset(f, 0, jb->k * sizeof *f);
-    for (size_t c = jb->c0; c < jb->c1; c++)
-        prefix_col(jb, c, jb->ws + 2 * jb->s->m, f);
-    return NULL;
-}
-
-/* Job (a sweep): on each of the part's columns term j's columns (du at ws
- * + ob), then term j + 1's rows (b at the other of ws, ws + 2 m; d at ws +
- * m), or after the last term the prefixes' errors (f at ws + 3 m, the
- * column at ws + m). */
-SB_AVX2_CLONES static void *sweep_cols(void *arg) {
-    nmf_job_t *jb = arg;
-    size_t m = jb->s->m, last = jb->j + 1 == jb->k;
-    const double *du = jb->ws + jb->ob;
-    double *b = jb->ws + (jb->ob ? 0 : 2 * m), *d = jb->ws + m, *f = jb->ws + 3 * m;
-    if (last)
-        memset(f, 0, jb->k * sizeof *f);
-    else {
-        memset(b, 0, m * sizeof *b);
-        memset(d, 0, m * sizeof *d);
-    }
-    for (size_t col = jb->c0; col < jb->c1; col++) {
-        cols_col(jb, col, du);
-        if (last)
-            prefix_col(jb, col, d, f);
-        else
-            rows_col(jb, jb->j + 1, jb->A1, col, b, d);
+    nmf_state_t *s = jb->s;
+    size_t m = s->m, n = s->n, k = jb->k;
+    double *col = jb->ws + 2 * m, *f = jb->ws + 3 * m;
+    memset(f, 0, k * sizeof *f);
+    for (size_t c = jb->c0; c < jb->c1; c++) {
+        memcpy(col, s->e + c * m, m * sizeof *col);
+        for (size_t p = k; p >= 1; p--)
+            f[p - 1] += wsq_add(s->w + c * m, col, jb->U + (p - 1) * m, jb->V[c + (p - 1) * n], m);
     }
     return NULL;
 }
@@ -240,11 +193,13 @@ static double minimax_weights(nmf_state_t *s, const double *f, const double *U, 
     return worst;
 }
 
-/* Step: the prefixes' weighted errors f_p = ||E_p||^2, p = 1..k, from the
- * parts' sums (prefix_cols, sweep_cols), set the weights alpha_p = 1 / f_p
- * of the next sweep; returns sum_p log f_p (ratio_weights with a
+/* Step: the prefixes' weighted errors f_p = ||E_p||^2, p = 1..k, from E
+ * = E_k (E_p = E_k + the terms p + 1..k), set the weights alpha_p = 1 /
+ * f_p of the next sweep; returns sum_p log f_p (ratio_weights with a
  * reference). */
-static double prefix_finish(nmf_state_t *s, const nmf_job_t *jobs, int nt, double *U, double *V, size_t k) {
+static double prefix_weights(nmf_state_t *s, double *U, double *V, size_t k) {
+    nmf_job_t proto = {s, U, V, k, 0, 0, 0, 1, NULL}, jobs[SB_THREADS_MAX];
+    int nt = columns_run(s, prefix_cols, &proto, jobs);
     double F = 0, *f = s->t; /* k numbers */
     for (size_t p = 0; p < k; p++) {
         f[p] = 0;
@@ -258,78 +213,33 @@ static double prefix_finish(nmf_state_t *s, const nmf_job_t *jobs, int nt, doubl
     return s->gam > 0 ? ratio_weights(s, f, k) : F;
 }
 
-/* Step: prefix_finish from E = E_k (E_p = E_k + the terms p + 1..k). */
-static double prefix_weights(nmf_state_t *s, double *U, double *V, size_t k) {
-    nmf_job_t proto = {s, U, V, k, 0, 0, 0, 1, NULL, 0, 0}, jobs[SB_THREADS_MAX];
-    int nt = columns_run(s, prefix_cols, &proto, jobs);
-    return prefix_finish(s, jobs, nt, U, V, k);
-}
-
-/* Step: term j's target R = sum_p alpha_p E_p = A E + sum_{q > j} c_q u_q
- * v_q^T over the prefixes p > j that hold it, A = sum_{p > j} alpha_p
- * (returned; 1 for the last term, R = E), c_q = sum_{j < p <= q} alpha_p
- * (into s->cq). */
-static double term_coefs(nmf_state_t *s, size_t k, size_t j) {
-    double A = 0, cq = 0;
+/* Step: one HALS update of term j of the first k, u then v, fitted to
+ * every prefix p > j that holds it, prefix p weighted by alpha_p: the
+ * target is R = sum_p alpha_p E_p = A E + sum_{q > j} c_q u_q v_q^T with
+ * A = sum_{p > j} alpha_p, c_q = sum_{j < p <= q} alpha_p. */
+static void nested_term(nmf_state_t *s, double *U, double *V, size_t k, size_t j) {
+    size_t m = s->m;
+    double A = 0, cq = 0, *u = U + j * m;
     for (size_t p = j + 1; p <= k; p++)
         A += s->alpha[p - 1];
     for (size_t q = j + 1; q < k; q++)
         s->cq[q] = cq += s->alpha[q - 1];
-    return j + 1 == k ? 1 : A;
-}
-
-/* Step: u <- max(0, u + b / (A d)) from the parts' rows (b at ws + ob, d
- * at ws + m, summed in a fixed order: deterministic); the change of u
- * into every part's ws + ob. */
-static void term_u(const nmf_state_t *s, nmf_job_t *jobs, int nt, double *u, double A, size_t ob) {
-    size_t m = s->m;
-    double *b = jobs[0].ws + ob, *d = jobs[0].ws + m;
-    for (int t = 1; t < nt; t++)
+    nmf_job_t proto = {s, U, V, k, j, 0, 0, j + 1 == k ? 1 : A, NULL}, jobs[SB_THREADS_MAX];
+    int nt = columns_run(s, term_rows, &proto, jobs);
+    double *b = jobs[0].ws, *d = jobs[0].ws + m;
+    for (int t = 1; t < nt; t++) /* fixed order: deterministic */
         for (size_t i = 0; i < m; i++) {
-            b[i] += jobs[t].ws[ob + i];
+            b[i] += jobs[t].ws[i];
             d[i] += jobs[t].ws[m + i];
         }
     for (size_t i = 0; i < m; i++) { /* b becomes the change of u */
-        double nu = d[i] > 0 ? fmax(0, u[i] + b[i] / (A * d[i])) : 0;
+        double nu = d[i] > 0 ? fmax(0, u[i] + b[i] / (proto.A * d[i])) : 0;
         b[i] = nu - u[i];
         u[i] = nu;
     }
     for (int t = 1; t < nt; t++)
-        memcpy(jobs[t].ws + ob, b, m * sizeof *b);
-}
-
-/* Step: one HALS update of term j of the first k, u then v, fitted to
- * every prefix p > j that holds it, prefix p weighted by alpha_p
- * (term_coefs). */
-static void nested_term(nmf_state_t *s, double *U, double *V, size_t k, size_t j) {
-    nmf_job_t proto = {s, U, V, k, j, 0, 0, term_coefs(s, k, j), NULL, 0, 0}, jobs[SB_THREADS_MAX];
-    int nt = columns_run(s, term_rows, &proto, jobs);
-    term_u(s, jobs, nt, U + j * s->m, proto.A, 0);
+        memcpy(jobs[t].ws, b, m * sizeof *b);
     columns_run(s, term_cols, &proto, jobs);
-}
-
-/* Step: one nested sweep, nested_term for j = 0..k - 1 and then
- * prefix_weights, in k + 1 passes over the columns where those take 2 k
- * + 1 (sweep_cols: the same operations in the same order, so the same
- * bits); returns prefix_weights's. */
-static double sweep(nmf_state_t *s, double *U, double *V, size_t k) {
-    size_t m = s->m;
-    nmf_job_t proto = {s, U, V, k, 0, 0, 0, term_coefs(s, k, 0), NULL, 0, 0}, jobs[SB_THREADS_MAX];
-    int nt = columns_run(s, term_rows, &proto, jobs);
-    for (size_t j = 0; j < k; j++) {
-        term_u(s, jobs, nt, U + j * m, proto.A, proto.ob);
-        proto.A1 = j + 1 < k ? term_coefs(s, k, j + 1) : 0;
-        columns_run(s, sweep_cols, &proto, jobs);
-        proto.j = j + 1, proto.A = proto.A1, proto.ob = proto.ob ? 0 : 2 * m;
-    }
-    return prefix_finish(s, jobs, nt, U, V, k);
-}
-
-/* Step: the same sweep pass by pass (s->apart: a test compares the two). */
-static double sweep_apart(nmf_state_t *s, double *U, double *V, size_t k) {
-    for (size_t j = 0; j < k; j++)
-        nested_term(s, U, V, k, j);
-    return prefix_weights(s, U, V, k);
 }
 
 /* Step: nested HALS sweeps of the first k terms, each sweep a step of
@@ -342,7 +252,9 @@ static void hals(nmf_state_t *s, sb_solve_out_t *out, size_t k, int sweeps) {
     double F = prefix_weights(s, out->u, out->v, k);
     out->converged = 0;
     for (int it = 0; it < sweeps && !out->converged; it++, out->iterations++) {
-        double G = s->apart ? sweep_apart(s, out->u, out->v, k) : sweep(s, out->u, out->v, k);
+        for (size_t j = 0; j < k; j++)
+            nested_term(s, out->u, out->v, k, j);
+        double G = prefix_weights(s, out->u, out->v, k);
         out->converged = !s->mm && !(F - G > s->tol * (double)k);
         F = G;
     }
