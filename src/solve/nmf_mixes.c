@@ -504,26 +504,43 @@ static int minimax(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out,
     return keep;
 }
 
+/* Step: the kept fit (in out; its mix's weights and reference's errors
+ * in s) reordered, polished, its last prefix pushed, on masked layouts
+ * the minimax, toward the headline's own ratios (vndf: then the minimax
+ * with cal), and the rounds after the first (the plan's nonneg_rounds),
+ * each from the fit the round before gave.  Without s->w0 (large
+ * matrices) the minimax does nothing, and a round's weights are the
+ * kept ones mixed toward the headline's once more. */
+static void finish(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
+    reorder(s, out);
+    polish(s, out);
+    push_last(s, out);
+    if (s->fit) minimax(s, in, out, NULL);
+    to_headline(s, in, out);
+    if (s->tables && s->hws_ok) minimax(s, in, out, s->cal); /* vndf: toward the headline's own ratios */
+    for (size_t k = 1; k < s->rounds && s->rho; k++) {
+        s->rho = sb_nmf_rho(s, k), s->round = k;
+        s->hws_ok = 0;
+        if (s->w0) memcpy(s->w, s->w0, s->m * s->n * sizeof *s->w);
+        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
+        push_last(s, out);
+        to_headline(s, in, out);
+        if (s->tables && s->hws_ok) minimax(s, in, out, s->cal);
+    }
+}
+
 /* Step: the stages at SB_NMF_HEADLINE_MIX, where the matrix is small and
  * a reference known at SB_NMF_SECOND_MIX and (smaller, no cell masked) at
  * 1, clipped and unclipped, too: the fit
  * kept whose worst prefix in the headline's weights is the lowest against
- * the reference (out->iterations counts them all). */
+ * the reference (out->iterations counts them all); then finish. */
 void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J;
     if (!s->w0) {
+        s->kept_mix = SB_NMF_HEADLINE_MIX;
         toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 0, 0);
         sb_nmf_stages(s, out);
-        reorder(s, out);
-        polish(s, out);
-        push_last(s, out);
-        to_headline(s, in, out);
-        for (size_t k = 1; k < s->rounds && s->rho; k++) { /* from the fit the round before gave */
-            s->rho = sb_nmf_rho(s, k), s->round = k;
-            toward_headline(s, in, out, SB_NMF_HEADLINE_MIX, 1, 0);
-            push_last(s, out);
-            to_headline(s, in, out);
-        }
+        finish(s, in, out);
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
@@ -546,19 +563,5 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
     out->converged = s->conv;
     memcpy(s->w, s->w0, m * n * sizeof *s->w); /* the kept mix's weights and reference errors */
     toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
-    reorder(s, out);
-    polish(s, out);
-    push_last(s, out);
-    if (s->fit) minimax(s, in, out, NULL);
-    to_headline(s, in, out);
-    if (s->tables && s->hws_ok) minimax(s, in, out, s->cal); /* vndf: toward the headline's own ratios */
-    for (size_t k = 1; k < s->rounds && s->rho; k++) {       /* from the fit the round before gave, as above */
-        s->rho = sb_nmf_rho(s, k), s->round = k;
-        s->hws_ok = 0;
-        memcpy(s->w, s->w0, m * n * sizeof *s->w);
-        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
-        push_last(s, out);
-        to_headline(s, in, out);
-        if (s->tables && s->hws_ok) minimax(s, in, out, s->cal);
-    }
+    finish(s, in, out);
 }
