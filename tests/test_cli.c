@@ -203,7 +203,8 @@ SB_TEST(param_spec_round_trip) {
 
 /* `sepbrdf` is a launcher that executes sepbrdf-main next to it (or in
  * libexec/sepbrdf when installed: install_test.cmake); alone, it says what
- * is missing and exits 127, and it passes the arguments through as given. */
+ * is missing and exits 127 (also where a copy of it is named sepbrdf-main),
+ * and it passes the arguments through as given. */
 SB_TEST(launcher_alone_and_arguments) {
     const char *dir = sb_tmpdir("launch");
     char cmd[8192];
@@ -213,6 +214,10 @@ SB_TEST(launcher_alone_and_arguments) {
     int rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 127, "rc %d: %s", rc, out);
     CHECKF(strstr(out, "sepbrdf-main") && strstr(out, "broken installation"), "%s", out);
+    /* a copy of the launcher under the CLI's name does not run itself forever */
+    snprintf(cmd, sizeof cmd, "cp %s %s/sepbrdf-main && timeout 10 %s/sepbrdf-main --version", SB_CLI, dir, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 127 && strstr(out, "is this launcher"), "rc %d: %s", rc, out);
     snprintf(cmd, sizeof cmd, "%s factor lambert --res 4 --terms 1 -q -o '%s/with space'", SB_CLI, dir);
     rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0, "rc %d: %s", rc, out);

@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "env_plan.h"
@@ -48,6 +49,12 @@ static int own_folder(const char *argv0, char *dir, size_t size) {
     return 1;
 }
 
+/* Whether path is this executable (the same file as /proc/self/exe). */
+static int is_self(const char *path) {
+    struct stat a, b;
+    return stat(path, &a) == 0 && stat("/proc/self/exe", &b) == 0 && a.st_dev == b.st_dev && a.st_ino == b.st_ino;
+}
+
 int main(int argc, char **argv, char **envp) {
     static char *env[SB_ENV_MAX];
     char self[PATH_MAX], path[PATH_MAX + 64];
@@ -61,6 +68,10 @@ int main(int argc, char **argv, char **envp) {
     for (int i = 0; i < 2; i++) {
         snprintf(path, sizeof path, "%s%ssepbrdf-main", self, where[i]);
         if (access(path, X_OK) == 0) {
+            if (is_self(path)) { /* a copy of the launcher under the CLI's name would run itself forever */
+                fprintf(stderr, "sepbrdf: %s is this launcher, not the CLI proper (a broken installation)\n", path);
+                return 127;
+            }
             execve(path, argv, use);
             fprintf(stderr, "sepbrdf: cannot run %s: %s\n", path, strerror(errno));
             return 127;
