@@ -92,12 +92,16 @@ static void in_cone(const double d[3], double cc, const double u[2], double w[3]
 
 #define CONE_UNIFORM 0.5 /* the share of wo drawn uniformly inside a cone (half each cone) */
 
-/* wi by the estimator's mixture; wo with probability CONE_UNIFORM
+/* wi a third each by the estimator's mixture, by the grazing bands' draw
+ * (graze_wi) and uniformly within the cone's angle of the normal (where a
+ * sharp lobe's peak lies in both cones); wo with probability CONE_UNIFORM
  * uniformly inside the specular or the retro cone (a half each), else by
  * the estimator's mixture for wo.  A pair inside either cone has density
- * p_i(wi) (a/2 (u_s + u_r) + (1 - a) p_o(wo | wi)), u the cones' uniform
- * densities where wo lies inside them; pairs outside both are left out
- * (density 0): the two bands' sums over the whole domain. */
+ * p_i(wi) (a/2 (u_s + u_r) + (1 - a) p_o(wo | wi)), p_i the mean of the
+ * three wi densities, u the cones' uniform densities where wo lies inside
+ * them; pairs outside both are left out (density 0): the two bands' sums
+ * over the whole domain.  (bench/band_draw.h draws inside a band too, but
+ * uniformly and outside the library.) */
 static double cone_draw(const void *user, const double x[6], double wi[3], double wo[3]) {
     (void)user;
     const double a = CONE_UNIFORM, cc = cos(SB_BAND_CONE_DEG * SB_PI / 180), u = 1 / (2 * SB_PI * (1 - cc));
