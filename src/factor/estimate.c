@@ -184,7 +184,7 @@ static inline __attribute__((always_inline)) void add_pair(const eval_t *e, cons
     }
     size_t J = e->J;
     uint64_t *hist = e->hist + (size_t)t * J * 4 * NB;
-    double *maxr = e->maxr + (size_t)t * J * 4, *maxv = e->maxv + (size_t)t * J;
+    double *maxr = e->maxr + (size_t)t * est_tstride(J * 4), *maxv = e->maxv + (size_t)t * est_tstride(J);
     for (size_t j = e->last_only ? J - 1 : 0; j < J; j++) {
         const double *r = rec + j * 3;
         double d2[4] = {0, 0, 0, 0}, vmax = 0;
@@ -297,12 +297,12 @@ static void combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t
                       &out->se[j][i / 4][i % 4]);
         double vmax = 0;
         for (int t = 0; t < nt; t++)
-            vmax = fmax(vmax, e->maxv[(size_t)t * J + j]);
+            vmax = fmax(vmax, e->maxv[(size_t)t * est_tstride(J) + j]);
         out->overshoot[j] = vmax;
         for (int c = 0; c < 4; c++) {
             double mx = 0;
             for (int t = 0; t < nt; t++)
-                mx = fmax(mx, sqrt(e->maxr[((size_t)t * J + j) * 4 + (size_t)c]));
+                mx = fmax(mx, sqrt(e->maxr[(size_t)t * est_tstride(J * 4) + j * 4 + (size_t)c]));
             out->p99[j][c] = est_hist_p99(e->hist + (j * 4 + (size_t)c) * NB, J * 4 * NB, nt, mx);
             out->max_rel[j][c] = mx;
         }
@@ -321,8 +321,8 @@ static sb_result_t eval_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt,
     e->de = sb_alloc(ctx, kmax, J * sizeof *e->de, "estimator sums");
     e->dew = sb_alloc(ctx, kmax, sizeof *e->dew, "estimator sums");
     e->hist = sb_calloc(ctx, T * J * 4, NB * sizeof *e->hist, "estimator histograms");
-    e->maxr = sb_calloc(ctx, T * J, 4 * sizeof *e->maxr, "estimator sums");
-    e->maxv = sb_calloc(ctx, T, J * sizeof *e->maxv, "estimator sums");
+    e->maxr = sb_calloc(ctx, T, est_tstride(J * 4) * sizeof *e->maxr, "estimator sums");
+    e->maxv = sb_calloc(ctx, T, est_tstride(J) * sizeof *e->maxv, "estimator sums");
     if (!(e->num && e->den && e->neg && e->meas && e->de && e->dew && e->hist && e->maxr && e->maxv))
         return SB_ERR_NOMEM;
     return e->bands ? est_bands_alloc(ctx, e, kmax, nt, reps) : SB_OK;

@@ -99,8 +99,9 @@ sb_result_t est_bands_alloc(sb_context_t *ctx, eval_t *e, size_t kmax, int nt, s
     e->mden = sb_alloc(ctx, kmax, MM * sizeof *e->mden, "estimator band sums");
     size_t L = e->headline_only ? 1 : T * J; /* the lit sums: not with headline_only */
     e->hlit = sb_calloc(ctx, L * 4, NB * sizeof *e->hlit, "estimator histograms");
-    e->maxl = sb_calloc(ctx, L, 4 * sizeof *e->maxl, "estimator band sums");
-    e->minv = sb_calloc(ctx, L, 4 * sizeof *e->minv, "estimator band sums");
+    size_t TL = e->headline_only ? 1 : T; /* per thread blocks of J * 4 (est_tstride) */
+    e->maxl = sb_calloc(ctx, TL, est_tstride(J * 4) * sizeof *e->maxl, "estimator band sums");
+    e->minv = sb_calloc(ctx, TL, est_tstride(J * 4) * sizeof *e->minv, "estimator band sums");
     /* the lit thresholds: 1 % of the largest f cos theta_i of the first 16 replicates */
     memset(e->lit_thr, 0, sizeof e->lit_thr);
     for (size_t i = 0; i < (reps < 16 ? reps : 16) * P->rep && i < P->n; i++) {
@@ -138,8 +139,8 @@ void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimat
         for (int c = 0; c < 4 && !e->headline_only; c++) {
             double mx = 0, mn = 0;
             for (int t = 0; t < nt; t++) {
-                mx = fmax(mx, sqrt(e->maxl[((size_t)t * J + j) * 4 + (size_t)c]));
-                mn = fmin(mn, e->minv[((size_t)t * J + j) * 4 + (size_t)c]);
+                mx = fmax(mx, sqrt(e->maxl[(size_t)t * est_tstride(J * 4) + j * 4 + (size_t)c]));
+                mn = fmin(mn, e->minv[(size_t)t * est_tstride(J * 4) + j * 4 + (size_t)c]);
             }
             out->p99_lit[j][c] = est_hist_p99(e->hlit + (j * 4 + (size_t)c) * NB, J * 4 * NB, nt, mx);
             out->max_rel_lit[j][c] = mx;

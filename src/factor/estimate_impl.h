@@ -90,6 +90,12 @@ typedef struct eval {
     double *maxl, *minv;
 } eval_t;
 
+/* Doubles from one thread's block of n per-thread values (maxima, minima:
+ * written on every pair) to the next: whole cache lines and one more, so
+ * that no two threads ever write one line (at J = 8 the blocks were 64 and
+ * 256 bytes, end to end: two threads took as long as one, 2x the CPU). */
+static inline size_t est_tstride(size_t n) { return (n + 7) / 8 * 8 + 8; }
+
 /* Where the error is (estimate_bands.c). */
 void est_log2_init(void);
 

@@ -86,7 +86,7 @@ est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, c
         lit[c] = f2[c] > 0 && sqrt(f2[c]) * d[2] > e->lit_thr[c];
     uint64_t lw = e->P->m0 > 0 ? (uint64_t)(d[6] / e->P->m0 * 0x1.0p40) : 0;
     uint64_t *hist = e->hlit + (size_t)t * J * 4 * NB;
-    double *maxl = e->maxl + (size_t)t * J * 4, *minv = e->minv + (size_t)t * J * 4;
+    double *maxl = e->maxl + (size_t)t * est_tstride(J * 4), *minv = e->minv + (size_t)t * est_tstride(J * 4);
     for (size_t j = 0; j < J; j++) {
         const double *r = rec + j * 3, *dj = d2 + j * 4;
         double *mv = minv + j * 4;
