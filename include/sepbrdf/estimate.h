@@ -102,19 +102,21 @@ extern const double sb_band_map_edges[SB_EST_MAP + 1];
 #define SB_EST_REL_SE 0.05 /* the default target of rel_se */
 
 typedef struct sb_estimate_opts {
-    size_t replicate;  /* pairs per replicate, default 4096 */
-    size_t start;      /* replicates drawn at first, default 16 (at least 4) */
-    size_t max_pairs;  /* sb_estimate_compute adds replicates up to this many pairs (and uses no more), default
-                          2^19; start * replicate or less: never grows, uses the pairs there are */
-    double rel_se;     /* target standard error of the headline relative to it, default SB_EST_REL_SE */
-    uint64_t seed;     /* default 1 */
-    int threads;       /* 0 = all cores */
-    int headline_only; /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
-    size_t replicates; /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
-    int last_only;     /* with headline_only: the errors of all J terms only (those of shorter prefixes are 0) */
-    int bands;         /* with headline_only: the band errors too (band, band_se, band_share; not the lit ones) */
-    unsigned channels; /* sb_pairs_create: the channels measured (1 R, 2 G, 4 B; 0 = all): the source's others read
-                          as 0, so a fit of some channels (sb_matrix_opts_t.channels) is measured on them only */
+    size_t replicate;    /* pairs per replicate, default 4096 */
+    size_t start;        /* replicates drawn at first, default 16 (at least 4) */
+    size_t max_pairs;    /* sb_estimate_compute adds replicates up to this many pairs (and uses no more), default
+                            2^19; start * replicate or less: never grows, uses the pairs there are */
+    double rel_se;       /* target standard error of the headline relative to it, default SB_EST_REL_SE */
+    uint64_t seed;       /* default 1 */
+    int threads;         /* 0 = all cores */
+    int headline_only;   /* skip the per-pair relative errors (p99 and max_rel are 0): a cheaper ranking */
+    size_t replicates;   /* evaluate the first this many replicates only (at least 4), no growth; 0: all */
+    int last_only;       /* with headline_only: the errors of all J terms only (those of shorter prefixes are 0) */
+    int bands;           /* with headline_only: the band errors too (band, band_se, band_share; not the lit ones) */
+    unsigned channels;   /* sb_pairs_create: the channels measured (1 R, 2 G, 4 B; 0 = all): the source's others read
+                            as 0, so a fit of some channels (sb_matrix_opts_t.channels) is measured on them only */
+    unsigned stop_bands; /* with bands: a mask of bands (1u << SB_BAND_*) whose standard errors must also be within
+                            rel_se of them at every J' before the estimate stops growing (0: the headline alone) */
 } sb_estimate_opts_t;
 
 /* Pairs with the source's values: created once per source, reused. */

@@ -431,6 +431,10 @@ sb_result_t sb_estimate_compute(sb_context_t *ctx, sb_pairs_t *pairs, const sb_f
         est_run_units(done, K - done, nt, eval_unit, &e);
         done = K;
         size_t met = prefixes_met(&e, K, o.rel_se);
+        if (e.bands && o.stop_bands) {
+            size_t bm = est_bands_met(&e, K, o.stop_bands & ((1u << SB_BAND_COUNT_) - 1), o.rel_se);
+            met = bm < met ? bm : met;
+        }
         combine(&e, K, nt, jlo, out);
         finish(pairs, K * rep, jlo, out);
         for (; jlo < met; jlo++)

@@ -157,6 +157,18 @@ void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimat
     }
 }
 
+size_t est_bands_met(const eval_t *e, size_t K, unsigned mask, double rel_se) {
+    size_t J = e->J;
+    for (size_t j = 0; j < J; j++)
+        for (unsigned m = mask; m; m &= m - 1) {
+            size_t at = (size_t)__builtin_ctz(m) * 4 + 3;
+            double r, se;
+            est_ratio(e->bnum + j * BQ + at, J * BQ, e->bden + at, BQ, K, &r, &se);
+            if (!(se <= rel_se * r)) return j;
+        }
+    return J;
+}
+
 void est_bands_free(eval_t *e) {
     free(e->bnum);
     free(e->bden);

@@ -138,6 +138,10 @@ void est_bands_clear(const eval_t *e, size_t k);
  * the prefixes from J' = jlo + 1 on, the shares and the map, from K
  * replicates and nt threads into out. */
 void est_bands_combine(const eval_t *e, size_t K, int nt, size_t jlo, sb_estimate_t *out);
+/* How many prefixes have every band of mask (1u << SB_BAND_*) at K
+ * replicates with its standard error within rel_se of it (of all
+ * channels); J where the mask is 0. */
+size_t est_bands_met(const eval_t *e, size_t K, unsigned mask, double rel_se);
 void est_bands_free(eval_t *e);
 /* Draw and evaluate replicate k of P (estimate_draw.c). */
 void est_draw_replicate(sb_pairs_t *P, size_t k);

@@ -37,7 +37,7 @@
 #define BP_C80 0.17364817766693041
 #define BP_C0 0.003     /* the grazing density's offset, as the estimator's */
 #define BP_START 32     /* replicates of 4096 pairs at first */
-#define BP_CONE_START 8 /* the cones': nearly all their pairs lie in a band */
+#define BP_CONE_START 4 /* the cones': nearly all their pairs lie in a band; grown while a band's se is above 5 % */
 #define BP_CONE_MAX ((size_t)1 << 16)
 #define BP_ENOUGH 0.05                 /* a band whose se is within this share of it needs no pairs of its own */
 #define BP_MAX_PAIRS ((size_t)1 << 18) /* grown while the theta_i > 60 band's se is above 5 % of it */
@@ -145,6 +145,8 @@ static sb_result_t measure_on(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a
                               sb_pair_draw_fn draw, const int *b, int nb, size_t start, size_t max, size_t *used) {
     sb_estimate_opts_t eo = {0};
     eo.start = start;
+    for (int k = 0; k < nb && draw == cone_draw; k++) /* the cones': grown until their bands' se meet the target */
+        eo.stop_bands |= 1u << b[k];
     eo.max_pairs = max;
     eo.seed = job->o.seed;
     eo.headline_only = 1;
