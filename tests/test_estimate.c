@@ -271,6 +271,51 @@ SB_TEST(deterministic_and_se_target) {
     sb_source_destroy(src);
 }
 
+/* stop_bands: the estimate grows until the bands named have standard
+ * errors within rel_se of them at every J' (or reaches max_pairs), where
+ * the headline alone stops earlier; with the bands met from the start it
+ * is the headline's estimate to the bit. */
+SB_TEST(stop_bands_grow_until_met) {
+    sb_param_t *p = NULL;
+    sb_source_t *src = NULL;
+    sb_factors_t *f = factor_exr(GGX_SPEC "0.3", SB_PARAM_IO, 16, 2, SB_FORM_F, 0, &p, &src);
+    static sb_estimate_t plain, grown;
+    sb_estimate_opts_t o = {0};
+    o.start = 4;
+    o.replicate = 256;
+    o.rel_se = 0.02;
+    o.headline_only = 1;
+    o.bands = 1;
+    o.max_pairs = (size_t)1 << 17;
+    const int b = SB_BAND_RETRO; /* few pairs there: its standard error is the last to meet */
+    sb_pairs_t *pairs = NULL;
+    CHECK(sb_pairs_create(NULL, src, &o, &pairs) == SB_OK);
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, &o, &plain) == SB_OK);
+    o.stop_bands = 1u << b;
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, &o, &grown) == SB_OK);
+    int plain_met = 1;
+    for (size_t j = 0; j < 2; j++)
+        plain_met &= plain.band_se[j][b][3] <= o.rel_se * plain.band[j][b][3];
+    CHECKF(!plain_met, "the headline's stop already met the band (se %g of %g): the test shows nothing",
+           plain.band_se[1][b][3], plain.band[1][b][3]);
+    CHECKF(grown.pairs > plain.pairs, "%zu pairs with the band, %zu without", grown.pairs, plain.pairs);
+    for (size_t j = 0; j < 2; j++)
+        CHECKF(grown.band_se[j][b][3] <= o.rel_se * grown.band[j][b][3] || grown.pairs >= o.max_pairs,
+               "J' = %zu: se %g of %g at %zu pairs", j + 1, grown.band_se[j][b][3], grown.band[j][b][3], grown.pairs);
+    /* a band met at the headline's stop changes nothing */
+    static sb_estimate_t same;
+    o.stop_bands = 1u << SB_BAND_TI60;
+    CHECK(sb_estimate_compute(NULL, pairs, f, NULL, p, SB_FORM_F, &o, &same) == SB_OK);
+    int met60 = 1;
+    for (size_t j = 0; j < 2; j++)
+        met60 &= plain.band_se[j][SB_BAND_TI60][3] <= o.rel_se * plain.band[j][SB_BAND_TI60][3];
+    if (met60) CHECK(memcmp(&same, &plain, sizeof same) == 0);
+    sb_pairs_destroy(pairs);
+    sb_factors_destroy(f);
+    sb_param_destroy(p);
+    sb_source_destroy(src);
+}
+
 /* The estimate of f on `shared` (opts o) equals the one on fresh pairs
  * with the same first replicates, grown as it needs (the pairs of a
  * replicate do not depend on when it was drawn, and an estimate that may
