@@ -112,13 +112,18 @@ SB_API double sb_scene_draw(const sb_scene_t *s, const double x[6], double wi[3]
 /* The estimator's pairs (estimate.h) drawn from the scene instead of the
  * whole domain, replicates as sb_pairs_create draws them, so
  * sb_estimate_compute gives the errors over the scene's pairs with their
- * standard errors.  Lights and pairs scenes: sb_scene_draw, every pair
- * weight 1.  Ranges: a quarter uniform within the ranges (sb_scene_draw),
- * the rest by the whole domain's mixture toward the lobe with the pairs
- * outside the ranges left out, each pair weighted by 1 / (its density
- * under that mix): the errors over the ranges, uniform in solid angle,
- * with a sharp lobe's residual drawn often enough (a uniform draw reads
- * it low or high, or needs 8x the pairs).  Errors as sb_pairs_create. */
+ * standard errors.  Pairs scenes: sb_scene_draw, every pair weight 1.
+ * Ranges: a quarter uniform within the ranges (sb_scene_draw), the rest
+ * by the whole domain's mixture toward the lobe with the pairs outside
+ * the ranges left out, each pair weighted by 1 / (its density under that
+ * mix): the errors over the ranges, uniform in solid angle, with a sharp
+ * lobe's residual drawn often enough (a uniform draw reads it low or
+ * high, or needs 8x the pairs).  Lights: a quarter uniform over the
+ * sphere's pixels and the lights (sb_scene_draw), the rest toward each
+ * light's highlight (the normal drawn about its half vector from GGX
+ * lobes of alpha 0.005 to 0.3), each pair weighted by the uniform's
+ * density over the mix's: the errors over the pixels, every pixel alike.
+ * Errors as sb_pairs_create. */
 SB_API sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
                                          const sb_estimate_opts_t *opts, sb_pairs_t **out);
 

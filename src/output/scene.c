@@ -290,14 +290,25 @@ static void dir_in(const double c[2], double u, double v, double w[3]) {
 
 static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-static double draw_lights(const sb_scene_t *s, const double x[6], double wi[3], double wo[3]) {
-    double r = sqrt(x[0]), a = 2 * SB_PI * x[1], n[3], t[3], b[3];
-    if (!sb_render_frame_at(r * cos(a), r * sin(a), n, t, b)) return 0;
-    size_t k = (size_t)(x[2] * (double)s->nlights);
-    const double *l = s->lights[k < s->nlights ? k : s->nlights - 1].dir;
+int sb_scene_light_pair_(const sb_scene_t *s, double px, double py, size_t k, double wi[3], double wo[3]) {
+    double n[3], t[3], b[3];
+    if (!s || s->kind != SB_SCENE_LIGHTS || k >= s->nlights || !sb_render_frame_at(px, py, n, t, b)) return 0;
+    const double *l = s->lights[k].dir;
     wi[0] = dot3(l, t), wi[1] = dot3(l, b), wi[2] = dot3(l, n);
     wo[0] = t[2], wo[1] = b[2], wo[2] = n[2]; /* the viewer (0, 0, 1) */
-    return wi[2] > 0 ? 1 : 0;
+    return wi[2] > 0;
+}
+
+size_t sb_scene_light_count_(const sb_scene_t *s) { return s && s->kind == SB_SCENE_LIGHTS ? s->nlights : 0; }
+
+const double *sb_scene_light_dir_(const sb_scene_t *s, size_t k) {
+    return s && s->kind == SB_SCENE_LIGHTS && k < s->nlights ? s->lights[k].dir : NULL;
+}
+
+static double draw_lights(const sb_scene_t *s, const double x[6], double wi[3], double wo[3]) {
+    double r = sqrt(x[0]), a = 2 * SB_PI * x[1];
+    size_t k = (size_t)(x[2] * (double)s->nlights);
+    return sb_scene_light_pair_(s, r * cos(a), r * sin(a), k < s->nlights ? k : s->nlights - 1, wi, wo);
 }
 
 static double draw_pairs(const sb_scene_t *s, const double x[6], double wi[3], double wo[3]) {

@@ -10,4 +10,15 @@
  * outside them or for another kind. */
 double sb_scene_ranges_pdf_(const sb_scene_t *s, const double wi[3], const double wo[3]);
 
+/* A lights scene's pair at the point (px, py) of the sphere's image lit by
+ * light k (< sb_scene_light_count_): L and V in the frame of
+ * sb_render_frame_at there, as sb_scene_draw maps them; 1 when lit (L.n >
+ * 0), 0 when not, off the image (px^2 + py^2 >= 1), for k beyond the
+ * lights or another kind. */
+int sb_scene_light_pair_(const sb_scene_t *s, double px, double py, size_t k, double wi[3], double wo[3]);
+/* The lights of a lights scene (0 for another kind), and the unit
+ * direction of light k (world, towards the light; NULL beyond them). */
+size_t sb_scene_light_count_(const sb_scene_t *s);
+const double *sb_scene_light_dir_(const sb_scene_t *s, size_t k);
+
 #endif

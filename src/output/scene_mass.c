@@ -210,10 +210,79 @@ static double draw_ranges(const void *user, const double x[6], double wi[3], dou
     return u > 0 ? a * u + (1 - a) * sb_estimate_pair_pdf(wi, wo) : 0;
 }
 
+/* A lights scene's pairs: the share drawn uniformly over the sphere's
+ * image (sb_scene_draw), the rest toward the highlights (draw_lights).
+ * The lobes' GGX alphas are the estimator's (estimate.h), from a mirror
+ * to a broad lobe. */
+#define LIGHTS_UNIFORM 0.25
+#define LIGHTS_LOBES 4
+static const double lights_alpha[LIGHTS_LOBES] = {0.005, 0.02, 0.08, 0.3};
+
+/* The half vector H = (L + V) / |L + V| of light k (V = (0, 0, 1)). */
+static void light_half(const sb_scene_t *s, size_t k, double h[3]) {
+    const double *l = sb_scene_light_dir_(s, k);
+    double v[3] = {l[0], l[1], l[2] + 1}, n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    for (int i = 0; i < 3; i++)
+        h[i] = n > 0 ? v[i] / n : (i == 2);
+}
+
+/* The GGX normal distribution of width a at cos(theta) = c, times c: a
+ * density per solid angle about its axis. */
+static double ggx_dc(double a, double c) {
+    double a2 = a * a, t = (a2 - 1) * c * c + 1;
+    return c > 0 ? a2 * c / (SB_PI * t * t) : 0;
+}
+
+/* The direction at cos(theta) = z, azimuth 2 pi u about the unit axis h
+ * (Duff et al. 2017's frame). */
+static void about(const double h[3], double z, double u, double w[3]) {
+    double sg = copysign(1, h[2]), a = -1 / (sg + h[2]), b = h[0] * h[1] * a, d[3];
+    double t[3] = {1 + sg * h[0] * h[0] * a, sg * b, -sg * h[0]}, bt[3] = {b, sg + h[1] * h[1] * a, -h[1]};
+    sb_estimate_dir_z(z, u, d);
+    for (int i = 0; i < 3; i++)
+        w[i] = d[0] * t[i] + d[1] * bt[i] + d[2] * h[i];
+}
+
+/* A lights scene's pair drawn from x: light k = floor(x2 N) and with
+ * probability LIGHTS_UNIFORM the point p of the sphere's image uniform
+ * over the unit disk, density 1 / pi per area (sb_scene_draw's map), else
+ * the normal n about H_k from one of the lobes chosen alike (tan^2 theta
+ * = a^2 x0 / (1 - x0), azimuth 2 pi x1: density D_a(n.H) n.H per solid
+ * angle), p = (n_x, n_y) where n_z > 0 (dA = n_z dw: density D_a(n.H)
+ * n.H / n_z per area), else no pair.  Returns the mixture's density over
+ * the uniform's, a + (1 - a) pi mean_a D_a(n.H) n.H / n_z: the errors are
+ * still those over the sphere's pixels, with the highlight's pairs drawn
+ * often enough (a uniform draw over the pixels reads a sharp one with 8 %
+ * spread at 2^19 pairs). */
+static double draw_lights(const void *user, const double x[6], double wi[3], double wo[3]) {
+    const sb_scene_t *s = user;
+    const double a = LIGHTS_UNIFORM;
+    size_t nl = sb_scene_light_count_(s), k = (size_t)(x[2] * (double)nl), lobe;
+    double h[3], n[3], lobes = 0;
+    if (!nl) return 0;
+    light_half(s, k = k < nl ? k : nl - 1, h);
+    if (x[5] < a) {
+        double r = sqrt(x[0]), ang = 2 * SB_PI * x[1];
+        n[0] = r * cos(ang), n[1] = r * sin(ang), n[2] = 1;
+    } else {
+        lobe = (size_t)((x[5] - a) / (1 - a) * LIGHTS_LOBES);
+        double al = lights_alpha[lobe < LIGHTS_LOBES ? lobe : LIGHTS_LOBES - 1], t2 = al * al * x[0] / (1 - x[0]);
+        about(h, 1 / sqrt(1 + t2), x[1], n);
+    }
+    if (!(n[2] > 0) || !sb_scene_light_pair_(s, n[0], n[1], k, wi, wo)) return 0;
+    n[2] = sqrt(fmax(0, 1 - n[0] * n[0] - n[1] * n[1])); /* the normal at p */
+    if (!(n[2] > 0)) return 0;
+    double c = n[0] * h[0] + n[1] * h[1] + n[2] * h[2];
+    for (int j = 0; j < LIGHTS_LOBES; j++)
+        lobes += ggx_dc(lights_alpha[j], c);
+    return a + (1 - a) * SB_PI * lobes / (LIGHTS_LOBES * n[2]);
+}
+
 sb_result_t sb_scene_pairs_create(sb_context_t *ctx, const sb_scene_t *s, const sb_source_t *src,
                                   const sb_estimate_opts_t *opts, sb_pairs_t **out) {
     if (!s) return sb_error(ctx, SB_ERR_ARG, "scene: NULL argument");
-    sb_pair_draw_fn draw = sb_scene_kind(s) == SB_SCENE_RANGES ? draw_ranges : draw_scene;
+    sb_scene_kind_t kind = sb_scene_kind(s);
+    sb_pair_draw_fn draw = kind == SB_SCENE_RANGES ? draw_ranges : kind == SB_SCENE_LIGHTS ? draw_lights : draw_scene;
     return sb_pairs_create_drawn(ctx, src, opts, draw, s, out);
 }
 
