@@ -341,8 +341,12 @@ static int hopeless(const sb_job_t *job, size_t i) {
  * the bounds is above SB_JOB_SCREEN_DROP x their best screened error.
  * Screening drops by that factor at its own J; where the budget affords
  * far fewer terms of the layout kept, the comparison does not hold (RGL
- * orange: vndf screened at 0.013 with 4 terms, 6 KiB a term; at 8 KiB
- * one term, 0.37, against vh cos at 4 KiB, 0.17). */
+ * orange: vndf screened at 0.056 with 4 terms, 6 KiB a term; at 8 KiB
+ * one term, 0.37, against vh cos at 4 KiB, 0.17).  The premise of the
+ * drop, by the same factor, fails there.  It costs where nothing better
+ * is found: Phong 100 within 1 and 2 KiB (rv cos 0.0091, 0.0047 against
+ * 0.002 screened) walks the dropped ladders, 0.4 -> 1.6 s, 0.5 -> 2.4 s
+ * CPU, and keeps the same entry. */
 static int search_dropped(const sb_job_t *job) {
     const job_budget_t *b = job->budget;
     if (b->n == 0) return 1;
