@@ -336,6 +336,27 @@ static int hopeless(const sb_job_t *job, size_t i) {
            job->cands[i].error > BUDGET_HOPELESS * search_best(b);
 }
 
+/* Whether the candidates screening dropped are searched too: those it
+ * kept hold no entry within the budget, or (auto) their best entry within
+ * the bounds is above SB_JOB_SCREEN_DROP x their best screened error.
+ * Screening drops by that factor at its own J; where the budget affords
+ * far fewer terms of the layout kept, the comparison does not hold (RGL
+ * orange: vndf screened at 0.056 with 4 terms, 6 KiB a term; at 8 KiB
+ * one term, 0.37, against vh cos at 4 KiB, 0.17).  The premise of the
+ * drop, by the same factor, fails there.  It costs where nothing better
+ * is found: Phong 100 within 1 and 2 KiB (rv cos 0.0091, 0.0047 against
+ * 0.002 screened) walks the dropped ladders, 0.4 -> 1.6 s, 0.5 -> 2.4 s
+ * CPU, and keeps the same entry. */
+static int search_dropped(const sb_job_t *job) {
+    const job_budget_t *b = job->budget;
+    if (b->n == 0) return 1;
+    if (!(job->is_auto || job->layout_auto)) return 0;
+    double screened = INFINITY;
+    for (size_t i = 0; i < job->ncand; i++)
+        if (searched(job, i, 0)) screened = fmin(screened, job->cands[i].error);
+    return isfinite(screened) && search_best(b) > SB_JOB_SCREEN_DROP * screened;
+}
+
 /* Refuse a budget below the smallest texture set searched (the smallest
  * shape of the ladder, or the given R, with one term or the given J, as
  * HALF), before any work. */
@@ -470,8 +491,9 @@ sb_result_t job_budget_select(sb_context_t *ctx, sb_job_t *job) {
     if (job->is_auto || job->layout_auto) job_screen(ctx, job);
     /* the layouts screening dropped too where those it kept hold no term
      * within the budget (an RGL file's vndf: its h is the file's 32 x 32
-     * grid, 6 KiB a term as HALF; a budget of 4 KiB failed, "lower -r") */
-    for (int dropped = 0; dropped < 2 && r == SB_OK && b->n == 0; dropped++) {
+     * grid, 6 KiB a term as HALF; a budget of 4 KiB failed, "lower -r")
+     * or only far fewer terms than screening compared (search_dropped) */
+    for (int dropped = 0; dropped < 2 && r == SB_OK && (!dropped || search_dropped(job)); dropped++) {
         size_t order[JOB_MAX_CANDS], n = search_order(job, dropped, order);
         for (size_t k = 0; k < n && r == SB_OK; k++) {
             size_t i = order[k];
