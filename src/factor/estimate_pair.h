@@ -44,22 +44,18 @@ static inline size_t est_map_cell(double c) {
 static inline void pair_dens(const eval_t *e, const double *d, unsigned mask, size_t k, const double f2[4],
                              size_t *cell) {
     double q = d[2] * d[2] * d[6], *bden = e->bden + k * BQ;
-    for (unsigned m = mask; m; m &= m - 1) {
-        int b = __builtin_ctz(m);
-        for (int c = 0; c < 4; c++)
-            bden[b * 4 + c] += f2[c] * q;
-    }
+    est_v4_t v = *(const est_v4_t *)f2 * q;
+    for (unsigned m = mask; m; m &= m - 1)
+        *(est_v4_t *)(bden + __builtin_ctz(m) * 4) += v;
     *cell = est_map_cell(d[2]) * SB_EST_MAP + est_map_cell(d[5]);
     e->mden[k * MM + *cell] += f2[3] * q;
 }
 
 /* Prefix j's squared differences d2[4] (add_pair's) to the bands of mask. */
 static inline void bands_add(double *bnum, unsigned mask, const double *d2, double q) {
-    for (unsigned m = mask; m; m &= m - 1) {
-        int b = __builtin_ctz(m);
-        for (int c = 0; c < 4; c++)
-            bnum[b * 4 + c] += d2[c] * q;
-    }
+    est_v4_t v = *(const est_v4_t *)d2 * q; /* d2[c] q per channel, as one at a time */
+    for (unsigned m = mask; m; m &= m - 1)
+        *(est_v4_t *)(bnum + __builtin_ctz(m) * 4) += v;
 }
 
 /* Add known pair i (rec as est_reconstruct fills it; d2 its squared
