@@ -336,8 +336,10 @@ static void finish(const sb_pairs_t *P, size_t n, size_t jlo, sb_estimate_t *out
     for (size_t i = 0; i < n; i++) {
         if (!P->known[i]) continue;
         known++;
-        for (int c = 0; c < 3; c++)
-            fm[c] = fmax(fm[c], fabs(P->d[i * PD + 7 + c]));
+        for (int c = 0; c < 3; c++) { /* fmax's result inline (a known f is finite; fmax was a call) */
+            double a = fabs(P->d[i * PD + 7 + c]);
+            fm[c] = a > fm[c] ? a : fm[c];
+        }
     }
     fm[3] = fmax(fm[0], fmax(fm[1], fm[2]));
     for (size_t j = jlo; j < out->terms; j++) {
