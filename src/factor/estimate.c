@@ -185,17 +185,17 @@ static inline __attribute__((always_inline)) void add_pair(const eval_t *e, cons
     size_t J = e->J;
     uint64_t *hist = e->hist + (size_t)t * J * 4 * NB;
     double *maxr = e->maxr + (size_t)t * est_tstride(J * 4), *maxv = e->maxv + (size_t)t * est_tstride(J);
-    est_v4_t f4 = {f[0], f[1], f[2], 0};
+    est_v4_t f4 = {f[0], f[1], f[2], 0}, z = {0, 0, 0, 0};
+    const est_v4i_t nosign = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
     for (size_t j = e->last_only ? J - 1 : 0; j < J; j++) {
-        const double *r = rec + j * 3;
-        est_v4_t dc = *(const est_v4_t *)r - f4, sq = dc * dc; /* lane 3: past the prefix, not read */
+        est_v4_t r = *(const est_v4_t *)(rec + j * 3), dc = r - f4, sq = dc * dc; /* lane 3: not read */
+        est_v4_t a = (est_v4_t)((est_v4i_t)r & nosign);                           /* fabs: the sign bit cleared */
+        est_v4i_t lt = (est_v4i_t)(r < z);
         double d2[4] = {sq[0], sq[1], sq[2], 0}, vmax = 0;
-        int below = 0;
+        int below = (lt[0] | lt[1] | lt[2]) != 0;
         for (int c = 0; c < 3; c++) {
             d2[3] += d2[c];
-            below |= r[c] < 0;
-            double a = fabs(r[c]);
-            vmax = a > vmax ? a : vmax; /* fmax's result, inline (a NaN leaves vmax) */
+            vmax = a[c] > vmax ? a[c] : vmax; /* fmax's result, inline (a NaN leaves vmax) */
         }
         est_v4_t d2v = {d2[0], d2[1], d2[2], d2[3]};
         for (int q = 0; q < SB_EST_Q_COUNT_; q++) /* (d2 qw) w per channel, as one at a time */
