@@ -185,21 +185,21 @@ static inline __attribute__((always_inline)) void add_pair(const eval_t *e, cons
     size_t J = e->J;
     uint64_t *hist = e->hist + (size_t)t * J * 4 * NB;
     double *maxr = e->maxr + (size_t)t * est_tstride(J * 4), *maxv = e->maxv + (size_t)t * est_tstride(J);
+    est_v4_t f4 = {f[0], f[1], f[2], 0}, z = {0, 0, 0, 0};
+    const est_v4i_t nosign = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
     for (size_t j = e->last_only ? J - 1 : 0; j < J; j++) {
-        const double *r = rec + j * 3;
-        double d2[4] = {0, 0, 0, 0}, vmax = 0;
-        int below = 0;
+        est_v4_t r = *(const est_v4_t *)(rec + j * 3), dc = r - f4, sq = dc * dc; /* lane 3: not read */
+        est_v4_t a = (est_v4_t)((est_v4i_t)r & nosign);                           /* fabs: the sign bit cleared */
+        est_v4i_t lt = (est_v4i_t)(r < z);
+        double d2[4] = {sq[0], sq[1], sq[2], 0}, vmax = 0;
+        int below = (lt[0] | lt[1] | lt[2]) != 0;
         for (int c = 0; c < 3; c++) {
-            double dc = r[c] - f[c];
-            d2[c] = dc * dc;
             d2[3] += d2[c];
-            below |= r[c] < 0;
-            double a = fabs(r[c]);
-            vmax = a > vmax ? a : vmax; /* fmax's result, inline (a NaN leaves vmax) */
+            vmax = a[c] > vmax ? a[c] : vmax; /* fmax's result, inline (a NaN leaves vmax) */
         }
-        for (int q = 0; q < SB_EST_Q_COUNT_; q++)
-            for (int c = 0; c < 4; c++)
-                num[j * QC + q * 4 + c] += d2[c] * qw[q] * w;
+        est_v4_t d2v = {d2[0], d2[1], d2[2], d2[3]};
+        for (int q = 0; q < SB_EST_Q_COUNT_; q++) /* (d2 qw) w per channel, as one at a time */
+            *(est_v4_t *)(num + j * QC + q * 4) += d2v * qw[q] * w;
         neg[j] += below ? w : 0;
         maxv[j] = vmax > maxv[j] ? vmax : maxv[j];
         memcpy(d2s + j * 4, d2, sizeof d2);
@@ -220,7 +220,7 @@ SB_AVX2_CLONES static void eval_unit(void *user, size_t k, int t) {
     size_t J = e->J;
     /* the sums in local arrays (nothing else can alias them), copied out
      * at the end */
-    double num[SB_EST_MAXJ * QC], den[QC], neg[SB_EST_MAXJ], meas = 0, rec[SB_EST_MAXJ * 3];
+    double num[SB_EST_MAXJ * QC], den[QC], neg[SB_EST_MAXJ], meas = 0, rec[EST_REC_LEN];
     double de[SB_EST_MAXJ], dew = 0, d2s[SB_EST_MAXJ * 4];
     uint32_t bins[SB_EST_MAXJ * 4];
     memset(de, 0, J * sizeof *de);
@@ -232,11 +232,10 @@ SB_AVX2_CLONES static void eval_unit(void *user, size_t k, int t) {
         if (!P->known[i]) continue;
         const double *d = P->d + i * PD, *f = d + 7;
         double ci2 = d[2] * d[2], qw[SB_EST_Q_COUNT_] = {ci2, ci2 * d[5] * d[5], 1};
-        for (int q = 0; q < SB_EST_Q_COUNT_; q++) {
-            for (int c = 0; c < 3; c++)
-                den[q * 4 + c] += f[c] * f[c] * qw[q] * d[6];
-            den[q * 4 + 3] += (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) * qw[q] * d[6];
-        }
+        est_v4_t ff = {f[0] * f[0], f[1] * f[1], f[2] * f[2], 0};
+        ff[3] = ff[0] + ff[1] + ff[2];
+        for (int q = 0; q < SB_EST_Q_COUNT_; q++) /* ((f f) qw) 1/p per channel, as one at a time */
+            *(est_v4_t *)(den + q * 4) += ff * qw[q] * d[6];
         meas += d[6];
         est_reconstruct(e, i, rec);
         add_pair(e, d, rec, num, neg, t, d2s, bins);
@@ -337,8 +336,10 @@ static void finish(const sb_pairs_t *P, size_t n, size_t jlo, sb_estimate_t *out
     for (size_t i = 0; i < n; i++) {
         if (!P->known[i]) continue;
         known++;
-        for (int c = 0; c < 3; c++)
-            fm[c] = fmax(fm[c], fabs(P->d[i * PD + 7 + c]));
+        for (int c = 0; c < 3; c++) { /* fmax's result inline (a known f is finite; fmax was a call) */
+            double a = fabs(P->d[i * PD + 7 + c]);
+            fm[c] = a > fm[c] ? a : fm[c];
+        }
     }
     fm[3] = fmax(fm[0], fmax(fm[1], fm[2]));
     for (size_t j = jlo; j < out->terms; j++) {
@@ -359,6 +360,8 @@ sb_result_t est_eval_setup(eval_t *e, const sb_factors_t *f, const double *scale
     if (J > SB_EST_MAXJ) J = SB_EST_MAXJ;
     e->J = J;
     e->C = C;
+    e->clamp = sb_param_apply_gain(p, -1, 1) == 0; /* max(0, sum) unless plain */
+    e->gain = (sb_param_caps(p) & SB_CAP_TABLES) != 0;
     *ones = malloc(J * (1 + C) * sizeof **ones); /* scale, then scs */
     e->tex[0] = malloc(J * C * sizeof *e->tex[0]);
     e->tex[1] = malloc(J * C * sizeof *e->tex[1]);

@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "sample/divisor.h"
 #include "sepbrdf/estimate.h"
 #include "sepbrdf/matrix.h"
 #include "util/tex_axis.h"
@@ -67,6 +68,8 @@ typedef struct eval {
     est_coords_t *co;    /* the pairs' coordinates under p (co_ready), or being filled, or NULL */
     int co_ready;
     sb_form_t form;
+    int clamp;         /* sb_param_apply_gain takes max(0, sum) (not a plain sum) */
+    int gain;          /* an SB_CAP_TABLES layout: sb_param_gain per pair (else 1) */
     int headline_only; /* no per-pair histograms or maxima (p99, max_rel 0) */
     int last_only;     /* sums of the prefix of all J terms only */
     int bands;         /* the band sums (estimate_bands.c) */
@@ -95,6 +98,14 @@ typedef struct eval {
  * that no two threads ever write one line (at J = 8 the blocks were 64 and
  * 256 bytes, end to end: two threads took as long as one, 2x the CPU). */
 static inline size_t est_tstride(size_t n) { return (n + 7) / 8 * 8 + 8; }
+
+/* Four doubles side by side (GCC's and clang's vector extension: one AVX
+ * register in the AVX2 clones, two SSE2 halves in the baseline), loaded
+ * and stored at any 8-byte address.  Each lane does the scalar code's
+ * operations in its order: the same bits, a quarter of the instructions
+ * (the per-pair sums were written one channel at a time). */
+typedef double est_v4_t __attribute__((vector_size(32), aligned(8)));
+typedef long long est_v4i_t __attribute__((vector_size(32), aligned(8)));
 
 /* Where the error is (estimate_bands.c). */
 void est_log2_init(void);
@@ -171,7 +182,27 @@ static inline void est_taps(const eval_t *e, int side, const double st[2], size_
  * publishes the first `filled` pairs (0: nothing was filled). */
 est_coords_t *est_coords_acquire(const sb_pairs_t *P, const sb_param_t *p, size_t need, int *ready);
 void est_coords_release(const sb_pairs_t *P, est_coords_t *co, const sb_param_t *p, size_t filled);
-/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c]; 0 outside.
+/* Room for every prefix's RGB at a pair: est_reconstruct stores whole
+ * vectors, the last one a value beyond the J * 3. */
+#define EST_REC_LEN (SB_EST_MAXJ * 3 + 4)
+
+/* The prefix sums of t (J terms of 3 channels, t[3 J] readable) as
+ * reconstructed values: rec[j * 3 + c] = max(0, sum) x gain / div (the
+ * sum itself where !clamp), a vector a prefix (lane 3 a value rec's next
+ * store overwrites, the last one rec[3 J]). */
+static inline __attribute__((always_inline)) void est_prefix3(const double *t, size_t J, int clamp, double gain,
+                                                              double div, double *rec) {
+    est_v4_t acc = {0, 0, 0, 0}, z = {0, 0, 0, 0};
+    est_v4i_t keep = {-1, -1, -1, -1};
+    for (size_t j = 0; j < J; j++) {
+        acc += *(const est_v4_t *)(t + j * 3);
+        est_v4i_t m = clamp ? ~(est_v4i_t)(acc < z) : keep; /* clamp && v < 0: 0 (+0, as the scalar's) */
+        *(est_v4_t *)(rec + j * 3) = (est_v4_t)((est_v4i_t)acc & m) * gain / div;
+    }
+}
+
+/* Reconstructed RGB of every prefix at pair i: rec[j * 3 + c] (EST_REC_LEN
+ * doubles; rec[J * 3] is written too); 0 outside.
  * Inline: in the per-pair loops' AVX2 clones (SB_AVX2_CLONES, on static
  * functions only) its product over terms and channels takes four doubles a
  * vector, the same operations and bits as the baseline's two. */
@@ -194,15 +225,13 @@ static inline __attribute__((always_inline)) void est_reconstruct(const eval_t *
         }
     }
     if (!in) {
-        memset(rec, 0, J * 3 * sizeof *rec);
+        memset(rec, 0, (J * 3 + 1) * sizeof *rec);
         return;
     }
     est_taps(e, SB_SIDE_G, sg, ag, fg);
     est_taps(e, SB_SIDE_H, sh, ah, fh);
-    double div = 1, acc[3] = {0, 0, 0};
-    div = sb_form_divisor(e->form, wi, wo);
-    double gain = sb_param_gain(e->p, wi, wo);         /* 1 but on SB_CAP_TABLES layouts */
-    int clamp = sb_param_apply_gain(e->p, -1, 1) == 0; /* sb_param_apply_gain (max(0, sum) unless plain), once */
+    double div = sb_form_divisor_inline(e->form, wi, wo), acc[3] = {0, 0, 0};
+    double gain = e->gain ? sb_param_gain(e->p, wi, wo) : 1; /* 1 but on SB_CAP_TABLES layouts */
     size_t S = J * C; /* the interleaved texels: 8 runs of S values, not 8 J C scattered reads */
     const double *g[4], *h[4];
     for (int k = 0; k < 4; k++) {
@@ -212,18 +241,24 @@ static inline __attribute__((always_inline)) void est_reconstruct(const eval_t *
     /* every term and channel's product in one loop the compiler vectorises
      * (the same operations per value as one at a time, so the same bits),
      * then the prefix sums in term order */
-    double t[SB_EST_MAXJ * 3];
+    double t[EST_REC_LEN];
     for (size_t at = 0; at < S; at++)
         t[at] = (fg[0] * g[0][at] + fg[1] * g[1][at] + fg[2] * g[2][at] + fg[3] * g[3][at]) *
                 (fh[0] * h[0][at] + fh[1] * h[1][at] + fh[2] * h[2][at] + fh[3] * h[3][at]) * e->scs[at];
+    if (C == 3) {
+        t[S] = 0;
+        est_prefix3(t, J, e->clamp, gain, div, rec);
+        return;
+    }
     for (size_t j = 0; j < J; j++) {
         for (size_t c = 0, at = j * C; c < C; c++, at++)
             acc[c] += t[at];
         for (int c = 0; c < 3; c++) {
             double v = acc[C == 1 ? 0 : c];
-            rec[j * 3 + c] = (clamp && v < 0 ? 0 : v) * gain / div;
+            rec[j * 3 + c] = (e->clamp && v < 0 ? 0 : v) * gain / div;
         }
     }
+    rec[J * 3] = 0;
 }
 
 /* e's textures, sizes, wraps and per-term scales (*ones: scales or 1) for

@@ -44,21 +44,21 @@ static inline size_t est_map_cell(double c) {
 static inline void pair_dens(const eval_t *e, const double *d, unsigned mask, size_t k, const double f2[4],
                              size_t *cell) {
     double q = d[2] * d[2] * d[6], *bden = e->bden + k * BQ;
-    for (unsigned m = mask; m; m &= m - 1) {
-        int b = __builtin_ctz(m);
-        for (int c = 0; c < 4; c++)
-            bden[b * 4 + c] += f2[c] * q;
-    }
+    est_v4_t v = *(const est_v4_t *)f2 * q;
+    for (unsigned m = mask; m; m &= m - 1)
+        *(est_v4_t *)(bden + __builtin_ctz(m) * 4) += v;
     *cell = est_map_cell(d[2]) * SB_EST_MAP + est_map_cell(d[5]);
     e->mden[k * MM + *cell] += f2[3] * q;
 }
 
-/* Prefix j's squared differences d2[4] (add_pair's) to the bands of mask. */
-static inline void bands_add(double *bnum, unsigned mask, const double *d2, double q) {
+/* The squared differences d2[J][4] (add_pair's) of prefixes j0..J-1 to
+ * the bands of mask: band by band (one bit found a band, not a prefix),
+ * d2[c] q per channel, as one at a time. */
+static inline void bands_add(double *bnum, unsigned mask, const double *d2, double q, size_t j0, size_t J) {
     for (unsigned m = mask; m; m &= m - 1) {
-        int b = __builtin_ctz(m);
-        for (int c = 0; c < 4; c++)
-            bnum[b * 4 + c] += d2[c] * q;
+        double *bb = bnum + __builtin_ctz(m) * 4;
+        for (size_t j = j0; j < J; j++)
+            *(est_v4_t *)(bb + j * BQ) += *(const est_v4_t *)(d2 + j * 4) * q;
     }
 }
 
@@ -77,8 +77,7 @@ est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, c
     pair_dens(e, d, mask, k, f2, &cell);
     double *bnum = e->bnum + k * J * BQ;
     if (e->headline_only) { /* the bands only (of all J terms with last_only) */
-        for (size_t j = e->last_only ? J - 1 : 0; j < J && mask; j++)
-            bands_add(bnum + j * BQ, mask, d2 + j * 4, q);
+        bands_add(bnum, mask, d2, q, e->last_only ? J - 1 : 0, J);
         return;
     }
     int lit[4];
@@ -94,13 +93,13 @@ est_bands_pair(const eval_t *e, size_t i, const double *rec, const double *d2, c
             mv[c] = r[c] < mv[c] ? r[c] : mv[c];
             mv[3] = r[c] < mv[3] ? r[c] : mv[3];
         }
-        bands_add(bnum + j * BQ, mask, dj, q);
         for (int c = 0; c < 4; c++) {
             if (!lit[c]) continue;
             hist[(j * 4 + c) * NB + bin[j * 4 + c]] += lw;
             if (dj[c] > maxl[j * 4 + c] * f2[c]) maxl[j * 4 + c] = dj[c] / f2[c];
         }
     }
+    bands_add(bnum, mask, d2, q, 0, J);
     e->mnum[k * MM + cell] += d2[(J - 1) * 4 + 3] * q;
 }
 

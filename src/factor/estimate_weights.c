@@ -26,7 +26,7 @@ static void tw_unit(void *user, size_t k, int t) {
     const eval_t *e = w->e;
     const sb_pairs_t *P = e->P;
     size_t J = e->J, C = e->C, L = J * (J + 1) / 2;
-    double *s = w->sums + (k - w->first) * tw_len(J, C), rec[SB_EST_MAXJ * 3], tj[SB_EST_MAXJ];
+    double *s = w->sums + (k - w->first) * tw_len(J, C), rec[EST_REC_LEN], tj[SB_EST_MAXJ];
     memset(s, 0, tw_len(J, C) * sizeof *s);
     for (size_t i = k * P->rep; i < (k + 1) * P->rep; i++) {
         if (!P->known[i]) continue;

@@ -14,6 +14,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "sample/divisor.h"
 #include "sample/stream.h"
 #include "util/internal.h"
 #include "util/parallel.h"
@@ -43,10 +44,7 @@ double sb_form_weight(sb_form_t form, const double wi[3], const double wo[3]) {
 }
 
 double sb_form_divisor(sb_form_t form, const double wi[3], const double wo[3]) {
-    double w = 1;
-    if (form == SB_FORM_COS || form == SB_FORM_COS2) w = fmax(wi[2], 0.001);
-    if (form == SB_FORM_COS2) w *= fmax(wo[2], 0.001);
-    return w;
+    return sb_form_divisor_inline(form, wi, wo);
 }
 
 typedef struct job {
