@@ -33,9 +33,9 @@ static int measure(const sb_scene_t *s, const sb_source_t *src, const sb_factors
                    sb_form_t form, size_t J, int uniform, const sb_estimate_opts_t *o, double out[3]) {
     sb_pairs_t *P = NULL;
     sb_estimate_t *e = malloc(sizeof *e);
-    sb_result_t r = !e                ? SB_ERR_NOMEM
-                    : uniform         ? sb_pairs_create_drawn(NULL, src, o, plain, s, &P)
-                                      : sb_scene_pairs_create(NULL, s, src, o, &P);
+    sb_result_t r = !e        ? SB_ERR_NOMEM
+                    : uniform ? sb_pairs_create_drawn(NULL, src, o, plain, s, &P)
+                              : sb_scene_pairs_create(NULL, s, src, o, &P);
     if (r == SB_OK) r = sb_estimate_compute(NULL, P, f, NULL, p, form, o, e);
     if (r == SB_OK) {
         out[0] = e->rel[J - 1][SB_EST_FCOS][SB_CH_ALL];
