@@ -140,12 +140,14 @@ static int bands_precise(const sb_estimate_t *e, const int *b, int nb) {
 
 /* The bands b[0..nb) of a->est measured again on the pairs *pairs (drawn
  * by draw the first time): their figures replace the estimate's; returns
- * the pairs used in *used. */
+ * the pairs used in *used.  grow_on_bands: the pairs grow until those
+ * bands' standard errors meet the target too, not the headline's alone. */
 static sb_result_t measure_on(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a, sb_pairs_t **pairs,
-                              sb_pair_draw_fn draw, const int *b, int nb, size_t start, size_t max, size_t *used) {
+                              sb_pair_draw_fn draw, const int *b, int nb, int grow_on_bands, size_t start, size_t max,
+                              size_t *used) {
     sb_estimate_opts_t eo = {0};
     eo.start = start;
-    for (int k = 0; k < nb && draw == cone_draw; k++) /* the cones': grown until their bands' se meet the target */
+    for (int k = 0; k < nb && grow_on_bands; k++)
         eo.stop_bands |= 1u << b[k];
     eo.max_pairs = max;
     eo.seed = job->o.seed;
@@ -178,9 +180,10 @@ sb_result_t job_band_pairs_measure(sb_context_t *ctx, sb_job_t *job, job_attempt
     sb_result_t r = SB_OK;
     a->band_pairs = 0;
     if (!bands_precise(a->est, BP_GRAZING, 3)) /* else the estimate's own figures stand */
-        r = measure_on(ctx, job, a, &job->band_pairs, band_draw, BP_GRAZING, 3, BP_START, BP_MAX_PAIRS, &a->band_pairs);
+        r = measure_on(ctx, job, a, &job->band_pairs, band_draw, BP_GRAZING, 3, 0, BP_START, BP_MAX_PAIRS,
+                       &a->band_pairs);
     if (r == SB_OK) /* always: their own standard errors did not show how far off they were */
-        r = measure_on(ctx, job, a, &job->cone_pairs, cone_draw, BP_CONES, 2, BP_CONE_START, BP_CONE_MAX,
+        r = measure_on(ctx, job, a, &job->cone_pairs, cone_draw, BP_CONES, 2, 1, BP_CONE_START, BP_CONE_MAX,
                        &a->band_pairs);
     job->t_estimate += job_now() - t0;
     /* the pairs only sharpen figures the estimate has: short of memory (a
