@@ -80,10 +80,14 @@ static double *near_alloc(sb_context_t *ctx, near_ws_t *w, size_t rows, size_t c
     return ws;
 }
 
-/* Step: weighted, scaled factors and their differences (channel fc); the
- * direct form's G~ and H~ alone where direct is set. */
+/* What near_factors makes: NEAR_DIRECT G~ and H~, NEAR_EXACT G~, dG, H
+ * and dH, NEAR_PRODUCTS all of them (G too). */
+enum { NEAR_DIRECT = 1, NEAR_EXACT = 2, NEAR_PRODUCTS = 3 };
+
+/* Step: weighted, scaled factors and their differences (channel fc), as
+ * `what` says. */
 static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors_t *near, size_t fc, double sg,
-                         double sh, int direct) {
+                         double sh, int what) {
     size_t rows = w->rows, cols = w->cols, J = w->J;
     for (size_t j = 0; j < J; j++) {
         const double *g = sb_factors_tex_const(fit, SB_SIDE_G, j, fc),
@@ -92,11 +96,11 @@ static void near_factors(near_ws_t *w, const sb_factors_t *fit, const sb_factors
                      *p = sb_factors_tex_const(near, SB_SIDE_H, j, fc);
         for (size_t i = 0; i < rows; i++)
             w->Gq[i + j * rows] = w->wr[i] * q[i] * sg;
-        for (size_t i = 0; i < cols; i++)
+        for (size_t i = 0; (what & NEAR_DIRECT) && i < cols; i++)
             w->Hq[i + j * cols] = w->wc[i] * p[i] * sh;
-        if (direct) continue;
+        if (!(what & NEAR_EXACT)) continue;
         for (size_t i = 0; i < rows; i++) {
-            w->G[i + j * rows] = w->wr[i] * g[i] * sg;
+            if (what & NEAR_DIRECT) w->G[i + j * rows] = w->wr[i] * g[i] * sg;
             w->dG[i + j * rows] = w->wr[i] * (g[i] - q[i]) * sg;
         }
         for (size_t i = 0; i < cols; i++) {
@@ -249,10 +253,13 @@ sb_result_t sb_factors_errors_near(sb_context_t *ctx, const sb_factors_t *fit, c
     for (int ch = 0; ch < 3; ch++) {
         present[ch] = m->data[ch] != NULL;
         if (!present[ch]) continue;
-        near_factors(&w, fit, near, C == 1 ? 0 : (size_t)ch, sg, sh, direct[ch] && !exact);
+        size_t fc = C == 1 ? 0 : (size_t)ch;
+        int what = direct[ch] ? NEAR_DIRECT : NEAR_PRODUCTS;
+        near_factors(&w, fit, near, fc, sg, sh, exact ? NEAR_EXACT : what);
         double nx = fe->norm[ch] * sx;
         n2[ch] = nx * nx;
         if (exact && near_exact(&w, fe->rel_rms + ch, nx, ssq + (size_t)ch * J)) continue;
+        if (exact) near_factors(&w, fit, near, fc, sg, sh, what); /* the bound not met: the matrix is read */
         sb_result_t r =
             direct[ch] ? near_direct(ctx, &w, m, ch, sx, nx, ssq + (size_t)ch * J) : near_products(ctx, &w, m, ch, sx);
         if (r != SB_OK) {
