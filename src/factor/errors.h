@@ -52,6 +52,28 @@ sb_result_t sb_resid_blocks(sb_context_t *ctx, const sb_matrix_t *m, size_t J, c
 sb_result_t sb_errors_relative(sb_context_t *ctx, size_t J, const int present[3], const double *ssq, const double *mx,
                                const double n2[3], double *rel_rms, double *max_abs);
 
+/* A number that changes with every change of f's texels, sigma, meta,
+ * terms or tables (not its errors: sb_factors_errors_mut) and that no
+ * other factors ever had: what was made from f (sb_factors_quantize's
+ * stored factors, less their copy of the errors) is f's while the stamp is
+ * the same.  0 for NULL. */
+unsigned long long sb_factors_stamp(sb_factors_t *f);
+
+/* Whether f is an exact truncated SVD of every channel it was fitted to,
+ * in the fit's own norm: W_r G, W_c H span leading singular vectors of
+ * W_r M W_c, so every prefix's residual R_J' has U_J'^T R_J' = 0 and
+ * R_J' V_J' = 0 (sb_factors_errors_near uses it).  sb_plan_execute marks
+ * the fits of solvers with SB_CAP_EXACT_TAILS on the cell measures'
+ * weights; any write access to texels or sigma (sb_factors_tex,
+ * sb_factors_set_sigma) clears it, and a copy does not have it. */
+void sb_factors_mark_exact(sb_factors_t *f);
+int sb_factors_exact(const sb_factors_t *f);
+
+/* SB_OK where f's textures fit m (and weights, if given), else
+ * SB_ERR_ARG with a message. */
+sb_result_t sb_errors_check_fit(sb_context_t *ctx, const sb_factors_t *f, const sb_matrix_t *m,
+                                const sb_param_t *weights);
+
 /* Keep the first `keep` terms of f (1 <= keep <= terms; else nothing). */
 void sb_factors_truncate(sb_factors_t *f, size_t keep);
 

@@ -3,6 +3,7 @@
 #include "sepbrdf/factor.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,7 +28,25 @@ struct sb_factors {
     size_t nmeta;
     sb_factor_errors_t err;
     sb_layout_tables_t *tables; /* read with the set (vndf.exr), for sb_factors_param */
+    unsigned long long stamp;   /* sb_factors_stamp: new after every change */
+    int changed;                /* since the stamp was taken */
+    int exact;                  /* sb_factors_exact: set by the plan, cleared by a change of texels or sigma */
 };
+
+/* A change: the next sb_factors_stamp is a new one (a plain store, as
+ * sb_factors_tex is called once a texel in places). */
+static void touch(sb_factors_t *f) { f->changed = 1; }
+unsigned long long sb_factors_stamp(sb_factors_t *f) {
+    static atomic_ullong next;
+    if (!f) return 0;
+    if (f->changed || !f->stamp) f->stamp = atomic_fetch_add(&next, 1) + 1;
+    f->changed = 0;
+    return f->stamp;
+}
+void sb_factors_mark_exact(sb_factors_t *f) {
+    if (f) f->exact = 1;
+}
+int sb_factors_exact(const sb_factors_t *f) { return f && f->exact; }
 
 sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, size_t g_w, size_t g_h, size_t h_w,
                               size_t h_h, sb_factors_t **out) {
@@ -40,6 +59,7 @@ sb_result_t sb_factors_create(sb_context_t *ctx, size_t terms, size_t channels, 
     if (terms > SIZE_MAX / 4) return sb_error(ctx, SB_ERR_OVERFLOW, "factors: %zu terms overflow", terms);
     sb_factors_t *f = calloc(1, sizeof *f);
     if (!f) return sb_error(ctx, SB_ERR_NOMEM, "factors: out of memory");
+    touch(f);
     f->terms = terms;
     f->channels = channels;
     f->w[0] = g_w;
@@ -75,6 +95,7 @@ void sb_factors_set_tables(sb_factors_t *f, sb_layout_tables_t *tables) {
         sb_layout_tables_destroy(tables);
         return;
     }
+    touch(f);
     sb_layout_tables_destroy(f->tables);
     f->tables = tables;
 }
@@ -109,6 +130,8 @@ void sb_factors_size(const sb_factors_t *f, int side, size_t *w, size_t *h) {
 }
 double *sb_factors_tex(sb_factors_t *f, int side, size_t term, size_t ch) {
     if (!in_range(f, side, term, ch)) return NULL;
+    touch(f); /* the caller may write: another state, no longer the exact fit */
+    f->exact = 0;
     return f->tex[side] + (term * f->channels + ch) * f->w[side] * f->h[side];
 }
 const double *sb_factors_tex_const(const sb_factors_t *f, int side, size_t term, size_t ch) {
@@ -119,11 +142,15 @@ double sb_factors_sigma(const sb_factors_t *f, size_t term, size_t ch) {
     return in_range(f, SB_SIDE_G, term, ch) ? f->sigma[term * f->channels + ch] : NAN;
 }
 void sb_factors_set_sigma(sb_factors_t *f, size_t term, size_t ch, double s) {
-    if (in_range(f, SB_SIDE_G, term, ch)) f->sigma[term * f->channels + ch] = s;
+    if (!in_range(f, SB_SIDE_G, term, ch)) return;
+    touch(f);
+    f->exact = 0;
+    f->sigma[term * f->channels + ch] = s;
 }
 
 sb_result_t sb_factors_set_meta(sb_factors_t *f, const char *key, const char *value) {
     if (!f || !key || !value) return SB_ERR_ARG;
+    touch(f);
     for (size_t i = 0; i < f->nmeta; i++)
         if (strcmp(f->meta[i].key, key) == 0) {
             char *v = sb_strdup(value);
@@ -241,6 +268,7 @@ int sb_factors_eval(const sb_factors_t *f, const sb_param_t *p, sb_form_t form, 
 
 void sb_factors_truncate(sb_factors_t *f, size_t keep) {
     if (!f || keep == 0 || keep > f->terms) return;
+    touch(f);        /* a prefix of an exact fit stays exact */
     f->terms = keep; /* textures beyond `keep` stay allocated but unused */
     f->err.terms = keep;
 }

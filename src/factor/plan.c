@@ -438,6 +438,19 @@ static sb_result_t finish_errors(sb_plan_t *p, const run_t *rn, sb_factors_t *f)
     return SB_OK;
 }
 
+/* Whether the fit is an exact truncated SVD of every channel in the norm
+ * errors.c measures (the cells' own measures): a solver with exact tails,
+ * and proportional channels only where they are so to the last bit (a
+ * channel within the tolerance of sb_channels_proportional takes the
+ * base's vectors, which are not its own). */
+static int exact_fit(const sb_plan_t *p, const run_t *rn) {
+    if (!(rn->sv->caps & SB_CAP_EXACT_TAILS) || (p->opts.weighted && p->opts.row_weights && p->opts.col_weights))
+        return 0;
+    for (int c = 0; rn->prop && c < 3; c++)
+        if (rn->chs.dev[c] != 0) return 0;
+    return 1;
+}
+
 static sb_result_t check_execute(const sb_plan_t *p, const sb_matrix_t *m, const sb_param_t *param) {
     if (!m || !param) return sb_error(p->ctx, SB_ERR_ARG, "plan: missing matrix, parameterisation or output");
     if (!m->structured && m->ld < m->rows)
@@ -522,6 +535,8 @@ sb_result_t sb_plan_execute(sb_plan_t *p, const sb_matrix_t *m, const sb_param_t
     sb_factors_set_meta(f, "form", sb_form_name(m->form));
     sb_factors_set_meta(f, "method", rn.sv->name);
     sb_factors_set_meta(f, "weighted", p->opts.weighted ? "1" : "0");
+    /* an exact SVD in the norm errors.c measures (the cells' own measures) */
+    if (exact_fit(p, &rn)) sb_factors_mark_exact(f);
     *out = f;
     return SB_OK;
 }

@@ -475,6 +475,8 @@ void sb_job_destroy(sb_job_t *job) {
     sb_pairs_destroy(job->cone_pairs);
     job_scene_free(job);
     free(job->rel_stored);
+    sb_factors_destroy(job->quant[0]);
+    sb_factors_destroy(job->quant[1]);
     free(job->svd_beside);
     free(job->cv); /* cv_se, cv_pooled, cv_max, cv_median with it */
     for (size_t i = 0; i < job->nwarn; i++)

@@ -156,11 +156,10 @@ static sb_result_t measure_on(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a
     eo.channels = job->o.channels;
     sb_result_t r = SB_OK;
     if (!*pairs) r = sb_pairs_create_drawn(ctx, job->src, &eo, draw, NULL, pairs);
-    sb_exr_opts_t xo = {job->o.half};
-    sb_factors_t *q = NULL;
+    const sb_factors_t *q = NULL;
     sb_estimate_t *e = r == SB_OK ? malloc(sizeof *e) : NULL;
     if (r == SB_OK && !e) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL); /* what a shader reads, as job_estimate */
+    if (r == SB_OK) r = job_quantized(ctx, job, a->f, &q); /* what a shader reads, as job_estimate */
     if (r == SB_OK) r = sb_estimate_compute(ctx, *pairs, q, NULL, a->param, a->m.form, &eo, e);
     for (size_t j = 0; r == SB_OK && j < a->est->terms && j < e->terms; j++)
         for (int k = 0; k < nb; k++) {
@@ -168,7 +167,6 @@ static sb_result_t measure_on(sb_context_t *ctx, sb_job_t *job, job_attempt_t *a
             memcpy(a->est->band_se[j][b[k]], e->band_se[j][b[k]], sizeof a->est->band_se[j][b[k]]);
         }
     if (r == SB_OK) *used += e->pairs;
-    sb_factors_destroy(q);
     free(e);
     return r;
 }

@@ -205,6 +205,12 @@ struct sb_job {
      * squared error, energy and count, for the warning that says where */
     double cv_band_e[JOB_CV_BANDS], cv_band_t[JOB_CV_BANDS];
     size_t cv_band_n[JOB_CV_BANDS];
+    /* job_quantized: the stored factors of the last two factors asked
+     * for (quant_last the newer), while those keep the stamp they had
+     * (sb_factors_stamp) */
+    sb_factors_t *quant[2];
+    unsigned long long quant_stamp[2];
+    int quant_half[2], quant_last;
 };
 
 extern const double job_cv_band_deg[JOB_CV_BANDS + 1];
@@ -277,6 +283,11 @@ sb_result_t job_keep_early_fit(sb_context_t *ctx, sb_job_t *job, const job_level
 /* The estimator's errors of a->f as stored (HALF or FLOAT) into a->est,
  * on the job's pairs, growing them up to lv->est_max_pairs. */
 sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
+/* *q = f as stored (sb_factors_quantize with the job's --half): what a
+ * shader reads.  Kept on the job while f is unchanged (its stamp), so the
+ * estimate, the bands' own pairs and the written set's errors quantise
+ * the kept fit once; *q is the job's (valid until the next call). */
+sb_result_t job_quantized(sb_context_t *ctx, sb_job_t *job, sb_factors_t *f, const sb_factors_t **q);
 /* a's estimate (on lv's pairs) and, with lv->metric_res, grid quadrature. */
 sb_result_t job_measure(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, job_attempt_t *a);
 /* The plain fit breaking the band bounds on a tables layout: refitted

@@ -42,15 +42,13 @@ sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv
         eo.headline_only = 1;
         eo.bands = 1;
     }
-    sb_exr_opts_t xo = {job->o.half};
-    sb_factors_t *q = NULL;
+    const sb_factors_t *q = NULL;
     sb_result_t r = SB_OK;
     if (!job->pairs) r = job_pairs_create(ctx, job);
     if (r == SB_OK && !a->est && !(a->est = malloc(sizeof *a->est))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     /* what a shader reads: the texels as stored */
-    if (r == SB_OK) r = sb_factors_quantize(ctx, a->f, &xo, &q, NULL);
+    if (r == SB_OK) r = job_quantized(ctx, job, a->f, &q);
     if (r == SB_OK) r = sb_estimate_compute(ctx, job->pairs, q, NULL, a->param, a->m.form, &eo, a->est);
-    sb_factors_destroy(q);
     a->est_rank = lv->rank_only;
     a->est_lean = !lv->rank_only && job->est_lean;
     a->t_estimate = job_now() - t0;

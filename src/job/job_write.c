@@ -17,19 +17,17 @@
  * every J' (sb_err_at layout); NULL when it cannot be computed (reported as
  * null), and for a streamed matrix, where it would cost one more pass over
  * the source per channel. */
-static double *stored_errors(sb_context_t *ctx, const sb_job_t *job) {
+static double *stored_errors(sb_context_t *ctx, sb_job_t *job) {
     const job_attempt_t *a = &job->best;
     if (a->m.streamed) return NULL;
     size_t J = sb_factors_terms(a->f);
-    sb_exr_opts_t eo = {job->o.half};
-    sb_factors_t *q = NULL;
+    const sb_factors_t *q = NULL;
     double *rel = malloc(sb_err_at(J, 0) * sizeof *rel), *mx = malloc(sb_err_at(J, 0) * sizeof *mx);
     const sb_param_t *w = a->weighted ? a->param : NULL;
-    int ok = rel && mx && sb_factors_quantize(ctx, a->f, &eo, &q, NULL) == SB_OK;
+    int ok = rel && mx && job_quantized(ctx, job, a->f, &q) == SB_OK;
     if (ok)
         ok = (a->m.mask ? sb_factors_errors_against(ctx, q, &a->m, w, rel, mx)
                         : sb_factors_errors_near(ctx, a->f, q, &a->m, w, rel)) == SB_OK;
-    sb_factors_destroy(q);
     free(mx);
     if (!ok) {
         free(rel);
@@ -190,7 +188,10 @@ static sb_result_t write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
     if (job->o.previews && (r = sb_factors_write_previews(ctx, a->f, dir)) != SB_OK) return r;
     /* the snippet's sb_scale: what the shader multiplies the stored texels by (HALF) */
     double *scales = malloc(J * sizeof *scales);
-    r = scales ? sb_exr_term_scales(ctx, a->f, &eo, scales) : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    r = scales ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    for (size_t j = 0; r == SB_OK && !eo.half && j < J; j++)
+        scales[j] = 1; /* FLOAT: sb_exr_term_scales' 1, its checks sb_factors_write_exr's, passed above */
+    if (r == SB_OK && eo.half) r = sb_exr_term_scales(ctx, a->f, &eo, scales);
     if (r == SB_OK) r = write_shader(ctx, job, set, scales);
     free(scales);
     if (r != SB_OK) return r;
