@@ -182,3 +182,20 @@ SB_TEST(vndf_tables) {
     snprintf(path, sizeof path, "%s/tables.exr", dir);
     CHECK(run("info %s", path) == 2 && strstr(out, "not a factor file"));
 }
+
+/* A measured table named .exr is described as the table it is, as factor
+ * reads it (content first; it said "cannot read as an EXR file", exit 2);
+ * a text file named .exr keeps the EXR reader's message (not_factor_files). */
+SB_TEST(measured_table_named_exr) {
+    const char *dir = sb_tmpdir("info_table_exr");
+    char cmd[9000], path[4300];
+    snprintf(path, sizeof path, "%s/table.exr", dir);
+    snprintf(cmd, sizeof cmd, "cp " SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf %s", path);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    int rc = run("info %s 2>&1", path);
+    CHECKF(rc == 0 && strstr(out, "format        rgl") && strstr(out, "Orange"), "rc %d: %s", rc, out);
+    snprintf(cmd, sizeof cmd, "cp " SB_MEASURED_DIR "/cornell_acryl_blue.brdf %s", path);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    rc = run("info %s 2>&1", path);
+    CHECKF(rc == 0 && strstr(out, "format        cornell"), "rc %d: %s", rc, out);
+}
