@@ -514,9 +514,26 @@ int sb_bench_out_dir(const char *prog, const char *dir) {
     return e ? 2 : 0;
 }
 
+/* The source, opened once before any output: one that cannot be read is an
+ * input error (exit 2, as every command; no folder made), an unknown spec a
+ * usage one (1).  It printed the table's header and left an empty --out
+ * folder, exit 1. */
+static int check_model(const bench_opts_t *o) {
+    sb_context_t *ctx = NULL;
+    sb_source_t *src = NULL;
+    sb_context_create(&ctx);
+    sb_result_t r = sb_source_open(ctx, o->model, &src);
+    if (r != SB_OK) fprintf(stderr, "%s: %s\n", o->prog, sb_context_last_error(ctx));
+    sb_source_destroy(src);
+    sb_context_destroy(ctx);
+    return r == SB_OK ? 0 : r == SB_ERR_IO || r == SB_ERR_FORMAT || r == SB_ERR_UNSUPPORTED ? 2 : 1;
+}
+
 static int run_all(bench_opts_t *o) {
     FILE *csv = NULL;
     char csv_path[4200], tmp_path[4300];
+    int bad = check_model(o);
+    if (bad) return bad;
     if (o->out) {
         if (sb_bench_out_dir(o->prog, o->out) != 0) return 2;
         snprintf(csv_path, sizeof csv_path, "%s/results.csv", o->out);

@@ -9,6 +9,8 @@ centres at (x + 0.5)/W, SB_EDGE_H_S, sb_scale, SB_CLAMP, the form's
 division), evaluates the source model from the README's formulas (lambert,
 phong, cook-torrance with GGX / Smith-Schlick / Schlick) and compares the
 headline, theta_i/theta_o > 60 degree and specular bands with report.json.
+A scene fit's headline is compared with scene.domain_headline (its bands are
+the scene's: left out); a measured table's set needs EVAL_REF (exit 2 without).
 Where report.json's estimate.domain is "cap" (--theta-max below 90), only
 the pairs with both directions within the cap count (a band beyond: 0).
 
@@ -468,6 +470,14 @@ def main():
     rep = json.load(open(f"{folder}/report.json"))
     terms = rep["terms"]
     spec = rep["source"]
+    if isinstance(rep.get("measured"), dict) and not REF:  # no model to transcribe (was a ValueError)
+        print(f"{folder}: {spec}: a measured table; this evaluator transcribes the analytic models only: "
+              "give EVAL_REF=DIR, a set of the same file that reproduces it (an RGL file's vndf at J = slices)")
+        return 2
+    scene = rep.get("scene")  # its figures are the scene's; the pairs drawn here cover the whole hemisphere
+    if scene:
+        print(f"{folder}: a scene fit ({scene.get('spec')}): the headline is compared with report.json's "
+              "scene.domain_headline (the whole domain), the bands are not (the report's are the scene's)")
     batches, num, den = 20, [], []
     cone = np.radians(rep["bands"]["cone_deg"])
     keys = ["headline", "theta_i_60", "theta_o_60", "specular", "theta_i_80", "theta_i_89"]
@@ -512,8 +522,10 @@ def main():
         e = rep["errors"][j]
         theirs = [e["headline"]] + [e["band_rel"][k] for k in keys[1:]]
         their_se = [e["headline_se"]] + [e["band_rel_se"][k] for k in keys[1:]]
+        if scene:
+            theirs[0], their_se[0] = scene["domain_headline"][j], scene["domain_headline_se"][j]
         cells = []
-        for k in range(len(keys)):
+        for k in range(1 if scene else len(keys)):
             ok = abs(ratio[j, k] - theirs[k]) <= max(4 * np.hypot(se[j, k], their_se[k]),
                                                     0.02 * theirs[k])
             bad += not ok

@@ -146,3 +146,23 @@ SB_TEST(out_folder_as_other_commands) {
         CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "--out: empty folder name"), "%s", out);
     }
 }
+
+/* A --model file that cannot be read is an input error as in every
+ * command: exit 2, the file named, no table header and no --out folder
+ * (it was exit 1 after the header, an empty folder left); an unknown spec
+ * stays a usage error (1). */
+SB_TEST(unreadable_model_leaves_nothing) {
+    const char *dir = sb_tmpdir("bench_badmodel");
+    char cmd[8400], out[8192], path[4200];
+    snprintf(cmd, sizeof cmd, "head -c 200 %s/rgl_chm_orange_rgb.bsdf > %s/cut.bsdf", SB_MEASURED_DIR, dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    snprintf(cmd, sizeof cmd, "%s bench --model %s/cut.bsdf --quick -o %s/o 2>&1", SB_CLI, dir, dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 2 && strstr(out, "cut.bsdf") && strstr(out, "past the end") && !strstr(out, "# model"), "rc %d: %s",
+           rc, out);
+    snprintf(path, sizeof path, "%s/o", dir);
+    CHECKF(!sb_file_exists(path), "%s left behind", path);
+    snprintf(cmd, sizeof cmd, "%s bench --model nosuchmodel --quick -o %s/o 2>&1", SB_CLI, dir);
+    rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 1 && strstr(out, "nosuchmodel") && !sb_file_exists(path), "rc %d: %s", rc, out);
+}

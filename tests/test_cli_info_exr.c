@@ -1,5 +1,6 @@
 /* CLI: `sepbrdf info FILE.exr` on factor files written by the real binary
  * (SB_CLI), and on files that are not factor files. */
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -129,4 +130,72 @@ SB_TEST(json_for_factor_files) {
                "%s", out);
     }
     CHECK(strstr(out, "\"report\": \"") && strstr(out, "\"texture\": {") && strstr(out, "g_00.exr"));
+}
+
+/* The (width, height) of an EXR's dataWindow, read from its header bytes
+ * (an independent reading: no OpenEXR); 0 when not found. */
+static int exr_size(const char *path, long *w, long *h) {
+    FILE *fp = fopen(path, "rb");
+    static unsigned char buf[4096];
+    size_t n = fp ? fread(buf, 1, sizeof buf, fp) : 0;
+    if (fp) fclose(fp);
+    static const char key[] = "dataWindow\0box2i";
+    for (size_t i = 0; i + sizeof key + 20 <= n; i++) {
+        if (memcmp(buf + i, key, sizeof key) != 0) continue;
+        const unsigned char *b = buf + i + sizeof key + 4; /* past the size */
+        int32_t v[4];
+        for (int k = 0; k < 4; k++)
+            v[k] = (int32_t)((uint32_t)b[4 * k] | (uint32_t)b[4 * k + 1] << 8 | (uint32_t)b[4 * k + 2] << 16 |
+                             (uint32_t)b[4 * k + 3] << 24);
+        *w = v[2] - v[0] + 1;
+        *h = v[3] - v[1] + 1;
+        return 1;
+    }
+    return 0;
+}
+
+/* info on the vndf.exr `factor` writes beside an RGL file's vndf fit: its
+ * size and channels, exit 0 (it said "not a factor file", exit 2, on a file
+ * factor itself wrote); the same tables under another name are still
+ * refused.  factor's last line names the file. */
+SB_TEST(vndf_tables) {
+    const char *dir = sb_tmpdir("info_vndf");
+    int rc = run("factor " SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf --param vndf -J 1 -o %s", dir);
+    CHECKF(rc == 0, "factor: rc %d: %s", rc, out);
+    /* its last line names vndf.exr, in the singular (was "1 texture pairs" and "1 terms") */
+    CHECKF(strstr(out, "wrote 1 texture pair, vndf.exr, report.json and sepbrdf.glsl") && strstr(out, " 1 term, "),
+           "%s", out);
+    char path[4300], want[128], cmd[9000];
+    snprintf(path, sizeof path, "%s/vndf.exr", dir);
+    long w = 0, h = 0;
+    CHECK(exr_size(path, &w, &h) && w > 1 && h > 1);
+    rc = run("info %s", path);
+    snprintf(want, sizeof want, "size       %ld x %ld texels", w, h);
+    CHECKF(rc == 0 && strstr(out, "vndf tables") && strstr(out, want) && strstr(out, "channels   3:"), "rc %d: %s", rc,
+           out);
+    rc = run("info %s --json 2>/dev/null", path);
+    snprintf(want, sizeof want, "\"width\": %ld", w);
+    CHECKF(rc == 0 && out[0] == '{' && strstr(out, "\"kind\": \"vndf tables\"") && strstr(out, want), "rc %d: %s", rc,
+           out);
+    snprintf(cmd, sizeof cmd, "cp %s %s/tables.exr", path, dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    snprintf(path, sizeof path, "%s/tables.exr", dir);
+    CHECK(run("info %s", path) == 2 && strstr(out, "not a factor file"));
+}
+
+/* A measured table named .exr is described as the table it is, as factor
+ * reads it (content first; it said "cannot read as an EXR file", exit 2);
+ * a text file named .exr keeps the EXR reader's message (not_factor_files). */
+SB_TEST(measured_table_named_exr) {
+    const char *dir = sb_tmpdir("info_table_exr");
+    char cmd[9000], path[4300];
+    snprintf(path, sizeof path, "%s/table.exr", dir);
+    snprintf(cmd, sizeof cmd, "cp " SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf %s", path);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    int rc = run("info %s 2>&1", path);
+    CHECKF(rc == 0 && strstr(out, "format        rgl") && strstr(out, "Orange"), "rc %d: %s", rc, out);
+    snprintf(cmd, sizeof cmd, "cp " SB_MEASURED_DIR "/cornell_acryl_blue.brdf %s", path);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    rc = run("info %s 2>&1", path);
+    CHECKF(rc == 0 && strstr(out, "format        cornell"), "rc %d: %s", rc, out);
 }

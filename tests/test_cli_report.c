@@ -240,3 +240,44 @@ SB_TEST(reader_paths) {
     value(&bad, "");
     CHECK(bad.bad);
 }
+
+/* report.json's files name every file of the set the run wrote (its list,
+ * sepbrdf-set-factor.txt, but report.json itself), and nothing else: an
+ * RGL file's vndf fit with every translation (vndf.exr and sepbrdf.hlsl,
+ * .metal, .wgsl were written but not named). */
+SB_TEST(files_name_the_set) {
+    const char *dir = sb_tmpdir("report_files");
+    char cmd[4096], out[8192], path[4200];
+    snprintf(cmd, sizeof cmd, "%s factor %s/rgl_chm_orange_rgb.bsdf --param vndf -J 1 --shader all -q -o %s", SB_CLI,
+             SB_MEASURED_DIR, dir);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0, "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/report.json", dir);
+    char *json = slurp(path);
+    snprintf(path, sizeof path, "%s/sepbrdf-set-factor.txt", dir);
+    char *list = slurp(path);
+    char *files = json ? strstr(json, "\"files\": {") : NULL, *end = files ? strchr(files, '}') : NULL;
+    CHECKF(list && files && end, "no set list or no files object in %s", dir);
+    if (!list || !files || !end) goto out;
+    *end = 0; /* files holds no nested object */
+    int listed = 0;
+    for (char *save = NULL, *line = strtok_r(list, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
+        if (line[0] == '#' || strcmp(line, "report.json") == 0) continue;
+        char quoted[300];
+        snprintf(quoted, sizeof quoted, "\"%.290s\"", line);
+        CHECKF(strstr(files, quoted), "the set holds %s, report.json's files do not name it: %s", line, files);
+        listed++;
+    }
+    CHECKF(listed == 7, "%d files listed (g, h, glsl, vndf.exr, three translations)", listed);
+    int named = 0; /* every file named is one of the set: count the names with a dot */
+    for (const char *q = strchr(files, '"'); q; q = strchr(q + 1, '"')) {
+        const char *e = strchr(q + 1, '"');
+        if (!e) break;
+        if (memchr(q + 1, '.', (size_t)(e - q - 1))) named++;
+        q = e;
+    }
+    CHECKF(named == listed, "report.json's files name %d files, the set %d: %s", named, listed, files);
+out:
+    free(json);
+    free(list);
+}

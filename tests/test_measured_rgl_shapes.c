@@ -52,6 +52,8 @@ static size_t shape_at(const unsigned char *b, const char *name, size_t *ndim) {
     return 0;
 }
 
+static sb_result_t open_bytes(unsigned char *b, char *msg, size_t size);
+
 /* The real file with field `name`'s shape set to shape[0..n) (n must be
  * its ndim), opened; the result code, the message in msg. */
 static sb_result_t open_patched(const char *name, const uint64_t *shape, size_t n, char *msg, size_t size) {
@@ -62,6 +64,23 @@ static sb_result_t open_patched(const char *name, const uint64_t *shape, size_t 
     for (size_t d = 0; at && d < n && d < ndim; d++)
         for (int i = 0; i < 8; i++)
             b[at + 8 * d + (size_t)i] = (unsigned char)(shape[d] >> (8 * i));
+    return open_bytes(b, msg, size);
+}
+
+/* The real file with field `name`'s data offset set to off (the offset
+ * precedes the shape), opened. */
+static sb_result_t open_offset(const char *name, uint64_t off, char *msg, size_t size) {
+    unsigned char *b = malloc(file_size);
+    memcpy(b, file, file_size);
+    size_t ndim = 0, at = shape_at(b, name, &ndim);
+    CHECKF(at > 8, "no field %s", name);
+    for (int i = 0; at > 8 && i < 8; i++)
+        b[at - 8 + (size_t)i] = (unsigned char)(off >> (8 * i));
+    return open_bytes(b, msg, size);
+}
+
+/* b (file_size bytes, freed here) written and opened. */
+static sb_result_t open_bytes(unsigned char *b, char *msg, size_t size) {
     char path[4200];
     snprintf(path, sizeof path, "%s/patched.bsdf", sb_tmpdir("rgl_shapes"));
     FILE *fp = fopen(path, "wb");
@@ -110,4 +129,23 @@ SB_TEST(disagreeing_fields_refused) {
         CHECKF(r == SB_ERR_FORMAT && strstr(msg, cases[i].a) && strstr(msg, cases[i].b), "%s patched: %s: %s",
                cases[i].field, sb_result_name(r), msg);
     }
+}
+
+/* A field whose offset points into the header or at another field's data
+ * is refused naming it (an rgb offset of 0 read the header's bytes as
+ * colours, R up to 6e32, exit 0); the real offsets load. */
+SB_TEST(overlapping_offsets_refused) {
+    if (!load()) SKIP("no " REAL);
+    size_t nd, at = shape_at(file, "vndf", &nd);
+    CHECK(at > 8);
+    uint64_t vndf_off = get(file + at - 8, 8);
+    at = shape_at(file, "rgb", &nd);
+    uint64_t rgb_off = get(file + at - 8, 8);
+    char msg[1024] = "";
+    CHECKF(open_offset("rgb", rgb_off, msg, sizeof msg) == SB_OK, "%s", msg);
+    sb_result_t r = open_offset("rgb", 0, msg, sizeof msg);
+    CHECKF(r == SB_ERR_FORMAT && strstr(msg, "field rgb") && strstr(msg, "inside the header"), "%s: %s",
+           sb_result_name(r), msg);
+    r = open_offset("rgb", vndf_off + 4, msg, sizeof msg);
+    CHECKF(r == SB_ERR_FORMAT && strstr(msg, "vndf and rgb share bytes"), "%s: %s", sb_result_name(r), msg);
 }

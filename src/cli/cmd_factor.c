@@ -228,11 +228,11 @@ static void print_result(const sb_job_t *job, const char *out, const char *shade
     const sb_factors_t *f = sb_job_factors(job);
     sb_job_timings_t t;
     sb_job_timings(job, &t);
-    printf("sepbrdf factor: %s\n  %s, %zu x %zu matrix, form %s%s, %zu terms, method %s\n",
+    printf("sepbrdf factor: %s\n  %s, %zu x %zu matrix, form %s%s, %zu term%s, method %s\n",
            sb_source_description(sb_job_source(job)), sb_param_spec(sb_job_param(job)), m->rows, m->cols,
            sb_form_name(m->form),
            sb_job_scene(job) ? ", scene weighted" : (sb_job_weighted(job) ? ", solid-angle weighted" : ""),
-           sb_factors_terms(f), sb_factors_get_meta(f, "method"));
+           sb_factors_terms(f), sb_factors_terms(f) == 1 ? "" : "s", sb_factors_get_meta(f, "method"));
     double cap = sb_param_theta_max(sb_job_param(job)) * 180 / SB_PI;
     if (!sb_job_scene(job) && cap < 90 - 1e-9)
         printf("  errors measured within the cap: both directions within %g deg of the normal (the snippet returns "
@@ -243,8 +243,10 @@ static void print_result(const sb_job_t *job, const char *out, const char *shade
     print_cv(job);
     char snippets[128];
     snippet_names(shaders, snippets, sizeof snippets);
-    printf("wrote %zu texture pairs, report.json and %s to %s/ (%.3f s)\n", sb_factors_terms(f), snippets, out,
-           t.total_s);
+    size_t J = sb_factors_terms(f);
+    int tables = (sb_param_caps(sb_job_param(job)) & SB_CAP_TABLES) != 0; /* vndf.exr, the tables the snippet reads */
+    printf("wrote %zu texture pair%s, %sreport.json and %s to %s/ (%.3f s)\n", J, J == 1 ? "" : "s",
+           tables ? "vndf.exr, " : "", snippets, out, t.total_s);
     print_budget(job);
 }
 

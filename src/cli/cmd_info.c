@@ -247,9 +247,26 @@ out:
     return rc;
 }
 
+/* An .exr name, unless the file is no EXR (OpenEXR's magic) and a measured
+ * reader opens it: such a table is described as `factor` reads it, content
+ * first (it said "cannot read as an EXR file"); other content keeps the
+ * EXR reader's message. */
 static int is_factor_exr(const char *path) {
     size_t n = strlen(path);
-    return n >= 4 && (strcmp(path + n - 4, ".exr") == 0 || strcmp(path + n - 4, ".EXR") == 0);
+    if (n < 4 || (strcmp(path + n - 4, ".exr") != 0 && strcmp(path + n - 4, ".EXR") != 0)) return 0;
+    static const unsigned char magic[4] = {0x76, 0x2f, 0x31, 0x01};
+    unsigned char head[4];
+    FILE *fp = fopen(path, "rb");
+    size_t got = fp ? fread(head, 1, sizeof head, fp) : 0;
+    if (fp) fclose(fp);
+    if (got == sizeof head && memcmp(head, magic, sizeof head) == 0) return 1;
+    sb_context_t *ctx = NULL;
+    sb_source_t *src = NULL;
+    sb_context_create(&ctx);
+    int table = sb_measured_open(ctx, path, NULL, &src, NULL) == SB_OK;
+    sb_source_destroy(src);
+    sb_context_destroy(ctx);
+    return !table;
 }
 static int info_factors(const info_opts_t *o) { return info_exr(o->path, stdout, o->json, NULL); }
 

@@ -178,6 +178,56 @@ static void exr_json(FILE *out, const char *path, const char *set, exr_context_t
     json_end_object(&j);
 }
 
+/* An EXR's size, channel list and compression (-1 x -1, none when unread). */
+typedef struct exr_shape {
+    long long w, h;
+    const exr_attr_chlist_t *chl;
+    exr_compression_t comp;
+} exr_shape_t;
+static exr_shape_t exr_shape(exr_context_t ex) {
+    exr_attr_box2i_t dw;
+    memset(&dw, 0, sizeof dw);
+    if (exr_get_data_window(ex, 0, &dw) != EXR_ERR_SUCCESS) dw.max.x = dw.max.y = -1;
+    exr_shape_t s = {dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1, NULL, EXR_COMPRESSION_NONE};
+    exr_get_channels(ex, 0, &s.chl);
+    exr_get_compression(ex, 0, &s.comp);
+    return s;
+}
+
+/* vndf.exr, the tables `factor` writes beside an RGL file's vndf fit: no
+ * sepbrdf.* attributes (the snippet reads it by texel), known by its name. */
+static int is_tables_exr(const char *path) {
+    const char *base = strrchr(path, '/');
+    return strcmp(base ? base + 1 : path, "vndf.exr") == 0;
+}
+static int info_tables(const char *path, FILE *out, int json, exr_context_t ex) {
+    exr_shape_t sh = exr_shape(ex);
+    const exr_attr_chlist_t *chl = sh.chl;
+    int nch = chl ? chl->num_channels : 0;
+    if (json) {
+        json_t j = {out, 0, {0}};
+        json_begin_object(&j, NULL);
+        json_string(&j, "file", path);
+        json_string(&j, "kind", "vndf tables");
+        json_int(&j, "width", sh.w);
+        json_int(&j, "height", sh.h);
+        json_int(&j, "channels", nch);
+        json_string(&j, "compression", compression_name(sh.comp));
+        json_end_object(&j);
+        return EXIT_OK;
+    }
+    fprintf(out,
+            "%s: sepbrdf vndf tables (an RGL file's VNDF, NDF and sigma tables, which the vndf layout's "
+            "snippet reads as sb_vndf, by texel)\n",
+            path);
+    fprintf(out, "  size       %lld x %lld texels\n", sh.w, sh.h);
+    fprintf(out, "  channels   %d:", nch);
+    for (int i = 0; i < nch; i++)
+        fprintf(out, " %s (%s)", chl->entries[i].name.str, pixel_name(chl->entries[i].pixel_type));
+    fprintf(out, ", %s compression\n", compression_name(sh.comp));
+    return EXIT_OK;
+}
+
 int info_exr(const char *path, FILE *out, int json, const char *set) {
     exr_context_t ex = NULL;
     exr_result_t rv = open_header(path, &ex);
@@ -192,6 +242,11 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
     if (!version || !side || !attr_int(ex, PREFIX "term", &term) || !attr_int(ex, PREFIX "terms", &terms) ||
         !attr_int(ex, PREFIX "channels", &channels) || terms < 1 || term < 0 || term >= terms || channels < 1 ||
         channels > 3) {
+        if (!set && is_tables_exr(path)) {
+            int rc = info_tables(path, out, json, ex);
+            exr_finish(&ex);
+            return rc;
+        }
         cli_error("info", "%s: not a factor file (an EXR without the sepbrdf.* attributes `factor` writes)", path);
         exr_finish(&ex);
         return EXIT_IO;
@@ -201,13 +256,8 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
         exr_finish(&ex);
         return EXIT_OK;
     }
-    exr_attr_box2i_t dw;
-    memset(&dw, 0, sizeof dw);
-    if (exr_get_data_window(ex, 0, &dw) != EXR_ERR_SUCCESS) dw.max.x = dw.max.y = -1;
-    const exr_attr_chlist_t *chl = NULL;
-    exr_get_channels(ex, 0, &chl);
-    exr_compression_t comp = EXR_COMPRESSION_NONE;
-    exr_get_compression(ex, 0, &comp);
+    exr_shape_t sh = exr_shape(ex);
+    const exr_attr_chlist_t *chl = sh.chl;
     static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
     const char *const *cn = channels == 1 ? y : rgb;
     const char *param = attr_str(ex, PREFIX "param");
@@ -215,7 +265,7 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
     fprintf(out, "%s: sepbrdf factor texture (written by sepbrdf %s)\n", path, version);
     fprintf(out, "  texture    %s_%02d (%s domain), term %d of J = %d\n", side, (int)term,
             strcmp(side, "h") == 0 ? "h, column" : "g, row", (int)term, (int)terms);
-    fprintf(out, "  size       %d x %d texels", (int)(dw.max.x - dw.min.x + 1), (int)(dw.max.y - dw.min.y + 1));
+    fprintf(out, "  size       %lld x %lld texels", sh.w, sh.h);
     if (param && strstr(param, "res=")) fprintf(out, ", R = %d", atoi(strstr(param, "res=") + 4));
     fputc('\n', out);
     fprintf(out, "  channels   %d:", (int)channels);
@@ -223,7 +273,7 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
         fprintf(out, " %s (%s)", chl->entries[i].name.str, pixel_name(chl->entries[i].pixel_type));
     const exr_attribute_t *sc = attr(ex, PREFIX "scale", EXR_ATTR_FLOAT);
     if (sc) fprintf(out, ", value = stored x %g", (double)sc->f);
-    fprintf(out, ", %s compression\n", compression_name(comp));
+    fprintf(out, ", %s compression\n", compression_name(sh.comp));
     /* every string attribute the writer copied from the factors' metadata */
     int32_t count = 0;
     exr_get_attribute_count(ex, 0, &count);

@@ -6,6 +6,7 @@
 #include "factor/sample_error.h"
 #include "job_impl.h"
 #include "sepbrdf/exr.h"
+#include "sepbrdf/glsl.h"
 #include "sepbrdf/measured.h"
 #include "solve/solver.h"
 
@@ -488,6 +489,17 @@ static void report_files(sb_json_t *j, const sb_job_t *job) {
     }
     sb_json_string(j, "glsl", "sepbrdf.glsl");
     sb_json_string(j, "sampler", job->wrote_sampler ? "sampler.bin" : NULL);
+    /* the rest of the set: the tables a vndf snippet reads, the translations */
+    sb_json_string(j, "vndf", sb_param_caps(job->best.param) & SB_CAP_TABLES ? "vndf.exr" : NULL);
+    unsigned mask = 1;
+    if (sb_shader_lang_list(NULL, job->o.shaders, &mask) != SB_OK) mask = 1;
+    sb_json_begin_array(j, "shaders");
+    for (size_t k = 1; k < sb_shader_lang_count(); k++) {
+        if (!(mask & (1u << k))) continue;
+        snprintf(name, sizeof name, "sepbrdf.%s", sb_shader_lang_ext(k));
+        sb_json_string(j, NULL, name);
+    }
+    sb_json_end_array(j);
     sb_json_end_object(j);
 }
 

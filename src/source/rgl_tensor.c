@@ -37,6 +37,31 @@ sb_result_t tf_read(sb_context_t *ctx, const char *path, tf_file_t *tf) {
     return r;
 }
 
+/* Every field's data after the field table (which ends at byte end), no two
+ * sharing bytes: a corrupt offset would read the header or another table
+ * as values (an rgb offset of 0 read R up to 6e32, exit 0). */
+static sb_result_t tf_layout_check(sb_context_t *ctx, const char *path, const tf_file_t *tf, size_t nf, size_t end) {
+    for (size_t k = 0; k < nf; k++) {
+        const tf_field_t *f = &tf->fields[k];
+        size_t off = (size_t)(f->data - tf->buf), len = f->count * dtype_size[f->dtype];
+        if (len && off < end)
+            return sb_error(ctx, SB_ERR_FORMAT,
+                            "%s: RGL: field %.*s: data at offset %zu lies inside the header and field table "
+                            "(bytes 0..%zu)",
+                            path, (int)f->name_len, (const char *)f->name, off, end - 1);
+        for (size_t l = 0; len && l < k; l++) {
+            const tf_field_t *g = &tf->fields[l];
+            size_t goff = (size_t)(g->data - tf->buf), glen = g->count * dtype_size[g->dtype];
+            if (glen && off < goff + glen && goff < off + len)
+                return sb_error(
+                    ctx, SB_ERR_FORMAT,
+                    "%s: RGL: fields %.*s and %.*s share bytes (offsets %zu and %zu): a corrupt field table", path,
+                    (int)g->name_len, (const char *)g->name, (int)f->name_len, (const char *)f->name, goff, off);
+        }
+    }
+    return SB_OK;
+}
+
 /* Parse the field table at p; every offset and size checked against the
  * file (size products overflow-checked). */
 sb_result_t tf_parse(sb_context_t *ctx, const char *path, tf_file_t *tf) {
@@ -84,7 +109,7 @@ sb_result_t tf_parse(sb_context_t *ctx, const char *path, tf_file_t *tf) {
         f->data = b + off;
     }
     tf->nfields = (size_t)count;
-    return SB_OK;
+    return tf_layout_check(ctx, path, tf, tf->nfields, p);
 truncated:
     return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field table truncated at byte %zu", path, p);
 }
