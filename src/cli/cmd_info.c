@@ -254,6 +254,8 @@ out:
 static int is_factor_exr(const char *path) {
     size_t n = strlen(path);
     if (n < 4 || (strcmp(path + n - 4, ".exr") != 0 && strcmp(path + n - 4, ".EXR") != 0)) return 0;
+    struct stat st; /* a FIFO or a device: the EXR reader refuses it, naming it (opened here, a FIFO blocks) */
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return 1;
     static const unsigned char magic[4] = {0x76, 0x2f, 0x31, 0x01};
     unsigned char head[4];
     FILE *fp = fopen(path, "rb");
