@@ -226,11 +226,40 @@ typedef struct blk_job {
     lapack_int info;
 } blk_job_t;
 
+/* Block k's step of pass 1 (vectors) or 2 (values): a symmetric block as
+ * such, in place; else from its bidiagonal reduction (circulant_gen.c),
+ * kept from the values to the vectors; else (a block dgesdd would scale,
+ * or one the symmetric path failed on in pass 1) dgesdd on a copy, C_k
+ * made again by the product where the symmetric path consumed it.
+ * LAPACK's info. */
+static lapack_int blk_one(sb_circ_t *c, size_t k, int t, int pass, lapack_int *iw, double *work) {
+    size_t R = c->R, R2 = R * R;
+    lapack_int n = (lapack_int)R, info;
+    int was = pass == 2 ? c->ksym : c->sym[k];
+    if (pass == 2) c->bid[k] = 0;
+    c->sym[k] = was && (pass == 2 ? sb_circ_sym_values(c, k, t) : sb_circ_sym_vectors(c, k, t)) == 0;
+    if (c->sym[k]) return 0;
+    if (was)
+        cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->Kd, (int)R2, c->T + k * R, 1, 0.0,
+                    c->C + k * R2, 1);
+    if (pass == 1 && c->bid[k]) return sb_circ_gen_vectors(c, k, t);
+    if (pass == 2 && (info = sb_circ_gen_values(c, k, t)) != SB_CIRC_GEN_SCALED) {
+        c->bid[k] = 1;
+        return info;
+    }
+    double *cv = c->Cv + (size_t)t * R2;
+    memcpy(cv, c->C + k * R2, R2 * sizeof *c->C);
+    int vec = pass == 1, keep = was && vec; /* keep: the values stay those the selection used */
+    double *sv = keep ? c->tri + k * SB_CIRC_TRI * R : c->sv + k * R; /* the tridiagonal is of no more use */
+    return LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, cv, n, sv, vec ? c->A + k * R2 : NULL, n,
+                               vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
+}
+
 static void *blk_svd(void *arg) {
     blk_job_t *j = arg;
     sb_circ_t *c = j->c;
     size_t R = c->R, R2 = R * R;
-    lapack_int n = (lapack_int)R, *iw = c->iwork + (size_t)j->t * SB_CIRC_IW * R;
+    lapack_int *iw = c->iwork + (size_t)j->t * SB_CIRC_IW * R;
     double *work = c->work + (size_t)j->t * (size_t)c->lwork;
     if (j->pass == 0) { /* the transform and each block's squared Frobenius norm */
         if (j->k1 > j->k0 && !c->fft)
@@ -248,20 +277,7 @@ static void *blk_svd(void *arg) {
         size_t k = j->pass == 2 ? c->list[p] : p; /* pass 2: positions in the batch's list */
         if (j->pass == 1 && !c->need[k]) continue;
         j->bad = k;
-        /* a symmetric block as such, in place; else dgesdd on a copy, also
-         * where LAPACK fails on it (C_k then made again, by the product) */
-        int was = j->pass == 2 ? c->ksym : c->sym[k];
-        c->sym[k] = was && (j->pass == 2 ? sb_circ_sym_values(c, k, j->t) : sb_circ_sym_vectors(c, k, j->t)) == 0;
-        if (c->sym[k]) continue;
-        if (was)
-            cblas_dgemv(CblasColMajor, CblasNoTrans, (int)R2, (int)R, 1.0, c->Kd, (int)R2, c->T + k * R, 1, 0.0,
-                        c->C + k * R2, 1);
-        double *cv = c->Cv + (size_t)j->t * R2;
-        memcpy(cv, c->C + k * R2, R2 * sizeof *c->C);
-        int vec = j->pass == 1, keep = was && vec;              /* keep: the values stay those the selection used */
-        double *sv = keep ? c->tri + k * 3 * R : c->sv + k * R; /* the tridiagonal is of no more use */
-        j->info = LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, vec ? 'S' : 'N', n, n, cv, n, sv, vec ? c->A + k * R2 : NULL, n,
-                                      vec ? c->VT + k * R2 : NULL, n, work, c->lwork, iw);
+        j->info = blk_one(c, k, j->t, j->pass, iw, work);
     }
     return NULL;
 }
