@@ -374,3 +374,42 @@ SB_TEST(errors_by_blocks_match_dense) {
         sb_source_destroy(s);
     }
 }
+
+/* The norm of the last channel decomposed, from its blocks (Parseval over
+ * the azimuth), against the sum over the table's cells (sb_circ_norm2):
+ * equal to rounding with and without theta weights and at odd R (the
+ * DFT's sums); none (-1) for another table, or where one mirror entry
+ * moved by an ulp (even within the solver's tolerance, not to the bit:
+ * the blocks are then of the symmetrised table, not of A). */
+SB_TEST(last_norm2_by_parseval) {
+    struct {
+        size_t R;
+        int weighted;
+    } cases[] = {{8, 0}, {8, 1}, {7, 1}, {32, 1}};
+    for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
+        size_t R = cases[t].R;
+        sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.3");
+        sb_param_t *p = io(R, 90);
+        sb_matrix_t m;
+        CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+        double w[32], sv[3], tails[3], *u = malloc(R * R * 3 * sizeof *u), *v = malloc(R * R * 3 * sizeof *v);
+        for (size_t i = 0; i < R; i++)
+            w[i] = 0.25 + (double)i / (double)R;
+        const double *ww = cases[t].weighted ? w : NULL;
+        sb_circ_t *c = NULL;
+        CHECK(u && v && sb_circ_create(NULL, R, &c) == SB_OK);
+        CHECK(sb_circ_svd(c, m.data[1], m.ld, ww, 3, 0.5, sv, u, v, tails) == SB_OK);
+        double got = sb_circ_last_norm2(c, m.data[1]), want = sb_circ_norm2(R, m.data[1], m.ld, ww, 0.5);
+        CHECKF(fabs(got - want) <= 1e-13 * want, "R %zu w %d: %.17g vs cells %.17g", R, cases[t].weighted, got, want);
+        CHECK(sb_circ_last_norm2(c, m.data[0]) == -1);
+        m.data[1][2 + (1 * R + 3) * m.ld] = nextafter(m.data[1][2 + (1 * R + 3) * m.ld], 1); /* m = 1: mirror R - 1 */
+        CHECK(sb_circ_is_even(c, m.data[1], m.ld, ww, 1e-9));
+        CHECK(sb_circ_svd(c, m.data[1], m.ld, ww, 3, 0.5, sv, u, v, tails) == SB_OK);
+        CHECK(sb_circ_last_norm2(c, m.data[1]) == -1);
+        sb_circ_destroy(c);
+        free(u), free(v);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+        sb_source_destroy(s);
+    }
+}

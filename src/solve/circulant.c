@@ -311,6 +311,8 @@ sb_result_t sb_circ_svd(sb_circ_t *c, const double *a, size_t ld, const double *
     return r;
 }
 
+double sb_circ_last_norm2(const sb_circ_t *c, const double *a) { return c->n2_a == a ? c->n2 : -1; }
+
 /* Norms with their blocks, to sort. */
 typedef struct fro_k {
     double f;
@@ -401,6 +403,7 @@ static sb_result_t kernel_fill(sb_circ_t *c, const double *a, size_t ld, const d
     }
     if (same && mx <= DBL_MAX / 2) {
         c->Kd = a;
+        c->even = 1;
         return SB_OK;
     }
     if (!c->K && !(c->K = sb_alloc_large(c->ctx, R2 * R, sizeof(double), "circulant kernel"))) return SB_ERR_NOMEM;
@@ -412,6 +415,11 @@ static sb_result_t kernel_fill(sb_circ_t *c, const double *a, size_t ld, const d
                     0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
             }
     c->Kd = c->K;
+    /* even to the bit: every row (m, ot) the same bits as its mirror (R - m, ot) */
+    c->even = 1;
+    for (size_t m = 1; c->even && 2 * m < R; m++)
+        for (size_t ot = 0; c->even && ot < R; ot++)
+            c->even = memcmp(&a[(m * R + ot) * ld], &a[((R - m) * R + ot) * ld], R * sizeof *a) == 0;
     return SB_OK;
 }
 
@@ -427,6 +435,11 @@ static sb_result_t circ_svd(sb_circ_t *c, const double *a, size_t ld, const doub
     c->fft = sb_rdft_cols(R, c->nb, R2, c->Kd, R2, c->C, R2, NULL, 0, c->nth); /* R a power of two */
     res = blocks_run(c, 0);
     if (res != SB_OK) return res;
+    double n2 = 0; /* Parseval: ||W A W||_F^2 = sum_k (1 or 2) ||C_k||_F^2 */
+    for (size_t k = 0; k < c->nb; k++)
+        n2 += (sb_circ_single(c, k) ? 1.0 : 2.0) * c->fro[k];
+    c->n2 = c->even && isfinite(n2) ? n2 * scale * scale : -1;
+    c->n2_a = a;
     /* Step: the singular values (no vectors: the cheap part) of the blocks
      * in decreasing norm, a batch at a time, until the next block's norm,
      * a bound on its largest value, is below the J-th largest value known:

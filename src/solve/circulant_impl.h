@@ -42,6 +42,9 @@ struct sb_circ {
     lapack_int lwork, *iwork; /* per thread: SB_CIRC_IW R */
     int nth;                  /* threads of the block SVDs and the transform */
     int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
+    int even;                 /* the last kernel was the weighted table itself: even to the bit */
+    double n2;                /* its ||W A W||_F^2 scale^2 from the blocks' norms (Parseval), -1 where not even */
+    const double *n2_a;       /* the table it was of */
     cand_t *cand;             /* R^2 candidates, sorted */
     /* symmetric blocks (circulant_sym.c): C_k = Q diag(lambda) Q^T, so
      * sigma = |lambda|, v = q, u = sign(lambda) q */
