@@ -102,6 +102,11 @@ sb_result_t sb_circ_create(sb_context_t *ctx, size_t R, sb_circ_t **out) {
     return SB_OK;
 }
 
+/* Entry (theta_i = it, phi_i = 0; theta_o = ot, phi_o = m) of A. */
+static double kernel_at(const double *a, size_t ld, size_t R, size_t m, size_t it, size_t ot) {
+    return a[it + (m * R + ot) * ld];
+}
+
 /* Row (m, ot) of sb_circ_is_even: mx[0], mx[1] raised to the largest |x|
  * and |x - y| (y the mirror row, NULL: none), x = wt a; returns the sum of
  * 0 x (NaN where an x is not finite).  Maxima are exact in any order. */
@@ -170,7 +175,7 @@ double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, doub
     double n2[4] = {0, 0, 0, 0}, twice[4] = {0, 0, 0, 0};
     for (size_t m = 0; 2 * m <= R; m++)
         for (size_t ot = 0; ot < R; ot++) {
-            const double *k = a + (m * R + ot) * ld; /* entry (theta_i = it, phi_i = 0; theta_o = ot, phi_o = m) */
+            const double *k = a + (m * R + ot) * ld; /* kernel_at(a, ld, R, m, it, ot) = k[it] */
             double wo = w ? w[ot] : 1;
             if (m == 0 || 2 * m == R) {
                 norm2_row(k, R, w, wo, scale, n2);
@@ -370,18 +375,6 @@ static sb_result_t select_blocks(sb_circ_t *c, size_t J, size_t *nc) {
     return r;
 }
 
-/* One row (m, ot) of the kernel: k[it] = 0.5 w_it w_ot (x[it] + y[it]). */
-static void fill_row(double *restrict k, const double *restrict x, const double *restrict y, const double *w, double wo,
-                     size_t R) {
-    if (!w) {
-        for (size_t it = 0; it < R; it++)
-            k[it] = 0.5 * (x[it] + y[it]);
-        return;
-    }
-    for (size_t it = 0; it < R; it++)
-        k[it] = 0.5 * (w[it] * wo) * (x[it] + y[it]);
-}
-
 /* The symmetrised, weighted kernel (K_m + K_{R-m}) / 2 into c->Kd: the
  * stored values themselves where they are it to the bit (no weights,
  * K's layout: ld = R, a structured matrix; plane m equal to plane R - m
@@ -414,17 +407,19 @@ static sb_result_t kernel_fill(sb_circ_t *c, const double *a, size_t ld, const d
         return SB_OK;
     }
     if (!c->K && !(c->K = sb_alloc_large(c->ctx, R2 * R, sizeof(double), "circulant kernel"))) return SB_ERR_NOMEM;
+    for (size_t m = 0; m < R; m++)
+        for (size_t ot = 0; ot < R; ot++)
+            for (size_t it = 0; it < R; it++) {
+                double wt = w ? w[it] * w[ot] : 1;
+                c->K[m * R2 + it + ot * R] =
+                    0.5 * wt * (kernel_at(a, ld, R, m, it, ot) + kernel_at(a, ld, R, (R - m) % R, it, ot));
+            }
     c->Kd = c->K;
-    c->even = 1; /* even to the bit: every row (m, ot) the same bits as its mirror (R - m, ot) */
-    for (size_t m = 0; 2 * m <= R; m++)
-        for (size_t ot = 0; ot < R; ot++) {
-            const double *x = &a[(m * R + ot) * ld], *y = &a[((R - m) % R * R + ot) * ld];
-            double wo = w ? w[ot] : 1;
-            fill_row(c->K + m * R2 + ot * R, x, y, w, wo, R);
-            if (c->even && m > 0 && 2 * m < R) c->even = memcmp(x, y, R * sizeof *x) == 0; /* the row is in cache */
-        }
-    for (size_t m = R / 2 + 1; m < R; m++) /* K_m is K_(R-m) to the bit: the same two values summed */
-        memcpy(c->K + m * R2, c->K + (R - m) * R2, R2 * sizeof *c->K);
+    /* even to the bit: every row (m, ot) the same bits as its mirror (R - m, ot) */
+    c->even = 1;
+    for (size_t m = 1; c->even && 2 * m < R; m++)
+        for (size_t ot = 0; c->even && ot < R; ot++)
+            c->even = memcmp(&a[(m * R + ot) * ld], &a[((R - m) * R + ot) * ld], R * sizeof *a) == 0;
     return SB_OK;
 }
 
