@@ -244,7 +244,8 @@ static double triplet_residual(const double *a, size_t ld, size_t R, const doubl
 
 /* Reciprocal sources in the symmetric forms (f, f cos cos) give
  * symmetric blocks, decomposed as such (eigenvalues and MRRR vectors);
- * the form f cos theta_i does not, and takes dgesdd.  Either way every
+ * the form f cos theta_i does not: dgesdd's steps, the bidiagonal
+ * reduction kept from the values to the vectors.  Either way every
  * triplet satisfies A v = s u and A^T u = s v to 1e-12 s_1, the vectors
  * are orthonormal and the values decrease: with theta weights, odd R,
  * rank 1 (zero eigenvalues), J = N (every block's every vector, from
@@ -261,6 +262,10 @@ SB_TEST(symmetric_blocks_are_eigendecomposed) {
         {"microfacet:base=gold,roughness=0.5", 8, 12, 1, 0, SB_FORM_COS},
         {"lambert:albedo=0.8", 6, 5, 0, 1, SB_FORM_F},
         {"blinn-phong:n=20", 6, 36, 1, 1, SB_FORM_F},
+        /* blocks above LAPACK's sizes for a direct bidiagonal SVD (25) and
+         * for blocked back-transforms (32): the reduction kept from the
+         * values to the vectors (circulant_gen.c) on its longer paths */
+        {"microfacet:base=gold,roughness=0.3", 40, 12, 1, 0, SB_FORM_COS},
     };
     for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
         sb_source_t *s = fx_model(cases[t].spec);
@@ -270,7 +275,7 @@ SB_TEST(symmetric_blocks_are_eigendecomposed) {
         mo.form = cases[t].form;
         sb_matrix_t m;
         CHECK(sb_matrix_build(NULL, s, p, &mo, &m) == SB_OK);
-        double w[16], *sv = malloc(J * sizeof *sv), *u = malloc(N * J * sizeof *u), *v = malloc(N * J * sizeof *v);
+        double w[64], *sv = malloc(J * sizeof *sv), *u = malloc(N * J * sizeof *u), *v = malloc(N * J * sizeof *v);
         double *tails = malloc(J * sizeof *tails);
         for (size_t i = 0; i < R; i++)
             w[i] = 0.5 + (double)i / (double)R;
@@ -364,6 +369,45 @@ SB_TEST(errors_by_blocks_match_dense) {
         free(rs);
         sb_factors_destroy(f);
         sb_matrix_free(&d);
+        sb_matrix_free(&m);
+        sb_param_destroy(p);
+        sb_source_destroy(s);
+    }
+}
+
+/* The norm of the last channel decomposed, from its blocks (Parseval over
+ * the azimuth), against the sum over the table's cells (sb_circ_norm2):
+ * equal to rounding with and without theta weights and at odd R (the
+ * DFT's sums); none (-1) for another table, or where one mirror entry
+ * moved by an ulp (even within the solver's tolerance, not to the bit:
+ * the blocks are then of the symmetrised table, not of A). */
+SB_TEST(last_norm2_by_parseval) {
+    struct {
+        size_t R;
+        int weighted;
+    } cases[] = {{8, 0}, {8, 1}, {7, 1}, {32, 1}};
+    for (size_t t = 0; t < sizeof cases / sizeof *cases; t++) {
+        size_t R = cases[t].R;
+        sb_source_t *s = fx_model("microfacet:base=gold,roughness=0.3");
+        sb_param_t *p = io(R, 90);
+        sb_matrix_t m;
+        CHECK(sb_matrix_build(NULL, s, p, NULL, &m) == SB_OK);
+        double w[32], sv[3], tails[3], *u = malloc(R * R * 3 * sizeof *u), *v = malloc(R * R * 3 * sizeof *v);
+        for (size_t i = 0; i < R; i++)
+            w[i] = 0.25 + (double)i / (double)R;
+        const double *ww = cases[t].weighted ? w : NULL;
+        sb_circ_t *c = NULL;
+        CHECK(u && v && sb_circ_create(NULL, R, &c) == SB_OK);
+        CHECK(sb_circ_svd(c, m.data[1], m.ld, ww, 3, 0.5, sv, u, v, tails) == SB_OK);
+        double got = sb_circ_last_norm2(c, m.data[1]), want = sb_circ_norm2(R, m.data[1], m.ld, ww, 0.5);
+        CHECKF(fabs(got - want) <= 1e-13 * want, "R %zu w %d: %.17g vs cells %.17g", R, cases[t].weighted, got, want);
+        CHECK(sb_circ_last_norm2(c, m.data[0]) == -1);
+        m.data[1][2 + (1 * R + 3) * m.ld] = nextafter(m.data[1][2 + (1 * R + 3) * m.ld], 1); /* m = 1: mirror R - 1 */
+        CHECK(sb_circ_is_even(c, m.data[1], m.ld, ww, 1e-9));
+        CHECK(sb_circ_svd(c, m.data[1], m.ld, ww, 3, 0.5, sv, u, v, tails) == SB_OK);
+        CHECK(sb_circ_last_norm2(c, m.data[1]) == -1);
+        sb_circ_destroy(c);
+        free(u), free(v);
         sb_matrix_free(&m);
         sb_param_destroy(p);
         sb_source_destroy(s);

@@ -83,6 +83,12 @@ sb_result_t sb_circ_resid(sb_context_t *ctx, size_t R, const double *a, const do
 void sb_circ_resid_max(size_t R, const double *a, size_t J, const double *g, size_t gstep, const double *h,
                        size_t hstep, double *r, double *mx);
 
+/* ||W A W||_F^2 scale^2 of the last sb_circ_svd's channel where `a` is it
+ * and it was even to the bit (mirror planes equal, finite): the sum of
+ * its blocks' squared norms, (1 or 2) ||C_k||_F^2 (Parseval over the
+ * azimuth), which equals sb_circ_norm2 to rounding at no cost; else -1. */
+double sb_circ_last_norm2(const sb_circ_t *c, const double *a);
+
 /* ||W A W||_F^2 scaled by scale^2, from the first block row. */
 double sb_circ_norm2(size_t R, const double *a, size_t ld, const double *w, double scale);
 

@@ -17,6 +17,11 @@ typedef struct cand {
 /* LAPACK integers per thread: dgesdd's 8 R, or dstemr's 10 R and its
  * support 2 R. */
 #define SB_CIRC_IW 12
+/* Doubles a block keeps of its reduction in c->tri: dsytrd's d, e, tau
+ * (symmetric) or dgebrd's d, e, tauq, taup (circulant_gen.c). */
+#define SB_CIRC_TRI 4
+/* sb_circ_gen_values: the block is one dgesdd scales first (left as it is) */
+#define SB_CIRC_GEN_SCALED (-1000)
 
 struct sb_circ {
     sb_context_t *ctx;
@@ -37,12 +42,16 @@ struct sb_circ {
     lapack_int lwork, *iwork; /* per thread: SB_CIRC_IW R */
     int nth;                  /* threads of the block SVDs and the transform */
     int fft;                  /* C came from the FFT (util/rdft.h), not the product with T */
+    int even;                 /* the last kernel was the weighted table itself: even to the bit */
+    double n2;                /* its ||W A W||_F^2 scale^2 from the blocks' norms (Parseval), -1 where not even */
+    const double *n2_a;       /* the table it was of */
     cand_t *cand;             /* R^2 candidates, sorted */
     /* symmetric blocks (circulant_sym.c): C_k = Q diag(lambda) Q^T, so
      * sigma = |lambda|, v = q, u = sign(lambda) q */
     int ksym;           /* the kernel of the last sb_circ_svd is symmetric (sb_circ_kernel_symmetric) */
     unsigned char *sym; /* nb: block k was decomposed as symmetric */
-    double *tri;        /* nb x 3 R: dsytrd's diagonal, off-diagonal and tau of block k */
+    double *tri;        /* nb x SB_CIRC_TRI R: block k's reduction (dsytrd's or dgebrd's, see SB_CIRC_TRI) */
+    unsigned char *bid; /* nb: block k's values came from its kept bidiagonal reduction (circulant_gen.c) */
     double *lam;        /* nb x R: the eigenvalues in the order of sv (|lambda| decreasing) */
     lapack_int *pos;    /* nb x R: their places in the ascending order */
     double *swork;      /* per thread: slwork doubles */
@@ -73,5 +82,16 @@ lapack_int sb_circ_sym_values(sb_circ_t *c, size_t k, int t);
 /* The c->nvec[k] leading triplets' vectors of block k (after
  * sb_circ_sym_values) into c->A and c->VT as dgesdd lays them out. */
 lapack_int sb_circ_sym_vectors(sb_circ_t *c, size_t k, int t);
+
+/* Block k (not symmetric) reduced in place to bidiagonal form (dgebrd,
+ * kept in c->C and c->tri) and its singular values into c->sv, on thread
+ * t's workspace: dgesdd's values with jobz = 'N' to the bit.  LAPACK's
+ * info, or SB_CIRC_GEN_SCALED (C_k untouched) where dgesdd would scale
+ * it. */
+lapack_int sb_circ_gen_values(sb_circ_t *c, size_t k, int t);
+/* The c->nvec[k] leading triplets of block k (after sb_circ_gen_values)
+ * into c->A and c->VT as dgesdd with jobz = 'S' lays them out, its values
+ * into c->sv (those of dgesdd 'S'); LAPACK's info. */
+lapack_int sb_circ_gen_vectors(sb_circ_t *c, size_t k, int t);
 
 #endif

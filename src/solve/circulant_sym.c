@@ -34,10 +34,11 @@ sb_result_t sb_circ_sym_alloc(sb_circ_t *c) {
     lapack_int n = (lapack_int)R, info;
     c->sym = sb_calloc(c->ctx, nb, 1, "circulant");
     c->nvec = sb_calloc(c->ctx, nb, sizeof *c->nvec, "circulant");
-    c->tri = sb_alloc(c->ctx, nb * 3 * R, sizeof *c->tri, "circulant blocks");
+    c->bid = sb_calloc(c->ctx, nb, 1, "circulant");
+    c->tri = sb_alloc(c->ctx, nb * SB_CIRC_TRI * R, sizeof *c->tri, "circulant blocks");
     c->lam = sb_alloc(c->ctx, nb * R, sizeof *c->lam, "circulant blocks");
     c->pos = sb_alloc(c->ctx, nb * R, sizeof *c->pos, "circulant blocks");
-    if (!c->sym || !c->nvec || !c->tri || !c->lam || !c->pos) return SB_ERR_NOMEM;
+    if (!c->sym || !c->bid || !c->nvec || !c->tri || !c->lam || !c->pos) return SB_ERR_NOMEM;
     /* LAPACK workspace queries: the reduction and the back-transform of R
      * vectors; dstemr needs 18 R */
     double q1 = 0, q2 = 0;
@@ -55,6 +56,7 @@ void sb_circ_sym_free(sb_circ_t *c) {
     free(c->sym);
     free(c->nvec);
     free(c->tri);
+    free(c->bid);
     free(c->lam);
     free(c->pos);
     free(c->swork);
@@ -69,7 +71,7 @@ static double *scratch(const sb_circ_t *c, int t) {
 lapack_int sb_circ_sym_values(sb_circ_t *c, size_t k, int t) {
     size_t R = c->R, R2 = R * R;
     lapack_int n = (lapack_int)R;
-    double *a = c->C + k * R2, *d = c->tri + k * 3 * R, *e = d + R, *tau = e + R;
+    double *a = c->C + k * R2, *d = c->tri + k * SB_CIRC_TRI * R, *e = d + R, *tau = e + R;
     double *dc = scratch(c, t), *ec = dc + R, *work = dc + 3 * R + R2;
     for (size_t o = 0; o < R; o++) /* the lower triangle, which dsytrd reads: the mean of C_k and its transpose */
         for (size_t i = o + 1; i < R; i++)
@@ -95,7 +97,7 @@ lapack_int sb_circ_sym_values(sb_circ_t *c, size_t k, int t) {
 static lapack_int tri_vectors(const sb_circ_t *c, size_t k, int t, lapack_int il, lapack_int iu, double *Z) {
     size_t R = c->R;
     lapack_int n = (lapack_int)R, m = 0, want = iu - il + 1, *iw = c->iwork + (size_t)t * SB_CIRC_IW * R;
-    const double *d = c->tri + k * 3 * R, *e = d + R;
+    const double *d = c->tri + k * SB_CIRC_TRI * R, *e = d + R;
     double *dc = scratch(c, t), *ec = dc + R, *w = ec + R, *work = dc + 3 * R + R * R;
     memcpy(dc, d, R * sizeof *dc);
     memcpy(ec, e, (R - 1) * sizeof *ec);
@@ -120,7 +122,7 @@ lapack_int sb_circ_sym_vectors(sb_circ_t *c, size_t k, int t) {
     if (info == 0 && a > 0) info = tri_vectors(c, k, t, n - (lapack_int)a + 1, n, Z + b * R);
     if (info == 0)
         info = LAPACKE_dormtr_work(LAPACK_COL_MAJOR, 'L', 'L', 'N', n, (lapack_int)m, c->C + k * R2, n,
-                                   c->tri + k * 3 * R + 2 * R, Z, n, work, c->slwork);
+                                   c->tri + k * SB_CIRC_TRI * R + 2 * R, Z, n, work, c->slwork);
     if (info != 0) return info;
     for (size_t i = 0, lo = 0; i < m; i++) {
         size_t p = (size_t)pos[i], col = p == lo ? lo++ : b + p - (R - a);

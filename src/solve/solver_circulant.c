@@ -64,7 +64,8 @@ static sb_result_t exact(void *state, const sb_solve_in_t *in, double t, size_t 
     circ_state_t *s = state;
     for (size_t j = 0; j < J; j++)
         ssq[j] = s->tails[j] * t * t;
-    *n2 = sb_circ_norm2(s->R, in->a, in->lda, in->wr, in->pw);
+    *n2 = sb_circ_last_norm2(s->c, in->a); /* from the blocks of the channel's execute */
+    if (*n2 < 0) *n2 = sb_circ_norm2(s->R, in->a, in->lda, in->wr, in->pw);
     return mx ? sb_circ_max_abs(s->c, in->a, in->lda, in->wr, t, J, mx) : SB_OK;
 }
 
