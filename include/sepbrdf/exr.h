@@ -98,8 +98,10 @@ SB_API void sb_exr_name(int side, size_t term, char *buf, size_t size);
 
 /* A plain RGB float image (the vndf layout's tables, vndf.exr): rgb holds
  * width x height x 3 floats, row-major; written whole under a temporary
- * name and renamed.  Reading gives a malloc'ed array for the caller to
- * free; SB_ERR_FORMAT for a file that is not three float channels R, G, B. */
+ * name and renamed, with the string attributes sepbrdf.version and
+ * sepbrdf.kind = SB_EXR_KIND_VNDF_TABLES (what `sepbrdf info` knows it by).  Reading gives a malloc'ed array for the
+ * caller to free; SB_ERR_FORMAT for a file that is not three float channels R, G, B. */
+#define SB_EXR_KIND_VNDF_TABLES "vndf tables"
 SB_API sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t width, size_t height, const float *rgb);
 SB_API sb_result_t sb_exr_read_rgb(sb_context_t *ctx, const char *path, size_t *width, size_t *height, float **rgb);
 

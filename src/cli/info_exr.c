@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "sepbrdf/exr.h"
 
 #define PREFIX "sepbrdf."
 
@@ -194,9 +195,12 @@ static exr_shape_t exr_shape(exr_context_t ex) {
     return s;
 }
 
-/* vndf.exr, the tables `factor` writes beside an RGL file's vndf fit: no
- * sepbrdf.* attributes (the snippet reads it by texel), known by its name. */
-static int is_tables_exr(const char *path) {
+/* vndf.exr, the tables `factor` writes beside an RGL file's vndf fit (the
+ * snippet reads it by texel): known by its sepbrdf.kind under any name, or
+ * by its name where an earlier version wrote it without attributes. */
+static int is_tables_exr(const char *path, exr_context_t ex) {
+    const char *kind = attr_str(ex, PREFIX "kind");
+    if (kind) return strcmp(kind, SB_EXR_KIND_VNDF_TABLES) == 0;
     const char *base = strrchr(path, '/');
     return strcmp(base ? base + 1 : path, "vndf.exr") == 0;
 }
@@ -242,7 +246,7 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
     if (!version || !side || !attr_int(ex, PREFIX "term", &term) || !attr_int(ex, PREFIX "terms", &terms) ||
         !attr_int(ex, PREFIX "channels", &channels) || terms < 1 || term < 0 || term >= terms || channels < 1 ||
         channels > 3) {
-        if (!set && is_tables_exr(path)) {
+        if (!set && is_tables_exr(path, ex)) {
             int rc = info_tables(path, out, json, ex);
             exr_finish(&ex);
             return rc;

@@ -395,6 +395,9 @@ sb_result_t sb_exr_write_rgb(sb_context_t *ctx, const char *path, size_t w, size
     if (!rv) rv = exr_initialize_required_attr_simple(ex, part, (int32_t)w, (int32_t)h, EXR_COMPRESSION_ZIP);
     for (size_t c = 0; c < 3 && !rv; c++)
         rv = exr_add_channel(ex, part, sb_exr_channel_name_(3, c), EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    /* what the file is, so that `info` knows it under any name */
+    if (!rv) rv = exr_attr_set_string(ex, part, PREFIX "version", SB_VERSION_STRING);
+    if (!rv) rv = exr_attr_set_string(ex, part, PREFIX "kind", SB_EXR_KIND_VNDF_TABLES);
     if (!rv) rv = exr_write_header(ex);
     if (!rv) rv = encode_chunks(ex, part, 3, w, h, 0, planes);
     if (rv) r = sb_exr_fail_(ctx, rv, SB_ERR_IO, path, "cannot write");
