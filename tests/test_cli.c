@@ -228,6 +228,35 @@ SB_TEST(launcher_alone_and_arguments) {
     if (fp) fclose(fp);
 }
 
+/* The CLI proper starts lean (CMakeLists.txt, SEPBRDF_LEAN_CLI_START;
+ * issue 36 item 3): sepbrdf-main is a position-dependent executable (ELF
+ * type EXEC, 2: OpenBLAS's kernel tables need no relocation at start) and
+ * the loader maps neither libpng nor libgcc_s for it (their archives are
+ * linked in).  LD_TRACE_LOADED_OBJECTS makes the loader list what it maps
+ * and exit before any of the program runs. */
+SB_TEST(main_linked_for_a_short_start) {
+    if (!SB_CLI_LEAN_LINK && !SB_CLI_LEAN_PNG) SKIP("the CLI was linked without SEPBRDF_LEAN_CLI_START");
+    char path[4096], cmd[8192];
+    snprintf(path, sizeof path, "%s", SB_CLI);
+    char *slash = strrchr(path, '/');
+    CHECK(slash != NULL);
+    if (!slash) return;
+    snprintf(slash + 1, sizeof path - (size_t)(slash + 1 - path), "sepbrdf-main");
+    unsigned char h[18] = {0};
+    FILE *fp = fopen(path, "rb");
+    CHECKF(fp != NULL, "%s missing", path);
+    if (!fp) return;
+    size_t n = fread(h, 1, sizeof h, fp);
+    fclose(fp);
+    CHECK(n == sizeof h && memcmp(h, "\177ELF", 4) == 0 && h[5] == 1); /* little-endian ELF */
+    if (SB_CLI_LEAN_LINK) CHECKF(h[16] == 2 && h[17] == 0, "%s: ELF type %d, not EXEC (2)", path, h[16] | h[17] << 8);
+    snprintf(cmd, sizeof cmd, "LD_TRACE_LOADED_OBJECTS=1 %s", path);
+    int rc = sb_run(cmd, out, sizeof out);
+    CHECKF(rc == 0 && strstr(out, "libc.so"), "rc %d: %s", rc, out);
+    if (SB_CLI_LEAN_LINK) CHECKF(!strstr(out, "libgcc_s"), "%s", out);
+    if (SB_CLI_LEAN_PNG) CHECKF(!strstr(out, "libpng"), "%s", out);
+}
+
 /* H5 (docs/measured.md): `factor --max-error 0.001` keeps J = 4 of a
  * 32-term fit, the same 4 terms as the default run (nested, fit_chain.c):
  * report.json's fit.converged and the warning are those of the terms

@@ -110,6 +110,15 @@ SB_TEST(two_forms_as_built_alone) {
     sb_source_destroy(s);
 }
 
+/* The directions of table cell k = it + (d R + ot) R of an io table of
+ * resolution R: wi at the first azimuth cell's centre, wo d cells on. */
+static void table_dirs(const sb_param_t *p, size_t R, size_t k, double wi[3], double wo[3]) {
+    double dt = sb_param_theta_max(p) / (double)R, dp = 2 * SB_PI / (double)R;
+    size_t it = k % R, ot = k / R % R, d = k / (R * R);
+    sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi);
+    sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo);
+}
+
 /* An even source's table (SB_SOURCE_EVEN: evaluated for azimuth
  * differences d <= R / 2, mirrored to R - d) holds at every cell the
  * source's own value at that cell's directions (wi at the first azimuth
@@ -125,27 +134,74 @@ SB_TEST(even_table_mirrors) {
             sb_matrix_t m;
             build(s, p, SB_FORM_F, 1, &m);
             CHECK(m.structured == 1 && m.phi_period == R);
-            double dt = sb_param_theta_max(p) / (double)R, dp = 2 * SB_PI / (double)R, worst = 0;
+            double worst = 0;
             size_t mirrored = 0, R2 = R * R;
-            for (size_t d = 0; d < R; d++)
-                for (size_t ot = 0; ot < R; ot++)
-                    for (size_t it = 0; it < R; it++) {
-                        double wi[3], wo[3], rgb[3];
-                        sb_dir_from_angles((it + 0.5) * dt, 0.5 * dp, wi);
-                        sb_dir_from_angles((ot + 0.5) * dt, (d + 0.5) * dp, wo);
-                        CHECK(sb_source_eval(s, wi, wo, rgb) == 1);
-                        for (int c = 0; c < 3; c++) {
-                            double x = m.data[c][it + (d * R + ot) * R];
-                            worst = fmax(worst, fabs(x - rgb[c]) / fmax(fabs(rgb[c]), 1e-300));
-                            mirrored += d > 0 && x == m.data[c][it + ((R - d) * R + ot) * R];
-                        }
-                    }
+            for (size_t k = 0; k < R2 * R; k++) {
+                double wi[3], wo[3], rgb[3];
+                table_dirs(p, R, k, wi, wo);
+                CHECK(sb_source_eval(s, wi, wo, rgb) == 1);
+                for (int c = 0; c < 3; c++) { /* k's plane d > 0 against plane R - d */
+                    double x = m.data[c][k];
+                    worst = fmax(worst, fabs(x - rgb[c]) / fmax(fabs(rgb[c]), 1e-300));
+                    mirrored += k >= R2 && x == m.data[c][k % R2 + (R - k / R2) * R2];
+                }
+            }
             CHECKF(worst < 1e-12, "%s R %zu: %g from the source", specs[t], R, worst);
             CHECKF(mirrored == 3 * R2 * (R - 1), "%s R %zu: %zu of %zu mirrored", specs[t], R, mirrored,
                    3 * R2 * (R - 1));
             sb_matrix_free(&m);
             sb_param_destroy(p);
         }
+        sb_source_destroy(s);
+    }
+}
+
+/* A reciprocal source that is not even in the azimuth difference d:
+ * f = k_c (1 + 0.3 cos d + 0.2 sin d (theta_o - theta_i)) is the same
+ * with wi and wo swapped (d -> -d), not at -d alone; `self` non-NULL
+ * drops the odd part (an even one). */
+static int recip_eval(const void *self, const double wi[3], const double wo[3], double rgb[3]) {
+    double ti = acos(wi[2]), to = acos(wo[2]), d = atan2(wo[1], wo[0]) - atan2(wi[1], wi[0]);
+    double f = 1 + 0.3 * cos(d) + (self ? 0 : 0.2 * sin(d) * (to - ti));
+    for (int c = 0; c < 3; c++)
+        rgb[c] = (1 + 0.25 * c) * f;
+    return 1;
+}
+
+/* A reciprocal source's table (the cells theta_i > theta_o written from
+ * their mirrors theta_i < theta_o, the cosine moved across in the form
+ * cos) holds at every cell the source's own value times the form's weight
+ * at that cell's directions: even and not even, forms f and cos, R below
+ * and above a block of the mirror's (64 theta_i). */
+SB_TEST(reciprocal_table_mirrors) {
+    static const sb_source_ops_t ops = {recip_eval, NULL};
+    static int even_tag;
+    const size_t Rs[] = {7, 70};
+    for (int even = 0; even < 2; even++) {
+        sb_source_t *s = NULL;
+        unsigned flags = SB_SOURCE_ISOTROPIC | SB_SOURCE_RECIPROCAL | (even ? SB_SOURCE_EVEN : 0u);
+        CHECK(sb_source_create(NULL, &ops, even ? &even_tag : NULL, flags, "reciprocal", &s) == SB_OK);
+        for (size_t r = 0; s && r < 2; r++)
+            for (int form = SB_FORM_F; form <= SB_FORM_COS; form++) {
+                size_t R = Rs[r];
+                sb_param_t *p = fx_layout(SB_PARAM_IO, R);
+                sb_matrix_t m;
+                build(s, p, (sb_form_t)form, 1, &m);
+                CHECK(m.structured == 1 && m.phi_period == R);
+                double worst = 0;
+                for (size_t k = 0; k < R * R * R; k++) {
+                    double wi[3], wo[3], rgb[3];
+                    table_dirs(p, R, k, wi, wo);
+                    recip_eval(even ? &even_tag : NULL, wi, wo, rgb);
+                    for (int c = 0; c < 3; c++) {
+                        double want = rgb[c] * (form == SB_FORM_COS ? wi[2] : 1);
+                        worst = fmax(worst, fabs(m.data[c][k] - want) / want);
+                    }
+                }
+                CHECKF(worst < 1e-12, "even %d form %d R %zu: %g from the source", even, form, R, worst);
+                sb_matrix_free(&m);
+                sb_param_destroy(p);
+            }
         sb_source_destroy(s);
     }
 }

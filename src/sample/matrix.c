@@ -211,24 +211,40 @@ static void *iso_table(void *arg) {
  * f(theta_o, theta_i, -d) = f(theta_i, theta_o, d), and for an even
  * source f(theta_o, theta_i, d) (the plane d itself, evaluated); the form
  * cos is f cos(theta_i), not symmetric: move the cosine across.  Azimuth
- * differences [a0, a1), one channel (then the flags) at a time, theta_i
- * innermost: the cells written run contiguously, those read lie in one
- * R x R plane. */
+ * differences [a0, a1); a row (d, theta_o) at a time, theta_i innermost:
+ * the cells written run contiguously, those read lie in one R x R plane.
+ * Cells theta_i > theta_o are written from cells theta_i < theta_o, so
+ * no cell is both (the threads' ranges of d neither).  The cosines'
+ * ratio is taken once for the channels of a cell, in blocks of
+ * MIRROR_BLOCK (the same bits as the product written with it inline). */
+#define MIRROR_BLOCK 64
 static void *iso_mirror(void *arg) {
     const iso_job_t *j = arg;
-    size_t R = j->R;
-    for (int c = 0; c < 4; c++) {
-        double *t = c < 3 ? j->tab[c] : NULL;
-        if (c < 3 && !t) continue;
-        for (size_t d = j->a0; d < j->a1; d++)
-            for (size_t ot = 0; ot < R; ot++)
-                for (size_t it = ot + 1; it < R; it++) {
-                    size_t at = iso_at(R, it, ot, d), from = iso_at(R, ot, it, j->even ? d : (R - d) % R);
-                    if (!t)
-                        j->known[at] = j->known[from];
+    size_t R = j->R, R2 = R * R;
+    int cosf = j->form == SB_FORM_COS;
+    double q[MIRROR_BLOCK];
+    for (size_t d = j->a0; d < j->a1; d++) {
+        size_t dd = j->even ? d : (R - d) % R;
+        for (size_t ot = 0; ot < R; ot++) {
+            size_t row = d * R2 + ot * R, col = dd * R2 + ot; /* cell it: row + it, col + it R */
+            for (size_t i0 = ot + 1; i0 < R; i0 += MIRROR_BLOCK) {
+                size_t n = R - i0 < MIRROR_BLOCK ? R - i0 : MIRROR_BLOCK;
+                for (size_t k = 0; cosf && k < n; k++)
+                    q[k] = j->cosi[i0 + k] / j->cosi[ot];
+                for (int c = 0; c < 3; c++) {
+                    double *t = j->tab[c];
+                    if (!t) continue;
+                    if (cosf)
+                        for (size_t k = 0; k < n; k++)
+                            t[row + i0 + k] = t[col + (i0 + k) * R] * q[k];
                     else
-                        t[at] = t[from] * (j->form == SB_FORM_COS ? j->cosi[it] / j->cosi[ot] : 1);
+                        for (size_t k = 0; k < n; k++)
+                            t[row + i0 + k] = t[col + (i0 + k) * R];
                 }
+                for (size_t k = 0; k < n; k++)
+                    j->known[row + i0 + k] = j->known[col + (i0 + k) * R];
+            }
+        }
     }
     return NULL;
 }
