@@ -87,8 +87,9 @@ static sb_result_t write_translations(sb_context_t *ctx, const sb_job_t *job, sb
     sb_result_t r = sb_shader_lang_list(ctx, job->o.shaders, &mask);
     if (r != SB_OK || mask == 1) return r;
     char *head = sb_glsl_snippet(a->param, a->m.form, sb_factors_terms(a->f), scales);
-    char *tail = job->wrote_sampler ? sb_glsl_sampler(a->param, sb_factors_channels(a->f)) : NULL;
-    char *glsl = head && (tail || !job->wrote_sampler) ? malloc(strlen(head) + (tail ? strlen(tail) : 0) + 1) : NULL;
+    int want = job->wrote_sampler && sb_param_sample_glsl(a->param)[0]; /* vndf: sampler.bin, no GLSL sampler yet */
+    char *tail = want ? sb_glsl_sampler(a->param, sb_factors_channels(a->f)) : NULL;
+    char *glsl = head && (tail || !want) ? malloc(strlen(head) + (tail ? strlen(tail) : 0) + 1) : NULL;
     if (glsl) sprintf(glsl, "%s%s", head, tail ? tail : "");
     free(head);
     free(tail);
@@ -111,7 +112,8 @@ static sb_result_t write_translations(sb_context_t *ctx, const sb_job_t *job, sb
 }
 
 /* sepbrdf.glsl; for non-negative factors (SB_CAP_NONNEG) also sampler.bin
- * and the sampler block appended to the snippet (sampler.h, glsl.h). */
+ * and the sampler block appended to the snippet (sampler.h, glsl.h), where
+ * the layout has one in GLSL (not yet SB_CAP_COL_SAMPLE's: a warning). */
 static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set, const double *scales) {
     const job_attempt_t *a = &job->best;
     size_t J = sb_factors_terms(a->f);
@@ -132,7 +134,13 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
         /* the share from the fit's error against the source (sampler_share.c) */
         r = sb_sampler_choose_share(ctx, s, job->src, 0, &job->share);
         if (r == SB_OK) r = write_sampler(ctx, job, set, s);
-        if (r == SB_OK) r = sb_glsl_write_sampled(ctx, path, a->param, a->m.form, J, scales, sb_factors_channels(a->f));
+        int gl = sb_param_sample_glsl(a->param)[0] != 0;
+        if (r == SB_OK && !gl)
+            job_warn(job, "no GLSL sampler: %s has its sampler in C only (sb_sample, sampler.bin)",
+                     sb_param_kind_name(sb_param_kind(a->param)));
+        if (r == SB_OK)
+            r = gl ? sb_glsl_write_sampled(ctx, path, a->param, a->m.form, J, scales, sb_factors_channels(a->f))
+                   : sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
         sb_sampler_destroy(s);
         job->wrote_sampler = r == SB_OK;
     } else {

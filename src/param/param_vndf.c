@@ -33,7 +33,9 @@
  * V; a BRDF pair when L and V are above the horizon.  Measures: rows the
  * solid angle of the views nearest the slice, columns 2 pi / (S_x S_y)
  * (the warp spends its nodes as the VNDF does: a weight, not a
- * quadrature). */
+ * quadrature).  Sampling (SB_CAP_COL_SAMPLE, sampler.h): the colour
+ * grid's position s maps to the light by the warp itself, wi = reflect(wo,
+ * m(VNDF(s | theta_v))), with density |ds/dwi| (vndf_col_density). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -153,6 +155,45 @@ static double vndf_gain(const sb_param_t *p, const double wi[3], const double wo
     slices_t sl;
     pair_coords(t, wi, wo, u_m, u_v, &k, &w, &sl);
     return guard_undo(wi) * sb_table_bilinear(&t->ndf, u_m, NULL, 0) / (4 * sb_table_bilinear(&t->sigma, u_v, NULL, 0));
+}
+
+/* Sampling (sb_param_col_sample): the light of colour-grid position s for
+ * the view wo, u_m = VNDF(s | theta_v) (the warp itself, its slices mixed
+ * as the file mixes them, by bisection of the inverse), theta_m = u_m.x^2
+ * pi / 2, phi_m = 2 pi u_m.y - pi + phi_v, wi = 2 (wo.m) m - wo. */
+static int vndf_col_sample(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]) {
+    const sb_layout_tables_t *t = tab(p);
+    if (!(wo[2] > 0)) return 0;
+    double w, u_m[2], m[3];
+    size_t k;
+    slices_t sl;
+    view_slices(t, sb_table_elevation(wo), &k, &w, &sl);
+    sb_table_warp_sample(&t->vndf, &sl, s, u_m);
+    sb_dir_from_angles(u_m[0] * u_m[0] * (SB_PI / 2), 2 * SB_PI * u_m[1] - SB_PI + atan2(wo[1], wo[0]), m);
+    double vm = wo[0] * m[0] + wo[1] * m[1] + wo[2] * m[2];
+    for (int c = 0; c < 3; c++)
+        wi[c] = 2 * vm * m[c] - wo[c];
+    return vm > 0 && wi[2] > 0;
+}
+
+/* Its density |ds/dwi| = |ds/du_m| |du_m/dw_m| |dw_m/dwi|: the warp's
+ * density in u (the slices' normalised tables mixed, bilinear, in units of
+ * a patch: times (W - 1)(H - 1)), dw_m = sin theta_m dtheta_m dphi_m =
+ * 2 pi^2 u_m.x sin theta_m du_m, and dwi = 4 (wo.m) dw_m. */
+static double vndf_col_density(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]) {
+    const sb_layout_tables_t *t = tab(p);
+    s[0] = s[1] = 0.5;
+    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
+    double u_m[2], u_v[2], w, m[3];
+    size_t k;
+    slices_t sl;
+    pair_coords(t, wi, wo, u_m, u_v, &k, &w, &sl);
+    sb_table_warp_invert(&t->vndf, u_m, &sl, s);
+    sb_dir_half(wi, wo, m);
+    double vm = wo[0] * m[0] + wo[1] * m[1] + wo[2] * m[2];
+    double pu = (double)((t->vndf.w - 1) * (t->vndf.h - 1)) * sb_table_bilinear(&t->vndf, u_m, &sl, 0);
+    double den = 2 * SB_PI * SB_PI * u_m[0] * sin(sb_table_elevation(m)) * 4 * vm;
+    return den > 0 && pu > 0 ? pu / den : 0;
 }
 
 static const char vndf_glsl[] =
@@ -276,11 +317,13 @@ const sb_param_desc_t sb_param_desc_vndf = {
     .description = "an RGL file's own grid (isotropic RGL .bsdf only): rows its theta_i slices, columns its colour "
                    "grid through its VNDF warp; exact at J = slices",
     .keys = "res",
-    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_TABLES,
+    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_TABLES | SB_CAP_COL_SAMPLE,
     .init = init_vndf,
     .vt = &vndf_vt,
     .row_sample = NULL,
-    .sample_glsl = ""};
+    .sample_glsl = "",
+    .col_sample = vndf_col_sample,
+    .col_density = vndf_col_density};
 
 /* ---- the tables ------------------------------------------------------------- */
 

@@ -89,6 +89,11 @@ typedef struct sb_layout_desc {
     float (*row_edge)(const sb_param_t *p, int axis, size_t i);
     void (*row_cell)(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
                      size_t cell[2]);
+    /* Sampling the columns instead (caps SB_CAP_COL_SAMPLE, both or
+     * neither, without row_sample): sb_param_col_sample and
+     * sb_param_col_density (param.h) */
+    int (*col_sample)(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]);
+    double (*col_density)(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]);
 } sb_layout_desc_t;
 
 /* A layout's shape: the g textures g[0] x g[1] texels (rows g[0] g[1],
@@ -122,7 +127,9 @@ SB_API const sb_param_opts_t *sb_param_options(const sb_param_t *p);
  * Errors: SB_ERR_ARG (NULL desc, a name that is empty, not of letters,
  * digits, '-' and '_', or "auto", no vt or a vt function or glsl
  * missing, row_sample without sample_glsl or the reverse, row_cell
- * without row_edge or the reverse, or either without row_sample),
+ * without row_edge or the reverse, or either without row_sample,
+ * col_sample, col_density and SB_CAP_COL_SAMPLE not all or none, or
+ * with row_sample),
  * SB_ERR_RANGE (the name is taken; SB_LAYOUTS_MAX reached). */
 SB_API sb_result_t sb_param_register(sb_context_t *ctx, const sb_layout_desc_t *desc, sb_param_kind_t *kind);
 
