@@ -10,6 +10,7 @@
  * sb_param_col_sample maps a small square of s to, an independent check
  * of the Jacobian. */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -134,7 +135,8 @@ SB_TEST(integrals) {
             s1 += v, s2 += v * v;
         }
         double mean = s1 / n, se = sqrt(fmax(s2 / n - mean * mean, 0) / n), frac = (double)ok / n;
-        fprintf(stderr, "vndf paper theta_o %2.0f: pdf integral %.5f (%.5f at 256), successes %.5f; MC %.5f +- %.5f vs %.5f\n",
+        fprintf(stderr,
+                "vndf paper theta_o %2.0f: pdf integral %.5f (%.5f at 256), successes %.5f; MC %.5f +- %.5f vs %.5f\n",
                 THETAS[o], mass, coarse, frac, mean, se, ref);
         CHECK_ABS(mass, frac, 4 * sqrt(frac * (1 - frac) / n) + 2e-3 + fabs(mass - coarse));
         CHECK_ABS(mean, ref, 4 * se + fabs(ref - ref_c) + 1e-3 * ref);
@@ -177,7 +179,8 @@ SB_TEST(jacobian) {
             double jac = sb_param_col_density(p, wi, wo, back);
             double area = tri_area(c[0], c[1], c[2]) + tri_area(c[0], c[2], c[3]), num = h * h / area;
             tried++;
-            int wrong = !(fabs(jac - num) <= 0.02 * num) || !(fabs(back[0] - s[0]) < 1e-7 && fabs(back[1] - s[1]) < 1e-7);
+            int wrong =
+                !(fabs(jac - num) <= 0.02 * num) || !(fabs(back[0] - s[0]) < 1e-7 && fabs(back[1] - s[1]) < 1e-7);
             if (wrong && bad < 5)
                 fprintf(stderr, "theta_o %g s (%.4f, %.4f): |ds/dwi| %g, by the mapped square %g; back (%.6f, %.6f)\n",
                         THETAS[o], s[0], s[1], jac, num, back[0], back[1]);
@@ -188,4 +191,73 @@ SB_TEST(jacobian) {
     CHECKF(tried >= 100, "only %zu positions map above the horizon", tried);
     CHECKF(bad == 0, "%zu of %zu positions: |ds/dwi| or the inverse off", bad, tried);
     vfix_close(&x);
+}
+
+/* `factor RGL --method nmf --shaders all` (the job): sampler.bin of the
+ * header's sizes (cells between the h textures' nodes, J C + 1 layers),
+ * the chosen share at layer J C's texel (0, H) and in report.json, every
+ * conditional row and the marginal ending at 1; the snippets without a
+ * sampler block, a warning that says so. */
+static uint32_t u32_at(const unsigned char *b) {
+    return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+}
+static float f32_at(const unsigned char *b) {
+    uint32_t v = u32_at(b);
+    float f;
+    memcpy(&f, &v, sizeof f);
+    return f;
+}
+
+SB_TEST(factor_writes_sampler) {
+    char path[1024], file[1200];
+    snprintf(path, sizeof path, "%s/rgl_chm_orange_rgb.bsdf", SB_MEASURED_DIR);
+    const char *dir = sb_tmpdir("sampler_vndf");
+    sb_job_opts_t o = {0};
+    o.source = path, o.param = "vndf", o.terms = 2, o.method = SB_METHOD_NMF, o.out = dir, o.shaders = "all";
+    sb_context_t *ctx = NULL;
+    sb_job_t *job = NULL;
+    sb_context_create(&ctx);
+    sb_result_t r = sb_job_run(ctx, &o, &job);
+    CHECKF(r == SB_OK, "%s", sb_context_last_error(ctx));
+    size_t W = 0, H = 0, said = 0;
+    if (r == SB_OK) sb_param_texture_size(sb_job_param(job), SB_SIDE_H, &W, &H);
+    for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
+        said += strstr(sb_job_warning(job, i), "no GLSL sampler") != NULL;
+    CHECKF(said == 1, "%zu warnings say the snippet has no sampler", said);
+    snprintf(file, sizeof file, "%s/sampler.bin", dir);
+    size_t n = 0;
+    unsigned char *b = (unsigned char *)sb_read_file(file, &n);
+    CHECKF(b && n >= 24 && !memcmp(b, "sbsampl1", 8), "%s: not a sampler file", file);
+    if (b && n >= 24 && W >= 2) {
+        uint32_t w1 = u32_at(b + 8), h1 = u32_at(b + 12), layers = u32_at(b + 16), C = u32_at(b + 20);
+        CHECKF(w1 == W && h1 == H && layers == o.terms * C + 1 && C == 3, "header %u x %u, %u layers, %u channels", w1,
+               h1, layers, C);
+        CHECK(n == 24 + (size_t)layers * w1 * h1 * 4);
+        const unsigned char *t = b + 24;
+        size_t ends = 0;
+        for (size_t k = 0; n == 24 + (size_t)layers * w1 * h1 * 4 && k + 1 < layers; k++)
+            for (size_t y = 0; y + 1 < h1; y++)
+                ends += f32_at(t + 4 * ((k * h1 + y) * w1 + w1 - 2)) == 1 &&
+                        (y + 2 < h1 || f32_at(t + 4 * ((k * h1 + y) * w1 + w1 - 1)) == 1);
+        CHECKF(ends == (layers - 1) * (h1 - 1), "%zu of %zu rows' CDFs end at 1", ends,
+               (size_t)(layers - 1) * (h1 - 1));
+        float share = f32_at(t + 4 * ((layers - 1) * h1 * w1 + (h1 - 1) * w1));
+        snprintf(file, sizeof file, "%s/report.json", dir);
+        char *rep = sb_read_file(file, NULL), key[64];
+        snprintf(key, sizeof key, "\"cosine_share\": %.17g", (double)share);
+        CHECKF(rep && share >= (float)SB_SAMPLER_MIN_SHARE && share <= 1 &&
+                   strstr(rep, "\"sampler\": \"sampler.bin\"") && strstr(rep, key),
+               "share %g, report %s", share, rep ? "without sampler.bin or that share" : "missing");
+        free(rep);
+    }
+    free(b);
+    const char *exts[4] = {"glsl", "hlsl", "metal", "wgsl"};
+    for (int i = 0; i < 4; i++) {
+        snprintf(file, sizeof file, "%s/sepbrdf.%s", dir, exts[i]);
+        char *text = sb_read_file(file, NULL);
+        CHECKF(text && strstr(text, "sb_vndf") && !strstr(text, "importance sampling"), "%s", file);
+        free(text);
+    }
+    sb_job_destroy(job);
+    sb_context_destroy(ctx);
 }
