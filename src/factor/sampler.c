@@ -68,39 +68,6 @@ static sb_result_t check_nonneg(sb_context_t *ctx, const sb_factors_t *f) {
     return SB_OK;
 }
 
-/* Inclusive CDF of n non-negative values (the last forced to 1); uniform
- * when they sum to 0.  Returns the sum. */
-double sb_cdf_build_(const double *v, size_t n, double *cdf) {
-    double sum = 0;
-    for (size_t i = 0; i < n; i++)
-        sum += v[i];
-    double acc = 0;
-    for (size_t i = 0; i < n; i++) { /* as float, the file's values: a cell's probability is a difference */
-        acc += v[i];                 /* of two entries near 1, which C and GLSL then take alike */
-        cdf[i] = (float)(sum > 0 ? acc / sum : (double)(i + 1) / (double)n);
-    }
-    cdf[n - 1] = 1;
-    return sum;
-}
-
-/* Smallest i < n with *u < cdf[i] (binary search; cdf[n - 1] > *u),
- * and *u rescaled to [0, 1) within that entry. */
-size_t sb_cdf_find_(const double *cdf, size_t n, double *u) {
-    size_t lo = 0, hi = n - 1;
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (*u < cdf[mid])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    double below = lo ? cdf[lo - 1] : 0, r = (*u - below) / (cdf[lo] - below);
-    *u = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
-    return lo;
-}
-
-double sb_cdf_prob_(const double *cdf, size_t i) { return cdf[i] - (i ? cdf[i - 1] : 0); }
-
 /* The tables of distribution k: g_k m_r per texel (m_r including cos
  * theta_i at the cell's centre for the form f on io, io-area: measure),
  * rows' CDFs, marginal. */
@@ -244,7 +211,9 @@ static sb_result_t sampler_alloc(sb_context_t *ctx, sb_sampler_t *s) {
     return s->cond && s->marg && s->integral && s->measure && s->mcos ? SB_OK : SB_ERR_NOMEM;
 }
 
-/* The rows' tables (not SB_CAP_COL_SAMPLE's: sampler_cols.c): m_r, CDFs, half rows' W_k(c), bounds. */
+/* The rows' tables (every layout but SB_CAP_COL_SAMPLE ones, sampler_cols.c):
+ * m_r, the CDFs of every distribution, for half rows W_k(c) and the
+ * cells' bounds. */
 static sb_result_t rows_build(sb_context_t *ctx, sb_sampler_t *s) {
     double *rowsum = NULL, *tmp = NULL;
     sb_result_t r = sampler_alloc(ctx, s);
