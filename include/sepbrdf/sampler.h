@@ -88,14 +88,15 @@
  *      times its area);
  *   2. pick a cell of the (S_x - 1) x (S_y - 1) between the h textures'
  *      nodes by a marginal CDF over y and a conditional CDF over x of
- *      those cell integrals, and s uniform in it;
+ *      those cell integrals (in double: sampler.bin's float copy is the
+ *      GLSL's), then s in it with the density of the bilinear patch (its
+ *      linear marginal in y, its linear conditional in x): h_k(s) / I_k;
  *   3. wi = sb_param_col_sample(wo, s).
- * So p_F(wi | wo) = p_s(s) |ds/dwi|, p_s = sum_k (W_k / sum W) P_k(cell)
- * (S_x - 1)(S_y - 1) piecewise constant, s and |ds/dwi| from
- * sb_param_col_density (vndf: the warp's density in u_m over 2 pi^2
- * u_m.x sin(theta_m) 4 (wo.m)); with the cosine share as above.  No
- * GLSL sampler yet for these layouts: `sepbrdf factor` writes
- * sampler.bin and warns that the snippet has none.
+ * So p_F(wi | wo) = sum_k lum_c g_k(st_g) h_k(s) / sum W |ds/dwi|,
+ * continuous in s (no cell edges for float and double to take apart), s
+ * and |ds/dwi| from sb_param_col_density (vndf: the warp's density in u_m
+ * over 2 pi^2 u_m.x sin(theta_m) 4 (wo.m)); with the cosine share as
+ * above.
  *
  * Two random numbers drive a sample: u[0] < s picks the cosine lobe
  * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,
@@ -194,8 +195,8 @@ SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, c
  * + 1: layer J C + 1 + k holds W_k(c) for wo at the centre of cell c at texel
  * (x, y).  For SB_CAP_COL_SAMPLE layouts W x H are the cells between the
  * h textures' nodes, layers = J C + 1: layer k as above over those cells
- * with I_k = int h_k ds in the units of the fit (g_scale unused), layer
- * J C the share s at (0, H) alone.
+ * with I_k = int h_k ds / g_scale[j] (g_scale: here each h_j texture's
+ * storage scale), layer J C the share s at (0, H) alone.
  * Unused texels are 0.  Written under a
  * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 SB_API sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);

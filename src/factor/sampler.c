@@ -76,9 +76,9 @@ static void build_tables(sb_sampler_t *s, size_t k, double *rowsum, double *tmp)
     for (size_t y = 0; y < s->H; y++) {
         for (size_t x = 0; x < s->W; x++)
             tmp[x] = g[y * s->W + x] * s->mcos[y * s->W + x];
-        rowsum[y] = sb_cdf_build_(tmp, s->W, s->cond + (k * s->H + y) * s->W);
+        rowsum[y] = sb_cdf_build_(tmp, s->W, 1, s->cond + (k * s->H + y) * s->W);
     }
-    s->integral[k] = sb_cdf_build_(rowsum, s->H, s->marg + k * s->H);
+    s->integral[k] = sb_cdf_build_(rowsum, s->H, 1, s->marg + k * s->H);
 }
 
 static size_t texel_of(double s, size_t n) {
@@ -527,7 +527,10 @@ static void put_u32(unsigned char *b, uint32_t v) {
 /* Texel (x, y) of layer k of the file (layout: sampler.h). */
 static double file_texel(const sb_sampler_t *s, const double *g_scale, size_t k, size_t x, size_t y) {
     int in = x < s->W && y < s->H;
-    if (s->cols) return k < s->K ? sb_col_file_texel_(s->cols, k, x, y) : (x == 0 && y == s->H ? s->share : 0);
+    if (s->cols) /* the integrals in the h textures' units (g_scale: those of the side sampled) */
+        return k < s->K
+                   ? sb_col_file_texel_(s->cols, k, x, y) / (x == 0 && y == s->H && g_scale ? g_scale[k / s->C] : 1)
+                   : (x == 0 && y == s->H ? s->share : 0);
     if (k > s->K) return in ? s->wtab[(k - s->K - 1) * s->W * s->H + y * s->W + x] : 0;
     if (k == s->K && in) return s->measure[y * s->W + x];
     if (k == s->K) return x == 0 && y == s->H ? s->share : (y == s->H ? s->edge[0][x % s->W] : s->edge[1][y]);

@@ -5,16 +5,17 @@
 
 #include "sampler_impl.h"
 
-/* Inclusive CDF of n non-negative values (the last forced to 1); uniform
- * when they sum to 0.  Returns the sum. */
-double sb_cdf_build_(const double *v, size_t n, double *cdf) {
+/* Inclusive CDF of n non-negative values (the last forced to 1), rounded
+ * to float or not; uniform when they sum to 0.  Returns the sum. */
+double sb_cdf_build_(const double *v, size_t n, int as_float, double *cdf) {
     double sum = 0;
     for (size_t i = 0; i < n; i++)
         sum += v[i];
     double acc = 0;
     for (size_t i = 0; i < n; i++) { /* as float, the file's values: a cell's probability is a difference */
         acc += v[i];                 /* of two entries near 1, which C and GLSL then take alike */
-        cdf[i] = (float)(sum > 0 ? acc / sum : (double)(i + 1) / (double)n);
+        cdf[i] = sum > 0 ? acc / sum : (double)(i + 1) / (double)n;
+        if (as_float) cdf[i] = (float)cdf[i];
     }
     cdf[n - 1] = 1;
     return sum;

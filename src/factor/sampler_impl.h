@@ -34,11 +34,11 @@ int half_phi_sample(const half_view_t *v, double z, double a, double w, double u
 double half_cut_dz(double zlo, double zhi, double zc);
 double half_arc_z(double zlo, double zhi, double zc);
 
-/* CDFs (sampler_cdf.c): the inclusive CDF of n non-negative values, rounded
- * to float as sampler.bin holds it (the last 1; uniform when they sum to
- * 0), returning their sum; the entry that u falls in, u rescaled within
- * it; an entry's probability. */
-double sb_cdf_build_(const double *v, size_t n, double *cdf);
+/* CDFs (sampler_cdf.c): the inclusive CDF of n non-negative values,
+ * rounded to float as sampler.bin holds it where as_float (the last 1;
+ * uniform when they sum to 0), returning their sum; the entry that u falls
+ * in, u rescaled within it; an entry's probability. */
+double sb_cdf_build_(const double *v, size_t n, int as_float, double *cdf);
 size_t sb_cdf_find_(const double *cdf, size_t n, double *u);
 double sb_cdf_prob_(const double *cdf, size_t i);
 

@@ -238,7 +238,7 @@ static const char vndf_glsl[] =
     "    return (1.0 - fy) * ((1.0 - fx) * v00 + fx * v10) + fy * ((1.0 - fx) * v01 + fx * v11);\n"
     "}\n"
     "vec2 sb_um(vec3 L, vec3 V) {\n"
-    "    vec3 m = normalize(L + V);\n"
+    "    vec3 m = L + V; // unnormalised: sb_elev and sb_azim are atan2s, normalize would round it once more\n"
     "    float y = (sb_azim(m) - sb_azim(V) + SB_PI) / (2.0 * SB_PI);\n"
     "    return vec2(sqrt(sb_elev(m) * (2.0 / SB_PI)), y - floor(y));\n"
     "}\n"
@@ -259,6 +259,54 @@ static const char vndf_glsl[] =
     "    vec2 uv = vec2(sqrt(sb_elev(V) * (2.0 / SB_PI)), (sb_azim(V) + SB_PI) / (2.0 * SB_PI));\n"
     "    return g * sb_vbilin(SB_VN * SB_VH, SB_NW, SB_NH, sb_um(L, V)) /\n"
     "           (4.0 * sb_vbilin(SB_VN * SB_VH + SB_NH, SB_SW, SB_SH, uv));\n"
+    "}\n";
+
+/* The GLSL of vndf_col_sample and vndf_col_density (the sampler block,
+ * data/sepbrdf_sample.glsl, calls them): the warp itself by bisection of
+ * sb_vinvert in float (u_m.y on the marginal, then u_m.x on that row;
+ * 32 halvings reach float's resolution), its density from the slices'
+ * tables mixed as sb_vinvert mixes them. */
+static const char vndf_sample_glsl[] =
+    "bool sb_col_dir(vec3 V, vec2 s, out vec3 L) {\n"
+    "    L = vec3(0.0);\n"
+    "    if (!(V.z > 0.0)) return false;\n"
+    "    int k;\n"
+    "    float w, lo = 0.0, hi = 1.0;\n"
+    "    sb_vslice(sb_elev(V), k, w);\n"
+    "    for (int i = 0; i < 32; i++) {\n"
+    "        float mid = 0.5 * (lo + hi);\n"
+    "        if (sb_vinvert(vec2(0.0, mid), k, w).y < s.y) lo = mid; else hi = mid;\n"
+    "    }\n"
+    "    float uy = hi;\n"
+    "    lo = 0.0;\n"
+    "    hi = 1.0;\n"
+    "    for (int i = 0; i < 32; i++) {\n"
+    "        float mid = 0.5 * (lo + hi);\n"
+    "        if (sb_vinvert(vec2(mid, uy), k, w).x < s.x) lo = mid; else hi = mid;\n"
+    "    }\n"
+    "    float tm = hi * hi * (0.5 * SB_PI), pm = 2.0 * SB_PI * uy - SB_PI + sb_azim(V);\n"
+    "    vec3 m = vec3(sin(tm) * cos(pm), sin(tm) * sin(pm), cos(tm));\n"
+    "    float vm = dot(V, m);\n"
+    "    L = 2.0 * vm * m - V;\n"
+    "    return vm > 0.0 && L.z > 0.0;\n"
+    "}\n"
+    "float sb_col_density(vec3 L, vec3 V, out vec2 s) {\n"
+    "    s = vec2(0.5);\n"
+    "    if (!(L.z > 0.0 && V.z > 0.0)) return 0.0;\n"
+    "    int k;\n"
+    "    float w;\n"
+    "    sb_vslice(sb_elev(V), k, w);\n"
+    "    vec2 u = sb_um(L, V);\n"
+    "    s = sb_vinvert(u, k, w);\n"
+    "    float x = clamp(u.x, 0.0, 1.0) * float(SB_VW - 1), y = clamp(u.y, 0.0, 1.0) * float(SB_VH - 1);\n"
+    "    int ix = min(int(x), SB_VW - 2), iy = min(int(y), SB_VH - 2);\n"
+    "    float fx = x - float(ix), fy = y - float(iy);\n"
+    "    float pu = (1.0 - fy) * ((1.0 - fx) * sb_vmix(0, k, w, ix, iy) + fx * sb_vmix(0, k, w, ix + 1, iy)) +\n"
+    "               fy * ((1.0 - fx) * sb_vmix(0, k, w, ix, iy + 1) + fx * sb_vmix(0, k, w, ix + 1, iy + 1));\n"
+    "    vec3 m = normalize(L + V);\n"
+    "    float den = 2.0 * SB_PI * SB_PI * u.x * sin(sb_elev(m)) * 4.0 * dot(V, m);\n"
+    "    pu *= float((SB_VW - 1) * (SB_VH - 1));\n"
+    "    return den > 0.0 && pu > 0.0 ? pu / den : 0.0;\n"
     "}\n";
 
 static const sb_param_vt_t vndf_vt = {vndf_cell_dirs, vndf_row_measure, vndf_col_measure, vndf_coords,
@@ -321,7 +369,7 @@ const sb_param_desc_t sb_param_desc_vndf = {
     .init = init_vndf,
     .vt = &vndf_vt,
     .row_sample = NULL,
-    .sample_glsl = "",
+    .sample_glsl = vndf_sample_glsl,
     .col_sample = vndf_col_sample,
     .col_density = vndf_col_density};
 

@@ -75,8 +75,10 @@ typedef struct sb_layout_desc {
     size_t (*warp_cells)(const sb_param_t *p, int axis);
     /* sampling (sb_param_row_sample, sampler.h): a direction uniform in
      * solid angle over row cell `row` (wi, or h for SB_CAP_HALF_ROWS), and
-     * its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)`; NULL both: the
-     * layout has no sampler */
+     * its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` (with col_sample
+     * instead: `bool sb_col_dir(vec3 V, vec2 s, out vec3 L)` and `float
+     * sb_col_density(vec3 L, vec3 V, out vec2 s)`); NULL both: the layout
+     * has no sampler */
     void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
     const char *sample_glsl;
     /* Optional, with row_sample (sb_param_row_cell): the row cell whose
@@ -126,7 +128,7 @@ SB_API const sb_param_opts_t *sb_param_options(const sb_param_t *p);
  * valid for the life of the process.  Safe to call from several threads.
  * Errors: SB_ERR_ARG (NULL desc, a name that is empty, not of letters,
  * digits, '-' and '_', or "auto", no vt or a vt function or glsl
- * missing, row_sample without sample_glsl or the reverse, row_cell
+ * missing, sample_glsl without row_sample or col_sample or the reverse, row_cell
  * without row_edge or the reverse, or either without row_sample,
  * col_sample, col_density and SB_CAP_COL_SAMPLE not all or none, or
  * with row_sample),
