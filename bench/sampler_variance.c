@@ -13,7 +13,7 @@
  * against its own pdf (n draws, bins and pooling of tests/sampler_chi2.h;
  * the fixed share, so that the factored part is drawn in every case).
  *
- *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area] [--azimuth A]
+ *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area,vndf] [--azimuth A]
  *                                 [--seed S] [SOURCE...]
  * Run from the source tree (the measured files under tests/data/measured). */
 #include <math.h>
@@ -110,7 +110,21 @@ static double ratio_se(double vc, double sc, double vs, double ss) {
     return r * sqrt((sc / vc) * (sc / vc) + (ss / vs) * (ss / vs));
 }
 
+/* Whether the layout named param applies to spec (vndf: RGL files only;
+ * iso: reciprocal isotropic sources): the default list's others are
+ * skipped without a row. */
+static int applies(sb_context_t *ctx, const char *spec, const char *param) {
+    sb_param_kind_t kind;
+    sb_source_t *src = NULL;
+    if (sb_param_kind_parse(param, &kind) != SB_OK) return 1; /* auto and typos: the job says */
+    if (sb_job_source_open(ctx, strcmp(spec, "default") ? spec : SB_JOB_DEFAULT_SOURCE, NULL, &src) != SB_OK) return 1;
+    int ok = sb_job_param_applies(kind, src, NULL);
+    sb_source_destroy(src);
+    return ok;
+}
+
 static int run(sb_context_t *ctx, const char *spec, const char *param, size_t res, size_t n) {
+    if (!applies(ctx, spec, param)) return 0;
     sb_job_opts_t o = {0};
     o.source = strcmp(spec, "default") ? spec : NULL;
     o.param = param;
@@ -157,7 +171,7 @@ static int run(sb_context_t *ctx, const char *spec, const char *param, size_t re
 
 int main(int argc, char **argv) {
     size_t n = 200000, res = 32;
-    const char *plist = "iso,hd,io,io-area";
+    const char *plist = "iso,hd,io,io-area,vndf";
     int first = argc;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--samples") && i + 1 < argc)
@@ -176,7 +190,8 @@ int main(int argc, char **argv) {
                 "[--seed S] [SOURCE...]\n"
                 "Variance of cosine sampling over the factored sampler's, against the source, per layout and\n"
                 "elevation (the chosen share; in parentheses the fixed share %g); chi2 p-values at the fixed share.\n"
-                "--param: layouts, comma-separated (default iso,hd,io,io-area); --azimuth: of V in radians (0.3);\n"
+                "--param: layouts, comma-separated (default iso,hd,io,io-area,vndf; those that do not apply to a\n"
+                "source skipped: vndf takes RGL files only); --azimuth: of V in radians (0.3);\n"
                 "--seed: of the chi2 draws (1; every source, layout and elevation draws its own stream from it).\n",
                 SB_SAMPLER_COSINE_SHARE);
             return strcmp(argv[i], "-h") && strcmp(argv[i], "--help");

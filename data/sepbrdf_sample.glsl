@@ -11,7 +11,9 @@
 // results.  `sepbrdf factor` appends this block to sepbrdf.glsl after the
 // snippet, when the factors are non-negative (--method nmf), with a header
 // defining SB_SAMPLE_CH (channels of the factors), SB_HALF_ROWS (rows index
-// the half vector: hd, iso) and the parameterisation's sb_row_dir().
+// the half vector: hd, iso), SB_COL_SAMPLE (the columns are sampled: vndf)
+// and the parameterisation's sb_row_dir() (SB_COL_SAMPLE: sb_col_dir() and
+// sb_col_density()).
 //
 // sb_cdf: sampler.bin's float32 data as an R32F GL_TEXTURE_2D_ARRAY of
 // (W + 1) x (H + 1) texels and J * SB_SAMPLE_CH + 1 layers (read with
@@ -21,7 +23,9 @@
 // each cell and at (0, H) the share of cosine-weighted samples (chosen per
 // material: 1 where the factored density would add noise); with
 // SB_HALF_ROWS, layer K + 1 + k the weight of k for V at each cell's centre
-// (read bilinear between the centres).
+// (read bilinear between the centres).  With SB_COL_SAMPLE, W x H are the
+// cells between the h textures' nodes, (0, H) of layer k the integral of
+// h_k over the unit square of s, and layer K holds the share alone.
 
 uniform sampler2DArray sb_cdf;
 
@@ -47,6 +51,29 @@ int sb_cdf_find(int k, ivec2 o, ivec2 step, int n, inout float u) {
 
 float sb_cdf_prob(int k, ivec2 o, ivec2 step, int i) {
     return sb_cdf_at(k, o + i * step) - (i > 0 ? sb_cdf_at(k, o + (i - 1) * step) : 0.0);
+}
+
+// SB_COL_SAMPLE: node (x, y) of h_k (texel (x, y) of the h texture), and
+// t in [0, 1] with density proportional to (1 - t) a + t b by u (the C's
+// sample_linear, src/factor/sampler_cols.c).
+float sb_node(int k, int x, int y) {
+    int j = k / SB_SAMPLE_CH;
+    return texelFetch(sb_h, ivec3(x, y, j), 0)[k - j * SB_SAMPLE_CH];
+}
+
+float sb_sample_linear(float a, float b, float u) {
+    if (u == 0.0 && a == 0.0) return 0.0;
+    return min(u * (a + b) / (a + sqrt(mix(a * a, b * b, u))), SB_ONE_MINUS);
+}
+
+// h_k at s in [0, 1]^2, bilinear between the nodes (the C's node_lerp).
+float sb_node_lerp(int k, vec2 s) {
+    ivec2 n = textureSize(sb_cdf, 0).xy - 1;
+    vec2 q = clamp(s, vec2(0.0), vec2(1.0)) * vec2(n);
+    ivec2 i = min(ivec2(q), n - 1);
+    vec2 f = q - vec2(i);
+    return (1.0 - f.y) * ((1.0 - f.x) * sb_node(k, i.x, i.y) + f.x * sb_node(k, i.x + 1, i.y)) +
+           f.y * ((1.0 - f.x) * sb_node(k, i.x, i.y + 1) + f.x * sb_node(k, i.x + 1, i.y + 1));
 }
 
 // Number of distributions K = J * SB_SAMPLE_CH (layers 0 .. K - 1; layer K
@@ -131,28 +158,37 @@ float sb_weight(int k, vec2 key) {
            (1.0 - a.x) * a.y * sb_cdf_at(l, ivec2(x0, y1)) + a.x * a.y * sb_cdf_at(l, ivec2(x1, y1));
 }
 #else
-// The weights' key: the h coordinate of the pair (mirror(V), V).
+// The weights' key: the h coordinate of the pair (mirror(V), V), or with
+// SB_COL_SAMPLE its g coordinate (the view's alone).
 bool sb_weight_key(vec3 V, out vec2 key) {
     vec3 M = vec3(-V.xy, V.z);
     vec4 st = sb_coords(M, V);
+#if SB_COL_SAMPLE
+    key = st.xy;
+#else
     key = st.zw;
+#endif
     return sb_domain(M, V, st);
 }
 
-// Weight of distribution k: lum_c h_jc(key) I_jc, h bilinear between the
-// texel centres in float, as the C reads it (a GPU's filter may weigh the
-// texels in 8-bit steps: at a steep h, 1e-3 and more of the weight).
+// Texel p of the side read at the key (h; SB_COL_SAMPLE: g), channel c.
+float sb_wtexel(ivec3 p, int c) { return SB_COL_SAMPLE == 1 ? texelFetch(sb_g, p, 0)[c] : texelFetch(sb_h, p, 0)[c]; }
+
+// Weight of distribution k: lum_c h_jc(key) I_jc (SB_COL_SAMPLE: g_jc, and
+// I_jc the integral of h_jc), bilinear between the texel centres in float,
+// as the C reads it (a GPU's filter may weigh the texels in 8-bit steps: at
+// a steep h, 1e-3 and more of the weight).
 float sb_weight(int k, vec2 key) {
     int j = k / SB_SAMPLE_CH, c = k - j * SB_SAMPLE_CH;
     vec3 lum = SB_SAMPLE_CH == 1 ? vec3(1.0) : vec3(0.2126, 0.7152, 0.0722);
-    ivec2 n = textureSize(sb_h, 0).xy;
+    ivec2 n = SB_COL_SAMPLE == 1 ? textureSize(sb_g, 0).xy : textureSize(sb_h, 0).xy;
+    int ws = SB_COL_SAMPLE == 1 ? SB_WRAP_G_S : SB_WRAP_H_S, wt = SB_COL_SAMPLE == 1 ? SB_WRAP_G_T : SB_WRAP_H_T;
     vec2 u = clamp(key, vec2(0.0), vec2(1.0)) * vec2(n) - vec2(0.5), f = floor(u), a = u - f;
     ivec2 i = ivec2(f);
-    int x0 = sb_wrap_cell(i.x, n.x, SB_WRAP_H_S), x1 = sb_wrap_cell(i.x + 1, n.x, SB_WRAP_H_S);
-    int y0 = sb_wrap_cell(i.y, n.y, SB_WRAP_H_T), y1 = sb_wrap_cell(i.y + 1, n.y, SB_WRAP_H_T);
-    float h = (1.0 - a.x) * (1.0 - a.y) * texelFetch(sb_h, ivec3(x0, y0, j), 0)[c] +
-              a.x * (1.0 - a.y) * texelFetch(sb_h, ivec3(x1, y0, j), 0)[c] +
-              (1.0 - a.x) * a.y * texelFetch(sb_h, ivec3(x0, y1, j), 0)[c] + a.x * a.y * texelFetch(sb_h, ivec3(x1, y1, j), 0)[c];
+    int x0 = sb_wrap_cell(i.x, n.x, ws), x1 = sb_wrap_cell(i.x + 1, n.x, ws);
+    int y0 = sb_wrap_cell(i.y, n.y, wt), y1 = sb_wrap_cell(i.y + 1, n.y, wt);
+    float h = (1.0 - a.x) * (1.0 - a.y) * sb_wtexel(ivec3(x0, y0, j), c) + a.x * (1.0 - a.y) * sb_wtexel(ivec3(x1, y0, j), c) +
+              (1.0 - a.x) * a.y * sb_wtexel(ivec3(x0, y1, j), c) + a.x * a.y * sb_wtexel(ivec3(x1, y1, j), c);
     return lum[c] * h * sb_scale[j] * sb_cdf_at(k, ivec2(0, textureSize(sb_cdf, 0).y - 1));
 }
 #endif
@@ -353,6 +389,18 @@ float sb_factored_pdf(vec3 L, vec3 V, vec2 st_g, vec2 sw) {
 #endif
 #if SB_HALF_ROWS
     return sb_half_pdf(L, V, cell, sw);
+#elif SB_COL_SAMPLE
+    // the density of the bilinear h_k over s, times |ds/dL| (continuous in s)
+    vec2 s;
+    float jac = sb_col_density(L, V, s), num = 0.0, total = 0.0;
+    if (!(jac > 0.0)) return 0.0;
+    for (int k = 0; k < K; k++) {
+        float w = sb_weight(k, sw);
+        if (!(w > 0.0)) continue;
+        total += w;
+        num += w / sb_cdf_at(k, ivec2(0, H)) * sb_node_lerp(k, s);
+    }
+    return total > 0.0 ? num / total * jac : 0.0;
 #else
     float num = 0.0, total = 0.0;
     for (int k = 0; k < K; k++) {
@@ -402,6 +450,15 @@ bool sb_factored_dir(vec3 V, vec2 sw, float u0, float u1, out vec3 D) {
     }
 #if SB_HALF_ROWS
     return sb_half_dir(V, pick, u0, u1, D);
+#elif SB_COL_SAMPLE
+    // the cell between the nodes, then s in it by the bilinear patch
+    int y = sb_cdf_find(pick, ivec2(W, 0), ivec2(0, 1), H, u0);
+    int x = sb_cdf_find(pick, ivec2(0, y), ivec2(1, 0), W, u1);
+    float v0 = sb_node(pick, x, y), v1 = sb_node(pick, x + 1, y);
+    float v2 = sb_node(pick, x, y + 1), v3 = sb_node(pick, x + 1, y + 1);
+    float fy = sb_sample_linear(v0 + v1, v2 + v3, u0);
+    float fx = sb_sample_linear(v0 + fy * (v2 - v0), v1 + fy * (v3 - v1), u1);
+    return sb_col_dir(V, (vec2(float(x), float(y)) + vec2(fx, fy)) / vec2(float(W), float(H)), D);
 #else
     int y = sb_cdf_find(pick, ivec2(W, 0), ivec2(0, 1), H, u0);
     int x = sb_cdf_find(pick, ivec2(0, y), ivec2(1, 0), W, u1);

@@ -324,8 +324,8 @@ static int sampler_pass(gl_sphere_t *g, const char *snippet, const char *main_sr
     GLuint prog = program(snippet, main_src, err, err_size);
     if (!prog) return -1;
     int rc = -1;
-    GLuint tex[4] = {0, 0, 0, 0}, target = 0, fbo = 0, vao = 0;
-    glGenTextures(4, tex);
+    GLuint tex[5] = {0, 0, 0, 0, 0}, target = 0, fbo = 0, vao = 0;
+    glGenTextures(5, tex);
     if (upload(f, p, SB_SIDE_G, tex[0], err, err_size) || upload(f, p, SB_SIDE_H, tex[1], err, err_size)) goto out;
     glBindTexture(GL_TEXTURE_2D_ARRAY, tex[2]);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
@@ -340,11 +340,25 @@ static int sampler_pass(gl_sphere_t *g, const char *snippet, const char *main_sr
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     }
+    size_t vw = 0, vh = 0;
+    float *vt = NULL; /* a layout on a source's tables (vndf): vndf.exr's texture, sb_vndf */
+    if (sb_param_tables(p) && sb_param_tables_texture(p, &vw, &vh, &vt) == SB_OK) {
+        glBindTexture(GL_TEXTURE_2D, tex[4]);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, (GLsizei)vw, (GLsizei)vh, 0, GL_RGB, GL_FLOAT, vt);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        free(vt);
+    }
     if (float_target((GLsizei)n, &target, &fbo, err, err_size)) goto out;
     glViewport(0, 0, (GLsizei)n, (GLsizei)n);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
     glUseProgram(prog);
+    if (vw) {
+        glActiveTexture(GL_TEXTURE4);
+        glBindTexture(GL_TEXTURE_2D, tex[4]);
+        glUniform1i(glGetUniformLocation(prog, "sb_vndf"), 4);
+    }
     static const char *const names[3] = {"sb_g", "sb_h", "sb_cdf"};
     for (int i = 0; i < 3; i++) {
         glActiveTexture(GL_TEXTURE0 + (GLenum)i);
@@ -366,7 +380,7 @@ static int sampler_pass(gl_sphere_t *g, const char *snippet, const char *main_sr
     GLenum e = glGetError();
     rc = e == GL_NO_ERROR ? 0 : fail(err, err_size, "GL error 0x%x", e);
 out:
-    release(prog, vao, fbo, target, tex, 4);
+    release(prog, vao, fbo, target, tex, 5);
     return rc;
 }
 

@@ -112,7 +112,10 @@ static int setup(sb_param_kind_t kind, const char *spec, int warped, setup_t *x)
     sb_plan_t *plan = NULL;
     char path[4200];
     snprintf(path, sizeof path, "%s/sampler.bin", sb_tmpdir("sampler-gl"));
-    sb_result_t r = sb_model_create(NULL, spec, &x->src);
+    /* a measured file (RGL, for vndf: the layout on its tables) or a model */
+    sb_result_t r =
+        strchr(spec, '/') ? sb_measured_open(NULL, spec, NULL, &x->src, NULL) : sb_model_create(NULL, spec, &x->src);
+    if (!r) po.tables = sb_source_layout_tables(x->src);
     if (!r) r = sb_param_create(NULL, kind, &po, &x->p);
     if (!r) r = sb_matrix_build(NULL, x->src, x->p, &mo, &m);
     if (!r) r = sb_plan_create_for(NULL, &m, &pl, &plan);
@@ -352,6 +355,19 @@ static void run(sb_param_kind_t kind, const char *spec, int warped) {
 #define RUN_PDF_WARPED(kind, spec) RUN(kind, spec)
 #define RUN(kind, spec) SKIP("built without OSMesa (Debian: libosmesa6-dev), no GLSL sampler test")
 #endif
+
+/* vndf (an RGL file's own grid): its columns sampled through the file's
+ * VNDF warp (SB_CAP_COL_SAMPLE, sampler.h), on the tables of vndf.exr. */
+static sb_param_kind_t vndf_kind(void) {
+    sb_param_kind_t k = 0;
+    CHECK(sb_param_kind_parse("vndf", &k) == SB_OK);
+    return k;
+}
+#define RGL_ORANGE SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf"
+#define RGL_PAPER SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf"
+SB_TEST(vndf) { RUN(vndf_kind(), RGL_ORANGE); }
+SB_TEST(pdf_vndf) { RUN_PDF(vndf_kind(), RGL_ORANGE, PDF_VIEWS); }
+SB_TEST(pdf_vndf_paper) { RUN_PDF(vndf_kind(), RGL_PAPER, PDF_VIEWS); }
 
 SB_TEST(io) { RUN(SB_PARAM_IO, "cook-torrance:d=ggx,roughness=0.3"); }
 SB_TEST(io_area) { RUN(SB_PARAM_IO_AREA, "cook-torrance:d=ggx,roughness=0.2"); }

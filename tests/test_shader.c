@@ -94,15 +94,15 @@ typedef int (*check_fn)(void *user, const char *text, int sampled, char *log, si
 
 /* Every layout of specs with every form and, for form f, the sampler block
  * for 1 and 3 channels (form cos and cos2 with 3), in `lang`, through check;
- * last the vndf layout of an RGL file (its tables as the texture sb_vndf; no
- * sampler block: its rows are not light directions alone). */
+ * last the vndf layout of an RGL file (its tables as the texture sb_vndf;
+ * its sampler block samples the columns through the file's warp). */
 static void each_variant(const char *lang, check_fn check, void *user) {
     for (size_t i = 0; i <= SB_NSPECS; i++) {
         sb_param_t *p = i < SB_NSPECS ? sb_param_of(sb_specs[i]) : sb_param_vndf();
         CHECKF(p != NULL, "%s", i < SB_NSPECS ? sb_specs[i] : "vndf");
         for (int form = 0; p && form < SB_FORM_COUNT_; form++)
             for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
-                if (sampled == 2 || (sampled && i == SB_NSPECS)) continue;
+                if (sampled == 2) continue;
                 char *s = sb_shader_text(p, (sb_form_t)form, sampled, lang), log[8192] = "";
                 CHECK(s != NULL);
                 int rc = s ? check(user, s, sampled, log, sizeof log) : 0;

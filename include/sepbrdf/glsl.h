@@ -41,13 +41,14 @@ SB_API sb_result_t sb_glsl_write(sb_context_t *ctx, const char *path, const sb_p
 
 /* The sampler block for non-negative factors (data/sepbrdf_sample.glsl,
  * sampler.h): #defines SB_SAMPLE_CH (channels, 1 or 3), SB_HALF_ROWS,
- * the parameterisation's sb_row_dir() and
+ * SB_COL_SAMPLE, the parameterisation's sb_row_dir() (SB_CAP_COL_SAMPLE:
+ * sb_col_dir() and sb_col_density()) and
  *     uniform sampler2DArray sb_cdf;   // sampler.bin, R32F
  *     bool  sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf);
  *     float sb_pdf(vec3 L, vec3 V);
  * to be placed after the snippet of the same factorisation.  malloc'ed;
  * NULL on no memory, a NULL p, channels not 1 or 3, or a layout without a
- * sampler (vh: its rows are views, not light directions). */
+ * sampler (vh, rv: their rows are views, not light directions). */
 SB_API char *sb_glsl_sampler(const sb_param_t *p, size_t channels);
 
 /* sb_glsl_write with the sampler block appended (the file `sepbrdf factor`

@@ -162,9 +162,12 @@ enum {
                                             with such tables only; value = sb_param_gain x max(0, sum) */
     SB_CAP_AUTO_ANALYTIC = 1u << 11,     /* auto screens it for analytic sources only (rv: on the RGL files it
                                             won only at J = 1, breaking the band bounds vndf keeps) */
-    SB_CAP_VIEW_EDGE = 1u << 12          /* on the whole hemisphere, cells leave the domain only where wo passes its
+    SB_CAP_VIEW_EDGE = 1u << 12,         /* on the whole hemisphere, cells leave the domain only where wo passes its
                                             horizon, where f cos theta_i need not fall to 0: an analytic source's
                                             cells there continue by its value at the edge (rv) */
+    SB_CAP_COL_SAMPLE = 1u << 13         /* rows are the view's, columns a warp of wi for each wo (vndf: the RGL
+                                            colour grid through its VNDF warp): a sampler (sampler.h) draws the
+                                            column position s and maps it to wi (sb_param_col_sample) */
 };
 
 /* The registry, indexed by kind 0 .. sb_param_kind_count() - 1: name ("io",
@@ -266,6 +269,18 @@ SB_API int sb_param_row_sample(const sb_param_t *p, size_t row, const double u[2
 SB_API int sb_param_row_cell(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
                              size_t cell[2]);
 SB_API float sb_param_row_edge(const sb_param_t *p, int axis, size_t i);
+
+/* Importance sampling of SB_CAP_COL_SAMPLE layouts (sampler.h): the h
+ * textures' node grid as a unit square, node (x, y) at s = (x / (W - 1),
+ * y / (H - 1)) (the texel centres), mapped for each wo to a light
+ * direction.  sb_param_col_sample: the wi of position s for wo; 1 when it
+ * is a BRDF pair (both above the horizon), else 0 (wi set or not).
+ * sb_param_col_density: the s of the pair (wi, wo) and the density of
+ * that map, |ds / dwi| (1/sr, so that a density p(s) over the square is
+ * p(s) |ds/dwi| over the light's directions); 0 outside the domain.  Both
+ * 0 for a NULL argument or a layout without the capability. */
+SB_API int sb_param_col_sample(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]);
+SB_API double sb_param_col_density(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]);
 
 /* The layout's known factor of the value at (wi, wo): the reconstruction
  * is gain x max(0, sum_j g_j h_j) for SB_CAP_TABLES layouts (vndf: the

@@ -75,6 +75,29 @@
  * sampling in pbrt and Mitsuba); in io and io-area it integrates to 1
  * (with theta_max at the horizon).
  *
+ * The layouts that sample their columns (SB_CAP_COL_SAMPLE: vndf, an RGL
+ * file's own grid) have rows of the view (g_k(theta_v), its slices) and
+ * columns the nodes of a unit square of positions s that the layout maps
+ * to the light for each wo (sb_param_col_sample: vndf's VNDF warp, u_m =
+ * VNDF(s | theta_v), m from u_m, wi = reflect(wo, m); a wi below the
+ * horizon is a failed sample), as Mitsuba's `measured` plugin samples
+ * with the fit's colour grid in place of its luminance warp:
+ *   1. pick k with W_k = lum_c g_k(st_g) I_k, st_g the g coordinate of
+ *      the pair (mirror(wo), wo) and I_k = int h_k ds, exact for the
+ *      bilinear h_k (per cell between nodes, the mean of its 4 corners
+ *      times its area);
+ *   2. pick a cell of the (S_x - 1) x (S_y - 1) between the h textures'
+ *      nodes by a marginal CDF over y and a conditional CDF over x of
+ *      those cell integrals (in double: sampler.bin's float copy is the
+ *      GLSL's), then s in it with the density of the bilinear patch (its
+ *      linear marginal in y, its linear conditional in x): h_k(s) / I_k;
+ *   3. wi = sb_param_col_sample(wo, s).
+ * So p_F(wi | wo) = sum_k lum_c g_k(st_g) h_k(s) / sum W |ds/dwi|,
+ * continuous in s (no cell edges for float and double to take apart), s
+ * and |ds/dwi| from sb_param_col_density (vndf: the warp's density in u_m
+ * over 2 pi^2 u_m.x sin(theta_m) 4 (wo.m)); with the cosine share as
+ * above.
+ *
  * Two random numbers drive a sample: u[0] < s picks the cosine lobe
  * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,
  * then (rescaled) y, then (rescaled) the position along y inside the
@@ -170,7 +193,10 @@ SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, c
  * the row cells' edges (sb_param_row_edge, as float) of x at (i, H) for
  * 1 <= i < W and of y at (W, j) for 1 <= j < H.  For SB_CAP_HALF_ROWS layouts layers = 2 J C
  * + 1: layer J C + 1 + k holds W_k(c) for wo at the centre of cell c at texel
- * (x, y).
+ * (x, y).  For SB_CAP_COL_SAMPLE layouts W x H are the cells between the
+ * h textures' nodes, layers = J C + 1: layer k as above over those cells
+ * with I_k = int h_k ds / g_scale[j] (g_scale: here each h_j texture's
+ * storage scale), layer J C the share s at (0, H) alone.
  * Unused texels are 0.  Written under a
  * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 SB_API sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);

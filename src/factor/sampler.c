@@ -16,16 +16,17 @@ struct sb_sampler {
     size_t W, H, J, C, K; /* g texture W x H, K = J C distributions */
     int half_rows;        /* SB_CAP_HALF_ROWS: rows index h, wi = reflect(wo, h) */
     double lum[3];
-    double share;      /* the cosine-weighted share s (a float's value: the GLSL reads it so) */
-    double *cond;      /* K x H x W: conditional CDF of x in row y, inclusive */
-    double *marg;      /* K x H: marginal CDF of y, inclusive */
-    double *integral;  /* K: I_k = sum_r g_k[r] m_r */
-    double *measure;   /* H x W: m_r */
-    double *mcos;      /* H x W: m_r, times cos theta_i at the centre for the form f on io, io-area */
-    double *wtab;      /* half rows: K x H x W, W_k for wo in row cell c (sampler.h) */
-    double *zlo, *zhi; /* half rows: W, the z = 1 - cos(theta) bounds of column x's cells */
-    double *pa, *pw;   /* half rows: H, the phi arc [pa, pa + pw] of row y's cells */
-    float *edge[2];    /* W + 1, H + 1: the row cells' edges (sb_param_row_cell), in the file's layer K */
+    double share;           /* the cosine-weighted share s (a float's value: the GLSL reads it so) */
+    double *cond;           /* K x H x W: conditional CDF of x in row y, inclusive */
+    double *marg;           /* K x H: marginal CDF of y, inclusive */
+    double *integral;       /* K: I_k = sum_r g_k[r] m_r */
+    double *measure;        /* H x W: m_r */
+    double *mcos;           /* H x W: m_r, times cos theta_i at the centre for the form f on io, io-area */
+    double *wtab;           /* half rows: K x H x W, W_k for wo in row cell c (sampler.h) */
+    double *zlo, *zhi;      /* half rows: W, the z = 1 - cos(theta) bounds of column x's cells */
+    double *pa, *pw;        /* half rows: H, the phi arc [pa, pa + pw] of row y's cells */
+    float *edge[2];         /* W + 1, H + 1: the row cells' edges (sb_param_row_cell), in the file's layer K */
+    sb_col_sampler_t *cols; /* SB_CAP_COL_SAMPLE: the columns' sampler (W x H its cells; no row tables) */
 };
 
 /* Half rows: the cut of every row for one wo (sampler_half.c): z_cut and
@@ -67,39 +68,6 @@ static sb_result_t check_nonneg(sb_context_t *ctx, const sb_factors_t *f) {
     return SB_OK;
 }
 
-/* Inclusive CDF of n non-negative values (the last forced to 1); uniform
- * when they sum to 0.  Returns the sum. */
-static double cdf_build(const double *v, size_t n, double *cdf) {
-    double sum = 0;
-    for (size_t i = 0; i < n; i++)
-        sum += v[i];
-    double acc = 0;
-    for (size_t i = 0; i < n; i++) { /* as float, the file's values: a cell's probability is a difference */
-        acc += v[i];                 /* of two entries near 1, which C and GLSL then take alike */
-        cdf[i] = (float)(sum > 0 ? acc / sum : (double)(i + 1) / (double)n);
-    }
-    cdf[n - 1] = 1;
-    return sum;
-}
-
-/* Smallest i < n with *u < cdf[i] (binary search; cdf[n - 1] > *u),
- * and *u rescaled to [0, 1) within that entry. */
-static size_t cdf_find(const double *cdf, size_t n, double *u) {
-    size_t lo = 0, hi = n - 1;
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (*u < cdf[mid])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    double below = lo ? cdf[lo - 1] : 0, r = (*u - below) / (cdf[lo] - below);
-    *u = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
-    return lo;
-}
-
-static double cdf_prob(const double *cdf, size_t i) { return cdf[i] - (i ? cdf[i - 1] : 0); }
-
 /* The tables of distribution k: g_k m_r per texel (m_r including cos
  * theta_i at the cell's centre for the form f on io, io-area: measure),
  * rows' CDFs, marginal. */
@@ -108,9 +76,9 @@ static void build_tables(sb_sampler_t *s, size_t k, double *rowsum, double *tmp)
     for (size_t y = 0; y < s->H; y++) {
         for (size_t x = 0; x < s->W; x++)
             tmp[x] = g[y * s->W + x] * s->mcos[y * s->W + x];
-        rowsum[y] = cdf_build(tmp, s->W, s->cond + (k * s->H + y) * s->W);
+        rowsum[y] = sb_cdf_build_(tmp, s->W, 1, s->cond + (k * s->H + y) * s->W);
     }
-    s->integral[k] = cdf_build(rowsum, s->H, s->marg + k * s->H);
+    s->integral[k] = sb_cdf_build_(rowsum, s->H, 1, s->marg + k * s->H);
 }
 
 static size_t texel_of(double s, size_t n) {
@@ -243,6 +211,40 @@ static sb_result_t sampler_alloc(sb_context_t *ctx, sb_sampler_t *s) {
     return s->cond && s->marg && s->integral && s->measure && s->mcos ? SB_OK : SB_ERR_NOMEM;
 }
 
+/* The rows' tables (every layout but SB_CAP_COL_SAMPLE ones, sampler_cols.c):
+ * m_r, the CDFs of every distribution, for half rows W_k(c) and the
+ * cells' bounds. */
+static sb_result_t rows_build(sb_context_t *ctx, sb_sampler_t *s) {
+    double *rowsum = NULL, *tmp = NULL;
+    sb_result_t r = sampler_alloc(ctx, s);
+    if (r == SB_OK) {
+        rowsum = sb_alloc(ctx, s->H, sizeof *rowsum, "sampler tables");
+        tmp = sb_alloc(ctx, s->W, sizeof *tmp, "sampler tables");
+        if (!rowsum || !tmp) r = SB_ERR_NOMEM;
+    }
+    double total = 0;
+    for (size_t i = 0; r == SB_OK && i < s->W * s->H; i++) {
+        double d[3];
+        s->measure[i] = s->mcos[i] = (float)sb_param_row_measure(s->p, i); /* the file's value */
+        if (s->form == SB_FORM_F && !s->half_rows) { /* f: the density follows f cos theta_i (rows are wi) */
+            sb_param_row_sample(s->p, i, (const double[2]){0.5, 0.5}, d);
+            s->mcos[i] *= fmax(d[2], 0);
+        }
+    }
+    for (size_t k = 0; r == SB_OK && k < s->K; k++) {
+        build_tables(s, k, rowsum, tmp);
+        total += s->integral[k];
+    }
+    free(rowsum);
+    free(tmp);
+    if (r == SB_OK && s->half_rows) {
+        build_wtab(s);
+        cell_bounds(s);
+    }
+    if (r == SB_OK && !(total > 0)) r = sb_error(ctx, SB_ERR_NUMERIC, "sampler: every texel is 0, nothing to sample");
+    return r;
+}
+
 sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, sb_form_t form,
                               sb_sampler_t **out) {
     if (!out) return sb_error(ctx, SB_ERR_ARG, "sampler: no output");
@@ -257,7 +259,8 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     if (gw != pw[0] || gh != ph[0] || hw != pw[1] || hh != ph[1] || gw * gh == 0)
         return sb_error(ctx, SB_ERR_ARG, "sampler: textures %zux%zu and %zux%zu are not those of %s", gw, gh, hw, hh,
                         sb_param_spec(p));
-    if (!sb_param_sample_glsl(p)[0])
+    int cols = (sb_param_caps(p) & SB_CAP_COL_SAMPLE) != 0;
+    if (!cols && !sb_param_sample_glsl(p)[0])
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has no sampler (its rows are not light directions)",
                         sb_param_kind_name(sb_param_kind(p)));
     if ((sb_param_caps(p) & SB_CAP_HALF_ROWS) && gh > SB_SAMPLER_MAX_ROWS)
@@ -275,32 +278,8 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
     const double rec709[3] = {0.2126, 0.7152, 0.0722};
     for (int c = 0; c < 3; c++)
         s->lum[c] = s->C == 1 ? 1 : rec709[c];
-    double *rowsum = NULL, *tmp = NULL;
-    if ((r = sampler_alloc(ctx, s)) == SB_OK) {
-        rowsum = sb_alloc(ctx, gh, sizeof *rowsum, "sampler tables");
-        tmp = sb_alloc(ctx, gw, sizeof *tmp, "sampler tables");
-        if (!rowsum || !tmp) r = SB_ERR_NOMEM;
-    }
-    double total = 0;
-    for (size_t i = 0; r == SB_OK && i < gw * gh; i++) {
-        double d[3];
-        s->measure[i] = s->mcos[i] = (float)sb_param_row_measure(p, i); /* the file's value */
-        if (form == SB_FORM_F && !s->half_rows) { /* f: the density follows f cos theta_i (rows are wi) */
-            sb_param_row_sample(p, i, (const double[2]){0.5, 0.5}, d);
-            s->mcos[i] *= fmax(d[2], 0);
-        }
-    }
-    for (size_t k = 0; r == SB_OK && k < s->K; k++) {
-        build_tables(s, k, rowsum, tmp);
-        total += s->integral[k];
-    }
-    free(rowsum);
-    free(tmp);
-    if (r == SB_OK && s->half_rows) {
-        build_wtab(s);
-        cell_bounds(s);
-    }
-    if (r == SB_OK && !(total > 0)) r = sb_error(ctx, SB_ERR_NUMERIC, "sampler: every texel is 0, nothing to sample");
+    r = cols ? sb_col_sampler_create_(ctx, f, p, s->lum, &s->cols) : rows_build(ctx, s);
+    if (r == SB_OK && cols) sb_col_sampler_cells_(s->cols, &s->W, &s->H); /* the file's sizes */
     if (r != SB_OK) {
         sb_sampler_destroy(s);
         return r;
@@ -320,6 +299,7 @@ void sb_sampler_destroy(sb_sampler_t *s) {
     free(s->zlo);
     free(s->pa);
     free(s->edge[0]);
+    sb_col_sampler_destroy_(s->cols);
     free(s);
 }
 
@@ -364,7 +344,7 @@ static void cuts_of(const sb_sampler_t *s, const double wo[3], cuts_t *c) {
  * keep, and on all of them. */
 static double row_mass(const sb_sampler_t *s, size_t k, const cuts_t *c, size_t y) {
     const double *cond = s->cond + (k * s->H + y) * s->W;
-    return c->x[y] ? cdf_prob(s->marg + k * s->H, y) * cond[c->x[y] - 1] : 0;
+    return c->x[y] ? sb_cdf_prob_(s->marg + k * s->H, y) * cond[c->x[y] - 1] : 0;
 }
 
 static double kept_mass(const sb_sampler_t *s, size_t k, const cuts_t *c) {
@@ -384,7 +364,8 @@ static double cell_prob(const sb_sampler_t *s, const wkey_t *key, const cuts_t *
         if (!(wk > 0)) continue;
         total += wk;
         double z = c ? kept_mass(s, k, c) : 1;
-        if (z > 0) num += wk * cdf_prob(s->marg + k * s->H, y) * cdf_prob(s->cond + (k * s->H + y) * s->W, x) / z;
+        if (z > 0)
+            num += wk * sb_cdf_prob_(s->marg + k * s->H, y) * sb_cdf_prob_(s->cond + (k * s->H + y) * s->W, x) / z;
     }
     return total > 0 ? num / total : 0;
 }
@@ -407,6 +388,7 @@ static int full_circle(double w) { return w >= 2 * SB_PI - 1e-6; }
  * half-width of Delta falls with theta), so the density stays bounded. */
 static double factored_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3], const double sg[2],
                            const wkey_t *key) {
+    if (s->cols) return sb_col_pdf_(s->cols, wo, wi);
     size_t cell[2] = {texel_of(sg[0], s->W), texel_of(sg[1], s->H)}; /* kept where the layout places none */
     const float *const edge[2] = {s->edge[0], s->edge[1]};
     sb_param_row_cell(s->p, edge, wi, wo, cell);
@@ -466,7 +448,7 @@ static int half_dir(const sb_sampler_t *s, const double wo[3], size_t k, double 
     u0 = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
     const double *cond = s->cond + (k * s->H + y) * s->W;
     u1 *= cond[c.x[y] - 1]; /* the conditional up to the cut */
-    size_t x = cdf_find(cond, c.x[y], &u1);
+    size_t x = sb_cdf_find_(cond, c.x[y], &u1);
     int circle = full_circle(s->pw[y]);
     double z = s->zlo[x] + u1 * (circle ? half_cut_dz(s->zlo[x], s->zhi[x], c.z[y]) : s->zhi[x] - s->zlo[x]), phi;
     if (!(z <= c.z[y])) return 0;
@@ -487,14 +469,15 @@ static int half_dir(const sb_sampler_t *s, const double wo[3], size_t k, double 
  * half_dir).  0 when none (no weight, nothing kept for wo). */
 static int factored_dir(const sb_sampler_t *s, const double wo[3], const wkey_t *key, double u0, double u1,
                         double d[3]) {
+    if (s->cols) return sb_col_dir_(s->cols, wo, u0, u1, d);
     double total = 0;
     for (size_t k = 0; k < s->K; k++)
         total += weight(s, k, key);
     if (!(total > 0)) return 0;
     size_t k = pick_term(s, key, total, &u0);
     if (s->half_rows) return half_dir(s, wo, k, u0, u1, d);
-    size_t y = cdf_find(s->marg + k * s->H, s->H, &u0);
-    size_t x = cdf_find(s->cond + (k * s->H + y) * s->W, s->W, &u1);
+    size_t y = sb_cdf_find_(s->marg + k * s->H, s->H, &u0);
+    size_t x = sb_cdf_find_(s->cond + (k * s->H + y) * s->W, s->W, &u1);
     double uc[2] = {u1, u0};
     sb_param_row_sample(s->p, y * s->W + x, uc, d);
     return 1;
@@ -544,6 +527,10 @@ static void put_u32(unsigned char *b, uint32_t v) {
 /* Texel (x, y) of layer k of the file (layout: sampler.h). */
 static double file_texel(const sb_sampler_t *s, const double *g_scale, size_t k, size_t x, size_t y) {
     int in = x < s->W && y < s->H;
+    if (s->cols) /* the integrals in the h textures' units (g_scale: those of the side sampled) */
+        return k < s->K
+                   ? sb_col_file_texel_(s->cols, k, x, y) / (x == 0 && y == s->H && g_scale ? g_scale[k / s->C] : 1)
+                   : (x == 0 && y == s->H ? s->share : 0);
     if (k > s->K) return in ? s->wtab[(k - s->K - 1) * s->W * s->H + y * s->W + x] : 0;
     if (k == s->K && in) return s->measure[y * s->W + x];
     if (k == s->K) return x == 0 && y == s->H ? s->share : (y == s->H ? s->edge[0][x % s->W] : s->edge[1][y]);

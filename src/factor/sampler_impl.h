@@ -34,4 +34,27 @@ int half_phi_sample(const half_view_t *v, double z, double a, double w, double u
 double half_cut_dz(double zlo, double zhi, double zc);
 double half_arc_z(double zlo, double zhi, double zc);
 
+/* CDFs (sampler_cdf.c): the inclusive CDF of n non-negative values,
+ * rounded to float as sampler.bin holds it where as_float (the last 1;
+ * uniform when they sum to 0), returning their sum; the entry that u falls
+ * in, u rescaled within it; an entry's probability. */
+double sb_cdf_build_(const double *v, size_t n, int as_float, double *cdf);
+size_t sb_cdf_find_(const double *cdf, size_t n, double *u);
+double sb_cdf_prob_(const double *cdf, size_t i);
+
+/* The layouts that sample their columns (SB_CAP_COL_SAMPLE: vndf;
+ * sampler_cols.c): the tables of f's h textures for the luminance
+ * weights lum; the factored component's direction from u0, u1 in [0, 1)
+ * (1, or 0 when none) and its density p_F at wi; the cells W x H between
+ * the h textures' nodes and texel (x, y) of layer k < K of sampler.bin
+ * (sampler.h). */
+typedef struct sb_col_sampler sb_col_sampler_t;
+sb_result_t sb_col_sampler_create_(sb_context_t *ctx, const sb_factors_t *f, const sb_param_t *p, const double lum[3],
+                                   sb_col_sampler_t **out);
+void sb_col_sampler_destroy_(sb_col_sampler_t *c);
+int sb_col_dir_(const sb_col_sampler_t *c, const double wo[3], double u0, double u1, double wi[3]);
+double sb_col_pdf_(const sb_col_sampler_t *c, const double wo[3], const double wi[3]);
+void sb_col_sampler_cells_(const sb_col_sampler_t *c, size_t *W, size_t *H);
+double sb_col_file_texel_(const sb_col_sampler_t *c, size_t k, size_t x, size_t y);
+
 #endif

@@ -62,7 +62,8 @@ static sb_result_t add_textures(sb_outset_t *set, size_t J) {
     return r;
 }
 
-/* sampler.bin, its integrals in the units of the stored g textures. */
+/* sampler.bin, its integrals in the units of the stored textures of the
+ * side it samples (h for SB_CAP_COL_SAMPLE layouts, else g). */
 static sb_result_t write_sampler(sb_context_t *ctx, const sb_job_t *job, sb_outset_t *set, const sb_sampler_t *s) {
     const job_attempt_t *a = &job->best;
     size_t J = sb_factors_terms(a->f);
@@ -70,7 +71,8 @@ static sb_result_t write_sampler(sb_context_t *ctx, const sb_job_t *job, sb_outs
     double *gs = malloc(J * sizeof *gs);
     sb_result_t r = gs ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     for (size_t j = 0; j < J && r == SB_OK; j++)
-        r = sb_exr_texture_scale(ctx, a->f, SB_SIDE_G, j, &eo, &gs[j]);
+        r = sb_exr_texture_scale(ctx, a->f, (sb_param_caps(a->param) & SB_CAP_COL_SAMPLE) ? SB_SIDE_H : SB_SIDE_G, j,
+                                 &eo, &gs[j]);
     char path[4200];
     snprintf(path, sizeof path, "%s/sampler.bin", sb_outset_dir(set));
     if (r == SB_OK) r = sb_sampler_write(ctx, s, path, gs);
@@ -87,8 +89,9 @@ static sb_result_t write_translations(sb_context_t *ctx, const sb_job_t *job, sb
     sb_result_t r = sb_shader_lang_list(ctx, job->o.shaders, &mask);
     if (r != SB_OK || mask == 1) return r;
     char *head = sb_glsl_snippet(a->param, a->m.form, sb_factors_terms(a->f), scales);
-    char *tail = job->wrote_sampler ? sb_glsl_sampler(a->param, sb_factors_channels(a->f)) : NULL;
-    char *glsl = head && (tail || !job->wrote_sampler) ? malloc(strlen(head) + (tail ? strlen(tail) : 0) + 1) : NULL;
+    int want = job->wrote_sampler && sb_param_sample_glsl(a->param)[0]; /* a layout may have its sampler in C only */
+    char *tail = want ? sb_glsl_sampler(a->param, sb_factors_channels(a->f)) : NULL;
+    char *glsl = head && (tail || !want) ? malloc(strlen(head) + (tail ? strlen(tail) : 0) + 1) : NULL;
     if (glsl) sprintf(glsl, "%s%s", head, tail ? tail : "");
     free(head);
     free(tail);
@@ -111,7 +114,9 @@ static sb_result_t write_translations(sb_context_t *ctx, const sb_job_t *job, sb
 }
 
 /* sepbrdf.glsl; for non-negative factors (SB_CAP_NONNEG) also sampler.bin
- * and the sampler block appended to the snippet (sampler.h, glsl.h). */
+ * and the sampler block appended to the snippet (sampler.h, glsl.h), where
+ * the layout has one in GLSL (a program's layout may have it in C only: a
+ * warning). */
 static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set, const double *scales) {
     const job_attempt_t *a = &job->best;
     size_t J = sb_factors_terms(a->f);
@@ -132,7 +137,13 @@ static sb_result_t write_shader(sb_context_t *ctx, sb_job_t *job, sb_outset_t *s
         /* the share from the fit's error against the source (sampler_share.c) */
         r = sb_sampler_choose_share(ctx, s, job->src, 0, &job->share);
         if (r == SB_OK) r = write_sampler(ctx, job, set, s);
-        if (r == SB_OK) r = sb_glsl_write_sampled(ctx, path, a->param, a->m.form, J, scales, sb_factors_channels(a->f));
+        int gl = sb_param_sample_glsl(a->param)[0] != 0;
+        if (r == SB_OK && !gl)
+            job_warn(job, "no GLSL sampler: %s has its sampler in C only (sb_sample, sampler.bin)",
+                     sb_param_kind_name(sb_param_kind(a->param)));
+        if (r == SB_OK)
+            r = gl ? sb_glsl_write_sampled(ctx, path, a->param, a->m.form, J, scales, sb_factors_channels(a->f))
+                   : sb_glsl_write(ctx, path, a->param, a->m.form, J, scales);
         sb_sampler_destroy(s);
         job->wrote_sampler = r == SB_OK;
     } else {

@@ -119,9 +119,13 @@ static const char *desc_problem(const sb_layout_desc_t *d) {
         if (!isalnum((unsigned char)*c) && *c != '-' && *c != '_') return "a name of letters, digits, - and _ only";
     if (!d->vt || !d->vt->cell_dirs || !d->vt->row_measure || !d->vt->col_measure || !d->vt->coords || !d->vt->glsl)
         return "a vt with every function and the GLSL";
-    if (!d->row_sample != !d->sample_glsl) return "row_sample and sample_glsl both or neither";
+    if (!(d->row_sample || d->col_sample) != !d->sample_glsl)
+        return "sample_glsl with row_sample or col_sample, and not without";
     if (!d->row_cell != !d->row_edge || (d->row_cell && !d->row_sample))
         return "row_cell and row_edge both or neither, and row_sample with them";
+    int cols = (d->caps & SB_CAP_COL_SAMPLE) != 0;
+    if (!d->col_sample != !cols || !d->col_density != !cols || (cols && d->row_sample))
+        return "col_sample, col_density and SB_CAP_COL_SAMPLE all or none, and not with row_sample";
     return NULL;
 }
 

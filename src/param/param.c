@@ -348,6 +348,12 @@ int sb_param_row_cell(const sb_param_t *p, const float *const edge[2], const dou
 float sb_param_row_edge(const sb_param_t *p, int axis, size_t i) {
     return p && p->desc->row_edge && p->desc->row_cell ? p->desc->row_edge(p, axis, i) : NAN;
 }
+int sb_param_col_sample(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]) {
+    return p && wo && s && wi && p->desc->col_sample ? p->desc->col_sample(p, wo, s, wi) : 0;
+}
+double sb_param_col_density(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]) {
+    return p && wi && wo && s && p->desc->col_density ? p->desc->col_density(p, wi, wo, s) : 0;
+}
 const char *sb_param_sample_glsl(const sb_param_t *p) { return p && p->desc->sample_glsl ? p->desc->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {

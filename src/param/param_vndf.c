@@ -33,7 +33,9 @@
  * V; a BRDF pair when L and V are above the horizon.  Measures: rows the
  * solid angle of the views nearest the slice, columns 2 pi / (S_x S_y)
  * (the warp spends its nodes as the VNDF does: a weight, not a
- * quadrature). */
+ * quadrature).  Sampling (SB_CAP_COL_SAMPLE, sampler.h): the colour
+ * grid's position s maps to the light by the warp itself, wi = reflect(wo,
+ * m(VNDF(s | theta_v))), with density |ds/dwi| (vndf_col_density). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -155,6 +157,45 @@ static double vndf_gain(const sb_param_t *p, const double wi[3], const double wo
     return guard_undo(wi) * sb_table_bilinear(&t->ndf, u_m, NULL, 0) / (4 * sb_table_bilinear(&t->sigma, u_v, NULL, 0));
 }
 
+/* Sampling (sb_param_col_sample): the light of colour-grid position s for
+ * the view wo, u_m = VNDF(s | theta_v) (the warp itself, its slices mixed
+ * as the file mixes them, by bisection of the inverse), theta_m = u_m.x^2
+ * pi / 2, phi_m = 2 pi u_m.y - pi + phi_v, wi = 2 (wo.m) m - wo. */
+static int vndf_col_sample(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]) {
+    const sb_layout_tables_t *t = tab(p);
+    if (!(wo[2] > 0)) return 0;
+    double w, u_m[2], m[3];
+    size_t k;
+    slices_t sl;
+    view_slices(t, sb_table_elevation(wo), &k, &w, &sl);
+    sb_table_warp_sample(&t->vndf, &sl, s, u_m);
+    sb_dir_from_angles(u_m[0] * u_m[0] * (SB_PI / 2), 2 * SB_PI * u_m[1] - SB_PI + atan2(wo[1], wo[0]), m);
+    double vm = wo[0] * m[0] + wo[1] * m[1] + wo[2] * m[2];
+    for (int c = 0; c < 3; c++)
+        wi[c] = 2 * vm * m[c] - wo[c];
+    return vm > 0 && wi[2] > 0;
+}
+
+/* Its density |ds/dwi| = |ds/du_m| |du_m/dw_m| |dw_m/dwi|: the warp's
+ * density in u (the slices' normalised tables mixed, bilinear, in units of
+ * a patch: times (W - 1)(H - 1)), dw_m = sin theta_m dtheta_m dphi_m =
+ * 2 pi^2 u_m.x sin theta_m du_m, and dwi = 4 (wo.m) dw_m. */
+static double vndf_col_density(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]) {
+    const sb_layout_tables_t *t = tab(p);
+    s[0] = s[1] = 0.5;
+    if (!(wi[2] > 0 && wo[2] > 0)) return 0;
+    double u_m[2], u_v[2], w, m[3];
+    size_t k;
+    slices_t sl;
+    pair_coords(t, wi, wo, u_m, u_v, &k, &w, &sl);
+    sb_table_warp_invert(&t->vndf, u_m, &sl, s);
+    sb_dir_half(wi, wo, m);
+    double vm = wo[0] * m[0] + wo[1] * m[1] + wo[2] * m[2];
+    double pu = (double)((t->vndf.w - 1) * (t->vndf.h - 1)) * sb_table_bilinear(&t->vndf, u_m, &sl, 0);
+    double den = 2 * SB_PI * SB_PI * u_m[0] * sin(sb_table_elevation(m)) * 4 * vm;
+    return den > 0 && pu > 0 ? pu / den : 0;
+}
+
 static const char vndf_glsl[] =
     "uniform sampler2D sb_vndf; // vndf.exr: the file's VNDF, NDF and sigma tables (RGB float, texelFetch)\n"
     "float sb_vt(int c, int y, int x) { return texelFetch(sb_vndf, ivec2(x, y), 0)[c]; }\n"
@@ -197,7 +238,7 @@ static const char vndf_glsl[] =
     "    return (1.0 - fy) * ((1.0 - fx) * v00 + fx * v10) + fy * ((1.0 - fx) * v01 + fx * v11);\n"
     "}\n"
     "vec2 sb_um(vec3 L, vec3 V) {\n"
-    "    vec3 m = normalize(L + V);\n"
+    "    vec3 m = L + V; // unnormalised: sb_elev and sb_azim are atan2s, normalize would round it once more\n"
     "    float y = (sb_azim(m) - sb_azim(V) + SB_PI) / (2.0 * SB_PI);\n"
     "    return vec2(sqrt(sb_elev(m) * (2.0 / SB_PI)), y - floor(y));\n"
     "}\n"
@@ -218,6 +259,54 @@ static const char vndf_glsl[] =
     "    vec2 uv = vec2(sqrt(sb_elev(V) * (2.0 / SB_PI)), (sb_azim(V) + SB_PI) / (2.0 * SB_PI));\n"
     "    return g * sb_vbilin(SB_VN * SB_VH, SB_NW, SB_NH, sb_um(L, V)) /\n"
     "           (4.0 * sb_vbilin(SB_VN * SB_VH + SB_NH, SB_SW, SB_SH, uv));\n"
+    "}\n";
+
+/* The GLSL of vndf_col_sample and vndf_col_density (the sampler block,
+ * data/sepbrdf_sample.glsl, calls them): the warp itself by bisection of
+ * sb_vinvert in float (u_m.y on the marginal, then u_m.x on that row;
+ * 32 halvings reach float's resolution), its density from the slices'
+ * tables mixed as sb_vinvert mixes them. */
+static const char vndf_sample_glsl[] =
+    "bool sb_col_dir(vec3 V, vec2 s, out vec3 L) {\n"
+    "    L = vec3(0.0);\n"
+    "    if (!(V.z > 0.0)) return false;\n"
+    "    int k;\n"
+    "    float w, lo = 0.0, hi = 1.0;\n"
+    "    sb_vslice(sb_elev(V), k, w);\n"
+    "    for (int i = 0; i < 32; i++) {\n"
+    "        float mid = 0.5 * (lo + hi);\n"
+    "        if (sb_vinvert(vec2(0.0, mid), k, w).y < s.y) lo = mid; else hi = mid;\n"
+    "    }\n"
+    "    float uy = hi;\n"
+    "    lo = 0.0;\n"
+    "    hi = 1.0;\n"
+    "    for (int i = 0; i < 32; i++) {\n"
+    "        float mid = 0.5 * (lo + hi);\n"
+    "        if (sb_vinvert(vec2(mid, uy), k, w).x < s.x) lo = mid; else hi = mid;\n"
+    "    }\n"
+    "    float tm = hi * hi * (0.5 * SB_PI), pm = 2.0 * SB_PI * uy - SB_PI + sb_azim(V);\n"
+    "    vec3 m = vec3(sin(tm) * cos(pm), sin(tm) * sin(pm), cos(tm));\n"
+    "    float vm = dot(V, m);\n"
+    "    L = 2.0 * vm * m - V;\n"
+    "    return vm > 0.0 && L.z > 0.0;\n"
+    "}\n"
+    "float sb_col_density(vec3 L, vec3 V, out vec2 s) {\n"
+    "    s = vec2(0.5);\n"
+    "    if (!(L.z > 0.0 && V.z > 0.0)) return 0.0;\n"
+    "    int k;\n"
+    "    float w;\n"
+    "    sb_vslice(sb_elev(V), k, w);\n"
+    "    vec2 u = sb_um(L, V);\n"
+    "    s = sb_vinvert(u, k, w);\n"
+    "    float x = clamp(u.x, 0.0, 1.0) * float(SB_VW - 1), y = clamp(u.y, 0.0, 1.0) * float(SB_VH - 1);\n"
+    "    int ix = min(int(x), SB_VW - 2), iy = min(int(y), SB_VH - 2);\n"
+    "    float fx = x - float(ix), fy = y - float(iy);\n"
+    "    float pu = (1.0 - fy) * ((1.0 - fx) * sb_vmix(0, k, w, ix, iy) + fx * sb_vmix(0, k, w, ix + 1, iy)) +\n"
+    "               fy * ((1.0 - fx) * sb_vmix(0, k, w, ix, iy + 1) + fx * sb_vmix(0, k, w, ix + 1, iy + 1));\n"
+    "    vec3 m = normalize(L + V);\n"
+    "    float den = 2.0 * SB_PI * SB_PI * u.x * sin(sb_elev(m)) * 4.0 * dot(V, m);\n"
+    "    pu *= float((SB_VW - 1) * (SB_VH - 1));\n"
+    "    return den > 0.0 && pu > 0.0 ? pu / den : 0.0;\n"
     "}\n";
 
 static const sb_param_vt_t vndf_vt = {vndf_cell_dirs, vndf_row_measure, vndf_col_measure, vndf_coords,
@@ -276,11 +365,13 @@ const sb_param_desc_t sb_param_desc_vndf = {
     .description = "an RGL file's own grid (isotropic RGL .bsdf only): rows its theta_i slices, columns its colour "
                    "grid through its VNDF warp; exact at J = slices",
     .keys = "res",
-    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_TABLES,
+    .caps = SB_CAP_ROTATION_INVARIANT | SB_CAP_NEEDS_ISOTROPY | SB_CAP_TABLES | SB_CAP_COL_SAMPLE,
     .init = init_vndf,
     .vt = &vndf_vt,
     .row_sample = NULL,
-    .sample_glsl = ""};
+    .sample_glsl = vndf_sample_glsl,
+    .col_sample = vndf_col_sample,
+    .col_density = vndf_col_density};
 
 /* ---- the tables ------------------------------------------------------------- */
 

@@ -75,8 +75,10 @@ typedef struct sb_layout_desc {
     size_t (*warp_cells)(const sb_param_t *p, int axis);
     /* sampling (sb_param_row_sample, sampler.h): a direction uniform in
      * solid angle over row cell `row` (wi, or h for SB_CAP_HALF_ROWS), and
-     * its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)`; NULL both: the
-     * layout has no sampler */
+     * its GLSL `vec3 sb_row_dir(ivec2 cell, vec2 u)` (with col_sample
+     * instead: `bool sb_col_dir(vec3 V, vec2 s, out vec3 L)` and `float
+     * sb_col_density(vec3 L, vec3 V, out vec2 s)`); NULL both: the layout
+     * has no sampler */
     void (*row_sample)(const sb_param_t *p, size_t row, const double u[2], double w[3]);
     const char *sample_glsl;
     /* Optional, with row_sample (sb_param_row_cell): the row cell whose
@@ -89,6 +91,11 @@ typedef struct sb_layout_desc {
     float (*row_edge)(const sb_param_t *p, int axis, size_t i);
     void (*row_cell)(const sb_param_t *p, const float *const edge[2], const double wi[3], const double wo[3],
                      size_t cell[2]);
+    /* Sampling the columns instead (caps SB_CAP_COL_SAMPLE, both or
+     * neither, without row_sample): sb_param_col_sample and
+     * sb_param_col_density (param.h) */
+    int (*col_sample)(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]);
+    double (*col_density)(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]);
 } sb_layout_desc_t;
 
 /* A layout's shape: the g textures g[0] x g[1] texels (rows g[0] g[1],
@@ -121,8 +128,10 @@ SB_API const sb_param_opts_t *sb_param_options(const sb_param_t *p);
  * valid for the life of the process.  Safe to call from several threads.
  * Errors: SB_ERR_ARG (NULL desc, a name that is empty, not of letters,
  * digits, '-' and '_', or "auto", no vt or a vt function or glsl
- * missing, row_sample without sample_glsl or the reverse, row_cell
- * without row_edge or the reverse, or either without row_sample),
+ * missing, sample_glsl without row_sample or col_sample or the reverse, row_cell
+ * without row_edge or the reverse, or either without row_sample,
+ * col_sample, col_density and SB_CAP_COL_SAMPLE not all or none, or
+ * with row_sample),
  * SB_ERR_RANGE (the name is taken; SB_LAYOUTS_MAX reached). */
 SB_API sb_result_t sb_param_register(sb_context_t *ctx, const sb_layout_desc_t *desc, sb_param_kind_t *kind);
 
