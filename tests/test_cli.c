@@ -3,6 +3,7 @@
 /* CLI: the real binary, its exit codes, files and messages. */
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "harness.h"
 
@@ -300,6 +301,21 @@ SB_TEST(unweighted_nmf_said) {
     const char *dir = sb_tmpdir("cli");
     int rc = run("factor lambert --param io -r 4 -J 1 --method nmf --unweighted -o %s", dir);
     CHECKF(rc == 0 && strstr(out, "--unweighted is not applied"), "rc %d: %s", rc, out);
+}
+
+/* factor's last line names every file it wrote: sampler.bin too, where
+ * --method nmf gave a sampler (it named vndf.exr, report.json and the
+ * snippets only), and not where the factors are signed. */
+SB_TEST(last_line_names_the_sampler) {
+    const char *dir = sb_tmpdir("cli_sampler_line");
+    int rc = run("factor lambert --param io -r 4 -J 1 --method nmf -o %s/n", dir);
+    CHECKF(rc == 0 && strstr(out, "wrote 1 texture pair, sampler.bin, report.json and sepbrdf.glsl"), "rc %d: %s", rc,
+           out);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/n/sampler.bin", dir);
+    CHECKF(access(path, F_OK) == 0, "%s missing", path);
+    rc = run("factor lambert --param io -r 4 -J 1 -o %s/s", dir);
+    CHECKF(rc == 0 && strstr(out, "wrote 1 texture pair, report.json and sepbrdf.glsl"), "rc %d: %s", rc, out);
 }
 
 /* --theta-max below 90 without a scene: the errors (headline, bands,

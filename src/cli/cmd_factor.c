@@ -3,6 +3,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "pipeline.h"
@@ -245,8 +246,11 @@ static void print_result(const sb_job_t *job, const char *out, const char *shade
     snippet_names(shaders, snippets, sizeof snippets);
     size_t J = sb_factors_terms(f);
     int tables = (sb_param_caps(sb_job_param(job)) & SB_CAP_TABLES) != 0; /* vndf.exr, the tables the snippet reads */
-    printf("wrote %zu texture pair%s, %sreport.json and %s to %s/ (%.3f s)\n", J, J == 1 ? "" : "s",
-           tables ? "vndf.exr, " : "", snippets, out, t.total_s);
+    char sampler[4200]; /* the importance sampler's tables (--method nmf, a layout with a sampler) */
+    snprintf(sampler, sizeof sampler, "%s/sampler.bin", out);
+    int sampled = access(sampler, F_OK) == 0;
+    printf("wrote %zu texture pair%s, %s%sreport.json and %s to %s/ (%.3f s)\n", J, J == 1 ? "" : "s",
+           tables ? "vndf.exr, " : "", sampled ? "sampler.bin, " : "", snippets, out, t.total_s);
     print_budget(job);
 }
 
