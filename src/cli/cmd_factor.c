@@ -286,7 +286,8 @@ int cmd_factor(int argc, char **argv) {
     cli_progress_done();
     failed = r != SB_OK;
     if (r == SB_OK && rank == 0) { /* the other ranks shared the passes */
-        for (size_t i = 0; i < sb_job_warning_count(job); i++)
+        size_t said = sb_job_warning_count(job); /* those the write adds (no sampler) follow it */
+        for (size_t i = 0; i < said; i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         /* auto's, or those of a layout named alone (its forms) */
         if ((sb_job_auto(job) || sb_job_candidate(job, 1)) && g_verbosity >= 1) print_candidates(job, o.param);
@@ -297,6 +298,8 @@ int cmd_factor(int argc, char **argv) {
         sb_outset_t *set = cli_outset_begin(ctx, "factor", out, &rc);
         if (!set) goto out;
         r = sb_job_write_set(ctx, job, set);
+        for (size_t i = said; r == SB_OK && i < sb_job_warning_count(job); i++)
+            cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (r != SB_OK) {
             cli_outset_end(ctx, "factor", set, 0);
         } else if ((rc = cli_outset_end(ctx, "factor", set, 1)) != EXIT_OK) {
