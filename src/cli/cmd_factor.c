@@ -3,6 +3,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "pipeline.h"
@@ -223,7 +224,7 @@ static void snippet_names(const char *shaders, char *buf, size_t size) {
     }
 }
 
-static void print_result(const sb_job_t *job, const char *out, const char *shaders) {
+static void print_result(const sb_job_t *job, const char *out, const char *shaders, int sampler) {
     const sb_matrix_t *m = sb_job_matrix(job);
     const sb_factors_t *f = sb_job_factors(job);
     sb_job_timings_t t;
@@ -245,8 +246,8 @@ static void print_result(const sb_job_t *job, const char *out, const char *shade
     snippet_names(shaders, snippets, sizeof snippets);
     size_t J = sb_factors_terms(f);
     int tables = (sb_param_caps(sb_job_param(job)) & SB_CAP_TABLES) != 0; /* vndf.exr, the tables the snippet reads */
-    printf("wrote %zu texture pair%s, %sreport.json and %s to %s/ (%.3f s)\n", J, J == 1 ? "" : "s",
-           tables ? "vndf.exr, " : "", snippets, out, t.total_s);
+    printf("wrote %zu texture pair%s, %s%sreport.json and %s to %s/ (%.3f s)\n", J, J == 1 ? "" : "s",
+           tables ? "vndf.exr, " : "", sampler ? "sampler.bin, " : "", snippets, out, t.total_s);
     print_budget(job);
 }
 
@@ -273,7 +274,7 @@ int cmd_factor(int argc, char **argv) {
     if ((rc = cli_check_outdir("factor", "--out", out)) != EXIT_OK) return rc;
     sb_context_t *ctx = NULL;
     sb_job_t *job = NULL;
-    int rank = 0, size = 0, failed = 0; /* sepbrdf-mpi: this rank, the ranks (0: MPI not started) */
+    int rank = 0, size = 0, failed = 0, sampler = 0; /* sepbrdf-mpi: this rank, the ranks (0: MPI not started) */
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
         return EXIT_IO;
@@ -285,7 +286,7 @@ int cmd_factor(int argc, char **argv) {
     sb_result_t r = sb_job_run(ctx, &o, &job);
     cli_progress_done();
     failed = r != SB_OK;
-    if (r == SB_OK && rank == 0) { /* the other ranks shared the passes */
+    if (r == SB_OK && rank == 0) {               /* the other ranks shared the passes */
         size_t said = sb_job_warning_count(job); /* those the write adds (no sampler) follow it */
         for (size_t i = 0; i < said; i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
@@ -298,6 +299,9 @@ int cmd_factor(int argc, char **argv) {
         sb_outset_t *set = cli_outset_begin(ctx, "factor", out, &rc);
         if (!set) goto out;
         r = sb_job_write_set(ctx, job, set);
+        char staged[4200]; /* the staging folder holds this run's files alone */
+        snprintf(staged, sizeof staged, "%s/sampler.bin", sb_outset_dir(set));
+        sampler = r == SB_OK && access(staged, F_OK) == 0;
         for (size_t i = said; r == SB_OK && i < sb_job_warning_count(job); i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (r != SB_OK) {
@@ -306,7 +310,7 @@ int cmd_factor(int argc, char **argv) {
             goto out;
         }
     }
-    if (r == SB_OK && g_verbosity >= 1) print_result(job, out, o.shaders);
+    if (r == SB_OK && g_verbosity >= 1) print_result(job, out, o.shaders, sampler);
     if (r == SB_OK && rank == 0 && poor_after_loss(job)) {
         rc = EXIT_IO; /* written, but far from what the lost candidates might give */
         goto out;
