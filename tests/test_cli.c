@@ -354,3 +354,22 @@ SB_TEST(theta_max_measured_within_cap) {
     CHECKF(json_first_number(path, "headline") < 1e-6, "lambert io in the cap: %g",
            json_first_number(path, "headline"));
 }
+
+/* --method nmf on a layout without a sampler (vh: its rows are views):
+ * the set has no sampler.bin, and stderr says so (the warning, raised
+ * while the set was written, reached report.json alone). */
+SB_TEST(nmf_without_sampler_said) {
+    const char *dir = sb_tmpdir("cli");
+    char path[1024];
+    int rc = run("factor lambert --param vh -r 8 -J 1 --method nmf -o %s/a", dir);
+    CHECKF(rc == 0 && strstr(out, "warning: no sampler: vh has no sampler") && !strstr(out, "sampler.bin, "),
+           "rc %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/a/sampler.bin", dir);
+    FILE *fp = fopen(path, "rb");
+    CHECKF(!fp, "%s written", path);
+    if (fp) fclose(fp);
+    /* with a sampler, the last line names sampler.bin (it named the textures, report.json and the snippet) */
+    rc = run("factor lambert --param io -r 8 -J 1 --method nmf -o %s/b", dir);
+    CHECKF(rc == 0 && strstr(out, "wrote 1 texture pair, sampler.bin, report.json and sepbrdf.glsl to "), "rc %d: %s",
+           rc, out);
+}

@@ -182,6 +182,17 @@ SB_TEST(vndf_tables) {
     snprintf(path, sizeof path, "%s/tables.exr", dir);
     rc = run("info %s", path);
     CHECKF(rc == 0 && strstr(out, "vndf tables") && strstr(out, "channels   3:"), "rc %d: %s", rc, out);
+    /* under a name without .exr, by its content (OpenEXR's magic): it said
+     * "unrecognised measured table (unknown content)", exit 2 */
+    static const char *const names[] = {"vndf.bin", "vndf"};
+    for (size_t k = 0; k < 2; k++) {
+        snprintf(cmd, sizeof cmd, "cp %s/vndf.exr %s/%s", dir, dir, names[k]);
+        CHECK(sb_run(cmd, NULL, 0) == 0);
+        snprintf(path, sizeof path, "%s/%s", dir, names[k]);
+        rc = run("info %s 2>&1", path);
+        CHECKF(rc == 0 && strstr(out, "vndf tables") && strstr(out, "channels   3:"), "%s: rc %d: %s", names[k], rc,
+               out);
+    }
 }
 
 /* A measured table named .exr is described as the table it is, as factor

@@ -79,6 +79,22 @@ static sb_result_t open_offset(const char *name, uint64_t off, char *msg, size_t
     return open_bytes(b, msg, size);
 }
 
+/* The real file with float32 values [first, first + n) of field `name`
+ * set to v, opened. */
+static sb_result_t open_values(const char *name, size_t first, size_t n, float v, char *msg, size_t size) {
+    unsigned char *b = malloc(file_size);
+    memcpy(b, file, file_size);
+    size_t ndim = 0, at = shape_at(b, name, &ndim);
+    CHECKF(at > 8, "no field %s", name);
+    size_t off = at > 8 ? (size_t)get(b + at - 8, 8) : 0;
+    uint32_t u;
+    memcpy(&u, &v, 4);
+    for (size_t k = first; at > 8 && k < first + n && off + 4 * k + 4 <= file_size; k++)
+        for (int i = 0; i < 4; i++)
+            b[off + 4 * k + (size_t)i] = (unsigned char)(u >> (8 * i));
+    return open_bytes(b, msg, size);
+}
+
 /* b (file_size bytes, freed here) written and opened. */
 static sb_result_t open_bytes(unsigned char *b, char *msg, size_t size) {
     char path[4200];
@@ -148,4 +164,22 @@ SB_TEST(overlapping_offsets_refused) {
            sb_result_name(r), msg);
     r = open_offset("rgb", vndf_off + 4, msg, sizeof msg);
     CHECKF(r == SB_ERR_FORMAT && strstr(msg, "vndf and rgb share bytes"), "%s: %s", sb_result_name(r), msg);
+}
+
+/* The NDF is a density (f_r = colour D(m) / (4 sigma)): a negative value
+ * or a table of zeros is refused naming the field (they were read as f_r
+ * <= 0 everywhere, factored, exit 0); the real table loads. */
+SB_TEST(ndf_not_a_density_refused) {
+    if (!load()) SKIP("no " REAL);
+    size_t nd, at = shape_at(file, "ndf", &nd);
+    CHECK(at && nd == 2);
+    size_t n = at ? (size_t)(get(file + at, 8) * get(file + at + 8, 8)) : 0;
+    CHECK(n == 256);
+    char msg[1024] = "";
+    CHECKF(open_values("ndf", 0, 0, 0, msg, sizeof msg) == SB_OK, "%s", msg);
+    sb_result_t r = open_values("ndf", 0, n, 0, msg, sizeof msg);
+    CHECKF(r == SB_ERR_FORMAT && strstr(msg, "ndf") && strstr(msg, "zero everywhere"), "%s: %s", sb_result_name(r),
+           msg);
+    r = open_values("ndf", 37, 1, -0.5f, msg, sizeof msg);
+    CHECKF(r == SB_ERR_FORMAT && strstr(msg, "ndf[37] = -0.5"), "%s: %s", sb_result_name(r), msg);
 }

@@ -224,7 +224,7 @@ static void snippet_names(const char *shaders, char *buf, size_t size) {
     }
 }
 
-static void print_result(const sb_job_t *job, const char *out, const char *shaders) {
+static void print_result(const sb_job_t *job, const char *out, const char *shaders, int sampler) {
     const sb_matrix_t *m = sb_job_matrix(job);
     const sb_factors_t *f = sb_job_factors(job);
     sb_job_timings_t t;
@@ -246,11 +246,8 @@ static void print_result(const sb_job_t *job, const char *out, const char *shade
     snippet_names(shaders, snippets, sizeof snippets);
     size_t J = sb_factors_terms(f);
     int tables = (sb_param_caps(sb_job_param(job)) & SB_CAP_TABLES) != 0; /* vndf.exr, the tables the snippet reads */
-    char sampler[4200]; /* the importance sampler's tables (--method nmf, a layout with a sampler) */
-    snprintf(sampler, sizeof sampler, "%s/sampler.bin", out);
-    int sampled = access(sampler, F_OK) == 0;
     printf("wrote %zu texture pair%s, %s%sreport.json and %s to %s/ (%.3f s)\n", J, J == 1 ? "" : "s",
-           tables ? "vndf.exr, " : "", sampled ? "sampler.bin, " : "", snippets, out, t.total_s);
+           tables ? "vndf.exr, " : "", sampler ? "sampler.bin, " : "", snippets, out, t.total_s);
     print_budget(job);
 }
 
@@ -277,7 +274,7 @@ int cmd_factor(int argc, char **argv) {
     if ((rc = cli_check_outdir("factor", "--out", out)) != EXIT_OK) return rc;
     sb_context_t *ctx = NULL;
     sb_job_t *job = NULL;
-    int rank = 0, size = 0, failed = 0; /* sepbrdf-mpi: this rank, the ranks (0: MPI not started) */
+    int rank = 0, size = 0, failed = 0, sampler = 0; /* sepbrdf-mpi: this rank, the ranks (0: MPI not started) */
     if (sb_context_create(&ctx) != SB_OK) {
         cli_error("factor", "out of memory");
         return EXIT_IO;
@@ -289,8 +286,9 @@ int cmd_factor(int argc, char **argv) {
     sb_result_t r = sb_job_run(ctx, &o, &job);
     cli_progress_done();
     failed = r != SB_OK;
-    if (r == SB_OK && rank == 0) { /* the other ranks shared the passes */
-        for (size_t i = 0; i < sb_job_warning_count(job); i++)
+    if (r == SB_OK && rank == 0) {               /* the other ranks shared the passes */
+        size_t said = sb_job_warning_count(job); /* those the write adds (no sampler) follow it */
+        for (size_t i = 0; i < said; i++)
             cli_error("factor", "warning: %s", sb_job_warning(job, i));
         /* auto's, or those of a layout named alone (its forms) */
         if ((sb_job_auto(job) || sb_job_candidate(job, 1)) && g_verbosity >= 1) print_candidates(job, o.param);
@@ -301,13 +299,18 @@ int cmd_factor(int argc, char **argv) {
         sb_outset_t *set = cli_outset_begin(ctx, "factor", out, &rc);
         if (!set) goto out;
         r = sb_job_write_set(ctx, job, set);
+        char staged[4200]; /* the staging folder holds this run's files alone */
+        snprintf(staged, sizeof staged, "%s/sampler.bin", sb_outset_dir(set));
+        sampler = r == SB_OK && access(staged, F_OK) == 0;
+        for (size_t i = said; r == SB_OK && i < sb_job_warning_count(job); i++)
+            cli_error("factor", "warning: %s", sb_job_warning(job, i));
         if (r != SB_OK) {
             cli_outset_end(ctx, "factor", set, 0);
         } else if ((rc = cli_outset_end(ctx, "factor", set, 1)) != EXIT_OK) {
             goto out;
         }
     }
-    if (r == SB_OK && g_verbosity >= 1) print_result(job, out, o.shaders);
+    if (r == SB_OK && g_verbosity >= 1) print_result(job, out, o.shaders, sampler);
     if (r == SB_OK && rank == 0 && poor_after_loss(job)) {
         rc = EXIT_IO; /* written, but far from what the lost candidates might give */
         goto out;

@@ -247,21 +247,23 @@ out:
     return rc;
 }
 
-/* An .exr name, unless the file is no EXR (OpenEXR's magic) and a measured
- * reader opens it: such a table is described as `factor` reads it, content
- * first (it said "cannot read as an EXR file"); other content keeps the
- * EXR reader's message. */
+/* A file that starts with OpenEXR's magic, under any name (vndf.exr
+ * renamed said "unrecognised measured table"), or an .exr name unless a
+ * measured reader opens the file: such a table is described as `factor`
+ * reads it, content first (it said "cannot read as an EXR file"); other
+ * content named .exr keeps the EXR reader's message. */
 static int is_factor_exr(const char *path) {
     size_t n = strlen(path);
-    if (n < 4 || (strcmp(path + n - 4, ".exr") != 0 && strcmp(path + n - 4, ".EXR") != 0)) return 0;
+    int named = n >= 4 && (strcmp(path + n - 4, ".exr") == 0 || strcmp(path + n - 4, ".EXR") == 0);
     struct stat st; /* a FIFO or a device: the EXR reader refuses it, naming it (opened here, a FIFO blocks) */
-    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return 1;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return named;
     static const unsigned char magic[4] = {0x76, 0x2f, 0x31, 0x01};
     unsigned char head[4];
     FILE *fp = fopen(path, "rb");
     size_t got = fp ? fread(head, 1, sizeof head, fp) : 0;
     if (fp) fclose(fp);
     if (got == sizeof head && memcmp(head, magic, sizeof head) == 0) return 1;
+    if (!named) return 0;
     sb_context_t *ctx = NULL;
     sb_source_t *src = NULL;
     sb_context_create(&ctx);

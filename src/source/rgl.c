@@ -310,6 +310,17 @@ static sb_result_t load_tables(sb_context_t *ctx, const char *path, const tf_fil
         (r = table_load(ctx, path, sigma, 1, 1, &g->sigma)) != SB_OK ||
         (r = table_load(ctx, path, vndf, g->n_phi * g->n_theta, 1, &g->vndf)) != SB_OK)
         return r;
+    /* the NDF is a density (f_r = colour D(m) / (4 sigma)): a negative value
+     * or zeros everywhere would make f_r <= 0 everywhere */
+    double ndf_sum = 0;
+    for (size_t k = 0; k < g->ndf.w * g->ndf.h; k++) {
+        if (g->ndf.v[k] < 0)
+            return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: ndf[%zu] = %g, a microfacet density is never negative", path,
+                            k, g->ndf.v[k]);
+        ndf_sum += g->ndf.v[k];
+    }
+    if (!(ndf_sum > 0))
+        return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: field 'ndf' is zero everywhere: f_r would be 0 everywhere", path);
     for (size_t k = 0; g->jacobian && k < g->sigma.w * g->sigma.h; k++)
         if (!(g->sigma.v[k] > 0))
             return sb_error(ctx, SB_ERR_FORMAT, "%s: RGL: sigma[%zu] = %g, the projected area must be positive", path,
