@@ -16,6 +16,7 @@
 #include "sepbrdf/sepbrdf.h"
 
 #include "sampler_chi2.h"
+#include "sampler_cols_check.h"
 #include "sampler_fixture.h"
 
 static void dir(double theta_deg, double phi_deg, double w[3]) {
@@ -376,16 +377,6 @@ SB_TEST(errors) {
     sb_factors_destroy(f);
     sb_param_destroy(p);
     sb_param_destroy(q);
-}
-
-static uint32_t u32_at(const unsigned char *b) {
-    return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
-}
-static float f32_at(const unsigned char *b) {
-    uint32_t v = u32_at(b);
-    float f;
-    memcpy(&f, &v, sizeof f);
-    return f;
 }
 
 /* The file: header, every CDF ending in 1, integrals (scaled per g_j), the

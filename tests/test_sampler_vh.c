@@ -20,153 +20,23 @@
 #include "harness.h"
 #include "sepbrdf/sepbrdf.h"
 
-#include "sampler_chi2.h"
+#include "sampler_cols_check.h"
 
-typedef struct hfix {
-    sb_context_t *ctx;
-    sb_job_t *job;
-    sb_sampler_t *s;
-} hfix_t;
+#define GOLD "microfacet:base=gold,roughness=0.5"
 
-static const char *source_path(const char *src, char *buf, size_t n) {
-    if (!strstr(src, ".bsdf")) return src;
-    snprintf(buf, n, "%s/%s", SB_MEASURED_DIR, src);
-    return buf;
-}
+/* the half vector drawn for every view alike: at theta_o 75 a third of
+ * the draws land above the horizon (n / 4 must) */
+SB_TEST(chi2_gold) { cfix_chi2(GOLD, "vh", 200000, 0x38f0ULL, 4); }
+SB_TEST(chi2_cook_torrance) { cfix_chi2("cook-torrance:roughness=0.3", "vh", 200000, 0x38f0ULL, 4); }
+SB_TEST(chi2_paper) { cfix_chi2("rgl_paper_white_rgb.bsdf", "vh", 200000, 0x38f0ULL, 4); }
 
-static int hfix_open(const char *src, hfix_t *x) {
-    memset(x, 0, sizeof *x);
-    char path[1024];
-    sb_job_opts_t o = {0};
-    o.source = source_path(src, path, sizeof path), o.param = "vh", o.terms = 4, o.method = SB_METHOD_NMF;
-    sb_context_create(&x->ctx);
-    sb_result_t r = sb_job_run(x->ctx, &o, &x->job);
-    if (!r) r = sb_sampler_create(x->ctx, sb_job_factors(x->job), sb_job_param(x->job), sb_job_form(x->job), &x->s);
-    CHECKF(r == SB_OK, "%s: %s", src, sb_context_last_error(x->ctx));
-    return r == SB_OK;
-}
-
-static void hfix_close(hfix_t *x) {
-    sb_sampler_destroy(x->s);
-    sb_job_destroy(x->job);
-    sb_context_destroy(x->ctx);
-}
-
-static void dir(double theta_deg, double phi_deg, double w[3]) {
-    sb_dir_from_angles(theta_deg * SB_PI / 180, phi_deg * SB_PI / 180, w);
-}
-
-static const double THETAS[4] = {10, 30, 55, 75};
-
-/* chi2 of n draws at each elevation (phi_o = 30), every draw's pdf that
- * of sb_pdf. */
-static void chi2_source(const char *src, size_t n) {
-    hfix_t x;
-    if (!hfix_open(src, &x)) {
-        hfix_close(&x);
-        return;
-    }
-    double *mass = malloc(NT * NP * sizeof *mass), *obs = malloc(NT * NP * sizeof *obs);
-    unsigned long long rng = 0x38f0ULL;
-    for (size_t o = 0; o < 4; o++) {
-        double wo[3], wi[3], pdf, stat;
-        dir(THETAS[o], 30, wo);
-        memset(obs, 0, NT * NP * sizeof *obs);
-        size_t ok = 0, bad = 0;
-        for (size_t i = 0; i < n; i++) {
-            double u[2] = {sb_rand01(&rng), sb_rand01(&rng)};
-            if (!sb_sample(x.s, wo, u, wi, &pdf, NULL)) continue;
-            ok++;
-            obs[bin_of(wi)] += 1;
-            bad += !(fabs(sb_pdf(x.s, wo, wi) - pdf) <= 1e-12 * pdf);
-        }
-        expected_mass(x.s, wo, (double)n, mass);
-        int dof;
-        double p = chi2_p(mass, obs, (double)n, &stat, &dof);
-        fprintf(stderr, "vh %s theta_o %2.0f: %zu/%zu draws, chi2 %.1f dof %d p %.3f\n", src, THETAS[o], ok, n, stat,
-                dof, p);
-        CHECKF(p >= 0.001, "%s theta_o %g: chi2 %g, dof %d, p %g < 0.001", src, THETAS[o], stat, dof, p);
-        CHECKF(bad == 0, "%s: %zu draws whose pdf is not sb_pdf's", src, bad);
-        /* the half vector drawn for every view alike: at theta_o 75 a third land above the horizon */
-        CHECKF(ok >= n / 4, "%s theta_o %g: only %zu of %zu draws succeed", src, THETAS[o], ok, n);
-    }
-    free(mass);
-    free(obs);
-    hfix_close(&x);
-}
-
-SB_TEST(chi2_gold) { chi2_source("microfacet:base=gold,roughness=0.5", 200000); }
-SB_TEST(chi2_cook_torrance) { chi2_source("cook-torrance:roughness=0.3", 200000); }
-SB_TEST(chi2_paper) { chi2_source("rgl_paper_white_rgb.bsdf", 200000); }
-
-/* Integral of the pdf (fcos 0) or of Y(f) cos over the upper
- * hemisphere, midpoint rule in (cos theta, phi) on n x 2n cells. */
-static double hemi(const hfix_t *x, const double wo[3], int fcos, size_t n) {
-    double dz = 1.0 / (double)n, dp = SB_PI / (double)n, sum = 0;
-    for (size_t i = 0; i < n; i++)
-        for (size_t k = 0; k < 2 * n; k++) {
-            double z = 1 - (i + 0.5) * dz, phi = (k + 0.5) * dp, r = sqrt(1 - z * z), rgb[3];
-            double w[3] = {r * cos(phi), r * sin(phi), z};
-            if (!fcos) {
-                sum += sb_pdf(x->s, wo, w);
-                continue;
-            }
-            sb_factors_eval(sb_job_factors(x->job), sb_job_param(x->job), sb_job_form(x->job), 4, w, wo, rgb);
-            sum += (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]) * w[2];
-        }
-    return sum * dz * dp;
-}
-
-/* The pdf integrates to the share of draws that succeed, and the
- * estimate of int Y(f) cos matches the quadrature (within 4 standard
- * errors and the quadrature's change from 256 to 512 steps): no region
- * where f > 0 and the pdf is 0. */
-static void integrals(const char *src) {
-    hfix_t x;
-    if (!hfix_open(src, &x)) {
-        hfix_close(&x);
-        return;
-    }
-    unsigned long long rng = 11;
-    for (int o = 0; o < 4; o++) {
-        double wo[3], wi[3], pdf, rgb[3], s1 = 0, s2 = 0;
-        dir(THETAS[o], 30, wo);
-        double mass = hemi(&x, wo, 0, 512), coarse = hemi(&x, wo, 0, 256);
-        double ref = hemi(&x, wo, 1, 512), ref_c = hemi(&x, wo, 1, 256);
-        size_t n = 200000, ok = 0;
-        for (size_t i = 0; i < n; i++) {
-            double u[2] = {sb_rand01(&rng), sb_rand01(&rng)}, v = 0;
-            if (sb_sample(x.s, wo, u, wi, &pdf, rgb)) {
-                ok++;
-                v = (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]) * wi[2] / pdf;
-            }
-            s1 += v, s2 += v * v;
-        }
-        double mean = s1 / n, se = sqrt(fmax(s2 / n - mean * mean, 0) / n), frac = (double)ok / n;
-        fprintf(stderr,
-                "vh %s theta_o %2.0f: pdf integral %.5f (%.5f at 256), successes %.5f; MC %.5f +- %.5f vs %.5f\n", src,
-                THETAS[o], mass, coarse, frac, mean, se, ref);
-        CHECK_ABS(mass, frac, 4 * sqrt(frac * (1 - frac) / n) + 2e-3 + fabs(mass - coarse));
-        CHECK_ABS(mean, ref, 4 * se + fabs(ref - ref_c) + 1e-3 * ref);
-    }
-    hfix_close(&x);
-}
-
-SB_TEST(integrals_gold) { integrals("microfacet:base=gold,roughness=0.5"); }
-SB_TEST(integrals_paper) { integrals("rgl_paper_white_rgb.bsdf"); }
+SB_TEST(integrals_gold) { cfix_integrals(GOLD, "vh"); }
+SB_TEST(integrals_paper) { cfix_integrals("rgl_paper_white_rgb.bsdf", "vh"); }
 
 /* |ds/dwi| against the solid angle of the image of a square of side h
  * around s (its corners mapped by sb_param_col_sample, the spherical
  * quadrilateral's area as two triangles, times 2 for the fold's 1/2):
  * within 2 %, and col_density's s the folded position. */
-static double tri_area(const double a[3], const double b[3], const double c[3]) {
-    double bc[3] = {b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
-    double num = a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2];
-    double den = 1 + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) + (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) +
-                 (c[0] * a[0] + c[1] * a[1] + c[2] * a[2]);
-    return 2 * fabs(atan2(num, den));
-}
-
 SB_TEST(jacobian) {
     sb_context_t *ctx = NULL;
     sb_param_t *p = NULL;
@@ -181,7 +51,7 @@ SB_TEST(jacobian) {
     unsigned long long rng = 5;
     for (int o = 0; r == SB_OK && o < 4; o++) {
         double wo[3];
-        dir(THETAS[o], 70, wo);
+        cfix_dir(CFIX_THETAS[o], 70, wo);
         for (int t = 0; t < 100; t++) {
             double s[2] = {0.05 + 0.9 * sb_rand01(&rng), 0.05 + 1.9 * sb_rand01(&rng)}, c[4][3], wi[3], back[2];
             if (fabs(s[1] - 1) < 0.01) continue;
@@ -199,7 +69,7 @@ SB_TEST(jacobian) {
                 !(fabs(jac - num) <= 0.02 * num) || !(fabs(back[0] - s[0]) < 1e-7 && fabs(back[1] - fold) < 1e-7);
             if (wrong && bad < 5)
                 fprintf(stderr, "theta_o %g s (%.4f, %.4f): |ds/dwi| %g, by the mapped square %g; back (%.6f, %.6f)\n",
-                        THETAS[o], s[0], s[1], jac, num, back[0], back[1]);
+                        CFIX_THETAS[o], s[0], s[1], jac, num, back[0], back[1]);
             bad += wrong;
         }
     }
@@ -214,21 +84,11 @@ SB_TEST(jacobian) {
  * between the h textures' nodes, J C + 1 layers), the report's sampler
  * block with the share sampler.bin holds, no warning that a sampler is
  * missing, and the sampler block (sb_col_dir) in every language. */
-static uint32_t u32_at(const unsigned char *b) {
-    return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
-}
-static float f32_at(const unsigned char *b) {
-    uint32_t v = u32_at(b);
-    float f;
-    memcpy(&f, &v, sizeof f);
-    return f;
-}
-
 SB_TEST(factor_writes_sampler) {
     char file[1200];
     const char *dir = sb_tmpdir("sampler_vh");
     sb_job_opts_t o = {0};
-    o.source = "microfacet:base=gold,roughness=0.5", o.param = "vh", o.terms = 2, o.method = SB_METHOD_NMF, o.out = dir;
+    o.source = GOLD, o.param = "vh", o.terms = 2, o.method = SB_METHOD_NMF, o.out = dir;
     o.shaders = "all";
     sb_context_t *ctx = NULL;
     sb_job_t *job = NULL;
