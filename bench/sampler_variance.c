@@ -13,7 +13,7 @@
  * against its own pdf (n draws, bins and pooling of tests/sampler_chi2.h;
  * the fixed share, so that the factored part is drawn in every case).
  *
- *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area,vndf] [--azimuth A]
+ *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area,vndf,vh] [--azimuth A]
  *                                 [--seed S] [SOURCE...]
  * Run from the source tree (the measured files under tests/data/measured). */
 #include <math.h>
@@ -171,7 +171,7 @@ static int run(sb_context_t *ctx, const char *spec, const char *param, size_t re
 
 int main(int argc, char **argv) {
     size_t n = 200000, res = 32;
-    const char *plist = "iso,hd,io,io-area,vndf";
+    const char *plist = "iso,hd,io,io-area,vndf,vh";
     int first = argc;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--samples") && i + 1 < argc)
@@ -190,7 +190,7 @@ int main(int argc, char **argv) {
                 "[--seed S] [SOURCE...]\n"
                 "Variance of cosine sampling over the factored sampler's, against the source, per layout and\n"
                 "elevation (the chosen share; in parentheses the fixed share %g); chi2 p-values at the fixed share.\n"
-                "--param: layouts, comma-separated (default iso,hd,io,io-area,vndf; those that do not apply to a\n"
+                "--param: layouts, comma-separated (default iso,hd,io,io-area,vndf,vh; those that do not apply to a\n"
                 "source skipped: vndf takes RGL files only); --azimuth: of V in radians (0.3);\n"
                 "--seed: of the chi2 draws (1; every source, layout and elevation draws its own stream from it).\n",
                 SB_SAMPLER_COSINE_SHARE);

@@ -11,8 +11,9 @@
 // results.  `sepbrdf factor` appends this block to sepbrdf.glsl after the
 // snippet, when the factors are non-negative (--method nmf), with a header
 // defining SB_SAMPLE_CH (channels of the factors), SB_HALF_ROWS (rows index
-// the half vector: hd, iso), SB_COL_SAMPLE (the columns are sampled: vndf)
-// and the parameterisation's sb_row_dir() (SB_COL_SAMPLE: sb_col_dir() and
+// the half vector: hd, iso), SB_COL_SAMPLE (the columns are sampled: vndf,
+// vh), SB_COL_FOLD (their t axis folded, s.y in [0, 2]: vh) and the
+// parameterisation's sb_row_dir() (SB_COL_SAMPLE: sb_col_dir() and
 // sb_col_density()).
 //
 // sb_cdf: sampler.bin's float32 data as an R32F GL_TEXTURE_2D_ARRAY of
@@ -53,12 +54,18 @@ float sb_cdf_prob(int k, ivec2 o, ivec2 step, int i) {
     return sb_cdf_at(k, o + i * step) - (i > 0 ? sb_cdf_at(k, o + (i - 1) * step) : 0.0);
 }
 
-// SB_COL_SAMPLE: node (x, y) of h_k (texel (x, y) of the h texture), and
+// SB_COL_SAMPLE: node (x, y) of h_k (texel (x, y) of the h texture, times
+// the layout's sb_col_weight where it defines SB_COL_WEIGHT), and
 // t in [0, 1] with density proportional to (1 - t) a + t b by u (the C's
 // sample_linear, src/factor/sampler_cols.c).
 float sb_node(int k, int x, int y) {
     int j = k / SB_SAMPLE_CH;
-    return texelFetch(sb_h, ivec3(x, y, j), 0)[k - j * SB_SAMPLE_CH];
+    float v = texelFetch(sb_h, ivec3(x, y, j), 0)[k - j * SB_SAMPLE_CH];
+#ifdef SB_COL_WEIGHT
+    // the layout's weight of the node (the snippet's sb_col_weight: vh)
+    v *= sb_col_weight(vec2(float(x), float(y)) / vec2(textureSize(sb_cdf, 0).xy - 1));
+#endif
+    return v;
 }
 
 float sb_sample_linear(float a, float b, float u) {
@@ -451,6 +458,16 @@ bool sb_factored_dir(vec3 V, vec2 sw, float u0, float u1, out vec3 D) {
 #if SB_HALF_ROWS
     return sb_half_dir(V, pick, u0, u1, D);
 #elif SB_COL_SAMPLE
+    // either half of a folded t axis by the term's remainder (SB_COL_FOLD: vh's phi)
+    bool mirror = false;
+#if SB_COL_FOLD
+    if (u0 >= 0.5) {
+        mirror = true;
+        u0 = 2.0 * u0 - 1.0;
+    } else {
+        u0 = 2.0 * u0;
+    }
+#endif
     // the cell between the nodes, then s in it by the bilinear patch
     int y = sb_cdf_find(pick, ivec2(W, 0), ivec2(0, 1), H, u0);
     int x = sb_cdf_find(pick, ivec2(0, y), ivec2(1, 0), W, u1);
@@ -458,7 +475,8 @@ bool sb_factored_dir(vec3 V, vec2 sw, float u0, float u1, out vec3 D) {
     float v2 = sb_node(pick, x, y + 1), v3 = sb_node(pick, x + 1, y + 1);
     float fy = sb_sample_linear(v0 + v1, v2 + v3, u0);
     float fx = sb_sample_linear(v0 + fy * (v2 - v0), v1 + fy * (v3 - v1), u1);
-    return sb_col_dir(V, (vec2(float(x), float(y)) + vec2(fx, fy)) / vec2(float(W), float(H)), D);
+    vec2 s = (vec2(float(x), float(y)) + vec2(fx, fy)) / vec2(float(W), float(H));
+    return sb_col_dir(V, mirror ? vec2(s.x, 2.0 - s.y) : s, D);
 #else
     int y = sb_cdf_find(pick, ivec2(W, 0), ivec2(0, 1), H, u0);
     int x = sb_cdf_find(pick, ivec2(0, y), ivec2(1, 0), W, u1);

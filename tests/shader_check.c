@@ -13,7 +13,9 @@ const char *const sb_specs[SB_NSPECS] = {"io:res=12",
                                          "hd:res=12,theta_max=1.2",
                                          "iso:th=12,td=12,pd=6",
                                          "iso:th=12,td=12,pd=6,warp_h=0.05/0.2/0.5,warp_d=0.3/0.6",
-                                         "hd:res=12,warp_h=merl,warp_d=0.1/0.4/0.7"};
+                                         "hd:res=12,warp_h=merl,warp_d=0.1/0.4/0.7",
+                                         "vh:res=12",
+                                         "vh:res=12,warp_h=0.05/0.2/0.5"};
 
 sb_param_t *sb_param_of(const char *spec) {
     sb_param_kind_t k;

@@ -12,7 +12,7 @@
 
 /* Each kind at R = 12, theta_max limited on hd, and iso and hd with warp
  * tables in their specs. */
-#define SB_NSPECS 6
+#define SB_NSPECS 8
 extern const char *const sb_specs[SB_NSPECS];
 sb_param_t *sb_param_of(const char *spec); /* NULL on failure */
 /* The vndf layout of tests/data/measured/rgl_chm_orange_rgb.bsdf (the

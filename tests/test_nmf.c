@@ -456,20 +456,20 @@ SB_TEST(band_fit_keeps_the_sign) {
     sb_context_destroy(ctx);
 }
 
-/* A layout whose rows are not light directions (vh) has no sampler: the
+/* A layout whose rows are not light directions (rv) has no sampler: the
  * run's warning says why, not only "not supported" (issue 38, item 3:
  * every layout has a sampler or says why not). */
 SB_TEST(no_sampler_says_why) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
     sb_job_opts_t o = {0};
-    o.param = "vh";
+    o.param = "rv";
     o.res = 6;
     o.terms = 1;
     o.method = SB_METHOD_NMF;
     sb_job_t *job = NULL;
-    CHECKF(sb_job_run(ctx, &o, &job) == SB_OK, "vh: %s", sb_context_last_error(ctx));
-    CHECKF(job && sb_job_write(ctx, job, sb_tmpdir("nmf-vh")) == SB_OK, "write: %s", sb_context_last_error(ctx));
+    CHECKF(sb_job_run(ctx, &o, &job) == SB_OK, "rv: %s", sb_context_last_error(ctx));
+    CHECKF(job && sb_job_write(ctx, job, sb_tmpdir("nmf-rv")) == SB_OK, "write: %s", sb_context_last_error(ctx));
     int said = 0;
     for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
         said |= strstr(sb_job_warning(job, i), "no sampler") && strstr(sb_job_warning(job, i), "light directions");

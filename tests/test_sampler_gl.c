@@ -369,6 +369,14 @@ SB_TEST(vndf) { RUN(vndf_kind(), RGL_ORANGE); }
 SB_TEST(pdf_vndf) { RUN_PDF(vndf_kind(), RGL_ORANGE, PDF_VIEWS); }
 SB_TEST(pdf_vndf_paper) { RUN_PDF(vndf_kind(), RGL_PAPER, PDF_VIEWS); }
 
+/* vh (the view's elevation and the half vector in its azimuthal frame):
+ * its columns sampled through the h texture's st (SB_CAP_COL_SAMPLE),
+ * either half of the folded phi (SB_CAP_COL_FOLD), nodes weighted by
+ * sb_col_weight. */
+SB_TEST(vh) { RUN(SB_PARAM_VH, "cook-torrance:d=ggx,roughness=0.3"); }
+SB_TEST(pdf_vh) { RUN_PDF(SB_PARAM_VH, "cook-torrance:d=ggx,roughness=0.3", PDF_VIEWS); }
+SB_TEST(pdf_vh_warped) { RUN_PDF_WARPED(SB_PARAM_VH, "cook-torrance:d=ggx,roughness=0.2"); }
+
 SB_TEST(io) { RUN(SB_PARAM_IO, "cook-torrance:d=ggx,roughness=0.3"); }
 SB_TEST(io_area) { RUN(SB_PARAM_IO_AREA, "cook-torrance:d=ggx,roughness=0.2"); }
 SB_TEST(hd) { RUN(SB_PARAM_HD, "cook-torrance:d=ggx,roughness=0.5"); }

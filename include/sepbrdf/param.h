@@ -165,9 +165,12 @@ enum {
     SB_CAP_VIEW_EDGE = 1u << 12,         /* on the whole hemisphere, cells leave the domain only where wo passes its
                                             horizon, where f cos theta_i need not fall to 0: an analytic source's
                                             cells there continue by its value at the edge (rv) */
-    SB_CAP_COL_SAMPLE = 1u << 13         /* rows are the view's, columns a warp of wi for each wo (vndf: the RGL
+    SB_CAP_COL_SAMPLE = 1u << 13,        /* rows are the view's, columns a warp of wi for each wo (vndf: the RGL
                                             colour grid through its VNDF warp): a sampler (sampler.h) draws the
                                             column position s and maps it to wi (sb_param_col_sample) */
+    SB_CAP_COL_FOLD = 1u << 14 /* with SB_CAP_COL_SAMPLE: the columns' t axis is folded by a mirror symmetry (vh: phi
+                                  in [0, pi]); the sampler draws either half with probability 1/2 and passes s.y in
+                                  [0, 2] (above 1 the mirror half, at position 2 - s.y); the density counts the 1/2 */
 };
 
 /* The registry, indexed by kind 0 .. sb_param_kind_count() - 1: name ("io",
@@ -272,8 +275,10 @@ SB_API float sb_param_row_edge(const sb_param_t *p, int axis, size_t i);
 
 /* Importance sampling of SB_CAP_COL_SAMPLE layouts (sampler.h): the h
  * textures' node grid as a unit square, node (x, y) at s = (x / (W - 1),
- * y / (H - 1)) (the texel centres), mapped for each wo to a light
- * direction.  sb_param_col_sample: the wi of position s for wo; 1 when it
+ * y / (H - 1)) (vndf: the texel centres; vh: the texture's whole st
+ * square, its border texels at the edges), mapped for each wo to a light
+ * direction (SB_CAP_COL_FOLD: s.y in [0, 2], the fold's two halves).
+ * sb_param_col_sample: the wi of position s for wo; 1 when it
  * is a BRDF pair (both above the horizon), else 0 (wi set or not).
  * sb_param_col_density: the s of the pair (wi, wo) and the density of
  * that map, |ds / dwi| (1/sr, so that a density p(s) over the square is
@@ -281,6 +286,11 @@ SB_API float sb_param_row_edge(const sb_param_t *p, int axis, size_t i);
  * 0 for a NULL argument or a layout without the capability. */
 SB_API int sb_param_col_sample(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]);
 SB_API double sb_param_col_density(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]);
+/* The weight of the column node at s that the sampler multiplies h_k by
+ * (vh: cos theta_h sin theta_h dtheta_h/ds.x, the solid angle per unit s
+ * at the normal view up to a constant); 1 for a layout without one, 0 for
+ * a NULL argument. */
+SB_API double sb_param_col_weight(const sb_param_t *p, const double s[2]);
 
 /* The layout's known factor of the value at (wi, wo): the reconstruction
  * is gain x max(0, sum_j g_j h_j) for SB_CAP_TABLES layouts (vndf: the

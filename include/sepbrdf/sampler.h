@@ -76,7 +76,7 @@
  * (with theta_max at the horizon).
  *
  * The layouts that sample their columns (SB_CAP_COL_SAMPLE: vndf, an RGL
- * file's own grid) have rows of the view (g_k(theta_v), its slices) and
+ * file's own grid; vh) have rows of the view (g_k(theta_v), its slices) and
  * columns the nodes of a unit square of positions s that the layout maps
  * to the light for each wo (sb_param_col_sample: vndf's VNDF warp, u_m =
  * VNDF(s | theta_v), m from u_m, wi = reflect(wo, m); a wi below the
@@ -96,7 +96,13 @@
  * continuous in s (no cell edges for float and double to take apart), s
  * and |ds/dwi| from sb_param_col_density (vndf: the warp's density in u_m
  * over 2 pi^2 u_m.x sin(theta_m) 4 (wo.m)); with the cosine share as
- * above.
+ * above.  vh (the view's elevation and the half vector in its azimuthal
+ * frame) samples its columns too: s is the h texture's st, h_k's nodes
+ * weighted by sb_param_col_weight (cos theta_h sin theta_h dtheta_h/ds,
+ * the light's solid angle per unit s at the normal view) in h_k above,
+ * and its folded phi (SB_CAP_COL_FOLD) drawn on either half with
+ * probability 1/2 by u[0]'s remainder after step 1; a wi below the
+ * horizon is a failed sample.
  *
  * Two random numbers drive a sample: u[0] < s picks the cosine lobe
  * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,

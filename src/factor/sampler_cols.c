@@ -11,7 +11,11 @@
  * density over wi:
  *     p_F(wi | wo) = sum_k lum_c g_k(st_g) h_k(s) / sum_k W_k |ds/dwi|,
  * continuous in s, so that the GLSL's float s and the C's double give the
- * same density also at a cell's edge. */
+ * same density also at a cell's edge.  h_k's nodes are weighted by the
+ * layout's sb_param_col_weight (vh: the solid angle per unit s; 1 for
+ * vndf).  A layout whose columns fold a
+ * mirror symmetry (SB_CAP_COL_FOLD: vh) gets either half with
+ * probability 1/2 (s.y in [0, 2]); its |ds/dwi| counts the 1/2. */
 #include <math.h>
 #include <stdlib.h>
 
@@ -25,15 +29,18 @@ struct sb_col_sampler {
     double *cond;     /* K x H x W: conditional CDF of x in row y, inclusive */
     double *marg;     /* K x H: marginal CDF of y, inclusive */
     double *integral; /* K: I_k = int h_k ds over the unit square */
+    double *weight;   /* (W + 1) x (H + 1): the nodes' sb_param_col_weight */
 };
 
 /* The tables of distribution k: per cell the mean of its corners. */
+static void corners(const sb_col_sampler_t *c, size_t k, size_t x, size_t y, double v[4]);
 static void build_tables(sb_col_sampler_t *c, size_t k, double *rowsum, double *tmp) {
-    const double *h = sb_factors_tex_const(c->f, SB_SIDE_H, k / c->C, k % c->C);
-    size_t n = c->W + 1;
+    double v[4];
     for (size_t y = 0; y < c->H; y++) {
-        for (size_t x = 0; x < c->W; x++)
-            tmp[x] = 0.25 * (h[y * n + x] + h[y * n + x + 1] + h[(y + 1) * n + x] + h[(y + 1) * n + x + 1]);
+        for (size_t x = 0; x < c->W; x++) {
+            corners(c, k, x, y, v);
+            tmp[x] = 0.25 * (v[0] + v[1] + v[2] + v[3]);
+        }
         rowsum[y] = sb_cdf_build_(tmp, c->W, 0, c->cond + (k * c->H + y) * c->W);
     }
     c->integral[k] = sb_cdf_build_(rowsum, c->H, 0, c->marg + k * c->H) / (double)(c->W * c->H);
@@ -53,9 +60,15 @@ sb_result_t sb_col_sampler_create_(sb_context_t *ctx, const sb_factors_t *f, con
     c->cond = sb_alloc(ctx, c->W * c->H, c->K * sizeof(double), "sampler tables");
     c->marg = sb_alloc(ctx, c->H, c->K * sizeof(double), "sampler tables");
     c->integral = sb_alloc(ctx, c->K, sizeof(double), "sampler tables");
+    c->weight = sb_alloc(ctx, sw * sh, sizeof(double), "sampler tables");
+    for (size_t i = 0; c->weight && i < sw * sh; i++) {
+        const double s[2] = {(double)(i % sw) / (double)c->W, (double)(i / sw) / (double)c->H};
+        double w = sb_param_col_weight(p, s);
+        c->weight[i] = w > 0 && isfinite(w) ? w : 0;
+    }
     double *rowsum = sb_alloc(ctx, c->H, sizeof(double), "sampler tables");
     double *tmp = sb_alloc(ctx, c->W, sizeof(double), "sampler tables");
-    int ok = c->cond && c->marg && c->integral && rowsum && tmp;
+    int ok = c->cond && c->marg && c->integral && c->weight && rowsum && tmp;
     double total = 0;
     for (size_t k = 0; ok && k < c->K; k++) {
         build_tables(c, k, rowsum, tmp);
@@ -78,6 +91,7 @@ void sb_col_sampler_destroy_(sb_col_sampler_t *c) {
     free(c->cond);
     free(c->marg);
     free(c->integral);
+    free(c->weight);
     free(c);
 }
 
@@ -105,12 +119,12 @@ static double sample_linear(double a, double b, double u) {
     return t < 1 ? t : nextafter(1.0, 0.0);
 }
 
-/* The 4 nodes of cell (x, y) of h_k: v[0] (x, y), v[1] (x + 1, y), v[2]
- * (x, y + 1), v[3] (x + 1, y + 1). */
+/* The 4 nodes of cell (x, y) of h_k, each times its weight: v[0] (x,
+ * y), v[1] (x + 1, y), v[2] (x, y + 1), v[3] (x + 1, y + 1). */
 static void corners(const sb_col_sampler_t *c, size_t k, size_t x, size_t y, double v[4]) {
-    const double *h = sb_factors_tex_const(c->f, SB_SIDE_H, k / c->C, k % c->C);
+    const double *h = sb_factors_tex_const(c->f, SB_SIDE_H, k / c->C, k % c->C), *w = c->weight;
     size_t n = c->W + 1, i = y * n + x;
-    v[0] = h[i], v[1] = h[i + 1], v[2] = h[i + n], v[3] = h[i + n + 1];
+    v[0] = h[i] * w[i], v[1] = h[i + 1] * w[i + 1], v[2] = h[i + n] * w[i + n], v[3] = h[i + n + 1] * w[i + n + 1];
 }
 
 int sb_col_dir_(const sb_col_sampler_t *c, const double wo[3], double u0, double u1, double wi[3]) {
@@ -128,12 +142,18 @@ int sb_col_dir_(const sb_col_sampler_t *c, const double wo[3], double u0, double
     free(w);
     if (!(total > 0)) return 0;
     u0 = r < 0 ? 0 : (r < 1 ? r : nextafter(1.0, 0.0));
+    int mirror = 0; /* SB_CAP_COL_FOLD: either half of the fold by the term's remainder */
+    if (sb_param_caps(c->p) & SB_CAP_COL_FOLD) {
+        mirror = u0 >= 0.5;
+        u0 = mirror ? 2 * u0 - 1 : 2 * u0;
+    }
     size_t y = sb_cdf_find_(c->marg + k * c->H, c->H, &u0);
     size_t x = sb_cdf_find_(c->cond + (k * c->H + y) * c->W, c->W, &u1);
     corners(c, k, x, y, v); /* in the cell: y by the patch's marginal, x by its conditional at y */
     double fy = sample_linear(v[0] + v[1], v[2] + v[3], u0);
     double fx = sample_linear(v[0] + fy * (v[2] - v[0]), v[1] + fy * (v[3] - v[1]), u1);
-    const double s[2] = {((double)x + fx) / (double)c->W, ((double)y + fy) / (double)c->H};
+    double s[2] = {((double)x + fx) / (double)c->W, ((double)y + fy) / (double)c->H};
+    if (mirror) s[1] = 2 - s[1];
     return sb_param_col_sample(c->p, wo, s, wi);
 }
 

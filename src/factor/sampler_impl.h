@@ -42,7 +42,7 @@ double sb_cdf_build_(const double *v, size_t n, int as_float, double *cdf);
 size_t sb_cdf_find_(const double *cdf, size_t n, double *u);
 double sb_cdf_prob_(const double *cdf, size_t i);
 
-/* The layouts that sample their columns (SB_CAP_COL_SAMPLE: vndf;
+/* The layouts that sample their columns (SB_CAP_COL_SAMPLE: vndf, vh;
  * sampler_cols.c): the tables of f's h textures for the luminance
  * weights lum; the factored component's direction from u0, u1 in [0, 1)
  * (1, or 0 when none) and its density p_F at wi; the cells W x H between

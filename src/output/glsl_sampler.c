@@ -14,7 +14,7 @@
 char *sb_glsl_sampler(const sb_param_t *p, size_t channels) {
     if (!p || (channels != 1 && channels != 3)) return NULL;
     const char *rows = sb_param_sample_glsl(p);
-    if (!*rows) return NULL; /* a layout without a sampler (vh, rv) */
+    if (!*rows) return NULL; /* a layout without a sampler (rv) */
     /* the layout's functions where the block's marker line is: after the
      * tables' accessors and cell searches they use, before their callers */
     const char *text = sb_glsl_sample_text_, *mark = strstr(text, "// @ROWS");
@@ -25,9 +25,10 @@ char *sb_glsl_sampler(const sb_param_t *p, size_t channels) {
     if (!s) return NULL;
     snprintf(s, cap,
              "\n// ---- importance sampling (non-negative factors; sampler.bin) ----\n"
-             "#define SB_SAMPLE_CH %zu\n#define SB_HALF_ROWS %d\n#define SB_COL_SAMPLE %d\n\n%.*s%s%s",
+             "#define SB_SAMPLE_CH %zu\n#define SB_HALF_ROWS %d\n#define SB_COL_SAMPLE %d\n#define SB_COL_FOLD "
+             "%d\n\n%.*s%s%s",
              channels, (sb_param_caps(p) & SB_CAP_HALF_ROWS) ? 1 : 0, (sb_param_caps(p) & SB_CAP_COL_SAMPLE) ? 1 : 0,
-             (int)(mark - text), text, rows, after + 1);
+             (sb_param_caps(p) & SB_CAP_COL_FOLD) ? 1 : 0, (int)(mark - text), text, rows, after + 1);
     return s;
 }
 

@@ -124,8 +124,9 @@ static const char *desc_problem(const sb_layout_desc_t *d) {
     if (!d->row_cell != !d->row_edge || (d->row_cell && !d->row_sample))
         return "row_cell and row_edge both or neither, and row_sample with them";
     int cols = (d->caps & SB_CAP_COL_SAMPLE) != 0;
-    if (!d->col_sample != !cols || !d->col_density != !cols || (cols && d->row_sample))
-        return "col_sample, col_density and SB_CAP_COL_SAMPLE all or none, and not with row_sample";
+    if (!d->col_sample != !cols || !d->col_density != !cols || (cols && d->row_sample) || (d->col_weight && !cols))
+        return "col_sample, col_density and SB_CAP_COL_SAMPLE all or none, not with row_sample, col_weight only with "
+               "them";
     return NULL;
 }
 

@@ -354,6 +354,10 @@ int sb_param_col_sample(const sb_param_t *p, const double wo[3], const double s[
 double sb_param_col_density(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]) {
     return p && wi && wo && s && p->desc->col_density ? p->desc->col_density(p, wi, wo, s) : 0;
 }
+double sb_param_col_weight(const sb_param_t *p, const double s[2]) {
+    if (!p || !s) return 0;
+    return p->desc->col_weight ? p->desc->col_weight(p, s) : 1;
+}
 const char *sb_param_sample_glsl(const sb_param_t *p) { return p && p->desc->sample_glsl ? p->desc->sample_glsl : ""; }
 
 void sb_dirs_from_halfdiff(double theta_h, double phi_h, double theta_d, double phi_d, double wi[3], double wo[3]) {

@@ -45,7 +45,8 @@ void sb_warp_round(sb_warp_t *w);
 void sb_warp_spec_append(const sb_warp_t *w, const char *name, char *buf, size_t size, size_t *n);
 /* Parse a spec value: "uniform", "merl" or interior knots "x1/x2/...". */
 sb_result_t sb_warp_parse_value(sb_context_t *ctx, const char *value, sb_warp_t *out);
-/* GLSL `float NAME(float x)` computing sb_warp_map(w, x), appended to buf
+/* GLSL `float NAME(float x)` computing sb_warp_map(w, x), NAME_inv
+ * (sb_warp_inverse) and NAME_dinv (its slope in s), appended to buf
  * at *n (bounded by size); returns the bytes it needs. */
 size_t sb_warp_glsl(const sb_warp_t *w, const char *name, char *buf, size_t size, size_t *n);
 

@@ -167,6 +167,7 @@ size_t sb_warp_glsl(const sb_warp_t *w, const char *name, char *buf, size_t size
         int merl = w->kind == SB_WARP_MERL;
         append(buf, size, n, "float %s(float x) { return %s; }\n", name, merl ? "sqrt(x)" : "x");
         append(buf, size, n, "float %s_inv(float s) { return %s; }\n", name, merl ? "s * s" : "s");
+        append(buf, size, n, "float %s_dinv(float s) { return %s; }\n", name, merl ? "2.0 * s" : "1.0");
         return *n - n0;
     }
     int steps = 0;
@@ -194,7 +195,12 @@ size_t sb_warp_glsl(const sb_warp_t *w, const char *name, char *buf, size_t size
            "    float u = clamp(s, 0.0, 1.0) * %zu.0;\n"
            "    int k = min(int(u), %zu);\n"
            "    return %s_x[k] + (u - float(k)) * (%s_x[k + 1] - %s_x[k]);\n"
+           "}\n"
+           "float %s_dinv(float s) {\n" /* the slope of NAME_inv */
+           "    int k = min(int(clamp(s, 0.0, 1.0) * %zu.0), %zu);\n"
+           "    return %zu.0 * (%s_x[k + 1] - %s_x[k]);\n"
            "}\n",
-           name, w->knots, steps, name, name, name, name, w->knots, name, w->knots, w->knots - 1, name, name, name);
+           name, w->knots, steps, name, name, name, name, w->knots, name, w->knots, w->knots - 1, name, name, name,
+           name, w->knots, w->knots - 1, w->knots, name, name);
     return *n - n0;
 }

@@ -96,6 +96,13 @@ typedef struct sb_layout_desc {
      * sb_param_col_density (param.h) */
     int (*col_sample)(const sb_param_t *p, const double wo[3], const double s[2], double wi[3]);
     double (*col_density)(const sb_param_t *p, const double wi[3], const double wo[3], double s[2]);
+    /* Optional with col_sample: the weight of the node at s
+     * (sb_param_col_weight); the sampler draws s by the bilinear h_k times
+     * it, so that a layout whose s is not already a solid angle (vh: the
+     * h texture's st) gives a density over wi close to h_k's.  Its GLSL
+     * is the snippet's `float sb_col_weight(vec2 s)` with `#define
+     * SB_COL_WEIGHT 1`.  NULL: 1 (vndf, whose s is the VNDF's). */
+    double (*col_weight)(const sb_param_t *p, const double s[2]);
 } sb_layout_desc_t;
 
 /* A layout's shape: the g textures g[0] x g[1] texels (rows g[0] g[1],

@@ -1,0 +1,161 @@
+/* Checks shared by the tests of the layouts that sample their columns
+ * (SB_CAP_COL_SAMPLE: test_sampler_vndf.c, test_sampler_vh.c): the
+ * non-negative fit `sepbrdf factor SRC --method nmf --param P` (the job,
+ * J = 4) and its sampler; chi2 of the drawn directions against sb_pdf at
+ * four view elevations; the pdf integrating to the share of draws that
+ * succeed and the estimator of int Y(f) cos against a quadrature; the
+ * area of a spherical triangle; sampler.bin's little-endian numbers.
+ * Include after harness.h. */
+#ifndef SB_TEST_SAMPLER_COLS_CHECK_H
+#define SB_TEST_SAMPLER_COLS_CHECK_H
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sampler_chi2.h"
+#include "sepbrdf/sepbrdf.h"
+
+typedef struct cfix {
+    sb_context_t *ctx;
+    sb_job_t *job;
+    sb_sampler_t *s;
+} cfix_t;
+
+/* The fit of src (a model spec, or a file name under tests/data/measured
+ * when it ends in .bsdf) on layout param, J = 4, and its sampler. */
+static inline int cfix_open(const char *src, const char *param, cfix_t *x) {
+    memset(x, 0, sizeof *x);
+    char path[1024];
+    if (strstr(src, ".bsdf")) snprintf(path, sizeof path, "%s/%s", SB_MEASURED_DIR, src);
+    sb_job_opts_t o = {0};
+    o.source = strstr(src, ".bsdf") ? path : src, o.param = param, o.terms = 4, o.method = SB_METHOD_NMF;
+    sb_context_create(&x->ctx);
+    sb_result_t r = sb_job_run(x->ctx, &o, &x->job);
+    if (!r) r = sb_sampler_create(x->ctx, sb_job_factors(x->job), sb_job_param(x->job), sb_job_form(x->job), &x->s);
+    CHECKF(r == SB_OK, "%s: %s", src, sb_context_last_error(x->ctx));
+    return r == SB_OK;
+}
+
+static inline void cfix_close(cfix_t *x) {
+    sb_sampler_destroy(x->s);
+    sb_job_destroy(x->job);
+    sb_context_destroy(x->ctx);
+}
+
+static inline void cfix_dir(double theta_deg, double phi_deg, double w[3]) {
+    sb_dir_from_angles(theta_deg * SB_PI / 180, phi_deg * SB_PI / 180, w);
+}
+
+static const double CFIX_THETAS[4] = {10, 30, 55, 75};
+
+/* chi2 of n draws at each elevation (phi_o = 30) from the stream seed,
+ * every draw's pdf that of sb_pdf, at least n / min_div draws succeeding. */
+static inline void cfix_chi2(const char *src, const char *param, size_t n, unsigned long long rng, size_t min_div) {
+    cfix_t x;
+    if (!cfix_open(src, param, &x)) {
+        cfix_close(&x);
+        return;
+    }
+    double *mass = malloc(NT * NP * sizeof *mass), *obs = malloc(NT * NP * sizeof *obs);
+    for (size_t o = 0; o < 4; o++) {
+        double wo[3], wi[3], pdf, stat;
+        cfix_dir(CFIX_THETAS[o], 30, wo);
+        memset(obs, 0, NT * NP * sizeof *obs);
+        size_t ok = 0, bad = 0;
+        for (size_t i = 0; i < n; i++) {
+            double u[2] = {sb_rand01(&rng), sb_rand01(&rng)};
+            if (!sb_sample(x.s, wo, u, wi, &pdf, NULL)) continue;
+            ok++;
+            obs[bin_of(wi)] += 1;
+            bad += !(fabs(sb_pdf(x.s, wo, wi) - pdf) <= 1e-12 * pdf);
+        }
+        expected_mass(x.s, wo, (double)n, mass);
+        int dof;
+        double p = chi2_p(mass, obs, (double)n, &stat, &dof);
+        fprintf(stderr, "%s %s theta_o %2.0f: %zu/%zu draws, chi2 %.1f dof %d p %.3f\n", param, src, CFIX_THETAS[o], ok,
+                n, stat, dof, p);
+        CHECKF(p >= 0.001, "%s theta_o %g: chi2 %g, dof %d, p %g < 0.001", src, CFIX_THETAS[o], stat, dof, p);
+        CHECKF(bad == 0, "%s: %zu draws whose pdf is not sb_pdf's", src, bad);
+        CHECKF(ok >= n / min_div, "%s theta_o %g: only %zu of %zu draws succeed", src, CFIX_THETAS[o], ok, n);
+    }
+    free(mass);
+    free(obs);
+    cfix_close(&x);
+}
+
+/* Integral of the pdf (fcos 0) or of Y(f) cos over the upper
+ * hemisphere, midpoint rule in (cos theta, phi) on n x 2n cells. */
+static inline double cfix_hemi(const cfix_t *x, const double wo[3], int fcos, size_t n) {
+    double dz = 1.0 / (double)n, dp = SB_PI / (double)n, sum = 0;
+    for (size_t i = 0; i < n; i++)
+        for (size_t k = 0; k < 2 * n; k++) {
+            double z = 1 - (i + 0.5) * dz, phi = (k + 0.5) * dp, r = sqrt(1 - z * z), rgb[3];
+            double w[3] = {r * cos(phi), r * sin(phi), z};
+            if (!fcos) {
+                sum += sb_pdf(x->s, wo, w);
+                continue;
+            }
+            sb_factors_eval(sb_job_factors(x->job), sb_job_param(x->job), sb_job_form(x->job), 4, w, wo, rgb);
+            sum += (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]) * w[2];
+        }
+    return sum * dz * dp;
+}
+
+/* The pdf integrates to the share of draws that succeed (within 4
+ * standard errors and the quadrature's change from 256 to 512 steps); the
+ * estimate of int Y(f) cos within 4 standard errors (and that change) of
+ * the quadrature: no region where f > 0 and the pdf is 0. */
+static inline void cfix_integrals(const char *src, const char *param) {
+    cfix_t x;
+    if (!cfix_open(src, param, &x)) {
+        cfix_close(&x);
+        return;
+    }
+    unsigned long long rng = 11;
+    for (int o = 0; o < 4; o++) {
+        double wo[3], wi[3], pdf, rgb[3], s1 = 0, s2 = 0;
+        cfix_dir(CFIX_THETAS[o], 30, wo);
+        double mass = cfix_hemi(&x, wo, 0, 512), coarse = cfix_hemi(&x, wo, 0, 256);
+        double ref = cfix_hemi(&x, wo, 1, 512), ref_c = cfix_hemi(&x, wo, 1, 256);
+        size_t n = 200000, ok = 0;
+        for (size_t i = 0; i < n; i++) {
+            double u[2] = {sb_rand01(&rng), sb_rand01(&rng)}, v = 0;
+            if (sb_sample(x.s, wo, u, wi, &pdf, rgb)) {
+                ok++;
+                v = (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]) * wi[2] / pdf;
+            }
+            s1 += v, s2 += v * v;
+        }
+        double mean = s1 / n, se = sqrt(fmax(s2 / n - mean * mean, 0) / n), frac = (double)ok / n;
+        fprintf(stderr, "%s %s theta_o %2.0f: pdf integral %.5f (%.5f at 256), successes %.5f; MC %.5f +- %.5f vs %.5f\n",
+                param, src, CFIX_THETAS[o], mass, coarse, frac, mean, se, ref);
+        CHECK_ABS(mass, frac, 4 * sqrt(frac * (1 - frac) / n) + 2e-3 + fabs(mass - coarse));
+        CHECK_ABS(mean, ref, 4 * se + fabs(ref - ref_c) + 1e-3 * ref);
+    }
+    cfix_close(&x);
+}
+
+/* The solid angle of the spherical triangle a b c. */
+static inline double tri_area(const double a[3], const double b[3], const double c[3]) {
+    double bc[3] = {b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
+    double num = a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2];
+    double den = 1 + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) + (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) +
+                 (c[0] * a[0] + c[1] * a[1] + c[2] * a[2]);
+    return 2 * fabs(atan2(num, den));
+}
+
+/* sampler.bin's little-endian numbers. */
+static inline uint32_t u32_at(const unsigned char *b) {
+    return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+}
+static inline float f32_at(const unsigned char *b) {
+    uint32_t v = u32_at(b);
+    float f;
+    memcpy(&f, &v, sizeof f);
+    return f;
+}
+
+#endif
