@@ -130,7 +130,8 @@ static inline void cfix_integrals(const char *src, const char *param) {
             s1 += v, s2 += v * v;
         }
         double mean = s1 / n, se = sqrt(fmax(s2 / n - mean * mean, 0) / n), frac = (double)ok / n;
-        fprintf(stderr, "%s %s theta_o %2.0f: pdf integral %.5f (%.5f at 256), successes %.5f; MC %.5f +- %.5f vs %.5f\n",
+        fprintf(stderr,
+                "%s %s theta_o %2.0f: pdf integral %.5f (%.5f at 256), successes %.5f; MC %.5f +- %.5f vs %.5f\n",
                 param, src, CFIX_THETAS[o], mass, coarse, frac, mean, se, ref);
         CHECK_ABS(mass, frac, 4 * sqrt(frac * (1 - frac) / n) + 2e-3 + fabs(mass - coarse));
         CHECK_ABS(mean, ref, 4 * se + fabs(ref - ref_c) + 1e-3 * ref);

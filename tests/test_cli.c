@@ -355,14 +355,15 @@ SB_TEST(theta_max_measured_within_cap) {
            json_first_number(path, "headline"));
 }
 
-/* --method nmf on a layout without a sampler (vh: its rows are views):
+/* --method nmf on a layout without a sampler (rv: its rows are the
+ * light's elevation, its columns the view about the mirror direction):
  * the set has no sampler.bin, and stderr says so (the warning, raised
  * while the set was written, reached report.json alone). */
 SB_TEST(nmf_without_sampler_said) {
     const char *dir = sb_tmpdir("cli");
     char path[1024];
-    int rc = run("factor lambert --param vh -r 8 -J 1 --method nmf -o %s/a", dir);
-    CHECKF(rc == 0 && strstr(out, "warning: no sampler: vh has no sampler") && !strstr(out, "sampler.bin, "),
+    int rc = run("factor lambert --param rv -r 8 -J 1 --method nmf -o %s/a", dir);
+    CHECKF(rc == 0 && strstr(out, "warning: no sampler: rv has no sampler") && !strstr(out, "sampler.bin, "),
            "rc %d: %s", rc, out);
     snprintf(path, sizeof path, "%s/a/sampler.bin", dir);
     FILE *fp = fopen(path, "rb");
