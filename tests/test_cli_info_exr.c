@@ -88,6 +88,13 @@ SB_TEST(not_factor_files) {
     snprintf(path, sizeof path, "%s/missing.exr", dir);
     CHECK(run("info %s", path) == 2);
     CHECK(strstr(out, "missing.exr"));
+    /* cut after its header, within its last chunk: described as whole, exit 0, before */
+    snprintf(cmd, sizeof cmd, "head -c $(( $(stat -c %%s %s/g_00.exr) - 9 )) %s/g_00.exr > %s/short.exr", dir, dir,
+             dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    snprintf(path, sizeof path, "%s/short.exr", dir);
+    int rc = run("info %s 2>&1", path);
+    CHECKF(rc == 2 && strstr(out, "short.exr") && strstr(out, "cut short"), "rc %d: %s", rc, out);
 }
 
 /* info on folders: the set `factor` wrote is described by its first

@@ -195,6 +195,35 @@ static exr_shape_t exr_shape(exr_context_t ex) {
     return s;
 }
 
+/* Whether every chunk of a scanline file's pixel data lies within the
+ * file (info reads the header alone, and a file cut after it was described
+ * as whole); tiled files are not checked.  On failure why says where. */
+static int chunks_complete(exr_context_t ex, const char *path, char *why, size_t size) {
+    exr_storage_t storage;
+    struct stat st;
+    if (exr_get_storage(ex, 0, &storage) != EXR_ERR_SUCCESS || storage != EXR_STORAGE_SCANLINE) return 1;
+    if (stat(path, &st) != 0) return 1; /* open_header read it: a race, left to the readers */
+    exr_attr_box2i_t dw;
+    int32_t lines = 0;
+    if (exr_get_data_window(ex, 0, &dw) != EXR_ERR_SUCCESS || exr_get_scanlines_per_chunk(ex, 0, &lines) != 0 ||
+        lines < 1)
+        return 1;
+    for (int64_t y = dw.min.y; y <= dw.max.y; y += lines) {
+        exr_chunk_info_t ci;
+        if (exr_read_scanline_chunk_info(ex, 0, (int)y, &ci) != EXR_ERR_SUCCESS) {
+            snprintf(why, size, "the pixel data of scanline %lld cannot be located (the file is cut short or damaged)",
+                     (long long)y);
+            return 0;
+        }
+        if (ci.data_offset + ci.packed_size > (uint64_t)st.st_size) {
+            snprintf(why, size, "the file is cut short: the pixel data of scanline %lld ends at byte %llu of %lld",
+                     (long long)y, (unsigned long long)(ci.data_offset + ci.packed_size), (long long)st.st_size);
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* vndf.exr, the tables `factor` writes beside an RGL file's vndf fit (the
  * snippet reads it by texel): known by its sepbrdf.kind under any name, or
  * by its name where an earlier version wrote it without attributes. */
@@ -239,6 +268,13 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
         cli_error("info", "%s: cannot read as an EXR file: %s", path,
                   exr_msg[0] ? exr_msg : exr_get_error_code_as_string(rv));
         if (ex) exr_finish(&ex);
+        return EXIT_IO;
+    }
+    char why[256];
+    exr_msg[0] = 0;
+    if (!chunks_complete(ex, path, why, sizeof why)) {
+        cli_error("info", "%s: %s", path, why);
+        exr_finish(&ex);
         return EXIT_IO;
     }
     const char *version = attr_str(ex, PREFIX "version"), *side = attr_str(ex, PREFIX "side");
