@@ -159,4 +159,55 @@ static inline float f32_at(const unsigned char *b) {
     return f;
 }
 
+/* The set a column sampler's `factor --shader all` wrote into dir:
+ * sampler.bin's header (the h texture W x H, J C + 1 layers, 3
+ * channels), every row's CDF ending at 1, the share in its last layer
+ * equal to report.json's cosine_share (and the report naming
+ * sampler.bin), and each language's snippet holding sb_sample( and the
+ * names in need[] (n of them). */
+static inline void cfix_written_set(const char *dir, size_t W, size_t H, size_t terms, const char *const *need,
+                                    size_t n_need) {
+    char file[1200];
+    snprintf(file, sizeof file, "%s/sampler.bin", dir);
+    size_t n = 0;
+    unsigned char *b = (unsigned char *)sb_read_file(file, &n);
+    CHECKF(b && n >= 24 && !memcmp(b, "sbsampl1", 8), "%s: not a sampler file", file);
+    if (b && n >= 24 && W >= 2) {
+        uint32_t w1 = u32_at(b + 8), h1 = u32_at(b + 12), layers = u32_at(b + 16), C = u32_at(b + 20);
+        CHECKF(w1 == W && h1 == H && layers == terms * C + 1 && C == 3, "header %u x %u, %u layers, %u channels", w1,
+               h1, layers, C);
+        int whole = n == 24 + (size_t)layers * w1 * h1 * 4;
+        CHECK(whole);
+        const unsigned char *t = b + 24;
+        size_t ends = 0;
+        for (size_t k = 0; whole && k + 1 < layers; k++)
+            for (size_t y = 0; y + 1 < h1; y++)
+                ends += f32_at(t + 4 * ((k * h1 + y) * w1 + w1 - 2)) == 1 &&
+                        (y + 2 < h1 || f32_at(t + 4 * ((k * h1 + y) * w1 + w1 - 1)) == 1);
+        CHECKF(ends == (layers - 1) * (h1 - 1), "%zu of %zu rows' CDFs end at 1", ends,
+               (size_t)(layers - 1) * (h1 - 1));
+        if (whole) {
+            float share = f32_at(t + 4 * ((layers - 1) * h1 * w1 + (h1 - 1) * w1));
+            snprintf(file, sizeof file, "%s/report.json", dir);
+            char *rep = sb_read_file(file, NULL), key[64];
+            snprintf(key, sizeof key, "\"cosine_share\": %.17g", (double)share);
+            CHECKF(rep && share >= (float)SB_SAMPLER_MIN_SHARE && share <= 1 &&
+                       strstr(rep, "\"sampler\": \"sampler.bin\"") && strstr(rep, key),
+                   "share %g, report %s", share, rep ? "without sampler.bin or that share" : "missing");
+            free(rep);
+        }
+    }
+    free(b);
+    const char *exts[4] = {"glsl", "hlsl", "metal", "wgsl"};
+    for (int i = 0; i < 4; i++) {
+        snprintf(file, sizeof file, "%s/sepbrdf.%s", dir, exts[i]);
+        char *text = sb_read_file(file, NULL);
+        int has = text && strstr(text, "sb_sample(");
+        for (size_t k = 0; has && k < n_need; k++)
+            has = strstr(text, need[k]) != NULL;
+        CHECKF(has, "%s", file);
+        free(text);
+    }
+}
+
 #endif

@@ -85,7 +85,6 @@ SB_TEST(jacobian) {
  * block with the share sampler.bin holds, no warning that a sampler is
  * missing, and the sampler block (sb_col_dir) in every language. */
 SB_TEST(factor_writes_sampler) {
-    char file[1200];
     const char *dir = sb_tmpdir("sampler_vh");
     sb_job_opts_t o = {0};
     o.source = GOLD, o.param = "vh", o.terms = 2, o.method = SB_METHOD_NMF, o.out = dir;
@@ -102,36 +101,8 @@ SB_TEST(factor_writes_sampler) {
         said += strstr(w, "no sampler") != NULL || strstr(w, "has no") != NULL || strstr(w, "no GLSL sampler") != NULL;
     }
     CHECKF(said == 0, "%zu warnings say vh has no sampler", said);
-    snprintf(file, sizeof file, "%s/sampler.bin", dir);
-    size_t n = 0;
-    unsigned char *b = (unsigned char *)sb_read_file(file, &n);
-    CHECKF(b && n >= 24 && !memcmp(b, "sbsampl1", 8), "%s: not a sampler file", file);
-    if (b && n >= 24 && W >= 2) {
-        uint32_t w1 = u32_at(b + 8), h1 = u32_at(b + 12), layers = u32_at(b + 16), C = u32_at(b + 20);
-        CHECKF(w1 == W && h1 == H && layers == o.terms * C + 1 && C == 3, "header %u x %u, %u layers, %u channels", w1,
-               h1, layers, C);
-        CHECK(n == 24 + (size_t)layers * w1 * h1 * 4);
-        const unsigned char *t = b + 24;
-        if (n == 24 + (size_t)layers * w1 * h1 * 4) {
-            float share = f32_at(t + 4 * ((layers - 1) * h1 * w1 + (h1 - 1) * w1));
-            snprintf(file, sizeof file, "%s/report.json", dir);
-            char *rep = sb_read_file(file, NULL), key[64];
-            snprintf(key, sizeof key, "\"cosine_share\": %.17g", (double)share);
-            CHECKF(rep && share >= (float)SB_SAMPLER_MIN_SHARE && share <= 1 &&
-                       strstr(rep, "\"sampler\": \"sampler.bin\"") && strstr(rep, key),
-                   "share %g, report %s", share, rep ? "without sampler.bin or that share" : "missing");
-            free(rep);
-        }
-    }
-    free(b);
-    const char *exts[4] = {"glsl", "hlsl", "metal", "wgsl"};
-    for (int i = 0; i < 4; i++) {
-        snprintf(file, sizeof file, "%s/sepbrdf.%s", dir, exts[i]);
-        char *text = sb_read_file(file, NULL);
-        CHECKF(text && strstr(text, "sb_sample(") && strstr(text, "sb_col_dir") && strstr(text, "sb_col_weight"), "%s",
-               file);
-        free(text);
-    }
+    const char *const need[] = {"sb_col_dir", "sb_col_weight"};
+    cfix_written_set(dir, W, H, o.terms, need, 2);
     sb_job_destroy(job);
     sb_context_destroy(ctx);
 }

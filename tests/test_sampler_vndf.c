@@ -74,7 +74,7 @@ SB_TEST(jacobian) {
  * language with the sampler block (test_sampler_gl.c runs the GLSL's),
  * no warning that one is missing. */
 SB_TEST(factor_writes_sampler) {
-    char path[1024], file[1200];
+    char path[1024];
     snprintf(path, sizeof path, "%s/rgl_chm_orange_rgb.bsdf", SB_MEASURED_DIR);
     const char *dir = sb_tmpdir("sampler_vndf");
     sb_job_opts_t o = {0};
@@ -89,40 +89,8 @@ SB_TEST(factor_writes_sampler) {
     for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
         said += strstr(sb_job_warning(job, i), "no GLSL sampler") != NULL;
     CHECKF(said == 0, "%zu warnings say the snippet has no sampler", said);
-    snprintf(file, sizeof file, "%s/sampler.bin", dir);
-    size_t n = 0;
-    unsigned char *b = (unsigned char *)sb_read_file(file, &n);
-    CHECKF(b && n >= 24 && !memcmp(b, "sbsampl1", 8), "%s: not a sampler file", file);
-    if (b && n >= 24 && W >= 2) {
-        uint32_t w1 = u32_at(b + 8), h1 = u32_at(b + 12), layers = u32_at(b + 16), C = u32_at(b + 20);
-        CHECKF(w1 == W && h1 == H && layers == o.terms * C + 1 && C == 3, "header %u x %u, %u layers, %u channels", w1,
-               h1, layers, C);
-        CHECK(n == 24 + (size_t)layers * w1 * h1 * 4);
-        const unsigned char *t = b + 24;
-        size_t ends = 0;
-        for (size_t k = 0; n == 24 + (size_t)layers * w1 * h1 * 4 && k + 1 < layers; k++)
-            for (size_t y = 0; y + 1 < h1; y++)
-                ends += f32_at(t + 4 * ((k * h1 + y) * w1 + w1 - 2)) == 1 &&
-                        (y + 2 < h1 || f32_at(t + 4 * ((k * h1 + y) * w1 + w1 - 1)) == 1);
-        CHECKF(ends == (layers - 1) * (h1 - 1), "%zu of %zu rows' CDFs end at 1", ends,
-               (size_t)(layers - 1) * (h1 - 1));
-        float share = f32_at(t + 4 * ((layers - 1) * h1 * w1 + (h1 - 1) * w1));
-        snprintf(file, sizeof file, "%s/report.json", dir);
-        char *rep = sb_read_file(file, NULL), key[64];
-        snprintf(key, sizeof key, "\"cosine_share\": %.17g", (double)share);
-        CHECKF(rep && share >= (float)SB_SAMPLER_MIN_SHARE && share <= 1 &&
-                   strstr(rep, "\"sampler\": \"sampler.bin\"") && strstr(rep, key),
-               "share %g, report %s", share, rep ? "without sampler.bin or that share" : "missing");
-        free(rep);
-    }
-    free(b);
-    const char *exts[4] = {"glsl", "hlsl", "metal", "wgsl"};
-    for (int i = 0; i < 4; i++) {
-        snprintf(file, sizeof file, "%s/sepbrdf.%s", dir, exts[i]);
-        char *text = sb_read_file(file, NULL);
-        CHECKF(text && strstr(text, "sb_vndf") && strstr(text, "sb_sample(") && strstr(text, "sb_col_dir"), "%s", file);
-        free(text);
-    }
+    const char *const need[] = {"sb_vndf", "sb_col_dir"};
+    cfix_written_set(dir, W, H, o.terms, need, 2);
     sb_job_destroy(job);
     sb_context_destroy(ctx);
 }
