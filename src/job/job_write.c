@@ -197,12 +197,10 @@ static sb_result_t write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set)
     free(job->rel_stored);
     job->rel_stored = stored_errors(ctx, job);
     if (job->o.previews && (r = sb_factors_write_previews(ctx, a->f, dir)) != SB_OK) return r;
-    /* the snippet's sb_scale: what the shader multiplies the stored texels by (HALF) */
+    /* the snippet's sb_scale: what the shader multiplies the stored texels by (1 for FLOAT) */
     double *scales = malloc(J * sizeof *scales);
     r = scales ? SB_OK : sb_error(ctx, SB_ERR_NOMEM, "out of memory");
-    for (size_t j = 0; r == SB_OK && !eo.half && j < J; j++)
-        scales[j] = 1; /* FLOAT: sb_exr_term_scales' 1, its checks sb_factors_write_exr's, passed above */
-    if (r == SB_OK && eo.half) r = sb_exr_term_scales(ctx, a->f, &eo, scales);
+    if (r == SB_OK) r = sb_exr_term_scales(ctx, a->f, &eo, scales);
     if (r == SB_OK) r = write_shader(ctx, job, set, scales);
     free(scales);
     if (r != SB_OK) return r;
