@@ -11,7 +11,9 @@
  * sampler's, with its standard error (delta method on the fourth moments);
  * and the chi2 p-value of the sampler's directions at the fixed share
  * against its own pdf (n draws, bins and pooling of tests/sampler_chi2.h;
- * the fixed share, so that the factored part is drawn in every case).
+ * the fixed share, so that the factored part is drawn in every case; with
+ * the chosen GGX lobe, at its share, where the choice took one).  The
+ * columns "lobe share" and "alpha": the GGX lobe the choice took (0: none).
  *
  *   sepbrdf_bench_sampler_variance [--samples N] [--res R] [--param iso,hd,io,io-area,vndf,vh] [--azimuth A]
  *                                 [--seed S] [SOURCE...]
@@ -147,17 +149,23 @@ static int run(sb_context_t *ctx, const char *spec, const char *param, size_t re
         return 1;
     }
     const char *name = strrchr(spec, '/') ? strrchr(spec, '/') + 1 : spec;
-    printf("| %-34s | %-5s | %5.3f |", name, sb_param_kind_name(sb_param_kind(sb_job_param(job))), ch.share);
+    printf("| %-34s | %-5s | %5.3f | %5.3f | %4.2f |", name, sb_param_kind_name(sb_param_kind(sb_job_param(job))),
+           ch.share, ch.lobe_share, ch.lobe_alpha);
     double p[NWO];
     for (int w = 0; w < NWO; w++) {
         double wo[3], vc, sc, vs, ss, vd, sd;
         sb_dir_from_angles(WO_DEG[w] * SB_PI / 180, azimuth, wo);
         variance(NULL, src, wo, n, &vc, &sc);
         variance(s, src, wo, n, &vs, &ss);
+        sb_sampler_set_lobe(s, 0, 0); /* the fixed share: cosine and factored alone */
         sb_sampler_set_cosine_share(s, SB_SAMPLER_COSINE_SHARE);
         variance(s, src, wo, n, &vd, &sd);
+        if (ch.lobe_share > 0) /* chi2 with the lobe on: the chosen mixture's (cosine share the fixed one's) */
+            sb_sampler_set_lobe(s, fmin(ch.lobe_share, 1 - SB_SAMPLER_COSINE_SHARE), ch.lobe_alpha);
         p[w] = chi2_of(s, wo, n, case_seed(spec, param, w));
+        sb_sampler_set_lobe(s, 0, 0);
         sb_sampler_set_cosine_share(s, ch.share);
+        sb_sampler_set_lobe(s, ch.lobe_share, ch.lobe_alpha);
         printf(" %6.3g ± %-5.2g (%5.3g) |", vc / vs, ratio_se(vc, sc, vs, ss), vc / vd);
     }
     printf(" %.3f %.3f %.3f %.3f |", p[0], p[1], p[2], p[3]);
@@ -203,8 +211,8 @@ int main(int argc, char **argv) {
     sb_context_create(&ctx);
     printf("Var(cosine) / Var(sampler) against the source, %zu samples per theta_o (azimuth %g), res %zu, J = 4\n\n", n,
            azimuth, res);
-    printf("| %-34s | %-5s | share | theta_o 10 | 30 | 50 | 70 | chi2 p 10 30 50 70 "
-           "|\n|---|---|---|---|---|---|---|---|\n",
+    printf("| %-34s | %-5s | share | lobe share | alpha | theta_o 10 | 30 | 50 | 70 | chi2 p 10 30 50 70 "
+           "|\n|---|---|---|---|---|---|---|---|---|---|\n",
            "source", "param");
     char params[8][16];
     int np = 0;

@@ -26,7 +26,9 @@
 // SB_HALF_ROWS, layer K + 1 + k the weight of k for V at each cell's centre
 // (read bilinear between the centres).  With SB_COL_SAMPLE, W x H are the
 // cells between the h textures' nodes, (0, H) of layer k the integral of
-// h_k over the unit square of s, and layer K holds the share alone.
+// h_k over the unit square of s, and layer K holds the share alone.  In
+// every layout layer K holds at (W, H) the share of the GGX lobe and at
+// (W, 0) its roughness alpha (0: no lobe; sb_lobe_dir, sb_lobe_pdf).
 
 uniform sampler2DArray sb_cdf;
 
@@ -96,6 +98,39 @@ int sb_dists() {
 
 // The share of cosine-weighted samples (sampler.bin, layer K at (0, H)).
 float sb_cosine_share() { return sb_cdf_at(sb_dists(), ivec2(0, textureSize(sb_cdf, 0).y - 1)); }
+
+// The GGX lobe's share and alpha (layer K, texels (W, H) and (W, 0)).
+float sb_lobe_share() { return sb_cdf_at(sb_dists(), textureSize(sb_cdf, 0).xy - 1); }
+float sb_lobe_alpha() { return sb_cdf_at(sb_dists(), ivec2(textureSize(sb_cdf, 0).x - 1, 0)); }
+
+// ---- the GGX lobe (src/factor/sampler_lobe.c): L = V reflected about a
+// normal drawn from V's visible normals (Heitz 2018), alpha a about the
+// normal; its density D(h) / (2 (V.z + sqrt(a^2 |V.xy|^2 + V.z^2))).
+bool sb_lobe_dir(vec3 V, float a, float u0, float u1, out vec3 D) {
+    D = vec3(0.0);
+    if (!(V.z > 0.0)) return false;
+    vec3 v = normalize(vec3(a * V.x, a * V.y, V.z)), t1v = vec3(1.0, 0.0, 0.0);
+    float len2 = v.x * v.x + v.y * v.y;
+    if (len2 > 0.0) t1v = vec3(-v.y, v.x, 0.0) / sqrt(len2);
+    vec3 t2v = cross(v, t1v);
+    float r = sqrt(u0), phi = 2.0 * SB_PI * u1, t1 = r * cos(phi), t2 = r * sin(phi), s = 0.5 * (1.0 + v.z);
+    t2 = (1.0 - s) * sqrt(max(1.0 - t1 * t1, 0.0)) + s * t2;
+    vec3 m = t1 * t1v + t2 * t2v + sqrt(max(1.0 - t1 * t1 - t2 * t2, 0.0)) * v;
+    vec3 h = vec3(a * m.x, a * m.y, max(m.z, 0.0));
+    float n = length(h);
+    if (!(n > 0.0)) return false;
+    h = h / n;
+    D = 2.0 * dot(h, V) * h - V;
+    return true;
+}
+
+float sb_lobe_pdf(vec3 L, vec3 V, float a) {
+    vec3 h = L + V;
+    float n2 = dot(h, h);
+    if (!(V.z > 0.0) || !(h.z > 0.0) || !(n2 > 0.0) || !(dot(h, V) > 0.0)) return 0.0;
+    float a2 = a * a, k = ((h.x * h.x + h.y * h.y) / a2 + h.z * h.z) / n2;
+    return 1.0 / (SB_PI * a2 * k * k) / (2.0 * (V.z + sqrt(a2 * (V.x * V.x + V.y * V.y) + V.z * V.z)));
+}
 
 // The edges of the row cells (sb_row_cell, src/param/row_cell.c): float
 // constants in layer K, edge i of x (1 <= i < W) at texel (i, H), edge j
@@ -425,8 +460,9 @@ float sb_pdf(vec3 L, vec3 V) {
     vec4 st = sb_coords(L, V);
     vec2 sw;
     if (!sb_domain(L, V, st) || !sb_weight_key(V, sw)) return 0.0;
-    float s = sb_cosine_share();
-    return s * L.z / SB_PI + (s < 1.0 ? (1.0 - s) * sb_factored_pdf(L, V, st.xy, sw) : 0.0);
+    float s = sb_cosine_share(), sl = sb_lobe_share(), rest = 1.0 - s - sl;
+    float lobe = sl > 0.0 ? sl * sb_lobe_pdf(L, V, sb_lobe_alpha()) : 0.0;
+    return s * L.z / SB_PI + lobe + (rest > 0.0 ? rest * sb_factored_pdf(L, V, st.xy, sw) : 0.0);
 }
 
 // The factored component: distribution k by u0, then the cell's row y (u0
@@ -491,11 +527,13 @@ bool sb_sample(vec3 V, vec2 u, out vec3 L, out float pdf) {
     vec2 sw;
     if (!sb_weight_key(V, sw)) return false;
     vec3 D;
-    float s = sb_cosine_share();
+    float s = sb_cosine_share(), sl = sb_lobe_share();
     if (u.x < s) { // cosine-weighted share
         float r = sqrt(u.x / s), phi = 2.0 * SB_PI * u.y;
         D = vec3(r * cos(phi), r * sin(phi), sqrt(max(1.0 - r * r, 0.0)));
-    } else if (!sb_factored_dir(V, sw, min((u.x - s) / (1.0 - s), SB_ONE_MINUS), u.y, D)) {
+    } else if (u.x < s + sl) { // the GGX lobe
+        if (!sb_lobe_dir(V, sb_lobe_alpha(), min((u.x - s) / sl, SB_ONE_MINUS), u.y, D)) return false;
+    } else if (!sb_factored_dir(V, sw, min((u.x - s - sl) / (1.0 - s - sl), SB_ONE_MINUS), u.y, D)) {
         return false;
     }
     vec3 Ln = normalize(D);

@@ -104,8 +104,23 @@
  * probability 1/2 by u[0]'s remainder after step 1; a wi below the
  * horizon is a failed sample.
  *
+ * A third component, a GGX lobe (Trowbridge-Reitz, roughness alpha,
+ * about the surface normal; src/factor/sampler_lobe.c), takes a share s_l
+ * (0 unless set: sb_sampler_set_lobe, sb_sampler_choose_share): wi is
+ * wo reflected about a normal h drawn from the visible normals of wo
+ * (Heitz 2018), p_lobe(wi) = D_V(h) / (4 wo.h) with D_V(h) = G1(wo)
+ * max(0, wo.h) D(h) / wo.z (Smith's G1), and
+ *     pdf(wi | wo) = s cos(theta_i) / pi + s_l p_lobe(wi | wo)
+ *                    + (1 - s - s_l) p_F(wi | wo)
+ * in the layout's domain (0 outside; a wi below the horizon or outside is
+ * a failed sample).  It does not depend on the layout: every layout with
+ * a sampler takes it.
+ *
  * Two random numbers drive a sample: u[0] < s picks the cosine lobe
- * (r = sqrt(u[0] / s), phi = 2 pi u[1]); otherwise u[0] rescaled picks k,
+ * (r = sqrt(u[0] / s), phi = 2 pi u[1]); u[0] < s + s_l the GGX lobe
+ * ((u[0] - s) / s_l and u[1] the disk's radius squared and angle in
+ * Heitz's method); otherwise u[0] rescaled by (u[0] - s - s_l) / (1 - s
+ * - s_l) picks k,
  * then (rescaled) y, then (rescaled) the position along y inside the
  * cell; u[1] picks x, then (rescaled) the position along x.  The GLSL
  * sampler (sb_glsl_sampler) repeats these steps on the tables that
@@ -127,6 +142,8 @@ extern "C" {
  * the least a sampler takes. */
 #define SB_SAMPLER_COSINE_SHARE 0.05
 #define SB_SAMPLER_MIN_SHARE 0.02
+/* The least roughness alpha of the GGX lobe (sb_sampler_set_lobe). */
+#define SB_SAMPLER_MIN_ALPHA 0.01
 /* The elevations of wo sb_sampler_choose_share measures: 10, 30, 50, 70 deg. */
 #define SB_SAMPLER_CHOICE_WO 4
 /* The most rows of half vectors (g texture height, SB_CAP_HALF_ROWS) a
@@ -164,22 +181,36 @@ SB_API double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[
 SB_API sb_result_t sb_sampler_set_cosine_share(sb_sampler_t *s, double share);
 SB_API double sb_sampler_cosine_share(const sb_sampler_t *s); /* NAN for NULL */
 
+/* The GGX lobe's share s_l (0: no lobe, the default) and roughness alpha,
+ * both stored as floats (the GLSL reads them from sampler.bin).  Errors:
+ * SB_ERR_ARG (NULL, s_l < 0, s + s_l > 1 (also for a cosine share set
+ * after), alpha outside [SB_SAMPLER_MIN_ALPHA, 1] where s_l > 0).
+ * sb_sampler_lobe returns s_l (NAN for NULL) and alpha (0 without a
+ * lobe) in *alpha where not NULL. */
+SB_API sb_result_t sb_sampler_set_lobe(sb_sampler_t *s, double share, double alpha);
+SB_API double sb_sampler_lobe(const sb_sampler_t *s, double *alpha);
+
 /* What sb_sampler_choose_share measured: for wo at theta_o_deg[e] (three
  * azimuths each), the variance of cosine sampling over that of the
- * sampler at the chosen share, estimating int Y(f_r) cos(theta_i) dwi of
- * the source (Y: Rec. 709 luminance); NAN where the source is 0 there. */
+ * sampler at the chosen shares, estimating int Y(f_r) cos(theta_i) dwi of
+ * the source (Y: Rec. 709 luminance); NAN where the source is 0 there.
+ * lobe_share and lobe_alpha: the GGX lobe's s_l and alpha (0, 0: none). */
 typedef struct sb_sampler_choice {
     double share;
     double theta_o_deg[SB_SAMPLER_CHOICE_WO];
     double ratio[SB_SAMPLER_CHOICE_WO];
+    double lobe_share, lobe_alpha;
 } sb_sampler_choice_t;
 
-/* Choose and set s from the fit's own error against src (the BRDF the
- * factors were fitted to): the variances of every candidate share come
- * from `samples` draws per wo (0: 4096) of the sampler at s = 1/2, and
- * the share kept has the largest geometric mean of the ratios over the
- * elevations among those whose every ratio is at least 1.1; where none
- * is, s = 1 (cosine sampling: ratio 1).  Deterministic.  Errors:
+/* Choose and set s, s_l and alpha from the fit's own error against src
+ * (the BRDF the factors were fitted to): the variances of every
+ * candidate (the cosine shares alone, s_l = 0, and a grid of (s, s_l)
+ * pairs times GGX roughnesses 0.04-0.5: src/factor/sampler_share.c) come
+ * from `samples` draws per wo (0: 4096), half of the sampler at s = 1/2
+ * without the lobe, half of the lobes of the candidate roughnesses, and
+ * the candidate kept has the largest geometric mean of the ratios over
+ * the elevations among those whose every ratio is at least 1.1; where
+ * none is, s = 1 (cosine sampling: ratio 1).  Deterministic.  Errors:
  * SB_ERR_ARG (NULL argument). */
 SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, const sb_source_t *src, size_t samples,
                                            sb_sampler_choice_t *out);
@@ -195,14 +226,17 @@ SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, c
  * CDF inclusive of y, texel (0, H) I_k / g_scale[j], the integral in the
  * units the g texture stores (g_scale: each g_j texture's storage scale,
  * sepbrdf.scale of g_JJ.exr; NULL = all 1, FLOAT textures).  Layer J C
- * holds m_r at texel (x, y), the cosine-weighted share s at (0, H), and
+ * holds m_r at texel (x, y), the cosine-weighted share s at (0, H), the
+ * GGX lobe's share s_l at (W, H) and its alpha at (W, 0) (both 0 without
+ * a lobe, as in files written before the lobe: read as s_l = 0), and
  * the row cells' edges (sb_param_row_edge, as float) of x at (i, H) for
  * 1 <= i < W and of y at (W, j) for 1 <= j < H.  For SB_CAP_HALF_ROWS layouts layers = 2 J C
  * + 1: layer J C + 1 + k holds W_k(c) for wo at the centre of cell c at texel
  * (x, y).  For SB_CAP_COL_SAMPLE layouts W x H are the cells between the
  * h textures' nodes, layers = J C + 1: layer k as above over those cells
  * with I_k = int h_k ds / g_scale[j] (g_scale: here each h_j texture's
- * storage scale), layer J C the share s at (0, H) alone.
+ * storage scale), layer J C the share s at (0, H) and the lobe's s_l at
+ * (W, H) and alpha at (W, 0) alone.
  * Unused texels are 0.  Written under a
  * temporary name and renamed.  Errors: SB_ERR_ARG, SB_ERR_NOMEM, SB_ERR_IO. */
 SB_API sb_result_t sb_sampler_write(sb_context_t *ctx, const sb_sampler_t *s, const char *path, const double *g_scale);

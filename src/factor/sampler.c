@@ -17,6 +17,7 @@ struct sb_sampler {
     int half_rows;        /* SB_CAP_HALF_ROWS: rows index h, wi = reflect(wo, h) */
     double lum[3];
     double share;           /* the cosine-weighted share s (a float's value: the GLSL reads it so) */
+    double lobe, alpha;     /* the GGX lobe's share s_l and roughness (floats' values; s_l = 0: none) */
     double *cond;           /* K x H x W: conditional CDF of x in row y, inclusive */
     double *marg;           /* K x H: marginal CDF of y, inclusive */
     double *integral;       /* K: I_k = sum_r g_k[r] m_r */
@@ -420,8 +421,9 @@ double sb_pdf(const sb_sampler_t *s, const double wo[3], const double wi[3]) {
     double sg[2], sh[2];
     wkey_t key;
     if (!s || !wo || !wi || !sb_param_coords(s->p, wi, wo, sg, sh) || !weight_key(s, wo, &key)) return 0;
-    double fp = s->share < 1 ? factored_pdf(s, wo, wi, sg, &key) : 0;
-    return s->share * wi[2] / SB_PI + (1 - s->share) * fp;
+    double rest = 1 - s->share - s->lobe, fp = rest > 0 ? factored_pdf(s, wo, wi, sg, &key) : 0;
+    double lp = s->lobe > 0 ? s->lobe * sb_lobe_pdf_(s->alpha, wo, wi) : 0;
+    return s->share * wi[2] / SB_PI + lp + (rest > 0 ? rest : 0) * fp;
 }
 
 /* Half rows: the row cell (x, y) of distribution k among those wo's cuts
@@ -495,8 +497,11 @@ int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2], doub
         d[0] = r * cos(phi);
         d[1] = r * sin(phi);
         d[2] = sqrt(fmax(1 - r * r, 0));
+    } else if (u[0] < s->share + s->lobe) { /* the GGX lobe: u0 rescaled */
+        double u0 = (u[0] - s->share) / s->lobe;
+        if (!sb_lobe_dir_(s->alpha, wo, u0 < 1 ? u0 : nextafter(1.0, 0.0), u[1], d)) return 0;
     } else {
-        double u0 = (u[0] - s->share) / (1 - s->share);
+        double u0 = (u[0] - s->share - s->lobe) / (1 - s->share - s->lobe);
         if (!factored_dir(s, wo, &key, u0 < 1 ? u0 : nextafter(1.0, 0.0), u[1], d)) return 0;
     }
     double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -510,12 +515,28 @@ int sb_sample(const sb_sampler_t *s, const double wo[3], const double u[2], doub
 }
 
 sb_result_t sb_sampler_set_cosine_share(sb_sampler_t *s, double share) {
-    if (!s || !(share >= (float)SB_SAMPLER_MIN_SHARE && share <= 1)) return SB_ERR_ARG;
+    if (!s || !(share >= (float)SB_SAMPLER_MIN_SHARE && share <= 1) || (double)(float)share + s->lobe > 1)
+        return SB_ERR_ARG;
     s->share = (float)share;
     return SB_OK;
 }
 
 double sb_sampler_cosine_share(const sb_sampler_t *s) { return s ? s->share : NAN; }
+
+sb_result_t sb_sampler_set_lobe(sb_sampler_t *s, double share, double alpha) {
+    int on = share > 0;
+    if (!s || !(share >= 0) || (double)(float)share + s->share > 1 ||
+        (on && !(alpha >= SB_SAMPLER_MIN_ALPHA && alpha <= 1)))
+        return SB_ERR_ARG;
+    s->lobe = (float)share;
+    s->alpha = on ? (float)alpha : 0;
+    return SB_OK;
+}
+
+double sb_sampler_lobe(const sb_sampler_t *s, double *alpha) {
+    if (alpha) *alpha = s ? s->alpha : NAN;
+    return s ? s->lobe : NAN;
+}
 
 /* ---- the tables' file --------------------------------------------------- */
 
@@ -527,6 +548,7 @@ static void put_u32(unsigned char *b, uint32_t v) {
 /* Texel (x, y) of layer k of the file (layout: sampler.h). */
 static double file_texel(const sb_sampler_t *s, const double *g_scale, size_t k, size_t x, size_t y) {
     int in = x < s->W && y < s->H;
+    if (k == s->K && x == s->W && (y == s->H || y == 0)) return y ? s->lobe : s->alpha; /* the lobe */
     if (s->cols) /* the integrals in the h textures' units (g_scale: those of the side sampled) */
         return k < s->K
                    ? sb_col_file_texel_(s->cols, k, x, y) / (x == 0 && y == s->H && g_scale ? g_scale[k / s->C] : 1)

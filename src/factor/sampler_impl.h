@@ -57,4 +57,11 @@ double sb_col_pdf_(const sb_col_sampler_t *c, const double wo[3], const double w
 void sb_col_sampler_cells_(const sb_col_sampler_t *c, size_t *W, size_t *H);
 double sb_col_file_texel_(const sb_col_sampler_t *c, size_t k, size_t x, size_t y);
 
+/* The analytic lobe (sampler_lobe.c): a GGX visible-normal lobe of
+ * roughness alpha about the normal; wi = reflect(wo, h) from u0, u1 in
+ * [0, 1) (0 when wo is not above the horizon; wi may be below it) and its
+ * density with respect to solid angle. */
+int sb_lobe_dir_(double alpha, const double wo[3], double u0, double u1, double wi[3]);
+double sb_lobe_pdf_(double alpha, const double wo[3], const double wi[3]);
+
 #endif

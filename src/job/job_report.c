@@ -458,12 +458,14 @@ static void report_auto(sb_json_t *j, const sb_job_t *job) {
     sb_json_end_array(j);
 }
 
-/* The sampler's cosine-weighted share and what it gains against the
- * source (sampler_share.c); null and empty without a sampler. */
+/* The sampler's cosine-weighted share, its GGX lobe's share and alpha
+ * and what they gain against the source (sampler_share.c); null and empty without a sampler. */
 static void report_sampler(sb_json_t *j, const sb_job_t *job) {
     int has = job->wrote_sampler;
     sb_json_begin_object(j, "sampler");
     sb_json_number(j, "cosine_share", has ? job->share.share : NAN);
+    sb_json_number(j, "lobe_share", has ? job->share.lobe_share : NAN);
+    sb_json_number(j, "lobe_alpha", has ? job->share.lobe_alpha : NAN);
     sb_json_begin_array(j, "theta_o_deg");
     for (size_t e = 0; has && e < SB_SAMPLER_CHOICE_WO; e++)
         sb_json_number(j, NULL, job->share.theta_o_deg[e]);
