@@ -369,7 +369,10 @@ SB_TEST(job_headline_ratio_unweighted) {
  * every weight of the nodes below the horizon from 0.2 to 0.5), which kept
  * chm_orange and malachite on vndf (docs/positive.md).  The minimax of the
  * refit on vndf (nmf_mixes.c SB_NMF_MINIMAX_LAST_TABLES) took paper's J' =
- * 1..4 from 1.36, 1.86, 1.04, 1.43 to 1.52, 1.45, 1.48, 1.45 (round h38r). */
+ * 1..4 from 1.36, 1.86, 1.04, 1.43 to 1.52, 1.45, 1.48, 1.45 (round h38r);
+ * its weights spread less to the nodes beside (SB_NMF_SPREAD_TABLES 0.2
+ * -> 0.12) to 1.48, 1.43, 1.45, 1.47: every prefix within 1.5x, the
+ * issue's check (round h38n, third). */
 static void refitted_case(const char *file, double bound, double last_bound) {
     sb_context_t *ctx;
     sb_context_create(&ctx);
@@ -398,7 +401,7 @@ static void refitted_case(const char *file, double bound, double last_bound) {
 }
 
 SB_TEST(job_headline_ratio_refitted) {
-    refitted_case("rgl_paper_white_rgb.bsdf", 1.6, 1.5);
+    refitted_case("rgl_paper_white_rgb.bsdf", 1.5, 1.5);
     refitted_case("rgl_aurora_white_rgb.bsdf", 1.7, 1.56);
 }
 
