@@ -326,3 +326,34 @@ SB_TEST(end_to_end) {
     sb_job_destroy(mine);
     sb_job_destroy(full);
 }
+
+/* A layout without a sampler (a program's own: every built-in layout has
+ * one since rv's): `--method nmf` writes the set without sampler.bin, and
+ * the run's warning says why (issue 38, item 3; was test_nmf.c's
+ * no_sampler_says_why on rv). */
+SB_TEST(nmf_without_sampler_said) {
+    static sb_layout_desc_t plain;
+    plain = eq_layout;
+    plain.name = "io-eq-plain", plain.row_sample = NULL, plain.sample_glsl = NULL;
+    sb_param_kind_t k;
+    CHECK(sb_param_register(NULL, &plain, &k) == SB_OK);
+    sb_context_t *ctx;
+    sb_context_create(&ctx);
+    sb_job_opts_t o = {0};
+    o.param = "io-eq-plain", o.res = 6, o.terms = 1, o.method = SB_METHOD_NMF;
+    sb_job_t *job = NULL;
+    const char *dir = sb_tmpdir("extend-plain");
+    CHECKF(sb_job_run(ctx, &o, &job) == SB_OK, "%s", sb_context_last_error(ctx));
+    CHECKF(job && sb_job_write(ctx, job, dir) == SB_OK, "write: %s", sb_context_last_error(ctx));
+    int said = 0;
+    for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
+        said |= strstr(sb_job_warning(job, i), "no sampler") && strstr(sb_job_warning(job, i), "io-eq-plain");
+    CHECKF(said, "warnings: %s", job && sb_job_warning_count(job) ? sb_job_warning(job, 0) : "none");
+    char path[1200];
+    snprintf(path, sizeof path, "%s/sampler.bin", dir);
+    FILE *fp = fopen(path, "rb");
+    CHECKF(!fp, "%s written", path);
+    if (fp) fclose(fp);
+    sb_job_destroy(job);
+    sb_context_destroy(ctx);
+}

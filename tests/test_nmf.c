@@ -459,28 +459,6 @@ SB_TEST(band_fit_keeps_the_sign) {
     sb_context_destroy(ctx);
 }
 
-/* A layout whose rows are not light directions (rv) has no sampler: the
- * run's warning says why, not only "not supported" (issue 38, item 3:
- * every layout has a sampler or says why not). */
-SB_TEST(no_sampler_says_why) {
-    sb_context_t *ctx;
-    sb_context_create(&ctx);
-    sb_job_opts_t o = {0};
-    o.param = "rv";
-    o.res = 6;
-    o.terms = 1;
-    o.method = SB_METHOD_NMF;
-    sb_job_t *job = NULL;
-    CHECKF(sb_job_run(ctx, &o, &job) == SB_OK, "rv: %s", sb_context_last_error(ctx));
-    CHECKF(job && sb_job_write(ctx, job, sb_tmpdir("nmf-rv")) == SB_OK, "write: %s", sb_context_last_error(ctx));
-    int said = 0;
-    for (size_t i = 0; job && i < sb_job_warning_count(job); i++)
-        said |= strstr(sb_job_warning(job, i), "no sampler") && strstr(sb_job_warning(job, i), "light directions");
-    CHECKF(said, "warnings: %s", job && sb_job_warning_count(job) ? sb_job_warning(job, 0) : "none");
-    sb_job_destroy(job);
-    sb_context_destroy(ctx);
-}
-
 /* `factor rgl_chm_orange_rgb.bsdf --method nmf -J 4` keeps vndf, the
  * file's own grid, and every channel's headline at J = 4 is within 1.5x of
  * the default run's (the SVD on the same layout, form and weighting).  The

@@ -94,12 +94,18 @@ typedef int (*check_fn)(void *user, const char *text, int sampled, char *log, si
 
 /* Every layout of specs with every form and, for form f, the sampler block
  * for 1 and 3 channels (form cos and cos2 with 3), in `lang`, through check;
- * last the vndf layout of an RGL file (its tables as the texture sb_vndf;
- * its sampler block samples the columns through the file's warp). */
+ * then the vndf layout of an RGL file (its tables as the texture sb_vndf;
+ * its sampler block samples the columns through the file's warp) and rv
+ * (its sampler block about the view's mirror direction; not in sb_specs,
+ * whose sb_coords test_wgsl.c compares with the C's to 1e-4 texels, which
+ * rv's square root at the mirror direction exceeds). */
+#define SB_RV_SPEC "rv:res=12"
 static void each_variant(const char *lang, check_fn check, void *user) {
-    for (size_t i = 0; i <= SB_NSPECS; i++) {
-        sb_param_t *p = i < SB_NSPECS ? sb_param_of(sb_specs[i]) : sb_param_vndf();
-        CHECKF(p != NULL, "%s", i < SB_NSPECS ? sb_specs[i] : "vndf");
+    for (size_t i = 0; i <= SB_NSPECS + 1; i++) {
+        sb_param_t *p = i < SB_NSPECS    ? sb_param_of(sb_specs[i])
+                        : i == SB_NSPECS ? sb_param_vndf()
+                                         : sb_param_of(SB_RV_SPEC);
+        CHECKF(p != NULL, "%s", i < SB_NSPECS ? sb_specs[i] : i == SB_NSPECS ? "vndf" : SB_RV_SPEC);
         for (int form = 0; p && form < SB_FORM_COUNT_; form++)
             for (int sampled = 0; sampled <= 3; sampled += form == SB_FORM_F ? 1 : 3) {
                 if (sampled == 2) continue;
@@ -290,7 +296,7 @@ static int chromium_wgsl(char *const *mods, int n, const char *dir, char *log, s
 /* Every layout, form and the sampler block in WGSL, compiled by Tint: no
  * error; and the check is real: the untranslated GLSL fails. */
 typedef struct modules {
-    char *text[(SB_NSPECS + 1) * 8 + 1];
+    char *text[(SB_NSPECS + 2) * 8 + 1];
     int n;
 } modules_t;
 

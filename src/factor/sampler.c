@@ -262,7 +262,8 @@ sb_result_t sb_sampler_create(sb_context_t *ctx, const sb_factors_t *f, const sb
                         sb_param_spec(p));
     int cols = (sb_param_caps(p) & SB_CAP_COL_SAMPLE) != 0;
     if (!cols && !sb_param_sample_glsl(p)[0])
-        return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has no sampler (its rows are not light directions)",
+        return sb_error(ctx, SB_ERR_UNSUPPORTED,
+                        "sampler: %s has no sampler (its layout samples neither rows nor columns)",
                         sb_param_kind_name(sb_param_kind(p)));
     if ((sb_param_caps(p) & SB_CAP_HALF_ROWS) && gh > SB_SAMPLER_MAX_ROWS)
         return sb_error(ctx, SB_ERR_UNSUPPORTED, "sampler: %s has %zu rows of half vectors, at most %d are sampled",
