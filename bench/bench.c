@@ -115,7 +115,8 @@ static void help(const char *prog) {
            "                    is most of the time of a run at N = 4096)\n"
            "  -o, --out DIR     write DIR/results.csv and DIR/results.png (gnuplot)\n"
            "  --matrices DIR    also write each sampled matrix, DIR/ioN_C.f64 (C = r, g, b:\n"
-           "                    raw float64, column-major, N x N) for bench/peers.py\n"
+           "                    raw float64, column-major, N x N) for bench/peers.py;\n"
+           "                    both folders are created if missing, before the run\n"
            "  -q, --quiet       no table on stdout\n"
            "  -v, --verbose     also gnuplot's own messages (warnings such as an empty range)\n"
            "  -h, --help        this text\n"
@@ -425,7 +426,6 @@ static void run_forked(const bench_opts_t *o, const sb_matrix_t *m, const sb_par
  * column-major, native byte order: the peers (bench/peers.py) factor the
  * very same numbers.  0 on success. */
 static int write_matrices(const bench_opts_t *o, const sb_matrix_t *m) {
-    if (mkdir(o->matrices, 0777) != 0 && errno != EEXIST) return -1;
     for (int c = 0; c < 3; c++) {
         char path[4200];
         snprintf(path, sizeof path, "%s/io%zu_%c.f64", o->matrices, m->rows, "rgb"[c]);
@@ -493,7 +493,7 @@ static void plot(const bench_opts_t *o, const char *csv) {
 
 void (*sb_bench_tmp_hook)(const char *path, int on);
 
-int sb_bench_out_dir(const char *prog, const char *dir) {
+int sb_bench_out_dir(const char *prog, const char *opt, const char *dir) {
     char buf[4200];
     struct stat st;
     int e = 0, n = snprintf(buf, sizeof buf, "%s", dir);
@@ -507,10 +507,10 @@ int sb_bench_out_dir(const char *prog, const char *dir) {
         if (!c) break;
     }
     if (!e && (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))) {
-        fprintf(stderr, "%s: --out %s: exists and is not a folder\n", prog, dir);
+        fprintf(stderr, "%s: %s %s: exists and is not a folder\n", prog, opt, dir);
         return 2;
     }
-    if (e) fprintf(stderr, "%s: --out %s: cannot create the folder: %s\n", prog, dir, strerror(e));
+    if (e) fprintf(stderr, "%s: %s %s: cannot create the folder: %s\n", prog, opt, dir, strerror(e));
     return e ? 2 : 0;
 }
 
@@ -529,13 +529,29 @@ static int check_model(const bench_opts_t *o) {
     return r == SB_OK ? 0 : r == SB_ERR_IO || r == SB_ERR_FORMAT || r == SB_ERR_UNSUPPORTED ? 2 : 1;
 }
 
+static int run_sizes(bench_opts_t *o);
+
+/* The folders of --matrices and --out, made before anything is written
+ * (a --matrices that cannot be one was found after the sampling, with an
+ * empty --out folder left); those this run made go again if it fails
+ * while they are empty. */
 static int run_all(bench_opts_t *o) {
+    struct stat st;
+    int bad = check_model(o), made_m = o->matrices && stat(o->matrices, &st) != 0,
+        made_o = o->out && stat(o->out, &st) != 0;
+    if (bad) return bad;
+    if (o->matrices && sb_bench_out_dir(o->prog, "--matrices", o->matrices) != 0) return 2;
+    int rc = o->out && sb_bench_out_dir(o->prog, "--out", o->out) != 0 ? 2 : run_sizes(o);
+    if (rc != 0 && made_o) rmdir(o->out);
+    if (rc != 0 && made_m) rmdir(o->matrices);
+    return rc;
+}
+
+/* The table over --sizes and --terms (results.csv written whole). */
+static int run_sizes(bench_opts_t *o) {
     FILE *csv = NULL;
     char csv_path[4200], tmp_path[4300];
-    int bad = check_model(o);
-    if (bad) return bad;
     if (o->out) {
-        if (sb_bench_out_dir(o->prog, o->out) != 0) return 2;
         snprintf(csv_path, sizeof csv_path, "%s/results.csv", o->out);
         snprintf(tmp_path, sizeof tmp_path, "%s.tmp-%ld", csv_path, (long)getpid());
         if (sb_bench_tmp_hook) sb_bench_tmp_hook(tmp_path, 1); /* before it exists */
@@ -584,7 +600,7 @@ static int run_all(bench_opts_t *o) {
         }
         double sample_s = now() - t0;
         if (o->matrices && write_matrices(o, &m) != 0) {
-            fprintf(stderr, "%s: --matrices %s: cannot write\n", o->prog, o->matrices);
+            fprintf(stderr, "%s: --matrices %s: cannot write: %s\n", o->prog, o->matrices, strerror(errno));
             rc = 2;
             goto next;
         }

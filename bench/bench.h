@@ -25,9 +25,10 @@ int sb_bench_main(int argc, char **argv, const char *prog);
  * no results.csv.tmp-PID behind. */
 extern void (*sb_bench_tmp_hook)(const char *path, int on);
 
-/* The output folder DIR, created with its parents as every writing
- * command creates its -o folder; 0, or 2 with "PROG: --out DIR: why" on
+/* The output folder DIR of option OPT (--out, --matrices), created with
+ * its parents as every writing command creates its -o folder; 0, or 2
+ * with "PROG: OPT DIR: why" on
  * stderr (exists and is not a folder, cannot create: errno's text). */
-int sb_bench_out_dir(const char *prog, const char *dir);
+int sb_bench_out_dir(const char *prog, const char *opt, const char *dir);
 
 #endif

@@ -261,7 +261,7 @@ int sb_bench_pareto_main(int argc, char **argv, const char *prog) {
         fprintf(stderr, "%s: --out: empty folder name\n", who);
         return 1;
     }
-    if (sb_bench_out_dir(who, o.out) != 0) return 2;
+    if (sb_bench_out_dir(who, "--out", o.out) != 0) return 2;
     char tmp[2048], path[4200];
     snprintf(tmp, sizeof tmp, "%s/pareto-run-%ld", o.out, (long)getpid());
     size_t n = 0;

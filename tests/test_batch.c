@@ -564,3 +564,27 @@ SB_TEST(gonio_csv_tables_batched) {
     rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 0 && strstr(out, "batch: 1 materials"), "rc %d: %s", rc, out);
 }
+
+/* A set whose folder lost a file its set list names, or holds a texture
+ * cut short (a user's rm, an interrupted copy of OUT), is not a complete
+ * set: it is fitted again, not reused and counted ok (twelfth outside
+ * pass: all three were reused, exit 0, the summary saying ok). */
+SB_TEST(incomplete_set_not_reused) {
+    const char *dir = setup("batch_whole", "");
+    CHECK(batch(dir, "full", "-j 2 -q") == 0);
+    CHECK(batch(dir, "w", "-j 2 -q") == 0);
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd %s/w && rm %s/g_01.exr && truncate -s 100 %s/h_00.exr && rm %s/sepbrdf.glsl && "
+             "truncate -s -1 %s/h_01.exr",
+             dir, names[2], names[3], names[4], names[0]);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    int rc = batch(dir, "w", "-j 2");
+    CHECKF(rc == 0 && strstr(out, "5 materials, 1 reused"), "rc %d: %s", rc, out);
+    same_textures(dir, "full", "w");
+    char *a = summary_sans_time(dir, "full"), *b = summary_sans_time(dir, "w");
+    CHECK(a && b && strcmp(a, b) == 0);
+    free(a), free(b);
+    snprintf(cmd, sizeof cmd, "%s/w/%s/sepbrdf.glsl", dir, names[4]);
+    CHECK(sb_file_exists(cmd));
+}

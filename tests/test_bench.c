@@ -166,3 +166,30 @@ SB_TEST(unreadable_model_leaves_nothing) {
     rc = sb_run(cmd, out, sizeof out);
     CHECKF(rc == 1 && strstr(out, "nosuchmodel") && !sb_file_exists(path), "rc %d: %s", rc, out);
 }
+
+/* --matrices DIR that cannot be a folder (a file, under a file) is
+ * refused before anything is written, naming the option and why, with
+ * no --out folder left (twelfth outside pass: the table's header was
+ * printed, "cannot write" without a reason after the sampling, exit 2,
+ * an empty --out folder left). */
+SB_TEST(unwritable_matrices_leaves_nothing) {
+    const char *dir = sb_tmpdir("bench_matrices");
+    char cmd[8400], out[8192], path[4200];
+    snprintf(cmd, sizeof cmd, "touch %s/afile", dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    static const char *const bad[2] = {"afile", "afile/m"};
+    for (int k = 0; k < 2; k++) {
+        snprintf(cmd, sizeof cmd, "cd %s && %s bench --quick --sizes 16 --terms 1 --matrices %s -o o 2>&1", dir, SB_CLI,
+                 bad[k]);
+        int rc = sb_run(cmd, out, sizeof out);
+        CHECKF(rc == 2 && strstr(out, "--matrices") && strstr(out, bad[k]) && !strstr(out, "# model") &&
+                   (strstr(out, "not a folder") || strstr(out, "Not a directory")),
+               "%s: rc %d: %s", bad[k], rc, out);
+        snprintf(path, sizeof path, "%s/o", dir);
+        CHECKF(!sb_file_exists(path), "%s left behind", path);
+    }
+    snprintf(cmd, sizeof cmd, "cd %s && %s bench --quick --sizes 16 --terms 1 --matrices m -o o -q 2>&1", dir, SB_CLI);
+    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    snprintf(path, sizeof path, "%s/m/io16_g.f64", dir);
+    CHECK(sb_file_exists(path));
+}

@@ -366,3 +366,12 @@ SB_TEST(nmf_names_sampler_bin) {
     CHECKF(rc == 0 && strstr(out, "wrote 1 texture pair, sampler.bin, report.json and sepbrdf.glsl to "), "rc %d: %s",
            rc, out);
 }
+
+/* A black source under --method nmf: nmf_over_svd is 0/0, null in
+ * report.json; the table on stdout says "-" there as it does for a band
+ * it cannot name (twelfth outside pass: "-nan"). */
+SB_TEST(black_source_table_has_no_nan) {
+    const char *dir = sb_tmpdir("cli_black");
+    int rc = run("factor lambert:albedo=0 --param io -r 4 -J 1 --method nmf -o %s/b", dir);
+    CHECKF(rc == 0 && strstr(out, "nmf_over_svd") && !strstr(out, "nan"), "rc %d: %s", rc, out);
+}

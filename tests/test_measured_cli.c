@@ -620,6 +620,10 @@ SB_TEST(convert_errors) {
     snprintf(p, sizeof p, "%s/y.binary", dir);
     CHECK(!sb_file_exists(p));
     CHECK(cli("convert --help") == 0 && strstr(out, "--format"));
+    /* an existing folder as the CSV: why it cannot be written is said, as
+     * for MERL and sample (twelfth outside pass: "--out DIR: cannot write") */
+    CHECKF(cli("convert lambert -o %s --format csv", dir) == 2 && strstr(out, "cannot write: Is a directory"), "%s",
+           out);
 }
 
 /* Copy `from` to `to`, byte `at` set to `value` (at < 0: none); the first

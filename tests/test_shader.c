@@ -33,6 +33,12 @@ SB_TEST(registry) {
     CHECK(sb_shader_lang_list(ctx, "hlsl,spirv", &m) == SB_ERR_UNKNOWN);
     CHECK(strstr(sb_context_last_error(ctx), "'spirv'") != NULL);
     CHECK(sb_shader_lang_list(ctx, "hlslx", NULL) == SB_ERR_UNKNOWN);
+    /* an empty item is refused wherever it stands (twelfth outside pass:
+     * "hlsl," was taken as hlsl while ",hlsl" and "hlsl,,msl" were refused) */
+    CHECK(sb_shader_lang_list(ctx, "hlsl,", &m) == SB_ERR_UNKNOWN && strstr(sb_context_last_error(ctx), "''"));
+    CHECK(sb_shader_lang_list(ctx, ",hlsl", &m) == SB_ERR_UNKNOWN);
+    CHECK(sb_shader_lang_list(ctx, ",", &m) == SB_ERR_UNKNOWN);
+    CHECK(sb_shader_lang_list(NULL, "", &m) == SB_OK && m == 1); /* the whole list empty: GLSL alone */
     sb_context_destroy(ctx);
     CHECK(tr("x", "cg") == NULL && tr(NULL, "hlsl") == NULL);
     char *g = tr("vec3 f(vec3 a) { return a; }\n", "glsl");
@@ -205,6 +211,11 @@ SB_TEST(cli_shader_option) {
     snprintf(cmd, sizeof cmd, "%s factor lambert --shader hlsl,spirv -o %s/bad 2>&1", SB_CLI, dir);
     CHECK(sb_run(cmd, out, sizeof out) == 1);
     CHECKF(strstr(out, "--shader 'hlsl,spirv': shader language 'spirv' unknown") != NULL, "%s", out);
+    /* an empty value names no language: refused as --channels '' is (it wrote GLSL alone, exit 0) */
+    snprintf(cmd, sizeof cmd, "%s factor lambert --shader '' -o %s/empty 2>&1", SB_CLI, dir);
+    CHECKF(sb_run(cmd, out, sizeof out) == 1 && strstr(out, "--shader ''"), "%s", out);
+    snprintf(cmd, sizeof cmd, "%s/empty", dir);
+    CHECK(!sb_file_exists(cmd));
 }
 
 /* ---- MSL: no Metal compiler on Linux; a C++ front end (clang++) against

@@ -70,7 +70,8 @@ SB_API const char *sb_shader_lang_ext(size_t k);
 SB_API int sb_shader_lang_find(const char *name);
 /* A comma list of language names ("hlsl,msl"; "all": every one) as bits
  * 1 << k in *mask (may be NULL), GLSL's always set; NULL or "" gives GLSL
- * alone.  SB_ERR_UNKNOWN, naming the word, for a name not in the registry. */
+ * alone.  SB_ERR_UNKNOWN, naming the word, for a name not in the registry
+ * or an empty item ("hlsl,", ",hlsl"). */
 SB_API sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *mask);
 
 /* The snippet text `glsl` (sb_glsl_snippet, optionally followed by

@@ -21,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "batch.h"
@@ -112,6 +113,38 @@ static void old_fields(char **fields) {
     *fields = up;
 }
 
+/* Whether DIR/NAME still holds every file its set list names, and
+ * textures (g_*.exr, h_*.exr) of the bytes `fields` recorded when it was
+ * published: a set that lost a file or holds one cut short (a user's rm,
+ * an interrupted copy of OUT) is not a complete set, so not reused. */
+static int set_whole(const char *dir, const char *name, const char *fields) {
+    char *path = format("%s/%s/sepbrdf-set-factor.txt", dir, name), *text = NULL;
+    size_t n = 0;
+    int whole = path && cli_read_file(path, MAX_BATCH_FILE, &text, &n) == 0;
+    free(path);
+    long long sum = 0;
+    for (char *line = text, *eol; whole && line < text + n; line = eol + 1) {
+        eol = memchr(line, '\n', (size_t)(text + n - line));
+        if (!eol) eol = text + n;
+        *eol = 0;
+        size_t len = strlen(line);
+        if (!len || line[0] == '#') continue;
+        struct stat st;
+        char *file = format("%s/%s/%s", dir, name, line);
+        whole = file && stat(file, &st) == 0 && S_ISREG(st.st_mode);
+        free(file);
+        if (whole && (line[0] == 'g' || line[0] == 'h') && len > 4 && strcmp(line + len - 4, ".exr") == 0)
+            sum += st.st_size;
+    }
+    free(text);
+    const char *p = fields; /* bytes, the tenth field (BATCH_FIELDS) */
+    for (int k = 0; k < 9 && p; k++)
+        p = strchr(p, '\t') ? strchr(p, '\t') + 1 : NULL;
+    char *end = NULL;
+    long long bytes = p ? strtoll(p, &end, 10) : 0;
+    return whole && (!p || end == p || *end != '\t' || bytes == sum);
+}
+
 int batch_folder_read(const char *dir, const char *name, char **key, char **fields) {
     char *path = format("%s/%s/sepbrdf-set-factor.txt", dir, name), *text = NULL;
     *key = *fields = NULL;
@@ -139,7 +172,10 @@ int batch_folder_read(const char *dir, const char *name, char **key, char **fiel
     }
     strcpy(*fields, eol + 1);
     old_fields(fields);
-    return 1;
+    if (set_whole(dir, name, *fields)) return 1;
+    free(text), free(*fields);
+    *key = *fields = NULL;
+    return 0;
 }
 
 /* it->headline from the fifth of its fields. */

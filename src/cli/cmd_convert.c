@@ -196,8 +196,9 @@ static int convert_csv(sb_context_t *ctx, const convert_opts_t *o, const sb_sour
         cli_commit(fp, tmp, o->out, 0);
         return cli_fail("convert", ctx, r);
     }
-    if (cli_commit(fp, tmp, o->out, 1) != 0) {
-        cli_error("convert", "--out %s: cannot write", o->out);
+    int e = cli_commit(fp, tmp, o->out, 1);
+    if (e != 0) {
+        cli_error("convert", "--out %s: cannot write: %s", o->out, sb_io_why(e));
         return EXIT_IO;
     }
     csv_said(o, src, &st);

@@ -165,9 +165,11 @@ static void print_table(const sb_job_t *job) {
         printf("  %-10s %10.3e", wb < 0 ? "-" : sb_band_name(wb), wb < 0 ? NAN : est->band[k][wb][SB_CH_ALL]);
         for (int c = 0; c < 3; c++)
             if (sb_matrix_has(m, c)) printf("  %12.4e", e->rel_rms[sb_err_at(k, (size_t)c)]);
-        if (beside)
-            printf("  %12.4e  %11.4e  %12.3f", sb_job_svd_headline(job, k + 1), sb_job_svd_rel_rms(job, k + 1),
-                   sb_job_headline(job, k + 1) / sb_job_svd_headline(job, k + 1));
+        double ratio = sb_job_headline(job, k + 1) / sb_job_svd_headline(job, k + 1); /* report.json: null if 0/0 */
+        if (beside && isfinite(ratio))
+            printf("  %12.4e  %11.4e  %12.3f", sb_job_svd_headline(job, k + 1), sb_job_svd_rel_rms(job, k + 1), ratio);
+        else if (beside)
+            printf("  %12.4e  %11.4e  %12s", sb_job_svd_headline(job, k + 1), sb_job_svd_rel_rms(job, k + 1), "-");
         printf("\n");
     }
 }

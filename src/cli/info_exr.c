@@ -30,6 +30,10 @@ static exr_result_t open_header(const char *path, exr_context_t *ex) {
         snprintf(exr_msg, sizeof exr_msg, "not a regular file (a device, FIFO or folder is not read)");
         return EXR_ERR_FILE_ACCESS;
     }
+    /* as the textures' reader (exr.c): a damaged offset table is refused,
+     * not rebuilt by scanning the file (info described such a file as
+     * whole, exit 0, where render refused it) */
+    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
     return exr_start_read(ex, path, &init);
 }
 
@@ -211,8 +215,9 @@ static int chunks_complete(exr_context_t ex, const char *path, char *why, size_t
     for (int64_t y = dw.min.y; y <= dw.max.y; y += lines) {
         exr_chunk_info_t ci;
         if (exr_read_scanline_chunk_info(ex, 0, (int)y, &ci) != EXR_ERR_SUCCESS) {
-            snprintf(why, size, "the pixel data of scanline %lld cannot be located (the file is cut short or damaged)",
-                     (long long)y);
+            snprintf(why, size,
+                     "the pixel data of scanline %lld cannot be located (the file is cut short or damaged%s%s)",
+                     (long long)y, exr_msg[0] ? ": " : "", exr_msg);
             return 0;
         }
         if (ci.data_offset + ci.packed_size > (uint64_t)st.st_size) {
@@ -270,7 +275,7 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
         if (ex) exr_finish(&ex);
         return EXIT_IO;
     }
-    char why[256];
+    char why[640];
     exr_msg[0] = 0;
     if (!chunks_complete(ex, path, why, sizeof why)) {
         cli_error("info", "%s: %s", path, why);

@@ -194,6 +194,13 @@ static int set_channels(const char *cmd, const cli_option_t *op, const char *v, 
 }
 
 static int set_shaders(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
+    if (!*v) { /* the library's "" is its default, GLSL alone: here a value that names nothing */
+        char names[128] = "";
+        for (size_t k = 0; k < sb_shader_lang_count(); k++)
+            snprintf(names + strlen(names), sizeof names - strlen(names), "%s, ", sb_shader_lang_name(k));
+        cli_error(cmd, "%s '': no language given, need %sor all", op->name, names);
+        return -1;
+    }
     sb_context_t *ctx = NULL;
     sb_result_t r = sb_context_create(&ctx);
     if (r == SB_OK) r = sb_shader_lang_list(ctx, v, NULL);

@@ -62,7 +62,7 @@ sb_result_t sb_shader_lang_list(sb_context_t *ctx, const char *list, unsigned *m
                 snprintf(names + strlen(names), sizeof names - strlen(names), "%s, ", sb_shader_lang_name(i));
             return sb_error(ctx, SB_ERR_UNKNOWN, "shader language '%.*s' unknown, need %sor all", (int)n, p, names);
         }
-        p += n + (p[n] == ',');
+        p += n + (p[n] == ',' && p[n + 1]); /* "hlsl,": the empty item after the comma is read too */
     }
     if (mask) *mask = m;
     return SB_OK;
