@@ -142,7 +142,8 @@ static int parse_list(const bench_opts_t *o, const char *opt, const char *s, siz
         char *end;
         errno = 0;
         unsigned long long v = strtoull(s, &end, 10);
-        if (end == s || (*end && *end != ',') || errno || v < lo || v > hi || *n == MAXL || *s == '-') {
+        if (end == s || (*end && *end != ',') || (*end == ',' && !end[1]) || errno || v < lo || v > hi || *n == MAXL ||
+            *s == '-') {
             fprintf(stderr, "%s: %s '%s': need a comma-separated list of at most %d integers in %zu..%zu\n", o->prog,
                     opt, s, MAXL, lo, hi);
             return 1;
@@ -189,6 +190,7 @@ static int parse_methods(bench_opts_t *o, const char *s) {
     while (*s) {
         const char *c = strchr(s, ',');
         size_t len = c ? (size_t)(c - s) : strlen(s);
+        if (c && !c[1]) return bad(o, "--methods: an empty item after the last comma (%s)", s);
         if (o->nmethods == MAXL) return bad(o, "--methods: at most 16 methods (%s)", s);
         if (parse_method(o, s, len, &o->methods[o->nmethods++])) return 1;
         s += len + (c != NULL);

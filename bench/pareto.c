@@ -56,7 +56,7 @@ static int split(const popts_t *o, const char *opt, const char *s, char (*out)[1
     *n = 0;
     while (*s) {
         size_t len = strcspn(s, ",");
-        if (len == 0 || len >= 16 || *n == MAXL) {
+        if (len == 0 || len >= 16 || *n == MAXL || (s[len] == ',' && !s[len + 1])) {
             fprintf(stderr, "%s --pareto: %s '%s': need a comma list of at most %d names\n", o->prog, opt, s, MAXL);
             return 1;
         }

@@ -375,3 +375,33 @@ SB_TEST(black_source_table_has_no_nan) {
     int rc = run("factor lambert:albedo=0 --param io -r 4 -J 1 --method nmf -o %s/b", dir);
     CHECKF(rc == 0 && strstr(out, "nmf_over_svd") && !strstr(out, "nan"), "rc %d: %s", rc, out);
 }
+
+/* Every list option refuses an empty item, as render -J and --shader did
+ * (twelfth outside pass: study --param 'io,' and --budget '4K,', bench
+ * --sizes '16,', --methods 'full,' and --pareto --layouts 'io,' were
+ * read as the list without it): exit 1, the option named, no folder. */
+SB_TEST(lists_refuse_empty_items) {
+    const char *dir = sb_tmpdir("cli_lists");
+    static const char *const cases[][2] = {
+        {"study --param io, -o %s/s1", "--param"},
+        {"study --param ,io -o %s/s2", "--param"},
+        {"study --param io,,hd -o %s/s3", "--param"},
+        {"study --budget 4K, -o %s/s4", "--budget"},
+        {"bench --sizes 16, -o %s/b1", "--sizes"},
+        {"bench --methods full, -o %s/b2", "--methods"},
+        {"bench --pareto --layouts io, -o %s/b3", "--layouts"},
+        {"bench --pareto --res 16, -o %s/b4", "--res"},
+        {"study -J 1, -o %s/s5", "--terms"},
+        {"factor --shader glsl, -o %s/f1", "--shader"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        int rc = run(cases[i][0], dir);
+        CHECKF(rc == 1 && strstr(out, cases[i][1]), "%s: rc %d: %s", cases[i][0], rc, out);
+    }
+    char path[4200];
+    const char *made[] = {"s1", "s2", "s3", "s4", "s5", "b1", "b2", "b3", "b4", "f1"};
+    for (size_t i = 0; i < sizeof made / sizeof made[0]; i++) {
+        snprintf(path, sizeof path, "%s/%s", dir, made[i]);
+        CHECKF(access(path, F_OK) != 0, "%s was made", path);
+    }
+}

@@ -223,8 +223,8 @@ SB_TEST(choice_takes_the_lobe) {
         double a;
         fprintf(stderr, "share %.3f, lobe %.3f alpha %.3f; ratios %.3g %.3g %.3g %.3g\n", ch.share, ch.lobe_share,
                 ch.lobe_alpha, ch.ratio[0], ch.ratio[1], ch.ratio[2], ch.ratio[3]);
-        CHECKF(ch.lobe_share > 0 && ch.lobe_alpha >= 0.06 && ch.lobe_alpha <= 0.18, "lobe %g alpha %g",
-               ch.lobe_share, ch.lobe_alpha);
+        CHECKF(ch.lobe_share > 0 && ch.lobe_alpha >= 0.06 && ch.lobe_alpha <= 0.18, "lobe %g alpha %g", ch.lobe_share,
+               ch.lobe_alpha);
         CHECK(sb_sampler_lobe(x.s, &a) == ch.lobe_share && a == ch.lobe_alpha);
         for (int e = 0; e < SB_SAMPLER_CHOICE_WO; e++) {
             double wo[3];

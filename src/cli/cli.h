@@ -137,6 +137,10 @@ int cli_parse_size(const char *cmd, const char *opt, const char *s, size_t lo, s
  * message naming opt and the text. */
 int cli_parse_bytes(const char *cmd, const char *opt, const char *v, size_t *out);
 int cli_parse_double(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
+/* A comma list with no empty item (none before a first or after a last
+ * comma, none between two), as every list option reads it: 0, else -1
+ * after a message naming opt and the text. */
+int cli_list_items(const char *cmd, const char *opt, const char *s);
 
 /* Check, before any work, that an output set can be published in folder
  * `path` (sb_outset_check: a folder of its own, writable or creatable,

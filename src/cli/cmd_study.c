@@ -199,6 +199,7 @@ static int parse_params(const char *s, study_opts_t *o) {
     o->params = 0;
     char buf[256];
     if (strlen(s) >= sizeof buf || !*s) goto bad;
+    if (cli_list_items("study", "--param", s)) return -1;
     strcpy(buf, s);
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         sb_param_kind_t k;

@@ -143,6 +143,13 @@ static int set_memory_limit(const char *cmd, const cli_option_t *op, const char 
     return 0;
 }
 
+int cli_list_items(const char *cmd, const char *opt, const char *s) {
+    size_t n = strlen(s);
+    if (n && s[0] != ',' && s[n - 1] != ',' && !strstr(s, ",,")) return 0;
+    cli_error(cmd, "%s '%s': an empty item in the comma list", opt, s);
+    return -1;
+}
+
 /* A byte count: a positive number with an optional unit, binary K, Ki,
  * KiB (1024), M, Mi, MiB, G, Gi, GiB, decimal kB / KB (1000), MB, GB, or
  * B; fractions are rounded down to whole bytes (3.2KB = 3200).  0, -1 and

@@ -42,6 +42,7 @@ int study_parse_budgets(const char *s, study_opts_t *o) {
         cli_error("study", "--budget '%s': need a comma list of sizes such as 4K,16K,48KiB", s);
         return -1;
     }
+    if (cli_list_items("study", "--budget", s)) return -1;
     strcpy(buf, s);
     for (char *save = NULL, *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
         size_t v, k;
