@@ -461,3 +461,6 @@ SB_TEST(pdf_lobe_hd) { run_lobe(SB_PARAM_HD, "microfacet:roughness=0.316", 1); }
 SB_TEST(pdf_lobe_iso) { run_lobe(SB_PARAM_ISO, "microfacet:roughness=0.316", 1); }
 SB_TEST(pdf_lobe_vh) { run_lobe(SB_PARAM_VH, "microfacet:roughness=0.316", 1); }
 SB_TEST(pdf_lobe_vndf) { run_lobe(vndf_kind(), RGL_ORANGE, 1); }
+/* rv's sampler came after the lobe (round h38r): the mixture on it too */
+SB_TEST(lobe_rv) { run_lobe(rv_kind(), "phong:n=100", 0); }
+SB_TEST(pdf_lobe_rv) { run_lobe(rv_kind(), "microfacet:base=gold,roughness=0.5", 1); }
