@@ -48,6 +48,13 @@ SB_API sb_result_t sb_factors_write_exr(sb_context_t *ctx, const sb_factors_t *f
  * terms from the files' headers).  Values are the stored ones, exactly. */
 SB_API sb_result_t sb_factors_read_exr(sb_context_t *ctx, const char *dir, sb_factors_t **out);
 
+/* Whether one factor texture file (g_KK.exr or h_KK.exr) reads as
+ * sb_factors_read_exr would read it: its header, and every chunk of its
+ * pixels decoded and finite.  SB_OK, else the reader's error (SB_ERR_IO,
+ * SB_ERR_FORMAT, SB_ERR_OVERFLOW, SB_ERR_NOMEM, SB_ERR_ARG) with its
+ * message naming the file. */
+SB_API sb_result_t sb_exr_texture_check(sb_context_t *ctx, const char *path);
+
 /* The sizes of the set of factor textures in `dir` as written, read back
  * from the files: texel_bytes = sum over g_KK.exr, h_KK.exr (K < the
  * terms of g_00.exr's header) of width * height * channels * (4 FLOAT, 2

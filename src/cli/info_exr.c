@@ -266,6 +266,19 @@ static int info_tables(const char *path, FILE *out, int json, exr_context_t ex) 
     return EXIT_OK;
 }
 
+/* Whether a factor texture's pixels decode as render reads them (OpenEXR
+ * takes an unknown compression byte for another method and fails only
+ * there); the reader's message on stderr when not. */
+static int pixels_decode(const char *path) {
+    sb_context_t *ctx = NULL;
+    sb_result_t r = sb_context_create(&ctx);
+    if (r == SB_OK) r = sb_exr_texture_check(ctx, path);
+    if (r != SB_OK)
+        cli_error("info", "%s", ctx && sb_context_last_error(ctx) ? sb_context_last_error(ctx) : sb_result_message(r));
+    sb_context_destroy(ctx);
+    return r == SB_OK;
+}
+
 int info_exr(const char *path, FILE *out, int json, const char *set) {
     exr_context_t ex = NULL;
     exr_result_t rv = open_header(path, &ex);
@@ -293,6 +306,10 @@ int info_exr(const char *path, FILE *out, int json, const char *set) {
             return rc;
         }
         cli_error("info", "%s: not a factor file (an EXR without the sepbrdf.* attributes `factor` writes)", path);
+        exr_finish(&ex);
+        return EXIT_IO;
+    }
+    if (!pixels_decode(path)) {
         exr_finish(&ex);
         return EXIT_IO;
     }

@@ -270,6 +270,32 @@ static sb_result_t open_header(sb_context_t *ctx, const char *dir, int side, siz
  * channels and both sizes; forged sizes are refused before anything is
  * allocated (all textures as doubles within the memory limit).  *npix:
  * the texels of the larger side. */
+sb_result_t sb_exr_texture_check(sb_context_t *ctx, const char *path) {
+    if (!path) return sb_error(ctx, SB_ERR_ARG, "exr check: no path");
+    exr_context_t ex = NULL;
+    hdr_t hd;
+    sb_factors_t *f = NULL;
+    void *buf = NULL;
+    size_t n, bytes;
+    sb_result_t r = open_read(ctx, path, &ex);
+    if (r == SB_OK) r = read_header(ctx, ex, path, &hd);
+    if (r == SB_OK && (sb_size_mul(hd.w, hd.h, &n) || sb_size_mul3(n, (size_t)hd.channels, sizeof(double), &bytes) ||
+                       bytes > sb_memory_limit()))
+        r = sb_error(ctx, SB_ERR_OVERFLOW, "%s: %zu x %zu texels exceed the memory limit of %zu bytes", path, hd.w,
+                     hd.h, sb_memory_limit());
+    /* one term of this side's size (the other side 1 x 1) to decode into */
+    if (r == SB_OK)
+        r = hd.side == SB_SIDE_H ? sb_factors_create(ctx, 1, (size_t)hd.channels, 1, 1, hd.w, hd.h, &f)
+                                 : sb_factors_create(ctx, 1, (size_t)hd.channels, hd.w, hd.h, 1, 1, &f);
+    if (r == SB_OK && !(buf = sb_alloc(ctx, n * (size_t)hd.channels, sizeof(float), "exr pixel buffer")))
+        r = SB_ERR_NOMEM;
+    if (r == SB_OK) r = read_pixels(ctx, ex, path, &hd, f, hd.side, 0, buf);
+    free(buf);
+    sb_factors_destroy(f);
+    if (ex) exr_finish(&ex);
+    return r;
+}
+
 static sb_result_t read_shape(sb_context_t *ctx, const char *dir, char **first, exr_context_t *ex, hdr_t *hg, hdr_t *hh,
                               size_t *npix) {
     char *path = NULL;
