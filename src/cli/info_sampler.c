@@ -102,7 +102,7 @@ static int shares_layer(tables_t *t) {
         return -1;
     }
     float s = texel(t, t->K, 0, t->H), sl = texel(t, t->K, t->W, t->H), a = texel(t, t->K, t->W, 0);
-    const char *bad = !(sl >= 0 && (double)s + sl <= 1 + 1e-6) ? "GGX lobe share"
+    const char *bad = !(sl >= 0 && (double)s + sl <= 1 + 1e-6)                  ? "GGX lobe share"
                       : sl > 0 && !(a >= (float)SB_SAMPLER_MIN_ALPHA && a <= 1) ? "GGX lobe alpha"
                       : sl == 0 && a != 0                                       ? "alpha without a lobe"
                                                                                 : NULL;
@@ -121,7 +121,10 @@ static int cdf_ok(const tables_t *t, size_t k, size_t x0, size_t y0, size_t dx, 
     for (size_t i = 0; i < n; i++) {
         size_t x = x0 + i * dx, y = y0 + i * dy;
         float v = texel(t, k, x, y);
-        const char *why = v < prev ? "decreases" : v > 1 ? "exceeds 1" : i + 1 == n && v != 1 ? "does not end at 1" : NULL;
+        const char *why = v < prev               ? "decreases"
+                          : v > 1                ? "exceeds 1"
+                          : i + 1 == n && v != 1 ? "does not end at 1"
+                                                 : NULL;
         if (why) {
             cli_error("info", "%s: layer %zu: the %s %s at texel (%zu, %zu): %.9g after %.9g", t->path, k, what, why, x,
                       y, (double)v, (double)prev);
