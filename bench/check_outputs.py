@@ -7,7 +7,10 @@ For each DIR `sepbrdf factor` wrote: its set list (sepbrdf-set-factor.txt)
 equals the files there; report.json's terms equal the g_/h_ EXR counts and
 its files object names every file of the set; every EXR parses (own header
 reader), has report.json's texture_size and pixel type (HALF for storage
-half, FLOAT otherwise), and `sepbrdf info` describes it (exit 0); the
+half, FLOAT otherwise), and `sepbrdf info` describes it (exit 0); sampler.bin
+(own header reader: its size; `sepbrdf info --json`: its checks) holds
+report.json's sampler shares (cosine_share, lobe_share, lobe_alpha) and the
+snippets sample the GGX lobe (sb_lobe_dir, sb_lobe_pdf) where it has one; the
 snippet compiles: GLSL 330 and 300 es (glslangValidator), HLSL to SPIR-V
 (glslangValidator -D, then spirv-val), MSL (clang++ -fsyntax-only over
 tests/data/metal), WGSL (Tint in headless Chromium, one page for all).
@@ -92,6 +95,28 @@ def textures(d, rep, bad):
             bad(f"info {os.path.basename(p)} exit {rc}: {t.strip()[-200:]}")
 
 
+def sampler(d, rep, bad):
+    """sampler.bin: its size from its header, info's checks, the shares of report.json."""
+    p, sm = f"{d}/sampler.bin", rep.get("sampler") or {}
+    if not os.path.exists(p):
+        return
+    b = open(p, 'rb').read()
+    W1, H1, L, C = struct.unpack_from('<4I', b, 8) if len(b) >= 24 else (0, 0, 0, 0)
+    if b[:8] != b'sbsampl1' or len(b) != 24 + 4 * W1 * H1 * L:
+        return bad(f"sampler.bin: {len(b)} bytes, header {W1} x {H1} x {L}")
+    rc, t = sh(f"{SB} info {p} --json")
+    if rc:
+        return bad(f"info sampler.bin exit {rc}: {t.strip()[-200:]}")
+    got = json.loads(t)
+    for k in ("cosine_share", "lobe_share", "lobe_alpha"):
+        if abs(got[k] - sm.get(k, float('nan'))) > 1e-7 or sm.get(k) is None:
+            bad(f"sampler.bin {k} {got[k]}, report.json {sm.get(k)}")
+    for f in glob.glob(f"{d}/sepbrdf.*"):
+        src = open(f).read()
+        if got["lobe_share"] > 0 and "sb_sample" in src and not ("sb_lobe_dir" in src and "sb_lobe_pdf" in src):
+            bad(f"{os.path.basename(f)}: samples without the GGX lobe (sb_lobe_dir, sb_lobe_pdf)")
+
+
 def shaders(d, bad):
     gl = open(f"{d}/sepbrdf.glsl").read()
     if have("glslangValidator"):
@@ -132,6 +157,7 @@ def check(d):
     rep = json.load(open(f"{d}/report.json"), parse_constant=lambda c: bad("json " + c))
     set_files(d, rep, bad)
     textures(d, rep, bad)
+    sampler(d, rep, bad)
     shaders(d, bad)
     return out
 

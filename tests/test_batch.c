@@ -565,26 +565,67 @@ SB_TEST(gonio_csv_tables_batched) {
     CHECKF(rc == 0 && strstr(out, "batch: 1 materials"), "rc %d: %s", rc, out);
 }
 
-/* A set whose folder lost a file its set list names, or holds a texture
- * cut short (a user's rm, an interrupted copy of OUT), is not a complete
- * set: it is fitted again, not reused and counted ok (twelfth outside
- * pass: all three were reused, exit 0, the summary saying ok). */
-SB_TEST(incomplete_set_not_reused) {
-    const char *dir = setup("batch_whole", "");
+/* Runs "full" and "w" of the materials in a new folder `tag`, then
+ * `damage` (a shell command) in w/, then w again, which must fit the four
+ * damaged materials again and reuse the fifth: textures and summary equal
+ * to full's.  The folder (out: the last run's output). */
+static const char *damaged_rerun(const char *tag, const char *damage) {
+    const char *dir = setup(tag, "");
     CHECK(batch(dir, "full", "-j 2 -q") == 0);
     CHECK(batch(dir, "w", "-j 2 -q") == 0);
     char cmd[8192];
-    snprintf(cmd, sizeof cmd,
-             "cd %s/w && rm %s/g_01.exr && truncate -s 100 %s/h_00.exr && rm %s/sepbrdf.glsl && "
-             "truncate -s -1 %s/h_01.exr",
-             dir, names[2], names[3], names[4], names[0]);
-    CHECK(sb_run(cmd, out, sizeof out) == 0);
+    snprintf(cmd, sizeof cmd, "cd %s/w && %s", dir, damage);
+    CHECKF(sb_run(cmd, out, sizeof out) == 0, "%s", out);
     int rc = batch(dir, "w", "-j 2");
     CHECKF(rc == 0 && strstr(out, "5 materials, 1 reused"), "rc %d: %s", rc, out);
     same_textures(dir, "full", "w");
     char *a = summary_sans_time(dir, "full"), *b = summary_sans_time(dir, "w");
     CHECK(a && b && strcmp(a, b) == 0);
     free(a), free(b);
-    snprintf(cmd, sizeof cmd, "%s/w/%s/sepbrdf.glsl", dir, names[4]);
-    CHECK(sb_file_exists(cmd));
+    return dir;
+}
+
+/* A set whose folder lost a file its set list names, or holds a texture
+ * cut short (a user's rm, an interrupted copy of OUT), is not a complete
+ * set: it is fitted again, not reused and counted ok (twelfth outside
+ * pass: all three were reused, exit 0, the summary saying ok). */
+SB_TEST(incomplete_set_not_reused) {
+    char damage[4096], path[8192];
+    snprintf(damage, sizeof damage,
+             "rm %s/g_01.exr && truncate -s 100 %s/h_00.exr && rm %s/sepbrdf.glsl && truncate -s -1 %s/h_01.exr",
+             names[2], names[3], names[4], names[0]);
+    const char *dir = damaged_rerun("batch_whole", damage);
+    snprintf(path, sizeof path, "%s/w/%s/sepbrdf.glsl", dir, names[4]);
+    CHECK(sb_file_exists(path));
+}
+
+/* A set whose files were changed in place after batch wrote it (report.json
+ * or a texture of the same size, batch.txt's fields, the snippet) is not
+ * the set batch.txt describes: fitted again, and the run says which file
+ * (thirteenth outside pass: all reused, the summary reading batch.txt while
+ * report.json said otherwise).  A batch.txt of two lines (written before
+ * the sums) is still reused. */
+SB_TEST(edited_set_not_reused) {
+    char damage[4096];
+    snprintf(damage, sizeof damage,
+             "sed -i '0,/\"headline\": 0/s//\"headline\": 1/' %s/report.json && sed -i '2s/^/x/' %s/batch.txt && "
+             "printf x | dd of=%s/g_00.exr bs=1 seek=400 conv=notrunc && echo '// note' >> %s/sepbrdf.glsl && "
+             "cp %s/batch.txt b && head -n 2 b > %s/batch.txt",
+             names[0], names[1], names[2], names[3], names[4], names[4]);
+    const char *dir = damaged_rerun("batch_edited", damage);
+    const char *said[4] = {"report.json was changed", "batch.txt was changed", "g_00.exr was changed",
+                           "sepbrdf.glsl holds"};
+    for (int i = 0; i < 4; i++) {
+        char line[512];
+        snprintf(line, sizeof line, "batch: %s: %s", names[i], said[i]);
+        CHECKF(strstr(out, line) != NULL, "not said: %s in %s", line, out);
+    }
+    /* the report fitted again: its headline that of the undamaged run */
+    char *a = slurp(dir, "full", "microfacet_base_gold_roughness_0.3/report.json", NULL);
+    char *b = slurp(dir, "w", "microfacet_base_gold_roughness_0.3/report.json", NULL);
+    const char *ha = a ? strstr(a, "\"headline\": ") : NULL, *hb = b ? strstr(b, "\"headline\": ") : NULL;
+    CHECK(ha && hb && strncmp(ha, hb, (size_t)(strchr(ha, '\n') - ha)) == 0 && !strncmp(ha, "\"headline\": 0.9", 15));
+    free(a), free(b);
+    int rc = batch(dir, "w", "-j 2"); /* every set now as batch wrote it */
+    CHECKF(rc == 0 && strstr(out, "5 materials, 5 reused") && !strstr(out, "fitted again"), "rc %d: %s", rc, out);
 }

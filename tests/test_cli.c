@@ -393,13 +393,16 @@ SB_TEST(lists_refuse_empty_items) {
         {"bench --pareto --res 16, -o %s/b4", "--res"},
         {"study -J 1, -o %s/s5", "--terms"},
         {"factor --shader glsl, -o %s/f1", "--shader"},
+        {"factor --channels R, -o %s/f2", "--channels"},
+        {"factor --channels ,G -o %s/f3", "--channels"},
+        {"batch lambert --channels R,,B -o %s/f4", "--channels"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         int rc = run(cases[i][0], dir);
         CHECKF(rc == 1 && strstr(out, cases[i][1]), "%s: rc %d: %s", cases[i][0], rc, out);
     }
     char path[4200];
-    const char *made[] = {"s1", "s2", "s3", "s4", "s5", "b1", "b2", "b3", "b4", "f1"};
+    const char *made[] = {"s1", "s2", "s3", "s4", "s5", "b1", "b2", "b3", "b4", "f1", "f2", "f3", "f4"};
     for (size_t i = 0; i < sizeof made / sizeof made[0]; i++) {
         snprintf(path, sizeof path, "%s/%s", dir, made[i]);
         CHECKF(access(path, F_OK) != 0, "%s was made", path);

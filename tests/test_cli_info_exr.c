@@ -289,3 +289,65 @@ SB_TEST(undecodable_pixels) {
     int rc = run("info %s", path); /* the file itself reads */
     CHECKF(rc == 0 && strstr(out, "none compression"), "rc %d: %s", rc, out);
 }
+
+/* Float v into texel (x, y) of layer k of sampler tables `path`, written
+ * to `bad` (a copy); 0 or -1. */
+static int patch_texel(const char *path, const char *bad, uint32_t k, uint32_t x, uint32_t y, float v) {
+    FILE *fp = fopen(path, "rb");
+    uint32_t head[4] = {0};
+    int ok = fp && fseek(fp, 8, SEEK_SET) == 0 && fread(head, 4, 4, fp) == 4; /* little-endian host */
+    if (fp) fclose(fp);
+    char cmd[9000];
+    snprintf(cmd, sizeof cmd, "cp %s %s", path, bad);
+    if (!ok || sb_run(cmd, NULL, 0) != 0 || !(fp = fopen(bad, "r+b"))) return -1;
+    long at = 24 + 4 * (long)(((uint64_t)k * head[1] + y) * head[0] + x);
+    ok = fseek(fp, at, SEEK_SET) == 0 && fwrite(&v, 4, 1, fp) == 1;
+    return fclose(fp) == 0 && ok ? 0 : -1;
+}
+
+/* The sampler's tables (sampler.bin) described: sizes, layers and the
+ * cosine and GGX lobe shares, as the GLSL sampler reads them; a damaged
+ * copy refused (exit 2) naming the layer, texel and value.  info said
+ * "unrecognised measured table" of every sampler.bin (thirteenth outside
+ * pass), whole or damaged. */
+SB_TEST(sampler_tables) {
+    const char *dir = sb_tmpdir("info_sampler");
+    int rc =
+        run("factor " SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf --method nmf --param iso -J 2 -r 16 -q -o %s", dir);
+    CHECKF(rc == 0, "factor: rc %d: %s", rc, out);
+    char path[4300], bad[4300], cmd[9000];
+    snprintf(path, sizeof path, "%s/sampler.bin", dir);
+    snprintf(bad, sizeof bad, "%s/bad/sampler.bin", dir);
+    snprintf(cmd, sizeof cmd, "mkdir -p %s/bad", dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    rc = run("info %s", path); /* iso: 33 x 2 texels, 2 J C + 1 layers (the half-vector rows' weights) */
+    CHECKF(rc == 0 && strstr(out, "sampler tables") && strstr(out, "32 x 1, 13 layers: J = 2 terms x 3 channels") &&
+               strstr(out, "GGX lobe 0.0625 (alpha 0.34999"),
+           "rc %d: %s", rc, out);
+    rc = run("info %s --json 2>/dev/null", path);
+    CHECKF(rc == 0 && strstr(out, "\"kind\": \"sampler tables\"") && strstr(out, "\"lobe_share\": 0.0625") &&
+               strstr(out, "\"half_rows\": true"),
+           "rc %d: %s", rc, out);
+    /* layer 6 holds the shares: s at (0, 1), s_l at (32, 1), alpha at (32, 0) */
+    static const struct {
+        uint32_t k, x, y;
+        float v;
+        const char *said;
+    } cases[] = {{6, 32, 0, NAN, "layer 6, texel (32, 0): nan (not finite)"},
+                 {6, 32, 1, 2.0f, "layer 6: GGX lobe share out of range"},
+                 {6, 32, 0, 5.0f, "layer 6: GGX lobe alpha out of range"},
+                 {6, 0, 1, 0.0f, "layer 6, texel (0, 1): cosine share 0 outside"},
+                 {1, 3, 0, 1.5f, "layer 1: the row's CDF exceeds 1 at texel (3, 0)"},
+                 {0, 0, 1, -1.0f, "layer 0, texel (0, 1): integral -1 is negative"},
+                 {8, 2, 0, -1.0f, "layer 8, texel (2, 0): weight -1 is negative"}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        CHECK(patch_texel(path, bad, cases[i].k, cases[i].x, cases[i].y, cases[i].v) == 0);
+        rc = run("info %s 2>&1", bad);
+        CHECKF(rc == 2 && strstr(out, cases[i].said), "case %zu: rc %d: %s", i, rc, out);
+    }
+    snprintf(cmd, sizeof cmd, "head -c -4 %s > %s", path, bad);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    rc = run("info %s 2>&1", bad);
+    CHECKF(rc == 2 && strstr(out, "holds 3452 bytes, its header's 33 x 2 texels x 13 layers need 3456"), "rc %d: %s",
+           rc, out);
+}

@@ -29,8 +29,14 @@ void batch_unlock(int fd);
 /* Settings key of item (from it->o) into it->key; -1 out of memory. */
 int batch_key(batch_item_t *it);
 /* What DIR/NAME holds: 1 and its key and fields (malloc'd) when a
- * published set with batch.txt, else 0 (both NULL). */
-int batch_folder_read(const char *dir, const char *name, char **key, char **fields);
+ * published set with batch.txt, every file as batch.txt recorded it, else
+ * 0 (both NULL; why, when not NULL, says what differs, "" where the
+ * folder holds no set). */
+int batch_folder_read(const char *dir, const char *name, char **key, char **fields, char *why, size_t wsize);
+/* Line 3 of batch.txt to fp: the hash of head (lines 1-2, newlines
+ * included), then the name, size and hash of every file in folder dir but
+ * batch.txt; -1 when one cannot be read. */
+int batch_sums_write(FILE *fp, const char *dir, const char *head);
 /* 1 when DIR/NAME holds a published set of the same settings (its fields
  * copied into it->fields). */
 int batch_done(const char *dir, batch_item_t *it);

@@ -43,9 +43,29 @@ static void job_fields(FILE *fp, const sb_job_t *job, long long bytes) {
             sb_job_negative(job, J), bytes, t.total_s);
 }
 
+/* batch.txt of it into the staging folder of set: its key, the fields of
+ * job and the sums of the set's other files (written before it); 0 or -1. */
+static int write_record(sb_outset_t *set, const batch_item_t *it, const sb_job_t *job) {
+    char *head = NULL, tmp[4200];
+    size_t hn = 0;
+    FILE *mem = open_memstream(&head, &hn), *fp = NULL;
+    if (!mem) return -1;
+    fprintf(mem, "%s\n", it->key);
+    job_fields(mem, job, texture_bytes(sb_outset_dir(set)));
+    int rc = fclose(mem) == 0 && cli_set_file(set, BATCH_FILE, tmp, sizeof tmp) == 0 && (fp = fopen(tmp, "w")) ? 0 : -1;
+    if (fp) {
+        fputs(head, fp);
+        rc = batch_sums_write(fp, sb_outset_dir(set), head);
+        int werr = ferror(fp);
+        rc = fclose(fp) == 0 && !werr ? rc : -1;
+    }
+    free(head);
+    return rc;
+}
+
 /* Write the set of job plus batch.txt into DIR/NAME; 0 or -1 (it->msg). */
 static int publish(sb_context_t *ctx, const char *dir, batch_item_t *it, sb_job_t *job) {
-    char path[4096], tmp[4200];
+    char path[4096];
     int rc = EXIT_OK;
     snprintf(path, sizeof path, "%s/%s", dir, it->name);
     sb_outset_t *set = cli_outset_begin(ctx, "factor", path, &rc);
@@ -54,12 +74,8 @@ static int publish(sb_context_t *ctx, const char *dir, batch_item_t *it, sb_job_
         return -1;
     }
     sb_result_t r = sb_job_write_set(ctx, job, set);
-    FILE *fp = NULL;
-    if (r == SB_OK && cli_set_file(set, BATCH_FILE, tmp, sizeof tmp) == 0 && (fp = fopen(tmp, "w")) != NULL) {
-        fprintf(fp, "%s\n", it->key);
-        job_fields(fp, job, texture_bytes(sb_outset_dir(set)));
-        int werr = ferror(fp);
-        if ((fclose(fp) == 0) && !werr && cli_outset_end(ctx, "factor", set, 1) == EXIT_OK) return 0;
+    if (r == SB_OK && write_record(set, it, job) == 0) {
+        if (cli_outset_end(ctx, "factor", set, 1) == EXIT_OK) return 0;
         set = NULL;
     }
     if (r != SB_OK)

@@ -1,9 +1,9 @@
 /* sepbrdf info: what a file holds.
  *
  * One handler per kind of file, tried in order; the first whose match()
- * accepts the path prints it.  Measured tables are the only kind so far;
- * the EXR factor files (a folder of g_JJ.exr / h_JJ.exr, or one .exr) are
- * meant to get their own entry in `kinds` ahead of the tables. */
+ * accepts the path prints it: a folder `factor` wrote, an EXR (factor
+ * textures, vndf.exr), a sampler's tables (sampler.bin), a measured
+ * table. */
 #include <errno.h>
 #include <math.h>
 #include <stddef.h>
@@ -58,7 +58,10 @@ static void help(void) {
            "and layout), wavelengths, value ranges of the RGB f_r (1/sr), the\n"
            "interpolation, and the coverage: the fraction of the cells of the io grid\n"
            "(R x R directions each for wi and wo) for which the table gives a value.\n"
-           "Cells with none are missing: masked in `sepbrdf factor`.\n"
+           "Cells with none are missing: masked in `sepbrdf factor`.  For a set's\n"
+           "sampler.bin (--method nmf): its cells, layers and the cosine and GGX lobe\n"
+           "shares, after checking it as the GLSL sampler reads it (a damaged file:\n"
+           "exit 2, the layer and texel named).\n"
            "\n"
            "options:\n",
            formats_text());
@@ -297,9 +300,12 @@ static int info_folder(const info_opts_t *o) {
     return info_exr(g, stdout, o->json, o->json ? o->path : NULL);
 }
 
+static int info_tables(const info_opts_t *o) { return info_sampler(o->path, stdout, o->json); }
+
 static const info_kind_t kinds[] = {
     {"factor folder", is_dir, info_folder},
     {"factor textures", is_factor_exr, info_factors},
+    {"sampler tables", info_is_sampler, info_tables},
     {"measured table", is_regular_file, info_measured},
 };
 

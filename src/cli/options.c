@@ -183,6 +183,7 @@ static int set_bytes(const char *cmd, const cli_option_t *op, const char *v, voi
 
 static int set_channels(const char *cmd, const cli_option_t *op, const char *v, void *dst) {
     unsigned ch = 0;
+    if (strspn(v, ",") < strlen(v) && cli_list_items(cmd, op->name, v) != 0) return -1; /* "R," as every list */
     for (const char *q = v; *q; q++) {
         if (*q == ',') continue;
         const char *at = strchr("RGBrgb", *q);
