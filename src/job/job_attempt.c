@@ -315,6 +315,7 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     if (r != SB_OK) return r;
     /* the second form of named_pair: its maxima only where it is kept (job_forms.c pair_max_abs) */
     if (job->form_share && job->form_share->second && a->m.structured && !job->scene) sb_plan_skip_max_(plan, 1);
+    sb_plan_set_nonneg_carry(plan, lv->nonneg_carry);
     double t1 = job_now();
     /* a large dense matrix: the BLAS threads the job set aside (job.c) */
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;

@@ -75,6 +75,7 @@ typedef struct job_level {
     const double *nonneg_ratio_channel; /* per channel, 3 x terms (factor.h); NULL: none */
     int nonneg_first_fit;               /* the plan's nonneg_first_fit (factor.h): screening */
     size_t nonneg_rounds;               /* the plan's nonneg_rounds (factor.h) */
+    struct sb_nmf_carry *nonneg_carry;  /* the plan's (plan_conv.h sb_plan_set_nonneg_carry); NULL: none */
 } job_level_t;
 
 #define JOB_MAX_CANDS (3 * SB_LAYOUTS_MAX) /* f and cos a layout, with room */

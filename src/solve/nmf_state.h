@@ -79,6 +79,7 @@ typedef struct nmf_state {
     size_t round;  /* the round of rho (sb_nmf_rho) */
     /* the round before's corrections of to_headline and calibrate (nmf_mixes.c damp) */
     double cpprev[SB_NMF_MAX_TERMS], calprev[SB_NMF_MAX_TERMS];
+    struct sb_nmf_carry *carry; /* the rounds' state kept for a later execute (nmf_carry.c); NULL: none */
 } nmf_state_t;
 
 /* Round k's ratios of the plan's nonneg_ratio (the channel's where given). */
@@ -134,5 +135,18 @@ void sb_nmf_refit_n(nmf_state_t *s, sb_solve_out_t *out, int n);
  * worst prefix in the headline's weights is the lowest against the
  * reference; out->iterations counts every sweep. */
 void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
+
+/* The state of a fit after its last round toward the headline's ratios
+ * (nmf_carry.c, solver.h sb_solver_nmf_carry): sb_nmf_carry_save keeps
+ * channel in->channel's (where s->carry and s->w0 are, with rho), and
+ * sb_nmf_carry_take, at the start of sb_nmf_fit_mixes (s->w0 just set),
+ * gives it back when it was made from the same data, settings and the
+ * ratios of its rounds and held fewer rounds than s->rounds: out's
+ * terms, iterations and convergence, and s's reference, kept mix and
+ * corrections (cpprev, calprev), as they were after that round.  Returns
+ * the rounds given back (0: none; the fit then starts as without it).
+ * Everything else the rounds read is remade from the data. */
+void sb_nmf_carry_save(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out);
+size_t sb_nmf_carry_take(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
 
 #endif
