@@ -1,8 +1,9 @@
 /* The non-negative solver's carry (src/solve/nmf_carry.c): an execute
  * asking for two rounds toward the headline's ratios starts from the
  * state a one-round execute of another plan kept, and gives the terms the
- * two rounds made from the start give, bit for bit; a carry made from
- * other data or other ratios is not taken. */
+ * two rounds made from the start give, bit for bit; a fit made again from
+ * the same inputs takes the kept one whole; a carry made from other data
+ * or other ratios is not taken. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -30,8 +31,8 @@ static fitted_t fit(const sb_matrix_t *mat, const double *x, const sb_param_t *p
     size_t m = mat->rows, n = mat->cols, J = 4;
     sb_solve_problem_t pb = {0};
     pb.rows = m, pb.cols = n, pb.terms = J;
-    pb.masked = mat->mask != NULL, pb.zero_fill = 1; /* as the job fits vndf in cos */
-    pb.nonneg_ratio = rho, pb.nonneg_rounds = rounds;
+    pb.masked = mat->mask != NULL, pb.zero_fill = 1;  /* as the job fits vndf in cos */
+    pb.nonneg_ratio = rho, pb.nonneg_rounds = rounds; /* rho NULL: a fit without ratios */
     void *state = NULL;
     CHECK(sb_solver_nmf.plan(NULL, &pb, &state) == SB_OK);
     fitted_t f = {calloc(J + (m + n) * J, sizeof(double)), {0}};
@@ -52,16 +53,19 @@ static int same(const fitted_t *a, const fitted_t *b, size_t m, size_t n) {
 }
 
 /* The green channel of src on p in form `form` (cells out of the data, if
- * any, fitted as zeros, as the job's refits have them): resumed where it should be,
- * the same terms as the rounds made again, and not taken from other data
- * or another round 0. */
-static void case_on(const char *what, sb_source_t *src, sb_param_t *p, sb_form_t form) {
+ * any, fitted as zeros, as the job's refits have them): resumed where it
+ * should be, the same terms as the rounds made again, and not taken from
+ * other data or another round 0; a fit without ratios taken whole on a
+ * layout on the source's tables (p2: the same layout, another object),
+ * and not kept on the others. */
+static void case_on(const char *what, sb_source_t *src, sb_param_t *p, sb_param_t *p2, sb_form_t form) {
     sb_matrix_t mat;
     sb_matrix_opts_t mo = {0};
     mo.form = form;
     CHECK(sb_matrix_build(NULL, src, p, &mo, &mat) == SB_OK);
     CHECKF(mat.data[1] != NULL, "%s: no green", what);
     size_t m = mat.rows, n = mat.cols, cells = mat.ld * n;
+    int tables = (sb_param_caps(p) & SB_CAP_TABLES) != 0;
     sb_nmf_carry_t *carry = sb_nmf_carry_create();
     CHECK(carry != NULL);
     fitted_t one = fit(&mat, mat.data[1], p, rho_a, 1, carry);
@@ -79,15 +83,25 @@ static void case_on(const char *what, sb_source_t *src, sb_param_t *p, sb_form_t
         y[k] = mat.data[1][k] * (1 + 1e-9);
     fitted_t other = fit(&mat, y, p, rho_a, 2, carry);
     fitted_t other_fresh = fit(&mat, y, p, rho_a, 2, NULL);
-    CHECKF(sb_nmf_carry_resumed(carry) == 1, "%s: a carry of other data was taken", what);
+    CHECKF(sb_nmf_carry_resumed(carry) == 1 && sb_nmf_carry_reused(carry) == 0, "%s: a fit of other data was taken",
+           what);
     CHECKF(same(&other, &other_fresh, m, n), "%s: other data: not the fit made without the carry", what);
-    /* another round 0: not taken either (the carry now holds y's rounds) */
+    /* another round 0: not taken either; the same round 0 again: taken whole */
     fitted_t keep = fit(&mat, mat.data[1], p, rho_a, 1, carry);
     fitted_t moved = fit(&mat, mat.data[1], p, rho_b, 2, carry);
-    CHECKF(sb_nmf_carry_resumed(carry) == 1, "%s: a carry of other ratios was taken", what);
+    CHECKF(sb_nmf_carry_resumed(carry) == 1, "%s: a fit toward other ratios was taken", what);
     fitted_t moved_fresh = fit(&mat, mat.data[1], p, rho_b, 2, NULL);
     CHECKF(same(&moved, &moved_fresh, m, n), "%s: other ratios: not the fit made without the carry", what);
-    fitted_t *all[] = {&one, &two, &again, &other, &other_fresh, &keep, &moved, &moved_fresh};
+    fitted_t keep2 = fit(&mat, mat.data[1], p, rho_a, 1, carry);
+    CHECKF(sb_nmf_carry_reused(carry) == 1 && same(&keep, &keep2, m, n) && same(&keep, &one, m, n),
+           "%s: the one-round fit again: not taken whole, or not the same", what);
+    /* without ratios (the screening's and the kept fit): kept on the tables alone */
+    fitted_t plain = fit(&mat, mat.data[1], p, NULL, 0, carry);
+    fitted_t plain2 = fit(&mat, mat.data[1], p2, NULL, 0, carry);
+    CHECKF(sb_nmf_carry_reused(carry) == 1 + (size_t)tables, "%s: a fit without ratios %s", what,
+           tables ? "not taken on the source's tables" : "taken off the source's tables");
+    CHECKF(same(&plain, &plain2, m, n), "%s: a fit without ratios again: not the same", what);
+    fitted_t *all[] = {&one, &two, &again, &other, &other_fresh, &keep, &moved, &moved_fresh, &keep2, &plain, &plain2};
     for (size_t k = 0; k < sizeof all / sizeof all[0]; k++)
         free(all[k]->buf);
     free(y);
@@ -101,12 +115,14 @@ static void case_on(const char *what, sb_source_t *src, sb_param_t *p, sb_form_t
 SB_TEST(carry_resumes_the_same_terms) {
     sb_source_t *src = NULL;
     CHECK(sb_model_create(NULL, "cook-torrance:roughness=0.2", &src) == SB_OK);
-    sb_param_t *p = NULL;
+    sb_param_t *p = NULL, *p2 = NULL;
     sb_param_opts_t po = {0};
     po.res = 8;
-    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK);
-    case_on("cook-torrance 0.2 on io", src, p, SB_FORM_F);
+    CHECK(sb_param_create(NULL, SB_PARAM_IO, &po, &p) == SB_OK &&
+          sb_param_create(NULL, SB_PARAM_IO, &po, &p2) == SB_OK);
+    case_on("cook-torrance 0.2 on io", src, p, p2, SB_FORM_F);
     sb_param_destroy(p);
+    sb_param_destroy(p2);
     sb_source_destroy(src);
 
     CHECK(sb_measured_open(NULL, SB_MEASURED_DIR "/rgl_chm_orange_rgb.bsdf", NULL, &src, NULL) == SB_OK);
@@ -114,7 +130,10 @@ SB_TEST(carry_resumes_the_same_terms) {
     sb_param_opts_t vo = {0};
     vo.tables = sb_source_layout_tables(src);
     CHECK(sb_param_kind_parse("vndf", &k) == SB_OK && sb_param_create(NULL, k, &vo, &p) == SB_OK);
-    case_on("RGL chm_orange on vndf, cos", src, p, SB_FORM_COS);
+    vo.res = 32; /* as the kept fit's; the screening's at 8 */
+    CHECK(sb_param_create(NULL, k, &vo, &p2) == SB_OK);
+    case_on("RGL chm_orange on vndf, cos", src, p, p2, SB_FORM_COS);
     sb_param_destroy(p);
+    sb_param_destroy(p2);
     sb_source_destroy(src);
 }

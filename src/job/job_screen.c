@@ -144,22 +144,21 @@ static double nonneg_last(const double *ratio, const double *rch, size_t J) {
  * it) toward `rounds` rounds of the headline's ratios ratio, rch (the
  * plan's nonneg_rounds: round k's those of the fit round k - 1 gave, round
  * 0's a's), and refined, into t.  The solver keeps its state after the
- * rounds in carry, and starts from what carry holds of the rounds before
- * (solve/solver.h sb_nmf_carry_t): refit k's first k - 1 rounds are refit
- * k - 1's, bit for bit (a's matrix is the kept refit's: the same cells). */
+ * rounds in the job's carry and starts from what it holds of the rounds
+ * before (solve/solver.h sb_nmf_carry_t): refit k's first k - 1 rounds
+ * are refit k - 1's, bit for bit (a's matrix is the kept refit's: the
+ * same cells). */
 static sb_result_t nonneg_refit_once(sb_context_t *ctx, sb_job_t *job, const job_attempt_t *a, const double *ratio,
-                                     const double *rch, size_t rounds, sb_nmf_carry_t *carry, job_attempt_t *t) {
+                                     const double *rch, size_t rounds, job_attempt_t *t) {
     job_level_t lv = job_full_level(job);
     lv.nonneg_ratio = ratio;
     lv.nonneg_ratio_channel = rch;
     lv.nonneg_rounds = rounds;
-    lv.nonneg_carry = carry;
     *t = *a;
     t->f = NULL, t->est = NULL, t->term_w = NULL;
     sb_result_t r = job_factor(ctx, job, &lv, a->weighted, t);
     lv.nonneg_ratio = lv.nonneg_ratio_channel = NULL;
     lv.nonneg_rounds = 0;
-    lv.nonneg_carry = NULL;
     return r == SB_OK ? job_refine(ctx, job, &lv, t) : r;
 }
 
@@ -195,10 +194,9 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
     memcpy(rho, ratio, J * sizeof *rho);
     memcpy(rho_ch, rch, 3 * J * sizeof *rho_ch);
     sb_result_t r = SB_OK;
-    sb_nmf_carry_t *carry = sb_nmf_carry_create(); /* NULL: each refit from the start */
     for (size_t k = 1; k <= JOB_NONNEG_REFITS; k++) {
         job_attempt_t t;
-        r = nonneg_refit_once(ctx, job, a, rho, rho_ch, k, carry, &t);
+        r = nonneg_refit_once(ctx, job, a, rho, rho_ch, k, &t);
         if (r != SB_OK) {
             nonneg_free(&t);
             break;
@@ -216,7 +214,8 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
         } else
             nonneg_free(&t);
     }
-    sb_nmf_carry_destroy(carry);
+    sb_nmf_carry_destroy(job->nonneg_carry); /* no fit after the refits is made twice */
+    job->nonneg_carry = NULL;
     return r == SB_ERR_NUMERIC ? SB_OK : r;
 }
 

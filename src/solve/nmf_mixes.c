@@ -548,9 +548,10 @@ static void finish(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out)
  * 1, clipped and unclipped, too: the fit
  * kept whose worst prefix in the headline's weights is the lowest against
  * the reference (out->iterations counts them all); then finish.  Where
- * the carry holds rounds an execute before made from this fit (the same
- * data, settings and ratios of those rounds; nmf_carry.c), their state
- * instead, and the rounds after them. */
+ * the carry holds this fit from an execute before (the same data,
+ * headline's weights, settings and ratios; nmf_carry.c), its terms
+ * instead; where it holds its first rounds, their state and the rounds
+ * after them. */
 void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J;
     if (!s->w0) {
@@ -561,7 +562,9 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
-    size_t held = sb_nmf_carry_take(s, in, out); /* the rounds an execute before made from the same fit */
+    if (s->carry) headline_weights(s, in);       /* what the carry compares (else the first fit's) */
+    size_t held = sb_nmf_carry_take(s, in, out); /* the fit, or its first rounds, an execute before made */
+    if (held == s->rounds) return;
     if (held) {
         rounds_from(s, in, out, held);
         return;

@@ -136,16 +136,18 @@ void sb_nmf_refit_n(nmf_state_t *s, sb_solve_out_t *out, int n);
  * reference; out->iterations counts every sweep. */
 void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
 
-/* The state of a fit after its last round toward the headline's ratios
- * (nmf_carry.c, solver.h sb_solver_nmf_carry): sb_nmf_carry_save keeps
- * channel in->channel's (where s->carry and s->w0 are, with rho), and
- * sb_nmf_carry_take, at the start of sb_nmf_fit_mixes (s->w0 just set),
- * gives it back when it was made from the same data, settings and the
- * ratios of its rounds and held fewer rounds than s->rounds: out's
- * terms, iterations and convergence, and s's reference, kept mix and
- * corrections (cpprev, calprev), as they were after that round.  Returns
- * the rounds given back (0: none; the fit then starts as without it).
- * Everything else the rounds read is remade from the data. */
+/* The fits the carry keeps (nmf_carry.c, solver.h sb_solver_nmf_carry):
+ * sb_nmf_carry_save, at the end of a fit (s->carry and s->w0 set; with
+ * the plan's ratios, or on a layout on the source's tables), keeps
+ * channel s->channel's terms, iterations and convergence and s's
+ * reference, kept mix and corrections (cpprev, calprev), with what they
+ * were made from.  sb_nmf_carry_take, at the start of sb_nmf_fit_mixes
+ * (s->w0 and the headline's weights just made), gives back those of a fit
+ * from the same data, headline's weights, settings and ratios of its
+ * rounds, with at most s->rounds rounds (the most held), and returns its
+ * rounds: s->rounds, the whole fit; fewer, the state after them; 0: none
+ * (the fit then starts as without it).  Everything else the rounds read is
+ * remade from the data. */
 void sb_nmf_carry_save(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out);
 size_t sb_nmf_carry_take(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
 
