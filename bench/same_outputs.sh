@@ -8,7 +8,8 @@
 # _s (times) and the timings object left out.  Prints SAME or DIFFERENT per
 # configuration; exit 1 when any differs.  `all` adds the paths a
 # per-pair vector changes (one channel, plain sums, cos2, a layout with a
-# gain, hd on another RGL file).
+# gain, hd on another RGL file); `nmf` runs instead `-J 4 --method nmf`
+# on the six RGL files of ../shared/data/measured (RGL=dir: elsewhere).
 set -u
 OLD=$1
 NEW=$2
@@ -21,6 +22,13 @@ if [ "${3:-}" = all ]; then
         "cos2|--param io -r 32 --form cos2" "vndf|$DATA/rgl_chm_orange_rgb.bsdf --param vndf -r 32"
         "ct_plain|microfacet:roughness=0.1 --param io -r 32 --plain-terms -J 6"
         "paper_hd|$DATA/rgl_paper_white_rgb.bsdf --param hd -r 24")
+fi
+if [ "${3:-}" = nmf ]; then
+    RGL=${RGL:-$(cd "$(dirname "$0")/../../shared/data/measured" && pwd)}
+    CFG=()
+    for f in aurora_white cc_green_malachite chm_light_blue chm_orange paper_white vch_silk_blue; do
+        CFG+=("nmf_$f|$RGL/rgl_${f}_rgb.bsdf -J 4 --method nmf")
+    done
 fi
 fail=0
 for c in "${CFG[@]}"; do

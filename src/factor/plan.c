@@ -37,6 +37,7 @@ struct sb_plan {
     sb_plan_stats_t stats;
     size_t conv_terms;         /* the leading terms converged in every channel (plan_conv.h) */
     const sb_factors_t *start; /* the next execute's warm start (sb_plan_set_start) */
+    sb_nmf_carry_t *carry;     /* the non-negative solver's rounds kept (sb_plan_set_nonneg_carry) */
 };
 
 /* What execute does to one matrix: the solver, channel order and scale. */
@@ -183,6 +184,10 @@ void sb_plan_destroy(sb_plan_t *p) {
 
 size_t sb_plan_converged_terms(const sb_plan_t *p) { return p ? p->conv_terms : 0; }
 
+void sb_plan_set_nonneg_carry(sb_plan_t *p, sb_nmf_carry_t *carry) {
+    if (p) p->carry = carry;
+}
+
 void sb_plan_skip_max_(sb_plan_t *p, int skip) {
     if (p) p->no_max = skip != 0;
 }
@@ -326,6 +331,7 @@ static sb_result_t solve(sb_plan_t *p, const run_t *rn, const sb_solve_in_t *in,
     }
     sb_solve_out_t out = {p->s, p->u, p->v, 0, 1, 0};
     start_channel(p, rn, ch); /* the masked fit copies its start before it writes out's */
+    if (rn->sv == &sb_solver_nmf) sb_solver_nmf_carry(p->state[rn->si], p->carry);
     sb_result_t r = rn->sv->execute(p->state[rn->si], in, &out);
     if (out.iterations > p->stats.fit_iterations) p->stats.fit_iterations = out.iterations;
     if (!out.converged) p->stats.fit_converged = 0;

@@ -20,6 +20,14 @@ size_t sb_plan_converged_terms(const sb_plan_t *p);
  * channel with a term of sigma <= 0, start as without it. */
 void sb_plan_set_start(sb_plan_t *p, const sb_factors_t *start);
 
+/* The non-negative solver's carry for the plan's next executes (NULL:
+ * none; it must outlive them): the state after the rounds toward the
+ * headline's ratios, kept per channel and taken up by an execute of
+ * another plan asking for more rounds from the same matrix and ratios
+ * (solve/solver.h sb_nmf_carry_t; the factor job's refits). */
+struct sb_nmf_carry;
+void sb_plan_set_nonneg_carry(sb_plan_t *p, struct sb_nmf_carry *carry);
+
 /* skip 1: the next executes leave max_abs of every channel NaN where the
  * solver knows its errors exactly (SB_CAP_EXACT_TAILS: the block-circulant
  * solver's largest-error sweeps, a fifth of its execute), the squared

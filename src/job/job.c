@@ -10,6 +10,7 @@
 
 #include "job_impl.h"
 #include "sepbrdf/glsl.h"
+#include "solve/solver.h"
 #include "util/ctx_memo.h"
 #include "util/internal.h"
 
@@ -478,6 +479,7 @@ void sb_job_destroy(sb_job_t *job) {
     sb_factors_destroy(job->quant[0]);
     sb_factors_destroy(job->quant[1]);
     free(job->svd_beside);
+    sb_nmf_carry_destroy(job->nonneg_carry);
     free(job->cv); /* cv_se, cv_pooled, cv_max, cv_median with it */
     for (size_t i = 0; i < job->nwarn; i++)
         free(job->warn[i]);

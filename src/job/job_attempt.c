@@ -12,6 +12,7 @@
 #include "sample/edge.h"
 #include "sample/stream.h"
 #include "sepbrdf/exr.h"
+#include "solve/solver.h"
 #include "util/internal.h"
 
 static void sample_progress(void *user, double fraction) {
@@ -315,6 +316,9 @@ sb_result_t job_factor(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv, 
     if (r != SB_OK) return r;
     /* the second form of named_pair: its maxima only where it is kept (job_forms.c pair_max_abs) */
     if (job->form_share && job->form_share->second && a->m.structured && !job->scene) sb_plan_skip_max_(plan, 1);
+    if (!job->nonneg_carry && job_nonneg_method(sb_method_name(job->o.method)))
+        job->nonneg_carry = sb_nmf_carry_create(); /* NULL: every fit made in full */
+    sb_plan_set_nonneg_carry(plan, job->nonneg_carry);
     double t1 = job_now();
     /* a large dense matrix: the BLAS threads the job set aside (job.c) */
     int dense = !a->m.structured && !job_attempt_masked(job, a) && a->m.rows * a->m.cols >= JOB_BLAS_DENSE_CELLS;

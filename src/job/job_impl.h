@@ -161,6 +161,10 @@ struct sb_job {
     double *svd_beside; /* non-negative method: J x {headline, rel_rms, R, G, B headlines} of the SVD (job_beside.c);
                            NULL: none */
     size_t svd_beside_terms;
+    /* non-negative method: the fits its plans keep and take again (the
+     * screening's on the source's tables, the refits' rounds; plan_conv.h
+     * sb_plan_set_nonneg_carry), until job_nonneg_refit; NULL: none */
+    struct sb_nmf_carry *nonneg_carry;
     char svd_method[16];  /* the method the SVD beside used ("masked", "circulant", ...) */
     double svd_s;         /* its whole run */
     int warp_tried;       /* no --warp given, and "auto" was tried (job_warp.c) */

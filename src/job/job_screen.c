@@ -8,6 +8,7 @@
 #include "job_impl.h"
 #include "sample/stream.h"
 #include "sepbrdf/exr.h"
+#include "solve/solver.h"
 #include "util/internal.h"
 
 /* Whether the attempt keeps the band bounds at its J (estimate.h). */
@@ -142,7 +143,11 @@ static double nonneg_last(const double *ratio, const double *rch, size_t J) {
 /* The kept fit a made again (a's matrix and layout, as job_fit_kept made
  * it) toward `rounds` rounds of the headline's ratios ratio, rch (the
  * plan's nonneg_rounds: round k's those of the fit round k - 1 gave, round
- * 0's a's), and refined, into t. */
+ * 0's a's), and refined, into t.  The solver keeps its state after the
+ * rounds in the job's carry and starts from what it holds of the rounds
+ * before (solve/solver.h sb_nmf_carry_t): refit k's first k - 1 rounds
+ * are refit k - 1's, bit for bit (a's matrix is the kept refit's: the
+ * same cells). */
 static sb_result_t nonneg_refit_once(sb_context_t *ctx, sb_job_t *job, const job_attempt_t *a, const double *ratio,
                                      const double *rch, size_t rounds, job_attempt_t *t) {
     job_level_t lv = job_full_level(job);
@@ -209,6 +214,8 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
         } else
             nonneg_free(&t);
     }
+    sb_nmf_carry_destroy(job->nonneg_carry); /* no fit after the refits is made twice */
+    job->nonneg_carry = NULL;
     return r == SB_ERR_NUMERIC ? SB_OK : r;
 }
 

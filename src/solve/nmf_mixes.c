@@ -510,6 +510,22 @@ static int minimax(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out,
     return keep;
 }
 
+/* Step: the rounds from k on (the plan's nonneg_rounds), each from the
+ * fit the round before gave; then the state after them kept where a
+ * carry is given (nmf_carry.c). */
+static void rounds_from(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out, size_t k) {
+    for (; k < s->rounds && s->rho; k++) {
+        s->rho = sb_nmf_rho(s, k), s->round = k;
+        s->hws_ok = 0;
+        if (s->w0) memcpy(s->w, s->w0, s->m * s->n * sizeof *s->w);
+        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
+        push_last(s, out);
+        to_headline(s, in, out);
+        if (s->tables && s->hws_ok) minimax(s, in, out, s->cal);
+    }
+    sb_nmf_carry_save(s, in, out);
+}
+
 /* Step: the kept fit (in out; its mix's weights and reference's errors
  * in s) reordered, polished, its last prefix pushed, on masked layouts
  * the minimax, toward the headline's own ratios (vndf: then the minimax
@@ -524,22 +540,18 @@ static void finish(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out)
     if (s->fit) minimax(s, in, out, NULL);
     to_headline(s, in, out);
     if (s->tables && s->hws_ok) minimax(s, in, out, s->cal); /* vndf: toward the headline's own ratios */
-    for (size_t k = 1; k < s->rounds && s->rho; k++) {
-        s->rho = sb_nmf_rho(s, k), s->round = k;
-        s->hws_ok = 0;
-        if (s->w0) memcpy(s->w, s->w0, s->m * s->n * sizeof *s->w);
-        toward_headline(s, in, out, fabs(s->kept_mix), 1, s->kept_mix < 0);
-        push_last(s, out);
-        to_headline(s, in, out);
-        if (s->tables && s->hws_ok) minimax(s, in, out, s->cal);
-    }
+    rounds_from(s, in, out, 1);
 }
 
 /* Step: the stages at SB_NMF_HEADLINE_MIX, where the matrix is small and
  * a reference known at SB_NMF_SECOND_MIX and (smaller, no cell masked) at
  * 1, clipped and unclipped, too: the fit
  * kept whose worst prefix in the headline's weights is the lowest against
- * the reference (out->iterations counts them all); then finish. */
+ * the reference (out->iterations counts them all); then finish.  Where
+ * the carry holds this fit from an execute before (the same data,
+ * headline's weights, settings and ratios; nmf_carry.c), its terms
+ * instead; where it holds its first rounds, their state and the rounds
+ * after them. */
 void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out) {
     size_t m = s->m, n = s->n, J = s->J;
     if (!s->w0) {
@@ -550,6 +562,13 @@ void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *o
         return;
     }
     memcpy(s->w0, s->w, m * n * sizeof *s->w0);
+    if (s->carry) headline_weights(s, in);       /* what the carry compares (else the first fit's) */
+    size_t held = sb_nmf_carry_take(s, in, out); /* the fit, or its first rounds, an execute before made */
+    if (held == s->rounds) return;
+    if (held) {
+        rounds_from(s, in, out, held);
+        return;
+    }
     double best = INFINITY;
     fit_mix(s, in, out, SB_NMF_HEADLINE_MIX, 0, 1, &best);
     if (!s->hw_ok || !(s->gam > 0)) return;

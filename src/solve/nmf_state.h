@@ -79,6 +79,7 @@ typedef struct nmf_state {
     size_t round;  /* the round of rho (sb_nmf_rho) */
     /* the round before's corrections of to_headline and calibrate (nmf_mixes.c damp) */
     double cpprev[SB_NMF_MAX_TERMS], calprev[SB_NMF_MAX_TERMS];
+    struct sb_nmf_carry *carry; /* the rounds' state kept for a later execute (nmf_carry.c); NULL: none */
 } nmf_state_t;
 
 /* Round k's ratios of the plan's nonneg_ratio (the channel's where given). */
@@ -134,5 +135,20 @@ void sb_nmf_refit_n(nmf_state_t *s, sb_solve_out_t *out, int n);
  * worst prefix in the headline's weights is the lowest against the
  * reference; out->iterations counts every sweep. */
 void sb_nmf_fit_mixes(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
+
+/* The fits the carry keeps (nmf_carry.c, solver.h sb_solver_nmf_carry):
+ * sb_nmf_carry_save, at the end of a fit (s->carry and s->w0 set; with
+ * the plan's ratios, or on a layout on the source's tables), keeps
+ * channel s->channel's terms, iterations and convergence and s's
+ * reference, kept mix and corrections (cpprev, calprev), with what they
+ * were made from.  sb_nmf_carry_take, at the start of sb_nmf_fit_mixes
+ * (s->w0 and the headline's weights just made), gives back those of a fit
+ * from the same data, headline's weights, settings and ratios of its
+ * rounds, with at most s->rounds rounds (the most held), and returns its
+ * rounds: s->rounds, the whole fit; fewer, the state after them; 0: none
+ * (the fit then starts as without it).  Everything else the rounds read is
+ * remade from the data. */
+void sb_nmf_carry_save(nmf_state_t *s, const sb_solve_in_t *in, const sb_solve_out_t *out);
+size_t sb_nmf_carry_take(nmf_state_t *s, const sb_solve_in_t *in, sb_solve_out_t *out);
 
 #endif

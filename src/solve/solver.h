@@ -30,6 +30,26 @@ const sb_solver_t *sb_solver_at(size_t i);
 extern const sb_solver_t sb_solver_masked;
 void sb_solver_masked_start(void *state, const double *s, const double *u, const double *v);
 
+/* The non-negative solver (solver_nmf.c) and its carry (nmf_carry.c):
+ * fits the factor job makes twice, kept per channel for an execute of
+ * another plan from the same inputs: the state after rounds toward the
+ * headline's ratios (the plan's nonneg_rounds; a refit asking for more
+ * starts at the round after them), and a fit on a layout on the source's
+ * own tables (the screening's, which the kept fit made again).  Either
+ * way the terms are those the fit made again gives, bit for bit.
+ * Created empty; sb_solver_nmf_carry hands it to the next executes on
+ * state (NULL: none); a fit is kept in memory allocated when it is saved
+ * (a failed allocation only leaves it out; so is a matrix the solver
+ * fits without the mixes).  sb_nmf_carry_resumed and _reused: how many
+ * executes started from rounds it held, or took a whole fit. */
+typedef struct sb_nmf_carry sb_nmf_carry_t;
+extern const sb_solver_t sb_solver_nmf;
+sb_nmf_carry_t *sb_nmf_carry_create(void);
+void sb_nmf_carry_destroy(sb_nmf_carry_t *c);
+void sb_solver_nmf_carry(void *state, sb_nmf_carry_t *c);
+size_t sb_nmf_carry_resumed(const sb_nmf_carry_t *c);
+size_t sb_nmf_carry_reused(const sb_nmf_carry_t *c);
+
 /* 1 when m is "auto" or names a solver (sb_method_name is not "?"). */
 int sb_method_known(sb_method_t m);
 
