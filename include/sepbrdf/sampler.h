@@ -207,11 +207,13 @@ typedef struct sb_sampler_choice {
  * candidate (the cosine shares alone, s_l = 0, and a grid of (s, s_l)
  * pairs times GGX roughnesses 0.04-0.5: src/factor/sampler_share.c) come
  * from `samples` draws per wo (0: 4096), half of the sampler at s = 1/2
- * without the lobe, half of the lobes of the candidate roughnesses, and
- * the candidate kept has the largest geometric mean of the ratios over
- * the elevations among those whose every ratio is at least 1.1; where
- * none is, s = 1 (cosine sampling: ratio 1).  Deterministic.  Errors:
- * SB_ERR_ARG (NULL argument). */
+ * without the lobe, half of the lobes of the candidate roughnesses (each
+ * variance a sum of squares about the integral, positive however small),
+ * and the candidate kept has the largest geometric mean of the ratios
+ * over the elevations among those whose every ratio is at least 1.1 and
+ * whose every variance, raised by 2 standard errors of its estimate,
+ * stays below cosine's; where none is, s = 1 (cosine sampling: ratio 1).
+ * Deterministic.  Errors: SB_ERR_ARG (NULL argument), SB_ERR_NOMEM. */
 SB_API sb_result_t sb_sampler_choose_share(sb_context_t *ctx, sb_sampler_t *s, const sb_source_t *src, size_t samples,
                                            sb_sampler_choice_t *out);
 

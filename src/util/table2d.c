@@ -73,26 +73,71 @@ void sb_table_warp_invert(const table2d_t *t, const double u[2], const slices_t 
     out[1] = f[1] * (r0 + 0.5 * f[1] * (r1 - r0)) + mix(t->mcdf, t->h, iy, s);
 }
 
+/* warp_invert's out[1] alone at u_y: the marginal CDF, which u_x takes
+ * no part in (the same operations, so the same bits). */
+static double warp_marginal(const table2d_t *t, double uy, const slices_t *s) {
+    size_t ix, iy;
+    double f[2], u[2] = {0, uy};
+    patch(t, u, &ix, &iy, f);
+    size_t n = t->w * t->h, last = iy * t->w + t->w - 1;
+    double r0 = mix(t->ccdf, n, last, s), r1 = mix(t->ccdf, n, last + t->w, s);
+    return f[1] * (r0 + 0.5 * f[1] * (r1 - r0)) + mix(t->mcdf, t->h, iy, s);
+}
+
+/* warp_invert's out[0] along the row at u_y: what u_x does not change
+ * (the row's patch, fraction and total) computed once. */
+typedef struct warp_row {
+    size_t iy;
+    double fy, row;
+} warp_row_t;
+
+static void warp_row(const table2d_t *t, double uy, const slices_t *s, warp_row_t *r) {
+    size_t ix;
+    double f[2], u[2] = {0, uy};
+    patch(t, u, &ix, &r->iy, f);
+    size_t n = t->w * t->h, last = r->iy * t->w + t->w - 1;
+    double r0 = mix(t->ccdf, n, last, s), r1 = mix(t->ccdf, n, last + t->w, s);
+    r->fy = f[1];
+    r->row = (1 - f[1]) * r0 + f[1] * r1;
+}
+
+static double warp_conditional(const table2d_t *t, const warp_row_t *r, double ux, const slices_t *s) {
+    size_t ix, iy;
+    double f[2], u[2] = {ux, 0};
+    patch(t, u, &ix, &iy, f);
+    size_t n = t->w * t->h, k = r->iy * t->w + ix;
+    double v00 = mix(t->v, n, k, s), v10 = mix(t->v, n, k + 1, s);
+    double v01 = mix(t->v, n, k + t->w, s), v11 = mix(t->v, n, k + t->w + 1, s);
+    double c0 = (1 - r->fy) * v00 + r->fy * v01, c1 = (1 - r->fy) * v10 + r->fy * v11;
+    double x = f[0] * (c0 + 0.5 * f[0] * (c1 - c0));
+    x += (1 - r->fy) * mix(t->ccdf, n, k, s) + r->fy * mix(t->ccdf, n, k + t->w, s);
+    return r->row > 0 ? x / r->row : ux;
+}
+
 /* The u in (0, 1] with warp_invert(u)[axis] = s by bisection, the other
- * coordinate of u at `other` (axis 1 ignores it: the marginal CDF).  For
- * s = 0 it stays 2^-64 off the edge. */
-static double warp_solve(const table2d_t *t, const slices_t *one, int axis, double other, double s) {
-    double lo = 0, hi = 1, out[2], at[2];
-    at[1 - axis] = other;
+ * coordinate of u at `row` (axis 1: NULL, the marginal CDF).  For s = 0
+ * it stays 2^-64 off the edge.  Once the midpoint rounds to lo or hi
+ * nothing changes any more (lo was found below s, hi at or above it, or
+ * is 1, which the steps return either way): the loop stops there with
+ * the same hi. */
+static double warp_solve(const table2d_t *t, const slices_t *one, const warp_row_t *row, double s) {
+    double lo = 0, hi = 1;
     for (int k = 0; k < WARP_STEPS; k++) {
-        at[axis] = 0.5 * (lo + hi);
-        sb_table_warp_invert(t, at, one, out);
-        if (out[axis] < s)
-            lo = at[axis];
+        double at = 0.5 * (lo + hi);
+        if (at == lo || at == hi) break;
+        if ((row ? warp_conditional(t, row, at, one) : warp_marginal(t, at, one)) < s)
+            lo = at;
         else
-            hi = at[axis];
+            hi = at;
     }
     return hi;
 }
 
 void sb_table_warp_sample(const table2d_t *t, const slices_t *one, const double s[2], double u[2]) {
-    u[1] = warp_solve(t, one, 1, 0, s[1]);
-    u[0] = warp_solve(t, one, 0, u[1], s[0]);
+    warp_row_t row;
+    u[1] = warp_solve(t, one, NULL, s[1]);
+    warp_row(t, u[1], one, &row);
+    u[0] = warp_solve(t, one, &row, s[0]);
 }
 
 double sb_table_elevation(const double d[3]) {
