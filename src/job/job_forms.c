@@ -97,8 +97,8 @@ static void pair_record(sb_job_candidate_t *c, const job_attempt_t *a) {
 /* How many standard errors apart the headlines of pair_unscreened's two
  * forms must be for the second's probe (its headlines alone, no bands:
  * job->est_probe) to stand as its measure.  The headline's standard error
- * is at most 5 % of it (SB_EST_REL_SE; io -r 64, GGX gold: cos 0.502,
- * f 0.586, both 4 replicates, 31 standard errors apart). */
+ * is at most 5 % of it (SB_EST_REL_SE); io -r 64 of the default gold:
+ * cos 0.502 (standard error 0.0046), f 0.586, both on 4 replicates. */
 #define JOB_PROBE_CLEAR_SE 4
 
 /* Whether the probe of the second form (o[1]) stands: it lost to the
@@ -107,7 +107,8 @@ static void pair_record(sb_job_candidate_t *c, const job_attempt_t *a) {
  * bands (what the first form's fit has), so everything a close or winning
  * fit goes on to is as before. */
 static int probe_clear(const form_fit_t o[2]) {
-    if (!o[1].a.est_probe || o[0].r != SB_OK || o[1].r != SB_OK) return 1;
+    if (!o[1].a.est_probe || o[1].r != SB_OK) return 1;
+    if (o[0].r != SB_OK) return 0; /* the first failed: the second is kept */
     double h[2], se[2];
     for (int k = 0; k < 2; k++) {
         const job_attempt_t *a = &o[k].a;
