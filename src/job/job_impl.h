@@ -46,6 +46,7 @@ typedef struct job_attempt {
     sb_estimate_t *est;        /* the estimator's errors of the stored factors */
     int est_rank;              /* est is a ranking's (lv.rank_only): no p99 or maxima, fewer pairs */
     int est_lean;              /* est holds headlines and bands alone (job->est_lean) */
+    int est_probe;             /* est holds the headlines alone, no bands (job->est_probe) */
     double *term_w;            /* J * C term weights applied to f (job_weights.c); NULL: all 1 */
     double band_weight;        /* the band's weight 1 + w of the cell-weighted fit (job_bandfit.c); 0: plain */
     size_t band_pairs;         /* pairs of the bands' own estimates (job_bandpairs.c); 0: none */
@@ -123,6 +124,10 @@ struct sb_job {
      * refining a fit read): named_pair, the whole estimate made for the
      * kept fit alone */
     int est_lean;
+    /* with est_lean: the headlines of every J' alone, no bands (the second
+     * form of pair_unscreened, measured again with its bands only where it
+     * wins or is close: job_forms.c probe_clear) */
+    int est_probe;
     /* named_pair's forms of one layout (job_forms.c): the second form's
      * matrix built by the first's job_sample from the same evaluations,
      * taken by the second's; NULL: none */

@@ -40,7 +40,7 @@ sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv
         eo.bands = 1;           /* the band bounds (auto ranks those that keep them first) */
     } else if (job->est_lean) { /* every J', growing as the whole estimate: the same headlines and bands */
         eo.headline_only = 1;
-        eo.bands = 1;
+        eo.bands = !job->est_probe; /* a probe: the same headlines, no bands */
     }
     const sb_factors_t *q = NULL;
     sb_result_t r = SB_OK;
@@ -51,6 +51,7 @@ sb_result_t job_estimate(sb_context_t *ctx, sb_job_t *job, const job_level_t *lv
     if (r == SB_OK) r = sb_estimate_compute(ctx, job->pairs, q, NULL, a->param, a->m.form, &eo, a->est);
     a->est_rank = lv->rank_only;
     a->est_lean = !lv->rank_only && job->est_lean;
+    a->est_probe = a->est_lean && job->est_probe;
     a->t_estimate = job_now() - t0;
     job->t_estimate += a->t_estimate;
     return r;
@@ -145,6 +146,7 @@ void job_attempt_adopt(job_attempt_t *a, const job_attempt_t *t) {
     a->est = t->est;
     a->est_rank = t->est_rank;
     a->est_lean = t->est_lean;
+    a->est_probe = t->est_probe;
     a->stats = t->stats;
     a->conv_terms = t->conv_terms;
     a->early_stop = t->early_stop;
