@@ -30,8 +30,8 @@ static double solve_plain(const table2d_t *t, const slices_t *one, int axis, dou
  * column of zeros where `hole`); its CDFs as the RGL reader builds them. */
 static void make_table(table2d_t *t, size_t w, size_t h, int hole, unsigned long long *rng) {
     size_t n = w * h;
-    *t = (table2d_t){w, h, 2, 1, malloc(2 * n * sizeof(double)), malloc(2 * n * sizeof(double)),
-                     malloc(2 * h * sizeof(double))};
+    *t = (table2d_t){
+        w, h, 2, 1, malloc(2 * n * sizeof(double)), malloc(2 * n * sizeof(double)), malloc(2 * h * sizeof(double))};
     for (size_t sl = 0; sl < 2; sl++) {
         double *v = t->v + sl * n, *cc = t->ccdf + sl * n, *mc = t->mcdf + sl * h, m = 0;
         for (size_t y = 0; y < h; y++)
