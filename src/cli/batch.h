@@ -2,6 +2,8 @@
 #ifndef SEPBRDF_CLI_BATCH_H
 #define SEPBRDF_CLI_BATCH_H
 
+#include <stdint.h>
+
 #include "cli.h"
 
 /* Result fields of one material, in the order of summary.csv after name
@@ -36,6 +38,10 @@ int batch_folder_read(const char *dir, const char *name, char **key, char **fiel
 /* Line 3 of batch.txt to fp: the hash of head (lines 1-2, newlines
  * included), then the name, size and hash of every file in folder dir but
  * batch.txt; -1 when one cannot be read. */
+/* FNV-1a (64 bits) of n bytes, continuing from h (BATCH_FNV_START to
+ * begin): folder names' and batch.txt's sums. */
+#define BATCH_FNV_START 0xcbf29ce484222325ull
+uint64_t batch_fnv1a(uint64_t h, const void *data, size_t n);
 int batch_sums_write(FILE *fp, const char *dir, const char *head);
 /* 1 when DIR/NAME holds a published set of the same settings (its fields
  * copied into it->fields). */

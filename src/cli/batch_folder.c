@@ -117,13 +117,12 @@ static void old_fields(char **fields) {
     *fields = up;
 }
 
-/* FNV-1a (64 bits) of n bytes, continuing from h. */
-static uint64_t fnv1a(uint64_t h, const unsigned char *p, size_t n) {
+uint64_t batch_fnv1a(uint64_t h, const void *data, size_t n) {
+    const unsigned char *p = data;
     for (size_t i = 0; i < n; i++)
         h = (h ^ p[i]) * 0x100000001b3ull;
     return h;
 }
-#define FNV_START 0xcbf29ce484222325ull
 
 /* Size and hash of the file at path; -1 when it is not a regular file or
  * cannot be read whole. */
@@ -141,9 +140,9 @@ static int file_sum(const char *path, long long *size, uint64_t *h) {
     unsigned char buf[1 << 16];
     size_t got;
     long long total = 0;
-    *h = FNV_START;
+    *h = BATCH_FNV_START;
     while ((got = fread(buf, 1, sizeof buf, fp)) > 0) {
-        *h = fnv1a(*h, buf, got);
+        *h = batch_fnv1a(*h, buf, got);
         total += (long long)got;
     }
     int bad = ferror(fp);
@@ -155,7 +154,7 @@ static int file_sum(const char *path, long long *size, uint64_t *h) {
 int batch_sums_write(FILE *fp, const char *dir, const char *head) {
     DIR *d = opendir(dir);
     if (!d) return -1;
-    fprintf(fp, "sums\t%016llx", (unsigned long long)fnv1a(FNV_START, (const unsigned char *)head, strlen(head)));
+    fprintf(fp, "sums\t%016llx", (unsigned long long)batch_fnv1a(BATCH_FNV_START, head, strlen(head)));
     struct dirent *e;
     int rc = 0;
     while (rc == 0 && (e = readdir(d)) != NULL) {
@@ -204,7 +203,7 @@ static int sum_matches(const char *sums, const char *name, const char *path, cha
 /* Whether line 3 of batch.txt (sums) holds the hash of lines 1-2 (head). */
 static int head_matches(const char *sums, const char *head, size_t n) {
     char want[24];
-    snprintf(want, sizeof want, "%016llx", (unsigned long long)fnv1a(FNV_START, (const unsigned char *)head, n));
+    snprintf(want, sizeof want, "%016llx", (unsigned long long)batch_fnv1a(BATCH_FNV_START, head, n));
     return strncmp(sums + 5, want, 16) == 0 && (sums[21] == '\t' || sums[21] == '\n');
 }
 

@@ -91,9 +91,7 @@ static char name_char(char c, int first) {
  * keep - 9 characters and a hash of the whole (FNV-1a), so that long
  * names stay apart and fit a file system's limit. */
 static void short_name(const char *s, size_t n, size_t keep, char *buf, size_t size) {
-    unsigned long long h = 1469598103934665603ull;
-    for (size_t i = 0; i < n; i++)
-        h = (h ^ (unsigned char)s[i]) * 1099511628211ull;
+    unsigned long long h = batch_fnv1a(BATCH_FNV_START, s, n);
     size_t k = 0, take = n <= keep ? n : keep - 9;
     for (; k < take && k + 1 < size; k++)
         buf[k] = name_char(s[k], k == 0);
