@@ -305,6 +305,19 @@ static int patch_texel(const char *path, const char *bad, uint32_t k, uint32_t x
     return fclose(fp) == 0 && ok ? 0 : -1;
 }
 
+/* Texel (x, y) of layer k of a sampler.bin (NAN where unreadable). */
+static float texel_of(const char *path, uint32_t k, uint32_t x, uint32_t y) {
+    FILE *fp = fopen(path, "rb");
+    uint32_t head[4] = {0};
+    float v = NAN;
+    if (fp && fseek(fp, 8, SEEK_SET) == 0 && fread(head, 4, 4, fp) == 4 &&
+        fseek(fp, 24 + 4 * (long)(((uint64_t)k * head[1] + y) * head[0] + x), SEEK_SET) == 0 &&
+        fread(&v, 4, 1, fp) != 1)
+        v = NAN;
+    if (fp) fclose(fp);
+    return v;
+}
+
 /* The sampler's tables (sampler.bin) described: sizes, layers and the
  * cosine and GGX lobe shares, as the GLSL sampler reads them; a damaged
  * copy refused (exit 2) naming the layer, texel and value.  info said
@@ -365,6 +378,20 @@ SB_TEST(sampler_tables) {
     rc = run("info %s 2>&1", bad);
     CHECKF(rc == 2 && strstr(out, "layer 3, texel (4, 3): 0.699999988 in the shares layer of a column layout"),
            "vndf: rc %d: %s", rc, out);
+    /* info DIR checks the set's sampler.bin (described the set, exit 0, with its sampler.bin damaged) */
+    snprintf(cmd, sizeof cmd, "mkdir -p %s/set && cp %s/*.exr %s/report.json %s/sepbrdf.glsl %s/set/", dir, dir, dir,
+             dir, dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    char set[4400], setbin[4500];
+    snprintf(set, sizeof set, "%s/set", dir);
+    snprintf(setbin, sizeof setbin, "%s/sampler.bin", set);
+    CHECK(patch_texel(path, setbin, 6, 3, 0, 0.0f) == 0);
+    rc = run("info %s 2>&1", set);
+    CHECKF(rc == 2 && strstr(out, "set/sampler.bin: layer 6, texel (3, 0): row cell measure 0"), "set: rc %d: %s", rc,
+           out);
+    CHECK(patch_texel(path, setbin, 6, 3, 0, texel_of(path, 6, 3, 0)) == 0);
+    rc = run("info %s 2>&1", set);
+    CHECKF(rc == 0 && strstr(out, "a factor set"), "whole set: rc %d: %s", rc, out);
     snprintf(cmd, sizeof cmd, "head -c -4 %s > %s", path, bad);
     CHECK(sb_run(cmd, NULL, 0) == 0);
     rc = run("info %s 2>&1", bad);

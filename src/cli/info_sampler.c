@@ -252,7 +252,7 @@ int info_sampler(const char *path, FILE *out, int json) {
     }
     tables_t t = {.path = path};
     int ok = header(&t, (const unsigned char *)text, n) == 0 && tables_ok(&t) == 0;
-    if (ok) print(&t, out, json);
+    if (ok && out) print(&t, out, json);
     free(text);
     return ok ? EXIT_OK : EXIT_IO;
 }
