@@ -682,14 +682,15 @@ static int run_sizes(bench_opts_t *o) {
                 int p = spec->svd.oversample > 0 ? spec->svd.oversample : spec->svd.oversample < 0 ? 0 : 10;
                 const char *used = r.used;
                 if (o->verbosity) {
-                    char svd[16] = "-", wr[16] = "-", peak[16] = "-", extra[16] = "-";
+                    char svd[16] = "-", wr[16] = "-", peak[16] = "-", extra[16] = "-", exc[16] = "-";
+                    if (isfinite(excess)) snprintf(exc, sizeof exc, "%.2e", excess); /* no baseline: "-", not nan */
                     if (r.svd_s >= 0) snprintf(svd, sizeof svd, "%.4f", r.svd_s);
                     if (r.write_s >= 0) snprintf(wr, sizeof wr, "%.4f", r.write_s);
                     if (r.peak_mib >= 0) snprintf(peak, sizeof peak, "%.0f", r.peak_mib);
                     if (r.peak_mib >= 0 && r.base_mib >= 0)
                         snprintf(extra, sizeof extra, "%.0f", r.peak_mib - r.base_mib);
-                    printf("%6zu %3zu %-22s %-10s %8.3f %8.4f %8.4f %8s %8s %10.4e %9.2e %7s %6s%s\n", N, J,
-                           spec->label, used, sample_s, r.plan_s, r.factor_s, svd, wr, rel, excess, peak, extra,
+                    printf("%6zu %3zu %-22s %-10s %8.3f %8.4f %8.4f %8s %8s %10.4e %9s %7s %6s%s\n", N, J, spec->label,
+                           used, sample_s, r.plan_s, r.factor_s, svd, wr, rel, exc, peak, extra,
                            reused ? "  (reused)" : "");
                 }
                 if (csv)

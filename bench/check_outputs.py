@@ -59,13 +59,18 @@ def have(tool):
 
 def set_files(d, rep, bad):
     """The set list against the folder, and report.json's files against the list."""
-    setf = glob.glob(f"{d}/sepbrdf-set-*.txt")
-    if not setf:
+    # factor's list, and any other command's beside it (view's index.html:
+    # sepbrdf-set-view.txt); the folder is their union
+    setf = f"{d}/sepbrdf-set-factor.txt"
+    if not os.path.exists(setf):
         return bad("no set list")
-    listed = {ln.strip() for ln in open(setf[0]) if ln.strip() and not ln.startswith("#")}
-    here = set(os.listdir(d)) - {os.path.basename(setf[0])}
-    if listed != here:
-        bad(f"set list and folder differ: {sorted(listed ^ here)}")
+    lists = sorted(glob.glob(f"{d}/sepbrdf-set-*.txt"))
+    read = lambda f: {ln.strip() for ln in open(f) if ln.strip() and not ln.startswith("#")}
+    listed = read(setf)
+    every = set().union(*[read(f) for f in lists])
+    here = set(os.listdir(d)) - {os.path.basename(f) for f in lists}
+    if every != here:
+        bad(f"set lists and folder differ: {sorted(every ^ here)}")
     fo = rep.get("files", {})
     named = set(fo.get("g", []) + fo.get("h", []) + fo.get("shaders", []))
     named |= {fo[k] for k in ("glsl", "sampler", "vndf") if fo.get(k)}

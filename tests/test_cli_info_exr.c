@@ -305,11 +305,26 @@ static int patch_texel(const char *path, const char *bad, uint32_t k, uint32_t x
     return fclose(fp) == 0 && ok ? 0 : -1;
 }
 
+/* Texel (x, y) of layer k of a sampler.bin (NAN where unreadable). */
+static float texel_of(const char *path, uint32_t k, uint32_t x, uint32_t y) {
+    FILE *fp = fopen(path, "rb");
+    uint32_t head[4] = {0};
+    float v = NAN;
+    if (fp && fseek(fp, 8, SEEK_SET) == 0 && fread(head, 4, 4, fp) == 4 &&
+        fseek(fp, 24 + 4 * (long)(((uint64_t)k * head[1] + y) * head[0] + x), SEEK_SET) == 0 &&
+        fread(&v, 4, 1, fp) != 1)
+        v = NAN;
+    if (fp) fclose(fp);
+    return v;
+}
+
 /* The sampler's tables (sampler.bin) described: sizes, layers and the
  * cosine and GGX lobe shares, as the GLSL sampler reads them; a damaged
  * copy refused (exit 2) naming the layer, texel and value.  info said
  * "unrecognised measured table" of every sampler.bin (thirteenth outside
- * pass), whole or damaged. */
+ * pass), whole or damaged; a row cell measure of 0 or below and a texel
+ * written 0 that the GLSL does not read, changed, were described as whole
+ * (fourteenth pass). */
 SB_TEST(sampler_tables) {
     const char *dir = sb_tmpdir("info_sampler");
     int rc =
@@ -339,12 +354,44 @@ SB_TEST(sampler_tables) {
                  {6, 0, 1, 0.0f, "layer 6, texel (0, 1): cosine share 0 outside"},
                  {1, 3, 0, 1.5f, "layer 1: the row's CDF exceeds 1 at texel (3, 0)"},
                  {0, 0, 1, -1.0f, "layer 0, texel (0, 1): integral -1 is negative"},
-                 {8, 2, 0, -1.0f, "layer 8, texel (2, 0): weight -1 is negative"}};
+                 {8, 2, 0, -1.0f, "layer 8, texel (2, 0): weight -1 is negative"},
+                 /* the row cells' measures, by which the GLSL pdf divides, and texels written 0 that it
+                    does not read (were described as whole; a weights layer's edge was read as the cosine
+                    share of layer 12) */
+                 {6, 3, 0, 0.0f, "layer 6, texel (3, 0): row cell measure 0 is not positive"},
+                 {6, 3, 0, -1.0f, "layer 6, texel (3, 0): row cell measure -1 is not positive"},
+                 {1, 5, 1, 0.5f, "layer 1, texel (5, 1): 0.5 in a CDF layer's row H past the integral"},
+                 {12, 32, 0, 1.0f, "layer 12, texel (32, 0): 1 in a weights layer's column W"},
+                 {9, 4, 1, 2.0f, "layer 9, texel (4, 1): 2 in a weights layer's row H"}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         CHECK(patch_texel(path, bad, cases[i].k, cases[i].x, cases[i].y, cases[i].v) == 0);
         rc = run("info %s 2>&1", bad);
         CHECKF(rc == 2 && strstr(out, cases[i].said), "case %zu: rc %d: %s", i, rc, out);
     }
+    /* a column layout (vndf): its shares layer holds the shares alone */
+    char vdir[4300], vpath[4400];
+    snprintf(vdir, sizeof vdir, "%s/vndf", dir);
+    snprintf(vpath, sizeof vpath, "%s/sampler.bin", vdir);
+    rc = run("factor " SB_MEASURED_DIR "/rgl_paper_white_rgb.bsdf --method nmf --param vndf -J 1 -q -o %s", vdir);
+    CHECKF(rc == 0 && run("info %s", vpath) == 0, "factor vndf: rc %d: %s", rc, out);
+    CHECK(patch_texel(vpath, bad, 3, 4, 3, 0.7f) == 0);
+    rc = run("info %s 2>&1", bad);
+    CHECKF(rc == 2 && strstr(out, "layer 3, texel (4, 3): 0.699999988 in the shares layer of a column layout"),
+           "vndf: rc %d: %s", rc, out);
+    /* info DIR checks the set's sampler.bin (described the set, exit 0, with its sampler.bin damaged) */
+    snprintf(cmd, sizeof cmd, "mkdir -p %s/set && cp %s/*.exr %s/report.json %s/sepbrdf.glsl %s/set/", dir, dir, dir,
+             dir, dir);
+    CHECK(sb_run(cmd, NULL, 0) == 0);
+    char set[4400], setbin[4500];
+    snprintf(set, sizeof set, "%s/set", dir);
+    snprintf(setbin, sizeof setbin, "%s/sampler.bin", set);
+    CHECK(patch_texel(path, setbin, 6, 3, 0, 0.0f) == 0);
+    rc = run("info %s 2>&1", set);
+    CHECKF(rc == 2 && strstr(out, "set/sampler.bin: layer 6, texel (3, 0): row cell measure 0"), "set: rc %d: %s", rc,
+           out);
+    CHECK(patch_texel(path, setbin, 6, 3, 0, texel_of(path, 6, 3, 0)) == 0);
+    rc = run("info %s 2>&1", set);
+    CHECKF(rc == 0 && strstr(out, "a factor set"), "whole set: rc %d: %s", rc, out);
     snprintf(cmd, sizeof cmd, "head -c -4 %s > %s", path, bad);
     CHECK(sb_run(cmd, NULL, 0) == 0);
     rc = run("info %s 2>&1", bad);

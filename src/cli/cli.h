@@ -233,8 +233,9 @@ int cli_read_source_spec(const char *dir, char *buf, size_t size);
 int info_exr(const char *path, FILE *out, int json, const char *set);
 /* Whether path is a sampler's tables (named sampler.bin, or starting with
  * "sbsampl1"); print them (sizes, layers, shares; with json one JSON
- * object) after checking them as the GLSL sampler reads them (info_sampler.c):
- * an exit code (EXIT_IO: damaged, the layer and texel said). */
+ * object; out NULL: the check alone) after checking them as the GLSL sampler
+ * reads them (info_sampler.c): an exit code (EXIT_IO: damaged, the layer and
+ * texel said). */
 int info_is_sampler(const char *path);
 int info_sampler(const char *path, FILE *out, int json);
 

@@ -61,7 +61,8 @@ static void help(void) {
            "Cells with none are missing: masked in `sepbrdf factor`.  For a set's\n"
            "sampler.bin (--method nmf): its cells, layers and the cosine and GGX lobe\n"
            "shares, after checking it as the GLSL sampler reads it (a damaged file:\n"
-           "exit 2, the layer and texel named).\n"
+           "exit 2, the layer and texel named).  For a folder `factor` wrote: its\n"
+           "first factor file, after checking its sampler.bin where it has one.\n"
            "\n"
            "options:\n",
            formats_text());
@@ -278,7 +279,8 @@ static int is_factor_exr(const char *path) {
 static int info_factors(const info_opts_t *o) { return info_exr(o->path, stdout, o->json, NULL); }
 
 /* A folder: the set `factor` wrote (its first texture, g_00.exr, says
- * what the set is) or refused saying what info takes. */
+ * what the set is; its sampler.bin, where it has one, checked) or refused
+ * saying what info takes. */
 static int is_dir(const char *path) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
@@ -294,6 +296,9 @@ static int info_folder(const info_opts_t *o) {
                   o->path, formats_text());
         return EXIT_IO;
     }
+    char sb[4200]; /* its sampler tables checked (a damaged one was passed over, exit 0) */
+    snprintf(sb, sizeof sb, "%s/sampler.bin", o->path);
+    if (access(sb, F_OK) == 0 && info_sampler(sb, NULL, 0) != EXIT_OK) return EXIT_IO;
     if (!o->json)
         printf("%s: a factor set (its errors, timings and choices: %s%s)\n", o->path, rep,
                access(rep, F_OK) == 0 ? "" : ", missing");

@@ -3,7 +3,8 @@
  * them: the header's sizes against the file's, every texel finite, the
  * shares (cosine s, GGX lobe s_l and its alpha) in their ranges, every
  * CDF non-decreasing in [0, 1] and ending at 1, the integrals and the
- * half-vector rows' weights not negative.  A file that fails is refused
+ * half-vector rows' weights not negative, the row cells' measures
+ * positive (row layouts), and every texel no layout writes 0.  A file that fails is refused
  * naming the layer and texel (no command reads it back: the GLSL would
  * sample it as it is). */
 #include <math.h>
@@ -73,34 +74,33 @@ static int header(tables_t *t, const unsigned char *d, size_t n) {
     return 0;
 }
 
-/* Whether layer k's row H and column W are 0 (a layer of the half-vector
- * rows' weights; a CDF layer's column W ends at 1, the shares' layer
- * holds s at (0, H)). */
-static int edges_zero(const tables_t *t, size_t k) {
-    for (size_t x = 0; x <= t->W; x++)
-        if (texel(t, k, x, t->H) != 0) return 0;
+/* Whether layer k is a CDF layer: every row's conditional CDF ends at 1
+ * (texel (W - 1, y)); the shares' layer holds the row cells' measures
+ * there. */
+static int cdf_layer(const tables_t *t, size_t k) {
     for (size_t y = 0; y < t->H; y++)
-        if (texel(t, k, t->W, y) != 0) return 0;
+        if (texel(t, k, t->W - 1, y) != 1) return 0;
     return 1;
 }
 
 /* Which layer holds the shares: the last (layers J C + 1), or the middle
- * one where the last is a layer of weights (2 J C + 1, the half-vector
- * rows' weights after it). */
+ * one where layers are 2 J C + 1 and the middle is no CDF layer (the
+ * half-vector rows' weights after it; their unused texels are checked
+ * with the others, so that a damaged one is named as such, not read as
+ * the last layer's cosine share). */
 static int shares_layer(tables_t *t) {
     const float min = (float)SB_SAMPLER_MIN_SHARE;
     size_t mid = (t->layers - 1) / 2;
     float last = texel(t, t->layers - 1, 0, t->H), m = texel(t, mid, 0, t->H);
-    int half = (t->layers - 1) % (2 * t->C) == 0 && edges_zero(t, t->layers - 1);
-    if (last >= min && last <= 1) {
-        t->K = t->layers - 1;
-    } else if (half && m >= min && m <= 1) {
-        t->K = mid, t->half_rows = 1;
-    } else {
-        cli_error("info", "%s: layer %zu, texel (0, %zu): cosine share %.9g outside [%.9g, 1]", t->path,
-                  half ? mid : t->layers - 1, t->H, (double)(half ? m : last), (double)min);
+    int half = !(last >= min && last <= 1) && (t->layers - 1) % (2 * t->C) == 0 && !cdf_layer(t, mid);
+    size_t k = half ? mid : t->layers - 1;
+    float s0 = half ? m : last;
+    if (!(s0 >= min && s0 <= 1)) {
+        cli_error("info", "%s: layer %zu, texel (0, %zu): cosine share %.9g outside [%.9g, 1]", t->path, k, t->H,
+                  (double)s0, (double)min);
         return -1;
     }
+    t->K = k, t->half_rows = half;
     float s = texel(t, t->K, 0, t->H), sl = texel(t, t->K, t->W, t->H), a = texel(t, t->K, t->W, 0);
     const char *bad = !(sl >= 0 && (double)s + sl <= 1 + 1e-6)                  ? "GGX lobe share"
                       : sl > 0 && !(a >= (float)SB_SAMPLER_MIN_ALPHA && a <= 1) ? "GGX lobe alpha"
@@ -135,6 +135,45 @@ static int cdf_ok(const tables_t *t, size_t k, size_t x0, size_t y0, size_t dx, 
     return 0;
 }
 
+/* Texel (x, y) of layer k, one no layout writes but 0 (the GLSL sampler
+ * does not read it): 0, or -1 naming it (a damaged file). */
+static int unused_ok(const tables_t *t, size_t k, size_t x, size_t y, const char *what) {
+    float v = texel(t, k, x, y);
+    if (v == 0) return 0;
+    cli_error("info", "%s: layer %zu, texel (%zu, %zu): %.9g in %s, written 0 (the GLSL sampler does not read it)",
+              t->path, k, x, y, (double)v, what);
+    return -1;
+}
+
+/* The shares' layer K: the row layouts (io, io-area, hd, iso) hold each
+ * row cell's measure m_r at (x < W, y < H), by which the GLSL pdf divides
+ * (0 gave an infinite pdf, a negative one a negative pdf, both described
+ * as whole); the column layouts (vndf, vh) hold none: 0 there and at the
+ * row layouts' edges.  Told apart by the most cells. */
+static int measures_ok(const tables_t *t) {
+    size_t nonzero = 0, k = t->K;
+    for (size_t y = 0; y < t->H; y++)
+        for (size_t x = 0; x < t->W; x++)
+            nonzero += texel(t, k, x, y) != 0;
+    int rows = t->half_rows || 2 * nonzero > t->W * t->H;
+    for (size_t y = 0; y < t->H; y++)
+        for (size_t x = 0; x < t->W; x++)
+            if (rows && !(texel(t, k, x, y) > 0)) {
+                cli_error("info",
+                          "%s: layer %zu, texel (%zu, %zu): row cell measure %.9g is not positive (the GLSL pdf "
+                          "divides by it)",
+                          t->path, k, x, y, (double)texel(t, k, x, y));
+                return -1;
+            } else if (!rows && unused_ok(t, k, x, y, "the shares layer of a column layout") != 0) {
+                return -1;
+            }
+    for (size_t x = 1; !rows && x < t->W; x++)
+        if (unused_ok(t, k, x, t->H, "the shares layer of a column layout") != 0) return -1;
+    for (size_t y = 1; !rows && y < t->H; y++)
+        if (unused_ok(t, k, t->W, y, "the shares layer of a column layout") != 0) return -1;
+    return 0;
+}
+
 /* Every texel finite; the CDFs, integrals and weights; 0 or -1. */
 static int tables_ok(tables_t *t) {
     for (size_t k = 0; k < t->layers; k++)
@@ -156,6 +195,15 @@ static int tables_ok(tables_t *t) {
             return -1;
         }
     }
+    if (measures_ok(t) != 0) return -1;
+    for (size_t k = 0; k < t->layers; k++) /* texels no layout writes: row H past the integral, the weights' edges */
+        for (size_t x = k < t->K ? 1 : 0; k != t->K && x <= t->W; x++)
+            if (unused_ok(t, k, x, t->H,
+                          k < t->K ? "a CDF layer's row H past the integral" : "a weights layer's row H") != 0)
+                return -1;
+    for (size_t k = t->K + 1; k < t->layers; k++)
+        for (size_t y = 0; y < t->H; y++)
+            if (unused_ok(t, k, t->W, y, "a weights layer's column W") != 0) return -1;
     for (size_t k = t->K + 1; t->half_rows && k < t->layers; k++)
         for (size_t y = 0; y < t->H; y++)
             for (size_t x = 0; x < t->W; x++)
@@ -204,7 +252,7 @@ int info_sampler(const char *path, FILE *out, int json) {
     }
     tables_t t = {.path = path};
     int ok = header(&t, (const unsigned char *)text, n) == 0 && tables_ok(&t) == 0;
-    if (ok) print(&t, out, json);
+    if (ok && out) print(&t, out, json);
     free(text);
     return ok ? EXIT_OK : EXIT_IO;
 }
