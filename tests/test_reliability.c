@@ -268,6 +268,46 @@ SB_TEST(user_files_and_fewer_terms) {
     CHECK(clean(parent, out));
 }
 
+/* A viewer page embeds the factor set it was made from: a new factor set in
+ * the folder takes the page with it (the user's files and a render set
+ * stay); a page written into another folder is not touched. */
+SB_TEST(view_goes_with_its_factor_set) {
+    char parent[512], out[600], other[600], msg[4096], path[1400];
+    snprintf(parent, sizeof parent, "%s", sb_tmpdir("rel-view"));
+    snprintf(out, sizeof out, "%s/out", parent);
+    snprintf(other, sizeof other, "%s/page", parent);
+    CHECK(cli(msg, sizeof msg, "factor lambert --res 8 -J 4 --param io -q -o %s", out) == 0);
+    CHECK(cli(msg, sizeof msg, "view %s -q", out) == 0);
+    CHECK(cli(msg, sizeof msg, "view %s -q -o %s", out, other) == 0);
+    CHECK(cli(msg, sizeof msg, "render %s --size 16 -J 1 -q -o %s", out, out) == 0);
+    put(out, "notes.txt", "mine\n");
+    snprintf(path, sizeof path, "%s/index.html", out);
+    CHECK(sb_file_exists(path));
+    CHECK(cli(msg, sizeof msg, "factor lambert --res 8 -J 2 --param io -q -o %s", out) == 0);
+    CHECKF(!sb_file_exists(path), "the J = 4 page stayed beside the J = 2 set");
+    snprintf(path, sizeof path, "%s/sepbrdf-set-view.txt", out);
+    CHECK(!sb_file_exists(path));
+    expect_set(out, "after view", 2, "lambert:albedo=0.8", 0, NULL);
+    snprintf(path, sizeof path, "%s/notes.txt", out);
+    CHECK(sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/render.json", out);
+    CHECK(sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/index.html", other);
+    CHECK(sb_file_exists(path));
+    snprintf(path, sizeof path, "%s/sepbrdf-set-view.txt", other);
+    CHECK(sb_file_exists(path));
+    CHECK(clean(parent, out) && clean(parent, other));
+    /* the option itself: a malformed command name is refused */
+    sb_context_t *ctx = NULL;
+    sb_outset_t *s = NULL;
+    sb_context_create(&ctx);
+    static const char *const bad[] = {"view", "Bad!", NULL};
+    sb_outset_opts_t o = {.command = "factor", .supersedes = bad};
+    CHECK(sb_outset_begin(ctx, out, &o, &s) == SB_ERR_ARG && s == NULL);
+    CHECKF(strstr(sb_context_last_error(ctx), "Bad!"), "%s", sb_context_last_error(ctx));
+    sb_context_destroy(ctx);
+}
+
 /* Folders a swap cannot handle are refused before any computation. */
 SB_TEST(refused_folders) {
     char parent[512], out[600], msg[4096];
@@ -474,7 +514,7 @@ SB_TEST(concurrent_runs) {
     sb_context_t *ctx = NULL;
     sb_outset_t *a = NULL, *b = NULL;
     sb_context_create(&ctx);
-    sb_outset_opts_t nw = {"factor", 1, NULL, NULL};
+    sb_outset_opts_t nw = {.command = "factor", .no_wait = 1};
     CHECK(sb_outset_begin(ctx, out, NULL, &a) == SB_OK);
     CHECK(sb_outset_begin(ctx, out, &nw, &b) == SB_ERR_IO && b == NULL);
     CHECKF(strstr(sb_context_last_error(ctx), "another sepbrdf run is writing"), "%s", sb_context_last_error(ctx));
@@ -622,7 +662,7 @@ SB_TEST(api) {
     CHECK(sb_outset_check(ctx, NULL) == SB_ERR_ARG && sb_outset_check(ctx, "") == SB_ERR_ARG);
     CHECK(sb_outset_begin(ctx, out, NULL, NULL) == SB_ERR_ARG);
     CHECK(sb_outset_cleanup(ctx, NULL) == SB_ERR_ARG);
-    sb_outset_opts_t bad = {"Bad!", 0, NULL, NULL};
+    sb_outset_opts_t bad = {.command = "Bad!"};
     CHECK(sb_outset_begin(ctx, out, &bad, &s) == SB_ERR_ARG && s == NULL);
     CHECK(sb_outset_add(NULL, "a") == SB_ERR_ARG && sb_outset_commit(NULL) == SB_ERR_ARG);
     CHECK(sb_outset_dir(NULL) == NULL && sb_outset_target(NULL) == NULL);

@@ -24,14 +24,13 @@
  *
  * Each command has its own set and manifest: a `render` into the folder of a
  * `factor` set adds its set beside it and replaces only an earlier render
- * set.  So files the project did not write are never deleted (a user's notes.txt
- * or g_05.exr stays when a 4-term set replaces a 6-term one), while every
- * file of the previous set that the new one does not write (g_05.exr of the
- * earlier 6-term set, its previews) is gone.  A file of the new set replaces
- * an entry of the same name.  A run that dies at any point (any signal,
- * SIGKILL included, a full disk, a file-size limit) leaves DIR holding either
- * the previous set or the new one; its staging folder is removed by the next
- * sb_outset_begin for DIR (or sb_outset_cleanup) once its process is gone.
+ * set; a set named in opts.supersedes (a `view` page of the `factor` set
+ * being replaced) is removed with the previous set.  So files the project did not write are never deleted (a user's
+ * notes.txt or g_05.exr stays when a 4-term set replaces a 6-term one), while every file of the previous set that the
+ * new one does not write (g_05.exr of the earlier 6-term set, its previews) is gone.  A file of the new set replaces an
+ * entry of the same name.  A run that dies at any point (any signal, SIGKILL included, a full disk, a file-size limit)
+ * leaves DIR holding either the previous set or the new one; its staging folder is removed by the next sb_outset_begin
+ * for DIR (or sb_outset_cleanup) once its process is gone.
  *
  * Limits, checked by sb_outset_check before any computation: DIR must be a
  * folder of its own, i.e. not a mount point, not the current folder or one
@@ -65,6 +64,11 @@ typedef struct sb_outset_opts {
      * that a signal handler knows it from its first moment; NULL = none. */
     void (*staging_fn)(void *user, const char *staging);
     void *staging_user;
+    /* Commands whose sets in DIR are made from this one and go stale when it
+     * is replaced (a `view` page embeds a `factor` set's textures): NULL-
+     * terminated, each as `command`; NULL = none.  Publishing removes those
+     * sets (their manifests' files and the manifests) with the previous set. */
+    const char *const *supersedes;
 } sb_outset_opts_t;
 
 /* Check, without changing anything, that a set could be published in DIR

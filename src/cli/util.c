@@ -411,7 +411,9 @@ sb_outset_t *cli_outset_begin(sb_context_t *ctx, const char *cmd, const char *di
     atomic_store(&guard_created_on, 0);
     int created = n < GUARD_PATH && stat(dir, &st) != 0 && errno == ENOENT;
     if (created) memcpy(guard_created, dir, n + 1);
-    sb_outset_opts_t so = {cmd, 0, guard_staging, &created};
+    /* a factor set replaced makes the viewer page built from it stale */
+    static const char *const factor_supersedes[] = {"view", NULL};
+    sb_outset_opts_t so = {cmd, 0, guard_staging, &created, strcmp(cmd, "factor") == 0 ? factor_supersedes : NULL};
     sb_result_t r = sb_outset_begin(ctx, dir, &so, &s);
     if (r != SB_OK) {
         atomic_store(&guard_set_on, 0);

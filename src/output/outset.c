@@ -59,6 +59,7 @@ struct sb_outset {
     int done;    /* committed or discarded */
     int published;
     names_t files;
+    names_t stale; /* manifests of the sets this one supersedes (opts.supersedes) */
 };
 
 /* ---- names ---------------------------------------------------------------- */
@@ -169,11 +170,16 @@ out:
     if (d) closedir(d);
 }
 
-static void recover_folder(const char *folder, const char *dir, const char *manifest, int trust_missing_manifest) {
+/* `stale`: manifests of other sets in the folder that go with it (NULL:
+ * none); their files count as the set's own. */
+static void recover_folder(const char *folder, const char *dir, const char *manifest, int trust_missing_manifest,
+                           const names_t *stale) {
     names_t owned = {0};
     int fd = open(folder, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
     if (fd < 0) return;
     int m = manifest_read(fd, manifest, &owned);
+    for (size_t i = 0; m >= 0 && stale && i < stale->n; i++)
+        if (manifest_read(fd, stale->v[i], &owned) < 0 || names_push(&owned, stale->v[i]) != 0) m = -1;
     close(fd);
     if (m < 0) {
         names_free(&owned);
@@ -231,7 +237,7 @@ static void cleanup_stale(const char *parent, const char *base, const char *dir)
         manifest_name(nm + 1 + nb + nt, nc, manifest);
         char *path = outset_join(parent, nm);
         if (!path) break;
-        recover_folder(path, dir, manifest, 0);
+        recover_folder(path, dir, manifest, 0, NULL);
         free(path);
     }
     closedir(d);
@@ -324,6 +330,16 @@ sb_result_t sb_outset_begin(sb_context_t *ctx, const char *dir, const sb_outset_
     s->command = cmd ? sb_strdup(cmd) : NULL;
     sb_result_t r = !s->target || (cmd && !s->command) ? sb_error(ctx, SB_ERR_NOMEM, "out of memory")
                                                        : outset_split(ctx, dir, &s->parent, &s->base);
+    for (const char *const *o = opts ? opts->supersedes : NULL; r == SB_OK && o && *o; o++) {
+        char m[64];
+        if (!**o || strlen(*o) > 16 || strspn(*o, "abcdefghijklmnopqrstuvwxyz0123456789") != strlen(*o)) {
+            r = sb_error(ctx, SB_ERR_ARG, "output set: superseded command '%s' is not 1..16 of a-z, 0-9", *o);
+            break;
+        }
+        manifest_name(*o, strlen(*o), m);
+        if (strcmp(m, s->manifest) != 0 && names_push(&s->stale, m) != 0)
+            r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
+    }
     if (r == SB_OK && !(s->dir = outset_join(s->parent, s->base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
     if (r == SB_OK) r = outset_check_paths(ctx, dir, s->parent, s->base);
     struct stat st;
@@ -426,6 +442,9 @@ static sb_result_t keep_foreign(sb_outset_t *s) {
     sb_result_t r = SB_OK;
     if (!d || sfd < 0 || manifest_read(dirfd(d), s->manifest, &old) < 0)
         r = sb_error(s->ctx, SB_ERR_IO, "%s: cannot read the folder: %s", s->target, sb_io_why(errno));
+    for (size_t i = 0; r == SB_OK && i < s->stale.n; i++) /* superseded sets go with the previous one */
+        if (manifest_read(dirfd(d), s->stale.v[i], &old) < 0 || names_push(&old, s->stale.v[i]) != 0)
+            r = sb_error(s->ctx, SB_ERR_NOMEM, "out of memory");
     struct dirent *e;
     while (r == SB_OK && (e = readdir(d)) != NULL) {
         const char *nm = e->d_name;
@@ -465,7 +484,7 @@ sb_result_t sb_outset_commit(sb_outset_t *s) {
         return r;
     }
     s->published = 1;
-    recover_folder(s->staging, s->dir, s->manifest, 1); /* the previous set, now under the staging name */
+    recover_folder(s->staging, s->dir, s->manifest, 1, &s->stale); /* the previous set, now under the staging name */
     return SB_OK;
 }
 
@@ -476,6 +495,7 @@ void sb_outset_destroy(sb_outset_t *s) {
     if (s->staging) sb_context_alias(s->ctx, NULL, NULL);
     if (s->lock_fd >= 0) close(s->lock_fd);
     names_free(&s->files);
+    names_free(&s->stale);
     free(s->target);
     free(s->dir);
     free(s->parent);
@@ -487,7 +507,7 @@ void sb_outset_destroy(sb_outset_t *s) {
 
 sb_result_t sb_outset_cleanup(sb_context_t *ctx, const char *dir) {
     if (!dir || !*dir) return sb_error(ctx, SB_ERR_ARG, "output folder: empty name");
-    sb_outset_t s = {ctx, (char *)dir, NULL, NULL, NULL, NULL, "", NULL, -1, 0, 1, 0, {0}};
+    sb_outset_t s = {ctx, (char *)dir, NULL, NULL, NULL, NULL, "", NULL, -1, 0, 1, 0, {0}, {0}};
     sb_result_t r = outset_split(ctx, dir, &s.parent, &s.base);
     struct stat st;
     if (r == SB_OK && !(s.dir = outset_join(s.parent, s.base))) r = sb_error(ctx, SB_ERR_NOMEM, "out of memory");
