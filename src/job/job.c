@@ -13,6 +13,7 @@
 #include "solve/solver.h"
 #include "util/ctx_memo.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 /* A model spec is NAME[:key=value,...] with NAME a plain identifier, so a
  * NAME with '/' or '.' can only be meant as a file.  Values may hold both
@@ -365,6 +366,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
     sb_result_t r = resolve(ctx, job, opts, &kind, &form);
     if (r == SB_OK) r = job_check_values(ctx, job);
     if (r == SB_OK) r = job_candidates(ctx, job, kind, form);
+    int cap_was = sb_thread_cap(r == SB_OK ? job_thread_cap(job) : 0);
     if (r == SB_OK) r = stream_one_form(ctx, job);
     if (r == SB_OK) r = job->budget ? job_budget_select(ctx, job) : job_select(ctx, job);
     if (r == SB_OK && !job->budget) r = job_warp_refit(ctx, job);
@@ -395,6 +397,7 @@ static sb_result_t run(sb_context_t *ctx, const sb_source_t *src, sb_source_t *o
         job->t.total_s = job_now() - job->t_start;
     }
     if (r == SB_OK && opts->out) r = sb_job_write(ctx, job, opts->out);
+    sb_thread_cap(cap_was);
     sb_blas_threads_end(blas);
     if (memo) sb_ctx_memo_close(ctx);
     if (r != SB_OK) {

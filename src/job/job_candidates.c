@@ -6,6 +6,7 @@
 #include "job_impl.h"
 #include "sample/stream.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 int sb_job_param_applies(sb_param_kind_t kind, const sb_source_t *src, const char **why) {
     unsigned flags = sb_source_flags(src);
@@ -255,4 +256,15 @@ size_t job_rank(const sb_job_t *job, size_t *order) {
 int job_ranks_by_error(const sb_job_t *job, size_t a, size_t b) {
     const sb_job_candidate_t *x = &job->cands[a], *y = &job->cands[b];
     return x->res != y->res ? x->res > y->res : x->error < y->error;
+}
+
+/* cells: every candidate fitted at R on an R^3 grid (screening at coarser
+ * grids and the table layouts' other shapes are not counted); none
+ * counted (no cap) without candidates or under a byte budget, whose
+ * ladder chooses R itself */
+int job_thread_cap(const sb_job_t *job) {
+    if (!job->src || !job->ncand || job->budget || (sb_source_flags(job->src) & SB_SOURCE_MEASURED) || job->scene)
+        return 0;
+    size_t R = job->o.res, cells = job->ncand * R * R * R;
+    return sb_small_job_threads(cells);
 }

@@ -420,6 +420,13 @@ sb_result_t job_run_as(sb_context_t *ctx, const sb_source_t *src, const sb_job_o
  * meta) gives non-negative factors by construction (SB_CAP_NONNEG). */
 int job_nonneg_method(const char *name);
 
+/* A small job on one thread (util/parallel.h: SB_SMALL_JOB_CELLS): the
+ * thread cap (sb_thread_cap) of the job's run and write, from its
+ * candidates' fits on an analytic source (a measured table's reading and
+ * interpolation are not counted in cells, nor a scene's measure); 0 (none)
+ * else. */
+int job_thread_cap(const sb_job_t *job);
+
 /* The candidates of the job (job->cands, job->ncand) and the kept one,
  * sampled and factored at the requested settings, in job->best. */
 sb_result_t job_candidates(sb_context_t *ctx, sb_job_t *job, sb_param_kind_t kind, sb_form_t form);

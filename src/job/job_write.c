@@ -12,6 +12,7 @@
 #include "sepbrdf/image.h"
 #include "sepbrdf/sampler.h"
 #include "util/internal.h"
+#include "util/parallel.h"
 
 /* rel_rms of the stored (FLOAT or HALF) textures against the matrix, for
  * every J' (sb_err_at layout); NULL when it cannot be computed (reported as
@@ -177,8 +178,9 @@ static sb_result_t write_tables(sb_context_t *ctx, const sb_param_t *p, sb_outse
  * of the 4.7 s of `factor --param io -r 256 -J 8`. */
 sb_result_t sb_job_write_set(sb_context_t *ctx, sb_job_t *job, sb_outset_t *set) {
     if (!job || !set || !job->best.f) return sb_error(ctx, SB_ERR_ARG, "sb_job_write_set: no job or no set");
-    int blas = sb_blas_threads_begin();
+    int blas = sb_blas_threads_begin(), cap = sb_thread_cap(job_thread_cap(job));
     sb_result_t r = write_set(ctx, job, set);
+    sb_thread_cap(cap);
     sb_blas_threads_end(blas);
     return r;
 }

@@ -235,12 +235,23 @@ static long cpus_online(void) {
     return n;
 }
 
+/* The cap of this thread's default count (sb_thread_cap; 0: none). */
+static _Thread_local int thread_cap;
+
+int sb_thread_cap(int cap) {
+    int was = thread_cap;
+    thread_cap = cap > 0 ? cap : 0;
+    return was;
+}
+
+int sb_small_job_threads(size_t cells) { return cells < SB_SMALL_JOB_CELLS ? 1 : 0; }
+
 int sb_thread_count(int requested) {
     if (in_job) return 1; /* the outer call has the cores */
     long n = requested;
     const char *e = getenv("SEPBRDF_THREADS");
     if (n <= 0 && e && atoi(e) > 0) n = atoi(e);
-    if (n <= 0) n = cpus_online();
+    if (n <= 0) n = thread_cap > 0 && thread_cap < cpus_online() ? thread_cap : cpus_online();
     return n > 0 ? (int)(n > SB_THREADS_MAX ? SB_THREADS_MAX : n) : 1;
 }
 

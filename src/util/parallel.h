@@ -33,4 +33,24 @@ void sb_part(size_t count, int t, int n, size_t *begin, size_t *end);
  * cells) is below `min_work`, where a thread costs more than it saves. */
 int sb_threads_for(int requested, size_t units, size_t work, size_t min_work);
 
+/* A small job on one thread.  On the 2-core VM of docs/performance.md a
+ * second thread bought `factor --param io -r 64 -J 8` 9 % of its wall
+ * time for 35 % more CPU at load 0.7 (47 short parallel calls), and
+ * nothing in wall or CPU at loads 3-5.  The job's work is counted in
+ * cells: its candidates' fits times R^3 (the distinct values of an
+ * isotropic table at resolution R, as the floor program counts them,
+ * bench/floor.c).  Below SB_SMALL_JOB_CELLS (io's two forms up to
+ * R = 101; the default's five candidates at R = 32) the job runs on one
+ * thread; above it every parallel region decides by its own work
+ * (sb_threads_for). */
+#define SB_SMALL_JOB_CELLS ((size_t)1 << 21)
+/* The cap for a job of `cells` cells: 1 below SB_SMALL_JOB_CELLS, else 0
+ * (no cap). */
+int sb_small_job_threads(size_t cells);
+/* Cap the count sb_thread_count gives this thread where neither its
+ * caller (`requested`) nor SEPBRDF_THREADS names one (0: no cap); returns
+ * the cap before, for the caller to put back.  Per thread: jobs run side
+ * by side on other threads keep theirs. */
+int sb_thread_cap(int cap);
+
 #endif
