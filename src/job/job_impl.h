@@ -170,9 +170,10 @@ struct sb_job {
      * screening's on the source's tables, the refits' rounds; plan_conv.h
      * sb_plan_set_nonneg_carry), until job_nonneg_refit; NULL: none */
     struct sb_nmf_carry *nonneg_carry;
-    char svd_method[16];  /* the method the SVD beside used ("masked", "circulant", ...) */
-    double svd_s;         /* its whole run */
-    int warp_tried;       /* no --warp given, and "auto" was tried (job_warp.c) */
+    int nonneg_same;     /* the last refit gave the refit before's factors bit for bit: not measured in full, dropped */
+    char svd_method[16]; /* the method the SVD beside used ("masked", "circulant", ...) */
+    double svd_s;        /* its whole run */
+    int warp_tried;      /* no --warp given, and "auto" was tried (job_warp.c) */
     unsigned fit_pending; /* job_fit_kept's FINISH_* flags; FINISH_PENDING: best awaits job_fit_finish */
     /* job_warp_screen: the kept candidate's layout on adaptive warps at
      * its screening resolution, its headline at J (0: not screened) and
@@ -365,6 +366,9 @@ void job_attempt_free(job_attempt_t *a);
  * (the plan's nonneg_ratio) and refined, kept where its worst ratio to
  * the SVD beside is lower (job_screen.c). */
 sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job);
+/* Tests: 0 measures and refines the last refit in full even where its
+ * factors are the refit before's (job_screen.c nonneg_refit_once). */
+extern int job_nonneg_same_check;
 /* Numbers per J' in job->svd_beside; channel c's headline of the SVD
  * beside at J' = j (NAN: none). */
 #define JOB_BESIDE_STRIDE 5

@@ -140,6 +140,31 @@ static double nonneg_last(const double *ratio, const double *rch, size_t J) {
  * round h38v, docs/positive.md). */
 #define JOB_NONNEG_REFITS 2
 
+int job_nonneg_same_check = 1;
+
+/* Whether a and b hold the same terms, bit for bit: sizes, sigmas and
+ * texels (a channel not factored: no texels in both). */
+static int factors_same(const sb_factors_t *a, const sb_factors_t *b) {
+    size_t J = sb_factors_terms(a), C = sb_factors_channels(a), w[2][2], h[2][2];
+    if (J != sb_factors_terms(b) || C != sb_factors_channels(b)) return 0;
+    for (int s = 0; s < 2; s++) {
+        sb_factors_size(a, s, &w[0][s], &h[0][s]);
+        sb_factors_size(b, s, &w[1][s], &h[1][s]);
+        if (w[0][s] != w[1][s] || h[0][s] != h[1][s]) return 0;
+    }
+    for (size_t j = 0; j < J; j++)
+        for (size_t c = 0; c < C; c++) {
+            double sa = sb_factors_sigma(a, j, c), sb = sb_factors_sigma(b, j, c);
+            if (memcmp(&sa, &sb, sizeof sa) != 0) return 0;
+            for (int s = 0; s < 2; s++) {
+                const double *ta = sb_factors_tex_const(a, s, j, c), *tb = sb_factors_tex_const(b, s, j, c);
+                if ((ta == NULL) != (tb == NULL) || (ta && memcmp(ta, tb, w[0][s] * h[0][s] * sizeof *ta) != 0))
+                    return 0;
+            }
+        }
+    return 1;
+}
+
 /* The kept fit a made again (a's matrix and layout, as job_fit_kept made
  * it) toward `rounds` rounds of the headline's ratios ratio, rch (the
  * plan's nonneg_rounds: round k's those of the fit round k - 1 gave, round
@@ -147,19 +172,44 @@ static double nonneg_last(const double *ratio, const double *rch, size_t J) {
  * rounds in the job's carry and starts from what it holds of the rounds
  * before (solve/solver.h sb_nmf_carry_t): refit k's first k - 1 rounds
  * are refit k - 1's, bit for bit (a's matrix is the kept refit's: the
- * same cells). */
+ * same cells).  With `raw`, t's factors as fitted (before the refinement)
+ * are copied there.  With `prev` (the refit before, as fitted, whose
+ * refinement left the pairs as they were), t is first measured as a
+ * ranking is (4 replicates, no growth): where its factors are prev's bit
+ * for bit, so would be its estimate and refinement (the same pairs, the
+ * same steps) and so its ratios, which did not beat the kept fit's or
+ * are the kept fit's; then *same is set, t is left unrefined and not
+ * kept (RGL paper_white: the second refit's round moved nothing).  Else
+ * job_refine measures it in full, as job_measure would have. */
 static sb_result_t nonneg_refit_once(sb_context_t *ctx, sb_job_t *job, const job_attempt_t *a, const double *ratio,
-                                     const double *rch, size_t rounds, job_attempt_t *t) {
+                                     const double *rch, size_t rounds, const sb_factors_t *prev, sb_factors_t **raw,
+                                     job_attempt_t *t, int *same) {
     job_level_t lv = job_full_level(job);
     lv.nonneg_ratio = ratio;
     lv.nonneg_ratio_channel = rch;
     lv.nonneg_rounds = rounds;
+    if (!job_nonneg_same_check) prev = NULL;
+    lv.rank_only = prev != NULL;
     *t = *a;
     t->f = NULL, t->est = NULL, t->term_w = NULL;
+    *same = 0;
     sb_result_t r = job_factor(ctx, job, &lv, a->weighted, t);
     lv.nonneg_ratio = lv.nonneg_ratio_channel = NULL;
     lv.nonneg_rounds = 0;
-    return r == SB_OK ? job_refine(ctx, job, &lv, t) : r;
+    lv.rank_only = 0;
+    if (r == SB_OK && prev && factors_same(t->f, prev)) {
+        *same = 1;
+        return SB_OK;
+    }
+    size_t pairs = job->pairs ? sb_pairs_count(job->pairs) : 0;
+    if (raw) sb_factors_destroy(*raw), *raw = NULL;
+    if (r == SB_OK && raw) r = job_factors_copy(ctx, t->f, sb_factors_terms(t->f), raw);
+    if (r == SB_OK) r = job_refine(ctx, job, &lv, t);
+    if (raw && *raw && (!job->pairs || sb_pairs_count(job->pairs) != pairs)) { /* grown: the next is measured apart */
+        sb_factors_destroy(*raw);
+        *raw = NULL;
+    }
+    return r;
 }
 
 static void nonneg_free(job_attempt_t *t) {
@@ -194,10 +244,13 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
     memcpy(rho, ratio, J * sizeof *rho);
     memcpy(rho_ch, rch, 3 * J * sizeof *rho_ch);
     sb_result_t r = SB_OK;
+    sb_factors_t *raw = NULL; /* the refit before the last, as fitted, where its refinement grew no pairs */
     for (size_t k = 1; k <= JOB_NONNEG_REFITS; k++) {
         job_attempt_t t;
-        r = nonneg_refit_once(ctx, job, a, rho, rho_ch, k, &t);
-        if (r != SB_OK) {
+        int last_one = k == JOB_NONNEG_REFITS, same = 0;
+        r = nonneg_refit_once(ctx, job, a, rho, rho_ch, k, last_one ? raw : NULL, last_one ? NULL : &raw, &t, &same);
+        job->nonneg_same = same;
+        if (r != SB_OK || same) {
             nonneg_free(&t);
             break;
         }
@@ -214,6 +267,7 @@ sb_result_t job_nonneg_refit(sb_context_t *ctx, sb_job_t *job) {
         } else
             nonneg_free(&t);
     }
+    sb_factors_destroy(raw);
     sb_nmf_carry_destroy(job->nonneg_carry); /* no fit after the refits is made twice */
     job->nonneg_carry = NULL;
     return r == SB_ERR_NUMERIC ? SB_OK : r;
