@@ -73,7 +73,8 @@ static sb_job_t *io_job(counting_t *c, sb_source_t *src, size_t R) {
 
 static int same_factors(const sb_job_t *a, const sb_job_t *b) {
     const sb_factors_t *fa = sb_job_factors(a), *fb = sb_job_factors(b);
-    if (!fa || !fb || sb_factors_terms(fa) != sb_factors_terms(fb) || sb_factors_channels(fa) != sb_factors_channels(fb))
+    if (!fa || !fb || sb_factors_terms(fa) != sb_factors_terms(fb) ||
+        sb_factors_channels(fa) != sb_factors_channels(fb))
         return 0;
     for (int s = 0; s < 2; s++) {
         size_t w, h, w2, h2;
@@ -82,7 +83,8 @@ static int same_factors(const sb_job_t *a, const sb_job_t *b) {
         if (w != w2 || h != h2) return 0;
         for (size_t j = 0; j < sb_factors_terms(fa); j++)
             for (size_t ch = 0; ch < sb_factors_channels(fa); ch++)
-                if (memcmp(sb_factors_tex_const(fa, s, j, ch), sb_factors_tex_const(fb, s, j, ch), w * h * sizeof(double)))
+                if (memcmp(sb_factors_tex_const(fa, s, j, ch), sb_factors_tex_const(fb, s, j, ch),
+                           w * h * sizeof(double)))
                     return 0;
     }
     return 1;
@@ -107,7 +109,8 @@ SB_TEST(small_job_on_the_calling_thread) {
     off = atomic_load(&c.elsewhere);
     CHECKF(off > 0, "R = 64, SEPBRDF_THREADS=2: no call off the job's thread");
     CHECK(one && two && same_factors(one, two));
-    CHECK(one && two && memcmp(sb_job_estimate(one)->rel, sb_job_estimate(two)->rel, sizeof sb_job_estimate(one)->rel) == 0);
+    CHECK(one && two &&
+          memcmp(sb_job_estimate(one)->rel, sb_job_estimate(two)->rel, sizeof sb_job_estimate(one)->rel) == 0);
     /* io -r 128: 2 x 128^3 cells, the pool's threads too */
     sb_job_t *big = io_job(&c, src, 128);
     off = atomic_load(&c.elsewhere);
